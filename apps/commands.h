@@ -1,0 +1,18 @@
+#pragma once
+// The subcommands of `lifmcr`. Each registers its options on the CLI11 app
+// and returns the callback that runs it; the exit code is the callback's.
+
+#include <functional>
+
+namespace CLI {
+class App;
+}
+
+namespace lifmcr::apps {
+
+using CommandRun = std::function<int()>;
+
+CommandRun AddInfoCommand(CLI::App& app);
+CommandRun AddViconCommand(CLI::App& app);
+
+}  // namespace lifmcr::apps

@@ -1,0 +1,35 @@
+// `lifmcr`: one executable, one subcommand per job (DESIGN.md, "Users and their jobs").
+
+#include <CLI/CLI.hpp>
+
+#include <iostream>
+#include <vector>
+
+#include "apps/commands.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "lifmcr: rigs of focused plenoptic (MLA) cameras: acquisition, replay, processing,\n"
+      "registration and evaluation of LiFMCR-layout datasets."};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "lifmcr 0.1.0");
+
+  std::vector<std::pair<CLI::App*, lifmcr::apps::CommandRun>> commands;
+  auto add = [&](const char* name, const char* description, auto adder) {
+    CLI::App* sub = app.add_subcommand(name, description);
+    commands.emplace_back(sub, adder(*sub));
+  };
+  add("info", "Print what a dataset root, scene, sequence or single file holds",
+      lifmcr::apps::AddInfoCommand);
+  add("vicon", "Print the poses of one subject of a Vicon CSV export as right-handed CSV",
+      lifmcr::apps::AddViconCommand);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  for (auto& [sub, run] : commands)
+    if (sub->parsed()) return run();
+  return 2;
+}

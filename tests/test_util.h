@@ -1,0 +1,41 @@
+#pragma once
+// Helpers shared by every test: where the real sample files are, a temporary
+// folder that cleans up after itself, and running the built `lifmcr`.
+
+#include <filesystem>
+#include <string>
+
+namespace lifmcr::test {
+
+// Path of a file in tests/data/samples (verbatim copies of ../shared/samples).
+std::filesystem::path SamplePath(const std::string& name);
+
+// Path of the built `lifmcr` executable.
+std::filesystem::path LifmcrBinary();
+
+// A fresh directory under the system temp dir, removed on destruction.
+class TempDir {
+ public:
+  TempDir();
+  ~TempDir();
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  const std::filesystem::path& path() const { return path_; }
+  std::filesystem::path operator/(const std::string& name) const { return path_ / name; }
+
+ private:
+  std::filesystem::path path_;
+};
+
+std::string ReadFile(const std::filesystem::path& path);
+void WriteFile(const std::filesystem::path& path, const std::string& content);
+
+struct CommandResult {
+  int exit_code = -1;
+  std::string out;  // stdout
+  std::string err;  // stderr
+};
+// Runs `lifmcr <args>` (args are passed to /bin/sh, quote them yourself).
+CommandResult RunLifmcr(const std::string& args);
+
+}  // namespace lifmcr::test
