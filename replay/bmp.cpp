@@ -113,16 +113,31 @@ Error TruncatedError(const std::string& file, std::size_t expected, std::size_t 
                        why + "), the file has " + std::to_string(actual));
 }
 
+// Index of the first iovec with bytes left after `done` more bytes went
+// through iov[first...]; a partly done iovec is shortened in place.
+std::size_t Advance(std::vector<iovec>& iov, std::size_t first, std::size_t done) {
+  while (first < iov.size() && (done > 0 || iov[first].iov_len == 0)) {
+    if (done >= iov[first].iov_len) {
+      done -= iov[first].iov_len;
+      ++first;
+    } else {
+      iov[first].iov_base = static_cast<std::uint8_t*>(iov[first].iov_base) + done;
+      iov[first].iov_len -= done;
+      done = 0;
+    }
+  }
+  return first;
+}
+
 // Reads exactly the bytes the iovecs describe, starting at `offset`, calling
 // preadv at most IOV_MAX iovecs at a time and resuming after short reads. The
 // iovecs are consumed (modified) on the way.
 Status PreadvFull(int fd, std::vector<iovec>& iov, off_t offset, const std::string& file) {
-  std::size_t first = 0;
-  while (first < iov.size()) {
+  for (std::size_t first = Advance(iov, 0, 0); first < iov.size();) {
     const int count = static_cast<int>(std::min<std::size_t>(kIovMax, iov.size() - first));
     const ssize_t got = ::preadv(fd, &iov[first], count, offset);
+    if (got < 0 && errno == EINTR) continue;
     if (got < 0) {
-      if (errno == EINTR) continue;
       return MakeError(file, 0, 0,
                        "read failed at byte " + std::to_string(offset) + ": " + Errno());
     }
@@ -132,46 +147,24 @@ Status PreadvFull(int fd, std::vector<iovec>& iov, off_t offset, const std::stri
                            " before the last row (the file changed after its header was read?)");
     }
     offset += got;
-    auto left = static_cast<std::size_t>(got);
-    while (left > 0 && first < iov.size()) {
-      if (left >= iov[first].iov_len) {
-        left -= iov[first].iov_len;
-        ++first;
-      } else {
-        iov[first].iov_base = static_cast<std::uint8_t*>(iov[first].iov_base) + left;
-        iov[first].iov_len -= left;
-        left = 0;
-      }
-    }
-    while (first < iov.size() && iov[first].iov_len == 0) ++first;
+    first = Advance(iov, first, static_cast<std::size_t>(got));
   }
   return Status::Ok();
 }
 
 // The write counterpart of PreadvFull.
 Status PwritevFull(int fd, std::vector<iovec>& iov, off_t offset, const std::string& file) {
-  std::size_t first = 0;
-  while (first < iov.size()) {
+  for (std::size_t first = Advance(iov, 0, 0); first < iov.size();) {
     const int count = static_cast<int>(std::min<std::size_t>(kIovMax, iov.size() - first));
     const ssize_t put = ::pwritev(fd, &iov[first], count, offset);
-    if (put < 0) {
-      if (errno == EINTR) continue;
+    if (put < 0 && errno == EINTR) continue;
+    if (put <= 0) {
       return MakeError(file, 0, 0,
-                       "write failed at byte " + std::to_string(offset) + ": " + Errno());
+                       "write failed at byte " + std::to_string(offset) + ": " +
+                           (put < 0 ? Errno() : std::string("nothing written")));
     }
     offset += put;
-    auto left = static_cast<std::size_t>(put);
-    while (left > 0 && first < iov.size()) {
-      if (left >= iov[first].iov_len) {
-        left -= iov[first].iov_len;
-        ++first;
-      } else {
-        iov[first].iov_base = static_cast<std::uint8_t*>(iov[first].iov_base) + left;
-        iov[first].iov_len -= left;
-        left = 0;
-      }
-    }
-    while (first < iov.size() && iov[first].iov_len == 0) ++first;
+    first = Advance(iov, first, static_cast<std::size_t>(put));
   }
   return Status::Ok();
 }

@@ -75,7 +75,8 @@ Expected<BmpHeader> ReadBmpHeader(const std::filesystem::path& path);
 // top-down and its padded rows have dst's stride, otherwise preadv with one
 // iovec per row (in reverse order for bottom-up files) and the row padding
 // sent to a small scratch, IOV_MAX iovecs per call. Bytes of dst between the
-// end of a row and the next row are left untouched. An error names the file;
+// end of a row and the next row are left untouched, except in the one-pread
+// case, where they receive the file's row padding. An error names the file;
 // on error dst may hold part of the frame.
 Status ReadBmpInto(const std::filesystem::path& path, const BmpHeader& header, ImageView dst);
 
