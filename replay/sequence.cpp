@@ -214,7 +214,7 @@ Expected<CameraFolder> DiscoverCameraFolder(const fs::path& dir) {
     if (i > 0 && frames[i].first == frames[i - 1].first) {
       return MakeError(dir.string(), 0, 0,
                        "frame " + std::to_string(frames[i].first) + " has two files, " +
-                           frames[i - 1].second + " and " + frames[i].second +
+                           camera.frame_files.back() + " and " + frames[i].second +
                            "; expected one file per frame");
     }
     if (i > 0) {
