@@ -1,5 +1,8 @@
-#include <CLI/CLI.hpp>
 #include "apps/commands.h"
+
+#include <CLI/CLI.hpp>
 namespace lifmcr::apps {
-CommandRun AddViconCommand(CLI::App&) { return [] { return 0; }; }
+CommandRun AddViconCommand(CLI::App&) {
+  return [] { return 0; };
 }
+}  // namespace lifmcr::apps
