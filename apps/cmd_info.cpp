@@ -15,8 +15,8 @@ CommandRun AddInfoCommand(CLI::App& app) {
     bool quick = false;
   };
   auto args = std::make_shared<Args>();
-  app.description(
-      "Print what PATH holds. PATH is a LiFMCR dataset root (scenes and Calibration/), a scene,\n"
+  app.footer(
+      "PATH is a LiFMCR dataset root (scenes and Calibration/), a scene,\n"
       "a sequence (Vicon/ and TypeE_<serial>/ folders), a camera folder, a Calibration folder,\n"
       "or one file: a raw frame (.bmp), an MLA calibration (.xml, RayCalibData 1.0), a Vicon\n"
       "CSV export (.csv), a Vicon model (.vsk) or a rig file (.yaml).\n"
