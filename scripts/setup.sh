@@ -36,10 +36,16 @@ fi
 build_dir=${LIFMCR_BUILD_DIR:-build}
 build_type=${LIFMCR_BUILD_TYPE:-Release}
 jobs=$(nproc 2>/dev/null || echo 2)
-if [[ ! -f "$build_dir/CMakeCache.txt" ]]; then
-  cmake -S . -B "$build_dir" -DCMAKE_BUILD_TYPE="$build_type" >/dev/null
-fi
+mkdir -p "$build_dir"
 log="$build_dir/build.log"
+if [[ ! -f "$build_dir/CMakeCache.txt" ]]; then
+  echo "setup.sh: configuring and building in $build_dir ($build_type); the first build takes a few minutes"
+  if ! cmake -S . -B "$build_dir" -DCMAKE_BUILD_TYPE="$build_type" >"$log" 2>&1; then
+    cat "$log" >&2
+    echo "setup.sh: configure failed" >&2
+    exit 1
+  fi
+fi
 if ! cmake --build "$build_dir" -j "$jobs" >"$log" 2>&1; then
   grep -v -E '^\[ *[0-9]+%\]' "$log" | tail -n 80 >&2
   echo "setup.sh: build failed; full log in $log" >&2
