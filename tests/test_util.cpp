@@ -1,5 +1,7 @@
 #include "tests/test_util.h"
 
+#include <gtest/gtest.h>
+
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -47,6 +49,22 @@ void WriteFile(const std::filesystem::path& path, const std::string& content) {
   std::filesystem::create_directories(path.parent_path());
   std::ofstream out(path, std::ios::binary);
   out << content;
+}
+
+std::string ReadSample(const std::string& name) { return ReadFile(SamplePath(name)); }
+
+std::string ReplaceFirst(std::string text, const std::string& from, const std::string& to) {
+  const std::size_t at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << "fixture text not found: " << from;
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  return text;
+}
+
+void ExpectMessageHas(const Error& error, const std::vector<std::string>& parts) {
+  for (const std::string& part : parts) {
+    EXPECT_NE(error.message.find(part), std::string::npos)
+        << "message: " << error.message << "\nmissing: " << part;
+  }
 }
 
 CommandResult RunLifmcr(const std::string& args) {

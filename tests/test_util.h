@@ -2,8 +2,11 @@
 // Helpers shared by every test: where the real sample files are, a temporary
 // folder that cleans up after itself, and running the built `lifmcr`.
 
+#include "config/error.h"
+
 #include <filesystem>
 #include <string>
+#include <vector>
 
 namespace lifmcr::test {
 
@@ -28,6 +31,13 @@ class TempDir {
 };
 
 std::string ReadFile(const std::filesystem::path& path);
+// The content of a file in tests/data/samples.
+std::string ReadSample(const std::string& name);
+// `text` with the first occurrence of `from` replaced by `to`; a test failure
+// when `from` is absent (the fixture no longer says what the test thinks).
+std::string ReplaceFirst(std::string text, const std::string& from, const std::string& to);
+// A test failure for every part the error message lacks.
+void ExpectMessageHas(const Error& error, const std::vector<std::string>& parts);
 void WriteFile(const std::filesystem::path& path, const std::string& content);
 
 struct CommandResult {

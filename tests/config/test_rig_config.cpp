@@ -65,13 +65,6 @@ Expected<RigConfig> Parse(const std::string& yaml) {
   return ParseRigConfig(yaml, SamplesDir(), "rig.yaml");
 }
 
-std::string Replace(std::string text, const std::string& from, const std::string& to) {
-  const std::size_t at = text.find(from);
-  EXPECT_NE(at, std::string::npos) << from;
-  if (at != std::string::npos) text.replace(at, from.size(), to);
-  return text;
-}
-
 // Parses `yaml`, expects failure, and returns the message.
 std::string ErrorOf(const std::string& yaml) {
   const Expected<RigConfig> rig = Parse(yaml);
@@ -204,18 +197,19 @@ TEST(RigConfig, OmittedKeysTakeTheStructDefaults) {
 }
 
 TEST(RigConfig, RelativePathsResolveAgainstTheRigFolder) {
-  const Expected<RigConfig> rig =
-      ParseRigConfig(Replace(Replace(kValidRig, "mla_file: raytrix_mla_R42_sc2_klein.xml",
-                                     "mla_file: ./sub/../raytrix_mla_R42_sc2_klein.xml"),
-                             "vicon:\n", "recorder: {out_dir: out/run1}\nvicon:\n"),
-                     SamplesDir(), "rig.yaml");
+  const Expected<RigConfig> rig = ParseRigConfig(
+      test::ReplaceFirst(test::ReplaceFirst(kValidRig, "mla_file: raytrix_mla_R42_sc2_klein.xml",
+                                            "mla_file: ./sub/../raytrix_mla_R42_sc2_klein.xml"),
+                         "vicon:\n", "recorder: {out_dir: out/run1}\nvicon:\n"),
+      SamplesDir(), "rig.yaml");
   ASSERT_TRUE(rig.ok()) << rig.error().message;
   EXPECT_EQ(rig->cameras[0].mla_file, test::SamplePath("raytrix_mla_R42_sc2_klein.xml"));
   EXPECT_EQ(rig->recorder.out_dir, SamplesDir() / "out" / "run1");
 }
 
 TEST(RigConfig, SerialsKeepLeadingZeros) {
-  const Expected<RigConfig> rig = Parse(Replace(kValidRig, "serial: \"111\"", "serial: 0042"));
+  const Expected<RigConfig> rig =
+      Parse(test::ReplaceFirst(kValidRig, "serial: \"111\"", "serial: 0042"));
   ASSERT_TRUE(rig.ok()) << rig.error().message;
   EXPECT_EQ(rig->cameras[0].serial, "0042");
 }
@@ -376,7 +370,7 @@ TEST(RigConfigErrors, UnknownTopLevelKey) {
 }
 
 TEST(RigConfigErrors, UnknownNestedKey) {
-  const std::string yaml = Replace(kValidRig, "exposure_us: 5000", "exposure: 5000");
+  const std::string yaml = test::ReplaceFirst(kValidRig, "exposure_us: 5000", "exposure: 5000");
   const std::string message = ErrorOf(yaml);
   EXPECT_EQ(message.rfind("rig.yaml:" + PositionOf(yaml, "exposure:") +
                               ": /cameras/0/exposure: unknown key 'exposure', expected one of: "
@@ -386,7 +380,8 @@ TEST(RigConfigErrors, UnknownNestedKey) {
       << message;
   EXPECT_NE(message.find("exposure_us"), std::string::npos) << message;
 
-  const std::string in_driver = Replace(kValidRig, "{kind: replay}", "{kind: replay, ip: 1}");
+  const std::string in_driver =
+      test::ReplaceFirst(kValidRig, "{kind: replay}", "{kind: replay, ip: 1}");
   EXPECT_EQ(ErrorOf(in_driver).rfind("rig.yaml:" + PositionOf(in_driver, "ip: 1") +
                                          ": /cameras/1/driver/ip: unknown key 'ip'",
                                      0),
@@ -395,30 +390,32 @@ TEST(RigConfigErrors, UnknownNestedKey) {
 }
 
 TEST(RigConfigErrors, WrongTypeForExposure) {
-  const std::string yaml = Replace(kValidRig, "exposure_us: 5000", "exposure_us: fast");
+  const std::string yaml = test::ReplaceFirst(kValidRig, "exposure_us: 5000", "exposure_us: fast");
   EXPECT_EQ(ErrorOf(yaml), "rig.yaml:" + PositionOf(yaml, "fast") +
                                ": /cameras/0/exposure_us: expected a finite number, got 'fast'");
-  const std::string quoted = Replace(kValidRig, "exposure_us: 5000", "exposure_us: \"5000\"");
+  const std::string quoted =
+      test::ReplaceFirst(kValidRig, "exposure_us: 5000", "exposure_us: \"5000\"");
   EXPECT_EQ(ErrorOf(quoted),
             "rig.yaml:" + PositionOf(quoted, "\"5000\"") +
                 ": /cameras/0/exposure_us: expected a finite number, got the string \"5000\"");
-  const std::string map = Replace(kValidRig, "exposure_us: 5000", "exposure_us: {a: 1}");
+  const std::string map = test::ReplaceFirst(kValidRig, "exposure_us: 5000", "exposure_us: {a: 1}");
   EXPECT_EQ(ErrorOf(map), "rig.yaml:" + PositionOf(map, "{a: 1}") +
                               ": /cameras/0/exposure_us: expected a number, got a map");
 }
 
 TEST(RigConfigErrors, OutOfRangeValues) {
-  const std::string port = Replace(kValidRig, "port: 51001", "port: 70000");
+  const std::string port = test::ReplaceFirst(kValidRig, "port: 51001", "port: 70000");
   EXPECT_EQ(ErrorOf(port), "rig.yaml:" + PositionOf(port, "70000") +
                                ": /vicon/udp/port: expected a port in 1..65535, got 70000");
-  const std::string exposure = Replace(kValidRig, "exposure_us: 5000", "exposure_us: -1");
+  const std::string exposure =
+      test::ReplaceFirst(kValidRig, "exposure_us: 5000", "exposure_us: -1");
   EXPECT_EQ(ErrorOf(exposure),
             "rig.yaml:" + PositionOf(exposure, "-1") +
                 ": /cameras/0/exposure_us: expected a number > 0 (microseconds), got -1");
 }
 
 TEST(RigConfigErrors, BadEnumListsTheAllowedValues) {
-  const std::string yaml = Replace(kValidRig, "role: reference", "role: master");
+  const std::string yaml = test::ReplaceFirst(kValidRig, "role: reference", "role: master");
   EXPECT_EQ(ErrorOf(yaml), "rig.yaml:" + PositionOf(yaml, "master") +
                                ": /cameras/0/role: expected one of reference|registered, got "
                                "'master'");
@@ -429,7 +426,8 @@ TEST(RigConfigErrors, BadEnumListsTheAllowedValues) {
 }
 
 TEST(RigConfigErrors, MissingRequiredKey) {
-  const std::string yaml = Replace(kValidRig, "serial: \"222\"\n    name: cam1", "name: cam1");
+  const std::string yaml =
+      test::ReplaceFirst(kValidRig, "serial: \"222\"\n    name: cam1", "name: cam1");
   EXPECT_EQ(ErrorOf(yaml), "rig.yaml:" + PositionOf(yaml, "name: cam1") +
                                ": /cameras/1/serial: missing required key 'serial'");
   const std::string no_cameras = "rig: {name: x}\n";
@@ -437,28 +435,29 @@ TEST(RigConfigErrors, MissingRequiredKey) {
 }
 
 TEST(RigConfigErrors, DuplicateSerials) {
-  const std::string yaml = Replace(kValidRig, "serial: \"222\"", "serial: \"111\"");
+  const std::string yaml = test::ReplaceFirst(kValidRig, "serial: \"222\"", "serial: \"111\"");
   EXPECT_EQ(ErrorOf(yaml), "rig.yaml:" + PositionOf(yaml, "\"111\"\n    name: cam1") +
                                ": /cameras/1/serial: serial '111' is already used by /cameras/0");
-  const std::string names = Replace(kValidRig, "name: cam1", "name: cam0");
+  const std::string names = test::ReplaceFirst(kValidRig, "name: cam1", "name: cam0");
   EXPECT_EQ(ErrorOf(names), "rig.yaml:" + PositionOf(names, "cam0\n    role: registered") +
                                 ": /cameras/1/name: name 'cam0' is already used by /cameras/0");
 }
 
 TEST(RigConfigErrors, ExactlyOneReference) {
-  const std::string two = Replace(kValidRig, "role: registered", "role: reference");
+  const std::string two = test::ReplaceFirst(kValidRig, "role: registered", "role: reference");
   EXPECT_EQ(ErrorOf(two),
             "rig.yaml:" + PositionOf(two, "reference\n    driver: {kind: replay}") +
                 ": /cameras/1/role: expected exactly one camera with role reference, found a "
                 "second one (the first is /cameras/0)");
-  const std::string none = Replace(kValidRig, "role: reference", "role: registered");
+  const std::string none = test::ReplaceFirst(kValidRig, "role: reference", "role: registered");
   EXPECT_EQ(ErrorOf(none), "rig.yaml:" + PositionOf(none, "- serial") +
                                ": /cameras: expected exactly one camera with role reference, "
                                "found none");
 }
 
 TEST(RigConfigErrors, MissingMlaFile) {
-  const std::string yaml = Replace(kValidRig, "raytrix_mla_R29_Cards2_Processed.xml", "nope.xml");
+  const std::string yaml =
+      test::ReplaceFirst(kValidRig, "raytrix_mla_R29_Cards2_Processed.xml", "nope.xml");
   EXPECT_EQ(ErrorOf(yaml), "rig.yaml:" + PositionOf(yaml, "nope.xml") +
                                ": /cameras/1/mla_file: expected an existing MLA calibration file, "
                                "not found: " +
@@ -466,8 +465,8 @@ TEST(RigConfigErrors, MissingMlaFile) {
 }
 
 TEST(RigConfigErrors, MalformedYamlNamesTheLine) {
-  const std::string yaml =
-      Replace(kValidRig, "{address: 127.0.0.1, port: 51001}", "[address: 127.0.0.1, port: 51001");
+  const std::string yaml = test::ReplaceFirst(kValidRig, "{address: 127.0.0.1, port: 51001}",
+                                              "[address: 127.0.0.1, port: 51001");
   const std::string message = ErrorOf(yaml);
   EXPECT_EQ(message.rfind("rig.yaml:", 0), 0u) << message;
   EXPECT_NE(message.find("malformed YAML"), std::string::npos) << message;
@@ -476,26 +475,27 @@ TEST(RigConfigErrors, MalformedYamlNamesTheLine) {
 }
 
 TEST(RigConfigErrors, DuplicateKey) {
-  const std::string yaml =
-      Replace(kValidRig, "exposure_us: 5000", "exposure_us: 5000\n    exposure_us: 6000");
+  const std::string yaml = test::ReplaceFirst(kValidRig, "exposure_us: 5000",
+                                              "exposure_us: 5000\n    exposure_us: 6000");
   EXPECT_EQ(ErrorOf(yaml), "rig.yaml:" + PositionOf(yaml, "exposure_us: 6000") +
                                ": /cameras/0/exposure_us: duplicate key 'exposure_us' (first "
                                "given at line 9)");
 }
 
 TEST(RigConfigErrors, DriverFieldsMustMatchTheKind) {
-  const std::string gentl = Replace(kValidRig, "{kind: replay}", "{kind: gentl}");
+  const std::string gentl = test::ReplaceFirst(kValidRig, "{kind: replay}", "{kind: gentl}");
   EXPECT_EQ(ErrorOf(gentl), "rig.yaml:" + PositionOf(gentl, "{kind: gentl}") +
                                 ": /cameras/1/driver/cti: expected the path of the GenTL producer "
                                 "(.cti) for kind gentl");
-  const std::string cti = Replace(kValidRig, "{kind: replay}", "{kind: replay, cti: a.cti}");
+  const std::string cti =
+      test::ReplaceFirst(kValidRig, "{kind: replay}", "{kind: replay, cti: a.cti}");
   EXPECT_EQ(ErrorOf(cti), "rig.yaml:" + PositionOf(cti, "a.cti") +
                               ": /cameras/1/driver/cti: only the gentl driver takes a cti, kind is "
                               "replay");
 }
 
 TEST(RigConfigErrors, EmptyAndNullValues) {
-  const std::string null_value = Replace(kValidRig, "exposure_us: 5000", "exposure_us:");
+  const std::string null_value = test::ReplaceFirst(kValidRig, "exposure_us: 5000", "exposure_us:");
   const std::string message = ErrorOf(null_value);
   EXPECT_EQ(message.rfind("rig.yaml:" + PositionOf(null_value, "exposure_us:") +
                               ": /cameras/0/exposure_us: expected a number, got nothing (null)",

@@ -72,20 +72,13 @@ std::filesystem::path WriteBytes(const test::TempDir& dir, const std::string& na
   return path;
 }
 
-void ExpectMessageHas(const Error& error, std::initializer_list<std::string> parts) {
-  for (const std::string& part : parts) {
-    EXPECT_NE(error.message.find(part), std::string::npos)
-        << "message: " << error.message << "\nmissing: " << part;
-  }
-}
-
 // Header parsing of bytes that are a bad file; the error must name the file.
 Error HeaderError(const test::TempDir& dir, const std::string& bytes) {
   const auto path = WriteBytes(dir, "bad.bmp", bytes);
   Expected<BmpHeader> header = ReadBmpHeader(path);
   EXPECT_FALSE(header.ok());
   if (header.ok()) return Error{""};
-  ExpectMessageHas(header.error(), {path.string()});
+  test::ExpectMessageHas(header.error(), {path.string()});
   return header.error();
 }
 
@@ -304,7 +297,7 @@ TEST(Bmp, RejectsATruncatedFileNamingBothByteCounts) {
   bytes.pixels.assign(8 * 3 + 3, 0);  // 4 rows of 8 bytes expected, 27 present
   bytes.declared_size = 0;            // a 0 size field is allowed; the rows decide
   const Error error = HeaderError(dir, bytes.Build());
-  ExpectMessageHas(error, {"truncated", "expected at least 1110 bytes", "the file has 1105"});
+  test::ExpectMessageHas(error, {"truncated", "expected at least 1110 bytes", "the file has 1105"});
 }
 
 TEST(Bmp, RejectsAFileSizeFieldLargerThanTheFile) {
@@ -315,7 +308,8 @@ TEST(Bmp, RejectsAFileSizeFieldLargerThanTheFile) {
   bytes.pixels = {1, 2, 3, 4};
   bytes.declared_size = 5000;
   const Error error = HeaderError(dir, bytes.Build());
-  ExpectMessageHas(error, {"byte 2 (file size)", "says the file has 5000 bytes, it has 1082"});
+  test::ExpectMessageHas(error,
+                         {"byte 2 (file size)", "says the file has 5000 bytes, it has 1082"});
 }
 
 TEST(Bmp, RejectsADibHeaderLargerThanTheFile) {
@@ -324,14 +318,14 @@ TEST(Bmp, RejectsADibHeaderLargerThanTheFile) {
   bytes.dib_bytes = 124;
   std::string built = bytes.Build().substr(0, 14 + 60);
   const Error error = HeaderError(dir, built);
-  ExpectMessageHas(error, {"truncated", "expected at least 138 bytes", "124-byte DIB header",
-                           "the file has 74"});
+  test::ExpectMessageHas(error, {"truncated", "expected at least 138 bytes", "124-byte DIB header",
+                                 "the file has 74"});
 }
 
 TEST(Bmp, RejectsTinyAndEmptyFiles) {
   test::TempDir dir;
-  ExpectMessageHas(HeaderError(dir, ""), {"truncated", "the file has 0"});
-  ExpectMessageHas(HeaderError(dir, "BM\x10"), {"truncated", "the file has 3"});
+  test::ExpectMessageHas(HeaderError(dir, ""), {"truncated", "the file has 0"});
+  test::ExpectMessageHas(HeaderError(dir, "BM\x10"), {"truncated", "the file has 3"});
 }
 
 TEST(Bmp, RejectsWrongMagic) {
@@ -339,8 +333,8 @@ TEST(Bmp, RejectsWrongMagic) {
   BmpBytes bytes;
   bytes.magic = "PK";
   bytes.pixels = {0, 0, 0, 0};
-  ExpectMessageHas(HeaderError(dir, bytes.Build()),
-                   {"byte 0 (magic)", "expected 'BM', got 0x50 0x4B"});
+  test::ExpectMessageHas(HeaderError(dir, bytes.Build()),
+                         {"byte 0 (magic)", "expected 'BM', got 0x50 0x4B"});
 }
 
 TEST(Bmp, RejectsCompression) {
@@ -348,8 +342,8 @@ TEST(Bmp, RejectsCompression) {
   BmpBytes bytes;
   bytes.compression = 1;
   bytes.pixels = {0, 0, 0, 0};
-  ExpectMessageHas(HeaderError(dir, bytes.Build()),
-                   {"byte 30 (compression)", "BI_RLE8", "expected 0 (BI_RGB"});
+  test::ExpectMessageHas(HeaderError(dir, bytes.Build()),
+                         {"byte 30 (compression)", "BI_RLE8", "expected 0 (BI_RGB"});
 }
 
 TEST(Bmp, RejectsUnsupportedBitDepths) {
@@ -358,9 +352,9 @@ TEST(Bmp, RejectsUnsupportedBitDepths) {
     BmpBytes bytes;
     bytes.bits = static_cast<std::uint16_t>(bits);
     bytes.pixels = {0, 0, 0, 0};
-    ExpectMessageHas(HeaderError(dir, bytes.Build()),
-                     {"byte 28 (bits per pixel)", std::to_string(bits) + "-bit",
-                      "expected 8 (grey) or 24 (BGR)"});
+    test::ExpectMessageHas(HeaderError(dir, bytes.Build()),
+                           {"byte 28 (bits per pixel)", std::to_string(bits) + "-bit",
+                            "expected 8 (grey) or 24 (BGR)"});
   }
 }
 
@@ -368,47 +362,47 @@ TEST(Bmp, RejectsZeroWidthAndHeight) {
   test::TempDir dir;
   BmpBytes zero_width;
   zero_width.width = 0;
-  ExpectMessageHas(HeaderError(dir, zero_width.Build()),
-                   {"byte 18 (width)", "got 0, expected > 0"});
+  test::ExpectMessageHas(HeaderError(dir, zero_width.Build()),
+                         {"byte 18 (width)", "got 0, expected > 0"});
   BmpBytes negative_width;
   negative_width.width = -3;
-  ExpectMessageHas(HeaderError(dir, negative_width.Build()), {"got -3, expected > 0"});
+  test::ExpectMessageHas(HeaderError(dir, negative_width.Build()), {"got -3, expected > 0"});
   BmpBytes zero_height;
   zero_height.height = 0;
-  ExpectMessageHas(HeaderError(dir, zero_height.Build()), {"byte 22 (height)", "got 0"});
+  test::ExpectMessageHas(HeaderError(dir, zero_height.Build()), {"byte 22 (height)", "got 0"});
 }
 
 TEST(Bmp, RejectsOtherHeaderFaults) {
   test::TempDir dir;
   BmpBytes os2;
   os2.dib_bytes = 12;
-  ExpectMessageHas(HeaderError(dir, os2.Build()), {"byte 14 (DIB header size)", "OS/2"});
+  test::ExpectMessageHas(HeaderError(dir, os2.Build()), {"byte 14 (DIB header size)", "OS/2"});
   BmpBytes odd;
   odd.dib_bytes = 77;
-  ExpectMessageHas(HeaderError(dir, odd.Build()), {"got 77, expected 40"});
+  test::ExpectMessageHas(HeaderError(dir, odd.Build()), {"got 77, expected 40"});
   BmpBytes planes;
   planes.planes = 2;
   planes.pixels = {0, 0, 0, 0};
-  ExpectMessageHas(HeaderError(dir, planes.Build()), {"byte 26 (planes)", "expected 1"});
+  test::ExpectMessageHas(HeaderError(dir, planes.Build()), {"byte 26 (planes)", "expected 1"});
   BmpBytes inside;
   inside.pixel_offset = 100;  // inside the 256-entry palette
   inside.pixels = {0, 0, 0, 0};
-  ExpectMessageHas(HeaderError(dir, inside.Build()),
-                   {"byte 10 (pixel offset)", "got 100", "expected >= 1078"});
+  test::ExpectMessageHas(HeaderError(dir, inside.Build()),
+                         {"byte 10 (pixel offset)", "got 100", "expected >= 1078"});
   BmpBytes too_many_colours;
   too_many_colours.colours_used = 300;
-  ExpectMessageHas(HeaderError(dir, too_many_colours.Build()),
-                   {"byte 46 (colours used)", "at most 256"});
+  test::ExpectMessageHas(HeaderError(dir, too_many_colours.Build()),
+                         {"byte 46 (colours used)", "at most 256"});
 }
 
 TEST(Bmp, MissingFileAndFolderAreErrors) {
   test::TempDir dir;
   Expected<BmpHeader> missing = ReadBmpHeader(dir / "nope.bmp");
   ASSERT_FALSE(missing.ok());
-  ExpectMessageHas(missing.error(), {(dir / "nope.bmp").string(), "cannot open"});
+  test::ExpectMessageHas(missing.error(), {(dir / "nope.bmp").string(), "cannot open"});
   Expected<BmpHeader> folder = ReadBmpHeader(dir.path());
   ASSERT_FALSE(folder.ok());
-  ExpectMessageHas(folder.error(), {dir.path().string()});
+  test::ExpectMessageHas(folder.error(), {dir.path().string()});
 }
 
 TEST(Bmp, RejectsABufferOfTheWrongSizeOrFormat) {
@@ -422,19 +416,19 @@ TEST(Bmp, RejectsABufferOfTheWrongSizeOrFormat) {
   std::vector<std::uint8_t> buffer(256);
   const Status small = ReadBmpInto(path, *header, {buffer.data(), 4, 4, 4, PixelFormat::kMono8});
   ASSERT_FALSE(small.ok());
-  ExpectMessageHas(small.error(), {path.string(), "frame is 5x4 Mono8, buffer is 4x4 Mono8"});
+  test::ExpectMessageHas(small.error(), {path.string(), "frame is 5x4 Mono8, buffer is 4x4 Mono8"});
 
   const Status colour = ReadBmpInto(path, *header, {buffer.data(), 5, 4, 15, PixelFormat::kBgr8});
   ASSERT_FALSE(colour.ok());
-  ExpectMessageHas(colour.error(), {"frame is 5x4 Mono8, buffer is 5x4 BGR8"});
+  test::ExpectMessageHas(colour.error(), {"frame is 5x4 Mono8, buffer is 5x4 BGR8"});
 
   const Status stride = ReadBmpInto(path, *header, {buffer.data(), 5, 4, 3, PixelFormat::kMono8});
   ASSERT_FALSE(stride.ok());
-  ExpectMessageHas(stride.error(), {path.string(), "at least 5 bytes, its stride is 3"});
+  test::ExpectMessageHas(stride.error(), {path.string(), "at least 5 bytes, its stride is 3"});
 
   const Status null = ReadBmpInto(path, *header, {nullptr, 5, 4, 5, PixelFormat::kMono8});
   ASSERT_FALSE(null.ok());
-  ExpectMessageHas(null.error(), {"no memory"});
+  test::ExpectMessageHas(null.error(), {"no memory"});
 }
 
 TEST(Bmp, FileTruncatedAfterItsHeaderWasRead) {
@@ -447,9 +441,9 @@ TEST(Bmp, FileTruncatedAfterItsHeaderWasRead) {
   std::filesystem::resize_file(path, header->file_size - 10);
   const Status read = ReadBmpInto(path, *header, image.View());
   ASSERT_FALSE(read.ok());
-  ExpectMessageHas(read.error(), {path.string(), "truncated",
-                                  "expected at least " + std::to_string(header->file_size),
-                                  "the file has " + std::to_string(header->file_size - 10)});
+  test::ExpectMessageHas(read.error(), {path.string(), "truncated",
+                                        "expected at least " + std::to_string(header->file_size),
+                                        "the file has " + std::to_string(header->file_size - 10)});
 }
 
 TEST(Bmp, WriteErrorsNameThePath) {
@@ -458,18 +452,18 @@ TEST(Bmp, WriteErrorsNameThePath) {
   const auto no_folder = dir / "no" / "such" / "folder.bmp";
   const Status missing = WriteBmp(no_folder, image.View());
   ASSERT_FALSE(missing.ok());
-  ExpectMessageHas(missing.error(), {no_folder.string(), "cannot create"});
+  test::ExpectMessageHas(missing.error(), {no_folder.string(), "cannot create"});
 
   const Status empty =
       WriteBmp(dir / "e.bmp", ConstImageView(image.pixels.data(), 0, 3, 3, PixelFormat::kMono8));
   ASSERT_FALSE(empty.ok());
-  ExpectMessageHas(empty.error(), {"e.bmp", "expected width and height > 0"});
+  test::ExpectMessageHas(empty.error(), {"e.bmp", "expected width and height > 0"});
   EXPECT_FALSE(std::filesystem::exists(dir / "e.bmp"));
 
   const Status narrow =
       WriteBmp(dir / "n.bmp", ConstImageView(image.pixels.data(), 3, 3, 2, PixelFormat::kMono8));
   ASSERT_FALSE(narrow.ok());
-  ExpectMessageHas(narrow.error(), {"stride >= 3"});
+  test::ExpectMessageHas(narrow.error(), {"stride >= 3"});
 }
 
 TEST(Bmp, RandomlyCorruptedHeadersAreRejectedOrConsistent) {
@@ -522,7 +516,7 @@ TEST(Bmp, ParseBmpHeaderWorksOnBytesWithoutAFile) {
   EXPECT_EQ(header->Describe(), "2x1 BGR8 top-down, rows of 8 bytes at offset 54");
   Expected<BmpHeader> short_file = ParseBmpHeader(data, data.size() - 1, "memory");
   ASSERT_FALSE(short_file.ok());
-  ExpectMessageHas(short_file.error(), {"memory: ", "truncated"});
+  test::ExpectMessageHas(short_file.error(), {"memory: ", "truncated"});
 }
 
 }  // namespace

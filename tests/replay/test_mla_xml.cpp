@@ -17,24 +17,11 @@ constexpr char kR42[] = "raytrix_mla_R42_sc2_klein.xml";
 constexpr char kR29[] = "raytrix_mla_R29_Cards2_Processed.xml";
 constexpr char kFrog[] = "raytrix_mla_frog1_tree_Calibration_rot90.xml";
 
-std::string Sample(const char* name) { return test::ReadFile(test::SamplePath(name)); }
-
-// `text` with the first occurrence of `from` replaced; fails the test when absent.
-std::string Replace(std::string text, const std::string& from, const std::string& to) {
-  const size_t at = text.find(from);
-  EXPECT_NE(at, std::string::npos) << "fixture text not found: " << from;
-  if (at != std::string::npos) text.replace(at, from.size(), to);
-  return text;
-}
-
 // Parses `text` as "bad.xml", expects failure and every fragment in the message.
 void ExpectError(const std::string& text, const std::vector<std::string>& fragments) {
   const Expected<MlaCalibration> result = ParseMlaXml(text, "bad.xml");
   ASSERT_FALSE(result.ok()) << "expected an error containing " << fragments.front();
-  for (const std::string& fragment : fragments) {
-    EXPECT_NE(result.error().message.find(fragment), std::string::npos)
-        << "message: " << result.error().message << "\nmissing: " << fragment;
-  }
+  test::ExpectMessageHas(result.error(), fragments);
 }
 
 // ------------------------------------------------------------ real samples
@@ -71,7 +58,7 @@ TEST(MlaXml, ReadsR42) {
 }
 
 TEST(MlaXml, ReadsR29WithBrownDistortionTabsLfAndDeclaration) {
-  const std::string text = Sample(kR29);
+  const std::string text = test::ReadSample(kR29);
   ASSERT_EQ(text.rfind("<?xml", 0), 0u);
   ASSERT_EQ(text.find('\r'), std::string::npos);
   ASSERT_NE(text.find('\t'), std::string::npos);
@@ -127,7 +114,7 @@ TEST(MlaXml, ReadsFrogRotatedNinetyDegreesWithTransposedBases) {
 
 TEST(MlaXml, FormatReproducesRxLiveFilesByteForByte) {
   for (const char* name : {kR42, kFrog}) {
-    const std::string text = Sample(name);
+    const std::string text = test::ReadSample(name);
     const Expected<MlaCalibration> mla = ParseMlaXml(text, name);
     ASSERT_TRUE(mla.ok()) << mla.error().message;
     EXPECT_EQ(FormatMlaXml(*mla), text) << name;
@@ -141,7 +128,7 @@ TEST(MlaXml, MissingFileNamesThePath) {
 }
 
 TEST(MlaXml, MissingDistortionMeansConstant) {
-  std::string text = Sample(kR42);
+  std::string text = test::ReadSample(kR42);
   const size_t begin = text.find("  <distortion");
   const size_t end = text.find("</distortion>\r\n") + std::string("</distortion>\r\n").size();
   text.erase(begin, end - begin);
@@ -152,10 +139,10 @@ TEST(MlaXml, MissingDistortionMeansConstant) {
 }
 
 TEST(MlaXml, LensTypesInAnyOrderAreStoredAtTheirId) {
-  std::string text = Sample(kR42);
-  text = Replace(text, "<lens_type id=\"0\">", "<lens_type id=\"X\">");
-  text = Replace(text, "<lens_type id=\"2\">", "<lens_type id=\"0\">");
-  text = Replace(text, "<lens_type id=\"X\">", "<lens_type id=\"2\">");
+  std::string text = test::ReadSample(kR42);
+  text = test::ReplaceFirst(text, "<lens_type id=\"0\">", "<lens_type id=\"X\">");
+  text = test::ReplaceFirst(text, "<lens_type id=\"2\">", "<lens_type id=\"0\">");
+  text = test::ReplaceFirst(text, "<lens_type id=\"X\">", "<lens_type id=\"2\">");
   const Expected<MlaCalibration> mla = ParseMlaXml(text, "swapped.xml");
   ASSERT_TRUE(mla.ok()) << mla.error().message;
   EXPECT_EQ(mla->lens_types[0].offset_lens, Eigen::Vector2d(-1.0, 0.0));
@@ -297,7 +284,7 @@ TEST(MlaXml, WriterRefusesAnInvalidCalibration) {
 // ------------------------------------------------------------ bad input
 
 TEST(MlaXmlBadInput, TruncatedFileNamesFileAndLine) {
-  const std::string text = Sample(kR42);
+  const std::string text = test::ReadSample(kR42);
   ExpectError(text.substr(0, text.size() / 2), {"bad.xml:", "malformed XML"});
   const Expected<MlaCalibration> half = ParseMlaXml(text.substr(0, text.size() / 2), "bad.xml");
   ASSERT_FALSE(half.ok());
@@ -311,53 +298,60 @@ TEST(MlaXmlBadInput, TruncatedFileNamesFileAndLine) {
 }
 
 TEST(MlaXmlBadInput, WrongRootSuggestsConversion) {
-  std::string text = Sample(kR42);
-  text = Replace(text, "<RayCalibData version=\"1.0\">", "<MlaCalibration version=\"2.0\">");
-  text = Replace(text, "</RayCalibData>", "</MlaCalibration>");
+  std::string text = test::ReadSample(kR42);
+  text = test::ReplaceFirst(text, "<RayCalibData version=\"1.0\">",
+                            "<MlaCalibration version=\"2.0\">");
+  text = test::ReplaceFirst(text, "</RayCalibData>", "</MlaCalibration>");
   ExpectError(text, {"bad.xml:1:", "root element is <MlaCalibration>",
                      "RayCalibData version=\"1.0\"", "newer RxLive export", "convert"});
-  ExpectError(Replace(Sample(kR42), "version=\"1.0\"", "version=\"2.0\""),
+  ExpectError(test::ReplaceFirst(test::ReadSample(kR42), "version=\"1.0\"", "version=\"2.0\""),
               {"bad.xml:1:", "/RayCalibData", "version is \"2.0\"", "RayCalibData 1.0"});
 }
 
 TEST(MlaXmlBadInput, MissingYOfLensBaseY) {
-  ExpectError(Replace(Sample(kR42), "    <y>-0.866025388241</y>\r\n", ""),
+  ExpectError(test::ReplaceFirst(test::ReadSample(kR42), "    <y>-0.866025388241</y>\r\n", ""),
               {"bad.xml:14:", "missing element /RayCalibData/lens_base_y/y"});
 }
 
 TEST(MlaXmlBadInput, MissingElementAndDuplicateElement) {
-  ExpectError(Replace(Sample(kR42), "  <tcp units=\"virtual_depth\">2.180962562561</tcp>\r\n", ""),
+  ExpectError(test::ReplaceFirst(test::ReadSample(kR42),
+                                 "  <tcp units=\"virtual_depth\">2.180962562561</tcp>\r\n", ""),
               {"bad.xml:1:", "missing element /RayCalibData/tcp"});
-  ExpectError(Replace(Sample(kR42), "<tcp units=\"virtual_depth\">2.180962562561</tcp>\r\n",
-                      "<tcp units=\"virtual_depth\">2.18</tcp>\r\n<tcp units=\"virtual_depth\">2."
-                      "19</tcp>\r\n"),
+  ExpectError(test::ReplaceFirst(
+                  test::ReadSample(kR42), "<tcp units=\"virtual_depth\">2.180962562561</tcp>\r\n",
+                  "<tcp units=\"virtual_depth\">2.18</tcp>\r\n<tcp units=\"virtual_depth\">2."
+                  "19</tcp>\r\n"),
               {"bad.xml:10:", "duplicate element <tcp> (first at line 9)"});
 }
 
 TEST(MlaXmlBadInput, WrongOrMissingUnits) {
-  ExpectError(Replace(Sample(kR42), "<diameter units=\"pix\">", "<diameter units=\"mm\">"),
+  ExpectError(test::ReplaceFirst(test::ReadSample(kR42), "<diameter units=\"pix\">",
+                                 "<diameter units=\"mm\">"),
               {"bad.xml:6:", "element /RayCalibData/diameter has units 'mm', expected 'pix'"});
-  ExpectError(Replace(Sample(kR42), "<lens_base_x units=\"lens\">", "<lens_base_x>"),
-              {"bad.xml:10:", "/RayCalibData/lens_base_x has no units attribute",
-               "expected units=\"lens\""});
   ExpectError(
-      Replace(Sample(kR42), "<depth_range units=\"virtual_depth\">", "<depth_range units=\"pix\">"),
-      {"bad.xml:35:", "/RayCalibData/lens_type[@id='0']/depth_range has units 'pix'"});
+      test::ReplaceFirst(test::ReadSample(kR42), "<lens_base_x units=\"lens\">", "<lens_base_x>"),
+      {"bad.xml:10:", "/RayCalibData/lens_base_x has no units attribute",
+       "expected units=\"lens\""});
+  ExpectError(test::ReplaceFirst(test::ReadSample(kR42), "<depth_range units=\"virtual_depth\">",
+                                 "<depth_range units=\"pix\">"),
+              {"bad.xml:35:", "/RayCalibData/lens_type[@id='0']/depth_range has units 'pix'"});
 }
 
 TEST(MlaXmlBadInput, NonNumericValue) {
-  ExpectError(Replace(Sample(kR42), "2.180962562561", "2.18abc"),
+  ExpectError(test::ReplaceFirst(test::ReadSample(kR42), "2.180962562561", "2.18abc"),
               {"bad.xml:9:", "/RayCalibData/tcp", "expected a number, got '2.18abc'"});
-  ExpectError(Replace(Sample(kR42), "<x>17.759811322506</x>", "<x>17,759811322506</x>"),
+  ExpectError(test::ReplaceFirst(test::ReadSample(kR42), "<x>17.759811322506</x>",
+                                 "<x>17,759811322506</x>"),
               {"bad.xml:3:", "/RayCalibData/offset/x", "expected a number"});
-  ExpectError(Replace(Sample(kR42), "<x>17.759811322506</x>", "<x></x>"),
+  ExpectError(test::ReplaceFirst(test::ReadSample(kR42), "<x>17.759811322506</x>", "<x></x>"),
               {"bad.xml:3:", "/RayCalibData/offset/x", "expected a number, got ''"});
-  ExpectError(Replace(Sample(kR42), "<max>100.000000000000</max>", "<max>inf</max>"),
-              {"bad.xml:57:", "/RayCalibData/lens_type[@id='2']/depth_range/max"});
+  ExpectError(
+      test::ReplaceFirst(test::ReadSample(kR42), "<max>100.000000000000</max>", "<max>inf</max>"),
+      {"bad.xml:57:", "/RayCalibData/lens_type[@id='2']/depth_range/max"});
 }
 
 TEST(MlaXmlBadInput, TwoLensTypes) {
-  std::string text = Sample(kR42);
+  std::string text = test::ReadSample(kR42);
   const size_t begin = text.find("  <lens_type id=\"2\">");
   const size_t end = text.find("</lens_type>", begin) + std::string("</lens_type>\r\n").size();
   text.erase(begin, end - begin);
@@ -366,55 +360,63 @@ TEST(MlaXmlBadInput, TwoLensTypes) {
 }
 
 TEST(MlaXmlBadInput, DuplicateOrOutOfRangeLensTypeId) {
-  ExpectError(Replace(Sample(kR42), "<lens_type id=\"2\">", "<lens_type id=\"1\">"),
-              {"bad.xml:50:", "duplicate lens_type id 1 (first at line 40)"});
-  ExpectError(Replace(Replace(Sample(kR42), "<lens_type id=\"1\">", "<lens_type id=\"01\">"),
-                      "<min>2.799999952316</min>", "<min>5</min>"),
+  ExpectError(
+      test::ReplaceFirst(test::ReadSample(kR42), "<lens_type id=\"2\">", "<lens_type id=\"1\">"),
+      {"bad.xml:50:", "duplicate lens_type id 1 (first at line 40)"});
+  ExpectError(test::ReplaceFirst(test::ReplaceFirst(test::ReadSample(kR42), "<lens_type id=\"1\">",
+                                                    "<lens_type id=\"01\">"),
+                                 "<min>2.799999952316</min>", "<min>5</min>"),
               {"bad.xml:", "/RayCalibData/lens_type[@id='1']/depth_range", "min <= max"});
-  ExpectError(Replace(Sample(kR42), "<lens_type id=\"2\">", "<lens_type id=\"3\">"),
-              {"bad.xml:50:", "expected lens_type id 0, 1 or 2, got \"3\""});
+  ExpectError(
+      test::ReplaceFirst(test::ReadSample(kR42), "<lens_type id=\"2\">", "<lens_type id=\"3\">"),
+      {"bad.xml:50:", "expected lens_type id 0, 1 or 2, got \"3\""});
 }
 
 TEST(MlaXmlBadInput, ParameterCountMismatch) {
-  ExpectError(Replace(Sample(kR29), "count=\"2\"", "count=\"3\""),
+  ExpectError(test::ReplaceFirst(test::ReadSample(kR29), "count=\"2\"", "count=\"3\""),
               {"bad.xml:25:", "/RayCalibData/distortion/parameter",
                "count=\"3\" but the text holds 2 values"});
-  ExpectError(Replace(Sample(kR42), "<parameter count=\"0\">0</parameter>",
-                      "<parameter count=\"0\">0.5;1</parameter>"),
+  ExpectError(test::ReplaceFirst(test::ReadSample(kR42), "<parameter count=\"0\">0</parameter>",
+                                 "<parameter count=\"0\">0.5;1</parameter>"),
               {"bad.xml:24:", "/RayCalibData/distortion/parameter", "count=\"0\""});
-  ExpectError(Replace(Sample(kR29), "-0.00145956683518;", "-0.00145956683518;;"),
-              {"bad.xml:25:", "value 2 is not a number"});
   ExpectError(
-      Replace(Sample(kR42), "<function>constant</function>", "<function>Zernike</function>"),
-      {"bad.xml:23:", "/RayCalibData/distortion/function", "'constant' or 'Brown'"});
+      test::ReplaceFirst(test::ReadSample(kR29), "-0.00145956683518;", "-0.00145956683518;;"),
+      {"bad.xml:25:", "value 2 is not a number"});
+  ExpectError(test::ReplaceFirst(test::ReadSample(kR42), "<function>constant</function>",
+                                 "<function>Zernike</function>"),
+              {"bad.xml:23:", "/RayCalibData/distortion/function", "'constant' or 'Brown'"});
 }
 
 TEST(MlaXmlBadInput, BasisGeometry) {
-  ExpectError(Replace(Sample(kR42),
-                      "<x>1.000000000000</x>\r\n    <y>0.000000000000</y>\r\n  </lens_base_x>",
-                      "<x>1.100000000000</x>\r\n    <y>0.000000000000</y>\r\n  </lens_base_x>"),
-              {"bad.xml:10:", "/RayCalibData/lens_base_x", "expected a unit vector", "1.1"});
+  ExpectError(
+      test::ReplaceFirst(test::ReadSample(kR42),
+                         "<x>1.000000000000</x>\r\n    <y>0.000000000000</y>\r\n  </lens_base_x>",
+                         "<x>1.100000000000</x>\r\n    <y>0.000000000000</y>\r\n  </lens_base_x>"),
+      {"bad.xml:10:", "/RayCalibData/lens_base_x", "expected a unit vector", "1.1"});
   // A unit lens_base_y 30 degrees from lens_base_x: not a hexagonal grid.
-  ExpectError(Replace(Replace(Sample(kR42), "<x>0.500000000000</x>", "<x>0.866025388241</x>"),
-                      "<y>-0.866025388241</y>", "<y>-0.5</y>"),
+  ExpectError(test::ReplaceFirst(test::ReplaceFirst(test::ReadSample(kR42), "<x>0.500000000000</x>",
+                                                    "<x>0.866025388241</x>"),
+                                 "<y>-0.866025388241</y>", "<y>-0.5</y>"),
               {"bad.xml:14:", "/RayCalibData/lens_base_y", "60 or 120 degrees", "not hexagonal"});
 }
 
 TEST(MlaXmlBadInput, DiameterLensBorderAndDepthRange) {
-  ExpectError(Replace(Sample(kR42), "34.864704132080", "0"),
+  ExpectError(test::ReplaceFirst(test::ReadSample(kR42), "34.864704132080", "0"),
               {"bad.xml:6:", "/RayCalibData/diameter", "expected a diameter > 0 px, got 0"});
-  ExpectError(Replace(Sample(kR42), "34.864704132080", "-3.5"),
+  ExpectError(test::ReplaceFirst(test::ReadSample(kR42), "34.864704132080", "-3.5"),
               {"bad.xml:6:", "/RayCalibData/diameter", "got -3.5"});
-  ExpectError(Replace(Sample(kR42), "<lens_border units=\"pix\">1.000000000000",
-                      "<lens_border units=\"pix\">17.5"),
-              {"bad.xml:8:", "/RayCalibData/lens_border", "lens_border < diameter/2"});
-  ExpectError(Replace(Sample(kR42), "<min>2.799999952316</min>", "<min>5</min>"),
-              {"bad.xml:45:", "/RayCalibData/lens_type[@id='1']/depth_range",
-               "expected min <= max, got min 5 > max 4"});
+  ExpectError(
+      test::ReplaceFirst(test::ReadSample(kR42), "<lens_border units=\"pix\">1.000000000000",
+                         "<lens_border units=\"pix\">17.5"),
+      {"bad.xml:8:", "/RayCalibData/lens_border", "lens_border < diameter/2"});
+  ExpectError(
+      test::ReplaceFirst(test::ReadSample(kR42), "<min>2.799999952316</min>", "<min>5</min>"),
+      {"bad.xml:45:", "/RayCalibData/lens_type[@id='1']/depth_range",
+       "expected min <= max, got min 5 > max 4"});
 }
 
 TEST(MlaXmlBadInput, RandomByteCorruptionNeverCrashes) {
-  const std::string text = Sample(kR42);
+  const std::string text = test::ReadSample(kR42);
   std::mt19937 rng(99);
   const std::string alphabet = "<>/=\"' \r\n\t0123456789.-eE;xyzabc&";
   for (int trial = 0; trial < 2000; ++trial) {

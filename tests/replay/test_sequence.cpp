@@ -21,13 +21,6 @@ constexpr char kCam8[] = "40398678";
 
 void Touch(const fs::path& path) { test::WriteFile(path, "x"); }
 
-void ExpectMessageHas(const Error& error, std::initializer_list<std::string> parts) {
-  for (const std::string& part : parts) {
-    EXPECT_NE(error.message.find(part), std::string::npos)
-        << "message: " << error.message << "\nmissing: " << part;
-  }
-}
-
 std::vector<std::string> Names(const std::vector<fs::path>& paths) {
   std::vector<std::string> names;
   for (const fs::path& path : paths) names.push_back(path.filename().string());
@@ -309,13 +302,13 @@ TEST(Sequence, ReaderRejectsBadOptionsAndSequencesWithoutFrames) {
   options.trigger_divider = 0;
   Expected<SequenceReader> bad = SequenceReader::Create(*random, options);
   ASSERT_FALSE(bad.ok());
-  ExpectMessageHas(bad.error(), {"trigger_divider", "got 0, expected >= 1"});
+  test::ExpectMessageHas(bad.error(), {"trigger_divider", "got 0, expected >= 1"});
 
   Expected<SequenceLayout> vicon_only = DiscoverSequence(f.xyz);
   ASSERT_TRUE(vicon_only.ok());
   Expected<SequenceReader> empty = SequenceReader::Create(*vicon_only);
   ASSERT_FALSE(empty.ok());
-  ExpectMessageHas(empty.error(), {f.xyz.string(), "no camera frames"});
+  test::ExpectMessageHas(empty.error(), {f.xyz.string(), "no camera frames"});
 }
 
 TEST(Sequence, TwoFilesForOneFrameAreAnError) {
@@ -325,9 +318,9 @@ TEST(Sequence, TwoFilesForOneFrameAreAnError) {
   Touch(layout::CameraDir(seq, kCam3) / "TypeE_40398673_007_Raw.bmp");
   Expected<SequenceLayout> sequence = DiscoverSequence(seq);
   ASSERT_FALSE(sequence.ok());
-  ExpectMessageHas(sequence.error(),
-                   {layout::CameraDir(seq, kCam3).string(), "frame 7 has two files",
-                    "TypeE_40398673_007_Raw.bmp", "TypeE_40398673_7_Raw.bmp"});
+  test::ExpectMessageHas(sequence.error(),
+                         {layout::CameraDir(seq, kCam3).string(), "frame 7 has two files",
+                          "TypeE_40398673_007_Raw.bmp", "TypeE_40398673_7_Raw.bmp"});
 }
 
 TEST(Sequence, LongGapsAreCountedButListedOnlyUpToTheCap) {
@@ -350,26 +343,30 @@ TEST(Sequence, MissingEmptyAndWrongFoldersAreClearErrors) {
        {DiscoverDataset(missing).error(), DiscoverScene(missing).error(),
         DiscoverSequence(missing).error(), DiscoverCalibration(missing).error(),
         DiscoverCameraFolder(missing).error()}) {
-    ExpectMessageHas(error, {missing.string(), "no such file or folder"});
+    test::ExpectMessageHas(error, {missing.string(), "no such file or folder"});
   }
   const fs::path empty = f.temp / "empty";
   fs::create_directories(empty);
-  ExpectMessageHas(DiscoverDataset(empty).error(),
-                   {empty.string(), "empty folder; expected a LiFMCR dataset root"});
-  ExpectMessageHas(DiscoverScene(empty).error(), {"empty folder; expected a LiFMCR scene"});
-  ExpectMessageHas(DiscoverSequence(empty).error(), {"empty folder; expected a LiFMCR sequence"});
-  ExpectMessageHas(DiscoverCalibration(empty).error(),
-                   {"empty folder; expected a LiFMCR Calibration folder"});
+  test::ExpectMessageHas(DiscoverDataset(empty).error(),
+                         {empty.string(), "empty folder; expected a LiFMCR dataset root"});
+  test::ExpectMessageHas(DiscoverScene(empty).error(), {"empty folder; expected a LiFMCR scene"});
+  test::ExpectMessageHas(DiscoverSequence(empty).error(),
+                         {"empty folder; expected a LiFMCR sequence"});
+  test::ExpectMessageHas(DiscoverCalibration(empty).error(),
+                         {"empty folder; expected a LiFMCR Calibration folder"});
 
-  ExpectMessageHas(DiscoverSequence(f.root / "README.txt").error(),
-                   {"README.txt", "expected a folder, found a file"});
-  ExpectMessageHas(DiscoverSequence(f.plants).error(),
-                   {f.plants.string(), "not a LiFMCR sequence", "found seq_handheld, seq_random"});
-  ExpectMessageHas(DiscoverScene(f.random).error(), {"not a LiFMCR scene", "found GroundTruth"});
-  ExpectMessageHas(DiscoverDataset(f.random).error(), {"not a LiFMCR dataset root"});
-  ExpectMessageHas(DiscoverCalibration(f.plants).error(), {"not a LiFMCR Calibration folder"});
-  ExpectMessageHas(DiscoverCameraFolder(f.random / "Vicon").error(),
-                   {"not a camera folder", "TypeE_<serial>"});
+  test::ExpectMessageHas(DiscoverSequence(f.root / "README.txt").error(),
+                         {"README.txt", "expected a folder, found a file"});
+  test::ExpectMessageHas(
+      DiscoverSequence(f.plants).error(),
+      {f.plants.string(), "not a LiFMCR sequence", "found seq_handheld, seq_random"});
+  test::ExpectMessageHas(DiscoverScene(f.random).error(),
+                         {"not a LiFMCR scene", "found GroundTruth"});
+  test::ExpectMessageHas(DiscoverDataset(f.random).error(), {"not a LiFMCR dataset root"});
+  test::ExpectMessageHas(DiscoverCalibration(f.plants).error(),
+                         {"not a LiFMCR Calibration folder"});
+  test::ExpectMessageHas(DiscoverCameraFolder(f.random / "Vicon").error(),
+                         {"not a camera folder", "TypeE_<serial>"});
 }
 
 }  // namespace

@@ -423,13 +423,6 @@ const std::string kValid =
     "1,0,0.1,0.2,0.3,10,20,30,0,0,0,1,2,3\n"                 // 6
     "2,0,0.1,0.2,0.3,10,20,30,,,,,,\n";                      // 7
 
-std::string Replace(std::string text, const std::string& from, const std::string& to) {
-  const size_t at = text.find(from);
-  EXPECT_NE(at, std::string::npos) << from;
-  if (at != std::string::npos) text.replace(at, from.size(), to);
-  return text;
-}
-
 void ExpectError(const std::string& text, const std::string& place, const std::string& what) {
   auto csv = ParseViconCsv(text, "bad.csv");
   ASSERT_FALSE(csv.ok()) << "parsed:\n" << text;
@@ -459,68 +452,75 @@ TEST(ViconCsvBadInput, TruncatedFiles) {
 
 TEST(ViconCsvBadInput, WrongBlockHeader) {
   ExpectError("80\n" + kValid.substr(kValid.find("80\n")), "1:1", "expected a block name");
-  ExpectError(Replace(kValid, "80\n", "eighty\n"), "2:1", "expected the frame rate");
-  ExpectError(Replace(kValid, "Sub Frame", "SubFrame"), "4:7", "expected 'Sub Frame'");
-  ExpectError(Replace(kValid, "\n80\n", "\n80\n\n"), "3", "empty line inside the header");
-  ExpectError(Replace(kValid, ",,cam0:cam0", "x,,cam0:cam0"), "3:1", "must be empty");
-  ExpectError(Replace(kValid, "cam2:cam2", "cam0:cam0"), "3:18", "names 'cam0:cam0' twice");
-  ExpectError(Replace(kValid, "\n2,0,", "\n\n2,0,"), "8:3",
+  ExpectError(test::ReplaceFirst(kValid, "80\n", "eighty\n"), "2:1", "expected the frame rate");
+  ExpectError(test::ReplaceFirst(kValid, "Sub Frame", "SubFrame"), "4:7", "expected 'Sub Frame'");
+  ExpectError(test::ReplaceFirst(kValid, "\n80\n", "\n80\n\n"), "3",
+              "empty line inside the header");
+  ExpectError(test::ReplaceFirst(kValid, ",,cam0:cam0", "x,,cam0:cam0"), "3:1", "must be empty");
+  ExpectError(test::ReplaceFirst(kValid, "cam2:cam2", "cam0:cam0"), "3:18",
+              "names 'cam0:cam0' twice");
+  ExpectError(test::ReplaceFirst(kValid, "\n2,0,", "\n\n2,0,"), "8:3",
               "got 14 fields (a blank line ended block 'Objects' above");
-  ExpectError(Replace(kValid, "Objects\n", "Objects,x\n"), "1:9", "expected only a block name");
+  ExpectError(test::ReplaceFirst(kValid, "Objects\n", "Objects,x\n"), "1:9",
+              "expected only a block name");
 }
 
 TEST(ViconCsvBadInput, MissingTzColumn) {
-  std::string text = Replace(kValid, ",TX,TY,TZ\n", ",TX,TY\n");
-  text = Replace(text, "mm,mm,mm\n", "mm,mm\n");
-  text = Replace(text, ",1,2,3\n", ",1,2\n");
-  text = Replace(text, ",,,,,,\n", ",,,,,\n");
+  std::string text = test::ReplaceFirst(kValid, ",TX,TY,TZ\n", ",TX,TY\n");
+  text = test::ReplaceFirst(text, "mm,mm,mm\n", "mm,mm\n");
+  text = test::ReplaceFirst(text, ",1,2,3\n", ",1,2\n");
+  text = test::ReplaceFirst(text, ",,,,,,\n", ",,,,,\n");
   ExpectError(text, "4:35", "'cam2:cam2' in block 'Objects' has no TZ column (fields 9..13)");
 }
 
 TEST(ViconCsvBadInput, NonNumericValue) {
-  ExpectError(Replace(kValid, "0.1,0.2,0.3,10,20,30,0", "0.1,0.2,abc,10,20,30,0"), "6:13",
-              "field 5 (cam0:cam0 RZ): expected a number, got 'abc'");
-  ExpectError(Replace(kValid, "1,0,0.1", "1,0,nan"), "6:5", "expected a number, got 'nan'");
-  ExpectError(Replace(kValid, "1,0,0.1", "1,0,1e999"), "6:5", "expected a finite number");
-  ExpectError(Replace(kValid, "2,0,0.1", "2x,0,0.1"), "7:1", "expected an integer frame number");
+  ExpectError(test::ReplaceFirst(kValid, "0.1,0.2,0.3,10,20,30,0", "0.1,0.2,abc,10,20,30,0"),
+              "6:13", "field 5 (cam0:cam0 RZ): expected a number, got 'abc'");
+  ExpectError(test::ReplaceFirst(kValid, "1,0,0.1", "1,0,nan"), "6:5",
+              "expected a number, got 'nan'");
+  ExpectError(test::ReplaceFirst(kValid, "1,0,0.1", "1,0,1e999"), "6:5",
+              "expected a finite number");
+  ExpectError(test::ReplaceFirst(kValid, "2,0,0.1", "2x,0,0.1"), "7:1",
+              "expected an integer frame number");
 }
 
 TEST(ViconCsvBadInput, ShortAndLongRows) {
-  ExpectError(Replace(kValid, "0,0,0,1,2,3\n", "0,0,0,1,2\n"), "6:34",
+  ExpectError(test::ReplaceFirst(kValid, "0,0,0,1,2,3\n", "0,0,0,1,2\n"), "6:34",
               "line 6 has 13 fields, expected 14");
-  ExpectError(Replace(kValid, "0,0,0,1,2,3\n", "0,0,0,1,2,3,4\n"), "6:38",
+  ExpectError(test::ReplaceFirst(kValid, "0,0,0,1,2,3\n", "0,0,0,1,2,3,4\n"), "6:38",
               "line 6 has 15 fields, expected 14");
 }
 
 TEST(ViconCsvBadInput, PartialTuple) {
-  ExpectError(Replace(kValid, "2,0,0.1,0.2,0.3", "2,0,0.1,,0.3"), "7:9",
+  ExpectError(test::ReplaceFirst(kValid, "2,0,0.1,0.2,0.3", "2,0,0.1,,0.3"), "7:9",
               "partial tuple for 'cam0:cam0' at frame 2: RX,RZ,TX,TY,TZ present but RY empty");
 }
 
 TEST(ViconCsvBadInput, UnknownUnit) {
-  ExpectError(Replace(kValid, "rad,mm,mm,mm\n", "rad,mm,mm,m\n"), "5:42",
+  ExpectError(test::ReplaceFirst(kValid, "rad,mm,mm,mm\n", "rad,mm,mm,m\n"), "5:42",
               "field 14 (cam2:cam2 TZ): unknown unit 'm', expected 'mm'");
-  ExpectError(Replace(kValid, ",,rad,", ",,grad,"), "5:3", "unknown unit 'grad'");
-  ExpectError(Replace(kValid, ",,rad,rad,", ",,rad,deg,"), "5:7", "differs from 'rad'");
+  ExpectError(test::ReplaceFirst(kValid, ",,rad,", ",,grad,"), "5:3", "unknown unit 'grad'");
+  ExpectError(test::ReplaceFirst(kValid, ",,rad,rad,", ",,rad,deg,"), "5:7", "differs from 'rad'");
 }
 
 TEST(ViconCsvBadInput, DecreasingFrameNumbers) {
-  ExpectError(Replace(kValid, "2,0,", "0,0,"), "7:1",
+  ExpectError(test::ReplaceFirst(kValid, "2,0,", "0,0,"), "7:1",
               "frame 0 sub frame 0 follows frame 1 sub frame 0 (line 6)");
-  ExpectError(Replace(kValid, "2,0,", "1,0,"), "7:1", "frame numbers must increase");
+  ExpectError(test::ReplaceFirst(kValid, "2,0,", "1,0,"), "7:1", "frame numbers must increase");
 }
 
 TEST(ViconCsvBadInput, DecimalCommaInSemicolonFile) {
   std::string text = kValid;
   for (char& c : text)
     if (c == ',') c = ';';
-  text = Replace(text, "10;20", "10,5;20");
+  text = test::ReplaceFirst(text, "10;20", "10,5;20");
   ExpectError(text, "6:17", "field 6 (cam0:cam0 TX)");
   ExpectError(text, "6:17", "decimal comma");
 }
 
 TEST(ViconCsvBadInput, RotationThatIsNotARotation) {
-  auto csv = ParseViconCsv(Replace(kValid, "1,0,0.1,0.2,0.3", "1,0,1e300,1e300,1e300"), "bad.csv");
+  auto csv = ParseViconCsv(test::ReplaceFirst(kValid, "1,0,0.1,0.2,0.3", "1,0,1e300,1e300,1e300"),
+                           "bad.csv");
   ASSERT_TRUE(csv.ok()) << csv.error().message;
   auto poses = ExtractSubjectPoses(*csv, "cam0:cam0", {});
   ASSERT_FALSE(poses.ok());

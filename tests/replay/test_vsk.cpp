@@ -14,22 +14,10 @@ namespace {
 constexpr char kTracker[] = "vicon_tracker_object_go2_body.vsk";
 constexpr char kNexus[] = "vicon_nexus_pig_v2.5_pycgm_Sample_SM.vsk";
 
-std::string Sample(const char* name) { return test::ReadFile(test::SamplePath(name)); }
-
-std::string Replace(std::string text, const std::string& from, const std::string& to) {
-  const size_t at = text.find(from);
-  EXPECT_NE(at, std::string::npos) << "fixture text not found: " << from;
-  if (at != std::string::npos) text.replace(at, from.size(), to);
-  return text;
-}
-
 void ExpectError(const std::string& text, const std::vector<std::string>& fragments) {
   const Expected<Vsk> result = ParseVsk(text, "bad.vsk");
   ASSERT_FALSE(result.ok()) << "expected an error containing " << fragments.front();
-  for (const std::string& fragment : fragments) {
-    EXPECT_NE(result.error().message.find(fragment), std::string::npos)
-        << "message: " << result.error().message << "\nmissing: " << fragment;
-  }
+  test::ExpectMessageHas(result.error(), fragments);
 }
 
 const VskMarker* FindMarker(const Vsk& vsk, const std::string& name) {
@@ -120,13 +108,13 @@ TEST(Vsk, ReadsNexusV25WithInlinePositionsAndSegmentTree) {
 }
 
 TEST(Vsk, V25PositionsMayNameParametersWithASignPrefix) {
-  std::string text = Sample(kNexus);
-  text = Replace(text, "NAME=\"LFHD\" POSITION=\"0 70.3721 0\"",
-                 "NAME=\"LFHD\" POSITION=\"0 +HEADy 0\"");
-  text = Replace(text, "NAME=\"RFHD\" POSITION=\"0 -70.3721 0\"",
-                 "NAME=\"RFHD\" POSITION=\"0 -HEADy 0\"");
-  text = Replace(text, "NAME=\"LBHD\" POSITION=\"-159.08 54.5502 0\"",
-                 "NAME=\"LBHD\" POSITION=\"LBHDx BHDy 0\"");
+  std::string text = test::ReadSample(kNexus);
+  text = test::ReplaceFirst(text, "NAME=\"LFHD\" POSITION=\"0 70.3721 0\"",
+                            "NAME=\"LFHD\" POSITION=\"0 +HEADy 0\"");
+  text = test::ReplaceFirst(text, "NAME=\"RFHD\" POSITION=\"0 -70.3721 0\"",
+                            "NAME=\"RFHD\" POSITION=\"0 -HEADy 0\"");
+  text = test::ReplaceFirst(text, "NAME=\"LBHD\" POSITION=\"-159.08 54.5502 0\"",
+                            "NAME=\"LBHD\" POSITION=\"LBHDx BHDy 0\"");
   const Expected<Vsk> vsk = ParseVsk(text, "signs.vsk");
   ASSERT_TRUE(vsk.ok()) << vsk.error().message;
   EXPECT_EQ(FindMarker(*vsk, "LFHD")->position_mm.y(), 70.3721237182617);
@@ -279,69 +267,76 @@ TEST(Vsk, WriterRefusesWhatCannotBeReadBack) {
 // ------------------------------------------------------------ bad input
 
 TEST(VskBadInput, WrongRoot) {
-  std::string text = Sample(kTracker);
-  text = Replace(text, "<KinematicModel VERSION", "<SubjectModel VERSION");
-  text = Replace(text, "</KinematicModel>", "</SubjectModel>");
+  std::string text = test::ReadSample(kTracker);
+  text = test::ReplaceFirst(text, "<KinematicModel VERSION", "<SubjectModel VERSION");
+  text = test::ReplaceFirst(text, "</KinematicModel>", "</SubjectModel>");
   ExpectError(text, {"bad.vsk:2:", "/SubjectModel", "root element is <SubjectModel>",
                      "expected <KinematicModel>"});
 }
 
 TEST(VskBadInput, UndefinedParameterReference) {
   ExpectError(
-      Replace(Sample(kTracker),
-              "\t\t<Parameter NAME=\"Go2_Go21_y\" VALUE=\"0.0\" PRIOR=\"0.0\" HIDDEN=\"true\" />\n",
-              ""),
+      test::ReplaceFirst(
+          test::ReadSample(kTracker),
+          "\t\t<Parameter NAME=\"Go2_Go21_y\" VALUE=\"0.0\" PRIOR=\"0.0\" HIDDEN=\"true\" />\n",
+          ""),
       {"bad.vsk:118:", "TargetLocalPointToWorldPoint[@MARKER='Go21']",
        "marker Go21 references undefined parameter 'Go2_Go21_y'"});
   // A v2.5 name with a sign prefix that does not resolve.
-  ExpectError(Replace(Sample(kNexus), "POSITION=\"0 -70.3721 0\"", "POSITION=\"0 -HEADz 0\""),
+  ExpectError(test::ReplaceFirst(test::ReadSample(kNexus), "POSITION=\"0 -70.3721 0\"",
+                                 "POSITION=\"0 -HEADz 0\""),
               {"bad.vsk:222:", "Marker[@NAME='RFHD']",
                "marker RFHD references undefined parameter 'HEADz'"});
   // An EXPRESSION parameter is named, but not evaluated.
-  ExpectError(Replace(Sample(kNexus), "POSITION=\"0 70.3721 0\"", "POSITION=\"0 LKNEy 0\""),
+  ExpectError(test::ReplaceFirst(test::ReadSample(kNexus), "POSITION=\"0 70.3721 0\"",
+                                 "POSITION=\"0 LKNEy 0\""),
               {"bad.vsk:219:", "marker LFHD references parameter 'LKNEy', which has no VALUE"});
 }
 
 TEST(VskBadInput, NonNumericPositionOrValue) {
-  ExpectError(Replace(Sample(kNexus), "POSITION=\"0 70.3721 0\"", "POSITION=\"0 70,3721 0\""),
+  ExpectError(test::ReplaceFirst(test::ReadSample(kNexus), "POSITION=\"0 70.3721 0\"",
+                                 "POSITION=\"0 70,3721 0\""),
               {"bad.vsk:219:", "/KinematicModel/MarkerSet/Markers/Marker[@NAME='LFHD']",
                "POSITION component '70,3721' is neither a number nor a parameter name"});
-  ExpectError(Replace(Sample(kNexus), "POSITION=\"0 70.3721 0\"", "POSITION=\"0 70.3721\""),
+  ExpectError(test::ReplaceFirst(test::ReadSample(kNexus), "POSITION=\"0 70.3721 0\"",
+                                 "POSITION=\"0 70.3721\""),
               {"bad.vsk:219:", "expected POSITION with 3 components, got 2"});
-  ExpectError(Replace(Sample(kTracker), "VALUE=\"261.96\"", "VALUE=\"261.96mm\""),
-              {"bad.vsk:4:", "Parameter[@NAME='Go2_Go21_x']",
-               "expected a number in VALUE, got '261.96mm'"});
-  ExpectError(Replace(Sample(kTracker), "RADIUS=\"14\"", "RADIUS=\"big\""),
+  ExpectError(
+      test::ReplaceFirst(test::ReadSample(kTracker), "VALUE=\"261.96\"", "VALUE=\"261.96mm\""),
+      {"bad.vsk:4:", "Parameter[@NAME='Go2_Go21_x']",
+       "expected a number in VALUE, got '261.96mm'"});
+  ExpectError(test::ReplaceFirst(test::ReadSample(kTracker), "RADIUS=\"14\"", "RADIUS=\"big\""),
               {"bad.vsk:47:", "marker Go21: expected a number in RADIUS"});
 }
 
 TEST(VskBadInput, MarkerReferencingMissingSegment) {
-  ExpectError(Replace(Sample(kNexus),
-                      "NAME=\"LFHD\" POSITION=\"0 70.3721 0\" RADIUS=\"12.5\" "
-                      "RGB=\"0 0 255\" SEGMENT=\"Head\"",
-                      "NAME=\"LFHD\" POSITION=\"0 70.3721 0\" RADIUS=\"12.5\" "
-                      "RGB=\"0 0 255\" SEGMENT=\"Hed\""),
+  ExpectError(test::ReplaceFirst(test::ReadSample(kNexus),
+                                 "NAME=\"LFHD\" POSITION=\"0 70.3721 0\" RADIUS=\"12.5\" "
+                                 "RGB=\"0 0 255\" SEGMENT=\"Head\"",
+                                 "NAME=\"LFHD\" POSITION=\"0 70.3721 0\" RADIUS=\"12.5\" "
+                                 "RGB=\"0 0 255\" SEGMENT=\"Hed\""),
               {"bad.vsk:219:", "marker LFHD refers to segment 'Hed', which is not in <Skeleton>"});
-  ExpectError(Replace(Sample(kTracker),
-                      "MARKER=\"Go21\" OPACITY=\"255\" POSITION=\"'Go2_Go21_x' "
-                      "'Go2_Go21_y' 'Go2_Go21_z'\" RGB=\"93 93 93\" SEGMENT=\"Go2\"",
-                      "MARKER=\"Go21\" OPACITY=\"255\" POSITION=\"'Go2_Go21_x' 'Go2_Go21_y' "
-                      "'Go2_Go21_z'\" RGB=\"93 93 93\" SEGMENT=\"Go3\""),
-              {"bad.vsk:119:", "marker Go21 refers to segment 'Go3'"});
+  ExpectError(
+      test::ReplaceFirst(test::ReadSample(kTracker),
+                         "MARKER=\"Go21\" OPACITY=\"255\" POSITION=\"'Go2_Go21_x' "
+                         "'Go2_Go21_y' 'Go2_Go21_z'\" RGB=\"93 93 93\" SEGMENT=\"Go2\"",
+                         "MARKER=\"Go21\" OPACITY=\"255\" POSITION=\"'Go2_Go21_x' 'Go2_Go21_y' "
+                         "'Go2_Go21_z'\" RGB=\"93 93 93\" SEGMENT=\"Go3\""),
+      {"bad.vsk:119:", "marker Go21 refers to segment 'Go3'"});
 }
 
 TEST(VskBadInput, StructuralErrors) {
-  const std::string tracker = Sample(kTracker);
+  const std::string tracker = test::ReadSample(kTracker);
   ExpectError(tracker.substr(0, tracker.size() / 3), {"bad.vsk:", "malformed XML"});
-  ExpectError(Replace(tracker, "<Marker NAME=\"Go22\"", "<Marker NAME=\"Go21\""),
+  ExpectError(test::ReplaceFirst(tracker, "<Marker NAME=\"Go22\"", "<Marker NAME=\"Go21\""),
               {"bad.vsk:48:", "duplicate marker 'Go21' (first at line 47)"});
-  ExpectError(Replace(tracker, "MARKER=\"Go21\"", "MARKER=\"Go99\""),
+  ExpectError(test::ReplaceFirst(tracker, "MARKER=\"Go21\"", "MARKER=\"Go99\""),
               {"bad.vsk:119:", "target refers to marker 'Go99', which is not in <MarkerSet>"});
-  ExpectError(Replace(tracker, "<Marker NAME=\"Go21\"", "<Marker NAME=\"Go20\""),
+  ExpectError(test::ReplaceFirst(tracker, "<Marker NAME=\"Go21\"", "<Marker NAME=\"Go20\""),
               {"bad.vsk:119:", "target refers to marker 'Go21'"});
-  ExpectError(Replace(Sample(kNexus), "POSITION=\"0 70.3721 0\" ", ""),
+  ExpectError(test::ReplaceFirst(test::ReadSample(kNexus), "POSITION=\"0 70.3721 0\" ", ""),
               {"bad.vsk:219:", "marker LFHD has no position"});
-  ExpectError(Replace(tracker, "NAME=\"Go2_Go21_y\"", "NAME=\"Go2_Go21_x\""),
+  ExpectError(test::ReplaceFirst(tracker, "NAME=\"Go2_Go21_y\"", "NAME=\"Go2_Go21_x\""),
               {"bad.vsk:5:", "duplicate parameter 'Go2_Go21_x' (first at line 4)"});
   // Every prefix of a real file fails cleanly.
   for (size_t size = 0; size < tracker.size(); size += 61) {
@@ -350,7 +345,7 @@ TEST(VskBadInput, StructuralErrors) {
 }
 
 TEST(VskBadInput, RandomByteCorruptionNeverCrashes) {
-  const std::string text = Sample(kNexus);
+  const std::string text = test::ReadSample(kNexus);
   std::mt19937 rng(5);
   const std::string alphabet = "<>/=\"' \r\n\t0123456789.-+eE'abcXYZ&";
   for (int trial = 0; trial < 500; ++trial) {
