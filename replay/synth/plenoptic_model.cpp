@@ -156,8 +156,13 @@ Eigen::Vector3d PlenopticModel::SensorPoint(const Eigen::Vector2d& p_px) const {
 std::optional<PixelSample> PlenopticModel::TraceRawPixel(const Eigen::Vector2d& p_px) const {
   int i = 0, j = 0;
   NearestLens(p_px, &i, &j);
+  return TraceThroughLens(p_px, Lens(i, j));
+}
+
+std::optional<PixelSample> PlenopticModel::TraceThroughLens(const Eigen::Vector2d& p_px,
+                                                            const MicroLens& lens) const {
   PixelSample sample;
-  sample.lens = Lens(i, j);
+  sample.lens = lens;
   sample.radius_px = (p_px - sample.lens.center_px).norm();
   const Eigen::Vector3d sensor = SensorPoint(p_px);
   const Eigen::Vector3d& l = sample.lens.lens_mm;
@@ -185,6 +190,8 @@ std::optional<PixelSample> PlenopticModel::TraceRawPixel(const Eigen::Vector2d& 
   const double c_mm = (sample.lens.center_px - principal_px_).norm() * p_.pixel_size_mm;
   const double falloff = Cos4(c_mm / sensor.z()) *
                          Cos4(sample.radius_px * p_.pixel_size_mm / lens_to_sensor);
+  sample.coverage = coverage;
+  sample.falloff = falloff;
   sample.weight = coverage * falloff;
   const double f = p_.main_focal_length_mm;
   const Eigen::Vector3d q = sensor + along * ((sensor.z() - f) / (sensor.z() - l.z()));

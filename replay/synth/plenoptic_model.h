@@ -81,7 +81,9 @@ struct MicroLens {
 struct PixelSample {
   MicroLens lens;
   Ray ray;                // object-side chief ray (camera frame)
-  double weight = 0.0;    // vignetting in [0, 1]: aperture coverage and cos^4 falloff
+  double coverage = 0.0;  // share of the micro-lens bundle inside the main-lens aperture
+  double falloff = 0.0;   // cos^4 falloff
+  double weight = 0.0;    // coverage * falloff
   double radius_px = 0;   // |p - c_k|
 };
 
@@ -122,6 +124,9 @@ class PlenopticModel {
   // line; `ray` is then its tangent at the undistorted solution and
   // RayForDepth refines it (renderer iterates).
   std::optional<PixelSample> TraceRawPixel(const Eigen::Vector2d& p_px) const;
+  // The same for a pixel known to belong to `lens`.
+  std::optional<PixelSample> TraceThroughLens(const Eigen::Vector2d& p_px,
+                                              const MicroLens& lens) const;
   bool has_distortion() const { return has_distortion_; }
 
   // Object ray of TF pixel (u, w), see header comment (undistorted part).

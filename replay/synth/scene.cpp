@@ -1,5 +1,7 @@
 #include "replay/synth/scene.h"
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
