@@ -1,1 +1,201 @@
 #pragma once
+// The rig and pipeline configuration: plain structs with their defaults, the
+// checks between fields, and the YAML loader and writer. Every field, its
+// unit, default and allowed values are documented in config/README.md; the
+// defaults are stated once, here, in the member initialisers.
+//
+// Paths (mla_file, cti, vicon csv/vsk, recorder out_dir) are stored resolved
+// against the folder of the rig file, so a RigConfig never depends on the
+// working directory. FormatRigConfig writes them resolved, which is why a
+// formatted rig (copied into a recording) loads back equal from anywhere.
+//
+// Files: LoadRigConfig/ParseRigConfig require the files the pipeline reads
+// (MLA XML, Vicon CSV, VSK) to exist. Device files (a GenTL producer .cti)
+// are checked by the driver when it opens the device, because the machine
+// that edits or replays a rig file is often not the one with the grabber.
+
+#include "config/error.h"
+#include "config/frames.h"
+#include "config/image.h"
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace lifmcr {
+
+// The reference camera defines the rig frame c0; every registered camera is
+// registered to it (c0_from_cx).
+enum class CameraRole { kReference, kRegistered };
+// aravis: GigE/USB3 Vision through Aravis; gentl: a frame grabber's GenTL
+// producer (CoaXPress); replay: a recorded sequence stands in for the camera.
+enum class DriverKind { kAravis, kGenTl, kReplay };
+// hardware: a pulse on a line (Vicon Lock Lab); software: lifmcr issues
+// TriggerSoftware; free_run: the camera runs at its own rate.
+enum class TriggerMode { kHardware, kSoftware, kFreeRun };
+enum class TriggerActivation { kRisingEdge, kFallingEdge };
+// GenICam PixelFormat names the driver sets. Bayer mosaics travel as 8-bit
+// grey buffers; RGB8 is not offered because lifmcr buffers hold BGR order and
+// accepting RGB would force a channel swap (a copy) on every frame.
+enum class CameraPixelFormat { kMono8, kBgr8, kBayerRg8, kBayerGr8, kBayerGb8, kBayerBg8 };
+enum class ViconSource { kNone, kUdp, kCsv };
+// newest_wins: a busy stage drops the older waiting frame set (counted);
+// block: the stage waits, back-pressuring the queue before it (replay).
+enum class SkipPolicy { kNewestWins, kBlock };
+
+// Names as written in rig files; Parse* returns nullopt for anything else,
+// *Names() gives the allowed names as "a|b|c" for messages.
+std::optional<CameraRole> ParseCameraRole(std::string_view name);
+std::string_view ToString(CameraRole value);
+std::string CameraRoleNames();
+std::optional<DriverKind> ParseDriverKind(std::string_view name);
+std::string_view ToString(DriverKind value);
+std::string DriverKindNames();
+std::optional<TriggerMode> ParseTriggerMode(std::string_view name);
+std::string_view ToString(TriggerMode value);
+std::string TriggerModeNames();
+std::optional<TriggerActivation> ParseTriggerActivation(std::string_view name);
+std::string_view ToString(TriggerActivation value);
+std::string TriggerActivationNames();
+std::optional<CameraPixelFormat> ParseCameraPixelFormat(std::string_view name);
+std::string_view ToString(CameraPixelFormat value);
+std::string CameraPixelFormatNames();
+std::optional<ViconSource> ParseViconSource(std::string_view name);
+std::string_view ToString(ViconSource value);
+std::string ViconSourceNames();
+std::optional<SkipPolicy> ParseSkipPolicy(std::string_view name);
+std::string_view ToString(SkipPolicy value);
+std::string SkipPolicyNames();
+
+// The layout of a frame in lifmcr buffers: Bayer and Mono8 as kMono8, BGR8 as kBgr8.
+PixelFormat BufferPixelFormat(CameraPixelFormat format);
+
+struct DriverConfig {
+  DriverKind kind = DriverKind::kAravis;
+  std::string address;        // aravis: device id, serial or IP; empty = find by camera serial
+  std::filesystem::path cti;  // gentl: the producer .cti (required for gentl)
+  int device_index = 0;       // gentl: device index within the producer's first interface
+  bool operator==(const DriverConfig&) const = default;
+};
+
+struct TriggerConfig {
+  TriggerMode mode = TriggerMode::kHardware;
+  std::string source = "Line1";  // GenICam TriggerSource used in hardware mode
+  TriggerActivation activation = TriggerActivation::kRisingEdge;
+  bool operator==(const TriggerConfig&) const = default;
+};
+
+// Sensor region of interest, in pixels of the full sensor.
+struct RoiConfig {
+  int x_px = 0;
+  int y_px = 0;
+  int width_px = 0;   // > 0
+  int height_px = 0;  // > 0
+  bool operator==(const RoiConfig&) const = default;
+};
+
+struct CameraConfig {
+  std::string serial;  // as in TypeE_<serial>; digits allowed, kept as text
+  std::string name;    // short unique name (cam0); used in channel names and logs
+  CameraRole role = CameraRole::kRegistered;
+  DriverConfig driver;
+  std::filesystem::path mla_file;  // RayCalibData XML of this camera
+  TriggerConfig trigger;
+  double exposure_us = 10000.0;  // > 0
+  double gain_db = 0.0;          // >= 0
+  CameraPixelFormat pixel_format = CameraPixelFormat::kMono8;
+  std::optional<RoiConfig> roi;          // none = full sensor
+  int packet_size_bytes = 0;             // aravis GigE packet size; 0 = negotiate
+  std::int64_t socket_buffer_bytes = 0;  // aravis GigE socket buffer; 0 = auto (payload size)
+  std::string vicon_object;              // object name in the Vicon stream/CSV; empty = not tracked
+  bool operator==(const CameraConfig&) const = default;
+};
+
+struct ViconUdpConfig {
+  std::string address = "0.0.0.0";  // local IPv4 address to receive the Tracker stream on
+  int port = 51001;                 // 1..65535
+  bool operator==(const ViconUdpConfig&) const = default;
+};
+
+struct ViconConfig {
+  ViconSource source = ViconSource::kNone;
+  ViconUdpConfig udp;
+  std::filesystem::path csv;  // source csv: the Tracker CSV export to replay
+  // A Vicon CSV does not state how RX, RY, RZ encode the rotation; Tracker's
+  // default export is helical (axis * angle) in radians.
+  RotationRepresentation rotation = RotationRepresentation::kHelicalRad;
+  // The paper: LiFMCR's Vicon data is left-handed (config/README.md, "Vicon
+  // handedness", says why y is the mirrored axis by default).
+  Handedness handedness = Handedness::kLeftFlipY;
+  std::string plate_object = "plate";  // the world-defining marker plate
+  double rate_hz = 80.0;               // Vicon frame rate, > 0
+  int trigger_divider = 8;             // Vicon frames per camera trigger, >= 1
+  std::filesystem::path vsk;           // optional object model (Object.vsk)
+  bool operator==(const ViconConfig&) const = default;
+};
+
+struct RecorderConfig {
+  std::filesystem::path out_dir;   // empty = given on the command line (--out)
+  int queue_frames = 16;           // frames buffered per camera, >= 1
+  int writer_threads = 1;          // 1..64
+  bool direct_io = true;           // O_DIRECT writes (notes/acquisition.md 5.1)
+  std::int64_t max_memory_mb = 0;  // cap on buffered frames, MiB; 0 = queue_frames alone
+  bool operator==(const RecorderConfig&) const = default;
+};
+
+struct ProcessingConfig {
+  bool enabled = true;
+  int threads = 0;  // 0 = all cores
+  SkipPolicy skip_policy = SkipPolicy::kNewestWins;
+  int preview_max_px = 1024;  // longest side of published previews, 16..8192
+  bool operator==(const ProcessingConfig&) const = default;
+};
+
+struct LcmConfig {
+  std::string url = "udpm://239.255.76.67:7667?ttl=0";  // LCM provider URL
+  std::string channel_prefix = "LIFMCR";                // [A-Z0-9_]+
+  bool publish_previews = true;
+  bool operator==(const LcmConfig&) const = default;
+};
+
+// A problem found by RigConfig::FindIssue: the key path of the offending
+// value (as in the YAML, "/cameras/1/serial") and what was expected.
+struct ConfigIssue {
+  std::string path;
+  std::string what;
+};
+
+struct RigConfig {
+  std::string name;
+  std::vector<CameraConfig> cameras;  // at least one, exactly one reference
+  ViconConfig vicon;
+  RecorderConfig recorder;
+  ProcessingConfig processing;
+  LcmConfig lcm;
+
+  // Value ranges and cross-field rules (unique serials, names and Vicon
+  // objects, one reference, driver fields matching the driver kind, ...).
+  // Touches no files. The loader turns the issue path back into a line.
+  std::optional<ConfigIssue> FindIssue() const;
+  // FindIssue as a Status: "<rig 'name'>: <path>: <what>".
+  Status Check() const;
+  // Index of the reference camera, -1 when there is none.
+  int ReferenceIndex() const;
+
+  bool operator==(const RigConfig&) const = default;
+};
+
+// Parses and checks a rig file. `base_dir` resolves relative paths; `label`
+// names the source in messages (the file path, usually).
+Expected<RigConfig> ParseRigConfig(std::string_view yaml, const std::filesystem::path& base_dir,
+                                   const std::string& label);
+// Reads `path` and parses it with base_dir = its folder and label = path.
+Expected<RigConfig> LoadRigConfig(const std::filesystem::path& path);
+// YAML that ParseRigConfig reads back equal: every field written, including
+// defaults, paths as stored (resolved), strings double-quoted.
+std::string FormatRigConfig(const RigConfig& rig);
+
+}  // namespace lifmcr

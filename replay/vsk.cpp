@@ -1,0 +1,462 @@
+#include "replay/vsk.h"
+
+#include "replay/xml_util.h"
+
+#include <tinyxml2.h>
+
+#include <cmath>
+#include <set>
+#include <sstream>
+#include <utility>
+
+namespace lifmcr {
+namespace {
+
+using tinyxml2::XMLElement;
+
+bool IsNameStart(char c) { return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || c == '_'; }
+
+std::vector<std::string> SplitWhitespace(std::string_view text) {
+  std::vector<std::string> tokens;
+  std::istringstream in{std::string(text)};
+  for (std::string token; in >> token;) tokens.push_back(token);
+  return tokens;
+}
+
+// ---------------------------------------------------------------- reading
+
+class Reader {
+ public:
+  explicit Reader(std::string label) : label_(std::move(label)) {}
+
+  Expected<Vsk> Read(std::string_view text) {
+    tinyxml2::XMLDocument doc;
+    LIFMCR_XML_RETURN_IF_ERROR(xml::ParseDocument(text, label_, &doc));
+    const XMLElement* root = doc.RootElement();
+    if (std::string_view(root->Name()) != "KinematicModel") {
+      return xml::ErrorAt(label_, root,
+                          std::string("root element is <") + root->Name() +
+                              ">, expected <KinematicModel> (a Vicon .vsk subject model)");
+    }
+    if (const char* version = root->Attribute("VERSION")) vsk_.version = version;
+    if (const char* model = root->Attribute("MODEL")) vsk_.model = model;
+
+    const XMLElement* parameters = nullptr;
+    LIFMCR_XML_ASSIGN_OR_RETURN(parameters, xml::OptionalUniqueChild(label_, root, "Parameters"));
+    if (parameters != nullptr) LIFMCR_XML_RETURN_IF_ERROR(ReadParameters(parameters));
+
+    const XMLElement* skeleton = nullptr;
+    LIFMCR_XML_ASSIGN_OR_RETURN(skeleton, xml::OptionalUniqueChild(label_, root, "Skeleton"));
+    if (skeleton != nullptr) LIFMCR_XML_RETURN_IF_ERROR(ReadSegments(skeleton, ""));
+
+    const XMLElement* marker_set = nullptr;
+    LIFMCR_XML_ASSIGN_OR_RETURN(marker_set, xml::OptionalUniqueChild(label_, root, "MarkerSet"));
+    const XMLElement* markers = nullptr;
+    if (marker_set != nullptr) {
+      LIFMCR_XML_ASSIGN_OR_RETURN(markers, xml::OptionalUniqueChild(label_, marker_set, "Markers"));
+    }
+    std::vector<const XMLElement*> marker_elements;
+    if (markers != nullptr) marker_elements = xml::Children(markers, "Marker");
+    for (const XMLElement* element : marker_elements) {
+      LIFMCR_XML_ASSIGN_OR_RETURN(const std::string name,
+                                  xml::RequiredAttribute(label_, element, "NAME"));
+      if (const auto first = marker_at_.find(name); first != marker_at_.end()) {
+        return xml::ErrorAt(label_, element,
+                            "duplicate marker '" + name + "' (first at line " +
+                                std::to_string(first->second->GetLineNum()) + ")");
+      }
+      marker_at_[name] = element;
+    }
+
+    const XMLElement* target_set = nullptr;
+    LIFMCR_XML_ASSIGN_OR_RETURN(target_set, xml::OptionalUniqueChild(label_, root, "TargetSet"));
+    const XMLElement* targets = nullptr;
+    if (target_set != nullptr) {
+      LIFMCR_XML_ASSIGN_OR_RETURN(targets, xml::OptionalUniqueChild(label_, target_set, "Targets"));
+    }
+    if (targets != nullptr) {
+      for (const XMLElement* target : xml::Children(targets, "TargetLocalPointToWorldPoint")) {
+        LIFMCR_XML_ASSIGN_OR_RETURN(const std::string marker,
+                                    xml::RequiredAttribute(label_, target, "MARKER"));
+        if (marker_at_.count(marker) == 0) {
+          return xml::ErrorAt(
+              label_, target,
+              "target refers to marker '" + marker + "', which is not in <MarkerSet><Markers>");
+        }
+        if (const auto first = target_of_.find(marker); first != target_of_.end()) {
+          return xml::ErrorAt(label_, target,
+                              "duplicate target for marker '" + marker + "' (first at line " +
+                                  std::to_string(first->second->GetLineNum()) + ")");
+        }
+        target_of_[marker] = target;
+      }
+    }
+
+    for (const XMLElement* element : marker_elements) {
+      LIFMCR_XML_RETURN_IF_ERROR(ReadMarker(element));
+    }
+    return std::move(vsk_);
+  }
+
+ private:
+  Status ReadParameters(const XMLElement* parameters) {
+    for (const XMLElement* element = parameters->FirstChildElement(); element != nullptr;
+         element = element->NextSiblingElement()) {
+      const std::string_view kind = element->Name();
+      if (kind != "Parameter" && kind != "StaticParameter") continue;
+      LIFMCR_XML_ASSIGN_OR_RETURN(const std::string name,
+                                  xml::RequiredAttribute(label_, element, "NAME"));
+      if (const auto first = parameter_at_.find(name); first != parameter_at_.end()) {
+        return xml::ErrorAt(label_, element,
+                            "duplicate parameter '" + name + "' (first at line " +
+                                std::to_string(first->second->GetLineNum()) + ")");
+      }
+      parameter_at_[name] = element;
+      const char* value_text = element->Attribute("VALUE");
+      if (value_text == nullptr) continue;  // EXPRESSION only: not evaluated
+      double value = 0.0;
+      if (!xml::ParseStrictDouble(value_text, &value)) {
+        return xml::ErrorAt(
+            label_, element,
+            "parameter '" + name + "': expected a number in VALUE, got '" + value_text + "'");
+      }
+      vsk_.parameters[name] = value;
+    }
+    return Status::Ok();
+  }
+
+  // Pre-order walk, so parents come before their children.
+  Status ReadSegments(const XMLElement* parent_element, const std::string& parent) {
+    for (const XMLElement* element : xml::Children(parent_element, "Segment")) {
+      LIFMCR_XML_ASSIGN_OR_RETURN(const std::string name,
+                                  xml::RequiredAttribute(label_, element, "NAME"));
+      if (const auto first = segment_at_.find(name); first != segment_at_.end()) {
+        return xml::ErrorAt(label_, element,
+                            "duplicate segment '" + name + "' (first at line " +
+                                std::to_string(first->second->GetLineNum()) + ")");
+      }
+      segment_at_[name] = element;
+      vsk_.segments.push_back(VskSegment{name, parent});
+      LIFMCR_XML_RETURN_IF_ERROR(ReadSegments(element, name));
+    }
+    return Status::Ok();
+  }
+
+  // One POSITION component: a number, or a parameter name (quoted in v3.x,
+  // possibly with a sign prefix in v2.5).
+  Expected<double> Component(const XMLElement* element, const std::string& marker,
+                             std::string token) {
+    const bool quoted = token.size() >= 2 && token.front() == '\'' && token.back() == '\'';
+    if (quoted) token = token.substr(1, token.size() - 2);
+    double value = 0.0;
+    if (xml::ParseStrictDouble(token, &value)) return value;
+    if (const auto it = vsk_.parameters.find(token); it != vsk_.parameters.end()) {
+      return it->second;
+    }
+    const bool signed_name = !token.empty() && (token.front() == '-' || token.front() == '+');
+    const std::string name = signed_name ? token.substr(1) : token;
+    if (const auto it = vsk_.parameters.find(name); signed_name && it != vsk_.parameters.end()) {
+      return token.front() == '-' ? -it->second : it->second;
+    }
+    if (!quoted && (name.empty() || !IsNameStart(name.front()))) {
+      return xml::ErrorAt(label_, element,
+                          "marker " + marker + ": POSITION component '" + token +
+                              "' is neither a number nor a parameter name");
+    }
+    if (parameter_at_.count(name) != 0) {
+      return xml::ErrorAt(label_, element,
+                          "marker " + marker + " references parameter '" + name +
+                              "', which has no VALUE (EXPRESSION parameters are not evaluated)");
+    }
+    return xml::ErrorAt(label_, element,
+                        "marker " + marker + " references undefined parameter '" + name + "'");
+  }
+
+  Expected<Eigen::Vector3d> Position(const XMLElement* element, const std::string& marker) {
+    const char* text = element->Attribute("POSITION");
+    const std::vector<std::string> tokens = SplitWhitespace(text != nullptr ? text : "");
+    if (tokens.size() != 3) {
+      return xml::ErrorAt(label_, element,
+                          "marker " + marker + ": expected POSITION with 3 components, got " +
+                              std::to_string(tokens.size()) + ": \"" + (text ? text : "") + "\"");
+    }
+    Eigen::Vector3d position;
+    for (int i = 0; i < 3; ++i) {
+      LIFMCR_XML_ASSIGN_OR_RETURN(position[i], Component(element, marker, tokens[i]));
+    }
+    return position;
+  }
+
+  Status ReadMarker(const XMLElement* element) {
+    VskMarker marker;
+    marker.name = element->Attribute("NAME");
+    if (const char* status = element->Attribute("STATUS")) marker.status = status;
+    if (const char* radius = element->Attribute("RADIUS")) {
+      if (!xml::ParseStrictDouble(radius, &marker.radius_mm)) {
+        return xml::ErrorAt(
+            label_, element,
+            "marker " + marker.name + ": expected a number in RADIUS, got '" + radius + "'");
+      }
+    }
+    // v3.x: the target holds segment and position; v2.5: the marker itself.
+    const auto target = target_of_.find(marker.name);
+    const XMLElement* source = target != target_of_.end() ? target->second : element;
+    if (source->Attribute("POSITION") == nullptr) {
+      return xml::ErrorAt(label_, element,
+                          "marker " + marker.name +
+                              " has no position: neither a POSITION attribute nor a "
+                              "TargetLocalPointToWorldPoint");
+    }
+    const char* segment = source->Attribute("SEGMENT");
+    if (segment == nullptr) {
+      return xml::ErrorAt(label_, source, "marker " + marker.name + ": missing attribute SEGMENT");
+    }
+    marker.segment = segment;
+    if (segment_at_.count(marker.segment) == 0) {
+      return xml::ErrorAt(label_, source,
+                          "marker " + marker.name + " refers to segment '" + marker.segment +
+                              "', which is not in <Skeleton>");
+    }
+    LIFMCR_XML_ASSIGN_OR_RETURN(marker.position_mm, Position(source, marker.name));
+    vsk_.markers.push_back(std::move(marker));
+    return Status::Ok();
+  }
+
+  std::string label_;
+  Vsk vsk_;
+  std::map<std::string, const XMLElement*> parameter_at_;
+  std::map<std::string, const XMLElement*> segment_at_;
+  std::map<std::string, const XMLElement*> marker_at_;
+  std::map<std::string, const XMLElement*> target_of_;  // marker name -> its target
+};
+
+// ---------------------------------------------------------------- writing
+
+// Names end up inside POSITION="'a' 'b' 'c'", so no whitespace or quotes.
+Status CheckWritableName(const std::string& kind, const std::string& name) {
+  if (name.empty()) return Error{"VSK: cannot write a " + kind + " with an empty name"};
+  for (char c : name) {
+    if (c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\'' || c == '"') {
+      return Error{"VSK: cannot write " + kind + " '" + name +
+                   "': names must not contain whitespace or quotes"};
+    }
+  }
+  return Status::Ok();
+}
+
+constexpr char kCovariance6[] =
+    "2.464900016784668 0 0 0 0 0 0 2.464900016784668 0 0 0 0 0 0 246.49000549316406 0 0 0 0 0 0 "
+    "1000000 0 0 0 0 0 0 1000000 0 0 0 0 0 0 1000000";
+constexpr char kIdentity3[] = "1 0 0 0 1 0 0 0 1";
+
+class Writer {
+ public:
+  explicit Writer(const Vsk& vsk) : vsk_(vsk) {}
+
+  Expected<std::string> Format() {
+    LIFMCR_XML_RETURN_IF_ERROR(Check());
+    const std::string version = vsk_.version.rfind("3.", 0) == 0 ? vsk_.version : "3.2";
+    Line(0, "<?xml version=\"1.0\" encoding=\"UTF-8\"?>");
+    std::string root = "<KinematicModel VERSION=\"" + xml::EscapeXml(version) + "\"";
+    if (!vsk_.model.empty()) root += " MODEL=\"" + xml::EscapeXml(vsk_.model) + "\"";
+    Line(0, root + ">");
+
+    Line(1, "<Parameters>");
+    std::set<std::string> generated;
+    for (const VskMarker& marker : vsk_.markers) {
+      for (int axis = 0; axis < 3; ++axis) {
+        const std::string name = ParameterName(marker, axis);
+        generated.insert(name);
+        const std::string value = xml::FormatShortest(marker.position_mm[axis]);
+        Line(2, "<Parameter NAME=\"" + xml::EscapeXml(name) + "\" VALUE=\"" + value +
+                    "\" PRIOR=\"" + value + "\" HIDDEN=\"true\" />");
+      }
+    }
+    for (const auto& [name, value] : vsk_.parameters) {
+      if (generated.count(name) != 0) continue;  // the marker's position wins
+      const std::string text = xml::FormatShortest(value);
+      Line(2, "<Parameter NAME=\"" + xml::EscapeXml(name) + "\" VALUE=\"" + text + "\" PRIOR=\"" +
+                  text + "\" HIDDEN=\"false\" />");
+    }
+    Line(1, "</Parameters>");
+
+    Line(1, "<Skeleton>");
+    for (const VskSegment& segment : vsk_.segments) {
+      if (segment.parent.empty()) WriteSegment(2, segment);
+    }
+    Line(1, "</Skeleton>");
+
+    Line(1, "<MarkerSet>");
+    Line(2, "<Markers>");
+    for (const VskMarker& marker : vsk_.markers) {
+      std::string line = "<Marker NAME=\"" + xml::EscapeXml(marker.name) + "\" RADIUS=\"" +
+                         xml::FormatShortest(marker.radius_mm) + "\" RGB=\"255 164 0\"";
+      if (!marker.status.empty()) line += " STATUS=\"" + xml::EscapeXml(marker.status) + "\"";
+      Line(3, line + " VIEW-ANGLE=\"0\" />");
+    }
+    Line(2, "</Markers>");
+    Line(1, "</MarkerSet>");
+
+    Line(1, "<TargetSet>");
+    Line(2, "<Targets>");
+    for (const VskMarker& marker : vsk_.markers) {
+      Line(3, std::string("<TargetLocalPointToWorldPoint COVARIANCE=\"") + kIdentity3 +
+                  "\" FILL-GAPS=\"false\" GAUSSIAN=\"true\" HIDDEN=\"false\" MARKER=\"" +
+                  xml::EscapeXml(marker.name) + "\" OPACITY=\"255\" POSITION=\"'" +
+                  xml::EscapeXml(ParameterName(marker, 0)) + "' '" +
+                  xml::EscapeXml(ParameterName(marker, 1)) + "' '" +
+                  xml::EscapeXml(ParameterName(marker, 2)) + "'\" RGB=\"93 93 93\" SEGMENT=\"" +
+                  xml::EscapeXml(marker.segment) + "\" WEIGHT=\"1\" DRAW-STYLE=\"None\">");
+      Line(4, std::string("<TargetLocalPointToWorldPointTemplate COVARIANCE=\"") + kIdentity3 +
+                  "\" />");
+      Line(3, "</TargetLocalPointToWorldPoint>");
+    }
+    Line(2, "</Targets>");
+    Line(1, "</TargetSet>");
+    Line(0, "</KinematicModel>");
+    return std::move(out_);
+  }
+
+ private:
+  static std::string ParameterName(const VskMarker& marker, int axis) {
+    static constexpr const char* kAxes[] = {"x", "y", "z"};
+    return marker.segment + "_" + marker.name + "_" + kAxes[axis];
+  }
+
+  Status Check() const {
+    std::set<std::string> segments;
+    for (const VskSegment& segment : vsk_.segments) {
+      LIFMCR_XML_RETURN_IF_ERROR(CheckWritableName("segment", segment.name));
+      if (!segment.parent.empty() && segments.count(segment.parent) == 0) {
+        return Error{"VSK: cannot write segment '" + segment.name + "': its parent '" +
+                     segment.parent + "' is not a segment listed before it"};
+      }
+      if (!segments.insert(segment.name).second) {
+        return Error{"VSK: cannot write duplicate segment '" + segment.name + "'"};
+      }
+    }
+    std::set<std::string> markers;
+    std::set<std::string> generated;
+    for (const VskMarker& marker : vsk_.markers) {
+      LIFMCR_XML_RETURN_IF_ERROR(CheckWritableName("marker", marker.name));
+      if (!markers.insert(marker.name).second) {
+        return Error{"VSK: cannot write duplicate marker '" + marker.name + "'"};
+      }
+      if (segments.count(marker.segment) == 0) {
+        return Error{"VSK: cannot write marker '" + marker.name + "': its segment '" +
+                     marker.segment + "' is not in the segments"};
+      }
+      if (!marker.position_mm.allFinite() || !std::isfinite(marker.radius_mm)) {
+        return Error{"VSK: cannot write marker '" + marker.name +
+                     "': position or radius is not finite"};
+      }
+      for (int axis = 0; axis < 3; ++axis) {
+        if (!generated.insert(ParameterName(marker, axis)).second) {
+          return Error{"VSK: cannot write marker '" + marker.name + "': parameter name '" +
+                       ParameterName(marker, axis) + "' is generated twice"};
+        }
+      }
+    }
+    for (const auto& [name, value] : vsk_.parameters) {
+      LIFMCR_XML_RETURN_IF_ERROR(CheckWritableName("parameter", name));
+      if (!std::isfinite(value)) {
+        return Error{"VSK: cannot write parameter '" + name + "': value is not finite"};
+      }
+    }
+    return Status::Ok();
+  }
+
+  void WriteSegment(int depth, const VskSegment& segment) {
+    const std::string name = xml::EscapeXml(segment.name);
+    const std::string joint =
+        (segment.parent.empty() ? std::string("World") : xml::EscapeXml(segment.parent)) + "_" +
+        name;
+    Line(depth, "<Segment NAME=\"" + name +
+                    "\" OPACITY=\"255\" BOUNDS=\"-50 -50 -50 50 50 50\" MASS=\"0\" "
+                    "MASS-CENTRE=\"0 0 0\" INERTIA=\"0 0 0\" RGB=\"255 164 0\" HIDDEN=\"false\">");
+    Line(depth + 1, "<JointFree NAME=\"" + joint +
+                        "\" PRE-ORIENTATION=\"0 0 0\" PRE-POSITION=\"0 0 0\" "
+                        "INVERSE-POST-ORIENTATION=\"0 0 0\" INVERSE-POST-POSITION=\"0 0 0\" "
+                        "MEAN=\"0 0 0 0 0 0\" COVARIANCE=\"" +
+                        kCovariance6 + "\" T=\"* * * * * *\" SIGNS=\"+ + + + + +\">");
+    Line(depth + 2, std::string("<JointTemplate MEAN=\"0 0 0 0 0 0\" COVARIANCE=\"") +
+                        kCovariance6 + "\" PRE-ORIENTATION=\"0 0 0\" PRE-POSITION=\"0 0 0\" />");
+    Line(depth + 1, "</JointFree>");
+    for (const VskSegment& child : vsk_.segments) {
+      if (child.parent == segment.name) WriteSegment(depth + 1, child);
+    }
+    Line(depth, "</Segment>");
+  }
+
+  void Line(int depth, const std::string& text) {
+    out_.append(depth, '\t');
+    out_ += text;
+    out_ += '\n';
+  }
+
+  const Vsk& vsk_;
+  std::string out_;
+};
+
+}  // namespace
+
+std::vector<std::string> VskSubjects(const Vsk& vsk) {
+  std::vector<std::string> subjects;
+  for (const VskSegment& segment : vsk.segments) {
+    if (segment.parent.empty()) subjects.push_back(segment.name);
+  }
+  return subjects;
+}
+
+std::vector<VskMarker> VskMarkersOfSegment(const Vsk& vsk, std::string_view segment) {
+  std::vector<VskMarker> markers;
+  for (const VskMarker& marker : vsk.markers) {
+    if (marker.segment == segment) markers.push_back(marker);
+  }
+  return markers;
+}
+
+std::vector<VskMarker> VskMarkersOfSubject(const Vsk& vsk, std::string_view subject) {
+  std::set<std::string, std::less<>> below{std::string(subject)};
+  // Fixed point, so the order of `segments` does not matter.
+  for (bool grew = true; grew;) {
+    grew = false;
+    for (const VskSegment& segment : vsk.segments) {
+      if (below.count(segment.parent) != 0 && below.insert(segment.name).second) grew = true;
+    }
+  }
+  std::vector<VskMarker> markers;
+  for (const VskMarker& marker : vsk.markers) {
+    if (below.count(marker.segment) != 0) markers.push_back(marker);
+  }
+  return markers;
+}
+
+Expected<Eigen::Vector3d> VskMarkerCentroidMm(const Vsk& vsk, std::string_view segment) {
+  const std::vector<VskMarker> markers = VskMarkersOfSegment(vsk, segment);
+  if (markers.empty()) {
+    return Error{"VSK: segment '" + std::string(segment) + "' has no markers"};
+  }
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const VskMarker& marker : markers) sum += marker.position_mm;
+  return Eigen::Vector3d(sum / static_cast<double>(markers.size()));
+}
+
+Expected<Vsk> ParseVsk(std::string_view text, const std::string& file_label) {
+  return Reader(file_label).Read(text);
+}
+
+Expected<Vsk> ReadVsk(const std::filesystem::path& path) {
+  LIFMCR_XML_ASSIGN_OR_RETURN(const std::string text, xml::ReadTextFile(path));
+  return ParseVsk(text, path.string());
+}
+
+Expected<std::string> FormatVsk(const Vsk& vsk) { return Writer(vsk).Format(); }
+
+Status WriteVsk(const std::filesystem::path& path, const Vsk& vsk) {
+  auto text = FormatVsk(vsk);
+  if (!text.ok()) return Error{path.string() + ": not written: " + text.error().message};
+  return xml::WriteTextFile(path, *text);
+}
+
+}  // namespace lifmcr

@@ -1,1 +1,91 @@
 #pragma once
+// Vicon .vsk subject/object models (XML, root <KinematicModel>;
+// notes/formats.md section 4). LiFMCR's Calibration/03_Vicon/Object.vsk holds
+// the marker clusters of cam0, cam2 and the reference plate.
+//
+// Two layouts are read:
+//  * Tracker v3.x: a marker's position is three parameter names,
+//      <TargetLocalPointToWorldPoint MARKER="Go21" SEGMENT="Go2"
+//                                    POSITION="'Go2_Go21_x' 'Go2_Go21_y' 'Go2_Go21_z'"/>
+//    resolved through <Parameters><Parameter NAME=… VALUE=…/>.
+//  * Nexus v2.5: inline <Marker NAME="LFHD" SEGMENT="Head" POSITION="0 70.3721 0"/>,
+//    where each component is a number or a parameter name with an optional
+//    sign prefix ("-ASISy").
+// A marker with a TargetLocalPointToWorldPoint takes its position from it;
+// otherwise from its own POSITION. Parameters given only by an EXPRESSION are
+// not evaluated: referring to one is an error that says so.
+//
+// Subjects: a file may hold several (LiFMCR's Object.vsk has three). Each
+// root <Segment> of the <Skeleton> is one subject; nested segments form
+// its hierarchy (Nexus). Marker positions are in millimetres in the frame of
+// their segment.
+//
+// Errors name the file, the line and the element path, e.g.
+//   "Object.vsk:97: /KinematicModel/TargetSet/Targets/TargetLocalPointToWorldPoint[@MARKER='Go21']:
+//    marker Go21 references undefined parameter 'Go2_Go21_y'".
+
+#include "config/error.h"
+
+#include <Eigen/Core>
+
+#include <filesystem>
+#include <map>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace lifmcr {
+
+struct VskMarker {
+  std::string name;     // unique in the file
+  std::string segment;  // the segment whose frame position_mm is in
+  Eigen::Vector3d position_mm = Eigen::Vector3d::Zero();
+  std::string status;      // "required", "optional", or "" when the file gives none
+  double radius_mm = 0.0;  // 0 when the file gives none
+};
+
+struct VskSegment {
+  std::string name;    // unique in the file
+  std::string parent;  // "" for a root segment (a subject)
+};
+
+struct Vsk {
+  std::string version;               // VERSION attribute, e.g. "3.2" or "2.5"
+  std::string model;                 // MODEL attribute, "" when absent
+  std::vector<VskSegment> segments;  // parents before children
+  std::vector<VskMarker> markers;    // file order
+  // Every parameter with a numeric VALUE (Parameter and StaticParameter).
+  std::map<std::string, double> parameters;
+};
+
+// Names of the root segments (the subjects), in file order.
+std::vector<std::string> VskSubjects(const Vsk& vsk);
+// Markers attached directly to `segment`, in file order.
+std::vector<VskMarker> VskMarkersOfSegment(const Vsk& vsk, std::string_view segment);
+// Markers attached to `subject` (a root segment) or to any segment below it.
+std::vector<VskMarker> VskMarkersOfSubject(const Vsk& vsk, std::string_view subject);
+// Mean of the positions of the markers attached directly to `segment`, in
+// that segment's frame (mm). Error when the segment has no markers.
+Expected<Eigen::Vector3d> VskMarkerCentroidMm(const Vsk& vsk, std::string_view segment);
+
+// Reads a .vsk (v3.x or v2.5).
+Expected<Vsk> ReadVsk(const std::filesystem::path& path);
+// Same, from text in memory; `file_label` names it in messages.
+Expected<Vsk> ParseVsk(std::string_view text, const std::string& file_label);
+
+// Writes the Tracker v3.x style: every marker coordinate becomes a parameter
+// <Segment>_<Marker>_x|y|z, referenced by name from a
+// TargetLocalPointToWorldPoint; one rigid Segment with a JointFree per root
+// segment (children nested, joined by a JointFree too); a MarkerSet without
+// sticks. Other parameters of `vsk.parameters` are written as well; a name
+// that collides with a generated marker parameter is overwritten by the
+// marker's position. Numbers are written so they read back exactly.
+// Refused (nothing written) when a name is empty or holds whitespace or
+// quotes, names repeat, a marker's segment does not exist, or a value is not
+// finite. VERSION is vsk.version when it is a 3.x version, else "3.2" (the
+// layout written is 3.x's); MODEL is written when not empty.
+Status WriteVsk(const std::filesystem::path& path, const Vsk& vsk);
+// The text WriteVsk writes, or the reason it cannot.
+Expected<std::string> FormatVsk(const Vsk& vsk);
+
+}  // namespace lifmcr
