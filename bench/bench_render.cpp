@@ -4,6 +4,12 @@
 // --png writes the docs figure: a crop of the raw image beside the same region
 // of the all-in-focus ground truth (scaled to the raw crop's size).
 
+#include "replay/synth/plenoptic_model.h"
+#include "replay/synth/renderer.h"
+#include "replay/synth/scene.h"
+#include "replay/synth/synth_params.h"
+#include "replay/synth/trajectory.h"
+
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <tbb/global_control.h>
@@ -16,22 +22,20 @@
 #include <string>
 #include <vector>
 
-#include "replay/synth/plenoptic_model.h"
-#include "replay/synth/renderer.h"
-#include "replay/synth/scene.h"
-#include "replay/synth/synth_params.h"
-#include "replay/synth/trajectory.h"
-
 using lifmcr::synth::PlenopticModel;
 
 int main(int argc, char** argv) {
   std::string preset = "r32", png, raw_png;
   int repeat = 3;
   for (int k = 1; k + 1 < argc; k += 2) {
-    if (!std::strcmp(argv[k], "--preset")) preset = argv[k + 1];
-    else if (!std::strcmp(argv[k], "--repeat")) repeat = std::max(1, std::atoi(argv[k + 1]));
-    else if (!std::strcmp(argv[k], "--png")) png = argv[k + 1];
-    else if (!std::strcmp(argv[k], "--raw-png")) raw_png = argv[k + 1];
+    if (!std::strcmp(argv[k], "--preset"))
+      preset = argv[k + 1];
+    else if (!std::strcmp(argv[k], "--repeat"))
+      repeat = std::max(1, std::atoi(argv[k + 1]));
+    else if (!std::strcmp(argv[k], "--png"))
+      png = argv[k + 1];
+    else if (!std::strcmp(argv[k], "--raw-png"))
+      raw_png = argv[k + 1];
     else {
       std::fprintf(stderr, "unknown option %s\n", argv[k]);
       return 2;
@@ -78,13 +82,15 @@ int main(int argc, char** argv) {
   (void)lifmcr::synth::RenderRaw(model, scene, world_from_cam, plain);
   const double plain_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - plain_start).count();
-  std::printf("raw frame: %.3f s median of %d (%.1f MP/s); without blur+noise %.3f s (blur+noise "
-              "cost x%.2f)\n",
-              median, repeat, megapixels / median, plain_s, median / plain_s);
+  std::printf(
+      "raw frame: %.3f s median of %d (%.1f MP/s); without blur+noise %.3f s (blur+noise "
+      "cost x%.2f)\n",
+      median, repeat, megapixels / median, plain_s, median / plain_s);
   std::printf("all-in-focus + depth ground truth (%dx%d): %.3f s\n", gt.width, gt.height, tf_s);
 
   if (!raw_png.empty()) {
-    const cv::Mat image(raw.height, raw.width, raw.format == lifmcr::PixelFormat::kBgr8 ? CV_8UC3 : CV_8UC1,
+    const cv::Mat image(raw.height, raw.width,
+                        raw.format == lifmcr::PixelFormat::kBgr8 ? CV_8UC3 : CV_8UC1,
                         raw.pixels.data());
     cv::imwrite(raw_png, image);
   }

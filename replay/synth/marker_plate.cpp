@@ -20,7 +20,8 @@ double PlateBitmap::Sample(double x_mm, double y_mm) const {
   const double row = (height - 1 + 0.5) - (y_mm - min_mm.y()) * px_per_mm;
   if (col < -0.5 || row < -0.5 || col > width - 0.5 || row > height - 0.5) return -1.0;
   const double cx = std::clamp(col, 0.0, width - 1.0), cy = std::clamp(row, 0.0, height - 1.0);
-  const int x0 = std::min(static_cast<int>(cx), width - 2), y0 = std::min(static_cast<int>(cy), height - 2);
+  const int x0 = std::min(static_cast<int>(cx), width - 2),
+            y0 = std::min(static_cast<int>(cy), height - 2);
   const double tx = cx - x0, ty = cy - y0;
   auto at = [&](int x, int y) { return pixels[static_cast<std::size_t>(y) * width + x] / 255.0; };
   const double top = at(x0, y0) + (at(x0 + 1, y0) - at(x0, y0)) * tx;

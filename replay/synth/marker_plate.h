@@ -8,20 +8,20 @@
 // id 3 bottom-right (P_3, along +x), id 0 top-left (P_0, along +y), id 1
 // top-right (P_1, the check point).
 
+#include <Eigen/Core>
+
 #include <array>
 #include <cstdint>
 #include <vector>
 
-#include <Eigen/Core>
-
 namespace lifmcr::synth {
 
 struct MarkerPlateLayout {
-  double vicon_span_x_mm = 400;     // bottom-left -> bottom-right Vicon marker
-  double vicon_span_y_mm = 280;     // bottom-left -> top-left Vicon marker
-  double board_margin_mm = 25;      // board beyond the Vicon markers
-  double aruco_side_mm = 100;       // black square side incl. its border bits
-  int aruco_dictionary = 10;        // cv::aruco::DICT_6X6_250
+  double vicon_span_x_mm = 400;  // bottom-left -> bottom-right Vicon marker
+  double vicon_span_y_mm = 280;  // bottom-left -> top-left Vicon marker
+  double board_margin_mm = 25;   // board beyond the Vicon markers
+  double aruco_side_mm = 100;    // black square side incl. its border bits
+  int aruco_dictionary = 10;     // cv::aruco::DICT_6X6_250
   // Centres of ArUco ids 0..3 in the world (plate) frame, z = 0.
   std::array<Eigen::Vector2d, 4> aruco_centers_mm{
       Eigen::Vector2d(100, 200), Eigen::Vector2d(300, 200), Eigen::Vector2d(100, 80),

@@ -39,8 +39,8 @@ PlenopticModel::PlenopticModel(const SynthCameraParams& params) : p_(params) {
                Eigen::AngleAxisd(p_.mla_tilt_y_rad, Eigen::Vector3d::UnitY()))
                   .toRotationMatrix();
   tilted_ = p_.mla_tilt_x_rad != 0.0 || p_.mla_tilt_y_rad != 0.0;
-  has_distortion_ = p_.distortion_k1 != 0.0 || p_.distortion_k2 != 0.0 ||
-                    p_.distortion_p1 != 0.0 || p_.distortion_p2 != 0.0;
+  has_distortion_ = p_.distortion_k1 != 0.0 || p_.distortion_k2 != 0.0 || p_.distortion_p1 != 0.0 ||
+                    p_.distortion_p2 != 0.0;
 }
 
 double PlenopticModel::micro_lens_pitch_mm() const {
@@ -188,8 +188,8 @@ std::optional<PixelSample> PlenopticModel::TraceThroughLens(const Eigen::Vector2
   // pixel lenslets are shifted for the main-lens chief-ray angle, so the
   // falloff inside a micro image is symmetric about c_k.
   const double c_mm = (sample.lens.center_px - principal_px_).norm() * p_.pixel_size_mm;
-  const double falloff = Cos4(c_mm / sensor.z()) *
-                         Cos4(sample.radius_px * p_.pixel_size_mm / lens_to_sensor);
+  const double falloff =
+      Cos4(c_mm / sensor.z()) * Cos4(sample.radius_px * p_.pixel_size_mm / lens_to_sensor);
   sample.coverage = coverage;
   sample.falloff = falloff;
   sample.weight = coverage * falloff;
@@ -253,8 +253,8 @@ MlaCalibration PlenopticModel::ToMlaCalibration() const {
     // Least squares over all lenses in the image: c = o + [a -b; b a] g, with g
     // the unit lattice point in y-up coordinates, a = D cos, b = D sin.
     std::vector<Eigen::Vector2d> g_up, c_up;
-    const int reach = static_cast<int>(
-        2 + std::max(p_.width_px, p_.height_px) / p_.micro_image_pitch_px * 1.3);
+    const int reach =
+        static_cast<int>(2 + std::max(p_.width_px, p_.height_px) / p_.micro_image_pitch_px * 1.3);
     for (int j = -reach; j <= reach; ++j)
       for (int i = -2 * reach; i <= 2 * reach; ++i) {
         const MicroLens lens = Lens(i, j);

@@ -55,13 +55,13 @@
 // ground truth. (The paper's projX/projY re-projects onto a pinhole at the
 // main-lens centre instead; processing/ converts.)
 
-#include <array>
-#include <optional>
+#include "config/mla.h"
+#include "replay/synth/synth_params.h"
 
 #include <Eigen/Core>
 
-#include "config/mla.h"
-#include "replay/synth/synth_params.h"
+#include <array>
+#include <optional>
 
 namespace lifmcr::synth {
 
@@ -71,10 +71,10 @@ struct Ray {
 };
 
 struct MicroLens {
-  int i = 0, j = 0;                   // lattice index (axial hex coordinates)
-  int type = 0;                       // XML lens-type id 0..2
-  Eigen::Vector2d center_px;          // c_k, micro-image centre (raw pixels)
-  Eigen::Vector3d lens_mm;            // L_k, image side (x, y mirrored-upright, z from main lens)
+  int i = 0, j = 0;           // lattice index (axial hex coordinates)
+  int type = 0;               // XML lens-type id 0..2
+  Eigen::Vector2d center_px;  // c_k, micro-image centre (raw pixels)
+  Eigen::Vector3d lens_mm;    // L_k, image side (x, y mirrored-upright, z from main lens)
 };
 
 // What one raw pixel sees.
@@ -98,8 +98,8 @@ class PlenopticModel {
   int tf_height() const { return p_.height_px / 2; }
   Eigen::Vector2d principal_point_px() const { return principal_px_; }
   double aperture_mm() const { return p_.main_focal_length_mm / p_.f_number; }
-  double micro_lens_pitch_mm() const;        // d
-  double micro_image_disc_px() const;        // A B / (b_L0 s)
+  double micro_lens_pitch_mm() const;  // d
+  double micro_image_disc_px() const;  // A B / (b_L0 s)
 
   // Nominal lattice (the one the written XML describes).
   Eigen::Vector2d LatticeCenterPx(int i, int j) const;
@@ -117,7 +117,8 @@ class PlenopticModel {
   // distortion included.
   Eigen::Vector3d VirtualPoint(const Eigen::Vector3d& p_in_cam) const;
   // Where the virtual point (x_v, y_v, v) appears in the micro image of `lens`.
-  Eigen::Vector2d ProjectThroughLens(const MicroLens& lens, const Eigen::Vector3d& virtual_px) const;
+  Eigen::Vector2d ProjectThroughLens(const MicroLens& lens,
+                                     const Eigen::Vector3d& virtual_px) const;
 
   // The chief ray of raw pixel p; nullopt when p lies outside every micro
   // image (dark). With distortion the object-side locus is not a straight

@@ -43,16 +43,14 @@ std::optional<Hit> IntersectLocus(const PlenopticModel& model, const Scene& scen
                                   const Pose& world_from_cam, const Pose& cam_from_world,
                                   const Ray& ray, LineAt line_at, Eigen::Vector3d* p_in_cam) {
   const Eigen::Matrix3d rotation = world_from_cam.linear();
-  std::optional<Hit> hit =
-      scene.Intersect(world_from_cam * ray.origin, rotation * ray.direction);
+  std::optional<Hit> hit = scene.Intersect(world_from_cam * ray.origin, rotation * ray.direction);
   if (!hit) return std::nullopt;
   *p_in_cam = cam_from_world * hit->point;
   if (!model.has_distortion()) return hit;
   for (int iteration = 0; iteration < 4 && p_in_cam->z() > model.params().main_focal_length_mm;
        ++iteration) {
     const Ray r = model.ObjectRayOfImagePoint(line_at(model.ImageDistanceOfDepth(p_in_cam->z())));
-    std::optional<Hit> next =
-        scene.Intersect(world_from_cam * r.origin, rotation * r.direction);
+    std::optional<Hit> next = scene.Intersect(world_from_cam * r.origin, rotation * r.direction);
     if (!next) return std::nullopt;
     hit = next;
     *p_in_cam = cam_from_world * hit->point;
@@ -121,8 +119,8 @@ void BlurTile(int w, int h, const std::vector<std::uint8_t>& mask, const std::ve
 }  // namespace
 
 ConstImageView RawFrame::View() const {
-  return {pixels.data(), width, height,
-          static_cast<std::size_t>(width) * BytesPerPixel(format), format};
+  return {pixels.data(), width, height, static_cast<std::size_t>(width) * BytesPerPixel(format),
+          format};
 }
 
 ConstImageView TfGroundTruth::View() const {
@@ -202,8 +200,7 @@ RawFrame RenderRaw(const PlenopticModel& model, const Scene& scene, const Pose& 
           any_own = true;
           const std::optional<PixelSample> sample = model.TraceThroughLens(p, lens);
           if (!sample) continue;
-          const double vignetting =
-              sample->coverage * (options.vignetting ? sample->falloff : 1.0);
+          const double vignetting = sample->coverage * (options.vignetting ? sample->falloff : 1.0);
           if (scene.uniform_white) {
             lit[idx] = 1;
             tile[idx].setOnes();
@@ -217,7 +214,8 @@ RawFrame RenderRaw(const PlenopticModel& model, const Scene& scene, const Pose& 
           if (!hit || p_in_cam.z() <= cam.main_focal_length_mm) continue;
           const double b = model.ImageDistanceOfDepth(p_in_cam.z());
           const double v = (b - b_l0) / cam.mla_to_sensor_mm;
-          const double footprint = cam.pixel_size_mm * std::max(std::abs(v), 1.0) * p_in_cam.z() / b;
+          const double footprint =
+              cam.pixel_size_mm * std::max(std::abs(v), 1.0) * p_in_cam.z() / b;
           lit[idx] = 1;
           tile[idx] = scene.Shade(*hit, footprint).cast<float>();
           weight[idx] = static_cast<float>(vignetting);
@@ -227,7 +225,8 @@ RawFrame RenderRaw(const PlenopticModel& model, const Scene& scene, const Pose& 
                 std::min(model.BlurDiameterPx(sample->lens.type, v), pitch) / 4.0);
         }
       if (!any_own) continue;
-      if (options.defocus && !scene.uniform_white) BlurTile(tile_size, tile_size, lit, sigma, kernels, &tile);
+      if (options.defocus && !scene.uniform_white)
+        BlurTile(tile_size, tile_size, lit, sigma, kernels, &tile);
       for (int ty = 0; ty < tile_size; ++ty)
         for (int tx = 0; tx < tile_size; ++tx) {
           const int idx = ty * tile_size + tx;

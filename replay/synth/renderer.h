@@ -17,13 +17,13 @@
 // Work is parallel over rows of micro images (TBB); each pixel is written by
 // exactly one task.
 
-#include <cstdint>
-#include <vector>
-
 #include "config/frames.h"
 #include "config/image.h"
 #include "replay/synth/plenoptic_model.h"
 #include "replay/synth/scene.h"
+
+#include <cstdint>
+#include <vector>
 
 namespace lifmcr::synth {
 
@@ -38,8 +38,8 @@ struct RenderOptions {
 struct RawFrame {
   int width = 0, height = 0;
   PixelFormat format = PixelFormat::kBgr8;
-  std::vector<std::uint8_t> pixels;      // rows of width * bytes per pixel, no padding
-  std::vector<float> virtual_depth;      // v per raw pixel, NaN where no surface / dark
+  std::vector<std::uint8_t> pixels;  // rows of width * bytes per pixel, no padding
+  std::vector<float> virtual_depth;  // v per raw pixel, NaN where no surface / dark
   ConstImageView View() const;
 };
 

@@ -108,17 +108,15 @@ Scene MakeTableTopScene(std::uint64_t seed) {
   const Eigen::Vector3d x = Eigen::Vector3d::UnitX(), y = Eigen::Vector3d::UnitY(),
                         z = Eigen::Vector3d::UnitZ();
   constexpr double kPlateThicknessMm = 5.0;
-  scene.quads.push_back({Eigen::Vector3d(0, 0, -kPlateThicknessMm), x, y, {-1e12, -1e12},
-                         {1e12, 1e12}, 0});
+  scene.quads.push_back(
+      {Eigen::Vector3d(0, 0, -kPlateThicknessMm), x, y, {-1e12, -1e12}, {1e12, 1e12}, 0});
   scene.quads.push_back({Eigen::Vector3d(0, 1400, 0), x, z, {-1e12, -1e12}, {1e12, 1e12}, 1});
-  scene.quads.push_back({Eigen::Vector3d::Zero(), x, y, scene.plate.BoardMin(),
-                         scene.plate.BoardMax(), 2});
+  scene.quads.push_back(
+      {Eigen::Vector3d::Zero(), x, y, scene.plate.BoardMin(), scene.plate.BoardMax(), 2});
   // The plate's edges, so that a grazing view sees a board, not a floating sheet.
-  scene.boxes.push_back({Eigen::Vector3d(scene.plate.BoardMin().x(), scene.plate.BoardMin().y(),
-                                         -kPlateThicknessMm),
-                         Eigen::Vector3d(scene.plate.BoardMax().x(), scene.plate.BoardMax().y(),
-                                         -0.01),
-                         2});
+  scene.boxes.push_back(
+      {Eigen::Vector3d(scene.plate.BoardMin().x(), scene.plate.BoardMin().y(), -kPlateThicknessMm),
+       Eigen::Vector3d(scene.plate.BoardMax().x(), scene.plate.BoardMax().y(), -0.01), 2});
   scene.plate_bitmap = std::make_shared<PlateBitmap>(RenderPlateBitmap(scene.plate, 5.0));
   // Boxes around and behind the plate, never on it.
   const std::array<Eigen::Vector2d, 5> slots{Eigen::Vector2d(-260, 120), Eigen::Vector2d(560, 60),
@@ -129,19 +127,23 @@ Scene MakeTableTopScene(std::uint64_t seed) {
                                 0.35 + 0.6 * unit(rng));
     scene.materials.push_back({color, 0.7, texture(10 + 40 * unit(rng)), false});
     const Eigen::Vector3d size(80 + 120 * unit(rng), 80 + 120 * unit(rng), 60 + 180 * unit(rng));
-    const Eigen::Vector3d centre(slot.x() + 40 * (unit(rng) - 0.5), slot.y() + 40 * (unit(rng) - 0.5),
-                                 0);
-    scene.boxes.push_back({Eigen::Vector3d(centre.x() - size.x() / 2, centre.y() - size.y() / 2,
-                                           -kPlateThicknessMm),
-                           Eigen::Vector3d(centre.x() + size.x() / 2, centre.y() + size.y() / 2,
-                                           size.z() - kPlateThicknessMm),
-                           static_cast<int>(scene.materials.size()) - 1});
+    const Eigen::Vector3d centre(slot.x() + 40 * (unit(rng) - 0.5),
+                                 slot.y() + 40 * (unit(rng) - 0.5), 0);
+    scene.boxes.push_back(
+        {Eigen::Vector3d(centre.x() - size.x() / 2, centre.y() - size.y() / 2, -kPlateThicknessMm),
+         Eigen::Vector3d(centre.x() + size.x() / 2, centre.y() + size.y() / 2,
+                         size.z() - kPlateThicknessMm),
+         static_cast<int>(scene.materials.size()) - 1});
   }
   // A board leaning against the wall side: slanted depth for the depth stage.
   scene.materials.push_back({{0.85, 0.8, 0.6}, 0.75, texture(25), false});
   const Eigen::Vector3d lean_v = Eigen::Vector3d(0, 0.5, 0.866);
-  scene.quads.push_back({Eigen::Vector3d(-150, 760, -kPlateThicknessMm), x, lean_v, {0, 0},
-                         {700, 450}, static_cast<int>(scene.materials.size()) - 1});
+  scene.quads.push_back({Eigen::Vector3d(-150, 760, -kPlateThicknessMm),
+                         x,
+                         lean_v,
+                         {0, 0},
+                         {700, 450},
+                         static_cast<int>(scene.materials.size()) - 1});
   return scene;
 }
 
@@ -152,8 +154,12 @@ Scene MakePlaneScene(double feature_mm, std::uint32_t seed) {
   t.feature_mm = feature_mm;
   t.seed = seed;
   scene.materials.push_back({{0.9, 0.9, 0.9}, 0.8, t, false});
-  scene.quads.push_back({Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitX(),
-                         Eigen::Vector3d::UnitY(), {-1e12, -1e12}, {1e12, 1e12}, 0});
+  scene.quads.push_back({Eigen::Vector3d::Zero(),
+                         Eigen::Vector3d::UnitX(),
+                         Eigen::Vector3d::UnitY(),
+                         {-1e12, -1e12},
+                         {1e12, 1e12},
+                         0});
   scene.light_dir = Eigen::Vector3d::UnitZ();
   scene.ambient = 1.0;
   return scene;

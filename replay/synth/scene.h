@@ -4,6 +4,11 @@
 // reflectance times a fixed light; the renderer asks for the colour of the
 // first surface along a ray.
 
+#include "replay/synth/marker_plate.h"
+#include "replay/synth/texture.h"
+
+#include <Eigen/Core>
+
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -11,18 +16,13 @@
 #include <string>
 #include <vector>
 
-#include <Eigen/Core>
-
-#include "replay/synth/marker_plate.h"
-#include "replay/synth/texture.h"
-
 namespace lifmcr::synth {
 
 struct Material {
   Eigen::Vector3d color_rgb{0.8, 0.8, 0.8};  // reflectance at texture value 1
   double contrast = 0.6;                     // 0: flat colour, 1: full texture range
   NoiseTexture texture;
-  bool plate = false;                        // reflectance from the marker-plate bitmap
+  bool plate = false;  // reflectance from the marker-plate bitmap
 };
 
 // A rectangle (or, with infinite extents, a plane): origin + a u_axis + b v_axis.
@@ -39,10 +39,10 @@ struct Box {
 };
 
 struct Hit {
-  double t = 0;              // ray parameter (direction as given)
-  Eigen::Vector3d point;     // world, mm
-  Eigen::Vector3d normal;    // world, unit, facing the ray
-  Eigen::Vector2d uv_mm;     // surface coordinates for the texture
+  double t = 0;            // ray parameter (direction as given)
+  Eigen::Vector3d point;   // world, mm
+  Eigen::Vector3d normal;  // world, unit, facing the ray
+  Eigen::Vector2d uv_mm;   // surface coordinates for the texture
   int material = 0;
 };
 
@@ -54,9 +54,9 @@ class Scene {
   std::vector<Box> boxes;
   MarkerPlateLayout plate;
   std::shared_ptr<const PlateBitmap> plate_bitmap;  // set when a material has plate = true
-  Eigen::Vector3d light_dir{0.3, -0.4, 0.87};        // towards the light, world
+  Eigen::Vector3d light_dir{0.3, -0.4, 0.87};       // towards the light, world
   double ambient = 0.45;
-  bool uniform_white = false;                         // white-image scene: radiance 1 everywhere
+  bool uniform_white = false;  // white-image scene: radiance 1 everywhere
 
   // First hit with t > 0 along origin + t dir (world frame).
   std::optional<Hit> Intersect(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir) const;

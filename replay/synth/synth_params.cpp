@@ -1,5 +1,7 @@
 #include "replay/synth/synth_params.h"
 
+#include "config/frames.h"
+
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
@@ -7,8 +9,6 @@
 #include <functional>
 #include <sstream>
 #include <vector>
-
-#include "config/frames.h"
 
 namespace lifmcr::synth {
 namespace {
@@ -34,8 +34,8 @@ void DeriveOptics(SynthCameraParams* c, double v2_distance_mm) {
   double b_l0 = c->main_focal_length_mm;
   for (int i = 0; i < 3; ++i) {
     c->mla_to_sensor_mm = 0.97 * c->micro_image_pitch_px * c->pixel_size_mm * b_l0 / aperture_mm;
-    const double b_at_v2 = c->main_focal_length_mm * v2_distance_mm /
-                           (v2_distance_mm - c->main_focal_length_mm);
+    const double b_at_v2 =
+        c->main_focal_length_mm * v2_distance_mm / (v2_distance_mm - c->main_focal_length_mm);
     b_l0 = b_at_v2 - 2.0 * c->mla_to_sensor_mm;
   }
   c->mla_to_main_lens_mm = b_l0;
@@ -70,7 +70,8 @@ Status SynthCameraParams::Check() const {
   if (!(std::abs(mla_tilt_x_rad) <= 1e-3 && std::abs(mla_tilt_y_rad) <= 1e-3))
     return FieldError("camera.mla_tilt_x_rad/mla_tilt_y_rad", "expected |tilt| <= 1e-3 rad");
   for (int t = 0; t < 3; ++t)
-    if (!(micro_lens_focal_mm[t] > mla_to_sensor_mm && micro_lens_focal_mm[t] < 20 * mla_to_sensor_mm))
+    if (!(micro_lens_focal_mm[t] > mla_to_sensor_mm &&
+          micro_lens_focal_mm[t] < 20 * mla_to_sensor_mm))
       return FieldError("camera.micro_lens_focal_mm[" + std::to_string(t) + "]",
                         "expected B < f < 20 B (Galilean mode, sharp at v > 1)");
   if (!(sharp_blur_px > 0)) return FieldError("camera.sharp_blur_px", "expected > 0");
@@ -96,7 +97,8 @@ Status SynthRigParams::Check() const {
     return FieldError("rig.viewing_distance_mm", "expected 200..5000 mm");
   if (!(baseline_mm >= 0 && baseline_mm <= 1000))
     return FieldError("rig.baseline_mm", "expected 0..1000 mm");
-  if (!(speed_scale >= 0 && speed_scale <= 10)) return FieldError("rig.speed_scale", "expected 0..10");
+  if (!(speed_scale >= 0 && speed_scale <= 10))
+    return FieldError("rig.speed_scale", "expected 0..10");
   auto plain = [](const std::string& name) {
     if (name.empty() || name == "." || name == "..") return false;
     for (char ch : name)

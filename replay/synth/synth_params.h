@@ -9,24 +9,24 @@
 // b_L0 main lens -> MLA, B MLA -> sensor, D micro-image pitch, s pixel size,
 // v = b / B virtual depth.
 
+#include "config/error.h"
+
+#include <Eigen/Core>
+
 #include <array>
 #include <cstdint>
 #include <filesystem>
 #include <string>
 #include <string_view>
 
-#include <Eigen/Core>
-
-#include "config/error.h"
-
 namespace lifmcr::synth {
 
 // One focused plenoptic camera (Raytrix-like, Galilean mode).
 struct SynthCameraParams {
   // Sensor.
-  int width_px = 1024;                // raw image width
-  int height_px = 768;                // raw image height
-  double pixel_size_mm = 0.0055;      // s
+  int width_px = 1024;            // raw image width
+  int height_px = 768;            // raw image height
+  double pixel_size_mm = 0.0055;  // s
   // Main lens (thin lens) and its distance to the MLA.
   double main_focal_length_mm = 25.0;  // f_L
   double f_number = 2.4;               // aperture diameter = f_L / f_number
@@ -82,9 +82,9 @@ struct SynthRigParams {
 
 struct SynthViconParams {
   int rate_hz = 80;
-  int trigger_divider = 8;              // camera trigger every 8th Vicon frame
+  int trigger_divider = 8;               // camera trigger every 8th Vicon frame
   std::int64_t first_trigger_frame = 1;  // Vicon frame of the first trigger
-  int lead_in_frames = 8;               // Vicon frames recorded before the first trigger
+  int lead_in_frames = 8;                // Vicon frames recorded before the first trigger
   double marker_noise_mm = 0.15;         // per-marker position noise (sigma)
   int occlusion_gaps = 0;                // gaps per camera subject (0 = none)
   int occlusion_gap_frames = 5;          // length of each gap

@@ -9,9 +9,9 @@
 namespace lifmcr::synth {
 
 struct NoiseTexture {
-  double feature_mm = 40.0;     // wavelength of the coarsest octave
-  double finest_mm = 0.3;       // no detail below this wavelength
-  double persistence = 0.72;    // amplitude ratio between octaves
+  double feature_mm = 40.0;   // wavelength of the coarsest octave
+  double finest_mm = 0.3;     // no detail below this wavelength
+  double persistence = 0.72;  // amplitude ratio between octaves
   std::uint32_t seed = 1;
 
   // Value in [0, 1] at surface coordinates (u, v) mm, for a sample that

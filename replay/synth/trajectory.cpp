@@ -19,7 +19,8 @@ Pose LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, double ro
   rotation.col(1) = y;
   rotation.col(2) = z;
   Pose pose = Pose::Identity();
-  pose.linear() = rotation * Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  pose.linear() =
+      rotation * Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   pose.translation() = eye;
   return pose;
 }
@@ -71,7 +72,8 @@ Pose CameraTrajectory::WorldFromCam(double t_s) const {
     if (segment < 3) {
       pose.translation()[segment] += shift;
     } else {
-      const Eigen::Vector3d axis = segment == 3 ? Eigen::Vector3d::UnitY()  // camera yaw: about image y
+      const Eigen::Vector3d axis = segment == 3
+                                       ? Eigen::Vector3d::UnitY()  // camera yaw: about image y
                                    : segment == 4 ? Eigen::Vector3d::UnitX()
                                                   : Eigen::Vector3d::UnitZ();
       pose.linear() = pose.linear() * Eigen::AngleAxisd(angle, axis).toRotationMatrix();

@@ -10,12 +10,12 @@
 // translate x, y, z, then yaw, pitch, roll, each back and forth), circle (an
 // arc of 90 degrees around the plate at constant height and distance).
 
-#include <cstdint>
-#include <string>
+#include "config/frames.h"
 
 #include <Eigen/Core>
 
-#include "config/frames.h"
+#include <cstdint>
+#include <string>
 
 namespace lifmcr::synth {
 
@@ -30,7 +30,7 @@ struct TrajectoryParams {
   double lateral_offset_mm = 0;                         // this camera's place in the rig (along x)
   double duration_s = 1.0;                              // sequence length (for axis/circle)
   double amplitude_scale = 1.0;
-  std::uint64_t seed = 1;                               // per camera
+  std::uint64_t seed = 1;  // per camera
 };
 
 class CameraTrajectory {
