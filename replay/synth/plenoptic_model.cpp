@@ -195,7 +195,9 @@ std::optional<PixelSample> PlenopticModel::TraceThroughLens(const Eigen::Vector2
   sample.weight = coverage * falloff;
   const double f = p_.main_focal_length_mm;
   const Eigen::Vector3d q = sensor + along * ((sensor.z() - f) / (sensor.z() - l.z()));
-  sample.ray.origin = {m.x(), m.y(), 0.0};
+  // Image-side lateral coordinates are mirrored (upright image): the lens
+  // point M of the image-side line is the object-side point -M.
+  sample.ray.origin = {-m.x(), -m.y(), 0.0};
   sample.ray.direction = {q.x() / f, q.y() / f, 1.0};
   return sample;
 }

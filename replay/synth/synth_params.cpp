@@ -147,7 +147,7 @@ Expected<SynthParams> MakePreset(std::string_view name) {
     c.micro_image_pitch_px = 16.0;
     c.mla_offset_px = {0.3, -0.2};
     DeriveOptics(&c, 3000.0);
-    params.rig.viewing_distance_mm = 700;
+    params.rig.viewing_distance_mm = 1100;
   } else if (name == "medium") {
     c.width_px = 3280;
     c.height_px = 2474;
