@@ -175,12 +175,13 @@ std::optional<PixelSample> PlenopticModel::TraceThroughLens(const Eigen::Vector2
   // The rim is the main-lens aperture seen out of focus through the micro lens
   // (it sits at v = -b_L0 / B): blur d |1 + B/b_L0 - B/f_t| / s. The full value
   // assumes a micro lens filling its whole cell; real micro images show a
-  // softer but narrower rim, so it is capped at D / 4.
+  // narrower rim (dark gaps where three micro images meet), so it is capped
+  // at D / 8.
   const double rim_blur_px =
       std::clamp(micro_lens_pitch_mm() / p_.pixel_size_mm *
                      std::abs(1.0 + lens_to_sensor / l.z() -
                               lens_to_sensor / p_.micro_lens_focal_mm[sample.lens.type]),
-                 1.0, p_.micro_image_pitch_px / 4);
+                 1.0, p_.micro_image_pitch_px / 8);
   const double coverage = std::clamp(0.5 + inside_px / rim_blur_px, 0.0, 1.0);
   if (coverage <= 0.0) return std::nullopt;
   // Natural falloff: cos^4 of the main lens's chief-ray angle at c_k, and

@@ -69,11 +69,11 @@ struct SynthCameraParams {
 // The two cameras of the paper first, then more (cam index i -> Vicon name).
 struct SynthRigParams {
   int cameras = 2;
-  int frames = 4;                    // camera triggers per sequence
-  std::string motion = "smooth";     // smooth|handheld|axis|circle
+  int frames = 4;                     // camera triggers per sequence
+  std::string motion = "smooth";      // smooth|handheld|axis|circle
   double viewing_distance_mm = 1100;  // camera to the plate centre
-  double baseline_mm = 120;          // between neighbouring cameras
-  double speed_scale = 1.0;          // scales the amplitude of motion
+  double baseline_mm = 120;           // between neighbouring cameras
+  double speed_scale = 1.0;           // scales the amplitude of motion
   std::string scene = "00_Synthetic";
   std::string sequence = "Sequence_00";
   std::uint64_t seed = 1;

@@ -4,14 +4,6 @@
 // images where the written MLA file says, and each lens type is sharpest in
 // its own depth range.
 
-#include <gtest/gtest.h>
-
-#include <algorithm>
-#include <array>
-#include <cmath>
-#include <random>
-#include <vector>
-
 #include "config/mla.h"
 #include "replay/mla_xml.h"
 #include "replay/synth/plenoptic_model.h"
@@ -20,6 +12,14 @@
 #include "replay/synth/synth_params.h"
 #include "replay/synth/trajectory.h"
 #include "tests/test_util.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <random>
+#include <vector>
 
 namespace lifmcr::synth {
 namespace {
@@ -37,7 +37,8 @@ double GreyAt(const RawFrame& frame, const Eigen::Vector2d& p) {
   auto at = [&](int x, int y) {
     x = std::clamp(x, 0, frame.width - 1);
     y = std::clamp(y, 0, frame.height - 1);
-    const std::uint8_t* px = frame.pixels.data() + (static_cast<std::size_t>(y) * frame.width + x) * 3;
+    const std::uint8_t* px =
+        frame.pixels.data() + (static_cast<std::size_t>(y) * frame.width + x) * 3;
     return (px[0] + px[1] + px[2]) / 3.0;
   };
   return (1 - ty) * ((1 - tx) * at(x0, y0) + tx * at(x0 + 1, y0)) +
@@ -146,8 +147,8 @@ TEST(SynthRender, NeighbouringMicroImagesAgreeAtTheGroundTruthVirtualDepth) {
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> x(2 * pitch, frame.width - 2 * pitch),
       y(2 * pitch, frame.height - 2 * pitch);
-  const std::array<Eigen::Vector2i, 6> ring{Eigen::Vector2i(1, 0), Eigen::Vector2i(-1, 0),
-                                            Eigen::Vector2i(0, 1), Eigen::Vector2i(0, -1),
+  const std::array<Eigen::Vector2i, 6> ring{Eigen::Vector2i(1, 0),  Eigen::Vector2i(-1, 0),
+                                            Eigen::Vector2i(0, 1),  Eigen::Vector2i(0, -1),
                                             Eigen::Vector2i(1, -1), Eigen::Vector2i(-1, 1)};
   for (int k = 0; k < 4000; ++k) {
     const Eigen::Vector2d p(std::round(x(rng)), std::round(y(rng)));
