@@ -95,16 +95,30 @@ int main(int argc, char** argv) {
     cv::imwrite(raw_png, image);
   }
   if (!png.empty()) {
-    // A crop of the raw image around the plate's centre, beside the same
-    // region of the all-in-focus image scaled by 2 (TF grid = raw / 2).
+    // A crop of the raw image where the all-in-focus image has the most
+    // structure (largest grey variance over a grid of candidates), beside the
+    // same region of the all-in-focus image scaled by 2 (TF grid = raw / 2).
     const int crop = std::min(480, std::min(raw.width, raw.height) / 2);
-    const int x0 = raw.width / 2 - crop / 2, y0 = raw.height / 2 - crop / 2;
+    const cv::Mat tf_image(gt.height, gt.width, CV_8UC3, const_cast<std::uint8_t*>(gt.bgr.data()));
+    cv::Mat tf_grey;
+    cv::cvtColor(tf_image, tf_grey, cv::COLOR_BGR2GRAY);
+    int x0 = raw.width / 2 - crop / 2, y0 = raw.height / 2 - crop / 2;
+    double best = -1;
+    for (int y = 0; y + crop <= raw.height; y += crop / 2)
+      for (int x = 0; x + crop <= raw.width; x += crop / 2) {
+        cv::Scalar mean, stddev;
+        cv::meanStdDev(tf_grey(cv::Rect(x / 2, y / 2, crop / 2, crop / 2)), mean, stddev);
+        if (stddev[0] > best) {
+          best = stddev[0];
+          x0 = x;
+          y0 = y;
+        }
+      }
     const cv::Mat raw_image(raw.height, raw.width,
                             raw.format == lifmcr::PixelFormat::kBgr8 ? CV_8UC3 : CV_8UC1,
                             raw.pixels.data());
     cv::Mat raw_crop = raw_image(cv::Rect(x0, y0, crop, crop)).clone();
     if (raw_crop.channels() == 1) cv::cvtColor(raw_crop, raw_crop, cv::COLOR_GRAY2BGR);
-    const cv::Mat tf_image(gt.height, gt.width, CV_8UC3, const_cast<std::uint8_t*>(gt.bgr.data()));
     cv::Mat tf_crop;
     cv::resize(tf_image(cv::Rect(x0 / 2, y0 / 2, crop / 2, crop / 2)), tf_crop,
                cv::Size(crop, crop), 0, 0, cv::INTER_LINEAR);
