@@ -60,7 +60,7 @@ struct SynthCameraParams {
   bool bayer = false;           // true: RGGB mosaic written as Mono8; false: BGR8
   double white_level_dn = 200;  // grey level of a white surface at the image centre
   double full_well_e = 8000;    // electrons at 255 DN (shot noise); 0 = no shot noise
-  double read_noise_dn = 0.0;   // Gaussian read noise sigma (DN); --noise sets it
+  double read_noise_dn = 1.0;   // Gaussian read noise sigma (DN); --noise sets it
 
   // Every field in range; the message names the field and what it must be.
   Status Check() const;

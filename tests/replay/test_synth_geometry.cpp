@@ -185,6 +185,44 @@ TEST(SynthRender, NeighbouringMicroImagesAgreeAtTheGroundTruthVirtualDepth) {
   EXPECT_GT(mean(wrong), 2.5 * mean(right)) << "a 50 % wrong depth must not look consistent";
 }
 
+// The two ground-truth maps describe one surface: a TF pixel's metric depth,
+// mapped to its virtual point, projects into a micro image whose raw
+// virtual-depth ground truth is the same v.
+TEST(SynthRender, TfDepthAndRawVirtualDepthDescribeTheSameSurface) {
+  const PlenopticModel model(SmallCamera());
+  const Scene scene = MakeTableTopScene(6);
+  TrajectoryParams tp;
+  tp.target_mm = scene.Target();
+  tp.distance_mm = 1100;
+  const Pose world_from_cam = CameraTrajectory(tp).WorldFromCam(0.7);
+  RenderOptions options;
+  options.sensor_noise = false;
+  const RawFrame raw = RenderRaw(model, scene, world_from_cam, options);
+  const TfGroundTruth tf = RenderTfGroundTruth(model, scene, world_from_cam);
+  ASSERT_EQ(tf.width, raw.width / 2);
+  int agree = 0, checked = 0;
+  const double inner = 0.3 * model.params().micro_image_pitch_px;
+  for (int w = 4; w < tf.height - 4; w += 3)
+    for (int u = 4; u < tf.width - 4; u += 3) {
+      const float z = tf.depth_mm[static_cast<std::size_t>(w) * tf.width + u];
+      if (!std::isfinite(z)) continue;
+      const Ray ray = model.TfPixelRay({u, w});
+      const Eigen::Vector3d point = ray.origin + ray.direction * (z - ray.origin.z());
+      const Eigen::Vector3d virtual_px = model.VirtualPoint(point);
+      ASSERT_NEAR(virtual_px.x(), 2 * u + 0.5, 1e-6);
+      ASSERT_NEAR(virtual_px.y(), 2 * w + 0.5, 1e-6);
+      int i = 0, j = 0;
+      model.NearestLens(virtual_px.head<2>(), &i, &j);
+      const Eigen::Vector2d p = model.ProjectThroughLens(model.Lens(i, j), virtual_px);
+      if ((p - model.Lens(i, j).center_px).norm() > inner) continue;
+      ++checked;
+      if (std::abs(DepthAt(raw, p) - virtual_px.z()) < 0.01 * virtual_px.z()) ++agree;
+    }
+  ASSERT_GT(checked, 1000);
+  // Only occlusion edges (a pixel's neighbour on another surface) disagree.
+  EXPECT_GT(agree, 0.97 * checked) << agree << " of " << checked;
+}
+
 // Micro-image centres found in the white image by a peak search and a
 // centroid above half the local peak, against the centres the written MLA
 // file gives (decoded here independently from the XML's conventions).
