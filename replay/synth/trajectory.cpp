@@ -64,11 +64,14 @@ Pose CameraTrajectory::WorldFromCam(double t_s) const {
   if (p_.motion == "axis") {
     // Six segments: x, y, z translation, then yaw, pitch, roll.
     const int segment = std::clamp(static_cast<int>(phase * 6), 0, 5);
-    const double s = std::sin(2 * M_PI * (phase * 6 - segment));
+    // Forth and back within the segment, starting and ending at rest so the
+    // switch to the next axis has no velocity jump.
+    const double local = 2 * M_PI * (phase * 6 - segment);
+    const double s = std::sin(local) * (1 - std::cos(local)) / 2;
     Eigen::Vector3d eye = eye_at(0, p_.elevation_rad);
     Pose pose = LookAt(eye, target);
-    const double shift = 80.0 * p_.amplitude_scale * s;
-    const double angle = 0.14 * p_.amplitude_scale * s;
+    const double shift = 60.0 * p_.amplitude_scale * s;
+    const double angle = 0.1 * p_.amplitude_scale * s;
     if (segment < 3) {
       pose.translation()[segment] += shift;
     } else {

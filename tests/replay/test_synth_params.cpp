@@ -8,8 +8,10 @@
 #include "replay/synth/trajectory.h"
 #include "tests/test_util.h"
 
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -138,6 +140,44 @@ TEST(SynthSensor, NoiseHasTheModelledVariance) {
   const double expected = 4.0 + mean_signal / (6000.0 / 255.0) + 1.0 / 12;  // + quantisation
   EXPECT_NEAR(std::abs(sum / n), 0.0, 0.1);
   EXPECT_NEAR(variance, expected, 0.1 * expected) << "over " << n << " pixels";
+}
+
+// Every motion kind is smooth at the Vicon rate, keeps the plate in front of
+// the camera, moves, and differs between cameras (seeds).
+TEST(SynthMotion, TrajectoriesAreSmoothAndLookAtThePlate) {
+  const Scene scene = MakeTableTopScene(1);
+  for (const char* motion : {"smooth", "handheld", "axis", "circle"}) {
+    TrajectoryParams tp;
+    tp.motion = motion;
+    tp.target_mm = scene.Target();
+    tp.distance_mm = 800;
+    tp.duration_s = 6.0;
+    tp.seed = 1;
+    const CameraTrajectory a(tp);
+    tp.seed = 2;
+    tp.lateral_offset_mm = 120;
+    const CameraTrajectory b(tp);
+    double travel = 0, max_step = 0, max_turn_deg = 0;
+    Pose previous = a.WorldFromCam(0);
+    for (int f = 1; f <= 480; ++f) {  // 6 s at 80 Hz
+      const Pose pose = a.WorldFromCam(f / 80.0);
+      const double step = (pose.translation() - previous.translation()).norm();
+      travel += step;
+      max_step = std::max(max_step, step);
+      max_turn_deg = std::max(
+          max_turn_deg,
+          Eigen::AngleAxisd(previous.linear().transpose() * pose.linear()).angle() * 180 / M_PI);
+      const Eigen::Vector3d target_in_cam = pose.inverse() * scene.Target();
+      ASSERT_GT(target_in_cam.z(), 400) << motion;
+      ASSERT_LT(target_in_cam.head<2>().norm(), 0.5 * target_in_cam.z()) << motion;
+      previous = pose;
+    }
+    EXPECT_GT(travel, 20.0) << motion << " hardly moves";
+    EXPECT_LT(max_step, 5.0) << motion << ": a jump of " << max_step << " mm in 12.5 ms";
+    EXPECT_LT(max_turn_deg, 1.0) << motion;
+    EXPECT_GT((a.WorldFromCam(1.0).translation() - b.WorldFromCam(1.0).translation()).norm(), 50)
+        << motion;
+  }
 }
 
 TEST(SynthCli, BadPresetAndConfigFailWithTheirNames) {
