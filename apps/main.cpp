@@ -1,11 +1,11 @@
 // `lifmcr`: one executable, one subcommand per job (DESIGN.md, "Users and their jobs").
 
+#include "apps/commands.h"
+
 #include <CLI/CLI.hpp>
 
 #include <iostream>
 #include <vector>
-
-#include "apps/commands.h"
 
 int main(int argc, char** argv) {
   CLI::App app{
@@ -29,7 +29,8 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help and --version exit 0; every usage error exits 2, whatever CLI11's own code.
+    return app.exit(e) == 0 ? 0 : 2;
   }
   for (auto& [sub, run] : commands)
     if (sub->parsed()) return run();

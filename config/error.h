@@ -23,7 +23,7 @@ Error MakeErrorAt(const std::string& file, const std::string& where, const std::
 template <typename T>
 class [[nodiscard]] Expected {
  public:
-  Expected(T value) : data_(std::move(value)) {}  // NOLINT: implicit by design
+  Expected(T value) : data_(std::move(value)) {}      // NOLINT: implicit by design
   Expected(Error error) : data_(std::move(error)) {}  // NOLINT
   bool ok() const { return data_.index() == 0; }
   explicit operator bool() const { return ok(); }

@@ -59,8 +59,9 @@ Eigen::Matrix3d RotationFromVicon(RotationRepresentation representation, const E
       return FromAxisAngleVector(r * kDegToRad);
     case RotationRepresentation::kEulerXyzDeg:
     case RotationRepresentation::kEulerXyzRad: {
-      const Eigen::Vector3d a =
-          representation == RotationRepresentation::kEulerXyzDeg ? Eigen::Vector3d(r * kDegToRad) : r;
+      const Eigen::Vector3d a = representation == RotationRepresentation::kEulerXyzDeg
+                                    ? Eigen::Vector3d(r * kDegToRad)
+                                    : r;
       return (Eigen::AngleAxisd(a.x(), Eigen::Vector3d::UnitX()) *
               Eigen::AngleAxisd(a.y(), Eigen::Vector3d::UnitY()) *
               Eigen::AngleAxisd(a.z(), Eigen::Vector3d::UnitZ()))
@@ -131,8 +132,8 @@ Expected<Pose> ViconToRightHanded(Handedness handedness, const Eigen::Matrix3d& 
   const double det = r.determinant();
   const double orthogonality = (r.transpose() * r - Eigen::Matrix3d::Identity()).norm();
   if (!std::isfinite(det) || std::abs(det - 1.0) > tolerance || orthogonality > tolerance) {
-    return Error{"not a rotation after handedness conversion (" + std::string(ToString(handedness)) +
-                 "): det = " + std::to_string(det) +
+    return Error{"not a rotation after handedness conversion (" +
+                 std::string(ToString(handedness)) + "): det = " + std::to_string(det) +
                  ", |R^T R - I| = " + std::to_string(orthogonality)};
   }
   Pose pose = Pose::Identity();

@@ -25,13 +25,13 @@
 // The result must have det R = +1; a rotation that is not a rotation is an
 // error, never silently fixed.
 
-#include <optional>
-#include <string>
-#include <string_view>
+#include "config/error.h"
 
 #include <Eigen/Geometry>
 
-#include "config/error.h"
+#include <optional>
+#include <string>
+#include <string_view>
 
 namespace lifmcr {
 
@@ -54,11 +54,13 @@ std::string RotationRepresentationNames();  // "helical_rad|helical_deg|..."
 // Rotation (object to Vicon frame) from the three RX RY RZ columns.
 Eigen::Matrix3d RotationFromVicon(RotationRepresentation representation, const Eigen::Vector3d& r);
 // The inverse, used by writers (synthetic Vicon exports).
-Eigen::Vector3d RotationToVicon(RotationRepresentation representation, const Eigen::Matrix3d& rotation);
+Eigen::Vector3d RotationToVicon(RotationRepresentation representation,
+                                const Eigen::Matrix3d& rotation);
 
 // Which axis a left-handed Vicon frame has mirrored relative to ours.
 enum class Handedness { kRight, kLeftFlipX, kLeftFlipY, kLeftFlipZ };
-std::optional<Handedness> ParseHandedness(std::string_view name);  // right|left_flip_x|left_flip_y|left_flip_z
+std::optional<Handedness> ParseHandedness(
+    std::string_view name);  // right|left_flip_x|left_flip_y|left_flip_z
 std::string_view ToString(Handedness handedness);
 
 // S of the comment above (identity for kRight).

@@ -41,7 +41,11 @@ struct ConstImageView {
   ConstImageView(const std::uint8_t* d, int w, int h, std::size_t stride, PixelFormat f)
       : data(d), width(w), height(h), stride_bytes(stride), format(f) {}
   ConstImageView(const ImageView& v)  // NOLINT: a mutable view is readable
-      : data(v.data), width(v.width), height(v.height), stride_bytes(v.stride_bytes), format(v.format) {}
+      : data(v.data),
+        width(v.width),
+        height(v.height),
+        stride_bytes(v.stride_bytes),
+        format(v.format) {}
   const std::uint8_t* Row(int y) const { return data + static_cast<std::size_t>(y) * stride_bytes; }
   std::size_t RowBytes() const { return static_cast<std::size_t>(width) * BytesPerPixel(format); }
 };

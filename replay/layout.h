@@ -58,7 +58,7 @@ std::string CameraFolderName(std::string_view serial);
 // The serial of a camera folder name, or nullopt if `name` is not one.
 std::optional<std::string> ParseCameraFolderName(std::string_view name);
 
-// "TypeE_<serial>_<frame, 6 digits>_Raw.bmp".
+// "TypeE_<serial>_<frame, 6 digits>_Raw.bmp"; frame >= 0 (negative numbers do not parse back).
 std::string RawFrameFileName(std::string_view serial, std::int64_t frame);
 // "TypeE_<serial>_<index, 2 digits>_Raw.bmp" (in Calibration/01_White_Images).
 std::string WhiteImageFileName(std::string_view serial, int index);

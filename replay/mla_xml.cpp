@@ -164,7 +164,9 @@ class Reader {
 
     if (const std::optional<MlaProblem> problem = FindProblem(c)) {
       const auto at = elements_.find(problem->path);
-      return xml::ErrorAt(label_, at != elements_.end() ? at->second : root, problem->what);
+      if (at != elements_.end()) return xml::ErrorAt(label_, at->second, problem->what);
+      // Only when an attribute was spelled unusually (id="01"): keep the path.
+      return MakeError(label_, root->GetLineNum(), 0, problem->path + ": " + problem->what);
     }
     return c;
   }

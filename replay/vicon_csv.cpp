@@ -97,6 +97,7 @@ class ViconCsvParser {
       if (next_ >= rows_.size()) break;
       auto block = ParseBlock();
       if (!block.ok()) return block.error();
+      previous_block_ = block->name;
       blocks.push_back(std::move(*block));
     }
     if (blocks.empty()) {
@@ -146,21 +147,29 @@ class ViconCsvParser {
     return text;
   }
 
+  // Data rows after a blank line inside a block read as a new block.
+  std::string AfterBlankLineHint() const {
+    if (previous_block_.empty()) return "";
+    return " (a blank line ended block " + Quote(previous_block_) +
+           " above, so a new block must start here)";
+  }
+
   Status ParseNameRow(const CsvRow& row, ViconBlock* block) {
     if (row.fields.size() != 1 && row.WidthWithoutTrailingEmpty() != 1) {
       const size_t width = row.WidthWithoutTrailingEmpty();
       if (width == 0) return ErrorAt(row, "expected a block name, got an empty field");
-      return ErrorAt(row.fields[width - 1],
+      return ErrorAt(row.fields[1],
                      "expected only a block name (Objects, Segments, Trajectories, ...) on the "
                      "first line of a block, got " +
-                         std::to_string(width) + " fields");
+                         std::to_string(row.fields.size()) + " fields" + AfterBlankLineHint());
     }
     const std::string_view name = Trim(row.fields[0].text);
     double number = 0;
     if (name.empty() || ParseNumber(name, true, &number) == NumberStatus::kOk) {
-      return ErrorAt(
-          row.fields[0],
-          "expected a block name (Objects, Segments, Trajectories, ...), got " + Quote(name));
+      return ErrorAt(row.fields[0],
+                     "expected a block name (Objects, Segments, Trajectories, "
+                     "...), got " +
+                         Quote(name) + AfterBlankLineHint());
     }
     block->name = std::string(name);
     block->first_line = row.line;
@@ -491,6 +500,7 @@ class ViconCsvParser {
   const std::string& label_;
   const ViconCsvOptions& options_;
   size_t next_ = 0;
+  std::string previous_block_;                     // name of the last complete block
   std::vector<std::pair<size_t, size_t>> groups_;  // of the block being parsed
 };
 

@@ -37,7 +37,8 @@ struct ViconPoseSample {
   std::optional<Pose> vicon_from_marker;  // right-handed, mm; empty when untracked
 };
 
-// The block that holds `subject` and the columns of its pose.
+// The block that holds `subject` (a pointer into the ViconCsv searched, valid
+// while it lives) and the columns of its pose.
 struct ViconSubjectColumns {
   const ViconBlock* block = nullptr;
   std::string full_name;                // "cam0:cam0" as in the file
@@ -55,7 +56,8 @@ Expected<ViconSubjectColumns> FindSubjectColumns(const ViconCsv& csv, std::strin
 // Segments blocks, in file order.
 std::vector<std::string> PoseSubjects(const ViconCsv& csv);
 
-// One sample per data row of the block holding `subject`. Errors (naming the
+// One sample per data row of the block holding `subject` (rows with sub
+// frames > 0 give samples with the same vicon_frame). Errors (naming the
 // file, line and column): the units row disagrees with the representation
 // (deg vs rad), or a row's rotation is not a rotation after conversion.
 Expected<std::vector<ViconPoseSample>> ExtractSubjectPoses(const ViconCsv& csv,

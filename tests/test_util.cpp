@@ -1,14 +1,13 @@
 #include "tests/test_util.h"
 
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <random>
 #include <sstream>
 #include <stdexcept>
+#include <sys/wait.h>
+#include <unistd.h>
 
 namespace lifmcr::test {
 
@@ -22,8 +21,8 @@ TempDir::TempDir() {
   std::random_device device;
   const auto base = std::filesystem::temp_directory_path();
   for (int attempt = 0; attempt < 100; ++attempt) {
-    auto candidate = base / ("lifmcr_test_" + std::to_string(::getpid()) + "_" +
-                             std::to_string(device()));
+    auto candidate =
+        base / ("lifmcr_test_" + std::to_string(::getpid()) + "_" + std::to_string(device()));
     if (std::filesystem::create_directory(candidate)) {
       path_ = candidate;
       return;

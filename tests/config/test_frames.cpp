@@ -1,12 +1,12 @@
 // Property tests of the conventions in config/frames.h: random rotations in,
 // invariants out (Sophus style).
 
+#include "config/frames.h"
+#include "config/mla.h"
+
 #include <gtest/gtest.h>
 
 #include <random>
-
-#include "config/frames.h"
-#include "config/mla.h"
 
 namespace lifmcr {
 namespace {
@@ -47,8 +47,8 @@ TEST(RotationRepresentation, HelicalIsAxisTimesAngle) {
   const Eigen::Matrix3d r =
       RotationFromVicon(RotationRepresentation::kHelicalDeg, Eigen::Vector3d(0, 0, 90));
   EXPECT_LT((r * Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitY()).norm(), 1e-12);
-  EXPECT_TRUE(RotationFromVicon(RotationRepresentation::kHelicalRad, Eigen::Vector3d::Zero())
-                  .isIdentity());
+  EXPECT_TRUE(
+      RotationFromVicon(RotationRepresentation::kHelicalRad, Eigen::Vector3d::Zero()).isIdentity());
 }
 
 TEST(RotationRepresentation, EulerXyzComposesXThenYThenZFromTheLeft) {
@@ -95,7 +95,8 @@ TEST(Handedness, MirroredPointsStayConsistent) {
 TEST(Handedness, ANonRotationIsAnError) {
   Eigen::Matrix3d reflection = Eigen::Matrix3d::Identity();
   reflection(2, 2) = -1;
-  const auto result = ViconToRightHanded(Handedness::kLeftFlipY, reflection, Eigen::Vector3d::Zero());
+  const auto result =
+      ViconToRightHanded(Handedness::kLeftFlipY, reflection, Eigen::Vector3d::Zero());
   ASSERT_FALSE(result.ok());
   EXPECT_NE(result.error().message.find("not a rotation"), std::string::npos);
   EXPECT_FALSE(ParseHandedness("left").has_value());

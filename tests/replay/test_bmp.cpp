@@ -472,6 +472,43 @@ TEST(Bmp, WriteErrorsNameThePath) {
   ExpectMessageHas(narrow.error(), {"stride >= 3"});
 }
 
+TEST(Bmp, RandomlyCorruptedHeadersAreRejectedOrConsistent) {
+  // Whatever the bytes, parsing never reads past them, and a header it accepts
+  // describes pixels that lie inside the file, so reading them is safe.
+  test::TempDir dir;
+  std::mt19937 rng(99);
+  BmpBytes bytes;
+  bytes.width = 5;
+  bytes.height = -3;
+  bytes.pixels.assign(24, 7);
+  const std::string valid = bytes.Build();
+  std::uniform_int_distribution<std::size_t> position(0, 70);
+  std::uniform_int_distribution<int> value(0, 255);
+  std::uniform_int_distribution<int> mutations(1, 4);
+  int accepted = 0;
+  for (int iteration = 0; iteration < 3000; ++iteration) {
+    std::vector<std::uint8_t> data(valid.begin(), valid.end());
+    for (int m = mutations(rng); m > 0; --m) {
+      data[position(rng)] = static_cast<std::uint8_t>(value(rng));
+    }
+    if (iteration % 3 == 0)
+      data.resize(std::uniform_int_distribution<std::size_t>(0, data.size())(rng));
+    Expected<BmpHeader> header = ParseBmpHeader(data, data.size(), "fuzz.bmp");
+    if (!header.ok()) {
+      EXPECT_EQ(header.error().message.rfind("fuzz.bmp: ", 0), 0u) << header.error().message;
+      continue;
+    }
+    ++accepted;
+    ASSERT_LE(header->pixel_offset + header->PixelBytes(), data.size());
+    if (accepted % 20 == 0) {
+      const auto path = WriteBytes(dir, "fuzz.bmp", std::string(data.begin(), data.end()));
+      Expected<OwnedImage> image = ReadBmp(path);
+      EXPECT_TRUE(image.ok()) << image.error().message;
+    }
+  }
+  EXPECT_GT(accepted, 0);
+}
+
 TEST(Bmp, ParseBmpHeaderWorksOnBytesWithoutAFile) {
   BmpBytes bytes;
   bytes.width = 2;

@@ -368,6 +368,9 @@ TEST(MlaXmlBadInput, TwoLensTypes) {
 TEST(MlaXmlBadInput, DuplicateOrOutOfRangeLensTypeId) {
   ExpectError(Replace(Sample(kR42), "<lens_type id=\"2\">", "<lens_type id=\"1\">"),
               {"bad.xml:50:", "duplicate lens_type id 1 (first at line 40)"});
+  ExpectError(Replace(Replace(Sample(kR42), "<lens_type id=\"1\">", "<lens_type id=\"01\">"),
+                      "<min>2.799999952316</min>", "<min>5</min>"),
+              {"bad.xml:", "/RayCalibData/lens_type[@id='1']/depth_range", "min <= max"});
   ExpectError(Replace(Sample(kR42), "<lens_type id=\"2\">", "<lens_type id=\"3\">"),
               {"bad.xml:50:", "expected lens_type id 0, 1 or 2, got \"3\""});
 }

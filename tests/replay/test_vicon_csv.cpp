@@ -464,6 +464,9 @@ TEST(ViconCsvBadInput, WrongBlockHeader) {
   ExpectError(Replace(kValid, "\n80\n", "\n80\n\n"), "3", "empty line inside the header");
   ExpectError(Replace(kValid, ",,cam0:cam0", "x,,cam0:cam0"), "3:1", "must be empty");
   ExpectError(Replace(kValid, "cam2:cam2", "cam0:cam0"), "3:18", "names 'cam0:cam0' twice");
+  ExpectError(Replace(kValid, "\n2,0,", "\n\n2,0,"), "8:3",
+              "got 14 fields (a blank line ended block 'Objects' above");
+  ExpectError(Replace(kValid, "Objects\n", "Objects,x\n"), "1:9", "expected only a block name");
 }
 
 TEST(ViconCsvBadInput, MissingTzColumn) {
