@@ -326,6 +326,35 @@ TEST(SynthRender, WhiteImageCentresMatchTheWrittenMlaFile) {
   EXPECT_LT(errors[errors.size() * 95 / 100], 0.35);
 }
 
+// A tilted MLA: the micro-image centres move off the ideal lattice by a
+// fraction of a pixel, and the written file is the best lattice through them.
+TEST(SynthModel, TiltedMlaFileIsTheBestLatticeThroughTheTrueCentres) {
+  SynthCameraParams camera = SmallCamera();
+  camera.mla_tilt_x_rad = 1e-3;
+  camera.mla_tilt_y_rad = -6e-4;
+  const PlenopticModel model(camera);
+  const MlaCalibration mla = model.ToMlaCalibration();
+  SynthCameraParams fitted_camera = camera;
+  fitted_camera.mla_tilt_x_rad = fitted_camera.mla_tilt_y_rad = 0;
+  fitted_camera.mla_offset_px = mla.offset_px;
+  fitted_camera.micro_image_pitch_px = mla.diameter_px;
+  fitted_camera.mla_rotation_rad = mla.rotation_rad;
+  const PlenopticModel fitted(fitted_camera);
+  double max_true_vs_nominal = 0, max_true_vs_fit = 0;
+  for (int j = -20; j <= 20; ++j)
+    for (int i = -40; i <= 40; ++i) {
+      const Eigen::Vector2d c = model.Lens(i, j).center_px;
+      if (c.x() < 0 || c.y() < 0 || c.x() > camera.width_px - 1 || c.y() > camera.height_px - 1)
+        continue;
+      max_true_vs_nominal = std::max(max_true_vs_nominal, (c - model.LatticeCenterPx(i, j)).norm());
+      max_true_vs_fit = std::max(max_true_vs_fit, (c - fitted.LatticeCenterPx(i, j)).norm());
+    }
+  EXPECT_GT(max_true_vs_nominal, 0.005) << "a tilt must move the centres";
+  EXPECT_LT(max_true_vs_nominal, 0.5);
+  EXPECT_LE(max_true_vs_fit, max_true_vs_nominal);
+  EXPECT_LT(max_true_vs_fit, 0.1);
+}
+
 // Mean squared gradient inside the micro images of each type, for a textured
 // plane facing the camera at virtual depth v.
 std::array<double, 3> ContrastPerType(const PlenopticModel& model, double v) {
