@@ -103,8 +103,8 @@ std::optional<Frame> MemoryCamera::Produce() {
   frame.host_ns = RealtimeNs();
   frame.device_ns = frame.host_ns;
   frame.status = FrameStatus::kOk;
-  frame.image = ImageView{buffer->data, options_.width, options_.height, row_bytes_,
-                          options_.format};
+  frame.image =
+      ImageView{buffer->data, options_.width, options_.height, row_bytes_, options_.format};
   // The id in the first bytes (little-endian) tells frames apart on disk.
   std::memcpy(buffer->data, &id, std::min<std::size_t>(sizeof(id), row_bytes_));
   frame.buffer = std::move(buffer);
@@ -127,15 +127,15 @@ Expected<std::optional<Frame>> MemoryCamera::NextFrame(std::chrono::milliseconds
   }
   if (!started_ || (options_.max_frames > 0 && produced_ >= options_.max_frames)) {
     lock.unlock();
-    std::this_thread::sleep_until(std::min(deadline, std::chrono::steady_clock::now() +
-                                                         std::chrono::milliseconds(10)));
+    std::this_thread::sleep_until(
+        std::min(deadline, std::chrono::steady_clock::now() + std::chrono::milliseconds(10)));
     return std::optional<Frame>();
   }
   if (options_.frames_per_second > 0) {
     if (next_due_ > deadline) return std::optional<Frame>();
     const auto due = next_due_;
-    next_due_ += std::chrono::nanoseconds(
-        static_cast<std::int64_t>(1e9 / options_.frames_per_second));
+    next_due_ +=
+        std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 / options_.frames_per_second));
     lock.unlock();
     std::this_thread::sleep_until(due);
     lock.lock();

@@ -119,9 +119,9 @@ Expected<RawFrameWriteResult> WriteRawFrame(const std::filesystem::path& path, c
   const ImageView& image = frame.image;
   if (image.data == nullptr || image.width <= 0 || image.height <= 0) {
     if (error_number != nullptr) *error_number = EINVAL;
-    return MakeError(path.string(), 0, 0,
-                     "frame " + std::to_string(frame.frame_id) + " of camera " + frame.serial +
-                         " has no image");
+    return MakeError(
+        path.string(), 0, 0,
+        "frame " + std::to_string(frame.frame_id) + " of camera " + frame.serial + " has no image");
   }
   const std::size_t row_bytes = PaddedRowBytes(image.width, image.format);
   const std::size_t pixel_bytes = row_bytes * static_cast<std::size_t>(image.height);
@@ -131,9 +131,9 @@ Expected<RawFrameWriteResult> WriteRawFrame(const std::filesystem::path& path, c
   // BMP's padded row size, it is aligned and it holds the 4096-padded length.
   const std::uint8_t* pixels = image.data;
   AlignedBytes staging;
-  const bool in_buffer = frame.buffer && image.data >= frame.buffer->data &&
-                         image.data + RoundUp(pixel_bytes) <=
-                             frame.buffer->data + frame.buffer->capacity_bytes;
+  const bool in_buffer =
+      frame.buffer && image.data >= frame.buffer->data &&
+      image.data + RoundUp(pixel_bytes) <= frame.buffer->data + frame.buffer->capacity_bytes;
   const bool writable_as_is = image.stride_bytes == row_bytes && in_buffer &&
                               reinterpret_cast<std::uintptr_t>(image.data) % kBlock == 0;
   if (!writable_as_is) {

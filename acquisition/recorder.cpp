@@ -101,8 +101,7 @@ Expected<std::unique_ptr<Recorder>> Recorder::Create(const RigConfig& rig,
   recorder->sequence_dir_ = options.root_dir / options.scene / options.sequence;
   recorder->calibration_dir_ = options.root_dir / layout::kCalibrationFolder;
   const fs::path& seq = recorder->sequence_dir_;
-  if (fs::exists(seq / layout::kViconFolder) ||
-      (fs::exists(seq) && !fs::is_empty(seq))) {
+  if (fs::exists(seq / layout::kViconFolder) || (fs::exists(seq) && !fs::is_empty(seq))) {
     return MakeError(seq.string(), 0, 0,
                      "the sequence folder exists and is not empty; choose another --out, "
                      "--scene or --sequence (a recording never overwrites one)");
@@ -130,7 +129,7 @@ Expected<std::unique_ptr<Recorder>> Recorder::Create(const RigConfig& rig,
     if (Status s = CopyInto(rig.vicon.vsk, vsk_dir / layout::kObjectVsk); !s) return s.error();
   }
 
-  if (rig.vicon.source != ViconSource::kNone) {
+  if (rig.vicon.source != ViconSourceKind::kNone) {
     if (Status s = MakeDirs(seq / layout::kViconFolder); !s) return s.error();
     std::vector<std::string> subjects;
     for (const CameraConfig& camera : rig.cameras)
@@ -210,8 +209,7 @@ void Recorder::WriterLoop() {
       work_.wait(lock, [&] {
         oldest = nullptr;
         for (std::deque<Item>& queue : queues_)
-          if (!queue.empty() &&
-              (oldest == nullptr || queue.front().order < oldest->front().order))
+          if (!queue.empty() && (oldest == nullptr || queue.front().order < oldest->front().order))
             oldest = &queue;
         return stopping_ || oldest != nullptr;
       });
@@ -287,7 +285,8 @@ RecorderStats Recorder::Stats() const {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     stats.cameras = camera_stats_;
-    for (std::size_t c = 0; c < queues_.size(); ++c) stats.cameras[c].queue_depth = queues_[c].size();
+    for (std::size_t c = 0; c < queues_.size(); ++c)
+      stats.cameras[c].queue_depth = queues_[c].size();
     stats.direct_files = direct_files_;
     stats.buffered_files = buffered_files_;
     stats.backlog_bytes = backlog_bytes_;

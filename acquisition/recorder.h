@@ -44,14 +44,14 @@
 namespace lifmcr {
 
 struct RecorderOptions {
-  std::filesystem::path root_dir;     // the dataset root (--out)
+  std::filesystem::path root_dir;      // the dataset root (--out)
   std::string scene = "00_Recording";  // scene folder name
-  std::string sequence = "seq";       // sequence folder name
-  int vicon_csv_number = 1;           // sequence_01.csv
-  int queue_frames = 16;              // per camera, >= 1
-  int writer_threads = 1;             // 1..64
-  bool direct_io = true;              // try O_DIRECT first (falls back where refused)
-  std::int64_t max_memory_bytes = 0;  // all queues together; 0 = queue_frames alone
+  std::string sequence = "seq";        // sequence folder name
+  int vicon_csv_number = 1;            // sequence_01.csv
+  int queue_frames = 16;               // per camera, >= 1
+  int writer_threads = 1;              // 1..64
+  bool direct_io = true;               // try O_DIRECT first (falls back where refused)
+  std::int64_t max_memory_bytes = 0;   // all queues together; 0 = queue_frames alone
 
   // From the rig file's recorder section (out_dir is not used: --out wins).
   static RecorderOptions FromRig(const RecorderConfig& config);
@@ -60,7 +60,7 @@ struct RecorderOptions {
 
 struct RecorderCameraStats {
   std::string serial;
-  std::uint64_t written = 0;           // frames on disk
+  std::uint64_t written = 0;  // frames on disk
   std::uint64_t bytes_written = 0;
   std::uint64_t dropped_queue_full = 0;  // back-pressure drops
   std::uint64_t lost_write_error = 0;    // the write failed (file removed)
@@ -75,12 +75,12 @@ struct RecorderCameraStats {
 
 struct RecorderStats {
   std::vector<RecorderCameraStats> cameras;  // by camera index
-  std::uint64_t direct_files = 0;    // written with O_DIRECT
-  std::uint64_t buffered_files = 0;  // written through the page cache
+  std::uint64_t direct_files = 0;            // written with O_DIRECT
+  std::uint64_t buffered_files = 0;          // written through the page cache
   std::uint64_t vicon_written = 0;
-  std::uint64_t vicon_lost = 0;           // could not be written
+  std::uint64_t vicon_lost = 0;  // could not be written
   std::uint64_t vicon_unknown_objects = 0;
-  std::size_t backlog_bytes = 0;          // queued, not yet written
+  std::size_t backlog_bytes = 0;  // queued, not yet written
   std::size_t backlog_frames = 0;
   std::optional<std::string> stop_reason;  // set when a write error stopped the recording
 

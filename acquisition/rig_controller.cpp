@@ -33,14 +33,13 @@ std::string RigHealth::StatusLine() const {
   std::ostringstream out;
   out << Fixed(elapsed_s, 1) << "s";
   for (const CameraHealth& c : cameras) {
-    out << " | " << c.serial << " " << Fixed(c.fps, 1) << "fps " << Fixed(c.mb_per_s, 1)
-        << "MB/s q" << c.recorder.queue_depth << " rec" << c.recorder.written << " lost"
-        << c.Lost();
+    out << " | " << c.serial << " " << Fixed(c.fps, 1) << "fps " << Fixed(c.mb_per_s, 1) << "MB/s q"
+        << c.recorder.queue_depth << " rec" << c.recorder.written << " lost" << c.Lost();
   }
-  if (has_vicon) out << " | Vicon " << Fixed(vicon_hz, 1) << "Hz gaps" << vicon.gaps << " bad"
-                     << vicon.malformed;
-  out << " | disk backlog " << Fixed(static_cast<double>(recorder.backlog_bytes) / 1e6, 1)
-      << "MB";
+  if (has_vicon)
+    out << " | Vicon " << Fixed(vicon_hz, 1) << "Hz gaps" << vicon.gaps << " bad"
+        << vicon.malformed;
+  out << " | disk backlog " << Fixed(static_cast<double>(recorder.backlog_bytes) / 1e6, 1) << "MB";
   if (recorder.stop_reason) out << " | STOPPED: " << *recorder.stop_reason;
   return out.str();
 }
@@ -73,15 +72,13 @@ std::string RigHealth::FinalReport() const {
     out << "\n";
   }
   out << "  disk: " << recorder.OneLine() << "\n";
-  out << (AnythingLost() ? "result: something was lost (see above)\n"
-                         : "result: nothing lost\n");
+  out << (AnythingLost() ? "result: something was lost (see above)\n" : "result: nothing lost\n");
   return out.str();
 }
 
 RigController::RigController(std::vector<std::unique_ptr<Camera>> cameras,
-                             std::vector<bool> software_trigger,
-                             std::unique_ptr<ViconSource> vicon, Recorder* recorder,
-                             RigControllerOptions options, RigObserver observer)
+                             std::vector<bool> software_trigger, std::unique_ptr<ViconSource> vicon,
+                             Recorder* recorder, RigControllerOptions options, RigObserver observer)
     : vicon_(std::move(vicon)),
       recorder_(recorder),
       options_(options),
@@ -160,7 +157,8 @@ void RigController::GrabLoop(int index) {
     Frame frame = std::move(**next);
     frame.camera_index = index;
     const FrameIdUnwrapper::Step step = slot.unwrapper.Next(frame.frame_id);
-    const std::size_t bytes = frame.image.stride_bytes * static_cast<std::size_t>(frame.image.height);
+    const std::size_t bytes =
+        frame.image.stride_bytes * static_cast<std::size_t>(frame.image.height);
     {
       std::lock_guard<std::mutex> lock(slot.mutex);
       if (step.stale) {
@@ -202,8 +200,8 @@ void RigController::ViconLoop() {
 }
 
 void RigController::TriggerLoop() {
-  const auto period = std::chrono::nanoseconds(
-      static_cast<std::int64_t>(1e9 / options_.software_trigger_hz));
+  const auto period =
+      std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 / options_.software_trigger_hz));
   auto due = std::chrono::steady_clock::now();
   while (triggering_.load()) {
     for (auto& slot : slots_) {

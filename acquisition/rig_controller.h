@@ -54,8 +54,8 @@ struct RigObserver {
 
 struct CameraHealth {
   std::string serial;
-  double fps = 0;          // frames received per second, last interval
-  double mb_per_s = 0;     // megabytes received per second, last interval
+  double fps = 0;                // frames received per second, last interval
+  double mb_per_s = 0;           // megabytes received per second, last interval
   std::uint64_t received = 0;    // complete frames handed to the recorder
   std::uint64_t incomplete = 0;  // delivered with a bad status: lost
   std::uint64_t missing_by_id = 0;

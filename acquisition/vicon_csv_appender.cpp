@@ -2,9 +2,10 @@
 
 #include "replay/vicon_csv.h"
 
+#include <climits>
+
 #include <algorithm>
 #include <cerrno>
-#include <climits>
 #include <cstring>
 #include <fcntl.h>
 #include <unistd.h>
@@ -31,16 +32,14 @@ Expected<std::string> FormatObjects(int rate_hz, const std::vector<std::string>&
 }  // namespace
 
 Expected<ViconCsvAppender> ViconCsvAppender::Create(const std::filesystem::path& path,
-                                                    std::vector<std::string> subjects,
-                                                    int rate_hz,
+                                                    std::vector<std::string> subjects, int rate_hz,
                                                     const ViconPoseOptions& pose_options) {
   ViconCsvAppender appender;
   appender.path_ = path;
   appender.subjects_ = std::move(subjects);
   appender.rate_hz_ = rate_hz;
   appender.pose_options_ = pose_options;
-  appender.fd_ =
-      ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
+  appender.fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
   if (appender.fd_ < 0)
     return MakeError(path.string(), 0, 0, std::string("cannot create: ") + std::strerror(errno));
   return appender;
@@ -121,9 +120,9 @@ Status ViconCsvAppender::Append(const ViconFrame& frame, int* error_number) {
   Expected<std::string> text = FormatObjects(rate_hz_, subjects_, samples, pose_options_);
   if (!text) {
     ++stats_.frames_failed;
-    return MakeError(path_.string(), 0, 0,
-                     "Vicon frame " + std::to_string(frame.vicon_frame) + ": " +
-                         text.error().message);
+    return MakeError(
+        path_.string(), 0, 0,
+        "Vicon frame " + std::to_string(frame.vicon_frame) + ": " + text.error().message);
   }
   // The block text is the five header rows and then the one data row.
   std::string out;
@@ -153,12 +152,11 @@ Status ViconCsvAppender::Append(const ViconFrame& frame, int* error_number) {
 
 Status ViconCsvAppender::Finish() {
   if (header_written_ || broken_ || fd_ < 0) return Status::Ok();
-  Expected<std::string> text = FormatObjects(
-      rate_hz_, subjects_, std::vector<std::vector<ViconPoseSample>>(subjects_.size()),
-      pose_options_);
-  if (!text) return MakeError(path_.string(), 0, 0, text.error().message);
-  if (Status s = WriteText(*text, nullptr); !s) return s;
-  header_written_ = true;
+  // The dataset reader refuses a block without rows, so no frame means no file.
+  ::close(fd_);
+  fd_ = -1;
+  if (::unlink(path_.c_str()) != 0)
+    return MakeError(path_.string(), 0, 0, std::string("cannot remove: ") + std::strerror(errno));
   return Status::Ok();
 }
 

@@ -27,9 +27,9 @@ namespace lifmcr {
 
 struct ViconCsvAppenderStats {
   std::uint64_t frames_written = 0;
-  std::uint64_t frames_failed = 0;       // not written: write error or appender stopped
-  std::uint64_t unknown_objects = 0;     // object poses not in the header's subjects
-  std::uint64_t out_of_order = 0;        // frame numbers not after the last written (not written)
+  std::uint64_t frames_failed = 0;    // not written: write error or appender stopped
+  std::uint64_t unknown_objects = 0;  // object poses not in the header's subjects
+  std::uint64_t out_of_order = 0;     // frame numbers not after the last written (not written)
 };
 
 class ViconCsvAppender {
@@ -50,8 +50,9 @@ class ViconCsvAppender {
   // `error_number` receives errno of a failed write (0 otherwise).
   Status Append(const ViconFrame& frame, int* error_number = nullptr);
 
-  // Writes the header if no frame came, so a recording without Vicon frames
-  // still has a readable (empty) Objects block. Idempotent.
+  // Ends the file. When no frame came the file is removed: the dataset layer
+  // refuses an Objects block without rows, and an absent CSV says the same
+  // thing truthfully (the recorder's report counts the Vicon frames).
   Status Finish();
 
   const ViconCsvAppenderStats& stats() const { return stats_; }
