@@ -1,6 +1,7 @@
 #include "acquisition/recorder.h"
 
 #include "acquisition/raw_frame_writer.h"
+#include "drivers/vicon_udp_source.h"
 #include "replay/layout.h"
 
 #include <algorithm>
@@ -131,10 +132,7 @@ Expected<std::unique_ptr<Recorder>> Recorder::Create(const RigConfig& rig,
 
   if (rig.vicon.source != ViconSourceKind::kNone) {
     if (Status s = MakeDirs(seq / layout::kViconFolder); !s) return s.error();
-    std::vector<std::string> subjects;
-    for (const CameraConfig& camera : rig.cameras)
-      if (!camera.vicon_object.empty()) subjects.push_back(camera.vicon_object);
-    if (!rig.vicon.plate_object.empty()) subjects.push_back(rig.vicon.plate_object);
+    std::vector<std::string> subjects = ViconObjectsOfRig(rig);
     ViconPoseOptions pose_options;
     pose_options.rotation = rig.vicon.rotation;
     pose_options.handedness = rig.vicon.handedness;
