@@ -143,6 +143,9 @@ struct AravisCamera::Impl {
   CameraStats closed_streams;  // Aravis counters of streams already destroyed
   CameraInfo info;
   std::vector<CameraGap> gaps;
+  // Threads finalising the stream and device of a lost camera (Disconnect);
+  // joined by the destructor.
+  std::vector<std::thread> reapers;
 
   std::string DeviceName() const {
     return config.driver.address.empty() ? config.serial : config.driver.address;
@@ -413,11 +416,22 @@ void AravisCamera::Impl::Disconnect() {
   if (old_camera != nullptr && started && !lost.load()) {
     arv_camera_stop_acquisition(old_camera, nullptr);
   }
-  // Destroying the stream drops the references it held on queued buffers;
-  // the driver's own reference per slot stays, and the pool gets its
-  // buffers back.
-  if (old_stream != nullptr) g_object_unref(old_stream);
+  // Stop the stream thread now so nothing writes into pool memory any more,
+  // and drop the references it held on queued buffers (each slot keeps its
+  // own); the pool gets its buffers back.
+  if (old_stream != nullptr) arv_stream_stop_thread(old_stream, TRUE);
   for (Slot& slot : slots) slot.queued.reset();
+  if (lost.load()) {
+    // Finalising a lost GigE stream and device blocks for seconds (register
+    // writes that time out, the heartbeat thread's retries): off the grab
+    // thread.
+    reapers.emplace_back([old_stream, old_camera] {
+      if (old_stream != nullptr) g_object_unref(old_stream);
+      if (old_camera != nullptr) g_object_unref(old_camera);
+    });
+    return;
+  }
+  if (old_stream != nullptr) g_object_unref(old_stream);
   if (old_camera != nullptr) g_object_unref(old_camera);
 }
 
@@ -507,6 +521,7 @@ AravisCamera::AravisCamera(CameraConfig config, AravisCameraOptions options)
 
 AravisCamera::~AravisCamera() {
   if (impl_->opened) impl_->Disconnect();
+  for (std::thread& reaper : impl_->reapers) reaper.join();
   for (Slot& slot : impl_->slots)
     if (slot.arv != nullptr) g_object_unref(slot.arv);
 }
@@ -632,9 +647,14 @@ Status AravisCamera::SoftwareTrigger() {
   GError* error = nullptr;
   arv_camera_software_trigger(d.camera, &error);
   if (error != nullptr) {
-    // A control access that fails means the device is probably gone; the
-    // grab thread confirms it with its own probe.
-    d.control_suspect.store(true);
+    // A control access that timed out after Aravis's retries (2.5 s on GigE
+    // Vision) is as good as a failed probe: the device is gone. Any other
+    // failure makes the grab thread probe the device.
+    const bool gone =
+        error->domain == ARV_DEVICE_ERROR &&
+        (error->code == ARV_DEVICE_ERROR_TIMEOUT || error->code == ARV_DEVICE_ERROR_NOT_CONNECTED ||
+         error->code == ARV_DEVICE_ERROR_TRANSFER_ERROR);
+    (gone ? d.control_lost : d.control_suspect).store(true);
     return d.Fail("TriggerSoftware: " + TakeMessage(error));
   }
   return Status::Ok();
