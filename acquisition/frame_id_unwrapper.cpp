@@ -34,4 +34,10 @@ FrameIdUnwrapper::Step FrameIdUnwrapper::Next(std::uint64_t frame_id) {
   return step;
 }
 
+void FrameIdUnwrapper::Rebase(std::uint64_t frame_id, std::int64_t index) {
+  last_id_ = frame_id;
+  wide_ = wide_ || frame_id > 65535;
+  last_index_ = index;
+}
+
 }  // namespace lifmcr

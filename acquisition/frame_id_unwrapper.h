@@ -25,6 +25,10 @@ class FrameIdUnwrapper {
   };
 
   Step Next(std::uint64_t frame_id);
+  // Continues at `index` with `frame_id` as the new reference (after the
+  // device restarted its counter, e.g. a reconnect). `index` must be greater
+  // than last_index().
+  void Rebase(std::uint64_t frame_id, std::int64_t index);
   // Index of the last accepted frame, -1 before the first.
   std::int64_t last_index() const { return last_index_; }
 

@@ -15,7 +15,7 @@ std::string Fixed(double value, int digits) {
 }  // namespace
 
 std::uint64_t CameraHealth::Lost() const {
-  return incomplete + missing_by_id + no_frame_at_end + recorder.lost();
+  return incomplete + missing_by_id + missing_in_gaps + no_frame_at_end + recorder.lost();
 }
 
 std::uint64_t RigHealth::FramesLost() const {
@@ -51,6 +51,9 @@ std::string RigHealth::FinalReport() const {
   out << "\n";
   for (const CameraHealth& c : cameras) {
     out << "  camera " << c.serial << ": recorded " << c.recorder.written;
+    if (c.counter_restarts > 0)
+      out << " (" << c.counter_restarts << " reconnects/counter restarts, " << c.missing_in_gaps
+          << " triggers missed in them)";
     if (c.recorder.written > 0)
       out << " (frames " << c.recorder.first_frame << ".." << c.recorder.last_frame << ")";
     out << ", lost " << c.Lost() << " [incomplete " << c.incomplete << ", missing ids "
@@ -120,7 +123,7 @@ Status RigController::Start() {
   }
   bool any_software = false;
   for (auto& slot : slots_) any_software = any_software || slot->software_trigger;
-  if (any_software && options_.software_trigger_hz > 0) {
+  if (any_software && options_.trigger_hz > 0) {
     triggering_ = true;
     trigger_thread_ = std::thread([this] { TriggerLoop(); });
   }
@@ -151,22 +154,49 @@ void RigController::GrabLoop(int index) {
       std::lock_guard<std::mutex> lock(slot.mutex);
       ++slot.health.errors;
       slot.health.last_error = next.error().message;
+      slot.lost = true;
       continue;  // the driver reconnects on the next call
     }
     if (!next->has_value()) continue;
     Frame frame = std::move(**next);
     frame.camera_index = index;
-    const FrameIdUnwrapper::Step step = slot.unwrapper.Next(frame.frame_id);
     const std::size_t bytes =
         frame.image.stride_bytes * static_cast<std::size_t>(frame.image.height);
+    std::int64_t frame_index = 0;
     {
       std::lock_guard<std::mutex> lock(slot.mutex);
+      FrameIdUnwrapper::Step step;
+      if (!slot.lost) {
+        step = slot.unwrapper.Next(frame.frame_id);
+        slot.stale_in_a_row = step.stale ? slot.stale_in_a_row + 1 : 0;
+      }
+      const bool restarted =
+          slot.unwrapper.last_index() >= 0 &&
+          (slot.lost || slot.stale_in_a_row >= options_.stale_frames_for_restart);
+      if (restarted) {
+        // The device restarted its counter (a reconnect): the triggers it
+        // missed are its silence in host time over the trigger period.
+        const double silence_s = static_cast<double>(frame.host_ns - slot.last_host_ns) * 1e-9;
+        const auto triggers = std::max<std::int64_t>(
+            1, static_cast<std::int64_t>(std::llround(silence_s * options_.trigger_hz)));
+        slot.unwrapper.Rebase(frame.frame_id, slot.unwrapper.last_index() + triggers);
+        step = FrameIdUnwrapper::Step{slot.unwrapper.last_index(), 0, false};
+        slot.health.missing_in_gaps += static_cast<std::uint64_t>(triggers - 1);
+        ++slot.health.counter_restarts;
+        slot.lost = false;
+        slot.stale_in_a_row = 0;
+      } else if (slot.lost) {
+        // Lost before its first frame: nothing to rebase against.
+        step = slot.unwrapper.Next(frame.frame_id);
+        slot.lost = false;
+      }
       if (step.stale) {
         ++slot.health.stale;
         continue;
       }
       slot.health.missing_by_id += static_cast<std::uint64_t>(step.missing_before);
-      slot.health.last_index = step.index;
+      slot.health.last_index = frame_index = step.index;
+      slot.last_host_ns = frame.host_ns;
       ++slot.interval_frames;
       slot.interval_bytes += bytes;
       if (frame.status != FrameStatus::kOk) {
@@ -175,8 +205,8 @@ void RigController::GrabLoop(int index) {
       }
       ++slot.health.received;
     }
-    if (observer_.on_frame) observer_.on_frame(index, step.index, frame);
-    if (recorder_ != nullptr) recorder_->SubmitFrame(index, step.index, std::move(frame));
+    if (observer_.on_frame) observer_.on_frame(index, frame_index, frame);
+    if (recorder_ != nullptr) recorder_->SubmitFrame(index, frame_index, std::move(frame));
   }
 }
 
@@ -201,7 +231,7 @@ void RigController::ViconLoop() {
 
 void RigController::TriggerLoop() {
   const auto period =
-      std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 / options_.software_trigger_hz));
+      std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 / options_.trigger_hz));
   auto due = std::chrono::steady_clock::now();
   while (triggering_.load()) {
     for (auto& slot : slots_) {

@@ -36,9 +36,12 @@ namespace lifmcr {
 
 struct RigControllerOptions {
   std::chrono::milliseconds frame_timeout{100};  // one NextFrame wait
-  // Software trigger rate for cameras whose rig trigger mode is software:
-  // the Vicon rate / trigger divider (80 / 8 = 10 Hz).
-  double software_trigger_hz = 10.0;
+  // The rig's trigger rate: the Vicon rate / trigger divider (80 / 8 = 10
+  // Hz). Software triggers fire at it, and a camera's silence across a
+  // reconnect (its counter restarts) is turned into a count of triggers with it.
+  double trigger_hz = 10.0;
+  // Stale frames in a row (counter behind) taken as a counter restart.
+  int stale_frames_for_restart = 3;
   // At Stop, how long the grab threads keep taking frames after the last
   // trigger, so frames in flight are recorded rather than lost.
   std::chrono::milliseconds drain{300};
@@ -60,6 +63,8 @@ struct CameraHealth {
   std::uint64_t incomplete = 0;  // delivered with a bad status: lost
   std::uint64_t missing_by_id = 0;
   std::uint64_t stale = 0;  // repeated/late frames, dropped
+  std::uint64_t missing_in_gaps = 0;  // triggers missed while the camera was lost (by host time)
+  std::uint64_t counter_restarts = 0;
   std::uint64_t no_frame_at_end = 0;
   std::uint64_t errors = 0;  // NextFrame errors (device lost)
   std::string last_error;
@@ -120,6 +125,9 @@ class RigController {
     std::unique_ptr<Camera> camera;
     bool software_trigger = false;
     FrameIdUnwrapper unwrapper;
+    bool lost = false;            // NextFrame reported the device gone
+    int stale_in_a_row = 0;
+    std::int64_t last_host_ns = 0;  // of the last accepted frame
     mutable std::mutex mutex;  // guards health below
     CameraHealth health;
     std::uint64_t interval_frames = 0;

@@ -65,7 +65,7 @@ TEST(Recorder, TwoCamerasAndViconEveryTriggerAccountedFor) {
   auto vicon = std::make_unique<ViconUdpSource>(ViconUdpSourceOptions::FromRig(rig));
   ViconUdpSource* vicon_source = vicon.get();
   RigControllerOptions controller_options;
-  controller_options.software_trigger_hz = 40.0;
+  controller_options.trigger_hz = 40.0;
   RigController controller(std::move(cameras), {true, true}, std::move(vicon), recorder->get(),
                            controller_options);
   ASSERT_TRUE(controller.Start().ok());
@@ -139,7 +139,7 @@ TEST(Recorder, ViconStreamStopsFramesStillRecorded) {
   auto vicon = std::make_unique<ViconUdpSource>(ViconUdpSourceOptions::FromRig(rig));
   ViconUdpSource* vicon_source = vicon.get();
   RigControllerOptions controller_options;
-  controller_options.software_trigger_hz = 50.0;
+  controller_options.trigger_hz = 50.0;
   RigController controller(std::move(cameras), {true, true}, std::move(vicon), recorder->get(),
                            controller_options);
   ASSERT_TRUE(controller.Start().ok());
