@@ -271,7 +271,10 @@ RigHealth RigController::Health() {
       camera = slot.health;
     }
     camera.driver = slot.camera->Stats();
-    if (i < health.recorder.cameras.size()) camera.recorder = health.recorder.cameras[i];
+    if (i < health.recorder.cameras.size()) {
+      camera.recorder = health.recorder.cameras[i];
+      camera.serial = camera.recorder.serial;  // the rig's serial, as in the file names
+    }
     if (slot.software_trigger && !grabbing_.load()) {
       const auto expected = static_cast<std::int64_t>(health.triggers_fired);
       if (expected > camera.last_index + 1)

@@ -23,6 +23,8 @@ int main(int argc, char** argv) {
       lifmcr::apps::AddInfoCommand);
   add("vicon", "Print the poses of one subject of a Vicon CSV export as right-handed CSV",
       lifmcr::apps::AddViconCommand);
+  add("record", "Record a rig live (cameras + Vicon) into the LiFMCR layout",
+      lifmcr::apps::AddRecordCommand);
 
   try {
     app.parse(argc, argv);
