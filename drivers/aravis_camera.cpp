@@ -2,6 +2,7 @@
 
 #include "drivers/frame_id_tracker.h"
 #include "drivers/frame_pool.h"
+#include "drivers/usb_hotplug.h"
 
 #include <arv.h>
 
@@ -137,6 +138,18 @@ struct AravisCamera::Impl {
   Clock::time_point last_activity{};  // last frame, open or probe
   int consecutive_failures = 0;
   bool frame_since_reconnect = false;
+  // USB3 Vision cameras: the process-wide hotplug monitor and the generation
+  // last seen; a change means a USB3 Vision device came or went.
+  UsbHotplugMonitor* usb = nullptr;
+  std::uint64_t usb_generation = 0;
+
+  bool UsbChanged() {
+    if (usb == nullptr) return false;
+    const std::uint64_t now = usb->generation();
+    if (now == usb_generation) return false;
+    usb_generation = now;
+    return true;
+  }
 
   mutable std::mutex stats_mutex;
   CameraStats stats;
@@ -193,8 +206,12 @@ Status AravisCamera::Impl::Connect() {
       g_signal_connect(device, "control-lost", G_CALLBACK(OnControlLost), &control_lost);
   if (arv_camera_is_gv_device(camera) && IsLoopbackDevice(device))
     arv_camera_gv_set_stream_options(camera, ARV_GV_STREAM_OPTION_PACKET_SOCKET_DISABLED);
-  ids =
-      FrameIdTracker(arv_camera_is_uv_device(camera) ? FrameIdWidth::k64Bit : FrameIdWidth::k16Bit);
+  const bool usb3 = arv_camera_is_uv_device(camera);
+  ids = FrameIdTracker(usb3 ? FrameIdWidth::k64Bit : FrameIdWidth::k16Bit);
+  if (usb3 && usb == nullptr) {
+    usb = UsbHotplugMonitor::Shared();  // nullptr without hotplug: probes still work
+    if (usb != nullptr) usb_generation = usb->generation();
+  }
   if (Status status = ApplySettings(); !status) {
     Disconnect();
     return status;
@@ -480,7 +497,8 @@ Frame AravisCamera::Impl::MakeFrame(ArvBuffer* buffer) {
   if (index >= 0 && static_cast<std::size_t>(index) < slots.size())
     frame.buffer = std::move(slots[index].queued);
 
-  if (frame.status == FrameStatus::kOk && frame.buffer) {
+  if (!frame.buffer) frame.status = FrameStatus::kError;  // not one of ours: cannot happen
+  if (frame.status == FrameStatus::kOk) {
     const int width = arv_buffer_get_image_width(buffer);
     const int height = arv_buffer_get_image_height(buffer);
     const PixelFormat format = BufferPixelFormat(config.pixel_format);
@@ -570,7 +588,8 @@ Expected<std::optional<Frame>> AravisCamera::NextFrame(std::chrono::milliseconds
       d.lost_reported = true;
       return d.Fail("device lost: " + d.lost_reason + "; reconnecting");
     }
-    if (Clock::now() - d.last_reconnect_try < d.options.reconnect_interval) {
+    // A USB3 Vision device arriving is worth trying at once.
+    if (!d.UsbChanged() && Clock::now() - d.last_reconnect_try < d.options.reconnect_interval) {
       std::this_thread::sleep_until(
           std::min(deadline, d.last_reconnect_try + d.options.reconnect_interval));
       if (Clock::now() - d.last_reconnect_try < d.options.reconnect_interval)
@@ -626,7 +645,8 @@ Expected<std::optional<Frame>> AravisCamera::NextFrame(std::chrono::milliseconds
     if (Clock::now() >= deadline) break;
   }
   d.RefreshAravisStats();
-  const bool suspect = d.control_suspect.exchange(false);
+  // A USB3 Vision device leaving (maybe this one): check ours now.
+  const bool suspect = d.control_suspect.exchange(false) || d.UsbChanged();
   if (suspect || Clock::now() - d.last_activity >= d.options.probe_after) {
     d.last_activity = Clock::now();
     if (!d.Probe()) {

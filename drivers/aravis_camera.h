@@ -44,7 +44,12 @@
 // without a frame each mark the camera lost. NextFrame then returns an error
 // once (the device is gone), closes the device, and on later calls re-opens
 // it by the same address every `reconnect_interval`, re-applies the settings,
-// restarts acquisition if it was started and counts a reconnect. Every loss
+// restarts acquisition if it was started and counts a reconnect. USB3
+// Vision cameras also follow libusb hotplug events (UsbHotplugMonitor): a
+// USB3 Vision device leaving makes the driver probe its camera at once, one
+// arriving makes a lost camera try to re-open at once. Re-opening a device
+// that is still absent blocks NextFrame for Aravis's discovery timeout (about
+// 1 s, 2.5 s for a GigE address that does not answer). Every loss
 // is recorded as a CameraGap (host time lost and back, the last frame id
 // before and the first after, the reason). The device's frame counter and
 // clock usually restart with it, so the ids across a gap are not compared.

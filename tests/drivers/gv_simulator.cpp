@@ -15,7 +15,7 @@
 
 extern char** environ;
 
-namespace lifmcr::testing {
+namespace lifmcr::test {
 namespace {
 
 int RunQuiet(const std::string& command) {
@@ -110,4 +110,4 @@ void GvSimulator::Kill() {
   pid_ = -1;
 }
 
-}  // namespace lifmcr::testing
+}  // namespace lifmcr::test

@@ -7,7 +7,7 @@
 #include <string>
 #include <sys/types.h>
 
-namespace lifmcr::testing {
+namespace lifmcr::test {
 
 // `ip addr add ADDRESS/32 dev lo` unless it is already there; removed again
 // by the destructor only if this object added it. Needs root.
@@ -48,4 +48,4 @@ class GvSimulator {
   pid_t pid_ = -1;
 };
 
-}  // namespace lifmcr::testing
+}  // namespace lifmcr::test

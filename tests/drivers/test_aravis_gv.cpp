@@ -55,10 +55,10 @@ int TriggerAndPull(AravisCamera& camera, int count, std::vector<Frame>* frames =
 
 TEST(AravisGv, SoftwareTriggeredFramesArriveCompleteOverLoopback) {
   REQUIRE_ROOT();
-  testing::LoopbackAddress address("127.0.1.11");
+  test::LoopbackAddress address("127.0.1.11");
   ASSERT_TRUE(address.ok());
   const std::string serial = UniqueSerial("A");
-  testing::GvSimulator simulator(address.address(), serial);
+  test::GvSimulator simulator(address.address(), serial);
   ASSERT_TRUE(simulator.Start()) << "arv-fake-gv-camera-0.8 on " << address.address();
 
   AravisCamera camera(GvConfig(address.address(), serial));
@@ -91,10 +91,10 @@ TEST(AravisGv, SoftwareTriggeredFramesArriveCompleteOverLoopback) {
 
 TEST(AravisGv, PacketLossIsCountedAndTheCameraKeepsDelivering) {
   REQUIRE_ROOT();
-  testing::LoopbackAddress address("127.0.1.12");
+  test::LoopbackAddress address("127.0.1.12");
   ASSERT_TRUE(address.ok());
   const std::string serial = UniqueSerial("B");
-  testing::GvSimulator simulator(address.address(), serial, 50);  // 5 % of packets lost
+  test::GvSimulator simulator(address.address(), serial, 50);  // 5 % of packets lost
   ASSERT_TRUE(simulator.Start());
 
   AravisCamera camera(GvConfig(address.address(), serial));
@@ -115,10 +115,10 @@ TEST(AravisGv, PacketLossIsCountedAndTheCameraKeepsDelivering) {
 
 TEST(AravisGv, KilledAndRestartedSimulatorIsReconnectedAndTheGapReported) {
   REQUIRE_ROOT();
-  testing::LoopbackAddress address("127.0.1.13");
+  test::LoopbackAddress address("127.0.1.13");
   ASSERT_TRUE(address.ok());
   const std::string serial = UniqueSerial("C");
-  testing::GvSimulator simulator(address.address(), serial);
+  test::GvSimulator simulator(address.address(), serial);
   ASSERT_TRUE(simulator.Start());
 
   AravisCameraOptions options;
