@@ -88,11 +88,10 @@ Status MemoryCamera::SoftwareTrigger() {
   return Status::Ok();
 }
 
-std::optional<Frame> MemoryCamera::Produce() {
+std::optional<Frame> MemoryCamera::Produce(BufferRef buffer) {
   const std::uint64_t id = next_id_;
   next_id_ = NextId16(next_id_);
   ++produced_;
-  BufferRef buffer = pool_->Acquire();
   if (!buffer) {
     ++stats_.underruns;
     return std::nullopt;
@@ -123,7 +122,7 @@ Expected<std::optional<Frame>> MemoryCamera::NextFrame(std::chrono::milliseconds
         !started_)
       return std::optional<Frame>();
     --pending_triggers_;
-    return Produce();
+    return Produce(pool_->Acquire());
   }
   if (!started_ || (options_.max_frames > 0 && produced_ >= options_.max_frames)) {
     lock.unlock();
@@ -140,7 +139,18 @@ Expected<std::optional<Frame>> MemoryCamera::NextFrame(std::chrono::milliseconds
     std::this_thread::sleep_until(due);
     lock.lock();
   }
-  return Produce();
+  BufferRef buffer = pool_->Acquire();
+  if (!buffer && options_.wait_for_buffer) {
+    // The pool has no wake-up; a short poll costs nothing next to a frame write.
+    lock.unlock();
+    while (!buffer && std::chrono::steady_clock::now() < deadline) {
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+      buffer = pool_->Acquire();
+    }
+    lock.lock();
+    if (!buffer) return std::optional<Frame>();
+  }
+  return Produce(std::move(buffer));
 }
 
 CameraInfo MemoryCamera::Info() const {

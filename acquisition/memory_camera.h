@@ -33,6 +33,9 @@ struct MemoryCameraOptions {
   double frames_per_second = 0.0;  // free run only; 0 = as fast as possible
   std::uint64_t first_frame_id = 65400;
   std::uint64_t max_frames = 0;  // free run: stop producing after this many; 0 = no limit
+  // Free run: wait (up to NextFrame's timeout) for a free buffer instead of
+  // losing the frame, so the consumer sets the pace (a benchmark source).
+  bool wait_for_buffer = false;
 
   Status Check() const;
 };
@@ -53,8 +56,9 @@ class MemoryCamera : public Camera {
   static std::uint8_t PatternAt(int x, int y, int c);
 
  private:
-  // Makes one frame (called with mutex_ held); nullopt on underrun.
-  std::optional<Frame> Produce();
+  // Makes one frame (called with mutex_ held) in `buffer`, or counts an
+  // underrun when it is null.
+  std::optional<Frame> Produce(BufferRef buffer);
 
   MemoryCameraOptions options_;
   std::shared_ptr<FramePool> pool_;
