@@ -4,7 +4,8 @@
 #include "acquisition/rig_controller.h"
 #include "apps/commands.h"
 #include "config/rig_config.h"
-#include "drivers/aravis_camera.h"
+#include "drivers/camera_factory.h"
+#include "drivers/replay_camera.h"
 #include "drivers/vicon_csv_source.h"
 #include "drivers/vicon_udp_source.h"
 
@@ -26,28 +27,6 @@ namespace {
 constexpr int kExitLost = 1;
 constexpr int kExitUsage = 2;
 constexpr int kExitCannotStart = 3;
-
-Expected<std::unique_ptr<Camera>> MakeRigCamera(const RigConfig& rig, int index) {
-  const CameraConfig& camera = rig.cameras[static_cast<std::size_t>(index)];
-  switch (camera.driver.kind) {
-    case DriverKind::kAravis: {
-      AravisCameraOptions options;
-      options.camera_index = index;
-      // The recorder's queue plus frames in the stream and in the grab thread.
-      options.pool_buffers = rig.recorder.queue_frames + 4;
-      options.free_run_rate_hz = camera.trigger.mode == TriggerMode::kFreeRun
-                                     ? rig.vicon.rate_hz / rig.vicon.trigger_divider
-                                     : 0.0;
-      return std::unique_ptr<Camera>(std::make_unique<AravisCamera>(camera, options));
-    }
-    case DriverKind::kGenTl:
-    case DriverKind::kReplay:
-      break;
-  }
-  return Error{"camera " + camera.name + " (serial " + camera.serial + "): driver '" +
-               std::string(ToString(camera.driver.kind)) +
-               "' cannot record in this build (lifmcr record supports: aravis)"};
-}
 
 Expected<std::unique_ptr<ViconSource>> MakeViconSource(const RigConfig& rig) {
   ViconPoseOptions pose;
@@ -79,6 +58,7 @@ struct Args {
   double duration_s = 0;
   std::string scene = "00_Recording";
   std::string sequence = "seq";
+  std::string replay;  // sequence folder the replay cameras serve
 };
 
 int Run(const Args& args) {
@@ -115,15 +95,37 @@ int Run(const Args& args) {
 
   std::vector<std::unique_ptr<Camera>> cameras;
   std::vector<bool> software_trigger;
+  std::vector<const ReplayCamera*> replay_cameras;
   for (std::size_t i = 0; i < rig->cameras.size(); ++i) {
-    auto camera = MakeRigCamera(*rig, static_cast<int>(i));
+    const CameraConfig& config = rig->cameras[i];
+    CameraFactoryOptions factory;
+    // The recorder's queue plus frames in the stream and in the grab thread.
+    factory.pool_buffers = rig->recorder.queue_frames + 4;
+    factory.trigger_period = TriggerPeriod(rig->vicon);
+    factory.replay_sequence_dir = args.replay;
+    factory.replay_pacing = config.trigger.mode == TriggerMode::kSoftware
+                                ? ReplayPacing::kSoftwareTrigger
+                                : ReplayPacing::kOriginal;
+    factory.free_run_rate_hz = config.trigger.mode == TriggerMode::kFreeRun
+                                   ? rig->vicon.rate_hz / rig->vicon.trigger_divider
+                                   : 0.0;
+    auto camera = MakeCamera(config, static_cast<int>(i), factory);
     if (!camera) {
       std::cerr << "lifmcr record: " << camera.error().message << "\n";
       return kExitCannotStart;
     }
+    if (auto* replay = dynamic_cast<const ReplayCamera*>(camera->get()))
+      replay_cameras.push_back(replay);
     cameras.push_back(std::move(*camera));
-    software_trigger.push_back(rig->cameras[i].trigger.mode == TriggerMode::kSoftware);
+    software_trigger.push_back(config.trigger.mode == TriggerMode::kSoftware);
   }
+  // A rig made only of replay cameras ends with its sequence.
+  auto replay_finished = [&replay_cameras, n = rig->cameras.size()] {
+    if (replay_cameras.empty() || replay_cameras.size() != n) return false;
+    for (const ReplayCamera* camera : replay_cameras)
+      if (!camera->Finished()) return false;
+    return true;
+  };
   auto vicon = MakeViconSource(*rig);
   if (!vicon) {
     std::cerr << "lifmcr record: " << vicon.error().message << "\n";
@@ -161,6 +163,10 @@ int Run(const Args& args) {
       stop_why = "write error";
       break;
     }
+    if (replay_finished()) {
+      stop_why = "end of the replayed sequence";
+      break;
+    }
     const auto now = std::chrono::steady_clock::now();
     if (args.duration_s > 0 &&
         std::chrono::duration<double>(now - start).count() >= args.duration_s)
@@ -195,7 +201,9 @@ CommandRun AddRecordCommand(CLI::App& app) {
       "into OUT/SCENE/SEQUENCE in the LiFMCR layout: TypeE_<serial>/ raw BMPs numbered by\n"
       "trigger, Vicon/sequence_01.csv (one line per received Vicon frame), and the MLA\n"
       "files and VSK copied into OUT/Calibration/. Cameras: driver 'aravis' (GigE Vision,\n"
-      "USB3 Vision, Aravis fake cameras).\n"
+      "USB3 Vision, Aravis fake cameras) and 'replay' (the camera folders of --replay SEQ,\n"
+      "served at the trigger period, or per software trigger; the recording ends with the\n"
+      "sequence when every camera is a replay camera).\n"
       "A status line on stderr (per camera fps, MB/s, recorder queue, lost frames; Vicon\n"
       "rate and gaps; disk backlog) is refreshed in place on a terminal, printed once a\n"
       "second otherwise. Stops after --duration, on SIGINT/SIGTERM, or by itself on a\n"
@@ -213,6 +221,9 @@ CommandRun AddRecordCommand(CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   app.add_option("--scene", args->scene, "Scene folder name")->capture_default_str();
   app.add_option("--sequence", args->sequence, "Sequence folder name")->capture_default_str();
+  app.add_option("--replay", args->replay,
+                 "Sequence folder that cameras with driver 'replay' serve")
+      ->check(CLI::ExistingDirectory);
   return [args] { return Run(*args); };
 }
 
