@@ -25,6 +25,8 @@ int main(int argc, char** argv) {
       lifmcr::apps::AddViconCommand);
   add("synth", "Write a synthetic LiFMCR rig (raw frames, Vicon, calibration) with ground truth",
       lifmcr::apps::AddSynthCommand);
+  add("record", "Record a rig live (cameras + Vicon) into the LiFMCR layout",
+      lifmcr::apps::AddRecordCommand);
 
   try {
     app.parse(argc, argv);

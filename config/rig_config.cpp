@@ -64,10 +64,10 @@ constexpr EnumNames<CameraPixelFormat, 6> kPixelFormatNames{{{
     {CameraPixelFormat::kBayerGb8, "BayerGB8"},
     {CameraPixelFormat::kBayerBg8, "BayerBG8"},
 }}};
-constexpr EnumNames<ViconSource, 3> kViconSourceNames{{{
-    {ViconSource::kNone, "none"},
-    {ViconSource::kUdp, "udp"},
-    {ViconSource::kCsv, "csv"},
+constexpr EnumNames<ViconSourceKind, 3> kViconSourceNames{{{
+    {ViconSourceKind::kNone, "none"},
+    {ViconSourceKind::kUdp, "udp"},
+    {ViconSourceKind::kCsv, "csv"},
 }}};
 constexpr EnumNames<SkipPolicy, 2> kSkipPolicyNames{{{
     {SkipPolicy::kNewestWins, "newest_wins"},
@@ -240,7 +240,7 @@ std::optional<ConfigIssue> CheckVicon(const ViconConfig& vicon) {
   if (vicon.udp.port < 1 || vicon.udp.port > 65535)
     return ConfigIssue{"/vicon/udp/port",
                        "expected a port in 1..65535, got " + std::to_string(vicon.udp.port)};
-  if (vicon.source == ViconSource::kCsv && vicon.csv.empty())
+  if (vicon.source == ViconSourceKind::kCsv && vicon.csv.empty())
     return ConfigIssue{"/vicon/csv", "expected the path of the Vicon CSV for source csv"};
   if (auto issue = CheckText("/vicon/plate_object", vicon.plate_object, true)) return issue;
   if (!std::isfinite(vicon.rate_hz) || vicon.rate_hz <= 0.0)
@@ -466,10 +466,10 @@ std::optional<CameraPixelFormat> ParseCameraPixelFormat(std::string_view name) {
 }
 std::string_view ToString(CameraPixelFormat value) { return kPixelFormatNames.Name(value); }
 std::string CameraPixelFormatNames() { return kPixelFormatNames.All(); }
-std::optional<ViconSource> ParseViconSource(std::string_view name) {
+std::optional<ViconSourceKind> ParseViconSource(std::string_view name) {
   return kViconSourceNames.Parse(name);
 }
-std::string_view ToString(ViconSource value) { return kViconSourceNames.Name(value); }
+std::string_view ToString(ViconSourceKind value) { return kViconSourceNames.Name(value); }
 std::string ViconSourceNames() { return kViconSourceNames.All(); }
 std::optional<SkipPolicy> ParseSkipPolicy(std::string_view name) {
   return kSkipPolicyNames.Parse(name);

@@ -41,7 +41,8 @@ enum class TriggerActivation { kRisingEdge, kFallingEdge };
 // grey buffers; RGB8 is not offered because lifmcr buffers hold BGR order and
 // accepting RGB would force a channel swap (a copy) on every frame.
 enum class CameraPixelFormat { kMono8, kBgr8, kBayerRg8, kBayerGr8, kBayerGb8, kBayerBg8 };
-enum class ViconSource { kNone, kUdp, kCsv };
+// Named ...Kind so it does not collide with the drivers/ ViconSource interface.
+enum class ViconSourceKind { kNone, kUdp, kCsv };
 // newest_wins: a busy stage drops the older waiting frame set (counted);
 // block: the stage waits, back-pressuring the queue before it (replay).
 enum class SkipPolicy { kNewestWins, kBlock };
@@ -63,8 +64,8 @@ std::string TriggerActivationNames();
 std::optional<CameraPixelFormat> ParseCameraPixelFormat(std::string_view name);
 std::string_view ToString(CameraPixelFormat value);
 std::string CameraPixelFormatNames();
-std::optional<ViconSource> ParseViconSource(std::string_view name);
-std::string_view ToString(ViconSource value);
+std::optional<ViconSourceKind> ParseViconSource(std::string_view name);
+std::string_view ToString(ViconSourceKind value);
 std::string ViconSourceNames();
 std::optional<SkipPolicy> ParseSkipPolicy(std::string_view name);
 std::string_view ToString(SkipPolicy value);
@@ -121,7 +122,7 @@ struct ViconUdpConfig {
 };
 
 struct ViconConfig {
-  ViconSource source = ViconSource::kNone;
+  ViconSourceKind source = ViconSourceKind::kNone;
   ViconUdpConfig udp;
   std::filesystem::path csv;  // source csv: the Tracker CSV export to replay
   // A Vicon CSV does not state how RX, RY, RZ encode the rotation; Tracker's

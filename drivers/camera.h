@@ -39,6 +39,9 @@ struct CameraStats {
   std::uint64_t missing_ids = 0;  // gaps in the device frame counter (wrap-aware)
   std::uint64_t reconnects = 0;   // device lost and found again
   std::uint64_t transferred_bytes = 0;
+  // Transport packets that never arrived (GigE Vision); informative: the
+  // frames they belonged to are already in `failed` or `missing_ids`.
+  std::uint64_t missing_packets = 0;
 };
 
 class Camera {

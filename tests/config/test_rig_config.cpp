@@ -116,7 +116,7 @@ TEST(RigConfigExamples, LifmcrTwoR32LoadsWithItsValues) {
               test::ReadFile(test::SamplePath("raytrix_mla_R42_sc2_klein.xml")));
   }
 
-  EXPECT_EQ(rig->vicon.source, ViconSource::kUdp);
+  EXPECT_EQ(rig->vicon.source, ViconSourceKind::kUdp);
   EXPECT_EQ(rig->vicon.udp.address, "0.0.0.0");
   EXPECT_EQ(rig->vicon.udp.port, 51001);
   EXPECT_EQ(rig->vicon.rotation, RotationRepresentation::kHelicalRad);
@@ -316,11 +316,11 @@ RigConfig RandomRig(std::mt19937& rng) {
     rig.cameras.push_back(camera);
   }
   ViconConfig& vicon = rig.vicon;
-  vicon.source = Pick(rng, {ViconSource::kNone, ViconSource::kUdp, ViconSource::kCsv});
+  vicon.source = Pick(rng, {ViconSourceKind::kNone, ViconSourceKind::kUdp, ViconSourceKind::kCsv});
   vicon.udp.address = std::to_string(integer(0, 255)) + "." + std::to_string(integer(0, 255)) +
                       "." + std::to_string(integer(0, 255)) + "." + std::to_string(integer(0, 255));
   vicon.udp.port = integer(1, 65535);
-  if (vicon.source == ViconSource::kCsv || coin())
+  if (vicon.source == ViconSourceKind::kCsv || coin())
     vicon.csv = test::SamplePath("vicon_nexus_trajectories_pyomeca_markers_first135frames.csv");
   vicon.rotation =
       Pick(rng, {RotationRepresentation::kHelicalRad, RotationRepresentation::kHelicalDeg,

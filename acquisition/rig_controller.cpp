@@ -1,0 +1,297 @@
+#include "acquisition/rig_controller.h"
+
+#include <cstdio>
+#include <sstream>
+
+namespace lifmcr {
+namespace {
+
+std::string Fixed(double value, int digits) {
+  char text[64];
+  std::snprintf(text, sizeof(text), "%.*f", digits, value);
+  return text;
+}
+
+}  // namespace
+
+std::uint64_t CameraHealth::Lost() const {
+  return incomplete + missing_by_id + missing_in_gaps + no_frame_at_end + recorder.lost();
+}
+
+std::uint64_t RigHealth::FramesLost() const {
+  std::uint64_t lost = 0;
+  for (const CameraHealth& camera : cameras) lost += camera.Lost();
+  return lost;
+}
+
+bool RigHealth::AnythingLost() const {
+  return FramesLost() > 0 || vicon.gaps > 0 || vicon.malformed > 0 || recorder.vicon_lost > 0 ||
+         recorder.stop_reason.has_value();
+}
+
+std::string RigHealth::StatusLine() const {
+  std::ostringstream out;
+  out << Fixed(elapsed_s, 1) << "s";
+  for (const CameraHealth& c : cameras) {
+    out << " | " << c.serial << " " << Fixed(c.fps, 1) << "fps " << Fixed(c.mb_per_s, 1) << "MB/s q"
+        << c.recorder.queue_depth << " rec" << c.recorder.written << " lost" << c.Lost();
+  }
+  if (has_vicon)
+    out << " | Vicon " << Fixed(vicon_hz, 1) << "Hz gaps" << vicon.gaps << " bad"
+        << vicon.malformed;
+  out << " | disk backlog " << Fixed(static_cast<double>(recorder.backlog_bytes) / 1e6, 1) << "MB";
+  if (recorder.stop_reason) out << " | STOPPED: " << *recorder.stop_reason;
+  return out.str();
+}
+
+std::string RigHealth::FinalReport() const {
+  std::ostringstream out;
+  out << "recording: " << Fixed(elapsed_s, 1) << " s";
+  if (triggers_fired > 0) out << ", " << triggers_fired << " software triggers";
+  out << "\n";
+  for (const CameraHealth& c : cameras) {
+    out << "  camera " << c.serial << ": recorded " << c.recorder.written;
+    if (c.counter_restarts > 0)
+      out << " (" << c.counter_restarts << " reconnects/counter restarts, " << c.missing_in_gaps
+          << " triggers missed in them)";
+    if (c.recorder.written > 0)
+      out << " (frames " << c.recorder.first_frame << ".." << c.recorder.last_frame << ")";
+    out << ", lost " << c.Lost() << " [incomplete " << c.incomplete << ", missing ids "
+        << c.missing_by_id << ", no frame at end " << c.no_frame_at_end << ", queue full "
+        << c.recorder.dropped_queue_full << ", write error " << c.recorder.lost_write_error
+        << ", after stop " << c.recorder.lost_stopped << "]; driver: completed "
+        << c.driver.completed << ", failed " << c.driver.failed << ", underruns "
+        << c.driver.underruns << ", reconnects " << c.driver.reconnects;
+    if (c.stale > 0) out << ", stale frames dropped " << c.stale;
+    if (c.errors > 0) out << ", device errors " << c.errors << " (last: " << c.last_error << ")";
+    out << "\n";
+  }
+  if (has_vicon) {
+    out << "  Vicon: received " << vicon.frames << ", written " << recorder.vicon_written
+        << ", lost lines " << recorder.vicon_lost << ", frame-number gaps " << vicon.gaps
+        << ", malformed " << vicon.malformed << ", out of order " << vicon.out_of_order;
+    if (recorder.vicon_unknown_objects > 0)
+      out << ", object poses not in the CSV header " << recorder.vicon_unknown_objects;
+    out << "\n";
+  }
+  out << "  disk: " << recorder.OneLine() << "\n";
+  out << (AnythingLost() ? "result: something was lost (see above)\n" : "result: nothing lost\n");
+  return out.str();
+}
+
+RigController::RigController(std::vector<std::unique_ptr<Camera>> cameras,
+                             std::vector<bool> software_trigger, std::unique_ptr<ViconSource> vicon,
+                             Recorder* recorder, RigControllerOptions options, RigObserver observer)
+    : vicon_(std::move(vicon)),
+      recorder_(recorder),
+      options_(options),
+      observer_(std::move(observer)) {
+  for (std::size_t i = 0; i < cameras.size(); ++i) {
+    auto slot = std::make_unique<CameraSlot>();
+    slot->camera = std::move(cameras[i]);
+    slot->software_trigger = i < software_trigger.size() && software_trigger[i];
+    slots_.push_back(std::move(slot));
+  }
+}
+
+RigController::~RigController() { Stop(); }
+
+Status RigController::Start() {
+  if (started_) return Error{"rig: already started"};
+  for (auto& slot : slots_) {
+    if (Status s = slot->camera->Open(); !s) return s;
+    slot->health.serial = slot->camera->Info().serial;
+  }
+  if (vicon_) {
+    if (Status s = vicon_->Start(); !s) return s;
+  }
+  for (std::size_t i = 0; i < slots_.size(); ++i) {
+    if (Status s = slots_[i]->camera->Start(); !s) {
+      for (std::size_t j = 0; j < i; ++j) (void)slots_[j]->camera->Stop();
+      if (vicon_) (void)vicon_->Stop();
+      return s;
+    }
+  }
+  started_ = true;
+  start_time_ = last_health_ = std::chrono::steady_clock::now();
+  grabbing_ = true;
+  for (std::size_t i = 0; i < slots_.size(); ++i)
+    slots_[i]->thread = std::thread([this, i] { GrabLoop(static_cast<int>(i)); });
+  if (vicon_) {
+    vicon_running_ = true;
+    vicon_thread_ = std::thread([this] { ViconLoop(); });
+  }
+  bool any_software = false;
+  for (auto& slot : slots_) any_software = any_software || slot->software_trigger;
+  if (any_software && options_.trigger_hz > 0) {
+    triggering_ = true;
+    trigger_thread_ = std::thread([this] { TriggerLoop(); });
+  }
+  return Status::Ok();
+}
+
+void RigController::Stop() {
+  if (!started_) return;
+  started_ = false;
+  triggering_ = false;
+  if (trigger_thread_.joinable()) trigger_thread_.join();
+  // Frames already triggered are still on their way: keep grabbing a moment.
+  std::this_thread::sleep_for(options_.drain);
+  grabbing_ = false;
+  for (auto& slot : slots_)
+    if (slot->thread.joinable()) slot->thread.join();
+  for (auto& slot : slots_) (void)slot->camera->Stop();
+  vicon_running_ = false;
+  if (vicon_thread_.joinable()) vicon_thread_.join();
+  if (vicon_) (void)vicon_->Stop();
+}
+
+void RigController::GrabLoop(int index) {
+  CameraSlot& slot = *slots_[index];
+  while (grabbing_.load()) {
+    Expected<std::optional<Frame>> next = slot.camera->NextFrame(options_.frame_timeout);
+    if (!next) {
+      std::lock_guard<std::mutex> lock(slot.mutex);
+      ++slot.health.errors;
+      slot.health.last_error = next.error().message;
+      slot.lost = true;
+      continue;  // the driver reconnects on the next call
+    }
+    if (!next->has_value()) continue;
+    Frame frame = std::move(**next);
+    frame.camera_index = index;
+    const std::size_t bytes =
+        frame.image.stride_bytes * static_cast<std::size_t>(frame.image.height);
+    std::int64_t frame_index = 0;
+    {
+      std::lock_guard<std::mutex> lock(slot.mutex);
+      FrameIdUnwrapper::Step step;
+      if (!slot.lost) {
+        step = slot.unwrapper.Next(frame.frame_id);
+        slot.stale_in_a_row = step.stale ? slot.stale_in_a_row + 1 : 0;
+      }
+      const bool restarted =
+          slot.unwrapper.last_index() >= 0 &&
+          (slot.lost || slot.stale_in_a_row >= options_.stale_frames_for_restart);
+      if (restarted) {
+        // The device restarted its counter (a reconnect): the triggers it
+        // missed are its silence in host time over the trigger period.
+        const double silence_s = static_cast<double>(frame.host_ns - slot.last_host_ns) * 1e-9;
+        const auto triggers = std::max<std::int64_t>(
+            1, static_cast<std::int64_t>(std::llround(silence_s * options_.trigger_hz)));
+        slot.unwrapper.Rebase(frame.frame_id, slot.unwrapper.last_index() + triggers);
+        step = FrameIdUnwrapper::Step{slot.unwrapper.last_index(), 0, false};
+        slot.health.missing_in_gaps += static_cast<std::uint64_t>(triggers - 1);
+        ++slot.health.counter_restarts;
+        slot.lost = false;
+        slot.stale_in_a_row = 0;
+      } else if (slot.lost) {
+        // Lost before its first frame: nothing to rebase against.
+        step = slot.unwrapper.Next(frame.frame_id);
+        slot.lost = false;
+      }
+      if (step.stale) {
+        ++slot.health.stale;
+        continue;
+      }
+      slot.health.missing_by_id += static_cast<std::uint64_t>(step.missing_before);
+      slot.health.last_index = frame_index = step.index;
+      slot.last_host_ns = frame.host_ns;
+      ++slot.interval_frames;
+      slot.interval_bytes += bytes;
+      if (frame.status != FrameStatus::kOk) {
+        ++slot.health.incomplete;
+        continue;
+      }
+      ++slot.health.received;
+    }
+    if (observer_.on_frame) observer_.on_frame(index, frame_index, frame);
+    if (recorder_ != nullptr) recorder_->SubmitFrame(index, frame_index, std::move(frame));
+  }
+}
+
+void RigController::ViconLoop() {
+  while (vicon_running_.load()) {
+    Expected<std::optional<ViconFrame>> next = vicon_->Next(std::chrono::milliseconds(100));
+    if (!next) {
+      std::lock_guard<std::mutex> lock(vicon_mutex_);
+      ++vicon_errors_;
+      continue;
+    }
+    if (!next->has_value()) {
+      if (vicon_->Finished()) return;
+      continue;
+    }
+    if (observer_.on_vicon) observer_.on_vicon(**next);
+    if (recorder_ != nullptr) recorder_->SubmitVicon(**next);
+    std::lock_guard<std::mutex> lock(vicon_mutex_);
+    ++vicon_interval_frames_;
+  }
+}
+
+void RigController::TriggerLoop() {
+  const auto period =
+      std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 / options_.trigger_hz));
+  auto due = std::chrono::steady_clock::now();
+  while (triggering_.load()) {
+    for (auto& slot : slots_) {
+      if (!slot->software_trigger) continue;
+      if (Status s = slot->camera->SoftwareTrigger(); !s) {
+        std::lock_guard<std::mutex> lock(slot->mutex);
+        ++slot->health.errors;
+        slot->health.last_error = s.error().message;
+      }
+    }
+    ++triggers_fired_;
+    due += period;
+    std::this_thread::sleep_until(due);
+  }
+}
+
+bool RigController::ViconFinished() const { return vicon_ && vicon_->Finished(); }
+
+RigHealth RigController::Health() {
+  RigHealth health;
+  const auto now = std::chrono::steady_clock::now();
+  const double interval_s = std::chrono::duration<double>(now - last_health_).count();
+  last_health_ = now;
+  health.elapsed_s = std::chrono::duration<double>(now - start_time_).count();
+  health.triggers_fired = triggers_fired_.load();
+  if (recorder_ != nullptr) health.recorder = recorder_->Stats();
+  for (std::size_t i = 0; i < slots_.size(); ++i) {
+    CameraSlot& slot = *slots_[i];
+    CameraHealth camera;
+    {
+      std::lock_guard<std::mutex> lock(slot.mutex);
+      if (interval_s > 0) {
+        slot.health.fps = static_cast<double>(slot.interval_frames) / interval_s;
+        slot.health.mb_per_s = static_cast<double>(slot.interval_bytes) / 1e6 / interval_s;
+      }
+      slot.interval_frames = slot.interval_bytes = 0;
+      camera = slot.health;
+    }
+    camera.driver = slot.camera->Stats();
+    if (i < health.recorder.cameras.size()) {
+      camera.recorder = health.recorder.cameras[i];
+      camera.serial = camera.recorder.serial;  // the rig's serial, as in the file names
+    }
+    if (slot.software_trigger && !grabbing_.load()) {
+      const auto expected = static_cast<std::int64_t>(health.triggers_fired);
+      if (expected > camera.last_index + 1)
+        camera.no_frame_at_end = static_cast<std::uint64_t>(expected - camera.last_index - 1);
+    }
+    health.cameras.push_back(std::move(camera));
+  }
+  if (vicon_) {
+    health.has_vicon = true;
+    health.vicon = vicon_->Stats();
+    std::lock_guard<std::mutex> lock(vicon_mutex_);
+    if (interval_s > 0) vicon_hz_ = static_cast<double>(vicon_interval_frames_) / interval_s;
+    vicon_interval_frames_ = 0;
+    health.vicon_hz = vicon_hz_;
+    health.vicon_errors = vicon_errors_;
+  }
+  return health;
+}
+
+}  // namespace lifmcr

@@ -1,0 +1,163 @@
+#pragma once
+// Runs a rig: one grab thread per camera pulling Camera::NextFrame, a Vicon
+// thread pulling the Vicon source, a trigger thread for cameras in software
+// trigger mode, all started and stopped together; frames and Vicon frames go
+// to the recorder (and to an optional observer: the sync assembler, a
+// publisher). Health() is a snapshot for the status line.
+//
+// Frame numbers: a frame's number in the recording is its run-relative index
+// from the camera's frame counter (frame_id_unwrapper.h), so a counter gap is
+// a missing file and is counted. This assumes every camera sees the first
+// trigger after Start (true for software triggers, which start only once all
+// cameras run, and for a hardware trigger gated after Start).
+//
+// Accounting, per camera: every frame the counter says was produced ends up
+// recorded, or lost as one of: incomplete (delivered with a bad status; not
+// written), missing by counter gap, driver underrun, recorder drop. With
+// software triggers, triggers fired minus the last index + 1 are the frames
+// that never came at the end (`no_frame_at_end`).
+
+#include "acquisition/frame_id_unwrapper.h"
+#include "acquisition/recorder.h"
+#include "drivers/camera.h"
+#include "drivers/vicon_source.h"
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace lifmcr {
+
+struct RigControllerOptions {
+  std::chrono::milliseconds frame_timeout{100};  // one NextFrame wait
+  // The rig's trigger rate: the Vicon rate / trigger divider (80 / 8 = 10
+  // Hz). Software triggers fire at it, and a camera's silence across a
+  // reconnect (its counter restarts) is turned into a count of triggers with it.
+  double trigger_hz = 10.0;
+  // Stale frames in a row (counter behind) taken as a counter restart.
+  int stale_frames_for_restart = 3;
+  // At Stop, how long the grab threads keep taking frames after the last
+  // trigger, so frames in flight are recorded rather than lost.
+  std::chrono::milliseconds drain{300};
+};
+
+// Called on a grab thread for every complete frame (with its run index)
+// before it goes to the recorder, and on the Vicon thread for every Vicon
+// frame. Must be cheap (the sync assembler's Add).
+struct RigObserver {
+  std::function<void(int camera_index, std::int64_t frame_index, const Frame&)> on_frame;
+  std::function<void(const ViconFrame&)> on_vicon;
+};
+
+struct CameraHealth {
+  std::string serial;
+  double fps = 0;                // frames received per second, last interval
+  double mb_per_s = 0;           // megabytes received per second, last interval
+  std::uint64_t received = 0;    // complete frames handed to the recorder
+  std::uint64_t incomplete = 0;  // delivered with a bad status: lost
+  std::uint64_t missing_by_id = 0;
+  std::uint64_t stale = 0;  // repeated/late frames, dropped
+  std::uint64_t missing_in_gaps = 0;  // triggers missed while the camera was lost (by host time)
+  std::uint64_t counter_restarts = 0;
+  std::uint64_t no_frame_at_end = 0;
+  std::uint64_t errors = 0;  // NextFrame errors (device lost)
+  std::string last_error;
+  std::int64_t last_index = -1;
+  CameraStats driver;
+  RecorderCameraStats recorder;
+
+  // Every frame that was produced (or triggered) and is not on disk.
+  std::uint64_t Lost() const;
+};
+
+struct RigHealth {
+  double elapsed_s = 0;
+  std::vector<CameraHealth> cameras;
+  std::uint64_t triggers_fired = 0;  // software triggers (0 in hardware mode)
+  bool has_vicon = false;
+  double vicon_hz = 0;
+  ViconSourceStats vicon;
+  std::uint64_t vicon_errors = 0;
+  RecorderStats recorder;
+
+  std::uint64_t FramesLost() const;  // cameras + recorder
+  // Anything lost: frames, Vicon frames (gaps, malformed), Vicon lines.
+  bool AnythingLost() const;
+  // "12.0s cam0 10.0fps 2.6MB/s q0 drop0 | cam1 ... | Vicon 80.0Hz gaps0 | disk backlog 0.0MB"
+  std::string StatusLine() const;
+  // Several lines: per camera what was kept and what was lost and why.
+  std::string FinalReport() const;
+};
+
+class RigController {
+ public:
+  // `software_trigger[i]`: camera i is triggered by this controller.
+  // `vicon` may be null (no Vicon source). `recorder` must outlive the controller.
+  RigController(std::vector<std::unique_ptr<Camera>> cameras, std::vector<bool> software_trigger,
+                std::unique_ptr<ViconSource> vicon, Recorder* recorder,
+                RigControllerOptions options = {}, RigObserver observer = {});
+  ~RigController();  // Stop()
+  RigController(const RigController&) = delete;
+  RigController& operator=(const RigController&) = delete;
+
+  // Opens every camera (errors name the camera), then starts the Vicon
+  // source and every camera, then the threads. On an error nothing is left
+  // running.
+  Status Start();
+  // Stops triggering, drains, stops the cameras and the Vicon source, joins
+  // every thread. Idempotent.
+  void Stop();
+
+  RigHealth Health();
+
+  // True when every free-running source has finished (replay ended); the
+  // command stops the recording then.
+  bool ViconFinished() const;
+
+ private:
+  struct CameraSlot {
+    std::unique_ptr<Camera> camera;
+    bool software_trigger = false;
+    FrameIdUnwrapper unwrapper;
+    bool lost = false;            // NextFrame reported the device gone
+    int stale_in_a_row = 0;
+    std::int64_t last_host_ns = 0;  // of the last accepted frame
+    mutable std::mutex mutex;  // guards health below
+    CameraHealth health;
+    std::uint64_t interval_frames = 0;
+    std::uint64_t interval_bytes = 0;
+    std::thread thread;
+  };
+  void GrabLoop(int index);
+  void ViconLoop();
+  void TriggerLoop();
+
+  std::vector<std::unique_ptr<CameraSlot>> slots_;
+  std::unique_ptr<ViconSource> vicon_;
+  Recorder* recorder_;
+  RigControllerOptions options_;
+  RigObserver observer_;
+
+  std::atomic<bool> grabbing_{false};
+  std::atomic<bool> triggering_{false};
+  std::atomic<bool> vicon_running_{false};
+  std::atomic<std::uint64_t> triggers_fired_{0};
+  std::thread vicon_thread_;
+  std::thread trigger_thread_;
+  bool started_ = false;
+
+  std::mutex vicon_mutex_;
+  std::uint64_t vicon_interval_frames_ = 0;
+  std::uint64_t vicon_errors_ = 0;
+  double vicon_hz_ = 0;
+  std::chrono::steady_clock::time_point start_time_;
+  std::chrono::steady_clock::time_point last_health_;
+};
+
+}  // namespace lifmcr

@@ -1,0 +1,230 @@
+// `lifmcr record`: records a rig live into the LiFMCR layout (acquisition/).
+
+#include "acquisition/recorder.h"
+#include "acquisition/rig_controller.h"
+#include "apps/commands.h"
+#include "config/rig_config.h"
+#include "drivers/camera_factory.h"
+#include "drivers/replay_camera.h"
+#include "drivers/vicon_csv_source.h"
+#include "drivers/vicon_udp_source.h"
+
+#include <CLI/CLI.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <ctime>
+#include <iostream>
+#include <memory>
+#include <pthread.h>
+#include <signal.h>
+#include <unistd.h>
+
+namespace lifmcr::apps {
+namespace {
+
+constexpr int kExitLost = 1;
+constexpr int kExitUsage = 2;
+constexpr int kExitCannotStart = 3;
+
+Expected<std::unique_ptr<ViconSource>> MakeViconSource(const RigConfig& rig) {
+  ViconPoseOptions pose;
+  pose.rotation = rig.vicon.rotation;
+  pose.handedness = rig.vicon.handedness;
+  switch (rig.vicon.source) {
+    case ViconSourceKind::kNone:
+      return std::unique_ptr<ViconSource>();
+    case ViconSourceKind::kUdp:
+      return std::unique_ptr<ViconSource>(
+          std::make_unique<ViconUdpSource>(ViconUdpSourceOptions::FromRig(rig)));
+    case ViconSourceKind::kCsv: {
+      ViconCsvSourceOptions options;
+      options.pose = pose;
+      options.objects = ViconObjectsOfRig(rig);
+      options.realtime = true;
+      options.rate_hz = rig.vicon.rate_hz;
+      auto source = ViconCsvSource::Open(rig.vicon.csv, options);
+      if (!source) return source.error();
+      return std::unique_ptr<ViconSource>(std::move(*source));
+    }
+  }
+  return Error{"vicon: unknown source"};
+}
+
+struct Args {
+  std::string rig;
+  std::string out;
+  double duration_s = 0;
+  std::string scene = "00_Recording";
+  std::string sequence = "seq";
+  std::string replay;  // sequence folder the replay cameras serve
+};
+
+int Run(const Args& args) {
+  // SIGINT/SIGTERM are taken synchronously by the main loop (sigtimedwait),
+  // so they are blocked before any thread starts and every thread inherits
+  // the mask. A file-size limit makes writes fail with EFBIG (counted, clean
+  // stop) instead of killing the process with SIGXFSZ.
+  sigset_t stop_signals;
+  sigemptyset(&stop_signals);
+  sigaddset(&stop_signals, SIGINT);
+  sigaddset(&stop_signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+  std::signal(SIGXFSZ, SIG_IGN);
+  std::signal(SIGPIPE, SIG_IGN);
+
+  auto rig = LoadRigConfig(args.rig);
+  if (!rig) {
+    std::cerr << "lifmcr record: " << rig.error().message << "\n";
+    return kExitUsage;
+  }
+  RecorderOptions options = RecorderOptions::FromRig(rig->recorder);
+  options.root_dir = args.out.empty() ? rig->recorder.out_dir : std::filesystem::path(args.out);
+  options.scene = args.scene;
+  options.sequence = args.sequence;
+  if (options.root_dir.empty()) {
+    std::cerr << "lifmcr record: no output folder: give --out (or recorder.out_dir in " << args.rig
+              << ")\n";
+    return kExitUsage;
+  }
+  if (Status s = options.Check(); !s) {
+    std::cerr << "lifmcr record: " << s.error().message << "\n";
+    return kExitUsage;
+  }
+
+  std::vector<std::unique_ptr<Camera>> cameras;
+  std::vector<bool> software_trigger;
+  std::vector<const ReplayCamera*> replay_cameras;
+  for (std::size_t i = 0; i < rig->cameras.size(); ++i) {
+    const CameraConfig& config = rig->cameras[i];
+    CameraFactoryOptions factory;
+    // The recorder's queue plus frames in the stream and in the grab thread.
+    factory.pool_buffers = rig->recorder.queue_frames + 4;
+    factory.trigger_period = TriggerPeriod(rig->vicon);
+    factory.replay_sequence_dir = args.replay;
+    factory.replay_pacing = config.trigger.mode == TriggerMode::kSoftware
+                                ? ReplayPacing::kSoftwareTrigger
+                                : ReplayPacing::kOriginal;
+    factory.free_run_rate_hz = config.trigger.mode == TriggerMode::kFreeRun
+                                   ? rig->vicon.rate_hz / rig->vicon.trigger_divider
+                                   : 0.0;
+    auto camera = MakeCamera(config, static_cast<int>(i), factory);
+    if (!camera) {
+      std::cerr << "lifmcr record: " << camera.error().message << "\n";
+      return kExitCannotStart;
+    }
+    if (auto* replay = dynamic_cast<const ReplayCamera*>(camera->get()))
+      replay_cameras.push_back(replay);
+    cameras.push_back(std::move(*camera));
+    software_trigger.push_back(config.trigger.mode == TriggerMode::kSoftware);
+  }
+  // A rig made only of replay cameras ends with its sequence.
+  auto replay_finished = [&replay_cameras, n = rig->cameras.size()] {
+    if (replay_cameras.empty() || replay_cameras.size() != n) return false;
+    for (const ReplayCamera* camera : replay_cameras)
+      if (!camera->Finished()) return false;
+    return true;
+  };
+  auto vicon = MakeViconSource(*rig);
+  if (!vicon) {
+    std::cerr << "lifmcr record: " << vicon.error().message << "\n";
+    return kExitCannotStart;
+  }
+  auto recorder = Recorder::Create(*rig, options);
+  if (!recorder) {
+    std::cerr << "lifmcr record: " << recorder.error().message << "\n";
+    return kExitCannotStart;
+  }
+  RigControllerOptions controller_options;
+  controller_options.trigger_hz = rig->vicon.rate_hz / rig->vicon.trigger_divider;
+  RigController controller(std::move(cameras), std::move(software_trigger), std::move(*vicon),
+                           recorder->get(), controller_options);
+  if (Status s = controller.Start(); !s) {
+    std::cerr << "lifmcr record: " << s.error().message << "\n";
+    (*recorder)->Stop();
+    return kExitCannotStart;
+  }
+  std::cerr << "lifmcr record: recording " << rig->cameras.size() << " camera(s) into "
+            << (*recorder)->sequence_dir().string() << " (Ctrl-C or SIGTERM stops)\n";
+
+  const bool terminal = isatty(STDERR_FILENO) == 1;
+  const auto start = std::chrono::steady_clock::now();
+  auto next_status = start + std::chrono::seconds(1);
+  std::string stop_why = "duration reached";
+  for (;;) {
+    const timespec wait{0, 100 * 1000 * 1000};
+    const int signal_number = sigtimedwait(&stop_signals, nullptr, &wait);
+    if (signal_number == SIGINT || signal_number == SIGTERM) {
+      stop_why = signal_number == SIGINT ? "SIGINT" : "SIGTERM";
+      break;
+    }
+    if ((*recorder)->failed()) {
+      stop_why = "write error";
+      break;
+    }
+    if (replay_finished()) {
+      stop_why = "end of the replayed sequence";
+      break;
+    }
+    const auto now = std::chrono::steady_clock::now();
+    if (args.duration_s > 0 &&
+        std::chrono::duration<double>(now - start).count() >= args.duration_s)
+      break;
+    if (now >= next_status) {
+      const std::string line = controller.Health().StatusLine();
+      if (terminal)
+        std::cerr << "\r" << line << "\x1b[K" << std::flush;
+      else
+        std::cerr << line << "\n";
+      next_status += std::chrono::seconds(1);
+    }
+  }
+  if (terminal) std::cerr << "\n";
+  std::cerr << "lifmcr record: stopping (" << stop_why << ")\n";
+  controller.Stop();
+  (*recorder)->Stop();
+  const RigHealth health = controller.Health();
+  std::cout << "sequence: " << (*recorder)->sequence_dir().string() << "\n"
+            << "stopped by: " << stop_why << "\n"
+            << health.FinalReport();
+  return health.AnythingLost() ? kExitLost : 0;
+}
+
+}  // namespace
+
+CommandRun AddRecordCommand(CLI::App& app) {
+  auto args = std::make_shared<Args>();
+  app.footer(
+      "Records every camera of the rig file (armed for its trigger; software-triggered\n"
+      "cameras are fired at vicon.rate_hz / vicon.trigger_divider) and every Vicon frame\n"
+      "into OUT/SCENE/SEQUENCE in the LiFMCR layout: TypeE_<serial>/ raw BMPs numbered by\n"
+      "trigger, Vicon/sequence_01.csv (one line per received Vicon frame), and the MLA\n"
+      "files and VSK copied into OUT/Calibration/. Cameras: driver 'aravis' (GigE Vision,\n"
+      "USB3 Vision, Aravis fake cameras) and 'replay' (the camera folders of --replay SEQ,\n"
+      "served at the trigger period, or per software trigger; the recording ends with the\n"
+      "sequence when every camera is a replay camera).\n"
+      "A status line on stderr (per camera fps, MB/s, recorder queue, lost frames; Vicon\n"
+      "rate and gaps; disk backlog) is refreshed in place on a terminal, printed once a\n"
+      "second otherwise. Stops after --duration, on SIGINT/SIGTERM, or by itself on a\n"
+      "write error (disk full): files already written stay valid, the CSV ends with a\n"
+      "complete line. The final report on stdout says what was kept and what was lost.\n"
+      "Exit code: 0 nothing lost; 1 a frame, a Vicon frame or a CSV line was lost, or a\n"
+      "write error stopped the recording; 2 usage or rig file error; 3 a camera, the Vicon\n"
+      "source or the output folder could not be started (an existing non-empty sequence\n"
+      "folder is never overwritten).");
+  app.add_option("--rig", args->rig, "Rig file (YAML, see config/README.md)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  app.add_option("--out", args->out, "Dataset root to record into (default: recorder.out_dir)");
+  app.add_option("--duration", args->duration_s, "Seconds to record; 0 = until a signal")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--scene", args->scene, "Scene folder name")->capture_default_str();
+  app.add_option("--sequence", args->sequence, "Sequence folder name")->capture_default_str();
+  app.add_option("--replay", args->replay,
+                 "Sequence folder that cameras with driver 'replay' serve")
+      ->check(CLI::ExistingDirectory);
+  return [args] { return Run(*args); };
+}
+
+}  // namespace lifmcr::apps

@@ -1,0 +1,160 @@
+// Recording throughput: two in-memory cameras at full R32 size (6560x4948,
+// one 8-bit, one 24-bit: 32.5 and 97.4 MB frames) free-running as fast as
+// the recorder takes them (a camera waits for a free pooled buffer, so the
+// disk sets the pace), through the real grab threads, recorder queues and
+// O_DIRECT writer, into a folder on the machine's disk. Printed beside the
+// disk's own sequential O_DIRECT write bandwidth measured in the same run
+// with `dd if=/dev/zero bs=32M oflag=direct`, as a ratio. dd runs just
+// before and just after the recorder and their mean is the baseline, so a
+// disk shared with other work biases neither side.
+//
+// The data written is bounded (default 3 GB for the recorder, 2 x 1 GiB for dd)
+// and deleted afterwards. 1 MB = 1e6 bytes.
+//
+// Usage: bench_record [folder on the disk under test (default /var/tmp)]
+//                     [recorder GB (default 3)] [writer threads (default 1)]
+
+#include "acquisition/memory_camera.h"
+#include "acquisition/recorder.h"
+#include "acquisition/rig_controller.h"
+#include "config/rig_config.h"
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <thread>
+#include <unistd.h>
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace lifmcr;
+
+constexpr int kR32Width = 6560;
+constexpr int kR32Height = 4948;
+
+// dd's own figure in MB/s (it prints "..., 1.1 GB/s" or "..., 950 MB/s").
+double DdDirectWriteMbPerS(const fs::path& dir) {
+  const fs::path file = dir / "dd_direct.bin";
+  const std::string command =
+      "dd if=/dev/zero of='" + file.string() + "' bs=32M count=32 oflag=direct conv=fsync 2>&1";
+  FILE* pipe = ::popen(command.c_str(), "r");
+  if (pipe == nullptr) return 0;
+  char line[512];
+  std::string last;
+  while (std::fgets(line, sizeof(line), pipe) != nullptr) last = line;
+  ::pclose(pipe);
+  fs::remove(file);
+  // "2147483648 bytes (2.1 GB, 2.0 GiB) copied, 1.9 s, 1.1 GB/s"
+  const auto comma = last.rfind(", ");
+  const auto bytes_end = last.find(" bytes");
+  const auto copied = last.find("copied, ");
+  if (comma == std::string::npos || bytes_end == std::string::npos || copied == std::string::npos)
+    return 0;
+  const double bytes = std::atof(last.substr(0, bytes_end).c_str());
+  const double seconds = std::atof(last.substr(copied + 8).c_str());
+  return seconds > 0 ? bytes / seconds / 1e6 : 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const fs::path base = argc > 1 ? fs::path(argv[1]) : fs::path("/var/tmp");
+  const double budget_gb = argc > 2 ? std::atof(argv[2]) : 3.0;
+  const int writer_threads = argc > 3 ? std::atoi(argv[3]) : 1;
+  const fs::path dir = base / ("lifmcr_bench_record_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const double dd_before_mb_s = DdDirectWriteMbPerS(dir);
+
+  RigConfig rig;
+  rig.name = "bench";
+  for (int i = 0; i < 2; ++i) {
+    CameraConfig camera;
+    camera.serial = i == 0 ? "R32MONO" : "R32BGR";
+    camera.name = "cam" + std::to_string(i);
+    rig.cameras.push_back(camera);
+  }
+  RecorderOptions options;
+  options.root_dir = dir;
+  options.queue_frames = 4;
+  options.writer_threads = writer_threads;
+  options.direct_io = true;
+  auto recorder = Recorder::Create(rig, options);
+  if (!recorder) {
+    std::fprintf(stderr, "bench_record: %s\n", recorder.error().message.c_str());
+    return 1;
+  }
+  std::vector<std::unique_ptr<Camera>> cameras;
+  for (int i = 0; i < 2; ++i) {
+    MemoryCameraOptions camera;
+    camera.serial = rig.cameras[i].serial;
+    camera.width = kR32Width;
+    camera.height = kR32Height;
+    camera.format = i == 0 ? PixelFormat::kMono8 : PixelFormat::kBgr8;
+    // No more buffers than queue slots: a full pool, not a full queue, stops the
+    // camera, so nothing is dropped and the disk sets the pace.
+    camera.pool_frames = options.queue_frames;
+    camera.free_run = true;
+    camera.wait_for_buffer = true;
+    cameras.push_back(std::make_unique<MemoryCamera>(camera));
+  }
+  RigController controller(std::move(cameras), {false, false}, nullptr, recorder->get());
+  if (Status s = controller.Start(); !s) {
+    std::fprintf(stderr, "bench_record: %s\n", s.error().message.c_str());
+    return 1;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  const double budget_bytes = budget_gb * 1e9;
+  for (;;) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    const RecorderStats stats = (*recorder)->Stats();
+    std::uint64_t bytes = 0;
+    for (const auto& c : stats.cameras) bytes += c.bytes_written;
+    const double elapsed =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (static_cast<double>(bytes) >= budget_bytes || elapsed > 60 || stats.stop_reason) break;
+  }
+  controller.Stop();
+  (*recorder)->Stop();
+  const double elapsed_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const RigHealth health = controller.Health();
+  std::uint64_t bytes = 0, frames = 0, drops = 0, underruns = 0;
+  for (const CameraHealth& c : health.cameras) {
+    bytes += c.recorder.bytes_written;
+    frames += c.recorder.written;
+    drops += c.Lost();
+    underruns += c.driver.underruns;
+  }
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const double dd_after_mb_s = DdDirectWriteMbPerS(dir);
+  const double dd_mb_s = (dd_before_mb_s + dd_after_mb_s) / 2;
+  fs::remove_all(dir);
+
+  const double recorder_mb_s = static_cast<double>(bytes) / 1e6 / elapsed_s;
+  std::printf(
+      "bench_record: 2 cameras 6560x4948 (Mono8 32.5 MB + BGR8 97.4 MB frames), "
+      "%d writer thread(s), into %s\n",
+      writer_threads, base.string().c_str());
+  for (const CameraHealth& c : health.cameras)
+    std::printf("  %-8s %llu frames, %.0f MB, lost %llu\n", c.serial.c_str(),
+                static_cast<unsigned long long>(c.recorder.written),
+                static_cast<double>(c.recorder.bytes_written) / 1e6,
+                static_cast<unsigned long long>(c.Lost()));
+  std::printf(
+      "  recorder: %llu frames, %.0f MB in %.2f s = %.0f MB/s sustained; drops %llu, "
+      "underruns %llu; %s\n",
+      static_cast<unsigned long long>(frames), static_cast<double>(bytes) / 1e6, elapsed_s,
+      recorder_mb_s, static_cast<unsigned long long>(drops),
+      static_cast<unsigned long long>(underruns), health.recorder.OneLine().c_str());
+  std::printf(
+      "  dd oflag=direct bs=32M (1.07 GB, same folder, same run): %.0f MB/s before, "
+      "%.0f MB/s after, mean %.0f MB/s\n",
+      dd_before_mb_s, dd_after_mb_s, dd_mb_s);
+  if (dd_mb_s > 0) std::printf("  ratio recorder / dd: %.2f\n", recorder_mb_s / dd_mb_s);
+  return drops == 0 ? 0 : 1;
+}

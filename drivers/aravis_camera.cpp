@@ -1,0 +1,700 @@
+#include "drivers/aravis_camera.h"
+
+#include "drivers/frame_id_tracker.h"
+#include "drivers/frame_pool.h"
+#include "drivers/usb_hotplug.h"
+
+#include <arv.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cstdio>
+#include <ctime>
+#include <mutex>
+#include <thread>
+
+namespace lifmcr {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+std::int64_t RealtimeNs() {
+  timespec now{};
+  clock_gettime(CLOCK_REALTIME, &now);
+  return static_cast<std::int64_t>(now.tv_sec) * 1'000'000'000 + now.tv_nsec;
+}
+
+// Takes ownership of a GError and turns it into text.
+std::string TakeMessage(GError* error) {
+  if (error == nullptr) return "unknown error";
+  std::string message = error->message != nullptr ? error->message : "unknown error";
+  g_error_free(error);
+  return message;
+}
+
+std::string GenicamPixelFormat(CameraPixelFormat format) {
+  switch (format) {
+    case CameraPixelFormat::kMono8:
+      return "Mono8";
+    case CameraPixelFormat::kBgr8:
+      return "BGR8";
+    case CameraPixelFormat::kBayerRg8:
+      return "BayerRG8";
+    case CameraPixelFormat::kBayerGr8:
+      return "BayerGR8";
+    case CameraPixelFormat::kBayerGb8:
+      return "BayerGB8";
+    case CameraPixelFormat::kBayerBg8:
+      return "BayerBG8";
+  }
+  return "Mono8";
+}
+
+FrameStatus MapStatus(ArvBufferStatus status) {
+  switch (status) {
+    case ARV_BUFFER_STATUS_SUCCESS:
+      return FrameStatus::kOk;
+    case ARV_BUFFER_STATUS_MISSING_PACKETS:
+    case ARV_BUFFER_STATUS_WRONG_PACKET_ID:
+      return FrameStatus::kIncomplete;
+    case ARV_BUFFER_STATUS_TIMEOUT:
+      return FrameStatus::kTimeout;
+    default:  // UNKNOWN, CLEARED, SIZE_MISMATCH, FILLING, ABORTED
+      return FrameStatus::kError;
+  }
+}
+
+bool IsLoopbackDevice(ArvDevice* device) {
+  if (!ARV_IS_GV_DEVICE(device)) return false;
+  GSocketAddress* address = arv_gv_device_get_device_address(ARV_GV_DEVICE(device));
+  if (address == nullptr || !G_IS_INET_SOCKET_ADDRESS(address)) return false;
+  GInetAddress* inet = g_inet_socket_address_get_address(G_INET_SOCKET_ADDRESS(address));
+  return inet != nullptr && g_inet_address_get_is_loopback(inet);
+}
+
+// One pool buffer and the ArvBuffer wrapping its memory. `queued` holds the
+// pool's BufferRef while the buffer sits in the stream.
+struct Slot {
+  ArvBuffer* arv = nullptr;  // owned: one reference, for the camera's lifetime
+  BufferRef queued;
+};
+
+}  // namespace
+
+Status AravisCameraOptions::Check() const {
+  if (pool_buffers < 2)
+    return Error{"aravis options: pool_buffers must be >= 2, got " + std::to_string(pool_buffers)};
+  if (free_run_rate_hz < 0.0) return Error{"aravis options: free_run_rate_hz must be >= 0"};
+  if (probe_after.count() <= 0 || reconnect_interval.count() <= 0)
+    return Error{"aravis options: probe_after and reconnect_interval must be > 0"};
+  if (max_consecutive_failures < 1)
+    return Error{"aravis options: max_consecutive_failures must be >= 1"};
+  return Status::Ok();
+}
+
+std::string CameraGap::Describe() const {
+  char line[256];
+  const double lost_s =
+      back_host_ns != 0 ? static_cast<double>(back_host_ns - lost_host_ns) * 1e-9 : -1.0;
+  std::string ids = "frame id ";
+  ids += had_frame_before ? std::to_string(last_frame_id_before) : std::string("none");
+  ids += " -> ";
+  ids += had_frame_after ? std::to_string(first_frame_id_after) : std::string("none yet");
+  if (lost_s >= 0.0)
+    std::snprintf(line, sizeof(line), "lost %.2f s (%s), %s", lost_s, reason.c_str(), ids.c_str());
+  else
+    std::snprintf(line, sizeof(line), "lost, not back yet (%s), %s", reason.c_str(), ids.c_str());
+  return line;
+}
+
+struct AravisCamera::Impl {
+  CameraConfig config;
+  AravisCameraOptions options;
+  std::string label;  // "camera cam0 (serial 123)" for messages
+
+  // Guards camera/stream lifetime against SoftwareTrigger and the
+  // control-lost flag; the grab thread is the only one that changes them.
+  mutable std::mutex control_mutex;
+  ArvCamera* camera = nullptr;
+  ArvStream* stream = nullptr;
+  gulong control_lost_handler = 0;
+  std::atomic<bool> control_lost{false};
+  std::atomic<bool> control_suspect{false};  // a control access failed: probe it
+
+  std::shared_ptr<FramePool> pool;
+  std::vector<Slot> slots;
+  std::size_t payload_bytes = 0;
+  int missing_packets_info = -1;    // index of n_missing_packets in the stream infos
+  int transferred_bytes_info = -1;  // index of n_transferred_bytes
+  FrameIdTracker ids{FrameIdWidth::k16Bit};
+  bool started = false;
+  bool opened = false;
+
+  // Lost state (grab thread), published through `lost` for other threads.
+  std::atomic<bool> lost{false};
+  std::string lost_reason;
+  bool lost_reported = false;
+  Clock::time_point last_reconnect_try{};
+  Clock::time_point last_activity{};  // last frame, open or probe
+  int consecutive_failures = 0;
+  bool frame_since_reconnect = false;
+  // USB3 Vision cameras: the process-wide hotplug monitor and the generation
+  // last seen; a change means a USB3 Vision device came or went.
+  UsbHotplugMonitor* usb = nullptr;
+  std::uint64_t usb_generation = 0;
+
+  bool UsbChanged() {
+    if (usb == nullptr) return false;
+    const std::uint64_t now = usb->generation();
+    if (now == usb_generation) return false;
+    usb_generation = now;
+    return true;
+  }
+
+  mutable std::mutex stats_mutex;
+  CameraStats stats;
+  CameraStats closed_streams;  // Aravis counters of streams already destroyed
+  CameraInfo info;
+  std::vector<CameraGap> gaps;
+  // Threads finalising the stream and device of a lost camera (Disconnect);
+  // joined by the destructor.
+  std::vector<std::thread> reapers;
+
+  std::string DeviceName() const {
+    return config.driver.address.empty() ? config.serial : config.driver.address;
+  }
+
+  Error Fail(const std::string& what) const { return Error{label + ": " + what}; }
+  Error FailFeature(const std::string& feature, const std::string& value, GError* error) const {
+    return Fail("setting " + feature + " to " + value + ": " + TakeMessage(error));
+  }
+
+  Status Connect();
+  Status ApplySettings();
+  Status CreateStream();
+  void Disconnect();
+  void TopUp();
+  void RefreshAravisStats();
+  void MarkLost(const std::string& reason);
+  bool Probe();
+  Frame MakeFrame(ArvBuffer* buffer);
+};
+
+namespace {
+
+void OnControlLost(ArvDevice* /*device*/, gpointer user_data) {
+  // Runs in Aravis's heartbeat thread: only raise the flag.
+  static_cast<std::atomic<bool>*>(user_data)->store(true);
+}
+
+}  // namespace
+
+Status AravisCamera::Impl::Connect() {
+  const std::string name = DeviceName();
+  if (name.rfind("Fake_", 0) == 0) arv_enable_interface("Fake");
+  GError* error = nullptr;
+  ArvCamera* opened_camera = arv_camera_new(name.c_str(), &error);
+  if (opened_camera == nullptr)
+    return Fail("cannot open Aravis device '" + name + "': " + TakeMessage(error));
+  {
+    std::lock_guard<std::mutex> lock(control_mutex);
+    camera = opened_camera;
+  }
+  ArvDevice* device = arv_camera_get_device(camera);
+  control_lost.store(false);
+  control_lost_handler =
+      g_signal_connect(device, "control-lost", G_CALLBACK(OnControlLost), &control_lost);
+  if (arv_camera_is_gv_device(camera) && IsLoopbackDevice(device))
+    arv_camera_gv_set_stream_options(camera, ARV_GV_STREAM_OPTION_PACKET_SOCKET_DISABLED);
+  const bool usb3 = arv_camera_is_uv_device(camera);
+  ids = FrameIdTracker(usb3 ? FrameIdWidth::k64Bit : FrameIdWidth::k16Bit);
+  if (usb3 && usb == nullptr) {
+    usb = UsbHotplugMonitor::Shared();  // nullptr without hotplug: probes still work
+    if (usb != nullptr) usb_generation = usb->generation();
+  }
+  if (Status status = ApplySettings(); !status) {
+    Disconnect();
+    return status;
+  }
+  if (Status status = CreateStream(); !status) {
+    Disconnect();
+    return status;
+  }
+  last_activity = Clock::now();
+  return Status::Ok();
+}
+
+Status AravisCamera::Impl::ApplySettings() {
+  GError* error = nullptr;
+  const std::string format = GenicamPixelFormat(config.pixel_format);
+  arv_camera_set_pixel_format_from_string(camera, format.c_str(), &error);
+  if (error != nullptr) return FailFeature("PixelFormat", format, error);
+
+  int x = 0, y = 0, width = 0, height = 0;
+  arv_camera_get_sensor_size(camera, &width, &height, &error);
+  if (error != nullptr) return Fail("reading the sensor size: " + TakeMessage(error));
+  if (config.roi) {
+    x = config.roi->x_px;
+    y = config.roi->y_px;
+    width = config.roi->width_px;
+    height = config.roi->height_px;
+  }
+  gint sensor_w = 0, sensor_h = 0;
+  arv_camera_get_sensor_size(camera, &sensor_w, &sensor_h, &error);
+  if (error != nullptr) return Fail("reading the sensor size: " + TakeMessage(error));
+  if (x + width > sensor_w || y + height > sensor_h)
+    return Fail("roi " + std::to_string(width) + "x" + std::to_string(height) + "+" +
+                std::to_string(x) + "+" + std::to_string(y) + " outside the " +
+                std::to_string(sensor_w) + "x" + std::to_string(sensor_h) + " sensor");
+  arv_camera_set_region(camera, x, y, width, height, &error);
+  if (error != nullptr)
+    return FailFeature("region",
+                       std::to_string(width) + "x" + std::to_string(height) + "+" +
+                           std::to_string(x) + "+" + std::to_string(y),
+                       error);
+  gint got_x = 0, got_y = 0, got_w = 0, got_h = 0;
+  arv_camera_get_region(camera, &got_x, &got_y, &got_w, &got_h, &error);
+  if (error != nullptr) return Fail("reading the region back: " + TakeMessage(error));
+  if (got_x != x || got_y != y || got_w != width || got_h != height)
+    return Fail("the camera set the region to " + std::to_string(got_w) + "x" +
+                std::to_string(got_h) + "+" + std::to_string(got_x) + "+" + std::to_string(got_y) +
+                " instead of " + std::to_string(width) + "x" + std::to_string(height) + "+" +
+                std::to_string(x) + "+" + std::to_string(y) + " (increments?)");
+
+  arv_camera_set_exposure_time(camera, config.exposure_us, &error);
+  if (error != nullptr)
+    return FailFeature("ExposureTime", std::to_string(config.exposure_us) + " us", error);
+
+  const gboolean has_gain = arv_camera_is_gain_available(camera, &error);
+  if (error != nullptr) return Fail("checking for Gain: " + TakeMessage(error));
+  if (has_gain) {
+    arv_camera_set_gain(camera, config.gain_db, &error);
+    if (error != nullptr) return FailFeature("Gain", std::to_string(config.gain_db), error);
+  } else if (config.gain_db != 0.0) {
+    return Fail("gain_db " + std::to_string(config.gain_db) + " asked, but the camera has no Gain");
+  }
+
+  arv_camera_clear_triggers(camera, &error);
+  if (error != nullptr) return Fail("turning the triggers off: " + TakeMessage(error));
+  if (config.trigger.mode == TriggerMode::kFreeRun) {
+    if (options.free_run_rate_hz > 0.0) {
+      arv_camera_set_frame_rate(camera, options.free_run_rate_hz, &error);
+      if (error != nullptr)
+        return FailFeature("AcquisitionFrameRate", std::to_string(options.free_run_rate_hz), error);
+    }
+  } else {
+    const std::string source =
+        config.trigger.mode == TriggerMode::kSoftware ? "Software" : config.trigger.source;
+    arv_camera_set_string(camera, "TriggerSelector", "FrameStart", &error);
+    if (error != nullptr) return FailFeature("TriggerSelector", "FrameStart", error);
+    arv_camera_set_string(camera, "TriggerMode", "On", &error);
+    if (error != nullptr) return FailFeature("TriggerMode", "On", error);
+    arv_camera_set_string(camera, "TriggerSource", source.c_str(), &error);
+    if (error != nullptr) return FailFeature("TriggerSource", source, error);
+    if (config.trigger.mode == TriggerMode::kHardware) {
+      const char* activation = config.trigger.activation == TriggerActivation::kRisingEdge
+                                   ? "RisingEdge"
+                                   : "FallingEdge";
+      arv_camera_set_string(camera, "TriggerActivation", activation, &error);
+      if (error != nullptr) return FailFeature("TriggerActivation", activation, error);
+    }
+  }
+  arv_camera_set_acquisition_mode(camera, ARV_ACQUISITION_MODE_CONTINUOUS, &error);
+  if (error != nullptr) return FailFeature("AcquisitionMode", "Continuous", error);
+
+  if (arv_camera_is_gv_device(camera)) {
+    if (config.packet_size_bytes > 0) {
+      arv_camera_gv_set_packet_size(camera, config.packet_size_bytes, &error);
+      if (error != nullptr)
+        return FailFeature("GevSCPSPacketSize", std::to_string(config.packet_size_bytes), error);
+    } else {
+      // A camera that cannot fire test packets keeps its own packet size.
+      arv_camera_gv_auto_packet_size(camera, &error);
+      if (error != nullptr) g_clear_error(&error);
+    }
+  } else if (config.packet_size_bytes > 0 || config.socket_buffer_bytes > 0) {
+    return Fail("packet_size and socket_buffer apply to GigE Vision cameras only");
+  }
+
+  const guint payload = arv_camera_get_payload(camera, &error);
+  if (error != nullptr) return Fail("reading PayloadSize: " + TakeMessage(error));
+  if (payload == 0) return Fail("the camera reports a PayloadSize of 0");
+  if (payload_bytes != 0 && payload != payload_bytes)
+    return Fail("PayloadSize changed from " + std::to_string(payload_bytes) + " to " +
+                std::to_string(payload) + " after reconnecting");
+  const std::size_t image_bytes = static_cast<std::size_t>(width) * height *
+                                  BytesPerPixel(BufferPixelFormat(config.pixel_format));
+  if (payload < image_bytes)
+    return Fail("PayloadSize " + std::to_string(payload) + " is smaller than the image (" +
+                std::to_string(image_bytes) + " bytes)");
+  payload_bytes = payload;
+
+  CameraInfo new_info;
+  const char* text = arv_camera_get_device_serial_number(camera, nullptr);
+  new_info.serial = text != nullptr ? text : "";
+  text = arv_camera_get_vendor_name(camera, nullptr);
+  new_info.vendor = text != nullptr ? text : "";
+  text = arv_camera_get_model_name(camera, nullptr);
+  new_info.model = text != nullptr ? text : "";
+  text = arv_camera_get_device_id(camera, nullptr);
+  new_info.device_id = text != nullptr ? text : DeviceName();
+  new_info.width = width;
+  new_info.height = height;
+  new_info.format = BufferPixelFormat(config.pixel_format);
+  new_info.payload_bytes = payload;
+  std::lock_guard<std::mutex> lock(stats_mutex);
+  info = new_info;
+  return Status::Ok();
+}
+
+Status AravisCamera::Impl::CreateStream() {
+  if (!pool) {
+    pool = FramePool::Create(static_cast<std::size_t>(options.pool_buffers), payload_bytes);
+    slots.resize(pool->size());
+    // Wrap every pool buffer once. The pool hands out each index once here,
+    // and the BufferRefs go straight back so the buffers are free again.
+    std::vector<BufferRef> all;
+    while (BufferRef ref = pool->Acquire()) all.push_back(std::move(ref));
+    for (const BufferRef& ref : all)
+      slots[ref->index].arv =
+          arv_buffer_new_full(payload_bytes, ref->data, GINT_TO_POINTER(ref->index), nullptr);
+  }
+  GError* error = nullptr;
+  ArvStream* new_stream = arv_camera_create_stream(camera, nullptr, nullptr, &error);
+  if (new_stream == nullptr) return Fail("cannot create the stream: " + TakeMessage(error));
+  if (ARV_IS_GV_STREAM(new_stream)) {
+    if (config.socket_buffer_bytes > 0)
+      g_object_set(new_stream, "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_FIXED,
+                   "socket-buffer-size", static_cast<gint>(config.socket_buffer_bytes), nullptr);
+    else
+      g_object_set(new_stream, "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_AUTO, nullptr);
+  }
+  missing_packets_info = -1;
+  transferred_bytes_info = -1;
+  const guint n_infos = arv_stream_get_n_infos(new_stream);
+  for (guint i = 0; i < n_infos; ++i) {
+    const char* name = arv_stream_get_info_name(new_stream, i);
+    if (name == nullptr || arv_stream_get_info_type(new_stream, i) != G_TYPE_UINT64) continue;
+    if (std::string(name) == "n_missing_packets") missing_packets_info = static_cast<int>(i);
+    if (std::string(name) == "n_transferred_bytes") transferred_bytes_info = static_cast<int>(i);
+  }
+  {
+    std::lock_guard<std::mutex> lock(control_mutex);
+    stream = new_stream;
+  }
+  TopUp();
+  return Status::Ok();
+}
+
+void AravisCamera::Impl::TopUp() {
+  if (stream == nullptr) return;
+  while (BufferRef ref = pool->Acquire()) {
+    Slot& slot = slots[ref->index];
+    slot.queued = std::move(ref);
+    g_object_ref(slot.arv);  // the stream's reference, returned by pop
+    arv_stream_push_buffer(stream, slot.arv);
+  }
+}
+
+void AravisCamera::Impl::RefreshAravisStats() {
+  if (stream == nullptr) return;
+  guint64 completed = 0, failures = 0, underruns = 0;
+  arv_stream_get_statistics(stream, &completed, &failures, &underruns);
+  const guint64 missing_packets =
+      missing_packets_info >= 0 ? arv_stream_get_info_uint64(stream, missing_packets_info) : 0;
+  const guint64 transferred =
+      transferred_bytes_info >= 0 ? arv_stream_get_info_uint64(stream, transferred_bytes_info) : 0;
+  std::lock_guard<std::mutex> lock(stats_mutex);
+  stats.underruns = closed_streams.underruns + underruns;
+  stats.missing_packets = closed_streams.missing_packets + missing_packets;
+  if (transferred_bytes_info >= 0)
+    stats.transferred_bytes = closed_streams.transferred_bytes + transferred;
+}
+
+void AravisCamera::Impl::Disconnect() {
+  RefreshAravisStats();
+  {
+    std::lock_guard<std::mutex> lock(stats_mutex);
+    closed_streams = stats;
+  }
+  ArvStream* old_stream = nullptr;
+  ArvCamera* old_camera = nullptr;
+  {
+    std::lock_guard<std::mutex> lock(control_mutex);
+    old_stream = stream;
+    old_camera = camera;
+    stream = nullptr;
+    camera = nullptr;
+  }
+  if (old_camera != nullptr && control_lost_handler != 0) {
+    g_signal_handler_disconnect(arv_camera_get_device(old_camera), control_lost_handler);
+    control_lost_handler = 0;
+  }
+  if (old_camera != nullptr && started && !lost.load()) {
+    arv_camera_stop_acquisition(old_camera, nullptr);
+  }
+  // Stop the stream thread now so nothing writes into pool memory any more,
+  // and drop the references it held on queued buffers (each slot keeps its
+  // own); the pool gets its buffers back.
+  if (old_stream != nullptr) arv_stream_stop_thread(old_stream, TRUE);
+  for (Slot& slot : slots) slot.queued.reset();
+  if (lost.load()) {
+    // Finalising a lost GigE stream and device blocks for seconds (register
+    // writes that time out, the heartbeat thread's retries): off the grab
+    // thread.
+    reapers.emplace_back([old_stream, old_camera] {
+      if (old_stream != nullptr) g_object_unref(old_stream);
+      if (old_camera != nullptr) g_object_unref(old_camera);
+    });
+    return;
+  }
+  if (old_stream != nullptr) g_object_unref(old_stream);
+  if (old_camera != nullptr) g_object_unref(old_camera);
+}
+
+void AravisCamera::Impl::MarkLost(const std::string& reason) {
+  if (lost.load()) return;
+  CameraGap gap;
+  gap.lost_host_ns = RealtimeNs();
+  gap.had_frame_before = ids.last().has_value();
+  gap.last_frame_id_before = ids.last().value_or(0);
+  gap.reason = reason;
+  {
+    std::lock_guard<std::mutex> lock(stats_mutex);
+    gaps.push_back(gap);
+  }
+  lost_reason = reason;
+  lost_reported = false;
+  lost.store(true);
+  Disconnect();
+  ids.Reset();
+  last_reconnect_try = Clock::now();
+}
+
+bool AravisCamera::Impl::Probe() {
+  std::lock_guard<std::mutex> lock(control_mutex);
+  if (camera == nullptr) return false;
+  guint32 value = 0;
+  GError* error = nullptr;
+  // Address 0 is a bootstrap register on GigE Vision (Version) and USB3
+  // Vision (GenCP version), and plain memory on the Fake camera.
+  const gboolean ok =
+      arv_device_read_memory(arv_camera_get_device(camera), 0, sizeof(value), &value, &error);
+  if (error != nullptr) g_error_free(error);
+  return ok;
+}
+
+Frame AravisCamera::Impl::MakeFrame(ArvBuffer* buffer) {
+  const int index = GPOINTER_TO_INT(arv_buffer_get_user_data(buffer));
+  Frame frame;
+  frame.camera_index = options.camera_index;
+  frame.serial = config.serial;
+  frame.status = MapStatus(arv_buffer_get_status(buffer));
+  frame.frame_id = arv_buffer_get_frame_id(buffer);
+  frame.host_ns = static_cast<std::int64_t>(arv_buffer_get_system_timestamp(buffer));
+  frame.device_ns = static_cast<std::int64_t>(arv_buffer_get_timestamp(buffer));
+  if (frame.device_ns == 0) frame.device_ns = frame.host_ns;  // device without a clock
+  if (index >= 0 && static_cast<std::size_t>(index) < slots.size())
+    frame.buffer = std::move(slots[index].queued);
+
+  if (!frame.buffer) frame.status = FrameStatus::kError;  // not one of ours: cannot happen
+  if (frame.status == FrameStatus::kOk) {
+    const int width = arv_buffer_get_image_width(buffer);
+    const int height = arv_buffer_get_image_height(buffer);
+    const PixelFormat format = BufferPixelFormat(config.pixel_format);
+    const std::size_t stride = static_cast<std::size_t>(width) * BytesPerPixel(format);
+    if (width > 0 && height > 0 && stride * height <= frame.buffer->capacity_bytes)
+      frame.image = ImageView{frame.buffer->data, width, height, stride, format};
+    else
+      frame.status = FrameStatus::kError;  // not an image, or not the configured size
+  }
+  g_object_unref(buffer);  // the reference the stream returned; the slot keeps its own
+  const std::uint64_t missing = ids.Observe(frame.frame_id);
+  if (!frame_since_reconnect) {
+    frame_since_reconnect = true;
+    std::lock_guard<std::mutex> lock(stats_mutex);
+    if (!gaps.empty() && gaps.back().back_host_ns != 0 && !gaps.back().had_frame_after) {
+      gaps.back().had_frame_after = true;
+      gaps.back().first_frame_id_after = frame.frame_id;
+    }
+  }
+  consecutive_failures = frame.status == FrameStatus::kOk ? 0 : consecutive_failures + 1;
+  std::lock_guard<std::mutex> lock(stats_mutex);
+  stats.missing_ids += missing;
+  if (frame.status == FrameStatus::kOk) {
+    ++stats.completed;
+    if (transferred_bytes_info < 0) stats.transferred_bytes += payload_bytes;
+  } else {
+    ++stats.failed;
+  }
+  return frame;
+}
+
+AravisCamera::AravisCamera(CameraConfig config, AravisCameraOptions options)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->config = std::move(config);
+  impl_->options = options;
+  impl_->label = "camera " + impl_->config.name + " (serial " + impl_->config.serial + ")";
+}
+
+AravisCamera::~AravisCamera() {
+  if (impl_->opened) impl_->Disconnect();
+  for (std::thread& reaper : impl_->reapers) reaper.join();
+  for (Slot& slot : impl_->slots)
+    if (slot.arv != nullptr) g_object_unref(slot.arv);
+}
+
+Status AravisCamera::Open() {
+  if (impl_->opened) return impl_->Fail("already open");
+  if (Status status = impl_->options.Check(); !status) return impl_->Fail(status.error().message);
+  if (Status status = impl_->Connect(); !status) return status;
+  impl_->opened = true;
+  return Status::Ok();
+}
+
+Status AravisCamera::Start() {
+  if (!impl_->opened) return impl_->Fail("Start before Open");
+  impl_->started = true;
+  if (impl_->lost.load()) return Status::Ok();  // acquisition starts with the reconnect
+  GError* error = nullptr;
+  arv_camera_start_acquisition(impl_->camera, &error);
+  if (error != nullptr) {
+    impl_->started = false;
+    return impl_->Fail("AcquisitionStart: " + TakeMessage(error));
+  }
+  impl_->last_activity = Clock::now();
+  return Status::Ok();
+}
+
+Status AravisCamera::Stop() {
+  if (!impl_->opened) return impl_->Fail("Stop before Open");
+  const bool was_started = impl_->started;
+  impl_->started = false;
+  if (!was_started || impl_->lost.load()) return Status::Ok();
+  GError* error = nullptr;
+  arv_camera_stop_acquisition(impl_->camera, &error);
+  if (error != nullptr) return impl_->Fail("AcquisitionStop: " + TakeMessage(error));
+  return Status::Ok();
+}
+
+Expected<std::optional<Frame>> AravisCamera::NextFrame(std::chrono::milliseconds timeout) {
+  Impl& d = *impl_;
+  if (!d.opened) return d.Fail("NextFrame before Open");
+  const Clock::time_point deadline = Clock::now() + timeout;
+
+  if (!d.lost.load() && d.control_lost.load()) d.MarkLost("control channel lost (heartbeat)");
+  if (d.lost.load()) {
+    if (!d.lost_reported) {
+      d.lost_reported = true;
+      return d.Fail("device lost: " + d.lost_reason + "; reconnecting");
+    }
+    // A USB3 Vision device arriving is worth trying at once.
+    if (!d.UsbChanged() && Clock::now() - d.last_reconnect_try < d.options.reconnect_interval) {
+      std::this_thread::sleep_until(
+          std::min(deadline, d.last_reconnect_try + d.options.reconnect_interval));
+      if (Clock::now() - d.last_reconnect_try < d.options.reconnect_interval)
+        return std::optional<Frame>();
+    }
+    d.last_reconnect_try = Clock::now();
+    if (Status status = d.Connect(); !status) return std::optional<Frame>();
+    if (d.started) {
+      GError* error = nullptr;
+      arv_camera_start_acquisition(d.camera, &error);
+      if (error != nullptr) {
+        g_error_free(error);
+        d.Disconnect();
+        return std::optional<Frame>();
+      }
+    }
+    d.lost.store(false);
+    d.frame_since_reconnect = false;
+    d.consecutive_failures = 0;
+    {
+      std::lock_guard<std::mutex> lock(d.stats_mutex);
+      ++d.stats.reconnects;
+      if (!d.gaps.empty()) d.gaps.back().back_host_ns = RealtimeNs();
+    }
+  }
+
+  // Wait in short slices so buffers released meanwhile are queued again
+  // before the camera needs them.
+  constexpr std::chrono::milliseconds kSlice{10};
+  while (true) {
+    d.TopUp();
+    const Clock::time_point now = Clock::now();
+    const auto remaining = std::chrono::duration_cast<std::chrono::microseconds>(deadline - now);
+    const auto slice =
+        std::clamp<std::chrono::microseconds>(remaining, std::chrono::microseconds(0), kSlice);
+    ArvBuffer* buffer = arv_stream_timeout_pop_buffer(d.stream, slice.count());
+    if (buffer != nullptr) {
+      d.last_activity = Clock::now();
+      Frame frame = d.MakeFrame(buffer);
+      d.TopUp();
+      d.RefreshAravisStats();
+      if (d.consecutive_failures >= d.options.max_consecutive_failures) {
+        d.consecutive_failures = 0;
+        if (!d.Probe()) d.MarkLost("stream errors and no answer on the control channel");
+      }
+      return std::optional<Frame>(std::move(frame));
+    }
+    if (d.control_lost.load()) {
+      d.MarkLost("control channel lost (heartbeat)");
+      d.lost_reported = true;
+      return d.Fail("device lost: " + d.lost_reason + "; reconnecting");
+    }
+    if (Clock::now() >= deadline) break;
+  }
+  d.RefreshAravisStats();
+  // A USB3 Vision device leaving (maybe this one): check ours now.
+  const bool suspect = d.control_suspect.exchange(false) || d.UsbChanged();
+  if (suspect || Clock::now() - d.last_activity >= d.options.probe_after) {
+    d.last_activity = Clock::now();
+    if (!d.Probe()) {
+      d.MarkLost("no answer on the control channel");
+      d.lost_reported = true;
+      return d.Fail("device lost: " + d.lost_reason + "; reconnecting");
+    }
+  }
+  return std::optional<Frame>();
+}
+
+Status AravisCamera::SoftwareTrigger() {
+  Impl& d = *impl_;
+  std::lock_guard<std::mutex> lock(d.control_mutex);
+  if (d.camera == nullptr)
+    return d.Fail(d.opened ? "software trigger while the device is lost"
+                           : "software trigger before Open");
+  GError* error = nullptr;
+  arv_camera_software_trigger(d.camera, &error);
+  if (error != nullptr) {
+    // A control access that timed out after Aravis's retries (2.5 s on GigE
+    // Vision) is as good as a failed probe: the device is gone. Any other
+    // failure makes the grab thread probe the device.
+    const bool gone =
+        error->domain == ARV_DEVICE_ERROR &&
+        (error->code == ARV_DEVICE_ERROR_TIMEOUT || error->code == ARV_DEVICE_ERROR_NOT_CONNECTED ||
+         error->code == ARV_DEVICE_ERROR_TRANSFER_ERROR);
+    (gone ? d.control_lost : d.control_suspect).store(true);
+    return d.Fail("TriggerSoftware: " + TakeMessage(error));
+  }
+  return Status::Ok();
+}
+
+CameraInfo AravisCamera::Info() const {
+  std::lock_guard<std::mutex> lock(impl_->stats_mutex);
+  return impl_->info;
+}
+
+CameraStats AravisCamera::Stats() const {
+  std::lock_guard<std::mutex> lock(impl_->stats_mutex);
+  return impl_->stats;
+}
+
+std::vector<CameraGap> AravisCamera::Gaps() const {
+  std::lock_guard<std::mutex> lock(impl_->stats_mutex);
+  return impl_->gaps;
+}
+
+bool AravisCamera::IsLost() const { return impl_->lost.load(); }
+
+}  // namespace lifmcr

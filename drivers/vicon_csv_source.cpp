@@ -1,0 +1,114 @@
+#include "drivers/vicon_csv_source.h"
+
+#include <chrono>
+#include <cmath>
+#include <ctime>
+#include <map>
+#include <thread>
+
+namespace lifmcr {
+namespace {
+
+std::int64_t RealtimeNs() {
+  timespec now{};
+  clock_gettime(CLOCK_REALTIME, &now);
+  return static_cast<std::int64_t>(now.tv_sec) * 1000000000 + now.tv_nsec;
+}
+
+}  // namespace
+
+Expected<std::unique_ptr<ViconCsvSource>> ViconCsvSource::Open(
+    const std::filesystem::path& csv, const ViconCsvSourceOptions& options) {
+  auto parsed = ReadViconCsv(csv);
+  if (!parsed) return parsed.error();
+  return FromCsv(*parsed, options);
+}
+
+Expected<std::unique_ptr<ViconCsvSource>> ViconCsvSource::FromCsv(
+    const ViconCsv& csv, const ViconCsvSourceOptions& options) {
+  if (options.objects.empty())
+    return Error{"Vicon CSV source " + csv.path + ": no objects to play back"};
+  if (!(options.rate_hz >= 0.0) || !std::isfinite(options.rate_hz))
+    return Error{"Vicon CSV source " + csv.path + ": rate_hz must be >= 0"};
+  // frame number -> one pose per object (in options.objects order)
+  std::map<std::int64_t, std::vector<std::optional<Pose>>> rows;
+  int file_rate_hz = 0;
+  for (std::size_t i = 0; i < options.objects.size(); ++i) {
+    auto columns = FindSubjectColumns(csv, options.objects[i]);
+    if (!columns) return columns.error();
+    file_rate_hz = columns->block->rate_hz;
+    auto samples = ExtractSubjectPoses(csv, options.objects[i], options.pose);
+    if (!samples) return samples.error();
+    const ViconBlock& block = *columns->block;
+    for (std::size_t row = 0; row < samples->size(); ++row) {
+      if (row < block.sub_frames.size() && block.sub_frames[row] != 0) continue;
+      const ViconPoseSample& sample = (*samples)[row];
+      auto& poses = rows[sample.vicon_frame];
+      poses.resize(options.objects.size());
+      poses[i] = sample.vicon_from_marker;
+    }
+  }
+  const double rate_hz = options.rate_hz > 0.0 ? options.rate_hz : file_rate_hz;
+  if (!(rate_hz > 0.0))
+    return Error{"Vicon CSV source " + csv.path +
+                 ": the file's rate is not > 0 and no rate_hz was given"};
+  std::unique_ptr<ViconCsvSource> source(new ViconCsvSource());
+  source->rate_hz_ = rate_hz;
+  source->realtime_ = options.realtime;
+  source->frames_.reserve(rows.size());
+  for (auto& [frame_number, poses] : rows) {
+    ViconFrame frame;
+    frame.vicon_frame = frame_number;
+    poses.resize(options.objects.size());
+    for (std::size_t i = 0; i < options.objects.size(); ++i)
+      frame.objects.push_back({options.objects[i], poses[i]});
+    source->frames_.push_back(std::move(frame));
+  }
+  return source;
+}
+
+Status ViconCsvSource::Start() {
+  started_ = true;
+  next_ = 0;
+  start_host_ns_ = RealtimeNs();
+  return Status::Ok();
+}
+
+Status ViconCsvSource::Stop() {
+  started_ = false;
+  return Status::Ok();
+}
+
+ViconSourceStats ViconCsvSource::Stats() const {
+  ViconSourceStats stats;
+  stats.frames = delivered_.load();
+  stats.gaps = gaps_.load();
+  return stats;
+}
+
+Expected<std::optional<ViconFrame>> ViconCsvSource::Next(std::chrono::milliseconds timeout) {
+  if (!started_) return Error{"Vicon CSV source: Next before Start"};
+  if (Finished()) return std::optional<ViconFrame>();
+  std::int64_t host_ns = RealtimeNs();
+  if (realtime_) {
+    const double offset_s =
+        static_cast<double>(frames_[next_].vicon_frame - frames_.front().vicon_frame) / rate_hz_;
+    const std::int64_t due_ns = start_host_ns_ + std::llround(offset_s * 1e9);
+    if (due_ns - host_ns > std::chrono::nanoseconds(timeout).count()) {
+      std::this_thread::sleep_for(timeout);
+      return std::optional<ViconFrame>();
+    }
+    if (due_ns > host_ns) std::this_thread::sleep_for(std::chrono::nanoseconds(due_ns - host_ns));
+    host_ns = due_ns;
+  }
+  ViconFrame frame = frames_[next_];
+  frame.host_ns = host_ns;
+  if (next_ > 0 && frame.vicon_frame > frames_[next_ - 1].vicon_frame + 1)
+    gaps_.fetch_add(
+        static_cast<std::uint64_t>(frame.vicon_frame - frames_[next_ - 1].vicon_frame - 1));
+  ++next_;
+  delivered_.fetch_add(1);
+  return std::optional<ViconFrame>(std::move(frame));
+}
+
+}  // namespace lifmcr

@@ -1,0 +1,140 @@
+#pragma once
+// Builds one FrameSet per camera trigger from the frames of every camera and
+// the Vicon frames, and emits them in trigger order, each exactly once,
+// complete or explicitly incomplete.
+//
+// Trigger index: the rig's first frame (any camera) is trigger 0. A camera's
+// first frame is placed on the trigger grid by host time (its clock model
+// maps device to host time; the grid is anchored at the latest associated
+// frame of any camera); every later frame by its device time and frame
+// counter (TriggerTracker). A device clock jump re-anchors the camera by
+// host time.
+//
+// Vicon: trigger k fired on Vicon frame f0 + divider * k. f0 is given, or
+// established once from the first trigger emitted: the Vicon frame number
+// at the host time of the trigger's frames (plus vicon_arrival_offset_ns),
+// counted at the Vicon rate from the nearest frame received (so a lost
+// trigger frame does not matter), provided the host time falls within
+// vicon_phase_tolerance_ns of that frame's slot; until then FrameSets have
+// vicon_frame = -1. Every later set's Vicon frame is
+// checked against its frames' host time the same way (vicon_phase_mismatch,
+// the frame number still decides).
+//
+// Emission: the oldest pending trigger is emitted when every camera has its
+// frame there or has already delivered a later one (frames of a camera come
+// in order), and its Vicon frame is there or the Vicon stream is past it
+// (or Vicon is not expected); or, whatever is missing, once now_host_ns is
+// more than lateness_ns past the trigger. A frame for an emitted trigger is
+// a late_frame. Flush emits everything pending at the end of a run.
+// Every loss is counted in drops() (DropKind) and per camera.
+//
+// Frames stay in their pooled buffers: the assembler moves them, never
+// copies pixels, and holds them only until their trigger is emitted.
+// Not thread-safe: one thread calls Add*, Poll and Flush.
+
+#include "config/error.h"
+#include "config/rig_config.h"
+#include "drivers/frame.h"
+#include "drivers/vicon_source.h"
+#include "sync/clock_model.h"
+#include "sync/drop_counter.h"
+#include "sync/frame_set.h"
+#include "sync/trigger_tracker.h"
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace lifmcr {
+
+struct FrameSetAssemblerOptions {
+  std::vector<std::string> serials;  // one per camera, by camera index; at least one
+  TriggerTrackerOptions trigger;     // trigger period, grid tolerance, frame counter
+  ClockModelOptions clock;
+  bool vicon_expected = true;  // false: no Vicon source; sets never wait for Vicon
+  int vicon_divider = 8;       // Vicon frames per trigger, >= 1
+  double vicon_rate_hz = 80.0;
+  std::optional<std::int64_t> vicon_f0;  // Vicon frame of trigger 0 when known (replay)
+  // Host arrival of a trigger's Vicon frame minus that of its camera frames
+  // (their clock-model times), as expected on this rig.
+  std::int64_t vicon_arrival_offset_ns = 0;
+  std::int64_t vicon_phase_tolerance_ns = 6'250'000;  // half an 80 Hz period
+  std::int64_t lateness_ns = 500'000'000;             // wait at most this for a trigger's parts
+  std::size_t max_vicon_frames = 4096;                // Vicon frames buffered, >= 16
+
+  // From the rig file: serials, Vicon source, divider and rate; the trigger
+  // period is divider / rate.
+  static FrameSetAssemblerOptions FromRig(const RigConfig& rig);
+  Status Check() const;
+};
+
+struct CameraSyncStats {
+  std::string serial;
+  std::uint64_t frames = 0;               // frames given to AddFrame
+  std::uint64_t in_sets = 0;              // frames that went out in a FrameSet
+  std::uint64_t missed_triggers = 0;      // emitted sets without a frame of this camera
+  std::uint64_t failed = 0;               // frames in sets with a failed status
+  std::uint64_t without_trigger = 0;      // frames on no trigger (off grid, repeated, before start)
+  std::uint64_t late = 0;                 // frames whose set was already emitted
+  std::uint64_t lost_after_exposure = 0;  // by the frame counter
+  std::uint64_t not_exposed = 0;          // triggers the counter says the camera never saw
+  std::uint64_t counter_mismatches = 0;
+  std::string clock;  // ClockModel::OneLine
+};
+
+class FrameSetAssembler {
+ public:
+  // options must pass Check() (the constructor does not re-check).
+  explicit FrameSetAssembler(FrameSetAssemblerOptions options);
+
+  void AddFrame(Frame frame);
+  void AddVicon(ViconFrame frame);
+  // The FrameSets ready at host time `now_host_ns`, in trigger order.
+  std::vector<FrameSet> Poll(std::int64_t now_host_ns);
+  // End of the run: every trigger up to the last one seen, ready or not.
+  std::vector<FrameSet> Flush();
+
+  const DropCounter& drops() const { return drops_; }
+  std::vector<CameraSyncStats> camera_stats() const;
+  const ClockModel& clock(int camera_index) const { return cameras_[camera_index].clock; }
+  std::optional<std::int64_t> vicon_f0() const { return f0_; }
+  std::int64_t next_trigger() const { return next_emit_; }  // = FrameSets emitted so far
+  std::size_t pending_triggers() const { return pending_.size(); }
+  std::size_t buffered_vicon_frames() const { return vicon_.size(); }
+  // Host time the grid puts trigger k at (valid once a frame arrived).
+  std::int64_t TriggerHostNs(std::int64_t trigger_index) const;
+
+ private:
+  struct Camera {
+    TriggerTracker tracker;
+    ClockModel clock;
+    std::int64_t last_trigger = -1;  // latest trigger this camera delivered a frame for
+    CameraSyncStats stats;
+  };
+  struct Pending {
+    std::vector<std::optional<Frame>> frames;
+  };
+
+  std::int64_t TriggerByHostTime(const Camera& camera, std::int64_t device_ns) const;
+  bool Ready(std::int64_t trigger_index, std::int64_t now_host_ns);
+  void TryEstablishF0(std::int64_t trigger_index, bool forced);
+  std::optional<std::int64_t> SetHostNs(const Pending* pending) const;
+  FrameSet Emit(std::int64_t trigger_index);
+
+  FrameSetAssemblerOptions options_;
+  std::vector<Camera> cameras_;
+  bool started_ = false;
+  std::int64_t grid_trigger_ = 0;  // grid anchor: a trigger index and its host time
+  std::int64_t grid_host_ns_ = 0;
+  std::int64_t last_trigger_seen_ = -1;
+  std::int64_t next_emit_ = 0;
+  std::map<std::int64_t, Pending> pending_;
+  std::optional<std::int64_t> f0_;
+  std::map<std::int64_t, ViconFrame> vicon_;
+  std::int64_t last_vicon_ = -1;
+  DropCounter drops_;
+};
+
+}  // namespace lifmcr

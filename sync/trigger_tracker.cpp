@@ -1,0 +1,75 @@
+#include "sync/trigger_tracker.h"
+
+#include <cmath>
+
+namespace lifmcr {
+
+std::string_view ToString(FrameVerdict verdict) {
+  switch (verdict) {
+    case FrameVerdict::kAssociated:
+      return "associated";
+    case FrameVerdict::kOffGrid:
+      return "off the trigger grid";
+    case FrameVerdict::kRepeatedTrigger:
+      return "second frame for one trigger";
+    case FrameVerdict::kOlderTrigger:
+      return "older than the previous frame's trigger";
+  }
+  return "?";
+}
+
+void TriggerTracker::Anchor(std::int64_t trigger_index, std::uint64_t frame_id,
+                            std::int64_t device_ns) {
+  previous_ = Previous{trigger_index, frame_id, device_ns};
+}
+
+std::uint64_t TriggerTracker::CounterDelta(std::uint64_t from, std::uint64_t to) const {
+  if (options_.counter_bits >= 64) return to - from;
+  const std::uint64_t modulus = std::uint64_t{1} << options_.counter_bits;
+  std::uint64_t delta = (to - from) & (modulus - 1);
+  // The counter went through its top value; ids that skip 0 lost one step.
+  if (options_.counter_skips_zero && (to & (modulus - 1)) < (from & (modulus - 1)) && delta > 0)
+    --delta;
+  return delta;
+}
+
+Association TriggerTracker::Add(std::uint64_t frame_id, std::int64_t device_ns) {
+  Association result;
+  const Previous previous = *previous_;
+  const double steps = static_cast<double>(device_ns - previous.device_ns) /
+                       static_cast<double>(options_.trigger_period_ns);
+  const double nearest = std::round(steps);
+  const auto step = static_cast<std::int64_t>(nearest);
+  result.grid_error = steps - nearest;
+  result.trigger_index = previous.trigger_index + step;
+  if (std::abs(result.grid_error) > options_.tolerance) {
+    result.verdict = FrameVerdict::kOffGrid;
+    return result;
+  }
+  if (step == 0) {
+    result.verdict = FrameVerdict::kRepeatedTrigger;
+    return result;
+  }
+  if (step < 0) {
+    result.verdict = FrameVerdict::kOlderTrigger;
+    return result;
+  }
+  result.triggers_skipped = step - 1;
+  const bool counter_usable =
+      options_.counter_bits >= 64 ||
+      step < static_cast<std::int64_t>((std::uint64_t{1} << options_.counter_bits) - 2);
+  if (counter_usable) {
+    const auto counted = static_cast<std::int64_t>(CounterDelta(previous.frame_id, frame_id));
+    if (counted > step || counted == 0) {
+      result.counter_mismatch = true;
+      result.lost_after_exposure = step - 1;  // unknown split: the time decides
+    } else {
+      result.lost_after_exposure = counted - 1;
+      result.not_exposed = step - counted;
+    }
+  }
+  previous_ = Previous{result.trigger_index, frame_id, device_ns};
+  return result;
+}
+
+}  // namespace lifmcr
