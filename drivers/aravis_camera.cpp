@@ -582,7 +582,8 @@ Expected<std::optional<Frame>> AravisCamera::NextFrame(std::chrono::milliseconds
   if (!d.opened) return d.Fail("NextFrame before Open");
   const Clock::time_point deadline = Clock::now() + timeout;
 
-  if (!d.lost.load() && d.control_lost.load()) d.MarkLost("control channel lost (heartbeat)");
+  if (!d.lost.load() && d.control_lost.load())
+    d.MarkLost("control channel lost (heartbeat or control access timed out)");
   if (d.lost.load()) {
     if (!d.lost_reported) {
       d.lost_reported = true;
@@ -638,7 +639,7 @@ Expected<std::optional<Frame>> AravisCamera::NextFrame(std::chrono::milliseconds
       return std::optional<Frame>(std::move(frame));
     }
     if (d.control_lost.load()) {
-      d.MarkLost("control channel lost (heartbeat)");
+      d.MarkLost("control channel lost (heartbeat or control access timed out)");
       d.lost_reported = true;
       return d.Fail("device lost: " + d.lost_reason + "; reconnecting");
     }
