@@ -156,9 +156,6 @@ struct AravisCamera::Impl {
   CameraStats closed_streams;  // Aravis counters of streams already destroyed
   CameraInfo info;
   std::vector<CameraGap> gaps;
-  // Threads finalising the stream and device of a lost camera (Disconnect);
-  // joined by the destructor.
-  std::vector<std::thread> reapers;
 
   std::string DeviceName() const {
     return config.driver.address.empty() ? config.serial : config.driver.address;
@@ -433,22 +430,27 @@ void AravisCamera::Impl::Disconnect() {
   if (old_camera != nullptr && started && !lost.load()) {
     arv_camera_stop_acquisition(old_camera, nullptr);
   }
-  // Stop the stream thread now so nothing writes into pool memory any more,
-  // and drop the references it held on queued buffers (each slot keeps its
-  // own); the pool gets its buffers back.
-  if (old_stream != nullptr) arv_stream_stop_thread(old_stream, TRUE);
-  for (Slot& slot : slots) slot.queued.reset();
   if (lost.load()) {
     // Finalising a lost GigE stream and device blocks for seconds (register
-    // writes that time out, the heartbeat thread's retries): off the grab
-    // thread.
-    reapers.emplace_back([old_stream, old_camera] {
+    // writes that time out, the heartbeat thread's retries), so it happens
+    // on a detached thread that owns everything it touches: the stream, the
+    // camera, and the pool buffers still queued in that stream, which stay
+    // out of the pool (and so out of the next stream) until its thread has
+    // stopped writing into them.
+    std::vector<BufferRef> still_queued;
+    for (Slot& slot : slots)
+      if (slot.queued) still_queued.push_back(std::move(slot.queued));
+    std::thread([old_stream, old_camera, held = std::move(still_queued)]() mutable {
       if (old_stream != nullptr) g_object_unref(old_stream);
       if (old_camera != nullptr) g_object_unref(old_camera);
-    });
+      held.clear();
+    }).detach();
     return;
   }
+  // Finalising the stream stops its thread and drops its references on the
+  // queued buffers (each slot keeps its own); then the pool gets them back.
   if (old_stream != nullptr) g_object_unref(old_stream);
+  for (Slot& slot : slots) slot.queued.reset();
   if (old_camera != nullptr) g_object_unref(old_camera);
 }
 
@@ -539,7 +541,6 @@ AravisCamera::AravisCamera(CameraConfig config, AravisCameraOptions options)
 
 AravisCamera::~AravisCamera() {
   if (impl_->opened) impl_->Disconnect();
-  for (std::thread& reaper : impl_->reapers) reaper.join();
   for (Slot& slot : impl_->slots)
     if (slot.arv != nullptr) g_object_unref(slot.arv);
 }

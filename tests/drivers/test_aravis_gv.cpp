@@ -166,6 +166,48 @@ TEST(AravisGv, KilledAndRestartedSimulatorIsReconnectedAndTheGapReported) {
   EXPECT_NE(gaps[0].Describe().find("lost"), std::string::npos);
 }
 
+TEST(AravisGv, FreeRunningCameraKilledIsFoundLostByTheProbe) {
+  REQUIRE_ROOT();
+  test::LoopbackAddress address("127.0.1.14");
+  ASSERT_TRUE(address.ok());
+  const std::string serial = UniqueSerial("D");
+  test::GvSimulator simulator(address.address(), serial);
+  ASSERT_TRUE(simulator.Start());
+
+  CameraConfig config = GvConfig(address.address(), serial);
+  config.trigger.mode = TriggerMode::kFreeRun;  // no control traffic from us while grabbing
+  AravisCameraOptions options;
+  options.free_run_rate_hz = 20.0;
+  options.probe_after = milliseconds(300);
+  AravisCamera camera(config, options);
+  ASSERT_TRUE(camera.Open());
+  ASSERT_TRUE(camera.Start());
+  int frames = 0;
+  for (int i = 0; i < 20 && frames < 5; ++i) {
+    auto next = camera.NextFrame(milliseconds(500));
+    if (next.ok() && next->has_value() && (*next)->status == FrameStatus::kOk) ++frames;
+  }
+  ASSERT_EQ(frames, 5);
+  EXPECT_EQ(camera.Stats().missing_ids, 0u);
+
+  simulator.Kill();
+  const Clock::time_point killed = Clock::now();
+  bool error_seen = false;
+  while (!error_seen && Clock::now() - killed < std::chrono::seconds(10))
+    error_seen = !camera.NextFrame(milliseconds(100)).ok();
+  ASSERT_TRUE(error_seen);
+  // probe_after, then one read that times out after Aravis's retries (2.5 s).
+  EXPECT_LT(Clock::now() - killed, std::chrono::seconds(5));
+  ASSERT_EQ(camera.Gaps().size(), 1u);
+  EXPECT_EQ(camera.Gaps()[0].back_host_ns, 0);
+  EXPECT_NE(camera.Gaps()[0].Describe().find("not back yet"), std::string::npos);
+  // While lost: no frames, no further errors, no crash.
+  auto quiet = camera.NextFrame(milliseconds(50));
+  ASSERT_TRUE(quiet.ok());
+  EXPECT_FALSE(quiet->has_value());
+  EXPECT_TRUE(camera.IsLost());
+}
+
 TEST(AravisGv, NoDeviceAtTheAddressIsAnErrorNamingIt) {
   AravisCamera camera(GvConfig("127.0.1.19", "nobody"));
   const Status status = camera.Open();
