@@ -92,19 +92,35 @@ Status AravisCameraOptions::Check() const {
   return Status::Ok();
 }
 
+std::int64_t CameraGap::FramelessNs() const {
+  if (!had_frame_before || !had_frame_after) return 0;
+  return first_frame_host_ns - last_frame_host_ns;
+}
+
 std::string CameraGap::Describe() const {
-  char line[256];
-  const double lost_s =
-      back_host_ns != 0 ? static_cast<double>(back_host_ns - lost_host_ns) * 1e-9 : -1.0;
-  std::string ids = "frame id ";
-  ids += had_frame_before ? std::to_string(last_frame_id_before) : std::string("none");
-  ids += " -> ";
-  ids += had_frame_after ? std::to_string(first_frame_id_after) : std::string("none yet");
-  if (lost_s >= 0.0)
-    std::snprintf(line, sizeof(line), "lost %.2f s (%s), %s", lost_s, reason.c_str(), ids.c_str());
-  else
-    std::snprintf(line, sizeof(line), "lost, not back yet (%s), %s", reason.c_str(), ids.c_str());
-  return line;
+  char line[512];
+  std::string text;
+  if (FramelessNs() > 0) {
+    std::snprintf(line, sizeof(line), "no frames for %.2f s: ", FramelessNs() * 1e-9);
+    text += line;
+  }
+  text += "lost (" + reason + ")";
+  if (had_frame_before) {
+    std::snprintf(line, sizeof(line), " %.2f s after the last frame",
+                  (lost_host_ns - last_frame_host_ns) * 1e-9);
+    text += line;
+  }
+  if (back_host_ns != 0) {
+    std::snprintf(line, sizeof(line), ", back %.2f s later", (back_host_ns - lost_host_ns) * 1e-9);
+    text += line;
+  } else {
+    text += ", not back yet";
+  }
+  text += "; frame id ";
+  text += had_frame_before ? std::to_string(last_frame_id_before) : std::string("none");
+  text += " -> ";
+  text += had_frame_after ? std::to_string(first_frame_id_after) : std::string("none yet");
+  return text;
 }
 
 struct AravisCamera::Impl {
@@ -138,6 +154,7 @@ struct AravisCamera::Impl {
   Clock::time_point last_activity{};  // last frame, open or probe
   int consecutive_failures = 0;
   bool frame_since_reconnect = false;
+  std::int64_t last_frame_host_ns = 0;
   // USB3 Vision cameras: the process-wide hotplug monitor and the generation
   // last seen; a change means a USB3 Vision device came or went.
   UsbHotplugMonitor* usb = nullptr;
@@ -460,6 +477,7 @@ void AravisCamera::Impl::MarkLost(const std::string& reason) {
   gap.lost_host_ns = RealtimeNs();
   gap.had_frame_before = ids.last().has_value();
   gap.last_frame_id_before = ids.last().value_or(0);
+  gap.last_frame_host_ns = last_frame_host_ns;
   gap.reason = reason;
   {
     std::lock_guard<std::mutex> lock(stats_mutex);
@@ -512,12 +530,14 @@ Frame AravisCamera::Impl::MakeFrame(ArvBuffer* buffer) {
   }
   g_object_unref(buffer);  // the reference the stream returned; the slot keeps its own
   const std::uint64_t missing = ids.Observe(frame.frame_id);
+  last_frame_host_ns = frame.host_ns;
   if (!frame_since_reconnect) {
     frame_since_reconnect = true;
     std::lock_guard<std::mutex> lock(stats_mutex);
     if (!gaps.empty() && gaps.back().back_host_ns != 0 && !gaps.back().had_frame_after) {
       gaps.back().had_frame_after = true;
       gaps.back().first_frame_id_after = frame.frame_id;
+      gaps.back().first_frame_host_ns = frame.host_ns;
     }
   }
   consecutive_failures = frame.status == FrameStatus::kOk ? 0 : consecutive_failures + 1;

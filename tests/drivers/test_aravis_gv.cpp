@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cstdio>
 #include <thread>
 #include <unistd.h>
 
@@ -103,6 +104,12 @@ TEST(AravisGv, PacketLossIsCountedAndTheCameraKeepsDelivering) {
   const int arrived = TriggerAndPull(camera, 12);
   ASSERT_TRUE(camera.Stop());
   const CameraStats stats = camera.Stats();
+  std::printf(
+      "12 triggers at 5 %% packet loss: %d delivered, %llu complete, %llu failed, "
+      "%llu packets missing\n",
+      arrived, static_cast<unsigned long long>(stats.completed),
+      static_cast<unsigned long long>(stats.failed),
+      static_cast<unsigned long long>(stats.missing_packets));
   // ~44 packets a frame at 5 % loss: most frames lose one; each is delivered
   // as failed (the simulator cannot resend), none is silently gone.
   EXPECT_GE(arrived, 8);
@@ -164,6 +171,11 @@ TEST(AravisGv, KilledAndRestartedSimulatorIsReconnectedAndTheGapReported) {
   EXPECT_TRUE(gaps[0].had_frame_after);
   EXPECT_FALSE(gaps[0].reason.empty());
   EXPECT_NE(gaps[0].Describe().find("lost"), std::string::npos);
+  // The frameless time spans the detection (a 2.5 s control timeout) and
+  // the restart.
+  EXPECT_GT(gaps[0].FramelessNs(), gaps[0].back_host_ns - gaps[0].lost_host_ns);
+  EXPECT_GT(gaps[0].FramelessNs(), 2'000'000'000);
+  std::printf("gap: %s\n", gaps[0].Describe().c_str());
 }
 
 TEST(AravisGv, FreeRunningCameraKilledIsFoundLostByTheProbe) {
