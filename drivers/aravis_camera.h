@@ -122,6 +122,11 @@ class AravisCamera final : public Camera {
   std::vector<CameraGap> Gaps() const;
   // True while the device is lost (between the error and the reconnect).
   bool IsLost() const;
+  // The current value of a GenICam feature as the device reports it
+  // ("Mono8", "2000", "On"), read from the device (diagnostics, tests). An
+  // error naming the feature when it does not exist or cannot be read, or
+  // while the device is lost.
+  Expected<std::string> FeatureValue(const std::string& feature) const;
 
  private:
   struct Impl;

@@ -45,6 +45,35 @@ TEST(AravisFake, OpensAndAppliesTheRegionAndFormat) {
   EXPECT_EQ(info.payload_bytes, 256u * 128u);
   EXPECT_EQ(info.vendor, "Aravis");
   EXPECT_FALSE(info.device_id.empty());
+  // What the device itself now holds.
+  auto feature = [&camera](const char* name) {
+    auto value = camera.FeatureValue(name);
+    return value ? *value : "<" + value.error().message + ">";
+  };
+  EXPECT_EQ(feature("PixelFormat"), "BayerRG8");
+  EXPECT_EQ(feature("OffsetX"), "16");
+  EXPECT_EQ(feature("OffsetY"), "8");
+  EXPECT_EQ(feature("Width"), "256");
+  EXPECT_EQ(feature("Height"), "128");
+  EXPECT_DOUBLE_EQ(std::stod(feature("ExposureTimeAbs")), 2000.0);
+  EXPECT_EQ(feature("TriggerSelector"), "FrameStart");
+  EXPECT_EQ(feature("TriggerMode"), "On");
+  EXPECT_EQ(feature("TriggerSource"), "Software");
+  EXPECT_EQ(feature("AcquisitionMode"), "Continuous");
+  EXPECT_FALSE(camera.FeatureValue("NoSuchFeature").ok());
+}
+
+TEST(AravisFake, FreeRunTurnsTheTriggerOffAndSetsTheRate) {
+  CameraConfig config = FakeConfig();
+  config.trigger.mode = TriggerMode::kFreeRun;
+  AravisCamera camera(config, AravisCameraOptions{.free_run_rate_hz = 40.0});
+  ASSERT_TRUE(camera.Open());
+  auto mode = camera.FeatureValue("TriggerMode");
+  ASSERT_TRUE(mode.ok());
+  EXPECT_EQ(*mode, "Off");
+  auto rate = camera.FeatureValue("AcquisitionFrameRate");
+  ASSERT_TRUE(rate.ok());
+  EXPECT_NEAR(std::stod(*rate), 40.0, 0.5);
 }
 
 TEST(AravisFake, SoftwareTriggerDeliversTimestampedFramesWithIncreasingIds) {

@@ -90,6 +90,31 @@ TEST(AravisGv, SoftwareTriggeredFramesArriveCompleteOverLoopback) {
   EXPECT_GT(stats.transferred_bytes, 10u * 256u * 256u);
 }
 
+TEST(AravisGv, PacketSizeAndFixedSocketBufferFromTheRigFile) {
+  REQUIRE_ROOT();
+  test::LoopbackAddress address("127.0.1.15");
+  ASSERT_TRUE(address.ok());
+  const std::string serial = UniqueSerial("E");
+  test::GvSimulator simulator(address.address(), serial);
+  ASSERT_TRUE(simulator.Start());
+
+  CameraConfig config = GvConfig(address.address(), serial);
+  config.packet_size_bytes = 1000;
+  config.socket_buffer_bytes = 1 << 20;
+  AravisCamera camera(config);
+  ASSERT_TRUE(camera.Open());
+  auto packet_size = camera.FeatureValue("GevSCPSPacketSize");
+  ASSERT_TRUE(packet_size.ok()) << packet_size.error().message;
+  EXPECT_EQ(*packet_size, "1000");
+  ASSERT_TRUE(camera.Start());
+  std::vector<Frame> frames;
+  TriggerAndPull(camera, 6, &frames);
+  ASSERT_TRUE(camera.Stop());
+  int complete = 0;
+  for (const Frame& frame : frames) complete += frame.status == FrameStatus::kOk ? 1 : 0;
+  EXPECT_GE(complete, 5);
+}
+
 TEST(AravisGv, PacketLossIsCountedAndTheCameraKeepsDelivering) {
   REQUIRE_ROOT();
   test::LoopbackAddress address("127.0.1.12");
