@@ -6,7 +6,9 @@
 // Finding the device: `CameraConfig::driver.address` (an Aravis device id such
 // as "Aravis-Fake-GV01", a serial or an IP address) or, when empty, the
 // camera's `serial`. Names starting with "Fake_" enable Aravis's in-process
-// Fake interface first ("Fake_1").
+// Fake interface first ("Fake_1"). Frames carry the rig file's serial (the
+// name of the camera's folder in a recording); Info().serial is what the
+// device reports.
 //
 // Settings applied at Open, in this order, each failure naming the camera and
 // the GenICam feature: PixelFormat, region (the `roi`, or the full sensor),

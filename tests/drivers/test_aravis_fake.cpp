@@ -126,12 +126,17 @@ TEST(AravisFake, SixteenBitCounterWrapsWithoutMissingIds) {
   // The fake counter starts near 65400 on purpose; 200 frames cross the wrap.
   bool wrapped = false;
   std::uint64_t previous = 0;
+  std::int64_t previous_device_ns = 0;
   for (int i = 0; i < 200; ++i) {
     auto next = camera.NextFrame(milliseconds(1000));
     ASSERT_TRUE(next.ok() && next->has_value()) << "frame " << i;
     const std::uint64_t id = (*next)->frame_id;
     if (i > 0 && id < previous) wrapped = true;
+    if (i > 0) {
+      EXPECT_GT((*next)->device_ns, previous_device_ns) << "frame " << i;
+    }
     previous = id;
+    previous_device_ns = (*next)->device_ns;
   }
   ASSERT_TRUE(camera.Stop());
   EXPECT_TRUE(wrapped);
