@@ -155,6 +155,14 @@ struct AravisCamera::Impl {
   int consecutive_failures = 0;
   bool frame_since_reconnect = false;
   std::int64_t last_frame_host_ns = 0;
+  // Underruns, in frames. Aravis's n_underruns counts frames on the Fake
+  // camera and USB3 Vision but packets on GigE Vision, where each packet
+  // that finds no buffer counts; so the driver counts frames itself: the id
+  // gap before the next frame when Aravis saw underruns meanwhile, else
+  // Aravis's count divided by its units per frame.
+  std::uint64_t underrun_frames = 0;
+  std::uint64_t underruns_at_last_frame = 0;  // this stream's n_underruns at the last frame
+  std::uint64_t underrun_units_per_frame = 1;
   // USB3 Vision cameras: the process-wide hotplug monitor and the generation
   // last seen; a change means a USB3 Vision device came or went.
   UsbHotplugMonitor* usb = nullptr;
@@ -170,7 +178,7 @@ struct AravisCamera::Impl {
 
   mutable std::mutex stats_mutex;
   CameraStats stats;
-  CameraStats closed_streams;  // Aravis counters of streams already destroyed
+  CameraStats closed_streams;  // counters of streams already destroyed
   CameraInfo info;
   std::vector<CameraGap> gaps;
 
@@ -396,6 +404,14 @@ Status AravisCamera::Impl::CreateStream() {
     std::lock_guard<std::mutex> lock(control_mutex);
     stream = new_stream;
   }
+  underruns_at_last_frame = 0;
+  underrun_units_per_frame = 1;
+  if (arv_camera_is_gv_device(camera)) {
+    // Leader, data packets (packet size less IP/UDP/GVSP headers), trailer.
+    const guint packet = arv_camera_gv_get_packet_size(camera, nullptr);
+    const std::uint64_t data_per_packet = packet > 64 ? packet - 36 : 1;
+    underrun_units_per_frame = (payload_bytes + data_per_packet - 1) / data_per_packet + 2;
+  }
   TopUp();
   return Status::Ok();
 }
@@ -414,12 +430,17 @@ void AravisCamera::Impl::RefreshAravisStats() {
   if (stream == nullptr) return;
   guint64 completed = 0, failures = 0, underruns = 0;
   arv_stream_get_statistics(stream, &completed, &failures, &underruns);
+  // Frames dropped since the last delivered frame, estimated until the next
+  // frame's id tells exactly.
+  const std::uint64_t pending_units = underruns - underruns_at_last_frame;
+  const std::uint64_t pending =
+      (pending_units + underrun_units_per_frame - 1) / underrun_units_per_frame;
   const guint64 missing_packets =
       missing_packets_info >= 0 ? arv_stream_get_info_uint64(stream, missing_packets_info) : 0;
   const guint64 transferred =
       transferred_bytes_info >= 0 ? arv_stream_get_info_uint64(stream, transferred_bytes_info) : 0;
   std::lock_guard<std::mutex> lock(stats_mutex);
-  stats.underruns = closed_streams.underruns + underruns;
+  stats.underruns = underrun_frames + pending;
   stats.missing_packets = closed_streams.missing_packets + missing_packets;
   if (transferred_bytes_info >= 0)
     stats.transferred_bytes = closed_streams.transferred_bytes + transferred;
@@ -430,6 +451,7 @@ void AravisCamera::Impl::Disconnect() {
   {
     std::lock_guard<std::mutex> lock(stats_mutex);
     closed_streams = stats;
+    underrun_frames = stats.underruns;  // the estimate for the last frames of this stream
   }
   ArvStream* old_stream = nullptr;
   ArvCamera* old_camera = nullptr;
@@ -529,7 +551,19 @@ Frame AravisCamera::Impl::MakeFrame(ArvBuffer* buffer) {
       frame.status = FrameStatus::kError;  // not an image, or not the configured size
   }
   g_object_unref(buffer);  // the reference the stream returned; the slot keeps its own
-  const std::uint64_t missing = ids.Observe(frame.frame_id);
+  // A frame dropped for lack of a buffer is one underrun, never also a
+  // missing id (see underrun_frames).
+  guint64 underruns_now = 0;
+  arv_stream_get_statistics(stream, nullptr, nullptr, &underruns_now);
+  const std::uint64_t new_units = underruns_now - underruns_at_last_frame;
+  underruns_at_last_frame = underruns_now;
+  const std::uint64_t gap = ids.Observe(frame.frame_id);
+  std::uint64_t missing = gap;
+  if (new_units > 0) {
+    underrun_frames +=
+        gap > 0 ? gap : (new_units + underrun_units_per_frame - 1) / underrun_units_per_frame;
+    missing = 0;
+  }
   last_frame_host_ns = frame.host_ns;
   if (!frame_since_reconnect) {
     frame_since_reconnect = true;

@@ -38,7 +38,8 @@
 // kOk / any other), underruns and missing packets come from the Aravis
 // stream, missing_ids from gaps in the frame counter (FrameIdTracker:
 // 16-bit wrap-aware on GigE Vision and the Fake camera, 64-bit on USB3
-// Vision). Counters survive reconnects.
+// Vision) less the underruns since the previous frame, so a frame dropped
+// for lack of a buffer is counted once. Counters survive reconnects.
 //
 // Lost camera: the device's "control-lost" signal (GigE heartbeat), a failed
 // control access (SoftwareTrigger), `max_consecutive_failures` failed frames
