@@ -15,7 +15,8 @@ std::string Fixed(double value, int digits) {
 }  // namespace
 
 std::uint64_t CameraHealth::Lost() const {
-  return incomplete + missing_by_id + missing_in_gaps + no_frame_at_end + recorder.lost();
+  return incomplete + missing_by_id + missing_in_gaps + no_frame_at_end + not_in_any_set +
+         recorder.lost();
 }
 
 std::uint64_t RigHealth::FramesLost() const {
@@ -26,7 +27,7 @@ std::uint64_t RigHealth::FramesLost() const {
 
 bool RigHealth::AnythingLost() const {
   return FramesLost() > 0 || vicon.gaps > 0 || vicon.malformed > 0 || recorder.vicon_lost > 0 ||
-         recorder.stop_reason.has_value();
+         recorder.stop_reason.has_value() || sync_drops.lost() > 0;
 }
 
 std::string RigHealth::StatusLine() const {
@@ -57,11 +58,11 @@ std::string RigHealth::FinalReport() const {
     if (c.recorder.written > 0)
       out << " (frames " << c.recorder.first_frame << ".." << c.recorder.last_frame << ")";
     out << ", lost " << c.Lost() << " [incomplete " << c.incomplete << ", missing ids "
-        << c.missing_by_id << ", no frame at end " << c.no_frame_at_end << ", queue full "
-        << c.recorder.dropped_queue_full << ", write error " << c.recorder.lost_write_error
-        << ", after stop " << c.recorder.lost_stopped << "]; driver: completed "
-        << c.driver.completed << ", failed " << c.driver.failed << ", underruns "
-        << c.driver.underruns << ", reconnects " << c.driver.reconnects;
+        << c.missing_by_id << ", no frame at end " << c.no_frame_at_end << ", not in any FrameSet "
+        << c.not_in_any_set << ", queue full " << c.recorder.dropped_queue_full << ", write error "
+        << c.recorder.lost_write_error << ", after stop " << c.recorder.lost_stopped
+        << "]; driver: completed " << c.driver.completed << ", failed " << c.driver.failed
+        << ", underruns " << c.driver.underruns << ", reconnects " << c.driver.reconnects;
     if (c.stale > 0) out << ", stale frames dropped " << c.stale;
     if (c.errors > 0) out << ", device errors " << c.errors << " (last: " << c.last_error << ")";
     out << "\n";
@@ -73,6 +74,16 @@ std::string RigHealth::FinalReport() const {
     if (recorder.vicon_unknown_objects > 0)
       out << ", object poses not in the CSV header " << recorder.vicon_unknown_objects;
     out << "\n";
+  }
+  if (has_sync) {
+    out << "  sync: " << frame_sets << " triggers (FrameSets), " << complete_frame_sets
+        << " complete; Vicon frame of trigger 0: "
+        << (vicon_f0 ? std::to_string(*vicon_f0) : std::string("not established"))
+        << "; drops: " << sync_drops.OneLine() << "\n";
+    for (const CameraSyncStats& c : sync_cameras)
+      out << "    " << c.serial << ": in sets " << c.in_sets << ", missed triggers "
+          << c.missed_triggers << ", failed " << c.failed << ", without trigger "
+          << c.without_trigger << ", late " << c.late << "; clock " << c.clock << "\n";
   }
   out << "  disk: " << recorder.OneLine() << "\n";
   out << (AnythingLost() ? "result: something was lost (see above)\n" : "result: nothing lost\n");
@@ -112,6 +123,16 @@ Status RigController::Start() {
       return s;
     }
   }
+  if (options_.sync) {
+    if (Status s = options_.sync->Check(); !s) {
+      for (auto& slot : slots_) (void)slot->camera->Stop();
+      if (vicon_) (void)vicon_->Stop();
+      return s;
+    }
+    assembler_ = std::make_unique<FrameSetAssembler>(*options_.sync);
+    syncing_ = true;
+    sync_thread_ = std::thread([this] { SyncLoop(); });
+  }
   started_ = true;
   start_time_ = last_health_ = std::chrono::steady_clock::now();
   grabbing_ = true;
@@ -144,6 +165,53 @@ void RigController::Stop() {
   vicon_running_ = false;
   if (vicon_thread_.joinable()) vicon_thread_.join();
   if (vicon_) (void)vicon_->Stop();
+  syncing_ = false;
+  if (sync_thread_.joinable()) sync_thread_.join();
+  if (assembler_) {
+    std::vector<FrameSet> rest;
+    {
+      std::lock_guard<std::mutex> lock(sync_mutex_);
+      rest = assembler_->Flush();
+    }
+    RecordSets(std::move(rest));
+  }
+}
+
+namespace {
+std::int64_t RealtimeNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+}  // namespace
+
+void RigController::SyncLoop() {
+  while (syncing_.load()) {
+    std::vector<FrameSet> sets;
+    {
+      std::lock_guard<std::mutex> lock(sync_mutex_);
+      sets = assembler_->Poll(RealtimeNs());
+    }
+    RecordSets(std::move(sets));
+    std::this_thread::sleep_for(options_.sync_poll);
+  }
+}
+
+void RigController::RecordSets(std::vector<FrameSet> sets) {
+  std::uint64_t complete = 0;
+  for (FrameSet& set : sets) {
+    complete += set.complete() ? 1 : 0;
+    for (std::size_t c = 0; c < set.frames.size(); ++c) {
+      std::optional<Frame>& frame = set.frames[c];
+      if (!frame || frame->status != FrameStatus::kOk) continue;
+      if (observer_.on_frame) observer_.on_frame(static_cast<int>(c), set.trigger_index, *frame);
+      if (recorder_ != nullptr)
+        recorder_->SubmitFrame(static_cast<int>(c), set.trigger_index, std::move(*frame));
+    }
+  }
+  std::lock_guard<std::mutex> lock(sync_mutex_);
+  frame_sets_ += sets.size();
+  complete_frame_sets_ += complete;
 }
 
 void RigController::GrabLoop(int index) {
@@ -199,12 +267,16 @@ void RigController::GrabLoop(int index) {
       slot.last_host_ns = frame.host_ns;
       ++slot.interval_frames;
       slot.interval_bytes += bytes;
-      if (frame.status != FrameStatus::kOk) {
-        ++slot.health.incomplete;
-        continue;
-      }
-      ++slot.health.received;
+      ++(frame.status == FrameStatus::kOk ? slot.health.received : slot.health.incomplete);
     }
+    if (assembler_ != nullptr) {
+      // The assembler numbers the frame by its trigger; failed frames go in
+      // too, so the set says why the camera's frame is missing.
+      std::lock_guard<std::mutex> lock(sync_mutex_);
+      assembler_->AddFrame(std::move(frame));
+      continue;
+    }
+    if (frame.status != FrameStatus::kOk) continue;
     if (observer_.on_frame) observer_.on_frame(index, frame_index, frame);
     if (recorder_ != nullptr) recorder_->SubmitFrame(index, frame_index, std::move(frame));
   }
@@ -224,6 +296,10 @@ void RigController::ViconLoop() {
     }
     if (observer_.on_vicon) observer_.on_vicon(**next);
     if (recorder_ != nullptr) recorder_->SubmitVicon(**next);
+    if (assembler_ != nullptr) {
+      std::lock_guard<std::mutex> lock(sync_mutex_);
+      assembler_->AddVicon(std::move(**next));
+    }
     std::lock_guard<std::mutex> lock(vicon_mutex_);
     ++vicon_interval_frames_;
   }
@@ -281,6 +357,18 @@ RigHealth RigController::Health() {
         camera.no_frame_at_end = static_cast<std::uint64_t>(expected - camera.last_index - 1);
     }
     health.cameras.push_back(std::move(camera));
+  }
+  if (assembler_) {
+    std::lock_guard<std::mutex> lock(sync_mutex_);
+    health.has_sync = true;
+    health.frame_sets = frame_sets_;
+    health.complete_frame_sets = complete_frame_sets_;
+    health.sync_drops = assembler_->drops();
+    health.sync_cameras = assembler_->camera_stats();
+    health.vicon_f0 = assembler_->vicon_f0();
+    for (std::size_t c = 0; c < health.cameras.size() && c < health.sync_cameras.size(); ++c)
+      health.cameras[c].not_in_any_set =
+          health.sync_cameras[c].without_trigger + health.sync_cameras[c].late;
   }
   if (vicon_) {
     health.has_vicon = true;

@@ -21,6 +21,7 @@
 #include "acquisition/recorder.h"
 #include "drivers/camera.h"
 #include "drivers/vicon_source.h"
+#include "sync/frame_set_assembler.h"
 
 #include <atomic>
 #include <chrono>
@@ -45,6 +46,12 @@ struct RigControllerOptions {
   // At Stop, how long the grab threads keep taking frames after the last
   // trigger, so frames in flight are recorded rather than lost.
   std::chrono::milliseconds drain{300};
+  // When set, frames and Vicon frames go through the sync assembler
+  // (sync/frame_set_assembler.h) and the recorder numbers each file by its
+  // FrameSet's trigger index; otherwise by the camera's frame counter.
+  std::optional<FrameSetAssemblerOptions> sync;
+  // How often the sync thread polls the assembler for finished FrameSets.
+  std::chrono::milliseconds sync_poll{10};
 };
 
 // Called on a grab thread for every complete frame (with its run index)
@@ -62,9 +69,10 @@ struct CameraHealth {
   std::uint64_t received = 0;    // complete frames handed to the recorder
   std::uint64_t incomplete = 0;  // delivered with a bad status: lost
   std::uint64_t missing_by_id = 0;
-  std::uint64_t stale = 0;  // repeated/late frames, dropped
+  std::uint64_t stale = 0;            // repeated/late frames, dropped
   std::uint64_t missing_in_gaps = 0;  // triggers missed while the camera was lost (by host time)
   std::uint64_t counter_restarts = 0;
+  std::uint64_t not_in_any_set = 0;  // with sync: frames off the trigger grid or late, not written
   std::uint64_t no_frame_at_end = 0;
   std::uint64_t errors = 0;  // NextFrame errors (device lost)
   std::string last_error;
@@ -85,9 +93,19 @@ struct RigHealth {
   ViconSourceStats vicon;
   std::uint64_t vicon_errors = 0;
   RecorderStats recorder;
+  // With sync: FrameSets emitted (one per trigger) and how many were complete
+  // (every camera's frame and the Vicon frame), the losses by kind, per
+  // camera association figures, and the Vicon frame of trigger 0.
+  bool has_sync = false;
+  std::uint64_t frame_sets = 0;
+  std::uint64_t complete_frame_sets = 0;
+  DropCounter sync_drops;
+  std::vector<CameraSyncStats> sync_cameras;
+  std::optional<std::int64_t> vicon_f0;
 
   std::uint64_t FramesLost() const;  // cameras + recorder
-  // Anything lost: frames, Vicon frames (gaps, malformed), Vicon lines.
+  // Anything lost: frames, Vicon frames (gaps, malformed), Vicon lines,
+  // sync losses (a trigger without a camera's frame or its Vicon frame).
   bool AnythingLost() const;
   // "12.0s cam0 10.0fps 2.6MB/s q0 drop0 | cam1 ... | Vicon 80.0Hz gaps0 | disk backlog 0.0MB"
   std::string StatusLine() const;
@@ -125,10 +143,10 @@ class RigController {
     std::unique_ptr<Camera> camera;
     bool software_trigger = false;
     FrameIdUnwrapper unwrapper;
-    bool lost = false;            // NextFrame reported the device gone
+    bool lost = false;  // NextFrame reported the device gone
     int stale_in_a_row = 0;
     std::int64_t last_host_ns = 0;  // of the last accepted frame
-    mutable std::mutex mutex;  // guards health below
+    mutable std::mutex mutex;       // guards health below
     CameraHealth health;
     std::uint64_t interval_frames = 0;
     std::uint64_t interval_bytes = 0;
@@ -137,6 +155,9 @@ class RigController {
   void GrabLoop(int index);
   void ViconLoop();
   void TriggerLoop();
+  void SyncLoop();
+  // Hands the frames of emitted sets to the recorder (sync thread, or Stop).
+  void RecordSets(std::vector<FrameSet> sets);
 
   std::vector<std::unique_ptr<CameraSlot>> slots_;
   std::unique_ptr<ViconSource> vicon_;
@@ -156,6 +177,12 @@ class RigController {
   std::uint64_t vicon_interval_frames_ = 0;
   std::uint64_t vicon_errors_ = 0;
   double vicon_hz_ = 0;
+  std::mutex sync_mutex_;  // guards assembler_ and the set counters
+  std::unique_ptr<FrameSetAssembler> assembler_;
+  std::uint64_t frame_sets_ = 0;
+  std::uint64_t complete_frame_sets_ = 0;
+  std::atomic<bool> syncing_{false};
+  std::thread sync_thread_;
   std::chrono::steady_clock::time_point start_time_;
   std::chrono::steady_clock::time_point last_health_;
 };

@@ -59,6 +59,7 @@ struct Args {
   std::string scene = "00_Recording";
   std::string sequence = "seq";
   std::string replay;  // sequence folder the replay cameras serve
+  bool no_sync = false;
 };
 
 int Run(const Args& args) {
@@ -138,6 +139,7 @@ int Run(const Args& args) {
   }
   RigControllerOptions controller_options;
   controller_options.trigger_hz = rig->vicon.rate_hz / rig->vicon.trigger_divider;
+  if (!args.no_sync) controller_options.sync = FrameSetAssemblerOptions::FromRig(*rig);
   RigController controller(std::move(cameras), std::move(software_trigger), std::move(*vicon),
                            recorder->get(), controller_options);
   if (Status s = controller.Start(); !s) {
@@ -199,7 +201,9 @@ CommandRun AddRecordCommand(CLI::App& app) {
       "Records every camera of the rig file (armed for its trigger; software-triggered\n"
       "cameras are fired at vicon.rate_hz / vicon.trigger_divider) and every Vicon frame\n"
       "into OUT/SCENE/SEQUENCE in the LiFMCR layout: TypeE_<serial>/ raw BMPs numbered by\n"
-      "trigger, Vicon/sequence_01.csv (one line per received Vicon frame), and the MLA\n"
+      "trigger (one FrameSet per trigger from the sync assembler; the report gives the Vicon\n"
+      "frame of trigger 0, so frame k fired on Vicon frame f0 + divider * k), "
+      "Vicon/sequence_01.csv (one line per received Vicon frame), and the MLA\n"
       "files and VSK copied into OUT/Calibration/. Cameras: driver 'aravis' (GigE Vision,\n"
       "USB3 Vision, Aravis fake cameras) and 'replay' (the camera folders of --replay SEQ,\n"
       "served at the trigger period, or per software trigger; the recording ends with the\n"
@@ -224,6 +228,9 @@ CommandRun AddRecordCommand(CLI::App& app) {
   app.add_option("--replay", args->replay,
                  "Sequence folder that cameras with driver 'replay' serve")
       ->check(CLI::ExistingDirectory);
+  app.add_flag("--no-sync", args->no_sync,
+               "Number frames by each camera's frame counter instead of by the trigger the "
+               "sync assembler (clock model, trigger grid, Vicon f0) assigns");
   return [args] { return Run(*args); };
 }
 

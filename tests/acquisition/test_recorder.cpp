@@ -126,6 +126,54 @@ TEST(Recorder, TwoCamerasAndViconEveryTriggerAccountedFor) {
   EXPECT_NE(again.error().message.find("seq_a"), std::string::npos);
 }
 
+// The same through the sync assembler: files are numbered by trigger, every
+// trigger is one FrameSet, and each camera's frame of it is on disk or counted.
+TEST(Recorder, ThroughSyncEveryTriggerIsOneFrameSetOnDiskOrCounted) {
+  test::TempDir out;
+  RigConfig rig = test::TwoCameraRig();  // 80 Hz Vicon, a trigger every 8th frame: 10 Hz
+  RecorderOptions options;
+  options.root_dir = out.path();
+  auto recorder = Recorder::Create(rig, options);
+  ASSERT_TRUE(recorder.ok()) << recorder.error().message;
+  std::vector<std::unique_ptr<Camera>> cameras;
+  cameras.push_back(MakeCamera("MEMA", PixelFormat::kMono8, 64, 48));
+  cameras.push_back(MakeCamera("MEMB", PixelFormat::kBgr8, 64, 48));
+  auto vicon = std::make_unique<ViconUdpSource>(ViconUdpSourceOptions::FromRig(rig));
+  ViconUdpSource* vicon_source = vicon.get();
+  RigControllerOptions controller_options;
+  controller_options.trigger_hz = rig.vicon.rate_hz / rig.vicon.trigger_divider;
+  controller_options.sync = FrameSetAssemblerOptions::FromRig(rig);
+  RigController controller(std::move(cameras), {true, true}, std::move(vicon), recorder->get(),
+                           controller_options);
+  ASSERT_TRUE(controller.Start().ok());
+  test::ViconStreamer streamer(rig, vicon_source->BoundPort(), rig.vicon.rate_hz);
+  std::this_thread::sleep_for(milliseconds(2000));
+  controller.Stop();
+  (*recorder)->Stop();
+  const RigHealth health = controller.Health();
+  SCOPED_TRACE(health.FinalReport());
+  ASSERT_TRUE(health.has_sync);
+  EXPECT_GE(health.frame_sets, 15u);
+  EXPECT_GE(health.frame_sets + 1, health.triggers_fired);
+  EXPECT_TRUE(health.vicon_f0.has_value());
+  EXPECT_GE(health.complete_frame_sets + 1, health.frame_sets);
+  ASSERT_EQ(health.sync_cameras.size(), 2u);
+  for (std::size_t c = 0; c < 2; ++c) {
+    const CameraSyncStats& sync = health.sync_cameras[c];
+    const RecorderCameraStats& disk = health.recorder.cameras[c];
+    EXPECT_EQ(disk.written + disk.lost() + sync.missed_triggers + sync.failed, health.frame_sets)
+        << sync.serial;
+    EXPECT_EQ(disk.written, sync.in_sets - sync.failed);
+  }
+  auto sequence = DiscoverSequence((*recorder)->sequence_dir());
+  ASSERT_TRUE(sequence.ok()) << sequence.error().message;
+  for (const CameraFolder& folder : sequence->cameras) {
+    EXPECT_EQ(folder.frames.front(), 0) << folder.serial;
+    EXPECT_EQ(folder.missing_count, 0) << folder.serial;
+  }
+  ExpectEveryFrameReads(*sequence);
+}
+
 TEST(Recorder, ViconStreamStopsFramesStillRecorded) {
   test::TempDir out;
   RigConfig rig = test::TwoCameraRig();
