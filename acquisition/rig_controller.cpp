@@ -64,6 +64,8 @@ std::string RigHealth::FinalReport() const {
         << "]; driver: completed " << c.driver.completed << ", failed " << c.driver.failed
         << ", underruns " << c.driver.underruns << ", reconnects " << c.driver.reconnects;
     if (c.stale > 0) out << ", stale frames dropped " << c.stale;
+    if (c.triggers_skipped > 0)
+      out << ", software triggers skipped (trigger call overran) " << c.triggers_skipped;
     if (c.errors > 0) out << ", device errors " << c.errors << " (last: " << c.last_error << ")";
     out << "\n";
   }
@@ -142,11 +144,14 @@ Status RigController::Start() {
     vicon_running_ = true;
     vicon_thread_ = std::thread([this] { ViconLoop(); });
   }
-  bool any_software = false;
-  for (auto& slot : slots_) any_software = any_software || slot->software_trigger;
-  if (any_software && options_.trigger_hz > 0) {
+  if (options_.trigger_hz > 0) {
     triggering_ = true;
-    trigger_thread_ = std::thread([this] { TriggerLoop(); });
+    const auto schedule_start = std::chrono::steady_clock::now();
+    for (std::size_t i = 0; i < slots_.size(); ++i) {
+      if (!slots_[i]->software_trigger) continue;
+      trigger_threads_.emplace_back(
+          [this, i, schedule_start] { TriggerLoop(static_cast<int>(i), schedule_start); });
+    }
   }
   return Status::Ok();
 }
@@ -155,7 +160,8 @@ void RigController::Stop() {
   if (!started_) return;
   started_ = false;
   triggering_ = false;
-  if (trigger_thread_.joinable()) trigger_thread_.join();
+  for (std::thread& thread : trigger_threads_) thread.join();
+  trigger_threads_.clear();
   // Frames already triggered are still on their way: keep grabbing a moment.
   std::this_thread::sleep_for(options_.drain);
   grabbing_ = false;
@@ -305,22 +311,30 @@ void RigController::ViconLoop() {
   }
 }
 
-void RigController::TriggerLoop() {
+void RigController::TriggerLoop(int index, std::chrono::steady_clock::time_point start) {
+  CameraSlot& slot = *slots_[index];
   const auto period =
       std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 / options_.trigger_hz));
-  auto due = std::chrono::steady_clock::now();
+  std::uint64_t tick = 0;
   while (triggering_.load()) {
-    for (auto& slot : slots_) {
-      if (!slot->software_trigger) continue;
-      if (Status s = slot->camera->SoftwareTrigger(); !s) {
-        std::lock_guard<std::mutex> lock(slot->mutex);
-        ++slot->health.errors;
-        slot->health.last_error = s.error().message;
-      }
+    if (Status s = slot.camera->SoftwareTrigger(); !s) {
+      std::lock_guard<std::mutex> lock(slot.mutex);
+      ++slot.health.errors;
+      slot.health.last_error = s.error().message;
     }
-    ++triggers_fired_;
-    due += period;
-    std::this_thread::sleep_until(due);
+    // A trigger call that overran the period: the ticks it covered are not
+    // fired late in a burst (the camera would merge them), they are skipped
+    // and counted.
+    const auto elapsed = std::chrono::steady_clock::now() - start;
+    const auto now_tick = static_cast<std::uint64_t>(elapsed / period);
+    const std::uint64_t next = std::max(tick + 1, now_tick);
+    if (next > tick + 1) {
+      std::lock_guard<std::mutex> lock(slot.mutex);
+      slot.health.triggers_skipped += next - tick - 1;
+    }
+    tick = next;
+    slot.trigger_ticks.store(tick);
+    std::this_thread::sleep_until(start + tick * period);
   }
 }
 
@@ -332,7 +346,8 @@ RigHealth RigController::Health() {
   const double interval_s = std::chrono::duration<double>(now - last_health_).count();
   last_health_ = now;
   health.elapsed_s = std::chrono::duration<double>(now - start_time_).count();
-  health.triggers_fired = triggers_fired_.load();
+  for (auto& slot : slots_)
+    health.triggers_fired = std::max(health.triggers_fired, slot->trigger_ticks.load());
   if (recorder_ != nullptr) health.recorder = recorder_->Stats();
   for (std::size_t i = 0; i < slots_.size(); ++i) {
     CameraSlot& slot = *slots_[i];
@@ -352,7 +367,7 @@ RigHealth RigController::Health() {
       camera.serial = camera.recorder.serial;  // the rig's serial, as in the file names
     }
     if (slot.software_trigger && !grabbing_.load()) {
-      const auto expected = static_cast<std::int64_t>(health.triggers_fired);
+      const auto expected = static_cast<std::int64_t>(slot.trigger_ticks.load());
       if (expected > camera.last_index + 1)
         camera.no_frame_at_end = static_cast<std::uint64_t>(expected - camera.last_index - 1);
     }

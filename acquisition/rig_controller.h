@@ -72,6 +72,7 @@ struct CameraHealth {
   std::uint64_t stale = 0;            // repeated/late frames, dropped
   std::uint64_t missing_in_gaps = 0;  // triggers missed while the camera was lost (by host time)
   std::uint64_t counter_restarts = 0;
+  std::uint64_t triggers_skipped = 0;  // ticks whose software trigger could not be fired in time
   std::uint64_t not_in_any_set = 0;  // with sync: frames off the trigger grid or late, not written
   std::uint64_t no_frame_at_end = 0;
   std::uint64_t errors = 0;  // NextFrame errors (device lost)
@@ -145,8 +146,9 @@ class RigController {
     FrameIdUnwrapper unwrapper;
     bool lost = false;  // NextFrame reported the device gone
     int stale_in_a_row = 0;
-    std::int64_t last_host_ns = 0;  // of the last accepted frame
-    mutable std::mutex mutex;       // guards health below
+    std::int64_t last_host_ns = 0;                // of the last accepted frame
+    std::atomic<std::uint64_t> trigger_ticks{0};  // schedule ticks passed (fired or skipped)
+    mutable std::mutex mutex;                     // guards health below
     CameraHealth health;
     std::uint64_t interval_frames = 0;
     std::uint64_t interval_bytes = 0;
@@ -154,7 +156,9 @@ class RigController {
   };
   void GrabLoop(int index);
   void ViconLoop();
-  void TriggerLoop();
+  // One per software-triggered camera, all on one schedule, so a camera that
+  // is slow to take its trigger (lost, reconnecting) delays no other.
+  void TriggerLoop(int index, std::chrono::steady_clock::time_point start);
   void SyncLoop();
   // Hands the frames of emitted sets to the recorder (sync thread, or Stop).
   void RecordSets(std::vector<FrameSet> sets);
@@ -168,9 +172,8 @@ class RigController {
   std::atomic<bool> grabbing_{false};
   std::atomic<bool> triggering_{false};
   std::atomic<bool> vicon_running_{false};
-  std::atomic<std::uint64_t> triggers_fired_{0};
   std::thread vicon_thread_;
-  std::thread trigger_thread_;
+  std::vector<std::thread> trigger_threads_;
   bool started_ = false;
 
   std::mutex vicon_mutex_;
