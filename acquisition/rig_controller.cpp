@@ -27,7 +27,7 @@ std::uint64_t RigHealth::FramesLost() const {
 
 bool RigHealth::AnythingLost() const {
   return FramesLost() > 0 || vicon.gaps > 0 || vicon.malformed > 0 || recorder.vicon_lost > 0 ||
-         recorder.stop_reason.has_value() || sync_drops.lost() > 0;
+         recorder.stop_reason.has_value() || (files_numbered_by_sync && sync_drops.lost() > 0);
 }
 
 std::string RigHealth::StatusLine() const {
@@ -207,6 +207,7 @@ void RigController::RecordSets(std::vector<FrameSet> sets) {
   std::uint64_t complete = 0;
   for (FrameSet& set : sets) {
     complete += set.complete() ? 1 : 0;
+    if (!options_.number_files_by_sync) continue;  // the grab threads submitted them
     for (std::size_t c = 0; c < set.frames.size(); ++c) {
       std::optional<Frame>& frame = set.frames[c];
       if (!frame || frame->status != FrameStatus::kOk) continue;
@@ -239,48 +240,80 @@ void RigController::GrabLoop(int index) {
     std::int64_t frame_index = 0;
     {
       std::lock_guard<std::mutex> lock(slot.mutex);
-      FrameIdUnwrapper::Step step;
-      if (!slot.lost) {
-        step = slot.unwrapper.Next(frame.frame_id);
-        slot.stale_in_a_row = step.stale ? slot.stale_in_a_row + 1 : 0;
+      if (frame.status != FrameStatus::kOk) {
+        // A failed frame's id and timestamps may be garbage (its leader
+        // packet can be the lost one): count it, keep it out of the counter
+        // and clock bookkeeping; the next good frame's id gap covers it.
+        ++slot.health.incomplete;
+        ++slot.health.failed_since_ok;
+        ++slot.interval_frames;
+      } else {
+        FrameIdUnwrapper::Step step;
+        if (slot.unwrapper.last_index() < 0 && slot.health.failed_since_ok > 0) {
+          // The first good frame after failed ones: each failed frame was a
+          // trigger of its own, so this one comes after them.
+          const auto failed = static_cast<std::int64_t>(slot.health.failed_since_ok);
+          (void)slot.unwrapper.Next(frame.frame_id);
+          slot.unwrapper.Rebase(frame.frame_id, failed);
+          step.index = failed;
+          slot.health.failed_since_ok = 0;
+          slot.lost = false;
+        } else if (!slot.lost) {
+          step = slot.unwrapper.Next(frame.frame_id);
+          slot.stale_in_a_row = step.stale ? slot.stale_in_a_row + 1 : 0;
+        }
+        const bool restarted =
+            slot.unwrapper.last_index() >= 0 &&
+            (slot.lost || slot.stale_in_a_row >= options_.stale_frames_for_restart);
+        if (restarted) {
+          // The device restarted its counter (a reconnect): the triggers it
+          // missed are its silence in host time over the trigger period.
+          const double silence_s =
+              slot.last_host_ns > 0 && frame.host_ns > slot.last_host_ns
+                  ? static_cast<double>(frame.host_ns - slot.last_host_ns) * 1e-9
+                  : 0.0;
+          const auto triggers = std::max<std::int64_t>(
+              1, static_cast<std::int64_t>(std::llround(silence_s * options_.trigger_hz)));
+          slot.unwrapper.Rebase(frame.frame_id, slot.unwrapper.last_index() + triggers);
+          step = FrameIdUnwrapper::Step{slot.unwrapper.last_index(), 0, false};
+          slot.health.missing_in_gaps += static_cast<std::uint64_t>(triggers - 1);
+          ++slot.health.counter_restarts;
+          slot.lost = false;
+          slot.stale_in_a_row = 0;
+        } else if (slot.lost) {
+          // Lost before its first frame: nothing to rebase against.
+          step = slot.unwrapper.Next(frame.frame_id);
+          slot.lost = false;
+        }
+        if (step.stale) {
+          ++slot.health.stale;
+          continue;
+        }
+        // Ids skipped by failed frames already counted as incomplete.
+        const auto missing = static_cast<std::uint64_t>(step.missing_before);
+        slot.health.missing_by_id +=
+            missing > slot.health.failed_since_ok ? missing - slot.health.failed_since_ok : 0;
+        slot.health.failed_since_ok = 0;
+        slot.health.last_index = frame_index = step.index;
+        slot.last_host_ns = frame.host_ns;
+        ++slot.interval_frames;
+        slot.interval_bytes += bytes;
+        ++slot.health.received;
       }
-      const bool restarted =
-          slot.unwrapper.last_index() >= 0 &&
-          (slot.lost || slot.stale_in_a_row >= options_.stale_frames_for_restart);
-      if (restarted) {
-        // The device restarted its counter (a reconnect): the triggers it
-        // missed are its silence in host time over the trigger period.
-        const double silence_s = static_cast<double>(frame.host_ns - slot.last_host_ns) * 1e-9;
-        const auto triggers = std::max<std::int64_t>(
-            1, static_cast<std::int64_t>(std::llround(silence_s * options_.trigger_hz)));
-        slot.unwrapper.Rebase(frame.frame_id, slot.unwrapper.last_index() + triggers);
-        step = FrameIdUnwrapper::Step{slot.unwrapper.last_index(), 0, false};
-        slot.health.missing_in_gaps += static_cast<std::uint64_t>(triggers - 1);
-        ++slot.health.counter_restarts;
-        slot.lost = false;
-        slot.stale_in_a_row = 0;
-      } else if (slot.lost) {
-        // Lost before its first frame: nothing to rebase against.
-        step = slot.unwrapper.Next(frame.frame_id);
-        slot.lost = false;
-      }
-      if (step.stale) {
-        ++slot.health.stale;
+    }
+    if (assembler_ != nullptr &&
+        (frame.status == FrameStatus::kOk || options_.number_files_by_sync)) {
+      // Observing, the assembler gets a copy sharing the buffer, and only
+      // good frames: a failed frame's timestamps can be garbage (lost leader
+      // packet) and would move the trigger grid of every camera; it is
+      // counted here already. Numbering by sync, failed frames go in too, so
+      // a set says why a camera's frame is missing.
+      std::lock_guard<std::mutex> lock(sync_mutex_);
+      if (options_.number_files_by_sync) {
+        assembler_->AddFrame(std::move(frame));
         continue;
       }
-      slot.health.missing_by_id += static_cast<std::uint64_t>(step.missing_before);
-      slot.health.last_index = frame_index = step.index;
-      slot.last_host_ns = frame.host_ns;
-      ++slot.interval_frames;
-      slot.interval_bytes += bytes;
-      ++(frame.status == FrameStatus::kOk ? slot.health.received : slot.health.incomplete);
-    }
-    if (assembler_ != nullptr) {
-      // The assembler numbers the frame by its trigger; failed frames go in
-      // too, so the set says why the camera's frame is missing.
-      std::lock_guard<std::mutex> lock(sync_mutex_);
-      assembler_->AddFrame(std::move(frame));
-      continue;
+      assembler_->AddFrame(frame);
     }
     if (frame.status != FrameStatus::kOk) continue;
     if (observer_.on_frame) observer_.on_frame(index, frame_index, frame);
@@ -366,10 +399,13 @@ RigHealth RigController::Health() {
       camera.recorder = health.recorder.cameras[i];
       camera.serial = camera.recorder.serial;  // the rig's serial, as in the file names
     }
+    camera.triggers = slot.trigger_ticks.load();
     if (slot.software_trigger && !grabbing_.load()) {
       const auto expected = static_cast<std::int64_t>(slot.trigger_ticks.load());
-      if (expected > camera.last_index + 1)
-        camera.no_frame_at_end = static_cast<std::uint64_t>(expected - camera.last_index - 1);
+      // Failed frames after the last good one are already counted as incomplete.
+      const std::int64_t at_end =
+          expected - camera.last_index - 1 - static_cast<std::int64_t>(camera.failed_since_ok);
+      if (at_end > 0) camera.no_frame_at_end = static_cast<std::uint64_t>(at_end);
     }
     health.cameras.push_back(std::move(camera));
   }
@@ -381,7 +417,10 @@ RigHealth RigController::Health() {
     health.sync_drops = assembler_->drops();
     health.sync_cameras = assembler_->camera_stats();
     health.vicon_f0 = assembler_->vicon_f0();
-    for (std::size_t c = 0; c < health.cameras.size() && c < health.sync_cameras.size(); ++c)
+    health.files_numbered_by_sync = options_.number_files_by_sync;
+    for (std::size_t c = 0; c < health.cameras.size() && c < health.sync_cameras.size() &&
+                            options_.number_files_by_sync;
+         ++c)
       health.cameras[c].not_in_any_set =
           health.sync_cameras[c].without_trigger + health.sync_cameras[c].late;
   }

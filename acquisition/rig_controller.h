@@ -46,10 +46,15 @@ struct RigControllerOptions {
   // At Stop, how long the grab threads keep taking frames after the last
   // trigger, so frames in flight are recorded rather than lost.
   std::chrono::milliseconds drain{300};
-  // When set, frames and Vicon frames go through the sync assembler
-  // (sync/frame_set_assembler.h) and the recorder numbers each file by its
-  // FrameSet's trigger index; otherwise by the camera's frame counter.
+  // When set, every frame and Vicon frame also goes to the sync assembler
+  // (sync/frame_set_assembler.h), which builds one FrameSet per trigger with
+  // its Vicon frame; the report gives its association (Vicon frame of
+  // trigger 0, complete sets, losses by kind). Files are numbered by the
+  // camera's frame counter (exact, and robust to timing) unless
+  // number_files_by_sync, which numbers them by the FrameSet's trigger
+  // index instead (frames the assembler cannot place are then not written).
   std::optional<FrameSetAssemblerOptions> sync;
+  bool number_files_by_sync = false;
   // How often the sync thread polls the assembler for finished FrameSets.
   std::chrono::milliseconds sync_poll{10};
 };
@@ -73,7 +78,10 @@ struct CameraHealth {
   std::uint64_t missing_in_gaps = 0;  // triggers missed while the camera was lost (by host time)
   std::uint64_t counter_restarts = 0;
   std::uint64_t triggers_skipped = 0;  // ticks whose software trigger could not be fired in time
-  std::uint64_t not_in_any_set = 0;  // with sync: frames off the trigger grid or late, not written
+  std::uint64_t not_in_any_set =
+      0;                       // files numbered by sync: frames off the grid or late, not written
+  std::uint64_t triggers = 0;  // software-trigger schedule ticks for this camera
+  std::uint64_t failed_since_ok = 0;  // internal: failed frames since the last good one
   std::uint64_t no_frame_at_end = 0;
   std::uint64_t errors = 0;  // NextFrame errors (device lost)
   std::string last_error;
@@ -98,6 +106,7 @@ struct RigHealth {
   // (every camera's frame and the Vicon frame), the losses by kind, per
   // camera association figures, and the Vicon frame of trigger 0.
   bool has_sync = false;
+  bool files_numbered_by_sync = false;  // sync losses are then frame losses
   std::uint64_t frame_sets = 0;
   std::uint64_t complete_frame_sets = 0;
   DropCounter sync_drops;

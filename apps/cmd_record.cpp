@@ -201,13 +201,14 @@ CommandRun AddRecordCommand(CLI::App& app) {
       "Records every camera of the rig file (armed for its trigger; software-triggered\n"
       "cameras are fired at vicon.rate_hz / vicon.trigger_divider) and every Vicon frame\n"
       "into OUT/SCENE/SEQUENCE in the LiFMCR layout: TypeE_<serial>/ raw BMPs numbered by\n"
-      "trigger (one FrameSet per trigger from the sync assembler; the report gives the Vicon\n"
-      "frame of trigger 0, so frame k fired on Vicon frame f0 + divider * k), "
-      "Vicon/sequence_01.csv (one line per received Vicon frame), and the MLA\n"
-      "files and VSK copied into OUT/Calibration/. Cameras: driver 'aravis' (GigE Vision,\n"
-      "USB3 Vision, Aravis fake cameras) and 'replay' (the camera folders of --replay SEQ,\n"
-      "served at the trigger period, or per software trigger; the recording ends with the\n"
-      "sequence when every camera is a replay camera).\n"
+      "trigger from each camera's frame counter (16-bit wrap aware; across a reconnect by\n"
+      "host time), Vicon/sequence_01.csv (one line per received Vicon frame), and the MLA\n"
+      "files and VSK copied into OUT/Calibration/. The sync assembler builds one FrameSet\n"
+      "per trigger beside it; the report gives its Vicon frame of trigger 0 (f0: frame k\n"
+      "fired on Vicon frame f0 + divider * k) and its losses by kind.\n"
+      "Cameras: driver 'aravis' (GigE Vision, USB3 Vision, Aravis fake cameras) and\n"
+      "'replay' (the camera folders of --replay SEQ, served at the trigger period, or per\n"
+      "software trigger; the recording ends with the sequence when every camera replays).\n"
       "A status line on stderr (per camera fps, MB/s, recorder queue, lost frames; Vicon\n"
       "rate and gaps; disk backlog) is refreshed in place on a terminal, printed once a\n"
       "second otherwise. Stops after --duration, on SIGINT/SIGTERM, or by itself on a\n"
@@ -229,8 +230,7 @@ CommandRun AddRecordCommand(CLI::App& app) {
                  "Sequence folder that cameras with driver 'replay' serve")
       ->check(CLI::ExistingDirectory);
   app.add_flag("--no-sync", args->no_sync,
-               "Number frames by each camera's frame counter instead of by the trigger the "
-               "sync assembler (clock model, trigger grid, Vicon f0) assigns");
+               "Leave the sync assembler out (no FrameSets, no Vicon f0 in the report)");
   return [args] { return Run(*args); };
 }
 

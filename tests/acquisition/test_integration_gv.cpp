@@ -42,6 +42,13 @@ struct GvRig {
         simulator_a(address_a, serial_a),
         simulator_b(address_b, serial_b, loss_b_per_thousand) {
     rig = test::TwoCameraRig();
+    // The simulator sends a triggered frame at its next 40 ms tick, 20-42 ms
+    // after the trigger (notes/acquisition.md 1.3), stamped on that tick: two
+    // cameras' frames of one trigger can be 40 ms apart. At 80 Hz / 16 = 5 Hz
+    // that is 0.2 trigger periods, inside the assembler's 0.25 grid
+    // tolerance, also on a loaded machine; at 10 Hz it is 0.4 and frames fall
+    // off the grid.
+    rig.vicon.trigger_divider = 16;
     const std::string addresses[2] = {address_a, address_b};
     const std::string serials[2] = {serial_a, serial_b};
     for (int i = 0; i < 2; ++i) {
@@ -97,16 +104,17 @@ RecordRun StartRun(const RigConfig& rig, const std::filesystem::path& out) {
   return run;
 }
 
-// Per camera: every trigger (FrameSet) has the camera's frame on disk, or is
-// counted as missed or failed, or was lost by the recorder.
+// Per camera: every software trigger gave a frame on disk or a counted loss
+// (a trigger that could not even be sent, while the camera was lost, is
+// counted as skipped). Across a reconnect the missed triggers are estimated
+// from host time, which may be one off.
 void ExpectEveryTriggerAccountedFor(const RigHealth& health) {
-  ASSERT_TRUE(health.has_sync);
-  ASSERT_EQ(health.sync_cameras.size(), health.recorder.cameras.size());
-  for (std::size_t c = 0; c < health.sync_cameras.size(); ++c) {
-    const CameraSyncStats& sync = health.sync_cameras[c];
-    const RecorderCameraStats& disk = health.recorder.cameras[c];
-    EXPECT_EQ(disk.written + disk.lost() + sync.missed_triggers + sync.failed, health.frame_sets)
-        << sync.serial;
+  ASSERT_TRUE(health.has_sync);  // the assembler ran beside (its figures are in the report)
+  for (const CameraHealth& camera : health.cameras) {
+    const std::uint64_t accounted = camera.recorder.written + camera.Lost();
+    const std::uint64_t slack = camera.counter_restarts;
+    EXPECT_LE(accounted, camera.triggers + slack) << camera.serial;
+    EXPECT_GE(accounted + camera.triggers_skipped + slack, camera.triggers) << camera.serial;
   }
 }
 
@@ -142,9 +150,9 @@ TEST(RecordGv, TwoSimulatorsAndViconEveryTriggerAccountedFor) {
   run.recorder->Stop();
   const RigHealth health = run.controller->Health();
   SCOPED_TRACE(health.FinalReport());
-  EXPECT_GE(health.frame_sets, 20u);
   ExpectEveryTriggerAccountedFor(health);
-  for (const auto& disk : health.recorder.cameras) EXPECT_GE(disk.written, 20u) << disk.serial;
+  EXPECT_FALSE(health.AnythingLost());
+  for (const auto& disk : health.recorder.cameras) EXPECT_GE(disk.written, 13u) << disk.serial;
   EXPECT_TRUE(health.vicon_f0.has_value());
   EXPECT_GT(health.recorder.vicon_written, 150u);
   ExpectSequenceMatches(run.recorder->sequence_dir(), health);
@@ -169,7 +177,7 @@ TEST(RecordGv, PacketLossIsCountedAndTheRecordingContinues) {
   EXPECT_GT(b.driver.failed + b.driver.missing_ids, 0u);
   EXPECT_GT(b.Lost(), 0u);
   EXPECT_TRUE(health.AnythingLost());
-  EXPECT_GE(health.recorder.cameras[0].written, 20u);  // A unaffected
+  EXPECT_GE(health.recorder.cameras[0].written, 13u);  // A unaffected
   ExpectSequenceMatches(run.recorder->sequence_dir(), health);
 }
 
@@ -194,11 +202,11 @@ TEST(RecordGv, KilledSimulatorReconnectsAndTheGapIsReported) {
   ExpectEveryTriggerAccountedFor(health);
   const CameraHealth& b = health.cameras[1];
   EXPECT_GE(b.driver.reconnects, 1u);
-  EXPECT_GE(health.sync_cameras[1].missed_triggers, 5u);  // the gap, counted
+  EXPECT_GE(b.missing_in_gaps, 4u);  // the gap, counted
+  EXPECT_EQ(b.counter_restarts, 1u);
   EXPECT_TRUE(health.AnythingLost());
   // B recorded again after the restart: its last file is near the end of the run.
-  EXPECT_GE(health.recorder.cameras[1].last_frame + 15,
-            static_cast<std::int64_t>(health.frame_sets));
+  EXPECT_GE(health.recorder.cameras[1].last_frame + 8, static_cast<std::int64_t>(b.triggers));
   ExpectSequenceMatches(run.recorder->sequence_dir(), health);
 }
 
