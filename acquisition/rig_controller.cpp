@@ -249,13 +249,17 @@ void RigController::GrabLoop(int index) {
         ++slot.interval_frames;
       } else {
         FrameIdUnwrapper::Step step;
-        if (slot.unwrapper.last_index() < 0 && slot.health.failed_since_ok > 0) {
-          // The first good frame after failed ones: each failed frame was a
-          // trigger of its own, so this one comes after them.
+        if (slot.unwrapper.last_index() < 0) {
+          // The camera's first good frame: placed on the rig's trigger count
+          // by host time from the rig's first frame (cameras armed at
+          // different moments of a running trigger see different first
+          // triggers), after any failed frames before it (each was a trigger).
           const auto failed = static_cast<std::int64_t>(slot.health.failed_since_ok);
+          const std::int64_t first = std::max(FirstIndexByHostTime(frame.host_ns), failed);
           (void)slot.unwrapper.Next(frame.frame_id);
-          slot.unwrapper.Rebase(frame.frame_id, failed);
-          step.index = failed;
+          slot.unwrapper.Rebase(frame.frame_id, first);
+          step.index = first;
+          step.missing_before = first - failed;
           slot.health.failed_since_ok = 0;
           slot.lost = false;
         } else if (!slot.lost) {
@@ -319,6 +323,17 @@ void RigController::GrabLoop(int index) {
     if (observer_.on_frame) observer_.on_frame(index, frame_index, frame);
     if (recorder_ != nullptr) recorder_->SubmitFrame(index, frame_index, std::move(frame));
   }
+}
+
+std::int64_t RigController::FirstIndexByHostTime(std::int64_t host_ns) {
+  std::lock_guard<std::mutex> lock(anchor_mutex_);
+  if (!rig_first_host_ns_) {
+    rig_first_host_ns_ = host_ns;
+    return 0;
+  }
+  const double periods =
+      static_cast<double>(host_ns - *rig_first_host_ns_) * 1e-9 * options_.trigger_hz;
+  return std::max<std::int64_t>(0, std::llround(periods));
 }
 
 void RigController::ViconLoop() {

@@ -5,11 +5,12 @@
 // to the recorder (and to an optional observer: the sync assembler, a
 // publisher). Health() is a snapshot for the status line.
 //
-// Frame numbers: a frame's number in the recording is its run-relative index
-// from the camera's frame counter (frame_id_unwrapper.h), so a counter gap is
-// a missing file and is counted. This assumes every camera sees the first
-// trigger after Start (true for software triggers, which start only once all
-// cameras run, and for a hardware trigger gated after Start).
+// Frame numbers: a frame's number in the recording is its trigger index. A
+// camera's first frame is placed by host time from the rig's first frame (in
+// trigger periods, rounded), every later one by the camera's frame counter
+// (frame_id_unwrapper.h, 16-bit wrap aware), so a counter gap is a missing
+// file and is counted; after a reconnect (the counter restarts) the silence
+// in host time gives the triggers missed.
 //
 // Accounting, per camera: every frame the counter says was produced ends up
 // recorded, or lost as one of: incomplete (delivered with a bad status; not
@@ -169,6 +170,9 @@ class RigController {
   // is slow to take its trigger (lost, reconnecting) delays no other.
   void TriggerLoop(int index, std::chrono::steady_clock::time_point start);
   void SyncLoop();
+  // Trigger index of a camera's first frame: 0 for the rig's first frame,
+  // else the trigger periods since it in host time.
+  std::int64_t FirstIndexByHostTime(std::int64_t host_ns);
   // Hands the frames of emitted sets to the recorder (sync thread, or Stop).
   void RecordSets(std::vector<FrameSet> sets);
 
@@ -189,6 +193,8 @@ class RigController {
   std::uint64_t vicon_interval_frames_ = 0;
   std::uint64_t vicon_errors_ = 0;
   double vicon_hz_ = 0;
+  std::mutex anchor_mutex_;
+  std::optional<std::int64_t> rig_first_host_ns_;
   std::mutex sync_mutex_;  // guards assembler_ and the set counters
   std::unique_ptr<FrameSetAssembler> assembler_;
   std::uint64_t frame_sets_ = 0;
