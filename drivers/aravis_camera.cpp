@@ -92,19 +92,35 @@ Status AravisCameraOptions::Check() const {
   return Status::Ok();
 }
 
+std::int64_t CameraGap::FramelessNs() const {
+  if (!had_frame_before || !had_frame_after) return 0;
+  return first_frame_host_ns - last_frame_host_ns;
+}
+
 std::string CameraGap::Describe() const {
-  char line[256];
-  const double lost_s =
-      back_host_ns != 0 ? static_cast<double>(back_host_ns - lost_host_ns) * 1e-9 : -1.0;
-  std::string ids = "frame id ";
-  ids += had_frame_before ? std::to_string(last_frame_id_before) : std::string("none");
-  ids += " -> ";
-  ids += had_frame_after ? std::to_string(first_frame_id_after) : std::string("none yet");
-  if (lost_s >= 0.0)
-    std::snprintf(line, sizeof(line), "lost %.2f s (%s), %s", lost_s, reason.c_str(), ids.c_str());
-  else
-    std::snprintf(line, sizeof(line), "lost, not back yet (%s), %s", reason.c_str(), ids.c_str());
-  return line;
+  char line[512];
+  std::string text;
+  if (FramelessNs() > 0) {
+    std::snprintf(line, sizeof(line), "no frames for %.2f s: ", FramelessNs() * 1e-9);
+    text += line;
+  }
+  text += "lost (" + reason + ")";
+  if (had_frame_before) {
+    std::snprintf(line, sizeof(line), " %.2f s after the last frame",
+                  (lost_host_ns - last_frame_host_ns) * 1e-9);
+    text += line;
+  }
+  if (back_host_ns != 0) {
+    std::snprintf(line, sizeof(line), ", back %.2f s later", (back_host_ns - lost_host_ns) * 1e-9);
+    text += line;
+  } else {
+    text += ", not back yet";
+  }
+  text += "; frame id ";
+  text += had_frame_before ? std::to_string(last_frame_id_before) : std::string("none");
+  text += " -> ";
+  text += had_frame_after ? std::to_string(first_frame_id_after) : std::string("none yet");
+  return text;
 }
 
 struct AravisCamera::Impl {
@@ -138,6 +154,15 @@ struct AravisCamera::Impl {
   Clock::time_point last_activity{};  // last frame, open or probe
   int consecutive_failures = 0;
   bool frame_since_reconnect = false;
+  std::int64_t last_frame_host_ns = 0;
+  // Underruns, in frames. Aravis's n_underruns counts frames on the Fake
+  // camera and USB3 Vision but packets on GigE Vision, where each packet
+  // that finds no buffer counts; so the driver counts frames itself: the id
+  // gap before the next frame when Aravis saw underruns meanwhile, else
+  // Aravis's count divided by its units per frame.
+  std::uint64_t underrun_frames = 0;
+  std::uint64_t underruns_at_last_frame = 0;  // this stream's n_underruns at the last frame
+  std::uint64_t underrun_units_per_frame = 1;
   // USB3 Vision cameras: the process-wide hotplug monitor and the generation
   // last seen; a change means a USB3 Vision device came or went.
   UsbHotplugMonitor* usb = nullptr;
@@ -153,12 +178,9 @@ struct AravisCamera::Impl {
 
   mutable std::mutex stats_mutex;
   CameraStats stats;
-  CameraStats closed_streams;  // Aravis counters of streams already destroyed
+  CameraStats closed_streams;  // counters of streams already destroyed
   CameraInfo info;
   std::vector<CameraGap> gaps;
-  // Threads finalising the stream and device of a lost camera (Disconnect);
-  // joined by the destructor.
-  std::vector<std::thread> reapers;
 
   std::string DeviceName() const {
     return config.driver.address.empty() ? config.serial : config.driver.address;
@@ -382,6 +404,14 @@ Status AravisCamera::Impl::CreateStream() {
     std::lock_guard<std::mutex> lock(control_mutex);
     stream = new_stream;
   }
+  underruns_at_last_frame = 0;
+  underrun_units_per_frame = 1;
+  if (arv_camera_is_gv_device(camera)) {
+    // Leader, data packets (packet size less IP/UDP/GVSP headers), trailer.
+    const guint packet = arv_camera_gv_get_packet_size(camera, nullptr);
+    const std::uint64_t data_per_packet = packet > 64 ? packet - 36 : 1;
+    underrun_units_per_frame = (payload_bytes + data_per_packet - 1) / data_per_packet + 2;
+  }
   TopUp();
   return Status::Ok();
 }
@@ -400,12 +430,17 @@ void AravisCamera::Impl::RefreshAravisStats() {
   if (stream == nullptr) return;
   guint64 completed = 0, failures = 0, underruns = 0;
   arv_stream_get_statistics(stream, &completed, &failures, &underruns);
+  // Frames dropped since the last delivered frame, estimated until the next
+  // frame's id tells exactly.
+  const std::uint64_t pending_units = underruns - underruns_at_last_frame;
+  const std::uint64_t pending =
+      (pending_units + underrun_units_per_frame - 1) / underrun_units_per_frame;
   const guint64 missing_packets =
       missing_packets_info >= 0 ? arv_stream_get_info_uint64(stream, missing_packets_info) : 0;
   const guint64 transferred =
       transferred_bytes_info >= 0 ? arv_stream_get_info_uint64(stream, transferred_bytes_info) : 0;
   std::lock_guard<std::mutex> lock(stats_mutex);
-  stats.underruns = closed_streams.underruns + underruns;
+  stats.underruns = underrun_frames + pending;
   stats.missing_packets = closed_streams.missing_packets + missing_packets;
   if (transferred_bytes_info >= 0)
     stats.transferred_bytes = closed_streams.transferred_bytes + transferred;
@@ -416,6 +451,7 @@ void AravisCamera::Impl::Disconnect() {
   {
     std::lock_guard<std::mutex> lock(stats_mutex);
     closed_streams = stats;
+    underrun_frames = stats.underruns;  // the estimate for the last frames of this stream
   }
   ArvStream* old_stream = nullptr;
   ArvCamera* old_camera = nullptr;
@@ -433,22 +469,27 @@ void AravisCamera::Impl::Disconnect() {
   if (old_camera != nullptr && started && !lost.load()) {
     arv_camera_stop_acquisition(old_camera, nullptr);
   }
-  // Stop the stream thread now so nothing writes into pool memory any more,
-  // and drop the references it held on queued buffers (each slot keeps its
-  // own); the pool gets its buffers back.
-  if (old_stream != nullptr) arv_stream_stop_thread(old_stream, TRUE);
-  for (Slot& slot : slots) slot.queued.reset();
   if (lost.load()) {
     // Finalising a lost GigE stream and device blocks for seconds (register
-    // writes that time out, the heartbeat thread's retries): off the grab
-    // thread.
-    reapers.emplace_back([old_stream, old_camera] {
+    // writes that time out, the heartbeat thread's retries), so it happens
+    // on a detached thread that owns everything it touches: the stream, the
+    // camera, and the pool buffers still queued in that stream, which stay
+    // out of the pool (and so out of the next stream) until its thread has
+    // stopped writing into them.
+    std::vector<BufferRef> still_queued;
+    for (Slot& slot : slots)
+      if (slot.queued) still_queued.push_back(std::move(slot.queued));
+    std::thread([old_stream, old_camera, held = std::move(still_queued)]() mutable {
       if (old_stream != nullptr) g_object_unref(old_stream);
       if (old_camera != nullptr) g_object_unref(old_camera);
-    });
+      held.clear();
+    }).detach();
     return;
   }
+  // Finalising the stream stops its thread and drops its references on the
+  // queued buffers (each slot keeps its own); then the pool gets them back.
   if (old_stream != nullptr) g_object_unref(old_stream);
+  for (Slot& slot : slots) slot.queued.reset();
   if (old_camera != nullptr) g_object_unref(old_camera);
 }
 
@@ -458,6 +499,7 @@ void AravisCamera::Impl::MarkLost(const std::string& reason) {
   gap.lost_host_ns = RealtimeNs();
   gap.had_frame_before = ids.last().has_value();
   gap.last_frame_id_before = ids.last().value_or(0);
+  gap.last_frame_host_ns = last_frame_host_ns;
   gap.reason = reason;
   {
     std::lock_guard<std::mutex> lock(stats_mutex);
@@ -509,13 +551,27 @@ Frame AravisCamera::Impl::MakeFrame(ArvBuffer* buffer) {
       frame.status = FrameStatus::kError;  // not an image, or not the configured size
   }
   g_object_unref(buffer);  // the reference the stream returned; the slot keeps its own
-  const std::uint64_t missing = ids.Observe(frame.frame_id);
+  // A frame dropped for lack of a buffer is one underrun, never also a
+  // missing id (see underrun_frames).
+  guint64 underruns_now = 0;
+  arv_stream_get_statistics(stream, nullptr, nullptr, &underruns_now);
+  const std::uint64_t new_units = underruns_now - underruns_at_last_frame;
+  underruns_at_last_frame = underruns_now;
+  const std::uint64_t gap = ids.Observe(frame.frame_id);
+  std::uint64_t missing = gap;
+  if (new_units > 0) {
+    underrun_frames +=
+        gap > 0 ? gap : (new_units + underrun_units_per_frame - 1) / underrun_units_per_frame;
+    missing = 0;
+  }
+  last_frame_host_ns = frame.host_ns;
   if (!frame_since_reconnect) {
     frame_since_reconnect = true;
     std::lock_guard<std::mutex> lock(stats_mutex);
     if (!gaps.empty() && gaps.back().back_host_ns != 0 && !gaps.back().had_frame_after) {
       gaps.back().had_frame_after = true;
       gaps.back().first_frame_id_after = frame.frame_id;
+      gaps.back().first_frame_host_ns = frame.host_ns;
     }
   }
   consecutive_failures = frame.status == FrameStatus::kOk ? 0 : consecutive_failures + 1;
@@ -539,7 +595,6 @@ AravisCamera::AravisCamera(CameraConfig config, AravisCameraOptions options)
 
 AravisCamera::~AravisCamera() {
   if (impl_->opened) impl_->Disconnect();
-  for (std::thread& reaper : impl_->reapers) reaper.join();
   for (Slot& slot : impl_->slots)
     if (slot.arv != nullptr) g_object_unref(slot.arv);
 }
@@ -582,7 +637,8 @@ Expected<std::optional<Frame>> AravisCamera::NextFrame(std::chrono::milliseconds
   if (!d.opened) return d.Fail("NextFrame before Open");
   const Clock::time_point deadline = Clock::now() + timeout;
 
-  if (!d.lost.load() && d.control_lost.load()) d.MarkLost("control channel lost (heartbeat)");
+  if (!d.lost.load() && d.control_lost.load())
+    d.MarkLost("control channel lost (heartbeat or control access timed out)");
   if (d.lost.load()) {
     if (!d.lost_reported) {
       d.lost_reported = true;
@@ -638,7 +694,7 @@ Expected<std::optional<Frame>> AravisCamera::NextFrame(std::chrono::milliseconds
       return std::optional<Frame>(std::move(frame));
     }
     if (d.control_lost.load()) {
-      d.MarkLost("control channel lost (heartbeat)");
+      d.MarkLost("control channel lost (heartbeat or control access timed out)");
       d.lost_reported = true;
       return d.Fail("device lost: " + d.lost_reason + "; reconnecting");
     }
@@ -696,5 +752,18 @@ std::vector<CameraGap> AravisCamera::Gaps() const {
 }
 
 bool AravisCamera::IsLost() const { return impl_->lost.load(); }
+
+Expected<std::string> AravisCamera::FeatureValue(const std::string& feature) const {
+  Impl& d = *impl_;
+  std::lock_guard<std::mutex> lock(d.control_mutex);
+  if (d.camera == nullptr) return d.Fail("reading " + feature + ": the device is not open");
+  ArvGcNode* node = arv_device_get_feature(arv_camera_get_device(d.camera), feature.c_str());
+  if (node == nullptr || !ARV_IS_GC_FEATURE_NODE(node))
+    return d.Fail("reading " + feature + ": no such feature");
+  GError* error = nullptr;
+  const char* value = arv_gc_feature_node_get_value_as_string(ARV_GC_FEATURE_NODE(node), &error);
+  if (error != nullptr) return d.Fail("reading " + feature + ": " + TakeMessage(error));
+  return std::string(value != nullptr ? value : "");
+}
 
 }  // namespace lifmcr

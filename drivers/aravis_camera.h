@@ -6,7 +6,9 @@
 // Finding the device: `CameraConfig::driver.address` (an Aravis device id such
 // as "Aravis-Fake-GV01", a serial or an IP address) or, when empty, the
 // camera's `serial`. Names starting with "Fake_" enable Aravis's in-process
-// Fake interface first ("Fake_1").
+// Fake interface first ("Fake_1"). Frames carry the rig file's serial (the
+// name of the camera's folder in a recording); Info().serial is what the
+// device reports.
 //
 // Settings applied at Open, in this order, each failure naming the camera and
 // the GenICam feature: PixelFormat, region (the `roi`, or the full sensor),
@@ -36,7 +38,8 @@
 // kOk / any other), underruns and missing packets come from the Aravis
 // stream, missing_ids from gaps in the frame counter (FrameIdTracker:
 // 16-bit wrap-aware on GigE Vision and the Fake camera, 64-bit on USB3
-// Vision). Counters survive reconnects.
+// Vision) less the underruns since the previous frame, so a frame dropped
+// for lack of a buffer is counted once. Counters survive reconnects.
 //
 // Lost camera: the device's "control-lost" signal (GigE heartbeat), a failed
 // control access (SoftwareTrigger), `max_consecutive_failures` failed frames
@@ -88,11 +91,17 @@ struct CameraGap {
   std::int64_t back_host_ns = 0;  // CLOCK_REALTIME when it was open again; 0 while lost
   bool had_frame_before = false;
   std::uint64_t last_frame_id_before = 0;
+  std::int64_t last_frame_host_ns = 0;  // host_ns of that frame
   bool had_frame_after = false;
   std::uint64_t first_frame_id_after = 0;
+  std::int64_t first_frame_host_ns = 0;  // host_ns of that frame
   std::string reason;
 
-  // One line, e.g. "lost 2.31 s (control channel lost), frame id 65410 -> 65401".
+  // Host time without frames: first frame after - last frame before (0 when
+  // either is unknown).
+  std::int64_t FramelessNs() const;
+  // One line, e.g. "no frames for 3.02 s: lost (control channel lost) 2.71 s
+  // after the last frame, back 0.21 s later; frame id 65410 -> 65401".
   std::string Describe() const;
 };
 
@@ -116,6 +125,11 @@ class AravisCamera final : public Camera {
   std::vector<CameraGap> Gaps() const;
   // True while the device is lost (between the error and the reconnect).
   bool IsLost() const;
+  // The current value of a GenICam feature as the device reports it
+  // ("Mono8", "2000", "On"), read from the device (diagnostics, tests). An
+  // error naming the feature when it does not exist or cannot be read, or
+  // while the device is lost.
+  Expected<std::string> FeatureValue(const std::string& feature) const;
 
  private:
   struct Impl;

@@ -39,6 +39,7 @@ struct ReplayCamera::State {
   std::size_t cursor = 0;  // next frame to serve (grab thread)
   Clock::time_point anchor_time{};
   std::int64_t anchor_frame = 0;
+  std::int64_t lap_offset = 0;  // added to file frame numbers on later laps (loop)
 
   mutable std::mutex mutex;  // guards the fields below
   std::condition_variable triggered;
@@ -53,6 +54,12 @@ struct ReplayCamera::State {
 
   void Advance() {
     ++cursor;
+    if (cursor >= folder.frames.size() && options.loop) {
+      // Next lap: numbers continue after the last frame, one period later.
+      lap_offset += folder.frames.back() - folder.frames.front() + 1;
+      cursor = 0;
+      return;
+    }
     if (cursor >= folder.frames.size()) {
       std::lock_guard<std::mutex> lock(mutex);
       finished = true;
@@ -112,7 +119,7 @@ Status ReplayCamera::Start() {
   s.started = true;
   // Timing restarts from the next frame: a Stop/Start pause is not replayed.
   s.anchor_time = Clock::now();
-  s.anchor_frame = s.cursor < s.folder.frames.size() ? s.folder.frames[s.cursor] : 0;
+  s.anchor_frame = s.cursor < s.folder.frames.size() ? s.folder.frames[s.cursor] + s.lap_offset : 0;
   return Status::Ok();
 }
 
@@ -131,7 +138,7 @@ Expected<std::optional<Frame>> ReplayCamera::NextFrame(std::chrono::milliseconds
     std::this_thread::sleep_until(deadline);
     return std::optional<Frame>();
   }
-  const std::int64_t number = s.folder.frames[s.cursor];
+  const std::int64_t number = s.folder.frames[s.cursor] + s.lap_offset;
 
   BufferRef buffer;
   switch (s.options.pacing) {

@@ -53,6 +53,10 @@ struct ReplayCameraOptions {
   // Time between two triggers: LiFMCR's 80 Hz Vicon / 8 = 10 Hz.
   std::chrono::nanoseconds trigger_period{100'000'000};
   ReplayPacing pacing = ReplayPacing::kOriginal;
+  // Start over after the last frame, for ever (benchmarks): lap k serves
+  // file frame f as frame f + k * (last - first + 1), so ids and device_ns
+  // keep increasing and Finished() stays false.
+  bool loop = false;
 
   Status Check() const;
 };

@@ -45,6 +45,35 @@ TEST(AravisFake, OpensAndAppliesTheRegionAndFormat) {
   EXPECT_EQ(info.payload_bytes, 256u * 128u);
   EXPECT_EQ(info.vendor, "Aravis");
   EXPECT_FALSE(info.device_id.empty());
+  // What the device itself now holds.
+  auto feature = [&camera](const char* name) {
+    auto value = camera.FeatureValue(name);
+    return value ? *value : "<" + value.error().message + ">";
+  };
+  EXPECT_EQ(feature("PixelFormat"), "BayerRG8");
+  EXPECT_EQ(feature("OffsetX"), "16");
+  EXPECT_EQ(feature("OffsetY"), "8");
+  EXPECT_EQ(feature("Width"), "256");
+  EXPECT_EQ(feature("Height"), "128");
+  EXPECT_DOUBLE_EQ(std::stod(feature("ExposureTimeAbs")), 2000.0);
+  EXPECT_EQ(feature("TriggerSelector"), "FrameStart");
+  EXPECT_EQ(feature("TriggerMode"), "On");
+  EXPECT_EQ(feature("TriggerSource"), "Software");
+  EXPECT_EQ(feature("AcquisitionMode"), "Continuous");
+  EXPECT_FALSE(camera.FeatureValue("NoSuchFeature").ok());
+}
+
+TEST(AravisFake, FreeRunTurnsTheTriggerOffAndSetsTheRate) {
+  CameraConfig config = FakeConfig();
+  config.trigger.mode = TriggerMode::kFreeRun;
+  AravisCamera camera(config, AravisCameraOptions{.free_run_rate_hz = 40.0});
+  ASSERT_TRUE(camera.Open());
+  auto mode = camera.FeatureValue("TriggerMode");
+  ASSERT_TRUE(mode.ok());
+  EXPECT_EQ(*mode, "Off");
+  auto rate = camera.FeatureValue("AcquisitionFrameRate");
+  ASSERT_TRUE(rate.ok());
+  EXPECT_NEAR(std::stod(*rate), 40.0, 0.5);
 }
 
 TEST(AravisFake, SoftwareTriggerDeliversTimestampedFramesWithIncreasingIds) {
@@ -97,12 +126,17 @@ TEST(AravisFake, SixteenBitCounterWrapsWithoutMissingIds) {
   // The fake counter starts near 65400 on purpose; 200 frames cross the wrap.
   bool wrapped = false;
   std::uint64_t previous = 0;
+  std::int64_t previous_device_ns = 0;
   for (int i = 0; i < 200; ++i) {
     auto next = camera.NextFrame(milliseconds(1000));
     ASSERT_TRUE(next.ok() && next->has_value()) << "frame " << i;
     const std::uint64_t id = (*next)->frame_id;
     if (i > 0 && id < previous) wrapped = true;
+    if (i > 0) {
+      EXPECT_GT((*next)->device_ns, previous_device_ns) << "frame " << i;
+    }
     previous = id;
+    previous_device_ns = (*next)->device_ns;
   }
   ASSERT_TRUE(camera.Stop());
   EXPECT_TRUE(wrapped);
@@ -133,6 +167,9 @@ TEST(AravisFake, HeldBuffersExhaustThePoolAndCountUnderruns) {
   auto again = camera.NextFrame(milliseconds(1000));
   ASSERT_TRUE(again.ok() && again->has_value());
   EXPECT_EQ((*again)->status, FrameStatus::kOk);
+  // The Fake camera does not count the frames it could not deliver, so
+  // there is no id gap; nothing is counted twice.
+  EXPECT_EQ(camera.Stats().missing_ids, 0u);
   ASSERT_TRUE(camera.Stop());
 }
 

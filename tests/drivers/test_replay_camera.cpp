@@ -147,6 +147,30 @@ TEST(ReplayCamera, OriginalTimingTakesTheTriggerPeriodsAsFastModeDoesNot) {
   }
 }
 
+TEST(ReplayCamera, LoopServesTheSequenceAgainWithIncreasingIds) {
+  test::TempDir dir;
+  WriteFrames(dir.path(), "L1", {4, 5, 7});
+  ReplayCamera camera(layout::CameraDir(dir.path(), "L1"),
+                      {.trigger_period = milliseconds(10),
+                       .pacing = ReplayPacing::kAsFastAsPossible,
+                       .loop = true});
+  ASSERT_TRUE(camera.Open());
+  ASSERT_TRUE(camera.Start());
+  std::vector<std::uint64_t> ids;
+  std::vector<std::uint8_t> first_pixels;
+  for (int i = 0; i < 7; ++i) {
+    auto next = camera.NextFrame(milliseconds(1000));
+    ASSERT_TRUE(next.ok() && next->has_value());
+    ids.push_back((*next)->frame_id);
+    first_pixels.push_back((*next)->image.Row(0)[0]);
+    EXPECT_EQ((*next)->device_ns, static_cast<std::int64_t>(ids.back()) * 10'000'000);
+  }
+  EXPECT_FALSE(camera.Finished());
+  EXPECT_EQ(ids, (std::vector<std::uint64_t>{4, 5, 7, 8, 9, 11, 12}));
+  EXPECT_EQ(first_pixels[3], PixelOf(4, 0, 0));  // lap 2 serves file frame 4 again
+  EXPECT_EQ(camera.Stats().missing_ids, 2u);     // 6 and 10; lap to lap (7 -> 8) is no gap
+}
+
 TEST(ReplayCamera, TruncatedFileIsAFailedFrameAndReplayGoesOn) {
   test::TempDir dir;
   WriteFrames(dir.path(), "X1", {0, 1, 2});
