@@ -22,12 +22,15 @@ struct MissingFrame {
 
 struct FrameSet {
   std::int64_t trigger_index = 0;  // 0 for the first trigger of the run
-  std::int64_t vicon_frame =
-      0;  // the Vicon frame the trigger fired on (f0 + divider * trigger_index)
+  // The Vicon frame the trigger fired on (f0 + divider * trigger_index); -1
+  // while f0 is not established and when the rig has no Vicon source.
+  std::int64_t vicon_frame = 0;
   std::vector<std::optional<Frame>> frames;  // one entry per camera of the rig, by camera index
   std::vector<MissingFrame> missing;         // one entry per empty (or failed) camera slot
   std::optional<ViconFrame> vicon;           // empty when that Vicon frame was not received
 
+  // Every camera's frame, valid, and the Vicon frame. (A rig without Vicon
+  // has no complete sets; check missing.empty() there.)
   bool complete() const { return missing.empty() && vicon.has_value(); }
 };
 

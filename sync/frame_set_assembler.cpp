@@ -67,7 +67,11 @@ void FrameSetAssembler::AddFrame(Frame frame) {
   }
   Camera& camera = cameras_[index];
   ++camera.stats.frames;
-  const ClockUpdate clock = camera.clock.Add(frame.device_ns, frame.host_ns);
+  // A failed frame's timestamps are not trusted to steer the clock model
+  // (its device time still places it, and it goes out as failed).
+  const ClockUpdate clock = frame.status == FrameStatus::kOk || !camera.clock.valid()
+                                ? camera.clock.Add(frame.device_ns, frame.host_ns)
+                                : ClockUpdate{};
   if (clock.jump) drops_.Add(DropKind::kClockJump);
   if (!started_) {
     started_ = true;
