@@ -175,6 +175,46 @@ TEST(Recorder, ThroughSyncEveryTriggerIsOneFrameSetOnDiskOrCounted) {
   ExpectEveryFrameReads(*sequence);
 }
 
+// A camera whose first frame comes three triggers after the rig's first
+// (armed later on a running trigger) starts at frame 3, not 0, and the three
+// triggers it missed are counted.
+TEST(Recorder, ALateCameraIsPlacedOnTheRigsTriggerCountByHostTime) {
+  test::TempDir out;
+  RigConfig rig = test::TwoCameraRig();
+  rig.vicon.source = ViconSourceKind::kNone;
+  RecorderOptions options;
+  options.root_dir = out.path();
+  auto recorder = Recorder::Create(rig, options);
+  ASSERT_TRUE(recorder.ok()) << recorder.error().message;
+  std::vector<std::unique_ptr<Camera>> cameras;
+  cameras.push_back(MakeCamera("MEMA", PixelFormat::kMono8, 32, 32));
+  auto late = MakeCamera("MEMB", PixelFormat::kMono8, 32, 32);
+  MemoryCamera* late_camera = late.get();
+  cameras.push_back(std::move(late));
+  RigControllerOptions controller_options;
+  controller_options.trigger_hz = 5.0;  // 200 ms: host-time jitter is far below half a period
+  // Only A is triggered by the controller; the test triggers B from the 4th trigger on.
+  RigController controller(std::move(cameras), {true, false}, nullptr, recorder->get(),
+                           controller_options);
+  const auto start = std::chrono::steady_clock::now();
+  ASSERT_TRUE(controller.Start().ok());
+  for (int k = 3; k < 8; ++k) {
+    std::this_thread::sleep_until(start + milliseconds(200 * k));
+    ASSERT_TRUE(late_camera->SoftwareTrigger().ok());
+  }
+  std::this_thread::sleep_until(start + milliseconds(200 * 8 - 50));
+  controller.Stop();
+  (*recorder)->Stop();
+  const RigHealth health = controller.Health();
+  SCOPED_TRACE(health.FinalReport());
+  const RecorderCameraStats& b = health.recorder.cameras[1];
+  EXPECT_EQ(b.written, 5u);
+  EXPECT_EQ(b.first_frame, 3);
+  EXPECT_EQ(b.last_frame, 7);
+  EXPECT_EQ(health.cameras[1].missing_by_id, 3u);
+  EXPECT_EQ(health.recorder.cameras[0].first_frame, 0);
+}
+
 TEST(Recorder, ViconStreamStopsFramesStillRecorded) {
   test::TempDir out;
   RigConfig rig = test::TwoCameraRig();
