@@ -4,9 +4,9 @@
 //
 //   ROOT/SCENE/SEQ/TypeE_<serial>/TypeE_<serial>_<frame>_Raw.bmp  (raw_frame_writer.h)
 //   ROOT/SCENE/SEQ/Vicon/sequence_01.csv       every received Vicon frame, one line each
+//                                              (none received: no file, the report says so)
 //   ROOT/Calibration/02_MLA_Calibration/TypeE_<serial>_MLA.xml    copied from the rig file
 //   ROOT/Calibration/03_Vicon/Object.vsk                           copied when the rig names one
-//   ROOT/SCENE/SEQ/rig.yaml                    the rig file as loaded (paths resolved)
 //
 // Frames: SubmitFrame puts a frame (its pooled buffer, no copy) on the queue
 // of its camera and returns at once. A camera's queue holds at most
@@ -92,7 +92,7 @@ struct RecorderStats {
 
 class Recorder {
  public:
-  // Creates the folders, copies the calibration files and the rig, opens the
+  // Creates the folders, copies the calibration files, opens the
   // Vicon CSV (when the rig has a Vicon source) and starts the writers.
   // Errors name the folder or file that could not be made.
   static Expected<std::unique_ptr<Recorder>> Create(const RigConfig& rig,

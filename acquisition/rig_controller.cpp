@@ -15,7 +15,8 @@ std::string Fixed(double value, int digits) {
 }  // namespace
 
 std::uint64_t CameraHealth::Lost() const {
-  return incomplete + missing_by_id + missing_in_gaps + no_frame_at_end + recorder.lost();
+  return incomplete + missing_by_id + missing_in_gaps + no_frame_at_end + not_in_any_set +
+         recorder.lost();
 }
 
 std::uint64_t RigHealth::FramesLost() const {
@@ -26,7 +27,7 @@ std::uint64_t RigHealth::FramesLost() const {
 
 bool RigHealth::AnythingLost() const {
   return FramesLost() > 0 || vicon.gaps > 0 || vicon.malformed > 0 || recorder.vicon_lost > 0 ||
-         recorder.stop_reason.has_value();
+         recorder.stop_reason.has_value() || (files_numbered_by_sync && sync_drops.lost() > 0);
 }
 
 std::string RigHealth::StatusLine() const {
@@ -57,12 +58,14 @@ std::string RigHealth::FinalReport() const {
     if (c.recorder.written > 0)
       out << " (frames " << c.recorder.first_frame << ".." << c.recorder.last_frame << ")";
     out << ", lost " << c.Lost() << " [incomplete " << c.incomplete << ", missing ids "
-        << c.missing_by_id << ", no frame at end " << c.no_frame_at_end << ", queue full "
-        << c.recorder.dropped_queue_full << ", write error " << c.recorder.lost_write_error
-        << ", after stop " << c.recorder.lost_stopped << "]; driver: completed "
-        << c.driver.completed << ", failed " << c.driver.failed << ", underruns "
-        << c.driver.underruns << ", reconnects " << c.driver.reconnects;
+        << c.missing_by_id << ", no frame at end " << c.no_frame_at_end << ", not in any FrameSet "
+        << c.not_in_any_set << ", queue full " << c.recorder.dropped_queue_full << ", write error "
+        << c.recorder.lost_write_error << ", after stop " << c.recorder.lost_stopped
+        << "]; driver: completed " << c.driver.completed << ", failed " << c.driver.failed
+        << ", underruns " << c.driver.underruns << ", reconnects " << c.driver.reconnects;
     if (c.stale > 0) out << ", stale frames dropped " << c.stale;
+    if (c.triggers_skipped > 0)
+      out << ", software triggers skipped (trigger call overran) " << c.triggers_skipped;
     if (c.errors > 0) out << ", device errors " << c.errors << " (last: " << c.last_error << ")";
     out << "\n";
   }
@@ -73,6 +76,16 @@ std::string RigHealth::FinalReport() const {
     if (recorder.vicon_unknown_objects > 0)
       out << ", object poses not in the CSV header " << recorder.vicon_unknown_objects;
     out << "\n";
+  }
+  if (has_sync) {
+    out << "  sync: " << frame_sets << " triggers (FrameSets), " << complete_frame_sets
+        << " complete; Vicon frame of trigger 0: "
+        << (vicon_f0 ? std::to_string(*vicon_f0) : std::string("not established"))
+        << "; drops: " << sync_drops.OneLine() << "\n";
+    for (const CameraSyncStats& c : sync_cameras)
+      out << "    " << c.serial << ": in sets " << c.in_sets << ", missed triggers "
+          << c.missed_triggers << ", failed " << c.failed << ", without trigger "
+          << c.without_trigger << ", late " << c.late << "; clock " << c.clock << "\n";
   }
   out << "  disk: " << recorder.OneLine() << "\n";
   out << (AnythingLost() ? "result: something was lost (see above)\n" : "result: nothing lost\n");
@@ -112,6 +125,16 @@ Status RigController::Start() {
       return s;
     }
   }
+  if (options_.sync) {
+    if (Status s = options_.sync->Check(); !s) {
+      for (auto& slot : slots_) (void)slot->camera->Stop();
+      if (vicon_) (void)vicon_->Stop();
+      return s;
+    }
+    assembler_ = std::make_unique<FrameSetAssembler>(*options_.sync);
+    syncing_ = true;
+    sync_thread_ = std::thread([this] { SyncLoop(); });
+  }
   started_ = true;
   start_time_ = last_health_ = std::chrono::steady_clock::now();
   grabbing_ = true;
@@ -121,11 +144,14 @@ Status RigController::Start() {
     vicon_running_ = true;
     vicon_thread_ = std::thread([this] { ViconLoop(); });
   }
-  bool any_software = false;
-  for (auto& slot : slots_) any_software = any_software || slot->software_trigger;
-  if (any_software && options_.trigger_hz > 0) {
+  if (options_.trigger_hz > 0) {
     triggering_ = true;
-    trigger_thread_ = std::thread([this] { TriggerLoop(); });
+    const auto schedule_start = std::chrono::steady_clock::now();
+    for (std::size_t i = 0; i < slots_.size(); ++i) {
+      if (!slots_[i]->software_trigger) continue;
+      trigger_threads_.emplace_back(
+          [this, i, schedule_start] { TriggerLoop(static_cast<int>(i), schedule_start); });
+    }
   }
   return Status::Ok();
 }
@@ -134,7 +160,8 @@ void RigController::Stop() {
   if (!started_) return;
   started_ = false;
   triggering_ = false;
-  if (trigger_thread_.joinable()) trigger_thread_.join();
+  for (std::thread& thread : trigger_threads_) thread.join();
+  trigger_threads_.clear();
   // Frames already triggered are still on their way: keep grabbing a moment.
   std::this_thread::sleep_for(options_.drain);
   grabbing_ = false;
@@ -144,6 +171,54 @@ void RigController::Stop() {
   vicon_running_ = false;
   if (vicon_thread_.joinable()) vicon_thread_.join();
   if (vicon_) (void)vicon_->Stop();
+  syncing_ = false;
+  if (sync_thread_.joinable()) sync_thread_.join();
+  if (assembler_) {
+    std::vector<FrameSet> rest;
+    {
+      std::lock_guard<std::mutex> lock(sync_mutex_);
+      rest = assembler_->Flush();
+    }
+    RecordSets(std::move(rest));
+  }
+}
+
+namespace {
+std::int64_t RealtimeNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+}  // namespace
+
+void RigController::SyncLoop() {
+  while (syncing_.load()) {
+    std::vector<FrameSet> sets;
+    {
+      std::lock_guard<std::mutex> lock(sync_mutex_);
+      sets = assembler_->Poll(RealtimeNs());
+    }
+    RecordSets(std::move(sets));
+    std::this_thread::sleep_for(options_.sync_poll);
+  }
+}
+
+void RigController::RecordSets(std::vector<FrameSet> sets) {
+  std::uint64_t complete = 0;
+  for (FrameSet& set : sets) {
+    complete += set.complete() ? 1 : 0;
+    if (!options_.number_files_by_sync) continue;  // the grab threads submitted them
+    for (std::size_t c = 0; c < set.frames.size(); ++c) {
+      std::optional<Frame>& frame = set.frames[c];
+      if (!frame || frame->status != FrameStatus::kOk) continue;
+      if (observer_.on_frame) observer_.on_frame(static_cast<int>(c), set.trigger_index, *frame);
+      if (recorder_ != nullptr)
+        recorder_->SubmitFrame(static_cast<int>(c), set.trigger_index, std::move(*frame));
+    }
+  }
+  std::lock_guard<std::mutex> lock(sync_mutex_);
+  frame_sets_ += sets.size();
+  complete_frame_sets_ += complete;
 }
 
 void RigController::GrabLoop(int index) {
@@ -165,49 +240,100 @@ void RigController::GrabLoop(int index) {
     std::int64_t frame_index = 0;
     {
       std::lock_guard<std::mutex> lock(slot.mutex);
-      FrameIdUnwrapper::Step step;
-      if (!slot.lost) {
-        step = slot.unwrapper.Next(frame.frame_id);
-        slot.stale_in_a_row = step.stale ? slot.stale_in_a_row + 1 : 0;
-      }
-      const bool restarted =
-          slot.unwrapper.last_index() >= 0 &&
-          (slot.lost || slot.stale_in_a_row >= options_.stale_frames_for_restart);
-      if (restarted) {
-        // The device restarted its counter (a reconnect): the triggers it
-        // missed are its silence in host time over the trigger period.
-        const double silence_s = static_cast<double>(frame.host_ns - slot.last_host_ns) * 1e-9;
-        const auto triggers = std::max<std::int64_t>(
-            1, static_cast<std::int64_t>(std::llround(silence_s * options_.trigger_hz)));
-        slot.unwrapper.Rebase(frame.frame_id, slot.unwrapper.last_index() + triggers);
-        step = FrameIdUnwrapper::Step{slot.unwrapper.last_index(), 0, false};
-        slot.health.missing_in_gaps += static_cast<std::uint64_t>(triggers - 1);
-        ++slot.health.counter_restarts;
-        slot.lost = false;
-        slot.stale_in_a_row = 0;
-      } else if (slot.lost) {
-        // Lost before its first frame: nothing to rebase against.
-        step = slot.unwrapper.Next(frame.frame_id);
-        slot.lost = false;
-      }
-      if (step.stale) {
-        ++slot.health.stale;
-        continue;
-      }
-      slot.health.missing_by_id += static_cast<std::uint64_t>(step.missing_before);
-      slot.health.last_index = frame_index = step.index;
-      slot.last_host_ns = frame.host_ns;
-      ++slot.interval_frames;
-      slot.interval_bytes += bytes;
       if (frame.status != FrameStatus::kOk) {
+        // A failed frame's id and timestamps may be garbage (its leader
+        // packet can be the lost one): count it, keep it out of the counter
+        // and clock bookkeeping; the next good frame's id gap covers it.
         ++slot.health.incomplete;
+        ++slot.health.failed_since_ok;
+        ++slot.interval_frames;
+      } else {
+        FrameIdUnwrapper::Step step;
+        if (slot.unwrapper.last_index() < 0) {
+          // The camera's first good frame: placed on the rig's trigger count
+          // by host time from the rig's first frame (cameras armed at
+          // different moments of a running trigger see different first
+          // triggers), after any failed frames before it (each was a trigger).
+          const auto failed = static_cast<std::int64_t>(slot.health.failed_since_ok);
+          const std::int64_t first = std::max(FirstIndexByHostTime(frame.host_ns), failed);
+          (void)slot.unwrapper.Next(frame.frame_id);
+          slot.unwrapper.Rebase(frame.frame_id, first);
+          step.index = first;
+          step.missing_before = first - failed;
+          slot.health.failed_since_ok = 0;
+          slot.lost = false;
+        } else if (!slot.lost) {
+          step = slot.unwrapper.Next(frame.frame_id);
+          slot.stale_in_a_row = step.stale ? slot.stale_in_a_row + 1 : 0;
+        }
+        const bool restarted =
+            slot.unwrapper.last_index() >= 0 &&
+            (slot.lost || slot.stale_in_a_row >= options_.stale_frames_for_restart);
+        if (restarted) {
+          // The device restarted its counter (a reconnect): the triggers it
+          // missed are its silence in host time over the trigger period.
+          const double silence_s =
+              slot.last_host_ns > 0 && frame.host_ns > slot.last_host_ns
+                  ? static_cast<double>(frame.host_ns - slot.last_host_ns) * 1e-9
+                  : 0.0;
+          const auto triggers = std::max<std::int64_t>(
+              1, static_cast<std::int64_t>(std::llround(silence_s * options_.trigger_hz)));
+          slot.unwrapper.Rebase(frame.frame_id, slot.unwrapper.last_index() + triggers);
+          step = FrameIdUnwrapper::Step{slot.unwrapper.last_index(), 0, false};
+          slot.health.missing_in_gaps += static_cast<std::uint64_t>(triggers - 1);
+          ++slot.health.counter_restarts;
+          slot.lost = false;
+          slot.stale_in_a_row = 0;
+        } else if (slot.lost) {
+          // Lost before its first frame: nothing to rebase against.
+          step = slot.unwrapper.Next(frame.frame_id);
+          slot.lost = false;
+        }
+        if (step.stale) {
+          ++slot.health.stale;
+          continue;
+        }
+        // Ids skipped by failed frames already counted as incomplete.
+        const auto missing = static_cast<std::uint64_t>(step.missing_before);
+        slot.health.missing_by_id +=
+            missing > slot.health.failed_since_ok ? missing - slot.health.failed_since_ok : 0;
+        slot.health.failed_since_ok = 0;
+        slot.health.last_index = frame_index = step.index;
+        slot.last_host_ns = frame.host_ns;
+        ++slot.interval_frames;
+        slot.interval_bytes += bytes;
+        ++slot.health.received;
+      }
+    }
+    if (assembler_ != nullptr &&
+        (frame.status == FrameStatus::kOk || options_.number_files_by_sync)) {
+      // Observing, the assembler gets a copy sharing the buffer, and only
+      // good frames: a failed frame's timestamps can be garbage (lost leader
+      // packet) and would move the trigger grid of every camera; it is
+      // counted here already. Numbering by sync, failed frames go in too, so
+      // a set says why a camera's frame is missing.
+      std::lock_guard<std::mutex> lock(sync_mutex_);
+      if (options_.number_files_by_sync) {
+        assembler_->AddFrame(std::move(frame));
         continue;
       }
-      ++slot.health.received;
+      assembler_->AddFrame(frame);
     }
+    if (frame.status != FrameStatus::kOk) continue;
     if (observer_.on_frame) observer_.on_frame(index, frame_index, frame);
     if (recorder_ != nullptr) recorder_->SubmitFrame(index, frame_index, std::move(frame));
   }
+}
+
+std::int64_t RigController::FirstIndexByHostTime(std::int64_t host_ns) {
+  std::lock_guard<std::mutex> lock(anchor_mutex_);
+  if (!rig_first_host_ns_) {
+    rig_first_host_ns_ = host_ns;
+    return 0;
+  }
+  const double periods =
+      static_cast<double>(host_ns - *rig_first_host_ns_) * 1e-9 * options_.trigger_hz;
+  return std::max<std::int64_t>(0, std::llround(periods));
 }
 
 void RigController::ViconLoop() {
@@ -224,27 +350,39 @@ void RigController::ViconLoop() {
     }
     if (observer_.on_vicon) observer_.on_vicon(**next);
     if (recorder_ != nullptr) recorder_->SubmitVicon(**next);
+    if (assembler_ != nullptr) {
+      std::lock_guard<std::mutex> lock(sync_mutex_);
+      assembler_->AddVicon(std::move(**next));
+    }
     std::lock_guard<std::mutex> lock(vicon_mutex_);
     ++vicon_interval_frames_;
   }
 }
 
-void RigController::TriggerLoop() {
+void RigController::TriggerLoop(int index, std::chrono::steady_clock::time_point start) {
+  CameraSlot& slot = *slots_[index];
   const auto period =
       std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 / options_.trigger_hz));
-  auto due = std::chrono::steady_clock::now();
+  std::uint64_t tick = 0;
   while (triggering_.load()) {
-    for (auto& slot : slots_) {
-      if (!slot->software_trigger) continue;
-      if (Status s = slot->camera->SoftwareTrigger(); !s) {
-        std::lock_guard<std::mutex> lock(slot->mutex);
-        ++slot->health.errors;
-        slot->health.last_error = s.error().message;
-      }
+    if (Status s = slot.camera->SoftwareTrigger(); !s) {
+      std::lock_guard<std::mutex> lock(slot.mutex);
+      ++slot.health.errors;
+      slot.health.last_error = s.error().message;
     }
-    ++triggers_fired_;
-    due += period;
-    std::this_thread::sleep_until(due);
+    // A trigger call that overran the period: the ticks it covered are not
+    // fired late in a burst (the camera would merge them), they are skipped
+    // and counted.
+    const auto elapsed = std::chrono::steady_clock::now() - start;
+    const auto now_tick = static_cast<std::uint64_t>(elapsed / period);
+    const std::uint64_t next = std::max(tick + 1, now_tick);
+    if (next > tick + 1) {
+      std::lock_guard<std::mutex> lock(slot.mutex);
+      slot.health.triggers_skipped += next - tick - 1;
+    }
+    tick = next;
+    slot.trigger_ticks.store(tick);
+    std::this_thread::sleep_until(start + tick * period);
   }
 }
 
@@ -256,7 +394,8 @@ RigHealth RigController::Health() {
   const double interval_s = std::chrono::duration<double>(now - last_health_).count();
   last_health_ = now;
   health.elapsed_s = std::chrono::duration<double>(now - start_time_).count();
-  health.triggers_fired = triggers_fired_.load();
+  for (auto& slot : slots_)
+    health.triggers_fired = std::max(health.triggers_fired, slot->trigger_ticks.load());
   if (recorder_ != nullptr) health.recorder = recorder_->Stats();
   for (std::size_t i = 0; i < slots_.size(); ++i) {
     CameraSlot& slot = *slots_[i];
@@ -275,12 +414,30 @@ RigHealth RigController::Health() {
       camera.recorder = health.recorder.cameras[i];
       camera.serial = camera.recorder.serial;  // the rig's serial, as in the file names
     }
+    camera.triggers = slot.trigger_ticks.load();
     if (slot.software_trigger && !grabbing_.load()) {
-      const auto expected = static_cast<std::int64_t>(health.triggers_fired);
-      if (expected > camera.last_index + 1)
-        camera.no_frame_at_end = static_cast<std::uint64_t>(expected - camera.last_index - 1);
+      const auto expected = static_cast<std::int64_t>(slot.trigger_ticks.load());
+      // Failed frames after the last good one are already counted as incomplete.
+      const std::int64_t at_end =
+          expected - camera.last_index - 1 - static_cast<std::int64_t>(camera.failed_since_ok);
+      if (at_end > 0) camera.no_frame_at_end = static_cast<std::uint64_t>(at_end);
     }
     health.cameras.push_back(std::move(camera));
+  }
+  if (assembler_) {
+    std::lock_guard<std::mutex> lock(sync_mutex_);
+    health.has_sync = true;
+    health.frame_sets = frame_sets_;
+    health.complete_frame_sets = complete_frame_sets_;
+    health.sync_drops = assembler_->drops();
+    health.sync_cameras = assembler_->camera_stats();
+    health.vicon_f0 = assembler_->vicon_f0();
+    health.files_numbered_by_sync = options_.number_files_by_sync;
+    for (std::size_t c = 0; c < health.cameras.size() && c < health.sync_cameras.size() &&
+                            options_.number_files_by_sync;
+         ++c)
+      health.cameras[c].not_in_any_set =
+          health.sync_cameras[c].without_trigger + health.sync_cameras[c].late;
   }
   if (vicon_) {
     health.has_vicon = true;

@@ -5,11 +5,12 @@
 // to the recorder (and to an optional observer: the sync assembler, a
 // publisher). Health() is a snapshot for the status line.
 //
-// Frame numbers: a frame's number in the recording is its run-relative index
-// from the camera's frame counter (frame_id_unwrapper.h), so a counter gap is
-// a missing file and is counted. This assumes every camera sees the first
-// trigger after Start (true for software triggers, which start only once all
-// cameras run, and for a hardware trigger gated after Start).
+// Frame numbers: a frame's number in the recording is its trigger index. A
+// camera's first frame is placed by host time from the rig's first frame (in
+// trigger periods, rounded), every later one by the camera's frame counter
+// (frame_id_unwrapper.h, 16-bit wrap aware), so a counter gap is a missing
+// file and is counted; after a reconnect (the counter restarts) the silence
+// in host time gives the triggers missed.
 //
 // Accounting, per camera: every frame the counter says was produced ends up
 // recorded, or lost as one of: incomplete (delivered with a bad status; not
@@ -21,6 +22,7 @@
 #include "acquisition/recorder.h"
 #include "drivers/camera.h"
 #include "drivers/vicon_source.h"
+#include "sync/frame_set_assembler.h"
 
 #include <atomic>
 #include <chrono>
@@ -45,6 +47,17 @@ struct RigControllerOptions {
   // At Stop, how long the grab threads keep taking frames after the last
   // trigger, so frames in flight are recorded rather than lost.
   std::chrono::milliseconds drain{300};
+  // When set, every frame and Vicon frame also goes to the sync assembler
+  // (sync/frame_set_assembler.h), which builds one FrameSet per trigger with
+  // its Vicon frame; the report gives its association (Vicon frame of
+  // trigger 0, complete sets, losses by kind). Files are numbered by the
+  // camera's frame counter (exact, and robust to timing) unless
+  // number_files_by_sync, which numbers them by the FrameSet's trigger
+  // index instead (frames the assembler cannot place are then not written).
+  std::optional<FrameSetAssemblerOptions> sync;
+  bool number_files_by_sync = false;
+  // How often the sync thread polls the assembler for finished FrameSets.
+  std::chrono::milliseconds sync_poll{10};
 };
 
 // Called on a grab thread for every complete frame (with its run index)
@@ -62,9 +75,14 @@ struct CameraHealth {
   std::uint64_t received = 0;    // complete frames handed to the recorder
   std::uint64_t incomplete = 0;  // delivered with a bad status: lost
   std::uint64_t missing_by_id = 0;
-  std::uint64_t stale = 0;  // repeated/late frames, dropped
+  std::uint64_t stale = 0;            // repeated/late frames, dropped
   std::uint64_t missing_in_gaps = 0;  // triggers missed while the camera was lost (by host time)
   std::uint64_t counter_restarts = 0;
+  std::uint64_t triggers_skipped = 0;  // ticks whose software trigger could not be fired in time
+  std::uint64_t not_in_any_set =
+      0;                       // files numbered by sync: frames off the grid or late, not written
+  std::uint64_t triggers = 0;  // software-trigger schedule ticks for this camera
+  std::uint64_t failed_since_ok = 0;  // internal: failed frames since the last good one
   std::uint64_t no_frame_at_end = 0;
   std::uint64_t errors = 0;  // NextFrame errors (device lost)
   std::string last_error;
@@ -85,9 +103,20 @@ struct RigHealth {
   ViconSourceStats vicon;
   std::uint64_t vicon_errors = 0;
   RecorderStats recorder;
+  // With sync: FrameSets emitted (one per trigger) and how many were complete
+  // (every camera's frame and the Vicon frame), the losses by kind, per
+  // camera association figures, and the Vicon frame of trigger 0.
+  bool has_sync = false;
+  bool files_numbered_by_sync = false;  // sync losses are then frame losses
+  std::uint64_t frame_sets = 0;
+  std::uint64_t complete_frame_sets = 0;
+  DropCounter sync_drops;
+  std::vector<CameraSyncStats> sync_cameras;
+  std::optional<std::int64_t> vicon_f0;
 
   std::uint64_t FramesLost() const;  // cameras + recorder
-  // Anything lost: frames, Vicon frames (gaps, malformed), Vicon lines.
+  // Anything lost: frames, Vicon frames (gaps, malformed), Vicon lines,
+  // sync losses (a trigger without a camera's frame or its Vicon frame).
   bool AnythingLost() const;
   // "12.0s cam0 10.0fps 2.6MB/s q0 drop0 | cam1 ... | Vicon 80.0Hz gaps0 | disk backlog 0.0MB"
   std::string StatusLine() const;
@@ -125,10 +154,11 @@ class RigController {
     std::unique_ptr<Camera> camera;
     bool software_trigger = false;
     FrameIdUnwrapper unwrapper;
-    bool lost = false;            // NextFrame reported the device gone
+    bool lost = false;  // NextFrame reported the device gone
     int stale_in_a_row = 0;
-    std::int64_t last_host_ns = 0;  // of the last accepted frame
-    mutable std::mutex mutex;  // guards health below
+    std::int64_t last_host_ns = 0;                // of the last accepted frame
+    std::atomic<std::uint64_t> trigger_ticks{0};  // schedule ticks passed (fired or skipped)
+    mutable std::mutex mutex;                     // guards health below
     CameraHealth health;
     std::uint64_t interval_frames = 0;
     std::uint64_t interval_bytes = 0;
@@ -136,7 +166,15 @@ class RigController {
   };
   void GrabLoop(int index);
   void ViconLoop();
-  void TriggerLoop();
+  // One per software-triggered camera, all on one schedule, so a camera that
+  // is slow to take its trigger (lost, reconnecting) delays no other.
+  void TriggerLoop(int index, std::chrono::steady_clock::time_point start);
+  void SyncLoop();
+  // Trigger index of a camera's first frame: 0 for the rig's first frame,
+  // else the trigger periods since it in host time.
+  std::int64_t FirstIndexByHostTime(std::int64_t host_ns);
+  // Hands the frames of emitted sets to the recorder (sync thread, or Stop).
+  void RecordSets(std::vector<FrameSet> sets);
 
   std::vector<std::unique_ptr<CameraSlot>> slots_;
   std::unique_ptr<ViconSource> vicon_;
@@ -147,15 +185,22 @@ class RigController {
   std::atomic<bool> grabbing_{false};
   std::atomic<bool> triggering_{false};
   std::atomic<bool> vicon_running_{false};
-  std::atomic<std::uint64_t> triggers_fired_{0};
   std::thread vicon_thread_;
-  std::thread trigger_thread_;
+  std::vector<std::thread> trigger_threads_;
   bool started_ = false;
 
   std::mutex vicon_mutex_;
   std::uint64_t vicon_interval_frames_ = 0;
   std::uint64_t vicon_errors_ = 0;
   double vicon_hz_ = 0;
+  std::mutex anchor_mutex_;
+  std::optional<std::int64_t> rig_first_host_ns_;
+  std::mutex sync_mutex_;  // guards assembler_ and the set counters
+  std::unique_ptr<FrameSetAssembler> assembler_;
+  std::uint64_t frame_sets_ = 0;
+  std::uint64_t complete_frame_sets_ = 0;
+  std::atomic<bool> syncing_{false};
+  std::thread sync_thread_;
   std::chrono::steady_clock::time_point start_time_;
   std::chrono::steady_clock::time_point last_health_;
 };

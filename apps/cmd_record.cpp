@@ -59,6 +59,7 @@ struct Args {
   std::string scene = "00_Recording";
   std::string sequence = "seq";
   std::string replay;  // sequence folder the replay cameras serve
+  bool no_sync = false;
 };
 
 int Run(const Args& args) {
@@ -138,6 +139,7 @@ int Run(const Args& args) {
   }
   RigControllerOptions controller_options;
   controller_options.trigger_hz = rig->vicon.rate_hz / rig->vicon.trigger_divider;
+  if (!args.no_sync) controller_options.sync = FrameSetAssemblerOptions::FromRig(*rig);
   RigController controller(std::move(cameras), std::move(software_trigger), std::move(*vicon),
                            recorder->get(), controller_options);
   if (Status s = controller.Start(); !s) {
@@ -199,11 +201,14 @@ CommandRun AddRecordCommand(CLI::App& app) {
       "Records every camera of the rig file (armed for its trigger; software-triggered\n"
       "cameras are fired at vicon.rate_hz / vicon.trigger_divider) and every Vicon frame\n"
       "into OUT/SCENE/SEQUENCE in the LiFMCR layout: TypeE_<serial>/ raw BMPs numbered by\n"
-      "trigger, Vicon/sequence_01.csv (one line per received Vicon frame), and the MLA\n"
-      "files and VSK copied into OUT/Calibration/. Cameras: driver 'aravis' (GigE Vision,\n"
-      "USB3 Vision, Aravis fake cameras) and 'replay' (the camera folders of --replay SEQ,\n"
-      "served at the trigger period, or per software trigger; the recording ends with the\n"
-      "sequence when every camera is a replay camera).\n"
+      "trigger from each camera's frame counter (16-bit wrap aware; across a reconnect by\n"
+      "host time), Vicon/sequence_01.csv (one line per received Vicon frame), and the MLA\n"
+      "files and VSK copied into OUT/Calibration/. The sync assembler builds one FrameSet\n"
+      "per trigger beside it; the report gives its Vicon frame of trigger 0 (f0: frame k\n"
+      "fired on Vicon frame f0 + divider * k) and its losses by kind.\n"
+      "Cameras: driver 'aravis' (GigE Vision, USB3 Vision, Aravis fake cameras) and\n"
+      "'replay' (the camera folders of --replay SEQ, served at the trigger period, or per\n"
+      "software trigger; the recording ends with the sequence when every camera replays).\n"
       "A status line on stderr (per camera fps, MB/s, recorder queue, lost frames; Vicon\n"
       "rate and gaps; disk backlog) is refreshed in place on a terminal, printed once a\n"
       "second otherwise. Stops after --duration, on SIGINT/SIGTERM, or by itself on a\n"
@@ -224,6 +229,8 @@ CommandRun AddRecordCommand(CLI::App& app) {
   app.add_option("--replay", args->replay,
                  "Sequence folder that cameras with driver 'replay' serve")
       ->check(CLI::ExistingDirectory);
+  app.add_flag("--no-sync", args->no_sync,
+               "Leave the sync assembler out (no FrameSets, no Vicon f0 in the report)");
   return [args] { return Run(*args); };
 }
 

@@ -281,5 +281,45 @@ TEST(RecordCli, ReplayedSequenceRecordsIdenticalFilesAndReportsItsGap) {
   EXPECT_FALSE(fs::exists(layout::RawFramePath(copy, "MEMB", 7)));
 }
 
+// The writer puts the header block last, so a frame cut off by a crash
+// (pixels on disk, header not yet) is a broken BMP that `lifmcr info` names,
+// while every other frame of the sequence reads.
+TEST(RecordCli, InfoNamesAFrameCutOffBeforeItsHeader) {
+  test::TempDir dir;
+  RigConfig rig = test::TwoCameraRig();
+  rig.cameras.resize(1);
+  rig.vicon.source = ViconSourceKind::kNone;
+  RecorderOptions options;
+  options.root_dir = dir.path();
+  auto recorder = Recorder::Create(rig, options);
+  ASSERT_TRUE(recorder.ok()) << recorder.error().message;
+  MemoryCameraOptions camera_options;
+  camera_options.serial = "MEMA";
+  MemoryCamera camera(camera_options);
+  ASSERT_TRUE(camera.Open().ok() && camera.Start().ok());
+  for (int f = 0; f < 4; ++f) {
+    ASSERT_TRUE(camera.SoftwareTrigger().ok());
+    auto frame = camera.NextFrame(milliseconds(1000));
+    ASSERT_TRUE(frame.ok() && frame->has_value());
+    ASSERT_TRUE((*recorder)->SubmitFrame(0, f, std::move(**frame)));
+  }
+  (*recorder)->Stop();
+  const auto clean = test::RunLifmcr("info '" + dir.path().string() + "'");
+  EXPECT_EQ(clean.exit_code, 0) << clean.out << clean.err;
+  // What a crash between the pixel write and the header write leaves.
+  const fs::path cut = layout::RawFramePath((*recorder)->sequence_dir(), "MEMA", 3);
+  {
+    const int fd = ::open(cut.c_str(), O_WRONLY);
+    ASSERT_GE(fd, 0);
+    const std::string zeros(4096, '\0');
+    ASSERT_EQ(::pwrite(fd, zeros.data(), zeros.size(), 0), 4096);
+    ::close(fd);
+  }
+  const auto broken = test::RunLifmcr("info '" + dir.path().string() + "'");
+  EXPECT_EQ(broken.exit_code, 1) << broken.out << broken.err;
+  EXPECT_NE((broken.out + broken.err).find(cut.filename().string()), std::string::npos)
+      << broken.out << broken.err;
+}
+
 }  // namespace
 }  // namespace lifmcr
