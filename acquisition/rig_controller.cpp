@@ -1,5 +1,6 @@
 #include "acquisition/rig_controller.h"
 
+#include <cmath>
 #include <cstdio>
 #include <sstream>
 
@@ -147,6 +148,12 @@ Status RigController::Start() {
   if (options_.trigger_hz > 0) {
     triggering_ = true;
     const auto schedule_start = std::chrono::steady_clock::now();
+    {
+      std::lock_guard<std::mutex> lock(anchor_mutex_);
+      trigger_schedule_host_ns_ = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                      std::chrono::system_clock::now().time_since_epoch())
+                                      .count();
+    }
     for (std::size_t i = 0; i < slots_.size(); ++i) {
       if (!slots_[i]->software_trigger) continue;
       trigger_threads_.emplace_back(
@@ -327,13 +334,26 @@ void RigController::GrabLoop(int index) {
 
 std::int64_t RigController::FirstIndexByHostTime(std::int64_t host_ns) {
   std::lock_guard<std::mutex> lock(anchor_mutex_);
+  // A frame arrives after its trigger and (latency < one period) before the
+  // next one. With the trigger schedule known (software triggers fired here)
+  // the trigger is the last one fired before the frame arrived: floor, not
+  // round, since a camera's latency can be anywhere in the period (the
+  // Aravis simulator's is 20-50 ms of a 100 ms period).
+  if (trigger_schedule_host_ns_) {
+    const double periods =
+        static_cast<double>(host_ns - *trigger_schedule_host_ns_) * 1e-9 * options_.trigger_hz;
+    return std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor(periods)));
+  }
+  // Hardware triggers: anchored on the rig's first frame. The cameras' frames
+  // of one trigger arrive within a quarter period of each other; a frame
+  // later than that belongs to a later trigger.
   if (!rig_first_host_ns_) {
     rig_first_host_ns_ = host_ns;
     return 0;
   }
   const double periods =
       static_cast<double>(host_ns - *rig_first_host_ns_) * 1e-9 * options_.trigger_hz;
-  return std::max<std::int64_t>(0, std::llround(periods));
+  return std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor(periods + 0.25)));
 }
 
 void RigController::ViconLoop() {

@@ -195,6 +195,8 @@ class RigController {
   double vicon_hz_ = 0;
   std::mutex anchor_mutex_;
   std::optional<std::int64_t> rig_first_host_ns_;
+  // CLOCK_REALTIME of the first software trigger, when this controller fires them.
+  std::optional<std::int64_t> trigger_schedule_host_ns_;
   std::mutex sync_mutex_;  // guards assembler_ and the set counters
   std::unique_ptr<FrameSetAssembler> assembler_;
   std::uint64_t frame_sets_ = 0;

@@ -199,7 +199,8 @@ TEST(Recorder, ALateCameraIsPlacedOnTheRigsTriggerCountByHostTime) {
   const auto start = std::chrono::steady_clock::now();
   ASSERT_TRUE(controller.Start().ok());
   for (int k = 3; k < 8; ++k) {
-    std::this_thread::sleep_until(start + milliseconds(200 * k));
+    // 20 ms after the controller's k-th trigger: a frame arrives after its trigger.
+    std::this_thread::sleep_until(start + milliseconds(200 * k + 20));
     ASSERT_TRUE(late_camera->SoftwareTrigger().ok());
   }
   std::this_thread::sleep_until(start + milliseconds(200 * 8 - 50));
