@@ -14,5 +14,6 @@ using CommandRun = std::function<int()>;
 
 CommandRun AddInfoCommand(CLI::App& app);
 CommandRun AddViconCommand(CLI::App& app);
+CommandRun AddSynthCommand(CLI::App& app);
 
 }  // namespace lifmcr::apps

@@ -23,6 +23,8 @@ int main(int argc, char** argv) {
       lifmcr::apps::AddInfoCommand);
   add("vicon", "Print the poses of one subject of a Vicon CSV export as right-handed CSV",
       lifmcr::apps::AddViconCommand);
+  add("synth", "Write a synthetic LiFMCR rig (raw frames, Vicon, calibration) with ground truth",
+      lifmcr::apps::AddSynthCommand);
 
   try {
     app.parse(argc, argv);

@@ -1,0 +1,53 @@
+#pragma once
+// Camera motion of the synthetic rig: each camera has its own smooth
+// trajectory in front of the scene, as a pose world_from_cam at any time, so
+// images (at triggers) and Vicon samples (at every Vicon frame) come from
+// the same motion.
+//
+// Kinds (--motion): smooth (sums of slow sines of random phase on the eye
+// position, the look-at point and the roll), handheld (smooth plus tremor:
+// 1-3 Hz, a few mm and tenths of a degree), axis (one axis at a time:
+// translate x, y, z, then yaw, pitch, roll, each back and forth), circle (an
+// arc of 90 degrees around the plate at constant height and distance).
+
+#include "config/frames.h"
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <string>
+
+namespace lifmcr::synth {
+
+// Camera looking from `eye` at `target`, image y down along -up (world z).
+Pose LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, double roll_rad = 0.0);
+
+struct TrajectoryParams {
+  std::string motion = "smooth";
+  Eigen::Vector3d target_mm = Eigen::Vector3d::Zero();  // what the rig looks at
+  double distance_mm = 700;                             // eye to target
+  double elevation_rad = 0.7;                           // above the table plane
+  double lateral_offset_mm = 0;                         // this camera's place in the rig (along x)
+  double duration_s = 1.0;                              // sequence length (for axis/circle)
+  double amplitude_scale = 1.0;
+  std::uint64_t seed = 1;  // per camera
+};
+
+class CameraTrajectory {
+ public:
+  explicit CameraTrajectory(const TrajectoryParams& params);
+  Pose WorldFromCam(double t_s) const;
+
+ private:
+  struct Wave {
+    double amplitude, frequency_hz, phase;
+  };
+  double Sum(const Wave* waves, int count, double t_s) const;
+  TrajectoryParams p_;
+  Wave eye_[3][3];
+  Wave target_[3][2];
+  Wave roll_[2];
+  Wave tremor_[6][2];
+};
+
+}  // namespace lifmcr::synth
