@@ -1,0 +1,120 @@
+#include "processing/plenoptic_frame.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace lifmcr::processing {
+namespace {
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+float GreyAt(ConstImageView image, int x, int y) {
+  const std::uint8_t* row = image.Row(y);
+  if (image.format == PixelFormat::kMono8) return row[x];
+  return (row[3 * x] + row[3 * x + 1] + row[3 * x + 2]) / 3.0f;
+}
+
+}  // namespace
+
+Status PrepareFrame(ConstImageView raw, ConstImageView white, const MlaGrid& grid,
+                    const MlaCalibration& mla, const FrameOptions& options, PlenopticFrame* frame) {
+  const int w = raw.width, h = raw.height;
+  if (w <= 0 || h <= 0 || raw.data == nullptr) return Error{"raw frame: empty image"};
+  const bool devignette = white.data != nullptr;
+  if (devignette && (white.width != w || white.height != h))
+    return Error{"white image: " + std::to_string(white.width) + "x" +
+                 std::to_string(white.height) + ", expected the raw frame's size " +
+                 std::to_string(w) + "x" + std::to_string(h)};
+  PlenopticFrame& f = *frame;
+  f.width = w;
+  f.height = h;
+  f.grid = grid;
+  f.lambda = options.lambda;
+  f.has_colour = raw.format == PixelFormat::kBgr8;
+  const std::size_t n = static_cast<std::size_t>(w) * h;
+  f.grey.resize(n);
+  f.colour.resize(f.has_colour ? 3 * n : 0);
+  f.lens_of_pixel.assign(n, -1);
+
+  // White level: 99th percentile of a subsample of the white image.
+  double white_level = 255.0;
+  if (devignette) {
+    std::vector<float> sample;
+    sample.reserve(n / 16 + 1);
+    for (int y = 0; y < h; y += 4)
+      for (int x = 0; x < w; x += 4) sample.push_back(GreyAt(white, x, y));
+    const std::size_t k = sample.size() * 99 / 100;
+    std::nth_element(sample.begin(), sample.begin() + k, sample.end());
+    white_level = std::max(1.0f, sample[k]);
+  }
+  f.white_level = white_level;
+  const float min_white = static_cast<float>(options.min_white_fraction * white_level);
+  tbb::parallel_for(0, h, [&](int y) {
+    const std::uint8_t* row = raw.Row(y);
+    const std::uint8_t* wrow = devignette ? white.Row(y) : nullptr;
+    for (int x = 0; x < w; ++x) {
+      const std::size_t idx = static_cast<std::size_t>(y) * w + x;
+      float gain = 1.0f;
+      if (devignette) {
+        const float wv = white.format == PixelFormat::kMono8
+                             ? wrow[x]
+                             : (wrow[3 * x] + wrow[3 * x + 1] + wrow[3 * x + 2]) / 3.0f;
+        gain = wv >= min_white ? static_cast<float>(white_level) / wv : kNaN;
+      }
+      if (f.has_colour) {
+        const float b = row[3 * x] * gain, g = row[3 * x + 1] * gain, r = row[3 * x + 2] * gain;
+        f.colour[3 * idx] = b;
+        f.colour[3 * idx + 1] = g;
+        f.colour[3 * idx + 2] = r;
+        f.grey[idx] = (b + g + r) / 3.0f;
+      } else {
+        f.grey[idx] = row[x] * gain;
+      }
+    }
+  });
+
+  // Micro images and the pixel -> lens map.
+  int i_max = 0, j_max = 0;
+  grid.IndexBounds(w, h, &f.i_min, &i_max, &f.j_min, &j_max);
+  f.ni = i_max - f.i_min + 1;
+  f.nj = j_max - f.j_min + 1;
+  f.lens_index.assign(static_cast<std::size_t>(f.ni) * f.nj, -1);
+  f.lenses.clear();
+  f.radius_px = grid.PitchPx() / 2 - mla.lens_border_px - options.margin_px;
+  if (!(f.radius_px > 1.0)) return Error{"MLA: lens border leaves no usable micro-image radius"};
+  const Eigen::Vector2d c((w - 1) / 2.0, (h - 1) / 2.0);
+  for (int j = f.j_min; j <= j_max; ++j)
+    for (int i = f.i_min; i <= i_max; ++i) {
+      const Eigen::Vector2d ck = grid.Center(i, j);
+      if (ck.x() < -f.radius_px || ck.y() < -f.radius_px || ck.x() > w - 1 + f.radius_px ||
+          ck.y() > h - 1 + f.radius_px)
+        continue;
+      MicroImage m;
+      m.i = i;
+      m.j = j;
+      m.type = grid.Type(i, j);
+      m.centre_px = ck;
+      m.lens_px = c + (ck - c) * options.lambda;
+      f.lens_index[static_cast<std::size_t>(j - f.j_min) * f.ni + (i - f.i_min)] =
+          static_cast<std::int32_t>(f.lenses.size());
+      f.lenses.push_back(m);
+    }
+  const double r2 = f.radius_px * f.radius_px;
+  tbb::parallel_for(0, static_cast<int>(f.lenses.size()), [&](int k) {
+    const Eigen::Vector2d ck = f.lenses[k].centre_px;
+    const int x0 = std::max(0, static_cast<int>(std::ceil(ck.x() - f.radius_px)));
+    const int x1 = std::min(w - 1, static_cast<int>(std::floor(ck.x() + f.radius_px)));
+    const int y0 = std::max(0, static_cast<int>(std::ceil(ck.y() - f.radius_px)));
+    const int y1 = std::min(h - 1, static_cast<int>(std::floor(ck.y() + f.radius_px)));
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x)
+        if ((Eigen::Vector2d(x, y) - ck).squaredNorm() <= r2)
+          f.lens_of_pixel[static_cast<std::size_t>(y) * w + x] = k;
+  });
+  return Status::Ok();
+}
+
+}  // namespace lifmcr::processing
