@@ -114,6 +114,38 @@ Status PrepareFrame(ConstImageView raw, ConstImageView white, const MlaGrid& gri
         if ((Eigen::Vector2d(x, y) - ck).squaredNorm() <= r2)
           f.lens_of_pixel[static_cast<std::size_t>(y) * w + x] = k;
   });
+  // Smoothing of the grey image within each micro image (binomial [1 2 1] / 4
+  // applied `smooth_passes` times per axis, normalised over the pixels of the
+  // same micro image): noise and the blur difference between lens types.
+  f.work.resize(n);
+  for (int pass = 0; pass < options.smooth_passes; ++pass) {
+    for (int axis = 0; axis < 2; ++axis) {
+      const std::ptrdiff_t step = axis == 0 ? 1 : w;
+      tbb::parallel_for(0, h, [&](int y) {
+        for (int x = 0; x < w; ++x) {
+          const std::size_t idx = static_cast<std::size_t>(y) * w + x;
+          const std::int32_t lens = f.lens_of_pixel[idx];
+          if (lens < 0) {
+            f.work[idx] = f.grey[idx];
+            continue;
+          }
+          double sum = 2.0 * f.grey[idx], weight = 2.0;
+          const bool has_lo = axis == 0 ? x > 0 : y > 0;
+          const bool has_hi = axis == 0 ? x < w - 1 : y < h - 1;
+          if (has_lo && f.lens_of_pixel[idx - step] == lens && !std::isnan(f.grey[idx - step])) {
+            sum += f.grey[idx - step];
+            weight += 1;
+          }
+          if (has_hi && f.lens_of_pixel[idx + step] == lens && !std::isnan(f.grey[idx + step])) {
+            sum += f.grey[idx + step];
+            weight += 1;
+          }
+          f.work[idx] = static_cast<float>(sum / weight);
+        }
+      });
+      f.grey.swap(f.work);
+    }
+  }
   return Status::Ok();
 }
 

@@ -33,7 +33,8 @@ struct MicroImage {
 
 struct FrameOptions {
   double lambda = 1.0;              // b_L0 / (b_L0 + B); 1 when the intrinsics are unknown
-  double margin_px = 0.5;           // r_valid = D / 2 - lens_border - margin
+  double margin_px = 0.0;           // r_valid = D / 2 - lens_border - margin
+  int smooth_passes = 2;            // binomial smoothing of the grey image within micro images
   double min_white_fraction = 0.5;  // devignetting validity
 };
 
@@ -42,6 +43,7 @@ struct FrameOptions {
 struct PlenopticFrame {
   int width = 0, height = 0;
   std::vector<float> grey;    // devignetted grey, NaN where invalid
+  std::vector<float> work;    // scratch of the smoothing
   std::vector<float> colour;  // devignetted B, G, R interleaved (BGR8 input only)
   bool has_colour = false;
   std::vector<std::int32_t> lens_of_pixel;  // index into lenses, -1 outside every r_valid

@@ -29,15 +29,19 @@ struct Neighbour {
   Eigen::Vector2d delta;  // c_n - c_k
   Eigen::Vector2d e, e_perp;
   double length = 0;
+  bool same_type = false;
 };
 
 // Patch samples around p: offsets a e + b e_perp, a = -2..2, b = -1..1.
+// Samples must lie within r_limit of the micro image's centre `c`.
 bool SamplePatch(const PlenopticFrame& f, const Eigen::Vector2d& p, const Neighbour& nb,
-                 float* out) {
+                 const Eigen::Vector2d& c, double r_limit, float* out) {
+  const double r2 = r_limit * r_limit;
   int k = 0;
   for (int b = -1; b <= 1; ++b)
     for (int a = -2; a <= 2; ++a) {
       const Eigen::Vector2d s = p + a * nb.e + b * nb.e_perp;
+      if ((s - c).squaredNorm() > r2) return false;
       const float v = f.SampleGrey(s.x(), s.y());
       if (std::isnan(v)) return false;
       out[k++] = v;
@@ -61,7 +65,7 @@ bool MatchAlong(const Search& s, const Eigen::Vector2d& p, const float* ref, dou
   constexpr int kMaxSteps = 256;
   if (steps > kMaxSteps) return false;
   std::array<double, kMaxSteps> cost;
-  const double r_ok = s.f.radius_px - 2.3;
+  const double r_limit = s.f.radius_px + 0.5;
   int best = -1;
   double best_cost = std::numeric_limits<double>::max();
   int first_valid = -1, last_valid = -1;
@@ -70,8 +74,7 @@ bool MatchAlong(const Search& s, const Eigen::Vector2d& p, const float* ref, dou
     const double z = z_lo + k * dz;
     const Eigen::Vector2d q = p + s.lambda * nb.delta * (1.0 - z);
     cost[k] = std::numeric_limits<double>::infinity();
-    if ((q - nb.lens->centre_px).squaredNorm() > r_ok * r_ok) continue;
-    if (!SamplePatch(s.f, q, nb, patch)) continue;
+    if (!SamplePatch(s.f, q, nb, nb.lens->centre_px, r_limit, patch)) continue;
     double c = 0;
     for (int m = 0; m < kSamples; ++m) {
       const double d = patch[m] - ref[m];
@@ -85,22 +88,27 @@ bool MatchAlong(const Search& s, const Eigen::Vector2d& p, const float* ref, dou
       best = k;
     }
   }
+  if (best < 0) return false;
   if (best <= first_valid || best >= last_valid) return false;
   if (!std::isfinite(cost[best - 1]) || !std::isfinite(cost[best + 1])) return false;
-  // Photometric acceptance: mean SSD near the noise level of two samples.
-  double mean = 0, var = 0;
-  for (int m = 0; m < kSamples; ++m) mean += ref[m];
-  mean /= kSamples;
-  for (int m = 0; m < kSamples; ++m) var += (ref[m] - mean) * (ref[m] - mean);
-  var /= kSamples;
+  // Distinctiveness: the minimum well below the mean cost over the run.
+  double run_sum = 0;
+  int run_n = 0;
+  for (int k = first_valid; k <= last_valid; ++k)
+    if (std::isfinite(cost[k])) {
+      run_sum += cost[k];
+      ++run_n;
+    }
   const double noise2 = 2.0 * s.o.noise_dn * s.o.noise_dn;
-  if (best_cost / kSamples > s.o.max_cost_factor * noise2 + 0.05 * var) return false;
+  if (best_cost > s.o.max_cost_ratio * run_sum / run_n + kSamples * noise2) {
+    return false;
+  }
   const double cm = cost[best - 1], c0 = cost[best], cp = cost[best + 1];
   const double denom = cm - 2 * c0 + cp;
   const double delta = denom > 0 ? std::clamp(0.5 * (cm - cp) / denom, -0.5, 0.5) : 0.0;
   est->z = z_lo + (best + delta) * dz;
-  const double sigma_px2 =
-      noise2 / std::max(gradient_sum, 1e-6) + s.o.geometric_px * s.o.geometric_px;
+  const double model_px = nb.same_type ? s.o.geometric_px : s.o.cross_type_px;
+  const double sigma_px2 = noise2 / std::max(gradient_sum, 1e-6) + model_px * model_px;
   est->sigma = std::sqrt(sigma_px2) / scale;
   return true;
 }
@@ -192,6 +200,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         nb.length = nb.delta.norm();
         nb.e = nb.delta / nb.length;
         nb.e_perp = {-nb.e.y(), nb.e.x()};
+        nb.same_type = nb.lens->type == lens.type;
         if (ring == 1) ring1_count = count;
       }
     const double r = f.radius_px;
@@ -209,8 +218,6 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         if (f.lens_of_pixel[idx] != k || std::isnan(f.grey[idx])) continue;
         ++valid_count[k];
         const Eigen::Vector2d p(x, y);
-        const double r_ref = r - 2.3;
-        const bool patch_inside = (p - lens.centre_px).squaredNorm() <= r_ref * r_ref;
         // Gradient gate along each ring-1 direction.
         bool textured = false;
         const float gx = 0.5f * (f.Grey(x + 1, y) - f.Grey(x - 1, y));
@@ -222,12 +229,11 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         if (!textured) continue;
         out->textured[idx] = 1;
         ++textured_count[k];
-        if (!patch_inside) continue;
         estimates.clear();
         for (int m = 0; m < ring1_count; ++m) {
           const Neighbour& nb = nbs[m];
           if (std::abs(gx * nb.e.x() + gy * nb.e.y()) < options.min_gradient_dn) continue;
-          if (!SamplePatch(f, p, nb, ref)) continue;
+          if (!SamplePatch(f, p, nb, lens.centre_px, r + 0.5, ref)) continue;
           double g2 = 0;
           for (int b = 0; b < kAcross; ++b)
             for (int a = 0; a + 2 < kAlong; ++a) {
@@ -239,12 +245,13 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         }
         double z = 0, sigma = 0;
         int used = Fuse(estimates, &z, &sigma);
-        if (used == 0) continue;
-        // Longer baselines, searched around the current estimate.
+        const bool have_prior = used > 0;
+        // Longer baselines, searched around the current estimate (the whole
+        // range when the short ones gave none).
         for (int m = ring1_count; m < count; ++m) {
           const Neighbour& nb = nbs[m];
           if (std::abs(gx * nb.e.x() + gy * nb.e.y()) < options.min_gradient_dn) continue;
-          if (!SamplePatch(f, p, nb, ref)) continue;
+          if (!SamplePatch(f, p, nb, lens.centre_px, r + 0.5, ref)) continue;
           double g2 = 0;
           for (int b = 0; b < kAcross; ++b)
             for (int a = 0; a + 2 < kAlong; ++a) {
@@ -253,9 +260,9 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
             }
           const double span = std::max(3 * sigma, 2 * options.step_px / (lambda * nb.length));
           Estimate e;
-          if (MatchAlong(search, p, ref, g2, nb, std::max(lo, z - span), std::min(hi, z + span),
-                         &e))
-            estimates.push_back(e);
+          const double z0 = have_prior ? std::max(lo, z - span) : lo;
+          const double z1 = have_prior ? std::min(hi, z + span) : hi;
+          if (MatchAlong(search, p, ref, g2, nb, z0, z1, &e)) estimates.push_back(e);
         }
         used = Fuse(estimates, &z, &sigma);
         if (used < options.min_estimates || z <= 0) continue;
@@ -266,34 +273,60 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
             static_cast<float>(std::clamp(1.0 - (sigma / z) / options.max_rel_sigma, 0.0, 1.0));
         pixels.push_back(idx);
       }
-    // Consistency within the micro image: median of the estimates within 2 px.
+    // Regularisation within the micro image: neighbouring pixels see nearby
+    // virtual points. Each estimate becomes the inverse-variance mean of the
+    // estimates within `smooth_radius_px` that agree with their median
+    // (within max(3 sigma, 5 %)); fewer than min_support agreeing: rejected.
     patch_z.clear();
-    for (std::size_t idx : pixels) patch_z.push_back(1.0f / out->virtual_depth[idx]);
-    std::vector<char> keep(pixels.size(), 1);
+    patch_sigma.clear();
+    for (std::size_t idx : pixels) {
+      patch_z.push_back(1.0f / out->virtual_depth[idx]);
+      patch_sigma.push_back(out->sigma_z[idx]);
+    }
     std::vector<float> near;
+    std::vector<std::size_t> near_index;
+    const int rad = options.smooth_radius_px;
     for (std::size_t a = 0; a < pixels.size(); ++a) {
       const int xa = static_cast<int>(pixels[a] % w), ya = static_cast<int>(pixels[a] / w);
       near.clear();
+      near_index.clear();
       for (std::size_t b = 0; b < pixels.size(); ++b) {
-        if (b == a) continue;
         const int xb = static_cast<int>(pixels[b] % w), yb = static_cast<int>(pixels[b] / w);
-        if (std::abs(xa - xb) <= 2 && std::abs(ya - yb) <= 2) near.push_back(patch_z[b]);
+        if (std::abs(xa - xb) <= rad && std::abs(ya - yb) <= rad) {
+          near.push_back(patch_z[b]);
+          near_index.push_back(b);
+        }
       }
-      if (near.size() < 2) continue;
-      std::nth_element(near.begin(), near.begin() + near.size() / 2, near.end());
-      const double med = near[near.size() / 2];
-      const double sigma = out->sigma_z[pixels[a]];
-      if (std::abs(patch_z[a] - med) > std::max(3 * sigma, 0.05 * med)) keep[a] = 0;
-    }
-    for (std::size_t a = 0; a < pixels.size(); ++a) {
-      if (keep[a]) {
-        ++estimated_count[k];
+      std::vector<float> sorted = near;
+      std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+      const double med = sorted[sorted.size() / 2];
+      double sw = 0, swz = 0;
+      int support = 0;
+      for (std::size_t m = 0; m < near.size(); ++m) {
+        const double sg = patch_sigma[near_index[m]];
+        if (std::abs(near[m] - med) > std::max(3 * sg, 0.05 * med)) continue;
+        sw += 1 / (sg * sg);
+        swz += near[m] / (sg * sg);
+        ++support;
+      }
+      const std::size_t idx = pixels[a];
+      if (support < options.min_support ||
+          std::abs(patch_z[a] - med) > std::max(3.0 * patch_sigma[a], 0.05 * med)) {
+        out->virtual_depth[idx] = kNaN;
+        out->sigma_z[idx] = kNaN;
+        out->confidence[idx] = 0;
+        ++rejected_count[k];
         continue;
       }
-      out->virtual_depth[pixels[a]] = kNaN;
-      out->sigma_z[pixels[a]] = kNaN;
-      out->confidence[pixels[a]] = 0;
-      ++rejected_count[k];
+      const double z = swz / sw;
+      // The neighbours are not independent views of one point: keep the
+      // pixel's own sigma, shrunk by at most sqrt(support).
+      const double sigma = patch_sigma[a] / std::sqrt(static_cast<double>(support));
+      out->virtual_depth[idx] = static_cast<float>(1.0 / z);
+      out->sigma_z[idx] = static_cast<float>(sigma);
+      out->confidence[idx] =
+          static_cast<float>(std::clamp(1.0 - (sigma / z) / options.max_rel_sigma, 0.0, 1.0));
+      ++estimated_count[k];
     }
   });
   DepthStats& st = out->stats;

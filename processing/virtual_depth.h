@@ -7,25 +7,34 @@
 // so a pixel p of micro image k appears in neighbour n at
 //   q(z) = p + lambda (c_n - c_k) (1 - z),   z = 1 / v,
 // a line (the epipolar line) along the baseline Delta = c_n - c_k.
-// Per pixel of micro image k (type t) with enough gradient along Delta:
-// 1. Search z over type t's sharp range [1 / v_max_t, 1 / v_min_t] (from the
-//    MLA file: the micro image is only sharp there), in steps of step_px of
-//    disparity, minimising the SSD of a 5 x 3 patch sampled along x across
-//    the epipolar line (bilinear), with q(z) inside the neighbour's valid
-//    disc; the minimum must lie inside the searched interval; a parabola
-//    through the three costs around it gives the sub-step position.
+// Per pixel of micro image k (type t) with enough gradient along Delta, on
+// the devignetted grey image smoothed within each micro image
+// (plenoptic_frame.h):
+// 1. Search z over the virtual-depth range of the MLA file's lens types
+//    (the union of their depth ranges; with type_ranges, only type t's own
+//    sharp range), in steps of step_px of disparity, minimising the SSD of a
+//    5 x 3 patch sampled along x across the epipolar line (bilinear), every
+//    sample inside the micro images' discs; the minimum must lie strictly
+//    inside the searched run and be distinct (<= max_cost_ratio of the run's
+//    mean cost, plus noise); a parabola through the three costs around it
+//    gives the sub-step position.
 // 2. Uncertainty (in z, where the noise is near Gaussian):
-//    sigma_px^2 = 2 sigma_I^2 / sum (g_e)^2 + sigma_geo^2,
+//    sigma_px^2 = 2 sigma_I^2 / sum (g_e)^2 + sigma_model^2,
 //    sigma_z = sigma_px / (lambda |Delta|)
-//    (g_e: differences of the patch along the epipolar line).
-// 3. Baselines from short to long: ring 1 (6 neighbours, |Delta| = D), then
-//    ring 2 (|Delta| = sqrt(3) D) searched only within z +- 3 sigma of the
-//    ring-1 fusion. Fusion in z weighted by 1 / sigma^2 (product of
+//    (g_e: differences of the patch along the epipolar line; sigma_model =
+//    geometric_px for a pair of the same lens type, cross_type_px for two
+//    types, whose different defocus biases the match).
+// 3. Baselines from short to long: ring 1 (6 neighbours, |Delta| = D, all of
+//    other types), then ring 2 (|Delta| = sqrt(3) D, the same type) searched
+//    within z +- 3 sigma of the ring-1 fusion (the whole range when ring 1
+//    gave nothing). Fusion in z weighted by 1 / sigma^2 (product of
 //    Gaussians); estimates farther than max(3 sigma, 3 % of z) from the
 //    median are outliers.
-// 4. A pixel gets a value when at least min_estimates estimates agree;
-//    then a consistency check against the other estimates of its micro image
-//    within 2 px (median within max(3 sigma, 5 %)). confidence =
+// 4. A pixel with at least min_estimates fused estimates and sigma_z / z <=
+//    max_rel_sigma is regularised within its micro image: the inverse-
+//    variance mean of the estimates within smooth_radius_px that agree with
+//    their median (max(3 sigma, 5 %)); fewer than min_support agreeing, or
+//    the pixel itself disagreeing: rejected (outlier). confidence =
 //    clamp(1 - (sigma_z / z) / max_rel_sigma, 0, 1).
 // Work is parallel over micro images (TBB); each pixel is written once.
 
@@ -44,10 +53,13 @@ struct DepthOptions {
   double geometric_px = 0.05;    // sigma_geo: grid-calibration uncertainty
   double step_px = 0.5;          // disparity step of the search
   int rings = 2;                 // 1 or 2
-  int min_estimates = 2;         // agreeing estimates per pixel
-  double max_cost_factor = 6.0;  // mean SSD per sample <= factor * 2 sigma_I^2 (+ 5 % patch var)
+  double cross_type_px = 0.3;    // model error of a pair of different lens types (blur)
+  int smooth_radius_px = 4;      // regularisation window within a micro image
+  int min_support = 3;           // agreeing estimates in that window (the pixel included)
+  int min_estimates = 1;         // agreeing estimates per pixel
+  double max_cost_ratio = 0.5;   // best SSD <= ratio * mean SSD of the search (+ noise)
   double max_rel_sigma = 0.1;    // sigma_z / z above this: rejected
-  bool type_ranges = true;       // search only the lens type's sharp range; else the union
+  bool type_ranges = false;      // search only the lens type's sharp range; else the union
   Status Check() const;
 };
 
