@@ -39,16 +39,27 @@ Status PrepareFrame(ConstImageView raw, ConstImageView white, const MlaGrid& gri
   f.colour.resize(f.has_colour ? 3 * n : 0);
   f.lens_of_pixel.assign(n, -1);
 
-  // White level: 99th percentile of a subsample of the white image.
+  // White level W_ref: the white image's mean over the cores (within D / 6
+  // of the centre) of the micro images near the image centre, where the
+  // vignetting is least: a white surface reads W_ref after devignetting.
   double white_level = 255.0;
   if (devignette) {
-    std::vector<float> sample;
-    sample.reserve(n / 16 + 1);
-    for (int y = 0; y < h; y += 4)
-      for (int x = 0; x < w; x += 4) sample.push_back(GreyAt(white, x, y));
-    const std::size_t k = sample.size() * 99 / 100;
-    std::nth_element(sample.begin(), sample.begin() + k, sample.end());
-    white_level = std::max(1.0f, sample[k]);
+    const int half = std::max(8, static_cast<int>(0.1 * std::min(w, h)));
+    const double core = grid.PitchPx() / 6;
+    double sum = 0;
+    long long count = 0;
+    for (int y = h / 2 - half; y <= h / 2 + half; ++y)
+      for (int x = w / 2 - half; x <= w / 2 + half; ++x) {
+        if (x < 0 || y < 0 || x >= w || y >= h) continue;
+        int i = 0, j = 0;
+        grid.Nearest(Eigen::Vector2d(x, y), &i, &j);
+        if ((grid.Center(i, j) - Eigen::Vector2d(x, y)).norm() > core) continue;
+        sum += GreyAt(white, x, y);
+        ++count;
+      }
+    if (count == 0 || !(sum / count > 1.0))
+      return Error{"white image: the micro images near the image centre are dark"};
+    white_level = sum / count;
   }
   f.white_level = white_level;
   const float min_white = static_cast<float>(options.min_white_fraction * white_level);

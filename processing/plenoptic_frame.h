@@ -3,7 +3,7 @@
 // image, and the micro images it holds (centres, micro-lens centres, types).
 //
 // Devignetting: I_n(p) = I(p) * W_ref / W(p), W the white image's grey level
-// and W_ref its bright level (99th percentile), so a white surface reads
+// and W_ref its level at the micro-image cores near the image centre, so a white surface reads
 // W_ref everywhere; pixels with W(p) < min_white_fraction * W_ref (the dark
 // gaps and rims between micro images) are invalid (NaN). Grey is the channel
 // mean; colour keeps B, G, R (devignetted alike).
