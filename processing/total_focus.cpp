@@ -61,6 +61,44 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
       out->sigma_z[t] = static_cast<float>(std::sqrt(1.0 / sw[t]));
       ++out->measured;
     }
+  // Regularisation of the measured map: each measured pixel becomes the
+  // inverse-variance mean of the measured pixels within smooth_radius that
+  // agree with their median within 5 % of z.
+  if (options.smooth_radius > 0) {
+    const int rad = options.smooth_radius;
+    std::vector<float> smoothed = out->virtual_depth;
+    tbb::parallel_for(0, th, [&](int w) {
+      std::vector<float> zs;
+      for (int u = 0; u < tw; ++u) {
+        const std::size_t t = static_cast<std::size_t>(w) * tw + u;
+        if (std::isnan(out->virtual_depth[t])) continue;
+        zs.clear();
+        for (int dw = -rad; dw <= rad; ++dw)
+          for (int du = -rad; du <= rad; ++du) {
+            const int uu = u + du, ww = w + dw;
+            if (uu < 0 || ww < 0 || uu >= tw || ww >= th) continue;
+            const float v = out->virtual_depth[static_cast<std::size_t>(ww) * tw + uu];
+            if (!std::isnan(v)) zs.push_back(1.0f / v);
+          }
+        std::nth_element(zs.begin(), zs.begin() + zs.size() / 2, zs.end());
+        const double med = zs[zs.size() / 2];
+        double a = 0, b = 0;
+        for (int dw = -rad; dw <= rad; ++dw)
+          for (int du = -rad; du <= rad; ++du) {
+            const int uu = u + du, ww = w + dw;
+            if (uu < 0 || ww < 0 || uu >= tw || ww >= th) continue;
+            const std::size_t q = static_cast<std::size_t>(ww) * tw + uu;
+            const float v = out->virtual_depth[q];
+            if (std::isnan(v) || std::abs(1.0 / v - med) > 0.05 * med) continue;
+            const double wq = 1.0 / (static_cast<double>(out->sigma_z[q]) * out->sigma_z[q]);
+            a += wq;
+            b += wq / v;
+          }
+        if (a > 0) smoothed[t] = static_cast<float>(a / b);
+      }
+    });
+    out->virtual_depth.swap(smoothed);
+  }
   out->fallback_v = 0;
   if (!all_v.empty()) {
     std::nth_element(all_v.begin(), all_v.begin() + all_v.size() / 2, all_v.end());

@@ -7,7 +7,9 @@
 // Virtual depth on the TF grid: every raw estimate (pixel p of micro image k,
 // virtual depth v) is the virtual point x_v = l_k + v (p - l_k); it is
 // splatted to the TF pixel nearest to (x_v - 0.5) / 2 and the splats are
-// fused in z = 1/v weighted by 1 / sigma_z^2. Holes are filled by averaging
+// fused in z = 1/v weighted by 1 / sigma_z^2, then regularised (each measured
+// pixel: the inverse-variance mean of the measured pixels within
+// smooth_radius agreeing with their median within 5 %). Holes are filled by averaging
 // the valid 8-neighbours, fill_iterations rounds (each grows the map by one
 // TF pixel); what stays empty is NaN.
 //
@@ -30,6 +32,7 @@
 namespace lifmcr::processing {
 
 struct TfOptions {
+  int smooth_radius = 4;        // regularisation of the measured TF depth (TF pixels)
   int fill_iterations = 6;      // hole filling of the TF depth map (TF pixels)
   double unsharp_weight = 0.1;  // weight of micro images whose type is not sharp at v
   double gain = 1.0;            // output = gain * devignetted value
