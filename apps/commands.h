@@ -15,5 +15,7 @@ using CommandRun = std::function<int()>;
 CommandRun AddInfoCommand(CLI::App& app);
 CommandRun AddViconCommand(CLI::App& app);
 CommandRun AddSynthCommand(CLI::App& app);
+CommandRun AddGridCommand(CLI::App& app);
+CommandRun AddDepthCommand(CLI::App& app);
 
 }  // namespace lifmcr::apps

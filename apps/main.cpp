@@ -25,6 +25,10 @@ int main(int argc, char** argv) {
       lifmcr::apps::AddViconCommand);
   add("synth", "Write a synthetic LiFMCR rig (raw frames, Vicon, calibration) with ground truth",
       lifmcr::apps::AddSynthCommand);
+  add("grid", "Fit the micro-image lattice to a white image and write an MLA XML",
+      lifmcr::apps::AddGridCommand);
+  add("depth", "Virtual depth, totally focused image, metric depth and point cloud of one frame",
+      lifmcr::apps::AddDepthCommand);
 
   try {
     app.parse(argc, argv);

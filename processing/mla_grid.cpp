@@ -269,8 +269,13 @@ Expected<GridFitResult> FitGridToWhiteImage(ConstImageView white, const MlaGrid*
     std::vector<char> use(index.size(), 1);
     FitAffine(index, centre, use, &grid);
   }
-  // Adopt the MLA file's reference lens and bases (and so its lens types).
-  if (initial != nullptr) {
+  // Reference lens: the MLA file's (with its bases, and so its lens types),
+  // else the lattice node nearest the image centre.
+  if (initial == nullptr) {
+    int i0 = 0, j0 = 0;
+    grid.Nearest(Eigen::Vector2d((w - 1) / 2.0, (h - 1) / 2.0), &i0, &j0);
+    grid.reference_px = grid.Center(i0, j0);
+  } else {
     int i0 = 0, j0 = 0;
     grid.Nearest(initial->reference_px, &i0, &j0);
     if ((grid.Center(i0, j0) - initial->reference_px).norm() > 0.3 * pitch)
