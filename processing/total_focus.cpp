@@ -3,6 +3,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 
@@ -31,27 +32,32 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
   out->width = tw;
   out->height = th;
   std::vector<double> sw(tn, 0.0), swz(tn, 0.0);
-  std::vector<float> all_v;
-  // Splat (serial: a point may land anywhere; cheap compared with matching).
-  for (int y = 0; y < f.height; ++y)
-    for (int x = 0; x < f.width; ++x) {
-      const std::size_t idx = static_cast<std::size_t>(y) * f.width + x;
-      const float v = raw.virtual_depth[idx];
-      if (std::isnan(v)) continue;
-      const int k = f.lens_of_pixel[idx];
-      if (k < 0) continue;
-      const Eigen::Vector2d l = f.lenses[k].lens_px;
-      const Eigen::Vector2d xv = l + v * (Eigen::Vector2d(x, y) - l);
-      const int u = static_cast<int>(std::lround((xv.x() - 0.5) / 2.0));
-      const int w = static_cast<int>(std::lround((xv.y() - 0.5) / 2.0));
-      if (u < 0 || w < 0 || u >= tw || w >= th) continue;
-      const double s = raw.sigma_z[idx];
-      const double weight = 1.0 / std::max(1e-12, s * s);
-      const std::size_t t = static_cast<std::size_t>(w) * tw + u;
-      sw[t] += weight;
-      swz[t] += weight / v;
-      all_v.push_back(v);
-    }
+  // Splat, parallel over micro images; a TF pixel may get splats from several
+  // micro images at once, hence the atomic adds (rarely contended).
+  tbb::parallel_for(0, static_cast<int>(f.lenses.size()), [&](int k) {
+    const MicroImage& m = f.lenses[k];
+    const double r = f.radius_px;
+    const int x0 = std::max(0, static_cast<int>(std::ceil(m.centre_px.x() - r)));
+    const int x1 = std::min(f.width - 1, static_cast<int>(std::floor(m.centre_px.x() + r)));
+    const int y0 = std::max(0, static_cast<int>(std::ceil(m.centre_px.y() - r)));
+    const int y1 = std::min(f.height - 1, static_cast<int>(std::floor(m.centre_px.y() + r)));
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x) {
+        const std::size_t idx = static_cast<std::size_t>(y) * f.width + x;
+        if (f.lens_of_pixel[idx] != k) continue;
+        const float v = raw.virtual_depth[idx];
+        if (std::isnan(v)) continue;
+        const Eigen::Vector2d xv = m.lens_px + v * (Eigen::Vector2d(x, y) - m.lens_px);
+        const int u = static_cast<int>(std::lround((xv.x() - 0.5) / 2.0));
+        const int w = static_cast<int>(std::lround((xv.y() - 0.5) / 2.0));
+        if (u < 0 || w < 0 || u >= tw || w >= th) continue;
+        const double s = raw.sigma_z[idx];
+        const double weight = 1.0 / std::max(1e-12, s * s);
+        const std::size_t t = static_cast<std::size_t>(w) * tw + u;
+        std::atomic_ref<double>(sw[t]).fetch_add(weight, std::memory_order_relaxed);
+        std::atomic_ref<double>(swz[t]).fetch_add(weight / v, std::memory_order_relaxed);
+      }
+  });
   out->virtual_depth.assign(tn, kNaN);
   out->sigma_z.assign(tn, kNaN);
   out->measured = 0;
@@ -100,6 +106,9 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
     out->virtual_depth.swap(smoothed);
   }
   out->fallback_v = 0;
+  std::vector<float> all_v;
+  for (std::size_t t = 0; t < tn; ++t)
+    if (!std::isnan(out->virtual_depth[t])) all_v.push_back(out->virtual_depth[t]);
   if (!all_v.empty()) {
     std::nth_element(all_v.begin(), all_v.begin() + all_v.size() / 2, all_v.end());
     out->fallback_v = all_v[all_v.size() / 2];

@@ -59,6 +59,18 @@ struct Search {
 bool MatchAlong(const Search& s, const Eigen::Vector2d& p, const float* ref, double gradient_sum,
                 const Neighbour& nb, double z_lo, double z_hi, Estimate* est) {
   const double scale = s.lambda * nb.length;  // px of disparity per unit z
+  // Only the z for which q(z) = p + lambda Delta (1 - z) lies in the
+  // neighbour's disc: |d - z u| <= R with u = lambda Delta, d = p + u - c_n.
+  {
+    const Eigen::Vector2d u = s.lambda * nb.delta;
+    const Eigen::Vector2d d = p + u - nb.lens->centre_px;
+    const double uu = u.squaredNorm(), du = d.dot(u), r_lim = s.f.radius_px + 0.5;
+    const double disc = du * du - uu * (d.squaredNorm() - r_lim * r_lim);
+    if (disc <= 0) return false;
+    const double root = std::sqrt(disc);
+    z_lo = std::max(z_lo, (du - root) / uu);
+    z_hi = std::min(z_hi, (du + root) / uu);
+  }
   const double dz = s.o.step_px / scale;
   const int steps = static_cast<int>(std::ceil((z_hi - z_lo) / dz)) + 1;
   if (steps < 3) return false;
@@ -277,41 +289,45 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     // virtual points. Each estimate becomes the inverse-variance mean of the
     // estimates within `smooth_radius_px` that agree with their median
     // (within max(3 sigma, 5 %)); fewer than min_support agreeing: rejected.
-    patch_z.clear();
-    patch_sigma.clear();
+    // Local grid of the micro image's estimates (z and sigma, NaN = none).
+    const int bw = x1 - x0 + 1, bh = y1 - y0 + 1;
+    if (bw <= 0 || bh <= 0) return;
+    patch_z.assign(static_cast<std::size_t>(bw) * bh, kNaN);
+    patch_sigma.assign(patch_z.size(), kNaN);
     for (std::size_t idx : pixels) {
-      patch_z.push_back(1.0f / out->virtual_depth[idx]);
-      patch_sigma.push_back(out->sigma_z[idx]);
+      const int lx = static_cast<int>(idx % w) - x0, ly = static_cast<int>(idx / w) - y0;
+      patch_z[static_cast<std::size_t>(ly) * bw + lx] = 1.0f / out->virtual_depth[idx];
+      patch_sigma[static_cast<std::size_t>(ly) * bw + lx] = out->sigma_z[idx];
     }
-    std::vector<float> near;
-    std::vector<std::size_t> near_index;
     const int rad = options.smooth_radius_px;
-    for (std::size_t a = 0; a < pixels.size(); ++a) {
-      const int xa = static_cast<int>(pixels[a] % w), ya = static_cast<int>(pixels[a] / w);
-      near.clear();
-      near_index.clear();
-      for (std::size_t b = 0; b < pixels.size(); ++b) {
-        const int xb = static_cast<int>(pixels[b] % w), yb = static_cast<int>(pixels[b] / w);
-        if (std::abs(xa - xb) <= rad && std::abs(ya - yb) <= rad) {
-          near.push_back(patch_z[b]);
-          near_index.push_back(b);
+    std::vector<float> near_z, near_s, sorted;
+    for (std::size_t idx : pixels) {
+      const int lx = static_cast<int>(idx % w) - x0, ly = static_cast<int>(idx / w) - y0;
+      near_z.clear();
+      near_s.clear();
+      for (int yy = std::max(0, ly - rad); yy <= std::min(bh - 1, ly + rad); ++yy)
+        for (int xx = std::max(0, lx - rad); xx <= std::min(bw - 1, lx + rad); ++xx) {
+          const float z = patch_z[static_cast<std::size_t>(yy) * bw + xx];
+          if (std::isnan(z)) continue;
+          near_z.push_back(z);
+          near_s.push_back(patch_sigma[static_cast<std::size_t>(yy) * bw + xx]);
         }
-      }
-      std::vector<float> sorted = near;
+      sorted = near_z;
       std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
       const double med = sorted[sorted.size() / 2];
       double sw = 0, swz = 0;
       int support = 0;
-      for (std::size_t m = 0; m < near.size(); ++m) {
-        const double sg = patch_sigma[near_index[m]];
-        if (std::abs(near[m] - med) > std::max(3 * sg, 0.05 * med)) continue;
+      for (std::size_t m = 0; m < near_z.size(); ++m) {
+        const double sg = near_s[m];
+        if (std::abs(near_z[m] - med) > std::max(3 * sg, 0.05 * med)) continue;
         sw += 1 / (sg * sg);
-        swz += near[m] / (sg * sg);
+        swz += near_z[m] / (sg * sg);
         ++support;
       }
-      const std::size_t idx = pixels[a];
+      const float own_z = patch_z[static_cast<std::size_t>(ly) * bw + lx];
+      const float own_sigma = patch_sigma[static_cast<std::size_t>(ly) * bw + lx];
       if (support < options.min_support ||
-          std::abs(patch_z[a] - med) > std::max(3.0 * patch_sigma[a], 0.05 * med)) {
+          std::abs(own_z - med) > std::max(3.0 * own_sigma, 0.05 * med)) {
         out->virtual_depth[idx] = kNaN;
         out->sigma_z[idx] = kNaN;
         out->confidence[idx] = 0;
@@ -321,7 +337,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       const double z = swz / sw;
       // The neighbours are not independent views of one point: keep the
       // pixel's own sigma, shrunk by at most sqrt(support).
-      const double sigma = patch_sigma[a] / std::sqrt(static_cast<double>(support));
+      const double sigma = own_sigma / std::sqrt(static_cast<double>(support));
       out->virtual_depth[idx] = static_cast<float>(1.0 / z);
       out->sigma_z[idx] = static_cast<float>(sigma);
       out->confidence[idx] =
