@@ -156,7 +156,7 @@ Status RenderTotalFocus(const PlenopticFrame& f, const MlaCalibration& mla, cons
   const int channels = f.has_colour ? 3 : 1;
   out->pixels.resize(static_cast<std::size_t>(tw) * th * channels);
   out->linear.resize(out->pixels.size());
-  const double r = f.radius_px, r2 = r * r;
+  const double r = f.radius_px * options.inner_fraction, r2 = r * r;
   const double pitch = f.grid.PitchPx();
   const double fallback = depth.fallback_v > 1 ? depth.fallback_v : 3.0;
   tbb::parallel_for(0, th, [&](int w) {

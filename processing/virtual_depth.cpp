@@ -30,22 +30,30 @@ struct Neighbour {
   Eigen::Vector2d e, e_perp;
   double length = 0;
   bool same_type = false;
+  std::array<double, kSamples> offset_x{}, offset_y{};
 };
 
 // Patch samples around p: offsets a e + b e_perp, a = -2..2, b = -1..1.
-// Samples must lie within r_limit of the micro image's centre `c`.
+// Samples must lie within r_limit of the micro image's centre `c`. The
+// offsets a e + b e_perp (a = -2..2, b = -1..1) are the neighbour's `offset`.
 bool SamplePatch(const PlenopticFrame& f, const Eigen::Vector2d& p, const Neighbour& nb,
                  const Eigen::Vector2d& c, double r_limit, float* out) {
   const double r2 = r_limit * r_limit;
-  int k = 0;
-  for (int b = -1; b <= 1; ++b)
-    for (int a = -2; a <= 2; ++a) {
-      const Eigen::Vector2d s = p + a * nb.e + b * nb.e_perp;
-      if ((s - c).squaredNorm() > r2) return false;
-      const float v = f.SampleGrey(s.x(), s.y());
-      if (std::isnan(v)) return false;
-      out[k++] = v;
-    }
+  const double px = p.x(), py = p.y(), cx = c.x(), cy = c.y();
+  const int w = f.width, h = f.height;
+  const float* grey = f.grey.data();
+  for (int k = 0; k < kSamples; ++k) {
+    const double sx = px + nb.offset_x[k], sy = py + nb.offset_y[k];
+    if ((sx - cx) * (sx - cx) + (sy - cy) * (sy - cy) > r2) return false;
+    const int x0 = static_cast<int>(sx), y0 = static_cast<int>(sy);
+    if (sx < 0 || sy < 0 || x0 >= w - 1 || y0 >= h - 1) return false;
+    const float fx = static_cast<float>(sx - x0), fy = static_cast<float>(sy - y0);
+    const float* r0 = grey + static_cast<std::size_t>(y0) * w + x0;
+    const float* r1 = r0 + w;
+    const float v = (r0[0] + (r0[1] - r0[0]) * fx) * (1 - fy) + (r1[0] + (r1[1] - r1[0]) * fx) * fy;
+    if (std::isnan(v)) return false;
+    out[k] = v;
+  }
   return true;
 }
 
@@ -213,6 +221,11 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         nb.e = nb.delta / nb.length;
         nb.e_perp = {-nb.e.y(), nb.e.x()};
         nb.same_type = nb.lens->type == lens.type;
+        for (int b = -1, m = 0; b <= 1; ++b)
+          for (int a = -2; a <= 2; ++a, ++m) {
+            nb.offset_x[m] = a * nb.e.x() + b * nb.e_perp.x();
+            nb.offset_y[m] = a * nb.e.y() + b * nb.e_perp.y();
+          }
         if (ring == 1) ring1_count = count;
       }
     const double r = f.radius_px;
