@@ -121,9 +121,9 @@ class PlenopticModel {
                                      const Eigen::Vector3d& virtual_px) const;
 
   // The chief ray of raw pixel p; nullopt when p lies outside every micro
-  // image (dark). With distortion the object-side locus is not a straight
-  // line; `ray` is then its tangent at the undistorted solution and
-  // RayForDepth refines it (renderer iterates).
+  // image (dark). `ray` ignores distortion: with distortion the object-side
+  // locus is not a straight line, and renderers start from `ray` and iterate
+  // with RawLineAt and ObjectRayOfImagePoint.
   std::optional<PixelSample> TraceRawPixel(const Eigen::Vector2d& p_px) const;
   // The same for a pixel known to belong to `lens`.
   std::optional<PixelSample> TraceThroughLens(const Eigen::Vector2d& p_px,

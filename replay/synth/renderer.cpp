@@ -160,6 +160,7 @@ RawFrame RenderRaw(const PlenopticModel& model, const Scene& scene, const Pose& 
 
   const double b_l0 = cam.mla_to_main_lens_mm;
   const double max_own_radius2 = std::pow(pitch / std::sqrt(3.0) + 0.01, 2);
+  const double min_other_radius2 = std::pow(pitch / 2 - 0.01, 2);
   const double white = cam.white_level_dn;
   const double electrons_per_dn = cam.full_well_e > 0 ? cam.full_well_e / 255.0 : 0.0;
   const std::uint64_t seed = SplitMix(options.noise_seed);
@@ -191,11 +192,15 @@ RawFrame RenderRaw(const PlenopticModel& model, const Scene& scene, const Pose& 
           depth_v[idx] = kNaN;
           if (x < 0 || y < 0 || x >= frame.width || y >= frame.height) continue;
           const Eigen::Vector2d p(x, y);
-          // Beyond the hexagon's circumradius no pixel is this lens's.
-          if ((p - centre).squaredNorm() > max_own_radius2) continue;
-          int li = 0, lj = 0;
-          model.NearestLens(p, &li, &lj);
-          if (li != i || lj != j) continue;
+          // Inside the hexagon's inscribed circle a pixel is this lens's;
+          // beyond its circumcircle it is not; between, ask the lattice.
+          const double r2 = (p - centre).squaredNorm();
+          if (r2 > max_own_radius2) continue;
+          if (r2 >= min_other_radius2) {
+            int li = 0, lj = 0;
+            model.NearestLens(p, &li, &lj);
+            if (li != i || lj != j) continue;
+          }
           own[idx] = 1;
           any_own = true;
           const std::optional<PixelSample> sample = model.TraceThroughLens(p, lens);

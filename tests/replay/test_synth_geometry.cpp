@@ -223,6 +223,53 @@ TEST(SynthRender, TfDepthAndRawVirtualDepthDescribeTheSameSurface) {
   EXPECT_GT(agree, 0.97 * checked) << agree << " of " << checked;
 }
 
+// The marker plate defines the world frame: seen from above in the
+// all-in-focus image (a pinhole at the front focal point), each ArUco
+// marker's black border lies where the layout puts it, and world +x runs to
+// the right of the image when the camera looks down with its y along -world y.
+TEST(SynthRender, MarkerPlateAppearsWhereTheWorldFrameSaysInTheAllInFocusImage) {
+  const PlenopticModel model(SmallCamera());
+  const Scene scene = MakeTableTopScene(1);
+  const Eigen::Vector3d eye = scene.Target() + Eigen::Vector3d(0, -1.0, 2000.0);
+  const Pose world_from_cam = LookAt(eye, scene.Target());
+  const TfGroundTruth tf = RenderTfGroundTruth(model, scene, world_from_cam);
+  const double f = model.params().main_focal_length_mm, s = model.params().pixel_size_mm;
+  auto project = [&](const Eigen::Vector3d& p_in_world) {
+    const Eigen::Vector3d p = world_from_cam.inverse() * p_in_world;
+    const Eigen::Vector2d raw = p.head<2>() * f / (p.z() - f) / s + model.principal_point_px();
+    return Eigen::Vector2d((raw - Eigen::Vector2d(0.5, 0.5)) / 2.0);
+  };
+  auto grey = [&](const Eigen::Vector2d& q) {
+    const int u = static_cast<int>(std::lround(q.x())), w = static_cast<int>(std::lround(q.y()));
+    EXPECT_TRUE(u >= 0 && w >= 0 && u < tf.width && w < tf.height) << q.transpose();
+    const std::uint8_t* px = tf.bgr.data() + (static_cast<std::size_t>(w) * tf.width + u) * 3;
+    return (px[0] + px[1] + px[2]) / 3.0;
+  };
+  const MarkerPlateLayout& plate = scene.plate;
+  for (int id = 0; id < 4; ++id) {
+    const double half = plate.aruco_side_mm / 2;
+    for (const Eigen::Vector2d& corner : {Eigen::Vector2d(-1, -1), Eigen::Vector2d(1, -1),
+                                          Eigen::Vector2d(1, 1), Eigen::Vector2d(-1, 1)}) {
+      const Eigen::Vector2d c = plate.aruco_centers_mm[id];
+      const Eigen::Vector3d inside(c.x() + corner.x() * (half - 4), c.y() + corner.y() * (half - 4),
+                                   0);
+      const Eigen::Vector3d outside(c.x() + corner.x() * (half + 6),
+                                    c.y() + corner.y() * (half + 6), 0);
+      EXPECT_LT(grey(project(inside)), 60)
+          << "marker " << id << " border corner " << corner.transpose();
+      EXPECT_GT(grey(project(outside)), 120) << "marker " << id << " margin " << corner.transpose();
+    }
+  }
+  // Image right = world +x (id 3 right of id 2), image up = world +y (id 0 above id 2).
+  EXPECT_GT(project({300, 80, 0}).x(), project({100, 80, 0}).x() + 50);
+  EXPECT_LT(project({100, 200, 0}).y(), project({100, 80, 0}).y() - 30);
+  // And the depth there is the distance of the plate.
+  const Eigen::Vector2d centre = project(scene.Target());
+  const float z = tf.depth_mm[static_cast<std::size_t>(std::lround(centre.y())) * tf.width +
+                              std::lround(centre.x())];
+  EXPECT_NEAR(z, 2000.0, 2.0);
+}
+
 // Micro-image centres found in the white image by a peak search and a
 // centroid above half the local peak, against the centres the written MLA
 // file gives (decoded here independently from the XML's conventions).
@@ -279,6 +326,35 @@ TEST(SynthRender, WhiteImageCentresMatchTheWrittenMlaFile) {
   EXPECT_LT(errors[errors.size() * 95 / 100], 0.35);
 }
 
+// A tilted MLA: the micro-image centres move off the ideal lattice by a
+// fraction of a pixel, and the written file is the best lattice through them.
+TEST(SynthModel, TiltedMlaFileIsTheBestLatticeThroughTheTrueCentres) {
+  SynthCameraParams camera = SmallCamera();
+  camera.mla_tilt_x_rad = 1e-3;
+  camera.mla_tilt_y_rad = -6e-4;
+  const PlenopticModel model(camera);
+  const MlaCalibration mla = model.ToMlaCalibration();
+  SynthCameraParams fitted_camera = camera;
+  fitted_camera.mla_tilt_x_rad = fitted_camera.mla_tilt_y_rad = 0;
+  fitted_camera.mla_offset_px = mla.offset_px;
+  fitted_camera.micro_image_pitch_px = mla.diameter_px;
+  fitted_camera.mla_rotation_rad = mla.rotation_rad;
+  const PlenopticModel fitted(fitted_camera);
+  double max_true_vs_nominal = 0, max_true_vs_fit = 0;
+  for (int j = -20; j <= 20; ++j)
+    for (int i = -40; i <= 40; ++i) {
+      const Eigen::Vector2d c = model.Lens(i, j).center_px;
+      if (c.x() < 0 || c.y() < 0 || c.x() > camera.width_px - 1 || c.y() > camera.height_px - 1)
+        continue;
+      max_true_vs_nominal = std::max(max_true_vs_nominal, (c - model.LatticeCenterPx(i, j)).norm());
+      max_true_vs_fit = std::max(max_true_vs_fit, (c - fitted.LatticeCenterPx(i, j)).norm());
+    }
+  EXPECT_GT(max_true_vs_nominal, 0.005) << "a tilt must move the centres";
+  EXPECT_LT(max_true_vs_nominal, 0.5);
+  EXPECT_LE(max_true_vs_fit, max_true_vs_nominal);
+  EXPECT_LT(max_true_vs_fit, 0.1);
+}
+
 // Mean squared gradient inside the micro images of each type, for a textured
 // plane facing the camera at virtual depth v.
 std::array<double, 3> ContrastPerType(const PlenopticModel& model, double v) {
@@ -308,7 +384,10 @@ std::array<double, 3> ContrastPerType(const PlenopticModel& model, double v) {
 }
 
 TEST(SynthRender, EachLensTypeIsSharpestInItsOwnRange) {
-  const PlenopticModel model(SmallCamera());
+  SynthCameraParams camera = SmallCamera();
+  camera.width_px = 512;  // the centre of the small sensor: enough micro images
+  camera.height_px = 384;
+  const PlenopticModel model(camera);
   for (int type = 0; type < 3; ++type) {
     // The virtual depth at which the type is focused.
     const double v =
