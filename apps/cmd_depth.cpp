@@ -1,5 +1,6 @@
 // `lifmcr depth SEQ_DIR --camera SERIAL --frame K --out DIR [--intrinsics
-// cameras.yaml]`: one raw frame to virtual depth (raw and TF grids), the
+// cameras.yaml]`: one raw frame to virtual depth (raw and TF grids, with the
+// confidence map on the raw grid), the
 // totally focused image, metric depth and a coloured point cloud
 // (processing/). The OpenCV (TIFF, PNG, colour map) and PCL (PLY) boundary
 // of the processing library is here.
@@ -226,6 +227,10 @@ int RunDepth(const DepthCommandOptions& o) {
     return Fail(s.error().message);
   if (Status s = synth::WriteFloatTiff(out / (stem + "_virtual_depth_tf.tiff"), tf_depth.width,
                                        tf_depth.height, tf_depth.virtual_depth);
+      !s)
+    return Fail(s.error().message);
+  if (Status s = synth::WriteFloatTiff(out / (stem + "_confidence.tiff"), depth.width, depth.height,
+                                       depth.confidence);
       !s)
     return Fail(s.error().message);
   if (Status s = synth::WritePng(out / (stem + "_tf.png"), tf.View()); !s)

@@ -40,8 +40,8 @@ TEST(CliDepth, GridAndDepthOnASyntheticDataset) {
   ASSERT_EQ(depth.exit_code, 0) << depth.err << depth.out;
   EXPECT_NE(depth.out.find("raw MP/s"), std::string::npos) << depth.out;
   const std::string stem = serial + "_000000";
-  for (const char* suffix : {"_virtual_depth.tiff", "_virtual_depth_tf.tiff", "_depth_mm.tiff",
-                             "_tf.png", "_depth.png", "_points.ply"})
+  for (const char* suffix : {"_virtual_depth.tiff", "_confidence.tiff", "_virtual_depth_tf.tiff",
+                             "_depth_mm.tiff", "_tf.png", "_depth.png", "_points.ply"})
     EXPECT_TRUE(fs::exists(out / (stem + suffix))) << suffix;
   int w = 0, h = 0;
   Expected<std::vector<float>> v =
