@@ -16,5 +16,7 @@ CommandRun AddInfoCommand(CLI::App& app);
 CommandRun AddViconCommand(CLI::App& app);
 CommandRun AddSynthCommand(CLI::App& app);
 CommandRun AddRecordCommand(CLI::App& app);
+CommandRun AddGridCommand(CLI::App& app);
+CommandRun AddDepthCommand(CLI::App& app);
 
 }  // namespace lifmcr::apps

@@ -27,6 +27,10 @@ int main(int argc, char** argv) {
       lifmcr::apps::AddSynthCommand);
   add("record", "Record a rig live (cameras + Vicon) into the LiFMCR layout",
       lifmcr::apps::AddRecordCommand);
+  add("grid", "Fit the micro-image lattice to a white image and write an MLA XML",
+      lifmcr::apps::AddGridCommand);
+  add("depth", "Virtual depth, totally focused image, metric depth and point cloud of one frame",
+      lifmcr::apps::AddDepthCommand);
 
   try {
     app.parse(argc, argv);
