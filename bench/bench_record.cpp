@@ -19,6 +19,8 @@
 #include "acquisition/rig_controller.h"
 #include "config/rig_config.h"
 
+#include <sys/resource.h>
+
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -57,6 +59,15 @@ double DdDirectWriteMbPerS(const fs::path& dir) {
   const double bytes = std::atof(last.substr(0, bytes_end).c_str());
   const double seconds = std::atof(last.substr(copied + 8).c_str());
   return seconds > 0 ? bytes / seconds / 1e6 : 0;
+}
+
+
+// User + system CPU seconds of this process so far.
+double ProcessCpuSeconds() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  auto seconds = [](const timeval& t) { return t.tv_sec + t.tv_usec * 1e-6; };
+  return seconds(usage.ru_utime) + seconds(usage.ru_stime);
 }
 
 }  // namespace
@@ -107,6 +118,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   const auto start = std::chrono::steady_clock::now();
+  const double cpu_start_s = ProcessCpuSeconds();
   const double budget_bytes = budget_gb * 1e9;
   for (;;) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
@@ -121,6 +133,7 @@ int main(int argc, char** argv) {
   (*recorder)->Stop();
   const double elapsed_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double cores_used = (ProcessCpuSeconds() - cpu_start_s) / elapsed_s;
   const RigHealth health = controller.Health();
   std::uint64_t bytes = 0, frames = 0, drops = 0, underruns = 0;
   for (const CameraHealth& c : health.cameras) {
@@ -156,5 +169,9 @@ int main(int argc, char** argv) {
       "%.0f MB/s after, mean %.0f MB/s\n",
       dd_before_mb_s, dd_after_mb_s, dd_mb_s);
   if (dd_mb_s > 0) std::printf("  ratio recorder / dd: %.2f\n", recorder_mb_s / dd_mb_s);
+  std::printf(
+      "  CPU: %.2f cores on average (user + system of the whole process: grab threads, recorder "
+      "writers, and the in-memory cameras themselves)\n",
+      cores_used);
   return drops == 0 ? 0 : 1;
 }
