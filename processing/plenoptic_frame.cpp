@@ -1,0 +1,163 @@
+#include "processing/plenoptic_frame.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace lifmcr::processing {
+namespace {
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+float GreyAt(ConstImageView image, int x, int y) {
+  const std::uint8_t* row = image.Row(y);
+  if (image.format == PixelFormat::kMono8) return row[x];
+  return (row[3 * x] + row[3 * x + 1] + row[3 * x + 2]) / 3.0f;
+}
+
+}  // namespace
+
+Status PrepareFrame(ConstImageView raw, ConstImageView white, const MlaGrid& grid,
+                    const MlaCalibration& mla, const FrameOptions& options, PlenopticFrame* frame) {
+  const int w = raw.width, h = raw.height;
+  if (w <= 0 || h <= 0 || raw.data == nullptr) return Error{"raw frame: empty image"};
+  const bool devignette = white.data != nullptr;
+  if (devignette && (white.width != w || white.height != h))
+    return Error{"white image: " + std::to_string(white.width) + "x" +
+                 std::to_string(white.height) + ", expected the raw frame's size " +
+                 std::to_string(w) + "x" + std::to_string(h)};
+  PlenopticFrame& f = *frame;
+  f.width = w;
+  f.height = h;
+  f.grid = grid;
+  f.lambda = options.lambda;
+  f.has_colour = raw.format == PixelFormat::kBgr8;
+  const std::size_t n = static_cast<std::size_t>(w) * h;
+  f.grey.resize(n);
+  f.colour.resize(f.has_colour ? 3 * n : 0);
+  f.lens_of_pixel.assign(n, -1);
+
+  // White level W_ref: the white image's mean over the cores (within D / 6
+  // of the centre) of the micro images near the image centre, where the
+  // vignetting is least: a white surface reads W_ref after devignetting.
+  double white_level = 255.0;
+  if (devignette) {
+    const int half = std::max(8, static_cast<int>(0.1 * std::min(w, h)));
+    const double core = grid.PitchPx() / 6;
+    double sum = 0;
+    long long count = 0;
+    for (int y = h / 2 - half; y <= h / 2 + half; ++y)
+      for (int x = w / 2 - half; x <= w / 2 + half; ++x) {
+        if (x < 0 || y < 0 || x >= w || y >= h) continue;
+        int i = 0, j = 0;
+        grid.Nearest(Eigen::Vector2d(x, y), &i, &j);
+        if ((grid.Center(i, j) - Eigen::Vector2d(x, y)).norm() > core) continue;
+        sum += GreyAt(white, x, y);
+        ++count;
+      }
+    if (count == 0 || !(sum / count > 1.0))
+      return Error{"white image: the micro images near the image centre are dark"};
+    white_level = sum / count;
+  }
+  f.white_level = white_level;
+  const float min_white = static_cast<float>(options.min_white_fraction * white_level);
+  tbb::parallel_for(0, h, [&](int y) {
+    const std::uint8_t* row = raw.Row(y);
+    const std::uint8_t* wrow = devignette ? white.Row(y) : nullptr;
+    for (int x = 0; x < w; ++x) {
+      const std::size_t idx = static_cast<std::size_t>(y) * w + x;
+      float gain = 1.0f;
+      if (devignette) {
+        const float wv = white.format == PixelFormat::kMono8
+                             ? wrow[x]
+                             : (wrow[3 * x] + wrow[3 * x + 1] + wrow[3 * x + 2]) / 3.0f;
+        gain = wv >= min_white ? static_cast<float>(white_level) / wv : kNaN;
+      }
+      if (f.has_colour) {
+        const float b = row[3 * x] * gain, g = row[3 * x + 1] * gain, r = row[3 * x + 2] * gain;
+        f.colour[3 * idx] = b;
+        f.colour[3 * idx + 1] = g;
+        f.colour[3 * idx + 2] = r;
+        f.grey[idx] = (b + g + r) / 3.0f;
+      } else {
+        f.grey[idx] = row[x] * gain;
+      }
+    }
+  });
+
+  // Micro images and the pixel -> lens map.
+  int i_max = 0, j_max = 0;
+  grid.IndexBounds(w, h, &f.i_min, &i_max, &f.j_min, &j_max);
+  f.ni = i_max - f.i_min + 1;
+  f.nj = j_max - f.j_min + 1;
+  f.lens_index.assign(static_cast<std::size_t>(f.ni) * f.nj, -1);
+  f.lenses.clear();
+  f.radius_px = grid.PitchPx() / 2 - mla.lens_border_px - options.margin_px;
+  if (!(f.radius_px > 1.0)) return Error{"MLA: lens border leaves no usable micro-image radius"};
+  const Eigen::Vector2d c((w - 1) / 2.0, (h - 1) / 2.0);
+  for (int j = f.j_min; j <= j_max; ++j)
+    for (int i = f.i_min; i <= i_max; ++i) {
+      const Eigen::Vector2d ck = grid.Center(i, j);
+      if (ck.x() < -f.radius_px || ck.y() < -f.radius_px || ck.x() > w - 1 + f.radius_px ||
+          ck.y() > h - 1 + f.radius_px)
+        continue;
+      MicroImage m;
+      m.i = i;
+      m.j = j;
+      m.type = grid.Type(i, j);
+      m.centre_px = ck;
+      m.lens_px = c + (ck - c) * options.lambda;
+      f.lens_index[static_cast<std::size_t>(j - f.j_min) * f.ni + (i - f.i_min)] =
+          static_cast<std::int32_t>(f.lenses.size());
+      f.lenses.push_back(m);
+    }
+  const double r2 = f.radius_px * f.radius_px;
+  tbb::parallel_for(0, static_cast<int>(f.lenses.size()), [&](int k) {
+    const Eigen::Vector2d ck = f.lenses[k].centre_px;
+    const int x0 = std::max(0, static_cast<int>(std::ceil(ck.x() - f.radius_px)));
+    const int x1 = std::min(w - 1, static_cast<int>(std::floor(ck.x() + f.radius_px)));
+    const int y0 = std::max(0, static_cast<int>(std::ceil(ck.y() - f.radius_px)));
+    const int y1 = std::min(h - 1, static_cast<int>(std::floor(ck.y() + f.radius_px)));
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x)
+        if ((Eigen::Vector2d(x, y) - ck).squaredNorm() <= r2)
+          f.lens_of_pixel[static_cast<std::size_t>(y) * w + x] = k;
+  });
+  // Smoothing of the grey image within each micro image (binomial [1 2 1] / 4
+  // applied `smooth_passes` times per axis, normalised over the pixels of the
+  // same micro image): noise and the blur difference between lens types.
+  f.work.resize(n);
+  for (int pass = 0; pass < options.smooth_passes; ++pass) {
+    for (int axis = 0; axis < 2; ++axis) {
+      const std::ptrdiff_t step = axis == 0 ? 1 : w;
+      tbb::parallel_for(0, h, [&](int y) {
+        for (int x = 0; x < w; ++x) {
+          const std::size_t idx = static_cast<std::size_t>(y) * w + x;
+          const std::int32_t lens = f.lens_of_pixel[idx];
+          if (lens < 0) {
+            f.work[idx] = f.grey[idx];
+            continue;
+          }
+          double sum = 2.0 * f.grey[idx], weight = 2.0;
+          const bool has_lo = axis == 0 ? x > 0 : y > 0;
+          const bool has_hi = axis == 0 ? x < w - 1 : y < h - 1;
+          if (has_lo && f.lens_of_pixel[idx - step] == lens && !std::isnan(f.grey[idx - step])) {
+            sum += f.grey[idx - step];
+            weight += 1;
+          }
+          if (has_hi && f.lens_of_pixel[idx + step] == lens && !std::isnan(f.grey[idx + step])) {
+            sum += f.grey[idx + step];
+            weight += 1;
+          }
+          f.work[idx] = static_cast<float>(sum / weight);
+        }
+      });
+      f.grey.swap(f.work);
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace lifmcr::processing

@@ -1,0 +1,88 @@
+#pragma once
+// Semi-dense virtual depth from one raw frame (notes/processing.md 1.2;
+// Zeller's probabilistic virtual depth, written in our own terms).
+//
+// A virtual point x_v at virtual depth v appears in micro image k at
+//   p_k = l_k + (x_v - l_k) / v         (l_k micro-lens centre, camera_model.h)
+// so a pixel p of micro image k appears in neighbour n at
+//   q(z) = p + lambda (c_n - c_k) (1 - z),   z = 1 / v,
+// a line (the epipolar line) along the baseline Delta = c_n - c_k.
+// Per pixel of micro image k (type t) with enough gradient along Delta, on
+// the devignetted grey image smoothed within each micro image
+// (plenoptic_frame.h):
+// 1. Search z over the virtual-depth range of the MLA file's lens types
+//    (the union of their depth ranges; with type_ranges, only type t's own
+//    sharp range), in steps of step_px of disparity, minimising the SSD of a
+//    5 x 3 patch sampled along x across the epipolar line (bilinear), every
+//    sample inside the micro images' discs; the minimum must lie strictly
+//    inside the searched run and be distinct (<= max_cost_ratio of the run's
+//    mean cost, plus noise); a parabola through the three costs around it
+//    gives the sub-step position.
+// 2. Uncertainty (in z, where the noise is near Gaussian):
+//    sigma_px^2 = 2 sigma_I^2 / sum (g_e)^2 + sigma_model^2,
+//    sigma_z = sigma_px / (lambda |Delta|)
+//    (g_e: differences of the patch along the epipolar line; sigma_model =
+//    geometric_px for a pair of the same lens type, cross_type_px for two
+//    types, whose different defocus biases the match).
+// 3. Baselines from short to long: ring 1 (6 neighbours, |Delta| = D, all of
+//    other types), then ring 2 (|Delta| = sqrt(3) D, the same type) searched
+//    within z +- 3 sigma of the ring-1 fusion (the whole range when ring 1
+//    gave nothing). Fusion in z weighted by 1 / sigma^2 (product of
+//    Gaussians); estimates farther than max(3 sigma, 3 % of z) from the
+//    median are outliers.
+// 4. A pixel with at least min_estimates fused estimates and sigma_z / z <=
+//    max_rel_sigma is regularised within its micro image: the inverse-
+//    variance mean of the estimates within smooth_radius_px that agree with
+//    their median (max(3 sigma, 5 %)); fewer than min_support agreeing, or
+//    the pixel itself disagreeing: rejected (outlier). confidence =
+//    clamp(1 - (sigma_z / z) / max_rel_sigma, 0, 1).
+// Work is parallel over micro images (TBB); each pixel is written once.
+
+#include "config/error.h"
+#include "config/mla.h"
+#include "processing/plenoptic_frame.h"
+
+#include <string>
+#include <vector>
+
+namespace lifmcr::processing {
+
+struct DepthOptions {
+  double min_gradient_dn = 5.0;  // |dI/de| (DN per px, devignetted grey) to be "textured"
+  double noise_dn = 2.5;         // sigma_I of the raw grey level
+  double geometric_px = 0.05;    // sigma_geo: grid-calibration uncertainty
+  double step_px = 0.5;          // disparity step of the search
+  int rings = 2;                 // 1 or 2
+  double cross_type_px = 0.3;    // model error of a pair of different lens types (blur)
+  int smooth_radius_px = 4;      // regularisation window within a micro image
+  int min_support = 3;           // agreeing estimates in that window (the pixel included)
+  int min_estimates = 1;         // agreeing estimates per pixel
+  double max_cost_ratio = 0.5;   // best SSD <= ratio * mean SSD of the search (+ noise)
+  double max_rel_sigma = 0.1;    // sigma_z / z above this: rejected
+  bool type_ranges = false;      // search only the lens type's sharp range; else the union
+  Status Check() const;
+};
+
+struct DepthStats {
+  long long valid_pixels = 0;     // inside a micro image, devignetted
+  long long textured_pixels = 0;  // with gradient >= min_gradient in some ring-1 direction
+  long long estimated = 0;        // with a fused value
+  long long rejected = 0;         // by the consistency check
+  double seconds = 0;
+  std::string BriefReport() const;
+};
+
+struct VirtualDepthMap {
+  int width = 0, height = 0;
+  std::vector<float> virtual_depth;    // v, NaN where no estimate
+  std::vector<float> sigma_z;          // standard deviation of z = 1 / v
+  std::vector<float> confidence;       // 0..1
+  std::vector<std::uint8_t> textured;  // 1 where the gradient gate passed
+  DepthStats stats;
+};
+
+// Estimates virtual depth on the raw grid; `out` buffers are reused.
+Status EstimateVirtualDepth(const PlenopticFrame& frame, const MlaCalibration& mla,
+                            const DepthOptions& options, VirtualDepthMap* out);
+
+}  // namespace lifmcr::processing

@@ -1,0 +1,78 @@
+// Virtual depth on a synthetic `small` frame with realistic noise, against
+// the ground truth: coverage of textured pixels >= 50 %, median relative
+// error of 1/v <= 2 %, outliers (|dv|/v > 10 %) <= 5 %.
+
+#include "processing/virtual_depth.h"
+#include "tests/processing/synth_frame.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace lifmcr::processing {
+namespace {
+
+TEST(VirtualDepth, MeetsAccuracyGatesOnSmallFrame) {
+  const testing::SynthFrame s = testing::RenderSynthFrame("small", 1.0);
+  const CameraModel camera(s.intrinsics);
+  const MlaGrid grid = MlaGrid::FromCalibration(s.mla, s.raw.width, s.raw.height);
+  FrameOptions fo;
+  fo.lambda = camera.lambda();
+  PlenopticFrame frame;
+  ASSERT_TRUE(PrepareFrame(s.raw.View(), s.white.View(), grid, s.mla, fo, &frame).ok());
+  VirtualDepthMap depth;
+  const DepthOptions dopt;
+  ASSERT_TRUE(EstimateVirtualDepth(frame, s.mla, dopt, &depth).ok());
+  long long textured = 0, covered = 0, outliers = 0;
+  std::vector<double> rel_z;
+  for (std::size_t i = 0; i < depth.virtual_depth.size(); ++i) {
+    const float truth = s.raw.virtual_depth[i];
+    if (!depth.textured[i] || std::isnan(truth)) continue;
+    ++textured;
+    const float v = depth.virtual_depth[i];
+    if (std::isnan(v)) continue;
+    ++covered;
+    rel_z.push_back(std::abs(1.0 / v - 1.0 / truth) * truth);
+    if (std::abs(v - truth) / truth > 0.10) ++outliers;
+  }
+  {
+    std::vector<double> signed_err[3];
+    long long cov[3] = {0, 0, 0}, tex[3] = {0, 0, 0};
+    for (std::size_t i = 0; i < depth.virtual_depth.size(); ++i) {
+      const float truth = s.raw.virtual_depth[i];
+      const int k = frame.lens_of_pixel[i];
+      if (k < 0 || !depth.textured[i] || std::isnan(truth)) continue;
+      const int t = frame.lenses[k].type;
+      ++tex[t];
+      if (std::isnan(depth.virtual_depth[i])) continue;
+      ++cov[t];
+      signed_err[t].push_back((1.0 / depth.virtual_depth[i] - 1.0 / truth) * truth);
+    }
+    for (int t = 0; t < 3; ++t) {
+      auto& e = signed_err[t];
+      if (e.empty()) continue;
+      std::sort(e.begin(), e.end());
+      std::printf("type %d: coverage %lld/%lld, signed dz/z p10 %.3f median %.3f p90 %.3f\n", t,
+                  cov[t], tex[t], e[e.size() / 10], e[e.size() / 2], e[e.size() * 9 / 10]);
+    }
+  }
+  ASSERT_GT(textured, 10000);
+  ASSERT_FALSE(rel_z.empty());
+  std::nth_element(rel_z.begin(), rel_z.begin() + rel_z.size() / 2, rel_z.end());
+  const double coverage = static_cast<double>(covered) / textured;
+  const double median = rel_z[rel_z.size() / 2];
+  const double outlier_share = static_cast<double>(outliers) / covered;
+  std::printf(
+      "%s\nvirtual depth vs truth: coverage %.1f %% of %lld textured, median |dz|/z %.2f %%, "
+      "outliers %.2f %%\n",
+      depth.stats.BriefReport().c_str(), 100 * coverage, textured, 100 * median,
+      100 * outlier_share);
+  EXPECT_GE(coverage, 0.50);
+  EXPECT_LE(median, 0.02);
+  EXPECT_LE(outlier_share, 0.05);
+}
+
+}  // namespace
+}  // namespace lifmcr::processing
