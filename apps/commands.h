@@ -16,5 +16,8 @@ CommandRun AddInfoCommand(CLI::App& app);
 CommandRun AddViconCommand(CLI::App& app);
 CommandRun AddSynthCommand(CLI::App& app);
 CommandRun AddRecordCommand(CLI::App& app);
+CommandRun AddReplayCommand(CLI::App& app);
+CommandRun AddMonitorCommand(CLI::App& app);
+CommandRun AddDemoCommand(CLI::App& app);
 
 }  // namespace lifmcr::apps
