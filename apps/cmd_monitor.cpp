@@ -10,6 +10,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <deque>
 #include <iostream>
 #include <lifmcr_lcm/camera_extrinsics_t.hpp>
@@ -178,7 +179,17 @@ struct Args {
 };
 
 int RunMonitor(const Args& args) {
-  lcm::LCM bus(args.lcm_url);
+  // Depth maps and previews are fragmented datagrams of up to a few hundred
+  // KB: a UDP multicast receiver needs a larger buffer than the kernel's
+  // default (within net.core.rmem_max) or it loses them.
+  std::string url = args.lcm_url;
+  if (url.empty()) {
+    const char* env = std::getenv("LCM_DEFAULT_URL");
+    url = env ? env : "udpm://239.255.76.67:7667?ttl=0";
+  }
+  if (url.starts_with("udpm://") && url.find("recv_buf_size") == std::string::npos)
+    url += std::string(url.find('?') == std::string::npos ? "?" : "&") + "recv_buf_size=4194304";
+  lcm::LCM bus(url);
   if (!bus.good()) {
     std::cerr << "lifmcr monitor: cannot open LCM '" << args.lcm_url << "'\n";
     return 3;

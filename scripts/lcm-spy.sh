@@ -21,5 +21,12 @@ if [[ -z "${DISPLAY:-}" ]]; then
   echo "lcm-spy.sh: no DISPLAY; lcm-spy needs X (ssh -X, or xvfb-run scripts/lcm-spy.sh)" >&2
   exit 1
 fi
+# Java's UDP receive buffer is net.core.rmem_default (208 KB on Debian): depth
+# maps and previews (fragmented, up to a few hundred KB) are then lost in part.
+rmem=$(cat /proc/sys/net/core/rmem_default 2>/dev/null || echo 0)
+if ((rmem < 4194304)); then
+  echo "lcm-spy.sh: net.core.rmem_default is $rmem; lcm-spy will miss large messages." >&2
+  echo "lcm-spy.sh: as root: sysctl -w net.core.rmem_max=8388608 net.core.rmem_default=4194304" >&2
+fi
 exec java -Djava.net.preferIPv4Stack=true \
   -cp "/usr/share/java/lcm.jar:/usr/share/java/jchart2d.jar:$jar" lcm.spy.Spy "$@"

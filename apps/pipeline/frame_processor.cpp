@@ -194,7 +194,31 @@ Expected<ProcessedFrame> DepthProcessor::Process(const Frame& frame) {
   processing::TfImage tf;
   if (Status s = processing::RenderTotalFocus(prepared, camera.mla, tf_depth, tf_options, &tf); !s)
     return s.error();
-  auto depth = EncodeDepth(tf_depth.virtual_depth, tf_depth.width, tf_depth.height);
+  // The TF grid is W/2 x H/2 (16 MB of floats on an R32): published as the
+  // NaN-aware mean of k x k blocks so the longest side is <= depth_max_side.
+  const int k =
+      std::max(1, (std::max(tf_depth.width, tf_depth.height) + preview_.depth_max_side - 1) /
+                      preview_.depth_max_side);
+  const int dw = tf_depth.width / k, dh = tf_depth.height / k;
+  std::vector<float> reduced(static_cast<std::size_t>(dw) * dh,
+                             std::numeric_limits<float>::quiet_NaN());
+  for (int y = 0; y < dh; ++y)
+    for (int x = 0; x < dw; ++x) {
+      double sum = 0;
+      int n = 0;
+      for (int v = 0; v < k; ++v)
+        for (int u = 0; u < k; ++u) {
+          const float d =
+              tf_depth
+                  .virtual_depth[static_cast<std::size_t>(y * k + v) * tf_depth.width + x * k + u];
+          if (std::isfinite(d)) {
+            sum += d;
+            ++n;
+          }
+        }
+      if (n > 0) reduced[static_cast<std::size_t>(y) * dw + x] = static_cast<float>(sum / n);
+    }
+  auto depth = EncodeDepth(reduced, dw, dh);
   if (!depth) return depth.error();
   out.depth = std::move(*depth);
   auto tf_preview = EncodePreview(tf.View(), preview_);

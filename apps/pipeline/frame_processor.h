@@ -8,7 +8,8 @@
 //                     JPEG-encode: the raw preview, always cheap;
 //   DepthProcessor    the preview plus processing/: devignetted frame,
 //                     virtual depth, TF depth map and the totally focused
-//                     image; the TF virtual depth quantised to 16 bit PNG.
+//                     image; the TF virtual depth, reduced by block means
+//                     to at most depth_max_side and quantised to 16-bit PNG.
 // Process is called concurrently for different frames (bounded by the
 // pipeline); implementations keep per-call state only.
 
@@ -40,7 +41,7 @@ struct EncodedDepth {
   float valid_fraction = 0;
   float min_value = 0, max_value = 0;
   std::vector<std::uint8_t> png;
-  std::vector<float> values;  // the TF virtual depth before quantisation (NaN: none)
+  std::vector<float> values;  // the published depth before quantisation (NaN: none)
 };
 
 struct ProcessedFrame {
@@ -53,6 +54,7 @@ struct ProcessedFrame {
 struct PreviewOptions {
   int max_side = 512;  // longest side of the preview, pixels
   int jpeg_quality = 85;
+  int depth_max_side = 640;  // longest side of the published depth map (block means)
   Status Check() const;
 };
 

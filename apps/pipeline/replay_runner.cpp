@@ -53,22 +53,35 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
   const std::chrono::nanoseconds period(static_cast<std::int64_t>(100'000'000 / factor));
 
   std::vector<std::string> serials;
-  std::vector<std::unique_ptr<ReplayCamera>> cameras;
+  for (const CameraFolder& folder : sequence->cameras) serials.push_back(folder.serial);
   ReplayRunResult result;
-  for (std::size_t i = 0; i < sequence->cameras.size(); ++i) {
-    const CameraFolder& folder = sequence->cameras[i];
-    serials.push_back(folder.serial);
-    ReplayCameraOptions camera_options;
-    camera_options.camera_index = static_cast<int>(i);
-    camera_options.pool_buffers = options.pool_buffers;
-    camera_options.trigger_period = period;
-    camera_options.pacing = max_rate ? ReplayPacing::kAsFastAsPossible : ReplayPacing::kOriginal;
-    if (Status s = camera_options.Check(); !s) return s.error();
-    auto camera = std::make_unique<ReplayCamera>(folder.dir, camera_options);
-    if (Status s = camera->Open(); !s) return s.error();
-    result.frames_in_sequence += camera->frame_count();
-    cameras.push_back(std::move(camera));
-  }
+  // A ReplayCamera plays its folder once (Start resumes, never rewinds):
+  // every pass opens fresh ones.
+  std::vector<std::unique_ptr<ReplayCamera>> cameras;
+  auto open_cameras = [&]() -> Status {
+    cameras.clear();
+    for (std::size_t i = 0; i < sequence->cameras.size(); ++i) {
+      ReplayCameraOptions camera_options;
+      camera_options.camera_index = static_cast<int>(i);
+      camera_options.pool_buffers = options.pool_buffers;
+      camera_options.trigger_period = period;
+      camera_options.pacing = max_rate ? ReplayPacing::kAsFastAsPossible : ReplayPacing::kOriginal;
+      if (Status s = camera_options.Check(); !s) return s;
+      auto camera = std::make_unique<ReplayCamera>(sequence->cameras[i].dir, camera_options);
+      if (Status s = camera->Open(); !s) return s;
+      cameras.push_back(std::move(camera));
+    }
+    return Status::Ok();
+  };
+  auto collect_camera_stats = [&] {
+    for (auto& camera : cameras) {
+      const CameraStats stats = camera->Stats();
+      result.camera_underruns += stats.underruns;
+      result.camera_failed += stats.failed;
+    }
+  };
+  if (Status s = open_cameras(); !s) return s.error();
+  for (const auto& camera : cameras) result.frames_in_sequence += camera->frame_count();
   result.cameras = static_cast<int>(cameras.size());
 
   std::unique_ptr<ViconCsvSource> vicon;
@@ -148,8 +161,9 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
       });
     }
     if (vicon) {
+      const std::uint64_t vicon_base = vicon->Stats().frames;  // counts go on across passes
       ++running;
-      threads.emplace_back([&] {
+      threads.emplace_back([&, vicon_base] {
         while (!abort && !vicon->Finished()) {
           if (max_rate) {
             std::int64_t slowest = INT64_MAX;
@@ -160,7 +174,7 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
             }
             // Vicon frame numbers of the next Vicon frame are unknown here;
             // count delivered frames instead (one file row per Vicon frame).
-            if (!all_done && static_cast<std::int64_t>(vicon->Stats().frames) >
+            if (!all_done && static_cast<std::int64_t>(vicon->Stats().frames - vicon_base) >
                                  sync.vicon_divider * (slowest + 4)) {
               std::this_thread::sleep_for(std::chrono::milliseconds(1));
               continue;
@@ -187,14 +201,11 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
     for (auto& camera : cameras) (void)camera->Stop();
     if (vicon) (void)vicon->Stop();
     p.EndPass();
+    collect_camera_stats();
     if (!options.loop || stopped()) break;
+    if (Status s = open_cameras(); !s) return s.error();
   }
   p.Finish();
-  for (auto& camera : cameras) {
-    const CameraStats stats = camera->Stats();
-    result.camera_underruns += stats.underruns;
-    result.camera_failed += stats.failed;
-  }
   result.report = p.Report();
   return result;
 }
