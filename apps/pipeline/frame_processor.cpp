@@ -165,6 +165,20 @@ Expected<std::unique_ptr<DepthProcessor>> DepthProcessor::ForSequence(
   return processor;
 }
 
+Expected<std::unique_ptr<DepthProcessor>> DepthProcessor::FromMlaFiles(
+    const std::map<std::string, std::string>& mla_files, PreviewOptions preview) {
+  std::unique_ptr<DepthProcessor> processor(new DepthProcessor());
+  processor->preview_ = preview;
+  for (const auto& [serial, path] : mla_files) {
+    auto context = std::make_unique<CameraContext>();
+    auto mla = ReadMlaXml(path);
+    if (!mla) return mla.error();
+    context->mla = std::move(*mla);
+    processor->cameras_[serial] = std::move(context);
+  }
+  return processor;
+}
+
 Expected<ProcessedFrame> DepthProcessor::Process(const Frame& frame) {
   const auto start = std::chrono::steady_clock::now();
   const auto it = cameras_.find(frame.serial);

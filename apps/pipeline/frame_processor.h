@@ -90,6 +90,9 @@ class DepthProcessor final : public FrameProcessor {
   static Expected<std::unique_ptr<DepthProcessor>> ForSequence(
       const std::string& sequence_dir, const std::vector<std::string>& serials,
       PreviewOptions preview = {});
+  // The same from a rig file's cameras: serial -> MLA file (no white images).
+  static Expected<std::unique_ptr<DepthProcessor>> FromMlaFiles(
+      const std::map<std::string, std::string>& mla_files, PreviewOptions preview = {});
   ~DepthProcessor() override;
   Expected<ProcessedFrame> Process(const Frame& frame) override;
   std::string name() const override { return "depth"; }
