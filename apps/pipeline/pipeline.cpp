@@ -128,7 +128,9 @@ struct Pipeline::Impl {
   std::mutex slot_mutex;
   std::condition_variable slot_cv;
   int in_flight = 0;
-  std::map<int, Job> slots;  // by camera index: the newest frame waiting
+  std::map<int, Job> slots;             // by camera index: the newest frame waiting
+  std::map<int, std::uint64_t> served;  // by camera index: when it last got a worker
+  std::uint64_t serve_count = 0;
 
   // Counters (report_mutex).
   mutable std::mutex report_mutex;
@@ -211,12 +213,14 @@ struct Pipeline::Impl {
     {
       std::lock_guard lock(slot_mutex);
       if (!slots.empty()) {
-        // The camera that waits longest (oldest trigger) goes first.
-        auto oldest = slots.begin();
+        // The camera served least recently goes first (its last frame taken
+        // into processing is the oldest), so no camera starves.
+        auto pick = slots.begin();
         for (auto it = slots.begin(); it != slots.end(); ++it)
-          if (it->second.trigger_index < oldest->second.trigger_index) oldest = it;
-        next = std::move(oldest->second);
-        slots.erase(oldest);
+          if (served[it->first] < served[pick->first]) pick = it;
+        next = std::move(pick->second);
+        slots.erase(pick);
+        served[next->frame.camera_index] = ++serve_count;
       } else {
         --in_flight;
       }
@@ -237,6 +241,7 @@ struct Pipeline::Impl {
     }
     if (in_flight < options.max_concurrency) {
       ++in_flight;
+      served[job.frame.camera_index] = ++serve_count;
       lock.unlock();
       process_node->try_put(std::move(job));
       return;

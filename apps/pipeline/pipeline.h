@@ -14,7 +14,7 @@
 // camera's frame arriving while its slot is taken replaces the waiting one,
 // which is counted as skipped: the newest wins, so a camera's published view
 // is never stale by more than one frame. A freed worker takes the slot of the
-// camera waiting longest (oldest trigger), so no camera starves.
+// camera served least recently, so no camera starves.
 // Without skipping (replay --rate max) Submit blocks until a worker is free:
 // the back-pressure reaches the replay driver through its frame pool, so
 // every frame is processed. Either way every frame that enters is processed

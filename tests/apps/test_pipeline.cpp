@@ -205,6 +205,9 @@ TEST(Pipeline, SlowStageSkipsTheOlderFramesCountsThemAndKeepsTheNewest) {
         << r.FinalReport();
   }
   EXPECT_EQ(static_cast<std::uint64_t>(previews), r.processed);
+  // No camera starves: the freed worker goes to the camera served least recently.
+  for (const auto& [serial, ids] : received.preview_frames)
+    EXPECT_GE(ids.size() * 4, r.processed) << serial << " got " << ids.size();
   // The skip count is on the statistics channel.
   ASSERT_TRUE(received.last_stats.has_value());
   std::int64_t skipped_on_lcm = -1;
