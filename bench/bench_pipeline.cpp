@@ -111,6 +111,7 @@ int main(int argc, char** argv) {
       pipeline_fps, static_cast<unsigned long long>(r.processed),
       static_cast<unsigned long long>(r.skipped), static_cast<unsigned long long>(r.failed),
       pipeline_s);
+  std::printf("sync: %s\n", r.drops.c_str());
   std::printf(
       "stage process (preview + depth + TF + encoding): p50 %.1f ms, p99 %.1f ms per frame\n",
       r.process.p50_ms, r.process.p99_ms);
@@ -119,5 +120,5 @@ int main(int argc, char** argv) {
   std::printf("processing alone (same stage, sequential): %.2f frames/s\n", alone_fps);
   std::printf("ratio pipeline / processing alone: %.2f\n", pipeline_fps / alone_fps);
   std::filesystem::remove_all(dir);
-  return r.Accounted() && r.failed == 0 ? 0 : 1;
+  return r.Accounted() && r.failed == 0 && r.sync_lost == 0 ? 0 : 1;
 }

@@ -66,6 +66,7 @@ class LatencyWindow {
 struct Job {
   Frame frame;
   std::int64_t trigger_index = 0;
+  std::int64_t arrival_ns = 0;  // host clock when the frame reached the pipeline
 };
 
 struct Result {
@@ -117,6 +118,9 @@ struct Pipeline::Impl {
 
   std::mutex sync_mutex;
   std::unique_ptr<FrameSetAssembler> assembler;
+  // When each frame reached the pipeline (host clock), for the latency to
+  // publication; keyed by camera index and frame id.
+  std::map<std::pair<int, std::uint64_t>, std::int64_t> arrival_ns;
   DropCounter drops_before;  // of the assemblers of earlier passes
   std::uint64_t lost_before = 0;
 
@@ -197,7 +201,7 @@ struct Pipeline::Impl {
         Publish(CameraChannel(job.frame.serial, "DEPTH"), m);
         ++depths;
       }
-      const double to_pub_ms = static_cast<double>(NowRealtimeNs() - job.frame.host_ns) / 1e6;
+      const double to_pub_ms = static_cast<double>(NowRealtimeNs() - job.arrival_ns) / 1e6;
       std::lock_guard r(report_mutex);
       ++report.processed;
       report.published_previews += previews;
@@ -262,8 +266,18 @@ struct Pipeline::Impl {
         if (!set.missing.empty()) ++report.incomplete_sets;
       }
       for (std::optional<Frame>& frame : set.frames) {
-        if (!frame || frame->status != FrameStatus::kOk) continue;  // counted by sync
-        Submit(Job{std::move(*frame), set.trigger_index});
+        if (!frame) continue;
+        std::int64_t arrival = frame->host_ns;
+        {
+          std::lock_guard lock(sync_mutex);
+          const auto it = arrival_ns.find({frame->camera_index, frame->frame_id});
+          if (it != arrival_ns.end()) {
+            arrival = it->second;
+            arrival_ns.erase(it);
+          }
+        }
+        if (frame->status != FrameStatus::kOk) continue;  // counted by sync
+        Submit(Job{std::move(*frame), set.trigger_index, arrival});
       }
     }
   }
@@ -398,7 +412,12 @@ Pipeline::Pipeline(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 Pipeline::~Pipeline() { impl_->WaitIdle(); }
 
 void Pipeline::AddFrame(Frame frame) {
+  const std::int64_t now = NowRealtimeNs();
   std::lock_guard lock(impl_->sync_mutex);
+  // Frames the assembler drops never come back: the map is bounded by
+  // dropping entries far older than any pending trigger.
+  if (impl_->arrival_ns.size() > 4096) impl_->arrival_ns.erase(impl_->arrival_ns.begin());
+  impl_->arrival_ns[{frame.camera_index, frame.frame_id}] = now;
   impl_->assembler->AddFrame(std::move(frame));
 }
 
@@ -462,6 +481,7 @@ void Pipeline::EndPass() {
     impl_->drops_before.Add(static_cast<DropKind>(k),
                             impl_->assembler->drops()[static_cast<DropKind>(k)]);
   impl_->assembler = std::make_unique<FrameSetAssembler>(impl_->sync_options);
+  impl_->arrival_ns.clear();
 }
 
 void Pipeline::Finish() {

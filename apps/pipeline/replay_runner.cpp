@@ -8,13 +8,23 @@
 #include "replay/sequence.h"
 #include "replay/vicon_csv.h"
 
+#include <climits>
+
 #include <algorithm>
 #include <charconv>
 #include <chrono>
+#include <ctime>
 #include <sstream>
 #include <thread>
 
 namespace lifmcr::apps {
+namespace {
+std::int64_t NowNs() {
+  timespec ts{};
+  clock_gettime(CLOCK_REALTIME, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+}  // namespace
 
 Expected<ReplayRate> ReplayRate::Parse(const std::string& text) {
   ReplayRate rate;
@@ -114,7 +124,10 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
   sync.vicon_divider = 8;
   sync.vicon_rate_hz = vicon_rate * factor;
   if (vicon) sync.vicon_f0 = first_vicon_frame;
-  if (max_rate) sync.lateness_ns = 5'000'000'000;
+  // At --rate max host time says nothing about the triggers: a set waits for
+  // every camera (a camera's gap is closed by its next frame, the end of the
+  // sequence by Flush), however slow processing is.
+  if (max_rate) sync.lateness_ns = 3'600'000'000'000;
 
   if (!processor) {
     if (options.processing) {
@@ -140,6 +153,12 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
     std::vector<std::atomic<std::int64_t>> delivered(cameras.size());
     std::atomic<bool> abort{false};
     std::vector<std::thread> threads;
+    const std::int64_t pass_start_ns = NowNs();
+    // Device time of trigger 0: the first frame number of the sequence.
+    std::int64_t first_device_ns = INT64_MAX;
+    for (const CameraFolder& folder : sequence->cameras)
+      if (!folder.frames.empty())
+        first_device_ns = std::min(first_device_ns, folder.frames.front() * period.count());
     for (auto& camera : cameras)
       if (Status s = camera->Start(); !s) return s.error();
     if (vicon)
@@ -151,6 +170,10 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
           auto frame = cameras[i]->NextFrame(std::chrono::milliseconds(200));
           if (!frame) break;  // the folder is gone: counted as failed by the camera
           if (*frame) {
+            // At --rate max the replay's own clock is the host clock the
+            // assembler sees (frames placed by their trigger, not by when the
+            // pipeline let them be read); latency is measured from AddFrame.
+            if (max_rate) (*frame)->host_ns = pass_start_ns + (*frame)->device_ns - first_device_ns;
             p.AddFrame(std::move(**frame));
             ++delivered[i];
           } else if (cameras[i]->Finished()) {
@@ -182,7 +205,15 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
           }
           auto frame = vicon->Next(std::chrono::milliseconds(200));
           if (!frame) break;
-          if (*frame) p.AddVicon(**frame);
+          if (*frame) {
+            if (max_rate)
+              (*frame)->host_ns =
+                  pass_start_ns +
+                  static_cast<std::int64_t>(
+                      static_cast<double>((*frame)->vicon_frame - first_vicon_frame) * 1e9 /
+                      sync.vicon_rate_hz);
+            p.AddVicon(**frame);
+          }
         }
         --running;
       });
