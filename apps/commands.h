@@ -19,5 +19,7 @@ CommandRun AddRecordCommand(CLI::App& app);
 CommandRun AddReplayCommand(CLI::App& app);
 CommandRun AddMonitorCommand(CLI::App& app);
 CommandRun AddDemoCommand(CLI::App& app);
+CommandRun AddGridCommand(CLI::App& app);
+CommandRun AddDepthCommand(CLI::App& app);
 
 }  // namespace lifmcr::apps

@@ -32,6 +32,10 @@ int main(int argc, char** argv) {
   add("monitor", "Terminal view of the pipeline's LCM channels", lifmcr::apps::AddMonitorCommand);
   add("demo", "Synthetic rig -> replay through the pipeline on LCM (the embedded default)",
       lifmcr::apps::AddDemoCommand);
+  add("grid", "Fit the micro-image lattice to a white image and write an MLA XML",
+      lifmcr::apps::AddGridCommand);
+  add("depth", "Virtual depth, totally focused image, metric depth and point cloud of one frame",
+      lifmcr::apps::AddDepthCommand);
 
   try {
     app.parse(argc, argv);

@@ -41,12 +41,14 @@ struct Blob {
 };
 
 // Connected components of grey > threshold (4-connected), centroids.
-std::vector<Blob> FindBlobs(const std::vector<float>& grey, int w, int h, float threshold) {
+// Within the window [x_lo, x_hi) x [y_lo, y_hi) of the w-wide image.
+std::vector<Blob> FindBlobs(const std::vector<float>& grey, int w, int x_lo, int y_lo, int x_hi,
+                            int y_hi, float threshold) {
   std::vector<std::uint8_t> seen(grey.size(), 0);
   std::vector<int> stack;
   std::vector<Blob> blobs;
-  for (int y0 = 0; y0 < h; ++y0)
-    for (int x0 = 0; x0 < w; ++x0) {
+  for (int y0 = y_lo; y0 < y_hi; ++y0)
+    for (int x0 = x_lo; x0 < x_hi; ++x0) {
       const std::size_t i0 = static_cast<std::size_t>(y0) * w + x0;
       if (seen[i0] || grey[i0] <= threshold) continue;
       seen[i0] = 1;
@@ -60,7 +62,7 @@ std::vector<Blob> FindBlobs(const std::vector<float>& grey, int w, int h, float 
         sx += x;
         sy += y;
         n += 1;
-        if (x == 0 || y == 0 || x == w - 1 || y == h - 1) {
+        if (x == x_lo || y == y_lo || x == x_hi - 1 || y == y_hi - 1) {
           border = true;
           continue;
         }
@@ -190,12 +192,21 @@ Expected<GridFitResult> FitGridToWhiteImage(ConstImageView white, const MlaGrid*
   const std::vector<float> grey = ToGrey(white);
 
   // 1. Discs above half the bright level: components -> first lattice.
-  std::vector<float> sorted(grey.begin(), grey.end());
+  // Bright level: 99th percentile of every 4th pixel of every 4th row.
+  std::vector<float> sorted;
+  sorted.reserve(grey.size() / 16 + 1);
+  for (int y = 0; y < h; y += 4)
+    for (int x = 0; x < w; x += 4) sorted.push_back(grey[static_cast<std::size_t>(y) * w + x]);
   const std::size_t p99 = sorted.size() * 99 / 100;
   std::nth_element(sorted.begin(), sorted.begin() + p99, sorted.end());
   const float bright = sorted[p99];
   if (!(bright > 10.0f)) return Error{"white image: too dark (99th percentile <= 10 DN)"};
-  std::vector<Blob> blobs = FindBlobs(grey, w, h, 0.5f * bright);
+  // Components in a central window of at most 1536 x 1536 px (enough lenses
+  // for the first lattice; the refinement below uses the whole image).
+  const int win_w = std::min(w, 1536), win_h = std::min(h, 1536);
+  const int x_lo = (w - win_w) / 2, y_lo = (h - win_h) / 2;
+  std::vector<Blob> blobs =
+      FindBlobs(grey, w, x_lo, y_lo, x_lo + win_w, y_lo + win_h, 0.5f * bright);
   if (blobs.size() < 20)
     return Error{"white image: found " + std::to_string(blobs.size()) +
                  " micro images, expected at least 20 (is it a white image?)"};
@@ -269,8 +280,13 @@ Expected<GridFitResult> FitGridToWhiteImage(ConstImageView white, const MlaGrid*
     std::vector<char> use(index.size(), 1);
     FitAffine(index, centre, use, &grid);
   }
-  // Adopt the MLA file's reference lens and bases (and so its lens types).
-  if (initial != nullptr) {
+  // Reference lens: the MLA file's (with its bases, and so its lens types),
+  // else the lattice node nearest the image centre.
+  if (initial == nullptr) {
+    int i0 = 0, j0 = 0;
+    grid.Nearest(Eigen::Vector2d((w - 1) / 2.0, (h - 1) / 2.0), &i0, &j0);
+    grid.reference_px = grid.Center(i0, j0);
+  } else {
     int i0 = 0, j0 = 0;
     grid.Nearest(initial->reference_px, &i0, &j0);
     if ((grid.Center(i0, j0) - initial->reference_px).norm() > 0.3 * pitch)

@@ -3,6 +3,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 
@@ -31,27 +32,32 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
   out->width = tw;
   out->height = th;
   std::vector<double> sw(tn, 0.0), swz(tn, 0.0);
-  std::vector<float> all_v;
-  // Splat (serial: a point may land anywhere; cheap compared with matching).
-  for (int y = 0; y < f.height; ++y)
-    for (int x = 0; x < f.width; ++x) {
-      const std::size_t idx = static_cast<std::size_t>(y) * f.width + x;
-      const float v = raw.virtual_depth[idx];
-      if (std::isnan(v)) continue;
-      const int k = f.lens_of_pixel[idx];
-      if (k < 0) continue;
-      const Eigen::Vector2d l = f.lenses[k].lens_px;
-      const Eigen::Vector2d xv = l + v * (Eigen::Vector2d(x, y) - l);
-      const int u = static_cast<int>(std::lround((xv.x() - 0.5) / 2.0));
-      const int w = static_cast<int>(std::lround((xv.y() - 0.5) / 2.0));
-      if (u < 0 || w < 0 || u >= tw || w >= th) continue;
-      const double s = raw.sigma_z[idx];
-      const double weight = 1.0 / std::max(1e-12, s * s);
-      const std::size_t t = static_cast<std::size_t>(w) * tw + u;
-      sw[t] += weight;
-      swz[t] += weight / v;
-      all_v.push_back(v);
-    }
+  // Splat, parallel over micro images; a TF pixel may get splats from several
+  // micro images at once, hence the atomic adds (rarely contended).
+  tbb::parallel_for(0, static_cast<int>(f.lenses.size()), [&](int k) {
+    const MicroImage& m = f.lenses[k];
+    const double r = f.radius_px;
+    const int x0 = std::max(0, static_cast<int>(std::ceil(m.centre_px.x() - r)));
+    const int x1 = std::min(f.width - 1, static_cast<int>(std::floor(m.centre_px.x() + r)));
+    const int y0 = std::max(0, static_cast<int>(std::ceil(m.centre_px.y() - r)));
+    const int y1 = std::min(f.height - 1, static_cast<int>(std::floor(m.centre_px.y() + r)));
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x) {
+        const std::size_t idx = static_cast<std::size_t>(y) * f.width + x;
+        if (f.lens_of_pixel[idx] != k) continue;
+        const float v = raw.virtual_depth[idx];
+        if (std::isnan(v)) continue;
+        const Eigen::Vector2d xv = m.lens_px + v * (Eigen::Vector2d(x, y) - m.lens_px);
+        const int u = static_cast<int>(std::lround((xv.x() - 0.5) / 2.0));
+        const int w = static_cast<int>(std::lround((xv.y() - 0.5) / 2.0));
+        if (u < 0 || w < 0 || u >= tw || w >= th) continue;
+        const double s = raw.sigma_z[idx];
+        const double weight = 1.0 / std::max(1e-12, s * s);
+        const std::size_t t = static_cast<std::size_t>(w) * tw + u;
+        std::atomic_ref<double>(sw[t]).fetch_add(weight, std::memory_order_relaxed);
+        std::atomic_ref<double>(swz[t]).fetch_add(weight / v, std::memory_order_relaxed);
+      }
+  });
   out->virtual_depth.assign(tn, kNaN);
   out->sigma_z.assign(tn, kNaN);
   out->measured = 0;
@@ -61,7 +67,48 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
       out->sigma_z[t] = static_cast<float>(std::sqrt(1.0 / sw[t]));
       ++out->measured;
     }
+  // Regularisation of the measured map: each measured pixel becomes the
+  // inverse-variance mean of the measured pixels within smooth_radius that
+  // agree with their median within 5 % of z.
+  if (options.smooth_radius > 0) {
+    const int rad = options.smooth_radius;
+    std::vector<float> smoothed = out->virtual_depth;
+    tbb::parallel_for(0, th, [&](int w) {
+      std::vector<float> zs;
+      for (int u = 0; u < tw; ++u) {
+        const std::size_t t = static_cast<std::size_t>(w) * tw + u;
+        if (std::isnan(out->virtual_depth[t])) continue;
+        zs.clear();
+        for (int dw = -rad; dw <= rad; ++dw)
+          for (int du = -rad; du <= rad; ++du) {
+            const int uu = u + du, ww = w + dw;
+            if (uu < 0 || ww < 0 || uu >= tw || ww >= th) continue;
+            const float v = out->virtual_depth[static_cast<std::size_t>(ww) * tw + uu];
+            if (!std::isnan(v)) zs.push_back(1.0f / v);
+          }
+        std::nth_element(zs.begin(), zs.begin() + zs.size() / 2, zs.end());
+        const double med = zs[zs.size() / 2];
+        double a = 0, b = 0;
+        for (int dw = -rad; dw <= rad; ++dw)
+          for (int du = -rad; du <= rad; ++du) {
+            const int uu = u + du, ww = w + dw;
+            if (uu < 0 || ww < 0 || uu >= tw || ww >= th) continue;
+            const std::size_t q = static_cast<std::size_t>(ww) * tw + uu;
+            const float v = out->virtual_depth[q];
+            if (std::isnan(v) || std::abs(1.0 / v - med) > 0.05 * med) continue;
+            const double wq = 1.0 / (static_cast<double>(out->sigma_z[q]) * out->sigma_z[q]);
+            a += wq;
+            b += wq / v;
+          }
+        if (a > 0) smoothed[t] = static_cast<float>(a / b);
+      }
+    });
+    out->virtual_depth.swap(smoothed);
+  }
   out->fallback_v = 0;
+  std::vector<float> all_v;
+  for (std::size_t t = 0; t < tn; ++t)
+    if (!std::isnan(out->virtual_depth[t])) all_v.push_back(out->virtual_depth[t]);
   if (!all_v.empty()) {
     std::nth_element(all_v.begin(), all_v.begin() + all_v.size() / 2, all_v.end());
     out->fallback_v = all_v[all_v.size() / 2];
@@ -109,7 +156,7 @@ Status RenderTotalFocus(const PlenopticFrame& f, const MlaCalibration& mla, cons
   const int channels = f.has_colour ? 3 : 1;
   out->pixels.resize(static_cast<std::size_t>(tw) * th * channels);
   out->linear.resize(out->pixels.size());
-  const double r = f.radius_px, r2 = r * r;
+  const double r = f.radius_px * options.inner_fraction, r2 = r * r;
   const double pitch = f.grid.PitchPx();
   const double fallback = depth.fallback_v > 1 ? depth.fallback_v : 3.0;
   tbb::parallel_for(0, th, [&](int w) {

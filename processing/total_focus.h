@@ -7,15 +7,17 @@
 // Virtual depth on the TF grid: every raw estimate (pixel p of micro image k,
 // virtual depth v) is the virtual point x_v = l_k + v (p - l_k); it is
 // splatted to the TF pixel nearest to (x_v - 0.5) / 2 and the splats are
-// fused in z = 1/v weighted by 1 / sigma_z^2. Holes are filled by averaging
+// fused in z = 1/v weighted by 1 / sigma_z^2, then regularised (each measured
+// pixel: the inverse-variance mean of the measured pixels within
+// smooth_radius agreeing with their median within 5 %). Holes are filled by averaging
 // the valid 8-neighbours, fill_iterations rounds (each grows the map by one
 // TF pixel); what stays empty is NaN.
 //
 // Rendering (back-projection): for TF pixel x with virtual depth v (filled
 // map, or the median v of the frame where it is empty), every micro image k
-// with p_k = l_k + (x - l_k) / v within r_valid of c_k sees the point; the
+// with p_k = l_k + (x - l_k) / v within inner_fraction r_valid of c_k is used; the
 // colour is the mean of the devignetted raw samples at p_k (bilinear),
-// weighted by w = s_t (1 - |p_k - c_k|^2 / r_valid^2), s_t = 1 for a lens
+// weighted by w = s_t (1 - |p_k - c_k|^2 / r^2) (r = inner_fraction r_valid), s_t = 1 for a lens
 // type whose depth range (MLA file) holds v and unsharp_weight otherwise,
 // so the sharp micro images dominate. Parallel over TF rows (TBB).
 
@@ -30,8 +32,10 @@
 namespace lifmcr::processing {
 
 struct TfOptions {
+  int smooth_radius = 4;        // regularisation of the measured TF depth (TF pixels)
   int fill_iterations = 6;      // hole filling of the TF depth map (TF pixels)
   double unsharp_weight = 0.1;  // weight of micro images whose type is not sharp at v
+  double inner_fraction = 1.0;  // only samples within this share of r_valid (sharp, unvignetted)
   double gain = 1.0;            // output = gain * devignetted value
   double sharpen = 0.0;         // k of I - k laplacian(I); 0 = off
   Status Check() const;

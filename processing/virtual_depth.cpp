@@ -30,22 +30,30 @@ struct Neighbour {
   Eigen::Vector2d e, e_perp;
   double length = 0;
   bool same_type = false;
+  std::array<double, kSamples> offset_x{}, offset_y{};
 };
 
 // Patch samples around p: offsets a e + b e_perp, a = -2..2, b = -1..1.
-// Samples must lie within r_limit of the micro image's centre `c`.
+// Samples must lie within r_limit of the micro image's centre `c`. The
+// offsets a e + b e_perp (a = -2..2, b = -1..1) are the neighbour's `offset`.
 bool SamplePatch(const PlenopticFrame& f, const Eigen::Vector2d& p, const Neighbour& nb,
                  const Eigen::Vector2d& c, double r_limit, float* out) {
   const double r2 = r_limit * r_limit;
-  int k = 0;
-  for (int b = -1; b <= 1; ++b)
-    for (int a = -2; a <= 2; ++a) {
-      const Eigen::Vector2d s = p + a * nb.e + b * nb.e_perp;
-      if ((s - c).squaredNorm() > r2) return false;
-      const float v = f.SampleGrey(s.x(), s.y());
-      if (std::isnan(v)) return false;
-      out[k++] = v;
-    }
+  const double px = p.x(), py = p.y(), cx = c.x(), cy = c.y();
+  const int w = f.width, h = f.height;
+  const float* grey = f.grey.data();
+  for (int k = 0; k < kSamples; ++k) {
+    const double sx = px + nb.offset_x[k], sy = py + nb.offset_y[k];
+    if ((sx - cx) * (sx - cx) + (sy - cy) * (sy - cy) > r2) return false;
+    const int x0 = static_cast<int>(sx), y0 = static_cast<int>(sy);
+    if (sx < 0 || sy < 0 || x0 >= w - 1 || y0 >= h - 1) return false;
+    const float fx = static_cast<float>(sx - x0), fy = static_cast<float>(sy - y0);
+    const float* r0 = grey + static_cast<std::size_t>(y0) * w + x0;
+    const float* r1 = r0 + w;
+    const float v = (r0[0] + (r0[1] - r0[0]) * fx) * (1 - fy) + (r1[0] + (r1[1] - r1[0]) * fx) * fy;
+    if (std::isnan(v)) return false;
+    out[k] = v;
+  }
   return true;
 }
 
@@ -59,6 +67,18 @@ struct Search {
 bool MatchAlong(const Search& s, const Eigen::Vector2d& p, const float* ref, double gradient_sum,
                 const Neighbour& nb, double z_lo, double z_hi, Estimate* est) {
   const double scale = s.lambda * nb.length;  // px of disparity per unit z
+  // Only the z for which q(z) = p + lambda Delta (1 - z) lies in the
+  // neighbour's disc: |d - z u| <= R with u = lambda Delta, d = p + u - c_n.
+  {
+    const Eigen::Vector2d u = s.lambda * nb.delta;
+    const Eigen::Vector2d d = p + u - nb.lens->centre_px;
+    const double uu = u.squaredNorm(), du = d.dot(u), r_lim = s.f.radius_px + 0.5;
+    const double disc = du * du - uu * (d.squaredNorm() - r_lim * r_lim);
+    if (disc <= 0) return false;
+    const double root = std::sqrt(disc);
+    z_lo = std::max(z_lo, (du - root) / uu);
+    z_hi = std::min(z_hi, (du + root) / uu);
+  }
   const double dz = s.o.step_px / scale;
   const int steps = static_cast<int>(std::ceil((z_hi - z_lo) / dz)) + 1;
   if (steps < 3) return false;
@@ -201,6 +221,11 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         nb.e = nb.delta / nb.length;
         nb.e_perp = {-nb.e.y(), nb.e.x()};
         nb.same_type = nb.lens->type == lens.type;
+        for (int b = -1, m = 0; b <= 1; ++b)
+          for (int a = -2; a <= 2; ++a, ++m) {
+            nb.offset_x[m] = a * nb.e.x() + b * nb.e_perp.x();
+            nb.offset_y[m] = a * nb.e.y() + b * nb.e_perp.y();
+          }
         if (ring == 1) ring1_count = count;
       }
     const double r = f.radius_px;
@@ -277,41 +302,45 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     // virtual points. Each estimate becomes the inverse-variance mean of the
     // estimates within `smooth_radius_px` that agree with their median
     // (within max(3 sigma, 5 %)); fewer than min_support agreeing: rejected.
-    patch_z.clear();
-    patch_sigma.clear();
+    // Local grid of the micro image's estimates (z and sigma, NaN = none).
+    const int bw = x1 - x0 + 1, bh = y1 - y0 + 1;
+    if (bw <= 0 || bh <= 0) return;
+    patch_z.assign(static_cast<std::size_t>(bw) * bh, kNaN);
+    patch_sigma.assign(patch_z.size(), kNaN);
     for (std::size_t idx : pixels) {
-      patch_z.push_back(1.0f / out->virtual_depth[idx]);
-      patch_sigma.push_back(out->sigma_z[idx]);
+      const int lx = static_cast<int>(idx % w) - x0, ly = static_cast<int>(idx / w) - y0;
+      patch_z[static_cast<std::size_t>(ly) * bw + lx] = 1.0f / out->virtual_depth[idx];
+      patch_sigma[static_cast<std::size_t>(ly) * bw + lx] = out->sigma_z[idx];
     }
-    std::vector<float> near;
-    std::vector<std::size_t> near_index;
     const int rad = options.smooth_radius_px;
-    for (std::size_t a = 0; a < pixels.size(); ++a) {
-      const int xa = static_cast<int>(pixels[a] % w), ya = static_cast<int>(pixels[a] / w);
-      near.clear();
-      near_index.clear();
-      for (std::size_t b = 0; b < pixels.size(); ++b) {
-        const int xb = static_cast<int>(pixels[b] % w), yb = static_cast<int>(pixels[b] / w);
-        if (std::abs(xa - xb) <= rad && std::abs(ya - yb) <= rad) {
-          near.push_back(patch_z[b]);
-          near_index.push_back(b);
+    std::vector<float> near_z, near_s, sorted;
+    for (std::size_t idx : pixels) {
+      const int lx = static_cast<int>(idx % w) - x0, ly = static_cast<int>(idx / w) - y0;
+      near_z.clear();
+      near_s.clear();
+      for (int yy = std::max(0, ly - rad); yy <= std::min(bh - 1, ly + rad); ++yy)
+        for (int xx = std::max(0, lx - rad); xx <= std::min(bw - 1, lx + rad); ++xx) {
+          const float z = patch_z[static_cast<std::size_t>(yy) * bw + xx];
+          if (std::isnan(z)) continue;
+          near_z.push_back(z);
+          near_s.push_back(patch_sigma[static_cast<std::size_t>(yy) * bw + xx]);
         }
-      }
-      std::vector<float> sorted = near;
+      sorted = near_z;
       std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
       const double med = sorted[sorted.size() / 2];
       double sw = 0, swz = 0;
       int support = 0;
-      for (std::size_t m = 0; m < near.size(); ++m) {
-        const double sg = patch_sigma[near_index[m]];
-        if (std::abs(near[m] - med) > std::max(3 * sg, 0.05 * med)) continue;
+      for (std::size_t m = 0; m < near_z.size(); ++m) {
+        const double sg = near_s[m];
+        if (std::abs(near_z[m] - med) > std::max(3 * sg, 0.05 * med)) continue;
         sw += 1 / (sg * sg);
-        swz += near[m] / (sg * sg);
+        swz += near_z[m] / (sg * sg);
         ++support;
       }
-      const std::size_t idx = pixels[a];
+      const float own_z = patch_z[static_cast<std::size_t>(ly) * bw + lx];
+      const float own_sigma = patch_sigma[static_cast<std::size_t>(ly) * bw + lx];
       if (support < options.min_support ||
-          std::abs(patch_z[a] - med) > std::max(3.0 * patch_sigma[a], 0.05 * med)) {
+          std::abs(own_z - med) > std::max(3.0 * own_sigma, 0.05 * med)) {
         out->virtual_depth[idx] = kNaN;
         out->sigma_z[idx] = kNaN;
         out->confidence[idx] = 0;
@@ -321,7 +350,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       const double z = swz / sw;
       // The neighbours are not independent views of one point: keep the
       // pixel's own sigma, shrunk by at most sqrt(support).
-      const double sigma = patch_sigma[a] / std::sqrt(static_cast<double>(support));
+      const double sigma = own_sigma / std::sqrt(static_cast<double>(support));
       out->virtual_depth[idx] = static_cast<float>(1.0 / z);
       out->sigma_z[idx] = static_cast<float>(sigma);
       out->confidence[idx] =

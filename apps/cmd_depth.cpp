@@ -1,0 +1,285 @@
+// `lifmcr depth SEQ_DIR --camera SERIAL --frame K --out DIR [--intrinsics
+// cameras.yaml]`: one raw frame to virtual depth (raw and TF grids, with the
+// confidence map on the raw grid), the
+// totally focused image, metric depth and a coloured point cloud
+// (processing/). The OpenCV (TIFF, PNG, colour map) and PCL (PLY) boundary
+// of the processing library is here.
+
+#include "apps/commands.h"
+#include "processing/camera_model.h"
+#include "processing/mla_grid.h"
+#include "processing/plenoptic_frame.h"
+#include "processing/point_cloud.h"
+#include "processing/total_focus.h"
+#include "processing/virtual_depth.h"
+#include "replay/bmp.h"
+#include "replay/layout.h"
+#include "replay/mla_xml.h"
+#include "replay/synth/gt_images.h"
+
+#include <CLI/CLI.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <pcl/io/ply_io.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+#include <yaml-cpp/yaml.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <string>
+
+namespace lifmcr::apps {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct DepthCommandOptions {
+  std::string sequence;
+  std::string camera;
+  std::int64_t frame = 0;
+  std::string out;
+  std::string intrinsics;
+  std::string white;
+  std::string mla;
+};
+
+// The camera `serial` of a cameras.yaml (GroundTruth of `lifmcr synth`):
+// cameras: [{serial, model: {width_px, height_px, pixel_size_mm,
+// main_focal_length_mm, mla_to_main_lens_mm, mla_to_sensor_mm,
+// distortion: {k1, k2, p1, p2}}}].
+Expected<processing::CameraIntrinsics> ReadIntrinsics(const std::string& path,
+                                                      const std::string& serial) {
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(path);
+  } catch (const YAML::Exception& e) {
+    return Error{path + ": " + e.what()};
+  }
+  if (!root["cameras"] || !root["cameras"].IsSequence())
+    return Error{path + ": /cameras: expected a list of cameras"};
+  for (std::size_t n = 0; n < root["cameras"].size(); ++n) {
+    const YAML::Node cam = root["cameras"][n];
+    if (!cam["serial"] || cam["serial"].as<std::string>() != serial) continue;
+    const std::string where = path + ": /cameras/" + std::to_string(n) + "/model/";
+    const YAML::Node m = cam["model"];
+    processing::CameraIntrinsics k;
+    try {
+      auto num = [&](const char* key) {
+        if (!m[key]) throw YAML::Exception(YAML::Mark::null_mark(), std::string("missing ") + key);
+        return m[key].as<double>();
+      };
+      k.width_px = static_cast<int>(num("width_px"));
+      k.height_px = static_cast<int>(num("height_px"));
+      k.pixel_size_mm = num("pixel_size_mm");
+      k.main_focal_length_mm = num("main_focal_length_mm");
+      k.mla_to_main_lens_mm = num("mla_to_main_lens_mm");
+      k.mla_to_sensor_mm = num("mla_to_sensor_mm");
+      if (const YAML::Node d = m["distortion"]) {
+        k.k1 = d["k1"] ? d["k1"].as<double>() : 0.0;
+        k.k2 = d["k2"] ? d["k2"].as<double>() : 0.0;
+        k.p1 = d["p1"] ? d["p1"].as<double>() : 0.0;
+        k.p2 = d["p2"] ? d["p2"].as<double>() : 0.0;
+      }
+    } catch (const YAML::Exception& e) {
+      return Error{where + ": " + e.msg};
+    }
+    if (Status s = k.Check(); !s) return Error{where + ": " + s.error().message};
+    return k;
+  }
+  return Error{path + ": /cameras: no camera with serial " + serial};
+}
+
+double Seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+// Colour map of 1/v (near = warm), black where there is no depth.
+Status WriteDepthPng(const fs::path& path, const processing::TfDepthMap& depth, double v_min,
+                     double v_max) {
+  cv::Mat grey(depth.height, depth.width, CV_8UC1);
+  cv::Mat valid(depth.height, depth.width, CV_8UC1);
+  for (int y = 0; y < depth.height; ++y)
+    for (int x = 0; x < depth.width; ++x) {
+      const float v = depth.virtual_depth[static_cast<std::size_t>(y) * depth.width + x];
+      const bool ok = !std::isnan(v);
+      const double t = ok ? (1.0 / v - 1.0 / v_max) / (1.0 / v_min - 1.0 / v_max) : 0.0;
+      grey.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(std::clamp(t, 0.0, 1.0) * 255);
+      valid.at<std::uint8_t>(y, x) = ok ? 255 : 0;
+    }
+  cv::Mat colour;
+  cv::applyColorMap(grey, colour, cv::COLORMAP_TURBO);
+  colour.setTo(cv::Scalar(0, 0, 0), valid == 0);
+  try {
+    if (!cv::imwrite(path.string(), colour)) return Error{path.string() + ": could not write"};
+  } catch (const cv::Exception& e) {
+    return Error{path.string() + ": " + e.what()};
+  }
+  return Status::Ok();
+}
+
+Status WritePly(const fs::path& path, const processing::PointCloud& cloud) {
+  pcl::PointCloud<pcl::PointXYZRGB> pcl_cloud;
+  pcl_cloud.reserve(cloud.points_mm.size());
+  for (std::size_t i = 0; i < cloud.points_mm.size(); ++i) {
+    pcl::PointXYZRGB p;
+    p.x = cloud.points_mm[i].x();
+    p.y = cloud.points_mm[i].y();
+    p.z = cloud.points_mm[i].z();
+    p.r = cloud.rgb[i][0];
+    p.g = cloud.rgb[i][1];
+    p.b = cloud.rgb[i][2];
+    pcl_cloud.push_back(p);
+  }
+  if (pcl_cloud.empty()) return Error{path.string() + ": no points to write"};
+  if (pcl::io::savePLYFileBinary(path.string(), pcl_cloud) != 0)
+    return Error{path.string() + ": could not write"};
+  return Status::Ok();
+}
+
+int Fail(const std::string& message) {
+  std::cerr << "lifmcr depth: " << message << "\n";
+  return 1;
+}
+
+int RunDepth(const DepthCommandOptions& o) {
+  const auto t_all = std::chrono::steady_clock::now();
+  const fs::path seq = o.sequence;
+  const fs::path calib = seq.parent_path().parent_path() / std::string(layout::kCalibrationFolder);
+  const fs::path raw_path = layout::RawFramePath(seq, o.camera, o.frame);
+  const fs::path white_path =
+      o.white.empty() ? layout::WhiteImagePath(calib, o.camera, 0) : fs::path(o.white);
+  const fs::path mla_path = o.mla.empty() ? layout::MlaXmlPath(calib, o.camera) : fs::path(o.mla);
+
+  auto t = std::chrono::steady_clock::now();
+  Expected<OwnedImage> raw = ReadBmp(raw_path);
+  if (!raw) return Fail(raw.error().message);
+  Expected<OwnedImage> white = ReadBmp(white_path);
+  if (!white) return Fail(white.error().message + " (white image; --white names another)");
+  Expected<MlaCalibration> mla = ReadMlaXml(mla_path);
+  if (!mla) return Fail(mla.error().message + " (MLA file; --mla names another)");
+  std::optional<processing::CameraModel> camera;
+  if (!o.intrinsics.empty()) {
+    Expected<processing::CameraIntrinsics> k = ReadIntrinsics(o.intrinsics, o.camera);
+    if (!k) return Fail(k.error().message);
+    if (k->width_px != raw->width || k->height_px != raw->height)
+      return Fail(o.intrinsics + ": camera " + o.camera + " is " + std::to_string(k->width_px) +
+                  "x" + std::to_string(k->height_px) + ", the raw frame " +
+                  std::to_string(raw->width) + "x" + std::to_string(raw->height));
+    camera.emplace(*k);
+  }
+  std::printf("read      %.3f s  %s (%dx%d %s)\n", Seconds(t), raw_path.string().c_str(),
+              raw->width, raw->height, std::string(ToString(raw->format)).c_str());
+
+  t = std::chrono::steady_clock::now();
+  const processing::MlaGrid grid =
+      processing::MlaGrid::FromCalibration(*mla, raw->width, raw->height);
+  processing::FrameOptions frame_options;
+  frame_options.lambda = camera ? camera->lambda() : 1.0;
+  processing::PlenopticFrame frame;
+  if (Status s =
+          processing::PrepareFrame(raw->View(), white->View(), grid, *mla, frame_options, &frame);
+      !s)
+    return Fail(s.error().message);
+  std::printf("prepare   %.3f s  %zu micro images, devignetted%s\n", Seconds(t),
+              frame.lenses.size(),
+              camera ? "" : "; no intrinsics: micro-lens centres = micro-image centres (lambda 1)");
+
+  t = std::chrono::steady_clock::now();
+  processing::VirtualDepthMap depth;
+  if (Status s = processing::EstimateVirtualDepth(frame, *mla, processing::DepthOptions{}, &depth);
+      !s)
+    return Fail(s.error().message);
+  const double raw_mp = raw->width * static_cast<double>(raw->height) / 1e6;
+  std::printf("depth     %.3f s  %.1f raw MP/s; %s\n", Seconds(t), raw_mp / Seconds(t),
+              depth.stats.BriefReport().c_str());
+
+  t = std::chrono::steady_clock::now();
+  const processing::TfOptions tf_options;
+  processing::TfDepthMap tf_depth;
+  if (Status s = processing::VirtualDepthToTf(frame, depth, tf_options, &tf_depth); !s)
+    return Fail(s.error().message);
+  processing::TfImage tf;
+  if (Status s = processing::RenderTotalFocus(frame, *mla, tf_depth, tf_options, &tf); !s)
+    return Fail(s.error().message);
+  const double tf_n = static_cast<double>(tf_depth.width) * tf_depth.height;
+  std::printf("tf        %.3f s  %dx%d; TF depth: %.1f %% measured, %.1f %% filled\n", Seconds(t),
+              tf.width, tf.height, 100.0 * tf_depth.measured / tf_n,
+              100.0 * tf_depth.filled / tf_n);
+
+  t = std::chrono::steady_clock::now();
+  std::error_code ec;
+  fs::create_directories(o.out, ec);
+  if (ec) return Fail(o.out + ": " + ec.message());
+  const fs::path out = o.out;
+  const std::string prefix = layout::VirtualDepthFileName(o.camera, o.frame);
+  const std::string stem =
+      prefix.substr(0, prefix.size() - std::string("_virtual_depth.tiff").size());
+  if (Status s = synth::WriteFloatTiff(out / (stem + "_virtual_depth.tiff"), depth.width,
+                                       depth.height, depth.virtual_depth);
+      !s)
+    return Fail(s.error().message);
+  if (Status s = synth::WriteFloatTiff(out / (stem + "_virtual_depth_tf.tiff"), tf_depth.width,
+                                       tf_depth.height, tf_depth.virtual_depth);
+      !s)
+    return Fail(s.error().message);
+  if (Status s = synth::WriteFloatTiff(out / (stem + "_confidence.tiff"), depth.width, depth.height,
+                                       depth.confidence);
+      !s)
+    return Fail(s.error().message);
+  if (Status s = synth::WritePng(out / (stem + "_tf.png"), tf.View()); !s)
+    return Fail(s.error().message);
+  double v_lo = 1e9, v_hi = 0;
+  for (const MlaLensType& type : mla->lens_types) {
+    v_lo = std::min(v_lo, std::max(1.5, type.depth_min));
+    v_hi = std::max(v_hi, type.depth_max);
+  }
+  if (!(v_hi > v_lo)) v_hi = v_lo + 10;
+  if (Status s = WriteDepthPng(out / (stem + "_depth.png"), tf_depth, v_lo, v_hi); !s)
+    return Fail(s.error().message);
+  if (camera) {
+    std::vector<float> depth_mm;
+    processing::MetricDepthTf(*camera, tf_depth, &depth_mm);
+    if (Status s = synth::WriteFloatTiff(out / (stem + "_depth_mm.tiff"), tf_depth.width,
+                                         tf_depth.height, depth_mm);
+        !s)
+      return Fail(s.error().message);
+    processing::PointCloud cloud;
+    processing::BuildPointCloud(*camera, tf_depth, tf, true, &cloud);
+    if (Status s = WritePly(out / (stem + "_points.ply"), cloud); !s)
+      return Fail(s.error().message);
+    std::printf("cloud     %zu points (measured TF pixels)\n", cloud.points_mm.size());
+  } else {
+    std::printf(
+        "no --intrinsics: no %s_depth_mm.tiff and no %s_points.ply (metric needs f_L, "
+        "b_L0, B)\n",
+        stem.c_str(), stem.c_str());
+  }
+  std::printf("write     %.3f s  %s/%s_*\n", Seconds(t), o.out.c_str(), stem.c_str());
+  std::printf("total     %.3f s\n", Seconds(t_all));
+  return 0;
+}
+
+}  // namespace
+
+CommandRun AddDepthCommand(CLI::App& app) {
+  auto o = std::make_shared<DepthCommandOptions>();
+  app.add_option("SEQ_DIR", o->sequence, "Sequence folder (SCENE/SEQ of a LiFMCR dataset)")
+      ->required();
+  app.add_option("--camera", o->camera, "Camera serial")->required();
+  app.add_option("--frame", o->frame, "Frame number")->required();
+  app.add_option("--out", o->out, "Output folder (created if needed)")->required();
+  app.add_option("--intrinsics", o->intrinsics,
+                 "cameras.yaml with the camera's model (metric depth and point cloud)");
+  app.add_option("--white", o->white, "White image (default: the dataset's Calibration folder)");
+  app.add_option("--mla", o->mla, "MLA XML (default: the dataset's Calibration folder)");
+  return [o] { return RunDepth(*o); };
+}
+
+}  // namespace lifmcr::apps

@@ -1,0 +1,121 @@
+// `lifmcr grid WHITE.bmp [--mla FILE] [--out FILE.xml]`: fits the micro-image
+// lattice to a white image (processing/mla_grid.h), prints it with its
+// residual, compares it with the MLA file when one is given, and writes the
+// refined MLA XML.
+
+#include "apps/commands.h"
+#include "processing/mla_grid.h"
+#include "replay/bmp.h"
+#include "replay/mla_xml.h"
+
+#include <CLI/CLI.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <string>
+
+namespace lifmcr::apps {
+namespace {
+
+struct GridOptions {
+  std::string white;
+  std::string mla;
+  std::string out;
+};
+
+int RunGrid(const GridOptions& o) {
+  Expected<OwnedImage> white = ReadBmp(o.white);
+  if (!white) {
+    std::cerr << "lifmcr grid: " << white.error().message << "\n";
+    return 1;
+  }
+  const int w = white->width, h = white->height;
+  MlaCalibration base;
+  processing::MlaGrid initial;
+  const bool have_file = !o.mla.empty();
+  if (have_file) {
+    Expected<MlaCalibration> mla = ReadMlaXml(o.mla);
+    if (!mla) {
+      std::cerr << "lifmcr grid: " << mla.error().message << "\n";
+      return 1;
+    }
+    base = *mla;
+    initial = processing::MlaGrid::FromCalibration(base, w, h);
+  }
+  Expected<processing::GridFitResult> fit =
+      processing::FitGridToWhiteImage(white->View(), have_file ? &initial : nullptr);
+  if (!fit) {
+    std::cerr << "lifmcr grid: " << o.white << ": " << fit.error().message << "\n";
+    return 1;
+  }
+  const processing::MlaGrid& grid = fit->grid;
+  if (!have_file) {
+    base.diameter_px = grid.PitchPx();
+    // The colouring (i - j) mod 3: type 1 at +lens_base_x, type 2 at -lens_base_x.
+    const Eigen::Vector2d offsets[3] = {{0, 0}, {1, 0}, {-1, 0}};
+    for (int t = 0; t < 3; ++t) {
+      base.lens_types[t].id = t;
+      base.lens_types[t].offset_lens = offsets[t];
+    }
+  }
+  const MlaCalibration refined = grid.ToCalibration(base, w, h);
+  std::printf("white image %s: %dx%d\n", o.white.c_str(), w, h);
+  std::printf("fitted lattice: %s\n", fit->BriefReport().c_str());
+  std::printf(
+      "as RayCalibData: diameter %.5f px, rotation %.7f rad, offset (%.4f, %.4f) px (y up)\n",
+      refined.diameter_px, refined.rotation_rad, refined.offset_px.x(), refined.offset_px.y());
+  if (have_file) {
+    // Centre differences between the file's lattice and the fit, over the image.
+    double sum2 = 0, worst = 0;
+    int n = 0;
+    int i_min = 0, i_max = 0, j_min = 0, j_max = 0;
+    grid.IndexBounds(w, h, &i_min, &i_max, &j_min, &j_max);
+    for (int j = j_min; j <= j_max; ++j)
+      for (int i = i_min; i <= i_max; ++i) {
+        const Eigen::Vector2d c = grid.Center(i, j);
+        if (c.x() < 0 || c.y() < 0 || c.x() > w - 1 || c.y() > h - 1) continue;
+        const double d = (initial.Center(i, j) - c).norm();
+        sum2 += d * d;
+        worst = std::max(worst, d);
+        ++n;
+      }
+    std::printf(
+        "vs %s: diameter %+.5f px, rotation %+.7f rad, offset (%+.4f, %+.4f) px; centres "
+        "differ by %.4f px RMS, %.4f px at most, over %d lenses\n",
+        o.mla.c_str(), refined.diameter_px - base.diameter_px,
+        refined.rotation_rad - base.rotation_rad, refined.offset_px.x() - base.offset_px.x(),
+        refined.offset_px.y() - base.offset_px.y(), std::sqrt(sum2 / std::max(1, n)), worst, n);
+    std::printf("lens types: from the MLA file (type 1 at %s)\n",
+                grid.type_sign > 0 ? "+lens_base_x" : "-lens_base_x");
+  } else {
+    std::printf(
+        "lens types: unknown (a white image cannot tell them apart); the written file "
+        "numbers them (i - j) mod 3 from the lens nearest the image centre, with no depth "
+        "ranges\n");
+  }
+  const std::string out =
+      o.out.empty() ? std::filesystem::path(o.white).stem().string() + "_MLA.xml" : o.out;
+  if (Status s = WriteMlaXml(out, refined); !s) {
+    std::cerr << "lifmcr grid: " << s.error().message << "\n";
+    return 1;
+  }
+  std::printf("wrote %s\n", out.c_str());
+  return 0;
+}
+
+}  // namespace
+
+CommandRun AddGridCommand(CLI::App& app) {
+  auto o = std::make_shared<GridOptions>();
+  app.add_option("WHITE", o->white, "White image (BMP, Mono8 or BGR8)")->required();
+  app.add_option("--mla", o->mla,
+                 "MLA file (RayCalibData XML) to start from, compare with and refine; it also "
+                 "gives the lens types");
+  app.add_option("--out", o->out, "MLA XML to write (default ./<WHITE stem>_MLA.xml)");
+  return [o] { return RunGrid(*o); };
+}
+
+}  // namespace lifmcr::apps

@@ -1,0 +1,250 @@
+// bench_depth: processing/ on one synthetic frame (default the r32 preset,
+// 6560x4948), on all cores (run under `taskset -c 0,1` for the 2-core figure):
+//   - grid fit to the white image (seconds, median),
+//   - virtual depth: raw MP/s (prepare + estimate, median of runs), with the
+//     accuracy gates measured on that frame against the ground truth, beside a
+//     naive reference measured in the same run: brute-force block matching
+//     (5x5 SSD summed over all six first-ring neighbours, every disparity step
+//     of 0.5 px over the MLA file's depth range, every valid pixel) on a crop;
+//   - TF image: output MP/s (TF depth + rendering), beside the same rendering
+//     on one thread.
+//   bench_depth [--preset r32|medium|small] [--repeat N] [--crop PX]
+
+#include "processing/camera_model.h"
+#include "processing/mla_grid.h"
+#include "processing/plenoptic_frame.h"
+#include "processing/total_focus.h"
+#include "processing/virtual_depth.h"
+#include "replay/synth/plenoptic_model.h"
+#include "replay/synth/renderer.h"
+#include "replay/synth/scene.h"
+#include "replay/synth/synth_params.h"
+#include "replay/synth/trajectory.h"
+
+#include <tbb/info.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <vector>
+
+using namespace lifmcr;
+using namespace lifmcr::processing;
+
+namespace {
+
+double Now() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+double Median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+// Naive reference: for every valid pixel of the crop, every disparity step,
+// the 5x5 SSD summed over the six first-ring neighbours; the best step wins.
+// Returns the pixels processed.
+long long NaiveBlockMatching(const PlenopticFrame& f, const MlaCalibration& mla, int x0, int y0,
+                             int size, std::vector<float>* out) {
+  double z_lo = 1, z_hi = 0;
+  for (const MlaLensType& t : mla.lens_types) {
+    z_lo = std::min(z_lo, 1.0 / std::max(1.05, t.depth_max));
+    z_hi = std::max(z_hi, 1.0 / std::max(1.05, t.depth_min));
+  }
+  const int ring[6][2] = {{1, 0}, {0, 1}, {-1, 1}, {-1, 0}, {0, -1}, {1, -1}};
+  long long pixels = 0;
+  out->assign(static_cast<std::size_t>(size) * size, NAN);
+  for (int y = y0; y < y0 + size; ++y)
+    for (int x = x0; x < x0 + size; ++x) {
+      const int k = f.lens_of_pixel[static_cast<std::size_t>(y) * f.width + x];
+      if (k < 0) continue;
+      ++pixels;
+      const MicroImage& m = f.lenses[k];
+      const double pitch = f.grid.PitchPx();
+      const double dz = 0.5 / (f.lambda * pitch);
+      double best = 1e300, best_z = NAN;
+      for (double z = z_lo; z <= z_hi; z += dz) {
+        double cost = 0;
+        int used = 0;
+        for (const auto& d : ring) {
+          const int n = f.LensAt(m.i + d[0], m.j + d[1]);
+          if (n < 0) continue;
+          const Eigen::Vector2d delta = f.lenses[n].centre_px - m.centre_px;
+          const Eigen::Vector2d q = Eigen::Vector2d(x, y) + f.lambda * delta * (1 - z);
+          double c = 0;
+          bool ok = true;
+          for (int b = -2; b <= 2 && ok; ++b)
+            for (int a = -2; a <= 2; ++a) {
+              const float s0 = f.SampleGrey(x + a, y + b);
+              const float s1 = f.SampleGrey(q.x() + a, q.y() + b);
+              if (std::isnan(s0) || std::isnan(s1)) {
+                ok = false;
+                break;
+              }
+              c += (s0 - s1) * (s0 - s1);
+            }
+          if (!ok) continue;
+          cost += c;
+          ++used;
+        }
+        if (used > 0 && cost / used < best) {
+          best = cost / used;
+          best_z = z;
+        }
+      }
+      (*out)[static_cast<std::size_t>(y - y0) * size + (x - x0)] = static_cast<float>(1 / best_z);
+    }
+  return pixels;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string preset = "r32";
+  int repeat = 3, crop = 256;
+  for (int k = 1; k + 1 < argc; k += 2) {
+    if (!std::strcmp(argv[k], "--preset"))
+      preset = argv[k + 1];
+    else if (!std::strcmp(argv[k], "--repeat"))
+      repeat = std::max(1, std::atoi(argv[k + 1]));
+    else if (!std::strcmp(argv[k], "--crop"))
+      crop = std::max(32, std::atoi(argv[k + 1]));
+    else {
+      std::fprintf(stderr, "unknown option %s\n", argv[k]);
+      return 2;
+    }
+  }
+  Expected<synth::SynthParams> params = synth::MakePreset(preset);
+  if (!params) {
+    std::fprintf(stderr, "%s\n", params.error().message.c_str());
+    return 2;
+  }
+  std::printf("bench_depth: preset %s, %d threads, %d runs\n", preset.c_str(),
+              tbb::info::default_concurrency(), repeat);
+  const synth::PlenopticModel model(params->camera);
+  const synth::Scene scene = synth::MakeTableTopScene(params->rig.seed);
+  synth::TrajectoryParams tp;
+  tp.target_mm = scene.Target();
+  tp.distance_mm = params->rig.viewing_distance_mm;
+  const Pose world_from_cam = synth::CameraTrajectory(tp).WorldFromCam(0.0);
+  double t0 = Now();
+  const synth::RawFrame raw = synth::RenderRaw(model, scene, world_from_cam, {});
+  synth::RenderOptions white_options;
+  white_options.noise_seed = 2;
+  const synth::RawFrame white =
+      synth::RenderRaw(model, synth::MakeWhiteScene(), Pose::Identity(), white_options);
+  std::printf("rendered raw + white %dx%d in %.1f s (not timed below)\n", raw.width, raw.height,
+              Now() - t0);
+  const MlaCalibration mla = model.ToMlaCalibration();
+  const double raw_mp = raw.width * static_cast<double>(raw.height) / 1e6;
+
+  // Grid fit.
+  std::vector<double> grid_s;
+  GridFitResult fit;
+  for (int r = 0; r < repeat; ++r) {
+    Expected<GridFitResult> g = FitGridToWhiteImage(white.View(), nullptr);
+    if (!g) {
+      std::fprintf(stderr, "grid fit: %s\n", g.error().message.c_str());
+      return 1;
+    }
+    grid_s.push_back(g->seconds);
+    fit = *g;
+  }
+  std::printf("grid fit: %.3f s (median), %s\n", Median(grid_s), fit.BriefReport().c_str());
+
+  // Virtual depth.
+  CameraIntrinsics k;
+  k.main_focal_length_mm = params->camera.main_focal_length_mm;
+  k.mla_to_main_lens_mm = params->camera.mla_to_main_lens_mm;
+  k.mla_to_sensor_mm = params->camera.mla_to_sensor_mm;
+  k.pixel_size_mm = params->camera.pixel_size_mm;
+  k.width_px = raw.width;
+  k.height_px = raw.height;
+  const CameraModel camera(k);
+  const MlaGrid grid = MlaGrid::FromCalibration(mla, raw.width, raw.height);
+  FrameOptions fo;
+  fo.lambda = camera.lambda();
+  PlenopticFrame frame;
+  VirtualDepthMap depth;
+  std::vector<double> depth_s;
+  for (int r = 0; r < repeat; ++r) {
+    t0 = Now();
+    if (!PrepareFrame(raw.View(), white.View(), grid, mla, fo, &frame).ok() ||
+        !EstimateVirtualDepth(frame, mla, DepthOptions{}, &depth).ok()) {
+      std::fprintf(stderr, "depth failed\n");
+      return 1;
+    }
+    depth_s.push_back(Now() - t0);
+  }
+  long long textured = 0, covered = 0, outliers = 0;
+  std::vector<double> rel, rel_mm;
+  for (std::size_t i = 0; i < depth.virtual_depth.size(); ++i) {
+    const float truth = raw.virtual_depth[i];
+    if (!depth.textured[i] || std::isnan(truth)) continue;
+    ++textured;
+    const float v = depth.virtual_depth[i];
+    if (std::isnan(v)) continue;
+    ++covered;
+    rel.push_back(std::abs(1.0 / v - 1.0 / truth) * truth);
+    const double z_true = camera.DepthOfVirtualDepth(truth);
+    rel_mm.push_back(std::abs(camera.DepthOfVirtualDepth(v) - z_true) / z_true);
+    if (std::abs(v - truth) / truth > 0.10) ++outliers;
+  }
+  const double coverage = textured ? static_cast<double>(covered) / textured : 0;
+  const double median = rel.empty() ? 1 : Median(rel);
+  const double outlier_share = covered ? static_cast<double>(outliers) / covered : 1;
+  const bool gates = coverage >= 0.5 && median <= 0.02 && outlier_share <= 0.05;
+  const double depth_mps = raw_mp / Median(depth_s);
+  std::printf("metric depth (true intrinsics) at the raw estimates: median |dZ|/Z %.2f %%\n",
+              rel_mm.empty() ? 100.0 : 100 * Median(rel_mm));
+  // Naive reference on a crop at the image centre (one run; it is slow).
+  const int cx = raw.width / 2 - crop / 2, cy = raw.height / 2 - crop / 2;
+  std::vector<float> naive;
+  t0 = Now();
+  const long long naive_pixels = NaiveBlockMatching(frame, mla, cx, cy, crop, &naive);
+  const double naive_s = Now() - t0;
+  const double naive_mps = crop * static_cast<double>(crop) / 1e6 / naive_s;
+  std::printf(
+      "depth: %.2f raw MP/s (%.3f s median per %.1f MP frame); coverage %.1f %% of "
+      "textured, median |dz|/z %.2f %%, outliers %.2f %%: gates %s\n",
+      depth_mps, Median(depth_s), raw_mp, 100 * coverage, 100 * median, 100 * outlier_share,
+      gates ? "hold" : "DO NOT hold");
+  std::printf(
+      "naive block matching: %.4f raw MP/s (%dx%d crop, %lld pixels, %.2f s, 1 thread); "
+      "ratio %.1fx\n",
+      naive_mps, crop, crop, naive_pixels, naive_s, depth_mps / naive_mps);
+
+  // TF image.
+  TfDepthMap tf_depth;
+  TfImage tf;
+  std::vector<double> tf_s, tf_one_s;
+  std::vector<double> tf_depth_s;
+  for (int r = 0; r < repeat; ++r) {
+    t0 = Now();
+    if (!VirtualDepthToTf(frame, depth, TfOptions{}, &tf_depth).ok()) return 1;
+    tf_depth_s.push_back(Now() - t0);
+    if (!RenderTotalFocus(frame, mla, tf_depth, TfOptions{}, &tf).ok()) {
+      std::fprintf(stderr, "TF failed\n");
+      return 1;
+    }
+    tf_s.push_back(Now() - t0);
+  }
+  tbb::task_arena one(1);
+  one.execute([&] {
+    t0 = Now();
+    (void)VirtualDepthToTf(frame, depth, TfOptions{}, &tf_depth);
+    (void)RenderTotalFocus(frame, mla, tf_depth, TfOptions{}, &tf);
+    tf_one_s.push_back(Now() - t0);
+  });
+  const double tf_mp = tf.width * static_cast<double>(tf.height) / 1e6;
+  std::printf("tf: TF depth map %.3f s of it (median)\n", Median(tf_depth_s));
+  std::printf(
+      "tf: %.2f output MP/s (%.3f s median per %.2f MP); one thread %.2f MP/s; ratio %.2fx\n",
+      tf_mp / Median(tf_s), Median(tf_s), tf_mp, tf_mp / tf_one_s[0], tf_one_s[0] / Median(tf_s));
+  return 0;
+}
