@@ -3,6 +3,7 @@
 #include "acquisition/recorder.h"
 #include "acquisition/rig_controller.h"
 #include "apps/commands.h"
+#include "apps/pipeline/pipeline.h"
 #include "config/rig_config.h"
 #include "drivers/camera_factory.h"
 #include "drivers/replay_camera.h"
@@ -16,6 +17,7 @@
 #include <csignal>
 #include <ctime>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <pthread.h>
 #include <signal.h>
@@ -60,7 +62,35 @@ struct Args {
   std::string sequence = "seq";
   std::string replay;  // sequence folder the replay cameras serve
   bool no_sync = false;
+  bool publish = false;
+  std::string lcm_url;
+  bool no_processing = false;
 };
+
+// The live pipeline beside the recorder (--publish): frames reach it through
+// the controller's observer (a mutex-guarded hand-over); it never blocks a
+// grab thread (skip policy: newest wins), so a slow stage costs skipped
+// previews, never recorded frames.
+Expected<std::unique_ptr<Pipeline>> MakePublishPipeline(const RigConfig& rig, const Args& args) {
+  std::unique_ptr<FrameProcessor> processor;
+  std::map<std::string, std::string> mla_files;
+  for (const CameraConfig& camera : rig.cameras)
+    if (!camera.mla_file.empty()) mla_files[camera.serial] = camera.mla_file.string();
+  if (!args.no_processing && mla_files.size() == rig.cameras.size()) {
+    auto depth = DepthProcessor::FromMlaFiles(mla_files);
+    if (!depth) return depth.error();
+    processor = std::move(*depth);
+  } else {
+    if (!args.no_processing)
+      std::cerr << "lifmcr record: --publish: not every camera has an mla_file; previews only\n";
+    processor = std::make_unique<PreviewProcessor>();
+  }
+  FrameSetAssemblerOptions sync = FrameSetAssemblerOptions::FromRig(rig);
+  PipelineOptions options;
+  options.lcm_url = args.lcm_url;
+  options.skip_when_busy = true;
+  return Pipeline::Create(sync, std::move(processor), options);
+}
 
 int Run(const Args& args) {
   // SIGINT/SIGTERM are taken synchronously by the main loop (sigtimedwait),
@@ -100,8 +130,10 @@ int Run(const Args& args) {
   for (std::size_t i = 0; i < rig->cameras.size(); ++i) {
     const CameraConfig& config = rig->cameras[i];
     CameraFactoryOptions factory;
-    // The recorder's queue plus frames in the stream and in the grab thread.
-    factory.pool_buffers = rig->recorder.queue_frames + 4;
+    // The recorder's queue plus frames in the stream and in the grab thread;
+    // with --publish also those the pipeline holds (sync, one per worker, one
+    // waiting per camera).
+    factory.pool_buffers = rig->recorder.queue_frames + 4 + (args.publish ? 8 : 0);
     factory.trigger_period = TriggerPeriod(rig->vicon);
     factory.replay_sequence_dir = args.replay;
     factory.replay_pacing = config.trigger.mode == TriggerMode::kSoftware
@@ -137,11 +169,26 @@ int Run(const Args& args) {
     std::cerr << "lifmcr record: " << recorder.error().message << "\n";
     return kExitCannotStart;
   }
+  std::unique_ptr<Pipeline> pipeline;
+  RigObserver observer;
+  if (args.publish) {
+    auto made = MakePublishPipeline(*rig, args);
+    if (!made) {
+      std::cerr << "lifmcr record: --publish: " << made.error().message << "\n";
+      (*recorder)->Stop();
+      return kExitCannotStart;
+    }
+    pipeline = std::move(*made);
+    Pipeline* p = pipeline.get();
+    // A copy of the Frame shares the pooled buffer (no pixel copy).
+    observer.on_frame = [p](int, std::int64_t, const Frame& frame) { p->AddFrame(frame); };
+    observer.on_vicon = [p](const ViconFrame& frame) { p->AddVicon(frame); };
+  }
   RigControllerOptions controller_options;
   controller_options.trigger_hz = rig->vicon.rate_hz / rig->vicon.trigger_divider;
   if (!args.no_sync) controller_options.sync = FrameSetAssemblerOptions::FromRig(*rig);
   RigController controller(std::move(cameras), std::move(software_trigger), std::move(*vicon),
-                           recorder->get(), controller_options);
+                           recorder->get(), controller_options, observer);
   if (Status s = controller.Start(); !s) {
     std::cerr << "lifmcr record: " << s.error().message << "\n";
     (*recorder)->Stop();
@@ -169,6 +216,7 @@ int Run(const Args& args) {
       stop_why = "end of the replayed sequence";
       break;
     }
+    if (pipeline) pipeline->Poll();
     const auto now = std::chrono::steady_clock::now();
     if (args.duration_s > 0 &&
         std::chrono::duration<double>(now - start).count() >= args.duration_s)
@@ -190,6 +238,10 @@ int Run(const Args& args) {
   std::cout << "sequence: " << (*recorder)->sequence_dir().string() << "\n"
             << "stopped by: " << stop_why << "\n"
             << health.FinalReport();
+  if (pipeline) {
+    pipeline->Finish();
+    std::cout << "published (--publish):\n" << pipeline->Report().FinalReport();
+  }
   return health.AnythingLost() ? kExitLost : 0;
 }
 
@@ -226,6 +278,10 @@ CommandRun AddRecordCommand(CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   app.add_option("--scene", args->scene, "Scene folder name")->capture_default_str();
   app.add_option("--sequence", args->sequence, "Sequence folder name")->capture_default_str();
+  app.add_flag("--publish", args->publish,
+               "Run the live pipeline on the frames too and publish on LCM (as lifmcr replay)");
+  app.add_option("--lcm", args->lcm_url, "LCM URL for --publish (default: LCM's)");
+  app.add_flag("--no-processing", args->no_processing, "--publish previews only (no depth, no TF)");
   app.add_option("--replay", args->replay,
                  "Sequence folder that cameras with driver 'replay' serve")
       ->check(CLI::ExistingDirectory);

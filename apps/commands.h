@@ -16,6 +16,9 @@ CommandRun AddInfoCommand(CLI::App& app);
 CommandRun AddViconCommand(CLI::App& app);
 CommandRun AddSynthCommand(CLI::App& app);
 CommandRun AddRecordCommand(CLI::App& app);
+CommandRun AddReplayCommand(CLI::App& app);
+CommandRun AddMonitorCommand(CLI::App& app);
+CommandRun AddDemoCommand(CLI::App& app);
 CommandRun AddGridCommand(CLI::App& app);
 CommandRun AddDepthCommand(CLI::App& app);
 

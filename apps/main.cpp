@@ -27,6 +27,11 @@ int main(int argc, char** argv) {
       lifmcr::apps::AddSynthCommand);
   add("record", "Record a rig live (cameras + Vicon) into the LiFMCR layout",
       lifmcr::apps::AddRecordCommand);
+  add("replay", "Play a recorded sequence through the live pipeline onto LCM",
+      lifmcr::apps::AddReplayCommand);
+  add("monitor", "Terminal view of the pipeline's LCM channels", lifmcr::apps::AddMonitorCommand);
+  add("demo", "Synthetic rig -> replay through the pipeline on LCM (the embedded default)",
+      lifmcr::apps::AddDemoCommand);
   add("grid", "Fit the micro-image lattice to a white image and write an MLA XML",
       lifmcr::apps::AddGridCommand);
   add("depth", "Virtual depth, totally focused image, metric depth and point cloud of one frame",

@@ -1,0 +1,274 @@
+// `lifmcr monitor`: a terminal view of the LIFMCR_* channels, refreshed in
+// place (ANSI escapes only, so it works over ssh and in tmux).
+
+#include "apps/commands.h"
+
+#include <CLI/CLI.hpp>
+#include <lcm/lcm-cpp.hpp>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <deque>
+#include <iostream>
+#include <lifmcr_lcm/camera_extrinsics_t.hpp>
+#include <lifmcr_lcm/depth_image_t.hpp>
+#include <lifmcr_lcm/pipeline_stats_t.hpp>
+#include <lifmcr_lcm/preview_image_t.hpp>
+#include <lifmcr_lcm/vicon_frame_t.hpp>
+#include <map>
+#include <memory>
+#include <optional>
+#include <poll.h>
+#include <sstream>
+#include <termios.h>
+#include <unistd.h>
+
+namespace lifmcr::apps {
+namespace {
+
+std::atomic<bool> g_stop{false};
+void OnSignal(int) { g_stop = true; }
+
+double NowS() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+// Message arrival times over the last few seconds.
+class RateMeter {
+ public:
+  void Tick(double t) {
+    times_.push_back(t);
+    ++count_;
+  }
+  double Hz(double now) {
+    while (!times_.empty() && times_.front() < now - kWindowS) times_.pop_front();
+    return static_cast<double>(times_.size()) / kWindowS;
+  }
+  std::uint64_t count() const { return count_; }
+
+ private:
+  static constexpr double kWindowS = 3.0;
+  std::deque<double> times_;
+  std::uint64_t count_ = 0;
+};
+
+struct CameraView {
+  RateMeter preview, depth, tf;
+  double last_latency_ms = 0;  // receive - utime of the last preview
+  std::int64_t last_frame = -1;
+  float valid_fraction = 0, min_v = 0, max_v = 0;
+  std::optional<lifmcr_lcm::camera_extrinsics_t> extrinsics;
+};
+
+class Monitor {
+ public:
+  void OnPreview(const lcm::ReceiveBuffer* rbuf, const std::string& channel,
+                 const lifmcr_lcm::preview_image_t* m) {
+    CameraView& c = cameras_[m->serial];
+    const bool tf = channel.size() > 3 && channel.compare(channel.size() - 3, 3, "_TF") == 0;
+    (tf ? c.tf : c.preview).Tick(NowS());
+    if (!tf) {
+      c.last_latency_ms = static_cast<double>(rbuf->recv_utime - m->utime) / 1e3;
+      c.last_frame = m->frame_id;
+    }
+  }
+  void OnDepth(const lcm::ReceiveBuffer*, const std::string&, const lifmcr_lcm::depth_image_t* m) {
+    CameraView& c = cameras_[m->serial];
+    c.depth.Tick(NowS());
+    c.valid_fraction = m->valid_fraction;
+    c.min_v = m->min_value;
+    c.max_v = m->max_value;
+  }
+  void OnExtrinsics(const lcm::ReceiveBuffer*, const std::string&,
+                    const lifmcr_lcm::camera_extrinsics_t* m) {
+    cameras_[m->serial].extrinsics = *m;
+  }
+  void OnVicon(const lcm::ReceiveBuffer*, const std::string&, const lifmcr_lcm::vicon_frame_t* m) {
+    vicon_.Tick(NowS());
+    last_vicon_ = *m;
+    for (const auto& o : m->objects)
+      if (o.occluded) ++occlusions_[o.name];
+  }
+  void OnStats(const lcm::ReceiveBuffer*, const std::string&,
+               const lifmcr_lcm::pipeline_stats_t* m) {
+    stats_ = *m;
+  }
+
+  std::string Render(const std::string& url) {
+    const double now = NowS();
+    std::ostringstream out;
+    char line[512];
+    out << "lifmcr monitor  " << (url.empty() ? "LCM default URL" : url)
+        << "   (q or Ctrl-C quits)\n\n";
+    std::snprintf(line, sizeof line, "%-12s %9s %9s %8s %9s %10s %8s %17s\n", "camera", "preview",
+                  "depth", "TF", "latency", "last frame", "depth %", "virtual depth");
+    out << line;
+    if (cameras_.empty()) out << "  (no camera channel yet)\n";
+    for (auto& [serial, c] : cameras_) {
+      std::snprintf(line, sizeof line,
+                    "%-12s %6.1f Hz %6.1f Hz %5.1f Hz %6.1f ms %10lld %7.1f%% %7.2f .. %6.2f\n",
+                    serial.c_str(), c.preview.Hz(now), c.depth.Hz(now), c.tf.Hz(now),
+                    c.last_latency_ms, static_cast<long long>(c.last_frame),
+                    100.0 * c.valid_fraction, c.min_v, c.max_v);
+      out << line;
+    }
+    bool any_extrinsics = false;
+    for (auto& [serial, c] : cameras_) {
+      if (!c.extrinsics) continue;
+      if (!any_extrinsics) out << "\nextrinsics (c0_from_cx)\n";
+      any_extrinsics = true;
+      const auto& e = *c.extrinsics;
+      std::snprintf(line, sizeof line,
+                    "  %s <- %s [%s] t = (%.1f, %.1f, %.1f) mm q = (%.4f, %.4f, %.4f, %.4f) "
+                    "inliers %d rmse %.2f px %s\n",
+                    e.reference_serial.c_str(), e.serial.c_str(), e.method.c_str(), e.t_mm[0],
+                    e.t_mm[1], e.t_mm[2], e.q_wxyz[0], e.q_wxyz[1], e.q_wxyz[2], e.q_wxyz[3],
+                    e.inliers, e.rmse_px, e.status.c_str());
+      out << line;
+    }
+    std::snprintf(line, sizeof line, "\nVicon   %6.1f Hz  frames %llu", vicon_.Hz(now),
+                  static_cast<unsigned long long>(vicon_.count()));
+    out << line;
+    if (last_vicon_) out << "  last frame " << last_vicon_->vicon_frame;
+    out << "\n";
+    if (last_vicon_)
+      for (const auto& o : last_vicon_->objects) {
+        std::snprintf(line, sizeof line, "  %-10s %s  occluded in %llu frames\n", o.name.c_str(),
+                      o.occluded ? "OCCLUDED" : "tracked ",
+                      static_cast<unsigned long long>(occlusions_[o.name]));
+        out << line;
+      }
+    out << "\npipeline";
+    if (!stats_) {
+      out << "  (no LIFMCR_STATS yet)\n";
+    } else {
+      std::snprintf(line, sizeof line, "  (stats %.1f s ago)\n",
+                    now - static_cast<double>(stats_->utime) / 1e6);
+      out << line;
+      for (const auto& s : stats_->stages) {
+        std::snprintf(line, sizeof line,
+                      "  %-16s %6.1f Hz  queue %d/%d  p50 %7.1f ms  p99 %7.1f ms  processed %lld "
+                      "skipped %lld\n",
+                      s.name.c_str(), s.rate_hz, s.queue_depth, s.queue_capacity, s.latency_p50_ms,
+                      s.latency_p99_ms, static_cast<long long>(s.processed),
+                      static_cast<long long>(s.skipped));
+        out << line;
+      }
+      out << "  drops:";
+      if (stats_->drops.empty()) out << " none";
+      for (const auto& d : stats_->drops) out << " " << d.kind << "=" << d.count;
+      out << "\n";
+    }
+    return out.str();
+  }
+
+ private:
+  std::map<std::string, CameraView> cameras_;
+  RateMeter vicon_;
+  std::optional<lifmcr_lcm::vicon_frame_t> last_vicon_;
+  std::map<std::string, std::uint64_t> occlusions_;
+  std::optional<lifmcr_lcm::pipeline_stats_t> stats_;
+};
+
+struct Args {
+  std::string lcm_url;
+  double duration_s = 0;
+};
+
+int RunMonitor(const Args& args) {
+  // Depth maps and previews are fragmented datagrams of up to a few hundred
+  // KB: a UDP multicast receiver needs a larger buffer than the kernel's
+  // default (within net.core.rmem_max) or it loses them.
+  std::string url = args.lcm_url;
+  if (url.empty()) {
+    const char* env = std::getenv("LCM_DEFAULT_URL");
+    url = env ? env : "udpm://239.255.76.67:7667?ttl=0";
+  }
+  if (url.starts_with("udpm://") && url.find("recv_buf_size") == std::string::npos)
+    url += std::string(url.find('?') == std::string::npos ? "?" : "&") + "recv_buf_size=4194304";
+  lcm::LCM bus(url);
+  if (!bus.good()) {
+    std::cerr << "lifmcr monitor: cannot open LCM '" << args.lcm_url << "'\n";
+    return 3;
+  }
+  Monitor monitor;
+  bus.subscribe("LIFMCR_.*_PREVIEW", &Monitor::OnPreview, &monitor);
+  bus.subscribe("LIFMCR_.*_TF", &Monitor::OnPreview, &monitor);
+  bus.subscribe("LIFMCR_.*_DEPTH", &Monitor::OnDepth, &monitor);
+  bus.subscribe("LIFMCR_.*_EXTRINSICS", &Monitor::OnExtrinsics, &monitor);
+  bus.subscribe("LIFMCR_VICON", &Monitor::OnVicon, &monitor);
+  bus.subscribe("LIFMCR_STATS", &Monitor::OnStats, &monitor);
+
+  g_stop = false;
+  std::signal(SIGINT, OnSignal);
+  std::signal(SIGTERM, OnSignal);
+  const bool tty_out = isatty(STDOUT_FILENO) == 1;
+  const bool tty_in = isatty(STDIN_FILENO) == 1;
+  termios saved{};
+  if (tty_in) {
+    tcgetattr(STDIN_FILENO, &saved);
+    termios raw = saved;
+    raw.c_lflag &= ~static_cast<tcflag_t>(ICANON | ECHO);
+    raw.c_cc[VMIN] = 0;
+    raw.c_cc[VTIME] = 0;
+    tcsetattr(STDIN_FILENO, TCSANOW, &raw);
+  }
+  if (tty_out) std::cout << "\x1b[?25l\x1b[2J" << std::flush;  // hide cursor, clear
+  const auto start = std::chrono::steady_clock::now();
+  auto next_draw = start;
+  while (!g_stop) {
+    bus.handleTimeout(50);
+    if (tty_in) {
+      pollfd fd{STDIN_FILENO, POLLIN, 0};
+      if (poll(&fd, 1, 0) > 0) {
+        char c = 0;
+        if (read(STDIN_FILENO, &c, 1) == 1 && (c == 'q' || c == 'Q')) break;
+      }
+    }
+    const auto now = std::chrono::steady_clock::now();
+    if (args.duration_s > 0 &&
+        std::chrono::duration<double>(now - start).count() >= args.duration_s)
+      break;
+    if (tty_out && now >= next_draw) {
+      std::string view = monitor.Render(args.lcm_url);
+      // Clear to the end of every line so shorter lines leave nothing behind.
+      std::string framed = "\x1b[H";
+      for (char c : view) {
+        if (c == '\n') framed += "\x1b[K";
+        framed += c;
+      }
+      std::cout << framed << "\x1b[J" << std::flush;
+      next_draw = now + std::chrono::milliseconds(500);
+    }
+  }
+  if (tty_in) tcsetattr(STDIN_FILENO, TCSANOW, &saved);
+  if (tty_out)
+    std::cout << "\x1b[?25h\n" << std::flush;
+  else
+    std::cout << monitor.Render(args.lcm_url) << std::flush;  // one view at the end
+  std::signal(SIGINT, SIG_DFL);
+  std::signal(SIGTERM, SIG_DFL);
+  return 0;
+}
+
+}  // namespace
+
+CommandRun AddMonitorCommand(CLI::App& app) {
+  auto args = std::make_shared<Args>();
+  app.footer(
+      "A terminal view of the LIFMCR_* LCM channels, refreshed in place twice a second:\n"
+      "per camera the preview, depth and TF rates, latency (receipt - publication),\n"
+      "last frame, depth coverage and range; the latest extrinsics when published; the\n"
+      "Vicon rate and occlusions per object; the pipeline's stages and drops from\n"
+      "LIFMCR_STATS. q or Ctrl-C quits. Without a terminal on stdout it prints one view\n"
+      "when it ends (--duration).");
+  app.add_option("--lcm", args->lcm_url, "LCM URL (default: LCM's)");
+  app.add_option("--duration", args->duration_s, "Quit after this many seconds (0: never)")
+      ->check(CLI::NonNegativeNumber);
+  return [args] { return RunMonitor(*args); };
+}
+
+}  // namespace lifmcr::apps

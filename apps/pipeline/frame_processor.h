@@ -1,0 +1,107 @@
+#pragma once
+// The processing stage of the live pipeline, as an interface: one camera
+// frame in, the products that go on LCM out (plain buffers, no LCM types, so
+// processing stays testable without a bus).
+//
+// Implementations (frame_processor.cpp):
+//   PreviewProcessor  downscale (INTER_AREA) to at most max_side pixels and
+//                     JPEG-encode: the raw preview, always cheap;
+//   DepthProcessor    the preview plus processing/: devignetted frame,
+//                     virtual depth, TF depth map and the totally focused
+//                     image; the TF virtual depth, reduced by block means
+//                     to at most depth_max_side and quantised to 16-bit PNG.
+// Process is called concurrently for different frames (bounded by the
+// pipeline); implementations keep per-call state only.
+
+#include "config/error.h"
+#include "drivers/frame.h"
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace lifmcr::apps {
+
+struct EncodedImage {
+  int source_width = 0, source_height = 0;
+  int width = 0, height = 0;
+  int channels = 1;
+  enum class Encoding { kJpeg, kPng } encoding = Encoding::kJpeg;
+  std::vector<std::uint8_t> bytes;
+};
+
+// Virtual depth quantised: value = offset + scale * q, q in 1..65535, q = 0
+// no estimate; PNG-encoded 16-bit grey.
+struct EncodedDepth {
+  int width = 0, height = 0;
+  float scale = 0, offset = 0;
+  float valid_fraction = 0;
+  float min_value = 0, max_value = 0;
+  std::vector<std::uint8_t> png;
+  std::vector<float> values;  // the published depth before quantisation (NaN: none)
+};
+
+struct ProcessedFrame {
+  std::optional<EncodedImage> preview;  // LIFMCR_<SERIAL>_PREVIEW
+  std::optional<EncodedDepth> depth;    // LIFMCR_<SERIAL>_DEPTH
+  std::optional<EncodedImage> tf;       // LIFMCR_<SERIAL>_TF
+  double seconds = 0;
+};
+
+struct PreviewOptions {
+  int max_side = 512;  // longest side of the preview, pixels
+  int jpeg_quality = 85;
+  int depth_max_side = 640;  // longest side of the published depth map (block means)
+  Status Check() const;
+};
+
+class FrameProcessor {
+ public:
+  virtual ~FrameProcessor() = default;
+  virtual Expected<ProcessedFrame> Process(const Frame& frame) = 0;
+  virtual std::string name() const = 0;  // "preview", "depth"
+};
+
+// Downscaled JPEG of `image` (Mono8 or BGR8).
+Expected<EncodedImage> EncodePreview(ConstImageView image, const PreviewOptions& options);
+// PNG 16-bit quantisation of `values` (w x h, NaN = none); inverse of DecodeDepth.
+Expected<EncodedDepth> EncodeDepth(const std::vector<float>& values, int width, int height);
+// Decoded values (NaN where q = 0) of a PNG written by EncodeDepth.
+Expected<std::vector<float>> DecodeDepth(const std::vector<std::uint8_t>& png, float scale,
+                                         float offset, int* width, int* height);
+
+class PreviewProcessor final : public FrameProcessor {
+ public:
+  explicit PreviewProcessor(PreviewOptions options = {}) : options_(options) {}
+  Expected<ProcessedFrame> Process(const Frame& frame) override;
+  std::string name() const override { return "preview"; }
+
+ private:
+  PreviewOptions options_;
+};
+
+// Depth for the cameras of a sequence: the MLA file of each serial (and its
+// white image when there is one) from the sequence's Calibration/ folder.
+class DepthProcessor final : public FrameProcessor {
+ public:
+  static Expected<std::unique_ptr<DepthProcessor>> ForSequence(
+      const std::string& sequence_dir, const std::vector<std::string>& serials,
+      PreviewOptions preview = {});
+  // The same from a rig file's cameras: serial -> MLA file (no white images).
+  static Expected<std::unique_ptr<DepthProcessor>> FromMlaFiles(
+      const std::map<std::string, std::string>& mla_files, PreviewOptions preview = {});
+  ~DepthProcessor() override;
+  Expected<ProcessedFrame> Process(const Frame& frame) override;
+  std::string name() const override { return "depth"; }
+
+ private:
+  struct CameraContext;
+  DepthProcessor() = default;
+  PreviewOptions preview_;
+  std::map<std::string, std::unique_ptr<CameraContext>> cameras_;
+};
+
+}  // namespace lifmcr::apps

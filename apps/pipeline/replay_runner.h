@@ -1,0 +1,61 @@
+#pragma once
+// A recorded (or synthetic) sequence played through the pipeline: one
+// ReplayCamera per TypeE_<serial>/ folder and the sequence's Vicon CSV
+// through ViconCsvSource, a grab thread per camera and one for Vicon, the
+// command's loop polling the pipeline. Used by `lifmcr replay`, `lifmcr
+// demo`, the tests and bench_pipeline.
+//
+// Rates: kOriginal plays at the trigger period (10 Hz) and the Vicon rate;
+// kFactor at FACTOR times that; both skip frames for processing when it
+// cannot keep up (newest wins) and the replay camera loses a frame (an
+// underrun, counted) when the pipeline holds all its buffers. kMax delivers
+// frames as fast as the pipeline takes them: no skipping, the back-pressure
+// reaches the camera's frame pool, every frame is processed; Vicon frames are
+// released up to a few triggers ahead of the cameras.
+
+#include "apps/pipeline/frame_processor.h"
+#include "apps/pipeline/pipeline.h"
+#include "config/error.h"
+
+#include <atomic>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <string>
+
+namespace lifmcr::apps {
+
+struct ReplayRate {
+  enum class Kind { kOriginal, kMax, kFactor } kind = Kind::kOriginal;
+  double factor = 1.0;
+  // "original", "max" or a number > 0 (1 = original).
+  static Expected<ReplayRate> Parse(const std::string& text);
+};
+
+struct ReplayRunOptions {
+  std::filesystem::path sequence_dir;
+  ReplayRate rate;
+  bool loop = false;
+  bool processing = true;  // false: previews only (no depth, no TF)
+  PipelineOptions pipeline;
+  int pool_buffers = 8;  // per replay camera
+  // Called about once a second on the command's thread.
+  std::function<void(const PipelineReport&)> on_status;
+  const std::atomic<bool>* stop = nullptr;  // set by a signal handler; may be null
+};
+
+struct ReplayRunResult {
+  PipelineReport report;
+  int cameras = 0;
+  std::uint64_t frames_in_sequence = 0;  // frame files, per pass, all cameras
+  std::uint64_t camera_underruns = 0;    // frames the replay cameras lost (timed replay)
+  std::uint64_t camera_failed = 0;       // unreadable frame files
+  int passes = 0;
+  std::string FinalReport() const;
+};
+
+// `processor` replaces the stage the options ask for (tests: a slowed stage).
+Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
+                                    std::unique_ptr<FrameProcessor> processor = nullptr);
+
+}  // namespace lifmcr::apps

@@ -1,0 +1,247 @@
+// The live pipeline on memq:// with a synthetic sequence: every frame is
+// processed and published or counted as skipped; the skip policy (newest
+// wins) under a slowed stage; the published depth is the processing output.
+
+#include "apps/pipeline/frame_processor.h"
+#include "apps/pipeline/pipeline.h"
+#include "apps/pipeline/replay_runner.h"
+#include "replay/bmp.h"
+#include "replay/layout.h"
+#include "replay/sequence.h"
+#include "replay/synth/synth_params.h"
+#include "replay/synth/synth_writer.h"
+#include "tests/test_util.h"
+
+#include <gtest/gtest.h>
+#include <lcm/lcm-cpp.hpp>
+
+#include <cmath>
+#include <lifmcr_lcm/depth_image_t.hpp>
+#include <lifmcr_lcm/pipeline_stats_t.hpp>
+#include <lifmcr_lcm/preview_image_t.hpp>
+#include <lifmcr_lcm/vicon_frame_t.hpp>
+#include <map>
+#include <thread>
+
+namespace lifmcr::apps {
+namespace {
+
+synth::SynthParams TinyRig(int frames) {
+  auto params = synth::MakePreset("small");
+  EXPECT_TRUE(params.ok());
+  params->rig.frames = frames;
+  params->rig.cameras = 2;
+  params->rig.seed = 7;
+  return *params;
+}
+
+// Every message of the run, decoded by channel.
+struct Received {
+  std::map<std::string, int> count;
+  std::map<std::string, std::vector<std::int64_t>> utimes;
+  std::map<std::pair<std::string, std::int64_t>, lifmcr_lcm::depth_image_t> depth;  // serial, frame
+  std::map<std::string, std::vector<std::int64_t>> preview_frames;                  // by serial
+  std::optional<lifmcr_lcm::pipeline_stats_t> last_stats;
+
+  void OnAny(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+    ++count[channel];
+    if (channel == kStatsChannel) {
+      lifmcr_lcm::pipeline_stats_t m;
+      ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);
+      last_stats = m;
+      utimes[channel].push_back(m.utime);
+    } else if (channel == kViconChannel) {
+      lifmcr_lcm::vicon_frame_t m;
+      ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);
+      utimes[channel].push_back(m.utime);
+    } else if (channel.ends_with("_DEPTH")) {
+      lifmcr_lcm::depth_image_t m;
+      ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);
+      utimes[channel].push_back(m.utime);
+      depth[{m.serial, m.frame_id}] = m;
+    } else {
+      lifmcr_lcm::preview_image_t m;
+      ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);
+      utimes[channel].push_back(m.utime);
+      EXPECT_EQ(m.size, static_cast<int>(m.data.size()));
+      EXPECT_LE(m.size, 4 << 20);
+      if (channel.ends_with("_PREVIEW")) preview_frames[m.serial].push_back(m.frame_id);
+    }
+  }
+};
+
+void Drain(lcm::LCM& bus) {
+  while (bus.handleTimeout(0) > 0) {
+  }
+}
+
+TEST(Pipeline, MaxRateProcessesAndPublishesEveryFrameWithDepthFromProcessing) {
+  test::TempDir dir;
+  const int frames = 3;
+  auto summary = synth::WriteSyntheticDataset(dir.path(), TinyRig(frames));
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+
+  lcm::LCM bus("memq://");
+  ASSERT_TRUE(bus.good());
+  Received received;
+  bus.subscribe("LIFMCR_.*", &Received::OnAny, &received);
+  ReplayRunOptions options;
+  options.sequence_dir = summary->sequence_dir;
+  options.rate.kind = ReplayRate::Kind::kMax;
+  options.pipeline.bus = &bus;
+  auto result = RunReplay(options);
+  ASSERT_TRUE(result.ok()) << result.error().message;
+  Drain(bus);
+
+  const PipelineReport& r = result->report;
+  EXPECT_EQ(result->frames_in_sequence, 2u * frames);
+  EXPECT_EQ(r.frames_in, 2u * frames);
+  EXPECT_EQ(r.processed, 2u * frames) << r.FinalReport();
+  EXPECT_EQ(r.skipped, 0u);
+  EXPECT_EQ(r.failed, 0u) << r.last_error;
+  EXPECT_TRUE(r.Accounted());
+  EXPECT_EQ(r.sync_lost, 0u) << r.drops;
+
+  const auto layout = DiscoverSequence(summary->sequence_dir);
+  ASSERT_TRUE(layout.ok());
+  std::vector<std::string> serials;
+  for (const auto& camera : layout->cameras) serials.push_back(camera.serial);
+  ASSERT_EQ(serials.size(), 2u);
+  for (const std::string& serial : serials) {
+    EXPECT_EQ(received.count[CameraChannel(serial, "PREVIEW")], frames) << serial;
+    EXPECT_EQ(received.count[CameraChannel(serial, "DEPTH")], frames) << serial;
+    EXPECT_EQ(received.count[CameraChannel(serial, "TF")], frames) << serial;
+  }
+  EXPECT_GT(received.count[kViconChannel], 0);
+  EXPECT_EQ(static_cast<std::uint64_t>(received.count[kViconChannel]), r.published_vicon);
+  ASSERT_TRUE(received.last_stats.has_value());
+  for (auto& [channel, utimes] : received.utimes)
+    for (std::size_t k = 1; k < utimes.size(); ++k) EXPECT_GE(utimes[k], utimes[k - 1]) << channel;
+
+  // The published depth decodes to what the processing stage computes for
+  // the same frame, within the 16-bit quantisation.
+  auto processor = DepthProcessor::ForSequence(summary->sequence_dir.string(), serials);
+  ASSERT_TRUE(processor.ok()) << processor.error().message;
+  const std::string serial = serials[0];
+  const auto& folder = layout->cameras[0];
+  const std::int64_t frame_number = folder.frames[1];
+  auto image = ReadBmp(*folder.FramePath(frame_number));
+  ASSERT_TRUE(image.ok());
+  Frame frame;
+  frame.serial = serial;
+  frame.frame_id = static_cast<std::uint64_t>(frame_number);
+  frame.image = image->View();
+  auto expected = (*processor)->Process(frame);
+  ASSERT_TRUE(expected.ok()) << expected.error().message;
+  ASSERT_TRUE(expected->depth.has_value());
+  const auto it = received.depth.find({serial, frame_number});
+  ASSERT_NE(it, received.depth.end());
+  const lifmcr_lcm::depth_image_t& m = it->second;
+  EXPECT_EQ(m.width, expected->depth->width);
+  EXPECT_EQ(m.height, expected->depth->height);
+  int w = 0, h = 0;
+  auto decoded = DecodeDepth(m.data, m.scale, m.offset, &w, &h);
+  ASSERT_TRUE(decoded.ok()) << decoded.error().message;
+  ASSERT_EQ(decoded->size(), expected->depth->values.size());
+  std::size_t valid = 0;
+  for (std::size_t k = 0; k < decoded->size(); ++k) {
+    const float a = (*decoded)[k], b = expected->depth->values[k];
+    ASSERT_EQ(std::isnan(a), std::isnan(b)) << k;
+    if (std::isnan(a)) continue;
+    ++valid;
+    EXPECT_NEAR(a, b, m.scale) << k;
+  }
+  EXPECT_GT(valid, 0u);
+  EXPECT_NEAR(m.valid_fraction, static_cast<double>(valid) / decoded->size(), 1e-6);
+}
+
+// A stage that takes `delay` per frame (previews only).
+class SlowProcessor final : public FrameProcessor {
+ public:
+  explicit SlowProcessor(std::chrono::milliseconds delay) : delay_(delay) {}
+  Expected<ProcessedFrame> Process(const Frame& frame) override {
+    std::this_thread::sleep_for(delay_);
+    return preview_.Process(frame);
+  }
+  std::string name() const override { return "slow"; }
+
+ private:
+  std::chrono::milliseconds delay_;
+  PreviewProcessor preview_;
+};
+
+TEST(Pipeline, SlowStageSkipsTheOlderFramesCountsThemAndKeepsTheNewest) {
+  test::TempDir dir;
+  const int frames = 12;
+  auto summary = synth::WriteSyntheticDataset(dir.path(), TinyRig(frames));
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  lcm::LCM bus("memq://");
+  Received received;
+  bus.subscribe("LIFMCR_.*", &Received::OnAny, &received);
+  ReplayRunOptions options;
+  options.sequence_dir = summary->sequence_dir;
+  options.rate = *ReplayRate::Parse("4");  // 40 Hz, two cameras: 80 frames/s
+  options.pipeline.bus = &bus;
+  options.pipeline.max_concurrency = 1;
+  options.pool_buffers = 16;
+  // 60 ms per frame: about 16 frames/s processed of 80 offered.
+  auto result = RunReplay(options, std::make_unique<SlowProcessor>(std::chrono::milliseconds(60)));
+  ASSERT_TRUE(result.ok()) << result.error().message;
+  Drain(bus);
+  const PipelineReport& r = result->report;
+  EXPECT_EQ(result->camera_underruns, 0u);
+  EXPECT_EQ(r.frames_in, 2u * frames) << r.FinalReport();
+  EXPECT_GT(r.skipped, 0u) << r.FinalReport();
+  EXPECT_GT(r.processed, 0u);
+  EXPECT_EQ(r.failed, 0u);
+  EXPECT_TRUE(r.Accounted()) << r.FinalReport();
+  int previews = 0;
+  for (const auto& [serial, ids] : received.preview_frames) {
+    previews += static_cast<int>(ids.size());
+    // Newest wins: the last frame of each camera is never the one skipped.
+    ASSERT_FALSE(ids.empty());
+    EXPECT_EQ(*std::max_element(ids.begin(), ids.end()), frames - 1)
+        << serial << " " << ::testing::PrintToString(ids) << "\n"
+        << r.FinalReport();
+  }
+  EXPECT_EQ(static_cast<std::uint64_t>(previews), r.processed);
+  // No camera starves: the freed worker goes to the camera served least recently.
+  for (const auto& [serial, ids] : received.preview_frames)
+    EXPECT_GE(ids.size() * 4, r.processed) << serial << " got " << ids.size();
+  // The skip count is on the statistics channel.
+  ASSERT_TRUE(received.last_stats.has_value());
+  std::int64_t skipped_on_lcm = -1;
+  for (const auto& d : received.last_stats->drops)
+    if (d.kind == "skipped_for_processing") skipped_on_lcm = d.count;
+  EXPECT_EQ(skipped_on_lcm, static_cast<std::int64_t>(r.skipped));
+}
+
+TEST(Pipeline, RateParsing) {
+  EXPECT_EQ(ReplayRate::Parse("original")->kind, ReplayRate::Kind::kOriginal);
+  EXPECT_EQ(ReplayRate::Parse("max")->kind, ReplayRate::Kind::kMax);
+  EXPECT_DOUBLE_EQ(ReplayRate::Parse("2.5")->factor, 2.5);
+  EXPECT_FALSE(ReplayRate::Parse("fast").ok());
+  EXPECT_FALSE(ReplayRate::Parse("0").ok());
+  EXPECT_FALSE(ReplayRate::Parse("-1").ok());
+}
+
+TEST(Pipeline, DepthQuantisationRoundTrips) {
+  std::vector<float> values = {1.5f, NAN, 3.25f, 2.0f, NAN, 4.0f};
+  auto encoded = EncodeDepth(values, 3, 2);
+  ASSERT_TRUE(encoded.ok());
+  EXPECT_NEAR(encoded->valid_fraction, 4.0 / 6.0, 1e-6);
+  int w = 0, h = 0;
+  auto decoded = DecodeDepth(encoded->png, encoded->scale, encoded->offset, &w, &h);
+  ASSERT_TRUE(decoded.ok());
+  EXPECT_EQ(w, 3);
+  EXPECT_EQ(h, 2);
+  for (std::size_t k = 0; k < values.size(); ++k) {
+    EXPECT_EQ(std::isnan(values[k]), std::isnan((*decoded)[k]));
+    if (!std::isnan(values[k])) {
+      EXPECT_NEAR(values[k], (*decoded)[k], encoded->scale);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace lifmcr::apps
