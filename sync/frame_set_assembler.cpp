@@ -79,11 +79,17 @@ void FrameSetAssembler::AddFrame(Frame frame) {
     grid_host_ns_ = camera.clock.HostFromDevice(frame.device_ns);
   }
   Association association;
-  if (!camera.tracker.anchored() || clock.jump) {
+  if (camera.tracker.anchored()) association = camera.tracker.Add(frame.frame_id, frame.device_ns);
+  // A jump in the host offset alone (frames delivered late under load) is not
+  // a reason to move the camera off its trigger grid: while the device time
+  // and counter still step from trigger to trigger, they decide. Only a frame
+  // they cannot place after a jump (the device clock or counter restarted) is
+  // re-anchored by host time.
+  if (!camera.tracker.anchored() ||
+      (clock.jump && association.verdict != FrameVerdict::kAssociated)) {
+    association = Association{};
     association.trigger_index = TriggerByHostTime(camera, frame.device_ns);
     camera.tracker.Anchor(association.trigger_index, frame.frame_id, frame.device_ns);
-  } else {
-    association = camera.tracker.Add(frame.frame_id, frame.device_ns);
   }
   const std::int64_t k = association.trigger_index;
   if (association.verdict == FrameVerdict::kOffGrid ||
