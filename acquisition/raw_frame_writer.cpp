@@ -1,5 +1,7 @@
 #include "acquisition/raw_frame_writer.h"
 
+#include "replay/bmp.h"
+
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
@@ -12,22 +14,11 @@ namespace lifmcr {
 namespace {
 
 constexpr std::size_t kBlock = 4096;
-constexpr std::size_t kFileHeaderBytes = 14;
-constexpr std::size_t kInfoHeaderBytes = 40;
 
 std::size_t RoundUp(std::size_t bytes) { return (bytes + kBlock - 1) / kBlock * kBlock; }
 
 std::size_t PaddedRowBytes(int width, PixelFormat format) {
   return (static_cast<std::size_t>(width) * BytesPerPixel(format) + 3) / 4 * 4;
-}
-
-void PutU16(std::uint8_t* p, std::uint32_t v) {
-  p[0] = static_cast<std::uint8_t>(v);
-  p[1] = static_cast<std::uint8_t>(v >> 8);
-}
-void PutU32(std::uint8_t* p, std::uint32_t v) {
-  PutU16(p, v);
-  PutU16(p + 2, v >> 16);
 }
 
 struct AlignedFree {
@@ -86,27 +77,7 @@ int WriteFile(int fd, const std::uint8_t* header, const std::uint8_t* pixels,
 
 void FillRawBmpHeaderBlock(int width, int height, PixelFormat format, std::uint8_t* block) {
   std::memset(block, 0, kBlock);
-  const bool grey = format == PixelFormat::kMono8;
-  const std::size_t pixel_bytes = PaddedRowBytes(width, format) * static_cast<std::size_t>(height);
-  block[0] = 'B';
-  block[1] = 'M';
-  PutU32(block + 2, static_cast<std::uint32_t>(kRawBmpPixelOffset + pixel_bytes));
-  PutU32(block + 10, static_cast<std::uint32_t>(kRawBmpPixelOffset));
-  std::uint8_t* info = block + kFileHeaderBytes;
-  PutU32(info + 0, kInfoHeaderBytes);
-  PutU32(info + 4, static_cast<std::uint32_t>(width));
-  PutU32(info + 8, static_cast<std::uint32_t>(-height));  // negative: top-down rows
-  PutU16(info + 12, 1);
-  PutU16(info + 14, grey ? 8 : 24);
-  PutU32(info + 16, 0);  // BI_RGB
-  PutU32(info + 20, static_cast<std::uint32_t>(pixel_bytes));
-  PutU32(info + 32, grey ? 256 : 0);
-  if (grey) {
-    std::uint8_t* palette = info + kInfoHeaderBytes;
-    for (int i = 0; i < 256; ++i) {
-      palette[4 * i + 0] = palette[4 * i + 1] = palette[4 * i + 2] = static_cast<std::uint8_t>(i);
-    }
-  }
+  FormatBmpHeader(width, height, format, /*top_down=*/true, kRawBmpPixelOffset, block);
 }
 
 std::size_t RawBmpFileBytes(int width, int height, PixelFormat format) {

@@ -397,6 +397,40 @@ Expected<OwnedImage> ReadBmp(const std::filesystem::path& path) {
   return image;
 }
 
+std::size_t BmpHeaderBytes(PixelFormat format) {
+  return kFileHeaderBytes + kInfoHeaderBytes +
+         (format == PixelFormat::kMono8 ? 4 * kPaletteEntries : 0);
+}
+
+void FormatBmpHeader(int width, int height, PixelFormat format, bool top_down,
+                     std::size_t pixel_offset, std::uint8_t* p) {
+  const bool mono = format == PixelFormat::kMono8;
+  const std::size_t pixel_bytes =
+      PaddedRowBytes(width, BytesPerPixel(format)) * static_cast<std::size_t>(height);
+  std::memset(p, 0, BmpHeaderBytes(format));
+  p[0] = 'B';
+  p[1] = 'M';
+  PutU32(p + 2, static_cast<std::uint32_t>(pixel_offset + pixel_bytes));
+  PutU32(p + 10, static_cast<std::uint32_t>(pixel_offset));
+  PutU32(p + 14, kInfoHeaderBytes);
+  PutU32(p + 18, static_cast<std::uint32_t>(width));
+  PutU32(p + 22, static_cast<std::uint32_t>(top_down ? -height : height));
+  PutU16(p + 26, 1);
+  PutU16(p + 28, mono ? 8 : 24);
+  PutU32(p + 30, 0);  // BI_RGB
+  PutU32(p + 34, static_cast<std::uint32_t>(pixel_bytes));
+  PutU32(p + 38, 2835);  // 72 dpi, what most writers put
+  PutU32(p + 42, 2835);
+  PutU32(p + 46, mono ? kPaletteEntries : 0);
+  PutU32(p + 50, 0);
+  if (mono) {
+    for (std::size_t i = 0; i < kPaletteEntries; ++i) {
+      std::uint8_t* entry = p + kFileHeaderBytes + kInfoHeaderBytes + 4 * i;
+      entry[0] = entry[1] = entry[2] = static_cast<std::uint8_t>(i);
+    }
+  }
+}
+
 Status WriteBmp(const std::filesystem::path& path, ConstImageView image, bool top_down) {
   const std::string file = path.string();
   if (image.width <= 0 || image.height <= 0 || image.data == nullptr ||
@@ -420,28 +454,7 @@ Status WriteBmp(const std::filesystem::path& path, ConstImageView image, bool to
   }
 
   std::array<std::uint8_t, kFileHeaderBytes + kInfoHeaderBytes + 4 * kPaletteEntries> head{};
-  std::uint8_t* p = head.data();
-  p[0] = 'B';
-  p[1] = 'M';
-  PutU32(p + 2, static_cast<std::uint32_t>(file_size));
-  PutU32(p + 10, static_cast<std::uint32_t>(pixel_offset));
-  PutU32(p + 14, kInfoHeaderBytes);
-  PutU32(p + 18, static_cast<std::uint32_t>(image.width));
-  PutU32(p + 22, static_cast<std::uint32_t>(top_down ? -image.height : image.height));
-  PutU16(p + 26, 1);
-  PutU16(p + 28, mono ? 8 : 24);
-  PutU32(p + 30, 0);
-  PutU32(p + 34, static_cast<std::uint32_t>(file_row_bytes * image.height));
-  PutU32(p + 38, 2835);  // 72 dpi, what most writers put
-  PutU32(p + 42, 2835);
-  PutU32(p + 46, mono ? kPaletteEntries : 0);
-  PutU32(p + 50, 0);
-  if (mono) {
-    for (std::size_t i = 0; i < kPaletteEntries; ++i) {
-      std::uint8_t* entry = p + kFileHeaderBytes + kInfoHeaderBytes + 4 * i;
-      entry[0] = entry[1] = entry[2] = static_cast<std::uint8_t>(i);
-    }
-  }
+  FormatBmpHeader(image.width, image.height, image.format, top_down, pixel_offset, head.data());
 
   const std::size_t padding = file_row_bytes - row_bytes;
   static const std::array<std::uint8_t, kMaxPadding> kZeros{};

@@ -99,6 +99,15 @@ struct OwnedImage {
 // ReadBmpHeader + ReadBmpInto into a freshly allocated image.
 Expected<OwnedImage> ReadBmp(const std::filesystem::path& path);
 
+// The BMP file header, BITMAPINFOHEADER and (Mono8) grey palette of a width x
+// height image whose pixels start at byte `pixel_offset` of the file (>=
+// BmpHeaderBytes(format); a writer may leave a gap, e.g. to align the pixels
+// for O_DIRECT). Writes BmpHeaderBytes(format) bytes to `out`. The one place
+// that knows the header layout: WriteBmp and the recorder's writer use it.
+std::size_t BmpHeaderBytes(PixelFormat format);
+void FormatBmpHeader(int width, int height, PixelFormat format, bool top_down,
+                     std::size_t pixel_offset, std::uint8_t* out);
+
 // Writes `image` as an uncompressed BMP with a 40-byte BITMAPINFOHEADER:
 // Mono8 as 8-bit with the identity grey palette, BGR8 as 24-bit; rows padded
 // to 4 bytes; bottom-up (the common form) unless `top_down`. The rows go out
