@@ -1,6 +1,7 @@
 #include "acquisition/raw_frame_writer.h"
 
 #include "replay/bmp.h"
+#include "replay/file_descriptor.h"
 
 #include <cerrno>
 #include <cstdlib>
@@ -29,25 +30,6 @@ using AlignedBytes = std::unique_ptr<std::uint8_t, AlignedFree>;
 AlignedBytes AllocateAligned(std::size_t bytes) {
   return AlignedBytes(static_cast<std::uint8_t*>(std::aligned_alloc(kBlock, RoundUp(bytes))));
 }
-
-class Fd {
- public:
-  explicit Fd(int fd) : fd_(fd) {}
-  ~Fd() {
-    if (fd_ >= 0) ::close(fd_);
-  }
-  Fd(const Fd&) = delete;
-  Fd& operator=(const Fd&) = delete;
-  int get() const { return fd_; }
-  int Close() {
-    const int rc = ::close(fd_);
-    fd_ = -1;
-    return rc;
-  }
-
- private:
-  int fd_;
-};
 
 // Writes all `bytes` at `offset`, resuming after short writes.
 int PwriteFull(int fd, const std::uint8_t* data, std::size_t bytes, off_t offset) {
@@ -138,7 +120,8 @@ Expected<RawFrameWriteResult> WriteRawFrame(const std::filesystem::path& path, c
   };
 
   if (try_direct) {
-    Fd fd(::open(name.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_DIRECT | O_CLOEXEC, 0644));
+    FileDescriptor fd(
+        ::open(name.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_DIRECT | O_CLOEXEC, 0644));
     if (fd.get() >= 0) {
       const int e = WriteFile(fd.get(), header.get(), pixels, RoundUp(pixel_bytes), file_bytes);
       if (e == 0) {
@@ -151,7 +134,7 @@ Expected<RawFrameWriteResult> WriteRawFrame(const std::filesystem::path& path, c
       return fail(errno, "cannot create");
     }
   }
-  Fd fd(::open(name.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644));
+  FileDescriptor fd(::open(name.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644));
   if (fd.get() < 0) return fail(errno, "cannot create");
   if (int e = WriteFile(fd.get(), header.get(), pixels, pixel_bytes, file_bytes); e != 0)
     return fail(e, "write failed");

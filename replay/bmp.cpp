@@ -1,5 +1,7 @@
 #include "replay/bmp.h"
 
+#include "replay/file_descriptor.h"
+
 #include <climits>
 
 #include <algorithm>
@@ -32,27 +34,6 @@ constexpr int kIovMax = IOV_MAX;
 #else
 constexpr int kIovMax = 1024;
 #endif
-
-// Closes the descriptor on every path out.
-class FileDescriptor {
- public:
-  explicit FileDescriptor(int fd) : fd_(fd) {}
-  ~FileDescriptor() {
-    if (fd_ >= 0) ::close(fd_);
-  }
-  FileDescriptor(const FileDescriptor&) = delete;
-  FileDescriptor& operator=(const FileDescriptor&) = delete;
-  int get() const { return fd_; }
-  // Closes now so a failing close (delayed write error) can be reported.
-  int Close() {
-    const int rc = ::close(fd_);
-    fd_ = -1;
-    return rc;
-  }
-
- private:
-  int fd_;
-};
 
 std::string Errno() { return std::strerror(errno); }
 
