@@ -1,8 +1,10 @@
 #include "processing/total_focus.h"
 
+#include <Eigen/LU>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <limits>
@@ -16,11 +18,95 @@ constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
 Status TfOptions::Check() const {
   if (fill_iterations < 0) return Error{"TF options: fill_iterations: expected >= 0"};
-  if (!(unsharp_weight >= 0 && unsharp_weight <= 1))
-    return Error{"TF options: unsharp_weight: expected 0..1"};
+  if (smooth_radius < 0) return Error{"TF options: smooth_radius: expected >= 0"};
+  if (!(inner_fraction > 0 && inner_fraction <= 1))
+    return Error{"TF options: inner_fraction: expected in (0, 1]"};
   if (!(gain > 0)) return Error{"TF options: gain: expected > 0"};
   return Status::Ok();
 }
+
+namespace {
+
+// Weighted box sums over a (2 radius + 1)^2 window, separable running sums
+// (O(1) per pixel whatever the radius): out_w = sum w, out_wz = sum w z, with
+// w = 0 where a pixel has no value, and out_n = how many had one (exact,
+// unlike a running double sum, whose subtractions leave residues).
+struct BoxSum {
+  std::vector<double> w, wz;
+  std::vector<std::int32_t> n;
+};
+
+void BoxSums(int width, int height, int radius, const std::vector<double>& w,
+             const std::vector<double>& wz, BoxSum* out) {
+  BoxSum rows;
+  rows.w.resize(w.size());
+  rows.wz.resize(w.size());
+  rows.n.resize(w.size());
+  tbb::parallel_for(0, height, [&](int y) {
+    const std::size_t base = static_cast<std::size_t>(y) * width;
+    double a = 0, b = 0;
+    int c = 0;
+    auto add = [&](int x, int sign) {
+      a += sign * w[base + x];
+      b += sign * wz[base + x];
+      c += sign * (w[base + x] > 0);
+    };
+    for (int x = 0; x <= std::min(radius, width - 1); ++x) add(x, 1);
+    for (int x = 0; x < width; ++x) {
+      rows.w[base + x] = a;
+      rows.wz[base + x] = b;
+      rows.n[base + x] = c;
+      if (x + radius + 1 < width) add(x + radius + 1, 1);
+      if (x - radius >= 0) add(x - radius, -1);
+    }
+  });
+  out->w.resize(w.size());
+  out->wz.resize(w.size());
+  out->n.resize(w.size());
+  constexpr int kStrip = 64;
+  tbb::parallel_for(0, (width + kStrip - 1) / kStrip, [&](int strip) {
+    const int x0 = strip * kStrip, x1 = std::min(width, x0 + kStrip);
+    double a[kStrip] = {}, b[kStrip] = {};
+    int c[kStrip] = {};
+    auto add = [&](int y, int sign) {
+      for (int x = x0; x < x1; ++x) {
+        const std::size_t i = static_cast<std::size_t>(y) * width + x;
+        a[x - x0] += sign * rows.w[i];
+        b[x - x0] += sign * rows.wz[i];
+        c[x - x0] += sign * rows.n[i];
+      }
+    };
+    for (int y = 0; y <= std::min(radius, height - 1); ++y) add(y, 1);
+    for (int y = 0; y < height; ++y) {
+      for (int x = x0; x < x1; ++x) {
+        const std::size_t i = static_cast<std::size_t>(y) * width + x;
+        out->w[i] = a[x - x0];
+        out->wz[i] = b[x - x0];
+        out->n[i] = c[x - x0];
+      }
+      if (y + radius + 1 < height) add(y + radius + 1, 1);
+      if (y - radius >= 0) add(y - radius, -1);
+    }
+  });
+}
+
+// The lens type whose sharp range (MLA file) holds v most centrally (in
+// log v); the nearest range when none holds it.
+int SharpType(const MlaCalibration& mla, double v) {
+  int best = 0;
+  double best_score = -1e300;
+  for (int t = 0; t < 3; ++t) {
+    const MlaLensType& type = mla.lens_types[t];
+    const double score = std::min(std::log(v / type.depth_min), std::log(type.depth_max / v));
+    if (score > best_score) {
+      best_score = score;
+      best = t;
+    }
+  }
+  return best;
+}
+
+}  // namespace
 
 Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
                         const TfOptions& options, TfDepthMap* out) {
@@ -44,12 +130,12 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
     for (int y = y0; y <= y1; ++y)
       for (int x = x0; x <= x1; ++x) {
         const std::size_t idx = static_cast<std::size_t>(y) * f.width + x;
-        if (f.lens_of_pixel[idx] != k) continue;
         const float v = raw.virtual_depth[idx];
-        if (std::isnan(v)) continue;
-        const Eigen::Vector2d xv = m.lens_px + v * (Eigen::Vector2d(x, y) - m.lens_px);
-        const int u = static_cast<int>(std::lround((xv.x() - 0.5) / 2.0));
-        const int w = static_cast<int>(std::lround((xv.y() - 0.5) / 2.0));
+        if (std::isnan(v) || f.lens_of_pixel[idx] != k) continue;
+        const double xv = m.lens_px.x() + v * (x - m.lens_px.x());
+        const double yv = m.lens_px.y() + v * (y - m.lens_px.y());
+        const int u = static_cast<int>(std::lround((xv - 0.5) / 2.0));
+        const int w = static_cast<int>(std::lround((yv - 0.5) / 2.0));
         if (u < 0 || w < 0 || u >= tw || w >= th) continue;
         const double s = raw.sigma_z[idx];
         const double weight = 1.0 / std::max(1e-12, s * s);
@@ -60,60 +146,46 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
   });
   out->virtual_depth.assign(tn, kNaN);
   out->sigma_z.assign(tn, kNaN);
-  out->measured = 0;
+  long long measured = 0;
   for (std::size_t t = 0; t < tn; ++t)
     if (sw[t] > 0) {
-      out->virtual_depth[t] = static_cast<float>(sw[t] / swz[t]);
       out->sigma_z[t] = static_cast<float>(std::sqrt(1.0 / sw[t]));
-      ++out->measured;
+      ++measured;
     }
-  // Regularisation of the measured map: each measured pixel becomes the
-  // inverse-variance mean of the measured pixels within smooth_radius that
-  // agree with their median within 5 % of z.
-  if (options.smooth_radius > 0) {
-    const int rad = options.smooth_radius;
-    std::vector<float> smoothed = out->virtual_depth;
-    tbb::parallel_for(0, th, [&](int w) {
-      std::vector<float> zs;
-      for (int u = 0; u < tw; ++u) {
-        const std::size_t t = static_cast<std::size_t>(w) * tw + u;
-        if (std::isnan(out->virtual_depth[t])) continue;
-        zs.clear();
-        for (int dw = -rad; dw <= rad; ++dw)
-          for (int du = -rad; du <= rad; ++du) {
-            const int uu = u + du, ww = w + dw;
-            if (uu < 0 || ww < 0 || uu >= tw || ww >= th) continue;
-            const float v = out->virtual_depth[static_cast<std::size_t>(ww) * tw + uu];
-            if (!std::isnan(v)) zs.push_back(1.0f / v);
-          }
-        std::nth_element(zs.begin(), zs.begin() + zs.size() / 2, zs.end());
-        const double med = zs[zs.size() / 2];
-        double a = 0, b = 0;
-        for (int dw = -rad; dw <= rad; ++dw)
-          for (int du = -rad; du <= rad; ++du) {
-            const int uu = u + du, ww = w + dw;
-            if (uu < 0 || ww < 0 || uu >= tw || ww >= th) continue;
-            const std::size_t q = static_cast<std::size_t>(ww) * tw + uu;
-            const float v = out->virtual_depth[q];
-            if (std::isnan(v) || std::abs(1.0 / v - med) > 0.05 * med) continue;
-            const double wq = 1.0 / (static_cast<double>(out->sigma_z[q]) * out->sigma_z[q]);
-            a += wq;
-            b += wq / v;
-          }
-        if (a > 0) smoothed[t] = static_cast<float>(a / b);
-      }
-    });
-    out->virtual_depth.swap(smoothed);
-  }
+  out->measured = measured;
+  // Regularisation: the inverse-variance mean of z over the window, then
+  // again over the pixels that agree with that mean within 5 % (a step in
+  // depth splits the window; the side holding the majority stays). Pixels
+  // without a splat but with agreeing ones in the window are filled.
+  BoxSum box;
+  const int rad = std::max(0, options.smooth_radius);
+  BoxSums(tw, th, rad, sw, swz, &box);
+  std::vector<double> inlier_w(tn, 0.0), inlier_wz(tn, 0.0);
+  tbb::parallel_for(0, th, [&](int w) {
+    for (std::size_t t = static_cast<std::size_t>(w) * tw; t < static_cast<std::size_t>(w + 1) * tw;
+         ++t) {
+      if (sw[t] <= 0) continue;
+      const double z = swz[t] / sw[t], mean = box.wz[t] / box.w[t];
+      if (std::abs(z - mean) > 0.05 * mean) continue;
+      inlier_w[t] = sw[t];
+      inlier_wz[t] = swz[t];
+    }
+  });
+  BoxSums(tw, th, rad, inlier_w, inlier_wz, &box);
+  tbb::parallel_for(0, th, [&](int w) {
+    for (std::size_t t = static_cast<std::size_t>(w) * tw; t < static_cast<std::size_t>(w + 1) * tw;
+         ++t)
+      if (box.n[t] > 0) out->virtual_depth[t] = static_cast<float>(box.w[t] / box.wz[t]);
+  });
   out->fallback_v = 0;
   std::vector<float> all_v;
   for (std::size_t t = 0; t < tn; ++t)
-    if (!std::isnan(out->virtual_depth[t])) all_v.push_back(out->virtual_depth[t]);
+    if (sw[t] > 0 && !std::isnan(out->virtual_depth[t])) all_v.push_back(out->virtual_depth[t]);
   if (!all_v.empty()) {
     std::nth_element(all_v.begin(), all_v.begin() + all_v.size() / 2, all_v.end());
     out->fallback_v = all_v[all_v.size() / 2];
   }
-  // Hole filling: mean z of the valid 8-neighbours, one ring per round.
+  // Remaining holes: mean z of the valid 8-neighbours, one ring per round.
   std::vector<float> next;
   for (int it = 0; it < options.fill_iterations; ++it) {
     next = out->virtual_depth;
@@ -137,10 +209,10 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
     });
     out->virtual_depth.swap(next);
   }
-  out->filled = 0;
+  long long valid = 0;
   for (std::size_t t = 0; t < tn; ++t)
-    if (!std::isnan(out->virtual_depth[t])) ++out->filled;
-  out->filled -= out->measured;
+    if (!std::isnan(out->virtual_depth[t])) ++valid;
+  out->filled = valid - measured;
   return Status::Ok();
 }
 
@@ -156,58 +228,109 @@ Status RenderTotalFocus(const PlenopticFrame& f, const MlaCalibration& mla, cons
   const int channels = f.has_colour ? 3 : 1;
   out->pixels.resize(static_cast<std::size_t>(tw) * th * channels);
   out->linear.resize(out->pixels.size());
-  const double r = f.radius_px * options.inner_fraction, r2 = r * r;
-  const double pitch = f.grid.PitchPx();
+  const float r = static_cast<float>(f.radius_px * options.inner_fraction), r2 = r * r;
   const double fallback = depth.fallback_v > 1 ? depth.fallback_v : 3.0;
+  // The lenses of one type form a triangular sublattice with steps
+  // A (1, 1) and A (2, -1) (type = sigma (i - j) mod 3 is constant along
+  // both); per type its origin lens and the inverse of those steps.
+  struct Sublattice {
+    int i0 = 0;
+    Eigen::Vector2d origin;
+    Eigen::Matrix2d from_px;
+  };
+  std::array<Sublattice, 3> sub;
+  for (int t = 0; t < 3; ++t) {
+    Sublattice& s = sub[t];
+    while (f.grid.Type(s.i0, 0) != t) ++s.i0;
+    s.origin = f.grid.Center(s.i0, 0);
+    Eigen::Matrix2d steps;
+    steps.col(0) = f.grid.lattice * Eigen::Vector2d(1, 1);
+    steps.col(1) = f.grid.lattice * Eigen::Vector2d(2, -1);
+    s.from_px = steps.inverse();
+  }
+  const float* image = f.has_colour ? f.colour.data() : f.grey.data();
+  const int width = f.width, height = f.height;
+  // Colour of micro image m seen from virtual point (x, y) at depth v:
+  // bilinear at p = l + (x - l) / v; false outside its usable disc or next
+  // to an invalid pixel (NaN propagates through the sum).
+  auto sample = [&](const MicroImage& m, double x, double y, double inv_v, float* c,
+                    float* centrality) {
+    const float px = static_cast<float>(m.lens_px.x() + (x - m.lens_px.x()) * inv_v);
+    const float py = static_cast<float>(m.lens_px.y() + (y - m.lens_px.y()) * inv_v);
+    const float dx = px - static_cast<float>(m.centre_px.x());
+    const float dy = py - static_cast<float>(m.centre_px.y());
+    const float d2 = dx * dx + dy * dy;
+    if (d2 > r2 || px < 0 || py < 0) return false;
+    *centrality = 1 - d2 / r2;
+    const int x0 = static_cast<int>(px), y0 = static_cast<int>(py);
+    if (x0 >= width - 1 || y0 >= height - 1) return false;
+    const float fx = px - x0, fy = py - y0;
+    const float w00 = (1 - fx) * (1 - fy), w01 = fx * (1 - fy), w10 = (1 - fx) * fy, w11 = fx * fy;
+    const std::size_t i00 = (static_cast<std::size_t>(y0) * width + x0) * channels;
+    const std::size_t row = static_cast<std::size_t>(width) * channels;
+    bool ok = true;
+    for (int ch = 0; ch < channels; ++ch) {
+      const float* q = image + i00 + ch;
+      c[ch] = w00 * q[0] + w01 * q[channels] + w10 * q[row] + w11 * q[row + channels];
+      ok &= !std::isnan(c[ch]);
+    }
+    return ok;
+  };
+  const float gain = static_cast<float>(options.gain);
+  const bool sharpen = options.sharpen > 0;
   tbb::parallel_for(0, th, [&](int w) {
     for (int u = 0; u < tw; ++u) {
       const std::size_t t = static_cast<std::size_t>(w) * tw + u;
       double v = depth.virtual_depth[t];
       if (std::isnan(v) || v <= 1.0) v = fallback;
-      const Eigen::Vector2d x(2.0 * u + 0.5, 2.0 * w + 0.5);
-      int i0 = 0, j0 = 0;
-      f.grid.Nearest(x, &i0, &j0);
-      const int reach = static_cast<int>(std::ceil(v * r / pitch)) + 1;
-      double acc[3] = {0, 0, 0}, sw = 0;
-      for (int dj = -reach; dj <= reach; ++dj)
-        for (int di = -reach; di <= reach; ++di) {
-          if (std::abs(di + dj) > reach) continue;  // hex distance
-          const int k = f.LensAt(i0 + di, j0 + dj);
-          if (k < 0) continue;
-          const MicroImage& m = f.lenses[k];
-          const Eigen::Vector2d p = m.lens_px + (x - m.lens_px) / v;
-          const double d2 = (p - m.centre_px).squaredNorm();
-          if (d2 > r2) continue;
-          const int px = static_cast<int>(p.x()), py = static_cast<int>(p.y());
-          if (p.x() < 0 || p.y() < 0 || px >= f.width - 1 || py >= f.height - 1) continue;
-          const MlaLensType& type = mla.lens_types[m.type];
-          const double sharp =
-              (v >= type.depth_min && v <= type.depth_max) ? 1.0 : options.unsharp_weight;
-          const double weight = sharp * (1.0 - d2 / r2);
-          const double fx = p.x() - px, fy = p.y() - py;
-          const std::size_t i00 = static_cast<std::size_t>(py) * f.width + px;
-          const std::size_t idx[4] = {i00, i00 + 1, i00 + f.width, i00 + f.width + 1};
-          const double bw[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
-          double sample[3] = {0, 0, 0};
-          bool ok = true;
-          for (int c = 0; c < channels && ok; ++c)
-            for (int q = 0; q < 4; ++q) {
-              const float val = channels == 3 ? f.colour[3 * idx[q] + c] : f.grey[idx[q]];
-              if (std::isnan(val)) {
-                ok = false;
-                break;
-              }
-              sample[c] += bw[q] * val;
-            }
-          if (!ok) continue;
-          for (int c = 0; c < channels; ++c) acc[c] += weight * sample[c];
-          sw += weight;
+      const double inv_v = 1.0 / v;
+      const double x = 2.0 * u + 0.5, y = 2.0 * w + 0.5;
+      // The triangle of lenses of the type sharp at v around x, blended by
+      // barycentric weights (continuous across triangles: no seams).
+      const Sublattice& s = sub[SharpType(mla, v)];
+      const Eigen::Vector2d a = s.from_px * (Eigen::Vector2d(x, y) - s.origin);
+      const int m = static_cast<int>(std::floor(a.x())), n = static_cast<int>(std::floor(a.y()));
+      const double fa = a.x() - m, fb = a.y() - n;
+      int corner[3][2];
+      double bary[3];
+      if (fa + fb < 1) {
+        corner[0][0] = m, corner[0][1] = n, bary[0] = 1 - fa - fb;
+        corner[1][0] = m + 1, corner[1][1] = n, bary[1] = fa;
+        corner[2][0] = m, corner[2][1] = n + 1, bary[2] = fb;
+      } else {
+        corner[0][0] = m + 1, corner[0][1] = n + 1, bary[0] = fa + fb - 1;
+        corner[1][0] = m, corner[1][1] = n + 1, bary[1] = 1 - fa;
+        corner[2][0] = m + 1, corner[2][1] = n, bary[2] = 1 - fb;
+      }
+      float acc[3] = {0, 0, 0}, c[3], centrality = 0;
+      float sw = 0;
+      for (int q = 0; q < 3; ++q) {
+        const int k = f.LensAt(s.i0 + corner[q][0] + 2 * corner[q][1], corner[q][0] - corner[q][1]);
+        if (k < 0 || bary[q] <= 0 || !sample(f.lenses[k], x, y, inv_v, c, &centrality)) continue;
+        const float wq = static_cast<float>(bary[q]) * centrality;
+        for (int ch = 0; ch < channels; ++ch) acc[ch] += wq * c[ch];
+        sw += wq;
+      }
+      if (sw <= 0) {
+        // Near the border or where v is below the sublattice's reach: the
+        // nearest micro image of any type.
+        int i0 = 0, j0 = 0;
+        f.grid.Nearest(Eigen::Vector2d(x, y), &i0, &j0);
+        const int k = f.LensAt(i0, j0);
+        if (k >= 0 && sample(f.lenses[k], x, y, inv_v, c, &centrality)) {
+          for (int ch = 0; ch < channels; ++ch) acc[ch] = c[ch];
+          sw = 1;
         }
+      }
       float* dst = out->linear.data() + t * channels;
-      for (int c = 0; c < channels; ++c)
-        dst[c] = static_cast<float>(sw > 0 ? options.gain * acc[c] / sw : 0.0);
+      std::uint8_t* pix = out->pixels.data() + t * channels;
+      for (int ch = 0; ch < channels; ++ch) {
+        dst[ch] = sw > 0 ? gain * acc[ch] / sw : 0.0f;
+        if (!sharpen) pix[ch] = static_cast<std::uint8_t>(std::clamp(dst[ch] + 0.5f, 0.0f, 255.0f));
+      }
     }
   });
+  if (!sharpen) return Status::Ok();
   // Optional deblurring: I - k laplacian(I) (a first-order inverse of a
   // Gaussian blur of variance 2k), then 8-bit.
   const double k = options.sharpen;
@@ -216,7 +339,7 @@ Status RenderTotalFocus(const PlenopticFrame& f, const MlaCalibration& mla, cons
       const std::size_t t = static_cast<std::size_t>(w) * tw + u;
       for (int c = 0; c < channels; ++c) {
         double value = out->linear[t * channels + c];
-        if (k > 0 && u > 0 && w > 0 && u < tw - 1 && w < th - 1) {
+        if (u > 0 && w > 0 && u < tw - 1 && w < th - 1) {
           const float* q = out->linear.data() + c;
           const double lap = q[(t - 1) * channels] + q[(t + 1) * channels] +
                              q[(t - tw) * channels] + q[(t + tw) * channels] - 4 * value;

@@ -7,19 +7,25 @@
 // Virtual depth on the TF grid: every raw estimate (pixel p of micro image k,
 // virtual depth v) is the virtual point x_v = l_k + v (p - l_k); it is
 // splatted to the TF pixel nearest to (x_v - 0.5) / 2 and the splats are
-// fused in z = 1/v weighted by 1 / sigma_z^2, then regularised (each measured
-// pixel: the inverse-variance mean of the measured pixels within
-// smooth_radius agreeing with their median within 5 %). Holes are filled by averaging
-// the valid 8-neighbours, fill_iterations rounds (each grows the map by one
-// TF pixel); what stays empty is NaN.
+// fused in z = 1/v weighted by 1 / sigma_z^2 (a "measured" pixel). The map
+// is then regularised: the inverse-variance mean of z over a window of
+// smooth_radius, again over the measured pixels that agree with that mean
+// within 5 % (separable running sums, O(1) per pixel). Pixels without a splat
+// but with agreeing ones in their window take the window's mean; the holes
+// left are filled by averaging the valid 8-neighbours, fill_iterations rounds
+// (each grows the map by one TF pixel); what stays empty is NaN.
 //
 // Rendering (back-projection): for TF pixel x with virtual depth v (filled
-// map, or the median v of the frame where it is empty), every micro image k
-// with p_k = l_k + (x - l_k) / v within inner_fraction r_valid of c_k is used; the
-// colour is the mean of the devignetted raw samples at p_k (bilinear),
-// weighted by w = s_t (1 - |p_k - c_k|^2 / r^2) (r = inner_fraction r_valid), s_t = 1 for a lens
-// type whose depth range (MLA file) holds v and unsharp_weight otherwise,
-// so the sharp micro images dominate. Parallel over TF rows (TBB).
+// map, or the median v of the frame where it is empty), the lens type sharp
+// at v (the MLA file's depth range holding v most centrally) is chosen; its
+// lenses form a triangular sublattice (steps A(1, 1), A(2, -1)); the three
+// lenses of the sublattice triangle around x are sampled (bilinear) at
+// p_k = l_k + (x - l_k) / v, each weighted by its barycentric coordinate
+// times 1 - |p_k - c_k|^2 / r^2 (r = inner_fraction r_valid), so the weights
+// go to zero continuously at the triangle's edges (no seams) and the
+// sharp micro images alone make the image. Where none of the three holds x
+// (image border, v too small for the sublattice), the nearest micro image of
+// any type. Parallel over TF rows (TBB).
 
 #include "config/error.h"
 #include "config/mla.h"
@@ -32,9 +38,8 @@
 namespace lifmcr::processing {
 
 struct TfOptions {
-  int smooth_radius = 4;        // regularisation of the measured TF depth (TF pixels)
+  int smooth_radius = 8;        // regularisation window radius of the TF depth (TF pixels)
   int fill_iterations = 6;      // hole filling of the TF depth map (TF pixels)
-  double unsharp_weight = 0.1;  // weight of micro images whose type is not sharp at v
   double inner_fraction = 1.0;  // only samples within this share of r_valid (sharp, unvignetted)
   double gain = 1.0;            // output = gain * devignetted value
   double sharpen = 0.0;         // k of I - k laplacian(I); 0 = off

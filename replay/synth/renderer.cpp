@@ -273,6 +273,7 @@ TfGroundTruth RenderTfGroundTruth(const PlenopticModel& model, const Scene& scen
   gt.height = model.tf_height();
   gt.bgr.assign(static_cast<std::size_t>(gt.width) * gt.height * 3, 0);
   gt.depth_mm.assign(static_cast<std::size_t>(gt.width) * gt.height, kNaN);
+  gt.region.assign(gt.depth_mm.size(), -1);
   const Pose cam_from_world = world_from_cam.inverse();
   tbb::parallel_for(0, gt.height, [&](int w) {
     for (int u = 0; u < gt.width; ++u) {
@@ -288,6 +289,7 @@ TfGroundTruth RenderTfGroundTruth(const PlenopticModel& model, const Scene& scen
         const double b = model.ImageDistanceOfDepth(p_in_cam.z());
         radiance = scene.Shade(*hit, 2.0 * cam.pixel_size_mm * p_in_cam.z() / b);
         gt.depth_mm[pixel] = static_cast<float>(p_in_cam.z());
+        gt.region[pixel] = scene.Region(*hit);
       }
       const Eigen::Vector3d dn = radiance * cam.white_level_dn;
       std::uint8_t* out = gt.bgr.data() + pixel * 3;

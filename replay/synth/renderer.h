@@ -53,6 +53,7 @@ struct TfGroundTruth {
   int width = 0, height = 0;
   std::vector<std::uint8_t> bgr;
   std::vector<float> depth_mm;
+  std::vector<std::int32_t> region;  // Scene::Region of the surface seen, -1 where none
   ConstImageView View() const;
 };
 

@@ -86,6 +86,15 @@ Eigen::Vector3d Scene::Shade(const Hit& hit, double footprint_mm) const {
   return m.color_rgb * (reflectance * light);
 }
 
+int Scene::Region(const Hit& hit) const {
+  int plate_class = 0;
+  if (materials[hit.material].plate && plate_bitmap) {
+    const double r = plate_bitmap->Sample(hit.point.x(), hit.point.y());
+    plate_class = r < 0 ? 0 : (r >= 0.5 ? 1 : 2);
+  }
+  return 3 * hit.material + plate_class;
+}
+
 Eigen::Vector3d Scene::Target() const {
   return {plate.vicon_span_x_mm / 2, plate.vicon_span_y_mm / 2, 0.0};
 }

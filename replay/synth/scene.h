@@ -63,6 +63,10 @@ class Scene {
   // Radiance (linear RGB, 1 = white lit head-on) of a hit seen with a sample
   // footprint of `footprint_mm`.
   Eigen::Vector3d Shade(const Hit& hit, double footprint_mm) const;
+  // An id that changes exactly where the reflectance steps (material
+  // boundaries, the edges of black marker cells), so that ground truth can
+  // tell textured surfaces from step edges.
+  int Region(const Hit& hit) const;
   // A point the cameras look at (centre of the plate).
   Eigen::Vector3d Target() const;
 };
