@@ -28,20 +28,14 @@ Status TfOptions::Check() const {
 namespace {
 
 // Weighted box sums over a (2 radius + 1)^2 window, separable running sums
-// (O(1) per pixel whatever the radius): out_w = sum w, out_wz = sum w z, with
-// w = 0 where a pixel has no value, and out_n = how many had one (exact,
+// (O(1) per pixel whatever the radius): box_w = sum w, box_wz = sum w z, with
+// w = 0 where a pixel has no value, and box_n = how many had one (exact,
 // unlike a running double sum, whose subtractions leave residues).
-struct BoxSum {
-  std::vector<double> w, wz;
-  std::vector<std::int32_t> n;
-};
-
 void BoxSums(int width, int height, int radius, const std::vector<double>& w,
-             const std::vector<double>& wz, BoxSum* out) {
-  BoxSum rows;
-  rows.w.resize(w.size());
-  rows.wz.resize(w.size());
-  rows.n.resize(w.size());
+             const std::vector<double>& wz, TfDepthMap::Scratch* s) {
+  s->row_w.resize(w.size());
+  s->row_wz.resize(w.size());
+  s->row_n.resize(w.size());
   tbb::parallel_for(0, height, [&](int y) {
     const std::size_t base = static_cast<std::size_t>(y) * width;
     double a = 0, b = 0;
@@ -53,16 +47,16 @@ void BoxSums(int width, int height, int radius, const std::vector<double>& w,
     };
     for (int x = 0; x <= std::min(radius, width - 1); ++x) add(x, 1);
     for (int x = 0; x < width; ++x) {
-      rows.w[base + x] = a;
-      rows.wz[base + x] = b;
-      rows.n[base + x] = c;
+      s->row_w[base + x] = a;
+      s->row_wz[base + x] = b;
+      s->row_n[base + x] = c;
       if (x + radius + 1 < width) add(x + radius + 1, 1);
       if (x - radius >= 0) add(x - radius, -1);
     }
   });
-  out->w.resize(w.size());
-  out->wz.resize(w.size());
-  out->n.resize(w.size());
+  s->box_w.resize(w.size());
+  s->box_wz.resize(w.size());
+  s->box_n.resize(w.size());
   constexpr int kStrip = 64;
   tbb::parallel_for(0, (width + kStrip - 1) / kStrip, [&](int strip) {
     const int x0 = strip * kStrip, x1 = std::min(width, x0 + kStrip);
@@ -71,18 +65,18 @@ void BoxSums(int width, int height, int radius, const std::vector<double>& w,
     auto add = [&](int y, int sign) {
       for (int x = x0; x < x1; ++x) {
         const std::size_t i = static_cast<std::size_t>(y) * width + x;
-        a[x - x0] += sign * rows.w[i];
-        b[x - x0] += sign * rows.wz[i];
-        c[x - x0] += sign * rows.n[i];
+        a[x - x0] += sign * s->row_w[i];
+        b[x - x0] += sign * s->row_wz[i];
+        c[x - x0] += sign * s->row_n[i];
       }
     };
     for (int y = 0; y <= std::min(radius, height - 1); ++y) add(y, 1);
     for (int y = 0; y < height; ++y) {
       for (int x = x0; x < x1; ++x) {
         const std::size_t i = static_cast<std::size_t>(y) * width + x;
-        out->w[i] = a[x - x0];
-        out->wz[i] = b[x - x0];
-        out->n[i] = c[x - x0];
+        s->box_w[i] = a[x - x0];
+        s->box_wz[i] = b[x - x0];
+        s->box_n[i] = c[x - x0];
       }
       if (y + radius + 1 < height) add(y + radius + 1, 1);
       if (y - radius >= 0) add(y - radius, -1);
@@ -91,20 +85,33 @@ void BoxSums(int width, int height, int radius, const std::vector<double>& w,
 }
 
 // The lens type whose sharp range (MLA file) holds v most centrally (in
-// log v); the nearest range when none holds it.
-int SharpType(const MlaCalibration& mla, double v) {
-  int best = 0;
-  double best_score = -1e300;
-  for (int t = 0; t < 3; ++t) {
-    const MlaLensType& type = mla.lens_types[t];
-    const double score = std::min(std::log(v / type.depth_min), std::log(type.depth_max / v));
-    if (score > best_score) {
-      best_score = score;
-      best = t;
+// log v); the nearest range when none holds it. A table over v (a log per
+// TF pixel would cost more than its sampling).
+class SharpTypeTable {
+ public:
+  explicit SharpTypeTable(const MlaCalibration& mla) {
+    for (int q = 0; q < kSize; ++q) {
+      const double v = std::max(1.0, (q + 0.5) / kPerUnit);
+      double best_score = -1e300;
+      for (int t = 0; t < 3; ++t) {
+        const MlaLensType& type = mla.lens_types[t];
+        const double score =
+            std::min(std::log(v / type.depth_min), std::log(type.depth_max / v));
+        if (score > best_score) {
+          best_score = score;
+          table_[q] = static_cast<std::uint8_t>(t);
+        }
+      }
     }
   }
-  return best;
-}
+  int operator()(double v) const {
+    return table_[std::clamp(static_cast<int>(v * kPerUnit), 0, kSize - 1)];
+  }
+
+ private:
+  static constexpr int kPerUnit = 256, kSize = 64 * kPerUnit;
+  std::array<std::uint8_t, kSize> table_{};
+};
 
 }  // namespace
 
@@ -117,7 +124,11 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
   const std::size_t tn = static_cast<std::size_t>(tw) * th;
   out->width = tw;
   out->height = th;
-  std::vector<double> sw(tn, 0.0), swz(tn, 0.0);
+  TfDepthMap::Scratch& scratch = out->scratch;
+  std::vector<double>& sw = scratch.sw;
+  std::vector<double>& swz = scratch.swz;
+  sw.assign(tn, 0.0);
+  swz.assign(tn, 0.0);
   // Splat, parallel over micro images; a TF pixel may get splats from several
   // micro images at once, hence the atomic adds (rarely contended).
   tbb::parallel_for(0, static_cast<int>(f.lenses.size()), [&](int k) {
@@ -144,75 +155,84 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
         std::atomic_ref<double>(swz[t]).fetch_add(weight / v, std::memory_order_relaxed);
       }
   });
-  out->virtual_depth.assign(tn, kNaN);
-  out->sigma_z.assign(tn, kNaN);
-  long long measured = 0;
-  for (std::size_t t = 0; t < tn; ++t)
-    if (sw[t] > 0) {
-      out->sigma_z[t] = static_cast<float>(std::sqrt(1.0 / sw[t]));
-      ++measured;
+  out->virtual_depth.resize(tn);
+  out->sigma_z.resize(tn);
+  std::atomic<long long> measured{0};
+  tbb::parallel_for(0, th, [&](int w) {
+    long long row_measured = 0;
+    for (std::size_t t = static_cast<std::size_t>(w) * tw; t < static_cast<std::size_t>(w + 1) * tw;
+         ++t) {
+      out->sigma_z[t] = sw[t] > 0 ? static_cast<float>(std::sqrt(1.0 / sw[t])) : kNaN;
+      row_measured += sw[t] > 0;
     }
+    measured += row_measured;
+  });
   out->measured = measured;
   // Regularisation: the inverse-variance mean of z over the window, then
   // again over the pixels that agree with that mean within 5 % (a step in
   // depth splits the window; the side holding the majority stays). Pixels
   // without a splat but with agreeing ones in the window are filled.
-  BoxSum box;
   const int rad = std::max(0, options.smooth_radius);
-  BoxSums(tw, th, rad, sw, swz, &box);
-  std::vector<double> inlier_w(tn, 0.0), inlier_wz(tn, 0.0);
+  BoxSums(tw, th, rad, sw, swz, &scratch);
+  scratch.inlier_w.resize(tn);
+  scratch.inlier_wz.resize(tn);
   tbb::parallel_for(0, th, [&](int w) {
     for (std::size_t t = static_cast<std::size_t>(w) * tw; t < static_cast<std::size_t>(w + 1) * tw;
          ++t) {
-      if (sw[t] <= 0) continue;
-      const double z = swz[t] / sw[t], mean = box.wz[t] / box.w[t];
-      if (std::abs(z - mean) > 0.05 * mean) continue;
-      inlier_w[t] = sw[t];
-      inlier_wz[t] = swz[t];
+      bool inlier = false;
+      if (sw[t] > 0) {
+        const double z = swz[t] / sw[t], mean = scratch.box_wz[t] / scratch.box_w[t];
+        inlier = std::abs(z - mean) <= 0.05 * mean;
+      }
+      scratch.inlier_w[t] = inlier ? sw[t] : 0.0;
+      scratch.inlier_wz[t] = inlier ? swz[t] : 0.0;
     }
   });
-  BoxSums(tw, th, rad, inlier_w, inlier_wz, &box);
+  BoxSums(tw, th, rad, scratch.inlier_w, scratch.inlier_wz, &scratch);
   tbb::parallel_for(0, th, [&](int w) {
     for (std::size_t t = static_cast<std::size_t>(w) * tw; t < static_cast<std::size_t>(w + 1) * tw;
          ++t)
-      if (box.n[t] > 0) out->virtual_depth[t] = static_cast<float>(box.w[t] / box.wz[t]);
+      out->virtual_depth[t] = scratch.box_n[t] > 0
+                                  ? static_cast<float>(scratch.box_w[t] / scratch.box_wz[t])
+                                  : kNaN;
   });
   out->fallback_v = 0;
-  std::vector<float> all_v;
+  std::vector<float>& values = scratch.values;
+  values.clear();
   for (std::size_t t = 0; t < tn; ++t)
-    if (sw[t] > 0 && !std::isnan(out->virtual_depth[t])) all_v.push_back(out->virtual_depth[t]);
-  if (!all_v.empty()) {
-    std::nth_element(all_v.begin(), all_v.begin() + all_v.size() / 2, all_v.end());
-    out->fallback_v = all_v[all_v.size() / 2];
+    if (sw[t] > 0 && !std::isnan(out->virtual_depth[t])) values.push_back(out->virtual_depth[t]);
+  if (!values.empty()) {
+    std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
+    out->fallback_v = values[values.size() / 2];
   }
-  // Remaining holes: mean z of the valid 8-neighbours, one ring per round.
-  std::vector<float> next;
-  for (int it = 0; it < options.fill_iterations; ++it) {
-    next = out->virtual_depth;
+  // Remaining holes: the mean z of the valid pixels within fill_iterations
+  // (one more box pass, unit weights).
+  if (options.fill_iterations > 0) {
     tbb::parallel_for(0, th, [&](int w) {
-      for (int u = 0; u < tw; ++u) {
-        const std::size_t t = static_cast<std::size_t>(w) * tw + u;
-        if (!std::isnan(out->virtual_depth[t])) continue;
-        double sum = 0;
-        int n = 0;
-        for (int dw = -1; dw <= 1; ++dw)
-          for (int du = -1; du <= 1; ++du) {
-            const int uu = u + du, ww = w + dw;
-            if (uu < 0 || ww < 0 || uu >= tw || ww >= th) continue;
-            const float v = out->virtual_depth[static_cast<std::size_t>(ww) * tw + uu];
-            if (std::isnan(v)) continue;
-            sum += 1.0 / v;
-            ++n;
-          }
-        if (n > 0) next[t] = static_cast<float>(n / sum);
+      for (std::size_t t = static_cast<std::size_t>(w) * tw;
+           t < static_cast<std::size_t>(w + 1) * tw; ++t) {
+        const float v = out->virtual_depth[t];
+        scratch.inlier_w[t] = std::isnan(v) ? 0.0 : 1.0;
+        scratch.inlier_wz[t] = std::isnan(v) ? 0.0 : 1.0 / v;
       }
     });
-    out->virtual_depth.swap(next);
+    BoxSums(tw, th, options.fill_iterations, scratch.inlier_w, scratch.inlier_wz, &scratch);
+    tbb::parallel_for(0, th, [&](int w) {
+      for (std::size_t t = static_cast<std::size_t>(w) * tw;
+           t < static_cast<std::size_t>(w + 1) * tw; ++t)
+        if (std::isnan(out->virtual_depth[t]) && scratch.box_n[t] > 0)
+          out->virtual_depth[t] = static_cast<float>(scratch.box_w[t] / scratch.box_wz[t]);
+    });
   }
-  long long valid = 0;
-  for (std::size_t t = 0; t < tn; ++t)
-    if (!std::isnan(out->virtual_depth[t])) ++valid;
-  out->filled = valid - measured;
+  std::atomic<long long> valid{0};
+  tbb::parallel_for(0, th, [&](int w) {
+    long long row_valid = 0;
+    for (std::size_t t = static_cast<std::size_t>(w) * tw; t < static_cast<std::size_t>(w + 1) * tw;
+         ++t)
+      row_valid += !std::isnan(out->virtual_depth[t]);
+    valid += row_valid;
+  });
+  out->filled = valid - out->measured;
   return Status::Ok();
 }
 
@@ -248,6 +268,7 @@ Status RenderTotalFocus(const PlenopticFrame& f, const MlaCalibration& mla, cons
     steps.col(1) = f.grid.lattice * Eigen::Vector2d(2, -1);
     s.from_px = steps.inverse();
   }
+  const SharpTypeTable sharp_type(mla);
   const float* image = f.has_colour ? f.colour.data() : f.grey.data();
   const int width = f.width, height = f.height;
   // Colour of micro image m seen from virtual point (x, y) at depth v:
@@ -287,7 +308,7 @@ Status RenderTotalFocus(const PlenopticFrame& f, const MlaCalibration& mla, cons
       const double x = 2.0 * u + 0.5, y = 2.0 * w + 0.5;
       // The triangle of lenses of the type sharp at v around x, blended by
       // barycentric weights (continuous across triangles: no seams).
-      const Sublattice& s = sub[SharpType(mla, v)];
+      const Sublattice& s = sub[sharp_type(v)];
       const Eigen::Vector2d a = s.from_px * (Eigen::Vector2d(x, y) - s.origin);
       const int m = static_cast<int>(std::floor(a.x())), n = static_cast<int>(std::floor(a.y()));
       const double fa = a.x() - m, fb = a.y() - n;

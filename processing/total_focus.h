@@ -12,8 +12,8 @@
 // smooth_radius, again over the measured pixels that agree with that mean
 // within 5 % (separable running sums, O(1) per pixel). Pixels without a splat
 // but with agreeing ones in their window take the window's mean; the holes
-// left are filled by averaging the valid 8-neighbours, fill_iterations rounds
-// (each grows the map by one TF pixel); what stays empty is NaN.
+// left take the mean z of the valid pixels within fill_iterations (a
+// window of that radius); what stays empty is NaN.
 //
 // Rendering (back-projection): for TF pixel x with virtual depth v (filled
 // map, or the median v of the frame where it is empty), the lens type sharp
@@ -52,6 +52,13 @@ struct TfDepthMap {
   std::vector<float> sigma_z;        // of the fused splats; NaN where filled or empty
   double fallback_v = 0;             // median v of the frame
   long long measured = 0, filled = 0;
+  // Scratch of VirtualDepthToTf, kept so that a map reused frame after frame
+  // allocates nothing (fresh pages cost more than the arithmetic here).
+  struct Scratch {
+    std::vector<double> sw, swz, inlier_w, inlier_wz, row_w, row_wz, box_w, box_wz;
+    std::vector<std::int32_t> row_n, box_n;
+    std::vector<float> values;
+  } scratch;
 };
 
 struct TfImage {

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <utility>
 
 namespace lifmcr::processing {
 namespace {
@@ -26,34 +27,35 @@ struct Estimate {
 
 struct Neighbour {
   const MicroImage* lens = nullptr;
-  Eigen::Vector2d delta;  // c_n - c_k
-  Eigen::Vector2d e, e_perp;
+  float delta_x = 0, delta_y = 0;  // c_n - c_k
+  float e_x = 0, e_y = 0;          // unit baseline direction
   double length = 0;
   bool same_type = false;
-  std::array<double, kSamples> offset_x{}, offset_y{};
 };
 
-// Patch samples around p: offsets a e + b e_perp, a = -2..2, b = -1..1.
-// Samples must lie within r_limit of the micro image's centre `c`. The
-// offsets a e + b e_perp (a = -2..2, b = -1..1) are the neighbour's `offset`.
-bool SamplePatch(const PlenopticFrame& f, const Eigen::Vector2d& p, const Neighbour& nb,
-                 const Eigen::Vector2d& c, double r_limit, float* out) {
-  const double r2 = r_limit * r_limit;
-  const double px = p.x(), py = p.y(), cx = c.x(), cy = c.y();
-  const int w = f.width, h = f.height;
-  const float* grey = f.grey.data();
-  for (int k = 0; k < kSamples; ++k) {
-    const double sx = px + nb.offset_x[k], sy = py + nb.offset_y[k];
-    if ((sx - cx) * (sx - cx) + (sy - cy) * (sy - cy) > r2) return false;
-    const int x0 = static_cast<int>(sx), y0 = static_cast<int>(sy);
-    if (sx < 0 || sy < 0 || x0 >= w - 1 || y0 >= h - 1) return false;
-    const float fx = static_cast<float>(sx - x0), fy = static_cast<float>(sy - y0);
-    const float* r0 = grey + static_cast<std::size_t>(y0) * w + x0;
-    const float* r1 = r0 + w;
-    const float v = (r0[0] + (r0[1] - r0[0]) * fx) * (1 - fy) + (r1[0] + (r1[1] - r1[0]) * fx) * fy;
-    if (std::isnan(v)) return false;
-    out[k] = v;
-  }
+// Bilinear grey at (x, y) if within r2 of (cx, cy) and inside the image;
+// NaN otherwise (and next to an invalid pixel: NaN propagates).
+inline float SampleInDisc(const PlenopticFrame& f, float x, float y, float cx, float cy, float r2) {
+  const float dx = x - cx, dy = y - cy;
+  if (dx * dx + dy * dy > r2 || x < 0 || y < 0) return kNaN;
+  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+  if (x0 >= f.width - 1 || y0 >= f.height - 1) return kNaN;
+  const float fx = x - x0, fy = y - y0;
+  const float* r0 = f.grey.data() + static_cast<std::size_t>(y0) * f.width + x0;
+  const float* r1 = r0 + f.width;
+  return (r0[0] + (r0[1] - r0[0]) * fx) * (1 - fy) + (r1[0] + (r1[1] - r1[0]) * fx) * fy;
+}
+
+// The reference patch around p: samples p + a e + b e_perp, a = -2..2
+// (kAlong), b = -1..1 (kAcross), row-major by b; false if one is invalid.
+bool SampleReference(const PlenopticFrame& f, float px, float py, const Neighbour& nb, float cx,
+                     float cy, float r2, float* out) {
+  for (int b = -1, m = 0; b <= 1; ++b)
+    for (int a = -2; a <= 2; ++a, ++m) {
+      out[m] =
+          SampleInDisc(f, px + a * nb.e_x - b * nb.e_y, py + a * nb.e_y + b * nb.e_x, cx, cy, r2);
+      if (std::isnan(out[m])) return false;
+    }
   return true;
 }
 
@@ -61,19 +63,30 @@ struct Search {
   const PlenopticFrame& f;
   const DepthOptions& o;
   double lambda;
+  int samples_per_px;  // 1 / step_px
 };
 
+constexpr int kMaxSteps = 256;
+
 // One baseline: best z in [z_lo, z_hi]; false when unconfirmed.
-bool MatchAlong(const Search& s, const Eigen::Vector2d& p, const float* ref, double gradient_sum,
+// The patch positions q(z_k) + a e + b e_perp of all steps k lie on three
+// lines along e at a spacing of step_px, so the neighbour is sampled once
+// per line (a strip) and the cost of step k reads the strip at a shift of
+// k: 3 (K + 4 / step) bilinear samples instead of 15 K.
+bool MatchAlong(const Search& s, float px, float py, const float* ref, double gradient_sum,
                 const Neighbour& nb, double z_lo, double z_hi, Estimate* est) {
   const double scale = s.lambda * nb.length;  // px of disparity per unit z
+  const PlenopticFrame& f = s.f;
+  const float cx = static_cast<float>(nb.lens->centre_px.x());
+  const float cy = static_cast<float>(nb.lens->centre_px.y());
+  const double r_lim = f.radius_px + 0.5;
   // Only the z for which q(z) = p + lambda Delta (1 - z) lies in the
   // neighbour's disc: |d - z u| <= R with u = lambda Delta, d = p + u - c_n.
   {
-    const Eigen::Vector2d u = s.lambda * nb.delta;
-    const Eigen::Vector2d d = p + u - nb.lens->centre_px;
-    const double uu = u.squaredNorm(), du = d.dot(u), r_lim = s.f.radius_px + 0.5;
-    const double disc = du * du - uu * (d.squaredNorm() - r_lim * r_lim);
+    const double ux = s.lambda * nb.delta_x, uy = s.lambda * nb.delta_y;
+    const double dx = px + ux - cx, dy = py + uy - cy;
+    const double uu = ux * ux + uy * uy, du = dx * ux + dy * uy;
+    const double disc = du * du - uu * (dx * dx + dy * dy - r_lim * r_lim);
     if (disc <= 0) return false;
     const double root = std::sqrt(disc);
     z_lo = std::max(z_lo, (du - root) / uu);
@@ -81,48 +94,58 @@ bool MatchAlong(const Search& s, const Eigen::Vector2d& p, const float* ref, dou
   }
   const double dz = s.o.step_px / scale;
   const int steps = static_cast<int>(std::ceil((z_hi - z_lo) / dz)) + 1;
-  if (steps < 3) return false;
-  constexpr int kMaxSteps = 256;
-  if (steps > kMaxSteps) return false;
-  std::array<double, kMaxSteps> cost;
-  const double r_limit = s.f.radius_px + 0.5;
-  int best = -1;
-  double best_cost = std::numeric_limits<double>::max();
-  int first_valid = -1, last_valid = -1;
-  float patch[kSamples];
-  for (int k = 0; k < steps; ++k) {
-    const double z = z_lo + k * dz;
-    const Eigen::Vector2d q = p + s.lambda * nb.delta * (1.0 - z);
-    cost[k] = std::numeric_limits<double>::infinity();
-    if (!SamplePatch(s.f, q, nb, nb.lens->centre_px, r_limit, patch)) continue;
-    double c = 0;
-    for (int m = 0; m < kSamples; ++m) {
-      const double d = patch[m] - ref[m];
-      c += d * d;
+  if (steps < 3 || steps > kMaxSteps) return false;
+  // Strip sample j (0 .. steps - 1 + 4 spp) sits at along-offset
+  // o_j = -2 - (steps - 1) step + j step from q(z_lo); step k, patch column
+  // a reads j = (steps - 1 - k) + (a + 2) spp. Reversed (index
+  // i = steps - 1 + 4 spp - j) step k reads i = k + (2 - a) spp, so the
+  // cost loop runs forwards over k.
+  const int spp = s.samples_per_px;
+  const int strip_len = steps + 4 * spp;
+  const float step = static_cast<float>(s.o.step_px);
+  const double q0 = s.lambda * nb.length * (1.0 - z_lo);  // q(z_lo) = p + q0 e
+  float strip[3][kMaxSteps + 16];
+  const float r2 = static_cast<float>(r_lim * r_lim);
+  for (int b = -1; b <= 1; ++b) {
+    float* line = strip[b + 1];
+    for (int i = 0; i < strip_len; ++i) {
+      const int j = strip_len - 1 - i;
+      const float along = static_cast<float>(q0) - 2.0f - (steps - 1) * step + j * step;
+      line[i] = SampleInDisc(f, px + along * nb.e_x - b * nb.e_y, py + along * nb.e_y + b * nb.e_x,
+                             cx, cy, r2);
     }
-    cost[k] = c;
+  }
+  float cost[kMaxSteps];
+  for (int k = 0; k < steps; ++k) cost[k] = 0;
+  for (int b = 0; b < kAcross; ++b)
+    for (int a = -2; a <= 2; ++a) {
+      const float r = ref[b * kAlong + a + 2];
+      const float* line = strip[b] + (2 - a) * spp;
+      for (int k = 0; k < steps; ++k) {
+        const float d = line[k] - r;
+        cost[k] += d * d;
+      }
+    }
+  int best = -1, first_valid = -1, last_valid = -1, run_n = 0;
+  float best_cost = std::numeric_limits<float>::max();
+  double run_sum = 0;
+  for (int k = 0; k < steps; ++k) {
+    const float c = cost[k];
+    if (std::isnan(c)) continue;
     if (first_valid < 0) first_valid = k;
     last_valid = k;
+    run_sum += c;
+    ++run_n;
     if (c < best_cost) {
       best_cost = c;
       best = k;
     }
   }
-  if (best < 0) return false;
-  if (best <= first_valid || best >= last_valid) return false;
-  if (!std::isfinite(cost[best - 1]) || !std::isfinite(cost[best + 1])) return false;
+  if (best < 0 || best <= first_valid || best >= last_valid) return false;
+  if (std::isnan(cost[best - 1]) || std::isnan(cost[best + 1])) return false;
   // Distinctiveness: the minimum well below the mean cost over the run.
-  double run_sum = 0;
-  int run_n = 0;
-  for (int k = first_valid; k <= last_valid; ++k)
-    if (std::isfinite(cost[k])) {
-      run_sum += cost[k];
-      ++run_n;
-    }
   const double noise2 = 2.0 * s.o.noise_dn * s.o.noise_dn;
-  if (best_cost > s.o.max_cost_ratio * run_sum / run_n + kSamples * noise2) {
-    return false;
-  }
+  if (best_cost > s.o.max_cost_ratio * run_sum / run_n + kSamples * noise2) return false;
   const double cm = cost[best - 1], c0 = cost[best], cp = cost[best + 1];
   const double denom = cm - 2 * c0 + cp;
   const double delta = denom > 0 ? std::clamp(0.5 * (cm - cp) / denom, -0.5, 0.5) : 0.0;
@@ -134,15 +157,22 @@ bool MatchAlong(const Search& s, const Eigen::Vector2d& p, const float* ref, dou
 }
 
 // Median-consistent inverse-variance fusion; returns the number used.
-int Fuse(std::vector<Estimate>& e, double* z, double* sigma) {
-  if (e.empty()) return 0;
-  std::vector<double> zs;
-  for (const Estimate& x : e) zs.push_back(x.z);
-  std::nth_element(zs.begin(), zs.begin() + zs.size() / 2, zs.end());
-  const double med = zs[zs.size() / 2];
+struct Estimates {
+  std::array<Estimate, 12> e;
+  int n = 0;
+  void Add(const Estimate& x) { e[n++] = x; }
+};
+
+int Fuse(const Estimates& es, double* z, double* sigma) {
+  if (es.n == 0) return 0;
+  std::array<double, 12> zs;
+  for (int i = 0; i < es.n; ++i) zs[i] = es.e[i].z;
+  std::nth_element(zs.begin(), zs.begin() + es.n / 2, zs.begin() + es.n);
+  const double med = zs[es.n / 2];
   double sw = 0, swz = 0;
   int used = 0;
-  for (const Estimate& x : e) {
+  for (int i = 0; i < es.n; ++i) {
+    const Estimate& x = es.e[i];
     if (std::abs(x.z - med) > std::max(3 * x.sigma, 0.03 * med)) continue;
     const double w = 1.0 / (x.sigma * x.sigma);
     sw += w;
@@ -160,7 +190,11 @@ int Fuse(std::vector<Estimate>& e, double* z, double* sigma) {
 Status DepthOptions::Check() const {
   if (!(min_gradient_dn >= 0)) return Error{"depth options: min_gradient_dn: expected >= 0"};
   if (!(noise_dn > 0)) return Error{"depth options: noise_dn: expected > 0"};
-  if (!(step_px > 0.05 && step_px <= 2)) return Error{"depth options: step_px: expected 0.05..2"};
+  if (step_px != 1.0 && step_px != 0.5 && step_px != 0.25)
+    return Error{"depth options: step_px: expected 1, 0.5 or 0.25"};
+  if (search_stride < 0 || search_stride > 2)
+    return Error{"depth options: search_stride: expected 0 (auto), 1 or 2"};
+  if (max_ring1 < 1 || max_ring1 > 6) return Error{"depth options: max_ring1: expected 1..6"};
   if (rings < 1 || rings > 2) return Error{"depth options: rings: expected 1 or 2"};
   if (min_estimates < 1) return Error{"depth options: min_estimates: expected >= 1"};
   return Status::Ok();
@@ -200,7 +234,9 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     union_hi = std::max(union_hi, z_hi[t]);
   }
   const double lambda = f.lambda;
-  const Search search{f, options, lambda};
+  const int stride =
+      options.search_stride != 0 ? options.search_stride : (f.grid.PitchPx() >= 24 ? 2 : 1);
+  const Search search{f, options, lambda, static_cast<int>(std::lround(1.0 / options.step_px))};
   std::vector<long long> textured_count(f.lenses.size(), 0), valid_count(f.lenses.size(), 0),
       estimated_count(f.lenses.size(), 0), rejected_count(f.lenses.size(), 0);
 
@@ -216,49 +252,68 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         if (idx < 0) continue;
         Neighbour& nb = nbs[count++];
         nb.lens = &f.lenses[idx];
-        nb.delta = nb.lens->centre_px - lens.centre_px;
-        nb.length = nb.delta.norm();
-        nb.e = nb.delta / nb.length;
-        nb.e_perp = {-nb.e.y(), nb.e.x()};
+        const Eigen::Vector2d delta = nb.lens->centre_px - lens.centre_px;
+        nb.length = delta.norm();
+        nb.delta_x = static_cast<float>(delta.x());
+        nb.delta_y = static_cast<float>(delta.y());
+        nb.e_x = static_cast<float>(delta.x() / nb.length);
+        nb.e_y = static_cast<float>(delta.y() / nb.length);
         nb.same_type = nb.lens->type == lens.type;
-        for (int b = -1, m = 0; b <= 1; ++b)
-          for (int a = -2; a <= 2; ++a, ++m) {
-            nb.offset_x[m] = a * nb.e.x() + b * nb.e_perp.x();
-            nb.offset_y[m] = a * nb.e.y() + b * nb.e_perp.y();
-          }
         if (ring == 1) ring1_count = count;
       }
     const double r = f.radius_px;
+    const float cx = static_cast<float>(lens.centre_px.x());
+    const float cy = static_cast<float>(lens.centre_px.y());
+    const float ref_r2 = static_cast<float>((r + 0.5) * (r + 0.5));
     const int x0 = std::max(1, static_cast<int>(std::ceil(lens.centre_px.x() - r)));
     const int x1 = std::min(w - 2, static_cast<int>(std::floor(lens.centre_px.x() + r)));
     const int y0 = std::max(1, static_cast<int>(std::ceil(lens.centre_px.y() - r)));
     const int y1 = std::min(h - 2, static_cast<int>(std::floor(lens.centre_px.y() + r)));
-    std::vector<Estimate> estimates;
-    std::vector<std::size_t> pixels;
-    std::vector<float> patch_z, patch_sigma;
+    const int bw = x1 - x0 + 1, bh = y1 - y0 + 1;
+    if (bw <= 0 || bh <= 0) return;
+    // The micro image's estimates on a local grid (z and sigma, NaN = none)
+    // and its textured pixels, for the regularisation below.
+    std::vector<float> patch_z(static_cast<std::size_t>(bw) * bh, kNaN);
+    std::vector<float> patch_sigma(patch_z.size(), kNaN);
+    std::vector<int> textured_pixels;
+    // Per local pixel: searched (a checkerboard pixel was not) and failed.
+    std::vector<std::uint8_t> search_failed(patch_z.size(), 0);
     float ref[kSamples];
     for (int y = y0; y <= y1; ++y)
       for (int x = x0; x <= x1; ++x) {
         const std::size_t idx = static_cast<std::size_t>(y) * w + x;
         if (f.lens_of_pixel[idx] != k || std::isnan(f.grey[idx])) continue;
         ++valid_count[k];
-        const Eigen::Vector2d p(x, y);
         // Gradient gate along each ring-1 direction.
-        bool textured = false;
         const float gx = 0.5f * (f.Grey(x + 1, y) - f.Grey(x - 1, y));
         const float gy = 0.5f * (f.Grey(x, y + 1) - f.Grey(x, y - 1));
         if (std::isnan(gx) || std::isnan(gy)) continue;
-        for (int m = 0; m < ring1_count; ++m)
-          if (std::abs(gx * nbs[m].e.x() + gy * nbs[m].e.y()) >= options.min_gradient_dn)
-            textured = true;
-        if (!textured) continue;
+        // Ring-1 baselines ordered by the gradient along them (the most
+        // informative first); at most max_ring1 of them are searched.
+        std::array<std::pair<float, int>, 6> order;
+        int gated = 0;
+        for (int m = 0; m < ring1_count; ++m) {
+          const float g = std::abs(gx * nbs[m].e_x + gy * nbs[m].e_y);
+          if (g >= options.min_gradient_dn) order[gated++] = {g, m};
+        }
+        if (gated == 0) continue;
         out->textured[idx] = 1;
         ++textured_count[k];
-        estimates.clear();
-        for (int m = 0; m < ring1_count; ++m) {
-          const Neighbour& nb = nbs[m];
-          if (std::abs(gx * nb.e.x() + gy * nb.e.y()) < options.min_gradient_dn) continue;
-          if (!SamplePatch(f, p, nb, lens.centre_px, r + 0.5, ref)) continue;
+        const int local = (y - y0) * bw + (x - x0);
+        textured_pixels.push_back(local);
+        // Searched pixels: all, or a checkerboard (the others are filled by
+        // the regularisation from their searched neighbours).
+        if (stride == 2 && ((x + y) & 1)) continue;
+        for (int i = 1; i < gated; ++i)  // insertion sort, descending (at most 6)
+          for (int j = i; j > 0 && order[j - 1].first < order[j].first; --j)
+            std::swap(order[j - 1], order[j]);
+        gated = std::min(gated, options.max_ring1);
+        search_failed[local] = 1;  // until an estimate passes
+        Estimates estimates;
+        auto match = [&](const Neighbour& nb, double z0, double z1) {
+          if (!SampleReference(f, static_cast<float>(x), static_cast<float>(y), nb, cx, cy, ref_r2,
+                               ref))
+            return;
           double g2 = 0;
           for (int b = 0; b < kAcross; ++b)
             for (int a = 0; a + 2 < kAlong; ++a) {
@@ -266,8 +321,11 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
               g2 += g * g;
             }
           Estimate e;
-          if (MatchAlong(search, p, ref, g2, nb, lo, hi, &e)) estimates.push_back(e);
-        }
+          if (MatchAlong(search, static_cast<float>(x), static_cast<float>(y), ref, g2, nb, z0, z1,
+                         &e))
+            estimates.Add(e);
+        };
+        for (int q = 0; q < gated; ++q) match(nbs[order[q].second], lo, hi);
         double z = 0, sigma = 0;
         int used = Fuse(estimates, &z, &sigma);
         const bool have_prior = used > 0;
@@ -275,47 +333,28 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         // range when the short ones gave none).
         for (int m = ring1_count; m < count; ++m) {
           const Neighbour& nb = nbs[m];
-          if (std::abs(gx * nb.e.x() + gy * nb.e.y()) < options.min_gradient_dn) continue;
-          if (!SamplePatch(f, p, nb, lens.centre_px, r + 0.5, ref)) continue;
-          double g2 = 0;
-          for (int b = 0; b < kAcross; ++b)
-            for (int a = 0; a + 2 < kAlong; ++a) {
-              const double g = 0.5 * (ref[b * kAlong + a + 2] - ref[b * kAlong + a]);
-              g2 += g * g;
-            }
+          if (std::abs(gx * nb.e_x + gy * nb.e_y) < options.min_gradient_dn) continue;
           const double span = std::max(3 * sigma, 2 * options.step_px / (lambda * nb.length));
-          Estimate e;
-          const double z0 = have_prior ? std::max(lo, z - span) : lo;
-          const double z1 = have_prior ? std::min(hi, z + span) : hi;
-          if (MatchAlong(search, p, ref, g2, nb, z0, z1, &e)) estimates.push_back(e);
+          match(nb, have_prior ? std::max(lo, z - span) : lo,
+                have_prior ? std::min(hi, z + span) : hi);
         }
         used = Fuse(estimates, &z, &sigma);
         if (used < options.min_estimates || z <= 0) continue;
         if (sigma / z > options.max_rel_sigma) continue;
-        out->virtual_depth[idx] = static_cast<float>(1.0 / z);
-        out->sigma_z[idx] = static_cast<float>(sigma);
-        out->confidence[idx] =
-            static_cast<float>(std::clamp(1.0 - (sigma / z) / options.max_rel_sigma, 0.0, 1.0));
-        pixels.push_back(idx);
+        patch_z[local] = static_cast<float>(z);
+        patch_sigma[local] = static_cast<float>(sigma);
+        search_failed[local] = 0;
       }
     // Regularisation within the micro image: neighbouring pixels see nearby
-    // virtual points. Each estimate becomes the inverse-variance mean of the
-    // estimates within `smooth_radius_px` that agree with their median
-    // (within max(3 sigma, 5 %)); fewer than min_support agreeing: rejected.
-    // Local grid of the micro image's estimates (z and sigma, NaN = none).
-    const int bw = x1 - x0 + 1, bh = y1 - y0 + 1;
-    if (bw <= 0 || bh <= 0) return;
-    patch_z.assign(static_cast<std::size_t>(bw) * bh, kNaN);
-    patch_sigma.assign(patch_z.size(), kNaN);
-    for (std::size_t idx : pixels) {
-      const int lx = static_cast<int>(idx % w) - x0, ly = static_cast<int>(idx / w) - y0;
-      patch_z[static_cast<std::size_t>(ly) * bw + lx] = 1.0f / out->virtual_depth[idx];
-      patch_sigma[static_cast<std::size_t>(ly) * bw + lx] = out->sigma_z[idx];
-    }
+    // virtual points. Each textured pixel becomes the inverse-variance mean
+    // of the estimates within `smooth_radius_px` that agree with their median
+    // (within max(3 sigma, 5 %)); fewer than min_support agreeing, or a
+    // searched pixel disagreeing: rejected (outlier).
     const int rad = options.smooth_radius_px;
     std::vector<float> near_z, near_s, sorted;
-    for (std::size_t idx : pixels) {
-      const int lx = static_cast<int>(idx % w) - x0, ly = static_cast<int>(idx / w) - y0;
+    for (const int local : textured_pixels) {
+      if (search_failed[local]) continue;  // no fill where the search itself failed
+      const int lx = local % bw, ly = local / bw;
       near_z.clear();
       near_s.clear();
       for (int yy = std::max(0, ly - rad); yy <= std::min(bh - 1, ly + rad); ++yy)
@@ -325,6 +364,12 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
           near_z.push_back(z);
           near_s.push_back(patch_sigma[static_cast<std::size_t>(yy) * bw + xx]);
         }
+      const float own_z = patch_z[local], own_sigma = patch_sigma[local];
+      const bool searched = !std::isnan(own_z);
+      if (static_cast<int>(near_z.size()) < options.min_support) {
+        rejected_count[k] += searched;
+        continue;
+      }
       sorted = near_z;
       std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
       const double med = sorted[sorted.size() / 2];
@@ -337,20 +382,18 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         swz += near_z[m] / (sg * sg);
         ++support;
       }
-      const float own_z = patch_z[static_cast<std::size_t>(ly) * bw + lx];
-      const float own_sigma = patch_sigma[static_cast<std::size_t>(ly) * bw + lx];
       if (support < options.min_support ||
-          std::abs(own_z - med) > std::max(3.0 * own_sigma, 0.05 * med)) {
-        out->virtual_depth[idx] = kNaN;
-        out->sigma_z[idx] = kNaN;
-        out->confidence[idx] = 0;
-        ++rejected_count[k];
+          (searched && std::abs(own_z - med) > std::max(3.0 * own_sigma, 0.05 * med))) {
+        rejected_count[k] += searched;
         continue;
       }
       const double z = swz / sw;
-      // The neighbours are not independent views of one point: keep the
-      // pixel's own sigma, shrunk by at most sqrt(support).
-      const double sigma = own_sigma / std::sqrt(static_cast<double>(support));
+      // The neighbours are not independent views of one point: a searched
+      // pixel keeps its own sigma shrunk by at most sqrt(support); a filled
+      // one takes the fused sigma of its window.
+      const double sigma =
+          searched ? own_sigma / std::sqrt(static_cast<double>(support)) : std::sqrt(1.0 / sw);
+      const std::size_t idx = static_cast<std::size_t>(y0 + ly) * w + (x0 + lx);
       out->virtual_depth[idx] = static_cast<float>(1.0 / z);
       out->sigma_z[idx] = static_cast<float>(sigma);
       out->confidence[idx] =

@@ -17,7 +17,9 @@
 //    sample inside the micro images' discs; the minimum must lie strictly
 //    inside the searched run and be distinct (<= max_cost_ratio of the run's
 //    mean cost, plus noise); a parabola through the three costs around it
-//    gives the sub-step position.
+//    gives the sub-step position. The patch positions of all steps lie on
+//    three lines along Delta at step_px spacing, so the neighbour is sampled
+//    once per line (a strip) and step k reads the strip at shift k.
 // 2. Uncertainty (in z, where the noise is near Gaussian):
 //    sigma_px^2 = 2 sigma_I^2 / sum (g_e)^2 + sigma_model^2,
 //    sigma_z = sigma_px / (lambda |Delta|)
@@ -25,16 +27,18 @@
 //    geometric_px for a pair of the same lens type, cross_type_px for two
 //    types, whose different defocus biases the match).
 // 3. Baselines from short to long: ring 1 (6 neighbours, |Delta| = D, all of
-//    other types), then ring 2 (|Delta| = sqrt(3) D, the same type) searched
-//    within z +- 3 sigma of the ring-1 fusion (the whole range when ring 1
-//    gave nothing). Fusion in z weighted by 1 / sigma^2 (product of
-//    Gaussians); estimates farther than max(3 sigma, 3 % of z) from the
-//    median are outliers.
+//    other types; the max_ring1 with the strongest gradient along them), then ring 2 (|Delta| =
+//    sqrt(3) D, the same type) searched within z +- 3 sigma of the ring-1 fusion (the whole range
+//    when ring 1 gave nothing). Fusion in z weighted by 1 / sigma^2 (product of Gaussians);
+//    estimates farther than max(3 sigma, 3 % of z) from the median are outliers.
 // 4. A pixel with at least min_estimates fused estimates and sigma_z / z <=
 //    max_rel_sigma is regularised within its micro image: the inverse-
 //    variance mean of the estimates within smooth_radius_px that agree with
 //    their median (max(3 sigma, 5 %)); fewer than min_support agreeing, or
-//    the pixel itself disagreeing: rejected (outlier). confidence =
+//    the pixel itself disagreeing: rejected (outlier). With search_stride 2
+//    only a checkerboard of pixels is searched and the textured pixels
+//    between them get the same regularised value (a pixel whose own search
+//    failed gets none). confidence =
 //    clamp(1 - (sigma_z / z) / max_rel_sigma, 0, 1).
 // Work is parallel over micro images (TBB); each pixel is written once.
 
@@ -51,15 +55,20 @@ struct DepthOptions {
   double min_gradient_dn = 5.0;  // |dI/de| (DN per px, devignetted grey) to be "textured"
   double noise_dn = 2.5;         // sigma_I of the raw grey level
   double geometric_px = 0.05;    // sigma_geo: grid-calibration uncertainty
-  double step_px = 0.5;          // disparity step of the search
-  int rings = 2;                 // 1 or 2
-  double cross_type_px = 0.3;    // model error of a pair of different lens types (blur)
-  int smooth_radius_px = 4;      // regularisation window within a micro image
-  int min_support = 3;           // agreeing estimates in that window (the pixel included)
-  int min_estimates = 1;         // agreeing estimates per pixel
-  double max_cost_ratio = 0.5;   // best SSD <= ratio * mean SSD of the search (+ noise)
-  double max_rel_sigma = 0.1;    // sigma_z / z above this: rejected
-  bool type_ranges = false;      // search only the lens type's sharp range; else the union
+  double step_px = 0.5;          // disparity step of the search: 1, 0.5 or 0.25
+  // 1: search every textured pixel; 2: a checkerboard, the other half filled
+  // by the regularisation; 0: 2 for micro images of 24 px and more (their
+  // neighbouring pixels are redundant), else 1.
+  int search_stride = 0;
+  int max_ring1 = 6;            // ring-1 baselines searched per pixel (strongest gradient first)
+  int rings = 2;                // 1 or 2
+  double cross_type_px = 0.3;   // model error of a pair of different lens types (blur)
+  int smooth_radius_px = 4;     // regularisation window within a micro image
+  int min_support = 3;          // agreeing estimates in that window (the pixel included)
+  int min_estimates = 1;        // agreeing estimates per pixel
+  double max_cost_ratio = 0.5;  // best SSD <= ratio * mean SSD of the search (+ noise)
+  double max_rel_sigma = 0.1;   // sigma_z / z above this: rejected
+  bool type_ranges = false;     // search only the lens type's sharp range; else the union
   Status Check() const;
 };
 
