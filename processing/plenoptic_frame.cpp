@@ -19,10 +19,11 @@ float GreyAt(ConstImageView image, int x, int y) {
 
 }  // namespace
 
-Status PrepareFrame(ConstImageView raw, ConstImageView white, const MlaGrid& grid,
-                    const MlaCalibration& mla, const FrameOptions& options, PlenopticFrame* frame) {
-  const int w = raw.width, h = raw.height;
-  if (w <= 0 || h <= 0 || raw.data == nullptr) return Error{"raw frame: empty image"};
+Status PrepareGeometry(ConstImageView white, int width, int height, const MlaGrid& grid,
+                       const MlaCalibration& mla, const FrameOptions& options,
+                       PlenopticFrame* frame) {
+  const int w = width, h = height;
+  if (w <= 0 || h <= 0) return Error{"raw frame: empty image"};
   const bool devignette = white.data != nullptr;
   if (devignette && (white.width != w || white.height != h))
     return Error{"white image: " + std::to_string(white.width) + "x" +
@@ -33,10 +34,9 @@ Status PrepareFrame(ConstImageView raw, ConstImageView white, const MlaGrid& gri
   f.height = h;
   f.grid = grid;
   f.lambda = options.lambda;
-  f.has_colour = raw.format == PixelFormat::kBgr8;
+  f.smooth_passes = options.smooth_passes;
+  f.geometry_ready = false;
   const std::size_t n = static_cast<std::size_t>(w) * h;
-  f.grey.resize(n);
-  f.colour.resize(f.has_colour ? 3 * n : 0);
   f.lens_of_pixel.assign(n, -1);
 
   // White level W_ref: the white image's mean over the cores (within D / 6
@@ -62,28 +62,21 @@ Status PrepareFrame(ConstImageView raw, ConstImageView white, const MlaGrid& gri
     white_level = sum / count;
   }
   f.white_level = white_level;
+  // Gain per pixel: W_ref / W(p), NaN where the white image is too dark.
+  f.gain.resize(n);
   const float min_white = static_cast<float>(options.min_white_fraction * white_level);
   tbb::parallel_for(0, h, [&](int y) {
-    const std::uint8_t* row = raw.Row(y);
     const std::uint8_t* wrow = devignette ? white.Row(y) : nullptr;
+    float* gain = f.gain.data() + static_cast<std::size_t>(y) * w;
     for (int x = 0; x < w; ++x) {
-      const std::size_t idx = static_cast<std::size_t>(y) * w + x;
-      float gain = 1.0f;
-      if (devignette) {
-        const float wv = white.format == PixelFormat::kMono8
-                             ? wrow[x]
-                             : (wrow[3 * x] + wrow[3 * x + 1] + wrow[3 * x + 2]) / 3.0f;
-        gain = wv >= min_white ? static_cast<float>(white_level) / wv : kNaN;
+      if (!devignette) {
+        gain[x] = 1.0f;
+        continue;
       }
-      if (f.has_colour) {
-        const float b = row[3 * x] * gain, g = row[3 * x + 1] * gain, r = row[3 * x + 2] * gain;
-        f.colour[3 * idx] = b;
-        f.colour[3 * idx + 1] = g;
-        f.colour[3 * idx + 2] = r;
-        f.grey[idx] = (b + g + r) / 3.0f;
-      } else {
-        f.grey[idx] = row[x] * gain;
-      }
+      const float wv = white.format == PixelFormat::kMono8
+                           ? wrow[x]
+                           : (wrow[3 * x] + wrow[3 * x + 1] + wrow[3 * x + 2]) / 3.0f;
+      gain[x] = wv >= min_white ? static_cast<float>(white_level) / wv : kNaN;
     }
   });
 
@@ -125,11 +118,46 @@ Status PrepareFrame(ConstImageView raw, ConstImageView white, const MlaGrid& gri
         if ((Eigen::Vector2d(x, y) - ck).squaredNorm() <= r2)
           f.lens_of_pixel[static_cast<std::size_t>(y) * w + x] = k;
   });
+  f.geometry_ready = true;
+  return Status::Ok();
+}
+
+Status LoadRaw(ConstImageView raw, PlenopticFrame* frame) {
+  PlenopticFrame& f = *frame;
+  if (!f.geometry_ready) return Error{"raw frame: PrepareGeometry has not run"};
+  const int w = f.width, h = f.height;
+  if (raw.data == nullptr || raw.width != w || raw.height != h)
+    return Error{"raw frame: " + std::to_string(raw.width) + "x" + std::to_string(raw.height) +
+                 ", expected " + std::to_string(w) + "x" + std::to_string(h) +
+                 " (the white image's and MLA grid's size)"};
+  f.has_colour = raw.format == PixelFormat::kBgr8;
+  const std::size_t n = static_cast<std::size_t>(w) * h;
+  f.grey.resize(n);
+  f.colour.resize(f.has_colour ? 3 * n : 0);
+  tbb::parallel_for(0, h, [&](int y) {
+    const std::uint8_t* row = raw.Row(y);
+    const std::size_t base = static_cast<std::size_t>(y) * w;
+    const float* gain = f.gain.data() + base;
+    float* grey = f.grey.data() + base;
+    if (f.has_colour) {
+      float* colour = f.colour.data() + 3 * base;
+      for (int x = 0; x < w; ++x) {
+        const float b = row[3 * x] * gain[x], g = row[3 * x + 1] * gain[x],
+                    r = row[3 * x + 2] * gain[x];
+        colour[3 * x] = b;
+        colour[3 * x + 1] = g;
+        colour[3 * x + 2] = r;
+        grey[x] = (b + g + r) * (1.0f / 3.0f);
+      }
+    } else {
+      for (int x = 0; x < w; ++x) grey[x] = row[x] * gain[x];
+    }
+  });
   // Smoothing of the grey image within each micro image (binomial [1 2 1] / 4
   // applied `smooth_passes` times per axis, normalised over the pixels of the
   // same micro image): noise and the blur difference between lens types.
   f.work.resize(n);
-  for (int pass = 0; pass < options.smooth_passes; ++pass) {
+  for (int pass = 0; pass < f.smooth_passes; ++pass) {
     for (int axis = 0; axis < 2; ++axis) {
       const std::ptrdiff_t step = axis == 0 ? 1 : w;
       tbb::parallel_for(0, h, [&](int y) {
@@ -140,7 +168,7 @@ Status PrepareFrame(ConstImageView raw, ConstImageView white, const MlaGrid& gri
             f.work[idx] = f.grey[idx];
             continue;
           }
-          double sum = 2.0 * f.grey[idx], weight = 2.0;
+          float sum = 2.0f * f.grey[idx], weight = 2.0f;
           const bool has_lo = axis == 0 ? x > 0 : y > 0;
           const bool has_hi = axis == 0 ? x < w - 1 : y < h - 1;
           if (has_lo && f.lens_of_pixel[idx - step] == lens && !std::isnan(f.grey[idx - step])) {
@@ -151,13 +179,22 @@ Status PrepareFrame(ConstImageView raw, ConstImageView white, const MlaGrid& gri
             sum += f.grey[idx + step];
             weight += 1;
           }
-          f.work[idx] = static_cast<float>(sum / weight);
+          f.work[idx] = sum / weight;
         }
       });
       f.grey.swap(f.work);
     }
   }
   return Status::Ok();
+}
+
+Status PrepareFrame(ConstImageView raw, ConstImageView white, const MlaGrid& grid,
+                    const MlaCalibration& mla, const FrameOptions& options, PlenopticFrame* frame) {
+  if (raw.width <= 0 || raw.height <= 0 || raw.data == nullptr)
+    return Error{"raw frame: empty image"};
+  if (Status s = PrepareGeometry(white, raw.width, raw.height, grid, mla, options, frame); !s)
+    return s;
+  return LoadRaw(raw, frame);
 }
 
 }  // namespace lifmcr::processing

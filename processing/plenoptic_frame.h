@@ -46,6 +46,9 @@ struct PlenopticFrame {
   std::vector<float> work;    // scratch of the smoothing
   std::vector<float> colour;  // devignetted B, G, R interleaved (BGR8 input only)
   bool has_colour = false;
+  std::vector<float> gain;  // W_ref / W(p), NaN where invalid (PrepareGeometry)
+  int smooth_passes = 2;
+  bool geometry_ready = false;
   std::vector<std::int32_t> lens_of_pixel;  // index into lenses, -1 outside every r_valid
   std::vector<MicroImage> lenses;
   std::vector<std::int32_t> lens_index;  // (j - j_min) * ni + (i - i_min) -> lens, or -1
@@ -64,8 +67,18 @@ struct PlenopticFrame {
   float SampleGrey(double x, double y) const;
 };
 
-// Fills `frame` (reusing its buffers). `white` may be empty (data == nullptr):
-// no devignetting, the whole disc of radius r_valid is valid.
+// Once per camera (white image, grid and options fixed): the gain of the
+// devignetting, the micro images and the pixel -> micro image map, for
+// frames of width x height. `white` may be empty (data == nullptr): no
+// devignetting, the whole disc of radius r_valid is valid.
+Status PrepareGeometry(ConstImageView white, int width, int height, const MlaGrid& grid,
+                       const MlaCalibration& mla, const FrameOptions& options,
+                       PlenopticFrame* frame);
+// Per frame, after PrepareGeometry: the devignetted grey (smoothed within
+// micro images) and colour of `raw`, in the frame's buffers (no allocation
+// once they are sized).
+Status LoadRaw(ConstImageView raw, PlenopticFrame* frame);
+// Both, for a single frame. Reusing `frame` reuses its buffers.
 Status PrepareFrame(ConstImageView raw, ConstImageView white, const MlaGrid& grid,
                     const MlaCalibration& mla, const FrameOptions& options, PlenopticFrame* frame);
 

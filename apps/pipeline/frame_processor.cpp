@@ -19,6 +19,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <mutex>
 
 namespace lifmcr::apps {
 namespace {
@@ -132,9 +133,35 @@ Expected<ProcessedFrame> PreviewProcessor::Process(const Frame& frame) {
   return out;
 }
 
+// Per camera: its calibration and a pool of workspaces (prepared frame,
+// depth maps, TF image), one per concurrent Process call. A workspace keeps
+// its buffers and the per-camera geometry (devignetting gain, micro-image
+// map) from frame to frame: fresh buffers of an R32 frame are about a GB of
+// first-touched pages, slower than the processing itself.
 struct DepthProcessor::CameraContext {
   MlaCalibration mla;
   std::optional<OwnedImage> white;
+  struct Workspace {
+    processing::PlenopticFrame prepared;
+    processing::VirtualDepthMap raw_depth;
+    processing::TfDepthMap tf_depth;
+    processing::TfImage tf;
+    int width = 0, height = 0;  // of the geometry in `prepared`; 0 = none yet
+  };
+  std::mutex mutex;
+  std::vector<std::unique_ptr<Workspace>> idle;
+
+  std::unique_ptr<Workspace> Acquire() {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (idle.empty()) return std::make_unique<Workspace>();
+    std::unique_ptr<Workspace> w = std::move(idle.back());
+    idle.pop_back();
+    return w;
+  }
+  void Release(std::unique_ptr<Workspace> w) {
+    std::lock_guard<std::mutex> lock(mutex);
+    idle.push_back(std::move(w));
+  }
 };
 
 DepthProcessor::~DepthProcessor() = default;
@@ -189,23 +216,38 @@ Expected<ProcessedFrame> DepthProcessor::Process(const Frame& frame) {
   if (!preview) return preview.error();
   out.preview = std::move(*preview);
 
-  const processing::MlaGrid grid =
-      processing::MlaGrid::FromCalibration(camera.mla, frame.image.width, frame.image.height);
-  ConstImageView white;
-  if (camera.white && camera.white->width == frame.image.width &&
-      camera.white->height == frame.image.height)
-    white = camera.white->View();
-  processing::PlenopticFrame prepared;
-  if (Status s = processing::PrepareFrame(frame.image, white, grid, camera.mla, {}, &prepared); !s)
-    return s.error();
-  processing::VirtualDepthMap raw_depth;
+  CameraContext& context = *it->second;
+  std::unique_ptr<CameraContext::Workspace> workspace = context.Acquire();
+  struct ReleaseOnExit {
+    CameraContext& context;
+    std::unique_ptr<CameraContext::Workspace>& workspace;
+    ~ReleaseOnExit() { context.Release(std::move(workspace)); }
+  } release{context, workspace};
+  processing::PlenopticFrame& prepared = workspace->prepared;
+  if (workspace->width != frame.image.width || workspace->height != frame.image.height) {
+    const processing::MlaGrid grid =
+        processing::MlaGrid::FromCalibration(camera.mla, frame.image.width, frame.image.height);
+    ConstImageView white;
+    if (camera.white && camera.white->width == frame.image.width &&
+        camera.white->height == frame.image.height)
+      white = camera.white->View();
+    workspace->width = workspace->height = 0;
+    if (Status s = processing::PrepareGeometry(white, frame.image.width, frame.image.height, grid,
+                                               camera.mla, {}, &prepared);
+        !s)
+      return s.error();
+    workspace->width = frame.image.width;
+    workspace->height = frame.image.height;
+  }
+  if (Status s = processing::LoadRaw(frame.image, &prepared); !s) return s.error();
+  processing::VirtualDepthMap& raw_depth = workspace->raw_depth;
   if (Status s = processing::EstimateVirtualDepth(prepared, camera.mla, {}, &raw_depth); !s)
     return s.error();
-  processing::TfDepthMap tf_depth;
+  processing::TfDepthMap& tf_depth = workspace->tf_depth;
   const processing::TfOptions tf_options;
   if (Status s = processing::VirtualDepthToTf(prepared, raw_depth, tf_options, &tf_depth); !s)
     return s.error();
-  processing::TfImage tf;
+  processing::TfImage& tf = workspace->tf;
   if (Status s = processing::RenderTotalFocus(prepared, camera.mla, tf_depth, tf_options, &tf); !s)
     return s.error();
   // The TF grid is W/2 x H/2 (16 MB of floats on an R32): published as the
