@@ -346,53 +346,90 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         search_failed[local] = 0;
       }
     // Regularisation within the micro image: neighbouring pixels see nearby
-    // virtual points. Each textured pixel becomes the inverse-variance mean
-    // of the estimates within `smooth_radius_px` that agree with their median
-    // (within max(3 sigma, 5 %)); fewer than min_support agreeing, or a
-    // searched pixel disagreeing: rejected (outlier).
+    // virtual points. Over the (2 smooth_radius_px + 1)^2 window of each
+    // textured pixel: the mean of the estimates, then the inverse-variance
+    // mean over the estimates that agree with the mean of their own window
+    // (within max(3 sigma, 5 %)); fewer than min_support agreeing, or a searched pixel itself
+    // disagreeing: rejected (outlier). Window sums from summed-area tables,
+    // O(1) per pixel.
     const int rad = options.smooth_radius_px;
-    std::vector<float> near_z, near_s, sorted;
+    const int sw_ = bw + 1;  // summed-area tables are (bw + 1) x (bh + 1)
+    std::vector<double> sat_w(static_cast<std::size_t>(sw_) * (bh + 1)), sat_wz(sat_w.size());
+    std::vector<std::int32_t> sat_n(sat_w.size());
+    auto build = [&](auto weight_of) {
+      for (int ly = 0; ly < bh; ++ly) {
+        double row_w = 0, row_wz = 0;
+        std::int32_t row_n = 0;
+        for (int lx = 0; lx < bw; ++lx) {
+          const std::size_t i = static_cast<std::size_t>(ly) * bw + lx;
+          const double wgt = weight_of(i);
+          if (wgt > 0) {
+            row_w += wgt;
+            row_wz += wgt * patch_z[i];
+            ++row_n;
+          }
+          const std::size_t o = static_cast<std::size_t>(ly + 1) * sw_ + lx + 1;
+          sat_w[o] = sat_w[o - sw_] + row_w;
+          sat_wz[o] = sat_wz[o - sw_] + row_wz;
+          sat_n[o] = sat_n[o - sw_] + row_n;
+        }
+      }
+    };
+    struct WindowSum {
+      double w, wz;
+      int n;
+    };
+    auto window = [&](int lx, int ly) {
+      const int xa = std::max(0, lx - rad), xb = std::min(bw, lx + rad + 1);
+      const int ya = std::max(0, ly - rad), yb = std::min(bh, ly + rad + 1);
+      const std::size_t i11 = static_cast<std::size_t>(yb) * sw_ + xb;
+      const std::size_t i01 = static_cast<std::size_t>(ya) * sw_ + xb;
+      const std::size_t i10 = static_cast<std::size_t>(yb) * sw_ + xa;
+      const std::size_t i00 = static_cast<std::size_t>(ya) * sw_ + xa;
+      return WindowSum{sat_w[i11] - sat_w[i01] - sat_w[i10] + sat_w[i00],
+                       sat_wz[i11] - sat_wz[i01] - sat_wz[i10] + sat_wz[i00],
+                       sat_n[i11] - sat_n[i01] - sat_n[i10] + sat_n[i00]};
+    };
+    auto agrees = [](double z, double sigma, double mean) {
+      return std::abs(z - mean) <= std::max(3 * sigma, 0.05 * mean);
+    };
+    // Pass 1: the plain window means at the estimates (unweighted: a few
+    // estimates with tiny sigma, at strong edges, must not set the
+    // reference alone), which then vote.
+    build([&](std::size_t i) { return std::isnan(patch_z[i]) ? 0.0 : 1.0; });
+    std::vector<std::uint8_t> inlier(patch_z.size(), 0);
+    for (int ly = 0; ly < bh; ++ly)
+      for (int lx = 0; lx < bw; ++lx) {
+        const std::size_t i = static_cast<std::size_t>(ly) * bw + lx;
+        if (std::isnan(patch_z[i])) continue;
+        const WindowSum ws = window(lx, ly);
+        inlier[i] = agrees(patch_z[i], patch_sigma[i], ws.wz / ws.w);
+      }
+    // Pass 2: the means over the agreeing estimates.
+    build([&](std::size_t i) {
+      const float sg = patch_sigma[i];
+      return inlier[i] ? 1.0 / (static_cast<double>(sg) * sg) : 0.0;
+    });
     for (const int local : textured_pixels) {
       if (search_failed[local]) continue;  // no fill where the search itself failed
       const int lx = local % bw, ly = local / bw;
-      near_z.clear();
-      near_s.clear();
-      for (int yy = std::max(0, ly - rad); yy <= std::min(bh - 1, ly + rad); ++yy)
-        for (int xx = std::max(0, lx - rad); xx <= std::min(bw - 1, lx + rad); ++xx) {
-          const float z = patch_z[static_cast<std::size_t>(yy) * bw + xx];
-          if (std::isnan(z)) continue;
-          near_z.push_back(z);
-          near_s.push_back(patch_sigma[static_cast<std::size_t>(yy) * bw + xx]);
-        }
       const float own_z = patch_z[local], own_sigma = patch_sigma[local];
       const bool searched = !std::isnan(own_z);
-      if (static_cast<int>(near_z.size()) < options.min_support) {
+      const WindowSum ws = window(lx, ly);
+      if (ws.n < options.min_support || (searched && !inlier[local])) {
         rejected_count[k] += searched;
         continue;
       }
-      sorted = near_z;
-      std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
-      const double med = sorted[sorted.size() / 2];
-      double sw = 0, swz = 0;
-      int support = 0;
-      for (std::size_t m = 0; m < near_z.size(); ++m) {
-        const double sg = near_s[m];
-        if (std::abs(near_z[m] - med) > std::max(3 * sg, 0.05 * med)) continue;
-        sw += 1 / (sg * sg);
-        swz += near_z[m] / (sg * sg);
-        ++support;
-      }
-      if (support < options.min_support ||
-          (searched && std::abs(own_z - med) > std::max(3.0 * own_sigma, 0.05 * med))) {
-        rejected_count[k] += searched;
+      const double z = ws.wz / ws.w;
+      if (searched && !agrees(own_z, own_sigma, z)) {
+        ++rejected_count[k];
         continue;
       }
-      const double z = swz / sw;
       // The neighbours are not independent views of one point: a searched
       // pixel keeps its own sigma shrunk by at most sqrt(support); a filled
       // one takes the fused sigma of its window.
       const double sigma =
-          searched ? own_sigma / std::sqrt(static_cast<double>(support)) : std::sqrt(1.0 / sw);
+          searched ? own_sigma / std::sqrt(static_cast<double>(ws.n)) : std::sqrt(1.0 / ws.w);
       const std::size_t idx = static_cast<std::size_t>(y0 + ly) * w + (x0 + lx);
       out->virtual_depth[idx] = static_cast<float>(1.0 / z);
       out->sigma_z[idx] = static_cast<float>(sigma);
