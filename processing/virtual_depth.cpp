@@ -31,6 +31,10 @@ struct Neighbour {
   float e_x = 0, e_y = 0;          // unit baseline direction
   double length = 0;
   bool same_type = false;
+  // Opposite neighbours (direction d and d + 3 of a ring) share their
+  // reference patch, reversed: axis = 3 (ring - 1) + d mod 3.
+  int axis = 0;
+  bool flipped = false;
 };
 
 // Bilinear grey at (x, y) if within r2 of (cx, cy) and inside the image;
@@ -80,6 +84,9 @@ bool MatchAlong(const Search& s, float px, float py, const float* ref, double gr
   const float cx = static_cast<float>(nb.lens->centre_px.x());
   const float cy = static_cast<float>(nb.lens->centre_px.y());
   const double r_lim = f.radius_px + 0.5;
+  // A disc well inside the image needs no bounds test per sample.
+  const bool interior =
+      cx - r_lim > 1 && cy - r_lim > 1 && cx + r_lim < f.width - 2 && cy + r_lim < f.height - 2;
   // Only the z for which q(z) = p + lambda Delta (1 - z) lies in the
   // neighbour's disc: |d - z u| <= R with u = lambda Delta, d = p + u - c_n.
   {
@@ -106,13 +113,39 @@ bool MatchAlong(const Search& s, float px, float py, const float* ref, double gr
   const double q0 = s.lambda * nb.length * (1.0 - z_lo);  // q(z_lo) = p + q0 e
   float strip[3][kMaxSteps + 16];
   const float r2 = static_cast<float>(r_lim * r_lim);
+  const float along0 = static_cast<float>(q0) - 2.0f - (steps - 1) * step;
   for (int b = -1; b <= 1; ++b) {
     float* line = strip[b + 1];
+    // Line b: s(t) = p + b e_perp + t e; inside the disc for t in
+    // [t_c - h, t_c + h] (t_c = (c - p - b e_perp) . e), so only those
+    // strip samples are taken, without a test per sample.
+    const float ox = px - b * nb.e_y - cx, oy = py + b * nb.e_x - cy;
+    const float t_c = -(ox * nb.e_x + oy * nb.e_y);
+    const float d2 = ox * ox + oy * oy - t_c * t_c;  // squared distance of c from the line
+    int j_lo = strip_len, j_hi = -1;
+    if (d2 < r2) {
+      const float half = std::sqrt(r2 - d2);
+      j_lo = std::max(0, static_cast<int>(std::ceil((t_c - half - along0) / step)));
+      j_hi = std::min(strip_len - 1, static_cast<int>(std::floor((t_c + half - along0) / step)));
+    }
+    const float* grey = f.grey.data();
     for (int i = 0; i < strip_len; ++i) {
       const int j = strip_len - 1 - i;
-      const float along = static_cast<float>(q0) - 2.0f - (steps - 1) * step + j * step;
-      line[i] = SampleInDisc(f, px + along * nb.e_x - b * nb.e_y, py + along * nb.e_y + b * nb.e_x,
-                             cx, cy, r2);
+      if (j < j_lo || j > j_hi) {
+        line[i] = kNaN;
+        continue;
+      }
+      const float along = along0 + j * step;
+      const float x = px + along * nb.e_x - b * nb.e_y, y = py + along * nb.e_y + b * nb.e_x;
+      if (!interior && (x < 0 || y < 0 || x >= f.width - 1 || y >= f.height - 1)) {
+        line[i] = kNaN;
+        continue;
+      }
+      const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+      const float fx = x - x0, fy = y - y0;
+      const float* r0 = grey + static_cast<std::size_t>(y0) * f.width + x0;
+      const float* r1 = r0 + f.width;
+      line[i] = (r0[0] + (r0[1] - r0[0]) * fx) * (1 - fy) + (r1[0] + (r1[1] - r1[0]) * fx) * fy;
     }
   }
   float cost[kMaxSteps];
@@ -195,6 +228,7 @@ Status DepthOptions::Check() const {
   if (search_stride < 0 || search_stride > 2)
     return Error{"depth options: search_stride: expected 0 (auto), 1 or 2"};
   if (max_ring1 < 1 || max_ring1 > 6) return Error{"depth options: max_ring1: expected 1..6"};
+  if (max_ring2 < 0 || max_ring2 > 6) return Error{"depth options: max_ring2: expected 0..6"};
   if (rings < 1 || rings > 2) return Error{"depth options: rings: expected 1 or 2"};
   if (min_estimates < 1) return Error{"depth options: min_estimates: expected >= 1"};
   return Status::Ok();
@@ -247,10 +281,13 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     std::array<Neighbour, 12> nbs;
     int count = 0, ring1_count = 0;
     for (int ring = 1; ring <= options.rings; ++ring)
-      for (const auto& d : ring == 1 ? kRing1 : kRing2) {
+      for (int dir = 0; dir < 6; ++dir) {
+        const auto& d = (ring == 1 ? kRing1 : kRing2)[dir];
         const int idx = f.LensAt(lens.i + d[0], lens.j + d[1]);
         if (idx < 0) continue;
         Neighbour& nb = nbs[count++];
+        nb.axis = 3 * (ring - 1) + dir % 3;
+        nb.flipped = dir >= 3;
         nb.lens = &f.lenses[idx];
         const Eigen::Vector2d delta = nb.lens->centre_px - lens.centre_px;
         nb.length = delta.norm();
@@ -310,16 +347,34 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         gated = std::min(gated, options.max_ring1);
         search_failed[local] = 1;  // until an estimate passes
         Estimates estimates;
+        // Reference patches per axis, sampled along the unflipped direction;
+        // a flipped neighbour reads it reversed ((a, b) -> (-a, -b)).
+        std::array<std::int8_t, 6> patch_state{};  // 0 not yet, 1 valid, 2 invalid
+        std::array<std::array<float, kSamples>, 6> patch_cache;
+        std::array<double, 6> g2_cache;
         auto match = [&](const Neighbour& nb, double z0, double z1) {
-          if (!SampleReference(f, static_cast<float>(x), static_cast<float>(y), nb, cx, cy, ref_r2,
-                               ref))
-            return;
-          double g2 = 0;
-          for (int b = 0; b < kAcross; ++b)
-            for (int a = 0; a + 2 < kAlong; ++a) {
-              const double g = 0.5 * (ref[b * kAlong + a + 2] - ref[b * kAlong + a]);
-              g2 += g * g;
+          std::array<float, kSamples>& cached = patch_cache[nb.axis];
+          if (patch_state[nb.axis] == 0) {
+            Neighbour unflipped = nb;
+            if (nb.flipped) {
+              unflipped.e_x = -nb.e_x;
+              unflipped.e_y = -nb.e_y;
             }
+            const bool ok = SampleReference(f, static_cast<float>(x), static_cast<float>(y),
+                                            unflipped, cx, cy, ref_r2, cached.data());
+            patch_state[nb.axis] = ok ? 1 : 2;
+            double g2 = 0;
+            for (int b = 0; ok && b < kAcross; ++b)
+              for (int a = 0; a + 2 < kAlong; ++a) {
+                const double g = 0.5 * (cached[b * kAlong + a + 2] - cached[b * kAlong + a]);
+                g2 += g * g;
+              }
+            g2_cache[nb.axis] = g2;
+          }
+          if (patch_state[nb.axis] != 1) return;
+          for (int m = 0; m < kSamples; ++m)
+            ref[m] = nb.flipped ? cached[kSamples - 1 - m] : cached[m];
+          const double g2 = g2_cache[nb.axis];
           Estimate e;
           if (MatchAlong(search, static_cast<float>(x), static_cast<float>(y), ref, g2, nb, z0, z1,
                          &e))
@@ -331,9 +386,18 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         const bool have_prior = used > 0;
         // Longer baselines, searched around the current estimate (the whole
         // range when the short ones gave none).
+        std::array<std::pair<float, int>, 6> order2;
+        int gated2 = 0;
         for (int m = ring1_count; m < count; ++m) {
-          const Neighbour& nb = nbs[m];
-          if (std::abs(gx * nb.e_x + gy * nb.e_y) < options.min_gradient_dn) continue;
+          const float g = std::abs(gx * nbs[m].e_x + gy * nbs[m].e_y);
+          if (g >= options.min_gradient_dn) order2[gated2++] = {g, m};
+        }
+        for (int i = 1; i < gated2; ++i)  // insertion sort, descending (at most 6)
+          for (int j = i; j > 0 && order2[j - 1].first < order2[j].first; --j)
+            std::swap(order2[j - 1], order2[j]);
+        gated2 = std::min(gated2, options.max_ring2);
+        for (int q = 0; q < gated2; ++q) {
+          const Neighbour& nb = nbs[order2[q].second];
           const double span = std::max(3 * sigma, 2 * options.step_px / (lambda * nb.length));
           match(nb, have_prior ? std::max(lo, z - span) : lo,
                 have_prior ? std::min(hi, z + span) : hi);

@@ -61,6 +61,7 @@ struct DepthOptions {
   // neighbouring pixels are redundant), else 1.
   int search_stride = 0;
   int max_ring1 = 6;            // ring-1 baselines searched per pixel (strongest gradient first)
+  int max_ring2 = 6;            // ring-2 baselines likewise
   int rings = 2;                // 1 or 2
   double cross_type_px = 0.3;   // model error of a pair of different lens types (blur)
   int smooth_radius_px = 4;     // regularisation window within a micro image
