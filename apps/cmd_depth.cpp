@@ -21,6 +21,8 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <pcl/common/io.h>
+#include <pcl/conversions.h>
 #include <pcl/io/ply_io.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
@@ -41,6 +43,7 @@ namespace {
 namespace fs = std::filesystem;
 
 struct DepthCommandOptions {
+  bool uncertainty = false;
   std::string sequence;
   std::string camera;
   std::int64_t frame = 0;
@@ -124,7 +127,11 @@ Status WriteDepthPng(const fs::path& path, const processing::TfDepthMap& depth, 
   return Status::Ok();
 }
 
-Status WritePly(const fs::path& path, const processing::PointCloud& cloud) {
+// Binary PLY of x, y, z (mm, camera frame), red, green, blue, and with
+// `uncertainty` a float property sigma_z_mm per point (NaN where the depth
+// was filled, not measured), through PCL's PCLPointCloud2 so the extra
+// property keeps its name.
+Status WritePly(const fs::path& path, const processing::PointCloud& cloud, bool uncertainty) {
   pcl::PointCloud<pcl::PointXYZRGB> pcl_cloud;
   pcl_cloud.reserve(cloud.points_mm.size());
   for (std::size_t i = 0; i < cloud.points_mm.size(); ++i) {
@@ -138,7 +145,21 @@ Status WritePly(const fs::path& path, const processing::PointCloud& cloud) {
     pcl_cloud.push_back(p);
   }
   if (pcl_cloud.empty()) return Error{path.string() + ": no points to write"};
-  if (pcl::io::savePLYFileBinary(path.string(), pcl_cloud) != 0)
+  pcl::PCLPointCloud2 blob;
+  pcl::toPCLPointCloud2(pcl_cloud, blob);
+  if (uncertainty) {
+    pcl::PointCloud<pcl::Intensity> sigma;
+    sigma.reserve(cloud.sigma_z_mm.size());
+    for (const float s : cloud.sigma_z_mm) sigma.push_back(pcl::Intensity{s});
+    pcl::PCLPointCloud2 sigma_blob, both;
+    pcl::toPCLPointCloud2(sigma, sigma_blob);
+    sigma_blob.fields[0].name = "sigma_z_mm";
+    if (!pcl::concatenateFields(blob, sigma_blob, both))
+      return Error{path.string() + ": could not add sigma_z_mm to the points"};
+    blob = std::move(both);
+  }
+  if (pcl::io::savePLYFile(path.string(), blob, Eigen::Vector4f::Zero(),
+                           Eigen::Quaternionf::Identity(), true, false) != 0)
     return Error{path.string() + ": could not write"};
   return Status::Ok();
 }
@@ -252,7 +273,7 @@ int RunDepth(const DepthCommandOptions& o) {
       return Fail(s.error().message);
     processing::PointCloud cloud;
     processing::BuildPointCloud(*camera, tf_depth, tf, true, &cloud);
-    if (Status s = WritePly(out / (stem + "_points.ply"), cloud); !s)
+    if (Status s = WritePly(out / (stem + "_points.ply"), cloud, o.uncertainty); !s)
       return Fail(s.error().message);
     std::printf("cloud     %zu points (measured TF pixels)\n", cloud.points_mm.size());
   } else {
@@ -279,6 +300,8 @@ CommandRun AddDepthCommand(CLI::App& app) {
                  "cameras.yaml with the camera's model (metric depth and point cloud)");
   app.add_option("--white", o->white, "White image (default: the dataset's Calibration folder)");
   app.add_option("--mla", o->mla, "MLA XML (default: the dataset's Calibration folder)");
+  app.add_flag("--uncertainty", o->uncertainty,
+               "Add a sigma_z_mm property (standard deviation of the depth) to every PLY point");
   return [o] { return RunDepth(*o); };
 }
 

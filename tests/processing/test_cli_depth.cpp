@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 
 namespace lifmcr {
 namespace {
@@ -36,13 +37,22 @@ TEST(CliDepth, GridAndDepthOnASyntheticDataset) {
   const fs::path out = dir / "depth";
   const test::CommandResult depth = test::RunLifmcr(
       "depth " + seq.string() + " --camera " + serial + " --frame 0 --out " + out.string() +
-      " --intrinsics " + (seq / "GroundTruth" / "cameras.yaml").string());
+      " --intrinsics " + (seq / "GroundTruth" / "cameras.yaml").string() + " --uncertainty");
   ASSERT_EQ(depth.exit_code, 0) << depth.err << depth.out;
   EXPECT_NE(depth.out.find("raw MP/s"), std::string::npos) << depth.out;
   const std::string stem = serial + "_000000";
   for (const char* suffix : {"_virtual_depth.tiff", "_confidence.tiff", "_virtual_depth_tf.tiff",
                              "_depth_mm.tiff", "_tf.png", "_depth.png", "_points.ply"})
     EXPECT_TRUE(fs::exists(out / (stem + suffix))) << suffix;
+  {
+    // Binary PLY with the per-point uncertainty as a named property.
+    std::ifstream ply(out / (stem + "_points.ply"), std::ios::binary);
+    std::string header, line;
+    while (std::getline(ply, line) && line != "end_header") header += line + "\n";
+    EXPECT_NE(header.find("format binary_little_endian"), std::string::npos) << header;
+    EXPECT_NE(header.find("property float sigma_z_mm"), std::string::npos) << header;
+    EXPECT_NE(header.find("property uchar red"), std::string::npos) << header;
+  }
   int w = 0, h = 0;
   Expected<std::vector<float>> v =
       synth::ReadFloatTiff(out / (stem + "_virtual_depth.tiff"), &w, &h);
