@@ -95,8 +95,7 @@ class SharpTypeTable {
       double best_score = -1e300;
       for (int t = 0; t < 3; ++t) {
         const MlaLensType& type = mla.lens_types[t];
-        const double score =
-            std::min(std::log(v / type.depth_min), std::log(type.depth_max / v));
+        const double score = std::min(std::log(v / type.depth_min), std::log(type.depth_max / v));
         if (score > best_score) {
           best_score = score;
           table_[q] = static_cast<std::uint8_t>(t);
@@ -192,9 +191,8 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
   tbb::parallel_for(0, th, [&](int w) {
     for (std::size_t t = static_cast<std::size_t>(w) * tw; t < static_cast<std::size_t>(w + 1) * tw;
          ++t)
-      out->virtual_depth[t] = scratch.box_n[t] > 0
-                                  ? static_cast<float>(scratch.box_w[t] / scratch.box_wz[t])
-                                  : kNaN;
+      out->virtual_depth[t] =
+          scratch.box_n[t] > 0 ? static_cast<float>(scratch.box_w[t] / scratch.box_wz[t]) : kNaN;
   });
   out->fallback_v = 0;
   std::vector<float>& values = scratch.values;
@@ -333,14 +331,18 @@ Status RenderTotalFocus(const PlenopticFrame& f, const MlaCalibration& mla, cons
         sw += wq;
       }
       if (sw <= 0) {
-        // Near the border or where v is below the sublattice's reach: the
-        // nearest micro image of any type.
+        // Near the border, in the vignetted periphery (micro images valid
+        // only near their centres) or where v is below the sublattice's
+        // reach: the nearest micro image of any type and its six neighbours.
         int i0 = 0, j0 = 0;
         f.grid.Nearest(Eigen::Vector2d(x, y), &i0, &j0);
-        const int k = f.LensAt(i0, j0);
-        if (k >= 0 && sample(f.lenses[k], x, y, inv_v, c, &centrality)) {
-          for (int ch = 0; ch < channels; ++ch) acc[ch] = c[ch];
-          sw = 1;
+        static constexpr int kAround[7][2] = {{0, 0},  {1, 0},  {0, 1}, {-1, 1},
+                                              {-1, 0}, {0, -1}, {1, -1}};
+        for (const auto& d : kAround) {
+          const int k = f.LensAt(i0 + d[0], j0 + d[1]);
+          if (k < 0 || !sample(f.lenses[k], x, y, inv_v, c, &centrality)) continue;
+          for (int ch = 0; ch < channels; ++ch) acc[ch] += centrality * c[ch];
+          sw += centrality;
         }
       }
       float* dst = out->linear.data() + t * channels;
