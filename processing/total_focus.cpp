@@ -167,60 +167,92 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
     measured += row_measured;
   });
   out->measured = measured;
-  // Regularisation: the inverse-variance mean of z over the window, then
-  // again over the pixels that agree with that mean within 5 % (a step in
-  // depth splits the window; the side holding the majority stays). Pixels
-  // without a splat but with agreeing ones in the window are filled.
-  const int rad = std::max(0, options.smooth_radius);
-  BoxSums(tw, th, rad, sw, swz, &scratch);
-  scratch.inlier_w.resize(tn);
-  scratch.inlier_wz.resize(tn);
+  // Regularisation on a grid of kCell x kCell TF pixels (the depth map is
+  // smooth at that scale after the window mean anyway; the window passes
+  // then touch 16x less memory): per cell the sums of the splats, the
+  // inverse-variance mean of z over a window of about smooth_radius, again
+  // over the measured pixels that agree with their cell's mean within 5 %
+  // (a step in depth splits the window; the side holding the majority
+  // stays), holes filled from the cells within fill_iterations, then
+  // bilinear interpolation back to every TF pixel.
+  constexpr int kCell = 4;
+  const int cw = (tw + kCell - 1) / kCell, ch = (th + kCell - 1) / kCell;
+  const std::size_t cn = static_cast<std::size_t>(cw) * ch;
+  std::vector<double>& cell_w = scratch.cell_w;
+  std::vector<double>& cell_wz = scratch.cell_wz;
+  auto sum_cells = [&](auto keep) {
+    cell_w.assign(cn, 0.0);
+    cell_wz.assign(cn, 0.0);
+    tbb::parallel_for(0, ch, [&](int cy) {
+      for (int w = cy * kCell; w < std::min(th, (cy + 1) * kCell); ++w)
+        for (int u = 0; u < tw; ++u) {
+          const std::size_t t = static_cast<std::size_t>(w) * tw + u;
+          if (sw[t] <= 0 || !keep(t)) continue;
+          const std::size_t c = static_cast<std::size_t>(cy) * cw + u / kCell;
+          cell_w[c] += sw[t];
+          cell_wz[c] += swz[t];
+        }
+    });
+  };
+  const int cell_radius = std::max(0, (options.smooth_radius + kCell / 2) / kCell);
+  sum_cells([](std::size_t) { return true; });
+  BoxSums(cw, ch, cell_radius, cell_w, cell_wz, &scratch);
+  std::vector<float>& cell_z = scratch.cell_z;
+  cell_z.assign(cn, kNaN);
+  for (std::size_t c = 0; c < cn; ++c)
+    if (scratch.box_n[c] > 0) cell_z[c] = static_cast<float>(scratch.box_wz[c] / scratch.box_w[c]);
+  sum_cells([&](std::size_t t) {
+    const int u = static_cast<int>(t % tw), w = static_cast<int>(t / tw);
+    const double mean = cell_z[static_cast<std::size_t>(w / kCell) * cw + u / kCell];
+    return std::abs(swz[t] / sw[t] - mean) <= 0.05 * mean;
+  });
+  BoxSums(cw, ch, cell_radius, cell_w, cell_wz, &scratch);
+  for (std::size_t c = 0; c < cn; ++c)
+    cell_z[c] =
+        scratch.box_n[c] > 0 ? static_cast<float>(scratch.box_wz[c] / scratch.box_w[c]) : kNaN;
+  // Holes: the mean z of the valid cells within fill_iterations TF pixels.
+  const int fill_cells = (options.fill_iterations + kCell - 1) / kCell;
+  if (fill_cells > 0) {
+    for (std::size_t c = 0; c < cn; ++c) {
+      cell_w[c] = std::isnan(cell_z[c]) ? 0.0 : 1.0;
+      cell_wz[c] = std::isnan(cell_z[c]) ? 0.0 : cell_z[c];
+    }
+    BoxSums(cw, ch, fill_cells, cell_w, cell_wz, &scratch);
+    for (std::size_t c = 0; c < cn; ++c)
+      if (std::isnan(cell_z[c]) && scratch.box_n[c] > 0)
+        cell_z[c] = static_cast<float>(scratch.box_wz[c] / scratch.box_w[c]);
+  }
+  // Back to TF pixels: bilinear between cell centres over the valid cells.
   tbb::parallel_for(0, th, [&](int w) {
-    for (std::size_t t = static_cast<std::size_t>(w) * tw; t < static_cast<std::size_t>(w + 1) * tw;
-         ++t) {
-      bool inlier = false;
-      if (sw[t] > 0) {
-        const double z = swz[t] / sw[t], mean = scratch.box_wz[t] / scratch.box_w[t];
-        inlier = std::abs(z - mean) <= 0.05 * mean;
-      }
-      scratch.inlier_w[t] = inlier ? sw[t] : 0.0;
-      scratch.inlier_wz[t] = inlier ? swz[t] : 0.0;
+    const float gy = std::clamp((w + 0.5f) / kCell - 0.5f, 0.0f, static_cast<float>(ch - 1));
+    const int y0 = std::min(static_cast<int>(gy), ch - 1), y1 = std::min(y0 + 1, ch - 1);
+    const float fy = gy - y0;
+    for (int u = 0; u < tw; ++u) {
+      const float gx = std::clamp((u + 0.5f) / kCell - 0.5f, 0.0f, static_cast<float>(cw - 1));
+      const int x0 = std::min(static_cast<int>(gx), cw - 1), x1 = std::min(x0 + 1, cw - 1);
+      const float fx = gx - x0;
+      const float zs[4] = {cell_z[static_cast<std::size_t>(y0) * cw + x0],
+                           cell_z[static_cast<std::size_t>(y0) * cw + x1],
+                           cell_z[static_cast<std::size_t>(y1) * cw + x0],
+                           cell_z[static_cast<std::size_t>(y1) * cw + x1]};
+      const float ws[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
+      float a = 0, b = 0;
+      for (int q = 0; q < 4; ++q)
+        if (!std::isnan(zs[q])) {
+          a += ws[q];
+          b += ws[q] * zs[q];
+        }
+      out->virtual_depth[static_cast<std::size_t>(w) * tw + u] = a > 1e-6f ? a / b : kNaN;
     }
   });
-  BoxSums(tw, th, rad, scratch.inlier_w, scratch.inlier_wz, &scratch);
-  tbb::parallel_for(0, th, [&](int w) {
-    for (std::size_t t = static_cast<std::size_t>(w) * tw; t < static_cast<std::size_t>(w + 1) * tw;
-         ++t)
-      out->virtual_depth[t] =
-          scratch.box_n[t] > 0 ? static_cast<float>(scratch.box_w[t] / scratch.box_wz[t]) : kNaN;
-  });
   out->fallback_v = 0;
-  std::vector<float>& values = scratch.values;
+  std::vector<float>& values = scratch.measured_v;
   values.clear();
   for (std::size_t t = 0; t < tn; ++t)
     if (sw[t] > 0 && !std::isnan(out->virtual_depth[t])) values.push_back(out->virtual_depth[t]);
   if (!values.empty()) {
     std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
     out->fallback_v = values[values.size() / 2];
-  }
-  // Remaining holes: the mean z of the valid pixels within fill_iterations
-  // (one more box pass, unit weights).
-  if (options.fill_iterations > 0) {
-    tbb::parallel_for(0, th, [&](int w) {
-      for (std::size_t t = static_cast<std::size_t>(w) * tw;
-           t < static_cast<std::size_t>(w + 1) * tw; ++t) {
-        const float v = out->virtual_depth[t];
-        scratch.inlier_w[t] = std::isnan(v) ? 0.0 : 1.0;
-        scratch.inlier_wz[t] = std::isnan(v) ? 0.0 : 1.0 / v;
-      }
-    });
-    BoxSums(tw, th, options.fill_iterations, scratch.inlier_w, scratch.inlier_wz, &scratch);
-    tbb::parallel_for(0, th, [&](int w) {
-      for (std::size_t t = static_cast<std::size_t>(w) * tw;
-           t < static_cast<std::size_t>(w + 1) * tw; ++t)
-        if (std::isnan(out->virtual_depth[t]) && scratch.box_n[t] > 0)
-          out->virtual_depth[t] = static_cast<float>(scratch.box_w[t] / scratch.box_wz[t]);
-    });
   }
   std::atomic<long long> valid{0};
   tbb::parallel_for(0, th, [&](int w) {

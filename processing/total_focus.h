@@ -7,13 +7,14 @@
 // Virtual depth on the TF grid: every raw estimate (pixel p of micro image k,
 // virtual depth v) is the virtual point x_v = l_k + v (p - l_k); it is
 // splatted to the TF pixel nearest to (x_v - 0.5) / 2 and the splats are
-// fused in z = 1/v weighted by 1 / sigma_z^2 (a "measured" pixel). The map
-// is then regularised: the inverse-variance mean of z over a window of
-// smooth_radius, again over the measured pixels that agree with that mean
-// within 5 % (separable running sums, O(1) per pixel). Pixels without a splat
-// but with agreeing ones in their window take the window's mean; the holes
-// left take the mean z of the valid pixels within fill_iterations (a
-// window of that radius); what stays empty is NaN.
+// fused in z = 1/v weighted by 1 / sigma_z^2 (a "measured" pixel, with that
+// sigma_z). The map is regularised on cells of 4 x 4 TF pixels: the
+// inverse-variance mean of z over a window of about smooth_radius, again
+// over the measured pixels agreeing with their cell's mean within 5 %;
+// cells without data take the mean of the valid cells within
+// fill_iterations TF pixels; every TF pixel is then the bilinear
+// interpolation of the valid cells around it (NaN where there are none).
+// Window sums are separable running sums, O(1) per cell.
 //
 // Rendering (back-projection): for TF pixel x with virtual depth v (filled
 // map, or the median v of the frame where it is empty), the lens type sharp
@@ -55,9 +56,9 @@ struct TfDepthMap {
   // Scratch of VirtualDepthToTf, kept so that a map reused frame after frame
   // allocates nothing (fresh pages cost more than the arithmetic here).
   struct Scratch {
-    std::vector<double> sw, swz, inlier_w, inlier_wz, row_w, row_wz, box_w, box_wz;
+    std::vector<double> sw, swz, cell_w, cell_wz, row_w, row_wz, box_w, box_wz;
     std::vector<std::int32_t> row_n, box_n;
-    std::vector<float> values;
+    std::vector<float> cell_z, measured_v;
   } scratch;
 };
 
