@@ -18,18 +18,16 @@ namespace {
 constexpr double kSqrt3Over2 = 0.86602540378443864676;
 
 // Grey level (mean of the channels) as float.
-std::vector<float> ToGrey(ConstImageView image) {
-  std::vector<float> grey(static_cast<std::size_t>(image.width) * image.height);
+// Grey of the window [x_lo, x_lo + ww) x [y_lo, y_lo + wh) of `image`.
+std::vector<float> WindowGrey(ConstImageView image, int x_lo, int y_lo, int ww, int wh) {
+  std::vector<float> grey(static_cast<std::size_t>(ww) * wh);
   const int bpp = BytesPerPixel(image.format);
-  tbb::parallel_for(0, image.height, [&](int y) {
-    const std::uint8_t* row = image.Row(y);
-    float* out = grey.data() + static_cast<std::size_t>(y) * image.width;
-    for (int x = 0; x < image.width; ++x) {
-      if (bpp == 1) {
-        out[x] = row[x];
-      } else {
-        out[x] = (row[3 * x] + row[3 * x + 1] + row[3 * x + 2]) / 3.0f;
-      }
+  tbb::parallel_for(0, wh, [&](int y) {
+    const std::uint8_t* row = image.Row(y_lo + y);
+    float* out = grey.data() + static_cast<std::size_t>(y) * ww;
+    for (int x = 0; x < ww; ++x) {
+      const int xx = x_lo + x;
+      out[x] = bpp == 1 ? row[xx] : (row[3 * xx] + row[3 * xx + 1] + row[3 * xx + 2]) / 3.0f;
     }
   });
   return grey;
@@ -189,14 +187,20 @@ Expected<GridFitResult> FitGridToWhiteImage(ConstImageView white, const MlaGrid*
   const int w = white.width, h = white.height;
   if (w < 32 || h < 32 || white.data == nullptr)
     return Error{"white image: expected at least 32 x 32 pixels"};
-  const std::vector<float> grey = ToGrey(white);
+  // Grey read straight from the 8-bit image (a float copy of a whole R32
+  // white image is 130 MB of fresh pages, slower than the fit itself).
+  const bool mono = white.format == PixelFormat::kMono8;
+  auto grey_at = [&](int x, int y) -> float {
+    const std::uint8_t* row = white.Row(y);
+    return mono ? row[x] : (row[3 * x] + row[3 * x + 1] + row[3 * x + 2]) * (1.0f / 3.0f);
+  };
 
   // 1. Discs above half the bright level: components -> first lattice.
   // Bright level: 99th percentile of every 4th pixel of every 4th row.
   std::vector<float> sorted;
-  sorted.reserve(grey.size() / 16 + 1);
+  sorted.reserve(static_cast<std::size_t>(w / 4 + 1) * (h / 4 + 1));
   for (int y = 0; y < h; y += 4)
-    for (int x = 0; x < w; x += 4) sorted.push_back(grey[static_cast<std::size_t>(y) * w + x]);
+    for (int x = 0; x < w; x += 4) sorted.push_back(grey_at(x, y));
   const std::size_t p99 = sorted.size() * 99 / 100;
   std::nth_element(sorted.begin(), sorted.begin() + p99, sorted.end());
   const float bright = sorted[p99];
@@ -205,8 +209,9 @@ Expected<GridFitResult> FitGridToWhiteImage(ConstImageView white, const MlaGrid*
   // for the first lattice; the refinement below uses the whole image).
   const int win_w = std::min(w, 1536), win_h = std::min(h, 1536);
   const int x_lo = (w - win_w) / 2, y_lo = (h - win_h) / 2;
-  std::vector<Blob> blobs =
-      FindBlobs(grey, w, x_lo, y_lo, x_lo + win_w, y_lo + win_h, 0.5f * bright);
+  std::vector<Blob> blobs = FindBlobs(WindowGrey(white, x_lo, y_lo, win_w, win_h), win_w, 0, 0,
+                                      win_w, win_h, 0.5f * bright);
+  for (Blob& b : blobs) b.centre += Eigen::Vector2d(x_lo, y_lo);
   if (blobs.size() < 20)
     return Error{"white image: found " + std::to_string(blobs.size()) +
                  " micro images, expected at least 20 (is it a white image?)"};
@@ -330,15 +335,14 @@ Expected<GridFitResult> FitGridToWhiteImage(ConstImageView white, const MlaGrid*
               for (int y = y0; y <= y1; ++y)
                 for (int x = x0; x <= x1; ++x)
                   if ((Eigen::Vector2d(x, y) - p).squaredNorm() <= radius * radius)
-                    peak = std::max(peak, grey[static_cast<std::size_t>(y) * w + x]);
+                    peak = std::max(peak, grey_at(x, y));
               if (peak < 0.25f * bright) continue;
               const float half = 0.5f * peak;
               double sw = 0, sx = 0, sy = 0;
               for (int y = y0; y <= y1; ++y)
                 for (int x = x0; x <= x1; ++x) {
                   if ((Eigen::Vector2d(x, y) - p).squaredNorm() > radius * radius) continue;
-                  const double wgt =
-                      std::max(0.0f, grey[static_cast<std::size_t>(y) * w + x] - half);
+                  const double wgt = std::max(0.0f, grey_at(x, y) - half);
                   sw += wgt;
                   sx += wgt * x;
                   sy += wgt * y;
