@@ -266,20 +266,53 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
   return Status::Ok();
 }
 
-Status RenderTotalFocus(const PlenopticFrame& f, const MlaCalibration& mla, const TfDepthMap& depth,
-                        const TfOptions& options, TfImage* out) {
-  if (Status s = options.Check(); !s) return s;
+namespace {
+
+// A micro image in float, for the rendering's inner loop: micro-lens centre
+// l, micro-image centre c.
+struct LensF {
+  float lx, ly, cx, cy;
+};
+
+// Colour of micro image m seen from virtual point (x, y) at 1 / v = inv_v:
+// bilinear at p = l + (x - l) / v; false outside its usable disc (radius^2
+// r2) or next to an invalid pixel (NaN propagates through the sum).
+// `centrality` = 1 - |p - c|^2 / r^2.
+template <int kChannels>
+inline bool SampleLens(const LensF& m, float x, float y, float inv_v, float r2, const float* image,
+                       int width, int height, float* c, float* centrality) {
+  const float px = m.lx + (x - m.lx) * inv_v, py = m.ly + (y - m.ly) * inv_v;
+  const float dx = px - m.cx, dy = py - m.cy;
+  const float d2 = dx * dx + dy * dy;
+  if (d2 > r2 || px < 0 || py < 0) return false;
+  const int x0 = static_cast<int>(px), y0 = static_cast<int>(py);
+  if (x0 >= width - 1 || y0 >= height - 1) return false;
+  const float fx = px - x0, fy = py - y0;
+  const float w00 = (1 - fx) * (1 - fy), w01 = fx * (1 - fy), w10 = (1 - fx) * fy, w11 = fx * fy;
+  const float* q = image + (static_cast<std::size_t>(y0) * width + x0) * kChannels;
+  const std::size_t row = static_cast<std::size_t>(width) * kChannels;
+  float check = 0;
+  for (int ch = 0; ch < kChannels; ++ch) {
+    c[ch] =
+        w00 * q[ch] + w01 * q[kChannels + ch] + w10 * q[row + ch] + w11 * q[row + kChannels + ch];
+    check += c[ch];
+  }
+  *centrality = 1 - d2 / r2;
+  return !std::isnan(check);
+}
+
+template <int kChannels>
+void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDepthMap& depth,
+                const TfOptions& options, TfImage* out) {
   const int tw = f.width / 2, th = f.height / 2;
-  if (depth.width != tw || depth.height != th)
-    return Error{"TF depth map: size differs from the frame's TF grid"};
-  out->width = tw;
-  out->height = th;
-  out->format = f.has_colour ? PixelFormat::kBgr8 : PixelFormat::kMono8;
-  const int channels = f.has_colour ? 3 : 1;
-  out->pixels.resize(static_cast<std::size_t>(tw) * th * channels);
-  out->linear.resize(out->pixels.size());
   const float r = static_cast<float>(f.radius_px * options.inner_fraction), r2 = r * r;
   const double fallback = depth.fallback_v > 1 ? depth.fallback_v : 3.0;
+  std::vector<LensF> lenses(f.lenses.size());
+  for (std::size_t k = 0; k < f.lenses.size(); ++k) {
+    const MicroImage& m = f.lenses[k];
+    lenses[k] = {static_cast<float>(m.lens_px.x()), static_cast<float>(m.lens_px.y()),
+                 static_cast<float>(m.centre_px.x()), static_cast<float>(m.centre_px.y())};
+  }
   // The lenses of one type form a triangular sublattice with steps
   // A (1, 1) and A (2, -1) (type = sigma (i - j) mod 3 is constant along
   // both); per type its origin lens and the inverse of those steps.
@@ -299,67 +332,53 @@ Status RenderTotalFocus(const PlenopticFrame& f, const MlaCalibration& mla, cons
     s.from_px = steps.inverse();
   }
   const SharpTypeTable sharp_type(mla);
-  const float* image = f.has_colour ? f.colour.data() : f.grey.data();
-  const int width = f.width, height = f.height;
-  // Colour of micro image m seen from virtual point (x, y) at depth v:
-  // bilinear at p = l + (x - l) / v; false outside its usable disc or next
-  // to an invalid pixel (NaN propagates through the sum).
-  auto sample = [&](const MicroImage& m, double x, double y, double inv_v, float* c,
-                    float* centrality) {
-    const float px = static_cast<float>(m.lens_px.x() + (x - m.lens_px.x()) * inv_v);
-    const float py = static_cast<float>(m.lens_px.y() + (y - m.lens_px.y()) * inv_v);
-    const float dx = px - static_cast<float>(m.centre_px.x());
-    const float dy = py - static_cast<float>(m.centre_px.y());
-    const float d2 = dx * dx + dy * dy;
-    if (d2 > r2 || px < 0 || py < 0) return false;
-    *centrality = 1 - d2 / r2;
-    const int x0 = static_cast<int>(px), y0 = static_cast<int>(py);
-    if (x0 >= width - 1 || y0 >= height - 1) return false;
-    const float fx = px - x0, fy = py - y0;
-    const float w00 = (1 - fx) * (1 - fy), w01 = fx * (1 - fy), w10 = (1 - fx) * fy, w11 = fx * fy;
-    const std::size_t i00 = (static_cast<std::size_t>(y0) * width + x0) * channels;
-    const std::size_t row = static_cast<std::size_t>(width) * channels;
-    bool ok = true;
-    for (int ch = 0; ch < channels; ++ch) {
-      const float* q = image + i00 + ch;
-      c[ch] = w00 * q[0] + w01 * q[channels] + w10 * q[row] + w11 * q[row + channels];
-      ok &= !std::isnan(c[ch]);
-    }
-    return ok;
-  };
+  const float* image = kChannels == 3 ? f.colour.data() : f.grey.data();
   const float gain = static_cast<float>(options.gain);
   const bool sharpen = options.sharpen > 0;
   tbb::parallel_for(0, th, [&](int w) {
+    const float y = 2.0f * w + 0.5f;
+    // Sublattice coordinates of TF pixel (0, w) per type, and their step
+    // per TF pixel (x grows by 2).
+    std::array<Eigen::Vector2f, 3> a0, da;
+    for (int t = 0; t < 3; ++t) {
+      const Eigen::Vector2d start = sub[t].from_px * (Eigen::Vector2d(0.5, y) - sub[t].origin);
+      const Eigen::Vector2d step = sub[t].from_px.col(0) * 2.0;
+      a0[t] = {static_cast<float>(start.x()), static_cast<float>(start.y())};
+      da[t] = {static_cast<float>(step.x()), static_cast<float>(step.y())};
+    }
     for (int u = 0; u < tw; ++u) {
       const std::size_t t = static_cast<std::size_t>(w) * tw + u;
-      double v = depth.virtual_depth[t];
-      if (std::isnan(v) || v <= 1.0) v = fallback;
-      const double inv_v = 1.0 / v;
-      const double x = 2.0 * u + 0.5, y = 2.0 * w + 0.5;
+      float v = depth.virtual_depth[t];
+      if (!(v > 1.0f)) v = static_cast<float>(fallback);  // NaN too
+      const float inv_v = 1.0f / v;
+      const float x = 2.0f * u + 0.5f;
       // The triangle of lenses of the type sharp at v around x, blended by
       // barycentric weights (continuous across triangles: no seams).
-      const Sublattice& s = sub[sharp_type(v)];
-      const Eigen::Vector2d a = s.from_px * (Eigen::Vector2d(x, y) - s.origin);
-      const int m = static_cast<int>(std::floor(a.x())), n = static_cast<int>(std::floor(a.y()));
-      const double fa = a.x() - m, fb = a.y() - n;
-      int corner[3][2];
-      double bary[3];
+      const int type = sharp_type(v);
+      const Sublattice& s = sub[type];
+      const float ax = a0[type].x() + u * da[type].x(), ay = a0[type].y() + u * da[type].y();
+      const int m = static_cast<int>(std::floor(ax)), n = static_cast<int>(std::floor(ay));
+      const float fa = ax - m, fb = ay - n;
+      int ci[3], cj[3];
+      float bary[3];
       if (fa + fb < 1) {
-        corner[0][0] = m, corner[0][1] = n, bary[0] = 1 - fa - fb;
-        corner[1][0] = m + 1, corner[1][1] = n, bary[1] = fa;
-        corner[2][0] = m, corner[2][1] = n + 1, bary[2] = fb;
+        ci[0] = m, cj[0] = n, bary[0] = 1 - fa - fb;
+        ci[1] = m + 1, cj[1] = n, bary[1] = fa;
+        ci[2] = m, cj[2] = n + 1, bary[2] = fb;
       } else {
-        corner[0][0] = m + 1, corner[0][1] = n + 1, bary[0] = fa + fb - 1;
-        corner[1][0] = m, corner[1][1] = n + 1, bary[1] = 1 - fa;
-        corner[2][0] = m + 1, corner[2][1] = n, bary[2] = 1 - fb;
+        ci[0] = m + 1, cj[0] = n + 1, bary[0] = fa + fb - 1;
+        ci[1] = m, cj[1] = n + 1, bary[1] = 1 - fa;
+        ci[2] = m + 1, cj[2] = n, bary[2] = 1 - fb;
       }
-      float acc[3] = {0, 0, 0}, c[3], centrality = 0;
-      float sw = 0;
+      float acc[kChannels] = {}, c[kChannels], centrality = 0, sw = 0;
       for (int q = 0; q < 3; ++q) {
-        const int k = f.LensAt(s.i0 + corner[q][0] + 2 * corner[q][1], corner[q][0] - corner[q][1]);
-        if (k < 0 || bary[q] <= 0 || !sample(f.lenses[k], x, y, inv_v, c, &centrality)) continue;
-        const float wq = static_cast<float>(bary[q]) * centrality;
-        for (int ch = 0; ch < channels; ++ch) acc[ch] += wq * c[ch];
+        if (bary[q] <= 0) continue;
+        const int k = f.LensAt(s.i0 + ci[q] + 2 * cj[q], ci[q] - cj[q]);
+        if (k < 0 || !SampleLens<kChannels>(lenses[k], x, y, inv_v, r2, image, f.width, f.height, c,
+                                            &centrality))
+          continue;
+        const float wq = bary[q] * centrality;
+        for (int ch = 0; ch < kChannels; ++ch) acc[ch] += wq * c[ch];
         sw += wq;
       }
       if (sw <= 0) {
@@ -372,20 +391,43 @@ Status RenderTotalFocus(const PlenopticFrame& f, const MlaCalibration& mla, cons
                                               {-1, 0}, {0, -1}, {1, -1}};
         for (const auto& d : kAround) {
           const int k = f.LensAt(i0 + d[0], j0 + d[1]);
-          if (k < 0 || !sample(f.lenses[k], x, y, inv_v, c, &centrality)) continue;
-          for (int ch = 0; ch < channels; ++ch) acc[ch] += centrality * c[ch];
+          if (k < 0 || !SampleLens<kChannels>(lenses[k], x, y, inv_v, r2, image, f.width, f.height,
+                                              c, &centrality))
+            continue;
+          for (int ch = 0; ch < kChannels; ++ch) acc[ch] += centrality * c[ch];
           sw += centrality;
         }
       }
-      float* dst = out->linear.data() + t * channels;
-      std::uint8_t* pix = out->pixels.data() + t * channels;
-      for (int ch = 0; ch < channels; ++ch) {
-        dst[ch] = sw > 0 ? gain * acc[ch] / sw : 0.0f;
+      float* dst = out->linear.data() + t * kChannels;
+      std::uint8_t* pix = out->pixels.data() + t * kChannels;
+      const float scale = sw > 0 ? gain / sw : 0.0f;
+      for (int ch = 0; ch < kChannels; ++ch) {
+        dst[ch] = acc[ch] * scale;
         if (!sharpen) pix[ch] = static_cast<std::uint8_t>(std::clamp(dst[ch] + 0.5f, 0.0f, 255.0f));
       }
     }
   });
-  if (!sharpen) return Status::Ok();
+}
+
+}  // namespace
+
+Status RenderTotalFocus(const PlenopticFrame& f, const MlaCalibration& mla, const TfDepthMap& depth,
+                        const TfOptions& options, TfImage* out) {
+  if (Status s = options.Check(); !s) return s;
+  const int tw = f.width / 2, th = f.height / 2;
+  if (depth.width != tw || depth.height != th)
+    return Error{"TF depth map: size differs from the frame's TF grid"};
+  out->width = tw;
+  out->height = th;
+  out->format = f.has_colour ? PixelFormat::kBgr8 : PixelFormat::kMono8;
+  const int channels = f.has_colour ? 3 : 1;
+  out->pixels.resize(static_cast<std::size_t>(tw) * th * channels);
+  out->linear.resize(out->pixels.size());
+  if (f.has_colour)
+    RenderRows<3>(f, mla, depth, options, out);
+  else
+    RenderRows<1>(f, mla, depth, options, out);
+  if (options.sharpen <= 0) return Status::Ok();
   // Optional deblurring: I - k laplacian(I) (a first-order inverse of a
   // Gaussian blur of variance 2k), then 8-bit.
   const double k = options.sharpen;
