@@ -10,7 +10,7 @@
 //   - TF image: output MP/s (TF depth + rendering), beside the same rendering
 //     on one thread.
 //   bench_depth [--preset r32|medium|small] [--repeat N] [--crop PX]
-//               [--stride 0|1|2] [--ring1 1..6] [--ring2 0..6] (DepthOptions)
+//               [--stride 0|1|2] [--ring1 1..6] [--ring2 0..6] [--type-ranges 0|1] (DepthOptions)
 
 #include "processing/camera_model.h"
 #include "processing/mla_grid.h"
@@ -121,6 +121,8 @@ int main(int argc, char** argv) {
       depth_options.search_stride = std::atoi(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--ring1"))
       depth_options.max_ring1 = std::atoi(argv[k + 1]);
+    else if (!std::strcmp(argv[k], "--type-ranges"))
+      depth_options.type_ranges = std::atoi(argv[k + 1]) != 0;
     else if (!std::strcmp(argv[k], "--ring2"))
       depth_options.max_ring2 = std::atoi(argv[k + 1]);
     else {

@@ -131,24 +131,17 @@ Status LoadRaw(ConstImageView raw, PlenopticFrame* frame) {
                  ", expected " + std::to_string(w) + "x" + std::to_string(h) +
                  " (the white image's and MLA grid's size)"};
   f.has_colour = raw.format == PixelFormat::kBgr8;
+  f.raw = raw;
   const std::size_t n = static_cast<std::size_t>(w) * h;
   f.grey.resize(n);
-  f.colour.resize(f.has_colour ? 3 * n : 0);
   tbb::parallel_for(0, h, [&](int y) {
     const std::uint8_t* row = raw.Row(y);
     const std::size_t base = static_cast<std::size_t>(y) * w;
     const float* gain = f.gain.data() + base;
     float* grey = f.grey.data() + base;
     if (f.has_colour) {
-      float* colour = f.colour.data() + 3 * base;
-      for (int x = 0; x < w; ++x) {
-        const float b = row[3 * x] * gain[x], g = row[3 * x + 1] * gain[x],
-                    r = row[3 * x + 2] * gain[x];
-        colour[3 * x] = b;
-        colour[3 * x + 1] = g;
-        colour[3 * x + 2] = r;
-        grey[x] = (b + g + r) * (1.0f / 3.0f);
-      }
+      for (int x = 0; x < w; ++x)
+        grey[x] = (row[3 * x] + row[3 * x + 1] + row[3 * x + 2]) * (gain[x] * (1.0f / 3.0f));
     } else {
       for (int x = 0; x < w; ++x) grey[x] = row[x] * gain[x];
     }

@@ -6,7 +6,7 @@
 // and W_ref its level at the micro-image cores near the image centre, so a white surface reads
 // W_ref everywhere; pixels with W(p) < min_white_fraction * W_ref (the dark
 // gaps and rims between micro images) are invalid (NaN). Grey is the channel
-// mean; colour keeps B, G, R (devignetted alike).
+// mean; colour is read from the raw frame times the same gain when needed.
 //
 // Micro images: lens k with micro-image centre c_k (MlaGrid), micro-lens
 // centre l_k = c + lambda (c_k - c) (camera_model.h), usable pixels within
@@ -42,9 +42,12 @@ struct FrameOptions {
 // reallocated by Prepare when the size is unchanged).
 struct PlenopticFrame {
   int width = 0, height = 0;
-  std::vector<float> grey;    // devignetted grey, NaN where invalid
-  std::vector<float> work;    // scratch of the smoothing
-  std::vector<float> colour;  // devignetted B, G, R interleaved (BGR8 input only)
+  std::vector<float> grey;  // devignetted grey, NaN where invalid
+  std::vector<float> work;  // scratch of the smoothing
+  // The raw frame itself (not a copy: the caller's pooled buffer, which must
+  // outlive the processing of the frame); the TF image samples it times
+  // `gain`, so colour needs no float copy of 12 bytes per pixel.
+  ConstImageView raw;
   bool has_colour = false;
   std::vector<float> gain;  // W_ref / W(p), NaN where invalid (PrepareGeometry)
   int smooth_passes = 2;
@@ -74,9 +77,9 @@ struct PlenopticFrame {
 Status PrepareGeometry(ConstImageView white, int width, int height, const MlaGrid& grid,
                        const MlaCalibration& mla, const FrameOptions& options,
                        PlenopticFrame* frame);
-// Per frame, after PrepareGeometry: the devignetted grey (smoothed within
-// micro images) and colour of `raw`, in the frame's buffers (no allocation
-// once they are sized).
+// Per frame, after PrepareGeometry: the devignetted grey of `raw` (smoothed
+// within micro images), in the frame's buffers (no allocation once they are
+// sized); `raw` is kept as a view and must outlive the frame's processing.
 Status LoadRaw(ConstImageView raw, PlenopticFrame* frame);
 // Both, for a single frame. Reusing `frame` reuses its buffers.
 Status PrepareFrame(ConstImageView raw, ConstImageView white, const MlaGrid& grid,

@@ -275,26 +275,29 @@ struct LensF {
 };
 
 // Colour of micro image m seen from virtual point (x, y) at 1 / v = inv_v:
-// bilinear at p = l + (x - l) / v; false outside its usable disc (radius^2
-// r2) or next to an invalid pixel (NaN propagates through the sum).
+// bilinear at p = l + (x - l) / v of the raw pixels times the devignetting
+// gain; false outside its usable disc (radius^2 r2) or next to an invalid
+// pixel (the gain is NaN there and propagates through the sum).
 // `centrality` = 1 - |p - c|^2 / r^2.
 template <int kChannels>
-inline bool SampleLens(const LensF& m, float x, float y, float inv_v, float r2, const float* image,
-                       int width, int height, float* c, float* centrality) {
+inline bool SampleLens(const LensF& m, float x, float y, float inv_v, float r2,
+                       const PlenopticFrame& f, float* c, float* centrality) {
   const float px = m.lx + (x - m.lx) * inv_v, py = m.ly + (y - m.ly) * inv_v;
   const float dx = px - m.cx, dy = py - m.cy;
   const float d2 = dx * dx + dy * dy;
   if (d2 > r2 || px < 0 || py < 0) return false;
   const int x0 = static_cast<int>(px), y0 = static_cast<int>(py);
-  if (x0 >= width - 1 || y0 >= height - 1) return false;
+  if (x0 >= f.width - 1 || y0 >= f.height - 1) return false;
   const float fx = px - x0, fy = py - y0;
-  const float w00 = (1 - fx) * (1 - fy), w01 = fx * (1 - fy), w10 = (1 - fx) * fy, w11 = fx * fy;
-  const float* q = image + (static_cast<std::size_t>(y0) * width + x0) * kChannels;
-  const std::size_t row = static_cast<std::size_t>(width) * kChannels;
+  const float* g0 = f.gain.data() + static_cast<std::size_t>(y0) * f.width + x0;
+  const float* g1 = g0 + f.width;
+  const float w00 = (1 - fx) * (1 - fy) * g0[0], w01 = fx * (1 - fy) * g0[1],
+              w10 = (1 - fx) * fy * g1[0], w11 = fx * fy * g1[1];
+  const std::uint8_t* q0 = f.raw.Row(y0) + x0 * kChannels;
+  const std::uint8_t* q1 = f.raw.Row(y0 + 1) + x0 * kChannels;
   float check = 0;
   for (int ch = 0; ch < kChannels; ++ch) {
-    c[ch] =
-        w00 * q[ch] + w01 * q[kChannels + ch] + w10 * q[row + ch] + w11 * q[row + kChannels + ch];
+    c[ch] = w00 * q0[ch] + w01 * q0[kChannels + ch] + w10 * q1[ch] + w11 * q1[kChannels + ch];
     check += c[ch];
   }
   *centrality = 1 - d2 / r2;
@@ -332,7 +335,6 @@ void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDept
     s.from_px = steps.inverse();
   }
   const SharpTypeTable sharp_type(mla);
-  const float* image = kChannels == 3 ? f.colour.data() : f.grey.data();
   const float gain = static_cast<float>(options.gain);
   const bool sharpen = options.sharpen > 0;
   tbb::parallel_for(0, th, [&](int w) {
@@ -374,8 +376,7 @@ void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDept
       for (int q = 0; q < 3; ++q) {
         if (bary[q] <= 0) continue;
         const int k = f.LensAt(s.i0 + ci[q] + 2 * cj[q], ci[q] - cj[q]);
-        if (k < 0 || !SampleLens<kChannels>(lenses[k], x, y, inv_v, r2, image, f.width, f.height, c,
-                                            &centrality))
+        if (k < 0 || !SampleLens<kChannels>(lenses[k], x, y, inv_v, r2, f, c, &centrality))
           continue;
         const float wq = bary[q] * centrality;
         for (int ch = 0; ch < kChannels; ++ch) acc[ch] += wq * c[ch];
@@ -391,8 +392,7 @@ void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDept
                                               {-1, 0}, {0, -1}, {1, -1}};
         for (const auto& d : kAround) {
           const int k = f.LensAt(i0 + d[0], j0 + d[1]);
-          if (k < 0 || !SampleLens<kChannels>(lenses[k], x, y, inv_v, r2, image, f.width, f.height,
-                                              c, &centrality))
+          if (k < 0 || !SampleLens<kChannels>(lenses[k], x, y, inv_v, r2, f, c, &centrality))
             continue;
           for (int ch = 0; ch < kChannels; ++ch) acc[ch] += centrality * c[ch];
           sw += centrality;
