@@ -316,8 +316,15 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     // Per local pixel: searched (a checkerboard pixel was not) and failed.
     std::vector<std::uint8_t> search_failed(patch_z.size(), 0);
     float ref[kSamples];
-    for (int y = y0; y <= y1; ++y)
-      for (int x = x0; x <= x1; ++x) {
+    for (int y = y0; y <= y1; ++y) {
+      // Only the row's chord of the disc (plus a pixel either side for
+      // rounding; the map decides).
+      const double dy = y - lens.centre_px.y(), chord2 = r * r - dy * dy;
+      if (chord2 < 0) continue;
+      const double half = std::sqrt(chord2);
+      const int xa = std::max(x0, static_cast<int>(std::floor(lens.centre_px.x() - half)));
+      const int xb = std::min(x1, static_cast<int>(std::ceil(lens.centre_px.x() + half)));
+      for (int x = xa; x <= xb; ++x) {
         const std::size_t idx = static_cast<std::size_t>(y) * w + x;
         if (f.lens_of_pixel[idx] != k || std::isnan(f.grey[idx])) continue;
         ++valid_count[k];
@@ -409,6 +416,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         patch_sigma[local] = static_cast<float>(sigma);
         search_failed[local] = 0;
       }
+    }
     // Regularisation within the micro image: neighbouring pixels see nearby
     // virtual points. Over the (2 smooth_radius_px + 1)^2 window of each
     // textured pixel: the mean of the estimates, then the inverse-variance
