@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <condition_variable>
 #include <cstdio>
 #include <ctime>
@@ -17,8 +18,15 @@
 #include <lifmcr_lcm/vicon_frame_t.hpp>
 #include <map>
 #include <mutex>
+#include <oneapi/tbb/global_control.h>
+#include <oneapi/tbb/info.h>
+#include <oneapi/tbb/task_arena.h>
+#include <oneapi/tbb/task_scheduler_observer.h>
 #include <optional>
 #include <sstream>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
 
 namespace lifmcr::apps {
 namespace {
@@ -63,6 +71,31 @@ class LatencyWindow {
   std::uint64_t count_ = 0;
 };
 
+// Lowers the priority (raises the nice value) of every worker thread that
+// enters the processing arena, so processing, which skips frames when it
+// falls behind anyway, never starves the threads that must be on time: the
+// camera and Vicon threads and the command's loop. Lowering a thread's own
+// priority needs no privilege; a worker keeps it when it leaves the arena
+// (raising it back would), which only matters to other TBB work of the process.
+class WorkerPriority final : public tbb::task_scheduler_observer {
+ public:
+  WorkerPriority(tbb::task_arena& arena, int nice)
+      : tbb::task_scheduler_observer(arena), nice_(nice) {
+    observe(true);
+  }
+  ~WorkerPriority() override { observe(false); }
+  void on_scheduler_entry(bool is_worker) override {
+    if (!is_worker) return;
+    const auto thread = static_cast<id_t>(syscall(SYS_gettid));
+    errno = 0;
+    const int current = getpriority(PRIO_PROCESS, thread);
+    if (errno == 0 && current < nice_) (void)setpriority(PRIO_PROCESS, thread, nice_);
+  }
+
+ private:
+  int nice_;
+};
+
 struct Job {
   Frame frame;
   std::int64_t trigger_index = 0;
@@ -105,6 +138,8 @@ Status PipelineOptions::Check() const {
   if (max_concurrency < 1 || max_concurrency > 64)
     return Error{"pipeline: max_concurrency: expected 1..64"};
   if (stats_period.count() <= 0) return Error{"pipeline: stats_period: expected > 0"};
+  if (processing_nice < 0 || processing_nice > 19)
+    return Error{"pipeline: processing_nice: expected 0..19"};
   return Status::Ok();
 }
 
@@ -124,7 +159,14 @@ struct Pipeline::Impl {
   DropCounter drops_before;  // of the assemblers of earlier passes
   std::uint64_t lost_before = 0;
 
-  tbb::flow::graph graph;
+  // Processing gets every core: TBB starts cores - 1 workers and its default
+  // arena keeps a slot for a master thread, which here (the command's loop)
+  // never helps, so the graph would process on one core. Its own arena has
+  // no master slot, and the workers to fill it are allowed.
+  std::unique_ptr<tbb::global_control> worker_limit;
+  std::unique_ptr<tbb::task_arena> arena;
+  std::unique_ptr<WorkerPriority> worker_priority;
+  std::unique_ptr<tbb::flow::graph> graph;  // made inside `arena`: its tasks run there
   std::unique_ptr<tbb::flow::function_node<Job, Result>> process_node;
   std::unique_ptr<tbb::flow::function_node<Result>> publish_node;
 
@@ -285,7 +327,7 @@ struct Pipeline::Impl {
   void WaitIdle() {
     // A frame in the slot with no worker left cannot happen: every worker
     // takes the slot before it ends. Wait for the graph to drain.
-    graph.wait_for_all();
+    graph->wait_for_all();
     std::unique_lock lock(slot_mutex);
     slot_cv.wait(lock, [&] { return in_flight == 0 && slots.empty(); });
   }
@@ -397,13 +439,23 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
                  "' (for UDP multicast on loopback: ip link set lo multicast on; ip route add "
                  "239.255.76.67/32 dev lo)"};
   impl->assembler = std::make_unique<FrameSetAssembler>(sync);
+  const int cores = tbb::info::default_concurrency();
+  impl->worker_limit = std::make_unique<tbb::global_control>(
+      tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(cores) + 1);
+  impl->arena = std::make_unique<tbb::task_arena>(cores, /*reserved_for_masters=*/0);
+  if (options.processing_nice > 0)
+    impl->worker_priority = std::make_unique<WorkerPriority>(*impl->arena, options.processing_nice);
   Impl* raw = impl.get();
-  impl->process_node = std::make_unique<tbb::flow::function_node<Job, Result>>(
-      impl->graph, tbb::flow::unlimited,
-      [raw](Job job) { return raw->RunProcess(std::move(job)); });
-  impl->publish_node = std::make_unique<tbb::flow::function_node<Result>>(
-      impl->graph, tbb::flow::serial, [raw](Result result) { raw->RunPublish(std::move(result)); });
-  tbb::flow::make_edge(*impl->process_node, *impl->publish_node);
+  impl->arena->execute([raw] {
+    raw->graph = std::make_unique<tbb::flow::graph>();
+    raw->process_node = std::make_unique<tbb::flow::function_node<Job, Result>>(
+        *raw->graph, tbb::flow::unlimited,
+        [raw](Job job) { return raw->RunProcess(std::move(job)); });
+    raw->publish_node = std::make_unique<tbb::flow::function_node<Result>>(
+        *raw->graph, tbb::flow::serial,
+        [raw](Result result) { raw->RunPublish(std::move(result)); });
+    tbb::flow::make_edge(*raw->process_node, *raw->publish_node);
+  });
   return std::unique_ptr<Pipeline>(new Pipeline(std::move(impl)));
 }
 
