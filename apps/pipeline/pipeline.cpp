@@ -11,6 +11,7 @@
 #include <cerrno>
 #include <condition_variable>
 #include <cstdio>
+#include <cstdlib>
 #include <ctime>
 #include <lifmcr_lcm/depth_image_t.hpp>
 #include <lifmcr_lcm/pipeline_stats_t.hpp>
@@ -150,6 +151,12 @@ struct Pipeline::Impl {
   std::unique_ptr<lcm::LCM> own_lcm;
   lcm::LCM* lcm = nullptr;
   std::mutex lcm_mutex;
+  // When the pipeline opens the URL itself, Vicon goes out on an instance of
+  // its own (its own socket and send lock): a Vicon message never waits
+  // behind the fragments of a depth map that a lower-priority worker is
+  // sending. On a given bus (tests, memq://) both share it.
+  std::unique_ptr<lcm::LCM> vicon_lcm;
+  std::mutex vicon_lcm_mutex;
 
   std::mutex sync_mutex;
   std::unique_ptr<FrameSetAssembler> assembler;
@@ -187,12 +194,22 @@ struct Pipeline::Impl {
   std::uint64_t stats_last_processed = 0;
   std::chrono::steady_clock::time_point stats_last_time = start;
 
-  void Publish(const std::string& channel, const auto& message) {
-    std::lock_guard lock(lcm_mutex);
-    if (lcm->publish(channel, &message) != 0) {
+  void PublishOn(lcm::LCM& bus, std::mutex& bus_mutex, const std::string& channel,
+                 const auto& message) {
+    std::lock_guard lock(bus_mutex);
+    if (bus.publish(channel, &message) != 0) {
       std::lock_guard r(report_mutex);
       ++report.publish_errors;
     }
+  }
+  void Publish(const std::string& channel, const auto& message) {
+    PublishOn(*lcm, lcm_mutex, channel, message);
+  }
+  void PublishVicon(const lifmcr_lcm::vicon_frame_t& message) {
+    if (vicon_lcm)
+      PublishOn(*vicon_lcm, vicon_lcm_mutex, kViconChannel, message);
+    else
+      Publish(kViconChannel, message);
   }
 
   Result RunProcess(Job job) {
@@ -432,8 +449,16 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
   } else {
     impl->own_lcm = std::make_unique<lcm::LCM>(options.lcm_url);
     impl->lcm = impl->own_lcm.get();
+    // Only UDP multicast: two memq:// instances are two buses, two file://
+    // instances two writers of one log.
+    const char* default_url = std::getenv("LCM_DEFAULT_URL");
+    const std::string url = !options.lcm_url.empty() ? options.lcm_url
+                            : default_url            ? default_url
+                                                     : "udpm://";
+    if (impl->lcm->good() && url.starts_with("udpm://"))
+      impl->vicon_lcm = std::make_unique<lcm::LCM>(options.lcm_url);
   }
-  if (!impl->lcm->good())
+  if (!impl->lcm->good() || (impl->vicon_lcm && !impl->vicon_lcm->good()))
     return Error{"LCM: cannot open '" +
                  (options.lcm_url.empty() ? std::string("default URL") : options.lcm_url) +
                  "' (for UDP multicast on loopback: ip link set lo multicast on; ip route add "
@@ -501,7 +526,7 @@ void Pipeline::AddVicon(const ViconFrame& frame) {
     m.objects.push_back(o);
   }
   m.num_objects = static_cast<std::int32_t>(m.objects.size());
-  impl_->Publish(kViconChannel, m);
+  impl_->PublishVicon(m);
   std::lock_guard r(impl_->report_mutex);
   ++impl_->report.published_vicon;
 }
