@@ -343,10 +343,14 @@ struct Pipeline::Impl {
 
   void WaitIdle() {
     // A frame in the slot with no worker left cannot happen: every worker
-    // takes the slot before it ends. Wait for the graph to drain.
+    // takes the slot before it ends. The last worker's publication done, the
+    // graph only has its tasks to finish: waiting on it earlier would let
+    // this thread (not a worker: its priority is not lowered) process frames.
+    {
+      std::unique_lock lock(slot_mutex);
+      slot_cv.wait(lock, [&] { return in_flight == 0 && slots.empty(); });
+    }
     graph->wait_for_all();
-    std::unique_lock lock(slot_mutex);
-    slot_cv.wait(lock, [&] { return in_flight == 0 && slots.empty(); });
   }
 
   lifmcr_lcm::pipeline_stats_t StatsMessage() {

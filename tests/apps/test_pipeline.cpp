@@ -20,13 +20,19 @@
 #include <gtest/gtest.h>
 #include <lcm/lcm-cpp.hpp>
 
+#include <atomic>
+#include <cerrno>
 #include <cmath>
 #include <lifmcr_lcm/depth_image_t.hpp>
 #include <lifmcr_lcm/pipeline_stats_t.hpp>
 #include <lifmcr_lcm/preview_image_t.hpp>
 #include <lifmcr_lcm/vicon_frame_t.hpp>
 #include <map>
+#include <oneapi/tbb/info.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
 #include <thread>
+#include <unistd.h>
 
 namespace lifmcr::apps {
 namespace {
@@ -174,6 +180,66 @@ class SlowProcessor final : public FrameProcessor {
   std::chrono::milliseconds delay_;
   PreviewProcessor preview_;
 };
+
+// How many frames a ConcurrencyProbe processed at once at most, and the
+// lowest nice value of the threads it ran on (owned by the test: the stage
+// goes with the pipeline).
+struct ProbeCounts {
+  std::atomic<int> running{0}, most_at_once{0}, lowest_nice{100};
+};
+
+class ConcurrencyProbe final : public FrameProcessor {
+ public:
+  explicit ConcurrencyProbe(ProbeCounts* counts) : counts_(counts) {}
+  Expected<ProcessedFrame> Process(const Frame& frame) override {
+    const int now = ++counts_->running;
+    int seen = counts_->most_at_once.load();
+    while (now > seen && !counts_->most_at_once.compare_exchange_weak(seen, now)) {
+    }
+    errno = 0;
+    const int nice = getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
+    if (errno == 0) {
+      int lowest = counts_->lowest_nice.load();
+      while (nice < lowest && !counts_->lowest_nice.compare_exchange_weak(lowest, nice)) {
+      }
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(150));
+    --counts_->running;
+    return preview_.Process(frame);
+  }
+  std::string name() const override { return "probe"; }
+
+ private:
+  ProbeCounts* counts_;
+  PreviewProcessor preview_;
+};
+
+// Frames are processed max_concurrency at once (up to the cores), on worker
+// threads at processing_nice: the command's loop never helps TBB, so the
+// default arena (cores - 1 workers, a slot kept for a master) processed one
+// frame at a time.
+TEST(Pipeline, ProcessesMaxConcurrencyFramesAtOnceAtTheLowerPriority) {
+  const int cores = tbb::info::default_concurrency();
+  test::TempDir dir;
+  auto summary = synth::WriteSyntheticDataset(dir.path(), TinyRig(4));
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  lcm::LCM bus("memq://");
+  ReplayRunOptions options;
+  options.sequence_dir = summary->sequence_dir;
+  options.rate.kind = ReplayRate::Kind::kMax;
+  options.pipeline.bus = &bus;
+  options.pipeline.max_concurrency = 2;
+  options.pipeline.processing_nice = 7;
+  ProbeCounts counts;
+  auto result = RunReplay(options, std::make_unique<ConcurrencyProbe>(&counts));
+  ASSERT_TRUE(result.ok()) << result.error().message;
+  EXPECT_EQ(result->report.processed, 8u) << result->report.FinalReport();
+  EXPECT_EQ(counts.most_at_once, std::min(2, cores));
+  EXPECT_GE(counts.lowest_nice, 7);
+  EXPECT_LE(counts.lowest_nice, 19);
+  options.pipeline.processing_nice = 20;
+  EXPECT_FALSE(options.pipeline.Check().ok());
+}
 
 TEST(Pipeline, SlowStageSkipsTheOlderFramesCountsThemAndKeepsTheNewest) {
   test::TempDir dir;
