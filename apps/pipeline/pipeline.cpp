@@ -80,6 +80,8 @@ class LatencyWindow {
 // (raising it back would), which only matters to other TBB work of the process.
 class WorkerPriority final : public tbb::task_scheduler_observer {
  public:
+  // `nice`: the workers' nice value (the creating thread's plus the
+  // pipeline's processing_nice, at most 19).
   WorkerPriority(tbb::task_arena& arena, int nice)
       : tbb::task_scheduler_observer(arena), nice_(nice) {
     observe(true);
@@ -472,8 +474,13 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
   impl->worker_limit = std::make_unique<tbb::global_control>(
       tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(cores) + 1);
   impl->arena = std::make_unique<tbb::task_arena>(cores, /*reserved_for_masters=*/0);
-  if (options.processing_nice > 0)
-    impl->worker_priority = std::make_unique<WorkerPriority>(*impl->arena, options.processing_nice);
+  if (options.processing_nice > 0) {
+    // Relative to this thread's (the command's): a rig run at nice -5 processes at +5.
+    errno = 0;
+    const int base = getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
+    impl->worker_priority = std::make_unique<WorkerPriority>(
+        *impl->arena, std::min(19, (errno == 0 ? base : 0) + options.processing_nice));
+  }
   Impl* raw = impl.get();
   impl->arena->execute([raw] {
     raw->graph = std::make_unique<tbb::flow::graph>();

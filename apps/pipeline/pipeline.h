@@ -54,9 +54,10 @@ struct PipelineOptions {
   int max_concurrency = 2;  // frames processed at once, >= 1
   bool skip_when_busy = true;
   std::chrono::milliseconds stats_period{1000};
-  // Nice value of the threads that process and publish frames (0..19; 0
-  // leaves them at the process's), so processing never delays the camera and
-  // Vicon threads: on a saturated 2-core host a Vicon packet otherwise waits
+  // How much lower than the creating thread's the priority of the threads
+  // that process and publish frames is (added to its nice value, at most 19;
+  // 0 leaves them equal), so processing never delays the camera and Vicon
+  // threads: on a saturated 2-core host a Vicon packet otherwise waits
   // milliseconds for a core.
   int processing_nice = 10;
   Status Check() const;
