@@ -187,6 +187,9 @@ struct Pipeline::Impl {
   std::map<int, std::uint64_t> served;  // by camera index: when it last got a worker
   std::uint64_t serve_count = 0;
 
+  // Counted on the Vicon thread without a lock that a lower-priority worker
+  // takes: a worker preempted while holding it would hold up Vicon.
+  std::atomic<std::uint64_t> published_vicon{0}, publish_errors{0};
   // Counters (report_mutex).
   mutable std::mutex report_mutex;
   PipelineReport report;
@@ -199,10 +202,7 @@ struct Pipeline::Impl {
   void PublishOn(lcm::LCM& bus, std::mutex& bus_mutex, const std::string& channel,
                  const auto& message) {
     std::lock_guard lock(bus_mutex);
-    if (bus.publish(channel, &message) != 0) {
-      std::lock_guard r(report_mutex);
-      ++report.publish_errors;
-    }
+    if (bus.publish(channel, &message) != 0) ++publish_errors;
   }
   void Publish(const std::string& channel, const auto& message) {
     PublishOn(*lcm, lcm_mutex, channel, message);
@@ -426,6 +426,8 @@ struct Pipeline::Impl {
     {
       std::lock_guard lock(report_mutex);
       r = report;
+      r.published_vicon = published_vicon.load();
+      r.publish_errors = publish_errors.load();
       r.process = process_latency.Summary();
       r.to_publication = publication_latency.Summary();
     }
@@ -538,8 +540,7 @@ void Pipeline::AddVicon(const ViconFrame& frame) {
   }
   m.num_objects = static_cast<std::int32_t>(m.objects.size());
   impl_->PublishVicon(m);
-  std::lock_guard r(impl_->report_mutex);
-  ++impl_->report.published_vicon;
+  ++impl_->published_vicon;
 }
 
 void Pipeline::Poll() {

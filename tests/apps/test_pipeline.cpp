@@ -235,9 +235,11 @@ TEST(Pipeline, ProcessesMaxConcurrencyFramesAtOnceAtTheLowerPriority) {
   ASSERT_TRUE(result.ok()) << result.error().message;
   EXPECT_EQ(result->report.processed, 8u) << result->report.FinalReport();
   EXPECT_EQ(counts.most_at_once, std::min(2, cores));
-  // processing_nice is relative to the thread that made the pipeline.
+  // processing_nice is relative to the thread that made the pipeline (a
+  // worker lowered further by an earlier pipeline of the process keeps it).
   const int base = getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
-  EXPECT_EQ(counts.lowest_nice, std::min(19, base + 7));
+  EXPECT_GE(counts.lowest_nice, std::min(19, base + 7));
+  EXPECT_LE(counts.lowest_nice, 19);
   options.pipeline.processing_nice = 20;
   EXPECT_FALSE(options.pipeline.Check().ok());
 }
