@@ -24,7 +24,8 @@
 //
 //   bench_pipeline [--preset small|medium|r32] [--frames N] [--cameras N]
 //                  [--concurrency N] [--lcm URL] [--vicon-packets N]
-//                  [--vicon-hz HZ] [--udpm URL] [--no-frames] [--no-vicon]
+//                  [--vicon-hz HZ] [--udpm URL] [--processing-nice N]
+//                  [--no-frames] [--no-vicon]
 // Part 1 publishes on --lcm (default memq://; messages are published, not
 // read). The Vicon rate is raised from 80 Hz (default 400) so a run takes
 // seconds; --vicon-hz 80 gives the real rate.
@@ -76,6 +77,7 @@ struct BenchArgs {
   double vicon_hz = 400;
   // A port of its own, so a monitor on the default one is not flooded.
   std::string udpm_url = "udpm://239.255.76.67:7713?ttl=0&recv_buf_size=4194304";
+  int processing_nice = apps::PipelineOptions{}.processing_nice;
   bool frame_part = true;
   bool vicon_part = true;
 };
@@ -115,6 +117,9 @@ Expected<BenchArgs> ParseArgs(int argc, char** argv) {
     } else if (option == "--concurrency") {
       if (!(number = ParseInt(option, value, 1, 64))) return number.error();
       args.concurrency = *number;
+    } else if (option == "--processing-nice") {
+      if (!(number = ParseInt(option, value, 0, 19))) return number.error();
+      args.processing_nice = *number;
     } else if (option == "--vicon-packets") {
       if (!(number = ParseInt(option, value, 16, 10'000'000))) return number.error();
       args.vicon_packets = *number;
@@ -148,6 +153,7 @@ int RunFramePart(const BenchArgs& args, const synth::SynthParams& params,
   options.rate.kind = apps::ReplayRate::Kind::kMax;
   options.pipeline.lcm_url = args.frame_lcm_url;
   options.pipeline.max_concurrency = args.concurrency;
+  options.pipeline.processing_nice = args.processing_nice;
   // Little read-ahead: a frame's arrival is then close to when the pipeline
   // can take it, and the latency measures the pipeline rather than the queue.
   options.pool_buffers = args.concurrency + 1;
@@ -316,6 +322,7 @@ int RunViconPart(const BenchArgs& args, const std::filesystem::path& sequence_di
   }
   apps::PipelineOptions pipeline_options;
   pipeline_options.max_concurrency = args.concurrency;
+  pipeline_options.processing_nice = args.processing_nice;
   pipeline_options.skip_when_busy = true;
   if (setup.url.starts_with("memq://"))
     pipeline_options.bus = &bus;
