@@ -1,79 +1,165 @@
-// bench_pipeline: a synthetic sequence (default preset medium) replayed through
-// the live pipeline as fast as possible with processing on (depth + TF):
-// frames per second end to end, processing time per frame, and the latency
-// from frame arrival to its messages on LCM (p50, p99); beside it the
-// throughput of processing alone (the same frames, one after the other,
-// through the same stage) measured in the same run: the ratio is the
-// pipeline's overhead (or, above 1, what its concurrency gains).
+// bench_pipeline: the live pipeline's two figures, each beside a baseline
+// measured in the same run.
+//
+// 1. Camera frames. A synthetic sequence (default preset medium; rendering is
+//    not timed) replayed through the live pipeline as fast as possible with
+//    processing on (depth + TF): frames per second end to end, processing time
+//    per frame, and the latency from frame arrival to its messages on LCM
+//    (p50, p99); beside it the throughput of processing alone (the same
+//    frames, one after the other, through the same stage): the ratio is the
+//    pipeline's overhead (or, above 1, what its concurrency gains).
+//
+// 2. Vicon. Tracker object-stream packets sent by a ViconUdpSender over
+//    loopback UDP into the path `lifmcr record --publish` takes: ViconUdpSource
+//    -> the RigController's Vicon thread -> Pipeline::AddVicon -> LIFMCR_VICON
+//    on LCM, where a subscriber thread of this process timestamps each
+//    message's arrival. Per packet: sent -> message received (p50, p99, max),
+//    beside the baseline sent -> parsed ViconFrame handed on by the Vicon
+//    thread (what any consumer of the stream pays), and their ratio. On
+//    memq:// and on udpm over loopback (skipped, with the reason, when no
+//    message comes back over it); once with the pipeline idle and once while
+//    the sequence's cameras are replayed in a loop at the trigger rate (about
+//    10 Hz) with depth processing on (newest wins), as on a recording rig.
+//    The goal is p99 under 5 ms.
+//
 //   bench_pipeline [--preset small|medium|r32] [--frames N] [--cameras N]
-//                  [--concurrency N] [--lcm URL]
-// LCM defaults to memq:// (no network); messages are published, not read.
+//                  [--concurrency N] [--lcm URL] [--vicon-packets N]
+//                  [--vicon-hz HZ] [--udpm URL] [--processing-nice N]
+//                  [--no-frames] [--no-vicon]
+// Part 1 publishes on --lcm (default memq://; messages are published, not
+// read). The Vicon rate is raised from 80 Hz (default 400) so a run takes
+// seconds; --vicon-hz 80 gives the real rate.
 
+#include "acquisition/rig_controller.h"
 #include "apps/pipeline/frame_processor.h"
+#include "apps/pipeline/pipeline.h"
 #include "apps/pipeline/replay_runner.h"
+#include "drivers/replay_camera.h"
+#include "drivers/vicon_udp_sender.h"
+#include "drivers/vicon_udp_source.h"
 #include "replay/bmp.h"
 #include "replay/sequence.h"
 #include "replay/synth/synth_params.h"
 #include "replay/synth/synth_writer.h"
 
+#include <lcm/lcm-cpp.hpp>
+
+#include <algorithm>
+#include <atomic>
+#include <charconv>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <lifmcr_lcm/vicon_frame_t.hpp>
 #include <string>
+#include <thread>
+#include <vector>
 
 using namespace lifmcr;
 
-int main(int argc, char** argv) {
-  std::string preset = "medium", url = "memq://";
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+std::int64_t SteadyNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch())
+      .count();
+}
+
+struct BenchArgs {
+  std::string preset = "medium";
   int frames = 6, cameras = 2, concurrency = 2;
-  for (int k = 1; k + 1 < argc; k += 2) {
-    if (!std::strcmp(argv[k], "--preset"))
-      preset = argv[k + 1];
-    else if (!std::strcmp(argv[k], "--frames"))
-      frames = std::max(1, std::atoi(argv[k + 1]));
-    else if (!std::strcmp(argv[k], "--cameras"))
-      cameras = std::max(1, std::atoi(argv[k + 1]));
-    else if (!std::strcmp(argv[k], "--concurrency"))
-      concurrency = std::max(1, std::atoi(argv[k + 1]));
-    else if (!std::strcmp(argv[k], "--lcm"))
-      url = argv[k + 1];
-    else {
-      std::fprintf(stderr, "bench_pipeline: unknown option %s\n", argv[k]);
-      return 2;
+  std::string frame_lcm_url = "memq://";
+  int vicon_packets = 2000;
+  double vicon_hz = 400;
+  // A port of its own, so a monitor on the default one is not flooded.
+  std::string udpm_url = "udpm://239.255.76.67:7713?ttl=0&recv_buf_size=4194304";
+  int processing_nice = apps::PipelineOptions{}.processing_nice;
+  bool frame_part = true;
+  bool vicon_part = true;
+};
+
+Expected<int> ParseInt(const std::string& option, const std::string& text, int min, int max) {
+  int value = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (ec != std::errc() || end != text.data() + text.size() || value < min || value > max)
+    return Error{option + ": expected an integer in [" + std::to_string(min) + ", " +
+                 std::to_string(max) + "], got '" + text + "'"};
+  return value;
+}
+
+Expected<BenchArgs> ParseArgs(int argc, char** argv) {
+  BenchArgs args;
+  for (int k = 1; k < argc; ++k) {
+    const std::string option = argv[k];
+    if (option == "--no-vicon" || option == "--no-frames") {
+      (option == "--no-vicon" ? args.vicon_part : args.frame_part) = false;
+      continue;
+    }
+    if (k + 1 >= argc) return Error{option + ": expected a value (see the usage at the top)"};
+    const std::string value = argv[++k];
+    Expected<int> number = 0;
+    if (option == "--preset") {
+      args.preset = value;
+    } else if (option == "--lcm") {
+      args.frame_lcm_url = value;
+    } else if (option == "--udpm") {
+      args.udpm_url = value;
+    } else if (option == "--frames") {
+      if (!(number = ParseInt(option, value, 1, 100000))) return number.error();
+      args.frames = *number;
+    } else if (option == "--cameras") {
+      if (!(number = ParseInt(option, value, 1, 16))) return number.error();
+      args.cameras = *number;
+    } else if (option == "--concurrency") {
+      if (!(number = ParseInt(option, value, 1, 64))) return number.error();
+      args.concurrency = *number;
+    } else if (option == "--processing-nice") {
+      if (!(number = ParseInt(option, value, 0, 19))) return number.error();
+      args.processing_nice = *number;
+    } else if (option == "--vicon-packets") {
+      if (!(number = ParseInt(option, value, 16, 10'000'000))) return number.error();
+      args.vicon_packets = *number;
+    } else if (option == "--vicon-hz") {
+      double hz = 0;
+      const auto [end, ec] = std::from_chars(value.data(), value.data() + value.size(), hz);
+      if (ec != std::errc() || end != value.data() + value.size() || !(hz >= 10 && hz <= 20000))
+        return Error{"--vicon-hz: expected a rate in [10, 20000] Hz, got '" + value + "'"};
+      args.vicon_hz = hz;
+    } else {
+      return Error{"unknown option " + option +
+                   " (see the usage at the top of bench_pipeline.cpp)"};
     }
   }
-  auto params = synth::MakePreset(preset);
-  if (!params) {
-    std::fprintf(stderr, "bench_pipeline: %s\n", params.error().message.c_str());
-    return 2;
-  }
-  params->rig.frames = frames;
-  params->rig.cameras = cameras;
-  char tmpl[] = "/tmp/lifmcr-bench-pipeline-XXXXXX";
-  if (!mkdtemp(tmpl)) return 3;
-  const std::filesystem::path dir = tmpl;
-  std::fprintf(stderr, "bench_pipeline: writing %d x %d frames of preset %s into %s\n", cameras,
-               frames, preset.c_str(), tmpl);
-  auto summary = synth::WriteSyntheticDataset(dir, *params, {});
-  if (!summary) {
-    std::fprintf(stderr, "bench_pipeline: %s\n", summary.error().message.c_str());
-    return 3;
-  }
+  return args;
+}
 
+// Nearest-rank percentile of `values_ns`, in microseconds (0 when empty).
+double PercentileUs(std::vector<std::int64_t> values_ns, double p) {
+  if (values_ns.empty()) return 0.0;
+  std::sort(values_ns.begin(), values_ns.end());
+  const auto index = static_cast<std::size_t>(p * static_cast<double>(values_ns.size() - 1) + 0.5);
+  return static_cast<double>(values_ns[index]) / 1e3;
+}
+
+// Part 1: frames at --rate max, and the same frames through processing alone.
+int RunFramePart(const BenchArgs& args, const synth::SynthParams& params,
+                 const std::filesystem::path& sequence_dir) {
   apps::ReplayRunOptions options;
-  options.sequence_dir = summary->sequence_dir;
+  options.sequence_dir = sequence_dir;
   options.rate.kind = apps::ReplayRate::Kind::kMax;
-  options.pipeline.lcm_url = url;
-  options.pipeline.max_concurrency = concurrency;
+  options.pipeline.lcm_url = args.frame_lcm_url;
+  options.pipeline.max_concurrency = args.concurrency;
+  options.pipeline.processing_nice = args.processing_nice;
   // Little read-ahead: a frame's arrival is then close to when the pipeline
   // can take it, and the latency measures the pipeline rather than the queue.
-  options.pool_buffers = concurrency + 1;
-  const auto start = std::chrono::steady_clock::now();
+  options.pool_buffers = args.concurrency + 1;
+  const auto start = Clock::now();
   auto result = apps::RunReplay(options);
-  const double pipeline_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double pipeline_s = std::chrono::duration<double>(Clock::now() - start).count();
   if (!result) {
     std::fprintf(stderr, "bench_pipeline: %s\n", result.error().message.c_str());
     return 3;
@@ -81,36 +167,57 @@ int main(int argc, char** argv) {
   const apps::PipelineReport& r = result->report;
 
   // Processing alone: the same frames through the same stage, in memory.
-  auto layout = DiscoverSequence(summary->sequence_dir);
+  auto layout = DiscoverSequence(sequence_dir);
+  if (!layout) {
+    std::fprintf(stderr, "bench_pipeline: %s\n", layout.error().message.c_str());
+    return 3;
+  }
   std::vector<std::string> serials;
   for (const auto& c : layout->cameras) serials.push_back(c.serial);
-  auto processor = apps::DepthProcessor::ForSequence(summary->sequence_dir.string(), serials);
-  if (!processor) return 3;
+  const auto setup_start = Clock::now();
+  auto processor = apps::DepthProcessor::ForSequence(sequence_dir.string(), serials);
+  if (!processor) {
+    std::fprintf(stderr, "bench_pipeline: %s\n", processor.error().message.c_str());
+    return 3;
+  }
+  const double setup_s = std::chrono::duration<double>(Clock::now() - setup_start).count();
   double alone_s = 0;
   int alone_frames = 0;
   for (const auto& camera : layout->cameras)
     for (std::int64_t f : camera.frames) {
       auto image = ReadBmp(*camera.FramePath(f));
-      if (!image) return 3;
+      if (!image) {
+        std::fprintf(stderr, "bench_pipeline: %s\n", image.error().message.c_str());
+        return 3;
+      }
       Frame frame;
       frame.serial = camera.serial;
       frame.image = image->View();
-      const auto t0 = std::chrono::steady_clock::now();
+      const auto t0 = Clock::now();
       auto out = (*processor)->Process(frame);
-      alone_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      if (!out) return 3;
+      alone_s += std::chrono::duration<double>(Clock::now() - t0).count();
+      if (!out) {
+        std::fprintf(stderr, "bench_pipeline: processing alone: %s\n", out.error().message.c_str());
+        return 3;
+      }
       ++alone_frames;
     }
-  const double pipeline_fps = static_cast<double>(r.processed) / pipeline_s;
+  // The pipeline's time runs from its creation, after the processing stage
+  // was set up (MLA grids, white images), to its last message: the setup is
+  // left out of both sides of the ratio.
+  const double pipeline_fps = static_cast<double>(r.processed) / r.elapsed_s;
   const double alone_fps = alone_frames / alone_s;
-  std::printf("preset %s, %d cameras x %d frames (%dx%d), concurrency %d, LCM %s\n", preset.c_str(),
-              cameras, frames, params->camera.width_px, params->camera.height_px, concurrency,
-              url.c_str());
+  std::printf("preset %s, %d cameras x %d frames (%dx%d), concurrency %d, LCM %s\n",
+              args.preset.c_str(), args.cameras, args.frames, params.camera.width_px,
+              params.camera.height_px, args.concurrency, args.frame_lcm_url.c_str());
   std::printf(
-      "pipeline end to end: %.2f frames/s (%llu processed, %llu skipped, %llu failed, %.2f s)\n",
+      "pipeline end to end: %.2f frames/s (%llu processed, %llu skipped, %llu failed, %.2f s; "
+      "%.2f s with the stage's setup)\n",
       pipeline_fps, static_cast<unsigned long long>(r.processed),
       static_cast<unsigned long long>(r.skipped), static_cast<unsigned long long>(r.failed),
-      pipeline_s);
+      r.elapsed_s, pipeline_s);
+  std::printf("processing stage setup (MLA grids, white images; not in the ratio): %.2f s\n",
+              setup_s);
   std::printf("sync: %s\n", r.drops.c_str());
   std::printf(
       "stage process (preview + depth + TF + encoding): p50 %.1f ms, p99 %.1f ms per frame\n",
@@ -119,6 +226,326 @@ int main(int argc, char** argv) {
               r.to_publication.p99_ms);
   std::printf("processing alone (same stage, sequential): %.2f frames/s\n", alone_fps);
   std::printf("ratio pipeline / processing alone: %.2f\n", pipeline_fps / alone_fps);
-  std::filesystem::remove_all(dir);
+  std::fflush(stdout);
   return r.Accounted() && r.failed == 0 && r.sync_lost == 0 ? 0 : 1;
+}
+
+struct ProbeReceiver {
+  bool came_back = false;
+  void OnMessage(const lcm::ReceiveBuffer*, const std::string&) { came_back = true; }
+};
+
+// When each packet's LIFMCR_VICON message reached the subscriber, by packet
+// index (vicon_frame - first_frame); steady clock, 0 = not (yet).
+struct ViconArrivals {
+  std::int64_t first_frame = 0;
+  std::vector<std::atomic<std::int64_t>> at_ns;
+  std::atomic<std::uint64_t> received{0}, unexpected{0};
+
+  void OnMessage(const lcm::ReceiveBuffer* buffer, const std::string&) {
+    const std::int64_t now = SteadyNs();
+    lifmcr_lcm::vicon_frame_t message;
+    if (message.decode(buffer->data, 0, buffer->data_size) < 0) {
+      ++unexpected;
+      return;
+    }
+    const std::int64_t index = message.vicon_frame - first_frame;
+    if (index < 0 || index >= static_cast<std::int64_t>(at_ns.size())) {
+      ++unexpected;
+      return;
+    }
+    at_ns[static_cast<std::size_t>(index)].store(now, std::memory_order_relaxed);
+    ++received;
+  }
+};
+
+// Whether messages published on `url` come back to a subscriber of this
+// process within about a second (udpm needs a multicast route); why not, when not.
+Status CheckLoopback(const std::string& url) {
+  lcm::LCM subscriber(url), publisher(url);
+  if (!subscriber.good() || !publisher.good()) return Error{"cannot open " + url};
+  ProbeReceiver receiver;
+  auto* subscription =
+      subscriber.subscribe("LIFMCR_BENCH_PROBE", &ProbeReceiver::OnMessage, &receiver);
+  const std::uint8_t probe = 1;
+  for (int attempt = 0; attempt < 10 && !receiver.came_back; ++attempt) {
+    publisher.publish("LIFMCR_BENCH_PROBE", &probe, 1);
+    subscriber.handleTimeout(100);
+  }
+  subscriber.unsubscribe(subscription);
+  if (!receiver.came_back)
+    return Error{"no message came back over " + url +
+                 " within 1 s (route multicast over loopback, as root: ip link set lo multicast "
+                 "on; ip route add 239.255.76.67/32 dev lo)"};
+  return Status::Ok();
+}
+
+struct ViconRunSetup {
+  std::string url;
+  bool frames_flowing = false;  // the sequence's cameras replayed in a loop meanwhile
+};
+
+// Part 2, one run: see the top of the file.
+int RunViconPart(const BenchArgs& args, const std::filesystem::path& sequence_dir,
+                 const ViconRunSetup& setup) {
+  constexpr std::int64_t kFirstFrame = 100000;
+  const std::vector<std::string> objects = {"plate", "cam0", "cam1"};
+  const std::string label = setup.url.substr(0, setup.url.find('?')) +
+                            (setup.frames_flowing ? ", camera frames flowing" : ", pipeline idle");
+  auto layout = DiscoverSequence(sequence_dir);
+  if (!layout) {
+    std::fprintf(stderr, "bench_pipeline: %s\n", layout.error().message.c_str());
+    return 3;
+  }
+  std::vector<std::string> serials;
+  for (const auto& c : layout->cameras) serials.push_back(c.serial);
+
+  // The trigger rate stays about 10 Hz whatever the Vicon rate: the divider
+  // follows it, as a rig file's vicon.trigger_divider would.
+  const int divider = std::max(1, static_cast<int>(std::lround(args.vicon_hz / 10.0)));
+  const std::chrono::nanoseconds trigger_period(std::llround(1e9 * divider / args.vicon_hz));
+  FrameSetAssemblerOptions sync;
+  sync.serials = serials;
+  sync.trigger.trigger_period_ns = trigger_period.count();
+  sync.trigger.counter_bits = 64;
+  sync.trigger.counter_skips_zero = false;
+  sync.vicon_divider = divider;
+  sync.vicon_rate_hz = args.vicon_hz;
+  sync.vicon_phase_tolerance_ns = std::llround(0.5e9 / args.vicon_hz);
+
+  // memq:// is one bus per LCM instance: the pipeline publishes on the
+  // subscriber's. Over udpm the pipeline opens its own, as in `lifmcr record`.
+  lcm::LCM bus(setup.url);
+  if (!bus.good()) {
+    std::fprintf(stderr, "bench_pipeline: cannot open LCM %s\n", setup.url.c_str());
+    return 3;
+  }
+  apps::PipelineOptions pipeline_options;
+  pipeline_options.max_concurrency = args.concurrency;
+  pipeline_options.processing_nice = args.processing_nice;
+  pipeline_options.skip_when_busy = true;
+  if (setup.url.starts_with("memq://"))
+    pipeline_options.bus = &bus;
+  else
+    pipeline_options.lcm_url = setup.url;
+  auto processor = apps::DepthProcessor::ForSequence(sequence_dir.string(), serials);
+  if (!processor) {
+    std::fprintf(stderr, "bench_pipeline: %s\n", processor.error().message.c_str());
+    return 3;
+  }
+  auto pipeline = apps::Pipeline::Create(sync, std::move(*processor), pipeline_options);
+  if (!pipeline) {
+    std::fprintf(stderr, "bench_pipeline: %s\n", pipeline.error().message.c_str());
+    return 3;
+  }
+  apps::Pipeline* p = pipeline->get();
+
+  const std::size_t packets = static_cast<std::size_t>(args.vicon_packets);
+  std::vector<std::atomic<std::int64_t>> sent_ns(packets), parsed_ns(packets);
+  ViconArrivals arrivals;
+  arrivals.first_frame = kFirstFrame;
+  arrivals.at_ns = std::vector<std::atomic<std::int64_t>>(packets);
+  bus.subscribe(apps::kViconChannel, &ViconArrivals::OnMessage, &arrivals);
+  std::atomic<bool> subscribing{true};
+  std::thread subscriber([&] {
+    while (subscribing) bus.handleTimeout(50);
+  });
+
+  std::vector<std::unique_ptr<Camera>> cameras;
+  if (setup.frames_flowing) {
+    for (std::size_t i = 0; i < layout->cameras.size(); ++i) {
+      ReplayCameraOptions camera_options;
+      camera_options.camera_index = static_cast<int>(i);
+      camera_options.trigger_period = trigger_period;
+      camera_options.pacing = ReplayPacing::kOriginal;
+      camera_options.loop = true;
+      // As `lifmcr record --publish` sizes it: frames the pipeline holds
+      // (sync, one per worker, one waiting per camera) and some slack.
+      camera_options.pool_buffers = args.concurrency + 6;
+      cameras.push_back(std::make_unique<ReplayCamera>(layout->cameras[i].dir, camera_options));
+    }
+  }
+  ViconUdpSourceOptions source_options;
+  source_options.address = "127.0.0.1";
+  source_options.port = 0;
+  source_options.objects = objects;
+  auto source = std::make_unique<ViconUdpSource>(source_options);
+  ViconUdpSource* source_view = source.get();
+  RigObserver observer;
+  observer.on_frame = [p](int, std::int64_t, const Frame& frame) { p->AddFrame(frame); };
+  observer.on_vicon = [&, p](const ViconFrame& frame) {
+    const std::int64_t index = frame.vicon_frame - kFirstFrame;
+    if (index >= 0 && index < static_cast<std::int64_t>(packets))
+      parsed_ns[index].store(SteadyNs(), std::memory_order_relaxed);
+    p->AddVicon(frame);
+  };
+  RigControllerOptions controller_options;
+  controller_options.trigger_hz = args.vicon_hz / divider;
+  const std::size_t camera_count = cameras.size();
+  RigController controller(std::move(cameras), std::vector<bool>(camera_count, false),
+                           std::move(source), nullptr, controller_options, observer);
+  if (Status s = controller.Start(); !s) {
+    subscribing = false;
+    subscriber.join();
+    std::fprintf(stderr, "bench_pipeline: %s\n", s.error().message.c_str());
+    return 3;
+  }
+  auto sender = ViconUdpSender::Open("127.0.0.1", source_view->BoundPort());
+  if (!sender) {
+    controller.Stop();
+    subscribing = false;
+    subscriber.join();
+    std::fprintf(stderr, "bench_pipeline: %s\n", sender.error().message.c_str());
+    return 3;
+  }
+
+  // With frames flowing, Vicon starts once every worker is busy.
+  if (setup.frames_flowing) {
+    const auto give_up = Clock::now() + std::chrono::seconds(60);
+    while (Clock::now() < give_up &&
+           p->Report().frames_in < static_cast<std::uint64_t>(args.concurrency)) {
+      p->Poll();
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
+  const apps::PipelineReport before = p->Report();
+  std::atomic<bool> sending{true};
+  std::string send_error;
+  std::thread sending_thread([&] {
+    ViconFrame frame;
+    for (const std::string& name : objects) {
+      Pose pose = Pose::Identity();
+      pose.translation() = Eigen::Vector3d(100, 200, 300);
+      frame.objects.push_back({name, pose});
+    }
+    const auto start = Clock::now();
+    for (std::size_t i = 0; i < packets; ++i) {
+      std::this_thread::sleep_until(start + std::chrono::nanoseconds(std::llround(
+                                                static_cast<double>(i) * 1e9 / args.vicon_hz)));
+      frame.vicon_frame = kFirstFrame + static_cast<std::int64_t>(i);
+      sent_ns[i].store(SteadyNs(), std::memory_order_relaxed);
+      if (Status sent = sender->Send(frame); !sent) {
+        send_error = sent.error().message;
+        break;
+      }
+    }
+    sending = false;
+  });
+  // The command's loop, as in `lifmcr record`: the pipeline polled for
+  // FrameSets (and its statistics) while the threads run.
+  while (sending) {
+    p->Poll();
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  sending_thread.join();
+  // The last messages are on their way.
+  const auto tail_end = Clock::now() + std::chrono::milliseconds(500);
+  while (arrivals.received < packets && Clock::now() < tail_end) {
+    p->Poll();
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  const apps::PipelineReport during = p->Report();
+  controller.Stop();
+  p->Finish();
+  subscribing = false;
+  subscriber.join();
+  if (!send_error.empty()) {
+    std::fprintf(stderr, "bench_pipeline: %s\n", send_error.c_str());
+    return 3;
+  }
+
+  std::vector<std::int64_t> to_lcm, parsed;
+  std::uint64_t parsed_count = 0;
+  for (std::size_t i = 0; i < packets; ++i) {
+    const std::int64_t sent = sent_ns[i].load(), at_parse = parsed_ns[i].load(),
+                       at_lcm = arrivals.at_ns[i].load();
+    if (at_parse) ++parsed_count;
+    if (!sent || !at_parse || !at_lcm) continue;
+    parsed.push_back(at_parse - sent);
+    to_lcm.push_back(at_lcm - sent);
+  }
+  const double lcm_p50 = PercentileUs(to_lcm, 0.5), lcm_p99 = PercentileUs(to_lcm, 0.99),
+               lcm_max = PercentileUs(to_lcm, 1.0);
+  const double parsed_p50 = PercentileUs(parsed, 0.5), parsed_p99 = PercentileUs(parsed, 0.99),
+               parsed_max = PercentileUs(parsed, 1.0);
+  std::printf("Vicon over %s: %zu packets at %.0f Hz, %llu parsed, %llu on LCM (%llu lost)\n",
+              label.c_str(), packets, args.vicon_hz, static_cast<unsigned long long>(parsed_count),
+              static_cast<unsigned long long>(arrivals.received.load()),
+              static_cast<unsigned long long>(packets -
+                                              std::min<std::uint64_t>(packets, arrivals.received)));
+  std::printf("  %-38s p50 %8.1f us   p99 %8.1f us   max %8.1f us\n",
+              "packet -> LIFMCR_VICON received", lcm_p50, lcm_p99, lcm_max);
+  std::printf("  %-38s p50 %8.1f us   p99 %8.1f us   max %8.1f us\n",
+              "packet -> ViconFrame parsed (baseline)", parsed_p50, parsed_p99, parsed_max);
+  std::printf("  ratio LCM / baseline: p50 %.2fx, p99 %.2fx; goal p99 < 5 ms: %s\n",
+              lcm_p50 / parsed_p50, lcm_p99 / parsed_p99,
+              !to_lcm.empty() && lcm_p99 < 5000.0 ? "met" : "NOT met");
+  if (setup.frames_flowing) {
+    const double seconds = during.elapsed_s - before.elapsed_s;
+    std::printf(
+        "  camera frames meanwhile: %zu cameras at %.1f Hz, %llu in, %llu processed (%.2f "
+        "frames/s), %llu skipped (newest wins)\n",
+        serials.size(), 1e9 / static_cast<double>(trigger_period.count()),
+        static_cast<unsigned long long>(during.frames_in - before.frames_in),
+        static_cast<unsigned long long>(during.processed - before.processed),
+        seconds > 0 ? static_cast<double>(during.processed - before.processed) / seconds : 0.0,
+        static_cast<unsigned long long>(during.skipped - before.skipped));
+  }
+  if (arrivals.unexpected)
+    std::printf("  %llu unexpected messages\n",
+                static_cast<unsigned long long>(arrivals.unexpected.load()));
+  std::fflush(stdout);
+  return arrivals.received == packets && lcm_p99 < 5000.0 ? 0 : 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  auto args = ParseArgs(argc, argv);
+  if (!args) {
+    std::fprintf(stderr, "bench_pipeline: %s\n", args.error().message.c_str());
+    return 2;
+  }
+  auto params = synth::MakePreset(args->preset);
+  if (!params) {
+    std::fprintf(stderr, "bench_pipeline: %s\n", params.error().message.c_str());
+    return 2;
+  }
+  params->rig.frames = args->frames;
+  params->rig.cameras = args->cameras;
+  char tmpl[] = "/tmp/lifmcr-bench-pipeline-XXXXXX";
+  if (!mkdtemp(tmpl)) {
+    std::fprintf(stderr, "bench_pipeline: cannot create %s: %s\n", tmpl, std::strerror(errno));
+    return 3;
+  }
+  const std::filesystem::path dir = tmpl;
+  std::fprintf(stderr,
+               "bench_pipeline: rendering %d x %d frames of preset %s into %s (not timed; r32 "
+               "frames take a while)\n",
+               args->cameras, args->frames, args->preset.c_str(), tmpl);
+  const auto render_start = Clock::now();
+  auto summary = synth::WriteSyntheticDataset(dir, *params, {});
+  if (!summary) {
+    std::fprintf(stderr, "bench_pipeline: %s\n", summary.error().message.c_str());
+    std::filesystem::remove_all(dir);
+    return 3;
+  }
+  std::printf("rendering (not timed in any figure): %.1f s\n",
+              std::chrono::duration<double>(Clock::now() - render_start).count());
+
+  int exit_code = args->frame_part ? RunFramePart(*args, *params, summary->sequence_dir) : 0;
+  if (args->vicon_part) {
+    std::vector<std::string> urls = {"memq://"};
+    if (Status loopback = CheckLoopback(args->udpm_url); loopback)
+      urls.push_back(args->udpm_url);
+    else
+      std::printf("Vicon over udpm: skipped: %s\n", loopback.error().message.c_str());
+    for (const std::string& url : urls)
+      for (const bool frames_flowing : {false, true}) {
+        const int code = RunViconPart(*args, summary->sequence_dir, {url, frames_flowing});
+        exit_code = std::max(exit_code, code);
+      }
+  }
+  std::filesystem::remove_all(dir);
+  return exit_code;
 }

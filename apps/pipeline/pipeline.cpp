@@ -8,8 +8,10 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <condition_variable>
 #include <cstdio>
+#include <cstdlib>
 #include <ctime>
 #include <lifmcr_lcm/depth_image_t.hpp>
 #include <lifmcr_lcm/pipeline_stats_t.hpp>
@@ -17,8 +19,15 @@
 #include <lifmcr_lcm/vicon_frame_t.hpp>
 #include <map>
 #include <mutex>
+#include <oneapi/tbb/global_control.h>
+#include <oneapi/tbb/info.h>
+#include <oneapi/tbb/task_arena.h>
+#include <oneapi/tbb/task_scheduler_observer.h>
 #include <optional>
 #include <sstream>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
 
 namespace lifmcr::apps {
 namespace {
@@ -63,6 +72,33 @@ class LatencyWindow {
   std::uint64_t count_ = 0;
 };
 
+// Lowers the priority (raises the nice value) of every worker thread that
+// enters the processing arena, so processing, which skips frames when it
+// falls behind anyway, never starves the threads that must be on time: the
+// camera and Vicon threads and the command's loop. Lowering a thread's own
+// priority needs no privilege; a worker keeps it when it leaves the arena
+// (raising it back would), which only matters to other TBB work of the process.
+class WorkerPriority final : public tbb::task_scheduler_observer {
+ public:
+  // `nice`: the workers' nice value (the creating thread's plus the
+  // pipeline's processing_nice, at most 19).
+  WorkerPriority(tbb::task_arena& arena, int nice)
+      : tbb::task_scheduler_observer(arena), nice_(nice) {
+    observe(true);
+  }
+  ~WorkerPriority() override { observe(false); }
+  void on_scheduler_entry(bool is_worker) override {
+    if (!is_worker) return;
+    const auto thread = static_cast<id_t>(syscall(SYS_gettid));
+    errno = 0;
+    const int current = getpriority(PRIO_PROCESS, thread);
+    if (errno == 0 && current < nice_) (void)setpriority(PRIO_PROCESS, thread, nice_);
+  }
+
+ private:
+  int nice_;
+};
+
 struct Job {
   Frame frame;
   std::int64_t trigger_index = 0;
@@ -105,6 +141,8 @@ Status PipelineOptions::Check() const {
   if (max_concurrency < 1 || max_concurrency > 64)
     return Error{"pipeline: max_concurrency: expected 1..64"};
   if (stats_period.count() <= 0) return Error{"pipeline: stats_period: expected > 0"};
+  if (processing_nice < 0 || processing_nice > 19)
+    return Error{"pipeline: processing_nice: expected 0..19"};
   return Status::Ok();
 }
 
@@ -115,6 +153,12 @@ struct Pipeline::Impl {
   std::unique_ptr<lcm::LCM> own_lcm;
   lcm::LCM* lcm = nullptr;
   std::mutex lcm_mutex;
+  // When the pipeline opens the URL itself, Vicon goes out on an instance of
+  // its own (its own socket and send lock): a Vicon message never waits
+  // behind the fragments of a depth map that a lower-priority worker is
+  // sending. On a given bus (tests, memq://) both share it.
+  std::unique_ptr<lcm::LCM> vicon_lcm;
+  std::mutex vicon_lcm_mutex;
 
   std::mutex sync_mutex;
   std::unique_ptr<FrameSetAssembler> assembler;
@@ -124,7 +168,14 @@ struct Pipeline::Impl {
   DropCounter drops_before;  // of the assemblers of earlier passes
   std::uint64_t lost_before = 0;
 
-  tbb::flow::graph graph;
+  // Processing gets every core: TBB starts cores - 1 workers and its default
+  // arena keeps a slot for a master thread, which here (the command's loop)
+  // never helps, so the graph would process on one core. Its own arena has
+  // no master slot, and the workers to fill it are allowed.
+  std::unique_ptr<tbb::global_control> worker_limit;
+  std::unique_ptr<tbb::task_arena> arena;
+  std::unique_ptr<WorkerPriority> worker_priority;
+  std::unique_ptr<tbb::flow::graph> graph;  // made inside `arena`: its tasks run there
   std::unique_ptr<tbb::flow::function_node<Job, Result>> process_node;
   std::unique_ptr<tbb::flow::function_node<Result>> publish_node;
 
@@ -136,6 +187,9 @@ struct Pipeline::Impl {
   std::map<int, std::uint64_t> served;  // by camera index: when it last got a worker
   std::uint64_t serve_count = 0;
 
+  // Counted on the Vicon thread without a lock that a lower-priority worker
+  // takes: a worker preempted while holding it would hold up Vicon.
+  std::atomic<std::uint64_t> published_vicon{0}, publish_errors{0};
   // Counters (report_mutex).
   mutable std::mutex report_mutex;
   PipelineReport report;
@@ -145,12 +199,19 @@ struct Pipeline::Impl {
   std::uint64_t stats_last_processed = 0;
   std::chrono::steady_clock::time_point stats_last_time = start;
 
+  void PublishOn(lcm::LCM& bus, std::mutex& bus_mutex, const std::string& channel,
+                 const auto& message) {
+    std::lock_guard lock(bus_mutex);
+    if (bus.publish(channel, &message) != 0) ++publish_errors;
+  }
   void Publish(const std::string& channel, const auto& message) {
-    std::lock_guard lock(lcm_mutex);
-    if (lcm->publish(channel, &message) != 0) {
-      std::lock_guard r(report_mutex);
-      ++report.publish_errors;
-    }
+    PublishOn(*lcm, lcm_mutex, channel, message);
+  }
+  void PublishVicon(const lifmcr_lcm::vicon_frame_t& message) {
+    if (vicon_lcm)
+      PublishOn(*vicon_lcm, vicon_lcm_mutex, kViconChannel, message);
+    else
+      Publish(kViconChannel, message);
   }
 
   Result RunProcess(Job job) {
@@ -284,10 +345,14 @@ struct Pipeline::Impl {
 
   void WaitIdle() {
     // A frame in the slot with no worker left cannot happen: every worker
-    // takes the slot before it ends. Wait for the graph to drain.
-    graph.wait_for_all();
-    std::unique_lock lock(slot_mutex);
-    slot_cv.wait(lock, [&] { return in_flight == 0 && slots.empty(); });
+    // takes the slot before it ends. The last worker's publication done, the
+    // graph only has its tasks to finish: waiting on it earlier would let
+    // this thread (not a worker: its priority is not lowered) process frames.
+    {
+      std::unique_lock lock(slot_mutex);
+      slot_cv.wait(lock, [&] { return in_flight == 0 && slots.empty(); });
+    }
+    graph->wait_for_all();
   }
 
   lifmcr_lcm::pipeline_stats_t StatsMessage() {
@@ -361,6 +426,8 @@ struct Pipeline::Impl {
     {
       std::lock_guard lock(report_mutex);
       r = report;
+      r.published_vicon = published_vicon.load();
+      r.publish_errors = publish_errors.load();
       r.process = process_latency.Summary();
       r.to_publication = publication_latency.Summary();
     }
@@ -390,20 +457,43 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
   } else {
     impl->own_lcm = std::make_unique<lcm::LCM>(options.lcm_url);
     impl->lcm = impl->own_lcm.get();
+    // Only UDP multicast: two memq:// instances are two buses, two file://
+    // instances two writers of one log.
+    const char* default_url = std::getenv("LCM_DEFAULT_URL");
+    const std::string url = !options.lcm_url.empty() ? options.lcm_url
+                            : default_url            ? default_url
+                                                     : "udpm://";
+    if (impl->lcm->good() && url.starts_with("udpm://"))
+      impl->vicon_lcm = std::make_unique<lcm::LCM>(options.lcm_url);
   }
-  if (!impl->lcm->good())
+  if (!impl->lcm->good() || (impl->vicon_lcm && !impl->vicon_lcm->good()))
     return Error{"LCM: cannot open '" +
                  (options.lcm_url.empty() ? std::string("default URL") : options.lcm_url) +
                  "' (for UDP multicast on loopback: ip link set lo multicast on; ip route add "
                  "239.255.76.67/32 dev lo)"};
   impl->assembler = std::make_unique<FrameSetAssembler>(sync);
+  const int cores = tbb::info::default_concurrency();
+  impl->worker_limit = std::make_unique<tbb::global_control>(
+      tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(cores) + 1);
+  impl->arena = std::make_unique<tbb::task_arena>(cores, /*reserved_for_masters=*/0);
+  if (options.processing_nice > 0) {
+    // Relative to this thread's (the command's): a rig run at nice -5 processes at +5.
+    errno = 0;
+    const int base = getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
+    impl->worker_priority = std::make_unique<WorkerPriority>(
+        *impl->arena, std::min(19, (errno == 0 ? base : 0) + options.processing_nice));
+  }
   Impl* raw = impl.get();
-  impl->process_node = std::make_unique<tbb::flow::function_node<Job, Result>>(
-      impl->graph, tbb::flow::unlimited,
-      [raw](Job job) { return raw->RunProcess(std::move(job)); });
-  impl->publish_node = std::make_unique<tbb::flow::function_node<Result>>(
-      impl->graph, tbb::flow::serial, [raw](Result result) { raw->RunPublish(std::move(result)); });
-  tbb::flow::make_edge(*impl->process_node, *impl->publish_node);
+  impl->arena->execute([raw] {
+    raw->graph = std::make_unique<tbb::flow::graph>();
+    raw->process_node = std::make_unique<tbb::flow::function_node<Job, Result>>(
+        *raw->graph, tbb::flow::unlimited,
+        [raw](Job job) { return raw->RunProcess(std::move(job)); });
+    raw->publish_node = std::make_unique<tbb::flow::function_node<Result>>(
+        *raw->graph, tbb::flow::serial,
+        [raw](Result result) { raw->RunPublish(std::move(result)); });
+    tbb::flow::make_edge(*raw->process_node, *raw->publish_node);
+  });
   return std::unique_ptr<Pipeline>(new Pipeline(std::move(impl)));
 }
 
@@ -449,9 +539,8 @@ void Pipeline::AddVicon(const ViconFrame& frame) {
     m.objects.push_back(o);
   }
   m.num_objects = static_cast<std::int32_t>(m.objects.size());
-  impl_->Publish(kViconChannel, m);
-  std::lock_guard r(impl_->report_mutex);
-  ++impl_->report.published_vicon;
+  impl_->PublishVicon(m);
+  ++impl_->published_vicon;
 }
 
 void Pipeline::Poll() {

@@ -22,8 +22,11 @@
 // + skipped + failed once Finish returned. A recorder, when one runs, gets
 // its frames before the pipeline does and never waits for it.
 //
-// Threads: AddFrame and AddVicon from any thread (driver threads); Poll and
-// Finish from one thread (the command's loop).
+// Threads: AddFrame and AddVicon from any thread (driver threads); a Vicon
+// frame is published on the caller's thread, at once. Poll and Finish from
+// one thread (the command's loop). Frames are processed and published on
+// the pipeline's own TBB arena, one worker per core, at a lower priority
+// (PipelineOptions::processing_nice).
 
 #include "apps/pipeline/frame_processor.h"
 #include "config/error.h"
@@ -51,6 +54,12 @@ struct PipelineOptions {
   int max_concurrency = 2;  // frames processed at once, >= 1
   bool skip_when_busy = true;
   std::chrono::milliseconds stats_period{1000};
+  // How much lower than the creating thread's the priority of the threads
+  // that process and publish frames is (added to its nice value, at most 19;
+  // 0 leaves them equal), so processing never delays the camera and Vicon
+  // threads: on a saturated 2-core host a Vicon packet otherwise waits
+  // milliseconds for a core.
+  int processing_nice = 10;
   Status Check() const;
 };
 

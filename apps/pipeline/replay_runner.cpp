@@ -148,9 +148,10 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
   for (;;) {
     ++result.passes;
     std::atomic<int> running{0};
-    // Frames delivered by the slowest camera: Vicon (max rate) stays a few
-    // triggers ahead of it.
-    std::vector<std::atomic<std::int64_t>> delivered(cameras.size());
+    // Per camera, the trigger index of its last delivered frame (-1: none
+    // yet): at max rate Vicon stays one trigger ahead of the slowest camera.
+    std::vector<std::atomic<std::int64_t>> last_trigger(cameras.size());
+    for (auto& index : last_trigger) index = -1;
     std::atomic<bool> abort{false};
     std::vector<std::thread> threads;
     const std::int64_t pass_start_ns = NowNs();
@@ -173,9 +174,10 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
             // At --rate max the replay's own clock is the host clock the
             // assembler sees (frames placed by their trigger, not by when the
             // pipeline let them be read); latency is measured from AddFrame.
+            const std::int64_t trigger = ((*frame)->device_ns - first_device_ns) / period.count();
             if (max_rate) (*frame)->host_ns = pass_start_ns + (*frame)->device_ns - first_device_ns;
             p.AddFrame(std::move(**frame));
-            ++delivered[i];
+            last_trigger[i] = std::max(last_trigger[i].load(), trigger);
           } else if (cameras[i]->Finished()) {
             break;
           }
@@ -184,22 +186,30 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
       });
     }
     if (vicon) {
-      const std::uint64_t vicon_base = vicon->Stats().frames;  // counts go on across passes
       ++running;
-      threads.emplace_back([&, vicon_base] {
+      threads.emplace_back([&] {
+        std::int64_t last_vicon_frame = first_vicon_frame - 1;
+        int in_burst = 0;
         while (!abort && !vicon->Finished()) {
           if (max_rate) {
+            // Vicon goes out in bursts of one trigger's frames (vicon_divider)
+            // at least a millisecond apart, each at most one trigger ahead of
+            // the slowest camera still playing, by frame numbers (gaps in a
+            // camera's files or in the Vicon rows shift nothing): the Vicon
+            // frame of trigger k is out once every camera delivered trigger
+            // k - 1, so a FrameSet never waits for it. Why bursts stay small:
+            // an LCM subscriber queues at most 30 messages by default
+            // (lcm-logger's cannot be raised) and drops the rest of a burst
+            // when its handler thread is not scheduled in time.
             std::int64_t slowest = INT64_MAX;
-            bool all_done = true;
-            for (std::size_t i = 0; i < cameras.size(); ++i) {
-              slowest = std::min(slowest, delivered[i].load());
-              all_done = all_done && cameras[i]->Finished();
-            }
-            // Vicon frame numbers of the next Vicon frame are unknown here;
-            // count delivered frames instead (one file row per Vicon frame).
-            if (!all_done && static_cast<std::int64_t>(vicon->Stats().frames - vicon_base) >
-                                 sync.vicon_divider * (slowest + 4)) {
+            for (std::size_t i = 0; i < cameras.size(); ++i)
+              if (!cameras[i]->Finished()) slowest = std::min(slowest, last_trigger[i].load());
+            const bool ahead =
+                slowest != INT64_MAX &&
+                last_vicon_frame >= first_vicon_frame + sync.vicon_divider * (slowest + 2) - 1;
+            if (ahead || in_burst >= sync.vicon_divider) {
               std::this_thread::sleep_for(std::chrono::milliseconds(1));
+              in_burst = 0;
               continue;
             }
           }
@@ -212,6 +222,8 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
                   static_cast<std::int64_t>(
                       static_cast<double>((*frame)->vicon_frame - first_vicon_frame) * 1e9 /
                       sync.vicon_rate_hz);
+            last_vicon_frame = (*frame)->vicon_frame;
+            ++in_burst;
             p.AddVicon(**frame);
           }
         }

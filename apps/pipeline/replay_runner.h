@@ -11,7 +11,8 @@
 // underrun, counted) when the pipeline holds all its buffers. kMax delivers
 // frames as fast as the pipeline takes them: no skipping, the back-pressure
 // reaches the camera's frame pool, every frame is processed; Vicon frames are
-// released up to a few triggers ahead of the cameras.
+// released one trigger ahead of the slowest camera, in bursts of one
+// trigger's frames (small enough for an LCM subscriber's default queue of 30).
 
 #include "apps/pipeline/frame_processor.h"
 #include "apps/pipeline/pipeline.h"

@@ -24,6 +24,7 @@
 #include <lifmcr_lcm/preview_image_t.hpp>
 #include <lifmcr_lcm/vicon_frame_t.hpp>
 #include <map>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <thread>
 #include <unistd.h>
@@ -67,6 +68,12 @@ TEST_F(LoopbackMulticast, LcmLoggerRecordsAMaxRateReplay) {
   const pid_t logger = fork();
   ASSERT_GE(logger, 0);
   if (logger == 0) {
+    // lcm-logger takes messages on one thread and queues at most 30 per
+    // subscription (LCM's default; 1.3.1 has no option to raise it): starved
+    // of CPU by other load, it drops the newest beyond that. A logger beside
+    // a rig is given priority over the processing it records; so it is here
+    // (the fixture runs as root).
+    (void)setpriority(PRIO_PROCESS, 0, -10);
     execlp("lcm-logger", "lcm-logger", "-q", "-f", "-c", "LIFMCR_.*",
            (std::string("--lcm-url=") + kUrl + "&recv_buf_size=4194304").c_str(), log_path.c_str(),
            nullptr);
@@ -131,18 +138,14 @@ TEST_F(LoopbackMulticast, LcmLoggerRecordsAMaxRateReplay) {
     EXPECT_EQ(count[CameraChannel(serial, "DEPTH")], 4) << serial;
     EXPECT_EQ(count[CameraChannel(serial, "TF")], 4) << serial;
   }
-  // Vicon frames go out as a burst of small datagrams at the start of a
-  // max-rate replay; over udpm 1 or 2 of 32 were seen lost in about one run
-  // in four (camera channels never: open question, see the report), so the Vicon check is: in
-  // order, no duplicates, and at least 90 % of those published.
-  EXPECT_LE(static_cast<std::uint64_t>(count[kViconChannel]), r.published_vicon);
-  EXPECT_GE(static_cast<double>(count[kViconChannel]), 0.9 * static_cast<double>(r.published_vicon))
+  // Every message published is in the log: Vicon frames once each, in order.
+  // (The last one or two of 32 were lost when the max-rate replay released
+  // all 32 at once: more than the logger's queue of 30.)
+  EXPECT_EQ(static_cast<std::uint64_t>(count[kViconChannel]), r.published_vicon)
       << ::testing::PrintToString(vicon_frames);
   for (std::size_t k = 1; k < vicon_frames.size(); ++k)
     EXPECT_GT(vicon_frames[k], vicon_frames[k - 1]);
-  // The same for the statistics (small datagrams; one of two was seen lost).
-  EXPECT_LE(static_cast<std::uint64_t>(count[kStatsChannel]), r.published_stats);
-  EXPECT_GE(static_cast<std::uint64_t>(count[kStatsChannel]) + 1, r.published_stats);
+  EXPECT_EQ(static_cast<std::uint64_t>(count[kStatsChannel]), r.published_stats);
 
   // Every logged depth map is the processing output for its frame.
   auto processor = DepthProcessor::ForSequence(summary->sequence_dir.string(), serials);

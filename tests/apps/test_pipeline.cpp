@@ -1,10 +1,15 @@
 // The live pipeline on memq:// with a synthetic sequence: every frame is
 // processed and published or counted as skipped; the skip policy (newest
-// wins) under a slowed stage; the published depth is the processing output.
+// wins) under a slowed stage; the published depth is the processing output;
+// live Vicon over UDP reaches LIFMCR_VICON the way `lifmcr record --publish`
+// wires it.
 
+#include "acquisition/rig_controller.h"
 #include "apps/pipeline/frame_processor.h"
 #include "apps/pipeline/pipeline.h"
 #include "apps/pipeline/replay_runner.h"
+#include "drivers/vicon_udp_sender.h"
+#include "drivers/vicon_udp_source.h"
 #include "replay/bmp.h"
 #include "replay/layout.h"
 #include "replay/sequence.h"
@@ -15,13 +20,19 @@
 #include <gtest/gtest.h>
 #include <lcm/lcm-cpp.hpp>
 
+#include <atomic>
+#include <cerrno>
 #include <cmath>
 #include <lifmcr_lcm/depth_image_t.hpp>
 #include <lifmcr_lcm/pipeline_stats_t.hpp>
 #include <lifmcr_lcm/preview_image_t.hpp>
 #include <lifmcr_lcm/vicon_frame_t.hpp>
 #include <map>
+#include <oneapi/tbb/info.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
 #include <thread>
+#include <unistd.h>
 
 namespace lifmcr::apps {
 namespace {
@@ -170,6 +181,69 @@ class SlowProcessor final : public FrameProcessor {
   PreviewProcessor preview_;
 };
 
+// How many frames a ConcurrencyProbe processed at once at most, and the
+// lowest nice value of the threads it ran on (owned by the test: the stage
+// goes with the pipeline).
+struct ProbeCounts {
+  std::atomic<int> running{0}, most_at_once{0}, lowest_nice{100};
+};
+
+class ConcurrencyProbe final : public FrameProcessor {
+ public:
+  explicit ConcurrencyProbe(ProbeCounts* counts) : counts_(counts) {}
+  Expected<ProcessedFrame> Process(const Frame& frame) override {
+    const int now = ++counts_->running;
+    int seen = counts_->most_at_once.load();
+    while (now > seen && !counts_->most_at_once.compare_exchange_weak(seen, now)) {
+    }
+    errno = 0;
+    const int nice = getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
+    if (errno == 0) {
+      int lowest = counts_->lowest_nice.load();
+      while (nice < lowest && !counts_->lowest_nice.compare_exchange_weak(lowest, nice)) {
+      }
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(150));
+    --counts_->running;
+    return preview_.Process(frame);
+  }
+  std::string name() const override { return "probe"; }
+
+ private:
+  ProbeCounts* counts_;
+  PreviewProcessor preview_;
+};
+
+// Frames are processed max_concurrency at once (up to the cores), on worker
+// threads at processing_nice: the command's loop never helps TBB, so the
+// default arena (cores - 1 workers, a slot kept for a master) processed one
+// frame at a time.
+TEST(Pipeline, ProcessesMaxConcurrencyFramesAtOnceAtTheLowerPriority) {
+  const int cores = tbb::info::default_concurrency();
+  test::TempDir dir;
+  auto summary = synth::WriteSyntheticDataset(dir.path(), TinyRig(4));
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  lcm::LCM bus("memq://");
+  ReplayRunOptions options;
+  options.sequence_dir = summary->sequence_dir;
+  options.rate.kind = ReplayRate::Kind::kMax;
+  options.pipeline.bus = &bus;
+  options.pipeline.max_concurrency = 2;
+  options.pipeline.processing_nice = 7;
+  ProbeCounts counts;
+  auto result = RunReplay(options, std::make_unique<ConcurrencyProbe>(&counts));
+  ASSERT_TRUE(result.ok()) << result.error().message;
+  EXPECT_EQ(result->report.processed, 8u) << result->report.FinalReport();
+  EXPECT_EQ(counts.most_at_once, std::min(2, cores));
+  // processing_nice is relative to the thread that made the pipeline (a
+  // worker lowered further by an earlier pipeline of the process keeps it).
+  const int base = getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
+  EXPECT_GE(counts.lowest_nice, std::min(19, base + 7));
+  EXPECT_LE(counts.lowest_nice, 19);
+  options.pipeline.processing_nice = 20;
+  EXPECT_FALSE(options.pipeline.Check().ok());
+}
+
 TEST(Pipeline, SlowStageSkipsTheOlderFramesCountsThemAndKeepsTheNewest) {
   test::TempDir dir;
   const int frames = 12;
@@ -214,6 +288,102 @@ TEST(Pipeline, SlowStageSkipsTheOlderFramesCountsThemAndKeepsTheNewest) {
   for (const auto& d : received.last_stats->drops)
     if (d.kind == "skipped_for_processing") skipped_on_lcm = d.count;
   EXPECT_EQ(skipped_on_lcm, static_cast<std::int64_t>(r.skipped));
+}
+
+struct ViconMessages {
+  std::vector<lifmcr_lcm::vicon_frame_t> frames;
+  void OnMessage(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    lifmcr_lcm::vicon_frame_t m;
+    ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);
+    frames.push_back(m);
+  }
+};
+
+// The wiring of `lifmcr record --publish` with a live Vicon: Tracker packets
+// over loopback UDP -> ViconUdpSource -> the RigController's Vicon thread ->
+// its observer -> Pipeline::AddVicon -> LIFMCR_VICON. Every frame is
+// published once, in order, with the poses sent (right-handed, mm), an
+// object missing from a datagram as occluded, and is_trigger on every
+// divider-th frame from f0.
+TEST(Pipeline, LiveViconFromUdpIsPublishedWithItsPoses) {
+  constexpr std::int64_t kFirstFrame = 5000;
+  constexpr int kFrames = 40;
+  lcm::LCM bus("memq://");
+  ASSERT_TRUE(bus.good());
+  ViconMessages received;
+  bus.subscribe(kViconChannel, &ViconMessages::OnMessage, &received);
+
+  FrameSetAssemblerOptions sync;
+  sync.serials = {"CAM0"};
+  sync.vicon_divider = 8;
+  sync.vicon_rate_hz = 80;
+  sync.trigger.trigger_period_ns = 100'000'000;
+  sync.vicon_f0 = kFirstFrame + 3;
+  PipelineOptions options;
+  options.bus = &bus;
+  auto pipeline = Pipeline::Create(sync, std::make_unique<PreviewProcessor>(), options);
+  ASSERT_TRUE(pipeline.ok()) << pipeline.error().message;
+  Pipeline* p = pipeline->get();
+
+  ViconUdpSourceOptions source_options;
+  source_options.address = "127.0.0.1";
+  source_options.port = 0;
+  source_options.objects = {"plate", "cam0"};
+  auto source = std::make_unique<ViconUdpSource>(source_options);
+  ViconUdpSource* source_view = source.get();
+  RigObserver observer;
+  observer.on_vicon = [p](const ViconFrame& frame) { p->AddVicon(frame); };
+  RigController controller({}, {}, std::move(source), nullptr, {}, observer);
+  ASSERT_TRUE(controller.Start().ok());
+  auto sender = ViconUdpSender::Open("127.0.0.1", source_view->BoundPort());
+  ASSERT_TRUE(sender.ok()) << sender.error().message;
+
+  auto plate_pose = [](int k) {
+    Pose pose = Pose::Identity();
+    pose.linear() = Eigen::AngleAxisd(0.01 * k, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    pose.translation() = Eigen::Vector3d(k, 2.0 * k, 3.0 * k);
+    return pose;
+  };
+  for (int k = 0; k < kFrames; ++k) {
+    ViconFrame frame;
+    frame.vicon_frame = kFirstFrame + k;
+    frame.objects.push_back({"plate", plate_pose(k)});
+    // cam0 is out of view on odd frames: left out of the datagram.
+    if (k % 2 == 0) frame.objects.push_back({"cam0", Pose::Identity()});
+    ASSERT_TRUE(sender->Send(frame).ok());
+    // Paced a little, so the test does not lean on the socket buffer.
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (received.frames.size() < kFrames && std::chrono::steady_clock::now() < deadline)
+    bus.handleTimeout(50);
+  controller.Stop();
+  p->Finish();
+  Drain(bus);
+
+  ASSERT_EQ(received.frames.size(), static_cast<std::size_t>(kFrames));
+  EXPECT_EQ(p->Report().published_vicon, static_cast<std::uint64_t>(kFrames));
+  for (int k = 0; k < kFrames; ++k) {
+    const lifmcr_lcm::vicon_frame_t& m = received.frames[k];
+    EXPECT_EQ(m.vicon_frame, kFirstFrame + k);
+    EXPECT_EQ(m.is_trigger, (k - 3) % 8 == 0) << k;
+    EXPECT_GT(m.utime, 0);
+    ASSERT_EQ(m.num_objects, 2);
+    ASSERT_EQ(m.objects.size(), 2u);
+    EXPECT_EQ(m.objects[0].name, "plate");
+    EXPECT_FALSE(m.objects[0].occluded);
+    const Pose expected = plate_pose(k);
+    const Eigen::Quaterniond q(expected.rotation());
+    for (int i = 0; i < 3; ++i) EXPECT_NEAR(m.objects[0].t_mm[i], expected.translation()[i], 1e-9);
+    // q and -q are the same rotation.
+    const double sign = q.w() * m.objects[0].q_wxyz[0] < 0 ? -1.0 : 1.0;
+    EXPECT_NEAR(sign * m.objects[0].q_wxyz[0], q.w(), 1e-9) << k;
+    EXPECT_NEAR(sign * m.objects[0].q_wxyz[1], q.x(), 1e-9) << k;
+    EXPECT_NEAR(sign * m.objects[0].q_wxyz[2], q.y(), 1e-9) << k;
+    EXPECT_NEAR(sign * m.objects[0].q_wxyz[3], q.z(), 1e-9) << k;
+    EXPECT_EQ(m.objects[1].name, "cam0");
+    EXPECT_EQ(m.objects[1].occluded, k % 2 == 1) << k;
+  }
 }
 
 TEST(Pipeline, RateParsing) {
