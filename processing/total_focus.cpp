@@ -398,12 +398,14 @@ void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDept
           sw += centrality;
         }
       }
-      float* dst = out->linear.data() + t * kChannels;
-      std::uint8_t* pix = out->pixels.data() + t * kChannels;
       const float scale = sw > 0 ? gain / sw : 0.0f;
-      for (int ch = 0; ch < kChannels; ++ch) {
-        dst[ch] = acc[ch] * scale;
-        if (!sharpen) pix[ch] = static_cast<std::uint8_t>(std::clamp(dst[ch] + 0.5f, 0.0f, 255.0f));
+      if (sharpen) {
+        float* dst = out->linear.data() + t * kChannels;
+        for (int ch = 0; ch < kChannels; ++ch) dst[ch] = acc[ch] * scale;
+      } else {
+        std::uint8_t* pix = out->pixels.data() + t * kChannels;
+        for (int ch = 0; ch < kChannels; ++ch)
+          pix[ch] = static_cast<std::uint8_t>(std::clamp(acc[ch] * scale + 0.5f, 0.0f, 255.0f));
       }
     }
   });
@@ -422,7 +424,9 @@ Status RenderTotalFocus(const PlenopticFrame& f, const MlaCalibration& mla, cons
   out->format = f.has_colour ? PixelFormat::kBgr8 : PixelFormat::kMono8;
   const int channels = f.has_colour ? 3 : 1;
   out->pixels.resize(static_cast<std::size_t>(tw) * th * channels);
-  out->linear.resize(out->pixels.size());
+  // The float image is only the sharpening's input: 12 bytes per TF pixel
+  // of an R32 frame not written when it is off.
+  out->linear.resize(options.sharpen > 0 ? out->pixels.size() : 0);
   if (f.has_colour)
     RenderRows<3>(f, mla, depth, options, out);
   else

@@ -66,7 +66,7 @@ struct TfImage {
   int width = 0, height = 0;
   PixelFormat format = PixelFormat::kBgr8;  // Mono8 for Mono8 raw frames
   std::vector<std::uint8_t> pixels;         // rows without padding
-  std::vector<float> linear;                // before sharpening and 8-bit rounding
+  std::vector<float> linear;                // before sharpening (only with sharpen > 0)
   ConstImageView View() const {
     return {pixels.data(), width, height, static_cast<std::size_t>(width) * BytesPerPixel(format),
             format};
