@@ -275,7 +275,9 @@ HandEyeResult SolveRobotWorldHandEye(std::span<const Pose> a, std::span<const Po
   solver_options.num_threads = 1;
   ceres::Solver::Summary summary;
   std::unique_ptr<ceres::Problem> problem;
+  RobustScales used = scales;
   for (int pass = 0; pass < 2; ++pass) {
+    used = scales;
     problem = std::make_unique<ceres::Problem>();
     BuildProblem(problem.get(), &params, a, b, scales, options.huber_threshold);
     ceres::Solve(solver_options, problem.get(), &summary);
@@ -290,20 +292,22 @@ HandEyeResult SolveRobotWorldHandEye(std::span<const Pose> a, std::span<const Po
   }
   result.x = params.X();
   result.z = params.Z();
-  // Final solve used the scales from pass 1; report those it used.
-  result.translation_sigma_mm = scales.translation_mm;
-  result.rotation_sigma_deg = scales.rotation_rad / kDeg;
+  result.translation_sigma_mm = used.translation_mm;
+  result.rotation_sigma_deg = used.rotation_rad / kDeg;
 
-  double sum_t = 0, sum_r = 0;
+  // Residuals of the final solve (normalised by the scales it used) decide
+  // the inliers and the variance factor of the covariance.
+  double sum_t = 0, sum_r = 0, sum_normalised = 0;
   for (std::size_t i = 0; i < a.size(); ++i) {
     const Pose e = Residual(a[i], b[i], result.x, result.z);
-    const Eigen::Vector3d rt = e.translation() / scales.translation_mm;
-    const Eigen::Vector3d rr = RotationLog(e.linear()) / scales.rotation_rad;
+    const Eigen::Vector3d rt = e.translation() / used.translation_mm;
+    const Eigen::Vector3d rr = RotationLog(e.linear()) / used.rotation_rad;
     if (std::max(rt.cwiseAbs().maxCoeff(), rr.cwiseAbs().maxCoeff()) > options.huber_threshold)
       continue;
     ++result.inliers;
     sum_t += e.translation().squaredNorm();
     sum_r += RotationLog(e.linear()).squaredNorm();
+    sum_normalised += rt.squaredNorm() + rr.squaredNorm();
   }
   if (result.inliers > 0) {
     result.translation_rms_mm = std::sqrt(sum_t / result.inliers);
@@ -321,8 +325,8 @@ HandEyeResult SolveRobotWorldHandEye(std::span<const Pose> a, std::span<const Po
       {params.qz.coeffs().data(), params.qz.coeffs().data()},
       {params.tz.data(), params.tz.data()}};
   if (covariance.Compute(blocks, problem.get())) {
-    const double m = 6.0 * static_cast<double>(a.size());
-    const double factor = m > 12 ? 2.0 * summary.final_cost / (m - 12.0) : 1.0;
+    const double m = 6.0 * static_cast<double>(result.inliers);
+    const double factor = m > 12 ? sum_normalised / (m - 12.0) : 1.0;
     Eigen::Matrix3d c;
     auto sd = [&](const double* block, bool tangent, double unit) {
       if (tangent)

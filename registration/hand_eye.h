@@ -30,7 +30,8 @@
 //     options and are re-estimated from the residuals (1.4826 MAD) before a
 //     second solve, so the weights follow the data.
 //  4. Uncertainty: the covariance of X and Z from ceres::Covariance at the
-//     optimum, scaled by the residual variance factor 2 cost / (m - 12).
+//     optimum, scaled by the variance factor of the inliers' normalised
+//     residuals, sum r^2 / (m - 12) over their m components.
 //     Rotation standard deviations are about the axes of the frame X (or Z)
 //     maps into (the manifold perturbs on the left).
 

@@ -84,24 +84,31 @@ Expected<PlateAlignment> AlignPlate(std::span<const ViconPoseSample> plate_sampl
   if (plate_markers_mm.size() != 4)
     return Error{"plate alignment: the plate's VSK object has " +
                  std::to_string(plate_markers_mm.size()) + " markers, 4 expected"};
-  // world_from_plate over the orderings of the VSK markers.
+  // world_from_plate: the VSK markers in file order against the template's
+  // order; another ordering only when it fits clearly better (a plate made
+  // symmetric, such as a rectangle, fits several orderings equally: then the
+  // file order decides).
   Eigen::Matrix<double, 3, 4> model, target;
   for (int k = 0; k < 4; ++k) target.col(k) = plate.vicon_markers_mm[k];
-  std::array<int, 4> order{0, 1, 2, 3};
-  double best = std::numeric_limits<double>::infinity();
-  Pose world_from_plate = Pose::Identity();
-  do {
+  auto fit_order = [&](const std::array<int, 4>& order, Pose* fit) {
     for (int k = 0; k < 4; ++k) model.col(k) = plate_markers_mm[order[k]];
-    Pose fit = Pose::Identity();
-    fit.matrix() = Eigen::umeyama(model, target, false);
+    fit->matrix() = Eigen::umeyama(model, target, false);
     const Eigen::Matrix<double, 3, 4> moved =
-        (fit.linear() * model).colwise() + fit.translation();
-    const double rms = std::sqrt((moved - target).colwise().squaredNorm().mean());
-    if (rms < best) {
+        (fit->linear() * model).colwise() + fit->translation();
+    return std::sqrt((moved - target).colwise().squaredNorm().mean());
+  };
+  std::array<int, 4> order{0, 1, 2, 3};
+  Pose world_from_plate = Pose::Identity();
+  double best = fit_order(order, &world_from_plate);
+  constexpr double kClearlyBetterMm = 0.5;
+  while (std::next_permutation(order.begin(), order.end())) {
+    Pose fit = Pose::Identity();
+    const double rms = fit_order(order, &fit);
+    if (rms + kClearlyBetterMm < best) {
       best = rms;
       world_from_plate = fit;
     }
-  } while (std::next_permutation(order.begin(), order.end()));
+  }
   result.marker_fit_rms_mm = best;
 
   // The plate at rest: mean pose and its spread.
