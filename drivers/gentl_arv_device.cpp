@@ -260,6 +260,9 @@ Expected<ArvDevice*> NewGenTlArvDevice(std::shared_ptr<GenTlProducer> producer,
     g_object_unref(device);
     return Error{"the device's GenICam XML could not be parsed"};
   }
+  // Every read goes to the device: the driver's probe reads a register to
+  // learn whether the device still answers.
+  arv_gc_set_register_cache_policy(device->state->genicam, ARV_REGISTER_CACHE_POLICY_DISABLE);
   return arv_device;
 }
 
