@@ -31,11 +31,13 @@ bool IsBayer(CameraPixelFormat format) { return OpenCvCode(format) >= 0; }
 Status DemosaicBayer(ConstImageView mosaic, CameraPixelFormat pattern, ImageView bgr) {
   const int code = OpenCvCode(pattern);
   if (code < 0)
-    return Error{"demosaic: pixel format " + std::string(ToString(pattern)) + " is not a Bayer mosaic"};
+    return Error{"demosaic: pixel format " + std::string(ToString(pattern)) +
+                 " is not a Bayer mosaic"};
   if (mosaic.format != PixelFormat::kMono8 || bgr.format != PixelFormat::kBgr8 ||
       mosaic.width != bgr.width || mosaic.height != bgr.height || mosaic.width < 2 ||
       mosaic.height < 2)
-    return Error{"demosaic: expected a Mono8 mosaic and a BGR8 image of the same size (at least 2x2)"};
+    return Error{
+        "demosaic: expected a Mono8 mosaic and a BGR8 image of the same size (at least 2x2)"};
   const cv::Mat src(mosaic.height, mosaic.width, CV_8UC1, const_cast<std::uint8_t*>(mosaic.data),
                     mosaic.stride_bytes);
   cv::Mat dst(bgr.height, bgr.width, CV_8UC3, bgr.data, bgr.stride_bytes);

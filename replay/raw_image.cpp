@@ -20,8 +20,9 @@ Container Sniff(const std::filesystem::path& path) {
   if (in.gcount() >= 2 && magic[0] == 'B' && magic[1] == 'M') return Container::kBmp;
   static const unsigned char kPng[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
   if (in.gcount() == 8 && std::memcmp(magic, kPng, 8) == 0) return Container::kPng;
-  if (in.gcount() >= 4 && ((magic[0] == 'I' && magic[1] == 'I' && magic[2] == 42 && magic[3] == 0) ||
-                           (magic[0] == 'M' && magic[1] == 'M' && magic[2] == 0 && magic[3] == 42)))
+  if (in.gcount() >= 4 &&
+      ((magic[0] == 'I' && magic[1] == 'I' && magic[2] == 42 && magic[3] == 0) ||
+       (magic[0] == 'M' && magic[1] == 'M' && magic[2] == 0 && magic[3] == 42)))
     return Container::kTiff;
   return Container::kUnknown;
 }
@@ -59,27 +60,27 @@ Expected<OwnedImage> ReadRawImage(const std::filesystem::path& path, RawImageInf
   if (container == Container::kUnknown) {
     std::error_code ec;
     if (!std::filesystem::is_regular_file(path, ec))
-      return MakeErrorAt(path.string(), "/", "cannot open the raw image (no such file)");
-    return MakeErrorAt(path.string(), "/",
-                       "not a BMP, PNG or TIFF file (expected 'BM', the PNG signature or "
-                       "'II*'/'MM*' at the start)");
+      return Error{path.string() + ": " + "cannot open the raw image (no such file)"};
+    return Error{path.string() + ": " +
+                 "not a BMP, PNG or TIFF file (expected 'BM', the PNG signature or "
+                 "'II*'/'MM*' at the start)"};
   }
   out_info.container = container == Container::kPng ? "PNG" : "TIFF";
   cv::Mat mat;
   try {
     mat = cv::imread(path.string(), cv::IMREAD_UNCHANGED);
   } catch (const cv::Exception& e) {
-    return MakeErrorAt(path.string(), "/", std::string("OpenCV: ") + e.what());
+    return Error{path.string() + ": " + std::string("OpenCV: ") + e.what()};
   }
-  if (mat.empty()) return MakeErrorAt(path.string(), "/", "OpenCV could not decode the image");
+  if (mat.empty()) return Error{path.string() + ": " + "OpenCV could not decode the image"};
   const int depth = mat.depth(), channels = mat.channels();
   if (depth != CV_8U && depth != CV_16U)
-    return MakeErrorAt(path.string(), "/",
-                       "samples are neither 8- nor 16-bit unsigned integers (OpenCV depth " +
-                           std::to_string(depth) + ")");
+    return Error{path.string() + ": " +
+                 "samples are neither 8- nor 16-bit unsigned integers (OpenCV depth " +
+                 std::to_string(depth) + ")"};
   if (channels != 1 && channels != 3 && channels != 4)
-    return MakeErrorAt(path.string(), "/",
-                       std::to_string(channels) + " channels, expected 1 (grey), 3 or 4 (colour)");
+    return Error{path.string() + ": " + std::to_string(channels) +
+                 " channels, expected 1 (grey), 3 or 4 (colour)"};
   out_info.file_bits = depth == CV_8U ? 8 : 16;
   out_info.file_channels = channels;
   out_info.significant_bits = 8;
@@ -103,7 +104,7 @@ Expected<OwnedImage> ReadRawImage(const std::filesystem::path& path, RawImageInf
   }
   mat.convertTo(dst, dst.type(), scale);
   if (dst.data != image.pixels.data())
-    return MakeErrorAt(path.string(), "/", "internal: conversion reallocated the image");
+    return Error{path.string() + ": " + "internal: conversion reallocated the image"};
   return image;
 }
 

@@ -23,10 +23,10 @@
 namespace lifmcr {
 
 struct RawImageInfo {
-  std::string container;    // "BMP", "PNG", "TIFF"
-  int file_bits = 8;        // bits per sample in the file (8 or 16)
-  int significant_bits = 8; // bits kept before the scale to 8 (== file_bits for 8-bit)
-  int file_channels = 1;    // 1, 3 or 4
+  std::string container;     // "BMP", "PNG", "TIFF"
+  int file_bits = 8;         // bits per sample in the file (8 or 16)
+  int significant_bits = 8;  // bits kept before the scale to 8 (== file_bits for 8-bit)
+  int file_channels = 1;     // 1, 3 or 4
   // One line, e.g. "PNG 16-bit grey, 12 significant bits scaled to 8".
   std::string Describe() const;
 };

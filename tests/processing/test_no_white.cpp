@@ -88,7 +88,8 @@ TEST(NoWhiteImage, ProcessedAndUncorrectedRawsMeetTheGatesOfTheWhiteImageRun) {
   std::printf("processed: %s\n", flat->BriefReport().c_str());
   EXPECT_TRUE(flat->already_corrected) << flat->BriefReport();
   EXPECT_EQ(flat->White().data, nullptr);
-  ExpectWithinGates(DepthVsTruth(s, processed_view, flat->White()), "processed raw, no white image:");
+  ExpectWithinGates(DepthVsTruth(s, processed_view, flat->White()),
+                    "processed raw, no white image:");
 
   // The raw itself, vignetted, without its white image: the profile from the
   // frame devignettes it.

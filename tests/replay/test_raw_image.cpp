@@ -24,8 +24,7 @@ OwnedImage RandomImage(int w, int h, PixelFormat format, unsigned seed) {
 }
 
 cv::Mat AsMat(const OwnedImage& image) {
-  return cv::Mat(image.height, image.width,
-                 image.format == PixelFormat::kMono8 ? CV_8UC1 : CV_8UC3,
+  return cv::Mat(image.height, image.width, image.format == PixelFormat::kMono8 ? CV_8UC1 : CV_8UC3,
                  const_cast<std::uint8_t*>(image.pixels.data()), image.StrideBytes());
 }
 
