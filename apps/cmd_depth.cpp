@@ -1,20 +1,16 @@
 // `lifmcr depth SEQ_DIR --camera SERIAL --frame K --out DIR [--intrinsics
 // cameras.yaml]`: one raw frame to virtual depth (raw and TF grids, with the
 // confidence map on the raw grid), the
-// totally focused image, metric depth and a coloured point cloud
-// (processing/). The OpenCV (TIFF, PNG, colour map) and PCL (PLY) boundary
+// totally focused image, metric depth and a coloured point cloud, by the
+// processing chain replay and `record --publish` run too
+// (processing/frame_chain.h, apps/pipeline/camera_setup.h). The OpenCV (TIFF, PNG, colour map) and PCL (PLY) boundary
 // of the processing library is here.
 
 #include "apps/commands.h"
-#include "processing/camera_model.h"
-#include "processing/mla_grid.h"
-#include "processing/plenoptic_frame.h"
-#include "processing/point_cloud.h"
-#include "processing/total_focus.h"
-#include "processing/virtual_depth.h"
+#include "apps/pipeline/camera_setup.h"
+#include "processing/frame_chain.h"
 #include "replay/bmp.h"
 #include "replay/layout.h"
-#include "replay/mla_xml.h"
 #include "replay/synth/gt_images.h"
 
 #include <CLI/CLI.hpp>
@@ -26,7 +22,6 @@
 #include <pcl/io/ply_io.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
-#include <yaml-cpp/yaml.h>
 
 #include <chrono>
 #include <cmath>
@@ -52,52 +47,6 @@ struct DepthCommandOptions {
   std::string white;
   std::string mla;
 };
-
-// The camera `serial` of a cameras.yaml (GroundTruth of `lifmcr synth`):
-// cameras: [{serial, model: {width_px, height_px, pixel_size_mm,
-// main_focal_length_mm, mla_to_main_lens_mm, mla_to_sensor_mm,
-// distortion: {k1, k2, p1, p2}}}].
-Expected<processing::CameraIntrinsics> ReadIntrinsics(const std::string& path,
-                                                      const std::string& serial) {
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::Exception& e) {
-    return Error{path + ": " + e.what()};
-  }
-  if (!root["cameras"] || !root["cameras"].IsSequence())
-    return Error{path + ": /cameras: expected a list of cameras"};
-  for (std::size_t n = 0; n < root["cameras"].size(); ++n) {
-    const YAML::Node cam = root["cameras"][n];
-    if (!cam["serial"] || cam["serial"].as<std::string>() != serial) continue;
-    const std::string where = path + ": /cameras/" + std::to_string(n) + "/model/";
-    const YAML::Node m = cam["model"];
-    processing::CameraIntrinsics k;
-    try {
-      auto num = [&](const char* key) {
-        if (!m[key]) throw YAML::Exception(YAML::Mark::null_mark(), std::string("missing ") + key);
-        return m[key].as<double>();
-      };
-      k.width_px = static_cast<int>(num("width_px"));
-      k.height_px = static_cast<int>(num("height_px"));
-      k.pixel_size_mm = num("pixel_size_mm");
-      k.main_focal_length_mm = num("main_focal_length_mm");
-      k.mla_to_main_lens_mm = num("mla_to_main_lens_mm");
-      k.mla_to_sensor_mm = num("mla_to_sensor_mm");
-      if (const YAML::Node d = m["distortion"]) {
-        k.k1 = d["k1"] ? d["k1"].as<double>() : 0.0;
-        k.k2 = d["k2"] ? d["k2"].as<double>() : 0.0;
-        k.p1 = d["p1"] ? d["p1"].as<double>() : 0.0;
-        k.p2 = d["p2"] ? d["p2"].as<double>() : 0.0;
-      }
-    } catch (const YAML::Exception& e) {
-      return Error{where + ": " + e.msg};
-    }
-    if (Status s = k.Check(); !s) return Error{where + ": " + s.error().message};
-    return k;
-  }
-  return Error{path + ": /cameras: no camera with serial " + serial};
-}
 
 double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
@@ -172,65 +121,37 @@ int Fail(const std::string& message) {
 int RunDepth(const DepthCommandOptions& o) {
   const auto t_all = std::chrono::steady_clock::now();
   const fs::path seq = o.sequence;
-  const fs::path calib = seq.parent_path().parent_path() / std::string(layout::kCalibrationFolder);
   const fs::path raw_path = layout::RawFramePath(seq, o.camera, o.frame);
-  const fs::path white_path =
-      o.white.empty() ? layout::WhiteImagePath(calib, o.camera, 0) : fs::path(o.white);
-  const fs::path mla_path = o.mla.empty() ? layout::MlaXmlPath(calib, o.camera) : fs::path(o.mla);
 
   auto t = std::chrono::steady_clock::now();
   Expected<OwnedImage> raw = ReadBmp(raw_path);
   if (!raw) return Fail(raw.error().message);
-  Expected<OwnedImage> white = ReadBmp(white_path);
-  if (!white) return Fail(white.error().message + " (white image; --white names another)");
-  Expected<MlaCalibration> mla = ReadMlaXml(mla_path);
-  if (!mla) return Fail(mla.error().message + " (MLA file; --mla names another)");
-  std::optional<processing::CameraModel> camera;
-  if (!o.intrinsics.empty()) {
-    Expected<processing::CameraIntrinsics> k = ReadIntrinsics(o.intrinsics, o.camera);
-    if (!k) return Fail(k.error().message);
-    if (k->width_px != raw->width || k->height_px != raw->height)
-      return Fail(o.intrinsics + ": camera " + o.camera + " is " + std::to_string(k->width_px) +
-                  "x" + std::to_string(k->height_px) + ", the raw frame " +
-                  std::to_string(raw->width) + "x" + std::to_string(raw->height));
-    camera.emplace(*k);
-  }
+  // The same lookup and chain as replay and record --publish (camera_setup.h).
+  auto setup = LoadSequenceCamera(seq, o.camera, {o.mla, o.white, o.intrinsics});
+  if (!setup) return Fail(setup.error().message + " (--mla and --white name other files)");
+  processing::ChainOptions chain_options;
+  chain_options.point_cloud = true;
+  chain_options.cloud_measured_only = true;
+  auto chain = processing::CameraChain::Create(std::move(*setup), chain_options);
+  if (!chain) return Fail(chain.error().message);
+  const processing::CameraChain& camera = **chain;
   std::printf("read      %.3f s  %s (%dx%d %s)\n", Seconds(t), raw_path.string().c_str(),
               raw->width, raw->height, std::string(ToString(raw->format)).c_str());
+  std::printf("camera    %s\n", camera.Describe().c_str());
 
-  t = std::chrono::steady_clock::now();
-  const processing::MlaGrid grid =
-      processing::MlaGrid::FromCalibration(*mla, raw->width, raw->height);
-  processing::FrameOptions frame_options;
-  frame_options.lambda = camera ? camera->lambda() : 1.0;
-  processing::PlenopticFrame frame;
-  if (Status s =
-          processing::PrepareFrame(raw->View(), white->View(), grid, *mla, frame_options, &frame);
-      !s)
-    return Fail(s.error().message);
-  std::printf("prepare   %.3f s  %zu micro images, devignetted%s\n", Seconds(t),
-              frame.lenses.size(),
-              camera ? "" : "; no intrinsics: micro-lens centres = micro-image centres (lambda 1)");
-
-  t = std::chrono::steady_clock::now();
-  processing::VirtualDepthMap depth;
-  if (Status s = processing::EstimateVirtualDepth(frame, *mla, processing::DepthOptions{}, &depth);
-      !s)
-    return Fail(s.error().message);
+  auto lease = (*chain)->Process(raw->View());
+  if (!lease) return Fail(lease.error().message);
+  const processing::ChainProducts& p = **lease;
+  const processing::VirtualDepthMap& depth = p.raw_depth;
+  const processing::TfDepthMap& tf_depth = p.tf_depth;
+  const processing::TfImage& tf = p.tf;
+  std::printf("prepare   %.3f s  %zu micro images, devignetting: %s\n", p.prepare_s,
+              p.prepared.lenses.size(), std::string(ToString(camera.devignetting())).c_str());
   const double raw_mp = raw->width * static_cast<double>(raw->height) / 1e6;
-  std::printf("depth     %.3f s  %.1f raw MP/s; %s\n", Seconds(t), raw_mp / Seconds(t),
+  std::printf("depth     %.3f s  %.1f raw MP/s; %s\n", p.depth_s, raw_mp / p.depth_s,
               depth.stats.BriefReport().c_str());
-
-  t = std::chrono::steady_clock::now();
-  const processing::TfOptions tf_options;
-  processing::TfDepthMap tf_depth;
-  if (Status s = processing::VirtualDepthToTf(frame, depth, tf_options, &tf_depth); !s)
-    return Fail(s.error().message);
-  processing::TfImage tf;
-  if (Status s = processing::RenderTotalFocus(frame, *mla, tf_depth, tf_options, &tf); !s)
-    return Fail(s.error().message);
   const double tf_n = static_cast<double>(tf_depth.width) * tf_depth.height;
-  std::printf("tf        %.3f s  %dx%d; TF depth: %.1f %% measured, %.1f %% filled\n", Seconds(t),
+  std::printf("tf        %.3f s  %dx%d; TF depth: %.1f %% measured, %.1f %% filled\n", p.tf_s,
               tf.width, tf.height, 100.0 * tf_depth.measured / tf_n,
               100.0 * tf_depth.filled / tf_n);
 
@@ -257,25 +178,21 @@ int RunDepth(const DepthCommandOptions& o) {
   if (Status s = synth::WritePng(out / (stem + "_tf.png"), tf.View()); !s)
     return Fail(s.error().message);
   double v_lo = 1e9, v_hi = 0;
-  for (const MlaLensType& type : mla->lens_types) {
+  for (const MlaLensType& type : camera.mla().lens_types) {
     v_lo = std::min(v_lo, std::max(1.5, type.depth_min));
     v_hi = std::max(v_hi, type.depth_max);
   }
   if (!(v_hi > v_lo)) v_hi = v_lo + 10;
   if (Status s = WriteDepthPng(out / (stem + "_depth.png"), tf_depth, v_lo, v_hi); !s)
     return Fail(s.error().message);
-  if (camera) {
-    std::vector<float> depth_mm;
-    processing::MetricDepthTf(*camera, tf_depth, &depth_mm);
+  if (p.metric) {
     if (Status s = synth::WriteFloatTiff(out / (stem + "_depth_mm.tiff"), tf_depth.width,
-                                         tf_depth.height, depth_mm);
+                                         tf_depth.height, p.depth_mm);
         !s)
       return Fail(s.error().message);
-    processing::PointCloud cloud;
-    processing::BuildPointCloud(*camera, tf_depth, tf, true, &cloud);
-    if (Status s = WritePly(out / (stem + "_points.ply"), cloud, o.uncertainty); !s)
+    if (Status s = WritePly(out / (stem + "_points.ply"), p.cloud, o.uncertainty); !s)
       return Fail(s.error().message);
-    std::printf("cloud     %zu points (measured TF pixels)\n", cloud.points_mm.size());
+    std::printf("cloud     %zu points (measured TF pixels)\n", p.cloud.points_mm.size());
   } else {
     std::printf(
         "no --intrinsics: no %s_depth_mm.tiff and no %s_points.ply (metric needs f_L, "
@@ -298,7 +215,9 @@ CommandRun AddDepthCommand(CLI::App& app) {
   app.add_option("--out", o->out, "Output folder (created if needed)")->required();
   app.add_option("--intrinsics", o->intrinsics,
                  "cameras.yaml with the camera's model (metric depth and point cloud)");
-  app.add_option("--white", o->white, "White image (default: the dataset's Calibration folder)");
+  app.add_option("--white", o->white,
+                 "White image (default: the one beside the MLA file in Calibration/; without "
+                 "one the frame is not devignetted)");
   app.add_option("--mla", o->mla, "MLA XML (default: the dataset's Calibration folder)");
   app.add_flag("--uncertainty", o->uncertainty,
                "Add a sigma_z_mm property (standard deviation of the depth) to every PLY point");
