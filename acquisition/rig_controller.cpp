@@ -1,5 +1,7 @@
 #include "acquisition/rig_controller.h"
 
+#include <spdlog/spdlog.h>
+
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -14,6 +16,23 @@ std::string Fixed(double value, int digits) {
 }
 
 }  // namespace
+
+Status RigControllerOptions::Check() const {
+  if (frame_timeout.count() <= 0 || frame_timeout.count() > 60'000)
+    return Error{"rig controller: frame_timeout: expected 1..60000 ms"};
+  if (!(trigger_hz >= 0 && trigger_hz <= 10'000))
+    return Error{"rig controller: trigger_hz: expected 0..10000 (0: no software triggers)"};
+  if (stale_frames_for_restart < 1)
+    return Error{"rig controller: stale_frames_for_restart: expected >= 1"};
+  if (drain.count() < 0) return Error{"rig controller: drain: expected >= 0 ms"};
+  if (sync_poll.count() <= 0) return Error{"rig controller: sync_poll: expected > 0 ms"};
+  if (sync) {
+    if (Status s = sync->Check(); !s) return Error{"rig controller: sync: " + s.error().message};
+  } else if (number_files_by_sync) {
+    return Error{"rig controller: number_files_by_sync: needs sync"};
+  }
+  return Status::Ok();
+}
 
 std::uint64_t CameraHealth::Lost() const {
   return incomplete + missing_by_id + missing_in_gaps + no_frame_at_end + not_in_any_set +
@@ -112,6 +131,7 @@ RigController::~RigController() { Stop(); }
 
 Status RigController::Start() {
   if (started_) return Error{"rig: already started"};
+  if (Status s = options_.Check(); !s) return s;
   for (auto& slot : slots_) {
     if (Status s = slot->camera->Open(); !s) return s;
     slot->health.serial = slot->camera->Info().serial;
@@ -136,6 +156,9 @@ Status RigController::Start() {
     syncing_ = true;
     sync_thread_ = std::thread([this] { SyncLoop(); });
   }
+  spdlog::info("rig: {} camera(s), Vicon {}, software triggers at {} Hz, sync {}",
+               slots_.size(), vicon_ ? "on" : "off", options_.trigger_hz,
+               options_.sync ? "on" : "off");
   started_ = true;
   start_time_ = last_health_ = std::chrono::steady_clock::now();
   grabbing_ = true;
@@ -236,6 +259,7 @@ void RigController::GrabLoop(int index) {
       std::lock_guard<std::mutex> lock(slot.mutex);
       ++slot.health.errors;
       slot.health.last_error = next.error().message;
+      if (!slot.lost) spdlog::warn("camera {}: lost: {}", slot.health.serial, next.error().message);
       slot.lost = true;
       continue;  // the driver reconnects on the next call
     }
@@ -289,6 +313,8 @@ void RigController::GrabLoop(int index) {
           step = FrameIdUnwrapper::Step{slot.unwrapper.last_index(), 0, false};
           slot.health.missing_in_gaps += static_cast<std::uint64_t>(triggers - 1);
           ++slot.health.counter_restarts;
+          spdlog::warn("camera {}: back after {:.1f} s; {} trigger(s) missed while it was lost",
+                       slot.health.serial, silence_s, triggers - 1);
           slot.lost = false;
           slot.stale_in_a_row = 0;
         } else if (slot.lost) {

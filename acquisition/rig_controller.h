@@ -58,6 +58,7 @@ struct RigControllerOptions {
   bool number_files_by_sync = false;
   // How often the sync thread polls the assembler for finished FrameSets.
   std::chrono::milliseconds sync_poll{10};
+  Status Check() const;  // every field (sync: its own Check); the message names the field
 };
 
 // Called on a grab thread for every complete frame (with its run index)

@@ -3,12 +3,16 @@
 #include "acquisition/recorder.h"
 #include "acquisition/rig_controller.h"
 #include "apps/commands.h"
+#include "apps/pipeline/camera_setup.h"
+#include "apps/pipeline/frame_processor.h"
 #include "apps/pipeline/pipeline.h"
+#include "apps/pipeline/process_settings.h"
 #include "config/rig_config.h"
 #include "drivers/camera_factory.h"
 #include "drivers/replay_camera.h"
 #include "drivers/vicon_csv_source.h"
 #include "drivers/vicon_udp_source.h"
+#include "processing/frame_chain.h"
 
 #include <CLI/CLI.hpp>
 
@@ -67,28 +71,32 @@ struct Args {
   bool no_processing = false;
 };
 
-// The live pipeline beside the recorder (--publish): frames reach it through
-// the controller's observer (a mutex-guarded hand-over); it never blocks a
-// grab thread (skip policy: newest wins), so a slow stage costs skipped
-// previews, never recorded frames.
+// The live pipeline beside the recorder (--publish), configured by the
+// rig file's processing: and lcm: sections, --lcm and --no-processing
+// overriding them: frames reach it through the controller's observer (a
+// mutex-guarded hand-over); it never blocks a grab thread, so a slow stage
+// costs skipped previews (newest_wins) or a later publication (block),
+// never recorded frames.
 Expected<std::unique_ptr<Pipeline>> MakePublishPipeline(const RigConfig& rig, const Args& args) {
+  const PreviewOptions preview = PreviewOptionsFromRig(rig);
+  if (Status s = preview.Check(); !s) return s.error();
   std::unique_ptr<FrameProcessor> processor;
-  std::map<std::string, std::string> mla_files;
-  for (const CameraConfig& camera : rig.cameras)
-    if (!camera.mla_file.empty()) mla_files[camera.serial] = camera.mla_file.string();
-  if (!args.no_processing && mla_files.size() == rig.cameras.size()) {
-    auto depth = DepthProcessor::FromMlaFiles(mla_files);
-    if (!depth) return depth.error();
-    processor = std::move(*depth);
+  const bool processing = rig.processing.enabled && !args.no_processing;
+  if (processing) {
+    // The same chain and calibration lookup as replay (camera_setup.h): the
+    // MLA file of each camera and the white image beside it.
+    auto setups = LoadRigCameras(rig);
+    if (!setups) return setups.error();
+    auto chain =
+        processing::ProcessingChain::Create(std::move(*setups), processing::ChainOptions{});
+    if (!chain) return chain.error();
+    processor = std::make_unique<DepthProcessor>(std::move(*chain), preview);
   } else {
-    if (!args.no_processing)
-      std::cerr << "lifmcr record: --publish: not every camera has an mla_file; previews only\n";
-    processor = std::make_unique<PreviewProcessor>();
+    processor = std::make_unique<PreviewProcessor>(preview);
   }
   FrameSetAssemblerOptions sync = FrameSetAssemblerOptions::FromRig(rig);
-  PipelineOptions options;
-  options.lcm_url = args.lcm_url;
-  options.skip_when_busy = true;
+  PipelineOptions options = PipelineOptions::FromRig(rig);
+  if (!args.lcm_url.empty()) options.publisher.url = args.lcm_url;
   return Pipeline::Create(sync, std::move(processor), options);
 }
 
@@ -170,8 +178,10 @@ int Run(const Args& args) {
     return kExitCannotStart;
   }
   std::unique_ptr<Pipeline> pipeline;
+  std::unique_ptr<ProcessSettings> process_settings;
   RigObserver observer;
   if (args.publish) {
+    process_settings = ProcessSettings::ForPipeline();
     auto made = MakePublishPipeline(*rig, args);
     if (!made) {
       std::cerr << "lifmcr record: --publish: " << made.error().message << "\n";
@@ -280,8 +290,9 @@ CommandRun AddRecordCommand(CLI::App& app) {
   app.add_option("--sequence", args->sequence, "Sequence folder name")->capture_default_str();
   app.add_flag("--publish", args->publish,
                "Run the live pipeline on the frames too and publish on LCM (as lifmcr replay)");
-  app.add_option("--lcm", args->lcm_url, "LCM URL for --publish (default: LCM's)");
-  app.add_flag("--no-processing", args->no_processing, "--publish previews only (no depth, no TF)");
+  app.add_option("--lcm", args->lcm_url, "LCM URL for --publish (default: the rig's lcm.url)");
+  app.add_flag("--no-processing", args->no_processing,
+               "--publish previews only (no depth, no TF; as processing.enabled: false)");
   app.add_option("--replay", args->replay,
                  "Sequence folder that cameras with driver 'replay' serve")
       ->check(CLI::ExistingDirectory);

@@ -1,6 +1,7 @@
-// `lifmcr`: one executable, one subcommand per job (DESIGN.md, "Users and their jobs").
+// `lifmcr`: one executable, one subcommand per job (docs/architecture.md).
 
 #include "apps/commands.h"
+#include "apps/logging.h"
 
 #include <CLI/CLI.hpp>
 
@@ -13,6 +14,14 @@ int main(int argc, char** argv) {
       "registration and evaluation of LiFMCR-layout datasets."};
   app.require_subcommand(1);
   app.set_version_flag("--version", "lifmcr 0.1.0");
+
+  std::string log_level = "warn";
+  std::string log_file;
+  app.add_option("--log-level", log_level,
+                 "Operator log: trace, debug, info (the configuration in force), warn (devices "
+                 "lost, drops), error, off")
+      ->capture_default_str();
+  app.add_option("--log-file", log_file, "Append the log to this file (default: stderr)");
 
   std::vector<std::pair<CLI::App*, lifmcr::apps::CommandRun>> commands;
   auto add = [&](const char* name, const char* description, auto adder) {
@@ -42,6 +51,10 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     // --help and --version exit 0; every usage error exits 2, whatever CLI11's own code.
     return app.exit(e) == 0 ? 0 : 2;
+  }
+  if (lifmcr::Status s = lifmcr::apps::ConfigureLogging(log_level, log_file); !s) {
+    std::cerr << "lifmcr: " << s.error().message << "\n";
+    return 2;
   }
   for (auto& [sub, run] : commands)
     if (sub->parsed()) return run();

@@ -42,6 +42,17 @@ Expected<ReplayRate> ReplayRate::Parse(const std::string& text) {
   return rate;
 }
 
+Status ReplayRunOptions::Check() const {
+  if (sequence_dir.empty()) return Error{"replay: sequence_dir: empty"};
+  if (rate.kind == ReplayRate::Kind::kFactor && !(rate.factor > 0 && rate.factor <= 1000))
+    return Error{"replay: rate.factor: expected in (0, 1000]"};
+  if (pool_buffers < 1 || pool_buffers > 1024) return Error{"replay: pool_buffers: expected 1..1024"};
+  if (Status s = preview.Check(); !s) return Error{"replay: " + s.error().message};
+  if (Status s = pipeline.Check(); !s) return Error{"replay: " + s.error().message};
+  // loop, processing: any value; on_status and stop may be empty.
+  return Status::Ok();
+}
+
 std::string ReplayRunResult::FinalReport() const {
   std::ostringstream out;
   out << "replayed: " << cameras << " camera(s), " << frames_in_sequence
@@ -54,6 +65,7 @@ std::string ReplayRunResult::FinalReport() const {
 
 Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
                                     std::unique_ptr<FrameProcessor> processor) {
+  if (Status s = options.Check(); !s) return s.error();
   auto sequence = DiscoverSequence(options.sequence_dir);
   if (!sequence) return sequence.error();
   if (sequence->cameras.empty())
@@ -131,11 +143,13 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
 
   if (!processor) {
     if (options.processing) {
-      auto depth = DepthProcessor::ForSequence(options.sequence_dir.string(), serials);
+      auto depth =
+          DepthProcessor::ForSequence(options.sequence_dir.string(), serials, options.preview);
       if (!depth) return depth.error();
       processor = std::move(*depth);
     } else {
-      processor = std::make_unique<PreviewProcessor>();
+      if (Status s = options.preview.Check(); !s) return s.error();
+      processor = std::make_unique<PreviewProcessor>(options.preview);
     }
   }
   PipelineOptions pipeline_options = options.pipeline;

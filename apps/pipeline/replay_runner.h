@@ -38,11 +38,14 @@ struct ReplayRunOptions {
   ReplayRate rate;
   bool loop = false;
   bool processing = true;  // false: previews only (no depth, no TF)
+  PreviewOptions preview;  // preview and TF image size, depth map size
+  // skip_when_busy is the rate's: newest wins when timed, block at max.
   PipelineOptions pipeline;
   int pool_buffers = 8;  // per replay camera
   // Called about once a second on the command's thread.
   std::function<void(const PipelineReport&)> on_status;
   const std::atomic<bool>* stop = nullptr;  // set by a signal handler; may be null
+  Status Check() const;  // every field; the message names the field
 };
 
 struct ReplayRunResult {

@@ -5,7 +5,7 @@
 // YAML file overrides any of them (keys = the field names below, grouped as
 // in SynthParams: `camera:`, `rig:`, `vicon:`; see LoadSynthConfig).
 //
-// Symbols (notes/processing.md section 0): f_L main-lens focal length,
+// Symbols (the paper's; docs/processing.md): f_L main-lens focal length,
 // b_L0 main lens -> MLA, B MLA -> sensor, D micro-image pitch, s pixel size,
 // v = b / B virtual depth.
 
