@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <utility>
 
 namespace lifmcr::processing {
 namespace {
@@ -19,20 +20,22 @@ std::string_view ToString(Devignetting mode) {
   switch (mode) {
     case Devignetting::kWhiteImage:
       return "white image";
-    case Devignetting::kNone:
-      return "none";
+    case Devignetting::kFromFrame:
+      return "from the frame";
   }
   return "?";
 }
 
 Devignetting SelectDevignetting(const CameraSetup& setup) {
-  return setup.white ? Devignetting::kWhiteImage : Devignetting::kNone;
+  return setup.white ? Devignetting::kWhiteImage : Devignetting::kFromFrame;
 }
 
 Status ChainOptions::Check() const {
   if (Status s = frame.Check(); !s) return Error{"chain options: frame: " + s.error().message};
   if (Status s = depth.Check(); !s) return Error{"chain options: depth: " + s.error().message};
   if (Status s = tf.Check(); !s) return Error{"chain options: tf: " + s.error().message};
+  if (Status s = vignetting.Check(); !s)
+    return Error{"chain options: vignetting: " + s.error().message};
   // metric_depth, point_cloud, cloud_measured_only: any value.
   return Status::Ok();
 }
@@ -95,8 +98,34 @@ Expected<std::unique_ptr<CameraChain>> CameraChain::Create(CameraSetup setup,
 std::string CameraChain::Describe() const {
   char lambda[64];
   std::snprintf(lambda, sizeof lambda, "lambda %.4f", options_.frame.lambda);
-  return setup_.serial + ": devignetting " + std::string(ToString(devignetting_)) + ", " + lambda +
+  std::string devignetting(ToString(devignetting_));
+  {
+    std::lock_guard lock(mutex_);
+    if (estimate_) devignetting += " (" + estimate_->BriefReport() + ")";
+  }
+  return setup_.serial + ": devignetting " + devignetting + ", " + lambda +
          (camera_ ? " (intrinsics; metric depth)" : " (no intrinsics: virtual depth only)");
+}
+
+Expected<ConstImageView> CameraChain::WhiteFor(ConstImageView raw, const MlaGrid& grid) {
+  switch (devignetting_) {
+    case Devignetting::kWhiteImage:
+      return ConstImageView(std::as_const(*setup_.white).View());
+    case Devignetting::kFromFrame: {
+      std::lock_guard lock(mutex_);
+      if (!estimate_ || estimate_->width != raw.width || estimate_->height != raw.height) {
+        VignettingOptions options = options_.vignetting;
+        if (options_.vignetting_auto_rows && raw.height > 2000) options.row_step = 4;
+        auto estimate = EstimateVignetting(raw, grid, setup_.mla, options);
+        if (!estimate) return Error{"camera " + setup_.serial + ": " + estimate.error().message};
+        estimate_ = std::move(*estimate);
+      }
+      // The estimate lives as long as the chain; it is replaced only for
+      // frames of another size (a camera that changes its ROI mid-run).
+      return estimate_->White();
+    }
+  }
+  return ConstImageView{};
 }
 
 Expected<MlaGrid> CameraChain::GridFor(int width, int height) {
@@ -135,9 +164,9 @@ Expected<ChainLease> CameraChain::Process(ConstImageView raw) {
     auto grid = GridFor(raw.width, raw.height);
     if (!grid) return grid.error();
     p.geometry_width_ = p.geometry_height_ = 0;
-    const ConstImageView white =
-        devignetting_ == Devignetting::kWhiteImage ? setup_.white->View() : ConstImageView{};
-    if (Status s = PrepareGeometry(white, raw.width, raw.height, *grid, setup_.mla,
+    auto white = WhiteFor(raw, *grid);
+    if (!white) return white.error();
+    if (Status s = PrepareGeometry(*white, raw.width, raw.height, *grid, setup_.mla,
                                    options_.frame, &p.prepared);
         !s)
       return s.error();

@@ -2,7 +2,7 @@
 
 #include "apps/pipeline/camera_setup.h"
 
-#include "replay/bmp.h"
+#include "replay/raw_image.h"
 #include "replay/camera_calibration.h"
 #include "replay/mla_xml.h"
 
@@ -22,7 +22,7 @@ Expected<processing::CameraSetup> Load(const std::string& serial,
   if (!mla) return Error{mla.error().message + " (MLA file of camera " + serial + ")"};
   setup.mla = std::move(*mla);
   if (paths.white) {
-    auto white = ReadBmp(*paths.white);
+    auto white = ReadRawImage(*paths.white);
     if (!white) return Error{white.error().message + " (white image of camera " + serial + ")"};
     setup.white = std::move(*white);
   }
@@ -83,6 +83,7 @@ Expected<processing::CameraSetup> LoadSequenceCamera(const fs::path& sequence_di
                                                      const CameraFileOverrides& files) {
   auto paths = CalibrationPathsForSequence(sequence_dir, serial, files.mla, files.white);
   if (!paths) return paths.error();
+  if (!files.look_up_white && files.white.empty()) paths->white.reset();
   return Load(serial, *paths, files.intrinsics);
 }
 
