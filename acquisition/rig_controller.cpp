@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -26,6 +27,8 @@ Status RigControllerOptions::Check() const {
     return Error{"rig controller: stale_frames_for_restart: expected >= 1"};
   if (drain.count() < 0) return Error{"rig controller: drain: expected >= 0 ms"};
   if (sync_poll.count() <= 0) return Error{"rig controller: sync_poll: expected > 0 ms"};
+  if (vicon_lead_triggers < 0) return Error{"rig controller: vicon_lead_triggers: expected >= 0"};
+  if (vicon_divider < 1) return Error{"rig controller: vicon_divider: expected >= 1"};
   if (sync) {
     if (Status s = sync->Check(); !s) return Error{"rig controller: sync: " + s.error().message};
   } else if (number_files_by_sync) {
@@ -237,6 +240,7 @@ void RigController::RecordSets(std::vector<FrameSet> sets) {
   std::uint64_t complete = 0;
   for (FrameSet& set : sets) {
     complete += set.complete() ? 1 : 0;
+    if (observer_.on_frame_set) observer_.on_frame_set(set);
     if (!options_.number_files_by_sync) continue;  // the grab threads submitted them
     for (std::size_t c = 0; c < set.frames.size(); ++c) {
       std::optional<Frame>& frame = set.frames[c];
@@ -266,6 +270,7 @@ void RigController::GrabLoop(int index) {
     if (!next->has_value()) continue;
     Frame frame = std::move(**next);
     frame.camera_index = index;
+    frame.arrival_ns = RealtimeNs();  // the start of the latency to publication
     const std::size_t bytes =
         frame.image.stride_bytes * static_cast<std::size_t>(frame.image.height);
     std::int64_t frame_index = 0;
@@ -382,8 +387,35 @@ std::int64_t RigController::FirstIndexByHostTime(std::int64_t host_ns) {
   return std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor(periods + 0.25)));
 }
 
+bool RigController::ViconAhead(std::int64_t last_vicon_frame) const {
+  if (!first_vicon_frame_) return false;
+  std::int64_t slowest = INT64_MAX;
+  for (const auto& slot : slots_) {
+    if (slot->camera->Finished()) continue;
+    std::lock_guard<std::mutex> lock(slot->mutex);
+    slowest = std::min(slowest, slot->health.last_index);
+  }
+  if (slowest == INT64_MAX) return false;  // every camera done: Vicon drains
+  // The last frame of trigger slowest + lead is f0 + divider (slowest + lead + 1) - 1.
+  return last_vicon_frame >=
+         *first_vicon_frame_ +
+             static_cast<std::int64_t>(options_.vicon_divider) *
+                 (slowest + options_.vicon_lead_triggers + 1) -
+             1;
+}
+
 void RigController::ViconLoop() {
+  std::optional<std::int64_t> last_vicon_frame;
+  int in_burst = 0;
   while (vicon_running_.load()) {
+    if (options_.vicon_lead_triggers > 0) {
+      if ((last_vicon_frame && ViconAhead(*last_vicon_frame)) ||
+          in_burst >= options_.vicon_divider) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        in_burst = 0;
+        continue;
+      }
+    }
     Expected<std::optional<ViconFrame>> next = vicon_->Next(std::chrono::milliseconds(100));
     if (!next) {
       std::lock_guard<std::mutex> lock(vicon_mutex_);
@@ -394,6 +426,9 @@ void RigController::ViconLoop() {
       if (vicon_->Finished()) return;
       continue;
     }
+    if (!first_vicon_frame_) first_vicon_frame_ = (*next)->vicon_frame;
+    last_vicon_frame = (*next)->vicon_frame;
+    ++in_burst;
     if (observer_.on_vicon) observer_.on_vicon(**next);
     if (recorder_ != nullptr) recorder_->SubmitVicon(**next);
     if (assembler_ != nullptr) {
@@ -433,6 +468,13 @@ void RigController::TriggerLoop(int index, std::chrono::steady_clock::time_point
 }
 
 bool RigController::ViconFinished() const { return vicon_ && vicon_->Finished(); }
+
+bool RigController::CamerasFinished() const {
+  if (slots_.empty()) return false;
+  for (const auto& slot : slots_)
+    if (!slot->camera->Finished()) return false;
+  return true;
+}
 
 RigHealth RigController::Health() {
   RigHealth health;

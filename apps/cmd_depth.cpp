@@ -1,11 +1,12 @@
 // `lifmcr depth SEQ_DIR --camera SERIAL --frame K --out DIR [--intrinsics
 // cameras.yaml]` or `lifmcr depth --raw FILE --mla MLA.xml --out DIR`: one
 // raw frame (BMP, PNG or TIFF; replay/raw_image.h) to virtual depth (raw and
-// TF grids, with the confidence map on the raw grid), the totally focused
-// image, metric depth and a coloured point cloud, by the processing chain
-// replay and `record --publish` run too (processing/frame_chain.h,
-// apps/pipeline/camera_setup.h). The OpenCV (TIFF, PNG, colour map) boundary
-// of the processing library is here; the PLY is processing/ply.h.
+// TF grids, with the confidence map on the raw grid), the
+// totally focused image, metric depth and a coloured point cloud, by the
+// processing chain replay and `record --publish` run too
+// (processing/frame_chain.h; files found by apps/pipeline/camera_setup.h).
+// The OpenCV (TIFF, PNG, colour map) boundary of the processing library is
+// here; the PLY is processing/ply.h.
 
 #include "apps/commands.h"
 #include "apps/pipeline/camera_setup.h"
@@ -13,7 +14,6 @@
 #include "processing/ply.h"
 #include "replay/bayer.h"
 #include "replay/layout.h"
-#include "replay/mla_xml.h"
 #include "replay/raw_image.h"
 #include "replay/synth/gt_images.h"
 
@@ -101,26 +101,6 @@ Status Demosaic(std::optional<CameraPixelFormat> format, OwnedImage* image) {
   return Status::Ok();
 }
 
-// The camera of a single --raw file: --mla, and --white / --intrinsics when given.
-Expected<processing::CameraSetup> LoadSingleFileCamera(const DepthCommandOptions& o) {
-  processing::CameraSetup setup;
-  setup.serial = o.camera.empty() ? fs::path(o.raw).stem().string() : o.camera;
-  auto mla = ReadMlaXml(o.mla);
-  if (!mla) return Error{mla.error().message + " (MLA file)"};
-  setup.mla = std::move(*mla);
-  if (!o.white.empty()) {
-    auto white = ReadRawImage(o.white);
-    if (!white) return Error{white.error().message + " (white image)"};
-    setup.white = std::move(*white);
-  }
-  if (!o.intrinsics.empty()) {
-    auto k = ReadIntrinsics(o.intrinsics, o.camera);
-    if (!k) return k.error();
-    setup.intrinsics = *k;
-  }
-  return setup;
-}
-
 int RunDepth(const DepthCommandOptions& o) {
   const auto t_all = std::chrono::steady_clock::now();
   const bool single_file = !o.raw.empty();
@@ -128,8 +108,6 @@ int RunDepth(const DepthCommandOptions& o) {
     return Usage("give either SEQ_DIR (with --camera and --frame) or --raw FILE");
   if (!single_file && o.camera.empty()) return Usage("SEQ_DIR needs --camera SERIAL");
   if (single_file && o.mla.empty()) return Usage("--raw needs --mla (the camera's MLA XML)");
-  if (single_file && !o.intrinsics.empty() && o.camera.empty())
-    return Usage("--intrinsics needs --camera SERIAL (the camera to look up)");
   if (!o.white.empty() && o.no_white) return Usage("--white and --no-white exclude each other");
   std::optional<CameraPixelFormat> pixel_format;
   if (!o.pixel_format.empty()) {
@@ -141,6 +119,8 @@ int RunDepth(const DepthCommandOptions& o) {
   const fs::path seq = o.sequence;
   const fs::path raw_path =
       single_file ? fs::path(o.raw) : layout::RawFramePath(seq, o.camera, o.frame);
+  if (!o.intrinsics.empty() && o.camera.empty())
+    return Usage("--intrinsics needs --camera SERIAL (the camera to look up)");
 
   auto t = std::chrono::steady_clock::now();
   RawImageInfo raw_info;
@@ -148,16 +128,26 @@ int RunDepth(const DepthCommandOptions& o) {
   if (!raw) return Fail(raw.error().message);
   if (Status s = Demosaic(pixel_format, &*raw); !s)
     return Fail(raw_path.string() + ": " + s.error().message);
-  // The same lookup and chain as replay and record --publish (camera_setup.h).
-  auto setup = single_file ? LoadSingleFileCamera(o)
-                           : LoadSequenceCamera(seq, o.camera,
-                                                {o.mla, o.white, o.intrinsics, o.no_white});
+  // The same lookup and chain as replay and record --publish: the MLA file
+  // (--mla, else the dataset's Calibration/), the white image (--white, else
+  // the one beside the MLA file; none with --no-white or --raw alone: the
+  // vignetting then comes from the frame, processing/vignetting.h).
+  CameraFileOverrides files{o.mla, o.white, o.intrinsics, !o.no_white && !single_file};
+  auto setup = LoadSequenceCamera(seq, o.camera, files);
   if (!setup)
     return Fail(setup.error().message +
-                " (--mla and --white name other files; --no-white uses no white image)");
-  if (setup->white)
+                " (--mla and --white name other files, --no-white uses no white image)");
+  if (setup->white) {
     if (Status s = Demosaic(pixel_format, &*setup->white); !s)
       return Fail("white image: " + s.error().message);
+  }
+  if (setup->intrinsics && (setup->intrinsics->width_px != raw->width ||
+                            setup->intrinsics->height_px != raw->height))
+    return Fail(o.intrinsics + ": camera " + o.camera + " is " +
+                std::to_string(setup->intrinsics->width_px) + "x" +
+                std::to_string(setup->intrinsics->height_px) + ", the raw frame " +
+                std::to_string(raw->width) + "x" + std::to_string(raw->height));
+  const bool has_white = setup->white.has_value();
   processing::ChainOptions chain_options;
   chain_options.point_cloud = true;
   chain_options.cloud_measured_only = true;
@@ -170,16 +160,19 @@ int RunDepth(const DepthCommandOptions& o) {
       pixel_format && IsBayer(*pixel_format)
           ? (std::string(", demosaiced from ") + std::string(ToString(*pixel_format))).c_str()
           : "");
-  std::printf("camera    %s\n", camera.Describe().c_str());
 
   auto lease = (*chain)->Process(raw->View());
-  if (!lease) return Fail(lease.error().message);
+  if (!lease) return Fail(raw_path.string() + ": " + lease.error().message);
   const processing::ChainProducts& p = **lease;
   const processing::VirtualDepthMap& depth = p.raw_depth;
   const processing::TfDepthMap& tf_depth = p.tf_depth;
   const processing::TfImage& tf = p.tf;
-  std::printf("prepare   %.3f s  %zu micro images, devignetting: %s\n", p.prepare_s,
-              p.prepared.lenses.size(), camera.DevignettingReport().c_str());
+  std::printf("prepare   %.3f s  %zu micro images; %s%s\n", p.prepare_s, p.prepared.lenses.size(),
+              has_white ? "devignetted by the white image"
+                        : ("no white image: " + camera.Describe()).c_str(),
+              camera.camera_model()
+                  ? ""
+                  : "; no intrinsics: micro-lens centres = micro-image centres (lambda 1)");
   const double raw_mp = raw->width * static_cast<double>(raw->height) / 1e6;
   std::printf("depth     %.3f s  %.1f raw MP/s; %s\n", p.depth_s, raw_mp / p.depth_s,
               depth.stats.BriefReport().c_str());
@@ -226,8 +219,7 @@ int RunDepth(const DepthCommandOptions& o) {
                                          tf_depth.height, p.depth_mm);
         !s)
       return Fail(s.error().message);
-    if (Status s = processing::WritePly(out / (stem + "_points.ply"), p.cloud, o.uncertainty);
-        !s)
+    if (Status s = processing::WritePly(out / (stem + "_points.ply"), p.cloud, o.uncertainty); !s)
       return Fail(s.error().message);
     std::printf("cloud     %zu points (measured TF pixels)\n", p.cloud.points_mm.size());
   } else {
@@ -266,7 +258,8 @@ CommandRun AddDepthCommand(CLI::App& app) {
   app.add_option("--intrinsics", o->intrinsics,
                  "cameras.yaml with the camera's model (metric depth and point cloud)");
   app.add_option("--white", o->white,
-                 "White image (default: the dataset's Calibration folder when it holds one)");
+                 "White image (default: the one beside the MLA file in Calibration/ when it "
+                 "exists)");
   app.add_flag("--no-white", o->no_white,
                "Use no white image: vignetting from the frame, or none if already corrected");
   app.add_option("--pixel-format", o->pixel_format,

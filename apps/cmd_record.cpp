@@ -97,6 +97,9 @@ Expected<std::unique_ptr<Pipeline>> MakePublishPipeline(const RigConfig& rig, co
   FrameSetAssemblerOptions sync = FrameSetAssemblerOptions::FromRig(rig);
   PipelineOptions options = PipelineOptions::FromRig(rig);
   if (!args.lcm_url.empty()) options.publisher.url = args.lcm_url;
+  // The controller's assembler makes the FrameSets (one per run), unless
+  // --no-sync leaves it out: then the pipeline's own.
+  options.frame_sets_from_grab_loop = !args.no_sync;
   return Pipeline::Create(sync, std::move(processor), options);
 }
 
@@ -134,7 +137,6 @@ int Run(const Args& args) {
 
   std::vector<std::unique_ptr<Camera>> cameras;
   std::vector<bool> software_trigger;
-  std::vector<const ReplayCamera*> replay_cameras;
   for (std::size_t i = 0; i < rig->cameras.size(); ++i) {
     const CameraConfig& config = rig->cameras[i];
     CameraFactoryOptions factory;
@@ -155,18 +157,9 @@ int Run(const Args& args) {
       std::cerr << "lifmcr record: " << camera.error().message << "\n";
       return kExitCannotStart;
     }
-    if (auto* replay = dynamic_cast<const ReplayCamera*>(camera->get()))
-      replay_cameras.push_back(replay);
     cameras.push_back(std::move(*camera));
     software_trigger.push_back(config.trigger.mode == TriggerMode::kSoftware);
   }
-  // A rig made only of replay cameras ends with its sequence.
-  auto replay_finished = [&replay_cameras, n = rig->cameras.size()] {
-    if (replay_cameras.empty() || replay_cameras.size() != n) return false;
-    for (const ReplayCamera* camera : replay_cameras)
-      if (!camera->Finished()) return false;
-    return true;
-  };
   auto vicon = MakeViconSource(*rig);
   if (!vicon) {
     std::cerr << "lifmcr record: " << vicon.error().message << "\n";
@@ -190,8 +183,11 @@ int Run(const Args& args) {
     }
     pipeline = std::move(*made);
     Pipeline* p = pipeline.get();
-    // A copy of the Frame shares the pooled buffer (no pixel copy).
-    observer.on_frame = [p](int, std::int64_t, const Frame& frame) { p->AddFrame(frame); };
+    // A copy of a Frame or FrameSet shares the pooled buffers (no pixel copy).
+    if (args.no_sync)
+      observer.on_frame = [p](int, std::int64_t, const Frame& frame) { p->AddFrame(frame); };
+    else
+      observer.on_frame_set = [p](const FrameSet& set) { p->AddFrameSet(set); };
     observer.on_vicon = [p](const ViconFrame& frame) { p->AddVicon(frame); };
   }
   RigControllerOptions controller_options;
@@ -222,7 +218,8 @@ int Run(const Args& args) {
       stop_why = "write error";
       break;
     }
-    if (replay_finished()) {
+    // A rig made only of replay cameras ends with its sequence.
+    if (controller.CamerasFinished()) {
       stop_why = "end of the replayed sequence";
       break;
     }
@@ -232,7 +229,9 @@ int Run(const Args& args) {
         std::chrono::duration<double>(now - start).count() >= args.duration_s)
       break;
     if (now >= next_status) {
-      const std::string line = controller.Health().StatusLine();
+      const RigHealth health = controller.Health();
+      if (pipeline) pipeline->SetSyncDrops(health.sync_drops);
+      const std::string line = health.StatusLine();
       if (terminal)
         std::cerr << "\r" << line << "\x1b[K" << std::flush;
       else
@@ -249,6 +248,7 @@ int Run(const Args& args) {
             << "stopped by: " << stop_why << "\n"
             << health.FinalReport();
   if (pipeline) {
+    pipeline->SetSyncDrops(health.sync_drops);
     pipeline->Finish();
     std::cout << "published (--publish):\n" << pipeline->Report().FinalReport();
   }

@@ -2,11 +2,10 @@
 
 #include "processing/frame_chain.h"
 
-#include "processing/vignetting.h"
-
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <utility>
 
 namespace lifmcr::processing {
 namespace {
@@ -21,24 +20,22 @@ std::string_view ToString(Devignetting mode) {
   switch (mode) {
     case Devignetting::kWhiteImage:
       return "white image";
-    case Devignetting::kNone:
-      return "none (already corrected)";
     case Devignetting::kFromFrame:
-      return "estimated from the frame";
-    case Devignetting::kUndecided:
-      return "undecided (no white image; the first frame decides)";
+      return "from the frame";
   }
   return "?";
 }
 
 Devignetting SelectDevignetting(const CameraSetup& setup) {
-  return setup.white ? Devignetting::kWhiteImage : Devignetting::kUndecided;
+  return setup.white ? Devignetting::kWhiteImage : Devignetting::kFromFrame;
 }
 
 Status ChainOptions::Check() const {
   if (Status s = frame.Check(); !s) return Error{"chain options: frame: " + s.error().message};
   if (Status s = depth.Check(); !s) return Error{"chain options: depth: " + s.error().message};
   if (Status s = tf.Check(); !s) return Error{"chain options: tf: " + s.error().message};
+  if (Status s = vignetting.Check(); !s)
+    return Error{"chain options: vignetting: " + s.error().message};
   // metric_depth, point_cloud, cloud_measured_only: any value.
   return Status::Ok();
 }
@@ -101,40 +98,34 @@ Expected<std::unique_ptr<CameraChain>> CameraChain::Create(CameraSetup setup,
 std::string CameraChain::Describe() const {
   char lambda[64];
   std::snprintf(lambda, sizeof lambda, "lambda %.4f", options_.frame.lambda);
-  return setup_.serial + ": devignetting " + DevignettingReport() + ", " + lambda +
+  std::string devignetting(ToString(devignetting_));
+  {
+    std::lock_guard lock(mutex_);
+    if (estimate_) devignetting += " (" + estimate_->BriefReport() + ")";
+  }
+  return setup_.serial + ": devignetting " + devignetting + ", " + lambda +
          (camera_ ? " (intrinsics; metric depth)" : " (no intrinsics: virtual depth only)");
 }
 
-Devignetting CameraChain::devignetting() const {
-  std::lock_guard lock(vignetting_mutex_);
-  return devignetting_;
-}
-
-std::string CameraChain::DevignettingReport() const {
-  std::lock_guard lock(vignetting_mutex_);
-  return vignetting_report_.empty() ? std::string(ToString(devignetting_)) : vignetting_report_;
-}
-
-Status CameraChain::DecideVignetting(ConstImageView raw, const MlaGrid& grid) {
-  std::scoped_lock lock(mutex_, vignetting_mutex_);  // GridFor reads setup_.white under mutex_
-  if (devignetting_ != Devignetting::kUndecided) return Status::Ok();
-  VignettingOptions vignetting_options;
-  vignetting_options.row_step = raw.height > 2000 ? 4 : 1;  // plenty of micro images either way
-  Expected<VignettingEstimate> estimate =
-      EstimateVignetting(raw, grid, setup_.mla, vignetting_options);
-  if (!estimate) return Error{"camera " + setup_.serial + ": " + estimate.error().message};
-  vignetting_report_ = estimate->BriefReport();
-  if (estimate->already_corrected) {
-    devignetting_ = Devignetting::kNone;
-    return Status::Ok();
+Expected<ConstImageView> CameraChain::WhiteFor(ConstImageView raw, const MlaGrid& grid) {
+  switch (devignetting_) {
+    case Devignetting::kWhiteImage:
+      return ConstImageView(std::as_const(*setup_.white).View());
+    case Devignetting::kFromFrame: {
+      std::lock_guard lock(mutex_);
+      if (!estimate_ || estimate_->width != raw.width || estimate_->height != raw.height) {
+        VignettingOptions options = options_.vignetting;
+        if (options_.vignetting_auto_rows && raw.height > 2000) options.row_step = 4;
+        auto estimate = EstimateVignetting(raw, grid, setup_.mla, options);
+        if (!estimate) return Error{"camera " + setup_.serial + ": " + estimate.error().message};
+        estimate_ = std::move(*estimate);
+      }
+      // The estimate lives as long as the chain; it is replaced only for
+      // frames of another size (a camera that changes its ROI mid-run).
+      return estimate_->White();
+    }
   }
-  // The estimate becomes the camera's white image (one Mono8 frame, kept for
-  // the camera's lifetime like a white image read from disk).
-  OwnedImage white = OwnedImage::Allocate(estimate->width, estimate->height, PixelFormat::kMono8);
-  white.pixels = std::move(estimate->white);
-  setup_.white = std::move(white);
-  devignetting_ = Devignetting::kFromFrame;
-  return Status::Ok();
+  return ConstImageView{};
 }
 
 Expected<MlaGrid> CameraChain::GridFor(int width, int height) {
@@ -173,12 +164,9 @@ Expected<ChainLease> CameraChain::Process(ConstImageView raw) {
     auto grid = GridFor(raw.width, raw.height);
     if (!grid) return grid.error();
     p.geometry_width_ = p.geometry_height_ = 0;
-    if (Status s = DecideVignetting(raw, *grid); !s) return s.error();
-    const Devignetting mode = devignetting();
-    const ConstImageView white = mode == Devignetting::kWhiteImage || mode == Devignetting::kFromFrame
-                                     ? setup_.white->View()
-                                     : ConstImageView{};
-    if (Status s = PrepareGeometry(white, raw.width, raw.height, *grid, setup_.mla,
+    auto white = WhiteFor(raw, *grid);
+    if (!white) return white.error();
+    if (Status s = PrepareGeometry(*white, raw.width, raw.height, *grid, setup_.mla,
                                    options_.frame, &p.prepared);
         !s)
       return s.error();

@@ -5,15 +5,12 @@
 //
 // Once per camera (CameraChain::Create, and at the first frame of a size):
 //   devignetting mode  the white image when the camera has one
-//                      (Devignetting::kWhiteImage); else the first frame
-//                      decides (processing/vignetting.h): already corrected
-//                      (Devignetting::kNone, RxLive "Processed" raws: the
-//                      whole disc of r_valid is used as it is) or a white
-//                      image built from the frame's mean micro image
-//                      (Devignetting::kFromFrame, used from then on as a
-//                      real one); SelectDevignetting and
-//                      CameraChain::DecideVignetting are the only places
-//                      that decide;
+//                      (Devignetting::kWhiteImage), else the vignetting
+//                      the camera's first frame shows (Devignetting::
+//                      kFromFrame, processing/vignetting.h: a white image
+//                      built from the mean micro image, or none when the
+//                      frame is already devignetted); SelectDevignetting is
+//                      the one place that decides;
 //   MLA grid           MlaGrid::FromCalibration of the MLA file for the
 //                      frame size (the white image's when there is one);
 //   lambda             b_L0 / (b_L0 + B) from the intrinsics when known,
@@ -43,6 +40,7 @@
 #include "processing/plenoptic_frame.h"
 #include "processing/point_cloud.h"
 #include "processing/total_focus.h"
+#include "processing/vignetting.h"
 #include "processing/virtual_depth.h"
 
 #include <map>
@@ -58,12 +56,9 @@ namespace lifmcr::processing {
 // How a camera's frames are devignetted (chosen once per camera).
 enum class Devignetting {
   kWhiteImage,  // I_n = I * W_ref / W (plenoptic_frame.h)
-  kNone,        // no white image, frame already corrected: the whole r_valid disc valid
-  kFromFrame,   // no white image: one estimated from the first frame (vignetting.h)
-  kUndecided,   // no white image, no frame seen yet
+  kFromFrame,   // no white image: estimated once from the camera's first frame (vignetting.h)
 };
-// "white image", "none (already corrected)", "estimated from the frame", "undecided"
-std::string_view ToString(Devignetting mode);
+std::string_view ToString(Devignetting mode);  // "white image", "from the frame"
 
 // What a camera brings to the chain: its MLA calibration, and when known its
 // white image and intrinsics. Files are found and read outside processing
@@ -75,8 +70,7 @@ struct CameraSetup {
   std::optional<CameraIntrinsics> intrinsics;
 };
 
-// The devignetting a setup gets before its first frame: kWhiteImage with a
-// white image, else kUndecided (the first frame decides).
+// The devignetting a setup gets: the one branch point of the per-camera setup.
 Devignetting SelectDevignetting(const CameraSetup& setup);
 
 struct ChainOptions {
@@ -85,6 +79,10 @@ struct ChainOptions {
   FrameOptions frame;
   DepthOptions depth;  // virtual depth on the raw grid
   TfOptions tf;        // TF depth map and totally focused image
+  // Without a white image. With vignetting_auto_rows, frames taller than
+  // 2000 rows are sampled every 4th row (an R32 frame: plenty of micro images).
+  VignettingOptions vignetting;
+  bool vignetting_auto_rows = true;
   bool metric_depth = true;   // with intrinsics: camera z (mm) per TF pixel
   bool point_cloud = false;   // with intrinsics: the coloured point cloud (mm)
   bool cloud_measured_only = true;  // cloud of measured TF pixels only, not filled ones
@@ -132,11 +130,10 @@ class CameraChain {
   const std::string& serial() const { return setup_.serial; }
   const MlaCalibration& mla() const { return setup_.mla; }
   const std::optional<CameraModel>& camera_model() const { return camera_; }
-  Devignetting devignetting() const;
-  // How the devignetting was chosen: "white image" or the vignetting
-  // estimate's BriefReport (vignetting.h) once a frame was seen.
-  std::string DevignettingReport() const;
-  // "40398678: white image, lambda 0.9920 (intrinsics)" for the operator.
+  Devignetting devignetting() const { return devignetting_; }
+  // "40398678: devignetting white image, lambda 0.9920 (intrinsics; metric
+  // depth)" for the operator; with kFromFrame, after the first frame, what
+  // the estimate decided.
   std::string Describe() const;
 
  private:
@@ -144,21 +141,22 @@ class CameraChain {
   CameraChain() = default;
   // The grid of frames of width x height (made once per size).
   Expected<MlaGrid> GridFor(int width, int height);
-  // Without a white image: the first frame decides the devignetting (once).
-  Status DecideVignetting(ConstImageView raw, const MlaGrid& grid);
+  // The white image to devignette with (empty view: none), estimated from
+  // `raw` at the first frame with kFromFrame.
+  Expected<ConstImageView> WhiteFor(ConstImageView raw, const MlaGrid& grid);
   ChainLease Acquire();
   void Release(ChainProducts* products);
 
   CameraSetup setup_;
   ChainOptions options_;
-  Devignetting devignetting_ = Devignetting::kNone;
+  Devignetting devignetting_ = Devignetting::kWhiteImage;
   std::optional<CameraModel> camera_;
-  std::mutex mutex_;  // guards grid_ and idle_
+  mutable std::mutex mutex_;  // guards grid_, estimate_ and idle_
   std::optional<MlaGrid> grid_;
   int grid_width_ = 0, grid_height_ = 0;
+  // kFromFrame: the estimate from the camera's first frame (guarded by mutex_).
+  std::optional<VignettingEstimate> estimate_;
   std::vector<std::unique_ptr<ChainProducts>> idle_;
-  mutable std::mutex vignetting_mutex_;  // guards devignetting_, vignetting_report_, setup_.white
-  std::string vignetting_report_;
 };
 
 // The chains of a rig's cameras, by serial.

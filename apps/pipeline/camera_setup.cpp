@@ -83,7 +83,7 @@ Expected<processing::CameraSetup> LoadSequenceCamera(const fs::path& sequence_di
                                                      const CameraFileOverrides& files) {
   auto paths = CalibrationPathsForSequence(sequence_dir, serial, files.mla, files.white);
   if (!paths) return paths.error();
-  if (files.no_white) paths->white.reset();
+  if (!files.look_up_white && files.white.empty()) paths->white.reset();
   return Load(serial, *paths, files.intrinsics);
 }
 

@@ -25,10 +25,13 @@ struct CameraFileOverrides {
   std::filesystem::path mla;
   std::filesystem::path white;
   std::filesystem::path intrinsics;  // cameras.yaml; empty: no intrinsics
-  bool no_white = false;  // no white image even where the dataset has one (vignetting from the frame)
+  // false: no white image unless `white` names one (`lifmcr depth --no-white`,
+  // --raw): the vignetting then comes from the frame.
+  bool look_up_white = true;
 };
 
-// One camera of a recorded sequence.
+// One camera of a recorded sequence (or, with files.mla given, of any MLA
+// file; sequence_dir may then be empty).
 Expected<processing::CameraSetup> LoadSequenceCamera(const std::filesystem::path& sequence_dir,
                                                      const std::string& serial,
                                                      const CameraFileOverrides& files = {});

@@ -18,6 +18,7 @@
 #include <oneapi/tbb/task_arena.h>
 #include <oneapi/tbb/task_scheduler_observer.h>
 #include <optional>
+#include <utility>
 #include <sstream>
 #include <sys/resource.h>
 #include <sys/syscall.h>
@@ -147,8 +148,25 @@ struct Pipeline::Impl {
   std::unique_ptr<Publisher> publisher;
 
   std::mutex sync_mutex;
-  std::unique_ptr<FrameSetAssembler> assembler;
+  std::unique_ptr<FrameSetAssembler> assembler;  // null with frame_sets_from_grab_loop
   DropCounter drops_before;  // of the assemblers of earlier passes
+  // frame_sets_from_grab_loop (sync_mutex): sets waiting for Poll, the grab
+  // loop's losses, and f0 as the sets say it.
+  std::vector<FrameSet> external_sets;
+  DropCounter external_drops;
+  std::optional<std::int64_t> external_f0;
+
+  DropCounter SyncDrops() const {  // sync_mutex held
+    DropCounter drops = drops_before;
+    const DropCounter& current = assembler ? assembler->drops() : external_drops;
+    for (int k = 0; k < kDropKindCount; ++k)
+      drops.Add(static_cast<DropKind>(k), current[static_cast<DropKind>(k)]);
+    return drops;
+  }
+  std::vector<FrameSet> TakeSets(bool flush) {  // sync_mutex held
+    if (!assembler) return std::exchange(external_sets, {});
+    return flush ? assembler->Flush() : assembler->Poll(NowRealtimeNs());
+  }
 
   // Processing gets `threads` workers: its own arena has no master slot (the
   // command's loop never helps), and the process allows the workers to fill
@@ -352,9 +370,7 @@ struct Pipeline::Impl {
     m.skipped = r.skipped;
     m.failed = r.failed;
     std::lock_guard lock(sync_mutex);
-    m.drops = drops_before;
-    for (int k = 0; k < kDropKindCount; ++k)
-      m.drops.Add(static_cast<DropKind>(k), assembler->drops()[static_cast<DropKind>(k)]);
+    m.drops = SyncDrops();
     return m;
   }
 
@@ -376,9 +392,7 @@ struct Pipeline::Impl {
     }
     r.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     std::lock_guard lock(sync_mutex);
-    DropCounter drops = drops_before;
-    for (int k = 0; k < kDropKindCount; ++k)
-      drops.Add(static_cast<DropKind>(k), assembler->drops()[static_cast<DropKind>(k)]);
+    const DropCounter drops = SyncDrops();
     r.drops = drops.OneLine();
     r.sync_lost = drops.lost();
     return r;
@@ -401,7 +415,7 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
   auto publisher = Publisher::Create(options.publisher);
   if (!publisher) return publisher.error();
   impl->publisher = std::move(*publisher);
-  impl->assembler = std::make_unique<FrameSetAssembler>(sync);
+  if (!options.frame_sets_from_grab_loop) impl->assembler = std::make_unique<FrameSetAssembler>(sync);
   const int threads = options.threads > 0 ? options.threads : tbb::info::default_concurrency();
   impl->arena = std::make_unique<tbb::task_arena>(threads, /*reserved_for_masters=*/0);
   if (options.processing_nice > 0) {
@@ -439,15 +453,33 @@ Pipeline::~Pipeline() { impl_->WaitIdle(); }
 void Pipeline::AddFrame(Frame frame) {
   if (frame.arrival_ns == 0) frame.arrival_ns = NowRealtimeNs();
   std::lock_guard lock(impl_->sync_mutex);
-  impl_->assembler->AddFrame(std::move(frame));
+  if (impl_->assembler) impl_->assembler->AddFrame(std::move(frame));
+}
+
+void Pipeline::AddFrameSet(FrameSet set) {
+  std::lock_guard lock(impl_->sync_mutex);
+  if (!impl_->external_f0 && set.vicon_frame >= 0)
+    impl_->external_f0 =
+        set.vicon_frame - static_cast<std::int64_t>(impl_->sync_options.vicon_divider) *
+                              set.trigger_index;
+  impl_->external_sets.push_back(std::move(set));
+}
+
+void Pipeline::SetSyncDrops(const DropCounter& drops) {
+  std::lock_guard lock(impl_->sync_mutex);
+  impl_->external_drops = drops;
 }
 
 void Pipeline::AddVicon(const ViconFrame& frame) {
   std::optional<std::int64_t> f0;
   {
     std::lock_guard lock(impl_->sync_mutex);
-    impl_->assembler->AddVicon(frame);
-    f0 = impl_->assembler->vicon_f0();
+    if (impl_->assembler) {
+      impl_->assembler->AddVicon(frame);
+      f0 = impl_->assembler->vicon_f0();
+    } else {
+      f0 = impl_->external_f0 ? impl_->external_f0 : impl_->sync_options.vicon_f0;
+    }
   }
   const int divider = impl_->sync_options.vicon_divider;
   impl_->publisher->PublishVicon(frame, f0 && (frame.vicon_frame - *f0) % divider == 0);
@@ -458,7 +490,7 @@ void Pipeline::Poll() {
   std::vector<FrameSet> sets;
   {
     std::lock_guard lock(impl_->sync_mutex);
-    sets = impl_->assembler->Poll(NowRealtimeNs());
+    sets = impl_->TakeSets(/*flush=*/false);
   }
   impl_->SubmitSets(std::move(sets));
   const auto now = std::chrono::steady_clock::now();
@@ -472,15 +504,16 @@ void Pipeline::EndPass() {
   std::vector<FrameSet> sets;
   {
     std::lock_guard lock(impl_->sync_mutex);
-    sets = impl_->assembler->Flush();
+    sets = impl_->TakeSets(/*flush=*/true);
   }
   impl_->SubmitSets(std::move(sets));
   impl_->WaitIdle();
   std::lock_guard lock(impl_->sync_mutex);
-  for (int k = 0; k < kDropKindCount; ++k)
-    impl_->drops_before.Add(static_cast<DropKind>(k),
-                            impl_->assembler->drops()[static_cast<DropKind>(k)]);
-  impl_->assembler = std::make_unique<FrameSetAssembler>(impl_->sync_options);
+  impl_->drops_before = impl_->SyncDrops();
+  // The next pass starts a fresh assembler (the pipeline's or the grab loop's).
+  if (impl_->assembler)
+    impl_->assembler = std::make_unique<FrameSetAssembler>(impl_->sync_options);
+  impl_->external_drops = DropCounter{};
 }
 
 void Pipeline::Finish() {

@@ -60,6 +60,10 @@ struct PipelineOptions {
   // threads: on a saturated 2-core host a Vicon packet otherwise waits
   // milliseconds for a core.
   int processing_nice = 10;
+  // Where FrameSets come from: false, the pipeline's own assembler (fed by
+  // AddFrame); true, the grab loop's (RigController's, fed to AddFrameSet;
+  // its losses reported through SetSyncDrops): one assembler per run.
+  bool frame_sets_from_grab_loop = false;
   // The stage after processing; null: processing::PassThroughStage.
   std::shared_ptr<processing::RegistrationStage> registration;
   PublisherOptions publisher;
@@ -109,7 +113,14 @@ class Pipeline {
   Pipeline(const Pipeline&) = delete;
   Pipeline& operator=(const Pipeline&) = delete;
 
+  // frame_sets_from_grab_loop false: a frame for the pipeline's assembler.
   void AddFrame(Frame frame);
+  // frame_sets_from_grab_loop true: a FrameSet of the grab loop's assembler
+  // (any thread; processed from the next Poll on).
+  void AddFrameSet(FrameSet set);
+  // The grab loop's sync losses so far (frame_sets_from_grab_loop), for the
+  // report and the statistics message.
+  void SetSyncDrops(const DropCounter& drops);
   void AddVicon(const ViconFrame& frame);
   // Emits the ready FrameSets into processing (blocking without skipping)
   // and publishes the statistics when due.

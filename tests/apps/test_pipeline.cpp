@@ -4,11 +4,13 @@
 // live Vicon over UDP reaches LIFMCR_VICON the way `lifmcr record --publish`
 // wires it.
 
+#include "acquisition/recorder.h"
 #include "acquisition/rig_controller.h"
 #include "apps/pipeline/frame_processor.h"
 #include "apps/pipeline/pipeline.h"
 #include "apps/pipeline/process_settings.h"
 #include "apps/pipeline/replay_runner.h"
+#include "drivers/replay_camera.h"
 #include "drivers/vicon_udp_sender.h"
 #include "drivers/vicon_udp_source.h"
 #include "config/rig_config.h"
@@ -87,6 +89,12 @@ struct Received {
     }
   }
 };
+
+std::int64_t NowNsForTest() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
 
 void Drain(lcm::LCM& bus) {
   while (bus.handleTimeout(0) > 0) {
@@ -616,6 +624,102 @@ TEST(Pipeline, ComposedExtrinsicsCarryTheirCovariance) {
   // Unknown covariance on either side: unknown.
   c0.covariance.setZero();
   EXPECT_TRUE(processing::ComposeExtrinsics(c0, cx).covariance.isZero(0));
+}
+
+// Record and replay share the grab loop: RigController drives replay
+// cameras as fast as the pipeline takes frames (back-pressure, as
+// RunReplay runs them) with the recorder beside the pipeline (as `record
+// --publish` runs it): every frame is on disk and every frame is published.
+TEST(Pipeline, RecordAndReplayShareTheGrabLoopEveryFrameRecordedAndPublished) {
+  test::TempDir dir;
+  const int frames = 3;
+  auto summary = synth::WriteSyntheticDataset(dir / "synth", TinyRig(frames));
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  const auto sequence = DiscoverSequence(summary->sequence_dir);
+  ASSERT_TRUE(sequence.ok());
+  RigConfig rig;
+  rig.name = "shared";
+  std::vector<std::unique_ptr<Camera>> cameras;
+  std::vector<const ReplayCamera*> replay;
+  FrameSetAssemblerOptions sync;
+  sync.vicon_expected = false;
+  sync.trigger.counter_bits = 64;
+  sync.trigger.counter_skips_zero = false;
+  sync.lateness_ns = 3'600'000'000'000;  // as RunReplay at --rate max
+  const std::int64_t clock_start = NowNsForTest();
+  for (std::size_t i = 0; i < sequence->cameras.size(); ++i) {
+    CameraConfig camera;
+    camera.serial = sequence->cameras[i].serial;
+    camera.name = "cam" + std::to_string(i);
+    camera.driver.kind = DriverKind::kReplay;
+    camera.mla_file = layout::MlaXmlPath(summary->calibration_dir, camera.serial);
+    rig.cameras.push_back(camera);
+    sync.serials.push_back(camera.serial);
+    ReplayCameraOptions options;
+    options.camera_index = static_cast<int>(i);
+    options.pacing = ReplayPacing::kAsFastAsPossible;
+    options.pool_buffers = 4;
+    options.sequence_clock_start_ns = clock_start;
+    auto replay_camera = std::make_unique<ReplayCamera>(sequence->cameras[i].dir, options);
+    replay.push_back(replay_camera.get());
+    cameras.push_back(std::move(replay_camera));
+  }
+  rig.vicon.source = ViconSourceKind::kNone;
+  RecorderOptions recorder_options;
+  recorder_options.root_dir = dir / "rec";
+  recorder_options.direct_io = false;
+  auto recorder = Recorder::Create(rig, recorder_options);
+  ASSERT_TRUE(recorder.ok()) << recorder.error().message;
+
+  lcm::LCM bus("memq://");
+  Received received;
+  bus.subscribe("LIFMCR_.*", &Received::OnAny, &received);
+  PipelineOptions pipeline_options;
+  pipeline_options.publisher.bus = &bus;
+  pipeline_options.skip_when_busy = false;
+  pipeline_options.frame_sets_from_grab_loop = true;
+  auto pipeline = Pipeline::Create(sync, std::make_unique<PreviewProcessor>(), pipeline_options);
+  ASSERT_TRUE(pipeline.ok()) << pipeline.error().message;
+  Pipeline* p = pipeline->get();
+  // One assembler: the controller's FrameSets feed the pipeline.
+  RigObserver observer;
+  observer.on_frame_set = [p](const FrameSet& set) { p->AddFrameSet(set); };
+  RigControllerOptions controller_options;
+  controller_options.sync = sync;
+  controller_options.trigger_hz = 0;
+  controller_options.drain = std::chrono::milliseconds(0);
+  RigController controller(std::move(cameras), {false, false}, nullptr, recorder->get(),
+                           controller_options, observer);
+  ASSERT_TRUE(controller.Start().ok());
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (!controller.CamerasFinished() && std::chrono::steady_clock::now() < deadline) {
+    p->Poll();
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  EXPECT_TRUE(controller.CamerasFinished());
+  controller.Stop();
+  (*recorder)->Stop();
+  const RigHealth health = controller.Health();
+  p->SetSyncDrops(health.sync_drops);
+  p->Finish();
+  Drain(bus);
+  EXPECT_EQ(health.frame_sets, static_cast<std::uint64_t>(frames));
+  EXPECT_FALSE(health.FramesLost() > 0) << health.FinalReport();
+  for (const CameraHealth& camera : health.cameras)
+    EXPECT_EQ(camera.recorder.written, static_cast<std::uint64_t>(frames)) << health.FinalReport();
+  const PipelineReport r = p->Report();
+  EXPECT_EQ(r.processed, 2u * frames) << r.FinalReport();
+  EXPECT_EQ(r.skipped, 0u);
+  EXPECT_EQ(r.frame_sets, static_cast<std::uint64_t>(frames));
+  EXPECT_EQ(r.sync_lost, 0u) << r.drops;
+  for (const auto& camera : sequence->cameras) {
+    EXPECT_EQ(received.count[CameraChannel(camera.serial, "PREVIEW")], frames) << camera.serial;
+    for (std::int64_t f : camera.frames)
+      EXPECT_TRUE(std::filesystem::exists(layout::RawFramePath(
+          (*recorder)->sequence_dir(), camera.serial, f)))
+          << camera.serial << " " << f;
+  }
+  for (const ReplayCamera* camera : replay) EXPECT_EQ(camera->Stats().underruns, 0u);
 }
 
 TEST(Pipeline, RateParsing) {
