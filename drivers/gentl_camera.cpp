@@ -176,10 +176,10 @@ Status GenTlCamera::Impl::Connect() {
                 std::string(AccessStatusName(entry->access)));
   const Functions& fn = producer->fn();
   DEV_HANDLE opened_device = nullptr;
+  auto interface = producer->Interface(entry->interface_id);
+  if (!interface) return Fail(interface.error().message);
   {
     std::lock_guard<std::mutex> lock(producer->mutex());
-    auto interface = producer->Interface(entry->interface_id);
-    if (!interface) return Fail(interface.error().message);
     if (GC_ERROR code =
             fn.IFOpenDevice(*interface, entry->id.c_str(), DEVICE_ACCESS_EXCLUSIVE, &opened_device);
         code != GC_ERR_SUCCESS) {
