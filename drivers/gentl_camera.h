@@ -36,6 +36,12 @@
 // kIncomplete; larger than the buffer, another size or pixel format = kError.
 // host_ns is CLOCK_REALTIME when the event arrived (GenTL gives no host time).
 //
+// Chunks: where the device offers ChunkModeActive with ChunkSelector entries
+// Timestamp and FrameID, the driver enables them and takes ChunkTimestamp
+// (the camera's clock at exposure) and ChunkFrameID from each buffer in
+// place of the producer's buffer timestamp and frame id
+// (drivers/gentl_chunks.h).
+//
 // Statistics as the Aravis driver's: missing_ids are gaps in the frame id
 // (64-bit GenTL ids) less the underruns counted since the previous frame.
 //

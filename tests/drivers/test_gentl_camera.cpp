@@ -88,7 +88,9 @@ TEST(GenTlSim, OpensAndAppliesTheRegionAndFormatThroughThePort) {
   const CameraInfo info = camera->Info();
   EXPECT_EQ(info.width, 256);
   EXPECT_EQ(info.height, 128);
-  EXPECT_EQ(info.payload_bytes, 256u * 128u);
+  // The image and the camera's chunk (timestamp, frame id), which the driver enables.
+  EXPECT_EQ(info.payload_bytes, 256u * 128u + sim::kChunkBytes);
+  EXPECT_EQ(Feature(*camera, "ChunkModeActive"), "true");
   EXPECT_EQ(info.vendor, "lifmcr");
   EXPECT_EQ(info.serial, "GTLSIM0");
   EXPECT_EQ(info.device_id, "SimDev-GTLSIM0");
@@ -138,7 +140,7 @@ TEST(GenTlSim, SoftwareTriggerDeliversFramesIntoThePoolWithTheirPixels) {
   const CameraStats stats = camera->Stats();
   EXPECT_EQ(stats.completed, 6u);
   EXPECT_EQ(stats.failed + stats.missing_ids + stats.underruns, 0u);
-  EXPECT_EQ(stats.transferred_bytes, 6u * 256u * 128u);
+  EXPECT_EQ(stats.transferred_bytes, 6u * (256u * 128u + sim::kChunkBytes));
 }
 
 
@@ -160,8 +162,11 @@ TEST(GenTlSim, TimerTriggerDeliversOnTheLinePeriod) {
     frames.push_back(std::move(**next));
   }
   ASSERT_TRUE(camera->Stop());
+  // The device time is the camera's chunk timestamp, the pulse itself; the
+  // producer's own buffer timestamp is the arrival, exposure + 1 ms later.
   for (std::size_t i = 0; i < frames.size(); ++i) {
     EXPECT_EQ(frames[i].device_ns % kPeriodNs, 0) << "pulse " << i << " off the line's grid";
+    EXPECT_LT(frames[i].device_ns, frames[i].host_ns);
     if (i > 0) {
       EXPECT_EQ(frames[i].frame_id, frames[i - 1].frame_id + 1);
       EXPECT_EQ(frames[i].device_ns - frames[i - 1].device_ns, kPeriodNs);

@@ -104,6 +104,7 @@ struct Buffer {
   std::size_t filled = 0;
   bool incomplete = false;
   std::uint32_t width = 0, height = 0, pixel_format = 0;
+  std::size_t chunk_offset = 0;  // 0: no chunk in this frame
 };
 
 struct Event {
@@ -146,7 +147,8 @@ struct Camera {
     return regs[sim::kPixelFormat / 4] == 0x02180015 ? 3u : 1u;
   }
   std::uint32_t Payload() const {
-    return regs[sim::kWidth / 4] * regs[sim::kHeight / 4] * BytesPerPixel();
+    return regs[sim::kWidth / 4] * regs[sim::kHeight / 4] * BytesPerPixel() +
+           (regs[sim::kChunkModeActive / 4] != 0 ? sim::kChunkBytes : 0);
   }
 };
 
@@ -253,12 +255,24 @@ void Produce(Camera& camera, std::unique_lock<std::mutex>& lock, std::int64_t tr
   const bool incomplete = incomplete_every > 0 && frame_id % incomplete_every == 0;
   const std::uint32_t rows = incomplete ? height / 2 : height;
   buffer->frame_id = frame_id;
-  buffer->timestamp_ns = static_cast<std::uint64_t>(trigger_ns);
+  // The grabber stamps the frame on arrival: after the exposure and 1 ms of
+  // transfer; the camera's own chunk carries the trigger time.
+  buffer->timestamp_ns = static_cast<std::uint64_t>(
+      trigger_ns + static_cast<std::int64_t>(camera.exposure_us * 1000.0) + 1'000'000);
+  const bool chunk = camera.Reg(sim::kChunkModeActive) != 0 && !incomplete &&
+                     stride * height + sim::kChunkBytes <= buffer->size;
+  buffer->chunk_offset = chunk ? stride * height : 0;
+  if (chunk) {
+    const std::uint64_t values[2] = {
+        camera.regs[(sim::kChunkEnable) / 4] != 0 ? static_cast<std::uint64_t>(trigger_ns) : 0,
+        camera.regs[(sim::kChunkEnable + 4) / 4] != 0 ? frame_id : 0};
+    std::memcpy(buffer->base + buffer->chunk_offset, values, sizeof(values));
+  }
   buffer->width = width;
   buffer->height = height;
   buffer->pixel_format = camera.Reg(sim::kPixelFormat);
   buffer->incomplete = incomplete;
-  buffer->filled = std::min(buffer->size, stride * rows);
+  buffer->filled = std::min(buffer->size, stride * rows + (chunk ? sim::kChunkBytes : 0));
   const std::size_t capacity_rows = stride > 0 ? buffer->size / stride : 0;
   ++stream->filling;
   lock.unlock();
@@ -394,6 +408,7 @@ GC_ERROR WriteRegisters(Camera& camera, std::uint64_t address, const void* in, s
     }
     case sim::kAcquisitionStart:
       camera.running = true;
+      camera.pending_software = 0;
       camera.next_tick_ns = 0;
       system.wake.notify_all();
       return GC_ERR_SUCCESS;
@@ -401,11 +416,16 @@ GC_ERROR WriteRegisters(Camera& camera, std::uint64_t address, const void* in, s
       camera.running = false;
       return GC_ERR_SUCCESS;
     case sim::kTriggerSoftware:
+      if (!camera.running) return GC_ERR_SUCCESS;  // not acquiring: a trigger is ignored
       ++camera.pending_software;
       system.wake.notify_all();
       return GC_ERR_SUCCESS;
     case sim::kTriggerSelector:
-      if (value > 1) return Err(GC_ERR_INVALID_VALUE, "no such trigger selector");
+    case sim::kChunkSelector:
+      if (value > 1) return Err(GC_ERR_INVALID_VALUE, "no such selector value");
+      break;
+    case sim::kChunkModeActive:
+      if (streaming) return Err(GC_ERR_ACCESS_DENIED, "chunk mode is locked while acquiring");
       break;
     default:
       break;
@@ -912,8 +932,29 @@ GC_EXPORT GC_ERROR DSGetBufferInfo(DS_HANDLE handle, BUFFER_HANDLE buffer_handle
     case BUFFER_INFO_PAYLOADTYPE: return CopyValue<std::size_t>(PAYLOAD_TYPE_IMAGE, INFO_DATATYPE_SIZET, type, out, size);
     case BUFFER_INFO_DATA_LARGER_THAN_BUFFER: return CopyValue<bool8_t>(0, INFO_DATATYPE_BOOL8, type, out, size);
     case BUFFER_INFO_IS_QUEUED: return CopyValue<bool8_t>(buffer->queued, INFO_DATATYPE_BOOL8, type, out, size);
+    case BUFFER_INFO_CONTAINS_CHUNKDATA: return CopyValue<bool8_t>(buffer->chunk_offset != 0, INFO_DATATYPE_BOOL8, type, out, size);
     default: return Err(GC_ERR_NOT_IMPLEMENTED, "info not implemented");
   }
+}
+
+GC_EXPORT GC_ERROR DSGetBufferChunkData(DS_HANDLE handle, BUFFER_HANDLE buffer_handle,
+                                        SINGLE_CHUNK_DATA* chunks, std::size_t* count) {
+  std::lock_guard<std::mutex> lock(Sys().mutex);
+  Stream* stream = AsStream(handle);
+  if (stream == nullptr) return Err(GC_ERR_INVALID_HANDLE, "not a stream");
+  Buffer* buffer = AsBuffer(stream, buffer_handle);
+  if (buffer == nullptr) return Err(GC_ERR_INVALID_HANDLE, "not a buffer of this stream");
+  const std::size_t n = buffer->chunk_offset != 0 ? 1 : 0;
+  if (chunks == nullptr) {
+    *count = n;
+    return GC_ERR_SUCCESS;
+  }
+  if (*count < n) return Err(GC_ERR_BUFFER_TOO_SMALL, "one chunk");
+  if (n == 1)
+    chunks[0] = SINGLE_CHUNK_DATA{sim::kChunkId, static_cast<std::ptrdiff_t>(buffer->chunk_offset),
+                                  sim::kChunkBytes};
+  *count = n;
+  return GC_ERR_SUCCESS;
 }
 
 GC_EXPORT GC_ERROR GCRegisterEvent(EVENTSRC_HANDLE source, EVENT_TYPE event_type, EVENT_HANDLE* event) {

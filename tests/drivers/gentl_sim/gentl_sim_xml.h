@@ -34,8 +34,14 @@ enum : std::uint64_t {
   kDropEvery = 0x0500,         // every Nth frame id is lost in transport (0 = none)
   kIncompleteEvery = 0x0504,   // every Nth frame is delivered incomplete (0 = none)
   kLinePeriodUs = 0x0508,      // period of the "hardware" pulses on Line0/Line1
+  kChunkModeActive = 0x0520,   // 1: each frame carries the chunk kChunkId after the image
+  kChunkSelector = 0x0524,     // 0 Timestamp, 1 FrameID
+  kChunkEnable = 0x0528,       // + 4 * selector
   kXmlAddress = 0x10000,
 };
+// The chunk: [trigger time, ns, u64 LE][frame id, u64 LE], after the image.
+inline constexpr std::uint64_t kChunkId = 0x4C494643;
+inline constexpr std::uint64_t kChunkBytes = 16;
 
 inline constexpr char kXml[] = R"XML(<?xml version="1.0" encoding="utf-8"?>
 <RegisterDescription ModelName="GenTlSim" VendorName="lifmcr" ToolTip="lifmcr GenTL test camera"
@@ -49,6 +55,14 @@ inline constexpr char kXml[] = R"XML(<?xml version="1.0" encoding="utf-8"?>
     <pFeature>AcquisitionControl</pFeature>
     <pFeature>AnalogControl</pFeature>
     <pFeature>SimulationControl</pFeature>
+    <pFeature>ChunkDataControl</pFeature>
+  </Category>
+  <Category Name="ChunkDataControl" NameSpace="Standard">
+    <pFeature>ChunkModeActive</pFeature>
+    <pFeature>ChunkSelector</pFeature>
+    <pFeature>ChunkEnable</pFeature>
+    <pFeature>ChunkTimestamp</pFeature>
+    <pFeature>ChunkFrameID</pFeature>
   </Category>
   <Category Name="DeviceControl" NameSpace="Standard">
     <pFeature>DeviceVendorName</pFeature>
@@ -264,6 +278,43 @@ inline constexpr char kXml[] = R"XML(<?xml version="1.0" encoding="utf-8"?>
     <Address>0x0508</Address><Length>4</Length><AccessMode>RW</AccessMode><pPort>Device</pPort>
     <Sign>Unsigned</Sign><Endianess>LittleEndian</Endianess>
   </IntReg>
+
+  <Boolean Name="ChunkModeActive" NameSpace="Standard">
+    <pValue>ChunkModeActiveReg</pValue><OnValue>1</OnValue><OffValue>0</OffValue>
+  </Boolean>
+  <IntReg Name="ChunkModeActiveReg">
+    <Address>0x0520</Address><Length>4</Length><AccessMode>RW</AccessMode><pPort>Device</pPort>
+    <Sign>Unsigned</Sign><Endianess>LittleEndian</Endianess>
+  </IntReg>
+  <Enumeration Name="ChunkSelector" NameSpace="Standard">
+    <EnumEntry Name="Timestamp"><Value>0</Value></EnumEntry>
+    <EnumEntry Name="FrameID"><Value>1</Value></EnumEntry>
+    <pValue>ChunkSelectorReg</pValue>
+    <pSelected>ChunkEnable</pSelected>
+  </Enumeration>
+  <IntReg Name="ChunkSelectorReg">
+    <Address>0x0524</Address><Length>4</Length><AccessMode>RW</AccessMode><pPort>Device</pPort>
+    <Sign>Unsigned</Sign><Endianess>LittleEndian</Endianess>
+  </IntReg>
+  <Boolean Name="ChunkEnable" NameSpace="Standard">
+    <pValue>ChunkEnableReg</pValue><OnValue>1</OnValue><OffValue>0</OffValue>
+  </Boolean>
+  <IntReg Name="ChunkEnableReg">
+    <Address>0x0528</Address><pIndex Offset="4">ChunkSelectorReg</pIndex>
+    <Length>4</Length><AccessMode>RW</AccessMode><pPort>Device</pPort>
+    <Sign>Unsigned</Sign><Endianess>LittleEndian</Endianess>
+  </IntReg>
+  <Integer Name="ChunkTimestamp" NameSpace="Standard"><pValue>ChunkTimestampReg</pValue></Integer>
+  <IntReg Name="ChunkTimestampReg">
+    <Address>0x0</Address><Length>8</Length><AccessMode>RO</AccessMode><pPort>ChunkPortLifmcr</pPort>
+    <Sign>Unsigned</Sign><Endianess>LittleEndian</Endianess>
+  </IntReg>
+  <Integer Name="ChunkFrameID" NameSpace="Standard"><pValue>ChunkFrameIDReg</pValue></Integer>
+  <IntReg Name="ChunkFrameIDReg">
+    <Address>0x8</Address><Length>8</Length><AccessMode>RO</AccessMode><pPort>ChunkPortLifmcr</pPort>
+    <Sign>Unsigned</Sign><Endianess>LittleEndian</Endianess>
+  </IntReg>
+  <Port Name="ChunkPortLifmcr" NameSpace="Custom"><ChunkID>4C494643</ChunkID></Port>
 
   <Port Name="Device" NameSpace="Standard"/>
 </RegisterDescription>
