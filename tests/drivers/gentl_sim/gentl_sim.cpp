@@ -7,13 +7,22 @@
 // "GTLSIM0,GTLSIM1"; device id "SimDev-<serial>"), each with a sensor of
 // LIFMCR_GENTL_SIM_SENSOR ("WIDTHxHEIGHT", default 1024x768) and the GenICam
 // XML and registers of tests/drivers/gentl_sim/gentl_sim_xml.h.
+// LIFMCR_GENTL_SIM_FILL=first_row writes only each frame's first row (and its
+// chunk), as a grabber's DMA costs the host no CPU; the default writes every
+// row (tests check the pixels). LIFMCR_GENTL_SIM_FLOW_CONTROL=1 makes a
+// free-running camera wait for a queued buffer instead of losing the frame,
+// so the consumer sets the pace (benchmarks; a real CXP camera cannot wait).
 //
 // Each camera has an acquisition thread. With AcquisitionStart executed and
 // its data stream acquiring, it makes a frame per software trigger
 // (TriggerSource Software), per pulse of its "hardware" line (Line0/Line1:
 // pulses every SimLinePeriodUs on the wall-clock grid, so every camera sees
 // the same pulse train, as from a Lock Lab), or at AcquisitionFrameRate
-// (TriggerMode Off). A frame takes the next frame id (1, 2, ...), fills the
+// (TriggerMode Off). Ticks the camera thread was late for (a busy host) are
+// made at once with their own tick times, as a grabber's DMA engine would
+// have delivered them; beyond kMaxBacklogTicks behind, the older ticks'
+// frames are lost and their ids skipped. A frame takes the next frame id
+// (1, 2, ...), fills the
 // oldest queued buffer with rows of value (frame id + row) mod 256, sets the
 // buffer info and fires EVENT_NEW_BUFFER. With no buffer queued the frame is
 // an underrun (STREAM_INFO_NUM_UNDERRUN). Fault injection: SimDropEvery = N
@@ -163,6 +172,8 @@ struct System {
   std::condition_variable wake;  // cameras' threads and event waiters
   bool initialised = false;
   bool stopping = false;
+  bool fill_first_row_only = false;
+  bool flow_control = false;
   bool tl_open = false;
   bool if_open = false;
   std::vector<std::unique_ptr<Camera>> cameras;
@@ -273,7 +284,8 @@ void Produce(Camera& camera, std::unique_lock<std::mutex>& lock, std::int64_t tr
   buffer->pixel_format = camera.Reg(sim::kPixelFormat);
   buffer->incomplete = incomplete;
   buffer->filled = std::min(buffer->size, stride * rows + (chunk ? sim::kChunkBytes : 0));
-  const std::size_t capacity_rows = stride > 0 ? buffer->size / stride : 0;
+  const std::size_t capacity_rows = std::min<std::size_t>(
+      stride > 0 ? buffer->size / stride : 0, Sys().fill_first_row_only ? 1 : rows);
   ++stream->filling;
   lock.unlock();
   for (std::uint32_t y = 0; y < rows && y < capacity_rows; ++y)
@@ -313,14 +325,28 @@ void Run(Camera* camera) {
       }
       continue;
     }
+    if (!triggered && system.flow_control) {
+      // The consumer sets the pace: a frame whenever a buffer is queued.
+      if (!camera->stream->input.empty())
+        Produce(*camera, lock, RealtimeNs());
+      else
+        system.wake.wait_for(lock, std::chrono::milliseconds(20));
+      continue;
+    }
     // Line pulses or free run: ticks on the wall-clock grid of the period.
     const double period_ns =
         triggered ? 1000.0 * std::max<std::uint32_t>(camera->Reg(sim::kLinePeriodUs), 100)
                   : 1e9 / std::max(camera->frame_rate, 0.1);
     const std::int64_t period = static_cast<std::int64_t>(period_ns);
     const std::int64_t now = RealtimeNs();
-    if (camera->next_tick_ns == 0 || camera->next_tick_ns < now - period)
-      camera->next_tick_ns = (now / period + 1) * period;
+    if (camera->next_tick_ns == 0) camera->next_tick_ns = (now / period + 1) * period;
+    constexpr std::int64_t kMaxBacklogTicks = 8;
+    if (camera->next_tick_ns < now - kMaxBacklogTicks * period) {
+      // Too far behind: the camera exposed these, the frames never arrived.
+      const std::int64_t missed = (now - camera->next_tick_ns) / period - kMaxBacklogTicks;
+      camera->next_frame_id += static_cast<std::uint64_t>(missed);
+      camera->next_tick_ns += missed * period;
+    }
     if (now >= camera->next_tick_ns) {
       const std::int64_t tick = camera->next_tick_ns;
       camera->next_tick_ns += period;
@@ -499,6 +525,10 @@ GC_EXPORT GC_ERROR GCInitLib() {
   if (system.initialised) return Err(GC_ERR_RESOURCE_IN_USE, "GCInitLib called twice");
   const char* devices = std::getenv("LIFMCR_GENTL_SIM_DEVICES");
   const char* sensor = std::getenv("LIFMCR_GENTL_SIM_SENSOR");
+  const char* fill = std::getenv("LIFMCR_GENTL_SIM_FILL");
+  system.fill_first_row_only = fill != nullptr && std::string(fill) == "first_row";
+  const char* flow = std::getenv("LIFMCR_GENTL_SIM_FLOW_CONTROL");
+  system.flow_control = flow != nullptr && std::string(flow) == "1";
   std::uint32_t w = 1024, h = 768;
   if (sensor != nullptr) {
     const std::vector<std::string> parts = Split(sensor, 'x');
