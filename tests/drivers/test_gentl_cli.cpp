@@ -44,13 +44,13 @@ int FreeUdpPort() {
 }
 
 std::string CameraYaml(const std::string& serial, const std::string& name,
-                       const std::string& role, const std::string& driver,
-                       const std::string& mla) {
+                       const std::string& role, const std::string& driver, const std::string& mla,
+                       const std::string& trigger = "{mode: software}") {
   const fs::path mla_dir =
       fs::path(LIFMCR_SOURCE_DIR) / "config/examples/Calibration/02_MLA_Calibration";
   return "  - serial: " + serial + "\n    name: " + name + "\n    role: " + role +
          "\n    driver: " + driver + "\n    mla_file: " + (mla_dir / mla).string() +
-         "\n    trigger: {mode: software}\n    exposure_us: 2000\n    pixel_format: Mono8\n"
+         "\n    trigger: " + trigger + "\n    exposure_us: 2000\n    pixel_format: Mono8\n"
          "    roi: {x: 0, y: 0, width: 256, height: 128}\n    vicon_object: " + name + "\n";
 }
 
@@ -120,6 +120,48 @@ TEST(GenTlRecord, OneGenTlAndOneAravisCameraRecordEveryTrigger) {
     EXPECT_EQ(camera.frames.front(), 0) << sequence->Describe();
   }
   ASSERT_EQ(sequence->vicon_csvs.size(), 1u);
+}
+
+TEST(GenTlRecord, TwoGenTlCamerasOnTheHardwareLineRecordEveryTriggerInSync) {
+  // Both cameras take the producer's Line1 pulses (every 100 ms on the
+  // wall-clock grid, the rig's 80 Hz / 8), as two R32s on a Lock Lab output.
+  test::TempDir dir;
+  const int port = FreeUdpPort();
+  const fs::path rig_path = dir / "rig.yaml";
+  const std::string driver = std::string("{kind: gentl, cti: ") + LIFMCR_GENTL_SIM_CTI + "}";
+  const std::string line1 = "{mode: hardware, source: Line1, activation: rising_edge}";
+  test::WriteFile(rig_path,
+                  "rig:\n  name: gentl_hardware\ncameras:\n" +
+                      CameraYaml("GTLSIM0", "cam0", "reference", driver, "TypeE_40398678_MLA.xml",
+                                 line1) +
+                      CameraYaml("GTLSIM1", "cam1", "registered", driver, "TypeE_40398673_MLA.xml",
+                                 line1) +
+                      "vicon:\n  source: udp\n  udp: {address: 127.0.0.1, port: " +
+                      std::to_string(port) +
+                      "}\n  rate_hz: 80\n  trigger_divider: 8\nrecorder:\n  queue_frames: 8\n");
+  auto rig = LoadRigConfig(rig_path);
+  ASSERT_TRUE(rig.ok()) << rig.error().message;
+  test::ViconStreamer streamer(*rig, port, 80.0);
+  ASSERT_TRUE(streamer.ok());
+  const fs::path out = dir / "out";
+  const auto run = test::RunLifmcr("record --rig '" + rig_path.string() + "' --out '" +
+                                   out.string() + "' --duration 3");
+  const std::string log = "stdout:\n" + run.out + "\nstderr:\n" + run.err;
+  EXPECT_EQ(run.exit_code, 0) << log;
+  EXPECT_NE(run.out.find("result: nothing lost"), std::string::npos) << log;
+  // Every trigger a complete FrameSet: both cameras' frames, stamped on the pulse.
+  std::smatch sync;
+  ASSERT_TRUE(std::regex_search(run.out, sync,
+                                std::regex(R"(sync: (\d+) triggers \(FrameSets\), (\d+) complete)")))
+      << log;
+  EXPECT_EQ(sync[1].str(), sync[2].str()) << log;
+  EXPECT_GE(std::stoi(sync[1].str()), 20) << log;
+  auto sequence = DiscoverSequence(out / "00_Recording" / "seq");
+  ASSERT_TRUE(sequence.ok()) << sequence.error().message << log;
+  ASSERT_EQ(sequence->cameras.size(), 2u);
+  EXPECT_EQ(sequence->cameras[0].frames, sequence->cameras[1].frames) << sequence->Describe();
+  for (const CameraFolder& camera : sequence->cameras)
+    EXPECT_EQ(camera.missing_count, 0) << sequence->Describe();
 }
 
 TEST(GenTlInfo, ListsTheProducersInterfacesAndDevices) {
