@@ -67,11 +67,14 @@ json DescribeGenTlCamera(const CameraConfig& camera) {
     out["device_found"] = found;
     if (found) return out;
   }
-  out["problems"].push_back("camera " + camera.name + ": device '" + wanted + "'" +
-                            (camera.driver.interface_id.empty()
-                                 ? std::string()
-                                 : " on interface " + camera.driver.interface_id) +
-                            " not listed by " + out["cti"].get<std::string>());
+  if (out.contains("producer"))
+    out["problems"].push_back("camera " + camera.name + ": device '" + wanted + "'" +
+                              (camera.driver.interface_id.empty()
+                                   ? std::string()
+                                   : " on interface " + camera.driver.interface_id) +
+                              " not listed by " + out["cti"].get<std::string>());
+  else
+    out.erase("device_found");  // the producer could not be asked
   return out;
 }
 
@@ -98,8 +101,12 @@ std::string FormatGenTlText(const json& gentl, const std::string& indent) {
   if (gentl.contains("device_found"))
     out << indent << "  this camera's device " << gentl["device"].get<std::string>() << ": "
         << (gentl["device_found"].get<bool>() ? "listed" : "NOT listed") << "\n";
+  // In a rig file's report these do not make the rig file wrong (the
+  // producer belongs to the recording machine): "cannot check".
+  const bool in_rig = gentl.contains("device");
   for (const json& problem : gentl.value("problems", json::array()))
-    out << indent << "  problem: " << problem.get<std::string>() << "\n";
+    out << indent << (in_rig ? "  cannot check: " : "  problem: ") << problem.get<std::string>()
+        << "\n";
   return out.str();
 }
 

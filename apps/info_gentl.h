@@ -19,7 +19,9 @@ nlohmann::json DescribeGenTlProducer(const std::filesystem::path& cti);
 
 // For a gentl camera of a rig file: its producer (`cti`, or the first in
 // GENICAM_GENTL64_PATH) described as above, plus "device_found" (whether the
-// camera's device or serial is listed) and a problem when it is not.
+// camera's device or serial is listed) and a problem when it is not. These
+// problems stay in this section: the rig file itself is not wrong when the
+// producer belongs to another machine.
 nlohmann::json DescribeGenTlCamera(const CameraConfig& camera);
 
 // The text lines of either document, each indented by `indent`.
