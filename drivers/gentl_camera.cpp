@@ -185,9 +185,12 @@ Status GenTlCamera::Impl::Connect() {
   if (!interface) return Fail(interface.error().message);
   {
     std::lock_guard<std::mutex> lock(producer->mutex());
-    if (GC_ERROR code =
-            fn.IFOpenDevice(*interface, entry->id.c_str(), DEVICE_ACCESS_EXCLUSIVE, &opened_device);
-        code != GC_ERR_SUCCESS) {
+    GC_ERROR code =
+        fn.IFOpenDevice(*interface, entry->id.c_str(), DEVICE_ACCESS_EXCLUSIVE, &opened_device);
+    // A producer without exclusive access (some grabbers offer control only).
+    if (code == GC_ERR_NOT_IMPLEMENTED || code == GC_ERR_INVALID_PARAMETER)
+      code = fn.IFOpenDevice(*interface, entry->id.c_str(), DEVICE_ACCESS_CONTROL, &opened_device);
+    if (code != GC_ERR_SUCCESS) {
       const bool busy = code == GC_ERR_RESOURCE_IN_USE || code == GC_ERR_ACCESS_DENIED ||
                         code == GC_ERR_BUSY;
       return Fail(std::string(busy ? "device " + entry->id + " busy (open elsewhere): "
@@ -566,7 +569,13 @@ Frame GenTlCamera::Impl::MakeFrame(BUFFER_HANDLE buffer, void* user_pointer, std
   const bool has_filled = buffer_value(BUFFER_INFO_SIZE_FILLED, &filled);
   const bool has_size = buffer_value(BUFFER_INFO_WIDTH, &width) && buffer_value(BUFFER_INFO_HEIGHT, &height);
   buffer_value(BUFFER_INFO_IMAGEOFFSET, &offset);
-  const bool has_format = buffer_value(BUFFER_INFO_PIXELFORMAT, &pixel_format);
+  // Formats are compared only in the PFNC (or GigE Vision, the same codes
+  // for 8-bit formats) namespace.
+  std::uint64_t format_namespace = PIXELFORMAT_NAMESPACE_PFNC_32BIT;
+  buffer_value(BUFFER_INFO_PIXELFORMAT_NAMESPACE, &format_namespace);
+  const bool has_format = buffer_value(BUFFER_INFO_PIXELFORMAT, &pixel_format) &&
+                          (format_namespace == PIXELFORMAT_NAMESPACE_PFNC_32BIT ||
+                           format_namespace == PIXELFORMAT_NAMESPACE_GEV);
 
   const CameraInfo expected = [&] {
     std::lock_guard<std::mutex> lock(stats_mutex);
