@@ -364,6 +364,21 @@ TEST(GenTlProducerLoad, MissingFileWrongArchitectureAndMissingSymbolsAreNamed) {
   EXPECT_NE(message.find("32-bit"), std::string::npos) << message;
   fs::remove(elf32);
 
+#if defined(__x86_64__)
+  {
+    // A 64-bit producer for another machine (ARM, e_machine 183).
+    std::ofstream file(elf32, std::ios::binary);
+    const unsigned char header[20] = {0x7f, 'E', 'L', 'F', 2, 1, 1, 0, 0, 0,
+                                      0,    0,   0,   0,   0, 0, 3, 0, 183, 0};
+    file.write(reinterpret_cast<const char*>(header), sizeof(header));
+  }
+  message = OpenError(config);
+  EXPECT_NE(message.find("wrong architecture, built for aarch64, this host is x86-64"),
+            std::string::npos)
+      << message;
+  fs::remove(elf32);
+#endif
+
   config.driver.cti = LIFMCR_GENTL_INCOMPLETE_CTI;
   message = OpenError(config);
   EXPECT_NE(message.find("missing symbols"), std::string::npos) << message;
@@ -381,6 +396,14 @@ TEST(GenTlProducerLoad, GenicamGentl64PathFindsTheProducerWithTheDevice) {
   ASSERT_TRUE(camera->Open());
   EXPECT_EQ(camera->Info().device_id, "SimDev-GTLSIM0");
   unsetenv("GENICAM_GENTL64_PATH");
+}
+
+TEST(GenTlProducerLoad, ErrorCodesHaveTheirStandardNames) {
+  EXPECT_EQ(gentl::ErrorName(gentl::GC_ERR_RESOURCE_IN_USE), "GC_ERR_RESOURCE_IN_USE");
+  EXPECT_EQ(gentl::ErrorName(-1011), "GC_ERR_TIMEOUT");
+  EXPECT_EQ(gentl::ErrorName(-1022), "GC_ERR_BUSY");
+  EXPECT_EQ(gentl::ErrorName(-10007), "GC_ERR_CUSTOM_ID-7");
+  EXPECT_EQ(gentl::ErrorName(-5), "GC_ERROR(-5)");
 }
 
 TEST(GenTlProducerLoad, DiscoveryListsInterfacesAndDevices) {
