@@ -224,6 +224,9 @@ Status GenTlCamera::Impl::Connect() {
   }
   control_lost.store(false);
   control_suspect.store(false);
+  // GigE Vision producers pass on 16-bit block ids, which wrap; CoaXPress,
+  // USB3 Vision and grabber counters are 64-bit.
+  ids = FrameIdTracker(entry->tl_type == "GEV" ? FrameIdWidth::k16Bit : FrameIdWidth::k64Bit);
   // Under the control lock: the node map is not thread-safe, and a software
   // trigger may arrive from the trigger thread while a reconnect applies them.
   auto region = [&]() -> Expected<ArvRegion> {

@@ -43,7 +43,8 @@
 // (drivers/gentl_chunks.h).
 //
 // Statistics as the Aravis driver's: missing_ids are gaps in the frame id
-// (64-bit GenTL ids) less the underruns counted since the previous frame.
+// (16-bit wrap-aware for a GigE Vision producer, "GEV", 64-bit otherwise)
+// less the underruns counted since the previous frame.
 //
 // Lost camera: a failed EventGetData (anything but a timeout), a port access
 // failing with GC_ERR_IO/INVALID_HANDLE/NOT_AVAILABLE/TIMEOUT (a software
