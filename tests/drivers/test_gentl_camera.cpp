@@ -31,6 +31,8 @@ struct SimControl {
   void* library = dlopen(LIFMCR_GENTL_SIM_CTI, RTLD_NOW | RTLD_LOCAL);
   void (*set_present)(const char*, int) =
       reinterpret_cast<void (*)(const char*, int)>(dlsym(library, "LifmcrGenTlSimSetPresent"));
+  void (*set_busy)(const char*, int) =
+      reinterpret_cast<void (*)(const char*, int)>(dlsym(library, "LifmcrGenTlSimSetBusy"));
   int (*set_register)(const char*, std::uint64_t, std::uint32_t) =
       reinterpret_cast<int (*)(const char*, std::uint64_t, std::uint32_t)>(
           dlsym(library, "LifmcrGenTlSimSetRegister"));
@@ -322,6 +324,18 @@ TEST(GenTlSim, ASecondOpenOfTheDeviceIsBusy) {
   EXPECT_NE(message.find("busy"), std::string::npos) << message;
   EXPECT_NE(message.find("IFOpenDevice"), std::string::npos) << message;
   EXPECT_NE(message.find("GC_ERR_RESOURCE_IN_USE"), std::string::npos) << message;
+}
+
+TEST(GenTlSim, ADeviceAnotherProcessHoldsIsBusy) {
+  // Held loaded, so the simulator's cameras exist and keep their state.
+  auto producer = GenTlProducer::Load(LIFMCR_GENTL_SIM_CTI);
+  ASSERT_TRUE(producer.ok()) << producer.error().message;
+  Sim().set_busy("GTLSIM0", 1);
+  const std::string message = OpenError(SimConfig());
+  Sim().set_busy("GTLSIM0", 0);
+  EXPECT_NE(message.find("device SimDev-GTLSIM0 busy: busy (opened by another process or host)"),
+            std::string::npos)
+      << message;
 }
 
 TEST(GenTlSim, UnknownDeviceNamesItAndListsTheDevices) {

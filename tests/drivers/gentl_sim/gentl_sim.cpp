@@ -144,6 +144,7 @@ struct Camera {
   bool present = true;
   std::uint64_t generation = 1;  // bumped when the camera disappears
   bool open = false;
+  bool busy_elsewhere = false;  // held by "another process" (LifmcrGenTlSimSetBusy)
   bool running = false;  // AcquisitionStart executed
   int pending_software = 0;
   std::uint64_t next_frame_id = 1;
@@ -500,6 +501,14 @@ __attribute__((visibility("default"))) int LifmcrGenTlSimSetRegister(const char*
   return GC_ERR_INVALID_ID;
 }
 
+// Test control: the camera with `serial` is held by another process (busy =
+// 1): listed with access status BUSY, IFOpenDevice refused.
+__attribute__((visibility("default"))) void LifmcrGenTlSimSetBusy(const char* serial, int busy) {
+  std::lock_guard<std::mutex> lock(Sys().mutex);
+  for (auto& camera : Sys().cameras)
+    if (camera->serial == serial) camera->busy_elsewhere = busy != 0;
+}
+
 #define GC_EXPORT __attribute__((visibility("default")))
 
 GC_EXPORT GC_ERROR GCGetInfo(TL_INFO_CMD command, INFO_DATATYPE* type, void* buffer, std::size_t* size) {
@@ -679,7 +688,9 @@ GC_ERROR DeviceInfo(Camera& camera, DEVICE_INFO_CMD command, INFO_DATATYPE* type
     case DEVICE_INFO_DISPLAYNAME: return CopyString("lifmcr GenTL simulator " + camera.serial, type, buffer, size);
     case DEVICE_INFO_SERIAL_NUMBER: return CopyString(camera.serial, type, buffer, size);
     case DEVICE_INFO_ACCESS_STATUS:
-      return CopyValue<std::int32_t>(camera.open ? DEVICE_ACCESS_STATUS_OPEN_READWRITE : DEVICE_ACCESS_STATUS_READWRITE,
+      return CopyValue<std::int32_t>(camera.busy_elsewhere ? DEVICE_ACCESS_STATUS_BUSY
+                                     : camera.open         ? DEVICE_ACCESS_STATUS_OPEN_READWRITE
+                                                           : DEVICE_ACCESS_STATUS_READWRITE,
                                      INFO_DATATYPE_INT32, type, buffer, size);
     case DEVICE_INFO_TIMESTAMP_FREQUENCY:
       return CopyValue<std::uint64_t>(1'000'000'000, INFO_DATATYPE_UINT64, type, buffer, size);
@@ -702,6 +713,7 @@ GC_EXPORT GC_ERROR IFOpenDevice(IF_HANDLE handle, const char* id, DEVICE_ACCESS_
   Camera* camera = FindCamera(id);
   if (camera == nullptr) return Err(GC_ERR_INVALID_ID, std::string("no device ") + id);
   if (camera->open) return Err(GC_ERR_RESOURCE_IN_USE, std::string("device ") + id + " is already open");
+  if (camera->busy_elsewhere) return Err(GC_ERR_ACCESS_DENIED, std::string("device ") + id + " is held by another process");
   camera->open = true;
   auto opened = std::make_unique<DeviceHandle>();
   opened->camera = camera;
