@@ -278,7 +278,7 @@ Status PlotAxisHistograms(const CameraEvaluation& e, const std::filesystem::path
       const std::vector<double> hu = histogram(u), hc = histogram(c);
       double top = 1;
       for (int b = 0; b < kBins; ++b) top = std::max({top, hu[b], hc[b]});
-      Panel panel(&image, cv::Rect(80 + 450 * k, 60 + 400 * row, 380, 290), r.lo, r.hi, 0,
+      Panel panel(&image, cv::Rect(80 + 450 * k, 80 + 400 * row, 380, 280), r.lo, r.hi, 0,
                   top * 1.15,
                   std::string(axes[k]) + (rotation ? " rotation [deg]" : " translation [mm]"),
                   "signed error", "frames");
@@ -291,7 +291,7 @@ Status PlotAxisHistograms(const CameraEvaluation& e, const std::filesystem::path
     }
   }
   cv::putText(image, e.method + " " + e.serial + ": absolute errors per camera axis",
-              {80, 25}, cv::FONT_HERSHEY_SIMPLEX, 0.7, kBlack, 1, cv::LINE_AA);
+              {80, 22}, cv::FONT_HERSHEY_SIMPLEX, 0.6, kBlack, 1, cv::LINE_AA);
   return Write(path, image);
 }
 
