@@ -10,6 +10,7 @@
 // absolute error after the correction not above the relative error; without
 // the correction the absolute error is the one the true offsets cause.
 #include "registration/evaluation_inputs.h"
+#include "registration/poses_csv.h"
 #include "registration/trajectory_metrics.h"
 #include "replay/layout.h"
 #include "tests/test_util.h"
@@ -51,11 +52,13 @@ class EvaluateCli : public ::testing::Test {
     ASSERT_EQ(synth.exit_code, 0) << synth.err;
     seq_ = new fs::path(*dir_ / "data" / "00_Synthetic" / "Sequence_00");
     ASSERT_FALSE(fs::exists(layout::CameraDir(*seq_, kCam0)));  // no images written
-    Expected<FramePoses> w0 = ReadPosesCsv(layout::PosesCsvPath(*seq_, kCam0));
-    Expected<FramePoses> wx = ReadPosesCsv(layout::PosesCsvPath(*seq_, kCamX));
+    auto w0 = registration::ReadPosesCsv(layout::PosesCsvPath(*seq_, kCam0));
+    auto wx = registration::ReadPosesCsv(layout::PosesCsvPath(*seq_, kCamX));
     ASSERT_TRUE(w0 && wx);
+    ASSERT_EQ(w0->size(), wx->size());
     truth_ = new FramePoses;
-    for (const auto& [f, p] : *w0) (*truth_)[f] = p.inverse() * wx->at(f);
+    for (std::size_t k = 0; k < w0->size(); ++k)
+      (*truth_)[(*w0)[k].frame] = (*w0)[k].world_from_cam.inverse() * (*wx)[k].world_from_cam;
     x0_ = new Pose(*ReadMarkerFromCamCsv(layout::MarkerFromCamCsvPath(*seq_, kCam0)));
     xx_ = new Pose(*ReadMarkerFromCamCsv(layout::MarkerFromCamCsvPath(*seq_, kCamX)));
     std::vector<RegistrationRow> rows;
