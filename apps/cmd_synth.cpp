@@ -26,6 +26,7 @@ struct SynthOptions {
   std::optional<double> noise;
   std::optional<std::uint64_t> seed;
   bool quiet = false;
+  bool no_images = false;
 };
 
 int RunSynth(const SynthOptions& o) {
@@ -47,6 +48,7 @@ int RunSynth(const SynthOptions& o) {
   if (o.motion) params->rig.motion = *o.motion;
   if (o.noise) params->camera.read_noise_dn = *o.noise;
   if (o.seed) params->rig.seed = *o.seed;
+  if (o.no_images) params->rig.images = false;
   if (Status s = params->Check(); !s) {
     std::cerr << "lifmcr synth: " << s.error().message << "\n";
     return 2;
@@ -77,6 +79,8 @@ CommandRun AddSynthCommand(CLI::App& app) {
   app.add_option("--noise", o->noise, "Sensor read noise sigma in DN");
   app.add_option("--seed", o->seed, "Seed: same seed, same bytes");
   app.add_flag("--quiet", o->quiet, "No progress lines on stderr");
+  app.add_flag("--no-images", o->no_images,
+               "Poses, Vicon, ground truth and calibration only: no raw frames or depth images");
   return [o] { return RunSynth(*o); };
 }
 

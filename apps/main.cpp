@@ -43,6 +43,10 @@ int main(int argc, char** argv) {
       lifmcr::apps::AddDemoCommand);
   add("grid", "Fit the micro-image lattice to a white image and write an MLA XML",
       lifmcr::apps::AddGridCommand);
+  add("evaluate",
+      "Evaluate registered extrinsics against Vicon, with the hand-eye correction: tables, "
+      "TUM trajectories, plots",
+      lifmcr::apps::AddEvaluateCommand);
   add("depth", "Virtual depth, totally focused image, metric depth and point cloud of one frame",
       lifmcr::apps::AddDepthCommand);
 

@@ -77,6 +77,9 @@ struct SynthRigParams {
   std::string scene = "00_Synthetic";
   std::string sequence = "Sequence_00";
   std::uint64_t seed = 1;
+  // false: no raw frames, depth or all-in-focus images; poses, Vicon and
+  // calibration only (fast inputs for evaluation tests). `--no-images`.
+  bool images = true;
   Status Check() const;
 };
 

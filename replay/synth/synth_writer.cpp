@@ -281,6 +281,12 @@ Expected<SynthSummary> WriteSyntheticDataset(const std::filesystem::path& out_di
     return s.error();
   ++files;
 
+  if (!params.rig.images) {
+    summary.files = files;
+    summary.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return summary;
+  }
   // Frames: parallel over (camera, frame), and over micro-image rows inside.
   for (const SynthCamera& camera : cameras)
     if (Status s = MakeDirs(layout::CameraDir(seq, camera.serial)); !s) return s.error();
