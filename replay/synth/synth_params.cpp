@@ -105,7 +105,11 @@ Status SynthRigParams::Check() const {
       if (!(std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '-')) return false;
     return true;
   };
-  if (!plain(scene)) return FieldError("rig.scene", "expected letters, digits, '_' or '-'");
+  if (scene != "table" && scene != "plain")
+    return FieldError("rig.scene", "expected table|plain, got '" + scene +
+                                       "' (the folder name is rig.scene_folder)");
+  if (!plain(scene_folder))
+    return FieldError("rig.scene_folder", "expected letters, digits, '_' or '-'");
   if (!plain(sequence)) return FieldError("rig.sequence", "expected letters, digits, '_' or '-'");
   return Status::Ok();
 }
@@ -260,6 +264,7 @@ std::vector<Field> RigFields(SynthRigParams* r) {
           Scalar("baseline_mm", &r->baseline_mm, "a number"),
           Scalar("speed_scale", &r->speed_scale, "a number"),
           Scalar("scene", &r->scene, "a string"),
+          Scalar("scene_folder", &r->scene_folder, "a string"),
           Scalar("sequence", &r->sequence, "a string"),
           Scalar("seed", &r->seed, "an unsigned integer")};
 }

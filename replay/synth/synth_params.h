@@ -74,8 +74,9 @@ struct SynthRigParams {
   double viewing_distance_mm = 1100;  // camera to the plate centre
   double baseline_mm = 120;           // between neighbouring cameras
   double speed_scale = 1.0;           // scales the amplitude of motion
-  std::string scene = "00_Synthetic";
-  std::string sequence = "Sequence_00";
+  std::string scene = "table";                // scene content: table|plain (scene.h)
+  std::string scene_folder = "00_Synthetic";  // the scene's folder in the dataset
+  std::string sequence = "Sequence_00";       // the sequence's folder in it
   std::uint64_t seed = 1;
   Status Check() const;
 };

@@ -153,7 +153,7 @@ Expected<SynthSummary> WriteSyntheticDataset(const std::filesystem::path& out_di
   if (Status s = params.Check(); !s) return s.error();
   const auto start = std::chrono::steady_clock::now();
   SynthSummary summary;
-  summary.sequence_dir = out_dir / params.rig.scene / params.rig.sequence;
+  summary.sequence_dir = out_dir / params.rig.scene_folder / params.rig.sequence;
   summary.calibration_dir = out_dir / std::string(layout::kCalibrationFolder);
   summary.cameras = params.rig.cameras;
   summary.frames = params.rig.frames;
@@ -161,7 +161,9 @@ Expected<SynthSummary> WriteSyntheticDataset(const std::filesystem::path& out_di
   const std::filesystem::path& calib = summary.calibration_dir;
   std::atomic<std::int64_t> files{0};
 
-  const Scene scene = MakeTableTopScene(params.rig.seed);
+  Expected<Scene> made = MakeScene(params.rig.scene, params.rig.seed);
+  if (!made) return made.error();
+  const Scene& scene = *made;
   const std::vector<SynthCamera> cameras = MakeSynthCameras(params);
   const SynthViconParams& vicon = params.vicon;
   const double duration_s =
