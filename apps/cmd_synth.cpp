@@ -79,7 +79,7 @@ CommandRun AddSynthCommand(CLI::App& app) {
   app.add_option("--scene-folder", o->scene_folder, "Scene folder name (default 00_Synthetic)");
   app.add_option("--frames", o->frames, "Camera triggers per sequence");
   app.add_option("--cameras", o->cameras, "Number of cameras (1..8; 2 = the paper's rig)");
-  app.add_option("--motion", o->motion, "Camera motion: smooth|handheld|axis|circle");
+  app.add_option("--motion", o->motion, "Camera motion: smooth|handheld|axis|circle|orbit (orbit: varied angles for calibration)");
   app.add_option("--noise", o->noise, "Sensor read noise sigma in DN");
   app.add_option("--seed", o->seed, "Seed: same seed, same bytes");
   app.add_flag("--quiet", o->quiet, "No progress lines on stderr");

@@ -91,8 +91,10 @@ Status SynthCameraParams::Check() const {
 Status SynthRigParams::Check() const {
   if (cameras < 1 || cameras > 8) return FieldError("rig.cameras", "expected 1..8");
   if (frames < 1 || frames > 100000) return FieldError("rig.frames", "expected 1..100000");
-  if (motion != "smooth" && motion != "handheld" && motion != "axis" && motion != "circle")
-    return FieldError("rig.motion", "expected smooth|handheld|axis|circle, got '" + motion + "'");
+  if (motion != "smooth" && motion != "handheld" && motion != "axis" && motion != "circle" &&
+      motion != "orbit")
+    return FieldError("rig.motion",
+                      "expected smooth|handheld|axis|circle|orbit, got '" + motion + "'");
   if (!(viewing_distance_mm >= 200 && viewing_distance_mm <= 5000))
     return FieldError("rig.viewing_distance_mm", "expected 200..5000 mm");
   if (!(baseline_mm >= 0 && baseline_mm <= 1000))

@@ -70,7 +70,7 @@ struct SynthCameraParams {
 struct SynthRigParams {
   int cameras = 2;
   int frames = 4;                     // camera triggers per sequence
-  std::string motion = "smooth";      // smooth|handheld|axis|circle
+  std::string motion = "smooth";      // smooth|handheld|axis|circle|orbit (trajectory.h)
   double viewing_distance_mm = 1100;  // camera to the plate centre
   double baseline_mm = 120;           // between neighbouring cameras
   double speed_scale = 1.0;           // scales the amplitude of motion

@@ -147,6 +147,35 @@ std::string FormatMarkerFromCamCsv(const Pose& marker_from_cam) {
   return "tx_mm,ty_mm,tz_mm,qw,qx,qy,qz\n" + FormatPoseRow(marker_from_cam) + "\n";
 }
 
+std::vector<CameraTrajectory> MakeTrajectories(const SynthParams& params, const Scene& scene) {
+  const double duration_s = static_cast<double>(params.rig.frames) *
+                            params.vicon.trigger_divider / params.vicon.rate_hz;
+  std::vector<CameraTrajectory> trajectories;
+  for (int k = 0; k < params.rig.cameras; ++k) {
+    TrajectoryParams tp;
+    tp.motion = params.rig.motion;
+    tp.target_mm = scene.Target();
+    tp.distance_mm = params.rig.viewing_distance_mm;
+    tp.lateral_offset_mm = (k - (params.rig.cameras - 1) / 2.0) * params.rig.baseline_mm;
+    tp.duration_s = duration_s;
+    tp.amplitude_scale = params.rig.speed_scale;
+    tp.seed = Mix(params.rig.seed, 400 + k);
+    trajectories.emplace_back(tp);
+  }
+  return trajectories;
+}
+
+std::vector<std::vector<Pose>> TriggerPoses(const SynthParams& params, const Scene& scene) {
+  std::vector<std::vector<Pose>> world_from_cam;
+  for (const CameraTrajectory& trajectory : MakeTrajectories(params, scene)) {
+    world_from_cam.emplace_back();
+    for (int n = 0; n < params.rig.frames; ++n)
+      world_from_cam.back().push_back(trajectory.WorldFromCam(
+          TimeOfViconFrame(params.vicon, ViconFrameOfImage(params.vicon, n))));
+  }
+  return world_from_cam;
+}
+
 Expected<SynthSummary> WriteSyntheticDataset(const std::filesystem::path& out_dir,
                                              const SynthParams& params,
                                              const ProgressFn& progress) {
@@ -166,20 +195,7 @@ Expected<SynthSummary> WriteSyntheticDataset(const std::filesystem::path& out_di
   const Scene& scene = *made;
   const std::vector<SynthCamera> cameras = MakeSynthCameras(params);
   const SynthViconParams& vicon = params.vicon;
-  const double duration_s =
-      static_cast<double>(params.rig.frames) * vicon.trigger_divider / vicon.rate_hz;
-  std::vector<CameraTrajectory> trajectories;
-  for (int k = 0; k < params.rig.cameras; ++k) {
-    TrajectoryParams tp;
-    tp.motion = params.rig.motion;
-    tp.target_mm = scene.Target();
-    tp.distance_mm = params.rig.viewing_distance_mm;
-    tp.lateral_offset_mm = (k - (params.rig.cameras - 1) / 2.0) * params.rig.baseline_mm;
-    tp.duration_s = duration_s;
-    tp.amplitude_scale = params.rig.speed_scale;
-    tp.seed = Mix(params.rig.seed, 400 + k);
-    trajectories.emplace_back(tp);
-  }
+  const std::vector<CameraTrajectory> trajectories = MakeTrajectories(params, scene);
   const Pose vicon_from_world = DefaultViconFromWorld();
   Pose world_from_plate_marker;
   const MarkerCluster plate_cluster = MakePlateCluster(
@@ -262,10 +278,8 @@ Expected<SynthSummary> WriteSyntheticDataset(const std::filesystem::path& out_di
     frames.push_back(n);
     trigger_vicon_frames.push_back(ViconFrameOfImage(vicon, n));
   }
-  std::vector<std::vector<Pose>> world_from_cam(cameras.size());
+  const std::vector<std::vector<Pose>> world_from_cam = TriggerPoses(params, scene);
   for (std::size_t k = 0; k < cameras.size(); ++k) {
-    for (std::int64_t vf : trigger_vicon_frames)
-      world_from_cam[k].push_back(trajectories[k].WorldFromCam(TimeOfViconFrame(vicon, vf)));
     if (Status s = WriteText(layout::PosesCsvPath(seq, cameras[k].serial),
                              FormatPosesCsv(frames, trigger_vicon_frames, world_from_cam[k]));
         !s)

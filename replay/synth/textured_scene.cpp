@@ -43,7 +43,7 @@ class SceneBuilder {
     p.max_radius_mm = max_mm;
     p.palette = std::move(palette);
     p.brightness_spread = spread;
-    p.grain = MakeGrain(4.0, 0.35);
+    p.grain = MakeGrain(6.0, 0.45);
     p.seed = Seed();
     return p;
   }
@@ -56,7 +56,7 @@ class SceneBuilder {
     p.noise = NoiseTexture{feature_mm, 0.3, 0.62, Seed()};
     p.bands = bands;
     p.palette = std::move(palette);
-    p.grain = MakeGrain(3.0, 0.3);
+    p.grain = MakeGrain(10.0, 0.4);
     return Add(std::make_shared<BandedNoise>(p));
   }
   int AddPrint(double block_mm, double photo_share, double glyph_mm, Eigen::Vector3d paper) {
@@ -66,7 +66,7 @@ class SceneBuilder {
     p.glyph_height_mm = glyph_mm;
     p.paper = paper;
     p.photo = Leaves(0.4, 0.4 * block_mm, PalettePhoto(), 0.6);
-    p.grain = MakeGrain(3.0, 0.25);
+    p.grain = MakeGrain(10.0, 0.35);
     p.seed = Seed();
     return Add(std::make_shared<PrintedPage>(p));
   }
@@ -127,12 +127,14 @@ Scene MakeTexturedTableScene(std::uint64_t seed) {
   const Eigen::Vector3d x = Eigen::Vector3d::UnitX(), y = Eigen::Vector3d::UnitY(),
                         z = Eigen::Vector3d::UnitZ();
   const MarkerPlateLayout& plate = scene.plate;
-  // Between the plate and the objects behind it: the default viewpoints see
-  // the markers and the objects at once.
-  scene.target_mm = {plate.vicon_span_x_mm / 2, plate.vicon_span_y_mm + 40, 30.0};
+  // Beyond the plate's centre, towards the objects behind it: at `medium`
+  // every view of the default motions holds the whole plate and objects
+  // around it; at `small` (a field of 240 mm) the middle of the plate, the
+  // card and notebook on it and the cloth beyond.
+  scene.target_mm = {plate.vicon_span_x_mm / 2, 210.0, 30.0};
 
   // Table cloth, wall, plate.
-  const int cloth = b.AddDeadLeaves(0.4, 25, PaletteCloth(), 0.55);
+  const int cloth = b.AddDeadLeaves(1.5, 24, PaletteCloth(), 0.75);
   const int wall = b.AddBanded(90, 5, PaletteStone());
   scene.quads.push_back({Eigen::Vector3d(0, 0, kTableZ), x, y, {-1e12, -1e12}, {1e12, 1e12}, cloth});
   scene.quads.push_back({Eigen::Vector3d(0, 1400, 0), x, z, {-1e12, -1e12}, {1e12, 1e12}, wall});

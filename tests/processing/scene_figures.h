@@ -13,7 +13,11 @@
 //   devignetted grey without smoothing; its mean at the true v, at 1.25 v
 //   and at 0.8 v over the same (p, n) pairs (those where all three q fall on
 //   valid pixels). The ratios cost(1.25 v) / cost(v) and cost(0.8 v) /
-//   cost(v) say how clearly the true depth explains the neighbours.
+//   cost(v) say how clearly the true depth explains the neighbours. Ring-1
+//   neighbours are always of another lens type (another defocus), so the
+//   same is measured over the ring-2 neighbours (same type, baseline
+//   sqrt(3) D), where only noise and sampling separate the true depth from
+//   a perfect match.
 
 #include "processing/total_focus.h"
 #include "tests/processing/synth_frame.h"
@@ -28,10 +32,13 @@ struct SceneFigures {
   double depth_coverage = 0;     // raw pixels with a virtual depth / all raw pixels
   double textured_share = 0;     // raw pixels passing the gradient gate / all raw pixels
   double textured_coverage = 0;  // with a virtual depth / textured
-  long long consistency_pairs = 0;
-  double cost_true = 0, cost_far = 0, cost_near = 0;  // mean squared DN at v, 1.25 v, 0.8 v
-  double FarRatio() const { return cost_far / cost_true; }
-  double NearRatio() const { return cost_near / cost_true; }
+  struct Consistency {
+    long long pairs = 0;
+    double cost_true = 0, cost_far = 0, cost_near = 0;  // mean squared DN at v, 1.25 v, 0.8 v
+    double FarRatio() const { return cost_far / cost_true; }
+    double NearRatio() const { return cost_near / cost_true; }
+  };
+  Consistency ring1, ring2;  // neighbours of another / the same lens type
   std::string BriefReport() const;
 };
 

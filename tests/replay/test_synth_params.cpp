@@ -156,7 +156,7 @@ TEST(SynthSensor, NoiseHasTheModelledVariance) {
 // the camera, moves, and differs between cameras (seeds).
 TEST(SynthMotion, TrajectoriesAreSmoothAndLookAtThePlate) {
   const Scene scene = MakePlainScene(1);
-  for (const char* motion : {"smooth", "handheld", "axis", "circle"}) {
+  for (const char* motion : {"smooth", "handheld", "axis", "circle", "orbit"}) {
     TrajectoryParams tp;
     tp.motion = motion;
     tp.target_mm = scene.Target();
