@@ -134,7 +134,7 @@ Scene MakeTexturedTableScene(std::uint64_t seed) {
   scene.target_mm = {plate.vicon_span_x_mm / 2, 210.0, 30.0};
 
   // Table cloth, wall, plate.
-  const int cloth = b.AddDeadLeaves(1.5, 24, PaletteCloth(), 0.75);
+  const int cloth = b.AddDeadLeaves(2.0, 30, PaletteCloth(), 0.5);
   const int wall = b.AddBanded(90, 5, PaletteStone());
   scene.quads.push_back({Eigen::Vector3d(0, 0, kTableZ), x, y, {-1e12, -1e12}, {1e12, 1e12}, cloth});
   scene.quads.push_back({Eigen::Vector3d(0, 1400, 0), x, z, {-1e12, -1e12}, {1e12, 1e12}, wall});
