@@ -109,7 +109,7 @@ Status SynthRigParams::Check() const {
   };
   if (scene != "table" && scene != "plain")
     return FieldError("rig.scene", "expected table|plain, got '" + scene +
-                                       "' (the folder name is rig.scene_folder)");
+                                       "' (the folder name is rig.scene_folder, --scene-folder)");
   if (!plain(scene_folder))
     return FieldError("rig.scene_folder", "expected letters, digits, '_' or '-'");
   if (!plain(sequence)) return FieldError("rig.sequence", "expected letters, digits, '_' or '-'");
