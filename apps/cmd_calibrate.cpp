@@ -8,6 +8,7 @@
 #include "apps/commands.h"
 #include "registration/calibration.h"
 #include "registration/calibration_frames.h"
+#include "registration/calibration_gates.h"
 #include "registration/intrinsics_yaml.h"
 #include "registration/reference_map.h"
 #include "replay/layout.h"
@@ -38,6 +39,9 @@ struct CalibrateOptions {
   std::string plate;
   int max_features = 4000;
   bool quiet = false;
+  bool ground_truth = false;
+  bool fix_principal_point = false;
+  bool fix_distortion = false;
 };
 
 int Fail(const std::string& message, int code = 1) {
@@ -139,6 +143,8 @@ int RunCalibrate(const CalibrateOptions& o) {
   }
   registration::CalibrationOptions options;
   options.recalibrate = !o.recalibrate.empty();
+  options.estimate_principal_point = !o.fix_principal_point;
+  options.estimate_distortion = !o.fix_distortion;
   Expected<registration::CalibrationResult> result =
       registration::Calibrate(input, options, progress);
   if (!result) return Fail(result.error().message);
@@ -164,6 +170,13 @@ int RunCalibrate(const CalibrateOptions& o) {
   report << registration::FormatCalibrationReport(*result, o.camera);
   if (!report) return Fail((out / "calibration_report.md").string() + ": could not write");
   std::cout << result->BriefReport() << "\n";
+  if (o.ground_truth) {
+    Expected<registration::GroundTruthComparison> c =
+        registration::CompareWithGroundTruth(*result, seq, o.camera);
+    if (!c) return Fail(c.error().message);
+    std::cout << c->BriefReport() << "\n";
+    report << "\n## Against the ground truth\n\n" << c->BriefReport() << "\n";
+  }
   for (const std::string& flag : result->flags) std::cerr << "flag: " << flag << "\n";
   return result->usable ? 0 : 3;
 }
@@ -186,6 +199,11 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
                  "SEQ/GroundTruth/cameras.yaml)");
   app.add_option("--max-features", o->max_features, "SIFT keypoints per TF image (0 = all)");
   app.add_flag("--quiet", o->quiet, "No progress lines on stderr");
+  app.add_flag("--fix-principal-point", o->fix_principal_point,
+               "Hold the principal point at its initial value");
+  app.add_flag("--fix-distortion", o->fix_distortion, "Hold k1, k2, p1, p2 at their initial values");
+  app.add_flag("--ground-truth", o->ground_truth,
+               "Synthetic sequences: compare with SEQ/GroundTruth and print the figures");
   return [o] { return RunCalibrate(*o); };
 }
 

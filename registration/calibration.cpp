@@ -79,6 +79,34 @@ struct LensObservation {
   MicroImageCost cost;
 };
 
+// The micro-image observations of virtual point x_v (calibration.h step 3):
+// the max_lenses most central micro images that see it.
+bool MakeMicroImageCost(const Eigen::Vector3d& x_v, const MicroImages& micro,
+                        const Eigen::Vector2d& c0, double lambda0, int max_lenses, double s,
+                        std::vector<int>* lenses, MicroImageCost* cost) {
+  if (!(x_v.z() > 1)) return false;
+  micro.Seeing(x_v.head<2>(), x_v.z(), c0, lambda0, lenses);
+  if (lenses->size() < 2) return false;
+  std::vector<std::pair<double, int>> by_distance;
+  for (const int l : *lenses) {
+    const Eigen::Vector2d& ck = micro.centres_px[l];
+    const Eigen::Vector2d lk = c0 + (ck - c0) * lambda0;
+    by_distance.emplace_back((lk + (x_v.head<2>() - lk) / x_v.z() - ck).norm(), l);
+  }
+  std::sort(by_distance.begin(), by_distance.end());
+  if (static_cast<int>(by_distance.size()) > max_lenses) by_distance.resize(max_lenses);
+  cost->pixel_size_mm = s;
+  cost->centres_px.clear();
+  cost->observed_px.clear();
+  for (const auto& [d, l] : by_distance) {
+    const Eigen::Vector2d& ck = micro.centres_px[l];
+    const Eigen::Vector2d lk = c0 + (ck - c0) * lambda0;
+    cost->centres_px.push_back(ck);
+    cost->observed_px.push_back(lk + (x_v.head<2>() - lk) / x_v.z());
+  }
+  return true;
+}
+
 struct PoseBlock {
   std::array<double, 4> q{1, 0, 0, 0};  // cam_from_world (w, x, y, z)
   std::array<double, 3> t{0, 0, 0};
@@ -208,32 +236,43 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
     for (int o = 0; o < static_cast<int>(track.observations.size()); ++o) {
       const Observation& ob = track.observations[o];
       const Eigen::Vector3d x_v = internal::VirtualPoint(input.frames[ob.frame], ob.keypoint);
-      input.micro_images->Seeing(x_v.head<2>(), x_v.z(), c0, lambda0, &lenses);
-      if (lenses.size() < 2) continue;
-      // The most central micro images (least vignetted, sharpest).
-      std::vector<std::pair<double, int>> by_distance;
-      for (const int l : lenses) {
-        const Eigen::Vector2d& ck = input.micro_images->centres_px[l];
-        const Eigen::Vector2d lk = c0 + (ck - c0) * lambda0;
-        by_distance.emplace_back((lk + (x_v.head<2>() - lk) / x_v.z() - ck).norm(), l);
-      }
-      std::sort(by_distance.begin(), by_distance.end());
-      if (static_cast<int>(by_distance.size()) > options.max_lenses)
-        by_distance.resize(options.max_lenses);
       LensObservation lo;
       lo.track = t;
       lo.observation = o;
-      lo.cost.pixel_size_mm = s;
-      for (const auto& [d, l] : by_distance) {
-        const Eigen::Vector2d& ck = input.micro_images->centres_px[l];
-        const Eigen::Vector2d lk = c0 + (ck - c0) * lambda0;
-        lo.cost.centres_px.push_back(ck);
-        lo.cost.observed_px.push_back(lk + (x_v.head<2>() - lk) / x_v.z());
-      }
+      if (!MakeMicroImageCost(x_v, *input.micro_images, c0, lambda0, options.max_lenses, s,
+                              &lenses, &lo.cost))
+        continue;
       lens_observations.push_back(std::move(lo));
     }
   }
   std::vector<bool> inlier(lens_observations.size(), true);
+  // Plate corners: fixed points; in the micro images where the TF depth map
+  // has a virtual depth at the corner, else in the virtual image.
+  struct CornerObservation {
+    int frame = 0;
+    std::array<double, 3> p_in_w_mm{};
+    bool micro = false;
+    MicroImageCost micro_cost;
+    PlateCornerCost virtual_cost;
+  };
+  std::vector<CornerObservation> corner_observations;
+  for (int f = 0; f < n_frames; ++f) {
+    if (!map.frames[f].placed) continue;
+    const CalibrationFrame& frame = input.frames[f];
+    for (std::size_t n = 0; n < frame.corners.size(); ++n) {
+      const PlateCorner& corner = frame.corners[n];
+      CornerObservation co;
+      co.frame = f;
+      co.p_in_w_mm = {corner.p_in_w_mm.x(), corner.p_in_w_mm.y(), corner.p_in_w_mm.z()};
+      const Eigen::Vector2d x = 2.0 * corner.tf_px + Eigen::Vector2d(0.5, 0.5);
+      co.virtual_cost = PlateCornerCost{corner.p_in_w_mm, x, s};
+      const float v = n < frame.corner_virtual_depth.size() ? frame.corner_virtual_depth[n]
+                                                            : std::nanf("");
+      co.micro = MakeMicroImageCost(Eigen::Vector3d(x.x(), x.y(), v), *input.micro_images, c0,
+                                    lambda0, options.max_lenses, s, &lenses, &co.micro_cost);
+      corner_observations.push_back(std::move(co));
+    }
+  }
 
   std::vector<int> constant;
   if (!options.estimate_principal_point) constant.insert(constant.end(), {3, 4});
@@ -263,18 +302,24 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
           poses[f].q.data(), poses[f].t.data(), track.p_in_w_mm.data());
       pose_used[f] = true;
     }
-    for (int f = 0; f < n_frames; ++f) {
-      if (!map.frames[f].placed) continue;
-      for (const PlateCorner& corner : input.frames[f].corners) {
-        PlateCornerCost c{corner.p_in_w_mm,
-                          2.0 * corner.tf_px + Eigen::Vector2d(0.5, 0.5), s};
+    for (CornerObservation& co : corner_observations) {
+      const int f = co.frame;
+      if (co.micro) {
+        const int residuals = 2 * static_cast<int>(co.micro_cost.centres_px.size());
+        problem.AddResidualBlock(
+            new ceres::AutoDiffCostFunction<MicroImageCost, ceres::DYNAMIC, kIntrinsicsSize, 4, 3,
+                                            3>(new MicroImageCost(co.micro_cost), residuals),
+            new ceres::HuberLoss(options.huber_px * std::sqrt(residuals / 2.0)), k.data(),
+            poses[f].q.data(), poses[f].t.data(), co.p_in_w_mm.data());
+        problem.SetParameterBlockConstant(co.p_in_w_mm.data());
+      } else {
         problem.AddResidualBlock(
             new ceres::AutoDiffCostFunction<PlateCornerCost, 2, kIntrinsicsSize, 4, 3>(
-                new PlateCornerCost(c)),
+                new PlateCornerCost(co.virtual_cost)),
             new ceres::HuberLoss(options.huber_px), k.data(), poses[f].q.data(),
             poses[f].t.data());
-        pose_used[f] = true;
       }
+      pose_used[f] = true;
     }
     for (int f = 0; f < n_frames; ++f)
       if (pose_used[f]) problem.SetManifold(poses[f].q.data(), new ceres::QuaternionManifold());
@@ -411,15 +456,16 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
   result.micro_observations = m / 2;
   double plate_ss = 0;
   long long plate_m = 0;
-  for (int f = 0; f < n_frames; ++f) {
-    if (!map.frames[f].placed) continue;
-    for (const PlateCorner& corner : input.frames[f].corners) {
-      const PlateCornerCost c{corner.p_in_w_mm, 2.0 * corner.tf_px + Eigen::Vector2d(0.5, 0.5), s};
-      double r[2];
-      if (!c(k.data(), poses[f].q.data(), poses[f].t.data(), r)) continue;
-      plate_ss += r[0] * r[0] + r[1] * r[1];
-      plate_m += 2;
-    }
+  for (const CornerObservation& co : corner_observations) {
+    const int f = co.frame;
+    std::vector<double> r(co.micro ? 2 * co.micro_cost.centres_px.size() : 2);
+    const bool ok = co.micro ? co.micro_cost(k.data(), poses[f].q.data(), poses[f].t.data(),
+                                             co.p_in_w_mm.data(), r.data())
+                             : co.virtual_cost(k.data(), poses[f].q.data(), poses[f].t.data(),
+                                               r.data());
+    if (!ok) continue;
+    for (const double x : r) plate_ss += x * x;
+    plate_m += static_cast<long long>(r.size());
   }
   result.plate_rmse_px = plate_m > 0 ? std::sqrt(plate_ss / plate_m) : 0;
   for (int f = 0; f < n_frames; ++f) {

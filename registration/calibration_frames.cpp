@@ -161,6 +161,12 @@ Expected<CalibrationFrame> CalibrationFrameLoader::Load(std::int64_t frame_numbe
   Expected<std::vector<PlateCorner>> corners = DetectPlateCorners(st.tf.View(), st.plate);
   if (!corners) return corners.error();
   out.corners = std::move(*corners);
+  for (const PlateCorner& c : out.corners) {
+    const int x = std::clamp(static_cast<int>(std::lround(c.tf_px.x())), 0, st.tf.width - 1);
+    const int y = std::clamp(static_cast<int>(std::lround(c.tf_px.y())), 0, st.tf.height - 1);
+    out.corner_virtual_depth.push_back(
+        st.tf_depth.virtual_depth[static_cast<std::size_t>(y) * st.tf.width + x]);
+  }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
 }

@@ -29,6 +29,7 @@ struct CalibrationFrame {
   std::vector<float> virtual_depth;               // per keypoint, NaN where the map is empty
   std::vector<std::array<std::uint8_t, 3>> rgb;   // per keypoint (TF colour)
   std::vector<PlateCorner> corners;               // ArUco plate corners seen
+  std::vector<float> corner_virtual_depth;        // per corner, NaN where the map is empty
   double tf_depth_coverage = 0;                   // share of TF pixels with a virtual depth
   double seconds = 0;                             // processing time of the frame
 };

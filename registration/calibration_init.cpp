@@ -100,6 +100,10 @@ Expected<InitialMap> Initialise(const CalibrationInput& input, const Calibration
     }
     usable.push_back(f);
   }
+  if (usable.empty())
+    return Error{Format("features too few: no frame has %d keypoints with a virtual depth "
+                        "(textured scene needed)",
+                        options.min_features)};
   // The first frame that sees the plate starts; then the later frames in
   // order, then the earlier ones backwards, so each frame follows a
   // neighbour in time.
