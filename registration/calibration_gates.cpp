@@ -34,10 +34,10 @@ std::string GroundTruthComparison::BriefReport() const {
   return Format(
       "vs ground truth: f_L %+.3f %%, b_L0 %+.3f %%, B %+.3f %%, principal point %.2f px, RMSE "
       "%.3f px, map median %.3f mm (%d points), pose median %.3f mm / %.4f deg, scale %.3f %%, "
-      "keypoint v median %.2f %%",
+      "keypoint v median |error| %.2f %% (signed %+.2f %%)",
       100 * f_l_rel, 100 * b_l0_rel, 100 * b_rel, principal_point_px, rmse_px, map_median_mm,
       map_points, pose_median_mm, pose_median_deg, 100 * scale_error,
-      100 * keypoint_v_median_rel);
+      100 * keypoint_v_median_rel, 100 * keypoint_v_bias_rel);
 }
 
 std::vector<std::string> MissedGates(const GroundTruthComparison& c, const GateThresholds& t,
@@ -98,7 +98,7 @@ Expected<GroundTruthComparison> CompareWithGroundTruth(const CalibrationResult& 
   for (const MapImage& image : result.map.images) images[image.image_id] = &image;
   std::map<std::int64_t, std::vector<float>> depth_of_frame;
   int depth_w = 0, depth_h = 0;
-  std::vector<double> errors, v_errors;
+  std::vector<double> errors, v_errors, v_signed;
   std::vector<Eigen::Vector3d> estimated, expected;
   for (const MapPoint& point : result.map.points) {
     const TrackElement& first = point.track.front();
@@ -122,11 +122,15 @@ Expected<GroundTruthComparison> CompareWithGroundTruth(const CalibrationResult& 
     errors.push_back((point.p_in_w0_mm - p_true).norm());
     estimated.push_back(point.p_in_w0_mm);
     expected.push_back(p_true);
-    if (!std::isnan(kp.virtual_depth)) v_errors.push_back(std::abs(kp.virtual_depth / v - 1));
+    if (!std::isnan(kp.virtual_depth)) {
+      v_errors.push_back(std::abs(kp.virtual_depth / v - 1));
+      v_signed.push_back(kp.virtual_depth / v - 1);
+    }
   }
   c.map_points = static_cast<int>(errors.size());
   c.map_median_mm = Median(errors);
   c.keypoint_v_median_rel = Median(v_errors);
+  c.keypoint_v_bias_rel = Median(v_signed);
   std::vector<int> kept;
   for (std::size_t n = 0; n < errors.size(); ++n)
     if (errors[n] <= 3 * c.map_median_mm) kept.push_back(static_cast<int>(n));

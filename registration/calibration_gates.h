@@ -30,6 +30,7 @@ struct GroundTruthComparison {
   double pose_median_mm = 0, pose_median_deg = 0;  // median per frame
   double scale_error = 0;                          // |s - 1|
   double keypoint_v_median_rel = 0;                // median |v - v_true| / v_true of observations
+  double keypoint_v_bias_rel = 0;                  // median (v - v_true) / v_true
   std::string BriefReport() const;                 // one line
 };
 
