@@ -2,12 +2,10 @@
 
 #include "registration/ceres_pose_problem.h"
 #include "registration/p3p.h"
-#include "registration/plenoptic_projection.h"
 #include "registration/pose_refinement.h"
+#include "registration/tf_projection.h"
 
 #include <ceres/ceres.h>
-#include <ceres/jet.h>
-#include <ceres/rotation.h>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
@@ -26,27 +24,49 @@ Error FieldError(const std::string& field, const std::string& what) {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-// Reprojection residual of one match for Ceres: q (x, y, z, w) and t of
-// cam_from_world.
-struct TfReprojection {
-  TfReprojection(const TfProjection& projection, const Eigen::Vector3d& point,
-                 const Eigen::Vector2d& observed)
-      : projection(projection), point(point), observed(observed) {}
+// Reprojection residual of one match for Ceres, with analytic Jacobians:
+// parameters q (x, y, z, w; ceres::EigenQuaternionManifold) and t of
+// cam_from_world. The manifold moves q to [cos|d|, sin|d| d/|d|] * q, a
+// rotation by 2 d on the left, so dr/dd = -2 J_p [R X]x; its Jacobian P
+// (4x3, d(q)/dd at d = 0) has orthonormal columns, so the ambient Jacobian
+// dr/dd P^T gives back dr/dd through the chain rule Ceres applies.
+class TfReprojectionCost final : public ceres::SizedCostFunction<2, 4, 3> {
+ public:
+  TfReprojectionCost(const TfProjection& projection, const Eigen::Vector3d& point,
+                     const Eigen::Vector2d& observed)
+      : projection_(projection), point_(point), observed_(observed) {}
 
-  template <typename T>
-  bool operator()(const T* q, const T* t, T* residual) const {
-    const Eigen::Quaternion<T> rotation(q[3], q[0], q[1], q[2]);
-    const Eigen::Matrix<T, 3, 1> p = rotation * point.cast<T>() + Eigen::Map<const Eigen::Matrix<T, 3, 1>>(t);
-    T tf[2];
-    if (!projection(p.data(), tf)) return false;
-    residual[0] = tf[0] - T(observed.x());
-    residual[1] = tf[1] - T(observed.y());
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const Eigen::Map<const Eigen::Quaterniond> q(parameters[0]);
+    const Eigen::Map<const Eigen::Vector3d> t(parameters[1]);
+    const Eigen::Vector3d rx = q * point_;
+    Eigen::Vector2d tf;
+    Eigen::Matrix<double, 2, 3> j_p;
+    if (!projection_.WithJacobian(rx + t, &tf, &j_p)) return false;
+    residuals[0] = tf.x() - observed_.x();
+    residuals[1] = tf.y() - observed_.y();
+    if (jacobians == nullptr) return true;
+    if (jacobians[0] != nullptr) {
+      // P: rows x, y, z = w I - [v]x, row w = -v^T (v the vector part of q).
+      Eigen::Matrix<double, 4, 3> p;
+      p.topRows<3>() = q.w() * Eigen::Matrix3d::Identity() - Skew(q.vec());
+      p.row(3) = -q.vec().transpose();
+      const Eigen::Matrix<double, 2, 3> j_d = -2.0 * j_p * Skew(rx);
+      Eigen::Map<Eigen::Matrix<double, 2, 4, Eigen::RowMajor>> j_q(jacobians[0]);
+      j_q = j_d * p.transpose();
+    }
+    if (jacobians[1] != nullptr) {
+      Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>> j_t(jacobians[1]);
+      j_t = j_p;
+    }
     return true;
   }
 
-  const TfProjection& projection;
-  Eigen::Vector3d point;
-  Eigen::Vector2d observed;
+ private:
+  const TfProjection& projection_;
+  Eigen::Vector3d point_;
+  Eigen::Vector2d observed_;
 };
 
 }  // namespace
@@ -100,29 +120,15 @@ void PlenopticPnpEstimator::Generate(std::span<const int> sample, std::vector<Mo
   SolveP3P(bearings, points, models);
 }
 
-double PlenopticPnpEstimator::SquaredResidual(const Model& cam_from_world, std::size_t i) const {
-  const Eigen::Vector3d p = cam_from_world * input_.points_in_world[i];
-  double tf[2];
-  if (!projection_(p.data(), tf)) return kInf;
-  return (Eigen::Vector2d(tf[0], tf[1]) - input_.tf_px[i]).squaredNorm();
-}
-
 double PlenopticPnpEstimator::Score(const Model& cam_from_world, double threshold2, double bound,
                                     std::size_t* num_inliers) const {
-  const TfProjection& projection = projection_;
   const Eigen::Matrix3d r = cam_from_world.linear();
   const Eigen::Vector3d t = cam_from_world.translation();
   const std::size_t n = NumData();
   double cost = 0;
   std::size_t inliers = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d p = r * input_.points_in_world[i] + t;
-    double tf[2];
-    double r2 = threshold2;
-    if (projection(p.data(), tf)) {
-      const double dx = tf[0] - input_.tf_px[i].x(), dy = tf[1] - input_.tf_px[i].y();
-      r2 = dx * dx + dy * dy;
-    }
+    const double r2 = projection_.SquaredError(r * input_.points_in_world[i] + t, input_.tf_px[i]);
     if (r2 < threshold2) {
       ++inliers;
       cost += r2;
@@ -139,8 +145,6 @@ std::size_t PlenopticPnpEstimator::NormalEquations(const Model& cam_from_world, 
                                                    Eigen::Matrix<double, 6, 6>* jtj,
                                                    Eigen::Matrix<double, 6, 1>* jtr,
                                                    double* sum_squares) const {
-  using Jet = ceres::Jet<double, 3>;
-  const TfProjection& projection = projection_;
   const Eigen::Matrix3d r = cam_from_world.linear();
   const Eigen::Vector3d t = cam_from_world.translation();
   jtj->setZero();
@@ -148,17 +152,14 @@ std::size_t PlenopticPnpEstimator::NormalEquations(const Model& cam_from_world, 
   *sum_squares = 0;
   std::size_t used = 0;
   const std::size_t n = NumData();
+  Eigen::Vector2d tf;
+  Eigen::Matrix<double, 2, 3> j_p;
   for (std::size_t i = 0; i < n; ++i) {
     const Eigen::Vector3d rx = r * input_.points_in_world[i];
-    const Jet p[3] = {Jet(rx.x() + t.x(), 0), Jet(rx.y() + t.y(), 1), Jet(rx.z() + t.z(), 2)};
-    Jet tf[2];
-    if (!projection(p, tf)) continue;
-    const Eigen::Vector2d res(tf[0].a - input_.tf_px[i].x(), tf[1].a - input_.tf_px[i].y());
+    if (!projection_.WithJacobian(rx + t, &tf, &j_p)) continue;
+    const Eigen::Vector2d res = tf - input_.tf_px[i];
     const double r2 = res.squaredNorm();
     if (!(r2 < threshold2)) continue;
-    Eigen::Matrix<double, 2, 3> j_p;
-    j_p.row(0) = tf[0].v.transpose();
-    j_p.row(1) = tf[1].v.transpose();
     // dp/d(dt) = I, dp/d(dr) = -[R X]x.
     Eigen::Matrix<double, 2, 6> j;
     j.leftCols<3>() = j_p;
@@ -192,10 +193,10 @@ int RefinePnpCeres(const processing::CameraModel& camera, const PnpInput& input,
                    std::span<const char> mask, double loss_scale_px, int max_iterations,
                    Pose* cam_from_world) {
   const TfProjection projection = TfProjection::Of(camera);
-  return SolveCeresPoseProblem<TfReprojection, 2>(
+  return SolveCeresPoseProblem(
       mask, loss_scale_px, max_iterations,
       [&](std::size_t i) {
-        return new TfReprojection(projection, input.points_in_world[i], input.tf_px[i]);
+        return new TfReprojectionCost(projection, input.points_in_world[i], input.tf_px[i]);
       },
       cam_from_world);
 }

@@ -12,7 +12,7 @@
 //   FeatureFocalPx(); its bearing is ((x - c) / f, (y - c) / f, 1).
 //   Observations without a virtual depth are scored and refined, never sampled.
 //   Residual: r_i = pi(R X_i + t) - tf_i in TF pixels, pi the plenoptic
-//   projection (registration/plenoptic_projection.h). It does not use v_i, so
+//   projection (registration/tf_projection.h). It does not use v_i, so
 //   the depth map's noise does not enter the refined pose.
 //   Robust core: LO-RANSAC (registration/ransac.h) with MSAC on |r_i|; local
 //   optimisation by Gauss-Newton on the truncated quadratic loss.
@@ -26,7 +26,7 @@
 #include "config/error.h"
 #include "config/frames.h"
 #include "processing/camera_model.h"
-#include "registration/plenoptic_projection.h"
+#include "registration/tf_projection.h"
 #include "registration/pose_covariance.h"
 #include "registration/ransac.h"
 
@@ -88,7 +88,9 @@ class PlenopticPnpEstimator {
   void Generate(std::span<const int> sample, std::vector<Model>* models);
   double Score(const Model& cam_from_world, double threshold2, double bound,
                std::size_t* num_inliers) const;
-  double SquaredResidual(const Model& cam_from_world, std::size_t i) const;
+  double SquaredResidual(const Model& cam_from_world, std::size_t i) const {
+    return projection_.SquaredError(cam_from_world * input_.points_in_world[i], input_.tf_px[i]);
+  }
   bool Refine(Model* cam_from_world, double threshold);
 
   // Gauss-Newton on the truncated quadratic loss (threshold) over all data.

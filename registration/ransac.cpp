@@ -18,6 +18,8 @@ Status RansacOptions::Check() const {
   if (!(trials_multiplier >= 1) || !std::isfinite(trials_multiplier))
     return FieldError("trials_multiplier", "expected a finite number >= 1");
   if (min_trials < 0) return FieldError("min_trials", "expected >= 0");
+  if (!(min_inlier_ratio >= 0 && min_inlier_ratio < 1))
+    return FieldError("min_inlier_ratio", "expected 0 <= ratio < 1");
   if (max_trials < 1 || max_trials < min_trials)
     return FieldError("max_trials", "expected >= 1 and >= min_trials");
   return Status::Ok();
@@ -36,10 +38,10 @@ int RequiredTrials(double inlier_ratio, int sample_size, const RansacOptions& op
 std::string RansacReport::BriefReport() const {
   char line[256];
   std::snprintf(line, sizeof line,
-                "LO-RANSAC %s: %zu/%zu inliers (%.1f %%), %d trials of %d needed, %d models, "
-                "%d refinements, cost %.3g, %.2f ms",
+                "LO-RANSAC %s: %zu/%zu inliers (%.1f %%), %d trials of %d needed, %d models "
+                "(%d bailed out), %d refinements, cost %.3g, %.2f ms",
                 success ? "ok" : "failed", num_inliers, num_data, 100.0 * InlierRatio(), trials,
-                required_trials, models, refinements, cost, time_ms);
+                required_trials, models, bailed_out, refinements, cost, time_ms);
   return line;
 }
 

@@ -13,8 +13,23 @@
 // that none of k samples of size s is all-inlier is (1 - w^s)^k; requiring it
 // below 1 - confidence gives
 //   k = multiplier * log(1 - confidence) / log(1 - w^s),
-// clamped to [min_trials, max_trials]. The multiplier (3 as in PoseLib and
-// COLMAP) pays for w being an estimate from noisy inlier counts.
+// clamped to [min_trials, max_trials]. A multiplier above 1 (PoseLib and
+// COLMAP use 3) pays for w being an estimate; lifmcr's w comes from the
+// locally optimised model, whose inlier count is close to the true one, so
+// it defaults to 1.
+//
+// Early bail-out (Capel 2005): the core scores a minimal model on the data
+// in one random order fixed per call. A model at least as good as the best
+// so far, of inlier ratio w, has after k data about w k inliers with
+// standard deviation sqrt(k w (1 - w)); a model with fewer than
+//   w k - 3 sqrt(k w (1 - w)) - 1
+// is dropped there (checked every 16 data from k = 32). Most minimal models
+// are bad, and they cost k ~ 50 data instead of all of them; a model as good
+// as the best survives with probability > 99.8 %. Until a model with at
+// least min_inlier_ratio is found, w = min_inlier_ratio (the ratio below
+// which the problem is not expected to be solved, as COLMAP's option of that
+// name): the random models of the first trials are dropped after ~230 data
+// at 0.05 instead of running through all of them.
 //
 // Local optimisation: whenever a minimal model has more inliers than every
 // minimal model before it, the estimator refines it non-linearly over all
@@ -22,8 +37,9 @@
 // pull it); the refined model replaces the best one when its MSAC cost is
 // lower. The best model is refined once more at the end.
 //
-// Allocation: the sample, the model list and the inlier mask are sized once
-// per call; no trial allocates (the estimator keeps its own scratch).
+// Allocation: the sample, the scoring order, the model list and the inlier
+// mask are sized once per call; no trial allocates (the estimator keeps its
+// own scratch).
 
 #include "config/error.h"
 
@@ -44,10 +60,12 @@ namespace lifmcr::registration {
 struct RansacOptions {
   double max_error = 1.0;        // inlier threshold t, in the estimator's residual units (> 0)
   double confidence = 0.9999;    // probability of drawing one all-inlier sample, in (0, 1)
-  double trials_multiplier = 3;  // multiplier of the adaptive trial count (>= 1)
+  double trials_multiplier = 1;  // multiplier of the adaptive trial count (>= 1)
   int min_trials = 50;           // trials run even when the count is reached earlier (>= 0)
   int max_trials = 100000;       // hard cap (>= min_trials, >= 1)
   bool local_optimisation = true;  // refine each new best minimal model (LO-RANSAC)
+  bool bail_out = true;          // drop hopeless minimal models early (comment above)
+  double min_inlier_ratio = 0.05;  // the bail-out's least w, in [0, 1)
   std::uint64_t seed = 0;        // the generator's seed: the same seed gives the same result
 
   // Every field in range; the message names the field.
@@ -58,6 +76,7 @@ struct RansacReport {
   bool success = false;        // a model with at least sample-size inliers was found
   int trials = 0;              // samples drawn
   int models = 0;              // minimal models scored
+  int bailed_out = 0;          // of which dropped early
   int refinements = 0;         // local optimisations run (including the final one)
   int required_trials = 0;     // the adaptive count when the loop stopped
   std::size_t num_data = 0;
@@ -119,11 +138,43 @@ RansacReport Ransac(const RansacOptions& options, Estimator& estimator,
   const double t2 = options.max_error * options.max_error;
   std::mt19937_64 rng(options.seed);
   std::vector<int> sample(kS);
+  std::vector<std::size_t> order(n);
+  for (std::size_t i = 0; i < n; ++i) order[i] = i;
+  std::shuffle(order.begin(), order.end(), rng);
   std::vector<Model> models;
   models.reserve(8);
   Model best{};
   std::size_t best_minimal_inliers = 0;
   int required = options.max_trials;
+
+  // MSAC cost of a minimal model in `order`, or +inf once it cannot beat the
+  // best (cost bound) or fails the bail-out test.
+  auto score_minimal = [&](const Model& model, std::size_t* inliers) {
+    const double w = std::max(report.InlierRatio(), options.min_inlier_ratio);
+    const bool bail = options.bail_out && w > 0;
+    const double spread = 3.0 * std::sqrt(w * (1.0 - w));
+    double cost = 0;
+    std::size_t count = 0;
+    for (std::size_t k = 0; k < n; ++k) {
+      const double r2 = estimator.SquaredResidual(model, order[k]);
+      if (r2 < t2) {
+        ++count;
+        cost += r2;
+      } else {
+        cost += t2;
+      }
+      if (cost >= report.cost) return std::numeric_limits<double>::infinity();
+      if (bail && k >= 31 && (k + 1) % 16 == 0) {
+        const double seen = static_cast<double>(k + 1);
+        if (static_cast<double>(count) < w * seen - spread * std::sqrt(seen) - 1) {
+          ++report.bailed_out;
+          return std::numeric_limits<double>::infinity();
+        }
+      }
+    }
+    *inliers = count;
+    return cost;
+  };
 
   auto try_refine = [&](Model candidate) {
     ++report.refinements;
@@ -155,7 +206,7 @@ RansacReport Ransac(const RansacOptions& options, Estimator& estimator,
     for (std::size_t m = 0; m < models.size(); ++m) {
       ++report.models;
       std::size_t inliers = 0;
-      const double cost = estimator.Score(models[m], t2, report.cost, &inliers);
+      const double cost = score_minimal(models[m], &inliers);
       if (cost >= report.cost) continue;
       report.cost = cost;
       report.num_inliers = inliers;

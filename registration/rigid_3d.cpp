@@ -213,11 +213,12 @@ namespace {
 int RefineRigidCeres(const Rigid3dInput& input, std::span<const Eigen::Matrix3d> whitening,
                      std::span<const char> mask, const Rigid3dOptions& options,
                      Pose* dst_from_src) {
-  return SolveCeresPoseProblem<WhitenedPointResidual, 3>(
+  return SolveCeresPoseProblem(
       mask, options.loss_scale, options.max_refine_iterations,
       [&](std::size_t i) {
-        return new WhitenedPointResidual(input.points_in_src[i], input.points_in_dst[i],
-                                         whitening[i]);
+        return new ceres::AutoDiffCostFunction<WhitenedPointResidual, 3, 4, 3>(
+            new WhitenedPointResidual(input.points_in_src[i], input.points_in_dst[i],
+                                      whitening[i]));
       },
       dst_from_src);
 }

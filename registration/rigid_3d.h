@@ -7,7 +7,7 @@
 // Noise model. A plenoptic point is back-projected from its TF pixel and its
 // virtual depth v. With the TF pixel fixed, the point moves along the TF
 // pinhole's ray through the front focal point F = (0, 0, f_L)
-// (registration/plenoptic_projection.h) as v varies, by
+// (registration/tf_projection.h) as v varies, by
 //   dZ/dv = -B (Z - f_L)^2 / f_L^2           (thin lens, Z = f_L b / (b - f_L))
 // in depth, i.e. sigma_ray = |dZ/dv| sigma_v / r_z along the unit ray r, and
 // laterally by the keypoint noise, sigma_lat = 2 sigma_tf s (Z - f_L) / f_L

@@ -2,7 +2,7 @@
 // outliers; the projection agrees with processing's camera model.
 #include "registration/pnp.h"
 
-#include "registration/plenoptic_projection.h"
+#include "registration/tf_projection.h"
 #include "tests/registration/random_geometry.h"
 
 #include <gtest/gtest.h>
@@ -39,6 +39,20 @@ TEST(TfProjection, AgreesWithTheCameraModel) {
       const Eigen::Vector2d expected = processing::CameraModel::TfOfRaw(virtual_px.head<2>());
       EXPECT_NEAR(tf[0], expected.x(), 1e-9);
       EXPECT_NEAR(tf[1], expected.y(), 1e-9);
+    }
+    // The Jacobian against central differences.
+    const Eigen::Vector3d p(120, -80, 900);
+    Eigen::Vector2d tf0;
+    Eigen::Matrix<double, 2, 3> jacobian;
+    ASSERT_TRUE(projection.WithJacobian(p, &tf0, &jacobian));
+    for (int a = 0; a < 3; ++a) {
+      Eigen::Vector3d step = Eigen::Vector3d::Zero();
+      step[a] = 1e-4;
+      double plus[2], minus[2];
+      const Eigen::Vector3d pp = p + step, pm = p - step;
+      ASSERT_TRUE(projection(pp.data(), plus) && projection(pm.data(), minus));
+      EXPECT_NEAR(jacobian(0, a), (plus[0] - minus[0]) / 2e-4, 1e-6);
+      EXPECT_NEAR(jacobian(1, a), (plus[1] - minus[1]) / 2e-4, 1e-6);
     }
     const Eigen::Vector3d at_focus(0, 0, k.main_focal_length_mm);
     double tf[2];

@@ -15,6 +15,8 @@
 
 #include <Eigen/Core>
 
+#include <limits>
+
 namespace lifmcr::registration {
 
 struct TfProjection {
@@ -24,6 +26,8 @@ struct TfProjection {
   double cx = 0, cy = 0;    // principal point (raw px)
   double k1 = 0, k2 = 0, p1 = 0, p2 = 0;
   bool distorted = false;
+  double half_f_over_s = 1.0;  // f_L / (2 s): the TF pinhole's focal length (TF px)
+  double tf_cx = 0, tf_cy = 0;  // (c - 1/2) / 2: its principal point (TF px)
 
   static TfProjection Of(const processing::CameraModel& camera) {
     const processing::CameraIntrinsics& k = camera.intrinsics();
@@ -38,6 +42,9 @@ struct TfProjection {
     t.p1 = k.p1;
     t.p2 = k.p2;
     t.distorted = k.k1 != 0 || k.k2 != 0 || k.p1 != 0 || k.p2 != 0;
+    t.half_f_over_s = 0.5 * t.f / k.pixel_size_mm;
+    t.tf_cx = (t.cx - 0.5) * 0.5;
+    t.tf_cy = (t.cy - 0.5) * 0.5;
     return t;
   }
 
@@ -62,6 +69,44 @@ struct TfProjection {
     tf[1] = (T(cy) + y * scale - T(0.5)) * T(0.5);
     return true;
   }
+
+  // |tf(p) - observed|^2, +inf when Z <= f_L; one division without distortion.
+  double SquaredError(const Eigen::Vector3d& p, const Eigen::Vector2d& observed) const {
+    if (!(p.z() > f)) return std::numeric_limits<double>::infinity();
+    double dx, dy;
+    if (!distorted) {
+      const double a = half_f_over_s / (p.z() - f);
+      dx = tf_cx + a * p.x() - observed.x();
+      dy = tf_cy + a * p.y() - observed.y();
+    } else {
+      double tf[2];
+      (*this)(p.data(), tf);
+      dx = tf[0] - observed.x();
+      dy = tf[1] - observed.y();
+    }
+    return dx * dx + dy * dy;
+  }
+
+  // The TF pixel and its 2x3 Jacobian d tf / d p. Without distortion in
+  // closed form: with a = f_L / (2 s (Z - f_L)),
+  //   tf = (c - 1/2) / 2 + a (X, Y),   d tf / dX = a,   d tf / dZ = -a (X, Y) / (Z - f_L);
+  // with distortion by automatic differentiation (tf_projection.cpp).
+  bool WithJacobian(const Eigen::Vector3d& p, Eigen::Vector2d* tf,
+                    Eigen::Matrix<double, 2, 3>* jacobian) const {
+    if (!(p.z() > f)) return false;
+    if (!distorted) {
+      const double inv_depth = 1.0 / (p.z() - f);
+      const double a = half_f_over_s * inv_depth;
+      *tf = Eigen::Vector2d(tf_cx + a * p.x(), tf_cy + a * p.y());
+      *jacobian << a, 0, -a * p.x() * inv_depth, 0, a, -a * p.y() * inv_depth;
+      return true;
+    }
+    return DistortedWithJacobian(p, tf, jacobian);
+  }
+
+ private:
+  bool DistortedWithJacobian(const Eigen::Vector3d& p, Eigen::Vector2d* tf,
+                             Eigen::Matrix<double, 2, 3>* jacobian) const;
 };
 
 }  // namespace lifmcr::registration
