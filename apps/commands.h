@@ -21,5 +21,6 @@ CommandRun AddMonitorCommand(CLI::App& app);
 CommandRun AddDemoCommand(CLI::App& app);
 CommandRun AddGridCommand(CLI::App& app);
 CommandRun AddDepthCommand(CLI::App& app);
+CommandRun AddCalibrateCommand(CLI::App& app);
 
 }  // namespace lifmcr::apps

@@ -36,6 +36,8 @@ int main(int argc, char** argv) {
       lifmcr::apps::AddGridCommand);
   add("depth", "Virtual depth, totally focused image, metric depth and point cloud of one frame",
       lifmcr::apps::AddDepthCommand);
+  add("calibrate", "Intrinsic calibration of one camera and its reference map (plenoptic BA)",
+      lifmcr::apps::AddCalibrateCommand);
 
   try {
     app.parse(argc, argv);
