@@ -22,5 +22,6 @@ CommandRun AddDemoCommand(CLI::App& app);
 CommandRun AddGridCommand(CLI::App& app);
 CommandRun AddDepthCommand(CLI::App& app);
 CommandRun AddCalibrateCommand(CLI::App& app);
+CommandRun AddRegisterCommand(CLI::App& app);
 
 }  // namespace lifmcr::apps
