@@ -23,5 +23,6 @@ CommandRun AddGridCommand(CLI::App& app);
 CommandRun AddDepthCommand(CLI::App& app);
 CommandRun AddEvaluateCommand(CLI::App& app);
 CommandRun AddCalibrateCommand(CLI::App& app);
+CommandRun AddRegisterCommand(CLI::App& app);
 
 }  // namespace lifmcr::apps

@@ -51,6 +51,8 @@ int main(int argc, char** argv) {
       lifmcr::apps::AddDepthCommand);
   add("calibrate", "Intrinsic calibration of one camera and its reference map (plenoptic BA)",
       lifmcr::apps::AddCalibrateCommand);
+  add("register", "Register every camera to camera 0's reference map: c0_from_cx per frame",
+      lifmcr::apps::AddRegisterCommand);
 
   try {
     app.parse(argc, argv);
