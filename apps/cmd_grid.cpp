@@ -116,10 +116,10 @@ int RunGrid(const GridOptions& o) {
 CommandRun AddGridCommand(CLI::App& app) {
   auto o = std::make_shared<GridOptions>();
   app.footer(
-      "Reads IMAGE (BMP, PNG or TIFF; a white image, or with --textured a raw frame of a\n"
+      "Reads: IMAGE (BMP, PNG or TIFF; a white image, or with --textured a raw frame of a\n"
       "textured scene) and --mla FILE (RayCalibData XML). Prints the fitted lattice with its\n"
       "residual and, with --mla, how far the file's micro-image centres are from it.\n"
-      "Writes the refined MLA XML (--out, default ./<IMAGE stem>_MLA.xml).\n"
+      "Writes: the refined MLA XML (--out, default ./<IMAGE stem>_MLA.xml).\n"
       "Exit codes: 0 written; 1 an input could not be read or the lattice not fitted (the\n"
       "message says why); 2 usage error.");
   app.add_option("IMAGE", o->white, "White image, or a raw frame with --textured (BMP, PNG, TIFF)")
