@@ -23,6 +23,8 @@ struct SynthFrame {
   CameraIntrinsics intrinsics;
 };
 
-SynthFrame RenderSynthFrame(const std::string& preset = "small", double read_noise_dn = 1.0);
+// `bayer`: the sensor writes an RGGB mosaic (Mono8) instead of BGR8.
+SynthFrame RenderSynthFrame(const std::string& preset = "small", double read_noise_dn = 1.0,
+                            bool bayer = false);
 
 }  // namespace lifmcr::processing::testing
