@@ -15,7 +15,9 @@
 #include "replay/bmp.h"
 #include "replay/layout.h"
 #include "replay/mla_xml.h"
+#include "replay/synth/cameras_yaml.h"
 #include "replay/synth/gt_images.h"
+#include "config/text_escape.h"
 
 #include <CLI/CLI.hpp>
 #include <opencv2/core.hpp>
@@ -26,8 +28,8 @@
 #include <pcl/io/ply_io.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
-#include <yaml-cpp/yaml.h>
 
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -46,57 +48,45 @@ struct DepthCommandOptions {
   bool uncertainty = false;
   std::string sequence;
   std::string camera;
-  std::int64_t frame = 0;
+  std::string frame;
   std::string out;
   std::string intrinsics;
   std::string white;
   std::string mla;
 };
 
-// The camera `serial` of a cameras.yaml (GroundTruth of `lifmcr synth`):
-// cameras: [{serial, model: {width_px, height_px, pixel_size_mm,
-// main_focal_length_mm, mla_to_main_lens_mm, mla_to_sensor_mm,
-// distortion: {k1, k2, p1, p2}}}].
+// The camera `serial` of a cameras.yaml (GroundTruth of `lifmcr synth`, or
+// what `lifmcr calibrate` writes), through the strict YAML reader.
 Expected<processing::CameraIntrinsics> ReadIntrinsics(const std::string& path,
                                                       const std::string& serial) {
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::Exception& e) {
-    return Error{path + ": " + e.what()};
+  Expected<synth::CameraModelYaml> model = synth::ReadCameraModelYaml(path, serial);
+  if (!model) return model.error();
+  processing::CameraIntrinsics k;
+  k.width_px = model->width_px;
+  k.height_px = model->height_px;
+  k.pixel_size_mm = model->pixel_size_mm;
+  k.main_focal_length_mm = model->main_focal_length_mm;
+  k.mla_to_main_lens_mm = model->mla_to_main_lens_mm;
+  k.mla_to_sensor_mm = model->mla_to_sensor_mm;
+  k.k1 = model->k1;
+  k.k2 = model->k2;
+  k.p1 = model->p1;
+  k.p2 = model->p2;
+  if (Status s = k.Check(); !s) return Error{EscapeText(path) + ": " + s.error().message};
+  return k;
+}
+
+// A frame number: decimal digits only, within int64 (CLI11 would turn 30
+// digits into INT64_MAX without a word).
+Expected<std::int64_t> ParseFrameNumber(const std::string& text) {
+  std::int64_t frame = -1;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), frame);
+  if (text.empty() || ec != std::errc() || end != text.data() + text.size() || frame < 0 ||
+      frame > layout::kMaxFrameNumber) {
+    return Error{"--frame: expected a frame number 0 .. " + std::to_string(layout::kMaxFrameNumber) +
+                 ", got '" + Excerpt(text) + "'"};
   }
-  if (!root["cameras"] || !root["cameras"].IsSequence())
-    return Error{path + ": /cameras: expected a list of cameras"};
-  for (std::size_t n = 0; n < root["cameras"].size(); ++n) {
-    const YAML::Node cam = root["cameras"][n];
-    if (!cam["serial"] || cam["serial"].as<std::string>() != serial) continue;
-    const std::string where = path + ": /cameras/" + std::to_string(n) + "/model/";
-    const YAML::Node m = cam["model"];
-    processing::CameraIntrinsics k;
-    try {
-      auto num = [&](const char* key) {
-        if (!m[key]) throw YAML::Exception(YAML::Mark::null_mark(), std::string("missing ") + key);
-        return m[key].as<double>();
-      };
-      k.width_px = static_cast<int>(num("width_px"));
-      k.height_px = static_cast<int>(num("height_px"));
-      k.pixel_size_mm = num("pixel_size_mm");
-      k.main_focal_length_mm = num("main_focal_length_mm");
-      k.mla_to_main_lens_mm = num("mla_to_main_lens_mm");
-      k.mla_to_sensor_mm = num("mla_to_sensor_mm");
-      if (const YAML::Node d = m["distortion"]) {
-        k.k1 = d["k1"] ? d["k1"].as<double>() : 0.0;
-        k.k2 = d["k2"] ? d["k2"].as<double>() : 0.0;
-        k.p1 = d["p1"] ? d["p1"].as<double>() : 0.0;
-        k.p2 = d["p2"] ? d["p2"].as<double>() : 0.0;
-      }
-    } catch (const YAML::Exception& e) {
-      return Error{where + ": " + e.msg};
-    }
-    if (Status s = k.Check(); !s) return Error{where + ": " + s.error().message};
-    return k;
-  }
-  return Error{path + ": /cameras: no camera with serial " + serial};
+  return frame;
 }
 
 double Seconds(std::chrono::steady_clock::time_point since) {
@@ -165,15 +155,18 @@ Status WritePly(const fs::path& path, const processing::PointCloud& cloud, bool 
 }
 
 int Fail(const std::string& message) {
-  std::cerr << "lifmcr depth: " << message << "\n";
+  std::cerr << "lifmcr depth: " << EscapeText(message) << "\n";
   return 1;
 }
 
 int RunDepth(const DepthCommandOptions& o) {
   const auto t_all = std::chrono::steady_clock::now();
+  const Expected<std::int64_t> frame_number = ParseFrameNumber(o.frame);
+  if (!frame_number) return Fail(frame_number.error().message);
+  const std::int64_t frame_index = *frame_number;
   const fs::path seq = o.sequence;
   const fs::path calib = seq.parent_path().parent_path() / std::string(layout::kCalibrationFolder);
-  const fs::path raw_path = layout::RawFramePath(seq, o.camera, o.frame);
+  const fs::path raw_path = layout::RawFramePath(seq, o.camera, frame_index);
   const fs::path white_path =
       o.white.empty() ? layout::WhiteImagePath(calib, o.camera, 0) : fs::path(o.white);
   const fs::path mla_path = o.mla.empty() ? layout::MlaXmlPath(calib, o.camera) : fs::path(o.mla);
@@ -208,6 +201,12 @@ int RunDepth(const DepthCommandOptions& o) {
           processing::PrepareFrame(raw->View(), white->View(), grid, *mla, frame_options, &frame);
       !s)
     return Fail(s.error().message);
+  if (frame.lenses.empty()) {
+    return Fail(raw_path.string() + ": no whole micro image of diameter " +
+                std::to_string(mla->diameter_px) + " px fits the " + std::to_string(raw->width) +
+                "x" + std::to_string(raw->height) + " frame; expected a raw frame of the camera " +
+                "the MLA file belongs to");
+  }
   std::printf("prepare   %.3f s  %zu micro images, devignetted%s\n", Seconds(t),
               frame.lenses.size(),
               camera ? "" : "; no intrinsics: micro-lens centres = micro-image centres (lambda 1)");
@@ -229,7 +228,8 @@ int RunDepth(const DepthCommandOptions& o) {
   processing::TfImage tf;
   if (Status s = processing::RenderTotalFocus(frame, *mla, tf_depth, tf_options, &tf); !s)
     return Fail(s.error().message);
-  const double tf_n = static_cast<double>(tf_depth.width) * tf_depth.height;
+  // max(1): an empty TF grid prints 0 %, not -nan %.
+  const double tf_n = std::max(1.0, static_cast<double>(tf_depth.width) * tf_depth.height);
   std::printf("tf        %.3f s  %dx%d; TF depth: %.1f %% measured, %.1f %% filled\n", Seconds(t),
               tf.width, tf.height, 100.0 * tf_depth.measured / tf_n,
               100.0 * tf_depth.filled / tf_n);
@@ -239,7 +239,7 @@ int RunDepth(const DepthCommandOptions& o) {
   fs::create_directories(o.out, ec);
   if (ec) return Fail(o.out + ": " + ec.message());
   const fs::path out = o.out;
-  const std::string prefix = layout::VirtualDepthFileName(o.camera, o.frame);
+  const std::string prefix = layout::VirtualDepthFileName(o.camera, frame_index);
   const std::string stem =
       prefix.substr(0, prefix.size() - std::string("_virtual_depth.tiff").size());
   if (Status s = synth::WriteFloatTiff(out / (stem + "_virtual_depth.tiff"), depth.width,

@@ -1,5 +1,6 @@
 #include "apps/commands.h"
 #include "apps/info_report.h"
+#include "config/text_escape.h"
 
 #include <CLI/CLI.hpp>
 
@@ -32,7 +33,7 @@ CommandRun AddInfoCommand(CLI::App& app) {
     options.check_every_frame = !args->quick;
     auto report = DescribePath(args->path, options);
     if (!report.ok()) {
-      std::cerr << "lifmcr info: " << report.error().message << "\n";
+      std::cerr << "lifmcr info: " << EscapeText(report.error().message) << "\n";
       return 1;
     }
     if (args->json)

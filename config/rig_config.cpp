@@ -1,5 +1,8 @@
 #include "config/rig_config.h"
 
+#include "config/input_file.h"
+#include "config/text_escape.h"
+
 #include "config/yaml_reader.h"
 
 #include <arpa/inet.h>
@@ -556,16 +559,9 @@ Expected<RigConfig> ParseRigConfig(std::string_view yaml, const fs::path& base_d
 }
 
 Expected<RigConfig> LoadRigConfig(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    return MakeError(
-        path.string(), 0, 0,
-        "cannot open the rig file: " + std::error_code(errno, std::generic_category()).message());
-  }
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) return MakeError(path.string(), 0, 0, "cannot read the rig file");
-  return ParseRigConfig(text.str(), fs::absolute(path).parent_path(), path.string());
+  Expected<std::string> text = ReadInputText(path, {"a rig file (YAML)", kRigFileMaxBytes});
+  if (!text) return text.error();
+  return ParseRigConfig(*text, fs::absolute(path).parent_path(), EscapeText(path.string()));
 }
 
 std::string FormatRigConfig(const RigConfig& rig) {

@@ -193,7 +193,11 @@ struct RigConfig {
 // names the source in messages (the file path, usually).
 Expected<RigConfig> ParseRigConfig(std::string_view yaml, const std::filesystem::path& base_dir,
                                    const std::string& label);
-// Reads `path` and parses it with base_dir = its folder and label = path.
+// A rig file of a few cameras is ~2 KB; 1 MiB bounds what is read.
+inline constexpr std::uint64_t kRigFileMaxBytes = 1 << 20;
+// Reads `path` (config/input_file.h: a regular file, at most
+// kRigFileMaxBytes, UTF-8) and parses it with base_dir = its folder and
+// label = path.
 Expected<RigConfig> LoadRigConfig(const std::filesystem::path& path);
 // YAML that ParseRigConfig reads back equal: every field written, including
 // defaults, paths as stored (resolved), strings double-quoted.
