@@ -59,6 +59,11 @@ class Reader {
     }
     std::vector<const XMLElement*> marker_elements;
     if (markers != nullptr) marker_elements = xml::Children(markers, "Marker");
+    if (marker_elements.size() > kVskLimits.max_markers) {
+      return xml::ErrorAt(label_, marker_elements[kVskLimits.max_markers],
+                          "more than " + std::to_string(kVskLimits.max_markers) +
+                              " markers; expected the markers of real Vicon subjects");
+    }
     for (const XMLElement* element : marker_elements) {
       LIFMCR_XML_ASSIGN_OR_RETURN(const std::string name,
                                   xml::RequiredAttribute(label_, element, "NAME"));
@@ -113,6 +118,11 @@ class Reader {
                             "duplicate parameter '" + Excerpt(name) + "' (first at line " +
                                 std::to_string(first->second->GetLineNum()) + ")");
       }
+      if (parameter_at_.size() >= kVskLimits.max_parameters) {
+        return xml::ErrorAt(label_, element,
+                            "more than " + std::to_string(kVskLimits.max_parameters) +
+                                " parameters; expected the model of real Vicon subjects");
+      }
       parameter_at_[name] = element;
       const char* value_text = element->Attribute("VALUE");
       if (value_text == nullptr) continue;  // EXPRESSION only: not evaluated
@@ -137,6 +147,11 @@ class Reader {
         return xml::ErrorAt(label_, element,
                             "duplicate segment '" + Excerpt(name) + "' (first at line " +
                                 std::to_string(first->second->GetLineNum()) + ")");
+      }
+      if (vsk_.segments.size() >= kVskLimits.max_segments) {
+        return xml::ErrorAt(label_, element,
+                            "more than " + std::to_string(kVskLimits.max_segments) +
+                                " segments; expected the model of real Vicon subjects");
       }
       segment_at_[name] = element;
       vsk_.segments.push_back(VskSegment{name, parent});

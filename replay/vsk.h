@@ -32,6 +32,7 @@
 
 #include <Eigen/Core>
 
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <map>
@@ -46,6 +47,9 @@ struct VskLimits {
   std::uint64_t max_file_bytes = 16u << 20;  // real files: 10-100 KB
   double max_abs_position_mm = 100000;       // 100 m: larger than any capture volume
   double max_radius_mm = 1000;               // real markers: 3-25 mm
+  std::size_t max_segments = 10000;          // real: 1-20 per subject, tens of subjects
+  std::size_t max_markers = 10000;
+  std::size_t max_parameters = 100000;
 };
 inline constexpr VskLimits kVskLimits{};
 
