@@ -140,6 +140,8 @@ std::optional<ConfigIssue> CheckDriver(const std::string& at, const DriverConfig
   if (driver.device_index < 0)
     return ConfigIssue{at + "/device_index",
                        "expected an index >= 0, got " + std::to_string(driver.device_index)};
+  if (driver.kind != DriverKind::kReplay && driver.loop)
+    return ConfigIssue{at + "/loop", "only the replay driver loops, kind is " + kind};
   if (driver.kind != DriverKind::kGenTl && driver.device_index != 0)
     return ConfigIssue{at + "/device_index",
                        "only the gentl driver takes a device_index, kind is " + kind};
@@ -348,6 +350,7 @@ CameraConfig ReadCamera(const YamlNode& node, const fs::path& base_dir, YamlErro
     driver->Read("address", &camera.driver.address, kOptional);
     ReadPath(*driver, "cti", base_dir, &camera.driver.cti, kOptional);
     driver->Read("device_index", &camera.driver.device_index, kOptional);
+    driver->Read("loop", &camera.driver.loop, kOptional);
     driver->Finish();
   }
   ReadPath(map, "mla_file", base_dir, &camera.mla_file, kRequired);
@@ -579,6 +582,7 @@ std::string FormatRigConfig(const RigConfig& rig) {
     if (!camera.driver.cti.empty()) out << "      cti: " << Yq(camera.driver.cti.string()) << "\n";
     if (camera.driver.kind == DriverKind::kGenTl || camera.driver.device_index != 0)
       out << "      device_index: " << camera.driver.device_index << "\n";
+    if (camera.driver.loop) out << "      loop: true\n";
     if (!camera.mla_file.empty()) out << "    mla_file: " << Yq(camera.mla_file.string()) << "\n";
     out << "    trigger:\n      mode: " << ToString(camera.trigger.mode) << "\n";
     out << "      source: " << Yq(camera.trigger.source) << "\n";

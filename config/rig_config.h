@@ -79,6 +79,7 @@ struct DriverConfig {
   std::string address;        // aravis: device id, serial or IP; empty = find by camera serial
   std::filesystem::path cti;  // gentl: the producer .cti (required for gentl)
   int device_index = 0;       // gentl: device index within the producer's first interface
+  bool loop = false;          // replay: start the sequence again after its last frame
   bool operator==(const DriverConfig&) const = default;
 };
 
