@@ -1,20 +1,24 @@
 // `lifmcr depth SEQ_DIR --camera SERIAL --frame K --out DIR [--intrinsics
-// cameras.yaml]`: one raw frame to virtual depth (raw and TF grids, with the
-// confidence map on the raw grid), the
+// cameras.yaml]` or `lifmcr depth --raw FILE --mla MLA.xml --out DIR`: one
+// raw frame (BMP, PNG or TIFF; replay/raw_image.h) to virtual depth (raw and
+// TF grids, with the confidence map on the raw grid), the
 // totally focused image, metric depth and a coloured point cloud
-// (processing/). The OpenCV (TIFF, PNG, colour map) and PCL (PLY) boundary
-// of the processing library is here.
+// (processing/). The OpenCV (TIFF, PNG, colour map) boundary of the
+// processing library is here; the PLY is processing/ply.h.
 
 #include "apps/commands.h"
 #include "processing/camera_model.h"
 #include "processing/mla_grid.h"
 #include "processing/plenoptic_frame.h"
+#include "processing/ply.h"
 #include "processing/point_cloud.h"
 #include "processing/total_focus.h"
+#include "processing/vignetting.h"
 #include "processing/virtual_depth.h"
-#include "replay/bmp.h"
+#include "replay/bayer.h"
 #include "replay/layout.h"
 #include "replay/mla_xml.h"
+#include "replay/raw_image.h"
 #include "replay/synth/cameras_yaml.h"
 #include "replay/synth/gt_images.h"
 #include "config/text_escape.h"
@@ -23,11 +27,6 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-#include <pcl/common/io.h>
-#include <pcl/conversions.h>
-#include <pcl/io/ply_io.h>
-#include <pcl/point_cloud.h>
-#include <pcl/point_types.h>
 
 #include <charconv>
 #include <chrono>
@@ -48,11 +47,14 @@ struct DepthCommandOptions {
   bool uncertainty = false;
   std::string sequence;
   std::string camera;
-  std::string frame;
+  std::string frame = "0";
   std::string out;
   std::string intrinsics;
   std::string white;
+  bool no_white = false;
   std::string mla;
+  std::string raw;
+  std::string pixel_format;
 };
 
 // The camera `serial` of a cameras.yaml (GroundTruth of `lifmcr synth`, or
@@ -117,69 +119,84 @@ Status WriteDepthPng(const fs::path& path, const processing::TfDepthMap& depth, 
   return Status::Ok();
 }
 
-// Binary PLY of x, y, z (mm, camera frame), red, green, blue, and with
-// `uncertainty` a float property sigma_z_mm per point (NaN where the depth
-// was filled, not measured), through PCL's PCLPointCloud2 so the extra
-// property keeps its name.
-Status WritePly(const fs::path& path, const processing::PointCloud& cloud, bool uncertainty) {
-  pcl::PointCloud<pcl::PointXYZRGB> pcl_cloud;
-  pcl_cloud.reserve(cloud.points_mm.size());
-  for (std::size_t i = 0; i < cloud.points_mm.size(); ++i) {
-    pcl::PointXYZRGB p;
-    p.x = cloud.points_mm[i].x();
-    p.y = cloud.points_mm[i].y();
-    p.z = cloud.points_mm[i].z();
-    p.r = cloud.rgb[i][0];
-    p.g = cloud.rgb[i][1];
-    p.b = cloud.rgb[i][2];
-    pcl_cloud.push_back(p);
-  }
-  if (pcl_cloud.empty()) return Error{path.string() + ": no points to write"};
-  pcl::PCLPointCloud2 blob;
-  pcl::toPCLPointCloud2(pcl_cloud, blob);
-  if (uncertainty) {
-    pcl::PointCloud<pcl::Intensity> sigma;
-    sigma.reserve(cloud.sigma_z_mm.size());
-    for (const float s : cloud.sigma_z_mm) sigma.push_back(pcl::Intensity{s});
-    pcl::PCLPointCloud2 sigma_blob, both;
-    pcl::toPCLPointCloud2(sigma, sigma_blob);
-    sigma_blob.fields[0].name = "sigma_z_mm";
-    if (!pcl::concatenateFields(blob, sigma_blob, both))
-      return Error{path.string() + ": could not add sigma_z_mm to the points"};
-    blob = std::move(both);
-  }
-  if (pcl::io::savePLYFile(path.string(), blob, Eigen::Vector4f::Zero(),
-                           Eigen::Quaternionf::Identity(), true, false) != 0)
-    return Error{path.string() + ": could not write"};
-  return Status::Ok();
-}
-
 int Fail(const std::string& message) {
   std::cerr << "lifmcr depth: " << EscapeText(message) << "\n";
   return 1;
 }
 
+int Usage(const std::string& message) {
+  std::cerr << "lifmcr depth: " << EscapeText(message) << " (see lifmcr depth --help)\n";
+  return 2;
+}
+
+// A Bayer mosaic demosaiced in place of `image` (the BGR8 image is the copy
+// replay/bayer.h describes); other formats unchanged.
+Status Demosaic(std::optional<CameraPixelFormat> format, OwnedImage* image) {
+  if (!format || !IsBayer(*format)) return Status::Ok();
+  if (image->format != PixelFormat::kMono8)
+    return Error{"--pixel-format " + std::string(ToString(*format)) +
+                 ": expected a grey (Mono8) mosaic, the file is colour"};
+  OwnedImage colour = OwnedImage::Allocate(image->width, image->height, PixelFormat::kBgr8);
+  if (Status s = DemosaicBayer(image->View(), *format, colour.View()); !s) return s;
+  *image = std::move(colour);
+  return Status::Ok();
+}
+
 int RunDepth(const DepthCommandOptions& o) {
   const auto t_all = std::chrono::steady_clock::now();
+  const bool single_file = !o.raw.empty();
+  if (single_file == !o.sequence.empty())
+    return Usage("give either SEQ_DIR (with --camera and --frame) or --raw FILE");
+  if (!single_file && o.camera.empty()) return Usage("SEQ_DIR needs --camera SERIAL");
+  if (single_file && o.mla.empty()) return Usage("--raw needs --mla (the camera's MLA XML)");
+  if (!o.white.empty() && o.no_white) return Usage("--white and --no-white exclude each other");
+  std::optional<CameraPixelFormat> pixel_format;
+  if (!o.pixel_format.empty()) {
+    pixel_format = ParseCameraPixelFormat(o.pixel_format);
+    if (!pixel_format)
+      return Usage("--pixel-format " + o.pixel_format +
+                   ": expected Mono8, BGR8, BayerRG8, BayerGR8, BayerGB8 or BayerBG8");
+  }
   const Expected<std::int64_t> frame_number = ParseFrameNumber(o.frame);
   if (!frame_number) return Fail(frame_number.error().message);
   const std::int64_t frame_index = *frame_number;
   const fs::path seq = o.sequence;
   const fs::path calib = seq.parent_path().parent_path() / std::string(layout::kCalibrationFolder);
-  const fs::path raw_path = layout::RawFramePath(seq, o.camera, frame_index);
-  const fs::path white_path =
-      o.white.empty() ? layout::WhiteImagePath(calib, o.camera, 0) : fs::path(o.white);
+  const fs::path raw_path =
+      single_file ? fs::path(o.raw) : layout::RawFramePath(seq, o.camera, frame_index);
+  // The white image: --white, else the dataset's when it exists; none with
+  // --no-white, with --raw alone, or when the dataset has none (the
+  // vignetting then comes from the frame, processing/vignetting.h).
+  fs::path white_path = o.white;
+  if (white_path.empty() && !o.no_white && !single_file) {
+    const fs::path dataset_white = layout::WhiteImagePath(calib, o.camera, 0);
+    std::error_code ec;
+    if (fs::exists(dataset_white, ec)) white_path = dataset_white;
+  }
   const fs::path mla_path = o.mla.empty() ? layout::MlaXmlPath(calib, o.camera) : fs::path(o.mla);
 
   auto t = std::chrono::steady_clock::now();
-  Expected<OwnedImage> raw = ReadBmp(raw_path);
+  RawImageInfo raw_info;
+  Expected<OwnedImage> raw = ReadRawImage(raw_path, &raw_info);
   if (!raw) return Fail(raw.error().message);
-  Expected<OwnedImage> white = ReadBmp(white_path);
-  if (!white) return Fail(white.error().message + " (white image; --white names another)");
+  if (Status s = Demosaic(pixel_format, &*raw); !s)
+    return Fail(raw_path.string() + ": " + s.error().message);
+  std::optional<OwnedImage> white;
+  if (!white_path.empty()) {
+    Expected<OwnedImage> read = ReadRawImage(white_path);
+    if (!read)
+      return Fail(read.error().message +
+                  " (white image; --white names another, --no-white uses none)");
+    if (Status s = Demosaic(pixel_format, &*read); !s)
+      return Fail(white_path.string() + ": " + s.error().message);
+    white = std::move(*read);
+  }
   Expected<MlaCalibration> mla = ReadMlaXml(mla_path);
   if (!mla) return Fail(mla.error().message + " (MLA file; --mla names another)");
   std::optional<processing::CameraModel> camera;
   if (!o.intrinsics.empty()) {
+    if (o.camera.empty())
+      return Usage("--intrinsics needs --camera SERIAL (the camera to look up)");
     Expected<processing::CameraIntrinsics> k = ReadIntrinsics(o.intrinsics, o.camera);
     if (!k) return Fail(k.error().message);
     if (k->width_px != raw->width || k->height_px != raw->height)
@@ -188,17 +205,33 @@ int RunDepth(const DepthCommandOptions& o) {
                   std::to_string(raw->width) + "x" + std::to_string(raw->height));
     camera.emplace(*k);
   }
-  std::printf("read      %.3f s  %s (%dx%d %s)\n", Seconds(t), raw_path.string().c_str(),
-              raw->width, raw->height, std::string(ToString(raw->format)).c_str());
+  std::printf(
+      "read      %.3f s  %s (%dx%d %s, %s%s)\n", Seconds(t), raw_path.string().c_str(), raw->width,
+      raw->height, std::string(ToString(raw->format)).c_str(), raw_info.Describe().c_str(),
+      pixel_format && IsBayer(*pixel_format)
+          ? (std::string(", demosaiced from ") + std::string(ToString(*pixel_format))).c_str()
+          : "");
 
   t = std::chrono::steady_clock::now();
   const processing::MlaGrid grid =
       processing::MlaGrid::FromCalibration(*mla, raw->width, raw->height);
   processing::FrameOptions frame_options;
   frame_options.lambda = camera ? camera->lambda() : 1.0;
+  std::string devignetting = "devignetted by " + white_path.string();
+  processing::VignettingEstimate estimate;
+  if (!white) {
+    processing::VignettingOptions vignetting_options;
+    vignetting_options.row_step = raw->height > 2000 ? 4 : 1;
+    Expected<processing::VignettingEstimate> e =
+        processing::EstimateVignetting(raw->View(), grid, *mla, vignetting_options);
+    if (!e) return Fail(raw_path.string() + ": " + e.error().message);
+    estimate = std::move(*e);
+    devignetting = estimate.BriefReport();
+  }
   processing::PlenopticFrame frame;
-  if (Status s =
-          processing::PrepareFrame(raw->View(), white->View(), grid, *mla, frame_options, &frame);
+  if (Status s = processing::PrepareFrame(raw->View(),
+                                          white ? ConstImageView(white->View()) : estimate.White(),
+                                          grid, *mla, frame_options, &frame);
       !s)
     return Fail(s.error().message);
   if (frame.lenses.empty()) {
@@ -207,8 +240,8 @@ int RunDepth(const DepthCommandOptions& o) {
                 "x" + std::to_string(raw->height) + " frame; expected a raw frame of the camera " +
                 "the MLA file belongs to");
   }
-  std::printf("prepare   %.3f s  %zu micro images, devignetted%s\n", Seconds(t),
-              frame.lenses.size(),
+  std::printf("prepare   %.3f s  %zu micro images; %s%s\n", Seconds(t), frame.lenses.size(),
+              devignetting.c_str(),
               camera ? "" : "; no intrinsics: micro-lens centres = micro-image centres (lambda 1)");
 
   t = std::chrono::steady_clock::now();
@@ -239,9 +272,12 @@ int RunDepth(const DepthCommandOptions& o) {
   fs::create_directories(o.out, ec);
   if (ec) return Fail(o.out + ": " + ec.message());
   const fs::path out = o.out;
-  const std::string prefix = layout::VirtualDepthFileName(o.camera, frame_index);
-  const std::string stem =
-      prefix.substr(0, prefix.size() - std::string("_virtual_depth.tiff").size());
+  // <serial>_<frame>_* for a dataset frame, <file stem>_* for --raw.
+  std::string stem = raw_path.stem().string();
+  if (!single_file) {
+    const std::string prefix = layout::VirtualDepthFileName(o.camera, frame_index);
+    stem = prefix.substr(0, prefix.size() - std::string("_virtual_depth.tiff").size());
+  }
   if (Status s = synth::WriteFloatTiff(out / (stem + "_virtual_depth.tiff"), depth.width,
                                        depth.height, depth.virtual_depth);
       !s)
@@ -273,7 +309,7 @@ int RunDepth(const DepthCommandOptions& o) {
       return Fail(s.error().message);
     processing::PointCloud cloud;
     processing::BuildPointCloud(*camera, tf_depth, tf, true, &cloud);
-    if (Status s = WritePly(out / (stem + "_points.ply"), cloud, o.uncertainty); !s)
+    if (Status s = processing::WritePly(out / (stem + "_points.ply"), cloud, o.uncertainty); !s)
       return Fail(s.error().message);
     std::printf("cloud     %zu points (measured TF pixels)\n", cloud.points_mm.size());
   } else {
@@ -291,14 +327,33 @@ int RunDepth(const DepthCommandOptions& o) {
 
 CommandRun AddDepthCommand(CLI::App& app) {
   auto o = std::make_shared<DepthCommandOptions>();
-  app.add_option("SEQ_DIR", o->sequence, "Sequence folder (SCENE/SEQ of a LiFMCR dataset)")
-      ->required();
-  app.add_option("--camera", o->camera, "Camera serial")->required();
-  app.add_option("--frame", o->frame, "Frame number")->required();
+  app.footer(
+      "Reads: SEQ_DIR/TypeE_<serial>/TypeE_<serial>_<frame>_Raw.bmp, or --raw FILE (BMP, PNG,\n"
+      "TIFF; 16-bit scaled to 8); the MLA XML (--mla, else Calibration/02_MLA_Calibration/\n"
+      "beside the scene); the white image (--white, else Calibration/01_White_Images/ when it\n"
+      "exists; without one the vignetting comes from the frame, or the frame is taken as\n"
+      "already devignetted, and the output says which); --intrinsics cameras.yaml.\n"
+      "Writes into --out: <stem>_virtual_depth.tiff, _confidence.tiff (raw grid, float32),\n"
+      "_virtual_depth_tf.tiff, _tf.png, _depth.png (TF grid), and with --intrinsics\n"
+      "_depth_mm.tiff and _points.ply; <stem> is <serial>_<frame> or the --raw file's stem.\n"
+      "Exit codes: 0 written; 1 an input could not be read or processed (the message names\n"
+      "it); 2 usage error.");
+  app.add_option("SEQ_DIR", o->sequence, "Sequence folder (SCENE/SEQ of a LiFMCR dataset)");
+  app.add_option("--raw", o->raw,
+                 "One raw image (BMP, PNG or TIFF, 8 or 16 bits) instead of SEQ_DIR; needs --mla");
+  app.add_option("--camera", o->camera,
+                 "Camera serial (with SEQ_DIR; with --raw, the serial looked up in --intrinsics)");
+  app.add_option("--frame", o->frame, "Frame number in SEQ_DIR (default 0)");
   app.add_option("--out", o->out, "Output folder (created if needed)")->required();
   app.add_option("--intrinsics", o->intrinsics,
                  "cameras.yaml with the camera's model (metric depth and point cloud)");
-  app.add_option("--white", o->white, "White image (default: the dataset's Calibration folder)");
+  app.add_option("--white", o->white,
+                 "White image (default: the dataset's Calibration folder when it holds one)");
+  app.add_flag("--no-white", o->no_white,
+               "Use no white image: vignetting from the frame, or none if already corrected");
+  app.add_option("--pixel-format", o->pixel_format,
+                 "BayerRG8|BayerGR8|BayerGB8|BayerBG8: demosaic the raw and white image (colour "
+                 "TF image, depth on luminance); Mono8/BGR8: as read (default)");
   app.add_option("--mla", o->mla, "MLA XML (default: the dataset's Calibration folder)");
   app.add_flag("--uncertainty", o->uncertainty,
                "Add a sigma_z_mm property (standard deviation of the depth) to every PLY point");

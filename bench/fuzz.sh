@@ -107,7 +107,8 @@ max_len_of() {
 }
 
 run_one() {
-  local t=$1 log=$dir/fuzz.$t.log
+  local t=$1
+  local log=$dir/fuzz.$t.log
   # -timeout: a single input over 10 s is a hang; -rss_limit_mb: over 2 GB is a leak or
   # an unbounded allocation; both count as crashes.
   nice -n "$nice_level" "$dir/tests/fuzz/$t" "$dir/corpus/$t" "$seeds/$t" \

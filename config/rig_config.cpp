@@ -132,19 +132,19 @@ std::optional<ConfigIssue> CheckDriver(const std::string& at, const DriverConfig
     return ConfigIssue{at + "/address", "only the aravis driver takes an address, kind is " + kind};
   if (driver.kind == DriverKind::kAravis && HasControlCharacter(driver.address))
     return ConfigIssue{at + "/address", "expected text without control characters"};
-  if (driver.kind == DriverKind::kGenTl && driver.cti.empty())
-    return ConfigIssue{at + "/cti",
-                       "expected the path of the GenTL producer (.cti) for kind gentl"};
   if (driver.kind != DriverKind::kGenTl && !driver.cti.empty())
     return ConfigIssue{at + "/cti", "only the gentl driver takes a cti, kind is " + kind};
-  if (driver.device_index < 0)
-    return ConfigIssue{at + "/device_index",
-                       "expected an index >= 0, got " + std::to_string(driver.device_index)};
   if (driver.kind != DriverKind::kReplay && driver.loop)
     return ConfigIssue{at + "/loop", "only the replay driver loops, kind is " + kind};
-  if (driver.kind != DriverKind::kGenTl && driver.device_index != 0)
-    return ConfigIssue{at + "/device_index",
-                       "only the gentl driver takes a device_index, kind is " + kind};
+  if (driver.kind != DriverKind::kGenTl && !driver.interface_id.empty())
+    return ConfigIssue{at + "/interface",
+                       "only the gentl driver takes an interface, kind is " + kind};
+  if (driver.kind != DriverKind::kGenTl && !driver.device.empty())
+    return ConfigIssue{at + "/device", "only the gentl driver takes a device, kind is " + kind};
+  if (HasControlCharacter(driver.interface_id))
+    return ConfigIssue{at + "/interface", "expected text without control characters"};
+  if (HasControlCharacter(driver.device))
+    return ConfigIssue{at + "/device", "expected text without control characters"};
   return std::nullopt;
 }
 
@@ -349,7 +349,8 @@ CameraConfig ReadCamera(const YamlNode& node, const fs::path& base_dir, YamlErro
     driver->ReadEnum("kind", &camera.driver.kind, ParseDriverKind, DriverKindNames(), kRequired);
     driver->Read("address", &camera.driver.address, kOptional);
     ReadPath(*driver, "cti", base_dir, &camera.driver.cti, kOptional);
-    driver->Read("device_index", &camera.driver.device_index, kOptional);
+    driver->Read("interface", &camera.driver.interface_id, kOptional);
+    driver->Read("device", &camera.driver.device, kOptional);
     driver->Read("loop", &camera.driver.loop, kOptional);
     driver->Finish();
   }
@@ -580,8 +581,10 @@ std::string FormatRigConfig(const RigConfig& rig) {
     if (!camera.driver.address.empty())
       out << "      address: " << Yq(camera.driver.address) << "\n";
     if (!camera.driver.cti.empty()) out << "      cti: " << Yq(camera.driver.cti.string()) << "\n";
-    if (camera.driver.kind == DriverKind::kGenTl || camera.driver.device_index != 0)
-      out << "      device_index: " << camera.driver.device_index << "\n";
+    if (!camera.driver.interface_id.empty())
+      out << "      interface: " << Yq(camera.driver.interface_id) << "\n";
+    if (!camera.driver.device.empty())
+      out << "      device: " << Yq(camera.driver.device) << "\n";
     if (camera.driver.loop) out << "      loop: true\n";
     if (!camera.mla_file.empty()) out << "    mla_file: " << Yq(camera.mla_file.string()) << "\n";
     out << "    trigger:\n      mode: " << ToString(camera.trigger.mode) << "\n";

@@ -77,8 +77,10 @@ PixelFormat BufferPixelFormat(CameraPixelFormat format);
 struct DriverConfig {
   DriverKind kind = DriverKind::kAravis;
   std::string address;        // aravis: device id, serial or IP; empty = find by camera serial
-  std::filesystem::path cti;  // gentl: the producer .cti (required for gentl)
-  int device_index = 0;       // gentl: device index within the producer's first interface
+  // gentl: the producer .cti; empty = every .cti in GENICAM_GENTL64_PATH
+  std::filesystem::path cti;
+  std::string interface_id;  // gentl `interface`: the producer's interface id; empty = any
+  std::string device;        // gentl: device id or serial; empty = find by the camera's serial
   bool loop = false;          // replay: start the sequence again after its last frame
   bool operator==(const DriverConfig&) const = default;
 };

@@ -1,5 +1,6 @@
 #include "drivers/aravis_camera.h"
 
+#include "drivers/arv_settings.h"
 #include "drivers/frame_id_tracker.h"
 #include "drivers/frame_pool.h"
 #include "drivers/usb_hotplug.h"
@@ -22,32 +23,6 @@ std::int64_t RealtimeNs() {
   timespec now{};
   clock_gettime(CLOCK_REALTIME, &now);
   return static_cast<std::int64_t>(now.tv_sec) * 1'000'000'000 + now.tv_nsec;
-}
-
-// Takes ownership of a GError and turns it into text.
-std::string TakeMessage(GError* error) {
-  if (error == nullptr) return "unknown error";
-  std::string message = error->message != nullptr ? error->message : "unknown error";
-  g_error_free(error);
-  return message;
-}
-
-std::string GenicamPixelFormat(CameraPixelFormat format) {
-  switch (format) {
-    case CameraPixelFormat::kMono8:
-      return "Mono8";
-    case CameraPixelFormat::kBgr8:
-      return "BGR8";
-    case CameraPixelFormat::kBayerRg8:
-      return "BayerRG8";
-    case CameraPixelFormat::kBayerGr8:
-      return "BayerGR8";
-    case CameraPixelFormat::kBayerGb8:
-      return "BayerGB8";
-    case CameraPixelFormat::kBayerBg8:
-      return "BayerBG8";
-  }
-  return "Mono8";
 }
 
 FrameStatus MapStatus(ArvBufferStatus status) {
@@ -90,37 +65,6 @@ Status AravisCameraOptions::Check() const {
   if (max_consecutive_failures < 1)
     return Error{"aravis options: max_consecutive_failures must be >= 1"};
   return Status::Ok();
-}
-
-std::int64_t CameraGap::FramelessNs() const {
-  if (!had_frame_before || !had_frame_after) return 0;
-  return first_frame_host_ns - last_frame_host_ns;
-}
-
-std::string CameraGap::Describe() const {
-  char line[512];
-  std::string text;
-  if (FramelessNs() > 0) {
-    std::snprintf(line, sizeof(line), "no frames for %.2f s: ", FramelessNs() * 1e-9);
-    text += line;
-  }
-  text += "lost (" + reason + ")";
-  if (had_frame_before) {
-    std::snprintf(line, sizeof(line), " %.2f s after the last frame",
-                  (lost_host_ns - last_frame_host_ns) * 1e-9);
-    text += line;
-  }
-  if (back_host_ns != 0) {
-    std::snprintf(line, sizeof(line), ", back %.2f s later", (back_host_ns - lost_host_ns) * 1e-9);
-    text += line;
-  } else {
-    text += ", not back yet";
-  }
-  text += "; frame id ";
-  text += had_frame_before ? std::to_string(last_frame_id_before) : std::string("none");
-  text += " -> ";
-  text += had_frame_after ? std::to_string(first_frame_id_after) : std::string("none yet");
-  return text;
 }
 
 struct AravisCamera::Impl {
@@ -247,83 +191,11 @@ Status AravisCamera::Impl::Connect() {
 }
 
 Status AravisCamera::Impl::ApplySettings() {
+  auto region = ApplyArvCameraSettings(camera, config, options.free_run_rate_hz, label);
+  if (!region) return region.error();
+  const int width = region->width;
+  const int height = region->height;
   GError* error = nullptr;
-  const std::string format = GenicamPixelFormat(config.pixel_format);
-  arv_camera_set_pixel_format_from_string(camera, format.c_str(), &error);
-  if (error != nullptr) return FailFeature("PixelFormat", format, error);
-
-  int x = 0, y = 0, width = 0, height = 0;
-  arv_camera_get_sensor_size(camera, &width, &height, &error);
-  if (error != nullptr) return Fail("reading the sensor size: " + TakeMessage(error));
-  if (config.roi) {
-    x = config.roi->x_px;
-    y = config.roi->y_px;
-    width = config.roi->width_px;
-    height = config.roi->height_px;
-  }
-  gint sensor_w = 0, sensor_h = 0;
-  arv_camera_get_sensor_size(camera, &sensor_w, &sensor_h, &error);
-  if (error != nullptr) return Fail("reading the sensor size: " + TakeMessage(error));
-  if (x + width > sensor_w || y + height > sensor_h)
-    return Fail("roi " + std::to_string(width) + "x" + std::to_string(height) + "+" +
-                std::to_string(x) + "+" + std::to_string(y) + " outside the " +
-                std::to_string(sensor_w) + "x" + std::to_string(sensor_h) + " sensor");
-  arv_camera_set_region(camera, x, y, width, height, &error);
-  if (error != nullptr)
-    return FailFeature("region",
-                       std::to_string(width) + "x" + std::to_string(height) + "+" +
-                           std::to_string(x) + "+" + std::to_string(y),
-                       error);
-  gint got_x = 0, got_y = 0, got_w = 0, got_h = 0;
-  arv_camera_get_region(camera, &got_x, &got_y, &got_w, &got_h, &error);
-  if (error != nullptr) return Fail("reading the region back: " + TakeMessage(error));
-  if (got_x != x || got_y != y || got_w != width || got_h != height)
-    return Fail("the camera set the region to " + std::to_string(got_w) + "x" +
-                std::to_string(got_h) + "+" + std::to_string(got_x) + "+" + std::to_string(got_y) +
-                " instead of " + std::to_string(width) + "x" + std::to_string(height) + "+" +
-                std::to_string(x) + "+" + std::to_string(y) + " (increments?)");
-
-  arv_camera_set_exposure_time(camera, config.exposure_us, &error);
-  if (error != nullptr)
-    return FailFeature("ExposureTime", std::to_string(config.exposure_us) + " us", error);
-
-  const gboolean has_gain = arv_camera_is_gain_available(camera, &error);
-  if (error != nullptr) return Fail("checking for Gain: " + TakeMessage(error));
-  if (has_gain) {
-    arv_camera_set_gain(camera, config.gain_db, &error);
-    if (error != nullptr) return FailFeature("Gain", std::to_string(config.gain_db), error);
-  } else if (config.gain_db != 0.0) {
-    return Fail("gain_db " + std::to_string(config.gain_db) + " asked, but the camera has no Gain");
-  }
-
-  arv_camera_clear_triggers(camera, &error);
-  if (error != nullptr) return Fail("turning the triggers off: " + TakeMessage(error));
-  if (config.trigger.mode == TriggerMode::kFreeRun) {
-    if (options.free_run_rate_hz > 0.0) {
-      arv_camera_set_frame_rate(camera, options.free_run_rate_hz, &error);
-      if (error != nullptr)
-        return FailFeature("AcquisitionFrameRate", std::to_string(options.free_run_rate_hz), error);
-    }
-  } else {
-    const std::string source =
-        config.trigger.mode == TriggerMode::kSoftware ? "Software" : config.trigger.source;
-    arv_camera_set_string(camera, "TriggerSelector", "FrameStart", &error);
-    if (error != nullptr) return FailFeature("TriggerSelector", "FrameStart", error);
-    arv_camera_set_string(camera, "TriggerMode", "On", &error);
-    if (error != nullptr) return FailFeature("TriggerMode", "On", error);
-    arv_camera_set_string(camera, "TriggerSource", source.c_str(), &error);
-    if (error != nullptr) return FailFeature("TriggerSource", source, error);
-    if (config.trigger.mode == TriggerMode::kHardware) {
-      const char* activation = config.trigger.activation == TriggerActivation::kRisingEdge
-                                   ? "RisingEdge"
-                                   : "FallingEdge";
-      arv_camera_set_string(camera, "TriggerActivation", activation, &error);
-      if (error != nullptr) return FailFeature("TriggerActivation", activation, error);
-    }
-  }
-  arv_camera_set_acquisition_mode(camera, ARV_ACQUISITION_MODE_CONTINUOUS, &error);
-  if (error != nullptr) return FailFeature("AcquisitionMode", "Continuous", error);
-
   if (arv_camera_is_gv_device(camera)) {
     if (config.packet_size_bytes > 0) {
       arv_camera_gv_set_packet_size(camera, config.packet_size_bytes, &error);

@@ -1,6 +1,7 @@
 #include "drivers/camera_factory.h"
 
 #include "drivers/aravis_camera.h"
+#include "drivers/gentl_camera.h"
 #include "replay/layout.h"
 
 #include <cmath>
@@ -40,9 +41,15 @@ Expected<std::unique_ptr<Camera>> MakeCamera(const CameraConfig& config, int cam
       return std::unique_ptr<Camera>(std::make_unique<ReplayCamera>(
           layout::CameraDir(options.replay_sequence_dir, config.serial), replay));
     }
-    case DriverKind::kGenTl:
-      return Error{label + ": driver gentl (" + config.driver.cti.string() +
-                   ") is not available in this build"};
+    case DriverKind::kGenTl: {
+      GenTlCameraOptions gentl;
+      gentl.camera_index = camera_index;
+      gentl.pool_buffers = options.pool_buffers;
+      gentl.free_run_rate_hz = options.free_run_rate_hz;
+      if (Status status = gentl.Check(); !status)
+        return Error{label + ": " + status.error().message};
+      return std::unique_ptr<Camera>(std::make_unique<GenTlCamera>(config, gentl));
+    }
   }
   return Error{label + ": unknown driver kind"};
 }

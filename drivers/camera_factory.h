@@ -4,8 +4,8 @@
 //   driver.kind aravis  -> AravisCamera (address, or the serial)
 //   driver.kind replay  -> ReplayCamera on SEQ/TypeE_<serial>/ of
 //                          `replay_sequence_dir`
-//   driver.kind gentl   -> an error: the GenTL driver is not part of this
-//                          build yet
+//   driver.kind gentl   -> GenTlCamera (the producer `cti`, or the
+//                          GENICAM_GENTL64_PATH search; `device`, or the serial)
 
 #include "config/rig_config.h"
 #include "drivers/camera.h"

@@ -5,8 +5,7 @@
 // model (thin lens, distortion). Uncertainty: sigma_v = v^2 sigma_z
 // (z = 1/v) and sigma_Z = |dZ/dv| sigma_v with
 //   Z(v) = f_L b / (b - f_L),  b = b_L0 + v B,  dZ/dv = -f_L^2 B / (b - f_L)^2.
-// Plain buffers here; PCL's PointXYZRGB and the PLY file are made at the
-// application boundary (apps/).
+// Plain buffers here; processing/ply.h writes them as a PLY file.
 
 #include "processing/camera_model.h"
 #include "processing/total_focus.h"

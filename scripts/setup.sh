@@ -1,7 +1,14 @@
 #!/usr/bin/env bash
 # Installs every dependency of lifmcr from Debian bookworm packages (as root),
-# then configures and builds it in Release under build/.
+# raises the kernel's UDP receive buffers for LCM (as root; otherwise prints
+# the commands), then configures and builds it in Release under build/.
 # Idempotent: when everything is installed it only runs the (incremental) build.
+# Each package is used by the build, the tests or a shipped tool:
+#   OpenCV (imgcodecs: PNG/TIFF/JPEG I/O, imgproc, aruco; features2d and calib3d
+#   for calibration/registration), Ceres (bundle adjustment), Eigen, TBB, spdlog,
+#   yaml-cpp, CLI11, nlohmann-json, tinyxml2, GoogleTest/GoogleMock, Aravis and
+#   libusb (GenICam cameras), LCM with Java and jchart2d (lcm-gen, lcm-logger,
+#   the lcm-spy jar), iproute2 and procps (loopback multicast, sysctl).
 #   LIFMCR_BUILD_DIR   build folder (default: build)
 #   LIFMCR_BUILD_TYPE  CMake build type (default: Release)
 set -euo pipefail
@@ -9,9 +16,9 @@ cd "$(dirname "$0")/.."
 
 packages=(
   build-essential cmake pkg-config ccache git
-  libeigen3-dev libopencv-dev libopencv-contrib-dev libceres-dev libpcl-dev libtbb-dev
-  libspdlog-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev libtinyxml2-dev libtiff-dev
-  libgtest-dev libgmock-dev libbenchmark-dev
+  libeigen3-dev libopencv-dev libopencv-contrib-dev libceres-dev libtbb-dev
+  libspdlog-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev libtinyxml2-dev
+  libgtest-dev libgmock-dev
   libaravis-dev aravis-tools aravis-tools-cli libusb-1.0-0-dev
   liblcm-dev liblcm-bin liblcm-java libjchart2d-java default-jdk-headless
   iproute2 procps
@@ -31,6 +38,34 @@ if ((${#missing[@]})); then
   export DEBIAN_FRONTEND=noninteractive
   apt-get update -qq
   apt-get install -y -qq --no-install-recommends "${packages[@]}" >/dev/null
+fi
+
+# LCM over UDP multicast: a message larger than the socket's receive buffer
+# (Linux default net.core.rmem_default = 208 KiB) is dropped whole when the
+# receiver falls behind. LCM's "UDP Multicast Setup" page recommends raising
+# both the default and the maximum (its example: 2 MiB); the maximum is 64 MiB
+# so a receiver may ask for more with `?recv_buf_size=` in its URL.
+sysctl_file=/etc/sysctl.d/60-lifmcr-lcm.conf
+sysctl_lines=$'net.core.rmem_default=2097152\nnet.core.rmem_max=67108864'
+if [[ $(id -u) -eq 0 ]]; then
+  if [[ ! -f $sysctl_file ]] || [[ "$(cat "$sysctl_file")" != *"$sysctl_lines"* ]]; then
+    printf '# lifmcr (scripts/setup.sh): UDP receive buffers for LCM, as LCM'"'"'s\n# "UDP Multicast Setup" page recommends.\n%s\n' \
+      "$sysctl_lines" >"$sysctl_file"
+    echo "setup.sh: installed $sysctl_file (net.core.rmem_default=2 MiB, rmem_max=64 MiB for LCM)"
+  fi
+  # Applied now too, raising only (a host tuned higher keeps its values).
+  for setting in net.core.rmem_default=2097152 net.core.rmem_max=67108864; do
+    key=${setting%%=*} want=${setting#*=}
+    have=$(sysctl -n "$key" 2>/dev/null || echo 0)
+    if ((have < want)) && ! sysctl -q -w "$setting" 2>/dev/null; then
+      echo "setup.sh: could not set $setting now (read-only /proc/sys in a container?);" \
+        "$sysctl_file applies it at the next boot" >&2
+    fi
+  done
+elif [[ $(sysctl -n net.core.rmem_default 2>/dev/null || echo 0) -lt 2097152 ]]; then
+  echo "setup.sh: LCM receivers keep up better with larger UDP buffers; as root run:" >&2
+  echo "  printf 'net.core.rmem_default=2097152\nnet.core.rmem_max=67108864\n' >$sysctl_file" \
+    "&& sysctl -p $sysctl_file" >&2
 fi
 
 build_dir=${LIFMCR_BUILD_DIR:-build}

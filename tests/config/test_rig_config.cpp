@@ -90,7 +90,8 @@ TEST(RigConfigExamples, LifmcrTwoR32LoadsWithItsValues) {
   EXPECT_EQ(cam0.role, CameraRole::kReference);
   EXPECT_EQ(cam0.driver.kind, DriverKind::kGenTl);
   EXPECT_EQ(cam0.driver.cti, fs::path("/opt/framegrabber/lib/gentl/producer_cxp.cti"));
-  EXPECT_EQ(cam0.driver.device_index, 0);
+  EXPECT_EQ(cam0.driver.interface_id, "");
+  EXPECT_EQ(cam0.driver.device, "40398678");
   EXPECT_EQ(cam0.mla_file, (calibration / "TypeE_40398678_MLA.xml").lexically_normal());
   EXPECT_EQ(cam0.trigger.mode, TriggerMode::kHardware);
   EXPECT_EQ(cam0.trigger.source, "Line1");
@@ -106,7 +107,7 @@ TEST(RigConfigExamples, LifmcrTwoR32LoadsWithItsValues) {
   EXPECT_EQ(cam2.serial, "40398673");
   EXPECT_EQ(cam2.name, "cam2");
   EXPECT_EQ(cam2.role, CameraRole::kRegistered);
-  EXPECT_EQ(cam2.driver.device_index, 1);
+  EXPECT_EQ(cam2.driver.device, "40398673");
   EXPECT_EQ(cam2.mla_file, (calibration / "TypeE_40398673_MLA.xml").lexically_normal());
   EXPECT_EQ(cam2.vicon_object, "cam2");
 
@@ -290,8 +291,9 @@ RigConfig RandomRig(std::mt19937& rng) {
     if (camera.driver.kind == DriverKind::kAravis && coin())
       camera.driver.address = RandomText(rng, 1);
     if (camera.driver.kind == DriverKind::kGenTl) {
-      camera.driver.cti = RandomAbsolutePath(rng, ".cti");
-      camera.driver.device_index = integer(0, 5);
+      if (coin()) camera.driver.cti = RandomAbsolutePath(rng, ".cti");
+      if (coin()) camera.driver.interface_id = RandomText(rng, 1);
+      if (coin()) camera.driver.device = RandomText(rng, 1);
     }
     camera.mla_file = test::SamplePath(Pick<std::string>(
         rng, {"raytrix_mla_R42_sc2_klein.xml", "raytrix_mla_R29_Cards2_Processed.xml",
@@ -483,10 +485,14 @@ TEST(RigConfigErrors, DuplicateKey) {
 }
 
 TEST(RigConfigErrors, DriverFieldsMustMatchTheKind) {
+  // A gentl camera without a cti searches GENICAM_GENTL64_PATH.
   const std::string gentl = test::ReplaceFirst(kValidRig, "{kind: replay}", "{kind: gentl}");
-  EXPECT_EQ(ErrorOf(gentl), "rig.yaml:" + PositionOf(gentl, "{kind: gentl}") +
-                                ": /cameras/1/driver/cti: expected the path of the GenTL producer "
-                                "(.cti) for kind gentl");
+  EXPECT_TRUE(Parse(gentl).ok()) << gentl;
+  const std::string device =
+      test::ReplaceFirst(kValidRig, "{kind: replay}", "{kind: replay, device: X1}");
+  EXPECT_EQ(ErrorOf(device), "rig.yaml:" + PositionOf(device, "X1") +
+                                 ": /cameras/1/driver/device: only the gentl driver takes a "
+                                 "device, kind is replay");
   const std::string cti =
       test::ReplaceFirst(kValidRig, "{kind: replay}", "{kind: replay, cti: a.cti}");
   EXPECT_EQ(ErrorOf(cti), "rig.yaml:" + PositionOf(cti, "a.cti") +

@@ -1,10 +1,13 @@
 // `lifmcr grid` and `lifmcr depth` on a synthetic dataset written by
 // `lifmcr synth` (small preset, one camera, one frame).
 
+#include "replay/bmp.h"
 #include "replay/synth/gt_images.h"
 #include "tests/test_util.h"
 
 #include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include <cmath>
 #include <filesystem>
@@ -69,6 +72,50 @@ TEST(CliDepth, GridAndDepthOnASyntheticDataset) {
       "depth " + seq.string() + " --camera 11111111 --frame 0 --out " + out.string());
   EXPECT_EQ(missing.exit_code, 1);
   EXPECT_NE(missing.err.find("11111111"), std::string::npos) << missing.err;
+}
+
+// A raw frame as a public dataset ships it: a 16-bit PNG (12 significant
+// bits), no white image, the MLA file named by --mla. Same output files.
+TEST(CliDepth, SixteenBitPngWithoutWhiteImage) {
+  test::TempDir dir;
+  const test::CommandResult synth = test::RunLifmcr(
+      "synth --out " + dir.path().string() + " --preset small --frames 1 --cameras 1 --quiet");
+  ASSERT_EQ(synth.exit_code, 0) << synth.err;
+  const std::string serial = "40398678";
+  const fs::path seq = dir / "00_Synthetic" / "Sequence_00";
+  const fs::path mla =
+      dir / "Calibration" / "02_MLA_Calibration" / ("TypeE_" + serial + "_MLA.xml");
+  Expected<OwnedImage> raw =
+      ReadBmp(seq / ("TypeE_" + serial) / ("TypeE_" + serial + "_000000_Raw.bmp"));
+  ASSERT_TRUE(raw.ok()) << raw.error().message;
+  cv::Mat eight(raw->height, raw->width, raw->format == PixelFormat::kMono8 ? CV_8UC1 : CV_8UC3,
+                raw->pixels.data());
+  cv::Mat sixteen;
+  eight.convertTo(sixteen, CV_16U, 16.0);
+  const fs::path png = dir / "scene_42.png";
+  ASSERT_TRUE(cv::imwrite(png.string(), sixteen));
+
+  const fs::path out = dir / "depth";
+  const test::CommandResult depth =
+      test::RunLifmcr("depth --raw " + png.string() + " --mla " + mla.string() + " --camera " +
+                      serial + " --intrinsics " + (seq / "GroundTruth" / "cameras.yaml").string() +
+                      " --out " + out.string());
+  ASSERT_EQ(depth.exit_code, 0) << depth.err << depth.out;
+  EXPECT_NE(depth.out.find("PNG 16-bit colour, 12 significant bits"), std::string::npos)
+      << depth.out;
+  EXPECT_NE(depth.out.find("no white image: "), std::string::npos) << depth.out;
+  for (const char* suffix : {"_virtual_depth.tiff", "_confidence.tiff", "_virtual_depth_tf.tiff",
+                             "_depth_mm.tiff", "_tf.png", "_depth.png", "_points.ply"})
+    EXPECT_TRUE(fs::exists(out / (std::string("scene_42") + suffix))) << suffix;
+
+  // Usage errors exit 2 and say what is missing.
+  const test::CommandResult no_mla =
+      test::RunLifmcr("depth --raw " + png.string() + " --out " + out.string());
+  EXPECT_EQ(no_mla.exit_code, 2);
+  EXPECT_NE(no_mla.err.find("--mla"), std::string::npos) << no_mla.err;
+  const test::CommandResult both = test::RunLifmcr("depth " + seq.string() + " --raw " +
+                                                   png.string() + " --out " + out.string());
+  EXPECT_EQ(both.exit_code, 2);
 }
 
 }  // namespace

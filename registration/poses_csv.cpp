@@ -1,0 +1,87 @@
+#include "registration/poses_csv.h"
+
+#include "replay/csv_tokenizer.h"
+
+#include <Eigen/Geometry>
+
+#include <charconv>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+namespace lifmcr::registration {
+namespace {
+
+constexpr const char* kHeader = "frame,vicon_frame,tx_mm,ty_mm,tz_mm,qw,qx,qy,qz";
+
+}  // namespace
+
+std::string FormatPosesCsv(const std::vector<FramePose>& poses) {
+  std::string text = std::string(kHeader) + "\n";
+  for (const FramePose& p : poses) {
+    const Eigen::Quaterniond q(p.world_from_cam.linear());
+    const Eigen::Vector3d t = p.world_from_cam.translation();
+    char row[320];
+    std::snprintf(row, sizeof(row), "%lld,%lld,%.6f,%.6f,%.6f,%.12f,%.12f,%.12f,%.12f\n",
+                  static_cast<long long>(p.frame), static_cast<long long>(p.vicon_frame), t.x(),
+                  t.y(), t.z(), q.w(), q.x(), q.y(), q.z());
+    text += row;
+  }
+  return text;
+}
+
+Status WritePosesCsv(const std::filesystem::path& path, const std::vector<FramePose>& poses) {
+  std::ofstream out(path, std::ios::binary);
+  out << FormatPosesCsv(poses);
+  if (!out) return Error{path.string() + ": could not write"};
+  return Status::Ok();
+}
+
+Expected<std::vector<FramePose>> ReadPosesCsv(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Error{path.string() + ": cannot open"};
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  const std::string text = buffer.str();
+  Expected<CsvDocument> doc = TokenizeCsv(text, path.string());
+  if (!doc) return doc.error();
+  std::vector<FramePose> poses;
+  bool header = true;
+  for (const CsvRow& row : doc->rows) {
+    if (row.IsBlank()) continue;
+    if (header) {
+      std::string joined;
+      for (std::size_t k = 0; k < row.fields.size(); ++k)
+        joined += (k ? "," : "") + row.fields[k].text;
+      if (joined != kHeader)
+        return MakeError(path.string(), row.line, 1, std::string("expected the header ") + kHeader);
+      header = false;
+      continue;
+    }
+    if (row.fields.size() != 9)
+      return MakeError(path.string(), row.line, 1, "expected 9 fields, got " +
+                                                       std::to_string(row.fields.size()));
+    double v[9];
+    for (int k = 0; k < 9; ++k) {
+      const std::string& s = row.fields[k].text;
+      const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v[k]);
+      if (ec != std::errc() || end != s.data() + s.size())
+        return MakeError(path.string(), row.line, row.fields[k].column,
+                         "expected a number, got '" + s + "'");
+    }
+    FramePose p;
+    p.frame = static_cast<std::int64_t>(v[0]);
+    p.vicon_frame = static_cast<std::int64_t>(v[1]);
+    Eigen::Quaterniond q(v[5], v[6], v[7], v[8]);
+    if (std::abs(q.norm() - 1.0) > 1e-3)
+      return MakeError(path.string(), row.line, row.fields[5].column,
+                       "expected a unit quaternion (qw, qx, qy, qz)");
+    p.world_from_cam.linear() = q.normalized().toRotationMatrix();
+    p.world_from_cam.translation() = Eigen::Vector3d(v[2], v[3], v[4]);
+    poses.push_back(p);
+  }
+  if (header) return MakeError(path.string(), 1, 1, std::string("expected the header ") + kHeader);
+  return poses;
+}
+
+}  // namespace lifmcr::registration
