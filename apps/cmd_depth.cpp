@@ -14,6 +14,7 @@
 #include "processing/ply.h"
 #include "replay/bayer.h"
 #include "replay/layout.h"
+#include "config/text_escape.h"
 #include "replay/raw_image.h"
 #include "replay/sequence.h"
 #include "replay/synth/gt_images.h"
@@ -23,6 +24,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -42,7 +44,7 @@ struct DepthCommandOptions {
   std::string sequence;
   std::string camera;
   std::int64_t frame = 0;            // the frame RunDepth processes
-  std::vector<std::int64_t> frames;  // --frame values (default: 0)
+  std::vector<std::string> frames;   // --frame values as typed (default: 0), parsed strictly
   bool all_frames = false;
   std::string out;
   std::string intrinsics;
@@ -52,6 +54,19 @@ struct DepthCommandOptions {
   std::string raw;
   std::string pixel_format;
 };
+
+// A frame number: decimal digits only, within the layout's range (CLI11
+// would turn 30 digits into INT64_MAX without a word).
+Expected<std::int64_t> ParseFrameNumber(const std::string& text) {
+  std::int64_t frame = -1;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), frame);
+  if (text.empty() || ec != std::errc() || end != text.data() + text.size() || frame < 0 ||
+      frame > layout::kMaxFrameNumber) {
+    return Error{"--frame: expected a frame number 0 .. " + std::to_string(layout::kMaxFrameNumber) +
+                 ", got '" + Excerpt(text) + "'"};
+  }
+  return frame;
+}
 
 double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
@@ -179,7 +194,8 @@ int RunDepth(const DepthCommandOptions& o) {
   const double raw_mp = raw->width * static_cast<double>(raw->height) / 1e6;
   std::printf("depth     %.3f s  %.1f raw MP/s; %s\n", p.depth_s, raw_mp / p.depth_s,
               depth.stats.BriefReport().c_str());
-  const double tf_n = static_cast<double>(tf_depth.width) * tf_depth.height;
+  // max(1): an empty TF grid prints 0 %, not -nan %.
+  const double tf_n = std::max(1.0, static_cast<double>(tf_depth.width) * tf_depth.height);
   std::printf("tf        %.3f s  %dx%d; TF depth: %.1f %% measured, %.1f %% filled\n", p.tf_s,
               tf.width, tf.height, 100.0 * tf_depth.measured / tf_n,
               100.0 * tf_depth.filled / tf_n);
@@ -239,7 +255,13 @@ int RunDepth(const DepthCommandOptions& o) {
 // Every frame asked for, one after the other, with a progress line before
 // each; the first failure stops (exit 1), the frames before it are written.
 int RunDepthFrames(const DepthCommandOptions& o) {
-  std::vector<std::int64_t> frames = o.frames.empty() ? std::vector<std::int64_t>{0} : o.frames;
+  std::vector<std::int64_t> frames;
+  for (const std::string& text : o.frames) {
+    Expected<std::int64_t> frame = ParseFrameNumber(text);
+    if (!frame) return Usage(frame.error().message);
+    frames.push_back(*frame);
+  }
+  if (frames.empty()) frames.push_back(0);
   if (o.all_frames) {
     if (!o.raw.empty() || o.sequence.empty()) return Usage("--all-frames needs SEQ_DIR");
     if (!o.frames.empty()) return Usage("--all-frames and --frame exclude each other");

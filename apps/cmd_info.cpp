@@ -1,6 +1,7 @@
 #include "apps/commands.h"
 #include "apps/info_gentl.h"
 #include "apps/info_report.h"
+#include "config/text_escape.h"
 
 #include <CLI/CLI.hpp>
 
@@ -62,7 +63,7 @@ CommandRun AddInfoCommand(CLI::App& app) {
     auto report = DescribePath(args->path, options);
     if (terminal) std::cerr << "\r\x1b[K" << std::flush;
     if (!report.ok()) {
-      std::cerr << "lifmcr info: " << report.error().message << "\n";
+      std::cerr << "lifmcr info: " << EscapeText(report.error().message) << "\n";
       return 1;
     }
     if (args->json)

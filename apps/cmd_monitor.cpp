@@ -5,6 +5,7 @@
 
 #include "apps/commands.h"
 #include "apps/terminal.h"
+#include "config/text_escape.h"
 
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
@@ -21,6 +22,7 @@
 #include <lifmcr_lcm/pipeline_stats_t.hpp>
 #include <lifmcr_lcm/preview_image_t.hpp>
 #include <lifmcr_lcm/vicon_frame_t.hpp>
+#include "lcm_types/safe_decode.h"
 #include <map>
 #include <memory>
 #include <optional>
@@ -68,10 +70,43 @@ struct CameraView {
   std::optional<lifmcr_lcm::camera_extrinsics_t> extrinsics;
 };
 
+// Names from the network reach the terminal: escaped (config/text_escape.h).
+void Sanitize(std::string* s) { *s = lifmcr::Excerpt(*s, 64); }
+void Sanitize(lifmcr_lcm::preview_image_t* m) { Sanitize(&m->serial); }
+void Sanitize(lifmcr_lcm::depth_image_t* m) { Sanitize(&m->serial); }
+void Sanitize(lifmcr_lcm::camera_extrinsics_t* m) {
+  for (std::string* s : {&m->reference_serial, &m->serial, &m->method, &m->status}) Sanitize(s);
+}
+void Sanitize(lifmcr_lcm::vicon_frame_t* m) {
+  for (auto& o : m->objects) Sanitize(&o.name);
+}
+void Sanitize(lifmcr_lcm::pipeline_stats_t* m) {
+  for (auto& s : m->stages) Sanitize(&s.name);
+  for (auto& d : m->drops) Sanitize(&d.kind);
+}
+
+// Cameras and Vicon objects shown at most (a sender inventing names cannot
+// grow the monitor's memory without bound).
+constexpr std::size_t kMaxShown = 64;
+
 class Monitor {
  public:
+  // Raw subscription: messages are checked before the generated decode
+  // (lcm_types/safe_decode.h), then escaped; malformed ones are counted.
+  template <typename T, void (Monitor::*On)(const lcm::ReceiveBuffer*, const std::string&, const T*)>
+  void Raw(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+    std::optional<T> message = lifmcr_lcm::SafeDecode<T>(rbuf->data, rbuf->data_size);
+    if (!message) {
+      ++malformed_;
+      return;
+    }
+    Sanitize(&*message);
+    (this->*On)(rbuf, channel, &*message);
+  }
+
   void OnPreview(const lcm::ReceiveBuffer* rbuf, const std::string& channel,
                  const lifmcr_lcm::preview_image_t* m) {
+    if (!Known(m->serial)) return;
     CameraView& c = cameras_[m->serial];
     const bool tf = channel.size() > 3 && channel.compare(channel.size() - 3, 3, "_TF") == 0;
     (tf ? c.tf : c.preview).Tick(NowS());
@@ -81,6 +116,7 @@ class Monitor {
     }
   }
   void OnDepth(const lcm::ReceiveBuffer*, const std::string&, const lifmcr_lcm::depth_image_t* m) {
+    if (!Known(m->serial)) return;
     CameraView& c = cameras_[m->serial];
     c.depth.Tick(NowS());
     c.valid_fraction = m->valid_fraction;
@@ -89,13 +125,14 @@ class Monitor {
   }
   void OnExtrinsics(const lcm::ReceiveBuffer*, const std::string&,
                     const lifmcr_lcm::camera_extrinsics_t* m) {
-    cameras_[m->serial].extrinsics = *m;
+    if (Known(m->serial)) cameras_[m->serial].extrinsics = *m;
   }
   void OnVicon(const lcm::ReceiveBuffer*, const std::string&, const lifmcr_lcm::vicon_frame_t* m) {
     vicon_.Tick(NowS());
     last_vicon_ = *m;
     for (const auto& o : m->objects)
-      if (o.occluded) ++occlusions_[o.name];
+      if (o.occluded && (occlusions_.size() < kMaxShown || occlusions_.count(o.name)))
+        ++occlusions_[o.name];
   }
   void OnStats(const lcm::ReceiveBuffer*, const std::string&,
                const lifmcr_lcm::pipeline_stats_t* m) {
@@ -146,6 +183,7 @@ class Monitor {
                       static_cast<unsigned long long>(occlusions_[o.name]));
         out << line;
       }
+    if (malformed_ > 0) out << "malformed messages ignored: " << malformed_ << "\n";
     out << "\npipeline";
     if (!stats_) {
       out << "  (no LIFMCR_STATS yet)\n";
@@ -170,6 +208,11 @@ class Monitor {
   }
 
  private:
+  bool Known(const std::string& serial) const {
+    return cameras_.size() < kMaxShown || cameras_.count(serial) != 0;
+  }
+
+  std::uint64_t malformed_ = 0;
   std::map<std::string, CameraView> cameras_;
   RateMeter vicon_;
   std::optional<lifmcr_lcm::vicon_frame_t> last_vicon_;
@@ -199,12 +242,14 @@ int RunMonitor(const Args& args) {
     return 3;
   }
   Monitor monitor;
-  bus.subscribe("LIFMCR_.*_PREVIEW", &Monitor::OnPreview, &monitor);
-  bus.subscribe("LIFMCR_.*_TF", &Monitor::OnPreview, &monitor);
-  bus.subscribe("LIFMCR_.*_DEPTH", &Monitor::OnDepth, &monitor);
-  bus.subscribe("LIFMCR_.*_EXTRINSICS", &Monitor::OnExtrinsics, &monitor);
-  bus.subscribe("LIFMCR_VICON", &Monitor::OnVicon, &monitor);
-  bus.subscribe("LIFMCR_STATS", &Monitor::OnStats, &monitor);
+  using namespace lifmcr_lcm;
+  bus.subscribe("LIFMCR_.*_PREVIEW", &Monitor::Raw<preview_image_t, &Monitor::OnPreview>, &monitor);
+  bus.subscribe("LIFMCR_.*_TF", &Monitor::Raw<preview_image_t, &Monitor::OnPreview>, &monitor);
+  bus.subscribe("LIFMCR_.*_DEPTH", &Monitor::Raw<depth_image_t, &Monitor::OnDepth>, &monitor);
+  bus.subscribe("LIFMCR_.*_EXTRINSICS", &Monitor::Raw<camera_extrinsics_t, &Monitor::OnExtrinsics>,
+                &monitor);
+  bus.subscribe("LIFMCR_VICON", &Monitor::Raw<vicon_frame_t, &Monitor::OnVicon>, &monitor);
+  bus.subscribe("LIFMCR_STATS", &Monitor::Raw<pipeline_stats_t, &Monitor::OnStats>, &monitor);
 
   g_stop = false;
   std::signal(SIGINT, OnSignal);

@@ -5,6 +5,7 @@
 
 #include "apps/commands.h"
 #include "config/frames.h"
+#include "config/text_escape.h"
 #include "replay/vicon_csv.h"
 #include "replay/vicon_poses.h"
 
@@ -41,7 +42,7 @@ int RunVicon(const ViconArgs& args) {
   csv_options.short_rows_are_missing = args.short_rows_are_missing;
   auto csv = ReadViconCsv(args.file, csv_options);
   if (!csv.ok()) {
-    std::cerr << "lifmcr vicon: " << csv.error().message << "\n";
+    std::cerr << "lifmcr vicon: " << EscapeText(csv.error().message) << "\n";
     return 1;
   }
   ViconPoseOptions pose_options;
@@ -56,14 +57,18 @@ int RunVicon(const ViconArgs& args) {
       // No Objects/Segments block: the lookup says what the file has instead.
       auto found = FindSubjectColumns(*csv, "");
       std::cerr << "lifmcr vicon: "
-                << (found.ok() ? args.file + ": no subject with a pose" : found.error().message)
+                << EscapeText(found.ok() ? args.file + ": no subject with a pose"
+                                         : found.error().message)
                 << "\n";
       return 1;
     }
     if (subjects.size() > 1) {
+      constexpr std::size_t kListed = 20;
       std::string list;
-      for (const std::string& name : subjects) list += (list.empty() ? "" : ", ") + name;
-      std::cerr << "lifmcr vicon: " << args.file << ": " << subjects.size()
+      for (std::size_t i = 0; i < subjects.size() && i < kListed; ++i)
+        list += (list.empty() ? "" : ", ") + Excerpt(subjects[i]);
+      if (subjects.size() > kListed) list += ", ...";
+      std::cerr << "lifmcr vicon: " << EscapeText(args.file) << ": " << subjects.size()
                 << " subjects with poses (" << list << "); choose one with --subject\n";
       return 1;
     }
@@ -71,7 +76,7 @@ int RunVicon(const ViconArgs& args) {
   }
   auto samples = ExtractSubjectPoses(*csv, subject, pose_options);
   if (!samples.ok()) {
-    std::cerr << "lifmcr vicon: " << samples.error().message << "\n";
+    std::cerr << "lifmcr vicon: " << EscapeText(samples.error().message) << "\n";
     return 1;
   }
   std::string out = "vicon_frame,tx_mm,ty_mm,tz_mm,qw,qx,qy,qz\n";

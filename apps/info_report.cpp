@@ -1,7 +1,9 @@
 #include "apps/info_report.h"
 
 #include "apps/info_gentl.h"
+#include "config/input_file.h"
 #include "config/rig_config.h"
+#include "config/text_escape.h"
 #include "replay/bmp.h"
 #include "replay/layout.h"
 #include "replay/mla_xml.h"
@@ -121,9 +123,9 @@ class Reporter {
     if (!vsk->model.empty()) out["model"] = vsk->model;
     out["segments"] = vsk->segments.size();
     out["markers"] = vsk->markers.size();
-    for (const std::string& subject : VskSubjects(*vsk)) {
+    for (const auto& [subject, markers] : VskMarkersBySubject(*vsk)) {
       json s{{"name", subject}};
-      for (const VskMarker& marker : VskMarkersOfSubject(*vsk, subject)) {
+      for (const VskMarker& marker : markers) {
         const Eigen::Vector3d& p = marker.position_mm;
         s["markers"].push_back({{"name", marker.name},
                                 {"segment", marker.segment},
@@ -298,6 +300,23 @@ class Reporter {
   std::map<fs::path, MlaCalibration> mla_cache_;
 };
 
+// Every string (keys too) as valid UTF-8, so dumping never throws; control
+// characters are left for JSON's own escapes.
+json ValidUtf8(const json& value) {
+  if (value.is_string()) return ToValidUtf8(value.get_ref<const std::string&>());
+  if (value.is_array()) {
+    json out = json::array();
+    for (const json& element : value) out.push_back(ValidUtf8(element));
+    return out;
+  }
+  if (value.is_object()) {
+    json out = json::object();
+    for (const auto& [key, element] : value.items()) out[ToValidUtf8(key)] = ValidUtf8(element);
+    return out;
+  }
+  return value;
+}
+
 std::string Lower(std::string s) {
   for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return s;
@@ -307,7 +326,8 @@ std::string Lower(std::string s) {
 
 Expected<json> DescribePath(const fs::path& path, const InfoOptions& options) {
   std::error_code ec;
-  if (!fs::exists(path, ec)) return Error{path.string() + ": no such file or folder"};
+  if (const std::string missing = DescribeMissingPath(path); !missing.empty())
+    return Error{EscapeText(path.string()) + ": " + missing};
   Reporter reporter(options);
   json report{{"path", path.string()}};
   const PathKind kind = ClassifyPath(path);
@@ -371,19 +391,20 @@ Expected<json> DescribePath(const fs::path& path, const InfoOptions& options) {
         report["kind"] = "rig file";
         report["rig"] = reporter.Rig(path);
       } else {
-        return Error{path.string() +
+        const std::string type = DescribeNonRegular(path);
+        return Error{EscapeText(path.string()) + (type.empty() ? "" : ": " + type) +
                      ": not a file lifmcr knows (expected .bmp raw frame, .xml MLA calibration, "
                      ".csv Vicon export, .vsk Vicon model or .yaml rig file)"};
       }
       break;
     }
     case PathKind::kUnknown:
-      return Error{path.string() +
+      return Error{EscapeText(path.string()) +
                    ": not a LiFMCR dataset root, scene, sequence, camera folder or calibration "
                    "folder (see `lifmcr info --help` for what each holds)"};
   }
   report["problems"] = reporter.problems();
-  return report;
+  return ValidUtf8(report);
 }
 
 }  // namespace lifmcr::apps

@@ -3,6 +3,8 @@
 #include "apps/info_gentl.h"
 #include "apps/info_report.h"
 
+#include "config/text_escape.h"
+
 #include <cstdio>
 #include <sstream>
 #include <string>
@@ -194,9 +196,27 @@ void Scene(std::ostream& out, const json& s, int depth) {
   Unrecognised(out, s, depth + 1);
 }
 
+// The report with every string (keys too) escaped for a terminal: a file
+// named "x\n  PROBLEM: none" must not forge report lines.
+json Escaped(const json& value) {
+  if (value.is_string()) return EscapeText(value.get_ref<const std::string&>());
+  if (value.is_array()) {
+    json out = json::array();
+    for (const json& element : value) out.push_back(Escaped(element));
+    return out;
+  }
+  if (value.is_object()) {
+    json out = json::object();
+    for (const auto& [key, element] : value.items()) out[EscapeText(key)] = Escaped(element);
+    return out;
+  }
+  return value;
+}
+
 }  // namespace
 
-std::string FormatInfoText(const json& report) {
+std::string FormatInfoText(const json& raw_report) {
+  const json report = Escaped(raw_report);
   std::ostringstream out;
   out << report["path"].get<std::string>() << ": " << report["kind"].get<std::string>() << "\n";
   if (report.contains("scenes")) {
@@ -207,6 +227,7 @@ std::string FormatInfoText(const json& report) {
   if (report.contains("sequence")) Sequence(out, report["sequence"], 1);
   if (report.contains("camera")) Camera(out, report["camera"], 1);
   if (report.contains("calibration")) Calibration(out, report["calibration"], 1);
+  Unrecognised(out, report, 1);
   if (report.contains("bmp")) Bmp(out, report["bmp"], 1);
   if (report.contains("mla")) Mla(out, report["mla"], 1);
   if (report.contains("vicon")) Vicon(out, report["vicon"], 1);

@@ -1,5 +1,8 @@
 #include "config/rig_config.h"
 
+#include "config/input_file.h"
+#include "config/text_escape.h"
+
 #include "config/yaml_reader.h"
 
 #include <arpa/inet.h>
@@ -131,6 +134,8 @@ std::optional<ConfigIssue> CheckDriver(const std::string& at, const DriverConfig
     return ConfigIssue{at + "/address", "expected text without control characters"};
   if (driver.kind != DriverKind::kGenTl && !driver.cti.empty())
     return ConfigIssue{at + "/cti", "only the gentl driver takes a cti, kind is " + kind};
+  if (driver.kind != DriverKind::kReplay && driver.loop)
+    return ConfigIssue{at + "/loop", "only the replay driver loops, kind is " + kind};
   if (driver.kind != DriverKind::kGenTl && !driver.interface_id.empty())
     return ConfigIssue{at + "/interface",
                        "only the gentl driver takes an interface, kind is " + kind};
@@ -346,6 +351,7 @@ CameraConfig ReadCamera(const YamlNode& node, const fs::path& base_dir, YamlErro
     ReadPath(*driver, "cti", base_dir, &camera.driver.cti, kOptional);
     driver->Read("interface", &camera.driver.interface_id, kOptional);
     driver->Read("device", &camera.driver.device, kOptional);
+    driver->Read("loop", &camera.driver.loop, kOptional);
     driver->Finish();
   }
   ReadPath(map, "mla_file", base_dir, &camera.mla_file, kRequired);
@@ -557,16 +563,9 @@ Expected<RigConfig> ParseRigConfig(std::string_view yaml, const fs::path& base_d
 }
 
 Expected<RigConfig> LoadRigConfig(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    return MakeError(
-        path.string(), 0, 0,
-        "cannot open the rig file: " + std::error_code(errno, std::generic_category()).message());
-  }
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) return MakeError(path.string(), 0, 0, "cannot read the rig file");
-  return ParseRigConfig(text.str(), fs::absolute(path).parent_path(), path.string());
+  Expected<std::string> text = ReadInputText(path, {"a rig file (YAML)", kRigFileMaxBytes});
+  if (!text) return text.error();
+  return ParseRigConfig(*text, fs::absolute(path).parent_path(), EscapeText(path.string()));
 }
 
 std::string FormatRigConfig(const RigConfig& rig) {
@@ -586,6 +585,7 @@ std::string FormatRigConfig(const RigConfig& rig) {
       out << "      interface: " << Yq(camera.driver.interface_id) << "\n";
     if (!camera.driver.device.empty())
       out << "      device: " << Yq(camera.driver.device) << "\n";
+    if (camera.driver.loop) out << "      loop: true\n";
     if (!camera.mla_file.empty()) out << "    mla_file: " << Yq(camera.mla_file.string()) << "\n";
     out << "    trigger:\n      mode: " << ToString(camera.trigger.mode) << "\n";
     out << "      source: " << Yq(camera.trigger.source) << "\n";

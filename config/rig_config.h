@@ -81,6 +81,7 @@ struct DriverConfig {
   std::filesystem::path cti;
   std::string interface_id;  // gentl `interface`: the producer's interface id; empty = any
   std::string device;        // gentl: device id or serial; empty = find by the camera's serial
+  bool loop = false;          // replay: start the sequence again after its last frame
   bool operator==(const DriverConfig&) const = default;
 };
 
@@ -195,7 +196,11 @@ struct RigConfig {
 // names the source in messages (the file path, usually).
 Expected<RigConfig> ParseRigConfig(std::string_view yaml, const std::filesystem::path& base_dir,
                                    const std::string& label);
-// Reads `path` and parses it with base_dir = its folder and label = path.
+// A rig file of a few cameras is ~2 KB; 1 MiB bounds what is read.
+inline constexpr std::uint64_t kRigFileMaxBytes = 1 << 20;
+// Reads `path` (config/input_file.h: a regular file, at most
+// kRigFileMaxBytes, UTF-8) and parses it with base_dir = its folder and
+// label = path.
 Expected<RigConfig> LoadRigConfig(const std::filesystem::path& path);
 // YAML that ParseRigConfig reads back equal: every field written, including
 // defaults, paths as stored (resolved), strings double-quoted.

@@ -1,5 +1,8 @@
 #include "config/yaml_reader.h"
 
+#include "config/input_file.h"
+#include "config/text_escape.h"
+
 #include <yaml-cpp/yaml.h>
 
 #include <charconv>
@@ -31,10 +34,7 @@ YAML::Mark MarkOf(const YamlNode::Impl& impl) {
   return HasPosition(mark) ? mark : impl.fallback_mark;
 }
 
-std::string Shorten(const std::string& text) {
-  constexpr std::size_t kMax = 40;
-  return text.size() <= kMax ? text : text.substr(0, kMax) + "...";
-}
+std::string Shorten(const std::string& text) { return Excerpt(text); }
 
 // Splits "/a/0/b" into {"a", "0", "b"}.
 std::vector<std::string> SplitPath(std::string_view path) {
@@ -53,6 +53,7 @@ std::vector<std::string> SplitPath(std::string_view path) {
 }  // namespace
 
 Expected<YamlNode> YamlNode::Parse(std::string_view text, const std::string& label) {
+  if (Status s = CheckTextEncoding(text, label, "YAML"); !s) return s.error();
   auto shared_label = std::make_shared<const std::string>(label);
   try {
     const std::vector<YAML::Node> documents = YAML::LoadAll(std::string(text));
@@ -71,7 +72,7 @@ Expected<YamlNode> YamlNode::Parse(std::string_view text, const std::string& lab
     // e.msg is yaml-cpp's text without its own "yaml-cpp: error at line..." prefix.
     const bool known = HasPosition(e.mark);
     return MakeError(label, known ? e.mark.line + 1 : 0, known ? e.mark.column + 1 : 0,
-                     "malformed YAML: " + e.msg);
+                     "malformed YAML: " + Excerpt(e.msg, 200));
   } catch (const std::exception& e) {
     return MakeError(label, 0, 0, std::string("malformed YAML: ") + e.what());
   }
@@ -177,7 +178,7 @@ YamlMap::YamlMap(const YamlNode& node, YamlErrors* errors) : node_(node), errors
     const auto [previous, inserted] = first_line.emplace(key, line);
     if (!inserted) {
       errors_->Add(MakeError(node_.label(), line, column,
-                             node_.impl_->path + "/" + key + ": duplicate key '" + key +
+                             node_.impl_->path + "/" + Excerpt(key) + ": duplicate key '" + Excerpt(key) +
                                  "' (first given at line " + std::to_string(previous->second) +
                                  ")"));
       return;
@@ -248,19 +249,49 @@ void YamlMap::Read(std::string_view key, int* out, Presence presence) {
   *out = static_cast<int>(wide);
 }
 
-void YamlMap::Read(std::string_view key, double* out, Presence presence) {
-  const auto value = ScalarChild(key, presence, "a number");
-  if (!value) return;
-  std::string_view text = value->Scalar();
+namespace {
+
+// A plain scalar that is a finite decimal number.
+bool ParseNumberNode(const YamlNode& value, double* out) {
+  if (!value.IsScalar() || value.IsQuoted()) return false;
+  std::string_view text = value.Scalar();
   if (!text.empty() && text.front() == '+') text.remove_prefix(1);
   double parsed = 0.0;
   const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), parsed);
-  if (value->IsQuoted() || text.empty() || ec != std::errc() || end != text.data() + text.size() ||
+  if (text.empty() || ec != std::errc() || end != text.data() + text.size() ||
       !std::isfinite(parsed)) {
-    Fail(*value, "expected a finite number, got " + value->Describe());
-    return;
+    return false;
   }
   *out = parsed;
+  return true;
+}
+
+}  // namespace
+
+void YamlMap::Read(std::string_view key, double* out, Presence presence) {
+  const auto value = ScalarChild(key, presence, "a number");
+  if (!value) return;
+  if (!ParseNumberNode(*value, out)) Fail(*value, "expected a finite number, got " + value->Describe());
+}
+
+void YamlMap::ReadNumbers(std::string_view key, std::size_t count, std::vector<double>* out,
+                          Presence presence) {
+  const std::optional<std::vector<YamlNode>> elements = List(key, presence);
+  if (!elements) return;
+  if (elements->size() != count) {
+    Fail(*Child(key, presence), "expected a list of " + std::to_string(count) +
+                                    " numbers, got " + std::to_string(elements->size()) +
+                                    " elements");
+    return;
+  }
+  std::vector<double> values(count);
+  for (std::size_t i = 0; i < count; ++i) {
+    if (!ParseNumberNode((*elements)[i], &values[i])) {
+      Fail((*elements)[i], "expected a finite number, got " + (*elements)[i].Describe());
+      return;
+    }
+  }
+  *out = std::move(values);
 }
 
 void YamlMap::Read(std::string_view key, bool* out, Presence presence) {
@@ -307,7 +338,7 @@ void YamlMap::Finish() {
     const YAML::Mark mark = it->first.Mark();
     errors_->Add(MakeError(node_.label(), HasPosition(mark) ? mark.line + 1 : 0,
                            HasPosition(mark) ? mark.column + 1 : 0,
-                           node_.impl_->path + "/" + key + ": unknown key '" + key +
+                           node_.impl_->path + "/" + Excerpt(key) + ": unknown key '" + Excerpt(key) +
                                "', expected one of: " + allowed));
     return;
   }

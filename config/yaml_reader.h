@@ -109,6 +109,9 @@ class YamlMap {
   void Read(std::string_view key, std::int64_t* out, Presence presence);
   void Read(std::string_view key, double* out, Presence presence);
   void Read(std::string_view key, bool* out, Presence presence);
+  // A list of exactly `count` numbers ("[x, y]"); an error names the element.
+  void ReadNumbers(std::string_view key, std::size_t count, std::vector<double>* out,
+                   Presence presence);
 
   // An enumeration spelt as one of `names` ("a|b|c"); `parse` maps a name to
   // std::optional<Enum>. A bad name lists the allowed ones.

@@ -35,6 +35,7 @@ Expected<std::unique_ptr<Camera>> MakeCamera(const CameraConfig& config, int cam
       replay.pool_buffers = options.pool_buffers;
       replay.trigger_period = options.trigger_period;
       replay.pacing = options.replay_pacing;
+      replay.loop = config.driver.loop;
       if (Status status = replay.Check(); !status)
         return Error{label + ": " + status.error().message};
       return std::unique_ptr<Camera>(std::make_unique<ReplayCamera>(

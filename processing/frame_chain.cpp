@@ -170,6 +170,11 @@ Expected<ChainLease> CameraChain::Process(ConstImageView raw) {
                                    options_.frame, &p.prepared);
         !s)
       return s.error();
+    if (p.prepared.lenses.empty())
+      return Error{"camera " + setup_.serial + ": no whole micro image of diameter " +
+                   std::to_string(setup_.mla.diameter_px) + " px fits the " +
+                   std::to_string(raw.width) + "x" + std::to_string(raw.height) +
+                   " frame; expected a raw frame of the camera the MLA file belongs to"};
     p.geometry_width_ = raw.width;
     p.geometry_height_ = raw.height;
   }

@@ -1,8 +1,11 @@
 #include "replay/bmp.h"
 
+#include "config/input_file.h"
+#include "config/text_escape.h"
 #include "replay/file_descriptor.h"
 
 #include <climits>
+#include <cstdlib>
 
 #include <algorithm>
 #include <array>
@@ -36,6 +39,9 @@ constexpr int kIovMax = 1024;
 #endif
 
 std::string Errno() { return std::strerror(errno); }
+
+constexpr InputLimits kBmpInput{"a raw frame (BMP, 8-bit grey or 24-bit BGR)",
+                                kBmpLimits.max_file_bytes};
 
 std::uint16_t U16(std::span<const std::uint8_t> b, std::size_t at) {
   return static_cast<std::uint16_t>(b[at] | (b[at + 1] << 8));
@@ -216,13 +222,25 @@ Expected<BmpHeader> ParseBmpHeader(std::span<const std::uint8_t> prefix, std::si
   const std::uint32_t compression = U32(prefix, 30);
   const std::uint32_t colours_used = U32(prefix, 46);
 
-  if (width <= 0) {
-    return FieldError(f, 18, "width", "got " + std::to_string(width) + ", expected > 0");
+  if (width <= 0 || width > kBmpLimits.max_side_px) {
+    return FieldError(f, 18, "width",
+                      "got " + std::to_string(width) + ", expected 1 .. " +
+                          std::to_string(kBmpLimits.max_side_px) + " px (a real sensor)");
   }
-  if (signed_height == 0 || signed_height == INT32_MIN) {
+  if (signed_height == 0 || signed_height == INT32_MIN ||
+      std::abs(signed_height) > kBmpLimits.max_side_px) {
     return FieldError(f, 22, "height",
                       "got " + std::to_string(signed_height) +
-                          ", expected a non-zero row count (> 0 bottom-up, < 0 top-down)");
+                          ", expected a row count of 1 .. " +
+                          std::to_string(kBmpLimits.max_side_px) +
+                          " (> 0 bottom-up, < 0 top-down)");
+  }
+  if (static_cast<std::uint64_t>(width) * static_cast<std::uint64_t>(std::abs(signed_height)) >
+      kBmpLimits.max_pixels) {
+    return FieldError(f, 18, "width",
+                      std::to_string(width) + "x" + std::to_string(std::abs(signed_height)) +
+                          " px is more than the " + std::to_string(kBmpLimits.max_pixels / 1000000) +
+                          " megapixels of any real sensor");
   }
   if (planes != 1) {
     return FieldError(f, 26, "planes", "got " + std::to_string(planes) + ", expected 1");
@@ -288,13 +306,11 @@ Expected<BmpHeader> ParseBmpHeader(std::span<const std::uint8_t> prefix, std::si
 }
 
 Expected<BmpHeader> ReadBmpHeader(const std::filesystem::path& path) {
-  const std::string file = path.string();
-  FileDescriptor fd(::open(file.c_str(), O_RDONLY | O_CLOEXEC));
-  if (fd.get() < 0) return MakeError(file, 0, 0, "cannot open BMP: " + Errno());
-  struct stat info {};
-  if (::fstat(fd.get(), &info) != 0) return MakeError(file, 0, 0, "cannot stat: " + Errno());
-  if (!S_ISREG(info.st_mode)) return MakeError(file, 0, 0, "not a regular file");
-  const auto file_size = static_cast<std::size_t>(info.st_size);
+  const std::string file = EscapeText(path.string());
+  Expected<InputFile> opened = OpenInputFile(path, kBmpInput);
+  if (!opened) return opened.error();
+  FileDescriptor fd(opened->fd);
+  const auto file_size = static_cast<std::size_t>(opened->size_bytes);
   std::array<std::uint8_t, kMaxHeaderPrefix> prefix{};
   const std::size_t prefix_bytes = std::min(file_size, prefix.size());
   if (Status read = ReadFull(fd.get(), prefix.data(), prefix_bytes, 0, file); !read.ok()) {
@@ -304,7 +320,7 @@ Expected<BmpHeader> ReadBmpHeader(const std::filesystem::path& path) {
 }
 
 Status ReadBmpInto(const std::filesystem::path& path, const BmpHeader& header, ImageView dst) {
-  const std::string file = path.string();
+  const std::string file = EscapeText(path.string());
   if (dst.width != header.width || dst.height != header.height || dst.format != header.format) {
     return MakeError(file, 0, 0,
                      "frame is " + Shape(header.width, header.height, header.format) +
@@ -330,13 +346,14 @@ Status ReadBmpInto(const std::filesystem::path& path, const BmpHeader& header, I
                          " frame");
   }
 
-  FileDescriptor fd(::open(file.c_str(), O_RDONLY | O_CLOEXEC));
-  if (fd.get() < 0) return MakeError(file, 0, 0, "cannot open BMP: " + Errno());
-  struct stat info {};
-  if (::fstat(fd.get(), &info) != 0) return MakeError(file, 0, 0, "cannot stat: " + Errno());
+  // The file is opened again (it may have changed since its header was
+  // read): the same checks, never a blocking open of a FIFO.
+  Expected<InputFile> opened = OpenInputFile(path, kBmpInput);
+  if (!opened) return opened.error();
+  FileDescriptor fd(opened->fd);
   const std::size_t needed = header.pixel_offset + header.PixelBytes();
-  if (static_cast<std::size_t>(info.st_size) < needed) {
-    return TruncatedError(file, needed, static_cast<std::size_t>(info.st_size),
+  if (opened->size_bytes < needed) {
+    return TruncatedError(file, needed, static_cast<std::size_t>(opened->size_bytes),
                           "the header read before says so");
   }
   const auto offset = static_cast<off_t>(header.pixel_offset);

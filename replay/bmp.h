@@ -28,6 +28,7 @@
 //   truncated and the error names the expected and the actual byte count. The
 //   header's own file-size field (bfSize) may be 0 (allowed by the format) but,
 //   when set, must not exceed the real size either.
+// - width, height and their product within kBmpLimits.
 // - Bytes after the last row (some writers append an ICC profile) are ignored.
 
 #include "config/error.h"
@@ -41,6 +42,16 @@
 #include <vector>
 
 namespace lifmcr {
+
+// What a real camera frame can be (README, "Limits of every input"): the
+// R32 is 6560x4948; the largest industrial sensors have ~150 MP. A header
+// beyond is refused before anything is allocated for it.
+struct BmpLimits {
+  std::int32_t max_side_px = 32768;
+  std::uint64_t max_pixels = 268435456;        // 2^28 = 268 MP
+  std::uint64_t max_file_bytes = 4ull << 30;  // the format's 32-bit sizes
+};
+inline constexpr BmpLimits kBmpLimits{};
 
 struct BmpHeader {
   int width = 0;

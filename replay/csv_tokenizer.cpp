@@ -1,5 +1,7 @@
 #include "replay/csv_tokenizer.h"
 
+#include "config/text_escape.h"
+
 namespace lifmcr {
 namespace {
 
@@ -8,8 +10,9 @@ constexpr std::string_view kUtf8Bom = "\xEF\xBB\xBF";
 // Walks the text once, tracking the line and column of the next character.
 class CsvScanner {
  public:
-  CsvScanner(std::string_view text, const std::string& label, char delimiter)
-      : text_(text), label_(label), delimiter_(delimiter) {}
+  CsvScanner(std::string_view text, const std::string& label, char delimiter,
+             const CsvLimits& limits)
+      : text_(text), label_(label), delimiter_(delimiter), limits_(limits) {}
 
   Expected<CsvDocument> Run() {
     CsvDocument document;
@@ -32,6 +35,11 @@ class CsvScanner {
       while (true) {
         auto field = ReadField();
         if (!field.ok()) return field.error();
+        if (row.fields.size() >= limits_.max_fields_per_row) {
+          return MakeError(label_, field->line, field->column,
+                           "row has more than " + std::to_string(limits_.max_fields_per_row) +
+                               " fields; expected at most that many (is this the right file?)");
+        }
         row.fields.push_back(std::move(*field));
         if (pos_ < text_.size() && text_[pos_] == delimiter_) {
           Advance();
@@ -102,6 +110,7 @@ class CsvScanner {
           Advance();
           break;
         }
+        if (field.text.size() >= limits_.max_field_bytes) return FieldTooLong(field);
         if (c == '\n' || c == '\r') {
           // A line break inside quotes belongs to the field, written as '\n'.
           field.text += '\n';
@@ -114,20 +123,28 @@ class CsvScanner {
       if (pos_ < text_.size() && text_[pos_] != delimiter_ && !AtLineEnd()) {
         return MakeError(label_, line_, column_,
                          std::string("expected '") + delimiter_ +
-                             "' or the end of the line after a closing quote, got '" + text_[pos_] +
-                             "'");
+                             "' or the end of the line after a closing quote, got '" +
+                             EscapeText(std::string_view(&text_[pos_], 1)) + "'");
       }
       return field;
     }
     const size_t start = pos_;
     while (pos_ < text_.size() && text_[pos_] != delimiter_ && !AtLineEnd()) Advance();
+    if (pos_ - start > limits_.max_field_bytes) return FieldTooLong(field);
     field.text.assign(text_.substr(start, pos_ - start));
     return field;
+  }
+
+  Error FieldTooLong(const CsvField& field) const {
+    return MakeError(label_, field.line, field.column,
+                     "field longer than " + std::to_string(limits_.max_field_bytes) +
+                         " bytes; expected short fields (names, numbers)");
   }
 
   std::string_view text_;
   const std::string& label_;
   char delimiter_;
+  CsvLimits limits_;
   size_t pos_ = 0;
   int line_ = 1;
   int column_ = 1;
@@ -147,8 +164,9 @@ size_t CsvRow::WidthWithoutTrailingEmpty() const {
   return width;
 }
 
-Expected<CsvDocument> TokenizeCsv(std::string_view text, const std::string& label, char delimiter) {
-  return CsvScanner(text, label, delimiter).Run();
+Expected<CsvDocument> TokenizeCsv(std::string_view text, const std::string& label, char delimiter,
+                                  const CsvLimits& limits) {
+  return CsvScanner(text, label, delimiter, limits).Run();
 }
 
 char DetectCsvDelimiter(std::string_view text) {

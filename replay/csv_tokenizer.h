@@ -39,11 +39,18 @@ struct CsvDocument {
   bool crlf = false;         // the first line ending was CRLF
 };
 
+// Bounds that keep a hostile file from costing memory far beyond its size
+// (a 90 MB row of delimiters would otherwise be 90 million field objects).
+struct CsvLimits {
+  size_t max_fields_per_row = 1 << 20;
+  size_t max_field_bytes = 1 << 20;
+};
+
 // Splits `text` into rows and fields. `label` (usually the file path) starts
-// every error message. Errors: a quoted field that never ends, and text
-// between a closing quote and the next delimiter.
+// every error message. Errors: a quoted field that never ends, text between
+// a closing quote and the next delimiter, a row or field over `limits`.
 Expected<CsvDocument> TokenizeCsv(std::string_view text, const std::string& label,
-                                  char delimiter = ',');
+                                  char delimiter = ',', const CsvLimits& limits = {});
 
 // The delimiter of a Vicon-style export: the character right after the first
 // "Frame" that starts a line (',' or ';'), ',' when there is none.

@@ -37,6 +37,8 @@
 namespace lifmcr::layout {
 
 inline constexpr int kFrameDigits = 6;
+// The largest frame number a file name may carry (18 digits: fits int64).
+inline constexpr std::int64_t kMaxFrameNumber = 999999999999999999;
 inline constexpr int kWhiteImageDigits = 2;
 inline constexpr int kViconCsvDigits = 2;
 

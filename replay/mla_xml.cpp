@@ -1,5 +1,6 @@
 #include "replay/mla_xml.h"
 
+#include "config/text_escape.h"
 #include "replay/xml_util.h"
 
 #include <tinyxml2.h>
@@ -69,7 +70,64 @@ std::optional<MlaProblem> FindProblem(const MlaCalibration& c) {
   }
 
   if (c.version != "1.0") {
-    return MlaProblem{root, "expected version \"1.0\", got \"" + c.version + "\""};
+    return MlaProblem{root, "expected version \"1.0\", got \"" + Excerpt(c.version) + "\""};
+  }
+  // What a real camera and lens can be (README, "Limits of every input"):
+  // garbage that passes here would crash or exhaust memory in processing.
+  const struct {
+    std::string path;
+    double value, min, max;
+    const char* unit;
+  } ranges[] = {
+      {root + "/offset", std::abs(c.offset_px.x()), 0, kMlaLimits.max_offset_px, "px (|x|)"},
+      {root + "/offset", std::abs(c.offset_px.y()), 0, kMlaLimits.max_offset_px, "px (|y|)"},
+      {root + "/diameter", c.diameter_px, kMlaLimits.min_diameter_px, kMlaLimits.max_diameter_px,
+       "px"},
+      {root + "/rotation", std::abs(c.rotation_rad), 0, kMlaLimits.max_abs_rotation_rad,
+       "rad (|rotation|)"},
+      {root + "/tcp", c.tcp_virtual_depth, kMlaLimits.min_virtual_depth,
+       kMlaLimits.max_virtual_depth, "(virtual depth)"},
+      {root + "/sub_grid_base", c.sub_grid_base.norm(), 0, kMlaLimits.max_basis_lens,
+       "lens diameters (length)"},
+      {root + "/distortion/offset", std::abs(c.distortion.offset_px.x()), 0,
+       kMlaLimits.max_offset_px, "px (|x|)"},
+      {root + "/distortion/offset", std::abs(c.distortion.offset_px.y()), 0,
+       kMlaLimits.max_offset_px, "px (|y|)"},
+  };
+  for (const auto& r : ranges) {
+    if (r.value < r.min || r.value > r.max) {
+      return MlaProblem{r.path, "expected " + Number(r.min) + " .. " + Number(r.max) + " " +
+                                    r.unit + ", got " + Number(r.value) +
+                                    " (outside what a real camera can have)"};
+    }
+  }
+  for (double p : c.distortion.parameters) {
+    if (std::abs(p) > kMlaLimits.max_abs_distortion_parameter) {
+      return MlaProblem{root + "/distortion/parameter",
+                        "expected parameters of magnitude <= " +
+                            Number(kMlaLimits.max_abs_distortion_parameter) + ", got " + Number(p)};
+    }
+  }
+  if (c.distortion.parameters.size() > kMlaLimits.max_distortion_parameters) {
+    return MlaProblem{root + "/distortion/parameter",
+                      "expected at most " + std::to_string(kMlaLimits.max_distortion_parameters) +
+                          " parameters, got " + std::to_string(c.distortion.parameters.size())};
+  }
+  for (int id = 0; id < 3; ++id) {
+    const MlaLensType& type = c.lens_types[id];
+    if (type.offset_lens.cwiseAbs().maxCoeff() > kMlaLimits.max_basis_lens) {
+      return MlaProblem{LensTypePath(id) + "/offset",
+                        "expected |x|, |y| <= " + Number(kMlaLimits.max_basis_lens) +
+                            " lens diameters, got (" + Number(type.offset_lens.x()) + ", " +
+                            Number(type.offset_lens.y()) + ")"};
+    }
+    for (double v : {type.depth_min, type.depth_max}) {
+      if (v < 0.0 || v > kMlaLimits.max_virtual_depth) {
+        return MlaProblem{LensTypePath(id) + "/depth_range",
+                          "expected virtual depths 0 .. " + Number(kMlaLimits.max_virtual_depth) +
+                              ", got " + Number(v)};
+      }
+    }
   }
   if (!(c.diameter_px > 0.0)) {
     return MlaProblem{root + "/diameter",
@@ -103,7 +161,8 @@ std::optional<MlaProblem> FindProblem(const MlaCalibration& c) {
   }
   if (c.distortion.function != "constant" && c.distortion.function != "Brown") {
     return MlaProblem{root + "/distortion/function",
-                      "expected 'constant' or 'Brown', got '" + c.distortion.function + "'"};
+                      "expected 'constant' or 'Brown', got '" + Excerpt(c.distortion.function) +
+                          "'"};
   }
   if (c.distortion.type.empty()) {
     return MlaProblem{root + "/distortion", "expected a non-empty type attribute"};
@@ -138,13 +197,13 @@ class Reader {
         "convert it to RayCalibData 1.0 (the previous standard)";
     if (std::string_view(root->Name()) != "RayCalibData") {
       return xml::ErrorAt(label_, root,
-                          std::string("root element is <") + root->Name() + ">, " + expected_root);
+                          "root element is <" + Excerpt(root->Name()) + ">, " + expected_root);
     }
     const char* version = root->Attribute("version");
     if (version == nullptr || std::string_view(version) != "1.0") {
       return xml::ErrorAt(label_, root,
                           std::string("RayCalibData version is ") +
-                              (version ? "\"" + std::string(version) + "\"" : "missing") + ", " +
+                              (version ? "\"" + Excerpt(version) + "\"" : "missing") + ", " +
                               expected_root);
     }
     Remember(root);
@@ -221,7 +280,13 @@ class Reader {
     if (!xml::ParseStrictInt(count_text, &count) || count < 0) {
       return xml::ErrorAt(
           label_, element,
-          "expected count=\"N\" with an integer N >= 0, got \"" + count_text + "\"");
+          "expected count=\"N\" with an integer N >= 0, got \"" + Excerpt(count_text) + "\"");
+    }
+    if (count > static_cast<int>(kMlaLimits.max_distortion_parameters)) {
+      return xml::ErrorAt(label_, element,
+                          "count=\"" + std::to_string(count) + "\": expected at most " +
+                              std::to_string(kMlaLimits.max_distortion_parameters) +
+                              " distortion parameters");
     }
     const std::string text = element->GetText() != nullptr ? element->GetText() : "";
     std::vector<double> values;
@@ -232,7 +297,7 @@ class Reader {
       if (!empty && !(xml::ParseStrictDouble(text, &zero) && zero == 0.0)) {
         return xml::ErrorAt(
             label_, element,
-            "count=\"0\" but the text is '" + text + "', expected '0' (no parameters)");
+            "count=\"0\" but the text is '" + Excerpt(text) + "', expected '0' (no parameters)");
       }
       return values;
     }
@@ -244,16 +309,17 @@ class Reader {
       if (!xml::ParseStrictDouble(item, &value)) {
         return xml::ErrorAt(label_, element,
                             "value " + std::to_string(values.size() + 1) + " is not a number: '" +
-                                item + "' (expected numbers separated by ';')");
+                                Excerpt(item) + "' (expected numbers separated by ';')");
       }
       values.push_back(value);
+      if (values.size() > static_cast<std::size_t>(count)) break;  // reported below
       if (end == std::string::npos) break;
       start = end + 1;
     }
     if (static_cast<int>(values.size()) != count) {
       return xml::ErrorAt(label_, element,
                           "count=\"" + std::to_string(count) + "\" but the text holds " +
-                              std::to_string(values.size()) + " values");
+                              (values.size() > static_cast<std::size_t>(count) ? "more" : std::to_string(values.size())) + " values");
     }
     return values;
   }
@@ -292,7 +358,7 @@ class Reader {
       int id = -1;
       if (!xml::ParseStrictInt(id_text, &id) || id < 0 || id > 2) {
         return xml::ErrorAt(label_, element,
-                            "expected lens_type id 0, 1 or 2, got \"" + id_text + "\"");
+                            "expected lens_type id 0, 1 or 2, got \"" + Excerpt(id_text) + "\"");
       }
       if (seen[id] != nullptr) {
         return xml::ErrorAt(label_, element,
@@ -377,8 +443,10 @@ Expected<MlaCalibration> ParseMlaXml(std::string_view text, const std::string& f
 }
 
 Expected<MlaCalibration> ReadMlaXml(const std::filesystem::path& path) {
-  LIFMCR_XML_ASSIGN_OR_RETURN(const std::string text, xml::ReadTextFile(path));
-  return ParseMlaXml(text, path.string());
+  LIFMCR_XML_ASSIGN_OR_RETURN(
+      const std::string text,
+      xml::ReadTextFile(path, {"an MLA calibration XML (RayCalibData 1.0)", kMlaLimits.max_file_bytes}));
+  return ParseMlaXml(text, EscapeText(path.string()));
 }
 
 std::string FormatMlaXml(const MlaCalibration& c) {

@@ -22,8 +22,9 @@
 //   </RayCalibData>
 // Elements not named above are ignored (a converted file may carry extras).
 //
-// Checks (CheckMlaCalibration): every value finite; diameter > 0;
-// 0 <= lens_border < diameter/2; |lens_base_x| and |lens_base_y| within 1e-3
+// Checks (CheckMlaCalibration): every value finite and within kMlaLimits
+// (what a real camera and lens can be; values outside crash or exhaust
+// memory later in processing); 0 <= lens_border < diameter/2; |lens_base_x| and |lens_base_y| within 1e-3
 // of 1 and |cos(angle between them)| within 1e-3 of 1/2 (60 or 120 degrees;
 // signs vary between real files and are not checked); depth_range
 // min <= max; distortion function "constant" or "Brown". Any rotation is
@@ -35,11 +36,30 @@
 #include "config/error.h"
 #include "config/mla.h"
 
+#include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <string>
 #include <string_view>
 
 namespace lifmcr {
+
+// Ranges of a real Raytrix-style MLA calibration (README, "Limits of every
+// input"). The samples: diameter 23-38 px, rotation up to pi/2, tcp ~2.2,
+// depth ranges within 1..100, offsets of tens of pixels, 0-5 parameters.
+struct MlaLimits {
+  std::uint64_t max_file_bytes = 1 << 20;  // real files are ~3 KB
+  double max_offset_px = 32768;            // |offset|, |distortion offset| per axis: the sensor size
+  double min_diameter_px = 5;              // fewer pixels per micro image hold no depth
+  double max_diameter_px = 500;
+  double max_abs_rotation_rad = 6.2832;    // any angle, once round
+  double min_virtual_depth = 0.01;         // tcp > 0
+  double max_virtual_depth = 1000;         // tcp and depth_range (samples: <= 100)
+  double max_basis_lens = 10;              // |sub_grid_base| ~3.46, lens_type offsets ~1
+  std::size_t max_distortion_parameters = 16;
+  double max_abs_distortion_parameter = 1e6;
+};
+inline constexpr MlaLimits kMlaLimits{};
 
 // Reads and checks an MLA calibration file.
 Expected<MlaCalibration> ReadMlaXml(const std::filesystem::path& path);

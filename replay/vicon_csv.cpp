@@ -1,5 +1,7 @@
 #include "replay/vicon_csv.h"
 
+#include "config/input_file.h"
+#include "config/text_escape.h"
 #include "replay/csv_tokenizer.h"
 
 #include <algorithm>
@@ -10,6 +12,8 @@
 #include <fstream>
 #include <limits>
 #include <sstream>
+#include <unordered_map>
+#include <unordered_set>
 
 namespace lifmcr {
 namespace {
@@ -74,7 +78,17 @@ bool ParseInteger(std::string_view text, Int* value) {
   return error == std::errc() && end == text.data() + text.size();
 }
 
-std::string Quote(std::string_view text) { return "'" + std::string(text) + "'"; }
+// A quote of user text in a message: escaped and at most 40 bytes.
+std::string Quote(std::string_view text) { return "'" + Excerpt(text) + "'"; }
+
+// The largest |value| a real capture can write in a column of `unit` (pose
+// blocks; kViconCsvLimits), 0 when unchecked.
+double MaxAbsValue(std::string_view unit) {
+  if (unit == "mm") return kViconCsvLimits.max_abs_position_mm;
+  if (unit == "deg") return kViconCsvLimits.max_abs_rotation_deg;
+  if (unit == "rad") return kViconCsvLimits.max_abs_rotation_rad;
+  return 0.0;
+}
 
 std::string FormatNumber(double value) {
   std::array<char, 64> buffer;
@@ -142,7 +156,8 @@ class ViconCsvParser {
     const size_t column = field_index - 2;
     if (column < block.columns.size()) {
       const ViconColumn& c = block.columns[column];
-      text += " (" + (c.subject.empty() ? std::string() : c.subject + " ") + c.name + ")";
+      text += " (" + (c.subject.empty() ? std::string() : Excerpt(c.subject) + " ") +
+              Excerpt(c.name) + ")";
     }
     return text;
   }
@@ -186,10 +201,12 @@ class ViconCsvParser {
     }
     const std::string_view text = Trim(row.fields[0].text);
     double rate = 0;
-    if (ParseNumber(text, false, &rate) != NumberStatus::kOk || rate <= 0 ||
-        rate != std::floor(rate) || rate > 1e6) {
+    if (ParseNumber(text, false, &rate) != NumberStatus::kOk || rate < 1 ||
+        rate != std::floor(rate) || rate > kViconCsvLimits.max_rate_hz) {
       return ErrorAt(row.fields[0], "expected the frame rate of block " + Quote(block->name) +
-                                        " (a whole number of Hz > 0), got " + Quote(text));
+                                        " (a whole number of Hz, 1 .. " +
+                                        std::to_string(kViconCsvLimits.max_rate_hz) + "), got " +
+                                        Quote(text));
     }
     block->rate_hz = static_cast<int>(rate);
     return Status::Ok();
@@ -210,6 +227,13 @@ class ViconCsvParser {
     if (width < 3) {
       return ErrorAt(row.fields[1], "block " + Quote(block->name) +
                                         " has no data columns after 'Frame,Sub Frame'");
+    }
+    if (width - 2 > kViconCsvLimits.max_columns) {
+      return ErrorAt(row.fields[kViconCsvLimits.max_columns + 2],
+                     "block " + Quote(block->name) + " has " + std::to_string(width - 2) +
+                         " data columns, expected at most " +
+                         std::to_string(kViconCsvLimits.max_columns) +
+                         " (more objects or markers than a Vicon system tracks)");
     }
     for (size_t i = 2; i < width; ++i) {
       const std::string_view name = Trim(row.fields[i].text);
@@ -257,11 +281,11 @@ class ViconCsvParser {
       block->columns[c].subject = subject;
       block->columns[c].prefix = prefix;
     }
+    std::unordered_set<std::string> seen;
     for (const ViconColumn& column : block->columns) {
-      const std::string subject_name(SubjectOf(column.subject));
-      if (!column.subject.empty() && std::find(block->subjects.begin(), block->subjects.end(),
-                                               subject_name) == block->subjects.end()) {
-        block->subjects.push_back(subject_name);
+      std::string subject_name(SubjectOf(column.subject));
+      if (!column.subject.empty() && seen.insert(subject_name).second) {
+        block->subjects.push_back(std::move(subject_name));
       }
     }
     return Status::Ok();
@@ -290,7 +314,7 @@ class ViconCsvParser {
         segments ? kSegmentColumns.begin() : kMarkerColumns.begin(),
         segments ? kSegmentColumns.end() : kMarkerColumns.end());
     const std::string expected_text = segments ? "RX, RY, RZ, TX, TY, TZ" : "X, Y, Z";
-    std::vector<std::string> seen_entities;
+    std::unordered_set<std::string> seen_entities;
     size_t begin = 0;
     while (begin < block->columns.size()) {
       const ViconColumn& first = block->columns[begin];
@@ -305,12 +329,11 @@ class ViconCsvParser {
              !(names_row.fields.size() > end + 2 && !Trim(names_row.fields[end + 2].text).empty()))
         ++end;
       const std::string full_name = first.prefix + first.subject;
-      if (std::find(seen_entities.begin(), seen_entities.end(), full_name) != seen_entities.end()) {
+      if (!seen_entities.insert(full_name).second) {
         return ErrorAt(names_row.fields[begin + 2],
                        "block " + Quote(block->name) + " names " + Quote(full_name) +
                            " twice: each object, segment or marker needs its own name");
       }
-      seen_entities.push_back(full_name);
       std::vector<std::string_view> names;
       for (size_t c = begin; c < end; ++c) names.push_back(block->columns[c].name);
       for (const std::string_view name : expected) {
@@ -339,20 +362,23 @@ class ViconCsvParser {
         const CsvField& unit_field =
             units_row.fields.size() > c + 2 ? units_row.fields[c + 2] : units_row.fields.back();
         if (!known) {
-          return ErrorAt(unit_field, "field " + std::to_string(c + 3) + " (" + column.subject +
-                                         " " + column.name + "): unknown unit " +
+          return ErrorAt(unit_field, "field " + std::to_string(c + 3) + " (" +
+                                         Excerpt(column.subject) + " " + column.name +
+                                         "): unknown unit " +
                                          Quote(column.unit) + ", expected " +
                                          (is_rotation ? "'deg' or 'rad'" : "'mm'"));
         }
         if (is_rotation) {
           if (!rotation_unit.empty() && rotation_unit != column.unit) {
-            return ErrorAt(unit_field, "field " + std::to_string(c + 3) + " (" + column.subject +
-                                           " " + column.name + "): unit " + Quote(column.unit) +
+            return ErrorAt(unit_field, "field " + std::to_string(c + 3) + " (" +
+                                           Excerpt(column.subject) + " " + column.name +
+                                           "): unit " + Quote(column.unit) +
                                            " differs from " + Quote(rotation_unit) +
                                            " of the other rotation columns of the group");
           }
           rotation_unit = column.unit;
         }
+        column_max_abs_[c] = MaxAbsValue(column.unit);
       }
       groups_.push_back({begin, end});
       begin = end;
@@ -363,6 +389,7 @@ class ViconCsvParser {
   Expected<ViconBlock> ParseBlock() {
     ViconBlock block;
     groups_.clear();
+    column_max_abs_.clear();
     if (Status s = ParseNameRow(rows_[next_++], &block); !s.ok()) return s.error();
     auto rate_row = HeaderRow(block, "the frame rate (Hz)");
     if (!rate_row.ok()) return rate_row.error();
@@ -376,6 +403,7 @@ class ViconCsvParser {
     auto units_row = HeaderRow(block, "the units row (,,mm,...)");
     if (!units_row.ok()) return units_row.error();
     if (Status s = ParseUnitsRow(**units_row, &block); !s.ok()) return s.error();
+    column_max_abs_.assign(block.columns.size(), 0.0);
     if (block.IsPoseBlock()) {
       if (Status s = CheckPoseGroups(**names_row, **columns_row, **units_row, &block); !s.ok())
         return s.error();
@@ -415,13 +443,17 @@ class ViconCsvParser {
                                                  " (block " + Quote(block->name) + ")");
     }
     int64_t frame = 0;
-    if (!ParseInteger(Trim(row.fields[0].text), &frame)) {
-      return ErrorAt(row.fields[0], "field 1 (Frame): expected an integer frame number, got " +
+    if (!ParseInteger(Trim(row.fields[0].text), &frame) || frame < 0 ||
+        frame > kViconCsvLimits.max_frame) {
+      return ErrorAt(row.fields[0], "field 1 (Frame): expected an integer frame number 0 .. " +
+                                        std::to_string(kViconCsvLimits.max_frame) + ", got " +
                                         Quote(row.fields[0].text));
     }
     int sub_frame = 0;
-    if (!ParseInteger(Trim(row.fields[1].text), &sub_frame) || sub_frame < 0) {
-      return ErrorAt(row.fields[1], "field 2 (Sub Frame): expected an integer >= 0, got " +
+    if (!ParseInteger(Trim(row.fields[1].text), &sub_frame) || sub_frame < 0 ||
+        sub_frame > kViconCsvLimits.max_sub_frame) {
+      return ErrorAt(row.fields[1], "field 2 (Sub Frame): expected an integer 0 .. " +
+                                        std::to_string(kViconCsvLimits.max_sub_frame) + ", got " +
                                         Quote(row.fields[1].text));
     }
     if (!block->frames.empty()) {
@@ -457,6 +489,13 @@ class ViconCsvParser {
       double value = 0;
       switch (ParseNumber(text, options_.allow_decimal_comma, &value)) {
         case NumberStatus::kOk:
+          if (column_max_abs_[c] > 0 && std::abs(value) > column_max_abs_[c]) {
+            return ErrorAt(field, DescribeField(*block, i) + ": " + Quote(text) + " " +
+                                      block->columns[c].unit + " is outside +-" +
+                                      FormatNumber(column_max_abs_[c]) + " " +
+                                      block->columns[c].unit +
+                                      " (what a real capture volume or rotation can hold)");
+          }
           block->values.push_back(value);
           break;
         case NumberStatus::kDecimalComma:
@@ -502,6 +541,7 @@ class ViconCsvParser {
   size_t next_ = 0;
   std::string previous_block_;                     // name of the last complete block
   std::vector<std::pair<size_t, size_t>> groups_;  // of the block being parsed
+  std::vector<double> column_max_abs_;             // per column of the block, 0: unchecked
 };
 
 }  // namespace
@@ -517,10 +557,10 @@ int ViconBlock::ColumnOf(size_t row, size_t column) const {
 
 std::vector<std::string> ViconBlock::Entities() const {
   std::vector<std::string> entities;
+  std::unordered_set<std::string_view> seen;
   for (const ViconColumn& column : columns) {
     if (column.subject.empty()) continue;
-    if (std::find(entities.begin(), entities.end(), column.subject) == entities.end())
-      entities.push_back(column.subject);
+    if (seen.insert(column.subject).second) entities.push_back(column.subject);
   }
   return entities;
 }
@@ -548,8 +588,13 @@ std::vector<std::string> ViconCsv::BlockNames() const {
 
 Expected<ViconCsv> ParseViconCsv(std::string_view text, const std::string& label,
                                  const ViconCsvOptions& options) {
+  if (Status s = CheckTextEncoding(text, label, "a Vicon CSV export"); !s) return s.error();
   const char delimiter = DetectCsvDelimiter(text);
-  auto document = TokenizeCsv(text, label, delimiter);
+  CsvLimits limits;
+  // Trailing padding may widen a row past the data columns.
+  limits.max_fields_per_row = kViconCsvLimits.max_columns + 64;
+  limits.max_field_bytes = kViconCsvLimits.max_field_bytes;
+  auto document = TokenizeCsv(text, label, delimiter, limits);
   if (!document.ok()) return document.error();
   auto blocks = ViconCsvParser(*document, label, options).Run();
   if (!blocks.ok()) return blocks.error();
@@ -562,19 +607,10 @@ Expected<ViconCsv> ParseViconCsv(std::string_view text, const std::string& label
 }
 
 Expected<ViconCsv> ReadViconCsv(const std::filesystem::path& path, const ViconCsvOptions& options) {
-  std::error_code error;
-  if (!std::filesystem::is_regular_file(path, error)) {
-    return MakeError(path.string(), 0, 0,
-                     std::filesystem::exists(path, error)
-                         ? "not a regular file: expected a Vicon CSV export"
-                         : "no such file: expected a Vicon CSV export");
-  }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return MakeError(path.string(), 0, 0, "cannot open for reading");
-  std::ostringstream content;
-  content << in.rdbuf();
-  if (in.bad()) return MakeError(path.string(), 0, 0, "read error");
-  return ParseViconCsv(content.str(), path.string(), options);
+  Expected<std::string> text =
+      ReadInputText(path, {"a Vicon CSV export", kViconCsvLimits.max_file_bytes});
+  if (!text) return text.error();
+  return ParseViconCsv(*text, EscapeText(path.string()), options);
 }
 
 std::string FormatViconCsv(const ViconCsv& csv) {
@@ -632,9 +668,9 @@ ViconBlockSummary Summarize(const ViconBlock& block) {
   summary.rate_hz = block.rate_hz;
   summary.subjects = block.subjects;
   summary.num_entities = block.Entities().size();
+  std::unordered_set<std::string_view> units;
   for (const ViconColumn& column : block.columns) {
-    if (std::find(summary.units.begin(), summary.units.end(), column.unit) == summary.units.end())
-      summary.units.push_back(column.unit);
+    if (units.insert(column.unit).second) summary.units.push_back(column.unit);
   }
   summary.num_frames = block.num_rows();
   if (!block.frames.empty()) {
@@ -642,14 +678,23 @@ ViconBlockSummary Summarize(const ViconBlock& block) {
     summary.last_frame = block.frames.back();
   }
   summary.frames_with_missing.assign(block.subjects.size(), 0);
-  for (size_t s = 0; s < block.subjects.size(); ++s) {
-    for (size_t r = 0; r < block.num_rows(); ++r) {
-      for (size_t c = 0; c < block.num_columns(); ++c) {
-        if (SubjectOf(block.columns[c].subject) == block.subjects[s] &&
-            std::isnan(block.at(r, c))) {
-          ++summary.frames_with_missing[s];
-          break;
-        }
+  // One pass over the values: the subject of each column, then per row the
+  // subjects with a missing value (counted once per row).
+  std::unordered_map<std::string_view, size_t> subject_index;
+  for (size_t s = 0; s < block.subjects.size(); ++s) subject_index.emplace(block.subjects[s], s);
+  std::vector<size_t> subject_of_column(block.num_columns(), block.subjects.size());
+  for (size_t c = 0; c < block.num_columns(); ++c) {
+    const auto it = subject_index.find(SubjectOf(block.columns[c].subject));
+    if (!block.columns[c].subject.empty() && it != subject_index.end())
+      subject_of_column[c] = it->second;
+  }
+  std::vector<size_t> counted_row(block.subjects.size(), block.num_rows());
+  for (size_t r = 0; r < block.num_rows(); ++r) {
+    for (size_t c = 0; c < block.num_columns(); ++c) {
+      const size_t s = subject_of_column[c];
+      if (s < block.subjects.size() && counted_row[s] != r && std::isnan(block.at(r, c))) {
+        counted_row[s] = r;
+        ++summary.frames_with_missing[s];
       }
     }
   }

@@ -87,6 +87,21 @@ struct ViconCsv {
   std::vector<std::string> BlockNames() const;
 };
 
+// What a real Vicon export can hold (README, "Limits of every input");
+// anything beyond is refused before it costs time or memory.
+struct ViconCsvLimits {
+  std::uint64_t max_file_bytes = 128u << 20;  // ~2 h of a 3-object Tracker export at 80 Hz
+  size_t max_columns = 60000;                 // data columns of a block: 10000 objects x 6
+  size_t max_field_bytes = 4096;              // names and numbers are short
+  int max_rate_hz = 10000;                    // Vicon cameras run at up to 2000 Hz
+  std::int64_t max_frame = 1000000000000;     // a year at 10 kHz is 3e11
+  int max_sub_frame = 1000;
+  double max_abs_position_mm = 1e6;           // 1 km: larger than any capture volume
+  double max_abs_rotation_deg = 3600;         // ten turns (unwrapped helical angles exceed 180)
+  double max_abs_rotation_rad = 62.832;
+};
+inline constexpr ViconCsvLimits kViconCsvLimits{};
+
 struct ViconCsvOptions {
   // Data rows shorter than the block (an interrupted export) become rows with
   // every value missing instead of an error. They still need frame and sub frame.

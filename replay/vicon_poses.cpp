@@ -1,9 +1,13 @@
 #include "replay/vicon_poses.h"
 
+#include "config/text_escape.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <map>
+#include <unordered_map>
+#include <unordered_set>
 
 namespace lifmcr {
 namespace {
@@ -16,11 +20,13 @@ bool IsDegrees(RotationRepresentation representation) {
          representation == RotationRepresentation::kEulerXyzDeg;
 }
 
-std::string Join(const std::vector<std::string>& names, size_t max_count = 12) {
+// Names (user text: each escaped and shortened), or descriptions (not).
+std::string Join(const std::vector<std::string>& names, size_t max_count = 12,
+                 bool are_names = true) {
   std::string joined;
   for (size_t i = 0; i < names.size() && i < max_count; ++i) {
     if (i > 0) joined += ", ";
-    joined += names[i];
+    joined += are_names ? Excerpt(names[i]) : names[i];
   }
   if (names.size() > max_count) joined += ", ... (" + std::to_string(names.size()) + " in all)";
   return joined;
@@ -48,7 +54,7 @@ Error NoPoseBlockError(const ViconCsv& csv) {
       described.push_back(block.name);
     }
   }
-  what += Join(described);
+  what += Join(described, 12, false);
   return MakeError(csv.path, 0, 0, what);
 }
 
@@ -76,10 +82,10 @@ Expected<ViconSubjectColumns> ColumnsOf(const ViconCsv& csv, const ViconBlock& b
 
 std::vector<std::string> PoseSubjects(const ViconCsv& csv) {
   std::vector<std::string> subjects;
+  std::unordered_set<std::string> seen;
   for (const ViconBlock* block : PoseBlocks(csv))
     for (const std::string& entity : block->Entities())
-      if (std::find(subjects.begin(), subjects.end(), entity) == subjects.end())
-        subjects.push_back(entity);
+      if (seen.insert(entity).second) subjects.push_back(entity);
   return subjects;
 }
 
@@ -87,11 +93,13 @@ Expected<ViconSubjectColumns> FindSubjectColumns(const ViconCsv& csv, std::strin
   const std::vector<const ViconBlock*> blocks = PoseBlocks(csv);
   if (blocks.empty()) return NoPoseBlockError(csv);
   for (const ViconBlock* block : blocks) {
+    // The prefix of each entity, from its last column (one pass, not one per entity).
+    std::unordered_map<std::string_view, std::string_view> prefix_of;
+    for (const ViconColumn& column : block->columns) prefix_of[column.subject] = column.prefix;
     for (const std::string& entity : block->Entities()) {
-      std::string prefix;
-      for (const ViconColumn& column : block->columns)
-        if (column.subject == entity) prefix = column.prefix;
-      if (entity == subject || prefix + entity == subject) return ColumnsOf(csv, *block, entity);
+      const std::string_view prefix = prefix_of[entity];
+      if (entity == subject || std::string(prefix) + entity == subject)
+        return ColumnsOf(csv, *block, entity);
     }
   }
   for (const ViconBlock* block : blocks) {
@@ -101,14 +109,14 @@ Expected<ViconSubjectColumns> FindSubjectColumns(const ViconCsv& csv, std::strin
     if (matches.size() == 1) return ColumnsOf(csv, *block, matches.front());
     if (matches.size() > 1) {
       return MakeError(csv.path, block->first_line + 2, 0,
-                       "subject '" + std::string(subject) + "' is ambiguous in block " +
+                       "subject '" + Excerpt(subject) + "' is ambiguous in block " +
                            block->name + ": it matches " + Join(matches) +
                            "; give the full Subject:Segment name");
     }
   }
   return MakeError(
       csv.path, blocks.front()->first_line + 2, 0,
-      "no subject '" + std::string(subject) +
+      "no subject '" + Excerpt(subject) +
           "' in the Objects/Segments blocks; subjects there: " + Join(PoseSubjects(csv), 50));
 }
 

@@ -1,11 +1,13 @@
 #include "replay/vsk.h"
 
+#include "config/text_escape.h"
 #include "replay/xml_util.h"
 
 #include <tinyxml2.h>
 
 #include <cmath>
 #include <set>
+#include <unordered_map>
 #include <sstream>
 #include <utility>
 
@@ -35,7 +37,7 @@ class Reader {
     const XMLElement* root = doc.RootElement();
     if (std::string_view(root->Name()) != "KinematicModel") {
       return xml::ErrorAt(label_, root,
-                          std::string("root element is <") + root->Name() +
+                          "root element is <" + Excerpt(root->Name()) +
                               ">, expected <KinematicModel> (a Vicon .vsk subject model)");
     }
     if (const char* version = root->Attribute("VERSION")) vsk_.version = version;
@@ -57,12 +59,17 @@ class Reader {
     }
     std::vector<const XMLElement*> marker_elements;
     if (markers != nullptr) marker_elements = xml::Children(markers, "Marker");
+    if (marker_elements.size() > kVskLimits.max_markers) {
+      return xml::ErrorAt(label_, marker_elements[kVskLimits.max_markers],
+                          "more than " + std::to_string(kVskLimits.max_markers) +
+                              " markers; expected the markers of real Vicon subjects");
+    }
     for (const XMLElement* element : marker_elements) {
       LIFMCR_XML_ASSIGN_OR_RETURN(const std::string name,
                                   xml::RequiredAttribute(label_, element, "NAME"));
       if (const auto first = marker_at_.find(name); first != marker_at_.end()) {
         return xml::ErrorAt(label_, element,
-                            "duplicate marker '" + name + "' (first at line " +
+                            "duplicate marker '" + Excerpt(name) + "' (first at line " +
                                 std::to_string(first->second->GetLineNum()) + ")");
       }
       marker_at_[name] = element;
@@ -81,11 +88,11 @@ class Reader {
         if (marker_at_.count(marker) == 0) {
           return xml::ErrorAt(
               label_, target,
-              "target refers to marker '" + marker + "', which is not in <MarkerSet><Markers>");
+              "target refers to marker '" + Excerpt(marker) + "', which is not in <MarkerSet><Markers>");
         }
         if (const auto first = target_of_.find(marker); first != target_of_.end()) {
           return xml::ErrorAt(label_, target,
-                              "duplicate target for marker '" + marker + "' (first at line " +
+                              "duplicate target for marker '" + Excerpt(marker) + "' (first at line " +
                                   std::to_string(first->second->GetLineNum()) + ")");
         }
         target_of_[marker] = target;
@@ -108,8 +115,13 @@ class Reader {
                                   xml::RequiredAttribute(label_, element, "NAME"));
       if (const auto first = parameter_at_.find(name); first != parameter_at_.end()) {
         return xml::ErrorAt(label_, element,
-                            "duplicate parameter '" + name + "' (first at line " +
+                            "duplicate parameter '" + Excerpt(name) + "' (first at line " +
                                 std::to_string(first->second->GetLineNum()) + ")");
+      }
+      if (parameter_at_.size() >= kVskLimits.max_parameters) {
+        return xml::ErrorAt(label_, element,
+                            "more than " + std::to_string(kVskLimits.max_parameters) +
+                                " parameters; expected the model of real Vicon subjects");
       }
       parameter_at_[name] = element;
       const char* value_text = element->Attribute("VALUE");
@@ -118,7 +130,8 @@ class Reader {
       if (!xml::ParseStrictDouble(value_text, &value)) {
         return xml::ErrorAt(
             label_, element,
-            "parameter '" + name + "': expected a number in VALUE, got '" + value_text + "'");
+            "parameter '" + Excerpt(name) + "': expected a number in VALUE, got '" +
+                Excerpt(value_text) + "'");
       }
       vsk_.parameters[name] = value;
     }
@@ -132,8 +145,13 @@ class Reader {
                                   xml::RequiredAttribute(label_, element, "NAME"));
       if (const auto first = segment_at_.find(name); first != segment_at_.end()) {
         return xml::ErrorAt(label_, element,
-                            "duplicate segment '" + name + "' (first at line " +
+                            "duplicate segment '" + Excerpt(name) + "' (first at line " +
                                 std::to_string(first->second->GetLineNum()) + ")");
+      }
+      if (vsk_.segments.size() >= kVskLimits.max_segments) {
+        return xml::ErrorAt(label_, element,
+                            "more than " + std::to_string(kVskLimits.max_segments) +
+                                " segments; expected the model of real Vicon subjects");
       }
       segment_at_[name] = element;
       vsk_.segments.push_back(VskSegment{name, parent});
@@ -160,16 +178,17 @@ class Reader {
     }
     if (!quoted && (name.empty() || !IsNameStart(name.front()))) {
       return xml::ErrorAt(label_, element,
-                          "marker " + marker + ": POSITION component '" + token +
+                          "marker " + Excerpt(marker) + ": POSITION component '" + Excerpt(token) +
                               "' is neither a number nor a parameter name");
     }
     if (parameter_at_.count(name) != 0) {
       return xml::ErrorAt(label_, element,
-                          "marker " + marker + " references parameter '" + name +
+                          "marker " + Excerpt(marker) + " references parameter '" + Excerpt(name) +
                               "', which has no VALUE (EXPRESSION parameters are not evaluated)");
     }
     return xml::ErrorAt(label_, element,
-                        "marker " + marker + " references undefined parameter '" + name + "'");
+                        "marker " + Excerpt(marker) + " references undefined parameter '" +
+                            Excerpt(name) + "'");
   }
 
   Expected<Eigen::Vector3d> Position(const XMLElement* element, const std::string& marker) {
@@ -177,12 +196,23 @@ class Reader {
     const std::vector<std::string> tokens = SplitWhitespace(text != nullptr ? text : "");
     if (tokens.size() != 3) {
       return xml::ErrorAt(label_, element,
-                          "marker " + marker + ": expected POSITION with 3 components, got " +
-                              std::to_string(tokens.size()) + ": \"" + (text ? text : "") + "\"");
+                          "marker " + Excerpt(marker) + ": expected POSITION with 3 components, got " +
+                              std::to_string(tokens.size()) + ": \"" + Excerpt(text ? text : "") +
+                              "\"");
     }
     Eigen::Vector3d position;
     for (int i = 0; i < 3; ++i) {
       LIFMCR_XML_ASSIGN_OR_RETURN(position[i], Component(element, marker, tokens[i]));
+    }
+    if (position.cwiseAbs().maxCoeff() > kVskLimits.max_abs_position_mm) {
+      return xml::ErrorAt(label_, element,
+                          "marker " + Excerpt(marker) + ": position (" +
+                              xml::FormatShortest(position.x()) + ", " +
+                              xml::FormatShortest(position.y()) + ", " +
+                              xml::FormatShortest(position.z()) +
+                              ") mm, expected each coordinate within +-" +
+                              xml::FormatShortest(kVskLimits.max_abs_position_mm) +
+                              " mm of its segment (a real capture volume)");
     }
     return position;
   }
@@ -192,10 +222,12 @@ class Reader {
     marker.name = element->Attribute("NAME");
     if (const char* status = element->Attribute("STATUS")) marker.status = status;
     if (const char* radius = element->Attribute("RADIUS")) {
-      if (!xml::ParseStrictDouble(radius, &marker.radius_mm)) {
-        return xml::ErrorAt(
-            label_, element,
-            "marker " + marker.name + ": expected a number in RADIUS, got '" + radius + "'");
+      if (!xml::ParseStrictDouble(radius, &marker.radius_mm) || marker.radius_mm < 0 ||
+          marker.radius_mm > kVskLimits.max_radius_mm) {
+        return xml::ErrorAt(label_, element,
+                            "marker " + Excerpt(marker.name) + ": expected RADIUS 0 .. " +
+                                xml::FormatShortest(kVskLimits.max_radius_mm) + " mm, got '" +
+                                Excerpt(radius) + "'");
       }
     }
     // v3.x: the target holds segment and position; v2.5: the marker itself.
@@ -203,19 +235,20 @@ class Reader {
     const XMLElement* source = target != target_of_.end() ? target->second : element;
     if (source->Attribute("POSITION") == nullptr) {
       return xml::ErrorAt(label_, element,
-                          "marker " + marker.name +
+                          "marker " + Excerpt(marker.name) +
                               " has no position: neither a POSITION attribute nor a "
                               "TargetLocalPointToWorldPoint");
     }
     const char* segment = source->Attribute("SEGMENT");
     if (segment == nullptr) {
-      return xml::ErrorAt(label_, source, "marker " + marker.name + ": missing attribute SEGMENT");
+      return xml::ErrorAt(label_, source,
+                          "marker " + Excerpt(marker.name) + ": missing attribute SEGMENT");
     }
     marker.segment = segment;
     if (segment_at_.count(marker.segment) == 0) {
       return xml::ErrorAt(label_, source,
-                          "marker " + marker.name + " refers to segment '" + marker.segment +
-                              "', which is not in <Skeleton>");
+                          "marker " + Excerpt(marker.name) + " refers to segment '" +
+                              Excerpt(marker.segment) + "', which is not in <Skeleton>");
     }
     LIFMCR_XML_ASSIGN_OR_RETURN(marker.position_mm, Position(source, marker.name));
     vsk_.markers.push_back(std::move(marker));
@@ -416,20 +449,78 @@ std::vector<VskMarker> VskMarkersOfSegment(const Vsk& vsk, std::string_view segm
   return markers;
 }
 
-std::vector<VskMarker> VskMarkersOfSubject(const Vsk& vsk, std::string_view subject) {
-  std::set<std::string, std::less<>> below{std::string(subject)};
-  // Fixed point, so the order of `segments` does not matter.
-  for (bool grew = true; grew;) {
-    grew = false;
-    for (const VskSegment& segment : vsk.segments) {
-      if (below.count(segment.parent) != 0 && below.insert(segment.name).second) grew = true;
+namespace {
+
+// The root segment (subject) of every segment: parents are followed with a
+// memo, so each segment is visited a constant number of times whatever the
+// order of `segments`; a parent cycle (only possible in a Vsk built in
+// code) or a missing parent leaves the segment without a subject.
+std::unordered_map<std::string, std::string> SubjectOfSegments(const Vsk& vsk) {
+  std::unordered_map<std::string, const VskSegment*> by_name;
+  for (const VskSegment& segment : vsk.segments) by_name.emplace(segment.name, &segment);
+  std::unordered_map<std::string, std::string> subject_of;
+  for (const VskSegment& segment : vsk.segments) {
+    std::vector<const VskSegment*> chain;
+    const VskSegment* at = &segment;
+    std::string root;
+    while (true) {
+      if (const auto known = subject_of.find(at->name); known != subject_of.end()) {
+        root = known->second;
+        break;
+      }
+      if (at->parent.empty()) {
+        root = at->name;
+        chain.push_back(at);
+        break;
+      }
+      chain.push_back(at);
+      const auto parent = by_name.find(at->parent);
+      if (parent == by_name.end() || chain.size() > vsk.segments.size()) break;
+      at = parent->second;
     }
+    for (const VskSegment* s : chain) subject_of.emplace(s->name, root);
   }
+  return subject_of;
+}
+
+}  // namespace
+
+std::vector<VskMarker> VskMarkersOfSubject(const Vsk& vsk, std::string_view subject) {
+  // Each marker's segment chain up to its root: O(markers x depth), the
+  // depth bounded by the XML nesting limit for files read.
+  std::unordered_map<std::string_view, std::string_view> parent_of;
+  for (const VskSegment& segment : vsk.segments) parent_of.emplace(segment.name, segment.parent);
   std::vector<VskMarker> markers;
   for (const VskMarker& marker : vsk.markers) {
-    if (below.count(marker.segment) != 0) markers.push_back(marker);
+    std::string_view at = marker.segment;
+    for (std::size_t steps = 0; steps <= vsk.segments.size(); ++steps) {
+      if (at == subject) {
+        markers.push_back(marker);
+        break;
+      }
+      const auto parent = parent_of.find(at);
+      if (parent == parent_of.end() || parent->second.empty()) break;
+      at = parent->second;
+    }
   }
   return markers;
+}
+
+std::vector<std::pair<std::string, std::vector<VskMarker>>> VskMarkersBySubject(const Vsk& vsk) {
+  const std::unordered_map<std::string, std::string> subject_of = SubjectOfSegments(vsk);
+  std::vector<std::pair<std::string, std::vector<VskMarker>>> result;
+  std::unordered_map<std::string, std::size_t> index;
+  for (const std::string& subject : VskSubjects(vsk)) {
+    index.emplace(subject, result.size());
+    result.emplace_back(subject, std::vector<VskMarker>{});
+  }
+  for (const VskMarker& marker : vsk.markers) {
+    const auto it = subject_of.find(marker.segment);
+    if (it == subject_of.end()) continue;
+    const auto at = index.find(it->second);
+    if (at != index.end()) result[at->second].second.push_back(marker);
+  }
+  return result;
 }
 
 Expected<Eigen::Vector3d> VskMarkerCentroidMm(const Vsk& vsk, std::string_view segment) {
@@ -447,8 +538,10 @@ Expected<Vsk> ParseVsk(std::string_view text, const std::string& file_label) {
 }
 
 Expected<Vsk> ReadVsk(const std::filesystem::path& path) {
-  LIFMCR_XML_ASSIGN_OR_RETURN(const std::string text, xml::ReadTextFile(path));
-  return ParseVsk(text, path.string());
+  LIFMCR_XML_ASSIGN_OR_RETURN(
+      const std::string text,
+      xml::ReadTextFile(path, {"a Vicon model (.vsk, <KinematicModel>)", kVskLimits.max_file_bytes}));
+  return ParseVsk(text, EscapeText(path.string()));
 }
 
 Expected<std::string> FormatVsk(const Vsk& vsk) { return Writer(vsk).Format(); }

@@ -20,6 +20,10 @@
 // its hierarchy (Nexus). Marker positions are in millimetres in the frame of
 // their segment.
 //
+// Limits (kVskLimits; README, "Limits of every input"): the file size, and
+// marker positions and radii a real capture volume can hold. Reading and the
+// subject queries below are O(n log n) in the file.
+//
 // Errors name the file, the line and the element path, e.g.
 //   "Object.vsk:97: /KinematicModel/TargetSet/Targets/TargetLocalPointToWorldPoint[@MARKER='Go21']:
 //    marker Go21 references undefined parameter 'Go2_Go21_y'".
@@ -28,13 +32,26 @@
 
 #include <Eigen/Core>
 
+#include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <map>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace lifmcr {
+
+struct VskLimits {
+  std::uint64_t max_file_bytes = 16u << 20;  // real files: 10-100 KB
+  double max_abs_position_mm = 100000;       // 100 m: larger than any capture volume
+  double max_radius_mm = 1000;               // real markers: 3-25 mm
+  std::size_t max_segments = 10000;          // real: 1-20 per subject, tens of subjects
+  std::size_t max_markers = 10000;
+  std::size_t max_parameters = 100000;
+};
+inline constexpr VskLimits kVskLimits{};
 
 struct VskMarker {
   std::string name;     // unique in the file
@@ -64,6 +81,9 @@ std::vector<std::string> VskSubjects(const Vsk& vsk);
 std::vector<VskMarker> VskMarkersOfSegment(const Vsk& vsk, std::string_view segment);
 // Markers attached to `subject` (a root segment) or to any segment below it.
 std::vector<VskMarker> VskMarkersOfSubject(const Vsk& vsk, std::string_view subject);
+// Every subject with its markers (VskMarkersOfSubject of each), in subject
+// order, in one pass over the file: use it for all subjects at once.
+std::vector<std::pair<std::string, std::vector<VskMarker>>> VskMarkersBySubject(const Vsk& vsk);
 // Mean of the positions of the markers attached directly to `segment`, in
 // that segment's frame (mm). Error when the segment has no markers.
 Expected<Eigen::Vector3d> VskMarkerCentroidMm(const Vsk& vsk, std::string_view segment);

@@ -1,5 +1,7 @@
 #include "replay/xml_util.h"
 
+#include "config/text_escape.h"
+
 #include <tinyxml2.h>
 
 #include <cerrno>
@@ -45,26 +47,13 @@ bool IsDecimalNumber(std::string_view text) {
   return i == text.size();
 }
 
-// A short, printable excerpt of user text for messages.
-std::string Excerpt(std::string_view text) {
-  constexpr size_t kMax = 40;
-  std::string out(text.substr(0, kMax));
-  if (text.size() > kMax) out += "...";
-  return out;
-}
-
 // Attributes that tell repeated sibling elements apart, in order of preference.
 constexpr const char* kKeyAttributes[] = {"id", "NAME", "MARKER"};
 
 }  // namespace
 
-Expected<std::string> ReadTextFile(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in)
-    return MakeError(path.string(), 0, 0, std::string("cannot open: ") + std::strerror(errno));
-  std::string content((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) return MakeError(path.string(), 0, 0, "read error");
-  return content;
+Expected<std::string> ReadTextFile(const std::filesystem::path& path, const InputLimits& limits) {
+  return ReadInputText(path, limits);
 }
 
 Status WriteTextFile(const std::filesystem::path& path, std::string_view content) {
@@ -81,6 +70,7 @@ Status WriteTextFile(const std::filesystem::path& path, std::string_view content
 
 Status ParseDocument(std::string_view text, const std::string& file_label,
                      tinyxml2::XMLDocument* doc) {
+  if (Status s = CheckTextEncoding(text, file_label, "XML"); !s) return s;
   const tinyxml2::XMLError code = doc->Parse(text.data(), text.size());
   if (code != tinyxml2::XML_SUCCESS) {
     std::string what;
@@ -110,11 +100,17 @@ Status ParseDocument(std::string_view text, const std::string& file_label,
     const std::string full = doc->ErrorStr() != nullptr ? doc->ErrorStr() : "";
     const size_t line_at = full.find("Line number=");
     const size_t detail_at = line_at == std::string::npos ? line_at : full.find(": ", line_at);
-    if (detail_at != std::string::npos) what += " (" + full.substr(detail_at + 2) + ")";
+    if (detail_at != std::string::npos) what += " (" + Excerpt(full.substr(detail_at + 2), 80) + ")";
     return MakeError(file_label, doc->ErrorLineNum(), 0, "malformed XML: " + what);
   }
   if (doc->RootElement() == nullptr) {
     return MakeError(file_label, 0, 0, "malformed XML: the document has no root element");
+  }
+  if (const tinyxml2::XMLElement* second = doc->RootElement()->NextSiblingElement()) {
+    return MakeError(file_label, second->GetLineNum(), 0,
+                     "malformed XML: a second root element <" + Excerpt(second->Name()) +
+                         "> after <" + Excerpt(doc->RootElement()->Name()) +
+                         ">; expected exactly one root element");
   }
   return Status::Ok();
 }
@@ -123,10 +119,10 @@ std::string ElementPath(const tinyxml2::XMLElement* element) {
   std::vector<std::string> parts;
   for (const tinyxml2::XMLElement* e = element; e != nullptr;
        e = e->Parent() != nullptr ? e->Parent()->ToElement() : nullptr) {
-    std::string part = e->Name();
+    std::string part = Excerpt(e->Name());
     for (const char* key : kKeyAttributes) {
       if (const char* value = e->Attribute(key)) {
-        part += std::string("[@") + key + "='" + value + "']";
+        part += std::string("[@") + key + "='" + Excerpt(value) + "']";
         break;
       }
     }

@@ -10,6 +10,7 @@
 //   "R42.xml:14: /RayCalibData/lens_base_y: missing element /RayCalibData/lens_base_y/y".
 
 #include "config/error.h"
+#include "config/input_file.h"
 
 #include <filesystem>
 #include <string>
@@ -38,13 +39,16 @@ class XMLElement;
 
 namespace lifmcr::xml {
 
-// Reads a whole file as bytes. Error: "<path>: cannot open: <reason>".
-Expected<std::string> ReadTextFile(const std::filesystem::path& path);
+// Reads a whole file through ReadInputText (config/input_file.h): a regular
+// file of at most limits.max_bytes, UTF-8 text.
+Expected<std::string> ReadTextFile(const std::filesystem::path& path, const InputLimits& limits);
 // Writes `content` as bytes, replacing the file. Error names the path.
 Status WriteTextFile(const std::filesystem::path& path, std::string_view content);
 
 // Parses `text` into `doc`. Malformed or truncated XML gives
-// "<file_label>:<line>: malformed XML: <tinyxml2's description>".
+// "<file_label>:<line>: malformed XML: <tinyxml2's description>"; so does a
+// second root element (tinyxml2 would accept it and lifmcr would silently
+// read only the first), and UTF-16/32 text or NUL bytes.
 Status ParseDocument(std::string_view text, const std::string& file_label,
                      tinyxml2::XMLDocument* doc);
 

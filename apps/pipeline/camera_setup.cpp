@@ -5,8 +5,9 @@
 #include "replay/raw_image.h"
 #include "replay/camera_calibration.h"
 #include "replay/mla_xml.h"
+#include "replay/synth/cameras_yaml.h"
+#include "config/text_escape.h"
 
-#include <yaml-cpp/yaml.h>
 
 namespace lifmcr::apps {
 namespace {
@@ -38,44 +39,23 @@ Expected<processing::CameraSetup> Load(const std::string& serial,
 
 Expected<processing::CameraIntrinsics> ReadIntrinsics(const fs::path& path,
                                                       const std::string& serial) {
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(path.string());
-  } catch (const YAML::Exception& e) {
-    return Error{path.string() + ": " + e.what()};
-  }
-  if (!root["cameras"] || !root["cameras"].IsSequence())
-    return Error{path.string() + ": /cameras: expected a list of cameras"};
-  for (std::size_t n = 0; n < root["cameras"].size(); ++n) {
-    const YAML::Node cam = root["cameras"][n];
-    if (!cam["serial"] || cam["serial"].as<std::string>() != serial) continue;
-    const std::string where = path.string() + ": /cameras/" + std::to_string(n) + "/model/";
-    const YAML::Node m = cam["model"];
-    processing::CameraIntrinsics k;
-    try {
-      auto num = [&](const char* key) {
-        if (!m[key]) throw YAML::Exception(YAML::Mark::null_mark(), std::string("missing ") + key);
-        return m[key].as<double>();
-      };
-      k.width_px = static_cast<int>(num("width_px"));
-      k.height_px = static_cast<int>(num("height_px"));
-      k.pixel_size_mm = num("pixel_size_mm");
-      k.main_focal_length_mm = num("main_focal_length_mm");
-      k.mla_to_main_lens_mm = num("mla_to_main_lens_mm");
-      k.mla_to_sensor_mm = num("mla_to_sensor_mm");
-      if (const YAML::Node d = m["distortion"]) {
-        k.k1 = d["k1"] ? d["k1"].as<double>() : 0.0;
-        k.k2 = d["k2"] ? d["k2"].as<double>() : 0.0;
-        k.p1 = d["p1"] ? d["p1"].as<double>() : 0.0;
-        k.p2 = d["p2"] ? d["p2"].as<double>() : 0.0;
-      }
-    } catch (const YAML::Exception& e) {
-      return Error{where + ": " + e.msg};
-    }
-    if (Status s = k.Check(); !s) return Error{where + ": " + s.error().message};
-    return k;
-  }
-  return Error{path.string() + ": /cameras: no camera with serial " + serial};
+  // Through the strict YAML reader (replay/synth/cameras_yaml.h): bounded
+  // size, regular files only, every value range-checked.
+  Expected<synth::CameraModelYaml> model = synth::ReadCameraModelYaml(path, serial);
+  if (!model) return model.error();
+  processing::CameraIntrinsics k;
+  k.width_px = model->width_px;
+  k.height_px = model->height_px;
+  k.pixel_size_mm = model->pixel_size_mm;
+  k.main_focal_length_mm = model->main_focal_length_mm;
+  k.mla_to_main_lens_mm = model->mla_to_main_lens_mm;
+  k.mla_to_sensor_mm = model->mla_to_sensor_mm;
+  k.k1 = model->k1;
+  k.k2 = model->k2;
+  k.p1 = model->p1;
+  k.p2 = model->p2;
+  if (Status s = k.Check(); !s) return Error{EscapeText(path.string()) + ": " + s.error().message};
+  return k;
 }
 
 Expected<processing::CameraSetup> LoadSequenceCamera(const fs::path& sequence_dir,

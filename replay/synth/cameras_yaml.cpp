@@ -1,12 +1,27 @@
 #include "replay/synth/cameras_yaml.h"
 
+#include "config/input_file.h"
+#include "config/text_escape.h"
+#include "config/yaml_reader.h"
 #include "replay/synth/plenoptic_model.h"
 
 #include <Eigen/Geometry>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <optional>
+
 namespace lifmcr::synth {
 namespace {
+
+// Shortest text that reads back to the same double, for messages.
+std::string ShortestNumber(double value) {
+  char buffer[64];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
+  return std::string(buffer, result.ptr);
+}
 
 void EmitPose(YAML::Emitter& out, const char* key, const Pose& pose) {
   const Eigen::Quaterniond q(pose.linear());
@@ -146,6 +161,76 @@ std::string FormatCamerasYaml(const SynthParams& params, const std::vector<Synth
   out << YAML::EndSeq;
   out << YAML::EndMap;
   return std::string(out.c_str()) + "\n";
+}
+
+Expected<CameraModelYaml> ParseCameraModelYaml(std::string_view text, const std::string& label,
+                                               std::string_view serial) {
+  constexpr Presence kRequired = Presence::kRequired;
+  constexpr Presence kOptional = Presence::kOptional;
+  Expected<YamlNode> root_node = YamlNode::Parse(text, label);
+  if (!root_node) return root_node.error();
+  YamlErrors errors;
+  YamlMap root(*root_node, &errors);
+  const std::optional<std::vector<YamlNode>> cameras = root.List("cameras", kRequired);
+  if (!errors.ok()) return errors.status().error();
+  for (const YamlNode& node : *cameras) {
+    YamlMap camera(node, &errors);
+    std::string camera_serial;
+    camera.Read("serial", &camera_serial, kRequired);
+    if (!errors.ok()) return errors.status().error();
+    if (camera_serial != serial) continue;
+    std::optional<YamlMap> model = camera.Map("model", kRequired);
+    if (!errors.ok()) return errors.status().error();
+    CameraModelYaml k;
+    model->Read("width_px", &k.width_px, kRequired);
+    model->Read("height_px", &k.height_px, kRequired);
+    model->Read("pixel_size_mm", &k.pixel_size_mm, kRequired);
+    model->Read("main_focal_length_mm", &k.main_focal_length_mm, kRequired);
+    model->Read("mla_to_main_lens_mm", &k.mla_to_main_lens_mm, kRequired);
+    model->Read("mla_to_sensor_mm", &k.mla_to_sensor_mm, kRequired);
+    if (std::optional<YamlMap> d = model->Map("distortion", kOptional)) {
+      d->Read("k1", &k.k1, kOptional);
+      d->Read("k2", &k.k2, kOptional);
+      d->Read("p1", &k.p1, kOptional);
+      d->Read("p2", &k.p2, kOptional);
+    }
+    if (!errors.ok()) return errors.status().error();
+    const std::string at = node.path() + "/model/";
+    const CameraModelLimits& l = kCameraModelLimits;
+    const auto range = [&](const char* key, double value, double low, double high,
+                           bool low_open) -> std::optional<Error> {
+      if ((low_open ? value > low : value >= low) && value <= high) return std::nullopt;
+      return root_node->ErrorAtPath(at + key, std::string("expected ") + (low_open ? "> " : "") +
+                                                   ShortestNumber(low) + " .. " +
+                                                   ShortestNumber(high) + ", got " +
+                                                   ShortestNumber(value));
+    };
+    const std::optional<Error> problems[] = {
+        range("width_px", k.width_px, 1, l.max_side_px, false),
+        range("height_px", k.height_px, 1, l.max_side_px, false),
+        range("pixel_size_mm", k.pixel_size_mm, 0, l.max_pixel_size_mm, true),
+        range("main_focal_length_mm", k.main_focal_length_mm, 0, l.max_focal_length_mm, true),
+        range("mla_to_main_lens_mm", k.mla_to_main_lens_mm, 0, l.max_focal_length_mm, true),
+        range("mla_to_sensor_mm", k.mla_to_sensor_mm, 0,
+              std::min(l.max_mla_to_sensor_mm, k.mla_to_main_lens_mm), true),
+        range("distortion/k1", std::abs(k.k1), 0, l.max_abs_distortion, false),
+        range("distortion/k2", std::abs(k.k2), 0, l.max_abs_distortion, false),
+        range("distortion/p1", std::abs(k.p1), 0, l.max_abs_distortion, false),
+        range("distortion/p2", std::abs(k.p2), 0, l.max_abs_distortion, false),
+    };
+    for (const std::optional<Error>& problem : problems)
+      if (problem) return *problem;
+    return k;
+  }
+  return root_node->ErrorAtPath("/cameras", "no camera with serial '" + Excerpt(serial) + "'");
+}
+
+Expected<CameraModelYaml> ReadCameraModelYaml(const std::filesystem::path& path,
+                                              std::string_view serial) {
+  Expected<std::string> text = ReadInputText(
+      path, {"a cameras.yaml / intrinsics.yaml (YAML)", kCameraModelLimits.max_file_bytes});
+  if (!text) return text.error();
+  return ParseCameraModelYaml(*text, EscapeText(path.string()), serial);
 }
 
 }  // namespace lifmcr::synth

@@ -9,10 +9,47 @@
 #include "replay/synth/marker_plate.h"
 #include "replay/synth/synth_writer.h"
 
+#include "config/error.h"
+
+#include <cstdint>
+#include <filesystem>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace lifmcr::synth {
+
+// The part of one camera's `model` that metric depth needs (`lifmcr depth
+// --intrinsics`; `lifmcr calibrate` writes the same schema).
+struct CameraModelYaml {
+  int width_px = 0;
+  int height_px = 0;
+  double pixel_size_mm = 0;
+  double main_focal_length_mm = 0;  // f_L
+  double mla_to_main_lens_mm = 0;   // b_L0
+  double mla_to_sensor_mm = 0;      // B
+  double k1 = 0, k2 = 0, p1 = 0, p2 = 0;
+};
+
+// Ranges of a real plenoptic camera (README, "Limits of every input").
+struct CameraModelLimits {
+  std::uint64_t max_file_bytes = 1 << 20;
+  int max_side_px = 32768;
+  double max_pixel_size_mm = 0.1;           // real: 0.002 .. 0.02
+  double max_focal_length_mm = 5000;        // f_L and b_L0
+  double max_mla_to_sensor_mm = 10;         // B: real ~0.2 .. 2
+  double max_abs_distortion = 1e3;
+};
+inline constexpr CameraModelLimits kCameraModelLimits{};
+
+// Reads /cameras/<i>/model of the camera whose `serial` matches, through
+// the strict YAML reader (config/yaml_reader.h). Keys not needed here are
+// allowed (the file holds much more); the ones read are typed and range
+// checked, and errors name file:line:column and the key path.
+Expected<CameraModelYaml> ParseCameraModelYaml(std::string_view text, const std::string& label,
+                                               std::string_view serial);
+Expected<CameraModelYaml> ReadCameraModelYaml(const std::filesystem::path& path,
+                                              std::string_view serial);
 
 std::string FormatCamerasYaml(const SynthParams& params, const std::vector<SynthCamera>& cameras,
                               const MarkerPlateLayout& plate, const Pose& vicon_from_world,

@@ -2,12 +2,11 @@
 
 #include "config/frames.h"
 
-#include <yaml-cpp/yaml.h>
+#include "config/input_file.h"
+#include "config/text_escape.h"
+#include "config/yaml_reader.h"
 
 #include <cmath>
-#include <fstream>
-#include <functional>
-#include <sstream>
 #include <vector>
 
 namespace lifmcr::synth {
@@ -181,177 +180,107 @@ Expected<SynthParams> MakePreset(std::string_view name) {
 
 namespace {
 
-// One settable field: its YAML key and how to read it.
-struct Field {
-  std::string key;
-  std::function<bool(const YAML::Node&)> set;  // false: wrong type
-  std::string expected;
-};
+constexpr Presence kOptional = Presence::kOptional;
 
-template <typename T>
-Field Scalar(const std::string& key, T* target, const std::string& expected) {
-  return {key,
-          [target](const YAML::Node& node) {
-            if (!node.IsScalar()) return false;
-            try {
-              *target = node.as<T>();
-            } catch (const YAML::Exception&) {
-              return false;
-            }
-            return true;
-          },
-          expected};
+void ReadCamera(YamlMap& m, SynthCameraParams* c) {
+  m.Read("width_px", &c->width_px, kOptional);
+  m.Read("height_px", &c->height_px, kOptional);
+  m.Read("pixel_size_mm", &c->pixel_size_mm, kOptional);
+  m.Read("main_focal_length_mm", &c->main_focal_length_mm, kOptional);
+  m.Read("f_number", &c->f_number, kOptional);
+  m.Read("mla_to_main_lens_mm", &c->mla_to_main_lens_mm, kOptional);
+  m.Read("mla_to_sensor_mm", &c->mla_to_sensor_mm, kOptional);
+  m.Read("micro_image_pitch_px", &c->micro_image_pitch_px, kOptional);
+  m.Read("mla_rotation_rad", &c->mla_rotation_rad, kOptional);
+  std::vector<double> offset = {c->mla_offset_px.x(), c->mla_offset_px.y()};
+  m.ReadNumbers("mla_offset_px", 2, &offset, kOptional);
+  c->mla_offset_px = {offset[0], offset[1]};
+  m.Read("mla_tilt_x_rad", &c->mla_tilt_x_rad, kOptional);
+  m.Read("mla_tilt_y_rad", &c->mla_tilt_y_rad, kOptional);
+  std::vector<double> focal(c->micro_lens_focal_mm.begin(), c->micro_lens_focal_mm.end());
+  m.ReadNumbers("micro_lens_focal_mm", 3, &focal, kOptional);
+  for (int t = 0; t < 3; ++t) c->micro_lens_focal_mm[t] = focal[t];
+  m.Read("sharp_blur_px", &c->sharp_blur_px, kOptional);
+  m.Read("lens_border_px", &c->lens_border_px, kOptional);
+  m.Read("distortion_k1", &c->distortion_k1, kOptional);
+  m.Read("distortion_k2", &c->distortion_k2, kOptional);
+  m.Read("distortion_p1", &c->distortion_p1, kOptional);
+  m.Read("distortion_p2", &c->distortion_p2, kOptional);
+  m.Read("bayer", &c->bayer, kOptional);
+  m.Read("white_level_dn", &c->white_level_dn, kOptional);
+  m.Read("full_well_e", &c->full_well_e, kOptional);
+  m.Read("read_noise_dn", &c->read_noise_dn, kOptional);
+  m.Finish();
 }
 
-Field Vec2(const std::string& key, Eigen::Vector2d* target) {
-  return {key,
-          [target](const YAML::Node& node) {
-            if (!node.IsSequence() || node.size() != 2) return false;
-            try {
-              *target = {node[0].as<double>(), node[1].as<double>()};
-            } catch (const YAML::Exception&) {
-              return false;
-            }
-            return true;
-          },
-          "a list of two numbers [x, y]"};
-}
-
-Field Vec3(const std::string& key, std::array<double, 3>* target) {
-  return {key,
-          [target](const YAML::Node& node) {
-            if (!node.IsSequence() || node.size() != 3) return false;
-            try {
-              for (int i = 0; i < 3; ++i) (*target)[i] = node[i].as<double>();
-            } catch (const YAML::Exception&) {
-              return false;
-            }
-            return true;
-          },
-          "a list of three numbers"};
-}
-
-std::vector<Field> CameraFields(SynthCameraParams* c) {
-  const std::string num = "a number";
-  return {Scalar("width_px", &c->width_px, "an integer"),
-          Scalar("height_px", &c->height_px, "an integer"),
-          Scalar("pixel_size_mm", &c->pixel_size_mm, num),
-          Scalar("main_focal_length_mm", &c->main_focal_length_mm, num),
-          Scalar("f_number", &c->f_number, num),
-          Scalar("mla_to_main_lens_mm", &c->mla_to_main_lens_mm, num),
-          Scalar("mla_to_sensor_mm", &c->mla_to_sensor_mm, num),
-          Scalar("micro_image_pitch_px", &c->micro_image_pitch_px, num),
-          Scalar("mla_rotation_rad", &c->mla_rotation_rad, num),
-          Vec2("mla_offset_px", &c->mla_offset_px),
-          Scalar("mla_tilt_x_rad", &c->mla_tilt_x_rad, num),
-          Scalar("mla_tilt_y_rad", &c->mla_tilt_y_rad, num),
-          Vec3("micro_lens_focal_mm", &c->micro_lens_focal_mm),
-          Scalar("sharp_blur_px", &c->sharp_blur_px, num),
-          Scalar("lens_border_px", &c->lens_border_px, num),
-          Scalar("distortion_k1", &c->distortion_k1, num),
-          Scalar("distortion_k2", &c->distortion_k2, num),
-          Scalar("distortion_p1", &c->distortion_p1, num),
-          Scalar("distortion_p2", &c->distortion_p2, num),
-          Scalar("bayer", &c->bayer, "true or false"),
-          Scalar("white_level_dn", &c->white_level_dn, num),
-          Scalar("full_well_e", &c->full_well_e, num),
-          Scalar("read_noise_dn", &c->read_noise_dn, num)};
-}
-
-std::vector<Field> RigFields(SynthRigParams* r) {
-  return {Scalar("cameras", &r->cameras, "an integer"),
-          Scalar("frames", &r->frames, "an integer"),
-          Scalar("motion", &r->motion, "a string"),
-          Scalar("viewing_distance_mm", &r->viewing_distance_mm, "a number"),
-          Scalar("baseline_mm", &r->baseline_mm, "a number"),
-          Scalar("speed_scale", &r->speed_scale, "a number"),
-          Scalar("scene", &r->scene, "a string"),
-          Scalar("scene_folder", &r->scene_folder, "a string"),
-          Scalar("sequence", &r->sequence, "a string"),
-          Scalar("seed", &r->seed, "an unsigned integer")};
-}
-
-std::vector<Field> ViconFields(SynthViconParams* v) {
-  return {Scalar("rate_hz", &v->rate_hz, "an integer"),
-          Scalar("trigger_divider", &v->trigger_divider, "an integer"),
-          Scalar("first_trigger_frame", &v->first_trigger_frame, "an integer"),
-          Scalar("lead_in_frames", &v->lead_in_frames, "an integer"),
-          Scalar("marker_noise_mm", &v->marker_noise_mm, "a number"),
-          Scalar("occlusion_gaps", &v->occlusion_gaps, "an integer"),
-          Scalar("occlusion_gap_frames", &v->occlusion_gap_frames, "an integer"),
-          Scalar("handedness", &v->handedness, "a string"),
-          Scalar("rotation", &v->rotation, "a string")};
-}
-
-Error At(const std::string& label, const YAML::Mark& mark, const std::string& key,
-         const std::string& what) {
-  return MakeError(label, mark.line + 1, mark.column + 1, key + ": " + what);
-}
-
-Status ApplyGroup(const std::string& label, const std::string& group, const YAML::Node& node,
-                  const std::vector<Field>& fields) {
-  if (!node.IsMap()) return At(label, node.Mark(), "/" + group, "expected a mapping");
-  for (const auto& entry : node) {
-    const std::string key = entry.first.as<std::string>();
-    const std::string path = "/" + group + "/" + key;
-    const Field* field = nullptr;
-    for (const Field& f : fields)
-      if (f.key == key) field = &f;
-    if (field == nullptr) {
-      std::string known;
-      for (const Field& f : fields) known += (known.empty() ? "" : ", ") + f.key;
-      return At(label, entry.first.Mark(), path, "unknown key, expected one of: " + known);
-    }
-    if (!field->set(entry.second))
-      return At(label, entry.second.Mark(), path, "expected " + field->expected);
+void ReadRig(YamlMap& m, SynthRigParams* r) {
+  m.Read("cameras", &r->cameras, kOptional);
+  m.Read("frames", &r->frames, kOptional);
+  m.Read("motion", &r->motion, kOptional);
+  m.Read("viewing_distance_mm", &r->viewing_distance_mm, kOptional);
+  m.Read("baseline_mm", &r->baseline_mm, kOptional);
+  m.Read("speed_scale", &r->speed_scale, kOptional);
+  m.Read("scene", &r->scene, kOptional);
+  m.Read("scene_folder", &r->scene_folder, kOptional);
+  m.Read("sequence", &r->sequence, kOptional);
+  std::int64_t seed = static_cast<std::int64_t>(r->seed);
+  m.Read("seed", &seed, kOptional);
+  if (seed < 0) {
+    m.Fail(*m.Child("seed", kOptional), "expected an integer >= 0, got " + std::to_string(seed));
   }
-  return Status::Ok();
+  r->seed = static_cast<std::uint64_t>(seed);
+  m.Finish();
+}
+
+void ReadVicon(YamlMap& m, SynthViconParams* v) {
+  m.Read("rate_hz", &v->rate_hz, kOptional);
+  m.Read("trigger_divider", &v->trigger_divider, kOptional);
+  m.Read("first_trigger_frame", &v->first_trigger_frame, kOptional);
+  m.Read("lead_in_frames", &v->lead_in_frames, kOptional);
+  m.Read("marker_noise_mm", &v->marker_noise_mm, kOptional);
+  m.Read("occlusion_gaps", &v->occlusion_gaps, kOptional);
+  m.Read("occlusion_gap_frames", &v->occlusion_gap_frames, kOptional);
+  m.Read("handedness", &v->handedness, kOptional);
+  m.Read("rotation", &v->rotation, kOptional);
+  m.Finish();
 }
 
 }  // namespace
 
+// Through the strict reader (config/yaml_reader.h): quoted numbers, empty
+// values, duplicate and unknown keys are errors with file:line:column.
 Expected<SynthParams> ParseSynthConfig(const std::string& text, const std::string& label,
                                        SynthParams base) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(text);
-  } catch (const YAML::ParserException& e) {
-    return MakeError(label, e.mark.line + 1, e.mark.column + 1, "YAML syntax: " + e.msg);
-  }
-  if (root.IsNull()) return base;
-  if (!root.IsMap()) return At(label, root.Mark(), "/", "expected a mapping");
+  Expected<YamlNode> root_node = YamlNode::Parse(text, label);
+  if (!root_node) return root_node.error();
+  if (root_node->IsNull()) return base;
+  YamlErrors errors;
+  YamlMap root(*root_node, &errors);
   // A preset named in the file replaces the base before the other keys apply.
-  if (const YAML::Node preset = root["preset"]) {
-    if (!preset.IsScalar()) return At(label, preset.Mark(), "/preset", "expected a preset name");
-    Expected<SynthParams> named = MakePreset(preset.as<std::string>());
-    if (!named) return At(label, preset.Mark(), "/preset", named.error().message);
-    base = *named;
+  std::string preset;
+  const std::optional<YamlNode> preset_node = root.Child("preset", kOptional);
+  root.Read("preset", &preset, kOptional);
+  if (errors.ok() && preset_node) {
+    Expected<SynthParams> named = MakePreset(preset);
+    if (named) {
+      base = *named;
+    } else {
+      root.Fail(*preset_node, named.error().message);
+    }
   }
-  for (const auto& entry : root) {
-    const std::string key = entry.first.as<std::string>();
-    Status status;
-    if (key == "preset") continue;
-    if (key == "camera")
-      status = ApplyGroup(label, key, entry.second, CameraFields(&base.camera));
-    else if (key == "rig")
-      status = ApplyGroup(label, key, entry.second, RigFields(&base.rig));
-    else if (key == "vicon")
-      status = ApplyGroup(label, key, entry.second, ViconFields(&base.vicon));
-    else
-      return At(label, entry.first.Mark(), "/" + key,
-                "unknown key, expected one of: preset, camera, rig, vicon");
-    if (!status) return status.error();
-  }
+  if (auto camera = root.Map("camera", kOptional)) ReadCamera(*camera, &base.camera);
+  if (auto rig = root.Map("rig", kOptional)) ReadRig(*rig, &base.rig);
+  if (auto vicon = root.Map("vicon", kOptional)) ReadVicon(*vicon, &base.vicon);
+  root.Finish();
+  if (!errors.ok()) return errors.status().error();
   if (Status s = base.Check(); !s) return MakeErrorAt(label, "/", s.error().message);
   return base;
 }
 
 Expected<SynthParams> LoadSynthConfig(const std::filesystem::path& path, SynthParams base) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return MakeErrorAt(path.string(), "/", "cannot open the synth config file");
-  std::ostringstream text;
-  text << in.rdbuf();
-  return ParseSynthConfig(text.str(), path.string(), std::move(base));
+  Expected<std::string> text = ReadInputText(path, {"a synth config (YAML)", 1 << 20});
+  if (!text) return text.error();
+  return ParseSynthConfig(*text, EscapeText(path.string()), std::move(base));
 }
 
 }  // namespace lifmcr::synth

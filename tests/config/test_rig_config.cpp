@@ -516,7 +516,7 @@ TEST(RigConfigErrors, EmptyAndNullValues) {
 TEST(RigConfigErrors, UnreadableFile) {
   const Expected<RigConfig> rig = LoadRigConfig("/nonexistent/rig.yaml");
   ASSERT_FALSE(rig.ok());
-  EXPECT_EQ(rig.error().message.rfind("/nonexistent/rig.yaml: cannot open the rig file", 0), 0u)
+  EXPECT_EQ(rig.error().message.rfind("/nonexistent/rig.yaml: no such file or folder; expected a rig file", 0), 0u)
       << rig.error().message;
 }
 

@@ -278,7 +278,7 @@ TEST(MlaXml, WriterRefusesAnInvalidCalibration) {
   EXPECT_FALSE(std::filesystem::exists(dir / "out.xml"));
   const Status check = CheckMlaCalibration(c);
   ASSERT_FALSE(check.ok());
-  EXPECT_NE(check.error().message.find("expected a diameter > 0 px"), std::string::npos);
+  EXPECT_NE(check.error().message.find("expected 5 .. 500 px, got -1"), std::string::npos);
 }
 
 // ------------------------------------------------------------ bad input
@@ -402,7 +402,7 @@ TEST(MlaXmlBadInput, BasisGeometry) {
 
 TEST(MlaXmlBadInput, DiameterLensBorderAndDepthRange) {
   ExpectError(test::ReplaceFirst(test::ReadSample(kR42), "34.864704132080", "0"),
-              {"bad.xml:6:", "/RayCalibData/diameter", "expected a diameter > 0 px, got 0"});
+              {"bad.xml:6:", "/RayCalibData/diameter", "expected 5 .. 500 px, got 0"});
   ExpectError(test::ReplaceFirst(test::ReadSample(kR42), "34.864704132080", "-3.5"),
               {"bad.xml:6:", "/RayCalibData/diameter", "got -3.5"});
   ExpectError(

@@ -69,7 +69,7 @@ TEST(SynthParams, YamlErrorsNameFileLineColumnAndKey) {
   };
   const Case cases[] = {
       {"camera:\n  widht_px: 100\n", {"synth.yaml:2:3", "/camera/widht_px", "unknown key"}},
-      {"camera:\n  f_number: fast\n", {"synth.yaml:2:13", "/camera/f_number", "expected a number"}},
+      {"camera:\n  f_number: fast\n", {"synth.yaml:2:13", "/camera/f_number", "expected a finite number"}},
       {"rig:\n  frames: [1, 2]\n", {"synth.yaml:2:11", "/rig/frames", "expected an integer"}},
       // `scene` names the content; a folder name there points to scene_folder.
       {"rig:\n  scene: 00_Synthetic\n", {"rig.scene", "table|plain", "rig.scene_folder"}},
@@ -77,7 +77,11 @@ TEST(SynthParams, YamlErrorsNameFileLineColumnAndKey) {
       {"lens:\n  x: 1\n", {"synth.yaml:1:1", "/lens", "expected one of: preset"}},
       {"camera:\n  f_number: 0.1\n", {"synth.yaml", "camera.f_number", "0.5..64"}},
       {"preset: tiny\n", {"synth.yaml:1:9", "/preset", "unknown preset 'tiny'"}},
-      {"camera: [\n", {"synth.yaml:", "YAML syntax", ""}},
+      {"camera: [\n", {"synth.yaml:", "malformed YAML", ""}},
+      {"camera:\n  width_px: \"100\"\n", {"synth.yaml:2:13", "/camera/width_px", "expected an integer"}},
+      {"rig:\n  seed: -1\n", {"synth.yaml:2:9", "/rig/seed", "expected an integer >= 0"}},
+      {"camera:\n  mla_offset_px: [1]\n", {"synth.yaml:2:18", "/camera/mla_offset_px", "2 numbers"}},
+      {"camera: {f_number: 2, f_number: 3}\n", {"synth.yaml", "/camera/f_number", "duplicate key"}},
   };
   for (const Case& c : cases) {
     const Expected<SynthParams> params = ParseSynthConfig(c.text, "synth.yaml", base);

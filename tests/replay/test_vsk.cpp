@@ -306,7 +306,7 @@ TEST(VskBadInput, NonNumericPositionOrValue) {
       {"bad.vsk:4:", "Parameter[@NAME='Go2_Go21_x']",
        "expected a number in VALUE, got '261.96mm'"});
   ExpectError(test::ReplaceFirst(test::ReadSample(kTracker), "RADIUS=\"14\"", "RADIUS=\"big\""),
-              {"bad.vsk:47:", "marker Go21: expected a number in RADIUS"});
+              {"bad.vsk:47:", "marker Go21: expected RADIUS 0 .. 1000 mm, got 'big'"});
 }
 
 TEST(VskBadInput, MarkerReferencingMissingSegment) {
