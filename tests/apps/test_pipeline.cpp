@@ -722,6 +722,39 @@ TEST(Pipeline, RecordAndReplayShareTheGrabLoopEveryFrameRecordedAndPublished) {
   for (const ReplayCamera* camera : replay) EXPECT_EQ(camera->Stats().underruns, 0u);
 }
 
+// A bad value in the options the grab loop and replay take is an error
+// naming the field, returned where they are taken (Start, RunReplay).
+TEST(Pipeline, BadGrabLoopAndReplayOptionsNameTheirField) {
+  RigControllerOptions controller_options;
+  controller_options.frame_timeout = std::chrono::milliseconds(0);
+  RigController controller({}, {}, nullptr, nullptr, controller_options);
+  const Status started = controller.Start();
+  ASSERT_FALSE(started.ok());
+  EXPECT_NE(started.error().message.find("frame_timeout"), std::string::npos)
+      << started.error().message;
+  controller_options = RigControllerOptions{};
+  controller_options.vicon_divider = 0;
+  EXPECT_NE(controller_options.Check().error().message.find("vicon_divider"), std::string::npos);
+  controller_options = RigControllerOptions{};
+  controller_options.number_files_by_sync = true;  // without sync
+  EXPECT_NE(controller_options.Check().error().message.find("number_files_by_sync"),
+            std::string::npos);
+
+  ReplayRunOptions replay;
+  replay.sequence_dir = "/nonexistent";
+  replay.pool_buffers = 0;
+  auto result = RunReplay(replay);
+  ASSERT_FALSE(result.ok());
+  EXPECT_NE(result.error().message.find("pool_buffers"), std::string::npos)
+      << result.error().message;
+  replay.pool_buffers = 8;
+  replay.preview.max_side = 4;
+  EXPECT_NE(replay.Check().error().message.find("max_side"), std::string::npos);
+  replay.preview = PreviewOptions{};
+  replay.pipeline.max_concurrency = 0;
+  EXPECT_NE(replay.Check().error().message.find("max_concurrency"), std::string::npos);
+}
+
 TEST(Pipeline, RateParsing) {
   EXPECT_EQ(ReplayRate::Parse("original")->kind, ReplayRate::Kind::kOriginal);
   EXPECT_EQ(ReplayRate::Parse("max")->kind, ReplayRate::Kind::kMax);
