@@ -61,6 +61,7 @@ struct Received {
   std::map<std::string, std::vector<std::int64_t>> utimes;
   std::map<std::pair<std::string, std::int64_t>, lifmcr_lcm::depth_image_t> depth;  // serial, frame
   std::map<std::string, std::vector<std::int64_t>> preview_frames;                  // by serial
+  std::map<std::string, std::map<std::int64_t, std::int64_t>> preview_trigger;  // serial: id -> trigger
   std::optional<lifmcr_lcm::pipeline_stats_t> last_stats;
 
   void OnAny(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
@@ -85,7 +86,10 @@ struct Received {
       utimes[channel].push_back(m.utime);
       EXPECT_EQ(m.size, static_cast<int>(m.data.size()));
       EXPECT_LE(m.size, 4 << 20);
-      if (channel.ends_with("_PREVIEW")) preview_frames[m.serial].push_back(m.frame_id);
+      if (channel.ends_with("_PREVIEW")) {
+        preview_frames[m.serial].push_back(m.frame_id);
+        preview_trigger[m.serial][m.frame_id] = m.trigger_index;
+      }
     }
   }
 };
@@ -714,10 +718,13 @@ TEST(Pipeline, RecordAndReplayShareTheGrabLoopEveryFrameRecordedAndPublished) {
   EXPECT_EQ(r.sync_lost, 0u) << r.drops;
   for (const auto& camera : sequence->cameras) {
     EXPECT_EQ(received.count[CameraChannel(camera.serial, "PREVIEW")], frames) << camera.serial;
-    for (std::int64_t f : camera.frames)
+    for (std::int64_t f : camera.frames) {
+      // The recording's file number is the trigger_index on LCM.
       EXPECT_TRUE(std::filesystem::exists(layout::RawFramePath(
           (*recorder)->sequence_dir(), camera.serial, f)))
           << camera.serial << " " << f;
+      EXPECT_EQ(received.preview_trigger[camera.serial][f], f) << camera.serial;
+    }
   }
   for (const ReplayCamera* camera : replay) EXPECT_EQ(camera->Stats().underruns, 0u);
 }
