@@ -15,6 +15,7 @@
 #include "replay/bayer.h"
 #include "replay/layout.h"
 #include "replay/raw_image.h"
+#include "replay/sequence.h"
 #include "replay/synth/gt_images.h"
 
 #include <CLI/CLI.hpp>
@@ -40,7 +41,9 @@ struct DepthCommandOptions {
   bool uncertainty = false;
   std::string sequence;
   std::string camera;
-  std::int64_t frame = 0;
+  std::int64_t frame = 0;            // the frame RunDepth processes
+  std::vector<std::int64_t> frames;  // --frame values (default: 0)
+  bool all_frames = false;
   std::string out;
   std::string intrinsics;
   std::string white;
@@ -233,6 +236,36 @@ int RunDepth(const DepthCommandOptions& o) {
   return 0;
 }
 
+// Every frame asked for, one after the other, with a progress line before
+// each; the first failure stops (exit 1), the frames before it are written.
+int RunDepthFrames(const DepthCommandOptions& o) {
+  std::vector<std::int64_t> frames = o.frames.empty() ? std::vector<std::int64_t>{0} : o.frames;
+  if (o.all_frames) {
+    if (!o.raw.empty() || o.sequence.empty()) return Usage("--all-frames needs SEQ_DIR");
+    if (!o.frames.empty()) return Usage("--all-frames and --frame exclude each other");
+    Expected<SequenceLayout> layout = DiscoverSequence(o.sequence);
+    if (!layout) return Fail(layout.error().message);
+    frames.clear();
+    for (const CameraFolder& camera : layout->cameras)
+      if (camera.serial == o.camera) frames = camera.frames;
+    if (frames.empty()) return Fail(o.sequence + ": no frames of camera " + o.camera);
+  }
+  if (!o.raw.empty() && frames.size() > 1)
+    return Usage("--raw takes one file; --frame applies to SEQ_DIR");
+  const auto start = std::chrono::steady_clock::now();
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    DepthCommandOptions one = o;
+    one.frame = frames[k];
+    if (frames.size() > 1)
+      std::printf("frame %zu/%zu: %lld (%.0f s so far)\n", k + 1, frames.size(),
+                  static_cast<long long>(frames[k]), Seconds(start));
+    std::fflush(stdout);
+    if (const int code = RunDepth(one); code != 0) return code;
+  }
+  if (frames.size() > 1) std::printf("%zu frames in %.1f s\n", frames.size(), Seconds(start));
+  return 0;
+}
+
 }  // namespace
 
 CommandRun AddDepthCommand(CLI::App& app) {
@@ -243,17 +276,21 @@ CommandRun AddDepthCommand(CLI::App& app) {
       "beside the scene); the white image (--white, else Calibration/01_White_Images/ when it\n"
       "exists; without one the vignetting comes from the frame, or the frame is taken as\n"
       "already devignetted, and the output says which); --intrinsics cameras.yaml.\n"
-      "Writes into --out: <stem>_virtual_depth.tiff, _confidence.tiff (raw grid, float32),\n"
+      "Writes: into --out, <stem>_virtual_depth.tiff, _confidence.tiff (raw grid, float32),\n"
       "_virtual_depth_tf.tiff, _tf.png, _depth.png (TF grid), and with --intrinsics\n"
       "_depth_mm.tiff and _points.ply; <stem> is <serial>_<frame> or the --raw file's stem.\n"
+      "Progress: each stage's time per frame, and with several frames (--frame A B ..,\n"
+      "--all-frames) a line before each.\n"
       "Exit codes: 0 written; 1 an input could not be read or processed (the message names\n"
-      "it); 2 usage error.");
+      "it; the frames before it are written); 2 usage error.");
   app.add_option("SEQ_DIR", o->sequence, "Sequence folder (SCENE/SEQ of a LiFMCR dataset)");
   app.add_option("--raw", o->raw,
                  "One raw image (BMP, PNG or TIFF, 8 or 16 bits) instead of SEQ_DIR; needs --mla");
   app.add_option("--camera", o->camera,
                  "Camera serial (with SEQ_DIR; with --raw, the serial looked up in --intrinsics)");
-  app.add_option("--frame", o->frame, "Frame number in SEQ_DIR (default 0)");
+  app.add_option("--frame", o->frames,
+                 "Frame number(s) in SEQ_DIR (default 0); several are processed in turn");
+  app.add_flag("--all-frames", o->all_frames, "Every frame of the camera in SEQ_DIR");
   app.add_option("--out", o->out, "Output folder (created if needed)")->required();
   app.add_option("--intrinsics", o->intrinsics,
                  "cameras.yaml with the camera's model (metric depth and point cloud)");
@@ -268,7 +305,7 @@ CommandRun AddDepthCommand(CLI::App& app) {
   app.add_option("--mla", o->mla, "MLA XML (default: the dataset's Calibration folder)");
   app.add_flag("--uncertainty", o->uncertainty,
                "Add a sigma_z_mm property (standard deviation of the depth) to every PLY point");
-  return [o] { return RunDepth(*o); };
+  return [o] { return RunDepthFrames(*o); };
 }
 
 }  // namespace lifmcr::apps

@@ -276,7 +276,10 @@ CommandRun AddRecordCommand(CLI::App& app) {
       "second otherwise. Stops after --duration, on SIGINT/SIGTERM, or by itself on a\n"
       "write error (disk full): files already written stay valid, the CSV ends with a\n"
       "complete line. The final report on stdout says what was kept and what was lost.\n"
-      "Exit code: 0 nothing lost; 1 a frame, a Vicon frame or a CSV line was lost, or a\n"
+      "Reads: --rig RIG.yaml (cameras, Vicon source, MLA files), the cameras and the Vicon\n"
+      "stream (or --replay SEQ). Writes: OUT as above; with --publish the LCM channels of\n"
+      "lifmcr replay.\n"
+      "Exit codes: 0 nothing lost; 1 a frame, a Vicon frame or a CSV line was lost, or a\n"
       "write error stopped the recording; 2 usage or rig file error; 3 a camera, the Vicon\n"
       "source or the output folder could not be started (an existing non-empty sequence\n"
       "folder is never overwritten).");

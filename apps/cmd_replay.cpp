@@ -81,8 +81,11 @@ CommandRun AddReplayCommand(CLI::App& app) {
       "(the newest wins) and counted. --rate max: paced by the pipeline, every frame\n"
       "is processed. A status line on stderr, the final report on stdout (frames in,\n"
       "processed, skipped, failed, published). Watch with `lifmcr monitor` or\n"
-      "scripts/lcm-spy.sh. Exit code: 0 every frame accounted for and none failed; 1 a\n"
-      "processing failure; 2 usage; 3 the sequence, its calibration or LCM cannot be opened.");
+      "scripts/lcm-spy.sh.\n"
+      "Reads: SEQ_DIR and the Calibration/ folder beside its scene (MLA files, white images\n"
+      "when present). Writes: the LCM channels above; nothing on disk.\n"
+      "Exit codes: 0 every frame accounted for and none failed; 1 a processing failure;\n"
+      "2 usage; 3 the sequence, its calibration or LCM cannot be opened.");
   app.add_option("SEQ_DIR", args->sequence, "Sequence folder")
       ->required()
       ->check(CLI::ExistingDirectory);

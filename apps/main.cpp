@@ -10,8 +10,10 @@
 
 int main(int argc, char** argv) {
   CLI::App app{
-      "lifmcr: rigs of focused plenoptic (MLA) cameras: acquisition, replay, processing,\n"
-      "registration and evaluation of LiFMCR-layout datasets."};
+      "lifmcr: rigs of focused plenoptic (MLA) cameras: live recording, replay and\n"
+      "processing (virtual depth, totally focused images, point clouds) of LiFMCR-layout\n"
+      "datasets, published on LCM. `lifmcr SUBCOMMAND --help` says what each reads, writes\n"
+      "and returns."};
   app.require_subcommand(1);
   app.set_version_flag("--version", "lifmcr 0.1.0");
 
@@ -41,10 +43,19 @@ int main(int argc, char** argv) {
   add("monitor", "Terminal view of the pipeline's LCM channels", lifmcr::apps::AddMonitorCommand);
   add("demo", "Synthetic rig -> replay through the pipeline on LCM (the embedded default)",
       lifmcr::apps::AddDemoCommand);
-  add("grid", "Fit the micro-image lattice to a white image and write an MLA XML",
+  add("grid",
+      "Fit the micro-image lattice to a white image (or a textured raw) and write an MLA XML",
       lifmcr::apps::AddGridCommand);
+  add("evaluate",
+      "Evaluate registered extrinsics against Vicon, with the hand-eye correction: tables, "
+      "TUM trajectories, plots",
+      lifmcr::apps::AddEvaluateCommand);
   add("depth", "Virtual depth, totally focused image, metric depth and point cloud of one frame",
       lifmcr::apps::AddDepthCommand);
+  add("calibrate", "Intrinsic calibration of one camera and its reference map (plenoptic BA)",
+      lifmcr::apps::AddCalibrateCommand);
+  add("register", "Register every camera to camera 0's reference map: c0_from_cx per frame",
+      lifmcr::apps::AddRegisterCommand);
 
   try {
     app.parse(argc, argv);

@@ -66,9 +66,11 @@ Expected<EncodedImage> EncodePreview(ConstImageView image, const PreviewOptions&
   return out;
 }
 
-Expected<EncodedDepth> EncodeDepth(const std::vector<float>& values, int width, int height) {
+Expected<EncodedDepth> EncodeDepth(const std::vector<float>& values, int width, int height,
+                                   int bits) {
   if (width <= 0 || height <= 0 || values.size() != static_cast<std::size_t>(width) * height)
     return Error{"depth: size mismatch"};
+  if (bits != 8 && bits != 16) return Error{"depth: bits: expected 8 or 16"};
   float lo = std::numeric_limits<float>::infinity(), hi = -lo;
   std::size_t valid = 0;
   for (float v : values)
@@ -87,19 +89,21 @@ Expected<EncodedDepth> EncodeDepth(const std::vector<float>& values, int width, 
   }
   out.min_value = lo;
   out.max_value = hi;
-  // q = 1 is lo, q = 65535 is hi (a flat map gets a unit scale).
-  out.scale = hi > lo ? (hi - lo) / 65534.0f : 1.0f;
+  // q = 1 is lo, q = q_max is hi (a flat map gets a unit scale).
+  const long q_max = bits == 8 ? 255 : 65535;
+  out.scale = hi > lo ? (hi - lo) / static_cast<float>(q_max - 1) : 1.0f;
   out.offset = lo - out.scale;
-  cv::Mat q(height, width, CV_16UC1);
-  for (int y = 0; y < height; ++y) {
-    auto* row = q.ptr<std::uint16_t>(y);
+  cv::Mat q(height, width, bits == 8 ? CV_8UC1 : CV_16UC1);
+  for (int y = 0; y < height; ++y)
     for (int x = 0; x < width; ++x) {
       const float v = values[static_cast<std::size_t>(y) * width + x];
-      row[x] = std::isfinite(v) ? static_cast<std::uint16_t>(std::clamp(
-                                      std::lround((v - out.offset) / out.scale), 1L, 65535L))
-                                : 0;
+      const long level =
+          std::isfinite(v) ? std::clamp(std::lround((v - out.offset) / out.scale), 1L, q_max) : 0;
+      if (bits == 8)
+        q.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(level);
+      else
+        q.at<std::uint16_t>(y, x) = static_cast<std::uint16_t>(level);
     }
-  }
   if (!cv::imencode(".png", q, out.png)) return Error{"depth: PNG encoding failed"};
   return out;
 }
@@ -107,11 +111,12 @@ Expected<EncodedDepth> EncodeDepth(const std::vector<float>& values, int width, 
 Expected<std::vector<float>> DecodeDepth(const std::vector<std::uint8_t>& png, float scale,
                                          float offset, int* width, int* height) {
   const cv::Mat q = cv::imdecode(png, cv::IMREAD_UNCHANGED);
-  if (q.empty() || q.type() != CV_16UC1) return Error{"depth: not a 16-bit grey PNG"};
+  if (q.empty() || (q.type() != CV_16UC1 && q.type() != CV_8UC1))
+    return Error{"depth: not an 8- or 16-bit grey PNG"};
   std::vector<float> values(static_cast<std::size_t>(q.rows) * q.cols);
   for (int y = 0; y < q.rows; ++y)
     for (int x = 0; x < q.cols; ++x) {
-      const std::uint16_t v = q.at<std::uint16_t>(y, x);
+      const unsigned v = q.type() == CV_8UC1 ? q.at<std::uint8_t>(y, x) : q.at<std::uint16_t>(y, x);
       values[static_cast<std::size_t>(y) * q.cols + x] =
           v == 0 ? std::numeric_limits<float>::quiet_NaN() : offset + scale * v;
     }

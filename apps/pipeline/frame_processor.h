@@ -9,7 +9,7 @@
 //   DepthProcessor    the preview plus processing/: devignetted frame,
 //                     virtual depth, TF depth map and the totally focused
 //                     image; the TF virtual depth, reduced by block means
-//                     to at most depth_max_side and quantised to 16-bit PNG.
+//                     to at most depth_max_side and quantised to 8-bit PNG.
 // Process is called concurrently for different frames (bounded by the
 // pipeline); implementations keep per-call state only.
 
@@ -39,8 +39,11 @@ struct EncodedImage {
   std::vector<std::uint8_t> bytes;
 };
 
-// Virtual depth quantised: value = offset + scale * q, q in 1..65535, q = 0
-// no estimate; PNG-encoded 16-bit grey.
+// Virtual depth quantised: value = offset + scale * q, q in 1..255 (8-bit,
+// published) or 1..65535 (16-bit), q = 0 no estimate; PNG-encoded grey.
+// 8 bits over the frame's own range keep a depth message well inside a stock
+// receiver's UDP buffer (bench/bench_lcm_sizes.cpp); the step, (max - min) /
+// 254, is below the estimate's own error over the usual ranges.
 struct EncodedDepth {
   int width = 0, height = 0;
   float scale = 0, offset = 0;
@@ -79,8 +82,10 @@ class FrameProcessor {
 
 // Downscaled JPEG of `image` (Mono8 or BGR8).
 Expected<EncodedImage> EncodePreview(ConstImageView image, const PreviewOptions& options);
-// PNG 16-bit quantisation of `values` (w x h, NaN = none); inverse of DecodeDepth.
-Expected<EncodedDepth> EncodeDepth(const std::vector<float>& values, int width, int height);
+// PNG quantisation of `values` (w x h, NaN = none) to `bits` (8 or 16);
+// inverse of DecodeDepth.
+Expected<EncodedDepth> EncodeDepth(const std::vector<float>& values, int width, int height,
+                                   int bits = 8);
 // Decoded values (NaN where q = 0) of a PNG written by EncodeDepth.
 Expected<std::vector<float>> DecodeDepth(const std::vector<std::uint8_t>& png, float scale,
                                          float offset, int* width, int* height);

@@ -52,6 +52,7 @@ synth::SynthParams TinyRig(int frames) {
   params->rig.frames = frames;
   params->rig.cameras = 2;
   params->rig.seed = 7;
+  params->rig.scene = "plain";  // the pipeline is under test, not the scene: the faster render
   return *params;
 }
 
@@ -149,7 +150,7 @@ TEST(Pipeline, MaxRateProcessesAndPublishesEveryFrameWithDepthFromProcessing) {
     for (std::size_t k = 1; k < utimes.size(); ++k) EXPECT_GE(utimes[k], utimes[k - 1]) << channel;
 
   // The published depth decodes to what the processing stage computes for
-  // the same frame, within the 16-bit quantisation.
+  // the same frame, within the 8-bit quantisation (one step, (max - min) / 254).
   auto processor = DepthProcessor::ForSequence(summary->sequence_dir.string(), serials);
   ASSERT_TRUE(processor.ok()) << processor.error().message;
   const std::string serial = serials[0];
@@ -773,20 +774,25 @@ TEST(Pipeline, RateParsing) {
 
 TEST(Pipeline, DepthQuantisationRoundTrips) {
   std::vector<float> values = {1.5f, NAN, 3.25f, 2.0f, NAN, 4.0f};
-  auto encoded = EncodeDepth(values, 3, 2);
-  ASSERT_TRUE(encoded.ok());
-  EXPECT_NEAR(encoded->valid_fraction, 4.0 / 6.0, 1e-6);
-  int w = 0, h = 0;
-  auto decoded = DecodeDepth(encoded->png, encoded->scale, encoded->offset, &w, &h);
-  ASSERT_TRUE(decoded.ok());
-  EXPECT_EQ(w, 3);
-  EXPECT_EQ(h, 2);
-  for (std::size_t k = 0; k < values.size(); ++k) {
-    EXPECT_EQ(std::isnan(values[k]), std::isnan((*decoded)[k]));
-    if (!std::isnan(values[k])) {
-      EXPECT_NEAR(values[k], (*decoded)[k], encoded->scale);
+  for (const int bits : {8, 16}) {
+    auto encoded = EncodeDepth(values, 3, 2, bits);
+    ASSERT_TRUE(encoded.ok());
+    EXPECT_NEAR(encoded->valid_fraction, 4.0 / 6.0, 1e-6);
+    // One step over the map's own range: 254 or 65534 steps from 1.5 to 4.
+    EXPECT_NEAR(encoded->scale, 2.5 / (bits == 8 ? 254 : 65534), 1e-7);
+    int w = 0, h = 0;
+    auto decoded = DecodeDepth(encoded->png, encoded->scale, encoded->offset, &w, &h);
+    ASSERT_TRUE(decoded.ok());
+    EXPECT_EQ(w, 3);
+    EXPECT_EQ(h, 2);
+    for (std::size_t k = 0; k < values.size(); ++k) {
+      EXPECT_EQ(std::isnan(values[k]), std::isnan((*decoded)[k]));
+      if (!std::isnan(values[k])) {
+        EXPECT_NEAR(values[k], (*decoded)[k], encoded->scale / 2 + 1e-6) << bits;
+      }
     }
   }
+  EXPECT_FALSE(EncodeDepth(values, 3, 2, 12).ok());
 }
 
 }  // namespace

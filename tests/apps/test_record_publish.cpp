@@ -29,6 +29,7 @@ TEST(RecordPublish, SlowProcessingSkipsPreviewsButRecordsEveryFrame) {
   ASSERT_TRUE(params.ok());
   params->rig.frames = 6;
   params->rig.cameras = 2;
+  params->rig.scene = "plain";  // recording is under test, not the scene: the faster render
   auto summary = synth::WriteSyntheticDataset(dir / "synth", *params);
   ASSERT_TRUE(summary.ok()) << summary.error().message;
   const auto sequence = DiscoverSequence(summary->sequence_dir);
