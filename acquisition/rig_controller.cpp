@@ -274,6 +274,19 @@ void RigController::GrabLoop(int index) {
     const std::size_t bytes =
         frame.image.stride_bytes * static_cast<std::size_t>(frame.image.height);
     std::int64_t frame_index = 0;
+    // A camera's first good frame goes to the assembler first, so that the
+    // trigger it places the frame on numbers the file too: the recording's
+    // file numbers and the FrameSets' trigger indices (LCM trigger_index)
+    // then count from one placement. (Only this grab thread touches the
+    // unwrapper.)
+    std::optional<std::int64_t> placed;
+    bool in_assembler = false;
+    if (assembler_ != nullptr && !options_.number_files_by_sync &&
+        frame.status == FrameStatus::kOk && slot.unwrapper.last_index() < 0) {
+      std::lock_guard<std::mutex> lock(sync_mutex_);
+      placed = assembler_->AddFrame(frame);
+      in_assembler = true;
+    }
     {
       std::lock_guard<std::mutex> lock(slot.mutex);
       if (frame.status != FrameStatus::kOk) {
@@ -291,7 +304,8 @@ void RigController::GrabLoop(int index) {
           // different moments of a running trigger see different first
           // triggers), after any failed frames before it (each was a trigger).
           const auto failed = static_cast<std::int64_t>(slot.health.failed_since_ok);
-          const std::int64_t first = std::max(FirstIndexByHostTime(frame.host_ns), failed);
+          const std::int64_t first =
+              std::max(placed ? *placed : FirstIndexByHostTime(frame.host_ns), failed);
           (void)slot.unwrapper.Next(frame.frame_id);
           slot.unwrapper.Rebase(frame.frame_id, first);
           step.index = first;
@@ -343,7 +357,7 @@ void RigController::GrabLoop(int index) {
         ++slot.health.received;
       }
     }
-    if (assembler_ != nullptr &&
+    if (assembler_ != nullptr && !in_assembler &&
         (frame.status == FrameStatus::kOk || options_.number_files_by_sync)) {
       // Observing, the assembler gets a copy sharing the buffer, and only
       // good frames: a failed frame's timestamps can be garbage (lost leader

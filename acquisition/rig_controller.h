@@ -6,11 +6,17 @@
 // publisher). Health() is a snapshot for the status line.
 //
 // Frame numbers: a frame's number in the recording is its trigger index. A
-// camera's first frame is placed by host time from the rig's first frame (in
-// trigger periods, rounded), every later one by the camera's frame counter
+// camera's first frame is placed by the sync assembler when there is one
+// (the trigger of its FrameSet, so file numbers and trigger indices count
+// from one placement), else by host time from the rig's first frame (in
+// trigger periods, rounded); every later one by the camera's frame counter
 // (frame_id_unwrapper.h, 16-bit wrap aware), so a counter gap is a missing
 // file and is counted; after a reconnect (the counter restarts) the silence
 // in host time gives the triggers missed.
+//
+// The same loop drives live cameras, replay cameras (original timing, as
+// fast as the consumer takes frames, or per software trigger) and any mix;
+// `lifmcr replay` and `lifmcr record` both run through it.
 //
 // Accounting, per camera: every frame the counter says was produced ends up
 // recorded, or lost as one of: incomplete (delivered with a bad status; not

@@ -59,11 +59,11 @@ std::int64_t FrameSetAssembler::TriggerByHostTime(const Camera& camera,
   return grid_trigger_ + std::llround(steps);
 }
 
-void FrameSetAssembler::AddFrame(Frame frame) {
+std::optional<std::int64_t> FrameSetAssembler::AddFrame(Frame frame) {
   const int index = frame.camera_index;
   if (index < 0 || index >= static_cast<int>(cameras_.size())) {
     drops_.Add(DropKind::kFrameWithoutTrigger);  // a camera the rig does not have
-    return;
+    return std::nullopt;
   }
   Camera& camera = cameras_[index];
   ++camera.stats.frames;
@@ -96,12 +96,12 @@ void FrameSetAssembler::AddFrame(Frame frame) {
       association.verdict == FrameVerdict::kRepeatedTrigger || k < 0) {
     drops_.Add(DropKind::kFrameWithoutTrigger);
     ++camera.stats.without_trigger;
-    return;
+    return std::nullopt;
   }
   if (k < next_emit_) {
     drops_.Add(DropKind::kLateFrame);
     ++camera.stats.late;
-    return;
+    return std::nullopt;
   }
   if (association.counter_mismatch) {
     drops_.Add(DropKind::kCounterMismatch);
@@ -114,7 +114,7 @@ void FrameSetAssembler::AddFrame(Frame frame) {
   if (pending.frames[index].has_value()) {  // only after a re-anchor: keep the first
     drops_.Add(DropKind::kFrameWithoutTrigger);
     ++camera.stats.without_trigger;
-    return;
+    return std::nullopt;
   }
   if (association.verdict == FrameVerdict::kAssociated) {
     camera.last_trigger = std::max(camera.last_trigger, k);
@@ -123,6 +123,7 @@ void FrameSetAssembler::AddFrame(Frame frame) {
   }
   last_trigger_seen_ = std::max(last_trigger_seen_, k);
   pending.frames[index] = std::move(frame);
+  return k;
 }
 
 void FrameSetAssembler::AddVicon(ViconFrame frame) {

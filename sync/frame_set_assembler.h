@@ -89,7 +89,9 @@ class FrameSetAssembler {
   // options must pass Check() (the constructor does not re-check).
   explicit FrameSetAssembler(FrameSetAssemblerOptions options);
 
-  void AddFrame(Frame frame);
+  // The trigger the frame was placed on (the FrameSet it goes out in), or
+  // nullopt when it is on none (off grid, repeated, late, another camera's).
+  std::optional<std::int64_t> AddFrame(Frame frame);
   void AddVicon(ViconFrame frame);
   // The FrameSets ready at host time `now_host_ns`, in trigger order.
   std::vector<FrameSet> Poll(std::int64_t now_host_ns);

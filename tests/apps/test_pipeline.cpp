@@ -62,6 +62,7 @@ struct Received {
   std::map<std::string, std::vector<std::int64_t>> utimes;
   std::map<std::pair<std::string, std::int64_t>, lifmcr_lcm::depth_image_t> depth;  // serial, frame
   std::map<std::string, std::vector<std::int64_t>> preview_frames;                  // by serial
+  std::map<std::string, std::map<std::int64_t, std::int64_t>> preview_trigger;  // serial: id -> trigger
   std::optional<lifmcr_lcm::pipeline_stats_t> last_stats;
 
   void OnAny(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
@@ -86,7 +87,10 @@ struct Received {
       utimes[channel].push_back(m.utime);
       EXPECT_EQ(m.size, static_cast<int>(m.data.size()));
       EXPECT_LE(m.size, 4 << 20);
-      if (channel.ends_with("_PREVIEW")) preview_frames[m.serial].push_back(m.frame_id);
+      if (channel.ends_with("_PREVIEW")) {
+        preview_frames[m.serial].push_back(m.frame_id);
+        preview_trigger[m.serial][m.frame_id] = m.trigger_index;
+      }
     }
   }
 };
@@ -715,12 +719,48 @@ TEST(Pipeline, RecordAndReplayShareTheGrabLoopEveryFrameRecordedAndPublished) {
   EXPECT_EQ(r.sync_lost, 0u) << r.drops;
   for (const auto& camera : sequence->cameras) {
     EXPECT_EQ(received.count[CameraChannel(camera.serial, "PREVIEW")], frames) << camera.serial;
-    for (std::int64_t f : camera.frames)
+    for (std::int64_t f : camera.frames) {
+      // The recording's file number is the trigger_index on LCM.
       EXPECT_TRUE(std::filesystem::exists(layout::RawFramePath(
           (*recorder)->sequence_dir(), camera.serial, f)))
           << camera.serial << " " << f;
+      EXPECT_EQ(received.preview_trigger[camera.serial][f], f) << camera.serial;
+    }
   }
   for (const ReplayCamera* camera : replay) EXPECT_EQ(camera->Stats().underruns, 0u);
+}
+
+// A bad value in the options the grab loop and replay take is an error
+// naming the field, returned where they are taken (Start, RunReplay).
+TEST(Pipeline, BadGrabLoopAndReplayOptionsNameTheirField) {
+  RigControllerOptions controller_options;
+  controller_options.frame_timeout = std::chrono::milliseconds(0);
+  RigController controller({}, {}, nullptr, nullptr, controller_options);
+  const Status started = controller.Start();
+  ASSERT_FALSE(started.ok());
+  EXPECT_NE(started.error().message.find("frame_timeout"), std::string::npos)
+      << started.error().message;
+  controller_options = RigControllerOptions{};
+  controller_options.vicon_divider = 0;
+  EXPECT_NE(controller_options.Check().error().message.find("vicon_divider"), std::string::npos);
+  controller_options = RigControllerOptions{};
+  controller_options.number_files_by_sync = true;  // without sync
+  EXPECT_NE(controller_options.Check().error().message.find("number_files_by_sync"),
+            std::string::npos);
+
+  ReplayRunOptions replay;
+  replay.sequence_dir = "/nonexistent";
+  replay.pool_buffers = 0;
+  auto result = RunReplay(replay);
+  ASSERT_FALSE(result.ok());
+  EXPECT_NE(result.error().message.find("pool_buffers"), std::string::npos)
+      << result.error().message;
+  replay.pool_buffers = 8;
+  replay.preview.max_side = 4;
+  EXPECT_NE(replay.Check().error().message.find("max_side"), std::string::npos);
+  replay.preview = PreviewOptions{};
+  replay.pipeline.max_concurrency = 0;
+  EXPECT_NE(replay.Check().error().message.find("max_concurrency"), std::string::npos);
 }
 
 TEST(Pipeline, RateParsing) {
