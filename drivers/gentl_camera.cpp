@@ -98,8 +98,17 @@ struct GenTlCamera::Impl {
   int consecutive_failures = 0;
   bool frame_since_reconnect = false;
   std::int64_t last_frame_host_ns = 0;
-  std::uint64_t underrun_frames = 0;           // frames, over every stream
-  std::uint64_t underruns_at_last_frame = 0;   // this stream's NUM_UNDERRUN at the last frame
+  // Underruns (frames lost for lack of a queued buffer) already set against
+  // frame id gaps, over every stream; and how many of this stream's
+  // NUM_UNDERRUN that accounts for. The rest are pending: they happened
+  // after the last frame (its gap is still to come), or the producer's ids
+  // do not count them; Stats() reports them either way.
+  std::uint64_t underrun_frames = 0;
+  std::uint64_t underruns_at_last_frame = 0;
+  std::uint64_t PendingUnderruns() const {
+    const std::uint64_t now = StreamUnderruns();
+    return now - std::min(now, underruns_at_last_frame);
+  }
 
   mutable std::mutex stats_mutex;
   CameraStats stats;
@@ -441,7 +450,7 @@ void GenTlCamera::Impl::Disconnect() {
   const Functions& fn = producer->fn();
   {
     std::lock_guard<std::mutex> lock(stats_mutex);
-    underrun_frames += StreamUnderruns() - std::min(StreamUnderruns(), underruns_at_last_frame);
+    underrun_frames += PendingUnderruns();
     stats.underruns = underrun_frames;
   }
   DS_HANDLE old_stream = nullptr;
@@ -605,16 +614,14 @@ Frame GenTlCamera::Impl::MakeFrame(BUFFER_HANDLE buffer, void* user_pointer, std
                             static_cast<int>(height), stride, expected.format};
 
   // A frame dropped for lack of a buffer is one underrun, never also a
-  // missing id.
-  const std::uint64_t underruns_now = StreamUnderruns();
-  const std::uint64_t new_underruns = underruns_now - std::min(underruns_now, underruns_at_last_frame);
-  underruns_at_last_frame = underruns_now;
+  // missing id: the ids the gap skipped are underruns as far as the producer
+  // counted them, the rest were lost on the way (missing ids).
   const std::uint64_t gap = ids.Observe(frame.frame_id);
-  std::uint64_t missing = gap;
-  if (new_underruns > 0) {
-    underrun_frames += std::max(gap, new_underruns);
-    missing = 0;
-  }
+  const std::uint64_t attributed = std::min(gap, PendingUnderruns());
+  underrun_frames += attributed;
+  underruns_at_last_frame += attributed;
+  const std::uint64_t missing = gap - attributed;
+  const std::uint64_t pending = PendingUnderruns();
   last_frame_host_ns = frame.host_ns;
   consecutive_failures = frame.status == FrameStatus::kOk ? 0 : consecutive_failures + 1;
   std::lock_guard<std::mutex> lock(stats_mutex);
@@ -627,7 +634,7 @@ Frame GenTlCamera::Impl::MakeFrame(BUFFER_HANDLE buffer, void* user_pointer, std
     }
   }
   stats.missing_ids += missing;
-  stats.underruns = underrun_frames;
+  stats.underruns = underrun_frames + pending;
   stats.transferred_bytes += has_filled ? filled : payload_bytes;
   if (frame.status == FrameStatus::kOk)
     ++stats.completed;
@@ -757,7 +764,7 @@ Expected<std::optional<Frame>> GenTlCamera::NextFrame(std::chrono::milliseconds 
   }
   {
     std::lock_guard<std::mutex> lock(d.stats_mutex);
-    d.stats.underruns = d.underrun_frames + (d.StreamUnderruns() - std::min(d.StreamUnderruns(), d.underruns_at_last_frame));
+    d.stats.underruns = d.underrun_frames + d.PendingUnderruns();
   }
   const bool suspect = d.control_suspect.exchange(false);
   if (suspect || Clock::now() - d.last_activity >= d.options.probe_after) {

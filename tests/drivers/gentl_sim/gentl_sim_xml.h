@@ -34,6 +34,7 @@ enum : std::uint64_t {
   kDropEvery = 0x0500,         // every Nth frame id is lost in transport (0 = none)
   kIncompleteEvery = 0x0504,   // every Nth frame is delivered incomplete (0 = none)
   kLinePeriodUs = 0x0508,      // period of the "hardware" pulses on Line0/Line1
+  kLastFrameId = 0x050C,       // read-only: the last frame id the camera used
   kChunkModeActive = 0x0520,   // 1: each frame carries the chunk kChunkId after the image
   kChunkSelector = 0x0524,     // 0 Timestamp, 1 FrameID
   kChunkEnable = 0x0528,       // + 4 * selector
@@ -98,6 +99,7 @@ inline constexpr char kXml[] = R"XML(<?xml version="1.0" encoding="utf-8"?>
     <pFeature>SimDropEvery</pFeature>
     <pFeature>SimIncompleteEvery</pFeature>
     <pFeature>SimLinePeriodUs</pFeature>
+    <pFeature>SimLastFrameId</pFeature>
   </Category>
 
   <StringReg Name="DeviceVendorName" NameSpace="Standard">
@@ -279,6 +281,11 @@ inline constexpr char kXml[] = R"XML(<?xml version="1.0" encoding="utf-8"?>
     <Sign>Unsigned</Sign><Endianess>LittleEndian</Endianess>
   </IntReg>
 
+  <Integer Name="SimLastFrameId" NameSpace="Custom"><pValue>SimLastFrameIdReg</pValue></Integer>
+  <IntReg Name="SimLastFrameIdReg">
+    <Address>0x050C</Address><Length>4</Length><AccessMode>RO</AccessMode><pPort>Device</pPort>
+    <Sign>Unsigned</Sign><Endianess>LittleEndian</Endianess>
+  </IntReg>
   <Boolean Name="ChunkModeActive" NameSpace="Standard">
     <pValue>ChunkModeActiveReg</pValue><OnValue>1</OnValue><OffValue>0</OffValue>
   </Boolean>
