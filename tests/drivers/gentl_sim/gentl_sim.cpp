@@ -459,9 +459,6 @@ GC_ERROR WriteRegisters(Camera& camera, std::uint64_t address, const void* in, s
     default:
       break;
   }
-  if (address >= sim::kTriggerMode && address < sim::kTriggerSoftware) {
-    // Per-selector registers are addressed by the node map through pIndex.
-  }
   camera.regs[address / 4] = value;
   return GC_ERR_SUCCESS;
 }
