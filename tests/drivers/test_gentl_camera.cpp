@@ -8,11 +8,11 @@
 #include "drivers/gentl_producer.h"
 #include "tests/drivers/gentl_sim/gentl_sim_xml.h"
 
-#include <dlfcn.h>
 #include <gtest/gtest.h>
 
 #include <chrono>
 #include <cstdlib>
+#include <dlfcn.h>
 #include <filesystem>
 #include <fstream>
 #include <thread>
@@ -145,7 +145,6 @@ TEST(GenTlSim, SoftwareTriggerDeliversFramesIntoThePoolWithTheirPixels) {
   EXPECT_EQ(stats.transferred_bytes, 6u * (256u * 128u + sim::kChunkBytes));
 }
 
-
 TEST(GenTlSim, TimerTriggerDeliversOnTheLinePeriod) {
   CameraConfig config = SimConfig();
   config.trigger.mode = TriggerMode::kHardware;
@@ -204,12 +203,11 @@ std::pair<std::uint64_t, CameraStats> ExpectEveryIdAccountedFor(Camera& camera,
   const CameraStats stats = camera.Stats();
   const std::uint64_t counted =
       stats.completed + stats.failed + stats.missing_ids + stats.underruns;
-  const std::string counters = "completed " + std::to_string(stats.completed) + " failed " +
-                               std::to_string(stats.failed) + " missing " +
-                               std::to_string(stats.missing_ids) + " underruns " +
-                               std::to_string(stats.underruns) + ", ids " +
-                               std::to_string(first_id) + ".." + std::to_string(last_id) +
-                               " (camera used up to " + std::to_string(used_last) + ")";
+  const std::string counters =
+      "completed " + std::to_string(stats.completed) + " failed " + std::to_string(stats.failed) +
+      " missing " + std::to_string(stats.missing_ids) + " underruns " +
+      std::to_string(stats.underruns) + ", ids " + std::to_string(first_id) + ".." +
+      std::to_string(last_id) + " (camera used up to " + std::to_string(used_last) + ")";
   EXPECT_GE(counted, last_id - first_id + 1) << counters;
   EXPECT_LE(counted, used_last - first_id + 1) << counters;
   return {last_id, stats};
@@ -402,7 +400,7 @@ TEST(GenTlProducerLoad, MissingFileWrongArchitectureAndMissingSymbolsAreNamed) {
   {
     // A 64-bit producer for another machine (ARM, e_machine 183).
     std::ofstream file(elf32, std::ios::binary);
-    const unsigned char header[20] = {0x7f, 'E', 'L', 'F', 2, 1, 1, 0, 0, 0,
+    const unsigned char header[20] = {0x7f, 'E', 'L', 'F', 2, 1, 1, 0, 0,   0,
                                       0,    0,   0,   0,   0, 0, 3, 0, 183, 0};
     file.write(reinterpret_cast<const char*>(header), sizeof(header));
   }
