@@ -6,6 +6,7 @@
 
 #include <iostream>
 #include <memory>
+#include <unistd.h>
 
 namespace lifmcr::apps {
 
@@ -27,8 +28,11 @@ CommandRun AddInfoCommand(CLI::App& app) {
       "--gentl PRODUCER.cti lists what a GenTL producer (a frame grabber's .cti) exposes:\n"
       "its interfaces and devices with their ids and serials, the values a rig file's\n"
       "driver: {kind: gentl, cti: ..., interface: ..., device: ...} takes.\n"
-      "Exit code: 0 when everything read cleanly, 1 when a problem was found (all are listed),\n"
-      "2 on a usage error.");
+      "Progress: on a terminal, a line on stderr while the frames of a camera are checked.\n"
+      "Reads: PATH (and the MLA files a sequence's Calibration/ holds), or the producer.\n"
+      "Writes: the report on stdout (text, or JSON with --json); nothing on disk.\n"
+      "Exit codes: 0 when everything read cleanly, 1 when a problem was found (all are\n"
+      "listed), 2 on a usage error.");
   app.add_option("path", args->path, "Dataset root, scene, sequence, folder or file");
   app.add_option("--gentl", args->gentl, "List the interfaces and devices of a GenTL producer (.cti)");
   app.add_flag("--json", args->json, "Print the same report as JSON");
@@ -48,7 +52,15 @@ CommandRun AddInfoCommand(CLI::App& app) {
     }
     InfoOptions options;
     options.check_every_frame = !args->quick;
+    // Progress on a terminal only: a line on stderr redrawn in place.
+    const bool terminal = isatty(STDERR_FILENO) == 1;
+    if (terminal)
+      options.progress = [](const std::string& serial, std::size_t done, std::size_t total) {
+        std::cerr << "\rinfo: camera " << serial << ": checked " << done << " of " << total
+                  << " frame headers\x1b[K" << std::flush;
+      };
     auto report = DescribePath(args->path, options);
+    if (terminal) std::cerr << "\r\x1b[K" << std::flush;
     if (!report.ok()) {
       std::cerr << "lifmcr info: " << report.error().message << "\n";
       return 1;

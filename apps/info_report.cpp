@@ -253,6 +253,9 @@ class Reporter {
       const fs::path path = camera.dir / camera.frame_files[i];
       auto header = ReadBmpHeader(path);
       ++checked;
+      if (options_.progress && (checked % 256 == 0 || i + 1 == camera.frames.size()))
+        options_.progress(camera.serial, checked,
+                          options_.check_every_frame ? camera.frames.size() : 2);
       if (!header.ok()) {
         Problem(out, header.error().message);
         continue;
