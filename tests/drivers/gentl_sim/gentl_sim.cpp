@@ -19,10 +19,10 @@
 // pulses every SimLinePeriodUs on the wall-clock grid, so every camera sees
 // the same pulse train, as from a Lock Lab), or at AcquisitionFrameRate
 // (TriggerMode Off). Ticks the camera thread was late for (a busy host) are
-// made at once with their own tick times, as a grabber's DMA engine would
-// have delivered them; beyond kMaxBacklogTicks behind, the older ticks'
-// frames are lost and their ids skipped. A frame takes the next frame id
-// (1, 2, ...), fills the
+// all made at once with their own tick times, as a grabber's DMA engine
+// would have delivered them: host load alone loses nothing (a frame finding
+// no queued buffer is an underrun, as always). A frame takes the next frame
+// id (1, 2, ...), fills the
 // oldest queued buffer with rows of value (frame id + row) mod 256, sets the
 // buffer info and fires EVENT_NEW_BUFFER. With no buffer queued the frame is
 // an underrun (STREAM_INFO_NUM_UNDERRUN). Fault injection: SimDropEvery = N
@@ -341,13 +341,6 @@ void Run(Camera* camera) {
     const std::int64_t period = static_cast<std::int64_t>(period_ns);
     const std::int64_t now = RealtimeNs();
     if (camera->next_tick_ns == 0) camera->next_tick_ns = (now / period + 1) * period;
-    constexpr std::int64_t kMaxBacklogTicks = 8;
-    if (camera->next_tick_ns < now - kMaxBacklogTicks * period) {
-      // Too far behind: the camera exposed these, the frames never arrived.
-      const std::int64_t missed = (now - camera->next_tick_ns) / period - kMaxBacklogTicks;
-      camera->next_frame_id += static_cast<std::uint64_t>(missed);
-      camera->next_tick_ns += missed * period;
-    }
     if (now >= camera->next_tick_ns) {
       const std::int64_t tick = camera->next_tick_ns;
       camera->next_tick_ns += period;
