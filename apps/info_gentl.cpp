@@ -22,8 +22,10 @@ json DescribeGenTlProducer(const std::filesystem::path& cti) {
     return out;
   }
   const GenTlProducerInfo& p = listing->producer;
-  out["producer"] = {{"vendor", p.vendor},   {"model", p.model},
-                     {"version", p.version}, {"tl_type", p.tl_type},
+  out["producer"] = {{"vendor", p.vendor},
+                     {"model", p.model},
+                     {"version", p.version},
+                     {"tl_type", p.tl_type},
                      {"gentl_version", p.gentl_version}};
   out["interfaces"] = json::array();
   for (const GenTlInterfaceEntry& interface : listing->interfaces)
@@ -95,9 +97,9 @@ std::string FormatGenTlText(const json& gentl, const std::string& indent) {
   for (const json& device : gentl.value("devices", json::array()))
     out << indent << "  device " << device["id"].get<std::string>() << " on "
         << device["interface"].get<std::string>() << ": serial "
-        << device["serial"].get<std::string>() << ", " << device["vendor"].get<std::string>()
-        << " " << device["model"].get<std::string>() << ", "
-        << device["access"].get<std::string>() << "\n";
+        << device["serial"].get<std::string>() << ", " << device["vendor"].get<std::string>() << " "
+        << device["model"].get<std::string>() << ", " << device["access"].get<std::string>()
+        << "\n";
   if (gentl.contains("device_found"))
     out << indent << "  this camera's device " << gentl["device"].get<std::string>() << ": "
         << (gentl["device_found"].get<bool>() ? "listed" : "NOT listed") << "\n";

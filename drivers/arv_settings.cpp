@@ -30,8 +30,7 @@ std::string GenicamPixelFormat(CameraPixelFormat format) {
 Expected<ArvRegion> ApplyArvCameraSettings(ArvCamera* camera, const CameraConfig& config,
                                            double free_run_rate_hz, const std::string& label) {
   auto Fail = [&label](const std::string& what) { return Error{label + ": " + what}; };
-  auto FailFeature = [&Fail](const std::string& feature, const std::string& value,
-                             GError* error) {
+  auto FailFeature = [&Fail](const std::string& feature, const std::string& value, GError* error) {
     return Fail("setting " + feature + " to " + value + ": " + TakeMessage(error));
   };
   GError* error = nullptr;

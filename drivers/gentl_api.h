@@ -316,13 +316,12 @@ using PTLClose = GC_ERROR (*)(TL_HANDLE);
 using PTLGetInfo = GC_ERROR (*)(TL_HANDLE, TL_INFO_CMD, INFO_DATATYPE*, void*, std::size_t*);
 using PTLGetNumInterfaces = GC_ERROR (*)(TL_HANDLE, std::uint32_t*);
 using PTLGetInterfaceID = GC_ERROR (*)(TL_HANDLE, std::uint32_t, char*, std::size_t*);
-using PTLGetInterfaceInfo = GC_ERROR (*)(TL_HANDLE, const char*, INTERFACE_INFO_CMD,
-                                         INFO_DATATYPE*, void*, std::size_t*);
+using PTLGetInterfaceInfo = GC_ERROR (*)(TL_HANDLE, const char*, INTERFACE_INFO_CMD, INFO_DATATYPE*,
+                                         void*, std::size_t*);
 using PTLOpenInterface = GC_ERROR (*)(TL_HANDLE, const char*, IF_HANDLE*);
 using PTLUpdateInterfaceList = GC_ERROR (*)(TL_HANDLE, bool8_t*, std::uint64_t);
 using PIFClose = GC_ERROR (*)(IF_HANDLE);
-using PIFGetInfo = GC_ERROR (*)(IF_HANDLE, INTERFACE_INFO_CMD, INFO_DATATYPE*, void*,
-                                std::size_t*);
+using PIFGetInfo = GC_ERROR (*)(IF_HANDLE, INTERFACE_INFO_CMD, INFO_DATATYPE*, void*, std::size_t*);
 using PIFGetNumDevices = GC_ERROR (*)(IF_HANDLE, std::uint32_t*);
 using PIFGetDeviceID = GC_ERROR (*)(IF_HANDLE, std::uint32_t, char*, std::size_t*);
 using PIFUpdateDeviceList = GC_ERROR (*)(IF_HANDLE, bool8_t*, std::uint64_t);

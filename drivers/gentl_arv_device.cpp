@@ -51,11 +51,11 @@ PortState* State(ArvDevice* device) {
 
 gboolean Fail(PortState* state, GC_ERROR code, const char* call, GError** error) {
   state->last_error.store(code);
-  const int arv_code = code == GC_ERR_TIMEOUT ? ARV_DEVICE_ERROR_TIMEOUT
-                       : (code == GC_ERR_IO || code == GC_ERR_INVALID_HANDLE ||
-                          code == GC_ERR_NOT_AVAILABLE)
-                           ? ARV_DEVICE_ERROR_NOT_CONNECTED
-                           : ARV_DEVICE_ERROR_TRANSFER_ERROR;
+  const int arv_code =
+      code == GC_ERR_TIMEOUT ? ARV_DEVICE_ERROR_TIMEOUT
+      : (code == GC_ERR_IO || code == GC_ERR_INVALID_HANDLE || code == GC_ERR_NOT_AVAILABLE)
+          ? ARV_DEVICE_ERROR_NOT_CONNECTED
+          : ARV_DEVICE_ERROR_TRANSFER_ERROR;
   const std::string text = state->producer->Describe(code, call);
   g_set_error(error, ARV_DEVICE_ERROR, arv_code, "%s", text.c_str());
   return FALSE;
@@ -220,8 +220,8 @@ Expected<std::string> ReadXml(GenTlProducer& producer, PORT_HANDLE port) {
     std::size_t size = length;
     if (GC_ERROR code = producer.fn().GCReadPort(port, address, data.data(), &size);
         code != GC_ERR_SUCCESS)
-      return Error{"reading the GenICam XML (" + *url + "): " +
-                   producer.Describe(code, "GCReadPort")};
+      return Error{"reading the GenICam XML (" + *url +
+                   "): " + producer.Describe(code, "GCReadPort")};
     data.resize(size);
   } else if (lower.rfind("file:", 0) == 0) {
     std::string path = url->substr(5);
@@ -248,7 +248,8 @@ Expected<ArvDevice*> NewGenTlArvDevice(std::shared_ptr<GenTlProducer> producer,
   if (!xml) return xml.error();
   if (xml->find("<RegisterDescription") == std::string::npos)
     return Error{"the device's GenICam XML has no RegisterDescription element"};
-  auto* device = static_cast<LifmcrGenTlDevice*>(g_object_new(lifmcr_gentl_device_get_type(), nullptr));
+  auto* device =
+      static_cast<LifmcrGenTlDevice*>(g_object_new(lifmcr_gentl_device_get_type(), nullptr));
   device->state = new PortState();
   device->state->producer = std::move(producer);
   device->state->port = port;

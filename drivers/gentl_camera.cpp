@@ -29,12 +29,18 @@ std::int64_t RealtimeNs() {
 // GenICam PFNC codes of the formats a rig file can ask for.
 std::uint64_t PfncCode(CameraPixelFormat format) {
   switch (format) {
-    case CameraPixelFormat::kMono8: return 0x01080001;
-    case CameraPixelFormat::kBayerGr8: return 0x01080008;
-    case CameraPixelFormat::kBayerRg8: return 0x01080009;
-    case CameraPixelFormat::kBayerGb8: return 0x0108000A;
-    case CameraPixelFormat::kBayerBg8: return 0x0108000B;
-    case CameraPixelFormat::kBgr8: return 0x02180015;
+    case CameraPixelFormat::kMono8:
+      return 0x01080001;
+    case CameraPixelFormat::kBayerGr8:
+      return 0x01080008;
+    case CameraPixelFormat::kBayerRg8:
+      return 0x01080009;
+    case CameraPixelFormat::kBayerGb8:
+      return 0x0108000A;
+    case CameraPixelFormat::kBayerBg8:
+      return 0x0108000B;
+    case CameraPixelFormat::kBgr8:
+      return 0x02180015;
   }
   return 0;
 }
@@ -98,15 +104,26 @@ struct GenTlCamera::Impl {
   int consecutive_failures = 0;
   bool frame_since_reconnect = false;
   std::int64_t last_frame_host_ns = 0;
-  std::uint64_t underrun_frames = 0;           // frames, over every stream
-  std::uint64_t underruns_at_last_frame = 0;   // this stream's NUM_UNDERRUN at the last frame
+  // Underruns (frames lost for lack of a queued buffer) already set against
+  // frame id gaps, over every stream; and how many of this stream's
+  // NUM_UNDERRUN that accounts for. The rest are pending: they happened
+  // after the last frame (its gap is still to come), or the producer's ids
+  // do not count them; Stats() reports them either way.
+  std::uint64_t underrun_frames = 0;
+  std::uint64_t underruns_at_last_frame = 0;
+  std::uint64_t PendingUnderruns() const {
+    const std::uint64_t now = StreamUnderruns();
+    return now - std::min(now, underruns_at_last_frame);
+  }
 
   mutable std::mutex stats_mutex;
   CameraStats stats;
   CameraInfo info;
   std::vector<CameraGap> gaps;
 
-  std::string Wanted() const { return config.driver.device.empty() ? config.serial : config.driver.device; }
+  std::string Wanted() const {
+    return config.driver.device.empty() ? config.serial : config.driver.device;
+  }
   Error Fail(const std::string& what) const { return Error{label + ": " + what}; }
   Error FailCall(GC_ERROR code, const std::string& call) const {
     return Fail(producer->Describe(code, call));
@@ -136,8 +153,9 @@ Status GenTlCamera::Impl::FindProducer() {
   }
   const std::vector<std::filesystem::path> candidates = GenTlProducer::SearchPath();
   if (candidates.empty())
-    return Fail("driver gentl without a cti, and GENICAM_GENTL64_PATH names no directory "
-                "with a .cti producer");
+    return Fail(
+        "driver gentl without a cti, and GENICAM_GENTL64_PATH names no directory "
+        "with a .cti producer");
   std::string tried;
   for (const std::filesystem::path& path : candidates) {
     auto loaded = GenTlProducer::Load(path);
@@ -167,9 +185,10 @@ Expected<GenTlDeviceEntry> GenTlCamera::Impl::FindDevice() {
     listed += (listed.empty() ? "" : ", ") + entry.id +
               (entry.serial.empty() ? std::string() : " (serial " + entry.serial + ")");
   }
-  return Fail("GenTL producer " + producer->path().string() + " has no device '" + Wanted() +
-              "'" + (config.driver.interface_id.empty() ? "" : " on interface " + config.driver.interface_id) +
-              " (it lists: " + (listed.empty() ? std::string("none") : listed) + ")");
+  return Fail(
+      "GenTL producer " + producer->path().string() + " has no device '" + Wanted() + "'" +
+      (config.driver.interface_id.empty() ? "" : " on interface " + config.driver.interface_id) +
+      " (it lists: " + (listed.empty() ? std::string("none") : listed) + ")");
 }
 
 Status GenTlCamera::Impl::Connect() {
@@ -177,8 +196,7 @@ Status GenTlCamera::Impl::Connect() {
   auto entry = FindDevice();
   if (!entry) return entry.error();
   if (entry->access == DEVICE_ACCESS_STATUS_BUSY)
-    return Fail("device " + entry->id + " busy: " +
-                std::string(AccessStatusName(entry->access)));
+    return Fail("device " + entry->id + " busy: " + std::string(AccessStatusName(entry->access)));
   const Functions& fn = producer->fn();
   DEV_HANDLE opened_device = nullptr;
   auto interface = producer->Interface(entry->interface_id);
@@ -191,8 +209,8 @@ Status GenTlCamera::Impl::Connect() {
     if (code == GC_ERR_NOT_IMPLEMENTED || code == GC_ERR_INVALID_PARAMETER)
       code = fn.IFOpenDevice(*interface, entry->id.c_str(), DEVICE_ACCESS_CONTROL, &opened_device);
     if (code != GC_ERR_SUCCESS) {
-      const bool busy = code == GC_ERR_RESOURCE_IN_USE || code == GC_ERR_ACCESS_DENIED ||
-                        code == GC_ERR_BUSY;
+      const bool busy =
+          code == GC_ERR_RESOURCE_IN_USE || code == GC_ERR_ACCESS_DENIED || code == GC_ERR_BUSY;
       return Fail(std::string(busy ? "device " + entry->id + " busy (open elsewhere): "
                                    : "cannot open device " + entry->id + ": ") +
                   producer->Describe(code, "IFOpenDevice"));
@@ -267,8 +285,8 @@ Status GenTlCamera::Impl::Connect() {
     return status;
   }
   new_info.payload_bytes = payload_bytes;
-  const std::size_t image_bytes = static_cast<std::size_t>(region->width) * region->height *
-                                  BytesPerPixel(new_info.format);
+  const std::size_t image_bytes =
+      static_cast<std::size_t>(region->width) * region->height * BytesPerPixel(new_info.format);
   if (payload_bytes < image_bytes) {
     Disconnect();
     return Fail("PayloadSize " + std::to_string(payload_bytes) + " is smaller than the image (" +
@@ -288,9 +306,10 @@ Status GenTlCamera::Impl::OpenStream() {
   if (GC_ERROR code = fn.DevGetNumDataStreams(device, &streams); code != GC_ERR_SUCCESS)
     return FailCall(code, "DevGetNumDataStreams");
   if (streams == 0) return Fail("the device has no data stream");
-  const std::string stream_id = GenTlInfoString([&](INFO_DATATYPE*, void* buffer, std::size_t* size) {
-    return fn.DevGetDataStreamID(device, 0, static_cast<char*>(buffer), size);
-  });
+  const std::string stream_id =
+      GenTlInfoString([&](INFO_DATATYPE*, void* buffer, std::size_t* size) {
+        return fn.DevGetDataStreamID(device, 0, static_cast<char*>(buffer), size);
+      });
   DS_HANDLE new_stream = nullptr;
   if (GC_ERROR code = fn.DevOpenDataStream(device, stream_id.c_str(), &new_stream);
       code != GC_ERR_SUCCESS)
@@ -426,7 +445,8 @@ Status GenTlCamera::Impl::StartAcquisition() {
       code != GC_ERR_SUCCESS)
     return FailCall(code, "DSStartAcquisition");
   std::lock_guard<std::mutex> lock(control_mutex);
-  if (has_params_lock) arv_device_set_integer_feature_value(arv_device, "TLParamsLocked", 1, nullptr);
+  if (has_params_lock)
+    arv_device_set_integer_feature_value(arv_device, "TLParamsLocked", 1, nullptr);
   GError* error = nullptr;
   arv_camera_start_acquisition(camera, &error);
   if (error != nullptr) {
@@ -441,7 +461,7 @@ void GenTlCamera::Impl::Disconnect() {
   const Functions& fn = producer->fn();
   {
     std::lock_guard<std::mutex> lock(stats_mutex);
-    underrun_frames += StreamUnderruns() - std::min(StreamUnderruns(), underruns_at_last_frame);
+    underrun_frames += PendingUnderruns();
     stats.underruns = underrun_frames;
   }
   DS_HANDLE old_stream = nullptr;
@@ -461,7 +481,8 @@ void GenTlCamera::Impl::Disconnect() {
   }
   if (old_camera != nullptr && started && !lost.load()) {
     arv_camera_stop_acquisition(old_camera, nullptr);
-    if (has_params_lock) arv_device_set_integer_feature_value(old_arv, "TLParamsLocked", 0, nullptr);
+    if (has_params_lock)
+      arv_device_set_integer_feature_value(old_arv, "TLParamsLocked", 0, nullptr);
   }
   if (old_stream != nullptr) {
     if (new_buffer != nullptr) fn.GCUnregisterEvent(old_stream, EVENT_NEW_BUFFER);
@@ -530,10 +551,10 @@ Frame GenTlCamera::Impl::MakeFrame(BUFFER_HANDLE buffer, void* user_pointer, std
   if (buffer_value(BUFFER_INFO_TIMESTAMP_NS, &timestamp) && timestamp != 0) {
     frame.device_ns = static_cast<std::int64_t>(timestamp);
   } else if (buffer_value(BUFFER_INFO_TIMESTAMP, &timestamp) && timestamp != 0) {
-    frame.device_ns = timestamp_hz > 0
-                          ? static_cast<std::int64_t>(static_cast<long double>(timestamp) * 1e9L /
-                                                      timestamp_hz)
-                          : static_cast<std::int64_t>(timestamp);
+    frame.device_ns =
+        timestamp_hz > 0
+            ? static_cast<std::int64_t>(static_cast<long double>(timestamp) * 1e9L / timestamp_hz)
+            : static_cast<std::int64_t>(timestamp);
   } else {
     frame.device_ns = host_ns;  // a device without a clock
   }
@@ -555,10 +576,10 @@ Frame GenTlCamera::Impl::MakeFrame(BUFFER_HANDLE buffer, void* user_pointer, std
     const std::uint8_t* base = frame.buffer ? frame.buffer->data : nullptr;
     if (!chunks.empty() && chunk_timestamp) {
       if (auto ticks = ReadChunkField(*chunk_timestamp, base, valid, chunks); ticks && *ticks != 0)
-        frame.device_ns = timestamp_hz > 0 && timestamp_hz != 1'000'000'000
-                              ? static_cast<std::int64_t>(static_cast<long double>(*ticks) *
-                                                          1e9L / timestamp_hz)
-                              : static_cast<std::int64_t>(*ticks);
+        frame.device_ns =
+            timestamp_hz > 0 && timestamp_hz != 1'000'000'000
+                ? static_cast<std::int64_t>(static_cast<long double>(*ticks) * 1e9L / timestamp_hz)
+                : static_cast<std::int64_t>(*ticks);
     }
     if (!chunks.empty() && chunk_frame_id) {
       if (auto id = ReadChunkField(*chunk_frame_id, base, valid, chunks)) frame.frame_id = *id;
@@ -570,7 +591,8 @@ Frame GenTlCamera::Impl::MakeFrame(BUFFER_HANDLE buffer, void* user_pointer, std
   buffer_value(BUFFER_INFO_IS_INCOMPLETE, &incomplete);
   buffer_value(BUFFER_INFO_DATA_LARGER_THAN_BUFFER, &too_large);
   const bool has_filled = buffer_value(BUFFER_INFO_SIZE_FILLED, &filled);
-  const bool has_size = buffer_value(BUFFER_INFO_WIDTH, &width) && buffer_value(BUFFER_INFO_HEIGHT, &height);
+  const bool has_size =
+      buffer_value(BUFFER_INFO_WIDTH, &width) && buffer_value(BUFFER_INFO_HEIGHT, &height);
   buffer_value(BUFFER_INFO_IMAGEOFFSET, &offset);
   // Formats are compared only in the PFNC (or GigE Vision, the same codes
   // for 8-bit formats) namespace.
@@ -605,16 +627,14 @@ Frame GenTlCamera::Impl::MakeFrame(BUFFER_HANDLE buffer, void* user_pointer, std
                             static_cast<int>(height), stride, expected.format};
 
   // A frame dropped for lack of a buffer is one underrun, never also a
-  // missing id.
-  const std::uint64_t underruns_now = StreamUnderruns();
-  const std::uint64_t new_underruns = underruns_now - std::min(underruns_now, underruns_at_last_frame);
-  underruns_at_last_frame = underruns_now;
+  // missing id: the ids the gap skipped are underruns as far as the producer
+  // counted them, the rest were lost on the way (missing ids).
   const std::uint64_t gap = ids.Observe(frame.frame_id);
-  std::uint64_t missing = gap;
-  if (new_underruns > 0) {
-    underrun_frames += std::max(gap, new_underruns);
-    missing = 0;
-  }
+  const std::uint64_t attributed = std::min(gap, PendingUnderruns());
+  underrun_frames += attributed;
+  underruns_at_last_frame += attributed;
+  const std::uint64_t missing = gap - attributed;
+  const std::uint64_t pending = PendingUnderruns();
   last_frame_host_ns = frame.host_ns;
   consecutive_failures = frame.status == FrameStatus::kOk ? 0 : consecutive_failures + 1;
   std::lock_guard<std::mutex> lock(stats_mutex);
@@ -627,7 +647,7 @@ Frame GenTlCamera::Impl::MakeFrame(BUFFER_HANDLE buffer, void* user_pointer, std
     }
   }
   stats.missing_ids += missing;
-  stats.underruns = underrun_frames;
+  stats.underruns = underrun_frames + pending;
   stats.transferred_bytes += has_filled ? filled : payload_bytes;
   if (frame.status == FrameStatus::kOk)
     ++stats.completed;
@@ -757,7 +777,7 @@ Expected<std::optional<Frame>> GenTlCamera::NextFrame(std::chrono::milliseconds 
   }
   {
     std::lock_guard<std::mutex> lock(d.stats_mutex);
-    d.stats.underruns = d.underrun_frames + (d.StreamUnderruns() - std::min(d.StreamUnderruns(), d.underruns_at_last_frame));
+    d.stats.underruns = d.underrun_frames + d.PendingUnderruns();
   }
   const bool suspect = d.control_suspect.exchange(false);
   if (suspect || Clock::now() - d.last_activity >= d.options.probe_after) {

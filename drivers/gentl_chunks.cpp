@@ -66,9 +66,9 @@ std::optional<ChunkField> ResolveChunkField(ArvDevice* device, const char* featu
   }
   if (field.length == 0 || field.length > 8) return std::nullopt;
   ArvGcPropertyNode* endianness = Property(node, "Endianess");
-  field.little_endian = endianness == nullptr ||
-                        arv_gc_property_node_get_endianness(endianness, G_LITTLE_ENDIAN) ==
-                            G_LITTLE_ENDIAN;
+  field.little_endian =
+      endianness == nullptr ||
+      arv_gc_property_node_get_endianness(endianness, G_LITTLE_ENDIAN) == G_LITTLE_ENDIAN;
   return field;
 }
 

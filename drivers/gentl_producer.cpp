@@ -1,10 +1,9 @@
 #include "drivers/gentl_producer.h"
 
-#include <dlfcn.h>
-#include <elf.h>
-
 #include <cstdlib>
 #include <cstring>
+#include <dlfcn.h>
+#include <elf.h>
 #include <fstream>
 
 namespace lifmcr {
@@ -12,30 +11,54 @@ namespace gentl {
 
 std::string ErrorName(GC_ERROR code) {
   switch (code) {
-    case GC_ERR_SUCCESS: return "GC_ERR_SUCCESS";
-    case GC_ERR_ERROR: return "GC_ERR_ERROR";
-    case GC_ERR_NOT_INITIALIZED: return "GC_ERR_NOT_INITIALIZED";
-    case GC_ERR_NOT_IMPLEMENTED: return "GC_ERR_NOT_IMPLEMENTED";
-    case GC_ERR_RESOURCE_IN_USE: return "GC_ERR_RESOURCE_IN_USE";
-    case GC_ERR_ACCESS_DENIED: return "GC_ERR_ACCESS_DENIED";
-    case GC_ERR_INVALID_HANDLE: return "GC_ERR_INVALID_HANDLE";
-    case GC_ERR_INVALID_ID: return "GC_ERR_INVALID_ID";
-    case GC_ERR_NO_DATA: return "GC_ERR_NO_DATA";
-    case GC_ERR_INVALID_PARAMETER: return "GC_ERR_INVALID_PARAMETER";
-    case GC_ERR_IO: return "GC_ERR_IO";
-    case GC_ERR_TIMEOUT: return "GC_ERR_TIMEOUT";
-    case GC_ERR_ABORT: return "GC_ERR_ABORT";
-    case GC_ERR_INVALID_BUFFER: return "GC_ERR_INVALID_BUFFER";
-    case GC_ERR_NOT_AVAILABLE: return "GC_ERR_NOT_AVAILABLE";
-    case GC_ERR_INVALID_ADDRESS: return "GC_ERR_INVALID_ADDRESS";
-    case GC_ERR_BUFFER_TOO_SMALL: return "GC_ERR_BUFFER_TOO_SMALL";
-    case GC_ERR_INVALID_INDEX: return "GC_ERR_INVALID_INDEX";
-    case GC_ERR_PARSING_CHUNK_DATA: return "GC_ERR_PARSING_CHUNK_DATA";
-    case GC_ERR_INVALID_VALUE: return "GC_ERR_INVALID_VALUE";
-    case GC_ERR_RESOURCE_EXHAUSTED: return "GC_ERR_RESOURCE_EXHAUSTED";
-    case GC_ERR_OUT_OF_MEMORY: return "GC_ERR_OUT_OF_MEMORY";
-    case GC_ERR_BUSY: return "GC_ERR_BUSY";
-    default: break;
+    case GC_ERR_SUCCESS:
+      return "GC_ERR_SUCCESS";
+    case GC_ERR_ERROR:
+      return "GC_ERR_ERROR";
+    case GC_ERR_NOT_INITIALIZED:
+      return "GC_ERR_NOT_INITIALIZED";
+    case GC_ERR_NOT_IMPLEMENTED:
+      return "GC_ERR_NOT_IMPLEMENTED";
+    case GC_ERR_RESOURCE_IN_USE:
+      return "GC_ERR_RESOURCE_IN_USE";
+    case GC_ERR_ACCESS_DENIED:
+      return "GC_ERR_ACCESS_DENIED";
+    case GC_ERR_INVALID_HANDLE:
+      return "GC_ERR_INVALID_HANDLE";
+    case GC_ERR_INVALID_ID:
+      return "GC_ERR_INVALID_ID";
+    case GC_ERR_NO_DATA:
+      return "GC_ERR_NO_DATA";
+    case GC_ERR_INVALID_PARAMETER:
+      return "GC_ERR_INVALID_PARAMETER";
+    case GC_ERR_IO:
+      return "GC_ERR_IO";
+    case GC_ERR_TIMEOUT:
+      return "GC_ERR_TIMEOUT";
+    case GC_ERR_ABORT:
+      return "GC_ERR_ABORT";
+    case GC_ERR_INVALID_BUFFER:
+      return "GC_ERR_INVALID_BUFFER";
+    case GC_ERR_NOT_AVAILABLE:
+      return "GC_ERR_NOT_AVAILABLE";
+    case GC_ERR_INVALID_ADDRESS:
+      return "GC_ERR_INVALID_ADDRESS";
+    case GC_ERR_BUFFER_TOO_SMALL:
+      return "GC_ERR_BUFFER_TOO_SMALL";
+    case GC_ERR_INVALID_INDEX:
+      return "GC_ERR_INVALID_INDEX";
+    case GC_ERR_PARSING_CHUNK_DATA:
+      return "GC_ERR_PARSING_CHUNK_DATA";
+    case GC_ERR_INVALID_VALUE:
+      return "GC_ERR_INVALID_VALUE";
+    case GC_ERR_RESOURCE_EXHAUSTED:
+      return "GC_ERR_RESOURCE_EXHAUSTED";
+    case GC_ERR_OUT_OF_MEMORY:
+      return "GC_ERR_OUT_OF_MEMORY";
+    case GC_ERR_BUSY:
+      return "GC_ERR_BUSY";
+    default:
+      break;
   }
   if (code <= GC_ERR_CUSTOM_ID) return "GC_ERR_CUSTOM_ID" + std::to_string(code - GC_ERR_CUSTOM_ID);
   return "GC_ERROR(" + std::to_string(code) + ")";
@@ -43,13 +66,20 @@ std::string ErrorName(GC_ERROR code) {
 
 std::string_view AccessStatusName(DEVICE_ACCESS_STATUS status) {
   switch (status) {
-    case DEVICE_ACCESS_STATUS_READWRITE: return "readwrite";
-    case DEVICE_ACCESS_STATUS_READONLY: return "readonly";
-    case DEVICE_ACCESS_STATUS_NOACCESS: return "no access";
-    case DEVICE_ACCESS_STATUS_BUSY: return "busy (opened by another process or host)";
-    case DEVICE_ACCESS_STATUS_OPEN_READWRITE: return "open (readwrite) in this process";
-    case DEVICE_ACCESS_STATUS_OPEN_READONLY: return "open (readonly) in this process";
-    default: return "unknown";
+    case DEVICE_ACCESS_STATUS_READWRITE:
+      return "readwrite";
+    case DEVICE_ACCESS_STATUS_READONLY:
+      return "readonly";
+    case DEVICE_ACCESS_STATUS_NOACCESS:
+      return "no access";
+    case DEVICE_ACCESS_STATUS_BUSY:
+      return "busy (opened by another process or host)";
+    case DEVICE_ACCESS_STATUS_OPEN_READWRITE:
+      return "open (readwrite) in this process";
+    case DEVICE_ACCESS_STATUS_OPEN_READONLY:
+      return "open (readonly) in this process";
+    default:
+      return "unknown";
   }
 }
 
@@ -81,13 +111,20 @@ constexpr const char* kHostMachineName = "this host";
 
 std::string MachineName(int machine) {
   switch (machine) {
-    case EM_386: return "x86 (32-bit)";
-    case EM_X86_64: return "x86-64";
-    case EM_ARM: return "ARM (32-bit)";
-    case EM_AARCH64: return "aarch64";
-    case EM_PPC64: return "ppc64";
-    case EM_RISCV: return "riscv";
-    default: return "machine " + std::to_string(machine);
+    case EM_386:
+      return "x86 (32-bit)";
+    case EM_X86_64:
+      return "x86-64";
+    case EM_ARM:
+      return "ARM (32-bit)";
+    case EM_AARCH64:
+      return "aarch64";
+    case EM_PPC64:
+      return "ppc64";
+    case EM_RISCV:
+      return "riscv";
+    default:
+      return "machine " + std::to_string(machine);
   }
 }
 
@@ -312,8 +349,7 @@ Expected<IF_HANDLE> GenTlProducer::Interface(const std::string& interface_id) {
 }
 
 Expected<IF_HANDLE> GenTlProducer::InterfaceLocked(const std::string& interface_id) {
-  if (auto found = interfaces_.find(interface_id); found != interfaces_.end())
-    return found->second;
+  if (auto found = interfaces_.find(interface_id); found != interfaces_.end()) return found->second;
   IF_HANDLE handle = nullptr;
   if (GC_ERROR code = fn_.TLOpenInterface(system_, interface_id.c_str(), &handle);
       code != GC_ERR_SUCCESS)

@@ -8,11 +8,11 @@
 #include "drivers/gentl_producer.h"
 #include "tests/drivers/gentl_sim/gentl_sim_xml.h"
 
-#include <dlfcn.h>
 #include <gtest/gtest.h>
 
 #include <chrono>
 #include <cstdlib>
+#include <dlfcn.h>
 #include <filesystem>
 #include <fstream>
 #include <thread>
@@ -145,7 +145,6 @@ TEST(GenTlSim, SoftwareTriggerDeliversFramesIntoThePoolWithTheirPixels) {
   EXPECT_EQ(stats.transferred_bytes, 6u * (256u * 128u + sim::kChunkBytes));
 }
 
-
 TEST(GenTlSim, TimerTriggerDeliversOnTheLinePeriod) {
   CameraConfig config = SimConfig();
   config.trigger.mode = TriggerMode::kHardware;
@@ -185,14 +184,33 @@ TEST(GenTlSim, FreeRunTurnsTheTriggerOffAndSetsTheRate) {
   EXPECT_NEAR(std::stod(Feature(*camera, "AcquisitionFrameRate")), 40.0, 1e-9);
 }
 
-// Every frame id between the first and the last is delivered, failed,
-// missing or an underrun: nothing unaccounted for.
-void ExpectEveryIdAccountedFor(const CameraStats& stats, std::uint64_t first_id,
-                               std::uint64_t last_id) {
-  EXPECT_EQ(stats.completed + stats.failed + stats.missing_ids + stats.underruns,
-            last_id - first_id + 1)
-      << "completed " << stats.completed << " failed " << stats.failed << " missing "
-      << stats.missing_ids << " underruns " << stats.underruns;
+// Stops the camera and takes the frames still delivered; then every frame id
+// from `first_id` to the last delivered one must be in exactly one counter
+// (delivered, failed, missing or underrun), and the ids the camera used after
+// that frame (SimLastFrameId: frames that found no buffer after it) may add
+// underruns, nothing else. Returns the last delivered id and the counters.
+std::pair<std::uint64_t, CameraStats> ExpectEveryIdAccountedFor(Camera& camera,
+                                                                std::uint64_t first_id,
+                                                                std::uint64_t last_id) {
+  EXPECT_TRUE(camera.Stop());
+  for (;;) {
+    auto next = camera.NextFrame(milliseconds(100));
+    EXPECT_TRUE(next.ok());
+    if (!next.ok() || !next->has_value()) break;
+    last_id = (*next)->frame_id;
+  }
+  const std::uint64_t used_last = std::stoull(Feature(camera, "SimLastFrameId"));
+  const CameraStats stats = camera.Stats();
+  const std::uint64_t counted =
+      stats.completed + stats.failed + stats.missing_ids + stats.underruns;
+  const std::string counters =
+      "completed " + std::to_string(stats.completed) + " failed " + std::to_string(stats.failed) +
+      " missing " + std::to_string(stats.missing_ids) + " underruns " +
+      std::to_string(stats.underruns) + ", ids " + std::to_string(first_id) + ".." +
+      std::to_string(last_id) + " (camera used up to " + std::to_string(used_last) + ")";
+  EXPECT_GE(counted, last_id - first_id + 1) << counters;
+  EXPECT_LE(counted, used_last - first_id + 1) << counters;
+  return {last_id, stats};
 }
 
 TEST(GenTlSim, FramesLostInTransportAreMissingIds) {
@@ -211,12 +229,12 @@ TEST(GenTlSim, FramesLostInTransportAreMissingIds) {
     last = (*next)->frame_id;
     EXPECT_NE(last % 5, 0u) << "a dropped id was delivered";
   }
-  ASSERT_TRUE(camera->Stop());
-  const CameraStats stats = camera->Stats();
-  EXPECT_EQ(stats.completed, 24u);
-  EXPECT_GE(stats.missing_ids, 5u);
-  EXPECT_EQ(stats.underruns, 0u);
-  ExpectEveryIdAccountedFor(stats, first, last);
+  const auto [last_id, stats] = ExpectEveryIdAccountedFor(*camera, first, last);
+  // Exactly the dropped ids are missing, whatever underruns a busy host adds.
+  std::uint64_t dropped = 0;
+  for (std::uint64_t id = first; id <= last_id; ++id) dropped += id % 5 == 0;
+  EXPECT_GE(dropped, 4u);
+  EXPECT_EQ(stats.missing_ids, dropped);
 }
 
 TEST(GenTlSim, IncompleteBuffersAreDeliveredAsIncomplete) {
@@ -238,11 +256,12 @@ TEST(GenTlSim, IncompleteBuffersAreDeliveredAsIncomplete) {
         << "frame id " << frame.frame_id;
     incomplete += frame.status == FrameStatus::kIncomplete;
   }
-  ASSERT_TRUE(camera->Stop());
-  const CameraStats stats = camera->Stats();
-  EXPECT_EQ(stats.failed, incomplete);
   EXPECT_GE(incomplete, 3u);
-  ExpectEveryIdAccountedFor(stats, first, last);
+  const auto [last_id, stats] = ExpectEveryIdAccountedFor(*camera, first, last);
+  std::uint64_t every_third = 0;  // incomplete frames delivered, in the drain too
+  for (std::uint64_t id = first; id <= last_id; ++id) every_third += id % 3 == 0;
+  EXPECT_LE(stats.failed, every_third);
+  EXPECT_GE(stats.failed, incomplete);
 }
 
 TEST(GenTlSim, HeldBuffersExhaustThePoolAndCountUnderrunsOnce) {
@@ -267,10 +286,9 @@ TEST(GenTlSim, HeldBuffersExhaustThePoolAndCountUnderrunsOnce) {
   auto again = camera->NextFrame(milliseconds(1000));
   ASSERT_TRUE(again.ok() && again->has_value());
   EXPECT_EQ((*again)->status, FrameStatus::kOk);
-  const CameraStats stats = camera->Stats();
+  const auto [last_id, stats] = ExpectEveryIdAccountedFor(*camera, first, (*again)->frame_id);
   EXPECT_EQ(stats.missing_ids, 0u);  // the ids the underruns skipped are not counted twice
-  ExpectEveryIdAccountedFor(stats, first, (*again)->frame_id);
-  ASSERT_TRUE(camera->Stop());
+  EXPECT_GE(stats.underruns, 10u);
 }
 
 TEST(GenTlSim, DisappearanceIsReportedAndTheReturnCounted) {
@@ -382,7 +400,7 @@ TEST(GenTlProducerLoad, MissingFileWrongArchitectureAndMissingSymbolsAreNamed) {
   {
     // A 64-bit producer for another machine (ARM, e_machine 183).
     std::ofstream file(elf32, std::ios::binary);
-    const unsigned char header[20] = {0x7f, 'E', 'L', 'F', 2, 1, 1, 0, 0, 0,
+    const unsigned char header[20] = {0x7f, 'E', 'L', 'F', 2, 1, 1, 0, 0,   0,
                                       0,    0,   0,   0,   0, 0, 3, 0, 183, 0};
     file.write(reinterpret_cast<const char*>(header), sizeof(header));
   }

@@ -19,12 +19,12 @@
 #include <nlohmann/json.hpp>
 
 #include <arpa/inet.h>
+#include <filesystem>
 #include <netinet/in.h>
+#include <regex>
 #include <sys/socket.h>
 #include <unistd.h>
-
-#include <filesystem>
-#include <regex>
+#include <vector>
 
 namespace lifmcr {
 namespace {
@@ -43,15 +43,17 @@ int FreeUdpPort() {
   return ntohs(address.sin_port);
 }
 
-std::string CameraYaml(const std::string& serial, const std::string& name,
-                       const std::string& role, const std::string& driver, const std::string& mla,
+std::string CameraYaml(const std::string& serial, const std::string& name, const std::string& role,
+                       const std::string& driver, const std::string& mla,
                        const std::string& trigger = "{mode: software}") {
   const fs::path mla_dir =
       fs::path(LIFMCR_SOURCE_DIR) / "config/examples/Calibration/02_MLA_Calibration";
   return "  - serial: " + serial + "\n    name: " + name + "\n    role: " + role +
          "\n    driver: " + driver + "\n    mla_file: " + (mla_dir / mla).string() +
-         "\n    trigger: " + trigger + "\n    exposure_us: 2000\n    pixel_format: Mono8\n"
-         "    roi: {x: 0, y: 0, width: 256, height: 128}\n    vicon_object: " + name + "\n";
+         "\n    trigger: " + trigger +
+         "\n    exposure_us: 2000\n    pixel_format: Mono8\n"
+         "    roi: {x: 0, y: 0, width: 256, height: 128}\n    vicon_object: " +
+         name + "\n";
 }
 
 TEST(GenTlRecord, OneGenTlAndOneAravisCameraRecordEveryTrigger) {
@@ -64,18 +66,18 @@ TEST(GenTlRecord, OneGenTlAndOneAravisCameraRecordEveryTrigger) {
   test::TempDir dir;
   const int port = FreeUdpPort();
   const fs::path rig_path = dir / "rig.yaml";
-  test::WriteFile(rig_path,
-                  "rig:\n  name: gentl_and_aravis\ncameras:\n" +
-                      CameraYaml("GTLSIM0", "cam0", "reference",
-                                 std::string("{kind: gentl, cti: ") + LIFMCR_GENTL_SIM_CTI + "}",
-                                 "TypeE_40398678_MLA.xml") +
-                      CameraYaml(gv_serial, "cam1", "registered",
-                                 "{kind: aravis, address: 127.0.1.40}", "TypeE_40398673_MLA.xml") +
-                      // 5 Hz: the simulator sends a triggered frame on its next
-                      // 40 ms tick, 0.2 trigger periods late at most.
-                      "vicon:\n  source: udp\n  udp: {address: 127.0.0.1, port: " +
-                      std::to_string(port) +
-                      "}\n  rate_hz: 80\n  trigger_divider: 16\nrecorder:\n  queue_frames: 8\n");
+  test::WriteFile(
+      rig_path,
+      "rig:\n  name: gentl_and_aravis\ncameras:\n" +
+          CameraYaml("GTLSIM0", "cam0", "reference",
+                     std::string("{kind: gentl, cti: ") + LIFMCR_GENTL_SIM_CTI + "}",
+                     "TypeE_40398678_MLA.xml") +
+          CameraYaml(gv_serial, "cam1", "registered", "{kind: aravis, address: 127.0.1.40}",
+                     "TypeE_40398673_MLA.xml") +
+          // 5 Hz: the simulator sends a triggered frame on its next
+          // 40 ms tick, 0.2 trigger periods late at most.
+          "vicon:\n  source: udp\n  udp: {address: 127.0.0.1, port: " + std::to_string(port) +
+          "}\n  rate_hz: 80\n  trigger_divider: 16\nrecorder:\n  queue_frames: 8\n");
   auto rig = LoadRigConfig(rig_path);
   ASSERT_TRUE(rig.ok()) << rig.error().message;
   test::ViconStreamer streamer(*rig, port, 80.0);
@@ -130,15 +132,13 @@ TEST(GenTlRecord, TwoGenTlCamerasOnTheHardwareLineRecordEveryTriggerInSync) {
   const fs::path rig_path = dir / "rig.yaml";
   const std::string driver = std::string("{kind: gentl, cti: ") + LIFMCR_GENTL_SIM_CTI + "}";
   const std::string line1 = "{mode: hardware, source: Line1, activation: rising_edge}";
-  test::WriteFile(rig_path,
-                  "rig:\n  name: gentl_hardware\ncameras:\n" +
-                      CameraYaml("GTLSIM0", "cam0", "reference", driver, "TypeE_40398678_MLA.xml",
-                                 line1) +
-                      CameraYaml("GTLSIM1", "cam1", "registered", driver, "TypeE_40398673_MLA.xml",
-                                 line1) +
-                      "vicon:\n  source: udp\n  udp: {address: 127.0.0.1, port: " +
-                      std::to_string(port) +
-                      "}\n  rate_hz: 80\n  trigger_divider: 8\nrecorder:\n  queue_frames: 8\n");
+  test::WriteFile(
+      rig_path,
+      "rig:\n  name: gentl_hardware\ncameras:\n" +
+          CameraYaml("GTLSIM0", "cam0", "reference", driver, "TypeE_40398678_MLA.xml", line1) +
+          CameraYaml("GTLSIM1", "cam1", "registered", driver, "TypeE_40398673_MLA.xml", line1) +
+          "vicon:\n  source: udp\n  udp: {address: 127.0.0.1, port: " + std::to_string(port) +
+          "}\n  rate_hz: 80\n  trigger_divider: 8\nrecorder:\n  queue_frames: 8\n");
   auto rig = LoadRigConfig(rig_path);
   ASSERT_TRUE(rig.ok()) << rig.error().message;
   test::ViconStreamer streamer(*rig, port, 80.0);
@@ -149,17 +149,28 @@ TEST(GenTlRecord, TwoGenTlCamerasOnTheHardwareLineRecordEveryTriggerInSync) {
   const std::string log = "stdout:\n" + run.out + "\nstderr:\n" + run.err;
   EXPECT_EQ(run.exit_code, 0) << log;
   EXPECT_NE(run.out.find("result: nothing lost"), std::string::npos) << log;
-  // Every trigger a complete FrameSet: both cameras' frames, stamped on the pulse.
+  // Every trigger a complete FrameSet: both cameras' frames, stamped on the
+  // pulse. The stop can fall between the two cameras' frames of the last
+  // pulse (acquisition stops while one is in flight), so the last trigger
+  // may hold one camera only.
   std::smatch sync;
-  ASSERT_TRUE(std::regex_search(run.out, sync,
-                                std::regex(R"(sync: (\d+) triggers \(FrameSets\), (\d+) complete)")))
+  ASSERT_TRUE(std::regex_search(
+      run.out, sync, std::regex(R"(sync: (\d+) triggers \(FrameSets\), (\d+) complete)")))
       << log;
-  EXPECT_EQ(sync[1].str(), sync[2].str()) << log;
-  EXPECT_GE(std::stoi(sync[1].str()), 20) << log;
+  const int sets = std::stoi(sync[1].str());
+  const int complete = std::stoi(sync[2].str());
+  EXPECT_GE(complete, sets - 1) << log;
+  EXPECT_GE(sets, 20) << log;
   auto sequence = DiscoverSequence(out / "00_Recording" / "seq");
   ASSERT_TRUE(sequence.ok()) << sequence.error().message << log;
   ASSERT_EQ(sequence->cameras.size(), 2u);
-  EXPECT_EQ(sequence->cameras[0].frames, sequence->cameras[1].frames) << sequence->Describe();
+  std::vector<std::int64_t> first = sequence->cameras[0].frames;
+  std::vector<std::int64_t> second = sequence->cameras[1].frames;
+  ASSERT_LE(std::max(first.size(), second.size()) - std::min(first.size(), second.size()), 1u)
+      << sequence->Describe();
+  first.resize(std::min(first.size(), second.size()));
+  second.resize(first.size());
+  EXPECT_EQ(first, second) << sequence->Describe();
   for (const CameraFolder& camera : sequence->cameras)
     EXPECT_EQ(camera.missing_count, 0) << sequence->Describe();
 }

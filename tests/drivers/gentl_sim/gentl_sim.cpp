@@ -19,10 +19,10 @@
 // pulses every SimLinePeriodUs on the wall-clock grid, so every camera sees
 // the same pulse train, as from a Lock Lab), or at AcquisitionFrameRate
 // (TriggerMode Off). Ticks the camera thread was late for (a busy host) are
-// made at once with their own tick times, as a grabber's DMA engine would
-// have delivered them; beyond kMaxBacklogTicks behind, the older ticks'
-// frames are lost and their ids skipped. A frame takes the next frame id
-// (1, 2, ...), fills the
+// all made at once with their own tick times, as a grabber's DMA engine
+// would have delivered them: host load alone loses nothing (a frame finding
+// no queued buffer is an underrun, as always). A frame takes the next frame
+// id (1, 2, ...), fills the
 // oldest queued buffer with rows of value (frame id + row) mod 256, sets the
 // buffer info and fires EVENT_NEW_BUFFER. With no buffer queued the frame is
 // an underrun (STREAM_INFO_NUM_UNDERRUN). Fault injection: SimDropEvery = N
@@ -145,7 +145,7 @@ struct Camera {
   std::uint64_t generation = 1;  // bumped when the camera disappears
   bool open = false;
   bool busy_elsewhere = false;  // held by "another process" (LifmcrGenTlSimSetBusy)
-  bool running = false;  // AcquisitionStart executed
+  bool running = false;         // AcquisitionStart executed
   int pending_software = 0;
   std::uint64_t next_frame_id = 1;
   std::int64_t next_tick_ns = 0;  // next pulse / free-run frame on the wall-clock grid
@@ -285,8 +285,8 @@ void Produce(Camera& camera, std::unique_lock<std::mutex>& lock, std::int64_t tr
   buffer->pixel_format = camera.Reg(sim::kPixelFormat);
   buffer->incomplete = incomplete;
   buffer->filled = std::min(buffer->size, stride * rows + (chunk ? sim::kChunkBytes : 0));
-  const std::size_t capacity_rows = std::min<std::size_t>(
-      stride > 0 ? buffer->size / stride : 0, Sys().fill_first_row_only ? 1 : rows);
+  const std::size_t capacity_rows = std::min<std::size_t>(stride > 0 ? buffer->size / stride : 0,
+                                                          Sys().fill_first_row_only ? 1 : rows);
   ++stream->filling;
   lock.unlock();
   for (std::uint32_t y = 0; y < rows && y < capacity_rows; ++y)
@@ -341,20 +341,14 @@ void Run(Camera* camera) {
     const std::int64_t period = static_cast<std::int64_t>(period_ns);
     const std::int64_t now = RealtimeNs();
     if (camera->next_tick_ns == 0) camera->next_tick_ns = (now / period + 1) * period;
-    constexpr std::int64_t kMaxBacklogTicks = 8;
-    if (camera->next_tick_ns < now - kMaxBacklogTicks * period) {
-      // Too far behind: the camera exposed these, the frames never arrived.
-      const std::int64_t missed = (now - camera->next_tick_ns) / period - kMaxBacklogTicks;
-      camera->next_frame_id += static_cast<std::uint64_t>(missed);
-      camera->next_tick_ns += missed * period;
-    }
     if (now >= camera->next_tick_ns) {
       const std::int64_t tick = camera->next_tick_ns;
       camera->next_tick_ns += period;
       Produce(*camera, lock, tick);
       continue;
     }
-    const auto wait = std::chrono::nanoseconds(std::min<std::int64_t>(camera->next_tick_ns - now, 20'000'000));
+    const auto wait =
+        std::chrono::nanoseconds(std::min<std::int64_t>(camera->next_tick_ns - now, 20'000'000));
     system.wake.wait_for(lock, wait);
   }
 }
@@ -389,19 +383,24 @@ GC_ERROR ReadRegisters(Camera& camera, std::uint64_t address, void* out, std::si
                                             : camera.serial);
     return GC_ERR_SUCCESS;
   }
-  if (address == sim::kFrameRate && size == 8) return std::memcpy(out, &camera.frame_rate, 8), GC_ERR_SUCCESS;
-  if (address == sim::kExposureTime && size == 8) return std::memcpy(out, &camera.exposure_us, 8), GC_ERR_SUCCESS;
-  if (address == sim::kGain && size == 8) return std::memcpy(out, &camera.gain_db, 8), GC_ERR_SUCCESS;
+  if (address == sim::kFrameRate && size == 8)
+    return std::memcpy(out, &camera.frame_rate, 8), GC_ERR_SUCCESS;
+  if (address == sim::kExposureTime && size == 8)
+    return std::memcpy(out, &camera.exposure_us, 8), GC_ERR_SUCCESS;
+  if (address == sim::kGain && size == 8)
+    return std::memcpy(out, &camera.gain_db, 8), GC_ERR_SUCCESS;
   if (size != 4 || address % 4 != 0 || address >= sizeof(camera.regs))
     return Err(GC_ERR_INVALID_ADDRESS, "no register at this address");
   camera.Reg(sim::kPayloadSize) = camera.Payload();
+  camera.Reg(sim::kLastFrameId) = static_cast<std::uint32_t>(camera.next_frame_id - 1);
   std::memcpy(out, &camera.regs[address / 4], 4);
   return GC_ERR_SUCCESS;
 }
 
 GC_ERROR WriteRegisters(Camera& camera, std::uint64_t address, const void* in, std::size_t size) {
   System& system = Sys();
-  if (size == 8 && (address == sim::kFrameRate || address == sim::kExposureTime || address == sim::kGain)) {
+  if (size == 8 &&
+      (address == sim::kFrameRate || address == sim::kExposureTime || address == sim::kGain)) {
     double value = 0;
     std::memcpy(&value, in, 8);
     if (address == sim::kFrameRate) camera.frame_rate = value;
@@ -418,6 +417,7 @@ GC_ERROR WriteRegisters(Camera& camera, std::uint64_t address, const void* in, s
     case sim::kSensorWidth:
     case sim::kSensorHeight:
     case sim::kPayloadSize:
+    case sim::kLastFrameId:
       return Err(GC_ERR_ACCESS_DENIED, "read-only register");
     case sim::kWidth:
     case sim::kHeight:
@@ -456,9 +456,6 @@ GC_ERROR WriteRegisters(Camera& camera, std::uint64_t address, const void* in, s
       break;
     default:
       break;
-  }
-  if (address >= sim::kTriggerMode && address < sim::kTriggerSoftware) {
-    // Per-selector registers are addressed by the node map through pIndex.
   }
   camera.regs[address / 4] = value;
   return GC_ERR_SUCCESS;
@@ -511,15 +508,23 @@ __attribute__((visibility("default"))) void LifmcrGenTlSimSetBusy(const char* se
 
 #define GC_EXPORT __attribute__((visibility("default")))
 
-GC_EXPORT GC_ERROR GCGetInfo(TL_INFO_CMD command, INFO_DATATYPE* type, void* buffer, std::size_t* size) {
+GC_EXPORT GC_ERROR GCGetInfo(TL_INFO_CMD command, INFO_DATATYPE* type, void* buffer,
+                             std::size_t* size) {
   switch (command) {
-    case TL_INFO_VENDOR: return CopyString("lifmcr", type, buffer, size);
-    case TL_INFO_MODEL: return CopyString("GenTL simulator", type, buffer, size);
-    case TL_INFO_VERSION: return CopyString("1.0", type, buffer, size);
-    case TL_INFO_TLTYPE: return CopyString("CXP", type, buffer, size);
-    case TL_INFO_GENTL_VER_MAJOR: return CopyValue<std::uint32_t>(1, INFO_DATATYPE_UINT32, type, buffer, size);
-    case TL_INFO_GENTL_VER_MINOR: return CopyValue<std::uint32_t>(5, INFO_DATATYPE_UINT32, type, buffer, size);
-    default: return Err(GC_ERR_NOT_IMPLEMENTED, "info not implemented");
+    case TL_INFO_VENDOR:
+      return CopyString("lifmcr", type, buffer, size);
+    case TL_INFO_MODEL:
+      return CopyString("GenTL simulator", type, buffer, size);
+    case TL_INFO_VERSION:
+      return CopyString("1.0", type, buffer, size);
+    case TL_INFO_TLTYPE:
+      return CopyString("CXP", type, buffer, size);
+    case TL_INFO_GENTL_VER_MAJOR:
+      return CopyValue<std::uint32_t>(1, INFO_DATATYPE_UINT32, type, buffer, size);
+    case TL_INFO_GENTL_VER_MINOR:
+      return CopyValue<std::uint32_t>(5, INFO_DATATYPE_UINT32, type, buffer, size);
+    default:
+      return Err(GC_ERR_NOT_IMPLEMENTED, "info not implemented");
   }
 }
 
@@ -600,7 +605,8 @@ GC_EXPORT GC_ERROR TLClose(TL_HANDLE handle) {
   return GC_ERR_SUCCESS;
 }
 
-GC_EXPORT GC_ERROR TLGetInfo(TL_HANDLE, TL_INFO_CMD command, INFO_DATATYPE* type, void* buffer, std::size_t* size) {
+GC_EXPORT GC_ERROR TLGetInfo(TL_HANDLE, TL_INFO_CMD command, INFO_DATATYPE* type, void* buffer,
+                             std::size_t* size) {
   return GCGetInfo(command, type, buffer, size);
 }
 
@@ -616,7 +622,8 @@ GC_EXPORT GC_ERROR TLGetNumInterfaces(TL_HANDLE handle, std::uint32_t* count) {
   return GC_ERR_SUCCESS;
 }
 
-GC_EXPORT GC_ERROR TLGetInterfaceID(TL_HANDLE handle, std::uint32_t index, char* id, std::size_t* size) {
+GC_EXPORT GC_ERROR TLGetInterfaceID(TL_HANDLE handle, std::uint32_t index, char* id,
+                                    std::size_t* size) {
   if (handle != &g_tl_tag) return Err(GC_ERR_INVALID_HANDLE, "not the system");
   if (index != 0) return Err(GC_ERR_INVALID_INDEX, "one interface");
   return CopyString(kInterfaceId, nullptr, id, size);
@@ -626,10 +633,14 @@ GC_EXPORT GC_ERROR TLGetInterfaceInfo(TL_HANDLE, const char* id, INTERFACE_INFO_
                                       INFO_DATATYPE* type, void* buffer, std::size_t* size) {
   if (std::string(id) != kInterfaceId) return Err(GC_ERR_INVALID_ID, "no such interface");
   switch (command) {
-    case INTERFACE_INFO_ID: return CopyString(kInterfaceId, type, buffer, size);
-    case INTERFACE_INFO_DISPLAYNAME: return CopyString("lifmcr simulated grabber, port 0", type, buffer, size);
-    case INTERFACE_INFO_TLTYPE: return CopyString("CXP", type, buffer, size);
-    default: return Err(GC_ERR_NOT_IMPLEMENTED, "info not implemented");
+    case INTERFACE_INFO_ID:
+      return CopyString(kInterfaceId, type, buffer, size);
+    case INTERFACE_INFO_DISPLAYNAME:
+      return CopyString("lifmcr simulated grabber, port 0", type, buffer, size);
+    case INTERFACE_INFO_TLTYPE:
+      return CopyString("CXP", type, buffer, size);
+    default:
+      return Err(GC_ERR_NOT_IMPLEMENTED, "info not implemented");
   }
 }
 
@@ -652,7 +663,8 @@ GC_EXPORT GC_ERROR IFClose(IF_HANDLE handle) {
   return GC_ERR_SUCCESS;
 }
 
-GC_EXPORT GC_ERROR IFGetInfo(IF_HANDLE, INTERFACE_INFO_CMD command, INFO_DATATYPE* type, void* buffer, std::size_t* size) {
+GC_EXPORT GC_ERROR IFGetInfo(IF_HANDLE, INTERFACE_INFO_CMD command, INFO_DATATYPE* type,
+                             void* buffer, std::size_t* size) {
   return TLGetInterfaceInfo(&g_tl_tag, kInterfaceId, command, type, buffer, size);
 }
 
@@ -670,7 +682,8 @@ GC_EXPORT GC_ERROR IFGetNumDevices(IF_HANDLE handle, std::uint32_t* count) {
   return GC_ERR_SUCCESS;
 }
 
-GC_EXPORT GC_ERROR IFGetDeviceID(IF_HANDLE handle, std::uint32_t index, char* id, std::size_t* size) {
+GC_EXPORT GC_ERROR IFGetDeviceID(IF_HANDLE handle, std::uint32_t index, char* id,
+                                 std::size_t* size) {
   std::lock_guard<std::mutex> lock(Sys().mutex);
   if (handle != &g_if_tag) return Err(GC_ERR_INVALID_HANDLE, "not the interface");
   std::uint32_t i = 0;
@@ -679,14 +692,21 @@ GC_EXPORT GC_ERROR IFGetDeviceID(IF_HANDLE handle, std::uint32_t index, char* id
   return Err(GC_ERR_INVALID_INDEX, "no device at this index");
 }
 
-GC_ERROR DeviceInfo(Camera& camera, DEVICE_INFO_CMD command, INFO_DATATYPE* type, void* buffer, std::size_t* size) {
+GC_ERROR DeviceInfo(Camera& camera, DEVICE_INFO_CMD command, INFO_DATATYPE* type, void* buffer,
+                    std::size_t* size) {
   switch (command) {
-    case DEVICE_INFO_ID: return CopyString(camera.id, type, buffer, size);
-    case DEVICE_INFO_VENDOR: return CopyString("lifmcr", type, buffer, size);
-    case DEVICE_INFO_MODEL: return CopyString("GenTL simulator", type, buffer, size);
-    case DEVICE_INFO_TLTYPE: return CopyString("CXP", type, buffer, size);
-    case DEVICE_INFO_DISPLAYNAME: return CopyString("lifmcr GenTL simulator " + camera.serial, type, buffer, size);
-    case DEVICE_INFO_SERIAL_NUMBER: return CopyString(camera.serial, type, buffer, size);
+    case DEVICE_INFO_ID:
+      return CopyString(camera.id, type, buffer, size);
+    case DEVICE_INFO_VENDOR:
+      return CopyString("lifmcr", type, buffer, size);
+    case DEVICE_INFO_MODEL:
+      return CopyString("GenTL simulator", type, buffer, size);
+    case DEVICE_INFO_TLTYPE:
+      return CopyString("CXP", type, buffer, size);
+    case DEVICE_INFO_DISPLAYNAME:
+      return CopyString("lifmcr GenTL simulator " + camera.serial, type, buffer, size);
+    case DEVICE_INFO_SERIAL_NUMBER:
+      return CopyString(camera.serial, type, buffer, size);
     case DEVICE_INFO_ACCESS_STATUS:
       return CopyValue<std::int32_t>(camera.busy_elsewhere ? DEVICE_ACCESS_STATUS_BUSY
                                      : camera.open         ? DEVICE_ACCESS_STATUS_OPEN_READWRITE
@@ -694,7 +714,8 @@ GC_ERROR DeviceInfo(Camera& camera, DEVICE_INFO_CMD command, INFO_DATATYPE* type
                                      INFO_DATATYPE_INT32, type, buffer, size);
     case DEVICE_INFO_TIMESTAMP_FREQUENCY:
       return CopyValue<std::uint64_t>(1'000'000'000, INFO_DATATYPE_UINT64, type, buffer, size);
-    default: return Err(GC_ERR_NOT_IMPLEMENTED, "info not implemented");
+    default:
+      return Err(GC_ERR_NOT_IMPLEMENTED, "info not implemented");
   }
 }
 
@@ -707,13 +728,16 @@ GC_EXPORT GC_ERROR IFGetDeviceInfo(IF_HANDLE handle, const char* id, DEVICE_INFO
   return DeviceInfo(*camera, command, type, buffer, size);
 }
 
-GC_EXPORT GC_ERROR IFOpenDevice(IF_HANDLE handle, const char* id, DEVICE_ACCESS_FLAGS, DEV_HANDLE* device) {
+GC_EXPORT GC_ERROR IFOpenDevice(IF_HANDLE handle, const char* id, DEVICE_ACCESS_FLAGS,
+                                DEV_HANDLE* device) {
   std::lock_guard<std::mutex> lock(Sys().mutex);
   if (handle != &g_if_tag) return Err(GC_ERR_INVALID_HANDLE, "not the interface");
   Camera* camera = FindCamera(id);
   if (camera == nullptr) return Err(GC_ERR_INVALID_ID, std::string("no device ") + id);
-  if (camera->open) return Err(GC_ERR_RESOURCE_IN_USE, std::string("device ") + id + " is already open");
-  if (camera->busy_elsewhere) return Err(GC_ERR_ACCESS_DENIED, std::string("device ") + id + " is held by another process");
+  if (camera->open)
+    return Err(GC_ERR_RESOURCE_IN_USE, std::string("device ") + id + " is already open");
+  if (camera->busy_elsewhere)
+    return Err(GC_ERR_ACCESS_DENIED, std::string("device ") + id + " is held by another process");
   camera->open = true;
   auto opened = std::make_unique<DeviceHandle>();
   opened->camera = camera;
@@ -733,7 +757,8 @@ GC_EXPORT GC_ERROR DevGetPort(DEV_HANDLE handle, PORT_HANDLE* port) {
   return GC_ERR_SUCCESS;
 }
 
-GC_EXPORT GC_ERROR DevGetInfo(DEV_HANDLE handle, DEVICE_INFO_CMD command, INFO_DATATYPE* type, void* buffer, std::size_t* size) {
+GC_EXPORT GC_ERROR DevGetInfo(DEV_HANDLE handle, DEVICE_INFO_CMD command, INFO_DATATYPE* type,
+                              void* buffer, std::size_t* size) {
   std::lock_guard<std::mutex> lock(Sys().mutex);
   DeviceHandle* device = AsDevice(handle);
   if (device == nullptr) return Err(GC_ERR_INVALID_HANDLE, "not a device");
@@ -748,7 +773,8 @@ GC_EXPORT GC_ERROR DevGetNumDataStreams(DEV_HANDLE handle, std::uint32_t* count)
   return GC_ERR_SUCCESS;
 }
 
-GC_EXPORT GC_ERROR DevGetDataStreamID(DEV_HANDLE handle, std::uint32_t index, char* id, std::size_t* size) {
+GC_EXPORT GC_ERROR DevGetDataStreamID(DEV_HANDLE handle, std::uint32_t index, char* id,
+                                      std::size_t* size) {
   if (AsDevice(handle) == nullptr) return Err(GC_ERR_INVALID_HANDLE, "not a device");
   if (index != 0) return Err(GC_ERR_INVALID_INDEX, "one stream");
   return CopyString("Stream0", nullptr, id, size);
@@ -800,7 +826,8 @@ GC_EXPORT GC_ERROR DevClose(DEV_HANDLE handle) {
   return GC_ERR_SUCCESS;
 }
 
-GC_EXPORT GC_ERROR GCReadPort(PORT_HANDLE port, std::uint64_t address, void* buffer, std::size_t* size) {
+GC_EXPORT GC_ERROR GCReadPort(PORT_HANDLE port, std::uint64_t address, void* buffer,
+                              std::size_t* size) {
   std::lock_guard<std::mutex> lock(Sys().mutex);
   DeviceHandle* device = PortDevice(port);
   if (device == nullptr) return Err(GC_ERR_NOT_IMPLEMENTED, "only the remote device has a port");
@@ -808,7 +835,8 @@ GC_EXPORT GC_ERROR GCReadPort(PORT_HANDLE port, std::uint64_t address, void* buf
   return ReadRegisters(*device->camera, address, buffer, *size);
 }
 
-GC_EXPORT GC_ERROR GCWritePort(PORT_HANDLE port, std::uint64_t address, const void* buffer, std::size_t* size) {
+GC_EXPORT GC_ERROR GCWritePort(PORT_HANDLE port, std::uint64_t address, const void* buffer,
+                               std::size_t* size) {
   std::lock_guard<std::mutex> lock(Sys().mutex);
   DeviceHandle* device = PortDevice(port);
   if (device == nullptr) return Err(GC_ERR_NOT_IMPLEMENTED, "only the remote device has a port");
@@ -825,13 +853,15 @@ std::string XmlUrl() {
 
 GC_EXPORT GC_ERROR GCGetPortURL(PORT_HANDLE port, char* url, std::size_t* size) {
   std::lock_guard<std::mutex> lock(Sys().mutex);
-  if (PortDevice(port) == nullptr) return Err(GC_ERR_NOT_IMPLEMENTED, "only the remote device has a port");
+  if (PortDevice(port) == nullptr)
+    return Err(GC_ERR_NOT_IMPLEMENTED, "only the remote device has a port");
   return CopyString(XmlUrl(), nullptr, url, size);
 }
 
 GC_EXPORT GC_ERROR GCGetNumPortURLs(PORT_HANDLE port, std::uint32_t* count) {
   std::lock_guard<std::mutex> lock(Sys().mutex);
-  if (PortDevice(port) == nullptr) return Err(GC_ERR_NOT_IMPLEMENTED, "only the remote device has a port");
+  if (PortDevice(port) == nullptr)
+    return Err(GC_ERR_NOT_IMPLEMENTED, "only the remote device has a port");
   *count = 1;
   return GC_ERR_SUCCESS;
 }
@@ -839,24 +869,32 @@ GC_EXPORT GC_ERROR GCGetNumPortURLs(PORT_HANDLE port, std::uint32_t* count) {
 GC_EXPORT GC_ERROR GCGetPortURLInfo(PORT_HANDLE port, std::uint32_t index, URL_INFO_CMD command,
                                     INFO_DATATYPE* type, void* buffer, std::size_t* size) {
   std::lock_guard<std::mutex> lock(Sys().mutex);
-  if (PortDevice(port) == nullptr) return Err(GC_ERR_NOT_IMPLEMENTED, "only the remote device has a port");
+  if (PortDevice(port) == nullptr)
+    return Err(GC_ERR_NOT_IMPLEMENTED, "only the remote device has a port");
   if (index != 0) return Err(GC_ERR_INVALID_INDEX, "one URL");
   if (command != URL_INFO_URL) return Err(GC_ERR_NOT_IMPLEMENTED, "URL only");
   return CopyString(XmlUrl(), type, buffer, size);
 }
 
-GC_EXPORT GC_ERROR GCGetPortInfo(PORT_HANDLE port, PORT_INFO_CMD command, INFO_DATATYPE* type, void* buffer, std::size_t* size) {
+GC_EXPORT GC_ERROR GCGetPortInfo(PORT_HANDLE port, PORT_INFO_CMD command, INFO_DATATYPE* type,
+                                 void* buffer, std::size_t* size) {
   std::lock_guard<std::mutex> lock(Sys().mutex);
-  if (PortDevice(port) == nullptr) return Err(GC_ERR_NOT_IMPLEMENTED, "only the remote device has a port");
+  if (PortDevice(port) == nullptr)
+    return Err(GC_ERR_NOT_IMPLEMENTED, "only the remote device has a port");
   switch (command) {
-    case PORT_INFO_PORTNAME: return CopyString("Device", type, buffer, size);
-    case PORT_INFO_LITTLE_ENDIAN: return CopyValue<bool8_t>(1, INFO_DATATYPE_BOOL8, type, buffer, size);
-    case PORT_INFO_BIG_ENDIAN: return CopyValue<bool8_t>(0, INFO_DATATYPE_BOOL8, type, buffer, size);
-    default: return Err(GC_ERR_NOT_IMPLEMENTED, "info not implemented");
+    case PORT_INFO_PORTNAME:
+      return CopyString("Device", type, buffer, size);
+    case PORT_INFO_LITTLE_ENDIAN:
+      return CopyValue<bool8_t>(1, INFO_DATATYPE_BOOL8, type, buffer, size);
+    case PORT_INFO_BIG_ENDIAN:
+      return CopyValue<bool8_t>(0, INFO_DATATYPE_BOOL8, type, buffer, size);
+    default:
+      return Err(GC_ERR_NOT_IMPLEMENTED, "info not implemented");
   }
 }
 
-GC_EXPORT GC_ERROR DSAnnounceBuffer(DS_HANDLE handle, void* base, std::size_t size, void* user, BUFFER_HANDLE* buffer_handle) {
+GC_EXPORT GC_ERROR DSAnnounceBuffer(DS_HANDLE handle, void* base, std::size_t size, void* user,
+                                    BUFFER_HANDLE* buffer_handle) {
   std::lock_guard<std::mutex> lock(Sys().mutex);
   Stream* stream = AsStream(handle);
   if (stream == nullptr) return Err(GC_ERR_INVALID_HANDLE, "not a stream");
@@ -871,7 +909,8 @@ GC_EXPORT GC_ERROR DSAnnounceBuffer(DS_HANDLE handle, void* base, std::size_t si
   return GC_ERR_SUCCESS;
 }
 
-GC_EXPORT GC_ERROR DSRevokeBuffer(DS_HANDLE handle, BUFFER_HANDLE buffer_handle, void** base, void** user) {
+GC_EXPORT GC_ERROR DSRevokeBuffer(DS_HANDLE handle, BUFFER_HANDLE buffer_handle, void** base,
+                                  void** user) {
   std::lock_guard<std::mutex> lock(Sys().mutex);
   Stream* stream = AsStream(handle);
   if (stream == nullptr) return Err(GC_ERR_INVALID_HANDLE, "not a stream");
@@ -930,52 +969,86 @@ GC_EXPORT GC_ERROR DSStopAcquisition(DS_HANDLE handle, ACQ_STOP_FLAGS) {
   return GC_ERR_SUCCESS;
 }
 
-GC_EXPORT GC_ERROR DSGetInfo(DS_HANDLE handle, STREAM_INFO_CMD command, INFO_DATATYPE* type, void* buffer, std::size_t* size) {
+GC_EXPORT GC_ERROR DSGetInfo(DS_HANDLE handle, STREAM_INFO_CMD command, INFO_DATATYPE* type,
+                             void* buffer, std::size_t* size) {
   std::lock_guard<std::mutex> lock(Sys().mutex);
   Stream* stream = AsStream(handle);
   if (stream == nullptr) return Err(GC_ERR_INVALID_HANDLE, "not a stream");
   switch (command) {
-    case STREAM_INFO_ID: return CopyString("Stream0", type, buffer, size);
-    case STREAM_INFO_NUM_DELIVERED: return CopyValue<std::uint64_t>(stream->delivered, INFO_DATATYPE_UINT64, type, buffer, size);
-    case STREAM_INFO_NUM_UNDERRUN: return CopyValue<std::uint64_t>(stream->underruns, INFO_DATATYPE_UINT64, type, buffer, size);
-    case STREAM_INFO_NUM_ANNOUNCED: return CopyValue<std::size_t>(stream->buffers.size(), INFO_DATATYPE_SIZET, type, buffer, size);
-    case STREAM_INFO_NUM_QUEUED: return CopyValue<std::size_t>(stream->input.size(), INFO_DATATYPE_SIZET, type, buffer, size);
-    case STREAM_INFO_PAYLOAD_SIZE: return CopyValue<std::size_t>(stream->camera->Payload(), INFO_DATATYPE_SIZET, type, buffer, size);
-    case STREAM_INFO_IS_GRABBING: return CopyValue<bool8_t>(stream->acquiring, INFO_DATATYPE_BOOL8, type, buffer, size);
-    case STREAM_INFO_DEFINES_PAYLOADSIZE: return CopyValue<bool8_t>(1, INFO_DATATYPE_BOOL8, type, buffer, size);
-    case STREAM_INFO_TLTYPE: return CopyString("CXP", type, buffer, size);
-    case STREAM_INFO_BUF_ANNOUNCE_MIN: return CopyValue<std::size_t>(1, INFO_DATATYPE_SIZET, type, buffer, size);
-    case STREAM_INFO_BUF_ALIGNMENT: return CopyValue<std::size_t>(64, INFO_DATATYPE_SIZET, type, buffer, size);
-    default: return Err(GC_ERR_NOT_IMPLEMENTED, "info not implemented");
+    case STREAM_INFO_ID:
+      return CopyString("Stream0", type, buffer, size);
+    case STREAM_INFO_NUM_DELIVERED:
+      return CopyValue<std::uint64_t>(stream->delivered, INFO_DATATYPE_UINT64, type, buffer, size);
+    case STREAM_INFO_NUM_UNDERRUN:
+      return CopyValue<std::uint64_t>(stream->underruns, INFO_DATATYPE_UINT64, type, buffer, size);
+    case STREAM_INFO_NUM_ANNOUNCED:
+      return CopyValue<std::size_t>(stream->buffers.size(), INFO_DATATYPE_SIZET, type, buffer,
+                                    size);
+    case STREAM_INFO_NUM_QUEUED:
+      return CopyValue<std::size_t>(stream->input.size(), INFO_DATATYPE_SIZET, type, buffer, size);
+    case STREAM_INFO_PAYLOAD_SIZE:
+      return CopyValue<std::size_t>(stream->camera->Payload(), INFO_DATATYPE_SIZET, type, buffer,
+                                    size);
+    case STREAM_INFO_IS_GRABBING:
+      return CopyValue<bool8_t>(stream->acquiring, INFO_DATATYPE_BOOL8, type, buffer, size);
+    case STREAM_INFO_DEFINES_PAYLOADSIZE:
+      return CopyValue<bool8_t>(1, INFO_DATATYPE_BOOL8, type, buffer, size);
+    case STREAM_INFO_TLTYPE:
+      return CopyString("CXP", type, buffer, size);
+    case STREAM_INFO_BUF_ANNOUNCE_MIN:
+      return CopyValue<std::size_t>(1, INFO_DATATYPE_SIZET, type, buffer, size);
+    case STREAM_INFO_BUF_ALIGNMENT:
+      return CopyValue<std::size_t>(64, INFO_DATATYPE_SIZET, type, buffer, size);
+    default:
+      return Err(GC_ERR_NOT_IMPLEMENTED, "info not implemented");
   }
 }
 
-GC_EXPORT GC_ERROR DSGetBufferInfo(DS_HANDLE handle, BUFFER_HANDLE buffer_handle, BUFFER_INFO_CMD command,
-                                   INFO_DATATYPE* type, void* out, std::size_t* size) {
+GC_EXPORT GC_ERROR DSGetBufferInfo(DS_HANDLE handle, BUFFER_HANDLE buffer_handle,
+                                   BUFFER_INFO_CMD command, INFO_DATATYPE* type, void* out,
+                                   std::size_t* size) {
   std::lock_guard<std::mutex> lock(Sys().mutex);
   Stream* stream = AsStream(handle);
   if (stream == nullptr) return Err(GC_ERR_INVALID_HANDLE, "not a stream");
   Buffer* buffer = AsBuffer(stream, buffer_handle);
   if (buffer == nullptr) return Err(GC_ERR_INVALID_HANDLE, "not a buffer of this stream");
   switch (command) {
-    case BUFFER_INFO_BASE: return CopyValue<void*>(buffer->base, INFO_DATATYPE_PTR, type, out, size);
-    case BUFFER_INFO_SIZE: return CopyValue<std::size_t>(buffer->size, INFO_DATATYPE_SIZET, type, out, size);
-    case BUFFER_INFO_USER_PTR: return CopyValue<void*>(buffer->user, INFO_DATATYPE_PTR, type, out, size);
+    case BUFFER_INFO_BASE:
+      return CopyValue<void*>(buffer->base, INFO_DATATYPE_PTR, type, out, size);
+    case BUFFER_INFO_SIZE:
+      return CopyValue<std::size_t>(buffer->size, INFO_DATATYPE_SIZET, type, out, size);
+    case BUFFER_INFO_USER_PTR:
+      return CopyValue<void*>(buffer->user, INFO_DATATYPE_PTR, type, out, size);
     case BUFFER_INFO_TIMESTAMP:
-    case BUFFER_INFO_TIMESTAMP_NS: return CopyValue<std::uint64_t>(buffer->timestamp_ns, INFO_DATATYPE_UINT64, type, out, size);
-    case BUFFER_INFO_IS_INCOMPLETE: return CopyValue<bool8_t>(buffer->incomplete, INFO_DATATYPE_BOOL8, type, out, size);
-    case BUFFER_INFO_SIZE_FILLED: return CopyValue<std::size_t>(buffer->filled, INFO_DATATYPE_SIZET, type, out, size);
-    case BUFFER_INFO_WIDTH: return CopyValue<std::size_t>(buffer->width, INFO_DATATYPE_SIZET, type, out, size);
-    case BUFFER_INFO_HEIGHT: return CopyValue<std::size_t>(buffer->height, INFO_DATATYPE_SIZET, type, out, size);
-    case BUFFER_INFO_IMAGEOFFSET: return CopyValue<std::size_t>(0, INFO_DATATYPE_SIZET, type, out, size);
-    case BUFFER_INFO_FRAMEID: return CopyValue<std::uint64_t>(buffer->frame_id, INFO_DATATYPE_UINT64, type, out, size);
-    case BUFFER_INFO_PIXELFORMAT: return CopyValue<std::uint64_t>(buffer->pixel_format, INFO_DATATYPE_UINT64, type, out, size);
-    case BUFFER_INFO_PIXELFORMAT_NAMESPACE: return CopyValue<std::uint64_t>(PIXELFORMAT_NAMESPACE_PFNC_32BIT, INFO_DATATYPE_UINT64, type, out, size);
-    case BUFFER_INFO_PAYLOADTYPE: return CopyValue<std::size_t>(PAYLOAD_TYPE_IMAGE, INFO_DATATYPE_SIZET, type, out, size);
-    case BUFFER_INFO_DATA_LARGER_THAN_BUFFER: return CopyValue<bool8_t>(0, INFO_DATATYPE_BOOL8, type, out, size);
-    case BUFFER_INFO_IS_QUEUED: return CopyValue<bool8_t>(buffer->queued, INFO_DATATYPE_BOOL8, type, out, size);
-    case BUFFER_INFO_CONTAINS_CHUNKDATA: return CopyValue<bool8_t>(buffer->chunk_offset != 0, INFO_DATATYPE_BOOL8, type, out, size);
-    default: return Err(GC_ERR_NOT_IMPLEMENTED, "info not implemented");
+    case BUFFER_INFO_TIMESTAMP_NS:
+      return CopyValue<std::uint64_t>(buffer->timestamp_ns, INFO_DATATYPE_UINT64, type, out, size);
+    case BUFFER_INFO_IS_INCOMPLETE:
+      return CopyValue<bool8_t>(buffer->incomplete, INFO_DATATYPE_BOOL8, type, out, size);
+    case BUFFER_INFO_SIZE_FILLED:
+      return CopyValue<std::size_t>(buffer->filled, INFO_DATATYPE_SIZET, type, out, size);
+    case BUFFER_INFO_WIDTH:
+      return CopyValue<std::size_t>(buffer->width, INFO_DATATYPE_SIZET, type, out, size);
+    case BUFFER_INFO_HEIGHT:
+      return CopyValue<std::size_t>(buffer->height, INFO_DATATYPE_SIZET, type, out, size);
+    case BUFFER_INFO_IMAGEOFFSET:
+      return CopyValue<std::size_t>(0, INFO_DATATYPE_SIZET, type, out, size);
+    case BUFFER_INFO_FRAMEID:
+      return CopyValue<std::uint64_t>(buffer->frame_id, INFO_DATATYPE_UINT64, type, out, size);
+    case BUFFER_INFO_PIXELFORMAT:
+      return CopyValue<std::uint64_t>(buffer->pixel_format, INFO_DATATYPE_UINT64, type, out, size);
+    case BUFFER_INFO_PIXELFORMAT_NAMESPACE:
+      return CopyValue<std::uint64_t>(PIXELFORMAT_NAMESPACE_PFNC_32BIT, INFO_DATATYPE_UINT64, type,
+                                      out, size);
+    case BUFFER_INFO_PAYLOADTYPE:
+      return CopyValue<std::size_t>(PAYLOAD_TYPE_IMAGE, INFO_DATATYPE_SIZET, type, out, size);
+    case BUFFER_INFO_DATA_LARGER_THAN_BUFFER:
+      return CopyValue<bool8_t>(0, INFO_DATATYPE_BOOL8, type, out, size);
+    case BUFFER_INFO_IS_QUEUED:
+      return CopyValue<bool8_t>(buffer->queued, INFO_DATATYPE_BOOL8, type, out, size);
+    case BUFFER_INFO_CONTAINS_CHUNKDATA:
+      return CopyValue<bool8_t>(buffer->chunk_offset != 0, INFO_DATATYPE_BOOL8, type, out, size);
+    default:
+      return Err(GC_ERR_NOT_IMPLEMENTED, "info not implemented");
   }
 }
 
@@ -999,7 +1072,8 @@ GC_EXPORT GC_ERROR DSGetBufferChunkData(DS_HANDLE handle, BUFFER_HANDLE buffer_h
   return GC_ERR_SUCCESS;
 }
 
-GC_EXPORT GC_ERROR GCRegisterEvent(EVENTSRC_HANDLE source, EVENT_TYPE event_type, EVENT_HANDLE* event) {
+GC_EXPORT GC_ERROR GCRegisterEvent(EVENTSRC_HANDLE source, EVENT_TYPE event_type,
+                                   EVENT_HANDLE* event) {
   std::lock_guard<std::mutex> lock(Sys().mutex);
   Stream* stream = AsStream(source);
   if (stream == nullptr) return Err(GC_ERR_INVALID_HANDLE, "events on data streams only");
@@ -1020,11 +1094,13 @@ GC_EXPORT GC_ERROR GCUnregisterEvent(EVENTSRC_HANDLE source, EVENT_TYPE) {
   return GC_ERR_SUCCESS;
 }
 
-GC_EXPORT GC_ERROR EventGetData(EVENT_HANDLE handle, void* buffer, std::size_t* size, std::uint64_t timeout_ms) {
+GC_EXPORT GC_ERROR EventGetData(EVENT_HANDLE handle, void* buffer, std::size_t* size,
+                                std::uint64_t timeout_ms) {
   std::unique_lock<std::mutex> lock(Sys().mutex);
   Event* event = AsEvent(handle);
   if (event == nullptr) return Err(GC_ERR_INVALID_HANDLE, "not an event");
-  if (*size < sizeof(EVENT_NEW_BUFFER_DATA)) return Err(GC_ERR_BUFFER_TOO_SMALL, "buffer too small");
+  if (*size < sizeof(EVENT_NEW_BUFFER_DATA))
+    return Err(GC_ERR_BUFFER_TOO_SMALL, "buffer too small");
   const auto deadline = std::chrono::steady_clock::now() +
                         std::chrono::milliseconds(std::min<std::uint64_t>(timeout_ms, 1u << 30));
   while (event->queue.empty() && !event->killed) {

@@ -21,22 +21,23 @@ enum : std::uint64_t {
   kPixelFormat = 0x0118,
   kPayloadSize = 0x011C,  // read-only, computed
   kAcquisitionMode = 0x0200,
-  kAcquisitionStart = 0x0204,  // write 1
-  kAcquisitionStop = 0x0208,   // write 1
-  kFrameRate = 0x0210,         // float, free-run rate in Hz
-  kTriggerSelector = 0x0300,   // 0 FrameStart, 1 AcquisitionStart
-  kTriggerMode = 0x0310,       // + 4 * selector: 0 Off, 1 On
-  kTriggerSource = 0x0320,     // + 4 * selector: 0 Software, 1 Line0, 2 Line1
-  kTriggerActivation = 0x0330, // + 4 * selector: 0 RisingEdge, 1 FallingEdge
-  kTriggerSoftware = 0x0340,   // write 1
-  kExposureTime = 0x0400,      // float, us
-  kGain = 0x0408,              // float, dB
-  kDropEvery = 0x0500,         // every Nth frame id is lost in transport (0 = none)
-  kIncompleteEvery = 0x0504,   // every Nth frame is delivered incomplete (0 = none)
-  kLinePeriodUs = 0x0508,      // period of the "hardware" pulses on Line0/Line1
-  kChunkModeActive = 0x0520,   // 1: each frame carries the chunk kChunkId after the image
-  kChunkSelector = 0x0524,     // 0 Timestamp, 1 FrameID
-  kChunkEnable = 0x0528,       // + 4 * selector
+  kAcquisitionStart = 0x0204,   // write 1
+  kAcquisitionStop = 0x0208,    // write 1
+  kFrameRate = 0x0210,          // float, free-run rate in Hz
+  kTriggerSelector = 0x0300,    // 0 FrameStart, 1 AcquisitionStart
+  kTriggerMode = 0x0310,        // + 4 * selector: 0 Off, 1 On
+  kTriggerSource = 0x0320,      // + 4 * selector: 0 Software, 1 Line0, 2 Line1
+  kTriggerActivation = 0x0330,  // + 4 * selector: 0 RisingEdge, 1 FallingEdge
+  kTriggerSoftware = 0x0340,    // write 1
+  kExposureTime = 0x0400,       // float, us
+  kGain = 0x0408,               // float, dB
+  kDropEvery = 0x0500,          // every Nth frame id is lost in transport (0 = none)
+  kIncompleteEvery = 0x0504,    // every Nth frame is delivered incomplete (0 = none)
+  kLinePeriodUs = 0x0508,       // period of the "hardware" pulses on Line0/Line1
+  kLastFrameId = 0x050C,        // read-only: the last frame id the camera used
+  kChunkModeActive = 0x0520,    // 1: each frame carries the chunk kChunkId after the image
+  kChunkSelector = 0x0524,      // 0 Timestamp, 1 FrameID
+  kChunkEnable = 0x0528,        // + 4 * selector
   kXmlAddress = 0x10000,
 };
 // The chunk: [trigger time, ns, u64 LE][frame id, u64 LE], after the image.
@@ -98,6 +99,7 @@ inline constexpr char kXml[] = R"XML(<?xml version="1.0" encoding="utf-8"?>
     <pFeature>SimDropEvery</pFeature>
     <pFeature>SimIncompleteEvery</pFeature>
     <pFeature>SimLinePeriodUs</pFeature>
+    <pFeature>SimLastFrameId</pFeature>
   </Category>
 
   <StringReg Name="DeviceVendorName" NameSpace="Standard">
@@ -279,6 +281,11 @@ inline constexpr char kXml[] = R"XML(<?xml version="1.0" encoding="utf-8"?>
     <Sign>Unsigned</Sign><Endianess>LittleEndian</Endianess>
   </IntReg>
 
+  <Integer Name="SimLastFrameId" NameSpace="Custom"><pValue>SimLastFrameIdReg</pValue></Integer>
+  <IntReg Name="SimLastFrameIdReg">
+    <Address>0x050C</Address><Length>4</Length><AccessMode>RO</AccessMode><pPort>Device</pPort>
+    <Sign>Unsigned</Sign><Endianess>LittleEndian</Endianess>
+  </IntReg>
   <Boolean Name="ChunkModeActive" NameSpace="Standard">
     <pValue>ChunkModeActiveReg</pValue><OnValue>1</OnValue><OffValue>0</OffValue>
   </Boolean>
