@@ -5,7 +5,7 @@
 // YAML file overrides any of them (keys = the field names below, grouped as
 // in SynthParams: `camera:`, `rig:`, `vicon:`; see LoadSynthConfig).
 //
-// Symbols (notes/processing.md section 0): f_L main-lens focal length,
+// Symbols (the paper's; docs/processing.md): f_L main-lens focal length,
 // b_L0 main lens -> MLA, B MLA -> sensor, D micro-image pitch, s pixel size,
 // v = b / B virtual depth.
 
@@ -78,6 +78,9 @@ struct SynthRigParams {
   std::string scene_folder = "00_Synthetic";  // the scene's folder in the dataset
   std::string sequence = "Sequence_00";       // the sequence's folder in it
   std::uint64_t seed = 1;
+  // false: no raw frames, depth or all-in-focus images; poses, Vicon and
+  // calibration only (fast inputs for evaluation tests). `--no-images`.
+  bool images = true;
   Status Check() const;
 };
 

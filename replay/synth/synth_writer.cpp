@@ -220,6 +220,9 @@ Expected<SynthSummary> WriteSyntheticDataset(const std::filesystem::path& out_di
     if (Status s = MakeDirs(bmp.parent_path()); !s) return s.error();
     if (Status s = WriteBmp(bmp, frame.View()); !s) return s.error();
     files += 2;
+    if (progress)
+      progress("synth: white image " + std::to_string(k + 1) + "/" +
+               std::to_string(cameras.size()) + " rendered (camera " + cameras[k].serial + ")");
   }
   std::vector<MarkerCluster> clusters;
   for (const SynthCamera& camera : cameras) clusters.push_back(camera.cluster);
@@ -297,6 +300,12 @@ Expected<SynthSummary> WriteSyntheticDataset(const std::filesystem::path& out_di
     return s.error();
   ++files;
 
+  if (!params.rig.images) {
+    summary.files = files;
+    summary.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return summary;
+  }
   // Frames: parallel over (camera, frame), and over micro-image rows inside.
   for (const SynthCamera& camera : cameras)
     if (Status s = MakeDirs(layout::CameraDir(seq, camera.serial)); !s) return s.error();

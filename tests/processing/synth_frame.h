@@ -24,7 +24,9 @@ struct SynthFrame {
   CameraIntrinsics intrinsics;
 };
 
+// `scene`: replay/synth/scene.h's name; `bayer`: the sensor writes an RGGB
+// mosaic (Mono8) instead of BGR8.
 SynthFrame RenderSynthFrame(const std::string& preset = "small", double read_noise_dn = 1.0,
-                            const std::string& scene = "plain");
+                            const std::string& scene = "plain", bool bayer = false);
 
 }  // namespace lifmcr::processing::testing
