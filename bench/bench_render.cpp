@@ -3,7 +3,7 @@
 // cores, with the frame time; the baseline in the same run is the same frame
 // of the `plain` scene.
 //   bench_render [--preset r32|medium|small] [--scene table|plain] [--repeat N]
-//                [--png PATH] [--raw-png PATH] [--tf-png PATH]
+//                [--png PATH] [--raw-png PATH] [--tf-png PATH] [--cull 0|1]
 // --png writes the docs figure: a crop of the raw image beside the same region
 // of the all-in-focus ground truth (scaled to the raw crop's size);
 // --tf-png the whole all-in-focus ground truth.
@@ -32,6 +32,7 @@ using lifmcr::synth::PlenopticModel;
 int main(int argc, char** argv) {
   std::string preset = "r32", scene_name = "table", png, raw_png, tf_png;
   int repeat = 3;
+  bool cull = true;
   for (int k = 1; k + 1 < argc; k += 2) {
     if (!std::strcmp(argv[k], "--preset"))
       preset = argv[k + 1];
@@ -45,6 +46,8 @@ int main(int argc, char** argv) {
       tf_png = argv[k + 1];
     else if (!std::strcmp(argv[k], "--scene"))
       scene_name = argv[k + 1];
+    else if (!std::strcmp(argv[k], "--cull"))
+      cull = std::atoi(argv[k + 1]) != 0;
     else {
       std::fprintf(stderr, "unknown option %s\n", argv[k]);
       return 2;
@@ -77,6 +80,7 @@ int main(int argc, char** argv) {
 
   lifmcr::synth::RenderOptions options;
   options.noise_seed = 7;
+  options.cull_objects = cull;
   lifmcr::synth::RawFrame raw;
   std::vector<double> seconds;
   for (int r = 0; r < repeat; ++r) {

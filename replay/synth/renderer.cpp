@@ -41,9 +41,11 @@ struct TraceResult {
 template <typename LineAt>
 std::optional<Hit> IntersectLocus(const PlenopticModel& model, const Scene& scene,
                                   const Pose& world_from_cam, const Pose& cam_from_world,
-                                  const Ray& ray, LineAt line_at, Eigen::Vector3d* p_in_cam) {
+                                  const Ray& ray, LineAt line_at, Eigen::Vector3d* p_in_cam,
+                                  const ObjectSubset* subset = nullptr) {
   const Eigen::Matrix3d rotation = world_from_cam.linear();
-  std::optional<Hit> hit = scene.Intersect(world_from_cam * ray.origin, rotation * ray.direction);
+  std::optional<Hit> hit =
+      scene.Intersect(world_from_cam * ray.origin, rotation * ray.direction, subset);
   if (!hit) return std::nullopt;
   *p_in_cam = cam_from_world * hit->point;
   if (!model.has_distortion()) return hit;
@@ -56,6 +58,29 @@ std::optional<Hit> IntersectLocus(const PlenopticModel& model, const Scene& scen
     *p_in_cam = cam_from_world * hit->point;
   }
   return hit;
+}
+
+// The objects the rays of micro image `lens` may meet. Every object-side ray
+// of a pixel behind lens k runs from -M on the main lens (|M| within the
+// aperture) towards Q / f_L (plenoptic_model.h), and for the line through
+// the micro-lens centre L = (x, y, b) that ray passes through L's conjugate
+// z_o = f_L b / (b - f_L), (x, y) z_o / b: a cone with that apex through the
+// aperture disc (widened by 30 % for the rim's blur, and the angle by 50 %).
+// False when no such cone exists (distortion bends the rays; b = f_L).
+bool ObjectsOfMicroImage(const PlenopticModel& model, const Scene& scene,
+                         const Pose& world_from_cam, const MicroLens& lens, ObjectSubset* out) {
+  if (model.has_distortion()) return false;
+  const double f = model.params().main_focal_length_mm, b = lens.lens_mm.z();
+  if (std::abs(b - f) < 1e-6 * f) return false;
+  const double z_o = f * b / (b - f);
+  const Eigen::Vector3d apex(lens.lens_mm.x() * z_o / b, lens.lens_mm.y() * z_o / b, z_o);
+  const double distance = apex.norm();
+  const double aperture_radius = 0.65 * model.aperture_mm();
+  if (distance < 4 * aperture_radius) return false;
+  const double half_angle = 1.5 * std::asin(aperture_radius / distance);
+  scene.ObjectsInCone(world_from_cam * apex, world_from_cam.linear() * (-apex / distance),
+                      half_angle, out);
+  return true;
 }
 
 // Gaussian kernels for sigma in steps of 1/kSigmaSteps px, radius 2.5 sigma.
@@ -173,6 +198,7 @@ RawFrame RenderRaw(const PlenopticModel& model, const Scene& scene, const Pose& 
     std::vector<std::uint8_t> own(tile_size * tile_size), lit(tile_size * tile_size);
     std::vector<float> sigma(tile_size * tile_size), weight(tile_size * tile_size),
         depth_v(tile_size * tile_size);
+    ObjectSubset near;
     for (int i = i_min; i <= i_max; ++i) {
       const Eigen::Vector2d centre = model.LatticeCenterPx(i, j);
       const MicroLens lens = model.Lens(i, j);
@@ -180,6 +206,11 @@ RawFrame RenderRaw(const PlenopticModel& model, const Scene& scene, const Pose& 
       const int y0 = static_cast<int>(std::lround(centre.y())) - reach;
       if (x0 + tile_size <= 0 || y0 + tile_size <= 0 || x0 >= frame.width || y0 >= frame.height)
         continue;
+      const ObjectSubset* subset =
+          options.cull_objects && !scene.uniform_white &&
+                  ObjectsOfMicroImage(model, scene, world_from_cam, lens, &near)
+              ? &near
+              : nullptr;
       bool any_own = false;
       for (int ty = 0; ty < tile_size; ++ty)
         for (int tx = 0; tx < tile_size; ++tx) {
@@ -215,7 +246,7 @@ RawFrame RenderRaw(const PlenopticModel& model, const Scene& scene, const Pose& 
           Eigen::Vector3d p_in_cam;
           const std::optional<Hit> hit = IntersectLocus(
               model, scene, world_from_cam, cam_from_world, sample->ray,
-              [&](double b) { return model.RawLineAt(*sample, p, b); }, &p_in_cam);
+              [&](double b) { return model.RawLineAt(*sample, p, b); }, &p_in_cam, subset);
           if (!hit || p_in_cam.z() <= cam.main_focal_length_mm) continue;
           const double b = model.ImageDistanceOfDepth(p_in_cam.z());
           const double v = (b - b_l0) / cam.mla_to_sensor_mm;

@@ -32,6 +32,10 @@ struct RenderOptions {
   bool vignetting = true;        // cos^4 falloff (the aperture rim is always there)
   bool sensor_noise = true;      // shot and read noise per the camera params
   std::uint64_t noise_seed = 1;  // noise stream of this frame
+  // Per micro image, intersect only the objects near its bundle of rays
+  // (Scene::ObjectsInCone; not with distortion); false: every object. The
+  // pixels are the same either way.
+  bool cull_objects = true;
 };
 
 // An 8-bit raw frame (BGR8, or Mono8 RGGB mosaic) and its ground truth.

@@ -144,20 +144,62 @@ bool IntersectCylinder(const Cylinder& c, const Eigen::Vector3d& origin,
 
 }  // namespace
 
-std::optional<Hit> Scene::Intersect(const Eigen::Vector3d& origin,
-                                    const Eigen::Vector3d& dir) const {
+std::optional<Hit> Scene::Intersect(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+                                    const ObjectSubset* subset) const {
   Hit best;
   best.t = std::numeric_limits<double>::infinity();
   bool found = false;
   for (const Quad& q : quads) found |= IntersectQuad(q, origin, dir, &best);
-  for (const Box& b : boxes) found |= IntersectBox(b, origin, dir, &best);
-  for (const Cylinder& c : cylinders) found |= IntersectCylinder(c, origin, dir, &best);
-  for (const QuadCluster& cluster : clusters) {
-    if (!MeetsSphere(cluster.centre_mm, cluster.radius_mm, origin, dir, best.t)) continue;
-    for (const Quad& q : cluster.quads) found |= IntersectQuad(q, origin, dir, &best);
-  }
+  const auto each = [&](const auto& objects, const std::vector<int>* chosen, const auto& test) {
+    if (chosen) {
+      for (int k : *chosen) found |= test(objects[k]);
+    } else {
+      for (const auto& object : objects) found |= test(object);
+    }
+  };
+  each(boxes, subset ? &subset->boxes : nullptr,
+       [&](const Box& b) { return IntersectBox(b, origin, dir, &best); });
+  each(cylinders, subset ? &subset->cylinders : nullptr,
+       [&](const Cylinder& c) { return IntersectCylinder(c, origin, dir, &best); });
+  each(clusters, subset ? &subset->clusters : nullptr, [&](const QuadCluster& cluster) {
+    if (!MeetsSphere(cluster.centre_mm, cluster.radius_mm, origin, dir, best.t)) return false;
+    bool hit = false;
+    for (const Quad& q : cluster.quads) hit |= IntersectQuad(q, origin, dir, &best);
+    return hit;
+  });
   if (!found) return std::nullopt;
   return best;
+}
+
+void Scene::ObjectsInCone(const Eigen::Vector3d& apex, const Eigen::Vector3d& axis,
+                          double half_angle_rad, ObjectSubset* out) const {
+  // A sphere (c, r) meets the double cone when the angle between c - apex
+  // and the axis line is at most the half-angle plus the sphere's angular
+  // radius asin(r / |c - apex|).
+  const auto meets = [&](const Eigen::Vector3d& centre, double radius) {
+    const Eigen::Vector3d v = centre - apex;
+    const double d = v.norm();
+    if (d <= radius) return true;
+    const double angle = std::acos(std::min(1.0, std::abs(v.dot(axis)) / d));
+    return angle <= half_angle_rad + std::asin(radius / d);
+  };
+  out->boxes.clear();
+  out->cylinders.clear();
+  out->clusters.clear();
+  for (std::size_t k = 0; k < boxes.size(); ++k)
+    if (meets(0.5 * (boxes[k].min_mm + boxes[k].max_mm),
+              0.5 * (boxes[k].max_mm - boxes[k].min_mm).norm()))
+      out->boxes.push_back(static_cast<int>(k));
+  for (std::size_t k = 0; k < cylinders.size(); ++k) {
+    const Cylinder& c = cylinders[k];
+    const double half_height = 0.5 * (c.z_max_mm - c.z_min_mm);
+    if (meets(Eigen::Vector3d(c.centre_mm.x(), c.centre_mm.y(), c.z_min_mm + half_height),
+              std::hypot(c.radius_mm, half_height)))
+      out->cylinders.push_back(static_cast<int>(k));
+  }
+  for (std::size_t k = 0; k < clusters.size(); ++k)
+    if (meets(clusters[k].centre_mm, clusters[k].radius_mm))
+      out->clusters.push_back(static_cast<int>(k));
 }
 
 Eigen::Vector3d Scene::Shade(const Hit& hit, double footprint_mm) const {

@@ -78,6 +78,12 @@ struct QuadCluster {
   std::vector<Quad> quads;
 };
 
+// Indices of the bounded objects (boxes, cylinders, quad clusters) a bundle
+// of rays may meet (Scene::ObjectsInCone); quads are always tested.
+struct ObjectSubset {
+  std::vector<int> boxes, cylinders, clusters;
+};
+
 struct Hit {
   double t = 0;            // ray parameter (direction as given)
   Eigen::Vector3d point;   // world, mm
@@ -100,8 +106,17 @@ class Scene {
   double ambient = 0.45;
   bool uniform_white = false;  // white-image scene: radiance 1 everywhere
 
-  // First hit with t > 0 along origin + t dir (world frame).
-  std::optional<Hit> Intersect(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir) const;
+  // First hit with t > 0 along origin + t dir (world frame); with `subset`,
+  // of the bounded objects only those it lists.
+  std::optional<Hit> Intersect(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+                               const ObjectSubset* subset = nullptr) const;
+  // The bounded objects whose bounding sphere meets the double cone with
+  // apex `apex`, unit axis `axis` and half-angle `half_angle_rad` (world):
+  // every line through the apex within that angle of the axis can meet only
+  // these. (All rays of one micro image pass through one point, the main
+  // lens's conjugate of its micro-lens centre; renderer.cpp.)
+  void ObjectsInCone(const Eigen::Vector3d& apex, const Eigen::Vector3d& axis,
+                     double half_angle_rad, ObjectSubset* out) const;
   // Radiance (linear RGB, 1 = white lit head-on) of a hit seen with a sample
   // footprint of `footprint_mm`.
   Eigen::Vector3d Shade(const Hit& hit, double footprint_mm) const;

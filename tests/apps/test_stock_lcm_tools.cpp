@@ -66,9 +66,10 @@ class StockLcmTools : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     data_ = new test::TempDir;
+    // The plain scene: the LCM tools are under test, not the scene (the faster render).
     const test::CommandResult synth =
         test::RunLifmcr("synth --out " + data_->path().string() +
-                        " --preset medium --frames 2 --cameras 2 --quiet");
+                        " --preset medium --scene plain --frames 2 --cameras 2 --quiet");
     ASSERT_EQ(synth.exit_code, 0) << synth.err;
   }
   static void TearDownTestSuite() {

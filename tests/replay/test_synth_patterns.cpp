@@ -4,6 +4,8 @@
 // scene's objects never hide the markers from the default viewpoints.
 
 #include "replay/synth/patterns.h"
+#include "replay/synth/plenoptic_model.h"
+#include "replay/synth/renderer.h"
 #include "replay/synth/scene.h"
 #include "replay/synth/synth_params.h"
 #include "replay/synth/synth_writer.h"
@@ -144,6 +146,36 @@ TEST(SynthTableScene, ObjectsNeverHideTheMarkers) {
             EXPECT_EQ(hit->material, plate_material);
           }
     }
+}
+
+// Culling the objects per micro image (renderer.h) changes no pixel and no
+// ground-truth depth, from views of the orbit that see the plant, books and
+// plate.
+TEST(SynthTableScene, CullingObjectsPerMicroImageChangesNoPixel) {
+  const Scene scene = MakeTexturedTableScene(2);
+  SynthParams params = *MakePreset("small");
+  params.camera.width_px = 512;
+  params.camera.height_px = 384;
+  params.rig.motion = "orbit";
+  params.rig.frames = 2;
+  params.rig.viewing_distance_mm = 2500;  // a wide view (400 mm): many objects, many edges
+  const PlenopticModel model(params.camera);
+  const std::vector<std::vector<Pose>> poses = TriggerPoses(params, scene);
+  for (const Pose& world_from_cam : poses[0]) {
+    RenderOptions options;
+    options.cull_objects = true;
+    const RawFrame culled = RenderRaw(model, scene, world_from_cam, options);
+    options.cull_objects = false;
+    const RawFrame all = RenderRaw(model, scene, world_from_cam, options);
+    EXPECT_EQ(culled.pixels, all.pixels);
+    ASSERT_EQ(culled.virtual_depth.size(), all.virtual_depth.size());
+    int differ = 0;
+    for (std::size_t k = 0; k < all.virtual_depth.size(); ++k) {
+      const float a = culled.virtual_depth[k], b = all.virtual_depth[k];
+      differ += !(a == b || (std::isnan(a) && std::isnan(b)));
+    }
+    EXPECT_EQ(differ, 0);
+  }
 }
 
 TEST(SynthTableScene, SameSeedSameSceneOtherSeedOtherPlacement) {
