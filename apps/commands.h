@@ -24,6 +24,8 @@ CommandRun AddDemoCommand(CLI::App& app);
 CommandRun AddGridCommand(CLI::App& app);
 CommandRun AddDepthCommand(CLI::App& app);
 CommandRun AddEvaluateCommand(CLI::App& app);
+CommandRun AddCalibrateCommand(CLI::App& app);
+CommandRun AddRegisterCommand(CLI::App& app);
 
 // `lifmcr evaluate SEQ --registration ... --out OUT` with the defaults (the
 // hand-eye estimated, split half), for `lifmcr demo`; returns its exit code.
