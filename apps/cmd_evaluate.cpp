@@ -263,9 +263,15 @@ int RunEvaluate(const EvaluateArgs& args) {
   FramePoses w0_from_c0;
   if (!args.reference_poses.empty()) {
     progress("reading " + args.reference_poses);
-    auto poses = registration::ReadPosesCsv(args.reference_poses);
-    if (!poses) return Fail(poses.error().message);
-    for (const registration::FramePose& p : *poses) w0_from_c0[p.frame] = p.world_from_cam;
+    if (fs::path(args.reference_poses).extension() == ".tum") {
+      Expected<FramePoses> poses = ReadFrameTum(args.reference_poses);
+      if (!poses) return Fail(poses.error().message);
+      w0_from_c0 = std::move(*poses);
+    } else {
+      auto poses = registration::ReadPosesCsv(args.reference_poses);
+      if (!poses) return Fail(poses.error().message);
+      for (const registration::FramePose& p : *poses) w0_from_c0[p.frame] = p.world_from_cam;
+    }
   }
 
   // Vicon export and ground truth per camera.
@@ -602,7 +608,8 @@ CommandRun AddEvaluateCommand(CLI::App& app) {
                  "map frame is the plate frame)")
       ->check(CLI::ExistingFile);
   app.add_option("--reference-poses", a->reference_poses,
-                 "Camera 0's poses in the map (w0_from_c0, lifmcr calibrate's poses_<serial>.csv): "
+                 "Camera 0's poses in the map (w0_from_c0: lifmcr calibrate's poses_<serial>.csv, "
+                 "or lifmcr register's trajectory_<serial>_<method>.tum): "
                  "adds every camera's poses in the map frame against Vicon through the plate "
                  "alignment (the paper's absolute protocol)")
       ->check(CLI::ExistingFile);
