@@ -17,6 +17,7 @@
 #include "registration/evaluation.h"
 #include "registration/evaluation_inputs.h"
 #include "registration/plate_alignment.h"
+#include "registration/poses_csv.h"
 #include "registration/vicon_ground_truth.h"
 #include "replay/csv_tokenizer.h"
 #include "replay/layout.h"
@@ -64,6 +65,7 @@ struct EvaluateArgs {
   double vicon_frame_offset = 0;
   std::optional<double> vicon_rate;
   std::string vicon_csv, vsk, plate_subject, plate_aruco;
+  std::string reference_poses;
   double min_rotation_spread_deg = 1.0;
   bool no_plots = false;
   bool quiet = false;
@@ -257,6 +259,21 @@ int RunEvaluate(const EvaluateArgs& args) {
     return Fail("no registration of a camera other than the reference " + reference +
                 " in the registration files");
 
+  // Camera 0's poses in the map (lifmcr calibrate's poses_<serial>.csv).
+  FramePoses w0_from_c0;
+  if (!args.reference_poses.empty()) {
+    progress("reading " + args.reference_poses);
+    if (fs::path(args.reference_poses).extension() == ".tum") {
+      Expected<FramePoses> poses = ReadFrameTum(args.reference_poses);
+      if (!poses) return Fail(poses.error().message);
+      w0_from_c0 = std::move(*poses);
+    } else {
+      auto poses = registration::ReadPosesCsv(args.reference_poses);
+      if (!poses) return Fail(poses.error().message);
+      for (const registration::FramePose& p : *poses) w0_from_c0[p.frame] = p.world_from_cam;
+    }
+  }
+
   // Vicon export and ground truth per camera.
   fs::path vicon_csv = args.vicon_csv;
   if (vicon_csv.empty()) {
@@ -293,6 +310,8 @@ int RunEvaluate(const EvaluateArgs& args) {
       if (serial != reference && key.second != serial) continue;
       for (const auto& [f, p] : r.poses) frames.insert(f);
     }
+    if (serial == reference)
+      for (const auto& [f, p] : w0_from_c0) frames.insert(f);
     const std::vector<std::int64_t> frame_list(frames.begin(), frames.end());
     AssociatedPoses associated = AssociateFrames(samples[serial], frame_list, association);
     truth.asked = frame_list.size();
@@ -404,6 +423,40 @@ int RunEvaluate(const EvaluateArgs& args) {
       run.evaluations.push_back(std::move(e));
     }
   }
+  // Poses in the map frame through the plate alignment: camera 0 from the
+  // reference poses, camera X as w0_from_c0 · c0_from_cx.
+  if (!w0_from_c0.empty()) {
+    if (!run.plate)
+      return Fail("--reference-poses needs the plate alignment, which was not done: " +
+                  run.plate_note);
+    FramePoses vicon_from_map;
+    for (const CameraTruth& c : run.cameras)
+      for (const auto& [f, p] : c.vicon_from_marker) vicon_from_map[f] = run.plate->vicon_from_map();
+    auto evaluate_in_map = [&](const std::string& method, const std::string& serial,
+                               const FramePoses& w0_from_cam) {
+      std::optional<std::pair<Pose, Pose>> offsets;
+      if (given) offsets = std::pair{Pose(Pose::Identity()), given->at(serial)};
+      progress("map frame: " + method + " " + serial + ": " + std::to_string(w0_from_cam.size()) +
+               " poses");
+      CameraEvaluation e = EvaluateCamera(method, serial, "map", w0_from_cam, vicon_from_map,
+                                          run.Camera(serial)->vicon_from_marker, offsets, options);
+      if (e.hand_eye) progress("map frame: " + method + " " + serial + ": " + e.hand_eye->BriefReport());
+      run.map_evaluations.push_back(std::move(e));
+    };
+    evaluate_in_map("reference", reference, w0_from_c0);
+    for (const std::string& method : method_order)
+      for (const std::string& serial : ordered) {
+        const auto it = registered.find({method, serial});
+        if (it == registered.end()) continue;
+        FramePoses w0_from_cx;
+        for (const auto& [f, b] : it->second.poses) {
+          const auto c0 = w0_from_c0.find(f);
+          if (c0 != w0_from_c0.end()) w0_from_cx.emplace(f, Pose(c0->second * b));
+        }
+        evaluate_in_map(method, serial, w0_from_cx);
+      }
+  }
+
   for (std::size_t a = 0; a < method_order.size(); ++a)
     for (std::size_t b = a + 1; b < method_order.size(); ++b)
       for (const std::string& serial : ordered) {
@@ -460,6 +513,12 @@ int RunEvaluate(const EvaluateArgs& args) {
     fs::create_directories(out / "plots", ec);
     files.push_back("plots/trajectories_top.png");
     if (Status s = PlotTrajectoriesTop(run, out / files.back()); !s) return Fail(s.error().message);
+    for (const CameraEvaluation& e : run.map_evaluations) {
+      files.push_back("plots/map_" + e.method + "_" + e.serial + "_errors.png");
+      if (Status s = PlotErrorsOverFrames(e, out / files.back()); !s) return Fail(s.error().message);
+      files.push_back("plots/map_" + e.method + "_" + e.serial + "_axis_histograms.png");
+      if (Status s = PlotAxisHistograms(e, out / files.back()); !s) return Fail(s.error().message);
+    }
     for (const CameraEvaluation& e : run.evaluations) {
       files.push_back("plots/" + e.method + "_" + e.serial + "_errors.png");
       if (Status s = PlotErrorsOverFrames(e, out / files.back()); !s) return Fail(s.error().message);
@@ -481,6 +540,17 @@ int RunEvaluate(const EvaluateArgs& args) {
 }
 
 }  // namespace
+
+int RunEvaluateCommand(const std::string& sequence, const std::vector<std::string>& registration,
+                       const std::string& out, bool quiet) {
+  EvaluateArgs args;
+  args.sequence = sequence;
+  args.registration = registration;
+  args.out = out;
+  args.quiet = quiet;
+  args.command_line = "lifmcr demo (evaluate " + sequence + ")";
+  return RunEvaluate(args);
+}
 
 CommandRun AddEvaluateCommand(CLI::App& app) {
   auto a = std::make_shared<EvaluateArgs>();
@@ -536,6 +606,12 @@ CommandRun AddEvaluateCommand(CLI::App& app) {
   app.add_option("--plate-aruco", a->plate_aruco,
                  "CSV id,x_mm,y_mm,z_mm: the plate's ArUco centres in the map frame (default: the "
                  "map frame is the plate frame)")
+      ->check(CLI::ExistingFile);
+  app.add_option("--reference-poses", a->reference_poses,
+                 "Camera 0's poses in the map (w0_from_c0: lifmcr calibrate's poses_<serial>.csv, "
+                 "or lifmcr register's trajectory_<serial>_<method>.tum): "
+                 "adds every camera's poses in the map frame against Vicon through the plate "
+                 "alignment (the paper's absolute protocol)")
       ->check(CLI::ExistingFile);
   app.add_option("--min-rotation-spread", a->min_rotation_spread_deg,
                  "Refuse the hand-eye below this rotation spread about a second axis, deg (1)");

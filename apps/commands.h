@@ -3,6 +3,8 @@
 // and returns the callback that runs it; the exit code is the callback's.
 
 #include <functional>
+#include <string>
+#include <vector>
 
 namespace CLI {
 class App;
@@ -24,5 +26,10 @@ CommandRun AddDepthCommand(CLI::App& app);
 CommandRun AddEvaluateCommand(CLI::App& app);
 CommandRun AddCalibrateCommand(CLI::App& app);
 CommandRun AddRegisterCommand(CLI::App& app);
+
+// `lifmcr evaluate SEQ --registration ... --out OUT` with the defaults (the
+// hand-eye estimated, split half), for `lifmcr demo`; returns its exit code.
+int RunEvaluateCommand(const std::string& sequence, const std::vector<std::string>& registration,
+                       const std::string& out, bool quiet);
 
 }  // namespace lifmcr::apps

@@ -115,6 +115,126 @@ std::string PaperTable(const std::string& title, const std::vector<std::string>&
   return md.str();
 }
 
+void OffsetsSection(std::ostringstream& md, const EvaluationRun& run,
+                    const std::vector<CameraEvaluation>& evaluations) {
+  md << "| method | camera | source | tx [mm] | ty [mm] | tz [mm] | rx [°] | ry [°] | rz [°] | "
+        "centre in camera frame [mm] | residual | vs truth |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const CameraEvaluation& e : evaluations) {
+    const bool estimated = e.hand_eye && e.hand_eye->success;
+    if (!estimated && e.correction_source != "given") {
+      md << "| " << e.method << " | " << e.serial << " | none | " << e.correction_note
+         << " | | | | | | | | |\n";
+      continue;
+    }
+    const std::string source = estimated ? "estimated, all frames" : e.correction_source;
+    struct Item {
+      std::string serial;
+      Pose x;
+      Eigen::Vector3d sd_t, sd_r;
+    };
+    std::vector<Item> items;
+    items.push_back({e.serial, e.marker_from_cam,
+                     estimated ? e.hand_eye->x_translation_sd_mm : Eigen::Vector3d::Zero(),
+                     estimated ? e.hand_eye->x_rotation_sd_deg : Eigen::Vector3d::Zero()});
+    items.push_back({e.reference_serial, e.marker_from_cam_reference,
+                     estimated ? e.hand_eye->z_translation_sd_mm : Eigen::Vector3d::Zero(),
+                     estimated ? e.hand_eye->z_rotation_sd_deg : Eigen::Vector3d::Zero()});
+    for (const Item& it : items) {
+      const Eigen::Vector3d t = it.x.translation();
+      const Eigen::Vector3d w = RotationLog(it.x.linear()) / kDeg;
+      const Eigen::Vector3d centre = -(it.x.linear().transpose() * t);
+      md << "| " << e.method << " | " << it.serial << " | " << source << " | "
+         << PlusMinus(t.x(), it.sd_t.x(), 2) << " | " << PlusMinus(t.y(), it.sd_t.y(), 2) << " | "
+         << PlusMinus(t.z(), it.sd_t.z(), 2) << " | " << PlusMinus(w.x(), it.sd_r.x(), 3) << " | "
+         << PlusMinus(w.y(), it.sd_r.y(), 3) << " | " << PlusMinus(w.z(), it.sd_r.z(), 3)
+         << " | (" << F(centre.x(), 1) << ", " << F(centre.y(), 1) << ", " << F(centre.z(), 1)
+         << ") | ";
+      if (estimated)
+        md << F(e.hand_eye->translation_rms_mm) << " mm / " << F(e.hand_eye->rotation_rms_deg, 3)
+           << "°, " << e.hand_eye->inliers << "/" << e.hand_eye->observations << " inliers";
+      md << " | ";
+      const CameraTruth* truth = run.Camera(it.serial);
+      if (truth && truth->true_marker_from_cam) {
+        const Pose d = truth->true_marker_from_cam->inverse() * it.x;
+        md << F((it.x.translation() - truth->true_marker_from_cam->translation()).norm()) << " mm / "
+           << F(RotationAngleDeg(d.linear()), 3) << "°";
+      }
+      md << " |\n";
+    }
+  }
+  md << "\n";
+  for (const CameraEvaluation& e : evaluations) {
+    if (e.hand_eye) md << "- " << Label(e) << ", all frames: " << e.hand_eye->BriefReport() << "\n";
+    for (std::size_t k = 0; k < e.folds.size(); ++k)
+      md << "- " << Label(e) << ", " << (k == 0 ? "first" : "second")
+         << " half (corrects the other): " << e.folds[k].BriefReport() << "\n";
+    if (!e.correction_note.empty() && e.correction_source != "none")
+      md << "- " << Label(e) << ": " << e.correction_note << "\n";
+  }
+  md << "\n";
+
+}
+
+void TablesSection(std::ostringstream& md, const EvaluationRun& run,
+                   const std::vector<CameraEvaluation>& evaluations, const std::string& suffix) {
+  std::vector<std::string> methods;
+  std::set<std::string> serials;
+  for (const CameraEvaluation& e : evaluations) {
+    if (std::find(methods.begin(), methods.end(), e.method) == methods.end())
+      methods.push_back(e.method);
+    serials.insert(e.serial);
+  }
+  for (const bool relative : {true, false}) {
+    std::vector<TableRow> rows;
+    for (const std::string& serial : serials) {
+      TableRow plain{serial + ", no correction (the paper's protocol)", {}};
+      TableRow corrected{serial + ", hand-eye corrected", {}};
+      for (const CameraEvaluation& e : evaluations) {
+        if (e.serial != serial) continue;
+        plain.by_method[e.method] =
+            relative ? &e.uncorrected.rpe_summary : &e.uncorrected.ape_summary;
+        if (e.has_correction())
+          corrected.by_method[e.method] =
+              relative ? &e.corrected.rpe_summary : &e.corrected.ape_summary;
+      }
+      rows.push_back(plain);
+      rows.push_back(corrected);
+    }
+    md << "## " << (relative ? "Relative errors (consecutive frames; the paper's Table 2)"
+                             : "Absolute errors (the paper's Table 3)")
+       << suffix << "\n\n";
+    md << PaperTable(run.sequence_name, methods, rows);
+  }
+
+  md << "## Absolute errors per camera axis (the supplementary's table)" << suffix << "\n\n"
+        "Signed components of t(E) and of the rotation vector of R(E), in the camera frame "
+        "(x right, y down, z along the optical axis): RMSE, mean, SD.\n\n";
+  for (const CameraEvaluation& e : evaluations) {
+    md << "### " << Label(e) << "\n\n| axis | no correction RMSE | mean | SD | hand-eye RMSE | "
+                                 "mean | SD |\n|---|---|---|---|---|---|---|\n";
+    const char* names[3] = {"x", "y", "z"};
+    for (int rot = 0; rot < 2; ++rot) {
+      for (int k = 0; k < 3; ++k) {
+        const ErrorStats& u = rot ? e.uncorrected.ape_summary.rotation_axis_deg[k]
+                                  : e.uncorrected.ape_summary.translation_axis_mm[k];
+        md << "| " << names[k] << (rot ? " [°]" : " [mm]") << " | " << F(u.rmse, rot ? 3 : 2)
+           << " | " << F(u.mean, rot ? 3 : 2) << " | " << F(u.sd, rot ? 3 : 2) << " |";
+        if (e.has_correction()) {
+          const ErrorStats& c = rot ? e.corrected.ape_summary.rotation_axis_deg[k]
+                                    : e.corrected.ape_summary.translation_axis_mm[k];
+          md << " " << F(c.rmse, rot ? 3 : 2) << " | " << F(c.mean, rot ? 3 : 2) << " | "
+             << F(c.sd, rot ? 3 : 2) << " |\n";
+        } else {
+          md << " – | – | – |\n";
+        }
+      }
+    }
+    md << "\n";
+  }
+
+}
+
 }  // namespace
 
 const CameraTruth* EvaluationRun::Camera(const std::string& serial) const {
@@ -149,6 +269,10 @@ std::string FormatSummaryTable(const EvaluationRun& run) {
                   s.rotation_deg.sd);
     out << line;
   };
+  for (const CameraEvaluation& e : run.map_evaluations) {
+    row(e, "map frame, uncorrected", e.uncorrected.ape_summary);
+    if (e.has_correction()) row(e, "map frame, hand-eye", e.corrected.ape_summary);
+  }
   for (const CameraEvaluation& e : run.evaluations) {
     row(e, "relative, uncorrected", e.uncorrected.rpe_summary);
     row(e, "absolute, uncorrected", e.uncorrected.ape_summary);
@@ -239,118 +363,17 @@ std::string FormatEvaluationMarkdown(const EvaluationRun& run,
   md << ". Per axis of the marker (Vicon object) frame, ± one standard deviation (Ceres "
         "covariance); the camera centre seen from the markers is t, the offset the paper's "
         "supplementary reads from its per-axis errors is −Rᵀt (in the camera frame).\n\n";
-  md << "| method | camera | source | tx [mm] | ty [mm] | tz [mm] | rx [°] | ry [°] | rz [°] | "
-        "centre in camera frame [mm] | residual | vs truth |\n"
-        "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
-  for (const CameraEvaluation& e : run.evaluations) {
-    const bool estimated = e.hand_eye && e.hand_eye->success;
-    if (!estimated && e.correction_source != "given") {
-      md << "| " << e.method << " | " << e.serial << " | none | " << e.correction_note
-         << " | | | | | | | | |\n";
-      continue;
-    }
-    const std::string source = estimated ? "estimated, all frames" : e.correction_source;
-    struct Item {
-      std::string serial;
-      Pose x;
-      Eigen::Vector3d sd_t, sd_r;
-    };
-    std::vector<Item> items;
-    items.push_back({e.serial, e.marker_from_cam,
-                     estimated ? e.hand_eye->x_translation_sd_mm : Eigen::Vector3d::Zero(),
-                     estimated ? e.hand_eye->x_rotation_sd_deg : Eigen::Vector3d::Zero()});
-    items.push_back({e.reference_serial, e.marker_from_cam_reference,
-                     estimated ? e.hand_eye->z_translation_sd_mm : Eigen::Vector3d::Zero(),
-                     estimated ? e.hand_eye->z_rotation_sd_deg : Eigen::Vector3d::Zero()});
-    for (const Item& it : items) {
-      const Eigen::Vector3d t = it.x.translation();
-      const Eigen::Vector3d w = RotationLog(it.x.linear()) / kDeg;
-      const Eigen::Vector3d centre = -(it.x.linear().transpose() * t);
-      md << "| " << e.method << " | " << it.serial << " | " << source << " | "
-         << PlusMinus(t.x(), it.sd_t.x(), 2) << " | " << PlusMinus(t.y(), it.sd_t.y(), 2) << " | "
-         << PlusMinus(t.z(), it.sd_t.z(), 2) << " | " << PlusMinus(w.x(), it.sd_r.x(), 3) << " | "
-         << PlusMinus(w.y(), it.sd_r.y(), 3) << " | " << PlusMinus(w.z(), it.sd_r.z(), 3)
-         << " | (" << F(centre.x(), 1) << ", " << F(centre.y(), 1) << ", " << F(centre.z(), 1)
-         << ") | ";
-      if (estimated)
-        md << F(e.hand_eye->translation_rms_mm) << " mm / " << F(e.hand_eye->rotation_rms_deg, 3)
-           << "°, " << e.hand_eye->inliers << "/" << e.hand_eye->observations << " inliers";
-      md << " | ";
-      const CameraTruth* truth = run.Camera(it.serial);
-      if (truth && truth->true_marker_from_cam) {
-        const Pose d = truth->true_marker_from_cam->inverse() * it.x;
-        md << F((it.x.translation() - truth->true_marker_from_cam->translation()).norm()) << " mm / "
-           << F(RotationAngleDeg(d.linear()), 3) << "°";
-      }
-      md << " |\n";
-    }
+  OffsetsSection(md, run, run.evaluations);
+  TablesSection(md, run, run.evaluations, "");
+  if (!run.map_evaluations.empty()) {
+    md << "## Camera poses in the map (plate) frame: the paper's absolute protocol\n\n"
+          "Each camera's pose in the map, `w0_from_c0` from the reference poses and "
+          "`w0_from_c0 · c0_from_cx` for camera X, against `map_from_vicon · vicon_from_marker` "
+          "through the plate alignment. The hand-eye solves A X = Z B with Z a correction of the "
+          "plate alignment (shown as camera `map`; identity when the alignment is exact).\n\n";
+    OffsetsSection(md, run, run.map_evaluations);
+    TablesSection(md, run, run.map_evaluations, " (map frame)");
   }
-  md << "\n";
-  for (const CameraEvaluation& e : run.evaluations) {
-    if (e.hand_eye) md << "- " << Label(e) << ", all frames: " << e.hand_eye->BriefReport() << "\n";
-    for (std::size_t k = 0; k < e.folds.size(); ++k)
-      md << "- " << Label(e) << ", " << (k == 0 ? "first" : "second")
-         << " half (corrects the other): " << e.folds[k].BriefReport() << "\n";
-    if (!e.correction_note.empty() && e.correction_source != "none")
-      md << "- " << Label(e) << ": " << e.correction_note << "\n";
-  }
-  md << "\n";
-
-  std::vector<std::string> methods;
-  std::set<std::string> serials;
-  for (const CameraEvaluation& e : run.evaluations) {
-    if (std::find(methods.begin(), methods.end(), e.method) == methods.end())
-      methods.push_back(e.method);
-    serials.insert(e.serial);
-  }
-  for (const bool relative : {true, false}) {
-    std::vector<TableRow> rows;
-    for (const std::string& serial : serials) {
-      TableRow plain{serial + ", no correction (the paper's protocol)", {}};
-      TableRow corrected{serial + ", hand-eye corrected", {}};
-      for (const CameraEvaluation& e : run.evaluations) {
-        if (e.serial != serial) continue;
-        plain.by_method[e.method] =
-            relative ? &e.uncorrected.rpe_summary : &e.uncorrected.ape_summary;
-        if (e.has_correction())
-          corrected.by_method[e.method] =
-              relative ? &e.corrected.rpe_summary : &e.corrected.ape_summary;
-      }
-      rows.push_back(plain);
-      rows.push_back(corrected);
-    }
-    md << "## " << (relative ? "Relative errors (consecutive frames; the paper's Table 2)"
-                             : "Absolute errors (the paper's Table 3)")
-       << "\n\n";
-    md << PaperTable(run.sequence_name, methods, rows);
-  }
-
-  md << "## Absolute errors per camera axis (the supplementary's table)\n\n"
-        "Signed components of t(E) and of the rotation vector of R(E), in the camera frame "
-        "(x right, y down, z along the optical axis): RMSE, mean, SD.\n\n";
-  for (const CameraEvaluation& e : run.evaluations) {
-    md << "### " << Label(e) << "\n\n| axis | no correction RMSE | mean | SD | hand-eye RMSE | "
-                                 "mean | SD |\n|---|---|---|---|---|---|---|\n";
-    const char* names[3] = {"x", "y", "z"};
-    for (int rot = 0; rot < 2; ++rot) {
-      for (int k = 0; k < 3; ++k) {
-        const ErrorStats& u = rot ? e.uncorrected.ape_summary.rotation_axis_deg[k]
-                                  : e.uncorrected.ape_summary.translation_axis_mm[k];
-        md << "| " << names[k] << (rot ? " [°]" : " [mm]") << " | " << F(u.rmse, rot ? 3 : 2)
-           << " | " << F(u.mean, rot ? 3 : 2) << " | " << F(u.sd, rot ? 3 : 2) << " |";
-        if (e.has_correction()) {
-          const ErrorStats& c = rot ? e.corrected.ape_summary.rotation_axis_deg[k]
-                                    : e.corrected.ape_summary.translation_axis_mm[k];
-          md << " " << F(c.rmse, rot ? 3 : 2) << " | " << F(c.mean, rot ? 3 : 2) << " | "
-             << F(c.sd, rot ? 3 : 2) << " |\n";
-        } else {
-          md << " – | – | – |\n";
-        }
-      }
-    }
-    md << "\n";
-  }
-
   if (!run.differences.empty()) {
     md << "## Differences between the methods (the supplementary's comparison)\n\n"
           "| camera | methods | frames | T RMSE [mm] | T mean | T SD | R RMSE [°] | R mean | R SD "
@@ -379,6 +402,43 @@ std::string FormatEvaluationMarkdown(const EvaluationRun& run,
         "uncorrected absolute figures (read its metres as mm) and `evo_rpe ... --delta 1 "
         "--delta_unit f` the relative ones.\n";
   return md.str();
+}
+
+static nlohmann::json EvaluationsJson(const EvaluationRun& run,
+                                      const std::vector<CameraEvaluation>& evaluations) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const CameraEvaluation& e : evaluations) {
+    nlohmann::json ej = {{"method", e.method},
+                         {"camera", e.serial},
+                         {"reference", e.reference_serial},
+                         {"registered", e.registered},
+                         {"failed", e.failed},
+                         {"failure_reasons", e.failure_reasons},
+                         {"without_truth", e.without_truth},
+                         {"evaluated", e.estimate.size()},
+                         {"first_half_last_frame", e.half_last},
+                         {"fit_to_itself", e.fit_to_itself},
+                         {"uncorrected", MetricJson(e.uncorrected)},
+                         {"correction", {{"source", e.correction_source}, {"note", e.correction_note}}}};
+    if (e.has_correction()) ej["corrected"] = MetricJson(e.corrected);
+    if (e.correction_source == "given" || (e.hand_eye && e.hand_eye->success)) {
+      ej["correction"]["marker_from_cam"] = PoseJson(e.marker_from_cam);
+      ej["correction"]["marker_from_cam_reference"] = PoseJson(e.marker_from_cam_reference);
+    }
+    if (e.hand_eye) ej["hand_eye"] = HandEyeJson(*e.hand_eye);
+    for (const HandEyeResult& fold : e.folds) ej["hand_eye_folds"].push_back(HandEyeJson(fold));
+    for (const CameraTruth* truth : {run.Camera(e.serial), run.Camera(e.reference_serial)}) {
+      const bool offsets = e.correction_source == "given" || (e.hand_eye && e.hand_eye->success);
+      if (!offsets || !truth || !truth->true_marker_from_cam) continue;
+      const Pose& x = truth->serial == e.serial ? e.marker_from_cam : e.marker_from_cam_reference;
+      const Pose d = truth->true_marker_from_cam->inverse() * x;
+      ej["correction"]["error_vs_truth"][truth->serial] = {
+          {"translation_mm", (x.translation() - truth->true_marker_from_cam->translation()).norm()},
+          {"rotation_deg", RotationAngleDeg(d.linear())}};
+    }
+    out.push_back(ej);
+  }
+  return out;
 }
 
 std::string FormatEvaluationJson(const EvaluationRun& run, const std::vector<std::string>& files) {
@@ -427,37 +487,9 @@ std::string FormatEvaluationJson(const EvaluationRun& run, const std::vector<std
   } else {
     j["plate_alignment"] = {{"done", false}, {"why", run.plate_note}};
   }
-  for (const CameraEvaluation& e : run.evaluations) {
-    nlohmann::json ej = {{"method", e.method},
-                         {"camera", e.serial},
-                         {"reference", e.reference_serial},
-                         {"registered", e.registered},
-                         {"failed", e.failed},
-                         {"failure_reasons", e.failure_reasons},
-                         {"without_truth", e.without_truth},
-                         {"evaluated", e.estimate.size()},
-                         {"first_half_last_frame", e.half_last},
-                         {"fit_to_itself", e.fit_to_itself},
-                         {"uncorrected", MetricJson(e.uncorrected)},
-                         {"correction", {{"source", e.correction_source}, {"note", e.correction_note}}}};
-    if (e.has_correction()) ej["corrected"] = MetricJson(e.corrected);
-    if (e.correction_source == "given" || (e.hand_eye && e.hand_eye->success)) {
-      ej["correction"]["marker_from_cam"] = PoseJson(e.marker_from_cam);
-      ej["correction"]["marker_from_cam_reference"] = PoseJson(e.marker_from_cam_reference);
-    }
-    if (e.hand_eye) ej["hand_eye"] = HandEyeJson(*e.hand_eye);
-    for (const HandEyeResult& fold : e.folds) ej["hand_eye_folds"].push_back(HandEyeJson(fold));
-    for (const CameraTruth* truth : {run.Camera(e.serial), run.Camera(e.reference_serial)}) {
-      const bool offsets = e.correction_source == "given" || (e.hand_eye && e.hand_eye->success);
-      if (!offsets || !truth || !truth->true_marker_from_cam) continue;
-      const Pose& x = truth->serial == e.serial ? e.marker_from_cam : e.marker_from_cam_reference;
-      const Pose d = truth->true_marker_from_cam->inverse() * x;
-      ej["correction"]["error_vs_truth"][truth->serial] = {
-          {"translation_mm", (x.translation() - truth->true_marker_from_cam->translation()).norm()},
-          {"rotation_deg", RotationAngleDeg(d.linear())}};
-    }
-    j["evaluations"].push_back(ej);
-  }
+  j["evaluations"] = EvaluationsJson(run, run.evaluations);
+  if (!run.map_evaluations.empty())
+    j["map_frame_evaluations"] = EvaluationsJson(run, run.map_evaluations);
   for (const MethodDifference& d : run.differences)
     j["method_differences"].push_back({{"camera", d.serial},
                                        {"method_a", d.method_a},

@@ -46,7 +46,8 @@ struct EvaluationRun {
   std::vector<CameraTruth> cameras;  // the reference first
   std::optional<PlateAlignment> plate;
   std::string plate_note;  // why there is no plate alignment
-  std::vector<CameraEvaluation> evaluations;
+  std::vector<CameraEvaluation> evaluations;      // c0_from_cx per method and camera
+  std::vector<CameraEvaluation> map_evaluations;  // with --reference-poses: poses in the map
   std::vector<MethodDifference> differences;
   std::vector<std::string> warnings;
 

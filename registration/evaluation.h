@@ -90,6 +90,14 @@ struct CameraEvaluation {
 
 // One camera X and one method. `given` holds (X_0, X_X) when the offsets are
 // known; otherwise they are estimated per `options`.
+//
+// The same function evaluates a camera's poses in the map frame (the
+// paper's absolute protocol): pass B = w0_from_cam as `c0_from_cx`, the
+// plate alignment's vicon_from_map at every frame as `vicon_from_marker0`,
+// and the camera's vicon_from_marker as
+// `vicon_from_markerx`. The truth is then map_from_vicon · vicon_from_marker,
+// and the hand-eye solves A X = Z B with Z a correction of the plate
+// alignment (identity when the plate alignment is exact) and X = marker_from_cam.
 CameraEvaluation EvaluateCamera(const std::string& method, const std::string& serial,
                                 const std::string& reference_serial,
                                 const FramePoses& c0_from_cx,

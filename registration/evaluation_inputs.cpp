@@ -215,6 +215,39 @@ Expected<Pose> ReadMarkerFromCamCsv(const std::filesystem::path& path) {
   return table->PoseAt(table->doc.rows[1]);
 }
 
+Expected<FramePoses> ReadFrameTum(const std::filesystem::path& path) {
+  Expected<std::string> text = ReadText(path);
+  if (!text) return text.error();
+  std::istringstream in(*text);
+  FramePoses poses;
+  int line_number = 0;
+  for (std::string line; std::getline(in, line);) {
+    ++line_number;
+    if (line.empty() || line[0] == '#' || line.find_first_not_of(" \t\r") == std::string::npos)
+      continue;
+    std::istringstream fields(line);
+    double v[8];
+    int count = 0;
+    while (count < 8 && fields >> v[count]) ++count;
+    std::string rest;
+    if (count != 8 || (fields >> rest))
+      return MakeError(path.string(), line_number, 0,
+                       "expected 8 numbers: frame tx ty tz qx qy qz qw");
+    const std::int64_t frame = static_cast<std::int64_t>(v[0]);
+    if (static_cast<double>(frame) != v[0])
+      return MakeError(path.string(), line_number, 1, "the first column must be a frame number");
+    const Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
+    if (std::abs(q.norm() - 1.0) > 1e-3)
+      return MakeError(path.string(), line_number, 0, "the quaternion must have unit norm");
+    Pose pose = Pose::Identity();
+    pose.linear() = q.normalized().toRotationMatrix();
+    pose.translation() = Eigen::Vector3d(v[1], v[2], v[3]);
+    if (!poses.emplace(frame, pose).second)
+      return MakeError(path.string(), line_number, 1, "frame " + std::to_string(frame) + " twice");
+  }
+  return poses;
+}
+
 Expected<HandEyeOffsets> ReadHandEyeYaml(const std::filesystem::path& path) {
   Expected<std::string> text = ReadText(path);
   if (!text) return text.error();

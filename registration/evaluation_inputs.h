@@ -49,6 +49,11 @@ std::string FormatRegistrationCsv(const std::vector<RegistrationRow>& rows);
 
 Expected<Pose> ReadMarkerFromCamCsv(const std::filesystem::path& path);
 
+// A TUM trajectory whose first column is the frame number (lifmcr
+// register's trajectory_<serial>_<method>.tum of w0_from_cam):
+// "frame tx ty tz qx qy qz qw" per line, '#' lines are comments.
+Expected<FramePoses> ReadFrameTum(const std::filesystem::path& path);
+
 // serial -> marker_from_cam.
 using HandEyeOffsets = std::map<std::string, Pose>;
 Expected<HandEyeOffsets> ReadHandEyeYaml(const std::filesystem::path& path);

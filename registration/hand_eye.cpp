@@ -21,12 +21,6 @@ namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 
-Eigen::Matrix3d ProjectToRotation(const Eigen::Matrix3d& m) {
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(m, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
-  d(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1 : 1;
-  return svd.matrixU() * d * svd.matrixV().transpose();
-}
 
 // E_i = (Z B_i)^-1 A_i X.
 Pose Residual(const Pose& a, const Pose& b, const Pose& x, const Pose& z) {
@@ -89,13 +83,13 @@ bool ClosedForm(std::span<const Pose> a, std::span<const Pose> b, const std::vec
   cv::cv2eigen(tx, t);
   if (!r.allFinite() || !t.allFinite()) return false;
   *x = Pose::Identity();
-  x->linear() = ProjectToRotation(r);
+  x->linear() = NearestRotation(r);
   x->translation() = t;
   cv::cv2eigen(rz, r);
   cv::cv2eigen(tz, t);
   if (!r.allFinite() || !t.allFinite()) return false;
   *z = Pose::Identity();
-  z->linear() = ProjectToRotation(r);
+  z->linear() = NearestRotation(r);
   z->translation() = t;
   return true;
 }
@@ -202,7 +196,7 @@ Eigen::Vector3d RotationSpreadDeg(std::span<const Pose> poses) {
   if (poses.empty()) return Eigen::Vector3d::Zero();
   Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
   for (const Pose& p : poses) sum += p.linear();
-  const Eigen::Matrix3d mean = ProjectToRotation(sum);
+  const Eigen::Matrix3d mean = NearestRotation(sum);
   Eigen::MatrixXd w(poses.size(), 3);
   for (std::size_t i = 0; i < poses.size(); ++i)
     w.row(static_cast<Eigen::Index>(i)) = RotationLog(mean.transpose() * poses[i].linear());

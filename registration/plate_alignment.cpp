@@ -12,16 +12,6 @@
 #include <limits>
 
 namespace lifmcr {
-namespace {
-
-Eigen::Matrix3d ProjectToRotation(const Eigen::Matrix3d& m) {
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(m, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
-  d(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1 : 1;
-  return svd.matrixU() * d * svd.matrixV().transpose();
-}
-
-}  // namespace
 
 PlateTemplate DefaultPlateTemplate() {
   const synth::MarkerPlateLayout layout;
@@ -123,7 +113,7 @@ Expected<PlateAlignment> AlignPlate(std::span<const ViconPoseSample> plate_sampl
   if (result.plate_samples == 0)
     return Error{"plate alignment: the plate object is never tracked in the Vicon export"};
   Pose vicon_from_plate = Pose::Identity();
-  vicon_from_plate.linear() = ProjectToRotation(rotation_sum);
+  vicon_from_plate.linear() = NearestRotation(rotation_sum);
   vicon_from_plate.translation() = translation_sum / static_cast<double>(result.plate_samples);
   for (const ViconPoseSample& s : plate_samples) {
     if (!s.vicon_from_marker) continue;

@@ -1,6 +1,7 @@
 #include "registration/trajectory_metrics.h"
 
 #include <Eigen/Geometry>
+#include <Eigen/SVD>
 
 #include <algorithm>
 #include <cmath>
@@ -42,6 +43,13 @@ std::string ErrorStats::BriefReport(const std::string& unit) const {
 Eigen::Vector3d RotationLog(const Eigen::Matrix3d& rotation) {
   const Eigen::AngleAxisd aa(rotation);
   return aa.angle() * aa.axis();
+}
+
+Eigen::Matrix3d NearestRotation(const Eigen::Matrix3d& m) {
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(m, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
+  d(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1 : 1;
+  return svd.matrixU() * d * svd.matrixV().transpose();
 }
 
 double RotationAngleDeg(const Eigen::Matrix3d& rotation) {

@@ -72,6 +72,9 @@ struct ErrorSummary {
 double RotationAngleDeg(const Eigen::Matrix3d& rotation);
 // Rotation vector (axis * angle, rad) of a rotation matrix.
 Eigen::Vector3d RotationLog(const Eigen::Matrix3d& rotation);
+// The rotation nearest to `m` in the Frobenius norm (SVD, det +1): the
+// chordal mean of rotations is NearestRotation of their sum.
+Eigen::Matrix3d NearestRotation(const Eigen::Matrix3d& m);
 
 // The error of one estimate against its reference: E = estimate^-1 reference.
 Pose PoseError(const Pose& estimate, const Pose& reference);

@@ -214,6 +214,45 @@ TEST_F(EvaluateCli, TrueOffsetsLeaveOnlyTheRegistrationNoise) {
   EXPECT_LT(ape["rotation_deg"]["median"].get<double>(), 0.3);
 }
 
+TEST_F(EvaluateCli, MapFramePosesShowEachCamerasOffsetAndCorrectIt) {
+  // Camera 0's poses in the map as lifmcr calibrate writes them (here: the
+  // truth with 1 mm / 0.05 deg noise; the map frame is the plate frame).
+  std::mt19937_64 rng(21);
+  auto w0 = registration::ReadPosesCsv(layout::PosesCsvPath(*seq_, kCam0));
+  ASSERT_TRUE(w0);
+  for (registration::FramePose& p : *w0) p.world_from_cam = p.world_from_cam * Noise(rng, 0.05, 1.0);
+  ASSERT_TRUE(registration::WritePosesCsv(*dir_ / "w0_from_c0.csv", *w0));
+  const fs::path out = *dir_ / "eval_map";
+  const test::CommandResult r = test::RunLifmcr(
+      "evaluate " + seq_->string() + " --registration " + (*dir_ / "registration.csv").string() +
+      " --reference-poses " + (*dir_ / "w0_from_c0.csv").string() + " --out " + out.string() +
+      " --quiet");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::cout << r.out;
+  const nlohmann::json j = ReadJson(out / "evaluation.json");
+  ASSERT_EQ(j["map_frame_evaluations"].size(), 3u);  // camera 0, camera X by pnp and ransac
+  const nlohmann::json& c0 = j["map_frame_evaluations"][0];
+  EXPECT_EQ(c0["camera"], kCam0);
+  // Without correction the error is the offset itself: E = cam_from_marker,
+  // |t| = |t(X0^-1)| in every frame (the paper's supplementary), in the
+  // camera frame per axis.
+  const Eigen::Vector3d offset = x0_->inverse().translation();
+  const auto& axes = c0["uncorrected"]["ape"]["translation_axis_mm"];
+  std::cout << "camera 0 offset in its frame (" << offset.transpose() << ") mm, mean per-axis "
+            << "error (" << axes["x"]["mean"] << ", " << axes["y"]["mean"] << ", "
+            << axes["z"]["mean"] << ")\n";
+  EXPECT_NEAR(axes["x"]["mean"].get<double>(), offset.x(), 1.0);
+  EXPECT_NEAR(axes["y"]["mean"].get<double>(), offset.y(), 1.0);
+  EXPECT_NEAR(axes["z"]["mean"].get<double>(), offset.z(), 1.0);
+  const auto& err = c0["correction"]["error_vs_truth"][kCam0];
+  std::cout << "camera 0 marker_from_cam from map poses off the truth by " << err["translation_mm"]
+            << " mm, " << err["rotation_deg"] << " deg\n";
+  EXPECT_LT(err["translation_mm"].get<double>(), 2.0);
+  EXPECT_LT(err["rotation_deg"].get<double>(), 0.2);
+  EXPECT_LT(c0["corrected"]["ape"]["translation_mm"]["median"].get<double>(), 3.0);
+  EXPECT_NE(test::ReadFile(out / "evaluation.md").find("map (plate) frame"), std::string::npos);
+}
+
 TEST_F(EvaluateCli, RefusesTheHandEyeForARigidPair) {
   // A rigidly mounted pair: c0_from_cx never changes, the offsets of the two
   // cameras cannot be told apart.
