@@ -20,6 +20,8 @@ using internal::InitialMap;
 using internal::Observation;
 using internal::Track;
 
+constexpr double kBound = 0.3;  // relative bound of f_L, b_L0, B about their initial values
+
 std::string Format(const char* fmt, auto... args) {
   char buffer[1024];
   std::snprintf(buffer, sizeof(buffer), fmt, args...);
@@ -176,6 +178,7 @@ Status CalibrationOptions::Check() const {
   if (min_pnp_inliers < 6) return fail("min_pnp_inliers: expected >= 6");
   if (!(huber_px > 0)) return fail("huber_px: expected > 0");
   if (!(outlier_px > 0)) return fail("outlier_px: expected > 0");
+  if (!(plate_weight > 0)) return fail("plate_weight: expected > 0");
   if (max_lenses < 2) return fail("max_lenses: expected >= 2");
   if (max_iterations < 1) return fail("max_iterations: expected >= 1");
   if (threads < 1) return fail("threads: expected >= 1");
@@ -283,7 +286,10 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
   double solver_seconds = 0;
   int iterations = 0;
   double first_initial_cost = -1;
-  for (int round = 0; round < 2; ++round) {
+  // Round 0: poses and points under the initial intrinsics (a consistent
+  // structure first); round 1: everything; outliers dropped; round 2.
+  constexpr int kRounds = 3;
+  for (int round = 0; round < kRounds; ++round) {
     ceres::Problem::Options problem_options;
     problem_options.manifold_ownership = ceres::TAKE_OWNERSHIP;
     ceres::Problem problem(problem_options);
@@ -309,24 +315,43 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
         problem.AddResidualBlock(
             new ceres::AutoDiffCostFunction<MicroImageCost, ceres::DYNAMIC, kIntrinsicsSize, 4, 3,
                                             3>(new MicroImageCost(co.micro_cost), residuals),
-            new ceres::HuberLoss(options.huber_px * std::sqrt(residuals / 2.0)), k.data(),
-            poses[f].q.data(), poses[f].t.data(), co.p_in_w_mm.data());
+            new ceres::ScaledLoss(
+                new ceres::HuberLoss(options.huber_px * std::sqrt(residuals / 2.0)),
+                options.plate_weight * options.plate_weight, ceres::TAKE_OWNERSHIP),
+            k.data(), poses[f].q.data(), poses[f].t.data(), co.p_in_w_mm.data());
         problem.SetParameterBlockConstant(co.p_in_w_mm.data());
       } else {
         problem.AddResidualBlock(
             new ceres::AutoDiffCostFunction<PlateCornerCost, 2, kIntrinsicsSize, 4, 3>(
                 new PlateCornerCost(co.virtual_cost)),
-            new ceres::HuberLoss(options.huber_px), k.data(), poses[f].q.data(),
-            poses[f].t.data());
+            new ceres::ScaledLoss(new ceres::HuberLoss(options.huber_px),
+                                  options.plate_weight * options.plate_weight,
+                                  ceres::TAKE_OWNERSHIP),
+            k.data(), poses[f].q.data(), poses[f].t.data());
       }
       pose_used[f] = true;
     }
     for (int f = 0; f < n_frames; ++f)
       if (pose_used[f]) problem.SetManifold(poses[f].q.data(), new ceres::QuaternionManifold());
-    if (static_cast<int>(constant.size()) == kIntrinsicsSize)
+    if (round == 0 || static_cast<int>(constant.size()) == kIntrinsicsSize) {
       problem.SetParameterBlockConstant(k.data());
-    else if (!constant.empty())
-      problem.SetManifold(k.data(), new ceres::SubsetManifold(kIntrinsicsSize, constant));
+    } else {
+      if (!constant.empty())
+        problem.SetManifold(k.data(), new ceres::SubsetManifold(kIntrinsicsSize, constant));
+      // Keep the solve among cameras: f_L, b_L0, B within 30 % of their
+      // initial values, the principal point within 10 % of the image size
+      // (a bound reached is flagged below).
+      for (int i = 0; i < 3; ++i) {
+        problem.SetParameterLowerBound(k.data(), i, (1 - kBound) * result.initial[i]);
+        problem.SetParameterUpperBound(k.data(), i, (1 + kBound) * result.initial[i]);
+      }
+      const double size[2] = {static_cast<double>(input.initial.intrinsics.width_px),
+                              static_cast<double>(input.initial.intrinsics.height_px)};
+      for (int a = 0; a < 2; ++a) {
+        problem.SetParameterLowerBound(k.data(), 3 + a, result.initial[3 + a] - 0.1 * size[a]);
+        problem.SetParameterUpperBound(k.data(), 3 + a, result.initial[3 + a] + 0.1 * size[a]);
+      }
+    }
 
     ceres::Solver::Options solver_options;
     solver_options.linear_solver_type = ceres::SPARSE_SCHUR;
@@ -334,19 +359,22 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
     solver_options.num_threads = options.threads;
     solver_options.function_tolerance = 1e-9;
     solver_options.parameter_tolerance = 1e-10;
-    ProgressCallback callback(progress, round == 0 ? "BA 1/2" : "BA 2/2");
+    const std::string stage = "BA " + std::to_string(round + 1) + "/" + std::to_string(kRounds);
+    ProgressCallback callback(progress, stage);
     solver_options.callbacks.push_back(&callback);
     solver_options.update_state_every_iteration = false;
     if (progress)
-      progress(Format("BA %d/2: %d residual blocks, %d parameter blocks", round + 1,
-                      problem.NumResidualBlocks(), problem.NumParameterBlocks()));
+      progress(Format("%s%s: %d residual blocks, %d parameter blocks", stage.c_str(),
+                      round == 0 ? " (intrinsics held)" : "", problem.NumResidualBlocks(),
+                      problem.NumParameterBlocks()));
     ceres::Solve(solver_options, &problem, &summary);
     solver_seconds += summary.total_time_in_seconds;
     iterations += static_cast<int>(summary.iterations.size()) - 1;
     if (first_initial_cost < 0) first_initial_cost = summary.initial_cost;
     if (progress) progress(summary.BriefReport());
 
-    if (round == 0) {
+    if (round == 0) continue;
+    if (round == 1) {
       // Drop observations whose RMS micro-image residual exceeds outlier_px.
       long long dropped = 0;
       for (std::size_t n = 0; n < lens_observations.size(); ++n) {
@@ -423,8 +451,9 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
   if (!result.calibration.intrinsics.Check())
     result.flags.push_back("diverged: the intrinsics left their valid range");
   for (int i = 0; i < 3; ++i)
-    if (std::abs(k[i] / result.initial[i] - 1) > 0.3 && !(options.recalibrate && i != 1))
-      result.flags.push_back(Format("diverged: %s moved %.0f %% from its initial value",
+    if (std::abs(k[i] / result.initial[i] - 1) > kBound - 1e-3)
+      result.flags.push_back(Format("diverged: %s reached its bound (%.0f %% from its initial "
+                                    "value)",
                                     kParameterNames[i], 100 * (k[i] / result.initial[i] - 1)));
 
   std::vector<double> frame_ss(n_frames, 0);

@@ -22,10 +22,15 @@
 //    search matched, l_k with the initial lambda); the residual is the
 //    predicted p_k minus it, micro-lens centre adjustment included, Huber
 //    loss per observation. Plate corners are points fixed at their known
-//    plate coordinates, residual in the virtual image (x_v): they fix the
-//    metric scale and make the world frame w0 the plate frame. After a first
-//    solve, observations whose RMS residual exceeds outlier_px are dropped
-//    and the problem is solved again. Recalibration holds f_L and B fixed
+//    plate coordinates, observed in the micro images in the same way (with
+//    the virtual depth at the corner; in the virtual image x_v where the TF
+//    depth map has none): they fix the
+//    metric scale and make the world frame w0 the plate frame; their
+//    residuals are weighted by plate_weight. Solves: poses and points under
+//    the initial intrinsics, then everything (f_L, b_L0, B bounded to 30 %
+//    about their initial values, the principal point to 10 % of the image),
+//    then, with observations whose RMS residual exceeds outlier_px dropped,
+//    everything again. Recalibration holds f_L and B fixed
 //    (ceres::SubsetManifold).
 // 4. Standard deviations of the intrinsics from ceres::Covariance, scaled by
 //    the residual variance of the solution.
@@ -56,6 +61,7 @@ struct CalibrationOptions {
   int min_pnp_inliers = 20;         // else the frame falls back to the plate, or is rejected
   double huber_px = 1.0;            // Huber scale per micro-image residual (raw pixels)
   double outlier_px = 1.5;          // observations with an RMS residual above this are dropped
+  double plate_weight = 5.0;        // plate corner residuals count this much more (the metric anchor)
   int max_lenses = 12;              // micro images per observation (the most central)
   int max_iterations = 100;         // Ceres iterations per solve
   bool recalibrate = false;         // hold f_L and B fixed (LiFCal recalib)
