@@ -267,6 +267,20 @@ int RunRegister(const RegisterOptions& o) {
   if (world_from.size() == serials.size()) {
     std::printf("c0_from_cx against GroundTruth (per frame; c0_from_cx_true = world_from_c0^-1 "
                 "world_from_cx):\n");
+    // With a ground-truth map w0 is the world: each camera's own error.
+    if (o.reference_from_ground_truth) {
+      for (const reg::RegistrationMethod method : methods)
+        for (const std::string& serial : serials) {
+          Errors e;
+          for (const auto& [frame, pose] : trajectories[method][serial]) {
+            const auto truth = world_from[serial].find(frame);
+            if (truth == world_from[serial].end()) continue;
+            e.t_mm.push_back(reg::TranslationDifference(pose.pose, truth->second));
+            e.r_deg.push_back(reg::RotationDifferenceDeg(pose.pose, truth->second));
+          }
+          PrintStats(std::string(reg::ToString(method)) + " w0_from_cam " + serial, e);
+        }
+    }
     for (const std::string& serial : serials) {
       if (serial == reference_serial) continue;
       std::printf("camera %s -> %s\n  frame", serial.c_str(), reference_serial.c_str());

@@ -42,6 +42,27 @@ class RawObserver final : public FrameObserver {
   processing::CameraModel camera_;
 };
 
+// Bilinear depth at a sub-pixel keypoint (the ground truth is exact, so a
+// nearest-pixel sample would add up to half a pixel's depth gradient);
+// the nearest pixel where a neighbour has no depth.
+double SampleDepth(const cv::Mat& depth, const Eigen::Vector2d& xy) {
+  const int x0 = static_cast<int>(std::floor(xy.x())), y0 = static_cast<int>(std::floor(xy.y()));
+  if (x0 < 0 || y0 < 0 || x0 + 1 >= depth.cols || y0 + 1 >= depth.rows) {
+    const int u = static_cast<int>(std::lround(xy.x())), w = static_cast<int>(std::lround(xy.y()));
+    if (u < 0 || w < 0 || u >= depth.cols || w >= depth.rows)
+      return std::numeric_limits<double>::quiet_NaN();
+    return depth.at<float>(w, u);
+  }
+  const double fx = xy.x() - x0, fy = xy.y() - y0;
+  const double d00 = depth.at<float>(y0, x0), d10 = depth.at<float>(y0, x0 + 1);
+  const double d01 = depth.at<float>(y0 + 1, x0), d11 = depth.at<float>(y0 + 1, x0 + 1);
+  const double bilinear =
+      (d00 * (1 - fx) + d10 * fx) * (1 - fy) + (d01 * (1 - fx) + d11 * fx) * fy;
+  if (std::isfinite(bilinear)) return bilinear;
+  return depth.at<float>(static_cast<int>(std::lround(xy.y())) < depth.rows ? static_cast<int>(std::lround(xy.y())) : y0,
+                         static_cast<int>(std::lround(xy.x())) < depth.cols ? static_cast<int>(std::lround(xy.x())) : x0);
+}
+
 class GroundTruthObserver final : public FrameObserver {
  public:
   GroundTruthObserver(std::filesystem::path sequence_dir, std::string serial,
@@ -75,10 +96,7 @@ class GroundTruthObserver final : public FrameObserver {
     out.virtual_depth.assign(out.features.keypoints.size(),
                              std::numeric_limits<double>::quiet_NaN());
     for (std::size_t i = 0; i < out.features.keypoints.size(); ++i) {
-      const Eigen::Vector2f& xy = out.features.keypoints[i].xy_px;
-      const int u = static_cast<int>(std::lround(xy.x())), w = static_cast<int>(std::lround(xy.y()));
-      if (u < 0 || w < 0 || u >= depth.cols || w >= depth.rows) continue;
-      const double z = depth.at<float>(w, u);
+      const double z = SampleDepth(depth, out.features.keypoints[i].xy_px.cast<double>());
       if (std::isfinite(z) && z > camera_.intrinsics().main_focal_length_mm)
         out.virtual_depth[i] = camera_.VirtualDepthOfDepth(z);
     }

@@ -13,7 +13,8 @@
 //                 exact TF grid) and GroundTruth/depth/*_depth_mm.tiff (camera
 //                 z on the TF grid, v = CameraModel::VirtualDepthOfDepth):
 //                 registration measured apart from depth estimation.
-// A keypoint takes the depth of the nearest TF pixel; one without depth
+// A keypoint takes the depth at its position (the TF depth map's nearest
+// pixel for raw frames, bilinear in the exact ground truth); one without depth
 // (NaN) is used by PnP for scoring only and not by the 3D RANSAC.
 
 #include "config/error.h"

@@ -1,6 +1,7 @@
 // Weighted Kabsch / Umeyama and the covariance propagation of poses:
 // random transforms in, invariants out.
 #include "registration/extrinsics.h"
+#include "registration/map_localizer.h"
 #include "registration/pose_covariance.h"
 #include "registration/rigid_fit.h"
 
@@ -130,6 +131,35 @@ TEST(Extrinsics, ComposeInTheOrderTheNamesSay) {
     Covariance6 cov = Covariance6::Identity();
     EXPECT_GT(C0FromCxByPnp({w0_from_c0, cov}, {w0_from_wx}).covariance.trace(), 5.9);
     EXPECT_GT(C0FromCxByPnp({w0_from_c0}, {w0_from_wx, cov}).covariance.trace(), 5.9);
+  }
+}
+
+}  // namespace
+}  // namespace lifmcr::registration
+
+namespace lifmcr::registration {
+namespace {
+
+// The stage's perturbation T = exp(xi) T_hat, xi = (rho, phi): to first
+// order t = t_hat + rho + phi x t_hat, so rho = dt - phi x t = dt + [t]x phi.
+TEST(MapLocalizer, CovarianceConventionMatchesTheStagesLeftPerturbation) {
+  std::mt19937_64 rng(16);
+  const Pose pose = test::RandomPose(rng, 1000);
+  for (int k = 0; k < 6; ++k) {
+    Eigen::Matrix<double, 6, 1> delta = Eigen::Matrix<double, 6, 1>::Zero();
+    delta[k] = 1e-6;
+    const Pose moved = Perturb(pose, delta);
+    const Eigen::AngleAxisd rotation(moved.linear() * pose.linear().transpose());
+    const Eigen::Vector3d phi = rotation.angle() * rotation.axis();
+    const Eigen::Vector3d rho = moved.translation() - rotation * pose.translation();
+    // A delta = xi: check through a covariance with one non-zero entry.
+    Covariance6 single = Covariance6::Zero();
+    single(k, k) = 1;
+    const Covariance6 mapped = ToLeftPerturbationCovariance({pose, single});
+    Eigen::Matrix<double, 6, 1> xi;
+    xi << rho, phi;
+    const Covariance6 expected = (xi / 1e-6) * (xi / 1e-6).transpose();
+    EXPECT_LT((mapped - expected).norm(), 1e-3 * (1 + expected.norm())) << "component " << k;
   }
 }
 

@@ -1,0 +1,76 @@
+#pragma once
+// The live registration stage (processing/registration_stage.h) of the
+// pipeline: a per-camera localizer against camera 0's reference map, for
+// camera 0 and every camera X.
+//
+// Per frame of a camera: SIFT on the processed TF image, each keypoint's
+// virtual depth from the TF depth map (registration/frame_observations.h),
+// then
+//   track        when the camera has a pose: the pose is predicted by constant
+//                velocity, w_pred = w_last (w_prev^-1 w_last) (w = w0_from_cam),
+//                the map's points are projected with it (registration/tf_projection.h),
+//                and each keypoint is matched only against the points projected
+//                within track_radius_px of it (ratio test among those). PnP
+//                then needs few trials (the inlier ratio is high).
+//   relocalise   otherwise, or when tracking finds fewer than min_tracked
+//                inliers: global matching against every map point (ratio and
+//                cross check) and full LO-RANSAC PnP.
+// The pose carries `method` "pnp-tracked" or "pnp-relocalised" and the
+// covariance in the stage's convention (a left SE(3) perturbation, (t, r)),
+// converted from pose_covariance.h's (additive translation):
+//   rho = dt + [t]x dr   (t the translation of w0_from_cam),
+// so Sigma_stage = A Sigma A^T, A = [[I, [t]x], [0, I]].
+// SIFT detection still runs on the whole TF image; tracking saves the global
+// matching and most RANSAC trials, not the detection.
+
+#include "processing/registration_stage.h"
+#include "registration/frame_registration.h"
+#include "registration/reference_map.h"
+
+#include <map>
+#include <mutex>
+#include <string>
+
+namespace lifmcr::registration {
+
+struct LocalizerOptions {
+  FrameRegistrationOptions registration;
+  FeatureOptions features;
+  double track_radius_px = 12;  // local matching window on the TF grid (> 0)
+  int min_tracked = 30;         // fewer inliers when tracking: relocalise (>= 3)
+  Status Check() const;
+};
+
+class MapLocalizerStage final : public processing::RegistrationStage {
+ public:
+  MapLocalizerStage(const ReferenceMap& map, const LocalizerOptions& options);
+  std::string name() const override { return "map-localizer"; }
+  Expected<std::optional<processing::CameraPose>> Localize(
+      const processing::StageFrame& frame) override;
+
+  // Frames tracked and relocalised so far (all cameras).
+  struct Counts {
+    long long tracked = 0, relocalised = 0, failed = 0;
+  };
+  Counts counts() const;
+
+ private:
+  struct CameraState {
+    bool has_pose = false;
+    Pose last = Pose::Identity(), previous = Pose::Identity();
+    bool has_previous = false;
+  };
+  FrameRegistration Track(const processing::CameraModel& camera, const FrameObservations& obs,
+                          const Pose& predicted_w0_from_cam) const;
+
+  MapIndex map_;
+  LocalizerOptions options_;
+  mutable std::mutex mutex_;
+  std::map<std::string, CameraState> cameras_;
+  Counts counts_;
+};
+
+// Localizer covariance (pose_covariance.h) -> the stage's convention (comment above).
+Covariance6 ToLeftPerturbationCovariance(const PoseWithCovariance& pose);
+
+}  // namespace lifmcr::registration

@@ -1,0 +1,87 @@
+// `lifmcr register` end to end on a small synthetic rig (two cameras, three
+// frames): a reference map from camera 0's ground truth, keypoints and depth
+// from the ground truth, both methods. registration.csv is read back with
+// the reader `lifmcr evaluate` uses and compared with GroundTruth/poses.
+#include "registration/evaluation_inputs.h"
+#include "registration/pose_covariance.h"
+#include "registration/poses_csv.h"
+#include "replay/layout.h"
+#include "tests/test_util.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <map>
+
+namespace lifmcr {
+namespace {
+
+namespace fs = std::filesystem;
+
+TEST(CliRegister, BothMethodsRegisterCameraXAgainstAGroundTruthMap) {
+  test::TempDir dir;
+  const test::CommandResult synth = test::RunLifmcr(
+      "synth --out " + (dir / "data").string() + " --preset small --frames 3 --cameras 2 --quiet");
+  ASSERT_EQ(synth.exit_code, 0) << synth.err;
+  const fs::path seq = dir / "data" / "00_Synthetic" / "Sequence_00";
+  const test::CommandResult r = test::RunLifmcr(
+      "register " + seq.string() + " --reference-from-ground-truth --observations ground-truth "
+      "--method both --out " + (dir / "out").string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  // Progress and a summary line per camera and method on stderr; errors on stdout.
+  EXPECT_NE(r.err.find("pnp: camera"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("ransac: camera"), std::string::npos) << r.err;
+  EXPECT_NE(r.out.find("difference pnp - ransac"), std::string::npos) << r.out;
+
+  Expected<RegistrationTable> table = ReadRegistrationCsv(dir / "out" / "registration.csv");
+  ASSERT_TRUE(table) << table.error().message;
+  ASSERT_EQ(table->rows.size(), 6u);  // camera X, 3 frames, 2 methods
+  const std::string x = table->rows.front().camera;
+  std::string zero;
+  std::map<std::string, std::map<std::int64_t, Pose>> truth;
+  for (const auto& entry : fs::directory_iterator(seq / "GroundTruth")) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind("poses_", 0) != 0) continue;
+    const std::string serial = name.substr(6, name.size() - 10);
+    if (serial != x) zero = serial;
+    Expected<std::vector<registration::FramePose>> poses = registration::ReadPosesCsv(entry.path());
+    ASSERT_TRUE(poses) << poses.error().message;
+    for (const auto& p : *poses) truth[serial][p.frame] = p.world_from_cam;
+  }
+  ASSERT_FALSE(zero.empty());
+  for (const RegistrationRow& row : table->rows) {
+    ASSERT_EQ(row.status, "ok") << "frame " << row.frame << " " << row.method;
+    EXPECT_GE(row.inliers, 12);
+    EXPECT_GT(row.rmse_px, 0.0);
+    EXPECT_LT(row.rmse_px, 2.0);
+    // c0_from_cx = world_from_c0^-1 world_from_cx; loose bounds here, the
+    // gates are measured on larger runs (docs/registration.md).
+    const Pose expected = truth[zero][row.frame].inverse() * truth[x][row.frame];
+    EXPECT_LT(registration::TranslationDifference(row.c0_from_cx, expected), 15.0)
+        << row.method << " frame " << row.frame;
+    EXPECT_LT(registration::RotationDifferenceDeg(row.c0_from_cx, expected), 0.5);
+  }
+  for (const std::string method : {"pnp", "ransac"})
+    for (const std::string& serial : {zero, x})
+      EXPECT_TRUE(fs::exists(dir / "out" / ("trajectory_" + serial + "_" + method + ".tum")));
+  EXPECT_TRUE(fs::exists(dir / "out" / "reference" / "descriptors.bin"));
+}
+
+TEST(CliRegister, UsageErrorsSayWhatIsExpected) {
+  test::TempDir dir;
+  const test::CommandResult method =
+      test::RunLifmcr("register " + dir.path().string() + " --reference " + dir.path().string() +
+                      " --method magic --out " + (dir / "out").string());
+  EXPECT_EQ(method.exit_code, 2);
+  EXPECT_NE(method.err.find("--method magic: expected pnp, ransac or both"), std::string::npos)
+      << method.err;
+  const test::CommandResult neither =
+      test::RunLifmcr("register " + dir.path().string() + " --out " + (dir / "out").string());
+  EXPECT_EQ(neither.exit_code, 2);
+  EXPECT_NE(neither.err.find("--reference MAP_DIR or --reference-from-ground-truth"),
+            std::string::npos)
+      << neither.err;
+}
+
+}  // namespace
+}  // namespace lifmcr
