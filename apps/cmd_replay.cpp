@@ -1,6 +1,7 @@
 // `lifmcr replay`: a sequence through the live pipeline onto LCM.
 
 #include "apps/commands.h"
+#include "apps/pipeline/process_settings.h"
 #include "apps/pipeline/replay_runner.h"
 
 #include <CLI/CLI.hpp>
@@ -45,7 +46,7 @@ int RunReplayCommand(const std::string& sequence, const std::string& rate_text, 
   options.rate = *rate;
   options.loop = loop;
   options.processing = processing;
-  options.pipeline.lcm_url = lcm_url;
+  options.pipeline.publisher.url = lcm_url;
   options.pipeline.max_concurrency = concurrency;
   options.stop = &g_stop;
   options.on_status = [terminal](const PipelineReport& report) {
@@ -54,6 +55,7 @@ int RunReplayCommand(const std::string& sequence, const std::string& rate_text, 
     else
       std::cerr << report.StatusLine() << "\n";
   };
+  const auto process_settings = ProcessSettings::ForPipeline();
   auto result = RunReplay(options);
   if (terminal) std::cerr << "\n";
   std::signal(SIGINT, SIG_DFL);

@@ -2,6 +2,7 @@
 // Parameters: the preset, then the --config YAML on top, then the flags.
 
 #include "apps/commands.h"
+#include "replay/synth/scene.h"
 #include "replay/synth/synth_params.h"
 #include "replay/synth/synth_writer.h"
 
@@ -24,12 +25,14 @@ struct SynthOptions {
   std::string preset = "small";
   std::string config;
   std::optional<std::string> scene;
+  std::optional<std::string> scene_folder;
   std::optional<int> frames;
   std::optional<int> cameras;
   std::optional<std::string> motion;
   std::optional<double> noise;
   std::optional<std::uint64_t> seed;
   bool quiet = false;
+  bool no_images = false;
 };
 
 int RunSynth(const SynthOptions& o) {
@@ -46,11 +49,13 @@ int RunSynth(const SynthOptions& o) {
     }
   }
   if (o.scene) params->rig.scene = *o.scene;
+  if (o.scene_folder) params->rig.scene_folder = *o.scene_folder;
   if (o.frames) params->rig.frames = *o.frames;
   if (o.cameras) params->rig.cameras = *o.cameras;
   if (o.motion) params->rig.motion = *o.motion;
   if (o.noise) params->camera.read_noise_dn = *o.noise;
   if (o.seed) params->rig.seed = *o.seed;
+  if (o.no_images) params->rig.images = false;
   if (Status s = params->Check(); !s) {
     std::cerr << "lifmcr synth: " << s.error().message << "\n";
     return 2;
@@ -116,13 +121,18 @@ CommandRun AddSynthCommand(CLI::App& app) {
   app.add_option("--preset", o->preset,
                  "Camera preset: " + std::string(synth::PresetNames()) + " (default small)");
   app.add_option("--config", o->config, "YAML overriding preset fields (camera:, rig:, vicon:)");
-  app.add_option("--scene", o->scene, "Scene folder name (default 00_Synthetic)");
+  app.add_option("--scene", o->scene,
+                 "Scene content: " + std::string(synth::SceneNames()) +
+                     " (default table: textured objects, plate, several depths)");
+  app.add_option("--scene-folder", o->scene_folder, "Scene folder name (default 00_Synthetic)");
   app.add_option("--frames", o->frames, "Camera triggers per sequence");
   app.add_option("--cameras", o->cameras, "Number of cameras (1..8; 2 = the paper's rig)");
-  app.add_option("--motion", o->motion, "Camera motion: smooth|handheld|axis|circle");
+  app.add_option("--motion", o->motion, "Camera motion: smooth|handheld|axis|circle|orbit (orbit: varied angles for calibration)");
   app.add_option("--noise", o->noise, "Sensor read noise sigma in DN");
   app.add_option("--seed", o->seed, "Seed: same seed, same bytes");
   app.add_flag("--quiet", o->quiet, "No progress lines on stderr");
+  app.add_flag("--no-images", o->no_images,
+               "Poses, Vicon, ground truth and calibration only: no raw frames or depth images");
   return [o] { return RunSynth(*o); };
 }
 

@@ -1,7 +1,8 @@
 #pragma once
-// One synthetic frame of the `small` preset rendered in memory (table-top
-// scene, camera 1100 mm from the plate as `lifmcr synth` places it), with its
-// white image, MLA file, true intrinsics and ground truth.
+// One synthetic frame of a preset rendered in memory (a scene of
+// replay/synth/scene.h, by default `plain`; the camera where `lifmcr synth`
+// places it at t = 0), with its white image, MLA file, true intrinsics and
+// ground truth.
 
 #include "config/mla.h"
 #include "processing/camera_model.h"
@@ -27,9 +28,10 @@ struct SynthFrame {
   CameraIntrinsics intrinsics;
 };
 
-// `bayer`: the sensor writes an RGGB mosaic (Mono8) instead of BGR8.
+// `scene`: replay/synth/scene.h's name; `bayer`: the sensor writes an RGGB
+// mosaic (Mono8) instead of BGR8.
 SynthFrame RenderSynthFrame(const std::string& preset = "small", double read_noise_dn = 1.0,
-                            bool bayer = false);
+                            const std::string& scene = "plain", bool bayer = false);
 
 // The accuracy gates of a virtual depth map against the frame's truth, over
 // the textured pixels with a true depth: coverage, median |dz|/z (z = 1/v),

@@ -24,7 +24,7 @@ namespace {
 using testing::DepthGates;
 
 TEST(BayerDepth, DemosaicedMosaicMeetsTheGatesAndRendersInColour) {
-  const testing::SynthFrame s = testing::RenderSynthFrame("small", 1.0, /*bayer=*/true);
+  const testing::SynthFrame s = testing::RenderSynthFrame("small", 1.0, "plain", /*bayer=*/true);
   ASSERT_EQ(s.raw.View().format, PixelFormat::kMono8);
   const int w = s.raw.width, h = s.raw.height;
   OwnedImage raw = OwnedImage::Allocate(w, h, PixelFormat::kBgr8);
