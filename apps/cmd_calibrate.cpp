@@ -185,6 +185,14 @@ int RunCalibrate(const CalibrateOptions& o) {
 
 CommandRun AddCalibrateCommand(CLI::App& app) {
   auto o = std::make_shared<CalibrateOptions>();
+  app.footer(
+      "Reads: SEQ_DIR's raw frames of --camera, the MLA XML (--mla, else the dataset's\n"
+      "Calibration/), --initial cameras.yaml (nominal model), --recalibrate and --plate when\n"
+      "given. Writes: into --out, intrinsics.yaml, the reference map (cameras.txt, images.txt,\n"
+      "points3D.txt, points.ply, descriptors.bin), poses_<serial>.csv, calibration_report.md.\n"
+      "Progress on stderr unless --quiet.\n"
+      "Exit codes: 0 calibrated; 1 an input could not be read or written; 2 usage error;\n"
+      "3 the calibration ran but is not usable (the report says why).");
   app.add_option("SEQ_DIR", o->sequence, "Sequence folder (SCENE/SEQ)")->required();
   app.add_option("--camera", o->camera, "Serial of the camera to calibrate")->required();
   app.add_option("--out", o->out, "Output folder (created if needed)")->required();

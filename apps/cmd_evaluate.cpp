@@ -556,11 +556,14 @@ CommandRun AddEvaluateCommand(CLI::App& app) {
   auto a = std::make_shared<EvaluateArgs>();
   app.description(
       "Evaluate registered extrinsics c0_from_cx against Vicon, as the paper's tables, with the "
-      "hand-eye correction.\n"
+      "hand-eye correction.");
+  // What it reads, writes and returns comes last, after the options, as in
+  // every subcommand's --help.
+  app.footer(
       "Reads: SEQ_DIR/Vicon/sequence_XX.csv, Calibration/03_Vicon/Object.vsk (plate alignment), "
       "SEQ_DIR/GroundTruth/ when present (synthetic rigs: settings, true offsets), the "
       "registration CSVs (lifmcr register).\n"
-      "Writes into --out: evaluation.md, evaluation.json, hand_eye.yaml (estimated offsets), "
+      "Writes: into --out, evaluation.md, evaluation.json, hand_eye.yaml (estimated offsets), "
       "tum/*.txt (TUM trajectories: timestamp tx ty tz qx qy qz qw, mm), plots/*.png.\n"
       "Metrics: evo/TUM APE and RPE (delta = 1 frame), translation mm, rotation deg, per axis in "
       "the camera frame.\n"

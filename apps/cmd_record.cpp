@@ -13,6 +13,7 @@
 #include "drivers/vicon_csv_source.h"
 #include "drivers/vicon_udp_source.h"
 #include "processing/frame_chain.h"
+#include "replay/bayer.h"
 
 #include <CLI/CLI.hpp>
 
@@ -82,17 +83,23 @@ Expected<std::unique_ptr<Pipeline>> MakePublishPipeline(const RigConfig& rig, co
   if (Status s = preview.Check(); !s) return s.error();
   std::unique_ptr<FrameProcessor> processor;
   const bool processing = rig.processing.enabled && !args.no_processing;
+  // Bayer cameras (pixel_format BayerXX8) are demosaiced before preview and
+  // processing (frame_processor.h).
+  PixelFormats formats;
+  for (const CameraConfig& camera : rig.cameras)
+    if (IsBayer(camera.pixel_format)) formats[camera.serial] = camera.pixel_format;
   if (processing) {
     // The same chain and calibration lookup as replay (camera_setup.h): the
     // MLA file of each camera and the white image beside it.
     auto setups = LoadRigCameras(rig);
     if (!setups) return setups.error();
+    if (Status s = DemosaicWhiteImages(formats, &*setups); !s) return s.error();
     auto chain =
         processing::ProcessingChain::Create(std::move(*setups), processing::ChainOptions{});
     if (!chain) return chain.error();
-    processor = std::make_unique<DepthProcessor>(std::move(*chain), preview);
+    processor = std::make_unique<DepthProcessor>(std::move(*chain), preview, formats);
   } else {
-    processor = std::make_unique<PreviewProcessor>(preview);
+    processor = std::make_unique<PreviewProcessor>(preview, formats);
   }
   FrameSetAssemblerOptions sync = FrameSetAssemblerOptions::FromRig(rig);
   PipelineOptions options = PipelineOptions::FromRig(rig);

@@ -342,6 +342,12 @@ int RunRegister(const RegisterOptions& o) {
 
 CommandRun AddRegisterCommand(CLI::App& app) {
   auto o = std::make_shared<RegisterOptions>();
+  app.footer(
+      "Reads: SEQ_DIR (raw frames, or with --observations ground-truth its GroundTruth/),\n"
+      "the reference map (--reference MAP_DIR, lifmcr calibrate's output) and --intrinsics.\n"
+      "Writes: into --out, registration.csv (frame, camera, method, c0_from_cx, inliers,\n"
+      "rmse_px, status) and trajectory_<serial>_<method>.tum; progress on stderr.\n"
+      "Exit codes: 0 written; 1 an input could not be read or written; 2 usage error.");
   app.add_option("SEQ_DIR", o->sequence, "Sequence folder (SCENE/SEQ)")->required();
   app.add_option("--reference", o->reference, "Reference map folder (lifmcr calibrate's output)");
   app.add_flag("--reference-from-ground-truth", o->reference_from_ground_truth,

@@ -5,10 +5,11 @@
 
 #include "apps/pipeline/camera_setup.h"
 #include "processing/frame_chain.h"
+#include "replay/bayer.h"
 
 #include <opencv2/imgcodecs.hpp>
-#include <spdlog/spdlog.h>
 #include <opencv2/imgproc.hpp>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <chrono>
@@ -125,9 +126,47 @@ Expected<std::vector<float>> DecodeDepth(const std::vector<std::uint8_t>& png, f
   return values;
 }
 
+namespace {
+
+// The frame's image, demosaiced when its camera is a Bayer camera (the copy
+// is kept in `*holder`), else the pooled buffer itself.
+Expected<ConstImageView> ColourView(const Frame& frame, const PixelFormats& formats,
+                                    std::shared_ptr<const OwnedImage>* holder) {
+  const auto it = formats.find(frame.serial);
+  if (it == formats.end() || !IsBayer(it->second) || frame.image.format != PixelFormat::kMono8)
+    return ConstImageView(frame.image);
+  auto colour = std::make_shared<OwnedImage>(
+      OwnedImage::Allocate(frame.image.width, frame.image.height, PixelFormat::kBgr8));
+  if (Status s = DemosaicBayer(frame.image, it->second, colour->View()); !s)
+    return Error{"camera " + frame.serial + ": " + s.error().message};
+  *holder = colour;
+  return ConstImageView(colour->View());
+}
+
+}  // namespace
+
+Status DemosaicWhiteImages(const PixelFormats& formats,
+                           std::vector<processing::CameraSetup>* setups) {
+  for (processing::CameraSetup& setup : *setups) {
+    const auto it = formats.find(setup.serial);
+    if (it == formats.end() || !IsBayer(it->second) || !setup.white ||
+        setup.white->format != PixelFormat::kMono8)
+      continue;
+    OwnedImage colour =
+        OwnedImage::Allocate(setup.white->width, setup.white->height, PixelFormat::kBgr8);
+    if (Status s = DemosaicBayer(setup.white->View(), it->second, colour.View()); !s)
+      return Error{"white image of camera " + setup.serial + ": " + s.error().message};
+    setup.white = std::move(colour);
+  }
+  return Status::Ok();
+}
+
 Expected<ProcessedFrame> PreviewProcessor::Process(const Frame& frame) {
   const auto start = std::chrono::steady_clock::now();
-  auto preview = EncodePreview(frame.image, options_);
+  std::shared_ptr<const OwnedImage> demosaiced;
+  auto image = ColourView(frame, formats_, &demosaiced);
+  if (!image) return image.error();
+  auto preview = EncodePreview(*image, options_);
   if (!preview) return preview.error();
   ProcessedFrame out;
   out.preview = std::move(*preview);
@@ -136,8 +175,8 @@ Expected<ProcessedFrame> PreviewProcessor::Process(const Frame& frame) {
 }
 
 DepthProcessor::DepthProcessor(std::unique_ptr<processing::ProcessingChain> chain,
-                               PreviewOptions preview)
-    : preview_(preview), chain_(std::move(chain)) {
+                               PreviewOptions preview, PixelFormats formats)
+    : preview_(preview), chain_(std::move(chain)), formats_(std::move(formats)) {
   for (const std::string& serial : chain_->serials())
     spdlog::info("processing chain: {}", chain_->Find(serial)->Describe());
 }
@@ -146,15 +185,16 @@ DepthProcessor::~DepthProcessor() = default;
 
 Expected<std::unique_ptr<DepthProcessor>> DepthProcessor::ForSequence(
     const std::string& sequence_dir, const std::vector<std::string>& serials,
-    PreviewOptions preview) {
+    PreviewOptions preview, PixelFormats formats) {
   if (Status s = preview.Check(); !s) return s.error();
   auto setups = LoadSequenceCameras(sequence_dir, serials);
   if (!setups)
     return Error{setups.error().message +
                  " (depth needs the MLA files; --no-processing publishes previews only)"};
+  if (Status s = DemosaicWhiteImages(formats, &*setups); !s) return s.error();
   auto chain = processing::ProcessingChain::Create(std::move(*setups), processing::ChainOptions{});
   if (!chain) return chain.error();
-  return std::make_unique<DepthProcessor>(std::move(*chain), preview);
+  return std::make_unique<DepthProcessor>(std::move(*chain), preview, std::move(formats));
 }
 
 Expected<ProcessedFrame> DepthProcessor::Process(const Frame& frame) {
@@ -162,10 +202,12 @@ Expected<ProcessedFrame> DepthProcessor::Process(const Frame& frame) {
   processing::CameraChain* camera = chain_->Find(frame.serial);
   if (camera == nullptr) return Error{"depth: no MLA calibration for camera " + frame.serial};
   ProcessedFrame out;
-  auto preview = EncodePreview(frame.image, preview_);
+  auto image = ColourView(frame, formats_, &out.demosaiced);
+  if (!image) return image.error();
+  auto preview = EncodePreview(*image, preview_);
   if (!preview) return preview.error();
   out.preview = std::move(*preview);
-  auto lease = camera->Process(frame.image);
+  auto lease = camera->Process(*image);
   if (!lease) return lease.error();
   const processing::TfDepthMap& tf_depth = (*lease)->tf_depth;
   const processing::TfImage& tf = (*lease)->tf;

@@ -14,6 +14,7 @@
 // pipeline); implementations keep per-call state only.
 
 #include "config/error.h"
+#include "config/rig_config.h"
 #include "drivers/frame.h"
 
 #include <cstdint>
@@ -27,6 +28,7 @@ namespace lifmcr::processing {
 struct ChainProducts;
 class CameraChain;
 class ProcessingChain;
+struct CameraSetup;
 }  // namespace lifmcr::processing
 
 namespace lifmcr::apps {
@@ -62,6 +64,9 @@ struct ProcessedFrame {
   // the frame's pooled buffer, which the pipeline keeps until the frame is
   // published.
   std::shared_ptr<const processing::ChainProducts> products;
+  // A Bayer camera's frame demosaiced (BGR8): what the products view instead
+  // of the pooled mosaic, kept alive with them.
+  std::shared_ptr<const OwnedImage> demosaiced;
   const processing::CameraChain* camera = nullptr;
   double seconds = 0;
 };
@@ -90,14 +95,23 @@ Expected<EncodedDepth> EncodeDepth(const std::vector<float>& values, int width, 
 Expected<std::vector<float>> DecodeDepth(const std::vector<std::uint8_t>& png, float scale,
                                          float offset, int* width, int* height);
 
+// Serial -> the camera's pixel format, for the cameras whose frames are Bayer
+// mosaics (rig file `pixel_format: BayerRG8` ...): their frames are
+// demosaiced (replay/bayer.h, one BGR8 copy per frame) before the preview and
+// the chain, so previews and the TF image are in colour and depth runs on
+// the luminance. Cameras not listed are taken as they come.
+using PixelFormats = std::map<std::string, CameraPixelFormat>;
+
 class PreviewProcessor final : public FrameProcessor {
  public:
-  explicit PreviewProcessor(PreviewOptions options = {}) : options_(options) {}
+  explicit PreviewProcessor(PreviewOptions options = {}, PixelFormats formats = {})
+      : options_(options), formats_(std::move(formats)) {}
   Expected<ProcessedFrame> Process(const Frame& frame) override;
   std::string name() const override { return "preview"; }
 
  private:
   PreviewOptions options_;
+  PixelFormats formats_;
 };
 
 // The processing chain (processing/frame_chain.h) of every camera, then the
@@ -108,8 +122,11 @@ class DepthProcessor final : public FrameProcessor {
   // The cameras of a sequence, by the lookup rule of replay/camera_calibration.h.
   static Expected<std::unique_ptr<DepthProcessor>> ForSequence(
       const std::string& sequence_dir, const std::vector<std::string>& serials,
-      PreviewOptions preview = {});
-  DepthProcessor(std::unique_ptr<processing::ProcessingChain> chain, PreviewOptions preview);
+      PreviewOptions preview = {}, PixelFormats formats = {});
+  // `formats`: the Bayer cameras; their white images in the chain's setups
+  // must already be demosaiced (DemosaicWhiteImages).
+  DepthProcessor(std::unique_ptr<processing::ProcessingChain> chain, PreviewOptions preview,
+                 PixelFormats formats = {});
   ~DepthProcessor() override;
   Expected<ProcessedFrame> Process(const Frame& frame) override;
   std::string name() const override { return "depth"; }
@@ -118,6 +135,12 @@ class DepthProcessor final : public FrameProcessor {
  private:
   PreviewOptions preview_;
   std::unique_ptr<processing::ProcessingChain> chain_;
+  PixelFormats formats_;
 };
+
+// The white images of the Bayer cameras in `setups`, demosaiced in place, so
+// their devignetting gain matches the demosaiced frames.
+Status DemosaicWhiteImages(const PixelFormats& formats,
+                           std::vector<processing::CameraSetup>* setups);
 
 }  // namespace lifmcr::apps

@@ -10,10 +10,10 @@
 #include "apps/pipeline/pipeline.h"
 #include "apps/pipeline/process_settings.h"
 #include "apps/pipeline/replay_runner.h"
+#include "config/rig_config.h"
 #include "drivers/replay_camera.h"
 #include "drivers/vicon_udp_sender.h"
 #include "drivers/vicon_udp_source.h"
-#include "config/rig_config.h"
 #include "processing/registration_stage.h"
 #include "replay/bmp.h"
 #include "replay/layout.h"
@@ -770,6 +770,50 @@ TEST(Pipeline, RateParsing) {
   EXPECT_FALSE(ReplayRate::Parse("fast").ok());
   EXPECT_FALSE(ReplayRate::Parse("0").ok());
   EXPECT_FALSE(ReplayRate::Parse("-1").ok());
+}
+
+// A Bayer camera (rig file pixel_format: BayerRG8): its mosaic frames are
+// demosaiced before the preview and the chain, so the preview and the TF
+// image go out in colour; without the pixel format they stay grey.
+TEST(Pipeline, BayerCameraIsPublishedInColour) {
+  test::TempDir dir;
+  auto params = synth::MakePreset("small");
+  ASSERT_TRUE(params.ok());
+  params->camera.bayer = true;
+  params->rig.frames = 1;
+  params->rig.cameras = 1;
+  auto summary = synth::WriteSyntheticDataset(dir / "data", *params);
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  auto layout = DiscoverSequence(summary->sequence_dir);
+  ASSERT_TRUE(layout.ok());
+  const CameraFolder& folder = layout->cameras.at(0);
+  auto image = ReadBmp(*folder.FramePath(folder.frames.at(0)));
+  ASSERT_TRUE(image.ok());
+  ASSERT_EQ(image->format, PixelFormat::kMono8);
+  Frame frame;
+  frame.serial = folder.serial;
+  frame.image = image->View();
+  for (const bool bayer : {false, true}) {
+    PixelFormats formats;
+    if (bayer) formats[folder.serial] = CameraPixelFormat::kBayerRg8;
+    auto processor = DepthProcessor::ForSequence(summary->sequence_dir.string(), {folder.serial},
+                                                 PreviewOptions{}, formats);
+    ASSERT_TRUE(processor.ok()) << processor.error().message;
+    auto out = (*processor)->Process(frame);
+    ASSERT_TRUE(out.ok()) << out.error().message;
+    ASSERT_TRUE(out->preview && out->tf && out->depth);
+    EXPECT_EQ(out->preview->channels, bayer ? 3 : 1);
+    EXPECT_EQ(out->tf->channels, bayer ? 3 : 1);
+    EXPECT_EQ(out->demosaiced != nullptr, bayer);
+    EXPECT_GT(out->depth->valid_fraction, 0.2f);
+    std::printf("%s: depth valid on %.1f %% of the published map\n",
+                bayer ? "demosaiced" : "mosaic as grey", 100.0 * out->depth->valid_fraction);
+  }
+  auto preview_only =
+      PreviewProcessor(PreviewOptions{}, {{folder.serial, CameraPixelFormat::kBayerRg8}})
+          .Process(frame);
+  ASSERT_TRUE(preview_only.ok());
+  EXPECT_EQ(preview_only->preview->channels, 3);
 }
 
 TEST(Pipeline, DepthQuantisationRoundTrips) {

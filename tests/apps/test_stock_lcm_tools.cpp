@@ -43,22 +43,23 @@ constexpr int kStockReceiveBuffer = 212992;  // Debian's net.core.rmem_default
 int Sh(const std::string& command) { return std::system((command + " >/dev/null 2>&1").c_str()); }
 
 struct Published {
-  int previews = 0, depth = 0, tf = 0, vicon = 0, stats = 0;
-  int Total() const { return previews + depth + tf + vicon + stats; }
+  int previews = 0, depth = 0, tf = 0, extrinsics = 0, vicon = 0, stats = 0;
+  int Total() const { return previews + depth + tf + extrinsics + vicon + stats; }
 };
 
-// "published: 4 previews, 4 depth, 4 TF, 16 Vicon, 2 stats messages"
+// "published: 4 previews, 4 depth, 4 TF, 0 extrinsics, 16 Vicon, 2 stats messages"
 bool ParsePublished(const std::string& out, Published* p) {
   std::smatch m;
   if (!std::regex_search(out, m,
-                         std::regex(R"(published: (\d+) previews, (\d+) depth, (\d+) TF, (\d+) )"
-                                    R"(Vicon, (\d+) stats messages)")))
+                         std::regex(R"(published: (\d+) previews, (\d+) depth, (\d+) TF, )"
+                                    R"((?:(\d+) extrinsics, )?(\d+) Vicon, (\d+) stats messages)")))
     return false;
   p->previews = std::stoi(m[1]);
   p->depth = std::stoi(m[2]);
   p->tf = std::stoi(m[3]);
-  p->vicon = std::stoi(m[4]);
-  p->stats = std::stoi(m[5]);
+  p->extrinsics = m[4].matched ? std::stoi(m[4]) : 0;
+  p->vicon = std::stoi(m[5]);
+  p->stats = std::stoi(m[6]);
   return true;
 }
 
@@ -153,6 +154,7 @@ TEST_F(StockLcmTools, LcmLoggerWithNoOptionsRecordsEveryMessage) {
   EXPECT_EQ(logged.previews, published.previews);
   EXPECT_EQ(logged.depth, published.depth);
   EXPECT_EQ(logged.tf, published.tf);
+  EXPECT_EQ(logged.extrinsics, published.extrinsics);
   EXPECT_EQ(logged.vicon, published.vicon);
   EXPECT_EQ(logged.stats, published.stats);
   EXPECT_LE(largest, kStockReceiveBuffer / 2) << largest_channel;
@@ -212,6 +214,7 @@ TEST_F(StockLcmTools, LcmSpyTypeDiscoveryDecodesEveryChannelHeadless) {
   EXPECT_EQ(seen.previews, published.previews) << text;
   EXPECT_EQ(seen.depth, published.depth) << text;
   EXPECT_EQ(seen.tf, published.tf) << text;
+  EXPECT_EQ(seen.extrinsics, published.extrinsics) << text;
   EXPECT_EQ(seen.vicon, published.vicon) << text;
   EXPECT_EQ(seen.stats, published.stats) << text;
 }

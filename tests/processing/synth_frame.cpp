@@ -4,6 +4,9 @@
 #include "replay/synth/synth_params.h"
 #include "replay/synth/trajectory.h"
 
+#include <algorithm>
+#include <cmath>
+
 namespace lifmcr::processing::testing {
 
 SynthFrame RenderSynthFrame(const std::string& preset, double read_noise_dn,
@@ -38,6 +41,41 @@ SynthFrame RenderSynthFrame(const std::string& preset, double read_noise_dn,
   k.p1 = f.params.distortion_p1;
   k.p2 = f.params.distortion_p2;
   return f;
+}
+
+DepthGates MeasureDepthGates(const SynthFrame& frame, const std::vector<float>& virtual_depth,
+                             const std::vector<std::uint8_t>& textured) {
+  DepthGates g;
+  long long covered = 0, outliers = 0;
+  std::vector<double> rel_z;
+  for (std::size_t i = 0; i < virtual_depth.size(); ++i) {
+    const float truth = frame.raw.virtual_depth[i];
+    if (!textured[i] || std::isnan(truth)) continue;
+    ++g.textured;
+    const float v = virtual_depth[i];
+    if (std::isnan(v)) continue;
+    ++covered;
+    rel_z.push_back(std::abs(1.0 / v - 1.0 / truth) * truth);
+    if (std::abs(v - truth) / truth > 0.10) ++outliers;
+  }
+  if (g.textured < 10000 || rel_z.empty()) return g;
+  std::nth_element(rel_z.begin(), rel_z.begin() + rel_z.size() / 2, rel_z.end());
+  g.coverage = static_cast<double>(covered) / g.textured;
+  g.median = rel_z[rel_z.size() / 2];
+  g.outliers = static_cast<double>(outliers) / covered;
+  return g;
+}
+
+DepthGates DepthGatesOf(const SynthFrame& s, ConstImageView raw, ConstImageView white,
+                        PlenopticFrame* prepared, VirtualDepthMap* depth) {
+  const CameraModel camera(s.intrinsics);
+  const MlaGrid grid = MlaGrid::FromCalibration(s.mla, raw.width, raw.height);
+  FrameOptions options;
+  options.lambda = camera.lambda();
+  if (!PrepareFrame(raw, white, grid, s.mla, options, prepared).ok() ||
+      !EstimateVirtualDepth(*prepared, s.mla, DepthOptions{}, depth).ok())
+    return DepthGates{};
+  return MeasureDepthGates(s, depth->virtual_depth, depth->textured);
 }
 
 }  // namespace lifmcr::processing::testing

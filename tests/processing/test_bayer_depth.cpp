@@ -21,38 +21,7 @@
 namespace lifmcr::processing {
 namespace {
 
-struct Gates {
-  double coverage = 0, median = 1, outliers = 1;
-};
-
-Gates Depth(const testing::SynthFrame& s, ConstImageView raw, ConstImageView white,
-            PlenopticFrame* frame, VirtualDepthMap* depth) {
-  const CameraModel camera(s.intrinsics);
-  const MlaGrid grid = MlaGrid::FromCalibration(s.mla, raw.width, raw.height);
-  FrameOptions fo;
-  fo.lambda = camera.lambda();
-  EXPECT_TRUE(PrepareFrame(raw, white, grid, s.mla, fo, frame).ok());
-  EXPECT_TRUE(EstimateVirtualDepth(*frame, s.mla, DepthOptions{}, depth).ok());
-  long long textured = 0, covered = 0, outliers = 0;
-  std::vector<double> rel_z;
-  for (std::size_t i = 0; i < depth->virtual_depth.size(); ++i) {
-    const float truth = s.raw.virtual_depth[i];
-    if (!depth->textured[i] || std::isnan(truth)) continue;
-    ++textured;
-    const float v = depth->virtual_depth[i];
-    if (std::isnan(v)) continue;
-    ++covered;
-    rel_z.push_back(std::abs(1.0 / v - 1.0 / truth) * truth);
-    if (std::abs(v - truth) / truth > 0.10) ++outliers;
-  }
-  Gates g;
-  if (textured < 10000 || rel_z.empty()) return g;
-  std::nth_element(rel_z.begin(), rel_z.begin() + rel_z.size() / 2, rel_z.end());
-  g.coverage = static_cast<double>(covered) / textured;
-  g.median = rel_z[rel_z.size() / 2];
-  g.outliers = static_cast<double>(outliers) / covered;
-  return g;
-}
+using testing::DepthGates;
 
 TEST(BayerDepth, DemosaicedMosaicMeetsTheGatesAndRendersInColour) {
   const testing::SynthFrame s = testing::RenderSynthFrame("small", 1.0, "plain", /*bayer=*/true);
@@ -65,8 +34,9 @@ TEST(BayerDepth, DemosaicedMosaicMeetsTheGatesAndRendersInColour) {
 
   PlenopticFrame mosaic_frame, frame;
   VirtualDepthMap mosaic_depth, depth;
-  const Gates mosaic = Depth(s, s.raw.View(), s.white.View(), &mosaic_frame, &mosaic_depth);
-  const Gates g = Depth(s, raw.View(), white.View(), &frame, &depth);
+  const DepthGates mosaic =
+      testing::DepthGatesOf(s, s.raw.View(), s.white.View(), &mosaic_frame, &mosaic_depth);
+  const DepthGates g = testing::DepthGatesOf(s, raw.View(), white.View(), &frame, &depth);
   std::printf("Bayer RGGB as grey: coverage %.1f %%, median |dz|/z %.2f %%, outliers %.2f %%\n",
               100 * mosaic.coverage, 100 * mosaic.median, 100 * mosaic.outliers);
   std::printf("Bayer RGGB demosaiced: coverage %.1f %%, median |dz|/z %.2f %%, outliers %.2f %%\n",

@@ -17,41 +17,15 @@
 namespace lifmcr::processing {
 namespace {
 
-struct Gates {
-  double coverage = 0, median = 1, outliers = 1;
-};
+using testing::DepthGates;
 
-Gates DepthVsTruth(const testing::SynthFrame& s, ConstImageView raw, ConstImageView white) {
-  const CameraModel camera(s.intrinsics);
-  const MlaGrid grid = MlaGrid::FromCalibration(s.mla, s.raw.width, s.raw.height);
-  FrameOptions fo;
-  fo.lambda = camera.lambda();
+DepthGates DepthVsTruth(const testing::SynthFrame& s, ConstImageView raw, ConstImageView white) {
   PlenopticFrame frame;
-  EXPECT_TRUE(PrepareFrame(raw, white, grid, s.mla, fo, &frame).ok());
   VirtualDepthMap depth;
-  EXPECT_TRUE(EstimateVirtualDepth(frame, s.mla, DepthOptions{}, &depth).ok());
-  long long textured = 0, covered = 0, outliers = 0;
-  std::vector<double> rel_z;
-  for (std::size_t i = 0; i < depth.virtual_depth.size(); ++i) {
-    const float truth = s.raw.virtual_depth[i];
-    if (!depth.textured[i] || std::isnan(truth)) continue;
-    ++textured;
-    const float v = depth.virtual_depth[i];
-    if (std::isnan(v)) continue;
-    ++covered;
-    rel_z.push_back(std::abs(1.0 / v - 1.0 / truth) * truth);
-    if (std::abs(v - truth) / truth > 0.10) ++outliers;
-  }
-  Gates g;
-  if (textured < 10000 || rel_z.empty()) return g;
-  std::nth_element(rel_z.begin(), rel_z.begin() + rel_z.size() / 2, rel_z.end());
-  g.coverage = static_cast<double>(covered) / textured;
-  g.median = rel_z[rel_z.size() / 2];
-  g.outliers = static_cast<double>(outliers) / covered;
-  return g;
+  return testing::DepthGatesOf(s, raw, white, &frame, &depth);
 }
 
-void ExpectWithinGates(const Gates& g, const char* what) {
+void ExpectWithinGates(const DepthGates& g, const char* what) {
   std::printf("%-40s coverage %.1f %%, median |dz|/z %.2f %%, outliers %.2f %%\n", what,
               100 * g.coverage, 100 * g.median, 100 * g.outliers);
   EXPECT_GE(g.coverage, 0.50) << what;
