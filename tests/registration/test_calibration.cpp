@@ -179,6 +179,24 @@ TEST_F(CalibrationTest, RecalibrationHoldsFocalLengthAndSensorDistance) {
             0.002);
 }
 
+TEST_F(CalibrationTest, ProcessedFramesRoundTripThroughTheCache) {
+  test::TempDir dir;
+  const CalibrationFrame& f = frames_->at(1);
+  ASSERT_TRUE(SaveCalibrationFrame(dir / "f.frame", f, 0.99));
+  Expected<CalibrationFrame> back = LoadCalibrationFrame(dir / "f.frame", 0.99);
+  ASSERT_TRUE(back) << back.error().message;
+  EXPECT_EQ(back->frame, f.frame);
+  EXPECT_EQ(back->name, f.name);
+  EXPECT_EQ(back->features.descriptors, f.features.descriptors);
+  ASSERT_EQ(back->features.size(), f.features.size());
+  EXPECT_EQ(back->features.keypoints[7].xy_px, f.features.keypoints[7].xy_px);
+  ASSERT_EQ(back->corners.size(), f.corners.size());
+  EXPECT_EQ(back->corners[0].p_in_w_mm, f.corners[0].p_in_w_mm);
+  EXPECT_EQ(back->rgb, f.rgb);
+  // Another lambda (other initial intrinsics) must not reuse the frame.
+  EXPECT_FALSE(LoadCalibrationFrame(dir / "f.frame", 0.98));
+}
+
 TEST_F(CalibrationTest, BadInputIsAClearError) {
   CalibrationInput one = Input(Initial());
   one.frames.resize(1);
