@@ -91,8 +91,10 @@ Status SynthCameraParams::Check() const {
 Status SynthRigParams::Check() const {
   if (cameras < 1 || cameras > 8) return FieldError("rig.cameras", "expected 1..8");
   if (frames < 1 || frames > 100000) return FieldError("rig.frames", "expected 1..100000");
-  if (motion != "smooth" && motion != "handheld" && motion != "axis" && motion != "circle")
-    return FieldError("rig.motion", "expected smooth|handheld|axis|circle, got '" + motion + "'");
+  if (motion != "smooth" && motion != "handheld" && motion != "axis" && motion != "circle" &&
+      motion != "orbit")
+    return FieldError("rig.motion",
+                      "expected smooth|handheld|axis|circle|orbit, got '" + motion + "'");
   if (!(viewing_distance_mm >= 200 && viewing_distance_mm <= 5000))
     return FieldError("rig.viewing_distance_mm", "expected 200..5000 mm");
   if (!(baseline_mm >= 0 && baseline_mm <= 1000))
@@ -105,7 +107,11 @@ Status SynthRigParams::Check() const {
       if (!(std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '-')) return false;
     return true;
   };
-  if (!plain(scene)) return FieldError("rig.scene", "expected letters, digits, '_' or '-'");
+  if (scene != "table" && scene != "plain")
+    return FieldError("rig.scene", "expected table|plain, got '" + scene +
+                                       "' (the folder name is rig.scene_folder, --scene-folder)");
+  if (!plain(scene_folder))
+    return FieldError("rig.scene_folder", "expected letters, digits, '_' or '-'");
   if (!plain(sequence)) return FieldError("rig.sequence", "expected letters, digits, '_' or '-'");
   return Status::Ok();
 }
@@ -260,6 +266,7 @@ std::vector<Field> RigFields(SynthRigParams* r) {
           Scalar("baseline_mm", &r->baseline_mm, "a number"),
           Scalar("speed_scale", &r->speed_scale, "a number"),
           Scalar("scene", &r->scene, "a string"),
+          Scalar("scene_folder", &r->scene_folder, "a string"),
           Scalar("sequence", &r->sequence, "a string"),
           Scalar("seed", &r->seed, "an unsigned integer")};
 }
