@@ -1,6 +1,6 @@
 // `lifmcr calibrate`'s library on a small synthetic sequence (4 frames of
-// the `small` preset seen from 1.8 m so that the marker plate is whole in
-// the TF image): initialisation, plenoptic bundle adjustment, the files it
+// the `small` preset, table scene, orbit motion for varied angles, seen from
+// 1.8 m so that the marker plate is whole in the TF image): initialisation, plenoptic bundle adjustment, the files it
 // writes, and the errors of bad input. The figures against the ground truth
 // are printed; the accuracy gates of `medium` with 40 frames are measured by
 // bench/bench_calibrate (a 4-frame run cannot determine every intrinsic).
@@ -37,7 +37,7 @@ class CalibrationTest : public ::testing::Test {
     params->rig.cameras = 1;
     params->rig.frames = 4;
     params->rig.viewing_distance_mm = 1800;
-    params->rig.speed_scale = 4;
+    params->rig.motion = "orbit";  // varied angles (docs/synth.md)
     Expected<synth::SynthSummary> summary = synth::WriteSyntheticDataset(dir_->path(), *params, {});
     ASSERT_TRUE(summary) << summary.error().message;
     sequence_ = new fs::path(summary->sequence_dir);
@@ -89,7 +89,7 @@ class CalibrationTest : public ::testing::Test {
     input.frames = *frames_;
     return input;
   }
-  // Four nearly parallel views cannot separate the principal point and the
+  // Four views of `small` cannot separate the principal point and the
   // distortion from the pose: they stay at their initial values here.
   static CalibrationOptions Options() {
     CalibrationOptions options;
