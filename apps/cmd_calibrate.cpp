@@ -42,6 +42,7 @@ struct CalibrateOptions {
   bool ground_truth = false;
   bool fix_principal_point = false;
   bool fix_distortion = false;
+  std::string cache;
 };
 
 int Fail(const std::string& message, int code = 1) {
@@ -126,13 +127,25 @@ int RunCalibrate(const CalibrateOptions& o) {
     if (!o.quiet) std::cerr << line << "\n";
   };
 
+  std::error_code ec;
   registration::CalibrationInput input;
   input.serial = o.camera;
   input.initial = *initial;
   input.micro_images = &(*loader)->micro_images();
   for (const std::int64_t f : frames) {
-    Expected<registration::CalibrationFrame> frame = (*loader)->Load(f);
+    const fs::path cached =
+        o.cache.empty() ? fs::path()
+                        : fs::path(o.cache) / (o.camera + "_" + std::to_string(f) + ".frame");
+    Expected<registration::CalibrationFrame> frame = Error{""};
+    if (!cached.empty() && fs::exists(cached))
+      frame = registration::LoadCalibrationFrame(cached, loader_options.lambda);
+    if (!frame) frame = (*loader)->Load(f);
     if (!frame) return Fail(frame.error().message);
+    if (!cached.empty() && !fs::exists(cached)) {
+      fs::create_directories(o.cache, ec);
+      if (Status s = registration::SaveCalibrationFrame(cached, *frame, loader_options.lambda); !s)
+        return Fail(s.error().message);
+    }
     char line[256];
     std::snprintf(line, sizeof(line),
                   "frame %lld: %d SIFT keypoints, TF depth %.0f %%, %zu plate corners, %.2f s",
@@ -149,7 +162,6 @@ int RunCalibrate(const CalibrateOptions& o) {
       registration::Calibrate(input, options, progress);
   if (!result) return Fail(result.error().message);
 
-  std::error_code ec;
   fs::create_directories(o.out, ec);
   if (ec) return Fail(o.out + ": " + ec.message());
   const fs::path out = o.out;
@@ -207,6 +219,9 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
                  "SEQ/GroundTruth/cameras.yaml)");
   app.add_option("--max-features", o->max_features, "SIFT keypoints per TF image (0 = all)");
   app.add_flag("--quiet", o->quiet, "No progress lines on stderr");
+  app.add_option("--cache", o->cache,
+                 "Folder keeping the processed frames (depth, TF, SIFT, ArUco) for later runs "
+                 "with the same initial values");
   app.add_flag("--fix-principal-point", o->fix_principal_point,
                "Hold the principal point at its initial value");
   app.add_flag("--fix-distortion", o->fix_distortion, "Hold k1, k2, p1, p2 at their initial values");

@@ -355,7 +355,8 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
 
     ceres::Solver::Options solver_options;
     solver_options.linear_solver_type = ceres::SPARSE_SCHUR;
-    solver_options.max_num_iterations = options.max_iterations;
+    solver_options.max_num_iterations =
+        round == kRounds - 1 ? 2 * options.max_iterations : options.max_iterations;
     solver_options.num_threads = options.threads;
     solver_options.function_tolerance = 1e-9;
     solver_options.parameter_tolerance = 1e-10;
@@ -375,26 +376,37 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
 
     if (round == 0) continue;
     if (round == 1) {
-      // Drop observations whose RMS micro-image residual exceeds outlier_px.
-      long long dropped = 0;
+      // Drop observations whose RMS micro-image residual exceeds
+      // max(outlier_px, 3 x the median RMS): a solve that has not yet
+      // reached the noise level keeps its bulk.
+      std::vector<double> rms(lens_observations.size(), std::numeric_limits<double>::infinity());
       for (std::size_t n = 0; n < lens_observations.size(); ++n) {
         LensObservation& lo = lens_observations[n];
         const Track& track = map.tracks[lo.track];
         const int f = track.observations[lo.observation].frame;
         std::vector<double> r(lo.cost.centres_px.size() * 2);
-        const bool ok = lo.cost(k.data(), poses[f].q.data(), poses[f].t.data(),
-                                track.p_in_w_mm.data(), r.data());
+        if (!lo.cost(k.data(), poses[f].q.data(), poses[f].t.data(), track.p_in_w_mm.data(),
+                     r.data()))
+          continue;
         double ss = 0;
         for (const double x : r) ss += x * x;
-        if (!ok || std::sqrt(ss / lo.cost.centres_px.size()) > options.outlier_px) {
+        rms[n] = std::sqrt(ss / lo.cost.centres_px.size());
+      }
+      std::vector<double> sorted = rms;
+      std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+      const double threshold =
+          sorted.empty() ? options.outlier_px
+                         : std::max(options.outlier_px, 3 * sorted[sorted.size() / 2]);
+      long long dropped = 0;
+      for (std::size_t n = 0; n < lens_observations.size(); ++n)
+        if (!(rms[n] <= threshold)) {
           inlier[n] = false;
           ++dropped;
         }
-      }
       result.rejected_observations = dropped;
       if (progress)
         progress(Format("outliers: %lld of %zu observations above %.2f px RMS dropped", dropped,
-                        lens_observations.size(), options.outlier_px));
+                        lens_observations.size(), threshold));
       continue;
     }
 

@@ -29,7 +29,8 @@
 //    residuals are weighted by plate_weight. Solves: poses and points under
 //    the initial intrinsics, then everything (f_L, b_L0, B bounded to 30 %
 //    about their initial values, the principal point to 10 % of the image),
-//    then, with observations whose RMS residual exceeds outlier_px dropped,
+//    then, with observations whose RMS residual exceeds max(outlier_px,
+//    3 x the median) dropped,
 //    everything again. Recalibration holds f_L and B fixed
 //    (ceres::SubsetManifold).
 // 4. Standard deviations of the intrinsics from ceres::Covariance, scaled by
@@ -60,10 +61,10 @@ struct CalibrationOptions {
   int pnp_iterations = 5000;        // RANSAC trials
   int min_pnp_inliers = 20;         // else the frame falls back to the plate, or is rejected
   double huber_px = 1.0;            // Huber scale per micro-image residual (raw pixels)
-  double outlier_px = 1.5;          // observations with an RMS residual above this are dropped
+  double outlier_px = 1.5;          // observations above max(this, 3 x median) RMS residual are dropped
   double plate_weight = 5.0;        // plate corner residuals count this much more (the metric anchor)
   int max_lenses = 12;              // micro images per observation (the most central)
-  int max_iterations = 100;         // Ceres iterations per solve
+  int max_iterations = 100;         // Ceres iterations per solve (twice that for the last)
   bool recalibrate = false;         // hold f_L and B fixed (LiFCal recalib)
   bool estimate_principal_point = true;
   bool estimate_distortion = true;

@@ -9,10 +9,87 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstring>
+#include <fstream>
 
 namespace lifmcr::registration {
 
 namespace fs = std::filesystem;
+
+namespace {
+
+constexpr char kFrameMagic[8] = {'L', 'F', 'M', 'C', 'R', 'F', 'R', 'M'};
+constexpr std::uint32_t kFrameVersion = 1;
+
+template <typename T>
+void PutVector(std::ostream& out, const std::vector<T>& v) {
+  const std::uint64_t n = v.size();
+  out.write(reinterpret_cast<const char*>(&n), sizeof(n));
+  out.write(reinterpret_cast<const char*>(v.data()), static_cast<std::streamsize>(n * sizeof(T)));
+}
+template <typename T>
+bool GetVector(std::istream& in, std::vector<T>* v) {
+  std::uint64_t n = 0;
+  if (!in.read(reinterpret_cast<char*>(&n), sizeof(n)) || n > (1ull << 32)) return false;
+  v->resize(n);
+  return static_cast<bool>(
+      in.read(reinterpret_cast<char*>(v->data()), static_cast<std::streamsize>(n * sizeof(T))));
+}
+
+}  // namespace
+
+Status SaveCalibrationFrame(const fs::path& path, const CalibrationFrame& f, double lambda) {
+  std::ofstream out(path, std::ios::binary);
+  out.write(kFrameMagic, sizeof(kFrameMagic));
+  out.write(reinterpret_cast<const char*>(&kFrameVersion), sizeof(kFrameVersion));
+  out.write(reinterpret_cast<const char*>(&lambda), sizeof(lambda));
+  out.write(reinterpret_cast<const char*>(&f.frame), sizeof(f.frame));
+  PutVector(out, std::vector<char>(f.name.begin(), f.name.end()));
+  const std::int32_t size[2] = {f.tf_width, f.tf_height};
+  out.write(reinterpret_cast<const char*>(size), sizeof(size));
+  PutVector(out, f.features.keypoints);
+  PutVector(out, f.features.descriptors);
+  PutVector(out, f.virtual_depth);
+  PutVector(out, f.rgb);
+  PutVector(out, f.corners);
+  PutVector(out, f.corner_virtual_depth);
+  out.write(reinterpret_cast<const char*>(&f.tf_depth_coverage), sizeof(double));
+  if (!out) return Error{path.string() + ": could not write"};
+  return Status::Ok();
+}
+
+Expected<CalibrationFrame> LoadCalibrationFrame(const fs::path& path, double lambda) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Error{path.string() + ": cannot open"};
+  char magic[8];
+  std::uint32_t version = 0;
+  double file_lambda = 0;
+  CalibrationFrame f;
+  std::vector<char> name;
+  std::int32_t size[2];
+  if (!in.read(magic, 8) || std::memcmp(magic, kFrameMagic, 8) != 0 ||
+      !in.read(reinterpret_cast<char*>(&version), sizeof(version)) || version != kFrameVersion ||
+      !in.read(reinterpret_cast<char*>(&file_lambda), sizeof(file_lambda)))
+    return Error{path.string() + ": not a processed calibration frame (LFMCRFRM, version 1)"};
+  if (std::abs(file_lambda - lambda) > 1e-12)
+    return Error{path.string() + ": processed with another lambda"};
+  if (!in.read(reinterpret_cast<char*>(&f.frame), sizeof(f.frame)) || !GetVector(in, &name) ||
+      !in.read(reinterpret_cast<char*>(size), sizeof(size)) ||
+      !GetVector(in, &f.features.keypoints) || !GetVector(in, &f.features.descriptors) ||
+      !GetVector(in, &f.virtual_depth) || !GetVector(in, &f.rgb) || !GetVector(in, &f.corners) ||
+      !GetVector(in, &f.corner_virtual_depth) ||
+      !in.read(reinterpret_cast<char*>(&f.tf_depth_coverage), sizeof(double)))
+    return Error{path.string() + ": ends early"};
+  f.name.assign(name.begin(), name.end());
+  f.tf_width = size[0];
+  f.tf_height = size[1];
+  if (f.features.descriptors.size() != f.features.keypoints.size() * kDescriptorSize ||
+      f.virtual_depth.size() != f.features.keypoints.size() ||
+      f.rgb.size() != f.features.keypoints.size() ||
+      f.corner_virtual_depth.size() != f.corners.size())
+    return Error{path.string() + ": inconsistent sizes"};
+  return f;
+}
 
 struct CalibrationFrameLoader::State {
   fs::path sequence_dir;

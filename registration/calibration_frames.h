@@ -34,6 +34,16 @@ struct CalibrationFrame {
   double seconds = 0;                             // processing time of the frame
 };
 
+// A processed frame on disk (a cache for repeated calibrations of the same
+// frames with the same initial lambda): binary, little-endian, magic
+// "LFMCRFRM", version 1, the lambda it was processed with, then the fields
+// of CalibrationFrame in order. Reading gives an error when the file is not
+// one, or was made with another lambda.
+Status SaveCalibrationFrame(const std::filesystem::path& path, const CalibrationFrame& frame,
+                            double lambda);
+Expected<CalibrationFrame> LoadCalibrationFrame(const std::filesystem::path& path,
+                                                double lambda);
+
 // The micro images of the camera: centres c_k and the lattice to find the
 // lenses that see a virtual point.
 struct MicroImages {

@@ -1,6 +1,6 @@
 // `lifmcr calibrate`'s library on a small synthetic sequence (4 frames of
-// the `small` preset seen from 1.8 m so that the marker plate is whole in
-// the TF image): initialisation, plenoptic bundle adjustment, the files it
+// the `small` preset, table scene, orbit motion for varied angles, seen from
+// 1.8 m so that the marker plate is whole in the TF image): initialisation, plenoptic bundle adjustment, the files it
 // writes, and the errors of bad input. The figures against the ground truth
 // are printed; the accuracy gates of `medium` with 40 frames are measured by
 // bench/bench_calibrate (a 4-frame run cannot determine every intrinsic).
@@ -37,7 +37,7 @@ class CalibrationTest : public ::testing::Test {
     params->rig.cameras = 1;
     params->rig.frames = 4;
     params->rig.viewing_distance_mm = 1800;
-    params->rig.speed_scale = 4;
+    params->rig.motion = "orbit";  // varied angles (docs/synth.md)
     Expected<synth::SynthSummary> summary = synth::WriteSyntheticDataset(dir_->path(), *params, {});
     ASSERT_TRUE(summary) << summary.error().message;
     sequence_ = new fs::path(summary->sequence_dir);
@@ -89,7 +89,7 @@ class CalibrationTest : public ::testing::Test {
     input.frames = *frames_;
     return input;
   }
-  // Four nearly parallel views cannot separate the principal point and the
+  // Four views of `small` cannot separate the principal point and the
   // distortion from the pose: they stay at their initial values here.
   static CalibrationOptions Options() {
     CalibrationOptions options;
@@ -177,6 +177,24 @@ TEST_F(CalibrationTest, RecalibrationHoldsFocalLengthAndSensorDistance) {
                          truth_->intrinsics.mla_to_main_lens_mm -
                      1),
             0.002);
+}
+
+TEST_F(CalibrationTest, ProcessedFramesRoundTripThroughTheCache) {
+  test::TempDir dir;
+  const CalibrationFrame& f = frames_->at(1);
+  ASSERT_TRUE(SaveCalibrationFrame(dir / "f.frame", f, 0.99));
+  Expected<CalibrationFrame> back = LoadCalibrationFrame(dir / "f.frame", 0.99);
+  ASSERT_TRUE(back) << back.error().message;
+  EXPECT_EQ(back->frame, f.frame);
+  EXPECT_EQ(back->name, f.name);
+  EXPECT_EQ(back->features.descriptors, f.features.descriptors);
+  ASSERT_EQ(back->features.size(), f.features.size());
+  EXPECT_EQ(back->features.keypoints[7].xy_px, f.features.keypoints[7].xy_px);
+  ASSERT_EQ(back->corners.size(), f.corners.size());
+  EXPECT_EQ(back->corners[0].p_in_w_mm, f.corners[0].p_in_w_mm);
+  EXPECT_EQ(back->rgb, f.rgb);
+  // Another lambda (other initial intrinsics) must not reuse the frame.
+  EXPECT_FALSE(LoadCalibrationFrame(dir / "f.frame", 0.98));
 }
 
 TEST_F(CalibrationTest, BadInputIsAClearError) {
