@@ -519,6 +519,18 @@ TEST(RigConfigErrors, EmptyAndNullValues) {
   EXPECT_EQ(ErrorOf("- 1\n"), "rig.yaml:1:1: /: expected a map, got a list");
 }
 
+// Found by tests/fuzz/fuzz_rig_yaml: yaml-cpp 0.7's LoadAll loops forever,
+// allocating, on a document that starts with ','; the reader must answer.
+TEST(RigConfigErrors, CommaAtTheStartOfADocumentIsAnErrorNotAHang) {
+  for (const std::string& yaml : {std::string(","), std::string(",i\n\n\x7f\xff\x7f\xff\xff"),
+                                 std::string("rig: {name: x}\n ,   role: registered\n"),
+                                 std::string("a: 1\n---\n,\n")}) {
+    const Expected<RigConfig> rig = Parse(yaml);
+    ASSERT_FALSE(rig.ok()) << yaml;
+    EXPECT_EQ(rig.error().message.rfind("rig.yaml", 0), 0u) << rig.error().message;
+  }
+}
+
 TEST(RigConfigErrors, UnreadableFile) {
   const Expected<RigConfig> rig = LoadRigConfig("/nonexistent/rig.yaml");
   ASSERT_FALSE(rig.ok());
