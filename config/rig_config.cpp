@@ -165,12 +165,14 @@ std::optional<ConfigIssue> CheckCamera(const std::string& at, const CameraConfig
     return ConfigIssue{at + "/trigger/source",
                        "expected a GenICam TriggerSource name such as Line1, got " +
                            Quoted(camera.trigger.source)};
-  if (!std::isfinite(camera.exposure_us) || camera.exposure_us <= 0.0)
-    return ConfigIssue{at + "/exposure_us", "expected a number > 0 (microseconds), got " +
+  // Upper bounds: what a real camera can be set to (config/README.md).
+  if (!std::isfinite(camera.exposure_us) || camera.exposure_us <= 0.0 ||
+      camera.exposure_us > 1e7)
+    return ConfigIssue{at + "/exposure_us", "expected a number > 0 and <= 1e7 (microseconds), got " +
                                                 NumberText(camera.exposure_us)};
-  if (!std::isfinite(camera.gain_db) || camera.gain_db < 0.0)
+  if (!std::isfinite(camera.gain_db) || camera.gain_db < 0.0 || camera.gain_db > 100.0)
     return ConfigIssue{at + "/gain_db",
-                       "expected a number >= 0 (dB), got " + NumberText(camera.gain_db)};
+                       "expected a number 0 .. 100 (dB), got " + NumberText(camera.gain_db)};
   if (camera.roi) {
     const RoiConfig& roi = *camera.roi;
     if (roi.x_px < 0)
@@ -181,6 +183,15 @@ std::optional<ConfigIssue> CheckCamera(const std::string& at, const CameraConfig
       return ConfigIssue{at + "/roi/width", "expected > 0, got " + std::to_string(roi.width_px)};
     if (roi.height_px <= 0)
       return ConfigIssue{at + "/roi/height", "expected > 0, got " + std::to_string(roi.height_px)};
+    constexpr long long kMaxSensorPx = 32768;  // replay/bmp.h kBmpLimits
+    if (static_cast<long long>(roi.x_px) + roi.width_px > kMaxSensorPx)
+      return ConfigIssue{at + "/roi/width", "expected x + width <= 32768 px (a real sensor), got " +
+                                                std::to_string(static_cast<long long>(roi.x_px) +
+                                                               roi.width_px)};
+    if (static_cast<long long>(roi.y_px) + roi.height_px > kMaxSensorPx)
+      return ConfigIssue{at + "/roi/height",
+                         "expected y + height <= 32768 px (a real sensor), got " +
+                             std::to_string(static_cast<long long>(roi.y_px) + roi.height_px)};
   }
   const bool aravis = camera.driver.kind == DriverKind::kAravis;
   if (camera.packet_size_bytes != 0 &&
@@ -248,12 +259,12 @@ std::optional<ConfigIssue> CheckVicon(const ViconConfig& vicon) {
   if (vicon.source == ViconSourceKind::kCsv && vicon.csv.empty())
     return ConfigIssue{"/vicon/csv", "expected the path of the Vicon CSV for source csv"};
   if (auto issue = CheckText("/vicon/plate_object", vicon.plate_object, true)) return issue;
-  if (!std::isfinite(vicon.rate_hz) || vicon.rate_hz <= 0.0)
+  if (!std::isfinite(vicon.rate_hz) || vicon.rate_hz <= 0.0 || vicon.rate_hz > 10000.0)
     return ConfigIssue{"/vicon/rate_hz",
-                       "expected a number > 0 (Hz), got " + NumberText(vicon.rate_hz)};
-  if (vicon.trigger_divider < 1)
+                       "expected a number > 0 and <= 10000 (Hz), got " + NumberText(vicon.rate_hz)};
+  if (vicon.trigger_divider < 1 || vicon.trigger_divider > 10000)
     return ConfigIssue{"/vicon/trigger_divider",
-                       "expected an integer >= 1, got " + std::to_string(vicon.trigger_divider)};
+                       "expected an integer 1 .. 10000, got " + std::to_string(vicon.trigger_divider)};
   return std::nullopt;
 }
 
@@ -404,22 +415,24 @@ void ReadVicon(YamlMap& map, const fs::path& base_dir, ViconConfig* vicon) {
 
 // The files the pipeline reads must exist; the .cti is the driver's business.
 std::optional<ConfigIssue> CheckFiles(const RigConfig& rig) {
-  const auto missing = [](const fs::path& path) {
-    std::error_code error;
-    return !fs::is_regular_file(path, error);
-  };
+  // What is there instead ("no such file or folder", "is a folder", "a
+  // symbolic link loop", ...; config/input_file.h), empty for a regular file.
+  const auto missing = [](const fs::path& path) { return DescribeNonRegular(path); };
   for (std::size_t i = 0; i < rig.cameras.size(); ++i) {
     const fs::path& file = rig.cameras[i].mla_file;
-    if (missing(file))
+    if (const std::string why = missing(file); !why.empty())
       return ConfigIssue{"/cameras/" + std::to_string(i) + "/mla_file",
-                         "expected an existing MLA calibration file, not found: " + file.string()};
+                         "expected an existing MLA calibration file: " + EscapeText(file.string()) +
+                             ": " + why};
   }
-  if (!rig.vicon.csv.empty() && missing(rig.vicon.csv))
-    return ConfigIssue{"/vicon/csv",
-                       "expected an existing Vicon CSV file, not found: " + rig.vicon.csv.string()};
-  if (!rig.vicon.vsk.empty() && missing(rig.vicon.vsk))
-    return ConfigIssue{"/vicon/vsk",
-                       "expected an existing VSK file, not found: " + rig.vicon.vsk.string()};
+  if (!rig.vicon.csv.empty())
+    if (const std::string why = missing(rig.vicon.csv); !why.empty())
+      return ConfigIssue{"/vicon/csv", "expected an existing Vicon CSV file: " +
+                                           EscapeText(rig.vicon.csv.string()) + ": " + why};
+  if (!rig.vicon.vsk.empty())
+    if (const std::string why = missing(rig.vicon.vsk); !why.empty())
+      return ConfigIssue{"/vicon/vsk", "expected an existing VSK file: " +
+                                           EscapeText(rig.vicon.vsk.string()) + ": " + why};
   return std::nullopt;
 }
 

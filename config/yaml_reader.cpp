@@ -3,6 +3,7 @@
 #include "config/input_file.h"
 #include "config/text_escape.h"
 
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include <charconv>
@@ -10,6 +11,7 @@
 #include <exception>
 #include <limits>
 #include <map>
+#include <sstream>
 
 namespace lifmcr {
 
@@ -50,21 +52,55 @@ std::vector<std::string> SplitPath(std::string_view path) {
   return parts;
 }
 
+// Counts documents without building them, recording where the second
+// starts: how a second document is found without YAML::LoadAll.
+class DocumentCounter : public YAML::EventHandler {
+ public:
+  void OnDocumentStart(const YAML::Mark& mark) override {
+    if (++documents == 2) second = mark;
+  }
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnAlias(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnScalar(const YAML::Mark&, const std::string&, YAML::anchor_t,
+                const std::string&) override {}
+  void OnSequenceStart(const YAML::Mark&, const std::string&, YAML::anchor_t,
+                       YAML::EmitterStyle::value) override {}
+  void OnSequenceEnd() override {}
+  void OnMapStart(const YAML::Mark&, const std::string&, YAML::anchor_t,
+                  YAML::EmitterStyle::value) override {}
+  void OnMapEnd() override {}
+
+  int documents = 0;
+  YAML::Mark second = YAML::Mark::null_mark();
+};
+
 }  // namespace
 
 Expected<YamlNode> YamlNode::Parse(std::string_view text, const std::string& label) {
   if (Status s = CheckTextEncoding(text, label, "YAML"); !s) return s.error();
   auto shared_label = std::make_shared<const std::string>(label);
   try {
-    const std::vector<YAML::Node> documents = YAML::LoadAll(std::string(text));
-    if (documents.size() > 1) {
-      const YAML::Mark mark = documents[1].Mark();
+    // Not YAML::LoadAll: yaml-cpp 0.7 loops forever there, allocating, when
+    // a document starts with ',' (jbeder/yaml-cpp#1040, fixed upstream in
+    // PR #1319; found by tests/fuzz/fuzz_rig_yaml). Each HandleNextDocument
+    // returns, so at most two calls: the document, then whether another
+    // follows.
+    std::istringstream count_stream{std::string(text)};
+    YAML::Parser counter_parser(count_stream);
+    DocumentCounter counter;
+    for (int call = 0; call < 2 && counter_parser.HandleNextDocument(counter); ++call) {
+    }
+    if (counter.documents > 1) {
+      const YAML::Mark mark = counter.second;
       return MakeError(label, HasPosition(mark) ? mark.line + 1 : 0,
                        HasPosition(mark) ? mark.column + 1 : 0,
-                       "expected one YAML document, found " + std::to_string(documents.size()));
+                       "a second YAML document (or a stray ',' that yaml-cpp reads as one) starts here; "
+                       "expected one document");
     }
     auto impl = std::make_shared<Impl>();
-    impl->node = documents.empty() ? YAML::Node(YAML::NodeType::Null) : documents[0];
+    impl->node = counter.documents == 0 ? YAML::Node(YAML::NodeType::Null)
+                                        : YAML::Load(std::string(text));
     impl->label = std::move(shared_label);
     impl->fallback_mark = YAML::Mark();  // line 1, column 1
     return YamlNode(std::move(impl));

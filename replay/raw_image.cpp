@@ -1,26 +1,59 @@
 #include "replay/raw_image.h"
 
+#include "config/input_file.h"
+#include "config/text_escape.h"
+#include "replay/file_descriptor.h"
+
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <cerrno>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
-#include <fstream>
+#include <unistd.h>
 
 namespace lifmcr {
 namespace {
 
 enum class Container { kBmp, kPng, kTiff, kUnknown };
 
-Container Sniff(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  unsigned char magic[8] = {};
-  in.read(reinterpret_cast<char*>(magic), sizeof magic);
-  if (in.gcount() >= 2 && magic[0] == 'B' && magic[1] == 'M') return Container::kBmp;
+// The container from the first bytes, read through the safe open of
+// config/input_file.h (a FIFO, folder or device is an error, never a hang);
+// a PNG's IHDR size is checked against the BMP limits before OpenCV
+// allocates for it.
+Expected<Container> Sniff(const std::filesystem::path& path) {
+  Expected<InputFile> opened = OpenInputFile(
+      path, {"a raw frame (BMP, PNG or TIFF)", kBmpLimits.max_file_bytes});
+  if (!opened) return opened.error();
+  FileDescriptor fd(opened->fd);
+  unsigned char magic[24] = {};
+  ssize_t got = 0;
+  while ((got = ::pread(fd.get(), magic, sizeof magic, 0)) < 0 && errno == EINTR) {
+  }
+  const std::size_t n = got > 0 ? static_cast<std::size_t>(got) : 0;
+  if (n >= 2 && magic[0] == 'B' && magic[1] == 'M') return Container::kBmp;
   static const unsigned char kPng[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
-  if (in.gcount() == 8 && std::memcmp(magic, kPng, 8) == 0) return Container::kPng;
-  if (in.gcount() >= 4 &&
+  if (n >= 8 && std::memcmp(magic, kPng, 8) == 0) {
+    const auto be32 = [&](int at) {
+      return (std::uint64_t{magic[at]} << 24) | (std::uint64_t{magic[at + 1]} << 16) |
+             (std::uint64_t{magic[at + 2]} << 8) | std::uint64_t{magic[at + 3]};
+    };
+    if (n == sizeof magic) {
+      const std::uint64_t width = be32(16), height = be32(20);
+      if (width > static_cast<std::uint64_t>(kBmpLimits.max_side_px) ||
+          height > static_cast<std::uint64_t>(kBmpLimits.max_side_px) ||
+          width * height > kBmpLimits.max_pixels) {
+        return Error{EscapeText(path.string()) + ": PNG of " + std::to_string(width) + "x" +
+                     std::to_string(height) + " px, expected at most " +
+                     std::to_string(kBmpLimits.max_side_px) + " px a side and " +
+                     std::to_string(kBmpLimits.max_pixels / 1000000) + " megapixels"};
+      }
+    }
+    return Container::kPng;
+  }
+  if (n >= 4 &&
       ((magic[0] == 'I' && magic[1] == 'I' && magic[2] == 42 && magic[3] == 0) ||
        (magic[0] == 'M' && magic[1] == 'M' && magic[2] == 0 && magic[3] == 42)))
     return Container::kTiff;
@@ -50,7 +83,9 @@ std::string RawImageInfo::Describe() const {
 Expected<OwnedImage> ReadRawImage(const std::filesystem::path& path, RawImageInfo* info) {
   RawImageInfo local;
   RawImageInfo& out_info = info != nullptr ? *info : local;
-  const Container container = Sniff(path);
+  const Expected<Container> sniffed = Sniff(path);
+  if (!sniffed) return sniffed.error();
+  const Container container = *sniffed;
   if (container == Container::kBmp) {
     out_info = RawImageInfo{"BMP", 8, 8, 1};
     Expected<OwnedImage> image = ReadBmp(path);
@@ -58,9 +93,6 @@ Expected<OwnedImage> ReadRawImage(const std::filesystem::path& path, RawImageInf
     return image;
   }
   if (container == Container::kUnknown) {
-    std::error_code ec;
-    if (!std::filesystem::is_regular_file(path, ec))
-      return Error{path.string() + ": " + "cannot open the raw image (no such file)"};
     return Error{path.string() + ": " +
                  "not a BMP, PNG or TIFF file (expected 'BM', the PNG signature or "
                  "'II*'/'MM*' at the start)"};

@@ -22,6 +22,7 @@ packages=(
   libaravis-dev aravis-tools aravis-tools-cli libusb-1.0-0-dev
   liblcm-dev liblcm-bin liblcm-java libjchart2d-java default-jdk-headless
   iproute2 procps
+  clang libfuzzer-14-dev python3  # the libFuzzer pass of scripts/test.sh; bench/fuzz.sh, bench/soak.sh
 )
 
 missing=()

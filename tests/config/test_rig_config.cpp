@@ -230,7 +230,7 @@ TEST(RigConfig, CheckWorksOnConfigsBuiltInCode) {
   const Status status = rig.Check();
   ASSERT_FALSE(status.ok());
   EXPECT_EQ(status.error().message,
-            "rig 'code': /cameras/0/exposure_us: expected a number > 0 (microseconds), got 0");
+            "rig 'code': /cameras/0/exposure_us: expected a number > 0 and <= 1e7 (microseconds), got 0");
 }
 
 // ------------------------------------------------------------- round trip
@@ -414,7 +414,15 @@ TEST(RigConfigErrors, OutOfRangeValues) {
       test::ReplaceFirst(kValidRig, "exposure_us: 5000", "exposure_us: -1");
   EXPECT_EQ(ErrorOf(exposure),
             "rig.yaml:" + PositionOf(exposure, "-1") +
-                ": /cameras/0/exposure_us: expected a number > 0 (microseconds), got -1");
+                ": /cameras/0/exposure_us: expected a number > 0 and <= 1e7 (microseconds), got -1");
+  // Values no real camera, Vicon or sensor can have (issue 17).
+  const std::string huge = test::ReplaceFirst(kValidRig, "exposure_us: 5000", "exposure_us: 1e300");
+  EXPECT_NE(ErrorOf(huge).find("/cameras/0/exposure_us: expected a number > 0 and <= 1e7"),
+            std::string::npos);
+  const std::string rate = kValidRig + "  rate_hz: 1e9\n";
+  EXPECT_NE(ErrorOf(rate).find("/vicon/rate_hz: expected a number > 0 and <= 10000 (Hz)"),
+            std::string::npos)
+      << ErrorOf(rate);
 }
 
 TEST(RigConfigErrors, BadEnumListsTheAllowedValues) {
@@ -462,9 +470,8 @@ TEST(RigConfigErrors, MissingMlaFile) {
   const std::string yaml =
       test::ReplaceFirst(kValidRig, "raytrix_mla_R29_Cards2_Processed.xml", "nope.xml");
   EXPECT_EQ(ErrorOf(yaml), "rig.yaml:" + PositionOf(yaml, "nope.xml") +
-                               ": /cameras/1/mla_file: expected an existing MLA calibration file, "
-                               "not found: " +
-                               (SamplesDir() / "nope.xml").string());
+                               ": /cameras/1/mla_file: expected an existing MLA calibration file: " +
+                               (SamplesDir() / "nope.xml").string() + ": no such file or folder");
 }
 
 TEST(RigConfigErrors, MalformedYamlNamesTheLine) {
@@ -511,6 +518,18 @@ TEST(RigConfigErrors, EmptyAndNullValues) {
       << message;
   EXPECT_EQ(ErrorOf(""), "rig.yaml:1:1: /: expected a map, got nothing (null)");
   EXPECT_EQ(ErrorOf("- 1\n"), "rig.yaml:1:1: /: expected a map, got a list");
+}
+
+// Found by tests/fuzz/fuzz_rig_yaml: yaml-cpp 0.7's LoadAll loops forever,
+// allocating, on a document that starts with ','; the reader must answer.
+TEST(RigConfigErrors, CommaAtTheStartOfADocumentIsAnErrorNotAHang) {
+  for (const std::string& yaml : {std::string(","), std::string(",i\n\n\x7f\xff\x7f\xff\xff"),
+                                 std::string("rig: {name: x}\n ,   role: registered\n"),
+                                 std::string("a: 1\n---\n,\n")}) {
+    const Expected<RigConfig> rig = Parse(yaml);
+    ASSERT_FALSE(rig.ok()) << yaml;
+    EXPECT_EQ(rig.error().message.rfind("rig.yaml", 0), 0u) << rig.error().message;
+  }
 }
 
 TEST(RigConfigErrors, UnreadableFile) {

@@ -7,6 +7,7 @@
 #include "replay/sequence.h"
 #include "tests/fuzz/fuzz_util.h"
 
+#include <fcntl.h>
 #include <filesystem>
 #include <sys/stat.h>
 #include <vector>
@@ -54,9 +55,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       case 1:  // a small file holding the next bytes
       case 2: {
         const std::size_t n = std::min<std::size_t>(data[i + 1] % 32, size - i - 2);
-        if (FILE* f = std::fopen(at.c_str(), "wb")) {
-          std::fwrite(data + i + 2, 1, n, f);
-          std::fclose(f);
+        // Never blocks: a FIFO made earlier under this name has no reader.
+        const int fd = ::open(at.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_NONBLOCK | O_NOFOLLOW, 0644);
+        if (fd >= 0) {
+          if (::write(fd, data + i + 2, n) < 0) {
+          }
+          ::close(fd);
         }
         break;
       }
