@@ -1,5 +1,7 @@
 #include "acquisition/frame_id_unwrapper.h"
 
+#include "drivers/frame_counter.h"
+
 namespace lifmcr {
 
 FrameIdUnwrapper::Step FrameIdUnwrapper::Next(std::uint64_t frame_id) {
@@ -11,17 +13,8 @@ FrameIdUnwrapper::Step FrameIdUnwrapper::Next(std::uint64_t frame_id) {
     return step;
   }
   if (frame_id > 65535) wide_ = true;
-  std::int64_t delta = 0;
-  if (wide_) {
-    delta = static_cast<std::int64_t>(frame_id - *last_id_);
-  } else {
-    // 16-bit ids 1..65535 -> 0..65534, difference modulo 65535.
-    const std::int64_t now = static_cast<std::int64_t>(frame_id == 0 ? kPeriod16 : frame_id) - 1;
-    const std::int64_t before =
-        static_cast<std::int64_t>(*last_id_ == 0 ? kPeriod16 : *last_id_) - 1;
-    delta = ((now - before) % kPeriod16 + kPeriod16) % kPeriod16;
-    if (delta > kPeriod16 / 2) delta -= kPeriod16;  // behind: late or repeated
-  }
+  // 16-bit ids 1..65535 (0 skipped) until an id says the counter is wider.
+  const std::int64_t delta = CounterRing{wide_ ? 64 : 16, true}.Delta(*last_id_, frame_id);
   if (delta <= 0) {
     step.stale = true;
     step.index = last_index_;

@@ -1,6 +1,7 @@
 #pragma once
 // Turns a camera's frame counter into a run-relative frame index and counts
-// the frames its gaps say were lost.
+// the frames its gaps say were lost (the counter arithmetic is
+// drivers/frame_counter.h's).
 //
 // GigE Vision 1 block ids are 16-bit and skip 0 (..., 65534, 65535, 1, 2, ...;
 // Aravis' fake camera starts at 65400 to expose wrap bugs), so a counter that
@@ -33,7 +34,6 @@ class FrameIdUnwrapper {
   std::int64_t last_index() const { return last_index_; }
 
  private:
-  static constexpr std::int64_t kPeriod16 = 65535;  // 1..65535
   std::optional<std::uint64_t> last_id_;
   bool wide_ = false;
   std::int64_t last_index_ = -1;

@@ -1,5 +1,8 @@
 #include "acquisition/rig_controller.h"
 
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -14,6 +17,25 @@ std::string Fixed(double value, int digits) {
 }
 
 }  // namespace
+
+Status RigControllerOptions::Check() const {
+  if (frame_timeout.count() <= 0 || frame_timeout.count() > 60'000)
+    return Error{"rig controller: frame_timeout: expected 1..60000 ms"};
+  if (!(trigger_hz >= 0 && trigger_hz <= 10'000))
+    return Error{"rig controller: trigger_hz: expected 0..10000 (0: no software triggers)"};
+  if (stale_frames_for_restart < 1)
+    return Error{"rig controller: stale_frames_for_restart: expected >= 1"};
+  if (drain.count() < 0) return Error{"rig controller: drain: expected >= 0 ms"};
+  if (sync_poll.count() <= 0) return Error{"rig controller: sync_poll: expected > 0 ms"};
+  if (vicon_lead_triggers < 0) return Error{"rig controller: vicon_lead_triggers: expected >= 0"};
+  if (vicon_divider < 1) return Error{"rig controller: vicon_divider: expected >= 1"};
+  if (sync) {
+    if (Status s = sync->Check(); !s) return Error{"rig controller: sync: " + s.error().message};
+  } else if (number_files_by_sync) {
+    return Error{"rig controller: number_files_by_sync: needs sync"};
+  }
+  return Status::Ok();
+}
 
 std::uint64_t CameraHealth::Lost() const {
   return incomplete + missing_by_id + missing_in_gaps + no_frame_at_end + not_in_any_set +
@@ -112,6 +134,7 @@ RigController::~RigController() { Stop(); }
 
 Status RigController::Start() {
   if (started_) return Error{"rig: already started"};
+  if (Status s = options_.Check(); !s) return s;
   for (auto& slot : slots_) {
     if (Status s = slot->camera->Open(); !s) return s;
     slot->health.serial = slot->camera->Info().serial;
@@ -136,6 +159,9 @@ Status RigController::Start() {
     syncing_ = true;
     sync_thread_ = std::thread([this] { SyncLoop(); });
   }
+  spdlog::info("rig: {} camera(s), Vicon {}, software triggers at {} Hz, sync {}",
+               slots_.size(), vicon_ ? "on" : "off", options_.trigger_hz,
+               options_.sync ? "on" : "off");
   started_ = true;
   start_time_ = last_health_ = std::chrono::steady_clock::now();
   grabbing_ = true;
@@ -214,6 +240,7 @@ void RigController::RecordSets(std::vector<FrameSet> sets) {
   std::uint64_t complete = 0;
   for (FrameSet& set : sets) {
     complete += set.complete() ? 1 : 0;
+    if (observer_.on_frame_set) observer_.on_frame_set(set);
     if (!options_.number_files_by_sync) continue;  // the grab threads submitted them
     for (std::size_t c = 0; c < set.frames.size(); ++c) {
       std::optional<Frame>& frame = set.frames[c];
@@ -236,12 +263,14 @@ void RigController::GrabLoop(int index) {
       std::lock_guard<std::mutex> lock(slot.mutex);
       ++slot.health.errors;
       slot.health.last_error = next.error().message;
+      if (!slot.lost) spdlog::warn("camera {}: lost: {}", slot.health.serial, next.error().message);
       slot.lost = true;
       continue;  // the driver reconnects on the next call
     }
     if (!next->has_value()) continue;
     Frame frame = std::move(**next);
     frame.camera_index = index;
+    frame.arrival_ns = RealtimeNs();  // the start of the latency to publication
     const std::size_t bytes =
         frame.image.stride_bytes * static_cast<std::size_t>(frame.image.height);
     std::int64_t frame_index = 0;
@@ -289,6 +318,8 @@ void RigController::GrabLoop(int index) {
           step = FrameIdUnwrapper::Step{slot.unwrapper.last_index(), 0, false};
           slot.health.missing_in_gaps += static_cast<std::uint64_t>(triggers - 1);
           ++slot.health.counter_restarts;
+          spdlog::warn("camera {}: back after {:.1f} s; {} trigger(s) missed while it was lost",
+                       slot.health.serial, silence_s, triggers - 1);
           slot.lost = false;
           slot.stale_in_a_row = 0;
         } else if (slot.lost) {
@@ -356,8 +387,35 @@ std::int64_t RigController::FirstIndexByHostTime(std::int64_t host_ns) {
   return std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor(periods + 0.25)));
 }
 
+bool RigController::ViconAhead(std::int64_t last_vicon_frame) const {
+  if (!first_vicon_frame_) return false;
+  std::int64_t slowest = INT64_MAX;
+  for (const auto& slot : slots_) {
+    if (slot->camera->Finished()) continue;
+    std::lock_guard<std::mutex> lock(slot->mutex);
+    slowest = std::min(slowest, slot->health.last_index);
+  }
+  if (slowest == INT64_MAX) return false;  // every camera done: Vicon drains
+  // The last frame of trigger slowest + lead is f0 + divider (slowest + lead + 1) - 1.
+  return last_vicon_frame >=
+         *first_vicon_frame_ +
+             static_cast<std::int64_t>(options_.vicon_divider) *
+                 (slowest + options_.vicon_lead_triggers + 1) -
+             1;
+}
+
 void RigController::ViconLoop() {
+  std::optional<std::int64_t> last_vicon_frame;
+  int in_burst = 0;
   while (vicon_running_.load()) {
+    if (options_.vicon_lead_triggers > 0) {
+      if ((last_vicon_frame && ViconAhead(*last_vicon_frame)) ||
+          in_burst >= options_.vicon_divider) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        in_burst = 0;
+        continue;
+      }
+    }
     Expected<std::optional<ViconFrame>> next = vicon_->Next(std::chrono::milliseconds(100));
     if (!next) {
       std::lock_guard<std::mutex> lock(vicon_mutex_);
@@ -368,6 +426,9 @@ void RigController::ViconLoop() {
       if (vicon_->Finished()) return;
       continue;
     }
+    if (!first_vicon_frame_) first_vicon_frame_ = (*next)->vicon_frame;
+    last_vicon_frame = (*next)->vicon_frame;
+    ++in_burst;
     if (observer_.on_vicon) observer_.on_vicon(**next);
     if (recorder_ != nullptr) recorder_->SubmitVicon(**next);
     if (assembler_ != nullptr) {
@@ -407,6 +468,13 @@ void RigController::TriggerLoop(int index, std::chrono::steady_clock::time_point
 }
 
 bool RigController::ViconFinished() const { return vicon_ && vicon_->Finished(); }
+
+bool RigController::CamerasFinished() const {
+  if (slots_.empty()) return false;
+  for (const auto& slot : slots_)
+    if (!slot->camera->Finished()) return false;
+  return true;
+}
 
 RigHealth RigController::Health() {
   RigHealth health;

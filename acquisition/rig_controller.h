@@ -58,6 +58,18 @@ struct RigControllerOptions {
   bool number_files_by_sync = false;
   // How often the sync thread polls the assembler for finished FrameSets.
   std::chrono::milliseconds sync_poll{10};
+  // Vicon paced by the cameras (a replay at --rate max, where both sources
+  // deliver as fast as they are read): 0 takes Vicon frames as they come;
+  // n > 0 takes a Vicon frame only while it belongs to a trigger at most n
+  // ahead of the slowest camera still delivering (by the cameras' trigger
+  // indices and Vicon frame numbers, vicon_divider per trigger), in bursts
+  // of at most vicon_divider frames at least a millisecond apart: the Vicon
+  // frame of trigger k is in before a FrameSet waits for it, and a burst
+  // stays small enough for an LCM subscriber's default queue of 30
+  // (lcm-logger's cannot be raised).
+  int vicon_lead_triggers = 0;
+  int vicon_divider = 8;
+  Status Check() const;  // every field (sync: its own Check); the message names the field
 };
 
 // Called on a grab thread for every complete frame (with its run index)
@@ -66,6 +78,10 @@ struct RigControllerOptions {
 struct RigObserver {
   std::function<void(int camera_index, std::int64_t frame_index, const Frame&)> on_frame;
   std::function<void(const ViconFrame&)> on_vicon;
+  // With sync: every FrameSet the controller's assembler emits, in trigger
+  // order, on the sync thread (and the rest at Stop); its frames share their
+  // pooled buffers. The pipeline takes its sets here: one assembler per run.
+  std::function<void(const FrameSet&)> on_frame_set;
 };
 
 struct CameraHealth {
@@ -148,6 +164,9 @@ class RigController {
   // True when every free-running source has finished (replay ended); the
   // command stops the recording then.
   bool ViconFinished() const;
+  // Every camera has delivered all it has (replay cameras only: a live
+  // camera never finishes).
+  bool CamerasFinished() const;
 
  private:
   struct CameraSlot {
@@ -166,6 +185,8 @@ class RigController {
   };
   void GrabLoop(int index);
   void ViconLoop();
+  // vicon_lead_triggers: whether the next Vicon frame must wait (ViconLoop).
+  bool ViconAhead(std::int64_t next_vicon_frame) const;
   // One per software-triggered camera, all on one schedule, so a camera that
   // is slow to take its trigger (lost, reconnecting) delays no other.
   void TriggerLoop(int index, std::chrono::steady_clock::time_point start);
@@ -192,6 +213,7 @@ class RigController {
   std::mutex vicon_mutex_;
   std::uint64_t vicon_interval_frames_ = 0;
   std::uint64_t vicon_errors_ = 0;
+  std::optional<std::int64_t> first_vicon_frame_;  // ViconLoop only
   double vicon_hz_ = 0;
   std::mutex anchor_mutex_;
   std::optional<std::int64_t> rig_first_host_ns_;

@@ -2,26 +2,22 @@
 // cameras.yaml]` or `lifmcr depth --raw FILE --mla MLA.xml --out DIR`: one
 // raw frame (BMP, PNG or TIFF; replay/raw_image.h) to virtual depth (raw and
 // TF grids, with the confidence map on the raw grid), the
-// totally focused image, metric depth and a coloured point cloud
-// (processing/). The OpenCV (TIFF, PNG, colour map) boundary of the
-// processing library is here; the PLY is processing/ply.h.
+// totally focused image, metric depth and a coloured point cloud, by the
+// processing chain replay and `record --publish` run too
+// (processing/frame_chain.h; files found by apps/pipeline/camera_setup.h).
+// The OpenCV (TIFF, PNG, colour map) boundary of the processing library is
+// here; the PLY is processing/ply.h.
 
 #include "apps/commands.h"
-#include "processing/camera_model.h"
-#include "processing/mla_grid.h"
-#include "processing/plenoptic_frame.h"
+#include "apps/pipeline/camera_setup.h"
+#include "processing/frame_chain.h"
 #include "processing/ply.h"
-#include "processing/point_cloud.h"
-#include "processing/total_focus.h"
-#include "processing/vignetting.h"
-#include "processing/virtual_depth.h"
 #include "replay/bayer.h"
-#include "replay/layout.h"
-#include "replay/mla_xml.h"
-#include "replay/raw_image.h"
-#include "replay/synth/cameras_yaml.h"
-#include "replay/synth/gt_images.h"
 #include "config/text_escape.h"
+#include "replay/layout.h"
+#include "replay/raw_image.h"
+#include "replay/sequence.h"
+#include "replay/synth/gt_images.h"
 
 #include <CLI/CLI.hpp>
 #include <opencv2/core.hpp>
@@ -47,7 +43,9 @@ struct DepthCommandOptions {
   bool uncertainty = false;
   std::string sequence;
   std::string camera;
-  std::string frame = "0";
+  std::int64_t frame = 0;            // the frame RunDepth processes
+  std::vector<std::string> frames;  // --frame values as typed (default: 0), parsed strictly
+  bool all_frames = false;
   std::string out;
   std::string intrinsics;
   std::string white;
@@ -56,40 +54,6 @@ struct DepthCommandOptions {
   std::string raw;
   std::string pixel_format;
 };
-
-// The camera `serial` of a cameras.yaml (GroundTruth of `lifmcr synth`, or
-// what `lifmcr calibrate` writes), through the strict YAML reader.
-Expected<processing::CameraIntrinsics> ReadIntrinsics(const std::string& path,
-                                                      const std::string& serial) {
-  Expected<synth::CameraModelYaml> model = synth::ReadCameraModelYaml(path, serial);
-  if (!model) return model.error();
-  processing::CameraIntrinsics k;
-  k.width_px = model->width_px;
-  k.height_px = model->height_px;
-  k.pixel_size_mm = model->pixel_size_mm;
-  k.main_focal_length_mm = model->main_focal_length_mm;
-  k.mla_to_main_lens_mm = model->mla_to_main_lens_mm;
-  k.mla_to_sensor_mm = model->mla_to_sensor_mm;
-  k.k1 = model->k1;
-  k.k2 = model->k2;
-  k.p1 = model->p1;
-  k.p2 = model->p2;
-  if (Status s = k.Check(); !s) return Error{EscapeText(path) + ": " + s.error().message};
-  return k;
-}
-
-// A frame number: decimal digits only, within int64 (CLI11 would turn 30
-// digits into INT64_MAX without a word).
-Expected<std::int64_t> ParseFrameNumber(const std::string& text) {
-  std::int64_t frame = -1;
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), frame);
-  if (text.empty() || ec != std::errc() || end != text.data() + text.size() || frame < 0 ||
-      frame > layout::kMaxFrameNumber) {
-    return Error{"--frame: expected a frame number 0 .. " + std::to_string(layout::kMaxFrameNumber) +
-                 ", got '" + Excerpt(text) + "'"};
-  }
-  return frame;
-}
 
 double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
@@ -157,23 +121,11 @@ int RunDepth(const DepthCommandOptions& o) {
       return Usage("--pixel-format " + o.pixel_format +
                    ": expected Mono8, BGR8, BayerRG8, BayerGR8, BayerGB8 or BayerBG8");
   }
-  const Expected<std::int64_t> frame_number = ParseFrameNumber(o.frame);
-  if (!frame_number) return Fail(frame_number.error().message);
-  const std::int64_t frame_index = *frame_number;
   const fs::path seq = o.sequence;
-  const fs::path calib = seq.parent_path().parent_path() / std::string(layout::kCalibrationFolder);
   const fs::path raw_path =
-      single_file ? fs::path(o.raw) : layout::RawFramePath(seq, o.camera, frame_index);
-  // The white image: --white, else the dataset's when it exists; none with
-  // --no-white, with --raw alone, or when the dataset has none (the
-  // vignetting then comes from the frame, processing/vignetting.h).
-  fs::path white_path = o.white;
-  if (white_path.empty() && !o.no_white && !single_file) {
-    const fs::path dataset_white = layout::WhiteImagePath(calib, o.camera, 0);
-    std::error_code ec;
-    if (fs::exists(dataset_white, ec)) white_path = dataset_white;
-  }
-  const fs::path mla_path = o.mla.empty() ? layout::MlaXmlPath(calib, o.camera) : fs::path(o.mla);
+      single_file ? fs::path(o.raw) : layout::RawFramePath(seq, o.camera, o.frame);
+  if (!o.intrinsics.empty() && o.camera.empty())
+    return Usage("--intrinsics needs --camera SERIAL (the camera to look up)");
 
   auto t = std::chrono::steady_clock::now();
   RawImageInfo raw_info;
@@ -181,30 +133,32 @@ int RunDepth(const DepthCommandOptions& o) {
   if (!raw) return Fail(raw.error().message);
   if (Status s = Demosaic(pixel_format, &*raw); !s)
     return Fail(raw_path.string() + ": " + s.error().message);
-  std::optional<OwnedImage> white;
-  if (!white_path.empty()) {
-    Expected<OwnedImage> read = ReadRawImage(white_path);
-    if (!read)
-      return Fail(read.error().message +
-                  " (white image; --white names another, --no-white uses none)");
-    if (Status s = Demosaic(pixel_format, &*read); !s)
-      return Fail(white_path.string() + ": " + s.error().message);
-    white = std::move(*read);
+  // The same lookup and chain as replay and record --publish: the MLA file
+  // (--mla, else the dataset's Calibration/), the white image (--white, else
+  // the one beside the MLA file; none with --no-white or --raw alone: the
+  // vignetting then comes from the frame, processing/vignetting.h).
+  CameraFileOverrides files{o.mla, o.white, o.intrinsics, !o.no_white && !single_file};
+  auto setup = LoadSequenceCamera(seq, o.camera, files);
+  if (!setup)
+    return Fail(setup.error().message +
+                " (--mla and --white name other files, --no-white uses no white image)");
+  if (setup->white) {
+    if (Status s = Demosaic(pixel_format, &*setup->white); !s)
+      return Fail("white image: " + s.error().message);
   }
-  Expected<MlaCalibration> mla = ReadMlaXml(mla_path);
-  if (!mla) return Fail(mla.error().message + " (MLA file; --mla names another)");
-  std::optional<processing::CameraModel> camera;
-  if (!o.intrinsics.empty()) {
-    if (o.camera.empty())
-      return Usage("--intrinsics needs --camera SERIAL (the camera to look up)");
-    Expected<processing::CameraIntrinsics> k = ReadIntrinsics(o.intrinsics, o.camera);
-    if (!k) return Fail(k.error().message);
-    if (k->width_px != raw->width || k->height_px != raw->height)
-      return Fail(o.intrinsics + ": camera " + o.camera + " is " + std::to_string(k->width_px) +
-                  "x" + std::to_string(k->height_px) + ", the raw frame " +
-                  std::to_string(raw->width) + "x" + std::to_string(raw->height));
-    camera.emplace(*k);
-  }
+  if (setup->intrinsics && (setup->intrinsics->width_px != raw->width ||
+                            setup->intrinsics->height_px != raw->height))
+    return Fail(o.intrinsics + ": camera " + o.camera + " is " +
+                std::to_string(setup->intrinsics->width_px) + "x" +
+                std::to_string(setup->intrinsics->height_px) + ", the raw frame " +
+                std::to_string(raw->width) + "x" + std::to_string(raw->height));
+  const bool has_white = setup->white.has_value();
+  processing::ChainOptions chain_options;
+  chain_options.point_cloud = true;
+  chain_options.cloud_measured_only = true;
+  auto chain = processing::CameraChain::Create(std::move(*setup), chain_options);
+  if (!chain) return Fail(chain.error().message);
+  const processing::CameraChain& camera = **chain;
   std::printf(
       "read      %.3f s  %s (%dx%d %s, %s%s)\n", Seconds(t), raw_path.string().c_str(), raw->width,
       raw->height, std::string(ToString(raw->format)).c_str(), raw_info.Describe().c_str(),
@@ -212,58 +166,24 @@ int RunDepth(const DepthCommandOptions& o) {
           ? (std::string(", demosaiced from ") + std::string(ToString(*pixel_format))).c_str()
           : "");
 
-  t = std::chrono::steady_clock::now();
-  const processing::MlaGrid grid =
-      processing::MlaGrid::FromCalibration(*mla, raw->width, raw->height);
-  processing::FrameOptions frame_options;
-  frame_options.lambda = camera ? camera->lambda() : 1.0;
-  std::string devignetting = "devignetted by " + white_path.string();
-  processing::VignettingEstimate estimate;
-  if (!white) {
-    processing::VignettingOptions vignetting_options;
-    vignetting_options.row_step = raw->height > 2000 ? 4 : 1;
-    Expected<processing::VignettingEstimate> e =
-        processing::EstimateVignetting(raw->View(), grid, *mla, vignetting_options);
-    if (!e) return Fail(raw_path.string() + ": " + e.error().message);
-    estimate = std::move(*e);
-    devignetting = estimate.BriefReport();
-  }
-  processing::PlenopticFrame frame;
-  if (Status s = processing::PrepareFrame(raw->View(),
-                                          white ? ConstImageView(white->View()) : estimate.White(),
-                                          grid, *mla, frame_options, &frame);
-      !s)
-    return Fail(s.error().message);
-  if (frame.lenses.empty()) {
-    return Fail(raw_path.string() + ": no whole micro image of diameter " +
-                std::to_string(mla->diameter_px) + " px fits the " + std::to_string(raw->width) +
-                "x" + std::to_string(raw->height) + " frame; expected a raw frame of the camera " +
-                "the MLA file belongs to");
-  }
-  std::printf("prepare   %.3f s  %zu micro images; %s%s\n", Seconds(t), frame.lenses.size(),
-              devignetting.c_str(),
-              camera ? "" : "; no intrinsics: micro-lens centres = micro-image centres (lambda 1)");
-
-  t = std::chrono::steady_clock::now();
-  processing::VirtualDepthMap depth;
-  if (Status s = processing::EstimateVirtualDepth(frame, *mla, processing::DepthOptions{}, &depth);
-      !s)
-    return Fail(s.error().message);
+  auto lease = (*chain)->Process(raw->View());
+  if (!lease) return Fail(raw_path.string() + ": " + lease.error().message);
+  const processing::ChainProducts& p = **lease;
+  const processing::VirtualDepthMap& depth = p.raw_depth;
+  const processing::TfDepthMap& tf_depth = p.tf_depth;
+  const processing::TfImage& tf = p.tf;
+  std::printf("prepare   %.3f s  %zu micro images; %s%s\n", p.prepare_s, p.prepared.lenses.size(),
+              has_white ? "devignetted by the white image"
+                        : ("no white image: " + camera.Describe()).c_str(),
+              camera.camera_model()
+                  ? ""
+                  : "; no intrinsics: micro-lens centres = micro-image centres (lambda 1)");
   const double raw_mp = raw->width * static_cast<double>(raw->height) / 1e6;
-  std::printf("depth     %.3f s  %.1f raw MP/s; %s\n", Seconds(t), raw_mp / Seconds(t),
+  std::printf("depth     %.3f s  %.1f raw MP/s; %s\n", p.depth_s, raw_mp / p.depth_s,
               depth.stats.BriefReport().c_str());
-
-  t = std::chrono::steady_clock::now();
-  const processing::TfOptions tf_options;
-  processing::TfDepthMap tf_depth;
-  if (Status s = processing::VirtualDepthToTf(frame, depth, tf_options, &tf_depth); !s)
-    return Fail(s.error().message);
-  processing::TfImage tf;
-  if (Status s = processing::RenderTotalFocus(frame, *mla, tf_depth, tf_options, &tf); !s)
-    return Fail(s.error().message);
   // max(1): an empty TF grid prints 0 %, not -nan %.
   const double tf_n = std::max(1.0, static_cast<double>(tf_depth.width) * tf_depth.height);
-  std::printf("tf        %.3f s  %dx%d; TF depth: %.1f %% measured, %.1f %% filled\n", Seconds(t),
+  std::printf("tf        %.3f s  %dx%d; TF depth: %.1f %% measured, %.1f %% filled\n", p.tf_s,
               tf.width, tf.height, 100.0 * tf_depth.measured / tf_n,
               100.0 * tf_depth.filled / tf_n);
 
@@ -275,7 +195,7 @@ int RunDepth(const DepthCommandOptions& o) {
   // <serial>_<frame>_* for a dataset frame, <file stem>_* for --raw.
   std::string stem = raw_path.stem().string();
   if (!single_file) {
-    const std::string prefix = layout::VirtualDepthFileName(o.camera, frame_index);
+    const std::string prefix = layout::VirtualDepthFileName(o.camera, o.frame);
     stem = prefix.substr(0, prefix.size() - std::string("_virtual_depth.tiff").size());
   }
   if (Status s = synth::WriteFloatTiff(out / (stem + "_virtual_depth.tiff"), depth.width,
@@ -293,25 +213,21 @@ int RunDepth(const DepthCommandOptions& o) {
   if (Status s = synth::WritePng(out / (stem + "_tf.png"), tf.View()); !s)
     return Fail(s.error().message);
   double v_lo = 1e9, v_hi = 0;
-  for (const MlaLensType& type : mla->lens_types) {
+  for (const MlaLensType& type : camera.mla().lens_types) {
     v_lo = std::min(v_lo, std::max(1.5, type.depth_min));
     v_hi = std::max(v_hi, type.depth_max);
   }
   if (!(v_hi > v_lo)) v_hi = v_lo + 10;
   if (Status s = WriteDepthPng(out / (stem + "_depth.png"), tf_depth, v_lo, v_hi); !s)
     return Fail(s.error().message);
-  if (camera) {
-    std::vector<float> depth_mm;
-    processing::MetricDepthTf(*camera, tf_depth, &depth_mm);
+  if (p.metric) {
     if (Status s = synth::WriteFloatTiff(out / (stem + "_depth_mm.tiff"), tf_depth.width,
-                                         tf_depth.height, depth_mm);
+                                         tf_depth.height, p.depth_mm);
         !s)
       return Fail(s.error().message);
-    processing::PointCloud cloud;
-    processing::BuildPointCloud(*camera, tf_depth, tf, true, &cloud);
-    if (Status s = processing::WritePly(out / (stem + "_points.ply"), cloud, o.uncertainty); !s)
+    if (Status s = processing::WritePly(out / (stem + "_points.ply"), p.cloud, o.uncertainty); !s)
       return Fail(s.error().message);
-    std::printf("cloud     %zu points (measured TF pixels)\n", cloud.points_mm.size());
+    std::printf("cloud     %zu points (measured TF pixels)\n", p.cloud.points_mm.size());
   } else {
     std::printf(
         "no --intrinsics: no %s_depth_mm.tiff and no %s_points.ply (metric needs f_L, "
@@ -320,6 +236,47 @@ int RunDepth(const DepthCommandOptions& o) {
   }
   std::printf("write     %.3f s  %s/%s_*\n", Seconds(t), o.out.c_str(), stem.c_str());
   std::printf("total     %.3f s\n", Seconds(t_all));
+  return 0;
+}
+
+// Every frame asked for, one after the other, with a progress line before
+// each; the first failure stops (exit 1), the frames before it are written.
+int RunDepthFrames(const DepthCommandOptions& o) {
+  // Parsed here, not by CLI11, which turns 30 digits into INT64_MAX without a word.
+  std::vector<std::int64_t> frames;
+  for (const std::string& text : o.frames) {
+    std::int64_t frame = -1;
+    const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), frame);
+    if (text.empty() || ec != std::errc() || end != text.data() + text.size() || frame < 0 ||
+        frame > layout::kMaxFrameNumber)
+      return Fail("--frame: expected a frame number 0 .. " +
+                  std::to_string(layout::kMaxFrameNumber) + ", got '" + Excerpt(text) + "'");
+    frames.push_back(frame);
+  }
+  if (frames.empty()) frames = {0};
+  if (o.all_frames) {
+    if (!o.raw.empty() || o.sequence.empty()) return Usage("--all-frames needs SEQ_DIR");
+    if (!o.frames.empty()) return Usage("--all-frames and --frame exclude each other");
+    Expected<SequenceLayout> layout = DiscoverSequence(o.sequence);
+    if (!layout) return Fail(layout.error().message);
+    frames.clear();
+    for (const CameraFolder& camera : layout->cameras)
+      if (camera.serial == o.camera) frames = camera.frames;
+    if (frames.empty()) return Fail(o.sequence + ": no frames of camera " + o.camera);
+  }
+  if (!o.raw.empty() && frames.size() > 1)
+    return Usage("--raw takes one file; --frame applies to SEQ_DIR");
+  const auto start = std::chrono::steady_clock::now();
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    DepthCommandOptions one = o;
+    one.frame = frames[k];
+    if (frames.size() > 1)
+      std::printf("frame %zu/%zu: %lld (%.0f s so far)\n", k + 1, frames.size(),
+                  static_cast<long long>(frames[k]), Seconds(start));
+    std::fflush(stdout);
+    if (const int code = RunDepth(one); code != 0) return code;
+  }
+  if (frames.size() > 1) std::printf("%zu frames in %.1f s\n", frames.size(), Seconds(start));
   return 0;
 }
 
@@ -333,22 +290,27 @@ CommandRun AddDepthCommand(CLI::App& app) {
       "beside the scene); the white image (--white, else Calibration/01_White_Images/ when it\n"
       "exists; without one the vignetting comes from the frame, or the frame is taken as\n"
       "already devignetted, and the output says which); --intrinsics cameras.yaml.\n"
-      "Writes into --out: <stem>_virtual_depth.tiff, _confidence.tiff (raw grid, float32),\n"
+      "Writes: into --out, <stem>_virtual_depth.tiff, _confidence.tiff (raw grid, float32),\n"
       "_virtual_depth_tf.tiff, _tf.png, _depth.png (TF grid), and with --intrinsics\n"
       "_depth_mm.tiff and _points.ply; <stem> is <serial>_<frame> or the --raw file's stem.\n"
+      "Progress: each stage's time per frame, and with several frames (--frame A B ..,\n"
+      "--all-frames) a line before each.\n"
       "Exit codes: 0 written; 1 an input could not be read or processed (the message names\n"
-      "it); 2 usage error.");
+      "it; the frames before it are written); 2 usage error.");
   app.add_option("SEQ_DIR", o->sequence, "Sequence folder (SCENE/SEQ of a LiFMCR dataset)");
   app.add_option("--raw", o->raw,
                  "One raw image (BMP, PNG or TIFF, 8 or 16 bits) instead of SEQ_DIR; needs --mla");
   app.add_option("--camera", o->camera,
                  "Camera serial (with SEQ_DIR; with --raw, the serial looked up in --intrinsics)");
-  app.add_option("--frame", o->frame, "Frame number in SEQ_DIR (default 0)");
+  app.add_option("--frame", o->frames,
+                 "Frame number(s) in SEQ_DIR (default 0); several are processed in turn");
+  app.add_flag("--all-frames", o->all_frames, "Every frame of the camera in SEQ_DIR");
   app.add_option("--out", o->out, "Output folder (created if needed)")->required();
   app.add_option("--intrinsics", o->intrinsics,
                  "cameras.yaml with the camera's model (metric depth and point cloud)");
   app.add_option("--white", o->white,
-                 "White image (default: the dataset's Calibration folder when it holds one)");
+                 "White image (default: the one beside the MLA file in Calibration/ when it "
+                 "exists)");
   app.add_flag("--no-white", o->no_white,
                "Use no white image: vignetting from the frame, or none if already corrected");
   app.add_option("--pixel-format", o->pixel_format,
@@ -357,7 +319,7 @@ CommandRun AddDepthCommand(CLI::App& app) {
   app.add_option("--mla", o->mla, "MLA XML (default: the dataset's Calibration folder)");
   app.add_flag("--uncertainty", o->uncertainty,
                "Add a sigma_z_mm property (standard deviation of the depth) to every PLY point");
-  return [o] { return RunDepth(*o); };
+  return [o] { return RunDepthFrames(*o); };
 }
 
 }  // namespace lifmcr::apps

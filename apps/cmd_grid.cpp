@@ -1,12 +1,14 @@
-// `lifmcr grid WHITE.bmp [--mla FILE] [--out FILE.xml]`: fits the micro-image
-// lattice to a white image (processing/mla_grid.h), prints it with its
-// residual, compares it with the MLA file when one is given, and writes the
-// refined MLA XML.
+// `lifmcr grid IMAGE [--mla FILE] [--textured] [--out FILE.xml]`: fits the
+// micro-image lattice to a white image (processing/mla_grid.h) or, with
+// --textured, to a raw image of a textured scene when no white image exists
+// (processing/grid_from_raw.h); prints it with its residual, compares it with
+// the MLA file when one is given, and writes the refined MLA XML.
 
 #include "apps/commands.h"
+#include "processing/grid_from_raw.h"
 #include "processing/mla_grid.h"
-#include "replay/bmp.h"
 #include "replay/mla_xml.h"
+#include "replay/raw_image.h"
 
 #include <CLI/CLI.hpp>
 
@@ -24,10 +26,11 @@ struct GridOptions {
   std::string white;
   std::string mla;
   std::string out;
+  bool textured = false;
 };
 
 int RunGrid(const GridOptions& o) {
-  Expected<OwnedImage> white = ReadBmp(o.white);
+  Expected<OwnedImage> white = ReadRawImage(o.white);
   if (!white) {
     std::cerr << "lifmcr grid: " << white.error().message << "\n";
     return 1;
@@ -46,7 +49,8 @@ int RunGrid(const GridOptions& o) {
     initial = processing::MlaGrid::FromCalibration(base, w, h);
   }
   Expected<processing::GridFitResult> fit =
-      processing::FitGridToWhiteImage(white->View(), have_file ? &initial : nullptr);
+      o.textured ? processing::FitGridToRawImage(white->View(), have_file ? &initial : nullptr)
+                 : processing::FitGridToWhiteImage(white->View(), have_file ? &initial : nullptr);
   if (!fit) {
     std::cerr << "lifmcr grid: " << o.white << ": " << fit.error().message << "\n";
     return 1;
@@ -62,7 +66,8 @@ int RunGrid(const GridOptions& o) {
     }
   }
   const MlaCalibration refined = grid.ToCalibration(base, w, h);
-  std::printf("white image %s: %dx%d\n", o.white.c_str(), w, h);
+  std::printf("%s %s: %dx%d\n", o.textured ? "raw image (textured scene)" : "white image",
+              o.white.c_str(), w, h);
   std::printf("fitted lattice: %s\n", fit->BriefReport().c_str());
   std::printf(
       "as RayCalibData: diameter %.5f px, rotation %.7f rad, offset (%.4f, %.4f) px (y up)\n",
@@ -110,11 +115,22 @@ int RunGrid(const GridOptions& o) {
 
 CommandRun AddGridCommand(CLI::App& app) {
   auto o = std::make_shared<GridOptions>();
-  app.add_option("WHITE", o->white, "White image (BMP, Mono8 or BGR8)")->required();
+  app.footer(
+      "Reads: IMAGE (BMP, PNG or TIFF; a white image, or with --textured a raw frame of a\n"
+      "textured scene) and --mla FILE (RayCalibData XML). Prints the fitted lattice with its\n"
+      "residual and, with --mla, how far the file's micro-image centres are from it.\n"
+      "Writes: the refined MLA XML (--out, default ./<IMAGE stem>_MLA.xml).\n"
+      "Exit codes: 0 written; 1 an input could not be read or the lattice not fitted (the\n"
+      "message says why); 2 usage error.");
+  app.add_option("IMAGE", o->white, "White image, or a raw frame with --textured (BMP, PNG, TIFF)")
+      ->required();
+  app.add_flag("--textured", o->textured,
+               "IMAGE is a raw frame of a textured scene (no white image exists): the lattice "
+               "from the micro-image borders; best started from --mla");
   app.add_option("--mla", o->mla,
                  "MLA file (RayCalibData XML) to start from, compare with and refine; it also "
                  "gives the lens types");
-  app.add_option("--out", o->out, "MLA XML to write (default ./<WHITE stem>_MLA.xml)");
+  app.add_option("--out", o->out, "MLA XML to write (default ./<IMAGE stem>_MLA.xml)");
   return [o] { return RunGrid(*o); };
 }
 

@@ -1,7 +1,10 @@
 // `lifmcr monitor`: a terminal view of the LIFMCR_* channels, refreshed in
-// place (ANSI escapes only, so it works over ssh and in tmux).
+// place (ANSI escapes only, so it works over ssh and in tmux), fitted to the
+// terminal's size and redrawn when it changes (SIGWINCH; apps/terminal.h).
+// Lines are laid out for 80 columns.
 
 #include "apps/commands.h"
+#include "apps/terminal.h"
 #include "config/text_escape.h"
 
 #include <CLI/CLI.hpp>
@@ -32,7 +35,9 @@ namespace lifmcr::apps {
 namespace {
 
 std::atomic<bool> g_stop{false};
+std::atomic<bool> g_resized{false};
 void OnSignal(int) { g_stop = true; }
+void OnResize(int) { g_resized = true; }
 
 double NowS() {
   return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
@@ -140,16 +145,16 @@ class Monitor {
     char line[512];
     out << "lifmcr monitor  " << (url.empty() ? "LCM default URL" : url)
         << "   (q or Ctrl-C quits)\n\n";
-    std::snprintf(line, sizeof line, "%-12s %9s %9s %8s %9s %10s %8s %17s\n", "camera", "preview",
-                  "depth", "TF", "latency", "last frame", "depth %", "virtual depth");
+    // 73 columns: camera, rates (Hz), latency (ms), last frame, depth %, range.
+    std::snprintf(line, sizeof line, "%-10s %7s %8s %6s %10s %6s %6s %13s\n", "camera", "prev Hz",
+                  "depth Hz", "TF Hz", "latency ms", "frame", "depth%", "virtual depth");
     out << line;
     if (cameras_.empty()) out << "  (no camera channel yet)\n";
     for (auto& [serial, c] : cameras_) {
-      std::snprintf(line, sizeof line,
-                    "%-12s %6.1f Hz %6.1f Hz %5.1f Hz %6.1f ms %10lld %7.1f%% %7.2f .. %6.2f\n",
-                    serial.c_str(), c.preview.Hz(now), c.depth.Hz(now), c.tf.Hz(now),
-                    c.last_latency_ms, static_cast<long long>(c.last_frame),
-                    100.0 * c.valid_fraction, c.min_v, c.max_v);
+      std::snprintf(
+          line, sizeof line, "%-10.10s %7.1f %8.1f %6.1f %10.1f %6lld %6.1f %6.2f..%-5.2f\n",
+          serial.c_str(), c.preview.Hz(now), c.depth.Hz(now), c.tf.Hz(now), c.last_latency_ms,
+          static_cast<long long>(c.last_frame), 100.0 * c.valid_fraction, c.min_v, c.max_v);
       out << line;
     }
     bool any_extrinsics = false;
@@ -159,11 +164,11 @@ class Monitor {
       any_extrinsics = true;
       const auto& e = *c.extrinsics;
       std::snprintf(line, sizeof line,
-                    "  %s <- %s [%s] t = (%.1f, %.1f, %.1f) mm q = (%.4f, %.4f, %.4f, %.4f) "
-                    "inliers %d rmse %.2f px %s\n",
-                    e.reference_serial.c_str(), e.serial.c_str(), e.method.c_str(), e.t_mm[0],
-                    e.t_mm[1], e.t_mm[2], e.q_wxyz[0], e.q_wxyz[1], e.q_wxyz[2], e.q_wxyz[3],
-                    e.inliers, e.rmse_px, e.status.c_str());
+                    "  %s <- %s [%s] inliers %d rmse %.2f px %s\n"
+                    "    t = (%.1f, %.1f, %.1f) mm  q = (%.4f, %.4f, %.4f, %.4f)\n",
+                    e.reference_serial.c_str(), e.serial.c_str(), e.method.c_str(), e.inliers,
+                    e.rmse_px, e.status.c_str(), e.t_mm[0], e.t_mm[1], e.t_mm[2], e.q_wxyz[0],
+                    e.q_wxyz[1], e.q_wxyz[2], e.q_wxyz[3]);
       out << line;
     }
     std::snprintf(line, sizeof line, "\nVicon   %6.1f Hz  frames %llu", vicon_.Hz(now),
@@ -188,8 +193,7 @@ class Monitor {
       out << line;
       for (const auto& s : stats_->stages) {
         std::snprintf(line, sizeof line,
-                      "  %-16s %6.1f Hz  queue %d/%d  p50 %7.1f ms  p99 %7.1f ms  processed %lld "
-                      "skipped %lld\n",
+                      "  %-12.12s %5.1f Hz q %d/%d p50 %6.1f p99 %6.1f ms done %lld skip %lld\n",
                       s.name.c_str(), s.rate_hz, s.queue_depth, s.queue_capacity, s.latency_p50_ms,
                       s.latency_p99_ms, static_cast<long long>(s.processed),
                       static_cast<long long>(s.skipped));
@@ -222,9 +226,9 @@ struct Args {
 };
 
 int RunMonitor(const Args& args) {
-  // Depth maps and previews are fragmented datagrams of up to a few hundred
-  // KB: a UDP multicast receiver needs a larger buffer than the kernel's
-  // default (within net.core.rmem_max) or it loses them.
+  // Messages are at most ~90 KB (bench/bench_lcm_sizes.cpp), but a burst of
+  // several cameras' messages exceeds a stock 208 KB buffer when the view is
+  // being drawn: ask for 4 MB (granted up to net.core.rmem_max).
   std::string url = args.lcm_url;
   if (url.empty()) {
     const char* env = std::getenv("LCM_DEFAULT_URL");
@@ -250,6 +254,7 @@ int RunMonitor(const Args& args) {
   g_stop = false;
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
+  std::signal(SIGWINCH, OnResize);
   const bool tty_out = isatty(STDOUT_FILENO) == 1;
   const bool tty_in = isatty(STDIN_FILENO) == 1;
   termios saved{};
@@ -262,6 +267,7 @@ int RunMonitor(const Args& args) {
     tcsetattr(STDIN_FILENO, TCSANOW, &raw);
   }
   if (tty_out) std::cout << "\x1b[?25l\x1b[2J" << std::flush;  // hide cursor, clear
+  TerminalSize size = QueryTerminalSize(STDOUT_FILENO);
   const auto start = std::chrono::steady_clock::now();
   auto next_draw = start;
   while (!g_stop) {
@@ -277,15 +283,13 @@ int RunMonitor(const Args& args) {
     if (args.duration_s > 0 &&
         std::chrono::duration<double>(now - start).count() >= args.duration_s)
       break;
+    if (tty_out && g_resized.exchange(false)) {
+      size = QueryTerminalSize(STDOUT_FILENO);
+      std::cout << "\x1b[2J";
+      next_draw = now;  // at once, at the new size
+    }
     if (tty_out && now >= next_draw) {
-      std::string view = monitor.Render(args.lcm_url);
-      // Clear to the end of every line so shorter lines leave nothing behind.
-      std::string framed = "\x1b[H";
-      for (char c : view) {
-        if (c == '\n') framed += "\x1b[K";
-        framed += c;
-      }
-      std::cout << framed << "\x1b[J" << std::flush;
+      std::cout << DrawFrame(FitToTerminal(monitor.Render(args.lcm_url), size)) << std::flush;
       next_draw = now + std::chrono::milliseconds(500);
     }
   }
@@ -296,6 +300,7 @@ int RunMonitor(const Args& args) {
     std::cout << monitor.Render(args.lcm_url) << std::flush;  // one view at the end
   std::signal(SIGINT, SIG_DFL);
   std::signal(SIGTERM, SIG_DFL);
+  std::signal(SIGWINCH, SIG_DFL);
   return 0;
 }
 
@@ -308,8 +313,12 @@ CommandRun AddMonitorCommand(CLI::App& app) {
       "per camera the preview, depth and TF rates, latency (receipt - publication),\n"
       "last frame, depth coverage and range; the latest extrinsics when published; the\n"
       "Vicon rate and occlusions per object; the pipeline's stages and drops from\n"
-      "LIFMCR_STATS. q or Ctrl-C quits. Without a terminal on stdout it prints one view\n"
-      "when it ends (--duration).");
+      "LIFMCR_STATS. q or Ctrl-C quits. The view fits the terminal (80x24 and up; lines\n"
+      "are clipped, a note says how many lines do not fit) and is redrawn when it is\n"
+      "resized. Without a terminal on stdout it prints one view when it ends (--duration).\n"
+      "Reads: the LCM bus (--lcm, else LCM_DEFAULT_URL, else LCM's default). Writes: the\n"
+      "terminal only. Exit codes: 0 quit by q, a signal or --duration; 2 usage error;\n"
+      "3 the LCM URL cannot be opened.");
   app.add_option("--lcm", args->lcm_url, "LCM URL (default: LCM's)");
   app.add_option("--duration", args->duration_s, "Quit after this many seconds (0: never)")
       ->check(CLI::NonNegativeNumber);

@@ -3,12 +3,16 @@
 #include "acquisition/recorder.h"
 #include "acquisition/rig_controller.h"
 #include "apps/commands.h"
+#include "apps/pipeline/camera_setup.h"
+#include "apps/pipeline/frame_processor.h"
 #include "apps/pipeline/pipeline.h"
+#include "apps/pipeline/process_settings.h"
 #include "config/rig_config.h"
 #include "drivers/camera_factory.h"
 #include "drivers/replay_camera.h"
 #include "drivers/vicon_csv_source.h"
 #include "drivers/vicon_udp_source.h"
+#include "processing/frame_chain.h"
 
 #include <CLI/CLI.hpp>
 
@@ -67,28 +71,35 @@ struct Args {
   bool no_processing = false;
 };
 
-// The live pipeline beside the recorder (--publish): frames reach it through
-// the controller's observer (a mutex-guarded hand-over); it never blocks a
-// grab thread (skip policy: newest wins), so a slow stage costs skipped
-// previews, never recorded frames.
+// The live pipeline beside the recorder (--publish), configured by the
+// rig file's processing: and lcm: sections, --lcm and --no-processing
+// overriding them: frames reach it through the controller's observer (a
+// mutex-guarded hand-over); it never blocks a grab thread, so a slow stage
+// costs skipped previews (newest_wins) or a later publication (block),
+// never recorded frames.
 Expected<std::unique_ptr<Pipeline>> MakePublishPipeline(const RigConfig& rig, const Args& args) {
+  const PreviewOptions preview = PreviewOptionsFromRig(rig);
+  if (Status s = preview.Check(); !s) return s.error();
   std::unique_ptr<FrameProcessor> processor;
-  std::map<std::string, std::string> mla_files;
-  for (const CameraConfig& camera : rig.cameras)
-    if (!camera.mla_file.empty()) mla_files[camera.serial] = camera.mla_file.string();
-  if (!args.no_processing && mla_files.size() == rig.cameras.size()) {
-    auto depth = DepthProcessor::FromMlaFiles(mla_files);
-    if (!depth) return depth.error();
-    processor = std::move(*depth);
+  const bool processing = rig.processing.enabled && !args.no_processing;
+  if (processing) {
+    // The same chain and calibration lookup as replay (camera_setup.h): the
+    // MLA file of each camera and the white image beside it.
+    auto setups = LoadRigCameras(rig);
+    if (!setups) return setups.error();
+    auto chain =
+        processing::ProcessingChain::Create(std::move(*setups), processing::ChainOptions{});
+    if (!chain) return chain.error();
+    processor = std::make_unique<DepthProcessor>(std::move(*chain), preview);
   } else {
-    if (!args.no_processing)
-      std::cerr << "lifmcr record: --publish: not every camera has an mla_file; previews only\n";
-    processor = std::make_unique<PreviewProcessor>();
+    processor = std::make_unique<PreviewProcessor>(preview);
   }
   FrameSetAssemblerOptions sync = FrameSetAssemblerOptions::FromRig(rig);
-  PipelineOptions options;
-  options.lcm_url = args.lcm_url;
-  options.skip_when_busy = true;
+  PipelineOptions options = PipelineOptions::FromRig(rig);
+  if (!args.lcm_url.empty()) options.publisher.url = args.lcm_url;
+  // The controller's assembler makes the FrameSets (one per run), unless
+  // --no-sync leaves it out: then the pipeline's own.
+  options.frame_sets_from_grab_loop = !args.no_sync;
   return Pipeline::Create(sync, std::move(processor), options);
 }
 
@@ -126,7 +137,6 @@ int Run(const Args& args) {
 
   std::vector<std::unique_ptr<Camera>> cameras;
   std::vector<bool> software_trigger;
-  std::vector<const ReplayCamera*> replay_cameras;
   for (std::size_t i = 0; i < rig->cameras.size(); ++i) {
     const CameraConfig& config = rig->cameras[i];
     CameraFactoryOptions factory;
@@ -147,18 +157,9 @@ int Run(const Args& args) {
       std::cerr << "lifmcr record: " << camera.error().message << "\n";
       return kExitCannotStart;
     }
-    if (auto* replay = dynamic_cast<const ReplayCamera*>(camera->get()))
-      replay_cameras.push_back(replay);
     cameras.push_back(std::move(*camera));
     software_trigger.push_back(config.trigger.mode == TriggerMode::kSoftware);
   }
-  // A rig made only of replay cameras ends with its sequence.
-  auto replay_finished = [&replay_cameras, n = rig->cameras.size()] {
-    if (replay_cameras.empty() || replay_cameras.size() != n) return false;
-    for (const ReplayCamera* camera : replay_cameras)
-      if (!camera->Finished()) return false;
-    return true;
-  };
   auto vicon = MakeViconSource(*rig);
   if (!vicon) {
     std::cerr << "lifmcr record: " << vicon.error().message << "\n";
@@ -170,8 +171,10 @@ int Run(const Args& args) {
     return kExitCannotStart;
   }
   std::unique_ptr<Pipeline> pipeline;
+  std::unique_ptr<ProcessSettings> process_settings;
   RigObserver observer;
   if (args.publish) {
+    process_settings = ProcessSettings::ForPipeline();
     auto made = MakePublishPipeline(*rig, args);
     if (!made) {
       std::cerr << "lifmcr record: --publish: " << made.error().message << "\n";
@@ -180,8 +183,11 @@ int Run(const Args& args) {
     }
     pipeline = std::move(*made);
     Pipeline* p = pipeline.get();
-    // A copy of the Frame shares the pooled buffer (no pixel copy).
-    observer.on_frame = [p](int, std::int64_t, const Frame& frame) { p->AddFrame(frame); };
+    // A copy of a Frame or FrameSet shares the pooled buffers (no pixel copy).
+    if (args.no_sync)
+      observer.on_frame = [p](int, std::int64_t, const Frame& frame) { p->AddFrame(frame); };
+    else
+      observer.on_frame_set = [p](const FrameSet& set) { p->AddFrameSet(set); };
     observer.on_vicon = [p](const ViconFrame& frame) { p->AddVicon(frame); };
   }
   RigControllerOptions controller_options;
@@ -212,7 +218,8 @@ int Run(const Args& args) {
       stop_why = "write error";
       break;
     }
-    if (replay_finished()) {
+    // A rig made only of replay cameras ends with its sequence.
+    if (controller.CamerasFinished()) {
       stop_why = "end of the replayed sequence";
       break;
     }
@@ -222,7 +229,9 @@ int Run(const Args& args) {
         std::chrono::duration<double>(now - start).count() >= args.duration_s)
       break;
     if (now >= next_status) {
-      const std::string line = controller.Health().StatusLine();
+      const RigHealth health = controller.Health();
+      if (pipeline) pipeline->SetSyncDrops(health.sync_drops);
+      const std::string line = health.StatusLine();
       if (terminal)
         std::cerr << "\r" << line << "\x1b[K" << std::flush;
       else
@@ -239,6 +248,7 @@ int Run(const Args& args) {
             << "stopped by: " << stop_why << "\n"
             << health.FinalReport();
   if (pipeline) {
+    pipeline->SetSyncDrops(health.sync_drops);
     pipeline->Finish();
     std::cout << "published (--publish):\n" << pipeline->Report().FinalReport();
   }
@@ -266,7 +276,10 @@ CommandRun AddRecordCommand(CLI::App& app) {
       "second otherwise. Stops after --duration, on SIGINT/SIGTERM, or by itself on a\n"
       "write error (disk full): files already written stay valid, the CSV ends with a\n"
       "complete line. The final report on stdout says what was kept and what was lost.\n"
-      "Exit code: 0 nothing lost; 1 a frame, a Vicon frame or a CSV line was lost, or a\n"
+      "Reads: --rig RIG.yaml (cameras, Vicon source, MLA files), the cameras and the Vicon\n"
+      "stream (or --replay SEQ). Writes: OUT as above; with --publish the LCM channels of\n"
+      "lifmcr replay.\n"
+      "Exit codes: 0 nothing lost; 1 a frame, a Vicon frame or a CSV line was lost, or a\n"
       "write error stopped the recording; 2 usage or rig file error; 3 a camera, the Vicon\n"
       "source or the output folder could not be started (an existing non-empty sequence\n"
       "folder is never overwritten).");
@@ -280,8 +293,9 @@ CommandRun AddRecordCommand(CLI::App& app) {
   app.add_option("--sequence", args->sequence, "Sequence folder name")->capture_default_str();
   app.add_flag("--publish", args->publish,
                "Run the live pipeline on the frames too and publish on LCM (as lifmcr replay)");
-  app.add_option("--lcm", args->lcm_url, "LCM URL for --publish (default: LCM's)");
-  app.add_flag("--no-processing", args->no_processing, "--publish previews only (no depth, no TF)");
+  app.add_option("--lcm", args->lcm_url, "LCM URL for --publish (default: the rig's lcm.url)");
+  app.add_flag("--no-processing", args->no_processing,
+               "--publish previews only (no depth, no TF; as processing.enabled: false)");
   app.add_option("--replay", args->replay,
                  "Sequence folder that cameras with driver 'replay' serve")
       ->check(CLI::ExistingDirectory);

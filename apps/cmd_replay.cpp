@@ -1,6 +1,7 @@
 // `lifmcr replay`: a sequence through the live pipeline onto LCM.
 
 #include "apps/commands.h"
+#include "apps/pipeline/process_settings.h"
 #include "apps/pipeline/replay_runner.h"
 
 #include <CLI/CLI.hpp>
@@ -45,7 +46,7 @@ int RunReplayCommand(const std::string& sequence, const std::string& rate_text, 
   options.rate = *rate;
   options.loop = loop;
   options.processing = processing;
-  options.pipeline.lcm_url = lcm_url;
+  options.pipeline.publisher.url = lcm_url;
   options.pipeline.max_concurrency = concurrency;
   options.stop = &g_stop;
   options.on_status = [terminal](const PipelineReport& report) {
@@ -54,6 +55,7 @@ int RunReplayCommand(const std::string& sequence, const std::string& rate_text, 
     else
       std::cerr << report.StatusLine() << "\n";
   };
+  const auto process_settings = ProcessSettings::ForPipeline();
   auto result = RunReplay(options);
   if (terminal) std::cerr << "\n";
   std::signal(SIGINT, SIG_DFL);
@@ -79,8 +81,11 @@ CommandRun AddReplayCommand(CLI::App& app) {
       "(the newest wins) and counted. --rate max: paced by the pipeline, every frame\n"
       "is processed. A status line on stderr, the final report on stdout (frames in,\n"
       "processed, skipped, failed, published). Watch with `lifmcr monitor` or\n"
-      "scripts/lcm-spy.sh. Exit code: 0 every frame accounted for and none failed; 1 a\n"
-      "processing failure; 2 usage; 3 the sequence, its calibration or LCM cannot be opened.");
+      "scripts/lcm-spy.sh.\n"
+      "Reads: SEQ_DIR and the Calibration/ folder beside its scene (MLA files, white images\n"
+      "when present). Writes: the LCM channels above; nothing on disk.\n"
+      "Exit codes: 0 every frame accounted for and none failed; 1 a processing failure;\n"
+      "2 usage; 3 the sequence, its calibration or LCM cannot be opened.");
   app.add_option("SEQ_DIR", args->sequence, "Sequence folder")
       ->required()
       ->check(CLI::ExistingDirectory);

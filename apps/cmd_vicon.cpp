@@ -112,7 +112,9 @@ CommandRun AddViconCommand(CLI::App& app) {
       "Output: CSV vicon_frame,tx_mm,ty_mm,tz_mm,qw,qx,qy,qz of vicon_from_marker (right-handed,\n"
       "mm, qw >= 0), one row per data row of the Objects (Tracker) or Segments (Nexus) block;\n"
       "frames where the subject is not tracked have empty pose fields.\n"
-      "Errors go to stderr with exit code 1.");
+      "Reads: FILE. Writes: the CSV on stdout; nothing on disk.\n"
+      "Exit codes: 0 written; 1 the file could not be read or the subject is not in it\n"
+      "(the message on stderr says which); 2 usage error.");
   app.add_option("file", args->file, "Vicon CSV export (Objects or Segments block)")->required();
   app.add_option("--subject", args->subject,
                  "Object or segment: the full 'Subject:Segment' name, or the part before ':' "

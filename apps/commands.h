@@ -21,5 +21,8 @@ CommandRun AddMonitorCommand(CLI::App& app);
 CommandRun AddDemoCommand(CLI::App& app);
 CommandRun AddGridCommand(CLI::App& app);
 CommandRun AddDepthCommand(CLI::App& app);
+CommandRun AddEvaluateCommand(CLI::App& app);
+CommandRun AddCalibrateCommand(CLI::App& app);
+CommandRun AddRegisterCommand(CLI::App& app);
 
 }  // namespace lifmcr::apps

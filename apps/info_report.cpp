@@ -1,5 +1,6 @@
 #include "apps/info_report.h"
 
+#include "apps/info_gentl.h"
 #include "config/input_file.h"
 #include "config/rig_config.h"
 #include "config/text_escape.h"
@@ -153,6 +154,10 @@ class Reporter {
                                 {"pixel_format", std::string(ToString(c.pixel_format))},
                                 {"mla_file", c.mla_file.string()},
                                 {"vicon_object", c.vicon_object}});
+      // What the producer exposes; its problems (no producer on this
+      // machine) stay in the section: the rig file itself is fine.
+      if (c.driver.kind == DriverKind::kGenTl)
+        out["cameras"].back()["gentl"] = DescribeGenTlCamera(c);
     }
     const ViconConfig& v = rig->vicon;
     out["vicon"] = {{"source", std::string(ToString(v.source))},
@@ -250,6 +255,9 @@ class Reporter {
       const fs::path path = camera.dir / camera.frame_files[i];
       auto header = ReadBmpHeader(path);
       ++checked;
+      if (options_.progress && (checked % 256 == 0 || i + 1 == camera.frames.size()))
+        options_.progress(camera.serial, checked,
+                          options_.check_every_frame ? camera.frames.size() : 2);
       if (!header.ok()) {
         Problem(out, header.error().message);
         continue;

@@ -12,7 +12,10 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cstddef>
 #include <filesystem>
+#include <functional>
+#include <string>
 
 namespace lifmcr::apps {
 
@@ -20,6 +23,10 @@ struct InfoOptions {
   // Open every raw frame's header (catches truncated files); false: only the
   // first and last frame of each camera.
   bool check_every_frame = true;
+  // Called every few hundred frame headers (and at the end of a camera) with
+  // the camera's serial, the frames checked and the frames to check; may be
+  // empty. `lifmcr info` draws its progress line with it.
+  std::function<void(const std::string& serial, std::size_t done, std::size_t total)> progress;
 };
 
 // Fails only when the path does not exist or is of no known kind.

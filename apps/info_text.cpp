@@ -1,5 +1,6 @@
 // Text rendering of the `lifmcr info` report: the same facts as --json.
 
+#include "apps/info_gentl.h"
 #include "apps/info_report.h"
 
 #include "config/text_escape.h"
@@ -245,6 +246,7 @@ std::string FormatInfoText(const json& raw_report) {
             << c["pixel_format"].get<std::string>() << ", Vicon object '"
             << c["vicon_object"].get<std::string>() << "', MLA " << c["mla_file"].get<std::string>()
             << "\n";
+        if (c.contains("gentl")) out << FormatGenTlText(c["gentl"], "      ");
       }
       const json& v = r["vicon"];
       out << "    Vicon: " << v["source"].get<std::string>() << ", " << v["rate_hz"].get<double>()

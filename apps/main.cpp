@@ -1,6 +1,7 @@
-// `lifmcr`: one executable, one subcommand per job (DESIGN.md, "Users and their jobs").
+// `lifmcr`: one executable, one subcommand per job (docs/architecture.md).
 
 #include "apps/commands.h"
+#include "apps/logging.h"
 
 #include <CLI/CLI.hpp>
 
@@ -9,10 +10,20 @@
 
 int main(int argc, char** argv) {
   CLI::App app{
-      "lifmcr: rigs of focused plenoptic (MLA) cameras: acquisition, replay, processing,\n"
-      "registration and evaluation of LiFMCR-layout datasets."};
+      "lifmcr: rigs of focused plenoptic (MLA) cameras: live recording, replay and\n"
+      "processing (virtual depth, totally focused images, point clouds) of LiFMCR-layout\n"
+      "datasets, published on LCM. `lifmcr SUBCOMMAND --help` says what each reads, writes\n"
+      "and returns."};
   app.require_subcommand(1);
   app.set_version_flag("--version", "lifmcr 0.1.0");
+
+  std::string log_level = "warn";
+  std::string log_file;
+  app.add_option("--log-level", log_level,
+                 "Operator log: trace, debug, info (the configuration in force), warn (devices "
+                 "lost, drops), error, off")
+      ->capture_default_str();
+  app.add_option("--log-file", log_file, "Append the log to this file (default: stderr)");
 
   std::vector<std::pair<CLI::App*, lifmcr::apps::CommandRun>> commands;
   auto add = [&](const char* name, const char* description, auto adder) {
@@ -32,16 +43,29 @@ int main(int argc, char** argv) {
   add("monitor", "Terminal view of the pipeline's LCM channels", lifmcr::apps::AddMonitorCommand);
   add("demo", "Synthetic rig -> replay through the pipeline on LCM (the embedded default)",
       lifmcr::apps::AddDemoCommand);
-  add("grid", "Fit the micro-image lattice to a white image and write an MLA XML",
+  add("grid",
+      "Fit the micro-image lattice to a white image (or a textured raw) and write an MLA XML",
       lifmcr::apps::AddGridCommand);
+  add("evaluate",
+      "Evaluate registered extrinsics against Vicon, with the hand-eye correction: tables, "
+      "TUM trajectories, plots",
+      lifmcr::apps::AddEvaluateCommand);
   add("depth", "Virtual depth, totally focused image, metric depth and point cloud of one frame",
       lifmcr::apps::AddDepthCommand);
+  add("calibrate", "Intrinsic calibration of one camera and its reference map (plenoptic BA)",
+      lifmcr::apps::AddCalibrateCommand);
+  add("register", "Register every camera to camera 0's reference map: c0_from_cx per frame",
+      lifmcr::apps::AddRegisterCommand);
 
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     // --help and --version exit 0; every usage error exits 2, whatever CLI11's own code.
     return app.exit(e) == 0 ? 0 : 2;
+  }
+  if (lifmcr::Status s = lifmcr::apps::ConfigureLogging(log_level, log_file); !s) {
+    std::cerr << "lifmcr: " << s.error().message << "\n";
+    return 2;
   }
   for (auto& [sub, run] : commands)
     if (sub->parsed()) return run();

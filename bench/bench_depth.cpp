@@ -10,7 +10,7 @@
 //   - TF image: output MP/s (TF depth + rendering), beside the same on one
 //     thread and a naive renderer (every micro image that sees the point,
 //     averaged) on a crop of the TF grid.
-//   bench_depth [--preset r32|medium|small] [--repeat N] [--crop PX]
+//   bench_depth [--preset r32|medium|small] [--scene table|plain] [--repeat N] [--crop PX]
 //               [--stride 0|1|2] [--ring1 1..6] [--ring2 0..6] [--type-ranges 0|1] (DepthOptions)
 
 #include "processing/camera_model.h"
@@ -161,7 +161,7 @@ long long NaiveTotalFocus(const PlenopticFrame& f, const TfDepthMap& depth, int 
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string preset = "r32";
+  std::string preset = "r32", scene_name = "table";
   int repeat = 3, crop = 256;
   DepthOptions depth_options;
   for (int k = 1; k + 1 < argc; k += 2) {
@@ -169,6 +169,8 @@ int main(int argc, char** argv) {
       preset = argv[k + 1];
     else if (!std::strcmp(argv[k], "--repeat"))
       repeat = std::max(1, std::atoi(argv[k + 1]));
+    else if (!std::strcmp(argv[k], "--scene"))
+      scene_name = argv[k + 1];
     else if (!std::strcmp(argv[k], "--crop"))
       crop = std::max(32, std::atoi(argv[k + 1]));
     else if (!std::strcmp(argv[k], "--stride"))
@@ -189,10 +191,15 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "%s\n", params.error().message.c_str());
     return 2;
   }
-  std::printf("bench_depth: preset %s, %d threads, %d runs\n", preset.c_str(),
-              tbb::info::default_concurrency(), repeat);
+  Expected<synth::Scene> made = synth::MakeScene(scene_name, params->rig.seed);
+  if (!made) {
+    std::fprintf(stderr, "%s\n", made.error().message.c_str());
+    return 2;
+  }
+  const synth::Scene& scene = *made;
+  std::printf("bench_depth: preset %s, scene %s, %d threads, %d runs\n", preset.c_str(),
+              scene_name.c_str(), tbb::info::default_concurrency(), repeat);
   const synth::PlenopticModel model(params->camera);
-  const synth::Scene scene = synth::MakeTableTopScene(params->rig.seed);
   synth::TrajectoryParams tp;
   tp.target_mm = scene.Target();
   tp.distance_mm = params->rig.viewing_distance_mm;

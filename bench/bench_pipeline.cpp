@@ -33,6 +33,7 @@
 #include "acquisition/rig_controller.h"
 #include "apps/pipeline/frame_processor.h"
 #include "apps/pipeline/pipeline.h"
+#include "apps/pipeline/process_settings.h"
 #include "apps/pipeline/replay_runner.h"
 #include "drivers/replay_camera.h"
 #include "drivers/vicon_udp_sender.h"
@@ -151,7 +152,7 @@ int RunFramePart(const BenchArgs& args, const synth::SynthParams& params,
   apps::ReplayRunOptions options;
   options.sequence_dir = sequence_dir;
   options.rate.kind = apps::ReplayRate::Kind::kMax;
-  options.pipeline.lcm_url = args.frame_lcm_url;
+  options.pipeline.publisher.url = args.frame_lcm_url;
   options.pipeline.max_concurrency = args.concurrency;
   options.pipeline.processing_nice = args.processing_nice;
   // Little read-ahead: a frame's arrival is then close to when the pipeline
@@ -325,9 +326,9 @@ int RunViconPart(const BenchArgs& args, const std::filesystem::path& sequence_di
   pipeline_options.processing_nice = args.processing_nice;
   pipeline_options.skip_when_busy = true;
   if (setup.url.starts_with("memq://"))
-    pipeline_options.bus = &bus;
+    pipeline_options.publisher.bus = &bus;
   else
-    pipeline_options.lcm_url = setup.url;
+    pipeline_options.publisher.url = setup.url;
   auto processor = apps::DepthProcessor::ForSequence(sequence_dir.string(), serials);
   if (!processor) {
     std::fprintf(stderr, "bench_pipeline: %s\n", processor.error().message.c_str());
@@ -501,6 +502,7 @@ int RunViconPart(const BenchArgs& args, const std::filesystem::path& sequence_di
 }  // namespace
 
 int main(int argc, char** argv) {
+  const auto process_settings = lifmcr::apps::ProcessSettings::ForPipeline();
   auto args = ParseArgs(argc, argv);
   if (!args) {
     std::fprintf(stderr, "bench_pipeline: %s\n", args.error().message.c_str());

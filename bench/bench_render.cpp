@@ -1,8 +1,12 @@
 // bench_render: megapixels per second of the synthetic plenoptic renderer
-// (replay/synth) for a preset (default r32) on all cores, with the frame time.
-//   bench_render [--preset r32|medium|small] [--repeat N] [--png PATH] [--raw-png PATH]
+// (replay/synth) for a preset (default r32) and scene (default table) on all
+// cores, with the frame time; the baseline in the same run is the same frame
+// of the `plain` scene.
+//   bench_render [--preset r32|medium|small] [--scene table|plain] [--repeat N]
+//                [--png PATH] [--raw-png PATH] [--tf-png PATH]
 // --png writes the docs figure: a crop of the raw image beside the same region
-// of the all-in-focus ground truth (scaled to the raw crop's size).
+// of the all-in-focus ground truth (scaled to the raw crop's size);
+// --tf-png the whole all-in-focus ground truth.
 
 #include "replay/synth/plenoptic_model.h"
 #include "replay/synth/renderer.h"
@@ -26,7 +30,7 @@
 using lifmcr::synth::PlenopticModel;
 
 int main(int argc, char** argv) {
-  std::string preset = "r32", png, raw_png;
+  std::string preset = "r32", scene_name = "table", png, raw_png, tf_png;
   int repeat = 3;
   for (int k = 1; k + 1 < argc; k += 2) {
     if (!std::strcmp(argv[k], "--preset"))
@@ -37,6 +41,10 @@ int main(int argc, char** argv) {
       png = argv[k + 1];
     else if (!std::strcmp(argv[k], "--raw-png"))
       raw_png = argv[k + 1];
+    else if (!std::strcmp(argv[k], "--tf-png"))
+      tf_png = argv[k + 1];
+    else if (!std::strcmp(argv[k], "--scene"))
+      scene_name = argv[k + 1];
     else {
       std::fprintf(stderr, "unknown option %s\n", argv[k]);
       return 2;
@@ -48,15 +56,24 @@ int main(int argc, char** argv) {
     return 2;
   }
   const PlenopticModel model(params->camera);
-  const lifmcr::synth::Scene scene = lifmcr::synth::MakeTableTopScene(1);
-  lifmcr::synth::TrajectoryParams tp;
-  tp.target_mm = scene.Target();
-  tp.distance_mm = params->rig.viewing_distance_mm;
-  const lifmcr::Pose world_from_cam = lifmcr::synth::CameraTrajectory(tp).WorldFromCam(0.0);
+  auto made = lifmcr::synth::MakeScene(scene_name, 1);
+  if (!made) {
+    std::fprintf(stderr, "%s\n", made.error().message.c_str());
+    return 2;
+  }
+  const lifmcr::synth::Scene& scene = *made;
+  const lifmcr::synth::Scene baseline_scene = lifmcr::synth::MakePlainScene(1);
+  const auto pose_for = [&](const lifmcr::synth::Scene& s) {
+    lifmcr::synth::TrajectoryParams tp;
+    tp.target_mm = s.Target();
+    tp.distance_mm = params->rig.viewing_distance_mm;
+    return lifmcr::synth::CameraTrajectory(tp).WorldFromCam(0.0);
+  };
+  const lifmcr::Pose world_from_cam = pose_for(scene);
   const double megapixels = model.width() * static_cast<double>(model.height()) / 1e6;
-  std::printf("bench_render: preset %s, %dx%d (%.2f MP), D %.1f px, %d threads\n", preset.c_str(),
-              model.width(), model.height(), megapixels, params->camera.micro_image_pitch_px,
-              tbb::info::default_concurrency());
+  std::printf("bench_render: preset %s, scene %s, %dx%d (%.2f MP), D %.1f px, %d threads\n",
+              preset.c_str(), scene_name.c_str(), model.width(), model.height(), megapixels,
+              params->camera.micro_image_pitch_px, tbb::info::default_concurrency());
 
   lifmcr::synth::RenderOptions options;
   options.noise_seed = 7;
@@ -83,11 +100,30 @@ int main(int argc, char** argv) {
   (void)lifmcr::synth::RenderRaw(model, scene, world_from_cam, plain);
   const double plain_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - plain_start).count();
+  // Baseline in the same run: the same frame of the plain scene.
+  std::vector<double> baseline_seconds;
+  const lifmcr::Pose baseline_pose = pose_for(baseline_scene);
+  for (int r = 0; r < repeat; ++r) {
+    const auto start = std::chrono::steady_clock::now();
+    (void)lifmcr::synth::RenderRaw(model, baseline_scene, baseline_pose, options);
+    baseline_seconds.push_back(
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  }
+  std::sort(baseline_seconds.begin(), baseline_seconds.end());
+  const double baseline = baseline_seconds[baseline_seconds.size() / 2];
+  const auto baseline_tf_start = std::chrono::steady_clock::now();
+  (void)lifmcr::synth::RenderTfGroundTruth(model, baseline_scene, baseline_pose);
+  const double baseline_tf_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - baseline_tf_start).count();
   std::printf(
       "raw frame: %.3f s median of %d (%.1f MP/s); without blur+noise %.3f s (blur+noise "
       "cost x%.2f)\n",
       median, repeat, megapixels / median, plain_s, median / plain_s);
   std::printf("all-in-focus + depth ground truth (%dx%d): %.3f s\n", gt.width, gt.height, tf_s);
+  std::printf(
+      "baseline, scene plain: raw frame %.3f s, ground truth %.3f s; this scene / plain: raw "
+      "x%.2f, ground truth x%.2f\n",
+      baseline, baseline_tf_s, median / baseline, tf_s / baseline_tf_s);
   // What the scene gives a depth estimator: the spread of ground-truth v.
   std::vector<float> v;
   for (float x : raw.virtual_depth)
@@ -100,6 +136,10 @@ int main(int argc, char** argv) {
         v[v.size() * 19 / 20]);
   }
 
+  if (!tf_png.empty()) {
+    const cv::Mat tf_image(gt.height, gt.width, CV_8UC3, const_cast<std::uint8_t*>(gt.bgr.data()));
+    cv::imwrite(tf_png, tf_image);
+  }
   if (!raw_png.empty()) {
     const cv::Mat image(raw.height, raw.width,
                         raw.format == lifmcr::PixelFormat::kBgr8 ? CV_8UC3 : CV_8UC1,

@@ -1,5 +1,7 @@
 #include "config/image.h"
 
+#include <algorithm>
+
 namespace lifmcr {
 
 int BytesPerPixel(PixelFormat format) { return format == PixelFormat::kBgr8 ? 3 : 1; }
@@ -12,6 +14,15 @@ std::optional<PixelFormat> ParsePixelFormat(std::string_view name) {
   if (name == "Mono8") return PixelFormat::kMono8;
   if (name == "BGR8") return PixelFormat::kBgr8;
   return std::nullopt;
+}
+
+OwnedImage OwnedImage::Allocate(int width, int height, PixelFormat format) {
+  OwnedImage image;
+  image.width = width;
+  image.height = height;
+  image.format = format;
+  image.pixels.resize(image.StrideBytes() * static_cast<std::size_t>(std::max(height, 0)));
+  return image;
 }
 
 }  // namespace lifmcr

@@ -1,12 +1,13 @@
 #pragma once
 // Plain image buffers shared by every layer. An ImageView never owns its
 // pixels: frames live in pooled buffers from the driver to the last consumer
-// (DESIGN.md), and readers write into memory the caller provides.
+// (docs/architecture.md, conventions), and readers write into memory the caller provides.
 
 #include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <string_view>
+#include <vector>
 
 namespace lifmcr {
 
@@ -48,6 +49,22 @@ struct ConstImageView {
         format(v.format) {}
   const std::uint8_t* Row(int y) const { return data + static_cast<std::size_t>(y) * stride_bytes; }
   std::size_t RowBytes() const { return static_cast<std::size_t>(width) * BytesPerPixel(format); }
+};
+
+// An image that owns its pixels, rows packed (stride = width * bytes per pixel).
+// For white images, tests and tools; frames stay in pooled buffers instead.
+struct OwnedImage {
+  int width = 0;
+  int height = 0;
+  PixelFormat format = PixelFormat::kMono8;
+  std::vector<std::uint8_t> pixels;
+
+  static OwnedImage Allocate(int width, int height, PixelFormat format);
+  std::size_t StrideBytes() const {
+    return static_cast<std::size_t>(width) * BytesPerPixel(format);
+  }
+  ImageView View() { return {pixels.data(), width, height, StrideBytes(), format}; }
+  ConstImageView View() const { return {pixels.data(), width, height, StrideBytes(), format}; }
 };
 
 }  // namespace lifmcr

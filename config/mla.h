@@ -1,7 +1,7 @@
 #pragma once
 // The micro-lens array calibration of one camera, as Raytrix's RayCalibData
 // 1.0 XML holds it (paper supplementary, "MLA Calibration File";
-// notes/formats.md section 2). Values are kept as the file states them; the
+// replay/mla_xml.h reads it). Values are kept as the file states them; the
 // one convention change (the file's y-up `offset` to image pixels) happens in
 // ReferenceLensCenterPx and nowhere else.
 //

@@ -145,7 +145,7 @@ struct RecorderConfig {
   std::filesystem::path out_dir;   // empty = given on the command line (--out)
   int queue_frames = 16;           // frames buffered per camera, >= 1
   int writer_threads = 1;          // 1..64
-  bool direct_io = true;           // O_DIRECT writes (notes/acquisition.md 5.1)
+  bool direct_io = true;           // O_DIRECT writes (no page-cache copy)
   std::int64_t max_memory_mb = 0;  // cap on buffered frames, MiB; 0 = queue_frames alone
   bool operator==(const RecorderConfig&) const = default;
 };

@@ -22,7 +22,7 @@
 //
 // Packet socket: as root Aravis receives GigE Vision streams through an
 // AF_PACKET socket, which sees no traffic on the loopback interface (0
-// frames, notes/acquisition.md 1.2). The driver therefore disables it for a
+// frames, measured with arv-fake-gv-camera-0.8 -i lo). The driver therefore disables it for a
 // device whose address is a loopback address, and only there; real cameras
 // keep the faster path. Nothing in the rig file is needed.
 //

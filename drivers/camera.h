@@ -63,6 +63,8 @@ class Camera {
 
   virtual CameraInfo Info() const = 0;
   virtual CameraStats Stats() const = 0;
+  // A source with an end (replay) has delivered everything; a live camera never has.
+  virtual bool Finished() const { return false; }
 };
 
 }  // namespace lifmcr

@@ -1,5 +1,7 @@
 #include "drivers/frame_id_tracker.h"
 
+#include "drivers/frame_counter.h"
+
 namespace lifmcr {
 
 std::uint64_t FrameIdTracker::Observe(std::uint64_t id) {
@@ -11,20 +13,11 @@ std::uint64_t FrameIdTracker::Observe(std::uint64_t id) {
     last_ = id;
     return 0;
   }
-  std::uint64_t step = 0;
-  bool backwards = false;
-  if (width_ == FrameIdWidth::k64Bit) {
-    backwards = id <= *last_;
-    step = id - *last_;
-  } else {
-    // Position on the ring: 1..65535 -> 0..65534 when 0 is skipped.
-    const std::uint64_t ring = zero_seen_ ? 65536 : 65535;
-    const std::uint64_t offset = zero_seen_ ? 0 : 1;
-    const std::uint64_t from = *last_ - (*last_ >= offset ? offset : 0);
-    const std::uint64_t to = id - (id >= offset ? offset : 0);
-    step = (to + ring - from) % ring;
-    backwards = step == 0 || step > ring / 2;
-  }
+  // A zero seen once: the device counts on the full ring of 65536.
+  const CounterRing ring{width_ == FrameIdWidth::k64Bit ? 64 : 16, !zero_seen_};
+  const std::int64_t delta = ring.Delta(*last_, id);
+  const bool backwards = delta <= 0;
+  const auto step = static_cast<std::uint64_t>(delta);
   last_ = id;
   if (backwards) {
     ++restarts_;

@@ -4,6 +4,7 @@
 #include "drivers/frame_id_tracker.h"
 #include "drivers/frame_pool.h"
 #include "drivers/gentl_arv_device.h"
+#include "drivers/gentl_chunks.h"
 #include "drivers/gentl_producer.h"
 
 #include <algorithm>
@@ -82,6 +83,9 @@ struct GenTlCamera::Impl {
   std::size_t payload_bytes = 0;
   std::uint64_t timestamp_hz = 0;  // device tick frequency; 0 = unknown
   bool has_params_lock = false;
+  // Chunk data the device appends (the camera's own timestamp and counter).
+  std::optional<ChunkField> chunk_timestamp;
+  std::optional<ChunkField> chunk_frame_id;
   FrameIdTracker ids{FrameIdWidth::k64Bit};
   bool opened = false;
   bool started = false;
@@ -114,6 +118,7 @@ struct GenTlCamera::Impl {
   Status OpenStream();
   void Disconnect();
   void TopUp();
+  void EnableChunks();
   std::uint64_t StreamUnderruns() const;
   Status StartAcquisition();
   void MarkLost(const std::string& reason);
@@ -176,13 +181,16 @@ Status GenTlCamera::Impl::Connect() {
                 std::string(AccessStatusName(entry->access)));
   const Functions& fn = producer->fn();
   DEV_HANDLE opened_device = nullptr;
+  auto interface = producer->Interface(entry->interface_id);
+  if (!interface) return Fail(interface.error().message);
   {
     std::lock_guard<std::mutex> lock(producer->mutex());
-    auto interface = producer->Interface(entry->interface_id);
-    if (!interface) return Fail(interface.error().message);
-    if (GC_ERROR code =
-            fn.IFOpenDevice(*interface, entry->id.c_str(), DEVICE_ACCESS_EXCLUSIVE, &opened_device);
-        code != GC_ERR_SUCCESS) {
+    GC_ERROR code =
+        fn.IFOpenDevice(*interface, entry->id.c_str(), DEVICE_ACCESS_EXCLUSIVE, &opened_device);
+    // A producer without exclusive access (some grabbers offer control only).
+    if (code == GC_ERR_NOT_IMPLEMENTED || code == GC_ERR_INVALID_PARAMETER)
+      code = fn.IFOpenDevice(*interface, entry->id.c_str(), DEVICE_ACCESS_CONTROL, &opened_device);
+    if (code != GC_ERR_SUCCESS) {
       const bool busy = code == GC_ERR_RESOURCE_IN_USE || code == GC_ERR_ACCESS_DENIED ||
                         code == GC_ERR_BUSY;
       return Fail(std::string(busy ? "device " + entry->id + " busy (open elsewhere): "
@@ -216,10 +224,20 @@ Status GenTlCamera::Impl::Connect() {
   }
   control_lost.store(false);
   control_suspect.store(false);
-  has_params_lock = arv_device_is_feature_available(arv_device, "TLParamsLocked", nullptr);
-  if (has_params_lock) arv_device_set_integer_feature_value(arv_device, "TLParamsLocked", 0, nullptr);
-
-  auto region = ApplyArvCameraSettings(camera, config, options.free_run_rate_hz, label);
+  // GigE Vision producers pass on 16-bit block ids, which wrap; CoaXPress,
+  // USB3 Vision and grabber counters are 64-bit.
+  ids = FrameIdTracker(entry->tl_type == "GEV" ? FrameIdWidth::k16Bit : FrameIdWidth::k64Bit);
+  // Under the control lock: the node map is not thread-safe, and a software
+  // trigger may arrive from the trigger thread while a reconnect applies them.
+  auto region = [&]() -> Expected<ArvRegion> {
+    std::lock_guard<std::mutex> lock(control_mutex);
+    has_params_lock = arv_device_is_feature_available(arv_device, "TLParamsLocked", nullptr);
+    if (has_params_lock)
+      arv_device_set_integer_feature_value(arv_device, "TLParamsLocked", 0, nullptr);
+    auto applied = ApplyArvCameraSettings(camera, config, options.free_run_rate_hz, label);
+    if (applied) EnableChunks();
+    return applied;
+  }();
   if (!region) {
     Disconnect();
     return region.error();
@@ -296,6 +314,7 @@ Status GenTlCamera::Impl::OpenStream() {
     stream_value(STREAM_INFO_PAYLOAD_SIZE, &payload);
   if (payload == 0) {
     GError* error = nullptr;
+    std::lock_guard<std::mutex> lock(control_mutex);
     payload = arv_camera_get_payload(camera, &error);
     if (error != nullptr) return Fail("reading PayloadSize: " + TakeMessage(error));
   }
@@ -337,6 +356,44 @@ Status GenTlCamera::Impl::OpenStream() {
   underruns_at_last_frame = 0;
   TopUp();
   return Status::Ok();
+}
+
+// The camera's timestamp and frame counter as chunks, where the device has
+// them: they are stamped by the camera at exposure, where the buffer's own
+// timestamp may be the grabber's time of arrival. Optional: a device without
+// chunks keeps the buffer info.
+void GenTlCamera::Impl::EnableChunks() {
+  chunk_timestamp.reset();
+  chunk_frame_id.reset();
+  if (producer->fn().DSGetBufferChunkData == nullptr ||
+      !arv_camera_are_chunks_available(camera, nullptr))
+    return;
+  guint n_values = 0;
+  const char** values = arv_device_dup_available_enumeration_feature_values_as_strings(
+      arv_device, "ChunkSelector", &n_values, nullptr);
+  bool any = false;
+  for (const char* chunk : {"Timestamp", "FrameID"}) {
+    bool offered = false;
+    for (guint i = 0; values != nullptr && i < n_values; ++i)
+      offered = offered || std::string(values[i]) == chunk;
+    GError* error = nullptr;
+    if (offered) arv_camera_set_chunk_state(camera, chunk, TRUE, &error);
+    if (error != nullptr) {
+      g_error_free(error);
+      offered = false;
+    }
+    any = any || offered;
+  }
+  g_free(values);
+  if (!any) return;
+  GError* error = nullptr;
+  arv_camera_set_chunk_mode(camera, TRUE, &error);
+  if (error != nullptr) {
+    g_error_free(error);
+    return;
+  }
+  chunk_timestamp = ResolveChunkField(arv_device, "ChunkTimestamp");
+  chunk_frame_id = ResolveChunkField(arv_device, "ChunkFrameID");
 }
 
 void GenTlCamera::Impl::TopUp() {
@@ -480,6 +537,33 @@ Frame GenTlCamera::Impl::MakeFrame(BUFFER_HANDLE buffer, void* user_pointer, std
   } else {
     frame.device_ns = host_ns;  // a device without a clock
   }
+  if (chunk_timestamp || chunk_frame_id) {
+    bool8_t has_chunks = 1;
+    buffer_value(BUFFER_INFO_CONTAINS_CHUNKDATA, &has_chunks);
+    std::size_t count = 0;
+    std::vector<SINGLE_CHUNK_DATA> chunks;
+    if (has_chunks != 0 && frame.buffer &&
+        fn.DSGetBufferChunkData(stream, buffer, nullptr, &count) == GC_ERR_SUCCESS && count > 0) {
+      chunks.resize(count);
+      if (fn.DSGetBufferChunkData(stream, buffer, chunks.data(), &count) != GC_ERR_SUCCESS)
+        chunks.clear();
+      chunks.resize(std::min(count, chunks.size()));
+    }
+    std::size_t valid = 0;
+    if (!buffer_value(BUFFER_INFO_SIZE_FILLED, &valid) && frame.buffer)
+      valid = frame.buffer->capacity_bytes;
+    const std::uint8_t* base = frame.buffer ? frame.buffer->data : nullptr;
+    if (!chunks.empty() && chunk_timestamp) {
+      if (auto ticks = ReadChunkField(*chunk_timestamp, base, valid, chunks); ticks && *ticks != 0)
+        frame.device_ns = timestamp_hz > 0 && timestamp_hz != 1'000'000'000
+                              ? static_cast<std::int64_t>(static_cast<long double>(*ticks) *
+                                                          1e9L / timestamp_hz)
+                              : static_cast<std::int64_t>(*ticks);
+    }
+    if (!chunks.empty() && chunk_frame_id) {
+      if (auto id = ReadChunkField(*chunk_frame_id, base, valid, chunks)) frame.frame_id = *id;
+    }
+  }
   bool8_t incomplete = 0, too_large = 0;
   std::size_t filled = 0, width = 0, height = 0, offset = 0;
   std::uint64_t pixel_format = 0;
@@ -488,7 +572,13 @@ Frame GenTlCamera::Impl::MakeFrame(BUFFER_HANDLE buffer, void* user_pointer, std
   const bool has_filled = buffer_value(BUFFER_INFO_SIZE_FILLED, &filled);
   const bool has_size = buffer_value(BUFFER_INFO_WIDTH, &width) && buffer_value(BUFFER_INFO_HEIGHT, &height);
   buffer_value(BUFFER_INFO_IMAGEOFFSET, &offset);
-  const bool has_format = buffer_value(BUFFER_INFO_PIXELFORMAT, &pixel_format);
+  // Formats are compared only in the PFNC (or GigE Vision, the same codes
+  // for 8-bit formats) namespace.
+  std::uint64_t format_namespace = PIXELFORMAT_NAMESPACE_PFNC_32BIT;
+  buffer_value(BUFFER_INFO_PIXELFORMAT_NAMESPACE, &format_namespace);
+  const bool has_format = buffer_value(BUFFER_INFO_PIXELFORMAT, &pixel_format) &&
+                          (format_namespace == PIXELFORMAT_NAMESPACE_PFNC_32BIT ||
+                           format_namespace == PIXELFORMAT_NAMESPACE_GEV);
 
   const CameraInfo expected = [&] {
     std::lock_guard<std::mutex> lock(stats_mutex);

@@ -36,8 +36,15 @@
 // kIncomplete; larger than the buffer, another size or pixel format = kError.
 // host_ns is CLOCK_REALTIME when the event arrived (GenTL gives no host time).
 //
+// Chunks: where the device offers ChunkModeActive with ChunkSelector entries
+// Timestamp and FrameID, the driver enables them and takes ChunkTimestamp
+// (the camera's clock at exposure) and ChunkFrameID from each buffer in
+// place of the producer's buffer timestamp and frame id
+// (drivers/gentl_chunks.h).
+//
 // Statistics as the Aravis driver's: missing_ids are gaps in the frame id
-// (64-bit GenTL ids) less the underruns counted since the previous frame.
+// (16-bit wrap-aware for a GigE Vision producer, "GEV", 64-bit otherwise)
+// less the underruns counted since the previous frame.
 //
 // Lost camera: a failed EventGetData (anything but a timeout), a port access
 // failing with GC_ERR_IO/INVALID_HANDLE/NOT_AVAILABLE/TIMEOUT (a software

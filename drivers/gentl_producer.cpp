@@ -377,4 +377,19 @@ Expected<std::vector<GenTlDeviceEntry>> GenTlProducer::Devices(const std::string
   return devices;
 }
 
+Expected<GenTlListing> ListGenTlProducer(const std::filesystem::path& cti,
+                                         std::chrono::milliseconds timeout) {
+  auto producer = GenTlProducer::Load(cti);
+  if (!producer) return producer.error();
+  GenTlListing listing;
+  listing.producer = (*producer)->Info();
+  auto interfaces = (*producer)->Interfaces(timeout);
+  if (!interfaces) return interfaces.error();
+  listing.interfaces = std::move(*interfaces);
+  auto devices = (*producer)->Devices("", timeout);
+  if (!devices) return devices.error();
+  listing.devices = std::move(*devices);
+  return listing;
+}
+
 }  // namespace lifmcr

@@ -107,6 +107,16 @@ class GenTlProducer {
   std::map<std::string, gentl::IF_HANDLE> interfaces_;
 };
 
+// What a producer exposes, for `lifmcr info --gentl` and rig files: its
+// identity, interfaces and devices (with serials and access status).
+struct GenTlListing {
+  GenTlProducerInfo producer;
+  std::vector<GenTlInterfaceEntry> interfaces;
+  std::vector<GenTlDeviceEntry> devices;
+};
+Expected<GenTlListing> ListGenTlProducer(const std::filesystem::path& cti,
+                                         std::chrono::milliseconds timeout);
+
 // Text of a GenTL info value returned as a string (TLGetInfo, IFGetDeviceInfo,
 // ...): `query(type, buffer, size)` is called to size and then to fill.
 // Empty when the call fails.

@@ -209,7 +209,10 @@ Expected<std::optional<Frame>> ReplayCamera::NextFrame(std::chrono::milliseconds
     }
   }
   frame.status = read ? FrameStatus::kOk : FrameStatus::kError;
-  frame.host_ns = RealtimeNs();
+  frame.host_ns = s.options.sequence_clock_start_ns
+                      ? *s.options.sequence_clock_start_ns + frame.device_ns -
+                            s.options.sequence_origin_device_ns
+                      : RealtimeNs();
   {
     std::lock_guard<std::mutex> lock(s.mutex);
     s.stats.missing_ids += missing;

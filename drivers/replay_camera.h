@@ -41,6 +41,7 @@
 #include <filesystem>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <vector>
 
 namespace lifmcr {
@@ -57,6 +58,13 @@ struct ReplayCameraOptions {
   // file frame f as frame f + k * (last - first + 1), so ids and device_ns
   // keep increasing and Finished() stays false.
   bool loop = false;
+  // The replay's own clock, for a run at as-fast-as-possible pacing: when
+  // set, host_ns = sequence_clock_start_ns + device_ns -
+  // sequence_origin_device_ns, the time the host would have received the
+  // frame at the original timing from that start, so sync places frames by
+  // their triggers, not by when the consumer let them be read.
+  std::optional<std::int64_t> sequence_clock_start_ns{};
+  std::int64_t sequence_origin_device_ns = 0;  // device_ns of the sequence's trigger 0
 
   Status Check() const;
 };
@@ -81,7 +89,7 @@ class ReplayCamera final : public Camera {
   CameraStats Stats() const override;
 
   // Every frame of the folder has been delivered or counted lost.
-  bool Finished() const;
+  bool Finished() const override;
   // Frame files in the folder (after Open).
   std::size_t frame_count() const;
 

@@ -55,6 +55,7 @@ Expected<std::unique_ptr<ViconCsvSource>> ViconCsvSource::FromCsv(
   std::unique_ptr<ViconCsvSource> source(new ViconCsvSource());
   source->rate_hz_ = rate_hz;
   source->realtime_ = options.realtime;
+  source->sequence_clock_start_ns_ = options.sequence_clock_start_ns;
   source->frames_.reserve(rows.size());
   for (auto& [frame_number, poses] : rows) {
     ViconFrame frame;
@@ -103,6 +104,10 @@ Expected<std::optional<ViconFrame>> ViconCsvSource::Next(std::chrono::millisecon
   }
   ViconFrame frame = frames_[next_];
   frame.host_ns = host_ns;
+  if (sequence_clock_start_ns_)
+    frame.host_ns = *sequence_clock_start_ns_ +
+                    std::llround(static_cast<double>(frame.vicon_frame - frames_.front().vicon_frame) /
+                                 rate_hz_ * 1e9);
   if (next_ > 0 && frame.vicon_frame > frames_[next_ - 1].vicon_frame + 1)
     gaps_.fetch_add(
         static_cast<std::uint64_t>(frame.vicon_frame - frames_[next_ - 1].vicon_frame - 1));

@@ -21,6 +21,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,9 @@ struct ViconCsvSourceOptions {
   std::vector<std::string> objects;  // objects to deliver, at least one (ViconObjectsOfRig)
   bool realtime = true;              // original timing; false = as fast as possible
   double rate_hz = 0.0;              // 0 = the rate written in the file's block
+  // The replay's own clock (as ReplayCameraOptions): when set, host_ns =
+  // start + (frame - first frame) / rate, whatever the pacing.
+  std::optional<std::int64_t> sequence_clock_start_ns{};
 };
 
 class ViconCsvSource : public ViconSource {
@@ -58,6 +62,7 @@ class ViconCsvSource : public ViconSource {
   std::vector<ViconFrame> frames_;  // host_ns filled at delivery
   double rate_hz_ = 0.0;
   bool realtime_ = true;
+  std::optional<std::int64_t> sequence_clock_start_ns_;
   bool started_ = false;
   std::size_t next_ = 0;
   std::int64_t start_host_ns_ = 0;

@@ -1,5 +1,5 @@
 #pragma once
-// The Vicon Tracker "UDP Object Stream" datagram (notes/acquisition.md 3.2):
+// The Vicon Tracker "UDP Object Stream" datagram (Vicon Tracker user guide):
 // one datagram per Vicon frame, little-endian, packed:
 //   uint32 FrameNumber
 //   uint8  ItemsInBlock

@@ -1,7 +1,7 @@
 #pragma once
-// LiFCal's plenoptic camera model (Fleith et al. 2024; notes/processing.md
-// section 1.4) and the paper's central perspective projection (eqs. projX,
-// projY, section "Plenoptic PnP Method").
+// LiFCal's plenoptic camera model (Fleith et al. 2024; docs/processing.md)
+// and the paper's central perspective projection (eqs. projX, projY,
+// section "Plenoptic PnP Method").
 //
 // Conventions (the same as replay/synth/plenoptic_model.h, the ground truth):
 // camera frame at the main-lens centre, x right, y down, z forward (mm).

@@ -181,8 +181,17 @@ std::string GridFitResult::BriefReport() const {
   return buf;
 }
 
+Status GridFitOptions::Check() const {
+  if (iterations < 1 || iterations > 100) return Error{"grid fit options: iterations: expected 1..100"};
+  if (!(window_fraction > 0 && window_fraction <= 1))
+    return Error{"grid fit options: window_fraction: expected in (0, 1]"};
+  if (!(outlier_px > 0)) return Error{"grid fit options: outlier_px: expected > 0"};
+  return Status::Ok();
+}
+
 Expected<GridFitResult> FitGridToWhiteImage(ConstImageView white, const MlaGrid* initial,
                                             const GridFitOptions& options) {
+  if (Status s = options.Check(); !s) return s.error();
   const auto start = std::chrono::steady_clock::now();
   const int w = white.width, h = white.height;
   if (w < 32 || h < 32 || white.data == nullptr)

@@ -1,6 +1,6 @@
 #pragma once
 // The micro-image lattice of one camera in image pixels, from the MLA file or
-// fitted to a white image (notes/processing.md section 1.1).
+// fitted to a white image (docs/processing.md).
 //
 // Lattice: micro-image centre of lens (i, j) (axial hex coordinates)
 //   c(i, j) = o + A (i, j)^T
@@ -64,6 +64,7 @@ struct GridFitOptions {
   int iterations = 3;            // centroid / lattice-fit rounds
   double window_fraction = 0.5;  // centroid window radius / D
   double outlier_px = 0.5;       // centres farther than this from the fit are dropped
+  Status Check() const;          // every field; the message names the field
 };
 
 struct GridFitResult {

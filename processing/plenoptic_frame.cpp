@@ -19,9 +19,21 @@ float GreyAt(ConstImageView image, int x, int y) {
 
 }  // namespace
 
+Status FrameOptions::Check() const {
+  if (!(lambda > 0 && lambda <= 1.5))
+    return Error{"frame options: lambda: expected in (0, 1.5] (b_L0 / (b_L0 + B))"};
+  if (!(margin_px >= 0 && margin_px < 1000)) return Error{"frame options: margin_px: expected 0..1000"};
+  if (smooth_passes < 0 || smooth_passes > 16)
+    return Error{"frame options: smooth_passes: expected 0..16"};
+  if (!(min_white_fraction >= 0 && min_white_fraction < 1))
+    return Error{"frame options: min_white_fraction: expected in [0, 1)"};
+  return Status::Ok();
+}
+
 Status PrepareGeometry(ConstImageView white, int width, int height, const MlaGrid& grid,
                        const MlaCalibration& mla, const FrameOptions& options,
                        PlenopticFrame* frame) {
+  if (Status s = options.Check(); !s) return s;
   const int w = width, h = height;
   if (w <= 0 || h <= 0) return Error{"raw frame: empty image"};
   const bool devignette = white.data != nullptr;

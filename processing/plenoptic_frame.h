@@ -36,6 +36,7 @@ struct FrameOptions {
   double margin_px = 0.0;           // r_valid = D / 2 - lens_border - margin
   int smooth_passes = 2;            // binomial smoothing of the grey image within micro images
   double min_white_fraction = 0.5;  // devignetting validity
+  Status Check() const;  // every field; the message names the field
 };
 
 // Buffers are reused across frames of the same size (a workspace, not

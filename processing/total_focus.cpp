@@ -22,6 +22,7 @@ Status TfOptions::Check() const {
   if (!(inner_fraction > 0 && inner_fraction <= 1))
     return Error{"TF options: inner_fraction: expected in (0, 1]"};
   if (!(gain > 0)) return Error{"TF options: gain: expected > 0"};
+  if (!(sharpen >= 0 && sharpen <= 10)) return Error{"TF options: sharpen: expected 0..10"};
   return Status::Ok();
 }
 

@@ -1,6 +1,6 @@
 #pragma once
 // Totally focused (TF) image and the virtual depth on the TF grid
-// (notes/processing.md 1.3; conventions of camera_model.h): the TF grid is
+// (docs/processing.md; conventions of camera_model.h): the TF grid is
 // W/2 x H/2 and TF pixel (u, w) is the virtual image at raw position
 // x = (2u + 0.5, 2w + 0.5).
 //

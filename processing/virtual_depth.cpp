@@ -231,6 +231,17 @@ Status DepthOptions::Check() const {
   if (max_ring2 < 0 || max_ring2 > 6) return Error{"depth options: max_ring2: expected 0..6"};
   if (rings < 1 || rings > 2) return Error{"depth options: rings: expected 1 or 2"};
   if (min_estimates < 1) return Error{"depth options: min_estimates: expected >= 1"};
+  if (!(geometric_px >= 0)) return Error{"depth options: geometric_px: expected >= 0"};
+  if (!(cross_type_px >= 0)) return Error{"depth options: cross_type_px: expected >= 0"};
+  if (smooth_radius_px < 0 || smooth_radius_px > 64)
+    return Error{"depth options: smooth_radius_px: expected 0..64"};
+  if (min_support < 1) return Error{"depth options: min_support: expected >= 1"};
+  if (!(max_cost_ratio > 0 && max_cost_ratio <= 1))
+    return Error{"depth options: max_cost_ratio: expected in (0, 1]"};
+  // A divisor of the confidence (virtual_depth.h, step 4).
+  if (!(max_rel_sigma > 0 && max_rel_sigma <= 10))
+    return Error{"depth options: max_rel_sigma: expected in (0, 10]"};
+  // type_ranges: any value.
   return Status::Ok();
 }
 

@@ -1,5 +1,5 @@
 #pragma once
-// Semi-dense virtual depth from one raw frame (notes/processing.md 1.2;
+// Semi-dense virtual depth from one raw frame (docs/processing.md;
 // Zeller's probabilistic virtual depth, written in our own terms).
 //
 // A virtual point x_v at virtual depth v appears in micro image k at

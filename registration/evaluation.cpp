@@ -15,6 +15,23 @@ MetricSet MetricSet::Of(const FramePoses& estimate, const FramePoses& truth) {
   return m;
 }
 
+namespace {
+
+// marker0_from_markerX corrected by (X_0, X_X): X_0^-1 A X_X.
+Pose Corrected(const Pose& a, const Pose& x0, const Pose& xx) { return x0.inverse() * a * xx; }
+
+HandEyeResult Fit(const FramePoses& estimate, const FramePoses& truth, std::int64_t first,
+                  std::int64_t last, const HandEyeOptions& options) {
+  std::vector<Pose> a, b;
+  for (const auto& [frame, pose] : FramesBetween(estimate, first, last)) {
+    b.push_back(pose);
+    a.push_back(truth.at(frame));
+  }
+  return SolveRobotWorldHandEye(a, b, options);
+}
+
+}  // namespace
+
 CameraEvaluation EvaluateCamera(const std::string& method, const std::string& serial,
                                 const std::string& reference_serial,
                                 const FramePoses& c0_from_cx,
@@ -41,58 +58,52 @@ CameraEvaluation EvaluateCamera(const std::string& method, const std::string& se
     e.correction_note = "no registered frame has a Vicon pose of both cameras";
     return e;
   }
+  e.uncorrected = MetricSet::Of(e.estimate, e.truth_uncorrected);
   std::vector<std::int64_t> frames;
   for (const auto& [frame, pose] : e.estimate) frames.push_back(frame);
-  e.eval_first = frames.front();
-  e.eval_last = frames.back();
-  e.uncorrected_all = MetricSet::Of(e.estimate, e.truth_uncorrected);
 
   if (given) {
     e.correction_source = "given";
     e.marker_from_cam_reference = given->first;
     e.marker_from_cam = given->second;
-  } else {
-    std::vector<Pose> a, b;
-    if (options.split == HandEyeSplit::kHalf) {
-      const std::size_t half = frames.size() / 2;
-      if (half < 1 || half >= frames.size()) {
-        e.correction_note = "too few frames to split";
-      } else {
-        e.fit_first = frames.front();
-        e.fit_last = frames[half - 1];
-        e.eval_first = frames[half];
-      }
-    } else {
-      e.fit_first = frames.front();
-      e.fit_last = frames.back();
-      e.fit_to_itself = true;
-    }
-    for (const auto& [frame, pose] : FramesBetween(e.estimate, e.fit_first, e.fit_last)) {
-      b.push_back(pose);
-      a.push_back(e.truth_uncorrected.at(frame));
-    }
-    if (!a.empty()) {
-      HandEyeResult result = SolveRobotWorldHandEye(a, b, options.hand_eye);
-      if (result.success) {
-        e.correction_source = "estimated";
-        e.marker_from_cam = result.x;
-        e.marker_from_cam_reference = result.z;
-      } else {
-        e.correction_note = result.message;
-      }
-      e.hand_eye = std::move(result);
-    }
-  }
-  const FramePoses estimate_eval = FramesBetween(e.estimate, e.eval_first, e.eval_last);
-  const FramePoses truth_eval = FramesBetween(e.truth_uncorrected, e.eval_first, e.eval_last);
-  e.uncorrected_eval = MetricSet::Of(estimate_eval, truth_eval);
-  if (e.correction_source != "none") {
-    const Pose reference_inverse = e.marker_from_cam_reference.inverse();
     for (const auto& [frame, a] : e.truth_uncorrected)
-      e.truth_corrected.emplace(frame, Pose(reference_inverse * a * e.marker_from_cam));
-    e.corrected_eval =
-        MetricSet::Of(estimate_eval, FramesBetween(e.truth_corrected, e.eval_first, e.eval_last));
+      e.truth_corrected.emplace(frame, Corrected(a, given->first, given->second));
+  } else {
+    HandEyeResult all = Fit(e.estimate, e.truth_uncorrected, frames.front(), frames.back(),
+                            options.hand_eye);
+    if (!all.success) {
+      e.correction_note = all.message;
+    } else if (options.split == HandEyeSplit::kNone) {
+      e.correction_source = "estimated";
+      e.fit_to_itself = true;
+      for (const auto& [frame, a] : e.truth_uncorrected)
+        e.truth_corrected.emplace(frame, Corrected(a, all.z, all.x));
+    } else {
+      const std::size_t half = frames.size() / 2;
+      e.half_last = frames[half - 1];
+      e.folds.push_back(
+          Fit(e.estimate, e.truth_uncorrected, frames.front(), e.half_last, options.hand_eye));
+      e.folds.push_back(
+          Fit(e.estimate, e.truth_uncorrected, frames[half], frames.back(), options.hand_eye));
+      if (!e.folds[0].success || !e.folds[1].success) {
+        e.correction_note = "a half of the frames cannot determine the offsets: " +
+                            (e.folds[0].success ? e.folds[1].message : e.folds[0].message);
+      } else {
+        e.correction_source = "estimated";
+        for (const auto& [frame, a] : e.truth_uncorrected) {
+          // Each frame corrected by the fold that did not see it.
+          const HandEyeResult& fold = frame <= e.half_last ? e.folds[1] : e.folds[0];
+          e.truth_corrected.emplace(frame, Corrected(a, fold.z, fold.x));
+        }
+      }
+    }
+    if (all.success) {
+      e.marker_from_cam = all.x;
+      e.marker_from_cam_reference = all.z;
+    }
+    e.hand_eye = std::move(all);
   }
+  if (!e.truth_corrected.empty()) e.corrected = MetricSet::Of(e.estimate, e.truth_corrected);
   return e;
 }
 

@@ -18,14 +18,17 @@
 // turn relative to each other about two axes; a rigidly mounted pair does
 // not, and the solve says so.
 //
-// Split. So that the corrected figures are not fit to themselves, the
-// offsets are estimated on the first half of the frames that have both an
-// estimate and a ground truth, and the tables "with correction" are taken
-// over the second half only (Split::kHalf); the uncorrected tables are given
-// over all frames (the paper's protocol) and over that second half (to
-// compare like with like). Split::kNone fits and evaluates on all frames
-// (flagged in the result). Offsets given from elsewhere (another sequence's
-// estimate, or the synthetic ground truth) are applied to all frames.
+// Split. So that the corrected figures are not fit to themselves,
+// Split::kHalf cross-validates in two folds: the offsets estimated on the
+// first half of the frames (those with an estimate and a ground truth)
+// correct the second half, and the offsets estimated on the second half
+// correct the first; the corrected tables cover every frame, each corrected
+// by offsets fit without it. The offsets reported (and written to
+// hand_eye.yaml) are estimated once more on all frames: the best estimate of
+// the physical offset, with its uncertainty. Split::kNone corrects with the
+// all-frames estimate (fit to itself, flagged). Offsets given from elsewhere
+// (another sequence's estimate: a split by sequence; or the synthetic
+// ground truth) correct every frame.
 
 #include "config/error.h"
 #include "config/frames.h"
@@ -66,22 +69,22 @@ struct CameraEvaluation {
   FramePoses truth_uncorrected;   // marker0_from_markerX
   FramePoses truth_corrected;     // X_0^-1 · A · X_X (empty without offsets)
 
-  // Frames of the two parts (inclusive); the estimation part is empty when
-  // the offsets were given or the split is kNone.
-  std::int64_t fit_first = 0, fit_last = -1;
-  std::int64_t eval_first = 0, eval_last = -1;
+  // The last frame of the first half (kHalf): frames up to it are corrected
+  // by the second fold's offsets, later ones by the first fold's.
+  std::int64_t half_last = 0;
 
-  MetricSet uncorrected_all;   // the paper's protocol, every frame
-  MetricSet uncorrected_eval;  // the evaluation part
-  MetricSet corrected_eval;    // the evaluation part, with the offsets
+  MetricSet uncorrected;  // the paper's protocol
+  MetricSet corrected;    // with the offsets (cross-validated for kHalf)
 
   // Where the offsets come from: "estimated", "given", or "none" (with why).
   std::string correction_source = "none";
   std::string correction_note;
-  std::optional<HandEyeResult> hand_eye;  // when estimated
+  std::optional<HandEyeResult> hand_eye;  // on all frames, when estimated
+  std::vector<HandEyeResult> folds;       // kHalf: fit on the first half, on the second half
+  // The offsets reported: the all-frames estimate, or the given ones.
   Pose marker_from_cam_reference = Pose::Identity();
   Pose marker_from_cam = Pose::Identity();
-  bool corrected() const { return !truth_corrected.empty(); }
+  bool has_correction() const { return !truth_corrected.empty(); }
   bool fit_to_itself = false;  // Split::kNone
 };
 

@@ -205,25 +205,6 @@ std::string FormatRegistrationCsv(const std::vector<RegistrationRow>& rows) {
   return text;
 }
 
-Expected<FramePoses> ReadPosesCsv(const std::filesystem::path& path) {
-  Expected<CsvTable> table = ReadTable(path);
-  if (!table) return table.error();
-  if (Status s = table->Require({"frame", "tx_mm", "ty_mm", "tz_mm", "qw", "qx", "qy", "qz"}); !s)
-    return s.error();
-  FramePoses poses;
-  for (std::size_t r = 1; r < table->doc.rows.size(); ++r) {
-    const CsvRow& row = table->doc.rows[r];
-    if (row.IsBlank()) continue;
-    Expected<std::int64_t> frame = table->Integer(row, "frame");
-    if (!frame) return frame.error();
-    Expected<Pose> pose = table->PoseAt(row);
-    if (!pose) return pose.error();
-    if (!poses.emplace(*frame, *pose).second)
-      return MakeError(path.string(), row.line, 0, "frame " + std::to_string(*frame) + " twice");
-  }
-  return poses;
-}
-
 Expected<Pose> ReadMarkerFromCamCsv(const std::filesystem::path& path) {
   Expected<CsvTable> table = ReadTable(path);
   if (!table) return table.error();

@@ -5,8 +5,7 @@
 //     frame,camera,method,tx_mm,ty_mm,tz_mm,qw,qx,qy,qz,inliers,rmse_px,status
 //     (any column order), one row per registered frame of c0_from_cx; rows
 //     whose status is not `ok` are kept as failures with their reason.
-//   poses CSV (GroundTruth/poses_<serial>.csv, lifmcr calibrate's
-//     poses_<serial>.csv): frame,vicon_frame,tx_mm,...,qz (vicon_frame optional).
+//   (poses CSVs, GroundTruth/poses_<serial>.csv, are read by registration/poses_csv.h)
 //   marker_from_cam CSV (GroundTruth/marker_from_cam_<serial>.csv): one row.
 //   hand-eye YAML (written by lifmcr evaluate, read by --hand-eye FILE):
 //     cameras: [{serial: "...", marker_from_cam: {tx_mm, ty_mm, tz_mm, qw, qx, qy, qz}}, ...]
@@ -48,7 +47,6 @@ Expected<RegistrationTable> ReadRegistrationCsv(const std::filesystem::path& pat
 // The registration.csv text of `rows` (tests and tools that make inputs).
 std::string FormatRegistrationCsv(const std::vector<RegistrationRow>& rows);
 
-Expected<FramePoses> ReadPosesCsv(const std::filesystem::path& path);
 Expected<Pose> ReadMarkerFromCamCsv(const std::filesystem::path& path);
 
 // serial -> marker_from_cam.

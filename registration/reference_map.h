@@ -17,6 +17,7 @@
 //                  X, Y, Z in mm and TRACK = (IMAGE_ID, POINT2D_IDX) pairs.
 //   points.ply     ASCII PLY: x y z (mm, float), red green blue (uchar),
 //                  sigma_mm (float, the largest standard deviation).
+//   ERROR of points3D.txt: RMS micro-image residual of the point (raw px).
 //   descriptors.bin  binary, little-endian, documented below.
 //   poses_<serial>.csv  w0_from_c0 per frame (registration/poses_csv.h).
 //

@@ -378,15 +378,6 @@ Status ReadBmpInto(const std::filesystem::path& path, const BmpHeader& header, I
   return PreadvFull(fd.get(), iov, offset, file);
 }
 
-OwnedImage OwnedImage::Allocate(int width, int height, PixelFormat format) {
-  OwnedImage image;
-  image.width = width;
-  image.height = height;
-  image.format = format;
-  image.pixels.resize(image.StrideBytes() * static_cast<std::size_t>(std::max(height, 0)));
-  return image;
-}
-
 Expected<OwnedImage> ReadBmp(const std::filesystem::path& path) {
   Expected<BmpHeader> header = ReadBmpHeader(path);
   if (!header) return header.error();

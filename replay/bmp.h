@@ -91,23 +91,7 @@ Expected<BmpHeader> ReadBmpHeader(const std::filesystem::path& path);
 // on error dst may hold part of the frame.
 Status ReadBmpInto(const std::filesystem::path& path, const BmpHeader& header, ImageView dst);
 
-// An image that owns its pixels, rows packed (stride = width * bytes per pixel).
-// For tests and tools; the pipeline reads into pooled buffers instead.
-struct OwnedImage {
-  int width = 0;
-  int height = 0;
-  PixelFormat format = PixelFormat::kMono8;
-  std::vector<std::uint8_t> pixels;
-
-  static OwnedImage Allocate(int width, int height, PixelFormat format);
-  std::size_t StrideBytes() const {
-    return static_cast<std::size_t>(width) * BytesPerPixel(format);
-  }
-  ImageView View() { return {pixels.data(), width, height, StrideBytes(), format}; }
-  ConstImageView View() const { return {pixels.data(), width, height, StrideBytes(), format}; }
-};
-
-// ReadBmpHeader + ReadBmpInto into a freshly allocated image.
+// ReadBmpHeader + ReadBmpInto into a freshly allocated image (config/image.h).
 Expected<OwnedImage> ReadBmp(const std::filesystem::path& path);
 
 // The BMP file header, BITMAPINFOHEADER and (Mono8) grey palette of a width x

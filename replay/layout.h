@@ -1,6 +1,6 @@
 #pragma once
 // The LiFMCR dataset layout (paper, supplementary "Dataset Structure"), and
-// the ground truth that `lifmcr synth` adds (DESIGN.md), in one place:
+// the ground truth that `lifmcr synth` adds (docs/synth.md), in one place:
 //
 //   ROOT/SCENE/SEQ/Vicon/sequence_XX.csv
 //   ROOT/SCENE/SEQ/TypeE_<serial>/TypeE_<serial>_<frame>_Raw.bmp

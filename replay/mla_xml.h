@@ -1,6 +1,6 @@
 #pragma once
 // Raytrix MLA calibration XML, `RayCalibData` version 1.0 (paper
-// supplementary "MLA Calibration File"; notes/formats.md section 2). This is
+// supplementary "MLA Calibration File"). This is
 // the "previous standard" the LiFMCR files were converted to; newer RxLive
 // exports use another schema and are rejected with a message saying so.
 //

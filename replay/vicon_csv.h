@@ -1,6 +1,6 @@
 #pragma once
 // Vicon CSV exports (Nexus and Tracker): the block model, a strict reader and
-// a writer. See notes/formats.md section 3.
+// a writer, for the exports of the LiFMCR dataset.
 //
 // A file is a list of blocks separated by blank lines. Each block is
 //   L1  <block name>            Objects (Tracker), Segments, Trajectories, Joints, ...

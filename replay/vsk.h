@@ -1,6 +1,6 @@
 #pragma once
 // Vicon .vsk subject/object models (XML, root <KinematicModel>;
-// notes/formats.md section 4). LiFMCR's Calibration/03_Vicon/Object.vsk holds
+// as Vicon Nexus and Tracker write them). LiFMCR's Calibration/03_Vicon/Object.vsk holds
 // the marker clusters of cam0, cam2 and the reference plate.
 //
 // Two layouts are read:

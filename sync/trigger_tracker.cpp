@@ -1,5 +1,7 @@
 #include "sync/trigger_tracker.h"
 
+#include "drivers/frame_counter.h"
+
 #include <cmath>
 
 namespace lifmcr {
@@ -24,13 +26,7 @@ void TriggerTracker::Anchor(std::int64_t trigger_index, std::uint64_t frame_id,
 }
 
 std::uint64_t TriggerTracker::CounterDelta(std::uint64_t from, std::uint64_t to) const {
-  if (options_.counter_bits >= 64) return to - from;
-  const std::uint64_t modulus = std::uint64_t{1} << options_.counter_bits;
-  std::uint64_t delta = (to - from) & (modulus - 1);
-  // The counter went through its top value; ids that skip 0 lost one step.
-  if (options_.counter_skips_zero && (to & (modulus - 1)) < (from & (modulus - 1)) && delta > 0)
-    --delta;
-  return delta;
+  return CounterRing{options_.counter_bits, options_.counter_skips_zero}.Forward(from, to);
 }
 
 Association TriggerTracker::Add(std::uint64_t frame_id, std::int64_t device_ns) {

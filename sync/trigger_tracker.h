@@ -1,7 +1,7 @@
 #pragma once
-// Which trigger a camera's frame belongs to (notes/acquisition.md 4,
-// "Synchronisation recipe"): by time on the trigger grid, cross-checked with
-// the camera's frame counter.
+// Which trigger a camera's frame belongs to (docs/architecture.md, sync): by
+// time on the trigger grid, cross-checked with the camera's frame counter
+// (drivers/frame_counter.h).
 //
 // A frame is placed relative to the camera's previous associated frame:
 //   steps = (device_ns - previous_device_ns) / trigger_period_ns

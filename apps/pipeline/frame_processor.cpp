@@ -3,23 +3,17 @@
 
 #include "apps/pipeline/frame_processor.h"
 
-#include "processing/mla_grid.h"
-#include "processing/plenoptic_frame.h"
-#include "processing/total_focus.h"
-#include "processing/virtual_depth.h"
-#include "replay/bmp.h"
-#include "replay/layout.h"
-#include "replay/mla_xml.h"
-#include "replay/sequence.h"
+#include "apps/pipeline/camera_setup.h"
+#include "processing/frame_chain.h"
 
 #include <opencv2/imgcodecs.hpp>
+#include <spdlog/spdlog.h>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
-#include <mutex>
 
 namespace lifmcr::apps {
 namespace {
@@ -40,6 +34,9 @@ Status PreviewOptions::Check() const {
   if (max_side < 16 || max_side > 8192) return Error{"preview: max_side: expected 16..8192"};
   if (jpeg_quality < 1 || jpeg_quality > 100)
     return Error{"preview: jpeg_quality: expected 1..100"};
+  // A divisor of the block size of the published depth map.
+  if (depth_max_side < 16 || depth_max_side > 8192)
+    return Error{"preview: depth_max_side: expected 16..8192"};
   return Status::Ok();
 }
 
@@ -69,9 +66,11 @@ Expected<EncodedImage> EncodePreview(ConstImageView image, const PreviewOptions&
   return out;
 }
 
-Expected<EncodedDepth> EncodeDepth(const std::vector<float>& values, int width, int height) {
+Expected<EncodedDepth> EncodeDepth(const std::vector<float>& values, int width, int height,
+                                   int bits) {
   if (width <= 0 || height <= 0 || values.size() != static_cast<std::size_t>(width) * height)
     return Error{"depth: size mismatch"};
+  if (bits != 8 && bits != 16) return Error{"depth: bits: expected 8 or 16"};
   float lo = std::numeric_limits<float>::infinity(), hi = -lo;
   std::size_t valid = 0;
   for (float v : values)
@@ -90,19 +89,21 @@ Expected<EncodedDepth> EncodeDepth(const std::vector<float>& values, int width, 
   }
   out.min_value = lo;
   out.max_value = hi;
-  // q = 1 is lo, q = 65535 is hi (a flat map gets a unit scale).
-  out.scale = hi > lo ? (hi - lo) / 65534.0f : 1.0f;
+  // q = 1 is lo, q = q_max is hi (a flat map gets a unit scale).
+  const long q_max = bits == 8 ? 255 : 65535;
+  out.scale = hi > lo ? (hi - lo) / static_cast<float>(q_max - 1) : 1.0f;
   out.offset = lo - out.scale;
-  cv::Mat q(height, width, CV_16UC1);
-  for (int y = 0; y < height; ++y) {
-    auto* row = q.ptr<std::uint16_t>(y);
+  cv::Mat q(height, width, bits == 8 ? CV_8UC1 : CV_16UC1);
+  for (int y = 0; y < height; ++y)
     for (int x = 0; x < width; ++x) {
       const float v = values[static_cast<std::size_t>(y) * width + x];
-      row[x] = std::isfinite(v) ? static_cast<std::uint16_t>(std::clamp(
-                                      std::lround((v - out.offset) / out.scale), 1L, 65535L))
-                                : 0;
+      const long level =
+          std::isfinite(v) ? std::clamp(std::lround((v - out.offset) / out.scale), 1L, q_max) : 0;
+      if (bits == 8)
+        q.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(level);
+      else
+        q.at<std::uint16_t>(y, x) = static_cast<std::uint16_t>(level);
     }
-  }
   if (!cv::imencode(".png", q, out.png)) return Error{"depth: PNG encoding failed"};
   return out;
 }
@@ -110,11 +111,12 @@ Expected<EncodedDepth> EncodeDepth(const std::vector<float>& values, int width, 
 Expected<std::vector<float>> DecodeDepth(const std::vector<std::uint8_t>& png, float scale,
                                          float offset, int* width, int* height) {
   const cv::Mat q = cv::imdecode(png, cv::IMREAD_UNCHANGED);
-  if (q.empty() || q.type() != CV_16UC1) return Error{"depth: not a 16-bit grey PNG"};
+  if (q.empty() || (q.type() != CV_16UC1 && q.type() != CV_8UC1))
+    return Error{"depth: not an 8- or 16-bit grey PNG"};
   std::vector<float> values(static_cast<std::size_t>(q.rows) * q.cols);
   for (int y = 0; y < q.rows; ++y)
     for (int x = 0; x < q.cols; ++x) {
-      const std::uint16_t v = q.at<std::uint16_t>(y, x);
+      const unsigned v = q.type() == CV_8UC1 ? q.at<std::uint8_t>(y, x) : q.at<std::uint16_t>(y, x);
       values[static_cast<std::size_t>(y) * q.cols + x] =
           v == 0 ? std::numeric_limits<float>::quiet_NaN() : offset + scale * v;
     }
@@ -133,123 +135,40 @@ Expected<ProcessedFrame> PreviewProcessor::Process(const Frame& frame) {
   return out;
 }
 
-// Per camera: its calibration and a pool of workspaces (prepared frame,
-// depth maps, TF image), one per concurrent Process call. A workspace keeps
-// its buffers and the per-camera geometry (devignetting gain, micro-image
-// map) from frame to frame: fresh buffers of an R32 frame are about a GB of
-// first-touched pages, slower than the processing itself.
-struct DepthProcessor::CameraContext {
-  MlaCalibration mla;
-  std::optional<OwnedImage> white;
-  struct Workspace {
-    processing::PlenopticFrame prepared;
-    processing::VirtualDepthMap raw_depth;
-    processing::TfDepthMap tf_depth;
-    processing::TfImage tf;
-    int width = 0, height = 0;  // of the geometry in `prepared`; 0 = none yet
-  };
-  std::mutex mutex;
-  std::vector<std::unique_ptr<Workspace>> idle;
-
-  std::unique_ptr<Workspace> Acquire() {
-    std::lock_guard<std::mutex> lock(mutex);
-    if (idle.empty()) return std::make_unique<Workspace>();
-    std::unique_ptr<Workspace> w = std::move(idle.back());
-    idle.pop_back();
-    return w;
-  }
-  void Release(std::unique_ptr<Workspace> w) {
-    std::lock_guard<std::mutex> lock(mutex);
-    idle.push_back(std::move(w));
-  }
-};
+DepthProcessor::DepthProcessor(std::unique_ptr<processing::ProcessingChain> chain,
+                               PreviewOptions preview)
+    : preview_(preview), chain_(std::move(chain)) {
+  for (const std::string& serial : chain_->serials())
+    spdlog::info("processing chain: {}", chain_->Find(serial)->Describe());
+}
 
 DepthProcessor::~DepthProcessor() = default;
 
 Expected<std::unique_ptr<DepthProcessor>> DepthProcessor::ForSequence(
     const std::string& sequence_dir, const std::vector<std::string>& serials,
     PreviewOptions preview) {
-  const auto calibration = FindCalibrationFor(sequence_dir);
-  if (!calibration)
-    return Error{sequence_dir +
-                 ": no Calibration/ folder beside the sequence or its scene "
-                 "(depth needs the MLA files; --no-processing publishes previews only)"};
-  std::unique_ptr<DepthProcessor> processor(new DepthProcessor());
-  processor->preview_ = preview;
-  for (const std::string& serial : serials) {
-    auto context = std::make_unique<CameraContext>();
-    auto mla = ReadMlaXml(layout::MlaXmlPath(*calibration, serial));
-    if (!mla) return mla.error();
-    context->mla = std::move(*mla);
-    const auto white_path = layout::WhiteImagePath(*calibration, serial, 0);
-    if (std::filesystem::exists(white_path)) {
-      auto white = ReadBmp(white_path);
-      if (!white) return white.error();
-      context->white = std::move(*white);
-    }
-    processor->cameras_[serial] = std::move(context);
-  }
-  return processor;
-}
-
-Expected<std::unique_ptr<DepthProcessor>> DepthProcessor::FromMlaFiles(
-    const std::map<std::string, std::string>& mla_files, PreviewOptions preview) {
-  std::unique_ptr<DepthProcessor> processor(new DepthProcessor());
-  processor->preview_ = preview;
-  for (const auto& [serial, path] : mla_files) {
-    auto context = std::make_unique<CameraContext>();
-    auto mla = ReadMlaXml(path);
-    if (!mla) return mla.error();
-    context->mla = std::move(*mla);
-    processor->cameras_[serial] = std::move(context);
-  }
-  return processor;
+  if (Status s = preview.Check(); !s) return s.error();
+  auto setups = LoadSequenceCameras(sequence_dir, serials);
+  if (!setups)
+    return Error{setups.error().message +
+                 " (depth needs the MLA files; --no-processing publishes previews only)"};
+  auto chain = processing::ProcessingChain::Create(std::move(*setups), processing::ChainOptions{});
+  if (!chain) return chain.error();
+  return std::make_unique<DepthProcessor>(std::move(*chain), preview);
 }
 
 Expected<ProcessedFrame> DepthProcessor::Process(const Frame& frame) {
   const auto start = std::chrono::steady_clock::now();
-  const auto it = cameras_.find(frame.serial);
-  if (it == cameras_.end()) return Error{"depth: no MLA calibration for camera " + frame.serial};
-  const CameraContext& camera = *it->second;
+  processing::CameraChain* camera = chain_->Find(frame.serial);
+  if (camera == nullptr) return Error{"depth: no MLA calibration for camera " + frame.serial};
   ProcessedFrame out;
   auto preview = EncodePreview(frame.image, preview_);
   if (!preview) return preview.error();
   out.preview = std::move(*preview);
-
-  CameraContext& context = *it->second;
-  std::unique_ptr<CameraContext::Workspace> workspace = context.Acquire();
-  struct ReleaseOnExit {
-    CameraContext& context;
-    std::unique_ptr<CameraContext::Workspace>& workspace;
-    ~ReleaseOnExit() { context.Release(std::move(workspace)); }
-  } release{context, workspace};
-  processing::PlenopticFrame& prepared = workspace->prepared;
-  if (workspace->width != frame.image.width || workspace->height != frame.image.height) {
-    const processing::MlaGrid grid =
-        processing::MlaGrid::FromCalibration(camera.mla, frame.image.width, frame.image.height);
-    ConstImageView white;
-    if (camera.white && camera.white->width == frame.image.width &&
-        camera.white->height == frame.image.height)
-      white = camera.white->View();
-    workspace->width = workspace->height = 0;
-    if (Status s = processing::PrepareGeometry(white, frame.image.width, frame.image.height, grid,
-                                               camera.mla, {}, &prepared);
-        !s)
-      return s.error();
-    workspace->width = frame.image.width;
-    workspace->height = frame.image.height;
-  }
-  if (Status s = processing::LoadRaw(frame.image, &prepared); !s) return s.error();
-  processing::VirtualDepthMap& raw_depth = workspace->raw_depth;
-  if (Status s = processing::EstimateVirtualDepth(prepared, camera.mla, {}, &raw_depth); !s)
-    return s.error();
-  processing::TfDepthMap& tf_depth = workspace->tf_depth;
-  const processing::TfOptions tf_options;
-  if (Status s = processing::VirtualDepthToTf(prepared, raw_depth, tf_options, &tf_depth); !s)
-    return s.error();
-  processing::TfImage& tf = workspace->tf;
-  if (Status s = processing::RenderTotalFocus(prepared, camera.mla, tf_depth, tf_options, &tf); !s)
-    return s.error();
+  auto lease = camera->Process(frame.image);
+  if (!lease) return lease.error();
+  const processing::TfDepthMap& tf_depth = (*lease)->tf_depth;
+  const processing::TfImage& tf = (*lease)->tf;
   // The TF grid is W/2 x H/2 (16 MB of floats on an R32): published as the
   // NaN-aware mean of k x k blocks so the longest side is <= depth_max_side.
   const int k =
@@ -280,6 +199,8 @@ Expected<ProcessedFrame> DepthProcessor::Process(const Frame& frame) {
   auto tf_preview = EncodePreview(tf.View(), preview_);
   if (!tf_preview) return tf_preview.error();
   out.tf = std::move(*tf_preview);
+  out.products = std::shared_ptr<const processing::ChainProducts>(std::move(*lease));
+  out.camera = camera;
   out.seconds = SecondsSince(start);
   return out;
 }

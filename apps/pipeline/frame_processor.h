@@ -9,7 +9,7 @@
 //   DepthProcessor    the preview plus processing/: devignetted frame,
 //                     virtual depth, TF depth map and the totally focused
 //                     image; the TF virtual depth, reduced by block means
-//                     to at most depth_max_side and quantised to 16-bit PNG.
+//                     to at most depth_max_side and quantised to 8-bit PNG.
 // Process is called concurrently for different frames (bounded by the
 // pipeline); implementations keep per-call state only.
 
@@ -23,6 +23,12 @@
 #include <string>
 #include <vector>
 
+namespace lifmcr::processing {
+struct ChainProducts;
+class CameraChain;
+class ProcessingChain;
+}  // namespace lifmcr::processing
+
 namespace lifmcr::apps {
 
 struct EncodedImage {
@@ -33,8 +39,11 @@ struct EncodedImage {
   std::vector<std::uint8_t> bytes;
 };
 
-// Virtual depth quantised: value = offset + scale * q, q in 1..65535, q = 0
-// no estimate; PNG-encoded 16-bit grey.
+// Virtual depth quantised: value = offset + scale * q, q in 1..255 (8-bit,
+// published) or 1..65535 (16-bit), q = 0 no estimate; PNG-encoded grey.
+// 8 bits over the frame's own range keep a depth message well inside a stock
+// receiver's UDP buffer (bench/bench_lcm_sizes.cpp); the step, (max - min) /
+// 254, is below the estimate's own error over the usual ranges.
 struct EncodedDepth {
   int width = 0, height = 0;
   float scale = 0, offset = 0;
@@ -45,17 +54,23 @@ struct EncodedDepth {
 };
 
 struct ProcessedFrame {
-  std::optional<EncodedImage> preview;  // LIFMCR_<SERIAL>_PREVIEW
-  std::optional<EncodedDepth> depth;    // LIFMCR_<SERIAL>_DEPTH
-  std::optional<EncodedImage> tf;       // LIFMCR_<SERIAL>_TF
+  std::optional<EncodedImage> preview;  // <PREFIX>_<SERIAL>_PREVIEW
+  std::optional<EncodedDepth> depth;    // <PREFIX>_<SERIAL>_DEPTH
+  std::optional<EncodedImage> tf;       // <PREFIX>_<SERIAL>_TF
+  // The chain's products (TF image, depth, metric depth) and the camera's
+  // model when its intrinsics are known: null for previews only. They view
+  // the frame's pooled buffer, which the pipeline keeps until the frame is
+  // published.
+  std::shared_ptr<const processing::ChainProducts> products;
+  const processing::CameraChain* camera = nullptr;
   double seconds = 0;
 };
 
 struct PreviewOptions {
-  int max_side = 512;  // longest side of the preview, pixels
+  int max_side = 512;  // longest side of the preview and TF images, pixels
   int jpeg_quality = 85;
   int depth_max_side = 640;  // longest side of the published depth map (block means)
-  Status Check() const;
+  Status Check() const;      // every field; the message names the field
 };
 
 class FrameProcessor {
@@ -67,8 +82,10 @@ class FrameProcessor {
 
 // Downscaled JPEG of `image` (Mono8 or BGR8).
 Expected<EncodedImage> EncodePreview(ConstImageView image, const PreviewOptions& options);
-// PNG 16-bit quantisation of `values` (w x h, NaN = none); inverse of DecodeDepth.
-Expected<EncodedDepth> EncodeDepth(const std::vector<float>& values, int width, int height);
+// PNG quantisation of `values` (w x h, NaN = none) to `bits` (8 or 16);
+// inverse of DecodeDepth.
+Expected<EncodedDepth> EncodeDepth(const std::vector<float>& values, int width, int height,
+                                   int bits = 8);
 // Decoded values (NaN where q = 0) of a PNG written by EncodeDepth.
 Expected<std::vector<float>> DecodeDepth(const std::vector<std::uint8_t>& png, float scale,
                                          float offset, int* width, int* height);
@@ -83,25 +100,24 @@ class PreviewProcessor final : public FrameProcessor {
   PreviewOptions options_;
 };
 
-// Depth for the cameras of a sequence: the MLA file of each serial (and its
-// white image when there is one) from the sequence's Calibration/ folder.
+// The processing chain (processing/frame_chain.h) of every camera, then the
+// encodings that go on LCM. The chain's products of the frame are kept in
+// ProcessedFrame::products (for the stage after processing: registration).
 class DepthProcessor final : public FrameProcessor {
  public:
+  // The cameras of a sequence, by the lookup rule of replay/camera_calibration.h.
   static Expected<std::unique_ptr<DepthProcessor>> ForSequence(
       const std::string& sequence_dir, const std::vector<std::string>& serials,
       PreviewOptions preview = {});
-  // The same from a rig file's cameras: serial -> MLA file (no white images).
-  static Expected<std::unique_ptr<DepthProcessor>> FromMlaFiles(
-      const std::map<std::string, std::string>& mla_files, PreviewOptions preview = {});
+  DepthProcessor(std::unique_ptr<processing::ProcessingChain> chain, PreviewOptions preview);
   ~DepthProcessor() override;
   Expected<ProcessedFrame> Process(const Frame& frame) override;
   std::string name() const override { return "depth"; }
+  const processing::ProcessingChain& chain() const { return *chain_; }
 
  private:
-  struct CameraContext;
-  DepthProcessor() = default;
   PreviewOptions preview_;
-  std::map<std::string, std::unique_ptr<CameraContext>> cameras_;
+  std::unique_ptr<processing::ProcessingChain> chain_;
 };
 
 }  // namespace lifmcr::apps

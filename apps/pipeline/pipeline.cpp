@@ -1,9 +1,9 @@
-// The pipeline's wiring (pipeline.h): sync under a mutex, a TBB flow graph
-// for processing and publication, LCM as the only way out.
+// The pipeline's scheduling (pipeline.h): sync under a mutex, a TBB flow
+// graph for processing and publication, the publisher as the only way out.
 
 #include "apps/pipeline/pipeline.h"
 
-#include <lcm/lcm-cpp.hpp>
+#include <spdlog/spdlog.h>
 #include <tbb/flow_graph.h>
 
 #include <algorithm>
@@ -11,21 +11,14 @@
 #include <cerrno>
 #include <condition_variable>
 #include <cstdio>
-#include <cstdlib>
 #include <ctime>
-#include <lifmcr_lcm/depth_image_t.hpp>
-#include <lifmcr_lcm/pipeline_stats_t.hpp>
-#include <lifmcr_lcm/preview_image_t.hpp>
-#include <lifmcr_lcm/vicon_frame_t.hpp>
-#include <limits>
-#include <malloc.h>
 #include <map>
 #include <mutex>
-#include <oneapi/tbb/global_control.h>
 #include <oneapi/tbb/info.h>
 #include <oneapi/tbb/task_arena.h>
 #include <oneapi/tbb/task_scheduler_observer.h>
 #include <optional>
+#include <utility>
 #include <sstream>
 #include <sys/resource.h>
 #include <sys/syscall.h>
@@ -104,47 +97,45 @@ class WorkerPriority final : public tbb::task_scheduler_observer {
 struct Job {
   Frame frame;
   std::int64_t trigger_index = 0;
+  std::optional<std::int64_t> vicon_frame;  // of the trigger, when known
   std::int64_t arrival_ns = 0;  // host clock when the frame reached the pipeline
 };
 
 struct Result {
   Job job;
   Expected<ProcessedFrame> processed{Error{"not processed"}};
+  std::optional<processing::CameraPose> w0_from_cx;  // the registration stage's pose
 };
-
-lifmcr_lcm::preview_image_t ToPreviewMessage(const EncodedImage& image, const Job& job,
-                                             std::int64_t utime) {
-  lifmcr_lcm::preview_image_t m;
-  m.utime = utime;
-  m.serial = job.frame.serial;
-  m.frame_id = static_cast<std::int64_t>(job.frame.frame_id);
-  m.trigger_index = job.trigger_index;
-  m.source_width = image.source_width;
-  m.source_height = image.source_height;
-  m.width = image.width;
-  m.height = image.height;
-  m.row_stride = 0;
-  m.channels = static_cast<std::int8_t>(image.channels);
-  m.encoding = image.encoding == EncodedImage::Encoding::kJpeg
-                   ? lifmcr_lcm::preview_image_t::ENCODING_JPEG
-                   : lifmcr_lcm::preview_image_t::ENCODING_PNG;
-  m.data = image.bytes;
-  m.size = static_cast<std::int32_t>(m.data.size());
-  return m;
-}
 
 }  // namespace
 
 std::string CameraChannel(const std::string& serial, const std::string& kind) {
-  return "LIFMCR_" + serial + "_" + kind;
+  return ChannelNames{}.Camera(serial, kind);
+}
+
+PipelineOptions PipelineOptions::FromRig(const RigConfig& rig) {
+  PipelineOptions options;
+  options.threads = rig.processing.threads;
+  options.skip_when_busy = rig.processing.skip_policy == SkipPolicy::kNewestWins;
+  options.publisher = PublisherOptions::FromRig(rig.lcm);
+  return options;
+}
+
+PreviewOptions PreviewOptionsFromRig(const RigConfig& rig) {
+  PreviewOptions options;
+  options.max_side = rig.processing.preview_max_px;
+  return options;
 }
 
 Status PipelineOptions::Check() const {
   if (max_concurrency < 1 || max_concurrency > 64)
     return Error{"pipeline: max_concurrency: expected 1..64"};
+  if (threads < 0 || threads > 1024) return Error{"pipeline: threads: expected 0..1024"};
   if (stats_period.count() <= 0) return Error{"pipeline: stats_period: expected > 0"};
   if (processing_nice < 0 || processing_nice > 19)
     return Error{"pipeline: processing_nice: expected 0..19"};
+  // skip_when_busy: any value; registration: null is the pass-through stage.
+  if (Status s = publisher.Check(); !s) return s;
   return Status::Ok();
 }
 
@@ -152,29 +143,34 @@ struct Pipeline::Impl {
   FrameSetAssemblerOptions sync_options;
   PipelineOptions options;
   std::unique_ptr<FrameProcessor> processor;
-  std::unique_ptr<lcm::LCM> own_lcm;
-  lcm::LCM* lcm = nullptr;
-  std::mutex lcm_mutex;
-  // When the pipeline opens the URL itself, Vicon goes out on an instance of
-  // its own (its own socket and send lock): a Vicon message never waits
-  // behind the fragments of a depth map that a lower-priority worker is
-  // sending. On a given bus (tests, memq://) both share it.
-  std::unique_ptr<lcm::LCM> vicon_lcm;
-  std::mutex vicon_lcm_mutex;
+  std::shared_ptr<processing::RegistrationStage> registration;
+  bool localizes = false;  // a stage other than the pass-through
+  std::unique_ptr<Publisher> publisher;
 
   std::mutex sync_mutex;
-  std::unique_ptr<FrameSetAssembler> assembler;
-  // When each frame reached the pipeline (host clock), for the latency to
-  // publication; keyed by camera index and frame id.
-  std::map<std::pair<int, std::uint64_t>, std::int64_t> arrival_ns;
+  std::unique_ptr<FrameSetAssembler> assembler;  // null with frame_sets_from_grab_loop
   DropCounter drops_before;  // of the assemblers of earlier passes
-  std::uint64_t lost_before = 0;
+  // frame_sets_from_grab_loop (sync_mutex): sets waiting for Poll, the grab
+  // loop's losses, and f0 as the sets say it.
+  std::vector<FrameSet> external_sets;
+  DropCounter external_drops;
+  std::optional<std::int64_t> external_f0;
 
-  // Processing gets every core: TBB starts cores - 1 workers and its default
-  // arena keeps a slot for a master thread, which here (the command's loop)
-  // never helps, so the graph would process on one core. Its own arena has
-  // no master slot, and the workers to fill it are allowed.
-  std::unique_ptr<tbb::global_control> worker_limit;
+  DropCounter SyncDrops() const {  // sync_mutex held
+    DropCounter drops = drops_before;
+    const DropCounter& current = assembler ? assembler->drops() : external_drops;
+    for (int k = 0; k < kDropKindCount; ++k)
+      drops.Add(static_cast<DropKind>(k), current[static_cast<DropKind>(k)]);
+    return drops;
+  }
+  std::vector<FrameSet> TakeSets(bool flush) {  // sync_mutex held
+    if (!assembler) return std::exchange(external_sets, {});
+    return flush ? assembler->Flush() : assembler->Poll(NowRealtimeNs());
+  }
+
+  // Processing gets `threads` workers: its own arena has no master slot (the
+  // command's loop never helps), and the process allows the workers to fill
+  // it (process_settings.h).
   std::unique_ptr<tbb::task_arena> arena;
   std::unique_ptr<WorkerPriority> worker_priority;
   std::unique_ptr<tbb::flow::graph> graph;  // made inside `arena`: its tasks run there
@@ -189,9 +185,16 @@ struct Pipeline::Impl {
   std::map<int, std::uint64_t> served;  // by camera index: when it last got a worker
   std::uint64_t serve_count = 0;
 
+  // Registration poses by trigger, then camera index (publishing node only).
+  struct TriggerPoses {
+    std::map<int, std::pair<std::string, processing::CameraPose>> by_camera;  // serial, w0_from_cx
+  };
+  std::map<std::int64_t, TriggerPoses> poses;
+  static constexpr std::size_t kTriggersKept = 64;
+
   // Counted on the Vicon thread without a lock that a lower-priority worker
   // takes: a worker preempted while holding it would hold up Vicon.
-  std::atomic<std::uint64_t> published_vicon{0}, publish_errors{0};
+  std::atomic<std::uint64_t> published_vicon{0};
   // Counters (report_mutex).
   mutable std::mutex report_mutex;
   PipelineReport report;
@@ -201,31 +204,51 @@ struct Pipeline::Impl {
   std::uint64_t stats_last_processed = 0;
   std::chrono::steady_clock::time_point stats_last_time = start;
 
-  void PublishOn(lcm::LCM& bus, std::mutex& bus_mutex, const std::string& channel,
-                 const auto& message) {
-    std::lock_guard lock(bus_mutex);
-    if (bus.publish(channel, &message) != 0) ++publish_errors;
-  }
-  void Publish(const std::string& channel, const auto& message) {
-    PublishOn(*lcm, lcm_mutex, channel, message);
-  }
-  void PublishVicon(const lifmcr_lcm::vicon_frame_t& message) {
-    if (vicon_lcm)
-      PublishOn(*vicon_lcm, vicon_lcm_mutex, kViconChannel, message);
-    else
-      Publish(kViconChannel, message);
+  Result RunProcess(Job job) {
+    Result result{std::move(job), Error{""}, std::nullopt};
+    result.processed = processor->Process(result.job.frame);
+    if (localizes && result.processed && result.processed->products) {
+      processing::StageFrame frame;
+      frame.camera_index = result.job.frame.camera_index;
+      frame.serial = result.job.frame.serial;
+      frame.trigger_index = result.job.trigger_index;
+      frame.vicon_frame = result.job.vicon_frame;
+      frame.host_ns = result.job.frame.host_ns;
+      frame.products = result.processed->products.get();
+      frame.camera = result.processed->camera;
+      auto pose = registration->Localize(frame);
+      if (!pose)
+        result.processed = Error{"registration (" + registration->name() +
+                                 "): " + pose.error().message};
+      else
+        result.w0_from_cx = std::move(*pose);
+    }
+    return result;
   }
 
-  Result RunProcess(Job job) {
-    Result result{std::move(job), Error{""}};
-    result.processed = processor->Process(result.job.frame);
-    return result;
+  // Camera X's pose of a trigger: related to camera 0's of the same trigger
+  // once both are there, and published.
+  std::uint64_t Relate(const Job& job, const processing::CameraPose& w0_from_cx) {
+    TriggerPoses& trigger = poses[job.trigger_index];
+    const int camera = job.frame.camera_index;
+    trigger.by_camera[camera] = {job.frame.serial, w0_from_cx};
+    std::uint64_t published = 0;
+    auto reference = trigger.by_camera.find(0);
+    if (reference != trigger.by_camera.end()) {
+      const auto& [reference_serial, w0_from_c0] = reference->second;
+      for (const auto& [index, entry] : trigger.by_camera) {
+        if (index == 0 || (camera != 0 && index != camera)) continue;
+        publisher->PublishExtrinsics(reference_serial, entry.first, job.trigger_index,
+                                     registration->Relate(w0_from_c0, entry.second));
+        ++published;
+      }
+    }
+    while (poses.size() > kTriggersKept) poses.erase(poses.begin());
+    return published;
   }
 
   void RunPublish(Result result) {
     const Job& job = result.job;
-    const std::int64_t now_ns = NowRealtimeNs();
-    const std::int64_t utime = now_ns / 1000;
     if (!result.processed) {
       std::lock_guard r(report_mutex);
       ++report.failed;
@@ -233,43 +256,17 @@ struct Pipeline::Impl {
                           result.processed.error().message;
     } else {
       const ProcessedFrame& p = *result.processed;
-      std::uint64_t previews = 0, depths = 0, tfs = 0;
-      if (p.preview) {
-        Publish(CameraChannel(job.frame.serial, "PREVIEW"),
-                ToPreviewMessage(*p.preview, job, utime));
-        ++previews;
-      }
-      if (p.tf) {
-        Publish(CameraChannel(job.frame.serial, "TF"), ToPreviewMessage(*p.tf, job, utime));
-        ++tfs;
-      }
-      if (p.depth) {
-        lifmcr_lcm::depth_image_t m;
-        m.utime = utime;
-        m.serial = job.frame.serial;
-        m.frame_id = static_cast<std::int64_t>(job.frame.frame_id);
-        m.trigger_index = job.trigger_index;
-        m.kind = lifmcr_lcm::depth_image_t::KIND_VIRTUAL;
-        m.geometry = lifmcr_lcm::depth_image_t::GEOMETRY_TOTALLY_FOCUSED;
-        m.width = p.depth->width;
-        m.height = p.depth->height;
-        m.scale = p.depth->scale;
-        m.offset = p.depth->offset;
-        m.valid_fraction = p.depth->valid_fraction;
-        m.min_value = p.depth->min_value;
-        m.max_value = p.depth->max_value;
-        m.encoding = lifmcr_lcm::preview_image_t::ENCODING_PNG;
-        m.data = p.depth->png;
-        m.size = static_cast<std::int32_t>(m.data.size());
-        Publish(CameraChannel(job.frame.serial, "DEPTH"), m);
-        ++depths;
-      }
+      const Publisher::FrameCounts counts = publisher->PublishFrame(
+          FrameMeta{job.frame.serial, job.frame.frame_id, job.trigger_index}, p);
+      const std::uint64_t extrinsics = result.w0_from_cx ? Relate(job, *result.w0_from_cx) : 0;
       const double to_pub_ms = static_cast<double>(NowRealtimeNs() - job.arrival_ns) / 1e6;
       std::lock_guard r(report_mutex);
       ++report.processed;
-      report.published_previews += previews;
-      report.published_depth += depths;
-      report.published_tf += tfs;
+      report.published_previews += counts.previews;
+      report.published_depth += counts.depth;
+      report.published_tf += counts.tf;
+      report.published_extrinsics += extrinsics;
+      report.localized += result.w0_from_cx ? 1 : 0;
       process_latency.Add(p.seconds * 1e3);
       publication_latency.Add(to_pub_ms);
     }
@@ -330,17 +327,11 @@ struct Pipeline::Impl {
       }
       for (std::optional<Frame>& frame : set.frames) {
         if (!frame) continue;
-        std::int64_t arrival = frame->host_ns;
-        {
-          std::lock_guard lock(sync_mutex);
-          const auto it = arrival_ns.find({frame->camera_index, frame->frame_id});
-          if (it != arrival_ns.end()) {
-            arrival = it->second;
-            arrival_ns.erase(it);
-          }
-        }
         if (frame->status != FrameStatus::kOk) continue;  // counted by sync
-        Submit(Job{std::move(*frame), set.trigger_index, arrival});
+        const std::int64_t arrival = frame->arrival_ns > 0 ? frame->arrival_ns : frame->host_ns;
+        std::optional<std::int64_t> vicon;
+        if (set.vicon_frame >= 0) vicon = set.vicon_frame;
+        Submit(Job{std::move(*frame), set.trigger_index, vicon, arrival});
       }
     }
   }
@@ -357,68 +348,34 @@ struct Pipeline::Impl {
     graph->wait_for_all();
   }
 
-  lifmcr_lcm::pipeline_stats_t StatsMessage() {
+  StatsSnapshot Stats() {
     const PipelineReport r = Snapshot();
     const auto now = std::chrono::steady_clock::now();
     const double dt = std::chrono::duration<double>(now - stats_last_time).count();
-    const double rate = dt > 0 ? static_cast<double>(r.processed - stats_last_processed) / dt : 0;
+    StatsSnapshot m;
+    m.rate_hz = dt > 0 ? static_cast<double>(r.processed - stats_last_processed) / dt : 0;
     stats_last_processed = r.processed;
     stats_last_time = now;
-    lifmcr_lcm::pipeline_stats_t m;
-    m.utime = NowRealtimeNs() / 1000;
-    lifmcr_lcm::stage_stats_t process;
-    process.name = "process:" + processor->name();
-    process.rate_hz = rate;
+    m.stage_name = "process:" + processor->name();
     {
       std::lock_guard lock(slot_mutex);
-      process.queue_depth = in_flight + static_cast<std::int32_t>(slots.size());
+      m.queue_depth = in_flight + static_cast<int>(slots.size());
     }
-    process.queue_capacity =
-        options.max_concurrency + static_cast<std::int32_t>(sync_options.serials.size());
-    process.latency_p50_ms = r.process.p50_ms;
-    process.latency_p99_ms = r.process.p99_ms;
-    process.processed = static_cast<std::int64_t>(r.processed);
-    process.skipped = static_cast<std::int64_t>(r.skipped);
-    lifmcr_lcm::stage_stats_t publish;
-    publish.name = "publish";
-    publish.rate_hz = rate;
-    publish.queue_depth = 0;
-    publish.queue_capacity = 0;
-    publish.latency_p50_ms = r.to_publication.p50_ms;  // frame arrival -> on LCM
-    publish.latency_p99_ms = r.to_publication.p99_ms;
-    publish.processed = static_cast<std::int64_t>(r.processed);
-    publish.skipped = 0;
-    m.stages = {process, publish};
-    m.num_stages = static_cast<std::int32_t>(m.stages.size());
-    DropCounter drops;
-    {
-      std::lock_guard lock(sync_mutex);
-      drops = assembler->drops();
-    }
-    for (int k = 0; k < kDropKindCount; ++k) {
-      const auto kind = static_cast<DropKind>(k);
-      const std::uint64_t count = drops[kind] + drops_before[kind];
-      if (count == 0) continue;
-      lifmcr_lcm::drop_count_t d;
-      d.kind = std::string(ToString(kind));
-      d.count = static_cast<std::int64_t>(count);
-      m.drops.push_back(d);
-    }
-    lifmcr_lcm::drop_count_t skipped;
-    skipped.kind = "skipped_for_processing";
-    skipped.count = static_cast<std::int64_t>(r.skipped);
-    m.drops.push_back(skipped);
-    lifmcr_lcm::drop_count_t failed;
-    failed.kind = "processing_failed";
-    failed.count = static_cast<std::int64_t>(r.failed);
-    m.drops.push_back(failed);
-    m.num_drops = static_cast<std::int32_t>(m.drops.size());
+    m.queue_capacity = options.max_concurrency + static_cast<int>(sync_options.serials.size());
+    m.process_p50_ms = r.process.p50_ms;
+    m.process_p99_ms = r.process.p99_ms;
+    m.to_publication_p50_ms = r.to_publication.p50_ms;
+    m.to_publication_p99_ms = r.to_publication.p99_ms;
+    m.processed = r.processed;
+    m.skipped = r.skipped;
+    m.failed = r.failed;
+    std::lock_guard lock(sync_mutex);
+    m.drops = SyncDrops();
     return m;
   }
 
   void PublishStats() {
-    const auto m = StatsMessage();
-    Publish(kStatsChannel, m);
+    publisher->PublishStats(Stats());
     std::lock_guard r(report_mutex);
     ++report.published_stats;
   }
@@ -429,72 +386,38 @@ struct Pipeline::Impl {
       std::lock_guard lock(report_mutex);
       r = report;
       r.published_vicon = published_vicon.load();
-      r.publish_errors = publish_errors.load();
+      r.publish_errors = publisher->errors();
       r.process = process_latency.Summary();
       r.to_publication = publication_latency.Summary();
     }
     r.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     std::lock_guard lock(sync_mutex);
-    DropCounter drops = drops_before;
-    for (int k = 0; k < kDropKindCount; ++k)
-      drops.Add(static_cast<DropKind>(k), assembler->drops()[static_cast<DropKind>(k)]);
+    const DropCounter drops = SyncDrops();
     r.drops = drops.OneLine();
     r.sync_lost = drops.lost();
     return r;
   }
 };
 
-// The processing workers allocate and free buffers of megabytes per frame
-// (preview and TF encoding, OpenCV temporaries). glibc serves those with
-// mmap and returns them with munmap, and trims its heap on free; both take
-// the process's memory-map lock, and every page fault of the Vicon and
-// camera threads then waits behind it: Vicon packet -> LCM p99 went from
-// 0.2-0.7 ms to 6-19 ms with frames flowing (bench_pipeline). Serving up to
-// 32 MB (glibc's upper limit) from the heap and never trimming it keeps the
-// freed memory in the process for the next frame instead.
-static void KeepFreedMemoryInProcess() {
-  static std::once_flag once;
-  std::call_once(once, [] {
-    mallopt(M_MMAP_THRESHOLD, 32 << 20);
-    mallopt(M_TRIM_THRESHOLD, std::numeric_limits<int>::max());
-  });
-}
-
 Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sync,
                                                      std::unique_ptr<FrameProcessor> processor,
                                                      PipelineOptions options) {
   if (Status s = options.Check(); !s) return s.error();
-  KeepFreedMemoryInProcess();
   if (Status s = sync.Check(); !s) return s.error();
   if (!processor) return Error{"pipeline: no processing stage"};
   auto impl = std::make_unique<Impl>();
   impl->sync_options = sync;
   impl->options = options;
   impl->processor = std::move(processor);
-  if (options.bus) {
-    impl->lcm = options.bus;
-  } else {
-    impl->own_lcm = std::make_unique<lcm::LCM>(options.lcm_url);
-    impl->lcm = impl->own_lcm.get();
-    // Only UDP multicast: two memq:// instances are two buses, two file://
-    // instances two writers of one log.
-    const char* default_url = std::getenv("LCM_DEFAULT_URL");
-    const std::string url = !options.lcm_url.empty() ? options.lcm_url
-                            : default_url            ? default_url
-                                                     : "udpm://";
-    if (impl->lcm->good() && url.starts_with("udpm://"))
-      impl->vicon_lcm = std::make_unique<lcm::LCM>(options.lcm_url);
-  }
-  if (!impl->lcm->good() || (impl->vicon_lcm && !impl->vicon_lcm->good()))
-    return Error{"LCM: cannot open '" +
-                 (options.lcm_url.empty() ? std::string("default URL") : options.lcm_url) +
-                 "' (for UDP multicast on loopback: ip link set lo multicast on; ip route add "
-                 "239.255.76.67/32 dev lo)"};
-  impl->assembler = std::make_unique<FrameSetAssembler>(sync);
-  const int cores = tbb::info::default_concurrency();
-  impl->worker_limit = std::make_unique<tbb::global_control>(
-      tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(cores) + 1);
-  impl->arena = std::make_unique<tbb::task_arena>(cores, /*reserved_for_masters=*/0);
+  impl->registration = options.registration;
+  if (!impl->registration) impl->registration = std::make_shared<processing::PassThroughStage>();
+  impl->localizes = dynamic_cast<processing::PassThroughStage*>(impl->registration.get()) == nullptr;
+  auto publisher = Publisher::Create(options.publisher);
+  if (!publisher) return publisher.error();
+  impl->publisher = std::move(*publisher);
+  if (!options.frame_sets_from_grab_loop) impl->assembler = std::make_unique<FrameSetAssembler>(sync);
+  const int threads = options.threads > 0 ? options.threads : tbb::info::default_concurrency();
+  impl->arena = std::make_unique<tbb::task_arena>(threads, /*reserved_for_masters=*/0);
   if (options.processing_nice > 0) {
     // Relative to this thread's (the command's): a rig run at nice -5 processes at +5.
     errno = 0;
@@ -502,6 +425,13 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
     impl->worker_priority = std::make_unique<WorkerPriority>(
         *impl->arena, std::min(19, (errno == 0 ? base : 0) + options.processing_nice));
   }
+  spdlog::info(
+      "pipeline: processing '{}', {} frame(s) at once on {} thread(s) at nice +{}, skip policy "
+      "{}, registration '{}', LCM '{}' prefix {} previews {}",
+      impl->processor->name(), options.max_concurrency, threads, options.processing_nice,
+      options.skip_when_busy ? "newest_wins" : "block", impl->registration->name(),
+      options.publisher.bus ? std::string("(given bus)") : options.publisher.url,
+      options.publisher.channel_prefix, options.publisher.publish_previews ? "on" : "off");
   Impl* raw = impl.get();
   impl->arena->execute([raw] {
     raw->graph = std::make_unique<tbb::flow::graph>();
@@ -521,44 +451,38 @@ Pipeline::Pipeline(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 Pipeline::~Pipeline() { impl_->WaitIdle(); }
 
 void Pipeline::AddFrame(Frame frame) {
-  const std::int64_t now = NowRealtimeNs();
+  if (frame.arrival_ns == 0) frame.arrival_ns = NowRealtimeNs();
   std::lock_guard lock(impl_->sync_mutex);
-  // Frames the assembler drops never come back: the map is bounded by
-  // dropping entries far older than any pending trigger.
-  if (impl_->arrival_ns.size() > 4096) impl_->arrival_ns.erase(impl_->arrival_ns.begin());
-  impl_->arrival_ns[{frame.camera_index, frame.frame_id}] = now;
-  impl_->assembler->AddFrame(std::move(frame));
+  if (impl_->assembler) impl_->assembler->AddFrame(std::move(frame));
+}
+
+void Pipeline::AddFrameSet(FrameSet set) {
+  std::lock_guard lock(impl_->sync_mutex);
+  if (!impl_->external_f0 && set.vicon_frame >= 0)
+    impl_->external_f0 =
+        set.vicon_frame - static_cast<std::int64_t>(impl_->sync_options.vicon_divider) *
+                              set.trigger_index;
+  impl_->external_sets.push_back(std::move(set));
+}
+
+void Pipeline::SetSyncDrops(const DropCounter& drops) {
+  std::lock_guard lock(impl_->sync_mutex);
+  impl_->external_drops = drops;
 }
 
 void Pipeline::AddVicon(const ViconFrame& frame) {
   std::optional<std::int64_t> f0;
   {
     std::lock_guard lock(impl_->sync_mutex);
-    impl_->assembler->AddVicon(frame);
-    f0 = impl_->assembler->vicon_f0();
-  }
-  lifmcr_lcm::vicon_frame_t m;
-  m.utime = frame.host_ns / 1000;
-  m.vicon_frame = frame.vicon_frame;
-  const int divider = impl_->sync_options.vicon_divider;
-  m.is_trigger = f0 && (frame.vicon_frame - *f0) % divider == 0;
-  for (const ViconObjectPose& object : frame.objects) {
-    lifmcr_lcm::vicon_object_t o{};
-    o.name = object.name;
-    o.occluded = !object.vicon_from_marker.has_value();
-    if (object.vicon_from_marker) {
-      const Eigen::Vector3d t = object.vicon_from_marker->translation();
-      const Eigen::Quaterniond q(object.vicon_from_marker->rotation());
-      for (int k = 0; k < 3; ++k) o.t_mm[k] = t[k];
-      o.q_wxyz[0] = q.w();
-      o.q_wxyz[1] = q.x();
-      o.q_wxyz[2] = q.y();
-      o.q_wxyz[3] = q.z();
+    if (impl_->assembler) {
+      impl_->assembler->AddVicon(frame);
+      f0 = impl_->assembler->vicon_f0();
+    } else {
+      f0 = impl_->external_f0 ? impl_->external_f0 : impl_->sync_options.vicon_f0;
     }
-    m.objects.push_back(o);
   }
-  m.num_objects = static_cast<std::int32_t>(m.objects.size());
-  impl_->PublishVicon(m);
+  const int divider = impl_->sync_options.vicon_divider;
+  impl_->publisher->PublishVicon(frame, f0 && (frame.vicon_frame - *f0) % divider == 0);
   ++impl_->published_vicon;
 }
 
@@ -566,7 +490,7 @@ void Pipeline::Poll() {
   std::vector<FrameSet> sets;
   {
     std::lock_guard lock(impl_->sync_mutex);
-    sets = impl_->assembler->Poll(NowRealtimeNs());
+    sets = impl_->TakeSets(/*flush=*/false);
   }
   impl_->SubmitSets(std::move(sets));
   const auto now = std::chrono::steady_clock::now();
@@ -580,21 +504,29 @@ void Pipeline::EndPass() {
   std::vector<FrameSet> sets;
   {
     std::lock_guard lock(impl_->sync_mutex);
-    sets = impl_->assembler->Flush();
+    sets = impl_->TakeSets(/*flush=*/true);
   }
   impl_->SubmitSets(std::move(sets));
   impl_->WaitIdle();
   std::lock_guard lock(impl_->sync_mutex);
-  for (int k = 0; k < kDropKindCount; ++k)
-    impl_->drops_before.Add(static_cast<DropKind>(k),
-                            impl_->assembler->drops()[static_cast<DropKind>(k)]);
-  impl_->assembler = std::make_unique<FrameSetAssembler>(impl_->sync_options);
-  impl_->arrival_ns.clear();
+  impl_->drops_before = impl_->SyncDrops();
+  // The next pass starts a fresh assembler (the pipeline's or the grab loop's).
+  if (impl_->assembler)
+    impl_->assembler = std::make_unique<FrameSetAssembler>(impl_->sync_options);
+  impl_->external_drops = DropCounter{};
 }
 
 void Pipeline::Finish() {
   EndPass();
   impl_->PublishStats();
+  const PipelineReport r = impl_->Snapshot();
+  if (r.skipped > 0)
+    spdlog::warn("pipeline: {} frame(s) skipped for processing (newest wins: processing slower "
+                 "than the frames)",
+                 r.skipped);
+  if (r.failed > 0)
+    spdlog::warn("pipeline: {} frame(s) failed; last: {}", r.failed, r.last_error);
+  if (r.sync_lost > 0) spdlog::warn("pipeline: sync losses: {}", r.drops);
 }
 
 PipelineReport Pipeline::Report() const { return impl_->Snapshot(); }
@@ -621,8 +553,8 @@ std::string PipelineReport::FinalReport() const {
       << "  failed: " << failed << (Accounted() ? "  (all accounted for)" : "  (NOT ACCOUNTED)")
       << "\n"
       << "published: " << published_previews << " previews, " << published_depth << " depth, "
-      << published_tf << " TF, " << published_vicon << " Vicon, " << published_stats
-      << " stats messages";
+      << published_tf << " TF, " << published_extrinsics << " extrinsics, " << published_vicon
+      << " Vicon, " << published_stats << " stats messages";
   if (publish_errors) out << ", " << publish_errors << " publish errors";
   out << "\n";
   char line[200];

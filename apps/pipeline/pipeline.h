@@ -1,37 +1,44 @@
 #pragma once
-// The live pipeline: frames and Vicon frames from the drivers -> sync
-// (FrameSetAssembler) -> processing (a TBB flow graph node with bounded
-// concurrency) -> the LCM publisher (a serial node).
+// The live pipeline: frames and Vicon frames from the grab loop -> sync
+// (one FrameSetAssembler) -> processing (FrameProcessor: the processing
+// chain and the encodings, on a TBB flow graph node with bounded
+// concurrency) -> the registration stage (processing/registration_stage.h;
+// pass-through by default) -> the publisher (publisher.h, a serial node),
+// which owns LCM. docs/architecture.md follows a frame through it.
 //
-// Channels: LIFMCR_<SERIAL>_PREVIEW (preview_image_t), LIFMCR_<SERIAL>_DEPTH
-// (depth_image_t), LIFMCR_<SERIAL>_TF (preview_image_t of the totally focused
-// image), LIFMCR_VICON (vicon_frame_t), LIFMCR_STATS (pipeline_stats_t, about
-// once a second and at the end). LIFMCR_<SERIAL>_EXTRINSICS is reserved for
-// registration.
+// Skip policy (skip_when_busy; the rig file's processing.skip_policy:
+// newest_wins): at most max_concurrency frames are processed at once and
+// each camera has a one-deep slot for the frame that waits; a camera's
+// frame arriving while its slot is taken replaces the waiting one, which is
+// counted as skipped: the newest wins, so a camera's published view is never
+// stale by more than one frame. A freed worker takes the slot of the camera
+// served least recently, so no camera starves.
+// Without skipping (block; replay --rate max) Submit blocks until a worker
+// is free: the back-pressure reaches the replay driver through its frame
+// pool, so every frame is processed. Either way every frame that enters is
+// processed (and published), skipped, or failed, each counted: frames_in ==
+// processed + skipped + failed once Finish returned. A recorder, when one
+// runs, gets its frames before the pipeline does and never waits for it.
 //
-// Skip policy (skip_when_busy): at most max_concurrency frames are processed
-// at once and each camera has a one-deep slot for the frame that waits; a
-// camera's frame arriving while its slot is taken replaces the waiting one,
-// which is counted as skipped: the newest wins, so a camera's published view
-// is never stale by more than one frame. A freed worker takes the slot of the
-// camera served least recently, so no camera starves.
-// Without skipping (replay --rate max) Submit blocks until a worker is free:
-// the back-pressure reaches the replay driver through its frame pool, so
-// every frame is processed. Either way every frame that enters is processed
-// (and published), skipped, or failed, each counted: frames_in == processed
-// + skipped + failed once Finish returned. A recorder, when one runs, gets
-// its frames before the pipeline does and never waits for it.
+// Registration: the stage's Localize runs on the worker after processing;
+// its poses are grouped per trigger on the publishing node, and once camera
+// 0 and camera X both have a pose of a trigger, Relate gives c0_from_cx,
+// published on <PREFIX>_<SERIAL>_EXTRINSICS.
 //
-// Threads: AddFrame and AddVicon from any thread (driver threads); a Vicon
+// Threads: AddFrame and AddVicon from any thread (the grab loop's); a Vicon
 // frame is published on the caller's thread, at once. Poll and Finish from
 // one thread (the command's loop). Frames are processed and published on
-// the pipeline's own TBB arena, one worker per core, at a lower priority
-// (PipelineOptions::processing_nice).
+// the pipeline's own TBB arena of `threads` workers at a lower priority
+// (processing_nice). Process-wide settings (allocator, TBB's worker limit)
+// are the command's: process_settings.h.
 
 #include "apps/pipeline/frame_processor.h"
+#include "apps/pipeline/publisher.h"
 #include "config/error.h"
+#include "config/rig_config.h"
 #include "drivers/frame.h"
 #include "drivers/vicon_source.h"
+#include "processing/registration_stage.h"
 #include "sync/frame_set_assembler.h"
 
 #include <chrono>
@@ -40,19 +47,12 @@
 #include <string>
 #include <vector>
 
-namespace lcm {
-class LCM;
-}
-
 namespace lifmcr::apps {
 
 struct PipelineOptions {
-  std::string lcm_url;  // empty: LCM's default (LCM_DEFAULT_URL or udpm 239.255.76.67:7667)
-  // An LCM instance to publish on instead of opening lcm_url (tests: one
-  // memq:// instance shared with the subscriber); must outlive the pipeline.
-  lcm::LCM* bus = nullptr;
   int max_concurrency = 2;  // frames processed at once, >= 1
-  bool skip_when_busy = true;
+  bool skip_when_busy = true;  // newest_wins; false: block
+  int threads = 0;             // workers of the processing arena; 0 = all cores
   std::chrono::milliseconds stats_period{1000};
   // How much lower than the creating thread's the priority of the threads
   // that process and publish frames is (added to its nice value, at most 19;
@@ -60,8 +60,21 @@ struct PipelineOptions {
   // threads: on a saturated 2-core host a Vicon packet otherwise waits
   // milliseconds for a core.
   int processing_nice = 10;
-  Status Check() const;
+  // Where FrameSets come from: false, the pipeline's own assembler (fed by
+  // AddFrame); true, the grab loop's (RigController's, fed to AddFrameSet;
+  // its losses reported through SetSyncDrops): one assembler per run.
+  bool frame_sets_from_grab_loop = false;
+  // The stage after processing; null: processing::PassThroughStage.
+  std::shared_ptr<processing::RegistrationStage> registration;
+  PublisherOptions publisher;
+  // The rig file's processing: (threads, skip_policy) and lcm: sections;
+  // preview_max_px and enabled are the processor's (PreviewOptionsFromRig).
+  static PipelineOptions FromRig(const RigConfig& rig);
+  Status Check() const;  // every field; the message names the field
 };
+
+// processing.preview_max_px of the rig file.
+PreviewOptions PreviewOptionsFromRig(const RigConfig& rig);
 
 struct LatencySummary {
   std::uint64_t count = 0;
@@ -73,10 +86,11 @@ struct PipelineReport {
   std::uint64_t frames_in = 0;  // frames of emitted FrameSets given to processing
   std::uint64_t processed = 0;  // processed and published
   std::uint64_t skipped = 0;    // replaced in its camera's slot by a newer frame (skip policy)
-  std::uint64_t failed = 0;     // processing returned an error (last_error)
+  std::uint64_t failed = 0;     // processing or registration returned an error (last_error)
+  std::uint64_t localized = 0;  // frames the registration stage gave a pose
   std::uint64_t frame_sets = 0, incomplete_sets = 0;
   std::uint64_t published_previews = 0, published_depth = 0, published_tf = 0;
-  std::uint64_t published_vicon = 0, published_stats = 0;
+  std::uint64_t published_vicon = 0, published_stats = 0, published_extrinsics = 0;
   std::uint64_t publish_errors = 0;
   LatencySummary process;         // processing time per frame
   LatencySummary to_publication;  // frame arrival (host_ns) to its last message on LCM
@@ -99,7 +113,14 @@ class Pipeline {
   Pipeline(const Pipeline&) = delete;
   Pipeline& operator=(const Pipeline&) = delete;
 
+  // frame_sets_from_grab_loop false: a frame for the pipeline's assembler.
   void AddFrame(Frame frame);
+  // frame_sets_from_grab_loop true: a FrameSet of the grab loop's assembler
+  // (any thread; processed from the next Poll on).
+  void AddFrameSet(FrameSet set);
+  // The grab loop's sync losses so far (frame_sets_from_grab_loop), for the
+  // report and the statistics message.
+  void SetSyncDrops(const DropCounter& drops);
   void AddVicon(const ViconFrame& frame);
   // Emits the ready FrameSets into processing (blocking without skipping)
   // and publishes the statistics when due.
@@ -117,7 +138,7 @@ class Pipeline {
   std::unique_ptr<Impl> impl_;
 };
 
-// The channel of `kind` ("PREVIEW", "DEPTH", "TF", "EXTRINSICS") for a camera.
+// Channels of the default prefix (tests; publisher.h names every channel).
 std::string CameraChannel(const std::string& serial, const std::string& kind);
 inline constexpr const char* kViconChannel = "LIFMCR_VICON";
 inline constexpr const char* kStatsChannel = "LIFMCR_STATS";

@@ -1,18 +1,21 @@
 #pragma once
 // A recorded (or synthetic) sequence played through the pipeline: one
 // ReplayCamera per TypeE_<serial>/ folder and the sequence's Vicon CSV
-// through ViconCsvSource, a grab thread per camera and one for Vicon, the
-// command's loop polling the pipeline. Used by `lifmcr replay`, `lifmcr
-// demo`, the tests and bench_pipeline.
+// through ViconCsvSource, driven by the rig's grab loop (RigController, as
+// `lifmcr record` drives live cameras), the command's loop polling the
+// pipeline. Used by `lifmcr replay`, `lifmcr demo`, the tests and
+// bench_pipeline.
 //
 // Rates: kOriginal plays at the trigger period (10 Hz) and the Vicon rate;
 // kFactor at FACTOR times that; both skip frames for processing when it
 // cannot keep up (newest wins) and the replay camera loses a frame (an
 // underrun, counted) when the pipeline holds all its buffers. kMax delivers
 // frames as fast as the pipeline takes them: no skipping, the back-pressure
-// reaches the camera's frame pool, every frame is processed; Vicon frames are
-// released one trigger ahead of the slowest camera, in bursts of one
-// trigger's frames (small enough for an LCM subscriber's default queue of 30).
+// reaches the camera's frame pool, every frame is processed; the sources
+// stamp host time on the sequence's own clock (ReplayCameraOptions::
+// sequence_clock_start_ns), and Vicon frames are released one trigger ahead
+// of the slowest camera, in bursts of one trigger's frames
+// (RigControllerOptions::vicon_lead_triggers).
 
 #include "apps/pipeline/frame_processor.h"
 #include "apps/pipeline/pipeline.h"
@@ -38,11 +41,14 @@ struct ReplayRunOptions {
   ReplayRate rate;
   bool loop = false;
   bool processing = true;  // false: previews only (no depth, no TF)
+  PreviewOptions preview;  // preview and TF image size, depth map size
+  // skip_when_busy is the rate's: newest wins when timed, block at max.
   PipelineOptions pipeline;
   int pool_buffers = 8;  // per replay camera
   // Called about once a second on the command's thread.
   std::function<void(const PipelineReport&)> on_status;
   const std::atomic<bool>* stop = nullptr;  // set by a signal handler; may be null
+  Status Check() const;  // every field; the message names the field
 };
 
 struct ReplayRunResult {

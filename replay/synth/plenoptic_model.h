@@ -3,7 +3,7 @@
 // with. It is the ground truth that processing/ (LiFCal's inverse model) is
 // tested against, so it is written out here on its own.
 //
-// Geometry (notes/processing.md sections 1.2 and 1.4). Camera frame: origin at
+// Geometry (processing/camera_model.h, docs/processing.md). Camera frame: origin at
 // the main-lens centre, x right, y down, z along the optical axis. Image side:
 // z is the distance behind the main lens; lateral coordinates are mirrored so
 // that the image is upright (the sensor is read out rotated by 180 degrees), as
@@ -35,7 +35,7 @@
 // Micro-image position of a virtual point X_v (lateral x_v px, depth v):
 //   p_k = l_k + (x_v - l_k) / v,   l_k = L_k / s   (untilted MLA)
 // and with c_k in place of l_k the disparity is biased by (1 - lambda) v,
-// lambda = b_L0 / (b_L0 + B) (notes/processing.md 1.2).
+// lambda = b_L0 / (b_L0 + B) (processing/camera_model.h).
 //
 // Defocus: a micro lens of focal length f_t images the point at v sharply when
 // B / f_t = 1 - 1 / v; otherwise a point spreads to a disc of diameter

@@ -90,8 +90,10 @@ Status SynthCameraParams::Check() const {
 Status SynthRigParams::Check() const {
   if (cameras < 1 || cameras > 8) return FieldError("rig.cameras", "expected 1..8");
   if (frames < 1 || frames > 100000) return FieldError("rig.frames", "expected 1..100000");
-  if (motion != "smooth" && motion != "handheld" && motion != "axis" && motion != "circle")
-    return FieldError("rig.motion", "expected smooth|handheld|axis|circle, got '" + motion + "'");
+  if (motion != "smooth" && motion != "handheld" && motion != "axis" && motion != "circle" &&
+      motion != "orbit")
+    return FieldError("rig.motion",
+                      "expected smooth|handheld|axis|circle|orbit, got '" + motion + "'");
   if (!(viewing_distance_mm >= 200 && viewing_distance_mm <= 5000))
     return FieldError("rig.viewing_distance_mm", "expected 200..5000 mm");
   if (!(baseline_mm >= 0 && baseline_mm <= 1000))
@@ -104,7 +106,11 @@ Status SynthRigParams::Check() const {
       if (!(std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '-')) return false;
     return true;
   };
-  if (!plain(scene)) return FieldError("rig.scene", "expected letters, digits, '_' or '-'");
+  if (scene != "table" && scene != "plain")
+    return FieldError("rig.scene", "expected table|plain, got '" + scene +
+                                       "' (the folder name is rig.scene_folder, --scene-folder)");
+  if (!plain(scene_folder))
+    return FieldError("rig.scene_folder", "expected letters, digits, '_' or '-'");
   if (!plain(sequence)) return FieldError("rig.sequence", "expected letters, digits, '_' or '-'");
   return Status::Ok();
 }
@@ -215,6 +221,7 @@ void ReadRig(YamlMap& m, SynthRigParams* r) {
   m.Read("baseline_mm", &r->baseline_mm, kOptional);
   m.Read("speed_scale", &r->speed_scale, kOptional);
   m.Read("scene", &r->scene, kOptional);
+  m.Read("scene_folder", &r->scene_folder, kOptional);
   m.Read("sequence", &r->sequence, kOptional);
   std::int64_t seed = static_cast<std::int64_t>(r->seed);
   m.Read("seed", &seed, kOptional);

@@ -5,7 +5,7 @@
 // YAML file overrides any of them (keys = the field names below, grouped as
 // in SynthParams: `camera:`, `rig:`, `vicon:`; see LoadSynthConfig).
 //
-// Symbols (notes/processing.md section 0): f_L main-lens focal length,
+// Symbols (the paper's; docs/processing.md): f_L main-lens focal length,
 // b_L0 main lens -> MLA, B MLA -> sensor, D micro-image pitch, s pixel size,
 // v = b / B virtual depth.
 
@@ -70,13 +70,17 @@ struct SynthCameraParams {
 struct SynthRigParams {
   int cameras = 2;
   int frames = 4;                     // camera triggers per sequence
-  std::string motion = "smooth";      // smooth|handheld|axis|circle
+  std::string motion = "smooth";      // smooth|handheld|axis|circle|orbit (trajectory.h)
   double viewing_distance_mm = 1100;  // camera to the plate centre
   double baseline_mm = 120;           // between neighbouring cameras
   double speed_scale = 1.0;           // scales the amplitude of motion
-  std::string scene = "00_Synthetic";
-  std::string sequence = "Sequence_00";
+  std::string scene = "table";                // scene content: table|plain (scene.h)
+  std::string scene_folder = "00_Synthetic";  // the scene's folder in the dataset
+  std::string sequence = "Sequence_00";       // the sequence's folder in it
   std::uint64_t seed = 1;
+  // false: no raw frames, depth or all-in-focus images; poses, Vicon and
+  // calibration only (fast inputs for evaluation tests). `--no-images`.
+  bool images = true;
   Status Check() const;
 };
 

@@ -147,25 +147,9 @@ std::string FormatMarkerFromCamCsv(const Pose& marker_from_cam) {
   return "tx_mm,ty_mm,tz_mm,qw,qx,qy,qz\n" + FormatPoseRow(marker_from_cam) + "\n";
 }
 
-Expected<SynthSummary> WriteSyntheticDataset(const std::filesystem::path& out_dir,
-                                             const SynthParams& params,
-                                             const ProgressFn& progress) {
-  if (Status s = params.Check(); !s) return s.error();
-  const auto start = std::chrono::steady_clock::now();
-  SynthSummary summary;
-  summary.sequence_dir = out_dir / params.rig.scene / params.rig.sequence;
-  summary.calibration_dir = out_dir / std::string(layout::kCalibrationFolder);
-  summary.cameras = params.rig.cameras;
-  summary.frames = params.rig.frames;
-  const std::filesystem::path& seq = summary.sequence_dir;
-  const std::filesystem::path& calib = summary.calibration_dir;
-  std::atomic<std::int64_t> files{0};
-
-  const Scene scene = MakeTableTopScene(params.rig.seed);
-  const std::vector<SynthCamera> cameras = MakeSynthCameras(params);
-  const SynthViconParams& vicon = params.vicon;
-  const double duration_s =
-      static_cast<double>(params.rig.frames) * vicon.trigger_divider / vicon.rate_hz;
+std::vector<CameraTrajectory> MakeTrajectories(const SynthParams& params, const Scene& scene) {
+  const double duration_s = static_cast<double>(params.rig.frames) *
+                            params.vicon.trigger_divider / params.vicon.rate_hz;
   std::vector<CameraTrajectory> trajectories;
   for (int k = 0; k < params.rig.cameras; ++k) {
     TrajectoryParams tp;
@@ -178,6 +162,40 @@ Expected<SynthSummary> WriteSyntheticDataset(const std::filesystem::path& out_di
     tp.seed = Mix(params.rig.seed, 400 + k);
     trajectories.emplace_back(tp);
   }
+  return trajectories;
+}
+
+std::vector<std::vector<Pose>> TriggerPoses(const SynthParams& params, const Scene& scene) {
+  std::vector<std::vector<Pose>> world_from_cam;
+  for (const CameraTrajectory& trajectory : MakeTrajectories(params, scene)) {
+    world_from_cam.emplace_back();
+    for (int n = 0; n < params.rig.frames; ++n)
+      world_from_cam.back().push_back(trajectory.WorldFromCam(
+          TimeOfViconFrame(params.vicon, ViconFrameOfImage(params.vicon, n))));
+  }
+  return world_from_cam;
+}
+
+Expected<SynthSummary> WriteSyntheticDataset(const std::filesystem::path& out_dir,
+                                             const SynthParams& params,
+                                             const ProgressFn& progress) {
+  if (Status s = params.Check(); !s) return s.error();
+  const auto start = std::chrono::steady_clock::now();
+  SynthSummary summary;
+  summary.sequence_dir = out_dir / params.rig.scene_folder / params.rig.sequence;
+  summary.calibration_dir = out_dir / std::string(layout::kCalibrationFolder);
+  summary.cameras = params.rig.cameras;
+  summary.frames = params.rig.frames;
+  const std::filesystem::path& seq = summary.sequence_dir;
+  const std::filesystem::path& calib = summary.calibration_dir;
+  std::atomic<std::int64_t> files{0};
+
+  Expected<Scene> made = MakeScene(params.rig.scene, params.rig.seed);
+  if (!made) return made.error();
+  const Scene& scene = *made;
+  const std::vector<SynthCamera> cameras = MakeSynthCameras(params);
+  const SynthViconParams& vicon = params.vicon;
+  const std::vector<CameraTrajectory> trajectories = MakeTrajectories(params, scene);
   const Pose vicon_from_world = DefaultViconFromWorld();
   Pose world_from_plate_marker;
   const MarkerCluster plate_cluster = MakePlateCluster(
@@ -202,6 +220,9 @@ Expected<SynthSummary> WriteSyntheticDataset(const std::filesystem::path& out_di
     if (Status s = MakeDirs(bmp.parent_path()); !s) return s.error();
     if (Status s = WriteBmp(bmp, frame.View()); !s) return s.error();
     files += 2;
+    if (progress)
+      progress("synth: white image " + std::to_string(k + 1) + "/" +
+               std::to_string(cameras.size()) + " rendered (camera " + cameras[k].serial + ")");
   }
   std::vector<MarkerCluster> clusters;
   for (const SynthCamera& camera : cameras) clusters.push_back(camera.cluster);
@@ -260,10 +281,8 @@ Expected<SynthSummary> WriteSyntheticDataset(const std::filesystem::path& out_di
     frames.push_back(n);
     trigger_vicon_frames.push_back(ViconFrameOfImage(vicon, n));
   }
-  std::vector<std::vector<Pose>> world_from_cam(cameras.size());
+  const std::vector<std::vector<Pose>> world_from_cam = TriggerPoses(params, scene);
   for (std::size_t k = 0; k < cameras.size(); ++k) {
-    for (std::int64_t vf : trigger_vicon_frames)
-      world_from_cam[k].push_back(trajectories[k].WorldFromCam(TimeOfViconFrame(vicon, vf)));
     if (Status s = WriteText(layout::PosesCsvPath(seq, cameras[k].serial),
                              FormatPosesCsv(frames, trigger_vicon_frames, world_from_cam[k]));
         !s)
@@ -281,6 +300,12 @@ Expected<SynthSummary> WriteSyntheticDataset(const std::filesystem::path& out_di
     return s.error();
   ++files;
 
+  if (!params.rig.images) {
+    summary.files = files;
+    summary.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return summary;
+  }
   // Frames: parallel over (camera, frame), and over micro-image rows inside.
   for (const SynthCamera& camera : cameras)
     if (Status s = MakeDirs(layout::CameraDir(seq, camera.serial)); !s) return s.error();

@@ -16,7 +16,9 @@
 
 #include "config/error.h"
 #include "config/frames.h"
+#include "replay/synth/scene.h"
 #include "replay/synth/synth_params.h"
+#include "replay/synth/trajectory.h"
 #include "replay/synth/vicon_sim.h"
 
 #include <cstdint>
@@ -41,6 +43,12 @@ struct SynthCamera {
 
 // The cameras of a rig, before any rendering (pure function of the params).
 std::vector<SynthCamera> MakeSynthCameras(const SynthParams& params);
+
+// Each camera's trajectory (trajectory.h) as WriteSyntheticDataset moves it
+// through `scene`, and world_from_cam of each camera at each trigger
+// ([camera][frame]): the poses GroundTruth/poses_<serial>.csv holds.
+std::vector<CameraTrajectory> MakeTrajectories(const SynthParams& params, const Scene& scene);
+std::vector<std::vector<Pose>> TriggerPoses(const SynthParams& params, const Scene& scene);
 
 struct SynthSummary {
   std::filesystem::path sequence_dir;

@@ -6,20 +6,10 @@
 namespace lifmcr::synth {
 namespace {
 
-// 32-bit integer hash (lowbias32 by C. Wellons' hash prospector, public domain).
-std::uint32_t Hash(std::uint32_t x) {
-  x ^= x >> 16;
-  x *= 0x7feb352dU;
-  x ^= x >> 15;
-  x *= 0x846ca68bU;
-  x ^= x >> 16;
-  return x;
-}
-
 double LatticeValue(std::int32_t x, std::int32_t y, std::uint32_t seed) {
   // One hash of a linear mix of the lattice coordinates (a second hash per
   // corner cost a fifth of a frame).
-  const std::uint32_t h = Hash(static_cast<std::uint32_t>(x) * 0x9E3779B1U +
+  const std::uint32_t h = HashU32(static_cast<std::uint32_t>(x) * 0x9E3779B1U +
                                static_cast<std::uint32_t>(y) * 0x85EBCA77U + seed);
   return (h >> 8) * (1.0 / 16777216.0);
 }

@@ -19,6 +19,16 @@ struct NoiseTexture {
   double Sample(double u_mm, double v_mm, double footprint_mm) const;
 };
 
+// 32-bit integer hash (lowbias32 by C. Wellons' hash prospector, public domain).
+inline std::uint32_t HashU32(std::uint32_t x) {
+  x ^= x >> 16;
+  x *= 0x7feb352dU;
+  x ^= x >> 15;
+  x *= 0x846ca68bU;
+  x ^= x >> 16;
+  return x;
+}
+
 // Smooth value noise in [0, 1] on the unit lattice, hashed by `seed`.
 double ValueNoise(double x, double y, std::uint32_t seed);
 

@@ -40,6 +40,7 @@ CameraTrajectory::CameraTrajectory(const TrajectoryParams& params) : p_(params) 
   for (Wave& w : roll_) w = wave(0.04 * a, 0.05, 0.3);
   for (int k = 0; k < 6; ++k)
     for (Wave& w : tremor_[k]) w = wave(k < 3 ? 2.5 * a : 0.004 * a, 1.0, 3.0);
+  orbit_phase_ = 0.3 * (unit(rng) - 0.5);
 }
 
 double CameraTrajectory::Sum(const Wave* waves, int count, double t_s) const {
@@ -82,6 +83,21 @@ Pose CameraTrajectory::WorldFromCam(double t_s) const {
       pose.linear() = pose.linear() * Eigen::AngleAxisd(angle, axis).toRotationMatrix();
     }
     return pose;
+  }
+  if (p_.motion == "orbit") {
+    // Over the sequence: azimuth swept once from one side to the other,
+    // elevation, distance, roll and look-at point through one cycle each.
+    const double angle = 2 * M_PI * phase + orbit_phase_;
+    const double scale = p_.amplitude_scale;
+    const double azimuth = -0.26 * scale * std::cos(M_PI * phase);
+    const double elevation = p_.elevation_rad + 0.24 * scale * std::sin(angle);
+    const double distance = p_.distance_mm * (1.0 + 0.08 * scale * std::sin(angle + 1.0));
+    const Eigen::Vector3d wander(30 * scale * std::sin(angle + 0.4), 30 * scale * std::cos(angle),
+                                 0.0);
+    const Eigen::Vector3d eye =
+        target + (eye_at(azimuth, elevation) - p_.target_mm - offset) * distance / p_.distance_mm +
+        0.5 * offset;
+    return LookAt(eye, target + wander, 0.08 * scale * std::sin(angle + 2.0));
   }
   if (p_.motion == "circle") {
     const double azimuth = (phase - 0.5) * M_PI / 2 * p_.amplitude_scale;

@@ -8,7 +8,14 @@
 // position, the look-at point and the roll), handheld (smooth plus tremor:
 // 1-3 Hz, a few mm and tenths of a degree), axis (one axis at a time:
 // translate x, y, z, then yaw, pitch, roll, each back and forth), circle (an
-// arc of 90 degrees around the plate at constant height and distance).
+// arc of 90 degrees around the plate at constant height and distance), orbit
+// (for calibration: over the sequence the camera sweeps 30 degrees of azimuth
+// around the target once, from one side to the other, while its elevation
+// runs through one cycle of 26..54 degrees, its distance +-8 %, its roll
+// +-4.6 degrees and its look-at point +-30 mm, so that the views of a
+// sequence differ by more than 20 degrees about two axes; the cameras of a
+// rig keep their lateral offsets and differ by a small phase of the cycle, so
+// they see common structure throughout).
 
 #include "config/frames.h"
 
@@ -48,6 +55,7 @@ class CameraTrajectory {
   Wave target_[3][2];
   Wave roll_[2];
   Wave tremor_[6][2];
+  double orbit_phase_ = 0;  // rad, per camera
 };
 
 }  // namespace lifmcr::synth

@@ -43,7 +43,7 @@ struct GvRig {
         simulator_b(address_b, serial_b, loss_b_per_thousand) {
     rig = test::TwoCameraRig();
     // The simulator sends a triggered frame at its next 40 ms tick, 20-42 ms
-    // after the trigger (notes/acquisition.md 1.3), stamped on that tick: two
+    // after the trigger (the simulator's frame period), stamped on that tick: two
     // cameras' frames of one trigger can be 40 ms apart. At 80 Hz / 16 = 5 Hz
     // that is 0.2 trigger periods, inside the assembler's 0.25 grid
     // tolerance, also on a loaded machine; at 10 Hz it is 0.4 and frames fall

@@ -6,6 +6,7 @@
 
 #include "apps/pipeline/frame_processor.h"
 #include "apps/pipeline/pipeline.h"
+#include "apps/pipeline/process_settings.h"
 #include "apps/pipeline/replay_runner.h"
 #include "replay/bmp.h"
 #include "replay/sequence.h"
@@ -31,6 +32,9 @@
 
 namespace lifmcr::apps {
 namespace {
+
+// As the commands do before they run the pipeline (process_settings.h).
+const std::unique_ptr<ProcessSettings> kProcessSettings = ProcessSettings::ForPipeline();
 
 constexpr const char* kUrl = "udpm://239.255.76.67:7711?ttl=0";
 // The logger gets a large receive buffer (within net.core.rmem_max): a max-rate
@@ -84,7 +88,7 @@ TEST_F(LoopbackMulticast, LcmLoggerRecordsAMaxRateReplay) {
   ReplayRunOptions options;
   options.sequence_dir = summary->sequence_dir;
   options.rate.kind = ReplayRate::Kind::kMax;
-  options.pipeline.lcm_url = kUrl;
+  options.pipeline.publisher.url = kUrl;
   auto result = RunReplay(options);
   std::this_thread::sleep_for(std::chrono::milliseconds(700));
   kill(logger, SIGINT);

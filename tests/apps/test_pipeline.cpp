@@ -4,12 +4,17 @@
 // live Vicon over UDP reaches LIFMCR_VICON the way `lifmcr record --publish`
 // wires it.
 
+#include "acquisition/recorder.h"
 #include "acquisition/rig_controller.h"
 #include "apps/pipeline/frame_processor.h"
 #include "apps/pipeline/pipeline.h"
+#include "apps/pipeline/process_settings.h"
 #include "apps/pipeline/replay_runner.h"
+#include "drivers/replay_camera.h"
 #include "drivers/vicon_udp_sender.h"
 #include "drivers/vicon_udp_source.h"
+#include "config/rig_config.h"
+#include "processing/registration_stage.h"
 #include "replay/bmp.h"
 #include "replay/layout.h"
 #include "replay/sequence.h"
@@ -23,6 +28,7 @@
 #include <atomic>
 #include <cerrno>
 #include <cmath>
+#include <lifmcr_lcm/camera_extrinsics_t.hpp>
 #include <lifmcr_lcm/depth_image_t.hpp>
 #include <lifmcr_lcm/pipeline_stats_t.hpp>
 #include <lifmcr_lcm/preview_image_t.hpp>
@@ -37,12 +43,16 @@
 namespace lifmcr::apps {
 namespace {
 
+// As the commands do before they run the pipeline (process_settings.h).
+const std::unique_ptr<ProcessSettings> kProcessSettings = ProcessSettings::ForPipeline();
+
 synth::SynthParams TinyRig(int frames) {
   auto params = synth::MakePreset("small");
   EXPECT_TRUE(params.ok());
   params->rig.frames = frames;
   params->rig.cameras = 2;
   params->rig.seed = 7;
+  params->rig.scene = "plain";  // the pipeline is under test, not the scene: the faster render
   return *params;
 }
 
@@ -56,12 +66,12 @@ struct Received {
 
   void OnAny(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
     ++count[channel];
-    if (channel == kStatsChannel) {
+    if (channel.ends_with("_STATS")) {
       lifmcr_lcm::pipeline_stats_t m;
       ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);
       last_stats = m;
       utimes[channel].push_back(m.utime);
-    } else if (channel == kViconChannel) {
+    } else if (channel.ends_with("_VICON")) {
       lifmcr_lcm::vicon_frame_t m;
       ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);
       utimes[channel].push_back(m.utime);
@@ -81,6 +91,12 @@ struct Received {
   }
 };
 
+std::int64_t NowNsForTest() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
 void Drain(lcm::LCM& bus) {
   while (bus.handleTimeout(0) > 0) {
   }
@@ -99,7 +115,7 @@ TEST(Pipeline, MaxRateProcessesAndPublishesEveryFrameWithDepthFromProcessing) {
   ReplayRunOptions options;
   options.sequence_dir = summary->sequence_dir;
   options.rate.kind = ReplayRate::Kind::kMax;
-  options.pipeline.bus = &bus;
+  options.pipeline.publisher.bus = &bus;
   auto result = RunReplay(options);
   ASSERT_TRUE(result.ok()) << result.error().message;
   Drain(bus);
@@ -130,7 +146,7 @@ TEST(Pipeline, MaxRateProcessesAndPublishesEveryFrameWithDepthFromProcessing) {
     for (std::size_t k = 1; k < utimes.size(); ++k) EXPECT_GE(utimes[k], utimes[k - 1]) << channel;
 
   // The published depth decodes to what the processing stage computes for
-  // the same frame, within the 16-bit quantisation.
+  // the same frame, within the 8-bit quantisation (one step, (max - min) / 254).
   auto processor = DepthProcessor::ForSequence(summary->sequence_dir.string(), serials);
   ASSERT_TRUE(processor.ok()) << processor.error().message;
   const std::string serial = serials[0];
@@ -227,7 +243,7 @@ TEST(Pipeline, ProcessesMaxConcurrencyFramesAtOnceAtTheLowerPriority) {
   ReplayRunOptions options;
   options.sequence_dir = summary->sequence_dir;
   options.rate.kind = ReplayRate::Kind::kMax;
-  options.pipeline.bus = &bus;
+  options.pipeline.publisher.bus = &bus;
   options.pipeline.max_concurrency = 2;
   options.pipeline.processing_nice = 7;
   ProbeCounts counts;
@@ -255,7 +271,7 @@ TEST(Pipeline, SlowStageSkipsTheOlderFramesCountsThemAndKeepsTheNewest) {
   ReplayRunOptions options;
   options.sequence_dir = summary->sequence_dir;
   options.rate = *ReplayRate::Parse("4");  // 40 Hz, two cameras: 80 frames/s
-  options.pipeline.bus = &bus;
+  options.pipeline.publisher.bus = &bus;
   options.pipeline.max_concurrency = 1;
   options.pool_buffers = 16;
   // 60 ms per frame: about 16 frames/s processed of 80 offered.
@@ -320,7 +336,7 @@ TEST(Pipeline, LiveViconFromUdpIsPublishedWithItsPoses) {
   sync.trigger.trigger_period_ns = 100'000'000;
   sync.vicon_f0 = kFirstFrame + 3;
   PipelineOptions options;
-  options.bus = &bus;
+  options.publisher.bus = &bus;
   auto pipeline = Pipeline::Create(sync, std::make_unique<PreviewProcessor>(), options);
   ASSERT_TRUE(pipeline.ok()) << pipeline.error().message;
   Pipeline* p = pipeline->get();
@@ -386,6 +402,327 @@ TEST(Pipeline, LiveViconFromUdpIsPublishedWithItsPoses) {
   }
 }
 
+// processing.threads of the rig file: the pipeline's arena has that many
+// workers, so with one thread frames are never processed two at once, even
+// with two allowed in flight.
+TEST(Pipeline, ThreadsOfTheRigFileBoundTheFramesProcessedAtOnce) {
+  test::TempDir dir;
+  auto summary = synth::WriteSyntheticDataset(dir.path(), TinyRig(3));
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  RigConfig rig;
+  rig.processing.threads = 1;
+  lcm::LCM bus("memq://");
+  ReplayRunOptions options;
+  options.sequence_dir = summary->sequence_dir;
+  options.rate.kind = ReplayRate::Kind::kMax;
+  options.pipeline = PipelineOptions::FromRig(rig);
+  options.pipeline.publisher.bus = &bus;
+  options.pipeline.max_concurrency = 2;
+  ProbeCounts counts;
+  auto result = RunReplay(options, std::make_unique<ConcurrencyProbe>(&counts));
+  ASSERT_TRUE(result.ok()) << result.error().message;
+  EXPECT_EQ(result->report.processed, 6u) << result->report.FinalReport();
+  EXPECT_EQ(counts.most_at_once, 1);
+}
+
+// lcm.channel_prefix, lcm.publish_previews and processing.preview_max_px of
+// the rig file change what is published.
+TEST(Pipeline, RigLcmSectionSetsTheChannelsAndThePreviews) {
+  test::TempDir dir;
+  const int frames = 2;
+  auto summary = synth::WriteSyntheticDataset(dir.path(), TinyRig(frames));
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  for (const bool previews : {true, false}) {
+    RigConfig rig;
+    rig.lcm.channel_prefix = "RIG_TEST";
+    rig.lcm.publish_previews = previews;
+    rig.processing.preview_max_px = 64;
+    lcm::LCM bus("memq://");
+    Received received;
+    bus.subscribe(".*", &Received::OnAny, &received);
+    ReplayRunOptions options;
+    options.sequence_dir = summary->sequence_dir;
+    options.rate.kind = ReplayRate::Kind::kMax;
+    options.processing = false;
+    options.preview = PreviewOptionsFromRig(rig);
+    options.pipeline = PipelineOptions::FromRig(rig);
+    options.pipeline.publisher.bus = &bus;
+    auto result = RunReplay(options);
+    ASSERT_TRUE(result.ok()) << result.error().message;
+    Drain(bus);
+    EXPECT_EQ(result->report.processed, 2u * frames);
+    int camera_messages = 0;
+    for (const auto& [channel, n] : received.count) {
+      EXPECT_TRUE(channel.starts_with("RIG_TEST_")) << channel;
+      if (channel.ends_with("_PREVIEW")) camera_messages += n;
+    }
+    EXPECT_GT(received.count["RIG_TEST_STATS"], 0);
+    EXPECT_GT(received.count["RIG_TEST_VICON"], 0);
+    EXPECT_EQ(camera_messages, previews ? 2 * frames : 0);
+    EXPECT_EQ(result->report.published_previews, previews ? 2u * frames : 0u);
+  }
+  // The preview size: read back from a message.
+  RigConfig rig;
+  rig.lcm.channel_prefix = "RIG_SIZE";
+  rig.processing.preview_max_px = 64;
+  lcm::LCM bus("memq://");
+  std::vector<lifmcr_lcm::preview_image_t> previews;
+  struct Collect {
+    std::vector<lifmcr_lcm::preview_image_t>* out;
+    void On(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+      lifmcr_lcm::preview_image_t m;
+      ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);
+      out->push_back(m);
+    }
+  } collect{&previews};
+  bus.subscribe("RIG_SIZE_.*_PREVIEW", &Collect::On, &collect);
+  ReplayRunOptions options;
+  options.sequence_dir = summary->sequence_dir;
+  options.rate.kind = ReplayRate::Kind::kMax;
+  options.processing = false;
+  options.preview = PreviewOptionsFromRig(rig);
+  options.pipeline = PipelineOptions::FromRig(rig);
+  options.pipeline.publisher.bus = &bus;
+  ASSERT_TRUE(RunReplay(options).ok());
+  Drain(bus);
+  ASSERT_EQ(previews.size(), 2u * frames);
+  for (const auto& m : previews) {
+    EXPECT_EQ(std::max(m.width, m.height), 64);
+    EXPECT_GT(m.source_width, 64);
+  }
+  // A bad prefix is an error naming the field.
+  PipelineOptions bad;
+  bad.publisher.channel_prefix = "lower";
+  ASSERT_FALSE(bad.Check().ok());
+  EXPECT_NE(bad.Check().error().message.find("channel_prefix"), std::string::npos);
+  bad = PipelineOptions{};
+  bad.threads = -1;
+  EXPECT_NE(bad.Check().error().message.find("threads"), std::string::npos);
+  PreviewOptions preview;
+  preview.depth_max_side = 0;
+  ASSERT_FALSE(preview.Check().ok());
+  EXPECT_NE(preview.Check().error().message.find("depth_max_side"), std::string::npos);
+}
+
+// A registration stage that knows each camera's pose: w0_from_cx is a
+// rotation about z by 0.1 c rad and a shift of 100 c mm along x, trigger
+// after trigger (camera c).
+class KnownPoseStage final : public processing::RegistrationStage {
+ public:
+  static Pose W0FromC(int camera) {
+    Pose pose = Pose::Identity();
+    pose.linear() = Eigen::AngleAxisd(0.1 * camera, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    pose.translation() = Eigen::Vector3d(100.0 * camera, 5, -3);
+    return pose;
+  }
+  std::string name() const override { return "known"; }
+  Expected<std::optional<processing::CameraPose>> Localize(
+      const processing::StageFrame& frame) override {
+    EXPECT_NE(frame.products, nullptr);
+    EXPECT_GT(frame.products->tf.width, 0);
+    EXPECT_NE(frame.camera, nullptr);
+    ++calls;
+    processing::CameraPose pose;
+    pose.transform = W0FromC(frame.camera_index);
+    pose.method = "known";
+    pose.inliers = 42;
+    return std::optional<processing::CameraPose>(pose);
+  }
+  std::atomic<int> calls{0};
+};
+
+struct ExtrinsicsMessages {
+  std::vector<lifmcr_lcm::camera_extrinsics_t> messages;
+  std::vector<std::string> channels;
+  void On(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+    lifmcr_lcm::camera_extrinsics_t m;
+    ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);
+    messages.push_back(m);
+    channels.push_back(channel);
+  }
+};
+
+// The stage after processing: every processed frame goes through it; once
+// camera 0 and camera 1 have a pose of a trigger, c0_from_c1 =
+// (w0_from_c0)^-1 w0_from_c1 is published on <PREFIX>_<SERIAL>_EXTRINSICS
+// with the trigger index; the pass-through stage publishes none.
+TEST(Pipeline, RegistrationStagePosesBecomeExtrinsicsPerTrigger) {
+  test::TempDir dir;
+  const int frames = 2;
+  auto summary = synth::WriteSyntheticDataset(dir.path(), TinyRig(frames));
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  const auto layout = DiscoverSequence(summary->sequence_dir);
+  ASSERT_TRUE(layout.ok());
+  for (const bool pass_through : {false, true}) {
+    lcm::LCM bus("memq://");
+    ExtrinsicsMessages received;
+    bus.subscribe(".*_EXTRINSICS", &ExtrinsicsMessages::On, &received);
+    auto stage = std::make_shared<KnownPoseStage>();
+    ReplayRunOptions options;
+    options.sequence_dir = summary->sequence_dir;
+    options.rate.kind = ReplayRate::Kind::kMax;
+    options.pipeline.publisher.bus = &bus;
+    if (!pass_through) options.pipeline.registration = stage;
+    auto result = RunReplay(options);
+    ASSERT_TRUE(result.ok()) << result.error().message;
+    Drain(bus);
+    const PipelineReport& r = result->report;
+    EXPECT_EQ(r.processed, 2u * frames) << r.FinalReport();
+    if (pass_through) {
+      EXPECT_EQ(stage->calls, 0);
+      EXPECT_TRUE(received.messages.empty());
+      EXPECT_EQ(r.published_extrinsics, 0u);
+      continue;
+    }
+    EXPECT_EQ(stage->calls, 2 * frames);
+    EXPECT_EQ(r.localized, 2u * frames);
+    ASSERT_EQ(received.messages.size(), static_cast<std::size_t>(frames)) << r.FinalReport();
+    EXPECT_EQ(r.published_extrinsics, static_cast<std::uint64_t>(frames));
+    const Pose expected = KnownPoseStage::W0FromC(0).inverse() * KnownPoseStage::W0FromC(1);
+    std::vector<std::int64_t> triggers;
+    for (std::size_t k = 0; k < received.messages.size(); ++k) {
+      const auto& m = received.messages[k];
+      EXPECT_EQ(m.reference_serial, layout->cameras[0].serial);
+      EXPECT_EQ(m.serial, layout->cameras[1].serial);
+      EXPECT_EQ(received.channels[k], "LIFMCR_" + layout->cameras[1].serial + "_EXTRINSICS");
+      EXPECT_EQ(m.method, "known");
+      EXPECT_EQ(m.inliers, 42);
+      EXPECT_EQ(m.status, "ok");
+      for (int i = 0; i < 3; ++i) EXPECT_NEAR(m.t_mm[i], expected.translation()[i], 1e-9);
+      const Eigen::Quaterniond q(expected.rotation());
+      const double sign = q.w() * m.q_wxyz[0] < 0 ? -1.0 : 1.0;
+      EXPECT_NEAR(sign * m.q_wxyz[3], q.z(), 1e-9);
+      EXPECT_NEAR(sign * m.q_wxyz[0], q.w(), 1e-9);
+      triggers.push_back(m.frame_id);
+    }
+    std::sort(triggers.begin(), triggers.end());
+    EXPECT_EQ(triggers, (std::vector<std::int64_t>{0, 1}));
+  }
+}
+
+// Covariance of c0_from_cx to first order: with A = exp(a) A_hat, B =
+// exp(b) B_hat, a sampled check against the composition itself.
+TEST(Pipeline, ComposedExtrinsicsCarryTheirCovariance) {
+  processing::CameraPose c0, cx;
+  c0.transform = KnownPoseStage::W0FromC(1);
+  cx.transform = KnownPoseStage::W0FromC(3);
+  c0.covariance = Eigen::Matrix<double, 6, 6>::Identity() * 1e-4;
+  cx.covariance = Eigen::Matrix<double, 6, 6>::Identity() * 4e-4;
+  const processing::CameraPose out = processing::ComposeExtrinsics(c0, cx);
+  EXPECT_TRUE(out.transform.isApprox(c0.transform.inverse() * cx.transform, 1e-12));
+  // The rotation block is R (Sigma_a + Sigma_b)_rr R^T, R = rotation of
+  // c0_from_w0: isotropic stays isotropic. The translation block adds the
+  // rotation's lever arm: [t]x R Sigma_rr R^T [t]x^T on top of R Sigma_tt R^T.
+  const Eigen::Matrix3d rr = out.covariance.bottomRightCorner<3, 3>();
+  EXPECT_TRUE(rr.isApprox(5e-4 * Eigen::Matrix3d::Identity(), 1e-9)) << rr;
+  const Eigen::Vector3d t = c0.transform.inverse().translation();
+  Eigen::Matrix3d tx;
+  tx << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
+  const Eigen::Matrix3d tt = out.covariance.topLeftCorner<3, 3>();
+  EXPECT_TRUE(tt.isApprox(5e-4 * Eigen::Matrix3d::Identity() + 5e-4 * tx * tx.transpose(), 1e-9))
+      << tt;
+  EXPECT_TRUE(out.covariance.isApprox(out.covariance.transpose(), 1e-12));
+  // Unknown covariance on either side: unknown.
+  c0.covariance.setZero();
+  EXPECT_TRUE(processing::ComposeExtrinsics(c0, cx).covariance.isZero(0));
+}
+
+// Record and replay share the grab loop: RigController drives replay
+// cameras as fast as the pipeline takes frames (back-pressure, as
+// RunReplay runs them) with the recorder beside the pipeline (as `record
+// --publish` runs it): every frame is on disk and every frame is published.
+TEST(Pipeline, RecordAndReplayShareTheGrabLoopEveryFrameRecordedAndPublished) {
+  test::TempDir dir;
+  const int frames = 3;
+  auto summary = synth::WriteSyntheticDataset(dir / "synth", TinyRig(frames));
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  const auto sequence = DiscoverSequence(summary->sequence_dir);
+  ASSERT_TRUE(sequence.ok());
+  RigConfig rig;
+  rig.name = "shared";
+  std::vector<std::unique_ptr<Camera>> cameras;
+  std::vector<const ReplayCamera*> replay;
+  FrameSetAssemblerOptions sync;
+  sync.vicon_expected = false;
+  sync.trigger.counter_bits = 64;
+  sync.trigger.counter_skips_zero = false;
+  sync.lateness_ns = 3'600'000'000'000;  // as RunReplay at --rate max
+  const std::int64_t clock_start = NowNsForTest();
+  for (std::size_t i = 0; i < sequence->cameras.size(); ++i) {
+    CameraConfig camera;
+    camera.serial = sequence->cameras[i].serial;
+    camera.name = "cam" + std::to_string(i);
+    camera.driver.kind = DriverKind::kReplay;
+    camera.mla_file = layout::MlaXmlPath(summary->calibration_dir, camera.serial);
+    rig.cameras.push_back(camera);
+    sync.serials.push_back(camera.serial);
+    ReplayCameraOptions options;
+    options.camera_index = static_cast<int>(i);
+    options.pacing = ReplayPacing::kAsFastAsPossible;
+    options.pool_buffers = 4;
+    options.sequence_clock_start_ns = clock_start;
+    auto replay_camera = std::make_unique<ReplayCamera>(sequence->cameras[i].dir, options);
+    replay.push_back(replay_camera.get());
+    cameras.push_back(std::move(replay_camera));
+  }
+  rig.vicon.source = ViconSourceKind::kNone;
+  RecorderOptions recorder_options;
+  recorder_options.root_dir = dir / "rec";
+  recorder_options.direct_io = false;
+  auto recorder = Recorder::Create(rig, recorder_options);
+  ASSERT_TRUE(recorder.ok()) << recorder.error().message;
+
+  lcm::LCM bus("memq://");
+  Received received;
+  bus.subscribe("LIFMCR_.*", &Received::OnAny, &received);
+  PipelineOptions pipeline_options;
+  pipeline_options.publisher.bus = &bus;
+  pipeline_options.skip_when_busy = false;
+  pipeline_options.frame_sets_from_grab_loop = true;
+  auto pipeline = Pipeline::Create(sync, std::make_unique<PreviewProcessor>(), pipeline_options);
+  ASSERT_TRUE(pipeline.ok()) << pipeline.error().message;
+  Pipeline* p = pipeline->get();
+  // One assembler: the controller's FrameSets feed the pipeline.
+  RigObserver observer;
+  observer.on_frame_set = [p](const FrameSet& set) { p->AddFrameSet(set); };
+  RigControllerOptions controller_options;
+  controller_options.sync = sync;
+  controller_options.trigger_hz = 0;
+  controller_options.drain = std::chrono::milliseconds(0);
+  RigController controller(std::move(cameras), {false, false}, nullptr, recorder->get(),
+                           controller_options, observer);
+  ASSERT_TRUE(controller.Start().ok());
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (!controller.CamerasFinished() && std::chrono::steady_clock::now() < deadline) {
+    p->Poll();
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  EXPECT_TRUE(controller.CamerasFinished());
+  controller.Stop();
+  (*recorder)->Stop();
+  const RigHealth health = controller.Health();
+  p->SetSyncDrops(health.sync_drops);
+  p->Finish();
+  Drain(bus);
+  EXPECT_EQ(health.frame_sets, static_cast<std::uint64_t>(frames));
+  EXPECT_FALSE(health.FramesLost() > 0) << health.FinalReport();
+  for (const CameraHealth& camera : health.cameras)
+    EXPECT_EQ(camera.recorder.written, static_cast<std::uint64_t>(frames)) << health.FinalReport();
+  const PipelineReport r = p->Report();
+  EXPECT_EQ(r.processed, 2u * frames) << r.FinalReport();
+  EXPECT_EQ(r.skipped, 0u);
+  EXPECT_EQ(r.frame_sets, static_cast<std::uint64_t>(frames));
+  EXPECT_EQ(r.sync_lost, 0u) << r.drops;
+  for (const auto& camera : sequence->cameras) {
+    EXPECT_EQ(received.count[CameraChannel(camera.serial, "PREVIEW")], frames) << camera.serial;
+    for (std::int64_t f : camera.frames)
+      EXPECT_TRUE(std::filesystem::exists(layout::RawFramePath(
+          (*recorder)->sequence_dir(), camera.serial, f)))
+          << camera.serial << " " << f;
+  }
+  for (const ReplayCamera* camera : replay) EXPECT_EQ(camera->Stats().underruns, 0u);
+}
+
 TEST(Pipeline, RateParsing) {
   EXPECT_EQ(ReplayRate::Parse("original")->kind, ReplayRate::Kind::kOriginal);
   EXPECT_EQ(ReplayRate::Parse("max")->kind, ReplayRate::Kind::kMax);
@@ -397,20 +734,25 @@ TEST(Pipeline, RateParsing) {
 
 TEST(Pipeline, DepthQuantisationRoundTrips) {
   std::vector<float> values = {1.5f, NAN, 3.25f, 2.0f, NAN, 4.0f};
-  auto encoded = EncodeDepth(values, 3, 2);
-  ASSERT_TRUE(encoded.ok());
-  EXPECT_NEAR(encoded->valid_fraction, 4.0 / 6.0, 1e-6);
-  int w = 0, h = 0;
-  auto decoded = DecodeDepth(encoded->png, encoded->scale, encoded->offset, &w, &h);
-  ASSERT_TRUE(decoded.ok());
-  EXPECT_EQ(w, 3);
-  EXPECT_EQ(h, 2);
-  for (std::size_t k = 0; k < values.size(); ++k) {
-    EXPECT_EQ(std::isnan(values[k]), std::isnan((*decoded)[k]));
-    if (!std::isnan(values[k])) {
-      EXPECT_NEAR(values[k], (*decoded)[k], encoded->scale);
+  for (const int bits : {8, 16}) {
+    auto encoded = EncodeDepth(values, 3, 2, bits);
+    ASSERT_TRUE(encoded.ok());
+    EXPECT_NEAR(encoded->valid_fraction, 4.0 / 6.0, 1e-6);
+    // One step over the map's own range: 254 or 65534 steps from 1.5 to 4.
+    EXPECT_NEAR(encoded->scale, 2.5 / (bits == 8 ? 254 : 65534), 1e-7);
+    int w = 0, h = 0;
+    auto decoded = DecodeDepth(encoded->png, encoded->scale, encoded->offset, &w, &h);
+    ASSERT_TRUE(decoded.ok());
+    EXPECT_EQ(w, 3);
+    EXPECT_EQ(h, 2);
+    for (std::size_t k = 0; k < values.size(); ++k) {
+      EXPECT_EQ(std::isnan(values[k]), std::isnan((*decoded)[k]));
+      if (!std::isnan(values[k])) {
+        EXPECT_NEAR(values[k], (*decoded)[k], encoded->scale / 2 + 1e-6) << bits;
+      }
     }
   }
+  EXPECT_FALSE(EncodeDepth(values, 3, 2, 12).ok());
 }
 
 }  // namespace

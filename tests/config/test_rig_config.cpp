@@ -162,7 +162,8 @@ TEST(RigConfigExamples, FakeGigeTwoCamerasLoadsWithItsValues) {
 }
 
 TEST(RigConfigExamples, FormatParsesBackEqual) {
-  for (const char* name : {"lifmcr_two_r32.yaml", "fake_gige_two_cameras.yaml"}) {
+  for (const char* name : {"lifmcr_two_r32.yaml", "fake_gige_two_cameras.yaml",
+                           "gentl_simulator_two_cameras.yaml"}) {
     const Expected<RigConfig> rig = LoadRigConfig(ExamplePath(name));
     ASSERT_TRUE(rig.ok()) << rig.error().message;
     const std::string text = FormatRigConfig(*rig);

@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <vector>
@@ -274,8 +275,16 @@ TEST(CameraFactory, MakesReplayAndAravisCamerasAndRejectsWhatItCannot) {
   ASSERT_FALSE(no_sequence.ok());
   EXPECT_NE(no_sequence.error().message.find("cam0"), std::string::npos);
 
+  // A GenTL camera is made; without a producer (no cti, nothing in
+  // GENICAM_GENTL64_PATH) it cannot open, and says why.
   config.driver.kind = DriverKind::kGenTl;
-  EXPECT_FALSE(MakeCamera(config, 0, options).ok());
+  unsetenv("GENICAM_GENTL64_PATH");
+  auto gentl = MakeCamera(config, 0, options);
+  ASSERT_TRUE(gentl.ok()) << gentl.error().message;
+  const Status gentl_open = (*gentl)->Open();
+  ASSERT_FALSE(gentl_open);
+  EXPECT_NE(gentl_open.error().message.find("GENICAM_GENTL64_PATH"), std::string::npos)
+      << gentl_open.error().message;
 
   config.driver.kind = DriverKind::kAravis;
   config.driver.address = "Fake_1";

@@ -6,13 +6,15 @@
 
 namespace lifmcr::processing::testing {
 
-SynthFrame RenderSynthFrame(const std::string& preset, double read_noise_dn) {
+SynthFrame RenderSynthFrame(const std::string& preset, double read_noise_dn,
+                            const std::string& scene_name, bool bayer) {
   SynthFrame f;
   const synth::SynthParams params = *synth::MakePreset(preset);
   f.params = params.camera;
   f.params.read_noise_dn = read_noise_dn;
+  f.params.bayer = bayer;
   f.model = std::make_unique<synth::PlenopticModel>(f.params);
-  const synth::Scene scene = synth::MakeTableTopScene(params.rig.seed);
+  const synth::Scene scene = *synth::MakeScene(scene_name, params.rig.seed);
   synth::TrajectoryParams tp;
   tp.target_mm = scene.Target();
   tp.distance_mm = params.rig.viewing_distance_mm;

@@ -1,7 +1,8 @@
 #pragma once
-// One synthetic frame of the `small` preset rendered in memory (table-top
-// scene, camera 1100 mm from the plate as `lifmcr synth` places it), with its
-// white image, MLA file, true intrinsics and ground truth.
+// One synthetic frame of a preset rendered in memory (a scene of
+// replay/synth/scene.h, by default `plain`; the camera where `lifmcr synth`
+// places it at t = 0), with its white image, MLA file, true intrinsics and
+// ground truth.
 
 #include "config/mla.h"
 #include "processing/camera_model.h"
@@ -23,6 +24,9 @@ struct SynthFrame {
   CameraIntrinsics intrinsics;
 };
 
-SynthFrame RenderSynthFrame(const std::string& preset = "small", double read_noise_dn = 1.0);
+// `scene`: replay/synth/scene.h's name; `bayer`: the sensor writes an RGGB
+// mosaic (Mono8) instead of BGR8.
+SynthFrame RenderSynthFrame(const std::string& preset = "small", double read_noise_dn = 1.0,
+                            const std::string& scene = "plain", bool bayer = false);
 
 }  // namespace lifmcr::processing::testing

@@ -36,6 +36,14 @@ TEST(CliDepth, GridAndDepthOnASyntheticDataset) {
   EXPECT_NE(grid.out.find("residual"), std::string::npos) << grid.out;
   EXPECT_NE(grid.out.find("centres differ by"), std::string::npos) << grid.out;
   EXPECT_TRUE(fs::exists(fitted));
+  // No white image: the lattice from the raw frame of the textured scene.
+  const fs::path raw_frame = seq / ("TypeE_" + serial) / ("TypeE_" + serial + "_000000_Raw.bmp");
+  const test::CommandResult textured =
+      test::RunLifmcr("grid " + raw_frame.string() + " --textured --mla " + mla.string() +
+                      " --out " + (dir / "textured_MLA.xml").string());
+  ASSERT_EQ(textured.exit_code, 0) << textured.err;
+  EXPECT_NE(textured.out.find("raw image (textured scene)"), std::string::npos) << textured.out;
+  EXPECT_NE(textured.out.find("centres differ by"), std::string::npos) << textured.out;
 
   const fs::path out = dir / "depth";
   const test::CommandResult depth = test::RunLifmcr(

@@ -1,11 +1,13 @@
 // MLA grid from synthetic white images: centres within 0.05 px RMS of the
 // truth, lens types as the generator's.
 
+#include "processing/grid_from_raw.h"
 #include "processing/mla_grid.h"
 #include "replay/synth/plenoptic_model.h"
 #include "replay/synth/renderer.h"
 #include "replay/synth/scene.h"
 #include "replay/synth/synth_params.h"
+#include "tests/processing/synth_frame.h"
 
 #include <gtest/gtest.h>
 
@@ -87,6 +89,37 @@ TEST_P(GridFit, CentresWithinFiveHundredthsOfAPixel) {
 INSTANTIATE_TEST_SUITE_P(WhiteImages, GridFit,
                          ::testing::Values(WhiteCase{0.0, {0.3, -0.2}},
                                            WhiteCase{0.004, {-3.7, 5.25}}));
+
+// No white image: the lattice from a raw image of the textured table-top
+// scene, started from a slightly wrong MLA file, and without one.
+TEST(GridFitTextured, RawOfATexturedSceneWithinATenthOfAPixel) {
+  const testing::SynthFrame s = testing::RenderSynthFrame("small", 1.0);
+  const synth::PlenopticModel& truth = *s.model;
+  MlaCalibration file = s.mla;
+  file.offset_px += Eigen::Vector2d(0.6, -0.4);
+  file.diameter_px *= 1.001;
+  file.rotation_rad += 5e-4;
+  const MlaGrid initial = MlaGrid::FromCalibration(file, s.raw.width, s.raw.height);
+  double rms0 = 0, rms = 0;
+  int type_errors = 0, lenses = 0;
+  CompareWithTruth(truth, initial, &rms0, &type_errors, &lenses);
+  EXPECT_GT(rms0, 0.3);
+  Expected<GridFitResult> fit = FitGridToRawImage(s.raw.View(), &initial);
+  ASSERT_TRUE(fit.ok()) << fit.error().message;
+  CompareWithTruth(truth, fit->grid, &rms, &type_errors, &lenses);
+  std::printf("textured raw fit from a wrong MLA file (%.3f px RMS): %s; vs truth %.4f px RMS\n",
+              rms0, fit->BriefReport().c_str(), rms);
+  EXPECT_LT(rms, 0.1) << fit->BriefReport();
+  EXPECT_EQ(type_errors, 0);
+  EXPECT_GT(lenses, 2000);
+
+  // Without an MLA file the white-image detector's first lattice is wrong
+  // on this strongly textured scene: an error that says what to give, not a
+  // wrong lattice.
+  Expected<GridFitResult> blind = FitGridToRawImage(s.raw.View(), nullptr);
+  ASSERT_FALSE(blind.ok());
+  EXPECT_NE(blind.error().message.find("MLA file"), std::string::npos) << blind.error().message;
+}
 
 TEST(GridFitErrors, BlackImageIsAnError) {
   std::vector<std::uint8_t> black(200 * 100, 0);

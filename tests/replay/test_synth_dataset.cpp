@@ -280,5 +280,106 @@ TEST(SynthDataset, BadParametersAreErrorsNotFiles) {
   EXPECT_TRUE(std::filesystem::is_empty(dir.path()));
 }
 
+// `--motion orbit`, read back from GroundTruth/poses_*.csv: over a sequence
+// each camera turns by more than 20 degrees about its x and its y axis, and
+// the two cameras see common structure (points of the table around the
+// scene, projected with the `small` camera) in most frames.
+TEST(SynthDataset, OrbitMotionViewsFromVariedAnglesWithCommonStructure) {
+  test::TempDir dir;
+  SynthParams params = TinyRig(5);
+  params.camera.width_px = 128;  // poses do not depend on the sensor size
+  params.camera.height_px = 96;
+  params.rig.frames = 24;
+  params.rig.motion = "orbit";
+  Expected<SynthSummary> summary = WriteSyntheticDataset(dir.path(), params);
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  const PlenopticModel small(MakePreset("small")->camera);
+  std::vector<std::vector<Pose>> world_from_cam;
+  for (const char* serial : {"40398678", "40398673"}) {
+    std::string header;
+    const auto rows = ReadNumbers(layout::PosesCsvPath(summary->sequence_dir, serial), &header);
+    ASSERT_EQ(rows.size(), 24u) << serial;
+    std::vector<Pose> poses;
+    for (const auto& row : rows) poses.push_back(PoseFromFields(row, 2));
+    // Rotation of each view relative to the first, in the first view's axes.
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
+    for (const Pose& pose : poses) {
+      const Eigen::AngleAxisd turn(poses.front().linear().transpose() * pose.linear());
+      const Eigen::Vector3d r = turn.angle() * turn.axis() * 180.0 / M_PI;
+      lo = lo.cwiseMin(r);
+      hi = hi.cwiseMax(r);
+    }
+    const Eigen::Vector3d spread = hi - lo;
+    std::printf("camera %s: rotation spread over %zu frames: %.1f deg about x, %.1f about y, "
+                "%.1f about z\n",
+                serial, poses.size(), spread.x(), spread.y(), spread.z());
+    EXPECT_GE(spread.x(), 20.0) << serial;
+    EXPECT_GE(spread.y(), 20.0) << serial;
+    world_from_cam.push_back(poses);
+  }
+  // Table points around the scene seen by both cameras (no occlusion test).
+  const auto visible = [&](const Pose& world_from, const Eigen::Vector3d& p_in_world) {
+    const Eigen::Vector3d p = world_from.inverse() * p_in_world;
+    if (p.z() <= small.params().main_focal_length_mm * 2) return false;
+    const Eigen::Vector3d x = small.VirtualPoint(p);
+    return x.x() >= 0 && x.y() >= 0 && x.x() < small.width() && x.y() < small.height();
+  };
+  int frames_in_common = 0;
+  double worst = 1.0;
+  for (std::size_t f = 0; f < 24; ++f) {
+    int a = 0, b = 0, both = 0;
+    for (double x = -400; x <= 800; x += 10)
+      for (double y = -300; y <= 900; y += 10) {
+        const Eigen::Vector3d p(x, y, 0);
+        const bool in_a = visible(world_from_cam[0][f], p), in_b = visible(world_from_cam[1][f], p);
+        a += in_a;
+        b += in_b;
+        both += in_a && in_b;
+      }
+    ASSERT_GT(std::min(a, b), 0) << "frame " << f << ": a camera sees no table";
+    const double common = static_cast<double>(both) / std::min(a, b);
+    worst = std::min(worst, common);
+    frames_in_common += common >= 0.5;
+  }
+  std::printf("frames where the cameras share >= 50 %% of the table they see: %d of 24 (worst "
+              "%.0f %%)\n",
+              frames_in_common, 100 * worst);
+  EXPECT_GE(frames_in_common, 20);
+
+  // At `medium` (the calibration gates' preset), the same motion keeps the
+  // whole marker plate (every ArUco corner) in view of both cameras in most
+  // frames; at `small` (240 mm of field) part of it.
+  for (const char* preset : {"medium", "small"}) {
+    SynthParams p = *MakePreset(preset);
+    p.rig.frames = 24;
+    p.rig.motion = "orbit";
+    p.rig.seed = 5;
+    const PlenopticModel model(p.camera);
+    const Scene scene = *MakeScene(p.rig.scene, p.rig.seed);
+    int whole_plate = 0;
+    const std::vector<std::vector<Pose>> poses = TriggerPoses(p, scene);
+    for (std::size_t k = 0; k < poses.size(); ++k)
+      for (const Pose& pose : poses[k]) {
+        bool all = true;
+        for (const Eigen::Vector2d& c : scene.plate.aruco_centers_mm)
+          for (double dx : {-0.5, 0.5})
+            for (double dy : {-0.5, 0.5}) {
+              const Eigen::Vector3d corner(c.x() + dx * scene.plate.aruco_side_mm,
+                                           c.y() + dy * scene.plate.aruco_side_mm, 0);
+              const Eigen::Vector3d q = pose.inverse() * corner;
+              const Eigen::Vector3d x = model.VirtualPoint(q);
+              all = all && q.z() > 0 && x.x() >= 0 && x.y() >= 0 && x.x() < model.width() &&
+                    x.y() < model.height();
+            }
+        whole_plate += all;
+      }
+    std::printf("%s: the whole plate in view in %d of %zu views\n", preset, whole_plate,
+                poses.size() * 24);
+    if (std::string(preset) == "medium") {
+      EXPECT_GE(whole_plate, 0.8 * poses.size() * 24);
+    }
+  }
+}
+
 }  // namespace
 }  // namespace lifmcr::synth

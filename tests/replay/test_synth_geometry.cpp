@@ -130,7 +130,7 @@ TEST(SynthModel, PresetsHavePlausibleR32Geometry) {
 // appears.
 TEST(SynthRender, NeighbouringMicroImagesAgreeAtTheGroundTruthVirtualDepth) {
   const PlenopticModel model(SmallCamera());
-  const Scene scene = MakeTableTopScene(5);
+  const Scene scene = MakePlainScene(5);
   TrajectoryParams tp;
   tp.target_mm = scene.Target();
   tp.distance_mm = 1100;
@@ -193,7 +193,7 @@ TEST(SynthRender, NeighbouringMicroImagesAgreeAtTheGroundTruthVirtualDepth) {
 // virtual-depth ground truth is the same v.
 TEST(SynthRender, TfDepthAndRawVirtualDepthDescribeTheSameSurface) {
   const PlenopticModel model(SmallCamera());
-  const Scene scene = MakeTableTopScene(6);
+  const Scene scene = MakePlainScene(6);
   TrajectoryParams tp;
   tp.target_mm = scene.Target();
   tp.distance_mm = 1100;
@@ -232,7 +232,7 @@ TEST(SynthRender, TfDepthAndRawVirtualDepthDescribeTheSameSurface) {
 // the right of the image when the camera looks down with its y along -world y.
 TEST(SynthRender, MarkerPlateAppearsWhereTheWorldFrameSaysInTheAllInFocusImage) {
   const PlenopticModel model(SmallCamera());
-  const Scene scene = MakeTableTopScene(1);
+  const Scene scene = MakePlainScene(1);
   const Eigen::Vector3d eye = scene.Target() + Eigen::Vector3d(0, -1.0, 2000.0);
   const Pose world_from_cam = LookAt(eye, scene.Target());
   const TfGroundTruth tf = RenderTfGroundTruth(model, scene, world_from_cam);

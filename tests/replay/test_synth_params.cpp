@@ -52,6 +52,13 @@ TEST(SynthParams, YamlOverridesFields) {
   EXPECT_DOUBLE_EQ(params->camera.mla_offset_px.y(), -2.0);
   EXPECT_EQ(params->rig.frames, 7);
   EXPECT_EQ(params->rig.motion, "circle");
+  EXPECT_EQ(params->rig.scene, "table");
+  EXPECT_EQ(params->rig.scene_folder, "00_Synthetic");
+  const Expected<SynthParams> folder = ParseSynthConfig(
+      "rig:\n  scene: plain\n  scene_folder: 07_Plain\n", "synth.yaml", *MakePreset("small"));
+  ASSERT_TRUE(folder.ok()) << folder.error().message;
+  EXPECT_EQ(folder->rig.scene, "plain");
+  EXPECT_EQ(folder->rig.scene_folder, "07_Plain");
   EXPECT_EQ(params->vicon.occlusion_gaps, 2);
 }
 
@@ -64,6 +71,9 @@ TEST(SynthParams, YamlErrorsNameFileLineColumnAndKey) {
       {"camera:\n  widht_px: 100\n", {"synth.yaml:2:3", "/camera/widht_px", "unknown key"}},
       {"camera:\n  f_number: fast\n", {"synth.yaml:2:13", "/camera/f_number", "expected a finite number"}},
       {"rig:\n  frames: [1, 2]\n", {"synth.yaml:2:11", "/rig/frames", "expected an integer"}},
+      // `scene` names the content; a folder name there points to scene_folder.
+      {"rig:\n  scene: 00_Synthetic\n", {"rig.scene", "table|plain", "rig.scene_folder"}},
+      {"rig:\n  scene_folder: a/b\n", {"synth.yaml", "rig.scene_folder", "letters"}},
       {"lens:\n  x: 1\n", {"synth.yaml:1:1", "/lens", "expected one of: preset"}},
       {"camera:\n  f_number: 0.1\n", {"synth.yaml", "camera.f_number", "0.5..64"}},
       {"preset: tiny\n", {"synth.yaml:1:9", "/preset", "unknown preset 'tiny'"}},
@@ -93,7 +103,7 @@ TEST(SynthSensor, BayerMosaicSamplesTheRggbChannel) {
   SynthCameraParams camera = MakePreset("small")->camera;
   camera.width_px = 256;
   camera.height_px = 192;
-  const Scene scene = MakeTableTopScene(2);
+  const Scene scene = MakePlainScene(2);
   TrajectoryParams tp;
   tp.target_mm = scene.Target();
   tp.distance_mm = 1100;
@@ -149,8 +159,8 @@ TEST(SynthSensor, NoiseHasTheModelledVariance) {
 // Every motion kind is smooth at the Vicon rate, keeps the plate in front of
 // the camera, moves, and differs between cameras (seeds).
 TEST(SynthMotion, TrajectoriesAreSmoothAndLookAtThePlate) {
-  const Scene scene = MakeTableTopScene(1);
-  for (const char* motion : {"smooth", "handheld", "axis", "circle"}) {
+  const Scene scene = MakePlainScene(1);
+  for (const char* motion : {"smooth", "handheld", "axis", "circle", "orbit"}) {
     TrajectoryParams tp;
     tp.motion = motion;
     tp.target_mm = scene.Target();
@@ -204,7 +214,7 @@ TEST(SynthCli, WritesASmallRig) {
   test::WriteFile(dir / "tiny.yaml", "camera:\n  width_px: 256\n  height_px: 192\n");
   const test::CommandResult result = test::RunLifmcr(
       "synth --out " + (dir / "out").string() + " --config " + (dir / "tiny.yaml").string() +
-      " --frames 2 --cameras 3 --motion handheld --noise 1 --seed 3 --scene 01_Test");
+      " --frames 2 --cameras 3 --motion handheld --noise 1 --seed 3 --scene-folder 01_Test");
   ASSERT_EQ(result.exit_code, 0) << result.err;
   EXPECT_NE(result.out.find("3 camera(s) x 2 frame(s)"), std::string::npos) << result.out;
   EXPECT_NE(result.err.find("6/6 rendered"), std::string::npos) << result.err;

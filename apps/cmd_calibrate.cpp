@@ -1,0 +1,210 @@
+// `lifmcr calibrate SEQ_DIR --camera SERIAL --out DIR [--initial cameras.yaml]
+// [--mla FILE] [--frames LIST] [--recalibrate FIXED.yaml] [--plate FILE]`:
+// intrinsic calibration of one plenoptic camera and its reference map
+// (registration/calibration.h). Writes into DIR intrinsics.yaml, the
+// reference map (cameras.txt, images.txt, points3D.txt, points.ply,
+// descriptors.bin), poses_<serial>.csv and calibration_report.md.
+
+#include "apps/commands.h"
+#include "registration/calibration.h"
+#include "registration/calibration_frames.h"
+#include "registration/calibration_gates.h"
+#include "registration/intrinsics_yaml.h"
+#include "registration/reference_map.h"
+#include "replay/layout.h"
+
+#include <CLI/CLI.hpp>
+
+#include <charconv>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <set>
+#include <string>
+
+namespace lifmcr::apps {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CalibrateOptions {
+  std::string sequence;
+  std::string camera;
+  std::string out;
+  std::string initial;
+  std::string mla;
+  std::string frames;
+  std::string recalibrate;
+  std::string plate;
+  int max_features = 4000;
+  bool quiet = false;
+  bool ground_truth = false;
+  bool fix_principal_point = false;
+  bool fix_distortion = false;
+};
+
+int Fail(const std::string& message, int code = 1) {
+  std::cerr << "lifmcr calibrate: " << message << "\n";
+  return code;
+}
+
+// "0-9,12,20-24" -> frame numbers; errors name the bad part.
+Expected<std::set<std::int64_t>> ParseFrameList(const std::string& text) {
+  std::set<std::int64_t> frames;
+  std::size_t at = 0;
+  while (at <= text.size()) {
+    const std::size_t end = std::min(text.find(',', at), text.size());
+    const std::string part = text.substr(at, end - at);
+    const std::size_t dash = part.find('-', 1);
+    std::int64_t a = 0, b = 0;
+    auto parse = [](const std::string& s, std::int64_t* v) {
+      const auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), *v);
+      return ec == std::errc() && p == s.data() + s.size() && *v >= 0;
+    };
+    const bool ok = dash == std::string::npos
+                        ? parse(part, &a) && (b = a, true)
+                        : parse(part.substr(0, dash), &a) && parse(part.substr(dash + 1), &b);
+    if (!ok || b < a)
+      return Error{"--frames: expected frame numbers and ranges such as 0-9,12, got '" + part +
+                   "'"};
+    for (std::int64_t f = a; f <= b; ++f) frames.insert(f);
+    at = end + 1;
+  }
+  return frames;
+}
+
+int RunCalibrate(const CalibrateOptions& o) {
+  const fs::path seq = o.sequence;
+  const fs::path gt_yaml = layout::CamerasYamlPath(seq);
+  const fs::path plate_path = o.plate.empty() ? gt_yaml : fs::path(o.plate);
+  if (o.initial.empty() && o.recalibrate.empty())
+    return Fail("--initial cameras.yaml is needed: the nominal pixel size, f_L, b_L0 and B "
+                "(or --recalibrate FIXED.yaml)",
+                2);
+  Expected<registration::CameraCalibration> initial = registration::ReadCameraCalibration(
+      o.initial.empty() ? o.recalibrate : o.initial, o.camera);
+  if (!initial) return Fail(initial.error().message);
+  if (!o.recalibrate.empty()) {
+    Expected<registration::CameraCalibration> fixed =
+        registration::ReadCameraCalibration(o.recalibrate, o.camera);
+    if (!fixed) return Fail(fixed.error().message);
+    initial->intrinsics.main_focal_length_mm = fixed->intrinsics.main_focal_length_mm;
+    initial->intrinsics.mla_to_sensor_mm = fixed->intrinsics.mla_to_sensor_mm;
+  }
+  if (!fs::exists(plate_path))
+    return Fail(plate_path.string() +
+                ": no marker plate layout (--plate names a file with a plate: section)");
+  Expected<registration::PlateLayout> plate = registration::ReadPlateLayout(plate_path);
+  if (!plate) return Fail(plate.error().message);
+
+  registration::FrameLoaderOptions loader_options;
+  loader_options.lambda = processing::CameraModel(initial->intrinsics).lambda();
+  loader_options.features.max_features = o.max_features;
+  auto loader = registration::CalibrationFrameLoader::Open(seq, o.camera, o.mla, *plate,
+                                                           loader_options);
+  if (!loader) return Fail(loader.error().message);
+  if ((*loader)->width() != initial->intrinsics.width_px ||
+      (*loader)->height() != initial->intrinsics.height_px)
+    return Fail("the raw frames are " + std::to_string((*loader)->width()) + "x" +
+                std::to_string((*loader)->height()) + ", the initial intrinsics " +
+                std::to_string(initial->intrinsics.width_px) + "x" +
+                std::to_string(initial->intrinsics.height_px));
+  std::vector<std::int64_t> frames = (*loader)->frames();
+  if (!o.frames.empty()) {
+    Expected<std::set<std::int64_t>> wanted = ParseFrameList(o.frames);
+    if (!wanted) return Fail(wanted.error().message, 2);
+    std::vector<std::int64_t> kept;
+    for (const std::int64_t f : *wanted) {
+      if (std::find(frames.begin(), frames.end(), f) == frames.end())
+        return Fail("--frames: camera " + o.camera + " has no frame " + std::to_string(f));
+      kept.push_back(f);
+    }
+    frames = kept;
+  }
+  const registration::ProgressFn progress = [&](std::string_view line) {
+    if (!o.quiet) std::cerr << line << "\n";
+  };
+
+  registration::CalibrationInput input;
+  input.serial = o.camera;
+  input.initial = *initial;
+  input.micro_images = &(*loader)->micro_images();
+  for (const std::int64_t f : frames) {
+    Expected<registration::CalibrationFrame> frame = (*loader)->Load(f);
+    if (!frame) return Fail(frame.error().message);
+    char line[256];
+    std::snprintf(line, sizeof(line),
+                  "frame %lld: %d SIFT keypoints, TF depth %.0f %%, %zu plate corners, %.2f s",
+                  static_cast<long long>(f), frame->features.size(),
+                  100 * frame->tf_depth_coverage, frame->corners.size(), frame->seconds);
+    progress(line);
+    input.frames.push_back(std::move(*frame));
+  }
+  registration::CalibrationOptions options;
+  options.recalibrate = !o.recalibrate.empty();
+  options.estimate_principal_point = !o.fix_principal_point;
+  options.estimate_distortion = !o.fix_distortion;
+  Expected<registration::CalibrationResult> result =
+      registration::Calibrate(input, options, progress);
+  if (!result) return Fail(result.error().message);
+
+  std::error_code ec;
+  fs::create_directories(o.out, ec);
+  if (ec) return Fail(o.out + ": " + ec.message());
+  const fs::path out = o.out;
+  registration::CalibrationAnnotation annotation;
+  annotation.summary = result->BriefReport();
+  const char* keys[registration::kIntrinsicsSize] = {
+      "main_focal_length_mm", "mla_to_main_lens_mm", "mla_to_sensor_mm", "principal_point_x_px",
+      "principal_point_y_px", "k1", "k2", "p1", "p2"};
+  for (int i = 0; i < registration::kIntrinsicsSize; ++i)
+    if (!std::isnan(result->std_dev[i])) annotation.std_dev[keys[i]] = result->std_dev[i];
+  if (Status s = registration::WriteIntrinsicsYaml(out / "intrinsics.yaml", o.camera,
+                                                   result->calibration, annotation);
+      !s)
+    return Fail(s.error().message);
+  if (Status s = registration::WriteReferenceMap(out, result->map); !s)
+    return Fail(s.error().message);
+  std::ofstream report(out / "calibration_report.md", std::ios::binary);
+  report << registration::FormatCalibrationReport(*result, o.camera);
+  if (!report) return Fail((out / "calibration_report.md").string() + ": could not write");
+  std::cout << result->BriefReport() << "\n";
+  if (o.ground_truth) {
+    Expected<registration::GroundTruthComparison> c =
+        registration::CompareWithGroundTruth(*result, seq, o.camera);
+    if (!c) return Fail(c.error().message);
+    std::cout << c->BriefReport() << "\n";
+    report << "\n## Against the ground truth\n\n" << c->BriefReport() << "\n";
+  }
+  for (const std::string& flag : result->flags) std::cerr << "flag: " << flag << "\n";
+  return result->usable ? 0 : 3;
+}
+
+}  // namespace
+
+CommandRun AddCalibrateCommand(CLI::App& app) {
+  auto o = std::make_shared<CalibrateOptions>();
+  app.add_option("SEQ_DIR", o->sequence, "Sequence folder (SCENE/SEQ)")->required();
+  app.add_option("--camera", o->camera, "Serial of the camera to calibrate")->required();
+  app.add_option("--out", o->out, "Output folder (created if needed)")->required();
+  app.add_option("--initial", o->initial,
+                 "cameras.yaml with nominal values (pixel size, f_L, b_L0, B)");
+  app.add_option("--mla", o->mla, "MLA XML (default: the dataset's Calibration folder)");
+  app.add_option("--frames", o->frames, "Frames to use, e.g. 0-39 or 0,4,8 (default: all)");
+  app.add_option("--recalibrate", o->recalibrate,
+                 "cameras.yaml whose f_L and B are held fixed (LiFCal recalib)");
+  app.add_option("--plate", o->plate,
+                 "File with the marker plate's `plate:` section (default: "
+                 "SEQ/GroundTruth/cameras.yaml)");
+  app.add_option("--max-features", o->max_features, "SIFT keypoints per TF image (0 = all)");
+  app.add_flag("--quiet", o->quiet, "No progress lines on stderr");
+  app.add_flag("--fix-principal-point", o->fix_principal_point,
+               "Hold the principal point at its initial value");
+  app.add_flag("--fix-distortion", o->fix_distortion, "Hold k1, k2, p1, p2 at their initial values");
+  app.add_flag("--ground-truth", o->ground_truth,
+               "Synthetic sequences: compare with SEQ/GroundTruth and print the figures");
+  return [o] { return RunCalibrate(*o); };
+}
+
+}  // namespace lifmcr::apps

@@ -1,0 +1,349 @@
+// `lifmcr register SEQ_DIR --reference MAP_DIR --method pnp|ransac|both
+// [--camera SERIAL...] --out DIR`: every camera X of a sequence registered to
+// the reference camera 0 (the map's camera), per frame:
+//   w0_from_c0 and w0_from_cx by the chosen method (registration/frame_registration.h),
+//   c0_from_cx = c0_from_w0 * w0_from_cx      (registration/extrinsics.h).
+// Writes DIR/registration.csv (the columns lifmcr evaluate reads, one row per
+// frame, camera and method; status `ok` or the reason) and TUM trajectories
+// DIR/trajectory_<serial>_<method>.tum of w0_from_cam (mm, frame number as
+// the time stamp). Progress on stderr, a summary line per camera. When the
+// sequence has GroundTruth/poses_<serial>.csv (lifmcr synth), the per-frame
+// errors of c0_from_cx against it are printed, and with --method both the
+// differences between the methods, as the paper's supplementary does.
+//
+// --reference-from-ground-truth builds the map from the sequence's ground
+// truth (registration/ground_truth_map.h) instead of reading one;
+// --observations ground-truth takes keypoints and depth from the ground
+// truth instead of processing the raw frames.
+
+#include "apps/commands.h"
+#include "registration/evaluation_inputs.h"
+#include "registration/extrinsics.h"
+#include "registration/frame_observations.h"
+#include "registration/frame_registration.h"
+#include "registration/ground_truth_map.h"
+#include "registration/intrinsics_yaml.h"
+#include "registration/poses_csv.h"
+#include "registration/reference_map.h"
+#include "registration/trajectory_metrics.h"
+#include "replay/layout.h"
+#include "replay/sequence.h"
+
+#include <CLI/CLI.hpp>
+
+#include <Eigen/Geometry>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace lifmcr::apps {
+namespace {
+
+namespace fs = std::filesystem;
+namespace reg = registration;
+
+struct RegisterOptions {
+  std::string sequence;
+  std::string reference;
+  std::string method = "pnp";
+  std::vector<std::string> cameras;
+  std::string out;
+  std::string intrinsics;
+  std::string observations = "raw";
+  bool reference_from_ground_truth = false;
+  int map_frames = 3;
+  int frames = 0;
+  int max_features = 4000;
+};
+
+int Fail(const std::string& message, int code = 1) {
+  std::cerr << "lifmcr register: " << message << "\n";
+  return code;
+}
+
+// Per camera and method: w0_from_cam per frame (registered frames only).
+using Trajectory = std::map<std::int64_t, reg::PoseWithCovariance>;
+
+void WriteTum(const fs::path& path, const Trajectory& trajectory) {
+  std::ofstream out(path);
+  out << "# TUM trajectory of w0_from_cam: frame tx_mm ty_mm tz_mm qx qy qz qw\n";
+  char line[256];
+  for (const auto& [frame, pose] : trajectory) {
+    const Eigen::Quaterniond q(pose.pose.linear());
+    const Eigen::Vector3d t = pose.pose.translation();
+    std::snprintf(line, sizeof line, "%lld %.6f %.6f %.6f %.9f %.9f %.9f %.9f\n",
+                  static_cast<long long>(frame), t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w());
+    out << line;
+  }
+}
+
+struct Errors {
+  std::vector<double> t_mm, r_deg;
+};
+
+void PrintStats(const std::string& label, const Errors& e) {
+  const ErrorStats t = ErrorStats::Of(e.t_mm), r = ErrorStats::Of(e.r_deg);
+  std::printf("  %-34s translation %s | rotation %s\n", label.c_str(), t.BriefReport("mm").c_str(),
+              r.BriefReport("deg").c_str());
+}
+
+int RunRegister(const RegisterOptions& o) {
+  const fs::path seq = o.sequence;
+  std::vector<reg::RegistrationMethod> methods;
+  if (o.method == "both") {
+    methods = {reg::RegistrationMethod::kPnp, reg::RegistrationMethod::kRansac3d};
+  } else if (const auto m = reg::ParseRegistrationMethod(o.method)) {
+    methods = {*m};
+  } else {
+    return Fail("--method " + o.method + ": expected pnp, ransac or both", 2);
+  }
+  reg::ObservationSource source;
+  if (o.observations == "raw") source = reg::ObservationSource::kRaw;
+  else if (o.observations == "ground-truth") source = reg::ObservationSource::kGroundTruth;
+  else return Fail("--observations " + o.observations + ": expected raw or ground-truth", 2);
+  if (o.reference.empty() == !o.reference_from_ground_truth)
+    return Fail("give either --reference MAP_DIR or --reference-from-ground-truth", 2);
+  const fs::path intrinsics_path =
+      o.intrinsics.empty() ? layout::CamerasYamlPath(seq) : fs::path(o.intrinsics);
+
+  Expected<SequenceLayout> layout_or = DiscoverSequence(seq);
+  if (!layout_or) return Fail(layout_or.error().message);
+  std::vector<std::string> serials = o.cameras;
+  if (serials.empty())
+    for (const CameraFolder& c : layout_or->cameras) serials.push_back(c.serial);
+
+  std::map<std::string, processing::CameraModel> cameras;
+  auto camera_of = [&](const std::string& serial) -> Expected<processing::CameraModel> {
+    if (const auto it = cameras.find(serial); it != cameras.end()) return it->second;
+    Expected<reg::CameraCalibration> k = reg::ReadCameraCalibration(intrinsics_path, serial);
+    if (!k) return k.error();
+    return cameras.emplace(serial, processing::CameraModel(k->intrinsics)).first->second;
+  };
+
+  // The reference map and camera 0.
+  std::error_code ec;
+  fs::create_directories(o.out, ec);
+  if (ec) return Fail(o.out + ": " + ec.message());
+  reg::FeatureOptions features;
+  features.max_features = o.max_features;
+  reg::ReferenceMap map;
+  if (o.reference_from_ground_truth) {
+    // Camera 0: the sequence's first camera (the ground truth lists it first).
+    Expected<SynthGroundTruthInfo> info = ReadCamerasYaml(layout::CamerasYamlPath(seq));
+    if (!info) return Fail(info.error().message);
+    if (info->serials.empty()) return Fail(layout::CamerasYamlPath(seq).string() + ": no cameras");
+    const std::string reference = info->serials.front();
+    Expected<processing::CameraModel> camera = camera_of(reference);
+    if (!camera) return Fail(camera.error().message);
+    std::vector<std::int64_t> frames;
+    for (int f = 0; f < o.map_frames; ++f) frames.push_back(f);
+    reg::GroundTruthMapOptions map_options;
+    map_options.features = features;
+    Expected<reg::ReferenceMap> built =
+        reg::BuildGroundTruthMap(seq, reference, frames, *camera, map_options);
+    if (!built) return Fail(built.error().message);
+    map = std::move(*built);
+    if (Status s = reg::WriteReferenceMap(fs::path(o.out) / "reference", map); !s)
+      return Fail(s.error().message);
+    std::cerr << "reference map from ground truth: camera " << reference << ", "
+              << map.points.size() << " points from frames 0-" << o.map_frames - 1 << " -> "
+              << (fs::path(o.out) / "reference").string() << "\n";
+  } else {
+    Expected<reg::ReferenceMap> read = reg::ReadReferenceMap(o.reference);
+    if (!read) return Fail(read.error().message);
+    map = std::move(*read);
+  }
+  const std::string reference_serial = map.camera.serial;
+  const reg::MapIndex index = reg::MapIndex::Of(map);
+  if (index.size() < 10)
+    return Fail("the reference map has " + std::to_string(index.size()) +
+                " points with descriptors; at least 10 are needed");
+  // Camera 0 is registered too: its w0_from_c0 per frame composes every c0_from_cx.
+  if (std::find(serials.begin(), serials.end(), reference_serial) == serials.end())
+    serials.insert(serials.begin(), reference_serial);
+  else
+    std::stable_partition(serials.begin(), serials.end(),
+                          [&](const std::string& s) { return s == reference_serial; });
+
+  reg::FrameRegistrationOptions options;
+  // The methods' trajectories: [method][serial] -> w0_from_cam.
+  std::map<reg::RegistrationMethod, std::map<std::string, Trajectory>> trajectories;
+  std::map<reg::RegistrationMethod, std::map<std::string, std::map<std::int64_t, std::string>>>
+      failures;
+  std::map<std::string, std::vector<std::int64_t>> frames_of;
+  std::map<std::pair<reg::RegistrationMethod, std::string>, std::map<std::int64_t, std::size_t>>
+      inliers_of;
+  std::map<std::pair<reg::RegistrationMethod, std::string>, std::map<std::int64_t, double>> rmse_of;
+  for (const std::string& serial : serials) {
+    Expected<processing::CameraModel> camera = camera_of(serial);
+    if (!camera) return Fail(camera.error().message);
+    Expected<std::unique_ptr<reg::FrameObserver>> observer = reg::FrameObserver::Open(
+        source, seq, serial, *camera, layout::CamerasYamlPath(seq), features);
+    if (!observer) return Fail(observer.error().message);
+    std::vector<std::int64_t> frames = (*observer)->frames();
+    if (o.frames > 0 && frames.size() > static_cast<std::size_t>(o.frames))
+      frames.resize(static_cast<std::size_t>(o.frames));
+    frames_of[serial] = frames;
+    for (const std::int64_t frame : frames) {
+      Expected<reg::FrameObservations> obs = (*observer)->Observe(frame);
+      for (const reg::RegistrationMethod method : methods) {
+        if (!obs) {
+          failures[method][serial][frame] = obs.error().message;
+          continue;
+        }
+        const reg::FrameRegistration r = reg::RegisterFrame(index, *camera, *obs, method, options);
+        inliers_of[{method, serial}][frame] = r.inliers;
+        rmse_of[{method, serial}][frame] = r.rmse_px;
+        if (r.success)
+          trajectories[method][serial][frame] = r.w0_from_cam;
+        else
+          failures[method][serial][frame] = r.status;
+        std::cerr << "camera " << serial << " frame " << frame << ": "
+                  << obs->features.size() << " keypoints (" << static_cast<int>(1e3 * obs->seconds)
+                  << " ms), " << r.BriefReport(method) << "\n";
+      }
+    }
+  }
+
+  // c0_from_cx per frame, the CSV rows and the TUM files.
+  std::vector<RegistrationRow> rows;
+  std::map<std::pair<reg::RegistrationMethod, std::string>, std::map<std::int64_t, Pose>> c0_from;
+  for (const reg::RegistrationMethod method : methods) {
+    const std::string name(reg::ToString(method));
+    const Trajectory& reference_trajectory = trajectories[method][reference_serial];
+    for (const std::string& serial : serials) {
+      WriteTum(fs::path(o.out) / ("trajectory_" + serial + "_" + name + ".tum"),
+               trajectories[method][serial]);
+      if (serial == reference_serial) continue;
+      int ok = 0;
+      for (const std::int64_t frame : frames_of[serial]) {
+        RegistrationRow row;
+        row.frame = frame;
+        row.camera = serial;
+        row.method = name;
+        row.inliers = static_cast<std::int64_t>(inliers_of[{method, serial}][frame]);
+        row.rmse_px = rmse_of[{method, serial}][frame];
+        const auto x = trajectories[method][serial].find(frame);
+        const auto zero = reference_trajectory.find(frame);
+        if (x == trajectories[method][serial].end()) {
+          row.status = failures[method][serial][frame];
+        } else if (zero == reference_trajectory.end()) {
+          const auto why = failures[method][reference_serial].find(frame);
+          row.status = "reference camera " + reference_serial + ": " +
+                       (why != failures[method][reference_serial].end() ? why->second
+                                                                         : "frame missing");
+        } else {
+          row.c0_from_cx = reg::C0FromCxByPnp(zero->second, x->second).pose;
+          row.status = "ok";
+          c0_from[{method, serial}][frame] = row.c0_from_cx;
+          ++ok;
+        }
+        rows.push_back(row);
+      }
+      std::fprintf(stderr, "%s: camera %s -> %s: %d of %zu frames registered\n", name.c_str(),
+                   serial.c_str(), reference_serial.c_str(), ok, frames_of[serial].size());
+    }
+  }
+  {
+    std::ofstream csv(fs::path(o.out) / "registration.csv");
+    csv << FormatRegistrationCsv(rows);
+    if (!csv) return Fail((fs::path(o.out) / "registration.csv").string() + ": cannot write");
+  }
+
+  // Against the ground truth, when the sequence has it.
+  std::map<std::string, std::map<std::int64_t, Pose>> world_from;
+  for (const std::string& serial : serials) {
+    Expected<std::vector<reg::FramePose>> gt = reg::ReadPosesCsv(layout::PosesCsvPath(seq, serial));
+    if (!gt) break;
+    for (const reg::FramePose& p : *gt) world_from[serial][p.frame] = p.world_from_cam;
+  }
+  if (world_from.size() == serials.size()) {
+    std::printf("c0_from_cx against GroundTruth (per frame; c0_from_cx_true = world_from_c0^-1 "
+                "world_from_cx):\n");
+    for (const std::string& serial : serials) {
+      if (serial == reference_serial) continue;
+      std::printf("camera %s -> %s\n  frame", serial.c_str(), reference_serial.c_str());
+      for (const reg::RegistrationMethod method : methods)
+        std::printf("   %6s t_mm  r_deg", std::string(reg::ToString(method)).c_str());
+      if (methods.size() == 2) std::printf("   diff t_mm  r_deg");
+      std::printf("\n");
+      std::map<reg::RegistrationMethod, Errors> errors;
+      Errors differences;
+      for (const std::int64_t frame : frames_of[serial]) {
+        const auto zero = world_from[reference_serial].find(frame);
+        const auto x = world_from[serial].find(frame);
+        if (zero == world_from[reference_serial].end() || x == world_from[serial].end()) continue;
+        const Pose truth = zero->second.inverse() * x->second;
+        std::printf("  %5lld", static_cast<long long>(frame));
+        std::vector<const Pose*> estimates;
+        for (const reg::RegistrationMethod method : methods) {
+          const auto& by_frame = c0_from[{method, serial}];
+          const auto e = by_frame.find(frame);
+          if (e == by_frame.end()) {
+            std::printf("   %6s %6s %6s", "", "failed", "");
+            estimates.push_back(nullptr);
+            continue;
+          }
+          const double t = reg::TranslationDifference(e->second, truth);
+          const double r = reg::RotationDifferenceDeg(e->second, truth);
+          errors[method].t_mm.push_back(t);
+          errors[method].r_deg.push_back(r);
+          std::printf("   %6s %6.3f %6.4f", "", t, r);
+          estimates.push_back(&e->second);
+        }
+        if (estimates.size() == 2 && estimates[0] && estimates[1]) {
+          const double t = reg::TranslationDifference(*estimates[0], *estimates[1]);
+          const double r = reg::RotationDifferenceDeg(*estimates[0], *estimates[1]);
+          differences.t_mm.push_back(t);
+          differences.r_deg.push_back(r);
+          std::printf("   %9.3f %6.4f", t, r);
+        }
+        std::printf("\n");
+      }
+      for (const reg::RegistrationMethod method : methods) {
+        std::vector<double> t = errors[method].t_mm, r = errors[method].r_deg;
+        const double median_t = ErrorStats::Of(t).median, median_r = ErrorStats::Of(r).median;
+        PrintStats(std::string(reg::ToString(method)) + " error vs ground truth", errors[method]);
+        std::printf("  %-34s median %.3f mm / %.4f deg (gate <= 2 mm / 0.1 deg), registered "
+                    "%zu/%zu (gate >= 95 %%)\n",
+                    (std::string(reg::ToString(method)) + " gate").c_str(), median_t, median_r,
+                    t.size(), frames_of[serial].size());
+      }
+      if (methods.size() == 2) PrintStats("difference pnp - ransac", differences);
+    }
+  }
+  std::printf("wrote %s (%zu rows)\n", (fs::path(o.out) / "registration.csv").string().c_str(),
+              rows.size());
+  return 0;
+}
+
+}  // namespace
+
+CommandRun AddRegisterCommand(CLI::App& app) {
+  auto o = std::make_shared<RegisterOptions>();
+  app.add_option("SEQ_DIR", o->sequence, "Sequence folder (SCENE/SEQ)")->required();
+  app.add_option("--reference", o->reference, "Reference map folder (lifmcr calibrate's output)");
+  app.add_flag("--reference-from-ground-truth", o->reference_from_ground_truth,
+               "Build the map from the sequence's ground truth (camera 0, --map-frames frames)");
+  app.add_option("--map-frames", o->map_frames, "Frames of camera 0 in a ground-truth map")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--method", o->method, "pnp, ransac or both");
+  app.add_option("--camera", o->cameras, "Cameras to register (default: all)");
+  app.add_option("--out", o->out, "Output folder")->required();
+  app.add_option("--intrinsics", o->intrinsics,
+                 "cameras.yaml / intrinsics.yaml (default: SEQ/GroundTruth/cameras.yaml)");
+  app.add_option("--observations", o->observations,
+                 "Keypoints and depth from: raw (processing) or ground-truth");
+  app.add_option("--frames", o->frames, "Only the first N frames of each camera (0: all)");
+  app.add_option("--max-features", o->max_features, "SIFT keypoints per frame (0: all)");
+  return [o] { return RunRegister(*o); };
+}
+
+}  // namespace lifmcr::apps

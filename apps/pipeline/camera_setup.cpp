@@ -1,0 +1,97 @@
+// Calibration files -> processing::CameraSetup (camera_setup.h).
+
+#include "apps/pipeline/camera_setup.h"
+
+#include "replay/raw_image.h"
+#include "replay/camera_calibration.h"
+#include "replay/mla_xml.h"
+#include "replay/synth/cameras_yaml.h"
+
+
+namespace lifmcr::apps {
+namespace {
+
+namespace fs = std::filesystem;
+
+Expected<processing::CameraSetup> Load(const std::string& serial,
+                                       const CameraCalibrationPaths& paths,
+                                       const fs::path& intrinsics) {
+  processing::CameraSetup setup;
+  setup.serial = serial;
+  auto mla = ReadMlaXml(paths.mla);
+  if (!mla) return Error{mla.error().message + " (MLA file of camera " + serial + ")"};
+  setup.mla = std::move(*mla);
+  if (paths.white) {
+    auto white = ReadRawImage(*paths.white);
+    if (!white) return Error{white.error().message + " (white image of camera " + serial + ")"};
+    setup.white = std::move(*white);
+  }
+  if (!intrinsics.empty()) {
+    auto k = ReadIntrinsics(intrinsics, serial);
+    if (!k) return k.error();
+    setup.intrinsics = *k;
+  }
+  return setup;
+}
+
+}  // namespace
+
+// Through the strict YAML reader (replay/synth/cameras_yaml.h): a regular
+// file of at most 1 MiB, typed keys, ranges of a real camera, errors with
+// file:line:column and key path (yaml-cpp exceptions used to escape here).
+Expected<processing::CameraIntrinsics> ReadIntrinsics(const fs::path& path,
+                                                      const std::string& serial) {
+  Expected<synth::CameraModelYaml> model = synth::ReadCameraModelYaml(path, serial);
+  if (!model) return model.error();
+  processing::CameraIntrinsics k;
+  k.width_px = model->width_px;
+  k.height_px = model->height_px;
+  k.pixel_size_mm = model->pixel_size_mm;
+  k.main_focal_length_mm = model->main_focal_length_mm;
+  k.mla_to_main_lens_mm = model->mla_to_main_lens_mm;
+  k.mla_to_sensor_mm = model->mla_to_sensor_mm;
+  k.k1 = model->k1;
+  k.k2 = model->k2;
+  k.p1 = model->p1;
+  k.p2 = model->p2;
+  if (Status s = k.Check(); !s) return Error{path.string() + ": " + s.error().message};
+  return k;
+}
+
+Expected<processing::CameraSetup> LoadSequenceCamera(const fs::path& sequence_dir,
+                                                     const std::string& serial,
+                                                     const CameraFileOverrides& files) {
+  auto paths = CalibrationPathsForSequence(sequence_dir, serial, files.mla, files.white);
+  if (!paths) return paths.error();
+  if (!files.look_up_white && files.white.empty()) paths->white.reset();
+  return Load(serial, *paths, files.intrinsics);
+}
+
+Expected<std::vector<processing::CameraSetup>> LoadSequenceCameras(
+    const fs::path& sequence_dir, const std::vector<std::string>& serials) {
+  std::vector<processing::CameraSetup> out;
+  for (const std::string& serial : serials) {
+    auto setup = LoadSequenceCamera(sequence_dir, serial);
+    if (!setup) return setup.error();
+    out.push_back(std::move(*setup));
+  }
+  return out;
+}
+
+Expected<std::vector<processing::CameraSetup>> LoadRigCameras(const RigConfig& rig) {
+  std::vector<processing::CameraSetup> out;
+  for (std::size_t i = 0; i < rig.cameras.size(); ++i) {
+    const CameraConfig& camera = rig.cameras[i];
+    if (camera.mla_file.empty())
+      return Error{"/cameras/" + std::to_string(i) + "/mla_file: camera " + camera.serial +
+                   " has none (depth needs the MLA file of every camera)"};
+    auto paths = CalibrationPathsForMla(camera.serial, camera.mla_file);
+    if (!paths) return paths.error();
+    auto setup = Load(camera.serial, *paths, {});
+    if (!setup) return setup.error();
+    out.push_back(std::move(*setup));
+  }
+  return out;
+}
+
+}  // namespace lifmcr::apps

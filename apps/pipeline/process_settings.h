@@ -1,0 +1,36 @@
+#pragma once
+// Process-wide settings a command that runs the pipeline makes once, before
+// it starts threads (lifmcr replay, record --publish, demo; the tests and
+// benchmarks that stand in for them). The pipeline library never makes
+// them itself: they change the whole process.
+//
+// - Allocator: the processing workers allocate and free buffers of
+//   megabytes per frame (preview and TF encoding, OpenCV temporaries).
+//   glibc serves those with mmap and returns them with munmap, and trims its
+//   heap on free; both take the process's memory-map lock, and every page
+//   fault of the Vicon and camera threads then waits behind it: Vicon packet
+//   -> LCM p99 went from 0.2-0.7 ms to 6-19 ms with frames flowing
+//   (bench_pipeline). Serving up to 32 MB (glibc's upper limit) from the
+//   heap and never trimming it keeps the freed memory in the process for
+//   the next frame instead.
+// - TBB: it starts cores - 1 workers by default, keeping a slot for a master
+//   thread that here (the command's loop) never helps; the pipeline's arena
+//   has no master slot, so the process allows one worker more.
+
+#include <memory>
+
+namespace lifmcr::apps {
+
+class ProcessSettings {
+ public:
+  // Applies both; the TBB limit holds while the returned object lives.
+  static std::unique_ptr<ProcessSettings> ForPipeline();
+  ~ProcessSettings();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  ProcessSettings();
+};
+
+}  // namespace lifmcr::apps

@@ -1,0 +1,238 @@
+// LCM messages of the pipeline (publisher.h).
+
+#include "apps/pipeline/publisher.h"
+
+#include <lcm/lcm-cpp.hpp>
+
+#include <cstdlib>
+#include <ctime>
+#include <Eigen/Geometry>
+#include <lifmcr_lcm/camera_extrinsics_t.hpp>
+#include <lifmcr_lcm/depth_image_t.hpp>
+#include <lifmcr_lcm/pipeline_stats_t.hpp>
+#include <lifmcr_lcm/preview_image_t.hpp>
+#include <lifmcr_lcm/vicon_frame_t.hpp>
+
+namespace lifmcr::apps {
+namespace {
+
+std::int64_t NowRealtimeUs() {
+  timespec ts{};
+  clock_gettime(CLOCK_REALTIME, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000 + ts.tv_nsec / 1000;
+}
+
+lifmcr_lcm::preview_image_t ToPreviewMessage(const EncodedImage& image, const FrameMeta& meta,
+                                             std::int64_t utime) {
+  lifmcr_lcm::preview_image_t m;
+  m.utime = utime;
+  m.serial = meta.serial;
+  m.frame_id = static_cast<std::int64_t>(meta.frame_id);
+  m.trigger_index = meta.trigger_index;
+  m.source_width = image.source_width;
+  m.source_height = image.source_height;
+  m.width = image.width;
+  m.height = image.height;
+  m.row_stride = 0;
+  m.channels = static_cast<std::int8_t>(image.channels);
+  m.encoding = image.encoding == EncodedImage::Encoding::kJpeg
+                   ? lifmcr_lcm::preview_image_t::ENCODING_JPEG
+                   : lifmcr_lcm::preview_image_t::ENCODING_PNG;
+  m.data = image.bytes;
+  m.size = static_cast<std::int32_t>(m.data.size());
+  return m;
+}
+
+bool ValidPrefix(const std::string& prefix) {
+  if (prefix.empty()) return false;
+  for (char c : prefix)
+    if (!((c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_')) return false;
+  return true;
+}
+
+}  // namespace
+
+PublisherOptions PublisherOptions::FromRig(const LcmConfig& lcm) {
+  PublisherOptions options;
+  options.url = lcm.url;
+  options.channel_prefix = lcm.channel_prefix;
+  options.publish_previews = lcm.publish_previews;
+  return options;
+}
+
+Status PublisherOptions::Check() const {
+  if (!ValidPrefix(channel_prefix))
+    return Error{"publisher: channel_prefix: expected [A-Z0-9_]+, got '" + channel_prefix + "'"};
+  // url: any text LCM accepts (checked by opening it); bus: any;
+  // publish_previews: any value.
+  return Status::Ok();
+}
+
+Publisher::~Publisher() = default;
+
+Expected<std::unique_ptr<Publisher>> Publisher::Create(const PublisherOptions& options) {
+  if (Status s = options.Check(); !s) return s.error();
+  std::unique_ptr<Publisher> p(new Publisher());
+  p->options_ = options;
+  p->channels_.prefix = options.channel_prefix;
+  if (options.bus) {
+    p->lcm_ = options.bus;
+  } else {
+    p->own_lcm_ = std::make_unique<lcm::LCM>(options.url);
+    p->lcm_ = p->own_lcm_.get();
+    // Only UDP multicast: two memq:// instances are two buses, two file://
+    // instances two writers of one log.
+    const char* default_url = std::getenv("LCM_DEFAULT_URL");
+    const std::string url = !options.url.empty() ? options.url
+                            : default_url        ? default_url
+                                                 : "udpm://";
+    if (p->lcm_->good() && url.starts_with("udpm://"))
+      p->vicon_lcm_ = std::make_unique<lcm::LCM>(options.url);
+  }
+  if (!p->lcm_->good() || (p->vicon_lcm_ && !p->vicon_lcm_->good()))
+    return Error{"LCM: cannot open '" +
+                 (options.url.empty() ? std::string("default URL") : options.url) +
+                 "' (for UDP multicast on loopback: ip link set lo multicast on; ip route add "
+                 "239.255.76.67/32 dev lo)"};
+  return p;
+}
+
+template <typename Message>
+void Publisher::PublishOn(lcm::LCM& bus, std::mutex& bus_mutex, const std::string& channel,
+                          const Message& message) {
+  std::lock_guard lock(bus_mutex);
+  if (bus.publish(channel, &message) != 0) ++errors_;
+}
+
+Publisher::FrameCounts Publisher::PublishFrame(const FrameMeta& meta, const ProcessedFrame& p) {
+  const std::int64_t utime = NowRealtimeUs();
+  FrameCounts counts;
+  if (p.preview && options_.publish_previews) {
+    PublishOn(*lcm_, lcm_mutex_, channels_.Camera(meta.serial, "PREVIEW"),
+              ToPreviewMessage(*p.preview, meta, utime));
+    ++counts.previews;
+  }
+  if (p.tf && options_.publish_previews) {
+    PublishOn(*lcm_, lcm_mutex_, channels_.Camera(meta.serial, "TF"),
+              ToPreviewMessage(*p.tf, meta, utime));
+    ++counts.tf;
+  }
+  if (p.depth) {
+    lifmcr_lcm::depth_image_t m;
+    m.utime = utime;
+    m.serial = meta.serial;
+    m.frame_id = static_cast<std::int64_t>(meta.frame_id);
+    m.trigger_index = meta.trigger_index;
+    m.kind = lifmcr_lcm::depth_image_t::KIND_VIRTUAL;
+    m.geometry = lifmcr_lcm::depth_image_t::GEOMETRY_TOTALLY_FOCUSED;
+    m.width = p.depth->width;
+    m.height = p.depth->height;
+    m.scale = p.depth->scale;
+    m.offset = p.depth->offset;
+    m.valid_fraction = p.depth->valid_fraction;
+    m.min_value = p.depth->min_value;
+    m.max_value = p.depth->max_value;
+    m.encoding = lifmcr_lcm::preview_image_t::ENCODING_PNG;
+    m.data = p.depth->png;
+    m.size = static_cast<std::int32_t>(m.data.size());
+    PublishOn(*lcm_, lcm_mutex_, channels_.Camera(meta.serial, "DEPTH"), m);
+    ++counts.depth;
+  }
+  return counts;
+}
+
+void Publisher::PublishVicon(const ViconFrame& frame, bool is_trigger) {
+  lifmcr_lcm::vicon_frame_t m;
+  m.utime = frame.host_ns / 1000;
+  m.vicon_frame = frame.vicon_frame;
+  m.is_trigger = is_trigger;
+  for (const ViconObjectPose& object : frame.objects) {
+    lifmcr_lcm::vicon_object_t o{};
+    o.name = object.name;
+    o.occluded = !object.vicon_from_marker.has_value();
+    if (object.vicon_from_marker) {
+      const Eigen::Vector3d t = object.vicon_from_marker->translation();
+      const Eigen::Quaterniond q(object.vicon_from_marker->rotation());
+      for (int k = 0; k < 3; ++k) o.t_mm[k] = t[k];
+      o.q_wxyz[0] = q.w();
+      o.q_wxyz[1] = q.x();
+      o.q_wxyz[2] = q.y();
+      o.q_wxyz[3] = q.z();
+    }
+    m.objects.push_back(o);
+  }
+  m.num_objects = static_cast<std::int32_t>(m.objects.size());
+  if (vicon_lcm_)
+    PublishOn(*vicon_lcm_, vicon_lcm_mutex_, channels_.Vicon(), m);
+  else
+    PublishOn(*lcm_, lcm_mutex_, channels_.Vicon(), m);
+}
+
+void Publisher::PublishExtrinsics(const std::string& reference_serial, const std::string& serial,
+                                  std::int64_t trigger_index,
+                                  const processing::CameraPose& c0_from_cx) {
+  lifmcr_lcm::camera_extrinsics_t m;
+  m.utime = NowRealtimeUs();
+  m.reference_serial = reference_serial;
+  m.serial = serial;
+  m.frame_id = trigger_index;
+  m.method = c0_from_cx.method;
+  const Eigen::Vector3d t = c0_from_cx.transform.translation();
+  const Eigen::Quaterniond q(c0_from_cx.transform.rotation());
+  for (int k = 0; k < 3; ++k) m.t_mm[k] = t[k];
+  m.q_wxyz[0] = q.w();
+  m.q_wxyz[1] = q.x();
+  m.q_wxyz[2] = q.y();
+  m.q_wxyz[3] = q.z();
+  for (int r = 0; r < 6; ++r)
+    for (int c = 0; c < 6; ++c) m.covariance[r][c] = c0_from_cx.covariance(r, c);
+  m.inliers = c0_from_cx.inliers;
+  m.rmse_px = c0_from_cx.rmse_px;
+  m.status = c0_from_cx.status;
+  PublishOn(*lcm_, lcm_mutex_, channels_.Camera(serial, "EXTRINSICS"), m);
+}
+
+void Publisher::PublishStats(const StatsSnapshot& s) {
+  lifmcr_lcm::pipeline_stats_t m;
+  m.utime = NowRealtimeUs();
+  lifmcr_lcm::stage_stats_t process;
+  process.name = s.stage_name;
+  process.rate_hz = s.rate_hz;
+  process.queue_depth = s.queue_depth;
+  process.queue_capacity = s.queue_capacity;
+  process.latency_p50_ms = s.process_p50_ms;
+  process.latency_p99_ms = s.process_p99_ms;
+  process.processed = static_cast<std::int64_t>(s.processed);
+  process.skipped = static_cast<std::int64_t>(s.skipped);
+  lifmcr_lcm::stage_stats_t publish;
+  publish.name = "publish";
+  publish.rate_hz = s.rate_hz;
+  publish.queue_depth = 0;
+  publish.queue_capacity = 0;
+  publish.latency_p50_ms = s.to_publication_p50_ms;  // frame arrival -> on LCM
+  publish.latency_p99_ms = s.to_publication_p99_ms;
+  publish.processed = static_cast<std::int64_t>(s.processed);
+  publish.skipped = 0;
+  m.stages = {process, publish};
+  m.num_stages = static_cast<std::int32_t>(m.stages.size());
+  for (int k = 0; k < kDropKindCount; ++k) {
+    const auto kind = static_cast<DropKind>(k);
+    if (s.drops[kind] == 0) continue;
+    lifmcr_lcm::drop_count_t d;
+    d.kind = std::string(ToString(kind));
+    d.count = static_cast<std::int64_t>(s.drops[kind]);
+    m.drops.push_back(d);
+  }
+  lifmcr_lcm::drop_count_t skipped;
+  skipped.kind = "skipped_for_processing";
+  skipped.count = static_cast<std::int64_t>(s.skipped);
+  m.drops.push_back(skipped);
+  lifmcr_lcm::drop_count_t failed;
+  failed.kind = "processing_failed";
+  failed.count = static_cast<std::int64_t>(s.failed);
+  m.drops.push_back(failed);
+  m.num_drops = static_cast<std::int32_t>(m.drops.size());
+  PublishOn(*lcm_, lcm_mutex_, channels_.Stats(), m);
+}
+
+}  // namespace lifmcr::apps

@@ -1,0 +1,236 @@
+// The processing chain (frame_chain.h).
+
+#include "processing/frame_chain.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <utility>
+
+namespace lifmcr::processing {
+namespace {
+
+double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+}  // namespace
+
+std::string_view ToString(Devignetting mode) {
+  switch (mode) {
+    case Devignetting::kWhiteImage:
+      return "white image";
+    case Devignetting::kFromFrame:
+      return "from the frame";
+  }
+  return "?";
+}
+
+Devignetting SelectDevignetting(const CameraSetup& setup) {
+  return setup.white ? Devignetting::kWhiteImage : Devignetting::kFromFrame;
+}
+
+Status ChainOptions::Check() const {
+  if (Status s = frame.Check(); !s) return Error{"chain options: frame: " + s.error().message};
+  if (Status s = depth.Check(); !s) return Error{"chain options: depth: " + s.error().message};
+  if (Status s = tf.Check(); !s) return Error{"chain options: tf: " + s.error().message};
+  if (Status s = vignetting.Check(); !s)
+    return Error{"chain options: vignetting: " + s.error().message};
+  // metric_depth, point_cloud, cloud_measured_only: any value.
+  return Status::Ok();
+}
+
+std::string ChainProducts::BriefReport() const {
+  const double n = static_cast<double>(tf_depth.width) * tf_depth.height;
+  char buf[512];
+  std::snprintf(buf, sizeof buf, "%dx%d: %s | TF %dx%d %.1f %% measured %.1f %% filled%s | %.3f s",
+                raw_depth.width, raw_depth.height, raw_depth.stats.BriefReport().c_str(),
+                tf_depth.width, tf_depth.height, n > 0 ? 100.0 * tf_depth.measured / n : 0.0,
+                n > 0 ? 100.0 * tf_depth.filled / n : 0.0, metric ? " | metric" : "", Seconds());
+  return buf;
+}
+
+void WorkspaceReturn::operator()(ChainProducts* products) const {
+  if (chain)
+    chain->Release(products);
+  else
+    delete products;
+}
+
+CameraChain::~CameraChain() = default;
+
+Expected<std::unique_ptr<CameraChain>> CameraChain::Create(CameraSetup setup,
+                                                           const ChainOptions& options) {
+  if (Status s = options.Check(); !s) return s.error();
+  const std::string who = "camera " + setup.serial + ": ";
+  std::unique_ptr<CameraChain> chain(new CameraChain());
+  chain->options_ = options;
+  chain->devignetting_ = SelectDevignetting(setup);
+  if (setup.intrinsics) {
+    if (Status s = setup.intrinsics->Check(); !s)
+      return Error{who + "intrinsics: " + s.error().message};
+    chain->camera_.emplace(*setup.intrinsics);
+    chain->options_.frame.lambda = chain->camera_->lambda();
+  }
+  if (setup.white && (setup.white->width <= 0 || setup.white->height <= 0))
+    return Error{who + "white image: empty"};
+  if (setup.white && setup.intrinsics &&
+      (setup.white->width != setup.intrinsics->width_px ||
+       setup.white->height != setup.intrinsics->height_px))
+    return Error{who + "white image is " + std::to_string(setup.white->width) + "x" +
+                 std::to_string(setup.white->height) + ", the intrinsics say " +
+                 std::to_string(setup.intrinsics->width_px) + "x" +
+                 std::to_string(setup.intrinsics->height_px)};
+  chain->setup_ = std::move(setup);
+  // The grid now when the frame size is known already.
+  if (chain->setup_.white) {
+    if (auto grid = chain->GridFor(chain->setup_.white->width, chain->setup_.white->height); !grid)
+      return grid.error();
+  } else if (chain->setup_.intrinsics) {
+    if (auto grid =
+            chain->GridFor(chain->setup_.intrinsics->width_px, chain->setup_.intrinsics->height_px);
+        !grid)
+      return grid.error();
+  }
+  return chain;
+}
+
+std::string CameraChain::Describe() const {
+  char lambda[64];
+  std::snprintf(lambda, sizeof lambda, "lambda %.4f", options_.frame.lambda);
+  std::string devignetting(ToString(devignetting_));
+  {
+    std::lock_guard lock(mutex_);
+    if (estimate_) devignetting += " (" + estimate_->BriefReport() + ")";
+  }
+  return setup_.serial + ": devignetting " + devignetting + ", " + lambda +
+         (camera_ ? " (intrinsics; metric depth)" : " (no intrinsics: virtual depth only)");
+}
+
+Expected<ConstImageView> CameraChain::WhiteFor(ConstImageView raw, const MlaGrid& grid) {
+  switch (devignetting_) {
+    case Devignetting::kWhiteImage:
+      return ConstImageView(std::as_const(*setup_.white).View());
+    case Devignetting::kFromFrame: {
+      std::lock_guard lock(mutex_);
+      if (!estimate_ || estimate_->width != raw.width || estimate_->height != raw.height) {
+        VignettingOptions options = options_.vignetting;
+        if (options_.vignetting_auto_rows && raw.height > 2000) options.row_step = 4;
+        auto estimate = EstimateVignetting(raw, grid, setup_.mla, options);
+        if (!estimate) return Error{"camera " + setup_.serial + ": " + estimate.error().message};
+        estimate_ = std::move(*estimate);
+      }
+      // The estimate lives as long as the chain; it is replaced only for
+      // frames of another size (a camera that changes its ROI mid-run).
+      return estimate_->White();
+    }
+  }
+  return ConstImageView{};
+}
+
+Expected<MlaGrid> CameraChain::GridFor(int width, int height) {
+  std::lock_guard lock(mutex_);
+  if (grid_ && grid_width_ == width && grid_height_ == height) return *grid_;
+  if (setup_.white && (setup_.white->width != width || setup_.white->height != height))
+    return Error{"camera " + setup_.serial + ": frame " + std::to_string(width) + "x" +
+                 std::to_string(height) + ", its white image " +
+                 std::to_string(setup_.white->width) + "x" + std::to_string(setup_.white->height)};
+  grid_ = MlaGrid::FromCalibration(setup_.mla, width, height);
+  grid_width_ = width;
+  grid_height_ = height;
+  return *grid_;
+}
+
+ChainLease CameraChain::Acquire() {
+  std::lock_guard lock(mutex_);
+  if (idle_.empty()) return ChainLease(new ChainProducts(), WorkspaceReturn{this});
+  ChainLease lease(idle_.back().release(), WorkspaceReturn{this});
+  idle_.pop_back();
+  return lease;
+}
+
+void CameraChain::Release(ChainProducts* products) {
+  std::lock_guard lock(mutex_);
+  idle_.emplace_back(products);
+}
+
+Expected<ChainLease> CameraChain::Process(ConstImageView raw) {
+  if (raw.data == nullptr || raw.width <= 0 || raw.height <= 0)
+    return Error{"camera " + setup_.serial + ": empty frame"};
+  ChainLease lease = Acquire();
+  ChainProducts& p = *lease;
+  auto t = std::chrono::steady_clock::now();
+  if (p.geometry_width_ != raw.width || p.geometry_height_ != raw.height) {
+    auto grid = GridFor(raw.width, raw.height);
+    if (!grid) return grid.error();
+    p.geometry_width_ = p.geometry_height_ = 0;
+    auto white = WhiteFor(raw, *grid);
+    if (!white) return white.error();
+    if (Status s = PrepareGeometry(*white, raw.width, raw.height, *grid, setup_.mla,
+                                   options_.frame, &p.prepared);
+        !s)
+      return s.error();
+    p.geometry_width_ = raw.width;
+    p.geometry_height_ = raw.height;
+  }
+  if (Status s = LoadRaw(raw, &p.prepared); !s) return s.error();
+  p.prepare_s = SecondsSince(t);
+
+  t = std::chrono::steady_clock::now();
+  if (Status s = EstimateVirtualDepth(p.prepared, setup_.mla, options_.depth, &p.raw_depth); !s)
+    return s.error();
+  p.depth_s = SecondsSince(t);
+
+  t = std::chrono::steady_clock::now();
+  if (Status s = VirtualDepthToTf(p.prepared, p.raw_depth, options_.tf, &p.tf_depth); !s)
+    return s.error();
+  if (Status s = RenderTotalFocus(p.prepared, setup_.mla, p.tf_depth, options_.tf, &p.tf); !s)
+    return s.error();
+  p.tf_s = SecondsSince(t);
+
+  t = std::chrono::steady_clock::now();
+  p.metric = false;
+  p.depth_mm.clear();
+  p.cloud = PointCloud{};
+  if (camera_) {
+    if (camera_->intrinsics().width_px != raw.width ||
+        camera_->intrinsics().height_px != raw.height)
+      return Error{"camera " + setup_.serial + ": frame " + std::to_string(raw.width) + "x" +
+                   std::to_string(raw.height) + ", its intrinsics " +
+                   std::to_string(camera_->intrinsics().width_px) + "x" +
+                   std::to_string(camera_->intrinsics().height_px)};
+    if (options_.metric_depth) MetricDepthTf(*camera_, p.tf_depth, &p.depth_mm);
+    if (options_.point_cloud)
+      BuildPointCloud(*camera_, p.tf_depth, p.tf, options_.cloud_measured_only, &p.cloud);
+    p.metric = options_.metric_depth || options_.point_cloud;
+  }
+  p.metric_s = SecondsSince(t);
+  return lease;
+}
+
+Expected<std::unique_ptr<ProcessingChain>> ProcessingChain::Create(
+    std::vector<CameraSetup> cameras, const ChainOptions& options) {
+  if (Status s = options.Check(); !s) return s.error();
+  auto chain = std::make_unique<ProcessingChain>();
+  for (CameraSetup& setup : cameras) {
+    const std::string serial = setup.serial;
+    if (chain->cameras_.count(serial)) return Error{"camera " + serial + ": given twice"};
+    auto camera = CameraChain::Create(std::move(setup), options);
+    if (!camera) return camera.error();
+    chain->cameras_[serial] = std::move(*camera);
+  }
+  return chain;
+}
+
+CameraChain* ProcessingChain::Find(const std::string& serial) const {
+  const auto it = cameras_.find(serial);
+  return it == cameras_.end() ? nullptr : it->second.get();
+}
+
+std::vector<std::string> ProcessingChain::serials() const {
+  std::vector<std::string> out;
+  for (const auto& [serial, chain] : cameras_) out.push_back(serial);
+  return out;
+}
+
+}  // namespace lifmcr::processing

@@ -1,0 +1,175 @@
+#pragma once
+// The processing chain of a camera: the one sequence of steps that turns a
+// raw plenoptic frame into depth, used by `lifmcr depth`, replay and
+// `record --publish` alike (docs/architecture.md).
+//
+// Once per camera (CameraChain::Create, and at the first frame of a size):
+//   devignetting mode  the white image when the camera has one
+//                      (Devignetting::kWhiteImage), else the vignetting
+//                      the camera's first frame shows (Devignetting::
+//                      kFromFrame, processing/vignetting.h: a white image
+//                      built from the mean micro image, or none when the
+//                      frame is already devignetted); SelectDevignetting is
+//                      the one place that decides;
+//   MLA grid           MlaGrid::FromCalibration of the MLA file for the
+//                      frame size (the white image's when there is one);
+//   lambda             b_L0 / (b_L0 + B) from the intrinsics when known,
+//                      else 1 (micro-lens centres = micro-image centres).
+// Per frame (CameraChain::Process):
+//   devignetted grey (plenoptic_frame.h) -> virtual depth on the raw grid
+//   (virtual_depth.h) -> TF depth map and the totally focused image
+//   (total_focus.h) -> with intrinsics: metric depth on the TF grid and,
+//   when asked, the coloured point cloud (point_cloud.h).
+//
+// Buffers: every product lives in a workspace of the camera's pool, lent to
+// the caller as a ChainLease and returned to the pool when the lease ends,
+// so a camera processes as many frames at once as it has leases out and a
+// workspace reused frame after frame allocates nothing (fresh buffers of an
+// R32 frame are about a GB of first-touched pages, slower than the
+// processing itself). The raw frame is not copied: the lease views the
+// caller's buffer, which must outlive the lease.
+//
+// Threads: Process may be called concurrently (each call takes its own
+// workspace); the per-camera geometry is made once under a lock.
+
+#include "config/error.h"
+#include "config/image.h"
+#include "config/mla.h"
+#include "processing/camera_model.h"
+#include "processing/mla_grid.h"
+#include "processing/plenoptic_frame.h"
+#include "processing/point_cloud.h"
+#include "processing/total_focus.h"
+#include "processing/vignetting.h"
+#include "processing/virtual_depth.h"
+
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace lifmcr::processing {
+
+// How a camera's frames are devignetted (chosen once per camera).
+enum class Devignetting {
+  kWhiteImage,  // I_n = I * W_ref / W (plenoptic_frame.h)
+  kFromFrame,   // no white image: estimated once from the camera's first frame (vignetting.h)
+};
+std::string_view ToString(Devignetting mode);  // "white image", "from the frame"
+
+// What a camera brings to the chain: its MLA calibration, and when known its
+// white image and intrinsics. Files are found and read outside processing
+// (replay/camera_calibration.h has the rule for Calibration/).
+struct CameraSetup {
+  std::string serial;
+  MlaCalibration mla;
+  std::optional<OwnedImage> white;
+  std::optional<CameraIntrinsics> intrinsics;
+};
+
+// The devignetting a setup gets: the one branch point of the per-camera setup.
+Devignetting SelectDevignetting(const CameraSetup& setup);
+
+struct ChainOptions {
+  // Devignetting and micro-image geometry; `frame.lambda` is replaced by the
+  // camera's lambda when its intrinsics are known.
+  FrameOptions frame;
+  DepthOptions depth;  // virtual depth on the raw grid
+  TfOptions tf;        // TF depth map and totally focused image
+  // Without a white image. With vignetting_auto_rows, frames taller than
+  // 2000 rows are sampled every 4th row (an R32 frame: plenty of micro images).
+  VignettingOptions vignetting;
+  bool vignetting_auto_rows = true;
+  bool metric_depth = true;   // with intrinsics: camera z (mm) per TF pixel
+  bool point_cloud = false;   // with intrinsics: the coloured point cloud (mm)
+  bool cloud_measured_only = true;  // cloud of measured TF pixels only, not filled ones
+  Status Check() const;  // every field; the message names the field
+};
+
+// The products of one frame, in a workspace of the camera's pool.
+struct ChainProducts {
+  PlenopticFrame prepared;       // devignetted grey; views the raw frame
+  VirtualDepthMap raw_depth;     // virtual depth on the raw grid
+  TfDepthMap tf_depth;           // virtual depth on the TF grid (W/2 x H/2)
+  TfImage tf;                    // totally focused image
+  std::vector<float> depth_mm;   // camera z per TF pixel (metric_depth with intrinsics), else empty
+  PointCloud cloud;              // point_cloud with intrinsics, else empty
+  bool metric = false;           // depth_mm (and cloud when asked) were computed
+  double prepare_s = 0, depth_s = 0, tf_s = 0, metric_s = 0;
+  double Seconds() const { return prepare_s + depth_s + tf_s + metric_s; }
+  // "1024x768: virtual depth ... | TF 512x384 61.0 % measured 30.1 % filled | metric | 0.412 s"
+  std::string BriefReport() const;
+
+ private:
+  friend class CameraChain;
+  int geometry_width_ = 0, geometry_height_ = 0;  // of the geometry in `prepared`; 0 = none
+};
+
+class CameraChain;
+// Returns a workspace to its camera's pool.
+struct WorkspaceReturn {
+  CameraChain* chain = nullptr;
+  void operator()(ChainProducts* products) const;
+};
+using ChainLease = std::unique_ptr<ChainProducts, WorkspaceReturn>;
+
+class CameraChain {
+ public:
+  static Expected<std::unique_ptr<CameraChain>> Create(CameraSetup setup,
+                                                       const ChainOptions& options);
+  ~CameraChain();
+  CameraChain(const CameraChain&) = delete;
+  CameraChain& operator=(const CameraChain&) = delete;
+
+  // The chain on one raw frame (Mono8 or BGR8). `raw` must outlive the lease.
+  Expected<ChainLease> Process(ConstImageView raw);
+
+  const std::string& serial() const { return setup_.serial; }
+  const MlaCalibration& mla() const { return setup_.mla; }
+  const std::optional<CameraModel>& camera_model() const { return camera_; }
+  Devignetting devignetting() const { return devignetting_; }
+  // "40398678: devignetting white image, lambda 0.9920 (intrinsics; metric
+  // depth)" for the operator; with kFromFrame, after the first frame, what
+  // the estimate decided.
+  std::string Describe() const;
+
+ private:
+  friend struct WorkspaceReturn;
+  CameraChain() = default;
+  // The grid of frames of width x height (made once per size).
+  Expected<MlaGrid> GridFor(int width, int height);
+  // The white image to devignette with (empty view: none), estimated from
+  // `raw` at the first frame with kFromFrame.
+  Expected<ConstImageView> WhiteFor(ConstImageView raw, const MlaGrid& grid);
+  ChainLease Acquire();
+  void Release(ChainProducts* products);
+
+  CameraSetup setup_;
+  ChainOptions options_;
+  Devignetting devignetting_ = Devignetting::kWhiteImage;
+  std::optional<CameraModel> camera_;
+  mutable std::mutex mutex_;  // guards grid_, estimate_ and idle_
+  std::optional<MlaGrid> grid_;
+  int grid_width_ = 0, grid_height_ = 0;
+  // kFromFrame: the estimate from the camera's first frame (guarded by mutex_).
+  std::optional<VignettingEstimate> estimate_;
+  std::vector<std::unique_ptr<ChainProducts>> idle_;
+};
+
+// The chains of a rig's cameras, by serial.
+class ProcessingChain {
+ public:
+  static Expected<std::unique_ptr<ProcessingChain>> Create(std::vector<CameraSetup> cameras,
+                                                           const ChainOptions& options);
+  // Null when the serial has no chain.
+  CameraChain* Find(const std::string& serial) const;
+  std::vector<std::string> serials() const;
+
+ private:
+  std::map<std::string, std::unique_ptr<CameraChain>> cameras_;
+};
+
+}  // namespace lifmcr::processing

@@ -1,0 +1,631 @@
+#include "registration/calibration.h"
+
+#include "processing/camera_model.h"
+#include "registration/calibration_problem.h"
+
+#include <ceres/ceres.h>
+#include <ceres/rotation.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <numeric>
+
+namespace lifmcr::registration {
+namespace {
+
+using internal::InitialMap;
+using internal::Observation;
+using internal::Track;
+
+constexpr double kBound = 0.3;  // relative bound of f_L, b_L0, B about their initial values
+
+std::string Format(const char* fmt, auto... args) {
+  char buffer[1024];
+  std::snprintf(buffer, sizeof(buffer), fmt, args...);
+  return buffer;
+}
+
+// A keypoint observation reprojected into the micro images that see it
+// (calibration.h, step 3). Parameters: intrinsics, cam_from_world rotation
+// (w, x, y, z) and translation, the point in the world.
+struct MicroImageCost {
+  std::vector<Eigen::Vector2d> observed_px, centres_px;
+  double pixel_size_mm = 0;
+
+  template <typename T>
+  bool operator()(const T* k, const T* q, const T* t, const T* p_in_w, T* residuals) const {
+    T p_in_c[3];
+    ceres::UnitQuaternionRotatePoint(q, p_in_w, p_in_c);
+    for (int a = 0; a < 3; ++a) p_in_c[a] += t[a];
+    T virtual_px[3];
+    if (!ProjectToVirtual(k, pixel_size_mm, p_in_c, virtual_px)) return false;
+    for (std::size_t n = 0; n < centres_px.size(); ++n) {
+      T micro[2];
+      ProjectToMicroImage(k, virtual_px, centres_px[n], micro);
+      residuals[2 * n] = micro[0] - observed_px[n].x();
+      residuals[2 * n + 1] = micro[1] - observed_px[n].y();
+    }
+    return true;
+  }
+};
+
+// A plate corner: a fixed point of the plate frame, residual in the virtual
+// image (raw pixels).
+struct PlateCornerCost {
+  Eigen::Vector3d p_in_w_mm;
+  Eigen::Vector2d observed_px;
+  double pixel_size_mm = 0;
+
+  template <typename T>
+  bool operator()(const T* k, const T* q, const T* t, T* residuals) const {
+    const T p_in_w[3] = {T(p_in_w_mm.x()), T(p_in_w_mm.y()), T(p_in_w_mm.z())};
+    T p_in_c[3];
+    ceres::UnitQuaternionRotatePoint(q, p_in_w, p_in_c);
+    for (int a = 0; a < 3; ++a) p_in_c[a] += t[a];
+    T virtual_px[3];
+    if (!ProjectToVirtual(k, pixel_size_mm, p_in_c, virtual_px)) return false;
+    residuals[0] = virtual_px[0] - observed_px.x();
+    residuals[1] = virtual_px[1] - observed_px.y();
+    return true;
+  }
+};
+
+// One micro-image observation set of a keypoint (what the cost holds, kept
+// to evaluate residuals after the solve).
+struct LensObservation {
+  int track = 0;
+  int observation = 0;  // index into the track's observations
+  MicroImageCost cost;
+};
+
+// The micro-image observations of virtual point x_v (calibration.h step 3):
+// the max_lenses most central micro images that see it.
+bool MakeMicroImageCost(const Eigen::Vector3d& x_v, const MicroImages& micro,
+                        const Eigen::Vector2d& c0, double lambda0, int max_lenses, double s,
+                        std::vector<int>* lenses, MicroImageCost* cost) {
+  if (!(x_v.z() > 1)) return false;
+  micro.Seeing(x_v.head<2>(), x_v.z(), c0, lambda0, lenses);
+  if (lenses->size() < 2) return false;
+  std::vector<std::pair<double, int>> by_distance;
+  for (const int l : *lenses) {
+    const Eigen::Vector2d& ck = micro.centres_px[l];
+    const Eigen::Vector2d lk = c0 + (ck - c0) * lambda0;
+    by_distance.emplace_back((lk + (x_v.head<2>() - lk) / x_v.z() - ck).norm(), l);
+  }
+  std::sort(by_distance.begin(), by_distance.end());
+  if (static_cast<int>(by_distance.size()) > max_lenses) by_distance.resize(max_lenses);
+  cost->pixel_size_mm = s;
+  cost->centres_px.clear();
+  cost->observed_px.clear();
+  for (const auto& [d, l] : by_distance) {
+    const Eigen::Vector2d& ck = micro.centres_px[l];
+    const Eigen::Vector2d lk = c0 + (ck - c0) * lambda0;
+    cost->centres_px.push_back(ck);
+    cost->observed_px.push_back(lk + (x_v.head<2>() - lk) / x_v.z());
+  }
+  return true;
+}
+
+struct PoseBlock {
+  std::array<double, 4> q{1, 0, 0, 0};  // cam_from_world (w, x, y, z)
+  std::array<double, 3> t{0, 0, 0};
+};
+
+PoseBlock ToBlock(const Pose& w0_from_c) {
+  const Pose c_from_w = w0_from_c.inverse();
+  const Eigen::Quaterniond q(c_from_w.linear());
+  PoseBlock b;
+  b.q = {q.w(), q.x(), q.y(), q.z()};
+  b.t = {c_from_w.translation().x(), c_from_w.translation().y(), c_from_w.translation().z()};
+  return b;
+}
+
+Pose FromBlock(const PoseBlock& b) {
+  Pose c_from_w = Pose::Identity();
+  c_from_w.linear() = Eigen::Quaterniond(b.q[0], b.q[1], b.q[2], b.q[3]).normalized().toRotationMatrix();
+  c_from_w.translation() = Eigen::Vector3d(b.t[0], b.t[1], b.t[2]);
+  return c_from_w.inverse();
+}
+
+class ProgressCallback : public ceres::IterationCallback {
+ public:
+  ProgressCallback(const ProgressFn& progress, std::string stage)
+      : progress_(progress), stage_(std::move(stage)) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
+    if (progress_)
+      progress_(Format("%s iteration %3d  cost %.6e  |step| %.3e  %s", stage_.c_str(), s.iteration,
+                       s.cost, s.step_norm, s.step_is_successful ? "" : "(rejected step)"));
+    return ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  const ProgressFn& progress_;
+  std::string stage_;
+};
+
+const char* kParameterNames[kIntrinsicsSize] = {"main_focal_length_mm", "mla_to_main_lens_mm",
+                                                "mla_to_sensor_mm",     "principal_point_x_px",
+                                                "principal_point_y_px", "k1",
+                                                "k2",                   "p1",
+                                                "p2"};
+
+// TF pinhole pixel of a virtual point under the intrinsics vector
+// (reference_map.h: distortion corrected, eqs. projX/projY, TF grid).
+Eigen::Vector2d TfPinholePx(const IntrinsicsVector& k, const processing::CameraModel& model,
+                            const Eigen::Vector3d& virtual_px) {
+  const double s = model.intrinsics().pixel_size_mm;
+  const Eigen::Vector2d c(k[3], k[4]);
+  const double b_l = k[1] + virtual_px.z() * k[2];
+  const Eigen::Vector2d x_mla = model.Undistort((virtual_px.head<2>() - c) * s * k[1] / b_l);
+  const Eigen::Vector2d raw = c + x_mla * (k[1] + 2 * k[2]) / (k[1] * s);
+  return (raw - Eigen::Vector2d(0.5, 0.5)) / 2.0;
+}
+
+}  // namespace
+
+Status CalibrationOptions::Check() const {
+  auto fail = [](const std::string& what) { return Error{"calibration options: " + what}; };
+  if (min_frames < 2) return fail("min_frames: expected >= 2");
+  if (min_features < 6) return fail("min_features: expected >= 6");
+  if (min_plate_corners < 4) return fail("min_plate_corners: expected >= 4");
+  if (Status s = match.Check(); !s) return s;
+  if (match_window < 1) return fail("match_window: expected >= 1");
+  if (!(pnp_threshold_px > 0)) return fail("pnp_threshold_px: expected > 0");
+  if (pnp_iterations < 10) return fail("pnp_iterations: expected >= 10");
+  if (min_pnp_inliers < 6) return fail("min_pnp_inliers: expected >= 6");
+  if (!(huber_px > 0)) return fail("huber_px: expected > 0");
+  if (!(outlier_px > 0)) return fail("outlier_px: expected > 0");
+  if (!(plate_weight > 0)) return fail("plate_weight: expected > 0");
+  if (max_lenses < 2) return fail("max_lenses: expected >= 2");
+  if (max_iterations < 1) return fail("max_iterations: expected >= 1");
+  if (threads < 1) return fail("threads: expected >= 1");
+  return Status::Ok();
+}
+
+std::string CalibrationResult::BriefReport() const {
+  const IntrinsicsVector k = ToVector(calibration.intrinsics, calibration.principal_point_px);
+  int placed = 0;
+  for (const FrameReport& f : frames) placed += f.placed ? 1 : 0;
+  return Format(
+      "Calibration: %d/%zu frames, %d points, %lld observations (%lld micro-image), RMSE %.3f px "
+      "(plate %.3f px); f_L %.4f mm, b_L0 %.4f mm, B %.5f mm, c (%.2f, %.2f) px; Ceres %d "
+      "iterations %.2f s, cost %.4e -> %.4e, %s%s",
+      placed, frames.size(), points, observations, micro_observations, rmse_px, plate_rmse_px,
+      k[0], k[1], k[2], k[3], k[4], iterations, solver_seconds, initial_cost, final_cost,
+      termination.c_str(), usable ? "" : ", NOT USABLE (see flags)");
+}
+
+Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
+                                      const CalibrationOptions& options,
+                                      const ProgressFn& progress) {
+  const auto start = std::chrono::steady_clock::now();
+  if (Status s = options.Check(); !s) return s.error();
+  if (Status s = input.initial.intrinsics.Check(); !s) return s.error();
+  if (input.micro_images == nullptr) return Error{"calibration: no micro images"};
+  if (static_cast<int>(input.frames.size()) < options.min_frames)
+    return Error{Format("calibration: %zu frames given, at least %d needed", input.frames.size(),
+                        options.min_frames)};
+  Expected<InitialMap> init = internal::Initialise(input, options, progress);
+  if (!init) return init.error();
+  InitialMap& map = *init;
+  const int n_frames = static_cast<int>(input.frames.size());
+  int placed = 0;
+  for (const internal::FrameState& f : map.frames) placed += f.placed ? 1 : 0;
+  if (placed < options.min_frames)
+    return Error{Format("calibration: %d of %d frames could be placed, at least %d needed "
+                        "(see the progress lines for why)",
+                        placed, n_frames, options.min_frames)};
+
+  CalibrationResult result;
+  result.initial = ToVector(input.initial.intrinsics, input.initial.principal_point_px);
+  IntrinsicsVector k = result.initial;
+  const double s = input.initial.intrinsics.pixel_size_mm;
+  const processing::CameraModel nominal(input.initial.intrinsics);
+  const Eigen::Vector2d c0 = input.initial.principal_point_px;
+  const double lambda0 = nominal.lambda();
+  std::vector<PoseBlock> poses(n_frames);
+  for (int f = 0; f < n_frames; ++f)
+    if (map.frames[f].placed) poses[f] = ToBlock(map.frames[f].w0_from_c);
+
+  // Observations in micro images (fixed for the whole solve).
+  std::vector<LensObservation> lens_observations;
+  std::vector<int> lenses;
+  for (int t = 0; t < static_cast<int>(map.tracks.size()); ++t) {
+    const Track& track = map.tracks[t];
+    if (track.observations.size() < 2) continue;
+    for (int o = 0; o < static_cast<int>(track.observations.size()); ++o) {
+      const Observation& ob = track.observations[o];
+      const Eigen::Vector3d x_v = internal::VirtualPoint(input.frames[ob.frame], ob.keypoint);
+      LensObservation lo;
+      lo.track = t;
+      lo.observation = o;
+      if (!MakeMicroImageCost(x_v, *input.micro_images, c0, lambda0, options.max_lenses, s,
+                              &lenses, &lo.cost))
+        continue;
+      lens_observations.push_back(std::move(lo));
+    }
+  }
+  std::vector<bool> inlier(lens_observations.size(), true);
+  // Plate corners: fixed points; in the micro images where the TF depth map
+  // has a virtual depth at the corner, else in the virtual image.
+  struct CornerObservation {
+    int frame = 0;
+    std::array<double, 3> p_in_w_mm{};
+    bool micro = false;
+    MicroImageCost micro_cost;
+    PlateCornerCost virtual_cost;
+  };
+  std::vector<CornerObservation> corner_observations;
+  for (int f = 0; f < n_frames; ++f) {
+    if (!map.frames[f].placed) continue;
+    const CalibrationFrame& frame = input.frames[f];
+    for (std::size_t n = 0; n < frame.corners.size(); ++n) {
+      const PlateCorner& corner = frame.corners[n];
+      CornerObservation co;
+      co.frame = f;
+      co.p_in_w_mm = {corner.p_in_w_mm.x(), corner.p_in_w_mm.y(), corner.p_in_w_mm.z()};
+      const Eigen::Vector2d x = 2.0 * corner.tf_px + Eigen::Vector2d(0.5, 0.5);
+      co.virtual_cost = PlateCornerCost{corner.p_in_w_mm, x, s};
+      const float v = n < frame.corner_virtual_depth.size() ? frame.corner_virtual_depth[n]
+                                                            : std::nanf("");
+      co.micro = MakeMicroImageCost(Eigen::Vector3d(x.x(), x.y(), v), *input.micro_images, c0,
+                                    lambda0, options.max_lenses, s, &lenses, &co.micro_cost);
+      corner_observations.push_back(std::move(co));
+    }
+  }
+
+  std::vector<int> constant;
+  if (!options.estimate_principal_point) constant.insert(constant.end(), {3, 4});
+  if (!options.estimate_distortion) constant.insert(constant.end(), {5, 6, 7, 8});
+  if (options.recalibrate) constant.insert(constant.end(), {0, 2});
+
+  ceres::Solver::Summary summary;
+  double solver_seconds = 0;
+  int iterations = 0;
+  double first_initial_cost = -1;
+  // Round 0: poses and points under the initial intrinsics (a consistent
+  // structure first); round 1: everything; outliers dropped; round 2.
+  constexpr int kRounds = 3;
+  for (int round = 0; round < kRounds; ++round) {
+    ceres::Problem::Options problem_options;
+    problem_options.manifold_ownership = ceres::TAKE_OWNERSHIP;
+    ceres::Problem problem(problem_options);
+    std::vector<bool> pose_used(n_frames, false);
+    for (std::size_t n = 0; n < lens_observations.size(); ++n) {
+      if (!inlier[n]) continue;
+      LensObservation& lo = lens_observations[n];
+      Track& track = map.tracks[lo.track];
+      const int f = track.observations[lo.observation].frame;
+      const int residuals = 2 * static_cast<int>(lo.cost.centres_px.size());
+      auto* cost = new ceres::AutoDiffCostFunction<MicroImageCost, ceres::DYNAMIC, kIntrinsicsSize,
+                                                   4, 3, 3>(new MicroImageCost(lo.cost),
+                                                            residuals);
+      problem.AddResidualBlock(
+          cost, new ceres::HuberLoss(options.huber_px * std::sqrt(residuals / 2.0)), k.data(),
+          poses[f].q.data(), poses[f].t.data(), track.p_in_w_mm.data());
+      pose_used[f] = true;
+    }
+    for (CornerObservation& co : corner_observations) {
+      const int f = co.frame;
+      if (co.micro) {
+        const int residuals = 2 * static_cast<int>(co.micro_cost.centres_px.size());
+        problem.AddResidualBlock(
+            new ceres::AutoDiffCostFunction<MicroImageCost, ceres::DYNAMIC, kIntrinsicsSize, 4, 3,
+                                            3>(new MicroImageCost(co.micro_cost), residuals),
+            new ceres::ScaledLoss(
+                new ceres::HuberLoss(options.huber_px * std::sqrt(residuals / 2.0)),
+                options.plate_weight * options.plate_weight, ceres::TAKE_OWNERSHIP),
+            k.data(), poses[f].q.data(), poses[f].t.data(), co.p_in_w_mm.data());
+        problem.SetParameterBlockConstant(co.p_in_w_mm.data());
+      } else {
+        problem.AddResidualBlock(
+            new ceres::AutoDiffCostFunction<PlateCornerCost, 2, kIntrinsicsSize, 4, 3>(
+                new PlateCornerCost(co.virtual_cost)),
+            new ceres::ScaledLoss(new ceres::HuberLoss(options.huber_px),
+                                  options.plate_weight * options.plate_weight,
+                                  ceres::TAKE_OWNERSHIP),
+            k.data(), poses[f].q.data(), poses[f].t.data());
+      }
+      pose_used[f] = true;
+    }
+    for (int f = 0; f < n_frames; ++f)
+      if (pose_used[f]) problem.SetManifold(poses[f].q.data(), new ceres::QuaternionManifold());
+    if (round == 0 || static_cast<int>(constant.size()) == kIntrinsicsSize) {
+      problem.SetParameterBlockConstant(k.data());
+    } else {
+      if (!constant.empty())
+        problem.SetManifold(k.data(), new ceres::SubsetManifold(kIntrinsicsSize, constant));
+      // Keep the solve among cameras: f_L, b_L0, B within 30 % of their
+      // initial values, the principal point within 10 % of the image size
+      // (a bound reached is flagged below).
+      for (int i = 0; i < 3; ++i) {
+        problem.SetParameterLowerBound(k.data(), i, (1 - kBound) * result.initial[i]);
+        problem.SetParameterUpperBound(k.data(), i, (1 + kBound) * result.initial[i]);
+      }
+      const double size[2] = {static_cast<double>(input.initial.intrinsics.width_px),
+                              static_cast<double>(input.initial.intrinsics.height_px)};
+      for (int a = 0; a < 2; ++a) {
+        problem.SetParameterLowerBound(k.data(), 3 + a, result.initial[3 + a] - 0.1 * size[a]);
+        problem.SetParameterUpperBound(k.data(), 3 + a, result.initial[3 + a] + 0.1 * size[a]);
+      }
+    }
+
+    ceres::Solver::Options solver_options;
+    solver_options.linear_solver_type = ceres::SPARSE_SCHUR;
+    solver_options.max_num_iterations = options.max_iterations;
+    solver_options.num_threads = options.threads;
+    solver_options.function_tolerance = 1e-9;
+    solver_options.parameter_tolerance = 1e-10;
+    const std::string stage = "BA " + std::to_string(round + 1) + "/" + std::to_string(kRounds);
+    ProgressCallback callback(progress, stage);
+    solver_options.callbacks.push_back(&callback);
+    solver_options.update_state_every_iteration = false;
+    if (progress)
+      progress(Format("%s%s: %d residual blocks, %d parameter blocks", stage.c_str(),
+                      round == 0 ? " (intrinsics held)" : "", problem.NumResidualBlocks(),
+                      problem.NumParameterBlocks()));
+    ceres::Solve(solver_options, &problem, &summary);
+    solver_seconds += summary.total_time_in_seconds;
+    iterations += static_cast<int>(summary.iterations.size()) - 1;
+    if (first_initial_cost < 0) first_initial_cost = summary.initial_cost;
+    if (progress) progress(summary.BriefReport());
+
+    if (round == 0) continue;
+    if (round == 1) {
+      // Drop observations whose RMS micro-image residual exceeds outlier_px.
+      long long dropped = 0;
+      for (std::size_t n = 0; n < lens_observations.size(); ++n) {
+        LensObservation& lo = lens_observations[n];
+        const Track& track = map.tracks[lo.track];
+        const int f = track.observations[lo.observation].frame;
+        std::vector<double> r(lo.cost.centres_px.size() * 2);
+        const bool ok = lo.cost(k.data(), poses[f].q.data(), poses[f].t.data(),
+                                track.p_in_w_mm.data(), r.data());
+        double ss = 0;
+        for (const double x : r) ss += x * x;
+        if (!ok || std::sqrt(ss / lo.cost.centres_px.size()) > options.outlier_px) {
+          inlier[n] = false;
+          ++dropped;
+        }
+      }
+      result.rejected_observations = dropped;
+      if (progress)
+        progress(Format("outliers: %lld of %zu observations above %.2f px RMS dropped", dropped,
+                        lens_observations.size(), options.outlier_px));
+      continue;
+    }
+
+    // Standard deviations of the intrinsics.
+    result.std_dev.fill(std::numeric_limits<double>::quiet_NaN());
+    if (options.covariance) {
+      ceres::Covariance::Options cov_options;
+      cov_options.num_threads = options.threads;
+      cov_options.algorithm_type = ceres::SPARSE_QR;
+      ceres::Covariance covariance(cov_options);
+      std::vector<std::pair<const double*, const double*>> blocks = {{k.data(), k.data()}};
+      if (problem.IsParameterBlockConstant(k.data())) {
+        // Nothing estimated.
+      } else if (covariance.Compute(blocks, &problem)) {
+        double cov[kIntrinsicsSize * kIntrinsicsSize];
+        covariance.GetCovarianceBlock(k.data(), k.data(), cov);
+        // Unit-variance covariance scaled by the residual variance.
+        double ss = 0;
+        long long m = 0;
+        for (std::size_t n = 0; n < lens_observations.size(); ++n) {
+          if (!inlier[n]) continue;
+          const LensObservation& lo = lens_observations[n];
+          const Track& track = map.tracks[lo.track];
+          const int f = track.observations[lo.observation].frame;
+          std::vector<double> r(lo.cost.centres_px.size() * 2);
+          if (!lo.cost(k.data(), poses[f].q.data(), poses[f].t.data(), track.p_in_w_mm.data(),
+                       r.data()))
+            continue;
+          for (const double x : r) ss += x * x;
+          m += static_cast<long long>(r.size());
+        }
+        const long long dof = m - problem.NumParameters();
+        const double variance = dof > 0 ? ss / dof : std::numeric_limits<double>::quiet_NaN();
+        for (int i = 0; i < kIntrinsicsSize; ++i)
+          if (std::find(constant.begin(), constant.end(), i) == constant.end())
+            result.std_dev[i] = std::sqrt(cov[i * kIntrinsicsSize + i] * variance);
+      } else {
+        result.flags.push_back(
+            "covariance: Ceres could not compute it (rank-deficient problem): the intrinsics "
+            "may not be determined by these frames");
+      }
+    }
+  }
+
+  // Results: intrinsics, poses, residuals per frame.
+  result.calibration.intrinsics = FromVector(k, input.initial.intrinsics);
+  result.calibration.principal_point_px = {k[3], k[4]};
+  result.initial_cost = first_initial_cost;
+  result.final_cost = summary.final_cost;
+  result.iterations = iterations;
+  result.solver_seconds = solver_seconds;
+  result.termination = ceres::TerminationTypeToString(summary.termination_type);
+  result.usable = summary.IsSolutionUsable();
+  if (!result.calibration.intrinsics.Check())
+    result.flags.push_back("diverged: the intrinsics left their valid range");
+  for (int i = 0; i < 3; ++i)
+    if (std::abs(k[i] / result.initial[i] - 1) > kBound - 1e-3)
+      result.flags.push_back(Format("diverged: %s reached its bound (%.0f %% from its initial "
+                                    "value)",
+                                    kParameterNames[i], 100 * (k[i] / result.initial[i] - 1)));
+
+  std::vector<double> frame_ss(n_frames, 0);
+  std::vector<long long> frame_m(n_frames, 0), frame_obs(n_frames, 0);
+  std::vector<double> track_ss(map.tracks.size(), 0);
+  std::vector<long long> track_m(map.tracks.size(), 0);
+  double ss = 0;
+  long long m = 0;
+  for (std::size_t n = 0; n < lens_observations.size(); ++n) {
+    if (!inlier[n]) continue;
+    const LensObservation& lo = lens_observations[n];
+    const Track& track = map.tracks[lo.track];
+    const int f = track.observations[lo.observation].frame;
+    std::vector<double> r(lo.cost.centres_px.size() * 2);
+    if (!lo.cost(k.data(), poses[f].q.data(), poses[f].t.data(), track.p_in_w_mm.data(),
+                 r.data()))
+      continue;
+    for (const double x : r) {
+      frame_ss[f] += x * x;
+      track_ss[lo.track] += x * x;
+      ss += x * x;
+    }
+    track_m[lo.track] += static_cast<long long>(r.size());
+    frame_m[f] += static_cast<long long>(r.size());
+    m += static_cast<long long>(r.size());
+    ++frame_obs[f];
+  }
+  result.rmse_px = m > 0 ? std::sqrt(ss / m) : 0;
+  result.micro_observations = m / 2;
+  double plate_ss = 0;
+  long long plate_m = 0;
+  for (const CornerObservation& co : corner_observations) {
+    const int f = co.frame;
+    std::vector<double> r(co.micro ? 2 * co.micro_cost.centres_px.size() : 2);
+    const bool ok = co.micro ? co.micro_cost(k.data(), poses[f].q.data(), poses[f].t.data(),
+                                             co.p_in_w_mm.data(), r.data())
+                             : co.virtual_cost(k.data(), poses[f].q.data(), poses[f].t.data(),
+                                               r.data());
+    if (!ok) continue;
+    for (const double x : r) plate_ss += x * x;
+    plate_m += static_cast<long long>(r.size());
+  }
+  result.plate_rmse_px = plate_m > 0 ? std::sqrt(plate_ss / plate_m) : 0;
+  for (int f = 0; f < n_frames; ++f) {
+    const CalibrationFrame& frame = input.frames[f];
+    FrameReport report;
+    report.frame = frame.frame;
+    report.placed = map.frames[f].placed;
+    report.how = map.frames[f].how;
+    for (const float v : frame.virtual_depth) report.keypoints += std::isnan(v) ? 0 : 1;
+    report.plate_corners = static_cast<int>(frame.corners.size());
+    report.observations = static_cast<int>(frame_obs[f]);
+    report.rmse_px = frame_m[f] > 0 ? std::sqrt(frame_ss[f] / frame_m[f]) : 0;
+    if (report.placed && frame_obs[f] == 0 && frame.corners.empty()) {
+      result.flags.push_back(Format("frame %lld: placed at initialisation but no observation "
+                                    "survived; its pose is not refined",
+                                    static_cast<long long>(frame.frame)));
+    }
+    result.frames.push_back(report);
+    if (report.placed) {
+      const Pose w0_from_c0 = FromBlock(poses[f]);
+      result.poses.push_back(FramePose{frame.frame, -1, w0_from_c0});
+    }
+  }
+
+  // The reference map: the placed frames, every keypoint; the points that
+  // kept at least two observations.
+  const processing::CameraModel final_model(result.calibration.intrinsics);
+  ReferenceMap& out = result.map;
+  out.camera.serial = input.serial;
+  out.camera.width_px = input.initial.intrinsics.width_px / 2;
+  out.camera.height_px = input.initial.intrinsics.height_px / 2;
+  out.camera.focal_px = (k[1] + 2 * k[2]) / (2 * s);
+  out.camera.principal_point_px = (Eigen::Vector2d(k[3], k[4]) - Eigen::Vector2d(0.5, 0.5)) / 2.0;
+  std::vector<int> image_of_frame(n_frames, -1);
+  for (int f = 0; f < n_frames; ++f) {
+    if (!map.frames[f].placed) continue;
+    const CalibrationFrame& frame = input.frames[f];
+    MapImage image;
+    image.image_id = static_cast<int>(out.images.size()) + 1;
+    image.frame = frame.frame;
+    image.name = frame.name;
+    image.w0_from_c0 = FromBlock(poses[f]);
+    for (int kp = 0; kp < frame.features.size(); ++kp) {
+      MapKeypoint mk;
+      mk.tf_px = frame.features.keypoints[kp].xy_px;
+      mk.virtual_depth = frame.virtual_depth[kp];
+      const Eigen::Vector3d x_v = internal::VirtualPoint(frame, kp);
+      mk.pinhole_px = std::isnan(x_v.z()) ? TfPinholePx(k, final_model,
+                                                        Eigen::Vector3d(x_v.x(), x_v.y(), 2.0))
+                                          : TfPinholePx(k, final_model, x_v);
+      image.keypoints.push_back(mk);
+    }
+    image_of_frame[f] = static_cast<int>(out.images.size());
+    out.images.push_back(std::move(image));
+  }
+  // Which observations survived, per track.
+  std::vector<std::vector<int>> kept(map.tracks.size());
+  for (std::size_t n = 0; n < lens_observations.size(); ++n)
+    if (inlier[n]) kept[lens_observations[n].track].push_back(lens_observations[n].observation);
+  for (int t = 0; t < static_cast<int>(map.tracks.size()); ++t) {
+    if (kept[t].size() < 2) continue;
+    const Track& track = map.tracks[t];
+    MapPoint point;
+    point.id = static_cast<std::int64_t>(out.points.size()) + 1;
+    point.p_in_w0_mm = track.p_in_w_mm;
+    // Uncertainty: spread of the single-frame back-projections (final
+    // intrinsics and poses) about the point, over sqrt(n).
+    Eigen::Vector3d sum_sq = Eigen::Vector3d::Zero();
+    Eigen::Vector3i rgb = Eigen::Vector3i::Zero();
+    for (const int o : kept[t]) {
+      const Observation& ob = track.observations[o];
+      const CalibrationFrame& frame = input.frames[ob.frame];
+      const Eigen::Vector3d x_v = internal::VirtualPoint(frame, ob.keypoint);
+      // BackProject takes the image-centre principal point: shift by the estimate.
+      const Eigen::Vector3d shifted(x_v.x() - k[3] + final_model.principal_point_px().x(),
+                                    x_v.y() - k[4] + final_model.principal_point_px().y(),
+                                    x_v.z());
+      const Eigen::Vector3d p = FromBlock(poses[ob.frame]) * final_model.BackProject(shifted);
+      sum_sq += (p - track.p_in_w_mm).cwiseAbs2();
+      for (int a = 0; a < 3; ++a) rgb[a] += frame.rgb[ob.keypoint][a];
+      MapImage& image = out.images[image_of_frame[ob.frame]];
+      image.keypoints[ob.keypoint].point_id = point.id;
+      point.track.push_back({image.image_id, ob.keypoint});
+    }
+    const double count = static_cast<double>(kept[t].size());
+    point.sigma_mm = (sum_sq / (count * count)).cwiseSqrt().cast<float>();
+    for (int a = 0; a < 3; ++a) point.rgb[a] = static_cast<std::uint8_t>(rgb[a] / count);
+    point.error_px = track_m[t] > 0 ? std::sqrt(track_ss[t] / track_m[t]) : 0;
+    const Observation& first = track.observations[kept[t].front()];
+    const float* d = input.frames[first.frame].features.Descriptor(first.keypoint);
+    point.descriptor.assign(d, d + kDescriptorSize);
+    out.points.push_back(std::move(point));
+  }
+  result.points = static_cast<int>(out.points.size());
+  result.observations = 0;
+  for (const MapPoint& p : out.points) result.observations += static_cast<long long>(p.track.size());
+  if (result.rmse_px > 1.0)
+    result.flags.push_back(Format("reprojection RMSE %.2f px is high (> 1 px): check the initial "
+                                  "values and the MLA file",
+                                  result.rmse_px));
+  if (!result.flags.empty()) result.usable = false;
+  result.total_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+std::string FormatCalibrationReport(const CalibrationResult& r, const std::string& serial) {
+  const IntrinsicsVector k = ToVector(r.calibration.intrinsics, r.calibration.principal_point_px);
+  std::string text = "# Calibration of camera " + serial + "\n\n";
+  text += r.BriefReport() + "\n\n";
+  text += r.flags.empty() ? "No flags.\n\n" : "## Flags\n\n";
+  for (const std::string& f : r.flags) text += "- " + f + "\n";
+  if (!r.flags.empty()) text += "\n";
+  text += "## Intrinsics\n\n| parameter | initial | estimate | std dev |\n|---|---|---|---|\n";
+  for (int i = 0; i < kIntrinsicsSize; ++i)
+    text += Format("| %s | %.9g | %.9g | %s |\n", kParameterNames[i], r.initial[i], k[i],
+                   std::isnan(r.std_dev[i]) ? "fixed / n.a." : Format("%.3g", r.std_dev[i]).c_str());
+  text += Format(
+      "\nReprojection RMSE over all micro-image residuals: %.4f px (%lld micro-image "
+      "observations); plate corners in the virtual image: %.4f px.\n"
+      "Observations dropped as outliers after the first solve: %lld.\n"
+      "Ceres: %d iterations, %.2f s, cost %.6e -> %.6e, %s. Total %.1f s.\n\n",
+      r.rmse_px, r.micro_observations, r.plate_rmse_px, r.rejected_observations, r.iterations,
+      r.solver_seconds, r.initial_cost, r.final_cost, r.termination.c_str(), r.total_seconds);
+  text += "## Frames\n\n| frame | placed | how | keypoints with v | plate corners | observations | "
+          "RMSE px |\n|---|---|---|---|---|---|---|\n";
+  for (const FrameReport& f : r.frames)
+    text += Format("| %lld | %s | %s | %d | %d | %d | %.4f |\n", static_cast<long long>(f.frame),
+                   f.placed ? "yes" : "no", f.how.c_str(), f.keypoints, f.plate_corners,
+                   f.observations, f.rmse_px);
+  return text;
+}
+
+}  // namespace lifmcr::registration

@@ -1,0 +1,121 @@
+#pragma once
+// Intrinsic calibration of one plenoptic camera and its reference map
+// (`lifmcr calibrate`), after LiFCal (notes in processing/camera_model.h)
+// without COLMAP:
+//
+// 1. Frames (calibration_frames.h): SIFT keypoints on the TF image, each a
+//    virtual point (x_v, y_v, v) with x_v = 2 tf + 0.5 and v the measured
+//    virtual depth; ArUco plate corners.
+// 2. Initialisation (nominal intrinsics): the first frame that sees the
+//    plate is placed by PnP on the plate corners; every keypoint with a
+//    virtual depth back-projects to a 3D point (camera_model.h). Each
+//    further frame is matched (ratio test + cross-check) against the points
+//    seen by the frames placed just before it and placed by RANSAC PnP on
+//    the TF pinhole (eqs. projX/projY, focal (b_L0 + 2B)/s); matched
+//    keypoints join the point's track, the others start new points.
+// 3. Plenoptic bundle adjustment (Ceres): frame poses (quaternion on
+//    ceres::QuaternionManifold, translation), points of tracks seen at least
+//    twice, intrinsics f_L, b_L0, B, c_x, c_y, k1, k2, p1, p2
+//    (plenoptic_projection.h). A keypoint observation is reprojected into
+//    every micro image that sees it: the observed micro-image position is
+//    p_k = l_k + (x_v - l_k) / v (the raw-image position the virtual-depth
+//    search matched, l_k with the initial lambda); the residual is the
+//    predicted p_k minus it, micro-lens centre adjustment included, Huber
+//    loss per observation. Plate corners are points fixed at their known
+//    plate coordinates, observed in the micro images in the same way (with
+//    the virtual depth at the corner; in the virtual image x_v where the TF
+//    depth map has none): they fix the
+//    metric scale and make the world frame w0 the plate frame; their
+//    residuals are weighted by plate_weight. Solves: poses and points under
+//    the initial intrinsics, then everything (f_L, b_L0, B bounded to 30 %
+//    about their initial values, the principal point to 10 % of the image),
+//    then, with observations whose RMS residual exceeds outlier_px dropped,
+//    everything again. Recalibration holds f_L and B fixed
+//    (ceres::SubsetManifold).
+// 4. Standard deviations of the intrinsics from ceres::Covariance, scaled by
+//    the residual variance of the solution.
+
+#include "config/error.h"
+#include "registration/calibration_frames.h"
+#include "registration/features.h"
+#include "registration/intrinsics_yaml.h"
+#include "registration/plenoptic_projection.h"
+#include "registration/poses_csv.h"
+#include "registration/reference_map.h"
+
+#include <functional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace lifmcr::registration {
+
+struct CalibrationOptions {
+  int min_frames = 3;               // frames placed, else an error
+  int min_features = 50;            // keypoints with a virtual depth per frame, else rejected
+  int min_plate_corners = 4;        // corners for a plate pose
+  MatchOptions match;               // frame to map matching
+  int match_window = 4;             // a frame is matched against points seen by this many placed frames
+  double pnp_threshold_px = 6.0;    // RANSAC inlier threshold (raw pixels of the TF pinhole)
+  int pnp_iterations = 5000;        // RANSAC trials
+  int min_pnp_inliers = 20;         // else the frame falls back to the plate, or is rejected
+  double huber_px = 1.0;            // Huber scale per micro-image residual (raw pixels)
+  double outlier_px = 1.5;          // observations with an RMS residual above this are dropped
+  double plate_weight = 5.0;        // plate corner residuals count this much more (the metric anchor)
+  int max_lenses = 12;              // micro images per observation (the most central)
+  int max_iterations = 100;         // Ceres iterations per solve
+  bool recalibrate = false;         // hold f_L and B fixed (LiFCal recalib)
+  bool estimate_principal_point = true;
+  bool estimate_distortion = true;
+  bool covariance = true;           // standard deviations of the intrinsics
+  int threads = 2;
+  Status Check() const;
+};
+
+struct CalibrationInput {
+  std::string serial;
+  CameraCalibration initial;  // nominal values (and the sensor: size, pixel size)
+  const MicroImages* micro_images = nullptr;
+  std::vector<CalibrationFrame> frames;
+};
+
+struct FrameReport {
+  std::int64_t frame = 0;
+  bool placed = false;
+  std::string how;       // "plate", "pnp", or why it was rejected
+  int keypoints = 0;     // with a virtual depth
+  int plate_corners = 0;
+  int observations = 0;  // in the final solve
+  double rmse_px = 0;    // micro-image residuals of this frame
+};
+
+struct CalibrationResult {
+  CameraCalibration calibration;
+  IntrinsicsVector initial{};
+  IntrinsicsVector std_dev{};  // NaN where not estimated or not available
+  std::vector<FramePose> poses;     // w0_from_c0 of the placed frames
+  std::vector<FrameReport> frames;  // every input frame
+  ReferenceMap map;
+  double rmse_px = 0;               // all micro-image residuals of the final solve
+  double plate_rmse_px = 0;         // plate corners (virtual image)
+  long long observations = 0, micro_observations = 0, rejected_observations = 0;
+  int points = 0;
+  double initial_cost = 0, final_cost = 0, solver_seconds = 0, total_seconds = 0;
+  int iterations = 0;
+  bool usable = false;              // Ceres: solution usable, and no flag below
+  std::string termination;          // Ceres termination type
+  std::vector<std::string> flags;   // problems a user should know (report flags)
+  std::string BriefReport() const;  // one line, Ceres BriefReport style
+};
+
+using ProgressFn = std::function<void(std::string_view line)>;
+
+Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
+                                      const CalibrationOptions& options,
+                                      const ProgressFn& progress = {});
+
+// calibration_report.md: parameter table with standard deviations, RMSE per
+// frame and overall, what was rejected, the flags.
+std::string FormatCalibrationReport(const CalibrationResult& result, const std::string& serial);
+
+}  // namespace lifmcr::registration

@@ -1,0 +1,151 @@
+#include "registration/calibration_gates.h"
+
+#include "processing/camera_model.h"
+#include "registration/intrinsics_yaml.h"
+#include "registration/poses_csv.h"
+#include "replay/layout.h"
+#include "replay/synth/gt_images.h"
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+
+namespace lifmcr::registration {
+namespace {
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return std::nan("");
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+std::string Format(const char* fmt, auto... args) {
+  char buffer[1024];
+  std::snprintf(buffer, sizeof(buffer), fmt, args...);
+  return buffer;
+}
+
+}  // namespace
+
+std::string GroundTruthComparison::BriefReport() const {
+  return Format(
+      "vs ground truth: f_L %+.3f %%, b_L0 %+.3f %%, B %+.3f %%, principal point %.2f px, RMSE "
+      "%.3f px, map median %.3f mm (%d points), pose median %.3f mm / %.4f deg, scale %.3f %%, "
+      "keypoint v median |error| %.2f %% (signed %+.2f %%)",
+      100 * f_l_rel, 100 * b_l0_rel, 100 * b_rel, principal_point_px, rmse_px, map_median_mm,
+      map_points, pose_median_mm, pose_median_deg, 100 * scale_error,
+      100 * keypoint_v_median_rel, 100 * keypoint_v_bias_rel);
+}
+
+std::vector<std::string> MissedGates(const GroundTruthComparison& c, const GateThresholds& t,
+                                     bool fixed) {
+  std::vector<std::string> missed;
+  auto check = [&](const char* name, double value, double limit) {
+    if (!(std::abs(value) <= limit)) missed.push_back(Format("%s %.4g > %.4g", name, value, limit));
+  };
+  if (!fixed) {
+    check("f_L rel", c.f_l_rel, t.intrinsic_rel);
+    check("B rel", c.b_rel, t.intrinsic_rel);
+  }
+  check("b_L0 rel", c.b_l0_rel, t.intrinsic_rel);
+  check("principal point px", c.principal_point_px, t.principal_point_px);
+  check("RMSE px", c.rmse_px, t.rmse_px);
+  check("map median mm", c.map_median_mm, t.map_median_mm);
+  check("pose median mm", c.pose_median_mm, t.pose_mm);
+  check("pose median deg", c.pose_median_deg, t.pose_deg);
+  check("scale", c.scale_error, t.scale);
+  return missed;
+}
+
+Expected<GroundTruthComparison> CompareWithGroundTruth(const CalibrationResult& result,
+                                                       const std::filesystem::path& seq,
+                                                       const std::string& serial) {
+  Expected<CameraCalibration> truth = ReadCameraCalibration(layout::CamerasYamlPath(seq), serial);
+  if (!truth) return truth.error();
+  Expected<std::vector<FramePose>> true_poses = ReadPosesCsv(layout::PosesCsvPath(seq, serial));
+  if (!true_poses) return true_poses.error();
+  std::map<std::int64_t, Pose> world_from_cam;
+  for (const FramePose& p : *true_poses) world_from_cam[p.frame] = p.world_from_cam;
+
+  GroundTruthComparison c;
+  const processing::CameraIntrinsics& e = result.calibration.intrinsics;
+  const processing::CameraIntrinsics& t = truth->intrinsics;
+  c.f_l_rel = e.main_focal_length_mm / t.main_focal_length_mm - 1;
+  c.b_l0_rel = e.mla_to_main_lens_mm / t.mla_to_main_lens_mm - 1;
+  c.b_rel = e.mla_to_sensor_mm / t.mla_to_sensor_mm - 1;
+  c.principal_point_px =
+      (result.calibration.principal_point_px - truth->principal_point_px).norm();
+  c.rmse_px = result.rmse_px;
+
+  std::vector<double> d_mm, d_deg;
+  for (const FramePose& p : result.poses) {
+    const auto it = world_from_cam.find(p.frame);
+    if (it == world_from_cam.end()) return Error{"ground truth has no pose of frame " +
+                                                 std::to_string(p.frame)};
+    const Pose delta = it->second.inverse() * p.world_from_cam;
+    d_mm.push_back((p.world_from_cam.translation() - it->second.translation()).norm());
+    d_deg.push_back(Eigen::AngleAxisd(delta.linear()).angle() * 180 / M_PI);
+  }
+  c.pose_median_mm = Median(d_mm);
+  c.pose_median_deg = Median(d_deg);
+
+  // Map points against the true surface.
+  const processing::CameraModel true_model(t);
+  std::map<int, const MapImage*> images;
+  for (const MapImage& image : result.map.images) images[image.image_id] = &image;
+  std::map<std::int64_t, std::vector<float>> depth_of_frame;
+  int depth_w = 0, depth_h = 0;
+  std::vector<double> errors, v_errors, v_signed;
+  std::vector<Eigen::Vector3d> estimated, expected;
+  for (const MapPoint& point : result.map.points) {
+    const TrackElement& first = point.track.front();
+    const MapImage& image = *images.at(first.image_id);
+    auto it = depth_of_frame.find(image.frame);
+    if (it == depth_of_frame.end()) {
+      Expected<std::vector<float>> depth =
+          synth::ReadFloatTiff(layout::DepthMmPath(seq, serial, image.frame), &depth_w, &depth_h);
+      if (!depth) return depth.error();
+      it = depth_of_frame.emplace(image.frame, std::move(*depth)).first;
+    }
+    const MapKeypoint& kp = image.keypoints[first.keypoint];
+    const int x = std::clamp(static_cast<int>(std::lround(kp.tf_px.x())), 0, depth_w - 1);
+    const int y = std::clamp(static_cast<int>(std::lround(kp.tf_px.y())), 0, depth_h - 1);
+    const float z = it->second[static_cast<std::size_t>(y) * depth_w + x];
+    if (std::isnan(z)) continue;
+    const double v = true_model.VirtualDepthOfDepth(z);
+    const Eigen::Vector2d raw = 2.0 * kp.tf_px.cast<double>() + Eigen::Vector2d(0.5, 0.5);
+    const Eigen::Vector3d p_in_c = true_model.BackProject(Eigen::Vector3d(raw.x(), raw.y(), v));
+    const Eigen::Vector3d p_true = world_from_cam.at(image.frame) * p_in_c;
+    errors.push_back((point.p_in_w0_mm - p_true).norm());
+    estimated.push_back(point.p_in_w0_mm);
+    expected.push_back(p_true);
+    if (!std::isnan(kp.virtual_depth)) {
+      v_errors.push_back(std::abs(kp.virtual_depth / v - 1));
+      v_signed.push_back(kp.virtual_depth / v - 1);
+    }
+  }
+  c.map_points = static_cast<int>(errors.size());
+  c.map_median_mm = Median(errors);
+  c.keypoint_v_median_rel = Median(v_errors);
+  c.keypoint_v_bias_rel = Median(v_signed);
+  std::vector<int> kept;
+  for (std::size_t n = 0; n < errors.size(); ++n)
+    if (errors[n] <= 3 * c.map_median_mm) kept.push_back(static_cast<int>(n));
+  if (kept.size() >= 3) {
+    Eigen::Matrix3Xd a(3, kept.size()), b(3, kept.size());
+    for (std::size_t n = 0; n < kept.size(); ++n) {
+      a.col(n) = estimated[kept[n]];
+      b.col(n) = expected[kept[n]];
+    }
+    const Eigen::Matrix4d sim = Eigen::umeyama(a, b, true);
+    c.scale_error = std::abs(std::cbrt(sim.topLeftCorner<3, 3>().determinant()) - 1);
+  } else {
+    c.scale_error = std::nan("");
+  }
+  return c;
+}
+
+}  // namespace lifmcr::registration

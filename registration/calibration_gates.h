@@ -1,0 +1,53 @@
+#pragma once
+// A calibration measured against the ground truth of a synthetic sequence
+// (`lifmcr synth`: SEQ/GroundTruth/cameras.yaml, poses_<serial>.csv,
+// depth/<serial>_<frame>_depth_mm.tiff), with the figures of the issue's
+// gates: relative errors of f_L, b_L0 and B, principal point error,
+// reprojection RMSE, map point error, pose error, scale error.
+//
+// Map points: the true position of a point is that of its first
+// observation: the keypoint's TF pixel with the true depth there (the
+// ground-truth depth map, nearest TF pixel), back-projected with the true
+// intrinsics and placed with the true pose. World frames: both are the plate
+// frame (the calibration's w0 is fixed by the plate corners). Scale: the
+// scale of the least-squares similarity (Umeyama) from the estimated to the
+// true points, over the points within 3 median errors.
+
+#include "config/error.h"
+#include "registration/calibration.h"
+
+#include <filesystem>
+#include <string>
+
+namespace lifmcr::registration {
+
+struct GroundTruthComparison {
+  double f_l_rel = 0, b_l0_rel = 0, b_rel = 0;  // estimate / truth - 1
+  double principal_point_px = 0;                // |c - c_true|
+  double rmse_px = 0;                           // of the calibration
+  double map_median_mm = 0;                     // median |p - p_true|
+  int map_points = 0;                           // compared
+  double pose_median_mm = 0, pose_median_deg = 0;  // median per frame
+  double scale_error = 0;                          // |s - 1|
+  double keypoint_v_median_rel = 0;                // median |v - v_true| / v_true of observations
+  double keypoint_v_bias_rel = 0;                  // median (v - v_true) / v_true
+  std::string BriefReport() const;                 // one line
+};
+
+struct GateThresholds {
+  double intrinsic_rel = 0.005;  // f_L, b_L0, B
+  double principal_point_px = 1.0;
+  double rmse_px = 0.3;
+  double map_median_mm = 1.0;
+  double pose_mm = 1.0, pose_deg = 0.05;
+  double scale = 0.002;
+};
+// Each gate missed, as "name value > threshold"; empty when all are met.
+std::vector<std::string> MissedGates(const GroundTruthComparison& c, const GateThresholds& t,
+                                     bool intrinsics_fixed_fl_b = false);
+
+Expected<GroundTruthComparison> CompareWithGroundTruth(const CalibrationResult& result,
+                                                       const std::filesystem::path& sequence_dir,
+                                                       const std::string& serial);
+
+}  // namespace lifmcr::registration

@@ -1,0 +1,69 @@
+#pragma once
+// One frame of one camera against the reference map: descriptor matching
+// (kNN with Lowe's ratio and a cross check, as the paper's PnP method;
+// registration/features.h), then either estimator:
+//   pnp     plenoptic PnP (registration/pnp.h) on the matched map points and
+//           TF keypoints: cam_from_w0, inverted to w0_from_cam;
+//   ransac  3D RANSAC (registration/rigid_3d.h) on the matched map points and
+//           the frame's back-projected points, each with the plenoptic
+//           uncertainty of its virtual depth: w0_from_cam directly.
+// The result carries w0_from_cam with its 6x6 covariance, the inliers and the
+// RMS reprojection error of the inliers in TF pixels (for both methods, so
+// that registration.csv compares them).
+
+#include "config/error.h"
+#include "processing/camera_model.h"
+#include "registration/features.h"
+#include "registration/frame_observations.h"
+#include "registration/pnp.h"
+#include "registration/pose_covariance.h"
+#include "registration/reference_map.h"
+#include "registration/rigid_3d.h"
+
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace lifmcr::registration {
+
+enum class RegistrationMethod { kPnp, kRansac3d };
+std::string_view ToString(RegistrationMethod method);  // "pnp", "ransac"
+std::optional<RegistrationMethod> ParseRegistrationMethod(std::string_view name);
+
+// The map's points and descriptors in the buffers matching needs: one
+// contiguous P x 128 copy of the descriptors (the map keeps one vector per
+// point), made once per map.
+struct MapIndex {
+  std::vector<Eigen::Vector3d> points_in_w0;
+  std::vector<float> descriptors;
+  int size() const { return static_cast<int>(points_in_w0.size()); }
+  static MapIndex Of(const ReferenceMap& map);
+};
+
+struct FrameRegistrationOptions {
+  MatchOptions match;
+  PnpOptions pnp;
+  Rigid3dOptions rigid;
+  double sigma_v_relative = 0.007;  // virtual-depth noise / v (processing: median 0.69 %), > 0
+  double sigma_tf_px = 0.3;         // keypoint noise on the TF grid (px), > 0
+  Status Check() const;
+};
+
+struct FrameRegistration {
+  bool success = false;
+  std::string status = "not run";  // "ok" or why it failed
+  PoseWithCovariance w0_from_cam;
+  std::size_t matches = 0;
+  std::size_t inliers = 0;
+  double rmse_px = 0;
+  double seconds = 0;  // matching and estimation
+  // "pnp ok: 412 inliers of 655 matches, rmse 0.42 px, 12.3 ms".
+  std::string BriefReport(RegistrationMethod method) const;
+};
+
+FrameRegistration RegisterFrame(const MapIndex& map, const processing::CameraModel& camera,
+                                const FrameObservations& frame, RegistrationMethod method,
+                                const FrameRegistrationOptions& options);
+
+}  // namespace lifmcr::registration

@@ -1,0 +1,265 @@
+#include "registration/pnp.h"
+
+#include "registration/ceres_pose_problem.h"
+#include "registration/p3p.h"
+#include "registration/pose_refinement.h"
+#include "registration/tf_projection.h"
+
+#include <ceres/ceres.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Geometry>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+namespace lifmcr::registration {
+namespace {
+
+Error FieldError(const std::string& field, const std::string& what) {
+  return Error{"pnp options: " + field + ": " + what};
+}
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Reprojection residual of one match for Ceres, with analytic Jacobians:
+// parameters q (x, y, z, w; ceres::EigenQuaternionManifold) and t of
+// cam_from_world. The manifold moves q to [cos|d|, sin|d| d/|d|] * q, a
+// rotation by 2 d on the left, so dr/dd = -2 J_p [R X]x; its Jacobian P
+// (4x3, d(q)/dd at d = 0) has orthonormal columns, so the ambient Jacobian
+// dr/dd P^T gives back dr/dd through the chain rule Ceres applies.
+class TfReprojectionCost final : public ceres::SizedCostFunction<2, 4, 3> {
+ public:
+  TfReprojectionCost(const TfProjection& projection, const Eigen::Vector3d& point,
+                     const Eigen::Vector2d& observed)
+      : projection_(projection), point_(point), observed_(observed) {}
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const Eigen::Map<const Eigen::Quaterniond> q(parameters[0]);
+    const Eigen::Map<const Eigen::Vector3d> t(parameters[1]);
+    const Eigen::Vector3d rx = q * point_;
+    Eigen::Vector2d tf;
+    Eigen::Matrix<double, 2, 3> j_p;
+    if (!projection_.WithJacobian(rx + t, &tf, &j_p)) return false;
+    residuals[0] = tf.x() - observed_.x();
+    residuals[1] = tf.y() - observed_.y();
+    if (jacobians == nullptr) return true;
+    if (jacobians[0] != nullptr) {
+      // P: rows x, y, z = w I - [v]x, row w = -v^T (v the vector part of q).
+      Eigen::Matrix<double, 4, 3> p;
+      p.topRows<3>() = q.w() * Eigen::Matrix3d::Identity() - Skew(q.vec());
+      p.row(3) = -q.vec().transpose();
+      const Eigen::Matrix<double, 2, 3> j_d = -2.0 * j_p * Skew(rx);
+      Eigen::Map<Eigen::Matrix<double, 2, 4, Eigen::RowMajor>> j_q(jacobians[0]);
+      j_q = j_d * p.transpose();
+    }
+    if (jacobians[1] != nullptr) {
+      Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>> j_t(jacobians[1]);
+      j_t = j_p;
+    }
+    return true;
+  }
+
+ private:
+  const TfProjection& projection_;
+  Eigen::Vector3d point_;
+  Eigen::Vector2d observed_;
+};
+
+}  // namespace
+
+Status PnpOptions::Check() const {
+  if (Status s = ransac.Check(); !s.ok()) return Error{"pnp options: " + s.error().message};
+  if (lo_iterations < 1) return FieldError("lo_iterations", "expected >= 1");
+  if (!(loss_scale_px > 0) || !std::isfinite(loss_scale_px))
+    return FieldError("loss_scale_px", "expected a finite number > 0");
+  if (max_refine_iterations < 1) return FieldError("max_refine_iterations", "expected >= 1");
+  if (min_inliers < 3) return FieldError("min_inliers", "expected >= 3");
+  return Status::Ok();
+}
+
+std::string PnpResult::BriefReport() const {
+  char line[256];
+  std::snprintf(line, sizeof line,
+                "PnP %s: %zu/%zu inliers, rmse %.3f px, %d trials, %d refinements, %d Ceres "
+                "iterations, %.2f ms",
+                status.c_str(), num_inliers, ransac.num_data, rmse_px, ransac.trials,
+                ransac.refinements, refine_iterations, time_ms);
+  return line;
+}
+
+PlenopticPnpEstimator::PlenopticPnpEstimator(const processing::CameraModel& camera,
+                                             const PnpInput& input, int lo_iterations)
+    : camera_(camera),
+      projection_(TfProjection::Of(camera)),
+      input_(input),
+      lo_iterations_(lo_iterations) {
+  const std::size_t n = input_.points_in_world.size();
+  bearings_.resize(n, Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
+  const double focal = camera_.FeatureFocalPx();
+  const Eigen::Vector2d c = camera_.principal_point_px();
+  for (std::size_t i = 0; i < n && i < input_.virtual_depth.size(); ++i) {
+    const double v = input_.virtual_depth[i];
+    if (!std::isfinite(v) || v <= 0) continue;
+    const Eigen::Vector2d raw = processing::CameraModel::RawOfTf(input_.tf_px[i]);
+    const Eigen::Vector2d x = camera_.FeatureImagePoint({raw.x(), raw.y(), v});
+    bearings_[i] = Eigen::Vector3d((x.x() - c.x()) / focal, (x.y() - c.y()) / focal, 1.0).normalized();
+  }
+}
+
+void PlenopticPnpEstimator::Generate(std::span<const int> sample, std::vector<Model>* models) {
+  std::array<Eigen::Vector3d, 3> bearings, points;
+  for (int k = 0; k < 3; ++k) {
+    bearings[k] = bearings_[sample[k]];
+    if (!bearings[k].allFinite()) return;
+    points[k] = input_.points_in_world[sample[k]];
+  }
+  SolveP3P(bearings, points, models);
+}
+
+double PlenopticPnpEstimator::Score(const Model& cam_from_world, double threshold2, double bound,
+                                    std::size_t* num_inliers) const {
+  const Eigen::Matrix3d r = cam_from_world.linear();
+  const Eigen::Vector3d t = cam_from_world.translation();
+  const std::size_t n = NumData();
+  double cost = 0;
+  std::size_t inliers = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double r2 = projection_.SquaredError(r * input_.points_in_world[i] + t, input_.tf_px[i]);
+    if (r2 < threshold2) {
+      ++inliers;
+      cost += r2;
+    } else {
+      cost += threshold2;
+    }
+    if (cost >= bound) break;  // cannot beat the best any more
+  }
+  *num_inliers = inliers;
+  return cost;
+}
+
+std::size_t PlenopticPnpEstimator::NormalEquations(const Model& cam_from_world, double threshold2,
+                                                   Eigen::Matrix<double, 6, 6>* jtj,
+                                                   Eigen::Matrix<double, 6, 1>* jtr,
+                                                   double* sum_squares) const {
+  const Eigen::Matrix3d r = cam_from_world.linear();
+  const Eigen::Vector3d t = cam_from_world.translation();
+  jtj->setZero();
+  jtr->setZero();
+  *sum_squares = 0;
+  std::size_t used = 0;
+  const std::size_t n = NumData();
+  Eigen::Vector2d tf;
+  Eigen::Matrix<double, 2, 3> j_p;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d rx = r * input_.points_in_world[i];
+    if (!projection_.WithJacobian(rx + t, &tf, &j_p)) continue;
+    const Eigen::Vector2d res = tf - input_.tf_px[i];
+    const double r2 = res.squaredNorm();
+    if (!(r2 < threshold2)) continue;
+    // dp/d(dt) = I, dp/d(dr) = -[R X]x.
+    Eigen::Matrix<double, 2, 6> j;
+    j.leftCols<3>() = j_p;
+    j.rightCols<3>() = -j_p * Skew(rx);
+    jtj->noalias() += j.transpose() * j;
+    jtr->noalias() += j.transpose() * res;
+    *sum_squares += r2;
+    ++used;
+  }
+  return used;
+}
+
+bool PlenopticPnpEstimator::GaussNewton(Model* cam_from_world, double threshold,
+                                        int iterations) const {
+  const double t2 = threshold * threshold;
+  double sum_squares = 0;
+  std::size_t count = 0;
+  return LevenbergMarquardt(
+      cam_from_world, iterations,
+      [&](const Pose& pose, Eigen::Matrix<double, 6, 6>* jtj, Eigen::Matrix<double, 6, 1>* jtr) {
+        return NormalEquations(pose, t2, jtj, jtr, &sum_squares);
+      },
+      [&](const Pose& pose) { return Score(pose, t2, kInf, &count); });
+}
+
+bool PlenopticPnpEstimator::Refine(Model* cam_from_world, double threshold) {
+  return GaussNewton(cam_from_world, threshold, lo_iterations_);
+}
+
+int RefinePnpCeres(const processing::CameraModel& camera, const PnpInput& input,
+                   std::span<const char> mask, double loss_scale_px, int max_iterations,
+                   Pose* cam_from_world) {
+  const TfProjection projection = TfProjection::Of(camera);
+  return SolveCeresPoseProblem(
+      mask, loss_scale_px, max_iterations,
+      [&](std::size_t i) {
+        return new TfReprojectionCost(projection, input.points_in_world[i], input.tf_px[i]);
+      },
+      cam_from_world);
+}
+
+PnpResult EstimatePlenopticPnp(const processing::CameraModel& camera, const PnpInput& input,
+                               const PnpOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  PnpResult result;
+  const auto finish = [&](std::string status) {
+    result.status = std::move(status);
+    result.time_ms = std::chrono::duration<double, std::milli>(
+                         std::chrono::steady_clock::now() - start)
+                         .count();
+    return result;
+  };
+  const std::size_t n = input.points_in_world.size();
+  if (input.tf_px.size() != n || (!input.virtual_depth.empty() && input.virtual_depth.size() != n))
+    return finish("inputs of different lengths");
+  if (n < static_cast<std::size_t>(options.min_inliers)) {
+    result.ransac.num_data = n;
+    return finish("too few matches (" + std::to_string(n) + ")");
+  }
+  PlenopticPnpEstimator estimator(camera, input, options.lo_iterations);
+  Pose pose;
+  result.ransac = Ransac(options.ransac, estimator, &pose);
+  if (!result.ransac.success) return finish("no pose hypothesis");
+
+  const double t2 = options.ransac.max_error * options.ransac.max_error;
+  const auto mark_inliers = [&] {
+    result.num_inliers = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      result.inlier_mask[i] = estimator.SquaredResidual(pose, i) < t2;
+      result.num_inliers += result.inlier_mask[i];
+    }
+  };
+  result.inlier_mask = result.ransac.inlier_mask;
+  // Refit until the inlier set settles (at most 3 times).
+  for (int round = 0; options.final_refinement && round < 3; ++round) {
+    const std::vector<char> previous = result.inlier_mask;
+    const int iterations = RefinePnpCeres(camera, input, result.inlier_mask, options.loss_scale_px,
+                                          options.max_refine_iterations, &pose);
+    if (iterations < 0) break;
+    result.refine_iterations += iterations;
+    mark_inliers();
+    if (result.inlier_mask == previous) break;
+  }
+  mark_inliers();
+  result.cam_from_world = pose;
+  Eigen::Matrix<double, 6, 6> jtj;
+  Eigen::Matrix<double, 6, 1> jtr;
+  double sum_squares = 0;
+  const std::size_t used = estimator.NormalEquations(pose, t2, &jtj, &jtr, &sum_squares);
+  if (used > 0) result.rmse_px = std::sqrt(sum_squares / static_cast<double>(used));
+  if (used > 3) {
+    const double sigma2 = sum_squares / static_cast<double>(2 * used - 6);
+    const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(jtj);
+    result.covariance = sigma2 * ldlt.solve(Eigen::Matrix<double, 6, 6>::Identity());
+  }
+  if (result.num_inliers < static_cast<std::size_t>(options.min_inliers))
+    return finish("too few inliers (" + std::to_string(result.num_inliers) + " < " +
+                  std::to_string(options.min_inliers) + ")");
+  result.success = true;
+  return finish("ok");
+}
+
+}  // namespace lifmcr::registration

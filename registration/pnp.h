@@ -1,0 +1,124 @@
+#pragma once
+// Plenoptic PnP (the paper's section "Plenoptic PnP Method"): the pose
+// cam_from_world of a plenoptic camera from matches between 3D points of the
+// reference map (world = w0, mm) and keypoints of its totally focused image.
+//
+// Observation i: the keypoint tf_i (TF pixels) and, when known, the virtual
+// depth v_i of the TF image there.
+//   Hypotheses: Lambda Twist P3P (registration/p3p.h) on the paper's central
+//   perspective projection (eqs. projX/projY): the virtual point
+//   (RawOfTf(tf_i), v_i) is undistorted and projected through the main-lens
+//   centre, CameraModel::FeatureImagePoint, a pinhole of focal length
+//   FeatureFocalPx(); its bearing is ((x - c) / f, (y - c) / f, 1).
+//   Observations without a virtual depth are scored and refined, never sampled.
+//   Residual: r_i = pi(R X_i + t) - tf_i in TF pixels, pi the plenoptic
+//   projection (registration/tf_projection.h). It does not use v_i, so
+//   the depth map's noise does not enter the refined pose.
+//   Robust core: LO-RANSAC (registration/ransac.h) with MSAC on |r_i|; local
+//   optimisation by Gauss-Newton on the truncated quadratic loss.
+//   Final refinement: Ceres, Levenberg-Marquardt over the RANSAC inliers with
+//   a Cauchy loss, rotation on ceres::EigenQuaternionManifold, repeated (at
+//   most 3 times) until the inlier set no longer changes.
+//   Covariance: Sigma = s^2 (J^T J)^-1 at the final pose over the final
+//   inliers, s^2 = sum r_i^2 / (2 n - 6), in the convention of
+//   registration/pose_covariance.h (of cam_from_world).
+
+#include "config/error.h"
+#include "config/frames.h"
+#include "processing/camera_model.h"
+#include "registration/tf_projection.h"
+#include "registration/pose_covariance.h"
+#include "registration/ransac.h"
+
+#include <Eigen/Core>
+
+#include <span>
+#include <string>
+#include <vector>
+
+namespace lifmcr::registration {
+
+struct PnpOptions {
+  // max_error: inlier threshold on |r_i| in TF pixels.
+  RansacOptions ransac{.max_error = 2.0};
+  int lo_iterations = 8;           // Gauss-Newton steps per local optimisation (>= 1)
+  bool final_refinement = true;    // Ceres refinement after RANSAC
+  double loss_scale_px = 1.0;      // Cauchy scale of the final refinement (TF px, > 0)
+  int max_refine_iterations = 30;  // Ceres iterations (>= 1)
+  int min_inliers = 12;            // fewer inliers: the pose is rejected (>= 3)
+
+  Status Check() const;
+};
+
+// The matches, index-aligned. `virtual_depth` may be empty (no hypotheses can
+// then be made) or hold NaN where the depth map had none.
+struct PnpInput {
+  std::span<const Eigen::Vector3d> points_in_world;  // X_i, mm
+  std::span<const Eigen::Vector2d> tf_px;            // tf_i
+  std::span<const double> virtual_depth;             // v_i
+};
+
+struct PnpResult {
+  bool success = false;
+  Pose cam_from_world = Pose::Identity();
+  Covariance6 covariance = Covariance6::Zero();  // of cam_from_world
+  std::size_t num_inliers = 0;
+  double rmse_px = 0;  // over the final inliers, TF pixels
+  std::vector<char> inlier_mask;
+  RansacReport ransac;
+  int refine_iterations = 0;  // Ceres iterations of the final refinement
+  double time_ms = 0;         // everything, RANSAC included
+  std::string status = "not run";  // "ok" or why it failed
+
+  // "PnP ok: 812/2000 inliers, rmse 0.41 px, 152 trials, 6 refinements, 3.1 ms".
+  std::string BriefReport() const;
+};
+
+// The estimator the RANSAC core runs; public for tests and the localizer
+// (which runs it with a predicted pose). Model = cam_from_world.
+class PlenopticPnpEstimator {
+ public:
+  using Model = Pose;
+  static constexpr int kSampleSize = 3;
+
+  PlenopticPnpEstimator(const processing::CameraModel& camera, const PnpInput& input,
+                        int lo_iterations);
+
+  std::size_t NumData() const { return input_.points_in_world.size(); }
+  void Generate(std::span<const int> sample, std::vector<Model>* models);
+  double Score(const Model& cam_from_world, double threshold2, double bound,
+               std::size_t* num_inliers) const;
+  double SquaredResidual(const Model& cam_from_world, std::size_t i) const {
+    return projection_.SquaredError(cam_from_world * input_.points_in_world[i], input_.tf_px[i]);
+  }
+  bool Refine(Model* cam_from_world, double threshold);
+
+  // Gauss-Newton on the truncated quadratic loss (threshold) over all data.
+  bool GaussNewton(Model* cam_from_world, double threshold, int iterations) const;
+  // J^T J and J^T r of the data whose squared residual is below threshold2
+  // (all when infinite), in the perturbation of pose_covariance.h; returns
+  // the number used and their sum of squared residuals.
+  std::size_t NormalEquations(const Model& cam_from_world, double threshold2,
+                              Eigen::Matrix<double, 6, 6>* jtj, Eigen::Matrix<double, 6, 1>* jtr,
+                              double* sum_squares) const;
+
+ private:
+  processing::CameraModel camera_;
+  TfProjection projection_;
+  PnpInput input_;
+  int lo_iterations_;
+  std::vector<Eigen::Vector3d> bearings_;  // unit, main-lens centre; NaN when v_i is unknown
+};
+
+// The whole estimate: LO-RANSAC, Ceres refinement, covariance, final inliers.
+PnpResult EstimatePlenopticPnp(const processing::CameraModel& camera, const PnpInput& input,
+                               const PnpOptions& options);
+
+// Ceres refinement of cam_from_world over the data with mask[i] != 0 (Cauchy
+// loss of scale loss_scale_px); returns the iterations run, or -1 when Ceres
+// reported no usable solution (the pose is then unchanged).
+int RefinePnpCeres(const processing::CameraModel& camera, const PnpInput& input,
+                   std::span<const char> mask, double loss_scale_px, int max_iterations,
+                   Pose* cam_from_world);
+
+}  // namespace lifmcr::registration

@@ -1,0 +1,174 @@
+// The processing chain (processing/frame_chain.h) on a synthetic `small`
+// frame: the same products as the steps called one by one, the white image
+// as the one branch of the per-camera setup, metric depth with intrinsics,
+// workspaces reused, and options that name their bad field.
+
+#include "processing/frame_chain.h"
+#include "tests/processing/synth_frame.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+namespace lifmcr::processing {
+namespace {
+
+OwnedImage Own(const synth::RawFrame& frame) {
+  OwnedImage image = OwnedImage::Allocate(frame.width, frame.height, frame.format);
+  std::memcpy(image.pixels.data(), frame.pixels.data(), image.pixels.size());
+  return image;
+}
+
+CameraSetup SetupOf(const testing::SynthFrame& s, bool white, bool intrinsics) {
+  CameraSetup setup;
+  setup.serial = "40398678";
+  setup.mla = s.mla;
+  if (white) setup.white = Own(s.white);
+  if (intrinsics) setup.intrinsics = s.intrinsics;
+  return setup;
+}
+
+const testing::SynthFrame& Frame() {
+  static const testing::SynthFrame frame = testing::RenderSynthFrame();
+  return frame;
+}
+
+TEST(FrameChain, MatchesTheStepsCalledOneByOneAndReusesItsWorkspace) {
+  const testing::SynthFrame& s = Frame();
+  ChainOptions options;
+  options.point_cloud = true;
+  auto chain = CameraChain::Create(SetupOf(s, true, true), options);
+  ASSERT_TRUE(chain.ok()) << chain.error().message;
+  EXPECT_EQ((*chain)->devignetting(), Devignetting::kWhiteImage);
+  EXPECT_NE((*chain)->Describe().find("white image"), std::string::npos);
+
+  // The reference: the steps by hand, with the camera's lambda.
+  const CameraModel camera(s.intrinsics);
+  FrameOptions fo;
+  fo.lambda = camera.lambda();
+  PlenopticFrame frame;
+  ASSERT_TRUE(PrepareFrame(s.raw.View(), s.white.View(),
+                           MlaGrid::FromCalibration(s.mla, s.raw.width, s.raw.height), s.mla, fo,
+                           &frame)
+                  .ok());
+  VirtualDepthMap depth;
+  ASSERT_TRUE(EstimateVirtualDepth(frame, s.mla, DepthOptions{}, &depth).ok());
+  TfDepthMap tf_depth;
+  ASSERT_TRUE(VirtualDepthToTf(frame, depth, TfOptions{}, &tf_depth).ok());
+
+  const ChainProducts* first = nullptr;
+  for (int pass = 0; pass < 2; ++pass) {
+    auto lease = (*chain)->Process(s.raw.View());
+    ASSERT_TRUE(lease.ok()) << lease.error().message;
+    const ChainProducts& p = **lease;
+    // A lease returned to the pool is the next frame's workspace.
+    if (pass == 0) {
+      first = &p;
+    } else {
+      EXPECT_EQ(&p, first);
+    }
+    EXPECT_EQ(p.prepared.lambda, camera.lambda());
+    EXPECT_EQ(p.raw_depth.stats.estimated, depth.stats.estimated);
+    ASSERT_EQ(p.tf_depth.virtual_depth.size(), tf_depth.virtual_depth.size());
+    for (std::size_t i = 0; i < tf_depth.virtual_depth.size(); ++i) {
+      const float a = p.tf_depth.virtual_depth[i], b = tf_depth.virtual_depth[i];
+      ASSERT_TRUE((std::isnan(a) && std::isnan(b)) || a == b) << i;
+    }
+    EXPECT_TRUE(p.metric);
+    EXPECT_EQ(p.depth_mm.size(), tf_depth.virtual_depth.size());
+    EXPECT_GT(p.cloud.points_mm.size(), 1000u);
+    EXPECT_NE(p.BriefReport().find("metric"), std::string::npos) << p.BriefReport();
+  }
+}
+
+TEST(FrameChain, WithoutAWhiteImageTheVignettingComesFromTheFirstFrame) {
+  const testing::SynthFrame& s = Frame();
+  auto chain = CameraChain::Create(SetupOf(s, false, false), ChainOptions{});
+  ASSERT_TRUE(chain.ok()) << chain.error().message;
+  EXPECT_EQ((*chain)->devignetting(), Devignetting::kFromFrame);
+  auto lease = (*chain)->Process(s.raw.View());
+  ASSERT_TRUE(lease.ok()) << lease.error().message;
+  EXPECT_EQ((*lease)->prepared.lambda, 1.0);  // no intrinsics: lambda 1
+  EXPECT_FALSE((*lease)->metric);
+  EXPECT_TRUE((*lease)->depth_mm.empty());
+  EXPECT_GT((*lease)->raw_depth.stats.estimated, 1000);
+  // What the estimate decided is in the camera's description.
+  EXPECT_NE((*chain)->Describe().find("from the frame ("), std::string::npos)
+      << (*chain)->Describe();
+}
+
+TEST(FrameChain, ConcurrentLeasesHaveTheirOwnWorkspaces) {
+  const testing::SynthFrame& s = Frame();
+  auto chain = CameraChain::Create(SetupOf(s, true, false), ChainOptions{});
+  ASSERT_TRUE(chain.ok());
+  auto a = (*chain)->Process(s.raw.View());
+  auto b = (*chain)->Process(s.raw.View());
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_NE(a->get(), b->get());
+}
+
+TEST(FrameChain, AFrameOfAnotherSizeThanItsWhiteImageIsAnError) {
+  const testing::SynthFrame& s = Frame();
+  auto chain = CameraChain::Create(SetupOf(s, true, false), ChainOptions{});
+  ASSERT_TRUE(chain.ok());
+  ConstImageView half = s.raw.View();
+  half.height /= 2;
+  auto lease = (*chain)->Process(half);
+  ASSERT_FALSE(lease.ok());
+  EXPECT_NE(lease.error().message.find("white image"), std::string::npos)
+      << lease.error().message;
+}
+
+TEST(FrameChain, BadOptionsNameTheirField) {
+  struct Case {
+    const char* field;
+    void (*set)(ChainOptions&);
+  };
+  const Case cases[] = {
+      {"lambda", [](ChainOptions& o) { o.frame.lambda = 0; }},
+      {"smooth_passes", [](ChainOptions& o) { o.frame.smooth_passes = -1; }},
+      {"min_white_fraction", [](ChainOptions& o) { o.frame.min_white_fraction = 1.5; }},
+      {"margin_px", [](ChainOptions& o) { o.frame.margin_px = -1; }},
+      {"max_rel_sigma", [](ChainOptions& o) { o.depth.max_rel_sigma = 0; }},
+      {"max_cost_ratio", [](ChainOptions& o) { o.depth.max_cost_ratio = 0; }},
+      {"smooth_radius_px", [](ChainOptions& o) { o.depth.smooth_radius_px = -1; }},
+      {"min_support", [](ChainOptions& o) { o.depth.min_support = 0; }},
+      {"geometric_px", [](ChainOptions& o) { o.depth.geometric_px = NAN; }},
+      {"cross_type_px", [](ChainOptions& o) { o.depth.cross_type_px = -1; }},
+      {"sharpen", [](ChainOptions& o) { o.tf.sharpen = -1; }},
+      {"inner_fraction", [](ChainOptions& o) { o.tf.inner_fraction = 0; }},
+  };
+  const testing::SynthFrame& s = Frame();
+  for (const Case& c : cases) {
+    ChainOptions options;
+    c.set(options);
+    const Status status = options.Check();
+    ASSERT_FALSE(status.ok()) << c.field;
+    EXPECT_NE(status.error().message.find(c.field), std::string::npos) << status.error().message;
+    auto chain = CameraChain::Create(SetupOf(s, false, false), options);
+    EXPECT_FALSE(chain.ok()) << c.field;
+  }
+  GridFitOptions grid;
+  grid.window_fraction = 0;
+  ASSERT_FALSE(grid.Check().ok());
+  EXPECT_NE(grid.Check().error().message.find("window_fraction"), std::string::npos);
+}
+
+TEST(FrameChain, TwoCamerasByTheirSerial) {
+  const testing::SynthFrame& s = Frame();
+  std::vector<CameraSetup> setups{SetupOf(s, true, false), SetupOf(s, false, true)};
+  setups[1].serial = "40398673";
+  auto chain = ProcessingChain::Create(std::move(setups), ChainOptions{});
+  ASSERT_TRUE(chain.ok()) << chain.error().message;
+  ASSERT_NE((*chain)->Find("40398673"), nullptr);
+  EXPECT_EQ((*chain)->Find("40398673")->devignetting(), Devignetting::kFromFrame);
+  EXPECT_TRUE((*chain)->Find("40398673")->camera_model().has_value());
+  EXPECT_EQ((*chain)->Find("00000000"), nullptr);
+  std::vector<CameraSetup> twice{SetupOf(s, true, false), SetupOf(s, true, false)};
+  EXPECT_FALSE(ProcessingChain::Create(std::move(twice), ChainOptions{}).ok());
+}
+
+}  // namespace
+}  // namespace lifmcr::processing

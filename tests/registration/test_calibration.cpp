@@ -1,0 +1,211 @@
+// `lifmcr calibrate`'s library on a small synthetic sequence (4 frames of
+// the `small` preset seen from 1.8 m so that the marker plate is whole in
+// the TF image): initialisation, plenoptic bundle adjustment, the files it
+// writes, and the errors of bad input. The figures against the ground truth
+// are printed; the accuracy gates of `medium` with 40 frames are measured by
+// bench/bench_calibrate (a 4-frame run cannot determine every intrinsic).
+
+#include "processing/camera_model.h"
+#include "registration/calibration.h"
+#include "registration/calibration_frames.h"
+#include "registration/calibration_gates.h"
+#include "registration/intrinsics_yaml.h"
+#include "registration/reference_map.h"
+#include "replay/layout.h"
+#include "replay/synth/synth_params.h"
+#include "replay/synth/synth_writer.h"
+#include "tests/test_util.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <memory>
+
+namespace lifmcr::registration {
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kSerial = "40398678";
+
+class CalibrationTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new test::TempDir();
+    Expected<synth::SynthParams> params = synth::MakePreset("small");
+    ASSERT_TRUE(params);
+    params->rig.cameras = 1;
+    params->rig.frames = 4;
+    params->rig.viewing_distance_mm = 1800;
+    params->rig.speed_scale = 4;
+    Expected<synth::SynthSummary> summary = synth::WriteSyntheticDataset(dir_->path(), *params, {});
+    ASSERT_TRUE(summary) << summary.error().message;
+    sequence_ = new fs::path(summary->sequence_dir);
+    Expected<CameraCalibration> truth =
+        ReadCameraCalibration(layout::CamerasYamlPath(*sequence_), kSerial);
+    ASSERT_TRUE(truth) << truth.error().message;
+    truth_ = new CameraCalibration(*truth);
+    Expected<PlateLayout> plate = ReadPlateLayout(layout::CamerasYamlPath(*sequence_));
+    ASSERT_TRUE(plate) << plate.error().message;
+    plate_ = new PlateLayout(*plate);
+    // Frames processed with the lambda of the initial (5 % off) values.
+    FrameLoaderOptions options;
+    options.lambda = processing::CameraModel(Initial().intrinsics).lambda();
+    auto loader = CalibrationFrameLoader::Open(*sequence_, kSerial, {}, *plate_, options);
+    ASSERT_TRUE(loader) << loader.error().message;
+    loader_ = loader->release();
+    frames_ = new std::vector<CalibrationFrame>();
+    for (const std::int64_t f : loader_->frames()) {
+      Expected<CalibrationFrame> frame = loader_->Load(f);
+      ASSERT_TRUE(frame) << frame.error().message;
+      std::printf("frame %lld: %d keypoints, %zu plate corners, TF depth %.0f %%\n",
+                  static_cast<long long>(f), frame->features.size(), frame->corners.size(),
+                  100 * frame->tf_depth_coverage);
+      frames_->push_back(std::move(*frame));
+    }
+  }
+  static void TearDownTestSuite() {
+    delete frames_;
+    delete loader_;
+    delete plate_;
+    delete truth_;
+    delete sequence_;
+    delete dir_;
+  }
+  // Nominal values 5 % off the truth (f_L and b_L0 up, B down: each alone
+  // 5 % off would put b_L0 + v B below f_L, no image at all).
+  static CameraCalibration Initial() {
+    CameraCalibration c = *truth_;
+    c.intrinsics.main_focal_length_mm *= 1.05;
+    c.intrinsics.mla_to_main_lens_mm *= 1.05;
+    c.intrinsics.mla_to_sensor_mm *= 0.95;
+    return c;
+  }
+  CalibrationInput Input(const CameraCalibration& initial) const {
+    CalibrationInput input;
+    input.serial = kSerial;
+    input.initial = initial;
+    input.micro_images = &loader_->micro_images();
+    input.frames = *frames_;
+    return input;
+  }
+  // Four nearly parallel views cannot separate the principal point and the
+  // distortion from the pose: they stay at their initial values here.
+  static CalibrationOptions Options() {
+    CalibrationOptions options;
+    options.estimate_principal_point = false;
+    options.estimate_distortion = false;
+    return options;
+  }
+
+  static test::TempDir* dir_;
+  static fs::path* sequence_;
+  static CameraCalibration* truth_;
+  static PlateLayout* plate_;
+  static CalibrationFrameLoader* loader_;
+  static std::vector<CalibrationFrame>* frames_;
+};
+
+test::TempDir* CalibrationTest::dir_ = nullptr;
+fs::path* CalibrationTest::sequence_ = nullptr;
+CameraCalibration* CalibrationTest::truth_ = nullptr;
+PlateLayout* CalibrationTest::plate_ = nullptr;
+CalibrationFrameLoader* CalibrationTest::loader_ = nullptr;
+std::vector<CalibrationFrame>* CalibrationTest::frames_ = nullptr;
+
+TEST_F(CalibrationTest, FromFivePercentOffPlacesEveryFrameAndFitsTheMicroImages) {
+  ASSERT_EQ(frames_->size(), 4u);
+  for (const CalibrationFrame& f : *frames_) EXPECT_GE(f.corners.size(), 4u) << f.frame;
+  Expected<CalibrationResult> r = Calibrate(Input(Initial()), Options());
+  ASSERT_TRUE(r) << r.error().message;
+  std::printf("%s\n", r->BriefReport().c_str());
+  Expected<GroundTruthComparison> c = CompareWithGroundTruth(*r, *sequence_, kSerial);
+  ASSERT_TRUE(c) << c.error().message;
+  std::printf("%s\n", c->BriefReport().c_str());
+  for (const std::string& m : MissedGates(*c, GateThresholds{}))
+    std::printf("  gate (medium, 40 frames) not met on this 4-frame run: %s\n", m.c_str());
+  EXPECT_EQ(r->poses.size(), 4u);
+  for (const FrameReport& f : r->frames) EXPECT_TRUE(f.placed) << f.frame << ": " << f.how;
+  EXPECT_LT(r->final_cost, 0.2 * r->initial_cost);
+  EXPECT_LE(r->rmse_px, 0.3);
+  EXPECT_LE(r->plate_rmse_px, 0.5);
+  EXPECT_GT(r->points, 200);
+  // Metric scale and the plate frame come from the ArUco corners.
+  EXPECT_LE(c->scale_error, 0.005);
+  EXPECT_LE(c->pose_median_deg, 0.5);
+}
+
+TEST_F(CalibrationTest, WritesAMapAndIntrinsicsThatReadBack) {
+  Expected<CalibrationResult> r = Calibrate(Input(Initial()), Options());
+  ASSERT_TRUE(r) << r.error().message;
+  test::TempDir out;
+  ASSERT_TRUE(WriteReferenceMap(out.path(), r->map));
+  Expected<ReferenceMap> map = ReadReferenceMap(out.path());
+  ASSERT_TRUE(map) << map.error().message;
+  EXPECT_EQ(map->points.size(), r->map.points.size());
+  EXPECT_EQ(map->images.size(), 4u);
+  EXPECT_EQ(map->camera.width_px, truth_->intrinsics.width_px / 2);
+  for (const MapPoint& p : map->points) {
+    EXPECT_GE(p.track.size(), 2u);
+    EXPECT_EQ(p.descriptor.size(), static_cast<std::size_t>(kDescriptorSize));
+  }
+  ASSERT_TRUE(WriteIntrinsicsYaml(out / "intrinsics.yaml", kSerial, r->calibration, {}));
+  Expected<CameraCalibration> back = ReadCameraCalibration(out / "intrinsics.yaml", kSerial);
+  ASSERT_TRUE(back) << back.error().message;
+  EXPECT_NEAR(back->intrinsics.mla_to_sensor_mm, r->calibration.intrinsics.mla_to_sensor_mm,
+              1e-9);
+  EXPECT_NEAR(back->intrinsics.main_focal_length_mm,
+              r->calibration.intrinsics.main_focal_length_mm, 1e-9);
+  const std::string report = FormatCalibrationReport(*r, kSerial);
+  EXPECT_NE(report.find("| mla_to_sensor_mm |"), std::string::npos);
+  EXPECT_NE(report.find("| 3 | yes |"), std::string::npos);
+}
+
+TEST_F(CalibrationTest, RecalibrationHoldsFocalLengthAndSensorDistance) {
+  CameraCalibration initial = *truth_;
+  initial.intrinsics.mla_to_main_lens_mm *= 1.002;
+  CalibrationOptions options = Options();
+  options.recalibrate = true;
+  Expected<CalibrationResult> r = Calibrate(Input(initial), options);
+  ASSERT_TRUE(r) << r.error().message;
+  std::printf("%s\n", r->BriefReport().c_str());
+  EXPECT_EQ(r->calibration.intrinsics.main_focal_length_mm,
+            truth_->intrinsics.main_focal_length_mm);
+  EXPECT_EQ(r->calibration.intrinsics.mla_to_sensor_mm, truth_->intrinsics.mla_to_sensor_mm);
+  EXPECT_TRUE(std::isnan(r->std_dev[0]));
+  EXPECT_LT(std::abs(r->calibration.intrinsics.mla_to_main_lens_mm /
+                         truth_->intrinsics.mla_to_main_lens_mm -
+                     1),
+            0.002);
+}
+
+TEST_F(CalibrationTest, BadInputIsAClearError) {
+  CalibrationInput one = Input(Initial());
+  one.frames.resize(1);
+  Expected<CalibrationResult> r = Calibrate(one, Options());
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().message.find("at least 3 needed"), std::string::npos) << r.error().message;
+
+  CalibrationInput no_plate = Input(Initial());
+  for (CalibrationFrame& f : no_plate.frames) f.corners.clear();
+  r = Calibrate(no_plate, Options());
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().message.find("no frame sees the marker plate"), std::string::npos)
+      << r.error().message;
+
+  CalibrationInput featureless = Input(Initial());
+  for (CalibrationFrame& f : featureless.frames)
+    std::fill(f.virtual_depth.begin(), f.virtual_depth.end(), std::nanf(""));
+  r = Calibrate(featureless, Options());
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().message.find("features too few"), std::string::npos) << r.error().message;
+
+  CalibrationOptions bad = Options();
+  bad.huber_px = 0;
+  r = Calibrate(Input(Initial()), bad);
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().message.find("huber_px"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace lifmcr::registration
