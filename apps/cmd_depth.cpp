@@ -13,8 +13,8 @@
 #include "processing/frame_chain.h"
 #include "processing/ply.h"
 #include "replay/bayer.h"
-#include "replay/layout.h"
 #include "config/text_escape.h"
+#include "replay/layout.h"
 #include "replay/raw_image.h"
 #include "replay/sequence.h"
 #include "replay/synth/gt_images.h"
@@ -44,7 +44,7 @@ struct DepthCommandOptions {
   std::string sequence;
   std::string camera;
   std::int64_t frame = 0;            // the frame RunDepth processes
-  std::vector<std::string> frames;   // --frame values as typed (default: 0), parsed strictly
+  std::vector<std::string> frames;  // --frame values as typed (default: 0), parsed strictly
   bool all_frames = false;
   std::string out;
   std::string intrinsics;
@@ -54,19 +54,6 @@ struct DepthCommandOptions {
   std::string raw;
   std::string pixel_format;
 };
-
-// A frame number: decimal digits only, within the layout's range (CLI11
-// would turn 30 digits into INT64_MAX without a word).
-Expected<std::int64_t> ParseFrameNumber(const std::string& text) {
-  std::int64_t frame = -1;
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), frame);
-  if (text.empty() || ec != std::errc() || end != text.data() + text.size() || frame < 0 ||
-      frame > layout::kMaxFrameNumber) {
-    return Error{"--frame: expected a frame number 0 .. " + std::to_string(layout::kMaxFrameNumber) +
-                 ", got '" + Excerpt(text) + "'"};
-  }
-  return frame;
-}
 
 double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
@@ -97,12 +84,12 @@ Status WriteDepthPng(const fs::path& path, const processing::TfDepthMap& depth, 
 }
 
 int Fail(const std::string& message) {
-  std::cerr << "lifmcr depth: " << message << "\n";
+  std::cerr << "lifmcr depth: " << EscapeText(message) << "\n";
   return 1;
 }
 
 int Usage(const std::string& message) {
-  std::cerr << "lifmcr depth: " << message << " (see lifmcr depth --help)\n";
+  std::cerr << "lifmcr depth: " << EscapeText(message) << " (see lifmcr depth --help)\n";
   return 2;
 }
 
@@ -255,13 +242,18 @@ int RunDepth(const DepthCommandOptions& o) {
 // Every frame asked for, one after the other, with a progress line before
 // each; the first failure stops (exit 1), the frames before it are written.
 int RunDepthFrames(const DepthCommandOptions& o) {
+  // Parsed here, not by CLI11, which turns 30 digits into INT64_MAX without a word.
   std::vector<std::int64_t> frames;
   for (const std::string& text : o.frames) {
-    Expected<std::int64_t> frame = ParseFrameNumber(text);
-    if (!frame) return Usage(frame.error().message);
-    frames.push_back(*frame);
+    std::int64_t frame = -1;
+    const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), frame);
+    if (text.empty() || ec != std::errc() || end != text.data() + text.size() || frame < 0 ||
+        frame > layout::kMaxFrameNumber)
+      return Fail("--frame: expected a frame number 0 .. " +
+                  std::to_string(layout::kMaxFrameNumber) + ", got '" + Excerpt(text) + "'");
+    frames.push_back(frame);
   }
-  if (frames.empty()) frames.push_back(0);
+  if (frames.empty()) frames = {0};
   if (o.all_frames) {
     if (!o.raw.empty() || o.sequence.empty()) return Usage("--all-frames needs SEQ_DIR");
     if (!o.frames.empty()) return Usage("--all-frames and --frame exclude each other");

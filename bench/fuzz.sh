@@ -126,7 +126,7 @@ printf '%-26s %12s %10s %8s %8s %8s %s\n' target executions exec/s cov ft corpus
 for t in "${targets[@]}"; do
   log=$dir/fuzz.$t.log
   execs=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$log" | awk '{print $2}' | tail -1)
-  rate=$(grep -o 'stat::average_exec_per_sec: [0-9]*' "$log" | awk '{print $2}' | tail -1)
+  rate=$(( ${execs:-0} / duration ))
   last=$(grep -E '^#[0-9]+' "$log" | tail -1)
   cov=$(sed -n 's/.* cov: \([0-9]*\).*/\1/p' <<<"$last")
   ft=$(sed -n 's/.* ft: \([0-9]*\).*/\1/p' <<<"$last")

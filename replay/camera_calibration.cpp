@@ -2,6 +2,8 @@
 
 #include "replay/camera_calibration.h"
 
+#include "config/input_file.h"
+#include "config/text_escape.h"
 #include "replay/layout.h"
 #include "replay/sequence.h"
 
@@ -13,13 +15,17 @@ Expected<CameraCalibrationPaths> CalibrationPathsForMla(const std::string& seria
                                                         const fs::path& mla_file,
                                                         const fs::path& white_override) {
   std::error_code ec;
-  if (!fs::is_regular_file(mla_file, ec))
-    return Error{mla_file.string() + ": no MLA file for camera " + serial};
+  // What is there instead (config/input_file.h): "is a folder", "a symbolic
+  // link loop", "no such file or folder", never just "no file".
+  if (const std::string why = DescribeNonRegular(mla_file); !why.empty())
+    return Error{EscapeText(mla_file.string()) + ": " + why +
+                 ", expected a regular file: the MLA file of camera " + serial};
   CameraCalibrationPaths paths;
   paths.mla = mla_file;
   if (!white_override.empty()) {
-    if (!fs::is_regular_file(white_override, ec))
-      return Error{white_override.string() + ": no such white image for camera " + serial};
+    if (const std::string why = DescribeNonRegular(white_override); !why.empty())
+      return Error{EscapeText(white_override.string()) + ": " + why +
+                   ", expected a regular file: the white image of camera " + serial};
     paths.white = white_override;
     return paths;
   }

@@ -6,7 +6,6 @@
 #include "replay/camera_calibration.h"
 #include "replay/mla_xml.h"
 #include "replay/synth/cameras_yaml.h"
-#include "config/text_escape.h"
 
 
 namespace lifmcr::apps {
@@ -37,10 +36,11 @@ Expected<processing::CameraSetup> Load(const std::string& serial,
 
 }  // namespace
 
+// Through the strict YAML reader (replay/synth/cameras_yaml.h): a regular
+// file of at most 1 MiB, typed keys, ranges of a real camera, errors with
+// file:line:column and key path (yaml-cpp exceptions used to escape here).
 Expected<processing::CameraIntrinsics> ReadIntrinsics(const fs::path& path,
                                                       const std::string& serial) {
-  // Through the strict YAML reader (replay/synth/cameras_yaml.h): bounded
-  // size, regular files only, every value range-checked.
   Expected<synth::CameraModelYaml> model = synth::ReadCameraModelYaml(path, serial);
   if (!model) return model.error();
   processing::CameraIntrinsics k;
@@ -54,7 +54,7 @@ Expected<processing::CameraIntrinsics> ReadIntrinsics(const fs::path& path,
   k.k2 = model->k2;
   k.p1 = model->p1;
   k.p2 = model->p2;
-  if (Status s = k.Check(); !s) return Error{EscapeText(path.string()) + ": " + s.error().message};
+  if (Status s = k.Check(); !s) return Error{path.string() + ": " + s.error().message};
   return k;
 }
 
