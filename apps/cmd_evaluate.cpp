@@ -83,6 +83,12 @@ class Progress {
   bool quiet_;
 };
 
+std::string FormatMm(double mm) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.2f", mm);
+  return text;
+}
+
 int Fail(const std::string& message, int code = kExitFailed) {
   std::cerr << "lifmcr evaluate: " << message << "\n";
   return code;
@@ -365,10 +371,11 @@ int RunEvaluate(const EvaluateArgs& args) {
       if (plate) {
         run.plate = *plate;
         progress(plate->BriefReport());
-        if (plate->plate_motion_mm > 1.0)
-          run.warnings.push_back("the plate moved during the sequence by up to " +
-                                 std::to_string(plate->plate_motion_mm) +
-                                 " mm; the plate frame is its mean pose");
+        if (plate->plate_moved())
+          run.warnings.push_back("the plate moved during the sequence: its markers deviate by " +
+                                 FormatMm(plate->plate_motion_rms_mm) + " mm RMS (largest " +
+                                 FormatMm(plate->plate_motion_max_mm) +
+                                 " mm) from its mean pose, which is the plate frame used");
       } else {
         run.plate_note = plate.error().message;
       }
@@ -540,17 +547,6 @@ int RunEvaluate(const EvaluateArgs& args) {
 }
 
 }  // namespace
-
-int RunEvaluateCommand(const std::string& sequence, const std::vector<std::string>& registration,
-                       const std::string& out, bool quiet) {
-  EvaluateArgs args;
-  args.sequence = sequence;
-  args.registration = registration;
-  args.out = out;
-  args.quiet = quiet;
-  args.command_line = "lifmcr demo (evaluate " + sequence + ")";
-  return RunEvaluate(args);
-}
 
 CommandRun AddEvaluateCommand(CLI::App& app) {
   auto a = std::make_shared<EvaluateArgs>();

@@ -55,7 +55,7 @@ struct RegisterOptions {
   std::string method = "pnp";
   std::vector<std::string> cameras;
   std::string out;
-  std::string intrinsics;
+  std::vector<std::string> intrinsics;  // each camera from the first file that has it
   std::string observations = "raw";
   bool reference_from_ground_truth = false;
   int map_frames = 3;
@@ -110,8 +110,8 @@ int RunRegister(const RegisterOptions& o) {
   else return Fail("--observations " + o.observations + ": expected raw or ground-truth", 2);
   if (o.reference.empty() == !o.reference_from_ground_truth)
     return Fail("give either --reference MAP_DIR or --reference-from-ground-truth", 2);
-  const fs::path intrinsics_path =
-      o.intrinsics.empty() ? layout::CamerasYamlPath(seq) : fs::path(o.intrinsics);
+  std::vector<fs::path> intrinsics_paths(o.intrinsics.begin(), o.intrinsics.end());
+  if (intrinsics_paths.empty()) intrinsics_paths.push_back(layout::CamerasYamlPath(seq));
 
   Expected<SequenceLayout> layout_or = DiscoverSequence(seq);
   if (!layout_or) return Fail(layout_or.error().message);
@@ -122,7 +122,10 @@ int RunRegister(const RegisterOptions& o) {
   std::map<std::string, processing::CameraModel> cameras;
   auto camera_of = [&](const std::string& serial) -> Expected<processing::CameraModel> {
     if (const auto it = cameras.find(serial); it != cameras.end()) return it->second;
-    Expected<reg::CameraCalibration> k = reg::ReadCameraCalibration(intrinsics_path, serial);
+    // The first file that has the camera; the last file's error otherwise.
+    Expected<reg::CameraCalibration> k = Error{""};
+    for (const fs::path& path : intrinsics_paths)
+      if ((k = reg::ReadCameraCalibration(path, serial))) break;
     if (!k) return k.error();
     return cameras.emplace(serial, processing::CameraModel(k->intrinsics)).first->second;
   };
@@ -358,7 +361,9 @@ CommandRun AddRegisterCommand(CLI::App& app) {
   app.add_option("--camera", o->cameras, "Cameras to register (default: all)");
   app.add_option("--out", o->out, "Output folder")->required();
   app.add_option("--intrinsics", o->intrinsics,
-                 "cameras.yaml / intrinsics.yaml (default: SEQ/GroundTruth/cameras.yaml)");
+                 "cameras.yaml / intrinsics.yaml (default: SEQ/GroundTruth/cameras.yaml); repeat it "
+                 "to take each camera from the first file that has it (camera 0 from lifmcr "
+                 "calibrate's intrinsics.yaml, the others from their own)");
   app.add_option("--observations", o->observations,
                  "Keypoints and depth from: raw (processing) or ground-truth");
   app.add_option("--frames", o->frames, "Only the first N frames of each camera (0: all)");

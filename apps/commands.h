@@ -27,9 +27,4 @@ CommandRun AddEvaluateCommand(CLI::App& app);
 CommandRun AddCalibrateCommand(CLI::App& app);
 CommandRun AddRegisterCommand(CLI::App& app);
 
-// `lifmcr evaluate SEQ --registration ... --out OUT` with the defaults (the
-// hand-eye estimated, split half), for `lifmcr demo`; returns its exit code.
-int RunEvaluateCommand(const std::string& sequence, const std::vector<std::string>& registration,
-                       const std::string& out, bool quiet);
-
 }  // namespace lifmcr::apps

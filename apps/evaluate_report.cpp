@@ -481,8 +481,11 @@ std::string FormatEvaluationJson(const EvaluationRun& run, const std::vector<std
                             {"map_is_plate_frame", run.plate->map_is_plate_frame},
                             {"aruco_check_mm", run.plate->aruco_check_mm},
                             {"marker_fit_rms_mm", run.plate->marker_fit_rms_mm},
-                            {"plate_motion_mm", run.plate->plate_motion_mm},
-                            {"plate_motion_deg", run.plate->plate_motion_deg},
+                            {"plate_motion_rms_mm", run.plate->plate_motion_rms_mm},
+                            {"plate_motion_rms_deg", run.plate->plate_motion_rms_deg},
+                            {"plate_motion_max_mm", run.plate->plate_motion_max_mm},
+                            {"plate_motion_max_deg", run.plate->plate_motion_max_deg},
+                            {"plate_moved", run.plate->plate_moved()},
                             {"plate_samples", run.plate->plate_samples}};
   } else {
     j["plate_alignment"] = {{"done", false}, {"why", run.plate_note}};

@@ -28,13 +28,13 @@ std::string PlateAlignment::BriefReport() const {
   char line[400];
   std::snprintf(line, sizeof(line),
                 "plate alignment: Vicon markers fit the template to %.3f mm RMS, %s, plate %s "
-                "(largest deviation %.3f mm / %.4f deg over %zu samples)",
+                "(RMS deviation %.3f mm / %.4f deg, largest %.3f mm / %.4f deg over %zu samples)",
                 marker_fit_rms_mm,
                 map_is_plate_frame ? "map frame taken as the plate frame (no ArUco detections)"
                                    : ("ArUco check (P1) " + std::to_string(aruco_check_mm) + " mm")
                                          .c_str(),
-                plate_motion_mm < 1.0 ? "still" : "MOVED", plate_motion_mm, plate_motion_deg,
-                plate_samples);
+                plate_moved() ? "MOVED" : "still", plate_motion_rms_mm, plate_motion_rms_deg,
+                plate_motion_max_mm, plate_motion_max_deg, plate_samples);
   return line;
 }
 
@@ -115,15 +115,24 @@ Expected<PlateAlignment> AlignPlate(std::span<const ViconPoseSample> plate_sampl
   Pose vicon_from_plate = Pose::Identity();
   vicon_from_plate.linear() = NearestRotation(rotation_sum);
   vicon_from_plate.translation() = translation_sum / static_cast<double>(result.plate_samples);
+  // Motion of the plate's extent (its markers), not only of its centroid.
+  double sum_sq_mm = 0, sum_sq_deg = 0;
   for (const ViconPoseSample& s : plate_samples) {
     if (!s.vicon_from_marker) continue;
     const Pose d = vicon_from_plate.inverse() * *s.vicon_from_marker;
-    // Motion of the plate's extent (its markers), not only of its centroid.
-    double moved = 0;
-    for (const Eigen::Vector3d& m : plate_markers_mm) moved = std::max(moved, (d * m - m).norm());
-    result.plate_motion_mm = std::max(result.plate_motion_mm, moved);
-    result.plate_motion_deg = std::max(result.plate_motion_deg, RotationAngleDeg(d.linear()));
+    for (const Eigen::Vector3d& m : plate_markers_mm) {
+      const double moved = (d * m - m).norm();
+      sum_sq_mm += moved * moved;
+      result.plate_motion_max_mm = std::max(result.plate_motion_max_mm, moved);
+    }
+    const double angle = RotationAngleDeg(d.linear());
+    sum_sq_deg += angle * angle;
+    result.plate_motion_max_deg = std::max(result.plate_motion_max_deg, angle);
   }
+  const double n = static_cast<double>(result.plate_samples);
+  result.plate_motion_rms_mm =
+      std::sqrt(sum_sq_mm / (n * static_cast<double>(plate_markers_mm.size())));
+  result.plate_motion_rms_deg = std::sqrt(sum_sq_deg / n);
   result.vicon_from_world = vicon_from_plate * world_from_plate.inverse();
 
   if (aruco) {
