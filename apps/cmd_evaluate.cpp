@@ -56,6 +56,10 @@ struct EvaluateArgs {
   std::string out;
   std::string hand_eye = "estimate";
   std::string split = "half";
+  // --split sequence: the sequence and registration the offsets are estimated on.
+  std::string hand_eye_from;
+  std::vector<std::string> hand_eye_registration;
+  bool print_table = true;
   std::string reference;
   std::vector<std::string> subjects;  // SERIAL=OBJECT
   std::string rig;
@@ -139,7 +143,60 @@ Expected<std::array<Eigen::Vector3d, 4>> ReadArucoCenters(const fs::path& path) 
   return centers;
 }
 
+int RunEvaluate(const EvaluateArgs& args);
+
+// --split sequence: the offsets estimated on another sequence of the same rig
+// (all its frames, its own evaluation written into OUT/hand_eye_source/),
+// then this sequence evaluated with them, so no corrected figure is fit to
+// the frames it corrects.
+int RunSplitBySequence(const EvaluateArgs& args) {
+  const Progress progress(args.quiet);
+  if (args.hand_eye_from.empty() || args.hand_eye_registration.empty())
+    return Fail("--split sequence needs --hand-eye-from SEQ_DIR (another sequence of the rig) and "
+                "--hand-eye-registration FILE (its registration.csv)",
+                kExitUsage);
+  if (args.hand_eye != "estimate")
+    return Fail("--split sequence estimates the offsets on --hand-eye-from; --hand-eye " +
+                    args.hand_eye + " is another source of them",
+                kExitUsage);
+  if (fs::weakly_canonical(args.hand_eye_from) == fs::weakly_canonical(args.sequence))
+    return Fail("--hand-eye-from names the evaluated sequence itself: the split would fit the "
+                "offsets to the frames they correct",
+                kExitUsage);
+  // Settings of the rig carry over; those of one sequence do not.
+  EvaluateArgs source = args;
+  source.sequence = args.hand_eye_from;
+  source.registration = args.hand_eye_registration;
+  source.out = (fs::path(args.out) / "hand_eye_source").string();
+  source.split = "none";
+  source.hand_eye_from.clear();
+  source.hand_eye_registration.clear();
+  source.vicon_csv.clear();
+  source.first_frame.reset();
+  source.vicon_frame_offset = 0;
+  source.reference_poses.clear();
+  source.plate_aruco.clear();
+  source.print_table = false;
+  source.command_line = args.command_line + " (offsets estimated on " + args.hand_eye_from + ")";
+  progress("split sequence: estimating the hand-eye offsets on " + args.hand_eye_from +
+           " (all its frames; its evaluation goes into " + source.out + ")");
+  const int code = RunEvaluate(source);
+  const fs::path offsets = fs::path(source.out) / "hand_eye.yaml";
+  if (code != kExitOk || !fs::exists(offsets))
+    return Fail("--hand-eye-from " + args.hand_eye_from +
+                    ": the offsets could not be estimated there (exit " + std::to_string(code) +
+                    "; " + (fs::path(source.out) / "evaluation.md").string() + " says why)",
+                code == kExitNoHandEye ? kExitNoHandEye : kExitFailed);
+  EvaluateArgs target = args;
+  target.hand_eye = offsets.string();
+  progress("split sequence: evaluating " + args.sequence + " with the offsets of " + offsets.string());
+  return RunEvaluate(target);
+}
+
 int RunEvaluate(const EvaluateArgs& args) {
+  if (args.split == "sequence" && args.hand_eye == "estimate") return RunSplitBySequence(args);
+  if (args.split != "sequence" && (!args.hand_eye_from.empty() || !args.hand_eye_registration.empty()))
+    return Fail("--hand-eye-from and --hand-eye-registration go with --split sequence", kExitUsage);
   const Progress progress(args.quiet);
   EvaluationRun run;
   run.sequence_dir = args.sequence;
@@ -147,6 +204,7 @@ int RunEvaluate(const EvaluateArgs& args) {
   run.command_line = args.command_line;
   run.hand_eye_mode = args.hand_eye;
   run.split = args.split;
+  if (args.split == "sequence") run.hand_eye_from = args.hand_eye_from;
 
   Expected<SequenceLayout> layout = DiscoverSequence(args.sequence);
   if (!layout) return Fail(layout.error().message);
@@ -540,9 +598,11 @@ int RunEvaluate(const EvaluateArgs& args) {
   listed.back() = "evaluation.md";
   if (Status s = WriteText(out / "evaluation.json", FormatEvaluationJson(run, listed)); !s)
     return Fail(s.error().message);
-  std::cout << FormatSummaryTable(run);
-  std::cout << "evaluation: " << (out / "evaluation.md").string() << ", plots in "
-            << (out / "plots").string() << "\n";
+  if (args.print_table) {
+    std::cout << FormatSummaryTable(run);
+    std::cout << "evaluation: " << (out / "evaluation.md").string() << ", plots in "
+              << (out / "plots").string() << "\n";
+  }
   return hand_eye_refused && args.hand_eye == "estimate" ? kExitNoHandEye : kExitOk;
 }
 
@@ -577,8 +637,16 @@ CommandRun AddEvaluateCommand(CLI::App& app) {
                  "evaluation (e.g. of another sequence: a split by sequence)");
   app.add_option("--split", a->split,
                  "half (default): estimate the offsets on the first half of the frames, evaluate "
-                 "on the second; none: both on all frames (fit to themselves)")
-      ->check(CLI::IsMember({"half", "none"}));
+                 "on the second, and the other way round; sequence: estimate them on another "
+                 "sequence of the rig (--hand-eye-from, --hand-eye-registration), evaluate on "
+                 "this one; none: both on all frames (fit to themselves)")
+      ->check(CLI::IsMember({"half", "sequence", "none"}));
+  app.add_option("--hand-eye-from", a->hand_eye_from,
+                 "With --split sequence: the sequence folder the offsets are estimated on")
+      ->check(CLI::ExistingDirectory);
+  app.add_option("--hand-eye-registration", a->hand_eye_registration,
+                 "With --split sequence: that sequence's registration.csv (repeat per method)")
+      ->check(CLI::ExistingFile);
   app.add_option("--reference", a->reference, "Serial of camera 0 (default: from the rig)");
   app.add_option("--subject", a->subjects, "SERIAL=OBJECT: the Vicon object of a camera");
   app.add_option("--rig", a->rig, "Rig file: Vicon objects, reference, Vicon settings")
@@ -621,6 +689,9 @@ CommandRun AddEvaluateCommand(CLI::App& app) {
     for (const std::string& r : a->registration) a->command_line += " --registration " + r;
     a->command_line += " " + a->sequence + " --out " + a->out + " --hand-eye " + a->hand_eye +
                        " --split " + a->split;
+    if (!a->hand_eye_from.empty()) a->command_line += " --hand-eye-from " + a->hand_eye_from;
+    for (const std::string& r : a->hand_eye_registration)
+      a->command_line += " --hand-eye-registration " + r;
     (void)app;
     return RunEvaluate(*a);
   };

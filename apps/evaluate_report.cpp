@@ -352,7 +352,11 @@ std::string FormatEvaluationMarkdown(const EvaluationRun& run,
 
   md << "## Hand-eye offsets `marker_from_cam`\n\n";
   md << "Mode: " << run.hand_eye_mode;
-  if (run.hand_eye_mode == "estimate")
+  if (run.split == "sequence")
+    md << ", split sequence (the offsets were estimated on all frames of " << run.hand_eye_from
+       << ", another sequence of the rig, and correct every frame of this one: no corrected "
+          "figure is fit to itself)";
+  else if (run.hand_eye_mode == "estimate")
     md << ", split " << run.split
        << (run.split == "half"
                ? " (two folds: the offsets fit on the first half of each camera's frames correct "
@@ -461,6 +465,7 @@ std::string FormatEvaluationJson(const EvaluationRun& run, const std::vector<std
                    {"max_gap_frames", run.association.max_gap_frames},
                    {"hand_eye", run.hand_eye_mode},
                    {"split", run.split},
+                   {"hand_eye_from", run.hand_eye_from},
                    {"reference", run.reference_serial},
                    {"metrics",
                     "evo/TUM: APE E=P^-1 Q, RPE delta=1 frame E=(Qi^-1 Qi+1)^-1 (Pi^-1 Pi+1); "

@@ -41,7 +41,8 @@ struct EvaluationRun {
   double rate_hz = 80;
   FrameAssociationOptions association;
   std::string hand_eye_mode;  // estimate | truth | FILE
-  std::string split;          // half | none
+  std::string split;          // half | sequence | none
+  std::string hand_eye_from;  // --split sequence: the sequence the offsets were estimated on
   std::string reference_serial;
   std::vector<CameraTruth> cameras;  // the reference first
   std::optional<PlateAlignment> plate;
