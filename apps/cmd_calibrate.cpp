@@ -6,6 +6,7 @@
 // descriptors.bin), poses_<serial>.csv and calibration_report.md.
 
 #include "apps/commands.h"
+#include "registration/aruco_corners.h"
 #include "registration/calibration.h"
 #include "registration/calibration_frames.h"
 #include "registration/calibration_gates.h"
@@ -178,6 +179,25 @@ int RunCalibrate(const CalibrateOptions& o) {
     return Fail(s.error().message);
   if (Status s = registration::WriteReferenceMap(out, result->map); !s)
     return Fail(s.error().message);
+  // The plate corners of the placed frames, for the plate alignment of
+  // `lifmcr evaluate --map` (registration/aruco_corners.h).
+  {
+    std::set<std::int64_t> placed;
+    for (const registration::FramePose& p : result->poses) placed.insert(p.frame);
+    std::vector<registration::ArucoCornerObservation> corners;
+    for (const registration::CalibrationFrame& frame : input.frames) {
+      if (!placed.count(frame.frame)) continue;
+      for (std::size_t n = 0; n < frame.corners.size(); ++n) {
+        const registration::PlateCorner& c = frame.corners[n];
+        corners.push_back({frame.frame, c.marker_id, c.corner, c.tf_px,
+                           n < frame.corner_virtual_depth.size() ? frame.corner_virtual_depth[n]
+                                                                 : std::nan("")});
+      }
+    }
+    std::ofstream csv(out / "aruco_corners.csv", std::ios::binary);
+    csv << registration::FormatArucoCornersCsv(corners);
+    if (!csv) return Fail((out / "aruco_corners.csv").string() + ": could not write");
+  }
   std::ofstream report(out / "calibration_report.md", std::ios::binary);
   report << registration::FormatCalibrationReport(*result, o.camera);
   if (!report) return Fail((out / "calibration_report.md").string() + ": could not write");
@@ -201,7 +221,8 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
       "Reads: SEQ_DIR's raw frames of --camera, the MLA XML (--mla, else the dataset's\n"
       "Calibration/), --initial cameras.yaml (nominal model), --recalibrate and --plate when\n"
       "given. Writes: into --out, intrinsics.yaml, the reference map (cameras.txt, images.txt,\n"
-      "points3D.txt, points.ply, descriptors.bin), poses_<serial>.csv, calibration_report.md.\n"
+      "points3D.txt, points.ply, descriptors.bin), poses_<serial>.csv, aruco_corners.csv (the\n"
+      "plate corners seen, for lifmcr evaluate --map), calibration_report.md.\n"
       "Progress on stderr unless --quiet.\n"
       "Exit codes: 0 calibrated; 1 an input could not be read or written; 2 usage error;\n"
       "3 the calibration ran but is not usable (the report says why).");

@@ -14,8 +14,10 @@
 #include "apps/git_revision.h"
 #include "config/frames.h"
 #include "config/rig_config.h"
+#include "registration/aruco_corners.h"
 #include "registration/evaluation.h"
 #include "registration/evaluation_inputs.h"
+#include "registration/intrinsics_yaml.h"
 #include "registration/plate_alignment.h"
 #include "registration/poses_csv.h"
 #include "registration/vicon_ground_truth.h"
@@ -70,6 +72,7 @@ struct EvaluateArgs {
   std::optional<double> vicon_rate;
   std::string vicon_csv, vsk, plate_subject, plate_aruco;
   std::string reference_poses;
+  std::string map;  // lifmcr calibrate's output: ArUco corners, intrinsics, poses
   double min_rotation_spread_deg = 1.0;
   bool no_plots = false;
   bool quiet = false;
@@ -145,6 +148,27 @@ Expected<std::array<Eigen::Vector3d, 4>> ReadArucoCenters(const fs::path& path) 
 
 int RunEvaluate(const EvaluateArgs& args);
 
+// The ArUco centres in the map of `lifmcr calibrate` (its output folder):
+// the corners it detected, triangulated with its poses and intrinsics.
+Expected<registration::ArucoCentersInMap> ArucoCentersOfMap(const fs::path& map,
+                                                            const std::string& reference) {
+  Expected<std::vector<registration::ArucoCornerObservation>> corners =
+      registration::ReadArucoCornersCsv(map / "aruco_corners.csv");
+  if (!corners) return corners.error();
+  Expected<registration::CameraCalibration> k =
+      registration::ReadCameraCalibration(map / "intrinsics.yaml", reference);
+  if (!k) return k.error();
+  const fs::path poses_path = map / ("poses_" + reference + ".csv");
+  Expected<std::vector<registration::FramePose>> poses = registration::ReadPosesCsv(poses_path);
+  if (!poses) return poses.error();
+  std::map<std::int64_t, Pose> w0_from_c0;
+  for (const registration::FramePose& p : *poses) w0_from_c0[p.frame] = p.world_from_cam;
+  Expected<registration::ArucoCentersInMap> centers = registration::TriangulateArucoCenters(
+      *corners, w0_from_c0, processing::CameraModel(k->intrinsics));
+  if (!centers) return Error{(map / "aruco_corners.csv").string() + ": " + centers.error().message};
+  return centers;
+}
+
 // --split sequence: the offsets estimated on another sequence of the same rig
 // (all its frames, its own evaluation written into OUT/hand_eye_source/),
 // then this sequence evaluated with them, so no corrected figure is fit to
@@ -198,6 +222,9 @@ int RunEvaluate(const EvaluateArgs& args) {
   if (args.split != "sequence" && (!args.hand_eye_from.empty() || !args.hand_eye_registration.empty()))
     return Fail("--hand-eye-from and --hand-eye-registration go with --split sequence", kExitUsage);
   const Progress progress(args.quiet);
+  if (!args.map.empty() && !args.plate_aruco.empty())
+    return Fail("--map and --plate-aruco both give the ArUco centres in the map: give one",
+                kExitUsage);
   EvaluationRun run;
   run.sequence_dir = args.sequence;
   run.git_revision = LIFMCR_GIT_REVISION;
@@ -420,7 +447,14 @@ int RunEvaluate(const EvaluateArgs& args) {
       for (const VskMarker& m : VskMarkersOfSubject(*vsk, plate_subject))
         markers.push_back(m.position_mm);
       std::optional<std::array<Eigen::Vector3d, 4>> aruco;
-      if (!args.plate_aruco.empty()) {
+      if (!args.map.empty()) {
+        Expected<registration::ArucoCentersInMap> centers = ArucoCentersOfMap(args.map, reference);
+        if (!centers) return Fail(centers.error().message);
+        aruco = centers->centers_mm;
+        run.aruco_source = centers->BriefReport() + ", triangulated from " +
+                           (fs::path(args.map) / "aruco_corners.csv").string();
+        progress(run.aruco_source);
+      } else if (!args.plate_aruco.empty()) {
         Expected<std::array<Eigen::Vector3d, 4>> centers = ReadArucoCenters(args.plate_aruco);
         if (!centers) return Fail(centers.error().message);
         aruco = *centers;
@@ -670,6 +704,11 @@ CommandRun AddEvaluateCommand(CLI::App& app) {
   app.add_option("--vicon-csv", a->vicon_csv, "Vicon export (default: SEQ_DIR/Vicon/sequence_XX.csv)");
   app.add_option("--vsk", a->vsk, "Vicon object model with the plate's markers");
   app.add_option("--plate-subject", a->plate_subject, "Vicon object of the marker plate (plate)");
+  app.add_option("--map", a->map,
+                 "lifmcr calibrate's output folder: the plate's ArUco corners it detected "
+                 "(aruco_corners.csv), triangulated with its poses and intrinsics, give the plate "
+                 "alignment's map side (instead of --plate-aruco)")
+      ->check(CLI::ExistingDirectory);
   app.add_option("--plate-aruco", a->plate_aruco,
                  "CSV id,x_mm,y_mm,z_mm: the plate's ArUco centres in the map frame (default: the "
                  "map frame is the plate frame)")

@@ -327,7 +327,9 @@ std::string FormatEvaluationMarkdown(const EvaluationRun& run,
     md << "Plate alignment (supplementary, \"Data Alignment\"): " << run.plate->BriefReport()
        << ". `vicon_from_world` t = (" << F(t.x()) << ", " << F(t.y()) << ", " << F(t.z())
        << ") mm, rotation " << F(RotationAngleDeg(run.plate->vicon_from_world.linear()), 3)
-       << "°. Trajectories in the plots are in the plate (world) frame.\n\n";
+       << "°. Trajectories in the plots are in the plate (world) frame.";
+    if (!run.aruco_source.empty()) md << " ArUco centres in the map: " << run.aruco_source << ".";
+    md << "\n\n";
   } else {
     md << "Plate alignment: not done (" << run.plate_note
        << "); trajectories in the plots are in the Vicon frame.\n\n";
@@ -484,6 +486,7 @@ std::string FormatEvaluationJson(const EvaluationRun& run, const std::vector<std
     j["plate_alignment"] = {{"vicon_from_world", PoseJson(run.plate->vicon_from_world)},
                             {"world_from_map", PoseJson(run.plate->world_from_map)},
                             {"map_is_plate_frame", run.plate->map_is_plate_frame},
+                            {"aruco_source", run.aruco_source},
                             {"aruco_check_mm", run.plate->aruco_check_mm},
                             {"marker_fit_rms_mm", run.plate->marker_fit_rms_mm},
                             {"plate_motion_rms_mm", run.plate->plate_motion_rms_mm},

@@ -25,14 +25,15 @@ PlateTemplate DefaultPlateTemplate() {
 }
 
 std::string PlateAlignment::BriefReport() const {
+  char check[64];
+  std::snprintf(check, sizeof(check), "ArUco check (P1) %.3f mm", aruco_check_mm);
   char line[400];
   std::snprintf(line, sizeof(line),
                 "plate alignment: Vicon markers fit the template to %.3f mm RMS, %s, plate %s "
                 "(RMS deviation %.3f mm / %.4f deg, largest %.3f mm / %.4f deg over %zu samples)",
                 marker_fit_rms_mm,
                 map_is_plate_frame ? "map frame taken as the plate frame (no ArUco detections)"
-                                   : ("ArUco check (P1) " + std::to_string(aruco_check_mm) + " mm")
-                                         .c_str(),
+                                   : check,
                 plate_moved() ? "MOVED" : "still", plate_motion_rms_mm, plate_motion_rms_deg,
                 plate_motion_max_mm, plate_motion_max_deg, plate_samples);
   return line;
