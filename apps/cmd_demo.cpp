@@ -9,7 +9,10 @@
 //                   centre) and distortion (none) held: 12 small frames do
 //                   not determine them (a free principal point went 59 px
 //                   off and the poses 13 mm / 0.7 deg; held: 3 mm / 0.1 deg)
-//   OUT/register/   registration of camera X to camera 0's map per frame
+//   OUT/replay/     lifmcr replay --reference: the sequence through the live
+//                   pipeline on LCM, camera X registered to camera 0's map
+//                   per trigger (camera_extrinsics_t on LCM, and the same
+//                   rows in registration.csv)
 //   OUT/evaluate/   lifmcr evaluate against Vicon, hand-eye split in halves
 //
 // Each stage runs as a child process of this executable (the same binary,
@@ -51,8 +54,9 @@ const std::string kCameraX = "40398673";
 struct Args {
   std::string out;
   int frames = 24;
-  int calibration_frames = 12;
+  int calibration_frames = 0;  // 0: every frame (the map-frame evaluation needs camera 0's pose)
   int max_features = 2000;
+  std::string lcm_url;
 };
 
 double Seconds(Clock::time_point since) {
@@ -136,6 +140,7 @@ std::string SpreadFrames(int frames, int count) {
 int RunDemo(const Args& args) {
   if (args.calibration_frames > args.frames)
     return Fail("--calibration-frames must not exceed --frames", 2);
+  const int calibration_frames = args.calibration_frames > 0 ? args.calibration_frames : args.frames;
   fs::path out = args.out;
   if (out.empty()) {
     std::string pattern = (fs::temp_directory_path() / "lifmcr-demo-XXXXXX").string();
@@ -144,13 +149,13 @@ int RunDemo(const Args& args) {
     out = pattern;
   }
   out = fs::absolute(out);
-  const fs::path data = out / "data", calibrate = out / "calibrate", registered = out / "register",
+  const fs::path data = out / "data", calibrate = out / "calibrate", registered = out / "replay",
                  evaluate = out / "evaluate";
   std::error_code ec;
   fs::create_directories(out, ec);
   if (ec) return Fail(out.string() + ": " + ec.message(), 3);
-  std::cerr << "lifmcr demo: synth -> calibrate camera 0 -> registration of camera X -> evaluate "
-               "against Vicon, into "
+  std::cerr << "lifmcr demo: synth -> calibrate camera 0 -> replay with live registration -> "
+               "evaluate against Vicon, into "
             << out.string() << "\n";
   Stages stages(4);
 
@@ -171,7 +176,7 @@ int RunDemo(const Args& args) {
   stages.End("synth");
   const fs::path seq = data / "00_Synthetic" / "Sequence_00";
 
-  stages.Begin("calibrate camera " + kReference + " on " + std::to_string(args.calibration_frames) +
+  stages.Begin("calibrate camera " + kReference + " on " + std::to_string(calibration_frames) +
                " frames, from nominal values 5 % off");
   fs::create_directories(calibrate, ec);
   const fs::path initial = calibrate / "nominal.yaml";
@@ -180,7 +185,7 @@ int RunDemo(const Args& args) {
   const int calibrate_code =
       RunStage({"calibrate", seq.string(), "--camera", kReference, "--out", calibrate.string(),
                 "--initial", initial.string(), "--frames",
-                SpreadFrames(args.frames, args.calibration_frames), "--max-features",
+                SpreadFrames(args.frames, calibration_frames), "--max-features",
                 std::to_string(args.max_features), "--fix-principal-point", "--fix-distortion",
                 "--ground-truth"});
   if (calibrate_code == 3)
@@ -190,22 +195,24 @@ int RunDemo(const Args& args) {
     return Fail("calibrate failed (exit " + std::to_string(calibrate_code) + ")", 1);
   stages.End("calibrate");
 
-  stages.Begin("registration of camera " + kCameraX + " to camera " + kReference + "'s map");
-  // Camera 0 as calibrated; camera X as the synthetic rig made it (a recorded
-  // rig calibrates each camera: lifmcr calibrate --camera SERIAL).
-  if (int code = RunStage({"register", seq.string(), "--reference", calibrate.string(),
-                           "--intrinsics", (calibrate / "intrinsics.yaml").string(),
-                           "--intrinsics", layout::CamerasYamlPath(seq).string(), "--method",
-                           "pnp", "--max-features", std::to_string(args.max_features), "--out",
-                           registered.string()});
-      code != 0)
-    return Fail("registration failed (exit " + std::to_string(code) + ")", 1);
-  stages.End("registration");
+  stages.Begin("replay on LCM with live registration of camera " + kCameraX + " in camera " +
+               kReference + "'s map");
+  // Camera 0 as calibrated (the map's intrinsics.yaml); camera X as the
+  // synthetic rig made it (GroundTruth/cameras.yaml; a recorded rig
+  // calibrates each camera: lifmcr calibrate --camera SERIAL).
+  std::vector<std::string> replay{"replay", seq.string(), "--rate", "max", "--reference",
+                                  calibrate.string(), "--extrinsics-csv",
+                                  (registered / "registration.csv").string()};
+  if (!args.lcm_url.empty()) replay.insert(replay.end(), {"--lcm", args.lcm_url});
+  fs::create_directories(registered, ec);
+  if (int code = RunStage(replay); code != 0)
+    return Fail("replay failed (exit " + std::to_string(code) + ")", 1);
+  stages.End("replay");
 
   stages.Begin("evaluate against Vicon, hand-eye estimated on one half and applied to the other");
   const int evaluate_code = RunStage(
       {"evaluate", seq.string(), "--registration", (registered / "registration.csv").string(),
-       "--reference-poses", (registered / ("trajectory_" + kReference + "_pnp.tum")).string(),
+       "--reference-poses", (calibrate / ("poses_" + kReference + ".csv")).string(),
        "--map", calibrate.string(), "--split", "half", "--out", evaluate.string()});
   if (evaluate_code != 0 && evaluate_code != 3)
     return Fail("evaluate failed (exit " + std::to_string(evaluate_code) + ")", 1);
@@ -227,11 +234,12 @@ CommandRun AddDemoCommand(CLI::App& app) {
   app.footer(
       "The whole chain on a small synthetic rig, one stage after the other, each the lifmcr\n"
       "command printed before it runs: synth (2 cameras, table scene, orbit motion) ->\n"
-      "calibrate camera 0 from nominal values -> registration of camera X in camera 0's map\n"
-      "-> evaluate against Vicon with the hand-eye correction (estimated on one half of the\n"
-      "frames, applied to the other). Ends with the evaluation table and where the plots are.\n"
+      "calibrate camera 0 from nominal values -> replay on LCM with live registration of\n"
+      "camera X in camera 0's map -> evaluate against Vicon with the hand-eye correction\n"
+      "(estimated on one half of the frames, applied to the other). Ends with the\n"
+      "evaluation table and where the plots are.\n"
       "Reads: nothing. Writes: into --out (default: a new temporary folder) data/ (the rig),\n"
-      "calibrate/, register/, evaluate/ (evaluation.md, plots/*.png).\n"
+      "calibrate/, replay/registration.csv, evaluate/ (evaluation.md, plots/*.png).\n"
       "Exit codes: 0 every stage ran; 1 a stage failed (its message says which); 2 usage\n"
       "error; 3 the folder could not be written.");
   app.add_option("--out", args->out, "Folder for every stage's output (default: a new temporary folder)");
@@ -239,12 +247,16 @@ CommandRun AddDemoCommand(CLI::App& app) {
       ->check(CLI::Range(4, 10000))
       ->capture_default_str();
   app.add_option("--calibration-frames", args->calibration_frames,
-                 "Frames of camera 0 to calibrate on, spread over the sequence")
-      ->check(CLI::Range(2, 10000))
+                 "Frames of camera 0 to calibrate on, spread over the sequence (0: all; the "
+                 "map-frame evaluation has camera 0's pose only on these)")
+      ->check(CLI::Range(0, 10000))
       ->capture_default_str();
   app.add_option("--max-features", args->max_features, "SIFT keypoints per TF image")
       ->check(CLI::Range(100, 100000))
       ->capture_default_str();
+  app.add_option("--lcm", args->lcm_url,
+                 "LCM URL of the replay (default: LCM's, udpm://239.255.76.67:7667; watch with "
+                 "lifmcr monitor or scripts/lcm-spy.sh)");
   return [args] { return RunDemo(*args); };
 }
 

@@ -27,4 +27,20 @@ CommandRun AddEvaluateCommand(CLI::App& app);
 CommandRun AddCalibrateCommand(CLI::App& app);
 CommandRun AddRegisterCommand(CLI::App& app);
 
+// `lifmcr replay SEQ` with its defaults otherwise, for `lifmcr demo`; the
+// second form with live registration (--reference, --intrinsics,
+// --extrinsics-csv; empty: none). Returns the exit code.
+struct ReplayRegistrationArgs {
+  std::string reference;                // MAP_DIR
+  std::vector<std::string> intrinsics;  // cameras.yaml / intrinsics.yaml files
+  std::string extrinsics_csv;           // FILE
+  bool rigid_mount = false;             // change detection (--rigid-mount)
+};
+int RunReplayCommand(const std::string& sequence, const std::string& rate_text, bool loop,
+                     const std::string& lcm_url, bool processing, int concurrency,
+                     const char* who);
+int RunReplayCommand(const std::string& sequence, const std::string& rate_text, bool loop,
+                     const std::string& lcm_url, bool processing, int concurrency,
+                     const char* who, const ReplayRegistrationArgs& registration);
+
 }  // namespace lifmcr::apps

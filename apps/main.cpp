@@ -41,7 +41,7 @@ int main(int argc, char** argv) {
   add("replay", "Play a recorded sequence through the live pipeline onto LCM",
       lifmcr::apps::AddReplayCommand);
   add("monitor", "Terminal view of the pipeline's LCM channels", lifmcr::apps::AddMonitorCommand);
-  add("demo", "The whole chain on a synthetic rig: synth -> calibrate -> registration -> evaluate",
+  add("demo", "The whole chain on a synthetic rig: synth -> calibrate -> replay with live registration -> evaluate",
       lifmcr::apps::AddDemoCommand);
   add("grid",
       "Fit the micro-image lattice to a white image (or a textured raw) and write an MLA XML",
