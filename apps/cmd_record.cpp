@@ -200,6 +200,8 @@ int Run(const Args& args) {
   }
   RigControllerOptions controller_options;
   controller_options.trigger_hz = rig->vicon.rate_hz / rig->vicon.trigger_divider;
+  if (rig->vicon.source == ViconSourceKind::kUdp)
+    controller_options.vicon_realtime_priority = RigControllerOptions::kLiveViconPriority;
   if (!args.no_sync) controller_options.sync = FrameSetAssemblerOptions::FromRig(*rig);
   RigController controller(std::move(cameras), std::move(software_trigger), std::move(*vicon),
                            recorder->get(), controller_options, observer);
