@@ -30,9 +30,13 @@ passes=" ${LIFMCR_SANITIZERS:-asan tsan} "
 # the plain `add_executable(test_...)`): ctest lists all of them, so all are built.
 mapfile -t all_tests < <(sed -n -e 's/^lifmcr_test(\([A-Za-z0-9_]*\).*/\1/p' \
                                 -e 's/^add_executable(\(test_[A-Za-z0-9_]*\).*/\1/p' tests/CMakeLists.txt)
-# The tests whose code runs threads against each other.
+# The tests whose code runs threads against each other. Not test_acquisition_gv:
+# two GigE Vision simulators answering heartbeats and software triggers in real
+# time; under TSan on a loaded 2-core machine a 5 Hz recording took 144 s for 16
+# triggers and lost frames (no race reported). test_drivers_aravis_gv runs the
+# same driver threads under TSan.
 tsan_tests=(test_apps_pipeline test_apps_record_publish test_acquisition_recorder
-            test_acquisition_writer test_acquisition_gv test_acquisition_cli test_sync
+            test_acquisition_writer test_acquisition_cli test_sync
             test_drivers_vicon test_drivers_replay test_drivers_pool test_drivers_aravis_fake
             test_drivers_aravis_gv test_drivers_gentl)
 
