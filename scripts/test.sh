@@ -3,8 +3,8 @@
 # every test with ctest. Then the sanitizer passes (asan and tsan by default):
 #   asan  every test again under AddressSanitizer + UBSan (build-asan, the
 #         whole suite through ctest; any report fails the test that made it);
-#   tsan  the concurrency tests (pipeline, recorder, rig controller, sync,
-#         drivers) under ThreadSanitizer (build-tsan);
+#   tsan  the concurrency tests (recorder, rig controller, sync, drivers; not
+#         yet the TBB pipeline, see below) under ThreadSanitizer (build-tsan);
 #   fuzz  every libFuzzer target for LIFMCR_FUZZ_SECONDS (default 30) each
 #         (bench/fuzz.sh, build-fuzz; needs clang and libfuzzer-14-dev).
 # Each pass prints its wall time (build and run). What they cost on a fresh
@@ -30,13 +30,18 @@ passes=" ${LIFMCR_SANITIZERS:-asan tsan} "
 # the plain `add_executable(test_...)`): ctest lists all of them, so all are built.
 mapfile -t all_tests < <(sed -n -e 's/^lifmcr_test(\([A-Za-z0-9_]*\).*/\1/p' \
                                 -e 's/^add_executable(\(test_[A-Za-z0-9_]*\).*/\1/p' tests/CMakeLists.txt)
-# The tests whose code runs threads against each other. Not test_acquisition_gv:
-# two GigE Vision simulators answering heartbeats and software triggers in real
-# time; under TSan on a loaded 2-core machine a 5 Hz recording took 144 s for 16
-# triggers and lost frames (no race reported). test_drivers_aravis_gv runs the
-# same driver threads under TSan.
-tsan_tests=(test_apps_pipeline test_apps_record_publish test_acquisition_recorder
-            test_acquisition_writer test_acquisition_cli test_sync
+# The tests whose code runs threads against each other: our own threads (grab
+# loops, recorder and writer, sync, Vicon, GenTL and Aravis drivers).
+# Out, with the reason:
+# - test_apps_pipeline, test_apps_record_publish: processing runs on oneTBB,
+#   which Debian does not build with TSan; its fork-join is invisible to TSan
+#   and reported as races that no suppression can match (scripts/sanitizers/
+#   tsan.supp says what would fix it).
+# - test_acquisition_gv: two GigE Vision simulators answering heartbeats and
+#   software triggers in real time; under TSan on a loaded 2-core machine a 5 Hz
+#   recording took 144 s for 16 triggers and lost frames (no race reported).
+#   test_drivers_aravis_gv runs the same driver threads under TSan.
+tsan_tests=(test_acquisition_recorder test_acquisition_writer test_acquisition_cli test_sync
             test_drivers_vicon test_drivers_replay test_drivers_pool test_drivers_aravis_fake
             test_drivers_aravis_gv test_drivers_gentl)
 
