@@ -8,6 +8,7 @@
 #include "apps/pipeline/pipeline.h"
 #include "apps/pipeline/process_settings.h"
 #include "config/rig_config.h"
+#include "config/text_escape.h"
 #include "drivers/camera_factory.h"
 #include "drivers/replay_camera.h"
 #include "drivers/vicon_csv_source.h"
@@ -125,7 +126,7 @@ int Run(const Args& args) {
 
   auto rig = LoadRigConfig(args.rig);
   if (!rig) {
-    std::cerr << "lifmcr record: " << rig.error().message << "\n";
+    std::cerr << "lifmcr record: " << EscapeText(rig.error().message) << "\n";
     return kExitUsage;
   }
   RecorderOptions options = RecorderOptions::FromRig(rig->recorder);
@@ -133,12 +134,12 @@ int Run(const Args& args) {
   options.scene = args.scene;
   options.sequence = args.sequence;
   if (options.root_dir.empty()) {
-    std::cerr << "lifmcr record: no output folder: give --out (or recorder.out_dir in " << args.rig
+    std::cerr << "lifmcr record: no output folder: give --out (or recorder.out_dir in " << EscapeText(args.rig)
               << ")\n";
     return kExitUsage;
   }
   if (Status s = options.Check(); !s) {
-    std::cerr << "lifmcr record: " << s.error().message << "\n";
+    std::cerr << "lifmcr record: " << EscapeText(s.error().message) << "\n";
     return kExitUsage;
   }
 
@@ -161,7 +162,7 @@ int Run(const Args& args) {
                                    : 0.0;
     auto camera = MakeCamera(config, static_cast<int>(i), factory);
     if (!camera) {
-      std::cerr << "lifmcr record: " << camera.error().message << "\n";
+      std::cerr << "lifmcr record: " << EscapeText(camera.error().message) << "\n";
       return kExitCannotStart;
     }
     cameras.push_back(std::move(*camera));
@@ -169,12 +170,12 @@ int Run(const Args& args) {
   }
   auto vicon = MakeViconSource(*rig);
   if (!vicon) {
-    std::cerr << "lifmcr record: " << vicon.error().message << "\n";
+    std::cerr << "lifmcr record: " << EscapeText(vicon.error().message) << "\n";
     return kExitCannotStart;
   }
   auto recorder = Recorder::Create(*rig, options);
   if (!recorder) {
-    std::cerr << "lifmcr record: " << recorder.error().message << "\n";
+    std::cerr << "lifmcr record: " << EscapeText(recorder.error().message) << "\n";
     return kExitCannotStart;
   }
   std::unique_ptr<Pipeline> pipeline;
@@ -184,7 +185,7 @@ int Run(const Args& args) {
     process_settings = ProcessSettings::ForPipeline();
     auto made = MakePublishPipeline(*rig, args);
     if (!made) {
-      std::cerr << "lifmcr record: --publish: " << made.error().message << "\n";
+      std::cerr << "lifmcr record: --publish: " << EscapeText(made.error().message) << "\n";
       (*recorder)->Stop();
       return kExitCannotStart;
     }
@@ -205,7 +206,7 @@ int Run(const Args& args) {
   RigController controller(std::move(cameras), std::move(software_trigger), std::move(*vicon),
                            recorder->get(), controller_options, observer);
   if (Status s = controller.Start(); !s) {
-    std::cerr << "lifmcr record: " << s.error().message << "\n";
+    std::cerr << "lifmcr record: " << EscapeText(s.error().message) << "\n";
     (*recorder)->Stop();
     return kExitCannotStart;
   }

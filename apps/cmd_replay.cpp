@@ -3,6 +3,7 @@
 #include "apps/commands.h"
 #include "apps/pipeline/process_settings.h"
 #include "apps/pipeline/replay_runner.h"
+#include "config/text_escape.h"
 
 #include <CLI/CLI.hpp>
 
@@ -10,6 +11,8 @@
 #include <csignal>
 #include <iostream>
 #include <memory>
+#include <string>
+#include <vector>
 #include <unistd.h>
 
 namespace lifmcr::apps {
@@ -25,16 +28,22 @@ struct Args {
   std::string lcm_url;
   bool no_processing = false;
   int concurrency = 2;
+  std::vector<std::string> pixel_formats;
 };
 
 }  // namespace
 
 int RunReplayCommand(const std::string& sequence, const std::string& rate_text, bool loop,
                      const std::string& lcm_url, bool processing, int concurrency,
-                     const char* who) {
+                     const char* who, const std::vector<std::string>& pixel_formats) {
   auto rate = ReplayRate::Parse(rate_text);
   if (!rate) {
-    std::cerr << who << ": " << rate.error().message << "\n";
+    std::cerr << who << ": " << EscapeText(rate.error().message) << "\n";
+    return 2;
+  }
+  auto formats = ParsePixelFormatOptions(pixel_formats);
+  if (!formats) {
+    std::cerr << who << ": " << EscapeText(formats.error().message) << "\n";
     return 2;
   }
   g_stop = false;
@@ -49,6 +58,7 @@ int RunReplayCommand(const std::string& sequence, const std::string& rate_text, 
   options.pipeline.publisher.url = lcm_url;
   options.pipeline.max_concurrency = concurrency;
   options.stop = &g_stop;
+  options.pixel_formats = std::move(*formats);
   options.on_status = [terminal](const PipelineReport& report) {
     if (terminal)
       std::cerr << "\r" << report.StatusLine() << "\x1b[K" << std::flush;
@@ -61,7 +71,7 @@ int RunReplayCommand(const std::string& sequence, const std::string& rate_text, 
   std::signal(SIGINT, SIG_DFL);
   std::signal(SIGTERM, SIG_DFL);
   if (!result) {
-    std::cerr << who << ": " << result.error().message << "\n";
+    std::cerr << who << ": " << EscapeText(result.error().message) << "\n";
     return 3;
   }
   std::cout << result->FinalReport();
@@ -82,6 +92,10 @@ CommandRun AddReplayCommand(CLI::App& app) {
       "is processed. A status line on stderr, the final report on stdout (frames in,\n"
       "processed, skipped, failed, published). Watch with `lifmcr monitor` or\n"
       "scripts/lcm-spy.sh.\n"
+      "--pixel-format: a LiFMCR dataset does not record its cameras' pixel format (the BMPs\n"
+      "are 8-bit grey); name Bayer cameras (BayerRG8 for every camera, or SERIAL=BayerRG8,\n"
+      "repeatable) and their mosaics are demosaiced: previews and the TF image in colour,\n"
+      "depth on luminance, as `lifmcr record --publish` does from the rig file.\n"
       "Reads: SEQ_DIR and the Calibration/ folder beside its scene (MLA files, white images\n"
       "when present). Writes: the LCM channels above; nothing on disk.\n"
       "Exit codes: 0 every frame accounted for and none failed; 1 a processing failure;\n"
@@ -97,9 +111,13 @@ CommandRun AddReplayCommand(CLI::App& app) {
   app.add_option("--concurrency", args->concurrency, "Frames processed at once")
       ->check(CLI::Range(1, 64))
       ->capture_default_str();
+  app.add_option("--pixel-format", args->pixel_formats,
+                 "[SERIAL=]FORMAT: the cameras' pixel format (Mono8, BGR8, BayerRG8, BayerGR8, "
+                 "BayerGB8, BayerBG8); without SERIAL, every camera's");
   return [args] {
     return RunReplayCommand(args->sequence, args->rate, args->loop, args->lcm_url,
-                            !args->no_processing, args->concurrency, "lifmcr replay");
+                            !args->no_processing, args->concurrency, "lifmcr replay",
+                            args->pixel_formats);
   };
 }
 

@@ -17,6 +17,9 @@
 #include <algorithm>
 #include <lifmcr_lcm/preview_image_t.hpp>
 #include <map>
+#include <set>
+#include <string>
+#include <vector>
 
 namespace lifmcr {
 namespace {
@@ -145,6 +148,105 @@ TEST(RecordPublish, RigFileProcessingAndLcmSectionsTakeEffect) {
       EXPECT_EQ(largest_side, 64);
     }
   }
+}
+
+// Per channel suffix (PREVIEW, TF, DEPTH): the messages in an LCM log and
+// the channels of the preview-type ones.
+struct LoggedImages {
+  std::map<std::string, int> count;
+  std::map<std::string, std::set<int>> channels;
+};
+LoggedImages ReadLoggedImages(const fs::path& log) {
+  LoggedImages out;
+  lcm::LogFile file(log.string(), "r");
+  EXPECT_TRUE(file.good()) << log;
+  if (!file.good()) return out;
+  while (const lcm::LogEvent* event = file.readNextEvent()) {
+    const std::string& channel = event->channel;
+    const std::string kind = channel.substr(channel.rfind('_') + 1);
+    ++out.count[kind];
+    if (kind == "PREVIEW" || kind == "TF") {
+      lifmcr_lcm::preview_image_t m;
+      EXPECT_GE(m.decode(event->data, 0, event->datalen), 0);
+      out.channels[kind].insert(m.channels);
+    }
+  }
+  return out;
+}
+
+// A Bayer dataset replayed (issue 16): the LiFMCR layout does not record the
+// pixel format, so `replay --pixel-format` says it; previews and the TF image
+// then go out in colour and depth is computed (on luminance). Without it, the
+// mosaic is processed as grey. `record --publish` takes it from the rig file.
+TEST(ReplayBayer, PixelFormatGivesColourPreviewsAndTf) {
+  test::TempDir dir;
+  auto params = synth::MakePreset("small");
+  ASSERT_TRUE(params.ok());
+  params->camera.bayer = true;
+  params->rig.frames = 2;
+  params->rig.cameras = 1;
+  auto summary = synth::WriteSyntheticDataset(dir / "synth", *params);
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  const auto sequence = DiscoverSequence(summary->sequence_dir);
+  ASSERT_TRUE(sequence.ok());
+  const std::string serial = sequence->cameras.at(0).serial;
+  const std::string seq = "'" + summary->sequence_dir.string() + "'";
+
+  for (const std::string& flag : std::vector<std::string>{
+           "", "--pixel-format BayerRG8", "--pixel-format " + serial + "=BayerRG8"}) {
+    SCOPED_TRACE(flag);
+    const fs::path log = dir / "replay.lcmlog";
+    fs::remove(log);
+    const auto result = test::RunLifmcr("replay " + seq + " --rate max " + flag +
+                                        " --lcm 'file://" + log.string() + "?mode=w'");
+    ASSERT_EQ(result.exit_code, 0) << result.out << result.err;
+    const LoggedImages images = ReadLoggedImages(log);
+    EXPECT_EQ(images.count.count("PREVIEW") ? images.count.at("PREVIEW") : 0, 2);
+    EXPECT_EQ(images.count.count("TF") ? images.count.at("TF") : 0, 2);
+    EXPECT_EQ(images.count.count("DEPTH") ? images.count.at("DEPTH") : 0, 2);
+    const std::set<int> expected = {flag.empty() ? 1 : 3};
+    EXPECT_EQ(images.channels.count("PREVIEW") ? images.channels.at("PREVIEW") : std::set<int>{},
+              expected);
+    EXPECT_EQ(images.channels.count("TF") ? images.channels.at("TF") : std::set<int>{}, expected);
+  }
+
+  // Mistakes: a format that does not exist (usage, 2) and a camera that is
+  // not in the sequence (3, naming the cameras there).
+  auto bad = test::RunLifmcr("replay " + seq + " --rate max --pixel-format BayerXY8 --lcm memq://");
+  EXPECT_EQ(bad.exit_code, 2) << bad.err;
+  EXPECT_NE(bad.err.find("--pixel-format 'BayerXY8': expected FORMAT or SERIAL=FORMAT"),
+            std::string::npos)
+      << bad.err;
+  bad = test::RunLifmcr("replay " + seq + " --rate max --pixel-format 999=BayerRG8 --lcm memq://");
+  EXPECT_EQ(bad.exit_code, 3) << bad.err;
+  EXPECT_NE(bad.err.find("camera '999' is not in"), std::string::npos) << bad.err;
+  EXPECT_NE(bad.err.find(serial), std::string::npos) << bad.err;
+
+  // record --publish of the same dataset with a rig file that says BayerRG8.
+  RigConfig rig = test::TwoCameraRig();
+  rig.cameras.resize(1);
+  rig.vicon.source = ViconSourceKind::kNone;
+  rig.vicon.rate_hz = 160;
+  rig.vicon.udp.port = 51002;
+  rig.cameras[0].serial = serial;
+  rig.cameras[0].mla_file = layout::MlaXmlPath(summary->calibration_dir, serial);
+  rig.cameras[0].trigger.mode = TriggerMode::kHardware;
+  rig.cameras[0].pixel_format = CameraPixelFormat::kBayerRg8;
+  rig.processing.skip_policy = SkipPolicy::kBlock;
+  const fs::path log = dir / "record.lcmlog";
+  rig.lcm.url = "file://" + log.string() + "?mode=w";
+  const fs::path rig_path = dir / "rig.yaml";
+  test::WriteFile(rig_path, FormatRigConfig(rig));
+  const auto recorded = test::RunLifmcr("record --rig '" + rig_path.string() + "' --replay " + seq +
+                                        " --out '" + (dir / "rec").string() +
+                                        "' --duration 60 --publish");
+  ASSERT_EQ(recorded.exit_code, 0) << recorded.out << recorded.err;
+  const LoggedImages images = ReadLoggedImages(log);
+  EXPECT_EQ(images.channels.count("PREVIEW") ? images.channels.at("PREVIEW") : std::set<int>{},
+            std::set<int>{3});
+  EXPECT_EQ(images.channels.count("TF") ? images.channels.at("TF") : std::set<int>{},
+            std::set<int>{3});
+  EXPECT_EQ(images.count.count("DEPTH") ? images.count.at("DEPTH") : 0, 2);
 }
 
 }  // namespace
