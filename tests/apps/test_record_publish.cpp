@@ -17,6 +17,7 @@
 
 #include <algorithm>
 #include <lifmcr_lcm/preview_image_t.hpp>
+#include <iostream>
 #include <map>
 #include <regex>
 
@@ -145,6 +146,41 @@ TEST(RecordPublish, RigFileProcessingAndLcmSectionsTakeEffect) {
       EXPECT_EQ(largest_side, 64);
     }
   }
+}
+
+// skip_policy block with processing far slower than the triggers: the
+// recording stops as soon as the sequence ends (the command's loop is not
+// held inside Pipeline::Poll waiting for workers), and every frame taken is
+// still processed before the command exits.
+TEST(RecordPublish, BlockPolicyStopsPromptlyAndProcessesEveryFrame) {
+  test::TempDir dir;
+  ReplayRig replay = MakeReplayRig(dir.path(), 2, 400);
+  replay.rig.processing.skip_policy = SkipPolicy::kBlock;
+  replay.rig.processing.threads = 1;
+  const fs::path rig_path = dir / "rig.yaml";
+  test::WriteFile(rig_path, FormatRigConfig(replay.rig));
+  const auto result = test::RunLifmcr("record --rig '" + rig_path.string() + "' --replay '" +
+                                      replay.summary.sequence_dir.string() + "' --out '" +
+                                      (dir / "rec").string() +
+                                      "' --duration 60 --publish --lcm memq://");
+  ASSERT_EQ(result.exit_code, 0) << result.out << result.err;
+  EXPECT_NE(result.out.find("stopped by: end of the replayed sequence"), std::string::npos);
+  EXPECT_NE(result.out.find("processed: 4  skipped (newest wins): 0  failed: 0  (all "
+                            "accounted for)"),
+            std::string::npos)
+      << result.out;
+  std::smatch recording, processing;
+  ASSERT_TRUE(std::regex_search(result.out, recording, std::regex(R"(recording: ([0-9.]+) s)")))
+      << result.out;
+  ASSERT_TRUE(std::regex_search(result.out, processing,
+                                std::regex(R"(processing: p50 ([0-9.]+) ms)")))
+      << result.out;
+  // One worker: processing every frame takes about 4 x p50; the recording
+  // (0.04 s of sequence, the stop's drain) ended well before that.
+  const double recording_s = std::stod(recording[1].str());
+  const double processing_s = 4 * std::stod(processing[1].str()) / 1000;
+  std::cout << "recording " << recording_s << " s, processing about " << processing_s << " s\n";
+  EXPECT_LT(recording_s, 0.5 * processing_s) << result.out;
 }
 
 // `record --no-sync --publish`: the pipeline still takes its FrameSets from
