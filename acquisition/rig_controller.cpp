@@ -1,5 +1,7 @@
 #include "acquisition/rig_controller.h"
 
+#include "acquisition/thread_priority.h"
+
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -29,6 +31,8 @@ Status RigControllerOptions::Check() const {
   if (sync_poll.count() <= 0) return Error{"rig controller: sync_poll: expected > 0 ms"};
   if (vicon_lead_triggers < 0) return Error{"rig controller: vicon_lead_triggers: expected >= 0"};
   if (vicon_divider < 1) return Error{"rig controller: vicon_divider: expected >= 1"};
+  if (vicon_realtime_priority < 0 || vicon_realtime_priority > 99)
+    return Error{"rig controller: vicon_realtime_priority: expected 0..99 (0: ordinary)"};
   if (sync) {
     if (Status s = sync->Check(); !s) return Error{"rig controller: sync: " + s.error().message};
   } else if (number_files_by_sync) {
@@ -466,6 +470,9 @@ bool RigController::ViconAhead(std::int64_t last_vicon_frame) const {
 }
 
 void RigController::ViconLoop() {
+  if (options_.vicon_realtime_priority > 0)
+    spdlog::info("rig: Vicon thread under {}",
+                 RaiseThreadToRealtime(options_.vicon_realtime_priority));
   std::optional<std::int64_t> last_vicon_frame;
   int in_burst = 0;
   while (vicon_running_.load()) {

@@ -82,6 +82,12 @@ struct RigControllerOptions {
   // cameras[].device_clock); "" or no entry: the driver's
   // (CameraInfo::device_clock). The assembler's device_clocks are set from it.
   std::vector<std::string> device_clocks;
+  // SCHED_FIFO priority (1..99) of the Vicon thread, 0 to leave it under the
+  // ordinary scheduler (acquisition/thread_priority.h). A live Vicon stream
+  // wants kLiveViconPriority; a CSV read as fast as possible must not have it
+  // (it would hold a core until the file is read).
+  int vicon_realtime_priority = 0;
+  static constexpr int kLiveViconPriority = 10;
   Status Check() const;  // every field (sync: its own Check); the message names the field
 };
 

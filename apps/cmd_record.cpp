@@ -196,6 +196,8 @@ int Run(const Args& args) {
   }
   RigControllerOptions controller_options;
   controller_options.trigger_hz = rig->vicon.rate_hz / rig->vicon.trigger_divider;
+  if (rig->vicon.source == ViconSourceKind::kUdp)
+    controller_options.vicon_realtime_priority = RigControllerOptions::kLiveViconPriority;
   for (const CameraConfig& camera : rig->cameras)
     controller_options.device_clocks.push_back(camera.device_clock);
   // The pipeline takes FrameSets, so --publish keeps the assembler even with

@@ -25,12 +25,13 @@
 //   bench_pipeline [--preset small|medium|r32] [--frames N] [--cameras N]
 //                  [--concurrency N] [--lcm URL] [--vicon-packets N]
 //                  [--vicon-hz HZ] [--udpm URL] [--processing-nice N]
-//                  [--no-frames] [--no-vicon]
+//                  [--vicon-priority N] [--no-frames] [--no-vicon]
 // Part 1 publishes on --lcm (default memq://; messages are published, not
 // read). The Vicon rate is raised from 80 Hz (default 400) so a run takes
 // seconds; --vicon-hz 80 gives the real rate.
 
 #include "acquisition/rig_controller.h"
+#include "acquisition/thread_priority.h"
 #include "apps/pipeline/frame_processor.h"
 #include "apps/pipeline/pipeline.h"
 #include "apps/pipeline/process_settings.h"
@@ -53,6 +54,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <future>
 #include <filesystem>
 #include <lifmcr_lcm/vicon_frame_t.hpp>
 #include <string>
@@ -79,6 +81,9 @@ struct BenchArgs {
   // A port of its own, so a monitor on the default one is not flooded.
   std::string udpm_url = "udpm://239.255.76.67:7713?ttl=0&recv_buf_size=4194304";
   int processing_nice = apps::PipelineOptions{}.processing_nice;
+  // The Vicon thread's SCHED_FIFO priority, as `lifmcr record` sets it for a
+  // live stream; 0 shows the ordinary scheduler.
+  int vicon_priority = lifmcr::RigControllerOptions::kLiveViconPriority;
   bool frame_part = true;
   bool vicon_part = true;
 };
@@ -121,6 +126,9 @@ Expected<BenchArgs> ParseArgs(int argc, char** argv) {
     } else if (option == "--processing-nice") {
       if (!(number = ParseInt(option, value, 0, 19))) return number.error();
       args.processing_nice = *number;
+    } else if (option == "--vicon-priority") {
+      if (!(number = ParseInt(option, value, 0, 99))) return number.error();
+      args.vicon_priority = *number;
     } else if (option == "--vicon-packets") {
       if (!(number = ParseInt(option, value, 16, 10'000'000))) return number.error();
       args.vicon_packets = *number;
@@ -346,11 +354,21 @@ int RunViconPart(const BenchArgs& args, const std::filesystem::path& sequence_di
   ViconArrivals arrivals;
   arrivals.first_frame = kFirstFrame;
   arrivals.at_ns = std::vector<std::atomic<std::int64_t>>(packets);
-  bus.subscribe(apps::kViconChannel, &ViconArrivals::OnMessage, &arrivals);
   std::atomic<bool> subscribing{true};
+  std::promise<void> subscribed;
   std::thread subscriber([&] {
+    // The receiver of a latency-critical stream runs real-time as well (a
+    // controller would); under the ordinary scheduler this figure would be
+    // the receiver's own wake-up latency on a loaded host, not the path's.
+    // It subscribes after raising itself: LCM's udpm provider starts its
+    // receive thread at the first subscription, and that thread inherits the
+    // policy of the thread that starts it.
+    if (args.vicon_priority > 0) (void)RaiseThreadToRealtime(args.vicon_priority);
+    bus.subscribe(apps::kViconChannel, &ViconArrivals::OnMessage, &arrivals);
+    subscribed.set_value();
     while (subscribing) bus.handleTimeout(50);
   });
+  subscribed.get_future().wait();
 
   std::vector<std::unique_ptr<Camera>> cameras;
   if (setup.frames_flowing) {
@@ -382,6 +400,8 @@ int RunViconPart(const BenchArgs& args, const std::filesystem::path& sequence_di
   };
   RigControllerOptions controller_options;
   controller_options.trigger_hz = args.vicon_hz / divider;
+  // As `lifmcr record` runs a live UDP stream (apps/cmd_record.cpp).
+  controller_options.vicon_realtime_priority = args.vicon_priority;
   const std::size_t camera_count = cameras.size();
   RigController controller(std::move(cameras), std::vector<bool>(camera_count, false),
                            std::move(source), nullptr, controller_options, observer);

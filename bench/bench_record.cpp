@@ -103,6 +103,18 @@ int main(int argc, char** argv) {
       gentl_fill_all = true;
     } else if (arg == "--load" && i + 1 < argc) {
       gentl_load = std::atof(argv[++i]);
+    } else if (arg == "-h" || arg == "--help") {
+      std::printf(
+          "usage: bench_record [DIR (/var/tmp)] [GB (3)] [WRITER_THREADS (1)]\n"
+          "                    [--gentl PRODUCER.cti [--load F] [--fill-all]]\n"
+          "Two in-memory R32-sized cameras through the grab threads and the recorder into\n"
+          "DIR; prints sustained MB/s against dd oflag=direct in the same folder, drops and\n"
+          "CPU cores. bench/README.md says what each mode measures.\n");
+      return 0;
+    } else if (!arg.empty() && arg[0] == '-') {
+      // An option we do not know would otherwise become the output folder.
+      std::fprintf(stderr, "bench_record: unknown option '%s' (see --help)\n", arg.c_str());
+      return 2;
     } else {
       positional.push_back(arg);
     }
