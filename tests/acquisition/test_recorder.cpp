@@ -176,29 +176,45 @@ TEST(Recorder, ThroughSyncEveryTriggerIsOneFrameSetOnDiskOrCounted) {
   ExpectEveryFrameReads(*sequence);
 }
 
+// Two memory cameras, MEMA and MEMB (32x32 Mono8), and a recorder writing
+// into a fresh folder, for a rig without Vicon: the placement tests' rig.
+struct TwoMemoryCameraRig {
+  TwoMemoryCameraRig() {
+    rig.vicon.source = ViconSourceKind::kNone;
+    RecorderOptions options;
+    options.root_dir = out.path();
+    auto created = Recorder::Create(rig, options);
+    EXPECT_TRUE(created.ok()) << created.error().message;
+    if (created.ok()) recorder = std::move(*created);
+    auto a = MakeCamera("MEMA", PixelFormat::kMono8, 32, 32);
+    auto b = MakeCamera("MEMB", PixelFormat::kMono8, 32, 32);
+    camera_a = a.get();
+    camera_b = b.get();
+    cameras.push_back(std::move(a));
+    cameras.push_back(std::move(b));
+  }
+  test::TempDir out;
+  RigConfig rig = test::TwoCameraRig();
+  std::unique_ptr<Recorder> recorder;
+  std::vector<std::unique_ptr<Camera>> cameras;  // moved into the controller
+  MemoryCamera* camera_a = nullptr;
+  MemoryCamera* camera_b = nullptr;
+};
+
 // A camera whose first frame comes three triggers after the rig's first
 // (armed later on a running trigger) starts at frame 3, not 0, and the three
 // triggers it missed are counted. Here the two cameras' device clocks are
 // declared apart, so host time places it (the fallback).
 TEST(Recorder, ALateCameraIsPlacedOnTheRigsTriggerCountByHostTime) {
-  test::TempDir out;
-  RigConfig rig = test::TwoCameraRig();
-  rig.vicon.source = ViconSourceKind::kNone;
-  RecorderOptions options;
-  options.root_dir = out.path();
-  auto recorder = Recorder::Create(rig, options);
-  ASSERT_TRUE(recorder.ok()) << recorder.error().message;
-  std::vector<std::unique_ptr<Camera>> cameras;
-  cameras.push_back(MakeCamera("MEMA", PixelFormat::kMono8, 32, 32));
-  auto late = MakeCamera("MEMB", PixelFormat::kMono8, 32, 32);
-  MemoryCamera* late_camera = late.get();
-  cameras.push_back(std::move(late));
+  TwoMemoryCameraRig setup;
+  ASSERT_TRUE(setup.recorder != nullptr);
+  MemoryCamera* late_camera = setup.camera_b;
   RigControllerOptions controller_options;
   controller_options.trigger_hz = 5.0;  // 200 ms: host-time jitter is far below half a period
   controller_options.device_clocks = {"clock of A", "clock of B"};
   // Only A is triggered by the controller; the test triggers B from the 4th trigger on.
-  RigController controller(std::move(cameras), {true, false}, nullptr, recorder->get(),
-                           controller_options);
+  RigController controller(std::move(setup.cameras), {true, false}, nullptr,
+                           setup.recorder.get(), controller_options);
   const auto start = std::chrono::steady_clock::now();
   ASSERT_TRUE(controller.Start().ok());
   for (int k = 3; k < 8; ++k) {
@@ -208,7 +224,7 @@ TEST(Recorder, ALateCameraIsPlacedOnTheRigsTriggerCountByHostTime) {
   }
   std::this_thread::sleep_until(start + milliseconds(200 * 8 - 50));
   controller.Stop();
-  (*recorder)->Stop();
+  setup.recorder->Stop();
   const RigHealth health = controller.Health();
   SCOPED_TRACE(health.FinalReport());
   const RecorderCameraStats& b = health.recorder.cameras[1];
@@ -226,24 +242,14 @@ TEST(Recorder, ALateCameraIsPlacedOnTheRigsTriggerCountByHostTime) {
 // schedule a controller with trigger_hz set would otherwise assume put it
 // on trigger 3 here).
 TEST(Recorder, AHardwareTriggeredRigCountsFromItsFirstFrameNotFromStart) {
-  test::TempDir out;
-  RigConfig rig = test::TwoCameraRig();
-  rig.vicon.source = ViconSourceKind::kNone;
-  RecorderOptions options;
-  options.root_dir = out.path();
-  auto recorder = Recorder::Create(rig, options);
-  ASSERT_TRUE(recorder.ok()) << recorder.error().message;
-  auto a = MakeCamera("MEMA", PixelFormat::kMono8, 32, 32);
-  auto b = MakeCamera("MEMB", PixelFormat::kMono8, 32, 32);
-  MemoryCamera* cameras_on_the_line[2] = {a.get(), b.get()};
-  std::vector<std::unique_ptr<Camera>> cameras;
-  cameras.push_back(std::move(a));
-  cameras.push_back(std::move(b));
+  TwoMemoryCameraRig setup;
+  ASSERT_TRUE(setup.recorder != nullptr);
+  MemoryCamera* cameras_on_the_line[2] = {setup.camera_a, setup.camera_b};
   RigControllerOptions controller_options;
   controller_options.trigger_hz = 10.0;  // the rig's rate; the line is not ours to fire
   controller_options.device_clocks = {"clock of A", "clock of B"};  // host time places both
-  RigController controller(std::move(cameras), {false, false}, nullptr, recorder->get(),
-                           controller_options);
+  RigController controller(std::move(setup.cameras), {false, false}, nullptr,
+                           setup.recorder.get(), controller_options);
   const auto start = std::chrono::steady_clock::now();
   ASSERT_TRUE(controller.Start().ok());
   for (int k = 0; k < 4; ++k) {
@@ -252,7 +258,7 @@ TEST(Recorder, AHardwareTriggeredRigCountsFromItsFirstFrameNotFromStart) {
   }
   std::this_thread::sleep_until(start + milliseconds(350 + 400));
   controller.Stop();
-  (*recorder)->Stop();
+  setup.recorder->Stop();
   const RigHealth health = controller.Health();
   SCOPED_TRACE(health.FinalReport());
   EXPECT_EQ(health.triggers_fired, 0u);
@@ -272,23 +278,14 @@ TEST(Recorder, AHardwareTriggeredRigCountsFromItsFirstFrameNotFromStart) {
 // the grid themselves; the assembler's placement under hogs is shown on
 // exact device times by RecordPublish.FirstFramesPlacedByDeviceTimeUnderTwoCpuHogs.)
 TEST(Recorder, ALateCameraOnTheSameClockIsPlacedByDeviceTimeUnderTwoCpuHogs) {
-  test::TempDir out;
-  RigConfig rig = test::TwoCameraRig();
-  rig.vicon.source = ViconSourceKind::kNone;
-  RecorderOptions options;
-  options.root_dir = out.path();
-  auto recorder = Recorder::Create(rig, options);
-  ASSERT_TRUE(recorder.ok()) << recorder.error().message;
-  std::vector<std::unique_ptr<Camera>> cameras;
-  cameras.push_back(MakeCamera("MEMA", PixelFormat::kMono8, 32, 32));
-  auto late = MakeCamera("MEMB", PixelFormat::kMono8, 32, 32);
-  MemoryCamera* late_camera = late.get();
-  cameras.push_back(std::move(late));
+  TwoMemoryCameraRig setup;
+  ASSERT_TRUE(setup.recorder != nullptr);
+  MemoryCamera* late_camera = setup.camera_b;
   RigControllerOptions controller_options;
   controller_options.trigger_hz = 10.0;
   test::CpuHogs hogs(2);
-  RigController controller(std::move(cameras), {true, false}, nullptr, recorder->get(),
-                           controller_options);
+  RigController controller(std::move(setup.cameras), {true, false}, nullptr,
+                           setup.recorder.get(), controller_options);
   ASSERT_TRUE(controller.Start().ok());
   // The controller's schedule starts as Start returns (opening the cameras
   // before it can take the hogs' time).
@@ -300,7 +297,7 @@ TEST(Recorder, ALateCameraOnTheSameClockIsPlacedByDeviceTimeUnderTwoCpuHogs) {
   }
   std::this_thread::sleep_until(start + milliseconds(100 * 8 - 50));
   controller.Stop();
-  (*recorder)->Stop();
+  setup.recorder->Stop();
   const RigHealth health = controller.Health();
   SCOPED_TRACE(health.FinalReport());
   const RecorderCameraStats& b = health.recorder.cameras[1];
