@@ -192,8 +192,8 @@ Status RigController::Start() {
   }
   // The trigger schedule exists only when this controller fires triggers:
   // a hardware-triggered rig's first frames are not placed on it.
-  const bool fires_triggers =
-      std::any_of(slots_.begin(), slots_.end(), [](const auto& slot) { return slot->software_trigger; });
+  const bool fires_triggers = std::any_of(slots_.begin(), slots_.end(),
+                                          [](const auto& slot) { return slot->software_trigger; });
   if (options_.trigger_hz > 0 && fires_triggers) {
     triggering_ = true;
     const auto schedule_start = std::chrono::steady_clock::now();

@@ -600,14 +600,8 @@ bool AravisCamera::IsLost() const { return impl_->lost.load(); }
 Expected<std::string> AravisCamera::FeatureValue(const std::string& feature) const {
   Impl& d = *impl_;
   std::lock_guard<std::mutex> lock(d.control_mutex);
-  if (d.camera == nullptr) return d.Fail("reading " + feature + ": the device is not open");
-  ArvGcNode* node = arv_device_get_feature(arv_camera_get_device(d.camera), feature.c_str());
-  if (node == nullptr || !ARV_IS_GC_FEATURE_NODE(node))
-    return d.Fail("reading " + feature + ": no such feature");
-  GError* error = nullptr;
-  const char* value = arv_gc_feature_node_get_value_as_string(ARV_GC_FEATURE_NODE(node), &error);
-  if (error != nullptr) return d.Fail("reading " + feature + ": " + TakeMessage(error));
-  return std::string(value != nullptr ? value : "");
+  return ReadArvFeature(d.camera == nullptr ? nullptr : arv_camera_get_device(d.camera), feature,
+                        d.label);
 }
 
 }  // namespace lifmcr

@@ -25,8 +25,8 @@ Status FrameSetAssemblerOptions::Check() const {
   auto bad = [](const std::string& what) { return Status(Error{"frame set assembler: " + what}); };
   if (serials.empty()) return bad("at least one camera is needed");
   if (!device_clocks.empty() && device_clocks.size() != serials.size())
-    return bad("device_clocks: expected none or one per camera (" +
-               std::to_string(serials.size()) + "), got " + std::to_string(device_clocks.size()));
+    return bad("device_clocks: expected none or one per camera (" + std::to_string(serials.size()) +
+               "), got " + std::to_string(device_clocks.size()));
   if (trigger.trigger_period_ns <= 0) return bad("trigger period must be > 0 ns");
   if (!(trigger.tolerance > 0.0 && trigger.tolerance < 0.5))
     return bad("trigger tolerance must be in (0, 0.5) periods");
@@ -115,7 +115,8 @@ std::optional<std::int64_t> FrameSetAssembler::AddFrame(Frame frame) {
       camera.first_placement = placement;
       camera.stats.first_placement = placement->OneLine();
       if (placement->by == FirstPlacement::By::kHostTime)
-        camera.stats.first_placement += " (" + placer_.WhyNotByDeviceTime(index, frame.device_ns) + ")";
+        camera.stats.first_placement +=
+            " (" + placer_.WhyNotByDeviceTime(index, frame.device_ns) + ")";
     }
   }
   const std::int64_t k = association.trigger_index;

@@ -19,11 +19,11 @@
 #include <oneapi/tbb/task_arena.h>
 #include <oneapi/tbb/task_scheduler_observer.h>
 #include <optional>
-#include <utility>
 #include <sstream>
 #include <sys/resource.h>
 #include <sys/syscall.h>
 #include <unistd.h>
+#include <utility>
 
 namespace lifmcr::apps {
 namespace {

@@ -213,8 +213,8 @@ TEST(Recorder, ALateCameraIsPlacedOnTheRigsTriggerCountByHostTime) {
   controller_options.trigger_hz = 5.0;  // 200 ms: host-time jitter is far below half a period
   controller_options.device_clocks = {"clock of A", "clock of B"};
   // Only A is triggered by the controller; the test triggers B from the 4th trigger on.
-  RigController controller(std::move(setup.cameras), {true, false}, nullptr,
-                           setup.recorder.get(), controller_options);
+  RigController controller(std::move(setup.cameras), {true, false}, nullptr, setup.recorder.get(),
+                           controller_options);
   const auto start = std::chrono::steady_clock::now();
   ASSERT_TRUE(controller.Start().ok());
   for (int k = 3; k < 8; ++k) {
@@ -248,8 +248,8 @@ TEST(Recorder, AHardwareTriggeredRigCountsFromItsFirstFrameNotFromStart) {
   RigControllerOptions controller_options;
   controller_options.trigger_hz = 10.0;  // the rig's rate; the line is not ours to fire
   controller_options.device_clocks = {"clock of A", "clock of B"};  // host time places both
-  RigController controller(std::move(setup.cameras), {false, false}, nullptr,
-                           setup.recorder.get(), controller_options);
+  RigController controller(std::move(setup.cameras), {false, false}, nullptr, setup.recorder.get(),
+                           controller_options);
   const auto start = std::chrono::steady_clock::now();
   ASSERT_TRUE(controller.Start().ok());
   for (int k = 0; k < 4; ++k) {
@@ -284,8 +284,8 @@ TEST(Recorder, ALateCameraOnTheSameClockIsPlacedByDeviceTimeUnderTwoCpuHogs) {
   RigControllerOptions controller_options;
   controller_options.trigger_hz = 10.0;
   test::CpuHogs hogs(2);
-  RigController controller(std::move(setup.cameras), {true, false}, nullptr,
-                           setup.recorder.get(), controller_options);
+  RigController controller(std::move(setup.cameras), {true, false}, nullptr, setup.recorder.get(),
+                           controller_options);
   ASSERT_TRUE(controller.Start().ok());
   // The controller's schedule starts as Start returns (opening the cameras
   // before it can take the hogs' time).

@@ -16,8 +16,8 @@
 #include <lcm/lcm-cpp.hpp>
 
 #include <algorithm>
-#include <lifmcr_lcm/preview_image_t.hpp>
 #include <iostream>
+#include <lifmcr_lcm/preview_image_t.hpp>
 #include <map>
 #include <regex>
 
@@ -113,10 +113,9 @@ TEST(RecordPublish, RigFileProcessingAndLcmSectionsTakeEffect) {
     const fs::path rig_path = dir / "rig.yaml";
     test::WriteFile(rig_path, FormatRigConfig(rig));
     const fs::path out = dir / (previews ? "rec1" : "rec2");
-    const auto result =
-        test::RunLifmcr("record --rig '" + rig_path.string() + "' --replay '" +
-                        replay.summary.sequence_dir.string() + "' --out '" + out.string() +
-                        "' --duration 60 --publish");
+    const auto result = test::RunLifmcr("record --rig '" + rig_path.string() + "' --replay '" +
+                                        replay.summary.sequence_dir.string() + "' --out '" +
+                                        out.string() + "' --duration 60 --publish");
     ASSERT_EQ(result.exit_code, 0) << result.out << result.err;
     EXPECT_NE(result.out.find("frames in: 8 "), std::string::npos) << result.out;
     EXPECT_NE(result.out.find("skipped (newest wins): 0 "), std::string::npos) << result.out;
@@ -159,10 +158,9 @@ TEST(RecordPublish, BlockPolicyStopsPromptlyAndProcessesEveryFrame) {
   replay.rig.processing.threads = 1;
   const fs::path rig_path = dir / "rig.yaml";
   test::WriteFile(rig_path, FormatRigConfig(replay.rig));
-  const auto result = test::RunLifmcr("record --rig '" + rig_path.string() + "' --replay '" +
-                                      replay.summary.sequence_dir.string() + "' --out '" +
-                                      (dir / "rec").string() +
-                                      "' --duration 60 --publish --lcm memq://");
+  const auto result = test::RunLifmcr(
+      "record --rig '" + rig_path.string() + "' --replay '" + replay.summary.sequence_dir.string() +
+      "' --out '" + (dir / "rec").string() + "' --duration 60 --publish --lcm memq://");
   ASSERT_EQ(result.exit_code, 0) << result.out << result.err;
   EXPECT_NE(result.out.find("stopped by: end of the replayed sequence"), std::string::npos);
   EXPECT_NE(result.out.find("processed: 4  skipped (newest wins): 0  failed: 0  (all "
@@ -172,8 +170,8 @@ TEST(RecordPublish, BlockPolicyStopsPromptlyAndProcessesEveryFrame) {
   std::smatch recording, processing;
   ASSERT_TRUE(std::regex_search(result.out, recording, std::regex(R"(recording: ([0-9.]+) s)")))
       << result.out;
-  ASSERT_TRUE(std::regex_search(result.out, processing,
-                                std::regex(R"(processing: p50 ([0-9.]+) ms)")))
+  ASSERT_TRUE(
+      std::regex_search(result.out, processing, std::regex(R"(processing: p50 ([0-9.]+) ms)")))
       << result.out;
   // One worker: processing every frame takes about 4 x p50; the recording
   // (0.04 s of sequence, the stop's drain) ended well before that.
@@ -192,10 +190,9 @@ TEST(RecordPublish, NoSyncPublishesTheControllersFrameSets) {
   replay.rig.processing.skip_policy = SkipPolicy::kBlock;
   const fs::path rig_path = dir / "rig.yaml";
   test::WriteFile(rig_path, FormatRigConfig(replay.rig));
-  const auto result = test::RunLifmcr("record --rig '" + rig_path.string() + "' --replay '" +
-                                      replay.summary.sequence_dir.string() + "' --out '" +
-                                      (dir / "rec").string() +
-                                      "' --duration 60 --no-sync --publish --lcm memq://");
+  const auto result = test::RunLifmcr(
+      "record --rig '" + rig_path.string() + "' --replay '" + replay.summary.sequence_dir.string() +
+      "' --out '" + (dir / "rec").string() + "' --duration 60 --no-sync --publish --lcm memq://");
   ASSERT_EQ(result.exit_code, 0) << result.out << result.err;
   // (No set is "complete": none has a Vicon frame.)
   EXPECT_NE(result.out.find("sync: 4 triggers (FrameSets), 0 complete; Vicon frame of trigger 0: "

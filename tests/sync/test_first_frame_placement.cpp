@@ -12,7 +12,7 @@ namespace lifmcr {
 namespace {
 
 constexpr std::int64_t kPeriod = 100'000'000;
-constexpr std::int64_t kDevice0 = 5'000'000'000;             // device clock at trigger 0
+constexpr std::int64_t kDevice0 = 5'000'000'000;            // device clock at trigger 0
 constexpr std::int64_t kHost0 = 1'700'000'000'000'000'000;  // host clock at trigger 0
 constexpr std::int64_t kLatency = 3'000'000;
 
