@@ -105,9 +105,9 @@ Expected<std::unique_ptr<Pipeline>> MakePublishPipeline(const RigConfig& rig, co
   FrameSetAssemblerOptions sync = FrameSetAssemblerOptions::FromRig(rig);
   PipelineOptions options = PipelineOptions::FromRig(rig);
   if (!args.lcm_url.empty()) options.publisher.url = args.lcm_url;
-  // The controller's assembler makes the FrameSets (one per run), unless
-  // --no-sync leaves it out: then the pipeline's own.
-  options.frame_sets_from_grab_loop = !args.no_sync;
+  // The controller's assembler makes the FrameSets (one per run; with
+  // --no-sync too, without Vicon association).
+  options.frame_sets_from_grab_loop = true;
   return Pipeline::Create(sync, std::move(processor), options);
 }
 
@@ -192,17 +192,21 @@ int Run(const Args& args) {
     pipeline = std::move(*made);
     Pipeline* p = pipeline.get();
     // A copy of a Frame or FrameSet shares the pooled buffers (no pixel copy).
-    if (args.no_sync)
-      observer.on_frame = [p](int, std::int64_t, const Frame& frame) { p->AddFrame(frame); };
-    else
-      observer.on_frame_set = [p](const FrameSet& set) { p->AddFrameSet(set); };
+    observer.on_frame_set = [p](const FrameSet& set) { p->AddFrameSet(set); };
     observer.on_vicon = [p](const ViconFrame& frame) { p->AddVicon(frame); };
   }
   RigControllerOptions controller_options;
   controller_options.trigger_hz = rig->vicon.rate_hz / rig->vicon.trigger_divider;
   if (rig->vicon.source == ViconSourceKind::kUdp)
     controller_options.vicon_realtime_priority = RigControllerOptions::kLiveViconPriority;
-  if (!args.no_sync) controller_options.sync = FrameSetAssemblerOptions::FromRig(*rig);
+  for (const CameraConfig& camera : rig->cameras)
+    controller_options.device_clocks.push_back(camera.device_clock);
+  // The pipeline takes FrameSets, so --publish keeps the assembler even with
+  // --no-sync, which then only leaves the Vicon association out.
+  if (!args.no_sync || args.publish) {
+    controller_options.sync = FrameSetAssemblerOptions::FromRig(*rig);
+    if (args.no_sync) controller_options.sync->vicon_expected = false;
+  }
   RigController controller(std::move(cameras), std::move(software_trigger), std::move(*vicon),
                            recorder->get(), controller_options, observer);
   if (Status s = controller.Start(); !s) {
@@ -310,7 +314,8 @@ CommandRun AddRecordCommand(CLI::App& app) {
                  "Sequence folder that cameras with driver 'replay' serve")
       ->check(CLI::ExistingDirectory);
   app.add_flag("--no-sync", args->no_sync,
-               "Leave the sync assembler out (no FrameSets, no Vicon f0 in the report)");
+               "Leave the sync assembler out (no FrameSets, no Vicon f0 in the report); "
+               "with --publish the FrameSets are still made, without Vicon frames");
   return [args] { return Run(*args); };
 }
 
