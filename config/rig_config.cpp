@@ -510,6 +510,9 @@ std::optional<ConfigIssue> RigConfig::FindIssue() const {
   if (auto issue = CheckRecorder(recorder)) return issue;
   if (auto issue = CheckProcessing(processing)) return issue;
   if (auto issue = CheckLcm(lcm)) return issue;
+  if (registration.changed_after < 1 || registration.changed_after > 100)
+    return ConfigIssue{"/registration/changed_after",
+                       "expected 1..100, got " + std::to_string(registration.changed_after)};
   return std::nullopt;
 }
 
@@ -567,6 +570,11 @@ Expected<RigConfig> ParseRigConfig(std::string_view yaml, const fs::path& base_d
     section->Read("url", &rig.lcm.url, kOptional);
     section->Read("channel_prefix", &rig.lcm.channel_prefix, kOptional);
     section->Read("publish_previews", &rig.lcm.publish_previews, kOptional);
+    section->Finish();
+  }
+  if (auto section = root.Map("registration", kOptional)) {
+    section->Read("rigid_mount", &rig.registration.rigid_mount, kOptional);
+    section->Read("changed_after", &rig.registration.changed_after, kOptional);
     section->Finish();
   }
   root.Finish();
@@ -647,6 +655,8 @@ std::string FormatRigConfig(const RigConfig& rig) {
   out << "lcm:\n  url: " << Yq(rig.lcm.url) << "\n";
   out << "  channel_prefix: " << Yq(rig.lcm.channel_prefix) << "\n";
   out << "  publish_previews: " << Yb(rig.lcm.publish_previews) << "\n";
+  out << "registration:\n  rigid_mount: " << Yb(rig.registration.rigid_mount) << "\n";
+  out << "  changed_after: " << rig.registration.changed_after << "\n";
   return out.str();
 }
 

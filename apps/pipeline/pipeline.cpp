@@ -146,6 +146,7 @@ struct Pipeline::Impl {
   std::unique_ptr<FrameProcessor> processor;
   std::shared_ptr<processing::RegistrationStage> registration;
   bool localizes = false;  // a stage other than the pass-through
+  int reference_camera = 0;  // camera index of options.reference_serial
   std::unique_ptr<Publisher> publisher;
 
   std::mutex sync_mutex;
@@ -234,13 +235,18 @@ struct Pipeline::Impl {
     const int camera = job.frame.camera_index;
     trigger.by_camera[camera] = {job.frame.serial, w0_from_cx};
     std::uint64_t published = 0;
-    auto reference = trigger.by_camera.find(0);
+    auto reference = trigger.by_camera.find(reference_camera);
     if (reference != trigger.by_camera.end()) {
       const auto& [reference_serial, w0_from_c0] = reference->second;
       for (const auto& [index, entry] : trigger.by_camera) {
-        if (index == 0 || (camera != 0 && index != camera)) continue;
-        publisher->PublishExtrinsics(reference_serial, entry.first, job.trigger_index,
-                                     registration->Relate(w0_from_c0, entry.second));
+        if (index == reference_camera || (camera != reference_camera && index != camera))
+          continue;
+        ExtrinsicsRecord record{reference_serial, entry.first, job.trigger_index,
+                                registration->Relate(entry.first, job.trigger_index,
+                                                     w0_from_c0, entry.second)};
+        publisher->PublishExtrinsics(record.reference_serial, record.serial,
+                                     record.trigger_index, record.c0_from_cx);
+        if (options.on_extrinsics) options.on_extrinsics(record);
         ++published;
       }
     }
@@ -433,6 +439,13 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
   impl->registration = options.registration;
   if (!impl->registration) impl->registration = std::make_shared<processing::PassThroughStage>();
   impl->localizes = dynamic_cast<processing::PassThroughStage*>(impl->registration.get()) == nullptr;
+  if (!options.reference_serial.empty()) {
+    const auto it = std::find(sync.serials.begin(), sync.serials.end(), options.reference_serial);
+    if (it == sync.serials.end())
+      return Error{"pipeline: reference_serial: camera " + options.reference_serial +
+                   " (the reference map's) is not one of the rig's cameras"};
+    impl->reference_camera = static_cast<int>(it - sync.serials.begin());
+  }
   auto publisher = Publisher::Create(options.publisher);
   if (!publisher) return publisher.error();
   impl->publisher = std::move(*publisher);

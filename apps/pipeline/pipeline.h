@@ -23,9 +23,9 @@
 // runs, gets its frames before the pipeline does and never waits for it.
 //
 // Registration: the stage's Localize runs on the worker after processing;
-// its poses are grouped per trigger on the publishing node, and once camera
-// 0 and camera X both have a pose of a trigger, Relate gives c0_from_cx,
-// published on <PREFIX>_<SERIAL>_EXTRINSICS.
+// its poses are grouped per trigger on the publishing node, and once the
+// reference camera (reference_serial) and camera X both have a pose of a
+// trigger, Relate gives c0_from_cx, published on <PREFIX>_<SERIAL>_EXTRINSICS.
 //
 // Threads: AddFrame and AddVicon from any thread (the grab loop's); a Vicon
 // frame is published on the caller's thread, at once. Poll and Finish from
@@ -45,11 +45,20 @@
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
 
 namespace lifmcr::apps {
+
+// One c0_from_cx as published on <PREFIX>_<SERIAL>_EXTRINSICS.
+struct ExtrinsicsRecord {
+  std::string reference_serial;  // camera 0
+  std::string serial;            // camera X
+  std::int64_t trigger_index = 0;
+  processing::CameraPose c0_from_cx;
+};
 
 struct PipelineOptions {
   int max_concurrency = 2;  // frames processed at once, >= 1
@@ -68,6 +77,12 @@ struct PipelineOptions {
   bool frame_sets_from_grab_loop = false;
   // The stage after processing; null: processing::PassThroughStage.
   std::shared_ptr<processing::RegistrationStage> registration;
+  // Camera 0 of the extrinsics (the reference map's camera), by serial;
+  // empty: the camera of index 0. One of the assembler's serials.
+  std::string reference_serial;
+  // Called on the publishing thread after each extrinsics message (for
+  // `--extrinsics-csv`); may be empty.
+  std::function<void(const ExtrinsicsRecord&)> on_extrinsics;
   PublisherOptions publisher;
   // The rig file's processing: (threads, skip_policy) and lcm: sections;
   // preview_max_px and enabled are the processor's (PreviewOptionsFromRig).

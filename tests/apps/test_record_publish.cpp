@@ -247,6 +247,8 @@ TEST(ReplayBayer, PixelFormatGivesColourPreviewsAndTf) {
   EXPECT_EQ(images.channels.count("TF") ? images.channels.at("TF") : std::set<int>{},
             std::set<int>{3});
   EXPECT_EQ(images.count.count("DEPTH") ? images.count.at("DEPTH") : 0, 2);
+}
+
 // skip_policy block with processing far slower than the triggers: the
 // recording stops as soon as the sequence ends (the command's loop is not
 // held inside Pipeline::Poll waiting for workers), and every frame taken is

@@ -384,7 +384,7 @@ TEST(RigConfigErrors, UnknownTopLevelKey) {
   const std::string yaml = kValidRig + "cameraz: []\n";
   EXPECT_EQ(ErrorOf(yaml), "rig.yaml:" + PositionOf(yaml, "cameraz") +
                                ": /cameraz: unknown key 'cameraz', expected one of: rig, "
-                               "cameras, vicon, recorder, processing, lcm");
+                               "cameras, vicon, recorder, processing, lcm, registration");
 }
 
 TEST(RigConfigErrors, UnknownNestedKey) {
