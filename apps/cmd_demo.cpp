@@ -21,6 +21,7 @@
 // recorded sequence is the same lines with its folders.
 
 #include "apps/commands.h"
+#include "config/text_escape.h"
 #include "registration/intrinsics_yaml.h"
 #include "replay/layout.h"
 
@@ -109,7 +110,7 @@ class Stages {
 };
 
 int Fail(const std::string& message, int code) {
-  std::cerr << "lifmcr demo: " << message << "\n";
+  std::cerr << "lifmcr demo: " << EscapeText(message) << "\n";
   return code;
 }
 
