@@ -653,8 +653,11 @@ CommandRun AddEvaluateCommand(CLI::App& app) {
   app.footer(
       "Reads: SEQ_DIR/Vicon/sequence_XX.csv, Calibration/03_Vicon/Object.vsk (plate alignment), "
       "SEQ_DIR/GroundTruth/ when present (synthetic rigs: settings, true offsets), the "
-      "registration CSVs (lifmcr register).\n"
+      "registration CSVs (lifmcr register, or lifmcr replay --extrinsics-csv), with --map "
+      "CAL_DIR its aruco_corners.csv, intrinsics.yaml and poses_<serial>.csv (lifmcr calibrate), "
+      "with --split sequence the other sequence and its registration CSVs.\n"
       "Writes: into --out, evaluation.md, evaluation.json, hand_eye.yaml (estimated offsets), "
+      "hand_eye_source/ (--split sequence: the other sequence's evaluation), "
       "tum/*.txt (TUM trajectories: timestamp tx ty tz qx qy qz qw, mm), plots/*.png.\n"
       "Metrics: evo/TUM APE and RPE (delta = 1 frame), translation mm, rotation deg, per axis in "
       "the camera frame.\n"
