@@ -43,6 +43,7 @@ struct CalibrateOptions {
   bool fix_principal_point = false;
   bool fix_distortion = false;
   bool no_covariance = false;
+  double plate_weight = registration::CalibrationOptions{}.plate_weight;
   bool euclidean_points = false;
   bool fixed_corner_inset = false;
   std::string cache;
@@ -162,6 +163,7 @@ int RunCalibrate(const CalibrateOptions& o) {
   options.estimate_principal_point = !o.fix_principal_point;
   options.estimate_distortion = !o.fix_distortion;
   options.covariance = !o.no_covariance;
+  options.plate_weight = o.plate_weight;
   options.inverse_depth = !o.euclidean_points;
   options.estimate_corner_inset = !o.fixed_corner_inset;
   Expected<registration::CalibrationResult> result =
@@ -239,6 +241,8 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
   app.add_flag("--no-covariance", o->no_covariance,
                "Skip the standard deviations of the intrinsics (Ceres covariance: about a "
                "quarter of the solve's time)");
+  app.add_option("--plate-weight", o->plate_weight,
+                 "Weight of the plate corners' residuals against the features' (default 5)");
   app.add_flag("--euclidean-points", o->euclidean_points,
                "Points as 3D positions in the plate frame instead of inverse depth in their "
                "first frame");
