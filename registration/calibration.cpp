@@ -297,7 +297,22 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
   if (static_cast<int>(input.frames.size()) < options.min_frames)
     return Error{Format("calibration: %zu frames given, at least %d needed", input.frames.size(),
                         options.min_frames)};
-  Expected<InitialMap> init = internal::Initialise(input, options, progress);
+  // Recalibration starts b_L0 from the plate (f_L and B are known): from
+  // 10 % off, the thin lens puts the whole map at the wrong depth and the
+  // solve does not come back (it ran into the 30 % bound).
+  processing::CameraIntrinsics start = input.initial.intrinsics;
+  const double frames_lambda =
+      input.frames_lambda > 0 ? input.frames_lambda : processing::CameraModel(start).lambda();
+  if (options.recalibrate) {
+    Expected<double> b_l0 = internal::MlaDistanceFromPlate(input, start, options);
+    if (!b_l0) return b_l0.error();
+    if (progress)
+      progress(Format("recalibration: b_L0 %.4f mm from the plate (given %.4f mm)", *b_l0,
+                      start.mla_to_main_lens_mm));
+    start.mla_to_main_lens_mm = *b_l0;
+    if (Status s = start.Check(); !s) return s.error();
+  }
+  Expected<InitialMap> init = internal::Initialise(input, start, options, progress);
   if (!init) return init.error();
   InitialMap& map = *init;
   const int n_frames = static_cast<int>(input.frames.size());
@@ -309,14 +324,13 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
                         placed, n_frames, options.min_frames)};
 
   CalibrationResult result;
-  result.initial = ToVector(input.initial.intrinsics, input.initial.principal_point_px);
+  result.initial = ToVector(start, input.initial.principal_point_px);
   IntrinsicsVector k = result.initial;
   const double s = input.initial.intrinsics.pixel_size_mm;
-  const processing::CameraModel nominal(input.initial.intrinsics);
   const Eigen::Vector2d c0 = input.initial.principal_point_px;
   // The micro-lens centres the frames were processed with (their TF images
   // and virtual depths): the observations in the micro images undo them.
-  const double lambda0 = input.frames_lambda > 0 ? input.frames_lambda : nominal.lambda();
+  const double lambda0 = frames_lambda;
   std::vector<PoseBlock> poses(n_frames);
   for (int f = 0; f < n_frames; ++f)
     if (map.frames[f].placed) poses[f] = ToBlock(map.frames[f].w0_from_c);

@@ -171,11 +171,15 @@ TEST_F(CalibrationTest, WritesAMapAndIntrinsicsThatReadBack) {
 }
 
 TEST_F(CalibrationTest, RecalibrationHoldsFocalLengthAndSensorDistance) {
+  // The case: b_L0 10 % off (b_L0 > f_L: no real image at any
+  // depth), started from the plate (calibration_problem.h).
   CameraCalibration initial = *truth_;
-  initial.intrinsics.mla_to_main_lens_mm *= 1.002;
+  initial.intrinsics.mla_to_main_lens_mm *= 1.10;
   CalibrationOptions options = Options();
   options.recalibrate = true;
-  Expected<CalibrationResult> r = Calibrate(Input(initial), options);
+  CalibrationInput input = Input(initial);
+  input.frames_lambda = processing::CameraModel(Initial().intrinsics).lambda();  // as processed
+  Expected<CalibrationResult> r = Calibrate(input, options);
   ASSERT_TRUE(r) << r.error().message;
   std::printf("%s\n", r->BriefReport().c_str());
   EXPECT_EQ(r->calibration.intrinsics.main_focal_length_mm,
