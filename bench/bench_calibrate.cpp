@@ -153,6 +153,7 @@ int main(int argc, char** argv) {
   CalibrationInput recal = input;
   recal.initial = *truth;
   recal.initial.intrinsics.mla_to_main_lens_mm *= 1.10;
+  recal.frames_lambda = loader_options.lambda;  // the frames are not processed again
   options.recalibrate = true;
   t = Now();
   Expected<CalibrationResult> rr = Calibrate(recal, options);

@@ -9,13 +9,15 @@
 // 2. Initialisation (nominal intrinsics): the first frame that sees the
 //    plate is placed by PnP on the plate corners; every keypoint with a
 //    virtual depth back-projects to a 3D point (camera_model.h). Each
-//    further frame is matched (ratio test + cross-check) against the points
+//    further frame is matched (ratio test + cross-check, approximate
+//    neighbours by kd-trees) against the points
 //    seen by the frames placed just before it and placed by RANSAC PnP on
 //    the TF pinhole (eqs. projX/projY, focal (b_L0 + 2B)/s); matched
 //    keypoints join the point's track, the others start new points.
 // 3. Plenoptic bundle adjustment (Ceres): frame poses (quaternion on
 //    ceres::QuaternionManifold, translation), points of tracks seen at least
-//    twice, intrinsics f_L, b_L0, B, c_x, c_y, k1, k2, p1, p2
+//    twice (by inverse depth in the frame of their first observation, so no
+//    step puts a point behind the main lens' focal plane there), intrinsics f_L, b_L0, B, c_x, c_y, k1, k2, p1, p2
 //    (plenoptic_projection.h). A keypoint observation is reprojected into
 //    every micro image that sees it: the observed micro-image position is
 //    p_k = l_k + (x_v - l_k) / v (the raw-image position the virtual-depth
@@ -24,7 +26,9 @@
 //    loss per observation. Plate corners are points fixed at their known
 //    plate coordinates, observed in the micro images in the same way (with
 //    the virtual depth at the corner; in the virtual image x_v where the TF
-//    depth map has none): they fix the
+//    depth map has none), each detected corner modelled as moved by one
+//    estimated inset towards its marker's centre (ArUco's sub-pixel corners
+//    on the blurred TF image lie inside the square): they fix the
 //    metric scale and make the world frame w0 the plate frame; their
 //    residuals are weighted by plate_weight. Solves: poses and points under
 //    the initial intrinsics, then everything (f_L, b_L0, B bounded to 30 %
@@ -51,11 +55,19 @@
 
 namespace lifmcr::registration {
 
+// Matching options of calibration: ratio test, cross-check, kd-trees with 64
+// leaves searched (features.h).
+inline MatchOptions KdTreeMatching() {
+  MatchOptions m;
+  m.kd_tree_checks = 64;
+  return m;
+}
+
 struct CalibrationOptions {
   int min_frames = 3;               // frames placed, else an error
   int min_features = 50;            // keypoints with a virtual depth per frame, else rejected
   int min_plate_corners = 4;        // corners for a plate pose
-  MatchOptions match;               // frame to map matching
+  MatchOptions match = KdTreeMatching();  // frame to map matching (approximate kd-tree search)
   int match_window = 4;             // a frame is matched against points seen by this many placed frames
   double pnp_threshold_px = 6.0;    // RANSAC inlier threshold (raw pixels of the TF pinhole)
   int pnp_iterations = 5000;        // RANSAC trials
@@ -68,6 +80,8 @@ struct CalibrationOptions {
   bool recalibrate = false;         // hold f_L and B fixed (LiFCal recalib)
   bool estimate_principal_point = true;
   bool estimate_distortion = true;
+  bool inverse_depth = true;          // points by inverse depth in their anchor frame
+  bool estimate_corner_inset = true;  // the plate corners' detection inset (calibration.cpp)
   bool covariance = true;           // standard deviations of the intrinsics
   int threads = 2;
   Status Check() const;
@@ -78,6 +92,7 @@ struct CalibrationInput {
   CameraCalibration initial;  // nominal values (and the sensor: size, pixel size)
   const MicroImages* micro_images = nullptr;
   std::vector<CalibrationFrame> frames;
+  double frames_lambda = 0;  // lambda the frames were processed with (0: the initial intrinsics')
 };
 
 struct FrameReport {
@@ -98,7 +113,8 @@ struct CalibrationResult {
   std::vector<FrameReport> frames;  // every input frame
   ReferenceMap map;
   double rmse_px = 0;               // all micro-image residuals of the final solve
-  double plate_rmse_px = 0;         // plate corners (virtual image)
+  double plate_rmse_px = 0;         // plate corners
+  double corner_inset_tf_px = 0;    // estimated inset of the detected plate corners
   long long observations = 0, micro_observations = 0, rejected_observations = 0;
   int points = 0;
   double initial_cost = 0, final_cost = 0, solver_seconds = 0, total_seconds = 0;

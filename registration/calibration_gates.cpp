@@ -60,6 +60,61 @@ std::vector<std::string> MissedGates(const GroundTruthComparison& c, const GateT
   return missed;
 }
 
+std::string PlateCornerBias::BriefReport() const {
+  return Format("plate corners vs truth (%d): mean offset (%+.3f, %+.3f) TF px, inset %+.3f TF px, "
+                "RMS %.3f TF px",
+                corners, mean_x_tf_px, mean_y_tf_px, mean_inset_tf_px, rms_tf_px);
+}
+
+Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFrame>& frames,
+                                                 const std::filesystem::path& seq,
+                                                 const std::string& serial) {
+  Expected<CameraCalibration> truth = ReadCameraCalibration(layout::CamerasYamlPath(seq), serial);
+  if (!truth) return truth.error();
+  Expected<std::vector<FramePose>> true_poses = ReadPosesCsv(layout::PosesCsvPath(seq, serial));
+  if (!true_poses) return true_poses.error();
+  std::map<std::int64_t, Pose> cam_from_world;
+  for (const FramePose& p : *true_poses) cam_from_world[p.frame] = p.world_from_cam.inverse();
+  const IntrinsicsVector k = ToVector(truth->intrinsics, truth->principal_point_px);
+  const double s = truth->intrinsics.pixel_size_mm;
+  // TF pixel of a plate point (x_v = 2 tf + 0.5).
+  auto tf_of = [&](const Pose& c_from_w, const Eigen::Vector3d& p_in_w, Eigen::Vector2d* tf) {
+    const Eigen::Vector3d p = c_from_w * p_in_w;
+    double x_v[3];
+    if (!ProjectToVirtual(k.data(), s, p.data(), x_v)) return false;
+    *tf = (Eigen::Vector2d(x_v[0], x_v[1]) - Eigen::Vector2d(0.5, 0.5)) / 2.0;
+    return true;
+  };
+  PlateCornerBias b;
+  double ss = 0;
+  for (const CalibrationFrame& f : frames) {
+    const auto it = cam_from_world.find(f.frame);
+    if (it == cam_from_world.end()) continue;
+    for (const PlateCorner& corner : f.corners) {
+      // The marker centre: the mean of its four corners in the plate frame.
+      Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+      for (const PlateCorner& other : f.corners)
+        if (other.marker_id == corner.marker_id) centre += 0.25 * other.p_in_w_mm;
+      Eigen::Vector2d tf_true, tf_centre;
+      if (!tf_of(it->second, corner.p_in_w_mm, &tf_true) || !tf_of(it->second, centre, &tf_centre))
+        continue;
+      const Eigen::Vector2d d = corner.tf_px - tf_true;
+      b.mean_x_tf_px += d.x();
+      b.mean_y_tf_px += d.y();
+      b.mean_inset_tf_px += d.dot((tf_centre - tf_true).normalized());
+      ss += d.squaredNorm();
+      ++b.corners;
+    }
+  }
+  if (b.corners > 0) {
+    b.mean_x_tf_px /= b.corners;
+    b.mean_y_tf_px /= b.corners;
+    b.mean_inset_tf_px /= b.corners;
+    b.rms_tf_px = std::sqrt(ss / b.corners);
+  }
+  return b;
+}
+
 Expected<GroundTruthComparison> CompareWithGroundTruth(const CalibrationResult& result,
                                                        const std::filesystem::path& seq,
                                                        const std::string& serial) {

@@ -46,6 +46,19 @@ struct GateThresholds {
 std::vector<std::string> MissedGates(const GroundTruthComparison& c, const GateThresholds& t,
                                      bool intrinsics_fixed_fl_b = false);
 
+// ArUco plate corners of processed frames against their true TF positions
+// (true intrinsics and poses, plenoptic_projection.h): the mean offset in
+// x and y, the mean component towards the marker's centre (inset: positive
+// when the detected corner lies inside the true square), and the RMS.
+struct PlateCornerBias {
+  int corners = 0;
+  double mean_x_tf_px = 0, mean_y_tf_px = 0, mean_inset_tf_px = 0, rms_tf_px = 0;
+  std::string BriefReport() const;  // one line
+};
+Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFrame>& frames,
+                                                 const std::filesystem::path& sequence_dir,
+                                                 const std::string& serial);
+
 Expected<GroundTruthComparison> CompareWithGroundTruth(const CalibrationResult& result,
                                                        const std::filesystem::path& sequence_dir,
                                                        const std::string& serial);

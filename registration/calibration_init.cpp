@@ -81,9 +81,34 @@ bool PlatePose(const processing::CameraModel& camera, const CalibrationFrame& fr
 
 }  // namespace
 
-Expected<InitialMap> Initialise(const CalibrationInput& input, const CalibrationOptions& options,
-                                const ProgressFn& progress) {
-  const processing::CameraModel camera(input.initial.intrinsics);
+Expected<double> MlaDistanceFromPlate(const CalibrationInput& input,
+                                      const processing::CameraIntrinsics& nominal,
+                                      const CalibrationOptions& options) {
+  const processing::CameraModel camera(nominal);
+  const double f = nominal.main_focal_length_mm;
+  std::vector<double> b_l0;
+  for (const CalibrationFrame& frame : input.frames) {
+    if (static_cast<int>(frame.corners.size()) < options.min_plate_corners) continue;
+    Pose w0_from_c;
+    if (!PlatePose(camera, frame, &w0_from_c)) continue;
+    const Pose c_from_w = w0_from_c.inverse();
+    for (std::size_t n = 0; n < frame.corners.size() && n < frame.corner_virtual_depth.size(); ++n) {
+      const double v = frame.corner_virtual_depth[n];
+      const double z = (c_from_w * frame.corners[n].p_in_w_mm).z();
+      if (std::isnan(v) || !(z > f)) continue;
+      b_l0.push_back(f * z / (z - f) - v * nominal.mla_to_sensor_mm);
+    }
+  }
+  if (b_l0.empty())
+    return Error{"recalibration: no plate corner with a virtual depth to start b_L0 from"};
+  std::nth_element(b_l0.begin(), b_l0.begin() + b_l0.size() / 2, b_l0.end());
+  return b_l0[b_l0.size() / 2];
+}
+
+Expected<InitialMap> Initialise(const CalibrationInput& input,
+                                const processing::CameraIntrinsics& nominal,
+                                const CalibrationOptions& options, const ProgressFn& progress) {
+  const processing::CameraModel camera(nominal);
   const int n = static_cast<int>(input.frames.size());
   InitialMap map;
   map.frames.resize(n);

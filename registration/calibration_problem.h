@@ -35,8 +35,19 @@ struct InitialMap {
   std::vector<Track> tracks;
 };
 
+// Recalibration's start for b_L0 (f_L and B held): each frame that sees the
+// plate is placed on its corners (the virtual image is a pinhole of focal
+// b_L(Z) / s with b_L = f_L Z / (Z - f_L), which needs f_L, not b_L0), and
+// every corner with a measured virtual depth v gives b_L0 = b_L(Z) - v B;
+// the median over all of them. An error when no corner has a virtual depth.
+Expected<double> MlaDistanceFromPlate(const CalibrationInput& input,
+                                      const processing::CameraIntrinsics& nominal,
+                                      const CalibrationOptions& options);
+
 // Step 2 of calibration.h with the nominal intrinsics.
-Expected<InitialMap> Initialise(const CalibrationInput& input, const CalibrationOptions& options,
+Expected<InitialMap> Initialise(const CalibrationInput& input,
+                                const processing::CameraIntrinsics& nominal,
+                                const CalibrationOptions& options,
                                 const ProgressFn& progress);
 
 // The virtual point of keypoint k of a frame (raw pixels, measured v).

@@ -2,9 +2,11 @@
 
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
+#include <opencv2/flann.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <cstdlib>
 #include <numeric>
 
 namespace lifmcr::registration {
@@ -22,6 +24,8 @@ Status FeatureOptions::Check() const {
 Status MatchOptions::Check() const {
   if (!(ratio > 0 && ratio <= 1)) return Error{"match options: ratio: expected in (0, 1]"};
   if (!(max_distance >= 0)) return Error{"match options: max_distance: expected >= 0"};
+  if (kd_tree_checks < 0) return Error{"match options: kd_tree_checks: expected >= 0"};
+  if (kd_trees < 1) return Error{"match options: kd_trees: expected >= 1"};
   return Status::Ok();
 }
 
@@ -66,6 +70,41 @@ Status DetectSift(ConstImageView image, const FeatureOptions& options, Features*
   return Status::Ok();
 }
 
+namespace {
+
+// Below this many descriptor pairs brute force is as fast as building trees.
+constexpr double kExactBelowPairs = 4e6;
+
+// Two nearest train descriptors of every query row (indices, L2 distances),
+// exact or by kd-trees.
+void TwoNearest(const cv::Mat& q, const cv::Mat& t, const MatchOptions& options,
+                cv::Mat* indices, cv::Mat* distances) {
+  if (options.kd_tree_checks == 0 ||
+      static_cast<double>(q.rows) * static_cast<double>(t.rows) < kExactBelowPairs) {
+    cv::BFMatcher matcher(cv::NORM_L2, false);
+    std::vector<std::vector<cv::DMatch>> knn;
+    matcher.knnMatch(q, t, knn, 2);
+    indices->create(q.rows, 2, CV_32S);
+    distances->create(q.rows, 2, CV_32F);
+    for (int i = 0; i < q.rows; ++i)
+      for (int j = 0; j < 2; ++j) {
+        const bool has = j < static_cast<int>(knn[i].size());
+        indices->at<int>(i, j) = has ? knn[i][j].trainIdx : -1;
+        distances->at<float>(i, j) = has ? knn[i][j].distance : 0.0f;
+      }
+    return;
+  }
+  // FLANN's kd-trees draw split dimensions with std::rand: seeded here so
+  // that the same input gives the same matches.
+  std::srand(1);
+  cv::flann::Index index(t, cv::flann::KDTreeIndexParams(options.kd_trees), cvflann::FLANN_DIST_L2);
+  index.knnSearch(q, *indices, *distances, 2, cv::flann::SearchParams(options.kd_tree_checks));
+  // FLANN's L2 distances are squared.
+  cv::sqrt(*distances, *distances);
+}
+
+}  // namespace
+
 std::vector<Match> MatchDescriptors(const float* query, int nq, const float* train, int nt,
                                     const MatchOptions& options) {
   std::vector<Match> matches;
@@ -73,18 +112,44 @@ std::vector<Match> MatchDescriptors(const float* query, int nq, const float* tra
   // Headers over the caller's buffers (no copy).
   const cv::Mat q(nq, kDescriptorSize, CV_32F, const_cast<float*>(query));
   const cv::Mat t(nt, kDescriptorSize, CV_32F, const_cast<float*>(train));
-  cv::BFMatcher matcher(cv::NORM_L2, false);
-  std::vector<std::vector<cv::DMatch>> knn;
-  matcher.knnMatch(q, t, knn, 2);
-  std::vector<cv::DMatch> backward;
-  if (options.cross_check) matcher.match(t, q, backward);
-  for (const std::vector<cv::DMatch>& m : knn) {
-    if (m.size() < 2) continue;
-    const float ratio = m[1].distance > 0 ? m[0].distance / m[1].distance : 1.0f;
+  cv::Mat indices, distances;
+  TwoNearest(q, t, options, &indices, &distances);
+  std::vector<Match> candidates;
+  for (int i = 0; i < nq; ++i) {
+    const int best = indices.at<int>(i, 0);
+    if (best < 0 || indices.at<int>(i, 1) < 0) continue;
+    const float d1 = distances.at<float>(i, 0), d2 = distances.at<float>(i, 1);
+    const float ratio = d2 > 0 ? d1 / d2 : 1.0f;
     if (ratio >= options.ratio) continue;
-    if (options.max_distance > 0 && m[0].distance > options.max_distance) continue;
-    if (options.cross_check && backward[m[0].trainIdx].trainIdx != m[0].queryIdx) continue;
-    matches.push_back(Match{m[0].queryIdx, m[0].trainIdx, m[0].distance, ratio});
+    if (options.max_distance > 0 && d1 > options.max_distance) continue;
+    candidates.push_back(Match{i, best, d1, ratio});
+  }
+  if (options.cross_check && !candidates.empty()) {
+    // Nearest query of each chosen train descriptor (the rows are copied:
+    // the chosen train descriptors are a subset).
+    cv::Mat chosen(static_cast<int>(candidates.size()), kDescriptorSize, CV_32F);
+    for (std::size_t n = 0; n < candidates.size(); ++n)
+      t.row(candidates[n].train).copyTo(chosen.row(static_cast<int>(n)));
+    cv::Mat back_indices, back_distances;
+    if (options.kd_tree_checks == 0 ||
+        static_cast<double>(chosen.rows) * nq < kExactBelowPairs || nq < 2) {
+      cv::BFMatcher matcher(cv::NORM_L2, false);
+      std::vector<cv::DMatch> backward;
+      matcher.match(chosen, q, backward);
+      for (std::size_t n = 0; n < candidates.size(); ++n)
+        if (backward[n].trainIdx == candidates[n].query) matches.push_back(candidates[n]);
+    } else {
+      std::srand(1);
+      cv::flann::Index index(q, cv::flann::KDTreeIndexParams(options.kd_trees),
+                             cvflann::FLANN_DIST_L2);
+      index.knnSearch(chosen, back_indices, back_distances, 1,
+                      cv::flann::SearchParams(options.kd_tree_checks));
+      for (std::size_t n = 0; n < candidates.size(); ++n)
+        if (back_indices.at<int>(static_cast<int>(n), 0) == candidates[n].query)
+          matches.push_back(candidates[n]);
+    }
+  } else {
+    matches = std::move(candidates);
   }
   std::stable_sort(matches.begin(), matches.end(),
                    [](const Match& a, const Match& b) { return a.ratio < b.ratio; });

@@ -6,7 +6,11 @@
 //
 // Matching: for each query descriptor q the two nearest train descriptors
 // t1, t2 (L2); kept when d(q, t1) < ratio d(q, t2) and, with cross_check, q
-// is also the nearest query descriptor of t1.
+// is also the nearest query descriptor of t1. The neighbours are exact
+// (brute force, O(nq nt)) or, with kd_tree_checks > 0, approximate:
+// randomised kd-trees (FLANN, Muja & Lowe 2009) searched up to that many
+// leaves, O((nq + nt) log nt); the reverse search of the cross-check then
+// runs only for the train descriptors that some query chose.
 
 #include "config/error.h"
 #include "config/image.h"
@@ -56,6 +60,8 @@ struct MatchOptions {
   double ratio = 0.8;        // Lowe's ratio test (0, 1]
   bool cross_check = true;   // keep mutual nearest neighbours only
   double max_distance = 0;   // absolute L2 bound on the best distance (0 = none)
+  int kd_tree_checks = 0;    // 0: exact neighbours; > 0: kd-tree leaves searched (FLANN)
+  int kd_trees = 4;          // randomised kd-trees of the approximate search
   Status Check() const;
 };
 

@@ -130,9 +130,18 @@ TEST_F(CalibrationTest, FromFivePercentOffPlacesEveryFrameAndFitsTheMicroImages)
   EXPECT_LE(r->rmse_px, 0.3);
   EXPECT_LE(r->plate_rmse_px, 0.5);
   EXPECT_GT(r->points, 200);
-  // Metric scale and the plate frame come from the ArUco corners.
-  EXPECT_LE(c->scale_error, 0.005);
+  // Metric scale and the plate frame come from the ArUco corners; their
+  // inset (ArUco's corners lie inside the blurred square) is estimated: the
+  // scale within the gate of the issue (0.2 %; 0.17 % with the corners taken
+  // as detected), the inset near the one measured against the truth.
+  EXPECT_LE(c->scale_error, 0.002);
   EXPECT_LE(c->pose_median_deg, 0.5);
+  Expected<PlateCornerBias> bias = MeasurePlateCornerBias(*frames_, *sequence_, kSerial);
+  ASSERT_TRUE(bias) << bias.error().message;
+  std::printf("%s; estimated inset %+.3f TF px\n", bias->BriefReport().c_str(),
+              r->corner_inset_tf_px);
+  EXPECT_GT(bias->mean_inset_tf_px, 0.1);
+  EXPECT_NEAR(r->corner_inset_tf_px, bias->mean_inset_tf_px, 0.15);
 }
 
 TEST_F(CalibrationTest, WritesAMapAndIntrinsicsThatReadBack) {
@@ -162,11 +171,15 @@ TEST_F(CalibrationTest, WritesAMapAndIntrinsicsThatReadBack) {
 }
 
 TEST_F(CalibrationTest, RecalibrationHoldsFocalLengthAndSensorDistance) {
+  // The issue's case: b_L0 10 % off (b_L0 > f_L: no real image at any
+  // depth), started from the plate (calibration_problem.h).
   CameraCalibration initial = *truth_;
-  initial.intrinsics.mla_to_main_lens_mm *= 1.002;
+  initial.intrinsics.mla_to_main_lens_mm *= 1.10;
   CalibrationOptions options = Options();
   options.recalibrate = true;
-  Expected<CalibrationResult> r = Calibrate(Input(initial), options);
+  CalibrationInput input = Input(initial);
+  input.frames_lambda = processing::CameraModel(Initial().intrinsics).lambda();  // as processed
+  Expected<CalibrationResult> r = Calibrate(input, options);
   ASSERT_TRUE(r) << r.error().message;
   std::printf("%s\n", r->BriefReport().c_str());
   EXPECT_EQ(r->calibration.intrinsics.main_focal_length_mm,
