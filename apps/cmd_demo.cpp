@@ -18,10 +18,6 @@
 
 namespace lifmcr::apps {
 
-int RunReplayCommand(const std::string& sequence, const std::string& rate_text, bool loop,
-                     const std::string& lcm_url, bool processing, int concurrency, const char* who,
-                     const std::vector<std::string>& pixel_formats);
-
 namespace {
 
 struct Args {

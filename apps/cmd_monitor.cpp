@@ -63,7 +63,7 @@ class RateMeter {
 };
 
 struct CameraView {
-  RateMeter preview, depth, tf;
+  RateMeter preview, depth, tf, extrinsics_rate;
   double last_latency_ms = 0;  // receive - utime of the last preview
   std::int64_t last_frame = -1;
   float valid_fraction = 0, min_v = 0, max_v = 0;
@@ -75,7 +75,8 @@ void Sanitize(std::string* s) { *s = lifmcr::Excerpt(*s, 64); }
 void Sanitize(lifmcr_lcm::preview_image_t* m) { Sanitize(&m->serial); }
 void Sanitize(lifmcr_lcm::depth_image_t* m) { Sanitize(&m->serial); }
 void Sanitize(lifmcr_lcm::camera_extrinsics_t* m) {
-  for (std::string* s : {&m->reference_serial, &m->serial, &m->method, &m->status}) Sanitize(s);
+  for (std::string* s : {&m->reference_serial, &m->serial, &m->method, &m->localisation, &m->status})
+    Sanitize(s);
 }
 void Sanitize(lifmcr_lcm::vicon_frame_t* m) {
   for (auto& o : m->objects) Sanitize(&o.name);
@@ -125,7 +126,10 @@ class Monitor {
   }
   void OnExtrinsics(const lcm::ReceiveBuffer*, const std::string&,
                     const lifmcr_lcm::camera_extrinsics_t* m) {
-    if (Known(m->serial)) cameras_[m->serial].extrinsics = *m;
+    if (!Known(m->serial)) return;
+    CameraView& c = cameras_[m->serial];
+    c.extrinsics = *m;
+    c.extrinsics_rate.Tick(NowS());
   }
   void OnVicon(const lcm::ReceiveBuffer*, const std::string&, const lifmcr_lcm::vicon_frame_t* m) {
     vicon_.Tick(NowS());
@@ -164,12 +168,24 @@ class Monitor {
       any_extrinsics = true;
       const auto& e = *c.extrinsics;
       std::snprintf(line, sizeof line,
-                    "  %s <- %s [%s] inliers %d rmse %.2f px %s\n"
+                    "  %s <- %s %.1f Hz trigger %lld [%s %s] inliers %d rmse %.2f px %s\n"
                     "    t = (%.1f, %.1f, %.1f) mm  q = (%.4f, %.4f, %.4f, %.4f)\n",
-                    e.reference_serial.c_str(), e.serial.c_str(), e.method.c_str(), e.inliers,
-                    e.rmse_px, e.status.c_str(), e.t_mm[0], e.t_mm[1], e.t_mm[2], e.q_wxyz[0],
-                    e.q_wxyz[1], e.q_wxyz[2], e.q_wxyz[3]);
+                    e.reference_serial.c_str(), e.serial.c_str(), c.extrinsics_rate.Hz(now),
+                    static_cast<long long>(e.trigger_index), e.method.c_str(),
+                    e.localisation.c_str(), e.inliers, e.rmse_px, e.status.c_str(), e.t_mm[0],
+                    e.t_mm[1], e.t_mm[2], e.q_wxyz[0], e.q_wxyz[1], e.q_wxyz[2], e.q_wxyz[3]);
       out << line;
+      if (e.change_state != lifmcr_lcm::camera_extrinsics_t::CHANGE_OFF) {
+        static const char* const kStates[] = {"off", "settling", "steady", "departing",
+                                              "CHANGED: camera moved on its mount"};
+        const int state = e.change_state >= 0 && e.change_state <= 4 ? e.change_state : 0;
+        std::snprintf(line, sizeof line,
+                      "    mount %s (departure %.1f, %d in a row; running t = (%.1f, %.1f, %.1f) "
+                      "mm)\n",
+                      kStates[state], e.departure, e.departures_in_row, e.running_t_mm[0],
+                      e.running_t_mm[1], e.running_t_mm[2]);
+        out << line;
+      }
     }
     std::snprintf(line, sizeof line, "\nVicon   %6.1f Hz  frames %llu", vicon_.Hz(now),
                   static_cast<unsigned long long>(vicon_.count()));

@@ -5,6 +5,7 @@
 #include "apps/commands.h"
 #include "apps/pipeline/camera_setup.h"
 #include "apps/pipeline/frame_processor.h"
+#include "apps/pipeline/live_registration.h"
 #include "apps/pipeline/pipeline.h"
 #include "apps/pipeline/process_settings.h"
 #include "config/rig_config.h"
@@ -15,6 +16,7 @@
 #include "drivers/vicon_udp_source.h"
 #include "processing/frame_chain.h"
 #include "replay/bayer.h"
+#include "replay/layout.h"
 
 #include <CLI/CLI.hpp>
 
@@ -25,6 +27,7 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <pthread.h>
 #include <signal.h>
 #include <unistd.h>
@@ -71,6 +74,9 @@ struct Args {
   bool publish = false;
   std::string lcm_url;
   bool no_processing = false;
+  std::string reference;  // --reference MAP_DIR: live registration
+  std::vector<std::string> intrinsics;
+  std::string extrinsics_csv;
 };
 
 // The live pipeline beside the recorder (--publish), configured by the
@@ -79,7 +85,10 @@ struct Args {
 // mutex-guarded hand-over); it never blocks a grab thread, so a slow stage
 // costs skipped previews (newest_wins) or a later publication (block),
 // never recorded frames.
-Expected<std::unique_ptr<Pipeline>> MakePublishPipeline(const RigConfig& rig, const Args& args) {
+// With --reference, live registration (live_registration.h) is set up in
+// `live` and runs as the pipeline's registration stage.
+Expected<std::unique_ptr<Pipeline>> MakePublishPipeline(const RigConfig& rig, const Args& args,
+                                                        std::optional<LiveRegistration>* live) {
   const PreviewOptions preview = PreviewOptionsFromRig(rig);
   if (Status s = preview.Check(); !s) return s.error();
   std::unique_ptr<FrameProcessor> processor;
@@ -89,10 +98,30 @@ Expected<std::unique_ptr<Pipeline>> MakePublishPipeline(const RigConfig& rig, co
   PixelFormats formats;
   for (const CameraConfig& camera : rig.cameras)
     if (IsBayer(camera.pixel_format)) formats[camera.serial] = camera.pixel_format;
+  std::vector<std::filesystem::path> intrinsics(args.intrinsics.begin(), args.intrinsics.end());
+  if (!args.reference.empty()) {
+    if (!processing)
+      return Error{"--reference needs processing (rig processing.enabled, not --no-processing)"};
+    LiveRegistrationOptions live_options;
+    live_options.reference_dir = args.reference;
+    live_options.intrinsics = intrinsics;
+    live_options.extrinsics_csv = args.extrinsics_csv;
+    // Replay cameras (--replay SEQ): the sequence's ground truth last.
+    if (!args.replay.empty())
+      live_options.fallback_intrinsics.push_back(layout::CamerasYamlPath(args.replay));
+    live_options.rigid_mount = rig.registration.rigid_mount;
+    live_options.monitor.changed_after = rig.registration.changed_after;
+    std::vector<std::string> serials;
+    for (const CameraConfig& camera : rig.cameras) serials.push_back(camera.serial);
+    auto loaded = LoadLiveRegistration(live_options, serials);
+    if (!loaded) return loaded.error();
+    *live = std::move(*loaded);
+    intrinsics = (*live)->intrinsics_files;
+  }
   if (processing) {
     // The same chain and calibration lookup as replay (camera_setup.h): the
     // MLA file of each camera and the white image beside it.
-    auto setups = LoadRigCameras(rig);
+    auto setups = LoadRigCameras(rig, intrinsics);
     if (!setups) return setups.error();
     if (Status s = DemosaicWhiteImages(formats, &*setups); !s) return s.error();
     auto chain =
@@ -105,9 +134,10 @@ Expected<std::unique_ptr<Pipeline>> MakePublishPipeline(const RigConfig& rig, co
   FrameSetAssemblerOptions sync = FrameSetAssemblerOptions::FromRig(rig);
   PipelineOptions options = PipelineOptions::FromRig(rig);
   if (!args.lcm_url.empty()) options.publisher.url = args.lcm_url;
-  // The controller's assembler makes the FrameSets (one per run), unless
-  // --no-sync leaves it out: then the pipeline's own.
-  options.frame_sets_from_grab_loop = !args.no_sync;
+  // The controller's assembler makes the FrameSets (one per run; with
+  // --no-sync too, without Vicon association).
+  options.frame_sets_from_grab_loop = true;
+  if (*live) (*live)->Configure(&options);
   return Pipeline::Create(sync, std::move(processor), options);
 }
 
@@ -179,11 +209,12 @@ int Run(const Args& args) {
     return kExitCannotStart;
   }
   std::unique_ptr<Pipeline> pipeline;
+  std::optional<LiveRegistration> live;
   std::unique_ptr<ProcessSettings> process_settings;
   RigObserver observer;
   if (args.publish) {
     process_settings = ProcessSettings::ForPipeline();
-    auto made = MakePublishPipeline(*rig, args);
+    auto made = MakePublishPipeline(*rig, args, &live);
     if (!made) {
       std::cerr << "lifmcr record: --publish: " << EscapeText(made.error().message) << "\n";
       (*recorder)->Stop();
@@ -192,17 +223,21 @@ int Run(const Args& args) {
     pipeline = std::move(*made);
     Pipeline* p = pipeline.get();
     // A copy of a Frame or FrameSet shares the pooled buffers (no pixel copy).
-    if (args.no_sync)
-      observer.on_frame = [p](int, std::int64_t, const Frame& frame) { p->AddFrame(frame); };
-    else
-      observer.on_frame_set = [p](const FrameSet& set) { p->AddFrameSet(set); };
+    observer.on_frame_set = [p](const FrameSet& set) { p->AddFrameSet(set); };
     observer.on_vicon = [p](const ViconFrame& frame) { p->AddVicon(frame); };
   }
   RigControllerOptions controller_options;
   controller_options.trigger_hz = rig->vicon.rate_hz / rig->vicon.trigger_divider;
   if (rig->vicon.source == ViconSourceKind::kUdp)
     controller_options.vicon_realtime_priority = RigControllerOptions::kLiveViconPriority;
-  if (!args.no_sync) controller_options.sync = FrameSetAssemblerOptions::FromRig(*rig);
+  for (const CameraConfig& camera : rig->cameras)
+    controller_options.device_clocks.push_back(camera.device_clock);
+  // The pipeline takes FrameSets, so --publish keeps the assembler even with
+  // --no-sync, which then only leaves the Vicon association out.
+  if (!args.no_sync || args.publish) {
+    controller_options.sync = FrameSetAssemblerOptions::FromRig(*rig);
+    if (args.no_sync) controller_options.sync->vicon_expected = false;
+  }
   RigController controller(std::move(cameras), std::move(software_trigger), std::move(*vicon),
                            recorder->get(), controller_options, observer);
   if (Status s = controller.Start(); !s) {
@@ -261,6 +296,7 @@ int Run(const Args& args) {
     pipeline->SetSyncDrops(health.sync_drops);
     pipeline->Finish();
     std::cout << "published (--publish):\n" << pipeline->Report().FinalReport();
+    if (live) std::cout << LiveRegistrationReport(*live);
   }
   return health.AnythingLost() ? kExitLost : 0;
 }
@@ -287,8 +323,10 @@ CommandRun AddRecordCommand(CLI::App& app) {
       "write error (disk full): files already written stay valid, the CSV ends with a\n"
       "complete line. The final report on stdout says what was kept and what was lost.\n"
       "Reads: --rig RIG.yaml (cameras, Vicon source, MLA files), the cameras and the Vicon\n"
-      "stream (or --replay SEQ). Writes: OUT as above; with --publish the LCM channels of\n"
-      "lifmcr replay.\n"
+      "stream (or --replay SEQ), with --reference MAP_DIR the map and --intrinsics files\n"
+      "(live registration as lifmcr replay --reference; the rig's registration: section).\n"
+      "Writes: OUT as above; with --publish the LCM channels of lifmcr replay, and the\n"
+      "--extrinsics-csv file.\n"
       "Exit codes: 0 nothing lost; 1 a frame, a Vicon frame or a CSV line was lost, or a\n"
       "write error stopped the recording; 2 usage or rig file error; 3 a camera, the Vicon\n"
       "source or the output folder could not be started (an existing non-empty sequence\n"
@@ -309,8 +347,17 @@ CommandRun AddRecordCommand(CLI::App& app) {
   app.add_option("--replay", args->replay,
                  "Sequence folder that cameras with driver 'replay' serve")
       ->check(CLI::ExistingDirectory);
+  app.add_option("--reference", args->reference,
+                 "--publish: live registration against this reference map (see lifmcr replay)")
+      ->check(CLI::ExistingDirectory);
+  app.add_option("--intrinsics", args->intrinsics,
+                 "cameras.yaml / intrinsics.yaml files (metric depth; registration)")
+      ->check(CLI::ExistingFile);
+  app.add_option("--extrinsics-csv", args->extrinsics_csv,
+                 "With --reference: every published c0_from_cx as registration.csv rows");
   app.add_flag("--no-sync", args->no_sync,
-               "Leave the sync assembler out (no FrameSets, no Vicon f0 in the report)");
+               "Leave the sync assembler out (no FrameSets, no Vicon f0 in the report); "
+               "with --publish the FrameSets are still made, without Vicon frames");
   return [args] { return Run(*args); };
 }
 

@@ -29,13 +29,18 @@ struct Args {
   bool no_processing = false;
   int concurrency = 2;
   std::vector<std::string> pixel_formats;
+  std::string reference;
+  std::vector<std::string> intrinsics;
+  std::string extrinsics_csv;
+  bool rigid_mount = false;
 };
 
 }  // namespace
 
 int RunReplayCommand(const std::string& sequence, const std::string& rate_text, bool loop,
                      const std::string& lcm_url, bool processing, int concurrency,
-                     const char* who, const std::vector<std::string>& pixel_formats) {
+                     const char* who, const ReplayRegistrationArgs& registration,
+                     const std::vector<std::string>& pixel_formats) {
   auto rate = ReplayRate::Parse(rate_text);
   if (!rate) {
     std::cerr << who << ": " << EscapeText(rate.error().message) << "\n";
@@ -59,6 +64,17 @@ int RunReplayCommand(const std::string& sequence, const std::string& rate_text, 
   options.pipeline.max_concurrency = concurrency;
   options.stop = &g_stop;
   options.pixel_formats = std::move(*formats);
+  for (const std::string& file : registration.intrinsics) options.intrinsics.emplace_back(file);
+  if (!registration.reference.empty()) {
+    LiveRegistrationOptions live;
+    live.reference_dir = registration.reference;
+    live.extrinsics_csv = registration.extrinsics_csv;
+    live.rigid_mount = registration.rigid_mount;
+    options.registration = live;
+  } else if (!registration.extrinsics_csv.empty()) {
+    std::cerr << who << ": --extrinsics-csv needs --reference MAP_DIR\n";
+    return 2;
+  }
   options.on_status = [terminal](const PipelineReport& report) {
     if (terminal)
       std::cerr << "\r" << report.StatusLine() << "\x1b[K" << std::flush;
@@ -79,6 +95,13 @@ int RunReplayCommand(const std::string& sequence, const std::string& rate_text, 
   return result->report.failed > 0 ? 1 : 0;
 }
 
+int RunReplayCommand(const std::string& sequence, const std::string& rate_text, bool loop,
+                     const std::string& lcm_url, bool processing, int concurrency,
+                     const char* who) {
+  return RunReplayCommand(sequence, rate_text, loop, lcm_url, processing, concurrency, who,
+                          ReplayRegistrationArgs{}, {});
+}
+
 CommandRun AddReplayCommand(CLI::App& app) {
   auto args = std::make_shared<Args>();
   app.footer(
@@ -87,6 +110,13 @@ CommandRun AddReplayCommand(CLI::App& app) {
       "processing (preview; virtual depth and the totally focused image from the MLA\n"
       "files in the Calibration/ folder beside the scene), LCM. Channels:\n"
       "LIFMCR_<SERIAL>_PREVIEW, _DEPTH, _TF, LIFMCR_VICON, LIFMCR_STATS.\n"
+      "--reference MAP_DIR (lifmcr calibrate's --out, or lifmcr register's reference/):\n"
+      "live registration: every camera localised against the map's camera (camera 0),\n"
+      "tracked from its last poses or relocalised, c0_from_cx per trigger on\n"
+      "LIFMCR_<SERIAL>_EXTRINSICS and, with --extrinsics-csv FILE, as registration.csv rows\n"
+      "(lifmcr evaluate --registration FILE). Intrinsics: MAP_DIR/intrinsics.yaml, the\n"
+      "--intrinsics files, then SEQ_DIR/GroundTruth/cameras.yaml, the first that lists\n"
+      "the camera.\n"
       "--rate original|FACTOR: timed; frames processing cannot keep up with are skipped\n"
       "(the newest wins) and counted. --rate max: paced by the pipeline, every frame\n"
       "is processed. A status line on stderr, the final report on stdout (frames in,\n"
@@ -97,7 +127,8 @@ CommandRun AddReplayCommand(CLI::App& app) {
       "repeatable) and their mosaics are demosaiced: previews and the TF image in colour,\n"
       "depth on luminance, as `lifmcr record --publish` does from the rig file.\n"
       "Reads: SEQ_DIR and the Calibration/ folder beside its scene (MLA files, white images\n"
-      "when present). Writes: the LCM channels above; nothing on disk.\n"
+      "when present), MAP_DIR and the --intrinsics files. Writes: the LCM channels above;\n"
+      "the --extrinsics-csv file.\n"
       "Exit codes: 0 every frame accounted for and none failed; 1 a processing failure;\n"
       "2 usage; 3 the sequence, its calibration or LCM cannot be opened.");
   app.add_option("SEQ_DIR", args->sequence, "Sequence folder")
@@ -114,9 +145,22 @@ CommandRun AddReplayCommand(CLI::App& app) {
   app.add_option("--pixel-format", args->pixel_formats,
                  "[SERIAL=]FORMAT: the cameras' pixel format (Mono8, BGR8, BayerRG8, BayerGR8, "
                  "BayerGB8, BayerBG8); without SERIAL, every camera's");
+  app.add_option("--reference", args->reference,
+                 "Reference map folder: live registration of every camera to its camera")
+      ->check(CLI::ExistingDirectory);
+  app.add_option("--intrinsics", args->intrinsics,
+                 "cameras.yaml / intrinsics.yaml files (metric depth; registration)")
+      ->check(CLI::ExistingFile);
+  app.add_option("--extrinsics-csv", args->extrinsics_csv,
+                 "With --reference: every published c0_from_cx as registration.csv rows");
+  app.add_flag("--rigid-mount", args->rigid_mount,
+               "With --reference: flag a camera whose c0_from_cx leaves its running estimate "
+               "(as the rig file's registration.rigid_mount)");
   return [args] {
     return RunReplayCommand(args->sequence, args->rate, args->loop, args->lcm_url,
                             !args->no_processing, args->concurrency, "lifmcr replay",
+                            {args->reference, args->intrinsics, args->extrinsics_csv,
+                             args->rigid_mount},
                             args->pixel_formats);
   };
 }

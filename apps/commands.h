@@ -32,4 +32,22 @@ CommandRun AddRegisterCommand(CLI::App& app);
 int RunEvaluateCommand(const std::string& sequence, const std::vector<std::string>& registration,
                        const std::string& out, bool quiet);
 
+// `lifmcr replay SEQ` with its defaults otherwise, for `lifmcr demo`; the
+// second form with live registration (--reference, --intrinsics,
+// --extrinsics-csv; empty: none). Returns the exit code.
+struct ReplayRegistrationArgs {
+  std::string reference;                // MAP_DIR
+  std::vector<std::string> intrinsics;  // cameras.yaml / intrinsics.yaml files
+  std::string extrinsics_csv;           // FILE
+  bool rigid_mount = false;             // change detection (--rigid-mount)
+};
+int RunReplayCommand(const std::string& sequence, const std::string& rate_text, bool loop,
+                     const std::string& lcm_url, bool processing, int concurrency,
+                     const char* who);
+// pixel_formats: `--pixel-format` values ([SERIAL=]FORMAT).
+int RunReplayCommand(const std::string& sequence, const std::string& rate_text, bool loop,
+                     const std::string& lcm_url, bool processing, int concurrency,
+                     const char* who, const ReplayRegistrationArgs& registration,
+                     const std::vector<std::string>& pixel_formats = {});
+
 }  // namespace lifmcr::apps

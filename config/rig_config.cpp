@@ -206,6 +206,7 @@ std::optional<ConfigIssue> CheckCamera(const std::string& at, const CameraConfig
   if (!aravis && camera.socket_buffer_bytes != 0)
     return ConfigIssue{at + "/socket_buffer", "only the aravis driver takes a socket_buffer"};
   if (auto issue = CheckText(at + "/vicon_object", camera.vicon_object, false)) return issue;
+  if (auto issue = CheckText(at + "/device_clock", camera.device_clock, false)) return issue;
   return std::nullopt;
 }
 
@@ -390,6 +391,7 @@ CameraConfig ReadCamera(const YamlNode& node, const fs::path& base_dir, YamlErro
   map.Read("packet_size", &camera.packet_size_bytes, kOptional);
   ReadSocketBuffer(map, &camera.socket_buffer_bytes);
   map.Read("vicon_object", &camera.vicon_object, kOptional);
+  map.Read("device_clock", &camera.device_clock, kOptional);
   map.Finish();
   return camera;
 }
@@ -508,6 +510,9 @@ std::optional<ConfigIssue> RigConfig::FindIssue() const {
   if (auto issue = CheckRecorder(recorder)) return issue;
   if (auto issue = CheckProcessing(processing)) return issue;
   if (auto issue = CheckLcm(lcm)) return issue;
+  if (registration.changed_after < 1 || registration.changed_after > 100)
+    return ConfigIssue{"/registration/changed_after",
+                       "expected 1..100, got " + std::to_string(registration.changed_after)};
   return std::nullopt;
 }
 
@@ -567,6 +572,11 @@ Expected<RigConfig> ParseRigConfig(std::string_view yaml, const fs::path& base_d
     section->Read("publish_previews", &rig.lcm.publish_previews, kOptional);
     section->Finish();
   }
+  if (auto section = root.Map("registration", kOptional)) {
+    section->Read("rigid_mount", &rig.registration.rigid_mount, kOptional);
+    section->Read("changed_after", &rig.registration.changed_after, kOptional);
+    section->Finish();
+  }
   root.Finish();
   if (!errors.ok()) return errors.status().error();
 
@@ -616,6 +626,8 @@ std::string FormatRigConfig(const RigConfig& rig) {
                                             : std::to_string(camera.socket_buffer_bytes))
         << "\n";
     out << "    vicon_object: " << Yq(camera.vicon_object) << "\n";
+    if (!camera.device_clock.empty())
+      out << "    device_clock: " << Yq(camera.device_clock) << "\n";
   }
   const ViconConfig& vicon = rig.vicon;
   out << "vicon:\n  source: " << ToString(vicon.source) << "\n";
@@ -643,6 +655,8 @@ std::string FormatRigConfig(const RigConfig& rig) {
   out << "lcm:\n  url: " << Yq(rig.lcm.url) << "\n";
   out << "  channel_prefix: " << Yq(rig.lcm.channel_prefix) << "\n";
   out << "  publish_previews: " << Yb(rig.lcm.publish_previews) << "\n";
+  out << "registration:\n  rigid_mount: " << Yb(rig.registration.rigid_mount) << "\n";
+  out << "  changed_after: " << rig.registration.changed_after << "\n";
   return out.str();
 }
 

@@ -115,6 +115,11 @@ struct CameraConfig {
   int packet_size_bytes = 0;             // aravis GigE packet size; 0 = negotiate
   std::int64_t socket_buffer_bytes = 0;  // aravis GigE socket buffer; 0 = auto (payload size)
   std::string vicon_object;              // object name in the Vicon stream/CSV; empty = not tracked
+  // The clock its frames' device timestamps are on: cameras naming the same
+  // clock (PTP-synchronised, stamped by one frame grabber) are placed on the
+  // trigger count against each other by device time; empty = the driver's
+  // own (a clock of the camera's own, or the sequence's for replay).
+  std::string device_clock;
   bool operator==(const CameraConfig&) const = default;
 };
 
@@ -165,6 +170,16 @@ struct LcmConfig {
   bool operator==(const LcmConfig&) const = default;
 };
 
+// Live registration (`lifmcr record --publish --reference MAP_DIR`).
+struct RegistrationConfig {
+  // The cameras sit rigidly on the rig: c0_from_cx should not change, and a
+  // run of changed_after triggers departing from its running estimate beyond
+  // its uncertainty is flagged (registration/extrinsics_monitor.h).
+  bool rigid_mount = false;
+  int changed_after = 3;  // 1..100
+  bool operator==(const RegistrationConfig&) const = default;
+};
+
 // A problem found by RigConfig::FindIssue: the key path of the offending
 // value (as in the YAML, "/cameras/1/serial") and what was expected.
 struct ConfigIssue {
@@ -179,6 +194,7 @@ struct RigConfig {
   RecorderConfig recorder;
   ProcessingConfig processing;
   LcmConfig lcm;
+  RegistrationConfig registration;
 
   // Value ranges and cross-field rules (unique serials, names and Vicon
   // objects, one reference, driver fields matching the driver kind, ...).

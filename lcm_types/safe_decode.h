@@ -130,10 +130,12 @@ inline bool CheckWire<camera_extrinsics_t>(const void* data, std::size_t size) {
   c.Skip(8 + 8);  // hash, utime
   c.String();     // reference_serial
   c.String();     // serial
-  c.Skip(8);      // frame_id
+  c.Skip(8);      // trigger_index
   c.String();     // method
+  c.String();     // localisation
   c.Skip((3 + 4 + 36) * 8 + 4 + 8);
-  c.String();  // status
+  c.String();                       // status
+  c.Skip(1 + 8 + 4 + (3 + 4) * 8);  // change_state, departure, departures_in_row, running pose
   return c.ok();
 }
 

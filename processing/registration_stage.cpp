@@ -42,8 +42,18 @@ CameraPose ComposeExtrinsics(const CameraPose& w0_from_c0, const CameraPose& w0_
   return out;
 }
 
-CameraPose RegistrationStage::Relate(const CameraPose& w0_from_c0,
-                                     const CameraPose& w0_from_cx) const {
+const char* ToString(ExtrinsicsChange::State state) {
+  switch (state) {
+    case ExtrinsicsChange::State::kSettling: return "settling";
+    case ExtrinsicsChange::State::kSteady: return "steady";
+    case ExtrinsicsChange::State::kDeparting: return "departing";
+    case ExtrinsicsChange::State::kChanged: return "CHANGED";
+  }
+  return "?";
+}
+
+CameraPose RegistrationStage::Relate(const std::string& /*serial*/, std::int64_t /*trigger_index*/,
+                                     const CameraPose& w0_from_c0, const CameraPose& w0_from_cx) {
   return ComposeExtrinsics(w0_from_c0, w0_from_cx);
 }
 

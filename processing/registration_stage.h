@@ -48,16 +48,28 @@ struct StageFrame {
   const CameraChain* camera = nullptr;      // MLA, model (camera_model() when intrinsics known)
 };
 
+// What change detection (registration/extrinsics_monitor.h) says about one
+// c0_from_cx of a rigidly mounted camera.
+struct ExtrinsicsChange {
+  enum class State { kSettling, kSteady, kDeparting, kChanged } state = State::kSettling;
+  double departure = 0;       // squared Mahalanobis distance to the running estimate (6 dof)
+  int departures_in_row = 0;  // consecutive triggers beyond the gate
+  Eigen::Isometry3d running = Eigen::Isometry3d::Identity();  // running estimate of c0_from_cx
+};
+const char* ToString(ExtrinsicsChange::State state);  // "settling", "steady", ...
+
 // A pose of camera X: w0_from_cx from Localize, or c0_from_cx from Relate.
 struct CameraPose {
   Eigen::Isometry3d transform = Eigen::Isometry3d::Identity();  // translation in mm
   // 6 x 6 in the order tx ty tz (mm), rx ry rz (rad) of a perturbation on
   // the left, T = exp(xi) T_hat (xi in the frame T maps into); zero: unknown.
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
-  std::string method;   // "pnp", "ransac3d", ...
+  std::string method;        // estimator: "pnp", "ransac", ...
+  std::string localisation;  // live localizer: "tracked" or "relocalised"; empty otherwise
   int inliers = 0;
   double rmse_px = 0;
   std::string status = "ok";  // "ok" or why it failed (then transform is meaningless)
+  std::optional<ExtrinsicsChange> change;  // c0_from_cx of a monitored rigid mount only
 };
 
 class RegistrationStage {
@@ -69,8 +81,11 @@ class RegistrationStage {
   // in the pipeline's report.
   virtual Expected<std::optional<CameraPose>> Localize(const StageFrame& frame) = 0;
   // c0_from_cx of one trigger from both poses (default: the composition in
-  // the header comment).
-  virtual CameraPose Relate(const CameraPose& w0_from_c0, const CameraPose& w0_from_cx) const;
+  // the header comment). Called on one thread (the pipeline's publishing
+  // node), in trigger order per camera as far as frames finish in order.
+  // `serial`: camera X's.
+  virtual CameraPose Relate(const std::string& serial, std::int64_t trigger_index,
+                            const CameraPose& w0_from_c0, const CameraPose& w0_from_cx);
 };
 
 // Frames pass through; nothing is localised.

@@ -25,6 +25,25 @@ Covariance6 ToLeftPerturbationCovariance(const PoseWithCovariance& pose) {
 MapLocalizerStage::MapLocalizerStage(const ReferenceMap& map, const LocalizerOptions& options)
     : map_(MapIndex::Of(map)), options_(options) {}
 
+Pose MapLocalizerStage::CameraState::Predict(std::int64_t trigger) const {
+  if (has_previous && trigger - last_trigger == last_trigger - previous_trigger)
+    return last * (previous.inverse() * last);
+  return last;
+}
+
+void MapLocalizerStage::MonitorChanges(const ExtrinsicsMonitorOptions& options) {
+  monitor_.emplace(options);
+}
+
+processing::CameraPose MapLocalizerStage::Relate(const std::string& serial,
+                                                 std::int64_t /*trigger_index*/,
+                                                 const processing::CameraPose& w0_from_c0,
+                                                 const processing::CameraPose& w0_from_cx) {
+  processing::CameraPose c0_from_cx = processing::ComposeExtrinsics(w0_from_c0, w0_from_cx);
+  if (monitor_) c0_from_cx.change = monitor_->Add(serial, c0_from_cx);
+  return c0_from_cx;
+}
+
 MapLocalizerStage::Counts MapLocalizerStage::counts() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return counts_;
@@ -119,13 +138,11 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     state = cameras_[frame.serial];
   }
   FrameRegistration r;
-  std::string method = "pnp-relocalised";
+  std::string localisation = "relocalised";
   if (state.has_pose) {
-    const Pose predicted =
-        state.has_previous ? state.last * (state.previous.inverse() * state.last) : state.last;
-    r = Track(camera, obs, predicted);
+    r = Track(camera, obs, state.Predict(frame.trigger_index));
     if (r.success && r.inliers >= static_cast<std::size_t>(options_.min_tracked))
-      method = "pnp-tracked";
+      localisation = "tracked";
     else
       r = FrameRegistration{};
   }
@@ -133,22 +150,31 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     r = RegisterFrame(map_, camera, obs, RegistrationMethod::kPnp, options_.registration);
 
   processing::CameraPose pose;
-  pose.method = method;
+  pose.method = std::string(ToString(RegistrationMethod::kPnp));
+  pose.localisation = localisation;
   pose.inliers = static_cast<int>(r.inliers);
   pose.rmse_px = r.rmse_px;
   pose.status = r.status;
   std::lock_guard<std::mutex> lock(mutex_);
   CameraState& s = cameras_[frame.serial];
+  const bool newest = frame.trigger_index > s.last_trigger;
   if (!r.success) {
     ++counts_.failed;
-    s = CameraState{};  // relocalise next time
+    if (newest) {  // relocalise next time
+      s = CameraState{};
+      s.last_trigger = frame.trigger_index;
+    }
     return std::optional<processing::CameraPose>(pose);
   }
-  (method == "pnp-tracked" ? counts_.tracked : counts_.relocalised) += 1;
-  s.previous = s.last;
-  s.has_previous = s.has_pose;
-  s.last = r.w0_from_cam.pose;
-  s.has_pose = true;
+  (localisation == "tracked" ? counts_.tracked : counts_.relocalised) += 1;
+  if (newest) {
+    s.previous = s.last;
+    s.previous_trigger = s.last_trigger;
+    s.has_previous = s.has_pose;
+    s.last = r.w0_from_cam.pose;
+    s.last_trigger = frame.trigger_index;
+    s.has_pose = true;
+  }
   pose.transform = r.w0_from_cam.pose;
   pose.covariance = ToLeftPerturbationCovariance(r.w0_from_cam);
   return std::optional<processing::CameraPose>(pose);

@@ -7,7 +7,8 @@
 // virtual depth from the TF depth map (registration/frame_observations.h),
 // then
 //   track        when the camera has a pose: the pose is predicted by constant
-//                velocity, w_pred = w_last (w_prev^-1 w_last) (w = w0_from_cam),
+//                velocity, w_pred = w_last (w_prev^-1 w_last) (w = w0_from_cam;
+//                for a step of as many triggers as the last one),
 //                the map's points are projected with it (registration/tf_projection.h),
 //                and each keypoint is matched only against the points projected
 //                within track_radius_px of it (ratio test among those). PnP
@@ -15,7 +16,7 @@
 //   relocalise   otherwise, or when tracking finds fewer than min_tracked
 //                inliers: global matching against every map point (ratio and
 //                cross check) and full LO-RANSAC PnP.
-// The pose carries `method` "pnp-tracked" or "pnp-relocalised" and the
+// The pose carries `method` "pnp", `localisation` "tracked" or "relocalised" and the
 // covariance in the stage's convention (a left SE(3) perturbation, (t, r)),
 // converted from pose_covariance.h's (additive translation):
 //   rho = dt + [t]x dr   (t the translation of w0_from_cam),
@@ -24,11 +25,14 @@
 // matching and most RANSAC trials, not the detection.
 
 #include "processing/registration_stage.h"
+#include "registration/extrinsics_monitor.h"
 #include "registration/frame_registration.h"
 #include "registration/reference_map.h"
 
+#include <cstdint>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <string>
 
 namespace lifmcr::registration {
@@ -47,6 +51,13 @@ class MapLocalizerStage final : public processing::RegistrationStage {
   std::string name() const override { return "map-localizer"; }
   Expected<std::optional<processing::CameraPose>> Localize(
       const processing::StageFrame& frame) override;
+  // The composition, then, with MonitorChanges, the change detection's verdict.
+  processing::CameraPose Relate(const std::string& serial, std::int64_t trigger_index,
+                                const processing::CameraPose& w0_from_c0,
+                                const processing::CameraPose& w0_from_cx) override;
+  // Rigidly mounted cameras: every c0_from_cx goes through change detection
+  // (registration/extrinsics_monitor.h). Before the first frame.
+  void MonitorChanges(const ExtrinsicsMonitorOptions& options);
 
   // Frames tracked and relocalised so far (all cameras).
   struct Counts {
@@ -55,15 +66,24 @@ class MapLocalizerStage final : public processing::RegistrationStage {
   Counts counts() const;
 
  private:
+  // The camera's newest poses, by trigger. Frames of one camera may be
+  // localised concurrently and finish out of order: a result older than
+  // `last_trigger` never replaces the state.
   struct CameraState {
     bool has_pose = false;
     Pose last = Pose::Identity(), previous = Pose::Identity();
+    std::int64_t last_trigger = -1, previous_trigger = -1;
     bool has_previous = false;
+    // Prediction for `trigger`: constant velocity when the step from the
+    // previous pose to the last spans as many triggers as the step ahead
+    // (w_pred = w_last (w_prev^-1 w_last)), else the last pose.
+    Pose Predict(std::int64_t trigger) const;
   };
   FrameRegistration Track(const processing::CameraModel& camera, const FrameObservations& obs,
                           const Pose& predicted_w0_from_cam) const;
 
   MapIndex map_;
+  std::optional<ExtrinsicsMonitor> monitor_;  // Relate's thread only
   LocalizerOptions options_;
   mutable std::mutex mutex_;
   std::map<std::string, CameraState> cameras_;

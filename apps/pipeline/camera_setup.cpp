@@ -7,6 +7,7 @@
 #include "replay/mla_xml.h"
 #include "replay/synth/cameras_yaml.h"
 
+#include <algorithm>
 
 namespace lifmcr::apps {
 namespace {
@@ -15,7 +16,7 @@ namespace fs = std::filesystem;
 
 Expected<processing::CameraSetup> Load(const std::string& serial,
                                        const CameraCalibrationPaths& paths,
-                                       const fs::path& intrinsics) {
+                                       const std::vector<fs::path>& intrinsics) {
   processing::CameraSetup setup;
   setup.serial = serial;
   auto mla = ReadMlaXml(paths.mla);
@@ -26,11 +27,9 @@ Expected<processing::CameraSetup> Load(const std::string& serial,
     if (!white) return Error{white.error().message + " (white image of camera " + serial + ")"};
     setup.white = std::move(*white);
   }
-  if (!intrinsics.empty()) {
-    auto k = ReadIntrinsics(intrinsics, serial);
-    if (!k) return k.error();
-    setup.intrinsics = *k;
-  }
+  auto k = FindIntrinsics(intrinsics, serial);
+  if (!k) return k.error();
+  setup.intrinsics = *k;
   return setup;
 }
 
@@ -58,27 +57,49 @@ Expected<processing::CameraIntrinsics> ReadIntrinsics(const fs::path& path,
   return k;
 }
 
+Expected<std::optional<processing::CameraIntrinsics>> FindIntrinsics(
+    const std::vector<fs::path>& files, const std::string& serial) {
+  for (const fs::path& file : files) {
+    Expected<std::vector<std::string>> serials = synth::ReadCameraSerialsYaml(file);
+    if (!serials) return serials.error();
+    if (std::find(serials->begin(), serials->end(), serial) == serials->end()) continue;
+    auto k = ReadIntrinsics(file, serial);
+    if (!k) return k.error();
+    return std::optional<processing::CameraIntrinsics>(*k);
+  }
+  return std::optional<processing::CameraIntrinsics>();
+}
+
 Expected<processing::CameraSetup> LoadSequenceCamera(const fs::path& sequence_dir,
                                                      const std::string& serial,
                                                      const CameraFileOverrides& files) {
   auto paths = CalibrationPathsForSequence(sequence_dir, serial, files.mla, files.white);
   if (!paths) return paths.error();
   if (!files.look_up_white && files.white.empty()) paths->white.reset();
-  return Load(serial, *paths, files.intrinsics);
+  std::vector<fs::path> intrinsics;
+  if (!files.intrinsics.empty()) intrinsics.push_back(files.intrinsics);
+  auto setup = Load(serial, *paths, intrinsics);
+  if (setup && !files.intrinsics.empty() && !setup->intrinsics)
+    return Error{files.intrinsics.string() + ": no camera with serial '" + serial + "'"};
+  return setup;
 }
 
 Expected<std::vector<processing::CameraSetup>> LoadSequenceCameras(
-    const fs::path& sequence_dir, const std::vector<std::string>& serials) {
+    const fs::path& sequence_dir, const std::vector<std::string>& serials,
+    const std::vector<fs::path>& intrinsics) {
   std::vector<processing::CameraSetup> out;
   for (const std::string& serial : serials) {
-    auto setup = LoadSequenceCamera(sequence_dir, serial);
+    auto paths = CalibrationPathsForSequence(sequence_dir, serial, {}, {});
+    if (!paths) return paths.error();
+    auto setup = Load(serial, *paths, intrinsics);
     if (!setup) return setup.error();
     out.push_back(std::move(*setup));
   }
   return out;
 }
 
-Expected<std::vector<processing::CameraSetup>> LoadRigCameras(const RigConfig& rig) {
+Expected<std::vector<processing::CameraSetup>> LoadRigCameras(
+    const RigConfig& rig, const std::vector<fs::path>& intrinsics) {
   std::vector<processing::CameraSetup> out;
   for (std::size_t i = 0; i < rig.cameras.size(); ++i) {
     const CameraConfig& camera = rig.cameras[i];
@@ -87,7 +108,7 @@ Expected<std::vector<processing::CameraSetup>> LoadRigCameras(const RigConfig& r
                    " has none (depth needs the MLA file of every camera)"};
     auto paths = CalibrationPathsForMla(camera.serial, camera.mla_file);
     if (!paths) return paths.error();
-    auto setup = Load(camera.serial, *paths, {});
+    auto setup = Load(camera.serial, *paths, intrinsics);
     if (!setup) return setup.error();
     out.push_back(std::move(*setup));
   }

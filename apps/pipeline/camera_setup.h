@@ -8,6 +8,7 @@
 #include "processing/frame_chain.h"
 
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -19,6 +20,13 @@ namespace lifmcr::apps {
 // mla_to_sensor_mm, distortion: {k1, k2, p1, p2}}}].
 Expected<processing::CameraIntrinsics> ReadIntrinsics(const std::filesystem::path& path,
                                                       const std::string& serial);
+
+// The intrinsics of camera `serial` from the first of `files` that lists it
+// (cameras.yaml schema: GroundTruth/cameras.yaml, intrinsics.yaml of
+// `lifmcr calibrate`); nullopt when none does. A file that cannot be read or
+// that lists the camera with bad values is an error.
+Expected<std::optional<processing::CameraIntrinsics>> FindIntrinsics(
+    const std::vector<std::filesystem::path>& files, const std::string& serial);
 
 // Explicit files; empty paths fall back to the lookup rule.
 struct CameraFileOverrides {
@@ -35,11 +43,16 @@ struct CameraFileOverrides {
 Expected<processing::CameraSetup> LoadSequenceCamera(const std::filesystem::path& sequence_dir,
                                                      const std::string& serial,
                                                      const CameraFileOverrides& files = {});
-// Every camera of a sequence, by serial.
+// Every camera of a sequence, by serial; the intrinsics of each from
+// `intrinsics` (FindIntrinsics; a camera none lists has none: no metric
+// depth, not localised).
 Expected<std::vector<processing::CameraSetup>> LoadSequenceCameras(
-    const std::filesystem::path& sequence_dir, const std::vector<std::string>& serials);
+    const std::filesystem::path& sequence_dir, const std::vector<std::string>& serials,
+    const std::vector<std::filesystem::path>& intrinsics = {});
 // Every camera of a rig file: its mla_file (required of every camera) and
-// the white image beside it. Cameras without an mla_file: an error naming them.
-Expected<std::vector<processing::CameraSetup>> LoadRigCameras(const RigConfig& rig);
+// the white image beside it, intrinsics as above. Cameras without an
+// mla_file: an error naming them.
+Expected<std::vector<processing::CameraSetup>> LoadRigCameras(
+    const RigConfig& rig, const std::vector<std::filesystem::path>& intrinsics = {});
 
 }  // namespace lifmcr::apps

@@ -185,9 +185,10 @@ DepthProcessor::~DepthProcessor() = default;
 
 Expected<std::unique_ptr<DepthProcessor>> DepthProcessor::ForSequence(
     const std::string& sequence_dir, const std::vector<std::string>& serials,
-    PreviewOptions preview, PixelFormats formats) {
+    PreviewOptions preview, PixelFormats formats,
+    const std::vector<std::filesystem::path>& intrinsics) {
   if (Status s = preview.Check(); !s) return s.error();
-  auto setups = LoadSequenceCameras(sequence_dir, serials);
+  auto setups = LoadSequenceCameras(sequence_dir, serials, intrinsics);
   if (!setups)
     return Error{setups.error().message +
                  " (depth needs the MLA files; --no-processing publishes previews only)"};

@@ -18,6 +18,7 @@
 #include "drivers/frame.h"
 
 #include <cstdint>
+#include <filesystem>
 #include <map>
 #include <memory>
 #include <optional>
@@ -119,10 +120,12 @@ class PreviewProcessor final : public FrameProcessor {
 // ProcessedFrame::products (for the stage after processing: registration).
 class DepthProcessor final : public FrameProcessor {
  public:
-  // The cameras of a sequence, by the lookup rule of replay/camera_calibration.h.
+  // The cameras of a sequence, by the lookup rule of replay/camera_calibration.h;
+  // their intrinsics from `intrinsics` (camera_setup.h, FindIntrinsics).
   static Expected<std::unique_ptr<DepthProcessor>> ForSequence(
       const std::string& sequence_dir, const std::vector<std::string>& serials,
-      PreviewOptions preview = {}, PixelFormats formats = {});
+      PreviewOptions preview = {}, PixelFormats formats = {},
+      const std::vector<std::filesystem::path>& intrinsics = {});
   // `formats`: the Bayer cameras; their white images in the chain's setups
   // must already be demosaiced (DemosaicWhiteImages).
   DepthProcessor(std::unique_ptr<processing::ProcessingChain> chain, PreviewOptions preview,

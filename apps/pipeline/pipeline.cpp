@@ -12,17 +12,18 @@
 #include <condition_variable>
 #include <cstdio>
 #include <ctime>
+#include <deque>
 #include <map>
 #include <mutex>
 #include <oneapi/tbb/info.h>
 #include <oneapi/tbb/task_arena.h>
 #include <oneapi/tbb/task_scheduler_observer.h>
 #include <optional>
-#include <utility>
 #include <sstream>
 #include <sys/resource.h>
 #include <sys/syscall.h>
 #include <unistd.h>
+#include <utility>
 
 namespace lifmcr::apps {
 namespace {
@@ -145,6 +146,7 @@ struct Pipeline::Impl {
   std::unique_ptr<FrameProcessor> processor;
   std::shared_ptr<processing::RegistrationStage> registration;
   bool localizes = false;  // a stage other than the pass-through
+  int reference_camera = 0;  // camera index of options.reference_serial
   std::unique_ptr<Publisher> publisher;
 
   std::mutex sync_mutex;
@@ -233,13 +235,18 @@ struct Pipeline::Impl {
     const int camera = job.frame.camera_index;
     trigger.by_camera[camera] = {job.frame.serial, w0_from_cx};
     std::uint64_t published = 0;
-    auto reference = trigger.by_camera.find(0);
+    auto reference = trigger.by_camera.find(reference_camera);
     if (reference != trigger.by_camera.end()) {
       const auto& [reference_serial, w0_from_c0] = reference->second;
       for (const auto& [index, entry] : trigger.by_camera) {
-        if (index == 0 || (camera != 0 && index != camera)) continue;
-        publisher->PublishExtrinsics(reference_serial, entry.first, job.trigger_index,
-                                     registration->Relate(w0_from_c0, entry.second));
+        if (index == reference_camera || (camera != reference_camera && index != camera))
+          continue;
+        ExtrinsicsRecord record{reference_serial, entry.first, job.trigger_index,
+                                registration->Relate(entry.first, job.trigger_index,
+                                                     w0_from_c0, entry.second)};
+        publisher->PublishExtrinsics(record.reference_serial, record.serial,
+                                     record.trigger_index, record.c0_from_cx);
+        if (options.on_extrinsics) options.on_extrinsics(record);
         ++published;
       }
     }
@@ -294,31 +301,47 @@ struct Pipeline::Impl {
   }
 
   // One frame into processing, by the skip policy.
-  void Submit(Job job) {
-    std::unique_lock lock(slot_mutex);
-    {
-      std::lock_guard r(report_mutex);
-      ++report.frames_in;
+  // Frames taken from the FrameSets, waiting to be handed to processing
+  // (Poll's thread only). Under newest_wins they go at once; under block
+  // they wait here for a free worker, still holding their pooled buffers,
+  // so the back-pressure reaches a replay driver as before, while Poll
+  // returns to the command's loop (a stop or the end of a sequence is
+  // noticed at once; Finish hands on what is left: nothing taken is lost).
+  std::deque<Job> queued;
+
+  // Hands the queued frames to processing. Without skipping, waits for a
+  // free worker until `deadline` (none: as long as it takes); what is left
+  // waits for the next call.
+  void SubmitQueued(std::optional<std::chrono::steady_clock::time_point> deadline) {
+    while (!queued.empty()) {
+      std::unique_lock lock(slot_mutex);
+      if (!options.skip_when_busy) {
+        const auto free = [&] { return in_flight < options.max_concurrency; };
+        if (!deadline) {
+          slot_cv.wait(lock, free);
+        } else if (!slot_cv.wait_until(lock, *deadline, free)) {
+          return;
+        }
+      }
+      Job job = std::move(queued.front());
+      queued.pop_front();
+      if (in_flight < options.max_concurrency) {
+        ++in_flight;
+        served[job.frame.camera_index] = ++serve_count;
+        lock.unlock();
+        process_node->try_put(std::move(job));
+        continue;
+      }
+      const int camera = job.frame.camera_index;
+      if (slots.count(camera)) {
+        std::lock_guard r(report_mutex);
+        ++report.skipped;
+      }
+      slots.insert_or_assign(camera, std::move(job));
     }
-    if (!options.skip_when_busy) {
-      slot_cv.wait(lock, [&] { return in_flight < options.max_concurrency; });
-    }
-    if (in_flight < options.max_concurrency) {
-      ++in_flight;
-      served[job.frame.camera_index] = ++serve_count;
-      lock.unlock();
-      process_node->try_put(std::move(job));
-      return;
-    }
-    const int camera = job.frame.camera_index;
-    if (slots.count(camera)) {
-      std::lock_guard r(report_mutex);
-      ++report.skipped;
-    }
-    slots.insert_or_assign(camera, std::move(job));
   }
 
-  void SubmitSets(std::vector<FrameSet> sets) {
+  void QueueSets(std::vector<FrameSet> sets) {
     for (FrameSet& set : sets) {
       {
         std::lock_guard r(report_mutex);
@@ -331,7 +354,11 @@ struct Pipeline::Impl {
         const std::int64_t arrival = frame->arrival_ns > 0 ? frame->arrival_ns : frame->host_ns;
         std::optional<std::int64_t> vicon;
         if (set.vicon_frame >= 0) vicon = set.vicon_frame;
-        Submit(Job{std::move(*frame), set.trigger_index, vicon, arrival});
+        {
+          std::lock_guard r(report_mutex);
+          ++report.frames_in;
+        }
+        queued.push_back(Job{std::move(*frame), set.trigger_index, vicon, arrival});
       }
     }
   }
@@ -412,6 +439,13 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
   impl->registration = options.registration;
   if (!impl->registration) impl->registration = std::make_shared<processing::PassThroughStage>();
   impl->localizes = dynamic_cast<processing::PassThroughStage*>(impl->registration.get()) == nullptr;
+  if (!options.reference_serial.empty()) {
+    const auto it = std::find(sync.serials.begin(), sync.serials.end(), options.reference_serial);
+    if (it == sync.serials.end())
+      return Error{"pipeline: reference_serial: camera " + options.reference_serial +
+                   " (the reference map's) is not one of the rig's cameras"};
+    impl->reference_camera = static_cast<int>(it - sync.serials.begin());
+  }
   auto publisher = Publisher::Create(options.publisher);
   if (!publisher) return publisher.error();
   impl->publisher = std::move(*publisher);
@@ -492,7 +526,9 @@ void Pipeline::Poll() {
     std::lock_guard lock(impl_->sync_mutex);
     sets = impl_->TakeSets(/*flush=*/false);
   }
-  impl_->SubmitSets(std::move(sets));
+  impl_->QueueSets(std::move(sets));
+  // At most a poll period's wait for a worker: the caller's loop stays responsive.
+  impl_->SubmitQueued(std::chrono::steady_clock::now() + std::chrono::milliseconds(50));
   const auto now = std::chrono::steady_clock::now();
   if (now >= impl_->next_stats) {
     impl_->PublishStats();
@@ -506,7 +542,8 @@ void Pipeline::EndPass() {
     std::lock_guard lock(impl_->sync_mutex);
     sets = impl_->TakeSets(/*flush=*/true);
   }
-  impl_->SubmitSets(std::move(sets));
+  impl_->QueueSets(std::move(sets));
+  impl_->SubmitQueued(std::nullopt);
   impl_->WaitIdle();
   std::lock_guard lock(impl_->sync_mutex);
   impl_->drops_before = impl_->SyncDrops();

@@ -13,17 +13,19 @@
 // counted as skipped: the newest wins, so a camera's published view is never
 // stale by more than one frame. A freed worker takes the slot of the camera
 // served least recently, so no camera starves.
-// Without skipping (block; replay --rate max) Submit blocks until a worker
-// is free: the back-pressure reaches the replay driver through its frame
-// pool, so every frame is processed. Either way every frame that enters is
+// Without skipping (block; replay --rate max) a frame waits in the
+// pipeline's queue until a worker is free (Poll waits for one at most 50 ms,
+// so the caller's loop notices a stop at once; Finish waits for all): the
+// back-pressure reaches the replay driver through its frame pool, so every
+// frame is processed. Either way every frame that enters is
 // processed (and published), skipped, or failed, each counted: frames_in ==
 // processed + skipped + failed once Finish returned. A recorder, when one
 // runs, gets its frames before the pipeline does and never waits for it.
 //
 // Registration: the stage's Localize runs on the worker after processing;
-// its poses are grouped per trigger on the publishing node, and once camera
-// 0 and camera X both have a pose of a trigger, Relate gives c0_from_cx,
-// published on <PREFIX>_<SERIAL>_EXTRINSICS.
+// its poses are grouped per trigger on the publishing node, and once the
+// reference camera (reference_serial) and camera X both have a pose of a
+// trigger, Relate gives c0_from_cx, published on <PREFIX>_<SERIAL>_EXTRINSICS.
 //
 // Threads: AddFrame and AddVicon from any thread (the grab loop's); a Vicon
 // frame is published on the caller's thread, at once. Poll and Finish from
@@ -43,11 +45,20 @@
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
 
 namespace lifmcr::apps {
+
+// One c0_from_cx as published on <PREFIX>_<SERIAL>_EXTRINSICS.
+struct ExtrinsicsRecord {
+  std::string reference_serial;  // camera 0
+  std::string serial;            // camera X
+  std::int64_t trigger_index = 0;
+  processing::CameraPose c0_from_cx;
+};
 
 struct PipelineOptions {
   int max_concurrency = 2;  // frames processed at once, >= 1
@@ -66,6 +77,12 @@ struct PipelineOptions {
   bool frame_sets_from_grab_loop = false;
   // The stage after processing; null: processing::PassThroughStage.
   std::shared_ptr<processing::RegistrationStage> registration;
+  // Camera 0 of the extrinsics (the reference map's camera), by serial;
+  // empty: the camera of index 0. One of the assembler's serials.
+  std::string reference_serial;
+  // Called on the publishing thread after each extrinsics message (for
+  // `--extrinsics-csv`); may be empty.
+  std::function<void(const ExtrinsicsRecord&)> on_extrinsics;
   PublisherOptions publisher;
   // The rig file's processing: (threads, skip_policy) and lcm: sections;
   // preview_max_px and enabled are the processor's (PreviewOptionsFromRig).
@@ -122,8 +139,9 @@ class Pipeline {
   // report and the statistics message.
   void SetSyncDrops(const DropCounter& drops);
   void AddVicon(const ViconFrame& frame);
-  // Emits the ready FrameSets into processing (blocking without skipping)
-  // and publishes the statistics when due.
+  // Takes the ready FrameSets and hands their frames to processing (under
+  // block, waiting at most 50 ms for a free worker; the rest wait for the
+  // next Poll or Finish), and publishes the statistics when due.
   void Poll();
   // End of a pass: flushes the assembler, waits for processing and starts a
   // fresh assembler (for --loop); the counters go on.

@@ -175,8 +175,9 @@ void Publisher::PublishExtrinsics(const std::string& reference_serial, const std
   m.utime = NowRealtimeUs();
   m.reference_serial = reference_serial;
   m.serial = serial;
-  m.frame_id = trigger_index;
+  m.trigger_index = trigger_index;
   m.method = c0_from_cx.method;
+  m.localisation = c0_from_cx.localisation;
   const Eigen::Vector3d t = c0_from_cx.transform.translation();
   const Eigen::Quaterniond q(c0_from_cx.transform.rotation());
   for (int k = 0; k < 3; ++k) m.t_mm[k] = t[k];
@@ -189,6 +190,28 @@ void Publisher::PublishExtrinsics(const std::string& reference_serial, const std
   m.inliers = c0_from_cx.inliers;
   m.rmse_px = c0_from_cx.rmse_px;
   m.status = c0_from_cx.status;
+  m.change_state = lifmcr_lcm::camera_extrinsics_t::CHANGE_OFF;
+  m.departure = 0;
+  m.departures_in_row = 0;
+  Eigen::Isometry3d running = Eigen::Isometry3d::Identity();
+  if (const auto& change = c0_from_cx.change) {
+    using State = processing::ExtrinsicsChange::State;
+    switch (change->state) {
+      case State::kSettling: m.change_state = m.CHANGE_SETTLING; break;
+      case State::kSteady: m.change_state = m.CHANGE_STEADY; break;
+      case State::kDeparting: m.change_state = m.CHANGE_DEPARTING; break;
+      case State::kChanged: m.change_state = m.CHANGE_CHANGED; break;
+    }
+    m.departure = change->departure;
+    m.departures_in_row = change->departures_in_row;
+    running = change->running;
+  }
+  const Eigen::Quaterniond running_q(running.rotation());
+  for (int k = 0; k < 3; ++k) m.running_t_mm[k] = running.translation()[k];
+  m.running_q_wxyz[0] = running_q.w();
+  m.running_q_wxyz[1] = running_q.x();
+  m.running_q_wxyz[2] = running_q.y();
+  m.running_q_wxyz[3] = running_q.z();
   PublishOn(*lcm_, lcm_mutex_, channels_.Camera(serial, "EXTRINSICS"), m);
 }
 

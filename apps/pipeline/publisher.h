@@ -6,9 +6,10 @@
 //   <PREFIX>_<SERIAL>_PREVIEW     preview_image_t, the raw frame downscaled (publish_previews)
 //   <PREFIX>_<SERIAL>_TF          preview_image_t, the totally focused image (publish_previews)
 //   <PREFIX>_<SERIAL>_DEPTH       depth_image_t, TF virtual depth, 16-bit PNG
-//   <PREFIX>_<SERIAL>_EXTRINSICS  camera_extrinsics_t, c0_from_cx of camera X
-//                                 (frame_id = the trigger index), from the
-//                                 registration stage (processing/registration_stage.h)
+//   <PREFIX>_<SERIAL>_EXTRINSICS  camera_extrinsics_t, c0_from_cx of camera X per
+//                                 trigger, from the registration stage
+//                                 (processing/registration_stage.h), with the
+//                                 change detection's verdict when it runs
 //   <PREFIX>_VICON                vicon_frame_t, every Vicon frame at once
 //   <PREFIX>_STATS                pipeline_stats_t, about once a second and at the end
 // trigger_index in the messages is the FrameSet's: the number of the

@@ -54,8 +54,11 @@ Status ReplayRunOptions::Check() const {
   if (pool_buffers < 1 || pool_buffers > 1024) return Error{"replay: pool_buffers: expected 1..1024"};
   if (Status s = preview.Check(); !s) return Error{"replay: " + s.error().message};
   if (Status s = pipeline.Check(); !s) return Error{"replay: " + s.error().message};
+  if (registration)
+    if (Status s = registration->Check(); !s) return Error{"replay: " + s.error().message};
   // pixel_formats: its serials are checked against the sequence by RunReplay.
-  // loop, processing: any value; on_status and stop may be empty.
+  // loop, processing: any value; on_status and stop may be empty; intrinsics:
+  // files read when the cameras are set up.
   return Status::Ok();
 }
 
@@ -65,7 +68,8 @@ std::string ReplayRunResult::FinalReport() const {
       << " frame files per pass, " << passes << " pass(es)\n"
       << report.FinalReport();
   out << "replay cameras: " << camera_underruns << " frames lost for lack of a buffer, "
-      << camera_failed << " unreadable\n";
+      << camera_failed << " unreadable\n"
+      << registration;
   return out.str();
 }
 
@@ -213,10 +217,28 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
   // sequence by Flush), however slow processing is.
   if (max_rate) sync.lateness_ns = 3'600'000'000'000;
 
+  // Live registration: the map, the intrinsics search, the stage.
+  std::vector<std::filesystem::path> intrinsics = options.intrinsics;
+  std::optional<LiveRegistration> live;
+  PipelineOptions pipeline_options = options.pipeline;
+  if (options.registration) {
+    if (!options.processing)
+      return Error{"replay: live registration needs processing (not --no-processing)"};
+    LiveRegistrationOptions live_options = *options.registration;
+    live_options.intrinsics.insert(live_options.intrinsics.begin(), options.intrinsics.begin(),
+                                   options.intrinsics.end());
+    live_options.fallback_intrinsics.push_back(layout::CamerasYamlPath(options.sequence_dir));
+    auto loaded = LoadLiveRegistration(live_options, serials);
+    if (!loaded) return loaded.error();
+    live = std::move(*loaded);
+    intrinsics = live->intrinsics_files;
+    live->Configure(&pipeline_options);
+  }
+
   if (!processor) {
     if (options.processing) {
       auto depth = DepthProcessor::ForSequence(options.sequence_dir.string(), serials,
-                                               options.preview, *bayer);
+                                               options.preview, *bayer, intrinsics);
       if (!depth) return depth.error();
       processor = std::move(*depth);
     } else {
@@ -224,7 +246,6 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
       processor = std::make_unique<PreviewProcessor>(options.preview, *bayer);
     }
   }
-  PipelineOptions pipeline_options = options.pipeline;
   pipeline_options.skip_when_busy = !max_rate;
   pipeline_options.frame_sets_from_grab_loop = true;
   auto pipeline = Pipeline::Create(sync, std::move(processor), pipeline_options);
@@ -286,6 +307,7 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
   }
   p.Finish();
   result.report = p.Report();
+  if (live) result.registration = LiveRegistrationReport(*live);
   return result;
 }
 

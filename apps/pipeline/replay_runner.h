@@ -18,6 +18,7 @@
 // (RigControllerOptions::vicon_lead_triggers).
 
 #include "apps/pipeline/frame_processor.h"
+#include "apps/pipeline/live_registration.h"
 #include "apps/pipeline/pipeline.h"
 #include "config/error.h"
 
@@ -25,6 +26,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -53,6 +55,14 @@ struct ReplayRunOptions {
   // the TF image (colour) and depth runs on luminance, as in `record
   // --publish` (frame_processor.h). A serial not in the sequence is an error.
   PixelFormats pixel_formats;
+  // Intrinsics of the cameras (cameras.yaml schema), searched in order
+  // (camera_setup.h, FindIntrinsics): metric depth, and what live
+  // registration localises with.
+  std::vector<std::filesystem::path> intrinsics;
+  // Live registration against a reference map (--reference MAP_DIR); its
+  // intrinsics search is MAP_DIR's, then `intrinsics`, then the sequence's
+  // GroundTruth/cameras.yaml. nullopt: frames pass through.
+  std::optional<LiveRegistrationOptions> registration;
   // Called about once a second on the command's thread.
   std::function<void(const PipelineReport&)> on_status;
   const std::atomic<bool>* stop = nullptr;  // set by a signal handler; may be null
@@ -66,6 +76,7 @@ struct ReplayRunResult {
   std::uint64_t camera_underruns = 0;    // frames the replay cameras lost (timed replay)
   std::uint64_t camera_failed = 0;       // unreadable frame files
   int passes = 0;
+  std::string registration;  // LiveRegistrationReport, with --reference
   std::string FinalReport() const;
 };
 

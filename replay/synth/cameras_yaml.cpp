@@ -233,4 +233,25 @@ Expected<CameraModelYaml> ReadCameraModelYaml(const std::filesystem::path& path,
   return ParseCameraModelYaml(*text, EscapeText(path.string()), serial);
 }
 
+Expected<std::vector<std::string>> ReadCameraSerialsYaml(const std::filesystem::path& path) {
+  Expected<std::string> text = ReadInputText(
+      path, {"a cameras.yaml / intrinsics.yaml (YAML)", kCameraModelLimits.max_file_bytes});
+  if (!text) return text.error();
+  Expected<YamlNode> root_node = YamlNode::Parse(*text, EscapeText(path.string()));
+  if (!root_node) return root_node.error();
+  YamlErrors errors;
+  YamlMap root(*root_node, &errors);
+  const std::optional<std::vector<YamlNode>> cameras = root.List("cameras", Presence::kRequired);
+  if (!errors.ok()) return errors.status().error();
+  std::vector<std::string> serials;
+  for (const YamlNode& node : *cameras) {
+    YamlMap camera(node, &errors);
+    std::string serial;
+    camera.Read("serial", &serial, Presence::kRequired);
+    if (!errors.ok()) return errors.status().error();
+    serials.push_back(serial);
+  }
+  return serials;
+}
+
 }  // namespace lifmcr::synth

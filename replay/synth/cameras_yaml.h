@@ -51,6 +51,10 @@ Expected<CameraModelYaml> ParseCameraModelYaml(std::string_view text, const std:
 Expected<CameraModelYaml> ReadCameraModelYaml(const std::filesystem::path& path,
                                               std::string_view serial);
 
+// The serials /cameras/<i>/serial of a cameras.yaml, in file order (which
+// cameras a file describes, before reading one), through the same reader.
+Expected<std::vector<std::string>> ReadCameraSerialsYaml(const std::filesystem::path& path);
+
 std::string FormatCamerasYaml(const SynthParams& params, const std::vector<SynthCamera>& cameras,
                               const MarkerPlateLayout& plate, const Pose& vicon_from_world,
                               const Pose& world_from_plate_marker);

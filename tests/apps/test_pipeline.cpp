@@ -597,7 +597,7 @@ TEST(Pipeline, RegistrationStagePosesBecomeExtrinsicsPerTrigger) {
       const double sign = q.w() * m.q_wxyz[0] < 0 ? -1.0 : 1.0;
       EXPECT_NEAR(sign * m.q_wxyz[3], q.z(), 1e-9);
       EXPECT_NEAR(sign * m.q_wxyz[0], q.w(), 1e-9);
-      triggers.push_back(m.frame_id);
+      triggers.push_back(m.trigger_index);
     }
     std::sort(triggers.begin(), triggers.end());
     EXPECT_EQ(triggers, (std::vector<std::int64_t>{0, 1}));
