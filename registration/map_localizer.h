@@ -42,6 +42,7 @@ struct LocalizerOptions {
   FeatureOptions features;
   double track_radius_px = 12;  // local matching window on the TF grid (> 0)
   int min_tracked = 30;         // fewer inliers when tracking: relocalise (>= 3)
+  bool track = true;            // false: relocalise every frame (the baseline of bench_live)
   Status Check() const;
 };
 
@@ -62,13 +63,17 @@ class MapLocalizerStage final : public processing::RegistrationStage {
   // Frames tracked and relocalised so far (all cameras).
   struct Counts {
     long long tracked = 0, relocalised = 0, failed = 0;
+    // Localize's time (features, matching, PnP) of the frames so counted; a
+    // frame whose tracking failed pays both and counts as relocalised.
+    double tracked_s = 0, relocalised_s = 0, failed_s = 0;
   };
   Counts counts() const;
 
  private:
   // The camera's newest poses, by trigger. Frames of one camera may be
   // localised concurrently and finish out of order: a result older than
-  // `last_trigger` never replaces the state.
+  // `last_trigger` never replaces the state, unless it is older by more than
+  // kNewPassTriggers (replay --loop numbers its triggers from 0 again).
   struct CameraState {
     bool has_pose = false;
     Pose last = Pose::Identity(), previous = Pose::Identity();
@@ -82,6 +87,7 @@ class MapLocalizerStage final : public processing::RegistrationStage {
   FrameRegistration Track(const processing::CameraModel& camera, const FrameObservations& obs,
                           const Pose& predicted_w0_from_cam) const;
 
+  static constexpr std::int64_t kNewPassTriggers = 16;
   MapIndex map_;
   std::optional<ExtrinsicsMonitor> monitor_;  // Relate's thread only
   LocalizerOptions options_;

@@ -9,6 +9,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cmath>
 #include <sstream>
 
 namespace lifmcr::apps {
@@ -130,8 +131,13 @@ Expected<LiveRegistration> LoadLiveRegistration(const LiveRegistrationOptions& o
 std::string LiveRegistrationReport(const LiveRegistration& live) {
   const registration::MapLocalizerStage::Counts c = live.stage->counts();
   std::ostringstream out;
-  out << "registration: " << c.tracked << " frames tracked, " << c.relocalised
-      << " relocalised, " << c.failed << " failed (camera 0 = " << live.reference_serial << ")";
+  const auto mean_ms = [](double seconds, long long n) {
+    return n > 0 ? static_cast<long long>(std::lround(1e3 * seconds / static_cast<double>(n))) : 0;
+  };
+  out << "registration: " << c.tracked << " frames tracked (" << mean_ms(c.tracked_s, c.tracked)
+      << " ms each), " << c.relocalised << " relocalised ("
+      << mean_ms(c.relocalised_s, c.relocalised) << " ms), " << c.failed
+      << " failed (camera 0 = " << live.reference_serial << ")";
   if (live.csv) out << "; " << live.csv->rows() << " rows in " << live.csv->path().string();
   out << "\n";
   return out.str();
