@@ -137,7 +137,8 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   {
     std::lock_guard<std::mutex> lock(mutex_);
     CameraState& s = cameras_[frame.serial];
-    if (frame.trigger_index + kNewPassTriggers < s.last_trigger) s = CameraState{};  // a new pass
+    if (frame.host_ns > s.last_host_ns && frame.trigger_index <= s.last_trigger)
+      s = CameraState{};  // a new pass
     state = s;
   }
   FrameRegistration r;
@@ -162,13 +163,14 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   std::lock_guard<std::mutex> lock(mutex_);
   CameraState& s = cameras_[frame.serial];
-  const bool newest = frame.trigger_index > s.last_trigger;
+  const bool newest = frame.host_ns >= s.last_host_ns && frame.trigger_index > s.last_trigger;
   if (!r.success) {
     ++counts_.failed;
     counts_.failed_s += seconds;
     if (newest) {  // relocalise next time
       s = CameraState{};
       s.last_trigger = frame.trigger_index;
+      s.last_host_ns = frame.host_ns;
     }
     return std::optional<processing::CameraPose>(pose);
   }
@@ -185,6 +187,7 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     s.has_previous = s.has_pose;
     s.last = r.w0_from_cam.pose;
     s.last_trigger = frame.trigger_index;
+    s.last_host_ns = frame.host_ns;
     s.has_pose = true;
   }
   pose.transform = r.w0_from_cam.pose;

@@ -70,14 +70,17 @@ class MapLocalizerStage final : public processing::RegistrationStage {
   Counts counts() const;
 
  private:
-  // The camera's newest poses, by trigger. Frames of one camera may be
-  // localised concurrently and finish out of order: a result older than
-  // `last_trigger` never replaces the state, unless it is older by more than
-  // kNewPassTriggers (replay --loop numbers its triggers from 0 again).
+  // The camera's newest poses. Frames of one camera may be localised
+  // concurrently and finish out of order: a frame that reached the host
+  // before the last one that set the state (host_ns) never replaces it. A
+  // frame that reached the host later but has a lower trigger index starts a
+  // new pass (replay --loop numbers its triggers from 0 again): the state is
+  // dropped, the frame relocalised.
   struct CameraState {
     bool has_pose = false;
     Pose last = Pose::Identity(), previous = Pose::Identity();
     std::int64_t last_trigger = -1, previous_trigger = -1;
+    std::int64_t last_host_ns = 0;
     bool has_previous = false;
     // Prediction for `trigger`: constant velocity when the step from the
     // previous pose to the last spans as many triggers as the step ahead
@@ -87,7 +90,6 @@ class MapLocalizerStage final : public processing::RegistrationStage {
   FrameRegistration Track(const processing::CameraModel& camera, const FrameObservations& obs,
                           const Pose& predicted_w0_from_cam) const;
 
-  static constexpr std::int64_t kNewPassTriggers = 16;
   MapIndex map_;
   std::optional<ExtrinsicsMonitor> monitor_;  // Relate's thread only
   LocalizerOptions options_;
