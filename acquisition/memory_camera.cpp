@@ -164,6 +164,9 @@ CameraInfo MemoryCamera::Info() const {
   info.height = options_.height;
   info.format = options_.format;
   info.payload_bytes = row_bytes_ * static_cast<std::size_t>(options_.height);
+  // Frames are stamped with CLOCK_REALTIME when made (at the software
+  // trigger): every memory camera is on that one clock.
+  info.device_clock = "host CLOCK_REALTIME";
   return info;
 }
 

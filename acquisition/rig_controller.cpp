@@ -94,6 +94,7 @@ std::string RigHealth::FinalReport() const {
     if (c.triggers_skipped > 0)
       out << ", software triggers skipped (trigger call overran) " << c.triggers_skipped;
     if (c.errors > 0) out << ", device errors " << c.errors << " (last: " << c.last_error << ")";
+    if (!c.first_placement.empty()) out << "; first frame: " << c.first_placement;
     out << "\n";
   }
   if (has_vicon) {
@@ -153,7 +154,21 @@ Status RigController::Start() {
       return s;
     }
   }
+  // The clock of each camera's device timestamps: the rig's word, else the driver's.
+  std::vector<std::string> clocks(slots_.size());
+  for (std::size_t i = 0; i < slots_.size(); ++i)
+    clocks[i] = i < options_.device_clocks.size() && !options_.device_clocks[i].empty()
+                    ? options_.device_clocks[i]
+                    : slots_[i]->camera->Info().device_clock;
+  {
+    std::lock_guard<std::mutex> lock(anchor_mutex_);
+    placer_ = std::make_unique<FirstFramePlacer>(
+        options_.trigger_hz > 0 ? std::llround(1e9 / options_.trigger_hz) : 100'000'000,
+        options_.sync ? options_.sync->trigger.tolerance : TriggerTrackerOptions{}.tolerance,
+        clocks);
+  }
   if (options_.sync) {
+    options_.sync->device_clocks = clocks;
     if (Status s = options_.sync->Check(); !s) {
       for (auto& slot : slots_) (void)slot->camera->Stop();
       if (vicon_) (void)vicon_->Stop();
@@ -175,7 +190,11 @@ Status RigController::Start() {
     vicon_running_ = true;
     vicon_thread_ = std::thread([this] { ViconLoop(); });
   }
-  if (options_.trigger_hz > 0) {
+  // The trigger schedule exists only when this controller fires triggers:
+  // a hardware-triggered rig's first frames are not placed on it.
+  const bool fires_triggers = std::any_of(slots_.begin(), slots_.end(),
+                                          [](const auto& slot) { return slot->software_trigger; });
+  if (options_.trigger_hz > 0 && fires_triggers) {
     triggering_ = true;
     const auto schedule_start = std::chrono::steady_clock::now();
     {
@@ -284,12 +303,17 @@ void RigController::GrabLoop(int index) {
     // then count from one placement. (Only this grab thread touches the
     // unwrapper.)
     std::optional<std::int64_t> placed;
+    std::string placed_how;
     bool in_assembler = false;
     if (assembler_ != nullptr && !options_.number_files_by_sync &&
         frame.status == FrameStatus::kOk && slot.unwrapper.last_index() < 0) {
       std::lock_guard<std::mutex> lock(sync_mutex_);
       placed = assembler_->AddFrame(frame);
       in_assembler = true;
+      if (placed) placed_how = assembler_->camera_stats()[index].first_placement;
+    }
+    if (frame.status == FrameStatus::kOk && slot.unwrapper.last_index() < 0 && !placed) {
+      placed = PlaceFirstFrame(index, frame, &placed_how).trigger_index;
     }
     {
       std::lock_guard<std::mutex> lock(slot.mutex);
@@ -308,8 +332,11 @@ void RigController::GrabLoop(int index) {
           // different moments of a running trigger see different first
           // triggers), after any failed frames before it (each was a trigger).
           const auto failed = static_cast<std::int64_t>(slot.health.failed_since_ok);
-          const std::int64_t first =
-              std::max(placed ? *placed : FirstIndexByHostTime(frame.host_ns), failed);
+          const std::int64_t first = std::max(*placed, failed);
+          slot.health.first_placement = placed_how;
+          if (first != *placed) slot.health.first_placement += ", after its failed frames";
+          spdlog::info("camera {}: first frame on {}", slot.health.serial,
+                       slot.health.first_placement);
           (void)slot.unwrapper.Next(frame.frame_id);
           slot.unwrapper.Rebase(frame.frame_id, first);
           step.index = first;
@@ -356,6 +383,10 @@ void RigController::GrabLoop(int index) {
         slot.health.failed_since_ok = 0;
         slot.health.last_index = frame_index = step.index;
         slot.last_host_ns = frame.host_ns;
+        {
+          std::lock_guard<std::mutex> anchor(anchor_mutex_);
+          placer_->Placed(index, frame_index, frame.device_ns);
+        }
         ++slot.interval_frames;
         slot.interval_bytes += bytes;
         ++slot.health.received;
@@ -379,6 +410,22 @@ void RigController::GrabLoop(int index) {
     if (observer_.on_frame) observer_.on_frame(index, frame_index, frame);
     if (recorder_ != nullptr) recorder_->SubmitFrame(index, frame_index, std::move(frame));
   }
+}
+
+FirstPlacement RigController::PlaceFirstFrame(int index, const Frame& frame, std::string* how) {
+  std::string why;
+  {
+    std::lock_guard<std::mutex> lock(anchor_mutex_);
+    if (std::optional<FirstPlacement> placement = placer_->ByDeviceTime(index, frame.device_ns)) {
+      *how = placement->OneLine();
+      return *placement;
+    }
+    why = placer_->WhyNotByDeviceTime(index, frame.device_ns);
+  }
+  FirstPlacement placement;
+  placement.trigger_index = FirstIndexByHostTime(frame.host_ns);
+  *how = placement.OneLine() + " (" + why + ")";
+  return placement;
 }
 
 std::int64_t RigController::FirstIndexByHostTime(std::int64_t host_ns) {

@@ -8,8 +8,10 @@
 // Frame numbers: a frame's number in the recording is its trigger index. A
 // camera's first frame is placed by the sync assembler when there is one
 // (the trigger of its FrameSet, so file numbers and trigger indices count
-// from one placement), else by host time from the rig's first frame (in
-// trigger periods, rounded); every later one by the camera's frame counter
+// from one placement), else by device time against a camera on the same
+// device clock (sync/first_frame_placement.h, the rule the assembler
+// follows), else by host time from the rig's first frame or the software
+// trigger schedule; the log says which decided. Every later one by the camera's frame counter
 // (frame_id_unwrapper.h, 16-bit wrap aware), so a counter gap is a missing
 // file and is counted; after a reconnect (the counter restarts) the silence
 // in host time gives the triggers missed.
@@ -28,6 +30,7 @@
 #include "acquisition/recorder.h"
 #include "drivers/camera.h"
 #include "drivers/vicon_source.h"
+#include "sync/first_frame_placement.h"
 #include "sync/frame_set_assembler.h"
 
 #include <atomic>
@@ -75,6 +78,10 @@ struct RigControllerOptions {
   // (lcm-logger's cannot be raised).
   int vicon_lead_triggers = 0;
   int vicon_divider = 8;
+  // Per camera, the clock its device timestamps are on (the rig's
+  // cameras[].device_clock); "" or no entry: the driver's
+  // (CameraInfo::device_clock). The assembler's device_clocks are set from it.
+  std::vector<std::string> device_clocks;
   // SCHED_FIFO priority (1..99) of the Vicon thread, 0 to leave it under the
   // ordinary scheduler (acquisition/thread_priority.h). A live Vicon stream
   // wants kLiveViconPriority; a CSV read as fast as possible must not have it
@@ -115,6 +122,8 @@ struct CameraHealth {
   std::uint64_t errors = 0;  // NextFrame errors (device lost)
   std::string last_error;
   std::int64_t last_index = -1;
+  // How the first frame was put on the trigger count (FirstPlacement::OneLine).
+  std::string first_placement;
   CameraStats driver;
   RecorderCameraStats recorder;
 
@@ -206,6 +215,10 @@ class RigController {
   // Trigger index of a camera's first frame: 0 for the rig's first frame,
   // else the trigger periods since it in host time.
   std::int64_t FirstIndexByHostTime(std::int64_t host_ns);
+  // Without the assembler's placement: by device time against a camera on
+  // the same clock, else FirstIndexByHostTime.
+  // `how`: FirstPlacement::OneLine, and why not by device time.
+  FirstPlacement PlaceFirstFrame(int index, const Frame& frame, std::string* how);
   // Hands the frames of emitted sets to the recorder (sync thread, or Stop).
   void RecordSets(std::vector<FrameSet> sets);
 
@@ -229,6 +242,7 @@ class RigController {
   double vicon_hz_ = 0;
   std::mutex anchor_mutex_;
   std::optional<std::int64_t> rig_first_host_ns_;
+  std::unique_ptr<FirstFramePlacer> placer_;  // guarded by anchor_mutex_
   // CLOCK_REALTIME of the first software trigger, when this controller fires them.
   std::optional<std::int64_t> trigger_schedule_host_ns_;
   std::mutex sync_mutex_;  // guards assembler_ and the set counters

@@ -6,6 +6,7 @@
 // descriptors.bin), poses_<serial>.csv and calibration_report.md.
 
 #include "apps/commands.h"
+#include "config/text_escape.h"
 #include "registration/calibration.h"
 #include "registration/calibration_frames.h"
 #include "registration/calibration_gates.h"
@@ -46,7 +47,7 @@ struct CalibrateOptions {
 };
 
 int Fail(const std::string& message, int code = 1) {
-  std::cerr << "lifmcr calibrate: " << message << "\n";
+  std::cerr << "lifmcr calibrate: " << EscapeText(message) << "\n";
   return code;
 }
 

@@ -2,6 +2,7 @@
 // temporary folder (or --out) and replayed through the pipeline on LCM.
 
 #include "apps/commands.h"
+#include "config/text_escape.h"
 #include "replay/synth/synth_params.h"
 #include "replay/synth/synth_writer.h"
 
@@ -11,12 +12,11 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <vector>
+
 #include <unistd.h>
 
 namespace lifmcr::apps {
-
-int RunReplayCommand(const std::string& sequence, const std::string& rate_text, bool loop,
-                     const std::string& lcm_url, bool processing, int concurrency, const char* who);
 
 namespace {
 
@@ -43,20 +43,20 @@ int RunDemo(const Args& args) {
   }
   auto params = synth::MakePreset("small");
   if (!params) {
-    std::cerr << "lifmcr demo: " << params.error().message << "\n";
+    std::cerr << "lifmcr demo: " << EscapeText(params.error().message) << "\n";
     return 2;
   }
   params->rig.frames = args.frames;
   params->rig.cameras = args.cameras;
   if (Status s = params->Check(); !s) {
-    std::cerr << "lifmcr demo: " << s.error().message << "\n";
+    std::cerr << "lifmcr demo: " << EscapeText(s.error().message) << "\n";
     return 2;
   }
   std::cerr << "lifmcr demo: writing a synthetic rig (" << args.cameras << " cameras, "
             << args.frames << " frames, preset small) into " << out.string() << "\n";
   auto summary = synth::WriteSyntheticDataset(out, *params, {});
   if (!summary) {
-    std::cerr << "lifmcr demo: " << summary.error().message << "\n";
+    std::cerr << "lifmcr demo: " << EscapeText(summary.error().message) << "\n";
     return 3;
   }
   std::cerr << summary->BriefReport() << "\n"
@@ -64,7 +64,7 @@ int RunDemo(const Args& args) {
             << " on LCM; watch it with `scripts/lcm-spy.sh` or `build/apps/lifmcr monitor` in "
                "another terminal (add --loop to keep it playing)\n";
   const int code = RunReplayCommand(summary->sequence_dir.string(), args.rate, args.loop,
-                                    args.lcm_url, !args.no_processing, 2, "lifmcr demo");
+                                    args.lcm_url, !args.no_processing, 2, "lifmcr demo", {});
   std::cout << "sequence: " << summary->sequence_dir.string() << "\n"
             << "watch: scripts/lcm-spy.sh (channels LIFMCR_*), or build/apps/lifmcr monitor; "
                "record: lcm-logger -c 'LIFMCR_.*' demo.lcmlog\n";

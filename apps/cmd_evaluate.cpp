@@ -14,6 +14,7 @@
 #include "apps/git_revision.h"
 #include "config/frames.h"
 #include "config/rig_config.h"
+#include "config/text_escape.h"
 #include "registration/evaluation.h"
 #include "registration/evaluation_inputs.h"
 #include "registration/plate_alignment.h"
@@ -84,7 +85,7 @@ class Progress {
 };
 
 int Fail(const std::string& message, int code = kExitFailed) {
-  std::cerr << "lifmcr evaluate: " << message << "\n";
+  std::cerr << "lifmcr evaluate: " << EscapeText(message) << "\n";
   return code;
 }
 

@@ -5,6 +5,7 @@
 // the MLA file when one is given, and writes the refined MLA XML.
 
 #include "apps/commands.h"
+#include "config/text_escape.h"
 #include "processing/grid_from_raw.h"
 #include "processing/mla_grid.h"
 #include "replay/mla_xml.h"
@@ -32,7 +33,7 @@ struct GridOptions {
 int RunGrid(const GridOptions& o) {
   Expected<OwnedImage> white = ReadRawImage(o.white);
   if (!white) {
-    std::cerr << "lifmcr grid: " << white.error().message << "\n";
+    std::cerr << "lifmcr grid: " << EscapeText(white.error().message) << "\n";
     return 1;
   }
   const int w = white->width, h = white->height;
@@ -42,7 +43,7 @@ int RunGrid(const GridOptions& o) {
   if (have_file) {
     Expected<MlaCalibration> mla = ReadMlaXml(o.mla);
     if (!mla) {
-      std::cerr << "lifmcr grid: " << mla.error().message << "\n";
+      std::cerr << "lifmcr grid: " << EscapeText(mla.error().message) << "\n";
       return 1;
     }
     base = *mla;
@@ -52,7 +53,7 @@ int RunGrid(const GridOptions& o) {
       o.textured ? processing::FitGridToRawImage(white->View(), have_file ? &initial : nullptr)
                  : processing::FitGridToWhiteImage(white->View(), have_file ? &initial : nullptr);
   if (!fit) {
-    std::cerr << "lifmcr grid: " << o.white << ": " << fit.error().message << "\n";
+    std::cerr << "lifmcr grid: " << EscapeText(o.white) << ": " << EscapeText(fit.error().message) << "\n";
     return 1;
   }
   const processing::MlaGrid& grid = fit->grid;
@@ -104,7 +105,7 @@ int RunGrid(const GridOptions& o) {
   const std::string out =
       o.out.empty() ? std::filesystem::path(o.white).stem().string() + "_MLA.xml" : o.out;
   if (Status s = WriteMlaXml(out, refined); !s) {
-    std::cerr << "lifmcr grid: " << s.error().message << "\n";
+    std::cerr << "lifmcr grid: " << EscapeText(s.error().message) << "\n";
     return 1;
   }
   std::printf("wrote %s\n", out.c_str());

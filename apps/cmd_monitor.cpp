@@ -254,7 +254,7 @@ int RunMonitor(const Args& args) {
     url += std::string(url.find('?') == std::string::npos ? "?" : "&") + "recv_buf_size=4194304";
   lcm::LCM bus(url);
   if (!bus.good()) {
-    std::cerr << "lifmcr monitor: cannot open LCM '" << args.lcm_url << "'\n";
+    std::cerr << "lifmcr monitor: cannot open LCM '" << EscapeText(args.lcm_url) << "'\n";
     return 3;
   }
   Monitor monitor;

@@ -9,6 +9,7 @@
 #include "apps/pipeline/pipeline.h"
 #include "apps/pipeline/process_settings.h"
 #include "config/rig_config.h"
+#include "config/text_escape.h"
 #include "drivers/camera_factory.h"
 #include "drivers/replay_camera.h"
 #include "drivers/vicon_csv_source.h"
@@ -134,9 +135,9 @@ Expected<std::unique_ptr<Pipeline>> MakePublishPipeline(const RigConfig& rig, co
   FrameSetAssemblerOptions sync = FrameSetAssemblerOptions::FromRig(rig);
   PipelineOptions options = PipelineOptions::FromRig(rig);
   if (!args.lcm_url.empty()) options.publisher.url = args.lcm_url;
-  // The controller's assembler makes the FrameSets (one per run), unless
-  // --no-sync leaves it out: then the pipeline's own.
-  options.frame_sets_from_grab_loop = !args.no_sync;
+  // The controller's assembler makes the FrameSets (one per run; with
+  // --no-sync too, without Vicon association).
+  options.frame_sets_from_grab_loop = true;
   if (*live) (*live)->Configure(&options);
   return Pipeline::Create(sync, std::move(processor), options);
 }
@@ -156,7 +157,7 @@ int Run(const Args& args) {
 
   auto rig = LoadRigConfig(args.rig);
   if (!rig) {
-    std::cerr << "lifmcr record: " << rig.error().message << "\n";
+    std::cerr << "lifmcr record: " << EscapeText(rig.error().message) << "\n";
     return kExitUsage;
   }
   RecorderOptions options = RecorderOptions::FromRig(rig->recorder);
@@ -164,12 +165,12 @@ int Run(const Args& args) {
   options.scene = args.scene;
   options.sequence = args.sequence;
   if (options.root_dir.empty()) {
-    std::cerr << "lifmcr record: no output folder: give --out (or recorder.out_dir in " << args.rig
+    std::cerr << "lifmcr record: no output folder: give --out (or recorder.out_dir in " << EscapeText(args.rig)
               << ")\n";
     return kExitUsage;
   }
   if (Status s = options.Check(); !s) {
-    std::cerr << "lifmcr record: " << s.error().message << "\n";
+    std::cerr << "lifmcr record: " << EscapeText(s.error().message) << "\n";
     return kExitUsage;
   }
 
@@ -192,7 +193,7 @@ int Run(const Args& args) {
                                    : 0.0;
     auto camera = MakeCamera(config, static_cast<int>(i), factory);
     if (!camera) {
-      std::cerr << "lifmcr record: " << camera.error().message << "\n";
+      std::cerr << "lifmcr record: " << EscapeText(camera.error().message) << "\n";
       return kExitCannotStart;
     }
     cameras.push_back(std::move(*camera));
@@ -200,12 +201,12 @@ int Run(const Args& args) {
   }
   auto vicon = MakeViconSource(*rig);
   if (!vicon) {
-    std::cerr << "lifmcr record: " << vicon.error().message << "\n";
+    std::cerr << "lifmcr record: " << EscapeText(vicon.error().message) << "\n";
     return kExitCannotStart;
   }
   auto recorder = Recorder::Create(*rig, options);
   if (!recorder) {
-    std::cerr << "lifmcr record: " << recorder.error().message << "\n";
+    std::cerr << "lifmcr record: " << EscapeText(recorder.error().message) << "\n";
     return kExitCannotStart;
   }
   std::unique_ptr<Pipeline> pipeline;
@@ -216,28 +217,32 @@ int Run(const Args& args) {
     process_settings = ProcessSettings::ForPipeline();
     auto made = MakePublishPipeline(*rig, args, &live);
     if (!made) {
-      std::cerr << "lifmcr record: --publish: " << made.error().message << "\n";
+      std::cerr << "lifmcr record: --publish: " << EscapeText(made.error().message) << "\n";
       (*recorder)->Stop();
       return kExitCannotStart;
     }
     pipeline = std::move(*made);
     Pipeline* p = pipeline.get();
     // A copy of a Frame or FrameSet shares the pooled buffers (no pixel copy).
-    if (args.no_sync)
-      observer.on_frame = [p](int, std::int64_t, const Frame& frame) { p->AddFrame(frame); };
-    else
-      observer.on_frame_set = [p](const FrameSet& set) { p->AddFrameSet(set); };
+    observer.on_frame_set = [p](const FrameSet& set) { p->AddFrameSet(set); };
     observer.on_vicon = [p](const ViconFrame& frame) { p->AddVicon(frame); };
   }
   RigControllerOptions controller_options;
   controller_options.trigger_hz = rig->vicon.rate_hz / rig->vicon.trigger_divider;
   if (rig->vicon.source == ViconSourceKind::kUdp)
     controller_options.vicon_realtime_priority = RigControllerOptions::kLiveViconPriority;
-  if (!args.no_sync) controller_options.sync = FrameSetAssemblerOptions::FromRig(*rig);
+  for (const CameraConfig& camera : rig->cameras)
+    controller_options.device_clocks.push_back(camera.device_clock);
+  // The pipeline takes FrameSets, so --publish keeps the assembler even with
+  // --no-sync, which then only leaves the Vicon association out.
+  if (!args.no_sync || args.publish) {
+    controller_options.sync = FrameSetAssemblerOptions::FromRig(*rig);
+    if (args.no_sync) controller_options.sync->vicon_expected = false;
+  }
   RigController controller(std::move(cameras), std::move(software_trigger), std::move(*vicon),
                            recorder->get(), controller_options, observer);
   if (Status s = controller.Start(); !s) {
-    std::cerr << "lifmcr record: " << s.error().message << "\n";
+    std::cerr << "lifmcr record: " << EscapeText(s.error().message) << "\n";
     (*recorder)->Stop();
     return kExitCannotStart;
   }
@@ -352,7 +357,8 @@ CommandRun AddRecordCommand(CLI::App& app) {
   app.add_option("--extrinsics-csv", args->extrinsics_csv,
                  "With --reference: every published c0_from_cx as registration.csv rows");
   app.add_flag("--no-sync", args->no_sync,
-               "Leave the sync assembler out (no FrameSets, no Vicon f0 in the report)");
+               "Leave the sync assembler out (no FrameSets, no Vicon f0 in the report); "
+               "with --publish the FrameSets are still made, without Vicon frames");
   return [args] { return Run(*args); };
 }
 

@@ -17,6 +17,7 @@
 // truth instead of processing the raw frames.
 
 #include "apps/commands.h"
+#include "config/text_escape.h"
 #include "registration/evaluation_inputs.h"
 #include "registration/extrinsics.h"
 #include "registration/frame_observations.h"
@@ -64,7 +65,7 @@ struct RegisterOptions {
 };
 
 int Fail(const std::string& message, int code = 1) {
-  std::cerr << "lifmcr register: " << message << "\n";
+  std::cerr << "lifmcr register: " << EscapeText(message) << "\n";
   return code;
 }
 

@@ -3,6 +3,7 @@
 #include "apps/commands.h"
 #include "apps/pipeline/process_settings.h"
 #include "apps/pipeline/replay_runner.h"
+#include "config/text_escape.h"
 
 #include <CLI/CLI.hpp>
 
@@ -10,6 +11,8 @@
 #include <csignal>
 #include <iostream>
 #include <memory>
+#include <string>
+#include <vector>
 #include <unistd.h>
 
 namespace lifmcr::apps {
@@ -25,6 +28,7 @@ struct Args {
   std::string lcm_url;
   bool no_processing = false;
   int concurrency = 2;
+  std::vector<std::string> pixel_formats;
   std::string reference;
   std::vector<std::string> intrinsics;
   std::string extrinsics_csv;
@@ -35,10 +39,16 @@ struct Args {
 
 int RunReplayCommand(const std::string& sequence, const std::string& rate_text, bool loop,
                      const std::string& lcm_url, bool processing, int concurrency,
-                     const char* who, const ReplayRegistrationArgs& registration) {
+                     const char* who, const ReplayRegistrationArgs& registration,
+                     const std::vector<std::string>& pixel_formats) {
   auto rate = ReplayRate::Parse(rate_text);
   if (!rate) {
-    std::cerr << who << ": " << rate.error().message << "\n";
+    std::cerr << who << ": " << EscapeText(rate.error().message) << "\n";
+    return 2;
+  }
+  auto formats = ParsePixelFormatOptions(pixel_formats);
+  if (!formats) {
+    std::cerr << who << ": " << EscapeText(formats.error().message) << "\n";
     return 2;
   }
   g_stop = false;
@@ -53,6 +63,7 @@ int RunReplayCommand(const std::string& sequence, const std::string& rate_text, 
   options.pipeline.publisher.url = lcm_url;
   options.pipeline.max_concurrency = concurrency;
   options.stop = &g_stop;
+  options.pixel_formats = std::move(*formats);
   for (const std::string& file : registration.intrinsics) options.intrinsics.emplace_back(file);
   if (!registration.reference.empty()) {
     LiveRegistrationOptions live;
@@ -76,7 +87,7 @@ int RunReplayCommand(const std::string& sequence, const std::string& rate_text, 
   std::signal(SIGINT, SIG_DFL);
   std::signal(SIGTERM, SIG_DFL);
   if (!result) {
-    std::cerr << who << ": " << result.error().message << "\n";
+    std::cerr << who << ": " << EscapeText(result.error().message) << "\n";
     return 3;
   }
   std::cout << result->FinalReport();
@@ -87,7 +98,8 @@ int RunReplayCommand(const std::string& sequence, const std::string& rate_text, 
 int RunReplayCommand(const std::string& sequence, const std::string& rate_text, bool loop,
                      const std::string& lcm_url, bool processing, int concurrency,
                      const char* who) {
-  return RunReplayCommand(sequence, rate_text, loop, lcm_url, processing, concurrency, who, {});
+  return RunReplayCommand(sequence, rate_text, loop, lcm_url, processing, concurrency, who,
+                          ReplayRegistrationArgs{}, {});
 }
 
 CommandRun AddReplayCommand(CLI::App& app) {
@@ -110,6 +122,10 @@ CommandRun AddReplayCommand(CLI::App& app) {
       "is processed. A status line on stderr, the final report on stdout (frames in,\n"
       "processed, skipped, failed, published). Watch with `lifmcr monitor` or\n"
       "scripts/lcm-spy.sh.\n"
+      "--pixel-format: a LiFMCR dataset does not record its cameras' pixel format (the BMPs\n"
+      "are 8-bit grey); name Bayer cameras (BayerRG8 for every camera, or SERIAL=BayerRG8,\n"
+      "repeatable) and their mosaics are demosaiced: previews and the TF image in colour,\n"
+      "depth on luminance, as `lifmcr record --publish` does from the rig file.\n"
       "Reads: SEQ_DIR and the Calibration/ folder beside its scene (MLA files, white images\n"
       "when present), MAP_DIR and the --intrinsics files. Writes: the LCM channels above;\n"
       "the --extrinsics-csv file.\n"
@@ -126,6 +142,9 @@ CommandRun AddReplayCommand(CLI::App& app) {
   app.add_option("--concurrency", args->concurrency, "Frames processed at once")
       ->check(CLI::Range(1, 64))
       ->capture_default_str();
+  app.add_option("--pixel-format", args->pixel_formats,
+                 "[SERIAL=]FORMAT: the cameras' pixel format (Mono8, BGR8, BayerRG8, BayerGR8, "
+                 "BayerGB8, BayerBG8); without SERIAL, every camera's");
   app.add_option("--reference", args->reference,
                  "Reference map folder: live registration of every camera to its camera")
       ->check(CLI::ExistingDirectory);
@@ -141,7 +160,8 @@ CommandRun AddReplayCommand(CLI::App& app) {
     return RunReplayCommand(args->sequence, args->rate, args->loop, args->lcm_url,
                             !args->no_processing, args->concurrency, "lifmcr replay",
                             {args->reference, args->intrinsics, args->extrinsics_csv,
-                             args->rigid_mount});
+                             args->rigid_mount},
+                            args->pixel_formats);
   };
 }
 

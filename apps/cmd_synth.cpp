@@ -2,6 +2,7 @@
 // Parameters: the preset, then the --config YAML on top, then the flags.
 
 #include "apps/commands.h"
+#include "config/text_escape.h"
 #include "replay/synth/scene.h"
 #include "replay/synth/synth_params.h"
 #include "replay/synth/synth_writer.h"
@@ -38,13 +39,13 @@ struct SynthOptions {
 int RunSynth(const SynthOptions& o) {
   Expected<synth::SynthParams> params = synth::MakePreset(o.preset);
   if (!params) {
-    std::cerr << "lifmcr synth: --preset: " << params.error().message << "\n";
+    std::cerr << "lifmcr synth: --preset: " << EscapeText(params.error().message) << "\n";
     return 2;
   }
   if (!o.config.empty()) {
     params = synth::LoadSynthConfig(o.config, *params);
     if (!params) {
-      std::cerr << "lifmcr synth: " << params.error().message << "\n";
+      std::cerr << "lifmcr synth: " << EscapeText(params.error().message) << "\n";
       return 2;
     }
   }
@@ -57,7 +58,7 @@ int RunSynth(const SynthOptions& o) {
   if (o.seed) params->rig.seed = *o.seed;
   if (o.no_images) params->rig.images = false;
   if (Status s = params->Check(); !s) {
-    std::cerr << "lifmcr synth: " << s.error().message << "\n";
+    std::cerr << "lifmcr synth: " << EscapeText(s.error().message) << "\n";
     return 2;
   }
   // Progress: the writer's lines (white images, each frame rendered) and,
@@ -97,7 +98,7 @@ int RunSynth(const SynthOptions& o) {
     heartbeat.join();
   }
   if (!summary) {
-    std::cerr << "lifmcr synth: " << summary.error().message << "\n";
+    std::cerr << "lifmcr synth: " << EscapeText(summary.error().message) << "\n";
     return 1;
   }
   std::cout << summary->BriefReport() << "\n";

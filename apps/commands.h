@@ -44,8 +44,10 @@ struct ReplayRegistrationArgs {
 int RunReplayCommand(const std::string& sequence, const std::string& rate_text, bool loop,
                      const std::string& lcm_url, bool processing, int concurrency,
                      const char* who);
+// pixel_formats: `--pixel-format` values ([SERIAL=]FORMAT).
 int RunReplayCommand(const std::string& sequence, const std::string& rate_text, bool loop,
                      const std::string& lcm_url, bool processing, int concurrency,
-                     const char* who, const ReplayRegistrationArgs& registration);
+                     const char* who, const ReplayRegistrationArgs& registration,
+                     const std::vector<std::string>& pixel_formats = {});
 
 }  // namespace lifmcr::apps

@@ -2,6 +2,7 @@
 
 #include "apps/commands.h"
 #include "apps/logging.h"
+#include "config/text_escape.h"
 
 #include <CLI/CLI.hpp>
 
@@ -61,10 +62,14 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     // --help and --version exit 0; every usage error exits 2, whatever CLI11's own code.
-    return app.exit(e) == 0 ? 0 : 2;
+    if (e.get_exit_code() == 0) return app.exit(e);
+    // CLI11's own failure message, with the argument it quotes escaped
+    // (config/text_escape.h): an argument is text from the user's shell or a script.
+    std::cerr << lifmcr::EscapeText(e.what()) << "\nRun with --help for more information.\n";
+    return 2;
   }
   if (lifmcr::Status s = lifmcr::apps::ConfigureLogging(log_level, log_file); !s) {
-    std::cerr << "lifmcr: " << s.error().message << "\n";
+    std::cerr << "lifmcr: " << lifmcr::EscapeText(s.error().message) << "\n";
     return 2;
   }
   for (auto& [sub, run] : commands)

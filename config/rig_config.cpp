@@ -206,6 +206,7 @@ std::optional<ConfigIssue> CheckCamera(const std::string& at, const CameraConfig
   if (!aravis && camera.socket_buffer_bytes != 0)
     return ConfigIssue{at + "/socket_buffer", "only the aravis driver takes a socket_buffer"};
   if (auto issue = CheckText(at + "/vicon_object", camera.vicon_object, false)) return issue;
+  if (auto issue = CheckText(at + "/device_clock", camera.device_clock, false)) return issue;
   return std::nullopt;
 }
 
@@ -390,6 +391,7 @@ CameraConfig ReadCamera(const YamlNode& node, const fs::path& base_dir, YamlErro
   map.Read("packet_size", &camera.packet_size_bytes, kOptional);
   ReadSocketBuffer(map, &camera.socket_buffer_bytes);
   map.Read("vicon_object", &camera.vicon_object, kOptional);
+  map.Read("device_clock", &camera.device_clock, kOptional);
   map.Finish();
   return camera;
 }
@@ -628,6 +630,8 @@ std::string FormatRigConfig(const RigConfig& rig) {
                                             : std::to_string(camera.socket_buffer_bytes))
         << "\n";
     out << "    vicon_object: " << Yq(camera.vicon_object) << "\n";
+    if (!camera.device_clock.empty())
+      out << "    device_clock: " << Yq(camera.device_clock) << "\n";
   }
   const ViconConfig& vicon = rig.vicon;
   out << "vicon:\n  source: " << ToString(vicon.source) << "\n";

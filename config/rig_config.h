@@ -115,6 +115,11 @@ struct CameraConfig {
   int packet_size_bytes = 0;             // aravis GigE packet size; 0 = negotiate
   std::int64_t socket_buffer_bytes = 0;  // aravis GigE socket buffer; 0 = auto (payload size)
   std::string vicon_object;              // object name in the Vicon stream/CSV; empty = not tracked
+  // The clock its frames' device timestamps are on: cameras naming the same
+  // clock (PTP-synchronised, stamped by one frame grabber) are placed on the
+  // trigger count against each other by device time; empty = the driver's
+  // own (a clock of the camera's own, or the sequence's for replay).
+  std::string device_clock;
   bool operator==(const CameraConfig&) const = default;
 };
 

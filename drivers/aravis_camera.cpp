@@ -19,12 +19,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-std::int64_t RealtimeNs() {
-  timespec now{};
-  clock_gettime(CLOCK_REALTIME, &now);
-  return static_cast<std::int64_t>(now.tv_sec) * 1'000'000'000 + now.tv_nsec;
-}
-
 FrameStatus MapStatus(ArvBufferStatus status) {
   switch (status) {
     case ARV_BUFFER_STATUS_SUCCESS:
@@ -97,8 +91,6 @@ struct AravisCamera::Impl {
   Clock::time_point last_reconnect_try{};
   Clock::time_point last_activity{};  // last frame, open or probe
   int consecutive_failures = 0;
-  bool frame_since_reconnect = false;
-  std::int64_t last_frame_host_ns = 0;
   // Underruns, in frames. Aravis's n_underruns counts frames on the Fake
   // camera and USB3 Vision but packets on GigE Vision, where each packet
   // that finds no buffer counts; so the driver counts frames itself: the id
@@ -124,7 +116,7 @@ struct AravisCamera::Impl {
   CameraStats stats;
   CameraStats closed_streams;  // counters of streams already destroyed
   CameraInfo info;
-  std::vector<CameraGap> gaps;
+  CameraGapLog gap_log;  // lost, back, first frame after (camera_gap.h)
 
   std::string DeviceName() const {
     return config.driver.address.empty() ? config.serial : config.driver.address;
@@ -367,16 +359,7 @@ void AravisCamera::Impl::Disconnect() {
 
 void AravisCamera::Impl::MarkLost(const std::string& reason) {
   if (lost.load()) return;
-  CameraGap gap;
-  gap.lost_host_ns = RealtimeNs();
-  gap.had_frame_before = ids.last().has_value();
-  gap.last_frame_id_before = ids.last().value_or(0);
-  gap.last_frame_host_ns = last_frame_host_ns;
-  gap.reason = reason;
-  {
-    std::lock_guard<std::mutex> lock(stats_mutex);
-    gaps.push_back(gap);
-  }
+  gap_log.Lost(reason, ids.last());
   lost_reason = reason;
   lost_reported = false;
   lost.store(true);
@@ -436,16 +419,7 @@ Frame AravisCamera::Impl::MakeFrame(ArvBuffer* buffer) {
         gap > 0 ? gap : (new_units + underrun_units_per_frame - 1) / underrun_units_per_frame;
     missing = 0;
   }
-  last_frame_host_ns = frame.host_ns;
-  if (!frame_since_reconnect) {
-    frame_since_reconnect = true;
-    std::lock_guard<std::mutex> lock(stats_mutex);
-    if (!gaps.empty() && gaps.back().back_host_ns != 0 && !gaps.back().had_frame_after) {
-      gaps.back().had_frame_after = true;
-      gaps.back().first_frame_id_after = frame.frame_id;
-      gaps.back().first_frame_host_ns = frame.host_ns;
-    }
-  }
+  gap_log.OnFrame(frame.frame_id, frame.host_ns);
   consecutive_failures = frame.status == FrameStatus::kOk ? 0 : consecutive_failures + 1;
   std::lock_guard<std::mutex> lock(stats_mutex);
   stats.missing_ids += missing;
@@ -535,12 +509,11 @@ Expected<std::optional<Frame>> AravisCamera::NextFrame(std::chrono::milliseconds
       }
     }
     d.lost.store(false);
-    d.frame_since_reconnect = false;
+    d.gap_log.Back();
     d.consecutive_failures = 0;
     {
       std::lock_guard<std::mutex> lock(d.stats_mutex);
       ++d.stats.reconnects;
-      if (!d.gaps.empty()) d.gaps.back().back_host_ns = RealtimeNs();
     }
   }
 
@@ -619,8 +592,7 @@ CameraStats AravisCamera::Stats() const {
 }
 
 std::vector<CameraGap> AravisCamera::Gaps() const {
-  std::lock_guard<std::mutex> lock(impl_->stats_mutex);
-  return impl_->gaps;
+  return impl_->gap_log.gaps();
 }
 
 bool AravisCamera::IsLost() const { return impl_->lost.load(); }
@@ -628,14 +600,8 @@ bool AravisCamera::IsLost() const { return impl_->lost.load(); }
 Expected<std::string> AravisCamera::FeatureValue(const std::string& feature) const {
   Impl& d = *impl_;
   std::lock_guard<std::mutex> lock(d.control_mutex);
-  if (d.camera == nullptr) return d.Fail("reading " + feature + ": the device is not open");
-  ArvGcNode* node = arv_device_get_feature(arv_camera_get_device(d.camera), feature.c_str());
-  if (node == nullptr || !ARV_IS_GC_FEATURE_NODE(node))
-    return d.Fail("reading " + feature + ": no such feature");
-  GError* error = nullptr;
-  const char* value = arv_gc_feature_node_get_value_as_string(ARV_GC_FEATURE_NODE(node), &error);
-  if (error != nullptr) return d.Fail("reading " + feature + ": " + TakeMessage(error));
-  return std::string(value != nullptr ? value : "");
+  return ReadArvFeature(d.camera == nullptr ? nullptr : arv_camera_get_device(d.camera), feature,
+                        d.label);
 }
 
 }  // namespace lifmcr

@@ -112,4 +112,16 @@ Expected<ArvRegion> ApplyArvCameraSettings(ArvCamera* camera, const CameraConfig
   return ArvRegion{x, y, width, height};
 }
 
+Expected<std::string> ReadArvFeature(ArvDevice* device, const std::string& feature,
+                                     const std::string& label) {
+  const std::string what = label + ": reading " + feature + ": ";
+  if (device == nullptr) return Error{what + "the device is not open"};
+  ArvGcNode* node = arv_device_get_feature(device, feature.c_str());
+  if (node == nullptr || !ARV_IS_GC_FEATURE_NODE(node)) return Error{what + "no such feature"};
+  GError* error = nullptr;
+  const char* value = arv_gc_feature_node_get_value_as_string(ARV_GC_FEATURE_NODE(node), &error);
+  if (error != nullptr) return Error{what + TakeMessage(error)};
+  return std::string(value != nullptr ? value : "");
+}
+
 }  // namespace lifmcr

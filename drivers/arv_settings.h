@@ -34,6 +34,12 @@ struct ArvRegion {
 Expected<ArvRegion> ApplyArvCameraSettings(ArvCamera* camera, const CameraConfig& config,
                                            double free_run_rate_hz, const std::string& label);
 
+// A feature's current value as text, read through the device's node map;
+// an error (labelled) when the device is not open (null), has no such
+// feature or cannot read it.
+Expected<std::string> ReadArvFeature(ArvDevice* device, const std::string& feature,
+                                     const std::string& label);
+
 // Takes ownership of a GError and turns it into text.
 std::string TakeMessage(GError* error);
 

@@ -27,6 +27,11 @@ struct CameraInfo {
   int height = 0;
   PixelFormat format = PixelFormat::kMono8;
   std::size_t payload_bytes = 0;
+  // The clock Frame::device_ns is on, when other cameras may share it (the
+  // same name: device times compare, sync/first_frame_placement.h); empty:
+  // a clock of this camera's own. The rig file's cameras[].device_clock
+  // overrides it (PTP, one frame grabber's timestamps).
+  std::string device_clock;
 };
 
 // Counters since Open. Every frame the camera produced (or should have, by

@@ -1,5 +1,6 @@
 #include "drivers/camera_gap.h"
 
+#include <chrono>
 #include <cstdio>
 
 namespace lifmcr {
@@ -33,6 +34,45 @@ std::string CameraGap::Describe() const {
   text += " -> ";
   text += had_frame_after ? std::to_string(first_frame_id_after) : std::string("none yet");
   return text;
+}
+
+void CameraGapLog::Lost(const std::string& reason, std::optional<std::uint64_t> last_frame_id) {
+  CameraGap gap;
+  gap.lost_host_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                         std::chrono::system_clock::now().time_since_epoch())
+                         .count();
+  gap.had_frame_before = last_frame_id.has_value();
+  gap.last_frame_id_before = last_frame_id.value_or(0);
+  gap.reason = reason;
+  std::lock_guard<std::mutex> lock(mutex_);
+  gap.last_frame_host_ns = last_frame_host_ns_;
+  gaps_.push_back(gap);
+}
+
+void CameraGapLog::Back() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  frame_since_back_ = false;
+  if (!gaps_.empty())
+    gaps_.back().back_host_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                    std::chrono::system_clock::now().time_since_epoch())
+                                    .count();
+}
+
+void CameraGapLog::OnFrame(std::uint64_t frame_id, std::int64_t host_ns) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  last_frame_host_ns_ = host_ns;
+  if (frame_since_back_) return;
+  frame_since_back_ = true;
+  if (!gaps_.empty() && gaps_.back().back_host_ns != 0 && !gaps_.back().had_frame_after) {
+    gaps_.back().had_frame_after = true;
+    gaps_.back().first_frame_id_after = frame_id;
+    gaps_.back().first_frame_host_ns = host_ns;
+  }
+}
+
+std::vector<CameraGap> CameraGapLog::gaps() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return gaps_;
 }
 
 }  // namespace lifmcr

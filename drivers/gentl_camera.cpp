@@ -102,8 +102,6 @@ struct GenTlCamera::Impl {
   Clock::time_point last_reconnect_try{};
   Clock::time_point last_activity{};
   int consecutive_failures = 0;
-  bool frame_since_reconnect = false;
-  std::int64_t last_frame_host_ns = 0;
   // Underruns (frames lost for lack of a queued buffer) already set against
   // frame id gaps, over every stream; and how many of this stream's
   // NUM_UNDERRUN that accounts for. The rest are pending: they happened
@@ -119,7 +117,7 @@ struct GenTlCamera::Impl {
   mutable std::mutex stats_mutex;
   CameraStats stats;
   CameraInfo info;
-  std::vector<CameraGap> gaps;
+  CameraGapLog gap_log;  // lost, back, first frame after (camera_gap.h)
 
   std::string Wanted() const {
     return config.driver.device.empty() ? config.serial : config.driver.device;
@@ -503,16 +501,7 @@ void GenTlCamera::Impl::Disconnect() {
 
 void GenTlCamera::Impl::MarkLost(const std::string& reason) {
   if (lost.load()) return;
-  CameraGap gap;
-  gap.lost_host_ns = RealtimeNs();
-  gap.had_frame_before = ids.last().has_value();
-  gap.last_frame_id_before = ids.last().value_or(0);
-  gap.last_frame_host_ns = last_frame_host_ns;
-  gap.reason = reason;
-  {
-    std::lock_guard<std::mutex> lock(stats_mutex);
-    gaps.push_back(gap);
-  }
+  gap_log.Lost(reason, ids.last());
   lost_reason = reason;
   lost_reported = false;
   lost.store(true);
@@ -635,17 +624,9 @@ Frame GenTlCamera::Impl::MakeFrame(BUFFER_HANDLE buffer, void* user_pointer, std
   underruns_at_last_frame += attributed;
   const std::uint64_t missing = gap - attributed;
   const std::uint64_t pending = PendingUnderruns();
-  last_frame_host_ns = frame.host_ns;
+  gap_log.OnFrame(frame.frame_id, frame.host_ns);
   consecutive_failures = frame.status == FrameStatus::kOk ? 0 : consecutive_failures + 1;
   std::lock_guard<std::mutex> lock(stats_mutex);
-  if (!frame_since_reconnect) {
-    frame_since_reconnect = true;
-    if (!gaps.empty() && gaps.back().back_host_ns != 0 && !gaps.back().had_frame_after) {
-      gaps.back().had_frame_after = true;
-      gaps.back().first_frame_id_after = frame.frame_id;
-      gaps.back().first_frame_host_ns = frame.host_ns;
-    }
-  }
   stats.missing_ids += missing;
   stats.underruns = underrun_frames + pending;
   stats.transferred_bytes += has_filled ? filled : payload_bytes;
@@ -741,11 +722,10 @@ Expected<std::optional<Frame>> GenTlCamera::NextFrame(std::chrono::milliseconds 
       }
     }
     d.lost.store(false);
-    d.frame_since_reconnect = false;
+    d.gap_log.Back();
     d.consecutive_failures = 0;
     std::lock_guard<std::mutex> lock(d.stats_mutex);
     ++d.stats.reconnects;
-    if (!d.gaps.empty()) d.gaps.back().back_host_ns = RealtimeNs();
   }
 
   const Functions& fn = d.producer->fn();
@@ -813,24 +793,14 @@ CameraStats GenTlCamera::Stats() const {
   return impl_->stats;
 }
 
-std::vector<CameraGap> GenTlCamera::Gaps() const {
-  std::lock_guard<std::mutex> lock(impl_->stats_mutex);
-  return impl_->gaps;
-}
+std::vector<CameraGap> GenTlCamera::Gaps() const { return impl_->gap_log.gaps(); }
 
 bool GenTlCamera::IsLost() const { return impl_->lost.load(); }
 
 Expected<std::string> GenTlCamera::FeatureValue(const std::string& feature) const {
   Impl& d = *impl_;
   std::lock_guard<std::mutex> lock(d.control_mutex);
-  if (d.arv_device == nullptr) return d.Fail("reading " + feature + ": the device is not open");
-  ArvGcNode* node = arv_device_get_feature(d.arv_device, feature.c_str());
-  if (node == nullptr || !ARV_IS_GC_FEATURE_NODE(node))
-    return d.Fail("reading " + feature + ": no such feature");
-  GError* error = nullptr;
-  const char* value = arv_gc_feature_node_get_value_as_string(ARV_GC_FEATURE_NODE(node), &error);
-  if (error != nullptr) return d.Fail("reading " + feature + ": " + TakeMessage(error));
-  return std::string(value != nullptr ? value : "");
+  return ReadArvFeature(d.arv_device, feature, d.label);
 }
 
 }  // namespace lifmcr

@@ -107,6 +107,9 @@ Status ReplayCamera::Open() {
     s.info.height = header->height;
     s.info.format = header->format;
     s.info.payload_bytes = payload;
+    // device_ns = frame number * trigger period on every camera of the
+    // sequence: one clock.
+    s.info.device_clock = "replay:" + s.folder.dir.parent_path().lexically_normal().string();
   }
   s.opened = true;
   s.cursor = 0;

@@ -11,7 +11,8 @@
 //              from the folder is a gap in frame_id, counted in missing_ids
 //              (downstream sees the same drop as from the camera);
 //   device_ns  frame number * trigger_period: the trigger time on a device
-//              clock that started at frame 0;
+//              clock that started at frame 0, one clock for every camera of
+//              the sequence (CameraInfo::device_clock names it);
 //   host_ns    CLOCK_REALTIME when the frame was delivered;
 //   status     kOk, or kError (counted as failed, no buffer and an empty
 //              image) when the file cannot be read: truncated, not a BMP, or

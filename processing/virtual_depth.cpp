@@ -241,6 +241,11 @@ Status DepthOptions::Check() const {
   // A divisor of the confidence (virtual_depth.h, step 4).
   if (!(max_rel_sigma > 0 && max_rel_sigma <= 10))
     return Error{"depth options: max_rel_sigma: expected in (0, 10]"};
+  if (fill_min_support < 0) return Error{"depth options: fill_min_support: expected >= 0"};
+  if (fill_radius_px < 0 || fill_radius_px > 64)
+    return Error{"depth options: fill_radius_px: expected 0 (whole micro image)..64"};
+  if (!(fill_max_spread > 0 && fill_max_spread <= 1))
+    return Error{"depth options: fill_max_spread: expected in (0, 1]"};
   // type_ranges: any value.
   return Status::Ok();
 }
@@ -249,9 +254,10 @@ std::string DepthStats::BriefReport() const {
   char buf[256];
   std::snprintf(
       buf, sizeof buf,
-      "virtual depth: %lld of %lld textured pixels (%.1f %%; %lld valid), %lld rejected, %.3f s",
+      "virtual depth: %lld of %lld textured pixels (%.1f %%; %lld valid), %lld rejected, "
+      "%lld untextured filled, %.3f s",
       estimated, textured_pixels, textured_pixels ? 100.0 * estimated / textured_pixels : 0.0,
-      valid_pixels, rejected, seconds);
+      valid_pixels, rejected, filled, seconds);
   return buf;
 }
 
@@ -283,7 +289,16 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       options.search_stride != 0 ? options.search_stride : (f.grid.PitchPx() >= 24 ? 2 : 1);
   const Search search{f, options, lambda, static_cast<int>(std::lround(1.0 / options.step_px))};
   std::vector<long long> textured_count(f.lenses.size(), 0), valid_count(f.lenses.size(), 0),
-      estimated_count(f.lenses.size(), 0), rejected_count(f.lenses.size(), 0);
+      estimated_count(f.lenses.size(), 0), rejected_count(f.lenses.size(), 0),
+      filled_count(f.lenses.size(), 0);
+  // Per micro image, its agreeing estimates' inverse-variance sums (step 5's
+  // second part fills micro images without estimates from their ring 1).
+  struct SurfaceSums {
+    double w = 0, wz = 0, wzz = 0;
+    int n = 0;
+  };
+  std::vector<SurfaceSums> lens_sums(f.lenses.size());
+  std::vector<std::uint8_t> lens_has_depth(f.lenses.size(), 0);
 
   tbb::parallel_for(0, static_cast<int>(f.lenses.size()), [&](int k) {
     const MicroImage& lens = f.lenses[k];
@@ -323,7 +338,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     // and its textured pixels, for the regularisation below.
     std::vector<float> patch_z(static_cast<std::size_t>(bw) * bh, kNaN);
     std::vector<float> patch_sigma(patch_z.size(), kNaN);
-    std::vector<int> textured_pixels;
+    std::vector<int> textured_pixels, untextured_pixels;
     // Per local pixel: searched (a checkerboard pixel was not) and failed.
     std::vector<std::uint8_t> search_failed(patch_z.size(), 0);
     float ref[kSamples];
@@ -351,7 +366,10 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
           const float g = std::abs(gx * nbs[m].e_x + gy * nbs[m].e_y);
           if (g >= options.min_gradient_dn) order[gated++] = {g, m};
         }
-        if (gated == 0) continue;
+        if (gated == 0) {
+          untextured_pixels.push_back((y - y0) * bw + (x - x0));
+          continue;
+        }
         out->textured[idx] = 1;
         ++textured_count[k];
         const int local = (y - y0) * bw + (x - x0);
@@ -437,11 +455,12 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     // O(1) per pixel.
     const int rad = options.smooth_radius_px;
     const int sw_ = bw + 1;  // summed-area tables are (bw + 1) x (bh + 1)
-    std::vector<double> sat_w(static_cast<std::size_t>(sw_) * (bh + 1)), sat_wz(sat_w.size());
+    std::vector<double> sat_w(static_cast<std::size_t>(sw_) * (bh + 1)), sat_wz(sat_w.size()),
+        sat_wzz(sat_w.size());
     std::vector<std::int32_t> sat_n(sat_w.size());
     auto build = [&](auto weight_of) {
       for (int ly = 0; ly < bh; ++ly) {
-        double row_w = 0, row_wz = 0;
+        double row_w = 0, row_wz = 0, row_wzz = 0;
         std::int32_t row_n = 0;
         for (int lx = 0; lx < bw; ++lx) {
           const std::size_t i = static_cast<std::size_t>(ly) * bw + lx;
@@ -449,28 +468,31 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
           if (wgt > 0) {
             row_w += wgt;
             row_wz += wgt * patch_z[i];
+            row_wzz += wgt * patch_z[i] * patch_z[i];
             ++row_n;
           }
           const std::size_t o = static_cast<std::size_t>(ly + 1) * sw_ + lx + 1;
           sat_w[o] = sat_w[o - sw_] + row_w;
           sat_wz[o] = sat_wz[o - sw_] + row_wz;
+          sat_wzz[o] = sat_wzz[o - sw_] + row_wzz;
           sat_n[o] = sat_n[o - sw_] + row_n;
         }
       }
     };
     struct WindowSum {
-      double w, wz;
+      double w, wz, wzz;
       int n;
     };
-    auto window = [&](int lx, int ly) {
-      const int xa = std::max(0, lx - rad), xb = std::min(bw, lx + rad + 1);
-      const int ya = std::max(0, ly - rad), yb = std::min(bh, ly + rad + 1);
+    auto window = [&](int lx, int ly, int radius) {
+      const int xa = std::max(0, lx - radius), xb = std::min(bw, lx + radius + 1);
+      const int ya = std::max(0, ly - radius), yb = std::min(bh, ly + radius + 1);
       const std::size_t i11 = static_cast<std::size_t>(yb) * sw_ + xb;
       const std::size_t i01 = static_cast<std::size_t>(ya) * sw_ + xb;
       const std::size_t i10 = static_cast<std::size_t>(yb) * sw_ + xa;
       const std::size_t i00 = static_cast<std::size_t>(ya) * sw_ + xa;
       return WindowSum{sat_w[i11] - sat_w[i01] - sat_w[i10] + sat_w[i00],
                        sat_wz[i11] - sat_wz[i01] - sat_wz[i10] + sat_wz[i00],
+                       sat_wzz[i11] - sat_wzz[i01] - sat_wzz[i10] + sat_wzz[i00],
                        sat_n[i11] - sat_n[i01] - sat_n[i10] + sat_n[i00]};
     };
     auto agrees = [](double z, double sigma, double mean) {
@@ -485,7 +507,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       for (int lx = 0; lx < bw; ++lx) {
         const std::size_t i = static_cast<std::size_t>(ly) * bw + lx;
         if (std::isnan(patch_z[i])) continue;
-        const WindowSum ws = window(lx, ly);
+        const WindowSum ws = window(lx, ly, rad);
         inlier[i] = agrees(patch_z[i], patch_sigma[i], ws.wz / ws.w);
       }
     // Pass 2: the means over the agreeing estimates.
@@ -498,7 +520,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       const int lx = local % bw, ly = local / bw;
       const float own_z = patch_z[local], own_sigma = patch_sigma[local];
       const bool searched = !std::isnan(own_z);
-      const WindowSum ws = window(lx, ly);
+      const WindowSum ws = window(lx, ly, rad);
       if (ws.n < options.min_support || (searched && !inlier[local])) {
         rejected_count[k] += searched;
         continue;
@@ -520,7 +542,86 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
           static_cast<float>(std::clamp(1.0 - (sigma / z) / options.max_rel_sigma, 0.0, 1.0));
       ++estimated_count[k];
     }
+    {
+      const WindowSum all = window(0, 0, bw + bh);
+      lens_sums[k] = SurfaceSums{all.w, all.wz, all.wzz, all.n};
+      lens_has_depth[k] = estimated_count[k] > 0;
+    }
+    // Untextured pixels (step 5 in virtual_depth.h): the search has nothing
+    // to match there, but a micro image images a small patch of the scene, so
+    // where the agreeing estimates around a pixel (pass 2's inliers) are many
+    // and lie on one depth, the pixel sees that surface too.
+    if (options.fill_min_support > 0) {
+      // A textured pixel whose own search failed (no distinct minimum) is
+      // filled alike: its surface is the one around it.
+      for (const int local : textured_pixels)
+        if (search_failed[local] || (std::isnan(patch_z[local]) && !inlier[local]))
+          untextured_pixels.push_back(local);
+      const int fill_radius = options.fill_radius_px > 0 ? options.fill_radius_px : bw + bh;
+      for (const int local : untextured_pixels) {
+        const std::size_t at = static_cast<std::size_t>(y0 + local / bw) * w + (x0 + local % bw);
+        if (!std::isnan(out->virtual_depth[at])) continue;
+        const WindowSum ws = window(local % bw, local / bw, fill_radius);
+        if (ws.n < options.fill_min_support) continue;
+        const double z = ws.wz / ws.w;
+        const double spread2 = std::max(0.0, ws.wzz / ws.w - z * z);
+        if (spread2 > options.fill_max_spread * options.fill_max_spread * z * z) continue;
+        // As uncertain as one supporting estimate (their harmonic mean
+        // sigma), or as their spread where that is larger: the supports are
+        // not independent views of this pixel's point.
+        const double sigma = std::sqrt(std::max(ws.n / ws.w, spread2));
+        out->virtual_depth[at] = static_cast<float>(1.0 / z);
+        out->sigma_z[at] = static_cast<float>(sigma);
+        out->confidence[at] =
+            static_cast<float>(std::clamp(1.0 - (sigma / z) / options.max_rel_sigma, 0.0, 1.0));
+        ++filled_count[k];
+        lens_has_depth[k] = 1;
+      }
+    }
   });
+  // Micro images without any depth whose ring-1 neighbours' agreeing
+  // estimates lie on one surface: with v > 2 neighbouring micro images image
+  // overlapping patches of the scene, so the surface they agree on covers
+  // this one too. Reads only the first pass's sums, writes only its own
+  // micro image's pixels.
+  if (options.fill_min_support > 0 && options.fill_from_neighbours) {
+    tbb::parallel_for(0, static_cast<int>(f.lenses.size()), [&](int k) {
+      if (lens_has_depth[k] || valid_count[k] == 0) return;
+      const MicroImage& lens = f.lenses[k];
+      SurfaceSums sum;
+      int contributing = 0;
+      for (const auto& d : kRing1) {
+        const int idx = f.LensAt(lens.i + d[0], lens.j + d[1]);
+        if (idx < 0 || lens_sums[idx].n < options.fill_min_support) continue;
+        ++contributing;
+        sum.w += lens_sums[idx].w;
+        sum.wz += lens_sums[idx].wz;
+        sum.wzz += lens_sums[idx].wzz;
+        sum.n += lens_sums[idx].n;
+      }
+      if (contributing < 3) return;  // a surface seen around it, not beside it
+      const double z = sum.wz / sum.w;
+      const double spread2 = std::max(0.0, sum.wzz / sum.w - z * z);
+      if (spread2 > options.fill_max_spread * options.fill_max_spread * z * z) return;
+      const double sigma = std::sqrt(std::max(sum.n / sum.w, spread2));
+      const float conf =
+          static_cast<float>(std::clamp(1.0 - (sigma / z) / options.max_rel_sigma, 0.0, 1.0));
+      const double r = f.radius_px;
+      const int x0 = std::max(0, static_cast<int>(std::floor(lens.centre_px.x() - r)));
+      const int x1 = std::min(w - 1, static_cast<int>(std::ceil(lens.centre_px.x() + r)));
+      const int y0 = std::max(0, static_cast<int>(std::floor(lens.centre_px.y() - r)));
+      const int y1 = std::min(h - 1, static_cast<int>(std::ceil(lens.centre_px.y() + r)));
+      for (int y = y0; y <= y1; ++y)
+        for (int x = x0; x <= x1; ++x) {
+          const std::size_t at = static_cast<std::size_t>(y) * w + x;
+          if (f.lens_of_pixel[at] != k || std::isnan(f.grey[at])) continue;
+          out->virtual_depth[at] = static_cast<float>(1.0 / z);
+          out->sigma_z[at] = static_cast<float>(sigma);
+          out->confidence[at] = conf;
+          ++filled_count[k];
+        }
+    });
+  }
   DepthStats& st = out->stats;
   st = DepthStats{};
   for (std::size_t k = 0; k < f.lenses.size(); ++k) {
@@ -528,6 +629,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     st.textured_pixels += textured_count[k];
     st.estimated += estimated_count[k];
     st.rejected += rejected_count[k];
+    st.filled += filled_count[k];
   }
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return Status::Ok();

@@ -40,6 +40,18 @@
 //    between them get the same regularised value (a pixel whose own search
 //    failed gets none). confidence =
 //    clamp(1 - (sigma_z / z) / max_rel_sigma, 0, 1).
+// 5. Untextured pixels (fill_min_support > 0): where the window of step 4
+//    around an untextured pixel of the micro image holds at least
+//    fill_min_support agreeing estimates whose inverse-variance spread in z
+//    is within fill_max_spread of their mean (one surface, no depth edge),
+//    the pixel gets that mean, with sigma the larger of the estimates'
+//    harmonic-mean sigma and their spread; `textured` stays 0 there, so a
+//    consumer can tell searched from filled pixels. Textured pixels whose
+//    search failed are filled alike. With fill_from_neighbours, a micro
+//    image left without any depth takes, by the same rule, the surface its
+//    ring-1 neighbours' estimates agree on (at least 3 of them contributing
+//    fill_min_support each): for v > 2 neighbouring micro images image
+//    overlapping patches of the scene.
 // Work is parallel over micro images (TBB); each pixel is written once.
 
 #include "config/error.h"
@@ -70,6 +82,13 @@ struct DepthOptions {
   double max_cost_ratio = 0.5;  // best SSD <= ratio * mean SSD of the search (+ noise)
   double max_rel_sigma = 0.1;   // sigma_z / z above this: rejected
   bool type_ranges = false;     // search only the lens type's sharp range; else the union
+  int fill_min_support = 8;     // step 5: agreeing estimates to fill an untextured pixel; 0 off
+  // Step 5: their largest spread, SD(z) / z: step 4's agreement tolerance, so
+  // a micro image's estimates with the estimator's own noise pass and two
+  // surfaces (a depth edge) do not.
+  double fill_max_spread = 0.05;
+  int fill_radius_px = 0;       // step 5: half-size of the support window; 0 the whole micro image
+  bool fill_from_neighbours = true;  // step 5: micro images without depth from their ring 1
   Status Check() const;
 };
 
@@ -78,6 +97,7 @@ struct DepthStats {
   long long textured_pixels = 0;  // with gradient >= min_gradient in some ring-1 direction
   long long estimated = 0;        // with a fused value
   long long rejected = 0;         // by the consistency check
+  long long filled = 0;           // untextured pixels given their surface's depth (step 5)
   double seconds = 0;
   std::string BriefReport() const;
 };

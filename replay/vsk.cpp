@@ -49,7 +49,7 @@ class Reader {
 
     const XMLElement* skeleton = nullptr;
     LIFMCR_XML_ASSIGN_OR_RETURN(skeleton, xml::OptionalUniqueChild(label_, root, "Skeleton"));
-    if (skeleton != nullptr) LIFMCR_XML_RETURN_IF_ERROR(ReadSegments(skeleton, ""));
+    if (skeleton != nullptr) LIFMCR_XML_RETURN_IF_ERROR(ReadSegments(skeleton, "", 1));
 
     const XMLElement* marker_set = nullptr;
     LIFMCR_XML_ASSIGN_OR_RETURN(marker_set, xml::OptionalUniqueChild(label_, root, "MarkerSet"));
@@ -139,8 +139,16 @@ class Reader {
   }
 
   // Pre-order walk, so parents come before their children.
-  Status ReadSegments(const XMLElement* parent_element, const std::string& parent) {
+  // DEPTH: that of the segments read here (a root segment is 1 deep).
+  Status ReadSegments(const XMLElement* parent_element, const std::string& parent,
+                      std::size_t depth) {
     for (const XMLElement* element : xml::Children(parent_element, "Segment")) {
+      if (depth > kVskLimits.max_segment_depth) {
+        return xml::ErrorAt(label_, element,
+                            "segments nested more than " +
+                                std::to_string(kVskLimits.max_segment_depth) +
+                                " deep; expected the model of real Vicon subjects");
+      }
       LIFMCR_XML_ASSIGN_OR_RETURN(const std::string name,
                                   xml::RequiredAttribute(label_, element, "NAME"));
       if (const auto first = segment_at_.find(name); first != segment_at_.end()) {
@@ -155,7 +163,7 @@ class Reader {
       }
       segment_at_[name] = element;
       vsk_.segments.push_back(VskSegment{name, parent});
-      LIFMCR_XML_RETURN_IF_ERROR(ReadSegments(element, name));
+      LIFMCR_XML_RETURN_IF_ERROR(ReadSegments(element, name, depth + 1));
     }
     return Status::Ok();
   }
@@ -314,9 +322,13 @@ class Writer {
     Line(1, "</Parameters>");
 
     Line(1, "<Skeleton>");
+    // Children by parent, indexed once: the walk below visits each segment
+    // once (a scan of every segment per segment was quadratic).
+    std::unordered_map<std::string_view, std::vector<const VskSegment*>> children;
     for (const VskSegment& segment : vsk_.segments) {
-      if (segment.parent.empty()) WriteSegment(2, segment);
+      children[segment.parent].push_back(&segment);
     }
+    for (const VskSegment* root : children[""]) WriteSegment(2, *root, children);
     Line(1, "</Skeleton>");
 
     Line(1, "<MarkerSet>");
@@ -357,14 +369,35 @@ class Writer {
   }
 
   Status Check() const {
-    std::set<std::string> segments;
+    // What ReadVsk accepts, so that every file written reads back.
+    if (vsk_.segments.size() > kVskLimits.max_segments ||
+        vsk_.markers.size() > kVskLimits.max_markers ||
+        vsk_.parameters.size() + 3 * vsk_.markers.size() > kVskLimits.max_parameters) {
+      return Error{"VSK: cannot write " + std::to_string(vsk_.segments.size()) + " segments, " +
+                   std::to_string(vsk_.markers.size()) + " markers and " +
+                   std::to_string(vsk_.parameters.size()) + " parameters; at most " +
+                   std::to_string(kVskLimits.max_segments) + ", " +
+                   std::to_string(kVskLimits.max_markers) + " and " +
+                   std::to_string(kVskLimits.max_parameters) + " with 3 per marker are read"};
+    }
+    std::unordered_map<std::string_view, std::size_t> depth_of;  // a root segment is 1 deep
     for (const VskSegment& segment : vsk_.segments) {
       LIFMCR_XML_RETURN_IF_ERROR(CheckWritableName("segment", segment.name));
-      if (!segment.parent.empty() && segments.count(segment.parent) == 0) {
-        return Error{"VSK: cannot write segment '" + segment.name + "': its parent '" +
-                     segment.parent + "' is not a segment listed before it"};
+      std::size_t depth = 1;
+      if (!segment.parent.empty()) {
+        const auto parent = depth_of.find(segment.parent);
+        if (parent == depth_of.end()) {
+          return Error{"VSK: cannot write segment '" + segment.name + "': its parent '" +
+                       segment.parent + "' is not a segment listed before it"};
+        }
+        depth = parent->second + 1;
       }
-      if (!segments.insert(segment.name).second) {
+      if (depth > kVskLimits.max_segment_depth) {
+        return Error{"VSK: cannot write segment '" + segment.name + "': nested " +
+                     std::to_string(depth) + " segments deep; at most " +
+                     std::to_string(kVskLimits.max_segment_depth) + " are read"};
+      }
+      if (!depth_of.emplace(segment.name, depth).second) {
         return Error{"VSK: cannot write duplicate segment '" + segment.name + "'"};
       }
     }
@@ -375,7 +408,7 @@ class Writer {
       if (!markers.insert(marker.name).second) {
         return Error{"VSK: cannot write duplicate marker '" + marker.name + "'"};
       }
-      if (segments.count(marker.segment) == 0) {
+      if (depth_of.count(marker.segment) == 0) {
         return Error{"VSK: cannot write marker '" + marker.name + "': its segment '" +
                      marker.segment + "' is not in the segments"};
       }
@@ -399,7 +432,10 @@ class Writer {
     return Status::Ok();
   }
 
-  void WriteSegment(int depth, const VskSegment& segment) {
+  // Recursion depth is the segment chain's, at most kVskLimits.max_segment_depth (Check).
+  void WriteSegment(
+      int depth, const VskSegment& segment,
+      const std::unordered_map<std::string_view, std::vector<const VskSegment*>>& children) {
     const std::string name = xml::EscapeXml(segment.name);
     const std::string joint =
         (segment.parent.empty() ? std::string("World") : xml::EscapeXml(segment.parent)) + "_" +
@@ -415,8 +451,8 @@ class Writer {
     Line(depth + 2, std::string("<JointTemplate MEAN=\"0 0 0 0 0 0\" COVARIANCE=\"") +
                         kCovariance6 + "\" PRE-ORIENTATION=\"0 0 0\" PRE-POSITION=\"0 0 0\" />");
     Line(depth + 1, "</JointFree>");
-    for (const VskSegment& child : vsk_.segments) {
-      if (child.parent == segment.name) WriteSegment(depth + 1, child);
+    if (const auto found = children.find(segment.name); found != children.end()) {
+      for (const VskSegment* child : found->second) WriteSegment(depth + 1, *child, children);
     }
     Line(depth, "</Segment>");
   }

@@ -48,6 +48,10 @@ struct VskLimits {
   double max_abs_position_mm = 100000;       // 100 m: larger than any capture volume
   double max_radius_mm = 1000;               // real markers: 3-25 mm
   std::size_t max_segments = 10000;          // real: 1-20 per subject, tens of subjects
+  // A root segment is 1 deep. Bounded by the XML reader's element nesting
+  // (tinyxml2: 100, each segment one level inside KinematicModel/Skeleton);
+  // real skeletons are under 20 deep.
+  std::size_t max_segment_depth = 64;
   std::size_t max_markers = 10000;
   std::size_t max_parameters = 100000;
 };
@@ -101,8 +105,9 @@ Expected<Vsk> ParseVsk(std::string_view text, const std::string& file_label);
 // that collides with a generated marker parameter is overwritten by the
 // marker's position. Numbers are written so they read back exactly.
 // Refused (nothing written) when a name is empty or holds whitespace or
-// quotes, names repeat, a marker's segment does not exist, or a value is not
-// finite. VERSION is vsk.version when it is a 3.x version, else "3.2" (the
+// quotes, names repeat, a marker's segment does not exist, a value is not
+// finite, or a count or the segment nesting exceeds kVskLimits. Linear in the
+// model's size. VERSION is vsk.version when it is a 3.x version, else "3.2" (the
 // layout written is 3.x's); MODEL is written when not empty.
 Status WriteVsk(const std::filesystem::path& path, const Vsk& vsk);
 // The text WriteVsk writes, or the reason it cannot.

@@ -8,7 +8,10 @@ namespace lifmcr {
 
 FrameSetAssemblerOptions FrameSetAssemblerOptions::FromRig(const RigConfig& rig) {
   FrameSetAssemblerOptions options;
-  for (const CameraConfig& camera : rig.cameras) options.serials.push_back(camera.serial);
+  for (const CameraConfig& camera : rig.cameras) {
+    options.serials.push_back(camera.serial);
+    options.device_clocks.push_back(camera.device_clock);
+  }
   options.vicon_expected = rig.vicon.source != ViconSourceKind::kNone;
   options.vicon_divider = rig.vicon.trigger_divider;
   options.vicon_rate_hz = rig.vicon.rate_hz;
@@ -21,6 +24,9 @@ FrameSetAssemblerOptions FrameSetAssemblerOptions::FromRig(const RigConfig& rig)
 Status FrameSetAssemblerOptions::Check() const {
   auto bad = [](const std::string& what) { return Status(Error{"frame set assembler: " + what}); };
   if (serials.empty()) return bad("at least one camera is needed");
+  if (!device_clocks.empty() && device_clocks.size() != serials.size())
+    return bad("device_clocks: expected none or one per camera (" + std::to_string(serials.size()) +
+               "), got " + std::to_string(device_clocks.size()));
   if (trigger.trigger_period_ns <= 0) return bad("trigger period must be > 0 ns");
   if (!(trigger.tolerance > 0.0 && trigger.tolerance < 0.5))
     return bad("trigger tolerance must be in (0, 0.5) periods");
@@ -37,11 +43,20 @@ Status FrameSetAssemblerOptions::Check() const {
   return Status::Ok();
 }
 
+namespace {
+std::vector<std::string> ClocksOf(const FrameSetAssemblerOptions& options) {
+  std::vector<std::string> clocks = options.device_clocks;
+  clocks.resize(options.serials.size());
+  return clocks;
+}
+}  // namespace
+
 FrameSetAssembler::FrameSetAssembler(FrameSetAssemblerOptions options)
-    : options_(std::move(options)) {
+    : options_(std::move(options)),
+      placer_(options_.trigger.trigger_period_ns, options_.trigger.tolerance, ClocksOf(options_)) {
   cameras_.reserve(options_.serials.size());
   for (const std::string& serial : options_.serials) {
-    Camera camera{TriggerTracker(options_.trigger), ClockModel(options_.clock), -1, {}};
+    Camera camera{TriggerTracker(options_.trigger), ClockModel(options_.clock), -1, {}, {}};
     camera.stats.serial = serial;
     cameras_.push_back(std::move(camera));
   }
@@ -88,8 +103,21 @@ std::optional<std::int64_t> FrameSetAssembler::AddFrame(Frame frame) {
   if (!camera.tracker.anchored() ||
       (clock.jump && association.verdict != FrameVerdict::kAssociated)) {
     association = Association{};
-    association.trigger_index = TriggerByHostTime(camera, frame.device_ns);
+    std::optional<FirstPlacement> placement;
+    if (!camera.tracker.anchored()) placement = placer_.ByDeviceTime(index, frame.device_ns);
+    if (!placement) {
+      placement = FirstPlacement{};
+      placement->trigger_index = TriggerByHostTime(camera, frame.device_ns);
+    }
+    association.trigger_index = placement->trigger_index;
     camera.tracker.Anchor(association.trigger_index, frame.frame_id, frame.device_ns);
+    if (!camera.first_placement) {
+      camera.first_placement = placement;
+      camera.stats.first_placement = placement->OneLine();
+      if (placement->by == FirstPlacement::By::kHostTime)
+        camera.stats.first_placement +=
+            " (" + placer_.WhyNotByDeviceTime(index, frame.device_ns) + ")";
+    }
   }
   const std::int64_t k = association.trigger_index;
   if (association.verdict == FrameVerdict::kOffGrid ||
@@ -120,6 +148,7 @@ std::optional<std::int64_t> FrameSetAssembler::AddFrame(Frame frame) {
     camera.last_trigger = std::max(camera.last_trigger, k);
     grid_trigger_ = k;
     grid_host_ns_ = camera.clock.HostFromDevice(frame.device_ns);
+    placer_.Placed(index, k, frame.device_ns);
   }
   last_trigger_seen_ = std::max(last_trigger_seen_, k);
   pending.frames[index] = std::move(frame);

@@ -4,11 +4,12 @@
 // complete or explicitly incomplete.
 //
 // Trigger index: the rig's first frame (any camera) is trigger 0. A camera's
-// first frame is placed on the trigger grid by host time (its clock model
-// maps device to host time; the grid is anchored at the latest associated
-// frame of any camera); every later frame by its device time and frame
-// counter (TriggerTracker). A device clock jump re-anchors the camera by
-// host time.
+// first frame is placed by device time against the latest placed frame of a
+// camera on the same device clock (sync/first_frame_placement.h), else by
+// host time (its clock model maps device to host time; the grid is anchored
+// at the latest associated frame of any camera); every later frame by its
+// device time and frame counter (TriggerTracker). A device clock jump
+// re-anchors the camera by host time (its device time no longer compares).
 //
 // Vicon: trigger k fired on Vicon frame f0 + divider * k. f0 is given, or
 // established once from the first trigger emitted: the Vicon frame number
@@ -38,6 +39,7 @@
 #include "drivers/vicon_source.h"
 #include "sync/clock_model.h"
 #include "sync/drop_counter.h"
+#include "sync/first_frame_placement.h"
 #include "sync/frame_set.h"
 #include "sync/trigger_tracker.h"
 
@@ -51,6 +53,10 @@ namespace lifmcr {
 
 struct FrameSetAssemblerOptions {
   std::vector<std::string> serials;  // one per camera, by camera index; at least one
+  // Per camera, the clock its device timestamps are on (CameraInfo::device_clock,
+  // the rig's cameras[].device_clock): equal non-empty names share a clock.
+  // Empty vector or "": every camera a clock of its own.
+  std::vector<std::string> device_clocks;
   TriggerTrackerOptions trigger;     // trigger period, grid tolerance, frame counter
   ClockModelOptions clock;
   bool vicon_expected = true;  // false: no Vicon source; sets never wait for Vicon
@@ -82,6 +88,9 @@ struct CameraSyncStats {
   std::uint64_t not_exposed = 0;          // triggers the counter says the camera never saw
   std::uint64_t counter_mismatches = 0;
   std::string clock;  // ClockModel::OneLine
+  // How its first frame was put on the trigger count (FirstPlacement::OneLine,
+  // and why not by device time when host time decided); empty before it.
+  std::string first_placement;
 };
 
 class FrameSetAssembler {
@@ -101,6 +110,10 @@ class FrameSetAssembler {
   const DropCounter& drops() const { return drops_; }
   std::vector<CameraSyncStats> camera_stats() const;
   const ClockModel& clock(int camera_index) const { return cameras_[camera_index].clock; }
+  // How the camera's first frame was placed (nullopt before it arrived).
+  const std::optional<FirstPlacement>& first_placement(int camera_index) const {
+    return cameras_[camera_index].first_placement;
+  }
   std::optional<std::int64_t> vicon_f0() const { return f0_; }
   std::int64_t next_trigger() const { return next_emit_; }  // = FrameSets emitted so far
   std::size_t pending_triggers() const { return pending_.size(); }
@@ -113,6 +126,7 @@ class FrameSetAssembler {
     TriggerTracker tracker;
     ClockModel clock;
     std::int64_t last_trigger = -1;  // latest trigger this camera delivered a frame for
+    std::optional<FirstPlacement> first_placement;
     CameraSyncStats stats;
   };
   struct Pending {
@@ -127,6 +141,7 @@ class FrameSetAssembler {
 
   FrameSetAssemblerOptions options_;
   std::vector<Camera> cameras_;
+  FirstFramePlacer placer_;
   bool started_ = false;
   std::int64_t grid_trigger_ = 0;  // grid anchor: a trigger index and its host time
   std::int64_t grid_host_ns_ = 0;

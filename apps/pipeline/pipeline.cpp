@@ -12,17 +12,18 @@
 #include <condition_variable>
 #include <cstdio>
 #include <ctime>
+#include <deque>
 #include <map>
 #include <mutex>
 #include <oneapi/tbb/info.h>
 #include <oneapi/tbb/task_arena.h>
 #include <oneapi/tbb/task_scheduler_observer.h>
 #include <optional>
-#include <utility>
 #include <sstream>
 #include <sys/resource.h>
 #include <sys/syscall.h>
 #include <unistd.h>
+#include <utility>
 
 namespace lifmcr::apps {
 namespace {
@@ -306,31 +307,47 @@ struct Pipeline::Impl {
   }
 
   // One frame into processing, by the skip policy.
-  void Submit(Job job) {
-    std::unique_lock lock(slot_mutex);
-    {
-      std::lock_guard r(report_mutex);
-      ++report.frames_in;
+  // Frames taken from the FrameSets, waiting to be handed to processing
+  // (Poll's thread only). Under newest_wins they go at once; under block
+  // they wait here for a free worker, still holding their pooled buffers,
+  // so the back-pressure reaches a replay driver as before, while Poll
+  // returns to the command's loop (a stop or the end of a sequence is
+  // noticed at once; Finish hands on what is left: nothing taken is lost).
+  std::deque<Job> queued;
+
+  // Hands the queued frames to processing. Without skipping, waits for a
+  // free worker until `deadline` (none: as long as it takes); what is left
+  // waits for the next call.
+  void SubmitQueued(std::optional<std::chrono::steady_clock::time_point> deadline) {
+    while (!queued.empty()) {
+      std::unique_lock lock(slot_mutex);
+      if (!options.skip_when_busy) {
+        const auto free = [&] { return in_flight < options.max_concurrency; };
+        if (!deadline) {
+          slot_cv.wait(lock, free);
+        } else if (!slot_cv.wait_until(lock, *deadline, free)) {
+          return;
+        }
+      }
+      Job job = std::move(queued.front());
+      queued.pop_front();
+      if (in_flight < options.max_concurrency) {
+        ++in_flight;
+        served[job.frame.camera_index] = ++serve_count;
+        lock.unlock();
+        process_node->try_put(std::move(job));
+        continue;
+      }
+      const int camera = job.frame.camera_index;
+      if (slots.count(camera)) {
+        std::lock_guard r(report_mutex);
+        ++report.skipped;
+      }
+      slots.insert_or_assign(camera, std::move(job));
     }
-    if (!options.skip_when_busy) {
-      slot_cv.wait(lock, [&] { return in_flight < options.max_concurrency; });
-    }
-    if (in_flight < options.max_concurrency) {
-      ++in_flight;
-      served[job.frame.camera_index] = ++serve_count;
-      lock.unlock();
-      process_node->try_put(std::move(job));
-      return;
-    }
-    const int camera = job.frame.camera_index;
-    if (slots.count(camera)) {
-      std::lock_guard r(report_mutex);
-      ++report.skipped;
-    }
-    slots.insert_or_assign(camera, std::move(job));
   }
 
-  void SubmitSets(std::vector<FrameSet> sets) {
+  void QueueSets(std::vector<FrameSet> sets) {
     for (FrameSet& set : sets) {
       {
         std::lock_guard r(report_mutex);
@@ -343,7 +360,11 @@ struct Pipeline::Impl {
         const std::int64_t arrival = frame->arrival_ns > 0 ? frame->arrival_ns : frame->host_ns;
         std::optional<std::int64_t> vicon;
         if (set.vicon_frame >= 0) vicon = set.vicon_frame;
-        Submit(Job{std::move(*frame), set.trigger_index, vicon, arrival});
+        {
+          std::lock_guard r(report_mutex);
+          ++report.frames_in;
+        }
+        queued.push_back(Job{std::move(*frame), set.trigger_index, vicon, arrival});
       }
     }
   }
@@ -511,7 +532,9 @@ void Pipeline::Poll() {
     std::lock_guard lock(impl_->sync_mutex);
     sets = impl_->TakeSets(/*flush=*/false);
   }
-  impl_->SubmitSets(std::move(sets));
+  impl_->QueueSets(std::move(sets));
+  // At most a poll period's wait for a worker: the caller's loop stays responsive.
+  impl_->SubmitQueued(std::chrono::steady_clock::now() + std::chrono::milliseconds(50));
   const auto now = std::chrono::steady_clock::now();
   if (now >= impl_->next_stats) {
     impl_->PublishStats();
@@ -525,7 +548,8 @@ void Pipeline::EndPass() {
     std::lock_guard lock(impl_->sync_mutex);
     sets = impl_->TakeSets(/*flush=*/true);
   }
-  impl_->SubmitSets(std::move(sets));
+  impl_->QueueSets(std::move(sets));
+  impl_->SubmitQueued(std::nullopt);
   impl_->WaitIdle();
   // The next pass numbers its triggers from the start again: no pose of
   // this pass may pair with one of the next (the publishing node is idle).

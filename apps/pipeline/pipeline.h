@@ -13,9 +13,11 @@
 // counted as skipped: the newest wins, so a camera's published view is never
 // stale by more than one frame. A freed worker takes the slot of the camera
 // served least recently, so no camera starves.
-// Without skipping (block; replay --rate max) Submit blocks until a worker
-// is free: the back-pressure reaches the replay driver through its frame
-// pool, so every frame is processed. Either way every frame that enters is
+// Without skipping (block; replay --rate max) a frame waits in the
+// pipeline's queue until a worker is free (Poll waits for one at most 50 ms,
+// so the caller's loop notices a stop at once; Finish waits for all): the
+// back-pressure reaches the replay driver through its frame pool, so every
+// frame is processed. Either way every frame that enters is
 // processed (and published), skipped, or failed, each counted: frames_in ==
 // processed + skipped + failed once Finish returned. A recorder, when one
 // runs, gets its frames before the pipeline does and never waits for it.
@@ -138,8 +140,9 @@ class Pipeline {
   // report and the statistics message.
   void SetSyncDrops(const DropCounter& drops);
   void AddVicon(const ViconFrame& frame);
-  // Emits the ready FrameSets into processing (blocking without skipping)
-  // and publishes the statistics when due.
+  // Takes the ready FrameSets and hands their frames to processing (under
+  // block, waiting at most 50 ms for a free worker; the rest wait for the
+  // next Poll or Finish), and publishes the statistics when due.
   void Poll();
   // End of a pass: flushes the assembler, waits for processing and starts a
   // fresh assembler (for --loop); the counters go on.

@@ -3,8 +3,11 @@
 #include "apps/pipeline/replay_runner.h"
 
 #include "acquisition/rig_controller.h"
+#include "config/rig_config.h"
+#include "config/text_escape.h"
 #include "drivers/replay_camera.h"
 #include "drivers/vicon_csv_source.h"
+#include "replay/bayer.h"
 #include "replay/layout.h"
 #include "replay/sequence.h"
 #include "replay/vicon_csv.h"
@@ -15,6 +18,7 @@
 #include <charconv>
 #include <chrono>
 #include <ctime>
+#include <optional>
 #include <sstream>
 #include <thread>
 
@@ -52,6 +56,7 @@ Status ReplayRunOptions::Check() const {
   if (Status s = pipeline.Check(); !s) return Error{"replay: " + s.error().message};
   if (registration)
     if (Status s = registration->Check(); !s) return Error{"replay: " + s.error().message};
+  // pixel_formats: its serials are checked against the sequence by RunReplay.
   // loop, processing: any value; on_status and stop may be empty; intrinsics:
   // files read when the cameras are set up.
   return Status::Ok();
@@ -68,6 +73,56 @@ std::string ReplayRunResult::FinalReport() const {
   return out.str();
 }
 
+Expected<PixelFormats> ParsePixelFormatOptions(const std::vector<std::string>& values) {
+  PixelFormats formats;
+  for (const std::string& value : values) {
+    const std::size_t eq = value.find('=');
+    const std::string serial = eq == std::string::npos ? "" : value.substr(0, eq);
+    const std::string name = eq == std::string::npos ? value : value.substr(eq + 1);
+    const std::optional<CameraPixelFormat> format = ParseCameraPixelFormat(name);
+    if (!format || (eq != std::string::npos && serial.empty())) {
+      return Error{"--pixel-format '" + Excerpt(value) + "': expected FORMAT or SERIAL=FORMAT, " +
+                   "FORMAT one of " + CameraPixelFormatNames()};
+    }
+    if (!formats.emplace(serial, *format).second) {
+      return Error{"--pixel-format '" + Excerpt(value) + "': " +
+                   (serial.empty() ? std::string("every camera's format") : "camera " + serial) +
+                   " given twice"};
+    }
+  }
+  return formats;
+}
+
+namespace {
+
+// The Bayer cameras among `serials` by `given` (ReplayRunOptions::pixel_formats).
+Expected<PixelFormats> BayerCameras(const PixelFormats& given,
+                                    const std::vector<std::string>& serials,
+                                    const std::filesystem::path& sequence_dir) {
+  for (const auto& [serial, format] : given) {
+    if (!serial.empty() && std::find(serials.begin(), serials.end(), serial) == serials.end()) {
+      return Error{"--pixel-format: camera '" + Excerpt(serial) + "' is not in " +
+                   sequence_dir.string() + " (its TypeE_<serial>/ folders: " +
+                   [&] {
+                     std::string list;
+                     for (const std::string& s : serials) list += (list.empty() ? "" : ", ") + s;
+                     return list;
+                   }() +
+                   ")"};
+    }
+  }
+  PixelFormats bayer;
+  const auto every = given.find("");
+  for (const std::string& serial : serials) {
+    const auto named = given.find(serial);
+    const auto it = named != given.end() ? named : every;
+    if (it != given.end() && IsBayer(it->second)) bayer[serial] = it->second;
+  }
+  return bayer;
+}
+
+}  // namespace
+
 Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
                                     std::unique_ptr<FrameProcessor> processor) {
   if (Status s = options.Check(); !s) return s.error();
@@ -81,6 +136,8 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
 
   std::vector<std::string> serials;
   for (const CameraFolder& folder : sequence->cameras) serials.push_back(folder.serial);
+  auto bayer = BayerCameras(options.pixel_formats, serials, options.sequence_dir);
+  if (!bayer) return bayer.error();
   // Device time of trigger 0: the first frame number of the sequence.
   std::int64_t first_device_ns = INT64_MAX;
   for (const CameraFolder& folder : sequence->cameras)
@@ -181,12 +238,12 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
   if (!processor) {
     if (options.processing) {
       auto depth = DepthProcessor::ForSequence(options.sequence_dir.string(), serials,
-                                               options.preview, {}, intrinsics);
+                                               options.preview, *bayer, intrinsics);
       if (!depth) return depth.error();
       processor = std::move(*depth);
     } else {
       if (Status s = options.preview.Check(); !s) return s.error();
-      processor = std::make_unique<PreviewProcessor>(options.preview);
+      processor = std::make_unique<PreviewProcessor>(options.preview, *bayer);
     }
   }
   pipeline_options.skip_when_busy = !max_rate;

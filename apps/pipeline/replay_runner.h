@@ -48,6 +48,13 @@ struct ReplayRunOptions {
   // skip_when_busy is the rate's: newest wins when timed, block at max.
   PipelineOptions pipeline;
   int pool_buffers = 8;  // per replay camera
+  // The cameras whose frames are Bayer mosaics: a LiFMCR dataset does not
+  // record the pixel format (its BMPs are 8-bit grey), so the user says it
+  // (`lifmcr replay --pixel-format`). Serial -> format; the serial "" stands
+  // for every camera not named. Bayer cameras are demosaiced for previews and
+  // the TF image (colour) and depth runs on luminance, as in `record
+  // --publish` (frame_processor.h). A serial not in the sequence is an error.
+  PixelFormats pixel_formats;
   // Intrinsics of the cameras (cameras.yaml schema), searched in order
   // (camera_setup.h, FindIntrinsics): metric depth, and what live
   // registration localises with.
@@ -72,6 +79,11 @@ struct ReplayRunResult {
   std::string registration;  // LiveRegistrationReport, with --reference
   std::string FinalReport() const;
 };
+
+// `--pixel-format` values: "FORMAT" (every camera) or "SERIAL=FORMAT", each
+// FORMAT one of config/rig_config.h's camera pixel formats (Mono8, BGR8,
+// BayerRG8, BayerGR8, BayerGB8, BayerBG8). Errors quote the value.
+Expected<PixelFormats> ParsePixelFormatOptions(const std::vector<std::string>& values);
 
 // `processor` replaces the stage the options ask for (tests: a slowed stage).
 Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,

@@ -15,6 +15,7 @@
 #include <gtest/gtest.h>
 
 #include <arpa/inet.h>
+#include <algorithm>
 #include <chrono>
 #include <csignal>
 #include <fcntl.h>
@@ -171,7 +172,16 @@ TEST(RecordCli, KillNineLeavesEverythingButTheLastFileReadable) {
   ASSERT_TRUE(rig.ok()) << rig.error().message;
   RecordProcess process(r.Args(""), r.stdout_file, r.stderr_file);
   test::ViconStreamer streamer(*rig, r.port, 80.0);
-  std::this_thread::sleep_for(milliseconds(1500));
+  // Killed once the recording is under way (more than 40 Vicon lines and
+  // some frames on disk), not after a fixed time: on a loaded host the
+  // binary may take a second to start.
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  for (;;) {
+    const std::string text = test::ReadFile(layout::ViconCsvPath(r.seq, 1));
+    const auto lines = std::count(text.begin(), text.end(), '\n');
+    if (lines > 60 || std::chrono::steady_clock::now() > give_up) break;
+    std::this_thread::sleep_for(milliseconds(50));
+  }
   process.Signal(SIGKILL);
   ASSERT_NE(process.Wait(milliseconds(5000)), -1);
   auto sequence = DiscoverSequence(r.seq);

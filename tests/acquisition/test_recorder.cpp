@@ -10,6 +10,7 @@
 #include "replay/vicon_csv.h"
 #include "replay/vicon_poses.h"
 #include "tests/acquisition/rig_fixture.h"
+#include "tests/cpu_hogs.h"
 #include "tests/test_util.h"
 
 #include <gtest/gtest.h>
@@ -175,26 +176,44 @@ TEST(Recorder, ThroughSyncEveryTriggerIsOneFrameSetOnDiskOrCounted) {
   ExpectEveryFrameReads(*sequence);
 }
 
-// A camera whose first frame comes three triggers after the rig's first
-// (armed later on a running trigger) starts at frame 3, not 0, and the three
-// triggers it missed are counted.
-TEST(Recorder, ALateCameraIsPlacedOnTheRigsTriggerCountByHostTime) {
+// Two memory cameras, MEMA and MEMB (32x32 Mono8), and a recorder writing
+// into a fresh folder, for a rig without Vicon: the placement tests' rig.
+struct TwoMemoryCameraRig {
+  TwoMemoryCameraRig() {
+    rig.vicon.source = ViconSourceKind::kNone;
+    RecorderOptions options;
+    options.root_dir = out.path();
+    auto created = Recorder::Create(rig, options);
+    EXPECT_TRUE(created.ok()) << created.error().message;
+    if (created.ok()) recorder = std::move(*created);
+    auto a = MakeCamera("MEMA", PixelFormat::kMono8, 32, 32);
+    auto b = MakeCamera("MEMB", PixelFormat::kMono8, 32, 32);
+    camera_a = a.get();
+    camera_b = b.get();
+    cameras.push_back(std::move(a));
+    cameras.push_back(std::move(b));
+  }
   test::TempDir out;
   RigConfig rig = test::TwoCameraRig();
-  rig.vicon.source = ViconSourceKind::kNone;
-  RecorderOptions options;
-  options.root_dir = out.path();
-  auto recorder = Recorder::Create(rig, options);
-  ASSERT_TRUE(recorder.ok()) << recorder.error().message;
-  std::vector<std::unique_ptr<Camera>> cameras;
-  cameras.push_back(MakeCamera("MEMA", PixelFormat::kMono8, 32, 32));
-  auto late = MakeCamera("MEMB", PixelFormat::kMono8, 32, 32);
-  MemoryCamera* late_camera = late.get();
-  cameras.push_back(std::move(late));
+  std::unique_ptr<Recorder> recorder;
+  std::vector<std::unique_ptr<Camera>> cameras;  // moved into the controller
+  MemoryCamera* camera_a = nullptr;
+  MemoryCamera* camera_b = nullptr;
+};
+
+// A camera whose first frame comes three triggers after the rig's first
+// (armed later on a running trigger) starts at frame 3, not 0, and the three
+// triggers it missed are counted. Here the two cameras' device clocks are
+// declared apart, so host time places it (the fallback).
+TEST(Recorder, ALateCameraIsPlacedOnTheRigsTriggerCountByHostTime) {
+  TwoMemoryCameraRig setup;
+  ASSERT_TRUE(setup.recorder != nullptr);
+  MemoryCamera* late_camera = setup.camera_b;
   RigControllerOptions controller_options;
   controller_options.trigger_hz = 5.0;  // 200 ms: host-time jitter is far below half a period
+  controller_options.device_clocks = {"clock of A", "clock of B"};
   // Only A is triggered by the controller; the test triggers B from the 4th trigger on.
-  RigController controller(std::move(cameras), {true, false}, nullptr, recorder->get(),
+  RigController controller(std::move(setup.cameras), {true, false}, nullptr, setup.recorder.get(),
                            controller_options);
   const auto start = std::chrono::steady_clock::now();
   ASSERT_TRUE(controller.Start().ok());
@@ -205,7 +224,7 @@ TEST(Recorder, ALateCameraIsPlacedOnTheRigsTriggerCountByHostTime) {
   }
   std::this_thread::sleep_until(start + milliseconds(200 * 8 - 50));
   controller.Stop();
-  (*recorder)->Stop();
+  setup.recorder->Stop();
   const RigHealth health = controller.Health();
   SCOPED_TRACE(health.FinalReport());
   const RecorderCameraStats& b = health.recorder.cameras[1];
@@ -214,6 +233,81 @@ TEST(Recorder, ALateCameraIsPlacedOnTheRigsTriggerCountByHostTime) {
   EXPECT_EQ(b.last_frame, 7);
   EXPECT_EQ(health.cameras[1].missing_by_id, 3u);
   EXPECT_EQ(health.recorder.cameras[0].first_frame, 0);
+  EXPECT_EQ(health.cameras[1].first_placement,
+            "trigger 3 by host time (no camera on its device clock \"clock of B\" placed yet)");
+}
+
+// A hardware-triggered rig has no software-trigger schedule: the rig's first
+// frame is trigger 0 however long after Start the trigger line begins (the
+// schedule a controller with trigger_hz set would otherwise assume put it
+// on trigger 3 here).
+TEST(Recorder, AHardwareTriggeredRigCountsFromItsFirstFrameNotFromStart) {
+  TwoMemoryCameraRig setup;
+  ASSERT_TRUE(setup.recorder != nullptr);
+  MemoryCamera* cameras_on_the_line[2] = {setup.camera_a, setup.camera_b};
+  RigControllerOptions controller_options;
+  controller_options.trigger_hz = 10.0;  // the rig's rate; the line is not ours to fire
+  controller_options.device_clocks = {"clock of A", "clock of B"};  // host time places both
+  RigController controller(std::move(setup.cameras), {false, false}, nullptr, setup.recorder.get(),
+                           controller_options);
+  const auto start = std::chrono::steady_clock::now();
+  ASSERT_TRUE(controller.Start().ok());
+  for (int k = 0; k < 4; ++k) {
+    std::this_thread::sleep_until(start + milliseconds(350 + 100 * k));
+    for (MemoryCamera* camera : cameras_on_the_line) ASSERT_TRUE(camera->SoftwareTrigger().ok());
+  }
+  std::this_thread::sleep_until(start + milliseconds(350 + 400));
+  controller.Stop();
+  setup.recorder->Stop();
+  const RigHealth health = controller.Health();
+  SCOPED_TRACE(health.FinalReport());
+  EXPECT_EQ(health.triggers_fired, 0u);
+  for (int c = 0; c < 2; ++c) {
+    EXPECT_EQ(health.recorder.cameras[c].written, 4u);
+    EXPECT_EQ(health.recorder.cameras[c].first_frame, 0);
+    EXPECT_EQ(health.recorder.cameras[c].last_frame, 3);
+  }
+}
+
+// The same on one device clock (memory cameras stamp CLOCK_REALTIME at the
+// trigger), at the rig's 10 Hz, with two busy threads taking both cores:
+// the late camera's first frame is placed by device time against the
+// other camera's frame of that trigger (the controller's own placement,
+// without sync), and says so. (With the sync assembler the memory cameras'
+// software triggers, fired late by the hogs, move their device times off
+// the grid themselves; the assembler's placement under hogs is shown on
+// exact device times by RecordPublish.FirstFramesPlacedByDeviceTimeUnderTwoCpuHogs.)
+TEST(Recorder, ALateCameraOnTheSameClockIsPlacedByDeviceTimeUnderTwoCpuHogs) {
+  TwoMemoryCameraRig setup;
+  ASSERT_TRUE(setup.recorder != nullptr);
+  MemoryCamera* late_camera = setup.camera_b;
+  RigControllerOptions controller_options;
+  controller_options.trigger_hz = 10.0;
+  test::CpuHogs hogs(2);
+  RigController controller(std::move(setup.cameras), {true, false}, nullptr, setup.recorder.get(),
+                           controller_options);
+  ASSERT_TRUE(controller.Start().ok());
+  // The controller's schedule starts as Start returns (opening the cameras
+  // before it can take the hogs' time).
+  const auto start = std::chrono::steady_clock::now();
+  for (int k = 3; k < 8; ++k) {
+    // On the controller's k-th trigger, as a shared trigger line would.
+    std::this_thread::sleep_until(start + milliseconds(100 * k));
+    ASSERT_TRUE(late_camera->SoftwareTrigger().ok());
+  }
+  std::this_thread::sleep_until(start + milliseconds(100 * 8 - 50));
+  controller.Stop();
+  setup.recorder->Stop();
+  const RigHealth health = controller.Health();
+  SCOPED_TRACE(health.FinalReport());
+  const RecorderCameraStats& b = health.recorder.cameras[1];
+  EXPECT_EQ(b.written, 5u);
+  EXPECT_EQ(b.first_frame, 3);
+  EXPECT_EQ(b.last_frame, 7);
+  EXPECT_EQ(health.recorder.cameras[0].first_frame, 0);
+  EXPECT_EQ(health.cameras[1].first_placement.rfind("trigger 3 by device time against camera 0", 0),
+            0u)
+      << health.cameras[1].first_placement;
 }
 
 TEST(Recorder, ViconStreamStopsFramesStillRecorded) {

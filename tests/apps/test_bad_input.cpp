@@ -388,6 +388,34 @@ std::vector<Case> Cases() {
                      return {"info", "--quick", dir.string()};
                    },
                    {"not part of the layout:", "notes.txt"}, 0});
+  // Error text escaped by every command (config/text_escape.h): a missing
+  // file whose name would drive the terminal and forge a line.
+  const std::string forged = "x\x1b[31m\nPROBLEM: none";
+  const std::string shown = "x\\x1B[31m\\nPROBLEM: none";
+  const std::vector<std::string> raw_text = {"\x1b", "\nPROBLEM: none"};
+  const auto forged_case = [&](const std::string& name, std::vector<std::string> args, int code) {
+    cases.push_back({name,
+                     [forged, args](const fs::path& dir) -> std::vector<std::string> {
+                       std::vector<std::string> out = args;
+                       for (std::string& a : out)
+                         if (a == "FORGED") a = (dir / forged).string();
+                       return out;
+                     },
+                     {shown}, code, raw_text});
+  };
+  forged_case("escaped_grid", {"grid", "FORGED"}, 1);
+  forged_case("escaped_synth_config", {"synth", "--config", "FORGED", "--out", "FORGED"}, 2);
+  forged_case("escaped_record_rig_usage", {"record", "--rig", "FORGED"}, 2);
+  forged_case("escaped_calibrate",
+              {"calibrate", "FORGED", "--camera", "1", "--out", "FORGED", "--initial", "FORGED"},
+              1);
+  forged_case("escaped_register",
+              {"register", "FORGED", "--reference-from-ground-truth", "--out", "FORGED"}, 1);
+  forged_case("escaped_evaluate", {"evaluate", "FORGED", "--registration", "FORGED", "--out", "FORGED"},
+              1);
+  forged_case("escaped_replay_usage", {"replay", "FORGED"}, 2);
+  forged_case("escaped_depth", {"depth", "FORGED", "--camera", "1", "--frame", "0", "--out", "FORGED"},
+              1);
   return cases;
 }
 

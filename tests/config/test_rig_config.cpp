@@ -316,6 +316,7 @@ RigConfig RandomRig(std::mt19937& rng) {
       camera.socket_buffer_bytes = coin() ? 0 : std::int64_t{integer(1, 1 << 30)} * 8;
     }
     camera.vicon_object = coin() ? "" : "obj" + std::to_string(i) + RandomText(rng, 0);
+    camera.device_clock = coin() ? "" : "ptp" + RandomText(rng, 0);
     rig.cameras.push_back(camera);
   }
   ViconConfig& vicon = rig.vicon;
@@ -364,6 +365,20 @@ TEST(RigConfig, RandomConfigsRoundTripThroughFormatAndParse) {
 }
 
 // ------------------------------------------------------------- bad input
+
+// cameras[].device_clock: cameras naming one clock; "" (omitted) is the driver's.
+TEST(RigConfig, DeviceClockIsReadAndControlCharactersAreRefused) {
+  const std::string yaml =
+      test::ReplaceFirst(kValidRig, "    vicon_object: cam0\n",
+                         "    vicon_object: cam0\n    device_clock: ptp domain 0\n");
+  const Expected<RigConfig> rig = Parse(yaml);
+  ASSERT_TRUE(rig.ok()) << rig.error().message;
+  EXPECT_EQ(rig->cameras[0].device_clock, "ptp domain 0");
+  EXPECT_EQ(rig->cameras[1].device_clock, "");
+  const std::string message = ErrorOf(test::ReplaceFirst(
+      kValidRig, "    vicon_object: cam0\n", "    vicon_object: cam0\n    device_clock: \"a\\tb\"\n"));
+  EXPECT_NE(message.find("/cameras/0/device_clock"), std::string::npos) << message;
+}
 
 TEST(RigConfigErrors, UnknownTopLevelKey) {
   const std::string yaml = kValidRig + "cameraz: []\n";

@@ -12,6 +12,7 @@
 #include "replay/layout.h"
 #include "replay/sequence.h"
 #include "tests/acquisition/rig_fixture.h"
+#include "tests/cpu_hogs.h"
 #include "tests/drivers/gv_simulator.h"
 #include "tests/test_util.h"
 
@@ -127,6 +128,10 @@ TEST(GenTlRecord, OneGenTlAndOneAravisCameraRecordEveryTrigger) {
 TEST(GenTlRecord, TwoGenTlCamerasOnTheHardwareLineRecordEveryTriggerInSync) {
   // Both cameras take the producer's Line1 pulses (every 100 ms on the
   // wall-clock grid, the rig's 80 Hz / 8), as two R32s on a Lock Lab output.
+  // Their chunk timestamps are on one clock (the producer's; PTP on a real
+  // rig), which the rig file states (device_clock), so the second camera's
+  // first frame is placed by device time against the first: two busy
+  // threads taking both cores delay the frames' arrival, not the placement.
   test::TempDir dir;
   const int port = FreeUdpPort();
   const fs::path rig_path = dir / "rig.yaml";
@@ -136,7 +141,9 @@ TEST(GenTlRecord, TwoGenTlCamerasOnTheHardwareLineRecordEveryTriggerInSync) {
       rig_path,
       "rig:\n  name: gentl_hardware\ncameras:\n" +
           CameraYaml("GTLSIM0", "cam0", "reference", driver, "TypeE_40398678_MLA.xml", line1) +
+          "    device_clock: gentl_sim\n" +
           CameraYaml("GTLSIM1", "cam1", "registered", driver, "TypeE_40398673_MLA.xml", line1) +
+          "    device_clock: gentl_sim\n" +
           "vicon:\n  source: udp\n  udp: {address: 127.0.0.1, port: " + std::to_string(port) +
           "}\n  rate_hz: 80\n  trigger_divider: 8\nrecorder:\n  queue_frames: 8\n");
   auto rig = LoadRigConfig(rig_path);
@@ -144,11 +151,18 @@ TEST(GenTlRecord, TwoGenTlCamerasOnTheHardwareLineRecordEveryTriggerInSync) {
   test::ViconStreamer streamer(*rig, port, 80.0);
   ASSERT_TRUE(streamer.ok());
   const fs::path out = dir / "out";
-  const auto run = test::RunLifmcr("record --rig '" + rig_path.string() + "' --out '" +
-                                   out.string() + "' --duration 3");
+  test::CommandResult run;
+  {
+    test::CpuHogs hogs(2);
+    run = test::RunLifmcr("--log-level info record --rig '" + rig_path.string() + "' --out '" +
+                          out.string() + "' --duration 3");
+  }
   const std::string log = "stdout:\n" + run.out + "\nstderr:\n" + run.err;
   EXPECT_EQ(run.exit_code, 0) << log;
   EXPECT_NE(run.out.find("result: nothing lost"), std::string::npos) << log;
+  EXPECT_TRUE(std::regex_search(
+      run.out, std::regex(R"(first frame: trigger \d+ by device time against camera [01])")))
+      << log;
   // Every trigger a complete FrameSet: both cameras' frames, stamped on the
   // pulse. The stop can fall between the two cameras' frames of the last
   // pulse (acquisition stops while one is in flight), so the last trigger

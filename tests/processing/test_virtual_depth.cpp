@@ -1,6 +1,7 @@
 // Virtual depth on a synthetic `small` frame with realistic noise, against
 // the ground truth: coverage of textured pixels >= 50 %, median relative
-// error of 1/v <= 2 %, outliers (|dv|/v > 10 %) <= 5 %.
+// error of 1/v <= 2 %, outliers (|dv|/v > 10 %) <= 5 %; with untextured
+// pixels filled (step 5), >= 40 % of raw pixels, the filled ones as accurate.
 
 #include "processing/virtual_depth.h"
 #include "tests/processing/synth_frame.h"
@@ -70,6 +71,57 @@ TEST(VirtualDepth, MeetsAccuracyGatesOnSmallFrame) {
       depth.stats.BriefReport().c_str(), 100 * coverage, textured, 100 * median,
       100 * outlier_share);
   EXPECT_GE(coverage, 0.50);
+  EXPECT_LE(median, 0.02);
+  EXPECT_LE(outlier_share, 0.05);
+}
+
+// Step 5 (untextured pixels of micro images with one surface around them) on
+// the textured table scene: the share of all raw pixels with a depth (the
+// scene issue's goal: >= 40 % at `small`), and the filled pixels' own
+// accuracy against the truth, held to the gates of the searched ones.
+TEST(VirtualDepth, FillsUntexturedPixelsOfTexturedMicroImagesAccurately) {
+  const testing::SynthFrame s = testing::RenderSynthFrame("small", 1.0, "table");
+  const CameraModel camera(s.intrinsics);
+  const MlaGrid grid = MlaGrid::FromCalibration(s.mla, s.raw.width, s.raw.height);
+  FrameOptions fo;
+  fo.lambda = camera.lambda();
+  PlenopticFrame frame;
+  ASSERT_TRUE(PrepareFrame(s.raw.View(), s.white.View(), grid, s.mla, fo, &frame).ok());
+  const double pixels = static_cast<double>(s.raw.width) * s.raw.height;
+  auto coverage_of = [&](const VirtualDepthMap& depth) {
+    long long covered = 0;
+    for (const float v : depth.virtual_depth) covered += !std::isnan(v);
+    return covered / pixels;
+  };
+  DepthOptions off;
+  off.fill_min_support = 0;
+  VirtualDepthMap searched_only;
+  ASSERT_TRUE(EstimateVirtualDepth(frame, s.mla, off, &searched_only).ok());
+  EXPECT_EQ(searched_only.stats.filled, 0);
+
+  VirtualDepthMap depth;
+  ASSERT_TRUE(EstimateVirtualDepth(frame, s.mla, DepthOptions{}, &depth).ok());
+  long long filled = 0, outliers = 0;
+  std::vector<double> rel_z;
+  for (std::size_t i = 0; i < depth.virtual_depth.size(); ++i) {
+    const float v = depth.virtual_depth[i], truth = s.raw.virtual_depth[i];
+    // Filled: a depth here and none from the search alone.
+    if (std::isnan(v) || !std::isnan(searched_only.virtual_depth[i]) || std::isnan(truth))
+      continue;
+    ++filled;
+    rel_z.push_back(std::abs(1.0 / v - 1.0 / truth) * truth);
+    if (std::abs(v - truth) / truth > 0.10) ++outliers;
+  }
+  ASSERT_GT(filled, 10000);
+  std::nth_element(rel_z.begin(), rel_z.begin() + rel_z.size() / 2, rel_z.end());
+  const double coverage = coverage_of(depth), median = rel_z[rel_z.size() / 2];
+  const double outlier_share = static_cast<double>(outliers) / filled;
+  std::printf("%s\ndepth on %.1f %% of raw pixels (%.1f %% searched only); %lld filled "
+              "pixels vs truth: median |dz|/z %.2f %%, outliers %.2f %%\n",
+              depth.stats.BriefReport().c_str(), 100 * coverage,
+              100 * coverage_of(searched_only), filled, 100 * median, 100 * outlier_share);
+  EXPECT_GE(depth.stats.filled, filled) << "the stats count every filled pixel";
+  EXPECT_GE(coverage, 0.40);
   EXPECT_LE(median, 0.02);
   EXPECT_LE(outlier_share, 0.05);
 }

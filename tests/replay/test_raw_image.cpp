@@ -97,6 +97,63 @@ TEST(RawImage, ErrorsNameTheFile) {
   test::ExpectMessageHas(floats.error(), {"f.tiff", "8- nor 16-bit"});
 }
 
+// A classic TIFF header and first directory with only ImageWidth and
+// ImageLength (LONG), in either byte order: what a forged or truncated file
+// declares before any pixel.
+std::string TiffHeader(bool little, std::uint32_t width, std::uint32_t height,
+                       std::uint32_t ifd_offset = 8) {
+  std::string out;
+  const auto put = [&](std::uint32_t v, int bytes) {
+    for (int i = 0; i < bytes; ++i) {
+      const int shift = little ? 8 * i : 8 * (bytes - 1 - i);
+      out += static_cast<char>((v >> shift) & 0xFF);
+    }
+  };
+  out += little ? "II" : "MM";
+  put(42, 2);
+  put(ifd_offset, 4);
+  put(2, 2);  // entries
+  put(256, 2), put(4, 2), put(1, 4), put(width, 4);
+  put(257, 2), put(4, 2), put(1, 4), put(height, 4);
+  put(0, 4);  // no next directory
+  return out;
+}
+
+TEST(RawImage, DeclaredSizeIsCheckedBeforeDecoding) {
+  test::TempDir dir;
+  // 30000 x 30000 is within OpenCV's own pixel limit (2^30), so without the
+  // check OpenCV would allocate 900 MB for it.
+  for (const bool little : {true, false}) {
+    const auto path = dir / (little ? "ii.tif" : "mm.tif");
+    test::WriteFile(path, TiffHeader(little, 30000, 30000));
+    const Expected<OwnedImage> read = ReadRawImage(path);
+    ASSERT_FALSE(read.ok());
+    test::ExpectMessageHas(read.error(),
+                           {path.filename().string(), "TIFF of 30000x30000 px", "268 megapixels"});
+  }
+  test::WriteFile(dir / "side.tif", TiffHeader(true, 40000, 2));
+  test::ExpectMessageHas(ReadRawImage(dir / "side.tif").error(), {"TIFF of 40000x2 px"});
+  test::WriteFile(dir / "off.tif", TiffHeader(true, 10, 10, 1u << 30));
+  test::ExpectMessageHas(ReadRawImage(dir / "off.tif").error(),
+                         {"off.tif", "first image directory at byte 1073741824", "outside"});
+  std::string no_size = TiffHeader(true, 10, 10);
+  no_size[10] = 0x10;  // the first tag becomes 272 (Model): no ImageWidth
+  no_size[11] = 0x01;
+  test::WriteFile(dir / "nosize.tif", no_size);
+  test::ExpectMessageHas(ReadRawImage(dir / "nosize.tif").error(),
+                         {"nosize.tif", "no ImageWidth and ImageLength"});
+
+  // A PNG's IHDR: a real 2x2 PNG with its declared size rewritten.
+  ASSERT_TRUE(cv::imwrite((dir / "a.png").string(), cv::Mat(2, 2, CV_8UC1, cv::Scalar(9))));
+  std::string png = test::ReadFile(dir / "a.png");
+  ASSERT_GE(png.size(), 24u);
+  for (const int at : {16, 20}) {
+    png[at] = 0, png[at + 1] = 0, png[at + 2] = 0x75, png[at + 3] = 0x30;  // 30000
+  }
+  test::WriteFile(dir / "big.png", png);
+  test::ExpectMessageHas(ReadRawImage(dir / "big.png").error(), {"PNG of 30000x30000 px"});
+}
+
 // A flat colour (b, g, r) sampled by each GenICam pattern and demosaiced
 // gives that colour back (away from the border).
 TEST(Bayer, EachPatternGivesBackTheColourItSampled) {

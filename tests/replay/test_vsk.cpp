@@ -3,7 +3,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <ctime>
 #include <random>
 #include <string>
 #include <vector>
@@ -262,6 +265,86 @@ TEST(Vsk, WriterRefusesWhatCannotBeReadBack) {
             std::string::npos);
   vsk.markers = {{"m1", "cam0", Eigen::Vector3d(0, NAN, 0), "", 7.0}};
   EXPECT_FALSE(WriteVsk(dir / "a.vsk", vsk).ok());
+}
+
+// A model of N root segments each with one child and one marker on the child.
+Vsk WideVsk(int n) {
+  Vsk vsk;
+  for (int i = 0; i < n; ++i) {
+    const std::string root = "s" + std::to_string(i);
+    vsk.segments.push_back({root, ""});
+    vsk.segments.push_back({root + "c", root});
+    vsk.markers.push_back({"m" + std::to_string(i), root + "c",
+                           Eigen::Vector3d(i % 100, 1.5, -2.0), "", 7.0});
+  }
+  return vsk;
+}
+
+// Process CPU seconds of the fastest of three FormatVsk calls (the least
+// disturbed by other processes on the machine).
+double FormatCpuSeconds(const Vsk& vsk) {
+  double best = 1e9;
+  for (int run = 0; run < 3; ++run) {
+    const std::clock_t start = std::clock();
+    const Expected<std::string> text = FormatVsk(vsk);
+    const double seconds = static_cast<double>(std::clock() - start) / CLOCKS_PER_SEC;
+    EXPECT_TRUE(text.ok()) << text.error().message;
+    best = std::min(best, seconds);
+  }
+  return best;
+}
+
+TEST(Vsk, WriterIsLinearInTheModel) {
+  // 1250 and 5000 subjects (10000 segments, the limit). A writer that scans
+  // every segment for each segment's children takes 16x as long for the 4x
+  // model; a linear one 4x. The test allows 8x.
+  const Vsk small = WideVsk(1250);
+  const Vsk large = WideVsk(5000);
+  const double small_s = FormatCpuSeconds(small);
+  const double large_s = FormatCpuSeconds(large);
+  std::printf("FormatVsk: %zu segments %.4f s, %zu segments %.4f s, ratio %.2f (linear 4)\n",
+              small.segments.size(), small_s, large.segments.size(), large_s,
+              large_s / std::max(small_s, 1e-6));
+  EXPECT_LT(large_s, 8.0 * std::max(small_s, 1e-4));
+  EXPECT_LT(large_s, 1.0);
+  const Expected<Vsk> back = ParseVsk(*FormatVsk(large), "wide.vsk");
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  EXPECT_EQ(back->segments.size(), large.segments.size());
+  EXPECT_EQ(VskSubjects(*back).size(), 5000u);
+}
+
+TEST(Vsk, WriterAndReaderBoundTheNesting) {
+  Vsk vsk;
+  vsk.segments.push_back({"s1", ""});
+  for (std::size_t depth = 2; depth <= kVskLimits.max_segment_depth; ++depth) {
+    vsk.segments.push_back({"s" + std::to_string(depth), "s" + std::to_string(depth - 1)});
+  }
+  vsk.markers.push_back({"tip", vsk.segments.back().name, Eigen::Vector3d::Zero(), "", 7.0});
+  const Expected<std::string> deepest = FormatVsk(vsk);
+  ASSERT_TRUE(deepest.ok()) << deepest.error().message;
+  const Expected<Vsk> back = ParseVsk(*deepest, "deep.vsk");
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  EXPECT_EQ(back->segments.size(), kVskLimits.max_segment_depth);
+  EXPECT_EQ(VskMarkersOfSubject(*back, "s1").size(), 1u);
+
+  const std::string last = vsk.segments.back().name;
+  vsk.segments.push_back({"deeper", last});
+  const Expected<std::string> refused = FormatVsk(vsk);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.error().message.find("'deeper': nested 65 segments deep; at most 64"),
+            std::string::npos)
+      << refused.error().message;
+
+  // The same nesting by hand: the reader names the element.
+  std::string text = *deepest;
+  const std::string tip = "<Segment NAME=\"" + last + "\"";
+  const std::size_t at = text.find("</JointFree>", text.find(tip));
+  ASSERT_NE(at, std::string::npos);
+  text.insert(at + std::string("</JointFree>").size(), "<Segment NAME=\"deeper\"/>");
+  const Expected<Vsk> read = ParseVsk(text, "deep.vsk");
+  ASSERT_FALSE(read.ok());
+  EXPECT_NE(read.error().message.find("segments nested more than 64 deep"), std::string::npos)
+      << read.error().message;
 }
 
 // ------------------------------------------------------------ bad input
