@@ -224,8 +224,10 @@ int main(int argc, char** argv) {
   k.k2 = model->k2;
   k.p1 = model->p1;
   k.p2 = model->p2;
+  registration::GroundTruthMapOptions map_options;
+  map_options.features.max_features = 4000;  // as `lifmcr register` makes it
   auto map = registration::BuildGroundTruthMap(summary->sequence_dir, serials->front(), {0, 1, 2},
-                                               processing::CameraModel(k), {});
+                                               processing::CameraModel(k), map_options);
   if (!map) {
     std::fprintf(stderr, "bench_live: %s\n", map.error().message.c_str());
     return 3;

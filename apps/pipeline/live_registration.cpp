@@ -100,10 +100,15 @@ Expected<LiveRegistration> LoadLiveRegistration(const LiveRegistrationOptions& o
     return Error{options.reference_dir.string() + ": the map's camera " + live.reference_serial +
                  " is not one of the cameras (" + std::to_string(serials.size()) + ")"};
   const fs::path map_intrinsics = options.reference_dir / "intrinsics.yaml";
-  if (fs::exists(map_intrinsics)) live.intrinsics_files.push_back(map_intrinsics);
-  for (const fs::path& file : options.intrinsics) live.intrinsics_files.push_back(file);
+  const auto add = [&](const fs::path& file) {
+    if (std::find(live.intrinsics_files.begin(), live.intrinsics_files.end(), file) ==
+        live.intrinsics_files.end())
+      live.intrinsics_files.push_back(file);
+  };
+  if (fs::exists(map_intrinsics)) add(map_intrinsics);
+  for (const fs::path& file : options.intrinsics) add(file);
   for (const fs::path& file : options.fallback_intrinsics)
-    if (fs::exists(file)) live.intrinsics_files.push_back(file);
+    if (fs::exists(file)) add(file);
   for (const std::string& serial : serials) {
     Expected<std::optional<processing::CameraIntrinsics>> k =
         FindIntrinsics(live.intrinsics_files, serial);
