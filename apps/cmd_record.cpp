@@ -111,6 +111,7 @@ Expected<std::unique_ptr<Pipeline>> MakePublishPipeline(const RigConfig& rig, co
       live_options.fallback_intrinsics.push_back(layout::CamerasYamlPath(args.replay));
     live_options.rigid_mount = rig.registration.rigid_mount;
     live_options.monitor.changed_after = rig.registration.changed_after;
+    live_options.monitor.settle_triggers = rig.registration.settle_triggers;
     std::vector<std::string> serials;
     for (const CameraConfig& camera : rig.cameras) serials.push_back(camera.serial);
     auto loaded = LoadLiveRegistration(live_options, serials);

@@ -513,6 +513,9 @@ std::optional<ConfigIssue> RigConfig::FindIssue() const {
   if (registration.changed_after < 1 || registration.changed_after > 100)
     return ConfigIssue{"/registration/changed_after",
                        "expected 1..100, got " + std::to_string(registration.changed_after)};
+  if (registration.settle_triggers < 2 || registration.settle_triggers > 1000)
+    return ConfigIssue{"/registration/settle_triggers",
+                       "expected 2..1000, got " + std::to_string(registration.settle_triggers)};
   return std::nullopt;
 }
 
@@ -575,6 +578,7 @@ Expected<RigConfig> ParseRigConfig(std::string_view yaml, const fs::path& base_d
   if (auto section = root.Map("registration", kOptional)) {
     section->Read("rigid_mount", &rig.registration.rigid_mount, kOptional);
     section->Read("changed_after", &rig.registration.changed_after, kOptional);
+    section->Read("settle_triggers", &rig.registration.settle_triggers, kOptional);
     section->Finish();
   }
   root.Finish();
@@ -657,6 +661,7 @@ std::string FormatRigConfig(const RigConfig& rig) {
   out << "  publish_previews: " << Yb(rig.lcm.publish_previews) << "\n";
   out << "registration:\n  rigid_mount: " << Yb(rig.registration.rigid_mount) << "\n";
   out << "  changed_after: " << rig.registration.changed_after << "\n";
+  out << "  settle_triggers: " << rig.registration.settle_triggers << "\n";
   return out.str();
 }
 

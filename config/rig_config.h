@@ -176,7 +176,8 @@ struct RegistrationConfig {
   // run of changed_after triggers departing from its running estimate beyond
   // its uncertainty is flagged (registration/extrinsics_monitor.h).
   bool rigid_mount = false;
-  int changed_after = 3;  // 1..100
+  int changed_after = 3;     // 1..100
+  int settle_triggers = 10;  // 2..1000: triggers that make the first running estimate
   bool operator==(const RegistrationConfig&) const = default;
 };
 

@@ -114,6 +114,7 @@ FrameRegistration MapLocalizerStage::Track(const processing::CameraModel& camera
 
 Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     const processing::StageFrame& frame) {
+  const auto start = std::chrono::steady_clock::now();
   if (!frame.camera->camera_model())
     return std::optional<processing::CameraPose>();  // no intrinsics: nothing to localise
   const processing::CameraModel& camera = *frame.camera->camera_model();
@@ -135,11 +136,14 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   CameraState state;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    state = cameras_[frame.serial];
+    CameraState& s = cameras_[frame.serial];
+    if (frame.host_ns > s.last_host_ns && frame.trigger_index <= s.last_trigger)
+      s = CameraState{};  // a new pass
+    state = s;
   }
   FrameRegistration r;
   std::string localisation = "relocalised";
-  if (state.has_pose) {
+  if (state.has_pose && options_.track) {
     r = Track(camera, obs, state.Predict(frame.trigger_index));
     if (r.success && r.inliers >= static_cast<std::size_t>(options_.min_tracked))
       localisation = "tracked";
@@ -155,24 +159,35 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   pose.inliers = static_cast<int>(r.inliers);
   pose.rmse_px = r.rmse_px;
   pose.status = r.status;
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   std::lock_guard<std::mutex> lock(mutex_);
   CameraState& s = cameras_[frame.serial];
-  const bool newest = frame.trigger_index > s.last_trigger;
+  const bool newest = frame.host_ns >= s.last_host_ns && frame.trigger_index > s.last_trigger;
   if (!r.success) {
     ++counts_.failed;
+    counts_.failed_s += seconds;
     if (newest) {  // relocalise next time
       s = CameraState{};
       s.last_trigger = frame.trigger_index;
+      s.last_host_ns = frame.host_ns;
     }
     return std::optional<processing::CameraPose>(pose);
   }
-  (localisation == "tracked" ? counts_.tracked : counts_.relocalised) += 1;
+  if (localisation == "tracked") {
+    ++counts_.tracked;
+    counts_.tracked_s += seconds;
+  } else {
+    ++counts_.relocalised;
+    counts_.relocalised_s += seconds;
+  }
   if (newest) {
     s.previous = s.last;
     s.previous_trigger = s.last_trigger;
     s.has_previous = s.has_pose;
     s.last = r.w0_from_cam.pose;
     s.last_trigger = frame.trigger_index;
+    s.last_host_ns = frame.host_ns;
     s.has_pose = true;
   }
   pose.transform = r.w0_from_cam.pose;

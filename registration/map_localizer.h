@@ -38,10 +38,15 @@
 namespace lifmcr::registration {
 
 struct LocalizerOptions {
+  // The strongest 4000 keypoints per frame, as `lifmcr register` keeps: all
+  // of a medium TF image's (tens of thousands) made a relocalisation's
+  // global matching take 100 s on 2 loaded cores (bench_live).
+  LocalizerOptions() { features.max_features = 4000; }
   FrameRegistrationOptions registration;
   FeatureOptions features;
   double track_radius_px = 12;  // local matching window on the TF grid (> 0)
   int min_tracked = 30;         // fewer inliers when tracking: relocalise (>= 3)
+  bool track = true;            // false: relocalise every frame (the baseline of bench_live)
   Status Check() const;
 };
 
@@ -62,17 +67,24 @@ class MapLocalizerStage final : public processing::RegistrationStage {
   // Frames tracked and relocalised so far (all cameras).
   struct Counts {
     long long tracked = 0, relocalised = 0, failed = 0;
+    // Localize's time (features, matching, PnP) of the frames so counted; a
+    // frame whose tracking failed pays both and counts as relocalised.
+    double tracked_s = 0, relocalised_s = 0, failed_s = 0;
   };
   Counts counts() const;
 
  private:
-  // The camera's newest poses, by trigger. Frames of one camera may be
-  // localised concurrently and finish out of order: a result older than
-  // `last_trigger` never replaces the state.
+  // The camera's newest poses. Frames of one camera may be localised
+  // concurrently and finish out of order: a frame that reached the host
+  // before the last one that set the state (host_ns) never replaces it. A
+  // frame that reached the host later but has a lower trigger index starts a
+  // new pass (replay --loop numbers its triggers from 0 again): the state is
+  // dropped, the frame relocalised.
   struct CameraState {
     bool has_pose = false;
     Pose last = Pose::Identity(), previous = Pose::Identity();
     std::int64_t last_trigger = -1, previous_trigger = -1;
+    std::int64_t last_host_ns = 0;
     bool has_previous = false;
     // Prediction for `trigger`: constant velocity when the step from the
     // previous pose to the last spans as many triggers as the step ahead

@@ -9,6 +9,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cmath>
 #include <sstream>
 
 namespace lifmcr::apps {
@@ -99,10 +100,15 @@ Expected<LiveRegistration> LoadLiveRegistration(const LiveRegistrationOptions& o
     return Error{options.reference_dir.string() + ": the map's camera " + live.reference_serial +
                  " is not one of the cameras (" + std::to_string(serials.size()) + ")"};
   const fs::path map_intrinsics = options.reference_dir / "intrinsics.yaml";
-  if (fs::exists(map_intrinsics)) live.intrinsics_files.push_back(map_intrinsics);
-  for (const fs::path& file : options.intrinsics) live.intrinsics_files.push_back(file);
+  const auto add = [&](const fs::path& file) {
+    if (std::find(live.intrinsics_files.begin(), live.intrinsics_files.end(), file) ==
+        live.intrinsics_files.end())
+      live.intrinsics_files.push_back(file);
+  };
+  if (fs::exists(map_intrinsics)) add(map_intrinsics);
+  for (const fs::path& file : options.intrinsics) add(file);
   for (const fs::path& file : options.fallback_intrinsics)
-    if (fs::exists(file)) live.intrinsics_files.push_back(file);
+    if (fs::exists(file)) add(file);
   for (const std::string& serial : serials) {
     Expected<std::optional<processing::CameraIntrinsics>> k =
         FindIntrinsics(live.intrinsics_files, serial);
@@ -130,8 +136,13 @@ Expected<LiveRegistration> LoadLiveRegistration(const LiveRegistrationOptions& o
 std::string LiveRegistrationReport(const LiveRegistration& live) {
   const registration::MapLocalizerStage::Counts c = live.stage->counts();
   std::ostringstream out;
-  out << "registration: " << c.tracked << " frames tracked, " << c.relocalised
-      << " relocalised, " << c.failed << " failed (camera 0 = " << live.reference_serial << ")";
+  const auto mean_ms = [](double seconds, long long n) {
+    return n > 0 ? static_cast<long long>(std::lround(1e3 * seconds / static_cast<double>(n))) : 0;
+  };
+  out << "registration: " << c.tracked << " frames tracked (" << mean_ms(c.tracked_s, c.tracked)
+      << " ms each), " << c.relocalised << " relocalised ("
+      << mean_ms(c.relocalised_s, c.relocalised) << " ms), " << c.failed
+      << " failed (camera 0 = " << live.reference_serial << ")";
   if (live.csv) out << "; " << live.csv->rows() << " rows in " << live.csv->path().string();
   out << "\n";
   return out.str();

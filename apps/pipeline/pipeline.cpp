@@ -189,7 +189,12 @@ struct Pipeline::Impl {
 
   // Registration poses by trigger, then camera index (publishing node only).
   struct TriggerPoses {
-    std::map<int, std::pair<std::string, processing::CameraPose>> by_camera;  // serial, w0_from_cx
+    struct Entry {
+      std::string serial;
+      processing::CameraPose w0_from_cx;
+      std::int64_t arrival_ns = 0;
+    };
+    std::map<int, Entry> by_camera;
   };
   std::map<std::int64_t, TriggerPoses> poses;
   static constexpr std::size_t kTriggersKept = 64;
@@ -233,17 +238,18 @@ struct Pipeline::Impl {
   std::uint64_t Relate(const Job& job, const processing::CameraPose& w0_from_cx) {
     TriggerPoses& trigger = poses[job.trigger_index];
     const int camera = job.frame.camera_index;
-    trigger.by_camera[camera] = {job.frame.serial, w0_from_cx};
+    trigger.by_camera[camera] = {job.frame.serial, w0_from_cx, job.arrival_ns};
     std::uint64_t published = 0;
     auto reference = trigger.by_camera.find(reference_camera);
     if (reference != trigger.by_camera.end()) {
-      const auto& [reference_serial, w0_from_c0] = reference->second;
+      const TriggerPoses::Entry& zero = reference->second;
       for (const auto& [index, entry] : trigger.by_camera) {
         if (index == reference_camera || (camera != reference_camera && index != camera))
           continue;
-        ExtrinsicsRecord record{reference_serial, entry.first, job.trigger_index,
-                                registration->Relate(entry.first, job.trigger_index,
-                                                     w0_from_c0, entry.second)};
+        ExtrinsicsRecord record{zero.serial, entry.serial, job.trigger_index,
+                                registration->Relate(entry.serial, job.trigger_index,
+                                                     zero.w0_from_cx, entry.w0_from_cx),
+                                entry.arrival_ns};
         publisher->PublishExtrinsics(record.reference_serial, record.serial,
                                      record.trigger_index, record.c0_from_cx);
         if (options.on_extrinsics) options.on_extrinsics(record);
@@ -545,6 +551,9 @@ void Pipeline::EndPass() {
   impl_->QueueSets(std::move(sets));
   impl_->SubmitQueued(std::nullopt);
   impl_->WaitIdle();
+  // The next pass numbers its triggers from the start again: no pose of
+  // this pass may pair with one of the next (the publishing node is idle).
+  impl_->poses.clear();
   std::lock_guard lock(impl_->sync_mutex);
   impl_->drops_before = impl_->SyncDrops();
   // The next pass starts a fresh assembler (the pipeline's or the grab loop's).

@@ -58,6 +58,7 @@ struct ExtrinsicsRecord {
   std::string serial;            // camera X
   std::int64_t trigger_index = 0;
   processing::CameraPose c0_from_cx;
+  std::int64_t arrival_ns = 0;  // camera X's frame at the pipeline (host clock)
 };
 
 struct PipelineOptions {

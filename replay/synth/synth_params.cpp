@@ -100,6 +100,11 @@ Status SynthRigParams::Check() const {
     return FieldError("rig.baseline_mm", "expected 0..1000 mm");
   if (!(speed_scale >= 0 && speed_scale <= 10))
     return FieldError("rig.speed_scale", "expected 0..10");
+  if (knock_frame < -1 || knock_frame >= frames)
+    return FieldError("rig.knock_frame", "expected -1 (never) or a trigger 0..frames-1");
+  if (knock_frame >= 0 && !rigid) return FieldError("rig.knock_frame", "needs rig.rigid: true");
+  if (!(std::abs(knock_t_mm) <= 100)) return FieldError("rig.knock_t_mm", "expected -100..100 mm");
+  if (!(std::abs(knock_r_deg) <= 10)) return FieldError("rig.knock_r_deg", "expected -10..10 deg");
   auto plain = [](const std::string& name) {
     if (name.empty() || name == "." || name == "..") return false;
     for (char ch : name)
@@ -220,6 +225,10 @@ void ReadRig(YamlMap& m, SynthRigParams* r) {
   m.Read("viewing_distance_mm", &r->viewing_distance_mm, kOptional);
   m.Read("baseline_mm", &r->baseline_mm, kOptional);
   m.Read("speed_scale", &r->speed_scale, kOptional);
+  m.Read("rigid", &r->rigid, kOptional);
+  m.Read("knock_frame", &r->knock_frame, kOptional);
+  m.Read("knock_t_mm", &r->knock_t_mm, kOptional);
+  m.Read("knock_r_deg", &r->knock_r_deg, kOptional);
   m.Read("scene", &r->scene, kOptional);
   m.Read("scene_folder", &r->scene_folder, kOptional);
   m.Read("sequence", &r->sequence, kOptional);

@@ -74,6 +74,16 @@ struct SynthRigParams {
   double viewing_distance_mm = 1100;  // camera to the plate centre
   double baseline_mm = 120;           // between neighbouring cameras
   double speed_scale = 1.0;           // scales the amplitude of motion
+  // One rigid rig instead of a trajectory per camera: the cameras sit
+  // baseline_mm apart along the rig's x, toed in to the look-at point, and
+  // move together (c0_from_cx constant).
+  bool rigid = false;
+  // With rigid: from trigger knock_frame on (-1: never) the last camera sits
+  // knock_t_mm further along its x and knock_r_deg turned about its y (a
+  // camera knocked on its mount; extrinsic change detection).
+  int knock_frame = -1;
+  double knock_t_mm = 5.0;
+  double knock_r_deg = 0.5;
   std::string scene = "table";                // scene content: table|plain (scene.h)
   std::string scene_folder = "00_Synthetic";  // the scene's folder in the dataset
   std::string sequence = "Sequence_00";       // the sequence's folder in it

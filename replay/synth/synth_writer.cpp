@@ -160,6 +160,29 @@ std::vector<CameraTrajectory> MakeTrajectories(const SynthParams& params, const 
     tp.duration_s = duration_s;
     tp.amplitude_scale = params.rig.speed_scale;
     tp.seed = Mix(params.rig.seed, 400 + k);
+    if (params.rig.rigid) {
+      // On the rig: offset along the rig's x, toed in to the look-at point
+      // (camera z forward, y down: a turn about y).
+      tp.rig_from_cam = Pose::Identity();
+      tp.rig_from_cam.translation() = Eigen::Vector3d(tp.lateral_offset_mm, 0, 0);
+      tp.rig_from_cam.linear() =
+          Eigen::AngleAxisd(-std::atan2(tp.lateral_offset_mm, tp.distance_mm),
+                            Eigen::Vector3d::UnitY())
+              .toRotationMatrix();
+      tp.lateral_offset_mm = 0;
+      tp.seed = Mix(params.rig.seed, 400);
+      if (k == params.rig.cameras - 1 && params.rig.knock_frame >= 0) {
+        // Half a trigger period before the knocked trigger: every sample of
+        // it (image and Vicon) sees the new mount.
+        tp.knock_time_s =
+            TimeOfViconFrame(params.vicon, ViconFrameOfImage(params.vicon, params.rig.knock_frame)) -
+            0.5 * params.vicon.trigger_divider / params.vicon.rate_hz;
+        tp.knock.translation() = Eigen::Vector3d(params.rig.knock_t_mm, 0, 0);
+        tp.knock.linear() =
+            Eigen::AngleAxisd(params.rig.knock_r_deg * M_PI / 180.0, Eigen::Vector3d::UnitY())
+                .toRotationMatrix();
+      }
+    }
     trajectories.emplace_back(tp);
   }
   return trajectories;

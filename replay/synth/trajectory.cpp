@@ -51,6 +51,11 @@ double CameraTrajectory::Sum(const Wave* waves, int count, double t_s) const {
 }
 
 Pose CameraTrajectory::WorldFromCam(double t_s) const {
+  return RigWorldFromCam(t_s) * (t_s >= p_.knock_time_s ? p_.rig_from_cam * p_.knock
+                                                        : p_.rig_from_cam);
+}
+
+Pose CameraTrajectory::RigWorldFromCam(double t_s) const {
   // Base: in front of the target (-y side), raised by the elevation, shifted
   // along x by this camera's place in the rig; all cameras look at the target.
   const Eigen::Vector3d offset(p_.lateral_offset_mm, 0, 0);

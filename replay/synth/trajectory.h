@@ -22,6 +22,7 @@
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <limits>
 #include <string>
 
 namespace lifmcr::synth {
@@ -38,6 +39,13 @@ struct TrajectoryParams {
   double duration_s = 1.0;                              // sequence length (for axis/circle)
   double amplitude_scale = 1.0;
   std::uint64_t seed = 1;  // per camera
+  // A rigid rig (SynthRigParams::rigid): every camera follows the rig's
+  // trajectory (lateral offset 0, the rig's seed) and sits at rig_from_cam on
+  // it; from knock_time_s on at rig_from_cam * knock (the camera moved on its
+  // mount). Defaults: the camera is the trajectory's.
+  Pose rig_from_cam = Pose::Identity();
+  double knock_time_s = std::numeric_limits<double>::infinity();
+  Pose knock = Pose::Identity();
 };
 
 class CameraTrajectory {
@@ -46,6 +54,7 @@ class CameraTrajectory {
   Pose WorldFromCam(double t_s) const;
 
  private:
+  Pose RigWorldFromCam(double t_s) const;  // the trajectory itself
   struct Wave {
     double amplitude, frequency_hz, phase;
   };

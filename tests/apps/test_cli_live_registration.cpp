@@ -8,11 +8,14 @@
 // LCM part is skipped otherwise); the CSV is read with the reader `lifmcr
 // evaluate` uses. Gates (issue 13, true intrinsics): c0_from_cx median error
 // against GroundTruth <= 2 mm / 0.1 deg, >= 95 % of triggers registered.
+#include "config/rig_config.h"
+#include "tests/acquisition/rig_fixture.h"
 #include "lcm_types/safe_decode.h"
 #include "registration/evaluation_inputs.h"
 #include "registration/pose_covariance.h"
 #include "registration/poses_csv.h"
 #include "replay/layout.h"
+#include "replay/sequence.h"
 #include "tests/test_util.h"
 
 #include <gtest/gtest.h>
@@ -96,6 +99,7 @@ TEST(CliLiveRegistration, ReplayWithAReferenceMapPublishesAccurateExtrinsicsPerT
   EXPECT_NE(replay.out.find(std::to_string(kFrames) + " extrinsics"), std::string::npos)
       << replay.out;
   EXPECT_NE(replay.out.find("rows in " + csv.string()), std::string::npos) << replay.out;
+  EXPECT_NE(replay.out.find(" relocalised ("), std::string::npos) << replay.out;
 
   // Ground truth: c0_from_cx = world_from_c0^-1 world_from_cx per frame.
   Expected<RegistrationTable> table = ReadRegistrationCsv(csv);
@@ -170,6 +174,90 @@ TEST(CliLiveRegistration, ReplayWithAReferenceMapPublishesAccurateExtrinsicsPerT
   EXPECT_TRUE(localisations.count("tracked"));
   std::printf("lcm-logger: %d EXTRINSICS messages, triggers 0..%lld\n", messages,
               static_cast<long long>(*triggers.rbegin()));
+}
+
+// Extrinsic change detection end to end, short: a rigid synthetic rig
+// (`synth --config` rig: {rigid: true, knock_frame: 7}) whose last camera is
+// knocked 5 mm / 0.5 deg from trigger 7 on, recorded from its replay with
+// `record --publish --reference MAP` and a rig file saying
+// registration: {rigid_mount: true, settle_triggers: 4} (the default settles
+// over 10 triggers; the gates over 200 triggers are the unit test's,
+// tests/registration/test_extrinsics_monitor.cpp). The extrinsics go to an
+// LCM log file (the rig's lcm.url).
+TEST(CliLiveRegistration, RecordFlagsACameraKnockedOnARigidMount) {
+  constexpr int kTriggers = 11, kKnock = 7;
+  test::TempDir dir;
+  // The file is checked on its own before --frames applies: frames in it too.
+  test::WriteFile(dir / "synth.yaml", "rig:\n  rigid: true\n  frames: " +
+                                          std::to_string(kTriggers) + "\n  knock_frame: " +
+                                          std::to_string(kKnock) + "\n");
+  const test::CommandResult synth = test::RunLifmcr(
+      "synth --out " + (dir / "data").string() + " --preset small --frames " +
+      std::to_string(kTriggers) + " --cameras 2 --quiet --config " + (dir / "synth.yaml").string());
+  ASSERT_EQ(synth.exit_code, 0) << synth.err;
+  const fs::path seq = dir / "data" / "00_Synthetic" / "Sequence_00";
+  const test::CommandResult map =
+      test::RunLifmcr("register " + seq.string() +
+                      " --reference-from-ground-truth --observations ground-truth --frames 1 "
+                      "--out " + (dir / "map").string());
+  ASSERT_EQ(map.exit_code, 0) << map.err;
+  const auto sequence = DiscoverSequence(seq);
+  ASSERT_TRUE(sequence.ok());
+
+  RigConfig rig = test::TwoCameraRig();
+  rig.vicon.source = ViconSourceKind::kNone;
+  rig.vicon.rate_hz = 160;  // 20 Hz triggers
+  rig.vicon.udp.port = 51003;
+  for (int c = 0; c < 2; ++c) {
+    rig.cameras[c].serial = sequence->cameras[c].serial;
+    rig.cameras[c].mla_file =
+        layout::MlaXmlPath(dir / "data" / "Calibration", rig.cameras[c].serial);
+    rig.cameras[c].trigger.mode = TriggerMode::kHardware;
+  }
+  const fs::path log = dir / "run.lcmlog";
+  rig.processing.skip_policy = SkipPolicy::kBlock;  // every trigger registered
+  rig.lcm.url = "file://" + log.string() + "?mode=w";
+  rig.registration.rigid_mount = true;
+  rig.registration.settle_triggers = 4;
+  const fs::path rig_path = dir / "rig.yaml";
+  test::WriteFile(rig_path, FormatRigConfig(rig));
+  const test::CommandResult record = test::RunLifmcr(
+      "record --rig " + rig_path.string() + " --replay " + seq.string() + " --out " +
+      (dir / "rec").string() + " --duration 300 --publish --reference " +
+      (dir / "map" / "reference").string() + " --extrinsics-csv " + (dir / "x.csv").string());
+  ASSERT_EQ(record.exit_code, 0) << record.out << record.err;
+  EXPECT_NE(record.out.find("rows in"), std::string::npos) << record.out;
+
+  lcm::LogFile file(log.string(), "r");
+  ASSERT_TRUE(file.good());
+  std::map<std::int64_t, lifmcr_lcm::camera_extrinsics_t> by_trigger;
+  while (const lcm::LogEvent* event = file.readNextEvent()) {
+    if (!event->channel.ends_with("_EXTRINSICS")) continue;
+    auto m = lifmcr_lcm::SafeDecode<lifmcr_lcm::camera_extrinsics_t>(event->data,
+                                                                      event->datalen);
+    ASSERT_TRUE(m);
+    by_trigger[m->trigger_index] = *m;
+  }
+  ASSERT_GE(by_trigger.size(), static_cast<std::size_t>(kTriggers - 1)) << record.out;
+  std::int64_t first_changed = -1;
+  for (const auto& [trigger, m] : by_trigger) {
+    std::printf("trigger %2lld: %s t = (%.2f, %.2f, %.2f) mm, change_state %d, departure %.1f, "
+                "%d in a row\n",
+                static_cast<long long>(trigger), m.status.c_str(), m.t_mm[0], m.t_mm[1], m.t_mm[2],
+                m.change_state, m.departure, m.departures_in_row);
+    EXPECT_NE(m.change_state, lifmcr_lcm::camera_extrinsics_t::CHANGE_OFF);
+    if (trigger < kKnock) {
+      EXPECT_NE(m.change_state, lifmcr_lcm::camera_extrinsics_t::CHANGE_CHANGED)
+          << "false alarm at trigger " << trigger;
+    }
+    if (m.change_state == lifmcr_lcm::camera_extrinsics_t::CHANGE_CHANGED && first_changed < 0)
+      first_changed = trigger;
+  }
+  ASSERT_GE(first_changed, kKnock) << "the knock was not flagged";
+  EXPECT_LT(first_changed, kKnock + 5) << "flagged later than 5 triggers after the knock";
+  std::printf("knocked at trigger %d, flagged at trigger %lld (%lld triggers)\n", kKnock,
+              static_cast<long long>(first_changed),
+              static_cast<long long>(first_changed - kKnock + 1));
 }
 
 }  // namespace

@@ -1,0 +1,271 @@
+// bench_live: live registration's throughput and latency, beside baselines
+// measured in the same run.
+//
+// A synthetic rig (default preset medium, 2 cameras, the table scene;
+// rendering not timed) is replayed at its trigger rate (10 Hz, newest wins,
+// looping) through `lifmcr replay --reference`'s path (RunReplay with
+// LiveRegistrationOptions): a reference map of camera 0 from the ground
+// truth (registration/ground_truth_map.h, written and read back as a map
+// folder), true intrinsics, depth and previews published on memq://. Three
+// runs of --seconds each:
+//   track        the localizer as it runs live: tracked when it has a pose,
+//                relocalised otherwise;
+//   relocalise   the baseline: every frame relocalised (global matching and
+//                full LO-RANSAC), LocalizerOptions::track = false;
+//   depth only   no registration: what processing and publishing alone give.
+// Per run: extrinsics per second per camera X, frame -> extrinsics latency
+// (arrival of camera X's frame at the pipeline -> its c0_from_cx on LCM;
+// p50, p99), frames processed and skipped per second, previews and depth
+// maps published per second, and Localize's mean time tracked vs
+// relocalised. Ratios: track / relocalise extrinsics rate and latency;
+// processed frames track / depth only.
+//
+//   bench_live [--preset small|medium|r32] [--frames N] [--seconds S]
+//              [--concurrency N]
+// Goals (issue 13, 2 cores): >= 5 Hz per camera at medium, >= 2 Hz at r32.
+
+#include "apps/pipeline/live_registration.h"
+#include "apps/pipeline/process_settings.h"
+#include "apps/pipeline/replay_runner.h"
+#include "registration/ground_truth_map.h"
+#include "registration/reference_map.h"
+#include "replay/layout.h"
+#include "replay/synth/cameras_yaml.h"
+#include "replay/synth/synth_params.h"
+#include "replay/synth/synth_writer.h"
+
+#include <lcm/lcm-cpp.hpp>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <ctime>
+#include <filesystem>
+#include <map>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace {
+
+using namespace lifmcr;
+namespace fs = std::filesystem;
+
+struct Args {
+  std::string preset = "medium";
+  int frames = 6;
+  double seconds = 30;
+  int concurrency = 2;
+};
+
+bool ParseArgs(int argc, char** argv, Args* a) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string k = argv[i];
+    if (k == "--help" || k == "-h") return false;
+    if (i + 1 >= argc) return false;
+    const std::string v = argv[++i];
+    char* end = nullptr;
+    if (k == "--preset") {
+      a->preset = v;
+    } else if (k == "--frames") {
+      a->frames = static_cast<int>(std::strtol(v.c_str(), &end, 10));
+    } else if (k == "--seconds") {
+      a->seconds = std::strtod(v.c_str(), &end);
+    } else if (k == "--concurrency") {
+      a->concurrency = static_cast<int>(std::strtol(v.c_str(), &end, 10));
+    } else {
+      return false;
+    }
+    if (end != nullptr && *end != '\0') return false;
+  }
+  return a->frames >= 3 && a->seconds > 0 && a->concurrency >= 1;
+}
+
+std::int64_t NowRealtimeNs() {
+  timespec ts{};
+  clock_gettime(CLOCK_REALTIME, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+double Percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))];
+}
+
+struct RunFigures {
+  std::string label;
+  double elapsed_s = 0;
+  std::map<std::string, int> extrinsics_ok;  // camera X -> messages with status ok
+  int extrinsics = 0;
+  std::vector<double> latency_ms;
+  std::uint64_t processed = 0, skipped = 0, previews = 0, depth = 0;
+  std::string registration;
+  double HzPerCamera() const {
+    if (extrinsics_ok.empty() || elapsed_s <= 0) return 0;
+    int n = 0;
+    for (const auto& [serial, count] : extrinsics_ok) n += count;
+    return n / elapsed_s / static_cast<double>(extrinsics_ok.size());
+  }
+};
+
+enum class Mode { kTrack, kRelocalise, kDepthOnly };
+
+RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_dir, Mode mode) {
+  RunFigures f;
+  f.label = mode == Mode::kTrack ? "track" : mode == Mode::kRelocalise ? "relocalise" : "depth only";
+  lcm::LCM bus("memq://");
+  std::mutex mutex;
+  apps::ReplayRunOptions options;
+  options.sequence_dir = sequence;
+  options.rate.kind = apps::ReplayRate::Kind::kOriginal;
+  options.loop = true;
+  options.pipeline.publisher.bus = &bus;
+  options.pipeline.max_concurrency = args.concurrency;
+  options.intrinsics = {layout::CamerasYamlPath(sequence)};
+  if (mode != Mode::kDepthOnly) {
+    apps::LiveRegistrationOptions live;
+    live.reference_dir = map_dir;
+    live.localizer.track = mode == Mode::kTrack;
+    options.registration = live;
+    options.pipeline.on_extrinsics = [&](const apps::ExtrinsicsRecord& r) {
+      const double ms = static_cast<double>(NowRealtimeNs() - r.arrival_ns) / 1e6;
+      std::lock_guard lock(mutex);
+      ++f.extrinsics;
+      if (r.c0_from_cx.status == "ok") ++f.extrinsics_ok[r.serial];
+      f.latency_ms.push_back(ms);
+    };
+  }
+  std::atomic<bool> stop{false};
+  options.stop = &stop;
+  std::thread timer([&] {
+    const auto end = std::chrono::steady_clock::now() +
+                     std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                         std::chrono::duration<double>(args.seconds));
+    while (std::chrono::steady_clock::now() < end && !stop)
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    stop = true;
+  });
+  const auto start = std::chrono::steady_clock::now();
+  auto result = apps::RunReplay(options);
+  f.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  stop = true;
+  timer.join();
+  if (!result) {
+    std::fprintf(stderr, "bench_live: %s: %s\n", f.label.c_str(), result.error().message.c_str());
+    std::exit(3);
+  }
+  f.processed = result->report.processed;
+  f.skipped = result->report.skipped;
+  f.previews = result->report.published_previews;
+  f.depth = result->report.published_depth;
+  f.registration = result->registration;
+  return f;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const auto process_settings = apps::ProcessSettings::ForPipeline();
+  Args args;
+  if (!ParseArgs(argc, argv, &args)) {
+    std::fprintf(stderr,
+                 "usage: bench_live [--preset small|medium|r32] [--frames N>=3] [--seconds S] "
+                 "[--concurrency N]\n");
+    return 2;
+  }
+  auto params = synth::MakePreset(args.preset);
+  if (!params) {
+    std::fprintf(stderr, "bench_live: %s\n", params.error().message.c_str());
+    return 2;
+  }
+  params->rig.frames = args.frames;
+  params->rig.cameras = 2;
+  char tmpl[] = "/tmp/lifmcr-bench-live-XXXXXX";
+  if (!mkdtemp(tmpl)) {
+    std::fprintf(stderr, "bench_live: cannot create %s: %s\n", tmpl, std::strerror(errno));
+    return 3;
+  }
+  const fs::path dir = tmpl;
+  std::fprintf(stderr, "bench_live: rendering 2 x %d frames of preset %s into %s (not timed)\n",
+               args.frames, args.preset.c_str(), tmpl);
+  auto summary = synth::WriteSyntheticDataset(dir / "data", *params, {});
+  if (!summary) {
+    std::fprintf(stderr, "bench_live: %s\n", summary.error().message.c_str());
+    fs::remove_all(dir);
+    return 3;
+  }
+  // Camera 0's map from its ground truth, frames 0..2 (what `lifmcr register
+  // --reference-from-ground-truth` makes), as a map folder.
+  const fs::path cameras_yaml = layout::CamerasYamlPath(summary->sequence_dir);
+  auto serials = synth::ReadCameraSerialsYaml(cameras_yaml);
+  if (!serials || serials->empty()) {
+    std::fprintf(stderr, "bench_live: %s: no cameras\n", cameras_yaml.c_str());
+    return 3;
+  }
+  auto model = synth::ReadCameraModelYaml(cameras_yaml, serials->front());
+  if (!model) {
+    std::fprintf(stderr, "bench_live: %s\n", model.error().message.c_str());
+    return 3;
+  }
+  processing::CameraIntrinsics k;
+  k.width_px = model->width_px;
+  k.height_px = model->height_px;
+  k.pixel_size_mm = model->pixel_size_mm;
+  k.main_focal_length_mm = model->main_focal_length_mm;
+  k.mla_to_main_lens_mm = model->mla_to_main_lens_mm;
+  k.mla_to_sensor_mm = model->mla_to_sensor_mm;
+  k.k1 = model->k1;
+  k.k2 = model->k2;
+  k.p1 = model->p1;
+  k.p2 = model->p2;
+  registration::GroundTruthMapOptions map_options;
+  map_options.features.max_features = 4000;  // as `lifmcr register` makes it
+  auto map = registration::BuildGroundTruthMap(summary->sequence_dir, serials->front(), {0, 1, 2},
+                                               processing::CameraModel(k), map_options);
+  if (!map) {
+    std::fprintf(stderr, "bench_live: %s\n", map.error().message.c_str());
+    return 3;
+  }
+  const fs::path map_dir = dir / "map";
+  if (Status s = registration::WriteReferenceMap(map_dir, *map); !s) {
+    std::fprintf(stderr, "bench_live: %s\n", s.error().message.c_str());
+    return 3;
+  }
+  std::printf("bench_live: preset %s, 2 cameras x %d frames looped at 10 Hz for %.0f s per run, "
+              "%d frames at once, map of %zu points, %u hardware threads\n",
+              args.preset.c_str(), args.frames, args.seconds, args.concurrency,
+              map->points.size(), std::thread::hardware_concurrency());
+  std::vector<RunFigures> runs;
+  for (const Mode mode : {Mode::kTrack, Mode::kRelocalise, Mode::kDepthOnly}) {
+    runs.push_back(Run(args, summary->sequence_dir, map_dir, mode));
+    const RunFigures& f = runs.back();
+    std::printf("%-10s extrinsics %.2f Hz per camera (%d messages), frame -> extrinsics p50 %.0f "
+                "ms p99 %.0f ms | frames processed %.2f/s skipped %.2f/s | previews %.2f/s "
+                "depth %.2f/s over %.1f s\n",
+                f.label.c_str(), f.HzPerCamera(), f.extrinsics, Percentile(f.latency_ms, 0.5),
+                Percentile(f.latency_ms, 0.99), f.processed / f.elapsed_s, f.skipped / f.elapsed_s,
+                f.previews / f.elapsed_s, f.depth / f.elapsed_s, f.elapsed_s);
+    if (!f.registration.empty()) std::printf("           %s", f.registration.c_str());
+    std::fflush(stdout);
+  }
+  const RunFigures &track = runs[0], &relocalise = runs[1], &depth = runs[2];
+  std::printf("ratios: extrinsics rate track / relocalise %.2f; latency p50 relocalise / track "
+              "%.2f; frames processed track / depth only %.2f\n",
+              relocalise.HzPerCamera() > 0 ? track.HzPerCamera() / relocalise.HzPerCamera() : 0.0,
+              Percentile(track.latency_ms, 0.5) > 0
+                  ? Percentile(relocalise.latency_ms, 0.5) / Percentile(track.latency_ms, 0.5)
+                  : 0.0,
+              depth.processed > 0 ? (track.processed / track.elapsed_s) /
+                                        (depth.processed / depth.elapsed_s)
+                                  : 0.0);
+  std::printf("goal (issue 13): >= %s Hz per camera: %s\n", args.preset == "r32" ? "2" : "5",
+              track.HzPerCamera() >= (args.preset == "r32" ? 2.0 : 5.0) ? "met" : "NOT met");
+  fs::remove_all(dir);
+  return 0;
+}
