@@ -164,9 +164,12 @@ CameraInfo MemoryCamera::Info() const {
   info.height = options_.height;
   info.format = options_.format;
   info.payload_bytes = row_bytes_ * static_cast<std::size_t>(options_.height);
-  // Frames are stamped with CLOCK_REALTIME when made (at the software
-  // trigger): every memory camera is on that one clock.
-  info.device_clock = "host CLOCK_REALTIME";
+  // Frames are stamped with CLOCK_REALTIME when made at the software
+  // trigger: every triggered memory camera is on that one clock, and equal
+  // stamps mean one trigger. A free-running one makes frames on its own
+  // schedule (as fast as its pool allows), so its stamps say nothing about the
+  // rig's triggers: for the first-frame placement it has a clock of its own.
+  if (!options_.free_run) info.device_clock = "host CLOCK_REALTIME";
   return info;
 }
 
