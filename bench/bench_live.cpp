@@ -24,6 +24,7 @@
 //              [--concurrency N]
 // Goals (issue 13, 2 cores): >= 5 Hz per camera at medium, >= 2 Hz at r32.
 
+#include "apps/pipeline/camera_setup.h"
 #include "apps/pipeline/live_registration.h"
 #include "apps/pipeline/process_settings.h"
 #include "apps/pipeline/replay_runner.h"
@@ -208,26 +209,15 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "bench_live: %s: no cameras\n", cameras_yaml.c_str());
     return 3;
   }
-  auto model = synth::ReadCameraModelYaml(cameras_yaml, serials->front());
-  if (!model) {
-    std::fprintf(stderr, "bench_live: %s\n", model.error().message.c_str());
+  auto k = apps::ReadIntrinsics(cameras_yaml, serials->front());
+  if (!k) {
+    std::fprintf(stderr, "bench_live: %s\n", k.error().message.c_str());
     return 3;
   }
-  processing::CameraIntrinsics k;
-  k.width_px = model->width_px;
-  k.height_px = model->height_px;
-  k.pixel_size_mm = model->pixel_size_mm;
-  k.main_focal_length_mm = model->main_focal_length_mm;
-  k.mla_to_main_lens_mm = model->mla_to_main_lens_mm;
-  k.mla_to_sensor_mm = model->mla_to_sensor_mm;
-  k.k1 = model->k1;
-  k.k2 = model->k2;
-  k.p1 = model->p1;
-  k.p2 = model->p2;
   registration::GroundTruthMapOptions map_options;
   map_options.features.max_features = 4000;  // as `lifmcr register` makes it
   auto map = registration::BuildGroundTruthMap(summary->sequence_dir, serials->front(), {0, 1, 2},
-                                               processing::CameraModel(k), map_options);
+                                               processing::CameraModel(*k), map_options);
   if (!map) {
     std::fprintf(stderr, "bench_live: %s\n", map.error().message.c_str());
     return 3;
