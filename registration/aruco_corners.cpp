@@ -7,10 +7,8 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <limits>
 #include <set>
-#include <sstream>
 
 namespace lifmcr::registration {
 namespace {
@@ -38,25 +36,11 @@ std::string FormatArucoCornersCsv(const std::vector<ArucoCornerObservation>& obs
 
 Expected<std::vector<ArucoCornerObservation>> ReadArucoCornersCsv(
     const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return MakeErrorAt(path.string(), "/", "cannot open the file");
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  Expected<CsvDocument> doc = TokenizeCsv(buffer.str(), path.string());
-  if (!doc) return doc.error();
+  Expected<std::vector<CsvRow>> rows =
+      ReadHeadedCsv(path, kHeader, "an ArUco corners CSV (aruco_corners.csv)", 64ull << 20);
+  if (!rows) return rows.error();
   std::vector<ArucoCornerObservation> out;
-  bool header = true;
-  for (const CsvRow& row : doc->rows) {
-    if (row.IsBlank()) continue;
-    if (header) {
-      std::string joined;
-      for (std::size_t k = 0; k < row.fields.size(); ++k)
-        joined += (k ? "," : "") + row.fields[k].text;
-      if (joined != kHeader)
-        return MakeError(path.string(), row.line, 1, std::string("expected the header ") + kHeader);
-      header = false;
-      continue;
-    }
+  for (const CsvRow& row : *rows) {
     if (row.fields.size() != 6)
       return MakeError(path.string(), row.line, 1,
                        "expected 6 fields (" + std::string(kHeader) + "), got " +
@@ -85,7 +69,6 @@ Expected<std::vector<ArucoCornerObservation>> ReadArucoCornersCsv(
     o.virtual_depth = v[5];
     out.push_back(o);
   }
-  if (header) return MakeErrorAt(path.string(), "/", std::string("no header ") + kHeader);
   return out;
 }
 

@@ -7,7 +7,6 @@
 #include <charconv>
 #include <cstdio>
 #include <fstream>
-#include <sstream>
 
 namespace lifmcr::registration {
 namespace {
@@ -38,26 +37,11 @@ Status WritePosesCsv(const std::filesystem::path& path, const std::vector<FrameP
 }
 
 Expected<std::vector<FramePose>> ReadPosesCsv(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Error{path.string() + ": cannot open"};
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  const std::string text = buffer.str();
-  Expected<CsvDocument> doc = TokenizeCsv(text, path.string());
-  if (!doc) return doc.error();
+  Expected<std::vector<CsvRow>> rows =
+      ReadHeadedCsv(path, kHeader, "a camera poses CSV (poses_<serial>.csv)", 64ull << 20);
+  if (!rows) return rows.error();
   std::vector<FramePose> poses;
-  bool header = true;
-  for (const CsvRow& row : doc->rows) {
-    if (row.IsBlank()) continue;
-    if (header) {
-      std::string joined;
-      for (std::size_t k = 0; k < row.fields.size(); ++k)
-        joined += (k ? "," : "") + row.fields[k].text;
-      if (joined != kHeader)
-        return MakeError(path.string(), row.line, 1, std::string("expected the header ") + kHeader);
-      header = false;
-      continue;
-    }
+  for (const CsvRow& row : *rows) {
     if (row.fields.size() != 9)
       return MakeError(path.string(), row.line, 1, "expected 9 fields, got " +
                                                        std::to_string(row.fields.size()));
@@ -80,7 +64,6 @@ Expected<std::vector<FramePose>> ReadPosesCsv(const std::filesystem::path& path)
     p.world_from_cam.translation() = Eigen::Vector3d(v[2], v[3], v[4]);
     poses.push_back(p);
   }
-  if (header) return MakeError(path.string(), 1, 1, std::string("expected the header ") + kHeader);
   return poses;
 }
 

@@ -1,5 +1,6 @@
 #include "replay/csv_tokenizer.h"
 
+#include "config/input_file.h"
 #include "config/text_escape.h"
 
 namespace lifmcr {
@@ -198,6 +199,34 @@ std::string FormatCsvField(std::string_view text, char delimiter) {
   }
   quoted += '"';
   return quoted;
+}
+
+Expected<std::vector<CsvRow>> ReadHeadedCsv(const std::filesystem::path& path,
+                                            std::string_view header, std::string_view what,
+                                            std::uint64_t max_bytes) {
+  Expected<std::string> text = ReadInputText(path, {what, max_bytes});
+  if (!text) return text.error();
+  Expected<CsvDocument> doc = TokenizeCsv(*text, path.string());
+  if (!doc) return doc.error();
+  std::vector<CsvRow> rows;
+  bool header_seen = false;
+  for (CsvRow& row : doc->rows) {
+    if (row.IsBlank()) continue;
+    if (!header_seen) {
+      std::string joined;
+      for (std::size_t k = 0; k < row.fields.size(); ++k)
+        joined += (k ? "," : "") + row.fields[k].text;
+      if (joined != header)
+        return MakeError(path.string(), row.line, 1,
+                         "expected the header " + std::string(header));
+      header_seen = true;
+      continue;
+    }
+    rows.push_back(std::move(row));
+  }
+  if (!header_seen)
+    return MakeError(path.string(), 1, 1, "no header: expected " + std::string(header));
+  return rows;
 }
 
 }  // namespace lifmcr

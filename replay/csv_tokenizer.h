@@ -10,6 +10,8 @@
 
 #include "config/error.h"
 
+#include <cstdint>
+#include <filesystem>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -51,6 +53,15 @@ struct CsvLimits {
 // a closing quote and the next delimiter, a row or field over `limits`.
 Expected<CsvDocument> TokenizeCsv(std::string_view text, const std::string& label,
                                   char delimiter = ',', const CsvLimits& limits = {});
+
+// A comma-separated file of lifmcr's own whose first non-blank row must be
+// exactly `header` (e.g. poses_<serial>.csv, aruco_corners.csv): read through
+// the safe open (config/input_file.h: a regular file of at most max_bytes),
+// tokenized, the header checked (error at its line). Returns the rows after
+// the header, blank rows left out.
+Expected<std::vector<CsvRow>> ReadHeadedCsv(const std::filesystem::path& path,
+                                            std::string_view header, std::string_view what,
+                                            std::uint64_t max_bytes);
 
 // The delimiter of a Vicon-style export: the character right after the first
 // "Frame" that starts a line (',' or ';'), ',' when there is none.
