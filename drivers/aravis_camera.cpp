@@ -116,6 +116,7 @@ struct AravisCamera::Impl {
   CameraStats stats;
   CameraStats closed_streams;  // counters of streams already destroyed
   CameraInfo info;
+  std::optional<std::int64_t> armed_device_ns;  // latched after AcquisitionStart
   CameraGapLog gap_log;  // lost, back, first frame after (camera_gap.h)
 
   std::string DeviceName() const {
@@ -463,6 +464,19 @@ Status AravisCamera::Start() {
     impl_->started = false;
     return impl_->Fail("AcquisitionStart: " + TakeMessage(error));
   }
+  {
+    // GigE Vision counts its timestamp in GevTimestampTickFrequency ticks.
+    std::lock_guard<std::mutex> control(impl_->control_mutex);
+    ArvDevice* device = arv_camera_get_device(impl_->camera);
+    const gint64 tick_hz =
+        arv_device_get_feature(device, "GevTimestampTickFrequency") != nullptr
+            ? arv_device_get_integer_feature_value(device, "GevTimestampTickFrequency", nullptr)
+            : 0;
+    const std::optional<std::int64_t> armed =
+        LatchArvDeviceTimeNs(device, tick_hz > 0 ? static_cast<std::uint64_t>(tick_hz) : 0);
+    std::lock_guard<std::mutex> lock(impl_->stats_mutex);
+    impl_->armed_device_ns = armed;
+  }
   impl_->last_activity = Clock::now();
   return Status::Ok();
 }
@@ -584,6 +598,11 @@ Status AravisCamera::SoftwareTrigger() {
 CameraInfo AravisCamera::Info() const {
   std::lock_guard<std::mutex> lock(impl_->stats_mutex);
   return impl_->info;
+}
+
+std::optional<std::int64_t> AravisCamera::ArmedDeviceNs() const {
+  std::lock_guard<std::mutex> lock(impl_->stats_mutex);
+  return impl_->armed_device_ns;
 }
 
 CameraStats AravisCamera::Stats() const {

@@ -117,6 +117,7 @@ struct GenTlCamera::Impl {
   mutable std::mutex stats_mutex;
   CameraStats stats;
   CameraInfo info;
+  std::optional<std::int64_t> armed_device_ns;  // latched after AcquisitionStart
   CameraGapLog gap_log;  // lost, back, first frame after (camera_gap.h)
 
   std::string Wanted() const {
@@ -451,6 +452,9 @@ Status GenTlCamera::Impl::StartAcquisition() {
     fn.DSStopAcquisition(stream, ACQ_STOP_FLAGS_KILL);
     return Fail("AcquisitionStart: " + TakeMessage(error));
   }
+  const std::optional<std::int64_t> armed = LatchArvDeviceTimeNs(arv_device, timestamp_hz);
+  std::lock_guard<std::mutex> stats_lock(stats_mutex);
+  armed_device_ns = armed;
   return Status::Ok();
 }
 
@@ -786,6 +790,11 @@ Status GenTlCamera::SoftwareTrigger() {
 CameraInfo GenTlCamera::Info() const {
   std::lock_guard<std::mutex> lock(impl_->stats_mutex);
   return impl_->info;
+}
+
+std::optional<std::int64_t> GenTlCamera::ArmedDeviceNs() const {
+  std::lock_guard<std::mutex> lock(impl_->stats_mutex);
+  return impl_->armed_device_ns;
 }
 
 CameraStats GenTlCamera::Stats() const {

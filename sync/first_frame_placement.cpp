@@ -16,7 +16,7 @@ std::string FirstPlacement::OneLine() const {
   else
     std::snprintf(text, sizeof(text), "trigger %lld by host time",
                   static_cast<long long>(trigger_index));
-  return text;
+  return note.empty() ? std::string(text) : std::string(text) + " (" + note + ")";
 }
 
 FirstFramePlacer::FirstFramePlacer(std::int64_t trigger_period_ns, double tolerance,
