@@ -41,6 +41,8 @@ Status RigControllerOptions::Check() const {
   if (vicon_divider < 1) return Error{"rig controller: vicon_divider: expected >= 1"};
   if (vicon_realtime_priority < 0 || vicon_realtime_priority > 99)
     return Error{"rig controller: vicon_realtime_priority: expected 0..99 (0: ordinary)"};
+  if (trigger_realtime_priority < 0 || trigger_realtime_priority > 99)
+    return Error{"rig controller: trigger_realtime_priority: expected 0..99 (0: ordinary)"};
   if (sync) {
     if (Status s = sync->Check(); !s) return Error{"rig controller: sync: " + s.error().message};
   } else if (number_files_by_sync) {
@@ -51,7 +53,7 @@ Status RigControllerOptions::Check() const {
 
 std::uint64_t CameraHealth::Lost() const {
   return incomplete + missing_by_id + missing_in_gaps + no_frame_at_end + not_in_any_set +
-         recorder.lost();
+         triggers_not_fired + recorder.lost();
 }
 
 std::uint64_t RigHealth::FramesLost() const {
@@ -93,16 +95,17 @@ std::string RigHealth::FinalReport() const {
     if (c.recorder.written > 0)
       out << " (frames " << c.recorder.first_frame << ".." << c.recorder.last_frame << ")";
     out << ", lost " << c.Lost() << " [incomplete " << c.incomplete << ", missing ids "
-        << c.missing_by_id << ", no frame at end " << c.no_frame_at_end << ", not in any FrameSet "
+        << c.missing_by_id << ", no frame at end " << c.no_frame_at_end
+        << ", trigger not fired in time " << c.triggers_not_fired << ", not in any FrameSet "
         << c.not_in_any_set << ", queue full " << c.recorder.dropped_queue_full << ", write error "
         << c.recorder.lost_write_error << ", after stop " << c.recorder.lost_stopped
         << "]; driver: completed " << c.driver.completed << ", failed " << c.driver.failed
         << ", underruns " << c.driver.underruns << ", reconnects " << c.driver.reconnects;
     if (c.stale > 0) out << ", stale frames dropped " << c.stale;
-    if (c.triggers_skipped > 0)
-      out << ", software triggers skipped (trigger call overran) " << c.triggers_skipped;
     if (c.before_all_armed > 0)
       out << ", before all cameras armed " << c.before_all_armed << " (not written)";
+    if (c.triggers_skipped > c.triggers_not_fired)
+      out << ", software triggers skipped while failing " << c.triggers_skipped - c.triggers_not_fired;
     if (c.errors > 0) out << ", device errors " << c.errors << " (last: " << c.last_error << ")";
     if (!c.first_placement.empty()) out << "; first frame: " << c.first_placement;
     out << "\n";
@@ -238,18 +241,23 @@ Status RigController::Start() {
                                           [](const auto& slot) { return slot->software_trigger; });
   if (options_.trigger_hz > 0 && fires_triggers) {
     triggering_ = true;
-    const auto schedule_start = std::chrono::steady_clock::now();
-    {
-      std::lock_guard<std::mutex> lock(anchor_mutex_);
-      trigger_schedule_host_ns_ = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                      std::chrono::system_clock::now().time_since_epoch())
-                                      .count();
-    }
     for (std::size_t i = 0; i < slots_.size(); ++i) {
       if (!slots_[i]->software_trigger) continue;
-      trigger_threads_.emplace_back(
-          [this, i, schedule_start] { TriggerLoop(static_cast<int>(i), schedule_start); });
+      trigger_threads_.emplace_back([this, i] { TriggerLoop(static_cast<int>(i)); });
     }
+    // The schedule starts once every trigger thread runs (under its
+    // priority): a thread created late on a loaded host would otherwise
+    // find its first ticks past and skip them. At most a second's wait.
+    std::unique_lock<std::mutex> lock(trigger_mutex_);
+    trigger_ready_.wait_for(lock, std::chrono::seconds(1),
+                            [&] { return trigger_threads_ready_ == trigger_threads_.size(); });
+    schedule_start_ = std::chrono::steady_clock::now();
+    {
+      std::lock_guard<std::mutex> anchor(anchor_mutex_);
+      trigger_schedule_host_ns_ = RealtimeNs();
+    }
+    schedule_set_ = true;
+    trigger_ready_.notify_all();
   }
   return Status::Ok();
 }
@@ -347,15 +355,28 @@ void RigController::GrabLoop(int index) {
     std::optional<std::int64_t> placed;
     std::optional<FirstPlacement> placed_by;
     bool in_assembler = false;
-    if (assembler_ != nullptr && !options_.number_files_by_sync &&
-        frame.status == FrameStatus::kOk && slot.unwrapper.last_index() < 0) {
+    const bool first_good = frame.status == FrameStatus::kOk && slot.unwrapper.last_index() < 0;
+    // A camera this controller triggers answers the triggers in the order it
+    // fired them, all after every camera was armed: its first good frame is
+    // on the first trigger not answered by a failed frame. Its arrival time
+    // would mislead: a busy host delivers it more than a period late at 50 Hz.
+    std::optional<std::int64_t> by_trigger_count;
+    if (first_good && slot.software_trigger && options_.trigger_hz > 0)
+      by_trigger_count = static_cast<std::int64_t>(slot.health.failed_since_ok);
+    if (assembler_ != nullptr && !options_.number_files_by_sync && first_good) {
       std::lock_guard<std::mutex> lock(sync_mutex_);
-      placed = assembler_->AddFrame(frame);
+      placed = assembler_->AddFrame(frame, by_trigger_count);
       in_assembler = true;
       if (placed) placed_by = assembler_->first_placement(index);
     }
-    if (frame.status == FrameStatus::kOk && slot.unwrapper.last_index() < 0 && !placed_by) {
-      placed_by = PlaceFirstFrame(index, frame);
+    if (first_good && !placed_by) {
+      if (by_trigger_count) {
+        placed_by = FirstPlacement{};
+        placed_by->trigger_index = *by_trigger_count;
+        placed_by->by = FirstPlacement::By::kTriggerCount;
+      } else {
+        placed_by = PlaceFirstFrame(index, frame);
+      }
       placed = placed_by->trigger_index;
     }
     {
@@ -403,6 +424,19 @@ void RigController::GrabLoop(int index) {
             slot.unwrapper.last_index() >= 0 &&
             (slot.lost || slot.stale_in_a_row >= options_.stale_frames_for_restart);
         if (restarted) {
+          // Ticks skipped after its last frame are in the silence below,
+          // not triggers it missed while working.
+          if (slot.health.counter_restarts == 0) {
+            const std::int64_t last_answered = slot.unwrapper.last_index();
+            for (auto it = slot.skips.begin(); it != slot.skips.end();) {
+              if (static_cast<std::int64_t>(it->first) <= last_answered) {
+                ++it;
+                continue;
+              }
+              slot.health.triggers_not_fired -= it->second;
+              it = slot.skips.erase(it);
+            }
+          }
           // The device restarted its counter (a reconnect): the triggers it
           // missed are its silence in host time over the trigger period.
           const double silence_s =
@@ -411,7 +445,12 @@ void RigController::GrabLoop(int index) {
                   : 0.0;
           const auto triggers = std::max<std::int64_t>(
               1, static_cast<std::int64_t>(std::llround(silence_s * options_.trigger_hz)));
-          slot.unwrapper.Rebase(frame.frame_id, slot.unwrapper.last_index() + triggers);
+          // From its last frame's tick (mapped past the skipped ticks).
+          const std::int64_t last_tick =
+              slot.software_trigger && slot.health.counter_restarts == 0
+                  ? TickOfTrigger(slot, slot.unwrapper.last_index())
+                  : slot.unwrapper.last_index();
+          slot.unwrapper.Rebase(frame.frame_id, last_tick + triggers);
           step = FrameIdUnwrapper::Step{slot.unwrapper.last_index(), 0, false};
           slot.health.missing_in_gaps += static_cast<std::uint64_t>(triggers - 1);
           ++slot.health.counter_restarts;
@@ -433,7 +472,14 @@ void RigController::GrabLoop(int index) {
         slot.health.missing_by_id +=
             missing > slot.health.failed_since_ok ? missing - slot.health.failed_since_ok : 0;
         slot.health.failed_since_ok = 0;
-        slot.health.last_index = frame_index = step.index;
+        // Software triggers: the frame counter counts the triggers fired;
+        // ticks skipped (a trigger call overran) are triggers of the rig too.
+        // (After a counter restart the index is on the ticks already.)
+        frame_index = slot.software_trigger && slot.health.counter_restarts == 0
+                          ? TickOfTrigger(slot, step.index)
+                          : step.index;
+        slot.health.last_index = frame_index;
+        slot.last_answered = step.index;
         slot.last_host_ns = frame.host_ns;
         {
           std::lock_guard<std::mutex> anchor(anchor_mutex_);
@@ -622,8 +668,19 @@ void RigController::ViconLoop() {
   }
 }
 
-void RigController::TriggerLoop(int index, std::chrono::steady_clock::time_point start) {
+void RigController::TriggerLoop(int index) {
   CameraSlot& slot = *slots_[index];
+  if (options_.trigger_realtime_priority > 0)
+    spdlog::info("rig: software trigger thread of camera {} under {}", slot.health.serial,
+                 RaiseThreadToRealtime(options_.trigger_realtime_priority));
+  std::chrono::steady_clock::time_point start;
+  {
+    std::unique_lock<std::mutex> lock(trigger_mutex_);
+    ++trigger_threads_ready_;
+    trigger_ready_.notify_all();
+    trigger_ready_.wait(lock, [&] { return schedule_set_; });
+    start = schedule_start_;
+  }
   const auto period =
       std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 / options_.trigger_hz));
   std::uint64_t tick = 0;
@@ -636,10 +693,11 @@ void RigController::TriggerLoop(int index, std::chrono::steady_clock::time_point
       if (!triggering_.load() && tick >= ticks_begun_) break;
       ticks_begun_ = std::max(ticks_begun_, tick + 1);
     }
-    if (Status s = slot.camera->SoftwareTrigger(); !s) {
+    const Status fired = slot.camera->SoftwareTrigger();
+    if (!fired) {
       std::lock_guard<std::mutex> lock(slot.mutex);
       ++slot.health.errors;
-      slot.health.last_error = s.error().message;
+      slot.health.last_error = fired.error().message;
     }
     // A trigger call that overran the period: the ticks it covered are not
     // fired late in a burst (the camera would merge them), they are skipped
@@ -647,14 +705,31 @@ void RigController::TriggerLoop(int index, std::chrono::steady_clock::time_point
     const auto elapsed = std::chrono::steady_clock::now() - start;
     const auto now_tick = static_cast<std::uint64_t>(elapsed / period);
     const std::uint64_t next = std::max(tick + 1, now_tick);
+    ++slot.fired;
     if (next > tick + 1) {
       std::lock_guard<std::mutex> lock(slot.mutex);
       slot.health.triggers_skipped += next - tick - 1;
+      // A working camera's overran call: the ticks are triggers it never
+      // got, which its frame counter does not count (the grab thread maps
+      // them, TickOfTrigger) and which are lost. A failing or lost camera's
+      // silence is counted by host time at its return (missing_in_gaps).
+      if (fired && !slot.lost && slot.health.counter_restarts == 0) {
+        slot.skips.emplace_back(slot.fired, next - tick - 1);
+        slot.health.triggers_not_fired += next - tick - 1;
+      }
     }
     tick = next;
     slot.trigger_ticks.store(tick);
     std::this_thread::sleep_until(start + tick * period);
   }
+}
+
+std::int64_t RigController::TickOfTrigger(const CameraSlot& slot, std::int64_t answered) {
+  std::int64_t tick = answered;
+  for (const auto& [fired_before, skipped] : slot.skips)
+    if (static_cast<std::int64_t>(fired_before) <= answered)
+      tick += static_cast<std::int64_t>(skipped);
+  return tick;
 }
 
 bool RigController::ViconFinished() const { return vicon_ && vicon_->Finished(); }
@@ -708,9 +783,19 @@ RigHealth RigController::Health() {
     }
     if (slot.software_trigger && !grabbing_.load()) {
       const auto expected = static_cast<std::int64_t>(slot.trigger_ticks.load());
-      // Failed frames after the last good one are already counted as incomplete.
-      const std::int64_t at_end =
-          expected - camera.last_index - 1 - static_cast<std::int64_t>(camera.failed_since_ok);
+      // Failed frames after the last good one are already counted as
+      // incomplete, ticks skipped after it as not fired.
+      std::int64_t skipped_after = 0;
+      {
+        std::lock_guard<std::mutex> lock(slot.mutex);
+        if (slot.health.counter_restarts == 0)
+          for (const auto& [fired_before, skipped] : slot.skips)
+            if (static_cast<std::int64_t>(fired_before) > slot.last_answered)
+              skipped_after += static_cast<std::int64_t>(skipped);
+      }
+      const std::int64_t at_end = expected - camera.last_index - 1 -
+                                  static_cast<std::int64_t>(camera.failed_since_ok) -
+                                  skipped_after;
       if (at_end > 0) camera.no_frame_at_end = static_cast<std::uint64_t>(at_end);
     }
     health.cameras.push_back(std::move(camera));

@@ -6,7 +6,11 @@
 // publisher). Health() is a snapshot for the status line.
 //
 // Frame numbers: a frame's number in the recording is its trigger index. A
-// camera's first frame is placed by the sync assembler when there is one
+// camera this controller triggers answers its triggers in order, all fired
+// after every camera was armed: its first good frame is on trigger 0 (after
+// any failed frames), whatever its arrival time; ticks whose trigger call
+// overran (skipped) are mapped past, since its frame counter does not count
+// them. Any other camera's first frame is placed by the sync assembler when there is one
 // (the trigger of its FrameSet, so file numbers and trigger indices count
 // from one placement), else by device time against a camera on the same
 // device clock (sync/first_frame_placement.h, the rule the assembler
@@ -47,6 +51,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -100,6 +105,11 @@ struct RigControllerOptions {
   // (it would hold a core until the file is read).
   int vicon_realtime_priority = 0;
   static constexpr int kLiveViconPriority = 10;
+  // SCHED_FIFO priority of the software trigger threads (0: ordinary). They
+  // sleep to each tick and make one cheap call (a register write, a counter),
+  // so they take little CPU; under the ordinary scheduler a loaded host
+  // wakes them late and a tick is skipped (counted lost).
+  int trigger_realtime_priority = kLiveViconPriority;
   // Trigger 0 is the first trigger every camera was armed for (see the top);
   // false: the rig's first frame is trigger 0 (software triggers, fired only
   // once every camera is armed; replay; free run).
@@ -135,7 +145,12 @@ struct CameraHealth {
   std::uint64_t stale = 0;            // repeated/late frames, dropped
   std::uint64_t missing_in_gaps = 0;  // triggers missed while the camera was lost (by host time)
   std::uint64_t counter_restarts = 0;
-  std::uint64_t triggers_skipped = 0;  // ticks whose software trigger could not be fired in time
+  // Ticks whose software trigger could not be fired in time (the call
+  // overran); of them, those of a working camera (its call succeeded, no
+  // reconnect) are triggers it never got: lost (the rest are in the silence
+  // of a reconnect, missing_in_gaps).
+  std::uint64_t triggers_skipped = 0;
+  std::uint64_t triggers_not_fired = 0;
   std::uint64_t not_in_any_set =
       0;                       // files numbered by sync: frames off the grid or late, not written
   std::uint64_t triggers = 0;  // software-trigger schedule ticks for this camera
@@ -224,6 +239,12 @@ class RigController {
     int stale_in_a_row = 0;
     std::int64_t last_host_ns = 0;                // of the last accepted frame
     std::atomic<std::uint64_t> trigger_ticks{0};  // schedule ticks passed (fired or skipped)
+    // Software triggers: (triggers fired before, ticks skipped) per skip, so
+    // the grab thread turns the n-th trigger answered into its tick (guarded
+    // by mutex; appended before the next trigger is fired).
+    std::vector<std::pair<std::uint64_t, std::uint64_t>> skips;
+    std::uint64_t fired = 0;  // trigger thread only
+    std::int64_t last_answered = -1;  // the last frame's trigger among those fired (mutex)
     mutable std::mutex mutex;                     // guards health below
     CameraHealth health;
     std::uint64_t interval_frames = 0;
@@ -243,7 +264,10 @@ class RigController {
   bool ViconAhead(std::int64_t next_vicon_frame) const;
   // One per software-triggered camera, all on one schedule, so a camera that
   // is slow to take its trigger (lost, reconnecting) delays no other.
-  void TriggerLoop(int index, std::chrono::steady_clock::time_point start);
+  void TriggerLoop(int index);
+  // The schedule tick of the `answered`-th software trigger fired to the
+  // camera (0-based): `answered` plus the ticks skipped before it. Needs slot.mutex.
+  static std::int64_t TickOfTrigger(const CameraSlot& slot, std::int64_t answered);
   void SyncLoop();
   // Trigger index of a camera's first frame: 0 for the rig's first frame,
   // else the trigger periods since it in host time.
@@ -275,8 +299,13 @@ class RigController {
   std::atomic<bool> vicon_running_{false};
   std::thread vicon_thread_;
   std::vector<std::thread> trigger_threads_;
-  std::mutex trigger_mutex_;      // guards ticks_begun_ and the stop of triggering_
+  // Guards ticks_begun_, the stop of triggering_ and the schedule's start.
+  std::mutex trigger_mutex_;
   std::uint64_t ticks_begun_ = 0;  // ticks any camera's trigger thread began firing
+  std::condition_variable trigger_ready_;
+  std::size_t trigger_threads_ready_ = 0;
+  bool schedule_set_ = false;
+  std::chrono::steady_clock::time_point schedule_start_;
   bool started_ = false;
 
   std::mutex vicon_mutex_;

@@ -9,7 +9,11 @@ namespace lifmcr {
 
 std::string FirstPlacement::OneLine() const {
   char text[160];
-  if (by == By::kDeviceTime)
+  if (by == By::kTriggerCount)
+    std::snprintf(text, sizeof(text),
+                  "trigger %lld by the software trigger count (the first trigger fired to it)",
+                  static_cast<long long>(trigger_index));
+  else if (by == By::kDeviceTime)
     std::snprintf(text, sizeof(text),
                   "trigger %lld by device time against camera %d (grid error %+.2f periods)",
                   static_cast<long long>(trigger_index), reference_camera, grid_error);

@@ -39,7 +39,9 @@
 namespace lifmcr {
 
 struct FirstPlacement {
-  enum class By { kDeviceTime, kHostTime };
+  // kTriggerCount: a software-triggered camera's first frame answers the
+  // first trigger the rig fired to it (the caller counts them).
+  enum class By { kDeviceTime, kHostTime, kTriggerCount };
   std::int64_t trigger_index = 0;
   By by = By::kHostTime;
   int reference_camera = -1;  // kDeviceTime: the camera of the latest frame on its clock

@@ -74,7 +74,8 @@ std::int64_t FrameSetAssembler::TriggerByHostTime(const Camera& camera,
   return grid_trigger_ + std::llround(steps);
 }
 
-std::optional<std::int64_t> FrameSetAssembler::AddFrame(Frame frame) {
+std::optional<std::int64_t> FrameSetAssembler::AddFrame(Frame frame,
+                                                        std::optional<std::int64_t> first_trigger) {
   const int index = frame.camera_index;
   if (index < 0 || index >= static_cast<int>(cameras_.size())) {
     drops_.Add(DropKind::kFrameWithoutTrigger);  // a camera the rig does not have
@@ -90,7 +91,7 @@ std::optional<std::int64_t> FrameSetAssembler::AddFrame(Frame frame) {
   if (clock.jump) drops_.Add(DropKind::kClockJump);
   if (!started_) {
     started_ = true;
-    grid_trigger_ = 0;
+    grid_trigger_ = first_trigger.value_or(0);
     grid_host_ns_ = camera.clock.HostFromDevice(frame.device_ns);
   }
   Association association;
@@ -104,7 +105,13 @@ std::optional<std::int64_t> FrameSetAssembler::AddFrame(Frame frame) {
       (clock.jump && association.verdict != FrameVerdict::kAssociated)) {
     association = Association{};
     std::optional<FirstPlacement> placement;
-    if (!camera.tracker.anchored()) placement = placer_.ByDeviceTime(index, frame.device_ns);
+    if (!camera.tracker.anchored() && first_trigger) {
+      placement = FirstPlacement{};
+      placement->trigger_index = *first_trigger;
+      placement->by = FirstPlacement::By::kTriggerCount;
+    } else if (!camera.tracker.anchored()) {
+      placement = placer_.ByDeviceTime(index, frame.device_ns);
+    }
     if (!placement) {
       placement = FirstPlacement{};
       placement->trigger_index = TriggerByHostTime(camera, frame.device_ns);

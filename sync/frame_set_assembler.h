@@ -112,7 +112,11 @@ class FrameSetAssembler {
 
   // The trigger the frame was placed on (the FrameSet it goes out in), or
   // nullopt when it is on none (off grid, repeated, late, another camera's).
-  std::optional<std::int64_t> AddFrame(Frame frame);
+  // `first_trigger`: the trigger of the camera's first frame when the caller
+  // knows it (it fired the software trigger the frame answers); the grid of
+  // the rig's first frame is anchored there too.
+  std::optional<std::int64_t> AddFrame(Frame frame,
+                                       std::optional<std::int64_t> first_trigger = std::nullopt);
   void AddVicon(ViconFrame frame);
   // The FrameSets ready at host time `now_host_ns`, in trigger order.
   std::vector<FrameSet> Poll(std::int64_t now_host_ns);
