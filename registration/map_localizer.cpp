@@ -124,12 +124,18 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
   std::vector<Eigen::Vector2d> tf;
   std::vector<double> v;
   std::vector<int> ids;
+  PatchTrackOptions patches = options_.patches;
+  const std::int64_t ahead = trigger - state.last_trigger;
+  if (!state.has_previous || ahead > 2) {
+    patches.levels = std::min(4, patches.levels + 1);
+    patches.max_shift_px *= 2;
+  }
   for (const TrackedPoint& track : *state.tracks) {
     Eigen::Vector2d predicted_tf;
     double vp = 0;
     if (!ProjectPoint(camera, cam_from_w0, map_.points_in_w0[track.point], &predicted_tf, &vp))
       continue;
-    const PatchTrack r = TrackPatch(sampler, raw, track.patch, predicted_tf, vp, options_.patches);
+    const PatchTrack r = TrackPatch(sampler, raw, track.patch, predicted_tf, vp, patches);
     if (!r.ok) continue;
     points.push_back(map_.points_in_w0[track.point]);
     tf.push_back(r.tf_px);
@@ -265,6 +271,9 @@ std::shared_ptr<const MapLocalizerStage::Tracks> MapLocalizerStage::Retrack(
   const double w = sampler.tf_width(), h = sampler.tf_height(), margin = options_.track_margin_px;
   const Pose cam_from_w0 = w0_from_cam.inverse();
   std::vector<char> used(static_cast<std::size_t>(map_.size()), 0);
+  // One level more than tracking uses: Track's weak predictions need it.
+  PatchTrackOptions template_options = options_.patches;
+  template_options.levels = std::min(4, template_options.levels + 1);
   // Adds map point `point` seen at tf_px (virtual depth v) when its cell has room.
   const auto add = [&](int point, const Eigen::Vector2d& tf_px, double v) {
     if (used[point] || static_cast<int>(tracks->size()) >= options_.max_tracks) return;
@@ -278,7 +287,7 @@ std::shared_ptr<const MapLocalizerStage::Tracks> MapLocalizerStage::Retrack(
     if (in_cell[cell] >= cap || tried[cell] >= 4 * cap) return;
     ++tried[cell];
     TrackedPoint track{point, tf_px, {}};
-    if (!MakePatchTemplate(sampler, raw, tf_px, v, options_.patches, &track.patch)) return;
+    if (!MakePatchTemplate(sampler, raw, tf_px, v, template_options, &track.patch)) return;
     used[point] = 1;
     ++in_cell[cell];
     tracks->push_back(std::move(track));
@@ -313,8 +322,26 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     CameraState& s = cameras_[frame.serial];
     if (frame.host_ns > s.last_host_ns && frame.trigger_index <= s.last_trigger)
       s = CameraState{};  // a new pass
+    const bool will_relocalise = !(s.has_pose && options_.track && s.tracks && !s.tracks->empty());
+    if (will_relocalise && s.relocalising) {
+      ++counts_.skipped;
+      return std::optional<processing::CameraPose>();
+    }
+    if (will_relocalise) s.relocalising = true;
     state = s;
   }
+  // Cleared whatever the outcome (also on an error return).
+  struct Done {
+    MapLocalizerStage* stage;
+    const std::string& serial;
+    bool active;
+    ~Done() {
+      if (!active) return;
+      std::lock_guard<std::mutex> lock(stage->mutex_);
+      stage->cameras_[serial].relocalising = false;
+    }
+  } done{this, frame.serial, !(state.has_pose && options_.track && state.tracks &&
+                               !state.tracks->empty())};
   Outcome r;
   std::string localisation = "relocalised";
   if (state.has_pose && options_.track && state.tracks && !state.tracks->empty()) {

@@ -18,13 +18,20 @@
 //                this frame), and map points the pose shows in image cells
 //                with too few tracks are added (their templates at their
 //                projection), up to max_tracks spread over the image.
+//                When the prediction is weak (no velocity yet, or more than
+//                two triggers ahead: frames skipped, a relocalisation that
+//                took long) one more pyramid level and twice the shift are
+//                allowed.
 //   relocalise   otherwise, or when tracking fails: SIFT on a TF image (the
 //                chain's when the frame was processed, else the whole TF
 //                grid rendered at one virtual depth, TfSampler::RenderAtDepth:
 //                the predicted median of the map points when the camera had
 //                a pose, else the map's median), global matching against
 //                every map point (ratio and cross check, kd-tree) and full
-//                LO-RANSAC PnP; the tracks are seeded from the pose.
+//                LO-RANSAC PnP; the tracks are seeded from the pose. A
+//                frame of a camera that another worker is relocalising is
+//                not localised (Counts::skipped): relocalising it too would
+//                only repeat the work.
 // Every pose passes registration/pose_checks.h (tracked ones also against
 // the prediction); a refused one is published with the reason as status
 // and the camera relocalises at its next frame.
@@ -87,6 +94,10 @@ class MapLocalizerStage final : public processing::RegistrationStage {
   // Frames tracked and relocalised so far (all cameras).
   struct Counts {
     long long tracked = 0, relocalised = 0, failed = 0;
+    // Frames that came while their camera was relocalising on another
+    // worker: not localised (the frame passes through) rather than
+    // relocalised twice at once.
+    long long skipped = 0;
     // Localize's time (features, matching, PnP) of the frames so counted; a
     // frame whose tracking failed pays both and counts as relocalised.
     double tracked_s = 0, relocalised_s = 0, failed_s = 0;
@@ -114,6 +125,7 @@ class MapLocalizerStage final : public processing::RegistrationStage {
     std::int64_t last_host_ns = 0;
     bool has_previous = false;
     std::shared_ptr<const Tracks> tracks;  // of the last frame (shared by concurrent frames)
+    bool relocalising = false;  // a worker relocalises this camera now
     // Prediction for `trigger` (header comment); the last pose without a previous one.
     Pose Predict(std::int64_t trigger) const;
   };

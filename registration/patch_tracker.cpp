@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
+#include <algorithm>
 #include <cmath>
 
 namespace lifmcr::registration {
@@ -70,8 +71,12 @@ PatchTrack TrackPatch(const processing::TfSampler& sampler, const ConstImageView
   PatchTrack result;
   Eigen::Vector2d p = predicted_tf;
   std::vector<float> patch(static_cast<std::size_t>(n) * n);
-  for (int slot = 0; slot < options.levels; ++slot) {
-    const int level = options.levels - 1 - slot;
+  // The template's finest options.levels levels (it may have more).
+  const int made = static_cast<int>(tmpl.inverse_hessian.size());
+  const int levels = std::min(options.levels, made);
+  if (levels < 1 || tmpl.samples.size() != per_level * made) return result;
+  for (int level = levels - 1; level >= 0; --level) {
+    const int slot = made - 1 - level;
     const double s = Spacing(level);
     const float* t = tmpl.samples.data() + per_level * slot;
     const std::vector<Eigen::Vector2f>& g = tmpl.gradient[slot];
@@ -99,12 +104,12 @@ PatchTrack TrackPatch(const processing::TfSampler& sampler, const ConstImageView
     if (level == 0 && !converged) return result;
   }
   // Zero-mean normalised cross-correlation at the final position (finest level).
-  const float* t = tmpl.samples.data() + per_level * (options.levels - 1);
+  const float* t = tmpl.samples.data() + per_level * (made - 1);
   if (!sampler.Patch(raw, p, v, n, 1.0, 1, patch.data())) return result;
   double mean = 0;
   for (float value : patch) mean += value;
   mean /= n * n;
-  const double tm = tmpl.mean[options.levels - 1];
+  const double tm = tmpl.mean[made - 1];
   double st = 0, si = 0, sti = 0;
   for (int j = 0; j < n; ++j)
     for (int i = 0; i < n; ++i) {

@@ -59,7 +59,9 @@ struct PatchTrack {
   double zncc = 0;
 };
 
-// The template's position in `raw` from `predicted_tf`, at virtual depth v.
+// The template's position in `raw` from `predicted_tf`, at virtual depth v,
+// over the template's finest options.levels levels (a template may be made
+// with more levels than a track uses: the coarser ones serve weak predictions).
 PatchTrack TrackPatch(const processing::TfSampler& sampler, const ConstImageView& raw,
                       const PatchTemplate& tmpl, const Eigen::Vector2d& predicted_tf, double v,
                       const PatchTrackOptions& options);
