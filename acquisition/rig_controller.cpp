@@ -60,8 +60,8 @@ std::string CameraHealth::LossLine() const {
   std::ostringstream out;
   out << "lost " << Lost() << " [incomplete " << incomplete << ", missing ids " << missing_by_id
       << ", missed while lost " << missing_in_gaps << ", no frame at end " << no_frame_at_end
-      << ", trigger not fired in time " << triggers_not_fired << ", not in any FrameSet " << not_in_any_set << ", queue full "
-      << recorder.dropped_queue_full << ", write error " << recorder.lost_write_error
+      << ", trigger not fired in time " << triggers_not_fired << ", not in any FrameSet "
+      << not_in_any_set << ", queue full " << recorder.dropped_queue_full << ", write error " << recorder.lost_write_error
       << ", after stop " << recorder.lost_stopped << "]";
   return out.str();
 }
