@@ -11,9 +11,11 @@
 #include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <cstdint>
 #include <ctime>
 #include <mutex>
 #include <thread>
+#include <unordered_map>
 
 namespace lifmcr {
 namespace {
@@ -75,6 +77,7 @@ struct AravisCamera::Impl {
   ArvCamera* camera = nullptr;
   ArvStream* stream = nullptr;
   gulong control_lost_handler = 0;
+  std::uint64_t control_lost_connection = 0;  // its number in the handler's registry
   std::atomic<bool> control_lost{false};
   std::atomic<bool> control_suspect{false};  // a control access failed: probe it
 
@@ -140,9 +143,44 @@ struct AravisCamera::Impl {
 
 namespace {
 
+// The control-lost flags of the connected cameras, by connection number.
+// Aravis's heartbeat thread emits "control-lost", and GLib runs a handler
+// outside its own lock: one may still be running in that thread when
+// Disconnect's g_signal_handler_disconnect returns and the camera is freed.
+// So the handler gets a number, not a pointer into the camera, and raises the
+// flag under this mutex only while the camera has it registered (ThreadSanitizer
+// found the handler's write racing the camera's destructor).
+struct ControlLostFlags {
+  std::mutex mutex;
+  std::unordered_map<std::uint64_t, std::atomic<bool>*> by_connection;
+  std::uint64_t next = 1;
+};
+
+ControlLostFlags& Flags() {
+  static auto* flags = new ControlLostFlags;  // never destroyed: a late handler may still look
+  return *flags;
+}
+
+std::uint64_t RegisterControlLost(std::atomic<bool>* flag) {
+  ControlLostFlags& flags = Flags();
+  std::lock_guard<std::mutex> lock(flags.mutex);
+  const std::uint64_t connection = flags.next++;
+  flags.by_connection.emplace(connection, flag);
+  return connection;
+}
+
+void UnregisterControlLost(std::uint64_t connection) {
+  ControlLostFlags& flags = Flags();
+  std::lock_guard<std::mutex> lock(flags.mutex);
+  flags.by_connection.erase(connection);
+}
+
 void OnControlLost(ArvDevice* /*device*/, gpointer user_data) {
   // Runs in Aravis's heartbeat thread: only raise the flag.
-  static_cast<std::atomic<bool>*>(user_data)->store(true);
+  ControlLostFlags& flags = Flags();
+  std::lock_guard<std::mutex> lock(flags.mutex);
+  const auto found = flags.by_connection.find(static_cast<std::uint64_t>(GPOINTER_TO_SIZE(user_data)));
+  if (found != flags.by_connection.end()) found->second->store(true);
 }
 
 }  // namespace
@@ -160,8 +198,9 @@ Status AravisCamera::Impl::Connect() {
   }
   ArvDevice* device = arv_camera_get_device(camera);
   control_lost.store(false);
-  control_lost_handler =
-      g_signal_connect(device, "control-lost", G_CALLBACK(OnControlLost), &control_lost);
+  control_lost_connection = RegisterControlLost(&control_lost);
+  control_lost_handler = g_signal_connect(device, "control-lost", G_CALLBACK(OnControlLost),
+                                          GSIZE_TO_POINTER(control_lost_connection));
   if (arv_camera_is_gv_device(camera) && IsLoopbackDevice(device))
     arv_camera_gv_set_stream_options(camera, ARV_GV_STREAM_OPTION_PACKET_SOCKET_DISABLED);
   const bool usb3 = arv_camera_is_uv_device(camera);
@@ -329,6 +368,10 @@ void AravisCamera::Impl::Disconnect() {
   if (old_camera != nullptr && control_lost_handler != 0) {
     g_signal_handler_disconnect(arv_camera_get_device(old_camera), control_lost_handler);
     control_lost_handler = 0;
+  }
+  if (control_lost_connection != 0) {
+    UnregisterControlLost(control_lost_connection);
+    control_lost_connection = 0;
   }
   if (old_camera != nullptr && started && !loss.lost()) {
     arv_camera_stop_acquisition(old_camera, nullptr);
