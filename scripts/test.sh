@@ -1,21 +1,27 @@
 #!/usr/bin/env bash
 # Sets up (through scripts/setup.sh) when anything is missing, builds, and runs
-# every test with ctest. Then the sanitizer passes:
+# every test with ctest. Then the sanitizer passes, each from one group target
+# of tests/CMakeLists.txt ("Test groups") in its own build folder:
 #   parsers  the parsers' tests (every user-supplied file format) under
-#            AddressSanitizer + UBSan (build-asan), the default;
-#   asan     every test again under AddressSanitizer + UBSan (build-asan, the
-#            whole suite through ctest; any report fails the test that made it);
-#   tsan     the concurrency tests (recorder, rig controller, sync, drivers; not
-#            yet the TBB pipeline, see below) under ThreadSanitizer (build-tsan);
+#            AddressSanitizer + UBSan (build-asan); default;
+#   tsan     the concurrency tests (grab loops and rig controller, recorder,
+#            sync, Vicon, Aravis and GenTL drivers, LCM publishing) under
+#            ThreadSanitizer (build-tsan); default. With LIFMCR_TSAN_TBB=DIR (a
+#            folder holding a libtbb.so.12 built with TSan) the TBB pipeline's
+#            tests too (README, "Tests");
+#   asan     every test under AddressSanitizer + UBSan (build-asan, the whole
+#            suite through ctest); on request;
 #   fuzz     every libFuzzer target for LIFMCR_FUZZ_SECONDS (default 30) each
-#            (bench/fuzz.sh, build-fuzz; needs clang and libfuzzer-14-dev).
-# asan and tsan are not yet the default: on this project's 2-core machines the
-# whole suite has not yet been seen to finish clean under them (README, "Tests").
+#            (bench/fuzz.sh, build-fuzz; needs clang and libfuzzer-14-dev); on request.
+# asan and fuzz are not the default: with them CI on 2 cores is estimated past
+# 70 of its 90 minutes (README, "Tests", gives the figures).
 # Each pass prints its wall time (build and run). Exits non-zero on any failure.
-#   LIFMCR_SANITIZERS="asan tsan fuzz"  the passes to run (default: "parsers")
-#   LIFMCR_SKIP_SANITIZERS=1            none of them (the Release tests only)
+#   LIFMCR_SANITIZERS="asan tsan fuzz"  the passes to run (default: "parsers tsan")
+#   LIFMCR_SANITIZERS=none              none of them (the Release tests only)
+#   LIFMCR_SKIP_SANITIZERS=1            the same
 #   LIFMCR_SKIP_FUZZ=1                  no fuzz pass
 #   LIFMCR_FUZZ_SECONDS=N               seconds per fuzz target (default 30)
+#   LIFMCR_TSAN_TBB=DIR                 the TBB pipeline's tests under TSan too
 set -euo pipefail
 cd "$(dirname "$0")/.."
 build_dir=${LIFMCR_BUILD_DIR:-build}
@@ -25,7 +31,7 @@ scripts/setup.sh
 ctest --test-dir "$build_dir" --output-on-failure -j "$jobs" "$@"
 
 [[ "${LIFMCR_SKIP_SANITIZERS:-0}" == 1 ]] && exit 0
-passes=" ${LIFMCR_SANITIZERS:-parsers} "
+passes=" ${LIFMCR_SANITIZERS:-parsers tsan} "
 [[ "${LIFMCR_SKIP_FUZZ:-0}" == 1 ]] && passes=${passes/ fuzz / }
 
 # The sanitizer builds build one target per group of tests (tests/CMakeLists.txt,
