@@ -5,7 +5,7 @@
 #   parsers  the parsers' tests (every user-supplied file format) under
 #            AddressSanitizer + UBSan (build-asan); default;
 #   tsan     the concurrency tests (grab loops and rig controller, recorder,
-#            sync, Vicon, Aravis and GenTL drivers, LCM publishing) under
+#            sync, Vicon, Aravis and GenTL drivers, the LCM monitor) under
 #            ThreadSanitizer (build-tsan); default. With LIFMCR_TSAN_TBB=DIR (a
 #            folder holding a libtbb.so.12 built with TSan) the TBB pipeline's
 #            tests too (README, "Tests");
