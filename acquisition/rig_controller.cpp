@@ -1,6 +1,7 @@
 #include "acquisition/rig_controller.h"
 
 #include "acquisition/thread_priority.h"
+#include "drivers/host_clock.h"
 
 #include <spdlog/spdlog.h>
 
@@ -218,9 +219,7 @@ Status RigController::Start() {
     const auto schedule_start = std::chrono::steady_clock::now();
     {
       std::lock_guard<std::mutex> lock(anchor_mutex_);
-      trigger_schedule_host_ns_ = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                      std::chrono::system_clock::now().time_since_epoch())
-                                      .count();
+      trigger_schedule_host_ns_ = HostRealtimeNs();
     }
     for (std::size_t i = 0; i < slots_.size(); ++i) {
       if (!slots_[i]->software_trigger) continue;
@@ -258,20 +257,12 @@ void RigController::Stop() {
   }
 }
 
-namespace {
-std::int64_t RealtimeNs() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::system_clock::now().time_since_epoch())
-      .count();
-}
-}  // namespace
-
 void RigController::SyncLoop() {
   while (syncing_.load()) {
     std::vector<FrameSet> sets;
     {
       std::lock_guard<std::mutex> lock(sync_mutex_);
-      sets = assembler_->Poll(RealtimeNs());
+      sets = assembler_->Poll(HostRealtimeNs());
     }
     RecordSets(std::move(sets));
     std::this_thread::sleep_for(options_.sync_poll);
@@ -312,7 +303,7 @@ void RigController::GrabLoop(int index) {
     if (!next->has_value()) continue;
     Frame frame = std::move(**next);
     frame.camera_index = index;
-    frame.arrival_ns = RealtimeNs();  // the start of the latency to publication
+    frame.arrival_ns = HostRealtimeNs();  // the start of the latency to publication
     const std::size_t bytes =
         frame.image.stride_bytes * static_cast<std::size_t>(frame.image.height);
     std::int64_t frame_index = 0;
