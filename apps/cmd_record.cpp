@@ -21,6 +21,7 @@
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <csignal>
@@ -242,6 +243,14 @@ int Run(const Args& args) {
     controller_options.vicon_realtime_priority = RigControllerOptions::kLiveViconPriority;
   for (const CameraConfig& camera : rig->cameras)
     controller_options.device_clocks.push_back(camera.device_clock);
+  // Cameras on a line this command does not drive (a trigger box pulsing all
+  // the time) see its first pulses only once armed, one after the other: the
+  // run starts at the first trigger every camera was armed for. Software
+  // triggers start only after every camera is armed.
+  controller_options.start_at_all_armed =
+      std::any_of(rig->cameras.begin(), rig->cameras.end(), [](const CameraConfig& camera) {
+        return camera.trigger.mode == TriggerMode::kHardware;
+      });
   // The pipeline takes FrameSets, so --publish keeps the assembler even with
   // --no-sync, which then only leaves the Vicon association out.
   if (!args.no_sync || args.publish) {

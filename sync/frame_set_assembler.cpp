@@ -70,7 +70,8 @@ std::int64_t FrameSetAssembler::TriggerByHostTime(const Camera& camera,
   return grid_trigger_ + std::llround(steps);
 }
 
-std::optional<std::int64_t> FrameSetAssembler::AddFrame(Frame frame) {
+std::optional<std::int64_t> FrameSetAssembler::AddFrame(Frame frame,
+                                                        std::optional<std::int64_t> first_trigger) {
   const int index = frame.camera_index;
   if (index < 0 || index >= static_cast<int>(cameras_.size())) {
     drops_.Add(DropKind::kFrameWithoutTrigger);  // a camera the rig does not have
@@ -86,7 +87,7 @@ std::optional<std::int64_t> FrameSetAssembler::AddFrame(Frame frame) {
   if (clock.jump) drops_.Add(DropKind::kClockJump);
   if (!started_) {
     started_ = true;
-    grid_trigger_ = 0;
+    grid_trigger_ = first_trigger.value_or(0);
     grid_host_ns_ = camera.clock.HostFromDevice(frame.device_ns);
   }
   Association association;
@@ -100,7 +101,13 @@ std::optional<std::int64_t> FrameSetAssembler::AddFrame(Frame frame) {
       (clock.jump && association.verdict != FrameVerdict::kAssociated)) {
     association = Association{};
     std::optional<FirstPlacement> placement;
-    if (!camera.tracker.anchored()) placement = placer_.ByDeviceTime(index, frame.device_ns);
+    if (!camera.tracker.anchored() && first_trigger) {
+      placement = FirstPlacement{};
+      placement->trigger_index = *first_trigger;
+      placement->by = FirstPlacement::By::kTriggerCount;
+    } else if (!camera.tracker.anchored()) {
+      placement = placer_.ByDeviceTime(index, frame.device_ns);
+    }
     if (!placement) {
       placement = FirstPlacement{};
       placement->trigger_index = TriggerByHostTime(camera, frame.device_ns);
@@ -108,11 +115,9 @@ std::optional<std::int64_t> FrameSetAssembler::AddFrame(Frame frame) {
     association.trigger_index = placement->trigger_index;
     camera.tracker.Anchor(association.trigger_index, frame.frame_id, frame.device_ns);
     if (!camera.first_placement) {
-      camera.first_placement = placement;
-      camera.stats.first_placement = placement->OneLine();
       if (placement->by == FirstPlacement::By::kHostTime)
-        camera.stats.first_placement +=
-            " (" + placer_.WhyNotByDeviceTime(index, frame.device_ns) + ")";
+        placement->note = placer_.WhyNotByDeviceTime(index, frame.device_ns);
+      camera.first_placement = placement;
     }
   }
   const std::int64_t k = association.trigger_index;
@@ -121,6 +126,10 @@ std::optional<std::int64_t> FrameSetAssembler::AddFrame(Frame frame) {
     drops_.Add(DropKind::kFrameWithoutTrigger);
     ++camera.stats.without_trigger;
     return std::nullopt;
+  }
+  if (origin_ && k < *origin_) {
+    ++camera.stats.before_all_armed;  // its trigger is already dropped as before the origin
+    return k;
   }
   if (k < next_emit_) {
     drops_.Add(DropKind::kLateFrame);
@@ -227,7 +236,7 @@ bool FrameSetAssembler::Ready(std::int64_t k, std::int64_t now_host_ns) {
 
 FrameSet FrameSetAssembler::Emit(std::int64_t k) {
   FrameSet set;
-  set.trigger_index = k;
+  set.trigger_index = k - origin_.value_or(0);
   set.vicon_frame = -1;
   auto it = pending_.find(k);
   const std::optional<std::int64_t> set_host =
@@ -273,8 +282,27 @@ FrameSet FrameSetAssembler::Emit(std::int64_t k) {
   return set;
 }
 
+void FrameSetAssembler::SetOrigin(std::int64_t origin) {
+  if (!origin_) origin_ = origin;
+}
+
+void FrameSetAssembler::DropBeforeOrigin() {
+  while (origin_ && next_emit_ < *origin_) {
+    auto it = pending_.find(next_emit_);
+    if (it != pending_.end()) {
+      for (std::size_t i = 0; i < cameras_.size(); ++i)
+        if (it->second.frames[i]) ++cameras_[i].stats.before_all_armed;
+      pending_.erase(it);
+    }
+    if (next_emit_ <= last_trigger_seen_) ++triggers_before_origin_;
+    ++next_emit_;
+  }
+}
+
 std::vector<FrameSet> FrameSetAssembler::Poll(std::int64_t now_host_ns) {
   std::vector<FrameSet> sets;
+  if (options_.wait_for_origin && !origin_) return sets;
+  DropBeforeOrigin();
   while (next_emit_ <= last_trigger_seen_ && Ready(next_emit_, now_host_ns)) {
     if (options_.vicon_expected && !f0_) TryEstablishF0(next_emit_, true);
     sets.push_back(Emit(next_emit_));
@@ -284,6 +312,8 @@ std::vector<FrameSet> FrameSetAssembler::Poll(std::int64_t now_host_ns) {
 
 std::vector<FrameSet> FrameSetAssembler::Flush() {
   std::vector<FrameSet> sets;
+  SetOrigin(0);  // no-op once set
+  DropBeforeOrigin();
   while (next_emit_ <= last_trigger_seen_) {
     if (options_.vicon_expected && !f0_) TryEstablishF0(next_emit_, true);
     sets.push_back(Emit(next_emit_));
@@ -296,6 +326,11 @@ std::vector<CameraSyncStats> FrameSetAssembler::camera_stats() const {
   for (const Camera& camera : cameras_) {
     stats.push_back(camera.stats);
     stats.back().clock = camera.clock.OneLine();
+    if (camera.first_placement) {
+      FirstPlacement placement = *camera.first_placement;
+      placement.trigger_index -= origin_.value_or(0);
+      stats.back().first_placement = placement.OneLine();
+    }
   }
   return stats;
 }

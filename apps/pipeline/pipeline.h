@@ -23,8 +23,13 @@
 // processed + skipped + failed once Finish returned. A recorder, when one
 // runs, gets its frames before the pipeline does and never waits for it.
 //
-// Registration: the stage's Localize runs on the worker after processing;
-// its poses are grouped per trigger on the publishing node, and once the
+// Registration: under block the stage's Localize runs on the worker after
+// processing; under newest_wins it runs first, on the raw frame, and the
+// frame goes on to a depth lane of its own (one thread at the lowest
+// priority, newest wins per camera), so a localisation never waits for a
+// frame's depth: the extrinsics keep the frame rate, depth, TF and previews
+// come at the rate processing allows.
+// Either way its poses are grouped per trigger on the publishing node, and once the
 // reference camera (reference_serial) and camera X both have a pose of a
 // trigger, Relate gives c0_from_cx, published on <PREFIX>_<SERIAL>_EXTRINSICS.
 //
@@ -103,6 +108,11 @@ struct PipelineReport {
   std::uint64_t skipped = 0;    // replaced in its camera's slot by a newer frame (skip policy)
   std::uint64_t failed = 0;     // processing or registration returned an error (last_error)
   std::uint64_t localized = 0;  // frames the registration stage gave a pose
+  // Registration ahead of processing (a registration stage under
+  // newest_wins): `processed` counts the frames localised; the depth lane
+  // processes (and publishes previews, depth and TF of) the newest of them
+  // when it is free, the others are skipped there.
+  std::uint64_t depth_processed = 0, depth_skipped = 0, depth_failed = 0;
   std::uint64_t frame_sets = 0, incomplete_sets = 0;
   std::uint64_t published_previews = 0, published_depth = 0, published_tf = 0;
   std::uint64_t published_vicon = 0, published_stats = 0, published_extrinsics = 0;
