@@ -1,6 +1,7 @@
 #include "acquisition/rig_controller.h"
 
 #include "acquisition/thread_priority.h"
+#include "drivers/host_clock.h"
 
 #include <spdlog/spdlog.h>
 
@@ -16,12 +17,6 @@ std::string Fixed(double value, int digits) {
   char text[64];
   std::snprintf(text, sizeof(text), "%.*f", digits, value);
   return text;
-}
-
-std::int64_t RealtimeNs() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::system_clock::now().time_since_epoch())
-      .count();
 }
 
 }  // namespace
@@ -237,7 +232,7 @@ Status RigController::Start() {
       return s;
     }
     if (armed_start_ != nullptr) {
-      const std::int64_t armed_host_ns = RealtimeNs();
+      const std::int64_t armed_host_ns = HostRealtimeNs();
       const std::optional<std::int64_t> armed_device_ns = slots_[i]->camera->ArmedDeviceNs();
       std::lock_guard<std::mutex> lock(anchor_mutex_);
       armed_start_->Armed(static_cast<int>(i), armed_host_ns, armed_device_ns);
@@ -246,7 +241,7 @@ Status RigController::Start() {
   }
   if (armed_start_ != nullptr) {
     std::lock_guard<std::mutex> lock(anchor_mutex_);
-    all_armed_host_ns_ = RealtimeNs();
+    all_armed_host_ns_ = HostRealtimeNs();
   }
   started_ = true;
   if (vicon_) {
@@ -272,7 +267,7 @@ Status RigController::Start() {
     schedule_start_ = std::chrono::steady_clock::now();
     {
       std::lock_guard<std::mutex> anchor(anchor_mutex_);
-      trigger_schedule_host_ns_ = RealtimeNs();
+      trigger_schedule_host_ns_ = HostRealtimeNs();
     }
     schedule_set_ = true;
     trigger_ready_.notify_all();
@@ -315,7 +310,7 @@ void RigController::SyncLoop() {
     std::vector<FrameSet> sets;
     {
       std::lock_guard<std::mutex> lock(sync_mutex_);
-      sets = assembler_->Poll(RealtimeNs());
+      sets = assembler_->Poll(HostRealtimeNs());
     }
     RecordSets(std::move(sets));
     std::this_thread::sleep_for(options_.sync_poll);
@@ -361,7 +356,7 @@ void RigController::GrabLoop(int index) {
     if (!next->has_value()) continue;
     Frame frame = std::move(**next);
     frame.camera_index = index;
-    frame.arrival_ns = RealtimeNs();  // the start of the latency to publication
+    frame.arrival_ns = HostRealtimeNs();  // the start of the latency to publication
     const std::size_t bytes =
         frame.image.stride_bytes * static_cast<std::size_t>(frame.image.height);
     std::int64_t frame_index = 0;
@@ -545,7 +540,7 @@ std::optional<std::int64_t> RigController::Origin(bool force) {
         std::chrono::duration_cast<std::chrono::nanoseconds>(options_.all_armed_wait).count();
     // The wait for first frames runs from the last camera's arm.
     const bool waited =
-        all_armed_host_ns_.has_value() && RealtimeNs() >= *all_armed_host_ns_ + wait_ns;
+        all_armed_host_ns_.has_value() && HostRealtimeNs() >= *all_armed_host_ns_ + wait_ns;
     origin = armed_start_->Decide(force || waited);
     if (!origin) return std::nullopt;
     if (!was_decided) {

@@ -296,10 +296,9 @@ TEST(RecordCli, ReplayedSequenceRecordsIdenticalFilesAndReportsItsGap) {
   const fs::path rig_path = dir / "replay_rig.yaml";
   test::WriteFile(rig_path, FormatRigConfig(rig));
   const fs::path log = dir / "record.log";
-  const auto result = test::RunLifmcr("--log-level info --log-file '" + log.string() +
-                                      "' record --rig '" + rig_path.string() + "' --replay '" +
-                                      original.string() + "' --out '" + (dir / "b").string() +
-                                      "' --duration 20");
+  const auto result = test::RunLifmcr(
+      "--log-level info --log-file '" + log.string() + "' record --rig '" + rig_path.string() +
+      "' --replay '" + original.string() + "' --out '" + (dir / "b").string() + "' --duration 20");
   EXPECT_EQ(result.exit_code, 1) << result.out << result.err;  // the gap is a loss
   // The operator's log: the configuration in force, and the loss with its cause.
   const std::string logged = test::ReadFile(log);
