@@ -23,6 +23,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdlib>
 #include <cstdio>
 #include <map>
 #include <memory>
@@ -52,7 +53,7 @@ struct Sequence {
 Sequence* Shared() {
   static std::unique_ptr<Sequence> shared = [] {
     auto s = std::make_unique<Sequence>();
-    auto params = synth::MakePreset("small");
+    auto params = synth::MakePreset(std::getenv("LIFMCR_TEST_PRESET") ? std::getenv("LIFMCR_TEST_PRESET") : "small");
     EXPECT_TRUE(params);
     params->rig.frames = kFrames;
     params->rig.cameras = 2;
