@@ -18,6 +18,12 @@ std::string Fixed(double value, int digits) {
   return text;
 }
 
+std::int64_t RealtimeNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
 }  // namespace
 
 Status RigControllerOptions::Check() const {
@@ -28,11 +34,15 @@ Status RigControllerOptions::Check() const {
   if (stale_frames_for_restart < 1)
     return Error{"rig controller: stale_frames_for_restart: expected >= 1"};
   if (drain.count() < 0) return Error{"rig controller: drain: expected >= 0 ms"};
+  if (all_armed_wait.count() < 0 || all_armed_wait.count() > 60'000)
+    return Error{"rig controller: all_armed_wait: expected 0..60000 ms"};
   if (sync_poll.count() <= 0) return Error{"rig controller: sync_poll: expected > 0 ms"};
   if (vicon_lead_triggers < 0) return Error{"rig controller: vicon_lead_triggers: expected >= 0"};
   if (vicon_divider < 1) return Error{"rig controller: vicon_divider: expected >= 1"};
   if (vicon_realtime_priority < 0 || vicon_realtime_priority > 99)
     return Error{"rig controller: vicon_realtime_priority: expected 0..99 (0: ordinary)"};
+  if (trigger_realtime_priority < 0 || trigger_realtime_priority > 99)
+    return Error{"rig controller: trigger_realtime_priority: expected 0..99 (0: ordinary)"};
   if (sync) {
     if (Status s = sync->Check(); !s) return Error{"rig controller: sync: " + s.error().message};
   } else if (number_files_by_sync) {
@@ -43,7 +53,29 @@ Status RigControllerOptions::Check() const {
 
 std::uint64_t CameraHealth::Lost() const {
   return incomplete + missing_by_id + missing_in_gaps + no_frame_at_end + not_in_any_set +
-         recorder.lost();
+         triggers_not_fired + recorder.lost();
+}
+
+std::string CameraHealth::LossLine() const {
+  std::ostringstream out;
+  out << "lost " << Lost() << " [incomplete " << incomplete << ", missing ids " << missing_by_id
+      << ", missed while lost " << missing_in_gaps << ", no frame at end " << no_frame_at_end
+      << ", trigger not fired in time " << triggers_not_fired << ", not in any FrameSet "
+      << not_in_any_set << ", queue full " << recorder.dropped_queue_full << ", write error " << recorder.lost_write_error
+      << ", after stop " << recorder.lost_stopped << "]";
+  return out.str();
+}
+
+std::vector<std::string> RigHealth::LossLines() const {
+  std::vector<std::string> lines;
+  for (const CameraHealth& c : cameras)
+    if (c.Lost() > 0) lines.push_back("camera " + c.serial + ": " + c.LossLine());
+  if (has_vicon && (recorder.vicon_lost + vicon.gaps + vicon.malformed > 0))
+    lines.push_back("Vicon: lost lines " + std::to_string(recorder.vicon_lost) +
+                    ", frame-number gaps " + std::to_string(vicon.gaps) + ", malformed " +
+                    std::to_string(vicon.malformed));
+  if (has_sync && sync_drops.lost() > 0) lines.push_back("sync: " + sync_drops.OneLine());
+  return lines;
 }
 
 std::uint64_t RigHealth::FramesLost() const {
@@ -84,19 +116,23 @@ std::string RigHealth::FinalReport() const {
           << " triggers missed in them)";
     if (c.recorder.written > 0)
       out << " (frames " << c.recorder.first_frame << ".." << c.recorder.last_frame << ")";
-    out << ", lost " << c.Lost() << " [incomplete " << c.incomplete << ", missing ids "
-        << c.missing_by_id << ", no frame at end " << c.no_frame_at_end << ", not in any FrameSet "
-        << c.not_in_any_set << ", queue full " << c.recorder.dropped_queue_full << ", write error "
-        << c.recorder.lost_write_error << ", after stop " << c.recorder.lost_stopped
-        << "]; driver: completed " << c.driver.completed << ", failed " << c.driver.failed
-        << ", underruns " << c.driver.underruns << ", reconnects " << c.driver.reconnects;
+    out << ", " << c.LossLine() << "; driver: completed " << c.driver.completed << ", failed "
+        << c.driver.failed << ", underruns " << c.driver.underruns << ", reconnects "
+        << c.driver.reconnects;
     if (c.stale > 0) out << ", stale frames dropped " << c.stale;
-    if (c.triggers_skipped > 0)
-      out << ", software triggers skipped (trigger call overran) " << c.triggers_skipped;
+    if (c.before_all_armed > 0)
+      out << ", before all cameras armed " << c.before_all_armed << " (not written)";
+    if (c.triggers_skipped > c.triggers_not_fired)
+      out << ", software triggers skipped while failing " << c.triggers_skipped - c.triggers_not_fired;
     if (c.errors > 0) out << ", device errors " << c.errors << " (last: " << c.last_error << ")";
     if (!c.first_placement.empty()) out << "; first frame: " << c.first_placement;
     out << "\n";
   }
+  if (triggers_before_all_armed > 0)
+    out << "  start: " << triggers_before_all_armed << " trigger"
+        << (triggers_before_all_armed == 1 ? "" : "s")
+        << " before all cameras armed (not the run's: trigger 0 is the first every camera was "
+           "armed for; their frames are not written, not lost)\n";
   if (has_vicon) {
     out << "  Vicon: received " << vicon.frames << ", written " << recorder.vicon_written
         << ", lost lines " << recorder.vicon_lost << ", frame-number gaps " << vicon.gaps
@@ -144,36 +180,36 @@ Status RigController::Start() {
     if (Status s = slot->camera->Open(); !s) return s;
     slot->health.serial = slot->camera->Info().serial;
   }
-  if (vicon_) {
-    if (Status s = vicon_->Start(); !s) return s;
-  }
-  for (std::size_t i = 0; i < slots_.size(); ++i) {
-    if (Status s = slots_[i]->camera->Start(); !s) {
-      for (std::size_t j = 0; j < i; ++j) (void)slots_[j]->camera->Stop();
-      if (vicon_) (void)vicon_->Stop();
-      return s;
-    }
-  }
   // The clock of each camera's device timestamps: the rig's word, else the driver's.
   std::vector<std::string> clocks(slots_.size());
   for (std::size_t i = 0; i < slots_.size(); ++i)
     clocks[i] = i < options_.device_clocks.size() && !options_.device_clocks[i].empty()
                     ? options_.device_clocks[i]
                     : slots_[i]->camera->Info().device_clock;
-  {
-    std::lock_guard<std::mutex> lock(anchor_mutex_);
-    placer_ = std::make_unique<FirstFramePlacer>(
-        options_.trigger_hz > 0 ? std::llround(1e9 / options_.trigger_hz) : 100'000'000,
-        options_.sync ? options_.sync->trigger.tolerance : TriggerTrackerOptions{}.tolerance,
-        clocks);
-  }
   if (options_.sync) {
     options_.sync->device_clocks = clocks;
-    if (Status s = options_.sync->Check(); !s) {
-      for (auto& slot : slots_) (void)slot->camera->Stop();
-      if (vicon_) (void)vicon_->Stop();
-      return s;
+    options_.sync->wait_for_origin = options_.start_at_all_armed;
+    if (Status s = options_.sync->Check(); !s) return s;
+  }
+  {
+    std::lock_guard<std::mutex> lock(anchor_mutex_);
+    const std::int64_t period_ns =
+        options_.trigger_hz > 0 ? std::llround(1e9 / options_.trigger_hz) : 100'000'000;
+    placer_ = std::make_unique<FirstFramePlacer>(
+        period_ns,
+        options_.sync ? options_.sync->trigger.tolerance : TriggerTrackerOptions{}.tolerance,
+        clocks);
+    if (options_.start_at_all_armed) {
+      armed_start_ = std::make_unique<ArmedStart>(static_cast<int>(slots_.size()), period_ns);
+    } else {
+      origin_ = 0;
+      origin_known_ = true;
     }
+  }
+  if (vicon_) {
+    if (Status s = vicon_->Start(); !s) return s;
+  }
+  if (options_.sync) {
     assembler_ = std::make_unique<FrameSetAssembler>(*options_.sync);
     syncing_ = true;
     sync_thread_ = std::thread([this] { SyncLoop(); });
@@ -181,11 +217,38 @@ Status RigController::Start() {
   spdlog::info("rig: {} camera(s), Vicon {}, software triggers at {} Hz, sync {}",
                slots_.size(), vicon_ ? "on" : "off", options_.trigger_hz,
                options_.sync ? "on" : "off");
-  started_ = true;
   start_time_ = last_health_ = std::chrono::steady_clock::now();
   grabbing_ = true;
-  for (std::size_t i = 0; i < slots_.size(); ++i)
+  // Each camera's grab thread starts as soon as the camera is armed, so its
+  // frames are taken (and stamped on arrival) while the next camera arms
+  // rather than waiting in the driver's queue. Its arm: the host time its
+  // Start returned, and its device clock latched then where the device can
+  // (sync/armed_start.h).
+  for (std::size_t i = 0; i < slots_.size(); ++i) {
+    if (Status s = slots_[i]->camera->Start(); !s) {
+      grabbing_ = false;
+      for (std::size_t j = 0; j < i; ++j) {
+        slots_[j]->thread.join();
+        (void)slots_[j]->camera->Stop();
+      }
+      syncing_ = false;
+      if (sync_thread_.joinable()) sync_thread_.join();
+      if (vicon_) (void)vicon_->Stop();
+      return s;
+    }
+    if (armed_start_ != nullptr) {
+      const std::int64_t armed_host_ns = RealtimeNs();
+      const std::optional<std::int64_t> armed_device_ns = slots_[i]->camera->ArmedDeviceNs();
+      std::lock_guard<std::mutex> lock(anchor_mutex_);
+      armed_start_->Armed(static_cast<int>(i), armed_host_ns, armed_device_ns);
+    }
     slots_[i]->thread = std::thread([this, i] { GrabLoop(static_cast<int>(i)); });
+  }
+  if (armed_start_ != nullptr) {
+    std::lock_guard<std::mutex> lock(anchor_mutex_);
+    all_armed_host_ns_ = RealtimeNs();
+  }
+  started_ = true;
   if (vicon_) {
     vicon_running_ = true;
     vicon_thread_ = std::thread([this] { ViconLoop(); });
@@ -196,18 +259,23 @@ Status RigController::Start() {
                                           [](const auto& slot) { return slot->software_trigger; });
   if (options_.trigger_hz > 0 && fires_triggers) {
     triggering_ = true;
-    const auto schedule_start = std::chrono::steady_clock::now();
-    {
-      std::lock_guard<std::mutex> lock(anchor_mutex_);
-      trigger_schedule_host_ns_ = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                      std::chrono::system_clock::now().time_since_epoch())
-                                      .count();
-    }
     for (std::size_t i = 0; i < slots_.size(); ++i) {
       if (!slots_[i]->software_trigger) continue;
-      trigger_threads_.emplace_back(
-          [this, i, schedule_start] { TriggerLoop(static_cast<int>(i), schedule_start); });
+      trigger_threads_.emplace_back([this, i] { TriggerLoop(static_cast<int>(i)); });
     }
+    // The schedule starts once every trigger thread runs (under its
+    // priority): a thread created late on a loaded host would otherwise
+    // find its first ticks past and skip them. At most a second's wait.
+    std::unique_lock<std::mutex> lock(trigger_mutex_);
+    trigger_ready_.wait_for(lock, std::chrono::seconds(1),
+                            [&] { return trigger_threads_ready_ == trigger_threads_.size(); });
+    schedule_start_ = std::chrono::steady_clock::now();
+    {
+      std::lock_guard<std::mutex> anchor(anchor_mutex_);
+      trigger_schedule_host_ns_ = RealtimeNs();
+    }
+    schedule_set_ = true;
+    trigger_ready_.notify_all();
   }
   return Status::Ok();
 }
@@ -215,7 +283,10 @@ Status RigController::Start() {
 void RigController::Stop() {
   if (!started_) return;
   started_ = false;
-  triggering_ = false;
+  {
+    std::lock_guard<std::mutex> lock(trigger_mutex_);
+    triggering_ = false;
+  }
   for (std::thread& thread : trigger_threads_) thread.join();
   trigger_threads_.clear();
   // Frames already triggered are still on their way: keep grabbing a moment.
@@ -238,14 +309,6 @@ void RigController::Stop() {
     RecordSets(std::move(rest));
   }
 }
-
-namespace {
-std::int64_t RealtimeNs() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::system_clock::now().time_since_epoch())
-      .count();
-}
-}  // namespace
 
 void RigController::SyncLoop() {
   while (syncing_.load()) {
@@ -281,6 +344,11 @@ void RigController::RecordSets(std::vector<FrameSet> sets) {
 void RigController::GrabLoop(int index) {
   CameraSlot& slot = *slots_[index];
   while (grabbing_.load()) {
+    // Held frames go out as soon as the run's trigger 0 is known (decided on
+    // another camera's thread, or by the wait's end).
+    if (!slot.held.empty() || (slot.first_index && !slot.start_counted)) {
+      if (const std::optional<std::int64_t> origin = Origin(false)) SettleStart(index, *origin);
+    }
     Expected<std::optional<Frame>> next = slot.camera->NextFrame(options_.frame_timeout);
     if (!next) {
       std::lock_guard<std::mutex> lock(slot.mutex);
@@ -303,17 +371,31 @@ void RigController::GrabLoop(int index) {
     // then count from one placement. (Only this grab thread touches the
     // unwrapper.)
     std::optional<std::int64_t> placed;
-    std::string placed_how;
+    std::optional<FirstPlacement> placed_by;
     bool in_assembler = false;
-    if (assembler_ != nullptr && !options_.number_files_by_sync &&
-        frame.status == FrameStatus::kOk && slot.unwrapper.last_index() < 0) {
+    const bool first_good = frame.status == FrameStatus::kOk && slot.unwrapper.last_index() < 0;
+    // A camera this controller triggers answers the triggers in the order it
+    // fired them, all after every camera was armed: its first good frame is
+    // on the first trigger not answered by a failed frame. Its arrival time
+    // would mislead: a busy host delivers it more than a period late at 50 Hz.
+    std::optional<std::int64_t> by_trigger_count;
+    if (first_good && slot.software_trigger && options_.trigger_hz > 0)
+      by_trigger_count = static_cast<std::int64_t>(slot.health.failed_since_ok);
+    if (assembler_ != nullptr && !options_.number_files_by_sync && first_good) {
       std::lock_guard<std::mutex> lock(sync_mutex_);
-      placed = assembler_->AddFrame(frame);
+      placed = assembler_->AddFrame(frame, by_trigger_count);
       in_assembler = true;
-      if (placed) placed_how = assembler_->camera_stats()[index].first_placement;
+      if (placed) placed_by = assembler_->first_placement(index);
     }
-    if (frame.status == FrameStatus::kOk && slot.unwrapper.last_index() < 0 && !placed) {
-      placed = PlaceFirstFrame(index, frame, &placed_how).trigger_index;
+    if (first_good && !placed_by) {
+      if (by_trigger_count) {
+        placed_by = FirstPlacement{};
+        placed_by->trigger_index = *by_trigger_count;
+        placed_by->by = FirstPlacement::By::kTriggerCount;
+      } else {
+        placed_by = PlaceFirstFrame(index, frame);
+      }
+      placed = placed_by->trigger_index;
     }
     {
       std::lock_guard<std::mutex> lock(slot.mutex);
@@ -333,14 +415,23 @@ void RigController::GrabLoop(int index) {
           // triggers), after any failed frames before it (each was a trigger).
           const auto failed = static_cast<std::int64_t>(slot.health.failed_since_ok);
           const std::int64_t first = std::max(*placed, failed);
-          slot.health.first_placement = placed_how;
-          if (first != *placed) slot.health.first_placement += ", after its failed frames";
-          spdlog::info("camera {}: first frame on {}", slot.health.serial,
-                       slot.health.first_placement);
+          slot.first_placed = placed_by;
+          if (first != *placed) slot.first_suffix = ", after its failed frames";
+          spdlog::info("camera {}: first frame on {}{}", slot.health.serial, placed_by->OneLine(),
+                       slot.first_suffix);
           (void)slot.unwrapper.Next(frame.frame_id);
           slot.unwrapper.Rebase(frame.frame_id, first);
           step.index = first;
           step.missing_before = first - failed;
+          if (options_.start_at_all_armed) {
+            // The triggers before it are missed only from the run's trigger
+            // 0 on (SettleStart counts them once that is known).
+            slot.first_index = first;
+            slot.failed_before_first = failed;
+            step.missing_before = 0;
+            std::lock_guard<std::mutex> anchor(anchor_mutex_);
+            armed_start_->FirstFrame(index, first, frame.device_ns, frame.host_ns);
+          }
           slot.health.failed_since_ok = 0;
           slot.lost = false;
         } else if (!slot.lost) {
@@ -351,6 +442,19 @@ void RigController::GrabLoop(int index) {
             slot.unwrapper.last_index() >= 0 &&
             (slot.lost || slot.stale_in_a_row >= options_.stale_frames_for_restart);
         if (restarted) {
+          // Ticks skipped after its last frame are in the silence below,
+          // not triggers it missed while working.
+          if (slot.health.counter_restarts == 0) {
+            const std::int64_t last_answered = slot.unwrapper.last_index();
+            for (auto it = slot.skips.begin(); it != slot.skips.end();) {
+              if (static_cast<std::int64_t>(it->first) <= last_answered) {
+                ++it;
+                continue;
+              }
+              slot.health.triggers_not_fired -= it->second;
+              it = slot.skips.erase(it);
+            }
+          }
           // The device restarted its counter (a reconnect): the triggers it
           // missed are its silence in host time over the trigger period.
           const double silence_s =
@@ -359,7 +463,12 @@ void RigController::GrabLoop(int index) {
                   : 0.0;
           const auto triggers = std::max<std::int64_t>(
               1, static_cast<std::int64_t>(std::llround(silence_s * options_.trigger_hz)));
-          slot.unwrapper.Rebase(frame.frame_id, slot.unwrapper.last_index() + triggers);
+          // From its last frame's tick (mapped past the skipped ticks).
+          const std::int64_t last_tick =
+              slot.software_trigger && slot.health.counter_restarts == 0
+                  ? TickOfTrigger(slot, slot.unwrapper.last_index())
+                  : slot.unwrapper.last_index();
+          slot.unwrapper.Rebase(frame.frame_id, last_tick + triggers);
           step = FrameIdUnwrapper::Step{slot.unwrapper.last_index(), 0, false};
           slot.health.missing_in_gaps += static_cast<std::uint64_t>(triggers - 1);
           ++slot.health.counter_restarts;
@@ -381,7 +490,14 @@ void RigController::GrabLoop(int index) {
         slot.health.missing_by_id +=
             missing > slot.health.failed_since_ok ? missing - slot.health.failed_since_ok : 0;
         slot.health.failed_since_ok = 0;
-        slot.health.last_index = frame_index = step.index;
+        // Software triggers: the frame counter counts the triggers fired;
+        // ticks skipped (a trigger call overran) are triggers of the rig too.
+        // (After a counter restart the index is on the ticks already.)
+        frame_index = slot.software_trigger && slot.health.counter_restarts == 0
+                          ? TickOfTrigger(slot, step.index)
+                          : step.index;
+        slot.health.last_index = frame_index;
+        slot.last_answered = step.index;
         slot.last_host_ns = frame.host_ns;
         {
           std::lock_guard<std::mutex> anchor(anchor_mutex_);
@@ -407,24 +523,86 @@ void RigController::GrabLoop(int index) {
       assembler_->AddFrame(frame);
     }
     if (frame.status != FrameStatus::kOk) continue;
-    if (observer_.on_frame) observer_.on_frame(index, frame_index, frame);
-    if (recorder_ != nullptr) recorder_->SubmitFrame(index, frame_index, std::move(frame));
+    const std::optional<std::int64_t> origin =
+        Origin(slot.held.size() + 1 >= RigControllerOptions::kMaxHeldFrames);
+    if (!origin) {
+      slot.held.emplace_back(frame_index, std::move(frame));
+      continue;
+    }
+    SettleStart(index, *origin);  // frames held before this one first
+    Submit(index, frame_index, *origin, std::move(frame));
   }
+  if (options_.start_at_all_armed) SettleStart(index, *Origin(true));
 }
 
-FirstPlacement RigController::PlaceFirstFrame(int index, const Frame& frame, std::string* how) {
-  std::string why;
+std::optional<std::int64_t> RigController::Origin(bool force) {
+  if (origin_known_.load()) return origin_.load();
+  std::optional<std::int64_t> origin;
   {
     std::lock_guard<std::mutex> lock(anchor_mutex_);
-    if (std::optional<FirstPlacement> placement = placer_->ByDeviceTime(index, frame.device_ns)) {
-      *how = placement->OneLine();
-      return *placement;
+    const bool was_decided = armed_start_->origin().has_value();
+    const std::int64_t wait_ns =
+        std::chrono::duration_cast<std::chrono::nanoseconds>(options_.all_armed_wait).count();
+    // The wait for first frames runs from the last camera's arm.
+    const bool waited =
+        all_armed_host_ns_.has_value() && RealtimeNs() >= *all_armed_host_ns_ + wait_ns;
+    origin = armed_start_->Decide(force || waited);
+    if (!origin) return std::nullopt;
+    if (!was_decided) {
+      for (std::size_t i = 0; i < slots_.size(); ++i)
+        spdlog::info("camera {}: {}", slots_[i]->camera->Info().serial,
+                     armed_start_->HasFirstFrame(static_cast<int>(i))
+                         ? armed_start_->HowArmed(static_cast<int>(i)) +
+                               ", from trigger " +
+                               std::to_string(*armed_start_->ArmedFrom(static_cast<int>(i)))
+                         : std::string("no frame yet"));
+      spdlog::info("rig: trigger 0 of the run is trigger {} of the first frames' count (the "
+                   "first every camera was armed for)",
+                   *origin);
     }
-    why = placer_->WhyNotByDeviceTime(index, frame.device_ns);
   }
+  if (assembler_ != nullptr) {
+    std::lock_guard<std::mutex> lock(sync_mutex_);
+    assembler_->SetOrigin(*origin);
+  }
+  origin_ = *origin;
+  origin_known_ = true;
+  return origin;
+}
+
+void RigController::SettleStart(int index, std::int64_t origin) {
+  CameraSlot& slot = *slots_[index];
+  if (slot.first_index && !slot.start_counted) {
+    std::lock_guard<std::mutex> lock(slot.mutex);
+    const std::int64_t missing =
+        std::max<std::int64_t>(0, *slot.first_index - origin) - slot.failed_before_first;
+    if (missing > 0) slot.health.missing_by_id += static_cast<std::uint64_t>(missing);
+    slot.start_counted = true;
+  }
+  std::vector<std::pair<std::int64_t, Frame>> held = std::move(slot.held);
+  slot.held.clear();
+  for (auto& [frame_index, frame] : held) Submit(index, frame_index, origin, std::move(frame));
+}
+
+void RigController::Submit(int index, std::int64_t frame_index, std::int64_t origin, Frame frame) {
+  if (frame_index < origin) {
+    std::lock_guard<std::mutex> lock(slots_[index]->mutex);
+    ++slots_[index]->health.before_all_armed;
+    return;
+  }
+  if (observer_.on_frame) observer_.on_frame(index, frame_index - origin, frame);
+  if (recorder_ != nullptr) recorder_->SubmitFrame(index, frame_index - origin, std::move(frame));
+}
+
+FirstPlacement RigController::PlaceFirstFrame(int index, const Frame& frame) {
   FirstPlacement placement;
+  {
+    std::lock_guard<std::mutex> lock(anchor_mutex_);
+    if (std::optional<FirstPlacement> by_device = placer_->ByDeviceTime(index, frame.device_ns))
+      return *by_device;
+    placement.note = placer_->WhyNotByDeviceTime(index, frame.device_ns);
+  }
   placement.trigger_index = FirstIndexByHostTime(frame.host_ns);
-  *how = placement.OneLine() + " (" + why + ")";
   return placement;
 }
 
@@ -508,16 +686,36 @@ void RigController::ViconLoop() {
   }
 }
 
-void RigController::TriggerLoop(int index, std::chrono::steady_clock::time_point start) {
+void RigController::TriggerLoop(int index) {
   CameraSlot& slot = *slots_[index];
+  if (options_.trigger_realtime_priority > 0)
+    spdlog::info("rig: software trigger thread of camera {} under {}", slot.health.serial,
+                 RaiseThreadToRealtime(options_.trigger_realtime_priority));
+  std::chrono::steady_clock::time_point start;
+  {
+    std::unique_lock<std::mutex> lock(trigger_mutex_);
+    ++trigger_threads_ready_;
+    trigger_ready_.notify_all();
+    trigger_ready_.wait(lock, [&] { return schedule_set_; });
+    start = schedule_start_;
+  }
   const auto period =
       std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 / options_.trigger_hz));
   std::uint64_t tick = 0;
-  while (triggering_.load()) {
-    if (Status s = slot.camera->SoftwareTrigger(); !s) {
+  for (;;) {
+    {
+      // At Stop every camera is still fired up to the last tick any camera
+      // was fired for (each has its own thread), so the run ends on a
+      // trigger every camera saw rather than one some cameras missed.
+      std::lock_guard<std::mutex> lock(trigger_mutex_);
+      if (!triggering_.load() && tick >= ticks_begun_) break;
+      ticks_begun_ = std::max(ticks_begun_, tick + 1);
+    }
+    const Status fired = slot.camera->SoftwareTrigger();
+    if (!fired) {
       std::lock_guard<std::mutex> lock(slot.mutex);
       ++slot.health.errors;
-      slot.health.last_error = s.error().message;
+      slot.health.last_error = fired.error().message;
     }
     // A trigger call that overran the period: the ticks it covered are not
     // fired late in a burst (the camera would merge them), they are skipped
@@ -525,14 +723,31 @@ void RigController::TriggerLoop(int index, std::chrono::steady_clock::time_point
     const auto elapsed = std::chrono::steady_clock::now() - start;
     const auto now_tick = static_cast<std::uint64_t>(elapsed / period);
     const std::uint64_t next = std::max(tick + 1, now_tick);
+    ++slot.fired;
     if (next > tick + 1) {
       std::lock_guard<std::mutex> lock(slot.mutex);
       slot.health.triggers_skipped += next - tick - 1;
+      // A working camera's overran call: the ticks are triggers it never
+      // got, which its frame counter does not count (the grab thread maps
+      // them, TickOfTrigger) and which are lost. A failing or lost camera's
+      // silence is counted by host time at its return (missing_in_gaps).
+      if (fired && !slot.lost && slot.health.counter_restarts == 0) {
+        slot.skips.emplace_back(slot.fired, next - tick - 1);
+        slot.health.triggers_not_fired += next - tick - 1;
+      }
     }
     tick = next;
     slot.trigger_ticks.store(tick);
     std::this_thread::sleep_until(start + tick * period);
   }
+}
+
+std::int64_t RigController::TickOfTrigger(const CameraSlot& slot, std::int64_t answered) {
+  std::int64_t tick = answered;
+  for (const auto& [fired_before, skipped] : slot.skips)
+    if (static_cast<std::int64_t>(fired_before) <= answered)
+      tick += static_cast<std::int64_t>(skipped);
+  return tick;
 }
 
 bool RigController::ViconFinished() const { return vicon_ && vicon_->Finished(); }
@@ -571,14 +786,48 @@ RigHealth RigController::Health() {
       camera.serial = camera.recorder.serial;  // the rig's serial, as in the file names
     }
     camera.triggers = slot.trigger_ticks.load();
+    {
+      std::lock_guard<std::mutex> lock(slot.mutex);
+      if (slot.first_placed) {
+        // On the run's count (trigger 0: the first every camera was armed for).
+        FirstPlacement placement = *slot.first_placed;
+        placement.trigger_index -= origin_known_.load() ? origin_.load() : 0;
+        camera.first_placement = placement.OneLine() + slot.first_suffix;
+      }
+    }
+    if (armed_start_ != nullptr && !camera.first_placement.empty()) {
+      std::lock_guard<std::mutex> lock(anchor_mutex_);
+      camera.first_placement += "; " + armed_start_->HowArmed(static_cast<int>(i));
+    }
     if (slot.software_trigger && !grabbing_.load()) {
       const auto expected = static_cast<std::int64_t>(slot.trigger_ticks.load());
-      // Failed frames after the last good one are already counted as incomplete.
-      const std::int64_t at_end =
-          expected - camera.last_index - 1 - static_cast<std::int64_t>(camera.failed_since_ok);
+      // Failed frames after the last good one are already counted as
+      // incomplete, ticks skipped after it as not fired.
+      std::int64_t skipped_after = 0;
+      {
+        std::lock_guard<std::mutex> lock(slot.mutex);
+        if (slot.health.counter_restarts == 0)
+          for (const auto& [fired_before, skipped] : slot.skips)
+            if (static_cast<std::int64_t>(fired_before) > slot.last_answered)
+              skipped_after += static_cast<std::int64_t>(skipped);
+      }
+      const std::int64_t at_end = expected - camera.last_index - 1 -
+                                  static_cast<std::int64_t>(camera.failed_since_ok) -
+                                  skipped_after;
       if (at_end > 0) camera.no_frame_at_end = static_cast<std::uint64_t>(at_end);
     }
     health.cameras.push_back(std::move(camera));
+  }
+  if (armed_start_ != nullptr && assembler_ == nullptr && origin_known_.load()) {
+    // Without the assembler: the triggers from the rig's first frame to the origin.
+    std::optional<std::int64_t> rig_first;
+    for (auto& slot : slots_) {
+      std::lock_guard<std::mutex> lock(slot->mutex);
+      if (slot->first_index)
+        rig_first = rig_first ? std::min(*rig_first, *slot->first_index) : *slot->first_index;
+    }
+    if (rig_first && origin_.load() > *rig_first)
+      health.triggers_before_all_armed = static_cast<std::uint64_t>(origin_.load() - *rig_first);
   }
   if (assembler_) {
     std::lock_guard<std::mutex> lock(sync_mutex_);
@@ -588,6 +837,7 @@ RigHealth RigController::Health() {
     health.sync_drops = assembler_->drops();
     health.sync_cameras = assembler_->camera_stats();
     health.vicon_f0 = assembler_->vicon_f0();
+    health.triggers_before_all_armed = assembler_->triggers_before_all_armed();
     health.files_numbered_by_sync = options_.number_files_by_sync;
     for (std::size_t c = 0; c < health.cameras.size() && c < health.sync_cameras.size() &&
                             options_.number_files_by_sync;

@@ -6,7 +6,11 @@
 // publisher). Health() is a snapshot for the status line.
 //
 // Frame numbers: a frame's number in the recording is its trigger index. A
-// camera's first frame is placed by the sync assembler when there is one
+// camera this controller triggers answers its triggers in order, all fired
+// after every camera was armed: its first good frame is on trigger 0 (after
+// any failed frames), whatever its arrival time; ticks whose trigger call
+// overran (skipped) are mapped past, since its frame counter does not count
+// them. Any other camera's first frame is placed by the sync assembler when there is one
 // (the trigger of its FrameSet, so file numbers and trigger indices count
 // from one placement), else by device time against a camera on the same
 // device clock (sync/first_frame_placement.h, the rule the assembler
@@ -20,6 +24,17 @@
 // fast as the consumer takes frames, or per software trigger) and any mix;
 // `lifmcr replay` and `lifmcr record` both run through it.
 //
+// Start-up (start_at_all_armed): cameras on triggers this controller does
+// not fire (a trigger box's line, pulsing all the time) are armed one after
+// the other, so the first pulses may reach some cameras only. The run's
+// trigger 0 is then the first trigger at which every camera was armed
+// (sync/armed_start.h, from each camera's arm and first frame): frames
+// before it are counted as "before all cameras armed" and not written, and
+// files, FrameSets (LCM trigger_index) and the report count from it. Until
+// every camera has delivered its first frame (at most all_armed_wait after
+// the last arm, or kMaxHeldFrames frames of one camera) the frames are held
+// (their pooled buffers), not yet written or observed.
+//
 // Accounting, per camera: every frame the counter says was produced ends up
 // recorded, or lost as one of: incomplete (delivered with a bad status; not
 // written), missing by counter gap, driver underrun, recorder drop. With
@@ -30,11 +45,13 @@
 #include "acquisition/recorder.h"
 #include "drivers/camera.h"
 #include "drivers/vicon_source.h"
+#include "sync/armed_start.h"
 #include "sync/first_frame_placement.h"
 #include "sync/frame_set_assembler.h"
 
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -88,6 +105,21 @@ struct RigControllerOptions {
   // (it would hold a core until the file is read).
   int vicon_realtime_priority = 0;
   static constexpr int kLiveViconPriority = 10;
+  // SCHED_FIFO priority of the software trigger threads (0: ordinary). They
+  // sleep to each tick and make one cheap call (a register write, a counter),
+  // so they take little CPU; under the ordinary scheduler a loaded host
+  // wakes them late and a tick is skipped (counted lost).
+  int trigger_realtime_priority = kLiveViconPriority;
+  // Trigger 0 is the first trigger every camera was armed for (see the top);
+  // false: the rig's first frame is trigger 0 (software triggers, fired only
+  // once every camera is armed; replay; free run).
+  bool start_at_all_armed = false;
+  // How long after the last camera was armed the others' frames wait for a
+  // camera's first frame before the run's trigger 0 is decided without it.
+  std::chrono::milliseconds all_armed_wait{1000};
+  // Frames of one camera held at most while waiting (within the pool of
+  // queue_frames + 4 buffers that `record` gives each camera).
+  static constexpr std::size_t kMaxHeldFrames = 6;
   Status Check() const;  // every field (sync: its own Check); the message names the field
 };
 
@@ -113,13 +145,19 @@ struct CameraHealth {
   std::uint64_t stale = 0;            // repeated/late frames, dropped
   std::uint64_t missing_in_gaps = 0;  // triggers missed while the camera was lost (by host time)
   std::uint64_t counter_restarts = 0;
-  std::uint64_t triggers_skipped = 0;  // ticks whose software trigger could not be fired in time
+  // Ticks whose software trigger could not be fired in time (the call
+  // overran); of them, those of a working camera (its call succeeded, no
+  // reconnect) are triggers it never got: lost (the rest are in the silence
+  // of a reconnect, missing_in_gaps).
+  std::uint64_t triggers_skipped = 0;
+  std::uint64_t triggers_not_fired = 0;
   std::uint64_t not_in_any_set =
       0;                       // files numbered by sync: frames off the grid or late, not written
   std::uint64_t triggers = 0;  // software-trigger schedule ticks for this camera
   std::uint64_t failed_since_ok = 0;  // internal: failed frames since the last good one
   std::uint64_t no_frame_at_end = 0;
-  std::uint64_t errors = 0;  // NextFrame errors (device lost)
+  std::uint64_t before_all_armed = 0;  // frames on triggers before every camera was armed: not written
+  std::uint64_t errors = 0;           // NextFrame errors (device lost)
   std::string last_error;
   std::int64_t last_index = -1;
   // How the first frame was put on the trigger count (FirstPlacement::OneLine).
@@ -129,12 +167,17 @@ struct CameraHealth {
 
   // Every frame that was produced (or triggered) and is not on disk.
   std::uint64_t Lost() const;
+  // "lost 3 [incomplete 0, missing ids 1, ...]": Lost() by cause.
+  std::string LossLine() const;
 };
 
 struct RigHealth {
   double elapsed_s = 0;
   std::vector<CameraHealth> cameras;
   std::uint64_t triggers_fired = 0;  // software triggers (0 in hardware mode)
+  // start_at_all_armed: triggers before every camera was armed (not the
+  // run's; their frames not written, not lost).
+  std::uint64_t triggers_before_all_armed = 0;
   bool has_vicon = false;
   double vicon_hz = 0;
   ViconSourceStats vicon;
@@ -159,6 +202,10 @@ struct RigHealth {
   std::string StatusLine() const;
   // Several lines: per camera what was kept and what was lost and why.
   std::string FinalReport() const;
+  // One line per camera, the Vicon stream and sync that lost anything, with
+  // the causes ("camera MEMB: lost 1 [...]"); empty when nothing was lost.
+  // For the operator's log (the command writes them at the end of a run).
+  std::vector<std::string> LossLines() const;
 };
 
 class RigController {
@@ -198,10 +245,23 @@ class RigController {
     int stale_in_a_row = 0;
     std::int64_t last_host_ns = 0;                // of the last accepted frame
     std::atomic<std::uint64_t> trigger_ticks{0};  // schedule ticks passed (fired or skipped)
+    // Software triggers: (triggers fired before, ticks skipped) per skip, so
+    // the grab thread turns the n-th trigger answered into its tick (guarded
+    // by mutex; appended before the next trigger is fired).
+    std::vector<std::pair<std::uint64_t, std::uint64_t>> skips;
+    std::uint64_t fired = 0;  // trigger thread only
+    std::int64_t last_answered = -1;  // the last frame's trigger among those fired (mutex)
     mutable std::mutex mutex;                     // guards health below
     CameraHealth health;
     std::uint64_t interval_frames = 0;
     std::uint64_t interval_bytes = 0;
+    // Start-up (start_at_all_armed; grab thread only, except health under mutex):
+    std::optional<FirstPlacement> first_placed;  // its first frame's placement
+    std::string first_suffix;                    // ", after its failed frames"
+    std::optional<std::int64_t> first_index;     // trigger of its first good frame
+    std::int64_t failed_before_first = 0;
+    bool start_counted = false;  // triggers missed before its first frame counted
+    std::vector<std::pair<std::int64_t, Frame>> held;  // waiting for the run's trigger 0
     std::thread thread;
   };
   void GrabLoop(int index);
@@ -210,17 +270,29 @@ class RigController {
   bool ViconAhead(std::int64_t next_vicon_frame) const;
   // One per software-triggered camera, all on one schedule, so a camera that
   // is slow to take its trigger (lost, reconnecting) delays no other.
-  void TriggerLoop(int index, std::chrono::steady_clock::time_point start);
+  void TriggerLoop(int index);
+  // The schedule tick of the `answered`-th software trigger fired to the
+  // camera (0-based): `answered` plus the ticks skipped before it. Needs slot.mutex.
+  static std::int64_t TickOfTrigger(const CameraSlot& slot, std::int64_t answered);
   void SyncLoop();
   // Trigger index of a camera's first frame: 0 for the rig's first frame,
   // else the trigger periods since it in host time.
   std::int64_t FirstIndexByHostTime(std::int64_t host_ns);
   // Without the assembler's placement: by device time against a camera on
   // the same clock, else FirstIndexByHostTime.
-  // `how`: FirstPlacement::OneLine, and why not by device time.
-  FirstPlacement PlaceFirstFrame(int index, const Frame& frame, std::string* how);
+  // The placement's note says why not by device time.
+  FirstPlacement PlaceFirstFrame(int index, const Frame& frame);
   // Hands the frames of emitted sets to the recorder (sync thread, or Stop).
   void RecordSets(std::vector<FrameSet> sets);
+  // The run's trigger 0 on the placement count: 0 without start_at_all_armed;
+  // nullopt while waiting for cameras' first frames (`force`: decide now).
+  std::optional<std::int64_t> Origin(bool force);
+  // Once the origin is known: the camera's triggers missed before its first
+  // frame counted, its held frames written (or counted before all armed).
+  void SettleStart(int index, std::int64_t origin);
+  // A good frame on trigger `frame_index` (placement count) to the observer
+  // and the recorder, numbered from `origin`.
+  void Submit(int index, std::int64_t frame_index, std::int64_t origin, Frame frame);
 
   std::vector<std::unique_ptr<CameraSlot>> slots_;
   std::unique_ptr<ViconSource> vicon_;
@@ -233,6 +305,13 @@ class RigController {
   std::atomic<bool> vicon_running_{false};
   std::thread vicon_thread_;
   std::vector<std::thread> trigger_threads_;
+  // Guards ticks_begun_, the stop of triggering_ and the schedule's start.
+  std::mutex trigger_mutex_;
+  std::uint64_t ticks_begun_ = 0;  // ticks any camera's trigger thread began firing
+  std::condition_variable trigger_ready_;
+  std::size_t trigger_threads_ready_ = 0;
+  bool schedule_set_ = false;
+  std::chrono::steady_clock::time_point schedule_start_;
   bool started_ = false;
 
   std::mutex vicon_mutex_;
@@ -243,6 +322,11 @@ class RigController {
   std::mutex anchor_mutex_;
   std::optional<std::int64_t> rig_first_host_ns_;
   std::unique_ptr<FirstFramePlacer> placer_;  // guarded by anchor_mutex_
+  std::unique_ptr<ArmedStart> armed_start_;   // start_at_all_armed; guarded by anchor_mutex_
+  // CLOCK_REALTIME when the last camera was armed; guarded by anchor_mutex_.
+  std::optional<std::int64_t> all_armed_host_ns_;
+  std::atomic<bool> origin_known_{false};
+  std::atomic<std::int64_t> origin_{0};
   // CLOCK_REALTIME of the first software trigger, when this controller fires them.
   std::optional<std::int64_t> trigger_schedule_host_ns_;
   std::mutex sync_mutex_;  // guards assembler_ and the set counters

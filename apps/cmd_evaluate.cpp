@@ -515,11 +515,6 @@ int RunEvaluate(const EvaluateArgs& args) {
       e.failed = it->second.failed;
       e.failure_reasons = it->second.reasons;
       if (e.hand_eye) progress(method + " " + serial + ": " + e.hand_eye->BriefReport());
-      if (!e.has_correction()) {
-        hand_eye_refused = true;
-        std::cerr << "lifmcr evaluate: " << method << " " << serial
-                  << ": no hand-eye correction: " << e.correction_note << "\n";
-      }
       run.evaluations.push_back(std::move(e));
     }
   }
@@ -557,6 +552,27 @@ int RunEvaluate(const EvaluateArgs& args) {
       }
   }
 
+  // A pair whose c0_from_cx cannot determine its own offsets (the cameras
+  // turn together) is corrected with the offsets each camera's map-frame
+  // hand-eye found, when it found them.
+  for (CameraEvaluation& e : run.evaluations) {
+    if (e.has_correction()) continue;
+    const CameraEvaluation* reference_in_map = nullptr;
+    const CameraEvaluation* camera_in_map = nullptr;
+    for (const CameraEvaluation& m : run.map_evaluations) {
+      if (m.method == "reference" && m.serial == e.reference_serial) reference_in_map = &m;
+      if (m.method == e.method && m.serial == e.serial) camera_in_map = &m;
+    }
+    if (reference_in_map && camera_in_map &&
+        CorrectWithMapFrameOffsets(&e, *reference_in_map, *camera_in_map)) {
+      progress(e.method + " " + e.serial + ": " + e.correction_note);
+      continue;
+    }
+    hand_eye_refused = true;
+    std::cerr << "lifmcr evaluate: " << e.method << " " << e.serial
+              << ": no hand-eye correction: " << e.correction_note << "\n";
+  }
+
   for (std::size_t a = 0; a < method_order.size(); ++a)
     for (std::size_t b = a + 1; b < method_order.size(); ++b)
       for (const std::string& serial : ordered) {
@@ -581,6 +597,11 @@ int RunEvaluate(const EvaluateArgs& args) {
     estimated.emplace(e.serial, e.marker_from_cam);
     estimated.emplace(e.reference_serial, e.marker_from_cam_reference);
   }
+  // Cameras whose pair could not determine them (a rigid rig): their
+  // map-frame estimate, so that `--hand-eye FILE` and `--split sequence`
+  // can use them on another sequence.
+  for (const CameraEvaluation& e : run.map_evaluations)
+    if (e.correction_source == "estimated") estimated.emplace(e.serial, e.marker_from_cam);
   if (!estimated.empty())
     if (Status s = write("hand_eye.yaml",
                          FormatHandEyeYaml(estimated, "hand-eye offsets estimated by lifmcr "

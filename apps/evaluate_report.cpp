@@ -122,7 +122,7 @@ void OffsetsSection(std::ostringstream& md, const EvaluationRun& run,
         "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const CameraEvaluation& e : evaluations) {
     const bool estimated = e.hand_eye && e.hand_eye->success;
-    if (!estimated && e.correction_source != "given") {
+    if (!e.has_offsets()) {
       md << "| " << e.method << " | " << e.serial << " | none | " << e.correction_note
          << " | | | | | | | | |\n";
       continue;
@@ -427,15 +427,14 @@ static nlohmann::json EvaluationsJson(const EvaluationRun& run,
                          {"uncorrected", MetricJson(e.uncorrected)},
                          {"correction", {{"source", e.correction_source}, {"note", e.correction_note}}}};
     if (e.has_correction()) ej["corrected"] = MetricJson(e.corrected);
-    if (e.correction_source == "given" || (e.hand_eye && e.hand_eye->success)) {
+    if (e.has_offsets()) {
       ej["correction"]["marker_from_cam"] = PoseJson(e.marker_from_cam);
       ej["correction"]["marker_from_cam_reference"] = PoseJson(e.marker_from_cam_reference);
     }
     if (e.hand_eye) ej["hand_eye"] = HandEyeJson(*e.hand_eye);
     for (const HandEyeResult& fold : e.folds) ej["hand_eye_folds"].push_back(HandEyeJson(fold));
     for (const CameraTruth* truth : {run.Camera(e.serial), run.Camera(e.reference_serial)}) {
-      const bool offsets = e.correction_source == "given" || (e.hand_eye && e.hand_eye->success);
-      if (!offsets || !truth || !truth->true_marker_from_cam) continue;
+      if (!e.has_offsets() || !truth || !truth->true_marker_from_cam) continue;
       const Pose& x = truth->serial == e.serial ? e.marker_from_cam : e.marker_from_cam_reference;
       const Pose d = truth->true_marker_from_cam->inverse() * x;
       ej["correction"]["error_vs_truth"][truth->serial] = {

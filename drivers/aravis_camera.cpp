@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <cstdio>
 #include <ctime>
 #include <mutex>
@@ -53,7 +54,9 @@ struct Slot {
 Status AravisCameraOptions::Check() const {
   if (pool_buffers < 2)
     return Error{"aravis options: pool_buffers must be >= 2, got " + std::to_string(pool_buffers)};
-  if (free_run_rate_hz < 0.0) return Error{"aravis options: free_run_rate_hz must be >= 0"};
+  if (!(free_run_rate_hz >= 0.0) || !std::isfinite(free_run_rate_hz))
+    return Error{"aravis options: free_run_rate_hz must be >= 0"};
+  if (camera_index < 0) return Error{"aravis options: camera_index must be >= 0"};
   if (probe_after.count() <= 0 || reconnect_interval.count() <= 0)
     return Error{"aravis options: probe_after and reconnect_interval must be > 0"};
   if (max_consecutive_failures < 1)
@@ -85,10 +88,7 @@ struct AravisCamera::Impl {
   bool opened = false;
 
   // Lost state (grab thread), published through `lost` for other threads.
-  std::atomic<bool> lost{false};
-  std::string lost_reason;
-  bool lost_reported = false;
-  Clock::time_point last_reconnect_try{};
+  CameraReconnect loss;  // lost, reported, reconnect tries, gaps (camera_gap.h)
   Clock::time_point last_activity{};  // last frame, open or probe
   int consecutive_failures = 0;
   // Underruns, in frames. Aravis's n_underruns counts frames on the Fake
@@ -116,7 +116,7 @@ struct AravisCamera::Impl {
   CameraStats stats;
   CameraStats closed_streams;  // counters of streams already destroyed
   CameraInfo info;
-  CameraGapLog gap_log;  // lost, back, first frame after (camera_gap.h)
+  std::optional<std::int64_t> armed_device_ns;  // latched after AcquisitionStart
 
   std::string DeviceName() const {
     return config.driver.address.empty() ? config.serial : config.driver.address;
@@ -330,10 +330,10 @@ void AravisCamera::Impl::Disconnect() {
     g_signal_handler_disconnect(arv_camera_get_device(old_camera), control_lost_handler);
     control_lost_handler = 0;
   }
-  if (old_camera != nullptr && started && !lost.load()) {
+  if (old_camera != nullptr && started && !loss.lost()) {
     arv_camera_stop_acquisition(old_camera, nullptr);
   }
-  if (lost.load()) {
+  if (loss.lost()) {
     // Finalising a lost GigE stream and device blocks for seconds (register
     // writes that time out, the heartbeat thread's retries), so it happens
     // on a detached thread that owns everything it touches: the stream, the
@@ -358,14 +358,10 @@ void AravisCamera::Impl::Disconnect() {
 }
 
 void AravisCamera::Impl::MarkLost(const std::string& reason) {
-  if (lost.load()) return;
-  gap_log.Lost(reason, ids.last());
-  lost_reason = reason;
-  lost_reported = false;
-  lost.store(true);
-  Disconnect();
-  ids.Reset();
-  last_reconnect_try = Clock::now();
+  loss.MarkLost(reason, ids.last(), [this] {
+    Disconnect();
+    ids.Reset();
+  });
 }
 
 bool AravisCamera::Impl::Probe() {
@@ -419,7 +415,7 @@ Frame AravisCamera::Impl::MakeFrame(ArvBuffer* buffer) {
         gap > 0 ? gap : (new_units + underrun_units_per_frame - 1) / underrun_units_per_frame;
     missing = 0;
   }
-  gap_log.OnFrame(frame.frame_id, frame.host_ns);
+  loss.log().OnFrame(frame.frame_id, frame.host_ns);
   consecutive_failures = frame.status == FrameStatus::kOk ? 0 : consecutive_failures + 1;
   std::lock_guard<std::mutex> lock(stats_mutex);
   stats.missing_ids += missing;
@@ -456,12 +452,25 @@ Status AravisCamera::Open() {
 Status AravisCamera::Start() {
   if (!impl_->opened) return impl_->Fail("Start before Open");
   impl_->started = true;
-  if (impl_->lost.load()) return Status::Ok();  // acquisition starts with the reconnect
+  if (impl_->loss.lost()) return Status::Ok();  // acquisition starts with the reconnect
   GError* error = nullptr;
   arv_camera_start_acquisition(impl_->camera, &error);
   if (error != nullptr) {
     impl_->started = false;
     return impl_->Fail("AcquisitionStart: " + TakeMessage(error));
+  }
+  {
+    // GigE Vision counts its timestamp in GevTimestampTickFrequency ticks.
+    std::lock_guard<std::mutex> control(impl_->control_mutex);
+    ArvDevice* device = arv_camera_get_device(impl_->camera);
+    const gint64 tick_hz =
+        arv_device_get_feature(device, "GevTimestampTickFrequency") != nullptr
+            ? arv_device_get_integer_feature_value(device, "GevTimestampTickFrequency", nullptr)
+            : 0;
+    const std::optional<std::int64_t> armed =
+        LatchArvDeviceTimeNs(device, tick_hz > 0 ? static_cast<std::uint64_t>(tick_hz) : 0);
+    std::lock_guard<std::mutex> lock(impl_->stats_mutex);
+    impl_->armed_device_ns = armed;
   }
   impl_->last_activity = Clock::now();
   return Status::Ok();
@@ -471,7 +480,7 @@ Status AravisCamera::Stop() {
   if (!impl_->opened) return impl_->Fail("Stop before Open");
   const bool was_started = impl_->started;
   impl_->started = false;
-  if (!was_started || impl_->lost.load()) return Status::Ok();
+  if (!was_started || impl_->loss.lost()) return Status::Ok();
   GError* error = nullptr;
   arv_camera_stop_acquisition(impl_->camera, &error);
   if (error != nullptr) return impl_->Fail("AcquisitionStop: " + TakeMessage(error));
@@ -483,33 +492,24 @@ Expected<std::optional<Frame>> AravisCamera::NextFrame(std::chrono::milliseconds
   if (!d.opened) return d.Fail("NextFrame before Open");
   const Clock::time_point deadline = Clock::now() + timeout;
 
-  if (!d.lost.load() && d.control_lost.load())
+  if (!d.loss.lost() && d.control_lost.load())
     d.MarkLost("control channel lost (heartbeat or control access timed out)");
-  if (d.lost.load()) {
-    if (!d.lost_reported) {
-      d.lost_reported = true;
-      return d.Fail("device lost: " + d.lost_reason + "; reconnecting");
-    }
+  if (d.loss.lost()) {
     // A USB3 Vision device arriving is worth trying at once.
-    if (!d.UsbChanged() && Clock::now() - d.last_reconnect_try < d.options.reconnect_interval) {
-      std::this_thread::sleep_until(
-          std::min(deadline, d.last_reconnect_try + d.options.reconnect_interval));
-      if (Clock::now() - d.last_reconnect_try < d.options.reconnect_interval)
-        return std::optional<Frame>();
-    }
-    d.last_reconnect_try = Clock::now();
-    if (Status status = d.Connect(); !status) return std::optional<Frame>();
-    if (d.started) {
-      GError* error = nullptr;
-      arv_camera_start_acquisition(d.camera, &error);
-      if (error != nullptr) {
-        g_error_free(error);
-        d.Disconnect();
-        return std::optional<Frame>();
-      }
-    }
-    d.lost.store(false);
-    d.gap_log.Back();
+    const auto usb_arrived = [&d] { return d.UsbChanged(); };
+    const auto step =
+        d.loss.Reconnect(deadline, d.options.reconnect_interval, usb_arrived, [&d]() -> Status {
+          if (Status status = d.Connect(); !status) return status;
+          if (!d.started) return Status::Ok();
+          GError* error = nullptr;
+          arv_camera_start_acquisition(d.camera, &error);
+          if (error == nullptr) return Status::Ok();
+          d.Disconnect();
+          return d.Fail("AcquisitionStart: " + TakeMessage(error));
+        });
+    if (step == CameraReconnect::Step::kReportLoss)
+      return d.Fail("device lost: " + d.loss.reason() + "; reconnecting");
+    if (step == CameraReconnect::Step::kStillLost) return std::optional<Frame>();
     d.consecutive_failures = 0;
     {
       std::lock_guard<std::mutex> lock(d.stats_mutex);
@@ -540,8 +540,8 @@ Expected<std::optional<Frame>> AravisCamera::NextFrame(std::chrono::milliseconds
     }
     if (d.control_lost.load()) {
       d.MarkLost("control channel lost (heartbeat or control access timed out)");
-      d.lost_reported = true;
-      return d.Fail("device lost: " + d.lost_reason + "; reconnecting");
+      d.loss.LossReported();
+      return d.Fail("device lost: " + d.loss.reason() + "; reconnecting");
     }
     if (Clock::now() >= deadline) break;
   }
@@ -552,8 +552,8 @@ Expected<std::optional<Frame>> AravisCamera::NextFrame(std::chrono::milliseconds
     d.last_activity = Clock::now();
     if (!d.Probe()) {
       d.MarkLost("no answer on the control channel");
-      d.lost_reported = true;
-      return d.Fail("device lost: " + d.lost_reason + "; reconnecting");
+      d.loss.LossReported();
+      return d.Fail("device lost: " + d.loss.reason() + "; reconnecting");
     }
   }
   return std::optional<Frame>();
@@ -586,16 +586,21 @@ CameraInfo AravisCamera::Info() const {
   return impl_->info;
 }
 
+std::optional<std::int64_t> AravisCamera::ArmedDeviceNs() const {
+  std::lock_guard<std::mutex> lock(impl_->stats_mutex);
+  return impl_->armed_device_ns;
+}
+
 CameraStats AravisCamera::Stats() const {
   std::lock_guard<std::mutex> lock(impl_->stats_mutex);
   return impl_->stats;
 }
 
 std::vector<CameraGap> AravisCamera::Gaps() const {
-  return impl_->gap_log.gaps();
+  return impl_->loss.log().gaps();
 }
 
-bool AravisCamera::IsLost() const { return impl_->lost.load(); }
+bool AravisCamera::IsLost() const { return impl_->loss.lost(); }
 
 Expected<std::string> AravisCamera::FeatureValue(const std::string& feature) const {
   Impl& d = *impl_;

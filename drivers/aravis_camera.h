@@ -100,6 +100,7 @@ class AravisCamera final : public Camera {
   Status SoftwareTrigger() override;
   CameraInfo Info() const override;
   CameraStats Stats() const override;
+  std::optional<std::int64_t> ArmedDeviceNs() const override;
 
   // Every loss since Open, in order; the last one has back_host_ns == 0 while
   // the camera is still lost.

@@ -124,4 +124,33 @@ Expected<std::string> ReadArvFeature(ArvDevice* device, const std::string& featu
   return std::string(value != nullptr ? value : "");
 }
 
+std::optional<std::int64_t> LatchArvDeviceTimeNs(ArvDevice* device, std::uint64_t tick_hz) {
+  if (device == nullptr) return std::nullopt;
+  struct Latch {
+    const char* command;
+    const char* value;
+  };
+  for (const Latch latch : {Latch{"TimestampLatch", "TimestampLatchValue"},
+                            Latch{"GevTimestampControlLatch", "GevTimestampValue"}}) {
+    ArvGcNode* command = arv_device_get_feature(device, latch.command);
+    ArvGcNode* value = arv_device_get_feature(device, latch.value);
+    if (command == nullptr || value == nullptr || !ARV_IS_GC_COMMAND(command)) continue;
+    GError* error = nullptr;
+    arv_device_execute_command(device, latch.command, &error);
+    if (error != nullptr) {
+      g_error_free(error);
+      continue;
+    }
+    const gint64 ticks = arv_device_get_integer_feature_value(device, latch.value, &error);
+    if (error != nullptr) {
+      g_error_free(error);
+      continue;
+    }
+    if (tick_hz == 0 || tick_hz == 1'000'000'000) return static_cast<std::int64_t>(ticks);
+    return static_cast<std::int64_t>(static_cast<long double>(ticks) * 1e9L /
+                                     static_cast<long double>(tick_hz));
+  }
+  return std::nullopt;
+}
+
 }  // namespace lifmcr

@@ -20,6 +20,8 @@
 
 #include <arv.h>
 
+#include <cstdint>
+#include <optional>
 #include <string>
 
 namespace lifmcr {
@@ -39,6 +41,14 @@ Expected<ArvRegion> ApplyArvCameraSettings(ArvCamera* camera, const CameraConfig
 // feature or cannot read it.
 Expected<std::string> ReadArvFeature(ArvDevice* device, const std::string& feature,
                                      const std::string& label);
+
+// The device clock latched now, in ns (ticks at `tick_hz`; 0: already ns):
+// SFNC TimestampLatch/TimestampLatchValue, else GigE Vision
+// GevTimestampControlLatch/GevTimestampValue; nullopt when the device has
+// neither (the Aravis GigE simulator) or the latch fails. Read right after
+// AcquisitionStart it stamps the camera's arm on the clock of its frames
+// (Camera::ArmedDeviceNs, sync/armed_start.h).
+std::optional<std::int64_t> LatchArvDeviceTimeNs(ArvDevice* device, std::uint64_t tick_hz);
 
 // Takes ownership of a GError and turns it into text.
 std::string TakeMessage(GError* error);

@@ -70,6 +70,12 @@ class Camera {
   virtual CameraStats Stats() const = 0;
   // A source with an end (replay) has delivered everything; a live camera never has.
   virtual bool Finished() const { return false; }
+  // The device clock (that of Frame::device_ns) read right after the latest
+  // Start armed the camera (SFNC TimestampLatch, GigE Vision
+  // GevTimestampControlLatch); nullopt when the device cannot latch it. The
+  // rig tells triggers before a camera was armed from triggers it missed
+  // (sync/armed_start.h).
+  virtual std::optional<std::int64_t> ArmedDeviceNs() const { return std::nullopt; }
 };
 
 }  // namespace lifmcr

@@ -1,7 +1,9 @@
 #include "drivers/camera_gap.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <thread>
 
 namespace lifmcr {
 
@@ -73,6 +75,37 @@ void CameraGapLog::OnFrame(std::uint64_t frame_id, std::int64_t host_ns) {
 std::vector<CameraGap> CameraGapLog::gaps() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return gaps_;
+}
+
+void CameraReconnect::MarkLost(const std::string& reason,
+                               std::optional<std::uint64_t> last_frame_id,
+                               const std::function<void()>& drop) {
+  if (lost_.load()) return;
+  log_.Lost(reason, last_frame_id);
+  reason_ = reason;
+  reported_ = false;
+  lost_.store(true);
+  drop();
+  last_try_ = Clock::now();
+}
+
+CameraReconnect::Step CameraReconnect::Reconnect(Clock::time_point deadline,
+                                                 std::chrono::milliseconds interval,
+                                                 const std::function<bool()>& try_now,
+                                                 const std::function<Status()>& reopen) {
+  if (!reported_) {
+    reported_ = true;
+    return Step::kReportLoss;
+  }
+  if (!(try_now && try_now()) && Clock::now() - last_try_ < interval) {
+    std::this_thread::sleep_until(std::min(deadline, last_try_ + interval));
+    if (Clock::now() - last_try_ < interval) return Step::kStillLost;
+  }
+  last_try_ = Clock::now();
+  if (!reopen()) return Step::kStillLost;
+  lost_.store(false);
+  log_.Back();
+  return Step::kBack;
 }
 
 }  // namespace lifmcr

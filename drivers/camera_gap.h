@@ -2,7 +2,12 @@
 // A time a live camera was lost and found again, as the Aravis and GenTL
 // drivers record it (drivers/aravis_camera.h, drivers/gentl_camera.h).
 
+#include "config/error.h"
+
+#include <atomic>
+#include <chrono>
 #include <cstdint>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -49,6 +54,46 @@ class CameraGapLog {
   std::vector<CameraGap> gaps_;
   std::int64_t last_frame_host_ns_ = 0;
   bool frame_since_back_ = true;
+};
+
+// Lost and found again, one way for both live drivers (their grab thread):
+// MarkLost opens a gap in the log and drops the device; while lost,
+// Reconnect has NextFrame report the loss once, then tries to open the
+// device again every interval, and closes the gap when it is back.
+// lost() may be read from any thread; the rest is the grab thread's.
+class CameraReconnect {
+ public:
+  using Clock = std::chrono::steady_clock;
+  enum class Step {
+    kReportLoss,  // NextFrame returns the loss (reason()) as its error, once
+    kStillLost,   // not back yet: NextFrame returns no frame
+    kBack,        // open again: count the reconnect, go on
+  };
+
+  bool lost() const { return lost_.load(); }
+  const std::string& reason() const { return reason_; }
+  // The device was found lost (its last frame `last_frame_id`, if any):
+  // marked lost first, then `drop` closes every handle (so it does not stop
+  // acquisition on a device that is gone). Nothing when already lost.
+  void MarkLost(const std::string& reason, std::optional<std::uint64_t> last_frame_id,
+                const std::function<void()>& drop);
+  // The caller has returned the loss as an error already.
+  void LossReported() { reported_ = true; }
+  // While lost: the next step. `reopen` (open the device, restart its
+  // acquisition) is tried at most every `interval`, at once when `try_now`
+  // says so (a USB3 Vision device arrived; may be empty), waiting until
+  // `deadline` at most.
+  Step Reconnect(Clock::time_point deadline, std::chrono::milliseconds interval,
+                 const std::function<bool()>& try_now, const std::function<Status()>& reopen);
+  CameraGapLog& log() { return log_; }
+  const CameraGapLog& log() const { return log_; }
+
+ private:
+  std::atomic<bool> lost_{false};
+  std::string reason_;
+  bool reported_ = false;
+  Clock::time_point last_try_{};
+  CameraGapLog log_;
 };
 
 }  // namespace lifmcr

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <cstdint>
 #include <ctime>
 #include <mutex>
@@ -56,7 +57,9 @@ bool MeansGone(GC_ERROR code) {
 Status GenTlCameraOptions::Check() const {
   if (pool_buffers < 2)
     return Error{"gentl options: pool_buffers must be >= 2, got " + std::to_string(pool_buffers)};
-  if (free_run_rate_hz < 0.0) return Error{"gentl options: free_run_rate_hz must be >= 0"};
+  if (!(free_run_rate_hz >= 0.0) || !std::isfinite(free_run_rate_hz))
+    return Error{"gentl options: free_run_rate_hz must be >= 0"};
+  if (camera_index < 0) return Error{"gentl options: camera_index must be >= 0"};
   if (probe_after.count() <= 0 || reconnect_interval.count() <= 0)
     return Error{"gentl options: probe_after and reconnect_interval must be > 0"};
   if (max_consecutive_failures < 1)
@@ -96,10 +99,7 @@ struct GenTlCamera::Impl {
   bool opened = false;
   bool started = false;
 
-  std::atomic<bool> lost{false};
-  std::string lost_reason;
-  bool lost_reported = false;
-  Clock::time_point last_reconnect_try{};
+  CameraReconnect loss;  // lost, reported, reconnect tries, gaps (camera_gap.h)
   Clock::time_point last_activity{};
   int consecutive_failures = 0;
   // Underruns (frames lost for lack of a queued buffer) already set against
@@ -117,7 +117,7 @@ struct GenTlCamera::Impl {
   mutable std::mutex stats_mutex;
   CameraStats stats;
   CameraInfo info;
-  CameraGapLog gap_log;  // lost, back, first frame after (camera_gap.h)
+  std::optional<std::int64_t> armed_device_ns;  // latched after AcquisitionStart
 
   std::string Wanted() const {
     return config.driver.device.empty() ? config.serial : config.driver.device;
@@ -451,6 +451,9 @@ Status GenTlCamera::Impl::StartAcquisition() {
     fn.DSStopAcquisition(stream, ACQ_STOP_FLAGS_KILL);
     return Fail("AcquisitionStart: " + TakeMessage(error));
   }
+  const std::optional<std::int64_t> armed = LatchArvDeviceTimeNs(arv_device, timestamp_hz);
+  std::lock_guard<std::mutex> stats_lock(stats_mutex);
+  armed_device_ns = armed;
   return Status::Ok();
 }
 
@@ -477,7 +480,7 @@ void GenTlCamera::Impl::Disconnect() {
     camera = nullptr;
     arv_device = nullptr;
   }
-  if (old_camera != nullptr && started && !lost.load()) {
+  if (old_camera != nullptr && started && !loss.lost()) {
     arv_camera_stop_acquisition(old_camera, nullptr);
     if (has_params_lock)
       arv_device_set_integer_feature_value(old_arv, "TLParamsLocked", 0, nullptr);
@@ -500,14 +503,10 @@ void GenTlCamera::Impl::Disconnect() {
 }
 
 void GenTlCamera::Impl::MarkLost(const std::string& reason) {
-  if (lost.load()) return;
-  gap_log.Lost(reason, ids.last());
-  lost_reason = reason;
-  lost_reported = false;
-  lost.store(true);
-  Disconnect();
-  ids.Reset();
-  last_reconnect_try = Clock::now();
+  loss.MarkLost(reason, ids.last(), [this] {
+    Disconnect();
+    ids.Reset();
+  });
 }
 
 bool GenTlCamera::Impl::Probe() {
@@ -624,7 +623,7 @@ Frame GenTlCamera::Impl::MakeFrame(BUFFER_HANDLE buffer, void* user_pointer, std
   underruns_at_last_frame += attributed;
   const std::uint64_t missing = gap - attributed;
   const std::uint64_t pending = PendingUnderruns();
-  gap_log.OnFrame(frame.frame_id, frame.host_ns);
+  loss.log().OnFrame(frame.frame_id, frame.host_ns);
   consecutive_failures = frame.status == FrameStatus::kOk ? 0 : consecutive_failures + 1;
   std::lock_guard<std::mutex> lock(stats_mutex);
   stats.missing_ids += missing;
@@ -660,7 +659,7 @@ Status GenTlCamera::Start() {
   Impl& d = *impl_;
   if (!d.opened) return d.Fail("Start before Open");
   d.started = true;
-  if (d.lost.load()) return Status::Ok();  // acquisition starts with the reconnect
+  if (d.loss.lost()) return Status::Ok();  // acquisition starts with the reconnect
   if (Status status = d.StartAcquisition(); !status) {
     d.started = false;
     return status;
@@ -674,7 +673,7 @@ Status GenTlCamera::Stop() {
   if (!d.opened) return d.Fail("Stop before Open");
   const bool was_started = d.started;
   d.started = false;
-  if (!was_started || d.lost.load()) return Status::Ok();
+  if (!was_started || d.loss.lost()) return Status::Ok();
   GError* error = nullptr;
   {
     std::lock_guard<std::mutex> lock(d.control_mutex);
@@ -696,33 +695,24 @@ Expected<std::optional<Frame>> GenTlCamera::NextFrame(std::chrono::milliseconds 
   const Clock::time_point deadline = Clock::now() + timeout;
   auto report_lost = [&d](const std::string& reason) -> Expected<std::optional<Frame>> {
     d.MarkLost(reason);
-    d.lost_reported = true;
-    return d.Fail("device lost: " + d.lost_reason + "; reconnecting");
+    d.loss.LossReported();
+    return d.Fail("device lost: " + d.loss.reason() + "; reconnecting");
   };
 
-  if (!d.lost.load() && d.control_lost.load())
+  if (!d.loss.lost() && d.control_lost.load())
     return report_lost("a control access failed: the device does not answer");
-  if (d.lost.load()) {
-    if (!d.lost_reported) {
-      d.lost_reported = true;
-      return d.Fail("device lost: " + d.lost_reason + "; reconnecting");
-    }
-    if (Clock::now() - d.last_reconnect_try < d.options.reconnect_interval) {
-      std::this_thread::sleep_until(
-          std::min(deadline, d.last_reconnect_try + d.options.reconnect_interval));
-      if (Clock::now() - d.last_reconnect_try < d.options.reconnect_interval)
-        return std::optional<Frame>();
-    }
-    d.last_reconnect_try = Clock::now();
-    if (Status status = d.Connect(); !status) return std::optional<Frame>();
-    if (d.started) {
-      if (Status status = d.StartAcquisition(); !status) {
-        d.Disconnect();
-        return std::optional<Frame>();
-      }
-    }
-    d.lost.store(false);
-    d.gap_log.Back();
+  if (d.loss.lost()) {
+    const auto step =
+        d.loss.Reconnect(deadline, d.options.reconnect_interval, {}, [&d]() -> Status {
+          if (Status status = d.Connect(); !status) return status;
+          if (!d.started) return Status::Ok();
+          Status status = d.StartAcquisition();
+          if (!status) d.Disconnect();
+          return status;
+        });
+    if (step == CameraReconnect::Step::kReportLoss)
+      return d.Fail("device lost: " + d.loss.reason() + "; reconnecting");
+    if (step == CameraReconnect::Step::kStillLost) return std::optional<Frame>();
     d.consecutive_failures = 0;
     std::lock_guard<std::mutex> lock(d.stats_mutex);
     ++d.stats.reconnects;
@@ -788,14 +778,19 @@ CameraInfo GenTlCamera::Info() const {
   return impl_->info;
 }
 
+std::optional<std::int64_t> GenTlCamera::ArmedDeviceNs() const {
+  std::lock_guard<std::mutex> lock(impl_->stats_mutex);
+  return impl_->armed_device_ns;
+}
+
 CameraStats GenTlCamera::Stats() const {
   std::lock_guard<std::mutex> lock(impl_->stats_mutex);
   return impl_->stats;
 }
 
-std::vector<CameraGap> GenTlCamera::Gaps() const { return impl_->gap_log.gaps(); }
+std::vector<CameraGap> GenTlCamera::Gaps() const { return impl_->loss.log().gaps(); }
 
-bool GenTlCamera::IsLost() const { return impl_->lost.load(); }
+bool GenTlCamera::IsLost() const { return impl_->loss.lost(); }
 
 Expected<std::string> GenTlCamera::FeatureValue(const std::string& feature) const {
   Impl& d = *impl_;

@@ -101,6 +101,7 @@ class GenTlCamera final : public Camera {
   Status SoftwareTrigger() override;
   CameraInfo Info() const override;
   CameraStats Stats() const override;
+  std::optional<std::int64_t> ArmedDeviceNs() const override;
 
   // Every loss since Open, in order; the last has back_host_ns == 0 while lost.
   std::vector<CameraGap> Gaps() const;

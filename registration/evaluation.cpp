@@ -107,6 +107,42 @@ CameraEvaluation EvaluateCamera(const std::string& method, const std::string& se
   return e;
 }
 
+namespace {
+
+// The offset marker_from_cam a map-frame evaluation applies at `frame`:
+// the fold that did not see the frame, or the all-frames fit without folds.
+Pose MapFrameOffsetAt(const CameraEvaluation& m, std::int64_t frame) {
+  if (m.folds.size() == 2) return frame <= m.half_last ? m.folds[1].x : m.folds[0].x;
+  return m.marker_from_cam;
+}
+
+}  // namespace
+
+bool CorrectWithMapFrameOffsets(CameraEvaluation* e, const CameraEvaluation& reference_in_map,
+                                const CameraEvaluation& camera_in_map) {
+  for (const CameraEvaluation* m : {&reference_in_map, &camera_in_map}) {
+    if (m->correction_source != "estimated") {
+      e->correction_note += "; nor from the map-frame offsets: camera " + m->serial +
+                            " has none (" + m->correction_note + ")";
+      return false;
+    }
+  }
+  e->truth_corrected.clear();
+  for (const auto& [frame, a] : e->truth_uncorrected)
+    e->truth_corrected.emplace(frame, Corrected(a, MapFrameOffsetAt(reference_in_map, frame),
+                                                MapFrameOffsetAt(camera_in_map, frame)));
+  e->corrected = MetricSet::Of(e->estimate, e->truth_corrected);
+  e->correction_source = "map frame";
+  e->correction_note = "its own hand-eye refused (" + e->correction_note +
+                       "); corrected with each camera's offset from its map-frame hand-eye" +
+                       (camera_in_map.folds.size() == 2 ? ", each frame by the fold that did not see it"
+                                                        : ", fit on the same frames");
+  e->fit_to_itself = camera_in_map.fit_to_itself || reference_in_map.fit_to_itself;
+  e->marker_from_cam_reference = reference_in_map.marker_from_cam;
+  e->marker_from_cam = camera_in_map.marker_from_cam;
+  return true;
+}
+
 MethodDifference CompareMethods(const std::string& method_a, const FramePoses& a,
                                 const std::string& method_b, const FramePoses& b,
                                 const std::string& serial) {

@@ -76,7 +76,8 @@ struct CameraEvaluation {
   MetricSet uncorrected;  // the paper's protocol
   MetricSet corrected;    // with the offsets (cross-validated for kHalf)
 
-  // Where the offsets come from: "estimated", "given", or "none" (with why).
+  // Where the offsets come from: "estimated", "given", "map frame"
+  // (CorrectWithMapFrameOffsets), or "none" (with why).
   std::string correction_source = "none";
   std::string correction_note;
   std::optional<HandEyeResult> hand_eye;  // on all frames, when estimated
@@ -85,6 +86,12 @@ struct CameraEvaluation {
   Pose marker_from_cam_reference = Pose::Identity();
   Pose marker_from_cam = Pose::Identity();
   bool has_correction() const { return !truth_corrected.empty(); }
+  // marker_from_cam(_reference) hold offsets (given, estimated on all
+  // frames, or taken from the map-frame evaluations), not the identity.
+  bool has_offsets() const {
+    return correction_source == "given" || correction_source == "map frame" ||
+           (hand_eye && hand_eye->success);
+  }
   bool fit_to_itself = false;  // Split::kNone
 };
 
@@ -105,6 +112,20 @@ CameraEvaluation EvaluateCamera(const std::string& method, const std::string& se
                                 const FramePoses& vicon_from_markerx,
                                 const std::optional<std::pair<Pose, Pose>>& given,
                                 const EvaluationOptions& options);
+
+// Corrects an evaluation of c0_from_cx that could not estimate its own
+// offsets (a rigidly mounted pair: A = marker0_from_markerX barely turns)
+// with the offsets each camera's map-frame evaluation estimated (that
+// solve needs each camera to turn in the map, not relative to the other).
+// Camera 0's offset comes from `reference_in_map`, camera X's from
+// `camera_in_map`. Cross-validated as the map-frame evaluations are: frame
+// f is corrected by the fold of each map-frame evaluation that did not see
+// f; with Split::kNone both used the all-frames fit and the result is
+// flagged fit to itself. Leaves `e` as it was and returns false, with
+// `e->correction_note` extended, when either map-frame evaluation has no
+// estimated offsets.
+bool CorrectWithMapFrameOffsets(CameraEvaluation* e, const CameraEvaluation& reference_in_map,
+                                const CameraEvaluation& camera_in_map);
 
 // Per-frame difference of two methods' c0_from_cx (supplementary
 // "Evaluation of the difference between both benchmark methods"): E =

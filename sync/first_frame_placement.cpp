@@ -9,14 +9,18 @@ namespace lifmcr {
 
 std::string FirstPlacement::OneLine() const {
   char text[160];
-  if (by == By::kDeviceTime)
+  if (by == By::kTriggerCount)
+    std::snprintf(text, sizeof(text),
+                  "trigger %lld by the software trigger count (the first trigger fired to it)",
+                  static_cast<long long>(trigger_index));
+  else if (by == By::kDeviceTime)
     std::snprintf(text, sizeof(text),
                   "trigger %lld by device time against camera %d (grid error %+.2f periods)",
                   static_cast<long long>(trigger_index), reference_camera, grid_error);
   else
     std::snprintf(text, sizeof(text), "trigger %lld by host time",
                   static_cast<long long>(trigger_index));
-  return text;
+  return note.empty() ? std::string(text) : std::string(text) + " (" + note + ")";
 }
 
 FirstFramePlacer::FirstFramePlacer(std::int64_t trigger_period_ns, double tolerance,

@@ -39,11 +39,14 @@
 namespace lifmcr {
 
 struct FirstPlacement {
-  enum class By { kDeviceTime, kHostTime };
+  // kTriggerCount: a software-triggered camera's first frame answers the
+  // first trigger the rig fired to it (the caller counts them).
+  enum class By { kDeviceTime, kHostTime, kTriggerCount };
   std::int64_t trigger_index = 0;
   By by = By::kHostTime;
   int reference_camera = -1;  // kDeviceTime: the camera of the latest frame on its clock
   double grid_error = 0.0;    // kDeviceTime: steps - round(steps), periods
+  std::string note;           // kHostTime: why not by device time (WhyNotByDeviceTime)
   // "trigger 3 by device time against camera 0 (grid error +0.02 periods)",
   // or "trigger 3 by host time (no camera on its device clock placed yet)".
   std::string OneLine() const;

@@ -23,23 +23,19 @@ FrameSetAssemblerOptions FrameSetAssemblerOptions::FromRig(const RigConfig& rig)
 
 Status FrameSetAssemblerOptions::Check() const {
   auto bad = [](const std::string& what) { return Status(Error{"frame set assembler: " + what}); };
-  if (serials.empty()) return bad("at least one camera is needed");
+  if (serials.empty()) return bad("serials: expected at least one camera");
   if (!device_clocks.empty() && device_clocks.size() != serials.size())
     return bad("device_clocks: expected none or one per camera (" + std::to_string(serials.size()) +
                "), got " + std::to_string(device_clocks.size()));
-  if (trigger.trigger_period_ns <= 0) return bad("trigger period must be > 0 ns");
-  if (!(trigger.tolerance > 0.0 && trigger.tolerance < 0.5))
-    return bad("trigger tolerance must be in (0, 0.5) periods");
-  if (trigger.counter_bits < 2 || trigger.counter_bits > 64)
-    return bad("frame counter bits must be 2..64");
-  if (clock.window < 2 || clock.jump_threshold_ns <= 0 || clock.jump_confirm < 1)
-    return bad("clock model: window >= 2, jump threshold > 0, jump confirm >= 1");
-  if (vicon_divider < 1) return bad("Vicon divider must be >= 1");
+  if (Status s = trigger.Check(); !s) return bad(s.error().message);
+  if (Status s = clock.Check(); !s) return bad(s.error().message);
+  if (vicon_divider < 1) return bad("vicon_divider: expected >= 1");
   if (!(vicon_rate_hz > 0.0) || !std::isfinite(vicon_rate_hz))
-    return bad("Vicon rate must be > 0 Hz");
-  if (vicon_phase_tolerance_ns <= 0) return bad("Vicon phase tolerance must be > 0 ns");
-  if (lateness_ns <= 0) return bad("lateness bound must be > 0 ns");
-  if (max_vicon_frames < 16) return bad("at least 16 Vicon frames must be buffered");
+    return bad("vicon_rate_hz: expected > 0 Hz");
+  if (vicon_phase_tolerance_ns <= 0) return bad("vicon_phase_tolerance_ns: expected > 0");
+  if (lateness_ns <= 0) return bad("lateness_ns: expected > 0");
+  if (max_vicon_frames < 16) return bad("max_vicon_frames: expected >= 16");
+  // vicon_expected, vicon_f0 (any frame number), vicon_arrival_offset_ns (either sign): any.
   return Status::Ok();
 }
 
@@ -74,7 +70,8 @@ std::int64_t FrameSetAssembler::TriggerByHostTime(const Camera& camera,
   return grid_trigger_ + std::llround(steps);
 }
 
-std::optional<std::int64_t> FrameSetAssembler::AddFrame(Frame frame) {
+std::optional<std::int64_t> FrameSetAssembler::AddFrame(Frame frame,
+                                                        std::optional<std::int64_t> first_trigger) {
   const int index = frame.camera_index;
   if (index < 0 || index >= static_cast<int>(cameras_.size())) {
     drops_.Add(DropKind::kFrameWithoutTrigger);  // a camera the rig does not have
@@ -90,7 +87,7 @@ std::optional<std::int64_t> FrameSetAssembler::AddFrame(Frame frame) {
   if (clock.jump) drops_.Add(DropKind::kClockJump);
   if (!started_) {
     started_ = true;
-    grid_trigger_ = 0;
+    grid_trigger_ = first_trigger.value_or(0);
     grid_host_ns_ = camera.clock.HostFromDevice(frame.device_ns);
   }
   Association association;
@@ -104,7 +101,13 @@ std::optional<std::int64_t> FrameSetAssembler::AddFrame(Frame frame) {
       (clock.jump && association.verdict != FrameVerdict::kAssociated)) {
     association = Association{};
     std::optional<FirstPlacement> placement;
-    if (!camera.tracker.anchored()) placement = placer_.ByDeviceTime(index, frame.device_ns);
+    if (!camera.tracker.anchored() && first_trigger) {
+      placement = FirstPlacement{};
+      placement->trigger_index = *first_trigger;
+      placement->by = FirstPlacement::By::kTriggerCount;
+    } else if (!camera.tracker.anchored()) {
+      placement = placer_.ByDeviceTime(index, frame.device_ns);
+    }
     if (!placement) {
       placement = FirstPlacement{};
       placement->trigger_index = TriggerByHostTime(camera, frame.device_ns);
@@ -112,11 +115,9 @@ std::optional<std::int64_t> FrameSetAssembler::AddFrame(Frame frame) {
     association.trigger_index = placement->trigger_index;
     camera.tracker.Anchor(association.trigger_index, frame.frame_id, frame.device_ns);
     if (!camera.first_placement) {
-      camera.first_placement = placement;
-      camera.stats.first_placement = placement->OneLine();
       if (placement->by == FirstPlacement::By::kHostTime)
-        camera.stats.first_placement +=
-            " (" + placer_.WhyNotByDeviceTime(index, frame.device_ns) + ")";
+        placement->note = placer_.WhyNotByDeviceTime(index, frame.device_ns);
+      camera.first_placement = placement;
     }
   }
   const std::int64_t k = association.trigger_index;
@@ -125,6 +126,10 @@ std::optional<std::int64_t> FrameSetAssembler::AddFrame(Frame frame) {
     drops_.Add(DropKind::kFrameWithoutTrigger);
     ++camera.stats.without_trigger;
     return std::nullopt;
+  }
+  if (origin_ && k < *origin_) {
+    ++camera.stats.before_all_armed;  // its trigger is already dropped as before the origin
+    return k;
   }
   if (k < next_emit_) {
     drops_.Add(DropKind::kLateFrame);
@@ -231,7 +236,7 @@ bool FrameSetAssembler::Ready(std::int64_t k, std::int64_t now_host_ns) {
 
 FrameSet FrameSetAssembler::Emit(std::int64_t k) {
   FrameSet set;
-  set.trigger_index = k;
+  set.trigger_index = k - origin_.value_or(0);
   set.vicon_frame = -1;
   auto it = pending_.find(k);
   const std::optional<std::int64_t> set_host =
@@ -277,8 +282,27 @@ FrameSet FrameSetAssembler::Emit(std::int64_t k) {
   return set;
 }
 
+void FrameSetAssembler::SetOrigin(std::int64_t origin) {
+  if (!origin_) origin_ = origin;
+}
+
+void FrameSetAssembler::DropBeforeOrigin() {
+  while (origin_ && next_emit_ < *origin_) {
+    auto it = pending_.find(next_emit_);
+    if (it != pending_.end()) {
+      for (std::size_t i = 0; i < cameras_.size(); ++i)
+        if (it->second.frames[i]) ++cameras_[i].stats.before_all_armed;
+      pending_.erase(it);
+    }
+    if (next_emit_ <= last_trigger_seen_) ++triggers_before_origin_;
+    ++next_emit_;
+  }
+}
+
 std::vector<FrameSet> FrameSetAssembler::Poll(std::int64_t now_host_ns) {
   std::vector<FrameSet> sets;
+  if (options_.wait_for_origin && !origin_) return sets;
+  DropBeforeOrigin();
   while (next_emit_ <= last_trigger_seen_ && Ready(next_emit_, now_host_ns)) {
     if (options_.vicon_expected && !f0_) TryEstablishF0(next_emit_, true);
     sets.push_back(Emit(next_emit_));
@@ -288,6 +312,8 @@ std::vector<FrameSet> FrameSetAssembler::Poll(std::int64_t now_host_ns) {
 
 std::vector<FrameSet> FrameSetAssembler::Flush() {
   std::vector<FrameSet> sets;
+  SetOrigin(0);  // no-op once set
+  DropBeforeOrigin();
   while (next_emit_ <= last_trigger_seen_) {
     if (options_.vicon_expected && !f0_) TryEstablishF0(next_emit_, true);
     sets.push_back(Emit(next_emit_));
@@ -300,6 +326,11 @@ std::vector<CameraSyncStats> FrameSetAssembler::camera_stats() const {
   for (const Camera& camera : cameras_) {
     stats.push_back(camera.stats);
     stats.back().clock = camera.clock.OneLine();
+    if (camera.first_placement) {
+      FirstPlacement placement = *camera.first_placement;
+      placement.trigger_index -= origin_.value_or(0);
+      stats.back().first_placement = placement.OneLine();
+    }
   }
   return stats;
 }

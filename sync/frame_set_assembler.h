@@ -27,6 +27,14 @@
 // (or Vicon is not expected); or, whatever is missing, once now_host_ns is
 // more than lateness_ns past the trigger. A frame for an emitted trigger is
 // a late_frame. Flush emits everything pending at the end of a run.
+//
+// Origin (wait_for_origin): the caller decides which of these triggers is
+// the run's trigger 0, the first at which every camera was armed
+// (sync/armed_start.h), and says so with SetOrigin; until then nothing is
+// emitted. Triggers before the origin are not emitted and not losses: their
+// frames are counted per camera as before_all_armed. Emitted FrameSets, the
+// first placements and vicon_f0 count from the origin (trigger_index =
+// trigger - origin); the Vicon frame numbers stay the stream's own.
 // Every loss is counted in drops() (DropKind) and per camera.
 //
 // Frames stay in their pooled buffers: the assembler moves them, never
@@ -69,6 +77,9 @@ struct FrameSetAssemblerOptions {
   std::int64_t vicon_phase_tolerance_ns = 6'250'000;  // half an 80 Hz period
   std::int64_t lateness_ns = 500'000'000;             // wait at most this for a trigger's parts
   std::size_t max_vicon_frames = 4096;                // Vicon frames buffered, >= 16
+  // Emit nothing before SetOrigin (cameras armed one after another on a
+  // trigger the rig does not fire); false: the rig's first frame is trigger 0.
+  bool wait_for_origin = false;
 
   // From the rig file: serials, Vicon source, divider and rate; the trigger
   // period is divider / rate.
@@ -87,6 +98,7 @@ struct CameraSyncStats {
   std::uint64_t lost_after_exposure = 0;  // by the frame counter
   std::uint64_t not_exposed = 0;          // triggers the counter says the camera never saw
   std::uint64_t counter_mismatches = 0;
+  std::uint64_t before_all_armed = 0;     // frames on triggers before the origin: not in sets
   std::string clock;  // ClockModel::OneLine
   // How its first frame was put on the trigger count (FirstPlacement::OneLine,
   // and why not by device time when host time decided); empty before it.
@@ -100,12 +112,22 @@ class FrameSetAssembler {
 
   // The trigger the frame was placed on (the FrameSet it goes out in), or
   // nullopt when it is on none (off grid, repeated, late, another camera's).
-  std::optional<std::int64_t> AddFrame(Frame frame);
+  // `first_trigger`: the trigger of the camera's first frame when the caller
+  // knows it (it fired the software trigger the frame answers); the grid of
+  // the rig's first frame is anchored there too.
+  std::optional<std::int64_t> AddFrame(Frame frame,
+                                       std::optional<std::int64_t> first_trigger = std::nullopt);
   void AddVicon(ViconFrame frame);
   // The FrameSets ready at host time `now_host_ns`, in trigger order.
   std::vector<FrameSet> Poll(std::int64_t now_host_ns);
   // End of the run: every trigger up to the last one seen, ready or not.
   std::vector<FrameSet> Flush();
+  // The run's trigger 0 on the count the frames were placed on (once; see
+  // wait_for_origin). Flush without one takes 0.
+  void SetOrigin(std::int64_t origin);
+  bool has_origin() const { return origin_.has_value(); }
+  // Triggers before the origin dropped as "before all cameras armed".
+  std::uint64_t triggers_before_all_armed() const { return triggers_before_origin_; }
 
   const DropCounter& drops() const { return drops_; }
   std::vector<CameraSyncStats> camera_stats() const;
@@ -114,8 +136,13 @@ class FrameSetAssembler {
   const std::optional<FirstPlacement>& first_placement(int camera_index) const {
     return cameras_[camera_index].first_placement;
   }
-  std::optional<std::int64_t> vicon_f0() const { return f0_; }
-  std::int64_t next_trigger() const { return next_emit_; }  // = FrameSets emitted so far
+  // The Vicon frame of the run's trigger 0.
+  std::optional<std::int64_t> vicon_f0() const {
+    if (!f0_) return std::nullopt;
+    return *f0_ + options_.vicon_divider * origin_.value_or(0);
+  }
+  // = FrameSets emitted so far
+  std::int64_t next_trigger() const { return next_emit_ - origin_.value_or(0); }
   std::size_t pending_triggers() const { return pending_.size(); }
   std::size_t buffered_vicon_frames() const { return vicon_.size(); }
   // Host time the grid puts trigger k at (valid once a frame arrived).
@@ -138,6 +165,8 @@ class FrameSetAssembler {
   void TryEstablishF0(std::int64_t trigger_index, bool forced);
   std::optional<std::int64_t> SetHostNs(const Pending* pending) const;
   FrameSet Emit(std::int64_t trigger_index);
+  // Triggers before the origin: their frames counted, nothing emitted.
+  void DropBeforeOrigin();
 
   FrameSetAssemblerOptions options_;
   std::vector<Camera> cameras_;
@@ -148,7 +177,9 @@ class FrameSetAssembler {
   std::int64_t last_trigger_seen_ = -1;
   std::int64_t next_emit_ = 0;
   std::map<std::int64_t, Pending> pending_;
-  std::optional<std::int64_t> f0_;
+  std::optional<std::int64_t> f0_;  // on the placement count (trigger 0: the rig's first frame)
+  std::optional<std::int64_t> origin_;
+  std::uint64_t triggers_before_origin_ = 0;
   std::map<std::int64_t, ViconFrame> vicon_;
   std::int64_t last_vicon_ = -1;
   DropCounter drops_;

@@ -1,5 +1,6 @@
-// The pipeline's scheduling (pipeline.h): sync under a mutex, a TBB flow
-// graph for processing and publication, the publisher as the only way out.
+// The pipeline's scheduling (pipeline.h): the grab loop's FrameSets handed
+// over under a mutex, a TBB flow graph for processing and publication, the
+// publisher as the only way out.
 
 #include "apps/pipeline/pipeline.h"
 
@@ -158,25 +159,24 @@ struct Pipeline::Impl {
   int reference_camera = 0;  // camera index of options.reference_serial
   std::unique_ptr<Publisher> publisher;
 
+  // The grab loop's hand-over (sync_mutex): sets waiting for Poll, the
+  // losses of this pass's assembler and of the earlier passes', and f0 (the
+  // Vicon frame of trigger 0) as the sets say it.
   std::mutex sync_mutex;
-  std::unique_ptr<FrameSetAssembler> assembler;  // null with frame_sets_from_grab_loop
-  DropCounter drops_before;  // of the assemblers of earlier passes
-  // frame_sets_from_grab_loop (sync_mutex): sets waiting for Poll, the grab
-  // loop's losses, and f0 as the sets say it.
-  std::vector<FrameSet> external_sets;
-  DropCounter external_drops;
-  std::optional<std::int64_t> external_f0;
+  std::vector<FrameSet> sets_in;
+  DropCounter drops_this_pass;
+  DropCounter drops_before;
+  std::optional<std::int64_t> sets_f0;
 
   DropCounter SyncDrops() const {  // sync_mutex held
     DropCounter drops = drops_before;
-    const DropCounter& current = assembler ? assembler->drops() : external_drops;
     for (int k = 0; k < kDropKindCount; ++k)
-      drops.Add(static_cast<DropKind>(k), current[static_cast<DropKind>(k)]);
+      drops.Add(static_cast<DropKind>(k), drops_this_pass[static_cast<DropKind>(k)]);
     return drops;
   }
-  std::vector<FrameSet> TakeSets(bool flush) {  // sync_mutex held
-    if (!assembler) return std::exchange(external_sets, {});
-    return flush ? assembler->Flush() : assembler->Poll(NowRealtimeNs());
+  std::vector<FrameSet> TakeSets() {
+    std::lock_guard lock(sync_mutex);
+    return std::exchange(sets_in, {});
   }
 
   // Processing gets `threads` workers: its own arena has no master slot (the
@@ -578,7 +578,6 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
   auto publisher = Publisher::Create(options.publisher);
   if (!publisher) return publisher.error();
   impl->publisher = std::move(*publisher);
-  if (!options.frame_sets_from_grab_loop) impl->assembler = std::make_unique<FrameSetAssembler>(sync);
   const int threads = options.threads > 0 ? options.threads : tbb::info::default_concurrency();
   impl->arena = std::make_unique<tbb::task_arena>(threads, /*reserved_for_masters=*/0);
   if (options.processing_nice > 0) {
@@ -628,36 +627,25 @@ Pipeline::~Pipeline() {
   }
 }
 
-void Pipeline::AddFrame(Frame frame) {
-  if (frame.arrival_ns == 0) frame.arrival_ns = NowRealtimeNs();
-  std::lock_guard lock(impl_->sync_mutex);
-  if (impl_->assembler) impl_->assembler->AddFrame(std::move(frame));
-}
-
 void Pipeline::AddFrameSet(FrameSet set) {
   std::lock_guard lock(impl_->sync_mutex);
-  if (!impl_->external_f0 && set.vicon_frame >= 0)
-    impl_->external_f0 =
+  if (!impl_->sets_f0 && set.vicon_frame >= 0)
+    impl_->sets_f0 =
         set.vicon_frame - static_cast<std::int64_t>(impl_->sync_options.vicon_divider) *
                               set.trigger_index;
-  impl_->external_sets.push_back(std::move(set));
+  impl_->sets_in.push_back(std::move(set));
 }
 
 void Pipeline::SetSyncDrops(const DropCounter& drops) {
   std::lock_guard lock(impl_->sync_mutex);
-  impl_->external_drops = drops;
+  impl_->drops_this_pass = drops;
 }
 
 void Pipeline::AddVicon(const ViconFrame& frame) {
   std::optional<std::int64_t> f0;
   {
     std::lock_guard lock(impl_->sync_mutex);
-    if (impl_->assembler) {
-      impl_->assembler->AddVicon(frame);
-      f0 = impl_->assembler->vicon_f0();
-    } else {
-      f0 = impl_->external_f0 ? impl_->external_f0 : impl_->sync_options.vicon_f0;
-    }
+    f0 = impl_->sets_f0 ? impl_->sets_f0 : impl_->sync_options.vicon_f0;
   }
   const int divider = impl_->sync_options.vicon_divider;
   impl_->publisher->PublishVicon(frame, f0 && (frame.vicon_frame - *f0) % divider == 0);
@@ -665,12 +653,7 @@ void Pipeline::AddVicon(const ViconFrame& frame) {
 }
 
 void Pipeline::Poll() {
-  std::vector<FrameSet> sets;
-  {
-    std::lock_guard lock(impl_->sync_mutex);
-    sets = impl_->TakeSets(/*flush=*/false);
-  }
-  impl_->QueueSets(std::move(sets));
+  impl_->QueueSets(impl_->TakeSets());
   // At most a poll period's wait for a worker: the caller's loop stays responsive.
   impl_->SubmitQueued(std::chrono::steady_clock::now() + std::chrono::milliseconds(50));
   const auto now = std::chrono::steady_clock::now();
@@ -681,23 +664,16 @@ void Pipeline::Poll() {
 }
 
 void Pipeline::EndPass() {
-  std::vector<FrameSet> sets;
-  {
-    std::lock_guard lock(impl_->sync_mutex);
-    sets = impl_->TakeSets(/*flush=*/true);
-  }
-  impl_->QueueSets(std::move(sets));
+  impl_->QueueSets(impl_->TakeSets());
   impl_->SubmitQueued(std::nullopt);
   impl_->WaitIdle();
   // The next pass numbers its triggers from the start again: no pose of
   // this pass may pair with one of the next (the publishing node is idle).
   impl_->poses.clear();
+  // The next pass's grab loop starts a fresh assembler, its losses from 0.
   std::lock_guard lock(impl_->sync_mutex);
   impl_->drops_before = impl_->SyncDrops();
-  // The next pass starts a fresh assembler (the pipeline's or the grab loop's).
-  if (impl_->assembler)
-    impl_->assembler = std::make_unique<FrameSetAssembler>(impl_->sync_options);
-  impl_->external_drops = DropCounter{};
+  impl_->drops_this_pass = DropCounter{};
 }
 
 void Pipeline::Finish() {

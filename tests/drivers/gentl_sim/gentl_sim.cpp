@@ -7,6 +7,10 @@
 // "GTLSIM0,GTLSIM1"; device id "SimDev-<serial>"), each with a sensor of
 // LIFMCR_GENTL_SIM_SENSOR ("WIDTHxHEIGHT", default 1024x768) and the GenICam
 // XML and registers of tests/drivers/gentl_sim/gentl_sim_xml.h.
+// LIFMCR_GENTL_SIM_ARM_DELAY_MS ("SERIAL:MS,...") makes AcquisitionStart of
+// those cameras take MS milliseconds before the camera is armed, while the
+// line keeps pulsing (a camera slow to arm; the start-up race on purpose).
+// TimestampLatch stamps the device clock (CLOCK_REALTIME, as the chunks).
 // LIFMCR_GENTL_SIM_FILL=first_row writes only each frame's first row (and its
 // chunk), as a grabber's DMA costs the host no CPU; the default writes every
 // row (tests check the pixels). LIFMCR_GENTL_SIM_FLOW_CONTROL=1 makes a
@@ -149,6 +153,8 @@ struct Camera {
   int pending_software = 0;
   std::uint64_t next_frame_id = 1;
   std::int64_t next_tick_ns = 0;  // next pulse / free-run frame on the wall-clock grid
+  std::int64_t latched_ns = 0;    // TimestampLatchValue
+  int arm_delay_ms = 0;           // LIFMCR_GENTL_SIM_ARM_DELAY_MS
   Stream* stream = nullptr;
   std::thread worker;
 
@@ -389,6 +395,8 @@ GC_ERROR ReadRegisters(Camera& camera, std::uint64_t address, void* out, std::si
     return std::memcpy(out, &camera.exposure_us, 8), GC_ERR_SUCCESS;
   if (address == sim::kGain && size == 8)
     return std::memcpy(out, &camera.gain_db, 8), GC_ERR_SUCCESS;
+  if (address == sim::kTimestampLatchValue && size == 8)
+    return std::memcpy(out, &camera.latched_ns, 8), GC_ERR_SUCCESS;
   if (size != 4 || address % 4 != 0 || address >= sizeof(camera.regs))
     return Err(GC_ERR_INVALID_ADDRESS, "no register at this address");
   camera.Reg(sim::kPayloadSize) = camera.Payload();
@@ -441,6 +449,9 @@ GC_ERROR WriteRegisters(Camera& camera, std::uint64_t address, const void* in, s
       return GC_ERR_SUCCESS;
     case sim::kAcquisitionStop:
       camera.running = false;
+      return GC_ERR_SUCCESS;
+    case sim::kTimestampLatch:
+      camera.latched_ns = RealtimeNs();
       return GC_ERR_SUCCESS;
     case sim::kTriggerSoftware:
       if (!camera.running) return GC_ERR_SUCCESS;  // not acquiring: a trigger is ignored
@@ -561,6 +572,15 @@ GC_EXPORT GC_ERROR GCInitLib() {
     camera->sensor_h = h;
     ResetRegisters(*camera);
     system.cameras.push_back(std::move(camera));
+  }
+  if (const char* delays = std::getenv("LIFMCR_GENTL_SIM_ARM_DELAY_MS")) {
+    for (const std::string& entry : Split(delays, ',')) {
+      const std::vector<std::string> parts = Split(entry, ':');
+      if (parts.size() != 2) continue;
+      for (auto& camera : system.cameras)
+        if (camera->serial == parts[0])
+          camera->arm_delay_ms = static_cast<int>(std::strtol(parts[1].c_str(), nullptr, 10));
+    }
   }
   for (auto& camera : system.cameras) camera->worker = std::thread(Run, camera.get());
   system.initialised = true;
@@ -837,6 +857,16 @@ GC_EXPORT GC_ERROR GCReadPort(PORT_HANDLE port, std::uint64_t address, void* buf
 
 GC_EXPORT GC_ERROR GCWritePort(PORT_HANDLE port, std::uint64_t address, const void* buffer,
                                std::size_t* size) {
+  if (address == sim::kAcquisitionStart) {
+    int delay_ms = 0;
+    {
+      std::lock_guard<std::mutex> lock(Sys().mutex);
+      DeviceHandle* device = PortDevice(port);
+      if (device != nullptr && Alive(device)) delay_ms = device->camera->arm_delay_ms;
+    }
+    // Slow to arm: the other cameras and the line run on meanwhile.
+    if (delay_ms > 0) std::this_thread::sleep_for(std::chrono::milliseconds(delay_ms));
+  }
   std::lock_guard<std::mutex> lock(Sys().mutex);
   DeviceHandle* device = PortDevice(port);
   if (device == nullptr) return Err(GC_ERR_NOT_IMPLEMENTED, "only the remote device has a port");

@@ -38,6 +38,8 @@ enum : std::uint64_t {
   kChunkModeActive = 0x0520,    // 1: each frame carries the chunk kChunkId after the image
   kChunkSelector = 0x0524,      // 0 Timestamp, 1 FrameID
   kChunkEnable = 0x0528,        // + 4 * selector
+  kTimestampLatch = 0x0530,     // write 1: the device clock (ns) into kTimestampLatchValue
+  kTimestampLatchValue = 0x0538,  // 8 bytes, read-only
   kXmlAddress = 0x10000,
 };
 // The chunk: [trigger time, ns, u64 LE][frame id, u64 LE], after the image.
@@ -69,6 +71,8 @@ inline constexpr char kXml[] = R"XML(<?xml version="1.0" encoding="utf-8"?>
     <pFeature>DeviceVendorName</pFeature>
     <pFeature>DeviceModelName</pFeature>
     <pFeature>DeviceSerialNumber</pFeature>
+    <pFeature>TimestampLatch</pFeature>
+    <pFeature>TimestampLatchValue</pFeature>
   </Category>
   <Category Name="ImageFormatControl" NameSpace="Standard">
     <pFeature>SensorWidth</pFeature>
@@ -322,6 +326,18 @@ inline constexpr char kXml[] = R"XML(<?xml version="1.0" encoding="utf-8"?>
     <Sign>Unsigned</Sign><Endianess>LittleEndian</Endianess>
   </IntReg>
   <Port Name="ChunkPortLifmcr" NameSpace="Custom"><ChunkID>4C494643</ChunkID></Port>
+  <Command Name="TimestampLatch" NameSpace="Standard">
+    <pValue>TimestampLatchReg</pValue><CommandValue>1</CommandValue>
+  </Command>
+  <IntReg Name="TimestampLatchReg">
+    <Address>0x0530</Address><Length>4</Length><AccessMode>RW</AccessMode><pPort>Device</pPort>
+    <Sign>Unsigned</Sign><Endianess>LittleEndian</Endianess>
+  </IntReg>
+  <Integer Name="TimestampLatchValue" NameSpace="Standard"><pValue>TimestampLatchValueReg</pValue></Integer>
+  <IntReg Name="TimestampLatchValueReg">
+    <Address>0x0538</Address><Length>8</Length><AccessMode>RO</AccessMode><pPort>Device</pPort>
+    <Sign>Unsigned</Sign><Endianess>LittleEndian</Endianess>
+  </IntReg>
 
   <Port Name="Device" NameSpace="Standard"/>
 </RegisterDescription>
