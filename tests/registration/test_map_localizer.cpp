@@ -6,6 +6,8 @@
 // And the pose checks (registration/pose_checks.h): a map cut down to a
 // corner of the view, which PnP fits with a dozen clustered inliers, is
 // refused with the reason; each check refuses what it must.
+// LIFMCR_TEST_PRESET=medium renders the medium preset instead (minutes:
+// the Localize figures of bench/README.md).
 #include "apps/pipeline/camera_setup.h"
 #include "processing/frame_chain.h"
 #include "registration/ground_truth_map.h"
