@@ -56,6 +56,28 @@ std::uint64_t CameraHealth::Lost() const {
          triggers_not_fired + recorder.lost();
 }
 
+std::string CameraHealth::LossLine() const {
+  std::ostringstream out;
+  out << "lost " << Lost() << " [incomplete " << incomplete << ", missing ids " << missing_by_id
+      << ", missed while lost " << missing_in_gaps << ", no frame at end " << no_frame_at_end
+      << ", trigger not fired in time " << triggers_not_fired << ", not in any FrameSet "
+      << not_in_any_set << ", queue full " << recorder.dropped_queue_full << ", write error " << recorder.lost_write_error
+      << ", after stop " << recorder.lost_stopped << "]";
+  return out.str();
+}
+
+std::vector<std::string> RigHealth::LossLines() const {
+  std::vector<std::string> lines;
+  for (const CameraHealth& c : cameras)
+    if (c.Lost() > 0) lines.push_back("camera " + c.serial + ": " + c.LossLine());
+  if (has_vicon && (recorder.vicon_lost + vicon.gaps + vicon.malformed > 0))
+    lines.push_back("Vicon: lost lines " + std::to_string(recorder.vicon_lost) +
+                    ", frame-number gaps " + std::to_string(vicon.gaps) + ", malformed " +
+                    std::to_string(vicon.malformed));
+  if (has_sync && sync_drops.lost() > 0) lines.push_back("sync: " + sync_drops.OneLine());
+  return lines;
+}
+
 std::uint64_t RigHealth::FramesLost() const {
   std::uint64_t lost = 0;
   for (const CameraHealth& camera : cameras) lost += camera.Lost();
@@ -94,13 +116,9 @@ std::string RigHealth::FinalReport() const {
           << " triggers missed in them)";
     if (c.recorder.written > 0)
       out << " (frames " << c.recorder.first_frame << ".." << c.recorder.last_frame << ")";
-    out << ", lost " << c.Lost() << " [incomplete " << c.incomplete << ", missing ids "
-        << c.missing_by_id << ", no frame at end " << c.no_frame_at_end
-        << ", trigger not fired in time " << c.triggers_not_fired << ", not in any FrameSet "
-        << c.not_in_any_set << ", queue full " << c.recorder.dropped_queue_full << ", write error "
-        << c.recorder.lost_write_error << ", after stop " << c.recorder.lost_stopped
-        << "]; driver: completed " << c.driver.completed << ", failed " << c.driver.failed
-        << ", underruns " << c.driver.underruns << ", reconnects " << c.driver.reconnects;
+    out << ", " << c.LossLine() << "; driver: completed " << c.driver.completed << ", failed "
+        << c.driver.failed << ", underruns " << c.driver.underruns << ", reconnects "
+        << c.driver.reconnects;
     if (c.stale > 0) out << ", stale frames dropped " << c.stale;
     if (c.before_all_armed > 0)
       out << ", before all cameras armed " << c.before_all_armed << " (not written)";

@@ -167,6 +167,8 @@ struct CameraHealth {
 
   // Every frame that was produced (or triggered) and is not on disk.
   std::uint64_t Lost() const;
+  // "lost 3 [incomplete 0, missing ids 1, ...]": Lost() by cause.
+  std::string LossLine() const;
 };
 
 struct RigHealth {
@@ -200,6 +202,10 @@ struct RigHealth {
   std::string StatusLine() const;
   // Several lines: per camera what was kept and what was lost and why.
   std::string FinalReport() const;
+  // One line per camera, the Vicon stream and sync that lost anything, with
+  // the causes ("camera MEMB: lost 1 [...]"); empty when nothing was lost.
+  // For the operator's log (the command writes them at the end of a run).
+  std::vector<std::string> LossLines() const;
 };
 
 class RigController {

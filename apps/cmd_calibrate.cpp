@@ -145,9 +145,11 @@ int RunCalibrate(const CalibrateOptions& o) {
     Expected<registration::CalibrationFrame> frame = Error{""};
     if (!cached.empty() && fs::exists(cached))
       frame = registration::LoadCalibrationFrame(cached, loader_options.lambda);
+    const bool from_cache = frame.ok();
     if (!frame) frame = (*loader)->Load(f);
     if (!frame) return Fail(frame.error().message);
-    if (!cached.empty() && !fs::exists(cached)) {
+    // A cached file of another lambda or an older version is replaced.
+    if (!cached.empty() && !from_cache) {
       fs::create_directories(o.cache, ec);
       if (Status s = registration::SaveCalibrationFrame(cached, *frame, loader_options.lambda); !s)
         return Fail(s.error().message);
@@ -218,7 +220,8 @@ int RunCalibrate(const CalibrateOptions& o) {
     std::cout << c->BriefReport() << "\n";
     report << "\n## Against the ground truth\n\n" << c->BriefReport() << "\n";
     Expected<registration::PlateCornerBias> bias =
-        registration::MeasurePlateCornerBias(input.frames, seq, o.camera);
+        registration::MeasurePlateCornerBias(input.frames, loader_options.lambda, seq,
+                                             o.camera);
     if (!bias) return Fail(bias.error().message);
     std::cout << bias->BriefReport() << "\n";
     report << "\n" << bias->BriefReport() << "\n";

@@ -19,6 +19,7 @@
 #include "replay/layout.h"
 
 #include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <chrono>
@@ -75,9 +76,8 @@ struct Args {
   bool publish = false;
   std::string lcm_url;
   bool no_processing = false;
-  std::string reference;  // --reference MAP_DIR: live registration
-  std::vector<std::string> intrinsics;
-  std::string extrinsics_csv;
+  // --reference MAP_DIR: live registration (rigid_mount: the rig file's).
+  RegistrationArgs registration;
 };
 
 // The live pipeline beside the recorder (--publish), configured by the
@@ -99,14 +99,15 @@ Expected<std::unique_ptr<Pipeline>> MakePublishPipeline(const RigConfig& rig, co
   PixelFormats formats;
   for (const CameraConfig& camera : rig.cameras)
     if (IsBayer(camera.pixel_format)) formats[camera.serial] = camera.pixel_format;
-  std::vector<std::filesystem::path> intrinsics(args.intrinsics.begin(), args.intrinsics.end());
-  if (!args.reference.empty()) {
+  std::vector<std::filesystem::path> intrinsics(args.registration.intrinsics.begin(),
+                                                args.registration.intrinsics.end());
+  if (!args.registration.reference.empty()) {
     if (!processing)
       return Error{"--reference needs processing (rig processing.enabled, not --no-processing)"};
     LiveRegistrationOptions live_options;
-    live_options.reference_dir = args.reference;
+    live_options.reference_dir = args.registration.reference;
     live_options.intrinsics = intrinsics;
-    live_options.extrinsics_csv = args.extrinsics_csv;
+    live_options.extrinsics_csv = args.registration.extrinsics_csv;
     // Replay cameras (--replay SEQ): the sequence's ground truth last.
     if (!args.replay.empty())
       live_options.fallback_intrinsics.push_back(layout::CamerasYamlPath(args.replay));
@@ -138,7 +139,6 @@ Expected<std::unique_ptr<Pipeline>> MakePublishPipeline(const RigConfig& rig, co
   if (!args.lcm_url.empty()) options.publisher.url = args.lcm_url;
   // The controller's assembler makes the FrameSets (one per run; with
   // --no-sync too, without Vicon association).
-  options.frame_sets_from_grab_loop = true;
   if (*live) (*live)->Configure(&options);
   return Pipeline::Create(sync, std::move(processor), options);
 }
@@ -156,6 +156,15 @@ int Run(const Args& args) {
   std::signal(SIGXFSZ, SIG_IGN);
   std::signal(SIGPIPE, SIG_IGN);
 
+  if (Status s = args.registration.Check(); !s) {
+    std::cerr << "lifmcr record: " << s.error().message << "\n";
+    return kExitUsage;
+  }
+  if (!args.publish && !args.registration.reference.empty()) {
+    std::cerr << "lifmcr record: --reference needs --publish (registration runs in the live "
+                 "pipeline)\n";
+    return kExitUsage;
+  }
   auto rig = LoadRigConfig(args.rig);
   if (!rig) {
     std::cerr << "lifmcr record: " << EscapeText(rig.error().message) << "\n";
@@ -302,6 +311,9 @@ int Run(const Args& args) {
   std::cout << "sequence: " << (*recorder)->sequence_dir().string() << "\n"
             << "stopped by: " << stop_why << "\n"
             << health.FinalReport();
+  // The operator's log keeps every loss with its cause (the report above
+  // goes to stdout, which a service's supervisor may not keep).
+  for (const std::string& line : health.LossLines()) spdlog::warn("record: {}", line);
   if (pipeline) {
     pipeline->SetSyncDrops(health.sync_drops);
     pipeline->Finish();
@@ -357,14 +369,9 @@ CommandRun AddRecordCommand(CLI::App& app) {
   app.add_option("--replay", args->replay,
                  "Sequence folder that cameras with driver 'replay' serve")
       ->check(CLI::ExistingDirectory);
-  app.add_option("--reference", args->reference,
-                 "--publish: live registration against this reference map (see lifmcr replay)")
-      ->check(CLI::ExistingDirectory);
-  app.add_option("--intrinsics", args->intrinsics,
-                 "cameras.yaml / intrinsics.yaml files (metric depth; registration)")
-      ->check(CLI::ExistingFile);
-  app.add_option("--extrinsics-csv", args->extrinsics_csv,
-                 "With --reference: every published c0_from_cx as registration.csv rows");
+  AddRegistrationOptions(
+      app, &args->registration,
+      "--publish: live registration against this reference map (see lifmcr replay)");
   app.add_flag("--no-sync", args->no_sync,
                "Leave the sync assembler out (no FrameSets, no Vicon f0 in the report); "
                "with --publish the FrameSets are still made, without Vicon frames");

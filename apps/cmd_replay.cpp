@@ -29,17 +29,14 @@ struct Args {
   bool no_processing = false;
   int concurrency = 2;
   std::vector<std::string> pixel_formats;
-  std::string reference;
-  std::vector<std::string> intrinsics;
-  std::string extrinsics_csv;
-  bool rigid_mount = false;
+  RegistrationArgs registration;
 };
 
 }  // namespace
 
 int RunReplayCommand(const std::string& sequence, const std::string& rate_text, bool loop,
                      const std::string& lcm_url, bool processing, int concurrency,
-                     const char* who, const ReplayRegistrationArgs& registration,
+                     const char* who, const RegistrationArgs& registration,
                      const std::vector<std::string>& pixel_formats) {
   auto rate = ReplayRate::Parse(rate_text);
   if (!rate) {
@@ -71,8 +68,8 @@ int RunReplayCommand(const std::string& sequence, const std::string& rate_text, 
     live.extrinsics_csv = registration.extrinsics_csv;
     live.rigid_mount = registration.rigid_mount;
     options.registration = live;
-  } else if (!registration.extrinsics_csv.empty()) {
-    std::cerr << who << ": --extrinsics-csv needs --reference MAP_DIR\n";
+  } else if (Status s = registration.Check(); !s) {
+    std::cerr << who << ": " << s.error().message << "\n";
     return 2;
   }
   options.on_status = [terminal](const PipelineReport& report) {
@@ -99,7 +96,7 @@ int RunReplayCommand(const std::string& sequence, const std::string& rate_text, 
                      const std::string& lcm_url, bool processing, int concurrency,
                      const char* who) {
   return RunReplayCommand(sequence, rate_text, loop, lcm_url, processing, concurrency, who,
-                          ReplayRegistrationArgs{}, {});
+                          RegistrationArgs{}, {});
 }
 
 CommandRun AddReplayCommand(CLI::App& app) {
@@ -145,23 +142,15 @@ CommandRun AddReplayCommand(CLI::App& app) {
   app.add_option("--pixel-format", args->pixel_formats,
                  "[SERIAL=]FORMAT: the cameras' pixel format (Mono8, BGR8, BayerRG8, BayerGR8, "
                  "BayerGB8, BayerBG8); without SERIAL, every camera's");
-  app.add_option("--reference", args->reference,
-                 "Reference map folder: live registration of every camera to its camera")
-      ->check(CLI::ExistingDirectory);
-  app.add_option("--intrinsics", args->intrinsics,
-                 "cameras.yaml / intrinsics.yaml files (metric depth; registration)")
-      ->check(CLI::ExistingFile);
-  app.add_option("--extrinsics-csv", args->extrinsics_csv,
-                 "With --reference: every published c0_from_cx as registration.csv rows");
-  app.add_flag("--rigid-mount", args->rigid_mount,
+  AddRegistrationOptions(app, &args->registration,
+                         "Reference map folder: live registration of every camera to its camera");
+  app.add_flag("--rigid-mount", args->registration.rigid_mount,
                "With --reference: flag a camera whose c0_from_cx leaves its running estimate "
                "(as the rig file's registration.rigid_mount)");
   return [args] {
     return RunReplayCommand(args->sequence, args->rate, args->loop, args->lcm_url,
                             !args->no_processing, args->concurrency, "lifmcr replay",
-                            {args->reference, args->intrinsics, args->extrinsics_csv,
-                             args->rigid_mount},
-                            args->pixel_formats);
+                            args->registration, args->pixel_formats);
   };
 }
 

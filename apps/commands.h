@@ -2,6 +2,8 @@
 // The subcommands of `lifmcr`. Each registers its options on the CLI11 app
 // and returns the callback that runs it; the exit code is the callback's.
 
+#include "apps/registration_args.h"
+
 #include <functional>
 #include <string>
 #include <vector>
@@ -28,21 +30,15 @@ CommandRun AddCalibrateCommand(CLI::App& app);
 CommandRun AddRegisterCommand(CLI::App& app);
 
 // `lifmcr replay SEQ` with its defaults otherwise, for `lifmcr demo`; the
-// second form with live registration (--reference, --intrinsics,
-// --extrinsics-csv; empty: none). Returns the exit code.
-struct ReplayRegistrationArgs {
-  std::string reference;                // MAP_DIR
-  std::vector<std::string> intrinsics;  // cameras.yaml / intrinsics.yaml files
-  std::string extrinsics_csv;           // FILE
-  bool rigid_mount = false;             // change detection (--rigid-mount)
-};
+// second form with live registration (registration_args.h; empty: none).
+// Returns the exit code.
 int RunReplayCommand(const std::string& sequence, const std::string& rate_text, bool loop,
                      const std::string& lcm_url, bool processing, int concurrency,
                      const char* who);
 // pixel_formats: `--pixel-format` values ([SERIAL=]FORMAT).
 int RunReplayCommand(const std::string& sequence, const std::string& rate_text, bool loop,
                      const std::string& lcm_url, bool processing, int concurrency,
-                     const char* who, const ReplayRegistrationArgs& registration,
+                     const char* who, const RegistrationArgs& registration,
                      const std::vector<std::string>& pixel_formats = {});
 
 }  // namespace lifmcr::apps

@@ -11,7 +11,8 @@
 //
 // 2. Vicon. Tracker object-stream packets sent by a ViconUdpSender over
 //    loopback UDP into the path `lifmcr record --publish` takes: ViconUdpSource
-//    -> the RigController's Vicon thread -> Pipeline::AddVicon -> LIFMCR_VICON
+//    -> the RigController's Vicon thread (and its FrameSetAssembler, whose
+//    FrameSets are the pipeline's frames) -> Pipeline::AddVicon -> LIFMCR_VICON
 //    on LCM, where a subscriber thread of this process timestamps each
 //    message's arrival. Per packet: sent -> message received (p50, p99, max),
 //    beside the baseline sent -> parsed ViconFrame handed on by the Vicon
@@ -390,8 +391,9 @@ int RunViconPart(const BenchArgs& args, const std::filesystem::path& sequence_di
   source_options.objects = objects;
   auto source = std::make_unique<ViconUdpSource>(source_options);
   ViconUdpSource* source_view = source.get();
+  // One assembler, the controller's, as in `lifmcr record --publish`.
   RigObserver observer;
-  observer.on_frame = [p](int, std::int64_t, const Frame& frame) { p->AddFrame(frame); };
+  observer.on_frame_set = [p](const FrameSet& set) { p->AddFrameSet(set); };
   observer.on_vicon = [&, p](const ViconFrame& frame) {
     const std::int64_t index = frame.vicon_frame - kFirstFrame;
     if (index >= 0 && index < static_cast<std::int64_t>(packets))
@@ -399,6 +401,8 @@ int RunViconPart(const BenchArgs& args, const std::filesystem::path& sequence_di
     p->AddVicon(frame);
   };
   RigControllerOptions controller_options;
+  controller_options.sync = sync;
+  controller_options.vicon_divider = divider;
   controller_options.trigger_hz = args.vicon_hz / divider;
   // As `lifmcr record` runs a live UDP stream (apps/cmd_record.cpp).
   controller_options.vicon_realtime_priority = args.vicon_priority;
@@ -467,6 +471,7 @@ int RunViconPart(const BenchArgs& args, const std::filesystem::path& sequence_di
   }
   const apps::PipelineReport during = p->Report();
   controller.Stop();
+  p->SetSyncDrops(controller.Health().sync_drops);
   p->Finish();
   subscribing = false;
   subscriber.join();

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <cstdio>
 #include <ctime>
 #include <mutex>
@@ -53,7 +54,9 @@ struct Slot {
 Status AravisCameraOptions::Check() const {
   if (pool_buffers < 2)
     return Error{"aravis options: pool_buffers must be >= 2, got " + std::to_string(pool_buffers)};
-  if (free_run_rate_hz < 0.0) return Error{"aravis options: free_run_rate_hz must be >= 0"};
+  if (!(free_run_rate_hz >= 0.0) || !std::isfinite(free_run_rate_hz))
+    return Error{"aravis options: free_run_rate_hz must be >= 0"};
+  if (camera_index < 0) return Error{"aravis options: camera_index must be >= 0"};
   if (probe_after.count() <= 0 || reconnect_interval.count() <= 0)
     return Error{"aravis options: probe_after and reconnect_interval must be > 0"};
   if (max_consecutive_failures < 1)

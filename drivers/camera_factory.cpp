@@ -14,9 +14,19 @@ std::chrono::nanoseconds TriggerPeriod(const ViconConfig& vicon) {
   return std::chrono::nanoseconds(std::llround(1e9 * divider / rate_hz));
 }
 
+Status CameraFactoryOptions::Check() const {
+  if (pool_buffers < 2) return Error{"camera factory: pool_buffers: expected >= 2"};
+  if (trigger_period.count() <= 0) return Error{"camera factory: trigger_period: expected > 0"};
+  // replay_sequence_dir: checked for replay cameras (MakeCamera); replay_pacing: any.
+  if (!(free_run_rate_hz >= 0.0) || !std::isfinite(free_run_rate_hz))
+    return Error{"camera factory: free_run_rate_hz: expected >= 0 (0: the camera's own)"};
+  return Status::Ok();
+}
+
 Expected<std::unique_ptr<Camera>> MakeCamera(const CameraConfig& config, int camera_index,
                                              const CameraFactoryOptions& options) {
   const std::string label = "camera " + config.name + " (serial " + config.serial + ")";
+  if (Status s = options.Check(); !s) return Error{label + ": " + s.error().message};
   switch (config.driver.kind) {
     case DriverKind::kAravis: {
       AravisCameraOptions aravis;

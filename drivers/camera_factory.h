@@ -26,6 +26,7 @@ struct CameraFactoryOptions {
   ReplayPacing replay_pacing = ReplayPacing::kOriginal;
   // aravis cameras in free_run: AcquisitionFrameRate; 0 = the camera's own.
   double free_run_rate_hz = 0.0;
+  Status Check() const;  // every field; the message names the field
 };
 
 // trigger_divider / rate_hz: 8 / 80 Hz = 100 ms for LiFMCR.

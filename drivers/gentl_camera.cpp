@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <cstdint>
 #include <ctime>
 #include <mutex>
@@ -56,7 +57,9 @@ bool MeansGone(GC_ERROR code) {
 Status GenTlCameraOptions::Check() const {
   if (pool_buffers < 2)
     return Error{"gentl options: pool_buffers must be >= 2, got " + std::to_string(pool_buffers)};
-  if (free_run_rate_hz < 0.0) return Error{"gentl options: free_run_rate_hz must be >= 0"};
+  if (!(free_run_rate_hz >= 0.0) || !std::isfinite(free_run_rate_hz))
+    return Error{"gentl options: free_run_rate_hz must be >= 0"};
+  if (camera_index < 0) return Error{"gentl options: camera_index must be >= 0"};
   if (probe_after.count() <= 0 || reconnect_interval.count() <= 0)
     return Error{"gentl options: probe_after and reconnect_interval must be > 0"};
   if (max_consecutive_failures < 1)

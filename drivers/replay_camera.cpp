@@ -25,6 +25,7 @@ Status ReplayCameraOptions::Check() const {
   if (pool_buffers < 1)
     return Error{"replay options: pool_buffers must be >= 1, got " + std::to_string(pool_buffers)};
   if (trigger_period.count() <= 0) return Error{"replay options: trigger_period must be > 0"};
+  if (camera_index < 0) return Error{"replay options: camera_index must be >= 0"};
   return Status::Ok();
 }
 

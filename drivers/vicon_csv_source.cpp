@@ -17,6 +17,14 @@ std::int64_t RealtimeNs() {
 
 }  // namespace
 
+Status ViconCsvSourceOptions::Check() const {
+  if (objects.empty()) return Error{"Vicon CSV source: objects: expected at least one to play back"};
+  if (!(rate_hz >= 0.0) || !std::isfinite(rate_hz))
+    return Error{"Vicon CSV source: rate_hz: expected >= 0 (0: the file's rate)"};
+  // pose: enumerations; realtime, sequence_clock_start_ns: any.
+  return Status::Ok();
+}
+
 Expected<std::unique_ptr<ViconCsvSource>> ViconCsvSource::Open(
     const std::filesystem::path& csv, const ViconCsvSourceOptions& options) {
   auto parsed = ReadViconCsv(csv);
@@ -26,10 +34,7 @@ Expected<std::unique_ptr<ViconCsvSource>> ViconCsvSource::Open(
 
 Expected<std::unique_ptr<ViconCsvSource>> ViconCsvSource::FromCsv(
     const ViconCsv& csv, const ViconCsvSourceOptions& options) {
-  if (options.objects.empty())
-    return Error{"Vicon CSV source " + csv.path + ": no objects to play back"};
-  if (!(options.rate_hz >= 0.0) || !std::isfinite(options.rate_hz))
-    return Error{"Vicon CSV source " + csv.path + ": rate_hz must be >= 0"};
+  if (Status s = options.Check(); !s) return Error{csv.path + ": " + s.error().message};
   // frame number -> one pose per object (in options.objects order)
   std::map<std::int64_t, std::vector<std::optional<Pose>>> rows;
   int file_rate_hz = 0;

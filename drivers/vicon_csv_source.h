@@ -35,6 +35,7 @@ struct ViconCsvSourceOptions {
   // The replay's own clock (as ReplayCameraOptions): when set, host_ns =
   // start + (frame - first frame) / rate, whatever the pacing.
   std::optional<std::int64_t> sequence_clock_start_ns{};
+  Status Check() const;  // every field; the message names the field
 };
 
 class ViconCsvSource : public ViconSource {

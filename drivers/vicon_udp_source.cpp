@@ -51,15 +51,25 @@ ViconUdpSource::ViconUdpSource(ViconUdpSourceOptions options)
 
 ViconUdpSource::~ViconUdpSource() { (void)Stop(); }
 
+Status ViconUdpSourceOptions::Check() const {
+  in_addr parsed{};
+  if (inet_pton(AF_INET, address.c_str(), &parsed) != 1)
+    return Error{"Vicon UDP source: address: expected an IPv4 address, got '" + address + "'"};
+  if (port < 0 || port > 65535) return Error{"Vicon UDP source: port: expected 0..65535"};
+  if (receive_buffer_bytes <= 0)
+    return Error{"Vicon UDP source: receive_buffer_bytes: expected > 0"};
+  // pose: enumerations; objects: any names (empty: the datagram's).
+  return Status::Ok();
+}
+
 Status ViconUdpSource::Start() {
   const std::string where = Endpoint(options_.address, options_.port);
   if (socket_ >= 0) return Status::Ok();
-  if (options_.port < 0 || options_.port > 65535) return Error{where + ": port must be 0..65535"};
+  if (Status s = options_.Check(); !s) return Error{where + ": " + s.error().message};
   sockaddr_in local{};
   local.sin_family = AF_INET;
   local.sin_port = htons(static_cast<std::uint16_t>(options_.port));
-  if (inet_pton(AF_INET, options_.address.c_str(), &local.sin_addr) != 1)
-    return Error{where + ": not an IPv4 address"};
+  (void)inet_pton(AF_INET, options_.address.c_str(), &local.sin_addr);  // checked above
   const int fd = socket(AF_INET, SOCK_DGRAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
   if (fd < 0) return Error{where + ": socket: " + std::strerror(errno)};
   // A larger buffer absorbs scheduling hiccups of the grab thread; failure

@@ -39,7 +39,8 @@ struct ViconUdpSourceOptions {
   // objects of the datagram not listed are left out. Empty: the datagram's
   // objects as they come.
   std::vector<std::string> objects;
-  int receive_buffer_bytes = 4 << 20;  // SO_RCVBUF request (the kernel caps it at rmem_max)
+  int receive_buffer_bytes = 4 << 20;  // SO_RCVBUF request (the kernel caps it at rmem_max), > 0
+  Status Check() const;  // every field; the message names the field
 
   // From the rig file: vicon.udp, vicon.rotation, vicon.handedness and the
   // rig's objects (ViconObjectsOfRig).

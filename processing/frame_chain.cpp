@@ -154,6 +154,28 @@ void CameraChain::Release(ChainProducts* products) {
   idle_.emplace_back(products);
 }
 
+Expected<const TfSampler*> CameraChain::Sampler(ConstImageView raw) {
+  if (raw.data == nullptr || raw.width <= 0 || raw.height <= 0)
+    return Error{"camera " + setup_.serial + ": empty frame"};
+  std::lock_guard lock(sampler_mutex_);
+  if (sampler_ && sampler_->raw_width() == raw.width && sampler_->raw_height() == raw.height)
+    return sampler_.get();
+  auto grid = GridFor(raw.width, raw.height);
+  if (!grid) return grid.error();
+  auto white = WhiteFor(raw, *grid);
+  if (!white) return white.error();
+  PlenopticFrame geometry;
+  if (Status s = PrepareGeometry(*white, raw.width, raw.height, *grid, setup_.mla, options_.frame,
+                                 &geometry);
+      !s)
+    return s.error();
+  if (geometry.lenses.empty())
+    return Error{"camera " + setup_.serial + ": no whole micro image fits the " +
+                 std::to_string(raw.width) + "x" + std::to_string(raw.height) + " frame"};
+  sampler_ = std::make_unique<TfSampler>(std::move(geometry), setup_.mla);
+  return sampler_.get();
+}
+
 Expected<ChainLease> CameraChain::Process(ConstImageView raw) {
   if (raw.data == nullptr || raw.width <= 0 || raw.height <= 0)
     return Error{"camera " + setup_.serial + ": empty frame"};

@@ -39,6 +39,7 @@
 #include "processing/mla_grid.h"
 #include "processing/plenoptic_frame.h"
 #include "processing/point_cloud.h"
+#include "processing/tf_sampler.h"
 #include "processing/total_focus.h"
 #include "processing/vignetting.h"
 #include "processing/virtual_depth.h"
@@ -127,6 +128,12 @@ class CameraChain {
   // The chain on one raw frame (Mono8 or BGR8). `raw` must outlive the lease.
   Expected<ChainLease> Process(ConstImageView raw);
 
+  // The camera's TF sampler (processing/tf_sampler.h) for frames of raw's
+  // size, with the chain's devignetting: made at the first call (a
+  // geometry like a workspace's, ~0.2 s at 8 MP), then shared; the live
+  // registration samples the TF image there instead of running the chain.
+  Expected<const TfSampler*> Sampler(ConstImageView raw);
+
   const std::string& serial() const { return setup_.serial; }
   const MlaCalibration& mla() const { return setup_.mla; }
   const std::optional<CameraModel>& camera_model() const { return camera_; }
@@ -157,6 +164,8 @@ class CameraChain {
   // kFromFrame: the estimate from the camera's first frame (guarded by mutex_).
   std::optional<VignettingEstimate> estimate_;
   std::vector<std::unique_ptr<ChainProducts>> idle_;
+  std::mutex sampler_mutex_;  // guards sampler_ (made outside mutex_: GridFor takes it)
+  std::unique_ptr<TfSampler> sampler_;
 };
 
 // The chains of a rig's cameras, by serial.

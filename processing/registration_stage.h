@@ -6,8 +6,8 @@
 //
 // Per frame (Localize, on a processing worker, concurrently for different
 // frames; at most one call per camera at a time is NOT guaranteed): camera
-// X's processed frame in (TF image, TF virtual depth, metric depth and
-// points when the intrinsics are known), optionally its pose w0_from_cx out
+// X's frame in (the raw frame, and the chain's products when it was
+// processed first), optionally its pose w0_from_cx out
 // (maps camera X's coordinates into the world frame W0 of camera 0's
 // reference map; mm).
 //
@@ -44,8 +44,14 @@ struct StageFrame {
   std::int64_t trigger_index = 0;   // the FrameSet's (the recording's file number)
   std::optional<std::int64_t> vicon_frame;  // the Vicon frame of that trigger, when known
   std::int64_t host_ns = 0;         // arrival of the frame at the host (CLOCK_REALTIME)
-  const ChainProducts* products = nullptr;  // TF image and depth; never null
-  const CameraChain* camera = nullptr;      // MLA, model (camera_model() when intrinsics known)
+  // The raw frame as the chain takes it (Mono8 or BGR8, a Bayer mosaic
+  // demosaiced); never empty.
+  ConstImageView raw;
+  // The chain's products of this frame (TF image and depth) when it was
+  // processed before registration; null when registration runs ahead of
+  // processing (the live pipeline under newest_wins: apps/pipeline/pipeline.h).
+  const ChainProducts* products = nullptr;
+  CameraChain* camera = nullptr;  // MLA, model (camera_model() when intrinsics known), sampler
 };
 
 // What change detection (registration/extrinsics_monitor.h) says about one

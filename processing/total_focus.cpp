@@ -1,5 +1,7 @@
 #include "processing/total_focus.h"
 
+#include "processing/tf_kernel.h"
+
 #include <Eigen/LU>
 #include <tbb/parallel_for.h>
 
@@ -84,34 +86,6 @@ void BoxSums(int width, int height, int radius, const std::vector<double>& w,
     }
   });
 }
-
-// The lens type whose sharp range (MLA file) holds v most centrally (in
-// log v); the nearest range when none holds it. A table over v (a log per
-// TF pixel would cost more than its sampling).
-class SharpTypeTable {
- public:
-  explicit SharpTypeTable(const MlaCalibration& mla) {
-    for (int q = 0; q < kSize; ++q) {
-      const double v = std::max(1.0, (q + 0.5) / kPerUnit);
-      double best_score = -1e300;
-      for (int t = 0; t < 3; ++t) {
-        const MlaLensType& type = mla.lens_types[t];
-        const double score = std::min(std::log(v / type.depth_min), std::log(type.depth_max / v));
-        if (score > best_score) {
-          best_score = score;
-          table_[q] = static_cast<std::uint8_t>(t);
-        }
-      }
-    }
-  }
-  int operator()(double v) const {
-    return table_[std::clamp(static_cast<int>(v * kPerUnit), 0, kSize - 1)];
-  }
-
- private:
-  static constexpr int kPerUnit = 256, kSize = 64 * kPerUnit;
-  std::array<std::uint8_t, kSize> table_{};
-};
 
 }  // namespace
 
@@ -269,73 +243,12 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
 
 namespace {
 
-// A micro image in float, for the rendering's inner loop: micro-lens centre
-// l, micro-image centre c.
-struct LensF {
-  float lx, ly, cx, cy;
-};
-
-// Colour of micro image m seen from virtual point (x, y) at 1 / v = inv_v:
-// bilinear at p = l + (x - l) / v of the raw pixels times the devignetting
-// gain; false outside its usable disc (radius^2 r2) or next to an invalid
-// pixel (the gain is NaN there and propagates through the sum).
-// `centrality` = 1 - |p - c|^2 / r^2.
-template <int kChannels>
-inline bool SampleLens(const LensF& m, float x, float y, float inv_v, float r2,
-                       const PlenopticFrame& f, float* c, float* centrality) {
-  const float px = m.lx + (x - m.lx) * inv_v, py = m.ly + (y - m.ly) * inv_v;
-  const float dx = px - m.cx, dy = py - m.cy;
-  const float d2 = dx * dx + dy * dy;
-  if (d2 > r2 || px < 0 || py < 0) return false;
-  const int x0 = static_cast<int>(px), y0 = static_cast<int>(py);
-  if (x0 >= f.width - 1 || y0 >= f.height - 1) return false;
-  const float fx = px - x0, fy = py - y0;
-  const float* g0 = f.gain.data() + static_cast<std::size_t>(y0) * f.width + x0;
-  const float* g1 = g0 + f.width;
-  const float w00 = (1 - fx) * (1 - fy) * g0[0], w01 = fx * (1 - fy) * g0[1],
-              w10 = (1 - fx) * fy * g1[0], w11 = fx * fy * g1[1];
-  const std::uint8_t* q0 = f.raw.Row(y0) + x0 * kChannels;
-  const std::uint8_t* q1 = f.raw.Row(y0 + 1) + x0 * kChannels;
-  float check = 0;
-  for (int ch = 0; ch < kChannels; ++ch) {
-    c[ch] = w00 * q0[ch] + w01 * q0[kChannels + ch] + w10 * q1[ch] + w11 * q1[kChannels + ch];
-    check += c[ch];
-  }
-  *centrality = 1 - d2 / r2;
-  return !std::isnan(check);
-}
-
 template <int kChannels>
 void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDepthMap& depth,
                 const TfOptions& options, TfImage* out) {
   const int tw = f.width / 2, th = f.height / 2;
-  const float r = static_cast<float>(f.radius_px * options.inner_fraction), r2 = r * r;
   const double fallback = depth.fallback_v > 1 ? depth.fallback_v : 3.0;
-  std::vector<LensF> lenses(f.lenses.size());
-  for (std::size_t k = 0; k < f.lenses.size(); ++k) {
-    const MicroImage& m = f.lenses[k];
-    lenses[k] = {static_cast<float>(m.lens_px.x()), static_cast<float>(m.lens_px.y()),
-                 static_cast<float>(m.centre_px.x()), static_cast<float>(m.centre_px.y())};
-  }
-  // The lenses of one type form a triangular sublattice with steps
-  // A (1, 1) and A (2, -1) (type = sigma (i - j) mod 3 is constant along
-  // both); per type its origin lens and the inverse of those steps.
-  struct Sublattice {
-    int i0 = 0;
-    Eigen::Vector2d origin;
-    Eigen::Matrix2d from_px;
-  };
-  std::array<Sublattice, 3> sub;
-  for (int t = 0; t < 3; ++t) {
-    Sublattice& s = sub[t];
-    while (f.grid.Type(s.i0, 0) != t) ++s.i0;
-    s.origin = f.grid.Center(s.i0, 0);
-    Eigen::Matrix2d steps;
-    steps.col(0) = f.grid.lattice * Eigen::Vector2d(1, 1);
-    steps.col(1) = f.grid.lattice * Eigen::Vector2d(2, -1);
-    s.from_px = steps.inverse();
-  }
-  const SharpTypeTable sharp_type(mla);
+  const detail::TfKernel kernel(f, mla, options.inner_fraction);
   const float gain = static_cast<float>(options.gain);
   const bool sharpen = options.sharpen > 0;
   tbb::parallel_for(0, th, [&](int w) {
@@ -344,61 +257,18 @@ void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDept
     // per TF pixel (x grows by 2).
     std::array<Eigen::Vector2f, 3> a0, da;
     for (int t = 0; t < 3; ++t) {
-      const Eigen::Vector2d start = sub[t].from_px * (Eigen::Vector2d(0.5, y) - sub[t].origin);
-      const Eigen::Vector2d step = sub[t].from_px.col(0) * 2.0;
-      a0[t] = {static_cast<float>(start.x()), static_cast<float>(start.y())};
-      da[t] = {static_cast<float>(step.x()), static_cast<float>(step.y())};
+      a0[t] = kernel.Sublattice(t, 0.5, y);
+      da[t] = 2.0f * kernel.SublatticeStepX(t);
     }
     for (int u = 0; u < tw; ++u) {
       const std::size_t t = static_cast<std::size_t>(w) * tw + u;
       float v = depth.virtual_depth[t];
       if (!(v > 1.0f)) v = static_cast<float>(fallback);  // NaN too
-      const float inv_v = 1.0f / v;
       const float x = 2.0f * u + 0.5f;
-      // The triangle of lenses of the type sharp at v around x, blended by
-      // barycentric weights (continuous across triangles: no seams).
-      const int type = sharp_type(v);
-      const Sublattice& s = sub[type];
-      const float ax = a0[type].x() + u * da[type].x(), ay = a0[type].y() + u * da[type].y();
-      const int m = static_cast<int>(std::floor(ax)), n = static_cast<int>(std::floor(ay));
-      const float fa = ax - m, fb = ay - n;
-      int ci[3], cj[3];
-      float bary[3];
-      if (fa + fb < 1) {
-        ci[0] = m, cj[0] = n, bary[0] = 1 - fa - fb;
-        ci[1] = m + 1, cj[1] = n, bary[1] = fa;
-        ci[2] = m, cj[2] = n + 1, bary[2] = fb;
-      } else {
-        ci[0] = m + 1, cj[0] = n + 1, bary[0] = fa + fb - 1;
-        ci[1] = m, cj[1] = n + 1, bary[1] = 1 - fa;
-        ci[2] = m + 1, cj[2] = n, bary[2] = 1 - fb;
-      }
-      float acc[kChannels] = {}, c[kChannels], centrality = 0, sw = 0;
-      for (int q = 0; q < 3; ++q) {
-        if (bary[q] <= 0) continue;
-        const int k = f.LensAt(s.i0 + ci[q] + 2 * cj[q], ci[q] - cj[q]);
-        if (k < 0 || !SampleLens<kChannels>(lenses[k], x, y, inv_v, r2, f, c, &centrality))
-          continue;
-        const float wq = bary[q] * centrality;
-        for (int ch = 0; ch < kChannels; ++ch) acc[ch] += wq * c[ch];
-        sw += wq;
-      }
-      if (sw <= 0) {
-        // Near the border, in the vignetted periphery (micro images valid
-        // only near their centres) or where v is below the sublattice's
-        // reach: the nearest micro image of any type and its six neighbours.
-        int i0 = 0, j0 = 0;
-        f.grid.Nearest(Eigen::Vector2d(x, y), &i0, &j0);
-        static constexpr int kAround[7][2] = {{0, 0},  {1, 0},  {0, 1}, {-1, 1},
-                                              {-1, 0}, {0, -1}, {1, -1}};
-        for (const auto& d : kAround) {
-          const int k = f.LensAt(i0 + d[0], j0 + d[1]);
-          if (k < 0 || !SampleLens<kChannels>(lenses[k], x, y, inv_v, r2, f, c, &centrality))
-            continue;
-          for (int ch = 0; ch < kChannels; ++ch) acc[ch] += centrality * c[ch];
-          sw += centrality;
-        }
-      }
+      const int type = kernel.SharpType(v);
+      float acc[kChannels];
+      const float sw = kernel.Blend<kChannels>(f.raw, x, y, v, type, a0[type].x() + u * da[type].x(),
+                                               a0[type].y() + u * da[type].y(), acc);
       const float scale = sw > 0 ? gain / sw : 0.0f;
       if (sharpen) {
         float* dst = out->linear.data() + t * kChannels;

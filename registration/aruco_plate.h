@@ -1,7 +1,8 @@
 #pragma once
-// The ArUco markers of the plate on a TF image (OpenCV aruco, sub-pixel
-// corners): each detected corner with its known position in the plate
-// frame, the metric anchor of calibration (scale and world frame).
+// The ArUco markers of the plate on a TF image (OpenCV aruco finds them,
+// marker_edges.h places their corners from line fits to the border's edges):
+// each detected corner with its known position in the plate frame, the
+// metric anchor of calibration (scale and world frame).
 
 #include "config/error.h"
 #include "config/image.h"
@@ -21,7 +22,8 @@ struct PlateCorner {
 };
 
 // Markers of the layout's dictionary whose id the layout holds; other ids
-// are ignored.
+// are ignored, and so is a marker whose edges do not fit a square's
+// (partly occluded, or a wrong quad).
 Expected<std::vector<PlateCorner>> DetectPlateCorners(ConstImageView tf_image,
                                                       const PlateLayout& layout);
 

@@ -58,14 +58,15 @@ struct MicroImageCost {
   }
 };
 
-// A plate corner: a fixed point of the plate frame. ArUco's sub-pixel
-// corners on the blurred TF image lie a little inside the marker's square
-// (docs/calibration.md), so the detected corner is modelled as the
-// projected corner moved by `inset` TF pixels (2 inset raw pixels in the
-// virtual image) towards the projected marker centre; the inset is one
-// parameter of the solve, separated from the scale by the distances
-// between the markers' centres. Residuals in the micro images that see the
-// corner (with the virtual depth measured there: `micro`), else in the
+// A plate corner: a fixed point of the plate frame. The detected corner is
+// modelled as the projected corner moved by `inset` TF pixels (2 inset raw
+// pixels in the virtual image) towards the projected marker centre; the
+// inset is one parameter of the solve, separated from the scale by the
+// distances between the markers' centres. With corners from the markers'
+// edges (marker_edges.h) it stays near zero on the synthetic TF images
+// (cornerSubPix's corners lay 0.3 TF px inside the square); it is kept for
+// images whose blur is not symmetric. Residuals in the micro images that see
+// the corner (with the virtual depth measured there: `micro`), else in the
 // virtual image. Parameters: intrinsics, cam_from_world rotation (w, x, y,
 // z) and translation, inset (TF px).
 struct PlateCornerCost {

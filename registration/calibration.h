@@ -27,8 +27,8 @@
 //    plate coordinates, observed in the micro images in the same way (with
 //    the virtual depth at the corner; in the virtual image x_v where the TF
 //    depth map has none), each detected corner modelled as moved by one
-//    estimated inset towards its marker's centre (ArUco's sub-pixel corners
-//    on the blurred TF image lie inside the square): they fix the
+//    estimated inset towards its marker's centre (near zero with corners
+//    from the markers' edges, aruco_plate.h): they fix the
 //    metric scale and make the world frame w0 the plate frame; their
 //    residuals are weighted by plate_weight. Solves: poses and points under
 //    the initial intrinsics, then everything (f_L, b_L0, B bounded to 30 %

@@ -19,7 +19,9 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr char kFrameMagic[8] = {'L', 'F', 'M', 'C', 'R', 'F', 'R', 'M'};
-constexpr std::uint32_t kFrameVersion = 1;
+// Version 2: plate corners from the markers' edges (marker_edges.h); a
+// version-1 file holds cornerSubPix corners and is processed again.
+constexpr std::uint32_t kFrameVersion = 2;
 
 template <typename T>
 void PutVector(std::ostream& out, const std::vector<T>& v) {
@@ -70,7 +72,7 @@ Expected<CalibrationFrame> LoadCalibrationFrame(const fs::path& path, double lam
   if (!in.read(magic, 8) || std::memcmp(magic, kFrameMagic, 8) != 0 ||
       !in.read(reinterpret_cast<char*>(&version), sizeof(version)) || version != kFrameVersion ||
       !in.read(reinterpret_cast<char*>(&file_lambda), sizeof(file_lambda)))
-    return Error{path.string() + ": not a processed calibration frame (LFMCRFRM, version 1)"};
+    return Error{path.string() + ": not a processed calibration frame (LFMCRFRM, version 2)"};
   if (std::abs(file_lambda - lambda) > 1e-12)
     return Error{path.string() + ": processed with another lambda"};
   if (!in.read(reinterpret_cast<char*>(&f.frame), sizeof(f.frame)) || !GetVector(in, &name) ||
@@ -106,6 +108,8 @@ struct CalibrationFrameLoader::State {
 };
 
 CalibrationFrameLoader::~CalibrationFrameLoader() = default;
+
+ConstImageView CalibrationFrameLoader::last_tf_image() const { return state_->tf.View(); }
 
 Status FrameLoaderOptions::Check() const {
   if (!(lambda > 0.5 && lambda <= 1.0)) return Error{"frame loader: lambda: expected in (0.5, 1]"};

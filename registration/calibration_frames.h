@@ -36,7 +36,7 @@ struct CalibrationFrame {
 
 // A processed frame on disk (a cache for repeated calibrations of the same
 // frames with the same initial lambda): binary, little-endian, magic
-// "LFMCRFRM", version 1, the lambda it was processed with, then the fields
+// "LFMCRFRM", version 2, the lambda it was processed with, then the fields
 // of CalibrationFrame in order. Reading gives an error when the file is not
 // one, or was made with another lambda.
 Status SaveCalibrationFrame(const std::filesystem::path& path, const CalibrationFrame& frame,
@@ -78,6 +78,8 @@ class CalibrationFrameLoader {
   int width() const { return width_; }
   int height() const { return height_; }
   Expected<CalibrationFrame> Load(std::int64_t frame);
+  // The TF image of the last frame Load processed (valid until the next Load).
+  ConstImageView last_tf_image() const;
 
  private:
   CalibrationFrameLoader() = default;

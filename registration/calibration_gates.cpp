@@ -67,6 +67,7 @@ std::string PlateCornerBias::BriefReport() const {
 }
 
 Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFrame>& frames,
+                                                 double frames_lambda,
                                                  const std::filesystem::path& seq,
                                                  const std::string& serial) {
   Expected<CameraCalibration> truth = ReadCameraCalibration(layout::CamerasYamlPath(seq), serial);
@@ -77,12 +78,17 @@ Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFr
   for (const FramePose& p : *true_poses) cam_from_world[p.frame] = p.world_from_cam.inverse();
   const IntrinsicsVector k = ToVector(truth->intrinsics, truth->principal_point_px);
   const double s = truth->intrinsics.pixel_size_mm;
-  // TF pixel of a plate point (x_v = 2 tf + 0.5).
+  const double lambda_ratio = processing::CameraModel(truth->intrinsics).lambda() / frames_lambda;
+  const Eigen::Vector2d c = truth->principal_point_px;
+  // TF pixel of a plate point in the TF image processed with frames_lambda
+  // (x_v = 2 tf + 0.5).
   auto tf_of = [&](const Pose& c_from_w, const Eigen::Vector3d& p_in_w, Eigen::Vector2d* tf) {
     const Eigen::Vector3d p = c_from_w * p_in_w;
     double x_v[3];
     if (!ProjectToVirtual(k.data(), s, p.data(), x_v)) return false;
-    *tf = (Eigen::Vector2d(x_v[0], x_v[1]) - Eigen::Vector2d(0.5, 0.5)) / 2.0;
+    const double v_processed = 1.0 / (1.0 - lambda_ratio * (1.0 - 1.0 / x_v[2]));
+    const Eigen::Vector2d x = c + (Eigen::Vector2d(x_v[0], x_v[1]) - c) * (v_processed / x_v[2]);
+    *tf = (x - Eigen::Vector2d(0.5, 0.5)) / 2.0;
     return true;
   };
   PlateCornerBias b;

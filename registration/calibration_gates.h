@@ -50,12 +50,21 @@ std::vector<std::string> MissedGates(const GroundTruthComparison& c, const GateT
 // (true intrinsics and poses, plenoptic_projection.h): the mean offset in
 // x and y, the mean component towards the marker's centre (inset: positive
 // when the detected corner lies inside the true square), and the RMS.
+// A TF image processed with micro-lens centres of another lambda (lambda0,
+// the initial intrinsics') than the true one is the true TF image scaled
+// about the principal point c by v'/v: a lens centre l'_k = c + (c_k - c)
+// lambda0 makes the disparity of a point at virtual depth v read as v' with
+//   1 - 1/v' = (lambda / lambda0) (1 - 1/v),
+// and its position x_v' - c = (x_v - c) v' / v (the same for every micro
+// image). The true positions are compared in that image, not in the true one
+// (the calibration's observations, raw micro-image positions, are free of it).
 struct PlateCornerBias {
   int corners = 0;
   double mean_x_tf_px = 0, mean_y_tf_px = 0, mean_inset_tf_px = 0, rms_tf_px = 0;
   std::string BriefReport() const;  // one line
 };
 Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFrame>& frames,
+                                                 double frames_lambda,
                                                  const std::filesystem::path& sequence_dir,
                                                  const std::string& serial);
 

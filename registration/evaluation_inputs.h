@@ -1,7 +1,7 @@
 #pragma once
 // The files `lifmcr evaluate` reads besides the Vicon export and the VSK:
 //
-//   registration.csv (lifmcr register, DESIGN.md): a header row naming
+//   registration.csv (lifmcr register, docs/registration.md): a header row naming
 //     frame,camera,method,tx_mm,ty_mm,tz_mm,qw,qx,qy,qz,inliers,rmse_px,status
 //     (any column order), one row per registered frame of c0_from_cx; rows
 //     whose status is not `ok` are kept as failures with their reason.

@@ -80,6 +80,11 @@ FrameRegistration RegisterFrame(const MapIndex& map, const processing::CameraMod
     result.rmse_px = pnp.rmse_px;
     if (!pnp.success) return finish(pnp.status);
     result.w0_from_cam = Inverse(PoseWithCovariance{pnp.cam_from_world, pnp.covariance});
+    for (std::size_t i = 0; i < matches.size() && i < pnp.inlier_mask.size(); ++i) {
+      if (!pnp.inlier_mask[i]) continue;
+      result.inlier_points.push_back(matches[i].train);
+      result.inlier_tf_px.push_back(tf[i]);
+    }
     result.success = true;
     return finish("ok");
   }

@@ -4,15 +4,25 @@
 #include "registration/poses_csv.h"
 #include "replay/layout.h"
 
+#include <cmath>
 #include <map>
 
 namespace lifmcr::registration {
+
+Status GroundTruthMapOptions::Check() const {
+  if (Status s = features.Check(); !s) return Error{"ground-truth map: " + s.error().message};
+  if (Status s = match.Check(); !s) return Error{"ground-truth map: " + s.error().message};
+  if (!(merge_distance_mm > 0) || !std::isfinite(merge_distance_mm))
+    return Error{"ground-truth map: merge_distance_mm: expected > 0"};
+  return Status::Ok();
+}
 
 Expected<ReferenceMap> BuildGroundTruthMap(const std::filesystem::path& sequence_dir,
                                            const std::string& serial,
                                            const std::vector<std::int64_t>& frames,
                                            const processing::CameraModel& camera,
                                            const GroundTruthMapOptions& options) {
+  if (Status s = options.Check(); !s) return s.error();
   Expected<std::vector<FramePose>> poses = ReadPosesCsv(layout::PosesCsvPath(sequence_dir, serial));
   if (!poses) return poses.error();
   std::map<std::int64_t, FramePose> pose_of;

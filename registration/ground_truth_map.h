@@ -24,7 +24,8 @@ namespace lifmcr::registration {
 struct GroundTruthMapOptions {
   FeatureOptions features;
   MatchOptions match;
-  double merge_distance_mm = 5.0;
+  double merge_distance_mm = 5.0;  // > 0
+  Status Check() const;  // every field (features, match: their own); the message names it
 };
 
 Expected<ReferenceMap> BuildGroundTruthMap(const std::filesystem::path& sequence_dir,

@@ -2,17 +2,68 @@
 
 #include "registration/tf_projection.h"
 
+#include <Eigen/Geometry>
+
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
 
 namespace lifmcr::registration {
 
+// One attempt at a frame's pose.
+struct MapLocalizerStage::Outcome {
+  bool success = false;
+  std::string status = "not run";
+  PoseWithCovariance w0_from_cam;
+  int inliers = 0;
+  double rmse_px = 0;
+  // The inliers: map point (MapIndex order) and TF position in this frame.
+  std::vector<std::pair<int, Eigen::Vector2d>> kept;
+};
+
+namespace {
+
+double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// The map point's TF position and virtual depth in a camera at cam_from_w0;
+// false behind the front focal plane.
+bool ProjectPoint(const processing::CameraModel& camera, const Pose& cam_from_w0,
+                  const Eigen::Vector3d& p_in_w0, Eigen::Vector2d* tf_px, double* v) {
+  const Eigen::Vector3d p = cam_from_w0 * p_in_w0;
+  if (!(p.z() > camera.intrinsics().main_focal_length_mm)) return false;
+  const Eigen::Vector3d virtual_px = camera.Project(p);
+  if (!virtual_px.allFinite() || !(virtual_px.z() > 1)) return false;
+  *tf_px = processing::CameraModel::TfOfRaw(virtual_px.head<2>());
+  *v = virtual_px.z();
+  return true;
+}
+
+// The step a_from_b raised to the power alpha (rotation angle and
+// translation scaled; exact for a screw of constant axis to first order).
+Pose ScaledStep(const Pose& step, double alpha) {
+  Eigen::AngleAxisd rotation(step.rotation());
+  rotation.angle() *= alpha;
+  Pose out = Pose::Identity();
+  out.linear() = rotation.toRotationMatrix();
+  out.translation() = alpha * step.translation();
+  return out;
+}
+
+}  // namespace
+
 Status LocalizerOptions::Check() const {
   if (Status s = registration.Check(); !s) return s;
   if (Status s = features.Check(); !s) return s;
-  if (!(track_radius_px > 0)) return Error{"localizer options: track_radius_px: expected > 0"};
+  if (Status s = patches.Check(); !s) return s;
+  if (Status s = checks.Check(); !s) return s;
   if (min_tracked < 3) return Error{"localizer options: min_tracked: expected >= 3"};
+  if (max_tracks < min_tracked)
+    return Error{"localizer options: max_tracks: expected >= min_tracked"};
+  if (track_cells < 1) return Error{"localizer options: track_cells: expected >= 1"};
+  if (!(track_margin_px >= 0)) return Error{"localizer options: track_margin_px: expected >= 0"};
   return Status::Ok();
 }
 
@@ -23,12 +74,24 @@ Covariance6 ToLeftPerturbationCovariance(const PoseWithCovariance& pose) {
 }
 
 MapLocalizerStage::MapLocalizerStage(const ReferenceMap& map, const LocalizerOptions& options)
-    : map_(MapIndex::Of(map)), options_(options) {}
+    : map_(MapIndex::Of(map)), options_(options) {
+  std::vector<double> v;
+  for (const MapImage& image : map.images)
+    for (const MapKeypoint& k : image.keypoints)
+      if (k.point_id >= 0 && std::isfinite(k.virtual_depth) && k.virtual_depth > 1)
+        v.push_back(k.virtual_depth);
+  if (!v.empty()) {
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    map_virtual_depth_ = v[v.size() / 2];
+  }
+}
 
 Pose MapLocalizerStage::CameraState::Predict(std::int64_t trigger) const {
-  if (has_previous && trigger - last_trigger == last_trigger - previous_trigger)
-    return last * (previous.inverse() * last);
-  return last;
+  const std::int64_t step = last_trigger - previous_trigger, ahead = trigger - last_trigger;
+  if (!has_previous || step <= 0 || ahead <= 0) return last;
+  // A long extrapolation is worse than none.
+  const double alpha = std::min(4.0, static_cast<double>(ahead) / static_cast<double>(step));
+  return last * ScaledStep(previous.inverse() * last, alpha);
 }
 
 void MapLocalizerStage::MonitorChanges(const ExtrinsicsMonitorOptions& options) {
@@ -49,67 +112,199 @@ MapLocalizerStage::Counts MapLocalizerStage::counts() const {
   return counts_;
 }
 
-FrameRegistration MapLocalizerStage::Track(const processing::CameraModel& camera,
-                                           const FrameObservations& obs,
-                                           const Pose& predicted) const {
-  const auto start = std::chrono::steady_clock::now();
-  FrameRegistration result;
-  const TfProjection projection = TfProjection::Of(camera);
+MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraModel& camera,
+                                                    const processing::TfSampler& sampler,
+                                                    const ConstImageView& raw,
+                                                    const CameraState& state,
+                                                    std::int64_t trigger) const {
+  Outcome out;
+  const Pose predicted = state.Predict(trigger);
   const Pose cam_from_w0 = predicted.inverse();
-  const double r2 = options_.track_radius_px * options_.track_radius_px;
-  // Projected map points (those in front of the camera).
-  std::vector<int> visible;
-  std::vector<Eigen::Vector2d> projected;
-  for (int j = 0; j < map_.size(); ++j) {
-    const Eigen::Vector3d p = cam_from_w0 * map_.points_in_w0[j];
-    double tf[2];
-    if (!projection(p.data(), tf)) continue;
-    visible.push_back(j);
-    projected.emplace_back(tf[0], tf[1]);
-  }
   std::vector<Eigen::Vector3d> points;
-  std::vector<Eigen::Vector2d> tf_px;
+  std::vector<Eigen::Vector2d> tf;
   std::vector<double> v;
-  for (int i = 0; i < obs.features.size(); ++i) {
-    // The best and second-best descriptor distance among the points within the window.
-    double best = std::numeric_limits<double>::infinity(), second = best;
-    int best_j = -1;
-    const float* q = obs.features.Descriptor(i);
-    for (std::size_t k = 0; k < visible.size(); ++k) {
-      if ((projected[k] - obs.tf_px[i]).squaredNorm() > r2) continue;
-      const float* t = map_.descriptors.data() + static_cast<std::size_t>(visible[k]) * kDescriptorSize;
-      double d = 0;
-      for (int c = 0; c < kDescriptorSize; ++c) d += (q[c] - t[c]) * (q[c] - t[c]);
-      if (d < best) {
-        second = best;
-        best = d;
-        best_j = visible[k];
-      } else if (d < second) {
-        second = d;
+  std::vector<int> ids;
+  PatchTrackOptions patches = options_.patches;
+  const std::int64_t ahead = trigger - state.last_trigger;
+  if (!state.has_previous || ahead > 2) {
+    patches.levels = std::min(4, patches.levels + 1);
+    patches.max_shift_px *= 2;
+  }
+  for (const TrackedPoint& track : *state.tracks) {
+    Eigen::Vector2d predicted_tf;
+    double vp = 0;
+    if (!ProjectPoint(camera, cam_from_w0, map_.points_in_w0[track.point], &predicted_tf, &vp))
+      continue;
+    const PatchTrack r = TrackPatch(sampler, raw, track.patch, predicted_tf, vp, patches);
+    if (!r.ok) continue;
+    points.push_back(map_.points_in_w0[track.point]);
+    tf.push_back(r.tf_px);
+    v.push_back(vp);
+    ids.push_back(track.point);
+  }
+  if (points.size() < static_cast<std::size_t>(options_.min_tracked)) {
+    out.status = "tracking: " + std::to_string(points.size()) + " of " +
+                 std::to_string(state.tracks->size()) + " points followed (< " +
+                 std::to_string(options_.min_tracked) + ")";
+    return out;
+  }
+  PnpOptions pnp = options_.registration.pnp;
+  pnp.final_refinement = true;
+  const PnpResult r = EstimatePlenopticPnp(camera, {points, tf, v}, pnp);
+  out.inliers = static_cast<int>(r.num_inliers);
+  out.rmse_px = r.rmse_px;
+  if (!r.success) {
+    out.status = "tracking: " + r.status;
+    return out;
+  }
+  out.w0_from_cam = Inverse(PoseWithCovariance{r.cam_from_world, r.covariance});
+  std::vector<Eigen::Vector2d> inlier_tf;
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    if (!r.inlier_mask[i]) continue;
+    out.kept.emplace_back(ids[i], tf[i]);
+    inlier_tf.push_back(tf[i]);
+  }
+  PoseEvidence evidence;
+  evidence.inliers = out.inliers;
+  evidence.inlier_tf_px = inlier_tf;
+  evidence.tf_width = sampler.tf_width();
+  evidence.tf_height = sampler.tf_height();
+  evidence.rmse_px = out.rmse_px;
+  evidence.covariance = ToLeftPerturbationCovariance(out.w0_from_cam);
+  evidence.w0_from_cam = out.w0_from_cam.pose;
+  evidence.predicted_w0_from_cam = predicted;
+  out.status = CheckPose(evidence, options_.checks);
+  if (out.inliers < options_.min_tracked)
+    out.status = "tracking: " + std::to_string(out.inliers) + " inliers (< " +
+                 std::to_string(options_.min_tracked) + ")";
+  out.success = out.status == "ok";
+  return out;
+}
+
+MapLocalizerStage::Outcome MapLocalizerStage::Relocalise(const processing::CameraModel& camera,
+                                                         const processing::StageFrame& frame,
+                                                         const processing::TfSampler* sampler,
+                                                         const CameraState& state) const {
+  Outcome out;
+  FrameObservations obs;
+  obs.frame = frame.trigger_index;
+  // The chain's TF image and depth when the frame was processed, else the
+  // TF grid refocused at one virtual depth (this frame's own TF image).
+  processing::TfImage refocused;
+  const processing::TfImage* tf = nullptr;
+  double render_v = map_virtual_depth_;
+  if (frame.products) {
+    tf = &frame.products->tf;
+  } else {
+    if (state.has_pose) {
+      // The median virtual depth of the map points the last pose shows.
+      const Pose cam_from_w0 = state.last.inverse();
+      std::vector<double> v;
+      for (const Eigen::Vector3d& p : map_.points_in_w0) {
+        Eigen::Vector2d tf_px;
+        double vp = 0;
+        if (ProjectPoint(camera, cam_from_w0, p, &tf_px, &vp) && tf_px.x() >= 0 &&
+            tf_px.y() >= 0 && tf_px.x() < sampler->tf_width() && tf_px.y() < sampler->tf_height())
+          v.push_back(vp);
+      }
+      if (!v.empty()) {
+        std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+        render_v = v[v.size() / 2];
       }
     }
-    if (best_j < 0) continue;
-    const double ratio = options_.registration.match.ratio;
-    if (std::isfinite(second) && best >= ratio * ratio * second) continue;
-    points.push_back(map_.points_in_w0[best_j]);
-    tf_px.push_back(obs.tf_px[i]);
-    v.push_back(obs.virtual_depth[i]);
+    if (Status s = sampler->RenderAtDepth(frame.raw, render_v, &refocused); !s) {
+      out.status = s.error().message;
+      return out;
+    }
+    tf = &refocused;
   }
-  result.matches = points.size();
-  PnpOptions pnp = options_.registration.pnp;
-  pnp.final_refinement = false;  // the LO-RANSAC optimum; the live path saves the Ceres polish
-  const PnpResult r = EstimatePlenopticPnp(camera, {points, tf_px, v}, pnp);
-  result.inliers = r.num_inliers;
-  result.rmse_px = r.rmse_px;
-  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (Status s = DetectSift(tf->View(), options_.features, &obs.features); !s) {
+    out.status = s.error().message;
+    return out;
+  }
+  obs.virtual_depth.resize(obs.features.keypoints.size(), std::numeric_limits<double>::quiet_NaN());
+  for (std::size_t i = 0; i < obs.features.keypoints.size(); ++i) {
+    if (!frame.products) {
+      obs.virtual_depth[i] = render_v;
+      continue;
+    }
+    const processing::TfDepthMap& depth = frame.products->tf_depth;
+    const int u = static_cast<int>(std::lround(obs.features.keypoints[i].xy_px.x()));
+    const int w = static_cast<int>(std::lround(obs.features.keypoints[i].xy_px.y()));
+    if (u < 0 || w < 0 || u >= depth.width || w >= depth.height) continue;
+    obs.virtual_depth[i] = depth.virtual_depth[static_cast<std::size_t>(w) * depth.width + u];
+  }
+  CompleteObservations(camera, &obs);
+  const FrameRegistration r =
+      RegisterFrame(map_, camera, obs, RegistrationMethod::kPnp, options_.registration);
+  out.inliers = static_cast<int>(r.inliers);
+  out.rmse_px = r.rmse_px;
   if (!r.success) {
-    result.status = r.status;
-    return result;
+    out.status = r.status;
+    return out;
   }
-  result.w0_from_cam = Inverse(PoseWithCovariance{r.cam_from_world, r.covariance});
-  result.success = true;
-  result.status = "ok";
-  return result;
+  out.w0_from_cam = r.w0_from_cam;
+  for (std::size_t i = 0; i < r.inlier_points.size(); ++i)
+    out.kept.emplace_back(r.inlier_points[i], r.inlier_tf_px[i]);
+  PoseEvidence evidence;
+  evidence.inliers = out.inliers;
+  evidence.inlier_tf_px = r.inlier_tf_px;
+  evidence.tf_width = tf->width;
+  evidence.tf_height = tf->height;
+  evidence.rmse_px = out.rmse_px;
+  evidence.covariance = ToLeftPerturbationCovariance(out.w0_from_cam);
+  evidence.w0_from_cam = out.w0_from_cam.pose;
+  out.status = CheckPose(evidence, options_.checks);
+  out.success = out.status == "ok";
+  return out;
+}
+
+std::shared_ptr<const MapLocalizerStage::Tracks> MapLocalizerStage::Retrack(
+    const processing::CameraModel& camera, const processing::TfSampler& sampler,
+    const ConstImageView& raw, const Pose& w0_from_cam,
+    const std::vector<std::pair<int, Eigen::Vector2d>>& kept) const {
+  auto tracks = std::make_shared<Tracks>();
+  const int cells = options_.track_cells;
+  const int cap = (options_.max_tracks + cells * cells - 1) / (cells * cells);
+  std::vector<int> in_cell(static_cast<std::size_t>(cells) * cells, 0);
+  std::vector<int> tried(in_cell.size(), 0);
+  const double w = sampler.tf_width(), h = sampler.tf_height(), margin = options_.track_margin_px;
+  const Pose cam_from_w0 = w0_from_cam.inverse();
+  std::vector<char> used(static_cast<std::size_t>(map_.size()), 0);
+  // One level more than tracking uses: Track's weak predictions need it.
+  PatchTrackOptions template_options = options_.patches;
+  template_options.levels = std::min(4, template_options.levels + 1);
+  // Adds map point `point` seen at tf_px (virtual depth v) when its cell has room.
+  const auto add = [&](int point, const Eigen::Vector2d& tf_px, double v) {
+    if (used[point] || static_cast<int>(tracks->size()) >= options_.max_tracks) return;
+    if (tf_px.x() < margin || tf_px.y() < margin || tf_px.x() >= w - margin ||
+        tf_px.y() >= h - margin)
+      return;
+    const int cx = std::min(cells - 1, static_cast<int>(tf_px.x() / w * cells));
+    const int cy = std::min(cells - 1, static_cast<int>(tf_px.y() / h * cells));
+    const std::size_t cell = static_cast<std::size_t>(cy) * cells + cx;
+    // Untextured candidates cost a template each: a few per cell only.
+    if (in_cell[cell] >= cap || tried[cell] >= 4 * cap) return;
+    ++tried[cell];
+    TrackedPoint track{point, tf_px, {}};
+    if (!MakePatchTemplate(sampler, raw, tf_px, v, template_options, &track.patch)) return;
+    used[point] = 1;
+    ++in_cell[cell];
+    tracks->push_back(std::move(track));
+  };
+  for (const auto& [point, tf_px] : kept) {
+    Eigen::Vector2d projected;
+    double v = 0;
+    if (ProjectPoint(camera, cam_from_w0, map_.points_in_w0[point], &projected, &v))
+      add(point, tf_px, v);
+  }
+  for (int j = 0; j < map_.size(); ++j) {
+    if (static_cast<int>(tracks->size()) >= options_.max_tracks) break;
+    Eigen::Vector2d tf_px;
+    double v = 0;
+    if (ProjectPoint(camera, cam_from_w0, map_.points_in_w0[j], &tf_px, &v)) add(j, tf_px, v);
+  }
+  return tracks;
 }
 
 Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
@@ -118,20 +313,8 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   if (!frame.camera->camera_model())
     return std::optional<processing::CameraPose>();  // no intrinsics: nothing to localise
   const processing::CameraModel& camera = *frame.camera->camera_model();
-  const processing::ChainProducts& products = *frame.products;
-  FrameObservations obs;
-  obs.frame = frame.trigger_index;
-  if (Status s = DetectSift(products.tf.View(), options_.features, &obs.features); !s)
-    return s.error();
-  obs.virtual_depth.resize(obs.features.keypoints.size(), std::numeric_limits<double>::quiet_NaN());
-  const processing::TfDepthMap& depth = products.tf_depth;
-  for (std::size_t i = 0; i < obs.features.keypoints.size(); ++i) {
-    const int u = static_cast<int>(std::lround(obs.features.keypoints[i].xy_px.x()));
-    const int w = static_cast<int>(std::lround(obs.features.keypoints[i].xy_px.y()));
-    if (u < 0 || w < 0 || u >= depth.width || w >= depth.height) continue;
-    obs.virtual_depth[i] = depth.virtual_depth[static_cast<std::size_t>(w) * depth.width + u];
-  }
-  CompleteObservations(camera, &obs);
+  auto sampler = frame.camera->Sampler(frame.raw);
+  if (!sampler) return sampler.error();
 
   CameraState state;
   {
@@ -139,28 +322,56 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     CameraState& s = cameras_[frame.serial];
     if (frame.host_ns > s.last_host_ns && frame.trigger_index <= s.last_trigger)
       s = CameraState{};  // a new pass
+    const bool will_relocalise = !(s.has_pose && options_.track && s.tracks && !s.tracks->empty());
+    if (will_relocalise && s.relocalising) {
+      ++counts_.skipped;
+      return std::optional<processing::CameraPose>();
+    }
+    if (will_relocalise) s.relocalising = true;
     state = s;
   }
-  FrameRegistration r;
+  // Cleared whatever the outcome (also on an error return).
+  struct Done {
+    MapLocalizerStage* stage;
+    const std::string& serial;
+    bool active;
+    ~Done() {
+      if (!active) return;
+      std::lock_guard<std::mutex> lock(stage->mutex_);
+      stage->cameras_[serial].relocalising = false;
+    }
+  } done{this, frame.serial, !(state.has_pose && options_.track && state.tracks &&
+                               !state.tracks->empty())};
+  Outcome r;
   std::string localisation = "relocalised";
-  if (state.has_pose && options_.track) {
-    r = Track(camera, obs, state.Predict(frame.trigger_index));
-    if (r.success && r.inliers >= static_cast<std::size_t>(options_.min_tracked))
-      localisation = "tracked";
-    else
-      r = FrameRegistration{};
+  if (state.has_pose && options_.track && state.tracks && !state.tracks->empty()) {
+    r = Track(camera, **sampler, frame.raw, state, frame.trigger_index);
+    if (r.success) localisation = "tracked";
   }
-  if (!r.success)
-    r = RegisterFrame(map_, camera, obs, RegistrationMethod::kPnp, options_.registration);
+  if (!r.success) {
+    Outcome relocalised = Relocalise(camera, frame, *sampler, state);
+    // A refused or failed relocalisation says why tracking did not serve either.
+    if (!relocalised.success && localisation == "relocalised" && r.status != "not run")
+      relocalised.status += " (after " + r.status + ")";
+    r = std::move(relocalised);
+  }
+  std::shared_ptr<const Tracks> tracks;
+  if (r.success && options_.track) {
+    // Tracked: the inliers go on from where they were found; relocalised:
+    // every track starts at its map point's projection (the SIFT keypoints
+    // of a refocused image are less exact than the pose).
+    tracks = Retrack(camera, **sampler, frame.raw, r.w0_from_cam.pose,
+                     localisation == "tracked" ? r.kept
+                                               : std::vector<std::pair<int, Eigen::Vector2d>>{});
+  }
 
   processing::CameraPose pose;
   pose.method = std::string(ToString(RegistrationMethod::kPnp));
   pose.localisation = localisation;
-  pose.inliers = static_cast<int>(r.inliers);
+  pose.inliers = r.inliers;
   pose.rmse_px = r.rmse_px;
   pose.status = r.status;
-  const double seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double seconds = SecondsSince(start);
   std::lock_guard<std::mutex> lock(mutex_);
   CameraState& s = cameras_[frame.serial];
   const bool newest = frame.host_ns >= s.last_host_ns && frame.trigger_index > s.last_trigger;
@@ -189,6 +400,7 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     s.last_trigger = frame.trigger_index;
     s.last_host_ns = frame.host_ns;
     s.has_pose = true;
+    s.tracks = std::move(tracks);
   }
   pose.transform = r.w0_from_cam.pose;
   pose.covariance = ToLeftPerturbationCovariance(r.w0_from_cam);

@@ -3,34 +3,54 @@
 // pipeline: a per-camera localizer against camera 0's reference map, for
 // camera 0 and every camera X.
 //
-// Per frame of a camera: SIFT on the processed TF image, each keypoint's
-// virtual depth from the TF depth map (registration/frame_observations.h),
-// then
-//   track        when the camera has a pose: the pose is predicted by constant
-//                velocity, w_pred = w_last (w_prev^-1 w_last) (w = w0_from_cam;
-//                for a step of as many triggers as the last one),
-//                the map's points are projected with it (registration/tf_projection.h),
-//                and each keypoint is matched only against the points projected
-//                within track_radius_px of it (ratio test among those). PnP
-//                then needs few trials (the inlier ratio is high).
-//   relocalise   otherwise, or when tracking finds fewer than min_tracked
-//                inliers: global matching against every map point (ratio and
-//                cross check) and full LO-RANSAC PnP.
+// Per frame of a camera (Localize), from the raw frame:
+//   track        when the camera has a pose and tracked map points: the pose
+//                is predicted at constant velocity in SE(3) (the last step
+//                scaled to the triggers ahead: w_pred = w_last exp(k/m
+//                log(w_prev^-1 w_last)), w = w0_from_cam, a step of m
+//                triggers, k ahead); each tracked map point is projected
+//                with it and followed by Lucas-Kanade on the TF image
+//                sampled at its predicted virtual depth
+//                (registration/patch_tracker.h, processing/tf_sampler.h):
+//                no depth map, no whole TF image, no SIFT; PnP on those
+//                positions (few trials: the inlier ratio is high). The
+//                inliers keep being tracked (their templates re-made in
+//                this frame), and map points the pose shows in image cells
+//                with too few tracks are added (their templates at their
+//                projection), up to max_tracks spread over the image.
+//                When the prediction is weak (no velocity yet, or more than
+//                two triggers ahead: frames skipped, a relocalisation that
+//                took long) one more pyramid level and twice the shift are
+//                allowed.
+//   relocalise   otherwise, or when tracking fails: SIFT on a TF image (the
+//                chain's when the frame was processed, else the whole TF
+//                grid rendered at one virtual depth, TfSampler::RenderAtDepth:
+//                the predicted median of the map points when the camera had
+//                a pose, else the map's median), global matching against
+//                every map point (ratio and cross check, kd-tree) and full
+//                LO-RANSAC PnP; the tracks are seeded from the pose. A
+//                frame of a camera that another worker is relocalising is
+//                not localised (Counts::skipped): relocalising it too would
+//                only repeat the work.
+// Every pose passes registration/pose_checks.h (tracked ones also against
+// the prediction); a refused one is published with the reason as status
+// and the camera relocalises at its next frame.
 // The pose carries `method` "pnp", `localisation` "tracked" or "relocalised" and the
 // covariance in the stage's convention (a left SE(3) perturbation, (t, r)),
 // converted from pose_covariance.h's (additive translation):
 //   rho = dt + [t]x dr   (t the translation of w0_from_cam),
 // so Sigma_stage = A Sigma A^T, A = [[I, [t]x], [0, I]].
-// SIFT detection still runs on the whole TF image; tracking saves the global
-// matching and most RANSAC trials, not the detection.
 
 #include "processing/registration_stage.h"
 #include "registration/extrinsics_monitor.h"
 #include "registration/frame_registration.h"
+#include "registration/patch_tracker.h"
+#include "registration/pose_checks.h"
 #include "registration/reference_map.h"
 
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -38,15 +58,22 @@
 namespace lifmcr::registration {
 
 struct LocalizerOptions {
-  // The strongest 4000 keypoints per frame, as `lifmcr register` keeps: all
-  // of a medium TF image's (tens of thousands) made a relocalisation's
-  // global matching take 100 s on 2 loaded cores (bench_live).
-  LocalizerOptions() { features.max_features = 4000; }
-  FrameRegistrationOptions registration;
-  FeatureOptions features;
-  double track_radius_px = 12;  // local matching window on the TF grid (> 0)
-  int min_tracked = 30;         // fewer inliers when tracking: relocalise (>= 3)
-  bool track = true;            // false: relocalise every frame (the baseline of bench_live)
+  // The strongest 4000 keypoints per relocalised frame, as `lifmcr register`
+  // keeps; global matching by kd-tree (exact matching of 4000 keypoints
+  // against a map of 7000 points took seconds on 2 cores: bench_live).
+  LocalizerOptions() {
+    features.max_features = 4000;
+    registration.match.kd_tree_checks = 64;
+  }
+  FrameRegistrationOptions registration;  // relocalisation; its pnp also when tracking
+  FeatureOptions features;                // relocalisation's SIFT
+  PatchTrackOptions patches;              // tracking
+  PoseCheckOptions checks;                // every pose
+  int max_tracks = 160;       // map points tracked per frame (>= min_tracked)
+  int track_cells = 6;        // tracks spread over track_cells^2 cells of the TF image (>= 1)
+  double track_margin_px = 16;  // tracks stay this far inside the TF image (>= 0)
+  int min_tracked = 30;       // fewer tracked inliers: relocalise (>= 3)
+  bool track = true;          // false: relocalise every frame (the baseline of bench_live)
   Status Check() const;
 };
 
@@ -67,6 +94,10 @@ class MapLocalizerStage final : public processing::RegistrationStage {
   // Frames tracked and relocalised so far (all cameras).
   struct Counts {
     long long tracked = 0, relocalised = 0, failed = 0;
+    // Frames that came while their camera was relocalising on another
+    // worker: not localised (the frame passes through) rather than
+    // relocalised twice at once.
+    long long skipped = 0;
     // Localize's time (features, matching, PnP) of the frames so counted; a
     // frame whose tracking failed pays both and counts as relocalised.
     double tracked_s = 0, relocalised_s = 0, failed_s = 0;
@@ -80,21 +111,38 @@ class MapLocalizerStage final : public processing::RegistrationStage {
   // frame that reached the host later but has a lower trigger index starts a
   // new pass (replay --loop numbers its triggers from 0 again): the state is
   // dropped, the frame relocalised.
+  // A map point followed from frame to frame.
+  struct TrackedPoint {
+    int point = 0;                 // index into map_
+    Eigen::Vector2d tf_px;         // where it was in the camera's last frame
+    PatchTemplate patch;           // its appearance there
+  };
+  using Tracks = std::vector<TrackedPoint>;
   struct CameraState {
     bool has_pose = false;
     Pose last = Pose::Identity(), previous = Pose::Identity();
     std::int64_t last_trigger = -1, previous_trigger = -1;
     std::int64_t last_host_ns = 0;
     bool has_previous = false;
-    // Prediction for `trigger`: constant velocity when the step from the
-    // previous pose to the last spans as many triggers as the step ahead
-    // (w_pred = w_last (w_prev^-1 w_last)), else the last pose.
+    std::shared_ptr<const Tracks> tracks;  // of the last frame (shared by concurrent frames)
+    bool relocalising = false;  // a worker relocalises this camera now
+    // Prediction for `trigger` (header comment); the last pose without a previous one.
     Pose Predict(std::int64_t trigger) const;
   };
-  FrameRegistration Track(const processing::CameraModel& camera, const FrameObservations& obs,
-                          const Pose& predicted_w0_from_cam) const;
+  struct Outcome;  // of one attempt (map_localizer.cpp)
+  Outcome Track(const processing::CameraModel& camera, const processing::TfSampler& sampler,
+                const ConstImageView& raw, const CameraState& state, std::int64_t trigger) const;
+  Outcome Relocalise(const processing::CameraModel& camera, const processing::StageFrame& frame,
+                     const processing::TfSampler* sampler, const CameraState& state) const;
+  // Tracks for the next frame: `kept` (re-templated at their new positions)
+  // and map points in cells with room, from pose w0_from_cam.
+  std::shared_ptr<const Tracks> Retrack(const processing::CameraModel& camera,
+                                        const processing::TfSampler& sampler,
+                                        const ConstImageView& raw, const Pose& w0_from_cam,
+                                        const std::vector<std::pair<int, Eigen::Vector2d>>& kept) const;
 
   MapIndex map_;
+  double map_virtual_depth_ = 3.0;  // median v of the map's keypoints (relocalisation's TF)
   std::optional<ExtrinsicsMonitor> monitor_;  // Relate's thread only
   LocalizerOptions options_;
   mutable std::mutex mutex_;

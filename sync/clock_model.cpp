@@ -5,6 +5,14 @@
 #include <cstdio>
 
 namespace lifmcr {
+
+Status ClockModelOptions::Check() const {
+  if (window < 2) return Error{"clock model: window: expected >= 2 samples"};
+  if (jump_threshold_ns <= 0) return Error{"clock model: jump_threshold_ns: expected > 0"};
+  if (jump_confirm < 1) return Error{"clock model: jump_confirm: expected >= 1"};
+  return Status::Ok();
+}
+
 namespace {
 
 double Median(std::vector<double> values) {

@@ -15,6 +15,8 @@
 // them and `jumps` counts it (the outliers before it are then not counted as
 // outliers). Residual jitter is the robust sigma of the inliers.
 
+#include "config/error.h"
+
 #include <cstdint>
 #include <deque>
 #include <string>
@@ -27,6 +29,7 @@ struct ClockModelOptions {
   std::int64_t jump_threshold_ns = 10'000'000;  // residual that makes a sample an outlier, > 0
   int jump_confirm = 4;                         // agreeing outliers that make a jump, >= 1
   bool operator==(const ClockModelOptions&) const = default;
+  Status Check() const;  // every field; the message names the field
 };
 
 struct ClockUpdate {

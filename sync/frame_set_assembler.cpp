@@ -23,23 +23,19 @@ FrameSetAssemblerOptions FrameSetAssemblerOptions::FromRig(const RigConfig& rig)
 
 Status FrameSetAssemblerOptions::Check() const {
   auto bad = [](const std::string& what) { return Status(Error{"frame set assembler: " + what}); };
-  if (serials.empty()) return bad("at least one camera is needed");
+  if (serials.empty()) return bad("serials: expected at least one camera");
   if (!device_clocks.empty() && device_clocks.size() != serials.size())
     return bad("device_clocks: expected none or one per camera (" + std::to_string(serials.size()) +
                "), got " + std::to_string(device_clocks.size()));
-  if (trigger.trigger_period_ns <= 0) return bad("trigger period must be > 0 ns");
-  if (!(trigger.tolerance > 0.0 && trigger.tolerance < 0.5))
-    return bad("trigger tolerance must be in (0, 0.5) periods");
-  if (trigger.counter_bits < 2 || trigger.counter_bits > 64)
-    return bad("frame counter bits must be 2..64");
-  if (clock.window < 2 || clock.jump_threshold_ns <= 0 || clock.jump_confirm < 1)
-    return bad("clock model: window >= 2, jump threshold > 0, jump confirm >= 1");
-  if (vicon_divider < 1) return bad("Vicon divider must be >= 1");
+  if (Status s = trigger.Check(); !s) return bad(s.error().message);
+  if (Status s = clock.Check(); !s) return bad(s.error().message);
+  if (vicon_divider < 1) return bad("vicon_divider: expected >= 1");
   if (!(vicon_rate_hz > 0.0) || !std::isfinite(vicon_rate_hz))
-    return bad("Vicon rate must be > 0 Hz");
-  if (vicon_phase_tolerance_ns <= 0) return bad("Vicon phase tolerance must be > 0 ns");
-  if (lateness_ns <= 0) return bad("lateness bound must be > 0 ns");
-  if (max_vicon_frames < 16) return bad("at least 16 Vicon frames must be buffered");
+    return bad("vicon_rate_hz: expected > 0 Hz");
+  if (vicon_phase_tolerance_ns <= 0) return bad("vicon_phase_tolerance_ns: expected > 0");
+  if (lateness_ns <= 0) return bad("lateness_ns: expected > 0");
+  if (max_vicon_frames < 16) return bad("max_vicon_frames: expected >= 16");
+  // vicon_expected, vicon_f0 (any frame number), vicon_arrival_offset_ns (either sign): any.
   return Status::Ok();
 }
 

@@ -25,6 +25,8 @@
 // Gaps of more than 2^bits - 2 frames make the counter check ambiguous: it
 // is then skipped and the time alone decides.
 
+#include "config/error.h"
+
 #include <cstdint>
 #include <optional>
 #include <string_view>
@@ -37,6 +39,7 @@ struct TriggerTrackerOptions {
   int counter_bits = 16;           // 16 (GigE Vision 1 block id) .. 64 (no wrap)
   bool counter_skips_zero = true;  // GigE Vision block ids go 65535 -> 1
   bool operator==(const TriggerTrackerOptions&) const = default;
+  Status Check() const;  // every field; the message names the field
 };
 
 enum class FrameVerdict {

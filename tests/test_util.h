@@ -10,7 +10,7 @@
 
 namespace lifmcr::test {
 
-// Path of a file in tests/data/samples (verbatim copies of ../shared/samples).
+// Path of a file in tests/data/samples (their origins: tests/data/samples/SOURCES.md).
 std::filesystem::path SamplePath(const std::string& name);
 
 // Path of the built `lifmcr` executable.

@@ -198,6 +198,16 @@ Expected<std::unique_ptr<DepthProcessor>> DepthProcessor::ForSequence(
   return std::make_unique<DepthProcessor>(std::move(*chain), preview, std::move(formats));
 }
 
+Expected<RegistrationInput> DepthProcessor::ForRegistration(const Frame& frame) {
+  RegistrationInput input;
+  input.camera = chain_->Find(frame.serial);
+  if (input.camera == nullptr) return Error{"depth: no MLA calibration for camera " + frame.serial};
+  auto image = ColourView(frame, formats_, &input.demosaiced);
+  if (!image) return image.error();
+  input.image = *image;
+  return input;
+}
+
 Expected<ProcessedFrame> DepthProcessor::Process(const Frame& frame) {
   const auto start = std::chrono::steady_clock::now();
   processing::CameraChain* camera = chain_->Find(frame.serial);

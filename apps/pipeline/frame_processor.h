@@ -68,8 +68,17 @@ struct ProcessedFrame {
   // A Bayer camera's frame demosaiced (BGR8): what the products view instead
   // of the pooled mosaic, kept alive with them.
   std::shared_ptr<const OwnedImage> demosaiced;
-  const processing::CameraChain* camera = nullptr;
+  processing::CameraChain* camera = nullptr;
   double seconds = 0;
+};
+
+// What the registration stage needs of a frame without processing it: the
+// camera's chain (its model and TF sampler) and the image the chain takes.
+struct RegistrationInput {
+  processing::CameraChain* camera = nullptr;  // null: the processor has no chain for it
+  ConstImageView image;
+  // A Bayer camera's frame demosaiced (BGR8): what `image` views.
+  std::shared_ptr<const OwnedImage> demosaiced;
 };
 
 struct PreviewOptions {
@@ -84,6 +93,10 @@ class FrameProcessor {
   virtual ~FrameProcessor() = default;
   virtual Expected<ProcessedFrame> Process(const Frame& frame) = 0;
   virtual std::string name() const = 0;  // "preview", "depth"
+  // The frame for the registration stage, unprocessed (default: no chain).
+  virtual Expected<RegistrationInput> ForRegistration(const Frame&) {
+    return RegistrationInput{};
+  }
 };
 
 // Downscaled JPEG of `image` (Mono8 or BGR8).
@@ -133,6 +146,7 @@ class DepthProcessor final : public FrameProcessor {
   ~DepthProcessor() override;
   Expected<ProcessedFrame> Process(const Frame& frame) override;
   std::string name() const override { return "depth"; }
+  Expected<RegistrationInput> ForRegistration(const Frame& frame) override;
   const processing::ProcessingChain& chain() const { return *chain_; }
 
  private:

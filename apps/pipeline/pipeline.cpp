@@ -1,5 +1,6 @@
-// The pipeline's scheduling (pipeline.h): sync under a mutex, a TBB flow
-// graph for processing and publication, the publisher as the only way out.
+// The pipeline's scheduling (pipeline.h): the grab loop's FrameSets handed
+// over under a mutex, a TBB flow graph for processing and publication, the
+// publisher as the only way out.
 
 #include "apps/pipeline/pipeline.h"
 
@@ -21,6 +22,7 @@
 #include <optional>
 #include <sstream>
 #include <sys/resource.h>
+#include <thread>
 #include <sys/syscall.h>
 #include <unistd.h>
 #include <utility>
@@ -106,6 +108,7 @@ struct Result {
   Job job;
   Expected<ProcessedFrame> processed{Error{"not processed"}};
   std::optional<processing::CameraPose> w0_from_cx;  // the registration stage's pose
+  bool depth_lane = false;  // from the depth lane (lanes): products to publish, no worker token
 };
 
 }  // namespace
@@ -146,28 +149,34 @@ struct Pipeline::Impl {
   std::unique_ptr<FrameProcessor> processor;
   std::shared_ptr<processing::RegistrationStage> registration;
   bool localizes = false;  // a stage other than the pass-through
+  // Registration ahead of processing (a stage, newest_wins): the workers
+  // localise every frame they take from the raw frame and offer it to the
+  // depth lane, one low-priority thread that processes the newest offered
+  // frame of the camera served least recently (the others are skipped), so
+  // extrinsics keep the frame rate while depth, TF and previews are
+  // published at the rate processing allows.
+  bool lanes = false;
   int reference_camera = 0;  // camera index of options.reference_serial
   std::unique_ptr<Publisher> publisher;
 
+  // The grab loop's hand-over (sync_mutex): sets waiting for Poll, the
+  // losses of this pass's assembler and of the earlier passes', and f0 (the
+  // Vicon frame of trigger 0) as the sets say it.
   std::mutex sync_mutex;
-  std::unique_ptr<FrameSetAssembler> assembler;  // null with frame_sets_from_grab_loop
-  DropCounter drops_before;  // of the assemblers of earlier passes
-  // frame_sets_from_grab_loop (sync_mutex): sets waiting for Poll, the grab
-  // loop's losses, and f0 as the sets say it.
-  std::vector<FrameSet> external_sets;
-  DropCounter external_drops;
-  std::optional<std::int64_t> external_f0;
+  std::vector<FrameSet> sets_in;
+  DropCounter drops_this_pass;
+  DropCounter drops_before;
+  std::optional<std::int64_t> sets_f0;
 
   DropCounter SyncDrops() const {  // sync_mutex held
     DropCounter drops = drops_before;
-    const DropCounter& current = assembler ? assembler->drops() : external_drops;
     for (int k = 0; k < kDropKindCount; ++k)
-      drops.Add(static_cast<DropKind>(k), current[static_cast<DropKind>(k)]);
+      drops.Add(static_cast<DropKind>(k), drops_this_pass[static_cast<DropKind>(k)]);
     return drops;
   }
-  std::vector<FrameSet> TakeSets(bool flush) {  // sync_mutex held
-    if (!assembler) return std::exchange(external_sets, {});
-    return flush ? assembler->Flush() : assembler->Poll(NowRealtimeNs());
+  std::vector<FrameSet> TakeSets() {
+    std::lock_guard lock(sync_mutex);
+    return std::exchange(sets_in, {});
   }
 
   // Processing gets `threads` workers: its own arena has no master slot (the
@@ -211,7 +220,53 @@ struct Pipeline::Impl {
   std::uint64_t stats_last_processed = 0;
   std::chrono::steady_clock::time_point stats_last_time = start;
 
+  // The depth lane (lanes): the newest frame offered per camera, its thread.
+  std::mutex depth_mutex;
+  std::condition_variable depth_cv;
+  std::map<int, Job> depth_slots;
+  std::map<int, std::uint64_t> depth_served;
+  std::uint64_t depth_serve_count = 0;
+  bool depth_busy = false, depth_stop = false;
+  std::unique_ptr<tbb::task_arena> depth_arena;  // low priority: the workers localise first
+  std::thread depth_thread;
+
+  void OfferDepth(const Job& job) {
+    {
+      std::lock_guard lock(depth_mutex);
+      if (depth_slots.count(job.frame.camera_index)) {
+        std::lock_guard r(report_mutex);
+        ++report.depth_skipped;
+      }
+      depth_slots.insert_or_assign(job.frame.camera_index, job);
+    }
+    depth_cv.notify_all();
+  }
+
+  void DepthLoop(int nice) {
+    // The lowest priority of the process: depth takes what localising leaves.
+    (void)setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), nice);
+    for (;;) {
+      Job job;
+      {
+        std::unique_lock lock(depth_mutex);
+        depth_cv.wait(lock, [&] { return depth_stop || !depth_slots.empty(); });
+        if (depth_stop) return;
+        auto pick = depth_slots.begin();
+        for (auto it = depth_slots.begin(); it != depth_slots.end(); ++it)
+          if (depth_served[it->first] < depth_served[pick->first]) pick = it;
+        job = std::move(pick->second);
+        depth_slots.erase(pick);
+        depth_served[job.frame.camera_index] = ++depth_serve_count;
+        depth_busy = true;
+      }
+      Result result{std::move(job), Error{""}, std::nullopt, true};
+      depth_arena->execute([&] { result.processed = processor->Process(result.job.frame); });
+      publish_node->try_put(std::move(result));
+    }
+  }
+
   Result RunProcess(Job job) {
+    if (lanes) return RunRegistration(std::move(job));
     Result result{std::move(job), Error{""}, std::nullopt};
     result.processed = processor->Process(result.job.frame);
     if (localizes && result.processed && result.processed->products) {
@@ -223,6 +278,7 @@ struct Pipeline::Impl {
       frame.host_ns = result.job.frame.host_ns;
       frame.products = result.processed->products.get();
       frame.camera = result.processed->camera;
+      frame.raw = result.processed->products->prepared.raw;
       auto pose = registration->Localize(frame);
       if (!pose)
         result.processed = Error{"registration (" + registration->name() +
@@ -231,6 +287,60 @@ struct Pipeline::Impl {
         result.w0_from_cx = std::move(*pose);
     }
     return result;
+  }
+
+  // Lanes: the frame localised from its raw pixels, then offered to the depth lane.
+  Result RunRegistration(Job job) {
+    const auto start = std::chrono::steady_clock::now();
+    Result result{std::move(job), ProcessedFrame{}, std::nullopt};
+    auto input = processor->ForRegistration(result.job.frame);
+    if (!input) {
+      result.processed = input.error();
+    } else if (input->camera) {
+      processing::StageFrame frame;
+      frame.camera_index = result.job.frame.camera_index;
+      frame.serial = result.job.frame.serial;
+      frame.trigger_index = result.job.trigger_index;
+      frame.vicon_frame = result.job.vicon_frame;
+      frame.host_ns = result.job.frame.host_ns;
+      frame.raw = input->image;
+      frame.camera = input->camera;
+      auto pose = registration->Localize(frame);
+      if (!pose)
+        result.processed = Error{"registration (" + registration->name() +
+                                 "): " + pose.error().message};
+      else
+        result.w0_from_cx = std::move(*pose);
+    }
+    if (result.processed)
+      result.processed->seconds =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    OfferDepth(result.job);
+    return result;
+  }
+
+  // The depth lane's frame: its products published.
+  void PublishDepth(const Result& result) {
+    const Job& job = result.job;
+    if (!result.processed) {
+      std::lock_guard r(report_mutex);
+      ++report.depth_failed;
+      report.last_error = job.frame.serial + " frame " + std::to_string(job.frame.frame_id) +
+                          ": " + result.processed.error().message;
+    } else {
+      const Publisher::FrameCounts counts = publisher->PublishFrame(
+          FrameMeta{job.frame.serial, job.frame.frame_id, job.trigger_index}, *result.processed);
+      std::lock_guard r(report_mutex);
+      ++report.depth_processed;
+      report.published_previews += counts.previews;
+      report.published_depth += counts.depth;
+      report.published_tf += counts.tf;
+    }
+    {
+      std::lock_guard lock(depth_mutex);
+      depth_busy = false;
+    }
+    depth_cv.notify_all();
   }
 
   // Camera X's pose of a trigger: related to camera 0's of the same trigger
@@ -261,6 +371,7 @@ struct Pipeline::Impl {
   }
 
   void RunPublish(Result result) {
+    if (result.depth_lane) return PublishDepth(result);
     const Job& job = result.job;
     if (!result.processed) {
       std::lock_guard r(report_mutex);
@@ -378,6 +489,17 @@ struct Pipeline::Impl {
       std::unique_lock lock(slot_mutex);
       slot_cv.wait(lock, [&] { return in_flight == 0 && slots.empty(); });
     }
+    if (lanes) {
+      // No worker offers any more: the frames still waiting for the depth
+      // lane are skipped, the one in processing is published.
+      std::unique_lock lock(depth_mutex);
+      {
+        std::lock_guard r(report_mutex);
+        report.depth_skipped += depth_slots.size();
+      }
+      depth_slots.clear();
+      depth_cv.wait(lock, [&] { return !depth_busy; });
+    }
     graph->wait_for_all();
   }
 
@@ -445,6 +567,7 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
   impl->registration = options.registration;
   if (!impl->registration) impl->registration = std::make_shared<processing::PassThroughStage>();
   impl->localizes = dynamic_cast<processing::PassThroughStage*>(impl->registration.get()) == nullptr;
+  impl->lanes = impl->localizes && options.skip_when_busy;
   if (!options.reference_serial.empty()) {
     const auto it = std::find(sync.serials.begin(), sync.serials.end(), options.reference_serial);
     if (it == sync.serials.end())
@@ -455,7 +578,6 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
   auto publisher = Publisher::Create(options.publisher);
   if (!publisher) return publisher.error();
   impl->publisher = std::move(*publisher);
-  if (!options.frame_sets_from_grab_loop) impl->assembler = std::make_unique<FrameSetAssembler>(sync);
   const int threads = options.threads > 0 ? options.threads : tbb::info::default_concurrency();
   impl->arena = std::make_unique<tbb::task_arena>(threads, /*reserved_for_masters=*/0);
   if (options.processing_nice > 0) {
@@ -483,43 +605,47 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
         [raw](Result result) { raw->RunPublish(std::move(result)); });
     tbb::flow::make_edge(*raw->process_node, *raw->publish_node);
   });
+  if (impl->lanes) {
+    impl->depth_arena = std::make_unique<tbb::task_arena>(threads, /*reserved_for_masters=*/1,
+                                                          tbb::task_arena::priority::low);
+    impl->depth_thread = std::thread([raw] { raw->DepthLoop(19); });
+  }
   return std::unique_ptr<Pipeline>(new Pipeline(std::move(impl)));
 }
 
 Pipeline::Pipeline(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 
-Pipeline::~Pipeline() { impl_->WaitIdle(); }
-
-void Pipeline::AddFrame(Frame frame) {
-  if (frame.arrival_ns == 0) frame.arrival_ns = NowRealtimeNs();
-  std::lock_guard lock(impl_->sync_mutex);
-  if (impl_->assembler) impl_->assembler->AddFrame(std::move(frame));
+Pipeline::~Pipeline() {
+  impl_->WaitIdle();
+  if (impl_->depth_thread.joinable()) {
+    {
+      std::lock_guard lock(impl_->depth_mutex);
+      impl_->depth_stop = true;
+    }
+    impl_->depth_cv.notify_all();
+    impl_->depth_thread.join();
+  }
 }
 
 void Pipeline::AddFrameSet(FrameSet set) {
   std::lock_guard lock(impl_->sync_mutex);
-  if (!impl_->external_f0 && set.vicon_frame >= 0)
-    impl_->external_f0 =
+  if (!impl_->sets_f0 && set.vicon_frame >= 0)
+    impl_->sets_f0 =
         set.vicon_frame - static_cast<std::int64_t>(impl_->sync_options.vicon_divider) *
                               set.trigger_index;
-  impl_->external_sets.push_back(std::move(set));
+  impl_->sets_in.push_back(std::move(set));
 }
 
 void Pipeline::SetSyncDrops(const DropCounter& drops) {
   std::lock_guard lock(impl_->sync_mutex);
-  impl_->external_drops = drops;
+  impl_->drops_this_pass = drops;
 }
 
 void Pipeline::AddVicon(const ViconFrame& frame) {
   std::optional<std::int64_t> f0;
   {
     std::lock_guard lock(impl_->sync_mutex);
-    if (impl_->assembler) {
-      impl_->assembler->AddVicon(frame);
-      f0 = impl_->assembler->vicon_f0();
-    } else {
-      f0 = impl_->external_f0 ? impl_->external_f0 : impl_->sync_options.vicon_f0;
-    }
+    f0 = impl_->sets_f0 ? impl_->sets_f0 : impl_->sync_options.vicon_f0;
   }
   const int divider = impl_->sync_options.vicon_divider;
   impl_->publisher->PublishVicon(frame, f0 && (frame.vicon_frame - *f0) % divider == 0);
@@ -527,12 +653,7 @@ void Pipeline::AddVicon(const ViconFrame& frame) {
 }
 
 void Pipeline::Poll() {
-  std::vector<FrameSet> sets;
-  {
-    std::lock_guard lock(impl_->sync_mutex);
-    sets = impl_->TakeSets(/*flush=*/false);
-  }
-  impl_->QueueSets(std::move(sets));
+  impl_->QueueSets(impl_->TakeSets());
   // At most a poll period's wait for a worker: the caller's loop stays responsive.
   impl_->SubmitQueued(std::chrono::steady_clock::now() + std::chrono::milliseconds(50));
   const auto now = std::chrono::steady_clock::now();
@@ -543,23 +664,16 @@ void Pipeline::Poll() {
 }
 
 void Pipeline::EndPass() {
-  std::vector<FrameSet> sets;
-  {
-    std::lock_guard lock(impl_->sync_mutex);
-    sets = impl_->TakeSets(/*flush=*/true);
-  }
-  impl_->QueueSets(std::move(sets));
+  impl_->QueueSets(impl_->TakeSets());
   impl_->SubmitQueued(std::nullopt);
   impl_->WaitIdle();
   // The next pass numbers its triggers from the start again: no pose of
   // this pass may pair with one of the next (the publishing node is idle).
   impl_->poses.clear();
+  // The next pass's grab loop starts a fresh assembler, its losses from 0.
   std::lock_guard lock(impl_->sync_mutex);
   impl_->drops_before = impl_->SyncDrops();
-  // The next pass starts a fresh assembler (the pipeline's or the grab loop's).
-  if (impl_->assembler)
-    impl_->assembler = std::make_unique<FrameSetAssembler>(impl_->sync_options);
-  impl_->external_drops = DropCounter{};
+  impl_->drops_this_pass = DropCounter{};
 }
 
 void Pipeline::Finish() {
@@ -597,7 +711,11 @@ std::string PipelineReport::FinalReport() const {
       << incomplete_sets << ")\n"
       << "processed: " << processed << "  skipped (newest wins): " << skipped
       << "  failed: " << failed << (Accounted() ? "  (all accounted for)" : "  (NOT ACCOUNTED)")
-      << "\n"
+      << "\n";
+  if (depth_processed + depth_skipped + depth_failed > 0)
+    out << "depth lane (registration first): processed " << depth_processed << "  skipped "
+        << depth_skipped << "  failed " << depth_failed << "\n";
+  out
       << "published: " << published_previews << " previews, " << published_depth << " depth, "
       << published_tf << " TF, " << published_extrinsics << " extrinsics, " << published_vicon
       << " Vicon, " << published_stats << " stats messages";

@@ -1,8 +1,8 @@
 #pragma once
-// The live pipeline: frames and Vicon frames from the grab loop -> sync
-// (one FrameSetAssembler) -> processing (FrameProcessor: the processing
-// chain and the encodings, on a TBB flow graph node with bounded
-// concurrency) -> the registration stage (processing/registration_stage.h;
+// The live pipeline: FrameSets and Vicon frames from the grab loop
+// (acquisition/rig_controller.h, whose FrameSetAssembler is the run's only
+// one) -> processing (FrameProcessor: the processing chain and the
+// encodings, on a TBB flow graph node with bounded concurrency) -> the registration stage (processing/registration_stage.h;
 // pass-through by default) -> the publisher (publisher.h, a serial node),
 // which owns LCM. docs/architecture.md follows a frame through it.
 //
@@ -22,13 +22,18 @@
 // processed + skipped + failed once Finish returned. A recorder, when one
 // runs, gets its frames before the pipeline does and never waits for it.
 //
-// Registration: the stage's Localize runs on the worker after processing;
-// its poses are grouped per trigger on the publishing node, and once the
+// Registration: under block the stage's Localize runs on the worker after
+// processing; under newest_wins it runs first, on the raw frame, and the
+// frame goes on to a depth lane of its own (one thread at the lowest
+// priority, newest wins per camera), so a localisation never waits for a
+// frame's depth: the extrinsics keep the frame rate, depth, TF and previews
+// come at the rate processing allows.
+// Either way its poses are grouped per trigger on the publishing node, and once the
 // reference camera (reference_serial) and camera X both have a pose of a
 // trigger, Relate gives c0_from_cx, published on <PREFIX>_<SERIAL>_EXTRINSICS.
 //
-// Threads: AddFrame and AddVicon from any thread (the grab loop's); a Vicon
-// frame is published on the caller's thread, at once. Poll and Finish from
+// Threads: AddFrameSet, SetSyncDrops and AddVicon from any thread (the grab
+// loop's); a Vicon frame is published on the caller's thread, at once. Poll and Finish from
 // one thread (the command's loop). Frames are processed and published on
 // the pipeline's own TBB arena of `threads` workers at a lower priority
 // (processing_nice). Process-wide settings (allocator, TBB's worker limit)
@@ -72,10 +77,6 @@ struct PipelineOptions {
   // threads: on a saturated 2-core host a Vicon packet otherwise waits
   // milliseconds for a core.
   int processing_nice = 10;
-  // Where FrameSets come from: false, the pipeline's own assembler (fed by
-  // AddFrame); true, the grab loop's (RigController's, fed to AddFrameSet;
-  // its losses reported through SetSyncDrops): one assembler per run.
-  bool frame_sets_from_grab_loop = false;
   // The stage after processing; null: processing::PassThroughStage.
   std::shared_ptr<processing::RegistrationStage> registration;
   // Camera 0 of the extrinsics (the reference map's camera), by serial;
@@ -106,6 +107,11 @@ struct PipelineReport {
   std::uint64_t skipped = 0;    // replaced in its camera's slot by a newer frame (skip policy)
   std::uint64_t failed = 0;     // processing or registration returned an error (last_error)
   std::uint64_t localized = 0;  // frames the registration stage gave a pose
+  // Registration ahead of processing (a registration stage under
+  // newest_wins): `processed` counts the frames localised; the depth lane
+  // processes (and publishes previews, depth and TF of) the newest of them
+  // when it is free, the others are skipped there.
+  std::uint64_t depth_processed = 0, depth_skipped = 0, depth_failed = 0;
   std::uint64_t frame_sets = 0, incomplete_sets = 0;
   std::uint64_t published_previews = 0, published_depth = 0, published_tf = 0;
   std::uint64_t published_vicon = 0, published_stats = 0, published_extrinsics = 0;
@@ -124,6 +130,9 @@ struct PipelineReport {
 
 class Pipeline {
  public:
+  // `sync`: the options of the grab loop's assembler, whose FrameSets come
+  // in (its serials are the camera indices; vicon_divider and vicon_f0 mark
+  // the Vicon frames of triggers).
   static Expected<std::unique_ptr<Pipeline>> Create(FrameSetAssemblerOptions sync,
                                                     std::unique_ptr<FrameProcessor> processor,
                                                     PipelineOptions options);
@@ -131,21 +140,20 @@ class Pipeline {
   Pipeline(const Pipeline&) = delete;
   Pipeline& operator=(const Pipeline&) = delete;
 
-  // frame_sets_from_grab_loop false: a frame for the pipeline's assembler.
-  void AddFrame(Frame frame);
-  // frame_sets_from_grab_loop true: a FrameSet of the grab loop's assembler
-  // (any thread; processed from the next Poll on).
+  // A FrameSet of the grab loop's assembler (RigObserver::on_frame_set; any
+  // thread): its frames are processed from the next Poll on.
   void AddFrameSet(FrameSet set);
-  // The grab loop's sync losses so far (frame_sets_from_grab_loop), for the
+  // The grab loop's sync losses so far (RigHealth::sync_drops), for the
   // report and the statistics message.
   void SetSyncDrops(const DropCounter& drops);
   void AddVicon(const ViconFrame& frame);
-  // Takes the ready FrameSets and hands their frames to processing (under
+  // Takes the FrameSets given so far and hands their frames to processing (under
   // block, waiting at most 50 ms for a free worker; the rest wait for the
   // next Poll or Finish), and publishes the statistics when due.
   void Poll();
-  // End of a pass: flushes the assembler, waits for processing and starts a
-  // fresh assembler (for --loop); the counters go on.
+  // End of a pass (the grab loop stopped, its last sets given): processes
+  // what is left and waits for it; the next pass's grab loop starts a fresh
+  // assembler (--loop). The counters go on.
   void EndPass();
   // EndPass, then the final statistics message.
   void Finish();

@@ -247,7 +247,6 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
     }
   }
   pipeline_options.skip_when_busy = !max_rate;
-  pipeline_options.frame_sets_from_grab_loop = true;
   auto pipeline = Pipeline::Create(sync, std::move(processor), pipeline_options);
   if (!pipeline) return pipeline.error();
   Pipeline& p = **pipeline;

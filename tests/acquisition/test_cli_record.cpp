@@ -231,6 +231,19 @@ TEST(RecordCli, UsageErrors) {
                                    (dir / "out").string() + "'");
   EXPECT_EQ(bad.exit_code, 2);
   EXPECT_NE(bad.err.find("bad.yaml"), std::string::npos) << bad.err;
+
+  // The registration options (shared with replay, apps/registration_args.h)
+  // are refused where they would be ignored, before the rig file is read.
+  const std::string rig = " --rig '" + (dir / "bad.yaml").string() + "'";
+  const auto csv_alone = test::RunLifmcr("record" + rig + " --publish --extrinsics-csv x.csv");
+  EXPECT_EQ(csv_alone.exit_code, 2);
+  EXPECT_NE(csv_alone.err.find("--extrinsics-csv needs --reference"), std::string::npos)
+      << csv_alone.err;
+  const auto unpublished =
+      test::RunLifmcr("record" + rig + " --reference '" + dir.path().string() + "'");
+  EXPECT_EQ(unpublished.exit_code, 2);
+  EXPECT_NE(unpublished.err.find("--reference needs --publish"), std::string::npos)
+      << unpublished.err;
 }
 
 // A recording replayed through the replay driver and recorded again comes
@@ -270,10 +283,19 @@ TEST(RecordCli, ReplayedSequenceRecordsIdenticalFilesAndReportsItsGap) {
   const fs::path original = dir / "a" / "00_Recording" / "seq";
   const fs::path rig_path = dir / "replay_rig.yaml";
   test::WriteFile(rig_path, FormatRigConfig(rig));
-  const auto result =
-      test::RunLifmcr("record --rig '" + rig_path.string() + "' --replay '" + original.string() +
-                      "' --out '" + (dir / "b").string() + "' --duration 20");
+  const fs::path log = dir / "record.log";
+  const auto result = test::RunLifmcr("--log-level info --log-file '" + log.string() +
+                                      "' record --rig '" + rig_path.string() + "' --replay '" +
+                                      original.string() + "' --out '" + (dir / "b").string() +
+                                      "' --duration 20");
   EXPECT_EQ(result.exit_code, 1) << result.out << result.err;  // the gap is a loss
+  // The operator's log: the configuration in force, and the loss with its cause.
+  const std::string logged = test::ReadFile(log);
+  EXPECT_NE(logged.find("rig: 2 camera(s)"), std::string::npos) << logged;
+  EXPECT_NE(logged.find("record: camera MEMB: lost 1 [incomplete 0, missing ids 1"),
+            std::string::npos)
+      << logged;
+  EXPECT_EQ(logged.find("record: camera MEMA"), std::string::npos) << logged;
   EXPECT_NE(result.out.find("stopped by: end of the replayed sequence"), std::string::npos)
       << result.out << result.err;
   EXPECT_NE(result.out.find("missing ids 1"), std::string::npos) << result.out;

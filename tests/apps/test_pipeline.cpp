@@ -320,8 +320,9 @@ struct ViconMessages {
 };
 
 // The wiring of `lifmcr record --publish` with a live Vicon: Tracker packets
-// over loopback UDP -> ViconUdpSource -> the RigController's Vicon thread ->
-// its observer -> Pipeline::AddVicon -> LIFMCR_VICON. Every frame is
+// over loopback UDP -> ViconUdpSource -> the RigController's Vicon thread
+// (its assembler takes them too) -> its observer -> Pipeline::AddVicon ->
+// LIFMCR_VICON. Every frame is
 // published once, in order, with the poses sent (right-handed, mm), an
 // object missing from a datagram as occluded, and is_trigger on every
 // divider-th frame from f0.
@@ -352,8 +353,12 @@ TEST(Pipeline, LiveViconFromUdpIsPublishedWithItsPoses) {
   auto source = std::make_unique<ViconUdpSource>(source_options);
   ViconUdpSource* source_view = source.get();
   RigObserver observer;
+  observer.on_frame_set = [p](const FrameSet& set) { p->AddFrameSet(set); };
   observer.on_vicon = [p](const ViconFrame& frame) { p->AddVicon(frame); };
-  RigController controller({}, {}, std::move(source), nullptr, {}, observer);
+  RigControllerOptions controller_options;
+  controller_options.sync = sync;
+  controller_options.vicon_divider = sync.vicon_divider;
+  RigController controller({}, {}, std::move(source), nullptr, controller_options, observer);
   ASSERT_TRUE(controller.Start().ok());
   auto sender = ViconUdpSender::Open("127.0.0.1", source_view->BoundPort());
   ASSERT_TRUE(sender.ok()) << sender.error().message;
@@ -682,7 +687,6 @@ TEST(Pipeline, RecordAndReplayShareTheGrabLoopEveryFrameRecordedAndPublished) {
   PipelineOptions pipeline_options;
   pipeline_options.publisher.bus = &bus;
   pipeline_options.skip_when_busy = false;
-  pipeline_options.frame_sets_from_grab_loop = true;
   auto pipeline = Pipeline::Create(sync, std::make_unique<PreviewProcessor>(), pipeline_options);
   ASSERT_TRUE(pipeline.ok()) << pipeline.error().message;
   Pipeline* p = pipeline->get();

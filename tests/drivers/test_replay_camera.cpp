@@ -13,6 +13,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <string>
+#include <utility>
 #include <vector>
 
 namespace lifmcr {
@@ -274,6 +277,26 @@ TEST(CameraFactory, MakesReplayAndAravisCamerasAndRejectsWhatItCannot) {
   auto no_sequence = MakeCamera(config, 1, options);
   ASSERT_FALSE(no_sequence.ok());
   EXPECT_NE(no_sequence.error().message.find("cam0"), std::string::npos);
+
+  // A bad option is an error naming the camera and the field.
+  options.replay_sequence_dir = dir.path();
+  for (const auto& [field, spoil] :
+       std::vector<std::pair<std::string, std::function<void(CameraFactoryOptions&)>>>{
+           {"pool_buffers", [](CameraFactoryOptions& o) { o.pool_buffers = 1; }},
+           {"trigger_period", [](CameraFactoryOptions& o) { o.trigger_period = {}; }},
+           {"free_run_rate_hz", [](CameraFactoryOptions& o) { o.free_run_rate_hz = -1; }}}) {
+    CameraFactoryOptions bad = options;
+    spoil(bad);
+    auto made = MakeCamera(config, 1, bad);
+    ASSERT_FALSE(made.ok()) << field;
+    EXPECT_NE(made.error().message.find("cam0"), std::string::npos) << made.error().message;
+    EXPECT_NE(made.error().message.find(field), std::string::npos) << made.error().message;
+  }
+  auto negative_index = MakeCamera(config, -1, options);
+  ASSERT_FALSE(negative_index.ok());
+  EXPECT_NE(negative_index.error().message.find("camera_index"), std::string::npos)
+      << negative_index.error().message;
+  options.replay_sequence_dir.clear();
 
   // A GenTL camera is made; without a producer (no cti, nothing in
   // GENICAM_GENTL64_PATH) it cannot open, and says why.

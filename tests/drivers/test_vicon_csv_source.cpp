@@ -101,7 +101,17 @@ TEST(ViconCsvSource, RealtimeKeepsTheOriginalSpacing) {
 TEST(ViconCsvSource, ErrorsNameTheProblem) {
   auto fixture = WriteCsv({});
   ViconCsvSourceOptions options;
-  EXPECT_FALSE(ViconCsvSource::Open(fixture->path, options).ok());  // no objects
+  auto no_objects = ViconCsvSource::Open(fixture->path, options);
+  ASSERT_FALSE(no_objects.ok());
+  EXPECT_NE(no_objects.error().message.find("objects"), std::string::npos)
+      << no_objects.error().message;
+  options.objects = {"plate"};
+  options.rate_hz = -80;
+  auto negative_rate = ViconCsvSource::Open(fixture->path, options);
+  ASSERT_FALSE(negative_rate.ok());
+  EXPECT_NE(negative_rate.error().message.find("rate_hz"), std::string::npos)
+      << negative_rate.error().message;
+  options.rate_hz = 0;
   options.objects = {"plate", "cam7"};
   auto unknown = ViconCsvSource::Open(fixture->path, options);
   ASSERT_FALSE(unknown.ok());

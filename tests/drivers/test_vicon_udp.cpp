@@ -180,9 +180,19 @@ TEST(ViconUdp, BindErrorsNameTheEndpoint) {
   EXPECT_NE(taken.error().message.find("127.0.0.1:" + std::to_string(options.port)),
             std::string::npos)
       << taken.error().message;
+  // Bad options name their field (ViconUdpSourceOptions::Check, at Start).
   options.address = "not-an-address";
   ViconUdpSource third(options);
-  EXPECT_FALSE(third.Start().ok());
+  const Status bad_address = third.Start();
+  ASSERT_FALSE(bad_address.ok());
+  EXPECT_NE(bad_address.error().message.find("address"), std::string::npos)
+      << bad_address.error().message;
+  options.address = "127.0.0.1";
+  options.port = 70000;
+  EXPECT_NE(options.Check().error().message.find("port"), std::string::npos);
+  options.port = 0;
+  options.receive_buffer_bytes = 0;
+  EXPECT_NE(options.Check().error().message.find("receive_buffer_bytes"), std::string::npos);
   EXPECT_FALSE(ViconUdpSender::Open("127.0.0.1", 0).ok());
 }
 

@@ -3,6 +3,7 @@
 // errors naming the file.
 
 #include "registration/features.h"
+#include "registration/ground_truth_map.h"
 #include "registration/poses_csv.h"
 #include "registration/reference_map.h"
 #include "tests/test_util.h"
@@ -13,6 +14,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <random>
 
 namespace lifmcr::registration {
@@ -133,6 +135,24 @@ TEST(ReferenceMap, DamagedFilesNameTheFileAndLine) {
   back = ReadReferenceMap(dir);
   ASSERT_FALSE(back);
   EXPECT_NE(back.error().message.find("descriptors.bin"), std::string::npos);
+}
+
+// Bad options are refused before any file is read, naming the field (the
+// nested feature and match options' too).
+TEST(GroundTruthMap, BadOptionsNameTheirField) {
+  const processing::CameraModel camera{processing::CameraIntrinsics{}};
+  for (const auto& [field, spoil] :
+       std::vector<std::pair<std::string, std::function<void(GroundTruthMapOptions&)>>>{
+           {"merge_distance_mm", [](GroundTruthMapOptions& o) { o.merge_distance_mm = 0; }},
+           {"sigma", [](GroundTruthMapOptions& o) { o.features.sigma = -1; }},
+           {"ratio", [](GroundTruthMapOptions& o) { o.match.ratio = 2; }}}) {
+    GroundTruthMapOptions options;
+    spoil(options);
+    auto map = BuildGroundTruthMap("/nonexistent", "CAM0", {0}, camera, options);
+    ASSERT_FALSE(map.ok()) << field;
+    EXPECT_NE(map.error().message.find(field), std::string::npos) << map.error().message;
+    EXPECT_EQ(map.error().message.find("nonexistent"), std::string::npos) << map.error().message;
+  }
 }
 
 TEST(PosesCsv, RoundTripAndErrors) {

@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <map>
 
 namespace lifmcr {
@@ -253,6 +254,26 @@ TEST(FrameSetAssembler, OptionsFromTheRigAndTheirChecks) {
   bad = options;
   bad.vicon_divider = 0;
   EXPECT_FALSE(bad.Check().ok());
+  // Every message names its field, those of the nested options too.
+  auto message = [](const FrameSetAssemblerOptions& o) {
+    const Status s = o.Check();
+    return s ? std::string("ok") : s.error().message;
+  };
+  bad = options;
+  bad.trigger.tolerance = 0.6;
+  EXPECT_NE(message(bad).find("trigger: tolerance"), std::string::npos) << message(bad);
+  bad = options;
+  bad.trigger.counter_bits = 1;
+  EXPECT_NE(message(bad).find("counter_bits"), std::string::npos) << message(bad);
+  bad = options;
+  bad.clock.jump_confirm = 0;
+  EXPECT_NE(message(bad).find("clock model: jump_confirm"), std::string::npos) << message(bad);
+  bad = options;
+  bad.vicon_rate_hz = std::nan("");
+  EXPECT_NE(message(bad).find("vicon_rate_hz"), std::string::npos) << message(bad);
+  bad = options;
+  bad.max_vicon_frames = 4;
+  EXPECT_NE(message(bad).find("max_vicon_frames"), std::string::npos) << message(bad);
 }
 
 }  // namespace

@@ -1,0 +1,196 @@
+#pragma once
+// The totally focused image at one point, the rendering rule of
+// processing/total_focus.h written once for the whole-image renderer
+// (RenderTotalFocus) and for the sampler of single points and patches
+// (processing/tf_sampler.h): for raw position x at virtual depth v, the lens
+// type sharp at v; the three lenses of its triangular sublattice around x
+// (steps A(1, 1), A(2, -1)), each sampled bilinearly at p_k = l_k + (x -
+// l_k) / v on the raw pixels times the devignetting gain and weighted by its
+// barycentric coordinate times 1 - |p_k - c_k|^2 / r^2; where none of them
+// holds x, the nearest micro image of any type and its six neighbours.
+// Internal to processing/ (no OpenCV, no allocation per point).
+
+#include "config/image.h"
+#include "config/mla.h"
+#include "processing/plenoptic_frame.h"
+
+#include <Eigen/Core>
+#include <Eigen/LU>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+namespace lifmcr::processing::detail {
+
+// A micro image in float: micro-lens centre l, micro-image centre c.
+struct LensF {
+  float lx, ly, cx, cy;
+};
+
+// The lens type whose sharp range (MLA file) holds v most centrally (in
+// log v); the nearest range when none holds it. A table over v (a log per
+// TF pixel would cost more than its sampling).
+class SharpTypeTable {
+ public:
+  explicit SharpTypeTable(const MlaCalibration& mla) {
+    for (int q = 0; q < kSize; ++q) {
+      const double v = std::max(1.0, (q + 0.5) / kPerUnit);
+      double best_score = -1e300;
+      for (int t = 0; t < 3; ++t) {
+        const MlaLensType& type = mla.lens_types[t];
+        const double score = std::min(std::log(v / type.depth_min), std::log(type.depth_max / v));
+        if (score > best_score) {
+          best_score = score;
+          table_[q] = static_cast<std::uint8_t>(t);
+        }
+      }
+    }
+  }
+  int operator()(double v) const {
+    return table_[std::clamp(static_cast<int>(v * kPerUnit), 0, kSize - 1)];
+  }
+
+ private:
+  static constexpr int kPerUnit = 256, kSize = 64 * kPerUnit;
+  std::array<std::uint8_t, kSize> table_{};
+};
+
+// Colour of micro image m seen from virtual point (x, y) at 1 / v = inv_v:
+// bilinear at p = l + (x - l) / v of the raw pixels times the devignetting
+// gain; false outside its usable disc (radius^2 r2) or next to an invalid
+// pixel (the gain is NaN there and propagates through the sum).
+// `centrality` = 1 - |p - c|^2 / r^2.
+template <int kChannels>
+inline bool SampleLens(const LensF& m, float x, float y, float inv_v, float r2,
+                       const PlenopticFrame& f, const ConstImageView& raw, float* c,
+                       float* centrality) {
+  const float px = m.lx + (x - m.lx) * inv_v, py = m.ly + (y - m.ly) * inv_v;
+  const float dx = px - m.cx, dy = py - m.cy;
+  const float d2 = dx * dx + dy * dy;
+  if (d2 > r2 || px < 0 || py < 0) return false;
+  const int x0 = static_cast<int>(px), y0 = static_cast<int>(py);
+  if (x0 >= f.width - 1 || y0 >= f.height - 1) return false;
+  const float fx = px - x0, fy = py - y0;
+  const float* g0 = f.gain.data() + static_cast<std::size_t>(y0) * f.width + x0;
+  const float* g1 = g0 + f.width;
+  const float w00 = (1 - fx) * (1 - fy) * g0[0], w01 = fx * (1 - fy) * g0[1],
+              w10 = (1 - fx) * fy * g1[0], w11 = fx * fy * g1[1];
+  const std::uint8_t* q0 = raw.Row(y0) + x0 * kChannels;
+  const std::uint8_t* q1 = raw.Row(y0 + 1) + x0 * kChannels;
+  float check = 0;
+  for (int ch = 0; ch < kChannels; ++ch) {
+    c[ch] = w00 * q0[ch] + w01 * q0[kChannels + ch] + w10 * q1[ch] + w11 * q1[kChannels + ch];
+    check += c[ch];
+  }
+  *centrality = 1 - d2 / r2;
+  return !std::isnan(check);
+}
+
+// The per-frame-geometry tables of the rule: lenses in float, the three
+// sublattices (origin lens, inverse steps), the sharp type per v.
+class TfKernel {
+ public:
+  TfKernel(const PlenopticFrame& f, const MlaCalibration& mla, double inner_fraction)
+      : f_(f), sharp_type_(mla) {
+    const float r = static_cast<float>(f.radius_px * inner_fraction);
+    r2_ = r * r;
+    lenses_.resize(f.lenses.size());
+    for (std::size_t k = 0; k < f.lenses.size(); ++k) {
+      const MicroImage& m = f.lenses[k];
+      lenses_[k] = {static_cast<float>(m.lens_px.x()), static_cast<float>(m.lens_px.y()),
+                    static_cast<float>(m.centre_px.x()), static_cast<float>(m.centre_px.y())};
+    }
+    // The lenses of one type form a triangular sublattice with steps
+    // A (1, 1) and A (2, -1) (type = sigma (i - j) mod 3 is constant along
+    // both); per type its origin lens and the inverse of those steps.
+    for (int t = 0; t < 3; ++t) {
+      SublatticeOf& s = sub_[t];
+      while (f.grid.Type(s.i0, 0) != t) ++s.i0;
+      s.origin = f.grid.Center(s.i0, 0);
+      Eigen::Matrix2d steps;
+      steps.col(0) = f.grid.lattice * Eigen::Vector2d(1, 1);
+      steps.col(1) = f.grid.lattice * Eigen::Vector2d(2, -1);
+      s.from_px = steps.inverse();
+    }
+  }
+
+  int SharpType(float v) const { return sharp_type_(v); }
+  // Sublattice coordinates of raw position (x, y) in type t's sublattice.
+  Eigen::Vector2f Sublattice(int t, double x, double y) const {
+    const Eigen::Vector2d a = sub_[t].from_px * (Eigen::Vector2d(x, y) - sub_[t].origin);
+    return {static_cast<float>(a.x()), static_cast<float>(a.y())};
+  }
+  // Their change per raw pixel along x.
+  Eigen::Vector2f SublatticeStepX(int t) const {
+    return {static_cast<float>(sub_[t].from_px(0, 0)), static_cast<float>(sub_[t].from_px(1, 0))};
+  }
+
+  // The blend at raw position (x, y), virtual depth v (> 1), in type
+  // `type`'s sublattice coordinates (ax, ay) of (x, y): acc (kChannels) and
+  // the sum of weights (0: no micro image sees the point).
+  template <int kChannels>
+  float Blend(const ConstImageView& raw, float x, float y, float v, int type, float ax, float ay,
+              float* acc) const {
+    const float inv_v = 1.0f / v;
+    const int m = static_cast<int>(std::floor(ax)), n = static_cast<int>(std::floor(ay));
+    const float fa = ax - m, fb = ay - n;
+    int ci[3], cj[3];
+    float bary[3];
+    if (fa + fb < 1) {
+      ci[0] = m, cj[0] = n, bary[0] = 1 - fa - fb;
+      ci[1] = m + 1, cj[1] = n, bary[1] = fa;
+      ci[2] = m, cj[2] = n + 1, bary[2] = fb;
+    } else {
+      ci[0] = m + 1, cj[0] = n + 1, bary[0] = fa + fb - 1;
+      ci[1] = m, cj[1] = n + 1, bary[1] = 1 - fa;
+      ci[2] = m + 1, cj[2] = n, bary[2] = 1 - fb;
+    }
+    for (int ch = 0; ch < kChannels; ++ch) acc[ch] = 0;
+    float c[kChannels], centrality = 0, sw = 0;
+    const int i0 = sub_[type].i0;
+    for (int q = 0; q < 3; ++q) {
+      if (bary[q] <= 0) continue;
+      const int k = f_.LensAt(i0 + ci[q] + 2 * cj[q], ci[q] - cj[q]);
+      if (k < 0 ||
+          !SampleLens<kChannels>(lenses_[k], x, y, inv_v, r2_, f_, raw, c, &centrality))
+        continue;
+      const float wq = bary[q] * centrality;
+      for (int ch = 0; ch < kChannels; ++ch) acc[ch] += wq * c[ch];
+      sw += wq;
+    }
+    if (sw > 0) return sw;
+    // Near the border, in the vignetted periphery (micro images valid only
+    // near their centres) or where v is below the sublattice's reach: the
+    // nearest micro image of any type and its six neighbours.
+    int i = 0, j = 0;
+    f_.grid.Nearest(Eigen::Vector2d(x, y), &i, &j);
+    static constexpr int kAround[7][2] = {{0, 0},  {1, 0},  {0, 1}, {-1, 1},
+                                          {-1, 0}, {0, -1}, {1, -1}};
+    for (const auto& d : kAround) {
+      const int k = f_.LensAt(i + d[0], j + d[1]);
+      if (k < 0 ||
+          !SampleLens<kChannels>(lenses_[k], x, y, inv_v, r2_, f_, raw, c, &centrality))
+        continue;
+      for (int ch = 0; ch < kChannels; ++ch) acc[ch] += centrality * c[ch];
+      sw += centrality;
+    }
+    return sw;
+  }
+
+ private:
+  struct SublatticeOf {
+    int i0 = 0;
+    Eigen::Vector2d origin;
+    Eigen::Matrix2d from_px;
+  };
+  const PlenopticFrame& f_;
+  SharpTypeTable sharp_type_;
+  float r2_ = 0;
+  std::vector<LensF> lenses_;
+  std::array<SublatticeOf, 3> sub_;
+};
+
+}  // namespace lifmcr::processing::detail

@@ -1,0 +1,66 @@
+#pragma once
+// The totally focused (TF) image of a raw frame where and at the virtual
+// depth the caller chooses, without the frame's depth map: what live
+// registration needs (registration/map_localizer.h). The rendering rule is
+// RenderTotalFocus' (processing/tf_kernel.h); the virtual depth comes from
+// the caller instead of the depth map:
+//   Patch          a square of TF samples around a TF position at one
+//                  virtual depth (a tracked map point's, predicted from the
+//                  pose): a patch of 9 x 9 costs ~3 x 81 micro-image samples,
+//                  where the whole chain (virtual depth of every raw pixel,
+//                  TF depth, TF image) costs seconds per frame;
+//   RenderAtDepth  the whole TF grid at one virtual depth (a refocused
+//                  image): texture at other depths is blurred by about
+//                  r (1 - v_true / v) raw pixels (r the micro-image radius),
+//                  little enough for SIFT to relocalise against the map.
+// Values are the devignetted grey (the mean of the channels of a colour
+// frame), in raw grey levels.
+// The geometry (micro images, devignetting gain) is the camera's, made once
+// (CameraChain::Sampler); a sampler is immutable and shared by threads.
+
+#include "config/error.h"
+#include "config/mla.h"
+#include "processing/plenoptic_frame.h"
+#include "processing/total_focus.h"
+
+#include <Eigen/Core>
+
+#include <memory>
+
+namespace lifmcr::processing {
+
+namespace detail {
+class TfKernel;
+}
+
+class TfSampler {
+ public:
+  // `geometry`: PrepareGeometry done (the grey image is not needed).
+  TfSampler(PlenopticFrame geometry, const MlaCalibration& mla);
+  ~TfSampler();
+  TfSampler(const TfSampler&) = delete;
+  TfSampler& operator=(const TfSampler&) = delete;
+
+  int raw_width() const { return geometry_.width; }
+  int raw_height() const { return geometry_.height; }
+  int tf_width() const { return geometry_.width / 2; }
+  int tf_height() const { return geometry_.height / 2; }
+
+  // size x size samples (row-major) at TF positions centre_tf + step (i -
+  // (size - 1) / 2, j - (size - 1) / 2), each the mean of box x box
+  // sub-samples spaced step / box (box 1: point samples), at virtual depth
+  // v (> 1). False when a sample has no micro image seeing it (outside the
+  // image, the vignetted border). `raw` is the camera's frame (Mono8 or
+  // BGR8, the geometry's size).
+  bool Patch(const ConstImageView& raw, const Eigen::Vector2d& centre_tf, double v, int size,
+             double step, int box, float* out) const;
+
+  // The whole TF grid at virtual depth v, Mono8 (the devignetted grey).
+  Status RenderAtDepth(const ConstImageView& raw, double v, TfImage* out) const;
+
+ private:
+  PlenopticFrame geometry_;
+  std::unique_ptr<detail::TfKernel> kernel_;
+};
+
+}  // namespace lifmcr::processing

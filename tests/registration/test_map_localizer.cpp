@@ -1,0 +1,228 @@
+// The live localizer (registration/map_localizer.h) frame by frame on a
+// small synthetic 2-camera sequence, without the pipeline: camera 0's map
+// from its ground truth (frames 0-2), true intrinsics, raw frames only (the
+// chain's depth is never run). Camera 1 relocalises on its first frame and
+// tracks the rest; every pose is measured against GroundTruth/poses_*.csv.
+// And the pose checks (registration/pose_checks.h): a map cut down to a
+// corner of the view, which PnP fits with a dozen clustered inliers, is
+// refused with the reason; each check refuses what it must.
+#include "apps/pipeline/camera_setup.h"
+#include "processing/frame_chain.h"
+#include "registration/ground_truth_map.h"
+#include "registration/map_localizer.h"
+#include "registration/pose_checks.h"
+#include "registration/poses_csv.h"
+#include "replay/bmp.h"
+#include "replay/layout.h"
+#include "replay/synth/cameras_yaml.h"
+#include "replay/synth/synth_params.h"
+#include "replay/synth/synth_writer.h"
+#include "tests/test_util.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <vector>
+
+namespace lifmcr::registration {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr int kFrames = 8;
+
+double Median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0.0 : v[v.size() / 2];
+}
+
+// One synthetic sequence for the suite (rendering is the slow part).
+struct Sequence {
+  test::TempDir dir;
+  fs::path sequence;
+  std::vector<std::string> serials;
+  std::unique_ptr<processing::ProcessingChain> chain;
+  ReferenceMap map;
+  std::map<std::string, std::map<std::int64_t, Pose>> truth;
+};
+
+Sequence* Shared() {
+  static std::unique_ptr<Sequence> shared = [] {
+    auto s = std::make_unique<Sequence>();
+    auto params = synth::MakePreset("small");
+    EXPECT_TRUE(params);
+    params->rig.frames = kFrames;
+    params->rig.cameras = 2;
+    auto summary = synth::WriteSyntheticDataset(s->dir / "data", *params, {});
+    EXPECT_TRUE(summary) << summary.error().message;
+    s->sequence = summary->sequence_dir;
+    const fs::path cameras_yaml = layout::CamerasYamlPath(s->sequence);
+    s->serials = *synth::ReadCameraSerialsYaml(cameras_yaml);
+    auto setups = apps::LoadSequenceCameras(s->sequence, s->serials, {cameras_yaml});
+    EXPECT_TRUE(setups) << setups.error().message;
+    auto chain = processing::ProcessingChain::Create(std::move(*setups), {});
+    EXPECT_TRUE(chain) << chain.error().message;
+    s->chain = std::move(*chain);
+    const processing::CameraChain* zero = s->chain->Find(s->serials[0]);
+    GroundTruthMapOptions map_options;
+    map_options.features.max_features = 4000;
+    auto map = BuildGroundTruthMap(s->sequence, s->serials[0], {0, 1, 2}, *zero->camera_model(),
+                                   map_options);
+    EXPECT_TRUE(map) << map.error().message;
+    s->map = std::move(*map);
+    for (const std::string& serial : s->serials) {
+      auto poses = ReadPosesCsv(layout::PosesCsvPath(s->sequence, serial));
+      EXPECT_TRUE(poses) << poses.error().message;
+      if (!poses) continue;
+      for (const FramePose& p : *poses) s->truth[serial][p.frame] = p.world_from_cam;
+    }
+    return s;
+  }();
+  return shared.get();
+}
+
+struct Localized {
+  std::optional<processing::CameraPose> pose;
+  double seconds = 0;
+};
+
+Localized LocalizeFrame(MapLocalizerStage& stage, Sequence& s, const std::string& serial,
+                        std::int64_t frame) {
+  auto raw = ReadBmp(layout::RawFramePath(s.sequence, serial, frame));
+  EXPECT_TRUE(raw) << raw.error().message;
+  processing::StageFrame f;
+  f.serial = serial;
+  f.trigger_index = frame;
+  f.host_ns = 1'000'000 * (frame + 1);
+  f.raw = std::as_const(*raw).View();
+  f.camera = s.chain->Find(serial);
+  const auto start = std::chrono::steady_clock::now();
+  auto pose = stage.Localize(f);
+  Localized out;
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_TRUE(pose) << pose.error().message;
+  if (pose) out.pose = *pose;
+  return out;
+}
+
+TEST(MapLocalizer, RelocalisesOnceThenTracksFromRawFramesWithinTheGates) {
+  Sequence& s = *Shared();
+  MapLocalizerStage stage(s.map, LocalizerOptions{});
+  const std::string& x = s.serials[1];
+  std::vector<double> t_mm, r_deg, tracked_ms;
+  int tracked = 0;
+  for (std::int64_t frame = 0; frame < kFrames; ++frame) {
+    // Camera 0 first (it needs its own pose each trigger), then camera X.
+    (void)LocalizeFrame(stage, s, s.serials[0], frame);
+    const Localized l = LocalizeFrame(stage, s, x, frame);
+    ASSERT_TRUE(l.pose);
+    const Pose& expected = s.truth[x][frame];
+    std::printf("frame %lld: %s %s, %d inliers, rmse %.2f px, %.1f ms, error %.3f mm / %.4f deg\n",
+                static_cast<long long>(frame), l.pose->localisation.c_str(),
+                l.pose->status.c_str(), l.pose->inliers, l.pose->rmse_px, 1e3 * l.seconds,
+                TranslationDifference(l.pose->transform, expected),
+                RotationDifferenceDeg(l.pose->transform, expected));
+    if (l.pose->status != "ok") continue;
+    if (l.pose->localisation == "tracked") {
+      ++tracked;
+      tracked_ms.push_back(1e3 * l.seconds);
+    }
+    t_mm.push_back(TranslationDifference(l.pose->transform, expected));
+    r_deg.push_back(RotationDifferenceDeg(l.pose->transform, expected));
+  }
+  std::printf("w0_from_cx vs GroundTruth: median %.3f mm / %.4f deg over %zu of %d frames; "
+              "%d tracked (median %.1f ms)\n",
+              Median(t_mm), Median(r_deg), t_mm.size(), kFrames, tracked, Median(tracked_ms));
+  EXPECT_GE(t_mm.size(), static_cast<std::size_t>(kFrames));
+  EXPECT_GE(tracked, kFrames - 2);
+  EXPECT_LE(Median(t_mm), 2.0);
+  EXPECT_LE(Median(r_deg), 0.1);
+  const MapLocalizerStage::Counts counts = stage.counts();
+  EXPECT_GE(counts.relocalised, 1);
+}
+
+TEST(MapLocalizer, RefusesAPoseWhoseInliersCrowdInACornerAndSaysWhy) {
+  Sequence& s = *Shared();
+  // The map cut to the points camera X's frame 4 shows in one corner cell
+  // of its TF image: PnP still finds a consensus there.
+  const std::string& x = s.serials[1];
+  const processing::CameraModel& camera = *s.chain->Find(x)->camera_model();
+  const Pose cam_from_w0 = s.truth[x][4].inverse();
+  ReferenceMap corner = s.map;
+  corner.points.clear();
+  const double tf_w = camera.intrinsics().width_px / 2.0, tf_h = camera.intrinsics().height_px / 2.0;
+  for (const MapPoint& p : s.map.points) {
+    const Eigen::Vector3d virtual_px = camera.Project(cam_from_w0 * p.p_in_w0_mm);
+    const Eigen::Vector2d tf = processing::CameraModel::TfOfRaw(virtual_px.head<2>());
+    if (tf.x() > 0.05 * tf_w && tf.x() < 0.25 * tf_w && tf.y() > 0.05 * tf_h &&
+        tf.y() < 0.25 * tf_h)
+      corner.points.push_back(p);
+  }
+  ASSERT_GE(corner.points.size(), 20u) << "too few map points in the corner";
+  LocalizerOptions options;
+  options.track = false;
+  // Fewer inliers accepted than by default, so that the spread, not the
+  // count, is what refuses the pose.
+  options.registration.pnp.min_inliers = 6;
+  options.checks.min_inliers = 6;
+  MapLocalizerStage stage(corner, options);
+  const Localized l = LocalizeFrame(stage, s, x, 4);
+  ASSERT_TRUE(l.pose);
+  std::printf("corner map of %zu points: %s (%d inliers)\n", corner.points.size(),
+              l.pose->status.c_str(), l.pose->inliers);
+  EXPECT_NE(l.pose->status, "ok");
+  EXPECT_NE(l.pose->status.find("inliers span"), std::string::npos) << l.pose->status;
+  EXPECT_EQ(stage.counts().failed, 1);
+}
+
+TEST(PoseChecks, EachCheckRefusesWithItsReason) {
+  std::vector<Eigen::Vector2d> spread;
+  for (int i = 0; i < 10; ++i)
+    for (int j = 0; j < 10; ++j) spread.emplace_back(50.0 * i + 10, 40.0 * j + 10);
+  PoseEvidence good;
+  good.inliers = 100;
+  good.inlier_tf_px = spread;
+  good.tf_width = 512;
+  good.tf_height = 384;
+  good.rmse_px = 0.5;
+  good.covariance = Covariance6::Identity() * 1e-6;
+  PoseCheckOptions options;
+  EXPECT_EQ(CheckPose(good, options), "ok");
+
+  PoseEvidence e = good;
+  e.inliers = 12;
+  EXPECT_NE(CheckPose(e, options).find("12 inliers (< 20)"), std::string::npos);
+  std::vector<Eigen::Vector2d> clustered;
+  for (int i = 0; i < 100; ++i) clustered.emplace_back(10 + i % 10, 10 + i / 10);
+  e = good;
+  e.inlier_tf_px = clustered;
+  EXPECT_NE(CheckPose(e, options).find("inliers span"), std::string::npos);
+  std::vector<Eigen::Vector2d> line;  // spread along x only: a degenerate spread too
+  for (int i = 0; i < 100; ++i) line.emplace_back(5.0 * i, 100.0);
+  e.inlier_tf_px = line;
+  EXPECT_NE(CheckPose(e, options).find("inliers span"), std::string::npos);
+  e = good;
+  e.rmse_px = 3;
+  EXPECT_NE(CheckPose(e, options).find("rmse"), std::string::npos);
+  e = good;
+  e.covariance(0, 0) = 100;  // 10 mm
+  EXPECT_NE(CheckPose(e, options).find("translation sigma"), std::string::npos);
+  e = good;
+  e.covariance(4, 4) = 1e-3;  // 1.8 deg
+  EXPECT_NE(CheckPose(e, options).find("rotation sigma"), std::string::npos);
+  e = good;
+  e.predicted_w0_from_cam = Pose::Identity();
+  e.w0_from_cam = Pose::Identity();
+  e.w0_from_cam.translation() = Eigen::Vector3d(0, 0, 100);
+  EXPECT_NE(CheckPose(e, options).find("from the predicted pose"), std::string::npos);
+  e.w0_from_cam = Pose(Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitY()));
+  EXPECT_NE(CheckPose(e, options).find("deg from the predicted pose"), std::string::npos);
+  options.min_inliers = 2;
+  EXPECT_FALSE(options.Check());
+}
+
+}  // namespace
+}  // namespace lifmcr::registration
