@@ -56,8 +56,8 @@ std::string CameraHealth::LossLine() const {
   out << "lost " << Lost() << " [incomplete " << incomplete << ", missing ids " << missing_by_id
       << ", missed while lost " << missing_in_gaps << ", no frame at end " << no_frame_at_end
       << ", trigger not fired in time " << triggers_not_fired << ", not in any FrameSet "
-      << not_in_any_set << ", queue full " << recorder.dropped_queue_full << ", write error " << recorder.lost_write_error
-      << ", after stop " << recorder.lost_stopped << "]";
+      << not_in_any_set << ", queue full " << recorder.dropped_queue_full << ", write error "
+      << recorder.lost_write_error << ", after stop " << recorder.lost_stopped << "]";
   return out.str();
 }
 
@@ -254,23 +254,22 @@ Status RigController::Start() {
                                           [](const auto& slot) { return slot->software_trigger; });
   if (options_.trigger_hz > 0 && fires_triggers) {
     triggering_ = true;
-    for (std::size_t i = 0; i < slots_.size(); ++i) {
-      if (!slots_[i]->software_trigger) continue;
-      trigger_threads_.emplace_back([this, i] { TriggerLoop(static_cast<int>(i)); });
+    // The schedule starts as Start returns (callers time their own events
+    // from it); a trigger thread created late on a loaded host skips the
+    // ticks already past (counted).
+    {
+      std::lock_guard<std::mutex> lock(trigger_mutex_);
+      schedule_start_ = std::chrono::steady_clock::now();
+      schedule_set_ = true;
     }
-    // The schedule starts once every trigger thread runs (under its
-    // priority): a thread created late on a loaded host would otherwise
-    // find its first ticks past and skip them. At most a second's wait.
-    std::unique_lock<std::mutex> lock(trigger_mutex_);
-    trigger_ready_.wait_for(lock, std::chrono::seconds(1),
-                            [&] { return trigger_threads_ready_ == trigger_threads_.size(); });
-    schedule_start_ = std::chrono::steady_clock::now();
     {
       std::lock_guard<std::mutex> anchor(anchor_mutex_);
       trigger_schedule_host_ns_ = HostRealtimeNs();
     }
-    schedule_set_ = true;
-    trigger_ready_.notify_all();
+    for (std::size_t i = 0; i < slots_.size(); ++i) {
+      if (!slots_[i]->software_trigger) continue;
+      trigger_threads_.emplace_back([this, i] { TriggerLoop(static_cast<int>(i)); });
+    }
   }
   return Status::Ok();
 }
