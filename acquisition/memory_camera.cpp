@@ -1,5 +1,7 @@
 #include "acquisition/memory_camera.h"
 
+#include "drivers/host_clock.h"
+
 #include <chrono>
 #include <cstring>
 #include <thread>
@@ -7,12 +9,6 @@
 
 namespace lifmcr {
 namespace {
-
-std::int64_t RealtimeNs() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::system_clock::now().time_since_epoch())
-      .count();
-}
 
 std::uint64_t NextId16(std::uint64_t id) { return id >= 65535 ? 1 : id + 1; }
 
@@ -99,7 +95,7 @@ std::optional<Frame> MemoryCamera::Produce(BufferRef buffer) {
   Frame frame;
   frame.serial = options_.serial;
   frame.frame_id = id;
-  frame.host_ns = RealtimeNs();
+  frame.host_ns = HostRealtimeNs();
   frame.device_ns = frame.host_ns;
   frame.status = FrameStatus::kOk;
   frame.image =

@@ -1,6 +1,7 @@
 #include "acquisition/rig_controller.h"
 
 #include "acquisition/thread_priority.h"
+#include "drivers/host_clock.h"
 
 #include <spdlog/spdlog.h>
 
@@ -16,12 +17,6 @@ std::string Fixed(double value, int digits) {
   char text[64];
   std::snprintf(text, sizeof(text), "%.*f", digits, value);
   return text;
-}
-
-std::int64_t RealtimeNs() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::system_clock::now().time_since_epoch())
-      .count();
 }
 
 }  // namespace
@@ -61,8 +56,8 @@ std::string CameraHealth::LossLine() const {
   out << "lost " << Lost() << " [incomplete " << incomplete << ", missing ids " << missing_by_id
       << ", missed while lost " << missing_in_gaps << ", no frame at end " << no_frame_at_end
       << ", trigger not fired in time " << triggers_not_fired << ", not in any FrameSet "
-      << not_in_any_set << ", queue full " << recorder.dropped_queue_full << ", write error " << recorder.lost_write_error
-      << ", after stop " << recorder.lost_stopped << "]";
+      << not_in_any_set << ", queue full " << recorder.dropped_queue_full << ", write error "
+      << recorder.lost_write_error << ", after stop " << recorder.lost_stopped << "]";
   return out.str();
 }
 
@@ -237,7 +232,7 @@ Status RigController::Start() {
       return s;
     }
     if (armed_start_ != nullptr) {
-      const std::int64_t armed_host_ns = RealtimeNs();
+      const std::int64_t armed_host_ns = HostRealtimeNs();
       const std::optional<std::int64_t> armed_device_ns = slots_[i]->camera->ArmedDeviceNs();
       std::lock_guard<std::mutex> lock(anchor_mutex_);
       armed_start_->Armed(static_cast<int>(i), armed_host_ns, armed_device_ns);
@@ -246,7 +241,7 @@ Status RigController::Start() {
   }
   if (armed_start_ != nullptr) {
     std::lock_guard<std::mutex> lock(anchor_mutex_);
-    all_armed_host_ns_ = RealtimeNs();
+    all_armed_host_ns_ = HostRealtimeNs();
   }
   started_ = true;
   if (vicon_) {
@@ -259,23 +254,22 @@ Status RigController::Start() {
                                           [](const auto& slot) { return slot->software_trigger; });
   if (options_.trigger_hz > 0 && fires_triggers) {
     triggering_ = true;
+    // The schedule starts as Start returns (callers time their own events
+    // from it); a trigger thread created late on a loaded host skips the
+    // ticks already past (counted).
+    {
+      std::lock_guard<std::mutex> lock(trigger_mutex_);
+      schedule_start_ = std::chrono::steady_clock::now();
+      schedule_set_ = true;
+    }
+    {
+      std::lock_guard<std::mutex> anchor(anchor_mutex_);
+      trigger_schedule_host_ns_ = HostRealtimeNs();
+    }
     for (std::size_t i = 0; i < slots_.size(); ++i) {
       if (!slots_[i]->software_trigger) continue;
       trigger_threads_.emplace_back([this, i] { TriggerLoop(static_cast<int>(i)); });
     }
-    // The schedule starts once every trigger thread runs (under its
-    // priority): a thread created late on a loaded host would otherwise
-    // find its first ticks past and skip them. At most a second's wait.
-    std::unique_lock<std::mutex> lock(trigger_mutex_);
-    trigger_ready_.wait_for(lock, std::chrono::seconds(1),
-                            [&] { return trigger_threads_ready_ == trigger_threads_.size(); });
-    schedule_start_ = std::chrono::steady_clock::now();
-    {
-      std::lock_guard<std::mutex> anchor(anchor_mutex_);
-      trigger_schedule_host_ns_ = RealtimeNs();
-    }
-    schedule_set_ = true;
-    trigger_ready_.notify_all();
   }
   return Status::Ok();
 }
@@ -315,7 +309,7 @@ void RigController::SyncLoop() {
     std::vector<FrameSet> sets;
     {
       std::lock_guard<std::mutex> lock(sync_mutex_);
-      sets = assembler_->Poll(RealtimeNs());
+      sets = assembler_->Poll(HostRealtimeNs());
     }
     RecordSets(std::move(sets));
     std::this_thread::sleep_for(options_.sync_poll);
@@ -361,7 +355,7 @@ void RigController::GrabLoop(int index) {
     if (!next->has_value()) continue;
     Frame frame = std::move(**next);
     frame.camera_index = index;
-    frame.arrival_ns = RealtimeNs();  // the start of the latency to publication
+    frame.arrival_ns = HostRealtimeNs();  // the start of the latency to publication
     const std::size_t bytes =
         frame.image.stride_bytes * static_cast<std::size_t>(frame.image.height);
     std::int64_t frame_index = 0;
@@ -545,7 +539,7 @@ std::optional<std::int64_t> RigController::Origin(bool force) {
         std::chrono::duration_cast<std::chrono::nanoseconds>(options_.all_armed_wait).count();
     // The wait for first frames runs from the last camera's arm.
     const bool waited =
-        all_armed_host_ns_.has_value() && RealtimeNs() >= *all_armed_host_ns_ + wait_ns;
+        all_armed_host_ns_.has_value() && HostRealtimeNs() >= *all_armed_host_ns_ + wait_ns;
     origin = armed_start_->Decide(force || waited);
     if (!origin) return std::nullopt;
     if (!was_decided) {

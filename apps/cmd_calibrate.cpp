@@ -46,6 +46,7 @@ struct CalibrateOptions {
   bool fix_distortion = false;
   bool no_covariance = false;
   double plate_weight = registration::CalibrationOptions{}.plate_weight;
+  double principal_point_prior_px = registration::CalibrationOptions{}.principal_point_prior_px;
   bool euclidean_points = false;
   bool fixed_corner_inset = false;
   std::string cache;
@@ -107,6 +108,7 @@ int RunCalibrate(const CalibrateOptions& o) {
 
   registration::FrameLoaderOptions loader_options;
   loader_options.lambda = processing::CameraModel(initial->intrinsics).lambda();
+  loader_options.principal_point_px = initial->intrinsics.principal_point_px;
   loader_options.features.max_features = o.max_features;
   auto loader = registration::CalibrationFrameLoader::Open(seq, o.camera, o.mla, *plate,
                                                            loader_options);
@@ -168,6 +170,7 @@ int RunCalibrate(const CalibrateOptions& o) {
   options.estimate_distortion = !o.fix_distortion;
   options.covariance = !o.no_covariance;
   options.plate_weight = o.plate_weight;
+  options.principal_point_prior_px = o.principal_point_prior_px;
   options.inverse_depth = !o.euclidean_points;
   options.estimate_corner_inset = !o.fixed_corner_inset;
   Expected<registration::CalibrationResult> result =
@@ -268,6 +271,9 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
                "quarter of the solve's time)");
   app.add_option("--plate-weight", o->plate_weight,
                  "Weight of the plate corners' residuals against the features' (default 5)");
+  app.add_option("--principal-point-prior", o->principal_point_prior_px,
+                 "Sigma (raw px) of the principal point's Gaussian prior about its initial "
+                 "value (default 20; 0: none)");
   app.add_flag("--euclidean-points", o->euclidean_points,
                "Points as 3D positions in the plate frame instead of inverse depth in their "
                "first frame");

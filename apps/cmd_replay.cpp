@@ -35,8 +35,8 @@ struct Args {
 }  // namespace
 
 int RunReplayCommand(const std::string& sequence, const std::string& rate_text, bool loop,
-                     const std::string& lcm_url, bool processing, int concurrency,
-                     const char* who, const RegistrationArgs& registration,
+                     const std::string& lcm_url, bool processing, int concurrency, const char* who,
+                     const RegistrationArgs& registration,
                      const std::vector<std::string>& pixel_formats) {
   auto rate = ReplayRate::Parse(rate_text);
   if (!rate) {

@@ -37,8 +37,8 @@ int RunReplayCommand(const std::string& sequence, const std::string& rate_text, 
                      const char* who);
 // pixel_formats: `--pixel-format` values ([SERIAL=]FORMAT).
 int RunReplayCommand(const std::string& sequence, const std::string& rate_text, bool loop,
-                     const std::string& lcm_url, bool processing, int concurrency,
-                     const char* who, const RegistrationArgs& registration,
+                     const std::string& lcm_url, bool processing, int concurrency, const char* who,
+                     const RegistrationArgs& registration,
                      const std::vector<std::string>& pixel_formats = {});
 
 }  // namespace lifmcr::apps

@@ -37,6 +37,7 @@
 #include "apps/pipeline/pipeline.h"
 #include "apps/pipeline/process_settings.h"
 #include "apps/pipeline/replay_runner.h"
+#include "bench/paced_vicon.h"
 #include "drivers/replay_camera.h"
 #include "drivers/vicon_udp_sender.h"
 #include "drivers/vicon_udp_source.h"
@@ -437,23 +438,7 @@ int RunViconPart(const BenchArgs& args, const std::filesystem::path& sequence_di
   std::atomic<bool> sending{true};
   std::string send_error;
   std::thread sending_thread([&] {
-    ViconFrame frame;
-    for (const std::string& name : objects) {
-      Pose pose = Pose::Identity();
-      pose.translation() = Eigen::Vector3d(100, 200, 300);
-      frame.objects.push_back({name, pose});
-    }
-    const auto start = Clock::now();
-    for (std::size_t i = 0; i < packets; ++i) {
-      std::this_thread::sleep_until(start + std::chrono::nanoseconds(std::llround(
-                                                static_cast<double>(i) * 1e9 / args.vicon_hz)));
-      frame.vicon_frame = kFirstFrame + static_cast<std::int64_t>(i);
-      sent_ns[i].store(SteadyNs(), std::memory_order_relaxed);
-      if (Status sent = sender->Send(frame); !sent) {
-        send_error = sent.error().message;
-        break;
-      }
-    }
+    send_error = bench::SendPacedVicon(*sender, objects, kFirstFrame, args.vicon_hz, sent_ns);
     sending = false;
   });
   // The command's loop, as in `lifmcr record`: the pipeline polled for

@@ -15,6 +15,8 @@
 // The Vicon rate is raised from 80 Hz so a run takes seconds; the divider
 // stays 8 (a FrameSet per 8 packets).
 
+#include "bench/paced_vicon.h"
+#include "drivers/host_clock.h"
 #include "drivers/vicon_udp_sender.h"
 #include "drivers/vicon_udp_source.h"
 #include "sync/frame_set_assembler.h"
@@ -36,12 +38,6 @@ using Clock = std::chrono::steady_clock;
 std::int64_t NowNs() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch())
       .count();
-}
-
-std::int64_t RealtimeNs() {
-  timespec now{};
-  clock_gettime(CLOCK_REALTIME, &now);
-  return static_cast<std::int64_t>(now.tv_sec) * 1000000000 + now.tv_nsec;
 }
 
 double Percentile(std::vector<std::int64_t> values, double p) {
@@ -92,23 +88,8 @@ int main(int argc, char** argv) {
 
   std::vector<std::atomic<std::int64_t>> sent_ns(static_cast<std::size_t>(packets));
   std::thread sending([&] {
-    ViconFrame frame;
-    for (const std::string& name : objects) {
-      Pose pose = Pose::Identity();
-      pose.translation() = Eigen::Vector3d(100, 200, 300);
-      frame.objects.push_back({name, pose});
-    }
-    const auto start = Clock::now();
-    for (int i = 0; i < packets; ++i) {
-      std::this_thread::sleep_until(start +
-                                    std::chrono::nanoseconds(std::llround(i * 1e9 / rate_hz)));
-      frame.vicon_frame = kFirstFrame + i;
-      sent_ns[i].store(NowNs(), std::memory_order_release);
-      if (Status sent = sender->Send(frame); !sent) {
-        std::fprintf(stderr, "%s\n", sent.error().message.c_str());
-        return;
-      }
-    }
+    const std::string error = bench::SendPacedVicon(*sender, objects, kFirstFrame, rate_hz, sent_ns);
+    if (!error.empty()) std::fprintf(stderr, "%s\n", error.c_str());
   });
 
   std::vector<std::int64_t> receive_ns, frameset_ns, overhead_ns;
@@ -125,7 +106,7 @@ int main(int argc, char** argv) {
     // Camera frames of the next trigger, in before its Vicon packet arrives.
     if ((index + 1) % kDivider == 0 && index + 1 < packets) {
       const std::int64_t trigger = (index + 1) / kDivider;
-      const std::int64_t host = RealtimeNs();
+      const std::int64_t host = HostRealtimeNs();
       for (int camera = 0; camera < 2; ++camera) {
         Frame camera_frame;
         camera_frame.camera_index = camera;
@@ -140,7 +121,7 @@ int main(int argc, char** argv) {
     }
     const bool is_trigger = index % kDivider == 0;
     assembler.AddVicon(std::move(frame));
-    std::vector<FrameSet> ready = assembler.Poll(RealtimeNs());
+    std::vector<FrameSet> ready = assembler.Poll(HostRealtimeNs());
     const std::int64_t emitted = NowNs();
     for (const FrameSet& set : ready) {
       ++sets;

@@ -2,6 +2,7 @@
 
 #include "drivers/frame_id_tracker.h"
 #include "drivers/frame_pool.h"
+#include "drivers/host_clock.h"
 #include "replay/bmp.h"
 #include "replay/sequence.h"
 
@@ -12,12 +13,6 @@ namespace lifmcr {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-std::int64_t RealtimeNs() {
-  timespec now{};
-  clock_gettime(CLOCK_REALTIME, &now);
-  return static_cast<std::int64_t>(now.tv_sec) * 1'000'000'000 + now.tv_nsec;
-}
 
 }  // namespace
 
@@ -216,7 +211,7 @@ Expected<std::optional<Frame>> ReplayCamera::NextFrame(std::chrono::milliseconds
   frame.host_ns = s.options.sequence_clock_start_ns
                       ? *s.options.sequence_clock_start_ns + frame.device_ns -
                             s.options.sequence_origin_device_ns
-                      : RealtimeNs();
+                      : HostRealtimeNs();
   {
     std::lock_guard<std::mutex> lock(s.mutex);
     s.stats.missing_ids += missing;

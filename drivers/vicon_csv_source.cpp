@@ -1,5 +1,7 @@
 #include "drivers/vicon_csv_source.h"
 
+#include "drivers/host_clock.h"
+
 #include <chrono>
 #include <cmath>
 #include <ctime>
@@ -7,18 +9,10 @@
 #include <thread>
 
 namespace lifmcr {
-namespace {
-
-std::int64_t RealtimeNs() {
-  timespec now{};
-  clock_gettime(CLOCK_REALTIME, &now);
-  return static_cast<std::int64_t>(now.tv_sec) * 1000000000 + now.tv_nsec;
-}
-
-}  // namespace
 
 Status ViconCsvSourceOptions::Check() const {
-  if (objects.empty()) return Error{"Vicon CSV source: objects: expected at least one to play back"};
+  if (objects.empty())
+    return Error{"Vicon CSV source: objects: expected at least one to play back"};
   if (!(rate_hz >= 0.0) || !std::isfinite(rate_hz))
     return Error{"Vicon CSV source: rate_hz: expected >= 0 (0: the file's rate)"};
   // pose: enumerations; realtime, sequence_clock_start_ns: any.
@@ -76,7 +70,7 @@ Expected<std::unique_ptr<ViconCsvSource>> ViconCsvSource::FromCsv(
 Status ViconCsvSource::Start() {
   started_ = true;
   next_ = 0;
-  start_host_ns_ = RealtimeNs();
+  start_host_ns_ = HostRealtimeNs();
   return Status::Ok();
 }
 
@@ -95,7 +89,7 @@ ViconSourceStats ViconCsvSource::Stats() const {
 Expected<std::optional<ViconFrame>> ViconCsvSource::Next(std::chrono::milliseconds timeout) {
   if (!started_) return Error{"Vicon CSV source: Next before Start"};
   if (Finished()) return std::optional<ViconFrame>();
-  std::int64_t host_ns = RealtimeNs();
+  std::int64_t host_ns = HostRealtimeNs();
   if (realtime_) {
     const double offset_s =
         static_cast<double>(frames_[next_].vicon_frame - frames_.front().vicon_frame) / rate_hz_;

@@ -1,5 +1,6 @@
 #include "drivers/vicon_udp_source.h"
 
+#include "drivers/host_clock.h"
 #include "drivers/vicon_tracker_packet.h"
 
 #include <arpa/inet.h>
@@ -14,12 +15,6 @@
 
 namespace lifmcr {
 namespace {
-
-std::int64_t RealtimeNs() {
-  timespec now{};
-  clock_gettime(CLOCK_REALTIME, &now);
-  return static_cast<std::int64_t>(now.tv_sec) * 1000000000 + now.tv_nsec;
-}
 
 std::string Endpoint(const std::string& address, int port) {
   return "Vicon UDP " + address + ":" + std::to_string(port);
@@ -168,7 +163,7 @@ Expected<std::optional<ViconFrame>> ViconUdpSource::Next(std::chrono::millisecon
         return Error{where + ": poll: " + std::strerror(errno)};
       continue;
     }
-    const std::int64_t host_ns = RealtimeNs();
+    const std::int64_t host_ns = HostRealtimeNs();
     auto frame =
         Convert(std::span<const std::uint8_t>(datagram_.data(), static_cast<std::size_t>(received)),
                 host_ns);

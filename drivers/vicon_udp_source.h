@@ -40,7 +40,7 @@ struct ViconUdpSourceOptions {
   // objects as they come.
   std::vector<std::string> objects;
   int receive_buffer_bytes = 4 << 20;  // SO_RCVBUF request (the kernel caps it at rmem_max), > 0
-  Status Check() const;  // every field; the message names the field
+  Status Check() const;                // every field; the message names the field
 
   // From the rig file: vicon.udp, vicon.rotation, vicon.handedness and the
   // rig's objects (ViconObjectsOfRig).

@@ -1,6 +1,7 @@
 #include "processing/camera_model.h"
 
 #include <cmath>
+#include <string>
 
 namespace lifmcr::processing {
 namespace {
@@ -20,11 +21,18 @@ Status CameraIntrinsics::Check() const {
   if (width_px <= 0 || height_px <= 0) return FieldError("width_px/height_px", "expected > 0");
   if (!std::isfinite(k1) || !std::isfinite(k2) || !std::isfinite(p1) || !std::isfinite(p2))
     return FieldError("k1/k2/p1/p2", "expected finite numbers");
+  if (principal_point_px) {
+    const Eigen::Vector2d& c = *principal_point_px;
+    if (!(c.x() >= 0 && c.x() <= width_px - 1 && c.y() >= 0 && c.y() <= height_px - 1))
+      return FieldError("principal_point_px", "expected inside the image (0 .. " +
+                                                  std::to_string(width_px - 1) + ", 0 .. " +
+                                                  std::to_string(height_px - 1) + ")");
+  }
   return Status::Ok();
 }
 
 CameraModel::CameraModel(const CameraIntrinsics& intrinsics) : k_(intrinsics) {
-  c_ = {(k_.width_px - 1) / 2.0, (k_.height_px - 1) / 2.0};
+  c_ = k_.PrincipalPointPx();
   lambda_ = k_.mla_to_main_lens_mm / (k_.mla_to_main_lens_mm + k_.mla_to_sensor_mm);
   distorted_ = k_.k1 != 0 || k_.k2 != 0 || k_.p1 != 0 || k_.p2 != 0;
 }

@@ -7,7 +7,9 @@
 // camera frame at the main-lens centre, x right, y down, z forward (mm).
 // Image side: z is the distance behind the main lens; lateral coordinates are
 // mirrored so that the image is upright. Raw pixels are 0-based with centres
-// at integers; the principal point is the image centre c = ((W-1)/2, (H-1)/2).
+// at integers; the principal point c (where the main lens' optical axis
+// meets the sensor) is the image centre ((W-1)/2, (H-1)/2) unless the
+// intrinsics give it (a calibration estimates it).
 //
 // Symbols: f_L main-lens focal length, b_L0 main lens -> MLA, B MLA ->
 // sensor, s pixel size (mm/px), v virtual depth (unit-less), b_L = b_L0 + v B
@@ -44,6 +46,7 @@
 
 #include <Eigen/Core>
 
+#include <optional>
 #include <string>
 
 namespace lifmcr::processing {
@@ -56,8 +59,15 @@ struct CameraIntrinsics {
   int width_px = 1024;                    // raw width
   int height_px = 768;                    // raw height
   double k1 = 0, k2 = 0, p1 = 0, p2 = 0;  // LiFCal distortion in the MLA plane (mm based)
+  // c (raw pixels); unset: the image centre ((W-1)/2, (H-1)/2).
+  std::optional<Eigen::Vector2d> principal_point_px;
 
-  // Every field in range; the message names the field.
+  // c as given, else the image centre.
+  Eigen::Vector2d PrincipalPointPx() const {
+    return principal_point_px.value_or(Eigen::Vector2d((width_px - 1) / 2.0, (height_px - 1) / 2.0));
+  }
+  // Every field in range (c, when given, inside the image); the message
+  // names the field.
   Status Check() const;
 };
 

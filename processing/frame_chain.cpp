@@ -71,6 +71,7 @@ Expected<std::unique_ptr<CameraChain>> CameraChain::Create(CameraSetup setup,
       return Error{who + "intrinsics: " + s.error().message};
     chain->camera_.emplace(*setup.intrinsics);
     chain->options_.frame.lambda = chain->camera_->lambda();
+    chain->options_.frame.principal_point_px = chain->camera_->principal_point_px();
   }
   if (setup.white && (setup.white->width <= 0 || setup.white->height <= 0))
     return Error{who + "white image: empty"};

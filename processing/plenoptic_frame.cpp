@@ -22,6 +22,8 @@ float GreyAt(ConstImageView image, int x, int y) {
 Status FrameOptions::Check() const {
   if (!(lambda > 0 && lambda <= 1.5))
     return Error{"frame options: lambda: expected in (0, 1.5] (b_L0 / (b_L0 + B))"};
+  if (principal_point_px && !principal_point_px->allFinite())
+    return Error{"frame options: principal_point_px: expected finite numbers"};
   if (!(margin_px >= 0 && margin_px < 1000)) return Error{"frame options: margin_px: expected 0..1000"};
   if (smooth_passes < 0 || smooth_passes > 16)
     return Error{"frame options: smooth_passes: expected 0..16"};
@@ -101,7 +103,8 @@ Status PrepareGeometry(ConstImageView white, int width, int height, const MlaGri
   f.lenses.clear();
   f.radius_px = grid.PitchPx() / 2 - mla.lens_border_px - options.margin_px;
   if (!(f.radius_px > 1.0)) return Error{"MLA: lens border leaves no usable micro-image radius"};
-  const Eigen::Vector2d c((w - 1) / 2.0, (h - 1) / 2.0);
+  const Eigen::Vector2d c =
+      options.principal_point_px.value_or(Eigen::Vector2d((w - 1) / 2.0, (h - 1) / 2.0));
   for (int j = f.j_min; j <= j_max; ++j)
     for (int i = f.i_min; i <= i_max; ++i) {
       const Eigen::Vector2d ck = grid.Center(i, j);

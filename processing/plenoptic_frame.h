@@ -20,6 +20,7 @@
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 namespace lifmcr::processing {
@@ -33,6 +34,7 @@ struct MicroImage {
 
 struct FrameOptions {
   double lambda = 1.0;              // b_L0 / (b_L0 + B); 1 when the intrinsics are unknown
+  std::optional<Eigen::Vector2d> principal_point_px;  // c of l_k; unset: the image centre
   double margin_px = 0.0;           // r_valid = D / 2 - lens_border - margin
   int smooth_passes = 2;            // binomial smoothing of the grey image within micro images
   double min_white_fraction = 0.5;  // devignetting validity

@@ -118,6 +118,18 @@ struct PlateCornerCost {
   }
 };
 
+// The principal point's prior: (c - c_initial) / sigma. Parameters: intrinsics.
+struct PrincipalPointPrior {
+  Eigen::Vector2d initial_px;
+  double sigma_px = 1;
+  template <typename T>
+  bool operator()(const T* k, T* residuals) const {
+    residuals[0] = (k[3] - T(initial_px.x())) / T(sigma_px);
+    residuals[1] = (k[4] - T(initial_px.y())) / T(sigma_px);
+    return true;
+  }
+};
+
 // Points by inverse depth in the frame of their first observation (the
 // anchor a): (alpha, beta, rho) with p_in_a = (alpha, beta, 1) / rho, rho
 // bounded to (0, 1 / (2.6 f_L)], so no step of the solve can move a point
@@ -265,6 +277,8 @@ Status CalibrationOptions::Check() const {
   if (!(huber_px > 0)) return fail("huber_px: expected > 0");
   if (!(outlier_px > 0)) return fail("outlier_px: expected > 0");
   if (!(plate_weight > 0)) return fail("plate_weight: expected > 0");
+  if (!(principal_point_prior_px >= 0))
+    return fail("principal_point_prior_px: expected >= 0 (0: no prior)");
   if (max_lenses < 2) return fail("max_lenses: expected >= 2");
   if (max_iterations < 1) return fail("max_iterations: expected >= 1");
   if (threads < 1) return fail("threads: expected >= 1");
@@ -272,7 +286,7 @@ Status CalibrationOptions::Check() const {
 }
 
 std::string CalibrationResult::BriefReport() const {
-  const IntrinsicsVector k = ToVector(calibration.intrinsics, calibration.principal_point_px);
+  const IntrinsicsVector k = ToVector(calibration.intrinsics);
   int placed = 0;
   for (const FrameReport& f : frames) placed += f.placed ? 1 : 0;
   return Format(
@@ -325,10 +339,10 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
                         placed, n_frames, options.min_frames)};
 
   CalibrationResult result;
-  result.initial = ToVector(initial, input.initial.principal_point_px);
+  result.initial = ToVector(initial);
   IntrinsicsVector k = result.initial;
   const double s = input.initial.intrinsics.pixel_size_mm;
-  const Eigen::Vector2d c0 = input.initial.principal_point_px;
+  const Eigen::Vector2d c0 = input.initial.intrinsics.PrincipalPointPx();
   // The micro-lens centres the frames were processed with (their TF images
   // and virtual depths): the observations in the micro images undo them.
   const double lambda0 = frames_lambda;
@@ -480,6 +494,11 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
     if (round == 0 || static_cast<int>(constant.size()) == kIntrinsicsSize) {
       problem.SetParameterBlockConstant(k.data());
     } else {
+      if (options.estimate_principal_point && options.principal_point_prior_px > 0)
+        problem.AddResidualBlock(
+            new ceres::AutoDiffCostFunction<PrincipalPointPrior, 2, kIntrinsicsSize>(
+                new PrincipalPointPrior{c0, options.principal_point_prior_px}),
+            nullptr, k.data());
       if (!constant.empty())
         problem.SetManifold(k.data(), new ceres::SubsetManifold(kIntrinsicsSize, constant));
       // Keep the solve among cameras: f_L, b_L0, B within 30 % of their
@@ -602,7 +621,6 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
 
   // Results: intrinsics, poses, residuals per frame.
   result.calibration.intrinsics = FromVector(k, input.initial.intrinsics);
-  result.calibration.principal_point_px = {k[3], k[4]};
   result.corner_inset_tf_px = corner_inset_tf_px;
   if (options.estimate_corner_inset && std::abs(corner_inset_tf_px) > kMaxInsetTfPx - 1e-3)
     result.flags.push_back(Format("plate corners: their inset reached its bound (%.2f TF px): "
@@ -732,11 +750,7 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
       const Observation& ob = track.observations[o];
       const CalibrationFrame& frame = input.frames[ob.frame];
       const Eigen::Vector3d x_v = internal::VirtualPoint(frame, ob.keypoint);
-      // BackProject takes the image-centre principal point: shift by the estimate.
-      const Eigen::Vector3d shifted(x_v.x() - k[3] + final_model.principal_point_px().x(),
-                                    x_v.y() - k[4] + final_model.principal_point_px().y(),
-                                    x_v.z());
-      const Eigen::Vector3d p = FromBlock(poses[ob.frame]) * final_model.BackProject(shifted);
+      const Eigen::Vector3d p = FromBlock(poses[ob.frame]) * final_model.BackProject(x_v);
       sum_sq += (p - track.p_in_w_mm).cwiseAbs2();
       for (int a = 0; a < 3; ++a) rgb[a] += frame.rgb[ob.keypoint][a];
       MapImage& image = out.images[image_of_frame[ob.frame]];
@@ -766,7 +780,7 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
 }
 
 std::string FormatCalibrationReport(const CalibrationResult& r, const std::string& serial) {
-  const IntrinsicsVector k = ToVector(r.calibration.intrinsics, r.calibration.principal_point_px);
+  const IntrinsicsVector k = ToVector(r.calibration.intrinsics);
   std::string text = "# Calibration of camera " + serial + "\n\n";
   text += r.BriefReport() + "\n\n";
   text += r.flags.empty() ? "No flags.\n\n" : "## Flags\n\n";

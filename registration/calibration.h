@@ -39,6 +39,8 @@
 //    (ceres::SubsetManifold).
 // 4. Standard deviations of the intrinsics from ceres::Covariance, scaled by
 //    the residual variance of the solution.
+// The principal point has a weak Gaussian prior about its initial value
+// (principal_point_prior_px).
 
 #include "config/error.h"
 #include "registration/calibration_frames.h"
@@ -79,6 +81,10 @@ struct CalibrationOptions {
   int max_iterations = 100;         // Ceres iterations per solve (twice that for the last)
   bool recalibrate = false;         // hold f_L and B fixed (LiFCal recalib)
   bool estimate_principal_point = true;
+  // Gaussian prior of the principal point about its initial value (sigma in
+  // raw px; 0: none): a real lens' axis meets the sensor within tens of
+  // pixels of the centre, and views that do not determine c keep it there.
+  double principal_point_prior_px = 20;
   bool estimate_distortion = true;
   bool inverse_depth = true;          // points by inverse depth in their anchor frame
   bool estimate_corner_inset = true;  // the plate corners' detection inset (calibration.cpp)

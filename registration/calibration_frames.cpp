@@ -177,6 +177,7 @@ Expected<std::unique_ptr<CalibrationFrameLoader>> CalibrationFrameLoader::Open(
       processing::MlaGrid::FromCalibration(st.mla, first->width, first->height);
   processing::FrameOptions frame_options;
   frame_options.lambda = options.lambda;
+  frame_options.principal_point_px = options.principal_point_px;
   ConstImageView white_view;
   if (st.white.width > 0) white_view = st.white.View();
   if (Status s = processing::PrepareGeometry(white_view, first->width, first->height, grid, st.mla,

@@ -16,6 +16,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -59,6 +60,7 @@ struct MicroImages {
 
 struct FrameLoaderOptions {
   double lambda = 1.0;  // b_L0 / (b_L0 + B) of the initial intrinsics
+  std::optional<Eigen::Vector2d> principal_point_px;  // c of l_k (initial intrinsics); unset: centre
   FeatureOptions features;
   Status Check() const;
 };

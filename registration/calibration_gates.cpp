@@ -76,10 +76,10 @@ Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFr
   if (!true_poses) return true_poses.error();
   std::map<std::int64_t, Pose> cam_from_world;
   for (const FramePose& p : *true_poses) cam_from_world[p.frame] = p.world_from_cam.inverse();
-  const IntrinsicsVector k = ToVector(truth->intrinsics, truth->principal_point_px);
+  const IntrinsicsVector k = ToVector(truth->intrinsics);
   const double s = truth->intrinsics.pixel_size_mm;
   const double lambda_ratio = processing::CameraModel(truth->intrinsics).lambda() / frames_lambda;
-  const Eigen::Vector2d c = truth->principal_point_px;
+  const Eigen::Vector2d c = truth->intrinsics.PrincipalPointPx();
   // TF pixel of a plate point in the TF image processed with frames_lambda
   // (x_v = 2 tf + 0.5).
   auto tf_of = [&](const Pose& c_from_w, const Eigen::Vector3d& p_in_w, Eigen::Vector2d* tf) {
@@ -138,7 +138,7 @@ Expected<GroundTruthComparison> CompareWithGroundTruth(const CalibrationResult& 
   c.b_l0_rel = e.mla_to_main_lens_mm / t.mla_to_main_lens_mm - 1;
   c.b_rel = e.mla_to_sensor_mm / t.mla_to_sensor_mm - 1;
   c.principal_point_px =
-      (result.calibration.principal_point_px - truth->principal_point_px).norm();
+      (result.calibration.intrinsics.PrincipalPointPx() - truth->intrinsics.PrincipalPointPx()).norm();
   c.rmse_px = result.rmse_px;
 
   std::vector<double> d_mm, d_deg;

@@ -25,7 +25,7 @@ struct GroundTruthMapOptions {
   FeatureOptions features;
   MatchOptions match;
   double merge_distance_mm = 5.0;  // > 0
-  Status Check() const;  // every field (features, match: their own); the message names it
+  Status Check() const;            // every field (features, match: their own); the message names it
 };
 
 Expected<ReferenceMap> BuildGroundTruthMap(const std::filesystem::path& sequence_dir,

@@ -68,9 +68,11 @@ Expected<CameraCalibration> ReadCameraCalibration(const fs::path& path,
     m->Read("main_focal_length_mm", &k.main_focal_length_mm, Presence::kRequired);
     m->Read("mla_to_main_lens_mm", &k.mla_to_main_lens_mm, Presence::kRequired);
     m->Read("mla_to_sensor_mm", &k.mla_to_sensor_mm, Presence::kRequired);
-    c.principal_point_px = {(k.width_px - 1) / 2.0, (k.height_px - 1) / 2.0};
-    if (std::optional<YamlNode> pp = m->Child("principal_point_px", Presence::kOptional))
-      ReadNumbers(*pp, 2, c.principal_point_px.data(), &errors);
+    if (std::optional<YamlNode> pp = m->Child("principal_point_px", Presence::kOptional)) {
+      Eigen::Vector2d c_px;
+      ReadNumbers(*pp, 2, c_px.data(), &errors);
+      k.principal_point_px = c_px;
+    }
     if (std::optional<YamlMap> d = m->Map("distortion", Presence::kOptional)) {
       d->Read("k1", &k.k1, Presence::kOptional);
       d->Read("k2", &k.k2, Presence::kOptional);
@@ -102,8 +104,9 @@ Status WriteIntrinsicsYaml(const fs::path& path, const std::string& serial,
   out << YAML::Key << "main_focal_length_mm" << YAML::Value << k.main_focal_length_mm;
   out << YAML::Key << "mla_to_main_lens_mm" << YAML::Value << k.mla_to_main_lens_mm;
   out << YAML::Key << "mla_to_sensor_mm" << YAML::Value << k.mla_to_sensor_mm;
+  const Eigen::Vector2d c_px = k.PrincipalPointPx();
   out << YAML::Key << "principal_point_px" << YAML::Value << YAML::Flow << YAML::BeginSeq
-      << c.principal_point_px.x() << c.principal_point_px.y() << YAML::EndSeq;
+      << c_px.x() << c_px.y() << YAML::EndSeq;
   out << YAML::Key << "distortion" << YAML::Value << YAML::Flow << YAML::BeginMap;
   out << YAML::Key << "model" << YAML::Value << "lifcal_mla_plane_mm";
   out << YAML::Key << "k1" << YAML::Value << k.k1 << YAML::Key << "k2" << YAML::Value << k.k2

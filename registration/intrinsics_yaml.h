@@ -22,13 +22,15 @@
 
 namespace lifmcr::registration {
 
+// The intrinsics of one camera, principal point included
+// (intrinsics.principal_point_px, unset when the file gives none).
 struct CameraCalibration {
   processing::CameraIntrinsics intrinsics;
-  Eigen::Vector2d principal_point_px = Eigen::Vector2d::Zero();  // raw pixels
 };
 
 // The camera `serial` of a cameras.yaml; a missing principal_point_px means
-// the image centre. Errors name the file and the key.
+// the image centre (files written before the model had one). Errors name
+// the file and the key.
 Expected<CameraCalibration> ReadCameraCalibration(const std::filesystem::path& path,
                                                   const std::string& serial);
 

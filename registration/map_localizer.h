@@ -28,7 +28,8 @@
 //                the predicted median of the map points when the camera had
 //                a pose, else the map's median), global matching against
 //                every map point (ratio and cross check, kd-tree) and full
-//                LO-RANSAC PnP; the tracks are seeded from the pose. A
+//                LO-RANSAC PnP; the tracks are seeded at the inliers'
+//                keypoints, the rest at projections from the pose. A
 //                frame of a camera that another worker is relocalising is
 //                not localised (Counts::skipped): relocalising it too would
 //                only repeat the work.

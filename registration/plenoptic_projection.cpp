@@ -2,10 +2,10 @@
 
 namespace lifmcr::registration {
 
-IntrinsicsVector ToVector(const processing::CameraIntrinsics& k,
-                          const Eigen::Vector2d& principal_point_px) {
-  return {k.main_focal_length_mm, k.mla_to_main_lens_mm, k.mla_to_sensor_mm,
-          principal_point_px.x(), principal_point_px.y(), k.k1, k.k2, k.p1, k.p2};
+IntrinsicsVector ToVector(const processing::CameraIntrinsics& k) {
+  const Eigen::Vector2d c = k.PrincipalPointPx();
+  return {k.main_focal_length_mm, k.mla_to_main_lens_mm, k.mla_to_sensor_mm, c.x(), c.y(),
+          k.k1, k.k2, k.p1, k.p2};
 }
 
 processing::CameraIntrinsics FromVector(const IntrinsicsVector& v,
@@ -14,6 +14,7 @@ processing::CameraIntrinsics FromVector(const IntrinsicsVector& v,
   k.main_focal_length_mm = v[0];
   k.mla_to_main_lens_mm = v[1];
   k.mla_to_sensor_mm = v[2];
+  k.principal_point_px = Eigen::Vector2d(v[3], v[4]);
   k.k1 = v[5];
   k.k2 = v[6];
   k.p1 = v[7];

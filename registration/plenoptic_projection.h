@@ -2,8 +2,7 @@
 // LiFCal's plenoptic projection (processing/camera_model.h states the model)
 // written once over a scalar type T, so that the bundle adjustment
 // differentiates it (Ceres Jet) and plain code evaluates it (double), with
-// the principal point as a parameter (camera_model.h fixes it at the image
-// centre).
+// the principal point as a parameter.
 //
 // Intrinsics vector (kIntrinsicsSize doubles):
 //   [0] f_L   main-lens focal length (mm)
@@ -32,10 +31,9 @@ namespace lifmcr::registration {
 inline constexpr int kIntrinsicsSize = 9;
 using IntrinsicsVector = std::array<double, kIntrinsicsSize>;
 
-// From / to the processing model (principal point given separately, since
-// CameraIntrinsics has none).
-IntrinsicsVector ToVector(const processing::CameraIntrinsics& k,
-                          const Eigen::Vector2d& principal_point_px);
+// From / to the processing model (FromVector sets the principal point;
+// ToVector takes the image centre where the intrinsics give none).
+IntrinsicsVector ToVector(const processing::CameraIntrinsics& k);
 processing::CameraIntrinsics FromVector(const IntrinsicsVector& v,
                                         const processing::CameraIntrinsics& sensor);
 

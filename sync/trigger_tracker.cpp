@@ -10,8 +10,7 @@ Status TriggerTrackerOptions::Check() const {
   if (trigger_period_ns <= 0) return Error{"trigger: trigger_period_ns: expected > 0"};
   if (!(tolerance > 0.0 && tolerance < 0.5))
     return Error{"trigger: tolerance: expected in (0, 0.5) periods"};
-  if (counter_bits < 2 || counter_bits > 64)
-    return Error{"trigger: counter_bits: expected 2..64"};
+  if (counter_bits < 2 || counter_bits > 64) return Error{"trigger: counter_bits: expected 2..64"};
   // counter_skips_zero: either.
   return Status::Ok();
 }

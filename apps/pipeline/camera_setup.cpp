@@ -53,6 +53,9 @@ Expected<processing::CameraIntrinsics> ReadIntrinsics(const fs::path& path,
   k.k2 = model->k2;
   k.p1 = model->p1;
   k.p2 = model->p2;
+  if (model->principal_point_px)
+    k.principal_point_px = Eigen::Vector2d((*model->principal_point_px)[0],
+                                           (*model->principal_point_px)[1]);
   if (Status s = k.Check(); !s) return Error{path.string() + ": " + s.error().message};
   return k;
 }

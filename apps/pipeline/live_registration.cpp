@@ -141,8 +141,9 @@ std::string LiveRegistrationReport(const LiveRegistration& live) {
   };
   out << "registration: " << c.tracked << " frames tracked (" << mean_ms(c.tracked_s, c.tracked)
       << " ms each), " << c.relocalised << " relocalised ("
-      << mean_ms(c.relocalised_s, c.relocalised) << " ms), " << c.failed
-      << " failed (camera 0 = " << live.reference_serial << ")";
+      << mean_ms(c.relocalised_s, c.relocalised) << " ms), " << c.failed << " failed";
+  if (c.skipped > 0) out << ", " << c.skipped << " passed through while relocalising";
+  out << " (camera 0 = " << live.reference_serial << ")";
   if (live.csv) out << "; " << live.csv->rows() << " rows in " << live.csv->path().string();
   out << "\n";
   return out.str();

@@ -4,6 +4,8 @@
 
 #include "apps/pipeline/pipeline.h"
 
+#include "drivers/host_clock.h"
+
 #include <spdlog/spdlog.h>
 #include <tbb/flow_graph.h>
 
@@ -29,12 +31,6 @@
 
 namespace lifmcr::apps {
 namespace {
-
-std::int64_t NowRealtimeNs() {
-  timespec ts{};
-  clock_gettime(CLOCK_REALTIME, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 // Latencies kept for percentiles (the last kWindow; counts go on).
 class LatencyWindow {
@@ -383,7 +379,7 @@ struct Pipeline::Impl {
       const Publisher::FrameCounts counts = publisher->PublishFrame(
           FrameMeta{job.frame.serial, job.frame.frame_id, job.trigger_index}, p);
       const std::uint64_t extrinsics = result.w0_from_cx ? Relate(job, *result.w0_from_cx) : 0;
-      const double to_pub_ms = static_cast<double>(NowRealtimeNs() - job.arrival_ns) / 1e6;
+      const double to_pub_ms = static_cast<double>(HostRealtimeNs() - job.arrival_ns) / 1e6;
       std::lock_guard r(report_mutex);
       ++report.processed;
       report.published_previews += counts.previews;
@@ -631,8 +627,8 @@ void Pipeline::AddFrameSet(FrameSet set) {
   std::lock_guard lock(impl_->sync_mutex);
   if (!impl_->sets_f0 && set.vicon_frame >= 0)
     impl_->sets_f0 =
-        set.vicon_frame - static_cast<std::int64_t>(impl_->sync_options.vicon_divider) *
-                              set.trigger_index;
+        set.vicon_frame -
+        static_cast<std::int64_t>(impl_->sync_options.vicon_divider) * set.trigger_index;
   impl_->sets_in.push_back(std::move(set));
 }
 

@@ -2,9 +2,10 @@
 // The live pipeline: FrameSets and Vicon frames from the grab loop
 // (acquisition/rig_controller.h, whose FrameSetAssembler is the run's only
 // one) -> processing (FrameProcessor: the processing chain and the
-// encodings, on a TBB flow graph node with bounded concurrency) -> the registration stage (processing/registration_stage.h;
-// pass-through by default) -> the publisher (publisher.h, a serial node),
-// which owns LCM. docs/architecture.md follows a frame through it.
+// encodings, on a TBB flow graph node with bounded concurrency) -> the
+// registration stage (processing/registration_stage.h; pass-through by
+// default) -> the publisher (publisher.h, a serial node), which owns LCM.
+// docs/architecture.md follows a frame through it.
 //
 // Skip policy (skip_when_busy; the rig file's processing.skip_policy:
 // newest_wins): at most max_concurrency frames are processed at once and

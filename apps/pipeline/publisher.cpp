@@ -2,6 +2,8 @@
 
 #include "apps/pipeline/publisher.h"
 
+#include "drivers/host_clock.h"
+
 #include <lcm/lcm-cpp.hpp>
 
 #include <cstdlib>
@@ -16,11 +18,7 @@
 namespace lifmcr::apps {
 namespace {
 
-std::int64_t NowRealtimeUs() {
-  timespec ts{};
-  clock_gettime(CLOCK_REALTIME, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000 + ts.tv_nsec / 1000;
-}
+std::int64_t NowRealtimeUs() { return HostRealtimeNs() / 1000; }
 
 lifmcr_lcm::preview_image_t ToPreviewMessage(const EncodedImage& image, const FrameMeta& meta,
                                              std::int64_t utime) {

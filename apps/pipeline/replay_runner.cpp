@@ -5,6 +5,7 @@
 #include "acquisition/rig_controller.h"
 #include "config/rig_config.h"
 #include "config/text_escape.h"
+#include "drivers/host_clock.h"
 #include "drivers/replay_camera.h"
 #include "drivers/vicon_csv_source.h"
 #include "replay/bayer.h"
@@ -23,13 +24,6 @@
 #include <thread>
 
 namespace lifmcr::apps {
-namespace {
-std::int64_t NowNs() {
-  timespec ts{};
-  clock_gettime(CLOCK_REALTIME, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-}  // namespace
 
 Expected<ReplayRate> ReplayRate::Parse(const std::string& text) {
   ReplayRate rate;
@@ -270,7 +264,7 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
   auto stopped = [&] { return options.stop && options.stop->load(); };
   for (;;) {
     ++result.passes;
-    auto sources = open_sources(NowNs());
+    auto sources = open_sources(HostRealtimeNs());
     if (!sources) return sources.error();
     if (result.passes == 1) {
       for (const CameraFolder& folder : sequence->cameras)

@@ -188,6 +188,11 @@ Expected<CameraModelYaml> ParseCameraModelYaml(std::string_view text, const std:
     model->Read("main_focal_length_mm", &k.main_focal_length_mm, kRequired);
     model->Read("mla_to_main_lens_mm", &k.mla_to_main_lens_mm, kRequired);
     model->Read("mla_to_sensor_mm", &k.mla_to_sensor_mm, kRequired);
+    if (model->Child("principal_point_px", kOptional)) {
+      std::vector<double> c;
+      model->ReadNumbers("principal_point_px", 2, &c, kOptional);
+      if (c.size() == 2) k.principal_point_px = std::array<double, 2>{c[0], c[1]};
+    }
     if (std::optional<YamlMap> d = model->Map("distortion", kOptional)) {
       d->Read("k1", &k.k1, kOptional);
       d->Read("k2", &k.k2, kOptional);
@@ -217,6 +222,12 @@ Expected<CameraModelYaml> ParseCameraModelYaml(std::string_view text, const std:
         range("distortion/k2", std::abs(k.k2), 0, l.max_abs_distortion, false),
         range("distortion/p1", std::abs(k.p1), 0, l.max_abs_distortion, false),
         range("distortion/p2", std::abs(k.p2), 0, l.max_abs_distortion, false),
+        k.principal_point_px
+            ? range("principal_point_px/0", (*k.principal_point_px)[0], 0, k.width_px - 1, false)
+            : std::nullopt,
+        k.principal_point_px
+            ? range("principal_point_px/1", (*k.principal_point_px)[1], 0, k.height_px - 1, false)
+            : std::nullopt,
     };
     for (const std::optional<Error>& problem : problems)
       if (problem) return *problem;

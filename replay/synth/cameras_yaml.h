@@ -11,8 +11,10 @@
 
 #include "config/error.h"
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -29,6 +31,9 @@ struct CameraModelYaml {
   double mla_to_main_lens_mm = 0;   // b_L0
   double mla_to_sensor_mm = 0;      // B
   double k1 = 0, k2 = 0, p1 = 0, p2 = 0;
+  // principal_point_px [x, y] (raw pixels) when the file gives it (inside
+  // the image); files without it mean the image centre.
+  std::optional<std::array<double, 2>> principal_point_px;
 };
 
 // Ranges of a real plenoptic camera (README, "Limits of every input").

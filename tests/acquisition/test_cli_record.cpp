@@ -135,7 +135,19 @@ TEST(RecordCli, SigtermStopsCleanlyWithACompleteCsv) {
   RecordProcess process(r.Args(""), r.stdout_file, r.stderr_file);
   test::ViconStreamer streamer(*rig, r.port, 80.0);
   ASSERT_TRUE(streamer.ok());
-  std::this_thread::sleep_for(milliseconds(2000));
+  // Stopped once the recording is under way (more than 80 Vicon lines and
+  // more than 5 frames on disk), not after a fixed time: on a loaded host
+  // the binary may take seconds to start.
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  for (;;) {
+    const std::string text = test::ReadFile(layout::ViconCsvPath(r.seq, 1));
+    const auto lines = std::count(text.begin(), text.end(), '\n');
+    auto partial = DiscoverSequence(r.seq);
+    const std::size_t frames =
+        partial.ok() && !partial->cameras.empty() ? partial->cameras[0].frames.size() : 0;
+    if ((lines > 90 && frames > 5) || std::chrono::steady_clock::now() > give_up) break;
+    std::this_thread::sleep_for(milliseconds(50));
+  }
   process.Signal(SIGTERM);
   const int status = process.Wait(milliseconds(10000));
   ASSERT_NE(status, -1) << "did not stop on SIGTERM\n" << r.Log();
@@ -284,10 +296,9 @@ TEST(RecordCli, ReplayedSequenceRecordsIdenticalFilesAndReportsItsGap) {
   const fs::path rig_path = dir / "replay_rig.yaml";
   test::WriteFile(rig_path, FormatRigConfig(rig));
   const fs::path log = dir / "record.log";
-  const auto result = test::RunLifmcr("--log-level info --log-file '" + log.string() +
-                                      "' record --rig '" + rig_path.string() + "' --replay '" +
-                                      original.string() + "' --out '" + (dir / "b").string() +
-                                      "' --duration 20");
+  const auto result = test::RunLifmcr(
+      "--log-level info --log-file '" + log.string() + "' record --rig '" + rig_path.string() +
+      "' --replay '" + original.string() + "' --out '" + (dir / "b").string() + "' --duration 20");
   EXPECT_EQ(result.exit_code, 1) << result.out << result.err;  // the gap is a loss
   // The operator's log: the configuration in force, and the loss with its cause.
   const std::string logged = test::ReadFile(log);

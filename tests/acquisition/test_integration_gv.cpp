@@ -1,5 +1,5 @@
 // Integration: two GigE Vision simulators (arv-fake-gv-camera-0.8) on
-// loopback addresses of this suite's own range (127.0.2.x), acquired through
+// loopback addresses of this test process's own (ProcessLoopbackAddress), acquired through
 // the real Aravis driver, plus the Vicon UDP test sender; the rig controller
 // with the sync assembler and the recorder write a real sequence, which is
 // read back through the dataset layer. Faults: packet loss (-r), a simulator
@@ -27,7 +27,7 @@ namespace {
 using std::chrono::milliseconds;
 
 #define REQUIRE_ROOT() \
-  if (geteuid() != 0) GTEST_SKIP() << "needs root: adds 127.0.2.x addresses to lo"
+  if (geteuid() != 0) GTEST_SKIP() << "needs root: adds 127.1xx.x.x addresses to lo"
 
 std::string UniqueSerial(const char* tag) {
   return std::string("REC") + tag + std::to_string(getpid() % 100000);
@@ -138,7 +138,7 @@ void ExpectSequenceMatches(const std::filesystem::path& seq, const RigHealth& he
 
 TEST(RecordGv, TwoSimulatorsAndViconEveryTriggerAccountedFor) {
   REQUIRE_ROOT();
-  GvRig gv("127.0.2.11", "127.0.2.12", 0);
+  GvRig gv(test::ProcessLoopbackAddress(21), test::ProcessLoopbackAddress(22), 0);
   ASSERT_TRUE(gv.loopback_a.ok() && gv.loopback_b.ok());
   ASSERT_TRUE(gv.simulator_a.Start() && gv.simulator_b.Start());
   test::TempDir out;
@@ -160,7 +160,7 @@ TEST(RecordGv, TwoSimulatorsAndViconEveryTriggerAccountedFor) {
 
 TEST(RecordGv, PacketLossIsCountedAndTheRecordingContinues) {
   REQUIRE_ROOT();
-  GvRig gv("127.0.2.21", "127.0.2.22", 10);  // 1 % of B's packets lost, no resend
+  GvRig gv(test::ProcessLoopbackAddress(23), test::ProcessLoopbackAddress(24), 10);  // 1 % of B's packets lost, no resend
   ASSERT_TRUE(gv.loopback_a.ok() && gv.loopback_b.ok());
   ASSERT_TRUE(gv.simulator_a.Start() && gv.simulator_b.Start());
   test::TempDir out;
@@ -183,7 +183,7 @@ TEST(RecordGv, PacketLossIsCountedAndTheRecordingContinues) {
 
 TEST(RecordGv, KilledSimulatorReconnectsAndTheGapIsReported) {
   REQUIRE_ROOT();
-  GvRig gv("127.0.2.31", "127.0.2.32", 0);
+  GvRig gv(test::ProcessLoopbackAddress(25), test::ProcessLoopbackAddress(26), 0);
   ASSERT_TRUE(gv.loopback_a.ok() && gv.loopback_b.ok());
   ASSERT_TRUE(gv.simulator_a.Start() && gv.simulator_b.Start());
   test::TempDir out;

@@ -106,6 +106,20 @@ void Drain(lcm::LCM& bus) {
   }
 }
 
+// A replay at --rate max, previews only, with the rig file's processing: and
+// lcm: sections, published on `bus`.
+ReplayRunOptions PreviewsAsTheRigSays(const std::filesystem::path& sequence_dir,
+                                      const RigConfig& rig, lcm::LCM* bus) {
+  ReplayRunOptions options;
+  options.sequence_dir = sequence_dir;
+  options.rate.kind = ReplayRate::Kind::kMax;
+  options.processing = false;
+  options.preview = PreviewOptionsFromRig(rig);
+  options.pipeline = PipelineOptions::FromRig(rig);
+  options.pipeline.publisher.bus = bus;
+  return options;
+}
+
 TEST(Pipeline, MaxRateProcessesAndPublishesEveryFrameWithDepthFromProcessing) {
   test::TempDir dir;
   const int frames = 3;
@@ -449,14 +463,7 @@ TEST(Pipeline, RigLcmSectionSetsTheChannelsAndThePreviews) {
     lcm::LCM bus("memq://");
     Received received;
     bus.subscribe(".*", &Received::OnAny, &received);
-    ReplayRunOptions options;
-    options.sequence_dir = summary->sequence_dir;
-    options.rate.kind = ReplayRate::Kind::kMax;
-    options.processing = false;
-    options.preview = PreviewOptionsFromRig(rig);
-    options.pipeline = PipelineOptions::FromRig(rig);
-    options.pipeline.publisher.bus = &bus;
-    auto result = RunReplay(options);
+    auto result = RunReplay(PreviewsAsTheRigSays(summary->sequence_dir, rig, &bus));
     ASSERT_TRUE(result.ok()) << result.error().message;
     Drain(bus);
     EXPECT_EQ(result->report.processed, 2u * frames);
@@ -485,14 +492,7 @@ TEST(Pipeline, RigLcmSectionSetsTheChannelsAndThePreviews) {
     }
   } collect{&previews};
   bus.subscribe("RIG_SIZE_.*_PREVIEW", &Collect::On, &collect);
-  ReplayRunOptions options;
-  options.sequence_dir = summary->sequence_dir;
-  options.rate.kind = ReplayRate::Kind::kMax;
-  options.processing = false;
-  options.preview = PreviewOptionsFromRig(rig);
-  options.pipeline = PipelineOptions::FromRig(rig);
-  options.pipeline.publisher.bus = &bus;
-  ASSERT_TRUE(RunReplay(options).ok());
+  ASSERT_TRUE(RunReplay(PreviewsAsTheRigSays(summary->sequence_dir, rig, &bus)).ok());
   Drain(bus);
   ASSERT_EQ(previews.size(), 2u * frames);
   for (const auto& m : previews) {

@@ -48,6 +48,13 @@ bool AnswersGvcp(const std::string& address) {
 
 }  // namespace
 
+std::string ProcessLoopbackAddress(int slot) {
+  // 254 host numbers per third octet, never .0 or .255.
+  const auto pid = static_cast<unsigned>(getpid());
+  return "127." + std::to_string(100 + slot) + "." + std::to_string((pid / 254) % 256) + "." +
+         std::to_string(1 + pid % 254);
+}
+
 LoopbackAddress::LoopbackAddress(std::string address) : address_(std::move(address)) {
   const bool present =
       RunQuiet("ip -4 addr show dev lo | grep -qw 'inet " + address_ + "/32'") == 0;

@@ -1,13 +1,20 @@
 #pragma once
 // Test helpers: a loopback address of our own and the Aravis GigE Vision
 // simulator (arv-fake-gv-camera-0.8) bound to it, both undone in every path
-// by their destructors. The drivers tests use 127.0.1.x (other suites use
-// other ranges), one address per test so parallel ctest runs do not collide.
+// by their destructors. Addresses come from ProcessLoopbackAddress, so no
+// two test processes on the host share one: not within one `ctest -j` run,
+// nor across runs at once (another worktree's suite, a sanitizer build's),
+// where fixed addresses made the second simulator fail to bind GVCP (3956)
+// and its test time out on register writes.
 
 #include <string>
 #include <sys/types.h>
 
 namespace lifmcr::test {
+
+// 127.<100 + slot>.X.Y with X.Y from this process's id (slot 0..99: the
+// test's own addresses, several per test where it needs them).
+std::string ProcessLoopbackAddress(int slot);
 
 // `ip addr add ADDRESS/32 dev lo` unless it is already there; removed again
 // by the destructor only if this object added it. Needs root.

@@ -38,7 +38,7 @@ CameraConfig GvConfig(const std::string& address, const std::string& serial) {
 }
 
 #define REQUIRE_ROOT() \
-  if (geteuid() != 0) GTEST_SKIP() << "needs root: adds a 127.0.1.x address to lo"
+  if (geteuid() != 0) GTEST_SKIP() << "needs root: adds a 127.1xx.x.x address to lo"
 
 // Triggers and pulls up to `count` frames; returns how many arrived.
 int TriggerAndPull(AravisCamera& camera, int count, std::vector<Frame>* frames = nullptr) {
@@ -56,7 +56,7 @@ int TriggerAndPull(AravisCamera& camera, int count, std::vector<Frame>* frames =
 
 TEST(AravisGv, SoftwareTriggeredFramesArriveCompleteOverLoopback) {
   REQUIRE_ROOT();
-  test::LoopbackAddress address("127.0.1.11");
+  test::LoopbackAddress address(test::ProcessLoopbackAddress(11));
   ASSERT_TRUE(address.ok());
   const std::string serial = UniqueSerial("A");
   test::GvSimulator simulator(address.address(), serial);
@@ -92,7 +92,7 @@ TEST(AravisGv, SoftwareTriggeredFramesArriveCompleteOverLoopback) {
 
 TEST(AravisGv, PacketSizeAndFixedSocketBufferFromTheRigFile) {
   REQUIRE_ROOT();
-  test::LoopbackAddress address("127.0.1.15");
+  test::LoopbackAddress address(test::ProcessLoopbackAddress(15));
   ASSERT_TRUE(address.ok());
   const std::string serial = UniqueSerial("E");
   test::GvSimulator simulator(address.address(), serial);
@@ -117,7 +117,7 @@ TEST(AravisGv, PacketSizeAndFixedSocketBufferFromTheRigFile) {
 
 TEST(AravisGv, EveryTriggeredFrameIsDeliveredOrCountedOnceWhenThePoolRunsDry) {
   REQUIRE_ROOT();
-  test::LoopbackAddress address("127.0.1.16");
+  test::LoopbackAddress address(test::ProcessLoopbackAddress(16));
   ASSERT_TRUE(address.ok());
   const std::string serial = UniqueSerial("F");
   test::GvSimulator simulator(address.address(), serial);
@@ -156,7 +156,7 @@ TEST(AravisGv, EveryTriggeredFrameIsDeliveredOrCountedOnceWhenThePoolRunsDry) {
 
 TEST(AravisGv, PacketLossIsCountedAndTheCameraKeepsDelivering) {
   REQUIRE_ROOT();
-  test::LoopbackAddress address("127.0.1.12");
+  test::LoopbackAddress address(test::ProcessLoopbackAddress(12));
   ASSERT_TRUE(address.ok());
   const std::string serial = UniqueSerial("B");
   test::GvSimulator simulator(address.address(), serial, 50);  // 5 % of packets lost
@@ -186,7 +186,7 @@ TEST(AravisGv, PacketLossIsCountedAndTheCameraKeepsDelivering) {
 
 TEST(AravisGv, KilledAndRestartedSimulatorIsReconnectedAndTheGapReported) {
   REQUIRE_ROOT();
-  test::LoopbackAddress address("127.0.1.13");
+  test::LoopbackAddress address(test::ProcessLoopbackAddress(13));
   ASSERT_TRUE(address.ok());
   const std::string serial = UniqueSerial("C");
   test::GvSimulator simulator(address.address(), serial);
@@ -244,7 +244,7 @@ TEST(AravisGv, KilledAndRestartedSimulatorIsReconnectedAndTheGapReported) {
 
 TEST(AravisGv, FreeRunningCameraKilledIsFoundLostByTheProbe) {
   REQUIRE_ROOT();
-  test::LoopbackAddress address("127.0.1.14");
+  test::LoopbackAddress address(test::ProcessLoopbackAddress(14));
   ASSERT_TRUE(address.ok());
   const std::string serial = UniqueSerial("D");
   test::GvSimulator simulator(address.address(), serial);

@@ -23,6 +23,30 @@ CameraIntrinsics HandIntrinsics() {
   return k;
 }
 
+TEST(CameraModel, PrincipalPointShiftsTheImageAndTheLensCentres) {
+  CameraIntrinsics k = HandIntrinsics();
+  EXPECT_EQ(k.PrincipalPointPx(), Eigen::Vector2d(511.5, 383.5));  // unset: the image centre
+  k.principal_point_px = Eigen::Vector2d(520.25, 377.0);
+  ASSERT_TRUE(k.Check());
+  const CameraModel model(k), centred(HandIntrinsics());
+  const Eigen::Vector3d p(10, -5, 1000);
+  const Eigen::Vector3d v = model.Project(p), v0 = centred.Project(p);
+  EXPECT_NEAR(v.x() - v0.x(), 520.25 - 511.5, 1e-9);
+  EXPECT_NEAR(v.y() - v0.y(), 377.0 - 383.5, 1e-9);
+  EXPECT_NEAR(v.z(), v0.z(), 1e-12);
+  EXPECT_NEAR((model.BackProject(v) - p).norm(), 0, 1e-9);
+  // l_k = c + (c_k - c) lambda: the lens centre under c itself is c.
+  EXPECT_NEAR((model.LensCenterPx(*k.principal_point_px) - *k.principal_point_px).norm(), 0, 1e-12);
+  EXPECT_NEAR((model.FeatureImagePoint(v) - (*k.principal_point_px +
+                                             p.head<2>() / p.z() * model.FeatureFocalPx()))
+                  .norm(),
+              0, 1e-9);
+  k.principal_point_px = Eigen::Vector2d(-3, 100);
+  const Status outside = k.Check();
+  ASSERT_FALSE(outside);
+  EXPECT_NE(outside.error().message.find("principal_point_px"), std::string::npos);
+}
+
 TEST(CameraModel, HandComputedValues) {
   const CameraModel model(HandIntrinsics());
   // (10, -5, 1000) mm: b_L = 25 * 1000 / 975 = 25.641025641 mm,

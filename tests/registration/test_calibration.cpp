@@ -12,6 +12,7 @@
 #include "registration/intrinsics_yaml.h"
 #include "registration/reference_map.h"
 #include "replay/layout.h"
+#include "replay/synth/cameras_yaml.h"
 #include "replay/synth/synth_params.h"
 #include "replay/synth/synth_writer.h"
 #include "tests/test_util.h"
@@ -20,6 +21,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <memory>
 
 namespace lifmcr::registration {
@@ -168,6 +170,35 @@ TEST_F(CalibrationTest, WritesAMapAndIntrinsicsThatReadBack) {
               1e-9);
   EXPECT_NEAR(back->intrinsics.main_focal_length_mm,
               r->calibration.intrinsics.main_focal_length_mm, 1e-9);
+  // The principal point travels through the file, and through the strict
+  // reader every command uses (synth::ReadCameraModelYaml, apps::ReadIntrinsics).
+  ASSERT_TRUE(back->intrinsics.principal_point_px.has_value());
+  EXPECT_NEAR((*back->intrinsics.principal_point_px -
+               r->calibration.intrinsics.PrincipalPointPx()).norm(), 0, 1e-9);
+  CameraCalibration shifted = r->calibration;
+  shifted.intrinsics.principal_point_px = Eigen::Vector2d(500.25, 390.75);
+  ASSERT_TRUE(WriteIntrinsicsYaml(out / "shifted.yaml", kSerial, shifted, {}));
+  Expected<synth::CameraModelYaml> strict =
+      synth::ReadCameraModelYaml(out / "shifted.yaml", kSerial);
+  ASSERT_TRUE(strict) << strict.error().message;
+  ASSERT_TRUE(strict->principal_point_px.has_value());
+  EXPECT_EQ((*strict->principal_point_px)[0], 500.25);
+  EXPECT_EQ((*strict->principal_point_px)[1], 390.75);
+  // Files without it (written before the model had one) mean the image centre.
+  std::string text;
+  {
+    std::ifstream in(out / "shifted.yaml");
+    for (std::string line; std::getline(in, line);)
+      if (line.find("principal_point_px") == std::string::npos) text += line + "\n";
+  }
+  std::ofstream(out / "old.yaml") << text;
+  Expected<CameraCalibration> old = ReadCameraCalibration(out / "old.yaml", kSerial);
+  ASSERT_TRUE(old) << old.error().message;
+  EXPECT_FALSE(old->intrinsics.principal_point_px.has_value());
+  EXPECT_EQ(old->intrinsics.PrincipalPointPx(), Eigen::Vector2d(511.5, 383.5));
+  Expected<synth::CameraModelYaml> old_strict = synth::ReadCameraModelYaml(out / "old.yaml", kSerial);
+  ASSERT_TRUE(old_strict) << old_strict.error().message;
+  EXPECT_FALSE(old_strict->principal_point_px.has_value());
   const std::string report = FormatCalibrationReport(*r, kSerial);
   EXPECT_NE(report.find("| mla_to_sensor_mm |"), std::string::npos);
   EXPECT_NE(report.find("| 3 | yes |"), std::string::npos);

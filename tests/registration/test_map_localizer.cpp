@@ -6,6 +6,8 @@
 // And the pose checks (registration/pose_checks.h): a map cut down to a
 // corner of the view, which PnP fits with a dozen clustered inliers, is
 // refused with the reason; each check refuses what it must.
+// LIFMCR_TEST_PRESET=medium renders the medium preset instead (minutes:
+// the Localize figures of bench/README.md).
 #include "apps/pipeline/camera_setup.h"
 #include "processing/frame_chain.h"
 #include "registration/ground_truth_map.h"
@@ -23,6 +25,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdlib>
 #include <cstdio>
 #include <map>
 #include <memory>
@@ -52,7 +55,7 @@ struct Sequence {
 Sequence* Shared() {
   static std::unique_ptr<Sequence> shared = [] {
     auto s = std::make_unique<Sequence>();
-    auto params = synth::MakePreset("small");
+    auto params = synth::MakePreset(std::getenv("LIFMCR_TEST_PRESET") ? std::getenv("LIFMCR_TEST_PRESET") : "small");
     EXPECT_TRUE(params);
     params->rig.frames = kFrames;
     params->rig.cameras = 2;
