@@ -62,20 +62,26 @@ RigidPair MakeRigidPair(int frames) {
   return r;
 }
 
+// The three evaluations lifmcr evaluate makes of a pair with camera 0's
+// poses in the map: c0_from_cx against Vicon, and each camera in the map.
+struct PairEvaluations {
+  CameraEvaluation pair, map0, mapx;
+};
+PairEvaluations Evaluate(const RigidPair& r, const EvaluationOptions& options) {
+  return {EvaluateCamera("pnp", "X", "0", r.c0_from_cx_registered, r.vicon_from_marker0,
+                         r.vicon_from_markerx, std::nullopt, options),
+          EvaluateCamera("reference", "0", "map", r.w0_from_c0, r.vicon_from_map_each,
+                         r.vicon_from_marker0, std::nullopt, options),
+          EvaluateCamera("pnp", "X", "map", r.w0_from_cx, r.vicon_from_map_each,
+                         r.vicon_from_markerx, std::nullopt, options)};
+}
+
 TEST(EvaluationMapOffsets, RigidPairIsCorrectedWithEachCamerasMapFrameOffsets) {
   const RigidPair r = MakeRigidPair(60);
   const EvaluationOptions options;  // split half
   ASSERT_TRUE(options.Check());
-  CameraEvaluation pair = EvaluateCamera("pnp", "X", "0", r.c0_from_cx_registered,
-                                         r.vicon_from_marker0, r.vicon_from_markerx,
-                                         std::nullopt, options);
+  auto [pair, map0, mapx] = Evaluate(r, options);
   ASSERT_FALSE(pair.has_correction()) << "a rigid pair cannot determine its own offsets";
-  const CameraEvaluation map0 = EvaluateCamera("reference", "0", "map", r.w0_from_c0,
-                                               r.vicon_from_map_each, r.vicon_from_marker0,
-                                               std::nullopt, options);
-  const CameraEvaluation mapx = EvaluateCamera("pnp", "X", "map", r.w0_from_cx,
-                                               r.vicon_from_map_each, r.vicon_from_markerx,
-                                               std::nullopt, options);
   ASSERT_EQ(map0.correction_source, "estimated") << map0.correction_note;
   ASSERT_EQ(mapx.correction_source, "estimated") << mapx.correction_note;
 
@@ -100,14 +106,7 @@ TEST(EvaluationMapOffsets, RigidPairIsCorrectedWithEachCamerasMapFrameOffsets) {
 TEST(EvaluationMapOffsets, EachFrameIsCorrectedByTheFoldThatDidNotSeeIt) {
   const RigidPair r = MakeRigidPair(40);
   const EvaluationOptions options;
-  CameraEvaluation pair = EvaluateCamera("pnp", "X", "0", r.c0_from_cx_registered,
-                                         r.vicon_from_marker0, r.vicon_from_markerx,
-                                         std::nullopt, options);
-  CameraEvaluation map0 = EvaluateCamera("reference", "0", "map", r.w0_from_c0,
-                                         r.vicon_from_map_each, r.vicon_from_marker0,
-                                         std::nullopt, options);
-  CameraEvaluation mapx = EvaluateCamera("pnp", "X", "map", r.w0_from_cx, r.vicon_from_map_each,
-                                         r.vicon_from_markerx, std::nullopt, options);
+  auto [pair, map0, mapx] = Evaluate(r, options);
   ASSERT_EQ(mapx.folds.size(), 2u);
   // Spoil camera X's first-half fold by 50 mm along x: only frames of the
   // second half (the ones that fold did not see) may show it.
@@ -126,13 +125,8 @@ TEST(EvaluationMapOffsets, EachFrameIsCorrectedByTheFoldThatDidNotSeeIt) {
 TEST(EvaluationMapOffsets, RefusedWhenAMapFrameEvaluationHasNoOffsets) {
   const RigidPair r = MakeRigidPair(30);
   const EvaluationOptions options;
-  CameraEvaluation pair = EvaluateCamera("pnp", "X", "0", r.c0_from_cx_registered,
-                                         r.vicon_from_marker0, r.vicon_from_markerx,
-                                         std::nullopt, options);
-  CameraEvaluation map0 = EvaluateCamera("reference", "0", "map", r.w0_from_c0,
-                                         r.vicon_from_map_each, r.vicon_from_marker0,
-                                         std::nullopt, options);
-  CameraEvaluation mapx = map0;
+  auto [pair, map0, mapx] = Evaluate(r, options);
+  mapx = map0;
   mapx.serial = "X";
   mapx.correction_source = "none";
   mapx.correction_note = "the motions cannot determine the offset";
