@@ -267,22 +267,28 @@ struct Pipeline::Impl {
     result.processed = processor->Process(result.job.frame);
     if (localizes && result.processed && result.processed->products) {
       processing::StageFrame frame;
-      frame.camera_index = result.job.frame.camera_index;
-      frame.serial = result.job.frame.serial;
-      frame.trigger_index = result.job.trigger_index;
-      frame.vicon_frame = result.job.vicon_frame;
-      frame.host_ns = result.job.frame.host_ns;
       frame.products = result.processed->products.get();
       frame.camera = result.processed->camera;
       frame.raw = result.processed->products->prepared.raw;
-      auto pose = registration->Localize(frame);
-      if (!pose)
-        result.processed = Error{"registration (" + registration->name() +
-                                 "): " + pose.error().message};
-      else
-        result.w0_from_cx = std::move(*pose);
+      Localize(result, std::move(frame));
     }
     return result;
+  }
+
+  // Registers the job's frame (`frame` holds what the caller has: raw
+  // pixels, camera, products); the pose or the error goes into `result`.
+  void Localize(Result& result, processing::StageFrame frame) {
+    frame.camera_index = result.job.frame.camera_index;
+    frame.serial = result.job.frame.serial;
+    frame.trigger_index = result.job.trigger_index;
+    frame.vicon_frame = result.job.vicon_frame;
+    frame.host_ns = result.job.frame.host_ns;
+    auto pose = registration->Localize(frame);
+    if (!pose)
+      result.processed =
+          Error{"registration (" + registration->name() + "): " + pose.error().message};
+    else
+      result.w0_from_cx = std::move(*pose);
   }
 
   // Lanes: the frame localised from its raw pixels, then offered to the depth lane.
@@ -294,19 +300,9 @@ struct Pipeline::Impl {
       result.processed = input.error();
     } else if (input->camera) {
       processing::StageFrame frame;
-      frame.camera_index = result.job.frame.camera_index;
-      frame.serial = result.job.frame.serial;
-      frame.trigger_index = result.job.trigger_index;
-      frame.vicon_frame = result.job.vicon_frame;
-      frame.host_ns = result.job.frame.host_ns;
       frame.raw = input->image;
       frame.camera = input->camera;
-      auto pose = registration->Localize(frame);
-      if (!pose)
-        result.processed = Error{"registration (" + registration->name() +
-                                 "): " + pose.error().message};
-      else
-        result.w0_from_cx = std::move(*pose);
+      Localize(result, std::move(frame));
     }
     if (result.processed)
       result.processed->seconds =
