@@ -138,7 +138,8 @@ std::string RigHealth::FinalReport() const {
   }
   if (has_sync) {
     out << "  sync: " << frame_sets << " triggers (FrameSets), " << complete_frame_sets
-        << " complete; Vicon frame of trigger 0: "
+        << (has_vicon ? " complete" : " with every camera's frame (no Vicon source)")
+        << "; Vicon frame of trigger 0: "
         << (vicon_f0 ? std::to_string(*vicon_f0) : std::string("not established"))
         << "; drops: " << sync_drops.OneLine() << "\n";
     for (const CameraSyncStats& c : sync_cameras)
@@ -319,7 +320,9 @@ void RigController::SyncLoop() {
 void RigController::RecordSets(std::vector<FrameSet> sets) {
   std::uint64_t complete = 0;
   for (FrameSet& set : sets) {
-    complete += set.complete() ? 1 : 0;
+    // Without a Vicon source no set can hold a Vicon frame: complete there
+    // means every camera's frame is in it (FrameSet::complete's note).
+    complete += (vicon_ ? set.complete() : set.missing.empty()) ? 1 : 0;
     if (observer_.on_frame_set) observer_.on_frame_set(set);
     if (!options_.number_files_by_sync) continue;  // the grab threads submitted them
     for (std::size_t c = 0; c < set.frames.size(); ++c) {

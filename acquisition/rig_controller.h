@@ -184,7 +184,8 @@ struct RigHealth {
   std::uint64_t vicon_errors = 0;
   RecorderStats recorder;
   // With sync: FrameSets emitted (one per trigger) and how many were complete
-  // (every camera's frame and the Vicon frame), the losses by kind, per
+  // (every camera's frame and the Vicon frame; without a Vicon source every
+  // camera's frame), the losses by kind, per
   // camera association figures, and the Vicon frame of trigger 0.
   bool has_sync = false;
   bool files_numbered_by_sync = false;  // sync losses are then frame losses
