@@ -146,14 +146,15 @@ int RunCalibrate(const CalibrateOptions& o) {
                         : fs::path(o.cache) / (o.camera + "_" + std::to_string(f) + ".frame");
     Expected<registration::CalibrationFrame> frame = Error{""};
     if (!cached.empty() && fs::exists(cached))
-      frame = registration::LoadCalibrationFrame(cached, loader_options.lambda);
+      frame = registration::LoadCalibrationFrame(cached, loader_options);
     const bool from_cache = frame.ok();
     if (!frame) frame = (*loader)->Load(f);
     if (!frame) return Fail(frame.error().message);
-    // A cached file of another lambda or an older version is replaced.
+    // A cached file processed otherwise (lambda, principal point, keypoint
+    // limit) or of an older version is replaced.
     if (!cached.empty() && !from_cache) {
       fs::create_directories(o.cache, ec);
-      if (Status s = registration::SaveCalibrationFrame(cached, *frame, loader_options.lambda); !s)
+      if (Status s = registration::SaveCalibrationFrame(cached, *frame, loader_options); !s)
         return Fail(s.error().message);
     }
     char line[256];

@@ -229,8 +229,10 @@ TEST_F(CalibrationTest, RecalibrationHoldsFocalLengthAndSensorDistance) {
 TEST_F(CalibrationTest, ProcessedFramesRoundTripThroughTheCache) {
   test::TempDir dir;
   const CalibrationFrame& f = frames_->at(1);
-  ASSERT_TRUE(SaveCalibrationFrame(dir / "f.frame", f, 0.99));
-  Expected<CalibrationFrame> back = LoadCalibrationFrame(dir / "f.frame", 0.99);
+  FrameLoaderOptions processed;
+  processed.lambda = 0.99;
+  ASSERT_TRUE(SaveCalibrationFrame(dir / "f.frame", f, processed));
+  Expected<CalibrationFrame> back = LoadCalibrationFrame(dir / "f.frame", processed);
   ASSERT_TRUE(back) << back.error().message;
   EXPECT_EQ(back->frame, f.frame);
   EXPECT_EQ(back->name, f.name);
@@ -240,8 +242,25 @@ TEST_F(CalibrationTest, ProcessedFramesRoundTripThroughTheCache) {
   ASSERT_EQ(back->corners.size(), f.corners.size());
   EXPECT_EQ(back->corners[0].p_in_w_mm, f.corners[0].p_in_w_mm);
   EXPECT_EQ(back->rgb, f.rgb);
-  // Another lambda (other initial intrinsics) must not reuse the frame.
-  EXPECT_FALSE(LoadCalibrationFrame(dir / "f.frame", 0.98));
+  // Other initial intrinsics (lambda, principal point) or another keypoint
+  // limit must not reuse the frame.
+  FrameLoaderOptions other = processed;
+  other.lambda = 0.98;
+  EXPECT_FALSE(LoadCalibrationFrame(dir / "f.frame", other));
+  other = processed;
+  other.principal_point_px = Eigen::Vector2d(512.5, 383.5);
+  Expected<CalibrationFrame> moved = LoadCalibrationFrame(dir / "f.frame", other);
+  ASSERT_FALSE(moved);
+  EXPECT_NE(moved.error().message.find("another principal point"), std::string::npos);
+  other = processed;
+  other.features.max_features = 123;
+  EXPECT_FALSE(LoadCalibrationFrame(dir / "f.frame", other));
+  // A frame processed with a principal point is found again with it.
+  processed.principal_point_px = Eigen::Vector2d(512.5, 383.5);
+  ASSERT_TRUE(SaveCalibrationFrame(dir / "g.frame", f, processed));
+  EXPECT_TRUE(LoadCalibrationFrame(dir / "g.frame", processed));
+  processed.principal_point_px.reset();
+  EXPECT_FALSE(LoadCalibrationFrame(dir / "g.frame", processed));
 }
 
 TEST_F(CalibrationTest, BadInputIsAClearError) {
