@@ -115,6 +115,7 @@ struct CalibrationResult {
   CameraCalibration calibration;
   IntrinsicsVector initial{};
   IntrinsicsVector std_dev{};  // NaN where not estimated or not available
+  std::string weakest_direction;  // of the covariance, e.g. "(1.1e-06: principal_point_y_px -0.55, ...)"
   std::vector<FramePose> poses;     // w0_from_c0 of the placed frames
   std::vector<FrameReport> frames;  // every input frame
   ReferenceMap map;
@@ -125,6 +126,10 @@ struct CalibrationResult {
   int points = 0;
   double initial_cost = 0, final_cost = 0, solver_seconds = 0, total_seconds = 0;
   int iterations = 0;
+  // How the frames' TF images and virtual depths were made (l_k = c + (c_k -
+  // c) lambda): the geometry their keypoints are in (calibration_gates.h).
+  double frames_lambda = 1;
+  Eigen::Vector2d frames_principal_point_px = Eigen::Vector2d::Zero();
   bool usable = false;              // Ceres: solution usable, and no flag below
   std::string termination;          // Ceres termination type
   std::vector<std::string> flags;   // problems a user should know (report flags)

@@ -160,6 +160,8 @@ Expected<GroundTruthComparison> CompareWithGroundTruth(const CalibrationResult& 
   std::map<std::int64_t, std::vector<float>> depth_of_frame;
   int depth_w = 0, depth_h = 0;
   std::vector<double> errors, v_errors, v_signed;
+  const double lambda = true_model.lambda(), lambda0 = result.frames_lambda;
+  const Eigen::Vector2d c_true = t.PrincipalPointPx(), c0 = result.frames_principal_point_px;
   std::vector<Eigen::Vector3d> estimated, expected;
   for (const MapPoint& point : result.map.points) {
     const TrackElement& first = point.track.front();
@@ -172,20 +174,40 @@ Expected<GroundTruthComparison> CompareWithGroundTruth(const CalibrationResult& 
       it = depth_of_frame.emplace(image.frame, std::move(*depth)).first;
     }
     const MapKeypoint& kp = image.keypoints[first.keypoint];
-    const int x = std::clamp(static_cast<int>(std::lround(kp.tf_px.x())), 0, depth_w - 1);
-    const int y = std::clamp(static_cast<int>(std::lround(kp.tf_px.y())), 0, depth_h - 1);
-    const float z = it->second[static_cast<std::size_t>(y) * depth_w + x];
-    if (std::isnan(z)) continue;
-    const double v = true_model.VirtualDepthOfDepth(z);
-    const Eigen::Vector2d raw = 2.0 * kp.tf_px.cast<double>() + Eigen::Vector2d(0.5, 0.5);
-    const Eigen::Vector3d p_in_c = true_model.BackProject(Eigen::Vector3d(raw.x(), raw.y(), v));
+    // The keypoint is in the geometry of its processed frame (lambda0, c0):
+    // the true virtual point x (depth v) whose micro images the processing
+    // read as x' (depth v'): equal micro-image positions for every lens,
+    //   lambda (1 - 1/v) = lambda0 (1 - 1/v'),
+    //   x / v = x' / v' - c (1 - lambda)(1 - 1/v) + c0 (1 - lambda0)(1 - 1/v'),
+    // solved with the true depth at x (a few fixed-point steps from x = x').
+    const Eigen::Vector2d x_processed =
+        2.0 * kp.tf_px.cast<double>() + Eigen::Vector2d(0.5, 0.5);
+    Eigen::Vector2d x_true = x_processed;
+    double v = std::nan(""), v_processed = std::nan("");
+    for (int step = 0; step < 4; ++step) {
+      const Eigen::Vector2d tf = (x_true - Eigen::Vector2d(0.5, 0.5)) / 2.0;
+      const int x = std::clamp(static_cast<int>(std::lround(tf.x())), 0, depth_w - 1);
+      const int y = std::clamp(static_cast<int>(std::lround(tf.y())), 0, depth_h - 1);
+      const float z = it->second[static_cast<std::size_t>(y) * depth_w + x];
+      if (std::isnan(z)) {
+        v = std::nan("");
+        break;
+      }
+      v = true_model.VirtualDepthOfDepth(z);
+      v_processed = 1.0 / (1.0 - lambda / lambda0 * (1.0 - 1.0 / v));
+      x_true = v * (x_processed / v_processed - c_true * (1 - lambda) * (1 - 1 / v) +
+                    c0 * (1 - lambda0) * (1 - 1 / v_processed));
+    }
+    if (std::isnan(v)) continue;
+    const Eigen::Vector3d p_in_c =
+        true_model.BackProject(Eigen::Vector3d(x_true.x(), x_true.y(), v));
     const Eigen::Vector3d p_true = world_from_cam.at(image.frame) * p_in_c;
     errors.push_back((point.p_in_w0_mm - p_true).norm());
     estimated.push_back(point.p_in_w0_mm);
     expected.push_back(p_true);
     if (!std::isnan(kp.virtual_depth)) {
-      v_errors.push_back(std::abs(kp.virtual_depth / v - 1));
-      v_signed.push_back(kp.virtual_depth / v - 1);
+      v_errors.push_back(std::abs(kp.virtual_depth / v_processed - 1));
+      v_signed.push_back(kp.virtual_depth / v_processed - 1);
     }
   }
   c.map_points = static_cast<int>(errors.size());

@@ -8,7 +8,11 @@
 // Map points: the true position of a point is that of its first
 // observation: the keypoint's TF pixel with the true depth there (the
 // ground-truth depth map, nearest TF pixel), back-projected with the true
-// intrinsics and placed with the true pose. World frames: both are the plate
+// intrinsics and placed with the true pose. The keypoint's pixel and virtual
+// depth are in the geometry of the frame's processing (the calibration's
+// frames_lambda and principal point, see PlateCornerBias below): they are
+// taken back to the true virtual image first, and the keypoints' virtual
+// depths are compared with the true one as that processing reads it. World frames: both are the plate
 // frame (the calibration's w0 is fixed by the plate corners). Scale: the
 // scale of the least-squares similarity (Umeyama) from the estimated to the
 // true points, over the points within 3 median errors.

@@ -149,6 +149,33 @@ TEST_F(CalibrationTest, FromFivePercentOffPlacesEveryFrameAndFitsTheMicroImages)
   EXPECT_LT(std::abs(r->corner_inset_tf_px), 0.1);
 }
 
+// The standard deviations come from the covariance of the camera parameters
+// (calibration_covariance.h); with the principal point free, four narrow
+// views determine it only weakly, and the report names that direction.
+TEST_F(CalibrationTest, CovarianceGivesStandardDeviationsAndTheWeakestDirection) {
+  CalibrationOptions options = Options();
+  options.estimate_principal_point = true;
+  Expected<CalibrationResult> r = Calibrate(Input(Initial()), options);
+  ASSERT_TRUE(r) << r.error().message;
+  for (const std::string& f : r->flags) ADD_FAILURE() << "flag: " << f;
+  EXPECT_TRUE(r->usable);
+  const char* names[] = {"f_L", "b_L0", "B", "c_x", "c_y"};
+  for (int i = 0; i < 5; ++i) {
+    std::printf("%s %.6g +- %.3g\n", names[i], ToVector(r->calibration.intrinsics)[i],
+                r->std_dev[i]);
+    EXPECT_TRUE(std::isfinite(r->std_dev[i])) << names[i];
+    EXPECT_GT(r->std_dev[i], 0) << names[i];
+  }
+  for (int i = 5; i < kIntrinsicsSize; ++i) EXPECT_TRUE(std::isnan(r->std_dev[i])) << i;
+  // Relative standard deviations of the thin-lens parameters well below the
+  // 0.5 % gate, the principal point the least determined.
+  EXPECT_LT(r->std_dev[0] / ToVector(r->calibration.intrinsics)[0], 0.005);
+  EXPECT_LT(r->std_dev[2] / ToVector(r->calibration.intrinsics)[2], 0.05);
+  std::printf("weakest direction %s\n", r->weakest_direction.c_str());
+  EXPECT_NE(r->weakest_direction.find("principal_point"), std::string::npos);
+  EXPECT_NE(FormatCalibrationReport(*r, kSerial).find(r->weakest_direction), std::string::npos);
+}
+
 TEST_F(CalibrationTest, WritesAMapAndIntrinsicsThatReadBack) {
   Expected<CalibrationResult> r = Calibrate(Input(Initial()), Options());
   ASSERT_TRUE(r) << r.error().message;
