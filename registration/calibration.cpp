@@ -405,6 +405,7 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
   std::vector<int> constant;
   if (!options.estimate_principal_point) constant.insert(constant.end(), {3, 4});
   if (!options.estimate_distortion) constant.insert(constant.end(), {5, 6, 7, 8});
+  else if (!options.estimate_tangential_distortion) constant.insert(constant.end(), {7, 8});
   if (options.recalibrate) constant.insert(constant.end(), {0, 2});
 
   ceres::Solver::Summary summary;

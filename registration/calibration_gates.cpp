@@ -33,10 +33,12 @@ std::string Format(const char* fmt, auto... args) {
 std::string GroundTruthComparison::BriefReport() const {
   return Format(
       "vs ground truth: f_L %+.3f %%, b_L0 %+.3f %%, B %+.3f %%, principal point %.2f px, RMSE "
-      "%.3f px, map median %.3f mm (%d points), pose median %.3f mm / %.4f deg, scale %.3f %%, "
+      "%.3f px, map median %.3f mm (%d points; by track length 2 / 3 / >= 4: %.3f / %.3f / "
+      "%.3f mm), pose median %.3f mm / %.4f deg, scale %.3f %%, "
       "keypoint v median |error| %.2f %% (signed %+.2f %%)",
       100 * f_l_rel, 100 * b_l0_rel, 100 * b_rel, principal_point_px, rmse_px, map_median_mm,
-      map_points, pose_median_mm, pose_median_deg, 100 * scale_error,
+      map_points, map_median_by_track_mm[0], map_median_by_track_mm[1], map_median_by_track_mm[2],
+      pose_median_mm, pose_median_deg, 100 * scale_error,
       100 * keypoint_v_median_rel, 100 * keypoint_v_bias_rel);
 }
 
@@ -160,6 +162,7 @@ Expected<GroundTruthComparison> CompareWithGroundTruth(const CalibrationResult& 
   std::map<std::int64_t, std::vector<float>> depth_of_frame;
   int depth_w = 0, depth_h = 0;
   std::vector<double> errors, v_errors, v_signed;
+  std::vector<double> by_track[3];  // track length 2, 3, >= 4
   const double lambda = true_model.lambda(), lambda0 = result.frames_lambda;
   const Eigen::Vector2d c_true = t.PrincipalPointPx(), c0 = result.frames_principal_point_px;
   std::vector<Eigen::Vector3d> estimated, expected;
@@ -203,6 +206,7 @@ Expected<GroundTruthComparison> CompareWithGroundTruth(const CalibrationResult& 
         true_model.BackProject(Eigen::Vector3d(x_true.x(), x_true.y(), v));
     const Eigen::Vector3d p_true = world_from_cam.at(image.frame) * p_in_c;
     errors.push_back((point.p_in_w0_mm - p_true).norm());
+    by_track[std::min<std::size_t>(point.track.size(), 4) - 2].push_back(errors.back());
     estimated.push_back(point.p_in_w0_mm);
     expected.push_back(p_true);
     if (!std::isnan(kp.virtual_depth)) {
@@ -212,6 +216,8 @@ Expected<GroundTruthComparison> CompareWithGroundTruth(const CalibrationResult& 
   }
   c.map_points = static_cast<int>(errors.size());
   c.map_median_mm = Median(errors);
+  for (int n = 0; n < 3; ++n)
+    c.map_median_by_track_mm[n] = by_track[n].empty() ? std::nan("") : Median(by_track[n]);
   c.keypoint_v_median_rel = Median(v_errors);
   c.keypoint_v_bias_rel = Median(v_signed);
   std::vector<int> kept;

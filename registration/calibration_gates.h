@@ -31,6 +31,7 @@ struct GroundTruthComparison {
   double rmse_px = 0;                           // of the calibration
   double map_median_mm = 0;                     // median |p - p_true|
   int map_points = 0;                           // compared
+  double map_median_by_track_mm[3] = {0, 0, 0};  // points seen in 2, 3, >= 4 frames
   double pose_median_mm = 0, pose_median_deg = 0;  // median per frame
   double scale_error = 0;                          // |s - 1|
   double keypoint_v_median_rel = 0;                // median |v - v_true| / v_true of observations
