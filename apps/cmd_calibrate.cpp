@@ -45,6 +45,7 @@ struct CalibrateOptions {
   bool fix_principal_point = false;
   bool fix_distortion = false;
   bool tangential_distortion = false;
+  int match_window = registration::CalibrationOptions{}.match_window;
   bool no_covariance = false;
   double plate_weight = registration::CalibrationOptions{}.plate_weight;
   double principal_point_prior_px = registration::CalibrationOptions{}.principal_point_prior_px;
@@ -171,6 +172,7 @@ int RunCalibrate(const CalibrateOptions& o) {
   options.estimate_principal_point = !o.fix_principal_point;
   options.estimate_distortion = !o.fix_distortion;
   options.estimate_tangential_distortion = o.tangential_distortion;
+  options.match_window = o.match_window;
   options.covariance = !o.no_covariance;
   options.plate_weight = o.plate_weight;
   options.principal_point_prior_px = o.principal_point_prior_px;
@@ -269,6 +271,9 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
   app.add_flag("--fix-principal-point", o->fix_principal_point,
                "Hold the principal point at its initial value");
   app.add_flag("--fix-distortion", o->fix_distortion, "Hold k1, k2, p1, p2 at their initial values");
+  app.add_option("--match-window", o->match_window,
+                 "Match each frame against the points of this many placed frames before it")
+      ->check(CLI::PositiveNumber);
   app.add_flag("--tangential-distortion", o->tangential_distortion,
                "Estimate p1, p2 too (default: held at their initial values; they trade with the "
                "principal point)");

@@ -32,6 +32,7 @@ struct GroundTruthComparison {
   double map_median_mm = 0;                     // median |p - p_true|
   int map_points = 0;                           // compared
   double map_median_by_track_mm[3] = {0, 0, 0};  // points seen in 2, 3, >= 4 frames
+  int map_points_by_track[3] = {0, 0, 0};
   double pose_median_mm = 0, pose_median_deg = 0;  // median per frame
   double scale_error = 0;                          // |s - 1|
   double keypoint_v_median_rel = 0;                // median |v - v_true| / v_true of observations
@@ -66,6 +67,8 @@ std::vector<std::string> MissedGates(const GroundTruthComparison& c, const GateT
 struct PlateCornerBias {
   int corners = 0;
   double mean_x_tf_px = 0, mean_y_tf_px = 0, mean_inset_tf_px = 0, rms_tf_px = 0;
+  int corners_with_v = 0;  // with a measured virtual depth
+  double v_bias_rel = 0;   // median (v - v_true) / v_true, v_true as the processing reads it
   std::string BriefReport() const;  // one line
 };
 Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFrame>& frames,
