@@ -44,6 +44,8 @@ struct CalibrateOptions {
   bool ground_truth = false;
   bool fix_principal_point = false;
   bool fix_distortion = false;
+  bool tangential_distortion = false;
+  int match_window = registration::CalibrationOptions{}.match_window;
   bool no_covariance = false;
   double plate_weight = registration::CalibrationOptions{}.plate_weight;
   double principal_point_prior_px = registration::CalibrationOptions{}.principal_point_prior_px;
@@ -146,14 +148,15 @@ int RunCalibrate(const CalibrateOptions& o) {
                         : fs::path(o.cache) / (o.camera + "_" + std::to_string(f) + ".frame");
     Expected<registration::CalibrationFrame> frame = Error{""};
     if (!cached.empty() && fs::exists(cached))
-      frame = registration::LoadCalibrationFrame(cached, loader_options.lambda);
+      frame = registration::LoadCalibrationFrame(cached, loader_options);
     const bool from_cache = frame.ok();
     if (!frame) frame = (*loader)->Load(f);
     if (!frame) return Fail(frame.error().message);
-    // A cached file of another lambda or an older version is replaced.
+    // A cached file processed otherwise (lambda, principal point, keypoint
+    // limit) or of an older version is replaced.
     if (!cached.empty() && !from_cache) {
       fs::create_directories(o.cache, ec);
-      if (Status s = registration::SaveCalibrationFrame(cached, *frame, loader_options.lambda); !s)
+      if (Status s = registration::SaveCalibrationFrame(cached, *frame, loader_options); !s)
         return Fail(s.error().message);
     }
     char line[256];
@@ -168,6 +171,8 @@ int RunCalibrate(const CalibrateOptions& o) {
   options.recalibrate = !o.recalibrate.empty();
   options.estimate_principal_point = !o.fix_principal_point;
   options.estimate_distortion = !o.fix_distortion;
+  options.estimate_tangential_distortion = o.tangential_distortion;
+  options.match_window = o.match_window;
   options.covariance = !o.no_covariance;
   options.plate_weight = o.plate_weight;
   options.principal_point_prior_px = o.principal_point_prior_px;
@@ -266,6 +271,12 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
   app.add_flag("--fix-principal-point", o->fix_principal_point,
                "Hold the principal point at its initial value");
   app.add_flag("--fix-distortion", o->fix_distortion, "Hold k1, k2, p1, p2 at their initial values");
+  app.add_option("--match-window", o->match_window,
+                 "Match each frame against the points of this many placed frames before it")
+      ->check(CLI::PositiveNumber);
+  app.add_flag("--tangential-distortion", o->tangential_distortion,
+               "Estimate p1, p2 too (default: held at their initial values; they trade with the "
+               "principal point)");
   app.add_flag("--no-covariance", o->no_covariance,
                "Skip the standard deviations of the intrinsics (Ceres covariance: about a "
                "quarter of the solve's time)");

@@ -11,8 +11,11 @@
 // calibration is reported as a ratio to it.
 // The sequence is written first by the `lifmcr synth` executable (a separate
 // process, not timed, so its memory does not count), or given by --sequence.
+// Its motion is `orbit` by default, the motion a user's calibration sequence
+// has (views of the plate from varied angles, more than 20 degrees about two
+// axes; trajectory.h), at its designed amplitude (--speed-scale 1).
 //   bench_calibrate [--preset medium|r32|small] [--frames N] [--sequence SEQ_DIR]
-//                   [--speed-scale X] [--keep]
+//                   [--motion orbit|smooth|...] [--speed-scale X] [--keep]
 
 #include "processing/camera_model.h"
 #include "registration/calibration.h"
@@ -63,9 +66,9 @@ void PrintGates(const char* label, const CalibrationResult& r, const fs::path& s
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string preset = "medium", sequence;
+  std::string preset = "medium", sequence, motion = "orbit";
   int frames = 40;
-  double speed_scale = 4;
+  double speed_scale = 1;
   bool keep = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -73,12 +76,13 @@ int main(int argc, char** argv) {
     if (a == "--preset") preset = next();
     else if (a == "--frames") frames = std::atoi(next().c_str());
     else if (a == "--sequence") sequence = next();
+    else if (a == "--motion") motion = next();
     else if (a == "--speed-scale") speed_scale = std::atof(next().c_str());
     else if (a == "--keep") keep = true;
     else {
       std::fprintf(stderr,
                    "usage: bench_calibrate [--preset medium|r32|small] [--frames N] "
-                   "[--sequence SEQ_DIR] [--speed-scale X] [--keep]\n");
+                   "[--sequence SEQ_DIR] [--motion M] [--speed-scale X] [--keep]\n");
       return 2;
     }
   }
@@ -92,7 +96,7 @@ int main(int argc, char** argv) {
     std::fclose(f);
     const std::string command = std::string(LIFMCR_BINARY) + " synth --out " + tmp.string() +
                                 " --preset " + preset + " --cameras 1 --frames " +
-                                std::to_string(frames) + " --config " + config.string() +
+                                std::to_string(frames) + " --motion " + motion + " --config " + config.string() +
                                 " --quiet";
     std::printf("writing the sequence (not timed): %s\n", command.c_str());
     if (std::system(command.c_str()) != 0) return 1;

@@ -85,7 +85,12 @@ struct CalibrationOptions {
   // raw px; 0: none): a real lens' axis meets the sensor within tens of
   // pixels of the centre, and views that do not determine c keep it there.
   double principal_point_prior_px = 20;
-  bool estimate_distortion = true;
+  bool estimate_distortion = true;   // radial k1, k2 (and p1, p2 when the next is set)
+  // Tangential p1, p2 (with estimate_distortion). Off by default: a
+  // decentering term is nearly a principal point shift; on 40 `medium` frames
+  // with a distortion-free lens p2 came out at 13 of its standard deviations
+  // and took the principal point 2.6 px off (0.75 px with p1, p2 held).
+  bool estimate_tangential_distortion = false;
   bool inverse_depth = true;          // points by inverse depth in their anchor frame
   bool estimate_corner_inset = true;  // the plate corners' detection inset (calibration.cpp)
   bool covariance = true;           // standard deviations of the intrinsics
@@ -115,6 +120,7 @@ struct CalibrationResult {
   CameraCalibration calibration;
   IntrinsicsVector initial{};
   IntrinsicsVector std_dev{};  // NaN where not estimated or not available
+  std::string weakest_direction;  // of the covariance, e.g. "(1.1e-06: principal_point_y_px -0.55, ...)"
   std::vector<FramePose> poses;     // w0_from_c0 of the placed frames
   std::vector<FrameReport> frames;  // every input frame
   ReferenceMap map;
@@ -125,6 +131,10 @@ struct CalibrationResult {
   int points = 0;
   double initial_cost = 0, final_cost = 0, solver_seconds = 0, total_seconds = 0;
   int iterations = 0;
+  // How the frames' TF images and virtual depths were made (l_k = c + (c_k -
+  // c) lambda): the geometry their keypoints are in (calibration_gates.h).
+  double frames_lambda = 1;
+  Eigen::Vector2d frames_principal_point_px = Eigen::Vector2d::Zero();
   bool usable = false;              // Ceres: solution usable, and no flag below
   std::string termination;          // Ceres termination type
   std::vector<std::string> flags;   // problems a user should know (report flags)

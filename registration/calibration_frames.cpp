@@ -21,7 +21,28 @@ namespace {
 constexpr char kFrameMagic[8] = {'L', 'F', 'M', 'C', 'R', 'F', 'R', 'M'};
 // Version 2: plate corners from the markers' edges (marker_edges.h); a
 // version-1 file holds cornerSubPix corners and is processed again.
-constexpr std::uint32_t kFrameVersion = 2;
+// Version 3: the principal point and keypoint limit beside lambda.
+constexpr std::uint32_t kFrameVersion = 3;
+
+// What a frame was processed with, as stored: lambda, the principal point of
+// l_k (NaN NaN: the image centre), the keypoint limit.
+struct ProcessedWith {
+  double lambda = 0;
+  double principal_point_px[2] = {0, 0};
+  std::int64_t max_features = 0;
+};
+
+ProcessedWith Key(const FrameLoaderOptions& o) {
+  ProcessedWith k;
+  k.lambda = o.lambda;
+  k.principal_point_px[0] = o.principal_point_px ? o.principal_point_px->x() : std::nan("");
+  k.principal_point_px[1] = o.principal_point_px ? o.principal_point_px->y() : std::nan("");
+  k.max_features = o.features.max_features;
+  return k;
+}
+
+// Equal doubles, NaN equal to NaN (an unset principal point).
+bool Same(double a, double b) { return (std::isnan(a) && std::isnan(b)) || a == b; }
 
 template <typename T>
 void PutVector(std::ostream& out, const std::vector<T>& v) {
@@ -40,11 +61,15 @@ bool GetVector(std::istream& in, std::vector<T>* v) {
 
 }  // namespace
 
-Status SaveCalibrationFrame(const fs::path& path, const CalibrationFrame& f, double lambda) {
+Status SaveCalibrationFrame(const fs::path& path, const CalibrationFrame& f,
+                            const FrameLoaderOptions& processed_with) {
+  const ProcessedWith key = Key(processed_with);
   std::ofstream out(path, std::ios::binary);
   out.write(kFrameMagic, sizeof(kFrameMagic));
   out.write(reinterpret_cast<const char*>(&kFrameVersion), sizeof(kFrameVersion));
-  out.write(reinterpret_cast<const char*>(&lambda), sizeof(lambda));
+  out.write(reinterpret_cast<const char*>(&key.lambda), sizeof(double));
+  out.write(reinterpret_cast<const char*>(key.principal_point_px), 2 * sizeof(double));
+  out.write(reinterpret_cast<const char*>(&key.max_features), sizeof(std::int64_t));
   out.write(reinterpret_cast<const char*>(&f.frame), sizeof(f.frame));
   PutVector(out, std::vector<char>(f.name.begin(), f.name.end()));
   const std::int32_t size[2] = {f.tf_width, f.tf_height};
@@ -60,21 +85,30 @@ Status SaveCalibrationFrame(const fs::path& path, const CalibrationFrame& f, dou
   return Status::Ok();
 }
 
-Expected<CalibrationFrame> LoadCalibrationFrame(const fs::path& path, double lambda) {
+Expected<CalibrationFrame> LoadCalibrationFrame(const fs::path& path,
+                                                const FrameLoaderOptions& processed_with) {
+  const ProcessedWith key = Key(processed_with);
   std::ifstream in(path, std::ios::binary);
   if (!in) return Error{path.string() + ": cannot open"};
   char magic[8];
   std::uint32_t version = 0;
-  double file_lambda = 0;
+  ProcessedWith file;
   CalibrationFrame f;
   std::vector<char> name;
   std::int32_t size[2];
   if (!in.read(magic, 8) || std::memcmp(magic, kFrameMagic, 8) != 0 ||
       !in.read(reinterpret_cast<char*>(&version), sizeof(version)) || version != kFrameVersion ||
-      !in.read(reinterpret_cast<char*>(&file_lambda), sizeof(file_lambda)))
-    return Error{path.string() + ": not a processed calibration frame (LFMCRFRM, version 2)"};
-  if (std::abs(file_lambda - lambda) > 1e-12)
+      !in.read(reinterpret_cast<char*>(&file.lambda), sizeof(double)) ||
+      !in.read(reinterpret_cast<char*>(file.principal_point_px), 2 * sizeof(double)) ||
+      !in.read(reinterpret_cast<char*>(&file.max_features), sizeof(std::int64_t)))
+    return Error{path.string() + ": not a processed calibration frame (LFMCRFRM, version 3)"};
+  if (std::abs(file.lambda - key.lambda) > 1e-12)
     return Error{path.string() + ": processed with another lambda"};
+  if (!Same(file.principal_point_px[0], key.principal_point_px[0]) ||
+      !Same(file.principal_point_px[1], key.principal_point_px[1]))
+    return Error{path.string() + ": processed with another principal point"};
+  if (file.max_features != key.max_features)
+    return Error{path.string() + ": processed with another keypoint limit"};
   if (!in.read(reinterpret_cast<char*>(&f.frame), sizeof(f.frame)) || !GetVector(in, &name) ||
       !in.read(reinterpret_cast<char*>(size), sizeof(size)) ||
       !GetVector(in, &f.features.keypoints) || !GetVector(in, &f.features.descriptors) ||

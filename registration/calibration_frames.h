@@ -35,16 +35,6 @@ struct CalibrationFrame {
   double seconds = 0;                             // processing time of the frame
 };
 
-// A processed frame on disk (a cache for repeated calibrations of the same
-// frames with the same initial lambda): binary, little-endian, magic
-// "LFMCRFRM", version 2, the lambda it was processed with, then the fields
-// of CalibrationFrame in order. Reading gives an error when the file is not
-// one, or was made with another lambda.
-Status SaveCalibrationFrame(const std::filesystem::path& path, const CalibrationFrame& frame,
-                            double lambda);
-Expected<CalibrationFrame> LoadCalibrationFrame(const std::filesystem::path& path,
-                                                double lambda);
-
 // The micro images of the camera: centres c_k and the lattice to find the
 // lenses that see a virtual point.
 struct MicroImages {
@@ -64,6 +54,18 @@ struct FrameLoaderOptions {
   FeatureOptions features;
   Status Check() const;
 };
+
+// A processed frame on disk (a cache for repeated calibrations of the same
+// frames processed the same way): binary, little-endian, magic "LFMCRFRM",
+// version 3, what the frame was processed with (lambda; the principal point
+// of l_k, NaN NaN for the image centre; the SIFT keypoint limit), then the
+// fields of CalibrationFrame in order. Reading gives an error when the file
+// is not one, or was processed with other options (other initial intrinsics:
+// its virtual depths and TF image belong to other micro-lens centres).
+Status SaveCalibrationFrame(const std::filesystem::path& path, const CalibrationFrame& frame,
+                            const FrameLoaderOptions& processed_with);
+Expected<CalibrationFrame> LoadCalibrationFrame(const std::filesystem::path& path,
+                                                const FrameLoaderOptions& processed_with);
 
 class CalibrationFrameLoader {
  public:

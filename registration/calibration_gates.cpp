@@ -33,10 +33,13 @@ std::string Format(const char* fmt, auto... args) {
 std::string GroundTruthComparison::BriefReport() const {
   return Format(
       "vs ground truth: f_L %+.3f %%, b_L0 %+.3f %%, B %+.3f %%, principal point %.2f px, RMSE "
-      "%.3f px, map median %.3f mm (%d points), pose median %.3f mm / %.4f deg, scale %.3f %%, "
+      "%.3f px, map median %.3f mm (%d points; seen in 2 / 3 / >= 4 frames: %d / %d / %d points, "
+      "%.3f / %.3f / %.3f mm), pose median %.3f mm / %.4f deg, scale %.3f %%, "
       "keypoint v median |error| %.2f %% (signed %+.2f %%)",
       100 * f_l_rel, 100 * b_l0_rel, 100 * b_rel, principal_point_px, rmse_px, map_median_mm,
-      map_points, pose_median_mm, pose_median_deg, 100 * scale_error,
+      map_points, map_points_by_track[0], map_points_by_track[1], map_points_by_track[2],
+      map_median_by_track_mm[0], map_median_by_track_mm[1], map_median_by_track_mm[2],
+      pose_median_mm, pose_median_deg, 100 * scale_error,
       100 * keypoint_v_median_rel, 100 * keypoint_v_bias_rel);
 }
 
@@ -62,8 +65,9 @@ std::vector<std::string> MissedGates(const GroundTruthComparison& c, const GateT
 
 std::string PlateCornerBias::BriefReport() const {
   return Format("plate corners vs truth (%d): mean offset (%+.3f, %+.3f) TF px, inset %+.3f TF px, "
-                "RMS %.3f TF px",
-                corners, mean_x_tf_px, mean_y_tf_px, mean_inset_tf_px, rms_tf_px);
+                "RMS %.3f TF px; virtual depth (%d corners) median %+.2f %%",
+                corners, mean_x_tf_px, mean_y_tf_px, mean_inset_tf_px, rms_tf_px, corners_with_v,
+                100 * v_bias_rel);
 }
 
 Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFrame>& frames,
@@ -82,6 +86,7 @@ Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFr
   const Eigen::Vector2d c = truth->intrinsics.PrincipalPointPx();
   // TF pixel of a plate point in the TF image processed with frames_lambda
   // (x_v = 2 tf + 0.5).
+  double last_v_processed = 0;  // of the last tf_of
   auto tf_of = [&](const Pose& c_from_w, const Eigen::Vector3d& p_in_w, Eigen::Vector2d* tf) {
     const Eigen::Vector3d p = c_from_w * p_in_w;
     double x_v[3];
@@ -89,8 +94,10 @@ Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFr
     const double v_processed = 1.0 / (1.0 - lambda_ratio * (1.0 - 1.0 / x_v[2]));
     const Eigen::Vector2d x = c + (Eigen::Vector2d(x_v[0], x_v[1]) - c) * (v_processed / x_v[2]);
     *tf = (x - Eigen::Vector2d(0.5, 0.5)) / 2.0;
+    last_v_processed = v_processed;
     return true;
   };
+  std::vector<double> v_signed;
   PlateCornerBias b;
   double ss = 0;
   for (const CalibrationFrame& f : frames) {
@@ -102,8 +109,11 @@ Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFr
       for (const PlateCorner& other : f.corners)
         if (other.marker_id == corner.marker_id) centre += 0.25 * other.p_in_w_mm;
       Eigen::Vector2d tf_true, tf_centre;
-      if (!tf_of(it->second, corner.p_in_w_mm, &tf_true) || !tf_of(it->second, centre, &tf_centre))
-        continue;
+      if (!tf_of(it->second, corner.p_in_w_mm, &tf_true)) continue;
+      const std::size_t n = static_cast<std::size_t>(&corner - f.corners.data());
+      if (n < f.corner_virtual_depth.size() && !std::isnan(f.corner_virtual_depth[n]))
+        v_signed.push_back(f.corner_virtual_depth[n] / last_v_processed - 1);
+      if (!tf_of(it->second, centre, &tf_centre)) continue;
       const Eigen::Vector2d d = corner.tf_px - tf_true;
       b.mean_x_tf_px += d.x();
       b.mean_y_tf_px += d.y();
@@ -118,6 +128,8 @@ Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFr
     b.mean_inset_tf_px /= b.corners;
     b.rms_tf_px = std::sqrt(ss / b.corners);
   }
+  b.corners_with_v = static_cast<int>(v_signed.size());
+  b.v_bias_rel = v_signed.empty() ? std::nan("") : Median(v_signed);
   return b;
 }
 
@@ -160,6 +172,9 @@ Expected<GroundTruthComparison> CompareWithGroundTruth(const CalibrationResult& 
   std::map<std::int64_t, std::vector<float>> depth_of_frame;
   int depth_w = 0, depth_h = 0;
   std::vector<double> errors, v_errors, v_signed;
+  std::vector<double> by_track[3];  // track length 2, 3, >= 4
+  const double lambda = true_model.lambda(), lambda0 = result.frames_lambda;
+  const Eigen::Vector2d c_true = t.PrincipalPointPx(), c0 = result.frames_principal_point_px;
   std::vector<Eigen::Vector3d> estimated, expected;
   for (const MapPoint& point : result.map.points) {
     const TrackElement& first = point.track.front();
@@ -172,24 +187,48 @@ Expected<GroundTruthComparison> CompareWithGroundTruth(const CalibrationResult& 
       it = depth_of_frame.emplace(image.frame, std::move(*depth)).first;
     }
     const MapKeypoint& kp = image.keypoints[first.keypoint];
-    const int x = std::clamp(static_cast<int>(std::lround(kp.tf_px.x())), 0, depth_w - 1);
-    const int y = std::clamp(static_cast<int>(std::lround(kp.tf_px.y())), 0, depth_h - 1);
-    const float z = it->second[static_cast<std::size_t>(y) * depth_w + x];
-    if (std::isnan(z)) continue;
-    const double v = true_model.VirtualDepthOfDepth(z);
-    const Eigen::Vector2d raw = 2.0 * kp.tf_px.cast<double>() + Eigen::Vector2d(0.5, 0.5);
-    const Eigen::Vector3d p_in_c = true_model.BackProject(Eigen::Vector3d(raw.x(), raw.y(), v));
+    // The keypoint is in the geometry of its processed frame (lambda0, c0):
+    // the true virtual point x (depth v) whose micro images the processing
+    // read as x' (depth v'): equal micro-image positions for every lens,
+    //   lambda (1 - 1/v) = lambda0 (1 - 1/v'),
+    //   x / v = x' / v' - c (1 - lambda)(1 - 1/v) + c0 (1 - lambda0)(1 - 1/v'),
+    // solved with the true depth at x (a few fixed-point steps from x = x').
+    const Eigen::Vector2d x_processed =
+        2.0 * kp.tf_px.cast<double>() + Eigen::Vector2d(0.5, 0.5);
+    Eigen::Vector2d x_true = x_processed;
+    double v = std::nan(""), v_processed = std::nan("");
+    for (int step = 0; step < 4; ++step) {
+      const Eigen::Vector2d tf = (x_true - Eigen::Vector2d(0.5, 0.5)) / 2.0;
+      const int x = std::clamp(static_cast<int>(std::lround(tf.x())), 0, depth_w - 1);
+      const int y = std::clamp(static_cast<int>(std::lround(tf.y())), 0, depth_h - 1);
+      const float z = it->second[static_cast<std::size_t>(y) * depth_w + x];
+      if (std::isnan(z)) {
+        v = std::nan("");
+        break;
+      }
+      v = true_model.VirtualDepthOfDepth(z);
+      v_processed = 1.0 / (1.0 - lambda / lambda0 * (1.0 - 1.0 / v));
+      x_true = v * (x_processed / v_processed - c_true * (1 - lambda) * (1 - 1 / v) +
+                    c0 * (1 - lambda0) * (1 - 1 / v_processed));
+    }
+    if (std::isnan(v)) continue;
+    const Eigen::Vector3d p_in_c =
+        true_model.BackProject(Eigen::Vector3d(x_true.x(), x_true.y(), v));
     const Eigen::Vector3d p_true = world_from_cam.at(image.frame) * p_in_c;
     errors.push_back((point.p_in_w0_mm - p_true).norm());
+    by_track[std::min<std::size_t>(point.track.size(), 4) - 2].push_back(errors.back());
     estimated.push_back(point.p_in_w0_mm);
     expected.push_back(p_true);
     if (!std::isnan(kp.virtual_depth)) {
-      v_errors.push_back(std::abs(kp.virtual_depth / v - 1));
-      v_signed.push_back(kp.virtual_depth / v - 1);
+      v_errors.push_back(std::abs(kp.virtual_depth / v_processed - 1));
+      v_signed.push_back(kp.virtual_depth / v_processed - 1);
     }
   }
   c.map_points = static_cast<int>(errors.size());
   c.map_median_mm = Median(errors);
+  for (int n = 0; n < 3; ++n) c.map_points_by_track[n] = static_cast<int>(by_track[n].size());
+  for (int n = 0; n < 3; ++n)
+    c.map_median_by_track_mm[n] = by_track[n].empty() ? std::nan("") : Median(by_track[n]);
   c.keypoint_v_median_rel = Median(v_errors);
   c.keypoint_v_bias_rel = Median(v_signed);
   std::vector<int> kept;

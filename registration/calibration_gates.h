@@ -8,7 +8,11 @@
 // Map points: the true position of a point is that of its first
 // observation: the keypoint's TF pixel with the true depth there (the
 // ground-truth depth map, nearest TF pixel), back-projected with the true
-// intrinsics and placed with the true pose. World frames: both are the plate
+// intrinsics and placed with the true pose. The keypoint's pixel and virtual
+// depth are in the geometry of the frame's processing (the calibration's
+// frames_lambda and principal point, see PlateCornerBias below): they are
+// taken back to the true virtual image first, and the keypoints' virtual
+// depths are compared with the true one as that processing reads it. World frames: both are the plate
 // frame (the calibration's w0 is fixed by the plate corners). Scale: the
 // scale of the least-squares similarity (Umeyama) from the estimated to the
 // true points, over the points within 3 median errors.
@@ -27,6 +31,8 @@ struct GroundTruthComparison {
   double rmse_px = 0;                           // of the calibration
   double map_median_mm = 0;                     // median |p - p_true|
   int map_points = 0;                           // compared
+  double map_median_by_track_mm[3] = {0, 0, 0};  // points seen in 2, 3, >= 4 frames
+  int map_points_by_track[3] = {0, 0, 0};
   double pose_median_mm = 0, pose_median_deg = 0;  // median per frame
   double scale_error = 0;                          // |s - 1|
   double keypoint_v_median_rel = 0;                // median |v - v_true| / v_true of observations
@@ -61,6 +67,8 @@ std::vector<std::string> MissedGates(const GroundTruthComparison& c, const GateT
 struct PlateCornerBias {
   int corners = 0;
   double mean_x_tf_px = 0, mean_y_tf_px = 0, mean_inset_tf_px = 0, rms_tf_px = 0;
+  int corners_with_v = 0;  // with a measured virtual depth
+  double v_bias_rel = 0;   // median (v - v_true) / v_true, v_true as the processing reads it
   std::string BriefReport() const;  // one line
 };
 Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFrame>& frames,

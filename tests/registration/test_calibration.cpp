@@ -149,6 +149,77 @@ TEST_F(CalibrationTest, FromFivePercentOffPlacesEveryFrameAndFitsTheMicroImages)
   EXPECT_LT(std::abs(r->corner_inset_tf_px), 0.1);
 }
 
+// The standard deviations come from the covariance of the camera parameters
+// (calibration_covariance.h); with the principal point free, four narrow
+// views determine it only weakly, and the report names that direction.
+TEST_F(CalibrationTest, CovarianceGivesStandardDeviationsAndTheWeakestDirection) {
+  CalibrationOptions options = Options();
+  options.estimate_principal_point = true;
+  Expected<CalibrationResult> r = Calibrate(Input(Initial()), options);
+  ASSERT_TRUE(r) << r.error().message;
+  for (const std::string& f : r->flags) ADD_FAILURE() << "flag: " << f;
+  EXPECT_TRUE(r->usable);
+  const char* names[] = {"f_L", "b_L0", "B", "c_x", "c_y"};
+  for (int i = 0; i < 5; ++i) {
+    std::printf("%s %.6g +- %.3g\n", names[i], ToVector(r->calibration.intrinsics)[i],
+                r->std_dev[i]);
+    EXPECT_TRUE(std::isfinite(r->std_dev[i])) << names[i];
+    EXPECT_GT(r->std_dev[i], 0) << names[i];
+  }
+  for (int i = 5; i < kIntrinsicsSize; ++i) EXPECT_TRUE(std::isnan(r->std_dev[i])) << i;
+  // Relative standard deviations of the thin-lens parameters well below the
+  // 0.5 % gate, the principal point the least determined.
+  EXPECT_LT(r->std_dev[0] / ToVector(r->calibration.intrinsics)[0], 0.005);
+  EXPECT_LT(r->std_dev[2] / ToVector(r->calibration.intrinsics)[2], 0.05);
+  std::printf("weakest direction %s\n", r->weakest_direction.c_str());
+  EXPECT_NE(r->weakest_direction.find("principal_point"), std::string::npos);
+  EXPECT_NE(FormatCalibrationReport(*r, kSerial).find(r->weakest_direction), std::string::npos);
+}
+
+// Issue 13 registered camera X to camera 0 through calibrate's map and
+// intrinsics and found c0_from_cx off by a constant few mm along camera 0's
+// axis. The thin lens and the TF pinhole are unchanged when f_L, b_L0, B and
+// every distance from the camera scale together (v = (b_L - b_L0) / B and
+// the image of a point are invariant); only the plate's perspective breaks
+// that, weakly in a narrow view from 1.8 m. So camera 0's calibrated pose
+// lies along its axis by the intrinsics' scale error times the distance:
+// its along-axis error is -(b_L0 / b_L0_true - 1) Z, the map in the plate
+// frame is not (its scale error stays small), and camera X registered with
+// its own intrinsics inherits camera 0's offset in c0_from_cx.
+TEST_F(CalibrationTest, CameraPoseAlongItsAxisIsTheIntrinsicsScaleTimesTheDistance) {
+  Expected<CalibrationResult> r = Calibrate(Input(Initial()), Options());
+  ASSERT_TRUE(r) << r.error().message;
+  Expected<std::vector<FramePose>> truth = ReadPosesCsv(layout::PosesCsvPath(*sequence_, kSerial));
+  ASSERT_TRUE(truth) << truth.error().message;
+  const double scale = r->calibration.intrinsics.mla_to_main_lens_mm /
+                           truth_->intrinsics.mla_to_main_lens_mm - 1;
+  Expected<GroundTruthComparison> c = CompareWithGroundTruth(*r, *sequence_, kSerial);
+  ASSERT_TRUE(c) << c.error().message;
+  std::printf("b_L0 %+.3f %%, f_L %+.3f %%, map scale error %.3f %%\n", 100 * scale,
+              100 * c->f_l_rel, 100 * c->scale_error);
+  const Eigen::Vector3d plate_centre(200, 140, 0);  // the target (cameras.yaml plate)
+  int compared = 0;
+  for (const FramePose& estimate : r->poses)
+    for (const FramePose& t : *truth) {
+      if (t.frame != estimate.frame) continue;
+      const Eigen::Matrix3d cam_from_world = t.world_from_cam.linear().transpose();
+      const Eigen::Vector3d error_in_cam =
+          cam_from_world * (estimate.world_from_cam.translation() - t.world_from_cam.translation());
+      const double distance_mm = (t.world_from_cam.inverse() * plate_centre).z();
+      const double expected_mm = -scale * distance_mm;
+      std::printf("frame %lld: camera 0 error in its frame (%+.2f, %+.2f, %+.2f) mm; "
+                  "-(b_L0 scale) x %.0f mm = %+.2f mm\n",
+                  static_cast<long long>(t.frame), error_in_cam.x(), error_in_cam.y(),
+                  error_in_cam.z(), distance_mm, expected_mm);
+      EXPECT_NEAR(error_in_cam.z(), expected_mm, 0.3 * std::abs(expected_mm) + 1.0) << t.frame;
+      EXPECT_LT(error_in_cam.head<2>().norm(), 0.5 * std::abs(error_in_cam.z()) + 1.0) << t.frame;
+      ++compared;
+    }
+  EXPECT_EQ(compared, 4);
+  // The map itself, in the plate frame, keeps its scale.
+  EXPECT_LT(c->scale_error, 0.002);
+}
+
 TEST_F(CalibrationTest, WritesAMapAndIntrinsicsThatReadBack) {
   Expected<CalibrationResult> r = Calibrate(Input(Initial()), Options());
   ASSERT_TRUE(r) << r.error().message;
@@ -229,8 +300,10 @@ TEST_F(CalibrationTest, RecalibrationHoldsFocalLengthAndSensorDistance) {
 TEST_F(CalibrationTest, ProcessedFramesRoundTripThroughTheCache) {
   test::TempDir dir;
   const CalibrationFrame& f = frames_->at(1);
-  ASSERT_TRUE(SaveCalibrationFrame(dir / "f.frame", f, 0.99));
-  Expected<CalibrationFrame> back = LoadCalibrationFrame(dir / "f.frame", 0.99);
+  FrameLoaderOptions processed;
+  processed.lambda = 0.99;
+  ASSERT_TRUE(SaveCalibrationFrame(dir / "f.frame", f, processed));
+  Expected<CalibrationFrame> back = LoadCalibrationFrame(dir / "f.frame", processed);
   ASSERT_TRUE(back) << back.error().message;
   EXPECT_EQ(back->frame, f.frame);
   EXPECT_EQ(back->name, f.name);
@@ -240,8 +313,25 @@ TEST_F(CalibrationTest, ProcessedFramesRoundTripThroughTheCache) {
   ASSERT_EQ(back->corners.size(), f.corners.size());
   EXPECT_EQ(back->corners[0].p_in_w_mm, f.corners[0].p_in_w_mm);
   EXPECT_EQ(back->rgb, f.rgb);
-  // Another lambda (other initial intrinsics) must not reuse the frame.
-  EXPECT_FALSE(LoadCalibrationFrame(dir / "f.frame", 0.98));
+  // Other initial intrinsics (lambda, principal point) or another keypoint
+  // limit must not reuse the frame.
+  FrameLoaderOptions other = processed;
+  other.lambda = 0.98;
+  EXPECT_FALSE(LoadCalibrationFrame(dir / "f.frame", other));
+  other = processed;
+  other.principal_point_px = Eigen::Vector2d(512.5, 383.5);
+  Expected<CalibrationFrame> moved = LoadCalibrationFrame(dir / "f.frame", other);
+  ASSERT_FALSE(moved);
+  EXPECT_NE(moved.error().message.find("another principal point"), std::string::npos);
+  other = processed;
+  other.features.max_features = 123;
+  EXPECT_FALSE(LoadCalibrationFrame(dir / "f.frame", other));
+  // A frame processed with a principal point is found again with it.
+  processed.principal_point_px = Eigen::Vector2d(512.5, 383.5);
+  ASSERT_TRUE(SaveCalibrationFrame(dir / "g.frame", f, processed));
+  EXPECT_TRUE(LoadCalibrationFrame(dir / "g.frame", processed));
+  processed.principal_point_px.reset();
+  EXPECT_FALSE(LoadCalibrationFrame(dir / "g.frame", processed));
 }
 
 TEST_F(CalibrationTest, BadInputIsAClearError) {
