@@ -127,7 +127,9 @@ void OffsetsSection(std::ostringstream& md, const EvaluationRun& run,
          << " | | | | | | | | |\n";
       continue;
     }
-    const std::string source = estimated ? "estimated, all frames" : e.correction_source;
+    const std::string source = e.correction_source == "joint map frame" && estimated
+                                   ? "joint map frame, all frames"
+                                   : estimated ? "estimated, all frames" : e.correction_source;
     struct Item {
       std::string serial;
       Pose x;
