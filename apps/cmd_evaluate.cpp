@@ -557,10 +557,22 @@ int RunEvaluate(const EvaluateArgs& args) {
   // corrects the map-frame evaluations, and the pairs whose c0_from_cx
   // could not determine its own offsets (the cameras turn together). The
   // reference's map-frame evaluation keeps the first method's joint fit.
-  if (!run.map_evaluations.empty()) {
+  // Offsets given (--hand-eye truth|FILE) are used as given.
+  if (!run.map_evaluations.empty() && !given) {
     CameraEvaluation* reference_in_map = nullptr;
     for (CameraEvaluation& m : run.map_evaluations)
       if (m.method == "reference") reference_in_map = &m;
+    // The map-frame evaluations exist only with a plate alignment.
+    const std::optional<HandEyePrior> z_prior = PlateCorrectionPrior(*run.plate, plate_template);
+    {
+      char line[160];
+      std::snprintf(line, sizeof(line),
+                    "map frame: the plate correction Z held at identity within %.2f mm / %.3f deg "
+                    "(the plate alignment's residuals)",
+                    z_prior->translation_sd_mm, z_prior->rotation_sd_deg);
+      progress(line);
+      run.z_prior_note = line + 11;
+    }
     for (std::size_t mi = 0; mi < method_order.size() && reference_in_map; ++mi) {
       const std::string& method = method_order[mi];
       CameraEvaluation reference_copy = *reference_in_map;
@@ -571,7 +583,7 @@ int RunEvaluate(const EvaluateArgs& args) {
       for (CameraEvaluation& e : run.evaluations)
         if (e.method == method && !e.has_correction()) pairs.push_back(&e);
       std::string why;
-      if (CorrectJointlyInTheMapFrame(in_map, pairs, options, &why)) {
+      if (CorrectJointlyInTheMapFrame(in_map, pairs, options, z_prior, &why)) {
         progress("map frame: " + method + ": " + in_map.front()->correction_note);
         for (CameraEvaluation* m : in_map)
           if (m->hand_eye)

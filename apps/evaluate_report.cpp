@@ -378,7 +378,10 @@ std::string FormatEvaluationMarkdown(const EvaluationRun& run,
           "Each camera's pose in the map, `w0_from_c0` from the reference poses and "
           "`w0_from_c0 · c0_from_cx` for camera X, against `map_from_vicon · vicon_from_marker` "
           "through the plate alignment. The hand-eye solves A X = Z B with Z a correction of the "
-          "plate alignment (shown as camera `map`; identity when the alignment is exact).\n\n";
+          "plate alignment (shown as camera `map`; identity when the alignment is exact). "
+          "Camera 0 and the cameras X of a method are solved together with one Z (one plate)";
+    if (!run.z_prior_note.empty()) md << "; " << run.z_prior_note;
+    md << ".\n\n";
     OffsetsSection(md, run, run.map_evaluations);
     TablesSection(md, run, run.map_evaluations, " (map frame)");
   }
@@ -488,6 +491,7 @@ std::string FormatEvaluationJson(const EvaluationRun& run, const std::vector<std
                             {"world_from_map", PoseJson(run.plate->world_from_map)},
                             {"map_is_plate_frame", run.plate->map_is_plate_frame},
                             {"aruco_source", run.aruco_source},
+                            {"z_prior", run.z_prior_note},
                             {"aruco_check_mm", run.plate->aruco_check_mm},
                             {"marker_fit_rms_mm", run.plate->marker_fit_rms_mm},
                             {"plate_motion_rms_mm", run.plate->plate_motion_rms_mm},

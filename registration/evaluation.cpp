@@ -1,5 +1,8 @@
 #include "registration/evaluation.h"
 
+#include <algorithm>
+#include <cmath>
+#include <limits>
 #include <set>
 #include <vector>
 
@@ -112,7 +115,8 @@ namespace {
 
 // The joint fit on the frames of each `in_map` evaluation within [first, last].
 JointHandEyeResult FitJointly(const std::vector<CameraEvaluation*>& in_map, std::int64_t first,
-                              std::int64_t last, const HandEyeOptions& options) {
+                              std::int64_t last, const HandEyeOptions& options,
+                              const std::optional<HandEyePrior>& z_prior) {
   std::vector<HandEyeObservations> cams;
   for (const CameraEvaluation* m : in_map) {
     HandEyeObservations& c = cams.emplace_back();
@@ -122,14 +126,15 @@ JointHandEyeResult FitJointly(const std::vector<CameraEvaluation*>& in_map, std:
       c.a.push_back(m->truth_uncorrected.at(frame));
     }
   }
-  return SolveJointRobotWorldHandEye(cams, options);
+  return SolveJointRobotWorldHandEye(cams, options, z_prior);
 }
 
 }  // namespace
 
 bool CorrectJointlyInTheMapFrame(const std::vector<CameraEvaluation*>& in_map,
                                  const std::vector<CameraEvaluation*>& pairs,
-                                 const EvaluationOptions& options, std::string* why) {
+                                 const EvaluationOptions& options,
+                                 const std::optional<HandEyePrior>& z_prior, std::string* why) {
   std::set<std::int64_t> union_frames;
   for (const CameraEvaluation* m : in_map)
     for (const auto& [frame, pose] : m->estimate) union_frames.insert(frame);
@@ -139,7 +144,7 @@ bool CorrectJointlyInTheMapFrame(const std::vector<CameraEvaluation*>& in_map,
   }
   const std::vector<std::int64_t> frames(union_frames.begin(), union_frames.end());
   const JointHandEyeResult all =
-      FitJointly(in_map, frames.front(), frames.back(), options.hand_eye);
+      FitJointly(in_map, frames.front(), frames.back(), options.hand_eye, z_prior);
   if (!all.success) {
     *why = "joint map-frame hand-eye: " + all.message;
     return false;
@@ -148,8 +153,8 @@ bool CorrectJointlyInTheMapFrame(const std::vector<CameraEvaluation*>& in_map,
   std::int64_t half_last = frames.back();
   if (options.split == HandEyeSplit::kHalf) {
     half_last = frames[frames.size() / 2 - (frames.size() > 1 ? 1 : 0)];
-    folds.push_back(FitJointly(in_map, frames.front(), half_last, options.hand_eye));
-    folds.push_back(FitJointly(in_map, half_last + 1, frames.back(), options.hand_eye));
+    folds.push_back(FitJointly(in_map, frames.front(), half_last, options.hand_eye, z_prior));
+    folds.push_back(FitJointly(in_map, half_last + 1, frames.back(), options.hand_eye, z_prior));
     for (std::size_t k = 0; k < 2; ++k)
       if (!folds[k].success) {
         *why = std::string("joint map-frame hand-eye: the ") + (k == 0 ? "first" : "second") +
@@ -175,7 +180,8 @@ bool CorrectJointlyInTheMapFrame(const std::vector<CameraEvaluation*>& in_map,
     m.corrected = MetricSet::Of(m.estimate, m.truth_corrected);
     m.correction_source = "joint map frame";
     m.correction_note = "joint map-frame hand-eye of " + std::to_string(in_map.size()) +
-                        " cameras with one plate correction Z, " + how;
+                        " cameras with one plate correction Z" +
+                        (z_prior ? " (held near the plate alignment's)" : "") + ", " + how;
     m.fit_to_itself = fit_to_itself;
     m.hand_eye = all.cameras[k];
     m.folds.clear();
@@ -205,6 +211,20 @@ bool CorrectJointlyInTheMapFrame(const std::vector<CameraEvaluation*>& in_map,
     e->marker_from_cam = all.cameras[k].x;
   }
   return true;
+}
+
+HandEyePrior PlateCorrectionPrior(const PlateAlignment& plate, const PlateTemplate& plate_template) {
+  const double e = std::max(0.3, std::sqrt(plate.aruco_check_mm * plate.aruco_check_mm +
+                                           plate.marker_fit_rms_mm * plate.marker_fit_rms_mm +
+                                           plate.plate_motion_rms_mm * plate.plate_motion_rms_mm));
+  double d = std::numeric_limits<double>::max();
+  for (std::size_t i = 0; i < 4; ++i)
+    for (std::size_t j = i + 1; j < 4; ++j)
+      d = std::min(d, (plate_template.aruco_centers_mm[i] - plate_template.aruco_centers_mm[j]).norm());
+  HandEyePrior prior;
+  prior.translation_sd_mm = e;
+  prior.rotation_sd_deg = std::max(0.05, e / std::max(d, 1.0) * 180.0 / M_PI);
+  return prior;
 }
 
 MethodDifference CompareMethods(const std::string& method_a, const FramePoses& a,

@@ -33,6 +33,7 @@
 #include "config/error.h"
 #include "config/frames.h"
 #include "registration/hand_eye.h"
+#include "registration/plate_alignment.h"
 #include "registration/trajectory_metrics.h"
 
 #include <cstdint>
@@ -139,9 +140,21 @@ CameraEvaluation EvaluateCamera(const std::string& method, const std::string& se
 // c0_from_cx is indistinguishable from an error of X_X: the corrected
 // absolute error of c0_from_cx shows how much the registration varies
 // around its own mean, not its constant bias (docs/evaluation.md).
+//
+// `z_prior`: the plate alignment's own measure of Z (PlateCorrectionPrior);
+// without it Z is free and, on a short sequence with rotations of a few
+// degrees, the X_k come out several mm off (the demo: 5-7 mm).
 bool CorrectJointlyInTheMapFrame(const std::vector<CameraEvaluation*>& in_map,
                                  const std::vector<CameraEvaluation*>& pairs,
-                                 const EvaluationOptions& options, std::string* why);
+                                 const EvaluationOptions& options,
+                                 const std::optional<HandEyePrior>& z_prior, std::string* why);
+
+// Z = identity as the plate alignment measured it: e = the RMS of its
+// residuals (ArUco check P1, marker fit, plate motion), at least 0.3 mm;
+// translation sd e, rotation sd e / d with d the shortest distance between
+// the template's ArUco centres (the lever the map side's rotation rests on),
+// at least 0.05 deg.
+HandEyePrior PlateCorrectionPrior(const PlateAlignment& plate, const PlateTemplate& plate_template);
 
 // Per-frame difference of two methods' c0_from_cx (supplementary
 // "Evaluation of the difference between both benchmark methods"): E =

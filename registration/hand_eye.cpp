@@ -114,6 +114,19 @@ bool ClosedForm(std::span<const HandEyeObservations> cams,
   return true;
 }
 
+// r = [t_e / sigma_t ; angle-axis(q_e) / sigma_r] for a pose error (q_e, t_e).
+template <typename T>
+void WriteResidual(const Eigen::Quaternion<T>& q_e, const Eigen::Matrix<T, 3, 1>& t_e,
+                   double inv_sigma_t, double inv_sigma_r, T* r) {
+  const T wxyz[4] = {q_e.w(), q_e.x(), q_e.y(), q_e.z()};
+  T w[3];
+  ceres::QuaternionToAngleAxis(wxyz, w);
+  for (int k = 0; k < 3; ++k) {
+    r[k] = t_e[k] * T(inv_sigma_t);
+    r[3 + k] = w[k] * T(inv_sigma_r);
+  }
+}
+
 struct AxZbCost {
   AxZbCost(const Pose& a, const Pose& b, double sigma_t, double sigma_r)
       : qa(a.linear()), ta(a.translation()), qb(b.linear()), tb(b.translation()),
@@ -132,13 +145,7 @@ struct AxZbCost {
     const Eigen::Quaternion<T> q_zb_inv = q_zb.conjugate();
     const Eigen::Quaternion<T> q_e = q_zb_inv * q_ax;
     const Vec3 t_e = q_zb_inv * (t_ax - t_zb);
-    const T wxyz[4] = {q_e.w(), q_e.x(), q_e.y(), q_e.z()};
-    T w[3];
-    ceres::QuaternionToAngleAxis(wxyz, w);
-    for (int k = 0; k < 3; ++k) {
-      r[k] = t_e[k] * T(inv_sigma_t);
-      r[3 + k] = w[k] * T(inv_sigma_r);
-    }
+    WriteResidual(q_e, t_e, inv_sigma_t, inv_sigma_r, r);
     return true;
   }
 
@@ -157,6 +164,31 @@ Pose PoseOf(const Eigen::Quaterniond& q, const Eigen::Vector3d& t) {
 }
 
 // The Ceres parameter blocks: one (q, t) per camera's X and one for Z.
+// The prior on Z: [t(Z0^-1 Z) / sd_t ; Log(R(Z0^-1 Z)) / sd_r].
+struct ZPriorCost {
+  explicit ZPriorCost(const HandEyePrior& prior)
+      : q0_inv(Eigen::Quaterniond(prior.z.linear()).conjugate()),
+        t0(prior.z.translation()),
+        inv_sd_t(1.0 / prior.translation_sd_mm),
+        inv_sd_r(1.0 / (prior.rotation_sd_deg * kDeg)) {}
+
+  template <typename T>
+  bool operator()(const T* qz_p, const T* tz_p, T* r) const {
+    using Vec3 = Eigen::Matrix<T, 3, 1>;
+    const Eigen::Map<const Eigen::Quaternion<T>> qz(qz_p);
+    const Eigen::Map<const Vec3> tz(tz_p);
+    const Eigen::Quaternion<T> q0_inv_t = q0_inv.cast<T>();
+    const Eigen::Quaternion<T> q_e = q0_inv_t * qz;
+    const Vec3 t_e = q0_inv_t * (tz - t0.cast<T>());
+    WriteResidual(q_e, t_e, inv_sd_t, inv_sd_r, r);
+    return true;
+  }
+
+  Eigen::Quaterniond q0_inv;
+  Eigen::Vector3d t0;
+  double inv_sd_t, inv_sd_r;
+};
+
 struct Parameters {
   std::vector<Eigen::Quaterniond> qx;
   std::vector<Eigen::Vector3d> tx;
@@ -175,7 +207,12 @@ struct Parameters {
 
 void BuildProblem(ceres::Problem* problem, Parameters* p,
                   std::span<const HandEyeObservations> cams,
-                  const std::vector<RobustScales>& scales, double huber) {
+                  const std::vector<RobustScales>& scales, double huber,
+                  const std::optional<HandEyePrior>& z_prior) {
+  if (z_prior)
+    problem->AddResidualBlock(
+        new ceres::AutoDiffCostFunction<ZPriorCost, 6, 4, 3>(new ZPriorCost(*z_prior)), nullptr,
+        p->qz.coeffs().data(), p->tz.data());
   for (std::size_t k = 0; k < cams.size(); ++k) {
     for (std::size_t i = 0; i < cams[k].a.size(); ++i) {
       auto* cost = new ceres::AutoDiffCostFunction<AxZbCost, 6, 4, 3, 4, 3>(new AxZbCost(
@@ -263,7 +300,8 @@ std::string JointHandEyeResult::BriefReport() const {
 }
 
 JointHandEyeResult SolveJointRobotWorldHandEye(std::span<const HandEyeObservations> cams,
-                                               const HandEyeOptions& options) {
+                                               const HandEyeOptions& options,
+                                               const std::optional<HandEyePrior>& z_prior) {
   JointHandEyeResult joint;
   joint.cameras.resize(cams.size());
   auto fail = [&](const std::string& message) {
@@ -272,6 +310,8 @@ JointHandEyeResult SolveJointRobotWorldHandEye(std::span<const HandEyeObservatio
     return joint;
   };
   if (Status s = options.Check(); !s) return fail(s.error().message);
+  if (z_prior && !(z_prior->translation_sd_mm > 0 && z_prior->rotation_sd_deg > 0))
+    return fail("hand-eye prior on Z: translation_sd_mm and rotation_sd_deg must be > 0");
   if (cams.empty()) return fail("no camera to solve for");
   const bool several = cams.size() > 1;
   for (std::size_t k = 0; k < cams.size(); ++k) {
@@ -323,6 +363,25 @@ JointHandEyeResult SolveJointRobotWorldHandEye(std::span<const HandEyeObservatio
       z = z2;
     }
   }
+  if (z_prior) {
+    // Start from the measured Z: X_k = mean of A_ki^-1 Z0 B_ki over the
+    // closed form's inliers (chordal mean of the rotations).
+    z = z_prior->z;
+    for (std::size_t k = 0; k < cams.size(); ++k) {
+      Eigen::Matrix3d sum_r = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d sum_t = Eigen::Vector3d::Zero();
+      std::size_t n = 0;
+      for (std::size_t i = 0; i < cams[k].a.size(); ++i) {
+        if (!use[k][i]) continue;
+        const Pose xi = cams[k].a[i].inverse() * z * cams[k].b[i];
+        sum_r += xi.linear();
+        sum_t += xi.translation();
+        ++n;
+      }
+      x[k].linear() = NearestRotation(sum_r);
+      x[k].translation() = sum_t / static_cast<double>(n);
+    }
+  }
   for (std::size_t k = 0; k < cams.size(); ++k) {
     joint.cameras[k].x_closed_form = x[k];
     joint.cameras[k].z_closed_form = z;
@@ -342,7 +401,7 @@ JointHandEyeResult SolveJointRobotWorldHandEye(std::span<const HandEyeObservatio
   for (int pass = 0; pass < 2; ++pass) {
     used = scales;
     problem = std::make_unique<ceres::Problem>();
-    BuildProblem(problem.get(), &params, cams, scales, options.huber_threshold);
+    BuildProblem(problem.get(), &params, cams, scales, options.huber_threshold, z_prior);
     ceres::Solve(solver_options, problem.get(), &summary);
     iterations += static_cast<int>(summary.iterations.size());
     if (!summary.IsSolutionUsable()) return fail("the refinement failed: " + summary.message);
@@ -383,6 +442,13 @@ JointHandEyeResult SolveJointRobotWorldHandEye(std::span<const HandEyeObservatio
     }
   }
 
+  if (z_prior) {
+    // The prior's own normalised residual joins the variance factor.
+    const Pose e = z_prior->z.inverse() * joint.z;
+    sum_normalised += (e.translation() / z_prior->translation_sd_mm).squaredNorm() +
+                      (RotationLog(e.linear()) / (z_prior->rotation_sd_deg * kDeg)).squaredNorm();
+  }
+
   // Covariance at the optimum of the last problem.
   ceres::Covariance::Options cov_options;
   cov_options.algorithm_type = ceres::DENSE_SVD;
@@ -396,7 +462,7 @@ JointHandEyeResult SolveJointRobotWorldHandEye(std::span<const HandEyeObservatio
   }
   if (covariance.Compute(blocks, problem.get())) {
     const double parameters = 6.0 * static_cast<double>(cams.size() + 1);
-    const double m = 6.0 * static_cast<double>(all_inliers);
+    const double m = 6.0 * static_cast<double>(all_inliers + (z_prior ? 1 : 0));
     const double factor = m > parameters ? sum_normalised / (m - parameters) : 1.0;
     Eigen::Matrix3d c;
     auto sd = [&](const double* block, bool tangent, double unit) {

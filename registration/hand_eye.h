@@ -47,6 +47,7 @@
 #include <Eigen/Core>
 
 #include <cstddef>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -124,7 +125,20 @@ struct JointHandEyeResult {
   // "joint hand-eye of 2 cameras: Z t=(..) mm, r=(..) deg; 0: ...; X: ...".
   std::string BriefReport() const;
 };
+// A measurement of Z made apart from the motions (the plate alignment's:
+// Z = identity within its residual). With it the refinement adds the
+// residual [t(Z0^-1 Z) / sd_t ; Log(R(Z0^-1 Z)) / sd_r] (no robust loss) and
+// starts from Z = Z0 and X_k = the chordal mean of A_ki^-1 Z0 B_ki: a
+// sequence whose rotations spread a few degrees determines Z and the X_k
+// together only to several mm (each X's translation along a turning axis
+// trades against Z's), while Z0 with a fraction of a mm pins them.
+struct HandEyePrior {
+  Pose z = Pose::Identity();
+  double translation_sd_mm = 1.0;  // > 0
+  double rotation_sd_deg = 0.1;    // > 0
+};
 JointHandEyeResult SolveJointRobotWorldHandEye(std::span<const HandEyeObservations> cameras,
-                                               const HandEyeOptions& options = {});
+                                               const HandEyeOptions& options = {},
+                                               const std::optional<HandEyePrior>& z_prior = {});
 
 }  // namespace lifmcr

@@ -4,6 +4,7 @@
 // CorrectJointlyInTheMapFrame uses it. Built as lifmcr evaluate builds the
 // evaluations (apps/cmd_evaluate.cpp).
 #include "registration/evaluation.h"
+#include "registration/plate_alignment.h"
 #include "registration/trajectory_metrics.h"
 
 #include <Eigen/Geometry>
@@ -40,7 +41,7 @@ struct RigidPair {
   Pose vicon_from_map = MakePose({0, 0, 30}, {1200, -800, 0});
   // The plate alignment's error: the evaluation is given vicon_from_map ·
   // plate_error^-1 where the truth is vicon_from_map, so Z = plate_error.
-  Pose plate_error = MakePose({0.3, -0.2, 0.25}, {4, -3, 6});
+  Pose plate_error;
   FramePoses w0_from_c0, w0_from_cx, c0_from_cx_registered;
   FramePoses vicon_from_map_each, vicon_from_marker0, vicon_from_markerx;
 };
@@ -51,8 +52,9 @@ struct RigidPair {
 // camera X's (localised in camera 0's map) 1.5 mm / 0.05 deg, so
 // c0_from_cx = w0_from_c0^-1 w0_from_cx is as noisy as the demo's
 // registrations; Vicon 0.15 mm / 0.1 deg on each cluster.
-RigidPair MakeRigidPair(int frames) {
+RigidPair MakeRigidPair(int frames, const Pose& plate_error = MakePose({0.3, -0.2, 0.25}, {4, -3, 6})) {
   RigidPair r;
+  r.plate_error = plate_error;
   std::mt19937_64 rng(7);
   for (int f = 0; f < frames; ++f) {
     const double s = static_cast<double>(f) / frames;
@@ -100,7 +102,7 @@ TEST(EvaluationJointMapFrame, RigidPairWithAPlateErrorIsCorrectedWithOneSharedZ)
   ASSERT_FALSE(pair.has_correction()) << "a rigid pair cannot determine its own offsets";
   const double before = pair.uncorrected.ape_summary.translation_mm.rmse;
   std::string why;
-  ASSERT_TRUE(CorrectJointlyInTheMapFrame({&map0, &mapx}, {&pair}, options, &why)) << why;
+  ASSERT_TRUE(CorrectJointlyInTheMapFrame({&map0, &mapx}, {&pair}, options, std::nullopt, &why)) << why;
   for (const CameraEvaluation* e : {&pair, &map0, &mapx}) {
     EXPECT_EQ(e->correction_source, "joint map frame");
     EXPECT_FALSE(e->fit_to_itself);
@@ -130,19 +132,42 @@ TEST(EvaluationJointMapFrame, RigidPairWithAPlateErrorIsCorrectedWithOneSharedZ)
             pair.uncorrected.rpe_summary.rotation_deg.rmse);
 }
 
-TEST(EvaluationJointMapFrame, DemoShapedRigOf24FramesStaysWithinItsUncertainty) {
-  // lifmcr demo's shape: 24 frames, each half 12. The offsets are then
-  // known only to a few mm; the gate is their own reported uncertainty.
-  const RigidPair r = MakeRigidPair(24);
+TEST(EvaluationJointMapFrame, DemoShapedRigOf24FramesNeedsThePlateAlignmentsZ) {
+  // lifmcr demo's shape: 24 frames (12 per half) turning a few degrees, and
+  // a plate alignment good to 0.2 mm / 0.03 deg. Held at the plate
+  // alignment's Z (within its residuals) the offsets meet the gate;
+  // Z free they come out further off (here with white noise about twice as
+  // far; on the demo's own registrations, whose error wanders over frames,
+  // 5-7 mm).
+  const RigidPair r = MakeRigidPair(24, MakePose({0.02, -0.03, 0.01}, {0.2, -0.1, 0.15}));
   const EvaluationOptions options;
+  PlateAlignment plate;
+  plate.aruco_check_mm = 0.23;
+  plate.plate_motion_rms_mm = 0.19;
+  const HandEyePrior prior = PlateCorrectionPrior(plate, DefaultPlateTemplate());
+  EXPECT_NEAR(prior.translation_sd_mm, 0.3, 1e-3);  // sqrt(0.23^2 + 0.19^2) is below the floor
+  EXPECT_NEAR(prior.rotation_sd_deg, 0.3 / 120 * 180 / M_PI, 1e-3);  // centres 120 mm apart
   auto [pair, map0, mapx] = Evaluate(r, options);
+  auto [pair_free, map0_free, mapx_free] = Evaluate(r, options);
   std::string why;
-  ASSERT_TRUE(CorrectJointlyInTheMapFrame({&map0, &mapx}, {&pair}, options, &why)) << why;
+  ASSERT_TRUE(CorrectJointlyInTheMapFrame({&map0, &mapx}, {&pair}, options, prior, &why)) << why;
+  ASSERT_TRUE(CorrectJointlyInTheMapFrame({&map0_free, &mapx_free}, {&pair_free}, options,
+                                          std::nullopt, &why))
+      << why;
+  auto off_mm = [](const Pose& estimate, const Pose& truth) {
+    return (estimate.translation() - truth.translation()).norm();
+  };
+  std::cout << "demo-shaped rig, 24 frames: X_0 " << off_mm(map0.marker_from_cam, r.x0)
+            << " mm off with the plate's Z, " << off_mm(map0_free.marker_from_cam, r.x0)
+            << " mm with Z free; X_X " << off_mm(mapx.marker_from_cam, r.xx) << " / "
+            << off_mm(mapx_free.marker_from_cam, r.xx) << " mm; c0_from_cx corrected "
+            << TranslationRmse(pair) << " / " << TranslationRmse(pair_free) << " mm\n";
   for (const auto& [e, truth] : {std::pair{&map0, r.x0}, std::pair{&mapx, r.xx}}) {
-    const Eigen::Vector3d d = e->marker_from_cam.translation() - truth.translation();
-    const Eigen::Vector3d sd = e->hand_eye->x_translation_sd_mm;
-    for (int k = 0; k < 3; ++k) EXPECT_LT(std::abs(d[k]), 4 * sd[k] + 0.5) << e->serial << " " << k;
+    EXPECT_LT(off_mm(e->marker_from_cam, truth), 2.0) << e->serial;
+    EXPECT_LT(RotationAngleDeg(truth.linear().transpose() * e->marker_from_cam.linear()), 0.2)
+        << e->serial;
   }
+  EXPECT_GT(off_mm(map0_free.marker_from_cam, r.x0), off_mm(map0.marker_from_cam, r.x0));
   // One Z: c0_from_cx corrected with both cameras' offsets carries no
   // difference of two plate corrections, only the registrations' spread.
   EXPECT_LT(TranslationRmse(pair), 2.0 * pair.uncorrected.rpe_summary.translation_mm.rmse);
@@ -153,14 +178,14 @@ TEST(EvaluationJointMapFrame, EachFrameIsCorrectedByTheHalfThatDidNotSeeIt) {
   EvaluationOptions options;
   auto [pair, map0, mapx] = Evaluate(r, options);
   std::string why;
-  ASSERT_TRUE(CorrectJointlyInTheMapFrame({&map0, &mapx}, {&pair}, options, &why)) << why;
+  ASSERT_TRUE(CorrectJointlyInTheMapFrame({&map0, &mapx}, {&pair}, options, std::nullopt, &why)) << why;
   ASSERT_EQ(mapx.folds.size(), 2u);
   EXPECT_EQ(pair.half_last, 19);
   // With split none the same frames are corrected by the all-frames fit
   // and flagged; the cross-validated figures are not below it.
   auto [pair_none, map0_none, mapx_none] = Evaluate(r, {HandEyeSplit::kNone, {}});
   ASSERT_TRUE(CorrectJointlyInTheMapFrame({&map0_none, &mapx_none}, {&pair_none},
-                                          {HandEyeSplit::kNone, {}}, &why))
+                                          {HandEyeSplit::kNone, {}}, std::nullopt, &why))
       << why;
   EXPECT_TRUE(pair_none.fit_to_itself);
   EXPECT_GE(TranslationRmse(mapx) + 1e-9, TranslationRmse(mapx_none) * 0.999);
@@ -176,7 +201,7 @@ TEST(EvaluationJointMapFrame, RefusedWhenACameraTurnsAboutOneAxisOnly) {
   auto [pair, map0, mapx] = Evaluate(r, options);
   const CameraEvaluation map0_before = map0;
   std::string why;
-  EXPECT_FALSE(CorrectJointlyInTheMapFrame({&map0, &mapx}, {&pair}, options, &why));
+  EXPECT_FALSE(CorrectJointlyInTheMapFrame({&map0, &mapx}, {&pair}, options, std::nullopt, &why));
   EXPECT_NE(why.find("camera X: the motions cannot determine the offset"), std::string::npos)
       << why;
   EXPECT_FALSE(pair.has_correction());
