@@ -238,6 +238,13 @@ Status HandEyeOptions::Check() const {
   return Status::Ok();
 }
 
+Status HandEyePrior::Check() const {
+  if (!(translation_sd_mm > 0)) return Error{"hand-eye prior on Z: translation_sd_mm must be > 0"};
+  if (!(rotation_sd_deg > 0)) return Error{"hand-eye prior on Z: rotation_sd_deg must be > 0"};
+  if (!z.matrix().allFinite()) return Error{"hand-eye prior on Z: z must be finite"};
+  return Status::Ok();
+}
+
 std::string HandEyeResult::BriefReport() const {
   if (!success) return "hand-eye: failed: " + message;
   const Eigen::Vector3d t = x.translation();
@@ -310,8 +317,8 @@ JointHandEyeResult SolveJointRobotWorldHandEye(std::span<const HandEyeObservatio
     return joint;
   };
   if (Status s = options.Check(); !s) return fail(s.error().message);
-  if (z_prior && !(z_prior->translation_sd_mm > 0 && z_prior->rotation_sd_deg > 0))
-    return fail("hand-eye prior on Z: translation_sd_mm and rotation_sd_deg must be > 0");
+  if (z_prior)
+    if (Status s = z_prior->Check(); !s) return fail(s.error().message);
   if (cams.empty()) return fail("no camera to solve for");
   const bool several = cams.size() > 1;
   for (std::size_t k = 0; k < cams.size(); ++k) {

@@ -136,6 +136,7 @@ struct HandEyePrior {
   Pose z = Pose::Identity();
   double translation_sd_mm = 1.0;  // > 0
   double rotation_sd_deg = 0.1;    // > 0
+  Status Check() const;
 };
 JointHandEyeResult SolveJointRobotWorldHandEye(std::span<const HandEyeObservations> cameras,
                                                const HandEyeOptions& options = {},
