@@ -142,14 +142,18 @@ void OffsetsSection(std::ostringstream& md, const EvaluationRun& run,
     items.push_back({e.reference_serial, e.marker_from_cam_reference,
                      estimated ? e.hand_eye->z_translation_sd_mm : Eigen::Vector3d::Zero(),
                      estimated ? e.hand_eye->z_rotation_sd_deg : Eigen::Vector3d::Zero()});
+    // Offsets given, or taken from another evaluation, have no uncertainty here.
+    auto pm = [&](double v, double sd, int digits) {
+      return estimated ? PlusMinus(v, sd, digits) : F(v, digits);
+    };
     for (const Item& it : items) {
       const Eigen::Vector3d t = it.x.translation();
       const Eigen::Vector3d w = RotationLog(it.x.linear()) / kDeg;
       const Eigen::Vector3d centre = -(it.x.linear().transpose() * t);
       md << "| " << e.method << " | " << it.serial << " | " << source << " | "
-         << PlusMinus(t.x(), it.sd_t.x(), 2) << " | " << PlusMinus(t.y(), it.sd_t.y(), 2) << " | "
-         << PlusMinus(t.z(), it.sd_t.z(), 2) << " | " << PlusMinus(w.x(), it.sd_r.x(), 3) << " | "
-         << PlusMinus(w.y(), it.sd_r.y(), 3) << " | " << PlusMinus(w.z(), it.sd_r.z(), 3)
+         << pm(t.x(), it.sd_t.x(), 2) << " | " << pm(t.y(), it.sd_t.y(), 2) << " | "
+         << pm(t.z(), it.sd_t.z(), 2) << " | " << pm(w.x(), it.sd_r.x(), 3) << " | "
+         << pm(w.y(), it.sd_r.y(), 3) << " | " << pm(w.z(), it.sd_r.z(), 3)
          << " | (" << F(centre.x(), 1) << ", " << F(centre.y(), 1) << ", " << F(centre.z(), 1)
          << ") | ";
       if (estimated)
