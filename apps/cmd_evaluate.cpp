@@ -75,6 +75,7 @@ struct EvaluateArgs {
   std::string reference_poses;
   std::string map;  // lifmcr calibrate's output: ArUco corners, intrinsics, poses
   double min_rotation_spread_deg = 1.0;
+  std::string plate_correction = "held";  // held | free: the joint map-frame hand-eye's Z
   bool no_plots = false;
   bool quiet = false;
   std::string command_line;
@@ -563,16 +564,19 @@ int RunEvaluate(const EvaluateArgs& args) {
     for (CameraEvaluation& m : run.map_evaluations)
       if (m.method == "reference") reference_in_map = &m;
     // The map-frame evaluations exist only with a plate alignment.
-    const std::optional<HandEyePrior> z_prior = PlateCorrectionPrior(*run.plate, plate_template);
-    {
+    std::optional<HandEyePrior> z_prior;
+    if (args.plate_correction == "held") {
+      z_prior = PlateCorrectionPrior(*run.plate, plate_template);
       char line[160];
       std::snprintf(line, sizeof(line),
-                    "map frame: the plate correction Z held at identity within %.2f mm / %.3f deg "
-                    "(the plate alignment's residuals)",
+                    "the plate correction Z held at identity within %.2f mm / %.3f deg (the plate "
+                    "alignment's residuals)",
                     z_prior->translation_sd_mm, z_prior->rotation_sd_deg);
-      progress(line);
-      run.z_prior_note = line + 11;
+      run.z_prior_note = line;
+    } else {
+      run.z_prior_note = "the plate correction Z free (--plate-correction free)";
     }
+    progress("map frame: " + run.z_prior_note);
     for (std::size_t mi = 0; mi < method_order.size() && reference_in_map; ++mi) {
       const std::string& method = method_order[mi];
       CameraEvaluation reference_copy = *reference_in_map;
@@ -773,6 +777,13 @@ CommandRun AddEvaluateCommand(CLI::App& app) {
                  "adds every camera's poses in the map frame against Vicon through the plate "
                  "alignment (the paper's absolute protocol)")
       ->check(CLI::ExistingFile);
+  app.add_option("--plate-correction", a->plate_correction,
+                 "held (default): the joint map-frame hand-eye holds its plate correction Z at "
+                 "the plate alignment's, within its residuals; free: Z from the motions alone "
+                 "(long sequences turning tens of degrees; a short one trades Z against the "
+                 "offsets by several mm)")
+      ->check(CLI::IsMember({"held", "free"}))
+      ->capture_default_str();
   app.add_option("--min-rotation-spread", a->min_rotation_spread_deg,
                  "Refuse the hand-eye below this rotation spread about a second axis, deg (1)");
   app.add_flag("--no-plots", a->no_plots, "Write no PNG plots");
