@@ -33,7 +33,8 @@ Status RigControllerOptions::Check() const {
     return Error{"rig controller: all_armed_wait: expected 0..60000 ms"};
   if (sync_poll.count() <= 0) return Error{"rig controller: sync_poll: expected > 0 ms"};
   if (vicon_lead_triggers < 0) return Error{"rig controller: vicon_lead_triggers: expected >= 0"};
-  if (vicon_divider < 1) return Error{"rig controller: vicon_divider: expected >= 1"};
+  if (vicon_lead_triggers > 0 && !sync)
+    return Error{"rig controller: vicon_lead_triggers: needs sync (Vicon frames per trigger)"};
   if (vicon_realtime_priority < 0 || vicon_realtime_priority > 99)
     return Error{"rig controller: vicon_realtime_priority: expected 0..99 (0: ordinary)"};
   if (trigger_realtime_priority < 0 || trigger_realtime_priority > 99)
@@ -138,7 +139,8 @@ std::string RigHealth::FinalReport() const {
   }
   if (has_sync) {
     out << "  sync: " << frame_sets << " triggers (FrameSets), " << complete_frame_sets
-        << " complete; Vicon frame of trigger 0: "
+        << (has_vicon ? " complete" : " with every camera's frame (no Vicon source)")
+        << "; Vicon frame of trigger 0: "
         << (vicon_f0 ? std::to_string(*vicon_f0) : std::string("not established"))
         << "; drops: " << sync_drops.OneLine() << "\n";
     for (const CameraSyncStats& c : sync_cameras)
@@ -319,7 +321,9 @@ void RigController::SyncLoop() {
 void RigController::RecordSets(std::vector<FrameSet> sets) {
   std::uint64_t complete = 0;
   for (FrameSet& set : sets) {
-    complete += set.complete() ? 1 : 0;
+    // Without a Vicon source no set can hold a Vicon frame: complete there
+    // means every camera's frame is in it (FrameSet::complete's note).
+    complete += (vicon_ ? set.complete() : set.missing.empty()) ? 1 : 0;
     if (observer_.on_frame_set) observer_.on_frame_set(set);
     if (!options_.number_files_by_sync) continue;  // the grab threads submitted them
     for (std::size_t c = 0; c < set.frames.size(); ++c) {
@@ -636,7 +640,7 @@ bool RigController::ViconAhead(std::int64_t last_vicon_frame) const {
   // The last frame of trigger slowest + lead is f0 + divider (slowest + lead + 1) - 1.
   return last_vicon_frame >=
          *first_vicon_frame_ +
-             static_cast<std::int64_t>(options_.vicon_divider) *
+             static_cast<std::int64_t>(options_.sync->vicon_divider) *
                  (slowest + options_.vicon_lead_triggers + 1) -
              1;
 }
@@ -650,7 +654,7 @@ void RigController::ViconLoop() {
   while (vicon_running_.load()) {
     if (options_.vicon_lead_triggers > 0) {
       if ((last_vicon_frame && ViconAhead(*last_vicon_frame)) ||
-          in_burst >= options_.vicon_divider) {
+          in_burst >= options_.sync->vicon_divider) {
         std::this_thread::sleep_for(std::chrono::milliseconds(1));
         in_burst = 0;
         continue;

@@ -88,13 +88,12 @@ struct RigControllerOptions {
   // deliver as fast as they are read): 0 takes Vicon frames as they come;
   // n > 0 takes a Vicon frame only while it belongs to a trigger at most n
   // ahead of the slowest camera still delivering (by the cameras' trigger
-  // indices and Vicon frame numbers, vicon_divider per trigger), in bursts
-  // of at most vicon_divider frames at least a millisecond apart: the Vicon
+  // indices and Vicon frame numbers, sync->vicon_divider per trigger), in
+  // bursts of at most that many frames at least a millisecond apart: the Vicon
   // frame of trigger k is in before a FrameSet waits for it, and a burst
   // stays small enough for an LCM subscriber's default queue of 30
-  // (lcm-logger's cannot be raised).
+  // (lcm-logger's cannot be raised). Needs sync (its vicon_divider).
   int vicon_lead_triggers = 0;
-  int vicon_divider = 8;
   // Per camera, the clock its device timestamps are on (the rig's
   // cameras[].device_clock); "" or no entry: the driver's
   // (CameraInfo::device_clock). The assembler's device_clocks are set from it.
@@ -184,7 +183,8 @@ struct RigHealth {
   std::uint64_t vicon_errors = 0;
   RecorderStats recorder;
   // With sync: FrameSets emitted (one per trigger) and how many were complete
-  // (every camera's frame and the Vicon frame), the losses by kind, per
+  // (every camera's frame and the Vicon frame; without a Vicon source every
+  // camera's frame), the losses by kind, per
   // camera association figures, and the Vicon frame of trigger 0.
   bool has_sync = false;
   bool files_numbered_by_sync = false;  // sync losses are then frame losses

@@ -75,6 +75,7 @@ struct EvaluateArgs {
   std::string reference_poses;
   std::string map;  // lifmcr calibrate's output: ArUco corners, intrinsics, poses
   double min_rotation_spread_deg = 1.0;
+  std::string plate_correction = "held";  // held | free: the joint map-frame hand-eye's Z
   bool no_plots = false;
   bool quiet = false;
   std::string command_line;
@@ -552,22 +553,53 @@ int RunEvaluate(const EvaluateArgs& args) {
       }
   }
 
-  // A pair whose c0_from_cx cannot determine its own offsets (the cameras
-  // turn together) is corrected with the offsets each camera's map-frame
-  // hand-eye found, when it found them.
-  for (CameraEvaluation& e : run.evaluations) {
+  // The joint map-frame hand-eye per method: camera 0 and the method's
+  // cameras X with one plate correction Z (registration/evaluation.h). It
+  // corrects the map-frame evaluations, and the pairs whose c0_from_cx
+  // could not determine its own offsets (the cameras turn together). The
+  // reference's map-frame evaluation keeps the first method's joint fit.
+  // Offsets given (--hand-eye truth|FILE) are used as given.
+  if (!run.map_evaluations.empty() && !given) {
+    CameraEvaluation* reference_in_map = nullptr;
+    for (CameraEvaluation& m : run.map_evaluations)
+      if (m.method == "reference") reference_in_map = &m;
+    // The map-frame evaluations exist only with a plate alignment.
+    std::optional<HandEyePrior> z_prior;
+    if (args.plate_correction == "held") {
+      z_prior = PlateCorrectionPrior(*run.plate, plate_template);
+      char line[160];
+      std::snprintf(line, sizeof(line),
+                    "the plate correction Z held at identity within %.2f mm / %.3f deg (the plate "
+                    "alignment's residuals)",
+                    z_prior->translation_sd_mm, z_prior->rotation_sd_deg);
+      run.z_prior_note = line;
+    } else {
+      run.z_prior_note = "the plate correction Z free (--plate-correction free)";
+    }
+    progress("map frame: " + run.z_prior_note);
+    for (std::size_t mi = 0; mi < method_order.size() && reference_in_map; ++mi) {
+      const std::string& method = method_order[mi];
+      CameraEvaluation reference_copy = *reference_in_map;
+      std::vector<CameraEvaluation*> in_map{mi == 0 ? reference_in_map : &reference_copy};
+      std::vector<CameraEvaluation*> pairs;
+      for (CameraEvaluation& m : run.map_evaluations)
+        if (m.method == method) in_map.push_back(&m);
+      for (CameraEvaluation& e : run.evaluations)
+        if (e.method == method && !e.has_correction()) pairs.push_back(&e);
+      std::string why;
+      if (CorrectJointlyInTheMapFrame(in_map, pairs, options, z_prior, &why)) {
+        progress("map frame: " + method + ": " + in_map.front()->correction_note);
+        for (CameraEvaluation* m : in_map)
+          if (m->hand_eye)
+            progress("map frame: " + m->method + " " + m->serial + ": " + m->hand_eye->BriefReport());
+      } else {
+        progress("map frame: " + method + ": " + why);
+        for (CameraEvaluation* e : pairs) e->correction_note += "; nor jointly in the map frame: " + why;
+      }
+    }
+  }
+  for (const CameraEvaluation& e : run.evaluations) {
     if (e.has_correction()) continue;
-    const CameraEvaluation* reference_in_map = nullptr;
-    const CameraEvaluation* camera_in_map = nullptr;
-    for (const CameraEvaluation& m : run.map_evaluations) {
-      if (m.method == "reference" && m.serial == e.reference_serial) reference_in_map = &m;
-      if (m.method == e.method && m.serial == e.serial) camera_in_map = &m;
-    }
-    if (reference_in_map && camera_in_map &&
-        CorrectWithMapFrameOffsets(&e, *reference_in_map, *camera_in_map)) {
-      progress(e.method + " " + e.serial + ": " + e.correction_note);
-      continue;
-    }
     hand_eye_refused = true;
     std::cerr << "lifmcr evaluate: " << e.method << " " << e.serial
               << ": no hand-eye correction: " << e.correction_note << "\n";
@@ -601,7 +633,8 @@ int RunEvaluate(const EvaluateArgs& args) {
   // map-frame estimate, so that `--hand-eye FILE` and `--split sequence`
   // can use them on another sequence.
   for (const CameraEvaluation& e : run.map_evaluations)
-    if (e.correction_source == "estimated") estimated.emplace(e.serial, e.marker_from_cam);
+    if (e.correction_source == "estimated" || e.correction_source == "joint map frame")
+      estimated.emplace(e.serial, e.marker_from_cam);
   if (!estimated.empty())
     if (Status s = write("hand_eye.yaml",
                          FormatHandEyeYaml(estimated, "hand-eye offsets estimated by lifmcr "
@@ -744,6 +777,13 @@ CommandRun AddEvaluateCommand(CLI::App& app) {
                  "adds every camera's poses in the map frame against Vicon through the plate "
                  "alignment (the paper's absolute protocol)")
       ->check(CLI::ExistingFile);
+  app.add_option("--plate-correction", a->plate_correction,
+                 "held (default): the joint map-frame hand-eye holds its plate correction Z at "
+                 "the plate alignment's, within its residuals; free: Z from the motions alone "
+                 "(long sequences turning tens of degrees; a short one trades Z against the "
+                 "offsets by several mm)")
+      ->check(CLI::IsMember({"held", "free"}))
+      ->capture_default_str();
   app.add_option("--min-rotation-spread", a->min_rotation_spread_deg,
                  "Refuse the hand-eye below this rotation spread about a second axis, deg (1)");
   app.add_flag("--no-plots", a->no_plots, "Write no PNG plots");

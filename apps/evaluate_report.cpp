@@ -127,7 +127,9 @@ void OffsetsSection(std::ostringstream& md, const EvaluationRun& run,
          << " | | | | | | | | |\n";
       continue;
     }
-    const std::string source = estimated ? "estimated, all frames" : e.correction_source;
+    const std::string source = e.correction_source == "joint map frame" && estimated
+                                   ? "joint map frame, all frames"
+                                   : estimated ? "estimated, all frames" : e.correction_source;
     struct Item {
       std::string serial;
       Pose x;
@@ -140,14 +142,18 @@ void OffsetsSection(std::ostringstream& md, const EvaluationRun& run,
     items.push_back({e.reference_serial, e.marker_from_cam_reference,
                      estimated ? e.hand_eye->z_translation_sd_mm : Eigen::Vector3d::Zero(),
                      estimated ? e.hand_eye->z_rotation_sd_deg : Eigen::Vector3d::Zero()});
+    // Offsets given, or taken from another evaluation, have no uncertainty here.
+    auto pm = [&](double v, double sd, int digits) {
+      return estimated ? PlusMinus(v, sd, digits) : F(v, digits);
+    };
     for (const Item& it : items) {
       const Eigen::Vector3d t = it.x.translation();
       const Eigen::Vector3d w = RotationLog(it.x.linear()) / kDeg;
       const Eigen::Vector3d centre = -(it.x.linear().transpose() * t);
       md << "| " << e.method << " | " << it.serial << " | " << source << " | "
-         << PlusMinus(t.x(), it.sd_t.x(), 2) << " | " << PlusMinus(t.y(), it.sd_t.y(), 2) << " | "
-         << PlusMinus(t.z(), it.sd_t.z(), 2) << " | " << PlusMinus(w.x(), it.sd_r.x(), 3) << " | "
-         << PlusMinus(w.y(), it.sd_r.y(), 3) << " | " << PlusMinus(w.z(), it.sd_r.z(), 3)
+         << pm(t.x(), it.sd_t.x(), 2) << " | " << pm(t.y(), it.sd_t.y(), 2) << " | "
+         << pm(t.z(), it.sd_t.z(), 2) << " | " << pm(w.x(), it.sd_r.x(), 3) << " | "
+         << pm(w.y(), it.sd_r.y(), 3) << " | " << pm(w.z(), it.sd_r.z(), 3)
          << " | (" << F(centre.x(), 1) << ", " << F(centre.y(), 1) << ", " << F(centre.z(), 1)
          << ") | ";
       if (estimated)
@@ -376,7 +382,10 @@ std::string FormatEvaluationMarkdown(const EvaluationRun& run,
           "Each camera's pose in the map, `w0_from_c0` from the reference poses and "
           "`w0_from_c0 · c0_from_cx` for camera X, against `map_from_vicon · vicon_from_marker` "
           "through the plate alignment. The hand-eye solves A X = Z B with Z a correction of the "
-          "plate alignment (shown as camera `map`; identity when the alignment is exact).\n\n";
+          "plate alignment (shown as camera `map`; identity when the alignment is exact). "
+          "Camera 0 and the cameras X of a method are solved together with one Z (one plate)";
+    if (!run.z_prior_note.empty()) md << "; " << run.z_prior_note;
+    md << ".\n\n";
     OffsetsSection(md, run, run.map_evaluations);
     TablesSection(md, run, run.map_evaluations, " (map frame)");
   }
@@ -486,6 +495,7 @@ std::string FormatEvaluationJson(const EvaluationRun& run, const std::vector<std
                             {"world_from_map", PoseJson(run.plate->world_from_map)},
                             {"map_is_plate_frame", run.plate->map_is_plate_frame},
                             {"aruco_source", run.aruco_source},
+                            {"z_prior", run.z_prior_note},
                             {"aruco_check_mm", run.plate->aruco_check_mm},
                             {"marker_fit_rms_mm", run.plate->marker_fit_rms_mm},
                             {"plate_motion_rms_mm", run.plate->plate_motion_rms_mm},

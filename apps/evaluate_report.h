@@ -48,6 +48,7 @@ struct EvaluationRun {
   std::optional<PlateAlignment> plate;
   std::string plate_note;  // why there is no plate alignment
   std::string aruco_source;  // where the ArUco centres in the map came from (empty: none)
+  std::string z_prior_note;  // how the joint map-frame hand-eye held the plate correction Z
   std::vector<CameraEvaluation> evaluations;      // c0_from_cx per method and camera
   std::vector<CameraEvaluation> map_evaluations;  // with --reference-poses: poses in the map
   std::vector<MethodDifference> differences;

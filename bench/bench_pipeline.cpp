@@ -403,7 +403,6 @@ int RunViconPart(const BenchArgs& args, const std::filesystem::path& sequence_di
   };
   RigControllerOptions controller_options;
   controller_options.sync = sync;
-  controller_options.vicon_divider = divider;
   controller_options.trigger_hz = args.vicon_hz / divider;
   // As `lifmcr record` runs a live UDP stream (apps/cmd_record.cpp).
   controller_options.vicon_realtime_priority = args.vicon_priority;

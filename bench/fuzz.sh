@@ -13,7 +13,8 @@ cd "$(dirname "$0")/.."
 duration=${1:?usage: bench/fuzz.sh DURATION [TARGET...]}
 shift
 all_targets=(fuzz_bmp fuzz_mla_xml fuzz_vicon_csv fuzz_vsk fuzz_rig_yaml fuzz_intrinsics_yaml
-             fuzz_vicon_packet fuzz_lcm_decode fuzz_sequence_discovery)
+             fuzz_vicon_packet fuzz_lcm_decode fuzz_sequence_discovery fuzz_raw_image
+             fuzz_registration_inputs)
 targets=("$@")
 ((${#targets[@]})) || targets=("${all_targets[@]}")
 dir=${LIFMCR_FUZZ_DIR:-build-fuzz}
@@ -50,6 +51,14 @@ if [[ -x "$lifmcr" ]]; then
   n=0
   for f in $(find "$synth" -name '*_MLA.xml'); do
     n=$((n + 1)); { printf '\x40\x30'; cat "$f"; } >"$seeds/fuzz_mla_xml/synth$n.seed"
+  done
+  # Registration inputs: selector byte 0 intrinsics, 1 plate, 2 poses CSV.
+  for f in $(find "$synth" -name cameras.yaml); do
+    { printf '\0'; cat "$f"; } >"$seeds/fuzz_registration_inputs/cameras0.yaml"
+    { printf '\1'; cat "$f"; } >"$seeds/fuzz_registration_inputs/plate1.yaml"
+  done
+  for f in $(find "$synth" -name 'poses_*.csv'); do
+    { printf '\2'; head -c 8192 "$f"; } >"$seeds/fuzz_registration_inputs/$(basename "$f")"
   done
   for f in $(find "$synth" -name 'sequence_*.csv'); do
     { printf '\0'; head -c 8192 "$f"; } >"$seeds/fuzz_vicon_csv/synth.csv"
@@ -90,6 +99,33 @@ lcm = {
 }
 for name, data in lcm.items():
     open(os.path.join(seeds, 'fuzz_lcm_decode', name), 'wb').write(data)
+# Registration inputs: selector byte 3, an aruco_corners.csv.
+open(os.path.join(seeds, 'fuzz_registration_inputs', 'corners'), 'wb').write(
+    b'\x03frame,marker_id,corner,tf_x_px,tf_y_px,virtual_depth\n0,0,0,10.5,20.25,3.5\n0,0,1,12,20,\n1,3,3,4,5,2.75\n')
+# Raw images: small PNGs (8- and 16-bit grey, 8-bit BGR) and uncompressed TIFFs.
+import zlib
+def png(w, h, depth, colour):
+    channels = 3 if colour == 2 else 1
+    row = bytes(((x * 37 + y * 11) & 255) for x in range(w * channels * depth // 8) for y in [0])
+    raw = b''.join(b'\0' + row for y in range(h))
+    chunk = lambda t, d: struct.pack('>I', len(d)) + t + d + struct.pack('>I', zlib.crc32(t + d))
+    return (b'\x89PNG\r\n\x1a\n' + chunk(b'IHDR', struct.pack('>IIBBBBB', w, h, depth, colour, 0, 0, 0)) +
+            chunk(b'IDAT', zlib.compress(raw)) + chunk(b'IEND', b''))
+def tiff(w, h, bits, fmt=1):
+    pixels = bytes((i * 13) & 255 for i in range(w * h * bits // 8))
+    entries = [(256, 3, 1, w), (257, 3, 1, h), (258, 3, 1, bits), (259, 3, 1, 1), (262, 3, 1, 1),
+               (273, 4, 1, 8), (277, 3, 1, 1), (278, 3, 1, h), (279, 4, 1, len(pixels)), (339, 3, 1, fmt)]
+    ifd = struct.pack('<H', len(entries)) + b''.join(
+        struct.pack('<HHI', t, k, n) + (struct.pack('<HH', v, 0) if k == 3 else struct.pack('<I', v))
+        for t, k, n, v in entries) + struct.pack('<I', 0)
+    return b'II*\0' + struct.pack('<I', 8 + len(pixels)) + pixels + ifd
+for name, data in {'grey8.png': png(16, 8, 8, 0), 'grey16.png': png(8, 4, 16, 0),
+                   'bgr8.png': png(6, 4, 8, 2), 'grey8.tiff': tiff(16, 8, 8),
+                   'grey16.tiff': tiff(8, 4, 16), 'float32.tiff': tiff(4, 4, 32, 3)}.items():
+    open(os.path.join(seeds, 'fuzz_raw_image', name), 'wb').write(data)
+for name in ('grey_7x5', 'bgr_6x3'):
+    open(os.path.join(seeds, 'fuzz_raw_image', name + '.bmp'), 'wb').write(
+        open(os.path.join(seeds, 'fuzz_bmp', name + '.bmp'), 'rb').read())
 # Sequence discovery: (op, name) byte pairs building a small dataset.
 tree = bytes([0, 15, 0, 16, 0, 5, 1, 6, 3, 0, 0, 7, 1, 9, 1, 10, 3, 0, 3, 0, 3, 0, 0, 0, 0, 2, 1, 13, 3, 0, 0, 3, 1, 4])
 open(os.path.join(seeds, 'fuzz_sequence_discovery', 'dataset'), 'wb').write(tree)

@@ -71,7 +71,9 @@ struct CameraPose {
   // the left, T = exp(xi) T_hat (xi in the frame T maps into); zero: unknown.
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
   std::string method;        // estimator: "pnp", "ransac", ...
-  std::string localisation;  // live localizer: "tracked" or "relocalised"; empty otherwise
+  // live localizer: "tracked", "relocalised" or "skipped" (not localised: status says why);
+  // empty otherwise
+  std::string localisation;
   int inliers = 0;
   double rmse_px = 0;
   std::string status = "ok";  // "ok" or why it failed (then transform is meaningless)

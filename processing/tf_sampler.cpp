@@ -68,13 +68,15 @@ bool TfSampler::Patch(const ConstImageView& raw, const Eigen::Vector2d& centre_t
   return PatchOf<1>(*kernel_, raw, centre_tf, v, size, step, box, out);
 }
 
-Status TfSampler::RenderAtDepth(const ConstImageView& raw, double v, TfImage* out) const {
+Status TfSampler::RenderAtDepth(const ConstImageView& raw, double v, int step,
+                                TfImage* out) const {
   if (raw.width != geometry_.width || raw.height != geometry_.height)
     return Error{"TF sampler: frame " + std::to_string(raw.width) + "x" +
                  std::to_string(raw.height) + ", the camera's geometry is " +
                  std::to_string(geometry_.width) + "x" + std::to_string(geometry_.height)};
   if (!(v > 1)) return Error{"TF sampler: virtual depth: expected > 1"};
-  const int tw = tf_width(), th = tf_height();
+  if (step < 1) return Error{"TF sampler: step: expected >= 1"};
+  const int tw = tf_width() / step, th = tf_height() / step;
   out->width = tw;
   out->height = th;
   out->format = PixelFormat::kMono8;
@@ -83,13 +85,17 @@ Status TfSampler::RenderAtDepth(const ConstImageView& raw, double v, TfImage* ou
   const float vf = static_cast<float>(v);
   const int type = kernel_->SharpType(vf);
   const bool colour = raw.format == PixelFormat::kBgr8;
+  // TF position u is raw position 2u + 1/2 (total_focus.h); output pixel i
+  // is TF position step i + (step - 1) / 2.
+  const float offset = static_cast<float>(step - 1) + 0.5f;
+  const float raw_step = 2.0f * static_cast<float>(step);
   tbb::parallel_for(0, th, [&](int w) {
-    const float y = 2.0f * w + 0.5f;
-    const Eigen::Vector2f a0 = kernel_->Sublattice(type, 0.5, y);
-    const Eigen::Vector2f da = 2.0f * kernel_->SublatticeStepX(type);
+    const float y = raw_step * static_cast<float>(w) + offset;
+    const Eigen::Vector2f a0 = kernel_->Sublattice(type, offset, y);
+    const Eigen::Vector2f da = raw_step * kernel_->SublatticeStepX(type);
     std::uint8_t* row = out->pixels.data() + static_cast<std::size_t>(w) * tw;
     for (int u = 0; u < tw; ++u) {
-      const float x = 2.0f * u + 0.5f;
+      const float x = raw_step * static_cast<float>(u) + offset;
       float acc[3], sw;
       float grey = 0;
       if (colour) {

@@ -55,8 +55,14 @@ class TfSampler {
   bool Patch(const ConstImageView& raw, const Eigen::Vector2d& centre_tf, double v, int size,
              double step, int box, float* out) const;
 
-  // The whole TF grid at virtual depth v, Mono8 (the devignetted grey).
-  Status RenderAtDepth(const ConstImageView& raw, double v, TfImage* out) const;
+  // The whole TF grid at virtual depth v, Mono8 (the devignetted grey),
+  // every `step`-th TF pixel: out(i, j) is the TF grid at (step i + (step -
+  // 1) / 2, step j + (step - 1) / 2), so a TF position is u = step (i +
+  // 1/2) - 1/2 (the centre of the step x step block; at step 2, the pixel
+  // an area-averaging halving would give, point-sampled: 1/step^2 of the
+  // cost, with the aliasing of point samples). `out`'s buffer is reused
+  // when it has the size.
+  Status RenderAtDepth(const ConstImageView& raw, double v, int step, TfImage* out) const;
 
  private:
   PlenopticFrame geometry_;

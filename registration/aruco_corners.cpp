@@ -1,5 +1,6 @@
 #include "registration/aruco_corners.h"
 
+#include "config/text_escape.h"
 #include "replay/csv_tokenizer.h"
 
 #include <Eigen/Dense>
@@ -15,6 +16,13 @@ namespace {
 
 constexpr const char* kHeader = "frame,marker_id,corner,tf_x_px,tf_y_px,virtual_depth";
 constexpr int kMarkers = 4;  // the plate's ids 0..3
+// Ranges of the columns: frames a double counts exactly (2^53), ids of the
+// largest ArUco dictionary (DICT_ARUCO_ORIGINAL, 1024 markers), TF pixel
+// coordinates and virtual depths far beyond any sensor's (they keep a
+// written row short, FormatArucoCornersCsv).
+constexpr double kMaxFrame = 9007199254740991.0;
+constexpr double kMaxMarkerId = 1023;
+constexpr double kMaxCoordinate = 1e5;
 
 }  // namespace
 
@@ -55,16 +63,27 @@ Expected<std::vector<ArucoCornerObservation>> ReadArucoCornersCsv(
       const auto [p, ec] = std::from_chars(t.data(), t.data() + t.size(), v[k]);
       if (ec != std::errc() || p != t.data() + t.size() || !std::isfinite(v[k]))
         return MakeError(path.string(), row.line, row.fields[k].column,
-                         "expected a number, got '" + t + "'");
+                         "expected a number, got '" + Excerpt(t) + "'");
+    }
+    // Checked before the casts (a double out of an int's range is undefined
+    // behaviour to convert).
+    auto integer_in = [](double x, double lo, double hi) {
+      return x == std::floor(x) && x >= lo && x <= hi;
+    };
+    if (!integer_in(v[0], 0, kMaxFrame) || !integer_in(v[1], 0, kMaxMarkerId) ||
+        !integer_in(v[2], 0, 3))
+      return MakeError(path.string(), row.line, 1,
+                       "expected an integer frame >= 0, a marker id 0.." +
+                           std::to_string(static_cast<int>(kMaxMarkerId)) + " and a corner 0..3");
+    for (int k = 3; k < 6; ++k) {
+      if (std::abs(v[k]) > kMaxCoordinate)
+        return MakeError(path.string(), row.line, row.fields[k].column,
+                         "expected a TF coordinate or virtual depth within 1e5");
     }
     ArucoCornerObservation o;
     o.frame = static_cast<std::int64_t>(v[0]);
     o.marker_id = static_cast<int>(v[1]);
     o.corner = static_cast<int>(v[2]);
-    if (v[0] != static_cast<double>(o.frame) || v[1] != o.marker_id || o.marker_id < 0 ||
-        v[2] != o.corner || o.corner < 0 || o.corner > 3)
-      return MakeError(path.string(), row.line, 1,
-                       "expected an integer frame, a marker id >= 0 and a corner 0..3");
     o.tf_px = Eigen::Vector2d(v[3], v[4]);
     o.virtual_depth = v[5];
     out.push_back(o);

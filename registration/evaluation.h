@@ -33,6 +33,7 @@
 #include "config/error.h"
 #include "config/frames.h"
 #include "registration/hand_eye.h"
+#include "registration/plate_alignment.h"
 #include "registration/trajectory_metrics.h"
 
 #include <cstdint>
@@ -76,8 +77,8 @@ struct CameraEvaluation {
   MetricSet uncorrected;  // the paper's protocol
   MetricSet corrected;    // with the offsets (cross-validated for kHalf)
 
-  // Where the offsets come from: "estimated", "given", "map frame"
-  // (CorrectWithMapFrameOffsets), or "none" (with why).
+  // Where the offsets come from: "estimated", "given", "joint map frame"
+  // (CorrectJointlyInTheMapFrame), or "none" (with why).
   std::string correction_source = "none";
   std::string correction_note;
   std::optional<HandEyeResult> hand_eye;  // on all frames, when estimated
@@ -89,7 +90,7 @@ struct CameraEvaluation {
   // marker_from_cam(_reference) hold offsets (given, estimated on all
   // frames, or taken from the map-frame evaluations), not the identity.
   bool has_offsets() const {
-    return correction_source == "given" || correction_source == "map frame" ||
+    return correction_source == "given" || correction_source == "joint map frame" ||
            (hand_eye && hand_eye->success);
   }
   bool fit_to_itself = false;  // Split::kNone
@@ -113,19 +114,47 @@ CameraEvaluation EvaluateCamera(const std::string& method, const std::string& se
                                 const std::optional<std::pair<Pose, Pose>>& given,
                                 const EvaluationOptions& options);
 
-// Corrects an evaluation of c0_from_cx that could not estimate its own
-// offsets (a rigidly mounted pair: A = marker0_from_markerX barely turns)
-// with the offsets each camera's map-frame evaluation estimated (that
-// solve needs each camera to turn in the map, not relative to the other).
-// Camera 0's offset comes from `reference_in_map`, camera X's from
-// `camera_in_map`. Cross-validated as the map-frame evaluations are: frame
-// f is corrected by the fold of each map-frame evaluation that did not see
-// f; with Split::kNone both used the all-frames fit and the result is
-// flagged fit to itself. Leaves `e` as it was and returns false, with
-// `e->correction_note` extended, when either map-frame evaluation has no
-// estimated offsets.
-bool CorrectWithMapFrameOffsets(CameraEvaluation* e, const CameraEvaluation& reference_in_map,
-                                const CameraEvaluation& camera_in_map);
+// The joint map-frame hand-eye of a rig: the map-frame evaluations of
+// camera 0 and of each camera X of one method (`in_map`, camera 0 first,
+// each with B = w0_from_cam and A = map_from_vicon · vicon_from_marker)
+// solved together, A_ki X_k = Z B_ki with every camera's X_k =
+// marker_from_cam and ONE Z, the correction of the plate alignment
+// (registration/hand_eye.h, SolveJointRobotWorldHandEye). One plate, so one
+// Z: fitting a Z per camera lets each camera's Z absorb part of its own
+// registration error and its X the rest, and c0_from_cx corrected with two
+// such X carries the difference of the two Zs (the demo: 17.95 mm).
+//
+// Split::kHalf cross-validates as EvaluateCamera does, with the split at the
+// middle of the frames any camera has: frame f is corrected by the fit on
+// the half that does not hold f. Split::kNone fits all frames (flagged).
+// On success every `in_map` evaluation is corrected with Z⁻¹ A X_k (source
+// "joint map frame"; hand_eye and folds hold its camera's share of the
+// joint fits, marker_from_cam_reference the shared Z), and every `pairs`
+// evaluation of c0_from_cx (camera X = in_map[k]'s serial, k >= 1) with
+// X_0⁻¹ A X_X. Returns false and leaves everything as it was, with `*why`
+// set, when a fit is refused (a camera whose motions cannot determine its
+// offset, too few frames in a half).
+//
+// What it cannot see: on a rigidly mounted pair, camera X's map pose is
+// camera 0's times c0_from_cx, so a constant error of the registered
+// c0_from_cx is indistinguishable from an error of X_X: the corrected
+// absolute error of c0_from_cx shows how much the registration varies
+// around its own mean, not its constant bias (docs/evaluation.md).
+//
+// `z_prior`: the plate alignment's own measure of Z (PlateCorrectionPrior);
+// without it Z is free and, on a short sequence with rotations of a few
+// degrees, the X_k come out several mm off (the demo: 5-7 mm).
+bool CorrectJointlyInTheMapFrame(const std::vector<CameraEvaluation*>& in_map,
+                                 const std::vector<CameraEvaluation*>& pairs,
+                                 const EvaluationOptions& options,
+                                 const std::optional<HandEyePrior>& z_prior, std::string* why);
+
+// Z = identity as the plate alignment measured it: e = the RMS of its
+// residuals (ArUco check P1, marker fit, plate motion), at least 0.3 mm;
+// translation sd e, rotation sd e / d with d the shortest distance between
+// the template's ArUco centres (the lever the map side's rotation rests on),
+// at least 0.05 deg.
+HandEyePrior PlateCorrectionPrior(const PlateAlignment& plate, const PlateTemplate& plate_template);
 
 // Per-frame difference of two methods' c0_from_cx (supplementary
 // "Evaluation of the difference between both benchmark methods"): E =

@@ -18,6 +18,8 @@
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -27,6 +29,18 @@ inline constexpr int kDescriptorSize = 128;  // SIFT
 
 struct FeatureOptions {
   int max_features = 0;              // keep the strongest N (0 = all)
+  // With max_features: the image cut into spread_cells^2 cells and each
+  // cell's strongest max_features / spread_cells^2 kept first, the rest of
+  // the budget from the strongest left (0: the strongest N wherever they
+  // are). SIFT then detects up to 2 max_features to choose from. Keypoints
+  // bunched in the most textured part of the view give a pose with a
+  // narrow base (registration/pose_checks.h refuses it).
+  int spread_cells = 0;              // >= 0
+  // SIFT on the image resized by this factor (area averaging), keypoints
+  // mapped back to the image's pixels by ScaleKeypoints. OpenCV's SIFT
+  // doubles its input first, so at 1/2 it works on the image's own pixels
+  // and costs about a quarter. (0, 1].
+  double image_scale = 1;
   int octave_layers = 3;             // SIFT layers per octave
   double contrast_threshold = 0.04;  // SIFT DoG contrast threshold
   double edge_threshold = 10;        // SIFT edge (principal curvature ratio) threshold
@@ -54,7 +68,16 @@ struct Features {
 
 // SIFT on a Mono8 or BGR8 image (colour is converted to grey). The view is
 // wrapped, not copied (OpenCV reads the caller's rows).
+// OpenCV's keypoints sit +1/4 px off in x and y: it doubles the image by
+// linear interpolation (doubled pixel c is at c / 2 - 1/4) and reports c / 2.
+// Maps and queries share that offset, so it is kept, also at image_scale.
 Status DetectSift(ConstImageView image, const FeatureOptions& options, Features* out);
+
+// Keypoints found on an image reduced by 1/factor (its pixel i the block
+// centred on factor (i + 1/2) - 1/2) mapped to the full image's pixels with
+// DetectSift's +1/4 px kept: x = factor (x_s + 1/4) - 1/4 (DetectSift's
+// x_s - 1/4 the block's position); sizes times factor.
+void ScaleKeypoints(double factor, Features* features);
 
 struct MatchOptions {
   double ratio = 0.8;        // Lowe's ratio test (0, 1]
@@ -75,6 +98,39 @@ struct Match {
 // Matches query descriptors (nq x 128) against train descriptors (nt x 128),
 // sorted by ratio (most distinctive first, as PROSAC wants them).
 std::vector<Match> MatchDescriptors(const float* query, int nq, const float* train, int nt,
+                                    const MatchOptions& options);
+
+// Train descriptors that many query sets are matched against (a reference
+// map's): the descriptors (owned) and their kd-trees, built once, at the
+// first approximate search, with that search's kd_trees, and shared by
+// every later one (searching is thread-safe: FLANN keeps its search heaps
+// per thread). With kd_tree_checks > 0 they are searched however few the
+// pairs (brute force wins only against trees built per call). Rebuilding
+// the trees per query set, or brute force below 4e6 pairs, cost more than
+// the search itself (bench/README.md, live registration).
+class DescriptorIndex {
+ public:
+  explicit DescriptorIndex(std::vector<float> descriptors);  // n x kDescriptorSize
+  ~DescriptorIndex();
+  DescriptorIndex(const DescriptorIndex&) = delete;
+  DescriptorIndex& operator=(const DescriptorIndex&) = delete;
+  int size() const { return static_cast<int>(descriptors_.size() / kDescriptorSize); }
+  const float* data() const { return descriptors_.data(); }
+  // Builds the kd-trees now (else at the first approximate search).
+  void Prepare(int kd_trees) const { (void)TreesOf(kd_trees); }
+
+ private:
+  friend std::vector<Match> MatchDescriptors(const float*, int, const DescriptorIndex&,
+                                             const MatchOptions&);
+  struct Trees;
+  Trees& TreesOf(int kd_trees) const;  // searching is non-const in FLANN, thread-safe
+  std::vector<float> descriptors_;
+  mutable std::once_flag built_;
+  mutable std::unique_ptr<Trees> trees_;
+};
+
+// The same matches as the overload above with train = index.data().
+std::vector<Match> MatchDescriptors(const float* query, int nq, const DescriptorIndex& train,
                                     const MatchOptions& options);
 
 }  // namespace lifmcr::registration

@@ -2,9 +2,11 @@
 
 #include "registration/tf_projection.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <map>
 
 namespace lifmcr::registration {
 
@@ -20,19 +22,34 @@ std::optional<RegistrationMethod> ParseRegistrationMethod(std::string_view name)
 
 MapIndex MapIndex::Of(const ReferenceMap& map) {
   MapIndex index;
+  std::vector<float> descriptors;
   index.points_in_w0.reserve(map.points.size());
-  index.descriptors.reserve(map.points.size() * kDescriptorSize);
+  descriptors.reserve(map.points.size() * kDescriptorSize);
+  std::map<int, int> image_of_id;
+  for (std::size_t i = 0; i < map.images.size(); ++i)
+    image_of_id[map.images[i].image_id] = static_cast<int>(i);
+  index.images = static_cast<int>(map.images.size());
+  index.observation_begin.push_back(0);
   for (const MapPoint& point : map.points) {
     if (point.descriptor.size() != static_cast<std::size_t>(kDescriptorSize)) continue;
     index.points_in_w0.push_back(point.p_in_w0_mm);
-    index.descriptors.insert(index.descriptors.end(), point.descriptor.begin(),
-                             point.descriptor.end());
+    descriptors.insert(descriptors.end(), point.descriptor.begin(), point.descriptor.end());
+    for (const TrackElement& e : point.track) {
+      const auto image = image_of_id.find(e.image_id);
+      if (image == image_of_id.end()) continue;
+      const std::vector<MapKeypoint>& keypoints = map.images[image->second].keypoints;
+      if (e.keypoint < 0 || e.keypoint >= static_cast<int>(keypoints.size())) continue;
+      index.observations.push_back({image->second, keypoints[e.keypoint].tf_px});
+    }
+    index.observation_begin.push_back(static_cast<int>(index.observations.size()));
   }
+  index.descriptors = std::make_shared<const DescriptorIndex>(std::move(descriptors));
   return index;
 }
 
 Status FrameRegistrationOptions::Check() const {
   if (Status s = match.Check(); !s) return s;
+  if (Status s = fundamental.Check(); !s) return s;
   if (Status s = pnp.Check(); !s) return s;
   if (Status s = rigid.Check(); !s) return s;
   if (!(sigma_v_relative > 0) || !std::isfinite(sigma_v_relative))
@@ -50,6 +67,46 @@ std::string FrameRegistration::BriefReport(RegistrationMethod method) const {
   return line;
 }
 
+namespace {
+
+// The matches whose map point the keyframe that saw most of them also saw
+// go through the fundamental filter with that keyframe; its outliers are
+// removed. Returns how many (-1: not applied).
+int FilterMatchesByFundamental(const MapIndex& map, const FrameObservations& frame,
+                               const FundamentalFilterOptions& options,
+                               std::vector<Match>* matches) {
+  if (map.images == 0 || map.observation_begin.size() != static_cast<std::size_t>(map.size()) + 1)
+    return -1;
+  std::vector<int> seen(static_cast<std::size_t>(map.images), 0);
+  for (const Match& m : *matches)
+    for (int o = map.observation_begin[m.train]; o < map.observation_begin[m.train + 1]; ++o)
+      ++seen[map.observations[o].image];
+  const int keyframe = static_cast<int>(std::max_element(seen.begin(), seen.end()) - seen.begin());
+  std::vector<Eigen::Vector2d> query, reference;
+  std::vector<std::size_t> which;  // index into matches of each pair
+  for (std::size_t i = 0; i < matches->size(); ++i) {
+    const Match& m = (*matches)[i];
+    for (int o = map.observation_begin[m.train]; o < map.observation_begin[m.train + 1]; ++o) {
+      if (map.observations[o].image != keyframe) continue;
+      query.push_back(frame.tf_px[m.query]);
+      reference.push_back(map.observations[o].tf_px.cast<double>());
+      which.push_back(i);
+      break;
+    }
+  }
+  const FundamentalFilterResult f = FilterByFundamental(query, reference, options);
+  if (!f.applied) return -1;
+  std::vector<char> drop(matches->size(), 0);
+  for (std::size_t k = 0; k < which.size(); ++k) drop[which[k]] = f.inlier[k] ? 0 : 1;
+  std::size_t out = 0;
+  for (std::size_t i = 0; i < matches->size(); ++i)
+    if (!drop[i]) (*matches)[out++] = (*matches)[i];
+  matches->resize(out);
+  return f.outliers;
+}
+
+}  // namespace
+
 FrameRegistration RegisterFrame(const MapIndex& map, const processing::CameraModel& camera,
                                 const FrameObservations& frame, RegistrationMethod method,
                                 const FrameRegistrationOptions& options) {
@@ -61,10 +118,13 @@ FrameRegistration RegisterFrame(const MapIndex& map, const processing::CameraMod
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return result;
   };
-  const std::vector<Match> matches =
-      MatchDescriptors(frame.features.descriptors.data(), frame.features.size(),
-                       map.descriptors.data(), map.size(), options.match);
+  std::vector<Match> matches = MatchDescriptors(
+      frame.features.descriptors.data(), frame.features.size(), *map.descriptors, options.match);
+  if (method == RegistrationMethod::kPnp && options.fundamental.enabled)
+    result.fundamental_outliers = FilterMatchesByFundamental(map, frame, options.fundamental, &matches);
   result.matches = matches.size();
+  result.match_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
   if (method == RegistrationMethod::kPnp) {
     std::vector<Eigen::Vector3d> points;

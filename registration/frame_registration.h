@@ -15,11 +15,13 @@
 #include "processing/camera_model.h"
 #include "registration/features.h"
 #include "registration/frame_observations.h"
+#include "registration/fundamental_filter.h"
 #include "registration/pnp.h"
 #include "registration/pose_covariance.h"
 #include "registration/reference_map.h"
 #include "registration/rigid_3d.h"
 
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -33,16 +35,31 @@ std::optional<RegistrationMethod> ParseRegistrationMethod(std::string_view name)
 
 // The map's points and descriptors in the buffers matching needs: one
 // contiguous P x 128 copy of the descriptors (the map keeps one vector per
-// point), made once per map.
+// point) with its kd-trees (built at the first approximate match and kept:
+// features.h), made once per map and shared by the copies of the index.
+// Each point's observations (keyframe, TF keypoint) for the fundamental
+// filter: point j's are observations[observation_begin[j] ..
+// observation_begin[j + 1]).
 struct MapIndex {
+  struct Observation {
+    int image = 0;  // index into ReferenceMap::images
+    Eigen::Vector2f tf_px = Eigen::Vector2f::Zero();
+  };
   std::vector<Eigen::Vector3d> points_in_w0;
-  std::vector<float> descriptors;
+  std::shared_ptr<const DescriptorIndex> descriptors;
+  std::vector<int> observation_begin;  // size() + 1
+  std::vector<Observation> observations;
+  int images = 0;
   int size() const { return static_cast<int>(points_in_w0.size()); }
   static MapIndex Of(const ReferenceMap& map);
 };
 
 struct FrameRegistrationOptions {
   MatchOptions match;
+  // PnP only: the matches first checked against a fundamental matrix with
+  // the map keyframe that saw most of the matched points (off by default:
+  // bench/README.md, live registration, has what it changed).
+  FundamentalFilterOptions fundamental;
   PnpOptions pnp;
   Rigid3dOptions rigid;
   double sigma_v_relative = 0.007;  // virtual-depth noise / v (processing: median 0.69 %), > 0
@@ -57,7 +74,9 @@ struct FrameRegistration {
   std::size_t matches = 0;
   std::size_t inliers = 0;
   double rmse_px = 0;
-  double seconds = 0;  // matching and estimation
+  double seconds = 0;        // matching and estimation
+  double match_seconds = 0;  // of which matching (and the fundamental filter)
+  int fundamental_outliers = -1;  // matches the fundamental filter removed; -1: not applied
   // PnP: the inliers' map points (MapIndex order) and TF keypoints.
   std::vector<int> inlier_points;
   std::vector<Eigen::Vector2d> inlier_tf_px;

@@ -20,15 +20,21 @@
 //     around the chordal mean R̄ are decomposed by SVD; the RMS spread about
 //     the second principal axis must reach min_rotation_spread_deg, otherwise
 //     the solve is refused with a message that names the spreads.
-//  2. Closed form: Shah's Kronecker solution (cv::calibrateRobotWorldHandEye,
-//     OpenCV 4.6), repeated once without the observations whose residual is
-//     beyond 5 robust sigmas (gross registration failures).
+//  2. Closed form: Shah's Kronecker solution (as cv::calibrateRobotWorldHandEye,
+//     extended to several X sharing one Z): with column-major vec,
+//     R_A R_Xk R_B^T = R_Z reads (R_B ⊗ R_A) vec(R_Xk) - vec(R_Z) = 0; the
+//     stacked system's null vector (smallest eigenvector of MᵀM) gives every
+//     R_Xk and R_Z up to one scale, fixed by det(R_Z) = 1, each block then
+//     projected onto SO(3). The translations follow linearly from
+//     R_A t_Xk - t_Z = R_Z t_B - t_A. Repeated once without the observations
+//     whose residual is beyond 5 robust sigmas (gross registration failures).
 //  3. Refinement (Ceres, Levenberg-Marquardt, ceres::EigenQuaternionManifold):
 //        min_{X,Z} sum_i rho(|r_i|^2),  E_i = (Z B_i)^-1 A_i X,
 //        r_i = [t(E_i) / sigma_t ; Log(R(E_i)) / sigma_r],
 //     rho = Huber at huber_threshold. sigma_t and sigma_r start from the
-//     options and are re-estimated from the residuals (1.4826 MAD) before a
-//     second solve, so the weights follow the data.
+//     options and are re-estimated from the residuals (1.4826 MAD, per
+//     camera in the joint solve) before a second solve, so the weights
+//     follow the data.
 //  4. Uncertainty: the covariance of X and Z from ceres::Covariance at the
 //     optimum, scaled by the variance factor of the inliers' normalised
 //     residuals, sum r^2 / (m - 12) over their m components.
@@ -41,8 +47,10 @@
 #include <Eigen/Core>
 
 #include <cstddef>
+#include <optional>
 #include <span>
 #include <string>
+#include <vector>
 
 namespace lifmcr {
 
@@ -97,5 +105,41 @@ Eigen::Vector3d RotationSpreadDeg(std::span<const Pose> poses);
 // data: a degenerate or too small input gives success = false and a message.
 HandEyeResult SolveRobotWorldHandEye(std::span<const Pose> a, std::span<const Pose> b,
                                      const HandEyeOptions& options = {});
+
+// Several bodies seen in one pair of worlds: A_ki X_k = Z B_ki for cameras
+// k with their own offsets X_k and ONE shared Z (the map-frame hand-eye of
+// a rig: every camera's marker_from_cam and one correction of the plate
+// alignment). Each camera's observations must determine its X_k (step 1 on
+// its B_ki; the refusal names the camera) and number min_observations.
+struct HandEyeObservations {
+  std::string name;  // the camera, for messages
+  std::vector<Pose> a, b;
+};
+struct JointHandEyeResult {
+  bool success = false;
+  std::string message;  // the reason when it failed
+  // Per camera, in input order: x, its uncertainty and residuals; z and its
+  // uncertainty are the shared Z in each.
+  std::vector<HandEyeResult> cameras;
+  Pose z = Pose::Identity();
+  // "joint hand-eye of 2 cameras: Z t=(..) mm, r=(..) deg; 0: ...; X: ...".
+  std::string BriefReport() const;
+};
+// A measurement of Z made apart from the motions (the plate alignment's:
+// Z = identity within its residual). With it the refinement adds the
+// residual [t(Z0^-1 Z) / sd_t ; Log(R(Z0^-1 Z)) / sd_r] (no robust loss) and
+// starts from Z = Z0 and X_k = the chordal mean of A_ki^-1 Z0 B_ki: a
+// sequence whose rotations spread a few degrees determines Z and the X_k
+// together only to several mm (each X's translation along a turning axis
+// trades against Z's), while Z0 with a fraction of a mm pins them.
+struct HandEyePrior {
+  Pose z = Pose::Identity();
+  double translation_sd_mm = 1.0;  // > 0
+  double rotation_sd_deg = 0.1;    // > 0
+  Status Check() const;
+};
+JointHandEyeResult SolveJointRobotWorldHandEye(std::span<const HandEyeObservations> cameras,
+                                               const HandEyeOptions& options = {},
+                                               const std::optional<HandEyePrior>& z_prior = {});
 
 }  // namespace lifmcr

@@ -1,24 +1,28 @@
 #include "registration/intrinsics_yaml.h"
 
+#include "config/input_file.h"
+#include "config/text_escape.h"
 #include "config/yaml_reader.h"
+#include "replay/synth/cameras_yaml.h"
 
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
 #include <fstream>
-#include <sstream>
 
 namespace lifmcr::registration {
 namespace {
 
 namespace fs = std::filesystem;
 
+// Through the safe open (config/input_file.h): a regular file within the
+// bound of the schema's other reader (replay/synth/cameras_yaml.h), never a
+// FIFO or /dev/zero read until memory runs out.
 Expected<YamlNode> ParseFile(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Error{path.string() + ": cannot open"};
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  return YamlNode::Parse(buffer.str(), path.string());
+  Expected<std::string> text = ReadInputText(
+      path, {"a cameras.yaml / intrinsics.yaml (YAML)", synth::kCameraModelLimits.max_file_bytes});
+  if (!text) return text.error();
+  return YamlNode::Parse(*text, EscapeText(path.string()));
 }
 
 // A list of `n` numbers at `node`.
@@ -83,7 +87,7 @@ Expected<CameraCalibration> ReadCameraCalibration(const fs::path& path,
     if (Status st = k.Check(); !st) return node.ErrorHere("model: " + st.error().message);
     return c;
   }
-  return root->ErrorAtPath("/cameras", "no camera with serial " + serial);
+  return root->ErrorAtPath("/cameras", "no camera with serial '" + Excerpt(serial) + "'");
 }
 
 Status WriteIntrinsicsYaml(const fs::path& path, const std::string& serial,
@@ -147,8 +151,8 @@ Expected<PlateLayout> ReadPlateLayout(const fs::path& path) {
   std::string dictionary = "DICT_6X6_250";
   plate->Read("aruco_dictionary", &dictionary, Presence::kOptional);
   if (dictionary != "DICT_6X6_250")
-    plate->Fail(plate->node(), "aruco_dictionary: only DICT_6X6_250 is supported, got " +
-                                   dictionary);
+    plate->Fail(plate->node(), "aruco_dictionary: only DICT_6X6_250 is supported, got '" +
+                                   Excerpt(dictionary) + "'");
   plate->Read("aruco_side_mm", &layout.aruco_side_mm, Presence::kRequired);
   if (std::optional<YamlMap> centres = plate->Map("aruco_centers_mm", Presence::kRequired)) {
     for (int id = 0; id < 250; ++id) {

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 namespace lifmcr::registration {
@@ -20,6 +21,8 @@ struct MapLocalizerStage::Outcome {
   double rmse_px = 0;
   // The inliers: map point (MapIndex order) and TF position in this frame.
   std::vector<std::pair<int, Eigen::Vector2d>> kept;
+  // Relocalisation's stages (s); zero when not relocalised.
+  double render_s = 0, sift_s = 0, match_s = 0, pnp_s = 0;
 };
 
 namespace {
@@ -63,6 +66,8 @@ Status LocalizerOptions::Check() const {
   if (max_tracks < min_tracked)
     return Error{"localizer options: max_tracks: expected >= min_tracked"};
   if (track_cells < 1) return Error{"localizer options: track_cells: expected >= 1"};
+  if (relocalise_step < 1 || relocalise_step > 4)
+    return Error{"localizer options: relocalise_step: expected 1..4"};
   if (!(track_margin_px >= 0)) return Error{"localizer options: track_margin_px: expected >= 0"};
   return Status::Ok();
 }
@@ -75,6 +80,9 @@ Covariance6 ToLeftPerturbationCovariance(const PoseWithCovariance& pose) {
 
 MapLocalizerStage::MapLocalizerStage(const ReferenceMap& map, const LocalizerOptions& options)
     : map_(MapIndex::Of(map)), options_(options) {
+  // The map's kd-trees before the first frame, not in its relocalisation.
+  if (options_.registration.match.kd_tree_checks > 0 && map_.size() >= 2)
+    map_.descriptors->Prepare(options_.registration.match.kd_trees);
   std::vector<double> v;
   for (const MapImage& image : map.images)
     for (const MapKeypoint& k : image.keypoints)
@@ -110,6 +118,17 @@ processing::CameraPose MapLocalizerStage::Relate(const std::string& serial,
 MapLocalizerStage::Counts MapLocalizerStage::counts() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return counts_;
+}
+
+std::string MapLocalizerStage::Counts::StageReport() const {
+  const double n = relocalise_attempts > 0 ? static_cast<double>(relocalise_attempts) : 1.0;
+  char line[256];
+  std::snprintf(line, sizeof line,
+                "relocalisations %lld, per attempt: render %.0f ms, SIFT %.0f ms, matching %.0f "
+                "ms, PnP %.0f ms, seeding tracks %.0f ms",
+                relocalise_attempts, 1e3 * render_s / n, 1e3 * sift_s / n, 1e3 * match_s / n,
+                1e3 * pnp_s / n, 1e3 * retrack_s / n);
+  return line;
 }
 
 MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraModel& camera,
@@ -190,12 +209,19 @@ MapLocalizerStage::Outcome MapLocalizerStage::Relocalise(const processing::Camer
   obs.frame = frame.trigger_index;
   // The chain's TF image and depth when the frame was processed, else the
   // TF grid refocused at one virtual depth (this frame's own TF image).
-  processing::TfImage refocused;
+  // Reused by the worker's next relocalisation.
+  thread_local processing::TfImage refocused;
   const processing::TfImage* tf = nullptr;
   double render_v = map_virtual_depth_;
+  const int step = options_.relocalise_step;
+  FeatureOptions features = options_.features;
+  // The rendered image is already reduced; the chain's is reduced for SIFT.
+  double to_tf = 1;  // rendered pixel -> TF pixel (ScaleKeypoints)
   if (frame.products) {
     tf = &frame.products->tf;
+    features.image_scale = options_.features.image_scale / step;
   } else {
+    to_tf = step;
     if (state.has_pose) {
       // The median virtual depth of the map points the last pose shows.
       const Pose cam_from_w0 = state.last.inverse();
@@ -212,16 +238,21 @@ MapLocalizerStage::Outcome MapLocalizerStage::Relocalise(const processing::Camer
         render_v = v[v.size() / 2];
       }
     }
-    if (Status s = sampler->RenderAtDepth(frame.raw, render_v, &refocused); !s) {
+    const auto render_start = std::chrono::steady_clock::now();
+    if (Status s = sampler->RenderAtDepth(frame.raw, render_v, step, &refocused); !s) {
       out.status = s.error().message;
       return out;
     }
+    out.render_s = SecondsSince(render_start);
     tf = &refocused;
   }
-  if (Status s = DetectSift(tf->View(), options_.features, &obs.features); !s) {
+  const auto sift_start = std::chrono::steady_clock::now();
+  if (Status s = DetectSift(tf->View(), features, &obs.features); !s) {
     out.status = s.error().message;
     return out;
   }
+  if (to_tf != 1) ScaleKeypoints(to_tf, &obs.features);
+  out.sift_s = SecondsSince(sift_start);
   obs.virtual_depth.resize(obs.features.keypoints.size(), std::numeric_limits<double>::quiet_NaN());
   for (std::size_t i = 0; i < obs.features.keypoints.size(); ++i) {
     if (!frame.products) {
@@ -237,6 +268,8 @@ MapLocalizerStage::Outcome MapLocalizerStage::Relocalise(const processing::Camer
   CompleteObservations(camera, &obs);
   const FrameRegistration r =
       RegisterFrame(map_, camera, obs, RegistrationMethod::kPnp, options_.registration);
+  out.match_s = r.match_seconds;
+  out.pnp_s = r.seconds - r.match_seconds;
   out.inliers = static_cast<int>(r.inliers);
   out.rmse_px = r.rmse_px;
   if (!r.success) {
@@ -249,8 +282,8 @@ MapLocalizerStage::Outcome MapLocalizerStage::Relocalise(const processing::Camer
   PoseEvidence evidence;
   evidence.inliers = out.inliers;
   evidence.inlier_tf_px = r.inlier_tf_px;
-  evidence.tf_width = tf->width;
-  evidence.tf_height = tf->height;
+  evidence.tf_width = sampler ? sampler->tf_width() : tf->width;
+  evidence.tf_height = sampler ? sampler->tf_height() : tf->height;
   evidence.rmse_px = out.rmse_px;
   evidence.covariance = ToLeftPerturbationCovariance(out.w0_from_cam);
   evidence.w0_from_cam = out.w0_from_cam.pose;
@@ -324,8 +357,13 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
       s = CameraState{};  // a new pass
     const bool will_relocalise = !(s.has_pose && options_.track && s.tracks && !s.tracks->empty());
     if (will_relocalise && s.relocalising) {
+      // Published with this status (no pose): the frame was seen, not lost.
       ++counts_.skipped;
-      return std::optional<processing::CameraPose>();
+      processing::CameraPose skipped;
+      skipped.method = std::string(ToString(RegistrationMethod::kPnp));
+      skipped.localisation = "skipped";
+      skipped.status = "not localised: camera " + frame.serial + " is being relocalised";
+      return std::optional<processing::CameraPose>(skipped);
     }
     if (will_relocalise) s.relocalising = true;
     state = s;
@@ -355,8 +393,11 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
       relocalised.status += " (after " + r.status + ")";
     r = std::move(relocalised);
   }
+  const bool relocalised_attempt = localisation == "relocalised";
+  double retrack_s = 0;
   std::shared_ptr<const Tracks> tracks;
   if (r.success && options_.track) {
+    const auto retrack_start = std::chrono::steady_clock::now();
     // The inliers go on from where they were found (tracked: their patch
     // positions; relocalised: their SIFT keypoints, each with its own error,
     // which averages out over the tracks; started at their projections the
@@ -364,6 +405,7 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     // against 1.7 mm, test_map_localizer); the other tracks start at their
     // map points' projections.
     tracks = Retrack(camera, **sampler, frame.raw, r.w0_from_cam.pose, r.kept);
+    retrack_s = SecondsSince(retrack_start);
   }
 
   processing::CameraPose pose;
@@ -374,6 +416,14 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   pose.status = r.status;
   const double seconds = SecondsSince(start);
   std::lock_guard<std::mutex> lock(mutex_);
+  if (relocalised_attempt) {
+    ++counts_.relocalise_attempts;
+    counts_.render_s += r.render_s;
+    counts_.sift_s += r.sift_s;
+    counts_.match_s += r.match_s;
+    counts_.pnp_s += r.pnp_s;
+    counts_.retrack_s += retrack_s;
+  }
   CameraState& s = cameras_[frame.serial];
   const bool newest = frame.host_ns >= s.last_host_ns && frame.trigger_index > s.last_trigger;
   if (!r.success) {

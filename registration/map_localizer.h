@@ -24,15 +24,18 @@
 //                allowed.
 //   relocalise   otherwise, or when tracking fails: SIFT on a TF image (the
 //                chain's when the frame was processed, else the whole TF
-//                grid rendered at one virtual depth, TfSampler::RenderAtDepth:
+//                grid rendered at one virtual depth, TfSampler::RenderAtDepth,
+//                at half resolution (relocalise_step):
 //                the predicted median of the map points when the camera had
 //                a pose, else the map's median), global matching against
 //                every map point (ratio and cross check, kd-tree) and full
 //                LO-RANSAC PnP; the tracks are seeded at the inliers'
 //                keypoints, the rest at projections from the pose. A
 //                frame of a camera that another worker is relocalising is
-//                not localised (Counts::skipped): relocalising it too would
-//                only repeat the work.
+//                not localised (Counts::skipped; its pose says so in its
+//                status, localisation "skipped", and is published like a
+//                failed one): relocalising it too would only repeat the
+//                work, and the worker is free at once for the other camera.
 // Every pose passes registration/pose_checks.h (tracked ones also against
 // the prediction); a refused one is published with the reason as status
 // and the camera relocalises at its next frame.
@@ -59,15 +62,22 @@
 namespace lifmcr::registration {
 
 struct LocalizerOptions {
-  // The strongest 4000 keypoints per relocalised frame, as `lifmcr register`
-  // keeps; global matching by kd-tree (exact matching of 4000 keypoints
-  // against a map of 7000 points took seconds on 2 cores: bench_live).
+  // Relocalisation: SIFT on the refocused TF grid at half resolution, the
+  // strongest 1500 keypoints spread over 4 x 4 cells; global matching by
+  // kd-trees over the map's descriptors built once (exact matching of 4000
+  // keypoints against a map of 7000 points took seconds on 2 cores;
+  // bench/README.md has the stages' times before and after).
   LocalizerOptions() {
-    features.max_features = 4000;
+    features.max_features = 1500;
+    features.spread_cells = 4;
     registration.match.kd_tree_checks = 64;
   }
   FrameRegistrationOptions registration;  // relocalisation; its pnp also when tracking
-  FeatureOptions features;                // relocalisation's SIFT
+  FeatureOptions features;                // relocalisation's SIFT (image_scale: see below)
+  // Relocalisation renders every relocalise_step-th TF pixel
+  // (TfSampler::RenderAtDepth) and runs SIFT on that; the chain's TF image,
+  // when the frame was processed, is reduced by the same factor (1..4).
+  int relocalise_step = 2;
   PatchTrackOptions patches;              // tracking
   PoseCheckOptions checks;                // every pose
   int max_tracks = 160;       // map points tracked per frame (>= min_tracked)
@@ -102,6 +112,13 @@ class MapLocalizerStage final : public processing::RegistrationStage {
     // Localize's time (features, matching, PnP) of the frames so counted; a
     // frame whose tracking failed pays both and counts as relocalised.
     double tracked_s = 0, relocalised_s = 0, failed_s = 0;
+    // Relocalisations' time by stage (all attempts, successful or not): the
+    // refocused TF render, SIFT, descriptor matching, PnP (LO-RANSAC and
+    // Ceres), and seeding the tracks afterwards.
+    long long relocalise_attempts = 0;
+    double render_s = 0, sift_s = 0, match_s = 0, pnp_s = 0, retrack_s = 0;
+    // "relocalised 3: render 310 ms, SIFT 420 ms, ..." (means per attempt).
+    std::string StageReport() const;
   };
   Counts counts() const;
 

@@ -1,10 +1,12 @@
 #include "registration/poses_csv.h"
 
+#include "config/text_escape.h"
 #include "replay/csv_tokenizer.h"
 
 #include <Eigen/Geometry>
 
 #include <charconv>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 
@@ -12,6 +14,10 @@ namespace lifmcr::registration {
 namespace {
 
 constexpr const char* kHeader = "frame,vicon_frame,tx_mm,ty_mm,tz_mm,qw,qx,qy,qz";
+// Frame numbers are integers a double holds exactly (2^53); positions lie
+// within 1 km of the origin (a Vicon volume is tens of metres).
+constexpr double kMaxFrame = 9007199254740992.0;
+constexpr double kMaxPositionMm = 1e6;
 
 }  // namespace
 
@@ -49,9 +55,21 @@ Expected<std::vector<FramePose>> ReadPosesCsv(const std::filesystem::path& path)
     for (int k = 0; k < 9; ++k) {
       const std::string& s = row.fields[k].text;
       const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v[k]);
-      if (ec != std::errc() || end != s.data() + s.size())
+      // from_chars also takes "inf" and "nan": neither is a pose.
+      if (ec != std::errc() || end != s.data() + s.size() || !std::isfinite(v[k]))
         return MakeError(path.string(), row.line, row.fields[k].column,
-                         "expected a number, got '" + s + "'");
+                         "expected a number, got '" + Excerpt(s) + "'");
+    }
+    if (v[0] != std::floor(v[0]) || v[0] < 0 || v[0] >= kMaxFrame)
+      return MakeError(path.string(), row.line, row.fields[0].column,
+                       "expected a frame number, an integer >= 0");
+    if (v[1] != std::floor(v[1]) || v[1] < -1 || v[1] >= kMaxFrame)
+      return MakeError(path.string(), row.line, row.fields[1].column,
+                       "expected a Vicon frame number, an integer >= -1 (-1: unknown)");
+    for (int k = 2; k < 5; ++k) {
+      if (std::abs(v[k]) > kMaxPositionMm)
+        return MakeError(path.string(), row.line, row.fields[k].column,
+                         "expected a position within 1e6 mm (1 km) of the origin");
     }
     FramePose p;
     p.frame = static_cast<std::int64_t>(v[0]);

@@ -144,6 +144,7 @@ std::string LiveRegistrationReport(const LiveRegistration& live) {
       << mean_ms(c.relocalised_s, c.relocalised) << " ms), " << c.failed << " failed";
   if (c.skipped > 0) out << ", " << c.skipped << " passed through while relocalising";
   out << " (camera 0 = " << live.reference_serial << ")";
+  if (c.relocalise_attempts > 0) out << "; " << c.StageReport();
   if (live.csv) out << "; " << live.csv->rows() << " rows in " << live.csv->path().string();
   out << "\n";
   return out.str();

@@ -259,7 +259,6 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
   controller_options.trigger_hz = 0;  // no software triggers; first frames by the rig's first
   controller_options.drain = std::chrono::milliseconds(0);  // a pass ends when everything is in
   controller_options.vicon_lead_triggers = max_rate ? 1 : 0;
-  controller_options.vicon_divider = sync.vicon_divider;
 
   auto stopped = [&] { return options.stop && options.stop->load(); };
   for (;;) {

@@ -17,6 +17,23 @@ Status EnsureParent(const std::filesystem::path& path) {
 
 }  // namespace
 
+// cv::haveImageWriter looks the extension up in OpenCV's codec registry, a
+// function-local static of libopencv_imgcodecs built by its first user. Built
+// here, in the thread that then starts the writers, the registry's construction
+// is ordered before them by the thread hand-over. Left to the first imwrite in
+// a TBB worker, it was ordered only by the static's guard, read inline in
+// uninstrumented OpenCV code, which ThreadSanitizer cannot see: it reported
+// the main thread's read of the BMP encoder's description (copied while
+// looking up ".tiff") as racing with the worker's construction of it.
+Status CheckImageWriters() {
+  for (const char* extension : {".tiff", ".png"}) {
+    if (!cv::haveImageWriter(extension))
+      return Error{std::string("this OpenCV build has no ") + extension +
+                   " image writer (lifmcr synth writes its ground truth with it)"};
+  }
+  return Status::Ok();
+}
+
 Status WriteFloatTiff(const std::filesystem::path& path, int width, int height,
                       const std::vector<float>& values) {
   if (width <= 0 || height <= 0 || values.size() != static_cast<std::size_t>(width) * height)

@@ -11,6 +11,10 @@
 
 namespace lifmcr::synth {
 
+// Whether this OpenCV can write the ground truth's TIFF and PNG files; an error
+// says which it cannot. Call it once in the thread that starts parallel writers,
+// before them: it also builds OpenCV's codec registry (gt_images.cpp says why).
+Status CheckImageWriters();
 // One-channel float32 TIFF of width x height values, row-major.
 Status WriteFloatTiff(const std::filesystem::path& path, int width, int height,
                       const std::vector<float>& values);

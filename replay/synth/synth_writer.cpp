@@ -329,6 +329,8 @@ Expected<SynthSummary> WriteSyntheticDataset(const std::filesystem::path& out_di
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return summary;
   }
+  // Before the workers: they write with OpenCV (gt_images.h).
+  if (Status s = CheckImageWriters(); !s) return s.error();
   // Frames: parallel over (camera, frame), and over micro-image rows inside.
   for (const SynthCamera& camera : cameras)
     if (Status s = MakeDirs(layout::CameraDir(seq, camera.serial)); !s) return s.error();

@@ -133,14 +133,19 @@ TEST(Demo, WholeChainPublishesExtrinsicsAndEvaluatesThem) {
   EXPECT_GT(ape, rpe);
   EXPECT_LT(ape, 200.0);
   // The demo's cameras turn together, so the pair's own hand-eye is refused
-  // and the offsets come from each camera's map-frame hand-eye. How much
-  // that helps depends on those offsets (each camera's map-frame hand-eye
-  // absorbs its own plate-alignment correction; 23.4 -> 18.0 mm in one run),
-  // so the figure is printed; the correction itself is tested exactly in
+  // and the offsets come from the joint map-frame hand-eye (both cameras,
+  // one plate correction; registration/evaluation.h). It removes the two
+  // offsets (tens of mm); what stays is how much the live registration
+  // varies around its own mean (a few mm: 3.2 mm on 24 frames in one run),
+  // so below 10 mm and below a third of the uncorrected error. The
+  // correction itself is tested exactly in
   // tests/registration/test_evaluation_map_offsets.cpp.
-  ASSERT_EQ(e["correction"]["source"], "map frame") << e["correction"]["note"];
-  std::cout << "c0_from_cx: absolute " << e["corrected"]["ape"]["translation_mm"]["rmse"]
-            << " mm with the map-frame hand-eye offsets\n";
+  ASSERT_EQ(e["correction"]["source"], "joint map frame") << e["correction"]["note"];
+  const double corrected = e["corrected"]["ape"]["translation_mm"]["rmse"];
+  std::cout << "c0_from_cx: absolute " << corrected
+            << " mm with the joint map-frame hand-eye offsets\n";
+  EXPECT_LT(corrected, 10.0);
+  EXPECT_LT(corrected, ape / 3);
 
   // Each camera in the map frame (the paper's absolute protocol): without
   // the correction its own offset (> 30 mm: the synthetic clusters sit 40 to
@@ -150,7 +155,7 @@ TEST(Demo, WholeChainPublishesExtrinsicsAndEvaluatesThem) {
   for (const nlohmann::json& m : j["map_frame_evaluations"]) {
     SCOPED_TRACE(m["method"].get<std::string>() + " " + m["camera"].get<std::string>());
     const double before = m["uncorrected"]["ape"]["translation_mm"]["rmse"];
-    ASSERT_EQ(m["correction"]["source"], "estimated") << m["correction"]["note"];
+    ASSERT_EQ(m["correction"]["source"], "joint map frame") << m["correction"]["note"];
     EXPECT_FALSE(m["fit_to_itself"].get<bool>());
     const double after = m["corrected"]["ape"]["translation_mm"]["rmse"];
     std::cout << m["method"] << " " << m["camera"] << " in the map: " << before << " mm -> "

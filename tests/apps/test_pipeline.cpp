@@ -371,7 +371,6 @@ TEST(Pipeline, LiveViconFromUdpIsPublishedWithItsPoses) {
   observer.on_vicon = [p](const ViconFrame& frame) { p->AddVicon(frame); };
   RigControllerOptions controller_options;
   controller_options.sync = sync;
-  controller_options.vicon_divider = sync.vicon_divider;
   RigController controller({}, {}, std::move(source), nullptr, controller_options, observer);
   ASSERT_TRUE(controller.Start().ok());
   auto sender = ViconUdpSender::Open("127.0.0.1", source_view->BoundPort());
@@ -745,8 +744,9 @@ TEST(Pipeline, BadGrabLoopAndReplayOptionsNameTheirField) {
   EXPECT_NE(started.error().message.find("frame_timeout"), std::string::npos)
       << started.error().message;
   controller_options = RigControllerOptions{};
-  controller_options.vicon_divider = 0;
-  EXPECT_NE(controller_options.Check().error().message.find("vicon_divider"), std::string::npos);
+  controller_options.vicon_lead_triggers = 1;  // without sync: no Vicon frames per trigger
+  EXPECT_NE(controller_options.Check().error().message.find("vicon_lead_triggers: needs sync"),
+            std::string::npos);
   controller_options = RigControllerOptions{};
   controller_options.number_files_by_sync = true;  // without sync
   EXPECT_NE(controller_options.Check().error().message.find("number_files_by_sync"),

@@ -119,6 +119,23 @@ TEST_F(ArucoCorners, CsvRoundTripAndErrors) {
   ASSERT_FALSE(bad);
   EXPECT_NE(bad.error().message.find("bad.csv:2"), std::string::npos) << bad.error().message;
 
+  // Out of range: checked before the integer casts (a frame of 1e300 was
+  // cast to int64, undefined behaviour) and the row formatting.
+  const std::string header = "frame,marker_id,corner,tf_x_px,tf_y_px,virtual_depth\n";
+  for (const auto& [row, expected] : std::vector<std::pair<std::string, std::string>>{
+           {"1e300,1,2,1,2,3", ":2:1: expected an integer frame"},
+           {"0,1e10,2,1,2,3", ":2:1: expected an integer frame"},
+           {"0,1,2.5,1,2,3", ":2:1: expected an integer frame"},
+           {"0,1,2,1e300,2,3", ":2:7: expected a TF coordinate"},
+           {"0,1,2,1,2,-1e6", ":2:11: expected a TF coordinate or virtual depth"},
+           {"0,1,2,1,2," + std::string(5000, 'x'), "... (5000 bytes)"}}) {
+    test::WriteFile(dir / "bad.csv", header + row + "\n");
+    bad = ReadArucoCornersCsv(dir / "bad.csv");
+    ASSERT_FALSE(bad) << row;
+    EXPECT_NE(bad.error().message.find(expected), std::string::npos) << bad.error().message;
+    EXPECT_LT(bad.error().message.size(), 300u);
+  }
+
   // One frame only: a corner needs two rays.
   std::map<std::int64_t, Pose> one{{0, poses_[0]}};
   Expected<ArucoCentersInMap> r = TriangulateArucoCenters(obs, one, camera_);

@@ -336,6 +336,33 @@ TEST_F(EvaluateCli, MapFramePosesShowEachCamerasOffsetAndCorrectIt) {
   EXPECT_LT(err["rotation_deg"].get<double>(), 0.2);
   EXPECT_LT(c0["corrected"]["ape"]["translation_mm"]["median"].get<double>(), 3.0);
   EXPECT_NE(test::ReadFile(out / "evaluation.md").find("map (plate) frame"), std::string::npos);
+  // Camera 0 and each method's camera X solved together with one plate
+  // correction Z, held near the plate alignment's: every camera's offset
+  // within the gate of the truth.
+  EXPECT_FALSE(j["plate_alignment"]["z_prior"].get<std::string>().empty());
+  for (const nlohmann::json& m : j["map_frame_evaluations"]) {
+    const std::string camera = m["camera"];
+    SCOPED_TRACE(m["method"].get<std::string>() + " " + camera);
+    EXPECT_EQ(m["correction"]["source"], "joint map frame") << m["correction"]["note"];
+    const auto& e = m["correction"]["error_vs_truth"][camera];
+    std::cout << m["method"] << " " << camera << " joint map-frame marker_from_cam off the truth by "
+              << e["translation_mm"] << " mm, " << e["rotation_deg"] << " deg\n";
+    EXPECT_LT(e["translation_mm"].get<double>(), 2.0);
+    EXPECT_LT(e["rotation_deg"].get<double>(), 0.2);
+  }
+  // 200 frames turning tens of degrees determine Z from the motions alone.
+  const test::CommandResult free = test::RunLifmcr(
+      "evaluate " + seq_->string() + " --registration " + (*dir_ / "registration.csv").string() +
+      " --reference-poses " + (*dir_ / "w0_from_c0.csv").string() + " --out " +
+      (*dir_ / "eval_map_free").string() + " --plate-correction free --no-plots --quiet");
+  ASSERT_EQ(free.exit_code, 0) << free.err;
+  const nlohmann::json jf = ReadJson(*dir_ / "eval_map_free" / "evaluation.json");
+  EXPECT_NE(jf["plate_alignment"]["z_prior"].get<std::string>().find("free"), std::string::npos);
+  const auto& ef = jf["map_frame_evaluations"][0]["correction"]["error_vs_truth"][kCam0];
+  std::cout << "camera 0 marker_from_cam with Z free off the truth by " << ef["translation_mm"]
+            << " mm, " << ef["rotation_deg"] << " deg\n";
+  EXPECT_LT(ef["translation_mm"].get<double>(), 2.0);
+  EXPECT_LT(ef["rotation_deg"].get<double>(), 0.2);
 }
 
 TEST_F(EvaluateCli, RefusesTheHandEyeForARigidPair) {

@@ -4,6 +4,7 @@
 
 #include "registration/features.h"
 #include "registration/ground_truth_map.h"
+#include "registration/intrinsics_yaml.h"
 #include "registration/poses_csv.h"
 #include "registration/reference_map.h"
 #include "tests/test_util.h"
@@ -16,6 +17,7 @@
 #include <fstream>
 #include <functional>
 #include <random>
+#include <sys/stat.h>
 
 namespace lifmcr::registration {
 namespace {
@@ -181,6 +183,53 @@ TEST(PosesCsv, RoundTripAndErrors) {
   back = ReadPosesCsv(dir / "p.csv");
   ASSERT_FALSE(back);
   EXPECT_NE(back.error().message.find("p.csv:4:"), std::string::npos) << back.error().message;
+}
+
+// Values a double parses but no pose file holds: each is an error at its
+// field (a frame of 1e300 was cast to int64, undefined behaviour; "nan" and
+// "inf" parse with from_chars and passed the unit-quaternion check).
+TEST(PosesCsv, OutOfRangeAndNonFiniteValuesAreErrors) {
+  test::TempDir tmp;
+  const std::string header = "frame,vicon_frame,tx_mm,ty_mm,tz_mm,qw,qx,qy,qz\n";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"1e300,0,1,2,3,1,0,0,0", ":2:1: expected a frame number"},
+      {"1.5,0,1,2,3,1,0,0,0", ":2:1: expected a frame number"},
+      {"-1,0,1,2,3,1,0,0,0", ":2:1: expected a frame number"},
+      {"0,-2,1,2,3,1,0,0,0", ":2:3: expected a Vicon frame number"},
+      {"0,1e19,1,2,3,1,0,0,0", ":2:3: expected a Vicon frame number"},
+      {"0,0,1,2,inf,1,0,0,0", ":2:9: expected a number, got 'inf'"},
+      {"0,0,1,2,3,nan,nan,nan,nan", ":2:11: expected a number, got 'nan'"},
+      {"0,0,1,2e7,3,1,0,0,0", ":2:7: expected a position within 1e6 mm"},
+      {"0,0," + std::string(100000, '9') + ",2,3,1,0,0,0", "... (100000 bytes)"},
+  };
+  for (const auto& [row, expected] : cases) {
+    test::WriteFile(tmp / "p.csv", header + row + "\n");
+    Expected<std::vector<FramePose>> poses = ReadPosesCsv(tmp / "p.csv");
+    ASSERT_FALSE(poses) << row;
+    EXPECT_NE(poses.error().message.find(expected), std::string::npos) << poses.error().message;
+    EXPECT_LT(poses.error().message.size(), 300u) << row.substr(0, 40);
+  }
+}
+
+// intrinsics.yaml is read through the safe open: a FIFO, a folder or
+// /dev/zero is an error at once (it was read with a bare ifstream: a FIFO
+// hung, /dev/zero ran out of memory).
+TEST(IntrinsicsYaml, OnlyARegularFileIsRead) {
+  test::TempDir tmp;
+  ASSERT_EQ(::mkfifo((tmp / "fifo.yaml").c_str(), 0600), 0);
+  fs::create_symlink("/dev/zero", tmp / "zero.yaml");
+  fs::create_directory(tmp / "folder.yaml");
+  for (const auto& [name, expected] :
+       std::vector<std::pair<std::string, std::string>>{{"fifo.yaml", "FIFO"},
+                                                        {"zero.yaml", "character device"},
+                                                        {"folder.yaml", "folder"}}) {
+    Expected<CameraCalibration> camera = ReadCameraCalibration(tmp / name, "40398673");
+    ASSERT_FALSE(camera) << name;
+    EXPECT_NE(camera.error().message.find(expected), std::string::npos) << camera.error().message;
+    Expected<PlateLayout> plate = ReadPlateLayout(tmp / name);
+    ASSERT_FALSE(plate) << name;
+    EXPECT_NE(plate.error().message.find(expected), std::string::npos) << plate.error().message;
+  }
 }
 
 }  // namespace
