@@ -46,6 +46,7 @@ struct CalibrateOptions {
   bool fix_distortion = false;
   bool tangential_distortion = false;
   int match_window = registration::CalibrationOptions{}.match_window;
+  int min_map_observations = registration::CalibrationOptions{}.min_map_observations;
   bool no_covariance = false;
   double plate_weight = registration::CalibrationOptions{}.plate_weight;
   double principal_point_prior_px = registration::CalibrationOptions{}.principal_point_prior_px;
@@ -173,6 +174,7 @@ int RunCalibrate(const CalibrateOptions& o) {
   options.estimate_distortion = !o.fix_distortion;
   options.estimate_tangential_distortion = o.tangential_distortion;
   options.match_window = o.match_window;
+  options.min_map_observations = o.min_map_observations;
   options.covariance = !o.no_covariance;
   options.plate_weight = o.plate_weight;
   options.principal_point_prior_px = o.principal_point_prior_px;
@@ -271,6 +273,9 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
   app.add_flag("--fix-principal-point", o->fix_principal_point,
                "Hold the principal point at its initial value");
   app.add_flag("--fix-distortion", o->fix_distortion, "Hold k1, k2, p1, p2 at their initial values");
+  app.add_option("--min-map-observations", o->min_map_observations,
+                 "Frames that must see a point for it to enter the reference map")
+      ->check(CLI::Range(2, 1000));
   app.add_option("--match-window", o->match_window,
                  "Match each frame against the points of this many placed frames before it")
       ->check(CLI::PositiveNumber);

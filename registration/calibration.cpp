@@ -281,6 +281,7 @@ Status CalibrationOptions::Check() const {
   if (!(principal_point_prior_px >= 0))
     return fail("principal_point_prior_px: expected >= 0 (0: no prior)");
   if (max_lenses < 2) return fail("max_lenses: expected >= 2");
+  if (min_map_observations < 2) return fail("min_map_observations: expected >= 2");
   if (max_iterations < 1) return fail("max_iterations: expected >= 1");
   if (threads < 1) return fail("threads: expected >= 1");
   return Status::Ok();
@@ -765,7 +766,7 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
   for (std::size_t n = 0; n < lens_observations.size(); ++n)
     if (inlier[n]) kept[lens_observations[n].track].push_back(lens_observations[n].observation);
   for (int t = 0; t < static_cast<int>(map.tracks.size()); ++t) {
-    if (kept[t].size() < 2) continue;
+    if (static_cast<int>(kept[t].size()) < options.min_map_observations) continue;
     const Track& track = map.tracks[t];
     MapPoint point;
     point.id = static_cast<std::int64_t>(out.points.size()) + 1;
