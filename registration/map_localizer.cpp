@@ -133,7 +133,9 @@ std::string MapLocalizerStage::Counts::StageReport() const {
                 relocalise_inliers / n,
                 relocalise_matches > 0 ? 100.0 * relocalise_inliers / relocalise_matches : 0.0,
                 fundamental_outliers / n);
-  return line;
+  std::string out = line;
+  if (!last_tracking_failure.empty()) out += "; last tracking failure: " + last_tracking_failure;
+  return out;
 }
 
 MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraModel& camera,
@@ -395,6 +397,10 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     if (r.success) localisation = "tracked";
   }
   if (!r.success) {
+    if (r.status != "not run") {
+      std::lock_guard<std::mutex> lock(mutex_);
+      counts_.last_tracking_failure = r.status;
+    }
     Outcome relocalised = Relocalise(camera, frame, *sampler, state);
     // A refused or failed relocalisation says why tracking did not serve either.
     if (!relocalised.success && localisation == "relocalised" && r.status != "not run")

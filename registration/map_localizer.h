@@ -125,6 +125,7 @@ class MapLocalizerStage final : public processing::RegistrationStage {
     // Their matches (after the fundamental filter), PnP inliers, and the
     // matches the fundamental filter removed (FrameRegistrationOptions).
     long long relocalise_matches = 0, relocalise_inliers = 0, fundamental_outliers = 0;
+    std::string last_tracking_failure;  // why the last failed tracking failed
     // "relocalisations 3, per attempt: render 310 ms, SIFT 420 ms, ...,
     // inliers 41 % of matches" (means per attempt).
     std::string StageReport() const;
