@@ -23,7 +23,9 @@
 // (what localising every frame costs the depth lane).
 //
 //   bench_live [--preset small|medium|r32] [--frames N] [--seconds S]
-//              [--concurrency N]
+//              [--concurrency N] [--keep DIR]
+// --keep DIR renders into DIR once and reuses it (same preset and frames)
+// in later runs; DIR is left in place.
 // Goals (issue 13, 2 cores): >= 5 Hz per camera at medium, >= 2 Hz at r32.
 
 #include "apps/pipeline/camera_setup.h"
@@ -64,6 +66,7 @@ struct Args {
   int frames = 6;
   double seconds = 30;
   int concurrency = 2;
+  std::string keep;  // empty: a temporary folder
 };
 
 bool ParseArgs(int argc, char** argv, Args* a) {
@@ -79,6 +82,8 @@ bool ParseArgs(int argc, char** argv, Args* a) {
       a->frames = static_cast<int>(std::strtol(v.c_str(), &end, 10));
     } else if (k == "--seconds") {
       a->seconds = std::strtod(v.c_str(), &end);
+    } else if (k == "--keep") {
+      a->keep = v;
     } else if (k == "--concurrency") {
       a->concurrency = static_cast<int>(std::strtol(v.c_str(), &end, 10));
     } else {
@@ -185,7 +190,7 @@ int main(int argc, char** argv) {
   if (!ParseArgs(argc, argv, &args)) {
     std::fprintf(stderr,
                  "usage: bench_live [--preset small|medium|r32] [--frames N>=3] [--seconds S] "
-                 "[--concurrency N]\n");
+                 "[--concurrency N] [--keep DIR]\n");
     return 2;
   }
   auto params = synth::MakePreset(args.preset);
@@ -196,22 +201,28 @@ int main(int argc, char** argv) {
   params->rig.frames = args.frames;
   params->rig.cameras = 2;
   char tmpl[] = "/tmp/lifmcr-bench-live-XXXXXX";
-  if (!mkdtemp(tmpl)) {
+  if (args.keep.empty() && !mkdtemp(tmpl)) {
     std::fprintf(stderr, "bench_live: cannot create %s: %s\n", tmpl, std::strerror(errno));
     return 3;
   }
-  const fs::path dir = tmpl;
-  std::fprintf(stderr, "bench_live: rendering 2 x %d frames of preset %s into %s (not timed)\n",
-               args.frames, args.preset.c_str(), tmpl);
-  auto summary = synth::WriteSyntheticDataset(dir / "data", *params, {});
-  if (!summary) {
-    std::fprintf(stderr, "bench_live: %s\n", summary.error().message.c_str());
-    fs::remove_all(dir);
-    return 3;
+  const fs::path dir = args.keep.empty() ? fs::path(tmpl) : fs::path(args.keep);
+  fs::path sequence_dir = dir / "data" / params->rig.scene_folder / params->rig.sequence;
+  if (!args.keep.empty() && fs::exists(layout::CamerasYamlPath(sequence_dir))) {
+    std::fprintf(stderr, "bench_live: reusing %s\n", sequence_dir.c_str());
+  } else {
+    std::fprintf(stderr, "bench_live: rendering 2 x %d frames of preset %s into %s (not timed)\n",
+                 args.frames, args.preset.c_str(), dir.c_str());
+    auto summary = synth::WriteSyntheticDataset(dir / "data", *params, {});
+    if (!summary) {
+      std::fprintf(stderr, "bench_live: %s\n", summary.error().message.c_str());
+      if (args.keep.empty()) fs::remove_all(dir);
+      return 3;
+    }
+    sequence_dir = sequence_dir;
   }
   // Camera 0's map from its ground truth, frames 0..2 (what `lifmcr register
   // --reference-from-ground-truth` makes), as a map folder.
-  const fs::path cameras_yaml = layout::CamerasYamlPath(summary->sequence_dir);
+  const fs::path cameras_yaml = layout::CamerasYamlPath(sequence_dir);
   auto serials = synth::ReadCameraSerialsYaml(cameras_yaml);
   if (!serials || serials->empty()) {
     std::fprintf(stderr, "bench_live: %s: no cameras\n", cameras_yaml.c_str());
@@ -224,7 +235,7 @@ int main(int argc, char** argv) {
   }
   registration::GroundTruthMapOptions map_options;
   map_options.features.max_features = 4000;  // as `lifmcr register` makes it
-  auto map = registration::BuildGroundTruthMap(summary->sequence_dir, serials->front(), {0, 1, 2},
+  auto map = registration::BuildGroundTruthMap(sequence_dir, serials->front(), {0, 1, 2},
                                                processing::CameraModel(*k), map_options);
   if (!map) {
     std::fprintf(stderr, "bench_live: %s\n", map.error().message.c_str());
@@ -241,7 +252,7 @@ int main(int argc, char** argv) {
               map->points.size(), std::thread::hardware_concurrency());
   std::vector<RunFigures> runs;
   for (const Mode mode : {Mode::kTrack, Mode::kRelocalise, Mode::kDepthOnly}) {
-    runs.push_back(Run(args, summary->sequence_dir, map_dir, mode));
+    runs.push_back(Run(args, sequence_dir, map_dir, mode));
     const RunFigures& f = runs.back();
     std::printf("%-10s extrinsics %.2f Hz per camera (%d messages), frame -> extrinsics p50 %.0f "
                 "ms p99 %.0f ms | frames taken %.2f/s skipped %.2f/s | previews %.2f/s "
@@ -263,6 +274,6 @@ int main(int argc, char** argv) {
                               : 0.0);
   std::printf("goal (issue 13): >= %s Hz per camera: %s\n", args.preset == "r32" ? "2" : "5",
               track.HzPerCamera() >= (args.preset == "r32" ? 2.0 : 5.0) ? "met" : "NOT met");
-  fs::remove_all(dir);
+  if (args.keep.empty()) fs::remove_all(dir);
   return 0;
 }

@@ -57,8 +57,8 @@ struct MapIndex {
 struct FrameRegistrationOptions {
   MatchOptions match;
   // PnP only: the matches first checked against a fundamental matrix with
-  // the map keyframe that saw most of the matched points (off by default:
-  // bench/README.md, live registration, has what it changed).
+  // the map keyframe that saw most of the matched points (off here; the
+  // live localizer turns it on: registration/map_localizer.h says why).
   FundamentalFilterOptions fundamental;
   PnpOptions pnp;
   Rigid3dOptions rigid;

@@ -155,6 +155,40 @@ TEST(MapLocalizer, RelocalisesOnceThenTracksFromRawFramesWithinTheGates) {
   EXPECT_GE(counts.relocalised, 1);
 }
 
+// The fundamental filter (registration/fundamental_filter.h) against
+// relocalisation alone: every frame of camera X relocalised with and
+// without it; both within the gates, and what it changed printed (the
+// figures of bench/README.md that decided its default).
+TEST(MapLocalizer, RelocalisesWithAndWithoutTheFundamentalFilter) {
+  Sequence& s = *Shared();
+  const std::string& x = s.serials[1];
+  for (const bool filter : {false, true}) {
+    LocalizerOptions options;
+    options.track = false;
+    options.registration.fundamental.enabled = filter;
+    MapLocalizerStage stage(s.map, options);
+    std::vector<double> t_mm, r_deg, ms;
+    for (std::int64_t frame = 0; frame < kFrames; ++frame) {
+      const Localized l = LocalizeFrame(stage, s, x, frame);
+      ASSERT_TRUE(l.pose);
+      if (l.pose->status != "ok") continue;
+      t_mm.push_back(TranslationDifference(l.pose->transform, s.truth[x][frame]));
+      r_deg.push_back(RotationDifferenceDeg(l.pose->transform, s.truth[x][frame]));
+      ms.push_back(1e3 * l.seconds);
+    }
+    const MapLocalizerStage::Counts counts = stage.counts();
+    std::printf("fundamental filter %s: %zu of %d relocalised, median %.3f mm / %.4f deg, %.0f ms; "
+                "%s\n",
+                filter ? "on " : "off", t_mm.size(), kFrames, Median(t_mm), Median(r_deg),
+                Median(ms), counts.StageReport().c_str());
+    EXPECT_EQ(t_mm.size(), static_cast<std::size_t>(kFrames));
+    EXPECT_LE(Median(t_mm), 2.0);
+    EXPECT_LE(Median(r_deg), 0.1);
+    if (filter) EXPECT_GT(counts.fundamental_outliers, 0);
+    else EXPECT_EQ(counts.fundamental_outliers, 0);
+  }
+}
+
 TEST(MapLocalizer, RefusesAPoseWhoseInliersCrowdInACornerAndSaysWhy) {
   Sequence& s = *Shared();
   // The map cut to the points camera X's frame 4 shows in one corner cell
