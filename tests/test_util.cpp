@@ -81,4 +81,10 @@ CommandResult RunLifmcr(const std::string& args) {
   return result;
 }
 
+std::string MulticastGroupOfThisProcess(int octet) {
+  const unsigned pid = static_cast<unsigned>(getpid());
+  return "239." + std::to_string(octet) + "." + std::to_string(pid / 250 % 250 + 1) + "." +
+         std::to_string(pid % 250 + 1);
+}
+
 }  // namespace lifmcr::test

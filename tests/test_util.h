@@ -48,4 +48,10 @@ struct CommandResult {
 // Runs `lifmcr <args>` (args are passed to /bin/sh, quote them yourself).
 CommandResult RunLifmcr(const std::string& args);
 
+// An administratively scoped multicast group (239.<octet>.x.y) of this
+// process's own: two checkouts' suites running one test at once on one host
+// would otherwise receive each other's LCM messages. octet (1..254) keeps
+// tests apart from each other.
+std::string MulticastGroupOfThisProcess(int octet);
+
 }  // namespace lifmcr::test

@@ -39,10 +39,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// A group and port no other test uses, so no other test's route or logger
-// interferes.
-constexpr const char* kGroup = "239.255.76.71";
-constexpr const char* kUrl = "udpm://239.255.76.71:7731?ttl=0";
+// A group of this process's own and a port no other test uses, so no other
+// test's (or other checkout's run of this test's) route or logger interferes.
+const std::string kGroup = test::MulticastGroupOfThisProcess(71);
+const std::string kUrl = "udpm://" + kGroup + ":7731?ttl=0";
 constexpr int kFrames = 8;
 
 int Sh(const std::string& command) { return std::system((command + " >/dev/null 2>&1").c_str()); }
@@ -70,7 +70,7 @@ TEST(CliLiveRegistration, ReplayWithAReferenceMapPublishesAccurateExtrinsicsPerT
   // The logger on our own group, when we may route multicast over loopback.
   const bool multicast = getuid() == 0 && Sh("command -v lcm-logger") == 0 &&
                          Sh("ip link set lo multicast on") == 0;
-  const bool added_route = multicast && Sh(std::string("ip route add ") + kGroup + "/32 dev lo") == 0;
+  const bool added_route = multicast && Sh("ip route add " + kGroup + "/32 dev lo") == 0;
   const std::string log_path = (dir / "run.lcmlog").string();
   pid_t logger = -1;
   if (multicast) {
@@ -78,7 +78,7 @@ TEST(CliLiveRegistration, ReplayWithAReferenceMapPublishesAccurateExtrinsicsPerT
     ASSERT_GE(logger, 0);
     if (logger == 0) {
       std::freopen("/dev/null", "w", stdout);  // its once-a-second summary
-      execlp("lcm-logger", "lcm-logger", ("--lcm-url=" + std::string(kUrl)).c_str(),
+      execlp("lcm-logger", "lcm-logger", ("--lcm-url=" + kUrl).c_str(),
              "--channel=.*_EXTRINSICS", log_path.c_str(), nullptr);
       _exit(127);
     }
@@ -86,14 +86,14 @@ TEST(CliLiveRegistration, ReplayWithAReferenceMapPublishesAccurateExtrinsicsPerT
   }
   const fs::path csv = dir / "extrinsics.csv";
   const test::CommandResult replay = test::RunLifmcr(
-      "replay " + seq.string() + " --rate max --lcm " + (multicast ? kUrl : "memq://") +
+      "replay " + seq.string() + " --rate max --lcm " + (multicast ? kUrl : std::string("memq://")) +
       " --reference " + reference.string() + " --extrinsics-csv " + csv.string());
   if (multicast) {
     std::this_thread::sleep_for(std::chrono::milliseconds(700));
     kill(logger, SIGINT);
     int status = 0;
     waitpid(logger, &status, 0);
-    if (added_route) Sh(std::string("ip route del ") + kGroup + "/32 dev lo");
+    if (added_route) Sh("ip route del " + kGroup + "/32 dev lo");
   }
   ASSERT_EQ(replay.exit_code, 0) << replay.out << replay.err;
   EXPECT_NE(replay.out.find(std::to_string(kFrames) + " extrinsics"), std::string::npos)
