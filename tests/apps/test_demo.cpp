@@ -22,13 +22,22 @@
 #include <sstream>
 #include <thread>
 
+#include <unistd.h>
+
 namespace lifmcr {
 namespace {
 
 namespace fs = std::filesystem;
 const std::string kCam0 = "40398678", kCamX = "40398673";
-// A port of its own: no other test listens here.
-const std::string kLcmUrl = "udpm://239.255.76.67:7743?ttl=0";
+// A port no other test uses, and a multicast group of this process's own:
+// two runs of this test at once (two checkouts' ctest on one machine) would
+// otherwise each receive the other's extrinsics (seen: 40 messages for 20
+// triggers).
+std::string LcmUrl() {
+  const unsigned pid = static_cast<unsigned>(getpid());
+  return "udpm://239.255." + std::to_string(100 + pid % 100) + "." +
+         std::to_string(1 + pid / 100 % 250) + ":7743?ttl=0";
+}
 
 struct Extrinsics {
   std::mutex mutex;
@@ -56,8 +65,9 @@ TEST(Demo, WholeChainPublishesExtrinsicsAndEvaluatesThem) {
   const fs::path out = dir / "demo";
   constexpr int kFrames = 20;
 
-  lcm::LCM bus(kLcmUrl);
-  ASSERT_TRUE(bus.good()) << kLcmUrl;
+  const std::string lcm_url = LcmUrl();
+  lcm::LCM bus(lcm_url);
+  ASSERT_TRUE(bus.good()) << lcm_url;
   Extrinsics received;
   bus.subscribe(".*_EXTRINSICS", &Extrinsics::On, &received);
   std::atomic<bool> stop{false};
@@ -65,7 +75,7 @@ TEST(Demo, WholeChainPublishesExtrinsicsAndEvaluatesThem) {
     while (!stop) bus.handleTimeout(100);
   });
   const test::CommandResult r = test::RunLifmcr("demo --out " + out.string() + " --frames " +
-                                                std::to_string(kFrames) + " --lcm '" + kLcmUrl + "'");
+                                                std::to_string(kFrames) + " --lcm '" + lcm_url + "'");
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   stop = true;
   listener.join();
