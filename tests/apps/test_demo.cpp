@@ -22,8 +22,6 @@
 #include <sstream>
 #include <thread>
 
-#include <unistd.h>
-
 namespace lifmcr {
 namespace {
 
@@ -33,11 +31,7 @@ const std::string kCam0 = "40398678", kCamX = "40398673";
 // two runs of this test at once (two checkouts' ctest on one machine) would
 // otherwise each receive the other's extrinsics (seen: 40 messages for 20
 // triggers).
-std::string LcmUrl() {
-  const unsigned pid = static_cast<unsigned>(getpid());
-  return "udpm://239.255." + std::to_string(100 + pid % 100) + "." +
-         std::to_string(1 + pid / 100 % 250) + ":7743?ttl=0";
-}
+std::string LcmUrl() { return "udpm://" + test::MulticastGroupOfThisProcess(67) + ":7743?ttl=0"; }
 
 struct Extrinsics {
   std::mutex mutex;
