@@ -152,7 +152,16 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
   std::vector<int> ids;
   PatchTrackOptions patches = options_.patches;
   const std::int64_t ahead = trigger - state.last_trigger;
-  if (!state.has_previous || ahead > 2) {
+  // No velocity yet (the frame after a relocalisation): the camera may have
+  // moved the whole gap; two more levels and four times the shift (medium,
+  // every 3rd trigger: that frame tracked, 0.95 mm, where one more level
+  // and twice the shift followed 15 of 131 points). With a velocity only
+  // one more and twice: four times let the patches lock onto a wrong pose
+  // 57 mm from a good prediction (refused by the pose checks).
+  if (!state.has_previous) {
+    patches.levels = std::min(4, patches.levels + 2);
+    patches.max_shift_px *= 4;
+  } else if (ahead > 2) {
     patches.levels = std::min(4, patches.levels + 1);
     patches.max_shift_px *= 2;
   }
@@ -305,7 +314,7 @@ MapLocalizerStage::Outcome MapLocalizerStage::Relocalise(const processing::Camer
 std::shared_ptr<const MapLocalizerStage::Tracks> MapLocalizerStage::Retrack(
     const processing::CameraModel& camera, const processing::TfSampler& sampler,
     const ConstImageView& raw, const Pose& w0_from_cam,
-    const std::vector<std::pair<int, Eigen::Vector2d>>& kept) const {
+    const std::vector<std::pair<int, Eigen::Vector2d>>& kept, bool next_has_velocity) const {
   auto tracks = std::make_shared<Tracks>();
   const int cells = options_.track_cells;
   const int cap = (options_.max_tracks + cells * cells - 1) / (cells * cells);
@@ -314,9 +323,15 @@ std::shared_ptr<const MapLocalizerStage::Tracks> MapLocalizerStage::Retrack(
   const double w = sampler.tf_width(), h = sampler.tf_height(), margin = options_.track_margin_px;
   const Pose cam_from_w0 = w0_from_cam.inverse();
   std::vector<char> used(static_cast<std::size_t>(map_.size()), 0);
-  // One level more than tracking uses: Track's weak predictions need it.
+  // One level more than tracking uses: Track's weak predictions need it;
+  // two where they can be made when the next frame has no velocity (Track),
+  // else one (larger patches fail near the border and the vignetting: made
+  // for every track, they left the small rig's tracks bunched in the
+  // middle, 3 mm by frame 7).
   PatchTrackOptions template_options = options_.patches;
   template_options.levels = std::min(4, template_options.levels + 1);
+  PatchTrackOptions coarse_options = template_options;
+  coarse_options.levels = std::min(4, options_.patches.levels + (next_has_velocity ? 1 : 2));
   // Adds map point `point` seen at tf_px (virtual depth v) when its cell has room.
   const auto add = [&](int point, const Eigen::Vector2d& tf_px, double v) {
     if (used[point] || static_cast<int>(tracks->size()) >= options_.max_tracks) return;
@@ -330,7 +345,10 @@ std::shared_ptr<const MapLocalizerStage::Tracks> MapLocalizerStage::Retrack(
     if (in_cell[cell] >= cap || tried[cell] >= 4 * cap) return;
     ++tried[cell];
     TrackedPoint track{point, tf_px, {}};
-    if (!MakePatchTemplate(sampler, raw, tf_px, v, template_options, &track.patch)) return;
+    if (!MakePatchTemplate(sampler, raw, tf_px, v, coarse_options, &track.patch) &&
+        (coarse_options.levels == template_options.levels ||
+         !MakePatchTemplate(sampler, raw, tf_px, v, template_options, &track.patch)))
+      return;
     used[point] = 1;
     ++in_cell[cell];
     tracks->push_back(std::move(track));
@@ -418,7 +436,7 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     // tracks would all carry the relocalised pose's error: at medium 2.2 mm
     // against 1.7 mm, test_map_localizer); the other tracks start at their
     // map points' projections.
-    tracks = Retrack(camera, **sampler, frame.raw, r.w0_from_cam.pose, r.kept);
+    tracks = Retrack(camera, **sampler, frame.raw, r.w0_from_cam.pose, r.kept, state.has_pose);
     retrack_s = SecondsSince(retrack_start);
   }
 

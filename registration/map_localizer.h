@@ -18,10 +18,11 @@
 //                this frame), and map points the pose shows in image cells
 //                with too few tracks are added (their templates at their
 //                projection), up to max_tracks spread over the image.
-//                When the prediction is weak (no velocity yet, or more than
-//                two triggers ahead: frames skipped, a relocalisation that
-//                took long) one more pyramid level and twice the shift are
-//                allowed.
+//                When the prediction is weak more pyramid levels and a
+//                larger shift are allowed: two more levels and four times
+//                the shift with no velocity yet (the frame after a
+//                relocalisation), one more and twice when more than two
+//                triggers ahead (frames skipped).
 //   relocalise   otherwise, or when tracking fails: SIFT on a TF image (the
 //                chain's when the frame was processed, else the whole TF
 //                grid rendered at one virtual depth, TfSampler::RenderAtDepth,
@@ -163,11 +164,13 @@ class MapLocalizerStage final : public processing::RegistrationStage {
   Outcome Relocalise(const processing::CameraModel& camera, const processing::StageFrame& frame,
                      const processing::TfSampler* sampler, const CameraState& state) const;
   // Tracks for the next frame: `kept` (re-templated at their new positions)
-  // and map points in cells with room, from pose w0_from_cam.
+  // and map points in cells with room, from pose w0_from_cam; with
+  // !next_has_velocity their templates get the extra level Track needs then.
   std::shared_ptr<const Tracks> Retrack(const processing::CameraModel& camera,
                                         const processing::TfSampler& sampler,
                                         const ConstImageView& raw, const Pose& w0_from_cam,
-                                        const std::vector<std::pair<int, Eigen::Vector2d>>& kept) const;
+                                        const std::vector<std::pair<int, Eigen::Vector2d>>& kept,
+                                        bool next_has_velocity) const;
 
   MapIndex map_;
   double map_virtual_depth_ = 3.0;  // median v of the map's keypoints (relocalisation's TF)
