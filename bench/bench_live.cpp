@@ -6,20 +6,19 @@
 // looping) through `lifmcr replay --reference`'s path (RunReplay with
 // LiveRegistrationOptions): a reference map of camera 0 from the ground
 // truth (registration/ground_truth_map.h, written and read back as a map
-// folder), true intrinsics, depth and previews published on memq://. Four
+// folder), true intrinsics, depth and previews published on memq://. Three
 // runs of --seconds each:
 //   track        the localizer as it runs live: tracked when it has a pose,
 //                relocalised otherwise;
-//   track, depth on the workers too   the baseline of the depth lane's own
-//                thread (PipelineOptions::depth_lane_threads): the same with
-//                the workers joining depth maps' parallel loops;
 //   relocalise   the baseline: every frame relocalised (global matching and
 //                full LO-RANSAC), LocalizerOptions::track = false;
 //   depth only   no registration: what processing and publishing alone give.
 // Per run: extrinsics per second per camera X, frame -> extrinsics latency
 // (arrival of camera X's frame at the pipeline -> its c0_from_cx on LCM;
 // p50, p99), frames taken (localised; depth only: processed) and skipped
-// per second, previews and depth maps published per second (with a
+// per second (and frames in, of the 20 offered per second: the replay
+// cameras' losses, sync's and the pauses between passes of the loop make
+// the difference), previews and depth maps published per second (with a
 // registration stage the depth lane's, apps/pipeline/pipeline.h), and
 // Localize's mean time tracked vs relocalised. Ratios: track / relocalise
 // extrinsics rate and latency; depth maps published track / depth only
@@ -127,17 +126,11 @@ struct RunFigures {
   }
 };
 
-// kTrackSharedDepth: kTrack with the depth lane's arena open to the workers
-// (PipelineOptions::depth_lane_threads = the pipeline's threads; before
-// 2026-12-02 the only way).
-enum class Mode { kTrack, kTrackSharedDepth, kRelocalise, kDepthOnly };
+enum class Mode { kTrack, kRelocalise, kDepthOnly };
 
 RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_dir, Mode mode) {
   RunFigures f;
-  f.label = mode == Mode::kTrack              ? "track"
-            : mode == Mode::kTrackSharedDepth ? "track, depth on the workers too"
-            : mode == Mode::kRelocalise       ? "relocalise"
-                                              : "depth only";
+  f.label = mode == Mode::kTrack ? "track" : mode == Mode::kRelocalise ? "relocalise" : "depth only";
   lcm::LCM bus("memq://");
   std::mutex mutex;
   apps::ReplayRunOptions options;
@@ -150,8 +143,7 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
   if (mode != Mode::kDepthOnly) {
     apps::LiveRegistrationOptions live;
     live.reference_dir = map_dir;
-    live.localizer.track = mode != Mode::kRelocalise;
-    if (mode == Mode::kTrackSharedDepth) options.pipeline.depth_lane_threads = 1024;
+    live.localizer.track = mode == Mode::kTrack;
     options.registration = live;
     options.pipeline.on_extrinsics = [&](const apps::ExtrinsicsRecord& r) {
       const double ms = static_cast<double>(NowRealtimeNs() - r.arrival_ns) / 1e6;
@@ -265,8 +257,7 @@ int main(int argc, char** argv) {
               args.preset.c_str(), args.frames, args.seconds, args.concurrency,
               map->points.size(), std::thread::hardware_concurrency());
   std::vector<RunFigures> runs;
-  for (const Mode mode :
-       {Mode::kTrack, Mode::kTrackSharedDepth, Mode::kRelocalise, Mode::kDepthOnly}) {
+  for (const Mode mode : {Mode::kTrack, Mode::kRelocalise, Mode::kDepthOnly}) {
     runs.push_back(Run(args, sequence_dir, map_dir, mode));
     const RunFigures& f = runs.back();
     std::printf("%-10s extrinsics %.2f Hz per camera (%d messages), frame -> extrinsics p50 %.0f "
@@ -282,9 +273,7 @@ int main(int argc, char** argv) {
     if (!f.registration.empty()) std::printf("           %s", f.registration.c_str());
     std::fflush(stdout);
   }
-  const RunFigures &track = runs[0], &shared = runs[1], &relocalise = runs[2], &depth = runs[3];
-  std::printf("ratio: extrinsics rate depth lane on its own thread / on the workers too %.2f\n",
-              shared.HzPerCamera() > 0 ? track.HzPerCamera() / shared.HzPerCamera() : 0.0);
+  const RunFigures &track = runs[0], &relocalise = runs[1], &depth = runs[2];
   std::printf("ratios: extrinsics rate track / relocalise %.2f; latency p50 relocalise / track "
               "%.2f; depth maps published track / depth only %.2f\n",
               relocalise.HzPerCamera() > 0 ? track.HzPerCamera() / relocalise.HzPerCamera() : 0.0,

@@ -134,8 +134,6 @@ Status PipelineOptions::Check() const {
   if (stats_period.count() <= 0) return Error{"pipeline: stats_period: expected > 0"};
   if (processing_nice < 0 || processing_nice > 19)
     return Error{"pipeline: processing_nice: expected 0..19"};
-  if (depth_lane_threads < 1 || depth_lane_threads > 1024)
-    return Error{"pipeline: depth_lane_threads: expected 1..1024"};
   // skip_when_busy: any value; registration: null is the pass-through stage.
   if (Status s = publisher.Check(); !s) return s;
   return Status::Ok();
@@ -630,9 +628,13 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
     tbb::flow::make_edge(*raw->process_node, *raw->publish_node);
   });
   if (impl->lanes) {
-    impl->depth_arena = std::make_unique<tbb::task_arena>(
-        std::min(threads, options.depth_lane_threads), /*reserved_for_masters=*/1,
-        tbb::task_arena::priority::low);
+    // The lane's own thread alone (one slot, reserved for it): open to the
+    // workers too, a worker inside a depth map's parallel loop finished its
+    // chunk before it took the next frame to localise, and bench_live's
+    // runs with that arena ended twice in 2 in a crash (a segmentation
+    // fault, "pure virtual method called") at the end of the run.
+    impl->depth_arena = std::make_unique<tbb::task_arena>(1, /*reserved_for_masters=*/1,
+                                                          tbb::task_arena::priority::low);
     impl->depth_thread = std::thread([raw] { raw->DepthLoop(19); });
   }
   return std::unique_ptr<Pipeline>(new Pipeline(std::move(impl)));
