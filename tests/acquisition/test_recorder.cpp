@@ -218,8 +218,10 @@ TEST(Recorder, ALateCameraIsPlacedOnTheRigsTriggerCountByHostTime) {
   // Only A is triggered by the controller; the test triggers B from the 4th trigger on.
   RigController controller(std::move(setup.cameras), {true, false}, nullptr, setup.recorder.get(),
                            controller_options);
-  const auto start = std::chrono::steady_clock::now();
   ASSERT_TRUE(controller.Start().ok());
+  // The controller's schedule starts as Start returns (Start waits for its
+  // trigger threads to run).
+  const auto start = std::chrono::steady_clock::now();
   for (int k = 3; k < 8; ++k) {
     // 20 ms after the controller's k-th trigger: a frame arrives after its trigger.
     std::this_thread::sleep_until(start + milliseconds(200 * k + 20));
