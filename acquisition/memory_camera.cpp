@@ -66,25 +66,29 @@ Status MemoryCamera::Stop() {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     started_ = false;
-    pending_triggers_ = 0;
+    made_.clear();  // their buffers go back to the pool
   }
   triggered_.notify_all();
   return Status::Ok();
 }
 
 Status MemoryCamera::SoftwareTrigger() {
+  // The exposure's time is the trigger's, not when the lock below is had
+  // (a starved grab thread may hold it a while).
+  const std::int64_t exposed_ns = HostRealtimeNs();
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!started_) return Error{"memory camera " + options_.serial + ": trigger while stopped"};
     if (options_.free_run)
       return Error{"memory camera " + options_.serial + ": free-running, not in trigger mode"};
-    ++pending_triggers_;
+    if (std::optional<Frame> frame = Produce(pool_->Acquire(), exposed_ns))
+      made_.push_back(std::move(*frame));
   }
   triggered_.notify_one();
   return Status::Ok();
 }
 
-std::optional<Frame> MemoryCamera::Produce(BufferRef buffer) {
+std::optional<Frame> MemoryCamera::Produce(BufferRef buffer, std::int64_t host_ns) {
   const std::uint64_t id = next_id_;
   next_id_ = NextId16(next_id_);
   ++produced_;
@@ -95,8 +99,8 @@ std::optional<Frame> MemoryCamera::Produce(BufferRef buffer) {
   Frame frame;
   frame.serial = options_.serial;
   frame.frame_id = id;
-  frame.host_ns = HostRealtimeNs();
-  frame.device_ns = frame.host_ns;
+  frame.host_ns = host_ns;
+  frame.device_ns = host_ns;
   frame.status = FrameStatus::kOk;
   frame.image =
       ImageView{buffer->data, options_.width, options_.height, row_bytes_, options_.format};
@@ -113,12 +117,12 @@ Expected<std::optional<Frame>> MemoryCamera::NextFrame(std::chrono::milliseconds
   if (!open_) return Error{"memory camera " + options_.serial + ": NextFrame before Open"};
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   if (!options_.free_run) {
-    if (!triggered_.wait_until(lock, deadline,
-                               [&] { return pending_triggers_ > 0 || !started_; }) ||
+    if (!triggered_.wait_until(lock, deadline, [&] { return !made_.empty() || !started_; }) ||
         !started_)
       return std::optional<Frame>();
-    --pending_triggers_;
-    return Produce(pool_->Acquire());
+    Frame frame = std::move(made_.front());
+    made_.pop_front();
+    return std::optional<Frame>(std::move(frame));
   }
   if (!started_ || (options_.max_frames > 0 && produced_ >= options_.max_frames)) {
     lock.unlock();
@@ -146,7 +150,7 @@ Expected<std::optional<Frame>> MemoryCamera::NextFrame(std::chrono::milliseconds
     lock.lock();
     if (!buffer) return std::optional<Frame>();
   }
-  return Produce(std::move(buffer));
+  return Produce(std::move(buffer), HostRealtimeNs());
 }
 
 CameraInfo MemoryCamera::Info() const {

@@ -6,10 +6,15 @@
 //
 // Frames come on SoftwareTrigger (one frame per trigger) or, when
 // `frames_per_second` is set, free-running at that rate; 0 with free_run
-// means as fast as NextFrame is called. The device counter behaves like
-// GigE Vision 1: 16-bit, skipping 0, starting at `first_frame_id`. When the
-// pool is exhausted the frame is lost and counted as an underrun, and its id
-// is skipped, as a real camera's would be.
+// means as fast as NextFrame is called. A triggered frame is made at the
+// trigger, as a real camera exposes, stamps and fills a host buffer then:
+// SoftwareTrigger takes its buffer and stamps it, and NextFrame only hands
+// over frames already made, however late the grab thread asks (a starved
+// grab thread must not move a frame off the trigger's time, which the
+// FrameSet assembler places it by). The device counter behaves like GigE
+// Vision 1: 16-bit, skipping 0, starting at `first_frame_id`. When the pool
+// is exhausted the frame is lost and counted as an underrun, and its id is
+// skipped, as a real camera's would be.
 
 #include "drivers/camera.h"
 #include "drivers/frame_pool.h"
@@ -17,6 +22,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -56,9 +62,10 @@ class MemoryCamera : public Camera {
   static std::uint8_t PatternAt(int x, int y, int c);
 
  private:
-  // Makes one frame (called with mutex_ held) in `buffer`, or counts an
-  // underrun when it is null.
-  std::optional<Frame> Produce(BufferRef buffer);
+  // Makes one frame (called with mutex_ held) in `buffer`, stamped
+  // `host_ns` (device time too: the host's clock), or counts an underrun
+  // when it is null.
+  std::optional<Frame> Produce(BufferRef buffer, std::int64_t host_ns);
 
   MemoryCameraOptions options_;
   std::shared_ptr<FramePool> pool_;
@@ -67,7 +74,7 @@ class MemoryCamera : public Camera {
   std::condition_variable triggered_;
   bool open_ = false;
   bool started_ = false;
-  std::uint64_t pending_triggers_ = 0;
+  std::deque<Frame> made_;  // triggered frames not yet taken by NextFrame
   std::uint64_t produced_ = 0;
   std::uint64_t next_id_ = 0;
   std::chrono::steady_clock::time_point next_due_;

@@ -215,6 +215,29 @@ Status RigController::Start() {
                slots_.size(), vicon_ ? "on" : "off", options_.trigger_hz,
                options_.sync ? "on" : "off");
   start_time_ = last_health_ = std::chrono::steady_clock::now();
+  // The software trigger threads start here, raise their priority and wait
+  // for the schedule, set as Start returns once they all wait (at most a
+  // second). Created after it, a thread fired trigger 0 late on a loaded
+  // host (a new thread waits a scheduler slice before it first runs and can
+  // raise its priority; seen: trigger 0 28 to 174 ms late at 10 Hz beside
+  // CPU hogs, the later ticks on time), so that frame was off the grid of
+  // every later one (sync/trigger_tracker.h). Woken from the wait under
+  // their priority, they fire trigger 0 on time.
+  const bool fires_triggers = std::any_of(slots_.begin(), slots_.end(),
+                                          [](const auto& slot) { return slot->software_trigger; });
+  if (options_.trigger_hz > 0 && fires_triggers) {
+    {
+      std::lock_guard<std::mutex> lock(trigger_mutex_);
+      schedule_set_ = false;
+      trigger_threads_ready_ = 0;
+      ticks_begun_ = 0;
+    }
+    triggering_ = true;
+    for (std::size_t i = 0; i < slots_.size(); ++i) {
+      if (!slots_[i]->software_trigger) continue;
+      trigger_threads_.emplace_back([this, i] { TriggerLoop(static_cast<int>(i)); });
+    }
+  }
   grabbing_ = true;
   // Each camera's grab thread starts as soon as the camera is armed, so its
   // frames are taken (and stamped on arrival) while the next camera arms
@@ -223,6 +246,14 @@ Status RigController::Start() {
   // (sync/armed_start.h).
   for (std::size_t i = 0; i < slots_.size(); ++i) {
     if (Status s = slots_[i]->camera->Start(); !s) {
+      {
+        std::lock_guard<std::mutex> lock(trigger_mutex_);
+        triggering_ = false;
+        schedule_set_ = true;  // the threads wake, see no triggering and end
+      }
+      trigger_ready_.notify_all();
+      for (std::thread& thread : trigger_threads_) thread.join();
+      trigger_threads_.clear();
       grabbing_ = false;
       for (std::size_t j = 0; j < i; ++j) {
         slots_[j]->thread.join();
@@ -251,27 +282,25 @@ Status RigController::Start() {
     vicon_thread_ = std::thread([this] { ViconLoop(); });
   }
   // The trigger schedule exists only when this controller fires triggers:
-  // a hardware-triggered rig's first frames are not placed on it.
-  const bool fires_triggers = std::any_of(slots_.begin(), slots_.end(),
-                                          [](const auto& slot) { return slot->software_trigger; });
-  if (options_.trigger_hz > 0 && fires_triggers) {
-    triggering_ = true;
-    // The schedule starts as Start returns (callers time their own events
-    // from it); a trigger thread created late on a loaded host skips the
-    // ticks already past (counted).
+  // a hardware-triggered rig's first frames are not placed on it. It starts
+  // as Start returns (callers time their own events from it); a trigger
+  // thread woken late on a loaded host skips the ticks already past (counted).
+  if (!trigger_threads_.empty()) {
     {
-      std::lock_guard<std::mutex> lock(trigger_mutex_);
-      schedule_start_ = std::chrono::steady_clock::now();
-      schedule_set_ = true;
+      std::unique_lock<std::mutex> lock(trigger_mutex_);
+      trigger_ready_.wait_for(lock, std::chrono::seconds(1),
+                              [&] { return trigger_threads_ready_ == trigger_threads_.size(); });
     }
     {
       std::lock_guard<std::mutex> anchor(anchor_mutex_);
       trigger_schedule_host_ns_ = HostRealtimeNs();
     }
-    for (std::size_t i = 0; i < slots_.size(); ++i) {
-      if (!slots_[i]->software_trigger) continue;
-      trigger_threads_.emplace_back([this, i] { TriggerLoop(static_cast<int>(i)); });
+    {
+      std::lock_guard<std::mutex> lock(trigger_mutex_);
+      schedule_start_ = std::chrono::steady_clock::now();
+      schedule_set_ = true;
     }
+    trigger_ready_.notify_all();
   }
   return Status::Ok();
 }

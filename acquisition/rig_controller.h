@@ -308,7 +308,7 @@ class RigController {
   // Guards ticks_begun_, the stop of triggering_ and the schedule's start.
   std::mutex trigger_mutex_;
   std::uint64_t ticks_begun_ = 0;  // ticks any camera's trigger thread began firing
-  std::condition_variable trigger_ready_;
+  std::condition_variable trigger_ready_;  // a trigger thread waits; the schedule is set
   std::size_t trigger_threads_ready_ = 0;
   bool schedule_set_ = false;
   std::chrono::steady_clock::time_point schedule_start_;

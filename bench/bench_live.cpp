@@ -6,10 +6,13 @@
 // looping) through `lifmcr replay --reference`'s path (RunReplay with
 // LiveRegistrationOptions): a reference map of camera 0 from the ground
 // truth (registration/ground_truth_map.h, written and read back as a map
-// folder), true intrinsics, depth and previews published on memq://. Three
+// folder), true intrinsics, depth and previews published on memq://. Four
 // runs of --seconds each:
 //   track        the localizer as it runs live: tracked when it has a pose,
 //                relocalised otherwise;
+//   track, depth on the workers too   the baseline of the depth lane's own
+//                thread (PipelineOptions::depth_lane_threads): the same with
+//                the workers joining depth maps' parallel loops;
 //   relocalise   the baseline: every frame relocalised (global matching and
 //                full LO-RANSAC), LocalizerOptions::track = false;
 //   depth only   no registration: what processing and publishing alone give.
@@ -114,6 +117,7 @@ struct RunFigures {
   int extrinsics = 0;
   std::vector<double> latency_ms;
   std::uint64_t processed = 0, skipped = 0, previews = 0, depth = 0;
+  std::uint64_t frames_in = 0, underruns = 0, incomplete_sets = 0;
   std::string registration;
   double HzPerCamera() const {
     if (extrinsics_ok.empty() || window_s <= 0) return 0;
@@ -123,11 +127,17 @@ struct RunFigures {
   }
 };
 
-enum class Mode { kTrack, kRelocalise, kDepthOnly };
+// kTrackSharedDepth: kTrack with the depth lane's arena open to the workers
+// (PipelineOptions::depth_lane_threads = the pipeline's threads; before
+// 2026-12-02 the only way).
+enum class Mode { kTrack, kTrackSharedDepth, kRelocalise, kDepthOnly };
 
 RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_dir, Mode mode) {
   RunFigures f;
-  f.label = mode == Mode::kTrack ? "track" : mode == Mode::kRelocalise ? "relocalise" : "depth only";
+  f.label = mode == Mode::kTrack              ? "track"
+            : mode == Mode::kTrackSharedDepth ? "track, depth on the workers too"
+            : mode == Mode::kRelocalise       ? "relocalise"
+                                              : "depth only";
   lcm::LCM bus("memq://");
   std::mutex mutex;
   apps::ReplayRunOptions options;
@@ -140,7 +150,8 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
   if (mode != Mode::kDepthOnly) {
     apps::LiveRegistrationOptions live;
     live.reference_dir = map_dir;
-    live.localizer.track = mode == Mode::kTrack;
+    live.localizer.track = mode != Mode::kRelocalise;
+    if (mode == Mode::kTrackSharedDepth) options.pipeline.depth_lane_threads = 1024;
     options.registration = live;
     options.pipeline.on_extrinsics = [&](const apps::ExtrinsicsRecord& r) {
       const double ms = static_cast<double>(NowRealtimeNs() - r.arrival_ns) / 1e6;
@@ -178,6 +189,9 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
   f.skipped = result->report.skipped;
   f.previews = result->report.published_previews;
   f.depth = result->report.published_depth;
+  f.frames_in = result->report.frames_in;
+  f.underruns = result->camera_underruns;
+  f.incomplete_sets = result->report.incomplete_sets;
   f.registration = result->registration;
   return f;
 }
@@ -251,7 +265,8 @@ int main(int argc, char** argv) {
               args.preset.c_str(), args.frames, args.seconds, args.concurrency,
               map->points.size(), std::thread::hardware_concurrency());
   std::vector<RunFigures> runs;
-  for (const Mode mode : {Mode::kTrack, Mode::kRelocalise, Mode::kDepthOnly}) {
+  for (const Mode mode :
+       {Mode::kTrack, Mode::kTrackSharedDepth, Mode::kRelocalise, Mode::kDepthOnly}) {
     runs.push_back(Run(args, sequence_dir, map_dir, mode));
     const RunFigures& f = runs.back();
     std::printf("%-10s extrinsics %.2f Hz per camera (%d messages), frame -> extrinsics p50 %.0f "
@@ -260,10 +275,16 @@ int main(int argc, char** argv) {
                 f.label.c_str(), f.HzPerCamera(), f.extrinsics, Percentile(f.latency_ms, 0.5),
                 Percentile(f.latency_ms, 0.99), f.processed / f.elapsed_s, f.skipped / f.elapsed_s,
                 f.previews / f.elapsed_s, f.depth / f.elapsed_s, f.elapsed_s);
+    std::printf("           frames in %.2f/s (of 20 offered), lost by the replay cameras %.2f/s, "
+                "incomplete sets %.2f/s\n",
+                f.frames_in / f.elapsed_s, f.underruns / f.elapsed_s,
+                f.incomplete_sets / f.elapsed_s);
     if (!f.registration.empty()) std::printf("           %s", f.registration.c_str());
     std::fflush(stdout);
   }
-  const RunFigures &track = runs[0], &relocalise = runs[1], &depth = runs[2];
+  const RunFigures &track = runs[0], &shared = runs[1], &relocalise = runs[2], &depth = runs[3];
+  std::printf("ratio: extrinsics rate depth lane on its own thread / on the workers too %.2f\n",
+              shared.HzPerCamera() > 0 ? track.HzPerCamera() / shared.HzPerCamera() : 0.0);
   std::printf("ratios: extrinsics rate track / relocalise %.2f; latency p50 relocalise / track "
               "%.2f; depth maps published track / depth only %.2f\n",
               relocalise.HzPerCamera() > 0 ? track.HzPerCamera() / relocalise.HzPerCamera() : 0.0,

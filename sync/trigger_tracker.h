@@ -13,6 +13,18 @@
 // by the caller (FrameSetAssembler: from the host time of the rig's first
 // trigger).
 //
+// The reference itself can be off the grid the later triggers follow: a
+// software trigger thread that starts late on a loaded host fires trigger 0
+// late and the rest on schedule (seen: trigger 0 28 ms late at 10 Hz under
+// CPU hogs, every later frame then 0.72 periods from it and none placed).
+// So an off-grid frame becomes a candidate reference, its trigger taken from
+// the frame counter (previous_index + counted, when counted is one of the two
+// triggers either side of it); when the next frame is also off the reference's
+// grid but on the candidate's, with the counter agreeing (counted == steps),
+// two frames outvote one: the candidate becomes the reference and the frame
+// is associated (Association::reanchored). The candidate frame itself stays
+// off-grid (already reported).
+//
 // The device frame counter (16-bit on GigE Vision 1, wrapping and skipping 0;
 // the fake camera starts at 65400 on purpose) counts frames the camera
 // produced. Between two associated frames `triggers = index - previous` and
@@ -59,6 +71,8 @@ struct Association {
   std::int64_t lost_after_exposure = 0;  // of them, frames the counter shows were produced
   std::int64_t not_exposed = 0;          // of them, triggers the camera never exposed
   bool counter_mismatch = false;         // the counter advanced more than the triggers
+  bool reanchored =
+      false;  // placed from the off-grid frame before it (see above), not the reference
 };
 
 class TriggerTracker {
@@ -83,8 +97,14 @@ class TriggerTracker {
     std::uint64_t frame_id;
     std::int64_t device_ns;
   };
+  // Counter bookkeeping between two associated frames `step` triggers apart.
+  void Count(const Previous& from, std::uint64_t frame_id, std::int64_t step,
+             Association& result) const;
+  bool CounterUsable(std::int64_t step) const;
+
   TriggerTrackerOptions options_;
   std::optional<Previous> previous_;
+  std::optional<Previous> candidate_;  // the last frame, off the reference's grid
 };
 
 }  // namespace lifmcr

@@ -78,6 +78,13 @@ struct PipelineOptions {
   // threads: on a saturated 2-core host a Vicon packet otherwise waits
   // milliseconds for a core.
   int processing_nice = 10;
+  // With a registration stage under newest_wins (the depth lane): how many
+  // threads compute a depth map (1..1024, at most `threads` are used). 1:
+  // the lane's own thread at nice 19 alone, so the workers only localise;
+  // more: workers join a depth map's parallel loops in the lane's
+  // low-priority arena, and a worker inside one finishes its chunk before it
+  // takes the next frame to localise (bench_live --depth-threads).
+  int depth_lane_threads = 1;
   // The stage after processing; null: processing::PassThroughStage.
   std::shared_ptr<processing::RegistrationStage> registration;
   // Camera 0 of the extrinsics (the reference map's camera), by serial;

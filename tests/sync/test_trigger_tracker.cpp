@@ -46,6 +46,40 @@ TEST(TriggerTracker, VerdictsForFramesOffTheGrid) {
   EXPECT_EQ(ToString(FrameVerdict::kOffGrid), "off the trigger grid");
 }
 
+// A software trigger thread started late on a loaded host: trigger 0 fired
+// 28.5 ms late, the rest on schedule (seen in the recorder test under CPU
+// hogs: every later frame 0.715 periods from the first and none placed). The
+// next two frames, on one grid and counted one apart, outvote the first:
+// trigger 1's frame stays off the grid, trigger 2's on is placed.
+TEST(TriggerTracker, AReferenceOffTheLaterTriggersGridIsReplacedByTheNextTwoFrames) {
+  TriggerTracker tracker;
+  tracker.Anchor(0, 65400, 1'028'500'000);
+  Association a = tracker.Add(65401, 1'100'000'000);
+  EXPECT_EQ(a.verdict, FrameVerdict::kOffGrid);
+  for (std::int64_t k = 2; k <= 5; ++k) {
+    a = tracker.Add(65400 + static_cast<std::uint64_t>(k), 1'000'000'000 + k * 100'000'000);
+    EXPECT_EQ(a.verdict, FrameVerdict::kAssociated) << "trigger " << k;
+    EXPECT_EQ(a.trigger_index, k);
+    EXPECT_EQ(a.reanchored, k == 2);
+    EXPECT_EQ(a.triggers_skipped, 0);
+    EXPECT_FALSE(a.counter_mismatch);
+  }
+  // Not when the counter disagrees: two frames a period apart whose counter
+  // says 3 are not one trigger apart.
+  TriggerTracker disagree;
+  disagree.Anchor(0, 100, 1'028'500'000);
+  EXPECT_EQ(disagree.Add(101, 1'100'000'000).verdict, FrameVerdict::kOffGrid);
+  EXPECT_EQ(disagree.Add(104, 1'200'000'000).verdict, FrameVerdict::kOffGrid);
+  // Nor on one off-grid frame between two on the reference's grid (a spurious frame).
+  TriggerTracker spurious;
+  spurious.Anchor(0, 100, 1'000'000'000);
+  EXPECT_EQ(spurious.Add(101, 1'150'000'000).verdict, FrameVerdict::kOffGrid);
+  a = spurious.Add(102, 1'200'000'000);
+  EXPECT_EQ(a.verdict, FrameVerdict::kAssociated);
+  EXPECT_EQ(a.trigger_index, 2);
+  EXPECT_FALSE(a.reanchored);
+}
+
 // Property: on generated streams every delivered on-grid frame gets its true
 // trigger, spurious frames get none, and (without a spurious frame in
 // between) the counter splits the skipped triggers exactly into
