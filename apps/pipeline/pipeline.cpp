@@ -630,9 +630,9 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
   if (impl->lanes) {
     // The lane's own thread alone (one slot, reserved for it): open to the
     // workers too, a worker inside a depth map's parallel loop finished its
-    // chunk before it took the next frame to localise, and bench_live's
-    // runs with that arena ended twice in 2 in a crash (a segmentation
-    // fault, "pure virtual method called") at the end of the run.
+    // chunk before it took the next frame to localise, and two of four
+    // medium bench_live runs with that arena crashed at the run's end (a
+    // segmentation fault, "pure virtual method called"; not understood).
     impl->depth_arena = std::make_unique<tbb::task_arena>(1, /*reserved_for_masters=*/1,
                                                           tbb::task_arena::priority::low);
     impl->depth_thread = std::thread([raw] { raw->DepthLoop(19); });
