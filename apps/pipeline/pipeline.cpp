@@ -225,10 +225,10 @@ struct Pipeline::Impl {
   bool depth_busy = false, depth_stop = false;
   std::unique_ptr<tbb::task_arena> depth_arena;  // low priority: the workers localise first
   // The depth lane's put into the graph and WaitIdle's wait for the graph,
-  // one at a time: a pass's end no longer waits for the lane (WaitIdle), and
-  // a put from outside the graph during its wait_for_all is what that
-  // allowed (one bench_live run at medium ended in "pure virtual method
-  // called" without this; oneTBB documents no such concurrency as safe).
+  // one at a time: a pass's end no longer waits for the lane (WaitIdle), so
+  // a put from outside the graph could come during its wait_for_all, which
+  // oneTBB does not document as safe (a precaution: it did not stop the
+  // crashes of the depth arena open to the workers, below).
   std::mutex graph_put_mutex;
   std::thread depth_thread;
 
