@@ -14,10 +14,15 @@
 //                (registration/patch_tracker.h, processing/tf_sampler.h):
 //                no depth map, no whole TF image, no SIFT; PnP on those
 //                positions (few trials: the inlier ratio is high). The
-//                inliers keep being tracked (their templates re-made in
-//                this frame), and map points the pose shows in image cells
-//                with too few tracks are added (their templates at their
-//                projection), up to max_tracks spread over the image.
+//                inliers keep being tracked, each against the template it
+//                began with (a fixed reference: re-made where it was found
+//                each frame, every frame's tracking error was added to the
+//                last), and map points the pose shows in image cells with
+//                too few tracks are added (their templates at their
+//                projection), up to max_tracks spread over the image. When
+//                fewer than min_anchored_fraction of the inliers began in a
+//                relocalised frame, the next frame is relocalised
+//                (re-anchoring; tracked again when that fails).
 //                When the prediction is weak more pyramid levels and a
 //                larger shift are allowed: two more levels and four times
 //                the shift with no velocity yet (the frame after a
@@ -30,8 +35,8 @@
 //                the predicted median of the map points when the camera had
 //                a pose, else the map's median), global matching against
 //                every map point (ratio and cross check, kd-tree) and full
-//                LO-RANSAC PnP; the tracks are seeded at the inliers'
-//                keypoints, the rest at projections from the pose. A
+//                LO-RANSAC PnP; the tracks begin at their map points'
+//                projections from the pose, the inliers first. A
 //                frame of a camera that another worker is relocalising is
 //                not localised (Counts::skipped; its pose says so in its
 //                status, localisation "skipped", and is published like a
@@ -181,8 +186,8 @@ class MapLocalizerStage final : public processing::RegistrationStage {
   Outcome Relocalise(const processing::CameraModel& camera, const processing::StageFrame& frame,
                      const processing::TfSampler* sampler, const CameraState& state) const;
   // Tracks for the next frame: `kept` (their templates kept when they have
-  // one, else made at their positions in this frame) and map points in cells
-  // with room, from pose w0_from_cam (anchored when `relocalised`); with
+  // one, else made at their projections from w0_from_cam) and map points in
+  // cells with room, from pose w0_from_cam (anchored when `relocalised`); with
   // !next_has_velocity new templates get the extra level Track needs then.
   std::shared_ptr<const Tracks> Retrack(const processing::CameraModel& camera,
                                         const processing::TfSampler& sampler,
