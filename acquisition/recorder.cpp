@@ -39,6 +39,7 @@ RecorderOptions RecorderOptions::FromRig(const RecorderConfig& config) {
   options.queue_frames = config.queue_frames;
   options.writer_threads = config.writer_threads;
   options.direct_io = config.direct_io;
+  options.direct_io_min_bytes = std::int64_t{config.direct_io_min_kb} * 1024;
   options.max_memory_bytes = config.max_memory_mb * 1024 * 1024;
   return options;
 }
@@ -57,6 +58,9 @@ Status RecorderOptions::Check() const {
   if (writer_threads < 1 || writer_threads > 64)
     return Error{"recorder: writer_threads must be 1..64, got " + std::to_string(writer_threads)};
   if (max_memory_bytes < 0) return Error{"recorder: max_memory must be >= 0"};
+  if (direct_io_min_bytes < 0)
+    return Error{"recorder: direct_io_min_bytes must be >= 0, got " +
+                 std::to_string(direct_io_min_bytes)};
   return Status::Ok();
 }
 
@@ -84,10 +88,13 @@ std::string RecorderStats::OneLine() const {
       << FramesLost() << " (queue full " << full << ", write error " << write_error
       << ", after stop " << stopped << "), Vicon " << vicon_written << " lines written, "
       << vicon_lost << " lost; disk path: ";
+  const std::uint64_t refused_or_off = buffered_files - small_buffered_files;
   if (direct_files > 0 && buffered_files > 0)
     out << "O_DIRECT " << direct_files << " files, buffered " << buffered_files;
-  else if (buffered_files > 0)
+  else if (refused_or_off > 0)
     out << "buffered (O_DIRECT refused or off)";
+  else if (buffered_files > 0)
+    out << "page cache (frames under the O_DIRECT minimum size)";
   else
     out << "O_DIRECT";
   if (stop_reason) out << "; stopped: " << *stop_reason;
@@ -219,8 +226,11 @@ void Recorder::WriterLoop() {
     const fs::path path =
         layout::RawFramePath(sequence_dir_, serials_[item.camera_index], item.frame_number);
     int error_number = 0;
+    const auto image_bytes = static_cast<std::int64_t>(item.frame.image.stride_bytes) *
+                             static_cast<std::int64_t>(item.frame.image.height);
+    const bool small = image_bytes < options_.direct_io_min_bytes;
     Expected<RawFrameWriteResult> result =
-        WriteRawFrame(path, item.frame, options_.direct_io, &error_number);
+        WriteRawFrame(path, item.frame, options_.direct_io && !small, &error_number);
     item.frame = Frame{};  // the buffer goes back to its pool before the lock
     std::lock_guard<std::mutex> lock(mutex_);
     backlog_bytes_ -= bytes;
@@ -233,6 +243,8 @@ void Recorder::WriterLoop() {
         stats.first_frame = item.frame_number;
       stats.last_frame = std::max(stats.last_frame, item.frame_number);
       ++(result->path == WritePath::kDirect ? direct_files_ : buffered_files_);
+      if (result->path == WritePath::kBuffered && options_.direct_io && small)
+        ++small_buffered_files_;
     } else {
       ++stats.lost_write_error;
       Fail((IsDiskFull(error_number) ? "disk full: " : "write error: ") + result.error().message);
@@ -287,6 +299,7 @@ RecorderStats Recorder::Stats() const {
       stats.cameras[c].queue_depth = queues_[c].size();
     stats.direct_files = direct_files_;
     stats.buffered_files = buffered_files_;
+    stats.small_buffered_files = small_buffered_files_;
     stats.backlog_bytes = backlog_bytes_;
     stats.backlog_frames = backlog_frames_;
     stats.stop_reason = stop_reason_;

@@ -47,6 +47,7 @@ struct CalibrateOptions {
   bool tangential_distortion = false;
   int match_window = registration::CalibrationOptions{}.match_window;
   int min_map_observations = registration::CalibrationOptions{}.min_map_observations;
+  double min_map_angle_deg = registration::CalibrationOptions{}.min_map_angle_deg;
   bool no_covariance = false;
   double plate_weight = registration::CalibrationOptions{}.plate_weight;
   double principal_point_prior_px = registration::CalibrationOptions{}.principal_point_prior_px;
@@ -175,6 +176,7 @@ int RunCalibrate(const CalibrateOptions& o) {
   options.estimate_tangential_distortion = o.tangential_distortion;
   options.match_window = o.match_window;
   options.min_map_observations = o.min_map_observations;
+  options.min_map_angle_deg = o.min_map_angle_deg;
   options.covariance = !o.no_covariance;
   options.plate_weight = o.plate_weight;
   options.principal_point_prior_px = o.principal_point_prior_px;
@@ -276,6 +278,10 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
   app.add_option("--min-map-observations", o->min_map_observations,
                  "Frames that must see a point for it to enter the reference map")
       ->check(CLI::Range(2, 1000));
+  app.add_option("--min-map-angle", o->min_map_angle_deg,
+                 "Degrees at which the rays of the frames that see a point must meet for it to "
+                 "enter the reference map")
+      ->check(CLI::Range(0.0, 89.9));
   app.add_option("--match-window", o->match_window,
                  "Match each frame against the points of this many placed frames before it")
       ->check(CLI::PositiveNumber);

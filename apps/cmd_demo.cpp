@@ -189,9 +189,9 @@ int RunDemo(const Args& args) {
                 SpreadFrames(args.frames, calibration_frames), "--max-features",
                 std::to_string(args.max_features), "--fix-principal-point", "--fix-distortion",
                 // Every point seen twice: the few small frames' map is what
-                // live tracking follows (calibrate's default keeps points of
-                // three frames, about a third of them here).
-                "--min-map-observations", "2", "--ground-truth"});
+                // live tracking follows (calibrate's default also asks rays
+                // 5 degrees apart, which few small views from 1.8 m give).
+                "--min-map-observations", "2", "--min-map-angle", "0", "--ground-truth"});
   if (calibrate_code == 3)
     std::cerr << "lifmcr demo: the calibration is flagged (calibrate/calibration_report.md says "
                  "why); going on with it\n";

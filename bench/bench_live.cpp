@@ -16,7 +16,9 @@
 // Per run: extrinsics per second per camera X, frame -> extrinsics latency
 // (arrival of camera X's frame at the pipeline -> its c0_from_cx on LCM;
 // p50, p99), frames taken (localised; depth only: processed) and skipped
-// per second, previews and depth maps published per second (with a
+// per second (and frames in, of the 20 offered per second: the replay
+// cameras' losses, sync's and the pauses between passes of the loop make
+// the difference), previews and depth maps published per second (with a
 // registration stage the depth lane's, apps/pipeline/pipeline.h), and
 // Localize's mean time tracked vs relocalised. Ratios: track / relocalise
 // extrinsics rate and latency; depth maps published track / depth only
@@ -114,6 +116,7 @@ struct RunFigures {
   int extrinsics = 0;
   std::vector<double> latency_ms;
   std::uint64_t processed = 0, skipped = 0, previews = 0, depth = 0;
+  std::uint64_t frames_in = 0, underruns = 0, incomplete_sets = 0;
   std::string registration;
   double HzPerCamera() const {
     if (extrinsics_ok.empty() || window_s <= 0) return 0;
@@ -178,6 +181,9 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
   f.skipped = result->report.skipped;
   f.previews = result->report.published_previews;
   f.depth = result->report.published_depth;
+  f.frames_in = result->report.frames_in;
+  f.underruns = result->camera_underruns;
+  f.incomplete_sets = result->report.incomplete_sets;
   f.registration = result->registration;
   return f;
 }
@@ -260,6 +266,10 @@ int main(int argc, char** argv) {
                 f.label.c_str(), f.HzPerCamera(), f.extrinsics, Percentile(f.latency_ms, 0.5),
                 Percentile(f.latency_ms, 0.99), f.processed / f.elapsed_s, f.skipped / f.elapsed_s,
                 f.previews / f.elapsed_s, f.depth / f.elapsed_s, f.elapsed_s);
+    std::printf("           frames in %.2f/s (of 20 offered), lost by the replay cameras %.2f/s, "
+                "incomplete sets %.2f/s\n",
+                f.frames_in / f.elapsed_s, f.underruns / f.elapsed_s,
+                f.incomplete_sets / f.elapsed_s);
     if (!f.registration.empty()) std::printf("           %s", f.registration.c_str());
     std::fflush(stdout);
   }

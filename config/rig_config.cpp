@@ -276,6 +276,10 @@ std::optional<ConfigIssue> CheckRecorder(const RecorderConfig& recorder) {
   if (recorder.writer_threads < 1 || recorder.writer_threads > 64)
     return ConfigIssue{"/recorder/writer_threads",
                        "expected 1..64 threads, got " + std::to_string(recorder.writer_threads)};
+  if (recorder.direct_io_min_kb < 0 || recorder.direct_io_min_kb > (1 << 22))
+    return ConfigIssue{"/recorder/direct_io_min_kb",
+                       "expected 0..4194304 KiB (0: O_DIRECT for every frame), got " +
+                           std::to_string(recorder.direct_io_min_kb)};
   if (recorder.max_memory_mb < 0)
     return ConfigIssue{"/recorder/max_memory_mb", "expected 0 (no cap) or a size in MiB > 0, got " +
                                                       std::to_string(recorder.max_memory_mb)};
@@ -558,6 +562,7 @@ Expected<RigConfig> ParseRigConfig(std::string_view yaml, const fs::path& base_d
     section->Read("queue_frames", &rig.recorder.queue_frames, kOptional);
     section->Read("writer_threads", &rig.recorder.writer_threads, kOptional);
     section->Read("direct_io", &rig.recorder.direct_io, kOptional);
+    section->Read("direct_io_min_kb", &rig.recorder.direct_io_min_kb, kOptional);
     section->Read("max_memory_mb", &rig.recorder.max_memory_mb, kOptional);
     section->Finish();
   }
@@ -650,6 +655,7 @@ std::string FormatRigConfig(const RigConfig& rig) {
   out << "  queue_frames: " << recorder.queue_frames << "\n";
   out << "  writer_threads: " << recorder.writer_threads << "\n";
   out << "  direct_io: " << Yb(recorder.direct_io) << "\n";
+  out << "  direct_io_min_kb: " << recorder.direct_io_min_kb << "\n";
   out << "  max_memory_mb: " << recorder.max_memory_mb << "\n";
   const ProcessingConfig& processing = rig.processing;
   out << "processing:\n  enabled: " << Yb(processing.enabled) << "\n";

@@ -151,6 +151,7 @@ struct RecorderConfig {
   int queue_frames = 16;           // frames buffered per camera, >= 1
   int writer_threads = 1;          // 1..64
   bool direct_io = true;           // O_DIRECT writes (no page-cache copy)
+  int direct_io_min_kb = 1024;     // frames smaller than this go through the page cache
   std::int64_t max_memory_mb = 0;  // cap on buffered frames, MiB; 0 = queue_frames alone
   bool operator==(const RecorderConfig&) const = default;
 };

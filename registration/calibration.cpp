@@ -263,6 +263,20 @@ Eigen::Vector2d TfPinholePx(const IntrinsicsVector& k, const processing::CameraM
   return (raw - Eigen::Vector2d(0.5, 0.5)) / 2.0;
 }
 
+// The largest angle (degrees) at the point between the rays from the
+// centres of the frames whose observations of the track were kept.
+double TriangulationAngleDeg(const Track& track, const std::vector<int>& kept,
+                             const std::vector<PoseBlock>& poses) {
+  std::vector<Eigen::Vector3d> rays;
+  for (const int o : kept)
+    rays.push_back((FromBlock(poses[track.observations[o].frame]).translation() - track.p_in_w_mm)
+                       .normalized());
+  double min_cos = 1;
+  for (std::size_t a = 0; a < rays.size(); ++a)
+    for (std::size_t b = a + 1; b < rays.size(); ++b) min_cos = std::min(min_cos, rays[a].dot(rays[b]));
+  return std::acos(std::clamp(min_cos, -1.0, 1.0)) * 180 / M_PI;
+}
+
 }  // namespace
 
 Status CalibrationOptions::Check() const {
@@ -282,6 +296,8 @@ Status CalibrationOptions::Check() const {
     return fail("principal_point_prior_px: expected >= 0 (0: no prior)");
   if (max_lenses < 2) return fail("max_lenses: expected >= 2");
   if (min_map_observations < 2) return fail("min_map_observations: expected >= 2");
+  if (!(min_map_angle_deg >= 0 && min_map_angle_deg < 90))
+    return fail("min_map_angle_deg: expected in [0, 90)");
   if (max_iterations < 1) return fail("max_iterations: expected >= 1");
   if (threads < 1) return fail("threads: expected >= 1");
   return Status::Ok();
@@ -768,6 +784,7 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
   for (int t = 0; t < static_cast<int>(map.tracks.size()); ++t) {
     if (static_cast<int>(kept[t].size()) < options.min_map_observations) continue;
     const Track& track = map.tracks[t];
+    if (TriangulationAngleDeg(track, kept[t], poses) < options.min_map_angle_deg) continue;
     MapPoint point;
     point.id = static_cast<std::int64_t>(out.points.size()) + 1;
     point.p_in_w0_mm = track.p_in_w_mm;

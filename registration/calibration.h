@@ -78,12 +78,18 @@ struct CalibrationOptions {
   double outlier_px = 1.5;          // observations above max(this, 3 x median) RMS residual are dropped
   double plate_weight = 5.0;        // plate corner residuals count this much more (the metric anchor)
   // A point enters the reference map when this many frames kept their
-  // observation of it (all points with two take part in the solve). Points
-  // of two frames rest mostly on the plenoptic depth (0.2 % of v per
-  // keypoint, a few mm at table distance): on 40 `medium` frames their median
-  // error was 1.63 mm against 0.95 mm (three frames) and 0.70 mm (four or
-  // more), and they were 56 % of the points.
-  int min_map_observations = 3;
+  // observation of it (all points with two take part in the solve), and the
+  // rays from those frames meet at min_map_angle_deg or more (the largest
+  // angle over pairs of frames). A point's error lies along its rays: its
+  // depth is triangulated to about (lateral error) / sin(angle), and where
+  // the angle is small it rests on the plenoptic depth instead (0.2 % of v
+  // per keypoint, a few mm at table distance). Medians on 40 `medium` frames
+  // (docs/calibration.md): orbit 1.89 mm over all points of two frames or
+  // more, 1.14 mm with three frames, 0.84 mm with 5 degrees (3790 points);
+  // smooth 1.22, 0.80 and 0.72 mm (4548 points). `lifmcr demo` keeps every
+  // point of two frames (its few `small` views meet at small angles).
+  int min_map_observations = 2;
+  double min_map_angle_deg = 5;
   int max_lenses = 12;              // micro images per observation (the most central)
   int max_iterations = 100;         // Ceres iterations per solve (twice that for the last)
   bool recalibrate = false;         // hold f_L and B fixed (LiFCal recalib)

@@ -7,7 +7,7 @@
 //
 // Map points: the true position of a point is that of its first
 // observation: the keypoint's TF pixel with the true depth there (the
-// ground-truth depth map, nearest TF pixel), back-projected with the true
+// ground-truth depth map, bilinear within one surface), back-projected with the true
 // intrinsics and placed with the true pose. The keypoint's pixel and virtual
 // depth are in the geometry of the frame's processing (the calibration's
 // frames_lambda and principal point, see PlateCornerBias below): they are

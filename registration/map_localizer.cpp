@@ -19,8 +19,10 @@ struct MapLocalizerStage::Outcome {
   PoseWithCovariance w0_from_cam;
   int inliers = 0;
   double rmse_px = 0;
-  // The inliers: map point (MapIndex order) and TF position in this frame.
-  std::vector<std::pair<int, Eigen::Vector2d>> kept;
+  // The inliers: map point (MapIndex order), TF position in this frame and,
+  // when tracked, the template they were tracked against.
+  std::vector<TrackedPoint> kept;
+  int anchored_inliers = 0;  // of the kept, TrackedPoint::anchored
   // Relocalisation's stages (s); zero when not relocalised.
   double render_s = 0, sift_s = 0, match_s = 0, pnp_s = 0;
   int matches = 0, fundamental_outliers = 0;
@@ -70,6 +72,8 @@ Status LocalizerOptions::Check() const {
   if (relocalise_step < 1 || relocalise_step > 4)
     return Error{"localizer options: relocalise_step: expected 1..4"};
   if (!(track_margin_px >= 0)) return Error{"localizer options: track_margin_px: expected >= 0"};
+  if (!(min_anchored_fraction >= 0 && min_anchored_fraction <= 1))
+    return Error{"localizer options: min_anchored_fraction: expected in [0, 1]"};
   return Status::Ok();
 }
 
@@ -125,10 +129,10 @@ std::string MapLocalizerStage::Counts::StageReport() const {
   const double n = relocalise_attempts > 0 ? static_cast<double>(relocalise_attempts) : 1.0;
   char line[384];
   std::snprintf(line, sizeof line,
-                "relocalisations %lld, per attempt: render %.0f ms, SIFT %.0f ms, matching %.0f "
+                "relocalisations %lld (%lld to re-anchor tracking), per attempt: render %.0f ms, SIFT %.0f ms, matching %.0f "
                 "ms, PnP %.0f ms, seeding tracks %.0f ms; %.0f matches, %.0f inliers (%.0f %%), "
                 "%.1f removed by the fundamental filter",
-                relocalise_attempts, 1e3 * render_s / n, 1e3 * sift_s / n, 1e3 * match_s / n,
+                relocalise_attempts, reanchored, 1e3 * render_s / n, 1e3 * sift_s / n, 1e3 * match_s / n,
                 1e3 * pnp_s / n, 1e3 * retrack_s / n, relocalise_matches / n,
                 relocalise_inliers / n,
                 relocalise_matches > 0 ? 100.0 * relocalise_inliers / relocalise_matches : 0.0,
@@ -149,7 +153,7 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
   std::vector<Eigen::Vector3d> points;
   std::vector<Eigen::Vector2d> tf;
   std::vector<double> v;
-  std::vector<int> ids;
+  std::vector<const TrackedPoint*> followed;
   PatchTrackOptions patches = options_.patches;
   const std::int64_t ahead = trigger - state.last_trigger;
   // No velocity yet (the frame after a relocalisation): the camera may have
@@ -170,12 +174,12 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
     double vp = 0;
     if (!ProjectPoint(camera, cam_from_w0, map_.points_in_w0[track.point], &predicted_tf, &vp))
       continue;
-    const PatchTrack r = TrackPatch(sampler, raw, track.patch, predicted_tf, vp, patches);
+    const PatchTrack r = TrackPatch(sampler, raw, *track.patch, predicted_tf, vp, patches);
     if (!r.ok) continue;
     points.push_back(map_.points_in_w0[track.point]);
     tf.push_back(r.tf_px);
     v.push_back(vp);
-    ids.push_back(track.point);
+    followed.push_back(&track);
   }
   if (points.size() < static_cast<std::size_t>(options_.min_tracked)) {
     out.status = "tracking: " + std::to_string(points.size()) + " of " +
@@ -194,9 +198,10 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
   }
   out.w0_from_cam = Inverse(PoseWithCovariance{r.cam_from_world, r.covariance});
   std::vector<Eigen::Vector2d> inlier_tf;
-  for (std::size_t i = 0; i < ids.size(); ++i) {
+  for (std::size_t i = 0; i < followed.size(); ++i) {
     if (!r.inlier_mask[i]) continue;
-    out.kept.emplace_back(ids[i], tf[i]);
+    out.kept.push_back({followed[i]->point, tf[i], followed[i]->patch, followed[i]->anchored});
+    if (followed[i]->anchored) ++out.anchored_inliers;
     inlier_tf.push_back(tf[i]);
   }
   PoseEvidence evidence;
@@ -297,7 +302,8 @@ MapLocalizerStage::Outcome MapLocalizerStage::Relocalise(const processing::Camer
   }
   out.w0_from_cam = r.w0_from_cam;
   for (std::size_t i = 0; i < r.inlier_points.size(); ++i)
-    out.kept.emplace_back(r.inlier_points[i], r.inlier_tf_px[i]);
+    out.kept.push_back({r.inlier_points[i], r.inlier_tf_px[i], nullptr, true});
+  out.anchored_inliers = static_cast<int>(out.kept.size());
   PoseEvidence evidence;
   evidence.inliers = out.inliers;
   evidence.inlier_tf_px = r.inlier_tf_px;
@@ -314,7 +320,7 @@ MapLocalizerStage::Outcome MapLocalizerStage::Relocalise(const processing::Camer
 std::shared_ptr<const MapLocalizerStage::Tracks> MapLocalizerStage::Retrack(
     const processing::CameraModel& camera, const processing::TfSampler& sampler,
     const ConstImageView& raw, const Pose& w0_from_cam,
-    const std::vector<std::pair<int, Eigen::Vector2d>>& kept, bool next_has_velocity) const {
+    const std::vector<TrackedPoint>& kept, bool relocalised, bool next_has_velocity) const {
   auto tracks = std::make_shared<Tracks>();
   const int cells = options_.track_cells;
   const int cap = (options_.max_tracks + cells * cells - 1) / (cells * cells);
@@ -332,8 +338,10 @@ std::shared_ptr<const MapLocalizerStage::Tracks> MapLocalizerStage::Retrack(
   template_options.levels = std::min(4, template_options.levels + 1);
   PatchTrackOptions coarse_options = template_options;
   coarse_options.levels = std::min(4, options_.patches.levels + (next_has_velocity ? 1 : 2));
-  // Adds map point `point` seen at tf_px (virtual depth v) when its cell has room.
-  const auto add = [&](int point, const Eigen::Vector2d& tf_px, double v) {
+  // Adds map point `point` seen at tf_px (virtual depth v) when its cell has
+  // room, with `patch` or, when null, a template made here.
+  const auto add = [&](int point, const Eigen::Vector2d& tf_px, double v,
+                       std::shared_ptr<const PatchTemplate> patch, bool anchored) {
     if (used[point] || static_cast<int>(tracks->size()) >= options_.max_tracks) return;
     if (tf_px.x() < margin || tf_px.y() < margin || tf_px.x() >= w - margin ||
         tf_px.y() >= h - margin)
@@ -344,26 +352,30 @@ std::shared_ptr<const MapLocalizerStage::Tracks> MapLocalizerStage::Retrack(
     // Untextured candidates cost a template each: a few per cell only.
     if (in_cell[cell] >= cap || tried[cell] >= 4 * cap) return;
     ++tried[cell];
-    TrackedPoint track{point, tf_px, {}};
-    if (!MakePatchTemplate(sampler, raw, tf_px, v, coarse_options, &track.patch) &&
-        (coarse_options.levels == template_options.levels ||
-         !MakePatchTemplate(sampler, raw, tf_px, v, template_options, &track.patch)))
-      return;
+    if (!patch) {
+      auto made = std::make_shared<PatchTemplate>();
+      if (!MakePatchTemplate(sampler, raw, tf_px, v, coarse_options, made.get()) &&
+          (coarse_options.levels == template_options.levels ||
+           !MakePatchTemplate(sampler, raw, tf_px, v, template_options, made.get())))
+        return;
+      patch = std::move(made);
+    }
     used[point] = 1;
     ++in_cell[cell];
-    tracks->push_back(std::move(track));
+    tracks->push_back({point, tf_px, std::move(patch), anchored});
   };
-  for (const auto& [point, tf_px] : kept) {
+  for (const TrackedPoint& k : kept) {
     Eigen::Vector2d projected;
     double v = 0;
-    if (ProjectPoint(camera, cam_from_w0, map_.points_in_w0[point], &projected, &v))
-      add(point, tf_px, v);
+    if (ProjectPoint(camera, cam_from_w0, map_.points_in_w0[k.point], &projected, &v))
+      add(k.point, k.tf_px, v, k.patch, k.anchored);
   }
   for (int j = 0; j < map_.size(); ++j) {
     if (static_cast<int>(tracks->size()) >= options_.max_tracks) break;
     Eigen::Vector2d tf_px;
     double v = 0;
-    if (ProjectPoint(camera, cam_from_w0, map_.points_in_w0[j], &tf_px, &v)) add(j, tf_px, v);
+    if (ProjectPoint(camera, cam_from_w0, map_.points_in_w0[j], &tf_px, &v))
+      add(j, tf_px, v, nullptr, relocalised);
   }
   return tracks;
 }
@@ -378,13 +390,17 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   if (!sampler) return sampler.error();
 
   CameraState state;
+  bool can_track = false, reanchor = false;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     CameraState& s = cameras_[frame.serial];
     if (frame.host_ns > s.last_host_ns && frame.trigger_index <= s.last_trigger)
       s = CameraState{};  // a new pass
-    const bool will_relocalise = !(s.has_pose && options_.track && s.tracks && !s.tracks->empty());
-    if (will_relocalise && s.relocalising) {
+    can_track = s.has_pose && options_.track && s.tracks && !s.tracks->empty();
+    // Re-anchoring when due, unless another worker relocalises the camera
+    // already (then this frame tracks).
+    reanchor = can_track && s.reanchor && !s.relocalising;
+    if (!can_track && s.relocalising) {
       // Published with this status (no pose): the frame was seen, not lost.
       ++counts_.skipped;
       processing::CameraPose skipped;
@@ -393,7 +409,7 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
       skipped.status = "not localised: camera " + frame.serial + " is being relocalised";
       return std::optional<processing::CameraPose>(skipped);
     }
-    if (will_relocalise) s.relocalising = true;
+    if (!can_track || reanchor) s.relocalising = true;
     state = s;
   }
   // Cleared whatever the outcome (also on an error return).
@@ -406,15 +422,33 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
       std::lock_guard<std::mutex> lock(stage->mutex_);
       stage->cameras_[serial].relocalising = false;
     }
-  } done{this, frame.serial, !(state.has_pose && options_.track && state.tracks &&
-                               !state.tracks->empty())};
+  } done{this, frame.serial, !can_track || reanchor};
   Outcome r;
   std::string localisation = "relocalised";
-  if (state.has_pose && options_.track && state.tracks && !state.tracks->empty()) {
+  if (reanchor) {
+    // Relocalised for its anchors; tracked as usual when that fails.
+    r = Relocalise(camera, frame, *sampler, state);
+    if (!r.success) {
+      Outcome tracked = Track(camera, **sampler, frame.raw, state, frame.trigger_index);
+      if (tracked.success) {
+        // The relocalisation's stages still count (Counts::StageReport).
+        tracked.render_s = r.render_s;
+        tracked.sift_s = r.sift_s;
+        tracked.match_s = r.match_s;
+        tracked.pnp_s = r.pnp_s;
+        tracked.matches = r.matches;
+        tracked.fundamental_outliers = r.fundamental_outliers;
+        r = std::move(tracked);
+        localisation = "tracked";
+      } else {
+        r.status += " (re-anchoring; tracking: " + tracked.status + ")";
+      }
+    }
+  } else if (can_track) {
     r = Track(camera, **sampler, frame.raw, state, frame.trigger_index);
     if (r.success) localisation = "tracked";
   }
-  if (!r.success) {
+  if (!r.success && !reanchor) {
     if (r.status != "not run") {
       std::lock_guard<std::mutex> lock(mutex_);
       counts_.last_tracking_failure = r.status;
@@ -425,7 +459,7 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
       relocalised.status += " (after " + r.status + ")";
     r = std::move(relocalised);
   }
-  const bool relocalised_attempt = localisation == "relocalised";
+  const bool relocalised_attempt = localisation == "relocalised" || reanchor;
   double retrack_s = 0;
   std::shared_ptr<const Tracks> tracks;
   if (r.success && options_.track) {
@@ -436,7 +470,8 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     // tracks would all carry the relocalised pose's error: at medium 2.2 mm
     // against 1.7 mm, test_map_localizer); the other tracks start at their
     // map points' projections.
-    tracks = Retrack(camera, **sampler, frame.raw, r.w0_from_cam.pose, r.kept, state.has_pose);
+    tracks = Retrack(camera, **sampler, frame.raw, r.w0_from_cam.pose, r.kept,
+                     localisation == "relocalised", state.has_pose);
     retrack_s = SecondsSince(retrack_start);
   }
 
@@ -448,6 +483,7 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   pose.status = r.status;
   const double seconds = SecondsSince(start);
   std::lock_guard<std::mutex> lock(mutex_);
+  if (reanchor) ++counts_.reanchored;
   if (relocalised_attempt) {
     ++counts_.relocalise_attempts;
     counts_.render_s += r.render_s;
@@ -487,6 +523,8 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     s.last_host_ns = frame.host_ns;
     s.has_pose = true;
     s.tracks = std::move(tracks);
+    s.reanchor = localisation == "tracked" &&
+                 r.anchored_inliers < options_.min_anchored_fraction * r.inliers;
   }
   pose.transform = r.w0_from_cam.pose;
   pose.covariance = ToLeftPerturbationCovariance(r.w0_from_cam);

@@ -90,6 +90,13 @@ struct LocalizerOptions {
   int track_cells = 6;        // tracks spread over track_cells^2 cells of the TF image (>= 1)
   double track_margin_px = 16;  // tracks stay this far inside the TF image (>= 0)
   int min_tracked = 30;       // fewer tracked inliers: relocalise (>= 3)
+  // Re-anchoring: when fewer of a tracked pose's inliers than this fraction
+  // were begun in a relocalised frame (TrackedPoint::anchored), the camera's
+  // next frame is relocalised, so that tracks begun from tracked poses (each
+  // carrying the error of the pose it began from) never decide the pose
+  // alone and a tracked pose's error does not grow with the frames since the
+  // relocalisation ([0, 1]; 0: never).
+  double min_anchored_fraction = 0.5;
   bool track = true;          // false: relocalise every frame (the baseline of bench_live)
   Status Check() const;
 };
@@ -115,6 +122,9 @@ class MapLocalizerStage final : public processing::RegistrationStage {
     // worker: not localised (the frame passes through) rather than
     // relocalised twice at once.
     long long skipped = 0;
+    // Relocalisations of a camera that was tracking, for re-anchoring
+    // (LocalizerOptions::min_anchored_fraction; in `relocalised`).
+    long long reanchored = 0;
     // Localize's time (features, matching, PnP) of the frames so counted; a
     // frame whose tracking failed pays both and counts as relocalised.
     double tracked_s = 0, relocalised_s = 0, failed_s = 0;
@@ -140,11 +150,17 @@ class MapLocalizerStage final : public processing::RegistrationStage {
   // frame that reached the host later but has a lower trigger index starts a
   // new pass (replay --loop numbers its triggers from 0 again): the state is
   // dropped, the frame relocalised.
-  // A map point followed from frame to frame.
+  // A map point followed from frame to frame against a fixed reference:
+  // its patch in the frame where its track began (never re-made where it was
+  // found, so that a frame's tracking error is not added to the next's).
   struct TrackedPoint {
     int point = 0;                 // index into map_
     Eigen::Vector2d tf_px;         // where it was in the camera's last frame
-    PatchTemplate patch;           // its appearance there
+    std::shared_ptr<const PatchTemplate> patch;  // its appearance where its track began
+    // Begun in a relocalised frame (at its SIFT keypoint or at its projection
+    // from that pose), not in a tracked one (at its projection from a tracked
+    // pose, whose error it then carries on).
+    bool anchored = false;
   };
   using Tracks = std::vector<TrackedPoint>;
   struct CameraState {
@@ -155,6 +171,7 @@ class MapLocalizerStage final : public processing::RegistrationStage {
     bool has_previous = false;
     std::shared_ptr<const Tracks> tracks;  // of the last frame (shared by concurrent frames)
     bool relocalising = false;  // a worker relocalises this camera now
+    bool reanchor = false;      // the last tracked pose had too few anchored inliers
     // Prediction for `trigger` (header comment); the last pose without a previous one.
     Pose Predict(std::int64_t trigger) const;
   };
@@ -163,14 +180,15 @@ class MapLocalizerStage final : public processing::RegistrationStage {
                 const ConstImageView& raw, const CameraState& state, std::int64_t trigger) const;
   Outcome Relocalise(const processing::CameraModel& camera, const processing::StageFrame& frame,
                      const processing::TfSampler* sampler, const CameraState& state) const;
-  // Tracks for the next frame: `kept` (re-templated at their new positions)
-  // and map points in cells with room, from pose w0_from_cam; with
-  // !next_has_velocity their templates get the extra level Track needs then.
+  // Tracks for the next frame: `kept` (their templates kept when they have
+  // one, else made at their positions in this frame) and map points in cells
+  // with room, from pose w0_from_cam (anchored when `relocalised`); with
+  // !next_has_velocity new templates get the extra level Track needs then.
   std::shared_ptr<const Tracks> Retrack(const processing::CameraModel& camera,
                                         const processing::TfSampler& sampler,
                                         const ConstImageView& raw, const Pose& w0_from_cam,
-                                        const std::vector<std::pair<int, Eigen::Vector2d>>& kept,
-                                        bool next_has_velocity) const;
+                                        const std::vector<TrackedPoint>& kept,
+                                        bool relocalised, bool next_has_velocity) const;
 
   MapIndex map_;
   double map_virtual_depth_ = 3.0;  // median v of the map's keypoints (relocalisation's TF)

@@ -87,4 +87,6 @@ std::string MulticastGroupOfThisProcess(int octet) {
          std::to_string(pid % 250 + 1);
 }
 
+int MulticastPortOfThisProcess() { return 20000 + static_cast<int>(getpid() % 40000); }
+
 }  // namespace lifmcr::test

@@ -53,5 +53,10 @@ CommandResult RunLifmcr(const std::string& args);
 // would otherwise receive each other's LCM messages. octet (1..254) keeps
 // tests apart from each other.
 std::string MulticastGroupOfThisProcess(int octet);
+// A UDP port of this process's own (20000..59999), for the same reason: LCM
+// binds its receive socket to INADDR_ANY:port, and Linux delivers to it every
+// datagram for that port of ANY group some socket on the host joined
+// (IP_MULTICAST_ALL), so a group of one's own is not enough on a shared port.
+int MulticastPortOfThisProcess();
 
 }  // namespace lifmcr::test

@@ -42,7 +42,8 @@ namespace fs = std::filesystem;
 // A group of this process's own and a port no other test uses, so no other
 // test's (or other checkout's run of this test's) route or logger interferes.
 const std::string kGroup = test::MulticastGroupOfThisProcess(71);
-const std::string kUrl = "udpm://" + kGroup + ":7731?ttl=0";
+const std::string kUrl =
+    "udpm://" + kGroup + ":" + std::to_string(test::MulticastPortOfThisProcess()) + "?ttl=0";
 constexpr int kFrames = 8;
 
 int Sh(const std::string& command) { return std::system((command + " >/dev/null 2>&1").c_str()); }

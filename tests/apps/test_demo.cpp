@@ -31,7 +31,10 @@ const std::string kCam0 = "40398678", kCamX = "40398673";
 // two runs of this test at once (two checkouts' ctest on one machine) would
 // otherwise each receive the other's extrinsics (seen: 40 messages for 20
 // triggers).
-std::string LcmUrl() { return "udpm://" + test::MulticastGroupOfThisProcess(67) + ":7743?ttl=0"; }
+std::string LcmUrl() {
+  return "udpm://" + test::MulticastGroupOfThisProcess(67) + ":" +
+         std::to_string(test::MulticastPortOfThisProcess()) + "?ttl=0";
+}
 
 struct Extrinsics {
   std::mutex mutex;

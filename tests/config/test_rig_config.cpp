@@ -339,6 +339,7 @@ RigConfig RandomRig(std::mt19937& rng) {
   rig.recorder.queue_frames = integer(1, 4096);
   rig.recorder.writer_threads = integer(1, 64);
   rig.recorder.direct_io = coin();
+  rig.recorder.direct_io_min_kb = integer(0, 1 << 22);
   rig.recorder.max_memory_mb = integer(0, 1 << 20);
   rig.processing.enabled = coin();
   rig.processing.threads = integer(0, 1024);

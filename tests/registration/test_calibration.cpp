@@ -19,9 +19,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <memory>
 
 namespace lifmcr::registration {
@@ -120,9 +122,10 @@ TEST_F(CalibrationTest, FromFivePercentOffPlacesEveryFrameAndFitsTheMicroImages)
   ASSERT_EQ(frames_->size(), 4u);
   for (const CalibrationFrame& f : *frames_) EXPECT_GE(f.corners.size(), 4u) << f.frame;
   // Every point seen in two frames enters the map here (the default keeps
-  // those of three, WritesAMapAndIntrinsicsThatReadBack).
+  // those whose rays meet at 5 degrees, WritesAMapAndIntrinsicsThatReadBack).
   CalibrationOptions options = Options();
   options.min_map_observations = 2;
+  options.min_map_angle_deg = 0;
   Expected<CalibrationResult> r = Calibrate(Input(Initial()), options);
   ASSERT_TRUE(r) << r.error().message;
   std::printf("%s\n", r->BriefReport().c_str());
@@ -234,9 +237,22 @@ TEST_F(CalibrationTest, WritesAMapAndIntrinsicsThatReadBack) {
   EXPECT_EQ(map->points.size(), r->map.points.size());
   EXPECT_EQ(map->images.size(), 4u);
   EXPECT_EQ(map->camera.width_px, truth_->intrinsics.width_px / 2);
+  // CalibrationOptions::min_map_observations and min_map_angle_deg: two
+  // frames or more whose rays meet at 5 degrees or more.
+  EXPECT_GT(map->points.size(), 20u);
+  std::map<int, Eigen::Vector3d> centre_of_image;
+  for (const MapImage& image : map->images) centre_of_image[image.image_id] = image.w0_from_c0.translation();
   for (const MapPoint& p : map->points) {
-    EXPECT_GE(p.track.size(), 3u);  // CalibrationOptions::min_map_observations
+    EXPECT_GE(p.track.size(), 2u);
     EXPECT_EQ(p.descriptor.size(), static_cast<std::size_t>(kDescriptorSize));
+    double widest_deg = 0;
+    for (const TrackElement& a : p.track)
+      for (const TrackElement& b : p.track) {
+        const Eigen::Vector3d ra = (centre_of_image.at(a.image_id) - p.p_in_w0_mm).normalized();
+        const Eigen::Vector3d rb = (centre_of_image.at(b.image_id) - p.p_in_w0_mm).normalized();
+        widest_deg = std::max(widest_deg, std::acos(std::clamp(ra.dot(rb), -1.0, 1.0)) * 180 / M_PI);
+      }
+    EXPECT_GE(widest_deg, 5.0 - 1e-3) << "point " << p.id;
   }
   ASSERT_TRUE(WriteIntrinsicsYaml(out / "intrinsics.yaml", kSerial, r->calibration, {}));
   Expected<CameraCalibration> back = ReadCameraCalibration(out / "intrinsics.yaml", kSerial);
