@@ -41,6 +41,25 @@ Status PreviewOptions::Check() const {
   return Status::Ok();
 }
 
+// cv::haveImageWriter looks the extension up in OpenCV's codec registry, a
+// function-local static of libopencv_imgcodecs built by its first user. Left
+// to the first imencode in a TBB worker, its construction was ordered before
+// the other workers' reads only by the static's guard, read inline in
+// uninstrumented OpenCV code, which ThreadSanitizer cannot see: with a
+// TSan-built oneTBB it reported a worker's copy of an encoder's 31-byte
+// string as racing with another worker's construction of it (lifmcr replay,
+// DepthProcessor::Process -> EncodePreview). Built here, before the workers,
+// the thread hand-over orders it (as CheckImageWriters does for lifmcr
+// synth, replay/synth/gt_images.cpp).
+Status CheckImageEncoders() {
+  for (const char* extension : {".jpg", ".png"}) {
+    if (!cv::haveImageWriter(extension))
+      return Error{std::string("this OpenCV build has no ") + extension +
+                   " encoder (previews are JPEG, depth maps PNG)"};
+  }
+  return Status::Ok();
+}
+
 Expected<EncodedImage> EncodePreview(ConstImageView image, const PreviewOptions& options) {
   if (image.data == nullptr || image.width <= 0 || image.height <= 0)
     return Error{"preview: empty image"};

@@ -101,6 +101,10 @@ class FrameProcessor {
 
 // Downscaled JPEG of `image` (Mono8 or BGR8).
 Expected<EncodedImage> EncodePreview(ConstImageView image, const PreviewOptions& options);
+// OpenCV has the JPEG and PNG encoders the previews and depth maps use.
+// Called before the pipeline's workers start: it also builds OpenCV's codec
+// registry in this thread (see the .cpp).
+Status CheckImageEncoders();
 // PNG quantisation of `values` (w x h, NaN = none) to `bits` (8 or 16);
 // inverse of DecodeDepth.
 Expected<EncodedDepth> EncodeDepth(const std::vector<float>& values, int width, int height,

@@ -552,6 +552,7 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
   if (Status s = options.Check(); !s) return s.error();
   if (Status s = sync.Check(); !s) return s.error();
   if (!processor) return Error{"pipeline: no processing stage"};
+  if (Status s = CheckImageEncoders(); !s) return s.error();
   auto impl = std::make_unique<Impl>();
   impl->sync_options = sync;
   impl->options = options;
