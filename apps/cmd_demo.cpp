@@ -247,7 +247,9 @@ CommandRun AddDemoCommand(CLI::App& app) {
       "Exit codes: 0 every stage ran; 1 a stage failed (its message says which); 2 usage\n"
       "error; 3 the folder could not be written.");
   app.add_option("--out", args->out, "Folder for every stage's output (default: a new temporary folder)");
-  app.add_option("--frames", args->frames, "Triggers to render (the hand-eye split needs >= 20)")
+  app.add_option("--frames", args->frames,
+                 "Triggers to render (each half of the hand-eye split needs 10 with both "
+                 "cameras registered)")
       ->check(CLI::Range(4, 10000))
       ->capture_default_str();
   app.add_option("--calibration-frames", args->calibration_frames,
