@@ -60,9 +60,9 @@ Status LocalizerOptions::Check() const {
   if (relocalise_step < 1 || relocalise_step > 4)
     return Error{"localizer options: relocalise_step: expected 1..4"};
   if (!(track_margin_px >= 0)) return Error{"localizer options: track_margin_px: expected >= 0"};
-  if (Status s = guided.Check(); !s) return s;
   if (!(min_anchored_fraction >= 0 && min_anchored_fraction <= 1))
     return Error{"localizer options: min_anchored_fraction: expected in [0, 1]"};
+  if (Status s = guided.Check(); !s) return s;  // guided_reanchoring: either value
   return Status::Ok();
 }
 
