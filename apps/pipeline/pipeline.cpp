@@ -222,8 +222,21 @@ struct Pipeline::Impl {
   std::map<int, Job> depth_slots;
   std::map<int, std::uint64_t> depth_served;
   std::uint64_t depth_serve_count = 0;
-  bool depth_busy = false, depth_stop = false;
+  // Frames the lane took and whose products are not published yet: the one
+  // it processes and the one it handed to the publishing node (it takes its
+  // next frame without waiting for that publication). A flag set when it took
+  // a frame and cleared when one was published let WaitIdle return while the
+  // lane processed the next: that frame then reached the publishing node
+  // after the graph's nodes were destroyed (bench_live: segmentation fault,
+  // "pure virtual method called" in the node's body at the run's end).
+  int depth_held = 0;
+  bool depth_stop = false;
   std::unique_ptr<tbb::task_arena> depth_arena;  // low priority: the workers localise first
+  // The depth lane's put into the graph and WaitIdle's wait for the graph,
+  // one at a time: a pass's end does not wait for the lane, so a put from
+  // outside the graph could come during its wait_for_all, which resets the
+  // graph's task context afterwards (oneTBB documents no concurrent wait).
+  std::mutex graph_put_mutex;
   std::thread depth_thread;
 
   void OfferDepth(const Job& job) {
@@ -253,10 +266,11 @@ struct Pipeline::Impl {
         job = std::move(pick->second);
         depth_slots.erase(pick);
         depth_served[job.frame.camera_index] = ++depth_serve_count;
-        depth_busy = true;
+        ++depth_held;
       }
       Result result{std::move(job), Error{""}, std::nullopt, true};
       depth_arena->execute([&] { result.processed = processor->Process(result.job.frame); });
+      std::lock_guard put(graph_put_mutex);
       publish_node->try_put(std::move(result));
     }
   }
@@ -330,7 +344,7 @@ struct Pipeline::Impl {
     }
     {
       std::lock_guard lock(depth_mutex);
-      depth_busy = false;
+      --depth_held;
     }
     depth_cv.notify_all();
   }
@@ -472,7 +486,14 @@ struct Pipeline::Impl {
     }
   }
 
-  void WaitIdle() {
+  // `depth_lane`: also the depth lane (its waiting frames skipped, the ones
+  // it holds published); false between the passes of a loop, where the
+  // lane's frames go on beside the next pass (a frame's buffer keeps its
+  // pool alive, drivers/frame_pool.h; its products carry no pose to pair):
+  // at medium a depth map takes seconds, and waiting for it at every pass's
+  // end held the replay's cameras that long (bench_live, 24 frames looped at
+  // 10 Hz: 9.8 of the 20 frames offered per second came in).
+  void WaitIdle(bool depth_lane = true) {
     // A frame in the slot with no worker left cannot happen: every worker
     // takes the slot before it ends. The last worker's publication done, the
     // graph only has its tasks to finish: waiting on it earlier would let
@@ -481,18 +502,34 @@ struct Pipeline::Impl {
       std::unique_lock lock(slot_mutex);
       slot_cv.wait(lock, [&] { return in_flight == 0 && slots.empty(); });
     }
-    if (lanes) {
+    if (lanes && depth_lane) {
       // No worker offers any more: the frames still waiting for the depth
-      // lane are skipped, the one in processing is published.
+      // lane are skipped, the ones it holds are published.
       std::unique_lock lock(depth_mutex);
       {
         std::lock_guard r(report_mutex);
         report.depth_skipped += depth_slots.size();
       }
       depth_slots.clear();
-      depth_cv.wait(lock, [&] { return !depth_busy; });
+      depth_cv.wait(lock, [&] { return depth_held == 0; });
     }
+    std::lock_guard put(graph_put_mutex);
     graph->wait_for_all();
+  }
+
+  // The end of a pass (Pipeline::EndPass) or of the run (Finish: depth_lane).
+  void EndPass(bool depth_lane) {
+    QueueSets(TakeSets());
+    SubmitQueued(std::nullopt);
+    WaitIdle(depth_lane);
+    // The next pass numbers its triggers from the start again: no pose of
+    // this pass may pair with one of the next (the publishing node has no
+    // worker's result left; the depth lane's carry no pose).
+    poses.clear();
+    // The next pass's grab loop starts a fresh assembler, its losses from 0.
+    std::lock_guard lock(sync_mutex);
+    drops_before = SyncDrops();
+    drops_this_pass = DropCounter{};
   }
 
   StatsSnapshot Stats() {
@@ -599,7 +636,11 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
     tbb::flow::make_edge(*raw->process_node, *raw->publish_node);
   });
   if (impl->lanes) {
-    impl->depth_arena = std::make_unique<tbb::task_arena>(threads, /*reserved_for_masters=*/1,
+    // The lane's own thread alone (one slot, reserved for it): open to the
+    // workers too, a worker inside a depth map's parallel loop finished its
+    // chunk (at nice processing_nice, not 19) before it took the next frame
+    // to localise.
+    impl->depth_arena = std::make_unique<tbb::task_arena>(1, /*reserved_for_masters=*/1,
                                                           tbb::task_arena::priority::low);
     impl->depth_thread = std::thread([raw] { raw->DepthLoop(19); });
   }
@@ -617,6 +658,9 @@ Pipeline::~Pipeline() {
     }
     impl_->depth_cv.notify_all();
     impl_->depth_thread.join();
+    // Nothing puts into the graph any more: its last tasks end before the
+    // nodes they run in are destroyed (the members, in reverse order).
+    impl_->graph->wait_for_all();
   }
 }
 
@@ -656,21 +700,10 @@ void Pipeline::Poll() {
   }
 }
 
-void Pipeline::EndPass() {
-  impl_->QueueSets(impl_->TakeSets());
-  impl_->SubmitQueued(std::nullopt);
-  impl_->WaitIdle();
-  // The next pass numbers its triggers from the start again: no pose of
-  // this pass may pair with one of the next (the publishing node is idle).
-  impl_->poses.clear();
-  // The next pass's grab loop starts a fresh assembler, its losses from 0.
-  std::lock_guard lock(impl_->sync_mutex);
-  impl_->drops_before = impl_->SyncDrops();
-  impl_->drops_this_pass = DropCounter{};
-}
+void Pipeline::EndPass() { impl_->EndPass(/*depth_lane=*/false); }
 
 void Pipeline::Finish() {
-  EndPass();
+  impl_->EndPass(/*depth_lane=*/true);
   impl_->PublishStats();
   const PipelineReport r = impl_->Snapshot();
   if (r.skipped > 0)

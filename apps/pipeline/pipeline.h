@@ -153,8 +153,9 @@ class Pipeline {
   // next Poll or Finish), and publishes the statistics when due.
   void Poll();
   // End of a pass (the grab loop stopped, its last sets given): processes
-  // what is left and waits for it; the next pass's grab loop starts a fresh
-  // assembler (--loop). The counters go on.
+  // what is left and waits for it, except the depth lane's frames, which go
+  // on beside the next pass (Finish and the destructor wait for them); the
+  // next pass's grab loop starts a fresh assembler (--loop). The counters go on.
   void EndPass();
   // EndPass, then the final statistics message.
   void Finish();
