@@ -270,6 +270,13 @@ struct Pipeline::Impl {
       }
       Result result{std::move(job), Error{""}, std::nullopt, true};
       depth_arena->execute([&] { result.processed = processor->Process(result.job.frame); });
+      {
+        // The lane's thread alone computes in its arena: its CPU time is the lane's.
+        timespec cpu{};
+        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &cpu);
+        std::lock_guard r(report_mutex);
+        report.depth_cpu_s = static_cast<double>(cpu.tv_sec) + 1e-9 * static_cast<double>(cpu.tv_nsec);
+      }
       std::lock_guard put(graph_put_mutex);
       publish_node->try_put(std::move(result));
     }
@@ -740,7 +747,7 @@ std::string PipelineReport::FinalReport() const {
       << "\n";
   if (depth_processed + depth_skipped + depth_failed > 0)
     out << "depth lane (registration first): processed " << depth_processed << "  skipped "
-        << depth_skipped << "  failed " << depth_failed << "\n";
+        << depth_skipped << "  failed " << depth_failed << "  CPU " << depth_cpu_s << " s\n";
   out
       << "published: " << published_previews << " previews, " << published_depth << " depth, "
       << published_tf << " TF, " << published_extrinsics << " extrinsics, " << published_vicon

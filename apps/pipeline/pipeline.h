@@ -113,6 +113,7 @@ struct PipelineReport {
   // processes (and publishes previews, depth and TF of) the newest of them
   // when it is free, the others are skipped there.
   std::uint64_t depth_processed = 0, depth_skipped = 0, depth_failed = 0;
+  double depth_cpu_s = 0;  // CPU time of the depth lane's thread (its arena has no other)
   std::uint64_t frame_sets = 0, incomplete_sets = 0;
   std::uint64_t published_previews = 0, published_depth = 0, published_tf = 0;
   std::uint64_t published_vicon = 0, published_stats = 0, published_extrinsics = 0;
