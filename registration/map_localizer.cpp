@@ -60,6 +60,7 @@ Status LocalizerOptions::Check() const {
   if (relocalise_step < 1 || relocalise_step > 4)
     return Error{"localizer options: relocalise_step: expected 1..4"};
   if (!(track_margin_px >= 0)) return Error{"localizer options: track_margin_px: expected >= 0"};
+  // track, wait_for_earlier_frames: either value.
   if (!(min_anchored_fraction >= 0 && min_anchored_fraction <= 1))
     return Error{"localizer options: min_anchored_fraction: expected in [0, 1]"};
   if (Status s = guided.Check(); !s) return s;  // guided_reanchoring: either value
@@ -451,10 +452,34 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   auto sampler = frame.camera->Sampler(frame.raw);
   if (!sampler) return sampler.error();
 
+  // With wait_for_earlier_frames the frame is in flight from here to its
+  // return (the guard ends it on every path).
+  struct InFlight {
+    MapLocalizerStage* stage;
+    const std::string& serial;
+    std::multiset<std::int64_t>::iterator at;
+    bool active = false;
+    ~InFlight() {
+      if (!active) return;
+      {
+        std::lock_guard<std::mutex> lock(stage->mutex_);
+        stage->in_flight_[serial].erase(at);
+      }
+      stage->done_cv_.notify_all();
+    }
+  } in_flight{this, frame.serial, {}, false};
   CameraState state;
   bool can_track = false, reanchor = false;
   {
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::unique_lock<std::mutex> lock(mutex_);
+    if (options_.wait_for_earlier_frames) {
+      std::multiset<std::int64_t>& triggers = in_flight_[frame.serial];
+      in_flight.at = triggers.insert(frame.trigger_index);
+      in_flight.active = true;
+      done_cv_.wait(lock, [&] {
+        return *triggers.begin() == frame.trigger_index && !cameras_[frame.serial].relocalising;
+      });
+    }
     CameraState& s = cameras_[frame.serial];
     if (frame.host_ns > s.last_host_ns && frame.trigger_index <= s.last_trigger)
       s = CameraState{};  // a new pass
@@ -481,8 +506,11 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     bool active;
     ~Done() {
       if (!active) return;
-      std::lock_guard<std::mutex> lock(stage->mutex_);
-      stage->cameras_[serial].relocalising = false;
+      {
+        std::lock_guard<std::mutex> lock(stage->mutex_);
+        stage->cameras_[serial].relocalising = false;
+      }
+      stage->done_cv_.notify_all();
     }
   } done{this, frame.serial, !can_track || reanchor};
   Outcome r;

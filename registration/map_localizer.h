@@ -46,6 +46,8 @@
 //                status, localisation "skipped", and is published like a
 //                failed one): relocalising it too would only repeat the
 //                work, and the worker is free at once for the other camera.
+//                Offline (LocalizerOptions::wait_for_earlier_frames, replay
+//                --rate max) it waits instead: every frame is localised.
 // Every pose passes registration/pose_checks.h (tracked ones also against
 // the prediction); a refused one is published with the reason as status
 // and the camera relocalises at its next frame.
@@ -63,11 +65,13 @@
 #include "registration/pose_checks.h"
 #include "registration/reference_map.h"
 
+#include <condition_variable>
 #include <cstdint>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 
 namespace lifmcr::registration {
@@ -112,6 +116,13 @@ struct LocalizerOptions {
   bool guided_reanchoring = true;
   GuidedMatchOptions guided;
   bool track = true;          // false: relocalise every frame (the baseline of bench_live)
+  // Offline (a replay at --rate max, where every frame is wanted and none is
+  // late): a frame is localised only after its camera's earlier frames in
+  // flight and any relocalisation of the camera, so it tracks from its
+  // predecessor's pose (when that reached the localizer first) and is never
+  // passed through (Counts::skipped stays 0). Live (false): a frame of a
+  // camera being relocalised passes through, so the worker is free at once.
+  bool wait_for_earlier_frames = false;
   Status Check() const;
 };
 
@@ -221,6 +232,8 @@ class MapLocalizerStage final : public processing::RegistrationStage {
   std::optional<ExtrinsicsMonitor> monitor_;  // Relate's thread only
   LocalizerOptions options_;
   mutable std::mutex mutex_;
+  std::condition_variable done_cv_;  // a frame or a relocalisation ended (wait_for_earlier_frames)
+  std::map<std::string, std::multiset<std::int64_t>> in_flight_;  // triggers, per camera
   std::map<std::string, CameraState> cameras_;
   Counts counts_;
 };
