@@ -153,10 +153,12 @@ class Pipeline {
   // block, waiting at most 50 ms for a free worker; the rest wait for the
   // next Poll or Finish), and publishes the statistics when due.
   void Poll();
-  // End of a pass (the grab loop stopped, its last sets given): processes
-  // what is left and waits for it, except the depth lane's frames, which go
-  // on beside the next pass (Finish and the destructor wait for them); the
-  // next pass's grab loop starts a fresh assembler (--loop). The counters go on.
+  // End of a pass (the grab loop stopped, its last sets given): hands what
+  // is left to processing; under block waits for it, under newest_wins the
+  // frames in processing go on beside the next pass (Finish and the
+  // destructor wait for every frame); the next pass's grab loop starts a
+  // fresh assembler and numbers its triggers from 0 again (--loop): poses
+  // pair within a pass only. The counters go on.
   void EndPass();
   // EndPass, then the final statistics message.
   void Finish();
