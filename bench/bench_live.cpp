@@ -187,6 +187,7 @@ struct RunFigures {
   std::vector<double> latency_ms;
   std::uint64_t processed = 0, skipped = 0, previews = 0, depth = 0;
   std::uint64_t frames_in = 0, underruns = 0, incomplete_sets = 0;
+  double depth_cpu_s = 0;  // the depth lane's thread (registration runs only)
   std::string registration;
   Accuracy accuracy;
   double HzPerCamera() const {
@@ -295,6 +296,7 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
   f.frames_in = result->report.frames_in;
   f.underruns = result->camera_underruns;
   f.incomplete_sets = result->report.incomplete_sets;
+  f.depth_cpu_s = result->report.depth_cpu_s;
   f.registration = result->registration;
   return f;
 }
@@ -390,6 +392,9 @@ int main(int argc, char** argv) {
                 "incomplete sets %.2f/s\n",
                 f.frames_in / f.elapsed_s, f.underruns / f.elapsed_s,
                 f.incomplete_sets / f.elapsed_s);
+    if (f.depth_cpu_s > 0)
+      std::printf("           depth lane CPU %.1f s (%.0f %% of one core)\n", f.depth_cpu_s,
+                  100 * f.depth_cpu_s / f.elapsed_s);
     if (!f.registration.empty()) std::printf("           %s", f.registration.c_str());
     if (mode != Mode::kDepthOnly) PrintAccuracy(f.accuracy);
     std::fflush(stdout);

@@ -152,10 +152,7 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
   Outcome out;
   const Pose predicted = state.Predict(trigger);
   const Pose cam_from_w0 = predicted.inverse();
-  std::vector<Eigen::Vector3d> points;
-  std::vector<Eigen::Vector2d> tf;
   std::vector<double> v;
-  std::vector<const TrackedPoint*> followed;
   PatchTrackOptions patches = options_.patches;
   const std::int64_t ahead = trigger - state.last_trigger;
   // No velocity yet (the frame after a relocalisation): the camera may have
@@ -171,6 +168,7 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
     patches.levels = std::min(4, patches.levels + 1);
     patches.max_shift_px *= 2;
   }
+  std::vector<TrackedPoint> found;
   for (const TrackedPoint& track : *state.tracks) {
     Eigen::Vector2d predicted_tf;
     double vp = 0;
@@ -178,32 +176,48 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
       continue;
     const PatchTrack r = TrackPatch(sampler, raw, *track.patch, predicted_tf, vp, patches);
     if (!r.ok) continue;
-    points.push_back(map_.points_in_w0[track.point]);
-    tf.push_back(r.tf_px);
+    found.push_back({track.point, r.tf_px, track.patch, track.anchored});
     v.push_back(vp);
-    followed.push_back(&track);
   }
-  if (points.size() < static_cast<std::size_t>(options_.min_tracked)) {
-    out.status = "tracking: " + std::to_string(points.size()) + " of " +
+  if (found.size() < static_cast<std::size_t>(options_.min_tracked)) {
+    out.status = "tracking: " + std::to_string(found.size()) + " of " +
                  std::to_string(state.tracks->size()) + " points followed (< " +
                  std::to_string(options_.min_tracked) + ")";
     return out;
   }
+  return Solve(camera, sampler, found, v, predicted, "tracking");
+}
+
+MapLocalizerStage::Outcome MapLocalizerStage::Solve(const processing::CameraModel& camera,
+                                                    const processing::TfSampler& sampler,
+                                                    const std::vector<TrackedPoint>& found,
+                                                    const std::vector<double>& v,
+                                                    const Pose& predicted,
+                                                    const std::string& what) const {
+  Outcome out;
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector2d> tf;
+  for (const TrackedPoint& f : found) {
+    points.push_back(map_.points_in_w0[f.point]);
+    tf.push_back(f.tf_px);
+  }
+  const auto pnp_start = std::chrono::steady_clock::now();
   PnpOptions pnp = options_.registration.pnp;
   pnp.final_refinement = true;
   const PnpResult r = EstimatePlenopticPnp(camera, {points, tf, v}, pnp);
+  out.pnp_s = SecondsSince(pnp_start);
   out.inliers = static_cast<int>(r.num_inliers);
   out.rmse_px = r.rmse_px;
   if (!r.success) {
-    out.status = "tracking: " + r.status;
+    out.status = what + ": " + r.status;
     return out;
   }
   out.w0_from_cam = Inverse(PoseWithCovariance{r.cam_from_world, r.covariance});
   std::vector<Eigen::Vector2d> inlier_tf;
-  for (std::size_t i = 0; i < followed.size(); ++i) {
+  for (std::size_t i = 0; i < found.size(); ++i) {
     if (!r.inlier_mask[i]) continue;
-    out.kept.push_back({followed[i]->point, tf[i], followed[i]->patch, followed[i]->anchored});
-    if (followed[i]->anchored) ++out.anchored_inliers;
+    out.kept.push_back(found[i]);
+    if (found[i].anchored) ++out.anchored_inliers;
     inlier_tf.push_back(tf[i]);
   }
   PoseEvidence evidence;
@@ -217,7 +231,7 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
   evidence.predicted_w0_from_cam = predicted;
   out.status = CheckPose(evidence, options_.checks);
   if (out.inliers < options_.min_tracked)
-    out.status = "tracking: " + std::to_string(out.inliers) + " inliers (< " +
+    out.status = what + ": " + std::to_string(out.inliers) + " inliers (< " +
                  std::to_string(options_.min_tracked) + ")";
   out.success = out.status == "ok";
   return out;
@@ -341,43 +355,18 @@ MapLocalizerStage::Outcome MapLocalizerStage::Reanchor(const processing::CameraM
                  std::to_string(options_.min_tracked) + ")";
     return out;
   }
-  std::vector<Eigen::Vector3d> points;
-  points.reserve(g.points.size());
-  for (const int j : g.points) points.push_back(map_.points_in_w0[j]);
-  const auto pnp_start = std::chrono::steady_clock::now();
-  PnpOptions pnp = options_.registration.pnp;
-  pnp.final_refinement = true;
-  const PnpResult r = EstimatePlenopticPnp(camera, {points, g.tf_px, g.virtual_depth}, pnp);
-  out.pnp_s = SecondsSince(pnp_start);
-  out.inliers = static_cast<int>(r.num_inliers);
-  out.rmse_px = r.rmse_px;
-  if (!r.success) {
-    out.status = "re-anchoring: " + r.status;
-    return out;
-  }
-  out.w0_from_cam = Inverse(PoseWithCovariance{r.cam_from_world, r.covariance});
-  std::vector<Eigen::Vector2d> inlier_tf;
-  for (std::size_t i = 0; i < g.points.size(); ++i) {
-    if (!r.inlier_mask[i]) continue;
-    out.kept.push_back({g.points[i], g.tf_px[i], nullptr, true});
-    inlier_tf.push_back(g.tf_px[i]);
-  }
-  out.anchored_inliers = static_cast<int>(out.kept.size());
-  PoseEvidence evidence;
-  evidence.inliers = out.inliers;
-  evidence.inlier_tf_px = inlier_tf;
-  evidence.tf_width = sampler.tf_width();
-  evidence.tf_height = sampler.tf_height();
-  evidence.rmse_px = out.rmse_px;
-  evidence.covariance = ToLeftPerturbationCovariance(out.w0_from_cam);
-  evidence.w0_from_cam = out.w0_from_cam.pose;
-  evidence.predicted_w0_from_cam = w0_from_tracked;
-  out.status = CheckPose(evidence, options_.checks);
-  if (out.status == "ok" && out.inliers < options_.min_tracked)
-    out.status = "re-anchoring: " + std::to_string(out.inliers) + " inliers (< " +
-                 std::to_string(options_.min_tracked) + ")";
-  out.success = out.status == "ok";
-  return out;
+  // Every inlier anchored: its position is a SIFT keypoint matched against
+  // the map, not a projection from the tracked pose.
+  std::vector<TrackedPoint> found;
+  for (std::size_t i = 0; i < g.points.size(); ++i)
+    found.push_back({g.points[i], g.tf_px[i], nullptr, true});
+  Outcome solved = Solve(camera, sampler, found, g.virtual_depth, w0_from_tracked, "re-anchoring");
+  solved.render_s = out.render_s;
+  solved.sift_s = out.sift_s;
+  solved.match_s = out.match_s;
+  solved.windows = out.windows;
+  solved.matches = out.matches;
+  return solved;
 }
 
 std::shared_ptr<const MapLocalizerStage::Tracks> MapLocalizerStage::Retrack(

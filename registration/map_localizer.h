@@ -213,6 +213,12 @@ class MapLocalizerStage final : public processing::RegistrationStage {
                 const ConstImageView& raw, const CameraState& state, std::int64_t trigger) const;
   Outcome Relocalise(const processing::CameraModel& camera, const processing::StageFrame& frame,
                      const processing::TfSampler* sampler, const CameraState& state) const;
+  // PnP on the map points `found` (TF positions, virtual depths v), then the
+  // pose checks against `predicted`; the inliers kept as they were found
+  // (templates, anchored). `what` begins a failure's status.
+  Outcome Solve(const processing::CameraModel& camera, const processing::TfSampler& sampler,
+                const std::vector<TrackedPoint>& found, const std::vector<double>& v,
+                const Pose& predicted, const std::string& what) const;
   // Guided matching from the frame's tracked pose, PnP, the pose checks
   // (against the tracked pose as the prediction): every inlier anchored.
   Outcome Reanchor(const processing::CameraModel& camera, const processing::TfSampler& sampler,

@@ -98,6 +98,7 @@ struct Job {
   std::int64_t trigger_index = 0;
   std::optional<std::int64_t> vicon_frame;  // of the trigger, when known
   std::int64_t arrival_ns = 0;  // host clock when the frame reached the pipeline
+  std::uint64_t pass = 0;       // of a looped replay (Pipeline::EndPass): its triggers restart
 };
 
 struct Result {
@@ -192,7 +193,10 @@ struct Pipeline::Impl {
   std::map<int, std::uint64_t> served;  // by camera index: when it last got a worker
   std::uint64_t serve_count = 0;
 
-  // Registration poses by trigger, then camera index (publishing node only).
+  // Registration poses by pass and trigger, then camera index (publishing
+  // node only): a loop's passes number their triggers from 0 again, and
+  // under newest_wins a pass's last frames may be published after the next
+  // pass's first.
   struct TriggerPoses {
     struct Entry {
       std::string serial;
@@ -201,7 +205,8 @@ struct Pipeline::Impl {
     };
     std::map<int, Entry> by_camera;
   };
-  std::map<std::int64_t, TriggerPoses> poses;
+  std::map<std::pair<std::uint64_t, std::int64_t>, TriggerPoses> poses;
+  std::uint64_t pass = 0;  // the pass whose frames come in (Poll's thread)
   static constexpr std::size_t kTriggersKept = 64;
 
   // Counted on the Vicon thread without a lock that a lower-priority worker
@@ -232,11 +237,6 @@ struct Pipeline::Impl {
   int depth_held = 0;
   bool depth_stop = false;
   std::unique_ptr<tbb::task_arena> depth_arena;  // low priority: the workers localise first
-  // The depth lane's put into the graph and WaitIdle's wait for the graph,
-  // one at a time: a pass's end does not wait for the lane, so a put from
-  // outside the graph could come during its wait_for_all, which resets the
-  // graph's task context afterwards (oneTBB documents no concurrent wait).
-  std::mutex graph_put_mutex;
   std::thread depth_thread;
 
   void OfferDepth(const Job& job) {
@@ -270,7 +270,13 @@ struct Pipeline::Impl {
       }
       Result result{std::move(job), Error{""}, std::nullopt, true};
       depth_arena->execute([&] { result.processed = processor->Process(result.job.frame); });
-      std::lock_guard put(graph_put_mutex);
+      {
+        // The lane's thread alone computes in its arena: its CPU time is the lane's.
+        timespec cpu{};
+        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &cpu);
+        std::lock_guard r(report_mutex);
+        report.depth_cpu_s = static_cast<double>(cpu.tv_sec) + 1e-9 * static_cast<double>(cpu.tv_nsec);
+      }
       publish_node->try_put(std::move(result));
     }
   }
@@ -352,7 +358,7 @@ struct Pipeline::Impl {
   // Camera X's pose of a trigger: related to camera 0's of the same trigger
   // once both are there, and published.
   std::uint64_t Relate(const Job& job, const processing::CameraPose& w0_from_cx) {
-    TriggerPoses& trigger = poses[job.trigger_index];
+    TriggerPoses& trigger = poses[{job.pass, job.trigger_index}];
     const int camera = job.frame.camera_index;
     trigger.by_camera[camera] = {job.frame.serial, w0_from_cx, job.arrival_ns};
     std::uint64_t published = 0;
@@ -481,19 +487,14 @@ struct Pipeline::Impl {
           std::lock_guard r(report_mutex);
           ++report.frames_in;
         }
-        queued.push_back(Job{std::move(*frame), set.trigger_index, vicon, arrival});
+        queued.push_back(Job{std::move(*frame), set.trigger_index, vicon, arrival, pass});
       }
     }
   }
 
-  // `depth_lane`: also the depth lane (its waiting frames skipped, the ones
-  // it holds published); false between the passes of a loop, where the
-  // lane's frames go on beside the next pass (a frame's buffer keeps its
-  // pool alive, drivers/frame_pool.h; its products carry no pose to pair):
-  // at medium a depth map takes seconds, and waiting for it at every pass's
-  // end held the replay's cameras that long (bench_live, 24 frames looped at
-  // 10 Hz: 9.8 of the 20 frames offered per second came in).
-  void WaitIdle(bool depth_lane = true) {
+  // Every frame taken published: the workers', and the depth lane's (its
+  // waiting frames skipped, the ones it holds published).
+  void WaitIdle() {
     // A frame in the slot with no worker left cannot happen: every worker
     // takes the slot before it ends. The last worker's publication done, the
     // graph only has its tasks to finish: waiting on it earlier would let
@@ -502,7 +503,7 @@ struct Pipeline::Impl {
       std::unique_lock lock(slot_mutex);
       slot_cv.wait(lock, [&] { return in_flight == 0 && slots.empty(); });
     }
-    if (lanes && depth_lane) {
+    if (lanes) {
       // No worker offers any more: the frames still waiting for the depth
       // lane are skipped, the ones it holds are published.
       std::unique_lock lock(depth_mutex);
@@ -513,19 +514,26 @@ struct Pipeline::Impl {
       depth_slots.clear();
       depth_cv.wait(lock, [&] { return depth_held == 0; });
     }
-    std::lock_guard put(graph_put_mutex);
+    // No put into the graph can come now (the lane holds nothing, no worker
+    // offers): its wait_for_all, which resets the graph's task context
+    // afterwards, never runs beside one (oneTBB documents no concurrent wait).
     graph->wait_for_all();
   }
 
-  // The end of a pass (Pipeline::EndPass) or of the run (Finish: depth_lane).
-  void EndPass(bool depth_lane) {
+  // The end of a pass (Pipeline::EndPass) or of the run (Finish: `last`).
+  // Under newest_wins a pass's end waits for nothing: the frames in
+  // processing (a localisation, the depth lane's depth map: at medium up to
+  // seconds) go on beside the next pass, their buffers keeping their pools
+  // alive (drivers/frame_pool.h), their poses keyed by pass (Relate);
+  // waiting for them held the replay's cameras that long at every pass of a
+  // loop (bench_live, 24 frames looped at 10 Hz: 9.8 of the 20 frames offered
+  // per second came in). Under block every frame is processed before the
+  // next pass's come.
+  void EndPass(bool last) {
     QueueSets(TakeSets());
     SubmitQueued(std::nullopt);
-    WaitIdle(depth_lane);
-    // The next pass numbers its triggers from the start again: no pose of
-    // this pass may pair with one of the next (the publishing node has no
-    // worker's result left; the depth lane's carry no pose).
-    poses.clear();
+    if (last || !options.skip_when_busy) WaitIdle();
+    ++pass;
     // The next pass's grab loop starts a fresh assembler, its losses from 0.
     std::lock_guard lock(sync_mutex);
     drops_before = SyncDrops();
@@ -700,10 +708,10 @@ void Pipeline::Poll() {
   }
 }
 
-void Pipeline::EndPass() { impl_->EndPass(/*depth_lane=*/false); }
+void Pipeline::EndPass() { impl_->EndPass(/*last=*/false); }
 
 void Pipeline::Finish() {
-  impl_->EndPass(/*depth_lane=*/true);
+  impl_->EndPass(/*last=*/true);
   impl_->PublishStats();
   const PipelineReport r = impl_->Snapshot();
   if (r.skipped > 0)
@@ -740,7 +748,7 @@ std::string PipelineReport::FinalReport() const {
       << "\n";
   if (depth_processed + depth_skipped + depth_failed > 0)
     out << "depth lane (registration first): processed " << depth_processed << "  skipped "
-        << depth_skipped << "  failed " << depth_failed << "\n";
+        << depth_skipped << "  failed " << depth_failed << "  CPU " << depth_cpu_s << " s\n";
   out
       << "published: " << published_previews << " previews, " << published_depth << " depth, "
       << published_tf << " TF, " << published_extrinsics << " extrinsics, " << published_vicon
