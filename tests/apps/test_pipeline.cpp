@@ -536,6 +536,7 @@ class KnownPoseStage final : public processing::RegistrationStage {
     pose.transform = W0FromC(frame.camera_index);
     pose.method = "known";
     pose.inliers = 42;
+    pose.localisation = "by camera " + std::to_string(frame.camera_index);
     return std::optional<processing::CameraPose>(pose);
   }
   std::atomic<int> calls{0};
@@ -573,6 +574,12 @@ TEST(Pipeline, RegistrationStagePosesBecomeExtrinsicsPerTrigger) {
     options.rate.kind = ReplayRate::Kind::kMax;
     options.pipeline.publisher.bus = &bus;
     if (!pass_through) options.pipeline.registration = stage;
+    std::mutex records_mutex;
+    std::vector<ExtrinsicsRecord> records;  // what --extrinsics-csv and bench_live get
+    options.pipeline.on_extrinsics = [&](const ExtrinsicsRecord& record) {
+      std::lock_guard lock(records_mutex);
+      records.push_back(record);
+    };
     auto result = RunReplay(options);
     ASSERT_TRUE(result.ok()) << result.error().message;
     Drain(bus);
@@ -607,6 +614,13 @@ TEST(Pipeline, RegistrationStagePosesBecomeExtrinsicsPerTrigger) {
     }
     std::sort(triggers.begin(), triggers.end());
     EXPECT_EQ(triggers, (std::vector<std::int64_t>{0, 1}));
+    // The record carries how each camera's pose was made: camera 1's in its
+    // c0_from_cx (as the message), camera 0's beside it.
+    ASSERT_EQ(records.size(), static_cast<std::size_t>(frames));
+    for (const ExtrinsicsRecord& record : records) {
+      EXPECT_EQ(record.c0_from_cx.localisation, "by camera 1");
+      EXPECT_EQ(record.reference_localisation, "by camera 0");
+    }
   }
 }
 
