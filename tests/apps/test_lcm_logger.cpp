@@ -36,7 +36,12 @@ namespace {
 // As the commands do before they run the pipeline (process_settings.h).
 const std::unique_ptr<ProcessSettings> kProcessSettings = ProcessSettings::ForPipeline();
 
-constexpr const char* kUrl = "udpm://239.255.76.67:7711?ttl=0";
+// A group and a UDP port of this process's own (tests/test_util.h says why
+// both): another checkout's run of this test at the same time, on a fixed
+// port, would reach this logger too.
+const std::string kGroup = test::MulticastGroupOfThisProcess(73);
+const std::string kUrl =
+    "udpm://" + kGroup + ":" + std::to_string(test::MulticastPortOfThisProcess()) + "?ttl=0";
 // The logger gets a large receive buffer (within net.core.rmem_max): a max-rate
 // replay sends every message of a frame in a burst.
 
@@ -49,10 +54,10 @@ class LoopbackMulticast : public ::testing::Test {
     if (Sh("command -v lcm-logger") != 0) GTEST_SKIP() << "lcm-logger missing (liblcm-bin)";
     ASSERT_EQ(Sh("ip link set lo multicast on"), 0);
     // Only the route this fixture added is removed again.
-    added_route_ = Sh("ip route add 239.255.76.67/32 dev lo") == 0;
+    added_route_ = Sh("ip route add " + kGroup + "/32 dev lo") == 0;
   }
   void TearDown() override {
-    if (added_route_) Sh("ip route del 239.255.76.67/32 dev lo");
+    if (added_route_) Sh("ip route del " + kGroup + "/32 dev lo");
   }
   bool added_route_ = false;
 };
@@ -79,7 +84,7 @@ TEST_F(LoopbackMulticast, LcmLoggerRecordsAMaxRateReplay) {
     // (the fixture runs as root).
     (void)setpriority(PRIO_PROCESS, 0, -10);
     execlp("lcm-logger", "lcm-logger", "-q", "-f", "-c", "LIFMCR_.*",
-           (std::string("--lcm-url=") + kUrl + "&recv_buf_size=4194304").c_str(), log_path.c_str(),
+           ("--lcm-url=" + kUrl + "&recv_buf_size=4194304").c_str(), log_path.c_str(),
            nullptr);
     _exit(127);
   }

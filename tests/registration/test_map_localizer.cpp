@@ -32,6 +32,7 @@
 #include <cstdlib>
 #include <map>
 #include <memory>
+#include <thread>
 #include <vector>
 
 namespace lifmcr::registration {
@@ -247,6 +248,51 @@ TEST(MapLocalizer, TrackedPosesDoNotDriftWithTheFramesSinceTrackingBegan) {
     EXPECT_LE(Median(late_mm), Median(early_mm) + 0.3);
     EXPECT_LE(Median(late_deg), Median(early_deg) + 0.02);
   }
+}
+
+// Offline (LocalizerOptions::wait_for_earlier_frames, replay --rate max):
+// two frames of one camera localised at once on two threads, the first
+// relocalising (no pose yet). Live the second would pass through
+// unregistered while the first relocalises; offline it waits and is
+// localised from the first's pose (whichever thread reaches the localizer
+// first, neither frame is skipped).
+TEST(MapLocalizer, OfflineAFrameWaitsForItsCamerasRelocalisationInsteadOfPassingThrough) {
+  Sequence& s = *Shared();
+  const std::string& x = s.serials[1];
+  std::vector<OwnedImage> raws;
+  for (int f = 0; f < 2; ++f) {
+    auto raw = ReadBmp(layout::RawFramePath(s.sequence, x, f));
+    ASSERT_TRUE(raw) << raw.error().message;
+    raws.push_back(std::move(*raw));
+  }
+  LocalizerOptions options;
+  options.wait_for_earlier_frames = true;
+  MapLocalizerStage stage(s.map, options);
+  std::vector<std::optional<processing::CameraPose>> poses(2);
+  std::vector<std::thread> threads;
+  for (int f = 0; f < 2; ++f)
+    threads.emplace_back([&, f] {
+      processing::StageFrame frame;
+      frame.serial = x;
+      frame.trigger_index = f;
+      frame.host_ns = 1'000'000 * (f + 1);
+      frame.raw = std::as_const(raws[f]).View();
+      frame.camera = s.chain->Find(x);
+      auto p = stage.Localize(frame);
+      EXPECT_TRUE(p) << p.error().message;
+      if (p && *p) poses[f] = **p;
+    });
+  for (std::thread& t : threads) t.join();
+  const MapLocalizerStage::Counts counts = stage.counts();
+  EXPECT_EQ(counts.skipped, 0);
+  for (int f = 0; f < 2; ++f) {
+    ASSERT_TRUE(poses[f]) << "frame " << f;
+    EXPECT_EQ(poses[f]->status, "ok") << "frame " << f;
+    EXPECT_LT(TranslationDifference(poses[f]->transform, s.truth[x][f]), 3.0) << "frame " << f;
+  }
+  // One of the two relocalised, the other localised after it from its pose.
+  EXPECT_EQ(counts.relocalised, 1);
+  EXPECT_EQ(counts.tracked, 1);
 }
 
 // Guided matching (registration/guided_matches.h), the re-anchoring's
