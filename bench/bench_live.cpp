@@ -28,12 +28,14 @@
 // replay's trigger index is the sequence's frame number, from 0 again each
 // pass of the loop): c0_from_cx_true = world_from_c0^-1 world_from_cx, the
 // translation difference (mm) and the angle of R_est^T R_true (deg),
-// median and p90, over all `ok` messages and split by how camera X's pose
-// was made (the message's localisation: tracked, re-anchored, relocalised);
-// the fraction of messages (triggers with both poses) that are `ok`, and the
+// median and p90, over all `ok` messages, split by how camera X's pose was
+// made (the message's localisation: tracked, re-anchored, relocalised) and
+// by how both cameras' poses were made (ExtrinsicsRecord's
+// reference_localisation: c0_from_cx carries both poses' errors); the
+// fraction of messages (triggers with both poses) that are `ok`, and the
 // others by the camera whose pose is missing, skipped (passed through while
-// that camera was being relocalised) or failed. Ratios: track / relocalise errors (above 1: tracking's
-// poses are worse than relocalising every frame).
+// that camera was being relocalised) or failed. Ratios: track / relocalise
+// errors (above 1: tracking's poses are worse than relocalising every frame).
 //
 //   bench_live [--preset small|medium|r32] [--frames N] [--seconds S]
 //              [--concurrency N] [--keep DIR]
@@ -130,6 +132,9 @@ struct Accuracy {
     std::vector<double> t_mm, r_deg;
   };
   std::map<std::string, Errors> by_localisation;  // of camera X's pose, ok messages only
+  // By both cameras' localisations, "0 tracked, X relocalised".
+  std::map<std::string, Errors> by_pair;
+  std::map<std::int64_t, Errors> by_frame;  // by trigger (= frame of the sequence)
   Errors all;
   int messages = 0, ok = 0, without_truth = 0;
   // By which camera's pose is missing and why: "camera 0 skipped" (passed
@@ -161,7 +166,12 @@ struct Accuracy {
         zero->second.at(r.trigger_index).inverse() * x->second.at(r.trigger_index);
     const double t = registration::TranslationDifference(p.transform, expected);
     const double deg = registration::RotationDifferenceDeg(p.transform, expected);
-    for (Errors* e : {&all, &by_localisation[p.localisation.empty() ? "-" : p.localisation]}) {
+    const std::string x_how = p.localisation.empty() ? "-" : p.localisation;
+    const std::string zero_how =
+        r.reference_localisation.empty() ? "-" : r.reference_localisation;
+    for (Errors* e :
+         {&all, &by_localisation[x_how], &by_pair["0 " + zero_how + ", X " + x_how],
+          &by_frame[r.trigger_index]}) {
       e->t_mm.push_back(t);
       e->r_deg.push_back(deg);
     }
@@ -199,7 +209,7 @@ void PrintAccuracy(const Accuracy& a) {
   if (a.without_truth > 0) std::printf("; %d ok without a ground truth", a.without_truth);
   std::printf("\n");
   auto line = [](const std::string& name, const Accuracy::Errors& e) {
-    std::printf("           c0_from_cx error %-12s n=%-4zu median %6.3f mm / %6.4f deg   p90 %6.3f "
+    std::printf("           c0_from_cx error %-28s n=%-4zu median %6.3f mm / %6.4f deg   p90 %6.3f "
                 "mm / %6.4f deg\n",
                 name.c_str(), e.t_mm.size(), Percentile(e.t_mm, 0.5), Percentile(e.r_deg, 0.5),
                 Percentile(e.t_mm, 0.9), Percentile(e.r_deg, 0.9));
@@ -209,6 +219,18 @@ void PrintAccuracy(const Accuracy& a) {
     if (a.by_localisation.count(name)) line(name, a.by_localisation.at(name));
   for (const auto& [name, e] : a.by_localisation)
     if (name != "tracked" && name != "re-anchored" && name != "relocalised") line(name, e);
+  if (a.by_pair.size() > 1)
+    for (const auto& [name, e] : a.by_pair) line(name, e);
+  // Which frames the figures above come from matters: the error of a frame
+  // relocalised depends mostly on the frame, and the track run relocalises
+  // at the loop's first frames.
+  if (!a.by_frame.empty()) {
+    std::printf("           median mm by frame:");
+    for (const auto& [frame, e] : a.by_frame)
+      std::printf(" %lld:%.2f(%zu)", static_cast<long long>(frame), Percentile(e.t_mm, 0.5),
+                  e.t_mm.size());
+    std::printf("\n");
+  }
 }
 
 // a / b, 0 when b is 0.

@@ -372,7 +372,7 @@ struct Pipeline::Impl {
         ExtrinsicsRecord record{zero.serial, entry.serial, job.trigger_index,
                                 registration->Relate(entry.serial, job.trigger_index,
                                                      zero.w0_from_cx, entry.w0_from_cx),
-                                entry.arrival_ns};
+                                entry.arrival_ns, zero.w0_from_cx.localisation};
         publisher->PublishExtrinsics(record.reference_serial, record.serial,
                                      record.trigger_index, record.c0_from_cx);
         if (options.on_extrinsics) options.on_extrinsics(record);

@@ -65,6 +65,9 @@ struct ExtrinsicsRecord {
   std::int64_t trigger_index = 0;
   processing::CameraPose c0_from_cx;
   std::int64_t arrival_ns = 0;  // camera X's frame at the pipeline (host clock)
+  // How camera 0's pose of the trigger was made (its CameraPose::localisation;
+  // c0_from_cx carries camera X's): not published, for bench_live's accuracy.
+  std::string reference_localisation;
 };
 
 struct PipelineOptions {
