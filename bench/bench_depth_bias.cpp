@@ -49,8 +49,9 @@ double Median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
-constexpr std::array<double, 5> kBins = {2.5, 3.0, 3.5, 4.0, 5.0};
+constexpr std::array<double, 7> kBins = {2.5, 3.0, 3.5, 4.0, 5.0, 6.0, 8.0};
 constexpr int kBinCount = static_cast<int>(kBins.size()) - 1;
+constexpr int kBin4To5 = 3;  // the bin v 4-5 of the printed spread
 
 int BinOf(double v) {
   for (int b = 0; b < kBinCount; ++b)
@@ -147,7 +148,7 @@ int main(int argc, char** argv) {
     std::printf("\n");
   }
   const Eigen::Vector2d fit = ata.ldlt().solve(atb);  // (a, eps)
-  const double spread = Median(by_bin[0]) - Median(by_bin[kBinCount - 1]);
+  const double spread = Median(by_bin[0]) - Median(by_bin[kBin4To5]);
   const double noise = Median(all_abs);
   std::printf("fit v_measured = %.4f + (1 %+.5f) v: a calibration on these depths is pulled to "
               "B %+.2f %%, b_L0 %+.3f %% (B %.4f mm, b_L0 %.4f mm)\n",

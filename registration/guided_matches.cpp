@@ -51,7 +51,8 @@ GuidedMatches FindGuidedMatches(const MapIndex& map, const processing::CameraMod
   // The map points in view, in a grid of radius_px cells (a keypoint's
   // candidates are in its cell and the 8 around it).
   const double w = sampler.tf_width(), h = sampler.tf_height(), cell = options.radius_px;
-  const int grid_w = static_cast<int>(std::ceil(w / cell)), grid_h = static_cast<int>(std::ceil(h / cell));
+  const int grid_w = static_cast<int>(std::ceil(w / cell)),
+            grid_h = static_cast<int>(std::ceil(h / cell));
   std::vector<std::vector<int>> grid(static_cast<std::size_t>(grid_w) * grid_h);
   std::vector<Eigen::Vector2d> projected(static_cast<std::size_t>(map.size()));
   std::vector<double> v(static_cast<std::size_t>(map.size()), 0);

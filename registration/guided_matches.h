@@ -50,9 +50,9 @@ struct GuidedMatchOptions {
   // of a relocalisation; 800 keypoints instead of 1500 at step 3: 184 at 2.48 mm.
   int max_step = 3;
   int min_side_px = 256;
-  FeatureOptions features;   // SIFT on the rendered image
-  double radius_px = 6;      // TF px between a keypoint and a map point's projection (> 0)
-  double ratio = 0.8;        // nearest / second nearest among the candidates, (0, 1]
+  FeatureOptions features;  // SIFT on the rendered image
+  double radius_px = 6;     // TF px between a keypoint and a map point's projection (> 0)
+  double ratio = 0.8;       // nearest / second nearest among the candidates, (0, 1]
   Status Check() const;
 };
 

@@ -130,13 +130,14 @@ std::string MapLocalizerStage::Counts::StageReport() const {
   std::string out = line;
   if (guided_attempts > 0) {
     const double g = static_cast<double>(guided_attempts);
-    std::snprintf(line, sizeof line,
-                  "; re-anchored by guided matching %lld of %lld attempts, per attempt: render "
-                  "%.0f ms, SIFT %.0f ms, matching %.1f ms, PnP %.0f ms; %.0f matches (%.0f map points "
-                  "in view), %.0f inliers",
-                  guided, guided_attempts, 1e3 * guided_render_s / g, 1e3 * guided_sift_s / g,
-                  1e3 * guided_match_s / g, 1e3 * guided_pnp_s / g, guided_matches / g,
-                  guided_windows / g, guided_inliers / g);
+    std::snprintf(
+        line, sizeof line,
+        "; re-anchored by guided matching %lld of %lld attempts, per attempt: render "
+        "%.0f ms, SIFT %.0f ms, matching %.1f ms, PnP %.0f ms; %.0f matches (%.0f map points "
+        "in view), %.0f inliers",
+        guided, guided_attempts, 1e3 * guided_render_s / g, 1e3 * guided_sift_s / g,
+        1e3 * guided_match_s / g, 1e3 * guided_pnp_s / g, guided_matches / g, guided_windows / g,
+        guided_inliers / g);
     out += line;
     if (!last_guided_failure.empty()) out += " (last failure: " + last_guided_failure + ")";
   }

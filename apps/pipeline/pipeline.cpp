@@ -275,7 +275,8 @@ struct Pipeline::Impl {
         timespec cpu{};
         clock_gettime(CLOCK_THREAD_CPUTIME_ID, &cpu);
         std::lock_guard r(report_mutex);
-        report.depth_cpu_s = static_cast<double>(cpu.tv_sec) + 1e-9 * static_cast<double>(cpu.tv_nsec);
+        report.depth_cpu_s =
+            static_cast<double>(cpu.tv_sec) + 1e-9 * static_cast<double>(cpu.tv_nsec);
       }
       publish_node->try_put(std::move(result));
     }

@@ -12,6 +12,7 @@
 #include "replay/sequence.h"
 #include "replay/synth/synth_params.h"
 #include "replay/synth/synth_writer.h"
+#include "tests/lcm_log_marker.h"
 #include "tests/test_util.h"
 
 #include <gtest/gtest.h>
@@ -88,14 +89,18 @@ TEST_F(LoopbackMulticast, LcmLoggerRecordsAMaxRateReplay) {
            nullptr);
     _exit(127);
   }
-  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  // The logger matches LIFMCR_.*, so it logs the markers (the counts below
+  // skip them).
+  ASSERT_TRUE(test::PublishUntilLogged(kUrl, log_path, "LIFMCR_TEST_MARKER_READY"))
+      << "lcm-logger did not log a marker within 60 s";
 
   ReplayRunOptions options;
   options.sequence_dir = summary->sequence_dir;
   options.rate.kind = ReplayRate::Kind::kMax;
   options.pipeline.publisher.url = kUrl;
   auto result = RunReplay(options);
-  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  ASSERT_TRUE(test::PublishUntilLogged(kUrl, log_path, "LIFMCR_TEST_MARKER_END"))
+      << "lcm-logger did not log a marker within 60 s";
   kill(logger, SIGINT);
   int status = 0;
   waitpid(logger, &status, 0);

@@ -757,7 +757,8 @@ TEST(Pipeline, DepthLaneFramesOutliveAPassNeverThePipeline) {
     pipeline.reset();  // nothing of the lane's left to reach the destroyed nodes
     Drain(bus);
     int previews = 0;
-    for (const auto& [serial, ids] : received.preview_frames) previews += static_cast<int>(ids.size());
+    for (const auto& [serial, ids] : received.preview_frames)
+      previews += static_cast<int>(ids.size());
     EXPECT_EQ(static_cast<std::uint64_t>(previews), r.depth_processed);
     std::lock_guard lock(gate.mutex);
     EXPECT_EQ(gate.timed_out, 0);

@@ -13,6 +13,7 @@
 // other LCM traffic on the host stays out. Needs root for the loopback multicast
 // route (skipped otherwise), like the other multicast tests.
 
+#include "tests/lcm_log_marker.h"
 #include "tests/test_util.h"
 
 #include <gtest/gtest.h>
@@ -120,9 +121,12 @@ TEST_F(StockLcmTools, LcmLoggerWithNoOptionsRecordsEveryMessage) {
     execlp("lcm-logger", "lcm-logger", log_path.c_str(), nullptr);
     _exit(127);
   }
-  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  // The logger logs every channel, the markers too (the counts below skip them).
+  ASSERT_TRUE(test::PublishUntilLogged(kUrl, log_path, "LIFMCR_TEST_MARKER_READY"))
+      << "lcm-logger did not log a marker within 60 s";
   const Published published = Replay();
-  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  ASSERT_TRUE(test::PublishUntilLogged(kUrl, log_path, "LIFMCR_TEST_MARKER_END"))
+      << "lcm-logger did not log a marker within 60 s";
   kill(logger, SIGINT);
   int status = 0;
   waitpid(logger, &status, 0);

@@ -28,8 +28,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdlib>
 #include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <memory>
 #include <thread>
@@ -315,9 +315,9 @@ TEST(MapLocalizer, GuidedMatchesFindMapPointsNearAPoseKnownToAFewPixels) {
   const Pose truth = s.truth[x][4];
   Pose guide = truth;
   guide.translation() += Eigen::Vector3d(0.6, -0.8, 0.0);
-  guide.linear() = guide.linear() *
-                   Eigen::AngleAxisd(0.06 * M_PI / 180, Eigen::Vector3d(1, 1, 0).normalized())
-                       .toRotationMatrix();
+  guide.linear() =
+      guide.linear() * Eigen::AngleAxisd(0.06 * M_PI / 180, Eigen::Vector3d(1, 1, 0).normalized())
+                           .toRotationMatrix();
   const MapIndex index = MapIndex::Of(s.map);
   const GuidedMatches g = FindGuidedMatches(index, camera, **sampler, view, guide, {});
   ASSERT_EQ(g.status, "ok");
@@ -327,20 +327,21 @@ TEST(MapLocalizer, GuidedMatchesFindMapPointsNearAPoseKnownToAFewPixels) {
     Eigen::Vector2d tf, guided;
     double v = 0;
     ASSERT_TRUE(ProjectMapPoint(camera, cam_from_w0, index.points_in_w0[g.points[i]], &tf, &v));
-    ASSERT_TRUE(ProjectMapPoint(camera, guide.inverse(), index.points_in_w0[g.points[i]], &guided,
-                                &v));
+    ASSERT_TRUE(
+        ProjectMapPoint(camera, guide.inverse(), index.points_in_w0[g.points[i]], &guided, &v));
     residual_px.push_back((g.tf_px[i] - tf).norm());
     guide_px.push_back((guided - tf).norm());
   }
   const auto within = [&](double px) {
     return std::count_if(residual_px.begin(), residual_px.end(), [&](double r) { return r <= px; });
   };
-  std::printf("guided matches: %zu of %d map points in view, %d keypoints at step %d; from their "
-              "true projections median %.2f px, %.0f %% within 2 px (the guiding pose's "
-              "projections: median %.2f px); render %.0f ms, SIFT %.0f ms, matching %.1f ms\n",
-              g.points.size(), g.in_view, g.keypoints, g.step, Median(residual_px),
-              100.0 * within(2.0) / std::max<std::size_t>(1, residual_px.size()), Median(guide_px),
-              1e3 * g.render_s, 1e3 * g.sift_s, 1e3 * g.match_s);
+  std::printf(
+      "guided matches: %zu of %d map points in view, %d keypoints at step %d; from their "
+      "true projections median %.2f px, %.0f %% within 2 px (the guiding pose's "
+      "projections: median %.2f px); render %.0f ms, SIFT %.0f ms, matching %.1f ms\n",
+      g.points.size(), g.in_view, g.keypoints, g.step, Median(residual_px),
+      100.0 * within(2.0) / std::max<std::size_t>(1, residual_px.size()), Median(guide_px),
+      1e3 * g.render_s, 1e3 * g.sift_s, 1e3 * g.match_s);
   EXPECT_GE(g.points.size(), 100u);
   EXPECT_LE(Median(residual_px), 1.0);
   EXPECT_GE(within(2.0), static_cast<long>(0.8 * residual_px.size()));
