@@ -56,6 +56,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -229,6 +230,13 @@ class RigController {
 
   RigHealth Health();
 
+  // The software-trigger schedule's start, set by Start: tick k fires at
+  // ScheduleStart() + k periods. Empty outside Start..Stop and when this
+  // controller fires no triggers. On a loaded host Start may return tens of
+  // milliseconds after it (the trigger threads it wakes take its CPU), so
+  // callers that time their own events against the triggers use this.
+  std::optional<std::chrono::steady_clock::time_point> ScheduleStart() const;
+
   // True when every free-running source has finished (replay ended); the
   // command stops the recording then.
   bool ViconFinished() const;
@@ -305,12 +313,13 @@ class RigController {
   std::atomic<bool> vicon_running_{false};
   std::thread vicon_thread_;
   std::vector<std::thread> trigger_threads_;
-  // Guards ticks_begun_, the stop of triggering_ and the schedule's start.
+  // Guards ticks_begun_, the stop of triggering_ and the count of ready trigger threads.
   std::mutex trigger_mutex_;
   std::uint64_t ticks_begun_ = 0;  // ticks any camera's trigger thread began firing
-  std::condition_variable trigger_ready_;  // a trigger thread waits; the schedule is set
+  std::condition_variable trigger_ready_;  // Start waits on it for every trigger thread
   std::size_t trigger_threads_ready_ = 0;
-  bool schedule_set_ = false;
+  // Set (release) once schedule_start_ is; the trigger threads wait on it.
+  std::atomic<bool> schedule_set_{false};
   std::chrono::steady_clock::time_point schedule_start_;
   bool started_ = false;
 

@@ -8,6 +8,8 @@ Status RegistrationArgs::Check() const {
   if (reference.empty() && !extrinsics_csv.empty())
     return Error{"--extrinsics-csv needs --reference MAP_DIR"};
   if (reference.empty() && rigid_mount) return Error{"--rigid-mount needs --reference MAP_DIR"};
+  if (reference.empty() && relocalise_every_frame)
+    return Error{"--relocalise-every-frame needs --reference MAP_DIR"};
   return Status::Ok();
 }
 

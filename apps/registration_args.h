@@ -19,7 +19,10 @@ struct RegistrationArgs {
   std::vector<std::string> intrinsics;  // cameras.yaml / intrinsics.yaml files
   std::string extrinsics_csv;           // FILE; needs reference
   bool rigid_mount = false;             // change detection (replay's --rigid-mount)
-  // --extrinsics-csv or --rigid-mount without --reference is a usage error
+  // Relocalise every frame instead of tracking (replay's --relocalise-every-frame).
+  bool relocalise_every_frame = false;
+  // --extrinsics-csv, --rigid-mount or --relocalise-every-frame without
+  // --reference is a usage error
   // (the message names the option).
   Status Check() const;
 };

@@ -23,6 +23,19 @@
 // Localize's mean time tracked vs relocalised. Ratios: track / relocalise
 // extrinsics rate and latency; depth maps published track / depth only
 // (what localising every frame costs the depth lane).
+// Accuracy (track and relocalise runs): each extrinsics message received in
+// the window against GroundTruth/poses_<serial>.csv of its trigger (the
+// replay's trigger index is the sequence's frame number, from 0 again each
+// pass of the loop): c0_from_cx_true = world_from_c0^-1 world_from_cx, the
+// translation difference (mm) and the angle of R_est^T R_true (deg),
+// median and p90, over all `ok` messages, split by how camera X's pose was
+// made (the message's localisation: tracked, re-anchored, relocalised) and
+// by how both cameras' poses were made (ExtrinsicsRecord's
+// reference_localisation: c0_from_cx carries both poses' errors); the
+// fraction of messages (triggers with both poses) that are `ok`, and the
+// others by the camera whose pose is missing, skipped (passed through while
+// that camera was being relocalised) or failed. Ratios: track / relocalise
+// errors (above 1: tracking's poses are worse than relocalising every frame).
 //
 //   bench_live [--preset small|medium|r32] [--frames N] [--seconds S]
 //              [--concurrency N] [--keep DIR]
@@ -35,6 +48,8 @@
 #include "apps/pipeline/process_settings.h"
 #include "apps/pipeline/replay_runner.h"
 #include "registration/ground_truth_map.h"
+#include "registration/pose_covariance.h"
+#include "registration/poses_csv.h"
 #include "registration/reference_map.h"
 #include "replay/layout.h"
 #include "replay/synth/cameras_yaml.h"
@@ -108,6 +123,61 @@ double Percentile(std::vector<double> v, double q) {
   return v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))];
 }
 
+// serial -> frame -> world_from_cam (GroundTruth/poses_<serial>.csv).
+using Truth = std::map<std::string, std::map<std::int64_t, Pose>>;
+
+// The extrinsics' errors against the ground truth (header comment).
+struct Accuracy {
+  struct Errors {
+    std::vector<double> t_mm, r_deg;
+  };
+  std::map<std::string, Errors> by_localisation;  // of camera X's pose, ok messages only
+  // By both cameras' localisations, "0 tracked, X relocalised".
+  std::map<std::string, Errors> by_pair;
+  std::map<std::int64_t, Errors> by_frame;  // by trigger (= frame of the sequence)
+  Errors all;
+  int messages = 0, ok = 0, without_truth = 0;
+  // By which camera's pose is missing and why: "camera 0 skipped" (passed
+  // through while camera 0 was being relocalised; ComposeExtrinsics
+  // prefixes its status with "reference camera: "), "camera 0 failed",
+  // "camera X skipped", "camera X failed".
+  std::map<std::string, int> not_ok;
+  std::string last_failure;  // the status of the last "failed" one
+
+  void Add(const Truth& truth, const apps::ExtrinsicsRecord& r) {
+    ++messages;
+    const processing::CameraPose& p = r.c0_from_cx;
+    if (p.status != "ok") {
+      const bool zero = p.status.starts_with("reference camera: ");
+      const bool skipped = zero ? p.status.find("not localised") != std::string::npos
+                                : p.localisation == "skipped";
+      ++not_ok[std::string(zero ? "camera 0 " : "camera X ") + (skipped ? "skipped" : "failed")];
+      if (!skipped) last_failure = p.status;
+      return;
+    }
+    ++ok;
+    const auto zero = truth.find(r.reference_serial), x = truth.find(r.serial);
+    if (zero == truth.end() || x == truth.end() || !zero->second.count(r.trigger_index) ||
+        !x->second.count(r.trigger_index)) {
+      ++without_truth;
+      return;
+    }
+    const Pose expected =
+        zero->second.at(r.trigger_index).inverse() * x->second.at(r.trigger_index);
+    const double t = registration::TranslationDifference(p.transform, expected);
+    const double deg = registration::RotationDifferenceDeg(p.transform, expected);
+    const std::string x_how = p.localisation.empty() ? "-" : p.localisation;
+    const std::string zero_how =
+        r.reference_localisation.empty() ? "-" : r.reference_localisation;
+    for (Errors* e :
+         {&all, &by_localisation[x_how], &by_pair["0 " + zero_how + ", X " + x_how],
+          &by_frame[r.trigger_index]}) {
+      e->t_mm.push_back(t);
+      e->r_deg.push_back(deg);
+    }
+  }
+};
+
 struct RunFigures {
   std::string label;
   double elapsed_s = 0;  // the whole run, until the frames in processing finished
@@ -117,7 +187,9 @@ struct RunFigures {
   std::vector<double> latency_ms;
   std::uint64_t processed = 0, skipped = 0, previews = 0, depth = 0;
   std::uint64_t frames_in = 0, underruns = 0, incomplete_sets = 0;
+  double depth_cpu_s = 0;  // the depth lane's thread (registration runs only)
   std::string registration;
+  Accuracy accuracy;
   double HzPerCamera() const {
     if (extrinsics_ok.empty() || window_s <= 0) return 0;
     int n = 0;
@@ -126,9 +198,48 @@ struct RunFigures {
   }
 };
 
+void PrintAccuracy(const Accuracy& a) {
+  std::printf("           accuracy vs GroundTruth: %d of %d messages ok (%.1f %%)", a.ok,
+              a.messages, a.messages > 0 ? 100.0 * a.ok / a.messages : 0.0);
+  if (!a.not_ok.empty()) {
+    std::printf("; not ok:");
+    for (const auto& [why, n] : a.not_ok) std::printf(" %s %d", why.c_str(), n);
+    if (!a.last_failure.empty()) std::printf(" (last failure: %s)", a.last_failure.c_str());
+  }
+  if (a.without_truth > 0) std::printf("; %d ok without a ground truth", a.without_truth);
+  std::printf("\n");
+  auto line = [](const std::string& name, const Accuracy::Errors& e) {
+    std::printf("           c0_from_cx error %-28s n=%-4zu median %6.3f mm / %6.4f deg   p90 %6.3f "
+                "mm / %6.4f deg\n",
+                name.c_str(), e.t_mm.size(), Percentile(e.t_mm, 0.5), Percentile(e.r_deg, 0.5),
+                Percentile(e.t_mm, 0.9), Percentile(e.r_deg, 0.9));
+  };
+  line("all", a.all);
+  for (const char* name : {"tracked", "re-anchored", "relocalised"})
+    if (a.by_localisation.count(name)) line(name, a.by_localisation.at(name));
+  for (const auto& [name, e] : a.by_localisation)
+    if (name != "tracked" && name != "re-anchored" && name != "relocalised") line(name, e);
+  if (a.by_pair.size() > 1)
+    for (const auto& [name, e] : a.by_pair) line(name, e);
+  // Which frames the figures above come from matters: the error of a frame
+  // relocalised depends mostly on the frame, and the track run relocalises
+  // at the loop's first frames.
+  if (!a.by_frame.empty()) {
+    std::printf("           median mm by frame:");
+    for (const auto& [frame, e] : a.by_frame)
+      std::printf(" %lld:%.2f(%zu)", static_cast<long long>(frame), Percentile(e.t_mm, 0.5),
+                  e.t_mm.size());
+    std::printf("\n");
+  }
+}
+
+// a / b, 0 when b is 0.
+double Ratio(double a, double b) { return b > 0 ? a / b : 0.0; }
+
 enum class Mode { kTrack, kRelocalise, kDepthOnly };
 
-RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_dir, Mode mode) {
+RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_dir,
+               const Truth& truth, Mode mode) {
   RunFigures f;
   f.label = mode == Mode::kTrack ? "track" : mode == Mode::kRelocalise ? "relocalise" : "depth only";
   lcm::LCM bus("memq://");
@@ -152,6 +263,7 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
       ++f.extrinsics;
       if (r.c0_from_cx.status == "ok") ++f.extrinsics_ok[r.serial];
       f.latency_ms.push_back(ms);
+      f.accuracy.Add(truth, r);
     };
   }
   std::atomic<bool> stop{false};
@@ -184,6 +296,7 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
   f.frames_in = result->report.frames_in;
   f.underruns = result->camera_underruns;
   f.incomplete_sets = result->report.incomplete_sets;
+  f.depth_cpu_s = result->report.depth_cpu_s;
   f.registration = result->registration;
   return f;
 }
@@ -256,9 +369,18 @@ int main(int argc, char** argv) {
               "%d frames at once, map of %zu points, %u hardware threads\n",
               args.preset.c_str(), args.frames, args.seconds, args.concurrency,
               map->points.size(), std::thread::hardware_concurrency());
+  Truth truth;
+  for (const std::string& serial : *serials) {
+    auto poses = registration::ReadPosesCsv(layout::PosesCsvPath(sequence_dir, serial));
+    if (!poses) {
+      std::fprintf(stderr, "bench_live: %s\n", poses.error().message.c_str());
+      return 3;
+    }
+    for (const registration::FramePose& p : *poses) truth[serial][p.frame] = p.world_from_cam;
+  }
   std::vector<RunFigures> runs;
   for (const Mode mode : {Mode::kTrack, Mode::kRelocalise, Mode::kDepthOnly}) {
-    runs.push_back(Run(args, sequence_dir, map_dir, mode));
+    runs.push_back(Run(args, sequence_dir, map_dir, truth, mode));
     const RunFigures& f = runs.back();
     std::printf("%-10s extrinsics %.2f Hz per camera (%d messages), frame -> extrinsics p50 %.0f "
                 "ms p99 %.0f ms | frames taken %.2f/s skipped %.2f/s | previews %.2f/s "
@@ -270,7 +392,11 @@ int main(int argc, char** argv) {
                 "incomplete sets %.2f/s\n",
                 f.frames_in / f.elapsed_s, f.underruns / f.elapsed_s,
                 f.incomplete_sets / f.elapsed_s);
+    if (f.depth_cpu_s > 0)
+      std::printf("           depth lane CPU %.1f s (%.0f %% of one core)\n", f.depth_cpu_s,
+                  100 * f.depth_cpu_s / f.elapsed_s);
     if (!f.registration.empty()) std::printf("           %s", f.registration.c_str());
+    if (mode != Mode::kDepthOnly) PrintAccuracy(f.accuracy);
     std::fflush(stdout);
   }
   const RunFigures &track = runs[0], &relocalise = runs[1], &depth = runs[2];
@@ -282,6 +408,24 @@ int main(int argc, char** argv) {
                   : 0.0,
               depth.depth > 0 ? (track.depth / track.elapsed_s) / (depth.depth / depth.elapsed_s)
                               : 0.0);
+  {
+    const Accuracy &a = track.accuracy, &b = relocalise.accuracy;
+    std::printf("accuracy ratios track / relocalise (c0_from_cx error, ok messages; above 1: "
+                "track worse): translation median %.2f p90 %.2f, rotation median %.2f p90 %.2f; "
+                "ok fraction %.2f",
+                Ratio(Percentile(a.all.t_mm, 0.5), Percentile(b.all.t_mm, 0.5)),
+                Ratio(Percentile(a.all.t_mm, 0.9), Percentile(b.all.t_mm, 0.9)),
+                Ratio(Percentile(a.all.r_deg, 0.5), Percentile(b.all.r_deg, 0.5)),
+                Ratio(Percentile(a.all.r_deg, 0.9), Percentile(b.all.r_deg, 0.9)),
+                Ratio(Ratio(a.ok, a.messages), Ratio(b.ok, b.messages)));
+    if (a.by_localisation.count("tracked"))
+      std::printf("; tracked poses only: translation median %.2f, rotation median %.2f",
+                  Ratio(Percentile(a.by_localisation.at("tracked").t_mm, 0.5),
+                        Percentile(b.all.t_mm, 0.5)),
+                  Ratio(Percentile(a.by_localisation.at("tracked").r_deg, 0.5),
+                        Percentile(b.all.r_deg, 0.5)));
+    std::printf("\n");
+  }
   std::printf("goal (issue 13): >= %s Hz per camera: %s\n", args.preset == "r32" ? "2" : "5",
               track.HzPerCamera() >= (args.preset == "r32" ? 2.0 : 5.0) ? "met" : "NOT met");
   if (args.keep.empty()) fs::remove_all(dir);

@@ -71,7 +71,8 @@ struct CameraPose {
   // the left, T = exp(xi) T_hat (xi in the frame T maps into); zero: unknown.
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
   std::string method;        // estimator: "pnp", "ransac", ...
-  // live localizer: "tracked", "relocalised" or "skipped" (not localised: status says why);
+  // live localizer: "tracked", "re-anchored" (tracked, then matched against the map guided by
+  // that pose), "relocalised" or "skipped" (not localised: status says why);
   // empty otherwise
   std::string localisation;
   int inliers = 0;

@@ -1,6 +1,6 @@
 #include "registration/map_localizer.h"
 
-#include "registration/tf_projection.h"
+#include "registration/guided_matches.h"
 
 #include <Eigen/Geometry>
 
@@ -26,25 +26,13 @@ struct MapLocalizerStage::Outcome {
   // Relocalisation's stages (s); zero when not relocalised.
   double render_s = 0, sift_s = 0, match_s = 0, pnp_s = 0;
   int matches = 0, fundamental_outliers = 0;
+  int windows = 0;  // guided re-anchoring: map points in view
 };
 
 namespace {
 
 double SecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
-// The map point's TF position and virtual depth in a camera at cam_from_w0;
-// false behind the front focal plane.
-bool ProjectPoint(const processing::CameraModel& camera, const Pose& cam_from_w0,
-                  const Eigen::Vector3d& p_in_w0, Eigen::Vector2d* tf_px, double* v) {
-  const Eigen::Vector3d p = cam_from_w0 * p_in_w0;
-  if (!(p.z() > camera.intrinsics().main_focal_length_mm)) return false;
-  const Eigen::Vector3d virtual_px = camera.Project(p);
-  if (!virtual_px.allFinite() || !(virtual_px.z() > 1)) return false;
-  *tf_px = processing::CameraModel::TfOfRaw(virtual_px.head<2>());
-  *v = virtual_px.z();
-  return true;
 }
 
 // The step a_from_b raised to the power alpha (rotation angle and
@@ -72,8 +60,10 @@ Status LocalizerOptions::Check() const {
   if (relocalise_step < 1 || relocalise_step > 4)
     return Error{"localizer options: relocalise_step: expected 1..4"};
   if (!(track_margin_px >= 0)) return Error{"localizer options: track_margin_px: expected >= 0"};
+  // track, wait_for_earlier_frames: either value.
   if (!(min_anchored_fraction >= 0 && min_anchored_fraction <= 1))
     return Error{"localizer options: min_anchored_fraction: expected in [0, 1]"};
+  if (Status s = guided.Check(); !s) return s;  // guided_reanchoring: either value
   return Status::Ok();
 }
 
@@ -138,6 +128,19 @@ std::string MapLocalizerStage::Counts::StageReport() const {
                 relocalise_matches > 0 ? 100.0 * relocalise_inliers / relocalise_matches : 0.0,
                 fundamental_outliers / n);
   std::string out = line;
+  if (guided_attempts > 0) {
+    const double g = static_cast<double>(guided_attempts);
+    std::snprintf(
+        line, sizeof line,
+        "; re-anchored by guided matching %lld of %lld attempts, per attempt: render "
+        "%.0f ms, SIFT %.0f ms, matching %.1f ms, PnP %.0f ms; %.0f matches (%.0f map points "
+        "in view), %.0f inliers",
+        guided, guided_attempts, 1e3 * guided_render_s / g, 1e3 * guided_sift_s / g,
+        1e3 * guided_match_s / g, 1e3 * guided_pnp_s / g, guided_matches / g, guided_windows / g,
+        guided_inliers / g);
+    out += line;
+    if (!last_guided_failure.empty()) out += " (last failure: " + last_guided_failure + ")";
+  }
   if (!last_tracking_failure.empty()) out += "; last tracking failure: " + last_tracking_failure;
   return out;
 }
@@ -150,10 +153,7 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
   Outcome out;
   const Pose predicted = state.Predict(trigger);
   const Pose cam_from_w0 = predicted.inverse();
-  std::vector<Eigen::Vector3d> points;
-  std::vector<Eigen::Vector2d> tf;
   std::vector<double> v;
-  std::vector<const TrackedPoint*> followed;
   PatchTrackOptions patches = options_.patches;
   const std::int64_t ahead = trigger - state.last_trigger;
   // No velocity yet (the frame after a relocalisation): the camera may have
@@ -169,39 +169,56 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
     patches.levels = std::min(4, patches.levels + 1);
     patches.max_shift_px *= 2;
   }
+  std::vector<TrackedPoint> found;
   for (const TrackedPoint& track : *state.tracks) {
     Eigen::Vector2d predicted_tf;
     double vp = 0;
-    if (!ProjectPoint(camera, cam_from_w0, map_.points_in_w0[track.point], &predicted_tf, &vp))
+    if (!ProjectMapPoint(camera, cam_from_w0, map_.points_in_w0[track.point], &predicted_tf, &vp))
       continue;
     const PatchTrack r = TrackPatch(sampler, raw, *track.patch, predicted_tf, vp, patches);
     if (!r.ok) continue;
-    points.push_back(map_.points_in_w0[track.point]);
-    tf.push_back(r.tf_px);
+    found.push_back({track.point, r.tf_px, track.patch, track.anchored});
     v.push_back(vp);
-    followed.push_back(&track);
   }
-  if (points.size() < static_cast<std::size_t>(options_.min_tracked)) {
-    out.status = "tracking: " + std::to_string(points.size()) + " of " +
+  if (found.size() < static_cast<std::size_t>(options_.min_tracked)) {
+    out.status = "tracking: " + std::to_string(found.size()) + " of " +
                  std::to_string(state.tracks->size()) + " points followed (< " +
                  std::to_string(options_.min_tracked) + ")";
     return out;
   }
+  return Solve(camera, sampler, found, v, predicted, "tracking");
+}
+
+MapLocalizerStage::Outcome MapLocalizerStage::Solve(const processing::CameraModel& camera,
+                                                    const processing::TfSampler& sampler,
+                                                    const std::vector<TrackedPoint>& found,
+                                                    const std::vector<double>& v,
+                                                    const Pose& predicted,
+                                                    const std::string& what) const {
+  Outcome out;
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector2d> tf;
+  for (const TrackedPoint& f : found) {
+    points.push_back(map_.points_in_w0[f.point]);
+    tf.push_back(f.tf_px);
+  }
+  const auto pnp_start = std::chrono::steady_clock::now();
   PnpOptions pnp = options_.registration.pnp;
   pnp.final_refinement = true;
   const PnpResult r = EstimatePlenopticPnp(camera, {points, tf, v}, pnp);
+  out.pnp_s = SecondsSince(pnp_start);
   out.inliers = static_cast<int>(r.num_inliers);
   out.rmse_px = r.rmse_px;
   if (!r.success) {
-    out.status = "tracking: " + r.status;
+    out.status = what + ": " + r.status;
     return out;
   }
   out.w0_from_cam = Inverse(PoseWithCovariance{r.cam_from_world, r.covariance});
   std::vector<Eigen::Vector2d> inlier_tf;
-  for (std::size_t i = 0; i < followed.size(); ++i) {
+  for (std::size_t i = 0; i < found.size(); ++i) {
     if (!r.inlier_mask[i]) continue;
-    out.kept.push_back({followed[i]->point, tf[i], followed[i]->patch, followed[i]->anchored});
-    if (followed[i]->anchored) ++out.anchored_inliers;
+    out.kept.push_back(found[i]);
+    if (found[i].anchored) ++out.anchored_inliers;
     inlier_tf.push_back(tf[i]);
   }
   PoseEvidence evidence;
@@ -215,7 +232,7 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
   evidence.predicted_w0_from_cam = predicted;
   out.status = CheckPose(evidence, options_.checks);
   if (out.inliers < options_.min_tracked)
-    out.status = "tracking: " + std::to_string(out.inliers) + " inliers (< " +
+    out.status = what + ": " + std::to_string(out.inliers) + " inliers (< " +
                  std::to_string(options_.min_tracked) + ")";
   out.success = out.status == "ok";
   return out;
@@ -251,7 +268,7 @@ MapLocalizerStage::Outcome MapLocalizerStage::Relocalise(const processing::Camer
       for (const Eigen::Vector3d& p : map_.points_in_w0) {
         Eigen::Vector2d tf_px;
         double vp = 0;
-        if (ProjectPoint(camera, cam_from_w0, p, &tf_px, &vp) && tf_px.x() >= 0 &&
+        if (ProjectMapPoint(camera, cam_from_w0, p, &tf_px, &vp) && tf_px.x() >= 0 &&
             tf_px.y() >= 0 && tf_px.x() < sampler->tf_width() && tf_px.y() < sampler->tf_height())
           v.push_back(vp);
       }
@@ -317,6 +334,42 @@ MapLocalizerStage::Outcome MapLocalizerStage::Relocalise(const processing::Camer
   return out;
 }
 
+MapLocalizerStage::Outcome MapLocalizerStage::Reanchor(const processing::CameraModel& camera,
+                                                       const processing::TfSampler& sampler,
+                                                       const ConstImageView& raw,
+                                                       const Pose& w0_from_tracked) const {
+  Outcome out;
+  const GuidedMatches g =
+      FindGuidedMatches(map_, camera, sampler, raw, w0_from_tracked, options_.guided);
+  out.render_s = g.render_s;
+  out.sift_s = g.sift_s;
+  out.match_s = g.match_s;
+  out.windows = g.in_view;
+  out.matches = static_cast<int>(g.points.size());
+  if (g.status != "ok") {
+    out.status = "re-anchoring: " + g.status;
+    return out;
+  }
+  if (out.matches < options_.min_tracked) {
+    out.status = "re-anchoring: " + std::to_string(out.matches) + " of " +
+                 std::to_string(g.in_view) + " map points in view matched (< " +
+                 std::to_string(options_.min_tracked) + ")";
+    return out;
+  }
+  // Every inlier anchored: its position is a SIFT keypoint matched against
+  // the map, not a projection from the tracked pose.
+  std::vector<TrackedPoint> found;
+  for (std::size_t i = 0; i < g.points.size(); ++i)
+    found.push_back({g.points[i], g.tf_px[i], nullptr, true});
+  Outcome solved = Solve(camera, sampler, found, g.virtual_depth, w0_from_tracked, "re-anchoring");
+  solved.render_s = out.render_s;
+  solved.sift_s = out.sift_s;
+  solved.match_s = out.match_s;
+  solved.windows = out.windows;
+  solved.matches = out.matches;
+  return solved;
+}
+
 std::shared_ptr<const MapLocalizerStage::Tracks> MapLocalizerStage::Retrack(
     const processing::CameraModel& camera, const processing::TfSampler& sampler,
     const ConstImageView& raw, const Pose& w0_from_cam,
@@ -367,14 +420,14 @@ std::shared_ptr<const MapLocalizerStage::Tracks> MapLocalizerStage::Retrack(
   for (const TrackedPoint& k : kept) {
     Eigen::Vector2d projected;
     double v = 0;
-    if (ProjectPoint(camera, cam_from_w0, map_.points_in_w0[k.point], &projected, &v))
+    if (ProjectMapPoint(camera, cam_from_w0, map_.points_in_w0[k.point], &projected, &v))
       add(k.point, k.patch ? k.tf_px : projected, v, k.patch, k.anchored);
   }
   for (int j = 0; j < map_.size(); ++j) {
     if (static_cast<int>(tracks->size()) >= options_.max_tracks) break;
     Eigen::Vector2d tf_px;
     double v = 0;
-    if (ProjectPoint(camera, cam_from_w0, map_.points_in_w0[j], &tf_px, &v))
+    if (ProjectMapPoint(camera, cam_from_w0, map_.points_in_w0[j], &tf_px, &v))
       add(j, tf_px, v, nullptr, relocalised);
   }
   return tracks;
@@ -389,10 +442,34 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   auto sampler = frame.camera->Sampler(frame.raw);
   if (!sampler) return sampler.error();
 
+  // With wait_for_earlier_frames the frame is in flight from here to its
+  // return (the guard ends it on every path).
+  struct InFlight {
+    MapLocalizerStage* stage;
+    const std::string& serial;
+    std::multiset<std::int64_t>::iterator at;
+    bool active = false;
+    ~InFlight() {
+      if (!active) return;
+      {
+        std::lock_guard<std::mutex> lock(stage->mutex_);
+        stage->in_flight_[serial].erase(at);
+      }
+      stage->done_cv_.notify_all();
+    }
+  } in_flight{this, frame.serial, {}, false};
   CameraState state;
   bool can_track = false, reanchor = false;
   {
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::unique_lock<std::mutex> lock(mutex_);
+    if (options_.wait_for_earlier_frames) {
+      std::multiset<std::int64_t>& triggers = in_flight_[frame.serial];
+      in_flight.at = triggers.insert(frame.trigger_index);
+      in_flight.active = true;
+      done_cv_.wait(lock, [&] {
+        return *triggers.begin() == frame.trigger_index && !cameras_[frame.serial].relocalising;
+      });
+    }
     CameraState& s = cameras_[frame.serial];
     if (frame.host_ns > s.last_host_ns && frame.trigger_index <= s.last_trigger)
       s = CameraState{};  // a new pass
@@ -419,18 +496,36 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     bool active;
     ~Done() {
       if (!active) return;
-      std::lock_guard<std::mutex> lock(stage->mutex_);
-      stage->cameras_[serial].relocalising = false;
+      {
+        std::lock_guard<std::mutex> lock(stage->mutex_);
+        stage->cameras_[serial].relocalising = false;
+      }
+      stage->done_cv_.notify_all();
     }
   } done{this, frame.serial, !can_track || reanchor};
   Outcome r;
   std::string localisation = "relocalised";
+  bool relocalised_attempt = false;  // Relocalise ran (its stages count)
+  bool guided_attempt = false;       // Reanchor ran
+  Outcome guided;
   if (reanchor) {
-    // Relocalised for its anchors; tracked as usual when that fails.
-    r = Relocalise(camera, frame, *sampler, state);
-    if (!r.success) {
-      Outcome tracked = Track(camera, **sampler, frame.raw, state, frame.trigger_index);
-      if (tracked.success) {
+    // Tracked first; its pose guides the matching against the map
+    // (guided_matches.h): an absolute pose at a fraction of a
+    // relocalisation's cost. Relocalised when that fails; the tracked pose
+    // when both fail.
+    Outcome tracked = Track(camera, **sampler, frame.raw, state, frame.trigger_index);
+    if (tracked.success && options_.guided_reanchoring) {
+      guided_attempt = true;
+      guided = Reanchor(camera, **sampler, frame.raw, tracked.w0_from_cam.pose);
+      if (guided.success) {
+        r = guided;
+        localisation = "re-anchored";
+      }
+    }
+    if (localisation != "re-anchored") {
+      relocalised_attempt = true;
+      r = Relocalise(camera, frame, *sampler, state);
+      if (!r.success && tracked.success) {
         // The relocalisation's stages still count (Counts::StageReport).
         tracked.render_s = r.render_s;
         tracked.sift_s = r.sift_s;
@@ -440,7 +535,7 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
         tracked.fundamental_outliers = r.fundamental_outliers;
         r = std::move(tracked);
         localisation = "tracked";
-      } else {
+      } else if (!r.success) {
         r.status += " (re-anchoring; tracking: " + tracked.status + ")";
       }
     }
@@ -453,13 +548,13 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
       std::lock_guard<std::mutex> lock(mutex_);
       counts_.last_tracking_failure = r.status;
     }
+    relocalised_attempt = true;
     Outcome relocalised = Relocalise(camera, frame, *sampler, state);
     // A refused or failed relocalisation says why tracking did not serve either.
     if (!relocalised.success && localisation == "relocalised" && r.status != "not run")
       relocalised.status += " (after " + r.status + ")";
     r = std::move(relocalised);
   }
-  const bool relocalised_attempt = localisation == "relocalised" || reanchor;
   double retrack_s = 0;
   std::shared_ptr<const Tracks> tracks;
   if (r.success && options_.track) {
@@ -476,8 +571,10 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     // corrected absolute 2.18 against 2.26 mm, wander 1.69 against 1.85).
     // When templates were re-made every frame it was the other way round
     // (medium 2.2 against 1.7 mm).
+    // Re-anchored tracks begin at projections from an absolute pose, as
+    // relocalised ones do.
     tracks = Retrack(camera, **sampler, frame.raw, r.w0_from_cam.pose, r.kept,
-                     localisation == "relocalised", state.has_pose);
+                     localisation != "tracked", state.has_pose);
     retrack_s = SecondsSince(retrack_start);
   }
 
@@ -490,6 +587,17 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   const double seconds = SecondsSince(start);
   std::lock_guard<std::mutex> lock(mutex_);
   if (reanchor) ++counts_.reanchored;
+  if (guided_attempt) {
+    ++counts_.guided_attempts;
+    counts_.guided_render_s += guided.render_s;
+    counts_.guided_sift_s += guided.sift_s;
+    counts_.guided_match_s += guided.match_s;
+    counts_.guided_pnp_s += guided.pnp_s;
+    counts_.guided_windows += guided.windows;
+    counts_.guided_matches += guided.matches;
+    counts_.guided_inliers += guided.inliers;
+    if (!guided.success) counts_.last_guided_failure = guided.status;
+  }
   if (relocalised_attempt) {
     ++counts_.relocalise_attempts;
     counts_.render_s += r.render_s;
@@ -516,6 +624,9 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   if (localisation == "tracked") {
     ++counts_.tracked;
     counts_.tracked_s += seconds;
+  } else if (localisation == "re-anchored") {
+    ++counts_.guided;
+    counts_.guided_s += seconds;
   } else {
     ++counts_.relocalised;
     counts_.relocalised_s += seconds;

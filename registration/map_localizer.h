@@ -21,8 +21,12 @@
 //                too few tracks are added (their templates at their
 //                projection), up to max_tracks spread over the image. When
 //                fewer than min_anchored_fraction of the inliers began in a
-//                relocalised frame, the next frame is relocalised
-//                (re-anchoring; tracked again when that fails).
+//                relocalised frame, the next frame is re-anchored: tracked,
+//                then matched against the map guided by the tracked pose
+//                (registration/guided_matches.h: SIFT on a coarser render,
+//                each keypoint against the map points projected near it),
+//                PnP on those matches, every inlier anchored; relocalised
+//                when that fails, the tracked pose when both fail.
 //                When the prediction is weak more pyramid levels and a
 //                larger shift are allowed: two more levels and four times
 //                the shift with no velocity yet (the frame after a
@@ -42,10 +46,12 @@
 //                status, localisation "skipped", and is published like a
 //                failed one): relocalising it too would only repeat the
 //                work, and the worker is free at once for the other camera.
+//                Offline (LocalizerOptions::wait_for_earlier_frames, replay
+//                --rate max) it waits instead: every frame is localised.
 // Every pose passes registration/pose_checks.h (tracked ones also against
 // the prediction); a refused one is published with the reason as status
 // and the camera relocalises at its next frame.
-// The pose carries `method` "pnp", `localisation` "tracked" or "relocalised" and the
+// The pose carries `method` "pnp", `localisation` "tracked", "re-anchored" or "relocalised" and the
 // covariance in the stage's convention (a left SE(3) perturbation, (t, r)),
 // converted from pose_covariance.h's (additive translation):
 //   rho = dt + [t]x dr   (t the translation of w0_from_cam),
@@ -54,15 +60,18 @@
 #include "processing/registration_stage.h"
 #include "registration/extrinsics_monitor.h"
 #include "registration/frame_registration.h"
+#include "registration/guided_matches.h"
 #include "registration/patch_tracker.h"
 #include "registration/pose_checks.h"
 #include "registration/reference_map.h"
 
+#include <condition_variable>
 #include <cstdint>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 
 namespace lifmcr::registration {
@@ -102,7 +111,18 @@ struct LocalizerOptions {
   // alone and a tracked pose's error does not grow with the frames since the
   // relocalisation ([0, 1]; 0: never).
   double min_anchored_fraction = 0.5;
+  // Re-anchoring by guided matching (registration/guided_matches.h) from the
+  // frame's tracked pose; false: by relocalisation.
+  bool guided_reanchoring = true;
+  GuidedMatchOptions guided;
   bool track = true;          // false: relocalise every frame (the baseline of bench_live)
+  // Offline (a replay at --rate max, where every frame is wanted and none is
+  // late): a frame is localised only after its camera's earlier frames in
+  // flight and any relocalisation of the camera, so it tracks from its
+  // predecessor's pose (when that reached the localizer first) and is never
+  // passed through (Counts::skipped stays 0). Live (false): a frame of a
+  // camera being relocalised passes through, so the worker is free at once.
+  bool wait_for_earlier_frames = false;
   Status Check() const;
 };
 
@@ -127,9 +147,17 @@ class MapLocalizerStage final : public processing::RegistrationStage {
     // worker: not localised (the frame passes through) rather than
     // relocalised twice at once.
     long long skipped = 0;
-    // Relocalisations of a camera that was tracking, for re-anchoring
-    // (LocalizerOptions::min_anchored_fraction; in `relocalised`).
+    // Frames re-anchoring was due for (LocalizerOptions::min_anchored_fraction):
+    // re-anchored by guided matching (`guided`), else relocalised (in
+    // `relocalised`) or, when that failed too, tracked.
     long long reanchored = 0;
+    // Frames re-anchored by guided matching (guided_matches.h) and their
+    // Localize time (tracking included); the attempts' stages and figures.
+    long long guided = 0, guided_attempts = 0;
+    double guided_s = 0;
+    double guided_render_s = 0, guided_sift_s = 0, guided_match_s = 0, guided_pnp_s = 0;
+    long long guided_windows = 0 /* map points in view */, guided_matches = 0, guided_inliers = 0;
+    std::string last_guided_failure;
     // Localize's time (features, matching, PnP) of the frames so counted; a
     // frame whose tracking failed pays both and counts as relocalised.
     double tracked_s = 0, relocalised_s = 0, failed_s = 0;
@@ -185,6 +213,16 @@ class MapLocalizerStage final : public processing::RegistrationStage {
                 const ConstImageView& raw, const CameraState& state, std::int64_t trigger) const;
   Outcome Relocalise(const processing::CameraModel& camera, const processing::StageFrame& frame,
                      const processing::TfSampler* sampler, const CameraState& state) const;
+  // PnP on the map points `found` (TF positions, virtual depths v), then the
+  // pose checks against `predicted`; the inliers kept as they were found
+  // (templates, anchored). `what` begins a failure's status.
+  Outcome Solve(const processing::CameraModel& camera, const processing::TfSampler& sampler,
+                const std::vector<TrackedPoint>& found, const std::vector<double>& v,
+                const Pose& predicted, const std::string& what) const;
+  // Guided matching from the frame's tracked pose, PnP, the pose checks
+  // (against the tracked pose as the prediction): every inlier anchored.
+  Outcome Reanchor(const processing::CameraModel& camera, const processing::TfSampler& sampler,
+                   const ConstImageView& raw, const Pose& w0_from_tracked) const;
   // Tracks for the next frame: `kept` (their templates kept when they have
   // one, else made at their projections from w0_from_cam) and map points in
   // cells with room, from pose w0_from_cam (anchored when `relocalised`); with
@@ -200,6 +238,8 @@ class MapLocalizerStage final : public processing::RegistrationStage {
   std::optional<ExtrinsicsMonitor> monitor_;  // Relate's thread only
   LocalizerOptions options_;
   mutable std::mutex mutex_;
+  std::condition_variable done_cv_;  // a frame or a relocalisation ended (wait_for_earlier_frames)
+  std::map<std::string, std::multiset<std::int64_t>> in_flight_;  // triggers, per camera
   std::map<std::string, CameraState> cameras_;
   Counts counts_;
 };

@@ -141,7 +141,8 @@ std::string LiveRegistrationReport(const LiveRegistration& live) {
   };
   out << "registration: " << c.tracked << " frames tracked (" << mean_ms(c.tracked_s, c.tracked)
       << " ms each), " << c.relocalised << " relocalised ("
-      << mean_ms(c.relocalised_s, c.relocalised) << " ms), " << c.failed << " failed";
+      << mean_ms(c.relocalised_s, c.relocalised) << " ms), " << c.guided << " re-anchored ("
+      << mean_ms(c.guided_s, c.guided) << " ms), " << c.failed << " failed";
   if (c.skipped > 0) out << ", " << c.skipped << " passed through while relocalising";
   out << " (camera 0 = " << live.reference_serial << ")";
   if (c.relocalise_attempts > 0) out << "; " << c.StageReport();

@@ -65,6 +65,9 @@ struct ExtrinsicsRecord {
   std::int64_t trigger_index = 0;
   processing::CameraPose c0_from_cx;
   std::int64_t arrival_ns = 0;  // camera X's frame at the pipeline (host clock)
+  // How camera 0's pose of the trigger was made (its CameraPose::localisation;
+  // c0_from_cx carries camera X's): not published, for bench_live's accuracy.
+  std::string reference_localisation;
 };
 
 struct PipelineOptions {
@@ -113,6 +116,7 @@ struct PipelineReport {
   // processes (and publishes previews, depth and TF of) the newest of them
   // when it is free, the others are skipped there.
   std::uint64_t depth_processed = 0, depth_skipped = 0, depth_failed = 0;
+  double depth_cpu_s = 0;  // CPU time of the depth lane's thread (its arena has no other)
   std::uint64_t frame_sets = 0, incomplete_sets = 0;
   std::uint64_t published_previews = 0, published_depth = 0, published_tf = 0;
   std::uint64_t published_vicon = 0, published_stats = 0, published_extrinsics = 0;
@@ -152,9 +156,12 @@ class Pipeline {
   // block, waiting at most 50 ms for a free worker; the rest wait for the
   // next Poll or Finish), and publishes the statistics when due.
   void Poll();
-  // End of a pass (the grab loop stopped, its last sets given): processes
-  // what is left and waits for it; the next pass's grab loop starts a fresh
-  // assembler (--loop). The counters go on.
+  // End of a pass (the grab loop stopped, its last sets given): hands what
+  // is left to processing; under block waits for it, under newest_wins the
+  // frames in processing go on beside the next pass (Finish and the
+  // destructor wait for every frame); the next pass's grab loop starts a
+  // fresh assembler and numbers its triggers from 0 again (--loop): poses
+  // pair within a pass only. The counters go on.
   void EndPass();
   // EndPass, then the final statistics message.
   void Finish();

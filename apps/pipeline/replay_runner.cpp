@@ -222,6 +222,9 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
     live_options.intrinsics.insert(live_options.intrinsics.begin(), options.intrinsics.begin(),
                                    options.intrinsics.end());
     live_options.fallback_intrinsics.push_back(layout::CamerasYamlPath(options.sequence_dir));
+    // At --rate max nothing is late: every frame is localised, each after its
+    // camera's earlier ones (LocalizerOptions::wait_for_earlier_frames).
+    if (max_rate) live_options.localizer.wait_for_earlier_frames = true;
     auto loaded = LoadLiveRegistration(live_options, serials);
     if (!loaded) return loaded.error();
     live = std::move(*loaded);

@@ -219,9 +219,11 @@ TEST(Recorder, ALateCameraIsPlacedOnTheRigsTriggerCountByHostTime) {
   RigController controller(std::move(setup.cameras), {true, false}, nullptr, setup.recorder.get(),
                            controller_options);
   ASSERT_TRUE(controller.Start().ok());
-  // The controller's schedule starts as Start returns (Start waits for its
-  // trigger threads to run).
-  const auto start = std::chrono::steady_clock::now();
+  // Timed from the controller's schedule, not from Start's return: on a
+  // loaded host Start returns tens of milliseconds after it (its trigger
+  // threads take its CPU as it wakes them).
+  ASSERT_TRUE(controller.ScheduleStart().has_value());
+  const auto start = *controller.ScheduleStart();
   for (int k = 3; k < 8; ++k) {
     // 20 ms after the controller's k-th trigger: a frame arrives after its trigger.
     std::this_thread::sleep_until(start + milliseconds(200 * k + 20));
@@ -292,9 +294,10 @@ TEST(Recorder, ALateCameraOnTheSameClockIsPlacedByDeviceTimeUnderTwoCpuHogs) {
   RigController controller(std::move(setup.cameras), {true, false}, nullptr, setup.recorder.get(),
                            controller_options);
   ASSERT_TRUE(controller.Start().ok());
-  // The controller's schedule starts as Start returns (opening the cameras
-  // before it can take the hogs' time).
-  const auto start = std::chrono::steady_clock::now();
+  // Timed from the controller's schedule (Start returns after it, later
+  // still beside the hogs).
+  ASSERT_TRUE(controller.ScheduleStart().has_value());
+  const auto start = *controller.ScheduleStart();
   for (int k = 3; k < 8; ++k) {
     // On the controller's k-th trigger, as a shared trigger line would.
     std::this_thread::sleep_until(start + milliseconds(100 * k));

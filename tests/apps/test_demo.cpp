@@ -1,10 +1,12 @@
-// `lifmcr demo` at its smallest (20 frames: the map-frame hand-eye split in
-// halves needs 10 per half), the whole chain through the real binary:
-// synth -> calibrate -> replay with live registration on LCM -> evaluate.
-// A subscriber on the demo's LCM URL counts the extrinsics as they are
-// published; the files of every stage and the evaluation's figures are
-// checked against loose physical bounds (stated at each check), not against
-// the figures of one run. Label `long`: minutes of CPU.
+// `lifmcr demo` as a user runs it (its default 24 frames), the whole chain
+// through the real binary: synth -> calibrate -> replay with live
+// registration on LCM -> evaluate. A subscriber on the demo's LCM URL counts
+// the extrinsics as they are published; the files of every stage and the
+// evaluation's figures are checked against physical bounds (stated at each
+// check) and against what the demo promises (every frame registered; after
+// the hand-eye correction the absolute error of c0_from_cx not above its
+// relative error), not against the figures of one run. Label `long`:
+// minutes of CPU.
 #include "tests/test_util.h"
 
 #include <gtest/gtest.h>
@@ -91,7 +93,9 @@ TEST(Demo, WholeChainPublishesExtrinsicsAndEvaluatesThem) {
   EXPECT_NE(r.out.find("lifmcr demo: done"), std::string::npos);
 
   // Extrinsics published on LCM while the replay ran: one per trigger of
-  // camera X (a frame may fail to register; most must not).
+  // camera X. The replay is offline (--rate max): no frame is passed through
+  // while its camera relocalises (status "not localised: ..."); a frame may
+  // still fail its pose checks, most must not.
   std::lock_guard lock(received.mutex);
   int ok = 0;
   for (std::size_t k = 0; k < received.messages.size(); ++k) {
@@ -99,6 +103,7 @@ TEST(Demo, WholeChainPublishesExtrinsicsAndEvaluatesThem) {
     EXPECT_EQ(received.channels[k], "LIFMCR_" + kCamX + "_EXTRINSICS");
     EXPECT_EQ(m.reference_serial, kCam0);
     EXPECT_EQ(m.serial, kCamX);
+    EXPECT_EQ(m.status.find("not localised"), std::string::npos) << m.trigger_index << ": " << m.status;
     if (m.status != "ok") continue;
     ++ok;
     // The cameras orbit 120 mm apart (synth's baseline) at 1.8 m, each
@@ -108,7 +113,7 @@ TEST(Demo, WholeChainPublishesExtrinsicsAndEvaluatesThem) {
     EXPECT_LT(baseline, 250.0);
   }
   std::cout << received.messages.size() << " extrinsics messages received, " << ok << " ok\n";
-  EXPECT_LE(received.messages.size(), static_cast<std::size_t>(kFrames));
+  EXPECT_EQ(received.messages.size(), static_cast<std::size_t>(kFrames));
   EXPECT_GE(ok, kFrames * 9 / 10);
   // The replay's CSV holds the same rows.
   EXPECT_EQ(CountRows(out / "replay" / "registration.csv"), static_cast<int>(received.messages.size()));
@@ -146,17 +151,23 @@ TEST(Demo, WholeChainPublishesExtrinsicsAndEvaluatesThem) {
   // The demo's cameras turn together, so the pair's own hand-eye is refused
   // and the offsets come from the joint map-frame hand-eye (both cameras,
   // one plate correction; registration/evaluation.h). It removes the two
-  // offsets (tens of mm); what stays is how much the live registration
-  // varies around its own mean (a few mm: 1.7-2.9 mm here, 2.6-3.5 mm on 24
-  // frames in the demo runs so far), so below 10 mm and below a third of the
-  // uncorrected error. The correction itself is tested exactly in
+  // offsets (tens of mm); what stays is how much the registration varies
+  // around its own mean. The gate, which the demo promises: after the
+  // correction the absolute error is not above the relative error (both
+  // against the corrected ground truth), in translation and in rotation.
+  // The correction itself is tested exactly in
   // tests/registration/test_evaluation_map_offsets.cpp.
   ASSERT_EQ(e["correction"]["source"], "joint map frame") << e["correction"]["note"];
   const double corrected = e["corrected"]["ape"]["translation_mm"]["rmse"];
-  std::cout << "c0_from_cx: absolute " << corrected
-            << " mm with the joint map-frame hand-eye offsets\n";
-  EXPECT_LT(corrected, 10.0);
+  const double corrected_rpe = e["corrected"]["rpe"]["translation_mm"]["rmse"];
+  const double corrected_deg = e["corrected"]["ape"]["rotation_deg"]["rmse"];
+  const double corrected_rpe_deg = e["corrected"]["rpe"]["rotation_deg"]["rmse"];
+  std::cout << "c0_from_cx with the joint map-frame hand-eye offsets: absolute " << corrected
+            << " mm / " << corrected_deg << " deg, relative " << corrected_rpe << " mm / "
+            << corrected_rpe_deg << " deg\n";
   EXPECT_LT(corrected, ape / 3);
+  EXPECT_LE(corrected, corrected_rpe);
+  EXPECT_LE(corrected_deg, corrected_rpe_deg);
 
   // Each camera in the map frame (the paper's absolute protocol): without
   // the correction its own offset (> 30 mm: the synthetic clusters sit 40 to

@@ -12,6 +12,7 @@
 #include "replay/sequence.h"
 #include "replay/synth/synth_params.h"
 #include "replay/synth/synth_writer.h"
+#include "tests/lcm_log_marker.h"
 #include "tests/test_util.h"
 
 #include <gtest/gtest.h>
@@ -36,7 +37,12 @@ namespace {
 // As the commands do before they run the pipeline (process_settings.h).
 const std::unique_ptr<ProcessSettings> kProcessSettings = ProcessSettings::ForPipeline();
 
-constexpr const char* kUrl = "udpm://239.255.76.67:7711?ttl=0";
+// A group and a UDP port of this process's own (tests/test_util.h says why
+// both): another checkout's run of this test at the same time, on a fixed
+// port, would reach this logger too.
+const std::string kGroup = test::MulticastGroupOfThisProcess(73);
+const std::string kUrl =
+    "udpm://" + kGroup + ":" + std::to_string(test::MulticastPortOfThisProcess()) + "?ttl=0";
 // The logger gets a large receive buffer (within net.core.rmem_max): a max-rate
 // replay sends every message of a frame in a burst.
 
@@ -49,10 +55,10 @@ class LoopbackMulticast : public ::testing::Test {
     if (Sh("command -v lcm-logger") != 0) GTEST_SKIP() << "lcm-logger missing (liblcm-bin)";
     ASSERT_EQ(Sh("ip link set lo multicast on"), 0);
     // Only the route this fixture added is removed again.
-    added_route_ = Sh("ip route add 239.255.76.67/32 dev lo") == 0;
+    added_route_ = Sh("ip route add " + kGroup + "/32 dev lo") == 0;
   }
   void TearDown() override {
-    if (added_route_) Sh("ip route del 239.255.76.67/32 dev lo");
+    if (added_route_) Sh("ip route del " + kGroup + "/32 dev lo");
   }
   bool added_route_ = false;
 };
@@ -79,18 +85,22 @@ TEST_F(LoopbackMulticast, LcmLoggerRecordsAMaxRateReplay) {
     // (the fixture runs as root).
     (void)setpriority(PRIO_PROCESS, 0, -10);
     execlp("lcm-logger", "lcm-logger", "-q", "-f", "-c", "LIFMCR_.*",
-           (std::string("--lcm-url=") + kUrl + "&recv_buf_size=4194304").c_str(), log_path.c_str(),
+           ("--lcm-url=" + kUrl + "&recv_buf_size=4194304").c_str(), log_path.c_str(),
            nullptr);
     _exit(127);
   }
-  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  // The logger matches LIFMCR_.*, so it logs the markers (the counts below
+  // skip them).
+  ASSERT_TRUE(test::PublishUntilLogged(kUrl, log_path, "LIFMCR_TEST_MARKER_READY"))
+      << "lcm-logger did not log a marker within 60 s";
 
   ReplayRunOptions options;
   options.sequence_dir = summary->sequence_dir;
   options.rate.kind = ReplayRate::Kind::kMax;
   options.pipeline.publisher.url = kUrl;
   auto result = RunReplay(options);
-  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  ASSERT_TRUE(test::PublishUntilLogged(kUrl, log_path, "LIFMCR_TEST_MARKER_END"))
+      << "lcm-logger did not log a marker within 60 s";
   kill(logger, SIGINT);
   int status = 0;
   waitpid(logger, &status, 0);

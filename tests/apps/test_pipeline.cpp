@@ -28,12 +28,14 @@
 #include <atomic>
 #include <cerrno>
 #include <cmath>
+#include <condition_variable>
 #include <lifmcr_lcm/camera_extrinsics_t.hpp>
 #include <lifmcr_lcm/depth_image_t.hpp>
 #include <lifmcr_lcm/pipeline_stats_t.hpp>
 #include <lifmcr_lcm/preview_image_t.hpp>
 #include <lifmcr_lcm/vicon_frame_t.hpp>
 #include <map>
+#include <mutex>
 #include <oneapi/tbb/info.h>
 #include <sys/resource.h>
 #include <sys/syscall.h>
@@ -605,6 +607,147 @@ TEST(Pipeline, RegistrationStagePosesBecomeExtrinsicsPerTrigger) {
     }
     std::sort(triggers.begin(), triggers.end());
     EXPECT_EQ(triggers, (std::vector<std::int64_t>{0, 1}));
+  }
+}
+
+// The depth lane's frames of camera 1 wait in Process until the test lets
+// them go, one per Release(); camera 0's go at once.
+struct DepthGate {
+  std::mutex mutex;
+  std::condition_variable cv;
+  int released = 0, entered = 0, waiting = 0, timed_out = 0;
+  void Release() {
+    {
+      std::lock_guard lock(mutex);
+      ++released;
+    }
+    cv.notify_all();
+  }
+  // Until camera 1's frame number `n` (1-based) waits in Process.
+  bool WaitUntilHeld(int n) {
+    std::unique_lock lock(mutex);
+    return cv.wait_for(lock, std::chrono::seconds(10), [&] { return entered >= n && waiting > 0; });
+  }
+};
+
+class GatedProcessor final : public FrameProcessor {
+ public:
+  explicit GatedProcessor(DepthGate* gate) : gate_(gate) {}
+  Expected<ProcessedFrame> Process(const Frame& frame) override {
+    if (frame.camera_index == 1) {
+      std::unique_lock lock(gate_->mutex);
+      const int ordinal = ++gate_->entered;
+      ++gate_->waiting;
+      gate_->cv.notify_all();
+      // Bounded, so that a pipeline that waits for this frame fails the
+      // test instead of hanging it.
+      if (!gate_->cv.wait_for(lock, std::chrono::seconds(5),
+                              [&] { return gate_->released >= ordinal; }))
+        ++gate_->timed_out;
+      --gate_->waiting;
+    }
+    return preview_.Process(frame);
+  }
+  std::string name() const override { return "gated"; }
+
+ private:
+  DepthGate* gate_;
+  PreviewProcessor preview_;
+};
+
+// Not the pass-through: under newest_wins the frames go through the depth
+// lane (the processor has no chain, so nothing is localised).
+class NoPoseStage final : public processing::RegistrationStage {
+ public:
+  std::string name() const override { return "none"; }
+  Expected<std::optional<processing::CameraPose>> Localize(const processing::StageFrame&) override {
+    return std::optional<processing::CameraPose>();
+  }
+};
+
+// Registration first (newest_wins with a stage): a pass's end does not wait
+// for the depth lane's frame (at medium seconds: the replay's cameras stood
+// still that long at every pass of a loop), but Finish waits for every frame
+// the lane holds, including the one it took while its previous frame waited
+// for publication; the lane's frames are all accounted for after Finish.
+// Before the fix Finish returned while the lane processed a frame, which it
+// then handed to the publishing node after the node was destroyed
+// (bench_live: segmentation fault / "pure virtual method called").
+TEST(Pipeline, DepthLaneFramesOutliveAPassNeverThePipeline) {
+  for (int round = 0; round < 3; ++round) {
+    SCOPED_TRACE("round " + std::to_string(round));
+    lcm::LCM bus("memq://");
+    Received received;
+    bus.subscribe("LIFMCR_.*", &Received::OnAny, &received);
+    DepthGate gate;
+    PipelineOptions options;
+    options.publisher.bus = &bus;
+    options.registration = std::make_shared<NoPoseStage>();
+    options.skip_when_busy = true;
+    FrameSetAssemblerOptions sync;
+    sync.serials = {"100", "101"};
+    sync.trigger.trigger_period_ns = 100'000'000;
+    sync.vicon_expected = false;
+    auto created = Pipeline::Create(sync, std::make_unique<GatedProcessor>(&gate), options);
+    ASSERT_TRUE(created.ok()) << created.error().message;
+    std::unique_ptr<Pipeline> pipeline = std::move(*created);
+    const auto pool = FramePool::Create(8, 64 * 48);
+    const auto add_set = [&](std::int64_t trigger) {
+      FrameSet set;
+      set.trigger_index = trigger;
+      set.vicon_frame = -1;
+      for (int camera = 0; camera < 2; ++camera) {
+        Frame frame;
+        frame.camera_index = camera;
+        frame.serial = sync.serials[camera];
+        frame.frame_id = static_cast<std::uint64_t>(trigger);
+        frame.host_ns = NowNsForTest();
+        frame.buffer = pool->Acquire();
+        ASSERT_NE(frame.buffer, nullptr);
+        std::fill_n(frame.buffer->data, 64 * 48, static_cast<std::uint8_t>(40 * camera + trigger));
+        frame.image = ImageView{frame.buffer->data, 64, 48, 64, PixelFormat::kMono8};
+        set.frames.push_back(std::move(frame));
+      }
+      pipeline->AddFrameSet(std::move(set));
+      pipeline->Poll();
+    };
+    add_set(0);
+    ASSERT_TRUE(gate.WaitUntilHeld(1));  // the lane holds camera 1's frame 0
+    add_set(1);
+    // The pass ends with the lane's frame in Process: EndPass does not wait for it.
+    pipeline->EndPass();
+    {
+      std::lock_guard lock(gate.mutex);
+      EXPECT_EQ(gate.waiting, 1);
+      EXPECT_EQ(gate.timed_out, 0);
+    }
+    // Camera 1's frame 0 published, then camera 0's newest (served least
+    // recently) at once, then the lane takes camera 1's frame 1 while the
+    // others wait for publication.
+    gate.Release();
+    ASSERT_TRUE(gate.WaitUntilHeld(2));
+    std::atomic<bool> finished{false};
+    std::thread finish([&] {
+      pipeline->Finish();
+      finished = true;
+    });
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    EXPECT_FALSE(finished) << "Finish returned while the depth lane held a frame";
+    gate.Release();
+    finish.join();
+    const PipelineReport r = pipeline->Report();
+    EXPECT_EQ(r.processed + r.failed, 4u) << r.FinalReport();
+    EXPECT_EQ(r.depth_processed + r.depth_skipped + r.depth_failed, 4u) << r.FinalReport();
+    EXPECT_EQ(r.depth_failed, 0u) << r.FinalReport();
+    EXPECT_GE(r.depth_processed, 3u) << r.FinalReport();
+    pipeline.reset();  // nothing of the lane's left to reach the destroyed nodes
+    Drain(bus);
+    int previews = 0;
+    for (const auto& [serial, ids] : received.preview_frames)
+      previews += static_cast<int>(ids.size());
+    EXPECT_EQ(static_cast<std::uint64_t>(previews), r.depth_processed);
+    std::lock_guard lock(gate.mutex);
+    EXPECT_EQ(gate.timed_out, 0);
   }
 }
 

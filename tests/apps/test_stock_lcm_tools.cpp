@@ -8,11 +8,12 @@
 //   - lcm-spy's own type discovery (lcm.spy.LCMTypeDatabase over lcm.jar and
 //     the generated type jar), headless, decodes every message of every
 //     lifmcr channel live.
-// Both run on the default URL, moved to a port of their own through
-// LCM_DEFAULT_URL (an environment variable, not a tool option) so other
-// LCM traffic on the host stays out. Needs root for the loopback multicast
+// Both run on the default URL, moved to a group and port of this process's
+// own through LCM_DEFAULT_URL (an environment variable, not a tool option) so
+// other LCM traffic on the host stays out. Needs root for the loopback multicast
 // route (skipped otherwise), like the other multicast tests.
 
+#include "tests/lcm_log_marker.h"
 #include "tests/test_util.h"
 
 #include <gtest/gtest.h>
@@ -37,7 +38,12 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr const char* kUrl = "udpm://239.255.76.67:7719?ttl=0";
+// A group and a UDP port of this process's own (tests/test_util.h says why
+// both): two runs of these tests at once (ctest -j, another checkout) would
+// otherwise each log the other's replay.
+const std::string kGroup = test::MulticastGroupOfThisProcess(79);
+const std::string kUrl =
+    "udpm://" + kGroup + ":" + std::to_string(test::MulticastPortOfThisProcess()) + "?ttl=0";
 constexpr int kStockReceiveBuffer = 212992;  // Debian's net.core.rmem_default
 
 int Sh(const std::string& command) { return std::system((command + " >/dev/null 2>&1").c_str()); }
@@ -81,12 +87,12 @@ class StockLcmTools : public ::testing::Test {
     if (getuid() != 0) GTEST_SKIP() << "needs root to route multicast over loopback";
     if (Sh("command -v lcm-logger") != 0) GTEST_SKIP() << "lcm-logger missing (liblcm-bin)";
     ASSERT_EQ(Sh("ip link set lo multicast on"), 0);
-    added_route_ = Sh("ip route add 239.255.76.67/32 dev lo") == 0;
-    ASSERT_EQ(setenv("LCM_DEFAULT_URL", kUrl, 1), 0);
+    added_route_ = Sh("ip route add " + kGroup + "/32 dev lo") == 0;
+    ASSERT_EQ(setenv("LCM_DEFAULT_URL", kUrl.c_str(), 1), 0);
   }
   void TearDown() override {
     unsetenv("LCM_DEFAULT_URL");
-    if (added_route_) Sh("ip route del 239.255.76.67/32 dev lo");
+    if (added_route_) Sh("ip route del " + kGroup + "/32 dev lo");
   }
   static fs::path Sequence() { return data_->path() / "00_Synthetic" / "Sequence_00"; }
   // `lifmcr replay SEQ --rate max` as a user runs it; what it says it published.
@@ -115,9 +121,12 @@ TEST_F(StockLcmTools, LcmLoggerWithNoOptionsRecordsEveryMessage) {
     execlp("lcm-logger", "lcm-logger", log_path.c_str(), nullptr);
     _exit(127);
   }
-  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  // The logger logs every channel, the markers too (the counts below skip them).
+  ASSERT_TRUE(test::PublishUntilLogged(kUrl, log_path, "LIFMCR_TEST_MARKER_READY"))
+      << "lcm-logger did not log a marker within 60 s";
   const Published published = Replay();
-  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  ASSERT_TRUE(test::PublishUntilLogged(kUrl, log_path, "LIFMCR_TEST_MARKER_END"))
+      << "lcm-logger did not log a marker within 60 s";
   kill(logger, SIGINT);
   int status = 0;
   waitpid(logger, &status, 0);

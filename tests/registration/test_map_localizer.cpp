@@ -12,6 +12,7 @@
 #include "apps/pipeline/camera_setup.h"
 #include "processing/frame_chain.h"
 #include "registration/ground_truth_map.h"
+#include "registration/guided_matches.h"
 #include "registration/map_localizer.h"
 #include "registration/pose_checks.h"
 #include "registration/poses_csv.h"
@@ -26,10 +27,12 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cstdlib>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <memory>
+#include <thread>
 #include <vector>
 
 namespace lifmcr::registration {
@@ -238,11 +241,110 @@ TEST(MapLocalizer, TrackedPosesDoNotDriftWithTheFramesSinceTrackingBegan) {
                 Median(early_mm), Median(early_deg), early_mm.size(), Median(late_mm),
                 Median(late_deg), late_mm.size(), stage.counts().StageReport().c_str());
     if (fraction == 0) continue;  // shown, not gated
+    // Re-anchored by guided matching, not by relocalisation.
+    EXPECT_GE(stage.counts().guided, 1) << stage.counts().StageReport();
     ASSERT_GE(early_mm.size(), 3u);
     ASSERT_GE(late_mm.size(), 5u);
     EXPECT_LE(Median(late_mm), Median(early_mm) + 0.3);
     EXPECT_LE(Median(late_deg), Median(early_deg) + 0.02);
   }
+}
+
+// Offline (LocalizerOptions::wait_for_earlier_frames, replay --rate max):
+// two frames of one camera localised at once on two threads, the first
+// relocalising (no pose yet). Live the second would pass through
+// unregistered while the first relocalises; offline it waits and is
+// localised from the first's pose (whichever thread reaches the localizer
+// first, neither frame is skipped).
+TEST(MapLocalizer, OfflineAFrameWaitsForItsCamerasRelocalisationInsteadOfPassingThrough) {
+  Sequence& s = *Shared();
+  const std::string& x = s.serials[1];
+  std::vector<OwnedImage> raws;
+  for (int f = 0; f < 2; ++f) {
+    auto raw = ReadBmp(layout::RawFramePath(s.sequence, x, f));
+    ASSERT_TRUE(raw) << raw.error().message;
+    raws.push_back(std::move(*raw));
+  }
+  LocalizerOptions options;
+  options.wait_for_earlier_frames = true;
+  MapLocalizerStage stage(s.map, options);
+  std::vector<std::optional<processing::CameraPose>> poses(2);
+  std::vector<std::thread> threads;
+  for (int f = 0; f < 2; ++f)
+    threads.emplace_back([&, f] {
+      processing::StageFrame frame;
+      frame.serial = x;
+      frame.trigger_index = f;
+      frame.host_ns = 1'000'000 * (f + 1);
+      frame.raw = std::as_const(raws[f]).View();
+      frame.camera = s.chain->Find(x);
+      auto p = stage.Localize(frame);
+      EXPECT_TRUE(p) << p.error().message;
+      if (p && *p) poses[f] = **p;
+    });
+  for (std::thread& t : threads) t.join();
+  const MapLocalizerStage::Counts counts = stage.counts();
+  EXPECT_EQ(counts.skipped, 0);
+  for (int f = 0; f < 2; ++f) {
+    ASSERT_TRUE(poses[f]) << "frame " << f;
+    EXPECT_EQ(poses[f]->status, "ok") << "frame " << f;
+    EXPECT_LT(TranslationDifference(poses[f]->transform, s.truth[x][f]), 3.0) << "frame " << f;
+  }
+  // One of the two relocalised, the other localised after it from its pose.
+  EXPECT_EQ(counts.relocalised, 1);
+  EXPECT_EQ(counts.tracked, 1);
+}
+
+// Guided matching (registration/guided_matches.h), the re-anchoring's
+// measurement, from a pose 1 mm and 0.06 deg off the truth (a tracked pose's
+// error): SIFT on the coarser render, each keypoint compared with the map
+// points projected within radius_px of it only. Most of the matches lie
+// within a TF pixel or two of their map points' true projections: they are
+// measurements against the map, not against the pose that guided them.
+TEST(MapLocalizer, GuidedMatchesFindMapPointsNearAPoseKnownToAFewPixels) {
+  Sequence& s = *Shared();
+  const std::string& x = s.serials[1];
+  processing::CameraChain* chain = s.chain->Find(x);
+  ASSERT_NE(chain, nullptr);
+  auto raw = ReadBmp(layout::RawFramePath(s.sequence, x, 4));
+  ASSERT_TRUE(raw) << raw.error().message;
+  const ConstImageView view = std::as_const(*raw).View();
+  auto sampler = chain->Sampler(view);
+  ASSERT_TRUE(sampler) << sampler.error().message;
+  const processing::CameraModel& camera = *chain->camera_model();
+  const Pose truth = s.truth[x][4];
+  Pose guide = truth;
+  guide.translation() += Eigen::Vector3d(0.6, -0.8, 0.0);
+  guide.linear() =
+      guide.linear() * Eigen::AngleAxisd(0.06 * M_PI / 180, Eigen::Vector3d(1, 1, 0).normalized())
+                           .toRotationMatrix();
+  const MapIndex index = MapIndex::Of(s.map);
+  const GuidedMatches g = FindGuidedMatches(index, camera, **sampler, view, guide, {});
+  ASSERT_EQ(g.status, "ok");
+  const Pose cam_from_w0 = truth.inverse();
+  std::vector<double> residual_px, guide_px;
+  for (std::size_t i = 0; i < g.points.size(); ++i) {
+    Eigen::Vector2d tf, guided;
+    double v = 0;
+    ASSERT_TRUE(ProjectMapPoint(camera, cam_from_w0, index.points_in_w0[g.points[i]], &tf, &v));
+    ASSERT_TRUE(
+        ProjectMapPoint(camera, guide.inverse(), index.points_in_w0[g.points[i]], &guided, &v));
+    residual_px.push_back((g.tf_px[i] - tf).norm());
+    guide_px.push_back((guided - tf).norm());
+  }
+  const auto within = [&](double px) {
+    return std::count_if(residual_px.begin(), residual_px.end(), [&](double r) { return r <= px; });
+  };
+  std::printf(
+      "guided matches: %zu of %d map points in view, %d keypoints at step %d; from their "
+      "true projections median %.2f px, %.0f %% within 2 px (the guiding pose's "
+      "projections: median %.2f px); render %.0f ms, SIFT %.0f ms, matching %.1f ms\n",
+      g.points.size(), g.in_view, g.keypoints, g.step, Median(residual_px),
+      100.0 * within(2.0) / std::max<std::size_t>(1, residual_px.size()), Median(guide_px),
+      1e3 * g.render_s, 1e3 * g.sift_s, 1e3 * g.match_s);
+  EXPECT_GE(g.points.size(), 100u);
+  EXPECT_LE(Median(residual_px), 1.0);
+  EXPECT_GE(within(2.0), static_cast<long>(0.8 * residual_px.size()));
 }
 
 // The fundamental filter (registration/fundamental_filter.h) against
