@@ -58,7 +58,17 @@ run_group() {  # DIR GROUP SANITIZER
 }
 
 # Reports end the process with an error (exit code 1 from ctest's view).
-export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:detect_stack_use_after_return=1}
+# intercept_tls_get_addr=0: GCC 12's libasan records each new dynamic TLS block
+# (a dlopen'd library's thread_locals) from its __tls_get_addr interceptor, and
+# when the block's address is 16 past a page boundary it takes the two words
+# before it for glibc 2.19-2.24's {start, size} header. glibc 2.36 mallocs the
+# block, so those words are ASan's own chunk header, and LeakSanitizer's tracer
+# scanned that bogus range at exit and died ("Tracer caught signal 11",
+# `lifmcr record` with the GenTL test producer, whose last-error thread_locals
+# a thread that got an error from it keeps). On this glibc the interceptor never
+# records a true range (the other cases give size 0), so turning it off loses
+# nothing; README ("Tests") has the reproduction.
+export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:detect_stack_use_after_return=1:intercept_tls_get_addr=0}
 export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$PWD/scripts/sanitizers/lsan.supp:print_suppressions=0}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-halt_on_error=1:print_stacktrace=1:suppressions=$PWD/scripts/sanitizers/ubsan.supp}
 # history_size=7: the longest access history, so the stack of a TBB worker's
