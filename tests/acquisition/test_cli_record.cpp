@@ -293,13 +293,6 @@ TEST(RecordCli, ReplayedSequenceRecordsIdenticalFilesAndReportsItsGap) {
     (*recorder)->Stop();
   }
   const fs::path original = dir / "a" / "00_Recording" / "seq";
-  // The copy's queues hold the whole sequence (20 frames per camera): this
-  // test is about the copy and its gap report, not about keeping up in real
-  // time. With the default 16, an ASan `lifmcr` at load 20 (the binary's 6
-  // tests got 7 CPU-s in 90 s of wall time) let its writer fall 16 frames
-  // behind the 50 Hz replay, and the recorder dropped 4 frames per camera as
-  // "queue full", and said so; back-pressure drops are test_recorder.cpp's.
-  rig.recorder.queue_frames = 32;
   const fs::path rig_path = dir / "replay_rig.yaml";
   test::WriteFile(rig_path, FormatRigConfig(rig));
   const fs::path log = dir / "record.log";
