@@ -47,7 +47,6 @@
 #include "apps/pipeline/live_registration.h"
 #include "apps/pipeline/process_settings.h"
 #include "apps/pipeline/replay_runner.h"
-#include "config/memory_policy.h"
 #include "registration/ground_truth_map.h"
 #include "registration/pose_covariance.h"
 #include "registration/poses_csv.h"
@@ -305,7 +304,6 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
 }  // namespace
 
 int main(int argc, char** argv) {
-  lifmcr::KeepHeapResident();  // as `lifmcr` runs (apps/main.cpp)
   const auto process_settings = apps::ProcessSettings::ForPipeline();
   Args args;
   if (!ParseArgs(argc, argv, &args)) {

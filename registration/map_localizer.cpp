@@ -48,6 +48,12 @@ Pose ScaledStep(const Pose& step, double alpha) {
 
 }  // namespace
 
+int LocalizerOptions::RelocaliseStep(int tf_longer_side_px) const {
+  int step = relocalise_step;
+  while (step < 4 && tf_longer_side_px / (step + 1) >= relocalise_min_side_px) ++step;
+  return step;
+}
+
 Status LocalizerOptions::Check() const {
   if (Status s = registration.Check(); !s) return s;
   if (Status s = features.Check(); !s) return s;
@@ -59,6 +65,8 @@ Status LocalizerOptions::Check() const {
   if (track_cells < 1) return Error{"localizer options: track_cells: expected >= 1"};
   if (relocalise_step < 1 || relocalise_step > 4)
     return Error{"localizer options: relocalise_step: expected 1..4"};
+  if (relocalise_min_side_px < 1)
+    return Error{"localizer options: relocalise_min_side_px: expected >= 1"};
   if (!(track_margin_px >= 0)) return Error{"localizer options: track_margin_px: expected >= 0"};
   // track, wait_for_earlier_frames: either value.
   if (!(min_anchored_fraction >= 0 && min_anchored_fraction <= 1))
@@ -251,7 +259,7 @@ MapLocalizerStage::Outcome MapLocalizerStage::Relocalise(const processing::Camer
   thread_local processing::TfImage refocused;
   const processing::TfImage* tf = nullptr;
   double render_v = map_virtual_depth_;
-  const int step = options_.relocalise_step;
+  int step = options_.relocalise_step;
   // The chain's TF image at its full resolution: the frame was processed
   // (block mode), which cost far more than SIFT; the tracks seeded at
   // half-resolution keypoints carry their error on (test_cli_live_registration:
@@ -260,6 +268,7 @@ MapLocalizerStage::Outcome MapLocalizerStage::Relocalise(const processing::Camer
   if (frame.products) {
     tf = &frame.products->tf;
   } else {
+    step = options_.RelocaliseStep(std::max(sampler->tf_width(), sampler->tf_height()));
     to_tf = step;
     if (state.has_pose) {
       // The median virtual depth of the map points the last pose shows.

@@ -94,10 +94,19 @@ struct LocalizerOptions {
   }
   FrameRegistrationOptions registration;  // relocalisation; its pnp also when tracking
   FeatureOptions features;                // relocalisation's SIFT (image_scale: see below)
-  // Relocalisation renders every relocalise_step-th TF pixel
-  // (TfSampler::RenderAtDepth) and runs SIFT on that (1..4); the chain's TF
-  // image, when the frame was processed, is used as it is.
+  // Relocalisation renders every step-th TF pixel (TfSampler::RenderAtDepth)
+  // and runs SIFT on that; the chain's TF image, when the frame was
+  // processed, is used as it is. The step is relocalise_step (1..4), raised
+  // (up to 4) while the rendered image's longer side stays >=
+  // relocalise_min_side_px, so that a larger sensor is relocalised on an
+  // image of about the same size: medium (TF 1640 px wide) at step 2 (820
+  // px), r32 (3280 px) at step 4 (820 px) instead of 2 (1640 px: a
+  // relocalisation took 2.9 s at r32, 29 triggers at 10 Hz, after which the
+  // frames were too far from its pose to track; bench/README.md).
   int relocalise_step = 2;
+  int relocalise_min_side_px = 800;  // >= 1
+  // The step for a TF grid whose longer side is tf_longer_side_px.
+  int RelocaliseStep(int tf_longer_side_px) const;
   PatchTrackOptions patches;              // tracking
   PoseCheckOptions checks;                // every pose
   int max_tracks = 160;       // map points tracked per frame (>= min_tracked)

@@ -2,8 +2,8 @@
 
 #include "apps/pipeline/process_settings.h"
 
-#include <limits>
-#include <malloc.h>
+#include "config/memory_policy.h"
+
 #include <mutex>
 #include <oneapi/tbb/global_control.h>
 #include <oneapi/tbb/info.h>
@@ -19,10 +19,7 @@ ProcessSettings::~ProcessSettings() = default;
 
 std::unique_ptr<ProcessSettings> ProcessSettings::ForPipeline() {
   static std::once_flag once;
-  std::call_once(once, [] {
-    mallopt(M_MMAP_THRESHOLD, 32 << 20);
-    mallopt(M_TRIM_THRESHOLD, std::numeric_limits<int>::max());
-  });
+  std::call_once(once, [] { KeepHeapResident(); });
   std::unique_ptr<ProcessSettings> settings(new ProcessSettings());
   const int cores = tbb::info::default_concurrency();
   settings->impl_->worker_limit = std::make_unique<tbb::global_control>(

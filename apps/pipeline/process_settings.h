@@ -10,9 +10,11 @@
 //   heap on free; both take the process's memory-map lock, and every page
 //   fault of the Vicon and camera threads then waits behind it: Vicon packet
 //   -> LCM p99 went from 0.2-0.7 ms to 6-19 ms with frames flowing
-//   (bench_pipeline). Serving up to 32 MB (glibc's upper limit) from the
-//   heap and never trimming it keeps the freed memory in the process for
-//   the next frame instead.
+//   (bench_pipeline). Serving every block from the heap and never trimming
+//   it keeps the freed memory in the process for the next frame instead
+//   (config/memory_policy.h: blocks above 32 MB too, and a worker's, whose
+//   page faults cost seconds per relocalisation at r32; `lifmcr` applies it
+//   in main for every command).
 // - TBB: it starts cores - 1 workers by default, keeping a slot for a master
 //   thread that here (the command's loop) never helps; the pipeline's arena
 //   has no master slot, so the process allows one worker more.

@@ -422,6 +422,23 @@ TEST(MapLocalizer, RefusesAPoseWhoseInliersCrowdInACornerAndSaysWhy) {
   EXPECT_EQ(stage.counts().failed, 1);
 }
 
+// A larger sensor is relocalised on an image of about the same size: the
+X
+// side) at steps 2, 2 and 4 (820 px for r32 instead of 1640: SIFT and the
+// render cost a quarter).
+TEST(MapLocalizer, RelocalisationStepGrowsWithTheTfGrid) {
+  LocalizerOptions options;
+  EXPECT_EQ(options.RelocaliseStep(512), 2);
+  EXPECT_EQ(options.RelocaliseStep(1640), 2);
+  EXPECT_EQ(options.RelocaliseStep(3280), 4);
+  EXPECT_EQ(options.RelocaliseStep(100000), 4);  // never beyond 4
+  options.relocalise_min_side_px = 1;
+  EXPECT_EQ(options.RelocaliseStep(10), 4);
+  options.relocalise_min_side_px = 0;
+  EXPECT_FALSE(options.Check().ok());
+  EXPECT_NE(options.Check().error().message.find("relocalise_min_side_px"), std::string::npos);
+}
+
 TEST(PoseChecks, EachCheckRefusesWithItsReason) {
   std::vector<Eigen::Vector2d> spread;
   for (int i = 0; i < 10; ++i)
