@@ -423,7 +423,7 @@ TEST(MapLocalizer, RefusesAPoseWhoseInliersCrowdInACornerAndSaysWhy) {
 }
 
 // A larger sensor is relocalised on an image of about the same size: the
-X
+// presets' TF grids (small 512, medium 1640, r32 3280 px on the longer
 // side) at steps 2, 2 and 4 (820 px for r32 instead of 1640: SIFT and the
 // render cost a quarter).
 TEST(MapLocalizer, RelocalisationStepGrowsWithTheTfGrid) {
