@@ -6,6 +6,7 @@
 // descriptors.bin), poses_<serial>.csv and calibration_report.md.
 
 #include "apps/commands.h"
+#include "apps/frame_list.h"
 #include "config/text_escape.h"
 #include "registration/aruco_corners.h"
 #include "registration/calibration.h"
@@ -17,7 +18,6 @@
 
 #include <CLI/CLI.hpp>
 
-#include <charconv>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -53,37 +53,13 @@ struct CalibrateOptions {
   double principal_point_prior_px = registration::CalibrationOptions{}.principal_point_prior_px;
   bool euclidean_points = false;
   bool fixed_corner_inset = false;
+  std::string plate_frames;
   std::string cache;
 };
 
 int Fail(const std::string& message, int code = 1) {
   std::cerr << "lifmcr calibrate: " << EscapeText(message) << "\n";
   return code;
-}
-
-// "0-9,12,20-24" -> frame numbers; errors name the bad part.
-Expected<std::set<std::int64_t>> ParseFrameList(const std::string& text) {
-  std::set<std::int64_t> frames;
-  std::size_t at = 0;
-  while (at <= text.size()) {
-    const std::size_t end = std::min(text.find(',', at), text.size());
-    const std::string part = text.substr(at, end - at);
-    const std::size_t dash = part.find('-', 1);
-    std::int64_t a = 0, b = 0;
-    auto parse = [](const std::string& s, std::int64_t* v) {
-      const auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), *v);
-      return ec == std::errc() && p == s.data() + s.size() && *v >= 0;
-    };
-    const bool ok = dash == std::string::npos
-                        ? parse(part, &a) && (b = a, true)
-                        : parse(part.substr(0, dash), &a) && parse(part.substr(dash + 1), &b);
-    if (!ok || b < a)
-      return Error{"--frames: expected frame numbers and ranges such as 0-9,12, got '" + part +
-                   "'"};
-    for (std::int64_t f = a; f <= b; ++f) frames.insert(f);
-    at = end + 1;
-  }
-  return frames;
 }
 
 int RunCalibrate(const CalibrateOptions& o) {
@@ -125,7 +101,7 @@ int RunCalibrate(const CalibrateOptions& o) {
                 std::to_string(initial->intrinsics.height_px));
   std::vector<std::int64_t> frames = (*loader)->frames();
   if (!o.frames.empty()) {
-    Expected<std::set<std::int64_t>> wanted = ParseFrameList(o.frames);
+    Expected<std::set<std::int64_t>> wanted = ParseFrameList(o.frames, "--frames");
     if (!wanted) return Fail(wanted.error().message, 2);
     std::vector<std::int64_t> kept;
     for (const std::int64_t f : *wanted) {
@@ -179,6 +155,11 @@ int RunCalibrate(const CalibrateOptions& o) {
   options.min_map_angle_deg = o.min_map_angle_deg;
   options.covariance = !o.no_covariance;
   options.plate_weight = o.plate_weight;
+  if (!o.plate_frames.empty()) {
+    Expected<std::set<std::int64_t>> list = ParseFrameList(o.plate_frames, "--plate-frames");
+    if (!list) return Fail(list.error().message, 2);
+    options.plate_frames.assign(list->begin(), list->end());
+  }
   options.principal_point_prior_px = o.principal_point_prior_px;
   options.inverse_depth = !o.euclidean_points;
   options.estimate_corner_inset = !o.fixed_corner_inset;
@@ -235,8 +216,8 @@ int RunCalibrate(const CalibrateOptions& o) {
         registration::MeasurePlateCornerBias(input.frames, loader_options.lambda, seq,
                                              o.camera);
     if (!bias) return Fail(bias.error().message);
-    std::cout << bias->BriefReport() << "\n";
-    report << "\n" << bias->BriefReport() << "\n";
+    std::cout << bias->BriefReport() << "\n" << bias->PerFrameReport();
+    report << "\n" << bias->BriefReport() << "\n\n" << bias->PerFrameReport();
   }
   for (const std::string& flag : result->flags) std::cerr << "flag: " << flag << "\n";
   return result->usable ? 0 : 3;
@@ -299,6 +280,9 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
   app.add_flag("--euclidean-points", o->euclidean_points,
                "Points as 3D positions in the plate frame instead of inverse depth in their "
                "first frame");
+  app.add_option("--plate-frames", o->plate_frames,
+                 "Frames whose plate corners enter the bundle adjustment, e.g. 0-19,28-39 "
+                 "(default: all; every frame can still be placed on the plate)");
   app.add_flag("--no-corner-inset", o->fixed_corner_inset,
                "Take the ArUco corners as detected (no estimated inset towards the marker centre)");
   app.add_flag("--ground-truth", o->ground_truth,

@@ -2,6 +2,7 @@
 // Parameters: the preset, then the --config YAML on top, then the flags.
 
 #include "apps/commands.h"
+#include "apps/frame_list.h"
 #include "config/text_escape.h"
 #include "replay/synth/scene.h"
 #include "replay/synth/synth_params.h"
@@ -9,12 +10,14 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <condition_variable>
 #include <iostream>
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <thread>
 
@@ -34,6 +37,7 @@ struct SynthOptions {
   std::optional<std::uint64_t> seed;
   bool quiet = false;
   bool no_images = false;
+  std::string render_frames;
 };
 
 int RunSynth(const SynthOptions& o) {
@@ -57,6 +61,15 @@ int RunSynth(const SynthOptions& o) {
   if (o.noise) params->camera.read_noise_dn = *o.noise;
   if (o.seed) params->rig.seed = *o.seed;
   if (o.no_images) params->rig.images = false;
+  if (!o.render_frames.empty()) {
+    Expected<std::set<std::int64_t>> list = ParseFrameList(o.render_frames, "--render-frames");
+    if (!list) {
+      std::cerr << "lifmcr synth: " << EscapeText(list.error().message) << "\n";
+      return 2;
+    }
+    for (const std::int64_t f : *list)
+      params->rig.render_frames.push_back(static_cast<int>(std::min<std::int64_t>(f, 1 << 30)));
+  }
   if (Status s = params->Check(); !s) {
     std::cerr << "lifmcr synth: " << EscapeText(s.error().message) << "\n";
     return 2;
@@ -134,6 +147,9 @@ CommandRun AddSynthCommand(CLI::App& app) {
   app.add_flag("--quiet", o->quiet, "No progress lines on stderr");
   app.add_flag("--no-images", o->no_images,
                "Poses, Vicon, ground truth and calibration only: no raw frames or depth images");
+  app.add_option("--render-frames", o->render_frames,
+                 "Render only these triggers' images, e.g. 20-27,5 (poses and ground truth of the "
+                 "whole sequence as without it)");
   return [o] { return RunSynth(*o); };
 }
 

@@ -397,6 +397,10 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
   for (int f = 0; f < n_frames; ++f) {
     if (!map.frames[f].placed) continue;
     const CalibrationFrame& frame = input.frames[f];
+    if (!options.plate_frames.empty() &&
+        std::find(options.plate_frames.begin(), options.plate_frames.end(), frame.frame) ==
+            options.plate_frames.end())
+      continue;
     for (std::size_t n = 0; n < frame.corners.size(); ++n) {
       const PlateCorner& corner = frame.corners[n];
       CornerObservation co;

@@ -77,6 +77,9 @@ struct CalibrationOptions {
   double huber_px = 1.0;            // Huber scale per micro-image residual (raw pixels)
   double outlier_px = 1.5;          // observations above max(this, 3 x median) RMS residual are dropped
   double plate_weight = 5.0;        // plate corner residuals count this much more (the metric anchor)
+  // Frames whose plate corners enter the bundle adjustment (empty: every
+  // frame's). The initialisation still places frames on the plate.
+  std::vector<std::int64_t> plate_frames;
   // A point enters the reference map when this many frames kept their
   // observation of it (all points with two take part in the solve), and the
   // rays from those frames meet at min_map_angle_deg or more (the largest

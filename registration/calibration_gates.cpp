@@ -70,6 +70,18 @@ std::string PlateCornerBias::BriefReport() const {
                 100 * v_bias_rel);
 }
 
+std::string PlateCornerBias::PerFrameReport() const {
+  std::string text;
+  for (const Frame& f : frames)
+    text += Format("  frame %lld: %d corners, mean offset (%+.3f, %+.3f) TF px, RMS %.3f TF px, "
+                   "virtual depth median %+.2f %%; farthest: marker %d corner %d (%+.3f, %+.3f) "
+                   "TF px\n",
+                   static_cast<long long>(f.frame), f.corners, f.mean_x_tf_px, f.mean_y_tf_px,
+                   f.rms_tf_px, 100 * f.v_bias_rel, f.worst_marker, f.worst_corner,
+                   f.worst_offset_tf_px.x(), f.worst_offset_tf_px.y());
+  return text;
+}
+
 Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFrame>& frames,
                                                  double frames_lambda,
                                                  const std::filesystem::path& seq,
@@ -103,6 +115,10 @@ Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFr
   for (const CalibrationFrame& f : frames) {
     const auto it = cam_from_world.find(f.frame);
     if (it == cam_from_world.end()) continue;
+    PlateCornerBias::Frame pf;
+    pf.frame = f.frame;
+    double pf_ss = 0;
+    std::vector<double> pf_v;
     for (const PlateCorner& corner : f.corners) {
       // The marker centre: the mean of its four corners in the plate frame.
       Eigen::Vector3d centre = Eigen::Vector3d::Zero();
@@ -111,8 +127,10 @@ Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFr
       Eigen::Vector2d tf_true, tf_centre;
       if (!tf_of(it->second, corner.p_in_w_mm, &tf_true)) continue;
       const std::size_t n = static_cast<std::size_t>(&corner - f.corners.data());
-      if (n < f.corner_virtual_depth.size() && !std::isnan(f.corner_virtual_depth[n]))
+      if (n < f.corner_virtual_depth.size() && !std::isnan(f.corner_virtual_depth[n])) {
         v_signed.push_back(f.corner_virtual_depth[n] / last_v_processed - 1);
+        pf_v.push_back(v_signed.back());
+      }
       if (!tf_of(it->second, centre, &tf_centre)) continue;
       const Eigen::Vector2d d = corner.tf_px - tf_true;
       b.mean_x_tf_px += d.x();
@@ -120,6 +138,22 @@ Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFr
       b.mean_inset_tf_px += d.dot((tf_centre - tf_true).normalized());
       ss += d.squaredNorm();
       ++b.corners;
+      pf.mean_x_tf_px += d.x();
+      pf.mean_y_tf_px += d.y();
+      pf_ss += d.squaredNorm();
+      ++pf.corners;
+      if (pf.worst_marker < 0 || d.norm() > pf.worst_offset_tf_px.norm()) {
+        pf.worst_marker = corner.marker_id;
+        pf.worst_corner = corner.corner;
+        pf.worst_offset_tf_px = d;
+      }
+    }
+    if (pf.corners > 0) {
+      pf.mean_x_tf_px /= pf.corners;
+      pf.mean_y_tf_px /= pf.corners;
+      pf.rms_tf_px = std::sqrt(pf_ss / pf.corners);
+      pf.v_bias_rel = pf_v.empty() ? std::nan("") : Median(pf_v);
+      b.frames.push_back(pf);
     }
   }
   if (b.corners > 0) {

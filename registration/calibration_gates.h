@@ -20,8 +20,10 @@
 #include "config/error.h"
 #include "registration/calibration.h"
 
+#include <cstdint>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 namespace lifmcr::registration {
 
@@ -69,7 +71,20 @@ struct PlateCornerBias {
   double mean_x_tf_px = 0, mean_y_tf_px = 0, mean_inset_tf_px = 0, rms_tf_px = 0;
   int corners_with_v = 0;  // with a measured virtual depth
   double v_bias_rel = 0;   // median (v - v_true) / v_true, v_true as the processing reads it
+  // The same per frame (frames with corners), to find the views whose corners are off.
+  struct Frame {
+    std::int64_t frame = 0;
+    int corners = 0;
+    double mean_x_tf_px = 0, mean_y_tf_px = 0, rms_tf_px = 0;
+    double v_bias_rel = 0;  // median, NaN without a corner virtual depth
+    // The corner farthest from its true position: marker id, corner 0..3,
+    // its offset (TF px).
+    int worst_marker = -1, worst_corner = -1;
+    Eigen::Vector2d worst_offset_tf_px = Eigen::Vector2d::Zero();
+  };
+  std::vector<Frame> frames;
   std::string BriefReport() const;  // one line
+  std::string PerFrameReport() const;  // a line per frame
 };
 Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFrame>& frames,
                                                  double frames_lambda,

@@ -103,6 +103,9 @@ Status SynthRigParams::Check() const {
   if (knock_frame < -1 || knock_frame >= frames)
     return FieldError("rig.knock_frame", "expected -1 (never) or a trigger 0..frames-1");
   if (knock_frame >= 0 && !rigid) return FieldError("rig.knock_frame", "needs rig.rigid: true");
+  for (const int f : render_frames)
+    if (f < 0 || f >= frames)
+      return FieldError("rig.render_frames", "expected triggers 0..frames-1, got " + std::to_string(f));
   if (!(std::abs(knock_t_mm) <= 100)) return FieldError("rig.knock_t_mm", "expected -100..100 mm");
   if (!(std::abs(knock_r_deg) <= 10)) return FieldError("rig.knock_r_deg", "expected -10..10 deg");
   auto plain = [](const std::string& name) {

@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace lifmcr::synth {
 
@@ -91,6 +92,11 @@ struct SynthRigParams {
   // false: no raw frames, depth or all-in-focus images; poses, Vicon and
   // calibration only (fast inputs for evaluation tests). `--no-images`.
   bool images = true;
+  // With images: the triggers whose images are rendered (empty: all). Poses,
+  // Vicon and calibration are those of the whole sequence either way, so a
+  // few frames of a long sequence (or the rest of a stopped render) come out
+  // as they would in the whole. `--render-frames 20-27`.
+  std::vector<int> render_frames;
   Status Check() const;
 };
 

@@ -339,12 +339,15 @@ Expected<SynthSummary> WriteSyntheticDataset(const std::filesystem::path& out_di
   FirstError first_error;
   std::atomic<int> done{0};
   std::mutex progress_mutex;
-  const int jobs = params.rig.cameras * params.rig.frames;
+  std::vector<int> rendered = params.rig.render_frames;
+  if (rendered.empty())
+    for (int n = 0; n < params.rig.frames; ++n) rendered.push_back(n);
+  const int jobs = params.rig.cameras * static_cast<int>(rendered.size());
   tbb::parallel_for(0, jobs, [&](int job) {
     if (first_error.has()) return;
     const auto job_start = std::chrono::steady_clock::now();
     const int k = job % params.rig.cameras;
-    const int n = job / params.rig.cameras;
+    const int n = rendered[job / params.rig.cameras];
     const std::string& serial = cameras[k].serial;
     RenderOptions options;
     options.noise_seed = Mix(params.rig.seed, Mix(k, n));

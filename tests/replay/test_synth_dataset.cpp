@@ -269,6 +269,36 @@ TEST(SynthDataset, SameSeedSameBytesOtherSeedOtherNoise) {
   EXPECT_NE(files_a.at(raw), files_c.at(raw));
 }
 
+// rig.render_frames (`--render-frames`): only those triggers' images, each
+// the same bytes as in the whole sequence; poses and ground truth of every
+// trigger as without it; a trigger outside the sequence is an error.
+TEST(SynthDataset, RenderFramesWritesThoseTriggersAsInTheWholeSequence) {
+  test::TempDir whole, part;
+  SynthParams params = TinyRig(11);
+  params.rig.frames = 3;
+  params.rig.cameras = 1;
+  ASSERT_TRUE(WriteSyntheticDataset(whole.path(), params).ok());
+  params.rig.render_frames = {1};
+  ASSERT_TRUE(WriteSyntheticDataset(part.path(), params).ok());
+  const auto files_whole = AllFiles(whole.path()), files_part = AllFiles(part.path());
+  const std::string dir = "00_Synthetic/Sequence_00/TypeE_40398678/";
+  for (int n = 0; n < 3; ++n) {
+    const std::string raw = dir + layout::RawFrameFileName("40398678", n);
+    ASSERT_TRUE(files_whole.count(raw)) << raw;
+    EXPECT_EQ(files_part.count(raw), n == 1 ? 1u : 0u) << raw;
+  }
+  const std::string raw1 = dir + layout::RawFrameFileName("40398678", 1);
+  EXPECT_TRUE(files_part.at(raw1) == files_whole.at(raw1));
+  const std::string poses = "00_Synthetic/Sequence_00/GroundTruth/poses_40398678.csv";
+  ASSERT_TRUE(files_part.count(poses));
+  EXPECT_TRUE(files_part.at(poses) == files_whole.at(poses));
+  params.rig.render_frames = {3};
+  test::TempDir bad;
+  const Expected<SynthSummary> summary = WriteSyntheticDataset(bad.path(), params);
+  ASSERT_FALSE(summary.ok());
+  EXPECT_NE(summary.error().message.find("rig.render_frames"), std::string::npos);
+}
+
 TEST(SynthDataset, BadParametersAreErrorsNotFiles) {
   test::TempDir dir;
   SynthParams params = TinyRig(1);
