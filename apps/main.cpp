@@ -2,7 +2,6 @@
 
 #include "apps/commands.h"
 #include "apps/logging.h"
-#include "config/memory_policy.h"
 #include "config/text_escape.h"
 
 #include <CLI/CLI.hpp>
@@ -11,7 +10,6 @@
 #include <vector>
 
 int main(int argc, char** argv) {
-  lifmcr::KeepHeapResident();  // large per-frame buffers reused, not faulted in per frame
   CLI::App app{
       "lifmcr: rigs of focused plenoptic (MLA) cameras: live recording, replay and\n"
       "processing (virtual depth, totally focused images, point clouds) of LiFMCR-layout\n"

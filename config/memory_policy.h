@@ -18,7 +18,8 @@
 
 namespace lifmcr {
 
-// Call once at the start of main(), before threads are started. Idempotent.
+// Call once, before threads are started (apps/pipeline/process_settings.h
+// does for the commands that run the pipeline). Idempotent.
 void KeepHeapResident();
 
 }  // namespace lifmcr
