@@ -192,6 +192,29 @@ struct Pipeline::Impl {
   std::map<int, Job> slots;             // by camera index: the newest frame waiting
   std::map<int, std::uint64_t> served;  // by camera index: when it last got a worker
   std::uint64_t serve_count = 0;
+  // Registration (lanes) pairs the cameras' frames: c0_from_cx needs both
+  // cameras' poses of one trigger, and each camera's newest frame alone
+  // seldom shares its trigger with the other's once localisations take
+  // different times (bench_live r32, every frame relocalised: 248 frames
+  // localised, 39 pairs). The trigger a worker took a frame of last
+  // (pairing_key: pass, trigger) goes first among the waiting frames, and a
+  // waiting frame of that trigger is not replaced by its camera's newer one,
+  // which waits behind it in `later` (newest wins there) until it is taken.
+  std::map<int, Job> later;  // by camera index; only where slots holds a frame
+  std::optional<std::pair<std::uint64_t, std::int64_t>> pairing_key;
+  static std::pair<std::uint64_t, std::int64_t> Key(const Job& job) {
+    return {job.pass, job.trigger_index};
+  }
+  // A worker took `job` (slot_mutex held).
+  void Took(const Job& job) {
+    if (!lanes) return;
+    pairing_key = Key(job);
+    const int camera = job.frame.camera_index;
+    if (auto l = later.find(camera); l != later.end() && !slots.count(camera)) {
+      slots.insert_or_assign(camera, std::move(l->second));
+      later.erase(l);
+    }
+  }
 
   // Registration poses by pass and trigger, then camera index (publishing
   // node only): a loop's passes number their triggers from 0 again, and
@@ -416,12 +439,21 @@ struct Pipeline::Impl {
       if (!slots.empty()) {
         // The camera served least recently goes first (its last frame taken
         // into processing is the oldest), so no camera starves.
-        auto pick = slots.begin();
-        for (auto it = slots.begin(); it != slots.end(); ++it)
-          if (served[it->first] < served[pick->first]) pick = it;
+        // Registration: the frame that completes a pair first.
+        auto pick = slots.end();
+        if (lanes && pairing_key) {
+          for (auto it = slots.begin(); it != slots.end(); ++it)
+            if (Key(it->second) == *pairing_key) pick = it;
+        }
+        if (pick == slots.end()) {
+          pick = slots.begin();
+          for (auto it = slots.begin(); it != slots.end(); ++it)
+            if (served[it->first] < served[pick->first]) pick = it;
+        }
         next = std::move(pick->second);
         slots.erase(pick);
         served[next->frame.camera_index] = ++serve_count;
+        Took(*next);
       } else {
         --in_flight;
       }
@@ -458,11 +490,22 @@ struct Pipeline::Impl {
       if (in_flight < options.max_concurrency) {
         ++in_flight;
         served[job.frame.camera_index] = ++serve_count;
+        Took(job);
         lock.unlock();
         process_node->try_put(std::move(job));
         continue;
       }
       const int camera = job.frame.camera_index;
+      if (auto waiting = slots.find(camera); lanes && waiting != slots.end() && pairing_key &&
+                                             Key(waiting->second) == *pairing_key) {
+        // The waiting frame completes a pair: the newer one waits behind it.
+        if (later.count(camera)) {
+          std::lock_guard r(report_mutex);
+          ++report.skipped;
+        }
+        later.insert_or_assign(camera, std::move(job));
+        continue;
+      }
       if (slots.count(camera)) {
         std::lock_guard r(report_mutex);
         ++report.skipped;
@@ -552,7 +595,7 @@ struct Pipeline::Impl {
     m.stage_name = "process:" + processor->name();
     {
       std::lock_guard lock(slot_mutex);
-      m.queue_depth = in_flight + static_cast<int>(slots.size());
+      m.queue_depth = in_flight + static_cast<int>(slots.size() + later.size());
     }
     m.queue_capacity = options.max_concurrency + static_cast<int>(sync_options.serials.size());
     m.process_p50_ms = r.process.p50_ms;
