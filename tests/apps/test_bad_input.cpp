@@ -214,6 +214,14 @@ std::vector<Case> Cases() {
                      return {"info", (dir / "u.vsk").string()};
                    },
                    {"u.vsk", "is a character device"}});
+  // A frame list is bounded before it is expanded (apps/frame_list.cpp).
+  cases.push_back({"frame_list_huge_range",
+                   [](const fs::path& dir) -> std::vector<std::string> {
+                     return {"synth", "--out", (dir / "out").string(), "--preset", "small",
+                             "--frames", "4", "--render-frames", "0-99999999999"};
+                   },
+                   {"--render-frames", "more than 1000000"},
+                   2});  // a bad option value: usage (exit 2), as every option of the CLI
   cases.push_back({"csv_90mb_header_row",
                    [](const fs::path& dir) -> std::vector<std::string> {
                      test::WriteFile(dir / "h.csv", "Objects\n80\n" + std::string(90 << 20, ',') + "\n");
