@@ -1,5 +1,6 @@
 #include "config/input_file.h"
 
+#include "config/memory_policy.h"
 #include "config/text_escape.h"
 
 #include <cerrno>
@@ -163,8 +164,11 @@ Expected<std::string> ReadInputText(const fs::path& path, const InputLimits& lim
   std::string text;
   // Never more than the bound plus one byte (to see that there is more):
   // a file that grows after fstat, or a FIFO, cannot exceed it.
-  text.resize(static_cast<std::size_t>(std::min<std::uint64_t>(
-      opened->size_bytes > 0 ? opened->size_bytes + 1 : 64 * 1024, limits.max_bytes + 1)));
+  const auto initial = static_cast<std::size_t>(std::min<std::uint64_t>(
+      opened->size_bytes > 0 ? opened->size_bytes + 1 : 64 * 1024, limits.max_bytes + 1));
+  text.reserve(initial);
+  AdviseHugePages(text.data(), initial);  // before resize writes the pages
+  text.resize(initial);
   std::size_t used = 0;
   while (true) {
     if (used == text.size()) {

@@ -16,7 +16,16 @@
 // heap (M_TRIM_THRESHOLD -1), so after the first frames the steady state touches
 // no new pages; the price is that the heap keeps its high-water size.
 
+#include <cstddef>
+
 namespace lifmcr {
+
+// Asks for transparent huge pages for the whole 2 MiB pages inside
+// [data, data + bytes) before they are first written (a hint: where the
+// kernel offers none, nothing changes). For large buffers filled once, such
+// as a text file read whole: 512 times fewer page faults (reading a 90 MB
+// CSV into fresh 4 KiB pages cost 0.4 s of system time on the CI machine).
+void AdviseHugePages(void* data, std::size_t bytes);
 
 // Call once, before threads are started (apps/pipeline/process_settings.h
 // does for the commands that run the pipeline). Idempotent.
