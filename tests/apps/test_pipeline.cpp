@@ -39,6 +39,7 @@
 #include <oneapi/tbb/info.h>
 #include <sys/resource.h>
 #include <sys/syscall.h>
+#include <functional>
 #include <set>
 #include <thread>
 #include <unistd.h>
@@ -102,6 +103,31 @@ std::int64_t NowNsForTest() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(
              std::chrono::system_clock::now().time_since_epoch())
       .count();
+}
+
+// The frame set of `trigger` from the cameras `serials`, each frame in a
+// buffer of `pool` that fill(camera, data) writes and describes.
+FrameSet MakeFrameSet(std::int64_t trigger, const std::vector<std::string>& serials,
+                      FramePool& pool,
+                      const std::function<ImageView(int camera, std::uint8_t* data)>& fill) {
+  FrameSet set;
+  set.trigger_index = trigger;
+  set.vicon_frame = -1;
+  for (int camera = 0; camera < static_cast<int>(serials.size()); ++camera) {
+    Frame frame;
+    frame.camera_index = camera;
+    frame.serial = serials[camera];
+    frame.frame_id = static_cast<std::uint64_t>(trigger);
+    frame.host_ns = NowNsForTest();
+    frame.buffer = pool.Acquire();
+    if (!frame.buffer) {
+      ADD_FAILURE() << "the test's frame pool is exhausted";
+      break;
+    }
+    frame.image = fill(camera, frame.buffer->data);
+    set.frames.push_back(std::move(frame));
+  }
+  return set;
 }
 
 void Drain(lcm::LCM& bus) {
@@ -708,22 +734,11 @@ TEST(Pipeline, DepthLaneFramesOutliveAPassNeverThePipeline) {
     std::unique_ptr<Pipeline> pipeline = std::move(*created);
     const auto pool = FramePool::Create(8, 64 * 48);
     const auto add_set = [&](std::int64_t trigger) {
-      FrameSet set;
-      set.trigger_index = trigger;
-      set.vicon_frame = -1;
-      for (int camera = 0; camera < 2; ++camera) {
-        Frame frame;
-        frame.camera_index = camera;
-        frame.serial = sync.serials[camera];
-        frame.frame_id = static_cast<std::uint64_t>(trigger);
-        frame.host_ns = NowNsForTest();
-        frame.buffer = pool->Acquire();
-        ASSERT_NE(frame.buffer, nullptr);
-        std::fill_n(frame.buffer->data, 64 * 48, static_cast<std::uint8_t>(40 * camera + trigger));
-        frame.image = ImageView{frame.buffer->data, 64, 48, 64, PixelFormat::kMono8};
-        set.frames.push_back(std::move(frame));
-      }
-      pipeline->AddFrameSet(std::move(set));
+      pipeline->AddFrameSet(
+          MakeFrameSet(trigger, sync.serials, *pool, [&](int camera, std::uint8_t* data) {
+            std::fill_n(data, 64 * 48, static_cast<std::uint8_t>(40 * camera + trigger));
+            return ImageView{data, 64, 48, 64, PixelFormat::kMono8};
+          }));
       pipeline->Poll();
     };
     add_set(0);
@@ -804,7 +819,6 @@ class GatedPoseStage final : public processing::RegistrationStage {
     {
       std::lock_guard lock(mutex_);
       for (const auto& key : began_) released_.insert(key);
-      release_all_ = true;
     }
     cv_.notify_all();
   }
@@ -822,7 +836,6 @@ class GatedPoseStage final : public processing::RegistrationStage {
   std::condition_variable cv_;
   std::vector<std::pair<int, std::int64_t>> began_;
   std::set<std::pair<int, std::int64_t>> released_;
-  bool release_all_ = false;
   int timed_out_ = 0;
 };
 
@@ -874,24 +887,12 @@ TEST(Pipeline, RegistrationPairsTheCamerasFramesOfATrigger) {
   std::unique_ptr<Pipeline> pipeline = std::move(*created);
   const auto pool = FramePool::Create(16, raw[0].pixels.size());
   const auto add_set = [&](std::int64_t trigger) {
-    FrameSet set;
-    set.trigger_index = trigger;
-    set.vicon_frame = -1;
-    for (int camera = 0; camera < 2; ++camera) {
-      Frame frame;
-      frame.camera_index = camera;
-      frame.serial = serials[camera];
-      frame.frame_id = static_cast<std::uint64_t>(trigger);
-      frame.host_ns = NowNsForTest();
-      frame.buffer = pool->Acquire();
-      ASSERT_NE(frame.buffer, nullptr);
-      const ConstImageView src = raw[camera].View();
-      std::copy_n(raw[camera].pixels.data(), raw[camera].pixels.size(), frame.buffer->data);
-      frame.image = ImageView{frame.buffer->data, src.width, src.height, src.stride_bytes,
-                              src.format};
-      set.frames.push_back(std::move(frame));
-    }
-    pipeline->AddFrameSet(std::move(set));
+    pipeline->AddFrameSet(
+        MakeFrameSet(trigger, serials, *pool, [&](int camera, std::uint8_t* data) {
+          const ConstImageView src = raw[camera].View();
+          std::copy_n(raw[camera].pixels.data(), raw[camera].pixels.size(), data);
+          return ImageView{data, src.width, src.height, src.stride_bytes, src.format};
+        }));
     pipeline->Poll();
   };
   add_set(0);  // both workers: camera 0 and camera 1 of trigger 0
@@ -903,8 +904,7 @@ TEST(Pipeline, RegistrationPairsTheCamerasFramesOfATrigger) {
   add_set(2);  // camera 1's trigger 1 completes a pair: trigger 2's waits behind it
   stage->Release(1, 0);
   ASSERT_TRUE(stage->WaitBegan(1, 1)) << "camera 1's frame of trigger 1 was replaced";
-  stage->ReleaseAll();
-  // Release what begins from here on until everything is in.
+  // Release what has begun and what begins from here on until everything is in.
   std::atomic<bool> done{false};
   std::thread releaser([&] {
     while (!done) {
