@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <string>
 
 namespace lifmcr::registration {
 namespace {
@@ -23,9 +24,19 @@ float SquaredDistance(const float* a, const float* b) {
 
 }  // namespace
 
+int GuidedMatchOptions::Step(int tf_longer_side_px) const {
+  int step = 1;
+  while (step < max_step && tf_longer_side_px / (step + 1) >= min_side_px) ++step;
+  while (step < 8 && tf_longer_side_px / step > max_side_px) ++step;
+  return step;
+}
+
 Status GuidedMatchOptions::Check() const {
   if (max_step < 1 || max_step > 4) return Error{"guided matching: max_step: expected 1..4"};
   if (min_side_px < 64) return Error{"guided matching: min_side_px: expected >= 64"};
+  if (max_side_px < min_side_px)
+    return Error{"guided matching: max_side_px: expected >= min_side_px (" +
+                 std::to_string(min_side_px) + ")"};
   if (Status s = features.Check(); !s) return Error{"guided matching: " + s.error().message};
   if (!(radius_px > 0)) return Error{"guided matching: radius_px: expected > 0"};
   if (!(ratio > 0 && ratio <= 1)) return Error{"guided matching: ratio: expected in (0, 1]"};
@@ -75,9 +86,7 @@ GuidedMatches FindGuidedMatches(const MapIndex& map, const processing::CameraMod
   for (const std::vector<int>& points : grid)
     for (const int j : points) in_view_v.push_back(v[j]);
   std::nth_element(in_view_v.begin(), in_view_v.begin() + in_view_v.size() / 2, in_view_v.end());
-  out.step = 1;
-  while (out.step < options.max_step && std::max(w, h) / (out.step + 1) >= options.min_side_px)
-    ++out.step;
+  out.step = options.Step(static_cast<int>(std::max(w, h)));
   thread_local processing::TfImage rendered;  // reused by the worker's next re-anchoring
   if (Status s = sampler.RenderAtDepth(raw, in_view_v[in_view_v.size() / 2], out.step, &rendered);
       !s) {

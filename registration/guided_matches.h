@@ -43,13 +43,20 @@ struct GuidedMatchOptions {
   }
   // The TF grid is rendered every step-th pixel, the largest step up to
   // max_step (1..4) that keeps the rendered image's longer side >= min_side_px
-  // (>= 64): small (TF 512 x 384) 2, medium (1640 x 1237) and r32 3.
+  // (>= 64), raised further (up to 8) while the longer side exceeds
+  // max_side_px (>= min_side_px), so that a larger sensor is matched on an
+  // image of about the size that served medium: small (TF 512 x 384) 2,
+  // medium (1640 x 1237) 3, r32 (3280 x 2474) 6 (at step 3 its SIFT took
+  // 710 ms a re-anchoring, more than a relocalisation's 260 ms at step 4).
   // Medium, frames 10+ of the drift test (test_map_localizer): step 3 re-anchored
   // with 256 inliers at 1.74 mm, step 4 with 148 at 3.21 mm (worse than the
   // tracked pose it replaced, 2.4 mm), step 2 297 at 1.44 mm for the SIFT time
   // of a relocalisation; 800 keypoints instead of 1500 at step 3: 184 at 2.48 mm.
   int max_step = 3;
   int min_side_px = 256;
+  int max_side_px = 600;
+  // The step for a TF grid whose longer side is tf_longer_side_px.
+  int Step(int tf_longer_side_px) const;
   FeatureOptions features;  // SIFT on the rendered image
   double radius_px = 6;     // TF px between a keypoint and a map point's projection (> 0)
   double ratio = 0.8;       // nearest / second nearest among the candidates, (0, 1]

@@ -27,6 +27,10 @@ struct MapLocalizerStage::Outcome {
   double render_s = 0, sift_s = 0, match_s = 0, pnp_s = 0;
   int matches = 0, fundamental_outliers = 0;
   int windows = 0;  // guided re-anchoring: map points in view
+  // Tracking's correction of a weak prediction (CorrectPrediction): its
+  // time and status, "" when none was tried.
+  double correction_s = 0;
+  std::string correction_status;
 };
 
 namespace {
@@ -47,6 +51,13 @@ Pose ScaledStep(const Pose& step, double alpha) {
 }
 
 }  // namespace
+
+GuidedMatchOptions LocalizerOptions::CoarseGuidedOptions() {
+  GuidedMatchOptions coarse;
+  coarse.max_side_px = 420;
+  coarse.radius_px = 120;
+  return coarse;
+}
 
 int LocalizerOptions::RelocaliseStep(int tf_longer_side_px) const {
   int step = relocalise_step;
@@ -72,6 +83,7 @@ Status LocalizerOptions::Check() const {
   if (!(min_anchored_fraction >= 0 && min_anchored_fraction <= 1))
     return Error{"localizer options: min_anchored_fraction: expected in [0, 1]"};
   if (Status s = guided.Check(); !s) return s;  // guided_reanchoring: either value
+  if (Status s = coarse.Check(); !s) return s;  // correct_weak_predictions: either value
   return Status::Ok();
 }
 
@@ -149,6 +161,15 @@ std::string MapLocalizerStage::Counts::StageReport() const {
     out += line;
     if (!last_guided_failure.empty()) out += " (last failure: " + last_guided_failure + ")";
   }
+  if (corrections > 0) {
+    std::snprintf(line, sizeof line,
+                  "; weak predictions corrected by coarse guided matching %lld of %lld "
+                  "(%.0f ms each)",
+                  corrected, corrections, 1e3 * correction_s / static_cast<double>(corrections));
+    out += line;
+    if (!last_correction_failure.empty())
+      out += " (last failure: " + last_correction_failure + ")";
+  }
   if (!last_tracking_failure.empty()) out += "; last tracking failure: " + last_tracking_failure;
   return out;
 }
@@ -158,10 +179,7 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
                                                     const ConstImageView& raw,
                                                     const CameraState& state,
                                                     std::int64_t trigger) const {
-  Outcome out;
   const Pose predicted = state.Predict(trigger);
-  const Pose cam_from_w0 = predicted.inverse();
-  std::vector<double> v;
   PatchTrackOptions patches = options_.patches;
   const std::int64_t ahead = trigger - state.last_trigger;
   // No velocity yet (the frame after a relocalisation): the camera may have
@@ -170,6 +188,7 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
   // and twice the shift followed 15 of 131 points). With a velocity only
   // one more and twice: four times let the patches lock onto a wrong pose
   // 57 mm from a good prediction (refused by the pose checks).
+  const bool weak = !state.has_previous || ahead > 2;
   if (!state.has_previous) {
     patches.levels = std::min(4, patches.levels + 2);
     patches.max_shift_px *= 4;
@@ -177,8 +196,39 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
     patches.levels = std::min(4, patches.levels + 1);
     patches.max_shift_px *= 2;
   }
+  Outcome out = TrackFrom(camera, sampler, raw, *state.tracks, predicted, patches);
+  if (out.success || !weak || !options_.correct_weak_predictions) return out;
+  // The weak prediction corrected, then tracked again from the corrected
+  // pose at the usual levels and shift (tried second: when the widened
+  // search serves, as it mostly does for a frame or two skipped, the
+  // correction's SIFT is not paid).
+  const auto start = std::chrono::steady_clock::now();
+  const Outcome c = CorrectPrediction(camera, sampler, raw, predicted);
+  if (c.success) {
+    Outcome retried = TrackFrom(camera, sampler, raw, *state.tracks, c.w0_from_cam.pose,
+                                options_.patches);
+    if (!retried.success)
+      retried.status += " (from the corrected prediction; before: " + out.status + ")";
+    out = std::move(retried);
+  } else {
+    out.status += " (" + c.status + ")";
+  }
+  out.correction_s = SecondsSince(start);
+  out.correction_status = c.status;
+  return out;
+}
+
+MapLocalizerStage::Outcome MapLocalizerStage::TrackFrom(const processing::CameraModel& camera,
+                                                        const processing::TfSampler& sampler,
+                                                        const ConstImageView& raw,
+                                                        const Tracks& tracks,
+                                                        const Pose& predicted,
+                                                        const PatchTrackOptions& patches) const {
+  Outcome out;
+  const Pose cam_from_w0 = predicted.inverse();
+  std::vector<double> v;
   std::vector<TrackedPoint> found;
-  for (const TrackedPoint& track : *state.tracks) {
+  for (const TrackedPoint& track : tracks) {
     Eigen::Vector2d predicted_tf;
     double vp = 0;
     if (!ProjectMapPoint(camera, cam_from_w0, map_.points_in_w0[track.point], &predicted_tf, &vp))
@@ -190,19 +240,20 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
   }
   if (found.size() < static_cast<std::size_t>(options_.min_tracked)) {
     out.status = "tracking: " + std::to_string(found.size()) + " of " +
-                 std::to_string(state.tracks->size()) + " points followed (< " +
+                 std::to_string(tracks.size()) + " points followed (< " +
                  std::to_string(options_.min_tracked) + ")";
     return out;
   }
-  return Solve(camera, sampler, found, v, predicted, "tracking");
+  return Solve(camera, sampler, found, v, predicted, "tracking", options_.min_tracked);
 }
 
 MapLocalizerStage::Outcome MapLocalizerStage::Solve(const processing::CameraModel& camera,
                                                     const processing::TfSampler& sampler,
                                                     const std::vector<TrackedPoint>& found,
                                                     const std::vector<double>& v,
-                                                    const Pose& predicted,
-                                                    const std::string& what) const {
+                                                    const std::optional<Pose>& predicted,
+                                                    const std::string& what,
+                                                    int min_inliers) const {
   Outcome out;
   std::vector<Eigen::Vector3d> points;
   std::vector<Eigen::Vector2d> tf;
@@ -239,9 +290,9 @@ MapLocalizerStage::Outcome MapLocalizerStage::Solve(const processing::CameraMode
   evidence.w0_from_cam = out.w0_from_cam.pose;
   evidence.predicted_w0_from_cam = predicted;
   out.status = CheckPose(evidence, options_.checks);
-  if (out.inliers < options_.min_tracked)
+  if (out.inliers < min_inliers)
     out.status = what + ": " + std::to_string(out.inliers) + " inliers (< " +
-                 std::to_string(options_.min_tracked) + ")";
+                 std::to_string(min_inliers) + ")";
   out.success = out.status == "ok";
   return out;
 }
@@ -343,6 +394,30 @@ MapLocalizerStage::Outcome MapLocalizerStage::Relocalise(const processing::Camer
   return out;
 }
 
+MapLocalizerStage::Outcome MapLocalizerStage::CorrectPrediction(
+    const processing::CameraModel& camera, const processing::TfSampler& sampler,
+    const ConstImageView& raw, const Pose& predicted) const {
+  Outcome out;
+  const GuidedMatches g = FindGuidedMatches(map_, camera, sampler, raw, predicted, options_.coarse);
+  if (g.status != "ok") {
+    out.status = "correction: " + g.status;
+    return out;
+  }
+  std::vector<TrackedPoint> found;
+  for (std::size_t i = 0; i < g.points.size(); ++i)
+    found.push_back({g.points[i], g.tf_px[i], nullptr, true});
+  // The pose only places the patches (the tracked pose needs min_tracked
+  // inliers of its own): the pose checks' minimum suffices.
+  const int min_inliers = options_.checks.min_inliers;
+  if (found.size() < static_cast<std::size_t>(min_inliers)) {
+    out.status = "correction: " + std::to_string(found.size()) + " of " +
+                 std::to_string(g.in_view) + " map points in view matched (< " +
+                 std::to_string(min_inliers) + ")";
+    return out;
+  }
+  return Solve(camera, sampler, found, g.virtual_depth, std::nullopt, "correction", min_inliers);
+}
+
 MapLocalizerStage::Outcome MapLocalizerStage::Reanchor(const processing::CameraModel& camera,
                                                        const processing::TfSampler& sampler,
                                                        const ConstImageView& raw,
@@ -370,7 +445,8 @@ MapLocalizerStage::Outcome MapLocalizerStage::Reanchor(const processing::CameraM
   std::vector<TrackedPoint> found;
   for (std::size_t i = 0; i < g.points.size(); ++i)
     found.push_back({g.points[i], g.tf_px[i], nullptr, true});
-  Outcome solved = Solve(camera, sampler, found, g.virtual_depth, w0_from_tracked, "re-anchoring");
+  Outcome solved = Solve(camera, sampler, found, g.virtual_depth, w0_from_tracked, "re-anchoring",
+                         options_.min_tracked);
   solved.render_s = out.render_s;
   solved.sift_s = out.sift_s;
   solved.match_s = out.match_s;
@@ -517,12 +593,16 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   bool relocalised_attempt = false;  // Relocalise ran (its stages count)
   bool guided_attempt = false;       // Reanchor ran
   Outcome guided;
+  double correction_s = 0;        // Track's correction of a weak prediction
+  std::string correction_status;  // "" when none was tried
   if (reanchor) {
     // Tracked first; its pose guides the matching against the map
     // (guided_matches.h): an absolute pose at a fraction of a
     // relocalisation's cost. Relocalised when that fails; the tracked pose
     // when both fail.
     Outcome tracked = Track(camera, **sampler, frame.raw, state, frame.trigger_index);
+    correction_s = tracked.correction_s;
+    correction_status = tracked.correction_status;
     if (tracked.success && options_.guided_reanchoring) {
       guided_attempt = true;
       guided = Reanchor(camera, **sampler, frame.raw, tracked.w0_from_cam.pose);
@@ -550,6 +630,8 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     }
   } else if (can_track) {
     r = Track(camera, **sampler, frame.raw, state, frame.trigger_index);
+    correction_s = r.correction_s;
+    correction_status = r.correction_status;
     if (r.success) localisation = "tracked";
   }
   if (!r.success && !reanchor) {
@@ -596,6 +678,14 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   const double seconds = SecondsSince(start);
   std::lock_guard<std::mutex> lock(mutex_);
   if (reanchor) ++counts_.reanchored;
+  if (!correction_status.empty()) {
+    ++counts_.corrections;
+    counts_.correction_s += correction_s;
+    if (correction_status == "ok")
+      ++counts_.corrected;
+    else
+      counts_.last_correction_failure = correction_status;
+  }
   if (guided_attempt) {
     ++counts_.guided_attempts;
     counts_.guided_render_s += guided.render_s;

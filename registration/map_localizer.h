@@ -31,7 +31,11 @@
 //                larger shift are allowed: two more levels and four times
 //                the shift with no velocity yet (the frame after a
 //                relocalisation), one more and twice when more than two
-//                triggers ahead (frames skipped).
+//                triggers ahead (frames skipped); when that fails, the
+//                prediction is corrected by guided matching on a coarse
+//                render with a wide radius and the patches tracked again
+//                from the corrected pose
+//                (LocalizerOptions::correct_weak_predictions).
 //   relocalise   otherwise, or when tracking fails: SIFT on a TF image (the
 //                chain's when the frame was processed, else the whole TF
 //                grid rendered at one virtual depth, TfSampler::RenderAtDepth,
@@ -124,6 +128,20 @@ struct LocalizerOptions {
   // frame's tracked pose; false: by relocalisation.
   bool guided_reanchoring = true;
   GuidedMatchOptions guided;
+  // A weak prediction (no velocity yet, or more than two triggers ahead: the
+  // frame after a relocalisation, or frames skipped while one ran) whose
+  // tracking failed (the patches get more levels and a larger shift from
+  // it, Track) is corrected by guided matching on a coarse render with a
+  // wide radius (`coarse`: SIFT on a TF render of longer side <= 420 px,
+  // each keypoint against the map points projected within 120 TF px of
+  // it), PnP on those matches, and the patches tracked again from that pose
+  // at their usual levels and shift; relocalised when that fails too. r32,
+  // frames 5 triggers apart (a relocalisation's time): the constant-velocity
+  // prediction missed by 30-106 TF px (median over the map points; the
+  // trajectory turns within the gap) and tracking followed 2 of 111 points.
+  bool correct_weak_predictions = true;
+  GuidedMatchOptions coarse = CoarseGuidedOptions();
+  static GuidedMatchOptions CoarseGuidedOptions();
   bool track = true;          // false: relocalise every frame (the baseline of bench_live)
   // Offline (a replay at --rate max, where every frame is wanted and none is
   // late): a frame is localised only after its camera's earlier frames in
@@ -178,6 +196,11 @@ class MapLocalizerStage final : public processing::RegistrationStage {
     // Their matches (after the fundamental filter), PnP inliers, and the
     // matches the fundamental filter removed (FrameRegistrationOptions).
     long long relocalise_matches = 0, relocalise_inliers = 0, fundamental_outliers = 0;
+    // Weak predictions corrected by coarse guided matching
+    // (LocalizerOptions::correct_weak_predictions): attempts, successes, time.
+    long long corrections = 0, corrected = 0;
+    double correction_s = 0;
+    std::string last_correction_failure;
     std::string last_tracking_failure;  // why the last failed tracking failed
     // "relocalisations 3, per attempt: render 310 ms, SIFT 420 ms, ...,
     // inliers 41 % of matches" (means per attempt).
@@ -220,14 +243,25 @@ class MapLocalizerStage final : public processing::RegistrationStage {
   struct Outcome;  // of one attempt (map_localizer.cpp)
   Outcome Track(const processing::CameraModel& camera, const processing::TfSampler& sampler,
                 const ConstImageView& raw, const CameraState& state, std::int64_t trigger) const;
+  // The tracks followed from `predicted` with `patches`, then Solve.
+  Outcome TrackFrom(const processing::CameraModel& camera, const processing::TfSampler& sampler,
+                    const ConstImageView& raw, const Tracks& tracks, const Pose& predicted,
+                    const PatchTrackOptions& patches) const;
   Outcome Relocalise(const processing::CameraModel& camera, const processing::StageFrame& frame,
                      const processing::TfSampler* sampler, const CameraState& state) const;
   // PnP on the map points `found` (TF positions, virtual depths v), then the
-  // pose checks against `predicted`; the inliers kept as they were found
-  // (templates, anchored). `what` begins a failure's status.
+  // pose checks (against `predicted` when given) and at least min_inliers;
+  // the inliers kept as they were found (templates, anchored). `what`
+  // begins a failure's status.
   Outcome Solve(const processing::CameraModel& camera, const processing::TfSampler& sampler,
                 const std::vector<TrackedPoint>& found, const std::vector<double>& v,
-                const Pose& predicted, const std::string& what) const;
+                const std::optional<Pose>& predicted, const std::string& what,
+                int min_inliers) const;
+  // A weak prediction corrected (LocalizerOptions::correct_weak_predictions):
+  // the pose from coarse guided matches, not checked against the prediction.
+  Outcome CorrectPrediction(const processing::CameraModel& camera,
+                            const processing::TfSampler& sampler, const ConstImageView& raw,
+                            const Pose& predicted) const;
   // Guided matching from the frame's tracked pose, PnP, the pose checks
   // (against the tracked pose as the prediction): every inlier anchored.
   Outcome Reanchor(const processing::CameraModel& camera, const processing::TfSampler& sampler,

@@ -295,6 +295,79 @@ TEST(MapLocalizer, OfflineAFrameWaitsForItsCamerasRelocalisationInsteadOfPassing
   EXPECT_EQ(counts.tracked, 1);
 }
 
+// A weak prediction (LocalizerOptions::correct_weak_predictions): camera X
+// relocalised at view 0 (trigger 0), tracked at view 1 (trigger 1), then
+// shown view GAP_VIEW at trigger 4 (frames skipped while a relocalisation
+// ran, and the camera turned meanwhile): the constant-velocity prediction
+// (3 steps of view 0 -> 1) misses the view (small: 17.9 TF px, 47 mm).
+// Without the correction the pose tracked from it is refused (47 mm from the
+// prediction, registration/pose_checks.h) and the frame is relocalised; with
+// it the prediction is corrected by coarse guided matching and the frame is
+// tracked from the corrected pose.
+TEST(MapLocalizer, AWeakPredictionIsCorrectedBeforeThePatchesAreTracked) {
+  Sequence& s = *Shared();
+  const std::string& x = s.serials[1];
+  const processing::CameraModel& camera = *s.chain->Find(x)->camera_model();
+  constexpr std::int64_t kGapView = 7;
+  const MapIndex index = MapIndex::Of(s.map);
+  for (const bool correct : {false, true}) {
+    LocalizerOptions options;
+    options.correct_weak_predictions = correct;
+    MapLocalizerStage stage(s.map, options);
+    std::optional<processing::CameraPose> last;
+    // (trigger, view) in the order shown.
+    const std::vector<std::pair<std::int64_t, std::int64_t>> shown = {
+        {0, 0}, {1, 1}, {4, kGapView}};
+    for (const auto& [trigger, view] : shown) {
+      for (const std::string& serial : {s.serials[0], x}) {
+        auto raw = ReadBmp(layout::RawFramePath(s.sequence, serial, view));
+        ASSERT_TRUE(raw) << raw.error().message;
+        processing::StageFrame f;
+        f.serial = serial;
+        f.trigger_index = trigger;
+        f.host_ns = 1'000'000 * (trigger + 1);
+        f.raw = std::as_const(*raw).View();
+        f.camera = s.chain->Find(serial);
+        auto p = stage.Localize(f);
+        ASSERT_TRUE(p) << p.error().message;
+        if (serial == x) last = *p;
+      }
+      ASSERT_TRUE(last);
+      ASSERT_EQ(last->status, "ok") << "trigger " << trigger;
+    }
+    // The prediction Track made for the last frame: 3 steps of view 0 -> 1
+    // from view 1, against the truth of view kGapView, over the map points.
+    const Pose step = s.truth[x][0].inverse() * s.truth[x][1];
+    Pose predicted = s.truth[x][1];
+    for (int k = 0; k < 3; ++k) predicted = predicted * step;
+    std::vector<double> miss_px;
+    for (const Eigen::Vector3d& p : index.points_in_w0) {
+      Eigen::Vector2d a, b;
+      double va = 0, vb = 0;
+      if (ProjectMapPoint(camera, predicted.inverse(), p, &a, &va) &&
+          ProjectMapPoint(camera, s.truth[x][kGapView].inverse(), p, &b, &vb))
+        miss_px.push_back((a - b).norm());
+    }
+    const MapLocalizerStage::Counts counts = stage.counts();
+    const double t_mm = TranslationDifference(last->transform, s.truth[x][kGapView]);
+    const double r_deg = RotationDifferenceDeg(last->transform, s.truth[x][kGapView]);
+    std::printf("correction %s: view %lld at trigger 4 %s, error %.3f mm / %.4f deg; the "
+                "prediction missed by %.1f TF px (median over the map points)\n  %s\n",
+                correct ? "on" : "off", static_cast<long long>(kGapView),
+                last->localisation.c_str(), t_mm, r_deg, Median(miss_px),
+                counts.StageReport().c_str());
+    if (!correct) {
+      EXPECT_EQ(last->localisation, "relocalised");
+      continue;
+    }
+    EXPECT_EQ(last->localisation, "tracked");
+    EXPECT_GE(counts.corrected, 1);
+    // One frame, not a median: the bound of the offline test above.
+    EXPECT_LE(t_mm, 3.0);
+    EXPECT_LE(r_deg, 0.15);
+  }
+}
+
 // Guided matching (registration/guided_matches.h), the re-anchoring's
 // measurement, from a pose 1 mm and 0.06 deg off the truth (a tracked pose's
 // error): SIFT on the coarser render, each keypoint compared with the map
@@ -437,6 +510,25 @@ TEST(MapLocalizer, RelocalisationStepGrowsWithTheTfGrid) {
   options.relocalise_min_side_px = 0;
   EXPECT_FALSE(options.Check().ok());
   EXPECT_NE(options.Check().error().message.find("relocalise_min_side_px"), std::string::npos);
+}
+
+// Guided matching likewise (GuidedMatchOptions::Step): re-anchoring renders
+// small, medium and r32 at steps 2, 3 and 6 (256, 547, 547 px; r32 at step
+// 3 took 710 ms of SIFT a re-anchoring), the coarse correction of a weak
+// prediction at 2, 4 and 8 (256, 410, 410 px).
+TEST(MapLocalizer, GuidedMatchingStepGrowsWithTheTfGrid) {
+  const LocalizerOptions options;
+  EXPECT_EQ(options.guided.Step(512), 2);
+  EXPECT_EQ(options.guided.Step(1640), 3);
+  EXPECT_EQ(options.guided.Step(3280), 6);
+  EXPECT_EQ(options.guided.Step(100000), 8);  // never beyond 8
+  EXPECT_EQ(options.coarse.Step(512), 2);
+  EXPECT_EQ(options.coarse.Step(1640), 4);
+  EXPECT_EQ(options.coarse.Step(3280), 8);
+  GuidedMatchOptions bad;
+  bad.max_side_px = bad.min_side_px - 1;
+  EXPECT_FALSE(bad.Check().ok());
+  EXPECT_NE(bad.Check().error().message.find("max_side_px"), std::string::npos);
 }
 
 TEST(PoseChecks, EachCheckRefusesWithItsReason) {
