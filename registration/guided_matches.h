@@ -46,15 +46,18 @@ struct GuidedMatchOptions {
   // (>= 64), raised further (up to 8) while the longer side exceeds
   // max_side_px (>= min_side_px), so that a larger sensor is matched on an
   // image of about the size that served medium: small (TF 512 x 384) 2,
-  // medium (1640 x 1237) 3, r32 (3280 x 2474) 6 (at step 3 its SIFT took
-  // 710 ms a re-anchoring, more than a relocalisation's 260 ms at step 4).
+  // medium (1640 x 1237) 3, r32 (3280 x 2474) 5 (656 px). r32, 40 frames
+  // two triggers apart, re-anchorings (4-6 a run): step 3 took 710 ms of
+  // SIFT each (more than a relocalisation's 260 ms at step 4); step 4
+  // 550-625 ms, frames at 2.58 mm median; step 5 170-290 ms, 2.0 mm; step 6
+  // 170-230 ms, 3.1 mm.
   // Medium, frames 10+ of the drift test (test_map_localizer): step 3 re-anchored
   // with 256 inliers at 1.74 mm, step 4 with 148 at 3.21 mm (worse than the
   // tracked pose it replaced, 2.4 mm), step 2 297 at 1.44 mm for the SIFT time
   // of a relocalisation; 800 keypoints instead of 1500 at step 3: 184 at 2.48 mm.
   int max_step = 3;
   int min_side_px = 256;
-  int max_side_px = 600;
+  int max_side_px = 700;
   // The step for a TF grid whose longer side is tf_longer_side_px.
   int Step(int tf_longer_side_px) const;
   FeatureOptions features;  // SIFT on the rendered image

@@ -83,7 +83,9 @@ Status LocalizerOptions::Check() const {
   if (!(min_anchored_fraction >= 0 && min_anchored_fraction <= 1))
     return Error{"localizer options: min_anchored_fraction: expected in [0, 1]"};
   if (Status s = guided.Check(); !s) return s;  // guided_reanchoring: either value
-  if (Status s = coarse.Check(); !s) return s;  // correct_weak_predictions: either value
+  if (Status s = coarse.Check(); !s) return s;  // correct_predictions: either value
+  if (max_correction_ahead < 1)
+    return Error{"localizer options: max_correction_ahead: expected >= 1"};
   return Status::Ok();
 }
 
@@ -163,8 +165,8 @@ std::string MapLocalizerStage::Counts::StageReport() const {
   }
   if (corrections > 0) {
     std::snprintf(line, sizeof line,
-                  "; weak predictions corrected by coarse guided matching %lld of %lld "
-                  "(%.0f ms each)",
+                  "; predictions corrected by coarse guided matching after tracking failed "
+                  "%lld of %lld (%.0f ms each)",
                   corrected, corrections, 1e3 * correction_s / static_cast<double>(corrections));
     out += line;
     if (!last_correction_failure.empty())
@@ -188,7 +190,6 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
   // and twice the shift followed 15 of 131 points). With a velocity only
   // one more and twice: four times let the patches lock onto a wrong pose
   // 57 mm from a good prediction (refused by the pose checks).
-  const bool weak = !state.has_previous || ahead > 2;
   if (!state.has_previous) {
     patches.levels = std::min(4, patches.levels + 2);
     patches.max_shift_px *= 4;
@@ -197,11 +198,11 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
     patches.max_shift_px *= 2;
   }
   Outcome out = TrackFrom(camera, sampler, raw, *state.tracks, predicted, patches);
-  if (out.success || !weak || !options_.correct_weak_predictions) return out;
-  // The weak prediction corrected, then tracked again from the corrected
-  // pose at the usual levels and shift (tried second: when the widened
-  // search serves, as it mostly does for a frame or two skipped, the
-  // correction's SIFT is not paid).
+  if (out.success || !options_.correct_predictions || ahead > options_.max_correction_ahead)
+    return out;
+  // The prediction corrected, then tracked again from the corrected pose at
+  // the usual levels and shift (tried second: when the prediction serves,
+  // as it mostly does, the correction's SIFT is not paid).
   const auto start = std::chrono::steady_clock::now();
   const Outcome c = CorrectPrediction(camera, sampler, raw, predicted);
   if (c.success) {
@@ -593,7 +594,7 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   bool relocalised_attempt = false;  // Relocalise ran (its stages count)
   bool guided_attempt = false;       // Reanchor ran
   Outcome guided;
-  double correction_s = 0;        // Track's correction of a weak prediction
+  double correction_s = 0;        // Track's correction of its prediction
   std::string correction_status;  // "" when none was tried
   if (reanchor) {
     // Tracked first; its pose guides the matching against the map

@@ -31,11 +31,10 @@
 //                larger shift are allowed: two more levels and four times
 //                the shift with no velocity yet (the frame after a
 //                relocalisation), one more and twice when more than two
-//                triggers ahead (frames skipped); when that fails, the
+//                triggers ahead (frames skipped). When tracking fails the
 //                prediction is corrected by guided matching on a coarse
 //                render with a wide radius and the patches tracked again
-//                from the corrected pose
-//                (LocalizerOptions::correct_weak_predictions).
+//                from the corrected pose (LocalizerOptions::correct_predictions).
 //   relocalise   otherwise, or when tracking fails: SIFT on a TF image (the
 //                chain's when the frame was processed, else the whole TF
 //                grid rendered at one virtual depth, TfSampler::RenderAtDepth,
@@ -128,18 +127,27 @@ struct LocalizerOptions {
   // frame's tracked pose; false: by relocalisation.
   bool guided_reanchoring = true;
   GuidedMatchOptions guided;
-  // A weak prediction (no velocity yet, or more than two triggers ahead: the
-  // frame after a relocalisation, or frames skipped while one ran) whose
-  // tracking failed (the patches get more levels and a larger shift from
-  // it, Track) is corrected by guided matching on a coarse render with a
-  // wide radius (`coarse`: SIFT on a TF render of longer side <= 420 px,
-  // each keypoint against the map points projected within 120 TF px of
-  // it), PnP on those matches, and the patches tracked again from that pose
-  // at their usual levels and shift; relocalised when that fails too. r32,
-  // frames 5 triggers apart (a relocalisation's time): the constant-velocity
-  // prediction missed by 30-106 TF px (median over the map points; the
-  // trajectory turns within the gap) and tracking followed 2 of 111 points.
-  bool correct_weak_predictions = true;
+  // A prediction whose tracking failed (for a weak one, no velocity yet or
+  // more than two triggers ahead, the patches already got more levels and
+  // a larger shift, Track) is corrected by guided matching on a coarse
+  // render with a wide radius (`coarse`: SIFT on a TF render of longer side
+  // <= 420 px, each keypoint against the map points projected within 120 TF
+  // px of it), PnP on those matches, and the patches tracked again from
+  // that pose at their usual levels and shift; relocalised when that fails
+  // too. r32, frames 5 triggers apart (a relocalisation's time): the
+  // constant-velocity prediction missed by 30-106 TF px (median over the
+  // map points; the trajectory turns within the gap) and tracking followed
+  // 2 of 111 points; 2 apart it missed by 16-28 TF px (at r32 twice
+  // medium's pixels for the same angle) and followed 10-13 of ~100.
+  // The correction costs ~110 ms at r32 against ~450 ms for a relocalisation.
+  // Only up to max_correction_ahead triggers after the camera's last pose:
+  // further, the tracks' templates no longer match the view even from a
+  // corrected pose and the correction's time only delays the
+  // relocalisation (bench_live r32: with every frame corrected, 16 of 70
+  // corrections served and a failed frame cost 990 ms instead of 559;
+  // 0.89 extrinsics/s per camera instead of 1.38).
+  bool correct_predictions = true;
+  int max_correction_ahead = 3;  // >= 1
   GuidedMatchOptions coarse = CoarseGuidedOptions();
   static GuidedMatchOptions CoarseGuidedOptions();
   bool track = true;          // false: relocalise every frame (the baseline of bench_live)
@@ -196,8 +204,8 @@ class MapLocalizerStage final : public processing::RegistrationStage {
     // Their matches (after the fundamental filter), PnP inliers, and the
     // matches the fundamental filter removed (FrameRegistrationOptions).
     long long relocalise_matches = 0, relocalise_inliers = 0, fundamental_outliers = 0;
-    // Weak predictions corrected by coarse guided matching
-    // (LocalizerOptions::correct_weak_predictions): attempts, successes, time.
+    // Predictions corrected by coarse guided matching after tracking failed
+    // (LocalizerOptions::correct_predictions): attempts, successes, time.
     long long corrections = 0, corrected = 0;
     double correction_s = 0;
     std::string last_correction_failure;
@@ -257,8 +265,8 @@ class MapLocalizerStage final : public processing::RegistrationStage {
                 const std::vector<TrackedPoint>& found, const std::vector<double>& v,
                 const std::optional<Pose>& predicted, const std::string& what,
                 int min_inliers) const;
-  // A weak prediction corrected (LocalizerOptions::correct_weak_predictions):
-  // the pose from coarse guided matches, not checked against the prediction.
+  // A prediction corrected (LocalizerOptions::correct_predictions): the pose
+  // from coarse guided matches, not checked against the prediction.
   Outcome CorrectPrediction(const processing::CameraModel& camera,
                             const processing::TfSampler& sampler, const ConstImageView& raw,
                             const Pose& predicted) const;

@@ -295,7 +295,7 @@ TEST(MapLocalizer, OfflineAFrameWaitsForItsCamerasRelocalisationInsteadOfPassing
   EXPECT_EQ(counts.tracked, 1);
 }
 
-// A weak prediction (LocalizerOptions::correct_weak_predictions): camera X
+// A weak prediction (LocalizerOptions::correct_predictions): camera X
 // relocalised at view 0 (trigger 0), tracked at view 1 (trigger 1), then
 // shown view GAP_VIEW at trigger 4 (frames skipped while a relocalisation
 // ran, and the camera turned meanwhile): the constant-velocity prediction
@@ -312,7 +312,7 @@ TEST(MapLocalizer, AWeakPredictionIsCorrectedBeforeThePatchesAreTracked) {
   const MapIndex index = MapIndex::Of(s.map);
   for (const bool correct : {false, true}) {
     LocalizerOptions options;
-    options.correct_weak_predictions = correct;
+    options.correct_predictions = correct;
     MapLocalizerStage stage(s.map, options);
     std::optional<processing::CameraPose> last;
     // (trigger, view) in the order shown.
@@ -513,14 +513,14 @@ TEST(MapLocalizer, RelocalisationStepGrowsWithTheTfGrid) {
 }
 
 // Guided matching likewise (GuidedMatchOptions::Step): re-anchoring renders
-// small, medium and r32 at steps 2, 3 and 6 (256, 547, 547 px; r32 at step
-// 3 took 710 ms of SIFT a re-anchoring), the coarse correction of a weak
+// small, medium and r32 at steps 2, 3 and 5 (256, 547, 656 px; r32 at step
+// 3 took 710 ms of SIFT a re-anchoring), the coarse correction of a
 // prediction at 2, 4 and 8 (256, 410, 410 px).
 TEST(MapLocalizer, GuidedMatchingStepGrowsWithTheTfGrid) {
   const LocalizerOptions options;
   EXPECT_EQ(options.guided.Step(512), 2);
   EXPECT_EQ(options.guided.Step(1640), 3);
-  EXPECT_EQ(options.guided.Step(3280), 6);
+  EXPECT_EQ(options.guided.Step(3280), 5);
   EXPECT_EQ(options.guided.Step(100000), 8);  // never beyond 8
   EXPECT_EQ(options.coarse.Step(512), 2);
   EXPECT_EQ(options.coarse.Step(1640), 4);
