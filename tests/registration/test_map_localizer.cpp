@@ -495,6 +495,81 @@ TEST(MapLocalizer, RefusesAPoseWhoseInliersCrowdInACornerAndSaysWhy) {
   EXPECT_EQ(stage.counts().failed, 1);
 }
 
+// Camera X's frames `gap` triggers apart, as the live pipeline hands them
+// over when each localisation takes `gap` frame periods (newest wins): each
+// frame's localisation (tracked, corrected, re-anchored or relocalised),
+// its error and the miss of the constant-velocity prediction it started
+// from (median over the map points, TF px). Every frame must be localised.
+// LIFMCR_TEST_GAPS=2,3,5 and LIFMCR_TEST_FRAMES=40 with LIFMCR_TEST_PRESET=r32
+// and LIFMCR_TEST_KEEP on a kept 40-frame rig give bench/README.md's r32
+// figures (minutes); by default gaps 2 and 3 over the small rig's 8 frames.
+TEST(MapLocalizer, FramesSomeTriggersApartAreEachLocalised) {
+  const char* gaps_env = std::getenv("LIFMCR_TEST_GAPS");
+  const char* frames_env = std::getenv("LIFMCR_TEST_FRAMES");
+  const std::int64_t frames = frames_env ? std::atoi(frames_env) : kFrames;
+  std::vector<int> gaps;
+  for (const char* p = gaps_env ? gaps_env : "2,3"; *p;) {
+    gaps.push_back(std::max(1, std::atoi(p)));
+    while (*p && *p != ',') ++p;
+    if (*p) ++p;
+  }
+  Sequence& s = *Shared();
+  const std::string& x = s.serials[1];
+  const processing::CameraModel& camera = *s.chain->Find(x)->camera_model();
+  const MapIndex index = MapIndex::Of(s.map);
+  for (const int gap : gaps) {
+    MapLocalizerStage stage(s.map, LocalizerOptions{});
+    std::printf("frames %d triggers apart:\n", gap);
+    std::vector<std::pair<std::int64_t, Pose>> localised;  // camera X's ok poses
+    std::vector<double> t_mm;
+    double seconds = 0;
+    for (std::int64_t t = 0; t < frames; t += gap) {
+      // The prediction CameraState::Predict makes from X's last two poses.
+      double miss_px = -1;
+      if (localised.size() >= 2) {
+        const auto& [t1, last] = localised.back();
+        const auto& [t0, previous] = localised[localised.size() - 2];
+        const Pose step = previous.inverse() * last;
+        Eigen::AngleAxisd rotation(step.rotation());
+        const double alpha = std::min(4.0, double(t - t1) / double(t1 - t0));
+        rotation.angle() *= alpha;
+        Pose scaled = Pose::Identity();
+        scaled.linear() = rotation.toRotationMatrix();
+        scaled.translation() = alpha * step.translation();
+        const Pose predicted = last * scaled;
+        std::vector<double> miss;
+        for (const Eigen::Vector3d& p : index.points_in_w0) {
+          Eigen::Vector2d a, b;
+          double va = 0, vb = 0;
+          if (ProjectMapPoint(camera, predicted.inverse(), p, &a, &va) &&
+              ProjectMapPoint(camera, s.truth[x][t].inverse(), p, &b, &vb))
+            miss.push_back((a - b).norm());
+        }
+        miss_px = Median(miss);
+      }
+      (void)LocalizeFrame(stage, s, s.serials[0], t);
+      const Localized l = LocalizeFrame(stage, s, x, t);
+      ASSERT_TRUE(l.pose);
+      if (t > 0) seconds += l.seconds;
+      const double e_mm = TranslationDifference(l.pose->transform, s.truth[x][t]);
+      std::printf("  frame %2lld: %-11s %-6.60s %3d inliers %6.1f ms, error %.2f mm / %.3f deg, "
+                  "prediction missed by %.1f TF px\n",
+                  static_cast<long long>(t), l.pose->localisation.c_str(),
+                  l.pose->status.c_str(), l.pose->inliers, 1e3 * l.seconds, e_mm,
+                  RotationDifferenceDeg(l.pose->transform, s.truth[x][t]), miss_px);
+      EXPECT_EQ(l.pose->status, "ok") << "frame " << t << ", " << gap << " triggers apart";
+      if (l.pose->status != "ok") continue;
+      localised.push_back({t, l.pose->transform});
+      t_mm.push_back(e_mm);
+    }
+    const MapLocalizerStage::Counts c = stage.counts();
+    std::printf("  both cameras: %lld tracked, %lld re-anchored, %lld relocalised; camera X: "
+                "median error %.2f mm, its frames after the first %.0f ms in all\n  %s\n",
+                c.tracked, c.guided, c.relocalised, Median(t_mm), 1e3 * seconds,
+                c.StageReport().c_str());
+  }
+}
+
 // A larger sensor is relocalised on an image of about the same size: the
 // presets' TF grids (small 512, medium 1640, r32 3280 px on the longer
 // side) at steps 2, 2 and 4 (820 px for r32 instead of 1640: SIFT and the
