@@ -69,7 +69,7 @@ Expected<std::unique_ptr<ViconCsvSource>> ViconCsvSource::FromCsv(
 
 Status ViconCsvSource::Start() {
   started_ = true;
-  next_ = 0;
+  next_.store(0, std::memory_order_release);
   start_host_ns_ = HostRealtimeNs();
   return Status::Ok();
 }
@@ -88,11 +88,13 @@ ViconSourceStats ViconCsvSource::Stats() const {
 
 Expected<std::optional<ViconFrame>> ViconCsvSource::Next(std::chrono::milliseconds timeout) {
   if (!started_) return Error{"Vicon CSV source: Next before Start"};
-  if (Finished()) return std::optional<ViconFrame>();
+  // Written only here (and by Start, before this thread calls Next).
+  const std::size_t next = next_.load(std::memory_order_relaxed);
+  if (next >= frames_.size()) return std::optional<ViconFrame>();
   std::int64_t host_ns = HostRealtimeNs();
   if (realtime_) {
     const double offset_s =
-        static_cast<double>(frames_[next_].vicon_frame - frames_.front().vicon_frame) / rate_hz_;
+        static_cast<double>(frames_[next].vicon_frame - frames_.front().vicon_frame) / rate_hz_;
     const std::int64_t due_ns = start_host_ns_ + std::llround(offset_s * 1e9);
     if (due_ns - host_ns > std::chrono::nanoseconds(timeout).count()) {
       std::this_thread::sleep_for(timeout);
@@ -101,16 +103,16 @@ Expected<std::optional<ViconFrame>> ViconCsvSource::Next(std::chrono::millisecon
     if (due_ns > host_ns) std::this_thread::sleep_for(std::chrono::nanoseconds(due_ns - host_ns));
     host_ns = due_ns;
   }
-  ViconFrame frame = frames_[next_];
+  ViconFrame frame = frames_[next];
   frame.host_ns = host_ns;
   if (sequence_clock_start_ns_)
     frame.host_ns = *sequence_clock_start_ns_ +
                     std::llround(static_cast<double>(frame.vicon_frame - frames_.front().vicon_frame) /
                                  rate_hz_ * 1e9);
-  if (next_ > 0 && frame.vicon_frame > frames_[next_ - 1].vicon_frame + 1)
+  if (next > 0 && frame.vicon_frame > frames_[next - 1].vicon_frame + 1)
     gaps_.fetch_add(
-        static_cast<std::uint64_t>(frame.vicon_frame - frames_[next_ - 1].vicon_frame - 1));
-  ++next_;
+        static_cast<std::uint64_t>(frame.vicon_frame - frames_[next - 1].vicon_frame - 1));
+  next_.store(next + 1, std::memory_order_release);
   delivered_.fetch_add(1);
   return std::optional<ViconFrame>(std::move(frame));
 }

@@ -52,7 +52,11 @@ class ViconCsvSource : public ViconSource {
   Status Start() override;  // (re)starts at the first frame
   Status Stop() override;
   Expected<std::optional<ViconFrame>> Next(std::chrono::milliseconds timeout) override;
-  bool Finished() const override { return next_ >= frames_.size(); }
+  // Any thread (the replay's main loop polls it while the rig's Vicon thread
+  // calls Next).
+  bool Finished() const override {
+    return next_.load(std::memory_order_acquire) >= frames_.size();
+  }
   ViconSourceStats Stats() const override;
 
   std::size_t frame_count() const { return frames_.size(); }
@@ -65,7 +69,9 @@ class ViconCsvSource : public ViconSource {
   bool realtime_ = true;
   std::optional<std::int64_t> sequence_clock_start_ns_;
   bool started_ = false;
-  std::size_t next_ = 0;
+  // The next frame to deliver: written by Next's thread, read by Finished's
+  // (TSan found the plain size_t racing in `lifmcr replay`).
+  std::atomic<std::size_t> next_{0};
   std::int64_t start_host_ns_ = 0;
   std::atomic<std::uint64_t> delivered_{0}, gaps_{0};
 };

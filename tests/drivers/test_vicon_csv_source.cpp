@@ -6,8 +6,10 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
 #include <random>
+#include <thread>
 
 namespace lifmcr {
 namespace {
@@ -71,6 +73,30 @@ TEST(ViconCsvSource, PlaysEveryFrameWithTheRigsObjectsAsFastAsPossible) {
   EXPECT_FALSE(after->has_value());
   EXPECT_EQ((*source)->Stats().frames, 39u);
   EXPECT_EQ((*source)->Stats().gaps, 1u);  // frame 130
+}
+
+// Finished polled on one thread while Next plays on another, as `lifmcr
+// replay`'s main loop does beside the rig's Vicon thread: under TSan
+// (scripts/test.sh's tsan group) the plain frame counter it read raced.
+TEST(ViconCsvSource, FinishedMayBePolledWhileAnotherThreadPlays) {
+  auto fixture = WriteCsv({});
+  ViconCsvSourceOptions options;
+  options.objects = {"plate"};
+  options.realtime = false;
+  auto source = ViconCsvSource::Open(fixture->path, options);
+  ASSERT_TRUE(source.ok()) << source.error().message;
+  ASSERT_TRUE((*source)->Start().ok());
+  std::atomic<int> delivered{0};
+  std::thread player([&] {
+    for (;;) {
+      auto next = (*source)->Next(milliseconds(1));
+      if (!next.ok() || !next->has_value()) return;
+      ++delivered;
+    }
+  });
+  while (!(*source)->Finished()) std::this_thread::yield();
+  player.join();
+  EXPECT_EQ(delivered.load(), 39);
 }
 
 TEST(ViconCsvSource, RealtimeKeepsTheOriginalSpacing) {
