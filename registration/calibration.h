@@ -5,7 +5,9 @@
 //
 // 1. Frames (calibration_frames.h): SIFT keypoints on the TF image, each a
 //    virtual point (x_v, y_v, v) with x_v = 2 tf + 0.5 and v the measured
-//    virtual depth; ArUco plate corners.
+//    virtual depth; ArUco plate corners, each frame's checked against the
+//    plate's planar geometry (plate_corner_check.h): a corner off the
+//    homography of its frame's other corners stays out of step 3.
 // 2. Initialisation (nominal intrinsics): the first frame that sees the
 //    plate is placed by PnP on the plate corners; every keypoint with a
 //    virtual depth back-projects to a 3D point (camera_model.h). Each
