@@ -53,6 +53,9 @@ struct CalibrateOptions {
   double principal_point_prior_px = registration::CalibrationOptions{}.principal_point_prior_px;
   bool euclidean_points = false;
   bool fixed_corner_inset = false;
+  bool keep_plate_corners = false;
+  double plate_corner_threshold_tf_px =
+      registration::PlateCornerCheckOptions{}.max_residual_tf_px;
   std::string plate_frames;
   std::string cache;
 };
@@ -163,6 +166,8 @@ int RunCalibrate(const CalibrateOptions& o) {
   options.principal_point_prior_px = o.principal_point_prior_px;
   options.inverse_depth = !o.euclidean_points;
   options.estimate_corner_inset = !o.fixed_corner_inset;
+  options.reject_plate_corners = !o.keep_plate_corners;
+  options.plate_corner_check.max_residual_tf_px = o.plate_corner_threshold_tf_px;
   Expected<registration::CalibrationResult> result =
       registration::Calibrate(input, options, progress);
   if (!result) return Fail(result.error().message);
@@ -285,6 +290,12 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
                  "(default: all; every frame can still be placed on the plate)");
   app.add_flag("--no-corner-inset", o->fixed_corner_inset,
                "Take the ArUco corners as detected (no estimated inset towards the marker centre)");
+  app.add_flag("--keep-plate-corners", o->keep_plate_corners,
+               "Every detected plate corner enters the bundle adjustment (default: a corner "
+               "off its frame's plate homography is left out and reported)");
+  app.add_option("--plate-corner-threshold", o->plate_corner_threshold_tf_px,
+                 "Leave-one-out homography residual (TF px) above which a plate corner is left "
+                 "out (and above 5 x the median over every frame's corners)");
   app.add_flag("--ground-truth", o->ground_truth,
                "Synthetic sequences: compare with SEQ/GroundTruth and print the figures");
   return [o] { return RunCalibrate(*o); };

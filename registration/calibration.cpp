@@ -292,6 +292,7 @@ Status CalibrationOptions::Check() const {
   if (!(huber_px > 0)) return fail("huber_px: expected > 0");
   if (!(outlier_px > 0)) return fail("outlier_px: expected > 0");
   if (!(plate_weight > 0)) return fail("plate_weight: expected > 0");
+  if (Status s = plate_corner_check.Check(); !s) return s;
   if (!(principal_point_prior_px >= 0))
     return fail("principal_point_prior_px: expected >= 0 (0: no prior)");
   if (max_lenses < 2) return fail("max_lenses: expected >= 2");
@@ -394,6 +395,37 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
     PlateCornerCost cost;
   };
   std::vector<CornerObservation> corner_observations;
+  // Each frame's corners against the plate's planar geometry (before any
+  // solve, so without the pose or the intrinsics): the ones that fail stay
+  // out of the plate terms.
+  std::vector<PlateCornerCheck> corner_checks(n_frames);
+  std::vector<std::vector<PlateCorner>> all_corners;
+  for (const CalibrationFrame& frame : input.frames) all_corners.push_back(frame.corners);
+  const double reference_tf_px = MedianPlateCornerResidual(all_corners, options.plate_corner_check);
+  if (progress)
+    progress(Format("plate corner check: median leave-one-out residual %.3f TF px, threshold "
+                    "%.3f TF px",
+                    reference_tf_px,
+                    std::max(options.plate_corner_check.max_residual_tf_px,
+                             options.plate_corner_check.max_residual_over_reference *
+                                 reference_tf_px)));
+  for (int f = 0; f < n_frames; ++f) {
+    const CalibrationFrame& frame = input.frames[f];
+    corner_checks[f] = CheckPlateCorners(frame.corners, reference_tf_px, options.plate_corner_check);
+    if (!options.reject_plate_corners || !map.frames[f].placed) continue;
+    const PlateCornerCheck& check = corner_checks[f];
+    for (std::size_t r = 0; r < check.rejected.size(); ++r) {
+      const PlateCorner& corner = frame.corners[check.rejected[r]];
+      result.rejected_corners.push_back(RejectedPlateCorner{
+          frame.frame, corner.marker_id, corner.corner, corner.tf_px,
+          check.rejected_residual_tf_px[r], check.threshold_tf_px});
+      if (progress)
+        progress(Format("plate corner check: frame %lld marker %d corner %d left out "
+                        "(leave-one-out homography residual %.2f TF px > %.2f)",
+                        static_cast<long long>(frame.frame), corner.marker_id, corner.corner,
+                        check.rejected_residual_tf_px[r], check.threshold_tf_px));
+    }
+  }
   for (int f = 0; f < n_frames; ++f) {
     if (!map.frames[f].placed) continue;
     const CalibrationFrame& frame = input.frames[f];
@@ -403,6 +435,10 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
       continue;
     for (std::size_t n = 0; n < frame.corners.size(); ++n) {
       const PlateCorner& corner = frame.corners[n];
+      if (options.reject_plate_corners &&
+          std::find(corner_checks[f].rejected.begin(), corner_checks[f].rejected.end(),
+                    static_cast<int>(n)) != corner_checks[f].rejected.end())
+        continue;
       CornerObservation co;
       co.frame = f;
       co.cost.p_in_w_mm = corner.p_in_w_mm;
@@ -738,6 +774,15 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
     report.plate_corners = static_cast<int>(frame.corners.size());
     report.observations = static_cast<int>(frame_obs[f]);
     report.rmse_px = frame_m[f] > 0 ? std::sqrt(frame_ss[f] / frame_m[f]) : 0;
+    report.plate_corner_residual_max_tf_px = std::nan("");
+    if (corner_checks[f].checked) {
+      report.plate_corner_residual_max_tf_px = 0;
+      for (const double x : corner_checks[f].residual_tf_px)
+        if (!std::isnan(x))
+          report.plate_corner_residual_max_tf_px = std::max(report.plate_corner_residual_max_tf_px, x);
+    }
+    if (options.reject_plate_corners && report.placed)
+      report.plate_corners_rejected = static_cast<int>(corner_checks[f].rejected.size());
     if (report.placed && frame_obs[f] == 0 && frame.corners.empty()) {
       result.flags.push_back(Format("frame %lld: placed at initialisation but no observation "
                                     "survived; its pose is not refined",
@@ -852,12 +897,32 @@ std::string FormatCalibrationReport(const CalibrationResult& r, const std::strin
       "Ceres: %d iterations, %.2f s, cost %.6e -> %.6e, %s. Total %.1f s.\n\n",
       r.rmse_px, r.micro_observations, r.plate_rmse_px, r.rejected_observations, r.iterations,
       r.solver_seconds, r.initial_cost, r.final_cost, r.termination.c_str(), r.total_seconds);
-  text += "## Frames\n\n| frame | placed | how | keypoints with v | plate corners | observations | "
-          "RMSE px |\n|---|---|---|---|---|---|---|\n";
+  text += "## Frames\n\n| frame | placed | how | keypoints with v | plate corners (left out) | "
+          "plate corners' largest leave-one-out residual TF px | observations | RMSE px |\n"
+          "|---|---|---|---|---|---|---|---|\n";
   for (const FrameReport& f : r.frames)
-    text += Format("| %lld | %s | %s | %d | %d | %d | %.4f |\n", static_cast<long long>(f.frame),
-                   f.placed ? "yes" : "no", f.how.c_str(), f.keypoints, f.plate_corners,
+    text += Format("| %lld | %s | %s | %d | %d (%d) | %s | %d | %.4f |\n",
+                   static_cast<long long>(f.frame), f.placed ? "yes" : "no", f.how.c_str(),
+                   f.keypoints, f.plate_corners, f.plate_corners_rejected,
+                   std::isnan(f.plate_corner_residual_max_tf_px)
+                       ? "not checked"
+                       : Format("%.3f", f.plate_corner_residual_max_tf_px).c_str(),
                    f.observations, f.rmse_px);
+  text += "\n## Rejected plate corners\n\n";
+  if (r.rejected_corners.empty()) {
+    text += "None: every plate corner of a placed frame fits its frame's plate homography "
+            "(or the check is off).\n";
+  } else {
+    text += "Left out of the bundle adjustment: their leave-one-out residual to the homography "
+            "from the plate to the TF image fitted to the frame's other corners is above "
+            "the threshold (registration/plate_corner_check.h).\n\n"
+            "| frame | marker | corner | TF x px | TF y px | residual TF px | threshold TF px |\n"
+            "|---|---|---|---|---|---|---|\n";
+    for (const RejectedPlateCorner& c : r.rejected_corners)
+      text += Format("| %lld | %d | %d | %.2f | %.2f | %.3f | %.3f |\n",
+                     static_cast<long long>(c.frame), c.marker_id, c.corner, c.tf_px.x(),
+                     c.tf_px.y(), c.residual_tf_px, c.threshold_tf_px);
+  }
   return text;
 }
 

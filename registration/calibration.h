@@ -5,7 +5,9 @@
 //
 // 1. Frames (calibration_frames.h): SIFT keypoints on the TF image, each a
 //    virtual point (x_v, y_v, v) with x_v = 2 tf + 0.5 and v the measured
-//    virtual depth; ArUco plate corners.
+//    virtual depth; ArUco plate corners, each frame's checked against the
+//    plate's planar geometry (plate_corner_check.h): a corner off the
+//    homography of its frame's other corners stays out of step 3.
 // 2. Initialisation (nominal intrinsics): the first frame that sees the
 //    plate is placed by PnP on the plate corners; every keypoint with a
 //    virtual depth back-projects to a 3D point (camera_model.h). Each
@@ -46,6 +48,7 @@
 #include "registration/calibration_frames.h"
 #include "registration/features.h"
 #include "registration/intrinsics_yaml.h"
+#include "registration/plate_corner_check.h"
 #include "registration/plenoptic_projection.h"
 #include "registration/poses_csv.h"
 #include "registration/reference_map.h"
@@ -80,6 +83,13 @@ struct CalibrationOptions {
   // Frames whose plate corners enter the bundle adjustment (empty: every
   // frame's). The initialisation still places frames on the plate.
   std::vector<std::int64_t> plate_frames;
+  // Each frame's plate corners are checked against the plate's planar
+  // geometry before the bundle adjustment (plate_corner_check.h); a corner
+  // that fails is left out of the plate terms and reported
+  // (CalibrationResult::rejected_corners). Off: every corner enters, the
+  // residuals are still reported.
+  bool reject_plate_corners = true;
+  PlateCornerCheckOptions plate_corner_check;
   // A point enters the reference map when this many frames kept their
   // observation of it (all points with two take part in the solve), and the
   // rays from those frames meet at min_map_angle_deg or more (the largest
@@ -130,6 +140,20 @@ struct FrameReport {
   int plate_corners = 0;
   int observations = 0;  // in the final solve
   double rmse_px = 0;    // micro-image residuals of this frame
+  // Largest leave-one-out homography residual of its plate corners (TF px,
+  // plate_corner_check.h); NaN when not checked (too few corners).
+  double plate_corner_residual_max_tf_px = 0;
+  int plate_corners_rejected = 0;
+};
+
+// A plate corner left out of the bundle adjustment by the planar check.
+struct RejectedPlateCorner {
+  std::int64_t frame = 0;
+  int marker_id = 0;
+  int corner = 0;
+  Eigen::Vector2d tf_px = Eigen::Vector2d::Zero();
+  double residual_tf_px = 0;   // leave-one-out homography residual
+  double threshold_tf_px = 0;  // what it was above
 };
 
 struct CalibrationResult {
@@ -139,6 +163,7 @@ struct CalibrationResult {
   std::string weakest_direction;  // of the covariance, e.g. "(1.1e-06: principal_point_y_px -0.55, ...)"
   std::vector<FramePose> poses;     // w0_from_c0 of the placed frames
   std::vector<FrameReport> frames;  // every input frame
+  std::vector<RejectedPlateCorner> rejected_corners;  // by the planar check
   ReferenceMap map;
   double rmse_px = 0;               // all micro-image residuals of the final solve
   double plate_rmse_px = 0;         // plate corners
