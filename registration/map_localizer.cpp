@@ -198,7 +198,8 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
     patches.max_shift_px *= 2;
   }
   Outcome out = TrackFrom(camera, sampler, raw, *state.tracks, predicted, patches);
-  if (out.success || !options_.correct_predictions || ahead > options_.max_correction_ahead)
+  if (out.success || !options_.correct_predictions || ahead < 2 ||
+      ahead > options_.max_correction_ahead)
     return out;
   // The prediction corrected, then tracked again from the corrected pose at
   // the usual levels and shift (tried second: when the prediction serves,

@@ -127,9 +127,9 @@ struct LocalizerOptions {
   // frame's tracked pose; false: by relocalisation.
   bool guided_reanchoring = true;
   GuidedMatchOptions guided;
-  // A prediction whose tracking failed (for a weak one, no velocity yet or
-  // more than two triggers ahead, the patches already got more levels and
-  // a larger shift, Track) is corrected by guided matching on a coarse
+  // A prediction over skipped frames whose tracking failed (for a weak one,
+  // no velocity yet or more than two triggers ahead, the patches already got
+  // more levels and a larger shift, Track) is corrected by guided matching on a coarse
   // render with a wide radius (`coarse`: SIFT on a TF render of longer side
   // <= 420 px, each keypoint against the map points projected within 120 TF
   // px of it), PnP on those matches, and the patches tracked again from
@@ -140,7 +140,12 @@ struct LocalizerOptions {
   // 2 of 111 points; 2 apart it missed by 16-28 TF px (at r32 twice
   // medium's pixels for the same angle) and followed 10-13 of ~100.
   // The correction costs ~110 ms at r32 against ~450 ms for a relocalisation.
-  // Only up to max_correction_ahead triggers after the camera's last pose:
+  // Only when frames were skipped (2 or more triggers after the camera's last
+  // pose): tracking that fails from the frame before is no prediction's
+  // fault (small rig played forward then back: tracked through each reversal
+  // from a corrected pose, frames 10+ after the relocalisation were 0.35 mm
+  // worse than frames 1-3, where relocalising there kept them within 0.3 mm,
+  // test_map_localizer). And only up to max_correction_ahead triggers:
   // further, the tracks' templates no longer match the view even from a
   // corrected pose and the correction's time only delays the
   // relocalisation (bench_live r32: with every frame corrected, 16 of 70
