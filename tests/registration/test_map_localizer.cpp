@@ -102,9 +102,11 @@ struct Localized {
   double seconds = 0;
 };
 
+// The camera's raw frame `view` (by default the trigger's own) under trigger
+// index `frame`.
 Localized LocalizeFrame(MapLocalizerStage& stage, Sequence& s, const std::string& serial,
-                        std::int64_t frame) {
-  auto raw = ReadBmp(layout::RawFramePath(s.sequence, serial, frame));
+                        std::int64_t frame, std::int64_t view = -1) {
+  auto raw = ReadBmp(layout::RawFramePath(s.sequence, serial, view < 0 ? frame : view));
   EXPECT_TRUE(raw) << raw.error().message;
   processing::StageFrame f;
   f.serial = serial;
@@ -320,17 +322,9 @@ TEST(MapLocalizer, AWeakPredictionIsCorrectedBeforeThePatchesAreTracked) {
         {0, 0}, {1, 1}, {4, kGapView}};
     for (const auto& [trigger, view] : shown) {
       for (const std::string& serial : {s.serials[0], x}) {
-        auto raw = ReadBmp(layout::RawFramePath(s.sequence, serial, view));
-        ASSERT_TRUE(raw) << raw.error().message;
-        processing::StageFrame f;
-        f.serial = serial;
-        f.trigger_index = trigger;
-        f.host_ns = 1'000'000 * (trigger + 1);
-        f.raw = std::as_const(*raw).View();
-        f.camera = s.chain->Find(serial);
-        auto p = stage.Localize(f);
-        ASSERT_TRUE(p) << p.error().message;
-        if (serial == x) last = *p;
+        const Localized l = LocalizeFrame(stage, s, serial, trigger, view);
+        ASSERT_TRUE(l.pose);
+        if (serial == x) last = l.pose;
       }
       ASSERT_TRUE(last);
       ASSERT_EQ(last->status, "ok") << "trigger " << trigger;
