@@ -123,6 +123,21 @@ Localized LocalizeFrame(MapLocalizerStage& stage, Sequence& s, const std::string
   return out;
 }
 
+// How far a predicted pose's projections of the map points land from the
+// true pose's (TF px, median over the points both see).
+double MedianMissPx(const processing::CameraModel& camera, const MapIndex& index,
+                    const Pose& predicted, const Pose& truth) {
+  std::vector<double> miss;
+  for (const Eigen::Vector3d& p : index.points_in_w0) {
+    Eigen::Vector2d a, b;
+    double va = 0, vb = 0;
+    if (ProjectMapPoint(camera, predicted.inverse(), p, &a, &va) &&
+        ProjectMapPoint(camera, truth.inverse(), p, &b, &vb))
+      miss.push_back((a - b).norm());
+  }
+  return Median(miss);
+}
+
 TEST(MapLocalizer, RelocalisesOnceThenTracksFromRawFramesWithinTheGates) {
   Sequence& s = *Shared();
   MapLocalizerStage stage(s.map, LocalizerOptions{});
@@ -334,21 +349,14 @@ TEST(MapLocalizer, AWeakPredictionIsCorrectedBeforeThePatchesAreTracked) {
     const Pose step = s.truth[x][0].inverse() * s.truth[x][1];
     Pose predicted = s.truth[x][1];
     for (int k = 0; k < 3; ++k) predicted = predicted * step;
-    std::vector<double> miss_px;
-    for (const Eigen::Vector3d& p : index.points_in_w0) {
-      Eigen::Vector2d a, b;
-      double va = 0, vb = 0;
-      if (ProjectMapPoint(camera, predicted.inverse(), p, &a, &va) &&
-          ProjectMapPoint(camera, s.truth[x][kGapView].inverse(), p, &b, &vb))
-        miss_px.push_back((a - b).norm());
-    }
+    const double miss_px = MedianMissPx(camera, index, predicted, s.truth[x][kGapView]);
     const MapLocalizerStage::Counts counts = stage.counts();
     const double t_mm = TranslationDifference(last->transform, s.truth[x][kGapView]);
     const double r_deg = RotationDifferenceDeg(last->transform, s.truth[x][kGapView]);
     std::printf("correction %s: view %lld at trigger 4 %s, error %.3f mm / %.4f deg; the "
                 "prediction missed by %.1f TF px (median over the map points)\n  %s\n",
                 correct ? "on" : "off", static_cast<long long>(kGapView),
-                last->localisation.c_str(), t_mm, r_deg, Median(miss_px),
+                last->localisation.c_str(), t_mm, r_deg, miss_px,
                 counts.StageReport().c_str());
     if (!correct) {
       EXPECT_EQ(last->localisation, "relocalised");
@@ -531,15 +539,7 @@ TEST(MapLocalizer, FramesSomeTriggersApartAreEachLocalised) {
         scaled.linear() = rotation.toRotationMatrix();
         scaled.translation() = alpha * step.translation();
         const Pose predicted = last * scaled;
-        std::vector<double> miss;
-        for (const Eigen::Vector3d& p : index.points_in_w0) {
-          Eigen::Vector2d a, b;
-          double va = 0, vb = 0;
-          if (ProjectMapPoint(camera, predicted.inverse(), p, &a, &va) &&
-              ProjectMapPoint(camera, s.truth[x][t].inverse(), p, &b, &vb))
-            miss.push_back((a - b).norm());
-        }
-        miss_px = Median(miss);
+        miss_px = MedianMissPx(camera, index, predicted, s.truth[x][t]);
       }
       (void)LocalizeFrame(stage, s, s.serials[0], t);
       const Localized l = LocalizeFrame(stage, s, x, t);
