@@ -27,8 +27,8 @@ struct MapLocalizerStage::Outcome {
   double render_s = 0, sift_s = 0, match_s = 0, pnp_s = 0;
   int matches = 0, fundamental_outliers = 0;
   int windows = 0;  // guided re-anchoring: map points in view
-  // Tracking's correction of a weak prediction (CorrectPrediction): its
-  // time and status, "" when none was tried.
+  // Tracking's correction of its prediction (Track): its time and status,
+  // "" when none was tried.
   double correction_s = 0;
   std::string correction_status;
 };
@@ -205,7 +205,10 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
   // the usual levels and shift (tried second: when the prediction serves,
   // as it mostly does, the correction's SIFT is not paid).
   const auto start = std::chrono::steady_clock::now();
-  const Outcome c = CorrectPrediction(camera, sampler, raw, predicted);
+  // The corrected pose only places the patches (the tracked pose needs
+  // min_tracked inliers of its own): the pose checks' minimum suffices.
+  const Outcome c = GuidedSolve(camera, sampler, raw, predicted, options_.coarse,
+                                /*check_jump=*/false, "correction", options_.checks.min_inliers);
   if (c.success) {
     Outcome retried = TrackFrom(camera, sampler, raw, *state.tracks, c.w0_from_cam.pose,
                                 options_.patches);
@@ -396,59 +399,33 @@ MapLocalizerStage::Outcome MapLocalizerStage::Relocalise(const processing::Camer
   return out;
 }
 
-MapLocalizerStage::Outcome MapLocalizerStage::CorrectPrediction(
+MapLocalizerStage::Outcome MapLocalizerStage::GuidedSolve(
     const processing::CameraModel& camera, const processing::TfSampler& sampler,
-    const ConstImageView& raw, const Pose& predicted) const {
+    const ConstImageView& raw, const Pose& guide, const GuidedMatchOptions& options,
+    bool check_jump, const std::string& what, int min_inliers) const {
   Outcome out;
-  const GuidedMatches g = FindGuidedMatches(map_, camera, sampler, raw, predicted, options_.coarse);
-  if (g.status != "ok") {
-    out.status = "correction: " + g.status;
-    return out;
-  }
-  std::vector<TrackedPoint> found;
-  for (std::size_t i = 0; i < g.points.size(); ++i)
-    found.push_back({g.points[i], g.tf_px[i], nullptr, true});
-  // The pose only places the patches (the tracked pose needs min_tracked
-  // inliers of its own): the pose checks' minimum suffices.
-  const int min_inliers = options_.checks.min_inliers;
-  if (found.size() < static_cast<std::size_t>(min_inliers)) {
-    out.status = "correction: " + std::to_string(found.size()) + " of " +
-                 std::to_string(g.in_view) + " map points in view matched (< " +
-                 std::to_string(min_inliers) + ")";
-    return out;
-  }
-  return Solve(camera, sampler, found, g.virtual_depth, std::nullopt, "correction", min_inliers);
-}
-
-MapLocalizerStage::Outcome MapLocalizerStage::Reanchor(const processing::CameraModel& camera,
-                                                       const processing::TfSampler& sampler,
-                                                       const ConstImageView& raw,
-                                                       const Pose& w0_from_tracked) const {
-  Outcome out;
-  const GuidedMatches g =
-      FindGuidedMatches(map_, camera, sampler, raw, w0_from_tracked, options_.guided);
+  const GuidedMatches g = FindGuidedMatches(map_, camera, sampler, raw, guide, options);
   out.render_s = g.render_s;
   out.sift_s = g.sift_s;
   out.match_s = g.match_s;
   out.windows = g.in_view;
   out.matches = static_cast<int>(g.points.size());
   if (g.status != "ok") {
-    out.status = "re-anchoring: " + g.status;
+    out.status = what + ": " + g.status;
     return out;
   }
-  if (out.matches < options_.min_tracked) {
-    out.status = "re-anchoring: " + std::to_string(out.matches) + " of " +
-                 std::to_string(g.in_view) + " map points in view matched (< " +
-                 std::to_string(options_.min_tracked) + ")";
+  if (out.matches < min_inliers) {
+    out.status = what + ": " + std::to_string(out.matches) + " of " + std::to_string(g.in_view) +
+                 " map points in view matched (< " + std::to_string(min_inliers) + ")";
     return out;
   }
   // Every inlier anchored: its position is a SIFT keypoint matched against
-  // the map, not a projection from the tracked pose.
+  // the map, not a projection from the guiding pose.
   std::vector<TrackedPoint> found;
   for (std::size_t i = 0; i < g.points.size(); ++i)
     found.push_back({g.points[i], g.tf_px[i], nullptr, true});
-  Outcome solved = Solve(camera, sampler, found, g.virtual_depth, w0_from_tracked, "re-anchoring",
-                         options_.min_tracked);
+  Outcome solved = Solve(camera, sampler, found, g.virtual_depth,
+                         check_jump ? std::optional<Pose>(guide) : std::nullopt, what, min_inliers);
   solved.render_s = out.render_s;
   solved.sift_s = out.sift_s;
   solved.match_s = out.match_s;
@@ -593,7 +570,7 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   Outcome r;
   std::string localisation = "relocalised";
   bool relocalised_attempt = false;  // Relocalise ran (its stages count)
-  bool guided_attempt = false;       // Reanchor ran
+  bool guided_attempt = false;       // re-anchoring's GuidedSolve ran
   Outcome guided;
   double correction_s = 0;        // Track's correction of its prediction
   std::string correction_status;  // "" when none was tried
@@ -607,7 +584,9 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     correction_status = tracked.correction_status;
     if (tracked.success && options_.guided_reanchoring) {
       guided_attempt = true;
-      guided = Reanchor(camera, **sampler, frame.raw, tracked.w0_from_cam.pose);
+      guided = GuidedSolve(camera, **sampler, frame.raw, tracked.w0_from_cam.pose,
+                           options_.guided, /*check_jump=*/true, "re-anchoring",
+                           options_.min_tracked);
       if (guided.success) {
         r = guided;
         localisation = "re-anchored";

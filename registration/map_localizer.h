@@ -270,15 +270,16 @@ class MapLocalizerStage final : public processing::RegistrationStage {
                 const std::vector<TrackedPoint>& found, const std::vector<double>& v,
                 const std::optional<Pose>& predicted, const std::string& what,
                 int min_inliers) const;
-  // A prediction corrected (LocalizerOptions::correct_predictions): the pose
-  // from coarse guided matches, not checked against the prediction.
-  Outcome CorrectPrediction(const processing::CameraModel& camera,
-                            const processing::TfSampler& sampler, const ConstImageView& raw,
-                            const Pose& predicted) const;
-  // Guided matching from the frame's tracked pose, PnP, the pose checks
-  // (against the tracked pose as the prediction): every inlier anchored.
-  Outcome Reanchor(const processing::CameraModel& camera, const processing::TfSampler& sampler,
-                   const ConstImageView& raw, const Pose& w0_from_tracked) const;
+  // Guided matching (guided_matches.h, `options`) from the pose `guide`, PnP
+  // on the matches, the pose checks (against `guide` when check_jump) and at
+  // least min_inliers: every inlier anchored. Re-anchoring (options_.guided,
+  // from the tracked pose, checked against it) and the correction of a
+  // prediction (options_.coarse, LocalizerOptions::correct_predictions, not
+  // checked against the prediction it corrects).
+  Outcome GuidedSolve(const processing::CameraModel& camera, const processing::TfSampler& sampler,
+                      const ConstImageView& raw, const Pose& guide,
+                      const GuidedMatchOptions& options, bool check_jump, const std::string& what,
+                      int min_inliers) const;
   // Tracks for the next frame: `kept` (their templates kept when they have
   // one, else made at their projections from w0_from_cam) and map points in
   // cells with room, from pose w0_from_cam (anchored when `relocalised`); with
