@@ -12,6 +12,9 @@
 //   too, so a file that grows while it is read cannot exhaust memory.
 // - Opening never blocks: O_NONBLOCK until the type is known (opening a FIFO
 //   with no writer would otherwise wait forever).
+// - A text format may bound its lines (InputLimits::max_line_bytes): the
+//   read stops at the first longer line, so a file that is one huge line
+//   costs the bound, not the file ("<path>:<line>: a line longer than ...").
 // - Text formats are UTF-8 (or ASCII): a UTF-16/UTF-32 byte-order mark or a
 //   NUL byte is "UTF-16 text" or "binary data", not a confusing parse error.
 //
@@ -30,6 +33,9 @@ struct InputLimits {
   std::string_view what;          // "an MLA calibration XML (RayCalibData)", for messages
   std::uint64_t max_bytes = 0;    // the format's size bound; a larger file is an error
   bool allow_fifo = false;        // streaming readers may take a named pipe
+  // ReadInputText only: the longest line the format can hold (bytes between
+  // line breaks, '\n', '\r' or both); 0 for no bound.
+  std::uint64_t max_line_bytes = 0;
 };
 
 // Reads a whole text file (see above). Also rejects UTF-16/32 and binary

@@ -608,7 +608,8 @@ Expected<ViconCsv> ParseViconCsv(std::string_view text, const std::string& label
 
 Expected<ViconCsv> ReadViconCsv(const std::filesystem::path& path, const ViconCsvOptions& options) {
   Expected<std::string> text =
-      ReadInputText(path, {"a Vicon CSV export", kViconCsvLimits.max_file_bytes});
+      ReadInputText(path, {"a Vicon CSV export", kViconCsvLimits.max_file_bytes,
+                           /*allow_fifo=*/false, kViconCsvLimits.max_line_bytes});
   if (!text) return text.error();
   return ParseViconCsv(*text, EscapeText(path.string()), options);
 }

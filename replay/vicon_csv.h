@@ -93,6 +93,9 @@ struct ViconCsvLimits {
   std::uint64_t max_file_bytes = 128u << 20;  // ~2 h of a 3-object Tracker export at 80 Hz
   size_t max_columns = 60000;                 // data columns of a block: 10000 objects x 6
   size_t max_field_bytes = 4096;              // names and numbers are short
+  // A full row of max_columns numbers is about 1.2 MB (~20 bytes a value);
+  // a longer line is not an export, and reading stops there.
+  std::uint64_t max_line_bytes = 4u << 20;
   int max_rate_hz = 10000;                    // Vicon cameras run at up to 2000 Hz
   std::int64_t max_frame = 1000000000000;     // a year at 10 kHz is 3e11
   int max_sub_frame = 1000;

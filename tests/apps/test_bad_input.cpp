@@ -361,7 +361,11 @@ std::vector<Case> Cases() {
                    {"l.csv", "500.0 MiB, more than the 128.0 MiB"}});
   cases.push_back({"csv_10mb_field",
                    info_of("l.csv", "Objects\n80\n" + std::string(10 << 20, 'n') + "\n"),
-                   {"l.csv:3:1", "field longer than 4096 bytes"}});
+                   {"l.csv:3:", "a line longer than 4.0 MiB"}});
+  // Within the line bound, the field bound names the field's column.
+  cases.push_back({"csv_5kb_field",
+                   info_of("f.csv", "Objects\n80\nFrame," + std::string(5000, 'n') + "\n"),
+                   {"f.csv:3:7", "field longer than 4096 bytes"}});
   // Messages that mislead.
   cases.push_back({"symlink_loop",
                    [](const fs::path& dir) -> std::vector<std::string> {

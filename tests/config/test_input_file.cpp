@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <sys/stat.h>
 
@@ -88,6 +89,63 @@ TEST(InputFile, Utf16Utf32AndBinaryAreNamed) {
   EXPECT_NE(ErrorOf(dir / "nobom").find("looks like UTF-16 text"), std::string::npos);
   EXPECT_NE(ErrorOf(dir / "utf32").find("is UTF-32 text"), std::string::npos);
   EXPECT_NE(ErrorOf(dir / "bin").find("NUL byte at byte 3"), std::string::npos);
+}
+
+// Bytes this process has read through read() so far (/proc/self/io rchar).
+std::uint64_t BytesReadSoFar() {
+  const std::string io = test::ReadFile("/proc/self/io");
+  const std::size_t at = io.find("rchar: ");
+  return at == std::string::npos ? 0 : std::stoull(io.substr(at + 7));
+}
+
+TEST(InputFile, LineBoundNamesTheLineWithEveryKindOfLineBreak) {
+  test::TempDir dir;
+  InputLimits limits = kText;
+  limits.max_line_bytes = 4;
+  const std::pair<std::string, std::string> cases[] = {
+      {"1234\n1234\n12345\n", ":3: a line longer than 4 bytes, more than a line of a test file"},
+      {"1234\r\n1234\r\n12345\r\n", ":3: a line longer"},
+      {"1234\r1234\r\r12345", ":4: a line longer"},  // lone CRs, an empty line
+      {"12345", ":1: a line longer"},
+  };
+  for (const auto& [content, expected] : cases) {
+    test::WriteFile(dir / "t", content);
+    const std::string message = ErrorOf(dir / "t", limits);
+    EXPECT_NE(message.find((dir / "t").string() + expected), std::string::npos)
+        << EscapeText(content) << ": " << message;
+  }
+  // At the bound, with every kind of break, the text comes back whole.
+  test::WriteFile(dir / "ok", "1234\r\n1234\r1234\n\n1234");
+  Expected<std::string> text = ReadInputText(dir / "ok", limits);
+  ASSERT_TRUE(text.ok()) << text.error().message;
+  EXPECT_EQ(*text, "1234\r\n1234\r1234\n\n1234");
+}
+
+TEST(InputFile, LineBoundStopsReadingAtTheLongLine) {
+  test::TempDir dir;
+  // Many short lines across several read chunks, a CRLF split across a
+  // chunk boundary (1 MiB), then one line of 64 MiB.
+  std::string lines;
+  while (lines.size() < (3u << 20)) lines += "0123456789abcde\r\n";
+  lines.resize((1u << 20) - 1);
+  lines += "\r\nx";
+  while (lines.size() < (3u << 20)) lines += "0123456789abcde\n";
+  const std::size_t short_lines = 1 + static_cast<std::size_t>(std::count(lines.begin(), lines.end(), '\n'));
+  InputLimits limits{"a test file", 128u << 20, false, 4096};
+  test::WriteFile(dir / "lines", lines);
+  Expected<std::string> text = ReadInputText(dir / "lines", limits);
+  ASSERT_TRUE(text.ok()) << text.error().message;
+  EXPECT_EQ(*text, lines);
+
+  test::WriteFile(dir / "long", lines + std::string(64u << 20, ','));
+  const std::uint64_t before = BytesReadSoFar();
+  const std::string message = ErrorOf(dir / "long", limits);
+  const std::uint64_t read_bytes = BytesReadSoFar() - before;
+  EXPECT_NE(message.find(":" + std::to_string(short_lines) + ": a line longer than 4.0 KiB"),
+            std::string::npos)
+      << message;
+  // The short lines, the bound and at most one more chunk: not the 64 MiB.
+  EXPECT_LT(read_bytes, lines.size() + (2u << 20)) << message;
 }
 
 TEST(TextEscape, ControlCharactersInvalidUtf8AndBidiAreEscaped) {
