@@ -224,7 +224,9 @@ int Run(const Args& args) {
   std::unique_ptr<ProcessSettings> process_settings;
   RigObserver observer;
   if (args.publish) {
-    process_settings = ProcessSettings::ForPipeline();
+    process_settings = ProcessSettings::ForPipeline(ProcessSettings::ArenasFor(
+        !args.registration.reference.empty(),
+        rig->processing.skip_policy == SkipPolicy::kNewestWins));
     auto made = MakePublishPipeline(*rig, args, &live);
     if (!made) {
       std::cerr << "lifmcr record: --publish: " << EscapeText(made.error().message) << "\n";

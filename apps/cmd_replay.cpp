@@ -79,7 +79,9 @@ int RunReplayCommand(const std::string& sequence, const std::string& rate_text, 
     else
       std::cerr << report.StatusLine() << "\n";
   };
-  const auto process_settings = ProcessSettings::ForPipeline();
+  // Under --rate max the pipeline blocks (every frame processed on the workers).
+  const auto process_settings = ProcessSettings::ForPipeline(ProcessSettings::ArenasFor(
+      options.registration.has_value(), rate->kind != ReplayRate::Kind::kMax));
   auto result = RunReplay(options);
   if (terminal) std::cerr << "\n";
   std::signal(SIGINT, SIG_DFL);

@@ -304,7 +304,8 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
 }  // namespace
 
 int main(int argc, char** argv) {
-  const auto process_settings = apps::ProcessSettings::ForPipeline();
+  // Every run is live (newest_wins) with the localizer but the depth-only one.
+  const auto process_settings = apps::ProcessSettings::ForPipeline(HeapArenas::kPerThread);
   Args args;
   if (!ParseArgs(argc, argv, &args)) {
     std::fprintf(stderr,

@@ -3,7 +3,9 @@
 #include <malloc.h>
 #include <sys/mman.h>
 
+#include <algorithm>
 #include <cstdint>
+#include <thread>
 
 namespace lifmcr {
 
@@ -15,17 +17,15 @@ void AdviseHugePages(void* data, std::size_t bytes) {
   if (last > first) madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);
 }
 
-void KeepHeapResident() {
-  // Both calls only change glibc's tunables; they fail (return 0) only for
+void KeepHeapResident(HeapArenas arenas) {
+  // Each call only changes glibc's tunables; they fail (return 0) only for
   // out-of-range values, which these are not.
   mallopt(M_MMAP_MAX, 0);
   mallopt(M_TRIM_THRESHOLD, -1);
-  // One arena: a thread's own arena grows in heaps of at most 64 MiB, and
-  // glibc maps a larger block for it with mmap whatever M_MMAP_MAX says
-  // (and deletes an emptied heap), so a worker's 130 MB depth map would be
-  // faulted in every frame. Small blocks still come from per-thread caches
-  // (tcache) without the arena's lock.
-  mallopt(M_ARENA_MAX, 1);
+  // HeapArenas (memory_policy.h). glibc refuses 0 ("unset"): per thread
+  // is its default spelled out, 8 arenas per core.
+  const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+  mallopt(M_ARENA_MAX, arenas == HeapArenas::kOne ? 1 : static_cast<int>(8 * cores));
 }
 
 }  // namespace lifmcr

@@ -86,6 +86,10 @@ Status LocalizerOptions::Check() const {
   if (Status s = coarse.Check(); !s) return s;  // correct_predictions: either value
   if (max_correction_ahead < 1)
     return Error{"localizer options: max_correction_ahead: expected >= 1"};
+  if (!(min_far_track_success >= 0 && min_far_track_success <= 1))
+    return Error{"localizer options: min_far_track_success: expected in [0, 1]"};
+  if (far_track_probe_every < 1)
+    return Error{"localizer options: far_track_probe_every: expected >= 1"};
   return Status::Ok();
 }
 
@@ -171,6 +175,13 @@ std::string MapLocalizerStage::Counts::StageReport() const {
     out += line;
     if (!last_correction_failure.empty())
       out += " (last failure: " + last_correction_failure + ")";
+  }
+  if (far_attempts + far_relocalised > 0) {
+    std::snprintf(line, sizeof line,
+                  "; frames more than the correction's reach after their last pose: tracked %lld "
+                  "of %lld attempts, %lld relocalised without an attempt",
+                  far_tracked, far_attempts, far_relocalised);
+    out += line;
   }
   if (!last_tracking_failure.empty()) out += "; last tracking failure: " + last_tracking_failure;
   return out;
@@ -524,6 +535,8 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   } in_flight{this, frame.serial, {}, false};
   CameraState state;
   bool can_track = false, reanchor = false;
+  bool far = false;           // a far frame whose tracking is attempted
+  bool far_skipped = false;   // a far frame relocalised without the attempt
   {
     std::unique_lock<std::mutex> lock(mutex_);
     if (options_.wait_for_earlier_frames) {
@@ -538,6 +551,16 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     if (frame.host_ns > s.last_host_ns && frame.trigger_index <= s.last_trigger)
       s = CameraState{};  // a new pass
     can_track = s.has_pose && options_.track && s.tracks && !s.tracks->empty();
+    if (can_track && frame.trigger_index - s.last_trigger > options_.max_correction_ahead) {
+      FarTracking& f = far_[frame.serial];
+      if (f.success < options_.min_far_track_success &&
+          ++f.skipped % options_.far_track_probe_every != 0) {
+        can_track = false;
+        far_skipped = true;
+      } else {
+        far = true;
+      }
+    }
     // Re-anchoring when due, unless another worker relocalises the camera
     // already (then this frame tracks).
     reanchor = can_track && s.reanchor && !s.relocalising;
@@ -574,12 +597,14 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   Outcome guided;
   double correction_s = 0;        // Track's correction of its prediction
   std::string correction_status;  // "" when none was tried
+  bool tracking_ok = false;       // Track ran and succeeded
   if (reanchor) {
     // Tracked first; its pose guides the matching against the map
     // (guided_matches.h): an absolute pose at a fraction of a
     // relocalisation's cost. Relocalised when that fails; the tracked pose
     // when both fail.
     Outcome tracked = Track(camera, **sampler, frame.raw, state, frame.trigger_index);
+    tracking_ok = tracked.success;
     correction_s = tracked.correction_s;
     correction_status = tracked.correction_status;
     if (tracked.success && options_.guided_reanchoring) {
@@ -611,6 +636,7 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     }
   } else if (can_track) {
     r = Track(camera, **sampler, frame.raw, state, frame.trigger_index);
+    tracking_ok = r.success;
     correction_s = r.correction_s;
     correction_status = r.correction_status;
     if (r.success) localisation = "tracked";
@@ -659,6 +685,14 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   const double seconds = SecondsSince(start);
   std::lock_guard<std::mutex> lock(mutex_);
   if (reanchor) ++counts_.reanchored;
+  if (far_skipped) ++counts_.far_relocalised;
+  if (far) {
+    // Each attempt weighs 1/4 (LocalizerOptions::min_far_track_success).
+    FarTracking& f = far_[frame.serial];
+    f.success = 0.75 * f.success + 0.25 * (tracking_ok ? 1.0 : 0.0);
+    ++counts_.far_attempts;
+    if (tracking_ok) ++counts_.far_tracked;
+  }
   if (!correction_status.empty()) {
     ++counts_.corrections;
     counts_.correction_s += correction_s;

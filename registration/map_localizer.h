@@ -35,7 +35,10 @@
 //                prediction is corrected by guided matching on a coarse
 //                render with a wide radius and the patches tracked again
 //                from the corrected pose (LocalizerOptions::correct_predictions).
-//   relocalise   otherwise, or when tracking fails: SIFT on a TF image (the
+//   relocalise   otherwise, or when tracking fails, or (without trying to
+//                track) for a frame too far after the camera's last pose
+//                where tracking has not bridged such gaps lately
+//                (LocalizerOptions::min_far_track_success): SIFT on a TF image (the
 //                chain's when the frame was processed, else the whole TF
 //                grid rendered at one virtual depth, TfSampler::RenderAtDepth,
 //                at half resolution (relocalise_step):
@@ -153,6 +156,21 @@ struct LocalizerOptions {
   // 0.89 extrinsics/s per camera instead of 1.38).
   bool correct_predictions = true;
   int max_correction_ahead = 3;  // >= 1
+  // Frames "far" after the camera's last pose (more than max_correction_ahead
+  // triggers) are tracked only where tracking has bridged such gaps: per
+  // camera a running rate of the far frames whose tracking succeeded (each
+  // attempt weighs 1/4 against the rate so far, which starts at 1). Below
+  // min_far_track_success a far frame is relocalised without the attempt,
+  // except every far_track_probe_every-th, which tries (the motion may have
+  // slowed). Live at r32 a relocalisation takes 4-10 frame periods, so the
+  // frame after one is far; on bench_live's orbit its tracking (with the
+  // extra level and shift) failed and cost ~80 ms before the
+  // relocalisation (FramesSomeTriggersApartAreEachLocalised: 5 apart, 8 of
+  // 8 relocalised; run 13: a relocalised frame 561 ms in the track mode
+  // against 346 ms relocalising every frame). A probe costs one such
+  // attempt; one in 8 far frames, and a slowed motion is noticed within 8.
+  double min_far_track_success = 0.25;  // [0, 1]; 0: always try
+  int far_track_probe_every = 8;        // >= 1
   GuidedMatchOptions coarse = CoarseGuidedOptions();
   static GuidedMatchOptions CoarseGuidedOptions();
   bool track = true;          // false: relocalise every frame (the baseline of bench_live)
@@ -213,6 +231,9 @@ class MapLocalizerStage final : public processing::RegistrationStage {
     // (LocalizerOptions::correct_predictions): attempts, successes, time.
     long long corrections = 0, corrected = 0;
     double correction_s = 0;
+    // Far frames (LocalizerOptions::min_far_track_success): tracking
+    // attempted, succeeded, and frames relocalised without the attempt.
+    long long far_attempts = 0, far_tracked = 0, far_relocalised = 0;
     std::string last_correction_failure;
     std::string last_tracking_failure;  // why the last failed tracking failed
     // "relocalisations 3, per attempt: render 310 ms, SIFT 420 ms, ...,
@@ -298,6 +319,12 @@ class MapLocalizerStage final : public processing::RegistrationStage {
   std::condition_variable done_cv_;  // a frame or a relocalisation ended (wait_for_earlier_frames)
   std::map<std::string, std::multiset<std::int64_t>> in_flight_;  // triggers, per camera
   std::map<std::string, CameraState> cameras_;
+  // Per camera, kept across relocalisations (LocalizerOptions::min_far_track_success).
+  struct FarTracking {
+    double success = 1;  // running rate of the far frames tracked
+    long long skipped = 0;  // far frames relocalised without an attempt (probes counted)
+  };
+  std::map<std::string, FarTracking> far_;
   Counts counts_;
 };
 

@@ -4,7 +4,6 @@
 
 #include "config/memory_policy.h"
 
-#include <mutex>
 #include <oneapi/tbb/global_control.h>
 #include <oneapi/tbb/info.h>
 
@@ -17,9 +16,8 @@ struct ProcessSettings::Impl {
 ProcessSettings::ProcessSettings() : impl_(std::make_unique<Impl>()) {}
 ProcessSettings::~ProcessSettings() = default;
 
-std::unique_ptr<ProcessSettings> ProcessSettings::ForPipeline() {
-  static std::once_flag once;
-  std::call_once(once, [] { KeepHeapResident(); });
+std::unique_ptr<ProcessSettings> ProcessSettings::ForPipeline(HeapArenas arenas) {
+  KeepHeapResident(arenas);
   std::unique_ptr<ProcessSettings> settings(new ProcessSettings());
   const int cores = tbb::info::default_concurrency();
   settings->impl_->worker_limit = std::make_unique<tbb::global_control>(

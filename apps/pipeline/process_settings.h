@@ -21,6 +21,8 @@
 //   thread that here (the command's loop) never helps; the pipeline's arena
 //   has no master slot, so the process allows one worker more.
 
+#include "config/memory_policy.h"
+
 #include <memory>
 
 namespace lifmcr::apps {
@@ -28,7 +30,14 @@ namespace lifmcr::apps {
 class ProcessSettings {
  public:
   // Applies both; the TBB limit holds while the returned object lives.
-  static std::unique_ptr<ProcessSettings> ForPipeline();
+  // `arenas`: config/memory_policy.h (kPerThread for live registration,
+  // ArenasFor); threads that allocated before keep the arena they have.
+  static std::unique_ptr<ProcessSettings> ForPipeline(HeapArenas arenas = HeapArenas::kOne);
+  // kPerThread where the pipeline localises under newest_wins (the workers
+  // localise, the depth lane processes), else kOne.
+  static HeapArenas ArenasFor(bool registration, bool newest_wins) {
+    return registration && newest_wins ? HeapArenas::kPerThread : HeapArenas::kOne;
+  }
   ~ProcessSettings();
 
  private:

@@ -51,5 +51,32 @@ TEST(MemoryPolicy, AFrameSizedBlockIsReusedNotFaultedInAgain) {
   EXPECT_LT(worker, 64) << "the same on a worker thread";
 }
 
+// Per-thread arenas (live registration): a worker's block below a thread
+// heap's 64 MiB stays resident in its own arena (SIFT pyramids, renders).
+// After the test above: arena assignment is per thread, made at its first
+// malloc, so this thread is new.
+TEST(MemoryPolicy, PerThreadArenasKeepAWorkersBlockResidentToo) {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  GTEST_SKIP() << "a sanitizer's allocator replaces glibc's malloc: mallopt does not apply";
+#endif
+  KeepHeapResident(HeapArenas::kPerThread);
+  constexpr std::size_t kBytes = std::size_t{40} << 20;
+  long faults = -1;
+  std::thread([&] {
+    for (int pass = 0; pass < 2; ++pass) {
+      auto* block = static_cast<unsigned char*>(std::malloc(kBytes));
+      ASSERT_NE(block, nullptr);
+      const long before = MinorFaults();
+      std::memset(block, pass + 1, kBytes);
+      asm volatile("" : : "r"(block) : "memory");
+      faults = MinorFaults() - before;
+      std::free(block);
+    }
+  }).join();
+  KeepHeapResident(HeapArenas::kOne);
+  // 10240 pages per pass without reuse.
+  EXPECT_LT(faults, 64) << "page faults writing a freed-and-reallocated 40 MiB block";
+}
+
 }  // namespace
 }  // namespace lifmcr
