@@ -27,6 +27,10 @@ int SolveCeresPoseProblem(std::span<const char> mask, double loss_scale, int max
   ceres::Problem::Options problem_options;
   problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   problem_options.manifold_ownership = ceres::TAKE_OWNERSHIP;
+  // The blocks all come from here, two parameter blocks of fixed sizes: the
+  // per-block checks only cost (bench_pnp, 50 % outliers, ~1000 blocks:
+  // 1.99 -> 1.51 ms a PnP on a quiet machine).
+  problem_options.disable_all_safety_checks = true;
   ceres::Problem problem(problem_options);
   ceres::CauchyLoss loss(loss_scale);
   int blocks = 0;
