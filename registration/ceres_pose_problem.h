@@ -54,4 +54,28 @@ int SolveCeresPoseProblem(std::span<const char> mask, double loss_scale, int max
   return static_cast<int>(summary.iterations.size());
 }
 
+// One residual block holding every datum (`cost`, owned from here on; its
+// robust loss applied inside, e.g. pnp.cpp's TfReprojectionBatchCost), no
+// Ceres loss; otherwise as above.
+inline int SolveCeresPoseBlock(ceres::CostFunction* cost, int max_iterations, Pose* a_from_b) {
+  Eigen::Quaterniond q(a_from_b->linear());
+  Eigen::Vector3d t = a_from_b->translation();
+  ceres::Problem::Options problem_options;
+  problem_options.manifold_ownership = ceres::TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  problem.AddResidualBlock(cost, nullptr, q.coeffs().data(), t.data());
+  problem.SetManifold(q.coeffs().data(), new ceres::EigenQuaternionManifold);
+  ceres::Solver::Options options;
+  options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
+  options.max_num_iterations = max_iterations;
+  options.num_threads = 1;
+  options.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  if (!summary.IsSolutionUsable()) return -1;
+  a_from_b->linear() = q.normalized().toRotationMatrix();
+  a_from_b->translation() = t;
+  return static_cast<int>(summary.iterations.size());
+}
+
 }  // namespace lifmcr::registration
