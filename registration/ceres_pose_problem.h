@@ -16,6 +16,24 @@
 
 namespace lifmcr::registration {
 
+// Solves `problem` over (q, t) (q on the quaternion manifold) and stores the
+// pose in a_from_b; the iterations run, or -1 (a_from_b unchanged).
+inline int SolvePoseAndStore(ceres::Problem* problem, Eigen::Quaterniond& q, Eigen::Vector3d& t,
+                             int max_iterations, Pose* a_from_b) {
+  problem->SetManifold(q.coeffs().data(), new ceres::EigenQuaternionManifold);
+  ceres::Solver::Options options;
+  options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
+  options.max_num_iterations = max_iterations;
+  options.num_threads = 1;
+  options.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, problem, &summary);
+  if (!summary.IsSolutionUsable()) return -1;
+  a_from_b->linear() = q.normalized().toRotationMatrix();
+  a_from_b->translation() = t;
+  return static_cast<int>(summary.iterations.size());
+}
+
 // make_cost(i) returns a new ceres::CostFunction of (q, t) for datum i
 // (mask[i] != 0); the problem owns it. Returns the iterations run, or -1 when
 // Ceres gave no usable solution (the pose is then unchanged).
@@ -40,18 +58,7 @@ int SolveCeresPoseProblem(std::span<const char> mask, double loss_scale, int max
     ++blocks;
   }
   if (blocks < 3) return -1;
-  problem.SetManifold(q.coeffs().data(), new ceres::EigenQuaternionManifold);
-  ceres::Solver::Options options;
-  options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
-  options.max_num_iterations = max_iterations;
-  options.num_threads = 1;
-  options.logging_type = ceres::SILENT;
-  ceres::Solver::Summary summary;
-  ceres::Solve(options, &problem, &summary);
-  if (!summary.IsSolutionUsable()) return -1;
-  a_from_b->linear() = q.normalized().toRotationMatrix();
-  a_from_b->translation() = t;
-  return static_cast<int>(summary.iterations.size());
+  return SolvePoseAndStore(&problem, q, t, max_iterations, a_from_b);
 }
 
 // One residual block holding every datum (`cost`, owned from here on; its
@@ -64,18 +71,7 @@ inline int SolveCeresPoseBlock(ceres::CostFunction* cost, int max_iterations, Po
   problem_options.manifold_ownership = ceres::TAKE_OWNERSHIP;
   ceres::Problem problem(problem_options);
   problem.AddResidualBlock(cost, nullptr, q.coeffs().data(), t.data());
-  problem.SetManifold(q.coeffs().data(), new ceres::EigenQuaternionManifold);
-  ceres::Solver::Options options;
-  options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
-  options.max_num_iterations = max_iterations;
-  options.num_threads = 1;
-  options.logging_type = ceres::SILENT;
-  ceres::Solver::Summary summary;
-  ceres::Solve(options, &problem, &summary);
-  if (!summary.IsSolutionUsable()) return -1;
-  a_from_b->linear() = q.normalized().toRotationMatrix();
-  a_from_b->translation() = t;
-  return static_cast<int>(summary.iterations.size());
+  return SolvePoseAndStore(&problem, q, t, max_iterations, a_from_b);
 }
 
 }  // namespace lifmcr::registration
