@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
 
 namespace lifmcr::registration {
 namespace {
@@ -225,12 +226,9 @@ int RefinePnpCeres(const processing::CameraModel& camera, const PnpInput& input,
                    std::span<const char> mask, double loss_scale_px, int max_iterations,
                    Pose* cam_from_world) {
   const TfProjection projection = TfProjection::Of(camera);
-  auto* cost = new TfReprojectionBatchCost(projection, input, mask, loss_scale_px);
-  if (cost->size() < 3) {
-    delete cost;
-    return -1;
-  }
-  return SolveCeresPoseBlock(cost, max_iterations, cam_from_world);
+  auto cost = std::make_unique<TfReprojectionBatchCost>(projection, input, mask, loss_scale_px);
+  if (cost->size() < 3) return -1;
+  return SolveCeresPoseBlock(cost.release(), max_iterations, cam_from_world);
 }
 
 PnpResult EstimatePlenopticPnp(const processing::CameraModel& camera, const PnpInput& input,

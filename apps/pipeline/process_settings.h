@@ -12,8 +12,9 @@
 //   -> LCM p99 went from 0.2-0.7 ms to 6-19 ms with frames flowing
 //   (bench_pipeline). Serving every block from the heap and never trimming
 //   it keeps the freed memory in the process for the next frame instead
-//   (config/memory_policy.h: blocks above 32 MB too, and a worker's, whose
-//   page faults cost seconds per relocalisation at r32). Only the commands
+//   (config/memory_policy.h: blocks above 32 MB too; one arena, so a
+//   worker's blocks above 64 MiB too, except under live registration, whose
+//   workers only localise and get an arena each: ArenasFor). Only the commands
 //   that run the pipeline: a one-shot command gains nothing from keeping
 //   its heap (`lifmcr info` on a 90 MB CSV: 0.93 s of CPU with it, 0.88 s
 //   without, against test_bad_input's 1 s bound).
