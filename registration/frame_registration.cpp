@@ -135,7 +135,9 @@ FrameRegistration RegisterFrame(const MapIndex& map, const processing::CameraMod
       tf.push_back(frame.tf_px[m.query]);
       v.push_back(frame.virtual_depth[m.query]);
     }
-    const PnpResult pnp = EstimatePlenopticPnp(camera, {points, tf, v}, options.pnp);
+    PnpOptions pnp_options = options.pnp;
+    pnp_options.sigma_v_relative = options.sigma_v_relative;
+    const PnpResult pnp = EstimatePlenopticPnp(camera, {points, tf, v}, pnp_options);
     result.inliers = pnp.num_inliers;
     result.rmse_px = pnp.rmse_px;
     if (!pnp.success) return finish(pnp.status);

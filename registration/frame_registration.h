@@ -62,7 +62,10 @@ struct FrameRegistrationOptions {
   FundamentalFilterOptions fundamental;
   PnpOptions pnp;
   Rigid3dOptions rigid;
-  double sigma_v_relative = 0.007;  // virtual-depth noise / v (processing: median 0.69 %), > 0
+  // Virtual-depth noise / v (processing: median 0.69 %), > 0: the 3D
+  // RANSAC's point covariances and PnP's sample check (it replaces
+  // pnp.sigma_v_relative).
+  double sigma_v_relative = 0.007;
   double sigma_tf_px = 0.3;         // keypoint noise on the TF grid (px), > 0
   Status Check() const;
 };

@@ -280,6 +280,7 @@ MapLocalizerStage::Outcome MapLocalizerStage::Solve(const processing::CameraMode
   const auto pnp_start = std::chrono::steady_clock::now();
   PnpOptions pnp = options_.registration.pnp;
   pnp.final_refinement = true;
+  pnp.sigma_v_relative = options_.registration.sigma_v_relative;
   const PnpResult r = EstimatePlenopticPnp(camera, {points, tf, v}, pnp);
   out.pnp_s = SecondsSince(pnp_start);
   out.inliers = static_cast<int>(r.num_inliers);

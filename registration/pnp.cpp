@@ -2,6 +2,7 @@
 
 #include "registration/ceres_pose_problem.h"
 #include "registration/p3p.h"
+#include "registration/plenoptic_point_noise.h"
 #include "registration/pose_refinement.h"
 #include "registration/tf_projection.h"
 
@@ -10,6 +11,8 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
 
+#include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -111,27 +114,37 @@ Status PnpOptions::Check() const {
     return FieldError("loss_scale_px", "expected a finite number > 0");
   if (max_refine_iterations < 1) return FieldError("max_refine_iterations", "expected >= 1");
   if (min_inliers < 3) return FieldError("min_inliers", "expected >= 3");
+  if (!(sigma_v_relative > 0) || !std::isfinite(sigma_v_relative))
+    return FieldError("sigma_v_relative", "expected a finite number > 0");
+  if (!(sample_check_sigmas > 0) || !std::isfinite(sample_check_sigmas))
+    return FieldError("sample_check_sigmas", "expected a finite number > 0");
   return Status::Ok();
 }
 
 std::string PnpResult::BriefReport() const {
-  char line[256];
+  char line[320];
   std::snprintf(line, sizeof line,
-                "PnP %s: %zu/%zu inliers, rmse %.3f px, %d trials, %d refinements, %d Ceres "
-                "iterations, %.2f ms",
+                "PnP %s: %zu/%zu inliers, rmse %.3f px, %d trials (%d samples left unsolved by the "
+                "depth check), %d refinements, %d Ceres iterations, %.2f ms",
                 status.c_str(), num_inliers, ransac.num_data, rmse_px, ransac.trials,
-                ransac.refinements, refine_iterations, time_ms);
+                samples_rejected, ransac.refinements, refine_iterations, time_ms);
   return line;
 }
 
 PlenopticPnpEstimator::PlenopticPnpEstimator(const processing::CameraModel& camera,
-                                             const PnpInput& input, int lo_iterations)
+                                             const PnpInput& input, const PnpOptions& options)
     : camera_(camera),
       projection_(TfProjection::Of(camera)),
       input_(input),
-      lo_iterations_(lo_iterations) {
+      lo_iterations_(options.lo_iterations),
+      sample_check_(options.sample_check),
+      sample_check_k2_(options.sample_check_sigmas * options.sample_check_sigmas) {
   const std::size_t n = input_.points_in_world.size();
-  bearings_.resize(n, Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
+  constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  bearings_.resize(n, Eigen::Vector3d::Constant(kNaN));
+  points_in_cam_.resize(n, Eigen::Vector3d::Constant(kNaN));
+  spread2_.resize(n, kNaN);
+  lo_subset_.reserve(n);
   const double focal = camera_.FeatureFocalPx();
   const Eigen::Vector2d c = camera_.principal_point_px();
   for (std::size_t i = 0; i < n && i < input_.virtual_depth.size(); ++i) {
@@ -140,7 +153,25 @@ PlenopticPnpEstimator::PlenopticPnpEstimator(const processing::CameraModel& came
     const Eigen::Vector2d raw = processing::CameraModel::RawOfTf(input_.tf_px[i]);
     const Eigen::Vector2d x = camera_.FeatureImagePoint({raw.x(), raw.y(), v});
     bearings_[i] = Eigen::Vector3d((x.x() - c.x()) / focal, (x.y() - c.y()) / focal, 1.0).normalized();
+    if (!sample_check_) continue;
+    points_in_cam_[i] = camera_.BackProject({raw.x(), raw.y(), v});
+    // The keypoint's own noise is the inlier threshold's business; 1 mm^2
+    // stands for the map point's error (pnp.h).
+    spread2_[i] = PlenopticRayVariance(camera_, points_in_cam_[i], options.sigma_v_relative * v) + 1.0;
   }
+}
+
+bool PlenopticPnpEstimator::SampleAgrees(std::span<const int> sample) const {
+  constexpr int kPairs[3][2] = {{0, 1}, {0, 2}, {1, 2}};
+  for (const auto& pair : kPairs) {
+    const int i = sample[pair[0]], j = sample[pair[1]];
+    const double d_cam = (points_in_cam_[i] - points_in_cam_[j]).norm();
+    const double d_world = (input_.points_in_world[i] - input_.points_in_world[j]).norm();
+    const double d = d_cam - d_world;
+    // NaN spreads (no virtual depth) fail here too.
+    if (!(d * d <= sample_check_k2_ * (spread2_[i] + spread2_[j]))) return false;
+  }
+  return true;
 }
 
 void PlenopticPnpEstimator::Generate(std::span<const int> sample, std::vector<Model>* models) {
@@ -149,6 +180,10 @@ void PlenopticPnpEstimator::Generate(std::span<const int> sample, std::vector<Mo
     bearings[k] = bearings_[sample[k]];
     if (!bearings[k].allFinite()) return;
     points[k] = input_.points_in_world[sample[k]];
+  }
+  if (sample_check_ && !SampleAgrees(sample)) {
+    ++samples_rejected_;
+    return;
   }
   SolveP3P(bearings, points, models);
 }
@@ -174,20 +209,37 @@ double PlenopticPnpEstimator::Score(const Model& cam_from_world, double threshol
   return cost;
 }
 
-std::size_t PlenopticPnpEstimator::NormalEquations(const Model& cam_from_world, double threshold2,
-                                                   Eigen::Matrix<double, 6, 6>* jtj,
-                                                   Eigen::Matrix<double, 6, 1>* jtr,
-                                                   double* sum_squares) const {
+template <typename Indices>
+double PlenopticPnpEstimator::CostOver(const Model& cam_from_world, double threshold2,
+                                       std::size_t count, Indices indices) const {
+  const Eigen::Matrix3d r = cam_from_world.linear();
+  const Eigen::Vector3d t = cam_from_world.translation();
+  double cost = 0;
+  for (std::size_t k = 0; k < count; ++k) {
+    const std::size_t i = indices(k);
+    cost += std::min(threshold2, projection_.SquaredError(r * input_.points_in_world[i] + t,
+                                                          input_.tf_px[i]));
+  }
+  return cost;
+}
+
+template <typename Indices>
+std::size_t PlenopticPnpEstimator::NormalEquationsOver(const Model& cam_from_world,
+                                                       double threshold2, std::size_t count,
+                                                       Indices indices,
+                                                       Eigen::Matrix<double, 6, 6>* jtj,
+                                                       Eigen::Matrix<double, 6, 1>* jtr,
+                                                       double* sum_squares) const {
   const Eigen::Matrix3d r = cam_from_world.linear();
   const Eigen::Vector3d t = cam_from_world.translation();
   jtj->setZero();
   jtr->setZero();
   *sum_squares = 0;
   std::size_t used = 0;
-  const std::size_t n = NumData();
   Eigen::Vector2d tf;
   Eigen::Matrix<double, 2, 3> j_p;
-  for (std::size_t i = 0; i < n; ++i) {
+  for (std::size_t k = 0; k < count; ++k) {
+    const std::size_t i = indices(k);
     const Eigen::Vector3d rx = r * input_.points_in_world[i];
     if (!projection_.WithJacobian(rx + t, &tf, &j_p)) continue;
     const Eigen::Vector2d res = tf - input_.tf_px[i];
@@ -205,21 +257,28 @@ std::size_t PlenopticPnpEstimator::NormalEquations(const Model& cam_from_world, 
   return used;
 }
 
-bool PlenopticPnpEstimator::GaussNewton(Model* cam_from_world, double threshold,
-                                        int iterations) const {
-  const double t2 = threshold * threshold;
-  double sum_squares = 0;
-  std::size_t count = 0;
-  return LevenbergMarquardt(
-      cam_from_world, iterations,
-      [&](const Pose& pose, Eigen::Matrix<double, 6, 6>* jtj, Eigen::Matrix<double, 6, 1>* jtr) {
-        return NormalEquations(pose, t2, jtj, jtr, &sum_squares);
-      },
-      [&](const Pose& pose) { return Score(pose, t2, kInf, &count); });
+std::size_t PlenopticPnpEstimator::NormalEquations(const Model& cam_from_world, double threshold2,
+                                                   Eigen::Matrix<double, 6, 6>* jtj,
+                                                   Eigen::Matrix<double, 6, 1>* jtr,
+                                                   double* sum_squares) const {
+  return NormalEquationsOver(
+      cam_from_world, threshold2, NumData(), [](std::size_t k) { return k; }, jtj, jtr,
+      sum_squares);
 }
 
 bool PlenopticPnpEstimator::Refine(Model* cam_from_world, double threshold) {
-  return GaussNewton(cam_from_world, threshold, lo_iterations_);
+  const double t2 = threshold * threshold;
+  lo_subset_.clear();
+  for (std::size_t i = 0; i < NumData(); ++i)
+    if (SquaredResidual(*cam_from_world, i) < 9 * t2) lo_subset_.push_back(static_cast<int>(i));
+  const auto subset = [this](std::size_t k) { return static_cast<std::size_t>(lo_subset_[k]); };
+  double sum_squares = 0;
+  return LevenbergMarquardt(
+      cam_from_world, lo_iterations_,
+      [&](const Pose& pose, Eigen::Matrix<double, 6, 6>* jtj, Eigen::Matrix<double, 6, 1>* jtr) {
+        return NormalEquationsOver(pose, t2, lo_subset_.size(), subset, jtj, jtr, &sum_squares);
+      },
+      [&](const Pose& pose) { return CostOver(pose, t2, lo_subset_.size(), subset); });
 }
 
 int RefinePnpCeres(const processing::CameraModel& camera, const PnpInput& input,
@@ -249,9 +308,10 @@ PnpResult EstimatePlenopticPnp(const processing::CameraModel& camera, const PnpI
     result.ransac.num_data = n;
     return finish("too few matches (" + std::to_string(n) + ")");
   }
-  PlenopticPnpEstimator estimator(camera, input, options.lo_iterations);
+  PlenopticPnpEstimator estimator(camera, input, options);
   Pose pose;
   result.ransac = Ransac(options.ransac, estimator, &pose);
+  result.samples_rejected = estimator.samples_rejected();
   if (!result.ransac.success) return finish("no pose hypothesis");
 
   const double t2 = options.ransac.max_error * options.ransac.max_error;

@@ -35,7 +35,9 @@
 // minimal model before it, the estimator refines it non-linearly over all
 // data (Estimator::Refine minimises the truncated loss, so outliers do not
 // pull it); the refined model replaces the best one when its MSAC cost is
-// lower. The best model is refined once more at the end.
+// lower. The best model is refined once more at the end unless it is the
+// outcome of a refinement already (refining it again would only repeat the
+// converged solve).
 //
 // Allocation: the sample, the scoring order, the model list and the inlier
 // mask are sized once per call; no trial allocates (the estimator keeps its
@@ -145,6 +147,7 @@ RansacReport Ransac(const RansacOptions& options, Estimator& estimator,
   models.reserve(8);
   Model best{};
   std::size_t best_minimal_inliers = 0;
+  bool best_is_refined = false;
   int required = options.max_trials;
 
   // MSAC cost of a minimal model in `order`, or +inf once it cannot beat the
@@ -185,6 +188,7 @@ RansacReport Ransac(const RansacOptions& options, Estimator& estimator,
       report.cost = cost;
       report.num_inliers = inliers;
       best = candidate;
+      best_is_refined = true;
     }
   };
 
@@ -211,6 +215,7 @@ RansacReport Ransac(const RansacOptions& options, Estimator& estimator,
       report.cost = cost;
       report.num_inliers = inliers;
       best = models[m];
+      best_is_refined = false;
       if (inliers > best_minimal_inliers) {
         best_minimal_inliers = inliers;
         new_minimal_best = static_cast<int>(m);
@@ -224,7 +229,7 @@ RansacReport Ransac(const RansacOptions& options, Estimator& estimator,
   }
   report.required_trials = required;
   if (report.num_inliers >= static_cast<std::size_t>(kS)) {
-    try_refine(best);
+    if (!best_is_refined) try_refine(best);
     report.success = true;
     *model = best;
     report.inlier_mask.assign(n, 0);

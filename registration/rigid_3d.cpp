@@ -57,21 +57,6 @@ bool PairAgrees(const Rigid3dInput& input, std::span<const double> spread2, doub
 
 }  // namespace
 
-Eigen::Matrix3d PlenopticPointCovariance(const processing::CameraModel& camera,
-                                         const Eigen::Vector3d& p, double sigma_v,
-                                         double sigma_tf_px) {
-  const processing::CameraIntrinsics& k = camera.intrinsics();
-  const double f = k.main_focal_length_mm;
-  const double depth_from_focus = std::max(p.z() - f, 1e-6);
-  const Eigen::Vector3d ray = (p - Eigen::Vector3d(0, 0, f)).normalized();
-  const double sigma_z = k.mla_to_sensor_mm * depth_from_focus * depth_from_focus / (f * f) * sigma_v;
-  const double sigma_ray = sigma_z / std::max(ray.z(), 1e-6);
-  const double sigma_lat = 2.0 * sigma_tf_px * k.pixel_size_mm * depth_from_focus / f;
-  const Eigen::Matrix3d along = ray * ray.transpose();
-  return sigma_lat * sigma_lat * (Eigen::Matrix3d::Identity() - along) +
-         sigma_ray * sigma_ray * along;
-}
-
 Status Rigid3dOptions::Check() const {
   if (Status s = ransac.Check(); !s.ok()) return Error{"rigid 3d options: " + s.error().message};
   if (!(map_sigma_mm >= 0) || !std::isfinite(map_sigma_mm))

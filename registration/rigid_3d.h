@@ -4,16 +4,9 @@
 // plenoptic camera (each point with its own, strongly anisotropic
 // uncertainty) and dst the reference map.
 //
-// Noise model. A plenoptic point is back-projected from its TF pixel and its
-// virtual depth v. With the TF pixel fixed, the point moves along the TF
-// pinhole's ray through the front focal point F = (0, 0, f_L)
-// (registration/tf_projection.h) as v varies, by
-//   dZ/dv = -B (Z - f_L)^2 / f_L^2           (thin lens, Z = f_L b / (b - f_L))
-// in depth, i.e. sigma_ray = |dZ/dv| sigma_v / r_z along the unit ray r, and
-// laterally by the keypoint noise, sigma_lat = 2 sigma_tf s (Z - f_L) / f_L
-// (a TF pixel is two raw pixels). So
-//   Sigma = sigma_lat^2 (I - r r^T) + sigma_ray^2 r r^T,
-// which grows quadratically with distance and lies along the viewing ray.
+// Noise model: each point's covariance Sigma_i of
+// registration/plenoptic_point_noise.h (along the viewing ray, growing
+// quadratically with distance).
 //
 // Residual of match i for dst_from_src = (R, t), in the src (camera) frame,
 // where the map's isotropic noise keeps its shape under any rotation:
@@ -40,6 +33,7 @@
 #include "config/error.h"
 #include "config/frames.h"
 #include "processing/camera_model.h"
+#include "registration/plenoptic_point_noise.h"
 #include "registration/pose_covariance.h"
 #include "registration/ransac.h"
 
@@ -50,12 +44,6 @@
 #include <vector>
 
 namespace lifmcr::registration {
-
-// Sigma of the comment above for a point measured at p_in_cam (mm) with
-// virtual-depth noise sigma_v and keypoint noise sigma_tf_px (TF pixels).
-Eigen::Matrix3d PlenopticPointCovariance(const processing::CameraModel& camera,
-                                         const Eigen::Vector3d& p_in_cam, double sigma_v,
-                                         double sigma_tf_px);
 
 struct Rigid3dOptions {
   // max_error: inlier threshold on |z_i| (sigma units).

@@ -9,6 +9,7 @@
 
 #include <Eigen/Geometry>
 
+#include <cstdio>
 #include <random>
 
 namespace lifmcr::registration {
@@ -130,6 +131,49 @@ TEST(PlenopticPnp, StaysRightAtFiftyToEightyPercentOutliers) {
       EXPECT_LT(wrong, 5u);
     }
   }
+}
+
+// The sample check (pnp.h): at 80 % outliers it leaves nearly every sample
+// with an outlier unsolved, and the pose is the one found without it; with
+// no outliers and the depth noise it assumes, it leaves almost no sample
+// unsolved (each would be an all-inlier draw lost).
+TEST(PlenopticPnp, SampleCheckSkipsSamplesWithOutliersNotThoseWithout) {
+  const processing::CameraModel camera(test::SmallCameraIntrinsics());
+  std::mt19937_64 rng(12);
+  for (int trial = 0; trial < 3; ++trial) {
+    // Virtual-depth noise 0.7 % of v at v = 4, the check's default.
+    const test::PnpProblem p = test::MakePnpProblem(rng, camera, 1000, 0.8, 0.5, 0.028);
+    PnpOptions with, without;
+    with.ransac.seed = without.ransac.seed = trial;
+    without.sample_check = false;
+    const PnpResult a = EstimatePlenopticPnp(camera, InputOf(p), with);
+    const PnpResult b = EstimatePlenopticPnp(camera, InputOf(p), without);
+    ASSERT_TRUE(a.success) << a.BriefReport();
+    ASSERT_TRUE(b.success) << b.BriefReport();
+    std::printf("80 %% outliers: %s\n  without the check: %s\n", a.BriefReport().c_str(),
+                b.BriefReport().c_str());
+    // 99.2 % of the samples hold an outlier; the check leaves most unsolved.
+    EXPECT_GT(a.samples_rejected, a.ransac.trials * 9 / 10);
+    EXPECT_EQ(b.samples_rejected, 0);
+    EXPECT_LT(a.ransac.models, b.ransac.models / 5);
+    EXPECT_LT(TranslationDifference(a.cam_from_world, b.cam_from_world), 0.05);
+    EXPECT_LT(RotationDifferenceDeg(a.cam_from_world, b.cam_from_world), 0.002);
+    EXPECT_EQ(a.num_inliers, b.num_inliers);
+
+    const test::PnpProblem clean = test::MakePnpProblem(rng, camera, 1000, 0.0, 0.5, 0.028);
+    PnpOptions all_trials;
+    all_trials.ransac.min_trials = 2000;  // many draws, all of them all-inlier
+    all_trials.ransac.seed = trial;
+    const PnpResult c = EstimatePlenopticPnp(camera, InputOf(clean), all_trials);
+    ASSERT_TRUE(c.success) << c.BriefReport();
+    EXPECT_LT(c.samples_rejected, c.ransac.trials / 200) << c.BriefReport();
+  }
+  PnpOptions bad;
+  bad.sample_check_sigmas = 0;
+  EXPECT_NE(bad.Check().error().message.find("sample_check_sigmas"), std::string::npos);
+  bad = PnpOptions{};
+  bad.sigma_v_relative = -1;
+  EXPECT_NE(bad.Check().error().message.find("sigma_v_relative"), std::string::npos);
 }
 
 TEST(PlenopticPnp, DistortedCameraAndSeedDeterminism) {
