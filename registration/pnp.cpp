@@ -138,37 +138,49 @@ PlenopticPnpEstimator::PlenopticPnpEstimator(const processing::CameraModel& came
       input_(input),
       lo_iterations_(options.lo_iterations),
       sample_check_(options.sample_check),
-      sample_check_k2_(options.sample_check_sigmas * options.sample_check_sigmas) {
+      sample_check_k2_(options.sample_check_sigmas * options.sample_check_sigmas),
+      sigma_v_relative_(options.sigma_v_relative) {
   const std::size_t n = input_.points_in_world.size();
   constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
   bearings_.resize(n, Eigen::Vector3d::Constant(kNaN));
+  bearing_known_.assign(n, 0);
   points_in_cam_.resize(n, Eigen::Vector3d::Constant(kNaN));
   spread2_.resize(n, kNaN);
   lo_subset_.reserve(n);
-  const double focal = camera_.FeatureFocalPx();
-  const Eigen::Vector2d c = camera_.principal_point_px();
-  for (std::size_t i = 0; i < n && i < input_.virtual_depth.size(); ++i) {
-    const double v = input_.virtual_depth[i];
-    if (!std::isfinite(v) || v <= 0) continue;
-    const Eigen::Vector2d raw = processing::CameraModel::RawOfTf(input_.tf_px[i]);
-    const Eigen::Vector2d x = camera_.FeatureImagePoint({raw.x(), raw.y(), v});
-    bearings_[i] = Eigen::Vector3d((x.x() - c.x()) / focal, (x.y() - c.y()) / focal, 1.0).normalized();
-    if (!sample_check_) continue;
-    points_in_cam_[i] = camera_.BackProject({raw.x(), raw.y(), v});
-    // The keypoint's own noise is the inlier threshold's business; 1 mm^2
-    // stands for the map point's error (pnp.h).
-    spread2_[i] = PlenopticRayVariance(camera_, points_in_cam_[i], options.sigma_v_relative * v) + 1.0;
-  }
 }
 
-bool PlenopticPnpEstimator::SampleAgrees(std::span<const int> sample) const {
+const Eigen::Vector3d& PlenopticPnpEstimator::Bearing(int i) {
+  if (bearing_known_[i]) return bearings_[i];
+  bearing_known_[i] = 1;
+  if (static_cast<std::size_t>(i) >= input_.virtual_depth.size()) return bearings_[i];
+  const double v = input_.virtual_depth[i];
+  if (!std::isfinite(v) || v <= 0) return bearings_[i];
+  const Eigen::Vector2d raw = processing::CameraModel::RawOfTf(input_.tf_px[i]);
+  const Eigen::Vector2d x = camera_.FeatureImagePoint({raw.x(), raw.y(), v});
+  const double focal = camera_.FeatureFocalPx();
+  const Eigen::Vector2d c = camera_.principal_point_px();
+  bearings_[i] = Eigen::Vector3d((x.x() - c.x()) / focal, (x.y() - c.y()) / focal, 1.0).normalized();
+  return bearings_[i];
+}
+
+void PlenopticPnpEstimator::PrepareSampleCheck(int i) {
+  if (!std::isnan(spread2_[i])) return;
+  const double v = input_.virtual_depth[i];
+  const Eigen::Vector2d raw = processing::CameraModel::RawOfTf(input_.tf_px[i]);
+  points_in_cam_[i] = camera_.BackProject({raw.x(), raw.y(), v});
+  // The keypoint's own noise is the inlier threshold's business; 1 mm^2
+  // stands for the map point's error (pnp.h).
+  spread2_[i] = PlenopticRayVariance(camera_, points_in_cam_[i], sigma_v_relative_ * v) + 1.0;
+}
+
+bool PlenopticPnpEstimator::SampleAgrees(std::span<const int> sample) {
+  for (int k = 0; k < 3; ++k) PrepareSampleCheck(sample[k]);
   constexpr int kPairs[3][2] = {{0, 1}, {0, 2}, {1, 2}};
   for (const auto& pair : kPairs) {
     const int i = sample[pair[0]], j = sample[pair[1]];
     const double d_cam = (points_in_cam_[i] - points_in_cam_[j]).norm();
     const double d_world = (input_.points_in_world[i] - input_.points_in_world[j]).norm();
     const double d = d_cam - d_world;
-    // NaN spreads (no virtual depth) fail here too.
     if (!(d * d <= sample_check_k2_ * (spread2_[i] + spread2_[j]))) return false;
   }
   return true;
@@ -177,7 +189,7 @@ bool PlenopticPnpEstimator::SampleAgrees(std::span<const int> sample) const {
 void PlenopticPnpEstimator::Generate(std::span<const int> sample, std::vector<Model>* models) {
   std::array<Eigen::Vector3d, 3> bearings, points;
   for (int k = 0; k < 3; ++k) {
-    bearings[k] = bearings_[sample[k]];
+    bearings[k] = Bearing(sample[k]);
     if (!bearings[k].allFinite()) return;
     points[k] = input_.points_in_world[sample[k]];
   }

@@ -122,8 +122,11 @@ class PlenopticPnpEstimator {
                               double* sum_squares) const;
 
  private:
-  // Whether sample (i, j, k) passes the sample check.
-  bool SampleAgrees(std::span<const int> sample) const;
+  // Whether sample (i, j, k) passes the sample check; its data's p_i and
+  // s_i^2 are computed when first sampled (at 50 % outliers a call samples
+  // a tenth of the data).
+  bool SampleAgrees(std::span<const int> sample);
+  void PrepareSampleCheck(int i);
   // NormalEquations and the MSAC cost over the data `indices(k)`, k < count.
   template <typename Indices>
   std::size_t NormalEquationsOver(const Model& cam_from_world, double threshold2, std::size_t count,
@@ -139,9 +142,14 @@ class PlenopticPnpEstimator {
   int lo_iterations_;
   bool sample_check_;
   double sample_check_k2_;
-  std::vector<Eigen::Vector3d> bearings_;  // unit, main-lens centre; NaN when v_i is unknown
+  double sigma_v_relative_;
+  // Datum i's unit bearing from the main-lens centre (NaN when v_i is
+  // unknown), computed when first sampled.
+  const Eigen::Vector3d& Bearing(int i);
+  std::vector<Eigen::Vector3d> bearings_;
+  std::vector<char> bearing_known_;
   std::vector<Eigen::Vector3d> points_in_cam_;  // p_i of the sample check
-  std::vector<double> spread2_;                 // s_i^2 of the sample check (mm^2)
+  std::vector<double> spread2_;                 // its s_i^2 (mm^2); NaN until computed
   std::vector<int> lo_subset_;                  // Refine's data within 3 t (scratch)
   int samples_rejected_ = 0;
 };
