@@ -60,7 +60,7 @@ struct Args {
   std::vector<double> outliers = {0.5, 0.8};
   double threshold_px = 2.0;
   int repeat = 3;
-  bool resident_heap = true;
+  bool resident_heap = false;
 };
 
 bool Parse(int argc, char** argv, Args* a) {
@@ -149,9 +149,11 @@ int main(int argc, char** argv) {
               k.width_px, k.height_px, camera.DepthOfVirtualDepth(v_max),
               camera.DepthOfVirtualDepth(v_min), args.resident_heap ? "resident" : "default");
   cv::setNumThreads(1);
-  // The live pipeline's malloc policy (config/memory_policy.h; `lifmcr
-  // replay` and `record` localise under it), for both methods alike:
-  // otherwise every solve page-faults its freed and re-mapped blocks anew.
+  // --heap resident: the live pipeline's malloc policy (config/memory_policy.h;
+  // `lifmcr replay` and `record` localise under it), for both methods alike.
+  // By default the process keeps glibc's policy, as a program calling OpenCV
+  // does (and `lifmcr register`): there OpenCV's per-call allocations are
+  // page-faulted anew each call, most of its time at 50 % outliers.
   if (args.resident_heap) lifmcr::KeepHeapResident();
 
   for (const double outliers : args.outliers) {
