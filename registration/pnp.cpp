@@ -159,7 +159,8 @@ const Eigen::Vector3d& PlenopticPnpEstimator::Bearing(int i) {
   const Eigen::Vector2d x = camera_.FeatureImagePoint({raw.x(), raw.y(), v});
   const double focal = camera_.FeatureFocalPx();
   const Eigen::Vector2d c = camera_.principal_point_px();
-  bearings_[i] = Eigen::Vector3d((x.x() - c.x()) / focal, (x.y() - c.y()) / focal, 1.0).normalized();
+  bearings_[i] =
+      Eigen::Vector3d((x.x() - c.x()) / focal, (x.y() - c.y()) / focal, 1.0).normalized();
   return bearings_[i];
 }
 
@@ -168,8 +169,7 @@ void PlenopticPnpEstimator::PrepareSampleCheck(int i) {
   const double v = input_.virtual_depth[i];
   const Eigen::Vector2d raw = processing::CameraModel::RawOfTf(input_.tf_px[i]);
   points_in_cam_[i] = camera_.BackProject({raw.x(), raw.y(), v});
-  // The keypoint's own noise is the inlier threshold's business; 1 mm^2
-  // stands for the map point's error (pnp.h).
+  // 1 mm^2 for the map point's error and the keypoint's lateral noise (pnp.h).
   spread2_[i] = PlenopticRayVariance(camera_, points_in_cam_[i], sigma_v_relative_ * v) + 1.0;
 }
 
@@ -229,19 +229,16 @@ double PlenopticPnpEstimator::CostOver(const Model& cam_from_world, double thres
   double cost = 0;
   for (std::size_t k = 0; k < count; ++k) {
     const std::size_t i = indices(k);
-    cost += std::min(threshold2, projection_.SquaredError(r * input_.points_in_world[i] + t,
-                                                          input_.tf_px[i]));
+    cost += std::min(threshold2,
+                     projection_.SquaredError(r * input_.points_in_world[i] + t, input_.tf_px[i]));
   }
   return cost;
 }
 
 template <typename Indices>
-std::size_t PlenopticPnpEstimator::NormalEquationsOver(const Model& cam_from_world,
-                                                       double threshold2, std::size_t count,
-                                                       Indices indices,
-                                                       Eigen::Matrix<double, 6, 6>* jtj,
-                                                       Eigen::Matrix<double, 6, 1>* jtr,
-                                                       double* sum_squares) const {
+std::size_t PlenopticPnpEstimator::NormalEquationsOver(
+    const Model& cam_from_world, double threshold2, std::size_t count, Indices indices,
+    Eigen::Matrix<double, 6, 6>* jtj, Eigen::Matrix<double, 6, 1>* jtr, double* sum_squares) const {
   const Eigen::Matrix3d r = cam_from_world.linear();
   const Eigen::Vector3d t = cam_from_world.translation();
   jtj->setZero();
@@ -308,9 +305,8 @@ PnpResult EstimatePlenopticPnp(const processing::CameraModel& camera, const PnpI
   PnpResult result;
   const auto finish = [&](std::string status) {
     result.status = std::move(status);
-    result.time_ms = std::chrono::duration<double, std::milli>(
-                         std::chrono::steady_clock::now() - start)
-                         .count();
+    result.time_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     return result;
   };
   const std::size_t n = input.points_in_world.size();

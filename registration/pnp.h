@@ -18,8 +18,8 @@
 //   for each of its three pairs, s_i^2 = sigma_ray,i^2 + 1 mm^2 (the
 //   point's variance along its viewing ray, registration/plenoptic_point_noise.h,
 //   with sigma_v = sigma_v_relative v_i; 1 mm^2 for the map point and the
-//   keypoint's lateral noise), k = sample_check_sigmas. A sample that fails is not solved:
-//   at 80 % outliers nearly every sample holds an outlier, and the test
+//   keypoint's lateral noise), k = sample_check_sigmas. A sample that fails
+//   is not solved: at 80 % outliers nearly every sample holds an outlier, and the test
 //   (six square roots) costs a fraction of a P3P and the scoring of its up
 //   to four models. The trial count still counts these samples (they are
 //   draws whose chance of being all-inlier the confidence is about).
