@@ -170,7 +170,8 @@ std::string TruthResiduals::Report() const {
   auto bins = [&](const char* title, const std::vector<Bin>& list) {
     text += Format("\n| %s | %s |\n|---|---|---|---|---|---|---|---|---|\n", title, kStatsHeader);
     for (const Bin& b : list)
-      text += Format("| %g .. %g | %s |\n", b.lo, b.hi, StatsColumns(b.stats).c_str());
+      if (b.stats.observations + b.stats.outliers > 0)
+        text += Format("| %g .. %g | %s |\n", b.lo, b.hi, StatsColumns(b.stats).c_str());
   };
   bins("predicted v", by_v);
   bins("x_v - c_x px", by_x);
