@@ -105,6 +105,7 @@ Status PrepareGeometry(ConstImageView white, int width, int height, const MlaGri
   if (!(f.radius_px > 1.0)) return Error{"MLA: lens border leaves no usable micro-image radius"};
   const Eigen::Vector2d c =
       options.principal_point_px.value_or(Eigen::Vector2d((w - 1) / 2.0, (h - 1) / 2.0));
+  f.principal_point_px = c;
   for (int j = f.j_min; j <= j_max; ++j)
     for (int i = f.i_min; i <= i_max; ++i) {
       const Eigen::Vector2d ck = grid.Center(i, j);

@@ -63,6 +63,7 @@ struct PlenopticFrame {
   double radius_px = 0;    // r_valid
   double white_level = 0;  // W_ref
   double lambda = 1.0;     // b_L0 / (b_L0 + B) used for l_k
+  Eigen::Vector2d principal_point_px = Eigen::Vector2d::Zero();  // c used for l_k
 
   int LensAt(int i, int j) const {
     if (i < i_min || j < j_min || i >= i_min + ni || j >= j_min + nj) return -1;

@@ -8,6 +8,15 @@
 // l_k) / v on the raw pixels times the devignetting gain and weighted by its
 // barycentric coordinate times 1 - |p_k - c_k|^2 / r^2; where none of them
 // holds x, the nearest micro image of any type and its six neighbours.
+// "Around x" is in the lattice of micro-image centres at the point that
+// looks at x: the centre c_k of micro image k shows the virtual point
+// l_k + v (c_k - l_k) = c + (c_k - c) (lambda + v (1 - lambda)) (p_k = c_k),
+// so the micro images that see x are those around
+//   q = c + (x - c) / (lambda + v (1 - lambda)),
+// not around x: with the micro-lens centre adjustment (1 - lambda = 1.4 % on
+// `medium`) q lies (v - 1)(1 - lambda) |x - c| nearer the centre, 4 lens
+// pitches at the corner at v 4.7, where the lenses around x see nothing of x
+// (the TF image was black there, in a pattern fixed to the lattice).
 // Internal to processing/ (no OpenCV, no allocation per point).
 
 #include "config/image.h"
@@ -97,6 +106,9 @@ class TfKernel {
       : f_(f), sharp_type_(mla) {
     const float r = static_cast<float>(f.radius_px * inner_fraction);
     r2_ = r * r;
+    cx_ = static_cast<float>(f.principal_point_px.x());
+    cy_ = static_cast<float>(f.principal_point_px.y());
+    lambda_ = static_cast<float>(f.lambda);
     lenses_.resize(f.lenses.size());
     for (std::size_t k = 0; k < f.lenses.size(); ++k) {
       const MicroImage& m = f.lenses[k];
@@ -123,18 +135,22 @@ class TfKernel {
     const Eigen::Vector2d a = sub_[t].from_px * (Eigen::Vector2d(x, y) - sub_[t].origin);
     return {static_cast<float>(a.x()), static_cast<float>(a.y())};
   }
-  // Their change per raw pixel along x.
-  Eigen::Vector2f SublatticeStepX(int t) const {
-    return {static_cast<float>(sub_[t].from_px(0, 0)), static_cast<float>(sub_[t].from_px(1, 0))};
+  // The micro-image-centre position q of the lenses that look at raw
+  // position (x, y) at virtual depth v (header comment).
+  Eigen::Vector2f LookingAt(float x, float y, float v) const {
+    const float k = 1.0f / (lambda_ + v * (1.0f - lambda_));
+    return {cx_ + (x - cx_) * k, cy_ + (y - cy_) * k};
   }
 
-  // The blend at raw position (x, y), virtual depth v (> 1), in type
-  // `type`'s sublattice coordinates (ax, ay) of (x, y): acc (kChannels) and
-  // the sum of weights (0: no micro image sees the point).
+  // The blend at raw position (x, y), virtual depth v (> 1), with the lenses
+  // of type `type` around LookingAt(x, y, v): acc (kChannels) and the sum of
+  // weights (0: no micro image sees the point).
   template <int kChannels>
-  float Blend(const ConstImageView& raw, float x, float y, float v, int type, float ax, float ay,
-              float* acc) const {
+  float Blend(const ConstImageView& raw, float x, float y, float v, int type, float* acc) const {
     const float inv_v = 1.0f / v;
+    const Eigen::Vector2f q = LookingAt(x, y, v);
+    const Eigen::Vector2f a = Sublattice(type, q.x(), q.y());
+    const float ax = a.x(), ay = a.y();
     const int m = static_cast<int>(std::floor(ax)), n = static_cast<int>(std::floor(ay));
     const float fa = ax - m, fb = ay - n;
     int ci[3], cj[3];
@@ -166,7 +182,7 @@ class TfKernel {
     // near their centres) or where v is below the sublattice's reach: the
     // nearest micro image of any type and its six neighbours.
     int i = 0, j = 0;
-    f_.grid.Nearest(Eigen::Vector2d(x, y), &i, &j);
+    f_.grid.Nearest(Eigen::Vector2d(q.x(), q.y()), &i, &j);
     static constexpr int kAround[7][2] = {{0, 0},  {1, 0},  {0, 1}, {-1, 1},
                                           {-1, 0}, {0, -1}, {1, -1}};
     for (const auto& d : kAround) {
@@ -189,6 +205,7 @@ class TfKernel {
   const PlenopticFrame& f_;
   SharpTypeTable sharp_type_;
   float r2_ = 0;
+  float cx_ = 0, cy_ = 0, lambda_ = 1;  // the frame's c and lambda of l_k
   std::vector<LensF> lenses_;
   std::array<SublatticeOf, 3> sub_;
 };

@@ -16,9 +16,8 @@ template <int kChannels>
 float GreyAt(const detail::TfKernel& kernel, const ConstImageView& raw, float x, float y,
              float v) {
   const int type = kernel.SharpType(v);
-  const Eigen::Vector2f a = kernel.Sublattice(type, x, y);
   float acc[kChannels];
-  const float sw = kernel.Blend<kChannels>(raw, x, y, v, type, a.x(), a.y(), acc);
+  const float sw = kernel.Blend<kChannels>(raw, x, y, v, type, acc);
   if (!(sw > 0)) return std::numeric_limits<float>::quiet_NaN();
   float sum = 0;
   for (int ch = 0; ch < kChannels; ++ch) sum += acc[ch];
@@ -91,18 +90,16 @@ Status TfSampler::RenderAtDepth(const ConstImageView& raw, double v, int step,
   const float raw_step = 2.0f * static_cast<float>(step);
   tbb::parallel_for(0, th, [&](int w) {
     const float y = raw_step * static_cast<float>(w) + offset;
-    const Eigen::Vector2f a0 = kernel_->Sublattice(type, offset, y);
-    const Eigen::Vector2f da = raw_step * kernel_->SublatticeStepX(type);
     std::uint8_t* row = out->pixels.data() + static_cast<std::size_t>(w) * tw;
     for (int u = 0; u < tw; ++u) {
       const float x = raw_step * static_cast<float>(u) + offset;
       float acc[3], sw;
       float grey = 0;
       if (colour) {
-        sw = kernel_->Blend<3>(raw, x, y, vf, type, a0.x() + u * da.x(), a0.y() + u * da.y(), acc);
+        sw = kernel_->Blend<3>(raw, x, y, vf, type, acc);
         grey = (acc[0] + acc[1] + acc[2]) / 3;
       } else {
-        sw = kernel_->Blend<1>(raw, x, y, vf, type, a0.x() + u * da.x(), a0.y() + u * da.y(), acc);
+        sw = kernel_->Blend<1>(raw, x, y, vf, type, acc);
         grey = acc[0];
       }
       row[u] = sw > 0 ? static_cast<std::uint8_t>(std::clamp(grey / sw + 0.5f, 0.0f, 255.0f)) : 0;

@@ -253,13 +253,6 @@ void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDept
   const bool sharpen = options.sharpen > 0;
   tbb::parallel_for(0, th, [&](int w) {
     const float y = 2.0f * w + 0.5f;
-    // Sublattice coordinates of TF pixel (0, w) per type, and their step
-    // per TF pixel (x grows by 2).
-    std::array<Eigen::Vector2f, 3> a0, da;
-    for (int t = 0; t < 3; ++t) {
-      a0[t] = kernel.Sublattice(t, 0.5, y);
-      da[t] = 2.0f * kernel.SublatticeStepX(t);
-    }
     for (int u = 0; u < tw; ++u) {
       const std::size_t t = static_cast<std::size_t>(w) * tw + u;
       float v = depth.virtual_depth[t];
@@ -267,8 +260,7 @@ void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDept
       const float x = 2.0f * u + 0.5f;
       const int type = kernel.SharpType(v);
       float acc[kChannels];
-      const float sw = kernel.Blend<kChannels>(f.raw, x, y, v, type, a0[type].x() + u * da[type].x(),
-                                               a0[type].y() + u * da[type].y(), acc);
+      const float sw = kernel.Blend<kChannels>(f.raw, x, y, v, type, acc);
       const float scale = sw > 0 ? gain / sw : 0.0f;
       if (sharpen) {
         float* dst = out->linear.data() + t * kChannels;

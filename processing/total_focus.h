@@ -20,13 +20,15 @@
 // map, or the median v of the frame where it is empty), the lens type sharp
 // at v (the MLA file's depth range holding v most centrally) is chosen; its
 // lenses form a triangular sublattice (steps A(1, 1), A(2, -1)); the three
-// lenses of the sublattice triangle around x are sampled (bilinear) at
+// lenses of the sublattice triangle around the micro-image-centre position
+// that looks at x, q = c + (x - c) / (lambda + v (1 - lambda)) (tf_kernel.h;
+// q = x without the micro-lens centre adjustment), are sampled (bilinear) at
 // p_k = l_k + (x - l_k) / v, each weighted by its barycentric coordinate
 // times 1 - |p_k - c_k|^2 / r^2 (r = inner_fraction r_valid), so the weights
 // go to zero continuously at the triangle's edges (no seams) and the
 // sharp micro images alone make the image. Where none of the three holds x
-// (image border, v too small for the sublattice), the nearest micro image of
-// any type. Parallel over TF rows (TBB).
+// (image border, v too small for the sublattice), the micro image nearest q
+// of any type and its six neighbours. Parallel over TF rows (TBB).
 
 #include "config/error.h"
 #include "config/mla.h"

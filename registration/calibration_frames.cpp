@@ -154,11 +154,17 @@ void MicroImages::Seeing(const Eigen::Vector2d& x_v, double v, const Eigen::Vect
                          double lambda, std::vector<int>* lenses) const {
   lenses->clear();
   if (!(v > 1)) return;
+  // Micro image k looks at virtual position c + (c_k - c)(lambda + v (1 -
+  // lambda)) (where p_k = c_k), so the lenses that see x_v lie around
+  //   q = c + (x_v - c) / (lambda + v (1 - lambda)),
+  // within |q - c_k| < v r / (lambda + v (1 - lambda)) <= v r: not around
+  // x_v (up to 4 lens pitches from q at the corner of `medium` at v 4.7,
+  // processing/tf_kernel.h).
+  const Eigen::Vector2d q = c + (x_v - c) / (lambda + v * (1 - lambda));
   int i0 = 0, j0 = 0;
-  grid.Nearest(x_v, &i0, &j0);
+  grid.Nearest(q, &i0, &j0);
   const double pitch = grid.PitchPx();
-  // |x_v - c_k| < v r (1 + small) bounds the lenses seeing the point; in
-  // lattice steps that is at most v r / (pitch sqrt(3) / 2) rings.
+  // In lattice steps v r is at most v r / (pitch sqrt(3) / 2) rings.
   const int rings = static_cast<int>(std::ceil(v * radius_px / (pitch * 0.8))) + 1;
   for (int dj = -rings; dj <= rings; ++dj)
     for (int di = -rings; di <= rings; ++di) {

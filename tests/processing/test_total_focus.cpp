@@ -2,8 +2,12 @@
 // synthetic `small` frame from the estimated virtual depth, against the
 // ground truth (all-in-focus image, TF depth in mm).
 
+#include "processing/mla_grid.h"
 #include "processing/point_cloud.h"
 #include "processing/total_focus.h"
+#include "replay/synth/renderer.h"
+#include "replay/synth/scene.h"
+#include "replay/synth/synth_params.h"
 #include "tests/processing/synth_frame.h"
 
 #include <gtest/gtest.h>
@@ -186,6 +190,50 @@ TEST(TotalFocus, ImageDepthAndPointCloudOfASmallFrame) {
   EXPECT_GE(fig.psnr_all, 27.0);
   EXPECT_GE(fig.psnr_edges, 19.0);
   EXPECT_LT(fig.tf_v_median, 0.012);
+}
+
+// A white frame (the white scene, its own white image) is white in the TF
+// image wherever some micro image sees the TF pixel, at any virtual depth: up
+// to the image border too. On `medium` (1 - lambda = 1.4 %) at v 4.7 the
+// lenses that see a TF pixel x lie around c + (x - c) / (lambda + v (1 -
+// lambda)), 4 lens pitches nearer the centre than x at the corner; the lenses
+// around x itself see nothing of x there, and the TF image was black in a
+// hatch fixed to the lattice along the border (docs/calibration.md, ninth
+// session): 525 976 of 2 028 680 TF pixels below half the median at v 4.7,
+// 18 240 at v 2.5 (none now).
+TEST(TotalFocus, WhiteFrameIsWhiteToTheBorderAtHighVirtualDepth) {
+  synth::SynthCameraParams params = synth::MakePreset("medium")->camera;
+  params.read_noise_dn = 0;
+  params.full_well_e = 0;
+  const synth::PlenopticModel model(params);
+  const synth::RawFrame white =
+      synth::RenderRaw(model, synth::MakeWhiteScene(), Pose::Identity(), synth::RenderOptions{});
+  const MlaCalibration mla = model.ToMlaCalibration();
+  const MlaGrid grid = MlaGrid::FromCalibration(mla, white.width, white.height);
+  FrameOptions options;
+  options.lambda =
+      params.mla_to_main_lens_mm / (params.mla_to_main_lens_mm + params.mla_to_sensor_mm);
+  PlenopticFrame frame;
+  ASSERT_TRUE(PrepareFrame(white.View(), white.View(), grid, mla, options, &frame).ok());
+  for (const float v : {2.5f, 4.7f}) {
+    TfDepthMap depth;
+    depth.width = white.width / 2;
+    depth.height = white.height / 2;
+    depth.virtual_depth.assign(static_cast<std::size_t>(depth.width) * depth.height, v);
+    depth.fallback_v = v;
+    TfImage tf;
+    ASSERT_TRUE(RenderTotalFocus(frame, mla, depth, TfOptions{}, &tf).ok());
+    std::vector<double> grey;
+    for (std::size_t i = 0; i < tf.pixels.size(); i += 3)
+      grey.push_back((tf.pixels[i] + tf.pixels[i + 1] + tf.pixels[i + 2]) / 3.0);
+    const double median = Median(grey);
+    long long dark = 0;
+    for (const double g : grey) dark += g < 0.5 * median ? 1 : 0;
+    std::printf("white frame, v %.1f: TF median grey %.1f, %lld of %zu TF pixels below half of it\n",
+                v, median, dark, grey.size());
+    EXPECT_GT(median, 100.0);
+    EXPECT_EQ(dark, 0);
+  }
 }
 
 }  // namespace
