@@ -102,8 +102,23 @@ inline bool SampleLens(const LensF& m, float x, float y, float inv_v, float r2,
 // sublattices (origin lens, inverse steps), the sharp type per v.
 class TfKernel {
  public:
-  TfKernel(const PlenopticFrame& f, const MlaCalibration& mla, double inner_fraction)
-      : f_(f), sharp_type_(mla) {
+  // Where the blended lenses are chosen: around LookingAt(x, y, v), right
+  // where v is the point's own virtual depth (the TF image: RenderTotalFocus);
+  // or around (x, y) itself, for images refocused at one depth v_r
+  // (TfSampler). There lens k puts a point X of virtual depth v_t at
+  // l_k + (v_r / v_t)(X - l_k), so the blend moves it by (1 - v_r / v_t)(X - l),
+  // l the mean l_k blended: the lenses around LookingAt see X from up to
+  // v (1 - lambda) |X - c| away (4 lens pitches at medium's corners), those
+  // around X from (1 - lambda) |X - c|; with the first the live localizer's
+  // c0_from_cx was 1.98 mm median on bench_live medium, with the second
+  // 1.28 mm (bench/README.md). The price: a refocused
+  // image is darker at high v near the border, where few lenses around X
+  // see X.
+  enum class LensSelection { kLookingAt, kAroundPosition };
+
+  TfKernel(const PlenopticFrame& f, const MlaCalibration& mla, double inner_fraction,
+           LensSelection selection = LensSelection::kLookingAt)
+      : f_(f), sharp_type_(mla), selection_(selection) {
     const float r = static_cast<float>(f.radius_px * inner_fraction);
     r2_ = r * r;
     cx_ = static_cast<float>(f.principal_point_px.x());
@@ -143,12 +158,13 @@ class TfKernel {
   }
 
   // The blend at raw position (x, y), virtual depth v (> 1), with the lenses
-  // of type `type` around LookingAt(x, y, v): acc (kChannels) and the sum of
-  // weights (0: no micro image sees the point).
+  // of type `type` around LookingAt(x, y, v) (or (x, y): LensSelection):
+  // acc (kChannels) and the sum of weights (0: no micro image sees the point).
   template <int kChannels>
   float Blend(const ConstImageView& raw, float x, float y, float v, int type, float* acc) const {
     const float inv_v = 1.0f / v;
-    const Eigen::Vector2f q = LookingAt(x, y, v);
+    const Eigen::Vector2f q =
+        selection_ == LensSelection::kLookingAt ? LookingAt(x, y, v) : Eigen::Vector2f(x, y);
     const Eigen::Vector2f a = Sublattice(type, q.x(), q.y());
     const float ax = a.x(), ay = a.y();
     const int m = static_cast<int>(std::floor(ax)), n = static_cast<int>(std::floor(ay));
@@ -204,6 +220,7 @@ class TfKernel {
   };
   const PlenopticFrame& f_;
   SharpTypeTable sharp_type_;
+  LensSelection selection_;
   float r2_ = 0;
   float cx_ = 0, cy_ = 0, lambda_ = 1;  // the frame's c and lambda of l_k
   std::vector<LensF> lenses_;

@@ -53,7 +53,10 @@ bool PatchOf(const detail::TfKernel& kernel, const ConstImageView& raw,
 
 TfSampler::TfSampler(PlenopticFrame geometry, const MlaCalibration& mla)
     : geometry_(std::move(geometry)),
-      kernel_(std::make_unique<detail::TfKernel>(geometry_, mla, 1.0)) {}
+      // Refocused at the caller's depth: lenses around the position itself
+      // (tf_kernel.h, LensSelection).
+      kernel_(std::make_unique<detail::TfKernel>(geometry_, mla, 1.0,
+                                                 detail::TfKernel::LensSelection::kAroundPosition)) {}
 
 TfSampler::~TfSampler() = default;
 
