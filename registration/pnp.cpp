@@ -1,12 +1,9 @@
 #include "registration/pnp.h"
 
-#include "registration/ceres_pose_problem.h"
 #include "registration/p3p.h"
 #include "registration/plenoptic_point_noise.h"
 #include "registration/pose_refinement.h"
 #include "registration/tf_projection.h"
-
-#include <ceres/ceres.h>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
@@ -28,88 +25,12 @@ Error FieldError(const std::string& field, const std::string& what) {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-// Every selected match's residual in one residual block, the Cauchy loss
-// applied inside: Ceres' per-block costs (building the problem, evaluating
-// and scattering a block) were 1.3 ms per 1000 inliers, more than
-// LO-RANSAC itself (bench_pnp). The objective is the same, 1/2 sum rho(s_i),
-// rho(s) = c log(1 + s / c), c = loss_scale^2, s_i = |r_i|^2: each residual
-// is replaced by r~ = g r with g = sqrt(rho(s) / s), so |r~|^2 = rho(s), and
-// its Jacobian is the exact one of that map,
-//   J~ = g J + h r r^T J,   h = (rho'(s) s - rho(s)) / (s^2 g),
-// (g -> 1, h -> -1 / (2c) as s -> 0): Gauss-Newton on r~, where Ceres'
-// per-block loss would use its corrector (Triggs et al.) on the same
-// objective.
-class TfReprojectionBatchCost final : public ceres::CostFunction {
- public:
-  TfReprojectionBatchCost(const TfProjection& projection, const PnpInput& input,
-                          std::span<const char> mask, double loss_scale_px)
-      : projection_(projection), input_(input), c_(loss_scale_px * loss_scale_px) {
-    for (std::size_t i = 0; i < mask.size(); ++i)
-      if (mask[i]) selected_.push_back(i);
-    set_num_residuals(static_cast<int>(2 * selected_.size()));
-    mutable_parameter_block_sizes()->push_back(4);
-    mutable_parameter_block_sizes()->push_back(3);
-  }
-  std::size_t size() const { return selected_.size(); }
-
-  bool Evaluate(double const* const* parameters, double* residuals,
-                double** jacobians) const override {
-    const Eigen::Map<const Eigen::Quaterniond> q(parameters[0]);
-    const Eigen::Map<const Eigen::Vector3d> t(parameters[1]);
-    const Eigen::Matrix3d rotation = q.toRotationMatrix();
-    // Parameters q (x, y, z, w; ceres::EigenQuaternionManifold) and t of
-    // cam_from_world. The manifold moves q to [cos|d|, sin|d| d/|d|] * q, a
-    // rotation by 2 d on the left, so dr/dd = -2 J_p [R X]x; its Jacobian P
-    // (4x3, d(q)/dd at d = 0) has orthonormal columns, so the ambient
-    // Jacobian dr/dd P^T gives back dr/dd through the chain rule Ceres applies.
-    // P: rows x, y, z = w I - [v]x, row w = -v^T (v the vector part of q).
-    Eigen::Matrix<double, 4, 3> p;
-    p.topRows<3>() = q.w() * Eigen::Matrix3d::Identity() - Skew(q.vec());
-    p.row(3) = -q.vec().transpose();
-    for (std::size_t k = 0; k < selected_.size(); ++k) {
-      const std::size_t i = selected_[k];
-      const Eigen::Vector3d rx = rotation * input_.points_in_world[i];
-      Eigen::Vector2d tf;
-      Eigen::Matrix<double, 2, 3> j_p;
-      if (!projection_.WithJacobian(rx + t, &tf, &j_p)) return false;
-      const Eigen::Vector2d r = tf - input_.tf_px[i];
-      const double s = r.squaredNorm();
-      double g = 1, h = -0.5 / c_;
-      if (s > 1e-12 * c_) {
-        const double rho = c_ * std::log1p(s / c_), rho1 = 1.0 / (1.0 + s / c_);
-        g = std::sqrt(rho / s);
-        h = (rho1 * s - rho) / (s * s * g);
-      }
-      residuals[2 * k] = g * r.x();
-      residuals[2 * k + 1] = g * r.y();
-      if (jacobians == nullptr) continue;
-      // d(r~)/d(r): g I + h r r^T, then the chain through the pose.
-      const Eigen::Matrix2d w = g * Eigen::Matrix2d::Identity() + h * r * r.transpose();
-      const Eigen::Matrix<double, 2, 3> wj_p = w * j_p;
-      if (jacobians[0] != nullptr) {
-        Eigen::Map<Eigen::Matrix<double, 2, 4, Eigen::RowMajor>> j_q(jacobians[0] + 8 * k);
-        j_q = (-2.0 * wj_p * Skew(rx)) * p.transpose();
-      }
-      if (jacobians[1] != nullptr) {
-        Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>> j_t(jacobians[1] + 6 * k);
-        j_t = wj_p;
-      }
-    }
-    return true;
-  }
-
- private:
-  const TfProjection& projection_;
-  const PnpInput& input_;
-  double c_;
-  std::vector<std::size_t> selected_;
-};
-
 }  // namespace
 
 Status PnpOptions::Check() const {
   if (Status s = ransac.Check(); !s.ok()) return Error{"pnp options: " + s.error().message};
   if (lo_iterations < 1) return FieldError("lo_iterations", "expected >= 1");
+  if (lo_max_data < 6) return FieldError("lo_max_data", "expected >= 6");
   if (!(loss_scale_px > 0) || !std::isfinite(loss_scale_px))
     return FieldError("loss_scale_px", "expected a finite number > 0");
   if (max_refine_iterations < 1) return FieldError("max_refine_iterations", "expected >= 1");
@@ -132,45 +53,49 @@ std::string PnpResult::BriefReport() const {
 }
 
 PlenopticPnpEstimator::PlenopticPnpEstimator(const processing::CameraModel& camera,
-                                             const PnpInput& input, const PnpOptions& options)
+                                             const PnpInput& input, const PnpOptions& options,
+                                             Buffers* buffers)
     : camera_(camera),
       projection_(TfProjection::Of(camera)),
       input_(input),
       lo_iterations_(options.lo_iterations),
+      lo_max_data_(options.final_refinement ? static_cast<std::size_t>(options.lo_max_data) : 0),
       sample_check_(options.sample_check),
       sample_check_k2_(options.sample_check_sigmas * options.sample_check_sigmas),
-      sigma_v_relative_(options.sigma_v_relative) {
+      sigma_v_relative_(options.sigma_v_relative),
+      b_(buffers != nullptr ? *buffers : own_) {
   const std::size_t n = input_.points_in_world.size();
   constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-  bearings_.resize(n, Eigen::Vector3d::Constant(kNaN));
-  bearing_known_.assign(n, 0);
-  points_in_cam_.resize(n, Eigen::Vector3d::Constant(kNaN));
-  spread2_.resize(n, kNaN);
-  lo_subset_.reserve(n);
+  b_.bearings.assign(n, Eigen::Vector3d::Constant(kNaN));
+  b_.bearing_known.assign(n, 0);
+  b_.points_in_cam.assign(n, Eigen::Vector3d::Constant(kNaN));
+  b_.spread2.assign(n, kNaN);
+  b_.lo_subset.clear();
+  b_.lo_subset.reserve(n);
 }
 
 const Eigen::Vector3d& PlenopticPnpEstimator::Bearing(int i) {
-  if (bearing_known_[i]) return bearings_[i];
-  bearing_known_[i] = 1;
-  if (static_cast<std::size_t>(i) >= input_.virtual_depth.size()) return bearings_[i];
+  if (b_.bearing_known[i]) return b_.bearings[i];
+  b_.bearing_known[i] = 1;
+  if (static_cast<std::size_t>(i) >= input_.virtual_depth.size()) return b_.bearings[i];
   const double v = input_.virtual_depth[i];
-  if (!std::isfinite(v) || v <= 0) return bearings_[i];
+  if (!std::isfinite(v) || v <= 0) return b_.bearings[i];
   const Eigen::Vector2d raw = processing::CameraModel::RawOfTf(input_.tf_px[i]);
   const Eigen::Vector2d x = camera_.FeatureImagePoint({raw.x(), raw.y(), v});
   const double focal = camera_.FeatureFocalPx();
   const Eigen::Vector2d c = camera_.principal_point_px();
-  bearings_[i] =
+  b_.bearings[i] =
       Eigen::Vector3d((x.x() - c.x()) / focal, (x.y() - c.y()) / focal, 1.0).normalized();
-  return bearings_[i];
+  return b_.bearings[i];
 }
 
 void PlenopticPnpEstimator::PrepareSampleCheck(int i) {
-  if (!std::isnan(spread2_[i])) return;
+  if (!std::isnan(b_.spread2[i])) return;
   const double v = input_.virtual_depth[i];
   const Eigen::Vector2d raw = processing::CameraModel::RawOfTf(input_.tf_px[i]);
-  points_in_cam_[i] = camera_.BackProject({raw.x(), raw.y(), v});
+  b_.points_in_cam[i] = camera_.BackProject({raw.x(), raw.y(), v});
   // 1 mm^2 for the map point's error and the keypoint's lateral noise (pnp.h).
-  spread2_[i] = PlenopticRayVariance(camera_, points_in_cam_[i], sigma_v_relative_ * v) + 1.0;
+  b_.spread2[i] = PlenopticRayVariance(camera_, b_.points_in_cam[i], sigma_v_relative_ * v) + 1.0;
 }
 
 bool PlenopticPnpEstimator::SampleAgrees(std::span<const int> sample) {
@@ -178,10 +103,10 @@ bool PlenopticPnpEstimator::SampleAgrees(std::span<const int> sample) {
   constexpr int kPairs[3][2] = {{0, 1}, {0, 2}, {1, 2}};
   for (const auto& pair : kPairs) {
     const int i = sample[pair[0]], j = sample[pair[1]];
-    const double d_cam = (points_in_cam_[i] - points_in_cam_[j]).norm();
+    const double d_cam = (b_.points_in_cam[i] - b_.points_in_cam[j]).norm();
     const double d_world = (input_.points_in_world[i] - input_.points_in_world[j]).norm();
     const double d = d_cam - d_world;
-    if (!(d * d <= sample_check_k2_ * (spread2_[i] + spread2_[j]))) return false;
+    if (!(d * d <= sample_check_k2_ * (b_.spread2[i] + b_.spread2[j]))) return false;
   }
   return true;
 }
@@ -238,11 +163,14 @@ double PlenopticPnpEstimator::CostOver(const Model& cam_from_world, double thres
 template <typename Indices>
 std::size_t PlenopticPnpEstimator::NormalEquationsOver(
     const Model& cam_from_world, double threshold2, std::size_t count, Indices indices,
-    Eigen::Matrix<double, 6, 6>* jtj, Eigen::Matrix<double, 6, 1>* jtr, double* sum_squares) const {
+    Eigen::Matrix<double, 6, 6>* jtj, Eigen::Matrix<double, 6, 1>* jtr, double* sum_squares,
+    char* mask) const {
   const Eigen::Matrix3d r = cam_from_world.linear();
   const Eigen::Vector3d t = cam_from_world.translation();
-  jtj->setZero();
-  jtr->setZero();
+  // The upper triangle of J^T J and J^T r in plain arrays, mirrored at the
+  // end (42 + 12 multiply-adds a datum, where the 2x6 product of Eigen's
+  // fixed-size types took twice the time of the projection itself).
+  double h[6][6] = {}, g[6] = {};
   *sum_squares = 0;
   std::size_t used = 0;
   Eigen::Vector2d tf;
@@ -250,18 +178,28 @@ std::size_t PlenopticPnpEstimator::NormalEquationsOver(
   for (std::size_t k = 0; k < count; ++k) {
     const std::size_t i = indices(k);
     const Eigen::Vector3d rx = r * input_.points_in_world[i];
-    if (!projection_.WithJacobian(rx + t, &tf, &j_p)) continue;
-    const Eigen::Vector2d res = tf - input_.tf_px[i];
-    const double r2 = res.squaredNorm();
+    // The residual first (an outlier needs no Jacobian).
+    const double r2 = projection_.SquaredError(rx + t, input_.tf_px[i]);
     if (!(r2 < threshold2)) continue;
-    // dp/d(dt) = I, dp/d(dr) = -[R X]x.
-    Eigen::Matrix<double, 2, 6> j;
-    j.leftCols<3>() = j_p;
-    j.rightCols<3>() = -j_p * Skew(rx);
-    jtj->noalias() += j.transpose() * j;
-    jtr->noalias() += j.transpose() * res;
+    projection_.WithJacobian(rx + t, &tf, &j_p);
+    const Eigen::Vector2d res = tf - input_.tf_px[i];
+    // dp/d(dt) = I, dp/d(dr) = -[R X]x; a row w^T of d tf / dp gives
+    // -w^T [R X]x = (R X x w)^T for the rotation.
+    const Eigen::Vector3d u = j_p.row(0).transpose(), v = j_p.row(1).transpose();
+    const Eigen::Vector3d ru = rx.cross(u), rv = rx.cross(v);
+    const double ju[6] = {u.x(), u.y(), u.z(), ru.x(), ru.y(), ru.z()};
+    const double jv[6] = {v.x(), v.y(), v.z(), rv.x(), rv.y(), rv.z()};
+    for (int a = 0; a < 6; ++a) {
+      for (int b = a; b < 6; ++b) h[a][b] += ju[a] * ju[b] + jv[a] * jv[b];
+      g[a] += ju[a] * res.x() + jv[a] * res.y();
+    }
     *sum_squares += r2;
     ++used;
+    if (mask != nullptr) mask[i] = 1;
+  }
+  for (int a = 0; a < 6; ++a) {
+    (*jtr)(a) = g[a];
+    for (int b = a; b < 6; ++b) (*jtj)(a, b) = (*jtj)(b, a) = h[a][b];
   }
   return used;
 }
@@ -269,34 +207,35 @@ std::size_t PlenopticPnpEstimator::NormalEquationsOver(
 std::size_t PlenopticPnpEstimator::NormalEquations(const Model& cam_from_world, double threshold2,
                                                    Eigen::Matrix<double, 6, 6>* jtj,
                                                    Eigen::Matrix<double, 6, 1>* jtr,
-                                                   double* sum_squares) const {
+                                                   double* sum_squares,
+                                                   std::vector<char>* mask) const {
+  if (mask != nullptr) mask->assign(NumData(), 0);
   return NormalEquationsOver(
       cam_from_world, threshold2, NumData(), [](std::size_t k) { return k; }, jtj, jtr,
-      sum_squares);
+      sum_squares, mask != nullptr ? mask->data() : nullptr);
 }
 
 bool PlenopticPnpEstimator::Refine(Model* cam_from_world, double threshold) {
   const double t2 = threshold * threshold;
-  lo_subset_.clear();
+  b_.lo_subset.clear();
   for (std::size_t i = 0; i < NumData(); ++i)
-    if (SquaredResidual(*cam_from_world, i) < 9 * t2) lo_subset_.push_back(static_cast<int>(i));
-  const auto subset = [this](std::size_t k) { return static_cast<std::size_t>(lo_subset_[k]); };
+    if (SquaredResidual(*cam_from_world, i) < 9 * t2) b_.lo_subset.push_back(static_cast<int>(i));
+  // The cap (pnp.h): every k-th of them.
+  if (lo_max_data_ > 0 && b_.lo_subset.size() > lo_max_data_) {
+    const std::size_t stride = (b_.lo_subset.size() + lo_max_data_ - 1) / lo_max_data_;
+    std::size_t kept = 0;
+    for (std::size_t k = 0; k < b_.lo_subset.size(); k += stride) b_.lo_subset[kept++] = b_.lo_subset[k];
+    b_.lo_subset.resize(kept);
+  }
+  const auto subset = [this](std::size_t k) { return static_cast<std::size_t>(b_.lo_subset[k]); };
   double sum_squares = 0;
   return LevenbergMarquardt(
       cam_from_world, lo_iterations_,
       [&](const Pose& pose, Eigen::Matrix<double, 6, 6>* jtj, Eigen::Matrix<double, 6, 1>* jtr) {
-        return NormalEquationsOver(pose, t2, lo_subset_.size(), subset, jtj, jtr, &sum_squares);
+        return NormalEquationsOver(pose, t2, b_.lo_subset.size(), subset, jtj, jtr, &sum_squares,
+                                   nullptr);
       },
-      [&](const Pose& pose) { return CostOver(pose, t2, lo_subset_.size(), subset); });
-}
-
-int RefinePnpCeres(const processing::CameraModel& camera, const PnpInput& input,
-                   std::span<const char> mask, double loss_scale_px, int max_iterations,
-                   Pose* cam_from_world) {
-  const TfProjection projection = TfProjection::Of(camera);
-  auto cost = std::make_unique<TfReprojectionBatchCost>(projection, input, mask, loss_scale_px);
-  if (cost->size() < 3) return -1;
-  return SolveCeresPoseBlock(cost.release(), max_iterations, cam_from_world);
+      [&](const Pose& pose) { return CostOver(pose, t2, b_.lo_subset.size(), subset); });
 }
 
 PnpResult EstimatePlenopticPnp(const processing::CameraModel& camera, const PnpInput& input,
@@ -316,37 +255,46 @@ PnpResult EstimatePlenopticPnp(const processing::CameraModel& camera, const PnpI
     result.ransac.num_data = n;
     return finish("too few matches (" + std::to_string(n) + ")");
   }
-  PlenopticPnpEstimator estimator(camera, input, options);
+  // Reused by every call on this thread (PlenopticPnpEstimator::Buffers).
+  thread_local PlenopticPnpEstimator::Buffers buffers;
+  PlenopticPnpEstimator estimator(camera, input, options, &buffers);
   Pose pose;
   result.ransac = Ransac(options.ransac, estimator, &pose);
   result.samples_rejected = estimator.samples_rejected();
   if (!result.ransac.success) return finish("no pose hypothesis");
 
   const double t2 = options.ransac.max_error * options.ransac.max_error;
-  const auto mark_inliers = [&] {
-    result.num_inliers = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-      result.inlier_mask[i] = estimator.SquaredResidual(pose, i) < t2;
-      result.num_inliers += result.inlier_mask[i];
-    }
+  // One pass over the data at the current pose: the inlier mask, and J^T J
+  // and the squared residuals of the inliers for the covariance.
+  Eigen::Matrix<double, 6, 6> jtj;
+  Eigen::Matrix<double, 6, 1> jtr;
+  double sum_squares = 0;
+  const auto assess = [&] {
+    result.num_inliers =
+        estimator.NormalEquations(pose, t2, &jtj, &jtr, &sum_squares, &result.inlier_mask);
   };
   result.inlier_mask = result.ransac.inlier_mask;
-  // Refit until the inlier set settles (at most 3 times).
+  bool assessed = false;
+  // Refit while the refit changed the inlier set by more than 0.5 % of its
+  // size (at most 3 times): a datum that crosses t sits at the threshold,
+  // where the Huber loss already weighs it down, and moves the pose by
+  // about 1 / n of its spread; refitting for each such datum doubled the
+  // time of a PnP at 50 % outliers (bench_pnp).
   for (int round = 0; options.final_refinement && round < 3; ++round) {
     const std::vector<char> previous = result.inlier_mask;
     const int iterations = RefinePnpCeres(camera, input, result.inlier_mask, options.loss_scale_px,
                                           options.max_refine_iterations, &pose);
     if (iterations < 0) break;
     result.refine_iterations += iterations;
-    mark_inliers();
-    if (result.inlier_mask == previous) break;
+    assess();
+    assessed = true;
+    std::size_t changed = 0;
+    for (std::size_t i = 0; i < n; ++i) changed += result.inlier_mask[i] != previous[i];
+    if (200 * changed <= result.num_inliers) break;
   }
-  mark_inliers();
+  if (!assessed) assess();
   result.cam_from_world = pose;
-  Eigen::Matrix<double, 6, 6> jtj;
-  Eigen::Matrix<double, 6, 1> jtr;
-  double sum_squares = 0;
-  const std::size_t used = estimator.NormalEquations(pose, t2, &jtj, &jtr, &sum_squares);
+  const std::size_t used = result.num_inliers;
   if (used > 0) result.rmse_px = std::sqrt(sum_squares / static_cast<double>(used));
   if (used > 3) {
     const double sigma2 = sum_squares / static_cast<double>(2 * used - 6);

@@ -31,9 +31,18 @@
 //   data within 3 t of the model being refined (only those within t count,
 //   and a refinement moves few data across 3 t: at 80 % outliers it reads a
 //   fifth of the data).
-//   Final refinement: Ceres, Levenberg-Marquardt over the RANSAC inliers with
-//   a Cauchy loss, rotation on ceres::EigenQuaternionManifold, repeated (at
-//   most 3 times) until the inlier set no longer changes.
+//   When the final refinement follows, the local optimisation fits at most
+//   lo_max_data (256) of those data, evenly spaced, and scores on all
+//   (Lebeda, Matas, Chum, "Fixing the locally optimized RANSAC", BMVC 2012,
+//   cap the least-squares fits of LO the same way): its job is the inlier
+//   set, for the trial count and the refinement's start, and 256 data place
+//   the pose within sqrt(n / 256) of its final standard deviation (2 for
+//   1000 inliers), far inside the 2 px threshold; the final refinement
+//   reads all inliers. Without the final refinement LO reads all data.
+//   Final refinement: Ceres (ceres::TinySolver, registration/pnp_refinement.cpp),
+//   Levenberg-Marquardt over the RANSAC inliers with a Huber loss, rotation on
+//   ceres::EigenQuaternionManifold, repeated (at most 3 times) while a refit
+//   changes the inlier set by more than 0.5 % (pnp.cpp).
 //   Covariance: Sigma = s^2 (J^T J)^-1 at the final pose over the final
 //   inliers, s^2 = sum r_i^2 / (2 n - 6), in the convention of
 //   registration/pose_covariance.h (of cam_from_world).
@@ -57,8 +66,12 @@ struct PnpOptions {
   // max_error: inlier threshold on |r_i| in TF pixels.
   RansacOptions ransac{.max_error = 2.0};
   int lo_iterations = 8;           // Gauss-Newton steps per local optimisation (>= 1)
+  // With the final refinement on, a local optimisation fits at most this
+  // many of the data within 3 t (evenly spaced in their order; >= 6): see
+  // the comment at the top.
+  int lo_max_data = 256;
   bool final_refinement = true;    // Ceres refinement after RANSAC
-  double loss_scale_px = 1.0;      // Cauchy scale of the final refinement (TF px, > 0)
+  double loss_scale_px = 1.0;      // Huber scale of the final refinement (TF px, > 0)
   int max_refine_iterations = 30;  // Ceres iterations (>= 1)
   int min_inliers = 12;            // fewer inliers: the pose is rejected (>= 3)
   bool sample_check = true;        // the sample check of the comment above
@@ -100,8 +113,24 @@ class PlenopticPnpEstimator {
   using Model = Pose;
   static constexpr int kSampleSize = 3;
 
+  // Per-datum scratch, sized to the input on construction. A caller that
+  // estimates again and again passes its own (EstimatePlenopticPnp keeps
+  // one per thread): sized once, it is not allocated anew each call, where
+  // glibc's default policy returns the freed pages to the system and every
+  // call page-faults them in again (bench_pnp: a quarter of a PnP's time).
+  struct Buffers {
+    std::vector<Eigen::Vector3d> bearings;      // datum i's unit bearing (NaN: no depth)
+    std::vector<char> bearing_known;            // bearings[i] computed
+    std::vector<Eigen::Vector3d> points_in_cam;  // p_i of the sample check
+    std::vector<double> spread2;                // its s_i^2 (mm^2); NaN until computed
+    std::vector<int> lo_subset;                 // Refine's data within 3 t
+  };
+
+  // `buffers` null: the estimator keeps its own.
   PlenopticPnpEstimator(const processing::CameraModel& camera, const PnpInput& input,
-                        const PnpOptions& options);
+                        const PnpOptions& options, Buffers* buffers = nullptr);
+  PlenopticPnpEstimator(const PlenopticPnpEstimator&) = delete;  // b_ may refer to own_
+  PlenopticPnpEstimator& operator=(const PlenopticPnpEstimator&) = delete;
 
   std::size_t NumData() const { return input_.points_in_world.size(); }
   void Generate(std::span<const int> sample, std::vector<Model>* models);
@@ -116,10 +145,11 @@ class PlenopticPnpEstimator {
 
   // J^T J and J^T r of the data whose squared residual is below threshold2
   // (all when infinite), in the perturbation of pose_covariance.h; returns
-  // the number used and their sum of squared residuals.
+  // the number used and their sum of squared residuals; `mask` (when given)
+  // receives 1 for the data used, 0 for the others.
   std::size_t NormalEquations(const Model& cam_from_world, double threshold2,
                               Eigen::Matrix<double, 6, 6>* jtj, Eigen::Matrix<double, 6, 1>* jtr,
-                              double* sum_squares) const;
+                              double* sum_squares, std::vector<char>* mask = nullptr) const;
 
  private:
   // Whether sample (i, j, k) passes the sample check; its data's p_i and
@@ -131,7 +161,8 @@ class PlenopticPnpEstimator {
   template <typename Indices>
   std::size_t NormalEquationsOver(const Model& cam_from_world, double threshold2, std::size_t count,
                                   Indices indices, Eigen::Matrix<double, 6, 6>* jtj,
-                                  Eigen::Matrix<double, 6, 1>* jtr, double* sum_squares) const;
+                                  Eigen::Matrix<double, 6, 1>* jtr, double* sum_squares,
+                                  char* mask) const;
   template <typename Indices>
   double CostOver(const Model& cam_from_world, double threshold2, std::size_t count,
                   Indices indices) const;
@@ -140,17 +171,15 @@ class PlenopticPnpEstimator {
   TfProjection projection_;
   PnpInput input_;
   int lo_iterations_;
+  std::size_t lo_max_data_;  // 0: no cap (no final refinement)
   bool sample_check_;
   double sample_check_k2_;
   double sigma_v_relative_;
   // Datum i's unit bearing from the main-lens centre (NaN when v_i is
   // unknown), computed when first sampled.
   const Eigen::Vector3d& Bearing(int i);
-  std::vector<Eigen::Vector3d> bearings_;
-  std::vector<char> bearing_known_;
-  std::vector<Eigen::Vector3d> points_in_cam_;  // p_i of the sample check
-  std::vector<double> spread2_;                 // its s_i^2 (mm^2); NaN until computed
-  std::vector<int> lo_subset_;                  // Refine's data within 3 t (scratch)
+  Buffers own_;
+  Buffers& b_;
   int samples_rejected_ = 0;
 };
 
@@ -158,9 +187,10 @@ class PlenopticPnpEstimator {
 PnpResult EstimatePlenopticPnp(const processing::CameraModel& camera, const PnpInput& input,
                                const PnpOptions& options);
 
-// Ceres refinement of cam_from_world over the data with mask[i] != 0 (Cauchy
-// loss of scale loss_scale_px); returns the iterations run, or -1 when Ceres
-// reported no usable solution (the pose is then unchanged).
+// Ceres refinement of cam_from_world over the data with mask[i] != 0 (Huber
+// loss of scale loss_scale_px; registration/pnp_refinement.cpp); returns
+// the iterations run, or -1 when Ceres reported no usable solution (the pose
+// is then unchanged).
 int RefinePnpCeres(const processing::CameraModel& camera, const PnpInput& input,
                    std::span<const char> mask, double loss_scale_px, int max_iterations,
                    Pose* cam_from_world);
