@@ -140,6 +140,10 @@ class PlenopticPnpEstimator {
     return projection_.SquaredError(cam_from_world * input_.points_in_world[i], input_.tf_px[i]);
   }
   bool Refine(Model* cam_from_world, double threshold);
+  // `iterations` Levenberg-Marquardt steps on the truncated loss over the
+  // data with mask[i] != 0 (no cap); true when the pose improved.
+  bool Polish(Model* cam_from_world, double threshold, int iterations,
+              std::span<const char> mask);
   // Minimal samples the sample check rejected so far.
   int samples_rejected() const { return samples_rejected_; }
 

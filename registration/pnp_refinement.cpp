@@ -44,6 +44,8 @@
 #include <Eigen/Geometry>
 
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <vector>
 
 namespace lifmcr::registration {
@@ -171,8 +173,10 @@ int RefinePnpCeres(const processing::CameraModel& camera, const PnpInput& input,
                                   &observed);
   if (chart.size() < 3) return -1;
   // TinySolver counts the first evaluation as iteration 0 and stops at
-  // max_num_iterations. Its function tolerance is absolute (Ceres 2.1); it
-  // is set to 1e-4 of the start's cost C ~ n sigma^2 (n data, 2n residuals):
+  // max_num_iterations. Its function tolerance is absolute (Ceres 2.1) and
+  // compared with twice a step's decrease; it is set so that a step stops
+  // the solve when it gains less than 1e-4 of the start's cost
+  // C ~ n sigma^2 (n data, 2n residuals):
   // a pose k standard deviations of its estimate off the optimum costs
   // k^2 sigma^2 / 2 more, so a step that gains less than 1e-4 C started
   // within k < sqrt(2e-4 n) (0.45 for n = 1000) and, a Gauss-Newton step
@@ -184,10 +188,11 @@ int RefinePnpCeres(const processing::CameraModel& camera, const PnpInput& input,
   const double start_cost = 0.5 * start_residuals.squaredNorm();
   if (!std::isfinite(start_cost)) return -1;
   solver.options.max_num_iterations = max_iterations + 1;
-  solver.options.function_tolerance = 1e-4 * start_cost;
+  solver.options.function_tolerance = 2 * 1e-4 * start_cost;
   Eigen::Matrix<double, 6, 1> x = Eigen::Matrix<double, 6, 1>::Zero();
   const auto& summary = solver.Solve(chart, &x);
   if (!x.allFinite() || !(summary.final_cost <= start_cost)) return -1;
+  if (getenv("PNP_TRACE")) fprintf(stderr, "tiny %d it status %d cost %.6g -> %.6g tol %.3g\n", summary.iterations, (int)summary.status, start_cost, summary.final_cost, solver.options.function_tolerance);
   *cam_from_world = chart.PoseAt(x.data());
   return summary.iterations;
 }

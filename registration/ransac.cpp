@@ -36,12 +36,12 @@ int RequiredTrials(double inlier_ratio, int sample_size, const RansacOptions& op
 }
 
 std::string RansacReport::BriefReport() const {
-  char line[256];
+  char line[320];
   std::snprintf(line, sizeof line,
-                "LO-RANSAC %s: %zu/%zu inliers (%.1f %%), %d trials of %d needed, %d models "
-                "(%d bailed out), %d refinements, cost %.3g, %.2f ms",
+                "LO-RANSAC %s: %zu/%zu inliers (%.1f %%), %d trials of %d needed (%d of the best's "
+                "inliers, unsolved), %d models (%d bailed out), %d refinements, cost %.3g, %.2f ms",
                 success ? "ok" : "failed", num_inliers, num_data, 100.0 * InlierRatio(), trials,
-                required_trials, models, bailed_out, refinements, cost, time_ms);
+                required_trials, skipped, models, bailed_out, refinements, cost, time_ms);
   return line;
 }
 
