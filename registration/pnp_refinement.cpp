@@ -44,8 +44,6 @@
 #include <Eigen/Geometry>
 
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <vector>
 
 namespace lifmcr::registration {
@@ -192,7 +190,6 @@ int RefinePnpCeres(const processing::CameraModel& camera, const PnpInput& input,
   Eigen::Matrix<double, 6, 1> x = Eigen::Matrix<double, 6, 1>::Zero();
   const auto& summary = solver.Solve(chart, &x);
   if (!x.allFinite() || !(summary.final_cost <= start_cost)) return -1;
-  if (getenv("PNP_TRACE")) fprintf(stderr, "tiny %d it status %d cost %.6g -> %.6g tol %.3g\n", summary.iterations, (int)summary.status, start_cost, summary.final_cost, solver.options.function_tolerance);
   *cam_from_world = chart.PoseAt(x.data());
   return summary.iterations;
 }

@@ -205,17 +205,32 @@ RansacReport Ransac(const RansacOptions& options, Estimator& estimator,
     return cost;
   };
 
+  // A refined model is scored through all data anyway (it is rarely
+  // worse than the best); with the skip on, the same pass records its
+  // inliers, the mask the skip needs if it becomes the best.
+  std::vector<char> refined_mask(best_mask.size());
   auto try_refine = [&](Model candidate) {
     ++report.refinements;
     if (!estimator.Refine(&candidate, options.max_error)) return;
     std::size_t inliers = 0;
-    const double cost = estimator.Score(candidate, t2, report.cost, &inliers);
+    double cost = 0;
+    if (options.skip_samples_of_best) {
+      for (std::size_t i = 0; i < n; ++i) {
+        const double r2 = estimator.SquaredResidual(candidate, i);
+        refined_mask[i] = r2 < t2;
+        inliers += refined_mask[i];
+        cost += r2 < t2 ? r2 : t2;
+      }
+    } else {
+      cost = estimator.Score(candidate, t2, report.cost, &inliers);
+    }
     if (cost < report.cost) {
       report.cost = cost;
       report.num_inliers = inliers;
       best = candidate;
       best_is_refined = true;
-      best_mask_valid = false;
+      best_mask.swap(refined_mask);
+      best_mask_valid = options.skip_samples_of_best;
     }
   };
 
@@ -263,14 +278,15 @@ RansacReport Ransac(const RansacOptions& options, Estimator& estimator,
     if (!best_is_refined) try_refine(best);
     report.success = true;
     *model = best;
-    report.inlier_mask.assign(n, 0);
-    report.num_inliers = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-      if (estimator.SquaredResidual(best, i) < t2) {
-        report.inlier_mask[i] = 1;
-        ++report.num_inliers;
-      }
+    if (best_is_refined && best_mask_valid) {
+      report.inlier_mask.assign(best_mask.begin(), best_mask.end());
+    } else {
+      report.inlier_mask.assign(n, 0);
+      for (std::size_t i = 0; i < n; ++i)
+        report.inlier_mask[i] = estimator.SquaredResidual(best, i) < t2;
     }
+    report.num_inliers = 0;
+    for (const char inlier : report.inlier_mask) report.num_inliers += inlier != 0;
   }
   report.time_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
