@@ -140,10 +140,19 @@ class PlenopticPnpEstimator {
     return projection_.SquaredError(cam_from_world * input_.points_in_world[i], input_.tf_px[i]);
   }
   bool Refine(Model* cam_from_world, double threshold);
-  // `iterations` Levenberg-Marquardt steps on the truncated loss over the
-  // data with mask[i] != 0 (no cap); true when the pose improved.
-  bool Polish(Model* cam_from_world, double threshold, int iterations,
-              std::span<const char> mask);
+  // One Gauss-Newton step on the truncated loss over the data with
+  // mask[i] != 0 (no cap), kept when it lowers the cost; the normal
+  // equations' J^T J at the start pose and the cost at the pose returned.
+  struct PolishResult {
+    Eigen::Matrix<double, 6, 6> jtj = Eigen::Matrix<double, 6, 6>::Zero();
+    std::size_t used = 0;  // data within the threshold at the start
+    double cost = 0;       // sum min(r_i^2, t^2) over the mask
+  };
+  PolishResult Polish(Model* cam_from_world, double threshold, std::span<const char> mask);
+  // The data with r_i^2 < threshold2 (mask 1) and the sum of their r_i^2;
+  // returns their number.
+  std::size_t Inliers(const Model& cam_from_world, double threshold2, std::vector<char>* mask,
+                      double* sum_squares) const;
   // Minimal samples the sample check rejected so far.
   int samples_rejected() const { return samples_rejected_; }
 
@@ -195,8 +204,10 @@ PnpResult EstimatePlenopticPnp(const processing::CameraModel& camera, const PnpI
 // loss of scale loss_scale_px; registration/pnp_refinement.cpp); returns
 // the iterations run, or -1 when Ceres reported no usable solution (the pose
 // is then unchanged).
+// `start_cost`: the objective at the start if the caller knows it (or an
+// upper bound: it only sets the function tolerance), else negative.
 int RefinePnpCeres(const processing::CameraModel& camera, const PnpInput& input,
                    std::span<const char> mask, double loss_scale_px, int max_iterations,
-                   Pose* cam_from_world);
+                   Pose* cam_from_world, double start_cost = -1);
 
 }  // namespace lifmcr::registration

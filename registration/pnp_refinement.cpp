@@ -158,7 +158,7 @@ class TfReprojectionChart {
 
 int RefinePnpCeres(const processing::CameraModel& camera, const PnpInput& input,
                    std::span<const char> mask, double loss_scale_px, int max_iterations,
-                   Pose* cam_from_world) {
+                   Pose* cam_from_world, double start_cost) {
   const TfProjection projection = TfProjection::Of(camera);
   // The solver's residuals and Jacobian (2n x 6) and the selected data are
   // kept per thread and reused (as PlenopticPnpEstimator::Buffers: sized
@@ -181,15 +181,17 @@ int RefinePnpCeres(const processing::CameraModel& camera, const PnpInput& input,
   // on a nearly linear problem, ends far closer; TinySolver keeps that last
   // step. ceres::Solver's default 1e-6 took one more iteration (a Jacobian,
   // J^T J, ~40 us per 1000 inliers) for nothing (bench_pnp).
-  start_residuals.resize(chart.NumResiduals());
-  chart(Eigen::Matrix<double, 6, 1>::Zero().eval().data(), start_residuals.data(), nullptr);
-  const double start_cost = 0.5 * start_residuals.squaredNorm();
+  if (!(start_cost >= 0)) {
+    start_residuals.resize(chart.NumResiduals());
+    chart(Eigen::Matrix<double, 6, 1>::Zero().eval().data(), start_residuals.data(), nullptr);
+    start_cost = 0.5 * start_residuals.squaredNorm();
+  }
   if (!std::isfinite(start_cost)) return -1;
   solver.options.max_num_iterations = max_iterations + 1;
   solver.options.function_tolerance = 2 * 1e-4 * start_cost;
   Eigen::Matrix<double, 6, 1> x = Eigen::Matrix<double, 6, 1>::Zero();
   const auto& summary = solver.Solve(chart, &x);
-  if (!x.allFinite() || !(summary.final_cost <= start_cost)) return -1;
+  if (!x.allFinite() || !(summary.final_cost <= summary.initial_cost)) return -1;
   *cam_from_world = chart.PoseAt(x.data());
   return summary.iterations;
 }
