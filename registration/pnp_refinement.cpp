@@ -72,9 +72,9 @@ class TfReprojectionChart {
   TfReprojectionChart(const TfProjection& projection, const PnpInput& input,
                       std::span<const char> mask, double loss_scale_px, const Pose& start,
                       std::vector<Eigen::Vector3d>* points, std::vector<Eigen::Vector2d>* observed)
-      : projection_(projection), c_(loss_scale_px * loss_scale_px), q0_(start.linear()),
-        t0_(start.translation()), points_(*points), observed_(*observed) {
-    q0_.normalize();
+      : projection_(projection), c_(loss_scale_px * loss_scale_px), points_(*points),
+        observed_(*observed) {
+    SetStart(start);
     points_.clear();
     observed_.clear();
     for (std::size_t i = 0; i < mask.size(); ++i) {
@@ -84,6 +84,11 @@ class TfReprojectionChart {
     }
   }
   std::size_t size() const { return points_.size(); }
+  // The chart's origin (x = 0).
+  void SetStart(const Pose& start) {
+    q0_ = Eigen::Quaterniond(start.linear()).normalized();
+    t0_ = start.translation();
+  }
   int NumResiduals() const { return static_cast<int>(2 * points_.size()); }
 
   Pose PoseAt(const double* x) const {
@@ -167,8 +172,8 @@ int RefinePnpCeres(const processing::CameraModel& camera, const PnpInput& input,
   thread_local std::vector<Eigen::Vector2d> observed;
   thread_local ceres::TinySolver<TfReprojectionChart> solver;
   thread_local Eigen::VectorXd start_residuals;
-  const TfReprojectionChart chart(projection, input, mask, loss_scale_px, *cam_from_world, &points,
-                                  &observed);
+  TfReprojectionChart chart(projection, input, mask, loss_scale_px, *cam_from_world, &points,
+                            &observed);
   if (chart.size() < 3) return -1;
   // TinySolver counts the first evaluation as iteration 0 and stops at
   // max_num_iterations. Its function tolerance is absolute (Ceres 2.1) and
@@ -187,13 +192,26 @@ int RefinePnpCeres(const processing::CameraModel& camera, const PnpInput& input,
     start_cost = 0.5 * start_residuals.squaredNorm();
   }
   if (!std::isfinite(start_cost)) return -1;
-  solver.options.max_num_iterations = max_iterations + 1;
-  solver.options.function_tolerance = 2 * 1e-4 * start_cost;
-  Eigen::Matrix<double, 6, 1> x = Eigen::Matrix<double, 6, 1>::Zero();
-  const auto& summary = solver.Solve(chart, &x);
-  if (!x.allFinite() || !(summary.final_cost <= summary.initial_cost)) return -1;
-  *cam_from_world = chart.PoseAt(x.data());
-  return summary.iterations;
+  // The tolerance is the start's: from a start far off (more than half the
+  // cost to gain) the solve stops on a cost it has long left behind, so it
+  // is solved again from where it stopped, the chart there and the
+  // tolerance of its cost (PnP's starts, a fraction of a standard deviation
+  // off, take one solve).
+  int iterations = 0;
+  for (int solve = 0; solve < 4 && iterations < max_iterations; ++solve) {
+    chart.SetStart(*cam_from_world);
+    solver.options.max_num_iterations = max_iterations - iterations + 1;
+    solver.options.function_tolerance = 2 * 1e-4 * start_cost;
+    Eigen::Matrix<double, 6, 1> x = Eigen::Matrix<double, 6, 1>::Zero();
+    const auto& summary = solver.Solve(chart, &x);
+    if (!x.allFinite() || !(summary.final_cost <= summary.initial_cost))
+      return iterations > 0 ? iterations : -1;
+    *cam_from_world = chart.PoseAt(x.data());
+    iterations += summary.iterations;
+    if (!(summary.final_cost < 0.5 * summary.initial_cost)) break;
+    start_cost = summary.final_cost;
+  }
+  return iterations;
 }
 
 }  // namespace lifmcr::registration
