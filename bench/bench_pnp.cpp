@@ -20,7 +20,9 @@
 // the reprojection error of the inliers) and for the whole estimate without
 // the sample depth check (registration/pnp.h: the virtual depths OpenCV has
 // no use for reject most samples before P3P; this row shows what that is
-// worth). Each method runs `--repeat` times per problem and the fastest run
+// worth), and the whole estimate with the Cauchy loss the live localizer
+// refines with (map_localizer.h; the default is Huber, registration/
+// pnp_refinement.cpp says why). Each method runs `--repeat` times per problem and the fastest run
 // counts (on a shared machine the others measure the neighbours).
 //
 //   bench_pnp [--matches 2000] [--noise 0.5] [--problems 30] [--preset r32|medium|small]
@@ -217,14 +219,14 @@ int main(int argc, char** argv) {
   if (args.resident_heap) lifmcr::KeepHeapResident();
 
   for (const double outliers : args.outliers) {
-    Figures ours, ours_no_ceres, ours_no_check;
+    Figures ours, ours_no_ceres, ours_no_check, ours_cauchy;
     std::array<Figures, kOpenCvLo.size()> opencv;
     std::mt19937_64 rng(1234);
     for (int n = 0; n < args.problems; ++n) {
       const lifmcr::test::PnpProblem p = lifmcr::test::MakePnpProblem(
           rng, camera, args.matches, outliers, args.noise_px, kSigmaV, v_min, v_max);
       const reg::PnpInput input{p.points_in_world, p.tf_px, p.virtual_depth};
-      for (const int variant : {0, 1, 2}) {
+      for (const int variant : {0, 1, 2, 3}) {
         const bool ceres = variant != 1;
         reg::PnpOptions options;
         options.ransac.max_error = args.threshold_px;
@@ -233,6 +235,8 @@ int main(int argc, char** argv) {
         // The sample check at its default noise (0.7 % of v; the problems'
         // 0.02 is 0.4-0.9 %).
         options.sample_check = variant != 2;
+        // Variant 3: the live localizer's refinement loss (map_localizer.h).
+        if (variant == 3) options.loss = reg::PnpLoss::kCauchy;
         reg::PnpResult r;
         double best_ms = 1e300;
         for (int k = 0; k < args.repeat; ++k) {
@@ -240,7 +244,10 @@ int main(int argc, char** argv) {
           r = reg::EstimatePlenopticPnp(camera, input, options);
           best_ms = std::min(best_ms, Ms(start));
         }
-        Figures& f = variant == 0 ? ours : variant == 1 ? ours_no_ceres : ours_no_check;
+        Figures& f = variant == 0   ? ours
+                     : variant == 1 ? ours_no_ceres
+                     : variant == 2 ? ours_no_check
+                                    : ours_cauchy;
         f.ms.push_back(best_ms);
         f.t_mm.push_back(reg::TranslationDifference(r.cam_from_world, p.cam_from_world));
         f.r_deg.push_back(reg::RotationDifferenceDeg(r.cam_from_world, p.cam_from_world));
@@ -275,6 +282,7 @@ int main(int argc, char** argv) {
     Print("lifmcr PnP (LO-RANSAC+Ceres)", ours, args.problems);
     Print("lifmcr PnP, no Ceres step", ours_no_ceres, args.problems);
     Print("lifmcr PnP, no depth check", ours_no_check, args.problems);
+    Print("lifmcr PnP, Cauchy loss (live)", ours_cauchy, args.problems);
     std::size_t fastest = 0;
     for (std::size_t m = 0; m < kOpenCvLo.size(); ++m) {
       Print(kOpenCvLo[m].name, opencv[m], args.problems);
@@ -289,6 +297,12 @@ int main(int argc, char** argv) {
                 "LO-RANSAC alone\n",
                 kOpenCvLo[fastest].name, Median(opencv[fastest].ms) / Median(ours.ms),
                 Median(opencv[fastest].ms) / Median(ours_no_ceres.ms));
+    std::printf("  ratio time with the Cauchy loss (the live localizer's): %.1fx OpenCV inner LO, %.1fx "
+                "its fastest; error t %.2f r %.2f\n",
+                Median(cv_ref.ms) / Median(ours_cauchy.ms),
+                Median(opencv[fastest].ms) / Median(ours_cauchy.ms),
+                Median(ours_cauchy.t_mm) / Median(cv_ref.t_mm),
+                Median(ours_cauchy.r_deg) / Median(cv_ref.r_deg));
     std::printf("  ratio error lifmcr / OpenCV (inner LO): t %.2f r %.2f with the Ceres step, t %.2f "
                 "r %.2f LO-RANSAC alone (goal <= 1)\n",
                 Median(ours.t_mm) / Median(cv_ref.t_mm), Median(ours.r_deg) / Median(cv_ref.r_deg),

@@ -61,17 +61,4 @@ int SolveCeresPoseProblem(std::span<const char> mask, double loss_scale, int max
   return SolvePoseAndStore(&problem, q, t, max_iterations, a_from_b);
 }
 
-// One residual block holding every datum (`cost`, owned from here on; its
-// robust loss applied inside, e.g. pnp.cpp's TfReprojectionBatchCost), no
-// Ceres loss; otherwise as above.
-inline int SolveCeresPoseBlock(ceres::CostFunction* cost, int max_iterations, Pose* a_from_b) {
-  Eigen::Quaterniond q(a_from_b->linear());
-  Eigen::Vector3d t = a_from_b->translation();
-  ceres::Problem::Options problem_options;
-  problem_options.manifold_ownership = ceres::TAKE_OWNERSHIP;
-  ceres::Problem problem(problem_options);
-  problem.AddResidualBlock(cost, nullptr, q.coeffs().data(), t.data());
-  return SolvePoseAndStore(&problem, q, t, max_iterations, a_from_b);
-}
-
 }  // namespace lifmcr::registration

@@ -53,6 +53,7 @@
 #include "registration/tf_projection.h"
 #include "registration/pose_covariance.h"
 #include "registration/ransac.h"
+#include "registration/robust_loss.h"
 
 #include <Eigen/Core>
 
@@ -71,7 +72,8 @@ struct PnpOptions {
   // the comment at the top.
   int lo_max_data = 256;
   bool final_refinement = true;    // Ceres refinement after RANSAC
-  double loss_scale_px = 1.0;      // Huber scale of the final refinement (TF px, > 0)
+  PnpLoss loss = PnpLoss::kHuber;  // the final refinement's loss (robust_loss.h)
+  double loss_scale_px = 1.0;      // its scale (TF px, > 0)
   int max_refine_iterations = 30;  // Ceres iterations (>= 1)
   int min_inliers = 12;            // fewer inliers: the pose is rejected (>= 3)
   bool sample_check = true;        // the sample check of the comment above
@@ -140,15 +142,18 @@ class PlenopticPnpEstimator {
     return projection_.SquaredError(cam_from_world * input_.points_in_world[i], input_.tf_px[i]);
   }
   bool Refine(Model* cam_from_world, double threshold);
-  // One Gauss-Newton step on the truncated loss over the data with
-  // mask[i] != 0 (no cap), kept when it lowers the cost; the normal
-  // equations' J^T J at the start pose and the cost at the pose returned.
+  // One iteratively reweighted Gauss-Newton step of `loss` (weights
+  // rho'(s_i) at the start; robust_loss.h) over the data with mask[i] != 0
+  // and r_i < t (no cap), taken unchecked (pnp.cpp: TinySolver follows);
+  // the plain J^T J and the sum of s_i of those data at the start pose.
   struct PolishResult {
     Eigen::Matrix<double, 6, 6> jtj = Eigen::Matrix<double, 6, 6>::Zero();
-    std::size_t used = 0;  // data within the threshold at the start
-    double cost = 0;       // sum min(r_i^2, t^2) over the mask
+    std::size_t used = 0;     // data within the threshold at the start
+    double sum_squares = 0;   // their sum of r_i^2
   };
-  PolishResult Polish(Model* cam_from_world, double threshold, std::span<const char> mask);
+  // `plain_jtj` false: PolishResult::jtj is left zero (a pass less of work).
+  PolishResult Polish(Model* cam_from_world, double threshold, std::span<const char> mask,
+                      PnpLoss loss, double loss_scale_px, bool plain_jtj) const;
   // The data with r_i^2 < threshold2 (mask 1) and the sum of their r_i^2;
   // returns their number.
   std::size_t Inliers(const Model& cam_from_world, double threshold2, std::vector<char>* mask,
@@ -200,14 +205,14 @@ class PlenopticPnpEstimator {
 PnpResult EstimatePlenopticPnp(const processing::CameraModel& camera, const PnpInput& input,
                                const PnpOptions& options);
 
-// Ceres refinement of cam_from_world over the data with mask[i] != 0 (Huber
-// loss of scale loss_scale_px; registration/pnp_refinement.cpp); returns
+// Ceres refinement of cam_from_world over the data with mask[i] != 0 (`loss`
+// of scale loss_scale_px; registration/pnp_refinement.cpp); returns
 // the iterations run, or -1 when Ceres reported no usable solution (the pose
 // is then unchanged).
 // `start_cost`: the objective at the start if the caller knows it (or an
 // upper bound: it only sets the function tolerance), else negative.
 int RefinePnpCeres(const processing::CameraModel& camera, const PnpInput& input,
-                   std::span<const char> mask, double loss_scale_px, int max_iterations,
-                   Pose* cam_from_world, double start_cost = -1);
+                   std::span<const char> mask, PnpLoss loss, double loss_scale_px,
+                   int max_iterations, Pose* cam_from_world, double start_cost = -1);
 
 }  // namespace lifmcr::registration

@@ -20,22 +20,20 @@
 // J_l the left Jacobian of SO(3) (exact at every d, not only at d = 0:
 // TinySolver keeps x in the chart for the whole solve).
 //
-// Robust loss inside the residual, as Ceres' loss would be on each datum:
-// the objective is 1/2 sum rho(s_i), s_i = |r_i|^2, Huber's
-//   rho(s) = s (s <= c),   2 sqrt(c s) - c (s > c),   c = loss_scale^2;
-// each residual is replaced by r~ = g r with g = sqrt(rho(s) / s), so
-// |r~|^2 = rho(s), and its Jacobian is the exact one of that map,
-//   J~ = g J + h r r^T J,   h = (rho'(s) s - rho(s)) / (s^2 g)
-// (g = 1, h = 0 inside c). Huber, not Cauchy (the loss until the eleventh
-// session): the data are RANSAC's inliers, within t = 2 px, so the loss only
-// has to temper the tail near t, and Cauchy's log1p per datum and
-// evaluation was a third of the refinement's time; the pose error is the
-// same (bench_pnp, 80 problems at 50 % outliers: translation 0.024 mm with
-// either, 0.94 and 0.97 of OpenCV's).
+// Robust loss inside the residual, as Ceres' loss would be on each datum
+// (registration/robust_loss.h). Huber by default: the data are RANSAC's
+// inliers, within t = 2 px, and on the bench's Gaussian noise Huber and
+// Cauchy give the same pose error (bench_pnp, 80 problems at 50 % outliers:
+// translation 0.024 mm with either, 0.94 and 0.97 of OpenCV's) while
+// Cauchy's weights move with the pose and its refinement takes a Jacobian
+// more (0.15 against 0.21 ms). On real keypoints Cauchy was the more
+// accurate, and the live localizer, where a PnP is ~1 ms of a 20 ms frame,
+// runs it (map_localizer.cpp).
 
 #include "registration/pnp.h"
 
 #include "registration/pose_covariance.h"
+#include "registration/robust_loss.h"
 #include "registration/tf_projection.h"
 
 #include <ceres/manifold.h>
@@ -70,9 +68,10 @@ class TfReprojectionChart {
   // The selected data are copied into `points` and `observed` (the
   // caller's, reused across calls): the solver then reads them in order.
   TfReprojectionChart(const TfProjection& projection, const PnpInput& input,
-                      std::span<const char> mask, double loss_scale_px, const Pose& start,
+                      std::span<const char> mask, PnpLoss loss, double loss_scale_px,
+                      const Pose& start,
                       std::vector<Eigen::Vector3d>* points, std::vector<Eigen::Vector2d>* observed)
-      : projection_(projection), c_(loss_scale_px * loss_scale_px), points_(*points),
+      : projection_(projection), loss_(loss), c_(loss_scale_px * loss_scale_px), points_(*points),
         observed_(*observed) {
     SetStart(start);
     points_.clear();
@@ -124,14 +123,8 @@ class TfReprojectionChart {
       }
       const Eigen::Vector2d r = tf - observed_[k];
       const double s = r.squaredNorm();
-      // Huber: rho(s) = s up to s = c, 2 sqrt(c s) - c beyond.
-      double g = 1, h = 0;
-      if (s > c_) {
-        const double root_s = std::sqrt(s), root_c = std::sqrt(c_);
-        const double rho = 2 * root_c * root_s - c_, rho1 = root_c / root_s;
-        g = std::sqrt(rho / s);
-        h = (rho1 * s - rho) / (s * s * g);
-      }
+      double g, h;
+      RobustCorrection(loss_, c_, s, &g, &h);
       residuals[2 * k] = g * r.x();
       residuals[2 * k + 1] = g * r.y();
       if (jacobian == nullptr) continue;
@@ -151,6 +144,7 @@ class TfReprojectionChart {
 
  private:
   const TfProjection& projection_;
+  PnpLoss loss_;
   double c_;
   Eigen::Quaterniond q0_;
   Eigen::Vector3d t0_;
@@ -162,8 +156,8 @@ class TfReprojectionChart {
 }  // namespace
 
 int RefinePnpCeres(const processing::CameraModel& camera, const PnpInput& input,
-                   std::span<const char> mask, double loss_scale_px, int max_iterations,
-                   Pose* cam_from_world, double start_cost) {
+                   std::span<const char> mask, PnpLoss loss, double loss_scale_px,
+                   int max_iterations, Pose* cam_from_world, double start_cost) {
   const TfProjection projection = TfProjection::Of(camera);
   // The solver's residuals and Jacobian (2n x 6) and the selected data are
   // kept per thread and reused (as PlenopticPnpEstimator::Buffers: sized
@@ -172,8 +166,8 @@ int RefinePnpCeres(const processing::CameraModel& camera, const PnpInput& input,
   thread_local std::vector<Eigen::Vector2d> observed;
   thread_local ceres::TinySolver<TfReprojectionChart> solver;
   thread_local Eigen::VectorXd start_residuals;
-  TfReprojectionChart chart(projection, input, mask, loss_scale_px, *cam_from_world, &points,
-                            &observed);
+  TfReprojectionChart chart(projection, input, mask, loss, loss_scale_px, *cam_from_world,
+                            &points, &observed);
   if (chart.size() < 3) return -1;
   // TinySolver counts the first evaluation as iteration 0 and stops at
   // max_num_iterations. Its function tolerance is absolute (Ceres 2.1) and

@@ -211,7 +211,8 @@ TEST(PlenopticPnp, CeresRefinementConvergesFromFarOnTheQuaternionChart) {
     delta << 20, -10, 5, 0.04, -0.03, 0.02;  // (dt mm, dr rad), pose_covariance.h
     for (const double start_cost : {-1.0, 1e3}) {
       Pose pose = Perturb(p.cam_from_world, delta);
-      const int iterations = RefinePnpCeres(camera, InputOf(p), all, 1.0, 50, &pose, start_cost);
+      const int iterations = RefinePnpCeres(camera, InputOf(p), all, PnpLoss::kHuber, 1.0, 50, &pose,
+                                            start_cost);
       EXPECT_GT(iterations, 2);
       EXPECT_LT(TranslationDifference(pose, p.cam_from_world), 1e-6) << distorted;
       EXPECT_LT(RotationDifferenceDeg(pose, p.cam_from_world), 1e-7) << distorted;
