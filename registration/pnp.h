@@ -39,13 +39,19 @@
 //   the pose within sqrt(n / 256) of its final standard deviation (2 for
 //   1000 inliers), far inside the 2 px threshold; the final refinement
 //   reads all inliers. Without the final refinement LO reads all data.
+//   Polish: iteratively reweighted Gauss-Newton steps of the refinement's
+//   loss over RANSAC's inliers (one for Huber, two for Cauchy), so that the
+//   refinement starts within a fraction of a standard deviation.
 //   Final refinement: Ceres (ceres::TinySolver, registration/pnp_refinement.cpp),
-//   Levenberg-Marquardt over the RANSAC inliers with a Huber loss, rotation on
+//   Levenberg-Marquardt over the RANSAC inliers with the options' loss
+//   (Huber by default; the live localizer runs Cauchy), rotation on
 //   ceres::EigenQuaternionManifold, repeated (at most 3 times) while a refit
 //   changes the inlier set by more than 0.5 % (pnp.cpp).
-//   Covariance: Sigma = s^2 (J^T J)^-1 at the final pose over the final
-//   inliers, s^2 = sum r_i^2 / (2 n - 6), in the convention of
-//   registration/pose_covariance.h (of cam_from_world).
+//   Covariance: Sigma = s^2 (J^T J)^-1, s^2 = sum r_i^2 / (2 n - 6) over the
+//   final inliers at the final pose, J^T J from the polish's last pass
+//   (within ~2 standard deviations of the final pose, where it is the same
+//   to ~1e-5; pnp.cpp) or, after a refit, formed anew there; in the
+//   convention of registration/pose_covariance.h (of cam_from_world).
 
 #include "config/error.h"
 #include "config/frames.h"
