@@ -347,6 +347,7 @@ PnpResult EstimatePlenopticPnp(const processing::CameraModel& camera, const PnpI
   bool jtj_current = false;
   result.inlier_mask = result.ransac.inlier_mask;
   double start_cost = -1;  // the refinement's start cost, when known
+  const Pose ransac_pose = pose;  // back to it if the refinement fails after the polish
   // LO fitted a subset (lo_max_data) on the truncated loss: iteratively
   // reweighted Gauss-Newton steps of the refinement's own loss over all of
   // RANSAC's inliers (our normal equations, 15-25 ns a datum) bring the
@@ -388,7 +389,14 @@ PnpResult EstimatePlenopticPnp(const processing::CameraModel& camera, const PnpI
     const int iterations =
         RefinePnpCeres(camera, input, result.inlier_mask, options.loss, options.loss_scale_px,
                        options.max_refine_iterations, &pose, round == 0 ? start_cost : -1);
-    if (iterations < 0) break;
+    if (iterations < 0) {
+      // Nothing checked the polish's steps: RANSAC's pose, and J^T J there.
+      if (round == 0) {
+        pose = ransac_pose;
+        jtj_current = false;
+      }
+      break;
+    }
     result.refine_iterations += iterations;
     result.num_inliers = estimator.Inliers(pose, t2, &result.inlier_mask, &sum_squares);
     assessed = true;
