@@ -97,18 +97,15 @@ struct LocalizerOptions {
     features.spread_cells = 4;
     registration.match.kd_tree_checks = 64;
     registration.fundamental.enabled = true;
+    // The Cauchy loss in the PnP's refinement: on the live path's keypoints
+    // (renders refocused at one depth, SIFT on reduced images) it gave the
+    // more accurate extrinsics (bench_live medium, median c0_from_cx
+    // tracked: Cauchy 1.19 mm / 0.075 deg, Huber 1.32-1.46 mm / 0.081-0.085
+    // deg; relocalised 1.64 against 1.72-1.83 mm), and a PnP is ~1 ms of a
+    // tracked frame's 20 ms.
+    registration.pnp.loss = PnpLoss::kCauchy;
   }
-  // Relocalisation; its pnp also when tracking. Its PnP refines with the
-  // Cauchy loss: on the live path's keypoints (renders refocused at one
-  // depth, SIFT on reduced images) it gave the more accurate extrinsics
-  // (bench_live medium, median c0_from_cx tracked: Cauchy 1.19 mm / 0.075
-  // deg, Huber 1.32-1.46 mm / 0.081-0.085 deg; relocalised 1.64 against
-  // 1.72-1.83 mm), and a PnP is ~1 ms of a tracked frame's 20 ms.
-  FrameRegistrationOptions registration = [] {
-    FrameRegistrationOptions o;
-    o.pnp.loss = PnpLoss::kCauchy;
-    return o;
-  }();
+  FrameRegistrationOptions registration;  // relocalisation; its pnp also when tracking
   FeatureOptions features;                // relocalisation's SIFT (image_scale: see below)
   // Relocalisation renders every step-th TF pixel (TfSampler::RenderAtDepth)
   // and runs SIFT on that; the chain's TF image, when the frame was

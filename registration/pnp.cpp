@@ -25,6 +25,17 @@ Error FieldError(const std::string& field, const std::string& what) {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
+// The two rows of d tf / d(dt, dr) (pose_covariance.h's perturbation) as
+// columns: dp/d(dt) = I, dp/d(dr) = -[R X]x, and a row w^T of d tf / dp
+// gives -w^T [R X]x = (R X x w)^T for the rotation.
+Eigen::Matrix<double, 6, 2> PoseJacobianRows(const Eigen::Vector3d& rx,
+                                             const Eigen::Matrix<double, 2, 3>& j_p) {
+  Eigen::Matrix<double, 6, 2> jt;
+  jt.col(0) << j_p.row(0).transpose(), rx.cross(j_p.row(0).transpose());
+  jt.col(1) << j_p.row(1).transpose(), rx.cross(j_p.row(1).transpose());
+  return jt;
+}
+
 }  // namespace
 
 Status PnpOptions::Check() const {
@@ -167,9 +178,8 @@ std::size_t PlenopticPnpEstimator::NormalEquationsOver(
     char* mask) const {
   const Eigen::Matrix3d r = cam_from_world.linear();
   const Eigen::Vector3d t = cam_from_world.translation();
-  // The upper triangle of J^T J and J^T r in plain arrays, mirrored at the
-  // end (42 + 12 multiply-adds a datum, where the 2x6 product of Eigen's
-  // fixed-size types took twice the time of the projection itself).
+  // The upper triangle of J^T J, mirrored at the end (42 + 12
+  // multiply-adds a datum).
   double h[6][6] = {}, g[6] = {};
   *sum_squares = 0;
   std::size_t used = 0;
@@ -183,12 +193,9 @@ std::size_t PlenopticPnpEstimator::NormalEquationsOver(
     if (!(r2 < threshold2)) continue;
     projection_.WithJacobian(rx + t, &tf, &j_p);
     const Eigen::Vector2d res = tf - input_.tf_px[i];
-    // dp/d(dt) = I, dp/d(dr) = -[R X]x; a row w^T of d tf / dp gives
-    // -w^T [R X]x = (R X x w)^T for the rotation.
-    const Eigen::Vector3d u = j_p.row(0).transpose(), v = j_p.row(1).transpose();
-    const Eigen::Vector3d ru = rx.cross(u), rv = rx.cross(v);
-    const double ju[6] = {u.x(), u.y(), u.z(), ru.x(), ru.y(), ru.z()};
-    const double jv[6] = {v.x(), v.y(), v.z(), rv.x(), rv.y(), rv.z()};
+    const Eigen::Matrix<double, 6, 2> jt = PoseJacobianRows(rx, j_p);
+    const double* ju = jt.col(0).data();
+    const double* jv = jt.col(1).data();
     for (int a = 0; a < 6; ++a) {
       for (int b = a; b < 6; ++b) h[a][b] += ju[a] * ju[b] + jv[a] * jv[b];
       g[a] += ju[a] * res.x() + jv[a] * res.y();
@@ -224,7 +231,8 @@ bool PlenopticPnpEstimator::Refine(Model* cam_from_world, double threshold) {
   if (lo_max_data_ > 0 && b_.lo_subset.size() > lo_max_data_) {
     const std::size_t stride = (b_.lo_subset.size() + lo_max_data_ - 1) / lo_max_data_;
     std::size_t kept = 0;
-    for (std::size_t k = 0; k < b_.lo_subset.size(); k += stride) b_.lo_subset[kept++] = b_.lo_subset[k];
+    for (std::size_t k = 0; k < b_.lo_subset.size(); k += stride)
+      b_.lo_subset[kept++] = b_.lo_subset[k];
     b_.lo_subset.resize(kept);
   }
   const auto subset = [this](std::size_t k) { return static_cast<std::size_t>(b_.lo_subset[k]); };
@@ -263,15 +271,8 @@ PlenopticPnpEstimator::PolishResult PlenopticPnpEstimator::Polish(Model* cam_fro
     if (!(s < t2)) continue;
     projection_.WithJacobian(rx + t, &tf, &j_p);
     const Eigen::Vector2d res = tf - input_.tf_px[i];
-    // IRLS weight rho'(s) of the loss.
-    const double w = loss == PnpLoss::kCauchy ? 1.0 / (1.0 + s / c)
-                     : s > c                  ? std::sqrt(c / s)
-                                              : 1.0;
-    // Columns: the rows of the 2x6 Jacobian (dp/dt = I, dp/dr = -[R X]x:
-    // a row w^T of d tf / dp gives (R X x w)^T for the rotation).
-    Eigen::Matrix<double, 6, 2> jt;
-    jt.col(0) << j_p.row(0).transpose(), rx.cross(j_p.row(0).transpose());
-    jt.col(1) << j_p.row(1).transpose(), rx.cross(j_p.row(1).transpose());
+    const double w = RobustWeight(loss, c, s);
+    const Eigen::Matrix<double, 6, 2> jt = PoseJacobianRows(rx, j_p);
     // Upper triangles (mirrored below), 21 entries each.
     const double* ju = jt.col(0).data();
     const double* jv = jt.col(1).data();

@@ -161,15 +161,11 @@ RansacReport Ransac(const RansacOptions& options, Estimator& estimator,
   Model best{};
   std::size_t best_minimal_inliers = 0;
   bool best_is_refined = false;
-  // The inliers of `best` while it is refined (computed when first needed).
+  // The inliers of `best` whenever it is refined and the skip is on (the
+  // refinement's scoring pass records them, try_refine below).
   std::vector<char> best_mask(options.skip_samples_of_best ? n : 0);
-  bool best_mask_valid = false;
   const auto sample_of_best = [&] {
     if (!options.skip_samples_of_best || !best_is_refined) return false;
-    if (!best_mask_valid) {
-      for (std::size_t i = 0; i < n; ++i) best_mask[i] = estimator.SquaredResidual(best, i) < t2;
-      best_mask_valid = true;
-    }
     for (int k = 0; k < kS; ++k)
       if (!best_mask[sample[k]]) return false;
     return true;
@@ -230,7 +226,6 @@ RansacReport Ransac(const RansacOptions& options, Estimator& estimator,
       best = candidate;
       best_is_refined = true;
       best_mask.swap(refined_mask);
-      best_mask_valid = options.skip_samples_of_best;
     }
   };
 
@@ -278,7 +273,7 @@ RansacReport Ransac(const RansacOptions& options, Estimator& estimator,
     if (!best_is_refined) try_refine(best);
     report.success = true;
     *model = best;
-    if (best_is_refined && best_mask_valid) {
+    if (best_is_refined && options.skip_samples_of_best) {
       report.inlier_mask.assign(best_mask.begin(), best_mask.end());
     } else {
       report.inlier_mask.assign(n, 0);

@@ -1,14 +1,12 @@
 #pragma once
-// A robust loss applied inside a residual (registration/pnp_refinement.cpp,
-// pnp.cpp's polish): the objective 1/2 sum rho(s_i), s_i = |r_i|^2, is
-// minimised as the plain least squares of r~_i = g r_i with
-// g = sqrt(rho(s) / s), so |r~|^2 = rho(s); its Jacobian is the exact one of
-// that map,
-//   J~ = g J + h r r^T J,   h = (rho'(s) s - rho(s)) / (s^2 g),
-// and Gauss-Newton on r~ converges as on plain least squares where the
-// iteratively reweighted steps (weights rho'(s)) converge only linearly.
+// The PnP refinement's robust losses. The objective 1/2 sum rho(s_i),
+// s_i = |r_i|^2, is minimised as the plain least squares of r~_i = g r_i
+// with g = sqrt(rho(s) / s), so |r~|^2 = rho(s) (registration/
+// pnp_refinement.cpp); its Jacobian is the exact one of that map,
+//   J~ = g J + h r r^T J,   h = (rho'(s) s - rho(s)) / (s^2 g).
 // d(r~)/d(r) = g I + h r r^T has the eigenvalues g (across r) and
-// rho'(s) / g (along r): positive for both losses.
+// rho'(s) / g (along r): positive for both losses. The polish before it
+// (pnp.cpp) takes iteratively reweighted steps instead, weights rho'(s).
 //   Huber:  rho(s) = s (s <= c),   2 sqrt(c s) - c (s > c)
 //   Cauchy: rho(s) = c log(1 + s / c)
 // c = scale^2.
@@ -26,6 +24,13 @@ enum class PnpLoss { kHuber, kCauchy };
 inline double Log1pNonNegative(double x) {
   if (x >= 1e-4) return std::log(1.0 + x);
   return x * (1.0 - x * (0.5 - x * (1.0 / 3.0 - 0.25 * x)));
+}
+
+// rho'(s), the iteratively reweighted least squares weight of squared
+// residual s.
+inline double RobustWeight(PnpLoss loss, double c, double s) {
+  if (loss == PnpLoss::kCauchy) return 1.0 / (1.0 + s / c);
+  return s > c ? std::sqrt(c / s) : 1.0;
 }
 
 // g and h of the comment above for squared residual s.
