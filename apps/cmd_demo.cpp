@@ -31,7 +31,7 @@
 
 #include "apps/commands.h"
 #include "config/text_escape.h"
-#include "registration/intrinsics_yaml.h"
+#include "registration/features/intrinsics_yaml.h"
 #include "replay/layout.h"
 
 #include <CLI/CLI.hpp>

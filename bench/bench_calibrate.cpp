@@ -18,10 +18,10 @@
 //                   [--motion orbit|smooth|...] [--speed-scale X] [--keep]
 
 #include "processing/camera_model.h"
-#include "registration/calibration.h"
-#include "registration/calibration_frames.h"
-#include "registration/calibration_gates.h"
-#include "registration/intrinsics_yaml.h"
+#include "registration/calibration/calibration.h"
+#include "registration/features/calibration_frames.h"
+#include "registration/calibration/calibration_gates.h"
+#include "registration/features/intrinsics_yaml.h"
 #include "replay/layout.h"
 
 #include <sys/resource.h>

@@ -20,7 +20,7 @@
 #include "processing/mla_grid.h"
 #include "processing/plenoptic_frame.h"
 #include "processing/virtual_depth.h"
-#include "registration/intrinsics_yaml.h"
+#include "registration/features/intrinsics_yaml.h"
 #include "replay/bmp.h"
 #include "replay/layout.h"
 #include "replay/mla_xml.h"

@@ -5,7 +5,7 @@
 // rendering not timed) is replayed at its trigger rate (10 Hz, newest wins,
 // looping) through `lifmcr replay --reference`'s path (RunReplay with
 // LiveRegistrationOptions): a reference map of camera 0 from the ground
-// truth (registration/ground_truth_map.h, written and read back as a map
+// truth (registration/map/ground_truth_map.h, written and read back as a map
 // folder), true intrinsics, depth and previews published on memq://. Three
 // runs of --seconds each:
 //   track        the localizer as it runs live: tracked when it has a pose,
@@ -47,10 +47,10 @@
 #include "apps/pipeline/live_registration.h"
 #include "apps/pipeline/process_settings.h"
 #include "apps/pipeline/replay_runner.h"
-#include "registration/ground_truth_map.h"
-#include "registration/pose_covariance.h"
-#include "registration/poses_csv.h"
-#include "registration/reference_map.h"
+#include "registration/map/ground_truth_map.h"
+#include "registration/estimators/pose_covariance.h"
+#include "registration/map/poses_csv.h"
+#include "registration/map/reference_map.h"
 #include "replay/layout.h"
 #include "replay/synth/cameras_yaml.h"
 #include "replay/synth/synth_params.h"

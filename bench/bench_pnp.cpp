@@ -9,7 +9,7 @@
 // OpenCV gets what the paper hands its PnP: the keypoints on the central
 // perspective projection (eqs. projX/projY, CameraModel::FeatureImagePoint)
 // in TF pinhole pixels, with the TF pinhole camera matrix of the reference
-// map (registration/reference_map.h). Its iteration cap is raised (100000,
+// map (registration/map/reference_map.h). Its iteration cap is raised (100000,
 // the default 5000 / legacy 100 fail at 80 % outliers) and it gets the same
 // confidence, threshold and a fixed seed.
 //
@@ -18,7 +18,7 @@
 // lifmcr's whole estimate (with the Ceres refinement, as `lifmcr register`
 // runs it), for LO-RANSAC alone (its local optimisation already minimises
 // the reprojection error of the inliers) and for the whole estimate without
-// the sample depth check (registration/pnp.h: the virtual depths OpenCV has
+// the sample depth check (registration/estimators/pnp.h: the virtual depths OpenCV has
 // no use for reject most samples before P3P; this row shows what that is
 // worth), and the whole estimate with the Cauchy loss the live localizer
 // refines with (map_localizer.h; the default is Huber, registration/
@@ -30,7 +30,7 @@
 
 #include "config/memory_policy.h"
 #include "processing/camera_model.h"
-#include "registration/pnp.h"
+#include "registration/estimators/pnp.h"
 #include "replay/synth/synth_params.h"
 #include "tests/registration/random_geometry.h"
 

@@ -175,7 +175,7 @@ struct LcmConfig {
 struct RegistrationConfig {
   // The cameras sit rigidly on the rig: c0_from_cx should not change, and a
   // run of changed_after triggers departing from its running estimate beyond
-  // its uncertainty is flagged (registration/extrinsics_monitor.h).
+  // its uncertainty is flagged (registration/live/extrinsics_monitor.h).
   bool rigid_mount = false;
   int changed_after = 3;     // 1..100
   int settle_triggers = 10;  // 2..1000: triggers that make the first running estimate

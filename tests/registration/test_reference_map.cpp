@@ -2,11 +2,11 @@
 // and poses_<serial>.csv reads back to the same map; damaged files give
 // errors naming the file.
 
-#include "registration/features.h"
-#include "registration/ground_truth_map.h"
-#include "registration/intrinsics_yaml.h"
-#include "registration/poses_csv.h"
-#include "registration/reference_map.h"
+#include "registration/features/features.h"
+#include "registration/map/ground_truth_map.h"
+#include "registration/features/intrinsics_yaml.h"
+#include "registration/map/poses_csv.h"
+#include "registration/map/reference_map.h"
 #include "tests/test_util.h"
 
 #include <Eigen/Geometry>
