@@ -465,7 +465,7 @@ std::vector<Case> Cases() {
   return cases;
 }
 
-// Issue 33, "a true answer to every input": inputs that passed as valid,
+// A true answer to every input: inputs that passed as valid,
 // or failed with a message about something else, each now a clear answer.
 void AddAnswerCases(std::vector<Case>* cases_out) {
   std::vector<Case>& cases = *cases_out;
