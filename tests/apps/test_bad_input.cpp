@@ -550,6 +550,17 @@ void AddAnswerCases(std::vector<Case>* cases_out) {
            "memq://", {"/vicon/trigger_divider: gives camera triggers every 10000 s"});
   rig_case("rig_mla_garbage", "garbage.txt", "  rate_hz: 80\n", "memq://",
            {"PROBLEM: ", "garbage.txt", "malformed XML"});
+  // The --lcm flags take the rig file's check (config/rig_config.h).
+  for (const std::string command : {"replay", "monitor", "demo"}) {
+    cases.push_back({"lcm_flag_nonsense_" + command,
+                     [command](const fs::path& dir) -> std::vector<std::string> {
+                       std::vector<std::string> args = {command, "--lcm", "udpm://nonsense!!:abc"};
+                       if (command == "replay") args.push_back(dir.string());
+                       return args;
+                     },
+                     {"--lcm: udpm:// group 'nonsense!!' is not a multicast IPv4 address"},
+                     2});
+  }
   // Vicon CSV and YAML.
   const std::string block = "Objects\n80\n,,o0,,,,,\nFrame,Sub Frame,RX,RY,RZ,TX,TY,TZ\n"
                             ",,rad,rad,rad,mm,mm,mm\n1,0,0,0,0,1,2,3\n";
