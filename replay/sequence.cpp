@@ -33,11 +33,6 @@ bool IsDir(const fs::path& path) {
   return fs::is_directory(path, ec);
 }
 
-bool IsFile(const fs::path& path) {
-  std::error_code ec;
-  return fs::is_regular_file(path, ec);
-}
-
 // The entries of a folder, sorted by name; an error when `dir` does not exist,
 // is not a folder or cannot be read.
 Expected<std::vector<fs::path>> ListDir(const fs::path& dir,
@@ -215,7 +210,10 @@ Expected<CameraFolder> DiscoverCameraFolder(const fs::path& dir) {
   for (const fs::path& entry : *entries) {
     const std::string name = entry.filename().string();
     const std::optional<layout::RawFrameName> parsed = layout::ParseRawFrameFileName(name);
-    if (parsed && parsed->serial == camera.serial && IsFile(entry)) {
+    // By name, as the calibration files: a frame file that is a folder or a
+    // FIFO is this camera's frame that cannot be read (its reader says so),
+    // not a name "not of a frame".
+    if (parsed && parsed->serial == camera.serial) {
       frames.emplace_back(parsed->frame, name);
     } else {
       camera.unrecognised_files.push_back(name);

@@ -12,8 +12,8 @@
 //   dataset root   it holds Calibration/ or a scene folder
 // Entries whose names follow no rule are listed in `unrecognised` at every
 // level, never dropped silently. Lists are sorted (by name, frames by number).
-// Calibration files (MLA XML, white images, VSK) and Vicon CSVs are taken by
-// their names whatever they are: the reader of each says what a folder, FIFO
+// Frames, calibration files (MLA XML, white images, VSK) and Vicon CSVs are
+// taken by their names whatever they are: the reader of each says what a folder, FIFO
 // or device of such a name is. A Calibration, 01_White_Images,
 // 02_MLA_Calibration, 03_Vicon or a sequence's Vicon that is not a folder is
 // an error.

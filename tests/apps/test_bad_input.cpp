@@ -507,6 +507,16 @@ void AddAnswerCases(std::vector<Case>* cases_out) {
                      return {"info", seq.string()};
                    },
                    {"PROBLEM: ", "Calibration: is a file, expected a LiFMCR Calibration folder"}});
+  cases.push_back({"info_frame_is_a_fifo",
+                   [r42](const fs::path& dir) -> std::vector<std::string> {
+                     const fs::path seq = TinyDataset(dir, 64, 48, r42);
+                     fs::remove(seq / "TypeE_1/TypeE_1_000000_Raw.bmp");
+                     mkfifo((seq / "TypeE_1/TypeE_1_000000_Raw.bmp").c_str(), 0600);
+                     return {"info", seq.string()};
+                   },
+                   {"camera 1: 1 frames", "PROBLEM: ", "TypeE_1_000000_Raw.bmp: is a FIFO"},
+                   1,
+                   {"files not named as frames"}});
   // VSK and XML that parsed but were not what they claim.
   const auto info_of = [](const std::string& file, const std::string& content) {
     return [file, content](const fs::path& dir) -> std::vector<std::string> {

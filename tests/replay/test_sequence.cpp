@@ -264,9 +264,15 @@ TEST(Sequence, CalibrationFilesAreTakenByNameWhateverTheyAre) {
   EXPECT_EQ(cal->mla_xml.at(kCam8), mla8);
   EXPECT_EQ(Names(cal->vsk), std::vector<std::string>{"Object.vsk"});
   EXPECT_EQ(Names(cal->unrecognised), std::vector<std::string>{"readme.md"});
+  // A frame that is a folder is still the camera's frame 4.
+  const fs::path frame4 = layout::RawFramePath(f.random, kCam3, 4);
+  fs::remove(frame4);
+  fs::create_directories(frame4);
   Expected<SequenceLayout> sequence = DiscoverSequence(f.random);
   ASSERT_TRUE(sequence.ok()) << sequence.error().message;
   EXPECT_EQ(Names(sequence->vicon_csvs), std::vector<std::string>{"sequence_00.csv"});
+  EXPECT_EQ(sequence->cameras.at(0).frames, (std::vector<std::int64_t>{0, 1, 2, 4, 5}));
+  EXPECT_EQ(sequence->cameras.at(0).FramePath(4), frame4);
 }
 
 // A Calibration that is not a folder: the dataset's MLA files cannot be
