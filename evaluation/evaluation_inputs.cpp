@@ -1,5 +1,6 @@
 #include "evaluation/evaluation_inputs.h"
 
+#include "config/decimal_number.h"
 #include "config/yaml_reader.h"
 #include "replay/csv_tokenizer.h"
 
@@ -47,7 +48,7 @@ struct CsvTable {
     const char* begin = f->text.data();
     const char* end = begin + f->text.size();
     while (begin < end && *begin == ' ') ++begin;
-    const auto [ptr, ec] = std::from_chars(begin, end, v);
+    const auto [ptr, ec] = FromCharsRounded(begin, end, v);
     if (ec != std::errc() || ptr != end || !std::isfinite(v))
       return MakeError(label, f->line, f->column,
                        name + ": expected a finite number, got '" + f->text + "'");
@@ -136,7 +137,7 @@ std::optional<Eigen::Vector3d> ReadPoint(YamlMap& map, const YamlNode& node) {
   }
   Eigen::Vector3d p;
   for (int k = 0; k < 3; ++k) {
-    const auto [ptr, ec] = std::from_chars(e[k].Scalar().data(),
+    const auto [ptr, ec] = FromCharsRounded(e[k].Scalar().data(),
                                            e[k].Scalar().data() + e[k].Scalar().size(), p[k]);
     if (ec != std::errc() || ptr != e[k].Scalar().data() + e[k].Scalar().size()) {
       map.Fail(e[k], "expected a number, got " + e[k].Describe());

@@ -1,5 +1,6 @@
 #include "registration/features/intrinsics_yaml.h"
 
+#include "config/decimal_number.h"
 #include "config/input_file.h"
 #include "config/text_escape.h"
 #include "config/yaml_reader.h"
@@ -34,11 +35,9 @@ bool ReadNumbers(const YamlNode& node, int n, double* out, YamlErrors* errors) {
     return false;
   }
   for (int k = 0; k < n; ++k) {
-    try {
-      std::size_t used = 0;
-      out[k] = std::stod(e[k].Scalar(), &used);
-      if (used != e[k].Scalar().size() || !std::isfinite(out[k])) throw std::invalid_argument("");
-    } catch (const std::exception&) {
+    const std::string& s = e[k].Scalar();
+    const auto [end, ec] = FromCharsRounded(s.data(), s.data() + s.size(), out[k]);
+    if (ec != std::errc() || end != s.data() + s.size() || !std::isfinite(out[k])) {
       errors->Add(e[k].ErrorHere("expected a number, got " + e[k].Describe()));
       return false;
     }

@@ -1,5 +1,6 @@
 #include "registration/map/aruco_corners.h"
 
+#include "config/decimal_number.h"
 #include "config/text_escape.h"
 #include "replay/csv_tokenizer.h"
 
@@ -60,7 +61,7 @@ Expected<std::vector<ArucoCornerObservation>> ReadArucoCornersCsv(
         v[k] = std::numeric_limits<double>::quiet_NaN();
         continue;
       }
-      const auto [p, ec] = std::from_chars(t.data(), t.data() + t.size(), v[k]);
+      const auto [p, ec] = FromCharsRounded(t.data(), t.data() + t.size(), v[k]);
       if (ec != std::errc() || p != t.data() + t.size() || !std::isfinite(v[k]))
         return MakeError(path.string(), row.line, row.fields[k].column,
                          "expected a number, got '" + Excerpt(t) + "'");

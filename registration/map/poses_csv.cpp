@@ -1,5 +1,6 @@
 #include "registration/map/poses_csv.h"
 
+#include "config/decimal_number.h"
 #include "config/text_escape.h"
 #include "replay/csv_tokenizer.h"
 
@@ -54,7 +55,7 @@ Expected<std::vector<FramePose>> ReadPosesCsv(const std::filesystem::path& path)
     double v[9];
     for (int k = 0; k < 9; ++k) {
       const std::string& s = row.fields[k].text;
-      const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v[k]);
+      const auto [end, ec] = FromCharsRounded(s.data(), s.data() + s.size(), v[k]);
       // from_chars also takes "inf" and "nan": neither is a pose.
       if (ec != std::errc() || end != s.data() + s.size() || !std::isfinite(v[k]))
         return MakeError(path.string(), row.line, row.fields[k].column,

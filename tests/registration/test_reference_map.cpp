@@ -211,6 +211,24 @@ TEST(PosesCsv, OutOfRangeAndNonFiniteValuesAreErrors) {
   }
 }
 
+// A value below the smallest double (1e-400) is a finite number that rounds
+// to 0, as in every reader of config/decimal_number.h; 1e400 overflows.
+TEST(PosesCsv, UnderflowReadsAsZeroAndOverflowIsAnError) {
+  test::TempDir tmp;
+  const std::string header = "frame,vicon_frame,tx_mm,ty_mm,tz_mm,qw,qx,qy,qz\n";
+  test::WriteFile(tmp / "p.csv", header + "3,0,1e-400,2,3,1,0,0,-1e-400\n");
+  Expected<std::vector<FramePose>> poses = ReadPosesCsv(tmp / "p.csv");
+  ASSERT_TRUE(poses) << poses.error().message;
+  ASSERT_EQ(poses->size(), 1u);
+  EXPECT_EQ((*poses)[0].world_from_cam.translation().x(), 0.0);
+  EXPECT_EQ((*poses)[0].world_from_cam.translation().y(), 2.0);
+  test::WriteFile(tmp / "p.csv", header + "3,0,1e400,2,3,1,0,0,0\n");
+  poses = ReadPosesCsv(tmp / "p.csv");
+  ASSERT_FALSE(poses);
+  EXPECT_NE(poses.error().message.find(":2:5: expected a number, got '1e400'"), std::string::npos)
+      << poses.error().message;
+}
+
 // intrinsics.yaml is read through the safe open: a FIFO, a folder or
 // /dev/zero is an error at once (it was read with a bare ifstream: a FIFO
 // hung, /dev/zero ran out of memory).
