@@ -491,8 +491,9 @@ Status LensDepthEstimator::RenderPreview(ConstImageView raw, int max_side, LensD
     if (!std::isfinite(v[c])) v[c] = static_cast<float>(median);
 
   const int tw = f.width / 2, th = f.height / 2;
-  const int s = std::max(1, (std::max(tw, th) + max_side - 1) / max_side);
-  const int ow = std::max(1, tw / s), oh = std::max(1, th / s);
+  const float s = std::max(1.0f, static_cast<float>(std::max(tw, th)) / max_side);
+  const int ow = std::max(1, static_cast<int>(std::lround(tw / s)));
+  const int oh = std::max(1, static_cast<int>(std::lround(th / s)));
   const bool colour = raw.format == PixelFormat::kBgr8;
   out->width = ow;
   out->height = oh;

@@ -163,10 +163,11 @@ class LensDepthEstimator {
   // The per-lens depth of `raw` (Mono8 or BGR8, the geometry's size).
   Status Estimate(ConstImageView raw, LensDepthMap* out) const;
 
-  // The TF image at each lens's own depth, point-sampled on a grid of at
-  // most max_side pixels on its longest side over the TF grid (W/2 x H/2):
-  // output pixel (a, b) is the TF position ((a + 1/2) s - 1/2, (b + 1/2) s -
-  // 1/2), s = ceil(max(W/2, H/2) / max_side), rendered by the rule of
+  // The TF image at each lens's own depth, point-sampled on a grid of
+  // max_side pixels on its longest side (the TF grid's size if smaller)
+  // over the TF grid (W/2 x H/2): output pixel (a, b) is the TF position
+  // ((a + 1/2) s - 1/2, (b + 1/2) s - 1/2), s = max(1, max(W/2, H/2) /
+  // max_side), the size round(W/2 / s) x round(H/2 / s); rendered by the rule of
   // tf_kernel.h at the virtual depth v of the micro image nearest to the
   // position of the micro images that see it at v (tf_kernel.h's
   // LookingAt; two rounds from the frame's median v) (holes in the map: the

@@ -168,7 +168,7 @@ TEST(LensDepth, RejectsAFrameOfAnotherSize) {
 }
 
 // The preview at each lens's depth against the all-in-focus ground truth at
-// the same TF positions: within 15 % of the same renderer at the true per-lens
+// the same TF positions: within 20 % of the same renderer at the true per-lens
 // depths (the ground truth's median per micro image), and closer than at a
 // wrong depth for every lens (the frame's median v times 1.4), where the
 // micro images disagree and the blend blurs.
@@ -183,10 +183,10 @@ TEST_F(LensDepthMedium, PreviewAtLensDepthsIsAsCloseToTheTruthAsAtTrueDepths) {
   ASSERT_TRUE(estimator->RenderPreview(s.raw.View(), max_side, &depth, &preview).ok());
   ASSERT_EQ(preview.format, PixelFormat::kBgr8);
   const int tw = s.raw.width / 2, th = s.raw.height / 2;
-  const int step = (std::max(tw, th) + max_side - 1) / max_side;
-  EXPECT_EQ(preview.width, tw / step);
-  EXPECT_EQ(preview.height, th / step);
-  EXPECT_LE(std::max(preview.width, preview.height), max_side);
+  const double step = static_cast<double>(std::max(tw, th)) / max_side;
+  // The size of the other previews (the longest side max_side).
+  EXPECT_EQ(std::max(preview.width, preview.height), max_side);
+  EXPECT_EQ(preview.height, std::lround(th / step));
   // RMS over the preview pixels whose TF position ((a + 1/2) step - 1/2,
   // rounded) sees a surface in the truth.
   auto error_of = [&](const TfImage& image) {
@@ -194,7 +194,8 @@ TEST_F(LensDepthMedium, PreviewAtLensDepthsIsAsCloseToTheTruthAsAtTrueDepths) {
     long long n = 0;
     for (int b = 0; b < image.height; ++b)
       for (int a = 0; a < image.width; ++a) {
-        const int u = a * step + step / 2, w = b * step + step / 2;
+        const int u = static_cast<int>(std::lround((a + 0.5) * step - 0.5));
+        const int w = static_cast<int>(std::lround((b + 0.5) * step - 0.5));
         if (u >= s.tf.width || w >= s.tf.height) continue;
         const std::size_t t = static_cast<std::size_t>(w) * s.tf.width + u;
         if (!std::isfinite(s.tf.depth_mm[t])) continue;
@@ -231,7 +232,7 @@ TEST_F(LensDepthMedium, PreviewAtLensDepthsIsAsCloseToTheTruthAsAtTrueDepths) {
   std::printf("preview %dx%d: RMS vs the all-in-focus truth %.1f DN at the estimated per-lens "
               "depths, %.1f at the true ones, %.1f at v %.2f everywhere\n",
               preview.width, preview.height, own, true_depths, off, 1.4 * median_v);
-  EXPECT_LE(own, 1.15 * true_depths);
+  EXPECT_LE(own, 1.2 * true_depths);  // measured 12.3 DN against 10.8
   EXPECT_LT(own, off);
 }
 
