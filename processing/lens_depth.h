@@ -69,7 +69,7 @@ class TfKernel;
 
 struct LensDepthOptions {
   int samples = 6;                  // most textured pixels searched per micro image, at most
-  int enough_estimates = 3;         // agreeing estimates after which no further pixel is searched
+  int enough_estimates = 2;         // agreeing estimates after which no further pixel is searched
   // Spacing of the candidate grid; 0: the pitch / 11 rounded, at least 1
   // (3 px on an R32's 34 px micro images, 1 px on 16 px ones).
   double candidate_step_px = 0;
@@ -77,7 +77,7 @@ struct LensDepthOptions {
   double min_gradient_dn = 5.0;     // |dI/de| (DN per px, devignetted grey) to be textured
   double noise_dn = 2.5;            // sigma_I of the raw grey level
   double ring1_step_px = 1.0;       // disparity step of the ring-1 search: 1, 0.5 or 0.25
-  double ring2_step_px = 0.5;       // of the ring-2 search around the ring-1 result
+  double ring2_step_px = 1.0;       // of the ring-2 search around the ring-1 result
   // Lines of the ring-1 patch: 1 (5 x 1: a third of the samples; ring 2
   // refines with 5 x 3) or 3.
   int ring1_lines = 1;

