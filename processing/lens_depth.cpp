@@ -156,6 +156,29 @@ void LensMedianOf(const PlenopticFrame& f, const LensGrid& grid, const std::vect
   });
 }
 
+struct LensDepthEstimator::LatticeTables {
+  // Per direction m (ring 1: 0..5, ring 2: 6..11, the order of kRing1 and
+  // kRing2) the neighbour without its lens; per axis its unit direction.
+  std::array<detail::Neighbour, 12> neighbour;
+  std::array<std::array<float, 2>, 6> axis_e{};
+  explicit LatticeTables(const Eigen::Matrix2d& lattice) {
+    for (int m = 0; m < 12; ++m) {
+      const int ring = m < 6 ? 1 : 2, dir = m % 6;
+      const auto& d = (ring == 1 ? detail::kRing1 : detail::kRing2)[dir];
+      const Eigen::Vector2d delta = lattice * Eigen::Vector2d(d[0], d[1]);
+      detail::Neighbour& nb = neighbour[m];
+      nb.length = delta.norm();
+      nb.delta_x = static_cast<float>(delta.x());
+      nb.delta_y = static_cast<float>(delta.y());
+      nb.e_x = static_cast<float>(delta.x() / nb.length);
+      nb.e_y = static_cast<float>(delta.y() / nb.length);
+      nb.axis = 3 * (ring - 1) + dir % 3;
+      nb.flipped = dir >= 3;
+      if (!nb.flipped) axis_e[nb.axis] = {nb.e_x, nb.e_y};
+    }
+  }
+};
+
 LensDepthEstimator::~LensDepthEstimator() = default;
 
 Expected<std::unique_ptr<LensDepthEstimator>> LensDepthEstimator::Create(
@@ -172,6 +195,7 @@ Expected<std::unique_ptr<LensDepthEstimator>> LensDepthEstimator::Create(
   e->options_ = options;
   e->grid_ = LensGrid::Of(e->geometry_);
   e->kernel_ = std::make_unique<detail::TfKernel>(e->geometry_, mla, 1.0);
+  e->tables_ = std::make_unique<LatticeTables>(e->geometry_.grid.lattice);
   // Candidate offsets from the rounded micro-image centre: a square grid of
   // candidate_step_px within candidate_fraction r_valid.
   const double reach = options.candidate_fraction * e->geometry_.radius_px;
@@ -194,33 +218,31 @@ namespace {
 // One micro image: candidates, searches, fusion (lens_depth.h, steps 1-3).
 template <int kChannels>
 void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
+                  const LensDepthEstimator::LatticeTables& tables,
                   const std::vector<std::array<std::int16_t, 2>>& candidates,
                   const detail::SearchRange& range, const detail::MatchParams& ring1,
                   const detail::MatchParams& ring2, const RawGrey<kChannels>& grey, int k,
                   float* v_out, float* sigma_out, float* conf_out, std::uint8_t* textured_out,
                   long long* searched) {
   const MicroImage& lens = f.lenses[k];
+  // The neighbours that exist, from the lattice's templates (c_n - c_k =
+  // A (di, dj) for every lens).
   std::array<detail::Neighbour, 12> nbs;
-  int ring1_count = 0;
-  const int count = detail::FindNeighbours(f, lens, o.rings, &nbs, &ring1_count);
-  // Per axis (3 (ring - 1) + d mod 3): its neighbours (up to two) and its
-  // unflipped unit direction.
+  int count = 0;
   std::array<std::array<int, 2>, 6> axis_nb;
   std::array<int, 6> axis_n{};
-  std::array<std::array<float, 2>, 6> axis_e{};
-  // Unit directions of the lattice axes from the lattice itself (the
-  // neighbours may be missing at the border).
-  const Eigen::Matrix2d& A = f.grid.lattice;
-  for (int ring = 1; ring <= 2; ++ring)
-    for (int d = 0; d < 3; ++d) {
-      const auto& step = (ring == 1 ? detail::kRing1 : detail::kRing2)[d];
-      const Eigen::Vector2d e = (A * Eigen::Vector2d(step[0], step[1])).normalized();
-      axis_e[3 * (ring - 1) + d] = {static_cast<float>(e.x()), static_cast<float>(e.y())};
-    }
-  for (int m = 0; m < count; ++m) {
-    const int a = nbs[m].axis;
-    axis_nb[a][axis_n[a]++] = m;
+  for (int m = 0; m < 6 * o.rings; ++m) {
+    const auto& d = m < 6 ? detail::kRing1[m] : detail::kRing2[m - 6];
+    const int idx = f.LensAt(lens.i + d[0], lens.j + d[1]);
+    if (idx < 0) continue;
+    detail::Neighbour& nb = nbs[count];
+    nb = tables.neighbour[m];
+    nb.lens = &f.lenses[idx];
+    nb.same_type = nb.lens->type == lens.type;
+    axis_nb[nb.axis][axis_n[nb.axis]++] = count;
+    ++count;
   }
+  const std::array<std::array<float, 2>, 6>& axis_e = tables.axis_e;
 
   // 1. Candidates on a square grid around c_k (offsets made once per camera).
   std::array<Candidate, kMaxSamples> best{};
@@ -405,7 +427,7 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out) const
                                      grid_.Col(m.i, m.j);
             out->type[cell] = static_cast<std::int8_t>(m.type);
             out->lens[cell] = k;
-            EstimateLens(f, options_, candidates_, range, ring1, ring2, grey, k, &out->virtual_depth[cell],
+            EstimateLens(f, options_, *tables_, candidates_, range, ring1, ring2, grey, k, &out->virtual_depth[cell],
                          &out->sigma_z[cell], &out->confidence[cell], &out->textured[cell],
                          &my_searched);
             my_textured += out->textured[cell];

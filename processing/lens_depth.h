@@ -177,6 +177,8 @@ class LensDepthEstimator {
 
   const PlenopticFrame& geometry() const { return geometry_; }
   const LensDepthOptions& options() const { return options_; }
+  // The lattice's neighbour steps and axes, the same for every lens (lens_depth.cpp).
+  struct LatticeTables;
 
  private:
   LensDepthEstimator() = default;
@@ -186,6 +188,7 @@ class LensDepthEstimator {
   LensGrid grid_;
   std::unique_ptr<detail::TfKernel> kernel_;
   std::vector<std::array<std::int16_t, 2>> candidates_;  // offsets of step 1
+  std::unique_ptr<LatticeTables> tables_;
 };
 
 }  // namespace lifmcr::processing
