@@ -100,8 +100,8 @@ Status WriteLensCsv(const fs::path& path, const processing::LensDepthMap& d) {
       std::fprintf(file, "%d,%d,%d,%d,%d,%.3f,%.3f,", col, row, i, j, d.type[c], centre.x(),
                    centre.y());
       if (std::isfinite(d.virtual_depth[c]))
-        std::fprintf(file, "%.5f,%.6g,%.4f,%d\n", d.virtual_depth[c], d.sigma_z[c],
-                     d.confidence[c], d.textured[c]);
+        std::fprintf(file, "%.5f,%.6g,%.4f,%d\n", d.virtual_depth[c], d.sigma_z[c], d.confidence[c],
+                     d.textured[c]);
       else
         std::fprintf(file, ",,0,%d\n", d.textured[c]);
     }

@@ -105,12 +105,12 @@ struct SearchRange {
 // estimator's parameters.
 struct MatchParams {
   double lambda = 1;
-  double step_px = 0.5;       // 1, 0.5 or 0.25
-  int samples_per_px = 2;     // 1 / step_px
-  double noise_dn = 2.5;      // sigma_I
+  double step_px = 0.5;    // 1, 0.5 or 0.25
+  int samples_per_px = 2;  // 1 / step_px
+  double noise_dn = 2.5;   // sigma_I
   double max_cost_ratio = 0.5;
-  double geometric_px = 0.05;   // sigma_model of a pair of one lens type
-  double cross_type_px = 0.3;   // sigma_model of a pair of two types
+  double geometric_px = 0.05;  // sigma_model of a pair of one lens type
+  double cross_type_px = 0.3;  // sigma_model of a pair of two types
 };
 
 constexpr int kMaxSteps = 256;
@@ -137,8 +137,8 @@ bool SampleReference(const Bilinear& grey, int width, int height, float px, floa
   constexpr int kHalf = kLines / 2;
   for (int b = -kHalf, m = 0; b <= kHalf; ++b)
     for (int a = -2; a <= 2; ++a, ++m) {
-      out[m] = SampleInDisc(grey, width, height, px + a * e_x - b * e_y, py + a * e_y + b * e_x,
-                            cx, cy, r2);
+      out[m] = SampleInDisc(grey, width, height, px + a * e_x - b * e_y, py + a * e_y + b * e_x, cx,
+                            cy, r2);
       if (std::isnan(out[m])) return false;
     }
   return true;
@@ -163,9 +163,9 @@ inline double PatchGradient2(const float* patch) {
 // patch of one line along the baseline (a third of the samples, for a
 // coarse search whose result a longer baseline refines).
 template <int kLines = kAcross, typename Bilinear>
-bool MatchAlong(const MatchParams& s, const Bilinear& grey, int width, int height,
-                double radius_px, float px, float py, const float* ref, double gradient_sum,
-                const Neighbour& nb, double z_lo, double z_hi, Estimate* est) {
+bool MatchAlong(const MatchParams& s, const Bilinear& grey, int width, int height, double radius_px,
+                float px, float py, const float* ref, double gradient_sum, const Neighbour& nb,
+                double z_lo, double z_hi, Estimate* est) {
   constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
   const double scale = s.lambda * nb.length;  // px of disparity per unit z
   const float cx = static_cast<float>(nb.lens->centre_px.x());

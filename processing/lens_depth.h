@@ -9,8 +9,7 @@
 //    candidate_fraction r_valid of c_k; each scored by its largest gradient
 //    along the three ring-1 axes, |g . e_d| (central differences of the raw
 //    grey times the gain at c_k: the gain varies little over the
-//    candidates, and a read of it per pixel doubles the cache lines a lens
-//    touches, which bound the cost here). Those
+//    candidates, and the gate needs no precision). Those
 //    with a score >= min_gradient_dn are textured; the `samples` best are
 //    searched, most textured first, until enough_estimates of the estimates
 //    so far agree (step 3's fusion) (a micro image with at least one
@@ -68,8 +67,8 @@ class TfKernel;
 }
 
 struct LensDepthOptions {
-  int samples = 6;                  // most textured pixels searched per micro image, at most
-  int enough_estimates = 2;         // agreeing estimates after which no further pixel is searched
+  int samples = 6;           // most textured pixels searched per micro image, at most
+  int enough_estimates = 2;  // agreeing estimates after which no further pixel is searched
   // Spacing of the candidate grid; 0: the pitch / 11 rounded, at least 1
   // (3 px on an R32's 34 px micro images, 1 px on 16 px ones).
   double candidate_step_px = 0;
@@ -81,21 +80,21 @@ struct LensDepthOptions {
   // Lines of the ring-1 patch: 1 (5 x 1: a third of the samples; ring 2
   // refines with 5 x 3) or 3.
   int ring1_lines = 1;
-  int rings = 2;                    // 1 or 2
-  double geometric_px = 0.05;       // sigma_model of a pair of one type
-  double cross_type_px = 0.3;       // of two types (their different blur)
-  double max_cost_ratio = 0.5;      // best SSD <= ratio * mean SSD of the search (+ noise)
-  double fuse_gate = 0.05;          // outlier gate of the fusion, share of z
-  int min_estimates = 2;            // agreeing estimates per micro image
-  double max_rel_sigma = 0.1;       // sigma_z / z above this: rejected
-  Status Check() const;             // every field; the message names the field
+  int rings = 2;                // 1 or 2
+  double geometric_px = 0.05;   // sigma_model of a pair of one type
+  double cross_type_px = 0.3;   // of two types (their different blur)
+  double max_cost_ratio = 0.5;  // best SSD <= ratio * mean SSD of the search (+ noise)
+  double fuse_gate = 0.05;      // outlier gate of the fusion, share of z
+  int min_estimates = 2;        // agreeing estimates per micro image
+  double max_rel_sigma = 0.1;   // sigma_z / z above this: rejected
+  Status Check() const;         // every field; the message names the field
 };
 
 // The layout of the lens grid (header comment).
 struct LensGrid {
   int cols = 0, rows = 0;
   int j_top = 0, col_base = 0;
-  Eigen::Vector2d origin_px = Eigen::Vector2d::Zero();  // o: centre of lens (0, 0)
+  Eigen::Vector2d origin_px = Eigen::Vector2d::Zero();    // o: centre of lens (0, 0)
   Eigen::Matrix2d lattice = Eigen::Matrix2d::Identity();  // A
   int type_sign = 1;                                      // type = (sigma (i - j)) mod 3
   double lambda = 1;                                      // b_L0 / (b_L0 + B) of l_k
@@ -123,18 +122,19 @@ struct LensDepthStats {
   long long estimated = 0;  // with a virtual depth
   long long searched_pixels = 0;
   double seconds = 0;
-  // "lens depth: 30112 of 31980 textured lenses (94.2 %; 32385 lenses), 1.2e5 pixels searched, 0.041 s"
+  // "lens depth: 30112 of 31980 textured lenses (94.2 %; 32385 lenses), 1.2e5 pixels searched,
+  // 0.041 s"
   std::string BriefReport() const;
 };
 
 struct LensDepthMap {
   LensGrid grid;
-  std::vector<float> virtual_depth;  // per cell, row-major; NaN: no estimate
-  std::vector<float> sigma_z;        // of z = 1 / v; NaN: no estimate
-  std::vector<float> confidence;     // 0..1; 0 without an estimate
-  std::vector<std::int8_t> type;     // lens type, -1: no micro image in the cell
+  std::vector<float> virtual_depth;    // per cell, row-major; NaN: no estimate
+  std::vector<float> sigma_z;          // of z = 1 / v; NaN: no estimate
+  std::vector<float> confidence;       // 0..1; 0 without an estimate
+  std::vector<std::int8_t> type;       // lens type, -1: no micro image in the cell
   std::vector<std::uint8_t> textured;  // 1: a textured candidate
-  std::vector<std::int32_t> lens;    // index into the geometry's lenses, -1: none
+  std::vector<std::int32_t> lens;      // index into the geometry's lenses, -1: none
   LensDepthStats stats;
   std::vector<float> filled_v, fill_scratch;  // scratch of RenderPreview
   std::size_t Cell(int col, int row) const {

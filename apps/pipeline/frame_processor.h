@@ -72,7 +72,7 @@ struct ProcessedFrame {
   std::optional<EncodedImage> preview;  // <PREFIX>_<SERIAL>_PREVIEW
   std::optional<EncodedDepth> depth;    // <PREFIX>_<SERIAL>_DEPTH, TF grid
   std::optional<EncodedLensDepth> lens_depth;  // <PREFIX>_<SERIAL>_DEPTH, lens grid
-  std::optional<EncodedImage> tf;       // <PREFIX>_<SERIAL>_TF (the TF image or the lens preview)
+  std::optional<EncodedImage> tf;  // <PREFIX>_<SERIAL>_TF (the TF image or the lens preview)
   // The chain's products (TF image, depth, metric depth) and the camera's
   // model when its intrinsics are known: null for previews only. They view
   // the frame's pooled buffer, which the pipeline keeps until the frame is

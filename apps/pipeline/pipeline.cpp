@@ -358,8 +358,8 @@ struct Pipeline::Impl {
         std::lock_guard r(report_mutex);
         ++report.lens_failed;
         report.last_error = result.job.frame.serial + " frame " +
-                            std::to_string(result.job.frame.frame_id) + ": per-lens depth: " +
-                            lenses.error().message;
+                            std::to_string(result.job.frame.frame_id) +
+                            ": per-lens depth: " + lenses.error().message;
       } else {
         result.processed->lens_depth = std::move(lenses->lens_depth);
         result.processed->tf = std::move(lenses->tf);
@@ -814,10 +814,10 @@ std::string PipelineReport::FinalReport() const {
   if (depth_processed + depth_skipped + depth_failed > 0)
     out << "depth lane (registration first): processed " << depth_processed << "  skipped "
         << depth_skipped << "  failed " << depth_failed << "  CPU " << depth_cpu_s << " s\n";
-  out
-      << "published: " << published_previews << " previews, "
-      << published_depth + published_lens_depth << " depth, " << published_tf << " TF, " << published_extrinsics << " extrinsics, " << published_vicon
-      << " Vicon, " << published_stats << " stats messages";
+  out << "published: " << published_previews << " previews, "
+      << published_depth + published_lens_depth << " depth, " << published_tf << " TF, "
+      << published_extrinsics << " extrinsics, " << published_vicon << " Vicon, " << published_stats
+      << " stats messages";
   if (publish_errors) out << ", " << publish_errors << " publish errors";
   out << "\n";
   if (published_lens_depth > 0)

@@ -94,8 +94,8 @@ TEST(CliDepth, GridAndDepthOnASyntheticDataset) {
       int col = 0, row = 0, i = 0, j = 0, type = 0;
       double x = 0, y = 0;
       char rest[128] = {0};
-      ASSERT_EQ(std::sscanf(line.c_str(), "%d,%d,%d,%d,%d,%lf,%lf,%127s", &col, &row, &i, &j,
-                            &type, &x, &y, rest),
+      ASSERT_EQ(std::sscanf(line.c_str(), "%d,%d,%d,%d,%d,%lf,%lf,%127s", &col, &row, &i, &j, &type,
+                            &x, &y, rest),
                 8)
           << line;
       ASSERT_GE(col, 0);

@@ -84,10 +84,11 @@ TEST_F(LensDepthMedium, MeetsTheGates) {
   std::vector<float> truth;
   LensMedianOf(estimator->geometry(), depth.grid, s.raw.virtual_depth, 0.5, &truth);
   const Accuracy a = Measure(depth, truth);
-  std::printf("medium table: %s\nvs truth: %lld of %lld textured lenses (%.1f %%), median |dv|/v "
-              "%.2f %%, outliers (> 10 %%) %lld\n",
-              depth.stats.BriefReport().c_str(), a.estimated, a.textured, 100 * a.coverage,
-              100 * a.median, a.outliers);
+  std::printf(
+      "medium table: %s\nvs truth: %lld of %lld textured lenses (%.1f %%), median |dv|/v "
+      "%.2f %%, outliers (> 10 %%) %lld\n",
+      depth.stats.BriefReport().c_str(), a.estimated, a.textured, 100 * a.coverage, 100 * a.median,
+      a.outliers);
   ASSERT_GT(a.textured, 5000);
   EXPECT_GE(a.coverage, 0.90);
   EXPECT_LE(a.median, 0.02);
@@ -227,11 +228,11 @@ TEST_F(LensDepthMedium, PreviewAtLensDepthsIsAsCloseToTheTruthAsAtTrueDepths) {
   for (float& x : wrong.virtual_depth) x = static_cast<float>(1.4 * median_v);
   TfImage at_wrong;
   ASSERT_TRUE(estimator->RenderPreview(s.raw.View(), max_side, &wrong, &at_wrong).ok());
-  const double own = error_of(preview), true_depths = error_of(at_truth),
-               off = error_of(at_wrong);
-  std::printf("preview %dx%d: RMS vs the all-in-focus truth %.1f DN at the estimated per-lens "
-              "depths, %.1f at the true ones, %.1f at v %.2f everywhere\n",
-              preview.width, preview.height, own, true_depths, off, 1.4 * median_v);
+  const double own = error_of(preview), true_depths = error_of(at_truth), off = error_of(at_wrong);
+  std::printf(
+      "preview %dx%d: RMS vs the all-in-focus truth %.1f DN at the estimated per-lens "
+      "depths, %.1f at the true ones, %.1f at v %.2f everywhere\n",
+      preview.width, preview.height, own, true_depths, off, 1.4 * median_v);
   EXPECT_LE(own, 1.25 * true_depths);  // measured 12.8 DN against 10.8
   EXPECT_LT(own, off);
 }
