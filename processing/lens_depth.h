@@ -9,19 +9,17 @@
 //    candidate_fraction r_valid of c_k; each scored by its largest gradient
 //    along the three ring-1 axes, |g . e_d| (central differences of the raw
 //    grey times the gain at c_k: the gain varies little over the
-//    candidates, and the gate needs no precision). Those
-//    with a score >= min_gradient_dn are textured; the `samples` best are
-//    searched, most textured first, until enough_estimates of the estimates
-//    so far agree (step 3's fusion) (a micro image with at least one
-//    textured candidate is a textured lens).
+//    candidates, and the gate needs no precision). Those with a score >=
+//    min_gradient_dn are textured (a micro image with at least one is a
+//    textured lens); the `samples` best are searched, most textured first,
+//    until enough_estimates of the estimates so far agree (step 3's fusion).
 // 2. Per searched pixel p, on its best ring-1 axis: the two ring-1
 //    neighbours along it (both of the other types), the epipolar search of
 //    processing/epipolar_search.h over the union of the MLA file's depth
-//    ranges in steps of ring1_step_px with a patch of ring1_lines lines; then,
-//    around their fusion (+- 3 sigma,
-//    at least two steps), the two ring-2 neighbours (|Delta| = sqrt(3) D,
-//    the same type) on the ring-2 axis with the largest gradient, in steps
-//    of ring2_step_px.
+//    ranges in steps of ring1_step_px with a patch of ring1_lines lines;
+//    then, around their fusion (+- 3 sigma, at least two steps), the two
+//    ring-2 neighbours (|Delta| = sqrt(3) D, the same type) on the ring-2
+//    axis with the largest gradient, in steps of ring2_step_px (5 x 3).
 // 3. All estimates of the micro image (up to 4 per searched pixel) are fused
 //    in z = 1 / v weighted by 1 / sigma^2, without those farther than
 //    max(3 sigma, fuse_gate z) from their median; at least min_estimates
@@ -40,9 +38,10 @@
 // bases), rows run down the image and a column stays within half a pitch
 // of one image x, so the micro images fill the grid without gaps.
 // Inverse: j = j_top - row, i = col + col_base - floor(j / 2); centre
-// c(i, j) = o + A (i, j)^T. A lens's virtual point at depth v (its
-// micro-image centre's) is x_v = c + (lambda + v (1 - lambda)) (c_k - c)
-// (tf_kernel.h), the TF pixel (x_v - 0.5) / 2 (total_focus.h).
+// c(i, j) = o + A (i, j)^T. The virtual point that lens k's micro-image
+// centre sees at depth v is x_v = p + (lambda + v (1 - lambda)) (c_k - p),
+// p the principal point (tf_kernel.h), on TF pixel (x_v - 0.5) / 2
+// (total_focus.h).
 //
 // Work is parallel over micro images (TBB); each cell is written once.
 // Estimate allocates nothing once `out` has the grid's size (a workspace
