@@ -2,7 +2,8 @@
 // cameras.yaml]` or `lifmcr depth --raw FILE --mla MLA.xml --out DIR`: one
 // raw frame (BMP, PNG or TIFF; replay/raw_image.h) to virtual depth (raw and
 // TF grids, with the confidence map on the raw grid), the
-// totally focused image, metric depth and a coloured point cloud, by the
+// totally focused image, metric depth, a coloured point cloud and the
+// per-lens virtual depth with its TF preview, by the
 // processing chain replay and `record --publish` run too
 // (processing/frame_chain.h; files found by apps/pipeline/camera_setup.h).
 // The OpenCV (TIFF, PNG, colour map) boundary of the processing library is
@@ -80,6 +81,32 @@ Status WriteDepthPng(const fs::path& path, const processing::TfDepthMap& depth, 
   } catch (const cv::Exception& e) {
     return Error{path.string() + ": " + e.what()};
   }
+  return Status::Ok();
+}
+
+// The per-lens product as text: one row per micro image of the frame
+// (docs/processing.md, "Files").
+Status WriteLensCsv(const fs::path& path, const processing::LensDepthMap& d) {
+  std::FILE* file = std::fopen(path.c_str(), "w");
+  if (file == nullptr) return Error{path.string() + ": could not write"};
+  std::fprintf(file, "col,row,i,j,type,x_px,y_px,virtual_depth,sigma_z,confidence,textured\n");
+  for (int row = 0; row < d.grid.rows; ++row)
+    for (int col = 0; col < d.grid.cols; ++col) {
+      const std::size_t c = d.Cell(col, row);
+      if (d.type[c] < 0) continue;
+      int i = 0, j = 0;
+      d.grid.Lens(col, row, &i, &j);
+      const Eigen::Vector2d centre = d.grid.Centre(col, row);
+      std::fprintf(file, "%d,%d,%d,%d,%d,%.3f,%.3f,", col, row, i, j, d.type[c], centre.x(),
+                   centre.y());
+      if (std::isfinite(d.virtual_depth[c]))
+        std::fprintf(file, "%.5f,%.6g,%.4f,%d\n", d.virtual_depth[c], d.sigma_z[c], d.confidence[c],
+                     d.textured[c]);
+      else
+        std::fprintf(file, ",,0,%d\n", d.textured[c]);
+    }
+  const bool ok = std::ferror(file) == 0;
+  if (std::fclose(file) != 0 || !ok) return Error{path.string() + ": could not write"};
   return Status::Ok();
 }
 
@@ -189,6 +216,11 @@ int RunDepth(const DepthCommandOptions& o) {
               tf.width, tf.height, 100.0 * tf_depth.measured / tf_n,
               100.0 * tf_depth.filled / tf_n);
 
+  auto lenses = (*chain)->ProcessLenses(raw->View(), 512);
+  if (!lenses) return Fail(raw_path.string() + ": " + lenses.error().message);
+  const processing::LensProducts& lens = **lenses;
+  std::printf("lenses    %.3f s  %s\n", lens.depth_s + lens.preview_s, lens.BriefReport().c_str());
+
   t = std::chrono::steady_clock::now();
   std::error_code ec;
   fs::create_directories(o.out, ec);
@@ -213,6 +245,14 @@ int RunDepth(const DepthCommandOptions& o) {
       !s)
     return Fail(s.error().message);
   if (Status s = synth::WritePng(out / (stem + "_tf.png"), tf.View()); !s)
+    return Fail(s.error().message);
+  if (Status s = WriteLensCsv(out / (stem + "_lens_depth.csv"), lens.depth); !s)
+    return Fail(s.error().message);
+  if (Status s = synth::WriteFloatTiff(out / (stem + "_lens_depth.tiff"), lens.depth.grid.cols,
+                                       lens.depth.grid.rows, lens.depth.virtual_depth);
+      !s)
+    return Fail(s.error().message);
+  if (Status s = synth::WritePng(out / (stem + "_lens_tf.png"), lens.preview.View()); !s)
     return Fail(s.error().message);
   double v_lo = 1e9, v_hi = 0;
   for (const MlaLensType& type : camera.mla().lens_types) {
@@ -301,8 +341,11 @@ CommandRun AddDepthCommand(CLI::App& app) {
       "exists; without one the vignetting comes from the frame, or the frame is taken as\n"
       "already devignetted, and the output says which); --intrinsics cameras.yaml.\n"
       "Writes: into --out, <stem>_virtual_depth.tiff, _confidence.tiff (raw grid, float32),\n"
-      "_virtual_depth_tf.tiff, _tf.png, _depth.png (TF grid), and with --intrinsics\n"
-      "_depth_mm.tiff and _points.ply; <stem> is <serial>_<frame> or the --raw file's stem.\n"
+      "_virtual_depth_tf.tiff, _tf.png, _depth.png (TF grid), the per-lens depth\n"
+      "_lens_depth.csv (col,row,i,j,type,x_px,y_px,virtual_depth,sigma_z,confidence,textured;\n"
+      "one row per micro image), _lens_depth.tiff (float32, the lens grid) and _lens_tf.png\n"
+      "(TF preview at each lens's depth), and with --intrinsics _depth_mm.tiff and\n"
+      "_points.ply; <stem> is <serial>_<frame> or the --raw file's stem.\n"
       "Progress: each stage's time per frame, and with several frames (--frame A B ..,\n"
       "--all-frames) a line before each.\n"
       "Exit codes: 0 written; 1 an input could not be read or processed (the message names\n"

@@ -64,7 +64,7 @@ class RateMeter {
 };
 
 struct CameraView {
-  RateMeter preview, depth, tf, extrinsics_rate;
+  RateMeter preview, depth, lens_depth, tf, extrinsics_rate;
   double last_latency_ms = 0;  // receive - utime of the last preview
   std::int64_t last_frame = -1;
   float valid_fraction = 0, min_v = 0, max_v = 0;
@@ -120,6 +120,12 @@ class Monitor {
   void OnDepth(const lcm::ReceiveBuffer*, const std::string&, const lifmcr_lcm::depth_image_t* m) {
     if (!Known(m->serial)) return;
     CameraView& c = cameras_[m->serial];
+    // The per-lens maps (every frame processing takes) have a rate of their
+    // own; coverage and range are the dense map's.
+    if (m->geometry == lifmcr_lcm::depth_image_t::GEOMETRY_LENS_GRID) {
+      c.lens_depth.Tick(NowS());
+      return;
+    }
     c.depth.Tick(NowS());
     c.valid_fraction = m->valid_fraction;
     c.min_v = m->min_value;
@@ -150,15 +156,18 @@ class Monitor {
     char line[512];
     out << "lifmcr monitor  " << (url.empty() ? "LCM default URL" : url)
         << "   (q or Ctrl-C quits)\n\n";
-    // 73 columns: camera, rates (Hz), latency (ms), last frame, depth %, range.
-    std::snprintf(line, sizeof line, "%-10s %7s %8s %6s %10s %6s %6s %13s\n", "camera", "prev Hz",
-                  "depth Hz", "TF Hz", "latency ms", "frame", "depth%", "virtual depth");
+    // 79 columns: camera, rates (Hz; lens: per-lens depth maps), latency
+    // (ms), last frame, depth %, range.
+    std::snprintf(line, sizeof line, "%-10s %7s %8s %5s %6s %10s %6s %6s %13s\n", "camera",
+                  "prev Hz", "depth Hz", "lens", "TF Hz", "latency ms", "frame", "depth%",
+                  "virtual depth");
     out << line;
     if (cameras_.empty()) out << "  (no camera channel yet)\n";
     for (auto& [serial, c] : cameras_) {
       std::snprintf(
-          line, sizeof line, "%-10.10s %7.1f %8.1f %6.1f %10.1f %6lld %6.1f %6.2f..%-5.2f\n",
-          serial.c_str(), c.preview.Hz(now), c.depth.Hz(now), c.tf.Hz(now), c.last_latency_ms,
+          line, sizeof line, "%-10.10s %7.1f %8.1f %5.1f %6.1f %10.1f %6lld %6.1f %6.2f..%-5.2f\n",
+          serial.c_str(), c.preview.Hz(now), c.depth.Hz(now), c.lens_depth.Hz(now), c.tf.Hz(now),
+          c.last_latency_ms,
           static_cast<long long>(c.last_frame), 100.0 * c.valid_fraction, c.min_v, c.max_v);
       out << line;
     }
@@ -327,8 +336,9 @@ CommandRun AddMonitorCommand(CLI::App& app) {
   auto args = std::make_shared<Args>();
   app.footer(
       "A terminal view of the LIFMCR_* LCM channels, refreshed in place twice a second:\n"
-      "per camera the preview, depth and TF rates, latency (receipt - publication),\n"
-      "last frame, depth coverage and range; the latest extrinsics when published; the\n"
+      "per camera the preview, depth, per-lens depth (lens) and TF rates, latency\n"
+      "(receipt - publication), last frame, depth coverage and range; the latest\n"
+      "extrinsics when published; the\n"
       "Vicon rate and occlusions per object; the pipeline's stages and drops from\n"
       "LIFMCR_STATS. q or Ctrl-C quits. The view fits the terminal (80x24 and up; lines\n"
       "are clipped, a note says how many lines do not fit) and is redrawn when it is\n"

@@ -7,14 +7,24 @@
 //     naive reference measured in the same run: brute-force block matching
 //     (5x5 SSD summed over all six first-ring neighbours, every disparity step
 //     of 0.5 px over the MLA file's depth range, every valid pixel) on a crop;
+//   - per-lens virtual depth (processing/lens_depth.h): ms per frame
+//     (median of runs), with the dense search over the same frame as the
+//     baseline of the same run; accuracy against the ground truth reduced
+//     per micro image (its median): coverage of the textured lenses, median
+//     |dv|/v, outliers, beside the dense map reduced the same way; and the
+//     TF preview at each lens's depth (512 px);
 //   - TF image: output MP/s (TF depth + rendering), beside the same on one
 //     thread and a naive renderer (every micro image that sees the point,
 //     averaged) on a crop of the TF grid.
+//   The load average is printed with the figures.
 //   bench_depth [--preset r32|medium|small] [--scene table|plain] [--repeat N] [--crop PX]
 //               [--stride 0|1|2] [--ring1 1..6] [--ring2 0..6] [--type-ranges 0|1] (DepthOptions)
+//               [--lens-only 1] (dense baseline and per-lens depth only: no grid fit, naive
+//               references or TF) [--lens-samples N]
 
 #include "bench/bench_usage.h"
 #include "processing/camera_model.h"
+#include "processing/lens_depth.h"
 #include "processing/mla_grid.h"
 #include "processing/plenoptic_frame.h"
 #include "processing/total_focus.h"
@@ -32,7 +42,9 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <ctime>
 #include <string>
 #include <vector>
 
@@ -43,6 +55,20 @@ namespace {
 
 double Now() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+double ProcessCpuSeconds() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
+std::string LoadAverage() {
+  double load[3] = {0, 0, 0};
+  if (getloadavg(load, 3) != 3) return "load average unknown";
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "load average %.2f %.2f %.2f", load[0], load[1], load[2]);
+  return buf;
 }
 
 double Median(std::vector<double> v) {
@@ -175,6 +201,8 @@ int main(int argc, char** argv) {
   std::string preset = "r32", scene_name = "table";
   int repeat = 3, crop = 256;
   DepthOptions depth_options;
+  LensDepthOptions lens_options;
+  bool lens_only = false;
   for (int k = 1; k + 1 < argc; k += 2) {
     if (!std::strcmp(argv[k], "--preset"))
       preset = argv[k + 1];
@@ -190,6 +218,10 @@ int main(int argc, char** argv) {
       depth_options.max_ring1 = std::atoi(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--type-ranges"))
       depth_options.type_ranges = std::atoi(argv[k + 1]) != 0;
+    else if (!std::strcmp(argv[k], "--lens-only"))
+      lens_only = std::atoi(argv[k + 1]) != 0;
+    else if (!std::strcmp(argv[k], "--lens-samples"))
+      lens_options.samples = std::atoi(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--ring2"))
       depth_options.max_ring2 = std::atoi(argv[k + 1]);
     else {
@@ -229,7 +261,7 @@ int main(int argc, char** argv) {
   // Grid fit.
   std::vector<double> grid_s;
   GridFitResult fit;
-  for (int r = 0; r < repeat; ++r) {
+  for (int r = 0; r < (lens_only ? 0 : repeat); ++r) {
     Expected<GridFitResult> g = FitGridToWhiteImage(white.View(), nullptr);
     if (!g) {
       std::fprintf(stderr, "grid fit: %s\n", g.error().message.c_str());
@@ -238,7 +270,8 @@ int main(int argc, char** argv) {
     grid_s.push_back(g->seconds);
     fit = *g;
   }
-  std::printf("grid fit: %.3f s (median), %s\n", Median(grid_s), fit.BriefReport().c_str());
+  if (!lens_only)
+    std::printf("grid fit: %.3f s (median), %s\n", Median(grid_s), fit.BriefReport().c_str());
 
   // Virtual depth.
   CameraIntrinsics k;
@@ -302,6 +335,83 @@ int main(int argc, char** argv) {
   const double depth_mps = raw_mp / Median(depth_s);
   std::printf("metric depth (true intrinsics) at the raw estimates: median |dZ|/Z %.2f %%\n",
               rel_mm.empty() ? 100.0 : 100 * Median(rel_mm));
+  std::printf(
+      "depth: %.2f raw MP/s (%.3f s median per %.1f MP frame); coverage %.1f %% of "
+      "textured, median |dz|/z %.2f %%, outliers %.2f %%: gates %s (%s)\n",
+      depth_mps, Median(depth_s), raw_mp, 100 * coverage, 100 * median, 100 * outlier_share,
+      gates ? "hold" : "DO NOT hold", LoadAverage().c_str());
+  std::printf("depth: of it per-frame prepare (devignetting, smoothing) %.3f s median\n",
+              Median(prepare_s));
+
+  // Per-lens virtual depth on the same frame; the dense search above is its baseline.
+  {
+    PlenopticFrame geometry;
+    if (!PrepareGeometry(white.View(), raw.width, raw.height, grid, mla, fo, &geometry).ok())
+      return 1;
+    auto estimator = LensDepthEstimator::Create(std::move(geometry), mla, lens_options);
+    if (!estimator) {
+      std::fprintf(stderr, "lens depth: %s\n", estimator.error().message.c_str());
+      return 2;
+    }
+    LensDepthMap lens;
+    TfImage preview;
+    std::vector<double> lens_s, lens_cpu_s, preview_s;
+    for (int r = 0; r <= repeat; ++r) {  // run 0: warm-up (first touch), not timed
+      t0 = Now();
+      const double cpu0 = ProcessCpuSeconds();
+      if (!(*estimator)->Estimate(raw.View(), &lens).ok()) return 1;
+      const double t1 = Now();
+      if (r > 0) lens_cpu_s.push_back(ProcessCpuSeconds() - cpu0);
+      if (!(*estimator)->RenderPreview(raw.View(), 512, &lens, &preview).ok()) return 1;
+      if (r > 0) {
+        lens_s.push_back(t1 - t0);
+        preview_s.push_back(Now() - t1);
+      }
+    }
+    std::vector<float> truth, dense;
+    LensMedianOf((*estimator)->geometry(), lens.grid, raw.virtual_depth, 0.5, &truth);
+    LensMedianOf((*estimator)->geometry(), lens.grid, depth.virtual_depth, 0.1, &dense);
+    auto measure = [&](const std::vector<float>& v, long long* tex, long long* est,
+                       long long* out_n) {
+      std::vector<double> rel;
+      *tex = *est = *out_n = 0;
+      for (std::size_t c = 0; c < truth.size(); ++c) {
+        if (!lens.textured[c] || !std::isfinite(truth[c])) continue;
+        ++*tex;
+        if (!std::isfinite(v[c])) continue;
+        ++*est;
+        rel.push_back(std::abs(v[c] - truth[c]) / truth[c]);
+        if (rel.back() > 0.10) ++*out_n;
+      }
+      return rel.empty() ? 1.0 : Median(rel);
+    };
+    long long tex = 0, est = 0, outl = 0, dtex = 0, dest = 0, doutl = 0;
+    const double lens_median = measure(lens.virtual_depth, &tex, &est, &outl);
+    const double dense_median = measure(dense, &dtex, &dest, &doutl);
+    const double lens_ms = 1e3 * Median(lens_s);
+    const double lens_cov = tex ? static_cast<double>(est) / tex : 0;
+    std::printf("lens depth: %s\n", lens.stats.BriefReport().c_str());
+    std::printf(
+        "lens depth: %.1f ms median per %.1f MP frame (%zu lenses, %.0f frames/s; CPU %.1f ms "
+        "per frame, all threads); dense search on the same frame %.0f ms: ratio %.0fx (%s)\n",
+        lens_ms, raw_mp, (*estimator)->geometry().lenses.size(), 1e3 / lens_ms,
+        1e3 * Median(lens_cpu_s), 1e3 * Median(depth_s), 1e3 * Median(depth_s) / lens_ms,
+        LoadAverage().c_str());
+    std::printf(
+        "lens depth vs truth (per-lens median): %lld of %lld textured lenses (%.1f %%), median "
+        "|dv|/v %.2f %%, outliers (> 10 %%) %.2f %%: gates (<= 50 ms, >= 90 %%, <= 2 %%) %s\n",
+        est, tex, 100 * lens_cov, 100 * lens_median, est ? 100.0 * outl / est : 0.0,
+        lens_ms <= 50 && lens_cov >= 0.9 && lens_median <= 0.02 ? "hold" : "DO NOT hold");
+    std::printf(
+        "dense map reduced per lens, same lenses: %lld of %lld (%.1f %%), median |dv|/v %.2f %%, "
+        "outliers %.2f %%\n",
+        dest, dtex, dtex ? 100.0 * dest / dtex : 0.0, 100 * dense_median,
+        dest ? 100.0 * doutl / dest : 0.0);
+    std::printf("lens preview: %dx%d in %.1f ms median\n", preview.width, preview.height,
+                1e3 * Median(preview_s));
+  }
+  if (lens_only) return 0;
+
   // Naive reference on a crop at the image centre (one run; it is slow).
   const int cx = raw.width / 2 - crop / 2, cy = raw.height / 2 - crop / 2;
   std::vector<float> naive;
@@ -309,13 +419,6 @@ int main(int argc, char** argv) {
   const long long naive_pixels = NaiveBlockMatching(frame, mla, cx, cy, crop, &naive);
   const double naive_s = Now() - t0;
   const double naive_mps = crop * static_cast<double>(crop) / 1e6 / naive_s;
-  std::printf(
-      "depth: %.2f raw MP/s (%.3f s median per %.1f MP frame); coverage %.1f %% of "
-      "textured, median |dz|/z %.2f %%, outliers %.2f %%: gates %s\n",
-      depth_mps, Median(depth_s), raw_mp, 100 * coverage, 100 * median, 100 * outlier_share,
-      gates ? "hold" : "DO NOT hold");
-  std::printf("depth: of it per-frame prepare (devignetting, smoothing) %.3f s median\n",
-              Median(prepare_s));
   std::printf(
       "naive block matching: %.4f raw MP/s (%dx%d crop, %lld pixels, %.2f s, 1 thread); "
       "ratio %.1fx\n",

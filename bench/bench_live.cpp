@@ -19,7 +19,8 @@
 // per second (and frames in, of the 20 offered per second: the replay
 // cameras' losses, sync's and the pauses between passes of the loop make
 // the difference), previews and depth maps published per second (with a
-// registration stage the depth lane's, apps/pipeline/pipeline.h), and
+// registration stage the depth lane's, apps/pipeline/pipeline.h), the
+// per-lens depth maps and TF images per second (every frame taken), and
 // Localize's mean time tracked vs relocalised. Ratios: track / relocalise
 // extrinsics rate and latency; depth maps published track / depth only
 // (what localising every frame costs the depth lane).
@@ -187,6 +188,7 @@ struct RunFigures {
   int extrinsics = 0;
   std::vector<double> latency_ms;
   std::uint64_t processed = 0, skipped = 0, previews = 0, depth = 0;
+  std::uint64_t lens_depth = 0, tf = 0;  // per-lens depth maps, TF images published
   std::uint64_t frames_in = 0, underruns = 0, incomplete_sets = 0;
   double depth_cpu_s = 0;  // the depth lane's thread (registration runs only)
   std::string registration;
@@ -294,6 +296,8 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
   f.skipped = result->report.skipped;
   f.previews = result->report.published_previews;
   f.depth = result->report.published_depth;
+  f.lens_depth = result->report.published_lens_depth;
+  f.tf = result->report.published_tf;
   f.frames_in = result->report.frames_in;
   f.underruns = result->camera_underruns;
   f.incomplete_sets = result->report.incomplete_sets;
@@ -400,6 +404,10 @@ int main(int argc, char** argv) {
                 f.label.c_str(), f.HzPerCamera(), f.extrinsics, Percentile(f.latency_ms, 0.5),
                 Percentile(f.latency_ms, 0.99), f.processed / f.elapsed_s, f.skipped / f.elapsed_s,
                 f.previews / f.elapsed_s, f.depth / f.elapsed_s, f.elapsed_s);
+    std::printf("           per-lens depth %.2f/s (%.0f %% of the frames in), TF images %.2f/s\n",
+                f.lens_depth / f.elapsed_s,
+                f.frames_in > 0 ? 100.0 * static_cast<double>(f.lens_depth) / f.frames_in : 0.0,
+                f.tf / f.elapsed_s);
     std::printf("           frames in %.2f/s (of 20 offered), lost by the replay cameras %.2f/s, "
                 "incomplete sets %.2f/s\n",
                 f.frames_in / f.elapsed_s, f.underruns / f.elapsed_s,

@@ -120,6 +120,7 @@ inline bool CheckWire<depth_image_t>(const void* data, std::size_t size) {
   c.Skip(8 + 8);  // hash, utime
   c.String();     // serial
   c.Skip(8 + 8 + 1 + 1 + 4 + 4 + 5 * 4 + 1);
+  c.Skip(4 * 4 + 6 * 8 + 1 + 8 + 2 * 8);         // raw size, lens grid, lambda, principal point
   c.Skip(static_cast<std::size_t>(c.Count(1)));  // data[size]
   return c.ok();
 }

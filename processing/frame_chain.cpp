@@ -48,6 +48,7 @@ Status ChainOptions::Check() const {
   if (Status s = frame.Check(); !s) return Error{"chain options: frame: " + s.error().message};
   if (Status s = depth.Check(); !s) return Error{"chain options: depth: " + s.error().message};
   if (Status s = tf.Check(); !s) return Error{"chain options: tf: " + s.error().message};
+  if (Status s = lens.Check(); !s) return Error{"chain options: lens: " + s.error().message};
   if (Status s = vignetting.Check(); !s)
     return Error{"chain options: vignetting: " + s.error().message};
   // metric_depth, point_cloud, cloud_measured_only: any value.
@@ -62,6 +63,22 @@ std::string ChainProducts::BriefReport() const {
                 tf_depth.width, tf_depth.height, n > 0 ? 100.0 * tf_depth.measured / n : 0.0,
                 n > 0 ? 100.0 * tf_depth.filled / n : 0.0, metric ? " | metric" : "", Seconds());
   return buf;
+}
+
+std::string LensProducts::BriefReport() const {
+  char buf[128];
+  std::snprintf(buf, sizeof buf, " | preview %dx%d %.4f s", preview.width, preview.height,
+                preview_s);
+  return depth.stats.BriefReport() + buf;
+}
+
+void LensWorkspaceReturn::operator()(LensProducts* products) const {
+  if (!chain) {
+    delete products;
+    return;
+  }
+  std::lock_guard lock(chain->lens_mutex_);
+  chain->idle_lens_.emplace_back(products);
 }
 
 void WorkspaceReturn::operator()(ChainProducts* products) const {
@@ -204,6 +221,13 @@ Expected<const TfSampler*> CameraChain::Sampler(ConstImageView raw) {
   std::lock_guard lock(sampler_mutex_);
   if (sampler_ && sampler_->raw_width() == raw.width && sampler_->raw_height() == raw.height)
     return sampler_.get();
+  auto geometry = Geometry(raw);
+  if (!geometry) return geometry.error();
+  sampler_ = std::make_unique<TfSampler>(std::move(*geometry), setup_.mla);
+  return sampler_.get();
+}
+
+Expected<PlenopticFrame> CameraChain::Geometry(ConstImageView raw) {
   auto grid = GridFor(raw.width, raw.height);
   if (!grid) return grid.error();
   auto white = WhiteFor(raw, *grid);
@@ -216,8 +240,50 @@ Expected<const TfSampler*> CameraChain::Sampler(ConstImageView raw) {
   if (geometry.lenses.empty())
     return Error{"camera " + setup_.serial + ": no whole micro image fits the " +
                  std::to_string(raw.width) + "x" + std::to_string(raw.height) + " frame"};
-  sampler_ = std::make_unique<TfSampler>(std::move(geometry), setup_.mla);
-  return sampler_.get();
+  return geometry;
+}
+
+Expected<const LensDepthEstimator*> CameraChain::LensEstimator(ConstImageView raw) {
+  if (raw.data == nullptr || raw.width <= 0 || raw.height <= 0)
+    return Error{"camera " + setup_.serial + ": empty frame"};
+  std::lock_guard lock(lens_mutex_);
+  if (lens_ && lens_->geometry().width == raw.width && lens_->geometry().height == raw.height)
+    return lens_.get();
+  auto geometry = Geometry(raw);
+  if (!geometry) return geometry.error();
+  auto estimator = LensDepthEstimator::Create(std::move(*geometry), setup_.mla, options_.lens);
+  if (!estimator) return Error{"camera " + setup_.serial + ": " + estimator.error().message};
+  lens_ = std::move(*estimator);
+  return lens_.get();
+}
+
+Expected<LensLease> CameraChain::ProcessLenses(ConstImageView raw, int preview_max_side) {
+  auto estimator = LensEstimator(raw);
+  if (!estimator) return estimator.error();
+  LensLease lease(nullptr, LensWorkspaceReturn{this});
+  {
+    std::lock_guard lock(lens_mutex_);
+    if (idle_lens_.empty()) {
+      lease.reset(new LensProducts());
+    } else {
+      lease.reset(idle_lens_.back().release());
+      idle_lens_.pop_back();
+    }
+  }
+  LensProducts& p = *lease;
+  auto t = std::chrono::steady_clock::now();
+  if (Status s = (*estimator)->Estimate(raw, &p.depth); !s)
+    return Error{"camera " + setup_.serial + ": " + s.error().message};
+  p.depth_s = SecondsSince(t);
+  p.preview_s = 0;
+  p.preview.width = p.preview.height = 0;
+  if (preview_max_side > 0) {
+    t = std::chrono::steady_clock::now();
+    if (Status s = (*estimator)->RenderPreview(raw, preview_max_side, &p.depth, &p.preview); !s)
+      return Error{"camera " + setup_.serial + ": " + s.error().message};
+    p.preview_s = SecondsSince(t);
+  }
+  return lease;
 }
 
 Expected<ChainLease> CameraChain::Process(ConstImageView raw) {

@@ -34,13 +34,19 @@
 // processing itself). The raw frame is not copied: the lease views the
 // caller's buffer, which must outlive the lease.
 //
-// Threads: Process may be called concurrently (each call takes its own
+// Per frame, cheap (CameraChain::ProcessLenses): one virtual depth per micro
+// lens from the raw pixels (lens_depth.h) and the TF preview at each lens's
+// depth, in a workspace of a pool of their own (LensLease); the estimator's
+// geometry is the camera's, made once.
+//
+// Threads: Process and ProcessLenses may be called concurrently (each call takes its own
 // workspace); the per-camera geometry is made once under a lock.
 
 #include "config/error.h"
 #include "config/image.h"
 #include "config/mla.h"
 #include "processing/camera_model.h"
+#include "processing/lens_depth.h"
 #include "processing/mla_grid.h"
 #include "processing/plenoptic_frame.h"
 #include "processing/point_cloud.h"
@@ -84,6 +90,7 @@ struct ChainOptions {
   // camera's lambda when its intrinsics are known.
   FrameOptions frame;
   DepthOptions depth;  // virtual depth on the raw grid
+  LensDepthOptions lens;  // per-lens virtual depth (ProcessLenses)
   TfOptions tf;        // TF depth map and totally focused image
   // Without a white image. With vignetting_auto_rows, frames taller than
   // 2000 rows are sampled every 4th row (an R32 frame: plenty of micro images).
@@ -114,6 +121,15 @@ struct ChainProducts {
   int geometry_width_ = 0, geometry_height_ = 0;  // of the geometry in `prepared`; 0 = none
 };
 
+// The per-lens products of one frame, in a workspace of the camera's pool.
+struct LensProducts {
+  LensDepthMap depth;
+  TfImage preview;  // empty when not asked for
+  double depth_s = 0, preview_s = 0;
+  // "lens depth: ... | preview 512x386 0.004 s"
+  std::string BriefReport() const;
+};
+
 class CameraChain;
 // Returns a workspace to its camera's pool.
 struct WorkspaceReturn {
@@ -121,6 +137,11 @@ struct WorkspaceReturn {
   void operator()(ChainProducts* products) const;
 };
 using ChainLease = std::unique_ptr<ChainProducts, WorkspaceReturn>;
+struct LensWorkspaceReturn {
+  CameraChain* chain = nullptr;
+  void operator()(LensProducts* products) const;
+};
+using LensLease = std::unique_ptr<LensProducts, LensWorkspaceReturn>;
 
 class CameraChain {
  public:
@@ -132,6 +153,14 @@ class CameraChain {
 
   // The chain on one raw frame (Mono8 or BGR8). `raw` must outlive the lease.
   Expected<ChainLease> Process(ConstImageView raw);
+
+  // Per-lens virtual depth of one raw frame (Mono8 or BGR8) and, with
+  // preview_max_side > 0, the TF preview at each lens's depth of at most that
+  // many pixels on its longest side (LensDepthEstimator::RenderPreview).
+  Expected<LensLease> ProcessLenses(ConstImageView raw, int preview_max_side);
+  // The camera's per-lens estimator for frames of raw's size: made at the
+  // first call (the geometry, like a workspace's), then shared.
+  Expected<const LensDepthEstimator*> LensEstimator(ConstImageView raw);
 
   // The camera's TF sampler (processing/tf_sampler.h) for frames of raw's
   // size, with the chain's devignetting: made at the first call (a
@@ -150,6 +179,7 @@ class CameraChain {
 
  private:
   friend struct WorkspaceReturn;
+  friend struct LensWorkspaceReturn;
   CameraChain() = default;
   // The grid of frames of width x height (made once per size).
   Expected<MlaGrid> GridFor(int width, int height);
@@ -158,6 +188,8 @@ class CameraChain {
   Expected<ConstImageView> WhiteFor(ConstImageView raw, const MlaGrid& grid);
   ChainLease Acquire();
   void Release(ChainProducts* products);
+  // The geometry of frames of raw's size with the chain's devignetting.
+  Expected<PlenopticFrame> Geometry(ConstImageView raw);
 
   CameraSetup setup_;
   ChainOptions options_;
@@ -171,6 +203,9 @@ class CameraChain {
   std::vector<std::unique_ptr<ChainProducts>> idle_;
   std::mutex sampler_mutex_;  // guards sampler_ (made outside mutex_: GridFor takes it)
   std::unique_ptr<TfSampler> sampler_;
+  std::mutex lens_mutex_;  // guards lens_ and idle_lens_ (made outside mutex_: GridFor takes it)
+  std::unique_ptr<LensDepthEstimator> lens_;
+  std::vector<std::unique_ptr<LensProducts>> idle_lens_;
 };
 
 // The chains of a rig's cameras, by serial.

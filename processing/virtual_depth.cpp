@@ -1,5 +1,7 @@
 #include "processing/virtual_depth.h"
 
+#include "processing/epipolar_search.h"
+
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -14,209 +16,25 @@ namespace lifmcr::processing {
 namespace {
 
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-constexpr int kAlong = 5, kAcross = 3, kSamples = kAlong * kAcross;
-// Neighbour steps (di, dj): ring 1 (|Delta| = D), ring 2 (|Delta| = sqrt(3) D).
-constexpr std::array<std::array<int, 2>, 6> kRing1{
-    {{1, 0}, {0, 1}, {-1, 1}, {-1, 0}, {0, -1}, {1, -1}}};
-constexpr std::array<std::array<int, 2>, 6> kRing2{
-    {{1, 1}, {-1, 2}, {-2, 1}, {-1, -1}, {1, -2}, {2, -1}}};
+using detail::Estimate;
+using detail::Estimates;
+using detail::Fuse;
+using detail::kAcross;
+using detail::kAlong;
+using detail::kRing1;
+using detail::kSamples;
+using detail::Neighbour;
 
-struct Estimate {
-  double z = 0, sigma = 0;
-};
-
-struct Neighbour {
-  const MicroImage* lens = nullptr;
-  float delta_x = 0, delta_y = 0;  // c_n - c_k
-  float e_x = 0, e_y = 0;          // unit baseline direction
-  double length = 0;
-  bool same_type = false;
-  // Opposite neighbours (direction d and d + 3 of a ring) share their
-  // reference patch, reversed: axis = 3 (ring - 1) + d mod 3.
-  int axis = 0;
-  bool flipped = false;
-};
-
-// Bilinear grey at (x, y) if within r2 of (cx, cy) and inside the image;
-// NaN otherwise (and next to an invalid pixel: NaN propagates).
-inline float SampleInDisc(const PlenopticFrame& f, float x, float y, float cx, float cy, float r2) {
-  const float dx = x - cx, dy = y - cy;
-  if (dx * dx + dy * dy > r2 || x < 0 || y < 0) return kNaN;
-  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
-  if (x0 >= f.width - 1 || y0 >= f.height - 1) return kNaN;
-  const float fx = x - x0, fy = y - y0;
-  const float* r0 = f.grey.data() + static_cast<std::size_t>(y0) * f.width + x0;
-  const float* r1 = r0 + f.width;
-  return (r0[0] + (r0[1] - r0[0]) * fx) * (1 - fy) + (r1[0] + (r1[1] - r1[0]) * fx) * fy;
-}
-
-// The reference patch around p: samples p + a e + b e_perp, a = -2..2
-// (kAlong), b = -1..1 (kAcross), row-major by b; false if one is invalid.
-bool SampleReference(const PlenopticFrame& f, float px, float py, const Neighbour& nb, float cx,
-                     float cy, float r2, float* out) {
-  for (int b = -1, m = 0; b <= 1; ++b)
-    for (int a = -2; a <= 2; ++a, ++m) {
-      out[m] =
-          SampleInDisc(f, px + a * nb.e_x - b * nb.e_y, py + a * nb.e_y + b * nb.e_x, cx, cy, r2);
-      if (std::isnan(out[m])) return false;
-    }
-  return true;
-}
-
-struct Search {
-  const PlenopticFrame& f;
-  const DepthOptions& o;
-  double lambda;
-  int samples_per_px;  // 1 / step_px
-};
-
-constexpr int kMaxSteps = 256;
-
-// One baseline: best z in [z_lo, z_hi]; false when unconfirmed.
-// The patch positions q(z_k) + a e + b e_perp of all steps k lie on three
-// lines along e at a spacing of step_px, so the neighbour is sampled once
-// per line (a strip) and the cost of step k reads the strip at a shift of
-// k: 3 (K + 4 / step) bilinear samples instead of 15 K.
-bool MatchAlong(const Search& s, float px, float py, const float* ref, double gradient_sum,
-                const Neighbour& nb, double z_lo, double z_hi, Estimate* est) {
-  const double scale = s.lambda * nb.length;  // px of disparity per unit z
-  const PlenopticFrame& f = s.f;
-  const float cx = static_cast<float>(nb.lens->centre_px.x());
-  const float cy = static_cast<float>(nb.lens->centre_px.y());
-  const double r_lim = f.radius_px + 0.5;
-  // A disc well inside the image needs no bounds test per sample.
-  const bool interior =
-      cx - r_lim > 1 && cy - r_lim > 1 && cx + r_lim < f.width - 2 && cy + r_lim < f.height - 2;
-  // Only the z for which q(z) = p + lambda Delta (1 - z) lies in the
-  // neighbour's disc: |d - z u| <= R with u = lambda Delta, d = p + u - c_n.
-  {
-    const double ux = s.lambda * nb.delta_x, uy = s.lambda * nb.delta_y;
-    const double dx = px + ux - cx, dy = py + uy - cy;
-    const double uu = ux * ux + uy * uy, du = dx * ux + dy * uy;
-    const double disc = du * du - uu * (dx * dx + dy * dy - r_lim * r_lim);
-    if (disc <= 0) return false;
-    const double root = std::sqrt(disc);
-    z_lo = std::max(z_lo, (du - root) / uu);
-    z_hi = std::min(z_hi, (du + root) / uu);
+// The smoothed devignetted grey of the frame, bilinear (epipolar_search.h).
+struct GreyBilinear {
+  const float* grey;
+  int width;
+  float operator()(int x0, int y0, float fx, float fy) const {
+    const float* r0 = grey + static_cast<std::size_t>(y0) * width + x0;
+    const float* r1 = r0 + width;
+    return (r0[0] + (r0[1] - r0[0]) * fx) * (1 - fy) + (r1[0] + (r1[1] - r1[0]) * fx) * fy;
   }
-  const double dz = s.o.step_px / scale;
-  const int steps = static_cast<int>(std::ceil((z_hi - z_lo) / dz)) + 1;
-  if (steps < 3 || steps > kMaxSteps) return false;
-  // Strip sample j (0 .. steps - 1 + 4 spp) sits at along-offset
-  // o_j = -2 - (steps - 1) step + j step from q(z_lo); step k, patch column
-  // a reads j = (steps - 1 - k) + (a + 2) spp. Reversed (index
-  // i = steps - 1 + 4 spp - j) step k reads i = k + (2 - a) spp, so the
-  // cost loop runs forwards over k.
-  const int spp = s.samples_per_px;
-  const int strip_len = steps + 4 * spp;
-  const float step = static_cast<float>(s.o.step_px);
-  const double q0 = s.lambda * nb.length * (1.0 - z_lo);  // q(z_lo) = p + q0 e
-  float strip[3][kMaxSteps + 16];
-  const float r2 = static_cast<float>(r_lim * r_lim);
-  const float along0 = static_cast<float>(q0) - 2.0f - (steps - 1) * step;
-  for (int b = -1; b <= 1; ++b) {
-    float* line = strip[b + 1];
-    // Line b: s(t) = p + b e_perp + t e; inside the disc for t in
-    // [t_c - h, t_c + h] (t_c = (c - p - b e_perp) . e), so only those
-    // strip samples are taken, without a test per sample.
-    const float ox = px - b * nb.e_y - cx, oy = py + b * nb.e_x - cy;
-    const float t_c = -(ox * nb.e_x + oy * nb.e_y);
-    const float d2 = ox * ox + oy * oy - t_c * t_c;  // squared distance of c from the line
-    int j_lo = strip_len, j_hi = -1;
-    if (d2 < r2) {
-      const float half = std::sqrt(r2 - d2);
-      j_lo = std::max(0, static_cast<int>(std::ceil((t_c - half - along0) / step)));
-      j_hi = std::min(strip_len - 1, static_cast<int>(std::floor((t_c + half - along0) / step)));
-    }
-    const float* grey = f.grey.data();
-    for (int i = 0; i < strip_len; ++i) {
-      const int j = strip_len - 1 - i;
-      if (j < j_lo || j > j_hi) {
-        line[i] = kNaN;
-        continue;
-      }
-      const float along = along0 + j * step;
-      const float x = px + along * nb.e_x - b * nb.e_y, y = py + along * nb.e_y + b * nb.e_x;
-      if (!interior && (x < 0 || y < 0 || x >= f.width - 1 || y >= f.height - 1)) {
-        line[i] = kNaN;
-        continue;
-      }
-      const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
-      const float fx = x - x0, fy = y - y0;
-      const float* r0 = grey + static_cast<std::size_t>(y0) * f.width + x0;
-      const float* r1 = r0 + f.width;
-      line[i] = (r0[0] + (r0[1] - r0[0]) * fx) * (1 - fy) + (r1[0] + (r1[1] - r1[0]) * fx) * fy;
-    }
-  }
-  float cost[kMaxSteps];
-  for (int k = 0; k < steps; ++k) cost[k] = 0;
-  for (int b = 0; b < kAcross; ++b)
-    for (int a = -2; a <= 2; ++a) {
-      const float r = ref[b * kAlong + a + 2];
-      const float* line = strip[b] + (2 - a) * spp;
-      for (int k = 0; k < steps; ++k) {
-        const float d = line[k] - r;
-        cost[k] += d * d;
-      }
-    }
-  int best = -1, first_valid = -1, last_valid = -1, run_n = 0;
-  float best_cost = std::numeric_limits<float>::max();
-  double run_sum = 0;
-  for (int k = 0; k < steps; ++k) {
-    const float c = cost[k];
-    if (std::isnan(c)) continue;
-    if (first_valid < 0) first_valid = k;
-    last_valid = k;
-    run_sum += c;
-    ++run_n;
-    if (c < best_cost) {
-      best_cost = c;
-      best = k;
-    }
-  }
-  if (best < 0 || best <= first_valid || best >= last_valid) return false;
-  if (std::isnan(cost[best - 1]) || std::isnan(cost[best + 1])) return false;
-  // Distinctiveness: the minimum well below the mean cost over the run.
-  const double noise2 = 2.0 * s.o.noise_dn * s.o.noise_dn;
-  if (best_cost > s.o.max_cost_ratio * run_sum / run_n + kSamples * noise2) return false;
-  const double cm = cost[best - 1], c0 = cost[best], cp = cost[best + 1];
-  const double denom = cm - 2 * c0 + cp;
-  const double delta = denom > 0 ? std::clamp(0.5 * (cm - cp) / denom, -0.5, 0.5) : 0.0;
-  est->z = z_lo + (best + delta) * dz;
-  const double model_px = nb.same_type ? s.o.geometric_px : s.o.cross_type_px;
-  const double sigma_px2 = noise2 / std::max(gradient_sum, 1e-6) + model_px * model_px;
-  est->sigma = std::sqrt(sigma_px2) / scale;
-  return true;
-}
-
-// Median-consistent inverse-variance fusion; returns the number used.
-struct Estimates {
-  std::array<Estimate, 12> e;
-  int n = 0;
-  void Add(const Estimate& x) { e[n++] = x; }
 };
-
-int Fuse(const Estimates& es, double* z, double* sigma) {
-  if (es.n == 0) return 0;
-  std::array<double, 12> zs;
-  for (int i = 0; i < es.n; ++i) zs[i] = es.e[i].z;
-  std::nth_element(zs.begin(), zs.begin() + es.n / 2, zs.begin() + es.n);
-  const double med = zs[es.n / 2];
-  double sw = 0, swz = 0;
-  int used = 0;
-  for (int i = 0; i < es.n; ++i) {
-    const Estimate& x = es.e[i];
-    if (std::abs(x.z - med) > std::max(3 * x.sigma, 0.03 * med)) continue;
-    const double w = 1.0 / (x.sigma * x.sigma);
-    sw += w;
-    swz += w * x.z;
-    ++used;
-  }
-  if (used == 0) return 0;
-  *z = swz / sw;
-  *sigma = std::sqrt(1.0 / sw);
-  return used;
-}
 
 }  // namespace
 
@@ -279,19 +97,22 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
   out->confidence.assign(n, 0.0f);
   out->textured.assign(n, 0);
   // Search range per type: z = 1 / v.
-  std::array<double, 3> z_lo{}, z_hi{};
-  double union_lo = 1, union_hi = 0;
-  for (int t = 0; t < 3; ++t) {
-    const VirtualDepthRange range = SearchedVirtualDepths(mla.lens_types[t]);
-    z_lo[t] = 1.0 / range.max;
-    z_hi[t] = 1.0 / range.min;
-    union_lo = std::min(union_lo, z_lo[t]);
-    union_hi = std::max(union_hi, z_hi[t]);
-  }
+  const detail::SearchRange range(mla);
+  const std::array<double, 3>& z_lo = range.z_lo;
+  const std::array<double, 3>& z_hi = range.z_hi;
+  const double union_lo = range.union_lo, union_hi = range.union_hi;
   const double lambda = f.lambda;
   const int stride =
       options.search_stride != 0 ? options.search_stride : (f.grid.PitchPx() >= 24 ? 2 : 1);
-  const Search search{f, options, lambda, static_cast<int>(std::lround(1.0 / options.step_px))};
+  detail::MatchParams search;
+  search.lambda = lambda;
+  search.step_px = options.step_px;
+  search.samples_per_px = static_cast<int>(std::lround(1.0 / options.step_px));
+  search.noise_dn = options.noise_dn;
+  search.max_cost_ratio = options.max_cost_ratio;
+  search.geometric_px = options.geometric_px;
+  search.cross_type_px = options.cross_type_px;
+  const GreyBilinear grey{f.grey.data(), w};
   std::vector<long long> textured_count(f.lenses.size(), 0), valid_count(f.lenses.size(), 0),
       estimated_count(f.lenses.size(), 0), rejected_count(f.lenses.size(), 0),
       filled_count(f.lenses.size(), 0);
@@ -309,25 +130,8 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     const double lo = options.type_ranges ? z_lo[lens.type] : union_lo;
     const double hi = options.type_ranges ? z_hi[lens.type] : union_hi;
     std::array<Neighbour, 12> nbs;
-    int count = 0, ring1_count = 0;
-    for (int ring = 1; ring <= options.rings; ++ring)
-      for (int dir = 0; dir < 6; ++dir) {
-        const auto& d = (ring == 1 ? kRing1 : kRing2)[dir];
-        const int idx = f.LensAt(lens.i + d[0], lens.j + d[1]);
-        if (idx < 0) continue;
-        Neighbour& nb = nbs[count++];
-        nb.axis = 3 * (ring - 1) + dir % 3;
-        nb.flipped = dir >= 3;
-        nb.lens = &f.lenses[idx];
-        const Eigen::Vector2d delta = nb.lens->centre_px - lens.centre_px;
-        nb.length = delta.norm();
-        nb.delta_x = static_cast<float>(delta.x());
-        nb.delta_y = static_cast<float>(delta.y());
-        nb.e_x = static_cast<float>(delta.x() / nb.length);
-        nb.e_y = static_cast<float>(delta.y() / nb.length);
-        nb.same_type = nb.lens->type == lens.type;
-        if (ring == 1) ring1_count = count;
-      }
+    int ring1_count = 0;
+    const int count = detail::FindNeighbours(f, lens, options.rings, &nbs, &ring1_count);
     const double r = f.radius_px;
     const float cx = static_cast<float>(lens.centre_px.x());
     const float cy = static_cast<float>(lens.centre_px.y());
@@ -395,29 +199,21 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         auto match = [&](const Neighbour& nb, double z0, double z1) {
           std::array<float, kSamples>& cached = patch_cache[nb.axis];
           if (patch_state[nb.axis] == 0) {
-            Neighbour unflipped = nb;
-            if (nb.flipped) {
-              unflipped.e_x = -nb.e_x;
-              unflipped.e_y = -nb.e_y;
-            }
-            const bool ok = SampleReference(f, static_cast<float>(x), static_cast<float>(y),
-                                            unflipped, cx, cy, ref_r2, cached.data());
+            const float e_x = nb.flipped ? -nb.e_x : nb.e_x;
+            const float e_y = nb.flipped ? -nb.e_y : nb.e_y;
+            const bool ok =
+                detail::SampleReference(grey, w, h, static_cast<float>(x), static_cast<float>(y),
+                                        e_x, e_y, cx, cy, ref_r2, cached.data());
             patch_state[nb.axis] = ok ? 1 : 2;
-            double g2 = 0;
-            for (int b = 0; ok && b < kAcross; ++b)
-              for (int a = 0; a + 2 < kAlong; ++a) {
-                const double g = 0.5 * (cached[b * kAlong + a + 2] - cached[b * kAlong + a]);
-                g2 += g * g;
-              }
-            g2_cache[nb.axis] = g2;
+            g2_cache[nb.axis] = ok ? detail::PatchGradient2(cached.data()) : 0.0;
           }
           if (patch_state[nb.axis] != 1) return;
           for (int m = 0; m < kSamples; ++m)
             ref[m] = nb.flipped ? cached[kSamples - 1 - m] : cached[m];
           const double g2 = g2_cache[nb.axis];
           Estimate e;
-          if (MatchAlong(search, static_cast<float>(x), static_cast<float>(y), ref, g2, nb, z0, z1,
-                         &e))
+          if (detail::MatchAlong(search, grey, w, h, f.radius_px, static_cast<float>(x),
+                                 static_cast<float>(y), ref, g2, nb, z0, z1, &e))
             estimates.Add(e);
         };
         for (int q = 0; q < gated; ++q) match(nbs[order[q].second], lo, hi);

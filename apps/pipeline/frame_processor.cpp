@@ -128,6 +128,18 @@ Expected<EncodedDepth> EncodeDepth(const std::vector<float>& values, int width, 
   return out;
 }
 
+Expected<EncodedLensDepth> EncodeLensDepth(const processing::LensDepthMap& depth, int raw_width,
+                                           int raw_height) {
+  auto encoded = EncodeDepth(depth.virtual_depth, depth.grid.cols, depth.grid.rows, 16);
+  if (!encoded) return encoded.error();
+  EncodedLensDepth out;
+  out.depth = std::move(*encoded);
+  out.depth.raw_width = raw_width;
+  out.depth.raw_height = raw_height;
+  out.grid = depth.grid;
+  return out;
+}
+
 Expected<std::vector<float>> DecodeDepth(const std::vector<std::uint8_t>& png, float scale,
                                          float offset, int* width, int* height) {
   const cv::Mat q = cv::imdecode(png, cv::IMREAD_UNCHANGED);
@@ -227,7 +239,13 @@ Expected<RegistrationInput> DepthProcessor::ForRegistration(const Frame& frame) 
   return input;
 }
 
-Expected<ProcessedFrame> DepthProcessor::Process(const Frame& frame) {
+Expected<ProcessedFrame> DepthProcessor::Process(const Frame& frame) { return Run(frame, true); }
+
+Expected<ProcessedFrame> DepthProcessor::ProcessDense(const Frame& frame) {
+  return Run(frame, false);
+}
+
+Expected<ProcessedFrame> DepthProcessor::Run(const Frame& frame, bool lenses) {
   const auto start = std::chrono::steady_clock::now();
   processing::CameraChain* camera = chain_->Find(frame.serial);
   if (camera == nullptr) return Error{"depth: no MLA calibration for camera " + frame.serial};
@@ -268,10 +286,44 @@ Expected<ProcessedFrame> DepthProcessor::Process(const Frame& frame) {
   auto depth = EncodeDepth(reduced, dw, dh);
   if (!depth) return depth.error();
   out.depth = std::move(*depth);
+  out.depth->raw_width = image->width;
+  out.depth->raw_height = image->height;
+  // The per-lens depth too (every frame gets it); the TF channel carries the
+  // chain's own TF image here, so no lens preview.
+  if (lenses) {
+    auto lease = camera->ProcessLenses(*image, 0);
+    if (!lease) return lease.error();
+    auto lens_depth = EncodeLensDepth((*lease)->depth, image->width, image->height);
+    if (!lens_depth) return lens_depth.error();
+    out.lens_depth = std::move(*lens_depth);
+  }
   auto tf_preview = EncodePreview(tf.View(), preview_);
   if (!tf_preview) return tf_preview.error();
   out.tf = std::move(*tf_preview);
   out.products = std::shared_ptr<const processing::ChainProducts>(std::move(*lease));
+  out.camera = camera;
+  out.seconds = SecondsSince(start);
+  return out;
+}
+
+Expected<ProcessedFrame> DepthProcessor::ProcessLenses(const Frame& frame) {
+  const auto start = std::chrono::steady_clock::now();
+  processing::CameraChain* camera = chain_->Find(frame.serial);
+  if (camera == nullptr) return Error{"depth: no MLA calibration for camera " + frame.serial};
+  ProcessedFrame out;
+  auto image = ColourView(frame, formats_, &out.demosaiced);
+  if (!image) return image.error();
+  auto lenses = camera->ProcessLenses(*image, preview_.max_side);
+  if (!lenses) return lenses.error();
+  auto lens_depth = EncodeLensDepth((*lenses)->depth, image->width, image->height);
+  if (!lens_depth) return lens_depth.error();
+  out.lens_depth = std::move(*lens_depth);
+  auto tf_preview = EncodePreview((*lenses)->preview.View(), preview_);
+  if (!tf_preview) return tf_preview.error();
+  // The preview is made from the TF grid (raw / 2), as the chain's TF image.
+  tf_preview->source_width = image->width / 2;
+  tf_preview->source_height = image->height / 2;
+  out.tf = std::move(*tf_preview);
   out.camera = camera;
   out.seconds = SecondsSince(start);
   return out;

@@ -9,13 +9,17 @@
 //   DepthProcessor    the preview plus processing/: devignetted frame,
 //                     virtual depth, TF depth map and the totally focused
 //                     image; the TF virtual depth, reduced by block means
-//                     to at most depth_max_side and quantised to 8-bit PNG.
+//                     to at most depth_max_side and quantised to 8-bit PNG;
+//                     and the per-lens virtual depth (16-bit PNG on the lens
+//                     grid). ProcessLenses: the per-lens depth and the TF
+//                     preview at each lens's depth only (cheap: every frame).
 // Process is called concurrently for different frames (bounded by the
 // pipeline); implementations keep per-call state only.
 
 #include "config/error.h"
 #include "config/rig_config.h"
 #include "drivers/frame.h"
+#include "processing/lens_depth.h"
 
 #include <cstdint>
 #include <filesystem>
@@ -54,12 +58,21 @@ struct EncodedDepth {
   float min_value = 0, max_value = 0;
   std::vector<std::uint8_t> png;
   std::vector<float> values;  // the published depth before quantisation (NaN: none)
+  int raw_width = 0, raw_height = 0;  // the raw frame it was made from
+};
+
+// The per-lens virtual depth as published (depth_image_t GEOMETRY_LENS_GRID):
+// one value per cell of the lens grid (processing/lens_depth.h), 16-bit.
+struct EncodedLensDepth {
+  EncodedDepth depth;  // grid.cols x grid.rows
+  processing::LensGrid grid;
 };
 
 struct ProcessedFrame {
   std::optional<EncodedImage> preview;  // <PREFIX>_<SERIAL>_PREVIEW
-  std::optional<EncodedDepth> depth;    // <PREFIX>_<SERIAL>_DEPTH
-  std::optional<EncodedImage> tf;       // <PREFIX>_<SERIAL>_TF
+  std::optional<EncodedDepth> depth;    // <PREFIX>_<SERIAL>_DEPTH, TF grid
+  std::optional<EncodedLensDepth> lens_depth;  // <PREFIX>_<SERIAL>_DEPTH, lens grid
+  std::optional<EncodedImage> tf;  // <PREFIX>_<SERIAL>_TF (the TF image or the lens preview)
   // The chain's products (TF image, depth, metric depth) and the camera's
   // model when its intrinsics are known: null for previews only. They view
   // the frame's pooled buffer, which the pipeline keeps until the frame is
@@ -93,6 +106,12 @@ class FrameProcessor {
   virtual ~FrameProcessor() = default;
   virtual Expected<ProcessedFrame> Process(const Frame& frame) = 0;
   virtual std::string name() const = 0;  // "preview", "depth"
+  // Process without the per-lens depth: what the depth lane runs on frames
+  // whose per-lens depth ProcessLenses gave already (default: Process).
+  virtual Expected<ProcessedFrame> ProcessDense(const Frame& frame) { return Process(frame); }
+  // The per-lens depth and the TF preview at each lens's depth of the frame
+  // (lens_depth, tf), for every frame (default: nothing).
+  virtual Expected<ProcessedFrame> ProcessLenses(const Frame&) { return ProcessedFrame{}; }
   // The frame for the registration stage, unprocessed (default: no chain).
   virtual Expected<RegistrationInput> ForRegistration(const Frame&) {
     return RegistrationInput{};
@@ -105,6 +124,9 @@ Expected<EncodedImage> EncodePreview(ConstImageView image, const PreviewOptions&
 // Called before the pipeline's workers start: it also builds OpenCV's codec
 // registry in this thread (see the .cpp).
 Status CheckImageEncoders();
+// The lens grid's virtual depth, quantised to 16 bits.
+Expected<EncodedLensDepth> EncodeLensDepth(const processing::LensDepthMap& depth, int raw_width,
+                                           int raw_height);
 // PNG quantisation of `values` (w x h, NaN = none) to `bits` (8 or 16);
 // inverse of DecodeDepth.
 Expected<EncodedDepth> EncodeDepth(const std::vector<float>& values, int width, int height,
@@ -149,11 +171,14 @@ class DepthProcessor final : public FrameProcessor {
                  PixelFormats formats = {});
   ~DepthProcessor() override;
   Expected<ProcessedFrame> Process(const Frame& frame) override;
+  Expected<ProcessedFrame> ProcessDense(const Frame& frame) override;
+  Expected<ProcessedFrame> ProcessLenses(const Frame& frame) override;
   std::string name() const override { return "depth"; }
   Expected<RegistrationInput> ForRegistration(const Frame& frame) override;
   const processing::ProcessingChain& chain() const { return *chain_; }
 
  private:
+  Expected<ProcessedFrame> Run(const Frame& frame, bool lenses);
   PreviewOptions preview_;
   std::unique_ptr<processing::ProcessingChain> chain_;
   PixelFormats formats_;

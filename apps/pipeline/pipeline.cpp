@@ -292,7 +292,8 @@ struct Pipeline::Impl {
         ++depth_held;
       }
       Result result{std::move(job), Error{""}, std::nullopt, true};
-      depth_arena->execute([&] { result.processed = processor->Process(result.job.frame); });
+      // The workers published this frame's per-lens depth already.
+      depth_arena->execute([&] { result.processed = processor->ProcessDense(result.job.frame); });
       {
         // The lane's thread alone computes in its arena: its CPU time is the lane's.
         timespec cpu{};
@@ -348,6 +349,23 @@ struct Pipeline::Impl {
       frame.camera = input->camera;
       Localize(result, std::move(frame));
     }
+    // The per-lens depth and its TF preview, for every frame taken (cheap;
+    // the dense map waits for the depth lane). A failure here does not take
+    // the frame's pose with it.
+    if (result.processed) {
+      auto lenses = processor->ProcessLenses(result.job.frame);
+      if (!lenses) {
+        std::lock_guard r(report_mutex);
+        ++report.lens_failed;
+        report.last_error = result.job.frame.serial + " frame " +
+                            std::to_string(result.job.frame.frame_id) +
+                            ": per-lens depth: " + lenses.error().message;
+      } else {
+        result.processed->lens_depth = std::move(lenses->lens_depth);
+        result.processed->tf = std::move(lenses->tf);
+        result.processed->demosaiced = std::move(lenses->demosaiced);
+      }
+    }
     if (result.processed)
       result.processed->seconds =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -370,6 +388,7 @@ struct Pipeline::Impl {
       ++report.depth_processed;
       report.published_previews += counts.previews;
       report.published_depth += counts.depth;
+      report.published_lens_depth += counts.lens_depth;
       report.published_tf += counts.tf;
     }
     {
@@ -424,6 +443,7 @@ struct Pipeline::Impl {
       ++report.processed;
       report.published_previews += counts.previews;
       report.published_depth += counts.depth;
+      report.published_lens_depth += counts.lens_depth;
       report.published_tf += counts.tf;
       report.published_extrinsics += extrinsics;
       report.localized += result.w0_from_cx ? 1 : 0;
@@ -790,15 +810,19 @@ std::string PipelineReport::FinalReport() const {
       << "processed: " << processed << "  skipped (newest wins): " << skipped
       << "  failed: " << failed << (Accounted() ? "  (all accounted for)" : "  (NOT ACCOUNTED)")
       << "\n";
+  if (lens_failed > 0) out << "per-lens depth failed: " << lens_failed << "\n";
   if (depth_processed + depth_skipped + depth_failed > 0)
     out << "depth lane (registration first): processed " << depth_processed << "  skipped "
         << depth_skipped << "  failed " << depth_failed << "  CPU " << depth_cpu_s << " s\n";
-  out
-      << "published: " << published_previews << " previews, " << published_depth << " depth, "
-      << published_tf << " TF, " << published_extrinsics << " extrinsics, " << published_vicon
-      << " Vicon, " << published_stats << " stats messages";
+  out << "published: " << published_previews << " previews, "
+      << published_depth + published_lens_depth << " depth, " << published_tf << " TF, "
+      << published_extrinsics << " extrinsics, " << published_vicon << " Vicon, " << published_stats
+      << " stats messages";
   if (publish_errors) out << ", " << publish_errors << " publish errors";
   out << "\n";
+  if (published_lens_depth > 0)
+    out << "depth messages: " << published_lens_depth << " per-lens (lens grid), "
+        << published_depth << " dense (TF grid)\n";
   char line[200];
   std::snprintf(line, sizeof line,
                 "processing: p50 %.1f ms p99 %.1f ms; frame arrival -> LCM: p50 %.1f ms p99 %.1f "

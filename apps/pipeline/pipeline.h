@@ -112,13 +112,18 @@ struct PipelineReport {
   std::uint64_t failed = 0;     // processing or registration returned an error (last_error)
   std::uint64_t localized = 0;  // frames the registration stage gave a pose
   // Registration ahead of processing (a registration stage under
-  // newest_wins): `processed` counts the frames localised; the depth lane
+  // newest_wins): `processed` counts the frames localised (each with its
+  // per-lens depth and lens preview published by the worker); the depth lane
   // processes (and publishes previews, depth and TF of) the newest of them
   // when it is free, the others are skipped there.
   std::uint64_t depth_processed = 0, depth_skipped = 0, depth_failed = 0;
+  std::uint64_t lens_failed = 0;  // lanes: frames localised whose per-lens depth failed
   double depth_cpu_s = 0;  // CPU time of the depth lane's thread (its arena has no other)
   std::uint64_t frame_sets = 0, incomplete_sets = 0;
+  // published_depth: TF-grid depth maps (the dense chain); published_lens_depth:
+  // per-lens depth maps (every frame taken, when the processor makes them).
   std::uint64_t published_previews = 0, published_depth = 0, published_tf = 0;
+  std::uint64_t published_lens_depth = 0;
   std::uint64_t published_vicon = 0, published_stats = 0, published_extrinsics = 0;
   std::uint64_t publish_errors = 0;
   LatencySummary process;         // processing time per frame

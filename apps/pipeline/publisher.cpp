@@ -41,6 +41,30 @@ lifmcr_lcm::preview_image_t ToPreviewMessage(const EncodedImage& image, const Fr
   return m;
 }
 
+// A depth map's message without its geometry; the lens fields zero.
+lifmcr_lcm::depth_image_t ToDepthMessage(const EncodedDepth& depth, const FrameMeta& meta,
+                                         std::int64_t utime) {
+  lifmcr_lcm::depth_image_t m{};
+  m.utime = utime;
+  m.serial = meta.serial;
+  m.frame_id = static_cast<std::int64_t>(meta.frame_id);
+  m.trigger_index = meta.trigger_index;
+  m.kind = lifmcr_lcm::depth_image_t::KIND_VIRTUAL;
+  m.width = depth.width;
+  m.height = depth.height;
+  m.scale = depth.scale;
+  m.offset = depth.offset;
+  m.valid_fraction = depth.valid_fraction;
+  m.min_value = depth.min_value;
+  m.max_value = depth.max_value;
+  m.encoding = lifmcr_lcm::preview_image_t::ENCODING_PNG;
+  m.raw_width = depth.raw_width;
+  m.raw_height = depth.raw_height;
+  m.data = depth.png;
+  m.size = static_cast<std::int32_t>(m.data.size());
+  return m;
+}
+
 bool ValidPrefix(const std::string& prefix) {
   if (prefix.empty()) return false;
   for (char c : prefix)
@@ -116,25 +140,27 @@ Publisher::FrameCounts Publisher::PublishFrame(const FrameMeta& meta, const Proc
     ++counts.tf;
   }
   if (p.depth) {
-    lifmcr_lcm::depth_image_t m;
-    m.utime = utime;
-    m.serial = meta.serial;
-    m.frame_id = static_cast<std::int64_t>(meta.frame_id);
-    m.trigger_index = meta.trigger_index;
-    m.kind = lifmcr_lcm::depth_image_t::KIND_VIRTUAL;
+    lifmcr_lcm::depth_image_t m = ToDepthMessage(*p.depth, meta, utime);
     m.geometry = lifmcr_lcm::depth_image_t::GEOMETRY_TOTALLY_FOCUSED;
-    m.width = p.depth->width;
-    m.height = p.depth->height;
-    m.scale = p.depth->scale;
-    m.offset = p.depth->offset;
-    m.valid_fraction = p.depth->valid_fraction;
-    m.min_value = p.depth->min_value;
-    m.max_value = p.depth->max_value;
-    m.encoding = lifmcr_lcm::preview_image_t::ENCODING_PNG;
-    m.data = p.depth->png;
-    m.size = static_cast<std::int32_t>(m.data.size());
     PublishOn(*lcm_, lcm_mutex_, channels_.Camera(meta.serial, "DEPTH"), m);
     ++counts.depth;
+  }
+  if (p.lens_depth) {
+    lifmcr_lcm::depth_image_t m = ToDepthMessage(p.lens_depth->depth, meta, utime);
+    m.geometry = lifmcr_lcm::depth_image_t::GEOMETRY_LENS_GRID;
+    const processing::LensGrid& g = p.lens_depth->grid;
+    m.lens_j_top = g.j_top;
+    m.lens_col_base = g.col_base;
+    for (int k = 0; k < 2; ++k) {
+      m.lens_origin_px[k] = g.origin_px[k];
+      m.lens_step_i_px[k] = g.lattice(k, 0);
+      m.lens_step_j_px[k] = g.lattice(k, 1);
+      m.principal_point_px[k] = g.principal_point_px[k];
+    }
+    m.lens_type_sign = static_cast<std::int8_t>(g.type_sign);
+    m.lambda = g.lambda;
+    PublishOn(*lcm_, lcm_mutex_, channels_.Camera(meta.serial, "DEPTH"), m);
+    ++counts.lens_depth;
   }
   return counts;
 }

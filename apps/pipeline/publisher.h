@@ -4,8 +4,12 @@
 //
 // Channels, <PREFIX> = lcm.channel_prefix of the rig file (default LIFMCR):
 //   <PREFIX>_<SERIAL>_PREVIEW     preview_image_t, the raw frame downscaled (publish_previews)
-//   <PREFIX>_<SERIAL>_TF          preview_image_t, the totally focused image (publish_previews)
-//   <PREFIX>_<SERIAL>_DEPTH       depth_image_t, TF virtual depth, 16-bit PNG
+//   <PREFIX>_<SERIAL>_TF          preview_image_t, the totally focused image, or the TF
+//                                 preview at each lens's depth (publish_previews)
+//   <PREFIX>_<SERIAL>_DEPTH       depth_image_t: the TF virtual depth (GEOMETRY_TOTALLY_FOCUSED,
+//                                 8-bit PNG) where the dense chain ran, and the per-lens
+//                                 virtual depth (GEOMETRY_LENS_GRID, 16-bit PNG) of every
+//                                 frame the pipeline takes; `geometry` tells them apart
 //   <PREFIX>_<SERIAL>_EXTRINSICS  camera_extrinsics_t, c0_from_cx of camera X per
 //                                 trigger, from the registration stage
 //                                 (processing/registration_stage.h), with the
@@ -88,7 +92,7 @@ class Publisher {
   Publisher& operator=(const Publisher&) = delete;
 
   struct FrameCounts {
-    std::uint64_t previews = 0, depth = 0, tf = 0;
+    std::uint64_t previews = 0, depth = 0, tf = 0, lens_depth = 0;
   };
   FrameCounts PublishFrame(const FrameMeta& meta, const ProcessedFrame& frame);
   void PublishVicon(const ViconFrame& frame, bool is_trigger);

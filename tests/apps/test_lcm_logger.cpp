@@ -127,7 +127,10 @@ TEST_F(LoopbackMulticast, LcmLoggerRecordsAMaxRateReplay) {
       lifmcr_lcm::depth_image_t m;
       ASSERT_GE(m.decode(event->data, 0, event->datalen), 0);
       utime = m.utime;
-      depth[{m.serial, m.frame_id}] = m;
+      if (m.geometry == lifmcr_lcm::depth_image_t::GEOMETRY_TOTALLY_FOCUSED)
+        depth[{m.serial, m.frame_id}] = m;
+      else
+        EXPECT_EQ(m.geometry, lifmcr_lcm::depth_image_t::GEOMETRY_LENS_GRID);
     } else if (event->channel.ends_with("_PREVIEW") || event->channel.ends_with("_TF")) {
       lifmcr_lcm::preview_image_t m;
       ASSERT_GE(m.decode(event->data, 0, event->datalen), 0);
@@ -149,7 +152,8 @@ TEST_F(LoopbackMulticast, LcmLoggerRecordsAMaxRateReplay) {
   for (const auto& camera : layout->cameras) serials.push_back(camera.serial);
   for (const std::string& serial : serials) {
     EXPECT_EQ(count[CameraChannel(serial, "PREVIEW")], 4) << serial;
-    EXPECT_EQ(count[CameraChannel(serial, "DEPTH")], 4) << serial;
+    // The dense (TF grid) and the per-lens depth of each frame.
+    EXPECT_EQ(count[CameraChannel(serial, "DEPTH")], 2 * 4) << serial;
     EXPECT_EQ(count[CameraChannel(serial, "TF")], 4) << serial;
   }
   // Every message published is in the log: Vicon frames once each, in order.
@@ -205,7 +209,8 @@ TEST_F(LoopbackMulticast, LcmLoggerRecordsAMaxRateReplay) {
                             .c_str()),
             0)
       << test::ReadFile(out);
-  EXPECT_EQ(test::ReadFile(out), "types 8 depth 8 preview 8\n");
+  // Depth: the dense and the per-lens map of each of the 8 frames.
+  EXPECT_EQ(test::ReadFile(out), "types 8 depth 16 preview 8\n");
 }
 
 }  // namespace

@@ -14,6 +14,7 @@
 #include "drivers/replay_camera.h"
 #include "drivers/vicon_udp_sender.h"
 #include "drivers/vicon_udp_source.h"
+#include "processing/frame_chain.h"
 #include "processing/registration_stage.h"
 #include "replay/bmp.h"
 #include "replay/layout.h"
@@ -65,6 +66,8 @@ struct Received {
   std::map<std::string, int> count;
   std::map<std::string, std::vector<std::int64_t>> utimes;
   std::map<std::pair<std::string, std::int64_t>, lifmcr_lcm::depth_image_t> depth;  // serial, frame
+  std::map<std::pair<std::string, std::int64_t>, lifmcr_lcm::depth_image_t> lens_depth;
+  std::map<std::string, std::set<std::int64_t>> tf_frames;  // by serial
   std::map<std::string, std::vector<std::int64_t>> preview_frames;                  // by serial
   std::map<std::string, std::map<std::int64_t, std::int64_t>> preview_trigger;  // serial: id -> trigger
   std::optional<lifmcr_lcm::pipeline_stats_t> last_stats;
@@ -76,6 +79,8 @@ struct Received {
       ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);
       last_stats = m;
       utimes[channel].push_back(m.utime);
+    } else if (channel.ends_with("_EXTRINSICS")) {
+      // Counted only (ExtrinsicsMessages decodes them where they are under test).
     } else if (channel.ends_with("_VICON")) {
       lifmcr_lcm::vicon_frame_t m;
       ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);
@@ -84,13 +89,17 @@ struct Received {
       lifmcr_lcm::depth_image_t m;
       ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);
       utimes[channel].push_back(m.utime);
-      depth[{m.serial, m.frame_id}] = m;
+      if (m.geometry == lifmcr_lcm::depth_image_t::GEOMETRY_LENS_GRID)
+        lens_depth[{m.serial, m.frame_id}] = m;
+      else
+        depth[{m.serial, m.frame_id}] = m;
     } else {
       lifmcr_lcm::preview_image_t m;
       ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);
       utimes[channel].push_back(m.utime);
       EXPECT_EQ(m.size, static_cast<int>(m.data.size()));
       EXPECT_LE(m.size, 4 << 20);
+      if (channel.ends_with("_TF")) tf_frames[m.serial].insert(m.frame_id);
       if (channel.ends_with("_PREVIEW")) {
         preview_frames[m.serial].push_back(m.frame_id);
         preview_trigger[m.serial][m.frame_id] = m.trigger_index;
@@ -183,9 +192,12 @@ TEST(Pipeline, MaxRateProcessesAndPublishesEveryFrameWithDepthFromProcessing) {
   ASSERT_EQ(serials.size(), 2u);
   for (const std::string& serial : serials) {
     EXPECT_EQ(received.count[CameraChannel(serial, "PREVIEW")], frames) << serial;
-    EXPECT_EQ(received.count[CameraChannel(serial, "DEPTH")], frames) << serial;
+    // Per frame the dense depth (TF grid) and the per-lens depth (lens grid).
+    EXPECT_EQ(received.count[CameraChannel(serial, "DEPTH")], 2 * frames) << serial;
     EXPECT_EQ(received.count[CameraChannel(serial, "TF")], frames) << serial;
   }
+  EXPECT_EQ(received.lens_depth.size(), 2u * frames);
+  EXPECT_EQ(r.published_lens_depth, 2u * frames);
   EXPECT_GT(received.count[kViconChannel], 0);
   EXPECT_EQ(static_cast<std::uint64_t>(received.count[kViconChannel]), r.published_vicon);
   ASSERT_TRUE(received.last_stats.has_value());
@@ -649,6 +661,123 @@ TEST(Pipeline, RegistrationStagePosesBecomeExtrinsicsPerTrigger) {
       EXPECT_EQ(record.reference_localisation, "by camera 0");
     }
   }
+}
+
+// A stage that localises from the raw frame alone (registration first).
+class RawPoseStage final : public processing::RegistrationStage {
+ public:
+  std::string name() const override { return "raw-known"; }
+  Expected<std::optional<processing::CameraPose>> Localize(
+      const processing::StageFrame& frame) override {
+    EXPECT_NE(frame.raw.data, nullptr);
+    processing::CameraPose pose;
+    pose.transform = KnownPoseStage::W0FromC(frame.camera_index);
+    pose.method = "known";
+    return std::optional<processing::CameraPose>(pose);
+  }
+};
+
+// Registration first (a stage, newest wins: a timed replay): every frame the
+// workers take gets its per-lens depth on _DEPTH (GEOMETRY_LENS_GRID) and
+// its lens preview on _TF, whatever the depth lane manages; the message's
+// lens grid maps each cell to its micro image's centre, and its values are
+// the chain's per-lens depth of that frame within the 16-bit quantisation.
+TEST(Pipeline, PerLensDepthAndPreviewForEveryFrameTakenWithRegistrationFirst) {
+  test::TempDir dir;
+  const int frames = 3;
+  auto summary = synth::WriteSyntheticDataset(dir.path(), TinyRig(frames));
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  const auto layout = DiscoverSequence(summary->sequence_dir);
+  ASSERT_TRUE(layout.ok());
+  lcm::LCM bus("memq://");
+  Received received;
+  bus.subscribe("LIFMCR_.*", &Received::OnAny, &received);
+  ReplayRunOptions options;
+  options.sequence_dir = summary->sequence_dir;
+  options.rate.kind = ReplayRate::Kind::kOriginal;
+  options.pipeline.publisher.bus = &bus;
+  options.pipeline.registration = std::make_shared<RawPoseStage>();
+  auto result = RunReplay(options);
+  ASSERT_TRUE(result.ok()) << result.error().message;
+  Drain(bus);
+  const PipelineReport& r = result->report;
+  EXPECT_EQ(r.failed, 0u) << r.last_error;
+  EXPECT_EQ(r.lens_failed, 0u) << r.last_error;
+  ASSERT_GT(r.processed, 0u) << r.FinalReport();
+  EXPECT_EQ(r.localized, r.processed);
+  // One per-lens map per frame taken, and a TF image for each of them.
+  EXPECT_EQ(r.published_lens_depth, r.processed) << r.FinalReport();
+  EXPECT_EQ(received.lens_depth.size(), r.processed) << r.FinalReport();
+  for (const auto& [key, m] : received.lens_depth) {
+    EXPECT_EQ(received.tf_frames[key.first].count(key.second), 1u)
+        << key.first << " frame " << key.second << " has no TF image";
+    EXPECT_EQ(m.geometry, lifmcr_lcm::depth_image_t::GEOMETRY_LENS_GRID);
+  }
+
+  // One message against the chain's own product for its frame.
+  ASSERT_FALSE(received.lens_depth.empty());
+  const auto& [key, m] = *received.lens_depth.begin();
+  const CameraFolder* folder = nullptr;
+  for (const auto& camera : layout->cameras)
+    if (camera.serial == key.first) folder = &camera;
+  ASSERT_NE(folder, nullptr);
+  auto image = ReadBmp(*folder->FramePath(key.second));
+  ASSERT_TRUE(image.ok());
+  EXPECT_EQ(m.raw_width, image->width);
+  EXPECT_EQ(m.raw_height, image->height);
+  auto processor = DepthProcessor::ForSequence(summary->sequence_dir.string(), {key.first});
+  ASSERT_TRUE(processor.ok()) << processor.error().message;
+  processing::CameraChain* chain = (*processor)->chain().Find(key.first);
+  ASSERT_NE(chain, nullptr);
+  auto lease = chain->ProcessLenses(image->View(), 0);
+  ASSERT_TRUE(lease.ok()) << lease.error().message;
+  const processing::LensDepthMap& expected = (*lease)->depth;
+  ASSERT_EQ(m.width, expected.grid.cols);
+  ASSERT_EQ(m.height, expected.grid.rows);
+  int w = 0, h = 0;
+  auto decoded = DecodeDepth(m.data, m.scale, m.offset, &w, &h);
+  ASSERT_TRUE(decoded.ok()) << decoded.error().message;
+  ASSERT_EQ(w, m.width);
+  ASSERT_EQ(h, m.height);
+  const auto estimator = chain->LensEstimator(image->View());
+  ASSERT_TRUE(estimator.ok());
+  const processing::PlenopticFrame& geometry = (*estimator)->geometry();
+  const auto floor_div2 = [](int j) { return j >= 0 ? j / 2 : -((1 - j) / 2); };
+  int lenses = 0, valid = 0;
+  for (int row = 0; row < m.height; ++row)
+    for (int col = 0; col < m.width; ++col) {
+      // The message's rule (lcm_types/depth_image_t.lcm).
+      const int j = m.lens_j_top - row;
+      const int i = col + m.lens_col_base - floor_div2(j);
+      const int k = geometry.LensAt(i, j);
+      const std::size_t cell = static_cast<std::size_t>(row) * m.width + col;
+      const float v = (*decoded)[cell], want = expected.virtual_depth[cell];
+      ASSERT_EQ(std::isnan(v), std::isnan(want)) << col << "," << row;
+      if (!std::isnan(v)) {
+        ++valid;
+        ASSERT_NEAR(v, want, m.scale) << col << "," << row;
+      }
+      if (k < 0) continue;
+      ++lenses;
+      const processing::MicroImage& lens = geometry.lenses[k];
+      const double x = m.lens_origin_px[0] + i * m.lens_step_i_px[0] + j * m.lens_step_j_px[0];
+      const double y = m.lens_origin_px[1] + i * m.lens_step_i_px[1] + j * m.lens_step_j_px[1];
+      ASSERT_NEAR(x, lens.centre_px.x(), 1e-6);
+      ASSERT_NEAR(y, lens.centre_px.y(), 1e-6);
+      const int sign = m.lens_type_sign;
+      ASSERT_EQ(((sign * (i - j)) % 3 + 3) % 3, lens.type);
+      // The lens's virtual point at v: the micro-lens centre l_k and the
+      // micro-image centre c_k on one ray, x_v = l_k + v (c_k - l_k).
+      const double lambda = m.lambda;
+      const Eigen::Vector2d p(m.principal_point_px[0], m.principal_point_px[1]);
+      const Eigen::Vector2d c(x, y);
+      const double vv = 3.0;
+      const Eigen::Vector2d x_v = p + (lambda + vv * (1 - lambda)) * (c - p);
+      ASSERT_LT((x_v - (lens.lens_px + vv * (lens.centre_px - lens.lens_px))).norm(), 1e-6);
+    }
+  EXPECT_EQ(lenses, static_cast<int>(geometry.lenses.size()));
+  EXPECT_GT(valid, 0);
+  EXPECT_NEAR(m.valid_fraction, static_cast<double>(valid) / decoded->size(), 1e-6);
 }
 
 // The depth lane's frames of camera 1 wait in Process until the test lets

@@ -209,7 +209,8 @@ TEST(ReplayBayer, PixelFormatGivesColourPreviewsAndTf) {
     const LoggedImages images = ReadLoggedImages(log);
     EXPECT_EQ(images.count.count("PREVIEW") ? images.count.at("PREVIEW") : 0, 2);
     EXPECT_EQ(images.count.count("TF") ? images.count.at("TF") : 0, 2);
-    EXPECT_EQ(images.count.count("DEPTH") ? images.count.at("DEPTH") : 0, 2);
+    // Per frame the dense (TF grid) and the per-lens depth.
+  EXPECT_EQ(images.count.count("DEPTH") ? images.count.at("DEPTH") : 0, 2 * 2);
     const std::set<int> expected = {flag.empty() ? 1 : 3};
     EXPECT_EQ(images.channels.count("PREVIEW") ? images.channels.at("PREVIEW") : std::set<int>{},
               expected);
@@ -252,7 +253,8 @@ TEST(ReplayBayer, PixelFormatGivesColourPreviewsAndTf) {
             std::set<int>{3});
   EXPECT_EQ(images.channels.count("TF") ? images.channels.at("TF") : std::set<int>{},
             std::set<int>{3});
-  EXPECT_EQ(images.count.count("DEPTH") ? images.count.at("DEPTH") : 0, 2);
+  // Per frame the dense (TF grid) and the per-lens depth.
+  EXPECT_EQ(images.count.count("DEPTH") ? images.count.at("DEPTH") : 0, 2 * 2);
 }
 
 // skip_policy block with processing far slower than the triggers: the

@@ -102,7 +102,8 @@ class StockLcmTools : public ::testing::Test {
     Published published;
     EXPECT_EQ(replay.exit_code, 0) << replay.out << replay.err;
     EXPECT_TRUE(ParsePublished(replay.out, &published)) << replay.out;
-    EXPECT_EQ(published.depth, 4) << replay.out;
+    // Per frame the dense (TF grid) and the per-lens depth.
+    EXPECT_EQ(published.depth, 2 * 4) << replay.out;
     return published;
   }
 

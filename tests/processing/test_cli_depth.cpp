@@ -10,6 +10,8 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 
@@ -74,6 +76,45 @@ TEST(CliDepth, GridAndDepthOnASyntheticDataset) {
   ASSERT_TRUE(mm.ok());
   EXPECT_EQ(w, 512);
   EXPECT_EQ(h, 384);
+  // The per-lens product: the CSV's rows are the micro images, each at its
+  // cell of the lens grid TIFF with the same virtual depth.
+  EXPECT_NE(depth.out.find("lens depth:"), std::string::npos) << depth.out;
+  EXPECT_TRUE(fs::exists(out / (stem + "_lens_tf.png")));
+  Expected<std::vector<float>> lens =
+      synth::ReadFloatTiff(out / (stem + "_lens_depth.tiff"), &w, &h);
+  ASSERT_TRUE(lens.ok());
+  {
+    std::ifstream csv(out / (stem + "_lens_depth.csv"));
+    std::string line;
+    ASSERT_TRUE(std::getline(csv, line));
+    EXPECT_EQ(line, "col,row,i,j,type,x_px,y_px,virtual_depth,sigma_z,confidence,textured");
+    int rows = 0, with_depth = 0;
+    while (std::getline(csv, line)) {
+      ++rows;
+      int col = 0, row = 0, i = 0, j = 0, type = 0;
+      double x = 0, y = 0;
+      char rest[128] = {0};
+      ASSERT_EQ(std::sscanf(line.c_str(), "%d,%d,%d,%d,%d,%lf,%lf,%127s", &col, &row, &i, &j, &type,
+                            &x, &y, rest),
+                8)
+          << line;
+      ASSERT_GE(col, 0);
+      ASSERT_LT(col, w);
+      ASSERT_GE(row, 0);
+      ASSERT_LT(row, h);
+      EXPECT_GE(x, -20.0);
+      EXPECT_LE(x, 1024.0 + 20);
+      const float in_tiff = (*lens)[static_cast<std::size_t>(row) * w + col];
+      if (rest[0] != ',') {
+        ++with_depth;
+        EXPECT_NEAR(std::atof(rest), in_tiff, 1e-4 * in_tiff) << line;
+      } else {
+        EXPECT_TRUE(std::isnan(in_tiff)) << line;
+      }
+    }
+    EXPECT_GT(rows, 1000);  // ~3700 micro images on `small`
+    EXPECT_GT(with_depth, rows / 4);
+  }
 
   // A user error is a message and exit code 1.
   const test::CommandResult missing = test::RunLifmcr(

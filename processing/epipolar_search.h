@@ -1,0 +1,313 @@
+#pragma once
+// The epipolar search between two micro images, written once for the dense
+// estimator (processing/virtual_depth.h, on the smoothed devignetted grey)
+// and the per-lens estimator (processing/lens_depth.h, on the raw pixels
+// times the devignetting gain): what differs is only how a grey level is
+// read at a sub-pixel position (the `Bilinear` callable below).
+//
+// A pixel p of micro image k appears in neighbour n at
+//   q(z) = p + lambda (c_n - c_k) (1 - z),   z = 1 / v
+// (virtual_depth.h). MatchAlong searches z in [z_lo, z_hi] (clipped to the z
+// for which q lies in the neighbour's disc) in steps of step_px of
+// disparity, minimising the SSD of a 5 x 3 patch along the baseline; the
+// minimum must lie strictly inside the run and be distinct (<=
+// max_cost_ratio of the run's mean cost, plus noise); a parabola through the
+// three costs around it gives the sub-step position. Its uncertainty
+//   sigma_px^2 = 2 sigma_I^2 / sum (g_e)^2 + sigma_model^2,
+//   sigma_z = sigma_px / (lambda |Delta|).
+// The patch positions of all steps lie on three lines along the baseline at
+// step_px spacing, so the neighbour is sampled once per line (a strip) and
+// step k reads the strip at shift k: 3 (K + 4 / step) samples instead of 15 K.
+//
+// `Bilinear(x0, y0, fx, fy)` is the grey level at (x0 + fx, y0 + fy) for
+// 0 <= x0 < width - 1, 0 <= y0 < height - 1, fx, fy in [0, 1); NaN next to
+// an invalid pixel (NaN propagates through the costs).
+// Internal to processing/.
+
+#include "config/mla.h"
+#include "processing/plenoptic_frame.h"
+#include "processing/virtual_depth.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+
+namespace lifmcr::processing::detail {
+
+constexpr int kAlong = 5, kAcross = 3, kSamples = kAlong * kAcross;
+// Neighbour steps (di, dj): ring 1 (|Delta| = D), ring 2 (|Delta| = sqrt(3) D).
+constexpr std::array<std::array<int, 2>, 6> kRing1{
+    {{1, 0}, {0, 1}, {-1, 1}, {-1, 0}, {0, -1}, {1, -1}}};
+constexpr std::array<std::array<int, 2>, 6> kRing2{
+    {{1, 1}, {-1, 2}, {-2, 1}, {-1, -1}, {1, -2}, {2, -1}}};
+
+struct Estimate {
+  double z = 0, sigma = 0;
+};
+
+struct Neighbour {
+  const MicroImage* lens = nullptr;
+  float delta_x = 0, delta_y = 0;  // c_n - c_k
+  float e_x = 0, e_y = 0;          // unit baseline direction
+  double length = 0;
+  bool same_type = false;
+  // Opposite neighbours (direction d and d + 3 of a ring) share their
+  // reference patch, reversed: axis = 3 (ring - 1) + d mod 3.
+  int axis = 0;
+  bool flipped = false;
+};
+
+// The neighbours of `lens` in rings 1..rings that exist (ring 1 first, in
+// kRing1's order); returns their count, *ring1_count those of ring 1.
+inline int FindNeighbours(const PlenopticFrame& f, const MicroImage& lens, int rings,
+                          std::array<Neighbour, 12>* nbs, int* ring1_count) {
+  int count = 0;
+  *ring1_count = 0;
+  for (int ring = 1; ring <= rings; ++ring)
+    for (int dir = 0; dir < 6; ++dir) {
+      const auto& d = (ring == 1 ? kRing1 : kRing2)[dir];
+      const int idx = f.LensAt(lens.i + d[0], lens.j + d[1]);
+      if (idx < 0) continue;
+      Neighbour& nb = (*nbs)[count++];
+      nb.axis = 3 * (ring - 1) + dir % 3;
+      nb.flipped = dir >= 3;
+      nb.lens = &f.lenses[idx];
+      const Eigen::Vector2d delta = nb.lens->centre_px - lens.centre_px;
+      nb.length = delta.norm();
+      nb.delta_x = static_cast<float>(delta.x());
+      nb.delta_y = static_cast<float>(delta.y());
+      nb.e_x = static_cast<float>(delta.x() / nb.length);
+      nb.e_y = static_cast<float>(delta.y() / nb.length);
+      nb.same_type = nb.lens->type == lens.type;
+      if (ring == 1) *ring1_count = count;
+    }
+  return count;
+}
+
+// The search range in z = 1 / v per lens type (the MLA file's depth ranges
+// as SearchedVirtualDepths reads them) and their union.
+struct SearchRange {
+  std::array<double, 3> z_lo{}, z_hi{};
+  double union_lo = 1, union_hi = 0;
+  explicit SearchRange(const MlaCalibration& mla) {
+    for (int t = 0; t < 3; ++t) {
+      const VirtualDepthRange range = SearchedVirtualDepths(mla.lens_types[t]);
+      z_lo[t] = 1.0 / range.max;
+      z_hi[t] = 1.0 / range.min;
+      union_lo = std::min(union_lo, z_lo[t]);
+      union_hi = std::max(union_hi, z_hi[t]);
+    }
+  }
+};
+
+// What one search needs besides the patch: the frame's geometry and the
+// estimator's parameters.
+struct MatchParams {
+  double lambda = 1;
+  double step_px = 0.5;    // 1, 0.5 or 0.25
+  int samples_per_px = 2;  // 1 / step_px
+  double noise_dn = 2.5;   // sigma_I
+  double max_cost_ratio = 0.5;
+  double geometric_px = 0.05;  // sigma_model of a pair of one lens type
+  double cross_type_px = 0.3;  // sigma_model of a pair of two types
+};
+
+constexpr int kMaxSteps = 256;
+
+// Bilinear grey at (x, y) if within r2 of (cx, cy) and inside the image;
+// NaN otherwise.
+template <typename Bilinear>
+inline float SampleInDisc(const Bilinear& grey, int width, int height, float x, float y, float cx,
+                          float cy, float r2) {
+  const float dx = x - cx, dy = y - cy;
+  if (dx * dx + dy * dy > r2 || x < 0 || y < 0) return std::numeric_limits<float>::quiet_NaN();
+  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+  if (x0 >= width - 1 || y0 >= height - 1) return std::numeric_limits<float>::quiet_NaN();
+  return grey(x0, y0, x - x0, y - y0);
+}
+
+// The reference patch around p: samples p + a e + b e_perp, a = -2..2
+// (kAlong), b over kLines lines (-1..1 for 3, 0 for 1), row-major by b;
+// false if one is invalid.
+template <int kLines = kAcross, typename Bilinear>
+bool SampleReference(const Bilinear& grey, int width, int height, float px, float py, float e_x,
+                     float e_y, float cx, float cy, float r2, float* out) {
+  static_assert(kLines == 1 || kLines == 3);
+  constexpr int kHalf = kLines / 2;
+  for (int b = -kHalf, m = 0; b <= kHalf; ++b)
+    for (int a = -2; a <= 2; ++a, ++m) {
+      out[m] = SampleInDisc(grey, width, height, px + a * e_x - b * e_y, py + a * e_y + b * e_x, cx,
+                            cy, r2);
+      if (std::isnan(out[m])) return false;
+    }
+  return true;
+}
+
+// Sum of squared central differences of the patch along the baseline (the
+// sum (g_e)^2 of the uncertainty).
+template <int kLines = kAcross>
+inline double PatchGradient2(const float* patch) {
+  double g2 = 0;
+  for (int b = 0; b < kLines; ++b)
+    for (int a = 0; a + 2 < kAlong; ++a) {
+      const double g = 0.5 * (patch[b * kAlong + a + 2] - patch[b * kAlong + a]);
+      g2 += g * g;
+    }
+  return g2;
+}
+
+// One baseline: best z in [z_lo, z_hi]; false when unconfirmed. `ref` is the
+// patch of p sampled along nb's direction (kAlong x kLines); gradient_sum its
+// PatchGradient2; radius_px the usable disc radius r_valid. kLines 1: a
+// patch of one line along the baseline (a third of the samples, for a
+// coarse search whose result a longer baseline refines).
+template <int kLines = kAcross, typename Bilinear>
+bool MatchAlong(const MatchParams& s, const Bilinear& grey, int width, int height, double radius_px,
+                float px, float py, const float* ref, double gradient_sum, const Neighbour& nb,
+                double z_lo, double z_hi, Estimate* est) {
+  constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+  const double scale = s.lambda * nb.length;  // px of disparity per unit z
+  const float cx = static_cast<float>(nb.lens->centre_px.x());
+  const float cy = static_cast<float>(nb.lens->centre_px.y());
+  const double r_lim = radius_px + 0.5;
+  // A disc well inside the image needs no bounds test per sample.
+  const bool interior =
+      cx - r_lim > 1 && cy - r_lim > 1 && cx + r_lim < width - 2 && cy + r_lim < height - 2;
+  // Only the z for which q(z) = p + lambda Delta (1 - z) lies in the
+  // neighbour's disc: |d - z u| <= R with u = lambda Delta, d = p + u - c_n.
+  {
+    const double ux = s.lambda * nb.delta_x, uy = s.lambda * nb.delta_y;
+    const double dx = px + ux - cx, dy = py + uy - cy;
+    const double uu = ux * ux + uy * uy, du = dx * ux + dy * uy;
+    const double disc = du * du - uu * (dx * dx + dy * dy - r_lim * r_lim);
+    if (disc <= 0) return false;
+    const double root = std::sqrt(disc);
+    z_lo = std::max(z_lo, (du - root) / uu);
+    z_hi = std::min(z_hi, (du + root) / uu);
+  }
+  const double dz = s.step_px / scale;
+  const int steps = static_cast<int>(std::ceil((z_hi - z_lo) / dz)) + 1;
+  if (steps < 3 || steps > kMaxSteps) return false;
+  // Strip sample j (0 .. steps - 1 + 4 spp) sits at along-offset
+  // o_j = -2 - (steps - 1) step + j step from q(z_lo); step k, patch column
+  // a reads j = (steps - 1 - k) + (a + 2) spp. Reversed (index
+  // i = steps - 1 + 4 spp - j) step k reads i = k + (2 - a) spp, so the
+  // cost loop runs forwards over k.
+  const int spp = s.samples_per_px;
+  const int strip_len = steps + 4 * spp;
+  const float step = static_cast<float>(s.step_px);
+  const double q0 = s.lambda * nb.length * (1.0 - z_lo);  // q(z_lo) = p + q0 e
+  static_assert(kLines == 1 || kLines == 3);
+  constexpr int kHalf = kLines / 2;
+  float strip[kLines][kMaxSteps + 16];
+  const float r2 = static_cast<float>(r_lim * r_lim);
+  const float along0 = static_cast<float>(q0) - 2.0f - (steps - 1) * step;
+  for (int b = -kHalf; b <= kHalf; ++b) {
+    float* line = strip[b + kHalf];
+    // Line b: s(t) = p + b e_perp + t e; inside the disc for t in
+    // [t_c - h, t_c + h] (t_c = (c - p - b e_perp) . e), so only those
+    // strip samples are taken, without a test per sample.
+    const float ox = px - b * nb.e_y - cx, oy = py + b * nb.e_x - cy;
+    const float t_c = -(ox * nb.e_x + oy * nb.e_y);
+    const float d2 = ox * ox + oy * oy - t_c * t_c;  // squared distance of c from the line
+    int j_lo = strip_len, j_hi = -1;
+    if (d2 < r2) {
+      const float half = std::sqrt(r2 - d2);
+      j_lo = std::max(0, static_cast<int>(std::ceil((t_c - half - along0) / step)));
+      j_hi = std::min(strip_len - 1, static_cast<int>(std::floor((t_c + half - along0) / step)));
+    }
+    for (int i = 0; i < strip_len; ++i) {
+      const int j = strip_len - 1 - i;
+      if (j < j_lo || j > j_hi) {
+        line[i] = kNaN;
+        continue;
+      }
+      const float along = along0 + j * step;
+      const float x = px + along * nb.e_x - b * nb.e_y, y = py + along * nb.e_y + b * nb.e_x;
+      if (!interior && (x < 0 || y < 0 || x >= width - 1 || y >= height - 1)) {
+        line[i] = kNaN;
+        continue;
+      }
+      const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+      line[i] = grey(x0, y0, x - x0, y - y0);
+    }
+  }
+  float cost[kMaxSteps];
+  for (int k = 0; k < steps; ++k) cost[k] = 0;
+  for (int b = 0; b < kLines; ++b)
+    for (int a = -2; a <= 2; ++a) {
+      const float r = ref[b * kAlong + a + 2];
+      const float* line = strip[b] + (2 - a) * spp;
+      for (int k = 0; k < steps; ++k) {
+        const float d = line[k] - r;
+        cost[k] += d * d;
+      }
+    }
+  int best = -1, first_valid = -1, last_valid = -1, run_n = 0;
+  float best_cost = std::numeric_limits<float>::max();
+  double run_sum = 0;
+  for (int k = 0; k < steps; ++k) {
+    const float c = cost[k];
+    if (std::isnan(c)) continue;
+    if (first_valid < 0) first_valid = k;
+    last_valid = k;
+    run_sum += c;
+    ++run_n;
+    if (c < best_cost) {
+      best_cost = c;
+      best = k;
+    }
+  }
+  if (best < 0 || best <= first_valid || best >= last_valid) return false;
+  if (std::isnan(cost[best - 1]) || std::isnan(cost[best + 1])) return false;
+  // Distinctiveness: the minimum well below the mean cost over the run.
+  const double noise2 = 2.0 * s.noise_dn * s.noise_dn;
+  if (best_cost > s.max_cost_ratio * run_sum / run_n + kAlong * kLines * noise2) return false;
+  const double cm = cost[best - 1], c0 = cost[best], cp = cost[best + 1];
+  const double denom = cm - 2 * c0 + cp;
+  const double delta = denom > 0 ? std::clamp(0.5 * (cm - cp) / denom, -0.5, 0.5) : 0.0;
+  est->z = z_lo + (best + delta) * dz;
+  const double model_px = nb.same_type ? s.geometric_px : s.cross_type_px;
+  const double sigma_px2 = noise2 / std::max(gradient_sum, 1e-6) + model_px * model_px;
+  est->sigma = std::sqrt(sigma_px2) / scale;
+  return true;
+}
+
+// Estimates of one point (at most 12 baselines).
+struct Estimates {
+  std::array<Estimate, 12> e;
+  int n = 0;
+  void Add(const Estimate& x) { e[n++] = x; }
+};
+
+// Median-consistent inverse-variance fusion in z: estimates farther than
+// max(3 sigma, rel_gate z) from the median are outliers; returns the number used.
+inline int Fuse(const Estimate* e, int n, double rel_gate, double* z, double* sigma) {
+  if (n == 0) return 0;
+  std::array<double, 64> zs;
+  n = std::min(n, static_cast<int>(zs.size()));
+  for (int i = 0; i < n; ++i) zs[i] = e[i].z;
+  std::nth_element(zs.begin(), zs.begin() + n / 2, zs.begin() + n);
+  const double med = zs[n / 2];
+  double sw = 0, swz = 0;
+  int used = 0;
+  for (int i = 0; i < n; ++i) {
+    const Estimate& x = e[i];
+    if (std::abs(x.z - med) > std::max(3 * x.sigma, rel_gate * med)) continue;
+    const double w = 1.0 / (x.sigma * x.sigma);
+    sw += w;
+    swz += w * x.z;
+    ++used;
+  }
+  if (used == 0) return 0;
+  *z = swz / sw;
+  *sigma = std::sqrt(1.0 / sw);
+  return used;
+}
+
+inline int Fuse(const Estimates& es, double* z, double* sigma) {
+  return Fuse(es.e.data(), es.n, 0.03, z, sigma);
+}
+
+}  // namespace lifmcr::processing::detail

@@ -1,0 +1,564 @@
+// Per-lens virtual depth (lens_depth.h).
+
+#include "processing/lens_depth.h"
+
+#include "processing/epipolar_search.h"
+#include "processing/tf_kernel.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <type_traits>
+
+namespace lifmcr::processing {
+namespace {
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+constexpr int kMaxSamples = 16;
+
+// The devignetted grey of the raw frame at an integer pixel and bilinear:
+// the channel mean times the gain (plenoptic_frame.h), NaN where the gain is.
+template <int kChannels>
+struct RawGrey {
+  const ConstImageView& raw;
+  const float* gain;
+  int width;
+  // The raw grey level (channel sum) at an integer pixel, without the gain.
+  int RawSum(int x, int y) const {
+    const std::uint8_t* p = raw.Row(y) + x * kChannels;
+    if constexpr (kChannels == 3) return p[0] + p[1] + p[2];
+    return p[0];
+  }
+  float Gain(int x, int y) const { return gain[static_cast<std::size_t>(y) * width + x]; }
+  float operator()(int x0, int y0, float fx, float fy) const {
+    const std::uint8_t* q0 = raw.Row(y0) + x0 * kChannels;
+    const std::uint8_t* q1 = raw.Row(y0 + 1) + x0 * kChannels;
+    const float* g0 = gain + static_cast<std::size_t>(y0) * width + x0;
+    const float* g1 = g0 + width;
+    // Channel sums in integers: one conversion per corner.
+    int s00 = q0[0], s01 = q0[kChannels], s10 = q1[0], s11 = q1[kChannels];
+    if constexpr (kChannels == 3) {
+      s00 += q0[1] + q0[2];
+      s01 += q0[4] + q0[5];
+      s10 += q1[1] + q1[2];
+      s11 += q1[4] + q1[5];
+    }
+    const float a = static_cast<float>(s00) * g0[0], b = static_cast<float>(s01) * g0[1],
+                c = static_cast<float>(s10) * g1[0], d = static_cast<float>(s11) * g1[1];
+    return ((a + (b - a) * fx) * (1 - fy) + (c + (d - c) * fx) * fy) * (1.0f / kChannels);
+  }
+};
+
+struct Candidate {
+  float score = 0;
+  int x = 0, y = 0;
+  int axis = 0;   // best ring-1 axis (0..2)
+  int axis2 = 0;  // best ring-2 axis (0..2)
+};
+
+}  // namespace
+
+Status LensDepthOptions::Check() const {
+  if (samples < 1 || samples > kMaxSamples)
+    return Error{"lens depth options: samples: expected 1..16"};
+  if (!(candidate_step_px == 0 || (candidate_step_px >= 1 && candidate_step_px <= 8)))
+    return Error{"lens depth options: candidate_step_px: expected 0 (auto) or 1..8"};
+  if (!(candidate_fraction > 0 && candidate_fraction <= 1))
+    return Error{"lens depth options: candidate_fraction: expected in (0, 1]"};
+  if (!(min_gradient_dn >= 0)) return Error{"lens depth options: min_gradient_dn: expected >= 0"};
+  if (!(noise_dn > 0)) return Error{"lens depth options: noise_dn: expected > 0"};
+  for (const double step : {ring1_step_px, ring2_step_px})
+    if (step != 1.0 && step != 0.5 && step != 0.25)
+      return Error{std::string("lens depth options: ") +
+                   (step == ring1_step_px ? "ring1_step_px" : "ring2_step_px") +
+                   ": expected 1, 0.5 or 0.25"};
+  if (rings < 1 || rings > 2) return Error{"lens depth options: rings: expected 1 or 2"};
+  if (ring1_lines != 1 && ring1_lines != 3)
+    return Error{"lens depth options: ring1_lines: expected 1 or 3"};
+  if (!(geometric_px >= 0)) return Error{"lens depth options: geometric_px: expected >= 0"};
+  if (!(cross_type_px >= 0)) return Error{"lens depth options: cross_type_px: expected >= 0"};
+  if (!(max_cost_ratio > 0 && max_cost_ratio <= 1))
+    return Error{"lens depth options: max_cost_ratio: expected in (0, 1]"};
+  if (!(fuse_gate > 0 && fuse_gate <= 1))
+    return Error{"lens depth options: fuse_gate: expected in (0, 1]"};
+  if (min_estimates < 1) return Error{"lens depth options: min_estimates: expected >= 1"};
+  if (enough_estimates < min_estimates)
+    return Error{"lens depth options: enough_estimates: expected >= min_estimates"};
+  // A divisor of the confidence.
+  if (!(max_rel_sigma > 0 && max_rel_sigma <= 10))
+    return Error{"lens depth options: max_rel_sigma: expected in (0, 10]"};
+  return Status::Ok();
+}
+
+std::string LensDepthStats::BriefReport() const {
+  char buf[256];
+  std::snprintf(buf, sizeof buf,
+                "lens depth: %lld of %lld textured lenses (%.1f %%; %lld lenses), %lld pixels "
+                "searched, %.4f s",
+                estimated, textured, textured ? 100.0 * estimated / textured : 0.0, lenses,
+                searched_pixels, seconds);
+  return buf;
+}
+
+LensGrid LensGrid::Of(const PlenopticFrame& f) {
+  LensGrid g;
+  g.origin_px = f.grid.reference_px;
+  g.lattice = f.grid.lattice;
+  g.type_sign = f.grid.type_sign;
+  g.lambda = f.lambda;
+  g.principal_point_px = f.principal_point_px;
+  if (f.lenses.empty()) return g;
+  int j_lo = f.lenses[0].j, j_hi = j_lo;
+  int c_lo = f.lenses[0].i + FloorHalf(j_lo), c_hi = c_lo;
+  for (const MicroImage& m : f.lenses) {
+    j_lo = std::min(j_lo, m.j);
+    j_hi = std::max(j_hi, m.j);
+    const int c = m.i + FloorHalf(m.j);
+    c_lo = std::min(c_lo, c);
+    c_hi = std::max(c_hi, c);
+  }
+  g.j_top = j_hi;
+  g.rows = j_hi - j_lo + 1;
+  g.col_base = c_lo;
+  g.cols = c_hi - c_lo + 1;
+  return g;
+}
+
+void LensMedianOf(const PlenopticFrame& f, const LensGrid& grid, const std::vector<float>& raw_grid,
+                  double min_share, std::vector<float>* out) {
+  out->assign(static_cast<std::size_t>(grid.cols) * grid.rows, kNaN);
+  if (raw_grid.size() != static_cast<std::size_t>(f.width) * f.height) return;
+  tbb::parallel_for(0, static_cast<int>(f.lenses.size()), [&](int k) {
+    const MicroImage& m = f.lenses[k];
+    const double r = f.radius_px;
+    std::vector<float> values;
+    int pixels = 0;
+    for (int y = std::max(0, static_cast<int>(m.centre_px.y() - r));
+         y <= std::min(f.height - 1, static_cast<int>(m.centre_px.y() + r) + 1); ++y)
+      for (int x = std::max(0, static_cast<int>(m.centre_px.x() - r));
+           x <= std::min(f.width - 1, static_cast<int>(m.centre_px.x() + r) + 1); ++x) {
+        const std::size_t idx = static_cast<std::size_t>(y) * f.width + x;
+        if (f.lens_of_pixel[idx] != k) continue;
+        ++pixels;
+        if (std::isfinite(raw_grid[idx])) values.push_back(raw_grid[idx]);
+      }
+    if (values.empty() || values.size() < min_share * pixels) return;
+    std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
+    (*out)[static_cast<std::size_t>(grid.Row(m.j)) * grid.cols + grid.Col(m.i, m.j)] =
+        values[values.size() / 2];
+  });
+}
+
+struct LensDepthEstimator::LatticeTables {
+  // Per direction m (ring 1: 0..5, ring 2: 6..11, the order of kRing1 and
+  // kRing2) the neighbour without its lens; per axis its unit direction.
+  std::array<detail::Neighbour, 12> neighbour;
+  std::array<std::array<float, 2>, 6> axis_e{};
+  explicit LatticeTables(const Eigen::Matrix2d& lattice) {
+    for (int m = 0; m < 12; ++m) {
+      const int ring = m < 6 ? 1 : 2, dir = m % 6;
+      const auto& d = (ring == 1 ? detail::kRing1 : detail::kRing2)[dir];
+      const Eigen::Vector2d delta = lattice * Eigen::Vector2d(d[0], d[1]);
+      detail::Neighbour& nb = neighbour[m];
+      nb.length = delta.norm();
+      nb.delta_x = static_cast<float>(delta.x());
+      nb.delta_y = static_cast<float>(delta.y());
+      nb.e_x = static_cast<float>(delta.x() / nb.length);
+      nb.e_y = static_cast<float>(delta.y() / nb.length);
+      nb.axis = 3 * (ring - 1) + dir % 3;
+      nb.flipped = dir >= 3;
+      if (!nb.flipped) axis_e[nb.axis] = {nb.e_x, nb.e_y};
+    }
+  }
+};
+
+LensDepthEstimator::~LensDepthEstimator() = default;
+
+Expected<std::unique_ptr<LensDepthEstimator>> LensDepthEstimator::Create(
+    PlenopticFrame geometry, const MlaCalibration& mla, const LensDepthOptions& options) {
+  if (Status s = options.Check(); !s) return s.error();
+  if (!geometry.geometry_ready) return Error{"lens depth: PrepareGeometry has not run"};
+  if (geometry.lenses.empty()) return Error{"lens depth: no micro image in the frame"};
+  std::unique_ptr<LensDepthEstimator> e(new LensDepthEstimator());
+  e->geometry_ = std::move(geometry);
+  // The smoothed grey is not used here (pixels are read from the raw frame).
+  e->geometry_.grey = {};
+  e->geometry_.work = {};
+  e->mla_ = mla;
+  e->options_ = options;
+  e->grid_ = LensGrid::Of(e->geometry_);
+  e->kernel_ = std::make_unique<detail::TfKernel>(e->geometry_, mla, 1.0);
+  e->tables_ = std::make_unique<LatticeTables>(e->geometry_.grid.lattice);
+  // Candidate offsets from the rounded micro-image centre: a square grid of
+  // candidate_step_px within candidate_fraction r_valid.
+  const double reach = options.candidate_fraction * e->geometry_.radius_px;
+  const double step = options.candidate_step_px > 0
+                          ? options.candidate_step_px
+                          : std::max(1.0, std::round(e->geometry_.grid.PitchPx() / 11));
+  const int n_half = static_cast<int>(std::floor(reach / step));
+  for (int b = -n_half; b <= n_half; ++b)
+    for (int a = -n_half; a <= n_half; ++a) {
+      const double ox = a * step, oy = b * step;
+      if (ox * ox + oy * oy > reach * reach) continue;
+      e->candidates_.push_back(
+          {static_cast<std::int16_t>(std::lround(ox)), static_cast<std::int16_t>(std::lround(oy))});
+    }
+  return e;
+}
+
+namespace {
+
+// One micro image: candidates, searches, fusion (lens_depth.h, steps 1-3).
+template <int kChannels>
+void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
+                  const LensDepthEstimator::LatticeTables& tables,
+                  const std::vector<std::array<std::int16_t, 2>>& candidates,
+                  const detail::SearchRange& range, const detail::MatchParams& ring1,
+                  const detail::MatchParams& ring2, const RawGrey<kChannels>& grey, int k,
+                  float* v_out, float* sigma_out, float* conf_out, std::uint8_t* textured_out,
+                  long long* searched) {
+  const MicroImage& lens = f.lenses[k];
+  // The neighbours that exist, from the lattice's templates (c_n - c_k =
+  // A (di, dj) for every lens).
+  std::array<detail::Neighbour, 12> nbs;
+  int count = 0;
+  std::array<std::array<int, 2>, 6> axis_nb;
+  std::array<int, 6> axis_n{};
+  for (int m = 0; m < 6 * o.rings; ++m) {
+    const auto& d = m < 6 ? detail::kRing1[m] : detail::kRing2[m - 6];
+    const int idx = f.LensAt(lens.i + d[0], lens.j + d[1]);
+    if (idx < 0) continue;
+    detail::Neighbour& nb = nbs[count];
+    nb = tables.neighbour[m];
+    nb.lens = &f.lenses[idx];
+    nb.same_type = nb.lens->type == lens.type;
+    axis_nb[nb.axis][axis_n[nb.axis]++] = count;
+    ++count;
+  }
+  const std::array<std::array<float, 2>, 6>& axis_e = tables.axis_e;
+
+  // 1. Candidates on a square grid around c_k (offsets made once per camera).
+  std::array<Candidate, kMaxSamples> best{};
+  int n_best = 0;
+  bool any_textured = false;
+  const double cx = lens.centre_px.x(), cy = lens.centre_px.y();
+  const int ix = static_cast<int>(std::floor(cx + 0.5));
+  const int iy = static_cast<int>(std::floor(cy + 0.5));
+  const float thr = static_cast<float>(o.min_gradient_dn);
+  // The gradient gate reads the raw pixels only, scaled by the gain at the
+  // micro image's centre: the gain varies little over the candidates (they
+  // lie within candidate_fraction r_valid) and a gate needs no precision;
+  // one gain read per micro image instead of four per candidate.
+  if (ix < 1 || iy < 1 || ix >= f.width - 1 || iy >= f.height - 1) return;
+  const float centre_gain = grey.Gain(ix, iy);
+  if (!std::isfinite(centre_gain)) return;
+  const float to_grey = 0.5f * centre_gain / kChannels;
+  for (const std::array<std::int16_t, 2>& offset : candidates) {
+    const int x = ix + offset[0], y = iy + offset[1];
+    if (x < 1 || y < 1 || x >= f.width - 1 || y >= f.height - 1) continue;
+    const float gx = to_grey * static_cast<float>(grey.RawSum(x + 1, y) - grey.RawSum(x - 1, y));
+    const float gy = to_grey * static_cast<float>(grey.RawSum(x, y + 1) - grey.RawSum(x, y - 1));
+    Candidate c;
+    c.x = x;
+    c.y = y;
+    for (int d = 0; d < 3; ++d) {
+      if (axis_n[d] == 0) continue;
+      const float g = std::abs(gx * axis_e[d][0] + gy * axis_e[d][1]);
+      if (g > c.score) {
+        c.score = g;
+        c.axis = d;
+      }
+    }
+    if (c.score < thr) continue;
+    any_textured = true;
+    float best2 = -1;
+    for (int d = 0; d < 3; ++d) {
+      const float g = std::abs(gx * axis_e[3 + d][0] + gy * axis_e[3 + d][1]);
+      if (g > best2) {
+        best2 = g;
+        c.axis2 = d;
+      }
+    }
+    // Keep the `samples` best, sorted descending (insertion).
+    if (n_best < o.samples) {
+      best[n_best++] = c;
+    } else if (c.score > best[n_best - 1].score) {
+      best[n_best - 1] = c;
+    } else {
+      continue;
+    }
+    for (int q = n_best - 1; q > 0 && best[q - 1].score < best[q].score; --q)
+      std::swap(best[q - 1], best[q]);
+  }
+  *textured_out = any_textured;
+  if (!any_textured) return;
+
+  // 2. Searches.
+  const float ref_r2 = static_cast<float>((f.radius_px + 0.5) * (f.radius_px + 0.5));
+  const float fcx = static_cast<float>(cx), fcy = static_cast<float>(cy);
+  std::array<detail::Estimate, 4 * kMaxSamples> all;
+  int n_all = 0;
+  float patch[detail::kSamples], ref[detail::kSamples];
+  const double lo = range.union_lo, hi = range.union_hi;
+  for (int s = 0; s < n_best; ++s) {
+    const Candidate& c = best[s];
+    const float px = static_cast<float>(c.x), py = static_cast<float>(c.y);
+    ++*searched;
+    // The patch along the axis's unflipped direction and one baseline's
+    // search with it (a flipped neighbour reads it reversed).
+    auto search_axis = [&](auto lines, int axis, const detail::MatchParams& params, double z0,
+                           double z1, detail::Estimate* out, int* n_out) {
+      constexpr int kLines = decltype(lines)::value;
+      constexpr int kN = detail::kAlong * kLines;
+      if (axis_n[axis] == 0) return;
+      if (!detail::SampleReference<kLines>(grey, f.width, f.height, px, py, axis_e[axis][0],
+                                           axis_e[axis][1], fcx, fcy, ref_r2, patch))
+        return;
+      const double g2 = detail::PatchGradient2<kLines>(patch);
+      for (int q = 0; q < axis_n[axis]; ++q) {
+        const detail::Neighbour& nb = nbs[axis_nb[axis][q]];
+        for (int m = 0; m < kN; ++m) ref[m] = nb.flipped ? patch[kN - 1 - m] : patch[m];
+        detail::Estimate e;
+        if (detail::MatchAlong<kLines>(params, grey, f.width, f.height, f.radius_px, px, py, ref,
+                                       g2, nb, z0, z1, &e))
+          out[(*n_out)++] = e;
+      }
+    };
+    std::array<detail::Estimate, 4> mine;
+    int n_mine = 0;
+    if (o.ring1_lines == 1)
+      search_axis(std::integral_constant<int, 1>{}, c.axis, ring1, lo, hi, mine.data(), &n_mine);
+    else
+      search_axis(std::integral_constant<int, 3>{}, c.axis, ring1, lo, hi, mine.data(), &n_mine);
+    if (n_mine == 0) continue;
+    double z = 0, sigma = 0;
+    // The pixel's ring-1 estimates fused with the dense estimator's gate (3 %).
+    if (detail::Fuse(mine.data(), n_mine, 0.03, &z, &sigma) == 0) continue;
+    if (o.rings >= 2) {
+      // |Delta| of ring 2 is sqrt(3) D: lambda sqrt(3) D px of disparity per unit z.
+      const double span =
+          std::max(3 * sigma, 2 * o.ring2_step_px / (f.lambda * std::sqrt(3.0) * f.grid.PitchPx()));
+      search_axis(std::integral_constant<int, 3>{}, 3 + c.axis2, ring2, std::max(lo, z - span),
+                  std::min(hi, z + span), mine.data(), &n_mine);
+    }
+    for (int q = 0; q < n_mine; ++q) all[n_all++] = mine[q];
+    // Enough agreeing estimates: the remaining (less textured) pixels are not searched.
+    if (n_all >= o.enough_estimates) {
+      double zz = 0, ss = 0;
+      if (detail::Fuse(all.data(), n_all, o.fuse_gate, &zz, &ss) >= o.enough_estimates) break;
+    }
+  }
+
+  // 3. Fusion of the micro image's estimates.
+  double z = 0, sigma = 0;
+  const int used = detail::Fuse(all.data(), n_all, o.fuse_gate, &z, &sigma);
+  if (used < o.min_estimates || !(z > 0)) return;
+  // The agreeing estimates' weighted spread (they are not independent).
+  {
+    std::array<double, 4 * kMaxSamples> zs;
+    for (int q = 0; q < n_all; ++q) zs[q] = all[q].z;
+    std::nth_element(zs.begin(), zs.begin() + n_all / 2, zs.begin() + n_all);
+    const double med = zs[n_all / 2];
+    double sw = 0, swd = 0;
+    int n = 0;
+    for (int q = 0; q < n_all; ++q) {
+      if (std::abs(all[q].z - med) > std::max(3 * all[q].sigma, o.fuse_gate * med)) continue;
+      const double w = 1.0 / (all[q].sigma * all[q].sigma);
+      sw += w;
+      swd += w * (all[q].z - z) * (all[q].z - z);
+      ++n;
+    }
+    if (n > 1) sigma = std::sqrt(std::max(sigma * sigma, swd / (sw * (n - 1))));
+  }
+  if (sigma / z > o.max_rel_sigma) return;
+  *v_out = static_cast<float>(1.0 / z);
+  *sigma_out = static_cast<float>(sigma);
+  *conf_out = static_cast<float>(std::clamp(1.0 - (sigma / z) / o.max_rel_sigma, 0.0, 1.0));
+}
+
+}  // namespace
+
+Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out) const {
+  const auto start = std::chrono::steady_clock::now();
+  const PlenopticFrame& f = geometry_;
+  if (raw.data == nullptr || raw.width != f.width || raw.height != f.height)
+    return Error{"lens depth: frame " + std::to_string(raw.width) + "x" +
+                 std::to_string(raw.height) + ", expected " + std::to_string(f.width) + "x" +
+                 std::to_string(f.height) + " (the camera's geometry)"};
+  if (raw.format != PixelFormat::kMono8 && raw.format != PixelFormat::kBgr8)
+    return Error{"lens depth: expected a Mono8 or BGR8 frame"};
+  out->grid = grid_;
+  const std::size_t cells = static_cast<std::size_t>(grid_.cols) * grid_.rows;
+  out->virtual_depth.assign(cells, kNaN);
+  out->sigma_z.assign(cells, kNaN);
+  out->confidence.assign(cells, 0.0f);
+  out->type.assign(cells, -1);
+  out->textured.assign(cells, 0);
+  out->lens.assign(cells, -1);
+  const detail::SearchRange range(mla_);
+  auto params = [&](double step) {
+    detail::MatchParams p;
+    p.lambda = f.lambda;
+    p.step_px = step;
+    p.samples_per_px = static_cast<int>(std::lround(1.0 / step));
+    p.noise_dn = options_.noise_dn;
+    p.max_cost_ratio = options_.max_cost_ratio;
+    p.geometric_px = options_.geometric_px;
+    p.cross_type_px = options_.cross_type_px;
+    return p;
+  };
+  const detail::MatchParams ring1 = params(options_.ring1_step_px);
+  const detail::MatchParams ring2 = params(options_.ring2_step_px);
+  std::atomic<long long> searched{0}, textured{0}, estimated{0};
+  auto run = [&](const auto& grey) {
+    tbb::parallel_for(tbb::blocked_range<int>(0, static_cast<int>(f.lenses.size()), 64),
+                      [&](const tbb::blocked_range<int>& r) {
+                        long long my_searched = 0, my_textured = 0, my_estimated = 0;
+                        for (int k = r.begin(); k < r.end(); ++k) {
+                          const MicroImage& m = f.lenses[k];
+                          const std::size_t cell =
+                              static_cast<std::size_t>(grid_.Row(m.j)) * grid_.cols +
+                              grid_.Col(m.i, m.j);
+                          out->type[cell] = static_cast<std::int8_t>(m.type);
+                          out->lens[cell] = k;
+                          EstimateLens(f, options_, *tables_, candidates_, range, ring1, ring2,
+                                       grey, k, &out->virtual_depth[cell], &out->sigma_z[cell],
+                                       &out->confidence[cell], &out->textured[cell], &my_searched);
+                          my_textured += out->textured[cell];
+                          my_estimated += !std::isnan(out->virtual_depth[cell]);
+                        }
+                        searched += my_searched;
+                        textured += my_textured;
+                        estimated += my_estimated;
+                      });
+  };
+  if (raw.format == PixelFormat::kBgr8)
+    run(RawGrey<3>{raw, f.gain.data(), f.width});
+  else
+    run(RawGrey<1>{raw, f.gain.data(), f.width});
+  LensDepthStats& st = out->stats;
+  st = LensDepthStats{};
+  st.lenses = static_cast<long long>(f.lenses.size());
+  st.textured = textured.load();
+  st.estimated = estimated.load();
+  st.searched_pixels = searched.load();
+  st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return Status::Ok();
+}
+
+Status LensDepthEstimator::RenderPreview(ConstImageView raw, int max_side, LensDepthMap* depth,
+                                         TfImage* out) const {
+  const PlenopticFrame& f = geometry_;
+  if (raw.data == nullptr || raw.width != f.width || raw.height != f.height)
+    return Error{"lens preview: frame " + std::to_string(raw.width) + "x" +
+                 std::to_string(raw.height) + ", expected " + std::to_string(f.width) + "x" +
+                 std::to_string(f.height)};
+  if (max_side < 1) return Error{"lens preview: max_side: expected >= 1"};
+  const LensGrid& g = depth->grid;
+  const std::size_t cells = static_cast<std::size_t>(g.cols) * g.rows;
+  if (depth->virtual_depth.size() != cells || g.cols != grid_.cols || g.rows != grid_.rows)
+    return Error{"lens preview: the depth map is not of this camera's lens grid"};
+  // Holes: the mean of the ring-1 neighbours' depths (two rounds), then the median.
+  std::vector<float>& v = depth->filled_v;
+  v.assign(depth->virtual_depth.begin(), depth->virtual_depth.end());
+  double median = 3.0;
+  {
+    // The median of the estimates, without a copy: nth_element on the
+    // scratch's tail would reorder it, so over a histogram of v in 1/64 steps.
+    std::array<int, 64 * 32> hist{};
+    long long n = 0;
+    for (const float x : depth->virtual_depth)
+      if (std::isfinite(x)) {
+        ++hist[std::clamp(static_cast<int>(x * 64), 0, static_cast<int>(hist.size()) - 1)];
+        ++n;
+      }
+    long long acc = 0;
+    for (std::size_t b = 0; b < hist.size() && n > 0; ++b) {
+      acc += hist[b];
+      if (2 * acc >= n) {
+        median = (b + 0.5) / 64.0;
+        break;
+      }
+    }
+  }
+  for (int round = 0; round < 2; ++round) {
+    std::vector<float>& before = depth->fill_scratch;
+    before.assign(v.begin(), v.end());
+    for (int row = 0; row < g.rows; ++row)
+      for (int col = 0; col < g.cols; ++col) {
+        const std::size_t cell = depth->Cell(col, row);
+        if (depth->type[cell] < 0 || std::isfinite(before[cell])) continue;
+        int i = 0, j = 0;
+        g.Lens(col, row, &i, &j);
+        double sum = 0;
+        int n = 0;
+        for (const auto& d : detail::kRing1) {
+          const int jj = j + d[1], ii = i + d[0];
+          const int r = g.Row(jj), c = g.Col(ii, jj);
+          if (r < 0 || r >= g.rows || c < 0 || c >= g.cols) continue;
+          const float x = before[depth->Cell(c, r)];
+          if (std::isfinite(x)) {
+            sum += x;
+            ++n;
+          }
+        }
+        if (n > 0) v[cell] = static_cast<float>(sum / n);
+      }
+  }
+  for (std::size_t c = 0; c < cells; ++c)
+    if (!std::isfinite(v[c])) v[c] = static_cast<float>(median);
+
+  const int tw = f.width / 2, th = f.height / 2;
+  const float s = std::max(1.0f, static_cast<float>(std::max(tw, th)) / max_side);
+  const int ow = std::max(1, static_cast<int>(std::lround(tw / s)));
+  const int oh = std::max(1, static_cast<int>(std::lround(th / s)));
+  const bool colour = raw.format == PixelFormat::kBgr8;
+  out->width = ow;
+  out->height = oh;
+  out->format = colour ? PixelFormat::kBgr8 : PixelFormat::kMono8;
+  out->pixels.resize(static_cast<std::size_t>(ow) * oh * (colour ? 3 : 1));
+  out->linear.clear();
+  const detail::TfKernel& kernel = *kernel_;
+  tbb::parallel_for(0, oh, [&](int b) {
+    // TF position u = (a + 1/2) s - 1/2 is raw position 2u + 1/2.
+    const float y = 2.0f * ((b + 0.5f) * s - 0.5f) + 0.5f;
+    std::uint8_t* row = out->pixels.data() + static_cast<std::size_t>(b) * ow * (colour ? 3 : 1);
+    for (int a = 0; a < ow; ++a) {
+      const float x = 2.0f * ((a + 0.5f) * s - 0.5f) + 0.5f;
+      // The micro images that see x at depth v lie around
+      // LookingAt(x, v) (tf_kernel.h), up to lenses away from x at the
+      // border: the lens there gives v, twice from the frame's median.
+      float vv = static_cast<float>(median);
+      for (int round = 0; round < 2; ++round) {
+        const Eigen::Vector2f q = kernel.LookingAt(x, y, vv);
+        int i = 0, j = 0;
+        f.grid.Nearest(Eigen::Vector2d(q.x(), q.y()), &i, &j);
+        const int r = g.Row(j), c = g.Col(i, j);
+        if (r >= 0 && r < g.rows && c >= 0 && c < g.cols) vv = v[depth->Cell(c, r)];
+        vv = std::max(vv, 1.05f);
+      }
+      const int type = kernel.SharpType(vv);
+      float acc[3];
+      if (colour) {
+        const float sw = kernel.Blend<3>(raw, x, y, vv, type, acc);
+        for (int ch = 0; ch < 3; ++ch)
+          row[3 * a + ch] =
+              sw > 0 ? static_cast<std::uint8_t>(std::clamp(acc[ch] / sw + 0.5f, 0.0f, 255.0f)) : 0;
+      } else {
+        const float sw = kernel.Blend<1>(raw, x, y, vv, type, acc);
+        row[a] =
+            sw > 0 ? static_cast<std::uint8_t>(std::clamp(acc[0] / sw + 0.5f, 0.0f, 255.0f)) : 0;
+      }
+    }
+  });
+  return Status::Ok();
+}
+
+}  // namespace lifmcr::processing

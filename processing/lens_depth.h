@@ -1,0 +1,193 @@
+#pragma once
+// One virtual depth per micro lens, cheap enough for every frame
+// (docs/processing.md, "Per-lens virtual depth").
+//
+// For micro image k (centre c_k, type t) of the raw frame, read directly
+// from the raw pixels times the devignetting gain (no devignetted or
+// smoothed copy of the frame is made):
+// 1. Candidates: pixels on a square grid of candidate_step_px within
+//    candidate_fraction r_valid of c_k; each scored by its largest gradient
+//    along the three ring-1 axes, |g . e_d| (central differences of the raw
+//    grey times the gain at c_k: the gain varies little over the
+//    candidates, and the gate needs no precision). Those with a score >=
+//    min_gradient_dn are textured (a micro image with at least one is a
+//    textured lens); the `samples` best are searched, most textured first,
+//    until enough_estimates of the estimates so far agree (step 3's fusion).
+// 2. Per searched pixel p, on its best ring-1 axis: the two ring-1
+//    neighbours along it (both of the other types), the epipolar search of
+//    processing/epipolar_search.h over the union of the MLA file's depth
+//    ranges in steps of ring1_step_px with a patch of ring1_lines lines;
+//    then, around their fusion (+- 3 sigma, at least two steps), the two
+//    ring-2 neighbours (|Delta| = sqrt(3) D, the same type) on the ring-2
+//    axis with the largest gradient, in steps of ring2_step_px (5 x 3).
+// 3. All estimates of the micro image (up to 4 per searched pixel) are fused
+//    in z = 1 / v weighted by 1 / sigma^2, without those farther than
+//    max(3 sigma, fuse_gate z) from their median; at least min_estimates
+//    agreeing. The pixels are not independent views of one point, so
+//      sigma_z^2 = max(1 / sum w, sum w (z_i - z)^2 / (sum w (n - 1)))
+//    (the fused variance, or the estimates' weighted spread over n - 1 when
+//    larger); rejected when sigma_z / z > max_rel_sigma;
+//    confidence = clamp(1 - (sigma_z / z) / max_rel_sigma, 0, 1).
+// What v means: the virtual depth of the scene the micro image sees at its
+// most textured pixels (one surface unless the lens straddles a depth edge).
+//
+// The lens grid (LensGrid): lens (i, j) of the lattice (mla_grid.h) is cell
+//   row = j_top - j,   col = i + floor(j / 2) - col_base
+// of a cols x rows image: with the lattice's i step along the rows and its
+// j step half a pitch sideways and one row up (a RayCalibData file's hex
+// bases), rows run down the image and a column stays within half a pitch
+// of one image x, so the micro images fill the grid without gaps.
+// Inverse: j = j_top - row, i = col + col_base - floor(j / 2); centre
+// c(i, j) = o + A (i, j)^T. The virtual point that lens k's micro-image
+// centre sees at depth v is x_v = p + (lambda + v (1 - lambda)) (c_k - p),
+// p the principal point (tf_kernel.h), on TF pixel (x_v - 0.5) / 2
+// (total_focus.h).
+//
+// Work is parallel over micro images (TBB); each cell is written once.
+// Estimate allocates nothing once `out` has the grid's size (a workspace
+// reused frame after frame).
+
+#include "config/error.h"
+#include "config/image.h"
+#include "config/mla.h"
+#include "processing/plenoptic_frame.h"
+#include "processing/total_focus.h"
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace lifmcr::processing {
+
+namespace detail {
+class TfKernel;
+}
+
+struct LensDepthOptions {
+  int samples = 6;           // most textured pixels searched per micro image, at most
+  int enough_estimates = 2;  // agreeing estimates after which no further pixel is searched
+  // Spacing of the candidate grid; 0: the pitch / 11 rounded, at least 1
+  // (3 px on an R32's 34 px micro images, 1 px on 16 px ones).
+  double candidate_step_px = 0;
+  double candidate_fraction = 0.6;  // candidates within this share of r_valid
+  double min_gradient_dn = 5.0;     // |dI/de| (DN per px, devignetted grey) to be textured
+  double noise_dn = 2.5;            // sigma_I of the raw grey level
+  double ring1_step_px = 1.0;       // disparity step of the ring-1 search: 1, 0.5 or 0.25
+  double ring2_step_px = 1.0;       // of the ring-2 search around the ring-1 result
+  // Lines of the ring-1 patch: 1 (5 x 1: a third of the samples; ring 2
+  // refines with 5 x 3) or 3.
+  int ring1_lines = 1;
+  int rings = 2;                // 1 or 2
+  double geometric_px = 0.05;   // sigma_model of a pair of one type
+  double cross_type_px = 0.3;   // of two types (their different blur)
+  double max_cost_ratio = 0.5;  // best SSD <= ratio * mean SSD of the search (+ noise)
+  double fuse_gate = 0.05;      // outlier gate of the fusion, share of z
+  int min_estimates = 2;        // agreeing estimates per micro image
+  double max_rel_sigma = 0.1;   // sigma_z / z above this: rejected
+  Status Check() const;         // every field; the message names the field
+};
+
+// The layout of the lens grid (header comment).
+struct LensGrid {
+  int cols = 0, rows = 0;
+  int j_top = 0, col_base = 0;
+  Eigen::Vector2d origin_px = Eigen::Vector2d::Zero();    // o: centre of lens (0, 0)
+  Eigen::Matrix2d lattice = Eigen::Matrix2d::Identity();  // A
+  int type_sign = 1;                                      // type = (sigma (i - j)) mod 3
+  double lambda = 1;                                      // b_L0 / (b_L0 + B) of l_k
+  Eigen::Vector2d principal_point_px = Eigen::Vector2d::Zero();
+
+  static int FloorHalf(int j) { return j >= 0 ? j / 2 : -((1 - j) / 2); }
+  int Col(int i, int j) const { return i + FloorHalf(j) - col_base; }
+  int Row(int j) const { return j_top - j; }
+  void Lens(int col, int row, int* i, int* j) const {
+    *j = j_top - row;
+    *i = col + col_base - FloorHalf(*j);
+  }
+  Eigen::Vector2d Centre(int col, int row) const {
+    int i = 0, j = 0;
+    Lens(col, row, &i, &j);
+    return origin_px + lattice * Eigen::Vector2d(i, j);
+  }
+  // The layout of the micro images of `geometry` (PrepareGeometry done).
+  static LensGrid Of(const PlenopticFrame& geometry);
+};
+
+struct LensDepthStats {
+  long long lenses = 0;     // micro images of the frame
+  long long textured = 0;   // with a textured candidate
+  long long estimated = 0;  // with a virtual depth
+  long long searched_pixels = 0;
+  double seconds = 0;
+  // "lens depth: 30112 of 31980 textured lenses (94.2 %; 32385 lenses), 1.2e5 pixels searched,
+  // 0.041 s"
+  std::string BriefReport() const;
+};
+
+struct LensDepthMap {
+  LensGrid grid;
+  std::vector<float> virtual_depth;    // per cell, row-major; NaN: no estimate
+  std::vector<float> sigma_z;          // of z = 1 / v; NaN: no estimate
+  std::vector<float> confidence;       // 0..1; 0 without an estimate
+  std::vector<std::int8_t> type;       // lens type, -1: no micro image in the cell
+  std::vector<std::uint8_t> textured;  // 1: a textured candidate
+  std::vector<std::int32_t> lens;      // index into the geometry's lenses, -1: none
+  LensDepthStats stats;
+  std::vector<float> filled_v, fill_scratch;  // scratch of RenderPreview
+  std::size_t Cell(int col, int row) const {
+    return static_cast<std::size_t>(row) * grid.cols + col;
+  }
+};
+
+// The median over each micro image's pixels (lens_of_pixel) of a map on the
+// raw grid (NaN: none; cells with fewer than min_share of their pixels
+// finite get NaN): the per-lens value of a per-pixel virtual depth (the
+// ground truth of `lifmcr synth`, the dense map) on `grid`.
+void LensMedianOf(const PlenopticFrame& geometry, const LensGrid& grid,
+                  const std::vector<float>& raw_grid, double min_share, std::vector<float>* out);
+
+// Per camera: the geometry (PrepareGeometry done; the grey image is not
+// needed) and the options, fixed; immutable and shared by threads.
+class LensDepthEstimator {
+ public:
+  static Expected<std::unique_ptr<LensDepthEstimator>> Create(PlenopticFrame geometry,
+                                                              const MlaCalibration& mla,
+                                                              const LensDepthOptions& options);
+  ~LensDepthEstimator();
+  LensDepthEstimator(const LensDepthEstimator&) = delete;
+  LensDepthEstimator& operator=(const LensDepthEstimator&) = delete;
+
+  // The per-lens depth of `raw` (Mono8 or BGR8, the geometry's size).
+  Status Estimate(ConstImageView raw, LensDepthMap* out) const;
+
+  // The TF image at each lens's own depth, point-sampled on a grid of
+  // max_side pixels on its longest side (the TF grid's size if smaller)
+  // over the TF grid (W/2 x H/2): output pixel (a, b) is the TF position
+  // ((a + 1/2) s - 1/2, (b + 1/2) s - 1/2), s = max(1, max(W/2, H/2) /
+  // max_side), the size round(W/2 / s) x round(H/2 / s); rendered by the rule of
+  // tf_kernel.h at the virtual depth v of the micro image nearest to the
+  // position of the micro images that see it at v (tf_kernel.h's
+  // LookingAt; two rounds from the frame's median v) (holes in the map: the
+  // mean of their ring-1 neighbours' depths, twice; then the frame's
+  // median). BGR8 for BGR8 frames, else Mono8.
+  Status RenderPreview(ConstImageView raw, int max_side, LensDepthMap* depth, TfImage* out) const;
+
+  const PlenopticFrame& geometry() const { return geometry_; }
+  const LensDepthOptions& options() const { return options_; }
+  // The lattice's neighbour steps and axes, the same for every lens (lens_depth.cpp).
+  struct LatticeTables;
+
+ private:
+  LensDepthEstimator() = default;
+  PlenopticFrame geometry_;
+  MlaCalibration mla_;
+  LensDepthOptions options_;
+  LensGrid grid_;
+  std::unique_ptr<detail::TfKernel> kernel_;
+  std::vector<std::array<std::int16_t, 2>> candidates_;  // offsets of step 1
+  std::unique_ptr<LatticeTables> tables_;
+};
+
+}  // namespace lifmcr::processing
