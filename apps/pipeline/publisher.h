@@ -5,7 +5,7 @@
 // Channels, <PREFIX> = lcm.channel_prefix of the rig file (default LIFMCR):
 //   <PREFIX>_<SERIAL>_PREVIEW     preview_image_t, the raw frame downscaled (publish_previews)
 //   <PREFIX>_<SERIAL>_TF          preview_image_t, the totally focused image (publish_previews)
-//   <PREFIX>_<SERIAL>_DEPTH       depth_image_t, TF virtual depth, 16-bit PNG
+//   <PREFIX>_<SERIAL>_DEPTH       depth_image_t, TF virtual depth, 8-bit PNG
 //   <PREFIX>_<SERIAL>_EXTRINSICS  camera_extrinsics_t, c0_from_cx of camera X per
 //                                 trigger, from the registration stage
 //                                 (processing/registration_stage.h), with the
