@@ -243,11 +243,17 @@ if [[ $quick == 1 ]]; then
   status_row bench/soak.sh "record + replay + publish with faults" "not run with --quick"
 else
   run fuzz.sh "$logs/fuzz.log" bench/fuzz.sh 30
-  crashes=$(awk 'f && NF >= 7 {c += $7} /^target +executions/ {f = 1} END {print c + 0}' "$logs/fuzz.log")
-  status_row bench/fuzz.sh "libFuzzer targets, 30 s each" "crashes: $crashes"
+  if grep -q '^target  *executions' "$logs/fuzz.log"; then
+    crashes=$(awk 'f && NF >= 7 {c += $7} /^target +executions/ {f = 1} END {print c + 0}' "$logs/fuzz.log")
+    status_row bench/fuzz.sh "libFuzzer targets, 30 s each" "crashes: $crashes"
+  else
+    status_row bench/fuzz.sh "libFuzzer targets, 30 s each" "did not run: see the log"
+    failed=1
+  fi
   run soak.sh "$logs/soak.log" bench/soak.sh 10
   status_row bench/soak.sh "10 min of record + replay + publish with faults" \
     "$([[ $rc == 0 ]] && echo "nothing recorded lost, memory flat" || echo "failed: see the log")"
+  [[ $rc == 0 ]] || failed=1
 fi
 
 load_end=$(cut -d' ' -f1-3 /proc/loadavg)
