@@ -42,7 +42,7 @@
 //              [--concurrency N] [--keep DIR]
 // --keep DIR renders into DIR once and reuses it (same preset and frames)
 // in later runs; DIR is left in place.
-// Goals (issue 13, 2 cores): >= 5 Hz per camera at medium, >= 2 Hz at r32.
+// Goals (2 cores): >= 5 Hz per camera at medium, >= 2 Hz at r32.
 
 #include "bench/bench_usage.h"
 #include "apps/pipeline/camera_setup.h"

@@ -43,7 +43,7 @@
 
 namespace lifmcr {
 
-// What a real camera frame can be (README, "Limits of every input"): the
+// What a real camera frame can be (docs/formats.md, "Limits of every input"): the
 // R32 is 6560x4948; the largest industrial sensors have ~150 MP. A header
 // beyond is refused before anything is allocated for it.
 struct BmpLimits {

@@ -72,7 +72,7 @@ std::optional<MlaProblem> FindProblem(const MlaCalibration& c) {
   if (c.version != "1.0") {
     return MlaProblem{root, "expected version \"1.0\", got \"" + Excerpt(c.version) + "\""};
   }
-  // What a real camera and lens can be (README, "Limits of every input"):
+  // What a real camera and lens can be (docs/formats.md, "Limits of every input"):
   // garbage that passes here would crash or exhaust memory in processing.
   const struct {
     std::string path;

@@ -45,7 +45,7 @@
 
 namespace lifmcr {
 
-// Ranges of a real Raytrix-style MLA calibration (README, "Limits of every
+// Ranges of a real Raytrix-style MLA calibration (docs/formats.md, "Limits of every
 // input"). The samples: diameter 23-38 px, rotation up to pi/2, tcp ~2.2,
 // depth ranges within 1..100, offsets of tens of pixels, 0-5 parameters.
 struct MlaLimits {

@@ -90,7 +90,7 @@ struct ViconCsv {
   std::vector<std::string> BlockNames() const;
 };
 
-// What a real Vicon export can hold (README, "Limits of every input");
+// What a real Vicon export can hold (docs/formats.md, "Limits of every input");
 // anything beyond is refused before it costs time or memory.
 struct ViconCsvLimits {
   std::uint64_t max_file_bytes = 128u << 20;  // ~2 h of a 3-object Tracker export at 80 Hz

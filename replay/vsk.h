@@ -24,7 +24,7 @@
 // "2.5"); the <Skeleton> holds at least one segment (a model without one
 // tracks nothing); segment, marker and parameter NAMEs are not empty.
 //
-// Limits (kVskLimits; README, "Limits of every input"): the file size, and
+// Limits (kVskLimits; docs/formats.md, "Limits of every input"): the file size, and
 // marker positions and radii a real capture volume can hold. Reading and the
 // subject queries below are O(n log n) in the file.
 //

@@ -9,13 +9,13 @@
 #            sync, Vicon, Aravis and GenTL drivers, the LCM monitor) under
 #            ThreadSanitizer (build-tsan); default. With LIFMCR_TSAN_TBB=DIR (a
 #            folder holding a libtbb.so.12 built with TSan) the TBB pipeline's
-#            tests too (README, "Tests");
+#            tests too (docs/testing.md);
 #   asan     every test under AddressSanitizer + UBSan (build-asan, every test
 #            binary once); on request;
 #   fuzz     every libFuzzer target for LIFMCR_FUZZ_SECONDS (default 30) each
 #            (bench/fuzz.sh, build-fuzz; needs clang and libfuzzer-14-dev); on request.
 # asan and fuzz are not the default: with them CI on 2 cores is estimated past
-# 70 of its 90 minutes (README, "Tests", gives the figures).
+# 70 of its 90 minutes (docs/testing.md gives the figures).
 # Each pass prints its wall time (build and run). Exits non-zero on any failure.
 #   LIFMCR_SANITIZERS="asan tsan fuzz"  the passes to run (default: "parsers tsan")
 #   LIFMCR_SANITIZERS=none              none of them (the Release tests only)
@@ -73,7 +73,7 @@ run_group() {  # DIR GROUP SANITIZER
 # `lifmcr record` with the GenTL test producer, whose last-error thread_locals
 # a thread that got an error from it keeps). On this glibc the interceptor never
 # records a true range (the other cases give size 0), so turning it off loses
-# nothing; README ("Tests") has the reproduction.
+# nothing; docs/testing.md has the reason.
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:detect_stack_use_after_return=1:intercept_tls_get_addr=0}
 export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$PWD/scripts/sanitizers/lsan.supp:print_suppressions=0}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-halt_on_error=1:print_stacktrace=1:suppressions=$PWD/scripts/sanitizers/ubsan.supp}
@@ -108,7 +108,7 @@ if [[ $passes == *" tsan "* ]]; then
   run_group "$build_dir-tsan" tsan TSan
   n=$(wc -l <"$build_dir-tsan/test_groups/tsan.txt")
   if [[ -n "${LIFMCR_TSAN_TBB:-}" ]]; then
-    # The TBB pipeline's tests against a oneTBB built with TSan (README, "Tests").
+    # The TBB pipeline's tests against a oneTBB built with TSan (docs/testing.md).
     [[ -f "$LIFMCR_TSAN_TBB/libtbb.so.12" ]] ||
       { echo "test.sh: LIFMCR_TSAN_TBB=$LIFMCR_TSAN_TBB holds no libtbb.so.12" >&2; exit 1; }
     sanitizer_build "$build_dir-tsan" Tsan tsan_tbb

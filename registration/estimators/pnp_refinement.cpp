@@ -8,7 +8,7 @@
 // copying into its dense matrix, Jacobi scaling, the trust-region
 // bookkeeping) cost as much as evaluating the residuals and Jacobians
 // themselves: 380 us for three iterations over 1000 inliers, 130 us when
-// started at the optimum (bench_pnp, eleventh session), more than
+// started at the optimum (bench/bench_pnp), more than
 // LO-RANSAC's whole search. TinySolver runs the same Levenberg-Marquardt
 // (trust region, Jacobi scaling) on the 2n x 6 Jacobian the function fills.
 //

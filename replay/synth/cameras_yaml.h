@@ -36,7 +36,7 @@ struct CameraModelYaml {
   std::optional<std::array<double, 2>> principal_point_px;
 };
 
-// Ranges of a real plenoptic camera (README, "Limits of every input").
+// Ranges of a real plenoptic camera (docs/formats.md, "Limits of every input").
 struct CameraModelLimits {
   std::uint64_t max_file_bytes = 1 << 20;
   int max_side_px = 32768;

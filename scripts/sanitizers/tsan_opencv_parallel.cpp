@@ -6,7 +6,7 @@
 // TBB header code (the loop's tasks, the wait_context that each worker
 // releases when its part is done, OpenCV's function-local static task_arena)
 // is compiled inside libopencv_core, which Debian does not build with TSan.
-// Even with a TSan-built libtbb (README, "Tests"), TSan then sees the workers'
+// Even with a TSan-built libtbb (docs/testing.md), TSan then sees the workers'
 // accesses and the caller's wait, but not the release that orders them; it
 // reported the caller's next use of its stack (a new task_group_context, a
 // Status) as racing with a worker's earlier read of the finished loop's

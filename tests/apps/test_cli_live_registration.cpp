@@ -6,7 +6,7 @@
 // localised live. A real `lcm-logger` records the EXTRINSICS channel on a
 // multicast group of this test's own (loopback route added, as root; the
 // LCM part is skipped otherwise); the CSV is read with the reader `lifmcr
-// evaluate` uses. Gates (issue 13, true intrinsics): c0_from_cx median error
+// evaluate` uses. Gates (true intrinsics): c0_from_cx median error
 // against GroundTruth <= 2 mm / 0.1 deg, >= 95 % of triggers registered.
 #include "config/rig_config.h"
 #include "tests/acquisition/rig_fixture.h"

@@ -180,7 +180,7 @@ LoggedImages ReadLoggedImages(const fs::path& log) {
   return out;
 }
 
-// A Bayer dataset replayed (issue 16): the LiFMCR layout does not record the
+// A Bayer dataset replayed: the LiFMCR layout does not record the
 // pixel format, so `replay --pixel-format` says it; previews and the TF image
 // then go out in colour and depth is computed (on luminance). Without it, the
 // mosaic is processed as grey. `record --publish` takes it from the rig file.

@@ -1,5 +1,5 @@
 // The LCM tools as a user starts them, beside `lifmcr replay SEQ --rate max`
-// of a `medium` synthetic rig (2 cameras), as the README shows:
+// of a `medium` synthetic rig (2 cameras), as docs/lcm.md shows:
 //   - the real `lcm-logger LOG`, with no options (no receive buffer, no
 //     channel filter), records every message the replay reports published,
 //     and every message is at most half of a stock receiver's UDP buffer

@@ -1,5 +1,5 @@
 // config/input_file.h and config/text_escape.h: what every reader relies on
-// to refuse bad input clearly (issue 17).
+// to refuse bad input clearly.
 
 #include "config/input_file.h"
 #include "config/text_escape.h"

@@ -436,7 +436,7 @@ TEST(RigConfigErrors, OutOfRangeValues) {
   EXPECT_EQ(ErrorOf(exposure),
             "rig.yaml:" + PositionOf(exposure, "-1") +
                 ": /cameras/0/exposure_us: expected a number > 0 and <= 1e7 (microseconds), got -1");
-  // Values no real camera, Vicon or sensor can have (issue 17).
+  // Values no real camera, Vicon or sensor can have.
   const std::string huge = test::ReplaceFirst(kValidRig, "exposure_us: 5000", "exposure_us: 1e300");
   EXPECT_NE(ErrorOf(huge).find("/cameras/0/exposure_us: expected a number > 0 and <= 1e7"),
             std::string::npos);

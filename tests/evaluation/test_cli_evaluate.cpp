@@ -6,7 +6,7 @@
 // for testing the evaluation, which must see through that noise; the
 // registration itself is tested by its own suite.
 //
-// Gates (issue 14): hand-eye offsets within 2 mm / 0.2 deg of the truth;
+// Gates: hand-eye offsets within 2 mm / 0.2 deg of the truth;
 // absolute error after the correction not above the relative error; without
 // the correction the absolute error is the one the true offsets cause.
 #include "evaluation/evaluation_inputs.h"

@@ -198,8 +198,8 @@ TEST(TotalFocus, ImageDepthAndPointCloudOfASmallFrame) {
 // lenses that see a TF pixel x lie around c + (x - c) / (lambda + v (1 -
 // lambda)), 4 lens pitches nearer the centre than x at the corner; the lenses
 // around x itself see nothing of x there, and the TF image was black in a
-// hatch fixed to the lattice along the border (docs/calibration.md, ninth
-// session): 525 976 of 2 028 680 TF pixels below half the median at v 4.7,
+// hatch fixed to the lattice along the border (docs/calibration.md, "TF
+// lens selection"): 525 976 of 2 028 680 TF pixels below half the median at v 4.7,
 // 18 240 at v 2.5 (none now).
 TEST(TotalFocus, WhiteFrameIsWhiteToTheBorderAtHighVirtualDepth) {
   synth::SynthCameraParams params = synth::MakePreset("medium")->camera;
