@@ -38,10 +38,13 @@ Status CheckUnitCommand(const batch::Unit& unit) {
   CLI::App probe{"probe"};
   const std::string& stage = unit.command.size() > 1 ? unit.command[1] : std::string();
   CLI::App* sub = probe.add_subcommand(stage);
-  if (stage == "depth") AddDepthCommand(*sub);
-  else if (stage == "calibrate") AddCalibrateCommand(*sub);
-  else if (stage == "register") AddRegisterCommand(*sub);
-  else if (stage == "evaluate") AddEvaluateCommand(*sub);
+  // The returned command owns the variables its flags are parsed into: it
+  // lives until the parse is over, and is never called.
+  CommandRun keep;
+  if (stage == "depth") keep = AddDepthCommand(*sub);
+  else if (stage == "calibrate") keep = AddCalibrateCommand(*sub);
+  else if (stage == "register") keep = AddRegisterCommand(*sub);
+  else if (stage == "evaluate") keep = AddEvaluateCommand(*sub);
   else return Error{"unit " + unit.id + ": not a stage command: " + unit.CommandLine()};
   std::vector<const char*> argv;
   for (const std::string& word : unit.command) argv.push_back(word.c_str());

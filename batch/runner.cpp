@@ -121,13 +121,26 @@ ChildResult RunCommand(const fs::path& executable, const std::vector<std::string
   std::vector<char*> args;
   for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
   args.push_back(nullptr);
+  // The stop signals are blocked across the fork: a child must not run
+  // OnTerminate (it would take a signal meant for it as the runner's and go
+  // on), and the parent must know the child's pid before its handler runs.
+  // The child restores the default actions, then unblocks: a signal that came
+  // meanwhile ends it; the parent unblocks once g_child is set, so its handler
+  // passes on what came meanwhile.
+  sigset_t stop_signals, old_mask;
+  sigemptyset(&stop_signals);
+  for (int sig : {SIGTERM, SIGINT, SIGHUP}) sigaddset(&stop_signals, sig);
+  ::sigprocmask(SIG_BLOCK, &stop_signals, &old_mask);
   const pid_t pid = ::fork();
   if (pid < 0) {
+    ::sigprocmask(SIG_SETMASK, &old_mask, nullptr);
     result.spawn_error = std::string("fork failed: ") + std::strerror(errno);
     return result;
   }
   if (pid == 0) {
     // Only async-signal-safe calls between fork and exec.
+    for (int sig : {SIGTERM, SIGINT, SIGHUP}) ::signal(sig, SIG_DFL);
+    ::sigprocmask(SIG_SETMASK, &old_mask, nullptr);
     const int null_fd = ::open("/dev/null", O_RDONLY);
     if (null_fd >= 0) ::dup2(null_fd, 0);
     ::dup2(log_fd, 1);
@@ -139,8 +152,9 @@ ChildResult RunCommand(const fs::path& executable, const std::vector<std::string
     _exit(127);
   }
   g_child = pid;
-  // A signal that came between the check before the fork and g_child's store
-  // was not passed on: pass it now.
+  ::sigprocmask(SIG_SETMASK, &old_mask, nullptr);
+  // A signal that came before the unit started (after the loop's check) was
+  // not passed on by the handler: pass it now.
   if (const int sig = g_signal.load(); sig != 0) ::kill(pid, sig);
   int status = 0;
   struct rusage usage {};
