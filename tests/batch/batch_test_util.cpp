@@ -88,3 +88,38 @@ std::map<std::string, ManifestEntry> Entries(const fs::path& plan_dir) {
 }
 
 }  // namespace lifmcr::batch::test
+
+namespace lifmcr::batch::test {
+
+Captured Capture(const std::string& command_line) {
+  Captured c;
+  std::FILE* pipe = ::popen(command_line.c_str(), "r");
+  if (!pipe) return c;
+  char block[4096];
+  std::size_t n;
+  while ((n = std::fread(block, 1, sizeof block, pipe)) > 0) c.out.append(block, n);
+  const int status = ::pclose(pipe);
+  c.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return c;
+}
+
+std::string FindProgram(const std::string& name) {
+  std::vector<std::string> dirs;
+  if (const char* path = std::getenv("PATH")) {
+    std::string p = path;
+    for (std::size_t start = 0; start <= p.size();) {
+      const std::size_t end = std::min(p.find(':', start), p.size());
+      dirs.push_back(p.substr(start, end - start));
+      start = end + 1;
+    }
+  }
+  dirs.push_back("/usr/sbin");
+  dirs.push_back("/usr/bin");
+  for (const std::string& d : dirs) {
+    const fs::path candidate = fs::path(d) / name;
+    if (!d.empty() && ::access(candidate.c_str(), X_OK) == 0) return candidate.string();
+  }
+  return "";
+}
+
+}  // namespace lifmcr::batch::test

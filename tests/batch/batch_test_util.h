@@ -41,3 +41,17 @@ std::map<std::string, std::string> ReadTree(const std::filesystem::path& dir);
 std::map<std::string, ManifestEntry> Entries(const std::filesystem::path& plan_dir);
 
 }  // namespace lifmcr::batch::test
+
+namespace lifmcr::batch::test {
+
+// stdout of a shell command line (quote the words yourself), and its exit code.
+struct Captured {
+  int exit_code = -1;
+  std::string out;
+};
+Captured Capture(const std::string& command_line);
+
+// The full path of an executable in PATH, /usr/sbin or /usr/bin; empty when none.
+std::string FindProgram(const std::string& name);
+
+}  // namespace lifmcr::batch::test
