@@ -149,7 +149,11 @@ CommandRun AddBatchCommand(CLI::App& app) {
       "after each unit a manifest entry with its outputs' sizes and XXH64 checksums is written\n"
       "atomically, so running a shard again skips what is done and verifies, and redoes what\n"
       "was cut off or failed; `batch status` counts done, failed and left; `batch merge`\n"
-      "combines the outputs. Formats: docs/batch.md.");
+      "combines the outputs. Formats: docs/batch.md.\n"
+      "Reads: the dataset's layout (plan), PLAN_DIR (run, status, merge); the units' commands\n"
+      "read the dataset. Writes: only under PLAN_DIR (plan.jsonl, units/, logs/, manifest/,\n"
+      "locks/, merged/); the dataset is never written.\n"
+      "Exit codes: the subcommand's (lifmcr batch SUBCOMMAND --help); 2 usage error.");
 
   auto plan = std::make_shared<PlanArgs>();
   CLI::App* p = app.add_subcommand("plan", "Write the units of one stage over a dataset into PLAN_DIR");
@@ -201,6 +205,9 @@ CommandRun AddBatchCommand(CLI::App& app) {
       "process runs (PLAN_DIR/locks/<unit>.lock) is passed over. SIGTERM/SIGINT/SIGHUP\n"
       "(scancel, preemption) stop the running unit, record it failed, and end the run.\n"
       "Progress: a line as each unit starts and ends, with done/left and a time estimate.\n"
+      "Reads: PLAN_DIR/plan.jsonl, its manifest, the manifests of the earlier plans its units\n"
+      "need. Writes: PLAN_DIR/units/<unit>/, logs/<unit>.log, manifest/<unit>.json,\n"
+      "locks/<unit>.lock.\n"
       "Exit codes: 0 every unit of the shard done; 1 some failed or busy; 2 usage error or\n"
       "unreadable plan; 128+signal when interrupted.");
   r->add_option("PLAN_DIR", *run_plan_dir, "Plan folder (lifmcr batch plan --out)")->required();
@@ -212,9 +219,10 @@ CommandRun AddBatchCommand(CLI::App& app) {
   auto list_left = std::make_shared<bool>(false);
   CLI::App* s = app.add_subcommand("status", "Count a plan's units done, failed and left (manifest only)");
   s->footer(
-      "Reads PLAN_DIR/plan.jsonl and the manifest entries only (no output is hashed). Prints\n"
-      "the counts, the time and the largest peak RSS of the units that ran (what to ask\n"
-      "Slurm for: --mem), each failure with its message and log, and the units left.\n"
+      "Prints the counts, the time and the largest peak RSS of the units that ran (what to\n"
+      "ask Slurm for: --mem), each failure with its message and log, and the units left.\n"
+      "Reads: PLAN_DIR/plan.jsonl and the manifest entries only (no output is hashed).\n"
+      "Writes: nothing.\n"
       "Exit codes: 0 every unit done; 1 some failed; 3 none failed, some left; 2 usage error\n"
       "or unreadable plan.");
   s->add_option("PLAN_DIR", *status_dir, "Plan folder")->required();
@@ -223,7 +231,9 @@ CommandRun AddBatchCommand(CLI::App& app) {
   auto merge_dir = std::make_shared<std::string>();
   CLI::App* m = app.add_subcommand("merge", "Combine the outputs of a plan's done units under PLAN_DIR/merged/");
   m->footer(
-      "Writes merged/outputs.csv (every output: unit, path, bytes, xxh64); register plans\n"
+      "Reads: PLAN_DIR/plan.jsonl, the manifest, the done units' registration.csv or\n"
+      "evaluation.json.\n"
+      "Writes: merged/outputs.csv (every output: unit, path, bytes, xxh64); register plans\n"
       "merged/registration.csv (scene, sequence + registration.csv's columns); evaluate plans\n"
       "merged/evaluation.csv and evaluation.md (per sequence, and pooled over sequences).\n"
       "Exit codes: 0 every unit merged; 3 merged, but some units are not done (listed);\n"

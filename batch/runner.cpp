@@ -185,9 +185,9 @@ Status RunOptions::Check() const {
 std::string RunReport::BriefReport(const ShardSpec& shard) const {
   char text[256];
   std::snprintf(text, sizeof text,
-                "shard %s: %d units: %d done, %d skipped (done before), %d failed, %d busy in "
+                "shard %s: %d unit%s: %d done, %d skipped (done before), %d failed, %d busy in "
                 "%.1f s%s",
-                shard.ToString().c_str(), units, done, skipped, failed, busy, seconds,
+                shard.ToString().c_str(), units, units == 1 ? "" : "s", done, skipped, failed, busy, seconds,
                 interrupted_by ? (", interrupted by signal " + std::to_string(interrupted_by)).c_str()
                                : "");
   return text;

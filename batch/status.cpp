@@ -6,8 +6,8 @@ namespace lifmcr::batch {
 
 std::string PlanStatus::BriefReport() const {
   char text[256];
-  std::snprintf(text, sizeof text, ": %zu units: %d done, %d failed, %d left", plan.units.size(),
-                done, failed, left);
+  std::snprintf(text, sizeof text, ": %zu unit%s: %d done, %d failed, %d left", plan.units.size(),
+                plan.units.size() == 1 ? "" : "s", done, failed, left);
   std::string line = std::string(ToString(plan.stage)) + " plan of " + plan.dataset + text;
   if (done > 0) {
     std::snprintf(text, sizeof text, "; %.1f s of units done (%.2f s each)", unit_seconds,
