@@ -12,6 +12,7 @@
 //
 //   bench_batch [--preset small|medium] [--frames 8] [--repeat 3] [--per frames:1] [--keep DIR]
 
+#include "batch/manifest.h"
 #include "batch/plan.h"
 
 #include <fcntl.h>
@@ -133,7 +134,7 @@ int main(int argc, char** argv) {
                  cpu, {}, p / ("run_" + std::to_string(shard) + ".log"));
   };
 
-  std::vector<double> one_shard, two_shards, bare, bare_cpu, one_cpu;
+  std::vector<double> one_shard, two_shards, bare, bare_cpu, one_cpu, inside;
   std::size_t units = 0;
   for (int r = 0; r < repeat; ++r) {
     // Bare: every unit's command as the plan writes it, one after another on core 0.
@@ -172,6 +173,17 @@ int main(int argc, char** argv) {
       }
       one_shard.push_back(Since(t));
       one_cpu.push_back(g_cpu_seconds);
+      // The units' commands' own time, as the manifest records it: the rest of
+      // the run is the runner's (its start included).
+      double commands = 0;
+      const lifmcr::Expected<lifmcr::batch::Plan> ran = lifmcr::batch::ReadPlan(p);
+      if (!ran) {
+        std::fprintf(stderr, "bench_batch: %s\n", ran.error().message.c_str());
+        return 1;
+      }
+      for (const lifmcr::batch::Unit& u : ran->units)
+        if (auto e = lifmcr::batch::ReadManifestEntry(p, u.id); e && *e) commands += (*e)->seconds;
+      inside.push_back((one_shard.back() - commands) / commands);
     }
     // Two shards, on cores 0 and 1.
     if (cpus >= 2) {
@@ -192,6 +204,10 @@ int main(int argc, char** argv) {
     std::fflush(stdout);
   }
   const double t_bare = *std::min_element(bare.begin(), bare.end());
+  std::sort(inside.begin(), inside.end());
+  std::printf("batch run's time outside the units' commands (its start included), median of %d: "
+              "%.2f %% of the commands' time\n",
+              repeat, 100.0 * inside[inside.size() / 2]);
   const double t_one = *std::min_element(one_shard.begin(), one_shard.end());
   std::printf("%zu units; fastest of %d: bare commands %.2f s (%.3f s/unit), batch run 1 shard %.2f s\n",
               units, repeat, t_bare, t_bare / units, t_one);
