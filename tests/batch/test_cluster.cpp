@@ -239,13 +239,21 @@ TEST(BatchCluster, SlurmJobArrayEqualsSerialAndResumesAfterScancel) {
   const std::string cut = p.units[1].id;
   t = Clock::now();
   const std::string job = cluster.SubmitArray(plan, 2);
-  ASSERT_TRUE(test::WaitUntil([&] { return fs::exists(plan / LogPathOf(cut)); }, 60s));
+  // Cancelled once the unit's first frame is written and its second is not:
+  // half its outputs are there.
+  const fs::path first_output = plan / p.units[1].writes.front();
+  ASSERT_TRUE(test::WaitUntil([&] { return fs::exists(first_output); }, 60s));
   ASSERT_EQ(test::Capture("scancel " + job + "_1 2>&1").exit_code, 0);
   ASSERT_TRUE(cluster.WaitForJob(job, 120s));
   Expected<std::optional<ManifestEntry>> cancelled = ReadManifestEntry(plan, cut);
   ASSERT_TRUE(cancelled);
   ASSERT_TRUE(!*cancelled || (*cancelled)->state == UnitState::kFailed)
       << "the cancel came after the unit was done: " << (*cancelled)->BriefReport();
+  const std::size_t left_behind = test::ReadTree(plan / p.units[1].outputs).size();
+  std::printf("slurm: the cancelled unit left %zu of its %zu files\n", left_behind,
+              p.units[1].writes.size());
+  EXPECT_GT(left_behind, 0u);
+  EXPECT_LT(left_behind, p.units[1].writes.size());
   Expected<PlanStatus> after_cancel = ReadPlanStatus(plan);
   ASSERT_TRUE(after_cancel);
   std::printf("slurm: task %s_1 cancelled during unit %s: %s; %s\n", job.c_str(), cut.c_str(),
