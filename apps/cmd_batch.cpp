@@ -187,8 +187,9 @@ CommandRun AddBatchCommand(CLI::App& app) {
   p->add_flag("--reference-from-ground-truth", plan->options.reference_from_ground_truth,
               "register: each sequence's map from its ground truth (lifmcr synth datasets)");
   p->add_option("--reference-camera", plan->options.reference_camera,
-                "register, evaluate: camera 0, whose calibration is the map (default: each "
-                "sequence's first camera, or the ground truth's first)");
+                "register, evaluate: camera 0, whose map the others are registered to "
+                "(default: the map's camera, the register plan's, GroundTruth/cameras.yaml's "
+                "first, the first by serial; docs/batch.md)");
   p->add_option("ARGS", plan->options.extra,
                 "After --: words appended to every unit's command (e.g. -- --method both)");
 

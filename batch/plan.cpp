@@ -99,9 +99,10 @@ std::string FormatPlan(const Plan& plan) {
   for (const Unit& u : plan.units) {
     json needs = json::array();
     for (const UnitNeed& n : u.needs) needs.push_back({{"plan", n.plan}, {"unit", n.unit}});
-    json line = {{"unit", u.id},         {"scene", u.scene},       {"sequence", u.sequence},
-                 {"camera", u.camera},   {"command", u.command},   {"outputs", u.outputs},
-                 {"writes", u.writes},   {"needs", needs}};
+    json line = {{"unit", u.id},          {"scene", u.scene},     {"sequence", u.sequence},
+                 {"camera", u.camera},    {"reference", u.reference},
+                 {"command", u.command},  {"outputs", u.outputs}, {"writes", u.writes},
+                 {"needs", needs}};
     text += line.dump() + "\n";
   }
   return text;
@@ -186,7 +187,8 @@ Expected<Plan> ParsePlan(std::string_view text, const std::string& label) {
     Unit u;
     for (auto [field, target] :
          {std::pair{"unit", &u.id}, std::pair{"scene", &u.scene}, std::pair{"sequence", &u.sequence},
-          std::pair{"camera", &u.camera}, std::pair{"outputs", &u.outputs}}) {
+          std::pair{"camera", &u.camera}, std::pair{"reference", &u.reference},
+          std::pair{"outputs", &u.outputs}}) {
       Expected<std::string> v = r.String(field);
       if (!v) return v.error();
       *target = *v;

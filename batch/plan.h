@@ -6,7 +6,7 @@
 //   {"lifmcr_batch_plan":1,"stage":"depth","per":"frames:4","dataset":"/data/LiFMCR",
 //    "units":12,"command":"lifmcr batch plan ..."}
 //   {"unit":"00_Synthetic/Sequence_00/40398673/000000-000003",
-//    "scene":"00_Synthetic","sequence":"Sequence_00","camera":"40398673",
+//    "scene":"00_Synthetic","sequence":"Sequence_00","camera":"40398673","reference":"",
 //    "command":["lifmcr","depth","/data/.../Sequence_00","--camera","40398673",...],
 //    "outputs":"units/00_Synthetic/Sequence_00/40398673/000000-000003",
 //    "writes":["units/.../40398673_000000_virtual_depth.tiff", ...],
@@ -46,6 +46,9 @@ struct Unit {
   // (none "." or ".."), so it is a relative path under units/, manifest/, logs/.
   std::string id;
   std::string scene, sequence, camera;  // what it covers; camera empty for a whole sequence
+  // register and evaluate: camera 0, whose map the others are registered to
+  // (evaluate plans take it from the register plan); empty for other stages.
+  std::string reference;
   std::vector<std::string> command;     // argv, command[0] == "lifmcr"
   std::string outputs;                  // its output folder, relative to PLAN_DIR
   std::vector<std::string> writes;      // files it must write, relative to PLAN_DIR

@@ -154,9 +154,6 @@ Status PlanOptions::Check() const {
     if (given != 1)
       return Error{"--stage register needs exactly one of --reference MAP_DIR, "
                    "--reference-from-ground-truth and --calibration-plan CAL_PLAN_DIR"};
-    if (!reference.empty() && p->kind == PerSpec::Kind::kCamera && reference_camera.empty())
-      return Error{"--per camera with --reference MAP_DIR needs --reference-camera SERIAL (the "
-                   "map's camera, which gets no unit of its own)"};
   }
   if (stage == Stage::kEvaluate && registration_plan.empty())
     return Error{"--stage evaluate needs --registration-plan REG_PLAN_DIR (a register plan)"};
@@ -246,19 +243,58 @@ Expected<Plan> MakePlan(const PlanOptions& o) {
     std::error_code ec;
     const bool has_gt_yaml = fs::is_regular_file(gt_yaml, ec);
 
-    // The camera whose map is the reference, where the plan must know it.
-    std::string reference = o.reference_camera;
-    if (reference.empty() && o.reference_from_ground_truth) {
-      Expected<std::vector<std::string>> serials = synth::ReadCameraSerialsYaml(gt_yaml);
-      if (!serials) return Error{serials.error().message + " (--reference-from-ground-truth reads it)"};
-      if (serials->empty()) return Error{gt_yaml.string() + ": lists no camera"};
-      reference = serials->front();
+    // Camera 0 of register and evaluate units, by the first rule that gives one:
+    // --reference-camera; register --reference MAP_DIR: the map's camera (the
+    // one camera of its intrinsics.yaml, which lifmcr calibrate writes beside
+    // the map); evaluate: the camera 0 of the register plan's units; the
+    // sequence's GroundTruth/cameras.yaml's first camera (lifmcr synth lists
+    // camera 0 first, and evaluate and register --reference-from-ground-truth
+    // take it); the sequence's first camera by serial.
+    std::string reference;
+    if (o.stage == Stage::kRegister || o.stage == Stage::kEvaluate) {
+      reference = o.reference_camera;
+      if (o.reference_from_ground_truth) {
+        // lifmcr register builds that map from the ground truth's first camera.
+        Expected<std::vector<std::string>> serials = synth::ReadCameraSerialsYaml(gt_yaml);
+        if (!serials) return Error{serials.error().message + " (--reference-from-ground-truth reads it)"};
+        if (serials->empty()) return Error{gt_yaml.string() + ": lists no camera"};
+        if (!reference.empty() && reference != serials->front())
+          return Error{"--reference-camera " + reference + ": the ground-truth map is camera " +
+                       serials->front() + "'s (the first of " + gt_yaml.string() + ")"};
+        reference = serials->front();
+      }
+      if (reference.empty() && o.stage == Stage::kRegister && !o.reference.empty()) {
+        const fs::path map_yaml = fs::path(Absolute(o.reference)) / "intrinsics.yaml";
+        Expected<std::vector<std::string>> serials = synth::ReadCameraSerialsYaml(map_yaml);
+        if (!serials || serials->size() != 1)
+          return Error{"--reference " + o.reference + ": " +
+                       (serials ? map_yaml.string() + " names " + std::to_string(serials->size()) +
+                                      " cameras"
+                                : serials.error().message) +
+                       "; give the map's camera with --reference-camera SERIAL"};
+        reference = serials->front();
+      }
+      if (reference.empty() && registration) {
+        for (const Unit& r : registration->plan.units) {
+          if (r.scene != seq.scene || r.sequence != seq.name || r.reference.empty()) continue;
+          if (!reference.empty() && r.reference != reference)
+            return Error{"--registration-plan " + registration->dir + ": its units of " + seq_id +
+                         " register to cameras " + reference + " and " + r.reference +
+                         "; give --reference-camera SERIAL"};
+          reference = r.reference;
+        }
+      }
+      if (reference.empty() && has_gt_yaml) {
+        Expected<std::vector<std::string>> serials = synth::ReadCameraSerialsYaml(gt_yaml);
+        if (!serials) return Error{serials.error().message + " (camera 0 is its first camera)"};
+        if (serials->empty()) return Error{gt_yaml.string() + ": lists no camera"};
+        reference = serials->front();
+      }
+      if (reference.empty()) reference = seq.cameras.front().serial;
+      bool reference_found = false;
+      for (const CameraFolder& c : seq.cameras) reference_found |= c.serial == reference;
+      if (!reference_found) return Error{seq_dir + ": no camera folder of the reference camera " + reference};
     }
-    if (reference.empty()) reference = seq.cameras.front().serial;
-    bool reference_found = false;
-    for (const CameraFolder& c : seq.cameras) reference_found |= c.serial == reference;
-    if (!reference_found && (o.stage == Stage::kRegister || o.stage == Stage::kEvaluate))
-      return Error{seq_dir + ": no camera folder of the reference camera " + reference};
 
     // A unit of the calibration plan (the camera's, in this sequence).
     auto calibration_unit = [&](const std::string& serial) -> const Unit* {
@@ -383,6 +419,7 @@ Expected<Plan> MakePlan(const PlanOptions& o) {
       if (per.kind == PerSpec::Kind::kSequence) {
         Unit u;
         u.id = seq_id;
+        u.reference = reference;
         u.command = {"lifmcr", "register", seq_dir, "--out", "units/" + u.id};
         for (const CameraFolder* c : cameras) {
           if (!o.cameras.empty()) {
@@ -399,6 +436,7 @@ Expected<Plan> MakePlan(const PlanOptions& o) {
           if (c->serial == reference) continue;  // registered in every unit as camera 0
           Unit u;
           u.camera = c->serial;
+          u.reference = reference;
           u.id = seq_id + "/" + c->serial;
           u.command = {"lifmcr", "register", seq_dir, "--camera", c->serial, "--out", "units/" + u.id};
           u.command.insert(u.command.end(), reference_args.begin(), reference_args.end());
@@ -410,7 +448,8 @@ Expected<Plan> MakePlan(const PlanOptions& o) {
     } else {  // evaluate
       Unit u;
       u.id = seq_id;
-      u.command = {"lifmcr", "evaluate", seq_dir, "--out", "units/" + u.id};
+      u.reference = reference;
+      u.command = {"lifmcr", "evaluate", seq_dir, "--out", "units/" + u.id, "--reference", reference};
       for (const Unit& r : registration->plan.units) {
         if (r.scene != seq.scene || r.sequence != seq.name) continue;
         u.command.push_back("--registration");

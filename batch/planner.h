@@ -15,7 +15,8 @@
 //   register --calibration-plan CAL: --reference (the map) and --intrinsics of
 //     the reference camera's unit, --intrinsics of every other camera's unit;
 //   evaluate --registration-plan REG: --registration of every REG unit of the
-//     sequence; with --calibration-plan CAL also --map and --reference-poses.
+//     sequence and --reference (camera 0 of REG's units); with
+//     --calibration-plan CAL also --map and --reference-poses.
 // Words after `--` are appended to every unit's command as they are.
 
 #include "batch/plan.h"
@@ -50,9 +51,10 @@ struct PlanOptions {
   std::string registration_plan;  // evaluate (required)
   std::string reference;          // register: one reference map folder for every sequence
   bool reference_from_ground_truth = false;  // register: each sequence's ground-truth map
-  // register and evaluate with a calibration plan, register --per camera with
-  // --reference: the camera whose map is the reference (default: each
-  // sequence's first camera by serial).
+  // register and evaluate: camera 0, whose map is the reference (default, per
+  // sequence: the map's camera for --reference, the register plan's for
+  // evaluate, GroundTruth/cameras.yaml's first camera, the first by serial;
+  // batch/planner.cpp says why in this order).
   std::string reference_camera;
   std::vector<std::string> extra;  // words appended to every unit's command
   std::string planned_by;          // the command line, recorded in the plan

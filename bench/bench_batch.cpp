@@ -134,7 +134,7 @@ int main(int argc, char** argv) {
                  cpu, {}, p / ("run_" + std::to_string(shard) + ".log"));
   };
 
-  std::vector<double> one_shard, two_shards, bare, bare_cpu, one_cpu, inside;
+  std::vector<double> one_shard, two_shards, bare, bare_cpu, one_cpu, two_cpu, inside;
   std::size_t units = 0;
   for (int r = 0; r < repeat; ++r) {
     // Bare: every unit's command as the plan writes it, one after another on core 0.
@@ -189,8 +189,10 @@ int main(int argc, char** argv) {
     if (cpus >= 2) {
       const fs::path p = plan();
       const auto t = Clock::now();
+      g_cpu_seconds = 0;
       const pid_t a = batch_run(p, 0, 2, 0), b = batch_run(p, 1, 2, 1);
       const int ca = Finish(a), cb = Finish(b);
+      two_cpu.push_back(g_cpu_seconds);
       if (ca != 0 || cb != 0) {
         std::fprintf(stderr, "bench_batch: batch run of 2 shards failed (%s)\n", p.c_str());
         return 1;
@@ -223,6 +225,14 @@ int main(int argc, char** argv) {
     const double t_two = *std::min_element(two_shards.begin(), two_shards.end());
     std::printf("2 shards on 2 cores %.2f s against 1 shard on 1 core %.2f s: %.2fx (goal >= 1.8x)\n",
                 t_two, t_one, t_one / t_two);
+    // CPU seconds per wall second: the cores the shards got. Below 2 with
+    // runnable shards, other processes held the cores for the rest.
+    const std::size_t k = static_cast<std::size_t>(
+        std::min_element(two_shards.begin(), two_shards.end()) - two_shards.begin());
+    const std::size_t j = static_cast<std::size_t>(
+        std::min_element(one_shard.begin(), one_shard.end()) - one_shard.begin());
+    std::printf("cores used: 2 shards %.2f (CPU %.2f s), 1 shard %.2f (CPU %.2f s)\n",
+                two_cpu[k] / two_shards[k], two_cpu[k], one_cpu[j] / one_shard[j], one_cpu[j]);
   } else {
     std::printf("one CPU: no 2-shard figure\n");
   }

@@ -243,6 +243,21 @@ TEST(Plan, LaterStagesNeedTheEarlierPlansUnits) {
   EXPECT_NE(ev_plan->units[1].CommandLine().find("--reference-poses " + cal_dir +
                                                  "/units/00_Scene/Seq_B/111/poses_111.csv"),
             std::string::npos);
+  // evaluate's camera 0 is the register plan's, whatever evaluate's own default.
+  EXPECT_EQ(reg_plan->units[1].reference, "111");
+  EXPECT_EQ(ev_plan->units[1].reference, "111");
+  EXPECT_NE(ev_plan->units[1].CommandLine().find("--reference 111"), std::string::npos);
+
+  // A map folder names its camera in its intrinsics.yaml: that camera gets no unit.
+  lifmcr::test::WriteFile(dir / "map/intrinsics.yaml", "cameras:\n  - serial: \"222\"\n");
+  reg.calibration_plan.clear();
+  reg.reference = (dir / "map").string();
+  reg.out = (dir / "reg2").string();
+  reg_plan = MakePlan(reg);
+  ASSERT_TRUE(reg_plan) << reg_plan.error().message;
+  ASSERT_EQ(reg_plan->units.size(), 2u);
+  EXPECT_EQ(reg_plan->units[0].id, "00_Scene/Seq_A/111");
+  EXPECT_EQ(reg_plan->units[0].reference, "222");
 
   // A plan of the wrong stage is named as such.
   ev.registration_plan = (dir / "cal").string();
