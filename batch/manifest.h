@@ -10,7 +10,8 @@
 //    "host":"node1","shard":"0/2","finished_utc":"2026-12-06T10:41:07Z",
 //    "outputs":[{"path":"units/<unit id>/x.tiff","bytes":123,"xxh64":"0123456789abcdef"}]}
 //
-// "done": the command exited 0 and wrote every file of the plan's `writes`;
+// "done": the command exited 0 (or another code of the unit's `done_exits`,
+// its last line then kept in `message`) and wrote every file of `writes`;
 // `outputs` lists every regular file under the unit's output folder with its
 // size and XXH64 (batch/checksum.h). "failed": the command exited non-zero,
 // was killed, or left out a file it must write; `message` says which (the

@@ -5,6 +5,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <charconv>
 #include <set>
 
@@ -102,7 +103,7 @@ std::string FormatPlan(const Plan& plan) {
     json line = {{"unit", u.id},          {"scene", u.scene},     {"sequence", u.sequence},
                  {"camera", u.camera},    {"reference", u.reference},
                  {"command", u.command},  {"outputs", u.outputs}, {"writes", u.writes},
-                 {"needs", needs}};
+                 {"done_exits", u.done_exits}, {"needs", needs}};
     text += line.dump() + "\n";
   }
   return text;
@@ -212,6 +213,17 @@ Expected<Plan> ParsePlan(std::string_view text, const std::string& label) {
       if (w.rfind(u.outputs + "/", 0) != 0 || w.find("..") != std::string::npos)
         return r.Fail("writes", "'" + Excerpt(w) + "' is not inside " + u.outputs + "/");
     u.writes = *writes;
+    const auto done_exits = object.find("done_exits");
+    if (done_exits == object.end() || !done_exits->is_array())
+      return r.Fail("done_exits", "expected an array of exit codes (0 among them)");
+    u.done_exits.clear();
+    for (const json& code : *done_exits) {
+      if (!code.is_number_integer() || code.get<int>() < 0 || code.get<int>() > 255)
+        return r.Fail("done_exits", "expected exit codes 0 .. 255");
+      u.done_exits.push_back(code.get<int>());
+    }
+    if (std::find(u.done_exits.begin(), u.done_exits.end(), 0) == u.done_exits.end())
+      return r.Fail("done_exits", "expected 0 among the exit codes");
     const auto needs = object.find("needs");
     if (needs == object.end() || !needs->is_array())
       return r.Fail("needs", "expected an array of {\"plan\", \"unit\"}");

@@ -9,7 +9,7 @@
 //    "scene":"00_Synthetic","sequence":"Sequence_00","camera":"40398673","reference":"",
 //    "command":["lifmcr","depth","/data/.../Sequence_00","--camera","40398673",...],
 //    "outputs":"units/00_Synthetic/Sequence_00/40398673/000000-000003",
-//    "writes":["units/.../40398673_000000_virtual_depth.tiff", ...],
+//    "writes":["units/.../40398673_000000_virtual_depth.tiff", ...],"done_exits":[0],
 //    "needs":[{"plan":"/plans/cal","unit":"00_Synthetic/Sequence_00/40398673"}]}
 //
 // A unit's command runs with PLAN_DIR as its working folder, so `outputs`
@@ -52,6 +52,10 @@ struct Unit {
   std::vector<std::string> command;     // argv, command[0] == "lifmcr"
   std::string outputs;                  // its output folder, relative to PLAN_DIR
   std::vector<std::string> writes;      // files it must write, relative to PLAN_DIR
+  // The exit codes after which the unit is done (when it wrote `writes`): 0,
+  // and for evaluate also 3 (written, but the hand-eye offsets could not be
+  // estimated for some camera: the report says why; apps/cmd_evaluate.cpp).
+  std::vector<int> done_exits = {0};
   std::vector<UnitNeed> needs;
 
   // "lifmcr depth /data/... --camera 40398673 ..." with every word that needs

@@ -469,6 +469,7 @@ Expected<Plan> MakePlan(const PlanOptions& o) {
         u.needs.push_back({calibration->dir, cal->id});
       }
       u.writes = {"units/" + u.id + "/evaluation.md", "units/" + u.id + "/evaluation.json"};
+      u.done_exits = {0, 3};
       add_unit(std::move(u));
     }
   }

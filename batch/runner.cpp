@@ -10,6 +10,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
@@ -325,7 +326,12 @@ Expected<RunReport> RunShard(const RunOptions& o) {
     // 5. The entry.
     if (!child.spawn_error.empty()) {
       entry.message = child.spawn_error;
-    } else if (child.exit_code == 0) {
+    } else if (child.signal == 0 && std::find(unit.done_exits.begin(), unit.done_exits.end(),
+                                              child.exit_code) != unit.done_exits.end()) {
+      // An exit code other than 0 that the plan counts as done (evaluate's 3)
+      // keeps the command's last line as a note.
+      if (child.exit_code != 0)
+        entry.message = LastLine(log_path, static_cast<std::size_t>(attempt_start));
       std::string missing;
       for (const std::string& w : unit.writes)
         if (!fs::is_regular_file(plan_dir / w, ec)) {
@@ -333,7 +339,7 @@ Expected<RunReport> RunShard(const RunOptions& o) {
           break;
         }
       if (!missing.empty()) {
-        entry.message = "exited 0 but did not write " + missing;
+        entry.message = "exited " + std::to_string(child.exit_code) + " but did not write " + missing;
       } else {
         Expected<std::vector<OutputFile>> outputs = DigestOutputs(plan_dir, unit);
         if (!outputs) entry.message = outputs.error().message;

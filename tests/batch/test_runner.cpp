@@ -165,6 +165,46 @@ TEST(BatchRun, FailuresKeepTheirMessageAndLogAndWaitingUnitsDoNotRun) {
   EXPECT_NE(e.message.find("not run yet"), std::string::npos) << e.message;
 }
 
+TEST(BatchRun, RegisterThenEvaluateAndMergeTheTables) {
+  lifmcr::test::TempDir dir;
+  test::SynthSmallRig(dir / "data", 4);
+  const std::string data = (dir / "data").string();
+  ASSERT_EQ(test::Run({Lifmcr(), "batch", "plan", data, "--stage", "register",
+                       "--reference-from-ground-truth", "--out", (dir / "reg").string()}),
+            0);
+  ASSERT_EQ(test::Run({Lifmcr(), "batch", "plan", data, "--stage", "evaluate", "--registration-plan",
+                       (dir / "reg").string(), "--out", (dir / "eval").string(), "--", "--split",
+                       "none", "--no-plots"}),
+            0);
+  // The evaluation waits for the registration.
+  ASSERT_TRUE(RunIt(dir / "eval", 0, 1));
+  EXPECT_NE(test::Entries(dir / "eval").begin()->second.message.find("not run yet"), std::string::npos);
+  Expected<RunReport> reg = RunIt(dir / "reg", 0, 1);
+  ASSERT_TRUE(reg) << reg.error().message;
+  ASSERT_EQ(reg->done, 1);
+  Expected<RunReport> ev = RunIt(dir / "eval", 0, 1);
+  ASSERT_TRUE(ev) << ev.error().message;
+  const ManifestEntry e = test::Entries(dir / "eval").begin()->second;
+  ASSERT_EQ(e.state, UnitState::kDone) << e.BriefReport();
+  EXPECT_TRUE(e.exit_code == 0 || e.exit_code == 3) << e.exit_code;
+
+  Expected<MergeReport> merged = MergePlan(dir / "eval");
+  ASSERT_TRUE(merged) << merged.error().message;
+  const std::string csv = lifmcr::test::ReadFile(dir / "eval/merged/evaluation.csv");
+  EXPECT_EQ(csv.rfind("scene,sequence,table,method,camera,correction,frames,", 0), 0u) << csv;
+  // Camera X (not the ground truth's camera 0) against Vicon, relative and absolute.
+  EXPECT_NE(csv.find("00_Synthetic,Sequence_00,relative,pnp,40398673,uncorrected,"), std::string::npos)
+      << csv;
+  EXPECT_NE(csv.find("00_Synthetic,Sequence_00,absolute,pnp,40398673,uncorrected,"), std::string::npos)
+      << csv;
+  const std::string md = lifmcr::test::ReadFile(dir / "eval/merged/evaluation.md");
+  EXPECT_NE(md.find("| all | absolute | pnp | 40398673 | uncorrected |"), std::string::npos) << md;
+  ASSERT_TRUE(MergePlan(dir / "reg"));
+  const std::string rows = lifmcr::test::ReadFile(dir / "reg/merged/registration.csv");
+  EXPECT_EQ(rows.rfind("scene,sequence,frame,camera,method,", 0), 0u) << rows;
+  EXPECT_EQ(std::count(rows.begin(), rows.end(), '\n'), 1 + 4) << rows;  // camera X, 4 frames
+}
+
 // The first unit's log exists: its command has been started.
 bool Started(const fs::path& plan, const Unit& unit) {
   return fs::exists(plan / LogPathOf(unit.id));
