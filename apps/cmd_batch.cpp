@@ -161,7 +161,8 @@ CommandRun AddBatchCommand(CLI::App& app) {
       "Stages and --per (default first): depth frames:N|camera (frames:16); calibrate camera;\n"
       "register sequence|camera; evaluate sequence. Later stages refer to earlier plans\n"
       "(--calibration-plan, --registration-plan) and their units wait for those units.\n"
-      "Reads: the dataset's folder layout only (no frame is opened), earlier plans.\n"
+      "Reads: the dataset's folder layout (no frame is opened), earlier plans, and where\n"
+      "camera 0 comes from them GroundTruth/cameras.yaml and the map's intrinsics.yaml.\n"
       "Writes: PLAN_DIR/plan.jsonl, atomically; planning the same units again changes nothing,\n"
       "other units into a folder that holds a plan are refused. Each unit's command is checked\n"
       "against its stage's flags before anything is written.\n"
@@ -209,8 +210,9 @@ CommandRun AddBatchCommand(CLI::App& app) {
       "Reads: PLAN_DIR/plan.jsonl, its manifest, the manifests of the earlier plans its units\n"
       "need. Writes: PLAN_DIR/units/<unit>/, logs/<unit>.log, manifest/<unit>.json,\n"
       "locks/<unit>.lock.\n"
-      "Exit codes: 0 every unit of the shard done; 1 some failed or busy; 2 usage error or\n"
-      "unreadable plan; 128+signal when interrupted.");
+      "Exit codes: 0 every unit of the shard done; 1 some failed or busy, or PLAN_DIR could\n"
+      "not be read or written (the message names it); 2 usage error; 128+signal when\n"
+      "interrupted.");
   r->add_option("PLAN_DIR", *run_plan_dir, "Plan folder (lifmcr batch plan --out)")->required();
   r->add_option("--shard", *shard, "I/N: this shard I of N (0 <= I < N); Slurm: $SLURM_ARRAY_TASK_ID/N")
       ->capture_default_str();
