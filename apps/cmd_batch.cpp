@@ -5,15 +5,15 @@
 // batch/merge.h).
 
 #include "apps/commands.h"
+#include "config/text_escape.h"
+
+#include <CLI/CLI.hpp>
+
 #include "batch/merge.h"
 #include "batch/plan.h"
 #include "batch/planner.h"
 #include "batch/runner.h"
 #include "batch/status.h"
-#include "config/text_escape.h"
-
-#include <CLI/CLI.hpp>
-
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -41,11 +41,16 @@ Status CheckUnitCommand(const batch::Unit& unit) {
   // The returned command owns the variables its flags are parsed into: it
   // lives until the parse is over, and is never called.
   CommandRun keep;
-  if (stage == "depth") keep = AddDepthCommand(*sub);
-  else if (stage == "calibrate") keep = AddCalibrateCommand(*sub);
-  else if (stage == "register") keep = AddRegisterCommand(*sub);
-  else if (stage == "evaluate") keep = AddEvaluateCommand(*sub);
-  else return Error{"unit " + unit.id + ": not a stage command: " + unit.CommandLine()};
+  if (stage == "depth")
+    keep = AddDepthCommand(*sub);
+  else if (stage == "calibrate")
+    keep = AddCalibrateCommand(*sub);
+  else if (stage == "register")
+    keep = AddRegisterCommand(*sub);
+  else if (stage == "evaluate")
+    keep = AddEvaluateCommand(*sub);
+  else
+    return Error{"unit " + unit.id + ": not a stage command: " + unit.CommandLine()};
   std::vector<const char*> argv;
   for (const std::string& word : unit.command) argv.push_back(word.c_str());
   try {
@@ -93,9 +98,10 @@ int RunPlan(const PlanArgs& a, const std::string& command_line) {
   std::printf("%s\nwrote %s; first unit:\n  %s\n", plan->BriefReport().c_str(),
               (plan_dir / batch::kPlanFileName).string().c_str(),
               plan->units.front().CommandLine().c_str());
-  std::printf("next: lifmcr batch run %s --shard I/N (for I in 0..N-1, e.g. "
-              "scripts/cluster/lifmcr-array.sbatch), then lifmcr batch status %s\n",
-              plan_dir.string().c_str(), plan_dir.string().c_str());
+  std::printf(
+      "next: lifmcr batch run %s --shard I/N (for I in 0..N-1, e.g. "
+      "scripts/cluster/lifmcr-array.sbatch), then lifmcr batch status %s\n",
+      plan_dir.string().c_str(), plan_dir.string().c_str());
   return 0;
 }
 
@@ -107,8 +113,9 @@ int RunRun(const std::string& plan_dir, const std::string& shard_text, bool quie
   o.shard = *shard;
   std::error_code ec;
   o.executable = fs::read_symlink("/proc/self/exe", ec);
-  if (ec) return Fail("run", std::string("cannot find the lifmcr executable (/proc/self/exe): ") +
-                                 ec.message());
+  if (ec)
+    return Fail("run",
+                std::string("cannot find the lifmcr executable (/proc/self/exe): ") + ec.message());
   o.progress = quiet ? nullptr : stdout;
   Expected<batch::RunReport> report = batch::RunShard(o);
   if (!report) return Fail("run", report.error().message);
@@ -124,10 +131,12 @@ int RunStatus(const std::string& plan_dir, bool list_left) {
                 e.signal ? ("signal " + std::to_string(e.signal)).c_str()
                          : ("exit " + std::to_string(e.exit_code)).c_str(),
                 EscapeText(e.message).c_str(), (fs::path(plan_dir) / e.log).string().c_str());
-  const std::size_t shown = list_left ? status->left_units.size() : std::min<std::size_t>(5, status->left_units.size());
+  const std::size_t shown =
+      list_left ? status->left_units.size() : std::min<std::size_t>(5, status->left_units.size());
   for (std::size_t k = 0; k < shown; ++k) std::printf("left %s\n", status->left_units[k].c_str());
   if (shown < status->left_units.size())
-    std::printf("... and %zu more left (--list-left lists them)\n", status->left_units.size() - shown);
+    std::printf("... and %zu more left (--list-left lists them)\n",
+                status->left_units.size() - shown);
   return status->ExitCode();
 }
 
@@ -156,7 +165,8 @@ CommandRun AddBatchCommand(CLI::App& app) {
       "Exit codes: the subcommand's (lifmcr batch SUBCOMMAND --help); 2 usage error.");
 
   auto plan = std::make_shared<PlanArgs>();
-  CLI::App* p = app.add_subcommand("plan", "Write the units of one stage over a dataset into PLAN_DIR");
+  CLI::App* p =
+      app.add_subcommand("plan", "Write the units of one stage over a dataset into PLAN_DIR");
   p->footer(
       "Stages and --per (default first): depth frames:N|camera (frames:16); calibrate camera;\n"
       "register sequence|camera; evaluate sequence. Later stages refer to earlier plans\n"
@@ -168,14 +178,17 @@ CommandRun AddBatchCommand(CLI::App& app) {
       "against its stage's flags before anything is written.\n"
       "Exit codes: 0 written (or unchanged); 1 the dataset or an earlier plan cannot be used\n"
       "(the message names it); 2 usage error.");
-  p->add_option("DATASET", plan->options.dataset, "Dataset root, scene or sequence folder (only read)")
+  p->add_option("DATASET", plan->options.dataset,
+                "Dataset root, scene or sequence folder (only read)")
       ->required();
   p->add_option("--stage", plan->stage, "depth, calibrate, register or evaluate")->required();
   p->add_option("--per", plan->options.per, "Unit size: frames:N, camera or sequence (see below)");
   p->add_option("--out", plan->options.out, "PLAN_DIR: the plan and every output of its units")
       ->required();
-  p->add_option("--camera", plan->options.cameras, "Only these camera serials (repeat; default all)");
-  p->add_option("--sequence", plan->options.sequences, "Only these sequences, SEQ or SCENE/SEQ (repeat)");
+  p->add_option("--camera", plan->options.cameras,
+                "Only these camera serials (repeat; default all)");
+  p->add_option("--sequence", plan->options.sequences,
+                "Only these sequences, SEQ or SCENE/SEQ (repeat)");
   p->add_option("--intrinsics", plan->options.intrinsics,
                 "depth: cameras.yaml for metric depth and point clouds, or 'ground-truth' for each "
                 "sequence's GroundTruth/cameras.yaml");
@@ -184,7 +197,8 @@ CommandRun AddBatchCommand(CLI::App& app) {
                 "reference map and intrinsics, evaluate --map and --reference-poses");
   p->add_option("--registration-plan", plan->options.registration_plan,
                 "evaluate: the register plan whose registration.csv files it evaluates (required)");
-  p->add_option("--reference", plan->options.reference, "register: one reference map folder for every sequence");
+  p->add_option("--reference", plan->options.reference,
+                "register: one reference map folder for every sequence");
   p->add_flag("--reference-from-ground-truth", plan->options.reference_from_ground_truth,
               "register: each sequence's map from its ground truth (lifmcr synth datasets)");
   p->add_option("--reference-camera", plan->options.reference_camera,
@@ -197,7 +211,8 @@ CommandRun AddBatchCommand(CLI::App& app) {
   auto run_plan_dir = std::make_shared<std::string>();
   auto shard = std::make_shared<std::string>("0/1");
   auto quiet = std::make_shared<bool>(false);
-  CLI::App* r = app.add_subcommand("run", "Run one shard of a plan's units, resuming where it stopped");
+  CLI::App* r =
+      app.add_subcommand("run", "Run one shard of a plan's units, resuming where it stopped");
   r->footer(
       "Runs the units k with k mod N == I in plan order, one after another, each as its own\n"
       "lifmcr process (this executable) in PLAN_DIR, its output into PLAN_DIR/units/<unit>/,\n"
@@ -214,13 +229,15 @@ CommandRun AddBatchCommand(CLI::App& app) {
       "not be read or written (the message names it); 2 usage error; 128+signal when\n"
       "interrupted.");
   r->add_option("PLAN_DIR", *run_plan_dir, "Plan folder (lifmcr batch plan --out)")->required();
-  r->add_option("--shard", *shard, "I/N: this shard I of N (0 <= I < N); Slurm: $SLURM_ARRAY_TASK_ID/N")
+  r->add_option("--shard", *shard,
+                "I/N: this shard I of N (0 <= I < N); Slurm: $SLURM_ARRAY_TASK_ID/N")
       ->capture_default_str();
   r->add_flag("--quiet", *quiet, "No progress lines");
 
   auto status_dir = std::make_shared<std::string>();
   auto list_left = std::make_shared<bool>(false);
-  CLI::App* s = app.add_subcommand("status", "Count a plan's units done, failed and left (manifest only)");
+  CLI::App* s =
+      app.add_subcommand("status", "Count a plan's units done, failed and left (manifest only)");
   s->footer(
       "Prints the counts, the time and the largest peak RSS of the units that ran (what to\n"
       "ask Slurm for: --mem), each failure with its message and log, and the units left.\n"
@@ -232,7 +249,8 @@ CommandRun AddBatchCommand(CLI::App& app) {
   s->add_flag("--list-left", *list_left, "List every unit left (default: the first 5)");
 
   auto merge_dir = std::make_shared<std::string>();
-  CLI::App* m = app.add_subcommand("merge", "Combine the outputs of a plan's done units under PLAN_DIR/merged/");
+  CLI::App* m = app.add_subcommand(
+      "merge", "Combine the outputs of a plan's done units under PLAN_DIR/merged/");
   m->footer(
       "Reads: PLAN_DIR/plan.jsonl, the manifest, the done units' registration.csv or\n"
       "evaluation.json.\n"

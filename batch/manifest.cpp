@@ -1,11 +1,11 @@
 #include "batch/manifest.h"
 
-#include "batch/atomic_file.h"
-#include "batch/checksum.h"
 #include "config/text_escape.h"
 
 #include <nlohmann/json.hpp>
 
+#include "batch/atomic_file.h"
+#include "batch/checksum.h"
 #include <algorithm>
 #include <cerrno>
 #include <cstdio>
@@ -16,9 +16,7 @@ namespace lifmcr::batch {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-std::string_view ToString(UnitState state) {
-  return state == UnitState::kDone ? "done" : "failed";
-}
+std::string_view ToString(UnitState state) { return state == UnitState::kDone ? "done" : "failed"; }
 
 std::string ManifestEntry::BriefReport() const {
   char text[160];
@@ -73,9 +71,12 @@ Expected<ManifestEntry> ParseManifestEntry(std::string_view text, const std::str
   try {
     e.unit = j.at("unit").get<std::string>();
     const std::string state = j.at("state").get<std::string>();
-    if (state == "done") e.state = UnitState::kDone;
-    else if (state == "failed") e.state = UnitState::kFailed;
-    else return Error{label + ": \"state\": expected done or failed, got '" + Excerpt(state) + "'"};
+    if (state == "done")
+      e.state = UnitState::kDone;
+    else if (state == "failed")
+      e.state = UnitState::kFailed;
+    else
+      return Error{label + ": \"state\": expected done or failed, got '" + Excerpt(state) + "'"};
     e.attempt = j.at("attempt").get<int>();
     e.exit_code = j.at("exit_code").get<int>();
     e.signal = j.at("signal").get<int>();

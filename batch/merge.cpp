@@ -1,11 +1,10 @@
 #include "batch/merge.h"
 
+#include <nlohmann/json.hpp>
+
 #include "batch/atomic_file.h"
 #include "batch/manifest.h"
 #include "batch/plan.h"
-
-#include <nlohmann/json.hpp>
-
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -22,7 +21,8 @@ std::string MergeReport::BriefReport() const {
   for (std::size_t k = 0; k < files.size(); ++k) line += (k ? ", " : "") + files[k];
   if (!not_done.empty()) {
     line += "; not done: ";
-    for (std::size_t k = 0; k < not_done.size() && k < 5; ++k) line += (k ? ", " : "") + not_done[k];
+    for (std::size_t k = 0; k < not_done.size() && k < 5; ++k)
+      line += (k ? ", " : "") + not_done[k];
     if (not_done.size() > 5) line += ", ... (" + std::to_string(not_done.size()) + ")";
   }
   return line;
@@ -56,7 +56,10 @@ Status EvaluationRows(const fs::path& path, const Unit& unit, std::vector<EvalRo
       for (const char* correction : {"uncorrected", "corrected"}) {
         if (!e.contains(correction)) continue;
         const json& summary = e.at(correction).at(protocol);
-        EvalRow r{unit.scene, unit.sequence, table, e.at("method").get<std::string>(),
+        EvalRow r{unit.scene,
+                  unit.sequence,
+                  table,
+                  e.at("method").get<std::string>(),
                   e.at("camera").get<std::string>(),
                   std::string(correction) == "corrected" ? "hand-eye" : "uncorrected"};
         r.frames = summary.at("translation_mm").at("count").get<std::int64_t>();
@@ -120,17 +123,20 @@ Expected<MergeReport> MergePlan(const fs::path& plan_dir) {
         if (line.empty()) continue;
         if (first) {
           first = false;
-          if (registration_header.empty()) registration_header = line;
+          if (registration_header.empty())
+            registration_header = line;
           else if (line != registration_header)
-            return Error{path.string() + ":1: header '" + line + "' differs from the first unit's '" +
-                         registration_header + "'"};
+            return Error{path.string() + ":1: header '" + line +
+                         "' differs from the first unit's '" + registration_header + "'"};
           continue;
         }
-        registration_csv += CsvField(unit.scene) + "," + CsvField(unit.sequence) + "," + line + "\n";
+        registration_csv +=
+            CsvField(unit.scene) + "," + CsvField(unit.sequence) + "," + line + "\n";
       }
     }
     if (plan->stage == Stage::kEvaluate)
-      if (Status s = EvaluationRows(plan_dir / unit.outputs / "evaluation.json", unit, &eval_rows); !s)
+      if (Status s = EvaluationRows(plan_dir / unit.outputs / "evaluation.json", unit, &eval_rows);
+          !s)
         return s.error();
   }
   auto write = [&](const std::string& name, const std::string& content) -> Status {
@@ -140,18 +146,22 @@ Expected<MergeReport> MergePlan(const fs::path& plan_dir) {
   };
   if (Status s = write("outputs.csv", outputs_csv); !s) return s.error();
   if (plan->stage == Stage::kRegister && !registration_header.empty())
-    if (Status s = write("registration.csv", "scene,sequence," + registration_header + "\n" +
-                                                 registration_csv);
+    if (Status s = write("registration.csv",
+                         "scene,sequence," + registration_header + "\n" + registration_csv);
         !s)
       return s.error();
   if (plan->stage == Stage::kEvaluate) {
-    std::string csv = "scene,sequence,table,method,camera,correction,frames,t_rmse_mm,t_sd_mm,r_rmse_deg,r_sd_deg\n";
+    std::string csv =
+        "scene,sequence,table,method,camera,correction,frames,t_rmse_mm,t_sd_mm,r_rmse_deg,r_sd_"
+        "deg\n";
     std::string md =
-        "| sequence | table | method | camera | correction | frames | T RMSE mm | T SD mm | R RMSE deg | R SD deg |\n"
+        "| sequence | table | method | camera | correction | frames | T RMSE mm | T SD mm | R RMSE "
+        "deg | R SD deg |\n"
         "|---|---|---|---|---|---|---|---|---|---|\n";
     // Pooled over sequences: per (table, method, camera, correction).
     std::map<std::tuple<std::string, std::string, std::string, std::string>,
-             std::tuple<std::int64_t, double, double>> pooled;
+             std::tuple<std::int64_t, double, double>>
+        pooled;
     for (const EvalRow& r : eval_rows) {
       csv += CsvField(r.scene) + "," + CsvField(r.sequence) + "," + CsvField(r.table) + "," +
              CsvField(r.method) + "," + CsvField(r.camera) + "," + r.correction + "," +
@@ -180,7 +190,8 @@ Expected<MergeReport> MergePlan(const fs::path& plan_dir) {
                          "# Evaluation over " + std::to_string(report.merged) +
                              " sequences\n\nPlan: " + plan->BriefReport() +
                              ". Rows \"all\": frames summed, RMSE pooled over the sequences "
-                             "(sqrt of the frame-weighted mean of the squares).\n\n" + md);
+                             "(sqrt of the frame-weighted mean of the squares).\n\n" +
+                             md);
         !s)
       return s.error();
   }

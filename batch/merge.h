@@ -20,9 +20,9 @@
 namespace lifmcr::batch {
 
 struct MergeReport {
-  int merged = 0;                        // done units merged
-  std::vector<std::string> not_done;     // units left out
-  std::vector<std::string> files;        // written, relative to PLAN_DIR
+  int merged = 0;                     // done units merged
+  std::vector<std::string> not_done;  // units left out
+  std::vector<std::string> files;     // written, relative to PLAN_DIR
 
   // "merged 4 of 5 units into merged/outputs.csv, merged/registration.csv; not done: ...".
   std::string BriefReport() const;

@@ -1,10 +1,10 @@
 #include "batch/plan.h"
 
-#include "batch/atomic_file.h"
 #include "config/text_escape.h"
 
 #include <nlohmann/json.hpp>
 
+#include "batch/atomic_file.h"
 #include <algorithm>
 #include <charconv>
 #include <set>
@@ -16,10 +16,14 @@ using nlohmann::json;
 
 std::string_view ToString(Stage stage) {
   switch (stage) {
-    case Stage::kDepth: return "depth";
-    case Stage::kCalibrate: return "calibrate";
-    case Stage::kRegister: return "register";
-    case Stage::kEvaluate: return "evaluate";
+    case Stage::kDepth:
+      return "depth";
+    case Stage::kCalibrate:
+      return "calibrate";
+    case Stage::kRegister:
+      return "register";
+    case Stage::kEvaluate:
+      return "evaluate";
   }
   return "?";
 }
@@ -45,8 +49,10 @@ std::string ShellQuote(const std::string& word) {
   if (plain) return word;
   std::string quoted = "'";
   for (char c : word) {
-    if (c == '\'') quoted += "'\\''";
-    else quoted += c;
+    if (c == '\'')
+      quoted += "'\\''";
+    else
+      quoted += c;
   }
   return quoted + "'";
 }
@@ -100,10 +106,10 @@ std::string FormatPlan(const Plan& plan) {
   for (const Unit& u : plan.units) {
     json needs = json::array();
     for (const UnitNeed& n : u.needs) needs.push_back({{"plan", n.plan}, {"unit", n.unit}});
-    json line = {{"unit", u.id},          {"scene", u.scene},     {"sequence", u.sequence},
-                 {"camera", u.camera},    {"reference", u.reference},
-                 {"command", u.command},  {"outputs", u.outputs}, {"writes", u.writes},
-                 {"done_exits", u.done_exits}, {"needs", needs}};
+    json line = {{"unit", u.id},         {"scene", u.scene},         {"sequence", u.sequence},
+                 {"camera", u.camera},   {"reference", u.reference}, {"command", u.command},
+                 {"outputs", u.outputs}, {"writes", u.writes},       {"done_exits", u.done_exits},
+                 {"needs", needs}};
     text += line.dump() + "\n";
   }
   return text;
@@ -148,7 +154,8 @@ Expected<Plan> ParsePlan(std::string_view text, const std::string& label) {
   while (start < text.size()) {
     std::size_t end = text.find('\n', start);
     if (end == std::string_view::npos)
-      return MakeError(label, line_no + 1, 0, "the last line does not end with a newline (cut short?)");
+      return MakeError(label, line_no + 1, 0,
+                       "the last line does not end with a newline (cut short?)");
     const std::string_view line = text.substr(start, end - start);
     start = end + 1;
     ++line_no;
@@ -187,16 +194,17 @@ Expected<Plan> ParsePlan(std::string_view text, const std::string& label) {
     }
     Unit u;
     for (auto [field, target] :
-         {std::pair{"unit", &u.id}, std::pair{"scene", &u.scene}, std::pair{"sequence", &u.sequence},
-          std::pair{"camera", &u.camera}, std::pair{"reference", &u.reference},
-          std::pair{"outputs", &u.outputs}}) {
+         {std::pair{"unit", &u.id}, std::pair{"scene", &u.scene},
+          std::pair{"sequence", &u.sequence}, std::pair{"camera", &u.camera},
+          std::pair{"reference", &u.reference}, std::pair{"outputs", &u.outputs}}) {
       Expected<std::string> v = r.String(field);
       if (!v) return v.error();
       *target = *v;
     }
     if (!IsValidUnitId(u.id))
-      return r.Fail("unit", "'" + Excerpt(u.id) +
-                                "': expected names of letters, digits, '.', '_', '-' joined by '/'");
+      return r.Fail("unit",
+                    "'" + Excerpt(u.id) +
+                        "': expected names of letters, digits, '.', '_', '-' joined by '/'");
     if (!ids.insert(u.id).second) return r.Fail("unit", "'" + u.id + "' is listed twice");
     Expected<std::vector<std::string>> command = r.Strings("command");
     if (!command) return command.error();
@@ -250,8 +258,9 @@ Expected<Plan> ParsePlan(std::string_view text, const std::string& label) {
 Expected<Plan> ReadPlan(const fs::path& plan_dir) {
   const fs::path path = plan_dir / kPlanFileName;
   Expected<std::string> text = ReadWholeFile(path);
-  if (!text) return Error{text.error().message + " (is " + plan_dir.string() +
-                          " a folder written by lifmcr batch plan?)"};
+  if (!text)
+    return Error{text.error().message + " (is " + plan_dir.string() +
+                 " a folder written by lifmcr batch plan?)"};
   return ParsePlan(*text, path.string());
 }
 

@@ -49,9 +49,9 @@ struct Unit {
   // register and evaluate: camera 0, whose map the others are registered to
   // (evaluate plans take it from the register plan); empty for other stages.
   std::string reference;
-  std::vector<std::string> command;     // argv, command[0] == "lifmcr"
-  std::string outputs;                  // its output folder, relative to PLAN_DIR
-  std::vector<std::string> writes;      // files it must write, relative to PLAN_DIR
+  std::vector<std::string> command;  // argv, command[0] == "lifmcr"
+  std::string outputs;               // its output folder, relative to PLAN_DIR
+  std::vector<std::string> writes;   // files it must write, relative to PLAN_DIR
   // The exit codes after which the unit is done (when it wrote `writes`): 0,
   // and for evaluate also 3 (written, but the hand-eye offsets could not be
   // estimated for some camera: the report says why; apps/cmd_evaluate.cpp).
@@ -65,9 +65,9 @@ struct Unit {
 
 struct Plan {
   Stage stage = Stage::kDepth;
-  std::string per;             // as given: "frames:4", "camera", "sequence"
-  std::string dataset;         // absolute
-  std::string planned_by;      // the `lifmcr batch plan` command line
+  std::string per;         // as given: "frames:4", "camera", "sequence"
+  std::string dataset;     // absolute
+  std::string planned_by;  // the `lifmcr batch plan` command line
   std::vector<Unit> units;
 
   // "depth plan of /data/LiFMCR: 12 units per frames:4".

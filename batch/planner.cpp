@@ -37,9 +37,12 @@ Expected<PerSpec> PerSpec::Parse(std::string_view text) {
 
 std::string PerSpec::ToString() const {
   switch (kind) {
-    case Kind::kFrames: return "frames:" + std::to_string(frames);
-    case Kind::kCamera: return "camera";
-    case Kind::kSequence: return "sequence";
+    case Kind::kFrames:
+      return "frames:" + std::to_string(frames);
+    case Kind::kCamera:
+      return "camera";
+    case Kind::kSequence:
+      return "sequence";
   }
   return "?";
 }
@@ -48,10 +51,14 @@ namespace {
 
 std::string DefaultPer(Stage stage) {
   switch (stage) {
-    case Stage::kDepth: return "frames:16";
-    case Stage::kCalibrate: return "camera";
-    case Stage::kRegister: return "sequence";
-    case Stage::kEvaluate: return "sequence";
+    case Stage::kDepth:
+      return "frames:16";
+    case Stage::kCalibrate:
+      return "camera";
+    case Stage::kRegister:
+      return "sequence";
+    case Stage::kEvaluate:
+      return "sequence";
   }
   return "";
 }
@@ -59,10 +66,14 @@ std::string DefaultPer(Stage stage) {
 // Which --per each stage takes (the table of batch/planner.h).
 bool PerFits(Stage stage, PerSpec::Kind kind) {
   switch (stage) {
-    case Stage::kDepth: return kind != PerSpec::Kind::kSequence;
-    case Stage::kCalibrate: return kind == PerSpec::Kind::kCamera;
-    case Stage::kRegister: return kind != PerSpec::Kind::kFrames;
-    case Stage::kEvaluate: return kind == PerSpec::Kind::kSequence;
+    case Stage::kDepth:
+      return kind != PerSpec::Kind::kSequence;
+    case Stage::kCalibrate:
+      return kind == PerSpec::Kind::kCamera;
+    case Stage::kRegister:
+      return kind != PerSpec::Kind::kFrames;
+    case Stage::kEvaluate:
+      return kind == PerSpec::Kind::kSequence;
   }
   return false;
 }
@@ -80,7 +91,9 @@ std::string Absolute(const std::string& path) {
   return p.string();
 }
 
-bool IsNamePart(const std::string& name) { return IsValidUnitId(name) && name.find('/') == std::string::npos; }
+bool IsNamePart(const std::string& name) {
+  return IsValidUnitId(name) && name.find('/') == std::string::npos;
+}
 
 // An earlier plan, and its units by id.
 struct EarlierPlan {
@@ -109,10 +122,11 @@ Status PlanOptions::Check() const {
   Expected<PerSpec> p = PerSpec::Parse(per.empty() ? DefaultPer(stage) : per);
   if (!p) return p.error();
   if (!PerFits(stage, p->kind)) {
-    const char* fits = stage == Stage::kDepth       ? "frames:N or camera (one depth command is one camera)"
-                       : stage == Stage::kCalibrate ? "camera (one calibration is one camera)"
-                       : stage == Stage::kRegister  ? "sequence or camera (registration needs whole sequences)"
-                                                    : "sequence (one evaluation is one sequence)";
+    const char* fits =
+        stage == Stage::kDepth       ? "frames:N or camera (one depth command is one camera)"
+        : stage == Stage::kCalibrate ? "camera (one calibration is one camera)"
+        : stage == Stage::kRegister  ? "sequence or camera (registration needs whole sequences)"
+                                     : "sequence (one evaluation is one sequence)";
     return Error{"--per " + p->ToString() + " does not apply to --stage " +
                  std::string(ToString(stage)) + ": expected " + fits};
   }
@@ -128,32 +142,35 @@ Status PlanOptions::Check() const {
   for (const std::string& word : extra)
     if (word == "--out" || word.rfind("--out=", 0) == 0)
       return Error{"'" + word + "' after --: the plan chooses each unit's --out (under PLAN_DIR)"};
-  auto only_for = [&](bool given, const char* option, std::initializer_list<Stage> stages) -> Status {
+  auto only_for = [&](bool given, const char* option,
+                      std::initializer_list<Stage> stages) -> Status {
     if (!given) return Status::Ok();
     for (Stage s : stages)
       if (s == stage) return Status::Ok();
     std::string names;
     for (Stage s : stages) names += (names.empty() ? "" : " or ") + std::string(ToString(s));
-    return Error{std::string(option) + " does not apply to --stage " + std::string(ToString(stage)) +
-                 " (it is for --stage " + names + ")"};
+    return Error{std::string(option) + " does not apply to --stage " +
+                 std::string(ToString(stage)) + " (it is for --stage " + names + ")"};
   };
-  for (Status s : {only_for(!intrinsics.empty(), "--intrinsics", {Stage::kDepth}),
-                   only_for(!calibration_plan.empty(), "--calibration-plan",
-                            {Stage::kDepth, Stage::kRegister, Stage::kEvaluate}),
-                   only_for(!registration_plan.empty(), "--registration-plan", {Stage::kEvaluate}),
-                   only_for(!reference.empty(), "--reference", {Stage::kRegister}),
-                   only_for(reference_from_ground_truth, "--reference-from-ground-truth",
-                            {Stage::kRegister}),
-                   only_for(!reference_camera.empty(), "--reference-camera",
-                            {Stage::kRegister, Stage::kEvaluate})})
+  for (Status s :
+       {only_for(!intrinsics.empty(), "--intrinsics", {Stage::kDepth}),
+        only_for(!calibration_plan.empty(), "--calibration-plan",
+                 {Stage::kDepth, Stage::kRegister, Stage::kEvaluate}),
+        only_for(!registration_plan.empty(), "--registration-plan", {Stage::kEvaluate}),
+        only_for(!reference.empty(), "--reference", {Stage::kRegister}),
+        only_for(reference_from_ground_truth, "--reference-from-ground-truth", {Stage::kRegister}),
+        only_for(!reference_camera.empty(), "--reference-camera",
+                 {Stage::kRegister, Stage::kEvaluate})})
     if (!s) return s;
   if (stage == Stage::kDepth && !intrinsics.empty() && !calibration_plan.empty())
-    return Error{"--intrinsics and --calibration-plan exclude each other (both give the intrinsics)"};
+    return Error{
+        "--intrinsics and --calibration-plan exclude each other (both give the intrinsics)"};
   if (stage == Stage::kRegister) {
     const int given = !reference.empty() + reference_from_ground_truth + !calibration_plan.empty();
     if (given != 1)
-      return Error{"--stage register needs exactly one of --reference MAP_DIR, "
-                   "--reference-from-ground-truth and --calibration-plan CAL_PLAN_DIR"};
+      return Error{
+          "--stage register needs exactly one of --reference MAP_DIR, "
+          "--reference-from-ground-truth and --calibration-plan CAL_PLAN_DIR"};
   }
   if (stage == Stage::kEvaluate && registration_plan.empty())
     return Error{"--stage evaluate needs --registration-plan REG_PLAN_DIR (a register plan)"};
@@ -206,12 +223,14 @@ Expected<Plan> MakePlan(const PlanOptions& o) {
 
   std::optional<EarlierPlan> calibration, registration;
   if (!o.calibration_plan.empty()) {
-    Expected<EarlierPlan> e = LoadEarlier(o.calibration_plan, Stage::kCalibrate, "--calibration-plan");
+    Expected<EarlierPlan> e =
+        LoadEarlier(o.calibration_plan, Stage::kCalibrate, "--calibration-plan");
     if (!e) return e.error();
     calibration = std::move(*e);
   }
   if (!o.registration_plan.empty()) {
-    Expected<EarlierPlan> e = LoadEarlier(o.registration_plan, Stage::kRegister, "--registration-plan");
+    Expected<EarlierPlan> e =
+        LoadEarlier(o.registration_plan, Stage::kRegister, "--registration-plan");
     if (!e) return e.error();
     registration = std::move(*e);
   }
@@ -228,8 +247,9 @@ Expected<Plan> MakePlan(const PlanOptions& o) {
 
   for (const SequenceLayout& seq : sequences) {
     if (!IsNamePart(seq.scene) || !IsNamePart(seq.name))
-      return Error{seq.dir.string() + ": scene and sequence names must be letters, digits, '.', "
-                                      "'_', '-' to name units (got '" +
+      return Error{seq.dir.string() +
+                   ": scene and sequence names must be letters, digits, '.', "
+                   "'_', '-' to name units (got '" +
                    Excerpt(seq.scene) + "/" + Excerpt(seq.name) + "')"};
     const std::string seq_id = seq.scene + "/" + seq.name;
     const std::string seq_dir = Absolute(seq.dir.string());
@@ -256,7 +276,8 @@ Expected<Plan> MakePlan(const PlanOptions& o) {
       if (o.reference_from_ground_truth) {
         // lifmcr register builds that map from the ground truth's first camera.
         Expected<std::vector<std::string>> serials = synth::ReadCameraSerialsYaml(gt_yaml);
-        if (!serials) return Error{serials.error().message + " (--reference-from-ground-truth reads it)"};
+        if (!serials)
+          return Error{serials.error().message + " (--reference-from-ground-truth reads it)"};
         if (serials->empty()) return Error{gt_yaml.string() + ": lists no camera"};
         if (!reference.empty() && reference != serials->front())
           return Error{"--reference-camera " + reference + ": the ground-truth map is camera " +
@@ -293,7 +314,8 @@ Expected<Plan> MakePlan(const PlanOptions& o) {
       if (reference.empty()) reference = seq.cameras.front().serial;
       bool reference_found = false;
       for (const CameraFolder& c : seq.cameras) reference_found |= c.serial == reference;
-      if (!reference_found) return Error{seq_dir + ": no camera folder of the reference camera " + reference};
+      if (!reference_found)
+        return Error{seq_dir + ": no camera folder of the reference camera " + reference};
     }
 
     // A unit of the calibration plan (the camera's, in this sequence).
@@ -320,8 +342,9 @@ Expected<Plan> MakePlan(const PlanOptions& o) {
         std::vector<UnitNeed> needs;
         if (o.intrinsics == "ground-truth") {
           if (!has_gt_yaml)
-            return Error{gt_yaml.string() + ": missing (--intrinsics ground-truth reads each "
-                                            "sequence's GroundTruth/cameras.yaml)"};
+            return Error{gt_yaml.string() +
+                         ": missing (--intrinsics ground-truth reads each "
+                         "sequence's GroundTruth/cameras.yaml)"};
           intrinsics_args = {"--intrinsics", gt_yaml.string()};
         } else if (!o.intrinsics.empty()) {
           intrinsics_args = {"--intrinsics", Absolute(o.intrinsics)};
@@ -334,8 +357,9 @@ Expected<Plan> MakePlan(const PlanOptions& o) {
           needs.push_back({calibration->dir, cal->id});
         }
         if (c->frames.empty()) continue;
-        const std::size_t chunk =
-            per.kind == PerSpec::Kind::kCamera ? c->frames.size() : static_cast<std::size_t>(per.frames);
+        const std::size_t chunk = per.kind == PerSpec::Kind::kCamera
+                                      ? c->frames.size()
+                                      : static_cast<std::size_t>(per.frames);
         for (std::size_t first = 0; first < c->frames.size(); first += chunk) {
           const std::size_t last = std::min(first + chunk, c->frames.size()) - 1;
           Unit u;
@@ -343,8 +367,7 @@ Expected<Plan> MakePlan(const PlanOptions& o) {
           u.id = seq_id + "/" + c->serial;
           if (per.kind == PerSpec::Kind::kFrames)
             u.id += "/" + Frame6(c->frames[first]) + "-" + Frame6(c->frames[last]);
-          u.command = {"lifmcr", "depth", seq_dir, "--camera", c->serial, "--out",
-                       "units/" + u.id};
+          u.command = {"lifmcr", "depth", seq_dir, "--camera", c->serial, "--out", "units/" + u.id};
           u.command.insert(u.command.end(), intrinsics_args.begin(), intrinsics_args.end());
           if (per.kind == PerSpec::Kind::kCamera) {
             u.command.push_back("--all-frames");
@@ -355,14 +378,16 @@ Expected<Plan> MakePlan(const PlanOptions& o) {
           }
           for (std::size_t k = first; k <= last; ++k) {
             const std::string name = layout::VirtualDepthFileName(c->serial, c->frames[k]);
-            const std::string stem = name.substr(0, name.size() - std::string("_virtual_depth.tiff").size());
+            const std::string stem =
+                name.substr(0, name.size() - std::string("_virtual_depth.tiff").size());
             std::vector<std::string> suffixes = {"_virtual_depth.tiff", "_virtual_depth_tf.tiff",
                                                  "_confidence.tiff", "_tf.png", "_depth.png"};
             if (!intrinsics_args.empty()) {
               suffixes.push_back("_depth_mm.tiff");
               suffixes.push_back("_points.ply");
             }
-            for (const std::string& s : suffixes) u.writes.push_back("units/" + u.id + "/" + stem + s);
+            for (const std::string& s : suffixes)
+              u.writes.push_back("units/" + u.id + "/" + stem + s);
           }
           u.needs = needs;
           add_unit(std::move(u));
@@ -373,7 +398,8 @@ Expected<Plan> MakePlan(const PlanOptions& o) {
         Unit u;
         u.camera = c->serial;
         u.id = seq_id + "/" + c->serial;
-        u.command = {"lifmcr", "calibrate", seq_dir, "--camera", c->serial, "--out", "units/" + u.id};
+        u.command = {"lifmcr",  "calibrate", seq_dir,        "--camera",
+                     c->serial, "--out",     "units/" + u.id};
         for (const char* f : {"intrinsics.yaml", "calibration_report.md"})
           u.writes.push_back("units/" + u.id + "/" + f);
         u.writes.push_back("units/" + u.id + "/" + layout::PosesCsvFileName(c->serial));
@@ -389,8 +415,8 @@ Expected<Plan> MakePlan(const PlanOptions& o) {
       } else {
         const Unit* cal = calibration_unit(reference);
         if (!cal)
-          return Error{"--calibration-plan " + calibration->dir + ": no unit for the reference camera " +
-                       reference + " of " + seq_id};
+          return Error{"--calibration-plan " + calibration->dir +
+                       ": no unit for the reference camera " + reference + " of " + seq_id};
         reference_args = {"--reference", unit_dir(*calibration, *cal), "--intrinsics",
                           unit_dir(*calibration, *cal) + "/intrinsics.yaml"};
         needs.push_back({calibration->dir, cal->id});
@@ -410,8 +436,9 @@ Expected<Plan> MakePlan(const PlanOptions& o) {
         }
         if (!all) {
           if (!has_gt_yaml)
-            return Error{"--calibration-plan " + calibration->dir + " calibrates not every camera of " +
-                         seq_id + " and " + gt_yaml.string() + " is missing: no intrinsics for the rest"};
+            return Error{"--calibration-plan " + calibration->dir +
+                         " calibrates not every camera of " + seq_id + " and " + gt_yaml.string() +
+                         " is missing: no intrinsics for the rest"};
           reference_args.push_back("--intrinsics");
           reference_args.push_back(gt_yaml.string());
         }
@@ -438,7 +465,8 @@ Expected<Plan> MakePlan(const PlanOptions& o) {
           u.camera = c->serial;
           u.reference = reference;
           u.id = seq_id + "/" + c->serial;
-          u.command = {"lifmcr", "register", seq_dir, "--camera", c->serial, "--out", "units/" + u.id};
+          u.command = {"lifmcr",  "register", seq_dir,        "--camera",
+                       c->serial, "--out",    "units/" + u.id};
           u.command.insert(u.command.end(), reference_args.begin(), reference_args.end());
           u.writes = {"units/" + u.id + "/registration.csv"};
           u.needs = needs;
@@ -449,7 +477,8 @@ Expected<Plan> MakePlan(const PlanOptions& o) {
       Unit u;
       u.id = seq_id;
       u.reference = reference;
-      u.command = {"lifmcr", "evaluate", seq_dir, "--out", "units/" + u.id, "--reference", reference};
+      u.command = {"lifmcr",        "evaluate",    seq_dir,  "--out",
+                   "units/" + u.id, "--reference", reference};
       for (const Unit& r : registration->plan.units) {
         if (r.scene != seq.scene || r.sequence != seq.name) continue;
         u.command.push_back("--registration");
@@ -461,11 +490,12 @@ Expected<Plan> MakePlan(const PlanOptions& o) {
       if (calibration) {
         const Unit* cal = calibration_unit(reference);
         if (!cal)
-          return Error{"--calibration-plan " + calibration->dir + ": no unit for the reference camera " +
-                       reference + " of " + seq_id};
-        u.command.insert(u.command.end(),
-                         {"--map", unit_dir(*calibration, *cal), "--reference-poses",
-                          unit_dir(*calibration, *cal) + "/" + layout::PosesCsvFileName(reference)});
+          return Error{"--calibration-plan " + calibration->dir +
+                       ": no unit for the reference camera " + reference + " of " + seq_id};
+        u.command.insert(
+            u.command.end(),
+            {"--map", unit_dir(*calibration, *cal), "--reference-poses",
+             unit_dir(*calibration, *cal) + "/" + layout::PosesCsvFileName(reference)});
         u.needs.push_back({calibration->dir, cal->id});
       }
       u.writes = {"units/" + u.id + "/evaluation.md", "units/" + u.id + "/evaluation.json"};

@@ -4,10 +4,11 @@
 // (replay/sequence.h: DATASET is a dataset root, a scene or a sequence).
 //
 //   stage      --per (default first)   one unit                      its command
-//   depth      frames:N (16) | camera   N frames of one camera        lifmcr depth SEQ --camera S --frame ...
-//   calibrate  camera                   one camera of a sequence      lifmcr calibrate SEQ --camera S
-//   register   sequence | camera        a sequence / one camera X     lifmcr register SEQ [--camera X]
-//   evaluate   sequence                 a sequence                    lifmcr evaluate SEQ --registration ...
+//   depth      frames:N (16) | camera   N frames of one camera        lifmcr depth SEQ --camera S
+//   --frame ... calibrate  camera                   one camera of a sequence      lifmcr calibrate
+//   SEQ --camera S register   sequence | camera        a sequence / one camera X     lifmcr
+//   register SEQ [--camera X] evaluate   sequence                 a sequence lifmcr evaluate SEQ
+//   --registration ...
 //
 // Stages after the first refer to an earlier plan's outputs, and each such
 // unit lists the units it needs (batch/plan.h, UnitNeed):
@@ -19,9 +20,9 @@
 //     --calibration-plan CAL also --map and --reference-poses.
 // Words after `--` are appended to every unit's command as they are.
 
-#include "batch/plan.h"
 #include "config/error.h"
 
+#include "batch/plan.h"
 #include <string>
 #include <vector>
 
@@ -38,10 +39,10 @@ struct PerSpec {
 };
 
 struct PlanOptions {
-  std::string dataset;          // dataset root, scene or sequence folder (read only)
+  std::string dataset;  // dataset root, scene or sequence folder (read only)
   Stage stage = Stage::kDepth;
-  std::string per;              // empty: the stage's default (table above)
-  std::string out;              // PLAN_DIR
+  std::string per;                     // empty: the stage's default (table above)
+  std::string out;                     // PLAN_DIR
   std::vector<std::string> cameras;    // only these serials (default: all)
   std::vector<std::string> sequences;  // only these sequences: SEQ or SCENE/SEQ (default: all)
   // depth: a cameras.yaml for every sequence, or "ground-truth" for each

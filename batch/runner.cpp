@@ -2,14 +2,6 @@
 
 #include "batch/atomic_file.h"
 #include "batch/manifest.h"
-
-#include <fcntl.h>
-#include <spawn.h>
-#include <sys/file.h>
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
@@ -17,6 +9,12 @@
 #include <csignal>
 #include <cstring>
 #include <ctime>
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/file.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <vector>
 
 extern char** environ;
@@ -154,8 +152,8 @@ ChildResult RunCommand(const fs::path& executable, const std::vector<std::string
   posix_spawnattr_destroy(&attributes);
   if (spawned != 0) {
     ::sigprocmask(SIG_SETMASK, &old_mask, nullptr);
-    result.spawn_error = "cannot run " + executable.string() + " in " + cwd.string() + ": " +
-                         std::strerror(spawned);
+    result.spawn_error =
+        "cannot run " + executable.string() + " in " + cwd.string() + ": " + std::strerror(spawned);
     return result;
   }
   g_child = pid;
@@ -191,13 +189,13 @@ Status RunOptions::Check() const {
 
 std::string RunReport::BriefReport(const ShardSpec& shard) const {
   char text[256];
-  std::snprintf(text, sizeof text,
-                "shard %s: %d unit%s: %d done, %d skipped (done before), %d failed, %d busy in "
-                "%.1f s (%.3f s of it outside the units' commands)%s",
-                shard.ToString().c_str(), units, units == 1 ? "" : "s", done, skipped, failed, busy,
-                seconds, runner_seconds,
-                interrupted_by ? (", interrupted by signal " + std::to_string(interrupted_by)).c_str()
-                               : "");
+  std::snprintf(
+      text, sizeof text,
+      "shard %s: %d unit%s: %d done, %d skipped (done before), %d failed, %d busy in "
+      "%.1f s (%.3f s of it outside the units' commands)%s",
+      shard.ToString().c_str(), units, units == 1 ? "" : "s", done, skipped, failed, busy, seconds,
+      runner_seconds,
+      interrupted_by ? (", interrupted by signal " + std::to_string(interrupted_by)).c_str() : "");
   return text;
 }
 
@@ -236,8 +234,7 @@ Expected<RunReport> RunShard(const RunOptions& o) {
     std::error_code ec;
     fs::create_directories(lock_path.parent_path(), ec);
     const int lock_fd = ::open(lock_path.c_str(), O_RDWR | O_CREAT, 0644);
-    if (lock_fd < 0)
-      return Error{lock_path.string() + ": cannot open: " + std::strerror(errno)};
+    if (lock_fd < 0) return Error{lock_path.string() + ": cannot open: " + std::strerror(errno)};
     if (::flock(lock_fd, LOCK_EX | LOCK_NB) != 0) {
       ::close(lock_fd);
       ++report.busy;
@@ -301,15 +298,16 @@ Expected<RunReport> RunShard(const RunOptions& o) {
     // 4. Empty output folder, the log's attempt line, the command.
     const fs::path out_dir = plan_dir / unit.outputs;
     fs::remove_all(out_dir, ec);
-    if (ec) return Error{out_dir.string() + ": cannot empty the unit's output folder: " + ec.message()};
+    if (ec)
+      return Error{out_dir.string() + ": cannot empty the unit's output folder: " + ec.message()};
     fs::create_directories(out_dir, ec);
     if (ec) return Error{out_dir.string() + ": cannot create: " + ec.message()};
     const int log_fd = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
     if (log_fd < 0) return Error{log_path.string() + ": cannot open: " + std::strerror(errno)};
     const std::string header = std::string(kAttemptPrefix) + std::to_string(entry.attempt) +
-                               " of unit " + unit.id + ", shard " + entry.shard + ", host " +
-                               host + ", pid " + std::to_string(::getpid()) + ", " + UtcNow() +
-                               "\n# " + unit.CommandLine() + "\n";
+                               " of unit " + unit.id + ", shard " + entry.shard + ", host " + host +
+                               ", pid " + std::to_string(::getpid()) + ", " + UtcNow() + "\n# " +
+                               unit.CommandLine() + "\n";
     [[maybe_unused]] ssize_t written = ::write(log_fd, header.data(), header.size());
     const off_t attempt_start = ::lseek(log_fd, 0, SEEK_END);
     say("%s: running (attempt %d)\n", tag.c_str(), entry.attempt);
@@ -339,11 +337,14 @@ Expected<RunReport> RunShard(const RunOptions& o) {
           break;
         }
       if (!missing.empty()) {
-        entry.message = "exited " + std::to_string(child.exit_code) + " but did not write " + missing;
+        entry.message =
+            "exited " + std::to_string(child.exit_code) + " but did not write " + missing;
       } else {
         Expected<std::vector<OutputFile>> outputs = DigestOutputs(plan_dir, unit);
-        if (!outputs) entry.message = outputs.error().message;
-        else entry.outputs = std::move(*outputs), entry.state = UnitState::kDone;
+        if (!outputs)
+          entry.message = outputs.error().message;
+        else
+          entry.outputs = std::move(*outputs), entry.state = UnitState::kDone;
       }
     } else {
       const std::string last = LastLine(log_path, static_cast<std::size_t>(attempt_start));
@@ -353,14 +354,17 @@ Expected<RunReport> RunShard(const RunOptions& o) {
                         ": cancelled or preempted); lifmcr batch run runs it again";
       else if (child.signal != 0)
         entry.message = "killed by signal " + std::to_string(child.signal) + " (" +
-                        strsignal(child.signal) + ")" + (last.empty() ? "" : "; last line: " + last);
+                        strsignal(child.signal) + ")" +
+                        (last.empty() ? "" : "; last line: " + last);
       else
         entry.message = last.empty() ? "exit code " + std::to_string(child.exit_code) : last;
     }
     entry.finished_utc = UtcNow();
     if (Status s = WriteManifestEntry(plan_dir, entry); !s) return s.error();
-    if (entry.state == UnitState::kDone) ++report.done;
-    else ++report.failed;
+    if (entry.state == UnitState::kDone)
+      ++report.done;
+    else
+      ++report.failed;
 
     const int executed = report.done + report.failed;
     const int left = static_cast<int>(mine.size()) - static_cast<int>(k) - 1;

@@ -21,9 +21,9 @@
 // the running command; its unit is recorded failed ("interrupted by signal
 // 15") unless the command still completed, and the run stops.
 
-#include "batch/plan.h"
 #include "config/error.h"
 
+#include "batch/plan.h"
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -42,12 +42,12 @@ struct RunOptions {
 };
 
 struct RunReport {
-  int units = 0;      // in the shard
-  int ran = 0;        // started
-  int done = 0;       // ran and done
-  int failed = 0;     // ran (or could not run) and failed
-  int skipped = 0;    // done before and verified
-  int busy = 0;       // being run by another process
+  int units = 0;           // in the shard
+  int ran = 0;             // started
+  int done = 0;            // ran and done
+  int failed = 0;          // ran (or could not run) and failed
+  int skipped = 0;         // done before and verified
+  int busy = 0;            // being run by another process
   int interrupted_by = 0;  // the signal that stopped the run, 0 if none
   double seconds = 0;
   // Of `seconds`, the time outside the units' commands: the runner's own cost

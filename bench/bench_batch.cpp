@@ -14,20 +14,18 @@
 
 #include "batch/manifest.h"
 #include "batch/plan.h"
-
-#include <fcntl.h>
-#include <sched.h>
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <fcntl.h>
 #include <filesystem>
 #include <fstream>
+#include <sched.h>
 #include <string>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <vector>
 
 namespace {
@@ -36,7 +34,8 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
 // Starts argv pinned to `cpu` (-1: any), in `cwd`, stdout and stderr to `log`.
-pid_t Start(const std::vector<std::string>& argv, int cpu, const fs::path& cwd, const fs::path& log) {
+pid_t Start(const std::vector<std::string>& argv, int cpu, const fs::path& cwd,
+            const fs::path& log) {
   std::vector<char*> args;
   for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
   args.push_back(nullptr);
@@ -73,7 +72,9 @@ int Finish(pid_t pid) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
 
-double Since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+double Since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
 
 std::string LoadAverage() {
   std::ifstream in("/proc/loadavg");
@@ -89,11 +90,16 @@ int main(int argc, char** argv) {
   int frames = 8, repeat = 3;
   for (int k = 1; k + 1 < argc; k += 2) {
     const std::string flag = argv[k], value = argv[k + 1];
-    if (flag == "--preset") preset = value;
-    else if (flag == "--frames") frames = std::atoi(value.c_str());
-    else if (flag == "--repeat") repeat = std::atoi(value.c_str());
-    else if (flag == "--per") per = value;
-    else if (flag == "--keep") keep = value;
+    if (flag == "--preset")
+      preset = value;
+    else if (flag == "--frames")
+      frames = std::atoi(value.c_str());
+    else if (flag == "--repeat")
+      repeat = std::atoi(value.c_str());
+    else if (flag == "--per")
+      per = value;
+    else if (flag == "--keep")
+      keep = value;
     else {
       std::fprintf(stderr, "bench_batch: unknown flag %s\n", flag.c_str());
       return 2;
@@ -104,13 +110,15 @@ int main(int argc, char** argv) {
     return 2;
   }
   const std::string lifmcr = LIFMCR_BINARY;
-  const fs::path dir = keep.empty() ? fs::temp_directory_path() / ("bench_batch_" + std::to_string(::getpid()))
-                                    : fs::path(keep);
+  const fs::path dir =
+      keep.empty() ? fs::temp_directory_path() / ("bench_batch_" + std::to_string(::getpid()))
+                   : fs::path(keep);
   fs::create_directories(dir);
   const long cpus = ::sysconf(_SC_NPROCESSORS_ONLN);
-  std::printf("bench_batch: preset %s, %d frames x 2 cameras, depth plan per %s, %d repeats, %ld "
-              "CPUs, load average %s\n",
-              preset.c_str(), frames, per.c_str(), repeat, cpus, LoadAverage().c_str());
+  std::printf(
+      "bench_batch: preset %s, %d frames x 2 cameras, depth plan per %s, %d repeats, %ld "
+      "CPUs, load average %s\n",
+      preset.c_str(), frames, per.c_str(), repeat, cpus, LoadAverage().c_str());
   if (Finish(Start({lifmcr, "synth", "--out", (dir / "data").string(), "--preset", preset,
                     "--cameras", "2", "--frames", std::to_string(frames), "--quiet"},
                    -1, {}, dir / "synth.log")) != 0) {
@@ -123,7 +131,8 @@ int main(int argc, char** argv) {
     if (Finish(Start({lifmcr, "batch", "plan", (dir / "data").string(), "--stage", "depth", "--per",
                       per, "--intrinsics", "ground-truth", "--out", p.string()},
                      -1, {}, dir / "plan.log")) != 0) {
-      std::fprintf(stderr, "bench_batch: lifmcr batch plan failed (%s)\n", (dir / "plan.log").c_str());
+      std::fprintf(stderr, "bench_batch: lifmcr batch plan failed (%s)\n",
+                   (dir / "plan.log").c_str());
       std::exit(1);
     }
     return p;
@@ -199,32 +208,36 @@ int main(int argc, char** argv) {
       }
       two_shards.push_back(Since(t));
     }
-    std::printf("repeat %d: bare %.2f s (CPU %.2f s), 1 shard/1 core %.2f s (CPU %.2f s), 2 shards/2 "
-                "cores %.2f s (load %s)\n",
-                r + 1, bare.back(), bare_cpu.back(), one_shard.back(), one_cpu.back(),
-                two_shards.empty() ? 0.0 : two_shards.back(), LoadAverage().c_str());
+    std::printf(
+        "repeat %d: bare %.2f s (CPU %.2f s), 1 shard/1 core %.2f s (CPU %.2f s), 2 shards/2 "
+        "cores %.2f s (load %s)\n",
+        r + 1, bare.back(), bare_cpu.back(), one_shard.back(), one_cpu.back(),
+        two_shards.empty() ? 0.0 : two_shards.back(), LoadAverage().c_str());
     std::fflush(stdout);
   }
   const double t_bare = *std::min_element(bare.begin(), bare.end());
   std::sort(inside.begin(), inside.end());
-  std::printf("batch run's time outside the units' commands (its start included), median of %d: "
-              "%.2f %% of the commands' time\n",
-              repeat, 100.0 * inside[inside.size() / 2]);
+  std::printf(
+      "batch run's time outside the units' commands (its start included), median of %d: "
+      "%.2f %% of the commands' time\n",
+      repeat, 100.0 * inside[inside.size() / 2]);
   const double t_one = *std::min_element(one_shard.begin(), one_shard.end());
-  std::printf("%zu units; fastest of %d: bare commands %.2f s (%.3f s/unit), batch run 1 shard %.2f s\n",
-              units, repeat, t_bare, t_bare / units, t_one);
+  std::printf(
+      "%zu units; fastest of %d: bare commands %.2f s (%.3f s/unit), batch run 1 shard %.2f s\n",
+      units, repeat, t_bare, t_bare / units, t_one);
   std::printf("overhead of batch run: %+.1f ms per unit, %+.2f %% of wall time (goal <= 2 %%)\n",
               (t_one - t_bare) / units * 1e3, 100.0 * (t_one - t_bare) / t_bare);
   // CPU time counts what the runner itself costs and little of what other
   // processes on a shared machine take from the core (they stretch wall time).
   const double c_bare = *std::min_element(bare_cpu.begin(), bare_cpu.end());
   const double c_one = *std::min_element(one_cpu.begin(), one_cpu.end());
-  std::printf("CPU time: bare %.2f s, batch run %.2f s: %+.1f ms per unit, %+.2f %%\n", c_bare, c_one,
-              (c_one - c_bare) / units * 1e3, 100.0 * (c_one - c_bare) / c_bare);
+  std::printf("CPU time: bare %.2f s, batch run %.2f s: %+.1f ms per unit, %+.2f %%\n", c_bare,
+              c_one, (c_one - c_bare) / units * 1e3, 100.0 * (c_one - c_bare) / c_bare);
   if (!two_shards.empty()) {
     const double t_two = *std::min_element(two_shards.begin(), two_shards.end());
-    std::printf("2 shards on 2 cores %.2f s against 1 shard on 1 core %.2f s: %.2fx (goal >= 1.8x)\n",
-                t_two, t_one, t_one / t_two);
+    std::printf(
+        "2 shards on 2 cores %.2f s against 1 shard on 1 core %.2f s: %.2fx (goal >= 1.8x)\n",
+        t_two, t_one, t_one / t_two);
     // CPU seconds per wall second: the cores the shards got. Below 2 with
     // runnable shards, other processes held the cores for the rest.
     const std::size_t k = static_cast<std::size_t>(

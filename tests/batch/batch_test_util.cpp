@@ -1,24 +1,23 @@
 #include "tests/batch/batch_test_util.h"
 
-#include "batch/atomic_file.h"
 #include "tests/test_util.h"
-
-#include <fcntl.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <gtest/gtest.h>
 
+#include "batch/atomic_file.h"
+#include <fcntl.h>
+#include <sys/wait.h>
 #include <thread>
+#include <unistd.h>
 
 namespace lifmcr::batch::test {
 
 namespace fs = std::filesystem;
 
 void SynthSmallRig(const fs::path& dir, int frames) {
-  const int code = Run({lifmcr::test::LifmcrBinary().string(), "synth", "--out", dir.string(),
-                        "--preset", "small", "--cameras", "2", "--frames", std::to_string(frames),
-                        "--quiet"});
+  const int code =
+      Run({lifmcr::test::LifmcrBinary().string(), "synth", "--out", dir.string(), "--preset",
+           "small", "--cameras", "2", "--frames", std::to_string(frames), "--quiet"});
   ASSERT_EQ(code, 0) << "lifmcr synth failed";
 }
 
@@ -70,7 +69,8 @@ bool WaitUntil(const std::function<bool()>& done, std::chrono::milliseconds time
 std::map<std::string, std::string> ReadTree(const fs::path& dir) {
   std::map<std::string, std::string> files;
   for (const auto& e : fs::recursive_directory_iterator(dir))
-    if (e.is_regular_file()) files[fs::relative(e.path(), dir).string()] = lifmcr::test::ReadFile(e.path());
+    if (e.is_regular_file())
+      files[fs::relative(e.path(), dir).string()] = lifmcr::test::ReadFile(e.path());
   return files;
 }
 
@@ -81,7 +81,8 @@ std::map<std::string, ManifestEntry> Entries(const fs::path& plan_dir) {
   if (!plan) return entries;
   for (const Unit& u : plan->units) {
     Expected<std::optional<ManifestEntry>> e = ReadManifestEntry(plan_dir, u.id);
-    EXPECT_TRUE(e && *e) << "unit " << u.id << ": " << (e ? "no manifest entry" : e.error().message);
+    EXPECT_TRUE(e && *e) << "unit " << u.id << ": "
+                         << (e ? "no manifest entry" : e.error().message);
     if (e && *e) entries[u.id] = **e;
   }
   return entries;

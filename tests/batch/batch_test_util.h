@@ -5,14 +5,12 @@
 
 #include "batch/manifest.h"
 #include "batch/plan.h"
-
-#include <sys/types.h>
-
 #include <chrono>
 #include <filesystem>
 #include <functional>
 #include <map>
 #include <string>
+#include <sys/types.h>
 #include <vector>
 
 namespace lifmcr::batch::test {

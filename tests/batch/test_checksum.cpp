@@ -2,12 +2,12 @@
 // the same bytes, the streaming form against the one-shot one at every split,
 // and the atomic writer (batch/atomic_file.h).
 
-#include "batch/atomic_file.h"
-#include "batch/checksum.h"
 #include "tests/test_util.h"
 
 #include <gtest/gtest.h>
 
+#include "batch/atomic_file.h"
+#include "batch/checksum.h"
 #include <string>
 #include <vector>
 
@@ -55,7 +55,8 @@ TEST(Checksum, DigestFileAndAtomicWrite) {
   ASSERT_TRUE(WriteFileAtomically(dir / "sub/v.bin", "abc"));
   EXPECT_EQ(DigestFile(dir / "sub/v.bin")->xxh64, "44bc2cf5ad770999");
   int files = 0;
-  for (const auto& e : std::filesystem::directory_iterator(dir / "sub")) files += e.is_regular_file();
+  for (const auto& e : std::filesystem::directory_iterator(dir / "sub"))
+    files += e.is_regular_file();
   EXPECT_EQ(files, 1);
   Expected<FileDigest> missing = DigestFile(dir / "nope.bin");
   ASSERT_FALSE(missing);

@@ -9,23 +9,22 @@
 // cancelled mid-unit (scancel) and the array submitted again: every unit
 // ends done once, the cancelled one redone, nothing else.
 
-#include "batch/manifest.h"
-#include "batch/plan.h"
-#include "batch/status.h"
 #include "tests/batch/batch_test_util.h"
 #include "tests/test_util.h"
 
-#include <sys/stat.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <gtest/gtest.h>
 
+#include "batch/manifest.h"
+#include "batch/plan.h"
+#include "batch/status.h"
 #include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <sys/stat.h>
+#include <sys/wait.h>
 #include <thread>
+#include <unistd.h>
 
 namespace lifmcr::batch {
 namespace {
@@ -36,7 +35,9 @@ using Clock = std::chrono::steady_clock;
 
 std::string Lifmcr() { return lifmcr::test::LifmcrBinary().string(); }
 
-double Since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+double Since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
 
 // The two plans of the gates: depth (2 frames per unit, metric with the
 // ground truth's intrinsics) and register (each camera against the ground
@@ -67,13 +68,14 @@ class Serial {
     test::SynthSmallRig(dir / "data", 4);
     PlanBoth(dir / "data", dir / "serial_depth", dir / "serial_reg");
     for (const char* plan : {"serial_depth", "serial_reg"})
-      EXPECT_EQ(test::Run({Lifmcr(), "batch", "run", (dir / plan).string(), "--shard", "0/1",
-                           "--quiet"}),
-                0);
+      EXPECT_EQ(
+          test::Run({Lifmcr(), "batch", "run", (dir / plan).string(), "--shard", "0/1", "--quiet"}),
+          0);
     depth_ = test::ReadTree(dir / "serial_depth/units");
     reg_ = test::ReadTree(dir / "serial_reg/units");
-    std::printf("synthetic rig and serial runs: %zu depth and %zu register output files in %.1f s\n",
-                depth_.size(), reg_.size(), Since(t));
+    std::printf(
+        "synthetic rig and serial runs: %zu depth and %zu register output files in %.1f s\n",
+        depth_.size(), reg_.size(), Since(t));
   }
   const fs::path& data() const { return dir_; }
   void ExpectSame(const fs::path& depth, const fs::path& reg) const {
@@ -110,11 +112,11 @@ class SlurmCluster {
                   dir_ / "mungekey.log") != 0)
       return "mungekey failed: " + lifmcr::test::ReadFile(dir_ / "mungekey.log");
     ::chmod(key.c_str(), 0600);
-    munged_ = test::Spawn({test::FindProgram("munged"), "--foreground", "--force", "--key-file", key,
-                           "--socket", socket, "--pid-file", (dir_ / "munged.pid").string(),
-                           "--log-file", (dir_ / "munged.log").string(), "--seed-file",
-                           (dir_ / "munged.seed").string()},
-                          dir_ / "munged.out", false);
+    munged_ = test::Spawn(
+        {test::FindProgram("munged"), "--foreground", "--force", "--key-file", key, "--socket",
+         socket, "--pid-file", (dir_ / "munged.pid").string(), "--log-file",
+         (dir_ / "munged.log").string(), "--seed-file", (dir_ / "munged.seed").string()},
+        dir_ / "munged.out", false);
     if (!test::WaitUntil([&] { return fs::exists(socket); }, 10s)) return "munged did not start";
 
     char host[256] = {};
@@ -127,13 +129,25 @@ class SlurmCluster {
     const std::string d = dir_.string();
     std::string conf =
         "ClusterName=lifmcrtest\n"
-        "SlurmctldHost=" + short_host + "(127.0.0.1)\n"
+        "SlurmctldHost=" +
+        short_host +
+        "(127.0.0.1)\n"
         "SlurmUser=root\nSlurmdUser=root\n"
-        "AuthType=auth/munge\nAuthInfo=socket=" + socket + "\nCredType=cred/munge\n"
-        "SlurmctldPort=" + std::to_string(port) + "\nSlurmdPort=" + std::to_string(port + 1) + "\n"
-        "StateSaveLocation=" + d + "/state\nSlurmdSpoolDir=" + d + "/spool\n"
-        "SlurmctldPidFile=" + d + "/slurmctld.pid\nSlurmdPidFile=" + d + "/slurmd.pid\n"
-        "SlurmctldLogFile=" + d + "/slurmctld.log\nSlurmdLogFile=" + d + "/slurmd.log\n"
+        "AuthType=auth/munge\nAuthInfo=socket=" +
+        socket +
+        "\nCredType=cred/munge\n"
+        "SlurmctldPort=" +
+        std::to_string(port) + "\nSlurmdPort=" + std::to_string(port + 1) +
+        "\n"
+        "StateSaveLocation=" +
+        d + "/state\nSlurmdSpoolDir=" + d +
+        "/spool\n"
+        "SlurmctldPidFile=" +
+        d + "/slurmctld.pid\nSlurmdPidFile=" + d +
+        "/slurmd.pid\n"
+        "SlurmctldLogFile=" +
+        d + "/slurmctld.log\nSlurmdLogFile=" + d +
+        "/slurmd.log\n"
         "ProctrackType=proctrack/linuxproc\nTaskPlugin=task/none\n"
         "JobAcctGatherType=jobacct_gather/none\nAccountingStorageType=accounting_storage/none\n"
         "SelectType=select/cons_tres\nSelectTypeParameters=CR_Core\nMpiDefault=none\n"
@@ -143,24 +157,28 @@ class SlurmCluster {
         "KillWait=5\n"
         // The script asks for --mem=2G; CR_Core does not count memory, but a
         // node must have what a job asks for.
-        "NodeName=" + short_host + " NodeAddr=127.0.0.1 CPUs=" + std::to_string(cpus) +
+        "NodeName=" +
+        short_host + " NodeAddr=127.0.0.1 CPUs=" + std::to_string(cpus) +
         " RealMemory=4096 State=UNKNOWN\n"
-        "PartitionName=test Nodes=" + short_host + " Default=YES MaxTime=INFINITE State=UP\n";
+        "PartitionName=test Nodes=" +
+        short_host + " Default=YES MaxTime=INFINITE State=UP\n";
     lifmcr::test::WriteFile(dir_ / "slurm.conf", conf);
     ::setenv("SLURM_CONF", (dir_ / "slurm.conf").c_str(), 1);
-    slurmctld_ = test::Spawn({test::FindProgram("slurmctld"), "-D", "-f", (dir_ / "slurm.conf").string()},
-                             dir_ / "slurmctld.out", false);
+    slurmctld_ =
+        test::Spawn({test::FindProgram("slurmctld"), "-D", "-f", (dir_ / "slurm.conf").string()},
+                    dir_ / "slurmctld.out", false);
     slurmd_ = test::Spawn({test::FindProgram("slurmd"), "-D", "-f", (dir_ / "slurm.conf").string()},
                           dir_ / "slurmd.out", false);
-    if (!test::WaitUntil([&] { return test::Capture("sinfo -h -o %T 2>/dev/null").out == "idle\n"; },
-                         30s))
+    if (!test::WaitUntil(
+            [&] { return test::Capture("sinfo -h -o %T 2>/dev/null").out == "idle\n"; }, 30s))
       return "the node did not become idle: " + lifmcr::test::ReadFile(dir_ / "slurmctld.log");
     return "";
   }
 
   // sbatch of the project's array script for PLAN with `shards` tasks; the job id.
   std::string SubmitArray(const fs::path& plan, int shards) {
-    const std::string script = std::string(LIFMCR_SOURCE_DIR) + "/scripts/cluster/lifmcr-array.sbatch";
+    const std::string script =
+        std::string(LIFMCR_SOURCE_DIR) + "/scripts/cluster/lifmcr-array.sbatch";
     fs::create_directories(plan / "slurm");
     const test::Captured c = test::Capture(
         "LIFMCR=" + Lifmcr() + " sbatch --parsable --array=0-" + std::to_string(shards - 1) +
@@ -231,9 +249,10 @@ TEST(BatchCluster, SlurmJobArrayEqualsSerialAndResumesAfterScancel) {
   // Task 1 cancelled while it runs its first unit (unit 1 of the plan), then
   // the same array again.
   const fs::path plan = dir / "cancel_depth";
-  ASSERT_EQ(test::Run({Lifmcr(), "batch", "plan", (dir / "data").string(), "--stage", "depth",
-                       "--per", "frames:2", "--intrinsics", "ground-truth", "--out", plan.string()}),
-            0);
+  ASSERT_EQ(
+      test::Run({Lifmcr(), "batch", "plan", (dir / "data").string(), "--stage", "depth", "--per",
+                 "frames:2", "--intrinsics", "ground-truth", "--out", plan.string()}),
+      0);
   const Plan p = *ReadPlan(plan);
   ASSERT_GE(p.units.size(), 4u);
   const std::string cut = p.units[1].id;
@@ -263,14 +282,16 @@ TEST(BatchCluster, SlurmJobArrayEqualsSerialAndResumesAfterScancel) {
 
   const std::string again = cluster.SubmitArray(plan, 2);
   ASSERT_TRUE(cluster.WaitForJob(again, 120s));
-  std::printf("slurm: array %s submitted again; cancel and rerun in %.1f s\n", again.c_str(), Since(t));
+  std::printf("slurm: array %s submitted again; cancel and rerun in %.1f s\n", again.c_str(),
+              Since(t));
   ExpectAllDone(plan);
   const auto entries = test::Entries(plan);
   for (const Unit& u : p.units) EXPECT_EQ(entries.at(u.id).attempt, u.id == cut ? 2 : 1) << u.id;
   EXPECT_EQ(test::ReadTree(plan / "units"), test::ReadTree(dir / "serial_depth/units"));
   const std::string task1 = lifmcr::test::ReadFile(plan / "slurm" / (again + "_1.out"));
   EXPECT_NE(task1.find(cut + ": running (attempt 2)"), std::string::npos) << task1;
-  EXPECT_NE(task1.find("skipped"), std::string::npos) << "nothing else of shard 1 is redone: " << task1;
+  EXPECT_NE(task1.find("skipped"), std::string::npos)
+      << "nothing else of shard 1 is redone: " << task1;
 }
 
 TEST(BatchCluster, GnuParallelEqualsSerial) {

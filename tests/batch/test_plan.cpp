@@ -2,13 +2,13 @@
 // (batch/planner.h) over a dataset made of file names only: discovery opens
 // no frame, so empty files in the LiFMCR layout are a dataset to it.
 
-#include "batch/plan.h"
-#include "batch/planner.h"
 #include "replay/layout.h"
 #include "tests/test_util.h"
 
 #include <gtest/gtest.h>
 
+#include "batch/plan.h"
+#include "batch/planner.h"
 #include <set>
 
 namespace lifmcr::batch {
@@ -42,8 +42,8 @@ TEST(Plan, FormatParsesBack) {
   u.scene = "S";
   u.sequence = "Q";
   u.camera = "222";
-  u.command = {"lifmcr", "register", "/data/x/S/Q", "--camera", "222", "--out", "units/S/Q/222",
-               "--note", "it's"};
+  u.command = {"lifmcr", "register",      "/data/x/S/Q", "--camera", "222",
+               "--out",  "units/S/Q/222", "--note",      "it's"};
   u.outputs = "units/S/Q/222";
   u.writes = {"units/S/Q/222/registration.csv"};
   u.needs = {{"/plans/cal", "S/Q/111"}};
@@ -76,20 +76,25 @@ TEST(Plan, ErrorsNameTheLineAndField) {
   EXPECT_NE(error_of(good.substr(0, good.size() - 5)).find("P/plan.jsonl:2: the last line"),
             std::string::npos);
   // One unit line lost: the header's count says so.
-  EXPECT_NE(error_of(good.substr(0, good.find('\n') + 1)).find("the header says 1 units, the file lists 0"),
+  EXPECT_NE(error_of(good.substr(0, good.find('\n') + 1))
+                .find("the header says 1 units, the file lists 0"),
             std::string::npos);
   auto replaced = [&](const std::string& from, const std::string& to) {
     return error_of(test::ReplaceFirst(good, from, to));
   };
-  EXPECT_NE(replaced("\"units/S/Q/1/000000-000001\"", "\"units/S\"").find("P/plan.jsonl:2: \"outputs\": expected"),
+  EXPECT_NE(replaced("\"units/S/Q/1/000000-000001\"", "\"units/S\"")
+                .find("P/plan.jsonl:2: \"outputs\": expected"),
             std::string::npos);
-  EXPECT_NE(replaced("\"unit\":\"S/Q/1/000000-000001\"", "\"unit\":\"S/../x\"").find(":2: \"unit\""),
-            std::string::npos);
+  EXPECT_NE(
+      replaced("\"unit\":\"S/Q/1/000000-000001\"", "\"unit\":\"S/../x\"").find(":2: \"unit\""),
+      std::string::npos);
   EXPECT_NE(replaced("[\"lifmcr\",", "[\"rm\",").find(":2: \"command\": expected a lifmcr command"),
             std::string::npos);
-  EXPECT_NE(replaced("\"lifmcr_batch_plan\":1", "\"lifmcr_batch_plan\":7").find(":1: \"lifmcr_batch_plan\": version 7"),
+  EXPECT_NE(replaced("\"lifmcr_batch_plan\":1", "\"lifmcr_batch_plan\":7")
+                .find(":1: \"lifmcr_batch_plan\": version 7"),
             std::string::npos);
-  EXPECT_NE(replaced("\"needs\":[]", "\"needs\":[{\"plan\":\"rel\",\"unit\":\"a\"}]").find(":2: \"needs\""),
+  EXPECT_NE(replaced("\"needs\":[]", "\"needs\":[{\"plan\":\"rel\",\"unit\":\"a\"}]")
+                .find(":2: \"needs\""),
             std::string::npos);
   EXPECT_NE(replaced("{\"camera\"", "[").find(":2: expected one JSON object"), std::string::npos);
 }
@@ -126,7 +131,8 @@ TEST(Plan, PerAndOptionsChecked) {
   o.out = "/p";
   EXPECT_TRUE(o.Check());
   o.per = "sequence";
-  test::ExpectMessageHas(o.Check().error(), {"--per sequence", "--stage depth", "frames:N or camera"});
+  test::ExpectMessageHas(o.Check().error(),
+                         {"--per sequence", "--stage depth", "frames:N or camera"});
   o.per = "";
   o.reference = "/map";
   test::ExpectMessageHas(o.Check().error(), {"--reference", "--stage depth", "register"});
@@ -161,9 +167,16 @@ TEST(Plan, DepthUnitsCoverEveryFrameOfEveryCameraOnce) {
   ASSERT_EQ(plan->units.size(), 12u);
   const Unit& u = plan->units[2];
   EXPECT_EQ(u.id, "00_Scene/Seq_A/111/000006-000006");
-  const std::vector<std::string> expected = {
-      "lifmcr", "depth", fs::weakly_canonical(root / "00_Scene/Seq_A").string(), "--camera", "111",
-      "--out", "units/00_Scene/Seq_A/111/000006-000006", "--frame", "6", "--no-white"};
+  const std::vector<std::string> expected = {"lifmcr",
+                                             "depth",
+                                             fs::weakly_canonical(root / "00_Scene/Seq_A").string(),
+                                             "--camera",
+                                             "111",
+                                             "--out",
+                                             "units/00_Scene/Seq_A/111/000006-000006",
+                                             "--frame",
+                                             "6",
+                                             "--no-white"};
   EXPECT_EQ(u.command, expected);
   EXPECT_EQ(u.writes.size(), 5u);  // no intrinsics: no metric depth or cloud
   EXPECT_EQ(u.writes[0], "units/00_Scene/Seq_A/111/000006-000006/111_000006_virtual_depth.tiff");
@@ -189,7 +202,8 @@ TEST(Plan, DepthUnitsCoverEveryFrameOfEveryCameraOnce) {
   o.dataset = (dir / "nowhere").string();
   plan = MakePlan(o);
   ASSERT_FALSE(plan);
-  test::ExpectMessageHas(plan.error(), {"nowhere", "expected a dataset root, a scene or a sequence"});
+  test::ExpectMessageHas(plan.error(),
+                         {"nowhere", "expected a dataset root, a scene or a sequence"});
 }
 
 TEST(Plan, LaterStagesNeedTheEarlierPlansUnits) {
@@ -222,8 +236,8 @@ TEST(Plan, LaterStagesNeedTheEarlierPlansUnits) {
   EXPECT_EQ(r.needs[0].unit, "00_Scene/Seq_A/111");
   EXPECT_EQ(r.needs[1].unit, "00_Scene/Seq_A/222");
   const std::string cmd = r.CommandLine();
-  EXPECT_NE(cmd.find("--reference " + cal_dir + "/units/00_Scene/Seq_A/111 --intrinsics " + cal_dir +
-                     "/units/00_Scene/Seq_A/111/intrinsics.yaml --intrinsics " + cal_dir +
+  EXPECT_NE(cmd.find("--reference " + cal_dir + "/units/00_Scene/Seq_A/111 --intrinsics " +
+                     cal_dir + "/units/00_Scene/Seq_A/111/intrinsics.yaml --intrinsics " + cal_dir +
                      "/units/00_Scene/Seq_A/222/intrinsics.yaml"),
             std::string::npos)
       << cmd;
@@ -263,7 +277,8 @@ TEST(Plan, LaterStagesNeedTheEarlierPlansUnits) {
   ev.registration_plan = (dir / "cal").string();
   ev_plan = MakePlan(ev);
   ASSERT_FALSE(ev_plan);
-  test::ExpectMessageHas(ev_plan.error(), {"--registration-plan", "a calibrate plan, expected a register plan"});
+  test::ExpectMessageHas(ev_plan.error(),
+                         {"--registration-plan", "a calibrate plan, expected a register plan"});
 }
 
 }  // namespace

@@ -4,22 +4,21 @@
 // their message and log, units waiting for earlier plans, a busy unit, and a
 // run stopped by SIGTERM or SIGKILL mid-unit and run again.
 
+#include "tests/batch/batch_test_util.h"
+#include "tests/test_util.h"
+
+#include <gtest/gtest.h>
+
 #include "batch/manifest.h"
 #include "batch/merge.h"
 #include "batch/plan.h"
 #include "batch/runner.h"
 #include "batch/status.h"
-#include "tests/batch/batch_test_util.h"
-#include "tests/test_util.h"
-
+#include <csignal>
 #include <fcntl.h>
+#include <fstream>
 #include <sys/file.h>
 #include <unistd.h>
-
-#include <gtest/gtest.h>
-
-#include <csignal>
-#include <fstream>
 
 namespace lifmcr::batch {
 namespace {
@@ -30,9 +29,10 @@ using namespace std::chrono_literals;
 std::string Lifmcr() { return lifmcr::test::LifmcrBinary().string(); }
 
 // `lifmcr batch plan DATA --stage depth --per frames:1 --out PLAN [-- extra]`.
-void PlanDepth(const fs::path& data, const fs::path& plan, const std::vector<std::string>& extra = {}) {
-  std::vector<std::string> argv = {Lifmcr(), "batch", "plan", data.string(), "--stage", "depth",
-                                   "--per", "frames:1", "--out", plan.string()};
+void PlanDepth(const fs::path& data, const fs::path& plan,
+               const std::vector<std::string>& extra = {}) {
+  std::vector<std::string> argv = {Lifmcr(), "batch", "plan",     data.string(), "--stage",
+                                   "depth",  "--per", "frames:1", "--out",       plan.string()};
   if (!extra.empty()) {
     argv.push_back("--");
     argv.insert(argv.end(), extra.begin(), extra.end());
@@ -152,9 +152,10 @@ TEST(BatchRun, FailuresKeepTheirMessageAndLogAndWaitingUnitsDoNotRun) {
   ASSERT_EQ(test::Run({Lifmcr(), "batch", "plan", (dir / "data").string(), "--stage", "calibrate",
                        "--out", (dir / "cal").string()}),
             0);
-  ASSERT_EQ(test::Run({Lifmcr(), "batch", "plan", (dir / "data").string(), "--stage", "register",
-                       "--calibration-plan", (dir / "cal").string(), "--out", (dir / "reg").string()}),
-            0);
+  ASSERT_EQ(
+      test::Run({Lifmcr(), "batch", "plan", (dir / "data").string(), "--stage", "register",
+                 "--calibration-plan", (dir / "cal").string(), "--out", (dir / "reg").string()}),
+      0);
   Expected<RunReport> waiting = RunIt(dir / "reg", 0, 1);
   ASSERT_TRUE(waiting);
   EXPECT_EQ(waiting->failed, 1);
@@ -172,13 +173,14 @@ TEST(BatchRun, RegisterThenEvaluateAndMergeTheTables) {
   ASSERT_EQ(test::Run({Lifmcr(), "batch", "plan", data, "--stage", "register",
                        "--reference-from-ground-truth", "--out", (dir / "reg").string()}),
             0);
-  ASSERT_EQ(test::Run({Lifmcr(), "batch", "plan", data, "--stage", "evaluate", "--registration-plan",
-                       (dir / "reg").string(), "--out", (dir / "eval").string(), "--", "--split",
-                       "none", "--no-plots"}),
+  ASSERT_EQ(test::Run({Lifmcr(), "batch", "plan", data, "--stage", "evaluate",
+                       "--registration-plan", (dir / "reg").string(), "--out",
+                       (dir / "eval").string(), "--", "--split", "none", "--no-plots"}),
             0);
   // The evaluation waits for the registration.
   ASSERT_TRUE(RunIt(dir / "eval", 0, 1));
-  EXPECT_NE(test::Entries(dir / "eval").begin()->second.message.find("not run yet"), std::string::npos);
+  EXPECT_NE(test::Entries(dir / "eval").begin()->second.message.find("not run yet"),
+            std::string::npos);
   Expected<RunReport> reg = RunIt(dir / "reg", 0, 1);
   ASSERT_TRUE(reg) << reg.error().message;
   ASSERT_EQ(reg->done, 1);
@@ -193,9 +195,11 @@ TEST(BatchRun, RegisterThenEvaluateAndMergeTheTables) {
   const std::string csv = lifmcr::test::ReadFile(dir / "eval/merged/evaluation.csv");
   EXPECT_EQ(csv.rfind("scene,sequence,table,method,camera,correction,frames,", 0), 0u) << csv;
   // Camera X (not the ground truth's camera 0) against Vicon, relative and absolute.
-  EXPECT_NE(csv.find("00_Synthetic,Sequence_00,relative,pnp,40398673,uncorrected,"), std::string::npos)
+  EXPECT_NE(csv.find("00_Synthetic,Sequence_00,relative,pnp,40398673,uncorrected,"),
+            std::string::npos)
       << csv;
-  EXPECT_NE(csv.find("00_Synthetic,Sequence_00,absolute,pnp,40398673,uncorrected,"), std::string::npos)
+  EXPECT_NE(csv.find("00_Synthetic,Sequence_00,absolute,pnp,40398673,uncorrected,"),
+            std::string::npos)
       << csv;
   const std::string md = lifmcr::test::ReadFile(dir / "eval/merged/evaluation.md");
   EXPECT_NE(md.find("| all | absolute | pnp | 40398673 | uncorrected |"), std::string::npos) << md;
@@ -228,8 +232,10 @@ TEST(BatchRun, StoppedMidUnitByTermOrKillIsRedoneAndNothingElse) {
     ASSERT_TRUE(test::WaitUntil([&] { return Started(plan, p.units[1]); }, 60s));
     // SIGTERM reaches the runner only (it passes it on); SIGKILL reaches both,
     // as a node's loss or an OOM kill of the whole task would.
-    if (sig == SIGTERM) ::kill(pid, SIGTERM);
-    else ::kill(-pid, SIGKILL);
+    if (sig == SIGTERM)
+      ::kill(pid, SIGTERM);
+    else
+      ::kill(-pid, SIGKILL);
     EXPECT_EQ(test::Wait(pid), 128 + sig);
     Expected<std::optional<ManifestEntry>> cut = ReadManifestEntry(plan, p.units[1].id);
     ASSERT_TRUE(cut);
