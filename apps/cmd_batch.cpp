@@ -5,15 +5,15 @@
 // batch/merge.h).
 
 #include "apps/commands.h"
-#include "config/text_escape.h"
-
-#include <CLI/CLI.hpp>
-
 #include "batch/merge.h"
 #include "batch/plan.h"
 #include "batch/planner.h"
 #include "batch/runner.h"
 #include "batch/status.h"
+#include "config/text_escape.h"
+
+#include <CLI/CLI.hpp>
+
 #include <cstdio>
 #include <filesystem>
 #include <iostream>

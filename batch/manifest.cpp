@@ -1,11 +1,11 @@
 #include "batch/manifest.h"
 
+#include "batch/atomic_file.h"
+#include "batch/checksum.h"
 #include "config/text_escape.h"
 
 #include <nlohmann/json.hpp>
 
-#include "batch/atomic_file.h"
-#include "batch/checksum.h"
 #include <algorithm>
 #include <cerrno>
 #include <cstdio>

@@ -19,9 +19,9 @@
 // entry is left: never run, or cut off before it ended (killed, preempted,
 // the node lost), whatever its output folder holds.
 
+#include "batch/plan.h"
 #include "config/error.h"
 
-#include "batch/plan.h"
 #include <cstdint>
 #include <filesystem>
 #include <optional>

@@ -1,10 +1,11 @@
 #include "batch/merge.h"
 
-#include <nlohmann/json.hpp>
-
 #include "batch/atomic_file.h"
 #include "batch/manifest.h"
 #include "batch/plan.h"
+
+#include <nlohmann/json.hpp>
+
 #include <cmath>
 #include <cstdio>
 #include <map>

@@ -1,10 +1,10 @@
 #include "batch/plan.h"
 
+#include "batch/atomic_file.h"
 #include "config/text_escape.h"
 
 #include <nlohmann/json.hpp>
 
-#include "batch/atomic_file.h"
 #include <algorithm>
 #include <charconv>
 #include <set>

@@ -20,9 +20,9 @@
 //     --calibration-plan CAL also --map and --reference-poses.
 // Words after `--` are appended to every unit's command as they are.
 
+#include "batch/plan.h"
 #include "config/error.h"
 
-#include "batch/plan.h"
 #include <string>
 #include <vector>
 

@@ -2,6 +2,7 @@
 
 #include "batch/atomic_file.h"
 #include "batch/manifest.h"
+
 #include <algorithm>
 #include <atomic>
 #include <cerrno>

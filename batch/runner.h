@@ -21,9 +21,9 @@
 // the running command; its unit is recorded failed ("interrupted by signal
 // 15") unless the command still completed, and the run stops.
 
+#include "batch/plan.h"
 #include "config/error.h"
 
-#include "batch/plan.h"
 #include <cstdio>
 #include <filesystem>
 #include <string>

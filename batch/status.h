@@ -3,10 +3,10 @@
 // manifest entries only (no output is opened or hashed, so it costs one small
 // read per unit wherever the plan lies).
 
-#include "config/error.h"
-
 #include "batch/manifest.h"
 #include "batch/plan.h"
+#include "config/error.h"
+
 #include <filesystem>
 #include <string>
 #include <vector>

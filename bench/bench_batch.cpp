@@ -14,6 +14,7 @@
 
 #include "batch/manifest.h"
 #include "batch/plan.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cstdio>

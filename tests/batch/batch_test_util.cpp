@@ -1,10 +1,10 @@
 #include "tests/batch/batch_test_util.h"
 
+#include "batch/atomic_file.h"
 #include "tests/test_util.h"
 
 #include <gtest/gtest.h>
 
-#include "batch/atomic_file.h"
 #include <fcntl.h>
 #include <sys/wait.h>
 #include <thread>

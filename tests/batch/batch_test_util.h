@@ -5,6 +5,7 @@
 
 #include "batch/manifest.h"
 #include "batch/plan.h"
+
 #include <chrono>
 #include <filesystem>
 #include <functional>

@@ -2,12 +2,12 @@
 // the same bytes, the streaming form against the one-shot one at every split,
 // and the atomic writer (batch/atomic_file.h).
 
+#include "batch/atomic_file.h"
+#include "batch/checksum.h"
 #include "tests/test_util.h"
 
 #include <gtest/gtest.h>
 
-#include "batch/atomic_file.h"
-#include "batch/checksum.h"
 #include <string>
 #include <vector>
 

@@ -9,14 +9,14 @@
 // cancelled mid-unit (scancel) and the array submitted again: every unit
 // ends done once, the cancelled one redone, nothing else.
 
+#include "batch/manifest.h"
+#include "batch/plan.h"
+#include "batch/status.h"
 #include "tests/batch/batch_test_util.h"
 #include "tests/test_util.h"
 
 #include <gtest/gtest.h>
 
-#include "batch/manifest.h"
-#include "batch/plan.h"
-#include "batch/status.h"
 #include <chrono>
 #include <csignal>
 #include <cstdio>

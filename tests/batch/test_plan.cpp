@@ -2,13 +2,13 @@
 // (batch/planner.h) over a dataset made of file names only: discovery opens
 // no frame, so empty files in the LiFMCR layout are a dataset to it.
 
+#include "batch/plan.h"
+#include "batch/planner.h"
 #include "replay/layout.h"
 #include "tests/test_util.h"
 
 #include <gtest/gtest.h>
 
-#include "batch/plan.h"
-#include "batch/planner.h"
 #include <set>
 
 namespace lifmcr::batch {

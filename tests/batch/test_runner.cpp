@@ -4,16 +4,16 @@
 // their message and log, units waiting for earlier plans, a busy unit, and a
 // run stopped by SIGTERM or SIGKILL mid-unit and run again.
 
-#include "tests/batch/batch_test_util.h"
-#include "tests/test_util.h"
-
-#include <gtest/gtest.h>
-
 #include "batch/manifest.h"
 #include "batch/merge.h"
 #include "batch/plan.h"
 #include "batch/runner.h"
 #include "batch/status.h"
+#include "tests/batch/batch_test_util.h"
+#include "tests/test_util.h"
+
+#include <gtest/gtest.h>
+
 #include <csignal>
 #include <fcntl.h>
 #include <fstream>
