@@ -216,6 +216,7 @@ Expected<RunReport> RunShard(const RunOptions& o) {
   const std::string host = HostName();
   const auto t_run = std::chrono::steady_clock::now();
   double ran_seconds = 0;
+  bool lock_warned = false;
   TerminateHandlers handlers;
   auto say = [&](const char* format, auto... args) {
     if (!o.progress) return;
@@ -237,10 +238,21 @@ Expected<RunReport> RunShard(const RunOptions& o) {
     const int lock_fd = ::open(lock_path.c_str(), O_RDWR | O_CREAT, 0644);
     if (lock_fd < 0) return Error{lock_path.string() + ": cannot open: " + std::strerror(errno)};
     if (::flock(lock_fd, LOCK_EX | LOCK_NB) != 0) {
-      ::close(lock_fd);
-      ++report.busy;
-      say("%s: busy (another process runs it)\n", tag.c_str());
-      continue;
+      if (errno == EWOULDBLOCK) {
+        ::close(lock_fd);
+        ++report.busy;
+        say("%s: busy (another process runs it)\n", tag.c_str());
+        continue;
+      }
+      // A file system without locks (an NFS mount without its lock service:
+      // ENOLCK) must not stop the work: shards own disjoint units, so only a
+      // shard run twice at once goes unguarded. Said once per run.
+      if (!lock_warned) {
+        lock_warned = true;
+        say("lifmcr batch run: %s: flock failed (%s): units run without their lock; run each "
+            "shard once at a time\n",
+            lock_path.c_str(), std::strerror(errno));
+      }
     }
     struct LockGuard {
       int fd;

@@ -7,7 +7,8 @@
 // Per unit, in this order:
 //   1. take PLAN_DIR/locks/<unit>.lock (flock, not waiting): a unit another
 //      process is running is passed over ("busy"); the command inherits the
-//      lock, so it holds while either of them lives;
+//      lock, so it holds while either of them lives (on a file system without
+//      locks the run goes on unguarded and says so once);
 //   2. a done manifest entry whose outputs verify (batch/manifest.h,
 //      VerifyOutputs) -> skipped; one that does not verify is run again;
 //   3. every unit it needs (of earlier plans) must be done there, else the
