@@ -281,5 +281,45 @@ TEST(Plan, LaterStagesNeedTheEarlierPlansUnits) {
                          {"--registration-plan", "a calibrate plan, expected a register plan"});
 }
 
+TEST(Plan, CliRefusesBadCommandsAndAnotherPlanInTheFolder) {
+  test::TempDir dir;
+  const fs::path root = MakeDataset(dir / "data", 3);
+  const std::string plan =
+      "batch plan " + root.string() + " --stage depth --out " + (dir / "plan").string();
+  test::CommandResult first = test::RunLifmcr(plan + " --per frames:2");
+  ASSERT_EQ(first.exit_code, 0) << first.err;
+  EXPECT_NE(first.out.find("depth plan of " + fs::weakly_canonical(root).string() +
+                           ": 8 units per frames:2"),
+            std::string::npos)
+      << first.out;
+  // The same units again: nothing changes.
+  test::CommandResult again = test::RunLifmcr(plan + " --per frames:2");
+  EXPECT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_NE(again.out.find("unchanged"), std::string::npos) << again.out;
+  // Other units into the same folder: refused, the plan kept.
+  test::CommandResult other = test::RunLifmcr(plan + " --per frames:1");
+  EXPECT_EQ(other.exit_code, 1);
+  EXPECT_NE(other.err.find("holds another plan"), std::string::npos) << other.err;
+  EXPECT_EQ(ReadPlan(dir / "plan")->per, "frames:2");
+  // A word after -- that the stage does not take: refused before anything is written.
+  test::CommandResult bogus =
+      test::RunLifmcr("batch plan " + root.string() + " --stage depth --out " +
+                      (dir / "p2").string() + " -- --bogus");
+  EXPECT_EQ(bogus.exit_code, 2);
+  EXPECT_NE(bogus.err.find("lifmcr depth refuses its command"), std::string::npos) << bogus.err;
+  EXPECT_NE(bogus.err.find("--bogus"), std::string::npos) << bogus.err;
+  EXPECT_FALSE(fs::exists(dir / "p2/plan.jsonl"));
+  test::CommandResult per =
+      test::RunLifmcr("batch plan " + root.string() + " --stage calibrate --per frames:4 --out " +
+                      (dir / "p3").string());
+  EXPECT_EQ(per.exit_code, 2);
+  EXPECT_NE(per.err.find("--per frames:4 does not apply to --stage calibrate"), std::string::npos)
+      << per.err;
+  // status before any run: every unit left.
+  test::CommandResult status = test::RunLifmcr("batch status " + (dir / "plan").string());
+  EXPECT_EQ(status.exit_code, 3);
+  EXPECT_NE(status.out.find("8 units: 0 done, 0 failed, 8 left"), std::string::npos) << status.out;
+}
+
 }  // namespace
 }  // namespace lifmcr::batch
