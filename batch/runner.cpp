@@ -300,8 +300,16 @@ Expected<RunReport> RunShard(const RunOptions& o) {
       entry.state = UnitState::kFailed;
       entry.exit_code = -1;
       entry.message = waiting;
-      entry.attempt -= 1;  // not started: the log has no line of it
+      entry.attempt -= 1;  // not started: no attempt line (AttemptsInLog counts those)
       entry.finished_utc = UtcNow();
+      // The log the entry names says why, as a failed attempt's would.
+      const std::string line =
+          "# lifmcr batch run: not started, " + entry.finished_utc + ": " + waiting + "\n";
+      const int fd = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+      if (fd >= 0) {
+        [[maybe_unused]] ssize_t n = ::write(fd, line.data(), line.size());
+        ::close(fd);
+      }
       if (Status s = WriteManifestEntry(plan_dir, entry); !s) return s.error();
       ++report.failed;
       say("%s: not run: %s\n", tag.c_str(), waiting.c_str());

@@ -164,6 +164,7 @@ TEST(BatchRun, FailuresKeepTheirMessageAndLogAndWaitingUnitsDoNotRun) {
   EXPECT_EQ(e.attempt, 0);
   EXPECT_NE(e.message.find("needs unit 00_Synthetic/Sequence_00/"), std::string::npos) << e.message;
   EXPECT_NE(e.message.find("not run yet"), std::string::npos) << e.message;
+  EXPECT_NE(lifmcr::test::ReadFile(dir / "reg" / e.log).find("not started"), std::string::npos);
 }
 
 TEST(BatchRun, RegisterThenEvaluateAndMergeTheTables) {
