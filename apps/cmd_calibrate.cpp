@@ -1,21 +1,21 @@
 // `lifmcr calibrate SEQ_DIR --camera SERIAL --out DIR [--initial cameras.yaml]
 // [--mla FILE] [--frames LIST] [--recalibrate FIXED.yaml] [--plate FILE]`:
 // intrinsic calibration of one plenoptic camera and its reference map
-// (registration/calibration.h). Writes into DIR intrinsics.yaml, the
+// (registration/calibration/calibration.h). Writes into DIR intrinsics.yaml, the
 // reference map (cameras.txt, images.txt, points3D.txt, points.ply,
 // descriptors.bin), poses_<serial>.csv and calibration_report.md.
 
 #include "apps/commands.h"
 #include "apps/frame_list.h"
 #include "config/text_escape.h"
-#include "registration/aruco_corners.h"
-#include "registration/calibration.h"
-#include "registration/calibration_frames.h"
-#include "registration/calibration_gates.h"
-#include "registration/calibration_truth.h"
-#include "registration/poses_csv.h"
-#include "registration/intrinsics_yaml.h"
-#include "registration/reference_map.h"
+#include "registration/map/aruco_corners.h"
+#include "registration/calibration/calibration.h"
+#include "registration/features/calibration_frames.h"
+#include "registration/calibration/calibration_gates.h"
+#include "registration/calibration/calibration_truth.h"
+#include "registration/map/poses_csv.h"
+#include "registration/features/intrinsics_yaml.h"
+#include "registration/map/reference_map.h"
 #include "replay/layout.h"
 
 #include <CLI/CLI.hpp>
@@ -174,7 +174,7 @@ int RunCalibrate(const CalibrateOptions& o) {
   options.plate_corner_check.max_residual_tf_px = o.plate_corner_threshold_tf_px;
   if (o.at_truth) {
     // The bundle adjustment's residuals with the true intrinsics and poses
-    // (registration/calibration_truth.h); no calibration.
+    // (registration/calibration/calibration_truth.h); no calibration.
     Expected<registration::CameraCalibration> truth =
         registration::ReadCameraCalibration(gt_yaml, o.camera);
     if (!truth) return Fail(truth.error().message);
@@ -219,7 +219,7 @@ int RunCalibrate(const CalibrateOptions& o) {
   if (Status s = registration::WriteReferenceMap(out, result->map); !s)
     return Fail(s.error().message);
   // The plate corners of the placed frames, for the plate alignment of
-  // `lifmcr evaluate --map` (registration/aruco_corners.h).
+  // `lifmcr evaluate --map` (registration/map/aruco_corners.h).
   {
     std::set<std::int64_t> placed;
     for (const registration::FramePose& p : result->poses) placed.insert(p.frame);

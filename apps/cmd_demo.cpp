@@ -30,8 +30,9 @@
 // recorded sequence is the same lines with its folders.
 
 #include "apps/commands.h"
+#include "config/rig_config.h"
 #include "config/text_escape.h"
-#include "registration/intrinsics_yaml.h"
+#include "registration/features/intrinsics_yaml.h"
 #include "replay/layout.h"
 
 #include <CLI/CLI.hpp>
@@ -277,7 +278,8 @@ CommandRun AddDemoCommand(CLI::App& app) {
       ->capture_default_str();
   app.add_option("--lcm", args->lcm_url,
                  "LCM URL of the replay (default: LCM's, udpm://239.255.76.67:7667; watch with "
-                 "lifmcr monitor or scripts/lcm-spy.sh)");
+                 "lifmcr monitor or scripts/lcm-spy.sh)")
+      ->check(LcmUrlCheck, "LCM URL");
   return [args] { return RunDemo(*args); };
 }
 

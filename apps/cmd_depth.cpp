@@ -157,7 +157,9 @@ int RunDepth(const DepthCommandOptions& o) {
   chain_options.point_cloud = true;
   chain_options.cloud_measured_only = true;
   auto chain = processing::CameraChain::Create(std::move(*setup), chain_options);
-  if (!chain) return Fail(chain.error().message);
+  if (!chain)
+    return Fail(chain.error().message +
+                (o.intrinsics.empty() ? std::string() : " (--intrinsics " + o.intrinsics + ")"));
   const processing::CameraChain& camera = **chain;
   std::printf(
       "read      %.3f s  %s (%dx%d %s, %s%s)\n", Seconds(t), raw_path.string().c_str(), raw->width,
@@ -225,6 +227,14 @@ int RunDepth(const DepthCommandOptions& o) {
                                          tf_depth.height, p.depth_mm);
         !s)
       return Fail(s.error().message);
+    // The chain has checked that the intrinsics and the MLA file can give
+    // points (processing/frame_chain.h); none left means the frame itself
+    // had no measured depth: say what was measured, not just "no points".
+    if (p.cloud.points_mm.empty())
+      return Fail(raw_path.string() + ": no point for " + stem +
+                  "_points.ply: no TF pixel has a measured depth in front of the camera (" +
+                  depth.stats.BriefReport() + "; a frame without texture?); the other files are "
+                  "written");
     if (Status s = processing::WritePly(out / (stem + "_points.ply"), p.cloud, o.uncertainty); !s)
       return Fail(s.error().message);
     std::printf("cloud     %zu points (measured TF pixels)\n", p.cloud.points_mm.size());

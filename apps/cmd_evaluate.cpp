@@ -1,6 +1,6 @@
 // `lifmcr evaluate SEQ_DIR --registration registration.csv [...] --out DIR`:
 // registered extrinsics against Vicon, as the paper's tables, with the
-// hand-eye correction the paper left out (registration/evaluation.h).
+// hand-eye correction the paper left out (evaluation/evaluation.h).
 //
 // Settings, each from the first place that has it: the flags, the rig file
 // (--rig), the sequence's GroundTruth/cameras.yaml (synthetic rigs), the
@@ -9,19 +9,19 @@
 // cam0 (reference) and 40398673 = cam2, plate object "plate").
 
 #include "apps/commands.h"
-#include "apps/evaluate_plots.h"
-#include "apps/evaluate_report.h"
+#include "evaluation/evaluation_plots.h"
+#include "evaluation/evaluation_report.h"
 #include "apps/git_revision.h"
 #include "config/frames.h"
 #include "config/rig_config.h"
 #include "config/text_escape.h"
-#include "registration/aruco_corners.h"
-#include "registration/evaluation.h"
-#include "registration/evaluation_inputs.h"
-#include "registration/intrinsics_yaml.h"
-#include "registration/plate_alignment.h"
-#include "registration/poses_csv.h"
-#include "registration/vicon_ground_truth.h"
+#include "registration/map/aruco_corners.h"
+#include "evaluation/evaluation.h"
+#include "evaluation/evaluation_inputs.h"
+#include "registration/features/intrinsics_yaml.h"
+#include "evaluation/plate_alignment.h"
+#include "registration/map/poses_csv.h"
+#include "evaluation/vicon_ground_truth.h"
 #include "replay/csv_tokenizer.h"
 #include "replay/layout.h"
 #include "replay/sequence.h"
@@ -554,7 +554,7 @@ int RunEvaluate(const EvaluateArgs& args) {
   }
 
   // The joint map-frame hand-eye per method: camera 0 and the method's
-  // cameras X with one plate correction Z (registration/evaluation.h). It
+  // cameras X with one plate correction Z (evaluation/evaluation.h). It
   // corrects the map-frame evaluations, and the pairs whose c0_from_cx
   // could not determine its own offsets (the cameras turn together). The
   // reference's map-frame evaluation keeps the first method's joint fit.

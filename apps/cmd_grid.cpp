@@ -5,6 +5,7 @@
 // the MLA file when one is given, and writes the refined MLA XML.
 
 #include "apps/commands.h"
+#include "config/decimal_number.h"
 #include "config/text_escape.h"
 #include "processing/grid_from_raw.h"
 #include "processing/mla_grid.h"
@@ -18,6 +19,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <string>
 
 namespace lifmcr::apps {
@@ -28,7 +30,42 @@ struct GridOptions {
   std::string mla;
   std::string out;
   bool textured = false;
+  std::optional<double> tcp;          // --tcp
+  std::string depth_ranges;           // --depth-ranges MIN:MAX,MIN:MAX,MIN:MAX
 };
+
+int Usage(const std::string& message) {
+  std::cerr << "lifmcr grid: " << EscapeText(message) << " (see lifmcr grid --help)\n";
+  return 2;
+}
+
+// "1:3,2.8:4,3.8:100": the sharp virtual-depth range of lens type id 0, 1, 2.
+Status ParseDepthRanges(const std::string& text, MlaCalibration* mla) {
+  const std::string expected =
+      "--depth-ranges: expected MIN:MAX,MIN:MAX,MIN:MAX (virtual depths of lens type id 0, 1, 2, "
+      "e.g. 1:3,2.8:4,3.8:100), got '" + text + "'";
+  std::size_t start = 0;
+  for (int id = 0; id < 3; ++id) {
+    const std::size_t end = id < 2 ? text.find(',', start) : text.size();
+    if (end == std::string::npos) return Error{expected};
+    const std::string part = text.substr(start, end - start);
+    const std::size_t colon = part.find(':');
+    if (colon == std::string::npos) return Error{expected};
+    double range[2] = {0, 0};
+    const std::string numbers[2] = {part.substr(0, colon), part.substr(colon + 1)};
+    for (int k = 0; k < 2; ++k) {
+      const char* first = numbers[k].data();
+      const char* last = first + numbers[k].size();
+      const auto [ptr, ec] = FromCharsRounded(first, last, range[k]);
+      if (numbers[k].empty() || ec != std::errc() || ptr != last || !std::isfinite(range[k]))
+        return Error{expected};
+    }
+    mla->lens_types[id].depth_min = range[0];
+    mla->lens_types[id].depth_max = range[1];
+    start = end + 1;
+  }
+  return Status::Ok();
+}
 
 int RunGrid(const GridOptions& o) {
   Expected<OwnedImage> white = ReadRawImage(o.white);
@@ -36,10 +73,25 @@ int RunGrid(const GridOptions& o) {
     std::cerr << "lifmcr grid: " << EscapeText(white.error().message) << "\n";
     return 1;
   }
+  // A white image gives the lattice only. The MLA file also holds the total
+  // covering plane and each lens type's sharp virtual-depth range, which no
+  // image of a white surface shows: they come from --mla or are given here,
+  // asked for before the fit rather than refused when writing.
+  const bool have_file = !o.mla.empty();
+  if (!have_file && (!o.tcp || o.depth_ranges.empty())) {
+    return Usage(
+        "without --mla, a white image gives the lattice but not the total covering plane "
+        "nor the lens types' depth ranges the MLA file holds: give --mla FILE (its values are "
+        "kept and its lattice refined), or --tcp V and --depth-ranges MIN:MAX,MIN:MAX,MIN:MAX "
+        "(virtual depths, e.g. --tcp 2.2 --depth-ranges 1:3,2.8:4,3.8:100)");
+  }
+  MlaCalibration given;
+  if (!o.depth_ranges.empty()) {
+    if (Status s = ParseDepthRanges(o.depth_ranges, &given); !s) return Usage(s.error().message);
+  }
   const int w = white->width, h = white->height;
   MlaCalibration base;
   processing::MlaGrid initial;
-  const bool have_file = !o.mla.empty();
   if (have_file) {
     Expected<MlaCalibration> mla = ReadMlaXml(o.mla);
     if (!mla) {
@@ -64,6 +116,13 @@ int RunGrid(const GridOptions& o) {
     for (int t = 0; t < 3; ++t) {
       base.lens_types[t].id = t;
       base.lens_types[t].offset_lens = offsets[t];
+    }
+  }
+  if (o.tcp) base.tcp_virtual_depth = *o.tcp;
+  if (!o.depth_ranges.empty()) {
+    for (int t = 0; t < 3; ++t) {
+      base.lens_types[t].depth_min = given.lens_types[t].depth_min;
+      base.lens_types[t].depth_max = given.lens_types[t].depth_max;
     }
   }
   const MlaCalibration refined = grid.ToCalibration(base, w, h);
@@ -99,8 +158,8 @@ int RunGrid(const GridOptions& o) {
   } else {
     std::printf(
         "lens types: unknown (a white image cannot tell them apart); the written file "
-        "numbers them (i - j) mod 3 from the lens nearest the image centre, with no depth "
-        "ranges\n");
+        "numbers them (i - j) mod 3 from the lens nearest the image centre, with the depth "
+        "ranges of --depth-ranges\n");
   }
   const std::string out =
       o.out.empty() ? std::filesystem::path(o.white).stem().string() + "_MLA.xml" : o.out;
@@ -120,7 +179,10 @@ CommandRun AddGridCommand(CLI::App& app) {
       "Reads: IMAGE (BMP, PNG or TIFF; a white image, or with --textured a raw frame of a\n"
       "textured scene) and --mla FILE (RayCalibData XML). Prints the fitted lattice with its\n"
       "residual and, with --mla, how far the file's micro-image centres are from it.\n"
-      "Writes: the refined MLA XML (--out, default ./<IMAGE stem>_MLA.xml).\n"
+      "Writes: the refined MLA XML (--out, default ./<IMAGE stem>_MLA.xml). Its total covering\n"
+      "plane and lens-type depth ranges, which an image of a white surface does not show, come\n"
+      "from --mla, or without it from --tcp and --depth-ranges (both then required; they also\n"
+      "replace the --mla file's values).\n"
       "Exit codes: 0 written; 1 an input could not be read or the lattice not fitted (the\n"
       "message says why); 2 usage error.");
   app.add_option("IMAGE", o->white, "White image, or a raw frame with --textured (BMP, PNG, TIFF)")
@@ -132,6 +194,12 @@ CommandRun AddGridCommand(CLI::App& app) {
                  "MLA file (RayCalibData XML) to start from, compare with and refine; it also "
                  "gives the lens types");
   app.add_option("--out", o->out, "MLA XML to write (default ./<IMAGE stem>_MLA.xml)");
+  app.add_option("--tcp", o->tcp,
+                 "Total covering plane to write (virtual depth, e.g. 2.2); required without --mla")
+      ->check(CLI::Range(0.01, 1000.0));
+  app.add_option("--depth-ranges", o->depth_ranges,
+                 "Sharp virtual-depth range of lens type id 0, 1, 2 to write, "
+                 "MIN:MAX,MIN:MAX,MIN:MAX (e.g. 1:3,2.8:4,3.8:100); required without --mla");
   return [o] { return RunGrid(*o); };
 }
 

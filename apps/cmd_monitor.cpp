@@ -5,6 +5,7 @@
 
 #include "apps/commands.h"
 #include "apps/terminal.h"
+#include "config/rig_config.h"
 #include "config/text_escape.h"
 
 #include <CLI/CLI.hpp>
@@ -335,7 +336,8 @@ CommandRun AddMonitorCommand(CLI::App& app) {
       "Reads: the LCM bus (--lcm, else LCM_DEFAULT_URL, else LCM's default). Writes: the\n"
       "terminal only. Exit codes: 0 quit by q, a signal or --duration; 2 usage error;\n"
       "3 the LCM URL cannot be opened.");
-  app.add_option("--lcm", args->lcm_url, "LCM URL (default: LCM's)");
+  app.add_option("--lcm", args->lcm_url, "LCM URL (default: LCM's)")
+      ->check(LcmUrlCheck, "LCM URL");
   app.add_option("--duration", args->duration_s, "Quit after this many seconds (0: never)")
       ->check(CLI::NonNegativeNumber);
   return [args] { return RunMonitor(*args); };

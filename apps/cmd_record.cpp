@@ -365,7 +365,8 @@ CommandRun AddRecordCommand(CLI::App& app) {
   app.add_option("--sequence", args->sequence, "Sequence folder name")->capture_default_str();
   app.add_flag("--publish", args->publish,
                "Run the live pipeline on the frames too and publish on LCM (as lifmcr replay)");
-  app.add_option("--lcm", args->lcm_url, "LCM URL for --publish (default: the rig's lcm.url)");
+  app.add_option("--lcm", args->lcm_url, "LCM URL for --publish (default: the rig's lcm.url)")
+      ->check(LcmUrlCheck, "LCM URL");
   app.add_flag("--no-processing", args->no_processing,
                "--publish previews only (no depth, no TF; as processing.enabled: false)");
   app.add_option("--replay", args->replay,

@@ -1,8 +1,8 @@
 // `lifmcr register SEQ_DIR --reference MAP_DIR --method pnp|ransac|both
 // [--camera SERIAL...] --out DIR`: every camera X of a sequence registered to
 // the reference camera 0 (the map's camera), per frame:
-//   w0_from_c0 and w0_from_cx by the chosen method (registration/frame_registration.h),
-//   c0_from_cx = c0_from_w0 * w0_from_cx      (registration/extrinsics.h).
+//   w0_from_c0 and w0_from_cx by the chosen method (registration/map/frame_registration.h),
+//   c0_from_cx = c0_from_w0 * w0_from_cx      (registration/estimators/extrinsics.h).
 // Writes DIR/registration.csv (the columns lifmcr evaluate reads, one row per
 // frame, camera and method; status `ok` or the reason) and TUM trajectories
 // DIR/trajectory_<serial>_<method>.tum of w0_from_cam (mm, frame number as
@@ -12,21 +12,21 @@
 // differences between the methods, as the paper's supplementary does.
 //
 // --reference-from-ground-truth builds the map from the sequence's ground
-// truth (registration/ground_truth_map.h) instead of reading one;
+// truth (registration/map/ground_truth_map.h) instead of reading one;
 // --observations ground-truth takes keypoints and depth from the ground
 // truth instead of processing the raw frames.
 
 #include "apps/commands.h"
 #include "config/text_escape.h"
-#include "registration/evaluation_inputs.h"
-#include "registration/extrinsics.h"
-#include "registration/frame_observations.h"
-#include "registration/frame_registration.h"
-#include "registration/ground_truth_map.h"
-#include "registration/intrinsics_yaml.h"
-#include "registration/poses_csv.h"
-#include "registration/reference_map.h"
-#include "registration/trajectory_metrics.h"
+#include "evaluation/evaluation_inputs.h"
+#include "registration/estimators/extrinsics.h"
+#include "registration/features/frame_observations.h"
+#include "registration/map/frame_registration.h"
+#include "registration/map/ground_truth_map.h"
+#include "registration/features/intrinsics_yaml.h"
+#include "registration/map/poses_csv.h"
+#include "registration/map/reference_map.h"
+#include "evaluation/trajectory_metrics.h"
 #include "replay/layout.h"
 #include "replay/sequence.h"
 

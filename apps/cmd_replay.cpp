@@ -3,6 +3,7 @@
 #include "apps/commands.h"
 #include "apps/pipeline/process_settings.h"
 #include "apps/pipeline/replay_runner.h"
+#include "config/rig_config.h"
 #include "config/text_escape.h"
 
 #include <CLI/CLI.hpp>
@@ -11,11 +12,17 @@
 #include <csignal>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 #include <unistd.h>
 
 namespace lifmcr::apps {
+
+std::string LcmUrlCheck(const std::string& url) {
+  const std::optional<std::string> problem = LcmUrlProblem(url);
+  return problem ? *problem : std::string();
+}
 namespace {
 
 std::atomic<bool> g_stop{false};
@@ -141,7 +148,8 @@ CommandRun AddReplayCommand(CLI::App& app) {
   app.add_option("--rate", args->rate, "original | max | FACTOR (e.g. 2 = twice as fast)")
       ->capture_default_str();
   app.add_flag("--loop", args->loop, "Play again from the start until Ctrl-C");
-  app.add_option("--lcm", args->lcm_url, "LCM URL (default: LCM's, udpm://239.255.76.67:7667)");
+  app.add_option("--lcm", args->lcm_url, "LCM URL (default: LCM's, udpm://239.255.76.67:7667)")
+      ->check(LcmUrlCheck, "LCM URL");
   app.add_flag("--no-processing", args->no_processing, "Previews only (no depth, no TF)");
   app.add_option("--concurrency", args->concurrency, "Frames processed at once")
       ->check(CLI::Range(1, 64))

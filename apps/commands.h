@@ -16,6 +16,10 @@ namespace lifmcr::apps {
 
 using CommandRun = std::function<int()>;
 
+// CLI11 check of an `--lcm URL` option: LcmUrlProblem (config/rig_config.h),
+// the check the rig file's lcm.url gets; empty when LCM opens the URL.
+std::string LcmUrlCheck(const std::string& url);
+
 CommandRun AddInfoCommand(CLI::App& app);
 CommandRun AddViconCommand(CLI::App& app);
 CommandRun AddSynthCommand(CLI::App& app);

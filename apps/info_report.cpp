@@ -154,6 +154,10 @@ class Reporter {
                                 {"pixel_format", std::string(ToString(c.pixel_format))},
                                 {"mla_file", c.mla_file.string()},
                                 {"vicon_object", c.vicon_object}});
+      // The loader checks that the MLA file exists; whether it is an MLA
+      // calibration is the MLA reader's to say (a rig naming another file
+      // would otherwise pass here and fail only when recording starts).
+      out["cameras"].back()["mla"] = Mla(c.mla_file);
       // What the producer exposes; its problems (no producer on this
       // machine) stay in the section: the rig file itself is fine.
       if (c.driver.kind == DriverKind::kGenTl)
@@ -166,6 +170,9 @@ class Reporter {
                     {"rate_hz", v.rate_hz},
                     {"trigger_divider", v.trigger_divider},
                     {"plate_object", v.plate_object}};
+    // The other files the rig names, read as their commands read them.
+    if (!v.csv.empty()) out["vicon"]["csv"] = ViconCsv(v.csv);
+    if (!v.vsk.empty()) out["vicon"]["vsk"] = Vsk(v.vsk);
     return out;
   }
 
@@ -199,7 +206,10 @@ class Reporter {
     std::optional<CalibrationLayout> calibration;
     if (auto dir = FindCalibrationFor(sequence.dir)) {
       auto found = DiscoverCalibration(*dir);
-      if (found.ok()) calibration = std::move(found).value();
+      if (found.ok())
+        calibration = std::move(found).value();
+      else
+        Problem(out, found.error().message);  // its cameras' MLA files cannot be found
       out["calibration_dir"] = dir->string();
     }
     out["cameras"] = json::array();

@@ -176,6 +176,7 @@ void Sequence(std::ostream& out, const json& s, int depth) {
   if (s.contains("vsk"))
     for (const auto& v : s["vsk"]) Vsk(out, v, depth + 1);
   Unrecognised(out, s, depth + 1);
+  Problems(out, s, depth + 1);
 }
 
 void Calibration(std::ostream& out, const json& c, int depth) {
@@ -246,6 +247,7 @@ std::string FormatInfoText(const json& raw_report) {
             << c["pixel_format"].get<std::string>() << ", Vicon object '"
             << c["vicon_object"].get<std::string>() << "', MLA " << c["mla_file"].get<std::string>()
             << "\n";
+        if (c.contains("mla")) Mla(out, c["mla"], 3);
         if (c.contains("gentl")) out << FormatGenTlText(c["gentl"], "      ");
       }
       const json& v = r["vicon"];
@@ -254,6 +256,8 @@ std::string FormatInfoText(const json& raw_report) {
           << v["rotation"].get<std::string>() << ", handedness "
           << v["handedness"].get<std::string>() << ", plate '"
           << v["plate_object"].get<std::string>() << "'\n";
+      if (v.contains("csv")) Vicon(out, v["csv"], 3);
+      if (v.contains("vsk")) Vsk(out, v["vsk"], 3);
     }
     Problems(out, r, 2);
   }

@@ -14,6 +14,7 @@
 
 #include "batch/manifest.h"
 #include "batch/plan.h"
+#include "bench/bench_usage.h"
 
 #include <algorithm>
 #include <chrono>
@@ -86,7 +87,15 @@ std::string LoadAverage() {
 
 }  // namespace
 
+constexpr char kUsage[] =
+    "usage: bench_batch [--preset small|medium] [--frames 8] [--per frames:1] [--repeat 3] "
+    "[--keep DIR]\n"
+    "lifmcr batch run of a depth plan over a synthetic 2-camera rig: 1 shard on 1 core against\n"
+    "2 shards on 2 cores (goal >= 1.8x), and the runner's overhead per unit against the bare\n"
+    "commands of the same plan (goal <= 2 %), in wall and CPU time (bench/README.md).\n";
+
 int main(int argc, char** argv) {
+  if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
   std::string preset = "small", per = "frames:1", keep;
   int frames = 8, repeat = 3;
   for (int k = 1; k + 1 < argc; k += 2) {

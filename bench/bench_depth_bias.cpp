@@ -16,11 +16,12 @@
 // v 4-5) stands out of it.
 //   bench_depth_bias SEQUENCE_DIR FRAME [FRAME...]
 
+#include "bench/bench_usage.h"
 #include "processing/camera_model.h"
 #include "processing/mla_grid.h"
 #include "processing/plenoptic_frame.h"
 #include "processing/virtual_depth.h"
-#include "registration/intrinsics_yaml.h"
+#include "registration/features/intrinsics_yaml.h"
 #include "replay/bmp.h"
 #include "replay/layout.h"
 #include "replay/mla_xml.h"
@@ -61,7 +62,14 @@ int BinOf(double v) {
 
 }  // namespace
 
+constexpr char kUsage[] =
+    "usage: bench_depth_bias SEQUENCE_DIR FRAME [FRAME...]\n"
+    "The systematic error of processing/'s virtual depth on frames of a synthetic sequence\n"
+    "(written by `lifmcr synth`) against the renderer's per-pixel truth, by virtual depth,\n"
+    "lens type and radius in the micro image, and the fit v_measured = a + (1 + eps) v.\n";
+
 int main(int argc, char** argv) {
+  if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
   if (argc < 3) {
     std::fprintf(stderr, "usage: bench_depth_bias SEQUENCE_DIR FRAME [FRAME...]\n");
     return 2;

@@ -5,7 +5,7 @@
 // rendering not timed) is replayed at its trigger rate (10 Hz, newest wins,
 // looping) through `lifmcr replay --reference`'s path (RunReplay with
 // LiveRegistrationOptions): a reference map of camera 0 from the ground
-// truth (registration/ground_truth_map.h, written and read back as a map
+// truth (registration/map/ground_truth_map.h, written and read back as a map
 // folder), true intrinsics, depth and previews published on memq://. Three
 // runs of --seconds each:
 //   track        the localizer as it runs live: tracked when it has a pose,
@@ -43,14 +43,15 @@
 // in later runs; DIR is left in place.
 // Goals (issue 13, 2 cores): >= 5 Hz per camera at medium, >= 2 Hz at r32.
 
+#include "bench/bench_usage.h"
 #include "apps/pipeline/camera_setup.h"
 #include "apps/pipeline/live_registration.h"
 #include "apps/pipeline/process_settings.h"
 #include "apps/pipeline/replay_runner.h"
-#include "registration/ground_truth_map.h"
-#include "registration/pose_covariance.h"
-#include "registration/poses_csv.h"
-#include "registration/reference_map.h"
+#include "registration/map/ground_truth_map.h"
+#include "registration/estimators/pose_covariance.h"
+#include "registration/map/poses_csv.h"
+#include "registration/map/reference_map.h"
 #include "replay/layout.h"
 #include "replay/synth/cameras_yaml.h"
 #include "replay/synth/synth_params.h"
@@ -303,7 +304,17 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
 
 }  // namespace
 
+constexpr char kUsage[] =
+    "usage: bench_live [--preset small|medium|r32] [--frames N>=3] [--seconds S]\n"
+    "                  [--concurrency N] [--keep DIR]\n"
+    "Live registration of a synthetic rig (default medium) replayed at its trigger rate\n"
+    "through `lifmcr replay --reference`'s path, three runs of --seconds: tracking, every\n"
+    "frame relocalised (the baseline) and depth only. Per run: extrinsics per second per\n"
+    "camera, frame -> extrinsics latency, and the errors against the ground truth by how\n"
+    "each pose was made. --keep DIR renders into DIR once and reuses it.\n";
+
 int main(int argc, char** argv) {
+  if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
   // Every run is live (newest_wins) with the localizer but the depth-only one.
   const auto process_settings = apps::ProcessSettings::ForPipeline(HeapArenas::kPerThread);
   Args args;

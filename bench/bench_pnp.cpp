@@ -9,7 +9,7 @@
 // OpenCV gets what the paper hands its PnP: the keypoints on the central
 // perspective projection (eqs. projX/projY, CameraModel::FeatureImagePoint)
 // in TF pinhole pixels, with the TF pinhole camera matrix of the reference
-// map (registration/reference_map.h). Its iteration cap is raised (100000,
+// map (registration/map/reference_map.h). Its iteration cap is raised (100000,
 // the default 5000 / legacy 100 fail at 80 % outliers) and it gets the same
 // confidence, threshold and a fixed seed.
 //
@@ -18,7 +18,7 @@
 // lifmcr's whole estimate (with the Ceres refinement, as `lifmcr register`
 // runs it), for LO-RANSAC alone (its local optimisation already minimises
 // the reprojection error of the inliers) and for the whole estimate without
-// the sample depth check (registration/pnp.h: the virtual depths OpenCV has
+// the sample depth check (registration/estimators/pnp.h: the virtual depths OpenCV has
 // no use for reject most samples before P3P; this row shows what that is
 // worth), and the whole estimate with the Cauchy loss the live localizer
 // refines with (map_localizer.h; the default is Huber, registration/
@@ -28,9 +28,10 @@
 //   bench_pnp [--matches 2000] [--noise 0.5] [--problems 30] [--preset r32|medium|small]
 //             [--outliers 0.5,0.8] [--threshold 2] [--repeat 3] [--heap resident|default]
 
+#include "bench/bench_usage.h"
 #include "config/memory_policy.h"
 #include "processing/camera_model.h"
-#include "registration/pnp.h"
+#include "registration/estimators/pnp.h"
 #include "replay/synth/synth_params.h"
 #include "tests/registration/random_geometry.h"
 
@@ -174,7 +175,17 @@ void Print(const char* name, const Figures& f, int problems) {
 
 }  // namespace
 
+constexpr char kUsage[] =
+    "usage: bench_pnp [--matches N (2000)] [--noise PX (0.5)] [--problems N (30)]\n"
+    "                 [--preset r32|medium|small] [--outliers 0.5,0.8] [--threshold PX (2)]\n"
+    "                 [--repeat N (3)] [--heap resident|default]\n"
+    "PnP given matches: lifmcr's plenoptic PnP (LO-RANSAC, local optimisation, Ceres\n"
+    "refinement) against OpenCV's USAC solvePnPRansac + solvePnPRefineLM on the same random\n"
+    "problems of a preset, per outlier share: median time, pose errors, problems solved,\n"
+    "and the time ratios OpenCV / lifmcr.\n";
+
 int main(int argc, char** argv) {
+  if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
   Args args;
   if (!Parse(argc, argv, &args)) {
     std::fprintf(stderr,

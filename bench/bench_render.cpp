@@ -8,6 +8,7 @@
 // of the all-in-focus ground truth (scaled to the raw crop's size);
 // --tf-png the whole all-in-focus ground truth.
 
+#include "bench/bench_usage.h"
 #include "replay/synth/plenoptic_model.h"
 #include "replay/synth/renderer.h"
 #include "replay/synth/scene.h"
@@ -29,7 +30,15 @@
 
 using lifmcr::synth::PlenopticModel;
 
+constexpr char kUsage[] =
+    "usage: bench_render [--preset r32|medium|small] [--scene table|plain] [--repeat N]\n"
+    "                    [--png PATH] [--raw-png PATH] [--tf-png PATH] [--cull 0|1]\n"
+    "Megapixels per second of the synthetic plenoptic renderer on all cores (default preset\n"
+    "r32, scene table), beside the same frame of the plain scene. --png writes a crop of the\n"
+    "raw image beside the all-in-focus ground truth, --tf-png the whole ground truth.\n";
+
 int main(int argc, char** argv) {
+  if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
   std::string preset = "r32", scene_name = "table", png, raw_png, tf_png;
   int repeat = 3;
   bool cull = true;

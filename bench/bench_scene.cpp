@@ -7,6 +7,7 @@
 // ratios, and the seconds each step took. --dump writes the all-in-focus
 // ground truth, the processed TF image and the raw frame as PNG into DIR.
 
+#include "bench/bench_usage.h"
 #include "replay/synth/scene.h"
 #include "tests/processing/scene_figures.h"
 
@@ -27,7 +28,15 @@ double Since(std::chrono::steady_clock::time_point start) {
 
 }  // namespace
 
+constexpr char kUsage[] =
+    "usage: bench_scene [--preset small|medium|r32] [--scene table|plain] [--noise DN]\n"
+    "                   [--dump DIR]\n"
+    "What a synthetic scene offers registration and depth on one frame (SIFT keypoints on\n"
+    "the ground truth and the TF image, virtual-depth coverage, photo-consistency), beside\n"
+    "the plain scene. --dump writes the ground truth, TF image and raw frame as PNG to DIR.\n";
+
 int main(int argc, char** argv) {
+  if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
   using lifmcr::processing::testing::MeasureSceneFigures;
   using lifmcr::processing::testing::RenderSynthFrame;
   std::string preset = "medium", scene = "table", dump;

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# usage: bench/fuzz.sh DURATION [TARGET...]   (seconds per target; e.g. bench/fuzz.sh 600 fuzz_bmp)
 # Runs every libFuzzer target (tests/fuzz/) for DURATION seconds each, with
 # ASan+UBSan, from seed corpora made of the real samples, the example rig
 # files and `lifmcr synth` output. Prints per target: executions, coverage
@@ -9,6 +10,11 @@
 #   LIFMCR_FUZZ_JOBS  targets run at once (default 1; each is one process)
 #   LIFMCR_FUZZ_NICE  nice level of the fuzzers (default 19: the machine is shared)
 set -euo pipefail
+# --help: the header above, nothing else run.
+if [[ "${1:-}" == -h || "${1:-}" == --help ]]; then
+  sed -n '2,/^set -euo pipefail/s/^# \{0,1\}//p' "$0"
+  exit 0
+fi
 cd "$(dirname "$0")/.."
 duration=${1:?usage: bench/fuzz.sh DURATION [TARGET...]}
 shift

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# usage: bench/soak.sh MINUTES [WORK_DIR]
 # Soak run: replay + record + publish of a synthetic rig for MINUTES, with
 # faults on a schedule, then a full-disk phase. Reports frames in/out/lost by
 # kind (lifmcr record's final report), resident memory over time, and checks
@@ -21,6 +22,11 @@
 # Memory: VmRSS of the recorder every 5 s; "flat" = the last third's maximum
 # within 10 % (and 20 MB) of the maximum after the 2-minute warm-up.
 set -euo pipefail
+# --help: the header above, nothing else run.
+if [[ "${1:-}" == -h || "${1:-}" == --help ]]; then
+  sed -n '2,/^set -euo pipefail/s/^# \{0,1\}//p' "$0"
+  exit 0
+fi
 cd "$(dirname "$0")/.."
 minutes=${1:?usage: bench/soak.sh MINUTES [WORK_DIR]}
 work=${2:-$(mktemp -d /tmp/lifmcr_soak.XXXXXX)}

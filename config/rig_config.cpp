@@ -117,6 +117,18 @@ std::string NumberText(double value) {
   return std::string(buffer.data(), result.ptr);
 }
 
+// Decimal digits only, as a whole number in [min, max].
+bool IsIntegerIn(std::string_view text, long long min, long long max) {
+  if (text.empty() || text.size() > 18 || text.find_first_not_of("0123456789") != std::string_view::npos)
+    return false;
+  long long value = 0;
+  std::from_chars(text.data(), text.data() + text.size(), value);
+  return value >= min && value <= max;
+}
+
+// "HOST:PORT" or "HOST" of a URL's network part; the port 1..65535.
+bool IsPortText(std::string_view text) { return IsIntegerIn(text, 1, 65535); }
+
 // Checks a free-text field: not empty (when required), no control characters.
 std::optional<ConfigIssue> CheckText(const std::string& path, const std::string& text,
                                      bool required) {
@@ -260,12 +272,25 @@ std::optional<ConfigIssue> CheckVicon(const ViconConfig& vicon) {
   if (vicon.source == ViconSourceKind::kCsv && vicon.csv.empty())
     return ConfigIssue{"/vicon/csv", "expected the path of the Vicon CSV for source csv"};
   if (auto issue = CheckText("/vicon/plate_object", vicon.plate_object, true)) return issue;
-  if (!std::isfinite(vicon.rate_hz) || vicon.rate_hz <= 0.0 || vicon.rate_hz > 10000.0)
+  // Vicon systems run at tens to thousands of Hz; below 1 Hz the trigger
+  // period (in ns, drivers/camera_factory.h) leaves any real timing.
+  if (!std::isfinite(vicon.rate_hz) || vicon.rate_hz < kMinViconRateHz ||
+      vicon.rate_hz > 10000.0)
     return ConfigIssue{"/vicon/rate_hz",
-                       "expected a number > 0 and <= 10000 (Hz), got " + NumberText(vicon.rate_hz)};
+                       "expected a number 1 .. 10000 (Hz), got " + NumberText(vicon.rate_hz)};
   if (vicon.trigger_divider < 1 || vicon.trigger_divider > 10000)
     return ConfigIssue{"/vicon/trigger_divider",
                        "expected an integer 1 .. 10000, got " + std::to_string(vicon.trigger_divider)};
+  // The cameras' trigger period: more than a minute between two frames is a
+  // typo (rate_hz 0.08 for 80, a divider of 8000 for 8), not a rig.
+  if (vicon.trigger_divider / vicon.rate_hz > kMaxTriggerPeriodS)
+    return ConfigIssue{"/vicon/trigger_divider",
+                       "gives camera triggers every " +
+                           NumberText(vicon.trigger_divider / vicon.rate_hz) + " s (rate_hz " +
+                           NumberText(vicon.rate_hz) + " / trigger_divider " +
+                           std::to_string(vicon.trigger_divider) +
+                           "); expected a trigger at least every " +
+                           NumberText(kMaxTriggerPeriodS) + " s"};
   return std::nullopt;
 }
 
@@ -297,14 +322,8 @@ std::optional<ConfigIssue> CheckProcessing(const ProcessingConfig& processing) {
 }
 
 std::optional<ConfigIssue> CheckLcm(const LcmConfig& lcm) {
-  const std::size_t scheme_end = lcm.url.find("://");
-  const std::string provider = lcm.url.substr(0, scheme_end);
-  if (scheme_end == std::string::npos ||
-      (provider != "udpm" && provider != "memq" && provider != "file" && provider != "tcpq") ||
-      HasControlCharacter(lcm.url))
-    return ConfigIssue{
-        "/lcm/url",
-        "expected an LCM URL udpm://, memq://, file:// or tcpq://..., got " + Quoted(lcm.url)};
+  if (const std::optional<std::string> problem = LcmUrlProblem(lcm.url))
+    return ConfigIssue{"/lcm/url", *problem};
   bool prefix_ok = !lcm.channel_prefix.empty();
   for (const char c : lcm.channel_prefix)
     prefix_ok = prefix_ok && ((c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_');
@@ -468,6 +487,108 @@ std::string Yq(const std::string& text) {
 std::string Yb(bool value) { return value ? "true" : "false"; }
 
 }  // namespace
+
+// The URL forms of LCM's providers (lcm_create): udpm://[GROUP[:PORT]][?ttl=N&
+// recv_buf_size=BYTES&transmit_only=BOOL], memq://, file://PATH[?mode=r|w|a&
+// speed=X&start_timestamp=US], tcpq://[HOST[:PORT]]. LCM itself reports a bad
+// URL only when the publisher starts (lcm_create returns NULL, or warns and
+// ignores an unknown option), so a rig file is checked here, at its line.
+std::optional<std::string> LcmUrlProblem(std::string_view url) {
+  const std::string expected =
+      "expected an LCM URL: udpm://GROUP:PORT?ttl=N (GROUP a multicast address "
+      "224.0.0.0 .. 239.255.255.255), memq://, file://PATH?mode=r|w|a or tcpq://HOST:PORT";
+  const std::string got = ", got " + Quoted(std::string(url));
+  if (HasControlCharacter(std::string(url))) return expected + got;
+  const std::size_t scheme_end = url.find("://");
+  if (scheme_end == std::string_view::npos) return expected + got;
+  const std::string_view provider = url.substr(0, scheme_end);
+  const std::string_view rest = url.substr(scheme_end + 3);
+  const std::size_t query = rest.find('?');
+  const std::string_view network = rest.substr(0, query);
+  const std::string_view options = query == std::string_view::npos ? "" : rest.substr(query + 1);
+  // Options: key=value pairs joined by '&', each key known to the provider.
+  std::vector<std::pair<std::string_view, std::string_view>> pairs;
+  for (std::size_t start = 0; query != std::string_view::npos && start <= options.size();) {
+    const std::size_t end = std::min(options.find('&', start), options.size());
+    const std::string_view pair = options.substr(start, end - start);
+    const std::size_t equals = pair.find('=');
+    if (equals == std::string_view::npos || equals == 0)
+      return "option " + Quoted(std::string(pair)) + " is not KEY=VALUE; " + expected + got;
+    pairs.emplace_back(pair.substr(0, equals), pair.substr(equals + 1));
+    start = end + 1;
+  }
+  const auto bad_option = [&](std::string_view key, std::string_view what) {
+    return "option " + Quoted(std::string(key)) + " of " + std::string(provider) + "://: " +
+           std::string(what) + got;
+  };
+  if (provider == "udpm") {
+    if (!network.empty()) {
+      const std::size_t colon = network.find(':');
+      const std::string group(network.substr(0, colon));
+      in_addr address{};
+      if (inet_pton(AF_INET, group.c_str(), &address) != 1 ||
+          (ntohl(address.s_addr) >> 28) != 0xE)
+        return "udpm:// group " + Quoted(group) +
+               " is not a multicast IPv4 address (224.0.0.0 .. 239.255.255.255)" + got;
+      if (colon != std::string_view::npos && !IsPortText(network.substr(colon + 1)))
+        return "udpm:// port " + Quoted(std::string(network.substr(colon + 1))) +
+               " is not a port 1..65535" + got;
+    }
+    for (const auto& [key, value] : pairs) {
+      if (key == "ttl") {
+        if (!IsIntegerIn(value, 0, 255)) return bad_option(key, "expected 0..255");
+      } else if (key == "recv_buf_size") {
+        if (!IsIntegerIn(value, 1, 1LL << 31)) return bad_option(key, "expected bytes > 0");
+      } else if (key == "transmit_only") {
+        if (value != "true" && value != "false") return bad_option(key, "expected true or false");
+      } else {
+        return bad_option(key, "unknown (udpm:// takes ttl, recv_buf_size, transmit_only)");
+      }
+    }
+    return std::nullopt;
+  }
+  if (provider == "memq") {
+    if (!rest.empty()) return "memq:// takes no address or options" + got;
+    return std::nullopt;
+  }
+  if (provider == "tcpq") {
+    if (!network.empty()) {
+      const std::size_t colon = network.find(':');
+      const std::string_view host = network.substr(0, colon);
+      if (host.empty() ||
+          host.find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789.-") !=
+              std::string_view::npos)
+        return "tcpq:// host " + Quoted(std::string(host)) +
+               " is not a host name or IPv4 address" + got;
+      if (colon != std::string_view::npos && !IsPortText(network.substr(colon + 1)))
+        return "tcpq:// port " + Quoted(std::string(network.substr(colon + 1))) +
+               " is not a port 1..65535" + got;
+    }
+    if (query != std::string_view::npos) return "tcpq:// takes no options" + got;
+    return std::nullopt;
+  }
+  if (provider == "file") {
+    if (network.empty()) return "file:// names no log file" + got;
+    for (const auto& [key, value] : pairs) {
+      if (key == "mode") {
+        if (value != "r" && value != "w" && value != "a") return bad_option(key, "expected r, w or a");
+      } else if (key == "speed") {
+        double speed = 0;
+        const auto [end, ec] = std::from_chars(value.data(), value.data() + value.size(), speed);
+        if (value.empty() || ec != std::errc() || end != value.data() + value.size() ||
+            !std::isfinite(speed) || speed < 0)
+          return bad_option(key, "expected a number >= 0");
+      } else if (key == "start_timestamp") {
+        if (!IsIntegerIn(value, 0, 999999999999999999LL))
+          return bad_option(key, "expected microseconds >= 0");
+      } else {
+        return bad_option(key, "unknown (file:// takes mode, speed, start_timestamp)");
+      }
+    }
+    return std::nullopt;
+  }
+  return expected + got;
+}
 
 std::optional<CameraRole> ParseCameraRole(std::string_view name) { return kRoleNames.Parse(name); }
 std::string_view ToString(CameraRole value) { return kRoleNames.Name(value); }

@@ -129,6 +129,12 @@ struct ViconUdpConfig {
   bool operator==(const ViconUdpConfig&) const = default;
 };
 
+// The slowest Vicon frame rate and the longest camera trigger period
+// (trigger_divider / rate_hz) a rig file may give; real systems run at tens
+// to thousands of Hz and trigger cameras several times a second.
+inline constexpr double kMinViconRateHz = 1.0;
+inline constexpr double kMaxTriggerPeriodS = 60.0;
+
 struct ViconConfig {
   ViconSourceKind source = ViconSourceKind::kNone;
   ViconUdpConfig udp;
@@ -140,8 +146,8 @@ struct ViconConfig {
   // handedness", says why y is the mirrored axis by default).
   Handedness handedness = Handedness::kLeftFlipY;
   std::string plate_object = "plate";  // the world-defining marker plate
-  double rate_hz = 80.0;               // Vicon frame rate, > 0
-  int trigger_divider = 8;             // Vicon frames per camera trigger, >= 1
+  double rate_hz = 80.0;               // Vicon frame rate, kMinViconRateHz .. 10000
+  int trigger_divider = 8;             // Vicon frames per camera trigger, 1 .. 10000
   std::filesystem::path vsk;           // optional object model (Object.vsk)
   bool operator==(const ViconConfig&) const = default;
 };
@@ -175,7 +181,7 @@ struct LcmConfig {
 struct RegistrationConfig {
   // The cameras sit rigidly on the rig: c0_from_cx should not change, and a
   // run of changed_after triggers departing from its running estimate beyond
-  // its uncertainty is flagged (registration/extrinsics_monitor.h).
+  // its uncertainty is flagged (registration/live/extrinsics_monitor.h).
   bool rigid_mount = false;
   int changed_after = 3;     // 1..100
   int settle_triggers = 10;  // 2..1000: triggers that make the first running estimate
@@ -209,6 +215,11 @@ struct RigConfig {
 
   bool operator==(const RigConfig&) const = default;
 };
+
+// What is wrong with an LCM provider URL (`lcm.url`, `--lcm`): the provider,
+// the udpm:// group (multicast IPv4) and port, the tcpq:// host and port, the
+// options each provider takes and their values; nullopt for a URL LCM opens.
+std::optional<std::string> LcmUrlProblem(std::string_view url);
 
 // Parses and checks a rig file. `base_dir` resolves relative paths; `label`
 // names the source in messages (the file path, usually).

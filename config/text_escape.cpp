@@ -56,15 +56,17 @@ void AppendCodePoint(std::string* out, std::uint32_t cp) {
 
 }  // namespace
 
-bool IsValidUtf8(std::string_view text) {
+std::size_t InvalidUtf8At(std::string_view text) {
   for (std::size_t i = 0; i < text.size();) {
     std::uint32_t cp = 0;
     const std::size_t length = Utf8Sequence(text, i, &cp);
-    if (length == 0) return false;
+    if (length == 0) return i;
     i += length;
   }
-  return true;
+  return std::string_view::npos;
 }
+
+bool IsValidUtf8(std::string_view text) { return InvalidUtf8At(text) == std::string_view::npos; }
 
 std::string EscapeText(std::string_view text) {
   std::string out;

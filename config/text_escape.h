@@ -33,5 +33,8 @@ std::string Excerpt(std::string_view text, std::size_t max_bytes = 40);
 // True when `text` is valid UTF-8 (no overlong forms, surrogates or code
 // points above U+10FFFF).
 bool IsValidUtf8(std::string_view text);
+// Byte offset of the first byte that starts no valid UTF-8 sequence, npos
+// when `text` is valid UTF-8.
+std::size_t InvalidUtf8At(std::string_view text);
 
 }  // namespace lifmcr

@@ -1,8 +1,10 @@
 #include "config/yaml_reader.h"
 
+#include "config/decimal_number.h"
 #include "config/input_file.h"
 #include "config/text_escape.h"
 
+#include <yaml-cpp/depthguard.h>
 #include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
@@ -104,6 +106,13 @@ Expected<YamlNode> YamlNode::Parse(std::string_view text, const std::string& lab
     impl->label = std::move(shared_label);
     impl->fallback_mark = YAML::Mark();  // line 1, column 1
     return YamlNode(std::move(impl));
+  } catch (const YAML::DeepRecursion& e) {
+    // yaml-cpp's depth guard says only "bad file" (its ErrorMsg::BAD_FILE).
+    const bool known = HasPosition(e.mark);
+    return MakeError(label, known ? e.mark.line + 1 : 0, known ? e.mark.column + 1 : 0,
+                     "YAML nested " + std::to_string(e.depth()) +
+                         " levels deep here, more than the YAML reader takes; expected a "
+                         "file nested a few levels deep, as every lifmcr file is");
   } catch (const YAML::Exception& e) {
     // e.msg is yaml-cpp's text without its own "yaml-cpp: error at line..." prefix.
     const bool known = HasPosition(e.mark);
@@ -293,7 +302,7 @@ bool ParseNumberNode(const YamlNode& value, double* out) {
   std::string_view text = value.Scalar();
   if (!text.empty() && text.front() == '+') text.remove_prefix(1);
   double parsed = 0.0;
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), parsed);
+  const auto [end, ec] = FromCharsRounded(text.data(), text.data() + text.size(), parsed);
   if (text.empty() || ec != std::errc() || end != text.data() + text.size() ||
       !std::isfinite(parsed)) {
     return false;

@@ -48,8 +48,9 @@ class YamlErrors {
 // One node of a parsed document: a cheap, copyable handle.
 class YamlNode {
  public:
-  // Parses one YAML document. Malformed YAML, or more than one document, is
-  // an error at the line and column yaml-cpp reports. `label` names the
+  // Parses one YAML document. Malformed YAML, more than one document, or
+  // nesting deeper than yaml-cpp's depth guard (which itself says only "bad
+  // file") is an error at the line and column yaml-cpp reports. `label` names the
   // source (usually the file path) in every message.
   static Expected<YamlNode> Parse(std::string_view text, const std::string& label);
 

@@ -2,6 +2,7 @@
 
 #include "processing/frame_chain.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -12,6 +13,19 @@ namespace {
 
 double SecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// A frame narrower or lower than one micro image holds no whole micro image,
+// so no depth, and its TF grid (half its size) may be empty: said here, with
+// the sizes, instead of failing deep inside a stage. Empty when it is large
+// enough.
+std::string SmallerThanAMicroImage(int width, int height, const MlaCalibration& mla) {
+  const int least = static_cast<int>(std::ceil(mla.diameter_px));
+  if (width >= least && height >= least) return "";
+  return std::to_string(width) + "x" + std::to_string(height) +
+         " px, smaller than one micro image (diameter " + std::to_string(least) +
+         " px in the MLA file); expected a frame of the camera, at least " +
+         std::to_string(least) + "x" + std::to_string(least) + " px";
 }
 
 }  // namespace
@@ -69,12 +83,39 @@ Expected<std::unique_ptr<CameraChain>> CameraChain::Create(CameraSetup setup,
   if (setup.intrinsics) {
     if (Status s = setup.intrinsics->Check(); !s)
       return Error{who + "intrinsics: " + s.error().message};
+    // Metric depth Z = f_L b / (b - f_L) with b = b_L0 + v B (camera_model.h)
+    // is in front of the camera only where b > f_L. When even the largest
+    // virtual depth the lens types are searched for stays below, no measured
+    // point can be in front: the intrinsics and the MLA file disagree (a B or
+    // b_L0 far too small), which is named here instead of a frame without
+    // points later.
+    const CameraIntrinsics& k = *setup.intrinsics;
+    double v_max = 0;
+    for (const MlaLensType& type : setup.mla.lens_types)
+      v_max = std::max(v_max, SearchedVirtualDepths(type).max);
+    const double b = k.mla_to_main_lens_mm + v_max * k.mla_to_sensor_mm;
+    if (!(b > k.main_focal_length_mm)) {
+      char text[512];
+      std::snprintf(text, sizeof text,
+                    "intrinsics: mla_to_main_lens_mm b_L0 = %.6g mm and mla_to_sensor_mm B = "
+                    "%.6g mm put every virtual depth the MLA file's lens types cover (up to "
+                    "v = %.6g) behind the main lens: b_L0 + v B = %.6g mm, expected more than "
+                    "main_focal_length_mm f_L = %.6g mm (is B or b_L0 far too small?)",
+                    k.mla_to_main_lens_mm, k.mla_to_sensor_mm, v_max, b, k.main_focal_length_mm);
+      return Error{who + text};
+    }
     chain->camera_.emplace(*setup.intrinsics);
     chain->options_.frame.lambda = chain->camera_->lambda();
     chain->options_.frame.principal_point_px = chain->camera_->principal_point_px();
   }
   if (setup.white && (setup.white->width <= 0 || setup.white->height <= 0))
     return Error{who + "white image: empty"};
+  if (setup.white) {
+    if (const std::string small =
+            SmallerThanAMicroImage(setup.white->width, setup.white->height, setup.mla);
+        !small.empty())
+      return Error{who + "white image: " + small};
+  }
   if (setup.white && setup.intrinsics &&
       (setup.white->width != setup.intrinsics->width_px ||
        setup.white->height != setup.intrinsics->height_px))
@@ -136,6 +177,8 @@ Expected<MlaGrid> CameraChain::GridFor(int width, int height) {
     return Error{"camera " + setup_.serial + ": frame " + std::to_string(width) + "x" +
                  std::to_string(height) + ", its white image " +
                  std::to_string(setup_.white->width) + "x" + std::to_string(setup_.white->height)};
+  if (const std::string small = SmallerThanAMicroImage(width, height, setup_.mla); !small.empty())
+    return Error{"camera " + setup_.serial + ": raw frame: " + small};
   grid_ = MlaGrid::FromCalibration(setup_.mla, width, height);
   grid_width_ = width;
   grid_height_ = height;

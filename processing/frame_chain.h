@@ -14,7 +14,12 @@
 //   MLA grid           MlaGrid::FromCalibration of the MLA file for the
 //                      frame size (the white image's when there is one);
 //   lambda             b_L0 / (b_L0 + B) from the intrinsics when known,
-//                      else 1 (micro-lens centres = micro-image centres).
+//                      else 1 (micro-lens centres = micro-image centres);
+//   metric check       with intrinsics, the largest virtual depth searched
+//                      (SearchedVirtualDepths of the MLA's lens types) must
+//                      map in front of the main lens, b_L0 + v B > f_L;
+//                      otherwise Create fails naming the values, as no
+//                      frame could give a point.
 // Per frame (CameraChain::Process):
 //   devignetted grey (plenoptic_frame.h) -> virtual depth on the raw grid
 //   (virtual_depth.h) -> TF depth map and the totally focused image

@@ -54,7 +54,7 @@ struct StageFrame {
   CameraChain* camera = nullptr;  // MLA, model (camera_model() when intrinsics known), sampler
 };
 
-// What change detection (registration/extrinsics_monitor.h) says about one
+// What change detection (registration/live/extrinsics_monitor.h) says about one
 // c0_from_cx of a rigidly mounted camera.
 struct ExtrinsicsChange {
   enum class State { kSettling, kSteady, kDeparting, kChanged } state = State::kSettling;

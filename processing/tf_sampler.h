@@ -1,7 +1,7 @@
 #pragma once
 // The totally focused (TF) image of a raw frame where and at the virtual
 // depth the caller chooses, without the frame's depth map: what live
-// registration needs (registration/map_localizer.h). The rendering rule is
+// registration needs (registration/live/map_localizer.h). The rendering rule is
 // RenderTotalFocus' (processing/tf_kernel.h); the virtual depth comes from
 // the caller instead of the depth map:
 //   Patch          a square of TF samples around a TF position at one

@@ -42,7 +42,10 @@ Expected<VignettingEstimate> EstimateVignetting(ConstImageView raw, const MlaGri
                                                 const VignettingOptions& options) {
   if (Status s = options.Check(); !s) return s.error();
   const int w = raw.width, h = raw.height;
-  if (raw.data == nullptr || w < 8 || h < 8) return Error{"raw frame: empty image"};
+  if (raw.data == nullptr) return Error{"raw frame: empty image"};
+  if (w < 8 || h < 8)
+    return Error{"raw frame: " + std::to_string(w) + "x" + std::to_string(h) +
+                 " px, expected at least 8x8 px to estimate its vignetting"};
   const double half_pitch = grid.PitchPx() / 2;
   const int bins = static_cast<int>(std::ceil(half_pitch / options.bin_px)) + 1;
   std::vector<double> sum(bins, 0.0);

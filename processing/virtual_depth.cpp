@@ -261,6 +261,11 @@ std::string DepthStats::BriefReport() const {
   return buf;
 }
 
+VirtualDepthRange SearchedVirtualDepths(const MlaLensType& type) {
+  const double v_min = std::max(1.05, type.depth_min);
+  return {v_min, std::max(v_min + 0.1, type.depth_max)};
+}
+
 Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
                             const DepthOptions& options, VirtualDepthMap* out) {
   if (Status s = options.Check(); !s) return s;
@@ -277,10 +282,9 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
   std::array<double, 3> z_lo{}, z_hi{};
   double union_lo = 1, union_hi = 0;
   for (int t = 0; t < 3; ++t) {
-    const double v_min = std::max(1.05, mla.lens_types[t].depth_min);
-    const double v_max = std::max(v_min + 0.1, mla.lens_types[t].depth_max);
-    z_lo[t] = 1.0 / v_max;
-    z_hi[t] = 1.0 / v_min;
+    const VirtualDepthRange range = SearchedVirtualDepths(mla.lens_types[t]);
+    z_lo[t] = 1.0 / range.max;
+    z_hi[t] = 1.0 / range.min;
     union_lo = std::min(union_lo, z_lo[t]);
     union_hi = std::max(union_hi, z_hi[t]);
   }

@@ -111,6 +111,14 @@ struct VirtualDepthMap {
   DepthStats stats;
 };
 
+// The virtual depths searched for a lens type: its depth_range, starting at
+// 1.05 at the least (nearer the MLA no second micro image sees a point) and
+// at least 0.1 wide.
+struct VirtualDepthRange {
+  double min = 0, max = 0;
+};
+VirtualDepthRange SearchedVirtualDepths(const MlaLensType& type);
+
 // Estimates virtual depth on the raw grid; `out` buffers are reused.
 Status EstimateVirtualDepth(const PlenopticFrame& frame, const MlaCalibration& mla,
                             const DepthOptions& options, VirtualDepthMap* out);

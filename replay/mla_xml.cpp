@@ -173,10 +173,14 @@ std::optional<MlaProblem> FindProblem(const MlaCalibration& c) {
       return MlaProblem{LensTypePath(id), "lens type at index " + std::to_string(id) + " has id " +
                                               std::to_string(type.id) + ", expected index = id"};
     }
-    if (type.depth_min > type.depth_max) {
-      return MlaProblem{LensTypePath(id) + "/depth_range", "expected min <= max, got min " +
-                                                               Number(type.depth_min) + " > max " +
-                                                               Number(type.depth_max)};
+    // The range is where the lens type is sharp, the virtual depths the
+    // depth estimation searches (processing/virtual_depth.cpp): an empty one
+    // would end in no depth at all, far from this file.
+    if (!(type.depth_min < type.depth_max)) {
+      return MlaProblem{LensTypePath(id) + "/depth_range",
+                        "expected min < max (the virtual depths the lens type is sharp in), got min " +
+                            Number(type.depth_min) + (type.depth_min == type.depth_max ? " = max " : " > max ") +
+                            Number(type.depth_max)};
     }
   }
   return std::nullopt;

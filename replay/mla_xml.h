@@ -27,7 +27,8 @@
 // memory later in processing); 0 <= lens_border < diameter/2; |lens_base_x| and |lens_base_y| within 1e-3
 // of 1 and |cos(angle between them)| within 1e-3 of 1/2 (60 or 120 degrees;
 // signs vary between real files and are not checked); depth_range
-// min <= max; distortion function "constant" or "Brown". Any rotation is
+// min < max (an empty range leaves the lens type sharp nowhere); distortion
+// function "constant" or "Brown". Any rotation is
 // accepted (one real file has pi/2 with transposed bases).
 //
 // Errors name the file, the line and the element path, e.g.

@@ -1,5 +1,6 @@
 #include "replay/sequence.h"
 
+#include "config/input_file.h"
 #include "replay/layout.h"
 
 #include <algorithm>
@@ -32,19 +33,25 @@ bool IsDir(const fs::path& path) {
   return fs::is_directory(path, ec);
 }
 
-bool IsFile(const fs::path& path) {
-  std::error_code ec;
-  return fs::is_regular_file(path, ec);
-}
-
 // The entries of a folder, sorted by name; an error when `dir` does not exist,
 // is not a folder or cannot be read.
-Expected<std::vector<fs::path>> ListDir(const fs::path& dir) {
+Expected<std::vector<fs::path>> ListDir(const fs::path& dir,
+                                        std::string_view expected = "a folder") {
   const std::string where = dir.string();
   std::error_code ec;
   const fs::file_status status = fs::status(dir, ec);
-  if (!fs::exists(status)) return MakeError(where, 0, 0, "no such file or folder");
-  if (!fs::is_directory(status)) return MakeError(where, 0, 0, "expected a folder, found a file");
+  if (!fs::exists(status)) {
+    const std::string missing = DescribeMissingPath(dir);
+    return MakeError(where, 0, 0,
+                     (missing.empty() ? std::string("no such file or folder") : missing) +
+                         ", expected " + std::string(expected));
+  }
+  if (!fs::is_directory(status)) {
+    const std::string type = DescribeNonRegular(dir);
+    return MakeError(where, 0, 0,
+                     (type.empty() ? std::string("is a file") : type) + ", expected " +
+                         std::string(expected));
+  }
   std::vector<fs::path> entries;
   for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
     entries.push_back(it->path());
@@ -189,7 +196,7 @@ PathKind ClassifyPath(const fs::path& path) {
 }
 
 Expected<CameraFolder> DiscoverCameraFolder(const fs::path& dir) {
-  Expected<std::vector<fs::path>> entries = ListDir(dir);
+  Expected<std::vector<fs::path>> entries = ListDir(dir, "a camera folder TypeE_<serial>/");
   if (!entries) return entries.error();
   std::optional<std::string> serial = layout::ParseCameraFolderName(NameOf(dir));
   if (!serial) {
@@ -203,7 +210,10 @@ Expected<CameraFolder> DiscoverCameraFolder(const fs::path& dir) {
   for (const fs::path& entry : *entries) {
     const std::string name = entry.filename().string();
     const std::optional<layout::RawFrameName> parsed = layout::ParseRawFrameFileName(name);
-    if (parsed && parsed->serial == camera.serial && IsFile(entry)) {
+    // By name, as the calibration files: a frame file that is a folder or a
+    // FIFO is this camera's frame that cannot be read (its reader says so),
+    // not a name "not of a frame".
+    if (parsed && parsed->serial == camera.serial) {
       frames.emplace_back(parsed->frame, name);
     } else {
       camera.unrecognised_files.push_back(name);
@@ -234,7 +244,7 @@ Expected<CameraFolder> DiscoverCameraFolder(const fs::path& dir) {
 }
 
 Expected<SequenceLayout> DiscoverSequence(const fs::path& dir) {
-  Expected<std::vector<fs::path>> entries = ListDir(dir);
+  Expected<std::vector<fs::path>> entries = ListDir(dir, kSequenceContent);
   if (!entries) return entries.error();
   if (entries->empty()) {
     return MakeError(dir.string(), 0, 0, EmptyFolderMessage(std::string(kSequenceContent)));
@@ -247,19 +257,23 @@ Expected<SequenceLayout> DiscoverSequence(const fs::path& dir) {
   bool has_vicon_folder = false;
   for (const fs::path& entry : *entries) {
     const std::string name = entry.filename().string();
-    if (!IsDir(entry)) {
-      sequence.unrecognised.push_back(entry);
-    } else if (name == layout::kViconFolder) {
+    // Vicon/ by its name first, as Calibration/ in DiscoverDataset: a file
+    // of that name is an error, not the sequence's Vicon data left out.
+    if (name == layout::kViconFolder) {
       has_vicon_folder = true;
-      Expected<std::vector<fs::path>> vicon = ListDir(entry);
+      Expected<std::vector<fs::path>> vicon = ListDir(entry, "the Vicon/ folder of sequence_XX.csv files");
       if (!vicon) return vicon.error();
       for (const fs::path& file : *vicon) {
-        if (layout::ParseViconCsvFileName(file.filename().string()) && IsFile(file)) {
+        // By name, as the calibration files: the CSV reader says what a
+        // non-regular sequence_XX.csv is.
+        if (layout::ParseViconCsvFileName(file.filename().string())) {
           sequence.vicon_csvs.push_back(file);
         } else {
           sequence.unrecognised.push_back(file);
         }
       }
+    } else if (!IsDir(entry)) {
+      sequence.unrecognised.push_back(entry);
     } else if (name == layout::kGroundTruthFolder) {
       sequence.has_ground_truth = true;
     } else if (layout::ParseCameraFolderName(name)) {
@@ -280,7 +294,7 @@ Expected<SequenceLayout> DiscoverSequence(const fs::path& dir) {
 }
 
 Expected<SceneLayout> DiscoverScene(const fs::path& dir) {
-  Expected<std::vector<fs::path>> entries = ListDir(dir);
+  Expected<std::vector<fs::path>> entries = ListDir(dir, kSceneContent);
   if (!entries) return entries.error();
   if (entries->empty()) {
     return MakeError(dir.string(), 0, 0, EmptyFolderMessage(std::string(kSceneContent)));
@@ -305,7 +319,7 @@ Expected<SceneLayout> DiscoverScene(const fs::path& dir) {
 }
 
 Expected<CalibrationLayout> DiscoverCalibration(const fs::path& dir) {
-  Expected<std::vector<fs::path>> entries = ListDir(dir);
+  Expected<std::vector<fs::path>> entries = ListDir(dir, kCalibrationContent);
   if (!entries) return entries.error();
   if (entries->empty()) {
     return MakeError(dir.string(), 0, 0, EmptyFolderMessage(std::string(kCalibrationContent)));
@@ -316,19 +330,23 @@ Expected<CalibrationLayout> DiscoverCalibration(const fs::path& dir) {
   std::map<std::string, std::vector<std::pair<std::int64_t, fs::path>>> white_by_index;
   for (const fs::path& entry : *entries) {
     const std::string name = entry.filename().string();
-    if (!IsDir(entry) || !IsCalibrationName(name)) {
+    if (!IsCalibrationName(name)) {
       calibration.unrecognised.push_back(entry);
       continue;
     }
     found_any = true;
-    Expected<std::vector<fs::path>> files = ListDir(entry);
+    // By name, whatever it is: a file named 02_MLA_Calibration is an error
+    // here, not an entry left out of the layout without a word.
+    Expected<std::vector<fs::path>> files = ListDir(entry, "a folder of the Calibration layout");
     if (!files) return files.error();
     for (const fs::path& file : *files) {
       const std::string file_name = file.filename().string();
       bool recognised = false;
-      if (!IsFile(file)) {
-        // folders inside the three calibration folders are not part of the layout
-      } else if (name == layout::kWhiteImagesFolder) {
+      // Files are taken by their names too, regular or not: the reader of
+      // each (MLA XML, BMP, VSK) says what a folder, FIFO or device named
+      // TypeE_<serial>_MLA.xml is instead of a regular file, where leaving
+      // it out would report the camera as having no MLA file at all.
+      if (name == layout::kWhiteImagesFolder) {
         if (auto white = layout::ParseRawFrameFileName(file_name)) {
           white_by_index[white->serial].emplace_back(white->frame, file);
           recognised = true;
@@ -357,7 +375,7 @@ Expected<CalibrationLayout> DiscoverCalibration(const fs::path& dir) {
 }
 
 Expected<DatasetLayout> DiscoverDataset(const fs::path& root) {
-  Expected<std::vector<fs::path>> entries = ListDir(root);
+  Expected<std::vector<fs::path>> entries = ListDir(root, kDatasetContent);
   if (!entries) return entries.error();
   if (entries->empty()) {
     return MakeError(root.string(), 0, 0, EmptyFolderMessage(std::string(kDatasetContent)));
@@ -365,12 +383,14 @@ Expected<DatasetLayout> DiscoverDataset(const fs::path& root) {
   DatasetLayout dataset;
   dataset.root = root;
   for (const fs::path& entry : *entries) {
-    if (!IsDir(entry)) {
-      dataset.unrecognised.push_back(entry);
-    } else if (entry.filename() == layout::kCalibrationFolder) {
+    // Calibration/ by its name first: a file of that name is an error (the
+    // dataset's MLA files cannot be found), not an entry to list.
+    if (entry.filename() == layout::kCalibrationFolder) {
       Expected<CalibrationLayout> calibration = DiscoverCalibration(entry);
       if (!calibration) return calibration.error();
       dataset.calibration = std::move(*calibration);
+    } else if (!IsDir(entry)) {
+      dataset.unrecognised.push_back(entry);
     } else if (LooksLikeScene(entry)) {
       Expected<SceneLayout> scene = DiscoverScene(entry);
       if (!scene) return scene.error();
@@ -388,11 +408,17 @@ Expected<DatasetLayout> DiscoverDataset(const fs::path& root) {
 
 std::optional<fs::path> FindCalibrationFor(const fs::path& sequence_dir) {
   const fs::path abs = Absolute(sequence_dir);
+  std::optional<fs::path> not_a_folder;
   for (const fs::path& base : {abs.parent_path().parent_path(), abs.parent_path()}) {
     const fs::path candidate = base / layout::kCalibrationFolder;
-    if (!base.empty() && IsDir(candidate)) return candidate;
+    if (base.empty()) continue;
+    if (IsDir(candidate)) return candidate;
+    std::error_code ec;
+    if (!not_a_folder && fs::exists(fs::symlink_status(candidate, ec))) not_a_folder = candidate;
   }
-  return std::nullopt;
+  // A Calibration that is a file (or a dangling link): returned so that
+  // reading it says what it is, instead of "no Calibration folder".
+  return not_a_folder;
 }
 
 Status SequenceReaderOptions::Check() const {

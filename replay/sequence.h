@@ -12,6 +12,11 @@
 //   dataset root   it holds Calibration/ or a scene folder
 // Entries whose names follow no rule are listed in `unrecognised` at every
 // level, never dropped silently. Lists are sorted (by name, frames by number).
+// Frames, calibration files (MLA XML, white images, VSK) and Vicon CSVs are
+// taken by their names whatever they are: the reader of each says what a folder, FIFO
+// or device of such a name is. A Calibration, 01_White_Images,
+// 02_MLA_Calibration, 03_Vicon or a sequence's Vicon that is not a folder is
+// an error.
 
 #include "config/error.h"
 
@@ -103,7 +108,9 @@ Expected<CalibrationLayout> DiscoverCalibration(const std::filesystem::path& dir
 Expected<DatasetLayout> DiscoverDataset(const std::filesystem::path& root);
 
 // The Calibration/ folder for a sequence: beside the scenes
-// (SEQ/../../Calibration), else beside the sequence (SEQ/../Calibration).
+// (SEQ/../../Calibration), else beside the sequence (SEQ/../Calibration);
+// when neither is a folder, the first of them that exists as something else
+// (a file, a dangling link), so that reading it reports what it is.
 std::optional<std::filesystem::path> FindCalibrationFor(const std::filesystem::path& sequence_dir);
 
 struct SequenceReaderOptions {

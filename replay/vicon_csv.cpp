@@ -1,5 +1,6 @@
 #include "replay/vicon_csv.h"
 
+#include "config/decimal_number.h"
 #include "config/input_file.h"
 #include "config/text_escape.h"
 #include "replay/csv_tokenizer.h"
@@ -61,8 +62,10 @@ NumberStatus ParseNumber(std::string_view text, bool allow_decimal_comma, double
   if (!(std::isdigit(static_cast<unsigned char>(first)) || first == '-' || first == '.')) {
     return NumberStatus::kNotANumber;
   }
+  // A value too small for a double (1e-400) is 0, as strtod rounds it; only
+  // one too large is out of range (config/decimal_number.h).
   double parsed = 0;
-  const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), parsed);
+  const auto [end, error] = FromCharsRounded(text.data(), text.data() + text.size(), parsed);
   if (error == std::errc::result_out_of_range) return NumberStatus::kNotFinite;
   if (error != std::errc() || end != text.data() + text.size()) return NumberStatus::kNotANumber;
   if (!std::isfinite(parsed)) return NumberStatus::kNotFinite;
@@ -111,6 +114,16 @@ class ViconCsvParser {
       if (next_ >= rows_.size()) break;
       auto block = ParseBlock();
       if (!block.ok()) return block.error();
+      // A reader finds a block by its name (ViconCsv::Find): a second block
+      // of the same name would go unread, its frames silently dropped.
+      for (const ViconBlock& earlier : blocks) {
+        if (earlier.name == block->name) {
+          return MakeError(label_, block->first_line, 1,
+                           "a second block " + Quote(block->name) + " (the first starts at line " +
+                               std::to_string(earlier.first_line) +
+                               "); expected each block once (was the export pasted twice?)");
+        }
+      }
       previous_block_ = block->name;
       blocks.push_back(std::move(*block));
     }
@@ -504,8 +517,9 @@ class ViconCsvParser {
                                     "expected a '.' decimal point, or allow decimal commas "
                                     "explicitly");
         case NumberStatus::kNotFinite:
-          return ErrorAt(
-              field, DescribeField(*block, i) + ": expected a finite number, got " + Quote(text));
+          return ErrorAt(field, DescribeField(*block, i) + ": " + Quote(text) +
+                                    " is larger than a double can hold (about 1.8e308); "
+                                    "expected a finite number");
         case NumberStatus::kNotANumber:
           return ErrorAt(field,
                          DescribeField(*block, i) + ": expected a number, got " + Quote(text));

@@ -22,6 +22,9 @@
 //   same for RX, RY, RZ of a group) for R*. Other blocks (Devices, Model
 //   Outputs, Joints, ...) keep their units as written, unchecked.
 // * Frame numbers are integers; (frame, sub frame) strictly increase.
+// * Each block name appears once (blocks are found by name).
+// * Values are decimal numbers; one too small for a double (1e-400) reads as
+//   0, one too large (1e400) is an error (config/decimal_number.h).
 // * The delimiter is ',' or ';' (detected from the "Frame" row); a decimal
 //   comma ("0,5" in a ';' file, Tracker's "Local Numeric Format") is refused
 //   unless ViconCsvOptions::allow_decimal_comma is set.

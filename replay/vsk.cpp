@@ -16,6 +16,23 @@ namespace {
 
 using tinyxml2::XMLElement;
 
+// VERSION as Tracker ("3.2") and Nexus ("2.5") write it: numbers joined by '.'.
+bool IsVersionNumber(std::string_view text) {
+  if (text.empty() || text.size() > 16) return false;
+  bool digit_before = false;
+  for (char c : text) {
+    if (c == '.') {
+      if (!digit_before) return false;
+      digit_before = false;
+    } else if (c >= '0' && c <= '9') {
+      digit_before = true;
+    } else {
+      return false;
+    }
+  }
+  return digit_before;
+}
+
 bool IsNameStart(char c) { return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || c == '_'; }
 
 std::vector<std::string> SplitWhitespace(std::string_view text) {
@@ -40,16 +57,27 @@ class Reader {
                           "root element is <" + Excerpt(root->Name()) +
                               ">, expected <KinematicModel> (a Vicon .vsk subject model)");
     }
-    if (const char* version = root->Attribute("VERSION")) vsk_.version = version;
+    LIFMCR_XML_ASSIGN_OR_RETURN(vsk_.version, xml::RequiredAttribute(label_, root, "VERSION"));
+    if (!IsVersionNumber(vsk_.version)) {
+      return xml::ErrorAt(label_, root,
+                          "VERSION is '" + Excerpt(vsk_.version) +
+                              "', expected a version number such as 3.2 (Tracker) or 2.5 (Nexus)");
+    }
     if (const char* model = root->Attribute("MODEL")) vsk_.model = model;
 
     const XMLElement* parameters = nullptr;
     LIFMCR_XML_ASSIGN_OR_RETURN(parameters, xml::OptionalUniqueChild(label_, root, "Parameters"));
     if (parameters != nullptr) LIFMCR_XML_RETURN_IF_ERROR(ReadParameters(parameters));
 
+    // A model without a segment has no subject to track and no frame its
+    // markers could be in: not a model a capture can use.
     const XMLElement* skeleton = nullptr;
-    LIFMCR_XML_ASSIGN_OR_RETURN(skeleton, xml::OptionalUniqueChild(label_, root, "Skeleton"));
-    if (skeleton != nullptr) LIFMCR_XML_RETURN_IF_ERROR(ReadSegments(skeleton, "", 1));
+    LIFMCR_XML_ASSIGN_OR_RETURN(skeleton, xml::UniqueChild(label_, root, "Skeleton"));
+    LIFMCR_XML_RETURN_IF_ERROR(ReadSegments(skeleton, "", 1));
+    if (vsk_.segments.empty()) {
+      return xml::ErrorAt(label_, skeleton,
+                          "no <Segment>; expected at least one (each root segment is a subject)");
+    }
 
     const XMLElement* marker_set = nullptr;
     LIFMCR_XML_ASSIGN_OR_RETURN(marker_set, xml::OptionalUniqueChild(label_, root, "MarkerSet"));
@@ -65,8 +93,7 @@ class Reader {
                               " markers; expected the markers of real Vicon subjects");
     }
     for (const XMLElement* element : marker_elements) {
-      LIFMCR_XML_ASSIGN_OR_RETURN(const std::string name,
-                                  xml::RequiredAttribute(label_, element, "NAME"));
+      LIFMCR_XML_ASSIGN_OR_RETURN(const std::string name, Name(element, "marker"));
       if (const auto first = marker_at_.find(name); first != marker_at_.end()) {
         return xml::ErrorAt(label_, element,
                             "duplicate marker '" + Excerpt(name) + "' (first at line " +
@@ -106,13 +133,24 @@ class Reader {
   }
 
  private:
+  // The NAME of a segment, marker or parameter: other elements and the
+  // Vicon stream refer to it, so an empty or blank one names nothing.
+  Expected<std::string> Name(const XMLElement* element, const char* kind) {
+    LIFMCR_XML_ASSIGN_OR_RETURN(std::string name, xml::RequiredAttribute(label_, element, "NAME"));
+    if (name.find_first_not_of(" \t\r\n") == std::string::npos) {
+      return xml::ErrorAt(label_, element,
+                          std::string("empty ") + kind + " NAME; expected the " + kind +
+                              "'s name (other elements refer to it)");
+    }
+    return name;
+  }
+
   Status ReadParameters(const XMLElement* parameters) {
     for (const XMLElement* element = parameters->FirstChildElement(); element != nullptr;
          element = element->NextSiblingElement()) {
       const std::string_view kind = element->Name();
       if (kind != "Parameter" && kind != "StaticParameter") continue;
-      LIFMCR_XML_ASSIGN_OR_RETURN(const std::string name,
-                                  xml::RequiredAttribute(label_, element, "NAME"));
+      LIFMCR_XML_ASSIGN_OR_RETURN(const std::string name, Name(element, "parameter"));
       if (const auto first = parameter_at_.find(name); first != parameter_at_.end()) {
         return xml::ErrorAt(label_, element,
                             "duplicate parameter '" + Excerpt(name) + "' (first at line " +
@@ -149,8 +187,7 @@ class Reader {
                                 std::to_string(kVskLimits.max_segment_depth) +
                                 " deep; expected the model of real Vicon subjects");
       }
-      LIFMCR_XML_ASSIGN_OR_RETURN(const std::string name,
-                                  xml::RequiredAttribute(label_, element, "NAME"));
+      LIFMCR_XML_ASSIGN_OR_RETURN(const std::string name, Name(element, "segment"));
       if (const auto first = segment_at_.find(name); first != segment_at_.end()) {
         return xml::ErrorAt(label_, element,
                             "duplicate segment '" + Excerpt(name) + "' (first at line " +
@@ -380,6 +417,7 @@ class Writer {
                    std::to_string(kVskLimits.max_markers) + " and " +
                    std::to_string(kVskLimits.max_parameters) + " with 3 per marker are read"};
     }
+    if (vsk_.segments.empty()) return Error{"VSK: cannot write a model without segments"};
     std::unordered_map<std::string_view, std::size_t> depth_of;  // a root segment is 1 deep
     for (const VskSegment& segment : vsk_.segments) {
       LIFMCR_XML_RETURN_IF_ERROR(CheckWritableName("segment", segment.name));

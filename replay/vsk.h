@@ -20,6 +20,10 @@
 // its hierarchy (Nexus). Marker positions are in millimetres in the frame of
 // their segment.
 //
+// Checks beyond the layout: VERSION is present and a version number ("3.2",
+// "2.5"); the <Skeleton> holds at least one segment (a model without one
+// tracks nothing); segment, marker and parameter NAMEs are not empty.
+//
 // Limits (kVskLimits; README, "Limits of every input"): the file size, and
 // marker positions and radii a real capture volume can hold. Reading and the
 // subject queries below are O(n log n) in the file.

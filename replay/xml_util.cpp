@@ -1,12 +1,16 @@
 #include "replay/xml_util.h"
 
+#include "config/decimal_number.h"
 #include "config/text_escape.h"
 
 #include <tinyxml2.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <iterator>
@@ -49,6 +53,82 @@ bool IsDecimalNumber(std::string_view text) {
 
 // Attributes that tell repeated sibling elements apart, in order of preference.
 constexpr const char* kKeyAttributes[] = {"id", "NAME", "MARKER"};
+
+// What an encoding declaration other than UTF-8 adds to the message: the
+// encoding to convert from (tinyxml2 reads every file as UTF-8).
+std::string DeclaredEncodingHint(const tinyxml2::XMLDocument& doc) {
+  for (const tinyxml2::XMLNode* node = doc.FirstChild(); node != nullptr;
+       node = node->NextSibling()) {
+    if (node->ToDeclaration() == nullptr || node->Value() == nullptr) continue;
+    const std::string_view declaration = node->Value();
+    const std::size_t at = declaration.find("encoding");
+    if (at == std::string_view::npos) continue;
+    const std::size_t open = declaration.find_first_of("\"'", at);
+    const std::size_t close =
+        open == std::string_view::npos ? open : declaration.find(declaration[open], open + 1);
+    if (close == std::string_view::npos) continue;
+    const std::string encoding(declaration.substr(open + 1, close - open - 1));
+    std::string lower = encoding;
+    for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (lower == "utf-8" || lower == "utf8") return "";
+    return "; the declaration names encoding " + Excerpt(encoding) +
+           ": convert the file, e.g. iconv -f " + Excerpt(encoding) + " -t UTF-8";
+  }
+  return "";
+}
+
+// The first name, value, text or comment of the document that is not UTF-8.
+// tinyxml2 passes bytes through as they come, so without this check a name
+// or number read from them would carry invalid text into reports and JSON.
+Status CheckUtf8(const tinyxml2::XMLDocument& doc, const std::string& file_label) {
+  const auto problem = [&](std::string_view text) { return InvalidUtf8At(text); };
+  const auto message = [&](std::string_view what, std::string_view text, std::size_t at) {
+    char byte[8];
+    std::snprintf(byte, sizeof(byte), "0x%02X", static_cast<unsigned char>(text[at]));
+    return std::string(what) + " is not UTF-8 (byte " + byte + " in '" +
+           Excerpt(text.substr(at >= 20 ? at - 20 : 0), 40) +
+           "'); expected UTF-8 text (an XML file without an encoding declaration is UTF-8)" +
+           DeclaredEncodingHint(doc);
+  };
+  const tinyxml2::XMLNode* node = doc.FirstChild();
+  while (node != nullptr) {
+    if (const tinyxml2::XMLElement* element = node->ToElement()) {
+      if (const std::size_t at = problem(element->Name()); at != std::string_view::npos)
+        return ErrorAt(file_label, element, message("the element name", element->Name(), at));
+      for (const tinyxml2::XMLAttribute* a = element->FirstAttribute(); a != nullptr;
+           a = a->Next()) {
+        if (const std::size_t at = problem(a->Name()); at != std::string_view::npos)
+          return ErrorAt(file_label, element, message("an attribute name", a->Name(), at));
+        if (const std::size_t at = problem(a->Value()); at != std::string_view::npos)
+          return ErrorAt(file_label, element,
+                         message(std::string("attribute ") + Excerpt(a->Name()), a->Value(), at));
+      }
+    } else if (node->Value() != nullptr) {
+      const std::string_view text = node->Value();
+      if (const std::size_t at = problem(text); at != std::string_view::npos) {
+        // The line of the byte itself: the node's first line plus the line
+        // breaks before it (tinyxml2 has turned CRLF into LF).
+        const int line = node->GetLineNum() +
+                         static_cast<int>(std::count(text.begin(), text.begin() + at, '\n'));
+        const tinyxml2::XMLElement* parent =
+            node->Parent() != nullptr ? node->Parent()->ToElement() : nullptr;
+        const std::string what = node->ToText() != nullptr      ? "text"
+                                 : node->ToComment() != nullptr ? "a comment"
+                                                                : "a declaration";
+        return MakeError(file_label, line, 0,
+                         (parent != nullptr ? ElementPath(parent) + ": " : std::string()) +
+                             message(what, text, at));
+      }
+    }
+    if (node->FirstChild() != nullptr) {
+      node = node->FirstChild();
+      continue;
+    }
+    while (node != nullptr && node->NextSibling() == nullptr) node = node->Parent();
+    if (node != nullptr) node = node->NextSibling();
+  }
+  return Status::Ok();
+}
 
 }  // namespace
 
@@ -112,7 +192,7 @@ Status ParseDocument(std::string_view text, const std::string& file_label,
                          "> after <" + Excerpt(doc->RootElement()->Name()) +
                          ">; expected exactly one root element");
   }
-  return Status::Ok();
+  return CheckUtf8(*doc, file_label);
 }
 
 std::string ElementPath(const tinyxml2::XMLElement* element) {
@@ -145,7 +225,7 @@ bool ParseStrictDouble(std::string_view text, double* value) {
   // change what a file means); it does not take a leading '+'.
   if (text.front() == '+') text.remove_prefix(1);
   double parsed = 0.0;
-  const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), parsed);
+  const auto [end, error] = FromCharsRounded(text.data(), text.data() + text.size(), parsed);
   if (error != std::errc() || end != text.data() + text.size() || !std::isfinite(parsed)) {
     return false;
   }

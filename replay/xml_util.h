@@ -48,7 +48,10 @@ Status WriteTextFile(const std::filesystem::path& path, std::string_view content
 // Parses `text` into `doc`. Malformed or truncated XML gives
 // "<file_label>:<line>: malformed XML: <tinyxml2's description>"; so does a
 // second root element (tinyxml2 would accept it and lifmcr would silently
-// read only the first), and UTF-16/32 text or NUL bytes.
+// read only the first), and UTF-16/32 text or NUL bytes. A name, attribute
+// value, text or comment that is not UTF-8 is an error at its element and
+// line, naming the byte (and, when the declaration names another encoding,
+// that encoding to convert from).
 Status ParseDocument(std::string_view text, const std::string& file_label,
                      tinyxml2::XMLDocument* doc);
 

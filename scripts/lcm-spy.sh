@@ -1,10 +1,16 @@
 #!/usr/bin/env bash
+# usage: scripts/lcm-spy.sh [lcm-spy OPTIONS...]   (e.g. --lcm-url=URL)
 # Starts lcm-spy with the lifmcr message types (build/lcm_types/lifmcr_lcm_types.jar).
 # Debian's own `lcm-spy` script fails on Java 17 (it passes -Xincgc) and forces its
 # own -cp, so the Java class is started directly. Extra arguments go to lcm-spy,
 # e.g. --lcm-url='udpm://239.255.76.67:7667?ttl=0'.
 #   LIFMCR_BUILD_DIR  build folder holding the jar (default: build)
 set -euo pipefail
+# --help: the header above, nothing else run.
+if [[ "${1:-}" == -h || "${1:-}" == --help ]]; then
+  sed -n '2,/^set -euo pipefail/s/^# \{0,1\}//p' "$0"
+  exit 0
+fi
 cd "$(dirname "$0")/.."
 jar="${LIFMCR_BUILD_DIR:-build}/lcm_types/lifmcr_lcm_types.jar"
 if [[ ! -f "$jar" ]]; then

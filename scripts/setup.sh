@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# usage: scripts/setup.sh   (no arguments; the variables below)
 # Installs every dependency of lifmcr from Debian bookworm packages (as root),
 # raises the kernel's UDP receive buffers for LCM (as root; otherwise prints
 # the commands), then configures and builds it in Release under build/.
@@ -13,6 +14,11 @@
 #   LIFMCR_BUILD_DIR   build folder (default: build)
 #   LIFMCR_BUILD_TYPE  CMake build type (default: Release)
 set -euo pipefail
+# --help: the header above, nothing else run.
+if [[ "${1:-}" == -h || "${1:-}" == --help ]]; then
+  sed -n '2,/^set -euo pipefail/s/^# \{0,1\}//p' "$0"
+  exit 0
+fi
 cd "$(dirname "$0")/.."
 
 packages=(

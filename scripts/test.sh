@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# usage: scripts/test.sh [ctest OPTIONS...]   (e.g. -R Vsk; the variables below)
 # Sets up (through scripts/setup.sh) when anything is missing, builds, and runs
 # every test with ctest. Then the sanitizer passes, each from one group target
 # of tests/CMakeLists.txt ("Test groups") in its own build folder:
@@ -23,6 +24,11 @@
 #   LIFMCR_FUZZ_SECONDS=N               seconds per fuzz target (default 30)
 #   LIFMCR_TSAN_TBB=DIR                 the TBB pipeline's tests under TSan too
 set -euo pipefail
+# --help: the header above, nothing else run.
+if [[ "${1:-}" == -h || "${1:-}" == --help ]]; then
+  sed -n '2,/^set -euo pipefail/s/^# \{0,1\}//p' "$0"
+  exit 0
+fi
 cd "$(dirname "$0")/.."
 build_dir=${LIFMCR_BUILD_DIR:-build}
 jobs=$(nproc 2>/dev/null || echo 2)

@@ -3,8 +3,8 @@
 #include "apps/pipeline/live_registration.h"
 
 #include "apps/pipeline/camera_setup.h"
-#include "registration/evaluation_inputs.h"
-#include "registration/reference_map.h"
+#include "evaluation/evaluation_inputs.h"
+#include "registration/map/reference_map.h"
 
 #include <spdlog/spdlog.h>
 

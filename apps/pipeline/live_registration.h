@@ -2,7 +2,7 @@
 // Live registration for `lifmcr replay SEQ --reference MAP_DIR` and
 // `lifmcr record --publish --reference MAP_DIR`: the reference map, the
 // intrinsics every camera's processing chain gets, the per-camera localizer
-// (registration/map_localizer.h) as the pipeline's registration stage, and
+// (registration/live/map_localizer.h) as the pipeline's registration stage, and
 // the optional --extrinsics-csv file.
 //
 // MAP_DIR: the folder `lifmcr calibrate --out` writes (reference map and
@@ -17,15 +17,15 @@
 // processed but not localised (a warning names it).
 //
 // --extrinsics-csv FILE: every published c0_from_cx as a row of the
-// registration.csv of `lifmcr register` (registration/evaluation_inputs.h:
+// registration.csv of `lifmcr register` (evaluation/evaluation_inputs.h:
 // frame = the trigger index, method = the estimator, status `ok` or why it
 // failed), written as it is published (flushed per row), so `lifmcr
 // evaluate --registration FILE` reads it, also after Ctrl-C.
 
 #include "apps/pipeline/pipeline.h"
 #include "config/error.h"
-#include "registration/extrinsics_monitor.h"
-#include "registration/map_localizer.h"
+#include "registration/live/extrinsics_monitor.h"
+#include "registration/live/map_localizer.h"
 
 #include <cstdio>
 #include <filesystem>

@@ -216,8 +216,7 @@ Expected<CameraModelYaml> ParseCameraModelYaml(std::string_view text, const std:
         range("pixel_size_mm", k.pixel_size_mm, 0, l.max_pixel_size_mm, true),
         range("main_focal_length_mm", k.main_focal_length_mm, 0, l.max_focal_length_mm, true),
         range("mla_to_main_lens_mm", k.mla_to_main_lens_mm, 0, l.max_focal_length_mm, true),
-        range("mla_to_sensor_mm", k.mla_to_sensor_mm, 0,
-              std::min(l.max_mla_to_sensor_mm, k.mla_to_main_lens_mm), true),
+        range("mla_to_sensor_mm", k.mla_to_sensor_mm, 0, l.max_mla_to_sensor_mm, true),
         range("distortion/k1", std::abs(k.k1), 0, l.max_abs_distortion, false),
         range("distortion/k2", std::abs(k.k2), 0, l.max_abs_distortion, false),
         range("distortion/p1", std::abs(k.p1), 0, l.max_abs_distortion, false),
@@ -231,6 +230,14 @@ Expected<CameraModelYaml> ParseCameraModelYaml(std::string_view text, const std:
     };
     for (const std::optional<Error>& problem : problems)
       if (problem) return *problem;
+    // B < b_L0 relates two keys; the message names both values, so a tiny
+    // b_L0 is not reported as a B out of range.
+    if (!(k.mla_to_sensor_mm < k.mla_to_main_lens_mm))
+      return root_node->ErrorAtPath(
+          at + "mla_to_sensor_mm",
+          "expected B less than mla_to_main_lens_mm b_L0 = " +
+              ShortestNumber(k.mla_to_main_lens_mm) + " mm (the MLA sits between the main lens "
+              "and the sensor), got " + ShortestNumber(k.mla_to_sensor_mm) + " mm");
     return k;
   }
   return root_node->ErrorAtPath("/cameras", "no camera with serial '" + Excerpt(serial) + "'");

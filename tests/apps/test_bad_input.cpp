@@ -21,6 +21,7 @@
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <thread>
+#include <tuple>
 #include <unistd.h>
 
 namespace lifmcr {
@@ -155,6 +156,12 @@ std::string CsvOfSubjects(int subjects) {
   return "Objects\n80\n" + names + "\n" + columns + "\n" + units + "\n" + row + "\n";
 }
 
+std::string RigWith(const std::string& mla, const std::string& vicon, const std::string& lcm) {
+  return "rig: {name: r}\ncameras:\n  - serial: \"1\"\n    name: cam0\n    role: reference\n"
+         "    driver: {kind: replay}\n    mla_file: " + mla + "\nvicon:\n" + vicon + "lcm:\n  url: \"" +
+         lcm + "\"\n";
+}
+
 struct Case {
   std::string name;
   // Writes the input under `dir` and returns the arguments of lifmcr.
@@ -163,6 +170,8 @@ struct Case {
   int exit_code = 1;
   std::vector<std::string> forbidden = {};  // must not appear in stdout + stderr
 };
+
+void AddAnswerCases(std::vector<Case>* cases);
 
 std::vector<Case> Cases() {
   std::vector<Case> cases;
@@ -184,7 +193,7 @@ std::vector<Case> Cases() {
                                      Mla(">34.864704132080<", ">34.86\xFF<"));
                      return {"info", "--json", (dir / "m.xml").string()};
                    },
-                   {"/RayCalibData/diameter", "expected a number", "\\\\xFF"}});
+                   {"/RayCalibData/diameter", "is not UTF-8", "\\\\xFF"}});
   cases.push_back({"json_invalid_utf8_folder_name",
                    [](const fs::path& dir) -> std::vector<std::string> {
                      const fs::path seq = TinyDataset(dir / "d\xFF", 64, 48,
@@ -407,7 +416,7 @@ std::vector<Case> Cases() {
                      return {"depth", seq.string(), "--camera", "1", "--frame", "0", "--out",
                              (dir / "out").string()};
                    },
-                   {"white image", "dark"}, 1, {"nan"}});
+                   {"white image", "1x1 px, smaller than one micro image"}, 1, {"nan"}});
   // Output injection.
   cases.push_back({"file_name_forging_report_lines",
                    [](const fs::path& dir) -> std::vector<std::string> {
@@ -452,7 +461,193 @@ std::vector<Case> Cases() {
   forged_case("escaped_replay_usage", {"replay", "FORGED"}, 2);
   forged_case("escaped_depth", {"depth", "FORGED", "--camera", "1", "--frame", "0", "--out", "FORGED"},
               1);
+  AddAnswerCases(&cases);
   return cases;
+}
+
+// A true answer to every input: inputs that passed as valid,
+// or failed with a message about something else, each now a clear answer.
+void AddAnswerCases(std::vector<Case>* cases_out) {
+  std::vector<Case>& cases = *cases_out;
+  const std::string r42 = test::ReadSample("raytrix_mla_R42_sc2_klein.xml");
+  const std::string mla_name = "Calibration/02_MLA_Calibration/TypeE_1_MLA.xml";
+  // A sequence's MLA file that is not a regular file.
+  const std::vector<std::tuple<std::string, std::function<void(const fs::path&)>, std::string>>
+      not_files = {
+          {"folder", [](const fs::path& p) { fs::create_directories(p); }, "is a folder"},
+          {"fifo", [](const fs::path& p) { mkfifo(p.c_str(), 0600); }, "is a FIFO (named pipe)"},
+          {"dev_zero", [](const fs::path& p) { fs::create_symlink("/dev/zero", p); },
+           "is a character device"}};
+  for (const auto& [kind, make, what] : not_files) {
+    cases.push_back({"info_sequence_mla_is_a_" + kind,
+                     [r42, mla_name, make = make](const fs::path& dir) -> std::vector<std::string> {
+                       const fs::path seq = TinyDataset(dir, 64, 48, r42);
+                       fs::remove(dir / mla_name);
+                       make(dir / mla_name);
+                       return {"info", seq.string()};
+                     },
+                     {"PROBLEM: ", "TypeE_1_MLA.xml: " + what,
+                      "expected a regular file holding an MLA calibration XML"},
+                     1,
+                     {"no TypeE_1_MLA.xml found"}});
+  }
+  cases.push_back({"info_root_calibration_is_a_file",
+                   [r42](const fs::path& dir) -> std::vector<std::string> {
+                     TinyDataset(dir, 64, 48, r42);
+                     fs::remove_all(dir / "Calibration");
+                     test::WriteFile(dir / "Calibration", "notes");
+                     return {"info", dir.string()};
+                   },
+                   {"Calibration: is a file, expected a LiFMCR Calibration folder"}});
+  cases.push_back({"info_sequence_calibration_is_a_file",
+                   [r42](const fs::path& dir) -> std::vector<std::string> {
+                     const fs::path seq = TinyDataset(dir, 64, 48, r42);
+                     fs::remove_all(dir / "Calibration");
+                     test::WriteFile(dir / "Calibration", "notes");
+                     return {"info", seq.string()};
+                   },
+                   {"PROBLEM: ", "Calibration: is a file, expected a LiFMCR Calibration folder"}});
+  cases.push_back({"info_frame_is_a_fifo",
+                   [r42](const fs::path& dir) -> std::vector<std::string> {
+                     const fs::path seq = TinyDataset(dir, 64, 48, r42);
+                     fs::remove(seq / "TypeE_1/TypeE_1_000000_Raw.bmp");
+                     mkfifo((seq / "TypeE_1/TypeE_1_000000_Raw.bmp").c_str(), 0600);
+                     return {"info", seq.string()};
+                   },
+                   {"camera 1: 1 frames", "PROBLEM: ", "TypeE_1_000000_Raw.bmp: is a FIFO"},
+                   1,
+                   {"files not named as frames"}});
+  // VSK and XML that parsed but were not what they claim.
+  const auto info_of = [](const std::string& file, const std::string& content) {
+    return [file, content](const fs::path& dir) -> std::vector<std::string> {
+      test::WriteFile(dir / file, content);
+      return {"info", (dir / file).string()};
+    };
+  };
+  cases.push_back({"vsk_without_segments",
+                   info_of("o.vsk", "<KinematicModel VERSION=\"3.2\"><Skeleton/></KinematicModel>"),
+                   {"o.vsk:1:", "no <Segment>; expected at least one"}});
+  cases.push_back({"vsk_empty_segment_name",
+                   info_of("o.vsk", "<KinematicModel VERSION=\"3.2\"><Skeleton><Segment NAME=\"\"/>"
+                                    "</Skeleton></KinematicModel>"),
+                   {"o.vsk:1:", "empty segment NAME"}});
+  cases.push_back({"vsk_garbage_version",
+                   info_of("o.vsk", test::ReplaceFirst(test::ReadSample("vicon_tracker_object_go2_body.vsk"),
+                                                       "VERSION=\"3.2\"", "VERSION=\"garbage!!\"")),
+                   {"o.vsk:2:", "VERSION is 'garbage!!'", "expected a version number"}});
+  cases.push_back({"xml_latin1_element_text",
+                   info_of("m.xml", test::ReplaceFirst(r42, "<function>constant</function>",
+                                                       "<function>constant</function><note>caf\xE9</note>")),
+                   {"m.xml:23:", "/RayCalibData/distortion/note", "text is not UTF-8 (byte 0xE9"}});
+  // Rig files that passed `info`.
+  const auto rig_case = [&](const std::string& name, const std::string& mla_file,
+                            const std::string& vicon, const std::string& lcm,
+                            std::vector<std::string> expected) {
+    cases.push_back({name,
+                     [r42, mla_file, vicon, lcm](const fs::path& dir) -> std::vector<std::string> {
+                       test::WriteFile(dir / "m.xml", r42);
+                       test::WriteFile(dir / "garbage.txt", "not an MLA file\n");
+                       test::WriteFile(dir / "rig.yaml", RigWith(mla_file, vicon, lcm));
+                       return {"info", (dir / "rig.yaml").string()};
+                     },
+                     std::move(expected)});
+  };
+  rig_case("rig_lcm_url_nonsense", "m.xml", "  rate_hz: 80\n", "udpm://nonsense!!:abc?bogus=1",
+           {"rig.yaml:11:", "/lcm/url", "udpm:// group 'nonsense!!' is not a multicast IPv4 address"});
+  rig_case("rig_trigger_rate_tiny", "m.xml", "  rate_hz: 1e-300\n", "memq://",
+           {"rig.yaml:9:", "/vicon/rate_hz: expected a number 1 .. 10000 (Hz), got 1e-300"});
+  rig_case("rig_trigger_period_minutes", "m.xml", "  rate_hz: 1\n  trigger_divider: 10000\n",
+           "memq://", {"/vicon/trigger_divider: gives camera triggers every 10000 s"});
+  rig_case("rig_mla_garbage", "garbage.txt", "  rate_hz: 80\n", "memq://",
+           {"PROBLEM: ", "garbage.txt", "malformed XML"});
+  // The --lcm flags take the rig file's check (config/rig_config.h).
+  for (const std::string command : {"replay", "monitor", "demo"}) {
+    cases.push_back({"lcm_flag_nonsense_" + command,
+                     [command](const fs::path& dir) -> std::vector<std::string> {
+                       std::vector<std::string> args = {command, "--lcm", "udpm://nonsense!!:abc"};
+                       if (command == "replay") args.push_back(dir.string());
+                       return args;
+                     },
+                     {"--lcm: udpm:// group 'nonsense!!' is not a multicast IPv4 address"},
+                     2});
+  }
+  // Vicon CSV and YAML.
+  const std::string block = "Objects\n80\n,,o0,,,,,\nFrame,Sub Frame,RX,RY,RZ,TX,TY,TZ\n"
+                            ",,rad,rad,rad,mm,mm,mm\n1,0,0,0,0,1,2,3\n";
+  cases.push_back({"csv_same_block_twice", info_of("t.csv", block + "\n" + block),
+                   {"t.csv:8:1:", "a second block 'Objects' (the first starts at line 1)"}});
+  cases.push_back({"csv_underflow_reads_as_zero",
+                   info_of("u.csv", test::ReplaceFirst(block, "1,2,3", "1e-400,2,3")),
+                   {"block Objects: 80 Hz, 1 frames", "no problems found"}, 0,
+                   {"not a finite number", "expected a finite number"}});
+  cases.push_back({"yaml_nested_100000_deep",
+                   info_of("deep.yaml",
+                           "rig: " + std::string(100000, '[') + std::string(100000, ']') + "\n"),
+                   {"deep.yaml:1:", "levels deep here, more than the YAML reader takes"}, 1,
+                   {"bad file"}});
+  // `lifmcr grid` on a white image without --mla: asks for what a white
+  // image cannot give, before reading it; given them, writes a valid file.
+  cases.push_back({"grid_white_without_mla_asks",
+                   [](const fs::path& dir) -> std::vector<std::string> {
+                     OwnedImage white = OwnedImage::Allocate(64, 48, PixelFormat::kMono8);
+                     EXPECT_TRUE(WriteBmp(dir / "w.bmp", white.View()).ok());
+                     return {"grid", (dir / "w.bmp").string(), "--out", (dir / "g.xml").string()};
+                   },
+                   {"without --mla", "--tcp V and --depth-ranges"}, 2, {"got 0", "not written"}});
+  cases.push_back({"grid_white_with_tcp_and_ranges_writes",
+                   [](const fs::path& dir) -> std::vector<std::string> {
+                     const test::CommandResult synth = test::RunLifmcr(
+                         "synth --out " + (dir / "s").string() +
+                         " --preset small --frames 1 --cameras 1 --quiet");
+                     EXPECT_EQ(synth.exit_code, 0) << synth.err;
+                     return {"grid",
+                             (dir / "s/Calibration/01_White_Images/TypeE_40398678_00_Raw.bmp").string(),
+                             "--out", (dir / "g.xml").string(), "--tcp", "2.2", "--depth-ranges",
+                             "1:3,2.8:4,3.8:100"};
+                   },
+                   {"fitted lattice", "wrote "}, 0});
+  // `lifmcr depth`: values that left no point, and a frame too small.
+  cases.push_back({"depth_mla_zero_depth_range",
+                   [r42](const fs::path& dir) -> std::vector<std::string> {
+                     const fs::path seq = TinyDataset(
+                         dir, 64, 48, test::ReplaceFirst(r42, "<min>2.799999952316</min>", "<min>4</min>"));
+                     return {"depth", seq.string(), "--camera", "1", "--frame", "0", "--out",
+                             (dir / "out").string()};
+                   },
+                   {"TypeE_1_MLA.xml:", "lens_type[@id='1']/depth_range",
+                    "expected min < max", "got min 4 = max 4"},
+                   1,
+                   {"no points to write"}});
+  cases.push_back({"depth_intrinsics_tiny_b",
+                   [r42](const fs::path& dir) -> std::vector<std::string> {
+                     const fs::path seq = TinyDataset(dir, 64, 48, r42);
+                     test::WriteFile(dir / "k.yaml",
+                                     "cameras:\n  - serial: \"1\"\n    model:\n      width_px: 64\n"
+                                     "      height_px: 48\n      pixel_size_mm: 0.0055\n"
+                                     "      main_focal_length_mm: 25\n      mla_to_main_lens_mm: 24.8\n"
+                                     "      mla_to_sensor_mm: 1e-9\n");
+                     return {"depth", seq.string(), "--camera", "1", "--frame", "0", "--out",
+                             (dir / "out").string(), "--intrinsics", (dir / "k.yaml").string()};
+                   },
+                   {"mla_to_sensor_mm B = 1e-09 mm", "main_focal_length_mm f_L = 25 mm", "k.yaml"},
+                   1,
+                   {"no points to write"}});
+  for (const bool white : {true, false}) {
+    cases.push_back({std::string("depth_one_row_frame_") + (white ? "white" : "no_white"),
+                     [r42, white](const fs::path& dir) -> std::vector<std::string> {
+                       const fs::path seq = TinyDataset(dir, 64, 1, r42);
+                       std::vector<std::string> args = {"depth", seq.string(), "--camera", "1",
+                                                        "--frame", "0", "--out",
+                                                        (dir / "out").string()};
+                       if (!white) args.push_back("--no-white");
+                       return args;
+                     },
+                     {white ? "white image: 64x1 px, smaller than one micro image"
+                            : "raw frame: 64x1 px, smaller than one micro image",
+                      "diameter 35 px in the MLA file"},
+                     1,
+                     {"float map size"}});
+  }
 }
 
 class BadInput : public testing::TestWithParam<Case> {};

@@ -150,7 +150,7 @@ TEST(Demo, WholeChainPublishesExtrinsicsAndEvaluatesThem) {
   EXPECT_LT(ape, 200.0);
   // The demo's cameras turn together, so the pair's own hand-eye is refused
   // and the offsets come from the joint map-frame hand-eye (both cameras,
-  // one plate correction; registration/evaluation.h). It removes the two
+  // one plate correction; evaluation/evaluation.h). It removes the two
   // offsets (tens of mm); what stays is how much the registration varies
   // around its own mean. The gate, which the demo promises: after the
   // correction the absolute error is not above the relative error (both

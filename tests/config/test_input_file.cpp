@@ -170,6 +170,15 @@ TEST(TextEscape, JsonKeepsControlsButNeverInvalidUtf8) {
   EXPECT_TRUE(IsValidUtf8(ToValidUtf8("\xf4\x90\x80\x80")));  // above U+10FFFF
 }
 
+TEST(TextEscape, InvalidUtf8AtNamesTheFirstBadByte) {
+  EXPECT_EQ(InvalidUtf8At("plain ascii"), std::string_view::npos);
+  EXPECT_EQ(InvalidUtf8At("caf\xC3\xA9"), std::string_view::npos);
+  EXPECT_EQ(InvalidUtf8At("caf\xE9"), 3u);                // Latin-1
+  EXPECT_EQ(InvalidUtf8At("ab\xC0\xAF"), 2u);             // overlong '/'
+  EXPECT_EQ(InvalidUtf8At("x\xED\xA0\x80"), 1u);         // a surrogate
+  EXPECT_EQ(InvalidUtf8At("\xE6\x97"), 0u);               // cut short
+}
+
 TEST(TextEscape, ExcerptIsShortAndSaysHowLong) {
   EXPECT_EQ(Excerpt("short"), "short");
   const std::string excerpt = Excerpt(std::string(200 << 20, 'y'));

@@ -345,8 +345,13 @@ RigConfig RandomRig(std::mt19937& rng) {
   rig.processing.threads = integer(0, 1024);
   rig.processing.skip_policy = Pick(rng, {SkipPolicy::kNewestWins, SkipPolicy::kBlock});
   rig.processing.preview_max_px = integer(16, 8192);
-  rig.lcm.url =
-      Pick<std::string>(rng, {"udpm://", "memq://", "file://", "tcpq://"}) + RandomText(rng, 0);
+  // Every provider's form (config/rig_config.h, LcmUrlProblem); the log
+  // file's path carries the characters YAML must quote.
+  rig.lcm.url = Pick<std::string>(rng, {"udpm://", "udpm://239.255.76.67:7667?ttl=0",
+                                        "udpm://224.0.0.1:1?ttl=255&recv_buf_size=4194304", "memq://",
+                                        "tcpq://", "tcpq://localhost:7700",
+                                        "file://" + RandomAbsolutePath(rng, ".log").string() +
+                                            "?mode=w&speed=0.5"});
   rig.lcm.channel_prefix = Pick<std::string>(rng, {"LIFMCR", "A", "RIG_2", "X_Y_Z9"});
   rig.lcm.publish_previews = coin();
   return rig;
@@ -436,7 +441,7 @@ TEST(RigConfigErrors, OutOfRangeValues) {
   EXPECT_NE(ErrorOf(huge).find("/cameras/0/exposure_us: expected a number > 0 and <= 1e7"),
             std::string::npos);
   const std::string rate = kValidRig + "  rate_hz: 1e9\n";
-  EXPECT_NE(ErrorOf(rate).find("/vicon/rate_hz: expected a number > 0 and <= 10000 (Hz)"),
+  EXPECT_NE(ErrorOf(rate).find("/vicon/rate_hz: expected a number 1 .. 10000 (Hz)"),
             std::string::npos)
       << ErrorOf(rate);
 }
@@ -546,6 +551,77 @@ TEST(RigConfigErrors, CommaAtTheStartOfADocumentIsAnErrorNotAHang) {
     ASSERT_FALSE(rig.ok()) << yaml;
     EXPECT_EQ(rig.error().message.rfind("rig.yaml", 0), 0u) << rig.error().message;
   }
+}
+
+// LCM opens only what its providers take; a rig file naming anything else
+// must fail here, at its line, not when the publisher starts.
+TEST(RigConfigErrors, LcmUrlThatLcmCannotOpen) {
+  const auto error_of_url = [](const std::string& url) {
+    return ErrorOf(kValidRig + "lcm:\n  url: \"" + url + "\"\n");
+  };
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"nonsense", "expected an LCM URL: udpm://GROUP:PORT"},
+      {"http://239.255.76.67:7667", "expected an LCM URL"},
+      {"udpm://nonsense!!:abc", "udpm:// group 'nonsense!!' is not a multicast IPv4 address"},
+      {"udpm://10.0.0.1:7667", "udpm:// group '10.0.0.1' is not a multicast IPv4 address"},
+      {"udpm://239.255.76.67:99999", "udpm:// port '99999' is not a port 1..65535"},
+      {"udpm://239.255.76.67:7667?ttl=1000", "option 'ttl' of udpm://: expected 0..255"},
+      {"udpm://239.255.76.67:7667?ttl", "option 'ttl' is not KEY=VALUE"},
+      {"udpm://239.255.76.67:7667?bogus=1", "option 'bogus' of udpm://: unknown"},
+      {"udpm://239.255.76.67:7667?transmit_only=yes", "expected true or false"},
+      {"memq://x", "memq:// takes no address or options"},
+      {"tcpq://host name:7700", "tcpq:// host 'host name' is not a host name"},
+      {"tcpq://localhost:0", "tcpq:// port '0' is not a port 1..65535"},
+      {"file://", "file:// names no log file"},
+      {"file:///tmp/x.log?mode=z", "option 'mode' of file://: expected r, w or a"},
+  };
+  for (const auto& [url, expected] : cases) {
+    const std::string message = error_of_url(url);
+    EXPECT_NE(message.find("/lcm/url: "), std::string::npos) << url << ": " << message;
+    EXPECT_NE(message.find(expected), std::string::npos) << url << ": " << message;
+  }
+  for (const std::string url :
+       {"udpm://239.255.76.67:7667?ttl=0", "udpm://", "udpm://224.0.0.1", "memq://",
+        "udpm://239.255.76.67:7713?ttl=0&recv_buf_size=4194304&transmit_only=false",
+        "tcpq://", "tcpq://127.0.0.1:7700", "file:///tmp/log.lcm?mode=w&speed=2"}) {
+    const Expected<RigConfig> rig = Parse(kValidRig + "lcm:\n  url: \"" + url + "\"\n");
+    EXPECT_TRUE(rig.ok()) << url << ": " << (rig.ok() ? "" : rig.error().message);
+  }
+}
+
+// A Vicon rate no system has, or a trigger period of minutes, is a typo.
+TEST(RigConfigErrors, AbsurdlySmallRates) {
+  EXPECT_NE(ErrorOf(kValidRig + "  rate_hz: 1e-300\n")
+                .find("/vicon/rate_hz: expected a number 1 .. 10000 (Hz), got 1e-300"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf(kValidRig + "  rate_hz: 0.08\n").find("/vicon/rate_hz"), std::string::npos);
+  const std::string period = ErrorOf(kValidRig + "  rate_hz: 80\n  trigger_divider: 8000\n");
+  EXPECT_NE(period.find("/vicon/trigger_divider: gives camera triggers every 100 s (rate_hz 80 / "
+                        "trigger_divider 8000); expected a trigger at least every 60 s"),
+            std::string::npos)
+      << period;
+  EXPECT_TRUE(Parse(kValidRig + "  rate_hz: 1\n  trigger_divider: 60\n").ok());
+}
+
+// yaml-cpp's depth guard says "bad file"; the message says what is wrong.
+TEST(RigConfigErrors, YamlNestedTooDeep) {
+  const std::string deep = "rig: " + std::string(100000, '[') + std::string(100000, ']') + "\n";
+  const std::string message = ErrorOf(deep);
+  EXPECT_EQ(message.rfind("rig.yaml:1:", 0), 0u) << message;
+  EXPECT_NE(message.find("levels deep here, more than the YAML reader takes"), std::string::npos)
+      << message;
+  EXPECT_EQ(message.find("bad file"), std::string::npos) << message;
+}
+
+// 1e-400 is a finite number: it reads as 0 where a number is expected.
+TEST(RigConfig, UnderflowReadsAsZero) {
+  const Expected<RigConfig> rig = Parse(test::ReplaceFirst(kValidRig, "exposure_us: 5000",
+                                                           "exposure_us: 5000\n    gain_db: 1e-400"));
+  ASSERT_TRUE(rig.ok()) << rig.error().message;
+  EXPECT_EQ(rig->cameras[0].gain_db, 0.0);
+  EXPECT_NE(ErrorOf(test::ReplaceFirst(kValidRig, "exposure_us: 5000", "exposure_us: 1e400"))
+                .find("/cameras/0/exposure_us: expected a finite number, got '1e400'"),
+            std::string::npos);
 }
 
 TEST(RigConfigErrors, UnreadableFile) {

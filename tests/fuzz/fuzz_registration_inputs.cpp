@@ -3,9 +3,9 @@
 // model and plate layout), poses_<serial>.csv and aruco_corners.csv. The
 // first byte picks the reader; the rest is the file (memfd).
 
-#include "registration/aruco_corners.h"
-#include "registration/intrinsics_yaml.h"
-#include "registration/poses_csv.h"
+#include "registration/map/aruco_corners.h"
+#include "registration/features/intrinsics_yaml.h"
+#include "registration/map/poses_csv.h"
 #include "tests/fuzz/fuzz_util.h"
 
 #include <cmath>

@@ -121,6 +121,48 @@ TEST(FrameChain, AFrameOfAnotherSizeThanItsWhiteImageIsAnError) {
       << lease.error().message;
 }
 
+// Intrinsics whose B (or b_L0) is so small that every virtual depth the MLA
+// file's lens types are searched for lies behind the main lens: no frame
+// could give a point, so Create names the values instead.
+TEST(FrameChain, IntrinsicsThatPutEveryDepthBehindTheLensAreNamed) {
+  const testing::SynthFrame& s = Frame();
+  CameraSetup setup = SetupOf(s, false, true);
+  setup.intrinsics->mla_to_sensor_mm = 1e-9;
+  auto chain = CameraChain::Create(std::move(setup), ChainOptions{});
+  ASSERT_FALSE(chain.ok());
+  const std::string& message = chain.error().message;
+  for (const char* part : {"camera 40398678", "mla_to_sensor_mm B = 1e-09 mm",
+                           "mla_to_main_lens_mm b_L0 =", "main_focal_length_mm f_L ="})
+    EXPECT_NE(message.find(part), std::string::npos) << part << " in " << message;
+  // The true intrinsics pass.
+  EXPECT_TRUE(CameraChain::Create(SetupOf(s, false, true), ChainOptions{}).ok());
+}
+
+// A frame (or white image) narrower than one micro image holds no micro
+// image and would leave an empty TF grid: an error with both sizes.
+TEST(FrameChain, AFrameSmallerThanAMicroImageIsNamed) {
+  const testing::SynthFrame& s = Frame();
+  const int pitch = static_cast<int>(std::ceil(s.mla.diameter_px));
+  auto chain = CameraChain::Create(SetupOf(s, false, false), ChainOptions{});
+  ASSERT_TRUE(chain.ok());
+  ConstImageView strip = s.raw.View();
+  strip.height = 1;
+  auto lease = (*chain)->Process(strip);
+  ASSERT_FALSE(lease.ok());
+  const std::string size = std::to_string(strip.width) + "x1 px, smaller than one micro image";
+  EXPECT_NE(lease.error().message.find(size), std::string::npos) << lease.error().message;
+  EXPECT_NE(lease.error().message.find("diameter " + std::to_string(pitch) + " px"),
+            std::string::npos)
+      << lease.error().message;
+
+  CameraSetup tiny_white = SetupOf(s, true, false);
+  tiny_white.white = OwnedImage::Allocate(1, 1, PixelFormat::kMono8);
+  auto refused = CameraChain::Create(std::move(tiny_white), ChainOptions{});
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.error().message.find("white image: 1x1 px"), std::string::npos)
+      << refused.error().message;
+}
+
 TEST(FrameChain, BadOptionsNameTheirField) {
   struct Case {
     const char* field;

@@ -27,7 +27,7 @@ processing::CameraIntrinsics SmallCameraIntrinsics();
 // keypoint and sigma_v on each virtual depth; a fraction of outliers gets a
 // keypoint and a virtual depth drawn anew (its world point stays).
 // delta^T Sigma^-1 delta for the delta with truth = Perturb(estimate, delta)
-// (registration/pose_covariance.h): chi-square with 6 degrees of freedom
+// (registration/estimators/pose_covariance.h): chi-square with 6 degrees of freedom
 // when `covariance` describes the estimate's error.
 double PoseErrorMahalanobis(const Pose& truth, const Pose& estimate,
                             const Eigen::Matrix<double, 6, 6>& covariance);

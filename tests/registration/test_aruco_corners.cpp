@@ -1,9 +1,9 @@
 // The plate's ArUco centres in the map from corners seen in posed frames
-// (registration/aruco_corners.h): exact recovery from exact observations,
+// (registration/map/aruco_corners.h): exact recovery from exact observations,
 // graceful with detection noise, the CSV read back, and the errors of too
 // few or parallel rays.
-#include "registration/aruco_corners.h"
-#include "registration/plate_alignment.h"
+#include "registration/map/aruco_corners.h"
+#include "evaluation/plate_alignment.h"
 #include "tests/test_util.h"
 
 #include <Eigen/Geometry>

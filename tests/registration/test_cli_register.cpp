@@ -2,9 +2,9 @@
 // frames): a reference map from camera 0's ground truth, keypoints and depth
 // from the ground truth, both methods. registration.csv is read back with
 // the reader `lifmcr evaluate` uses and compared with GroundTruth/poses.
-#include "registration/evaluation_inputs.h"
-#include "registration/pose_covariance.h"
-#include "registration/poses_csv.h"
+#include "evaluation/evaluation_inputs.h"
+#include "registration/estimators/pose_covariance.h"
+#include "registration/map/poses_csv.h"
 #include "replay/layout.h"
 #include "tests/test_util.h"
 

@@ -1,10 +1,10 @@
-// Extrinsic change detection (registration/extrinsics_monitor.h) on streams
+// Extrinsic change detection (registration/live/extrinsics_monitor.h) on streams
 // of c0_from_cx with realistic noise: what live PnP gives on the small
 // synthetic rig (per-frame error median 0.42 mm / 0.026 deg, lifmcr register),
 // i.e. 0.3 mm / 0.02 deg per axis, with covariances three times
 // over-confident (as a solver's are when its model is not exact) and 2 % of
 // triggers grossly wrong (a bad RANSAC consensus).
-#include "registration/extrinsics_monitor.h"
+#include "registration/live/extrinsics_monitor.h"
 
 #include <gtest/gtest.h>
 

@@ -4,7 +4,7 @@
 // bias; spread cells keep keypoints where the texture is weak; a kept
 // DescriptorIndex matches as the buffers do.
 
-#include "registration/features.h"
+#include "registration/features/features.h"
 
 #include <gtest/gtest.h>
 

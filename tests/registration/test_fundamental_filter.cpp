@@ -1,7 +1,7 @@
-// The fundamental-matrix filter (registration/fundamental_filter.h): two
+// The fundamental-matrix filter (registration/features/fundamental_filter.h): two
 // pinhole views of random points, a third of the reference positions
 // replaced by random ones; the filter must flag those and keep the rest.
-#include "registration/fundamental_filter.h"
+#include "registration/features/fundamental_filter.h"
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>

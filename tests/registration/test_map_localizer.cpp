@@ -1,9 +1,9 @@
-// The live localizer (registration/map_localizer.h) frame by frame on a
+// The live localizer (registration/live/map_localizer.h) frame by frame on a
 // small synthetic 2-camera sequence, without the pipeline: camera 0's map
 // from its ground truth (frames 0-2), true intrinsics, raw frames only (the
 // chain's depth is never run). Camera 1 relocalises on its first frame and
 // tracks the rest; every pose is measured against GroundTruth/poses_*.csv.
-// And the pose checks (registration/pose_checks.h): a map cut down to a
+// And the pose checks (registration/estimators/pose_checks.h): a map cut down to a
 // corner of the view, which PnP fits with a dozen clustered inliers, is
 // refused with the reason; each check refuses what it must.
 // LIFMCR_TEST_PRESET=medium renders the medium preset instead (minutes:
@@ -11,11 +11,11 @@
 // into DIR once and reuses it in later runs (profiling).
 #include "apps/pipeline/camera_setup.h"
 #include "processing/frame_chain.h"
-#include "registration/ground_truth_map.h"
-#include "registration/guided_matches.h"
-#include "registration/map_localizer.h"
-#include "registration/pose_checks.h"
-#include "registration/poses_csv.h"
+#include "registration/map/ground_truth_map.h"
+#include "registration/map/guided_matches.h"
+#include "registration/live/map_localizer.h"
+#include "registration/estimators/pose_checks.h"
+#include "registration/map/poses_csv.h"
 #include "replay/bmp.h"
 #include "replay/layout.h"
 #include "replay/synth/cameras_yaml.h"
@@ -318,7 +318,7 @@ TEST(MapLocalizer, OfflineAFrameWaitsForItsCamerasRelocalisationInsteadOfPassing
 // ran, and the camera turned meanwhile): the constant-velocity prediction
 // (3 steps of view 0 -> 1) misses the view (small: 17.9 TF px, 47 mm).
 // Without the correction the pose tracked from it is refused (47 mm from the
-// prediction, registration/pose_checks.h) and the frame is relocalised; with
+// prediction, registration/estimators/pose_checks.h) and the frame is relocalised; with
 // it the prediction is corrected by coarse guided matching and the frame is
 // tracked from the corrected pose.
 TEST(MapLocalizer, AWeakPredictionIsCorrectedBeforeThePatchesAreTracked) {
@@ -417,7 +417,7 @@ TEST(MapLocalizer, FarFramesWhoseTrackingFailsAreRelocalisedWithoutTheAttempt) {
   }
 }
 
-// Guided matching (registration/guided_matches.h), the re-anchoring's
+// Guided matching (registration/map/guided_matches.h), the re-anchoring's
 // measurement, from a pose 1 mm and 0.06 deg off the truth (a tracked pose's
 // error): SIFT on the coarser render, each keypoint compared with the map
 // points projected within radius_px of it only. Most of the matches lie
@@ -469,7 +469,7 @@ TEST(MapLocalizer, GuidedMatchesFindMapPointsNearAPoseKnownToAFewPixels) {
   EXPECT_GE(within(2.0), static_cast<long>(0.8 * residual_px.size()));
 }
 
-// The fundamental filter (registration/fundamental_filter.h) against
+// The fundamental filter (registration/features/fundamental_filter.h) against
 // relocalisation alone: every frame of camera X relocalised with and
 // without it; both within the gates, and what it changed printed (the
 // figures of bench/README.md that decided its default).

@@ -1,10 +1,10 @@
 // Corners of a blurred, obliquely seen marker from its edges
-// (registration/marker_edges.h) against OpenCV's cornerSubPix, on images
+// (registration/features/marker_edges.h) against OpenCV's cornerSubPix, on images
 // rendered with known corners: the quad is drawn with 256 samples per
 // pixel near its edges, Gaussian-blurred as the TF image is, with a code-like light square
 // inside the black border.
 
-#include "registration/marker_edges.h"
+#include "registration/features/marker_edges.h"
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>

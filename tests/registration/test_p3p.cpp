@@ -1,7 +1,7 @@
 // Lambda Twist P3P: random poses and points, exact recovery.
-#include "registration/p3p.h"
+#include "registration/estimators/p3p.h"
 
-#include "registration/pose_covariance.h"
+#include "registration/estimators/pose_covariance.h"
 #include "tests/registration/random_geometry.h"
 
 #include <gtest/gtest.h>

@@ -1,9 +1,9 @@
-// registration/plate_corner_check.h on corners made by a known homography:
+// registration/features/plate_corner_check.h on corners made by a known homography:
 // exact and slightly noisy corners all pass, a displaced one is found and
 // only it, too few corners are not checked, and a lens' radial distortion
 // alone rejects nothing (the threshold relative to the camera's median).
 
-#include "registration/plate_corner_check.h"
+#include "registration/features/plate_corner_check.h"
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>

@@ -1,8 +1,8 @@
 // Plenoptic PnP: exact without noise, graceful with noise, right at 50-80 %
 // outliers; the projection agrees with processing's camera model.
-#include "registration/pnp.h"
+#include "registration/estimators/pnp.h"
 
-#include "registration/tf_projection.h"
+#include "registration/estimators/tf_projection.h"
 #include "tests/registration/random_geometry.h"
 
 #include <gtest/gtest.h>

@@ -1,6 +1,6 @@
 // LO-RANSAC core on a problem whose answer is known: a 2D line y = a x + b
 // with outliers (the core does not know it is a line).
-#include "registration/ransac.h"
+#include "registration/estimators/ransac.h"
 
 #include <gtest/gtest.h>
 

@@ -2,11 +2,11 @@
 // and poses_<serial>.csv reads back to the same map; damaged files give
 // errors naming the file.
 
-#include "registration/features.h"
-#include "registration/ground_truth_map.h"
-#include "registration/intrinsics_yaml.h"
-#include "registration/poses_csv.h"
-#include "registration/reference_map.h"
+#include "registration/features/features.h"
+#include "registration/map/ground_truth_map.h"
+#include "registration/features/intrinsics_yaml.h"
+#include "registration/map/poses_csv.h"
+#include "registration/map/reference_map.h"
 #include "tests/test_util.h"
 
 #include <Eigen/Geometry>
@@ -209,6 +209,24 @@ TEST(PosesCsv, OutOfRangeAndNonFiniteValuesAreErrors) {
     EXPECT_NE(poses.error().message.find(expected), std::string::npos) << poses.error().message;
     EXPECT_LT(poses.error().message.size(), 300u) << row.substr(0, 40);
   }
+}
+
+// A value below the smallest double (1e-400) is a finite number that rounds
+// to 0, as in every reader of config/decimal_number.h; 1e400 overflows.
+TEST(PosesCsv, UnderflowReadsAsZeroAndOverflowIsAnError) {
+  test::TempDir tmp;
+  const std::string header = "frame,vicon_frame,tx_mm,ty_mm,tz_mm,qw,qx,qy,qz\n";
+  test::WriteFile(tmp / "p.csv", header + "3,0,1e-400,2,3,1,0,0,-1e-400\n");
+  Expected<std::vector<FramePose>> poses = ReadPosesCsv(tmp / "p.csv");
+  ASSERT_TRUE(poses) << poses.error().message;
+  ASSERT_EQ(poses->size(), 1u);
+  EXPECT_EQ((*poses)[0].world_from_cam.translation().x(), 0.0);
+  EXPECT_EQ((*poses)[0].world_from_cam.translation().y(), 2.0);
+  test::WriteFile(tmp / "p.csv", header + "3,0,1e400,2,3,1,0,0,0\n");
+  poses = ReadPosesCsv(tmp / "p.csv");
+  ASSERT_FALSE(poses);
+  EXPECT_NE(poses.error().message.find(":2:5: expected a number, got '1e400'"), std::string::npos)
+      << poses.error().message;
 }
 
 // intrinsics.yaml is read through the safe open: a FIFO, a folder or

@@ -1,8 +1,8 @@
 // 3D RANSAC: exact without noise, the plenoptic noise model weighted right,
 // right at 50-80 % outliers.
-#include "registration/rigid_3d.h"
+#include "registration/estimators/rigid_3d.h"
 
-#include "registration/rigid_fit.h"
+#include "registration/estimators/rigid_fit.h"
 #include "tests/registration/random_geometry.h"
 
 #include <gtest/gtest.h>

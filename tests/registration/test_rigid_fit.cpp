@@ -1,9 +1,9 @@
 // Weighted Kabsch / Umeyama and the covariance propagation of poses:
 // random transforms in, invariants out.
-#include "registration/extrinsics.h"
-#include "registration/map_localizer.h"
-#include "registration/pose_covariance.h"
-#include "registration/rigid_fit.h"
+#include "registration/estimators/extrinsics.h"
+#include "registration/live/map_localizer.h"
+#include "registration/estimators/pose_covariance.h"
+#include "registration/estimators/rigid_fit.h"
 
 #include "tests/registration/random_geometry.h"
 

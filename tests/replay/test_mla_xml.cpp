@@ -366,7 +366,7 @@ TEST(MlaXmlBadInput, DuplicateOrOutOfRangeLensTypeId) {
   ExpectError(test::ReplaceFirst(test::ReplaceFirst(test::ReadSample(kR42), "<lens_type id=\"1\">",
                                                     "<lens_type id=\"01\">"),
                                  "<min>2.799999952316</min>", "<min>5</min>"),
-              {"bad.xml:", "/RayCalibData/lens_type[@id='1']/depth_range", "min <= max"});
+              {"bad.xml:", "/RayCalibData/lens_type[@id='1']/depth_range", "min < max"});
   ExpectError(
       test::ReplaceFirst(test::ReadSample(kR42), "<lens_type id=\"2\">", "<lens_type id=\"3\">"),
       {"bad.xml:50:", "expected lens_type id 0, 1 or 2, got \"3\""});
@@ -412,7 +412,53 @@ TEST(MlaXmlBadInput, DiameterLensBorderAndDepthRange) {
   ExpectError(
       test::ReplaceFirst(test::ReadSample(kR42), "<min>2.799999952316</min>", "<min>5</min>"),
       {"bad.xml:45:", "/RayCalibData/lens_type[@id='1']/depth_range",
-       "expected min <= max, got min 5 > max 4"});
+       "expected min < max", "got min 5 > max 4"});
+  // An empty range leaves the lens type sharp nowhere: depth estimation would
+  // find nothing, and the file, not the depth command, is at fault.
+  ExpectError(
+      test::ReplaceFirst(test::ReadSample(kR42), "<min>2.799999952316</min>", "<min>4</min>"),
+      {"bad.xml:45:", "/RayCalibData/lens_type[@id='1']/depth_range",
+       "expected min < max (the virtual depths the lens type is sharp in), got min 4 = max 4"});
+}
+
+// XML is UTF-8 unless declared otherwise, and tinyxml2 reads every file as
+// UTF-8: a Latin-1 byte anywhere (an element the reader ignores, a comment,
+// an attribute) is an error naming its element, line and byte.
+TEST(MlaXmlBadInput, TextThatIsNotUtf8) {
+  const std::string r42 = test::ReadSample(kR42);
+  ExpectError(test::ReplaceFirst(r42, "<function>constant</function>",
+                                 "<function>constant</function><note>caf\xE9</note>"),
+              {"bad.xml:23:", "/RayCalibData/distortion/note", "text is not UTF-8 (byte 0xE9",
+               "caf\\xE9", "expected UTF-8 text"});
+  ExpectError(test::ReplaceFirst(r42, "<function>constant</function>",
+                                 "<function>constant</function>\r\n<!-- r\xE9sum\xE9 -->"),
+              {"bad.xml:24:", "a comment is not UTF-8"});
+  ExpectError(test::ReplaceFirst(r42, "<distortion type=\"radial\">",
+                                 "<distortion type=\"radi\xE4l\">"),
+              {"bad.xml:22:", "attribute type is not UTF-8"});
+  // A declared encoding other than UTF-8 is named, with the conversion.
+  ExpectError("<?xml version=\"1.0\" encoding=\"ISO-8859-1\"?>\n" +
+                  test::ReplaceFirst(r42, "<function>constant</function>",
+                                     "<function>constant</function><note>\xE9</note>"),
+              {"the declaration names encoding ISO-8859-1", "iconv -f ISO-8859-1 -t UTF-8"});
+  // Valid UTF-8 that is not ASCII passes.
+  const Expected<MlaCalibration> utf8 = ParseMlaXml(
+      test::ReplaceFirst(r42, "<function>constant</function>",
+                         "<function>constant</function><note>caf\xC3\xA9 \xE6\x97\xA5</note>"),
+      "utf8.xml");
+  EXPECT_TRUE(utf8.ok()) << utf8.error().message;
+}
+
+// A number too small for a double is finite and rounds to zero, as strtod
+// rounds it; only one too large is an error (config/decimal_number.h).
+TEST(MlaXml, UnderflowReadsAsZero) {
+  const Expected<MlaCalibration> mla =
+      ParseMlaXml(test::ReplaceFirst(test::ReadSample(kR42), "<x>17.759811322506</x>", "<x>1e-400</x>"),
+                  "tiny.xml");
+  ASSERT_TRUE(mla.ok()) << mla.error().message;
+  EXPECT_EQ(mla->offset_px.x(), 0.0);
+  ExpectError(test::ReplaceFirst(test::ReadSample(kR42), "<x>17.759811322506</x>", "<x>1e400</x>"),
+              {"bad.xml:3:", "/RayCalibData/offset/x", "expected a number, got '1e400'"});
 }
 
 TEST(MlaXmlBadInput, RandomByteCorruptionNeverCrashes) {

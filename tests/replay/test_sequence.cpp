@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <random>
 #include <string>
+#include <sys/stat.h>
 #include <vector>
 
 namespace lifmcr {
@@ -241,6 +242,67 @@ TEST(Sequence, FindsTheCalibrationBesideTheScenes) {
   EXPECT_EQ(FindCalibrationFor(lonely / "scene" / "seq"), lonely / "scene" / "Calibration");
 }
 
+// Calibration files and Vicon CSVs are taken by their names: an MLA file
+// that is a folder, a FIFO or a link to a device stays the camera's MLA
+// file, for its reader to say what it is (lifmcr info reports it), instead
+// of vanishing into `unrecognised` and the camera reading as having none.
+TEST(Sequence, CalibrationFilesAreTakenByNameWhateverTheyAre) {
+  Fixture f;
+  const fs::path mla3 = layout::MlaXmlPath(f.calibration, kCam3);
+  const fs::path mla8 = layout::MlaXmlPath(f.calibration, kCam8);
+  fs::remove(mla3);
+  fs::create_directories(mla3);
+  fs::remove(mla8);
+  fs::create_symlink("/dev/zero", mla8);
+  fs::remove(layout::VskPath(f.calibration));
+  ASSERT_EQ(mkfifo(layout::VskPath(f.calibration).c_str(), 0600), 0);
+  fs::remove(layout::ViconCsvPath(f.random, 0));
+  fs::create_directories(layout::ViconCsvPath(f.random, 0));
+  Expected<CalibrationLayout> cal = DiscoverCalibration(f.calibration);
+  ASSERT_TRUE(cal.ok()) << cal.error().message;
+  EXPECT_EQ(cal->mla_xml.at(kCam3), mla3);
+  EXPECT_EQ(cal->mla_xml.at(kCam8), mla8);
+  EXPECT_EQ(Names(cal->vsk), std::vector<std::string>{"Object.vsk"});
+  EXPECT_EQ(Names(cal->unrecognised), std::vector<std::string>{"readme.md"});
+  // A frame that is a folder is still the camera's frame 4.
+  const fs::path frame4 = layout::RawFramePath(f.random, kCam3, 4);
+  fs::remove(frame4);
+  fs::create_directories(frame4);
+  Expected<SequenceLayout> sequence = DiscoverSequence(f.random);
+  ASSERT_TRUE(sequence.ok()) << sequence.error().message;
+  EXPECT_EQ(Names(sequence->vicon_csvs), std::vector<std::string>{"sequence_00.csv"});
+  EXPECT_EQ(sequence->cameras.at(0).frames, (std::vector<std::int64_t>{0, 1, 2, 4, 5}));
+  EXPECT_EQ(sequence->cameras.at(0).FramePath(4), frame4);
+}
+
+// A Calibration that is not a folder: the dataset's MLA files cannot be
+// found, which is an error naming it, not an entry listed as unrecognised.
+TEST(Sequence, ACalibrationThatIsAFileIsAnError) {
+  Fixture f;
+  fs::remove_all(f.calibration);
+  Touch(f.calibration);
+  const Expected<DatasetLayout> dataset = DiscoverDataset(f.root);
+  ASSERT_FALSE(dataset.ok());
+  test::ExpectMessageHas(dataset.error(),
+                         {f.calibration.string(), "is a file, expected a LiFMCR Calibration folder"});
+  // A sequence's lookup returns it, so that reading it says the same.
+  EXPECT_EQ(FindCalibrationFor(f.random), f.calibration);
+  test::ExpectMessageHas(DiscoverCalibration(f.calibration).error(), {"is a file"});
+  // A folder beside the sequence still wins over a file beside the scenes.
+  fs::create_directories(f.plants / "Calibration" / "02_MLA_Calibration");
+  EXPECT_EQ(FindCalibrationFor(f.random), f.plants / "Calibration");
+  // 02_MLA_Calibration as a file is an error too.
+  fs::remove_all(f.plants / "Calibration" / "02_MLA_Calibration");
+  Touch(f.plants / "Calibration" / "02_MLA_Calibration");
+  test::ExpectMessageHas(DiscoverCalibration(f.plants / "Calibration").error(),
+                         {"02_MLA_Calibration", "is a file, expected a folder of the Calibration layout"});
+  // And a sequence's Vicon that is a file.
+  fs::remove_all(f.random / "Vicon");
+  Touch(f.random / "Vicon");
+  test::ExpectMessageHas(DiscoverSequence(f.random).error(),
+                         {"Vicon", "is a file, expected the Vicon/ folder"});
+}
+
 TEST(Sequence, ReaderYieldsTriggersInOrderWithViconFrames) {
   Fixture f;
   Expected<SequenceLayout> sequence = DiscoverSequence(f.random);
@@ -356,7 +418,7 @@ TEST(Sequence, MissingEmptyAndWrongFoldersAreClearErrors) {
                          {"empty folder; expected a LiFMCR Calibration folder"});
 
   test::ExpectMessageHas(DiscoverSequence(f.root / "README.txt").error(),
-                         {"README.txt", "expected a folder, found a file"});
+                         {"README.txt", "is a file, expected a LiFMCR sequence"});
   test::ExpectMessageHas(
       DiscoverSequence(f.plants).error(),
       {f.plants.string(), "not a LiFMCR sequence", "found seq_handheld, seq_random"});

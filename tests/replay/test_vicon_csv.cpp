@@ -484,6 +484,37 @@ TEST(ViconCsvBadInput, NonNumericValue) {
               "expected an integer frame number");
 }
 
+// A value too small for a double is finite: it reads as 0 (what strtod
+// rounds it to), only one too large is an error, and it says so.
+TEST(ViconCsv, UnderflowReadsAsZero) {
+  for (const std::string tiny : {"1e-400", "-1e-400", "0.000001e-320", "2e-324"}) {
+    auto csv = ParseViconCsv(test::ReplaceFirst(kValid, "1,0,0.1", "1,0," + tiny), "tiny.csv");
+    ASSERT_TRUE(csv.ok()) << tiny << ": " << csv.error().message;
+    EXPECT_EQ(csv->blocks[0].at(0, 0), 0.0) << tiny;
+    EXPECT_FALSE(std::signbit(csv->blocks[0].at(0, 0))) << tiny;
+  }
+  // Subnormal values keep their value.
+  auto subnormal = ParseViconCsv(test::ReplaceFirst(kValid, "1,0,0.1", "1,0,1e-310"), "s.csv");
+  ASSERT_TRUE(subnormal.ok()) << subnormal.error().message;
+  EXPECT_EQ(subnormal->blocks[0].at(0, 0), 1e-310);
+  ExpectError(test::ReplaceFirst(kValid, "1,0,0.1", "1,0,1e400"), "6:5",
+              "'1e400' is larger than a double can hold");
+  ExpectError(test::ReplaceFirst(kValid, "1,0,0.1", "1,0,0.5e309"), "6:5",
+              "expected a finite number");
+}
+
+// Blocks are found by name: a second block of a name would never be read.
+TEST(ViconCsvBadInput, TheSameBlockTwice) {
+  ExpectError(kValid + "\n" + kValid, "9:1",
+              "a second block 'Objects' (the first starts at line 1); expected each block once");
+  // Different blocks side by side still parse.
+  const std::string trajectories =
+      "Trajectories\n100\n,,m:a,,\nFrame,Sub Frame,X,Y,Z\n,,mm,mm,mm\n1,0,1,2,3\n";
+  auto both = ParseViconCsv(kValid + "\n" + trajectories, "two.csv");
+  ASSERT_TRUE(both.ok()) << both.error().message;
+  EXPECT_EQ(both->blocks.size(), 2u);
+}
+
 TEST(ViconCsvBadInput, ShortAndLongRows) {
   ExpectError(test::ReplaceFirst(kValid, "0,0,0,1,2,3\n", "0,0,0,1,2\n"), "6:34",
               "line 6 has 13 fields, expected 14");

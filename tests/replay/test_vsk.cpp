@@ -427,6 +427,53 @@ TEST(VskBadInput, StructuralErrors) {
   }
 }
 
+// Models that parse as XML but describe nothing a capture can use, or are
+// not a VSK at all: each an error at its element, not a valid empty model.
+TEST(VskBadInput, NoSegmentEmptyNameOrGarbageVersion) {
+  ExpectError("<KinematicModel VERSION=\"3.2\">\n<Skeleton/>\n</KinematicModel>\n",
+              {"bad.vsk:2:", "/KinematicModel/Skeleton", "no <Segment>; expected at least one"});
+  ExpectError("<KinematicModel VERSION=\"3.2\"><Parameters/></KinematicModel>",
+              {"bad.vsk:1:", "missing element /KinematicModel/Skeleton"});
+  ExpectError("<KinematicModel VERSION=\"3.2\"><Skeleton>\n<Segment NAME=\"\"/>\n"
+              "</Skeleton></KinematicModel>",
+              {"bad.vsk:2:", "/KinematicModel/Skeleton/Segment", "empty segment NAME"});
+  const std::string tracker = test::ReadSample(kTracker);
+  ExpectError(test::ReplaceFirst(tracker, "<Marker NAME=\"Go21\"", "<Marker NAME=\" \""),
+              {"bad.vsk:47:", "empty marker NAME"});
+  ExpectError(test::ReplaceFirst(tracker, "NAME=\"Go2_Go21_x\"", "NAME=\"\""),
+              {"bad.vsk:4:", "empty parameter NAME"});
+  for (const std::string version : {"garbage!!", "", "3.", ".2", "3..2", "v3.2", "3.2 "}) {
+    ExpectError(test::ReplaceFirst(tracker, "VERSION=\"3.2\"", "VERSION=\"" + version + "\""),
+                {"bad.vsk:2:", "/KinematicModel", "VERSION is '" + version + "'",
+                 "expected a version number such as 3.2"});
+  }
+  ExpectError(test::ReplaceFirst(tracker, " VERSION=\"3.2\"", ""),
+              {"bad.vsk:2:", "missing attribute VERSION"});
+  // Versions as Vicon writes them still read.
+  for (const std::string version : {"3.2", "2.5", "3", "1.0.4"}) {
+    const Expected<Vsk> vsk =
+        ParseVsk(test::ReplaceFirst(tracker, "VERSION=\"3.2\"", "VERSION=\"" + version + "\""),
+                 "ok.vsk");
+    ASSERT_TRUE(vsk.ok()) << version << ": " << vsk.error().message;
+    EXPECT_EQ(vsk->version, version);
+  }
+  // The writer refuses what the reader would (tests above).
+  Vsk empty;
+  const Expected<std::string> refused = FormatVsk(empty);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.error().message.find("without segments"), std::string::npos)
+      << refused.error().message;
+}
+
+// XML text that is not UTF-8 (a Latin-1 name) is named with its element and
+// byte, not read into names that reports and JSON then carry.
+TEST(VskBadInput, TextThatIsNotUtf8) {
+  const std::string tracker = test::ReadSample(kTracker);
+  ExpectError(test::ReplaceFirst(tracker, "<Segment NAME=\"Go2\"", "<Segment NAME=\"Go\xE9" "2\""),
+              {"bad.vsk:39:", "/KinematicModel/Skeleton/Segment", "attribute NAME is not UTF-8 (byte 0xE9",
+               "Go\\xE92", "expected UTF-8 text"});
+}
+
 TEST(VskBadInput, RandomByteCorruptionNeverCrashes) {
   const std::string text = test::ReadSample(kNexus);
   std::mt19937 rng(5);

@@ -1,0 +1,195 @@
+#pragma once
+// Intrinsic calibration of one plenoptic camera and its reference map
+// (`lifmcr calibrate`), after LiFCal (notes in processing/camera_model.h)
+// without COLMAP:
+//
+// 1. Frames (calibration_frames.h): SIFT keypoints on the TF image, each a
+//    virtual point (x_v, y_v, v) with x_v = 2 tf + 0.5 and v the measured
+//    virtual depth; ArUco plate corners, each frame's checked against the
+//    plate's planar geometry (plate_corner_check.h): a corner off the
+//    homography of its frame's other corners stays out of step 3.
+// 2. Initialisation (nominal intrinsics): the first frame that sees the
+//    plate is placed by PnP on the plate corners; every keypoint with a
+//    virtual depth back-projects to a 3D point (camera_model.h). Each
+//    further frame is matched (ratio test + cross-check, approximate
+//    neighbours by kd-trees) against the points
+//    seen by the frames placed just before it and placed by RANSAC PnP on
+//    the TF pinhole (eqs. projX/projY, focal (b_L0 + 2B)/s); matched
+//    keypoints join the point's track, the others start new points.
+// 3. Plenoptic bundle adjustment (Ceres): frame poses (quaternion on
+//    ceres::QuaternionManifold, translation), points of tracks seen at least
+//    twice (by inverse depth in the frame of their first observation, so no
+//    step puts a point behind the main lens' focal plane there), intrinsics f_L, b_L0, B, c_x, c_y, k1, k2, p1, p2
+//    (plenoptic_projection.h). A keypoint observation is reprojected into
+//    every micro image that sees it: the observed micro-image position is
+//    p_k = l_k + (x_v - l_k) / v (the raw-image position the virtual-depth
+//    search matched, l_k with the initial lambda); the residual is the
+//    predicted p_k minus it, micro-lens centre adjustment included, Huber
+//    loss per observation. Plate corners are points fixed at their known
+//    plate coordinates, observed in the micro images in the same way (with
+//    the virtual depth at the corner; in the virtual image x_v where the TF
+//    depth map has none), each detected corner modelled as moved by one
+//    estimated inset towards its marker's centre (near zero with corners
+//    from the markers' edges, aruco_plate.h): they fix the
+//    metric scale and make the world frame w0 the plate frame; their
+//    residuals are weighted by plate_weight. Solves: poses and points under
+//    the initial intrinsics, then everything (f_L, b_L0, B bounded to 30 %
+//    about their initial values, the principal point to 10 % of the image),
+//    then, with observations whose RMS residual exceeds max(outlier_px,
+//    3 x the median) dropped,
+//    everything again. Recalibration holds f_L and B fixed
+//    (ceres::SubsetManifold).
+// 4. Standard deviations of the intrinsics from ceres::Covariance, scaled by
+//    the residual variance of the solution.
+// The principal point has a weak Gaussian prior about its initial value
+// (principal_point_prior_px).
+
+#include "config/error.h"
+#include "registration/features/calibration_frames.h"
+#include "registration/features/features.h"
+#include "registration/features/intrinsics_yaml.h"
+#include "registration/features/plate_corner_check.h"
+#include "registration/calibration/plenoptic_projection.h"
+#include "registration/map/poses_csv.h"
+#include "registration/map/reference_map.h"
+
+#include <functional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace lifmcr::registration {
+
+// Matching options of calibration: ratio test, cross-check, kd-trees with 64
+// leaves searched (features.h).
+inline MatchOptions KdTreeMatching() {
+  MatchOptions m;
+  m.kd_tree_checks = 64;
+  return m;
+}
+
+struct CalibrationOptions {
+  int min_frames = 3;               // frames placed, else an error
+  int min_features = 50;            // keypoints with a virtual depth per frame, else rejected
+  int min_plate_corners = 4;        // corners for a plate pose
+  MatchOptions match = KdTreeMatching();  // frame to map matching (approximate kd-tree search)
+  int match_window = 4;             // a frame is matched against points seen by this many placed frames
+  double pnp_threshold_px = 6.0;    // RANSAC inlier threshold (raw pixels of the TF pinhole)
+  int pnp_iterations = 5000;        // RANSAC trials
+  int min_pnp_inliers = 20;         // else the frame falls back to the plate, or is rejected
+  double huber_px = 1.0;            // Huber scale per micro-image residual (raw pixels)
+  double outlier_px = 1.5;          // observations above max(this, 3 x median) RMS residual are dropped
+  double plate_weight = 5.0;        // plate corner residuals count this much more (the metric anchor)
+  // Frames whose plate corners enter the bundle adjustment (empty: every
+  // frame's). The initialisation still places frames on the plate.
+  std::vector<std::int64_t> plate_frames;
+  // Each frame's plate corners are checked against the plate's planar
+  // geometry before the bundle adjustment (plate_corner_check.h); a corner
+  // that fails is left out of the plate terms and reported
+  // (CalibrationResult::rejected_corners). Off: every corner enters, the
+  // residuals are still reported.
+  bool reject_plate_corners = true;
+  PlateCornerCheckOptions plate_corner_check;
+  // A point enters the reference map when this many frames kept their
+  // observation of it (all points with two take part in the solve), and the
+  // rays from those frames meet at min_map_angle_deg or more (the largest
+  // angle over pairs of frames). A point's error lies along its rays: its
+  // depth is triangulated to about (lateral error) / sin(angle), and where
+  // the angle is small it rests on the plenoptic depth instead (0.2 % of v
+  // per keypoint, a few mm at table distance). Medians on 40 `medium` frames
+  // (docs/calibration.md): orbit 1.89 mm over all points of two frames or
+  // more, 1.14 mm with three frames, 0.84 mm with 5 degrees (3790 points);
+  // smooth 1.22, 0.80 and 0.72 mm (4548 points). `lifmcr demo` keeps every
+  // point of two frames (its few `small` views meet at small angles).
+  int min_map_observations = 2;
+  double min_map_angle_deg = 5;
+  int max_lenses = 12;              // micro images per observation (the most central)
+  int max_iterations = 100;         // Ceres iterations per solve (twice that for the last)
+  bool recalibrate = false;         // hold f_L and B fixed (LiFCal recalib)
+  bool estimate_principal_point = true;
+  // Gaussian prior of the principal point about its initial value (sigma in
+  // raw px; 0: none): a real lens' axis meets the sensor within tens of
+  // pixels of the centre, and views that do not determine c keep it there.
+  double principal_point_prior_px = 20;
+  bool estimate_distortion = true;   // radial k1, k2 (and p1, p2 when the next is set)
+  // Tangential p1, p2 (with estimate_distortion). Off by default: a
+  // decentering term is nearly a principal point shift; on 40 `medium` frames
+  // with a distortion-free lens p2 came out at 13 of its standard deviations
+  // and took the principal point 2.6 px off (0.75 px with p1, p2 held).
+  bool estimate_tangential_distortion = false;
+  bool inverse_depth = true;          // points by inverse depth in their anchor frame
+  bool estimate_corner_inset = true;  // the plate corners' detection inset (calibration.cpp)
+  bool covariance = true;           // standard deviations of the intrinsics
+  int threads = 2;
+  Status Check() const;
+};
+
+struct CalibrationInput {
+  std::string serial;
+  CameraCalibration initial;  // nominal values (and the sensor: size, pixel size)
+  const MicroImages* micro_images = nullptr;
+  std::vector<CalibrationFrame> frames;
+  double frames_lambda = 0;  // lambda the frames were processed with (0: the initial intrinsics')
+};
+
+struct FrameReport {
+  std::int64_t frame = 0;
+  bool placed = false;
+  std::string how;       // "plate", "pnp", or why it was rejected
+  int keypoints = 0;     // with a virtual depth
+  int plate_corners = 0;
+  int observations = 0;  // in the final solve
+  double rmse_px = 0;    // micro-image residuals of this frame
+  // Largest leave-one-out homography residual of its plate corners (TF px,
+  // plate_corner_check.h); NaN when not checked (too few corners).
+  double plate_corner_residual_max_tf_px = 0;
+  int plate_corners_rejected = 0;
+};
+
+// A plate corner left out of the bundle adjustment by the planar check.
+struct RejectedPlateCorner {
+  std::int64_t frame = 0;
+  int marker_id = 0;
+  int corner = 0;
+  Eigen::Vector2d tf_px = Eigen::Vector2d::Zero();
+  double residual_tf_px = 0;   // leave-one-out homography residual
+  double threshold_tf_px = 0;  // what it was above
+};
+
+struct CalibrationResult {
+  CameraCalibration calibration;
+  IntrinsicsVector initial{};
+  IntrinsicsVector std_dev{};  // NaN where not estimated or not available
+  std::string weakest_direction;  // of the covariance, e.g. "(1.1e-06: principal_point_y_px -0.55, ...)"
+  std::vector<FramePose> poses;     // w0_from_c0 of the placed frames
+  std::vector<FrameReport> frames;  // every input frame
+  std::vector<RejectedPlateCorner> rejected_corners;  // by the planar check
+  ReferenceMap map;
+  double rmse_px = 0;               // all micro-image residuals of the final solve
+  double plate_rmse_px = 0;         // plate corners
+  double corner_inset_tf_px = 0;    // estimated inset of the detected plate corners
+  long long observations = 0, micro_observations = 0, rejected_observations = 0;
+  int points = 0;
+  double initial_cost = 0, final_cost = 0, solver_seconds = 0, total_seconds = 0;
+  int iterations = 0;
+  // How the frames' TF images and virtual depths were made (l_k = c + (c_k -
+  // c) lambda): the geometry their keypoints are in (calibration_gates.h).
+  double frames_lambda = 1;
+  Eigen::Vector2d frames_principal_point_px = Eigen::Vector2d::Zero();
+  bool usable = false;              // Ceres: solution usable, and no flag below
+  std::string termination;          // Ceres termination type
+  std::vector<std::string> flags;   // problems a user should know (report flags)
+  std::string BriefReport() const;  // one line, Ceres BriefReport style
+};
+
+using ProgressFn = std::function<void(std::string_view line)>;
+
+Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
+                                      const CalibrationOptions& options,
+                                      const ProgressFn& progress = {});
+
+// calibration_report.md: parameter table with standard deviations, RMSE per
+// frame and overall, what was rejected, the flags.
+std::string FormatCalibrationReport(const CalibrationResult& result, const std::string& serial);
+
+}  // namespace lifmcr::registration

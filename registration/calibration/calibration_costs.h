@@ -1,0 +1,114 @@
+#pragma once
+// Internal to calibration: the bundle adjustment's residuals of a keypoint
+// and of a plate corner in the raw micro images (calibration.h, step 3), and
+// how a keypoint's observed micro-image positions are made. Shared by the
+// solve (calibration.cpp) and its evaluation at the ground truth
+// (calibration_truth.h).
+
+#include "registration/features/calibration_frames.h"
+#include "registration/calibration/plenoptic_projection.h"
+
+#include <ceres/ceres.h>
+#include <ceres/rotation.h>
+#include <Eigen/Core>
+
+#include <vector>
+
+namespace lifmcr::registration::internal {
+
+// A keypoint observation reprojected into the micro images that see it
+// (calibration.h, step 3). Parameters: intrinsics, cam_from_world rotation
+// (w, x, y, z) and translation, the point in the world.
+struct MicroImageCost {
+  std::vector<Eigen::Vector2d> observed_px, centres_px;
+  double pixel_size_mm = 0;
+
+  template <typename T>
+  bool operator()(const T* k, const T* q, const T* t, const T* p_in_w, T* residuals) const {
+    T p_in_c[3];
+    ceres::UnitQuaternionRotatePoint(q, p_in_w, p_in_c);
+    for (int a = 0; a < 3; ++a) p_in_c[a] += t[a];
+    return Residuals(k, p_in_c, residuals);
+  }
+
+  template <typename T>
+  bool Residuals(const T* k, const T* p_in_c, T* residuals) const {
+    T virtual_px[3];
+    if (!ProjectToVirtual(k, pixel_size_mm, p_in_c, virtual_px)) return false;
+    for (std::size_t n = 0; n < centres_px.size(); ++n) {
+      T micro[2];
+      ProjectToMicroImage(k, virtual_px, centres_px[n], micro);
+      residuals[2 * n] = micro[0] - observed_px[n].x();
+      residuals[2 * n + 1] = micro[1] - observed_px[n].y();
+    }
+    return true;
+  }
+};
+
+// A plate corner: a fixed point of the plate frame. The detected corner is
+// modelled as the projected corner moved by `inset` TF pixels (2 inset raw
+// pixels in the virtual image) towards the projected marker centre; the
+// inset is one parameter of the solve, separated from the scale by the
+// distances between the markers' centres. With corners from the markers'
+// edges (marker_edges.h) it stays near zero on the synthetic TF images
+// (cornerSubPix's corners lay 0.3 TF px inside the square); it is kept for
+// images whose blur is not symmetric. Residuals in the micro images that see
+// the corner (with the virtual depth measured there: `micro`), else in the
+// virtual image. Parameters: intrinsics, cam_from_world rotation (w, x, y,
+// z) and translation, inset (TF px).
+struct PlateCornerCost {
+  Eigen::Vector3d p_in_w_mm, centre_in_w_mm;  // the corner and its marker's centre
+  Eigen::Vector2d observed_px;                // virtual image (without micro images)
+  MicroImageCost micro;                       // micro images (with)
+  bool use_micro = false;
+  double pixel_size_mm = 0;
+
+  int residuals() const {
+    return use_micro ? 2 * static_cast<int>(micro.centres_px.size()) : 2;
+  }
+
+  template <typename T>
+  bool operator()(const T* k, const T* q, const T* t, const T* inset, T* residuals) const {
+    T corner[3], centre[3];
+    for (int a = 0; a < 3; ++a) {
+      corner[a] = T(p_in_w_mm[a]);
+      centre[a] = T(centre_in_w_mm[a]);
+    }
+    T corner_in_c[3], centre_in_c[3];
+    ceres::UnitQuaternionRotatePoint(q, corner, corner_in_c);
+    ceres::UnitQuaternionRotatePoint(q, centre, centre_in_c);
+    for (int a = 0; a < 3; ++a) {
+      corner_in_c[a] += t[a];
+      centre_in_c[a] += t[a];
+    }
+    T x_v[3], centre_v[3];
+    if (!ProjectToVirtual(k, pixel_size_mm, corner_in_c, x_v) ||
+        !ProjectToVirtual(k, pixel_size_mm, centre_in_c, centre_v))
+      return false;
+    const T dx = centre_v[0] - x_v[0], dy = centre_v[1] - x_v[1];
+    const T norm = ceres::sqrt(dx * dx + dy * dy);
+    if (!(norm > T(1e-9))) return false;
+    x_v[0] += T(2) * inset[0] * dx / norm;
+    x_v[1] += T(2) * inset[0] * dy / norm;
+    if (!use_micro) {
+      residuals[0] = x_v[0] - observed_px.x();
+      residuals[1] = x_v[1] - observed_px.y();
+      return true;
+    }
+    for (std::size_t n = 0; n < micro.centres_px.size(); ++n) {
+      T p[2];
+      ProjectToMicroImage(k, x_v, micro.centres_px[n], p);
+      residuals[2 * n] = p[0] - micro.observed_px[n].x();
+      residuals[2 * n + 1] = p[1] - micro.observed_px[n].y();
+    }
+    return true;
+  }
+};
+
+// The micro-image observations of virtual point x_v (calibration.h step 3):
+// the max_lenses most central micro images that see it.
+bool MakeMicroImageCost(const Eigen::Vector3d& x_v, const MicroImages& micro,
+                        const Eigen::Vector2d& c0, double lambda0, int max_lenses, double s,
+                        std::vector<int>* lenses, MicroImageCost* cost);
+
+}  // namespace lifmcr::registration::internal

@@ -1,0 +1,55 @@
+#include "registration/features/aruco_plate.h"
+
+#include "registration/features/marker_edges.h"
+
+#include <opencv2/aruco.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <array>
+
+namespace lifmcr::registration {
+
+Expected<std::vector<PlateCorner>> DetectPlateCorners(ConstImageView image,
+                                                      const PlateLayout& layout) {
+  if (image.data == nullptr) return Error{"ArUco: empty image"};
+  const int type = image.format == PixelFormat::kBgr8 ? CV_8UC3 : CV_8UC1;
+  const cv::Mat view(image.height, image.width, type, const_cast<std::uint8_t*>(image.data),
+                     image.stride_bytes);
+  cv::Mat grey;
+  if (type == CV_8UC3)
+    cv::cvtColor(view, grey, cv::COLOR_BGR2GRAY);
+  else
+    grey = view;
+  std::vector<std::vector<cv::Point2f>> corners;
+  std::vector<int> ids;
+  int dictionary_cells = 6;
+  try {
+    const cv::Ptr<cv::aruco::Dictionary> dictionary =
+        cv::aruco::getPredefinedDictionary(layout.aruco_dictionary);
+    dictionary_cells = dictionary->markerSize;
+    cv::Ptr<cv::aruco::DetectorParameters> parameters = cv::aruco::DetectorParameters::create();
+    parameters->cornerRefinementMethod = cv::aruco::CORNER_REFINE_SUBPIX;
+    cv::aruco::detectMarkers(grey, dictionary, corners, ids, parameters);
+  } catch (const cv::Exception& e) {
+    return Error{std::string("ArUco: ") + e.what()};
+  }
+  // ArUco's corners start the edge fits of marker_edges.h (cornerSubPix
+  // alone sits inside blurred oblique corners); a marker whose edges do not
+  // fit (occluded, a wrong quad) is left out rather than kept biased.
+  const ConstImageView grey_view(grey.data, grey.cols, grey.rows, grey.step, PixelFormat::kMono8);
+  MarkerEdgeOptions edge_options;
+  edge_options.cells_per_side = dictionary_cells + 2;
+  std::vector<PlateCorner> out;
+  for (std::size_t m = 0; m < ids.size(); ++m) {
+    if (!layout.aruco_centers_mm.count(ids[m])) continue;
+    std::array<Eigen::Vector2d, 4> quad;
+    for (int c = 0; c < 4; ++c) quad[c] = Eigen::Vector2d(corners[m][c].x, corners[m][c].y);
+    if (!RefineMarkerCorners(grey_view, edge_options, &quad)) continue;
+    for (int c = 0; c < 4; ++c)
+      out.push_back(PlateCorner{ids[m], c, quad[c], layout.Corner(ids[m], c)});
+  }
+  return out;
+}
+
+}  // namespace lifmcr::registration

@@ -1,0 +1,30 @@
+#pragma once
+// The ArUco markers of the plate on a TF image (OpenCV aruco finds them,
+// marker_edges.h places their corners from line fits to the border's edges):
+// each detected corner with its known position in the plate frame, the
+// metric anchor of calibration (scale and world frame).
+
+#include "config/error.h"
+#include "config/image.h"
+#include "registration/features/intrinsics_yaml.h"
+
+#include <Eigen/Core>
+
+#include <vector>
+
+namespace lifmcr::registration {
+
+struct PlateCorner {
+  int marker_id = 0;
+  int corner = 0;          // 0..3, OpenCV order (PlateLayout::Corner)
+  Eigen::Vector2d tf_px;   // detected corner on the TF grid
+  Eigen::Vector3d p_in_w_mm;  // known position in the plate frame
+};
+
+// Markers of the layout's dictionary whose id the layout holds; other ids
+// are ignored, and so is a marker whose edges do not fit a square's
+// (partly occluded, or a wrong quad).
+Expected<std::vector<PlateCorner>> DetectPlateCorners(ConstImageView tf_image,
+                                                      const PlateLayout& layout);
+
+}  // namespace lifmcr::registration

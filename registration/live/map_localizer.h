@@ -1,0 +1,341 @@
+#pragma once
+// The live registration stage (processing/registration_stage.h) of the
+// pipeline: a per-camera localizer against camera 0's reference map, for
+// camera 0 and every camera X.
+//
+// Per frame of a camera (Localize), from the raw frame:
+//   track        when the camera has a pose and tracked map points: the pose
+//                is predicted at constant velocity in SE(3) (the last step
+//                scaled to the triggers ahead: w_pred = w_last exp(k/m
+//                log(w_prev^-1 w_last)), w = w0_from_cam, a step of m
+//                triggers, k ahead); each tracked map point is projected
+//                with it and followed by Lucas-Kanade on the TF image
+//                sampled at its predicted virtual depth
+//                (registration/live/patch_tracker.h, processing/tf_sampler.h):
+//                no depth map, no whole TF image, no SIFT; PnP on those
+//                positions (few trials: the inlier ratio is high). The
+//                inliers keep being tracked, each against the template it
+//                began with (a fixed reference: re-made where it was found
+//                each frame, every frame's tracking error was added to the
+//                last), and map points the pose shows in image cells with
+//                too few tracks are added (their templates at their
+//                projection), up to max_tracks spread over the image. When
+//                fewer than min_anchored_fraction of the inliers began in a
+//                relocalised frame, the next frame is re-anchored: tracked,
+//                then matched against the map guided by the tracked pose
+//                (registration/map/guided_matches.h: SIFT on a coarser render,
+//                each keypoint against the map points projected near it),
+//                PnP on those matches, every inlier anchored; relocalised
+//                when that fails, the tracked pose when both fail.
+//                When the prediction is weak more pyramid levels and a
+//                larger shift are allowed: two more levels and four times
+//                the shift with no velocity yet (the frame after a
+//                relocalisation), one more and twice when more than two
+//                triggers ahead (frames skipped). When tracking fails the
+//                prediction is corrected by guided matching on a coarse
+//                render with a wide radius and the patches tracked again
+//                from the corrected pose (LocalizerOptions::correct_predictions).
+//   relocalise   otherwise, or when tracking fails, or (without trying to
+//                track) for a frame too far after the camera's last pose
+//                where tracking has not bridged such gaps lately
+//                (LocalizerOptions::min_far_track_success): SIFT on a TF image (the
+//                chain's when the frame was processed, else the whole TF
+//                grid rendered at one virtual depth, TfSampler::RenderAtDepth,
+//                at half resolution (relocalise_step):
+//                the predicted median of the map points when the camera had
+//                a pose, else the map's median), global matching against
+//                every map point (ratio and cross check, kd-tree) and full
+//                LO-RANSAC PnP; the tracks begin at their map points'
+//                projections from the pose, the inliers first. A
+//                frame of a camera that another worker is relocalising is
+//                not localised (Counts::skipped; its pose says so in its
+//                status, localisation "skipped", and is published like a
+//                failed one): relocalising it too would only repeat the
+//                work, and the worker is free at once for the other camera.
+//                Offline (LocalizerOptions::wait_for_earlier_frames, replay
+//                --rate max) it waits instead: every frame is localised.
+// Every pose passes registration/estimators/pose_checks.h (tracked ones also against
+// the prediction); a refused one is published with the reason as status
+// and the camera relocalises at its next frame.
+// The pose carries `method` "pnp", `localisation` "tracked", "re-anchored" or "relocalised" and the
+// covariance in the stage's convention (a left SE(3) perturbation, (t, r)),
+// converted from pose_covariance.h's (additive translation):
+//   rho = dt + [t]x dr   (t the translation of w0_from_cam),
+// so Sigma_stage = A Sigma A^T, A = [[I, [t]x], [0, I]].
+
+#include "processing/registration_stage.h"
+#include "registration/live/extrinsics_monitor.h"
+#include "registration/map/frame_registration.h"
+#include "registration/map/guided_matches.h"
+#include "registration/live/patch_tracker.h"
+#include "registration/estimators/pose_checks.h"
+#include "registration/map/reference_map.h"
+
+#include <condition_variable>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <string>
+
+namespace lifmcr::registration {
+
+struct LocalizerOptions {
+  // Relocalisation: SIFT on the refocused TF grid at half resolution, the
+  // strongest 1500 keypoints spread over 4 x 4 cells; global matching by
+  // kd-trees over the map's descriptors built once (exact matching of 4000
+  // keypoints against a map of 7000 points took seconds on 2 cores;
+  // bench/README.md has the stages' times before and after); the
+  // fundamental filter on (the paper's; medium, 8 frames relocalised: inliers
+  // 65 -> 72 % of matches, 1.59 -> 1.55 mm / 0.079 -> 0.063 deg median, the
+  // matching stage's time unchanged within the load's noise;
+  // test_map_localizer prints both).
+  LocalizerOptions() {
+    features.max_features = 1500;
+    features.spread_cells = 4;
+    registration.match.kd_tree_checks = 64;
+    registration.fundamental.enabled = true;
+    // The Cauchy loss in the PnP's refinement: on the live path's keypoints
+    // (renders refocused at one depth, SIFT on reduced images) it gave the
+    // more accurate extrinsics (bench_live medium, median c0_from_cx
+    // tracked: Cauchy 1.19 mm / 0.075 deg, Huber 1.32-1.46 mm / 0.081-0.085
+    // deg; relocalised 1.64 against 1.72-1.83 mm), and a PnP is ~1 ms of a
+    // tracked frame's 20 ms.
+    registration.pnp.loss = PnpLoss::kCauchy;
+  }
+  FrameRegistrationOptions registration;  // relocalisation; its pnp also when tracking
+  FeatureOptions features;                // relocalisation's SIFT (image_scale: see below)
+  // Relocalisation renders every step-th TF pixel (TfSampler::RenderAtDepth)
+  // and runs SIFT on that; the chain's TF image, when the frame was
+  // processed, is used as it is. The step is relocalise_step (1..4), raised
+  // (up to 4) while the rendered image's longer side stays >=
+  // relocalise_min_side_px, so that a larger sensor is relocalised on an
+  // image of about the same size: medium (TF 1640 px wide) at step 2 (820
+  // px), r32 (3280 px) at step 4 (820 px) instead of 2 (1640 px: a
+  // relocalisation took 2.9 s at r32, 29 triggers at 10 Hz, after which the
+  // frames were too far from its pose to track; bench/README.md).
+  int relocalise_step = 2;
+  int relocalise_min_side_px = 800;  // >= 1
+  // The step for a TF grid whose longer side is tf_longer_side_px.
+  int RelocaliseStep(int tf_longer_side_px) const;
+  PatchTrackOptions patches;              // tracking
+  PoseCheckOptions checks;                // every pose
+  int max_tracks = 160;       // map points tracked per frame (>= min_tracked)
+  int track_cells = 6;        // tracks spread over track_cells^2 cells of the TF image (>= 1)
+  double track_margin_px = 16;  // tracks stay this far inside the TF image (>= 0)
+  int min_tracked = 30;       // fewer tracked inliers: relocalise (>= 3)
+  // Re-anchoring: when fewer of a tracked pose's inliers than this fraction
+  // were begun in a relocalised frame (TrackedPoint::anchored), the camera's
+  // next frame is relocalised, so that tracks begun from tracked poses (each
+  // carrying the error of the pose it began from) never decide the pose
+  // alone and a tracked pose's error does not grow with the frames since the
+  // relocalisation ([0, 1]; 0: never).
+  double min_anchored_fraction = 0.5;
+  // Re-anchoring by guided matching (registration/map/guided_matches.h) from the
+  // frame's tracked pose; false: by relocalisation.
+  bool guided_reanchoring = true;
+  GuidedMatchOptions guided;
+  // A prediction over skipped frames whose tracking failed (for a weak one,
+  // no velocity yet or more than two triggers ahead, the patches already got
+  // more levels and a larger shift, Track) is corrected by guided matching on a coarse
+  // render with a wide radius (`coarse`: SIFT on a TF render of longer side
+  // <= 420 px, each keypoint against the map points projected within 120 TF
+  // px of it), PnP on those matches, and the patches tracked again from
+  // that pose at their usual levels and shift; relocalised when that fails
+  // too. r32, frames 5 triggers apart (a relocalisation's time): the
+  // constant-velocity prediction missed by 30-106 TF px (median over the
+  // map points; the trajectory turns within the gap) and tracking followed
+  // 2 of 111 points; 2 apart it missed by 16-28 TF px (at r32 twice
+  // medium's pixels for the same angle) and followed 10-13 of ~100.
+  // The correction costs ~110 ms at r32 against ~450 ms for a relocalisation.
+  // Only when frames were skipped (2 or more triggers after the camera's last
+  // pose): tracking that fails from the frame before is no prediction's
+  // fault (small rig played forward then back: tracked through each reversal
+  // from a corrected pose, frames 10+ after the relocalisation were 0.35 mm
+  // worse than frames 1-3, where relocalising there kept them within 0.3 mm,
+  // test_map_localizer). And only up to max_correction_ahead triggers:
+  // further, the tracks' templates no longer match the view even from a
+  // corrected pose and the correction's time only delays the
+  // relocalisation (bench_live r32: with every frame corrected, 16 of 70
+  // corrections served and a failed frame cost 990 ms instead of 559;
+  // 0.89 extrinsics/s per camera instead of 1.38).
+  bool correct_predictions = true;
+  int max_correction_ahead = 3;  // >= 1
+  // Frames "far" after the camera's last pose (more than max_correction_ahead
+  // triggers) are tracked only where tracking has bridged such gaps: per
+  // camera a running rate of the far frames whose tracking succeeded (each
+  // attempt weighs 1/4 against the rate so far, which starts at 1). Below
+  // min_far_track_success a far frame is relocalised without the attempt,
+  // except every far_track_probe_every-th, which tries (the motion may have
+  // slowed). Live at r32 a relocalisation takes 4-10 frame periods, so the
+  // frame after one is far; on bench_live's orbit its tracking (with the
+  // extra level and shift) failed and cost ~80 ms before the
+  // relocalisation (FramesSomeTriggersApartAreEachLocalised: 5 apart, 8 of
+  // 8 relocalised; run 13: a relocalised frame 561 ms in the track mode
+  // against 346 ms relocalising every frame). A probe costs one such
+  // attempt; one in 8 far frames, and a slowed motion is noticed within 8.
+  double min_far_track_success = 0.25;  // [0, 1]; 0: always try
+  int far_track_probe_every = 8;        // >= 1
+  GuidedMatchOptions coarse = CoarseGuidedOptions();
+  static GuidedMatchOptions CoarseGuidedOptions();
+  bool track = true;          // false: relocalise every frame (the baseline of bench_live)
+  // Offline (a replay at --rate max, where every frame is wanted and none is
+  // late): a frame is localised only after its camera's earlier frames in
+  // flight and any relocalisation of the camera, so it tracks from its
+  // predecessor's pose (when that reached the localizer first) and is never
+  // passed through (Counts::skipped stays 0). Live (false): a frame of a
+  // camera being relocalised passes through, so the worker is free at once.
+  bool wait_for_earlier_frames = false;
+  Status Check() const;
+};
+
+class MapLocalizerStage final : public processing::RegistrationStage {
+ public:
+  MapLocalizerStage(const ReferenceMap& map, const LocalizerOptions& options);
+  std::string name() const override { return "map-localizer"; }
+  Expected<std::optional<processing::CameraPose>> Localize(
+      const processing::StageFrame& frame) override;
+  // The composition, then, with MonitorChanges, the change detection's verdict.
+  processing::CameraPose Relate(const std::string& serial, std::int64_t trigger_index,
+                                const processing::CameraPose& w0_from_c0,
+                                const processing::CameraPose& w0_from_cx) override;
+  // Rigidly mounted cameras: every c0_from_cx goes through change detection
+  // (registration/live/extrinsics_monitor.h). Before the first frame.
+  void MonitorChanges(const ExtrinsicsMonitorOptions& options);
+
+  // Frames tracked and relocalised so far (all cameras).
+  struct Counts {
+    long long tracked = 0, relocalised = 0, failed = 0;
+    // Frames that came while their camera was relocalising on another
+    // worker: not localised (the frame passes through) rather than
+    // relocalised twice at once.
+    long long skipped = 0;
+    // Frames re-anchoring was due for (LocalizerOptions::min_anchored_fraction):
+    // re-anchored by guided matching (`guided`), else relocalised (in
+    // `relocalised`) or, when that failed too, tracked.
+    long long reanchored = 0;
+    // Frames re-anchored by guided matching (guided_matches.h) and their
+    // Localize time (tracking included); the attempts' stages and figures.
+    long long guided = 0, guided_attempts = 0;
+    double guided_s = 0;
+    double guided_render_s = 0, guided_sift_s = 0, guided_match_s = 0, guided_pnp_s = 0;
+    long long guided_windows = 0 /* map points in view */, guided_matches = 0, guided_inliers = 0;
+    std::string last_guided_failure;
+    // Localize's time (features, matching, PnP) of the frames so counted; a
+    // frame whose tracking failed pays both and counts as relocalised.
+    double tracked_s = 0, relocalised_s = 0, failed_s = 0;
+    // Relocalisations' time by stage (all attempts, successful or not): the
+    // refocused TF render, SIFT, descriptor matching, PnP (LO-RANSAC and
+    // Ceres), and seeding the tracks afterwards.
+    long long relocalise_attempts = 0;
+    double render_s = 0, sift_s = 0, match_s = 0, pnp_s = 0, retrack_s = 0;
+    // Their matches (after the fundamental filter), PnP inliers, and the
+    // matches the fundamental filter removed (FrameRegistrationOptions).
+    long long relocalise_matches = 0, relocalise_inliers = 0, fundamental_outliers = 0;
+    // Predictions corrected by coarse guided matching after tracking failed
+    // (LocalizerOptions::correct_predictions): attempts, successes, time.
+    long long corrections = 0, corrected = 0;
+    double correction_s = 0;
+    // Far frames (LocalizerOptions::min_far_track_success): tracking
+    // attempted, succeeded, and frames relocalised without the attempt.
+    long long far_attempts = 0, far_tracked = 0, far_relocalised = 0;
+    std::string last_correction_failure;
+    std::string last_tracking_failure;  // why the last failed tracking failed
+    // "relocalisations 3, per attempt: render 310 ms, SIFT 420 ms, ...,
+    // inliers 41 % of matches" (means per attempt).
+    std::string StageReport() const;
+  };
+  Counts counts() const;
+
+ private:
+  // The camera's newest poses. Frames of one camera may be localised
+  // concurrently and finish out of order: a frame that reached the host
+  // before the last one that set the state (host_ns) never replaces it. A
+  // frame that reached the host later but has a lower trigger index starts a
+  // new pass (replay --loop numbers its triggers from 0 again): the state is
+  // dropped, the frame relocalised.
+  // A map point followed from frame to frame against a fixed reference:
+  // its patch in the frame where its track began (never re-made where it was
+  // found, so that a frame's tracking error is not added to the next's).
+  struct TrackedPoint {
+    int point = 0;                 // index into map_
+    Eigen::Vector2d tf_px;         // where it was in the camera's last frame
+    std::shared_ptr<const PatchTemplate> patch;  // its appearance where its track began
+    // Begun in a relocalised frame (at its SIFT keypoint or at its projection
+    // from that pose), not in a tracked one (at its projection from a tracked
+    // pose, whose error it then carries on).
+    bool anchored = false;
+  };
+  using Tracks = std::vector<TrackedPoint>;
+  struct CameraState {
+    bool has_pose = false;
+    Pose last = Pose::Identity(), previous = Pose::Identity();
+    std::int64_t last_trigger = -1, previous_trigger = -1;
+    std::int64_t last_host_ns = 0;
+    bool has_previous = false;
+    std::shared_ptr<const Tracks> tracks;  // of the last frame (shared by concurrent frames)
+    bool relocalising = false;  // a worker relocalises this camera now
+    bool reanchor = false;      // the last tracked pose had too few anchored inliers
+    // Prediction for `trigger` (header comment); the last pose without a previous one.
+    Pose Predict(std::int64_t trigger) const;
+  };
+  struct Outcome;  // of one attempt (map_localizer.cpp)
+  Outcome Track(const processing::CameraModel& camera, const processing::TfSampler& sampler,
+                const ConstImageView& raw, const CameraState& state, std::int64_t trigger) const;
+  // The tracks followed from `predicted` with `patches`, then Solve.
+  Outcome TrackFrom(const processing::CameraModel& camera, const processing::TfSampler& sampler,
+                    const ConstImageView& raw, const Tracks& tracks, const Pose& predicted,
+                    const PatchTrackOptions& patches) const;
+  Outcome Relocalise(const processing::CameraModel& camera, const processing::StageFrame& frame,
+                     const processing::TfSampler* sampler, const CameraState& state) const;
+  // PnP on the map points `found` (TF positions, virtual depths v), then the
+  // pose checks (against `predicted` when given) and at least min_inliers;
+  // the inliers kept as they were found (templates, anchored). `what`
+  // begins a failure's status.
+  Outcome Solve(const processing::CameraModel& camera, const processing::TfSampler& sampler,
+                const std::vector<TrackedPoint>& found, const std::vector<double>& v,
+                const std::optional<Pose>& predicted, const std::string& what,
+                int min_inliers) const;
+  // Guided matching (guided_matches.h, `options`) from the pose `guide`, PnP
+  // on the matches, the pose checks (against `guide` when check_jump) and at
+  // least min_inliers: every inlier anchored. Re-anchoring (options_.guided,
+  // from the tracked pose, checked against it) and the correction of a
+  // prediction (options_.coarse, LocalizerOptions::correct_predictions, not
+  // checked against the prediction it corrects).
+  Outcome GuidedSolve(const processing::CameraModel& camera, const processing::TfSampler& sampler,
+                      const ConstImageView& raw, const Pose& guide,
+                      const GuidedMatchOptions& options, bool check_jump, const std::string& what,
+                      int min_inliers) const;
+  // Tracks for the next frame: `kept` (their templates kept when they have
+  // one, else made at their projections from w0_from_cam) and map points in
+  // cells with room, from pose w0_from_cam (anchored when `relocalised`); with
+  // !next_has_velocity new templates get the extra level Track needs then.
+  std::shared_ptr<const Tracks> Retrack(const processing::CameraModel& camera,
+                                        const processing::TfSampler& sampler,
+                                        const ConstImageView& raw, const Pose& w0_from_cam,
+                                        const std::vector<TrackedPoint>& kept,
+                                        bool relocalised, bool next_has_velocity) const;
+
+  MapIndex map_;
+  double map_virtual_depth_ = 3.0;  // median v of the map's keypoints (relocalisation's TF)
+  std::optional<ExtrinsicsMonitor> monitor_;  // Relate's thread only
+  LocalizerOptions options_;
+  mutable std::mutex mutex_;
+  std::condition_variable done_cv_;  // a frame or a relocalisation ended (wait_for_earlier_frames)
+  std::map<std::string, std::multiset<std::int64_t>> in_flight_;  // triggers, per camera
+  std::map<std::string, CameraState> cameras_;
+  // Per camera, kept across relocalisations (LocalizerOptions::min_far_track_success).
+  struct FarTracking {
+    double success = 1;  // running rate of the far frames tracked
+    long long skipped = 0;  // far frames relocalised without an attempt (probes counted)
+  };
+  std::map<std::string, FarTracking> far_;
+  Counts counts_;
+};
+
+// Localizer covariance (pose_covariance.h) -> the stage's convention (comment above).
+Covariance6 ToLeftPerturbationCovariance(const PoseWithCovariance& pose);
+
+}  // namespace lifmcr::registration

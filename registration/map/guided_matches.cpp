@@ -1,0 +1,153 @@
+#include "registration/map/guided_matches.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <string>
+
+namespace lifmcr::registration {
+namespace {
+
+double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+float SquaredDistance(const float* a, const float* b) {
+  float sum = 0;
+  for (int k = 0; k < kDescriptorSize; ++k) {
+    const float d = a[k] - b[k];
+    sum += d * d;
+  }
+  return sum;
+}
+
+}  // namespace
+
+int GuidedMatchOptions::Step(int tf_longer_side_px) const {
+  int step = 1;
+  while (step < max_step && tf_longer_side_px / (step + 1) >= min_side_px) ++step;
+  while (step < 8 && tf_longer_side_px / step > max_side_px) ++step;
+  return step;
+}
+
+Status GuidedMatchOptions::Check() const {
+  if (max_step < 1 || max_step > 4) return Error{"guided matching: max_step: expected 1..4"};
+  if (min_side_px < 64) return Error{"guided matching: min_side_px: expected >= 64"};
+  if (max_side_px < min_side_px)
+    return Error{"guided matching: max_side_px: expected >= min_side_px (" +
+                 std::to_string(min_side_px) + ")"};
+  if (Status s = features.Check(); !s) return Error{"guided matching: " + s.error().message};
+  if (!(radius_px > 0)) return Error{"guided matching: radius_px: expected > 0"};
+  if (!(ratio > 0 && ratio <= 1)) return Error{"guided matching: ratio: expected in (0, 1]"};
+  return Status::Ok();
+}
+
+bool ProjectMapPoint(const processing::CameraModel& camera, const Pose& cam_from_w0,
+                     const Eigen::Vector3d& p_in_w0, Eigen::Vector2d* tf_px, double* v) {
+  const Eigen::Vector3d p = cam_from_w0 * p_in_w0;
+  if (!(p.z() > camera.intrinsics().main_focal_length_mm)) return false;
+  const Eigen::Vector3d virtual_px = camera.Project(p);
+  if (!virtual_px.allFinite() || !(virtual_px.z() > 1)) return false;
+  *tf_px = processing::CameraModel::TfOfRaw(virtual_px.head<2>());
+  *v = virtual_px.z();
+  return true;
+}
+
+GuidedMatches FindGuidedMatches(const MapIndex& map, const processing::CameraModel& camera,
+                                const processing::TfSampler& sampler, const ConstImageView& raw,
+                                const Pose& w0_from_cam, const GuidedMatchOptions& options) {
+  GuidedMatches out;
+  const auto render_start = std::chrono::steady_clock::now();
+  // The map points in view, in a grid of radius_px cells (a keypoint's
+  // candidates are in its cell and the 8 around it).
+  const double w = sampler.tf_width(), h = sampler.tf_height(), cell = options.radius_px;
+  const int grid_w = static_cast<int>(std::ceil(w / cell)),
+            grid_h = static_cast<int>(std::ceil(h / cell));
+  std::vector<std::vector<int>> grid(static_cast<std::size_t>(grid_w) * grid_h);
+  std::vector<Eigen::Vector2d> projected(static_cast<std::size_t>(map.size()));
+  std::vector<double> v(static_cast<std::size_t>(map.size()), 0);
+  const Pose cam_from_w0 = w0_from_cam.inverse();
+  for (int j = 0; j < map.size(); ++j) {
+    if (!ProjectMapPoint(camera, cam_from_w0, map.points_in_w0[j], &projected[j], &v[j])) continue;
+    const Eigen::Vector2d& p = projected[j];
+    if (!(p.x() >= 0 && p.y() >= 0 && p.x() < w && p.y() < h)) continue;
+    grid[static_cast<std::size_t>(p.y() / cell) * grid_w + static_cast<int>(p.x() / cell)]
+        .push_back(j);
+    ++out.in_view;
+  }
+  if (out.in_view == 0) {
+    out.status = "no map point in view";
+    return out;
+  }
+  // Rendered at the median virtual depth of the points in view (as
+  // relocalisation does from the last pose).
+  std::vector<double> in_view_v;
+  for (const std::vector<int>& points : grid)
+    for (const int j : points) in_view_v.push_back(v[j]);
+  std::nth_element(in_view_v.begin(), in_view_v.begin() + in_view_v.size() / 2, in_view_v.end());
+  out.step = options.Step(static_cast<int>(std::max(w, h)));
+  thread_local processing::TfImage rendered;  // reused by the worker's next re-anchoring
+  if (Status s = sampler.RenderAtDepth(raw, in_view_v[in_view_v.size() / 2], out.step, &rendered);
+      !s) {
+    out.status = s.error().message;
+    return out;
+  }
+  out.render_s = SecondsSince(render_start);
+
+  const auto sift_start = std::chrono::steady_clock::now();
+  Features features;
+  if (Status s = DetectSift(rendered.View(), options.features, &features); !s) {
+    out.status = s.error().message;
+    return out;
+  }
+  if (out.step != 1) ScaleKeypoints(out.step, &features);
+  out.keypoints = features.size();
+  out.sift_s = SecondsSince(sift_start);
+
+  // Each keypoint against the map points projected within radius_px; each
+  // map point keeps its best keypoint (a cross check).
+  const auto match_start = std::chrono::steady_clock::now();
+  const double radius2 = options.radius_px * options.radius_px;
+  const float ratio2 = static_cast<float>(options.ratio * options.ratio);
+  struct Best {
+    int keypoint = -1;
+    float distance = std::numeric_limits<float>::infinity();
+  };
+  std::vector<Best> best_of_point(static_cast<std::size_t>(map.size()));
+  for (int i = 0; i < features.size(); ++i) {
+    const Eigen::Vector2d xy = features.keypoints[i].xy_px.cast<double>();
+    const int gx = static_cast<int>(xy.x() / cell), gy = static_cast<int>(xy.y() / cell);
+    int nearest = -1;
+    float d1 = std::numeric_limits<float>::infinity(), d2 = d1;
+    for (int y = std::max(0, gy - 1); y <= std::min(grid_h - 1, gy + 1); ++y)
+      for (int x = std::max(0, gx - 1); x <= std::min(grid_w - 1, gx + 1); ++x)
+        for (const int j : grid[static_cast<std::size_t>(y) * grid_w + x]) {
+          if ((projected[j] - xy).squaredNorm() > radius2) continue;
+          const float d = SquaredDistance(
+              features.Descriptor(i),
+              map.descriptors->data() + static_cast<std::size_t>(j) * kDescriptorSize);
+          if (d < d1) {
+            d2 = d1;
+            d1 = d;
+            nearest = j;
+          } else if (d < d2) {
+            d2 = d;
+          }
+        }
+    if (nearest < 0 || !(d1 < ratio2 * d2)) continue;
+    Best& best = best_of_point[nearest];
+    if (d1 < best.distance) best = {i, d1};
+  }
+  for (int j = 0; j < map.size(); ++j) {
+    const Best& best = best_of_point[j];
+    if (best.keypoint < 0) continue;
+    out.points.push_back(j);
+    out.tf_px.push_back(features.keypoints[best.keypoint].xy_px.cast<double>());
+    out.virtual_depth.push_back(v[j]);
+  }
+  out.match_s = SecondsSince(match_start);
+  return out;
+}
+
+}  // namespace lifmcr::registration

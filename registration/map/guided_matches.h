@@ -1,0 +1,89 @@
+#pragma once
+// Map points found again in a frame whose pose is known to within a few TF
+// pixels (a tracked pose): the live localizer's re-anchoring
+// (registration/live/map_localizer.h), an absolute measurement against the map
+// at a fraction of a relocalisation's cost.
+//
+// A relocalisation knows nothing of the pose: it needs the half-resolution
+// TF image (fine keypoints, enough of them to survive global matching) and
+// a kd-tree search of every keypoint against every map point. With the
+// pose known, each keypoint is compared only with the map points whose
+// projections lie within radius_px of it (a grid of the projections), the
+// ratio test among those: wrong matches are rare without the global
+// search, so the TF grid can be rendered coarser (every step-th pixel,
+// TfSampler::RenderAtDepth at the median predicted virtual depth of the
+// points in view), and SIFT on it costs 1/step^2 of the full grid's.
+// Keypoints keep DetectSift's +1/4 px convention (features.h) mapped to the
+// TF grid by ScaleKeypoints, as relocalisation's do.
+//
+// Tried first and dropped: SIFT on small windows around each projection
+// (rendered at the point's own depth, side by side in one mosaic): the
+// descriptors of keypoints near a window's edge read the neighbouring
+// windows, and on the small rig only 3-29 of 110 windows matched their map
+// point (windows of 16-48 TF px), against ~200 inliers of a relocalisation.
+
+#include "config/error.h"
+#include "config/frames.h"
+#include "config/image.h"
+#include "processing/camera_model.h"
+#include "processing/tf_sampler.h"
+#include "registration/features/features.h"
+#include "registration/map/frame_registration.h"
+
+#include <Eigen/Core>
+
+#include <vector>
+
+namespace lifmcr::registration {
+
+struct GuidedMatchOptions {
+  GuidedMatchOptions() {
+    features.max_features = 1500;
+    features.spread_cells = 4;
+  }
+  // The TF grid is rendered every step-th pixel, the largest step up to
+  // max_step (1..4) that keeps the rendered image's longer side >= min_side_px
+  // (>= 64), raised further (up to 8) while the longer side exceeds
+  // max_side_px (>= min_side_px), so that a larger sensor is matched on an
+  // image of about the size that served medium: small (TF 512 x 384) 2,
+  // medium (1640 x 1237) 3, r32 (3280 x 2474) 5 (656 px). r32, 40 frames
+  // two triggers apart, re-anchorings (4-6 a run): step 3 took 710 ms of
+  // SIFT each (more than a relocalisation's 260 ms at step 4); step 4
+  // 550-625 ms, frames at 2.58 mm median; step 5 170-290 ms, 2.0 mm; step 6
+  // 170-230 ms, 3.1 mm.
+  // Medium, frames 10+ of the drift test (test_map_localizer): step 3 re-anchored
+  // with 256 inliers at 1.74 mm, step 4 with 148 at 3.21 mm (worse than the
+  // tracked pose it replaced, 2.4 mm), step 2 297 at 1.44 mm for the SIFT time
+  // of a relocalisation; 800 keypoints instead of 1500 at step 3: 184 at 2.48 mm.
+  int max_step = 3;
+  int min_side_px = 256;
+  int max_side_px = 700;
+  // The step for a TF grid whose longer side is tf_longer_side_px.
+  int Step(int tf_longer_side_px) const;
+  FeatureOptions features;  // SIFT on the rendered image
+  double radius_px = 6;     // TF px between a keypoint and a map point's projection (> 0)
+  double ratio = 0.8;       // nearest / second nearest among the candidates, (0, 1]
+  Status Check() const;
+};
+
+struct GuidedMatches {
+  std::vector<int> points;             // MapIndex order
+  std::vector<Eigen::Vector2d> tf_px;  // the matched keypoints (TF px)
+  std::vector<double> virtual_depth;   // the map point's predicted virtual depth
+  int in_view = 0;                     // map points projected into the image
+  int keypoints = 0;
+  int step = 0;  // TF px per rendered pixel
+  double render_s = 0, sift_s = 0, match_s = 0;
+  std::string status = "ok";  // or why nothing could be matched
+};
+
+// The map point's TF position and virtual depth in a camera at cam_from_w0;
+// false behind the front focal plane.
+bool ProjectMapPoint(const processing::CameraModel& camera, const Pose& cam_from_w0,
+                     const Eigen::Vector3d& p_in_w0, Eigen::Vector2d* tf_px, double* v);
+
+GuidedMatches FindGuidedMatches(const MapIndex& map, const processing::CameraModel& camera,
+                                const processing::TfSampler& sampler, const ConstImageView& raw,
+                                const Pose& w0_from_cam, const GuidedMatchOptions& options);
+
+}  // namespace lifmcr::registration
