@@ -32,6 +32,8 @@ CommandRun AddDepthCommand(CLI::App& app);
 CommandRun AddEvaluateCommand(CLI::App& app);
 CommandRun AddCalibrateCommand(CLI::App& app);
 CommandRun AddRegisterCommand(CLI::App& app);
+// `lifmcr batch plan|run|status|merge` (apps/cmd_batch.cpp, batch/).
+CommandRun AddBatchCommand(CLI::App& app);
 
 // `lifmcr replay SEQ` with its defaults otherwise, for `lifmcr demo`; the
 // second form with live registration (registration_args.h; empty: none).

@@ -57,6 +57,10 @@ int main(int argc, char** argv) {
       lifmcr::apps::AddCalibrateCommand);
   add("register", "Register every camera to camera 0's reference map: c0_from_cx per frame",
       lifmcr::apps::AddRegisterCommand);
+  add("batch",
+      "A whole dataset as resumable units of work for Slurm job arrays or GNU parallel: plan, "
+      "run a shard, status, merge",
+      lifmcr::apps::AddBatchCommand);
 
   try {
     app.parse(argc, argv);

@@ -9,7 +9,8 @@
 #   for calibration/registration), Ceres (bundle adjustment), Eigen, TBB, spdlog,
 #   yaml-cpp, CLI11, nlohmann-json, tinyxml2, GoogleTest/GoogleMock, Aravis and
 #   libusb (GenICam cameras), LCM with Java and jchart2d (lcm-gen, lcm-logger,
-#   the lcm-spy jar), iproute2 and procps (loopback multicast, sysctl).
+#   the lcm-spy jar), iproute2 and procps (loopback multicast, sysctl), slurm-wlm,
+#   munge and GNU parallel (batch plans run by a Slurm job array and by parallel).
 #   LIFMCR_BUILD_DIR   build folder (default: build)
 #   LIFMCR_BUILD_TYPE  CMake build type (default: Release)
 set -euo pipefail
@@ -28,6 +29,7 @@ packages=(
   libaravis-dev aravis-tools aravis-tools-cli libusb-1.0-0-dev
   liblcm-dev liblcm-bin liblcm-java libjchart2d-java default-jdk-headless
   iproute2 procps
+  slurm-wlm munge parallel  # batch plans on a Slurm job array and GNU parallel (tests/batch/test_cluster.cpp)
   clang libfuzzer-14-dev python3  # the libFuzzer pass of scripts/test.sh; bench/fuzz.sh, bench/soak.sh
 )
 
