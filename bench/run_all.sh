@@ -42,7 +42,7 @@ build=${LIFMCR_BUILD_DIR:-build}
 bench=$build/bench
 lifmcr=$build/apps/lifmcr
 for b in bench_bmp bench_sync bench_pnp bench_lcm_sizes bench_scene bench_render bench_depth \
-  bench_record bench_pipeline bench_live bench_calibrate bench_depth_bias; do
+  bench_record bench_pipeline bench_live bench_calibrate bench_depth_bias bench_batch; do
   [[ -x $bench/$b ]] || { echo "run_all.sh: $bench/$b missing: build first (scripts/setup.sh)" >&2; exit 2; }
 done
 [[ -x $lifmcr ]] || { echo "run_all.sh: $lifmcr missing: build first" >&2; exit 2; }
@@ -235,6 +235,18 @@ base=$(sed -n 's/.*baseline median |error| \([0-9.]* %\).*/\1/p' "$logs/bench_de
 ratio=$(sed -n 's/.*baseline median |error| .*: ratio \([-0-9.a-z]*\).*/\1/p' "$logs/bench_depth_bias.log")
 row bench_depth_bias "virtual depth bias ($preset frame), as the B a calibration is pulled to" "$fit" \
   "median per-pixel |error|" "$base" "$ratio"
+
+# --- bench_batch
+if [[ $quick == 1 ]]; then args=(--preset small --frames 4 --repeat 1); else args=(); fi
+run bench_batch "$logs/bench_batch.log" "$bench/bench_batch" "${args[@]}"
+t2=$(sed -n 's/^2 shards on 2 cores \([0-9.]*\) s against.*/\1/p' "$logs/bench_batch.log")
+t1=$(sed -n 's/^2 shards on 2 cores .* against 1 shard on 1 core \([0-9.]*\) s.*/\1/p' "$logs/bench_batch.log")
+speedup=$(sed -n 's/^2 shards on 2 cores .*: \([0-9.]*x\) (goal.*/\1/p' "$logs/bench_batch.log")
+row bench_batch "depth plan, 2 shards on 2 cores, s" "$t2" "1 shard on 1 core, s" "$t1" "$speedup"
+bare=$(sed -n 's/^[0-9]* units; fastest of [0-9]*: bare commands \([0-9.]*\) s.*/\1/p' "$logs/bench_batch.log")
+one=$(sed -n 's/^[0-9]* units; .* batch run 1 shard \([0-9.]*\) s$/\1/p' "$logs/bench_batch.log")
+over=$(sed -n 's/^overhead of batch run: .*, \([-+0-9.]* %\) of wall time.*/\1/p' "$logs/bench_batch.log")
+row bench_batch "batch run of the depth plan, 1 shard, s" "$one" "the bare commands, s" "$bare" "$over"
 
 # --- bench/fuzz.sh and bench/soak.sh (full run only)
 if [[ $quick == 1 ]]; then
