@@ -11,6 +11,8 @@
 #   the lcm-spy jar), iproute2 and procps (loopback multicast, sysctl).
 #   LIFMCR_BUILD_DIR   build folder (default: build)
 #   LIFMCR_BUILD_TYPE  CMake build type (default: Release)
+#   LIFMCR_BUILD_TARGETS  the targets to build, space-separated (default: all;
+#                      scripts/demo.sh builds only `lifmcr`)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -82,7 +84,9 @@ if [[ ! -f "$build_dir/CMakeCache.txt" ]]; then
     exit 1
   fi
 fi
-if ! cmake --build "$build_dir" -j "$jobs" >"$log" 2>&1; then
+targets=()
+for t in ${LIFMCR_BUILD_TARGETS:-}; do targets+=(--target "$t"); done
+if ! cmake --build "$build_dir" -j "$jobs" "${targets[@]}" >"$log" 2>&1; then
   grep -v -E '^\[ *[0-9]+%\]' "$log" | tail -n 80 >&2
   echo "setup.sh: build failed; full log in $log" >&2
   exit 1
