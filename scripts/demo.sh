@@ -14,5 +14,7 @@ if [[ "${1:-}" == -h || "${1:-}" == --help ]]; then
 fi
 cd "$(dirname "$0")/.."
 build_dir=${LIFMCR_BUILD_DIR:-build}
-scripts/setup.sh
+# The demo runs the `lifmcr` binary alone: its target, not the tests and
+# benchmarks (scripts/test.sh builds everything).
+LIFMCR_BUILD_TARGETS=${LIFMCR_BUILD_TARGETS:-lifmcr} scripts/setup.sh
 exec "$build_dir/apps/lifmcr" demo "$@"

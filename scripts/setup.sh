@@ -13,6 +13,8 @@
 #   munge and GNU parallel (batch plans run by a Slurm job array and by parallel).
 #   LIFMCR_BUILD_DIR   build folder (default: build)
 #   LIFMCR_BUILD_TYPE  CMake build type (default: Release)
+#   LIFMCR_BUILD_TARGETS  the targets to build, space-separated (default: all;
+#                      scripts/demo.sh builds only `lifmcr`)
 set -euo pipefail
 # --help: the header above, nothing else run.
 if [[ "${1:-}" == -h || "${1:-}" == --help ]]; then
@@ -90,7 +92,9 @@ if [[ ! -f "$build_dir/CMakeCache.txt" ]]; then
     exit 1
   fi
 fi
-if ! cmake --build "$build_dir" -j "$jobs" >"$log" 2>&1; then
+targets=()
+for t in ${LIFMCR_BUILD_TARGETS:-}; do targets+=(--target "$t"); done
+if ! cmake --build "$build_dir" -j "$jobs" "${targets[@]}" >"$log" 2>&1; then
   grep -v -E '^\[ *[0-9]+%\]' "$log" | tail -n 80 >&2
   echo "setup.sh: build failed; full log in $log" >&2
   exit 1
