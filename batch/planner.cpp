@@ -381,7 +381,9 @@ Expected<Plan> MakePlan(const PlanOptions& o) {
             const std::string stem =
                 name.substr(0, name.size() - std::string("_virtual_depth.tiff").size());
             std::vector<std::string> suffixes = {"_virtual_depth.tiff", "_virtual_depth_tf.tiff",
-                                                 "_confidence.tiff", "_tf.png", "_depth.png"};
+                                                 "_confidence.tiff",    "_tf.png",
+                                                 "_depth.png",          "_lens_depth.csv",
+                                                 "_lens_depth.tiff",    "_lens_tf.png"};
             if (!intrinsics_args.empty()) {
               suffixes.push_back("_depth_mm.tiff");
               suffixes.push_back("_points.ply");

@@ -178,7 +178,7 @@ TEST(Plan, DepthUnitsCoverEveryFrameOfEveryCameraOnce) {
                                              "6",
                                              "--no-white"};
   EXPECT_EQ(u.command, expected);
-  EXPECT_EQ(u.writes.size(), 5u);  // no intrinsics: no metric depth or cloud
+  EXPECT_EQ(u.writes.size(), 8u);  // no intrinsics: no metric depth or cloud
   EXPECT_EQ(u.writes[0], "units/00_Scene/Seq_A/111/000006-000006/111_000006_virtual_depth.tiff");
   std::set<std::string> frames;
   for (const Unit& unit : plan->units)
@@ -197,7 +197,7 @@ TEST(Plan, DepthUnitsCoverEveryFrameOfEveryCameraOnce) {
   EXPECT_EQ(plan->units[0].id, "00_Scene/Seq_B/222");
   EXPECT_NE(std::find(plan->units[0].command.begin(), plan->units[0].command.end(), "--all-frames"),
             plan->units[0].command.end());
-  EXPECT_EQ(plan->units[0].writes.size(), 5u * 7u);
+  EXPECT_EQ(plan->units[0].writes.size(), 8u * 7u);
 
   o.dataset = (dir / "nowhere").string();
   plan = MakePlan(o);

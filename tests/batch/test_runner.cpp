@@ -74,7 +74,7 @@ TEST(BatchRun, RecordsSkipsAndRedoesWhatNoLongerVerifies) {
   for (const auto& [id, e] : entries) {
     EXPECT_EQ(e.state, UnitState::kDone) << id << ": " << e.BriefReport();
     EXPECT_EQ(e.attempt, 1);
-    EXPECT_EQ(e.outputs.size(), 5u);  // no intrinsics: 3 TIFFs, 2 PNGs
+    EXPECT_EQ(e.outputs.size(), 8u);  // no intrinsics: 3 TIFFs, 2 PNGs, the per-lens CSV, TIFF, PNG
     EXPECT_GT(e.peak_rss_kib, 0);
     EXPECT_TRUE(fs::is_regular_file(plan / e.log));
   }
@@ -119,7 +119,7 @@ TEST(BatchRun, RecordsSkipsAndRedoesWhatNoLongerVerifies) {
   ASSERT_TRUE(merged) << merged.error().message;
   EXPECT_EQ(merged->merged, 4);
   const std::string index = lifmcr::test::ReadFile(plan / "merged/outputs.csv");
-  EXPECT_EQ(std::count(index.begin(), index.end(), '\n'), 1 + 4 * 5);
+  EXPECT_EQ(std::count(index.begin(), index.end(), '\n'), 1 + 4 * 8);
 }
 
 TEST(BatchRun, FailuresKeepTheirMessageAndLogAndWaitingUnitsDoNotRun) {
