@@ -30,6 +30,10 @@ struct RawGrey {
   const ConstImageView& raw;
   const float* gain;
   int width;
+  // The strips of discs well inside the frame (epipolar_search.h); null:
+  // through operator() below.
+  const detail::StripKernels* kernels = nullptr;
+  detail::StripSource source{};
   // The raw grey level (channel sum) at an integer pixel, without the gain.
   int RawSum(int x, int y) const {
     const std::uint8_t* p = raw.Row(y) + x * kChannels;
@@ -439,10 +443,20 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out) const
                         estimated += my_estimated;
                       });
   };
+  // The kernels address the frame with 32-bit byte offsets.
+  const bool addressable =
+      static_cast<double>(raw.stride_bytes) * raw.height < 2147483648.0 && raw.stride_bytes > 0;
+  const detail::StripKernels* kernels =
+      !addressable          ? nullptr
+      : options_.simd ? &detail::SimdStripKernels()
+                      : &detail::ScalarStripKernels();
+  const detail::StripSource source{raw.data, raw.stride_bytes,
+                                   raw.format == PixelFormat::kBgr8 ? 3 : 1, f.gain.data(),
+                                   f.width};
   if (raw.format == PixelFormat::kBgr8)
-    run(RawGrey<3>{raw, f.gain.data(), f.width});
+    run(RawGrey<3>{raw, f.gain.data(), f.width, kernels, source});
   else
-    run(RawGrey<1>{raw, f.gain.data(), f.width});
+    run(RawGrey<1>{raw, f.gain.data(), f.width, kernels, source});
   LensDepthStats& st = out->stats;
   st = LensDepthStats{};
   st.lenses = static_cast<long long>(f.lenses.size());

@@ -86,6 +86,9 @@ struct LensDepthOptions {
   double fuse_gate = 0.05;      // outlier gate of the fusion, share of z
   int min_estimates = 2;        // agreeing estimates per micro image
   double max_rel_sigma = 0.1;   // sigma_z / z above this: rejected
+  // The strip sampling and SSD of the searches through Highway's runtime
+  // dispatch (processing/lens_search_simd.h); false: the scalar reference.
+  bool simd = true;
   Status Check() const;         // every field; the message names the field
 };
 

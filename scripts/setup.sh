@@ -22,7 +22,7 @@ cd "$(dirname "$0")/.."
 
 packages=(
   build-essential cmake pkg-config ccache git
-  libeigen3-dev libopencv-dev libopencv-contrib-dev libceres-dev libtbb-dev
+  libeigen3-dev libopencv-dev libopencv-contrib-dev libceres-dev libtbb-dev libhwy-dev
   libspdlog-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev libtinyxml2-dev
   libgtest-dev libgmock-dev
   libaravis-dev aravis-tools aravis-tools-cli libusb-1.0-0-dev

@@ -1,0 +1,206 @@
+// The per-lens search's strip kernels (lens_search_simd.h): the scalar
+// reference and Highway's, compiled once per target by foreach_target.h.
+
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "processing/lens_search_simd.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+// foreach_target.h first: it re-includes this file once per target.
+#include <hwy/highway.h>
+
+#include "processing/lens_search_simd.h"
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+HWY_BEFORE_NAMESPACE();
+namespace lifmcr::processing::detail {
+namespace HWY_NAMESPACE {
+namespace hn = hwy::HWY_NAMESPACE;
+
+// The raw pixels' channel sums at (x0, y0 + row) and (x0 + 1, y0 + row) of
+// each lane, from 32-bit loads at byte offsets (unaligned; the gather reads
+// bytes, no lane reads past the next row's start: lens_search_simd.h's
+// precondition). BGR: the word at 3 x0 holds B G R of x0 in its low three
+// bytes, the word at 3 x0 + 2 those of x0 + 1 in its high three.
+template <int kChannels, class DU, class VI>
+HWY_INLINE void ChannelSums(DU du, const std::uint32_t* base, VI offset, hn::Vec<DU>* s0,
+                            hn::Vec<DU>* s1) {
+  const auto mask = hn::Set(du, 0xFFu);
+  const auto w0 = hn::GatherOffset(du, base, offset);
+  if constexpr (kChannels == 3) {
+    const auto w1 = hn::GatherOffset(du, base, hn::Add(offset, hn::Set(hn::RebindToSigned<DU>(), 2)));
+    *s0 = hn::Add(hn::Add(hn::And(w0, mask), hn::And(hn::ShiftRight<8>(w0), mask)),
+                  hn::And(hn::ShiftRight<16>(w0), mask));
+    *s1 = hn::Add(hn::Add(hn::And(hn::ShiftRight<8>(w1), mask), hn::And(hn::ShiftRight<16>(w1), mask)),
+                  hn::ShiftRight<24>(w1));
+  } else {
+    *s0 = hn::And(w0, mask);
+    *s1 = hn::And(hn::ShiftRight<8>(w0), mask);
+  }
+}
+
+template <int kChannels>
+void SampleLine(const StripSource& src, const StripLine& l, float* out) {
+  const hn::ScalableTag<float> df;
+  const hn::RebindToSigned<decltype(df)> di;
+  const hn::RebindToUnsigned<decltype(df)> du;
+  const int lanes = static_cast<int>(hn::Lanes(df));
+  const auto nan = hn::Set(df, std::numeric_limits<float>::quiet_NaN());
+  const auto px = hn::Set(df, l.px), py = hn::Set(df, l.py);
+  const auto ex = hn::Set(df, l.e_x), ey = hn::Set(df, l.e_y);
+  const auto bey = hn::Set(df, l.b_ey), bex = hn::Set(df, l.b_ex);
+  const auto along0 = hn::Set(df, l.along0), step = hn::Set(df, l.step);
+  const auto one = hn::Set(df, 1.0f), inv = hn::Set(df, 1.0f / kChannels);
+  const auto j_lo = hn::Set(di, l.j_lo), j_hi = hn::Set(di, l.j_hi);
+  // Highway 1.0.3 compares signed integers with Lt / Gt only.
+  const auto below_lo = hn::Set(di, l.j_lo - 1), above_hi = hn::Set(di, l.j_hi + 1);
+  const auto stride = hn::Set(di, static_cast<std::int32_t>(src.stride_bytes));
+  const auto width = hn::Set(di, src.width);
+  const auto* base = reinterpret_cast<const std::uint32_t*>(src.raw);
+  for (int i = 0; i < l.n; i += lanes) {
+    const auto j = hn::Sub(hn::Set(di, l.n - 1 - i), hn::Iota(di, 0));
+    const auto valid = hn::And(hn::Gt(j, below_lo), hn::Lt(j, above_hi));
+    if (hn::AllFalse(di, valid)) {
+      hn::StoreU(nan, df, out + i);
+      continue;
+    }
+    // Lanes outside [j_lo, j_hi] read at a valid position and are discarded.
+    const auto jc = hn::Min(hn::Max(j, j_lo), j_hi);
+    const auto t = hn::Add(along0, hn::Mul(hn::ConvertTo(df, jc), step));
+    const auto x = hn::Sub(hn::Add(px, hn::Mul(t, ex)), bey);
+    const auto y = hn::Add(hn::Add(py, hn::Mul(t, ey)), bex);
+    const auto x0 = hn::ConvertTo(di, x);  // truncation: x, y >= 0
+    const auto y0 = hn::ConvertTo(di, y);
+    const auto fx = hn::Sub(x, hn::ConvertTo(df, x0));
+    const auto fy = hn::Sub(y, hn::ConvertTo(df, y0));
+    const auto row0 = hn::Mul(y0, stride);
+    const auto col = kChannels == 3 ? hn::Add(hn::Add(x0, x0), x0) : x0;
+    hn::Vec<decltype(du)> s00, s01, s10, s11;
+    ChannelSums<kChannels>(du, base, hn::Add(row0, col), &s00, &s01);
+    ChannelSums<kChannels>(du, base, hn::Add(hn::Add(row0, stride), col), &s10, &s11);
+    const auto g = hn::Add(hn::Mul(y0, width), x0);
+    const auto g1 = hn::Add(g, width);
+    const auto a = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s00)), hn::GatherIndex(df, src.gain, g));
+    const auto b = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s01)),
+                           hn::GatherIndex(df, src.gain, hn::Add(g, hn::Set(di, 1))));
+    const auto c = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s10)), hn::GatherIndex(df, src.gain, g1));
+    const auto d = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s11)),
+                           hn::GatherIndex(df, src.gain, hn::Add(g1, hn::Set(di, 1))));
+    const auto top = hn::Add(a, hn::Mul(hn::Sub(b, a), fx));
+    const auto bottom = hn::Add(c, hn::Mul(hn::Sub(d, c), fx));
+    const auto v = hn::Mul(hn::Add(hn::Mul(top, hn::Sub(one, fy)), hn::Mul(bottom, fy)), inv);
+    hn::StoreU(hn::IfThenElse(hn::RebindMask(df, valid), v, nan), df, out + i);
+  }
+}
+
+void SampleStripLine(const StripSource& source, const StripLine& line, float* out) {
+  if (source.channels == 3)
+    SampleLine<3>(source, line, out);
+  else
+    SampleLine<1>(source, line, out);
+}
+
+void StripCosts(const float* const* lines, int n_lines, const float* ref, int spp, int steps,
+                float* cost) {
+  const hn::ScalableTag<float> df;
+  const int lanes = static_cast<int>(hn::Lanes(df));
+  for (int k = 0; k < steps; k += lanes) {
+    auto acc = hn::Zero(df);
+    for (int b = 0; b < n_lines; ++b)
+      for (int a = -2; a <= 2; ++a) {
+        const auto d = hn::Sub(hn::LoadU(df, lines[b] + (2 - a) * spp + k),
+                               hn::Set(df, ref[b * 5 + a + 2]));
+        acc = hn::Add(acc, hn::Mul(d, d));
+      }
+    hn::StoreU(acc, df, cost + k);
+  }
+}
+
+}  // namespace HWY_NAMESPACE
+}  // namespace lifmcr::processing::detail
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace lifmcr::processing::detail {
+
+HWY_EXPORT(SampleStripLine);
+HWY_EXPORT(StripCosts);
+
+namespace {
+
+template <int kChannels>
+void ScalarLine(const StripSource& src, const StripLine& l, float* out) {
+  for (int i = 0; i < l.n; ++i) {
+    const int j = l.n - 1 - i;
+    if (j < l.j_lo || j > l.j_hi) {
+      out[i] = std::numeric_limits<float>::quiet_NaN();
+      continue;
+    }
+    const float t = l.along0 + j * l.step;
+    const float x = l.px + t * l.e_x - l.b_ey, y = l.py + t * l.e_y + l.b_ex;
+    const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+    const float fx = x - x0, fy = y - y0;
+    const std::uint8_t* q0 = src.raw + static_cast<std::size_t>(y0) * src.stride_bytes + x0 * kChannels;
+    const std::uint8_t* q1 = q0 + src.stride_bytes;
+    const float* g0 = src.gain + static_cast<std::size_t>(y0) * src.width + x0;
+    const float* g1 = g0 + src.width;
+    int s00 = q0[0], s01 = q0[kChannels], s10 = q1[0], s11 = q1[kChannels];
+    if constexpr (kChannels == 3) {
+      s00 += q0[1] + q0[2];
+      s01 += q0[4] + q0[5];
+      s10 += q1[1] + q1[2];
+      s11 += q1[4] + q1[5];
+    }
+    const float a = static_cast<float>(s00) * g0[0], b = static_cast<float>(s01) * g0[1],
+                c = static_cast<float>(s10) * g1[0], d = static_cast<float>(s11) * g1[1];
+    out[i] = ((a + (b - a) * fx) * (1 - fy) + (c + (d - c) * fx) * fy) * (1.0f / kChannels);
+  }
+}
+
+void ScalarSampleStripLine(const StripSource& source, const StripLine& line, float* out) {
+  if (source.channels == 3)
+    ScalarLine<3>(source, line, out);
+  else
+    ScalarLine<1>(source, line, out);
+}
+
+void ScalarStripCosts(const float* const* lines, int n_lines, const float* ref, int spp, int steps,
+                      float* cost) {
+  for (int k = 0; k < steps; ++k) cost[k] = 0;
+  for (int b = 0; b < n_lines; ++b)
+    for (int a = -2; a <= 2; ++a) {
+      const float r = ref[b * 5 + a + 2];
+      const float* line = lines[b] + (2 - a) * spp;
+      for (int k = 0; k < steps; ++k) {
+        const float d = line[k] - r;
+        cost[k] += d * d;
+      }
+    }
+}
+
+void DispatchedSample(const StripSource& source, const StripLine& line, float* out) {
+  HWY_DYNAMIC_DISPATCH(SampleStripLine)(source, line, out);
+}
+
+void DispatchedCosts(const float* const* lines, int n_lines, const float* ref, int spp, int steps,
+                     float* cost) {
+  HWY_DYNAMIC_DISPATCH(StripCosts)(lines, n_lines, ref, spp, steps, cost);
+}
+
+}  // namespace
+
+const StripKernels& ScalarStripKernels() {
+  static const StripKernels kernels{ScalarSampleStripLine, ScalarStripCosts, "scalar"};
+  return kernels;
+}
+
+const StripKernels& SimdStripKernels() {
+  // The target this CPU runs (hwy/targets.h): the best one compiled in.
+  static const StripKernels kernels{DispatchedSample, DispatchedCosts,
+                                    hwy::TargetName(hwy::SupportedAndGeneratedTargets()[0])};
+  return kernels;
+}
+
+}  // namespace lifmcr::processing::detail
+#endif  // HWY_ONCE
