@@ -190,6 +190,9 @@ class LensDepthEstimator {
   LensGrid grid_;
   std::unique_ptr<detail::TfKernel> kernel_;
   std::vector<std::array<std::int16_t, 2>> candidates_;  // offsets of step 1
+  // The same as columns for the gate kernel (lens_search_simd.h), padded.
+  std::vector<std::int32_t> candidate_dx_, candidate_dy_;
+  int candidate_reach_ = 0;
   std::unique_ptr<LatticeTables> tables_;
 };
 

@@ -117,6 +117,66 @@ void StripCosts(const float* const* lines, int n_lines, const float* ref, int sp
   }
 }
 
+// The channel sum of the pixel at each lane's byte offset: the low byte
+// (Mono8) or the low three bytes (BGR8) of the 32-bit word there.
+template <int kChannels, class DU, class VI>
+HWY_INLINE hn::Vec<DU> PixelSum(DU du, const std::uint32_t* base, VI offset) {
+  const auto mask = hn::Set(du, 0xFFu);
+  const auto w = hn::GatherOffset(du, base, offset);
+  if constexpr (kChannels == 3)
+    return hn::Add(hn::Add(hn::And(w, mask), hn::And(hn::ShiftRight<8>(w), mask)),
+                   hn::And(hn::ShiftRight<16>(w), mask));
+  return hn::And(w, mask);
+}
+
+template <int kChannels>
+void Scores(const StripSource& src, int cx, int cy, const std::int32_t* dx, const std::int32_t* dy,
+            int n, float to_grey, const float* axis_x, const float* axis_y, unsigned axis_mask,
+            float* score, std::int32_t* axis) {
+  const hn::ScalableTag<float> df;
+  const hn::RebindToSigned<decltype(df)> di;
+  const hn::RebindToUnsigned<decltype(df)> du;
+  const int lanes = static_cast<int>(hn::Lanes(df));
+  const auto* base = reinterpret_cast<const std::uint32_t*>(src.raw);
+  const auto stride = hn::Set(di, static_cast<std::int32_t>(src.stride_bytes));
+  const auto centre =
+      hn::Set(di, static_cast<std::int32_t>(cy * static_cast<std::int64_t>(src.stride_bytes) +
+                                            static_cast<std::int64_t>(cx) * kChannels));
+  const auto step = hn::Set(di, kChannels);
+  const auto scale = hn::Set(df, to_grey);
+  for (int q = 0; q < n; q += lanes) {
+    const auto ox = hn::LoadU(di, dx + q), oy = hn::LoadU(di, dy + q);
+    // Lanes past n read the centre pixel and are not stored past n's padding.
+    const auto at = hn::Add(centre, hn::Add(hn::Mul(oy, stride), hn::Mul(ox, step)));
+    const auto right = PixelSum<kChannels>(du, base, hn::Add(at, step));
+    const auto left = PixelSum<kChannels>(du, base, hn::Sub(at, step));
+    const auto down = PixelSum<kChannels>(du, base, hn::Add(at, stride));
+    const auto up = PixelSum<kChannels>(du, base, hn::Sub(at, stride));
+    const auto gx = hn::Mul(scale, hn::ConvertTo(df, hn::Sub(hn::BitCast(di, right), hn::BitCast(di, left))));
+    const auto gy = hn::Mul(scale, hn::ConvertTo(df, hn::Sub(hn::BitCast(di, down), hn::BitCast(di, up))));
+    auto best = hn::Zero(df);
+    auto best_axis = hn::Zero(di);
+    for (int d = 0; d < 3; ++d) {
+      if (!((axis_mask >> d) & 1u)) continue;
+      const auto g = hn::Abs(hn::Add(hn::Mul(gx, hn::Set(df, axis_x[d])), hn::Mul(gy, hn::Set(df, axis_y[d]))));
+      const auto larger = hn::Gt(g, best);
+      best = hn::IfThenElse(larger, g, best);
+      best_axis = hn::IfThenElse(hn::RebindMask(di, larger), hn::Set(di, d), best_axis);
+    }
+    hn::StoreU(best, df, score + q);
+    hn::StoreU(best_axis, di, axis + q);
+  }
+}
+
+void CandidateScores(const StripSource& source, int cx, int cy, const std::int32_t* dx,
+                     const std::int32_t* dy, int n, float to_grey, const float* axis_x,
+                     const float* axis_y, unsigned axis_mask, float* score, std::int32_t* axis) {
+  if (source.channels == 3)
+    Scores<3>(source, cx, cy, dx, dy, n, to_grey, axis_x, axis_y, axis_mask, score, axis);
+  else
+    Scores<1>(source, cx, cy, dx, dy, n, to_grey, axis_x, axis_y, axis_mask, score, axis);
+}
+
 }  // namespace HWY_NAMESPACE
 }  // namespace lifmcr::processing::detail
 HWY_AFTER_NAMESPACE();
@@ -126,6 +186,7 @@ namespace lifmcr::processing::detail {
 
 HWY_EXPORT(SampleStripLine);
 HWY_EXPORT(StripCosts);
+HWY_EXPORT(CandidateScores);
 
 namespace {
 
@@ -179,6 +240,51 @@ void ScalarStripCosts(const float* const* lines, int n_lines, const float* ref, 
     }
 }
 
+template <int kChannels>
+void ScalarScoresOf(const StripSource& src, int cx, int cy, const std::int32_t* dx,
+                    const std::int32_t* dy, int n, float to_grey, const float* axis_x,
+                    const float* axis_y, unsigned axis_mask, float* score, std::int32_t* axis) {
+  auto sum = [&](int x, int y) {
+    const std::uint8_t* p = src.raw + static_cast<std::size_t>(y) * src.stride_bytes + x * kChannels;
+    if constexpr (kChannels == 3) return p[0] + p[1] + p[2];
+    return static_cast<int>(p[0]);
+  };
+  for (int q = 0; q < n; ++q) {
+    const int x = cx + dx[q], y = cy + dy[q];
+    const float gx = to_grey * static_cast<float>(sum(x + 1, y) - sum(x - 1, y));
+    const float gy = to_grey * static_cast<float>(sum(x, y + 1) - sum(x, y - 1));
+    float best = 0;
+    int best_axis = 0;
+    for (int d = 0; d < 3; ++d) {
+      if (!((axis_mask >> d) & 1u)) continue;
+      const float g = std::abs(gx * axis_x[d] + gy * axis_y[d]);
+      if (g > best) {
+        best = g;
+        best_axis = d;
+      }
+    }
+    score[q] = best;
+    axis[q] = best_axis;
+  }
+}
+
+void ScalarCandidateScores(const StripSource& source, int cx, int cy, const std::int32_t* dx,
+                           const std::int32_t* dy, int n, float to_grey, const float* axis_x,
+                           const float* axis_y, unsigned axis_mask, float* score,
+                           std::int32_t* axis) {
+  if (source.channels == 3)
+    ScalarScoresOf<3>(source, cx, cy, dx, dy, n, to_grey, axis_x, axis_y, axis_mask, score, axis);
+  else
+    ScalarScoresOf<1>(source, cx, cy, dx, dy, n, to_grey, axis_x, axis_y, axis_mask, score, axis);
+}
+
+void DispatchedScores(const StripSource& source, int cx, int cy, const std::int32_t* dx,
+                      const std::int32_t* dy, int n, float to_grey, const float* axis_x,
+                      const float* axis_y, unsigned axis_mask, float* score, std::int32_t* axis) {
+  HWY_DYNAMIC_DISPATCH(CandidateScores)(source, cx, cy, dx, dy, n, to_grey, axis_x, axis_y,
+                                        axis_mask, score, axis);
+}
+
 void DispatchedSample(const StripSource& source, const StripLine& line, float* out) {
   HWY_DYNAMIC_DISPATCH(SampleStripLine)(source, line, out);
 }
@@ -191,13 +297,14 @@ void DispatchedCosts(const float* const* lines, int n_lines, const float* ref, i
 }  // namespace
 
 const StripKernels& ScalarStripKernels() {
-  static const StripKernels kernels{ScalarSampleStripLine, ScalarStripCosts, "scalar"};
+  static const StripKernels kernels{ScalarSampleStripLine, ScalarStripCosts, ScalarCandidateScores,
+                                    "scalar"};
   return kernels;
 }
 
 const StripKernels& SimdStripKernels() {
   // The target this CPU runs (hwy/targets.h): the best one compiled in.
-  static const StripKernels kernels{DispatchedSample, DispatchedCosts,
+  static const StripKernels kernels{DispatchedSample, DispatchedCosts, DispatchedScores,
                                     hwy::TargetName(hwy::SupportedAndGeneratedTargets()[0])};
   return kernels;
 }

@@ -1,8 +1,9 @@
 #pragma once
-// The hot loop of the per-lens search (processing/lens_depth.h, through
+// The hot loops of the per-lens search (processing/lens_depth.h, through
 // MatchAlong of processing/epipolar_search.h): sampling the neighbour's
 // strip lines bilinearly from the raw pixels times the devignetting gain,
-// and the SSD of the reference patch at every candidate disparity.
+// the SSD of the reference patch at every candidate disparity, and the
+// candidate gate's gradients.
 // Two implementations with one contract: the scalar reference and Google
 // Highway's (runtime dispatch to the best target the CPU runs: SSE4, AVX2,
 // AVX-512 on x86, NEON on ARM). Both evaluate the same float expressions in
@@ -57,9 +58,23 @@ using SampleStripLineFn = void (*)(const StripSource& source, const StripLine& l
 using StripCostsFn = void (*)(const float* const* lines, int n_lines, const float* ref, int spp,
                               int steps, float* cost);
 
+// The candidate gate of one micro image (lens_depth.h, step 1): for each of
+// the n candidates q at (x, y) = (cx + dx[q], cy + dy[q]), with S the raw
+// channel sum,
+//   gx = to_grey (S(x + 1, y) - S(x - 1, y)),  gy = to_grey (S(x, y + 1) - S(x, y - 1)),
+//   g_d = |gx axis_x[d] + gy axis_y[d]|  for the axes d = 0..2 with bit d of axis_mask,
+// score[q] = the largest g_d above 0 (0 if none) and axis[q] the first d
+// reaching it. Precondition: every (x, y) in [2, width - 3] x [2, rows - 3],
+// rows * stride_bytes < 2^31; dx, dy, score, axis hold n + kStripPad entries.
+using CandidateScoresFn = void (*)(const StripSource& source, int cx, int cy, const std::int32_t* dx,
+                                   const std::int32_t* dy, int n, float to_grey,
+                                   const float* axis_x, const float* axis_y, unsigned axis_mask,
+                                   float* score, std::int32_t* axis);
+
 struct StripKernels {
   SampleStripLineFn sample = nullptr;
   StripCostsFn costs = nullptr;
+  CandidateScoresFn scores = nullptr;
   const char* name = "";  // "scalar", or the Highway target chosen ("AVX3", "AVX2", ...)
 };
 

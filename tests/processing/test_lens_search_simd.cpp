@@ -1,7 +1,8 @@
-// The per-lens search's strip kernels (processing/lens_search_simd.h):
-// Highway's, on every target this CPU runs, against the scalar reference on
-// random frames, gains (NaN holes included) and strips. Both evaluate the
-// same float expressions in the same order without FMA contraction, so the
+// The per-lens search's kernels (processing/lens_search_simd.h: strip
+// samples, costs, the candidate gate's scores), Highway's on every target
+// this CPU runs against the scalar reference, on random frames, gains (NaN
+// holes included), strips and candidates. Both evaluate the same float
+// expressions in the same order without FMA contraction, so the
 // stated tolerance (1e-6 relative) is there for a compiler that reorders,
 // not for an expected difference; NaN must fall on the same samples.
 
@@ -154,6 +155,55 @@ TEST_F(StripKernelsTest, CostsMatchTheScalarReferenceOnEveryTarget) {
         ASSERT_TRUE(Close(c[k], a[k])) << hwy::TargetName(target) << " trial " << trial
                                        << " step " << k << ": " << c[k] << " vs " << a[k];
     }
+  }
+}
+
+TEST_F(StripKernelsTest, CandidateScoresMatchTheScalarReferenceOnEveryTarget) {
+  const StripKernels& scalar = ScalarStripKernels();
+  for (const std::int64_t target : Targets()) {
+    hwy::SetSupportedTargetsForTest(target);
+    const StripKernels& simd = SimdStripKernels();
+    std::mt19937 rng(41);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    long long above_zero = 0, compared = 0;
+    for (int trial = 0; trial < 300; ++trial) {
+      const RandomFrame f = MakeFrame(rng, trial % 2 == 0 ? 3 : 1);
+      // Candidates within `reach` of a centre that keeps them in
+      // [2, width - 3] x [2, height - 3].
+      const int reach = std::uniform_int_distribution<int>(0, 9)(rng);
+      const int cx = std::uniform_int_distribution<int>(2 + reach, f.width - 3 - reach)(rng);
+      const int cy = std::uniform_int_distribution<int>(2 + reach, f.height - 3 - reach)(rng);
+      const int n = std::uniform_int_distribution<int>(1, 200)(rng);
+      std::vector<std::int32_t> dx(n + kStripPad, 0), dy(n + kStripPad, 0);
+      std::uniform_int_distribution<int> offset(-reach, reach);
+      for (int q = 0; q < n; ++q) {
+        dx[q] = offset(rng);
+        dy[q] = offset(rng);
+      }
+      float ax[3], ay[3];
+      for (int d = 0; d < 3; ++d) {
+        const float angle = 6.2831853f * u(rng);
+        ax[d] = std::cos(angle);
+        ay[d] = std::sin(angle);
+      }
+      const unsigned mask = static_cast<unsigned>(std::uniform_int_distribution<int>(0, 7)(rng));
+      const float to_grey = 0.5f * (0.5f + u(rng)) / f.channels;
+      std::vector<float> sa(n + kStripPad), sb(n + kStripPad);
+      std::vector<std::int32_t> aa(n + kStripPad), ab(n + kStripPad);
+      scalar.scores(f.Source(), cx, cy, dx.data(), dy.data(), n, to_grey, ax, ay, mask, sa.data(),
+                    aa.data());
+      simd.scores(f.Source(), cx, cy, dx.data(), dy.data(), n, to_grey, ax, ay, mask, sb.data(),
+                  ab.data());
+      for (int q = 0; q < n; ++q) {
+        ASSERT_TRUE(Close(sb[q], sa[q])) << hwy::TargetName(target) << " trial " << trial
+                                         << " candidate " << q << ": " << sb[q] << " vs " << sa[q];
+        ASSERT_EQ(ab[q], aa[q]) << hwy::TargetName(target) << " trial " << trial << " candidate "
+                                << q;  // an integer: exact
+        above_zero += sa[q] > 0;
+        ++compared;
+      }
+    }
+    EXPECT_GT(above_zero, compared / 2) << hwy::TargetName(target);
   }
 }
 
