@@ -439,8 +439,8 @@ int main(int argc, char** argv) {
           dest, dtex, dtex ? 100.0 * dest / dtex : 0.0, 100 * dense_median,
           dest ? 100.0 * doutl / dest : 0.0);
     }
-    std::printf("lens preview %s: %dx%d in %.1f ms median\n", path, preview.width,
-                preview.height, 1e3 * Median(preview_s));
+    std::printf("lens preview %s: %dx%d in %.1f ms median\n", path, preview.width, preview.height,
+                1e3 * Median(preview_s));
   }
   if (lens_only) return 0;
 

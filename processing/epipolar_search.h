@@ -208,7 +208,10 @@ bool MatchAlong(const MatchParams& s, const Bilinear& grey, int width, int heigh
   float strip[kLines][kMaxSteps + 16 + kStripPad];
   const float r2 = static_cast<float>(r_lim * r_lim);
   const StripKernels* kernels = nullptr;
-  if constexpr (requires { grey.kernels; grey.source; })
+  if constexpr (requires {
+                  grey.kernels;
+                  grey.source;
+                })
     if (interior) kernels = grey.kernels;
   const float along0 = static_cast<float>(q0) - 2.0f - (steps - 1) * step;
   for (int b = -kHalf; b <= kHalf; ++b) {
@@ -225,7 +228,10 @@ bool MatchAlong(const MatchParams& s, const Bilinear& grey, int width, int heigh
       j_lo = std::max(0, static_cast<int>(std::ceil((t_c - half - along0) / step)));
       j_hi = std::min(strip_len - 1, static_cast<int>(std::floor((t_c + half - along0) / step)));
     }
-    if constexpr (requires { grey.kernels; grey.source; }) {
+    if constexpr (requires {
+                    grey.kernels;
+                    grey.source;
+                  }) {
       if (kernels != nullptr) {
         StripLine l;
         l.px = px;

@@ -114,9 +114,9 @@ std::string LensDepthStats::BriefReport() const {
   char buf[256];
   std::snprintf(buf, sizeof buf,
                 "lens depth: %lld of %lld textured lenses (%.1f %%; %lld lenses), %lld pixels "
-                "searched, %.4f s",
+                "searched, %.4f s, kernels %s",
                 estimated, textured, textured ? 100.0 * estimated / textured : 0.0, lenses,
-                searched_pixels, seconds);
+                searched_pixels, seconds, kernels[0] ? kernels : "none");
   return buf;
 }
 
@@ -226,8 +226,8 @@ Expected<std::unique_ptr<LensDepthEstimator>> LensDepthEstimator::Create(
   for (const std::array<std::int16_t, 2>& c : e->candidates_) {
     e->candidate_dx_.push_back(c[0]);
     e->candidate_dy_.push_back(c[1]);
-    e->candidate_reach_ = std::max({e->candidate_reach_, std::abs(static_cast<int>(c[0])),
-                                    std::abs(static_cast<int>(c[1]))});
+    e->candidate_reach_ = std::max(
+        {e->candidate_reach_, std::abs(static_cast<int>(c[0])), std::abs(static_cast<int>(c[1]))});
   }
   e->candidate_dx_.resize(e->candidates_.size() + detail::kStripPad, 0);
   e->candidate_dy_.resize(e->candidates_.size() + detail::kStripPad, 0);
@@ -241,10 +241,10 @@ template <int kChannels>
 void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
                   const LensDepthEstimator::LatticeTables& tables,
                   const std::vector<std::array<std::int16_t, 2>>& candidates,
-                  const CandidateGate& gate, const detail::SearchRange& range, const detail::MatchParams& ring1,
-                  const detail::MatchParams& ring2, const RawGrey<kChannels>& grey, int k,
-                  float* v_out, float* sigma_out, float* conf_out, std::uint8_t* textured_out,
-                  long long* searched) {
+                  const CandidateGate& gate, const detail::SearchRange& range,
+                  const detail::MatchParams& ring1, const detail::MatchParams& ring2,
+                  const RawGrey<kChannels>& grey, int k, float* v_out, float* sigma_out,
+                  float* conf_out, std::uint8_t* textured_out, long long* searched) {
   const MicroImage& lens = f.lenses[k];
   // The neighbours that exist, from the lattice's templates (c_n - c_k =
   // A (di, dj) for every lens).
@@ -480,37 +480,35 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out) const
   const CandidateGate gate{candidate_dx_.data(), candidate_dy_.data(),
                            static_cast<int>(candidates_.size()), candidate_reach_};
   auto run = [&](const auto& grey) {
-    tbb::parallel_for(tbb::blocked_range<int>(0, static_cast<int>(f.lenses.size()), 64),
-                      [&](const tbb::blocked_range<int>& r) {
-                        long long my_searched = 0, my_textured = 0, my_estimated = 0;
-                        for (int k = r.begin(); k < r.end(); ++k) {
-                          const MicroImage& m = f.lenses[k];
-                          const std::size_t cell =
-                              static_cast<std::size_t>(grid_.Row(m.j)) * grid_.cols +
-                              grid_.Col(m.i, m.j);
-                          out->type[cell] = static_cast<std::int8_t>(m.type);
-                          out->lens[cell] = k;
-                          EstimateLens(f, options_, *tables_, candidates_, gate, range, ring1, ring2,
-                                       grey, k, &out->virtual_depth[cell], &out->sigma_z[cell],
-                                       &out->confidence[cell], &out->textured[cell], &my_searched);
-                          my_textured += out->textured[cell];
-                          my_estimated += !std::isnan(out->virtual_depth[cell]);
-                        }
-                        searched += my_searched;
-                        textured += my_textured;
-                        estimated += my_estimated;
-                      });
+    tbb::parallel_for(
+        tbb::blocked_range<int>(0, static_cast<int>(f.lenses.size()), 64),
+        [&](const tbb::blocked_range<int>& r) {
+          long long my_searched = 0, my_textured = 0, my_estimated = 0;
+          for (int k = r.begin(); k < r.end(); ++k) {
+            const MicroImage& m = f.lenses[k];
+            const std::size_t cell =
+                static_cast<std::size_t>(grid_.Row(m.j)) * grid_.cols + grid_.Col(m.i, m.j);
+            out->type[cell] = static_cast<std::int8_t>(m.type);
+            out->lens[cell] = k;
+            EstimateLens(f, options_, *tables_, candidates_, gate, range, ring1, ring2, grey, k,
+                         &out->virtual_depth[cell], &out->sigma_z[cell], &out->confidence[cell],
+                         &out->textured[cell], &my_searched);
+            my_textured += out->textured[cell];
+            my_estimated += !std::isnan(out->virtual_depth[cell]);
+          }
+          searched += my_searched;
+          textured += my_textured;
+          estimated += my_estimated;
+        });
   };
   // The kernels address the frame with 32-bit byte offsets.
   const bool addressable =
       static_cast<double>(raw.stride_bytes) * raw.height < 2147483648.0 && raw.stride_bytes > 0;
-  const detail::StripKernels* kernels =
-      !addressable          ? nullptr
-      : options_.simd ? &detail::SimdStripKernels()
-                      : &detail::ScalarStripKernels();
-  const detail::StripSource source{raw.data, raw.stride_bytes,
-                                   raw.format == PixelFormat::kBgr8 ? 3 : 1, f.gain.data(),
-                                   f.width};
+  const detail::StripKernels* kernels = !addressable    ? nullptr
+                                        : options_.simd ? &detail::SimdStripKernels()
+                                                        : &detail::ScalarStripKernels();
+  const detail::StripSource source{
+      raw.data, raw.stride_bytes, raw.format == PixelFormat::kBgr8 ? 3 : 1, f.gain.data(), f.width};
   if (raw.format == PixelFormat::kBgr8)
     run(RawGrey<3>{raw, f.gain.data(), f.width, kernels, source});
   else
@@ -521,6 +519,7 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out) const
   st.textured = textured.load();
   st.estimated = estimated.load();
   st.searched_pixels = searched.load();
+  st.kernels = kernels != nullptr ? kernels->name : "";
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return Status::Ok();
 }

@@ -1,16 +1,18 @@
-// The per-lens search's strip kernels (lens_search_simd.h): the scalar
-// reference and Highway's, compiled once per target by foreach_target.h.
+// The per-lens search's kernels (lens_search_simd.h): the scalar reference
+// and Highway's, compiled once per target by foreach_target.h.
 
+// clang-format off
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "processing/lens_search_simd.cpp"
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
-// foreach_target.h first: it re-includes this file once per target.
+// foreach_target.h first (it includes this file again once per target),
+// then highway.h.
 #include <hwy/highway.h>
+// clang-format on
 
 #include "processing/lens_search_simd.h"
 
 #include <cmath>
-#include <cstring>
 #include <limits>
 
 HWY_BEFORE_NAMESPACE();
@@ -19,21 +21,26 @@ namespace HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
 
 // The raw pixels' channel sums at (x0, y0 + row) and (x0 + 1, y0 + row) of
-// each lane, from 32-bit loads at byte offsets (unaligned; the gather reads
-// bytes, no lane reads past the next row's start: lens_search_simd.h's
-// precondition). BGR: the word at 3 x0 holds B G R of x0 in its low three
-// bytes, the word at 3 x0 + 2 those of x0 + 1 in its high three.
+// each lane, from 32-bit loads at byte offsets (unaligned). BGR: the word
+// at 3 x0 holds B G R of x0 in its low three bytes, the word at 3 x0 + 2
+// those of x0 + 1 in its high three; neither reads past pixel x0 + 1. Mono8:
+// the word at x0 holds x0 and x0 + 1 in its low two bytes and reads up to
+// x0 + 3, which may be the next row's first bytes: lens_search_simd.h's
+// precondition (x0 <= width - 3, a row below y0 + 1) keeps every load in
+// the frame.
 template <int kChannels, class DU, class VI>
 HWY_INLINE void ChannelSums(DU du, const std::uint32_t* base, VI offset, hn::Vec<DU>* s0,
                             hn::Vec<DU>* s1) {
   const auto mask = hn::Set(du, 0xFFu);
   const auto w0 = hn::GatherOffset(du, base, offset);
   if constexpr (kChannels == 3) {
-    const auto w1 = hn::GatherOffset(du, base, hn::Add(offset, hn::Set(hn::RebindToSigned<DU>(), 2)));
+    const auto w1 =
+        hn::GatherOffset(du, base, hn::Add(offset, hn::Set(hn::RebindToSigned<DU>(), 2)));
     *s0 = hn::Add(hn::Add(hn::And(w0, mask), hn::And(hn::ShiftRight<8>(w0), mask)),
                   hn::And(hn::ShiftRight<16>(w0), mask));
-    *s1 = hn::Add(hn::Add(hn::And(hn::ShiftRight<8>(w1), mask), hn::And(hn::ShiftRight<16>(w1), mask)),
-                  hn::ShiftRight<24>(w1));
+    *s1 = hn::Add(
+        hn::Add(hn::And(hn::ShiftRight<8>(w1), mask), hn::And(hn::ShiftRight<16>(w1), mask)),
+        hn::ShiftRight<24>(w1));
   } else {
     *s0 = hn::And(w0, mask);
     *s1 = hn::And(hn::ShiftRight<8>(w0), mask);
@@ -81,10 +88,12 @@ void SampleLine(const StripSource& src, const StripLine& l, float* out) {
     ChannelSums<kChannels>(du, base, hn::Add(hn::Add(row0, stride), col), &s10, &s11);
     const auto g = hn::Add(hn::Mul(y0, width), x0);
     const auto g1 = hn::Add(g, width);
-    const auto a = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s00)), hn::GatherIndex(df, src.gain, g));
+    const auto a =
+        hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s00)), hn::GatherIndex(df, src.gain, g));
     const auto b = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s01)),
                            hn::GatherIndex(df, src.gain, hn::Add(g, hn::Set(di, 1))));
-    const auto c = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s10)), hn::GatherIndex(df, src.gain, g1));
+    const auto c =
+        hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s10)), hn::GatherIndex(df, src.gain, g1));
     const auto d = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s11)),
                            hn::GatherIndex(df, src.gain, hn::Add(g1, hn::Set(di, 1))));
     const auto top = hn::Add(a, hn::Mul(hn::Sub(b, a), fx));
@@ -109,8 +118,8 @@ void StripCosts(const float* const* lines, int n_lines, const float* ref, int sp
     auto acc = hn::Zero(df);
     for (int b = 0; b < n_lines; ++b)
       for (int a = -2; a <= 2; ++a) {
-        const auto d = hn::Sub(hn::LoadU(df, lines[b] + (2 - a) * spp + k),
-                               hn::Set(df, ref[b * 5 + a + 2]));
+        const auto d =
+            hn::Sub(hn::LoadU(df, lines[b] + (2 - a) * spp + k), hn::Set(df, ref[b * 5 + a + 2]));
         acc = hn::Add(acc, hn::Mul(d, d));
       }
     hn::StoreU(acc, df, cost + k);
@@ -146,19 +155,23 @@ void Scores(const StripSource& src, int cx, int cy, const std::int32_t* dx, cons
   const auto scale = hn::Set(df, to_grey);
   for (int q = 0; q < n; q += lanes) {
     const auto ox = hn::LoadU(di, dx + q), oy = hn::LoadU(di, dy + q);
-    // Lanes past n read the centre pixel and are not stored past n's padding.
+    // Lanes past n read dx, dy's next entries (later candidates or the
+    // padding's zeros, all within the same box) and land in the padding.
     const auto at = hn::Add(centre, hn::Add(hn::Mul(oy, stride), hn::Mul(ox, step)));
     const auto right = PixelSum<kChannels>(du, base, hn::Add(at, step));
     const auto left = PixelSum<kChannels>(du, base, hn::Sub(at, step));
     const auto down = PixelSum<kChannels>(du, base, hn::Add(at, stride));
     const auto up = PixelSum<kChannels>(du, base, hn::Sub(at, stride));
-    const auto gx = hn::Mul(scale, hn::ConvertTo(df, hn::Sub(hn::BitCast(di, right), hn::BitCast(di, left))));
-    const auto gy = hn::Mul(scale, hn::ConvertTo(df, hn::Sub(hn::BitCast(di, down), hn::BitCast(di, up))));
+    const auto gx =
+        hn::Mul(scale, hn::ConvertTo(df, hn::Sub(hn::BitCast(di, right), hn::BitCast(di, left))));
+    const auto gy =
+        hn::Mul(scale, hn::ConvertTo(df, hn::Sub(hn::BitCast(di, down), hn::BitCast(di, up))));
     auto best = hn::Zero(df);
     auto best_axis = hn::Zero(di);
     for (int d = 0; d < 3; ++d) {
       if (!((axis_mask >> d) & 1u)) continue;
-      const auto g = hn::Abs(hn::Add(hn::Mul(gx, hn::Set(df, axis_x[d])), hn::Mul(gy, hn::Set(df, axis_y[d]))));
+      const auto g = hn::Abs(
+          hn::Add(hn::Mul(gx, hn::Set(df, axis_x[d])), hn::Mul(gy, hn::Set(df, axis_y[d]))));
       const auto larger = hn::Gt(g, best);
       best = hn::IfThenElse(larger, g, best);
       best_axis = hn::IfThenElse(hn::RebindMask(di, larger), hn::Set(di, d), best_axis);
@@ -202,7 +215,8 @@ void ScalarLine(const StripSource& src, const StripLine& l, float* out) {
     const float x = l.px + t * l.e_x - l.b_ey, y = l.py + t * l.e_y + l.b_ex;
     const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
     const float fx = x - x0, fy = y - y0;
-    const std::uint8_t* q0 = src.raw + static_cast<std::size_t>(y0) * src.stride_bytes + x0 * kChannels;
+    const std::uint8_t* q0 =
+        src.raw + static_cast<std::size_t>(y0) * src.stride_bytes + x0 * kChannels;
     const std::uint8_t* q1 = q0 + src.stride_bytes;
     const float* g0 = src.gain + static_cast<std::size_t>(y0) * src.width + x0;
     const float* g1 = g0 + src.width;
@@ -245,7 +259,8 @@ void ScalarScoresOf(const StripSource& src, int cx, int cy, const std::int32_t* 
                     const std::int32_t* dy, int n, float to_grey, const float* axis_x,
                     const float* axis_y, unsigned axis_mask, float* score, std::int32_t* axis) {
   auto sum = [&](int x, int y) {
-    const std::uint8_t* p = src.raw + static_cast<std::size_t>(y) * src.stride_bytes + x * kChannels;
+    const std::uint8_t* p =
+        src.raw + static_cast<std::size_t>(y) * src.stride_bytes + x * kChannels;
     if constexpr (kChannels == 3) return p[0] + p[1] + p[2];
     return static_cast<int>(p[0]);
   };
@@ -281,8 +296,8 @@ void ScalarCandidateScores(const StripSource& source, int cx, int cy, const std:
 void DispatchedScores(const StripSource& source, int cx, int cy, const std::int32_t* dx,
                       const std::int32_t* dy, int n, float to_grey, const float* axis_x,
                       const float* axis_y, unsigned axis_mask, float* score, std::int32_t* axis) {
-  HWY_DYNAMIC_DISPATCH(CandidateScores)(source, cx, cy, dx, dy, n, to_grey, axis_x, axis_y,
-                                        axis_mask, score, axis);
+  HWY_DYNAMIC_DISPATCH(CandidateScores)
+  (source, cx, cy, dx, dy, n, to_grey, axis_x, axis_y, axis_mask, score, axis);
 }
 
 void DispatchedSample(const StripSource& source, const StripLine& line, float* out) {

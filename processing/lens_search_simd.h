@@ -66,10 +66,10 @@ using StripCostsFn = void (*)(const float* const* lines, int n_lines, const floa
 // score[q] = the largest g_d above 0 (0 if none) and axis[q] the first d
 // reaching it. Precondition: every (x, y) in [2, width - 3] x [2, rows - 3],
 // rows * stride_bytes < 2^31; dx, dy, score, axis hold n + kStripPad entries.
-using CandidateScoresFn = void (*)(const StripSource& source, int cx, int cy, const std::int32_t* dx,
-                                   const std::int32_t* dy, int n, float to_grey,
-                                   const float* axis_x, const float* axis_y, unsigned axis_mask,
-                                   float* score, std::int32_t* axis);
+using CandidateScoresFn = void (*)(const StripSource& source, int cx, int cy,
+                                   const std::int32_t* dx, const std::int32_t* dy, int n,
+                                   float to_grey, const float* axis_x, const float* axis_y,
+                                   unsigned axis_mask, float* score, std::int32_t* axis);
 
 struct StripKernels {
   SampleStripLineFn sample = nullptr;

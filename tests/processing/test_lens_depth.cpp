@@ -145,9 +145,8 @@ TEST_F(LensDepthMedium, SimdAndScalarPathsGiveTheSameMap) {
     ASSERT_EQ(a.virtual_depth.size(), b.virtual_depth.size());
     long long differ = 0;
     for (std::size_t c = 0; c < a.virtual_depth.size(); ++c) {
-      const bool same_v = std::isnan(a.virtual_depth[c])
-                              ? std::isnan(b.virtual_depth[c])
-                              : a.virtual_depth[c] == b.virtual_depth[c];
+      const bool same_v = std::isnan(a.virtual_depth[c]) ? std::isnan(b.virtual_depth[c])
+                                                         : a.virtual_depth[c] == b.virtual_depth[c];
       const bool same_s =
           std::isnan(a.sigma_z[c]) ? std::isnan(b.sigma_z[c]) : a.sigma_z[c] == b.sigma_z[c];
       differ += !same_v || !same_s || a.confidence[c] != b.confidence[c] ||

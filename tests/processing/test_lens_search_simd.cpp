@@ -8,14 +8,13 @@
 
 #include "processing/lens_search_simd.h"
 
-#include <hwy/targets.h>
-
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <hwy/targets.h>
 #include <random>
 #include <vector>
 
@@ -46,8 +45,8 @@ RandomFrame MakeFrame(std::mt19937& rng, int channels) {
   f.width = std::uniform_int_distribution<int>(24, 90)(rng);
   f.height = std::uniform_int_distribution<int>(24, 70)(rng);
   f.channels = channels;
-  f.stride = static_cast<std::size_t>(f.width) * channels +
-             std::uniform_int_distribution<int>(0, 7)(rng);
+  f.stride =
+      static_cast<std::size_t>(f.width) * channels + std::uniform_int_distribution<int>(0, 7)(rng);
   f.raw.resize(f.stride * f.height);
   std::uniform_int_distribution<int> byte(0, 255);
   for (std::uint8_t& b : f.raw) b = static_cast<std::uint8_t>(byte(rng));
@@ -114,8 +113,8 @@ TEST_F(StripKernelsTest, SamplesMatchTheScalarReferenceOnEveryTarget) {
         simd.sample(f.Source(), l, b.data());
         for (int i = 0; i < l.n; ++i) {
           ASSERT_TRUE(Close(b[i], a[i]))
-              << hwy::TargetName(target) << " trial " << trial << " sample " << i << ": "
-              << b[i] << " vs scalar " << a[i] << " (channels " << f.channels << ")";
+              << hwy::TargetName(target) << " trial " << trial << " sample " << i << ": " << b[i]
+              << " vs scalar " << a[i] << " (channels " << f.channels << ")";
           ++compared;
           nans += std::isnan(a[i]);
         }
@@ -152,8 +151,8 @@ TEST_F(StripKernelsTest, CostsMatchTheScalarReferenceOnEveryTarget) {
       scalar.costs(pointers.data(), n_lines, ref.data(), spp, steps, a.data());
       simd.costs(pointers.data(), n_lines, ref.data(), spp, steps, c.data());
       for (int k = 0; k < steps; ++k)
-        ASSERT_TRUE(Close(c[k], a[k])) << hwy::TargetName(target) << " trial " << trial
-                                       << " step " << k << ": " << c[k] << " vs " << a[k];
+        ASSERT_TRUE(Close(c[k], a[k])) << hwy::TargetName(target) << " trial " << trial << " step "
+                                       << k << ": " << c[k] << " vs " << a[k];
     }
   }
 }
