@@ -6,7 +6,8 @@
 # Idempotent: when everything is installed it only runs the (incremental) build.
 # Each package is used by the build, the tests or a shipped tool:
 #   OpenCV (imgcodecs: PNG/TIFF/JPEG I/O, imgproc, aruco; features2d and calib3d
-#   for calibration/registration), Ceres (bundle adjustment), Eigen, TBB, spdlog,
+#   for calibration/registration), Ceres (bundle adjustment), Eigen, TBB,
+#   Highway (SIMD with runtime dispatch in processing/), spdlog,
 #   yaml-cpp, CLI11, nlohmann-json, tinyxml2, GoogleTest/GoogleMock, Aravis and
 #   libusb (GenICam cameras), LCM with Java and jchart2d (lcm-gen, lcm-logger,
 #   the lcm-spy jar), iproute2 and procps (loopback multicast, sysctl).
