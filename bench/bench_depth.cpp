@@ -20,7 +20,8 @@
 //   bench_depth [--preset r32|medium|small] [--scene table|plain] [--repeat N] [--crop PX]
 //               [--stride 0|1|2] [--ring1 1..6] [--ring2 0..6] [--type-ranges 0|1] (DepthOptions)
 //               [--lens-only 1] (dense baseline and per-lens depth only: no grid fit, naive
-//               references or TF) [--lens-samples N]
+//               references or TF) [--dense 0] (with --lens-only 1: no dense baseline)
+//               [--lens-path scalar|simd|both] [--lens-samples N]
 
 #include "bench/bench_usage.h"
 #include "processing/camera_model.h"
@@ -190,7 +191,8 @@ long long NaiveTotalFocus(const PlenopticFrame& f, const TfDepthMap& depth, int 
 constexpr char kUsage[] =
     "usage: bench_depth [--preset r32|medium|small] [--scene table|plain] [--repeat N]\n"
     "                   [--crop PX] [--stride 0|1|2] [--ring1 1..6] [--ring2 0..6]\n"
-    "                   [--type-ranges 0|1]\n"
+    "                   [--type-ranges 0|1] [--lens-only 1] [--dense 0|1]\n"
+    "                   [--lens-path scalar|simd|both] [--lens-samples N]\n"
     "processing/ on one synthetic frame (default r32) on all cores: grid fit to the white\n"
     "image, virtual depth in raw MP/s with its accuracy against the ground truth beside a\n"
     "brute-force block matcher on a --crop, and the TF image beside one thread and a naive\n"
@@ -202,7 +204,8 @@ int main(int argc, char** argv) {
   int repeat = 3, crop = 256;
   DepthOptions depth_options;
   LensDepthOptions lens_options;
-  bool lens_only = false;
+  bool lens_only = false, run_dense = true;
+  std::string lens_path = "both";
   for (int k = 1; k + 1 < argc; k += 2) {
     if (!std::strcmp(argv[k], "--preset"))
       preset = argv[k + 1];
@@ -220,6 +223,10 @@ int main(int argc, char** argv) {
       depth_options.type_ranges = std::atoi(argv[k + 1]) != 0;
     else if (!std::strcmp(argv[k], "--lens-only"))
       lens_only = std::atoi(argv[k + 1]) != 0;
+    else if (!std::strcmp(argv[k], "--dense"))
+      run_dense = std::atoi(argv[k + 1]) != 0;
+    else if (!std::strcmp(argv[k], "--lens-path"))
+      lens_path = argv[k + 1];
     else if (!std::strcmp(argv[k], "--lens-samples"))
       lens_options.samples = std::atoi(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--ring2"))
@@ -228,6 +235,14 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "unknown option %s\n", argv[k]);
       return 2;
     }
+  }
+  if (!run_dense && !lens_only) {
+    std::fprintf(stderr, "--dense 0 needs --lens-only 1\n");
+    return 2;
+  }
+  if (lens_path != "scalar" && lens_path != "simd" && lens_path != "both") {
+    std::fprintf(stderr, "--lens-path: expected scalar, simd or both\n");
+    return 2;
   }
   Expected<synth::SynthParams> params = synth::MakePreset(preset);
   if (!params) {
@@ -298,7 +313,8 @@ int main(int argc, char** argv) {
     return 1;
   }
   std::printf("per camera, once: devignetting gain and micro-image map %.3f s\n", Now() - t0);
-  for (int r = 0; r <= repeat; ++r) {
+  // --dense 0: no dense search (with --lens-only 1 only).
+  for (int r = 0; r <= (run_dense ? repeat : -1); ++r) {
     t0 = Now();
     if (!LoadRaw(raw.View(), &frame).ok()) {
       std::fprintf(stderr, "prepare failed\n");
@@ -314,41 +330,50 @@ int main(int argc, char** argv) {
       prepare_s.push_back(t_prepared - t0);
     }
   }
-  long long textured = 0, covered = 0, outliers = 0;
-  std::vector<double> rel, rel_mm;
-  for (std::size_t i = 0; i < depth.virtual_depth.size(); ++i) {
-    const float truth = raw.virtual_depth[i];
-    if (!depth.textured[i] || std::isnan(truth)) continue;
-    ++textured;
-    const float v = depth.virtual_depth[i];
-    if (std::isnan(v)) continue;
-    ++covered;
-    rel.push_back(std::abs(1.0 / v - 1.0 / truth) * truth);
-    const double z_true = camera.DepthOfVirtualDepth(truth);
-    rel_mm.push_back(std::abs(camera.DepthOfVirtualDepth(v) - z_true) / z_true);
-    if (std::abs(v - truth) / truth > 0.10) ++outliers;
+  double depth_mps = 0;
+  if (run_dense) {
+    long long textured = 0, covered = 0, outliers = 0;
+    std::vector<double> rel, rel_mm;
+    for (std::size_t i = 0; i < depth.virtual_depth.size(); ++i) {
+      const float truth = raw.virtual_depth[i];
+      if (!depth.textured[i] || std::isnan(truth)) continue;
+      ++textured;
+      const float v = depth.virtual_depth[i];
+      if (std::isnan(v)) continue;
+      ++covered;
+      rel.push_back(std::abs(1.0 / v - 1.0 / truth) * truth);
+      const double z_true = camera.DepthOfVirtualDepth(truth);
+      rel_mm.push_back(std::abs(camera.DepthOfVirtualDepth(v) - z_true) / z_true);
+      if (std::abs(v - truth) / truth > 0.10) ++outliers;
+    }
+    const double coverage = textured ? static_cast<double>(covered) / textured : 0;
+    const double median = rel.empty() ? 1 : Median(rel);
+    const double outlier_share = covered ? static_cast<double>(outliers) / covered : 1;
+    const bool gates = coverage >= 0.5 && median <= 0.02 && outlier_share <= 0.05;
+    depth_mps = raw_mp / Median(depth_s);
+    std::printf("metric depth (true intrinsics) at the raw estimates: median |dZ|/Z %.2f %%\n",
+                rel_mm.empty() ? 100.0 : 100 * Median(rel_mm));
+    std::printf(
+        "depth: %.2f raw MP/s (%.3f s median per %.1f MP frame); coverage %.1f %% of "
+        "textured, median |dz|/z %.2f %%, outliers %.2f %%: gates %s (%s)\n",
+        depth_mps, Median(depth_s), raw_mp, 100 * coverage, 100 * median, 100 * outlier_share,
+        gates ? "hold" : "DO NOT hold", LoadAverage().c_str());
+    std::printf("depth: of it per-frame prepare (devignetting, smoothing) %.3f s median\n",
+                Median(prepare_s));
   }
-  const double coverage = textured ? static_cast<double>(covered) / textured : 0;
-  const double median = rel.empty() ? 1 : Median(rel);
-  const double outlier_share = covered ? static_cast<double>(outliers) / covered : 1;
-  const bool gates = coverage >= 0.5 && median <= 0.02 && outlier_share <= 0.05;
-  const double depth_mps = raw_mp / Median(depth_s);
-  std::printf("metric depth (true intrinsics) at the raw estimates: median |dZ|/Z %.2f %%\n",
-              rel_mm.empty() ? 100.0 : 100 * Median(rel_mm));
-  std::printf(
-      "depth: %.2f raw MP/s (%.3f s median per %.1f MP frame); coverage %.1f %% of "
-      "textured, median |dz|/z %.2f %%, outliers %.2f %%: gates %s (%s)\n",
-      depth_mps, Median(depth_s), raw_mp, 100 * coverage, 100 * median, 100 * outlier_share,
-      gates ? "hold" : "DO NOT hold", LoadAverage().c_str());
-  std::printf("depth: of it per-frame prepare (devignetting, smoothing) %.3f s median\n",
-              Median(prepare_s));
 
-  // Per-lens virtual depth on the same frame; the dense search above is its baseline.
-  {
+  // Per-lens virtual depth on the same frame, the scalar and the SIMD
+  // strip search (LensDepthOptions::simd) side by side; the dense search
+  // above is its baseline.
+  for (const bool simd : {false, true}) {
+    if ((simd && lens_path == "scalar") || (!simd && lens_path == "simd")) continue;
+    const char* path = simd ? "simd" : "scalar";
+    LensDepthOptions options = lens_options;
+    options.simd = simd;
     PlenopticFrame geometry;
     if (!PrepareGeometry(white.View(), raw.width, raw.height, grid, mla, fo, &geometry).ok())
       return 1;
-    auto estimator = LensDepthEstimator::Create(std::move(geometry), mla, lens_options);
+    auto estimator = LensDepthEstimator::Create(std::move(geometry), mla, options);
     if (!estimator) {
       std::fprintf(stderr, "lens depth: %s\n", estimator.error().message.c_str());
       return 2;
@@ -370,7 +395,8 @@ int main(int argc, char** argv) {
     }
     std::vector<float> truth, dense;
     LensMedianOf((*estimator)->geometry(), lens.grid, raw.virtual_depth, 0.5, &truth);
-    LensMedianOf((*estimator)->geometry(), lens.grid, depth.virtual_depth, 0.1, &dense);
+    if (run_dense)
+      LensMedianOf((*estimator)->geometry(), lens.grid, depth.virtual_depth, 0.1, &dense);
     auto measure = [&](const std::vector<float>& v, long long* tex, long long* est,
                        long long* out_n) {
       std::vector<double> rel;
@@ -385,29 +411,35 @@ int main(int argc, char** argv) {
       }
       return rel.empty() ? 1.0 : Median(rel);
     };
-    long long tex = 0, est = 0, outl = 0, dtex = 0, dest = 0, doutl = 0;
+    long long tex = 0, est = 0, outl = 0;
     const double lens_median = measure(lens.virtual_depth, &tex, &est, &outl);
-    const double dense_median = measure(dense, &dtex, &dest, &doutl);
     const double lens_ms = 1e3 * Median(lens_s);
     const double lens_cov = tex ? static_cast<double>(est) / tex : 0;
-    std::printf("lens depth: %s\n", lens.stats.BriefReport().c_str());
+    std::printf("lens depth %s: %s\n", path, lens.stats.BriefReport().c_str());
     std::printf(
-        "lens depth: %.1f ms median per %.1f MP frame (%zu lenses, %.0f frames/s; CPU %.1f ms "
-        "per frame, all threads); dense search on the same frame %.0f ms: ratio %.0fx (%s)\n",
-        lens_ms, raw_mp, (*estimator)->geometry().lenses.size(), 1e3 / lens_ms,
-        1e3 * Median(lens_cpu_s), 1e3 * Median(depth_s), 1e3 * Median(depth_s) / lens_ms,
-        LoadAverage().c_str());
+        "lens depth %s: %.1f ms median per %.1f MP frame (%zu lenses, %.0f frames/s; CPU %.1f ms "
+        "per frame, all threads)",
+        path, lens_ms, raw_mp, (*estimator)->geometry().lenses.size(), 1e3 / lens_ms,
+        1e3 * Median(lens_cpu_s));
+    if (run_dense)
+      std::printf("; dense search on the same frame %.0f ms: ratio %.0fx", 1e3 * Median(depth_s),
+                  1e3 * Median(depth_s) / lens_ms);
+    std::printf(" (%s)\n", LoadAverage().c_str());
     std::printf(
-        "lens depth vs truth (per-lens median): %lld of %lld textured lenses (%.1f %%), median "
+        "lens depth %s vs truth (per-lens median): %lld of %lld textured lenses (%.1f %%), median "
         "|dv|/v %.2f %%, outliers (> 10 %%) %.2f %%: gates (<= 50 ms, >= 90 %%, <= 2 %%) %s\n",
-        est, tex, 100 * lens_cov, 100 * lens_median, est ? 100.0 * outl / est : 0.0,
+        path, est, tex, 100 * lens_cov, 100 * lens_median, est ? 100.0 * outl / est : 0.0,
         lens_ms <= 50 && lens_cov >= 0.9 && lens_median <= 0.02 ? "hold" : "DO NOT hold");
-    std::printf(
-        "dense map reduced per lens, same lenses: %lld of %lld (%.1f %%), median |dv|/v %.2f %%, "
-        "outliers %.2f %%\n",
-        dest, dtex, dtex ? 100.0 * dest / dtex : 0.0, 100 * dense_median,
-        dest ? 100.0 * doutl / dest : 0.0);
-    std::printf("lens preview: %dx%d in %.1f ms median\n", preview.width, preview.height,
+    if (run_dense && !simd) {
+      long long dtex = 0, dest = 0, doutl = 0;
+      const double dense_median = measure(dense, &dtex, &dest, &doutl);
+      std::printf(
+          "dense map reduced per lens, same lenses: %lld of %lld (%.1f %%), median |dv|/v %.2f "
+          "%%, outliers %.2f %%\n",
+          dest, dtex, dtex ? 100.0 * dest / dtex : 0.0, 100 * dense_median,
+          dest ? 100.0 * doutl / dest : 0.0);
+    }
+    std::printf("lens preview %s: %dx%d in %.1f ms median\n", path, preview.width, preview.height,
                 1e3 * Median(preview_s));
   }
   if (lens_only) return 0;

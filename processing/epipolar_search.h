@@ -21,10 +21,15 @@
 //
 // `Bilinear(x0, y0, fx, fy)` is the grey level at (x0 + fx, y0 + fy) for
 // 0 <= x0 < width - 1, 0 <= y0 < height - 1, fx, fy in [0, 1); NaN next to
-// an invalid pixel (NaN propagates through the costs).
+// an invalid pixel (NaN propagates through the costs). A Bilinear that
+// also has members `kernels` (const StripKernels*, may be null) and
+// `source` (StripSource) reads the strips of a disc well inside the frame
+// and their costs through those kernels (processing/lens_search_simd.h:
+// the scalar reference or Highway's, the same numbers).
 // Internal to processing/.
 
 #include "config/mla.h"
+#include "processing/lens_search_simd.h"
 #include "processing/plenoptic_frame.h"
 #include "processing/virtual_depth.h"
 
@@ -200,8 +205,14 @@ bool MatchAlong(const MatchParams& s, const Bilinear& grey, int width, int heigh
   const double q0 = s.lambda * nb.length * (1.0 - z_lo);  // q(z_lo) = p + q0 e
   static_assert(kLines == 1 || kLines == 3);
   constexpr int kHalf = kLines / 2;
-  float strip[kLines][kMaxSteps + 16];
+  float strip[kLines][kMaxSteps + 16 + kStripPad];
   const float r2 = static_cast<float>(r_lim * r_lim);
+  const StripKernels* kernels = nullptr;
+  if constexpr (requires {
+                  grey.kernels;
+                  grey.source;
+                })
+    if (interior) kernels = grey.kernels;
   const float along0 = static_cast<float>(q0) - 2.0f - (steps - 1) * step;
   for (int b = -kHalf; b <= kHalf; ++b) {
     float* line = strip[b + kHalf];
@@ -216,6 +227,27 @@ bool MatchAlong(const MatchParams& s, const Bilinear& grey, int width, int heigh
       const float half = std::sqrt(r2 - d2);
       j_lo = std::max(0, static_cast<int>(std::ceil((t_c - half - along0) / step)));
       j_hi = std::min(strip_len - 1, static_cast<int>(std::floor((t_c + half - along0) / step)));
+    }
+    if constexpr (requires {
+                    grey.kernels;
+                    grey.source;
+                  }) {
+      if (kernels != nullptr) {
+        StripLine l;
+        l.px = px;
+        l.py = py;
+        l.e_x = nb.e_x;
+        l.e_y = nb.e_y;
+        l.b_ey = static_cast<float>(b) * nb.e_y;
+        l.b_ex = static_cast<float>(b) * nb.e_x;
+        l.along0 = along0;
+        l.step = step;
+        l.n = strip_len;
+        l.j_lo = j_lo;
+        l.j_hi = j_hi;
+        kernels->sample(grey.source, l, line);
+        continue;
+      }
     }
     for (int i = 0; i < strip_len; ++i) {
       const int j = strip_len - 1 - i;
@@ -233,17 +265,23 @@ bool MatchAlong(const MatchParams& s, const Bilinear& grey, int width, int heigh
       line[i] = grey(x0, y0, x - x0, y - y0);
     }
   }
-  float cost[kMaxSteps];
-  for (int k = 0; k < steps; ++k) cost[k] = 0;
-  for (int b = 0; b < kLines; ++b)
-    for (int a = -2; a <= 2; ++a) {
-      const float r = ref[b * kAlong + a + 2];
-      const float* line = strip[b] + (2 - a) * spp;
-      for (int k = 0; k < steps; ++k) {
-        const float d = line[k] - r;
-        cost[k] += d * d;
+  float cost[kMaxSteps + kStripPad];
+  if (kernels != nullptr) {
+    std::array<const float*, kLines> lines;
+    for (int b = 0; b < kLines; ++b) lines[b] = strip[b];
+    kernels->costs(lines.data(), kLines, ref, spp, steps, cost);
+  } else {
+    for (int k = 0; k < steps; ++k) cost[k] = 0;
+    for (int b = 0; b < kLines; ++b)
+      for (int a = -2; a <= 2; ++a) {
+        const float r = ref[b * kAlong + a + 2];
+        const float* line = strip[b] + (2 - a) * spp;
+        for (int k = 0; k < steps; ++k) {
+          const float d = line[k] - r;
+          cost[k] += d * d;
+        }
       }
-    }
+  }
   int best = -1, first_valid = -1, last_valid = -1, run_n = 0;
   float best_cost = std::numeric_limits<float>::max();
   double run_sum = 0;

@@ -30,6 +30,10 @@ struct RawGrey {
   const ConstImageView& raw;
   const float* gain;
   int width;
+  // The strips of discs well inside the frame (epipolar_search.h); null:
+  // through operator() below.
+  const detail::StripKernels* kernels = nullptr;
+  detail::StripSource source{};
   // The raw grey level (channel sum) at an integer pixel, without the gain.
   int RawSum(int x, int y) const {
     const std::uint8_t* p = raw.Row(y) + x * kChannels;
@@ -54,6 +58,15 @@ struct RawGrey {
                 c = static_cast<float>(s10) * g1[0], d = static_cast<float>(s11) * g1[1];
     return ((a + (b - a) * fx) * (1 - fy) + (c + (d - c) * fx) * fy) * (1.0f / kChannels);
   }
+};
+
+// The candidate offsets as the gate kernel reads them: dx, dy padded with
+// kStripPad zeros (the centre); reach the largest |dx|, |dy|.
+struct CandidateGate {
+  const std::int32_t* dx = nullptr;
+  const std::int32_t* dy = nullptr;
+  int n = 0;
+  int reach = 0;
 };
 
 struct Candidate {
@@ -101,9 +114,9 @@ std::string LensDepthStats::BriefReport() const {
   char buf[256];
   std::snprintf(buf, sizeof buf,
                 "lens depth: %lld of %lld textured lenses (%.1f %%; %lld lenses), %lld pixels "
-                "searched, %.4f s",
+                "searched, %.4f s, kernels %s",
                 estimated, textured, textured ? 100.0 * estimated / textured : 0.0, lenses,
-                searched_pixels, seconds);
+                searched_pixels, seconds, kernels[0] ? kernels : "none");
   return buf;
 }
 
@@ -210,6 +223,14 @@ Expected<std::unique_ptr<LensDepthEstimator>> LensDepthEstimator::Create(
       e->candidates_.push_back(
           {static_cast<std::int16_t>(std::lround(ox)), static_cast<std::int16_t>(std::lround(oy))});
     }
+  for (const std::array<std::int16_t, 2>& c : e->candidates_) {
+    e->candidate_dx_.push_back(c[0]);
+    e->candidate_dy_.push_back(c[1]);
+    e->candidate_reach_ = std::max(
+        {e->candidate_reach_, std::abs(static_cast<int>(c[0])), std::abs(static_cast<int>(c[1]))});
+  }
+  e->candidate_dx_.resize(e->candidates_.size() + detail::kStripPad, 0);
+  e->candidate_dy_.resize(e->candidates_.size() + detail::kStripPad, 0);
   return e;
 }
 
@@ -220,10 +241,10 @@ template <int kChannels>
 void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
                   const LensDepthEstimator::LatticeTables& tables,
                   const std::vector<std::array<std::int16_t, 2>>& candidates,
-                  const detail::SearchRange& range, const detail::MatchParams& ring1,
-                  const detail::MatchParams& ring2, const RawGrey<kChannels>& grey, int k,
-                  float* v_out, float* sigma_out, float* conf_out, std::uint8_t* textured_out,
-                  long long* searched) {
+                  const CandidateGate& gate, const detail::SearchRange& range,
+                  const detail::MatchParams& ring1, const detail::MatchParams& ring2,
+                  const RawGrey<kChannels>& grey, int k, float* v_out, float* sigma_out,
+                  float* conf_out, std::uint8_t* textured_out, long long* searched) {
   const MicroImage& lens = f.lenses[k];
   // The neighbours that exist, from the lattice's templates (c_n - c_k =
   // A (di, dj) for every lens).
@@ -260,23 +281,15 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
   const float centre_gain = grey.Gain(ix, iy);
   if (!std::isfinite(centre_gain)) return;
   const float to_grey = 0.5f * centre_gain / kChannels;
-  for (const std::array<std::int16_t, 2>& offset : candidates) {
-    const int x = ix + offset[0], y = iy + offset[1];
-    if (x < 1 || y < 1 || x >= f.width - 1 || y >= f.height - 1) continue;
-    const float gx = to_grey * static_cast<float>(grey.RawSum(x + 1, y) - grey.RawSum(x - 1, y));
-    const float gy = to_grey * static_cast<float>(grey.RawSum(x, y + 1) - grey.RawSum(x, y - 1));
+  // One candidate with its score and best ring-1 axis: the ring-2 axis,
+  // the textured flag and the `samples` best.
+  auto consider = [&](int x, int y, float gx, float gy, float score, int axis) {
+    if (score < thr) return;
     Candidate c;
     c.x = x;
     c.y = y;
-    for (int d = 0; d < 3; ++d) {
-      if (axis_n[d] == 0) continue;
-      const float g = std::abs(gx * axis_e[d][0] + gy * axis_e[d][1]);
-      if (g > c.score) {
-        c.score = g;
-        c.axis = d;
-      }
-    }
-    if (c.score < thr) continue;
+    c.score = score;
+    c.axis = axis;
     any_textured = true;
     float best2 = -1;
     for (int d = 0; d < 3; ++d) {
@@ -292,10 +305,57 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
     } else if (c.score > best[n_best - 1].score) {
       best[n_best - 1] = c;
     } else {
-      continue;
+      return;
     }
     for (int q = n_best - 1; q > 0 && best[q - 1].score < best[q].score; --q)
       std::swap(best[q - 1], best[q]);
+  };
+  auto gradient = [&](int x, int y, float* gx, float* gy) {
+    *gx = to_grey * static_cast<float>(grey.RawSum(x + 1, y) - grey.RawSum(x - 1, y));
+    *gy = to_grey * static_cast<float>(grey.RawSum(x, y + 1) - grey.RawSum(x, y - 1));
+  };
+  const int reach = gate.reach;
+  if (grey.kernels != nullptr && ix - reach >= 2 && iy - reach >= 2 && ix + reach <= f.width - 3 &&
+      iy + reach <= f.height - 3) {
+    // Scores through the kernels (lens_search_simd.h), in chunks of the
+    // stack buffers; the gradients again for the few that pass the gate.
+    constexpr int kChunk = 256;
+    float score[kChunk + detail::kStripPad];
+    std::int32_t axis[kChunk + detail::kStripPad];
+    unsigned mask = 0;
+    for (int d = 0; d < 3; ++d) mask |= (axis_n[d] > 0 ? 1u : 0u) << d;
+    const float ax[3] = {axis_e[0][0], axis_e[1][0], axis_e[2][0]};
+    const float ay[3] = {axis_e[0][1], axis_e[1][1], axis_e[2][1]};
+    for (int q0 = 0; q0 < gate.n; q0 += kChunk) {
+      const int n = std::min(kChunk, gate.n - q0);
+      grey.kernels->scores(grey.source, ix, iy, gate.dx + q0, gate.dy + q0, n, to_grey, ax, ay,
+                           mask, score, axis);
+      for (int q = 0; q < n; ++q) {
+        if (score[q] < thr) continue;
+        const int x = ix + gate.dx[q0 + q], y = iy + gate.dy[q0 + q];
+        float gx = 0, gy = 0;
+        gradient(x, y, &gx, &gy);
+        consider(x, y, gx, gy, score[q], axis[q]);
+      }
+    }
+  } else {
+    for (const std::array<std::int16_t, 2>& offset : candidates) {
+      const int x = ix + offset[0], y = iy + offset[1];
+      if (x < 1 || y < 1 || x >= f.width - 1 || y >= f.height - 1) continue;
+      float gx = 0, gy = 0;
+      gradient(x, y, &gx, &gy);
+      float score = 0;
+      int axis = 0;
+      for (int d = 0; d < 3; ++d) {
+        if (axis_n[d] == 0) continue;
+        const float g = std::abs(gx * axis_e[d][0] + gy * axis_e[d][1]);
+        if (g > score) {
+          score = g;
+          axis = d;
+        }
+      }
+      consider(x, y, gx, gy, score, axis);
+    }
   }
   *textured_out = any_textured;
   if (!any_textured) return;
@@ -417,38 +477,49 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out) const
   const detail::MatchParams ring1 = params(options_.ring1_step_px);
   const detail::MatchParams ring2 = params(options_.ring2_step_px);
   std::atomic<long long> searched{0}, textured{0}, estimated{0};
+  const CandidateGate gate{candidate_dx_.data(), candidate_dy_.data(),
+                           static_cast<int>(candidates_.size()), candidate_reach_};
   auto run = [&](const auto& grey) {
-    tbb::parallel_for(tbb::blocked_range<int>(0, static_cast<int>(f.lenses.size()), 64),
-                      [&](const tbb::blocked_range<int>& r) {
-                        long long my_searched = 0, my_textured = 0, my_estimated = 0;
-                        for (int k = r.begin(); k < r.end(); ++k) {
-                          const MicroImage& m = f.lenses[k];
-                          const std::size_t cell =
-                              static_cast<std::size_t>(grid_.Row(m.j)) * grid_.cols +
-                              grid_.Col(m.i, m.j);
-                          out->type[cell] = static_cast<std::int8_t>(m.type);
-                          out->lens[cell] = k;
-                          EstimateLens(f, options_, *tables_, candidates_, range, ring1, ring2,
-                                       grey, k, &out->virtual_depth[cell], &out->sigma_z[cell],
-                                       &out->confidence[cell], &out->textured[cell], &my_searched);
-                          my_textured += out->textured[cell];
-                          my_estimated += !std::isnan(out->virtual_depth[cell]);
-                        }
-                        searched += my_searched;
-                        textured += my_textured;
-                        estimated += my_estimated;
-                      });
+    tbb::parallel_for(
+        tbb::blocked_range<int>(0, static_cast<int>(f.lenses.size()), 64),
+        [&](const tbb::blocked_range<int>& r) {
+          long long my_searched = 0, my_textured = 0, my_estimated = 0;
+          for (int k = r.begin(); k < r.end(); ++k) {
+            const MicroImage& m = f.lenses[k];
+            const std::size_t cell =
+                static_cast<std::size_t>(grid_.Row(m.j)) * grid_.cols + grid_.Col(m.i, m.j);
+            out->type[cell] = static_cast<std::int8_t>(m.type);
+            out->lens[cell] = k;
+            EstimateLens(f, options_, *tables_, candidates_, gate, range, ring1, ring2, grey, k,
+                         &out->virtual_depth[cell], &out->sigma_z[cell], &out->confidence[cell],
+                         &out->textured[cell], &my_searched);
+            my_textured += out->textured[cell];
+            my_estimated += !std::isnan(out->virtual_depth[cell]);
+          }
+          searched += my_searched;
+          textured += my_textured;
+          estimated += my_estimated;
+        });
   };
+  // The kernels address the frame with 32-bit byte offsets.
+  const bool addressable =
+      static_cast<double>(raw.stride_bytes) * raw.height < 2147483648.0 && raw.stride_bytes > 0;
+  const detail::StripKernels* kernels = !addressable    ? nullptr
+                                        : options_.simd ? &detail::SimdStripKernels()
+                                                        : &detail::ScalarStripKernels();
+  const detail::StripSource source{
+      raw.data, raw.stride_bytes, raw.format == PixelFormat::kBgr8 ? 3 : 1, f.gain.data(), f.width};
   if (raw.format == PixelFormat::kBgr8)
-    run(RawGrey<3>{raw, f.gain.data(), f.width});
+    run(RawGrey<3>{raw, f.gain.data(), f.width, kernels, source});
   else
-    run(RawGrey<1>{raw, f.gain.data(), f.width});
+    run(RawGrey<1>{raw, f.gain.data(), f.width, kernels, source});
   LensDepthStats& st = out->stats;
   st = LensDepthStats{};
   st.lenses = static_cast<long long>(f.lenses.size());
   st.textured = textured.load();
   st.estimated = estimated.load();
   st.searched_pixels = searched.load();
+  st.kernels = kernels != nullptr ? kernels->name : "";
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return Status::Ok();
 }

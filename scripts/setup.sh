@@ -6,7 +6,8 @@
 # Idempotent: when everything is installed it only runs the (incremental) build.
 # Each package is used by the build, the tests or a shipped tool:
 #   OpenCV (imgcodecs: PNG/TIFF/JPEG I/O, imgproc, aruco; features2d and calib3d
-#   for calibration/registration), Ceres (bundle adjustment), Eigen, TBB, spdlog,
+#   for calibration/registration), Ceres (bundle adjustment), Eigen, TBB,
+#   Highway (SIMD with runtime dispatch in processing/), spdlog,
 #   yaml-cpp, CLI11, nlohmann-json, tinyxml2, GoogleTest/GoogleMock, Aravis and
 #   libusb (GenICam cameras), LCM with Java and jchart2d (lcm-gen, lcm-logger,
 #   the lcm-spy jar), iproute2 and procps (loopback multicast, sysctl), slurm-wlm,
@@ -25,7 +26,7 @@ cd "$(dirname "$0")/.."
 
 packages=(
   build-essential cmake pkg-config ccache git
-  libeigen3-dev libopencv-dev libopencv-contrib-dev libceres-dev libtbb-dev
+  libeigen3-dev libopencv-dev libopencv-contrib-dev libceres-dev libtbb-dev libhwy-dev
   libspdlog-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev libtinyxml2-dev
   libgtest-dev libgmock-dev
   libaravis-dev aravis-tools aravis-tools-cli libusb-1.0-0-dev

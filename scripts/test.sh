@@ -3,7 +3,8 @@
 # Sets up (through scripts/setup.sh) when anything is missing, builds, and runs
 # every test with ctest. Then the sanitizer passes, each from one group target
 # of tests/CMakeLists.txt ("Test groups") in its own build folder:
-#   parsers  the parsers' tests (every user-supplied file format) under
+#   parsers  the parsers' tests (every user-supplied file format) and the
+#            SIMD kernels' tests (Highway against the scalar reference) under
 #            AddressSanitizer + UBSan (build-asan); default;
 #   tsan     the concurrency tests (grab loops and rig controller, recorder,
 #            sync, Vicon, Aravis and GenTL drivers, the LCM monitor) under
@@ -85,8 +86,10 @@ if [[ $passes == *" parsers "* ]]; then
   start=$SECONDS
   echo "test.sh: parser tests under AddressSanitizer/UBSan in $build_dir-asan"
   sanitizer_build "$build_dir-asan" Asan parser
+  sanitizer_build "$build_dir-asan" Asan kernels
   run_group "$build_dir-asan" parser ASan/UBSan
-  echo "test.sh: $(wc -l <"$build_dir-asan/test_groups/parser.txt") parser test binaries passed under ASan/UBSan: $((SECONDS - start)) s"
+  run_group "$build_dir-asan" kernels ASan/UBSan
+  echo "test.sh: $(cat "$build_dir-asan"/test_groups/{parser,kernels}.txt | wc -l) parser and kernel test binaries passed under ASan/UBSan: $((SECONDS - start)) s"
 fi
 
 if [[ $passes == *" asan "* ]]; then

@@ -110,6 +110,53 @@ TEST_F(LensDepthMedium, MeetsTheGates) {
   EXPECT_EQ(depth.virtual_depth.data(), before);
 }
 
+// The SIMD strip kernels (LensDepthOptions::simd, processing/lens_search_simd.h)
+// give the scalar reference's map: the kernels agree to the last bit
+// (tests/processing/test_lens_search_simd.cpp), so the maps are compared
+// exactly, every cell of every field; a frame in Mono8 too.
+TEST_F(LensDepthMedium, SimdAndScalarPathsGiveTheSameMap) {
+  const testing::SynthFrame& s = *frame_;
+  LensDepthOptions scalar_options;
+  scalar_options.simd = false;
+  const auto simd = MakeEstimator(s);
+  const auto scalar = MakeEstimator(s, scalar_options);
+  ASSERT_NE(simd, nullptr);
+  ASSERT_NE(scalar, nullptr);
+  OwnedImage mono;
+  mono.width = s.raw.width;
+  mono.height = s.raw.height;
+  mono.format = PixelFormat::kMono8;
+  mono.pixels.resize(static_cast<std::size_t>(mono.width) * mono.height);
+  const ConstImageView bgr = s.raw.View();
+  for (int y = 0; y < mono.height; ++y)
+    for (int x = 0; x < mono.width; ++x) {
+      const std::uint8_t* p = bgr.Row(y) + 3 * x;
+      mono.pixels[static_cast<std::size_t>(y) * mono.width + x] =
+          static_cast<std::uint8_t>((p[0] + p[1] + p[2]) / 3);
+    }
+  const OwnedImage& mono_ref = mono;
+  for (const ConstImageView frame : {bgr, mono_ref.View()}) {
+    LensDepthMap a, b;
+    ASSERT_TRUE(scalar->Estimate(frame, &a).ok());
+    ASSERT_TRUE(simd->Estimate(frame, &b).ok());
+    ASSERT_GT(a.stats.estimated, 5000);
+    EXPECT_EQ(a.stats.estimated, b.stats.estimated);
+    EXPECT_EQ(a.stats.searched_pixels, b.stats.searched_pixels);
+    ASSERT_EQ(a.virtual_depth.size(), b.virtual_depth.size());
+    long long differ = 0;
+    for (std::size_t c = 0; c < a.virtual_depth.size(); ++c) {
+      const bool same_v = std::isnan(a.virtual_depth[c]) ? std::isnan(b.virtual_depth[c])
+                                                         : a.virtual_depth[c] == b.virtual_depth[c];
+      const bool same_s =
+          std::isnan(a.sigma_z[c]) ? std::isnan(b.sigma_z[c]) : a.sigma_z[c] == b.sigma_z[c];
+      differ += !same_v || !same_s || a.confidence[c] != b.confidence[c] ||
+                a.textured[c] != b.textured[c];
+    }
+    EXPECT_EQ(differ, 0) << "of " << a.virtual_depth.size() << " cells, "
+                         << (frame.format == PixelFormat::kMono8 ? "Mono8" : "BGR8");
+  }
+}
+
 TEST(LensDepth, GridMapsEveryLensToOneCellAndBack) {
   const testing::SynthFrame s = testing::RenderSynthFrame("small", 1.0, "plain");
   const auto estimator = MakeEstimator(s);

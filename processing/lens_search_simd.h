@@ -1,0 +1,86 @@
+#pragma once
+// The hot loops of the per-lens search (processing/lens_depth.h, through
+// MatchAlong of processing/epipolar_search.h): sampling the neighbour's
+// strip lines bilinearly from the raw pixels times the devignetting gain,
+// the SSD of the reference patch at every candidate disparity, and the
+// candidate gate's gradients.
+// Two implementations with one contract: the scalar reference and Google
+// Highway's (runtime dispatch to the best target the CPU runs: SSE4, AVX2,
+// AVX-512 on x86, NEON on ARM). Both evaluate the same float expressions in
+// the same order (the Highway file is compiled without FMA contraction), so
+// they agree to the last bit on x86 and ARM; tests/processing/
+// test_lens_search_simd.cpp compares them on random inputs.
+// Internal to processing/.
+
+#include <cstddef>
+#include <cstdint>
+
+namespace lifmcr::processing::detail {
+
+// Padding (floats) a strip line or cost buffer carries beyond its length:
+// the Highway kernels write and read whole vectors (up to 64 floats).
+constexpr int kStripPad = 64;
+
+// The frame a strip is read from: raw pixels (1 or 3 channels of 8 bits,
+// the grey level their sum) and the devignetting gain (one float per pixel,
+// rows of `width`, NaN where invalid).
+struct StripSource {
+  const std::uint8_t* raw = nullptr;
+  std::size_t stride_bytes = 0;
+  int channels = 1;  // 1 or 3
+  const float* gain = nullptr;
+  int width = 0;
+};
+
+// One line of a strip, n samples. Sample i sits at strip index j = n - 1 - i
+// (MatchAlong reverses the strip so its cost loop runs forwards):
+//   t_j = along0 + j step,
+//   x_j = (px + t_j e_x) - b_ey,   y_j = (py + t_j e_y) + b_ex
+// (b_ey = b e_y and b_ex = b e_x for line b of the patch), and is
+//   grey(x_j, y_j) = ((a + (b - a) fx) (1 - fy) + (c + (d - c) fx) fy) / channels
+// with a, b, c, d the four neighbouring pixels' channel sums times their
+// gains, fx, fy the fractional parts; NaN for j outside [j_lo, j_hi].
+// Precondition: every position with j in [j_lo, j_hi] has 0 <= x_j,
+// floor(x_j) <= width - 3 and 0 <= y_j, floor(y_j) <= rows - 3 (MatchAlong's
+// disc well inside the frame), and rows * stride_bytes < 2^31. `out` holds
+// n + kStripPad floats.
+struct StripLine {
+  float px = 0, py = 0, e_x = 0, e_y = 0, b_ey = 0, b_ex = 0;
+  float along0 = 0, step = 1;
+  int n = 0, j_lo = 0, j_hi = -1;
+};
+
+// cost[k] = sum over lines b < n_lines, a = -2..2 of
+//   (lines[b][k + (2 - a) spp] - ref[5 b + a + 2])^2,   k = 0..steps - 1,
+// accumulated in that order. lines[b] holds steps + 4 spp + kStripPad
+// floats, cost steps + kStripPad.
+using SampleStripLineFn = void (*)(const StripSource& source, const StripLine& line, float* out);
+using StripCostsFn = void (*)(const float* const* lines, int n_lines, const float* ref, int spp,
+                              int steps, float* cost);
+
+// The candidate gate of one micro image (lens_depth.h, step 1): for each of
+// the n candidates q at (x, y) = (cx + dx[q], cy + dy[q]), with S the raw
+// channel sum,
+//   gx = to_grey (S(x + 1, y) - S(x - 1, y)),  gy = to_grey (S(x, y + 1) - S(x, y - 1)),
+//   g_d = |gx axis_x[d] + gy axis_y[d]|  for the axes d = 0..2 with bit d of axis_mask,
+// score[q] = the largest g_d above 0 (0 if none) and axis[q] the first d
+// reaching it. Precondition: every (x, y) in [2, width - 3] x [2, rows - 3],
+// rows * stride_bytes < 2^31; dx, dy, score, axis hold n + kStripPad entries.
+using CandidateScoresFn = void (*)(const StripSource& source, int cx, int cy,
+                                   const std::int32_t* dx, const std::int32_t* dy, int n,
+                                   float to_grey, const float* axis_x, const float* axis_y,
+                                   unsigned axis_mask, float* score, std::int32_t* axis);
+
+struct StripKernels {
+  SampleStripLineFn sample = nullptr;
+  StripCostsFn costs = nullptr;
+  CandidateScoresFn scores = nullptr;
+  const char* name = "";  // "scalar", or the Highway target chosen ("AVX3", "AVX2", ...)
+};
+
+// The scalar reference.
+const StripKernels& ScalarStripKernels();
+// Highway's, dispatched to the best target of this CPU (chosen at first use).
+const StripKernels& SimdStripKernels();
+
+}  // namespace lifmcr::processing::detail
