@@ -219,17 +219,7 @@ void ScalarLine(const StripSource& src, const StripLine& l, float* out) {
         src.raw + static_cast<std::size_t>(y0) * src.stride_bytes + x0 * kChannels;
     const std::uint8_t* q1 = q0 + src.stride_bytes;
     const float* g0 = src.gain + static_cast<std::size_t>(y0) * src.width + x0;
-    const float* g1 = g0 + src.width;
-    int s00 = q0[0], s01 = q0[kChannels], s10 = q1[0], s11 = q1[kChannels];
-    if constexpr (kChannels == 3) {
-      s00 += q0[1] + q0[2];
-      s01 += q0[4] + q0[5];
-      s10 += q1[1] + q1[2];
-      s11 += q1[4] + q1[5];
-    }
-    const float a = static_cast<float>(s00) * g0[0], b = static_cast<float>(s01) * g0[1],
-                c = static_cast<float>(s10) * g1[0], d = static_cast<float>(s11) * g1[1];
-    out[i] = ((a + (b - a) * fx) * (1 - fy) + (c + (d - c) * fx) * fy) * (1.0f / kChannels);
+    out[i] = RawGainBilinear<kChannels>(q0, q1, g0, g0 + src.width, fx, fy);
   }
 }
 

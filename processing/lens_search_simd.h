@@ -32,6 +32,26 @@ struct StripSource {
   int width = 0;
 };
 
+// The grey level at (x0 + fx, y0 + fy) of the raw pixels times the gain,
+// q0 / q1 the raw rows y0 / y0 + 1 at x0, g0 / g1 the gain rows at x0: the
+// formula of StripLine below, in the order the Highway kernels evaluate it
+// (channel sums in integers, one conversion per corner), so the scalar
+// reference and every scalar reader of the frame agree to the last bit.
+template <int kChannels>
+inline float RawGainBilinear(const std::uint8_t* q0, const std::uint8_t* q1, const float* g0,
+                             const float* g1, float fx, float fy) {
+  int s00 = q0[0], s01 = q0[kChannels], s10 = q1[0], s11 = q1[kChannels];
+  if constexpr (kChannels == 3) {
+    s00 += q0[1] + q0[2];
+    s01 += q0[4] + q0[5];
+    s10 += q1[1] + q1[2];
+    s11 += q1[4] + q1[5];
+  }
+  const float a = static_cast<float>(s00) * g0[0], b = static_cast<float>(s01) * g0[1],
+              c = static_cast<float>(s10) * g1[0], d = static_cast<float>(s11) * g1[1];
+  return ((a + (b - a) * fx) * (1 - fy) + (c + (d - c) * fx) * fy) * (1.0f / kChannels);
+}
+
 // One line of a strip, n samples. Sample i sits at strip index j = n - 1 - i
 // (MatchAlong reverses the strip so its cost loop runs forwards):
 //   t_j = along0 + j step,
