@@ -52,6 +52,7 @@ std::string FormatManifestEntry(const ManifestEntry& e) {
                   {"message", e.message},
                   {"log", e.log},
                   {"seconds", e.seconds},
+                  {"cpu_seconds", e.cpu_seconds},
                   {"peak_rss_kib", e.peak_rss_kib},
                   {"host", e.host},
                   {"shard", e.shard},
@@ -83,6 +84,7 @@ Expected<ManifestEntry> ParseManifestEntry(std::string_view text, const std::str
     e.message = j.at("message").get<std::string>();
     e.log = j.at("log").get<std::string>();
     e.seconds = j.at("seconds").get<double>();
+    e.cpu_seconds = j.value("cpu_seconds", 0.0);  // absent in entries of earlier versions
     e.peak_rss_kib = j.at("peak_rss_kib").get<std::int64_t>();
     e.host = j.at("host").get<std::string>();
     e.shard = j.at("shard").get<std::string>();

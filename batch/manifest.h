@@ -6,7 +6,8 @@
 // shared file system needs no lock for the manifest. An entry:
 //
 //   {"unit":"...","state":"done","attempt":1,"exit_code":0,"signal":0,
-//    "message":"","log":"logs/<unit id>.log","seconds":1.93,"peak_rss_kib":181232,
+//    "message":"","log":"logs/<unit id>.log","seconds":1.93,"cpu_seconds":1.88,
+//    "peak_rss_kib":181232,
 //    "host":"node1","shard":"0/2","finished_utc":"2026-12-06T10:41:07Z",
 //    "outputs":[{"path":"units/<unit id>/x.tiff","bytes":123,"xxh64":"0123456789abcdef"}]}
 //
@@ -48,6 +49,10 @@ struct ManifestEntry {
   std::string message;  // empty when done
   std::string log;      // relative to PLAN_DIR
   double seconds = 0;   // wall time of the command
+  // CPU time of the command (user + system, getrusage of the child): what the
+  // unit itself cost, whatever else ran on the machine. 0 in entries written
+  // before the field existed.
+  double cpu_seconds = 0;
   std::int64_t peak_rss_kib = 0;  // the command's peak resident set (getrusage of the child)
   std::string host;
   std::string shard;

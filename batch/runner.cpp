@@ -113,6 +113,7 @@ struct ChildResult {
   int exit_code = -1;
   int signal = 0;
   std::int64_t peak_rss_kib = 0;
+  double cpu_seconds = 0;  // user + system
   std::string spawn_error;
 };
 
@@ -173,6 +174,8 @@ ChildResult RunCommand(const fs::path& executable, const std::vector<std::string
   }
   g_child = 0;
   result.peak_rss_kib = usage.ru_maxrss;
+  result.cpu_seconds = static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
+                       static_cast<double>(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec) * 1e-6;
   if (WIFEXITED(status)) result.exit_code = WEXITSTATUS(status);
   if (WIFSIGNALED(status)) result.signal = WTERMSIG(status);
   return result;
@@ -341,6 +344,7 @@ Expected<RunReport> RunShard(const RunOptions& o) {
     entry.exit_code = child.exit_code;
     entry.signal = child.signal;
     entry.peak_rss_kib = child.peak_rss_kib;
+    entry.cpu_seconds = child.cpu_seconds;
 
     // 5. The entry.
     if (!child.spawn_error.empty()) {

@@ -2,6 +2,7 @@
 // (batch/planner.h) over a dataset made of file names only: discovery opens
 // no frame, so empty files in the LiFMCR layout are a dataset to it.
 
+#include "batch/manifest.h"
 #include "batch/plan.h"
 #include "batch/planner.h"
 #include "replay/layout.h"
@@ -55,6 +56,36 @@ TEST(Plan, FormatParsesBack) {
   EXPECT_EQ(back->units[0].needs[0].unit, "S/Q/111");
   EXPECT_EQ(back->units[0].CommandLine(),
             "lifmcr register /data/x/S/Q --camera 222 --out units/S/Q/222 --note 'it'\\''s'");
+}
+
+// A manifest entry parses back to the same text; one written before
+// `cpu_seconds` existed reads with 0 there (it stays valid: its unit is not redone).
+TEST(Manifest, EntryParsesBack) {
+  ManifestEntry e;
+  e.unit = "S/Q/111/000000-000001";
+  e.state = UnitState::kDone;
+  e.log = LogPathOf(e.unit);
+  e.seconds = 2.5;
+  e.cpu_seconds = 2.25;
+  e.peak_rss_kib = 1024;
+  e.host = "node1";
+  e.shard = "0/2";
+  e.finished_utc = "2026-12-06T10:41:07Z";
+  e.outputs = {{"units/S/Q/111/000000-000001/a.tiff", 123, "0123456789abcdef"}};
+  const std::string text = FormatManifestEntry(e);
+  Expected<ManifestEntry> back = ParseManifestEntry(text, "entry");
+  ASSERT_TRUE(back) << back.error().message;
+  EXPECT_EQ(FormatManifestEntry(*back), text);
+  EXPECT_EQ(back->cpu_seconds, 2.25);
+
+  std::string older = text;
+  const std::size_t at = older.find("\"cpu_seconds\"");
+  ASSERT_NE(at, std::string::npos);
+  older.erase(at, older.find('\n', at) + 1 - at);
+  Expected<ManifestEntry> old = ParseManifestEntry(older, "entry");
+  ASSERT_TRUE(old) << old.error().message << "\n" << older;
+  EXPECT_EQ(old->cpu_seconds, 0);
+  EXPECT_EQ(old->seconds, 2.5);
 }
 
 TEST(Plan, ErrorsNameTheLineAndField) {

@@ -76,6 +76,7 @@ TEST(BatchRun, RecordsSkipsAndRedoesWhatNoLongerVerifies) {
     EXPECT_EQ(e.attempt, 1);
     EXPECT_EQ(e.outputs.size(), 8u);  // no intrinsics: 3 TIFFs, 2 PNGs, the per-lens CSV, TIFF, PNG
     EXPECT_GT(e.peak_rss_kib, 0);
+    EXPECT_GT(e.cpu_seconds, 0);
     EXPECT_TRUE(fs::is_regular_file(plan / e.log));
   }
   const auto outputs = test::ReadTree(plan / "units");
