@@ -1,14 +1,22 @@
 // `lifmcr batch run` of a depth plan over a synthetic rig (written first by
 // `lifmcr synth`, not timed): (1) one shard pinned to one core against two
 // shards pinned to two cores (units are independent: the goal is >= 1.8x);
-// (2) the per-unit overhead of `batch run` (lock, manifest read, needs,
+// (2) the per-unit overhead of `batch run` (its start, lock, manifest read,
 // emptying the output folder, log, XXH64 of every output, atomic manifest
 // entry) against the bare `lifmcr depth` commands of the same plan run one
 // after another on the same core, each with its output to a log as the
-// runner does (goal <= 2 %). Both are repeated; batch and bare runs
-// alternate so a change of the machine's load hits both; the fastest of each
-// is compared, in wall time and in CPU time (user + system of the commands
-// and the runner).
+// runner does (goal <= 2 %), in wall time and in CPU time (user + system of
+// the commands and the runner), fastest of the repeats; and the runner's own
+// share, the batch run less its commands' times as the manifest records them
+// (`seconds`, `cpu_seconds`), which the commands' run-to-run spread does not
+// blur.
+//
+// Each timed run starts from the same state: sync(2) first (untimed), so the
+// writeback of the previous run's outputs does not fall into this one, and
+// every run's unit outputs are deleted once its figures are read, so the page
+// cache does not fill up over the bench (later runs would pay for the
+// reclaim). Bare and batch runs alternate in order from one repeat to the
+// next (bare first in odd repeats, batch first in even ones).
 //
 //   bench_batch [--preset small|medium] [--frames 8] [--repeat 3] [--per frames:1] [--keep DIR]
 
@@ -90,16 +98,48 @@ std::string LoadAverage() {
 constexpr char kUsage[] =
     "usage: bench_batch [--preset small|medium] [--frames 8] [--per frames:1] [--repeat 3] "
     "[--keep DIR]\n"
-    "lifmcr batch run of a depth plan over a synthetic 2-camera rig: 1 shard on 1 core against\n"
-    "2 shards on 2 cores (goal >= 1.8x), and the runner's overhead per unit against the bare\n"
-    "commands of the same plan (goal <= 2 %), in wall and CPU time (bench/README.md).\n";
+    "lifmcr batch run of a depth plan over a synthetic 2-camera rig (--frames per camera,\n"
+    "units of --per; defaults: medium, 8 frames, frames:1 = 16 units, 3 repeats):\n"
+    "  speed-up: 1 shard on core 0 against 2 shards on cores 0 and 1 (goal >= 1.8x);\n"
+    "  overhead: batch run (1 shard, core 0) against the same units' bare lifmcr depth\n"
+    "  commands on core 0, per unit, in wall and in CPU time, fastest of the repeats, and the\n"
+    "  runner's own share from the manifest (goal <= 2 %).\n"
+    "Every timed run follows a sync and its outputs are deleted after it; the load average is\n"
+    "printed with every repeat. --keep DIR: the data, plans, manifests and logs stay in DIR.\n"
+    "About 10 min at the defaults on 2 quiet cores (bench/README.md, docs/batch.md).\n";
+
+// One timed run: wall and CPU seconds in all, and of it its units' commands
+// (the bare run: all of it; a batch run: the manifest's seconds and cpu_seconds).
+struct Timing {
+  double wall = 0, cpu = 0;
+  double commands_wall = 0, commands_cpu = 0;
+};
+
+double Fastest(const std::vector<Timing>& runs, double Timing::*field) {
+  double best = runs.front().*field;
+  for (const Timing& t : runs) best = std::min(best, t.*field);
+  return best;
+}
+
+double Median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+const char* Verdict(double percent) { return percent <= 2.0 ? "met" : "NOT met"; }
 
 int main(int argc, char** argv) {
   if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
-  std::string preset = "small", per = "frames:1", keep;
+  std::string preset = "medium", per = "frames:1", keep;
   int frames = 8, repeat = 3;
-  for (int k = 1; k + 1 < argc; k += 2) {
-    const std::string flag = argv[k], value = argv[k + 1];
+  for (int k = 1; k < argc; k += 2) {
+    const std::string flag = argv[k];
+    if (k + 1 >= argc) {
+      std::fprintf(stderr, "bench_batch: %s needs a value\n%s", flag.c_str(), kUsage);
+      return 2;
+    }
+    const std::string value = argv[k + 1];
     if (flag == "--preset")
       preset = value;
     else if (flag == "--frames")
@@ -111,7 +151,7 @@ int main(int argc, char** argv) {
     else if (flag == "--keep")
       keep = value;
     else {
-      std::fprintf(stderr, "bench_batch: unknown flag %s\n", flag.c_str());
+      std::fprintf(stderr, "bench_batch: unknown flag %s\n%s", flag.c_str(), kUsage);
       return 2;
     }
   }
@@ -125,6 +165,7 @@ int main(int argc, char** argv) {
                    : fs::path(keep);
   fs::create_directories(dir);
   const long cpus = ::sysconf(_SC_NPROCESSORS_ONLN);
+  const auto t_bench = Clock::now();
   std::printf(
       "bench_batch: preset %s, %d frames x 2 cameras, depth plan per %s, %d repeats, %ld "
       "CPUs, load average %s\n",
@@ -147,119 +188,172 @@ int main(int argc, char** argv) {
     }
     return p;
   };
+  auto read_plan = [](const fs::path& p) {
+    lifmcr::Expected<lifmcr::batch::Plan> pl = lifmcr::batch::ReadPlan(p);
+    if (!pl) {
+      std::fprintf(stderr, "bench_batch: %s\n", pl.error().message.c_str());
+      std::exit(1);
+    }
+    return std::move(*pl);
+  };
   auto batch_run = [&](const fs::path& p, int shard, int shards, int cpu) {
     return Start({lifmcr, "batch", "run", p.string(), "--shard",
                   std::to_string(shard) + "/" + std::to_string(shards), "--quiet"},
                  cpu, {}, p / ("run_" + std::to_string(shard) + ".log"));
   };
+  // The units' commands' own times in a batch run, as its manifest records them.
+  auto add_manifest_times = [&](const fs::path& p, Timing& t) {
+    for (const lifmcr::batch::Unit& u : read_plan(p).units) {
+      auto e = lifmcr::batch::ReadManifestEntry(p, u.id);
+      if (!e || !*e) {
+        std::fprintf(stderr, "bench_batch: no manifest entry of %s in %s\n", u.id.c_str(),
+                     p.c_str());
+        std::exit(1);
+      }
+      t.commands_wall += (*e)->seconds;
+      t.commands_cpu += (*e)->cpu_seconds;
+    }
+  };
+  // Outputs go once a run's figures are read (see the top of the file).
+  auto drop_outputs = [](const fs::path& p) {
+    std::error_code ec;
+    fs::remove_all(p / "units", ec);
+  };
 
-  std::vector<double> one_shard, two_shards, bare, bare_cpu, one_cpu, two_cpu, inside;
-  std::size_t units = 0;
+  // Bare: every unit's command as the plan writes it, one after another on core 0.
+  auto run_bare = [&]() {
+    const fs::path p = plan();
+    const lifmcr::batch::Plan pl = read_plan(p);
+    for (const lifmcr::batch::Unit& u : pl.units) fs::create_directories(p / u.outputs);
+    fs::create_directories(p / "logs");
+    ::sync();
+    Timing t;
+    const auto t0 = Clock::now();
+    g_cpu_seconds = 0;
+    for (const lifmcr::batch::Unit& u : pl.units) {
+      std::vector<std::string> command = u.command;
+      command[0] = lifmcr;
+      if (Finish(Start(command, 0, p, p / "logs" / "bare.log")) != 0) {
+        std::fprintf(stderr, "bench_batch: %s failed (%s)\n", u.CommandLine().c_str(),
+                     (p / "logs/bare.log").c_str());
+        std::exit(1);
+      }
+    }
+    t.wall = t.commands_wall = Since(t0);
+    t.cpu = t.commands_cpu = g_cpu_seconds;
+    drop_outputs(p);
+    return t;
+  };
+  // One shard on core 0.
+  auto run_one_shard = [&]() {
+    const fs::path p = plan();
+    ::sync();
+    Timing t;
+    const auto t0 = Clock::now();
+    g_cpu_seconds = 0;
+    if (Finish(batch_run(p, 0, 1, 0)) != 0) {
+      std::fprintf(stderr, "bench_batch: batch run failed (%s)\n", p.c_str());
+      std::exit(1);
+    }
+    t.wall = Since(t0);
+    t.cpu = g_cpu_seconds;
+    add_manifest_times(p, t);
+    drop_outputs(p);
+    return t;
+  };
+  // Two shards, on cores 0 and 1.
+  auto run_two_shards = [&]() {
+    const fs::path p = plan();
+    ::sync();
+    Timing t;
+    const auto t0 = Clock::now();
+    g_cpu_seconds = 0;
+    const pid_t a = batch_run(p, 0, 2, 0), b = batch_run(p, 1, 2, 1);
+    const int ca = Finish(a), cb = Finish(b);
+    t.wall = Since(t0);
+    t.cpu = g_cpu_seconds;
+    if (ca != 0 || cb != 0) {
+      std::fprintf(stderr, "bench_batch: batch run of 2 shards failed (%s)\n", p.c_str());
+      std::exit(1);
+    }
+    add_manifest_times(p, t);
+    drop_outputs(p);
+    return t;
+  };
+
+  const std::size_t units = read_plan(plan()).units.size();
+  std::vector<Timing> bare, one, two;
   for (int r = 0; r < repeat; ++r) {
-    // Bare: every unit's command as the plan writes it, one after another on core 0.
-    {
-      const fs::path p = plan();
-      lifmcr::Expected<lifmcr::batch::Plan> pl = lifmcr::batch::ReadPlan(p);
-      if (!pl) {
-        std::fprintf(stderr, "bench_batch: %s\n", pl.error().message.c_str());
-        return 1;
-      }
-      units = pl->units.size();
-      for (const lifmcr::batch::Unit& u : pl->units) fs::create_directories(p / u.outputs);
-      fs::create_directories(p / "logs");
-      const auto t = Clock::now();
-      g_cpu_seconds = 0;
-      for (const lifmcr::batch::Unit& u : pl->units) {
-        std::vector<std::string> command = u.command;
-        command[0] = lifmcr;
-        if (Finish(Start(command, 0, p, p / "logs" / "bare.log")) != 0) {
-          std::fprintf(stderr, "bench_batch: %s failed (%s)\n", u.CommandLine().c_str(),
-                       (p / "logs/bare.log").c_str());
-          return 1;
-        }
-      }
-      bare.push_back(Since(t));
-      bare_cpu.push_back(g_cpu_seconds);
-    }
-    // One shard on core 0.
-    {
-      const fs::path p = plan();
-      const auto t = Clock::now();
-      g_cpu_seconds = 0;
-      if (Finish(batch_run(p, 0, 1, 0)) != 0) {
-        std::fprintf(stderr, "bench_batch: batch run failed (%s)\n", p.c_str());
-        return 1;
-      }
-      one_shard.push_back(Since(t));
-      one_cpu.push_back(g_cpu_seconds);
-      // The units' commands' own time, as the manifest records it: the rest of
-      // the run is the runner's (its start included).
-      double commands = 0;
-      const lifmcr::Expected<lifmcr::batch::Plan> ran = lifmcr::batch::ReadPlan(p);
-      if (!ran) {
-        std::fprintf(stderr, "bench_batch: %s\n", ran.error().message.c_str());
-        return 1;
-      }
-      for (const lifmcr::batch::Unit& u : ran->units)
-        if (auto e = lifmcr::batch::ReadManifestEntry(p, u.id); e && *e) commands += (*e)->seconds;
-      inside.push_back((one_shard.back() - commands) / commands);
-    }
-    // Two shards, on cores 0 and 1.
-    if (cpus >= 2) {
-      const fs::path p = plan();
-      const auto t = Clock::now();
-      g_cpu_seconds = 0;
-      const pid_t a = batch_run(p, 0, 2, 0), b = batch_run(p, 1, 2, 1);
-      const int ca = Finish(a), cb = Finish(b);
-      two_cpu.push_back(g_cpu_seconds);
-      if (ca != 0 || cb != 0) {
-        std::fprintf(stderr, "bench_batch: batch run of 2 shards failed (%s)\n", p.c_str());
-        return 1;
-      }
-      two_shards.push_back(Since(t));
-    }
+    const bool bare_first = r % 2 == 0;
+    if (bare_first) bare.push_back(run_bare());
+    one.push_back(run_one_shard());
+    if (!bare_first) bare.push_back(run_bare());
+    if (cpus >= 2) two.push_back(run_two_shards());
+    const Timing &b = bare.back(), &o = one.back();
     std::printf(
-        "repeat %d: bare %.2f s (CPU %.2f s), 1 shard/1 core %.2f s (CPU %.2f s), 2 shards/2 "
-        "cores %.2f s (load %s)\n",
-        r + 1, bare.back(), bare_cpu.back(), one_shard.back(), one_cpu.back(),
-        two_shards.empty() ? 0.0 : two_shards.back(), LoadAverage().c_str());
+        "repeat %d (%s first): bare %.2f s (CPU %.2f s); batch run 1 shard %.2f s (CPU %.2f s), "
+        "its commands %.2f s (CPU %.2f s): %+.2f %% wall, %+.2f %% CPU; 2 shards %.2f s; load "
+        "%s\n",
+        r + 1, bare_first ? "bare" : "batch", b.wall, b.cpu, o.wall, o.cpu, o.commands_wall,
+        o.commands_cpu, 100.0 * (o.wall - b.wall) / b.wall, 100.0 * (o.cpu - b.cpu) / b.cpu,
+        two.empty() ? 0.0 : two.back().wall, LoadAverage().c_str());
     std::fflush(stdout);
   }
-  const double t_bare = *std::min_element(bare.begin(), bare.end());
-  std::sort(inside.begin(), inside.end());
-  std::printf(
-      "batch run's time outside the units' commands (its start included), median of %d: "
-      "%.2f %% of the commands' time\n",
-      repeat, 100.0 * inside[inside.size() / 2]);
-  const double t_one = *std::min_element(one_shard.begin(), one_shard.end());
+
+  const double n = static_cast<double>(units);
+  const double bare_wall = Fastest(bare, &Timing::wall), one_wall = Fastest(one, &Timing::wall);
+  const double bare_cpu = Fastest(bare, &Timing::cpu), one_cpu = Fastest(one, &Timing::cpu);
   std::printf(
       "%zu units; fastest of %d: bare commands %.2f s (%.3f s/unit), batch run 1 shard %.2f s\n",
-      units, repeat, t_bare, t_bare / units, t_one);
-  std::printf("overhead of batch run: %+.1f ms per unit, %+.2f %% of wall time (goal <= 2 %%)\n",
-              (t_one - t_bare) / units * 1e3, 100.0 * (t_one - t_bare) / t_bare);
+      units, repeat, bare_wall, bare_wall / n, one_wall);
+  const double over_wall = 100.0 * (one_wall - bare_wall) / bare_wall;
+  const double over_cpu = 100.0 * (one_cpu - bare_cpu) / bare_cpu;
+  std::printf("overhead of batch run: %+.1f ms per unit, %+.2f %% of wall time (goal <= 2 %%: %s)\n",
+              (one_wall - bare_wall) / n * 1e3, over_wall, Verdict(over_wall));
   // CPU time counts what the runner itself costs and little of what other
   // processes on a shared machine take from the core (they stretch wall time).
-  const double c_bare = *std::min_element(bare_cpu.begin(), bare_cpu.end());
-  const double c_one = *std::min_element(one_cpu.begin(), one_cpu.end());
-  std::printf("CPU time: bare %.2f s, batch run %.2f s: %+.1f ms per unit, %+.2f %%\n", c_bare,
-              c_one, (c_one - c_bare) / units * 1e3, 100.0 * (c_one - c_bare) / c_bare);
-  if (!two_shards.empty()) {
-    const double t_two = *std::min_element(two_shards.begin(), two_shards.end());
+  std::printf(
+      "overhead in CPU time: bare %.2f s, batch run %.2f s: %+.1f ms per unit, %+.2f %% (goal "
+      "<= 2 %%: %s)\n",
+      bare_cpu, one_cpu, (one_cpu - bare_cpu) / n * 1e3, over_cpu, Verdict(over_cpu));
+  // The runner's own share in each batch run: the run less its commands. Free
+  // of the commands' spread from run to run, which the comparisons above carry.
+  std::vector<double> own_wall, own_cpu, commands_cpu_change;
+  for (std::size_t k = 0; k < one.size(); ++k) {
+    own_wall.push_back(one[k].wall - one[k].commands_wall);
+    own_cpu.push_back(one[k].cpu - one[k].commands_cpu);
+    commands_cpu_change.push_back(100.0 * (one[k].commands_cpu - bare[k].cpu) / bare[k].cpu);
+  }
+  const double runner_wall = Median(own_wall), runner_cpu = Median(own_cpu);
+  std::printf(
+      "batch run's own share (the run less its commands, from the manifest), median of %d: "
+      "%.1f ms per unit wall = %.2f %% of a bare unit, %.1f ms per unit CPU = %.2f %% (goal <= 2 "
+      "%%: %s)\n",
+      repeat, runner_wall / n * 1e3, 100.0 * runner_wall / bare_wall, runner_cpu / n * 1e3,
+      100.0 * runner_cpu / bare_cpu, Verdict(100.0 * runner_wall / bare_wall));
+  std::printf(
+      "its commands' CPU against the bare commands' in the same repeat (the same command lines: "
+      "the machine's spread), median %+.2f %%\n",
+      Median(commands_cpu_change));
+  if (!two.empty()) {
+    const double two_wall = Fastest(two, &Timing::wall);
     std::printf(
         "2 shards on 2 cores %.2f s against 1 shard on 1 core %.2f s: %.2fx (goal >= 1.8x)\n",
-        t_two, t_one, t_one / t_two);
+        two_wall, one_wall, one_wall / two_wall);
     // CPU seconds per wall second: the cores the shards got. Below 2 with
     // runnable shards, other processes held the cores for the rest.
-    const std::size_t k = static_cast<std::size_t>(
-        std::min_element(two_shards.begin(), two_shards.end()) - two_shards.begin());
-    const std::size_t j = static_cast<std::size_t>(
-        std::min_element(one_shard.begin(), one_shard.end()) - one_shard.begin());
+    const auto fastest = [](const std::vector<Timing>& v) {
+      return *std::min_element(v.begin(), v.end(),
+                               [](const Timing& a, const Timing& b) { return a.wall < b.wall; });
+    };
+    const Timing t2 = fastest(two), t1 = fastest(one);
     std::printf("cores used: 2 shards %.2f (CPU %.2f s), 1 shard %.2f (CPU %.2f s)\n",
-                two_cpu[k] / two_shards[k], two_cpu[k], one_cpu[j] / one_shard[j], one_cpu[j]);
+                t2.cpu / t2.wall, t2.cpu, t1.cpu / t1.wall, t1.cpu);
   } else {
     std::printf("one CPU: no 2-shard figure\n");
   }
-  std::printf("load average at the end %s\n", LoadAverage().c_str());
+  std::printf("load average at the end %s; the bench took %.0f s\n", LoadAverage().c_str(),
+              Since(t_bench));
   if (keep.empty()) fs::remove_all(dir);
   return 0;
 }
