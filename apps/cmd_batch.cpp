@@ -67,12 +67,33 @@ struct PlanArgs {
   std::string stage;
 };
 
-int RunPlan(const PlanArgs& a, const std::string& command_line) {
+// The `lifmcr batch plan` command line as the plan records it.
+std::string PlanCommandLine(const PlanArgs& a) {
+  const batch::PlanOptions& o = a.options;
+  std::string line = "lifmcr batch plan " + o.dataset + " --stage " + a.stage;
+  if (!o.per.empty()) line += " --per " + o.per;
+  line += " --out " + o.out;
+  for (const std::string& c : o.cameras) line += " --camera " + c;
+  for (const std::string& q : o.sequences) line += " --sequence " + q;
+  if (!o.intrinsics.empty()) line += " --intrinsics " + o.intrinsics;
+  if (!o.calibration_plan.empty()) line += " --calibration-plan " + o.calibration_plan;
+  if (!o.registration_plan.empty()) line += " --registration-plan " + o.registration_plan;
+  if (!o.reference.empty()) line += " --reference " + o.reference;
+  if (o.reference_from_ground_truth) line += " --reference-from-ground-truth";
+  if (!o.reference_camera.empty()) line += " --reference-camera " + o.reference_camera;
+  if (!o.extra.empty()) {
+    line += " --";
+    for (const std::string& w : o.extra) line += " " + w;
+  }
+  return line;
+}
+
+int RunPlan(const PlanArgs& a) {
   batch::PlanOptions o = a.options;
   Expected<batch::Stage> stage = batch::ParseStage(a.stage);
   if (!stage) return Fail("plan", "--stage: " + stage.error().message, 2);
   o.stage = *stage;
-  o.planned_by = command_line;
+  o.planned_by = PlanCommandLine(a);
   if (Status s = o.Check(); !s) return Fail("plan", s.error().message, 2);
   Expected<batch::Plan> plan = batch::MakePlan(o);
   if (!plan) return Fail("plan", plan.error().message);
@@ -147,6 +168,17 @@ int RunMerge(const std::string& plan_dir) {
   return report->not_done.empty() ? 0 : 3;
 }
 
+// A subcommand of `lifmcr batch` whose one positional argument is PLAN_DIR,
+// parsed into `plan_dir`.
+CLI::App* AddPlanDirSubcommand(CLI::App& app, const char* name, const char* description,
+                               const char* footer, std::string& plan_dir,
+                               const char* plan_dir_help = "Plan folder") {
+  CLI::App* sub = app.add_subcommand(name, description);
+  sub->footer(footer);
+  sub->add_option("PLAN_DIR", plan_dir, plan_dir_help)->required();
+  return sub;
+}
+
 }  // namespace
 
 CommandRun AddBatchCommand(CLI::App& app) {
@@ -211,9 +243,8 @@ CommandRun AddBatchCommand(CLI::App& app) {
   auto run_plan_dir = std::make_shared<std::string>();
   auto shard = std::make_shared<std::string>("0/1");
   auto quiet = std::make_shared<bool>(false);
-  CLI::App* r =
-      app.add_subcommand("run", "Run one shard of a plan's units, resuming where it stopped");
-  r->footer(
+  CLI::App* r = AddPlanDirSubcommand(
+      app, "run", "Run one shard of a plan's units, resuming where it stopped",
       "Runs the units k with k mod N == I in plan order, one after another, each as its own\n"
       "lifmcr process (this executable) in PLAN_DIR, its output into PLAN_DIR/units/<unit>/,\n"
       "its stdout and stderr appended to PLAN_DIR/logs/<unit>.log. A unit with a done\n"
@@ -227,8 +258,8 @@ CommandRun AddBatchCommand(CLI::App& app) {
       "locks/<unit>.lock.\n"
       "Exit codes: 0 every unit of the shard done; 1 some failed or busy, or PLAN_DIR could\n"
       "not be read or written (the message names it); 2 usage error; 128+signal when\n"
-      "interrupted.");
-  r->add_option("PLAN_DIR", *run_plan_dir, "Plan folder (lifmcr batch plan --out)")->required();
+      "interrupted.",
+      *run_plan_dir, "Plan folder (lifmcr batch plan --out)");
   r->add_option("--shard", *shard,
                 "I/N: this shard I of N (0 <= I < N); Slurm: $SLURM_ARRAY_TASK_ID/N")
       ->capture_default_str();
@@ -236,54 +267,31 @@ CommandRun AddBatchCommand(CLI::App& app) {
 
   auto status_dir = std::make_shared<std::string>();
   auto list_left = std::make_shared<bool>(false);
-  CLI::App* s =
-      app.add_subcommand("status", "Count a plan's units done, failed and left (manifest only)");
-  s->footer(
+  CLI::App* s = AddPlanDirSubcommand(
+      app, "status", "Count a plan's units done, failed and left (manifest only)",
       "Prints the counts, the time and the largest peak RSS of the units that ran (what to\n"
       "ask Slurm for: --mem), each failure with its message and log, and the units left.\n"
       "Reads: PLAN_DIR/plan.jsonl and the manifest entries only (no output is hashed).\n"
       "Writes: nothing.\n"
       "Exit codes: 0 every unit done; 1 some failed; 3 none failed, some left; 2 usage error\n"
-      "or unreadable plan.");
-  s->add_option("PLAN_DIR", *status_dir, "Plan folder")->required();
+      "or unreadable plan.",
+      *status_dir);
   s->add_flag("--list-left", *list_left, "List every unit left (default: the first 5)");
 
   auto merge_dir = std::make_shared<std::string>();
-  CLI::App* m = app.add_subcommand(
-      "merge", "Combine the outputs of a plan's done units under PLAN_DIR/merged/");
-  m->footer(
+  CLI::App* m = AddPlanDirSubcommand(
+      app, "merge", "Combine the outputs of a plan's done units under PLAN_DIR/merged/",
       "Reads: PLAN_DIR/plan.jsonl, the manifest, the done units' registration.csv or\n"
       "evaluation.json.\n"
       "Writes: merged/outputs.csv (every output: unit, path, bytes, xxh64); register plans\n"
       "merged/registration.csv (scene, sequence + registration.csv's columns); evaluate plans\n"
       "merged/evaluation.csv and evaluation.md (per sequence, and pooled over sequences).\n"
       "Exit codes: 0 every unit merged; 3 merged, but some units are not done (listed);\n"
-      "1 an output could not be read or written.");
-  m->add_option("PLAN_DIR", *merge_dir, "Plan folder")->required();
+      "1 an output could not be read or written.",
+      *merge_dir);
 
   return [=]() {
-    if (p->parsed()) {
-      // The command line as the plan records it.
-      std::string line = "lifmcr batch plan " + plan->options.dataset + " --stage " + plan->stage;
-      if (!plan->options.per.empty()) line += " --per " + plan->options.per;
-      line += " --out " + plan->options.out;
-      for (const std::string& c : plan->options.cameras) line += " --camera " + c;
-      for (const std::string& q : plan->options.sequences) line += " --sequence " + q;
-      if (!plan->options.intrinsics.empty()) line += " --intrinsics " + plan->options.intrinsics;
-      if (!plan->options.calibration_plan.empty())
-        line += " --calibration-plan " + plan->options.calibration_plan;
-      if (!plan->options.registration_plan.empty())
-        line += " --registration-plan " + plan->options.registration_plan;
-      if (!plan->options.reference.empty()) line += " --reference " + plan->options.reference;
-      if (plan->options.reference_from_ground_truth) line += " --reference-from-ground-truth";
-      if (!plan->options.reference_camera.empty())
-        line += " --reference-camera " + plan->options.reference_camera;
-      if (!plan->options.extra.empty()) {
-        line += " --";
-        for (const std::string& w : plan->options.extra) line += " " + w;
-      }
-      return RunPlan(*plan, line);
-    }
+    if (p->parsed()) return RunPlan(*plan);
     if (r->parsed()) return RunRun(*run_plan_dir, *shard, *quiet);
     if (s->parsed()) return RunStatus(*status_dir, *list_left);
     if (m->parsed()) return RunMerge(*merge_dir);
