@@ -244,36 +244,22 @@ int main(int argc, char** argv) {
     drop_outputs(p);
     return t;
   };
-  // One shard on core 0.
-  auto run_one_shard = [&]() {
+  // `shards` shards of the plan at once, shard k pinned to core k.
+  auto run_shards = [&](int shards) {
     const fs::path p = plan();
     ::sync();
     Timing t;
     const auto t0 = Clock::now();
     g_cpu_seconds = 0;
-    if (Finish(batch_run(p, 0, 1, 0)) != 0) {
-      std::fprintf(stderr, "bench_batch: batch run failed (%s)\n", p.c_str());
-      std::exit(1);
-    }
+    std::vector<pid_t> runs;
+    for (int k = 0; k < shards; ++k) runs.push_back(batch_run(p, k, shards, k));
+    bool failed = false;
+    for (const pid_t pid : runs) failed |= Finish(pid) != 0;
     t.wall = Since(t0);
     t.cpu = g_cpu_seconds;
-    add_manifest_times(p, t);
-    drop_outputs(p);
-    return t;
-  };
-  // Two shards, on cores 0 and 1.
-  auto run_two_shards = [&]() {
-    const fs::path p = plan();
-    ::sync();
-    Timing t;
-    const auto t0 = Clock::now();
-    g_cpu_seconds = 0;
-    const pid_t a = batch_run(p, 0, 2, 0), b = batch_run(p, 1, 2, 1);
-    const int ca = Finish(a), cb = Finish(b);
-    t.wall = Since(t0);
-    t.cpu = g_cpu_seconds;
-    if (ca != 0 || cb != 0) {
-      std::fprintf(stderr, "bench_batch: batch run of 2 shards failed (%s)\n", p.c_str());
+    if (failed) {
+      std::fprintf(stderr, "bench_batch: batch run of %d shard(s) failed (%s)\n", shards,
+                   p.c_str());
       std::exit(1);
     }
     add_manifest_times(p, t);
@@ -286,9 +272,9 @@ int main(int argc, char** argv) {
   for (int r = 0; r < repeat; ++r) {
     const bool bare_first = r % 2 == 0;
     if (bare_first) bare.push_back(run_bare());
-    one.push_back(run_one_shard());
+    one.push_back(run_shards(1));
     if (!bare_first) bare.push_back(run_bare());
-    if (cpus >= 2) two.push_back(run_two_shards());
+    if (cpus >= 2) two.push_back(run_shards(2));
     const Timing &b = bare.back(), &o = one.back();
     std::printf(
         "repeat %d (%s first): bare %.2f s (CPU %.2f s); batch run 1 shard %.2f s (CPU %.2f s), "
