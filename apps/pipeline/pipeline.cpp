@@ -154,6 +154,7 @@ struct Pipeline::Impl {
   // published at the rate processing allows.
   bool lanes = false;
   int reference_camera = 0;  // camera index of options.reference_serial
+  std::string reference_serial;  // camera 0's serial (POSE messages name it)
   std::unique_ptr<Publisher> publisher;
 
   // The grab loop's hand-over (sync_mutex): sets waiting for Poll, the
@@ -401,6 +402,10 @@ struct Pipeline::Impl {
   // Camera X's pose of a trigger: related to camera 0's of the same trigger
   // once both are there, and published.
   std::uint64_t Relate(const Job& job, const processing::CameraPose& w0_from_cx) {
+    publisher->PublishPose(PoseRecord{job.frame.serial, reference_serial, job.trigger_index,
+                                      static_cast<std::int64_t>(job.pass), job.frame.frame_id,
+                                      job.arrival_ns, w0_from_cx});
+    if (!options.relate) return 0;
     TriggerPoses& trigger = poses[{job.pass, job.trigger_index}];
     const int camera = job.frame.camera_index;
     trigger.by_camera[camera] = {job.frame.serial, w0_from_cx, job.arrival_ns};
@@ -446,6 +451,7 @@ struct Pipeline::Impl {
       report.published_lens_depth += counts.lens_depth;
       report.published_tf += counts.tf;
       report.published_extrinsics += extrinsics;
+      report.published_poses += result.w0_from_cx ? 1 : 0;
       report.localized += result.w0_from_cx ? 1 : 0;
       process_latency.Add(p.seconds * 1e3);
       publication_latency.Add(to_pub_ms);
@@ -625,6 +631,8 @@ struct Pipeline::Impl {
     m.processed = r.processed;
     m.skipped = r.skipped;
     m.failed = r.failed;
+    for (const std::string& serial : sync_options.serials)
+      m.cameras += (m.cameras.empty() ? "" : ",") + serial;
     std::lock_guard lock(sync_mutex);
     m.drops = SyncDrops();
     return m;
@@ -670,7 +678,9 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
   if (!impl->registration) impl->registration = std::make_shared<processing::PassThroughStage>();
   impl->localizes = dynamic_cast<processing::PassThroughStage*>(impl->registration.get()) == nullptr;
   impl->lanes = impl->localizes && options.skip_when_busy;
-  if (!options.reference_serial.empty()) {
+  impl->reference_serial =
+      options.reference_serial.empty() ? sync.serials.front() : options.reference_serial;
+  if (options.relate && !options.reference_serial.empty()) {
     const auto it = std::find(sync.serials.begin(), sync.serials.end(), options.reference_serial);
     if (it == sync.serials.end())
       return Error{"pipeline: reference_serial: camera " + options.reference_serial +
@@ -820,6 +830,7 @@ std::string PipelineReport::FinalReport() const {
       << " stats messages";
   if (publish_errors) out << ", " << publish_errors << " publish errors";
   out << "\n";
+  if (published_poses > 0) out << "poses (POSE channels): " << published_poses << "\n";
   if (published_lens_depth > 0)
     out << "depth messages: " << published_lens_depth << " per-lens (lens grid), "
         << published_depth << " dense (TF grid)\n";
