@@ -99,6 +99,7 @@ struct Job {
   std::optional<std::int64_t> vicon_frame;  // of the trigger, when known
   std::int64_t arrival_ns = 0;  // host clock when the frame reached the pipeline
   std::uint64_t pass = 0;       // of a looped replay (Pipeline::EndPass): its triggers restart
+  std::uint64_t camera_order = 0;  // the frame's place among its camera's frames taken
 };
 
 struct Result {
@@ -154,6 +155,13 @@ struct Pipeline::Impl {
   // published at the rate processing allows.
   bool lanes = false;
   int reference_camera = 0;  // camera index of options.reference_serial
+  // Block with a registration stage: each camera's turn to localise
+  // (RunProcess), by Job::camera_order; `taken` numbers the frames queued
+  // (Poll's thread).
+  std::mutex turn_mutex;
+  std::condition_variable turn_cv;
+  std::map<int, std::uint64_t> localize_turn;
+  std::map<int, std::uint64_t> taken;
   std::string reference_serial;  // camera 0's serial (POSE messages name it)
   std::unique_ptr<Publisher> publisher;
 
@@ -311,12 +319,30 @@ struct Pipeline::Impl {
     if (lanes) return RunRegistration(std::move(job));
     Result result{std::move(job), Error{""}, std::nullopt};
     result.processed = processor->Process(result.job.frame);
+    // Offline (block): a camera's frames are localised in the order they
+    // came, whichever worker finished its processing first, so each pose
+    // tracks from its predecessor's and a camera's poses do not depend on
+    // the other cameras the process holds (a host of a rig on several hosts
+    // gets the poses one process of all cameras gets). The workers take
+    // frames in that order, so the one waited for is already on a worker.
+    const int camera = result.job.frame.camera_index;
+    if (localizes) {
+      std::unique_lock lock(turn_mutex);
+      turn_cv.wait(lock, [&] { return localize_turn[camera] == result.job.camera_order; });
+    }
     if (localizes && result.processed && result.processed->products) {
       processing::StageFrame frame;
       frame.products = result.processed->products.get();
       frame.camera = result.processed->camera;
       frame.raw = result.processed->products->prepared.raw;
       Localize(result, std::move(frame));
+    }
+    if (localizes) {
+      {
+        std::lock_guard lock(turn_mutex);
+        ++localize_turn[camera];
+      }
+      turn_cv.notify_all();
     }
     return result;
   }
@@ -557,7 +583,9 @@ struct Pipeline::Impl {
           std::lock_guard r(report_mutex);
           ++report.frames_in;
         }
-        queued.push_back(Job{std::move(*frame), set.trigger_index, vicon, arrival, pass});
+        const int camera = frame->camera_index;
+        queued.push_back(
+            Job{std::move(*frame), set.trigger_index, vicon, arrival, pass, taken[camera]++});
       }
     }
   }
