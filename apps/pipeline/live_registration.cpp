@@ -36,7 +36,7 @@ Status LiveRegistrationOptions::Check() const {
     return Error{"live registration: rigid_mount: this process holds only some cameras "
                  "(--cameras) and relates none; give --rigid-mount to lifmcr relate"};
   // intrinsics, fallback_intrinsics, extrinsics_csv: any paths (read or
-  // written when loading); rigid_mount: any value.
+  // written when loading); rigid_mount: any value where relating.
   return Status::Ok();
 }
 

@@ -249,6 +249,8 @@ TEST(MultiHost, TwoHostsAndOneRelateStageMatchTheSingleProcessAndMergeTheirRecor
                Lifmcr({"relate", "--lcm", url, "--rigid-mount", "--wait-ms", "120000",
                        "--duration", "500"}),
                dir / "relate.txt");
+  // `lifmcr monitor` on the third host: its one view at the end (not a terminal).
+  Child monitor(hosts.listener(), Lifmcr({"monitor", "--lcm", url}), dir / "monitor.txt");
   std::this_thread::sleep_for(std::chrono::milliseconds(700));  // subscribed
   const auto replay = [&](const std::string& serial) {
     return Lifmcr({"replay", seq.string(), "--cameras", serial, "--rate", "max", "--reference",
@@ -263,6 +265,8 @@ TEST(MultiHost, TwoHostsAndOneRelateStageMatchTheSingleProcessAndMergeTheirRecor
   const int relate_code = relate.Wait(std::chrono::seconds(30));
   logger.Signal(SIGINT);
   logger.Wait(std::chrono::seconds(30));
+  monitor.Signal(SIGINT);
+  EXPECT_EQ(monitor.Wait(std::chrono::seconds(30)), 0) << monitor.Log();
   ASSERT_EQ(a_code, 0) << host_a.Log();
   ASSERT_EQ(b_code, 0) << host_b.Log();
   EXPECT_EQ(relate_code, 0) << relate.Log();
@@ -311,6 +315,15 @@ TEST(MultiHost, TwoHostsAndOneRelateStageMatchTheSingleProcessAndMergeTheirRecor
     EXPECT_EQ(two.channels["LIFMCR_" + serial + "_POSE"], kFrames) << serial;
   EXPECT_EQ(two.stats_sources.size(), 2u) << "one STATS source per host";
   std::printf("lcm-logger in the third namespace: %zu channels\n", two.channels.size());
+  // The monitor: every host's cameras (a row each, their poses) and one
+  // pipeline block per host, naming its cameras.
+  const std::string view = monitor.Log();
+  for (const std::string& serial : {zero, x}) {
+    EXPECT_NE(view.find("\n" + serial + " "), std::string::npos) << serial << "\n" << view;
+    EXPECT_NE(view.find("\n  " + serial + " "), std::string::npos) << "pose row\n" << view;
+    EXPECT_NE(view.find(", cameras " + serial + " (stats"), std::string::npos) << view;
+  }
+  EXPECT_NE(view.find(zero + " <- " + x), std::string::npos) << "extrinsics\n" << view;
 
   // Each host records its own camera; the merge is the single-host recording.
   RigConfig rig;
