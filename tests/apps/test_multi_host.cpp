@@ -12,7 +12,7 @@
 //     merge` of the two recordings is the single-host recording byte for byte.
 // Needs root and `ip` (network namespaces) and lcm-logger: skipped with the
 // reason printed otherwise. The namespaces are deleted also when it fails.
-// ~2 min of CPU on 2 cores (three replays with registration): label `long`.
+// ~17 s of CPU (user + sys), 50-130 s wall on 2 shared cores: label `long`.
 #include "config/rig_config.h"
 #include "lcm_types/safe_decode.h"
 #include "replay/layout.h"
