@@ -39,6 +39,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace lifmcr::apps {
 namespace {
@@ -102,6 +103,7 @@ int RunRelate(const RelateArgs& args) {
   registration::ExtrinsicsMonitorOptions monitor;
   bool rigid_mount = args.rigid_mount;
   std::string reference_serial = args.reference_serial;
+  std::vector<std::string> cameras;  // the rig's: each expected of every trigger
   if (!args.rig.empty()) {
     auto rig = LoadRigConfig(args.rig);
     if (!rig) {
@@ -113,6 +115,7 @@ int RunRelate(const RelateArgs& args) {
     rigid_mount = rigid_mount || rig->registration.rigid_mount;
     monitor.changed_after = rig->registration.changed_after;
     monitor.settle_triggers = rig->registration.settle_triggers;
+    for (const CameraConfig& camera : rig->cameras) cameras.push_back(camera.serial);
     if (reference_serial.empty() && rig->ReferenceIndex() >= 0)
       reference_serial = rig->cameras[static_cast<std::size_t>(rig->ReferenceIndex())].serial;
   }
@@ -125,6 +128,7 @@ int RunRelate(const RelateArgs& args) {
   PosePairingOptions pairing_options;
   pairing_options.reference_serial = reference_serial;
   pairing_options.wait = std::chrono::milliseconds(args.wait_ms);
+  pairing_options.cameras = cameras;
   if (Status s = pairing_options.Check(); !s) {
     std::cerr << "lifmcr relate: " << s.error().message << "\n";
     return 2;
@@ -219,7 +223,8 @@ CommandRun AddRelateCommand(CLI::App& app) {
       "A trigger waits --wait-ms after its first pose for the others; a camera whose pose\n"
       "did not come is reported on stderr and counted. Run one per rig, on any host of its LAN.\n"
       "--rig RIG.yaml: lcm.url, lcm.channel_prefix, camera 0 (role reference) and\n"
-      "registration.rigid_mount from the rig file; the flags override them.\n"
+      "registration.rigid_mount from the rig file (the flags override them), and its cameras,\n"
+      "each expected of every trigger (without --rig: the cameras seen on the POSE channels).\n"
       "Stops on SIGINT/SIGTERM, after --duration, or --idle-exit seconds after the last pose.\n"
       "Reads: the <PREFIX>_<SERIAL>_POSE channels; --rig RIG.yaml.\n"
       "Writes: the EXTRINSICS channels; --extrinsics-csv FILE (registration.csv rows).\n"

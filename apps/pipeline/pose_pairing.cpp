@@ -12,6 +12,12 @@ constexpr std::size_t kDroppedKept = 4096;  // triggers remembered to tell a lat
 
 Status PosePairingOptions::Check() const {
   if (wait.count() <= 0) return Error{"pose pairing: wait: expected > 0 ms"};
+  for (std::size_t i = 0; i < cameras.size(); ++i) {
+    if (cameras[i].empty()) return Error{"pose pairing: cameras: an empty serial"};
+    for (std::size_t j = i + 1; j < cameras.size(); ++j)
+      if (cameras[i] == cameras[j])
+        return Error{"pose pairing: cameras: " + cameras[i] + " twice"};
+  }
   // reference_serial: any (empty: the poses').
   return Status::Ok();
 }

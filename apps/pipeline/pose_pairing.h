@@ -8,8 +8,9 @@
 // Bounded waiting: a trigger (pass, trigger index) waits at most `wait`
 // after its first pose arrived here for the poses that complete its pairs;
 // then it is dropped and reported, naming the cameras whose pose did not
-// come (every camera seen on a POSE channel so far is expected of every
-// trigger), never dropped silently. A pose that comes after its trigger
+// come (the rig's cameras when given, PosePairingOptions::cameras, and every
+// camera seen on a POSE channel so far are expected of every trigger), never
+// dropped silently. A pose that comes after its trigger
 // was dropped is refused as late. A trigger stays `wait` also once its
 // pairs are made, so a host's pose that comes later still finds its
 // reference camera's. No LCM here: the command subscribes and
@@ -35,6 +36,10 @@ struct PosePairingOptions {
   // camera). A pose naming another reference is refused (reported).
   std::string reference_serial;
   std::chrono::milliseconds wait{2000};  // > 0
+  // Every camera of the rig (`lifmcr relate --rig`): a camera whose host is
+  // down is then reported lacking from the first trigger on. Empty: the
+  // cameras seen on the POSE channels.
+  std::vector<std::string> cameras;
   Status Check() const;
 };
 
@@ -46,7 +51,8 @@ struct PosePair {
 
 class PosePairing {
  public:
-  explicit PosePairing(PosePairingOptions options) : options_(std::move(options)) {}
+  explicit PosePairing(PosePairingOptions options)
+      : options_(std::move(options)), cameras_(options_.cameras.begin(), options_.cameras.end()) {}
   // A pose in, at now_ns (host clock of this process): the pairs it
   // completes (with the reference camera's pose: every camera X of the
   // trigger waiting for it; with X's: the one pair), in serial order; or,

@@ -79,6 +79,24 @@ TEST(PosePairing, ATriggerWhosePairNeverComesIsReportedAfterTheWait) {
       << pairing.Report();
 }
 
+// With the rig's cameras given (`lifmcr relate --rig`), a camera whose host
+// never published is reported lacking from the first trigger on.
+TEST(PosePairing, ARigCameraThatNeverPublishedIsReported) {
+  PosePairingOptions options;
+  options.wait = std::chrono::milliseconds(100);
+  options.cameras = {"A", "B", "C"};
+  ASSERT_TRUE(options.Check());
+  PosePairing pairing(options);
+  EXPECT_EQ(pairing.Add(Pose("A", 0), 0).pairs.size(), 0u);
+  EXPECT_EQ(pairing.Add(Pose("B", 0), 0).pairs.size(), 1u);
+  const std::vector<std::string> lines = pairing.Expire(100 * kMs);
+  ASSERT_EQ(lines.size(), 1u);
+  EXPECT_EQ(lines[0], "trigger 0 (pass 0): no pose of camera C within 100 ms");
+  EXPECT_EQ(pairing.lacked().at("C"), 1u);
+  options.cameras = {"A", "A"};
+  EXPECT_FALSE(options.Check());
+}
+
 TEST(PosePairing, RefusesDuplicatesLatePosesAndAnotherMap) {
   PosePairing pairing = Pairing(100);
   pairing.Add(Pose("A", 0), 0);
