@@ -7,6 +7,7 @@
 #include "apps/terminal.h"
 #include "config/rig_config.h"
 #include "config/text_escape.h"
+#include "lcm_types/safe_decode.h"
 
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
@@ -24,7 +25,6 @@
 #include <lifmcr_lcm/pipeline_stats_t.hpp>
 #include <lifmcr_lcm/preview_image_t.hpp>
 #include <lifmcr_lcm/vicon_frame_t.hpp>
-#include "lcm_types/safe_decode.h"
 #include <map>
 #include <memory>
 #include <optional>
@@ -85,7 +85,8 @@ void Sanitize(lifmcr_lcm::camera_extrinsics_t* m) {
     Sanitize(s);
 }
 void Sanitize(lifmcr_lcm::camera_pose_t* m) {
-  for (std::string* s : {&m->serial, &m->reference_serial, &m->method, &m->localisation, &m->status})
+  for (std::string* s :
+       {&m->serial, &m->reference_serial, &m->method, &m->localisation, &m->status})
     Sanitize(s);
 }
 void Sanitize(lifmcr_lcm::vicon_frame_t* m) {

@@ -80,11 +80,13 @@ struct Relating {
     PosePairing::Added added = pairing.Add(*pose, HostRealtimeNs());
     if (!added.refused.empty()) std::cerr << "lifmcr relate: refused " << added.refused << "\n";
     for (const PosePair& pair : added.pairs) {
-      ExtrinsicsRecord record{pair.reference.serial, pair.camera.serial,
-                              pair.camera.trigger_index,
-                              relater.Relate(pair.camera.serial, pair.reference.w0_from_cam,
-                                             pair.camera.w0_from_cam),
-                              pair.camera.arrival_ns, pair.reference.w0_from_cam.localisation};
+      ExtrinsicsRecord record{
+          pair.reference.serial,
+          pair.camera.serial,
+          pair.camera.trigger_index,
+          relater.Relate(pair.camera.serial, pair.reference.w0_from_cam, pair.camera.w0_from_cam),
+          pair.camera.arrival_ns,
+          pair.reference.w0_from_cam.localisation};
       publisher->PublishExtrinsics(record.reference_serial, record.serial, record.trigger_index,
                                    record.c0_from_cx);
       if (csv) csv->Write(record);
@@ -181,7 +183,8 @@ int RunRelate(const RelateArgs& args) {
     for (const std::string& line : relating.pairing.Expire(HostRealtimeNs()))
       std::cerr << "lifmcr relate: " << line << "\n";
     const auto now = std::chrono::steady_clock::now();
-    if (args.duration_s > 0 && std::chrono::duration<double>(now - start).count() >= args.duration_s) {
+    if (args.duration_s > 0 &&
+        std::chrono::duration<double>(now - start).count() >= args.duration_s) {
       stop_why = "duration reached";
       break;
     }
@@ -235,8 +238,9 @@ CommandRun AddRelateCommand(CLI::App& app) {
   app.add_option("--lcm", args->lcm_url, "LCM URL (default: the rig's, else LCM's)")
       ->check(LcmUrlCheck, "LCM URL");
   app.add_option("--prefix", args->prefix, "Channel prefix (default: the rig's, else LIFMCR)");
-  app.add_option("--reference-serial", args->reference_serial,
-                 "Camera 0 (default: the rig's reference camera, else the map camera the poses name)");
+  app.add_option(
+      "--reference-serial", args->reference_serial,
+      "Camera 0 (default: the rig's reference camera, else the map camera the poses name)");
   app.add_option("--wait-ms", args->wait_ms, "How long a trigger waits for its cameras' poses")
       ->check(CLI::Range(1, 600000))
       ->capture_default_str();

@@ -144,14 +144,14 @@ inline bool CheckWire<camera_extrinsics_t>(const void* data, std::size_t size) {
 template <>
 inline bool CheckWire<camera_pose_t>(const void* data, std::size_t size) {
   WireCursor c(data, size);
-  c.Skip(8 + 8);      // hash, utime
-  c.String();         // serial
-  c.String();         // reference_serial
-  c.Skip(8 + 8 + 8 + 8);  // trigger_index, pass, frame_id, arrival_utime
-  c.String();         // method
-  c.String();         // localisation
+  c.Skip(8 + 8);                     // hash, utime
+  c.String();                        // serial
+  c.String();                        // reference_serial
+  c.Skip(8 + 8 + 8 + 8);             // trigger_index, pass, frame_id, arrival_utime
+  c.String();                        // method
+  c.String();                        // localisation
   c.Skip((3 + 4 + 36) * 8 + 4 + 8);  // t_mm, q_wxyz, covariance, inliers, rmse_px
-  c.String();         // status
+  c.String();                        // status
   return c.ok();
 }
 

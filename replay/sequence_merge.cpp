@@ -89,7 +89,8 @@ Status JoinVicon(ViconLines* into, const fs::path& into_path, const ViconLines& 
                  const fs::path& other_path) {
   const std::string both = into_path.string() + " and " + other_path.string();
   if (into->header != other.header)
-    return Error{both + ": the Vicon CSVs' headers differ (other objects or rate): the hosts "
+    return Error{both +
+                 ": the Vicon CSVs' headers differ (other objects or rate): the hosts "
                  "did not record the same Vicon stream"};
   if (into->trailer != other.trailer)
     return Error{both + ": the Vicon CSVs differ after their frames (another block)"};
@@ -145,8 +146,8 @@ std::string SequenceMergeReport::Describe() const {
   std::ostringstream out;
   out << "triggers: " << triggers << " (" << first_trigger << ".." << last_trigger << ")\n";
   for (const Camera& camera : cameras) {
-    out << "camera " << camera.serial << " (from " << camera.host.string() << "): "
-        << camera.frames << " frames";
+    out << "camera " << camera.serial << " (from " << camera.host.string() << "): " << camera.frames
+        << " frames";
     if (camera.lacking.empty()) {
       out << ", none lacking\n";
       continue;
@@ -172,9 +173,9 @@ Expected<SequenceMergeReport> MergeSequences(const SequenceMergeOptions& options
       options.out.parent_path().parent_path() / std::string(layout::kCalibrationFolder);
 
   SequenceMergeReport report;
-  std::map<fs::path, Placement> plan;                 // target -> source
-  std::map<std::string, fs::path> camera_host;        // serial -> host folder holding it
-  std::map<fs::path, std::vector<fs::path>> vicon;    // target -> every host's file
+  std::map<fs::path, Placement> plan;               // target -> source
+  std::map<std::string, fs::path> camera_host;      // serial -> host folder holding it
+  std::map<fs::path, std::vector<fs::path>> vicon;  // target -> every host's file
   std::set<std::int64_t> triggers;
   for (const fs::path& host : options.hosts) {
     auto sequence = DiscoverSequence(host);

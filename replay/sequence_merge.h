@@ -53,7 +53,8 @@ struct SequenceMergeReport {
   std::vector<Camera> cameras;  // by serial
   std::size_t triggers = 0;     // triggers any camera has
   std::int64_t first_trigger = 0, last_trigger = -1;
-  std::uint64_t linked = 0, copied = 0, joined = 0;  // files; joined: Vicon CSVs written line by line
+  std::uint64_t linked = 0, copied = 0,
+                joined = 0;        // files; joined: Vicon CSVs written line by line
   std::vector<std::string> vicon;  // one line per Vicon CSV: how it was taken
   bool Complete() const;           // no camera lacks a trigger
   // Several lines: per camera its frames and the triggers it lacks (the

@@ -136,8 +136,8 @@ Expected<std::vector<std::string>> SelectCameras(const std::string& list,
     if (item.empty())
       return Error{"--cameras '" + list + "': an empty serial (expected SERIAL[,SERIAL...])"};
     if (std::find(available.begin(), available.end(), item) == available.end())
-      return Error{"--cameras: camera '" + item + "' is not in " + where + " (its cameras: " +
-                   there() + ")"};
+      return Error{"--cameras: camera '" + item + "' is not in " + where +
+                   " (its cameras: " + there() + ")"};
     if (std::find(named.begin(), named.end(), item) != named.end())
       return Error{"--cameras: camera '" + item + "' given twice"};
     named.push_back(item);

@@ -30,11 +30,13 @@ Status LiveRegistrationOptions::Check() const {
   if (Status s = localizer.Check(); !s) return s;
   if (Status s = monitor.Check(); !s) return s;
   if (!relate && !extrinsics_csv.empty())
-    return Error{"live registration: --extrinsics-csv: this process holds only some cameras "
-                 "(--cameras) and relates none; give it to lifmcr relate"};
+    return Error{
+        "live registration: --extrinsics-csv: this process holds only some cameras "
+        "(--cameras) and relates none; give it to lifmcr relate"};
   if (!relate && rigid_mount)
-    return Error{"live registration: rigid_mount: this process holds only some cameras "
-                 "(--cameras) and relates none; give --rigid-mount to lifmcr relate"};
+    return Error{
+        "live registration: rigid_mount: this process holds only some cameras "
+        "(--cameras) and relates none; give --rigid-mount to lifmcr relate"};
   // intrinsics, fallback_intrinsics, extrinsics_csv: any paths (read or
   // written when loading); rigid_mount: any value where relating.
   return Status::Ok();

@@ -15,8 +15,7 @@ Status PosePairingOptions::Check() const {
   for (std::size_t i = 0; i < cameras.size(); ++i) {
     if (cameras[i].empty()) return Error{"pose pairing: cameras: an empty serial"};
     for (std::size_t j = i + 1; j < cameras.size(); ++j)
-      if (cameras[i] == cameras[j])
-        return Error{"pose pairing: cameras: " + cameras[i] + " twice"};
+      if (cameras[i] == cameras[j]) return Error{"pose pairing: cameras: " + cameras[i] + " twice"};
   }
   // reference_serial: any (empty: the poses').
   return Status::Ok();
@@ -110,9 +109,10 @@ std::string PosePairing::Report() const {
     return out.empty() ? std::string("none") : out;
   };
   std::ostringstream out;
-  out << "pairs with camera 0 (" << (options_.reference_serial.empty() ? "-" : options_.reference_serial)
-      << ") per camera: " << list(paired_) << "; triggers lacking a camera's pose: " << list(lacked_)
-      << "; poses refused: " << refused_;
+  out << "pairs with camera 0 ("
+      << (options_.reference_serial.empty() ? "-" : options_.reference_serial)
+      << ") per camera: " << list(paired_)
+      << "; triggers lacking a camera's pose: " << list(lacked_) << "; poses refused: " << refused_;
   return out.str();
 }
 

@@ -5,18 +5,18 @@
 #include "drivers/host_clock.h"
 #include "lcm_types/safe_decode.h"
 
+#include <Eigen/Geometry>
 #include <lcm/lcm-cpp.hpp>
 
 #include <cstdlib>
 #include <ctime>
-#include <unistd.h>
-#include <Eigen/Geometry>
 #include <lifmcr_lcm/camera_extrinsics_t.hpp>
 #include <lifmcr_lcm/camera_pose_t.hpp>
 #include <lifmcr_lcm/depth_image_t.hpp>
 #include <lifmcr_lcm/pipeline_stats_t.hpp>
 #include <lifmcr_lcm/preview_image_t.hpp>
 #include <lifmcr_lcm/vicon_frame_t.hpp>
+#include <unistd.h>
 
 namespace lifmcr::apps {
 namespace {

@@ -54,9 +54,9 @@ TEST(CliCameras, RecordNamesAnUnknownSerialAndTheRigFilesCameras) {
   }
   const fs::path rig_path = dir / "rig.yaml";
   test::WriteFile(rig_path, FormatRigConfig(rig));
-  const test::CommandResult unknown = test::RunLifmcr(
-      "record --rig " + rig_path.string() + " --out " + (dir / "out").string() +
-      " --cameras MEMB,MEMC");
+  const test::CommandResult unknown =
+      test::RunLifmcr("record --rig " + rig_path.string() + " --out " + (dir / "out").string() +
+                      " --cameras MEMB,MEMC");
   EXPECT_EQ(unknown.exit_code, 2);
   EXPECT_NE(unknown.err.find("--cameras: camera 'MEMC' is not in " + rig_path.string() +
                              " (its cameras: MEMA, MEMB)"),

@@ -19,10 +19,9 @@
 #include "replay/sequence.h"
 #include "tests/test_util.h"
 
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 #include <lcm/lcm-cpp.hpp>
-
-#include <Eigen/Geometry>
 
 #include <chrono>
 #include <csignal>
@@ -46,9 +45,7 @@ using Clock = std::chrono::steady_clock;
 
 constexpr int kFrames = 6;
 
-int Sh(const std::string& command) {
-  return std::system((command + " >/dev/null 2>&1").c_str());
-}
+int Sh(const std::string& command) { return std::system((command + " >/dev/null 2>&1").c_str()); }
 
 // Two hosts and a listener, each a network namespace, on one link: veth
 // pairs into a bridge in the listener's namespace (multicast snooping off, so
@@ -71,19 +68,26 @@ class Hosts {
   // Empty when the hosts are up, else why not.
   std::string Create() {
     const std::vector<std::string> steps = {
-        "ip netns add " + a_, "ip netns add " + b_, "ip netns add " + l_,
+        "ip netns add " + a_,
+        "ip netns add " + b_,
+        "ip netns add " + l_,
         "ip -n " + l_ + " link add br0 type bridge",
         "ip -n " + l_ + " link set br0 type bridge mcast_snooping 0",
         "ip link add v0 netns " + a_ + " type veth peer name pa netns " + l_,
         "ip link add v0 netns " + b_ + " type veth peer name pb netns " + l_,
-        "ip -n " + l_ + " link set pa master br0", "ip -n " + l_ + " link set pb master br0",
+        "ip -n " + l_ + " link set pa master br0",
+        "ip -n " + l_ + " link set pb master br0",
         "ip -n " + a_ + " addr add 10.77.0.1/24 dev v0",
         "ip -n " + b_ + " addr add 10.77.0.2/24 dev v0",
         "ip -n " + l_ + " addr add 10.77.0.3/24 dev br0",
-        "ip -n " + a_ + " link set lo up", "ip -n " + a_ + " link set v0 up",
-        "ip -n " + b_ + " link set lo up", "ip -n " + b_ + " link set v0 up",
-        "ip -n " + l_ + " link set lo up", "ip -n " + l_ + " link set pa up",
-        "ip -n " + l_ + " link set pb up", "ip -n " + l_ + " link set br0 up",
+        "ip -n " + a_ + " link set lo up",
+        "ip -n " + a_ + " link set v0 up",
+        "ip -n " + b_ + " link set lo up",
+        "ip -n " + b_ + " link set v0 up",
+        "ip -n " + l_ + " link set lo up",
+        "ip -n " + l_ + " link set pa up",
+        "ip -n " + l_ + " link set pb up",
+        "ip -n " + l_ + " link set br0 up",
         "ip -n " + a_ + " route add 224.0.0.0/4 dev v0",
         "ip -n " + b_ + " route add 224.0.0.0/4 dev v0",
         "ip -n " + l_ + " route add 224.0.0.0/4 dev br0"};
@@ -172,8 +176,7 @@ LogContents ReadLog(const fs::path& path) {
   while (const lcm::LogEvent* event = log.readNextEvent()) {
     ++contents.channels[event->channel];
     if (event->channel.ends_with("_EXTRINSICS")) {
-      auto m = lifmcr_lcm::SafeDecode<lifmcr_lcm::camera_extrinsics_t>(event->data,
-                                                                        event->datalen);
+      auto m = lifmcr_lcm::SafeDecode<lifmcr_lcm::camera_extrinsics_t>(event->data, event->datalen);
       EXPECT_TRUE(m) << event->channel;
       if (m) {
         EXPECT_TRUE(contents.extrinsics.emplace(m->trigger_index, *m).second)
@@ -245,10 +248,10 @@ TEST(MultiHost, TwoHostsAndOneRelateStageMatchTheSingleProcessAndMergeTheirRecor
   const fs::path multi_log = dir / "multi.lcmlog";
   Child logger(hosts.listener(), {"lcm-logger", "--lcm-url=" + url, multi_log.string()},
                dir / "logger.txt");
-  Child relate(hosts.a(),
-               Lifmcr({"relate", "--lcm", url, "--rigid-mount", "--wait-ms", "120000",
-                       "--duration", "500"}),
-               dir / "relate.txt");
+  Child relate(
+      hosts.a(),
+      Lifmcr({"relate", "--lcm", url, "--rigid-mount", "--wait-ms", "120000", "--duration", "500"}),
+      dir / "relate.txt");
   // `lifmcr monitor` on the third host: its one view at the end (not a terminal).
   Child monitor(hosts.listener(), Lifmcr({"monitor", "--lcm", url}), dir / "monitor.txt");
   std::this_thread::sleep_for(std::chrono::milliseconds(700));  // subscribed
@@ -301,8 +304,8 @@ TEST(MultiHost, TwoHostsAndOneRelateStageMatchTheSingleProcessAndMergeTheirRecor
       for (int c = 0; c < 6; ++c)
         worst = std::max(worst, std::abs(got.covariance[r][c] - want.covariance[r][c]));
     worst = std::max(worst, std::abs(got.rmse_px - want.rmse_px));
-    worst = std::max(worst, std::abs(got.departure - want.departure) /
-                                std::max(1.0, std::abs(want.departure)));
+    worst = std::max(
+        worst, std::abs(got.departure - want.departure) / std::max(1.0, std::abs(want.departure)));
   }
   std::printf("relate across hosts vs single process: %zu triggers, largest difference %.3g\n",
               one.extrinsics.size(), worst);
@@ -335,8 +338,8 @@ TEST(MultiHost, TwoHostsAndOneRelateStageMatchTheSingleProcessAndMergeTheirRecor
     camera.role = serial == zero ? CameraRole::kReference : CameraRole::kRegistered;
     camera.driver.kind = DriverKind::kReplay;
     camera.trigger.mode = TriggerMode::kHardware;
-    camera.mla_file = dir / "data" / "Calibration" / "02_MLA_Calibration" /
-                      ("TypeE_" + serial + "_MLA.xml");
+    camera.mla_file =
+        dir / "data" / "Calibration" / "02_MLA_Calibration" / ("TypeE_" + serial + "_MLA.xml");
     rig.cameras.push_back(camera);
   }
   rig.vicon.source = ViconSourceKind::kCsv;
@@ -346,7 +349,7 @@ TEST(MultiHost, TwoHostsAndOneRelateStageMatchTheSingleProcessAndMergeTheirRecor
   test::WriteFile(rig_path, FormatRigConfig(rig));
   const auto record = [&](const std::string& ns, const std::string& out,
                           const std::string& cameras) {
-    std::vector<std::string> args = {"record", "--rig", rig_path.string(), "--replay",
+    std::vector<std::string> args = {"record",     "--rig", rig_path.string(),    "--replay",
                                      seq.string(), "--out", (dir / out).string(), "--duration",
                                      "120"};
     if (!cameras.empty()) args.insert(args.end(), {"--cameras", cameras});
@@ -358,10 +361,9 @@ TEST(MultiHost, TwoHostsAndOneRelateStageMatchTheSingleProcessAndMergeTheirRecor
   record(hosts.a(), "host_a", zero);
   record(hosts.b(), "host_b", x);
   const std::string recorded = "00_Recording/seq";
-  const test::CommandResult merged =
-      test::RunLifmcr("merge " + (dir / "host_a" / recorded).string() + " " +
-                      (dir / "host_b" / recorded).string() + " --out " +
-                      (dir / "merged" / recorded).string());
+  const test::CommandResult merged = test::RunLifmcr(
+      "merge " + (dir / "host_a" / recorded).string() + " " + (dir / "host_b" / recorded).string() +
+      " --out " + (dir / "merged" / recorded).string());
   ASSERT_EQ(merged.exit_code, 0) << merged.out << merged.err;
   std::printf("%s", merged.out.c_str());
   EXPECT_NE(merged.out.find("camera " + x + " (from "), std::string::npos) << merged.out;

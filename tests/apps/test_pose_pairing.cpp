@@ -8,10 +8,9 @@
 #include "apps/pipeline/publisher.h"
 #include "registration/live/extrinsics_monitor.h"
 
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 #include <lcm/lcm-cpp.hpp>
-
-#include <Eigen/Geometry>
 
 #include <optional>
 
@@ -144,9 +143,8 @@ TEST(PoseMessage, RoundTripsThroughLcmAndRelatesAsTheOriginal) {
   bus.subscribe("RIG7_.*_POSE", &Sink::On, &sink);
 
   PoseRecord sent[2] = {Pose("A", 7), Pose("B", 7)};
-  sent[0].w0_from_cam.transform =
-      Eigen::Translation3d(12.5, -3.25, 800.0) *
-      Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized());
+  sent[0].w0_from_cam.transform = Eigen::Translation3d(12.5, -3.25, 800.0) *
+                                  Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized());
   sent[1].w0_from_cam.transform =
       Eigen::Translation3d(-140.0, 4.0, 760.5) *
       Eigen::AngleAxisd(-0.7, Eigen::Vector3d(0.2, 1, -0.4).normalized());

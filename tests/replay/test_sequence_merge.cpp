@@ -3,17 +3,15 @@
 // triggers a camera lacks reported, Vicon taken once (joined frame by frame
 // where the hosts started at other times), and the errors that name the
 // files: a camera on two hosts, hosts disagreeing on Vicon, nothing written.
-#include "replay/sequence_merge.h"
-
 #include "replay/layout.h"
+#include "replay/sequence_merge.h"
 #include "tests/test_util.h"
 
 #include <gtest/gtest.h>
 
-#include <sys/stat.h>
-
 #include <filesystem>
 #include <string>
+#include <sys/stat.h>
 
 namespace lifmcr {
 namespace {
@@ -21,7 +19,8 @@ namespace {
 namespace fs = std::filesystem;
 
 const std::string kViconHeader =
-    "Objects\r\n80\r\n,,plate,,,,,\r\nFrame,Sub Frame,RX,RY,RZ,TX,TY,TZ\r\n,,rad,rad,rad,mm,mm,mm\r\n";
+    "Objects\r\n80\r\n,,plate,,,,,\r\nFrame,Sub "
+    "Frame,RX,RY,RZ,TX,TY,TZ\r\n,,rad,rad,rad,mm,mm,mm\r\n";
 std::string ViconLine(int frame) {
   return std::to_string(frame) + ",0,0.1,0.2,0.3," + std::to_string(frame) + ",2,3\r\n";
 }
@@ -133,8 +132,8 @@ TEST(SequenceMerge, ACameraOnTwoHostsOrDisagreeingViconIsAnErrorNamingTheFiles) 
   options.hosts = {Host(dir / "h3", {"A"}, {0, 1}), Host(dir / "h4", {"B"}, {0, 1})};
   // Host 4 received Vicon frame 5 otherwise.
   const fs::path csv = layout::ViconCsvPath(options.hosts[1], 1);
-  test::WriteFile(csv, test::ReplaceFirst(test::ReadFile(csv), ViconLine(5),
-                                          "5,0,0.1,0.2,0.3,99,2,3\r\n"));
+  test::WriteFile(
+      csv, test::ReplaceFirst(test::ReadFile(csv), ViconLine(5), "5,0,0.1,0.2,0.3,99,2,3\r\n"));
   auto vicon = MergeSequences(options);
   ASSERT_FALSE(vicon);
   test::ExpectMessageHas(vicon.error(), {layout::ViconCsvPath(options.hosts[0], 1).string(),
