@@ -139,7 +139,8 @@ Expected<std::unique_ptr<Recorder>> Recorder::Create(const RigConfig& rig,
 
   if (rig.vicon.source != ViconSourceKind::kNone) {
     if (Status s = MakeDirs(seq / layout::kViconFolder); !s) return s.error();
-    std::vector<std::string> subjects = ViconObjectsOfRig(rig);
+    std::vector<std::string> subjects =
+        options.vicon_objects.empty() ? ViconObjectsOfRig(rig) : options.vicon_objects;
     ViconPoseOptions pose_options;
     pose_options.rotation = rig.vicon.rotation;
     pose_options.handedness = rig.vicon.handedness;

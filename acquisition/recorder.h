@@ -60,6 +60,11 @@ struct RecorderOptions {
   // core and the dirty pages' writeback competes with the next frames.
   std::int64_t direct_io_min_bytes = std::int64_t{1} << 20;
   std::int64_t max_memory_bytes = 0;   // all queues together; 0 = queue_frames alone
+  // The Vicon objects the CSV has columns for; empty: the rig's
+  // (ViconObjectsOfRig). A host recording only some of the rig's cameras
+  // (`record --cameras`) still records every object of the shared Vicon
+  // stream, so the hosts' CSVs agree and `lifmcr merge` joins them.
+  std::vector<std::string> vicon_objects;
 
   // From the rig file's recorder section (out_dir is not used: --out wins).
   static RecorderOptions FromRig(const RecorderConfig& config);

@@ -7,6 +7,7 @@
 #include "apps/terminal.h"
 #include "config/rig_config.h"
 #include "config/text_escape.h"
+#include "lcm_types/safe_decode.h"
 
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
@@ -19,11 +20,11 @@
 #include <deque>
 #include <iostream>
 #include <lifmcr_lcm/camera_extrinsics_t.hpp>
+#include <lifmcr_lcm/camera_pose_t.hpp>
 #include <lifmcr_lcm/depth_image_t.hpp>
 #include <lifmcr_lcm/pipeline_stats_t.hpp>
 #include <lifmcr_lcm/preview_image_t.hpp>
 #include <lifmcr_lcm/vicon_frame_t.hpp>
-#include "lcm_types/safe_decode.h"
 #include <map>
 #include <memory>
 #include <optional>
@@ -69,6 +70,10 @@ struct CameraView {
   std::int64_t last_frame = -1;
   float valid_fraction = 0, min_v = 0, max_v = 0;
   std::optional<lifmcr_lcm::camera_extrinsics_t> extrinsics;
+  // Its poses w0_from_cam on _POSE (a process holding only some of the
+  // rig's cameras; `lifmcr relate` pairs them).
+  RateMeter pose;
+  std::optional<lifmcr_lcm::camera_pose_t> last_pose;
 };
 
 // Names from the network reach the terminal: escaped (config/text_escape.h).
@@ -79,10 +84,17 @@ void Sanitize(lifmcr_lcm::camera_extrinsics_t* m) {
   for (std::string* s : {&m->reference_serial, &m->serial, &m->method, &m->localisation, &m->status})
     Sanitize(s);
 }
+void Sanitize(lifmcr_lcm::camera_pose_t* m) {
+  for (std::string* s :
+       {&m->serial, &m->reference_serial, &m->method, &m->localisation, &m->status})
+    Sanitize(s);
+}
 void Sanitize(lifmcr_lcm::vicon_frame_t* m) {
   for (auto& o : m->objects) Sanitize(&o.name);
 }
 void Sanitize(lifmcr_lcm::pipeline_stats_t* m) {
+  Sanitize(&m->source);
+  Sanitize(&m->cameras);
   for (auto& s : m->stages) Sanitize(&s.name);
   for (auto& d : m->drops) Sanitize(&d.kind);
 }
@@ -138,6 +150,12 @@ class Monitor {
     c.extrinsics = *m;
     c.extrinsics_rate.Tick(NowS());
   }
+  void OnPose(const lcm::ReceiveBuffer*, const std::string&, const lifmcr_lcm::camera_pose_t* m) {
+    if (!Known(m->serial)) return;
+    CameraView& c = cameras_[m->serial];
+    c.last_pose = *m;
+    c.pose.Tick(NowS());
+  }
   void OnVicon(const lcm::ReceiveBuffer*, const std::string&, const lifmcr_lcm::vicon_frame_t* m) {
     vicon_.Tick(NowS());
     last_vicon_ = *m;
@@ -147,7 +165,8 @@ class Monitor {
   }
   void OnStats(const lcm::ReceiveBuffer*, const std::string&,
                const lifmcr_lcm::pipeline_stats_t* m) {
-    stats_ = *m;
+    // One block per process (a rig on several hosts has one per host).
+    if (stats_.size() < kMaxHosts || stats_.count(m->source)) stats_[m->source] = *m;
   }
 
   std::string Render(const std::string& url) {
@@ -169,6 +188,17 @@ class Monitor {
           serial.c_str(), c.preview.Hz(now), c.depth.Hz(now), c.lens_depth.Hz(now), c.tf.Hz(now),
           c.last_latency_ms,
           static_cast<long long>(c.last_frame), 100.0 * c.valid_fraction, c.min_v, c.max_v);
+      out << line;
+    }
+    bool any_pose = false;
+    for (auto& [serial, c] : cameras_) {
+      if (!c.last_pose) continue;
+      if (!any_pose) out << "\nposes (w0_from_cam, for lifmcr relate)\n";
+      any_pose = true;
+      const auto& p = *c.last_pose;
+      std::snprintf(line, sizeof line, "  %-10.10s %5.1f Hz trigger %lld [%s] inliers %d %s\n",
+                    serial.c_str(), c.pose.Hz(now), static_cast<long long>(p.trigger_index),
+                    p.localisation.c_str(), p.inliers, p.status.c_str());
       out << line;
     }
     bool any_extrinsics = false;
@@ -210,24 +240,23 @@ class Monitor {
         out << line;
       }
     if (malformed_ > 0) out << "malformed messages ignored: " << malformed_ << "\n";
-    out << "\npipeline";
-    if (!stats_) {
-      out << "  (no LIFMCR_STATS yet)\n";
-    } else {
-      std::snprintf(line, sizeof line, "  (stats %.1f s ago)\n",
-                    now - static_cast<double>(stats_->utime) / 1e6);
+    if (stats_.empty()) out << "\npipeline  (no LIFMCR_STATS yet)\n";
+    for (const auto& [source, stats] : stats_) {
+      std::snprintf(line, sizeof line, "\npipeline %s, cameras %s (stats %.1f s ago)\n",
+                    source.empty() ? "(unnamed)" : source.c_str(), stats.cameras.c_str(),
+                    now - static_cast<double>(stats.utime) / 1e6);
       out << line;
-      for (const auto& s : stats_->stages) {
+      for (const auto& st : stats.stages) {
         std::snprintf(line, sizeof line,
                       "  %-12.12s %5.1f Hz q %d/%d p50 %6.1f p99 %6.1f ms done %lld skip %lld\n",
-                      s.name.c_str(), s.rate_hz, s.queue_depth, s.queue_capacity, s.latency_p50_ms,
-                      s.latency_p99_ms, static_cast<long long>(s.processed),
-                      static_cast<long long>(s.skipped));
+                      st.name.c_str(), st.rate_hz, st.queue_depth, st.queue_capacity,
+                      st.latency_p50_ms, st.latency_p99_ms, static_cast<long long>(st.processed),
+                      static_cast<long long>(st.skipped));
         out << line;
       }
       out << "  drops:";
-      if (stats_->drops.empty()) out << " none";
-      for (const auto& d : stats_->drops) out << " " << d.kind << "=" << d.count;
+      if (stats.drops.empty()) out << " none";
+      for (const auto& d : stats.drops) out << " " << d.kind << "=" << d.count;
       out << "\n";
     }
     return out.str();
@@ -243,7 +272,9 @@ class Monitor {
   RateMeter vicon_;
   std::optional<lifmcr_lcm::vicon_frame_t> last_vicon_;
   std::map<std::string, std::uint64_t> occlusions_;
-  std::optional<lifmcr_lcm::pipeline_stats_t> stats_;
+  // By source ("<host>:<pid>"): one pipeline per host of the rig.
+  static constexpr std::size_t kMaxHosts = 16;
+  std::map<std::string, lifmcr_lcm::pipeline_stats_t> stats_;
 };
 
 struct Args {
@@ -274,6 +305,7 @@ int RunMonitor(const Args& args) {
   bus.subscribe("LIFMCR_.*_DEPTH", &Monitor::Raw<depth_image_t, &Monitor::OnDepth>, &monitor);
   bus.subscribe("LIFMCR_.*_EXTRINSICS", &Monitor::Raw<camera_extrinsics_t, &Monitor::OnExtrinsics>,
                 &monitor);
+  bus.subscribe("LIFMCR_.*_POSE", &Monitor::Raw<camera_pose_t, &Monitor::OnPose>, &monitor);
   bus.subscribe("LIFMCR_VICON", &Monitor::Raw<vicon_frame_t, &Monitor::OnVicon>, &monitor);
   bus.subscribe("LIFMCR_STATS", &Monitor::Raw<pipeline_stats_t, &Monitor::OnStats>, &monitor);
 

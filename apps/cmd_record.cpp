@@ -76,6 +76,7 @@ struct Args {
   bool publish = false;
   std::string lcm_url;
   bool no_processing = false;
+  std::string cameras;  // --cameras SERIAL[,SERIAL...]: this host's share of the rig
   // --reference MAP_DIR: live registration (rigid_mount: the rig file's).
   RegistrationArgs registration;
 };
@@ -88,7 +89,12 @@ struct Args {
 // never recorded frames.
 // With --reference, live registration (live_registration.h) is set up in
 // `live` and runs as the pipeline's registration stage.
+// `relate`: the process holds every camera of the rig file (no --cameras
+// leaving some out) and relates their poses itself; else its poses go out
+// on POSE for `lifmcr relate` (the rig's registration.rigid_mount is then
+// relate's to apply).
 Expected<std::unique_ptr<Pipeline>> MakePublishPipeline(const RigConfig& rig, const Args& args,
+                                                        bool relate,
                                                         std::optional<LiveRegistration>* live) {
   const PreviewOptions preview = PreviewOptionsFromRig(rig);
   if (Status s = preview.Check(); !s) return s.error();
@@ -111,7 +117,8 @@ Expected<std::unique_ptr<Pipeline>> MakePublishPipeline(const RigConfig& rig, co
     // Replay cameras (--replay SEQ): the sequence's ground truth last.
     if (!args.replay.empty())
       live_options.fallback_intrinsics.push_back(layout::CamerasYamlPath(args.replay));
-    live_options.rigid_mount = rig.registration.rigid_mount;
+    live_options.rigid_mount = relate && rig.registration.rigid_mount;
+    live_options.relate = relate;
     live_options.monitor.changed_after = rig.registration.changed_after;
     live_options.monitor.settle_triggers = rig.registration.settle_triggers;
     std::vector<std::string> serials;
@@ -139,6 +146,7 @@ Expected<std::unique_ptr<Pipeline>> MakePublishPipeline(const RigConfig& rig, co
   if (!args.lcm_url.empty()) options.publisher.url = args.lcm_url;
   // The controller's assembler makes the FrameSets (one per run; with
   // --no-sync too, without Vicon association).
+  options.relate = relate;
   if (*live) (*live)->Configure(&options);
   return Pipeline::Create(sync, std::move(processor), options);
 }
@@ -170,7 +178,27 @@ int Run(const Args& args) {
     std::cerr << "lifmcr record: " << EscapeText(rig.error().message) << "\n";
     return kExitUsage;
   }
+  // --cameras: this host's share of the rig; the others are left out of
+  // everything below (armed, recorded, processed, published).
+  const std::size_t rig_cameras = rig->cameras.size();
+  // The Vicon stream is the whole rig's: every host receives and records
+  // every object, whichever cameras it holds.
+  const RigConfig whole_rig = *rig;
+  if (!args.cameras.empty()) {
+    std::vector<std::string> serials;
+    for (const CameraConfig& camera : rig->cameras) serials.push_back(camera.serial);
+    auto selected = SelectCameras(args.cameras, serials, args.rig);
+    if (!selected) {
+      std::cerr << "lifmcr record: " << EscapeText(selected.error().message) << "\n";
+      return kExitUsage;
+    }
+    std::erase_if(rig->cameras, [&](const CameraConfig& camera) {
+      return std::find(selected->begin(), selected->end(), camera.serial) == selected->end();
+    });
+  }
+  const bool every_camera = rig->cameras.size() == rig_cameras;
   RecorderOptions options = RecorderOptions::FromRig(rig->recorder);
+  options.vicon_objects = ViconObjectsOfRig(whole_rig);
   options.root_dir = args.out.empty() ? rig->recorder.out_dir : std::filesystem::path(args.out);
   options.scene = args.scene;
   options.sequence = args.sequence;
@@ -209,7 +237,7 @@ int Run(const Args& args) {
     cameras.push_back(std::move(*camera));
     software_trigger.push_back(config.trigger.mode == TriggerMode::kSoftware);
   }
-  auto vicon = MakeViconSource(*rig);
+  auto vicon = MakeViconSource(whole_rig);
   if (!vicon) {
     std::cerr << "lifmcr record: " << EscapeText(vicon.error().message) << "\n";
     return kExitCannotStart;
@@ -227,7 +255,7 @@ int Run(const Args& args) {
     process_settings = ProcessSettings::ForPipeline(ProcessSettings::ArenasFor(
         !args.registration.reference.empty(),
         rig->processing.skip_policy == SkipPolicy::kNewestWins));
-    auto made = MakePublishPipeline(*rig, args, &live);
+    auto made = MakePublishPipeline(*rig, args, every_camera, &live);
     if (!made) {
       std::cerr << "lifmcr record: --publish: " << EscapeText(made.error().message) << "\n";
       (*recorder)->Stop();
@@ -284,8 +312,11 @@ int Run(const Args& args) {
       stop_why = "write error";
       break;
     }
-    // A rig made only of replay cameras ends with its sequence.
-    if (controller.CamerasFinished()) {
+    // A rig made only of replay cameras ends with its sequence: its frames
+    // and, from a Vicon CSV, every Vicon frame of it (the recording then
+    // holds the whole sequence, whatever the timing).
+    if (controller.CamerasFinished() &&
+        (whole_rig.vicon.source != ViconSourceKind::kCsv || controller.ViconFinished())) {
       stop_why = "end of the replayed sequence";
       break;
     }
@@ -340,7 +371,12 @@ CommandRun AddRecordCommand(CLI::App& app) {
       "fired on Vicon frame f0 + divider * k) and its losses by kind.\n"
       "Cameras: driver 'aravis' (GigE Vision, USB3 Vision, Aravis fake cameras) and\n"
       "'replay' (the camera folders of --replay SEQ, served at the trigger period, or per\n"
-      "software trigger; the recording ends with the sequence when every camera replays).\n"
+      "software trigger; the recording ends with the sequence when every camera replays,\n"
+      "and with a Vicon CSV source once its frames are in too).\n"
+      "--cameras SERIAL[,SERIAL...]: only these cameras of the rig file (a host's share of\n"
+      "a rig on several hosts); every Vicon object is still recorded. With --publish\n"
+      "--reference their poses go out on <PREFIX>_<SERIAL>_POSE and `lifmcr relate` makes\n"
+      "the extrinsics; `lifmcr merge` joins the hosts' recordings.\n"
       "A status line on stderr (per camera fps, MB/s, recorder queue, lost frames; Vicon\n"
       "rate and gaps; disk backlog) is refreshed in place on a terminal, printed once a\n"
       "second otherwise. Stops after --duration, on SIGINT/SIGTERM, or by itself on a\n"
@@ -369,6 +405,10 @@ CommandRun AddRecordCommand(CLI::App& app) {
       ->check(LcmUrlCheck, "LCM URL");
   app.add_flag("--no-processing", args->no_processing,
                "--publish previews only (no depth, no TF; as processing.enabled: false)");
+  app.add_option("--cameras", args->cameras,
+                 "SERIAL[,SERIAL...]: only these cameras of the rig file (this host's; default: "
+                 "every one); with --publish --reference their poses go out on _POSE for "
+                 "lifmcr relate");
   app.add_option("--replay", args->replay,
                  "Sequence folder that cameras with driver 'replay' serve")
       ->check(CLI::ExistingDirectory);

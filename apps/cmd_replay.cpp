@@ -37,6 +37,7 @@ struct Args {
   int concurrency = 2;
   std::vector<std::string> pixel_formats;
   RegistrationArgs registration;
+  std::string cameras;
 };
 
 }  // namespace
@@ -44,7 +45,7 @@ struct Args {
 int RunReplayCommand(const std::string& sequence, const std::string& rate_text, bool loop,
                      const std::string& lcm_url, bool processing, int concurrency, const char* who,
                      const RegistrationArgs& registration,
-                     const std::vector<std::string>& pixel_formats) {
+                     const std::vector<std::string>& pixel_formats, const std::string& cameras) {
   auto rate = ReplayRate::Parse(rate_text);
   if (!rate) {
     std::cerr << who << ": " << EscapeText(rate.error().message) << "\n";
@@ -68,6 +69,7 @@ int RunReplayCommand(const std::string& sequence, const std::string& rate_text, 
   options.pipeline.max_concurrency = concurrency;
   options.stop = &g_stop;
   options.pixel_formats = std::move(*formats);
+  options.cameras = cameras;
   for (const std::string& file : registration.intrinsics) options.intrinsics.emplace_back(file);
   if (!registration.reference.empty()) {
     LiveRegistrationOptions live;
@@ -137,6 +139,11 @@ CommandRun AddReplayCommand(CLI::App& app) {
       "are 8-bit grey); name Bayer cameras (BayerRG8 for every camera, or SERIAL=BayerRG8,\n"
       "repeatable) and their mosaics are demosaiced: previews and the TF image in colour,\n"
       "depth on luminance, as `lifmcr record --publish` does from the rig file.\n"
+      "--cameras SERIAL[,SERIAL...]: only these cameras are played, processed and published\n"
+      "(one host's share of a rig on several hosts; triggers numbered as for the whole\n"
+      "sequence). With --reference and only some cameras, every pose w0_from_cam goes out\n"
+      "on LIFMCR_<SERIAL>_POSE and `lifmcr relate` makes the extrinsics (--extrinsics-csv\n"
+      "and --rigid-mount are relate's then).\n"
       "Reads: SEQ_DIR and the Calibration/ folder beside its scene (MLA files, white images\n"
       "when present), MAP_DIR and the --intrinsics files. Writes: the LCM channels above;\n"
       "the --extrinsics-csv file.\n"
@@ -157,6 +164,8 @@ CommandRun AddReplayCommand(CLI::App& app) {
   app.add_option("--pixel-format", args->pixel_formats,
                  "[SERIAL=]FORMAT: the cameras' pixel format (Mono8, BGR8, BayerRG8, BayerGR8, "
                  "BayerGB8, BayerBG8); without SERIAL, every camera's");
+  app.add_option("--cameras", args->cameras,
+                 "SERIAL[,SERIAL...]: play only these cameras of SEQ_DIR (default: every one)");
   AddRegistrationOptions(app, &args->registration,
                          "Reference map folder: live registration of every camera to its camera");
   app.add_flag("--rigid-mount", args->registration.rigid_mount,
@@ -168,7 +177,7 @@ CommandRun AddReplayCommand(CLI::App& app) {
   return [args] {
     return RunReplayCommand(args->sequence, args->rate, args->loop, args->lcm_url,
                             !args->no_processing, args->concurrency, "lifmcr replay",
-                            args->registration, args->pixel_formats);
+                            args->registration, args->pixel_formats, args->cameras);
   };
 }
 

@@ -32,6 +32,10 @@ CommandRun AddDepthCommand(CLI::App& app);
 CommandRun AddEvaluateCommand(CLI::App& app);
 CommandRun AddCalibrateCommand(CLI::App& app);
 CommandRun AddRegisterCommand(CLI::App& app);
+// `lifmcr relate`: c0_from_cx from the POSE channels of processes on several hosts.
+CommandRun AddRelateCommand(CLI::App& app);
+// `lifmcr merge HOSTDIR... --out SEQ`: per-host recordings into one sequence.
+CommandRun AddMergeCommand(CLI::App& app);
 // `lifmcr batch plan|run|status|merge` (apps/cmd_batch.cpp, batch/).
 CommandRun AddBatchCommand(CLI::App& app);
 
@@ -41,10 +45,12 @@ CommandRun AddBatchCommand(CLI::App& app);
 int RunReplayCommand(const std::string& sequence, const std::string& rate_text, bool loop,
                      const std::string& lcm_url, bool processing, int concurrency,
                      const char* who);
-// pixel_formats: `--pixel-format` values ([SERIAL=]FORMAT).
+// pixel_formats: `--pixel-format` values ([SERIAL=]FORMAT); cameras:
+// `--cameras SERIAL[,SERIAL...]` (empty: every camera).
 int RunReplayCommand(const std::string& sequence, const std::string& rate_text, bool loop,
                      const std::string& lcm_url, bool processing, int concurrency, const char* who,
                      const RegistrationArgs& registration,
-                     const std::vector<std::string>& pixel_formats = {});
+                     const std::vector<std::string>& pixel_formats = {},
+                     const std::string& cameras = "");
 
 }  // namespace lifmcr::apps

@@ -57,6 +57,12 @@ int main(int argc, char** argv) {
       lifmcr::apps::AddCalibrateCommand);
   add("register", "Register every camera to camera 0's reference map: c0_from_cx per frame",
       lifmcr::apps::AddRegisterCommand);
+  add("relate",
+      "Relate a rig's cameras held by processes on several hosts: c0_from_cx from their POSE "
+      "channels",
+      lifmcr::apps::AddRelateCommand);
+  add("merge", "Join per-host recordings of one rig into one LiFMCR sequence by trigger index",
+      lifmcr::apps::AddMergeCommand);
   add("batch",
       "A whole dataset as resumable units of work for Slurm job arrays or GNU parallel: plan, "
       "run a shard, status, merge",

@@ -23,6 +23,7 @@
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #include "lifmcr_lcm/camera_extrinsics_t.hpp"
+#include "lifmcr_lcm/camera_pose_t.hpp"
 #include "lifmcr_lcm/depth_image_t.hpp"
 #include "lifmcr_lcm/pipeline_stats_t.hpp"
 #include "lifmcr_lcm/preview_image_t.hpp"
@@ -141,6 +142,20 @@ inline bool CheckWire<camera_extrinsics_t>(const void* data, std::size_t size) {
 }
 
 template <>
+inline bool CheckWire<camera_pose_t>(const void* data, std::size_t size) {
+  WireCursor c(data, size);
+  c.Skip(8 + 8);                     // hash, utime
+  c.String();                        // serial
+  c.String();                        // reference_serial
+  c.Skip(8 + 8 + 8 + 8);             // trigger_index, pass, frame_id, arrival_utime
+  c.String();                        // method
+  c.String();                        // localisation
+  c.Skip((3 + 4 + 36) * 8 + 4 + 8);  // t_mm, q_wxyz, covariance, inliers, rmse_px
+  c.String();                        // status
+  return c.ok();
+}
+
+template <>
 inline bool CheckWire<vicon_frame_t>(const void* data, std::size_t size) {
   WireCursor c(data, size);
   c.Skip(8 + 8 + 8 + 1);  // hash, utime, vicon_frame, is_trigger
@@ -153,6 +168,8 @@ template <>
 inline bool CheckWire<pipeline_stats_t>(const void* data, std::size_t size) {
   WireCursor c(data, size);
   c.Skip(8 + 8);  // hash, utime
+  c.String();     // source
+  c.String();     // cameras
   const std::int32_t stages = c.Count(4 + 1 + 48);
   for (std::int32_t i = 0; i < stages && c.ok(); ++i) wire::StageStats(c);
   const std::int32_t drops = c.Count(4 + 1 + 8);

@@ -118,4 +118,36 @@ Expected<std::vector<processing::CameraSetup>> LoadRigCameras(
   return out;
 }
 
+Expected<std::vector<std::string>> SelectCameras(const std::string& list,
+                                                 const std::vector<std::string>& available,
+                                                 const std::string& where) {
+  if (list.empty()) return available;
+  const auto there = [&] {
+    std::string serials;
+    for (const std::string& s : available) serials += (serials.empty() ? "" : ", ") + s;
+    return serials;
+  };
+  std::vector<std::string> named;
+  std::size_t begin = 0;
+  for (;;) {
+    const std::size_t comma = list.find(',', begin);
+    const std::string item =
+        list.substr(begin, comma == std::string::npos ? std::string::npos : comma - begin);
+    if (item.empty())
+      return Error{"--cameras '" + list + "': an empty serial (expected SERIAL[,SERIAL...])"};
+    if (std::find(available.begin(), available.end(), item) == available.end())
+      return Error{"--cameras: camera '" + item + "' is not in " + where +
+                   " (its cameras: " + there() + ")"};
+    if (std::find(named.begin(), named.end(), item) != named.end())
+      return Error{"--cameras: camera '" + item + "' given twice"};
+    named.push_back(item);
+    if (comma == std::string::npos) break;
+    begin = comma + 1;
+  }
+  std::vector<std::string> selected;
+  for (const std::string& serial : available)
+    if (std::find(named.begin(), named.end(), serial) != named.end()) selected.push_back(serial);
+  return selected;
+}
+
 }  // namespace lifmcr::apps

@@ -55,4 +55,14 @@ Expected<std::vector<processing::CameraSetup>> LoadSequenceCameras(
 Expected<std::vector<processing::CameraSetup>> LoadRigCameras(
     const RigConfig& rig, const std::vector<std::filesystem::path>& intrinsics = {});
 
+// `--cameras SERIAL[,SERIAL...]` (replay, record): the cameras of `available`
+// that `list` names, in the order of `available` (the camera indices keep
+// the sequence's or rig's order). An empty list selects every camera. A
+// serial given twice, an empty item, or a serial not in `available` is an
+// error naming it, `where` (the sequence folder or rig file) and the
+// serials there.
+Expected<std::vector<std::string>> SelectCameras(const std::string& list,
+                                                 const std::vector<std::string>& available,
+                                                 const std::string& where);
+
 }  // namespace lifmcr::apps

@@ -29,8 +29,16 @@ Status LiveRegistrationOptions::Check() const {
   if (reference_dir.empty()) return Error{"live registration: reference_dir: empty"};
   if (Status s = localizer.Check(); !s) return s;
   if (Status s = monitor.Check(); !s) return s;
+  if (!relate && !extrinsics_csv.empty())
+    return Error{
+        "live registration: --extrinsics-csv: this process holds only some cameras "
+        "(--cameras) and relates none; give it to lifmcr relate"};
+  if (!relate && rigid_mount)
+    return Error{
+        "live registration: rigid_mount: this process holds only some cameras "
+        "(--cameras) and relates none; give --rigid-mount to lifmcr relate"};
   // intrinsics, fallback_intrinsics, extrinsics_csv: any paths (read or
-  // written when loading); rigid_mount: any value.
+  // written when loading); rigid_mount: any value where relating.
   return Status::Ok();
 }
 
@@ -75,6 +83,7 @@ std::uint64_t ExtrinsicsCsv::rows() const {
 void LiveRegistration::Configure(PipelineOptions* options) const {
   options->registration = stage;
   options->reference_serial = reference_serial;
+  options->relate = relate;
   if (csv) {
     std::shared_ptr<ExtrinsicsCsv> writer = csv;
     options->on_extrinsics = [writer](const ExtrinsicsRecord& record) { writer->Write(record); };
@@ -96,7 +105,10 @@ Expected<LiveRegistration> LoadLiveRegistration(const LiveRegistrationOptions& o
   if (!map) return Error{map.error().message + " (--reference)"};
   LiveRegistration live;
   live.reference_serial = map->camera.serial;
-  if (std::find(serials.begin(), serials.end(), live.reference_serial) == serials.end())
+  live.relate = options.relate;
+  const bool holds_reference =
+      std::find(serials.begin(), serials.end(), live.reference_serial) != serials.end();
+  if (options.relate && !holds_reference)
     return Error{options.reference_dir.string() + ": the map's camera " + live.reference_serial +
                  " is not one of the cameras (" + std::to_string(serials.size()) + ")"};
   const fs::path map_intrinsics = options.reference_dir / "intrinsics.yaml";

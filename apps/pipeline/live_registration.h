@@ -45,6 +45,12 @@ struct LiveRegistrationOptions {
   // Change detection of c0_from_cx (the rig file's registration.rigid_mount).
   bool rigid_mount = false;
   registration::ExtrinsicsMonitorOptions monitor;
+  // The process holds every camera and relates their poses itself. false
+  // (`--cameras` naming only some of the rig's): poses go out on POSE for
+  // `lifmcr relate`; the map's camera need not be held here, and
+  // extrinsics_csv and rigid_mount, which belong to the relating process,
+  // are errors.
+  bool relate = true;
   Status Check() const;  // every field; the message names the field
 };
 
@@ -73,13 +79,14 @@ struct LiveRegistration {
   // The intrinsics search order for the processing chain (camera_setup.h).
   std::vector<std::filesystem::path> intrinsics_files;
   std::shared_ptr<ExtrinsicsCsv> csv;  // null without --extrinsics-csv
+  bool relate = true;                  // LiveRegistrationOptions::relate
   // Sets the pipeline's registration stage, reference camera and CSV observer.
   void Configure(PipelineOptions* options) const;
   // "map MAP_DIR: camera 40398678, 2113 points; intrinsics from A, B".
   std::string Describe() const;
 };
 
-// Reads the map, checks that camera 0 is one of `serials` with intrinsics,
+// Reads the map, checks that camera 0 is one of `serials` (when relating) with intrinsics,
 // warns about the other cameras without intrinsics, opens the CSV.
 Expected<LiveRegistration> LoadLiveRegistration(const LiveRegistrationOptions& options,
                                                 const std::vector<std::string>& serials);

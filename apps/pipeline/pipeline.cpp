@@ -99,6 +99,7 @@ struct Job {
   std::optional<std::int64_t> vicon_frame;  // of the trigger, when known
   std::int64_t arrival_ns = 0;  // host clock when the frame reached the pipeline
   std::uint64_t pass = 0;       // of a looped replay (Pipeline::EndPass): its triggers restart
+  std::uint64_t camera_order = 0;  // the frame's place among its camera's frames taken
 };
 
 struct Result {
@@ -154,6 +155,14 @@ struct Pipeline::Impl {
   // published at the rate processing allows.
   bool lanes = false;
   int reference_camera = 0;  // camera index of options.reference_serial
+  // Block with a registration stage: each camera's turn to localise
+  // (RunProcess), by Job::camera_order; `taken` numbers the frames queued
+  // (Poll's thread).
+  std::mutex turn_mutex;
+  std::condition_variable turn_cv;
+  std::map<int, std::uint64_t> localize_turn;
+  std::map<int, std::uint64_t> taken;
+  std::string reference_serial;  // camera 0's serial (POSE messages name it)
   std::unique_ptr<Publisher> publisher;
 
   // The grab loop's hand-over (sync_mutex): sets waiting for Poll, the
@@ -310,12 +319,30 @@ struct Pipeline::Impl {
     if (lanes) return RunRegistration(std::move(job));
     Result result{std::move(job), Error{""}, std::nullopt};
     result.processed = processor->Process(result.job.frame);
+    // Offline (block): a camera's frames are localised in the order they
+    // came, whichever worker finished its processing first, so each pose
+    // tracks from its predecessor's and a camera's poses do not depend on
+    // the other cameras the process holds (a host of a rig on several hosts
+    // gets the poses one process of all cameras gets). The workers take
+    // frames in that order, so the one waited for is already on a worker.
+    const int camera = result.job.frame.camera_index;
+    if (localizes) {
+      std::unique_lock lock(turn_mutex);
+      turn_cv.wait(lock, [&] { return localize_turn[camera] == result.job.camera_order; });
+    }
     if (localizes && result.processed && result.processed->products) {
       processing::StageFrame frame;
       frame.products = result.processed->products.get();
       frame.camera = result.processed->camera;
       frame.raw = result.processed->products->prepared.raw;
       Localize(result, std::move(frame));
+    }
+    if (localizes) {
+      {
+        std::lock_guard lock(turn_mutex);
+        ++localize_turn[camera];
+      }
+      turn_cv.notify_all();
     }
     return result;
   }
@@ -401,6 +428,10 @@ struct Pipeline::Impl {
   // Camera X's pose of a trigger: related to camera 0's of the same trigger
   // once both are there, and published.
   std::uint64_t Relate(const Job& job, const processing::CameraPose& w0_from_cx) {
+    publisher->PublishPose(PoseRecord{job.frame.serial, reference_serial, job.trigger_index,
+                                      static_cast<std::int64_t>(job.pass), job.frame.frame_id,
+                                      job.arrival_ns, w0_from_cx});
+    if (!options.relate) return 0;
     TriggerPoses& trigger = poses[{job.pass, job.trigger_index}];
     const int camera = job.frame.camera_index;
     trigger.by_camera[camera] = {job.frame.serial, w0_from_cx, job.arrival_ns};
@@ -446,6 +477,7 @@ struct Pipeline::Impl {
       report.published_lens_depth += counts.lens_depth;
       report.published_tf += counts.tf;
       report.published_extrinsics += extrinsics;
+      report.published_poses += result.w0_from_cx ? 1 : 0;
       report.localized += result.w0_from_cx ? 1 : 0;
       process_latency.Add(p.seconds * 1e3);
       publication_latency.Add(to_pub_ms);
@@ -551,7 +583,9 @@ struct Pipeline::Impl {
           std::lock_guard r(report_mutex);
           ++report.frames_in;
         }
-        queued.push_back(Job{std::move(*frame), set.trigger_index, vicon, arrival, pass});
+        const int camera = frame->camera_index;
+        queued.push_back(
+            Job{std::move(*frame), set.trigger_index, vicon, arrival, pass, taken[camera]++});
       }
     }
   }
@@ -625,6 +659,8 @@ struct Pipeline::Impl {
     m.processed = r.processed;
     m.skipped = r.skipped;
     m.failed = r.failed;
+    for (const std::string& serial : sync_options.serials)
+      m.cameras += (m.cameras.empty() ? "" : ",") + serial;
     std::lock_guard lock(sync_mutex);
     m.drops = SyncDrops();
     return m;
@@ -670,7 +706,9 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
   if (!impl->registration) impl->registration = std::make_shared<processing::PassThroughStage>();
   impl->localizes = dynamic_cast<processing::PassThroughStage*>(impl->registration.get()) == nullptr;
   impl->lanes = impl->localizes && options.skip_when_busy;
-  if (!options.reference_serial.empty()) {
+  impl->reference_serial =
+      options.reference_serial.empty() ? sync.serials.front() : options.reference_serial;
+  if (options.relate && !options.reference_serial.empty()) {
     const auto it = std::find(sync.serials.begin(), sync.serials.end(), options.reference_serial);
     if (it == sync.serials.end())
       return Error{"pipeline: reference_serial: camera " + options.reference_serial +
@@ -820,6 +858,7 @@ std::string PipelineReport::FinalReport() const {
       << " stats messages";
   if (publish_errors) out << ", " << publish_errors << " publish errors";
   out << "\n";
+  if (published_poses > 0) out << "poses (POSE channels): " << published_poses << "\n";
   if (published_lens_depth > 0)
     out << "depth messages: " << published_lens_depth << " per-lens (lens grid), "
         << published_depth << " dense (TF grid)\n";

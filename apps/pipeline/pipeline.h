@@ -32,6 +32,10 @@
 // Either way its poses are grouped per trigger on the publishing node, and once the
 // reference camera (reference_serial) and camera X both have a pose of a
 // trigger, Relate gives c0_from_cx, published on <PREFIX>_<SERIAL>_EXTRINSICS.
+// Every pose the stage gives (w0_from_cx, failed ones too) goes out on
+// <PREFIX>_<SERIAL>_POSE as well; a process that holds only some of the rig's
+// cameras (relate = false) publishes those only, and `lifmcr relate`
+// (apps/pipeline/pose_pairing.h) pairs them across processes and hosts.
 //
 // Threads: AddFrameSet, SetSyncDrops and AddVicon from any thread (the grab
 // loop's); a Vicon frame is published on the caller's thread, at once. Poll and Finish from
@@ -84,8 +88,13 @@ struct PipelineOptions {
   // The stage after processing; null: processing::PassThroughStage.
   std::shared_ptr<processing::RegistrationStage> registration;
   // Camera 0 of the extrinsics (the reference map's camera), by serial;
-  // empty: the camera of index 0. One of the assembler's serials.
+  // empty: the camera of index 0. One of the assembler's serials when relate.
   std::string reference_serial;
+  // Relate the cameras' poses of a trigger here (the process holds every
+  // camera of the rig). false: the process holds only some (`--cameras`):
+  // its poses go out on POSE only and `lifmcr relate` makes c0_from_cx, so
+  // no pair is related twice.
+  bool relate = true;
   // Called on the publishing thread after each extrinsics message (for
   // `--extrinsics-csv`); may be empty.
   std::function<void(const ExtrinsicsRecord&)> on_extrinsics;
@@ -125,6 +134,7 @@ struct PipelineReport {
   std::uint64_t published_previews = 0, published_depth = 0, published_tf = 0;
   std::uint64_t published_lens_depth = 0;
   std::uint64_t published_vicon = 0, published_stats = 0, published_extrinsics = 0;
+  std::uint64_t published_poses = 0;
   std::uint64_t publish_errors = 0;
   LatencySummary process;         // processing time per frame
   LatencySummary to_publication;  // frame arrival (host_ns) to its last message on LCM

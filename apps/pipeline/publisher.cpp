@@ -3,17 +3,20 @@
 #include "apps/pipeline/publisher.h"
 
 #include "drivers/host_clock.h"
+#include "lcm_types/safe_decode.h"
 
+#include <Eigen/Geometry>
 #include <lcm/lcm-cpp.hpp>
 
 #include <cstdlib>
 #include <ctime>
-#include <Eigen/Geometry>
 #include <lifmcr_lcm/camera_extrinsics_t.hpp>
+#include <lifmcr_lcm/camera_pose_t.hpp>
 #include <lifmcr_lcm/depth_image_t.hpp>
 #include <lifmcr_lcm/pipeline_stats_t.hpp>
 #include <lifmcr_lcm/preview_image_t.hpp>
 #include <lifmcr_lcm/vicon_frame_t.hpp>
+#include <unistd.h>
 
 namespace lifmcr::apps {
 namespace {
@@ -97,6 +100,9 @@ Expected<std::unique_ptr<Publisher>> Publisher::Create(const PublisherOptions& o
   std::unique_ptr<Publisher> p(new Publisher());
   p->options_ = options;
   p->channels_.prefix = options.channel_prefix;
+  char host[256] = {};
+  if (gethostname(host, sizeof host - 1) != 0) host[0] = '\0';
+  p->source_ = std::string(host[0] ? host : "unknown") + ":" + std::to_string(getpid());
   if (options.bus) {
     p->lcm_ = options.bus;
   } else {
@@ -242,6 +248,8 @@ void Publisher::PublishExtrinsics(const std::string& reference_serial, const std
 void Publisher::PublishStats(const StatsSnapshot& s) {
   lifmcr_lcm::pipeline_stats_t m;
   m.utime = NowRealtimeUs();
+  m.source = source_;
+  m.cameras = s.cameras;
   lifmcr_lcm::stage_stats_t process;
   process.name = s.stage_name;
   process.rate_hz = s.rate_hz;
@@ -280,6 +288,61 @@ void Publisher::PublishStats(const StatsSnapshot& s) {
   m.drops.push_back(failed);
   m.num_drops = static_cast<std::int32_t>(m.drops.size());
   PublishOn(*lcm_, lcm_mutex_, channels_.Stats(), m);
+}
+
+void Publisher::PublishPose(const PoseRecord& pose) {
+  lifmcr_lcm::camera_pose_t m;
+  m.utime = NowRealtimeUs();
+  m.serial = pose.serial;
+  m.reference_serial = pose.reference_serial;
+  m.trigger_index = pose.trigger_index;
+  m.pass = pose.pass;
+  m.frame_id = static_cast<std::int64_t>(pose.frame_id);
+  m.arrival_utime = pose.arrival_ns / 1000;
+  const processing::CameraPose& p = pose.w0_from_cam;
+  m.method = p.method;
+  m.localisation = p.localisation;
+  const Eigen::Vector3d t = p.transform.translation();
+  const Eigen::Quaterniond q(p.transform.rotation());
+  for (int k = 0; k < 3; ++k) m.t_mm[k] = t[k];
+  m.q_wxyz[0] = q.w();
+  m.q_wxyz[1] = q.x();
+  m.q_wxyz[2] = q.y();
+  m.q_wxyz[3] = q.z();
+  for (int r = 0; r < 6; ++r)
+    for (int c = 0; c < 6; ++c) m.covariance[r][c] = p.covariance(r, c);
+  m.inliers = p.inliers;
+  m.rmse_px = p.rmse_px;
+  m.status = p.status;
+  PublishOn(*lcm_, lcm_mutex_, channels_.Camera(pose.serial, "POSE"), m);
+}
+
+Expected<PoseRecord> DecodePoseMessage(const void* data, int size) {
+  auto m = lifmcr_lcm::SafeDecode<lifmcr_lcm::camera_pose_t>(data, size);
+  if (!m) return Error{"camera_pose_t: the message does not decode"};
+  PoseRecord pose;
+  pose.serial = m->serial;
+  pose.reference_serial = m->reference_serial;
+  pose.trigger_index = m->trigger_index;
+  pose.pass = m->pass;
+  pose.frame_id = static_cast<std::uint64_t>(m->frame_id);
+  pose.arrival_ns = m->arrival_utime * 1000;
+  processing::CameraPose& p = pose.w0_from_cam;
+  p.method = m->method;
+  p.localisation = m->localisation;
+  // The quaternion as sent; normalised, so a rounding in transit cannot
+  // make the rotation leave SO(3).
+  const Eigen::Quaterniond q =
+      Eigen::Quaterniond(m->q_wxyz[0], m->q_wxyz[1], m->q_wxyz[2], m->q_wxyz[3]).normalized();
+  p.transform = Eigen::Isometry3d::Identity();
+  p.transform.linear() = q.toRotationMatrix();
+  p.transform.translation() = Eigen::Vector3d(m->t_mm[0], m->t_mm[1], m->t_mm[2]);
+  for (int r = 0; r < 6; ++r)
+    for (int c = 0; c < 6; ++c) p.covariance(r, c) = m->covariance[r][c];
+  p.inliers = m->inliers;
+  p.rmse_px = m->rmse_px;
+  p.status = m->status;
+  return pose;
 }
 
 }  // namespace lifmcr::apps

@@ -14,12 +14,16 @@
 //                                 trigger, from the registration stage
 //                                 (processing/registration_stage.h), with the
 //                                 change detection's verdict when it runs
+//   <PREFIX>_<SERIAL>_POSE        camera_pose_t, w0_from_cam of every frame the
+//                                 registration stage localised (or failed to), so a
+//                                 process on another host (`lifmcr relate`) can pair
+//                                 the cameras' poses of a trigger
 //   <PREFIX>_VICON                vicon_frame_t, every Vicon frame at once
 //   <PREFIX>_STATS                pipeline_stats_t, about once a second and at the end
 // trigger_index in the messages is the FrameSet's: the number of the
 // recorded file of the same frame.
 //
-// Threads: PublishFrame, PublishExtrinsics and PublishStats from one thread
+// Threads: PublishFrame, PublishExtrinsics, PublishPose and PublishStats from one thread
 // at a time each (the pipeline's serial publishing node and its poll);
 // PublishVicon from the Vicon thread. With a URL of its own (UDP multicast)
 // Vicon goes out on an LCM instance of its own, so a Vicon message never
@@ -58,7 +62,7 @@ struct PublisherOptions {
 
 struct ChannelNames {
   std::string prefix = "LIFMCR";
-  // kind: "PREVIEW", "DEPTH", "TF", "EXTRINSICS".
+  // kind: "PREVIEW", "DEPTH", "TF", "EXTRINSICS", "POSE".
   std::string Camera(const std::string& serial, const std::string& kind) const {
     return prefix + "_" + serial + "_" + kind;
   }
@@ -73,6 +77,21 @@ struct FrameMeta {
   std::int64_t trigger_index = 0;
 };
 
+// One camera's w0_from_cam of a trigger, as on <PREFIX>_<SERIAL>_POSE.
+struct PoseRecord {
+  std::string serial;
+  std::string reference_serial;  // camera 0: W0 is its map's frame
+  std::int64_t trigger_index = 0;
+  std::int64_t pass = 0;  // replay --loop's pass: triggers restart at 0 in each
+  std::uint64_t frame_id = 0;
+  std::int64_t arrival_ns = 0;  // the frame at its host (host clock)
+  processing::CameraPose w0_from_cam;
+};
+
+// A camera_pose_t message's bytes (a subscriber's, `lifmcr relate`): the
+// record, or an error for bytes that do not decode as one.
+Expected<PoseRecord> DecodePoseMessage(const void* data, int size);
+
 // What the statistics message says (pipeline.h fills it).
 struct StatsSnapshot {
   std::string stage_name;  // "process:depth"
@@ -82,6 +101,7 @@ struct StatsSnapshot {
   double to_publication_p50_ms = 0, to_publication_p99_ms = 0;
   std::uint64_t processed = 0, skipped = 0, failed = 0;
   DropCounter drops;  // sync's, all passes
+  std::string cameras;  // the serials this process holds, comma-separated
 };
 
 class Publisher {
@@ -99,6 +119,7 @@ class Publisher {
   void PublishExtrinsics(const std::string& reference_serial, const std::string& serial,
                          std::int64_t trigger_index, const processing::CameraPose& c0_from_cx);
   void PublishStats(const StatsSnapshot& stats);
+  void PublishPose(const PoseRecord& pose);
 
   const ChannelNames& channels() const { return channels_; }
   std::uint64_t errors() const { return errors_.load(); }
@@ -117,6 +138,7 @@ class Publisher {
   std::unique_ptr<lcm::LCM> vicon_lcm_;
   std::mutex vicon_lcm_mutex_;
   std::atomic<std::uint64_t> errors_{0};
+  std::string source_;  // "<host name>:<pid>" (the STATS message's source)
 };
 
 }  // namespace lifmcr::apps

@@ -3,6 +3,7 @@
 #include "apps/pipeline/replay_runner.h"
 
 #include "acquisition/rig_controller.h"
+#include "apps/pipeline/camera_setup.h"
 #include "config/rig_config.h"
 #include "config/text_escape.h"
 #include "drivers/host_clock.h"
@@ -128,16 +129,25 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
   const double factor = options.rate.kind == ReplayRate::Kind::kFactor ? options.rate.factor : 1.0;
   const std::chrono::nanoseconds period(static_cast<std::int64_t>(100'000'000 / factor));
 
-  std::vector<std::string> serials;
-  for (const CameraFolder& folder : sequence->cameras) serials.push_back(folder.serial);
-  auto bayer = BayerCameras(options.pixel_formats, serials, options.sequence_dir);
-  if (!bayer) return bayer.error();
-  // Device time of trigger 0: the first frame number of the sequence.
+  // Device time of trigger 0: the first frame number of the sequence, of
+  // every camera (also those --cameras leaves out), so a host playing some
+  // cameras numbers the triggers as one playing all of them.
   std::int64_t first_device_ns = INT64_MAX;
   for (const CameraFolder& folder : sequence->cameras)
     if (!folder.frames.empty())
       first_device_ns = std::min(first_device_ns, folder.frames.front() * period.count());
   if (first_device_ns == INT64_MAX) first_device_ns = 0;
+  std::vector<std::string> all_serials;
+  for (const CameraFolder& folder : sequence->cameras) all_serials.push_back(folder.serial);
+  auto selected = SelectCameras(options.cameras, all_serials, options.sequence_dir.string());
+  if (!selected) return selected.error();
+  const bool every_camera = selected->size() == all_serials.size();
+  std::erase_if(sequence->cameras, [&](const CameraFolder& folder) {
+    return std::find(selected->begin(), selected->end(), folder.serial) == selected->end();
+  });
+  const std::vector<std::string>& serials = *selected;
+  auto bayer = BayerCameras(options.pixel_formats, all_serials, options.sequence_dir);
+  if (!bayer) return bayer.error();
 
   std::optional<ViconCsv> csv;
   const ViconBlock* block = nullptr;
@@ -225,6 +235,7 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
     // At --rate max nothing is late: every frame is localised, each after its
     // camera's earlier ones (LocalizerOptions::wait_for_earlier_frames).
     if (max_rate) live_options.localizer.wait_for_earlier_frames = true;
+    live_options.relate = every_camera;
     auto loaded = LoadLiveRegistration(live_options, serials);
     if (!loaded) return loaded.error();
     live = std::move(*loaded);
@@ -244,6 +255,7 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
     }
   }
   pipeline_options.skip_when_busy = !max_rate;
+  pipeline_options.relate = every_camera;
   auto pipeline = Pipeline::Create(sync, std::move(processor), pipeline_options);
   if (!pipeline) return pipeline.error();
   Pipeline& p = **pipeline;

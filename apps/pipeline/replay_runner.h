@@ -55,6 +55,12 @@ struct ReplayRunOptions {
   // the TF image (colour) and depth runs on luminance, as in `record
   // --publish` (frame_processor.h). A serial not in the sequence is an error.
   PixelFormats pixel_formats;
+  // `--cameras SERIAL[,SERIAL...]`: only these cameras of the sequence are
+  // opened, processed and published (one host's share of a rig on several
+  // hosts); empty: every camera. Trigger indices stay the whole sequence's.
+  // With only some cameras, live registration publishes poses (POSE) and
+  // relates none: `lifmcr relate` does (PipelineOptions::relate).
+  std::string cameras;
   // Intrinsics of the cameras (cameras.yaml schema), searched in order
   // (camera_setup.h, FindIntrinsics): metric depth, and what live
   // registration localises with.

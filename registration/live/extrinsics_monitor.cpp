@@ -143,4 +143,12 @@ int ExtrinsicsMonitor::changes(const std::string& serial) const {
   return it == tracks_.end() ? 0 : it->second.changes;
 }
 
+processing::CameraPose ExtrinsicsRelater::Relate(const std::string& serial,
+                                                 const processing::CameraPose& w0_from_c0,
+                                                 const processing::CameraPose& w0_from_cx) {
+  processing::CameraPose c0_from_cx = processing::ComposeExtrinsics(w0_from_c0, w0_from_cx);
+  if (monitor_) c0_from_cx.change = monitor_->Add(serial, c0_from_cx);
+  return c0_from_cx;
+}
+
 }  // namespace lifmcr::registration

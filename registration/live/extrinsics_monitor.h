@@ -30,6 +30,7 @@
 
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -73,6 +74,25 @@ class ExtrinsicsMonitor {
   void RefitWithoutOutliers(Track* track) const;
   ExtrinsicsMonitorOptions options_;
   std::map<std::string, Track> tracks_;
+};
+
+// The relate step: c0_from_cx of one trigger from the reference camera's and
+// camera X's poses (processing::ComposeExtrinsics) and, with MonitorChanges,
+// the change detection's verdict on it. The in-process pipeline's
+// (MapLocalizerStage::Relate) and `lifmcr relate`'s (poses from other
+// hosts) are this one, so both publish the same message for the same poses.
+// One thread; per camera in trigger order for the change detection.
+class ExtrinsicsRelater {
+ public:
+  // Rigidly mounted cameras: every c0_from_cx goes through change detection.
+  // Before the first Relate.
+  void MonitorChanges(const ExtrinsicsMonitorOptions& options) { monitor_.emplace(options); }
+  processing::CameraPose Relate(const std::string& serial, const processing::CameraPose& w0_from_c0,
+                                const processing::CameraPose& w0_from_cx);
+  bool monitoring() const { return monitor_.has_value(); }
+
+ private:
+  std::optional<ExtrinsicsMonitor> monitor_;
 };
 
 // xi = log(a b^-1) to first order: (t_a - dR t_b, rotvec(dR)), dR = R_a R_b^T.

@@ -124,16 +124,14 @@ Pose MapLocalizerStage::CameraState::Predict(std::int64_t trigger) const {
 }
 
 void MapLocalizerStage::MonitorChanges(const ExtrinsicsMonitorOptions& options) {
-  monitor_.emplace(options);
+  relater_.MonitorChanges(options);
 }
 
 processing::CameraPose MapLocalizerStage::Relate(const std::string& serial,
                                                  std::int64_t /*trigger_index*/,
                                                  const processing::CameraPose& w0_from_c0,
                                                  const processing::CameraPose& w0_from_cx) {
-  processing::CameraPose c0_from_cx = processing::ComposeExtrinsics(w0_from_c0, w0_from_cx);
-  if (monitor_) c0_from_cx.change = monitor_->Add(serial, c0_from_cx);
-  return c0_from_cx;
+  return relater_.Relate(serial, w0_from_c0, w0_from_cx);
 }
 
 MapLocalizerStage::Counts MapLocalizerStage::counts() const {

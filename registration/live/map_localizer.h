@@ -320,7 +320,7 @@ class MapLocalizerStage final : public processing::RegistrationStage {
 
   MapIndex map_;
   double map_virtual_depth_ = 3.0;  // median v of the map's keypoints (relocalisation's TF)
-  std::optional<ExtrinsicsMonitor> monitor_;  // Relate's thread only
+  ExtrinsicsRelater relater_;       // Relate's thread only
   LocalizerOptions options_;
   mutable std::mutex mutex_;
   std::condition_variable done_cv_;  // a frame or a relocalisation ended (wait_for_earlier_frames)

@@ -210,7 +210,7 @@ TEST_F(LoopbackMulticast, LcmLoggerRecordsAMaxRateReplay) {
             0)
       << test::ReadFile(out);
   // Depth: the dense and the per-lens map of each of the 8 frames.
-  EXPECT_EQ(test::ReadFile(out), "types 8 depth 16 preview 8\n");
+  EXPECT_EQ(test::ReadFile(out), "types 9 depth 16 preview 8\n");
 }
 
 }  // namespace

@@ -79,8 +79,9 @@ struct Received {
       ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);
       last_stats = m;
       utimes[channel].push_back(m.utime);
-    } else if (channel.ends_with("_EXTRINSICS")) {
-      // Counted only (ExtrinsicsMessages decodes them where they are under test).
+    } else if (channel.ends_with("_EXTRINSICS") || channel.ends_with("_POSE")) {
+      // Counted only (ExtrinsicsMessages decodes them where they are under test;
+      // the POSE messages: test_pose_pairing.cpp, test_multi_host.cpp).
     } else if (channel.ends_with("_VICON")) {
       lifmcr_lcm::vicon_frame_t m;
       ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);

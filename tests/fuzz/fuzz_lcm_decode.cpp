@@ -35,7 +35,7 @@ void Decode(const std::uint8_t* data, std::size_t size, bool with_hash) {
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   if (size < 1) return 0;
   const bool with_hash = (data[0] & 0x80) == 0;
-  switch (data[0] % 5) {
+  switch (data[0] % 6) {
     case 0:
       Decode<lifmcr_lcm::preview_image_t>(data + 1, size - 1, with_hash);
       break;
@@ -47,6 +47,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       break;
     case 3:
       Decode<lifmcr_lcm::vicon_frame_t>(data + 1, size - 1, with_hash);
+      break;
+    case 4:
+      Decode<lifmcr_lcm::camera_pose_t>(data + 1, size - 1, with_hash);
       break;
     default:
       Decode<lifmcr_lcm::pipeline_stats_t>(data + 1, size - 1, with_hash);

@@ -49,6 +49,13 @@ TEST(SafeDecode, EveryTypeDecodesAndEveryTruncationIsRefused) {
   extrinsics.method = "pnp";
   extrinsics.status = "ok";
   ExpectSafe(extrinsics);
+  lifmcr_lcm::camera_pose_t pose{};
+  pose.serial = "b";
+  pose.reference_serial = "a";
+  pose.method = "pnp";
+  pose.localisation = "tracked";
+  pose.status = "ok";
+  ExpectSafe(pose);
   lifmcr_lcm::vicon_frame_t vicon{};
   vicon.num_objects = 2;
   vicon.objects.resize(2);

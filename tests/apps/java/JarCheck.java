@@ -5,8 +5,9 @@ import lcm.logging.Log;
 
 public class JarCheck {
   public static void main(String[] args) throws Exception {
-    String[] types = {"preview_image_t", "depth_image_t", "camera_extrinsics_t", "vicon_object_t",
-                      "vicon_frame_t", "stage_stats_t", "drop_count_t", "pipeline_stats_t"};
+    String[] types = {"preview_image_t", "depth_image_t", "camera_extrinsics_t", "camera_pose_t",
+                      "vicon_object_t", "vicon_frame_t", "stage_stats_t", "drop_count_t",
+                      "pipeline_stats_t"};
     for (String t : types) Class.forName("lifmcr_lcm." + t);
     Log log = new Log(args[0], "r");
     int depth = 0, preview = 0;
