@@ -67,8 +67,8 @@ Status DepthOptions::Check() const {
     return Error{"depth options: fill_radius_px: expected 0 (whole micro image)..64"};
   if (!(fill_max_spread > 0 && fill_max_spread <= 1))
     return Error{"depth options: fill_max_spread: expected in (0, 1]"};
-  if (seed_search_stride < 1 || seed_search_stride > 8)
-    return Error{"depth options: seed_search_stride: expected 1..8"};
+  if (seed_search_stride < 0 || seed_search_stride > 8)
+    return Error{"depth options: seed_search_stride: expected 0 (auto)..8"};
   if (seed_max_ring1 < 1 || seed_max_ring1 > 6)
     return Error{"depth options: seed_max_ring1: expected 1..6"};
   if (seed_max_ring2 < 0 || seed_max_ring2 > 6)
@@ -150,6 +150,14 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       estimated_count(f.lenses.size(), 0), rejected_count(f.lenses.size(), 0),
       filled_count(f.lenses.size(), 0), searched_count(f.lenses.size(), 0),
       seeded_count(f.lenses.size(), 0), fallback_count(f.lenses.size(), 0);
+  // Seeded: the lattice of searched pixels, and step 5's support scaled by
+  // its density against the full search's (the fill counts estimates).
+  const int seed_stride = options.seed_search_stride != 0 ? options.seed_search_stride
+                                                          : (f.grid.PitchPx() >= 24 ? 2 : 1);
+  const int seeded_fill_support = std::max(
+      std::min(3, options.fill_min_support),
+      static_cast<int>(std::lround(options.fill_min_support * static_cast<double>(stride) /
+                                   (seed_stride * seed_stride))));
   // Seeded: ring-1 disparity per unit z (the window's margin in z).
   const double ring1_scale = lambda * f.grid.PitchPx();
   // Per micro image, its agreeing estimates' inverse-variance sums (step 5's
@@ -160,6 +168,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
   };
   std::vector<SurfaceSums> lens_sums(f.lenses.size());
   std::vector<std::uint8_t> lens_has_depth(f.lenses.size(), 0);
+  std::vector<std::uint8_t> lens_seeded(f.lenses.size(), 0);
 
   tbb::parallel_for(0, static_cast<int>(f.lenses.size()), [&](int k) {
     const MicroImage& lens = f.lenses[k];
@@ -197,6 +206,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       // NaN sigma or a window wider than the range: the full search.
       seeded = seed_lo < seed_hi && (seed_lo > lo || seed_hi < hi);
       if (!seeded) seed_lo = lo, seed_hi = hi;
+      lens_seeded[k] = seeded;
     }
     // The micro image's estimates on a local grid (z and sigma, NaN = none)
     // and its textured pixels, for the regularisation below.
@@ -241,15 +251,13 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         // Searched pixels: all, or a checkerboard (the others are filled by
         // the regularisation from their searched neighbours).
         if (seeded) {
-          if (x % options.seed_search_stride != 0 || y % options.seed_search_stride != 0)
-            continue;
+          if (x % seed_stride != 0 || y % seed_stride != 0) continue;
         } else if (stride == 2 && ((x + y) & 1)) {
           continue;
         }
         for (int i = 1; i < gated; ++i)  // insertion sort, descending (at most 6)
           for (int j = i; j > 0 && order[j - 1].first < order[j].first; --j)
             std::swap(order[j - 1], order[j]);
-        const int gated_all = gated;
         gated = std::min(gated, seeded ? options.seed_max_ring1 : options.max_ring1);
         search_failed[local] = 1;  // until an estimate passes
         Estimates estimates;
@@ -258,7 +266,6 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         std::array<std::int8_t, 6> patch_state{};  // 0 not yet, 1 valid, 2 invalid
         std::array<std::array<float, kSamples>, 6> patch_cache;
         std::array<double, 6> g2_cache;
-        bool edge = false;  // a narrow search's least cost on its window's edge
         auto match = [&](const detail::MatchParams& params, const Neighbour& nb, double z0,
                          double z1) {
           std::array<float, kSamples>& cached = patch_cache[nb.axis];
@@ -276,22 +283,19 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
             ref[m] = nb.flipped ? cached[kSamples - 1 - m] : cached[m];
           const double g2 = g2_cache[nb.axis];
           Estimate e;
-          detail::MatchMiss miss = detail::MatchMiss::kNone;
           if (detail::MatchAlong(params, grey, w, h, f.radius_px, static_cast<float>(x),
-                                 static_cast<float>(y), ref, g2, nb, z0, z1, &e, &miss))
+                                 static_cast<float>(y), ref, g2, nb, z0, z1, &e))
             estimates.Add(e);
-          edge |= miss == detail::MatchMiss::kEdge;
         };
         ++searched_count[k];
         for (int q = 0; q < gated; ++q)
           match(seeded ? narrow : search, nbs[order[q].second], seed_lo, seed_hi);
-        bool full = !seeded;
         if (seeded) {
           ++seeded_count[k];
-          if (estimates.n == 0 && edge) {  // the minimum beyond the window: the full search
+          // No clear minimum in the window (its least cost on the edge, or
+          // not distinct): the same baselines over the whole range.
+          if (estimates.n == 0) {
             ++fallback_count[k];
-            full = true;
-            gated = std::min(gated_all, options.max_ring1);
             for (int q = 0; q < gated; ++q) match(search, nbs[order[q].second], lo, hi);
           }
         }
@@ -309,7 +313,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         for (int i = 1; i < gated2; ++i)  // insertion sort, descending (at most 6)
           for (int j = i; j > 0 && order2[j - 1].first < order2[j].first; --j)
             std::swap(order2[j - 1], order2[j]);
-        gated2 = std::min(gated2, full ? options.max_ring2 : options.seed_max_ring2);
+        gated2 = std::min(gated2, seeded ? options.seed_max_ring2 : options.max_ring2);
         for (int q = 0; q < gated2; ++q) {
           const Neighbour& nb = nbs[order2[q].second];
           const double span = std::max(3 * sigma, 2 * options.step_px / (lambda * nb.length));
@@ -440,7 +444,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         const std::size_t at = static_cast<std::size_t>(y0 + local / bw) * w + (x0 + local % bw);
         if (!std::isnan(out->virtual_depth[at])) continue;
         const WindowSum ws = window(local % bw, local / bw, fill_radius);
-        if (ws.n < options.fill_min_support) continue;
+        if (ws.n < (seeded ? seeded_fill_support : options.fill_min_support)) continue;
         const double z = ws.wz / ws.w;
         const double spread2 = std::max(0.0, ws.wzz / ws.w - z * z);
         if (spread2 > options.fill_max_spread * options.fill_max_spread * z * z) continue;
@@ -470,7 +474,9 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       int contributing = 0;
       for (const auto& d : kRing1) {
         const int idx = f.LensAt(lens.i + d[0], lens.j + d[1]);
-        if (idx < 0 || lens_sums[idx].n < options.fill_min_support) continue;
+        if (idx < 0 ||
+            lens_sums[idx].n < (lens_seeded[idx] ? seeded_fill_support : options.fill_min_support))
+          continue;
         ++contributing;
         sum.w += lens_sums[idx].w;
         sum.wz += lens_sums[idx].wz;

@@ -60,11 +60,14 @@
 // micro images, so a pixel of k may see its neighbour's surface;
 // m = seed_margin_px / (lambda D), D the ring-1 baseline), clipped to the
 // searched range. Fallback to the full range: for every pixel of a micro
-// image without a seed of its own, and for a pixel none of whose narrow
-// ring-1 searches found a clear minimum (MatchAlong's tests: the minimum
-// strictly inside the narrow run and <= max_cost_ratio of its mean cost;
-// a wrong seed puts the cost minimum at the window's edge or nowhere).
-// Steps 2-5 are those of the full search.
+// image without a seed of its own (its pixels are searched as without a
+// seed), and for a pixel none of whose narrow ring-1 searches found a clear
+// minimum (MatchAlong's tests: the least cost strictly inside the narrow run
+// and <= seed_cost_ratio of its mean cost, plus noise; a wrong seed puts
+// the least cost on the window's edge or leaves no distinct one): the same
+// baselines over the whole range. With a seed, seed_max_ring1 ring-1 and
+// seed_max_ring2 ring-2 baselines are searched per pixel and a lattice of
+// seed_search_stride (below); steps 2-5 are those of the full search.
 // The strips are sampled and their costs summed by the kernels of
 // processing/lens_search_simd.h (DepthOptions::simd: Highway's or the
 // scalar reference, the same numbers) wherever the neighbour's disc lies
@@ -119,8 +122,10 @@ struct DepthOptions {
   // Seeded: the searched pixels of micro images with a seed, one of every
   // seed_search_stride x seed_search_stride block (1: all textured pixels;
   // the regularisation of step 4 gives the others between them their
-  // window's value).
-  int seed_search_stride = 2;
+  // window's value; step 5's fill_min_support is scaled by this lattice's
+  // density against the full search's, at least 3); 0: 2 for micro images
+  // of 24 px and more, else 1.
+  int seed_search_stride = 0;
   int seed_max_ring1 = 2;
   int seed_max_ring2 = 2;
   double seed_cost_ratio = 0.8;
