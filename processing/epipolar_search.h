@@ -120,12 +120,6 @@ struct MatchParams {
 
 constexpr int kMaxSteps = 256;
 
-// Why MatchAlong found no estimate: the neighbour's disc holds too few
-// steps of the range; the least cost on the run's first or last step (the
-// minimum may lie beyond the range: a seeded window around a wrong depth);
-// the minimum not distinct from the run's mean cost.
-enum class MatchMiss { kNone, kNoRange, kEdge, kNotDistinct };
-
 // Bilinear grey at (x, y) if within r2 of (cx, cy) and inside the image;
 // NaN otherwise.
 template <typename Bilinear>
@@ -176,8 +170,7 @@ inline double PatchGradient2(const float* patch) {
 template <int kLines = kAcross, typename Bilinear>
 bool MatchAlong(const MatchParams& s, const Bilinear& grey, int width, int height, double radius_px,
                 float px, float py, const float* ref, double gradient_sum, const Neighbour& nb,
-                double z_lo, double z_hi, Estimate* est, MatchMiss* miss = nullptr) {
-  if (miss != nullptr) *miss = MatchMiss::kNoRange;
+                double z_lo, double z_hi, Estimate* est) {
   constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
   const double scale = s.lambda * nb.length;  // px of disparity per unit z
   const float cx = static_cast<float>(nb.lens->centre_px.x());
@@ -304,19 +297,11 @@ bool MatchAlong(const MatchParams& s, const Bilinear& grey, int width, int heigh
       best = k;
     }
   }
-  if (best < 0) return false;
-  if (best <= first_valid || best >= last_valid || std::isnan(cost[best - 1]) ||
-      std::isnan(cost[best + 1])) {
-    if (miss != nullptr) *miss = MatchMiss::kEdge;
-    return false;
-  }
+  if (best < 0 || best <= first_valid || best >= last_valid) return false;
+  if (std::isnan(cost[best - 1]) || std::isnan(cost[best + 1])) return false;
   // Distinctiveness: the minimum well below the mean cost over the run.
   const double noise2 = 2.0 * s.noise_dn * s.noise_dn;
-  if (best_cost > s.max_cost_ratio * run_sum / run_n + kAlong * kLines * noise2) {
-    if (miss != nullptr) *miss = MatchMiss::kNotDistinct;
-    return false;
-  }
-  if (miss != nullptr) *miss = MatchMiss::kNone;
+  if (best_cost > s.max_cost_ratio * run_sum / run_n + kAlong * kLines * noise2) return false;
   const double cm = cost[best - 1], c0 = cost[best], cp = cost[best + 1];
   const double denom = cm - 2 * c0 + cp;
   const double delta = denom > 0 ? std::clamp(0.5 * (cm - cp) / denom, -0.5, 0.5) : 0.0;
