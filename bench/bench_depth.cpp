@@ -25,7 +25,7 @@
 //               references or TF) [--dense 0] (with --lens-only 1: no dense baseline)
 //               [--lens-path scalar|simd|both] [--lens-samples N]
 //               [--seed full|seeded|both] [--dense-path scalar|simd|both] [--seed-margin PX]
-//               [--seed-ring1 1..6] [--seed-ring2 0..6] [--seed-cost-ratio R] [--seed-stride 1..8]
+//               [--seed-ring1 1..6] [--seed-ring2 0..6] [--seed-cost-ratio R] [--seed-stride 0..8]
 //               (DepthOptions)
 
 #include "bench/bench_usage.h"
@@ -201,7 +201,7 @@ constexpr char kUsage[] =
     "                   [--lens-path scalar|simd|both] [--lens-samples N]\n"
     "                   [--seed full|seeded|both] [--dense-path scalar|simd|both]\n"
     "                   [--seed-margin PX] [--seed-ring1 1..6] [--seed-ring2 0..6]\n"
-    "                   [--seed-cost-ratio R] [--seed-stride 1..8]\n"
+    "                   [--seed-cost-ratio R] [--seed-stride 0..8]\n"
     "processing/ on one synthetic frame (default r32) on all cores: grid fit to the white\n"
     "image, virtual depth in raw MP/s with its accuracy against the ground truth (the full\n"
     "search and the search seeded by the per-lens depth, scalar and SIMD, side by side)\n"
