@@ -216,6 +216,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     // Per local pixel: searched (a checkerboard pixel was not) and failed.
     std::vector<std::uint8_t> search_failed(patch_z.size(), 0);
     float ref[kSamples];
+    int narrow_found = 0, narrow_missed = 0;  // the seeded windows' outcomes so far
     for (int y = y0; y <= y1; ++y) {
       // Only the row's chord of the disc (plus a pixel either side for
       // rounding; the map decides).
@@ -293,10 +294,17 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         if (seeded) {
           ++seeded_count[k];
           // No clear minimum in the window (its least cost on the edge, or
-          // not distinct): the same baselines over the whole range.
+          // not distinct): the same baselines over the whole range, while
+          // the micro image's windows have missed at least twice as often
+          // as they found one (header comment).
           if (estimates.n == 0) {
-            ++fallback_count[k];
-            for (int q = 0; q < gated; ++q) match(search, nbs[order[q].second], lo, hi);
+            ++narrow_missed;
+            if (narrow_missed >= 2 * narrow_found) {
+              ++fallback_count[k];
+              for (int q = 0; q < gated; ++q) match(search, nbs[order[q].second], lo, hi);
+            }
+          } else {
+            ++narrow_found;
           }
         }
         double z = 0, sigma = 0;

@@ -65,7 +65,12 @@
 // minimum (MatchAlong's tests: the least cost strictly inside the narrow run
 // and <= seed_cost_ratio of its mean cost, plus noise; a wrong seed puts
 // the least cost on the window's edge or leaves no distinct one): the same
-// baselines over the whole range. With a seed, seed_max_ring1 ring-1 and
+// baselines over the whole range, while the micro image's pixels searched
+// so far (in row order) missed in their windows at least twice as often as
+// they found a minimum there. A wrong seed misses (nearly) every pixel, so
+// they are all searched again; with a right one the misses are pixels
+// without a clear minimum anywhere (too little texture along their
+// baselines), which the full search loses too. With a seed, seed_max_ring1 ring-1 and
 // seed_max_ring2 ring-2 baselines are searched per pixel and a lattice of
 // seed_search_stride (below); steps 2-5 are those of the full search.
 // The strips are sampled and their costs summed by the kernels of
