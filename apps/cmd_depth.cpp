@@ -54,6 +54,8 @@ struct DepthCommandOptions {
   std::string mla;
   std::string raw;
   std::string pixel_format;
+  bool full_search = false;  // the dense search unseeded (the reference)
+  bool scalar = false;       // the scalar kernels instead of Highway's (the reference)
 };
 
 double Seconds(std::chrono::steady_clock::time_point since) {
@@ -183,6 +185,9 @@ int RunDepth(const DepthCommandOptions& o) {
   processing::ChainOptions chain_options;
   chain_options.point_cloud = true;
   chain_options.cloud_measured_only = true;
+  chain_options.seeded_depth = !o.full_search;
+  chain_options.depth.simd = !o.scalar;
+  chain_options.lens.simd = !o.scalar;
   auto chain = processing::CameraChain::Create(std::move(*setup), chain_options);
   if (!chain)
     return Fail(chain.error().message +
@@ -195,7 +200,11 @@ int RunDepth(const DepthCommandOptions& o) {
           ? (std::string(", demosaiced from ") + std::string(ToString(*pixel_format))).c_str()
           : "");
 
-  auto lease = (*chain)->Process(raw->View());
+  // The per-lens depth first: it seeds the dense search (ChainOptions::seeded_depth).
+  auto lenses = (*chain)->ProcessLenses(raw->View(), 512);
+  if (!lenses) return Fail(raw_path.string() + ": " + lenses.error().message);
+  const processing::LensProducts& lens = **lenses;
+  auto lease = (*chain)->Process(raw->View(), &lens.depth);
   if (!lease) return Fail(raw_path.string() + ": " + lease.error().message);
   const processing::ChainProducts& p = **lease;
   const processing::VirtualDepthMap& depth = p.raw_depth;
@@ -208,18 +217,16 @@ int RunDepth(const DepthCommandOptions& o) {
                   ? ""
                   : "; no intrinsics: micro-lens centres = micro-image centres (lambda 1)");
   const double raw_mp = raw->width * static_cast<double>(raw->height) / 1e6;
-  std::printf("depth     %.3f s  %.1f raw MP/s; %s\n", p.depth_s, raw_mp / p.depth_s,
+  std::printf("lenses    %.3f s  %s\n", lens.depth_s + lens.preview_s, lens.BriefReport().c_str());
+  std::printf("depth     %.3f s  %.1f raw MP/s, %s; %s\n", p.seed_s + p.depth_s,
+              raw_mp / (p.seed_s + p.depth_s),
+              o.full_search ? "full search" : "seeded by the per-lens depth",
               depth.stats.BriefReport().c_str());
   // max(1): an empty TF grid prints 0 %, not -nan %.
   const double tf_n = std::max(1.0, static_cast<double>(tf_depth.width) * tf_depth.height);
   std::printf("tf        %.3f s  %dx%d; TF depth: %.1f %% measured, %.1f %% filled\n", p.tf_s,
               tf.width, tf.height, 100.0 * tf_depth.measured / tf_n,
               100.0 * tf_depth.filled / tf_n);
-
-  auto lenses = (*chain)->ProcessLenses(raw->View(), 512);
-  if (!lenses) return Fail(raw_path.string() + ": " + lenses.error().message);
-  const processing::LensProducts& lens = **lenses;
-  std::printf("lenses    %.3f s  %s\n", lens.depth_s + lens.preview_s, lens.BriefReport().c_str());
 
   t = std::chrono::steady_clock::now();
   std::error_code ec;
@@ -370,6 +377,11 @@ CommandRun AddDepthCommand(CLI::App& app) {
                  "BayerRG8|BayerGR8|BayerGB8|BayerBG8: demosaic the raw and white image (colour "
                  "TF image, depth on luminance); Mono8/BGR8: as read (default)");
   app.add_option("--mla", o->mla, "MLA XML (default: the dataset's Calibration folder)");
+  app.add_flag("--full-search", o->full_search,
+               "Dense virtual depth by the full search (the reference) instead of the search "
+               "seeded by the per-lens depth");
+  app.add_flag("--scalar", o->scalar,
+               "The scalar search kernels (the reference) instead of the SIMD ones; the same maps");
   app.add_flag("--uncertainty", o->uncertainty,
                "Add a sigma_z_mm property (standard deviation of the depth) to every PLY point");
   return [o] { return RunDepthFrames(*o); };

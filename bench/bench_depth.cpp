@@ -3,7 +3,9 @@
 //   - grid fit to the white image (seconds, median),
 //   - virtual depth: raw MP/s (per-frame prepare + estimate, median of runs;
 //     the per-camera devignetting gain and micro-image map are made once), with the
-//     accuracy gates measured on that frame against the ground truth, beside a
+//     accuracy gates measured on that frame against the ground truth, for the
+//     full search and the search seeded by the per-lens depth (its time
+//     included), each on the scalar and the SIMD kernels, beside a
 //     naive reference measured in the same run: brute-force block matching
 //     (5x5 SSD summed over all six first-ring neighbours, every disparity step
 //     of 0.5 px over the MLA file's depth range, every valid pixel) on a crop;
@@ -22,6 +24,9 @@
 //               [--lens-only 1] (dense baseline and per-lens depth only: no grid fit, naive
 //               references or TF) [--dense 0] (with --lens-only 1: no dense baseline)
 //               [--lens-path scalar|simd|both] [--lens-samples N]
+//               [--seed full|seeded|both] [--dense-path scalar|simd|both] [--seed-margin PX]
+//               [--seed-ring1 1..6] [--seed-ring2 0..6] [--seed-cost-ratio R] [--seed-stride 0..8]
+//               (DepthOptions)
 
 #include "bench/bench_usage.h"
 #include "processing/camera_model.h"
@@ -46,6 +51,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <ctime>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -193,10 +199,14 @@ constexpr char kUsage[] =
     "                   [--crop PX] [--stride 0|1|2] [--ring1 1..6] [--ring2 0..6]\n"
     "                   [--type-ranges 0|1] [--lens-only 1] [--dense 0|1]\n"
     "                   [--lens-path scalar|simd|both] [--lens-samples N]\n"
+    "                   [--seed full|seeded|both] [--dense-path scalar|simd|both]\n"
+    "                   [--seed-margin PX] [--seed-ring1 1..6] [--seed-ring2 0..6]\n"
+    "                   [--seed-cost-ratio R] [--seed-stride 0..8]\n"
     "processing/ on one synthetic frame (default r32) on all cores: grid fit to the white\n"
-    "image, virtual depth in raw MP/s with its accuracy against the ground truth beside a\n"
-    "brute-force block matcher on a --crop, and the TF image beside one thread and a naive\n"
-    "renderer. Run under `taskset -c 0,1` for the 2-core figure.\n";
+    "image, virtual depth in raw MP/s with its accuracy against the ground truth (the full\n"
+    "search and the search seeded by the per-lens depth, scalar and SIMD, side by side)\n"
+    "beside a brute-force block matcher on a --crop, and the TF image beside one thread and\n"
+    "a naive renderer. Run under `taskset -c 0,1` for the 2-core figure.\n";
 
 int main(int argc, char** argv) {
   if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
@@ -205,7 +215,7 @@ int main(int argc, char** argv) {
   DepthOptions depth_options;
   LensDepthOptions lens_options;
   bool lens_only = false, run_dense = true;
-  std::string lens_path = "both";
+  std::string lens_path = "both", dense_path = "both", seed_mode = "both";
   for (int k = 1; k + 1 < argc; k += 2) {
     if (!std::strcmp(argv[k], "--preset"))
       preset = argv[k + 1];
@@ -227,6 +237,20 @@ int main(int argc, char** argv) {
       run_dense = std::atoi(argv[k + 1]) != 0;
     else if (!std::strcmp(argv[k], "--lens-path"))
       lens_path = argv[k + 1];
+    else if (!std::strcmp(argv[k], "--dense-path"))
+      dense_path = argv[k + 1];
+    else if (!std::strcmp(argv[k], "--seed"))
+      seed_mode = argv[k + 1];
+    else if (!std::strcmp(argv[k], "--seed-stride"))
+      depth_options.seed_search_stride = std::atoi(argv[k + 1]);
+    else if (!std::strcmp(argv[k], "--seed-ring1"))
+      depth_options.seed_max_ring1 = std::atoi(argv[k + 1]);
+    else if (!std::strcmp(argv[k], "--seed-ring2"))
+      depth_options.seed_max_ring2 = std::atoi(argv[k + 1]);
+    else if (!std::strcmp(argv[k], "--seed-cost-ratio"))
+      depth_options.seed_cost_ratio = std::atof(argv[k + 1]);
+    else if (!std::strcmp(argv[k], "--seed-margin"))
+      depth_options.seed_margin_px = std::atof(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--lens-samples"))
       lens_options.samples = std::atoi(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--ring2"))
@@ -238,6 +262,11 @@ int main(int argc, char** argv) {
   }
   if (!run_dense && !lens_only) {
     std::fprintf(stderr, "--dense 0 needs --lens-only 1\n");
+    return 2;
+  }
+  if ((dense_path != "scalar" && dense_path != "simd" && dense_path != "both") ||
+      (seed_mode != "full" && seed_mode != "seeded" && seed_mode != "both")) {
+    std::fprintf(stderr, "--dense-path: expected scalar, simd or both; --seed: full, seeded or both\n");
     return 2;
   }
   if (lens_path != "scalar" && lens_path != "simd" && lens_path != "both") {
@@ -301,8 +330,7 @@ int main(int argc, char** argv) {
   FrameOptions fo;
   fo.lambda = camera.lambda();
   PlenopticFrame frame;
-  VirtualDepthMap depth;
-  std::vector<double> depth_s, prepare_s;
+  VirtualDepthMap depth;  // the default path's map (seeded, SIMD), for the TF image below
   // Run 0 warms up (first touch of the workspace buffers; a pipeline reuses
   // them frame after frame, and first-touch page faults cost ~10 us each on
   // these VMs) and is not timed.
@@ -313,32 +341,67 @@ int main(int argc, char** argv) {
     return 1;
   }
   std::printf("per camera, once: devignetting gain and micro-image map %.3f s\n", Now() - t0);
-  // --dense 0: no dense search (with --lens-only 1 only).
-  for (int r = 0; r <= (run_dense ? repeat : -1); ++r) {
-    t0 = Now();
-    if (!LoadRaw(raw.View(), &frame).ok()) {
-      std::fprintf(stderr, "prepare failed\n");
+  // The seed: the per-lens depth (SIMD) of the same frame, with its own time.
+  std::unique_ptr<LensDepthEstimator> seed_estimator;
+  {
+    PlenopticFrame geometry;
+    if (!PrepareGeometry(white.View(), raw.width, raw.height, grid, mla, fo, &geometry).ok())
       return 1;
+    auto made_estimator = LensDepthEstimator::Create(std::move(geometry), mla, lens_options);
+    if (!made_estimator) {
+      std::fprintf(stderr, "lens depth: %s\n", made_estimator.error().message.c_str());
+      return 2;
     }
-    const double t_prepared = Now();
-    if (!EstimateVirtualDepth(frame, mla, depth_options, &depth).ok()) {
-      std::fprintf(stderr, "depth failed\n");
-      return 1;
-    }
-    if (r > 0) {
-      depth_s.push_back(Now() - t0);
-      prepare_s.push_back(t_prepared - t0);
-    }
+    seed_estimator = std::move(*made_estimator);
   }
-  double depth_mps = 0;
-  if (run_dense) {
+  LensDepthMap seed_map;
+  LensSeed seed;
+  // Dense paths side by side: (full | seeded) x (scalar | SIMD); per path
+  // the per-frame prepare + search (+ per-lens seed) in wall and CPU time,
+  // median of the runs, and its accuracy against the ground truth.
+  struct DenseResult {
+    double wall_s = 0, cpu_s = 0, prepare_s = 0, seed_s = 0, coverage = 0, median = 1,
+           outliers = 1, median_mm = 1;
+    DepthStats stats;
+  };
+  std::vector<std::pair<std::string, DenseResult>> dense_results;
+  double depth_mps = 0, depth_wall_s = 0;
+  auto run_dense_path = [&](bool seeded, bool simd, VirtualDepthMap* map) -> bool {
+    DepthOptions options = depth_options;
+    options.simd = simd;
+    DenseResult res;
+    std::vector<double> wall, cpu, prep, seed_time;
+    for (int r = 0; r <= repeat; ++r) {
+      t0 = Now();
+      const double cpu0 = ProcessCpuSeconds();
+      if (!LoadRaw(raw.View(), &frame).ok()) return false;
+      const double t_prepared = Now();
+      if (seeded) {
+        if (!seed_estimator->Estimate(raw.View(), &seed_map).ok()) return false;
+        if (!SeedFromLensDepth(frame, seed_map, &seed).ok()) return false;
+      }
+      const double t_seeded = Now();
+      if (!EstimateVirtualDepth(frame, mla, options, seeded ? &seed : nullptr, map).ok())
+        return false;
+      if (r > 0) {
+        wall.push_back(Now() - t0);
+        cpu.push_back(ProcessCpuSeconds() - cpu0);
+        prep.push_back(t_prepared - t0);
+        seed_time.push_back(t_seeded - t_prepared);
+      }
+    }
+    res.wall_s = Median(wall);
+    res.cpu_s = Median(cpu);
+    res.prepare_s = Median(prep);
+    res.seed_s = Median(seed_time);
+    res.stats = map->stats;
     long long textured = 0, covered = 0, outliers = 0;
     std::vector<double> rel, rel_mm;
-    for (std::size_t i = 0; i < depth.virtual_depth.size(); ++i) {
+    for (std::size_t i = 0; i < map->virtual_depth.size(); ++i) {
       const float truth = raw.virtual_depth[i];
-      if (!depth.textured[i] || std::isnan(truth)) continue;
+      if (!map->textured[i] || std::isnan(truth)) continue;
       ++textured;
-      const float v = depth.virtual_depth[i];
+      const float v = map->virtual_depth[i];
       if (std::isnan(v)) continue;
       ++covered;
       rel.push_back(std::abs(1.0 / v - 1.0 / truth) * truth);
@@ -346,20 +409,60 @@ int main(int argc, char** argv) {
       rel_mm.push_back(std::abs(camera.DepthOfVirtualDepth(v) - z_true) / z_true);
       if (std::abs(v - truth) / truth > 0.10) ++outliers;
     }
-    const double coverage = textured ? static_cast<double>(covered) / textured : 0;
-    const double median = rel.empty() ? 1 : Median(rel);
-    const double outlier_share = covered ? static_cast<double>(outliers) / covered : 1;
-    const bool gates = coverage >= 0.5 && median <= 0.02 && outlier_share <= 0.05;
-    depth_mps = raw_mp / Median(depth_s);
-    std::printf("metric depth (true intrinsics) at the raw estimates: median |dZ|/Z %.2f %%\n",
-                rel_mm.empty() ? 100.0 : 100 * Median(rel_mm));
+    res.coverage = textured ? static_cast<double>(covered) / textured : 0;
+    res.median = rel.empty() ? 1 : Median(rel);
+    res.outliers = covered ? static_cast<double>(outliers) / covered : 1;
+    res.median_mm = rel_mm.empty() ? 1 : Median(rel_mm);
+    const std::string name = std::string(seeded ? "seeded" : "full") + " " + (simd ? "simd" : "scalar");
+    dense_results.emplace_back(name, res);
+    const bool gates = res.coverage >= 0.5 && res.median <= 0.02 && res.outliers <= 0.05;
     std::printf(
-        "depth: %.2f raw MP/s (%.3f s median per %.1f MP frame); coverage %.1f %% of "
-        "textured, median |dz|/z %.2f %%, outliers %.2f %%: gates %s (%s)\n",
-        depth_mps, Median(depth_s), raw_mp, 100 * coverage, 100 * median, 100 * outlier_share,
-        gates ? "hold" : "DO NOT hold", LoadAverage().c_str());
-    std::printf("depth: of it per-frame prepare (devignetting, smoothing) %.3f s median\n",
-                Median(prepare_s));
+        "depth %s: %.2f raw MP/s (%.3f s median per %.1f MP frame: prepare %.3f, per-lens seed "
+        "%.3f, search %.3f; CPU %.3f s, all threads); coverage %.1f %% of textured, median "
+        "|dz|/z %.2f %%, outliers %.2f %%, metric median |dZ|/Z %.2f %%: gates %s (%s)\n",
+        name.c_str(), raw_mp / res.wall_s, res.wall_s, raw_mp, res.prepare_s, res.seed_s,
+        res.wall_s - res.prepare_s - res.seed_s, res.cpu_s, 100 * res.coverage, 100 * res.median,
+        100 * res.outliers, 100 * res.median_mm, gates ? "hold" : "DO NOT hold",
+        LoadAverage().c_str());
+    std::printf("depth %s: %s\n", name.c_str(), res.stats.BriefReport().c_str());
+    return true;
+  };
+  if (run_dense) {
+    for (const bool seeded : {false, true})
+      for (const bool simd : {false, true}) {
+        if ((seeded && seed_mode == "full") || (!seeded && seed_mode == "seeded")) continue;
+        if ((simd && dense_path == "scalar") || (!simd && dense_path == "simd")) continue;
+        // The last path run (seeded SIMD by default) is the map the TF image uses.
+        if (!run_dense_path(seeded, simd, &depth)) {
+          std::fprintf(stderr, "depth failed\n");
+          return 1;
+        }
+      }
+    depth_wall_s = dense_results.back().second.wall_s;
+    depth_mps = raw_mp / depth_wall_s;
+    // The side-by-side table and the gate (>= 65 raw MP/s; accuracy of the
+    // seeded path within 1 % absolute of the full search's).
+    const DenseResult* full = nullptr;
+    for (const auto& [name, res] : dense_results)
+      if (name.rfind("full", 0) == 0) full = &res;
+    std::printf("depth paths (%s):\n", LoadAverage().c_str());
+    std::printf("  %-14s %9s %9s %9s %9s %9s %9s\n", "path", "raw MP/s", "wall s", "CPU s",
+                "coverage", "median", "outliers");
+    for (const auto& [name, res] : dense_results) {
+      std::printf("  %-14s %9.2f %9.3f %9.3f %8.2f%% %8.2f%% %8.2f%%", name.c_str(),
+                  raw_mp / res.wall_s, res.wall_s, res.cpu_s, 100 * res.coverage,
+                  100 * res.median, 100 * res.outliers);
+      if (full != nullptr && name.rfind("seeded", 0) == 0) {
+        const bool within = res.coverage >= full->coverage - 0.01 &&
+                            res.median <= full->median + 0.01 &&
+                            res.outliers <= full->outliers + 0.01;
+        std::printf("  speed x%.1f of full, accuracy %s", full->wall_s / res.wall_s,
+                    within ? "within 1 % of full" : "NOT within 1 % of full");
+      }
+      std::printf("\n");
+    }
+    std::printf("depth gate (>= 65 raw MP/s, %s): %s\n", dense_results.back().first.c_str(),
+                depth_mps >= 65 ? "holds" : "DOES NOT hold");
   }
 
   // Per-lens virtual depth on the same frame, the scalar and the SIMD
@@ -422,8 +525,8 @@ int main(int argc, char** argv) {
         path, lens_ms, raw_mp, (*estimator)->geometry().lenses.size(), 1e3 / lens_ms,
         1e3 * Median(lens_cpu_s));
     if (run_dense)
-      std::printf("; dense search on the same frame %.0f ms: ratio %.0fx", 1e3 * Median(depth_s),
-                  1e3 * Median(depth_s) / lens_ms);
+      std::printf("; dense search on the same frame %.0f ms: ratio %.0fx", 1e3 * depth_wall_s,
+                  1e3 * depth_wall_s / lens_ms);
     std::printf(" (%s)\n", LoadAverage().c_str());
     std::printf(
         "lens depth %s vs truth (per-lens median): %lld of %lld textured lenses (%.1f %%), median "
@@ -460,16 +563,20 @@ int main(int argc, char** argv) {
   TfDepthMap tf_depth;
   TfImage tf;
   std::vector<double> tf_s, tf_one_s;
-  std::vector<double> tf_depth_s;
+  std::vector<double> tf_depth_s, tf_cpu_s;
   for (int r = 0; r <= repeat; ++r) {  // run 0: warm-up, not timed
     t0 = Now();
+    const double cpu0 = ProcessCpuSeconds();
     if (!VirtualDepthToTf(frame, depth, TfOptions{}, &tf_depth).ok()) return 1;
     if (r > 0) tf_depth_s.push_back(Now() - t0);
     if (!RenderTotalFocus(frame, mla, tf_depth, TfOptions{}, &tf).ok()) {
       std::fprintf(stderr, "TF failed\n");
       return 1;
     }
-    if (r > 0) tf_s.push_back(Now() - t0);
+    if (r > 0) {
+      tf_s.push_back(Now() - t0);
+      tf_cpu_s.push_back(ProcessCpuSeconds() - cpu0);
+    }
   }
   tbb::task_arena one(1);
   one.execute([&] {
@@ -481,8 +588,11 @@ int main(int argc, char** argv) {
   const double tf_mp = tf.width * static_cast<double>(tf.height) / 1e6;
   std::printf("tf: TF depth map %.3f s of it (median)\n", Median(tf_depth_s));
   std::printf(
-      "tf: %.2f output MP/s (%.3f s median per %.2f MP); one thread %.2f MP/s; ratio %.2fx\n",
-      tf_mp / Median(tf_s), Median(tf_s), tf_mp, tf_mp / tf_one_s[0], tf_one_s[0] / Median(tf_s));
+      "tf: %.2f output MP/s (%.3f s median per %.2f MP; CPU %.3f s, all threads); one thread "
+      "%.2f MP/s; ratio %.2fx; gate (>= 100 output MP/s) %s (%s)\n",
+      tf_mp / Median(tf_s), Median(tf_s), tf_mp, Median(tf_cpu_s), tf_mp / tf_one_s[0],
+      tf_one_s[0] / Median(tf_s), tf_mp / Median(tf_s) >= 100 ? "holds" : "DOES NOT hold",
+      LoadAverage().c_str());
   // Naive reference on a central crop of the TF grid (one thread).
   const int tf_crop = std::min({crop, tf.width, tf.height});
   std::vector<float> naive_tf;

@@ -51,7 +51,7 @@ Status ChainOptions::Check() const {
   if (Status s = lens.Check(); !s) return Error{"chain options: lens: " + s.error().message};
   if (Status s = vignetting.Check(); !s)
     return Error{"chain options: vignetting: " + s.error().message};
-  // metric_depth, point_cloud, cloud_measured_only: any value.
+  // metric_depth, point_cloud, cloud_measured_only, seeded_depth: any value.
   return Status::Ok();
 }
 
@@ -286,7 +286,7 @@ Expected<LensLease> CameraChain::ProcessLenses(ConstImageView raw, int preview_m
   return lease;
 }
 
-Expected<ChainLease> CameraChain::Process(ConstImageView raw) {
+Expected<ChainLease> CameraChain::Process(ConstImageView raw, const LensDepthMap* lens_depth) {
   if (raw.data == nullptr || raw.width <= 0 || raw.height <= 0)
     return Error{"camera " + setup_.serial + ": empty frame"};
   ChainLease lease = Acquire();
@@ -314,7 +314,24 @@ Expected<ChainLease> CameraChain::Process(ConstImageView raw) {
   p.prepare_s = SecondsSince(t);
 
   t = std::chrono::steady_clock::now();
-  if (Status s = EstimateVirtualDepth(p.prepared, setup_.mla, options_.depth, &p.raw_depth); !s)
+  p.seed_s = 0;
+  const LensSeed* seed = nullptr;
+  if (options_.seeded_depth) {
+    if (lens_depth == nullptr) {
+      auto estimator = LensEstimator(raw);
+      if (!estimator) return estimator.error();
+      if (Status s = (*estimator)->Estimate(raw, &p.lens_depth); !s)
+        return Error{"camera " + setup_.serial + ": " + s.error().message};
+      lens_depth = &p.lens_depth;
+    }
+    if (Status s = SeedFromLensDepth(p.prepared, *lens_depth, &p.seed); !s)
+      return Error{"camera " + setup_.serial + ": " + s.error().message};
+    seed = &p.seed;
+    p.seed_s = SecondsSince(t);
+    t = std::chrono::steady_clock::now();
+  }
+  if (Status s = EstimateVirtualDepth(p.prepared, setup_.mla, options_.depth, seed, &p.raw_depth);
+      !s)
     return s.error();
   p.depth_s = SecondsSince(t);
 

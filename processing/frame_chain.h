@@ -91,6 +91,9 @@ struct ChainOptions {
   FrameOptions frame;
   DepthOptions depth;  // virtual depth on the raw grid
   LensDepthOptions lens;  // per-lens virtual depth (ProcessLenses)
+  // The dense virtual depth seeded by the frame's per-lens depth
+  // (virtual_depth.h, "Seeded"); false: the full search.
+  bool seeded_depth = true;
   TfOptions tf;        // TF depth map and totally focused image
   // Without a white image. With vignetting_auto_rows, frames taller than
   // 2000 rows are sampled every 4th row (an R32 frame: plenty of micro images).
@@ -105,14 +108,16 @@ struct ChainOptions {
 // The products of one frame, in a workspace of the camera's pool.
 struct ChainProducts {
   PlenopticFrame prepared;       // devignetted grey; views the raw frame
+  LensDepthMap lens_depth;       // the seed, when Process made it (seeded_depth, no map given)
+  LensSeed seed;                 // per micro image of `prepared` (seeded_depth)
   VirtualDepthMap raw_depth;     // virtual depth on the raw grid
   TfDepthMap tf_depth;           // virtual depth on the TF grid (W/2 x H/2)
   TfImage tf;                    // totally focused image
   std::vector<float> depth_mm;   // camera z per TF pixel (metric_depth with intrinsics), else empty
   PointCloud cloud;              // point_cloud with intrinsics, else empty
   bool metric = false;           // depth_mm (and cloud when asked) were computed
-  double prepare_s = 0, depth_s = 0, tf_s = 0, metric_s = 0;
-  double Seconds() const { return prepare_s + depth_s + tf_s + metric_s; }
+  double prepare_s = 0, seed_s = 0, depth_s = 0, tf_s = 0, metric_s = 0;
+  double Seconds() const { return prepare_s + seed_s + depth_s + tf_s + metric_s; }
   // "1024x768: virtual depth ... | TF 512x384 61.0 % measured 30.1 % filled | metric | 0.412 s"
   std::string BriefReport() const;
 
@@ -152,7 +157,10 @@ class CameraChain {
   CameraChain& operator=(const CameraChain&) = delete;
 
   // The chain on one raw frame (Mono8 or BGR8). `raw` must outlive the lease.
-  Expected<ChainLease> Process(ConstImageView raw);
+  // With seeded_depth, the dense search is seeded by `lens_depth` (the
+  // frame's per-lens depth from ProcessLenses) or, when null, by the
+  // per-lens depth Process computes itself (seed_s).
+  Expected<ChainLease> Process(ConstImageView raw, const LensDepthMap* lens_depth = nullptr);
 
   // Per-lens virtual depth of one raw frame (Mono8 or BGR8) and, with
   // preview_max_side > 0, the TF preview at each lens's depth of at most that

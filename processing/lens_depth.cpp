@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <string>
 #include <type_traits>
 
 namespace lifmcr::processing {
@@ -157,6 +158,31 @@ void LensMedianOf(const PlenopticFrame& f, const LensGrid& grid, const std::vect
     (*out)[static_cast<std::size_t>(grid.Row(m.j)) * grid.cols + grid.Col(m.i, m.j)] =
         values[values.size() / 2];
   });
+}
+
+Status SeedFromLensDepth(const PlenopticFrame& f, const LensDepthMap& lens, LensSeed* out) {
+  out->z.assign(f.lenses.size(), kNaN);
+  out->sigma_z.assign(f.lenses.size(), kNaN);
+  const LensGrid& g = lens.grid;
+  if (lens.virtual_depth.size() != static_cast<std::size_t>(g.cols) * g.rows ||
+      lens.sigma_z.size() != lens.virtual_depth.size())
+    return Error{"dense seed: per-lens map of " + std::to_string(lens.virtual_depth.size()) +
+                 " cells, expected cols x rows = " + std::to_string(g.cols * g.rows)};
+  for (std::size_t k = 0; k < f.lenses.size(); ++k) {
+    const MicroImage& m = f.lenses[k];
+    const int col = g.Col(m.i, m.j), row = g.Row(m.j);
+    if (col < 0 || row < 0 || col >= g.cols || row >= g.rows) continue;
+    if ((g.Centre(col, row) - m.centre_px).norm() > 0.5)
+      return Error{"dense seed: the per-lens map's cell (" + std::to_string(col) + ", " +
+                   std::to_string(row) + ") lies off micro image (" + std::to_string(m.i) + ", " +
+                   std::to_string(m.j) + "): expected the frame's lattice"};
+    const std::size_t c = lens.Cell(col, row);
+    const float v = lens.virtual_depth[c];
+    if (!(v > 0)) continue;
+    out->z[k] = 1.0f / v;
+    out->sigma_z[k] = lens.sigma_z[c];
+  }
+  return Status::Ok();
 }
 
 struct LensDepthEstimator::LatticeTables {

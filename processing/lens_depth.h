@@ -162,6 +162,14 @@ struct LensDepthMap {
 void LensMedianOf(const PlenopticFrame& geometry, const LensGrid& grid,
                   const std::vector<float>& raw_grid, double min_share, std::vector<float>* out);
 
+// The seed of the dense search (virtual_depth.h) from the per-lens depth:
+// per micro image of `frame` (matched to its cell by its lattice indices
+// (i, j)), z = 1 / v and sigma_z of its cell; NaN where the cell has no
+// estimate or lies outside the map. An error when the map's lattice is not
+// the frame's (a cell centre more than 0.5 px from the micro image's).
+// `out` is reused.
+Status SeedFromLensDepth(const PlenopticFrame& frame, const LensDepthMap& lens, LensSeed* out);
+
 // Per camera: the geometry (PrepareGeometry done; the grey image is not
 // needed) and the options, fixed; immutable and shared by threads.
 class LensDepthEstimator {

@@ -103,8 +103,54 @@ void SampleLine(const StripSource& src, const StripLine& l, float* out) {
   }
 }
 
+// A strip line of the float grey image: four gathers, the expression of
+// GreyImageBilinear.
+void SampleGreyLine(const StripSource& src, const StripLine& l, float* out) {
+  const hn::ScalableTag<float> df;
+  const hn::RebindToSigned<decltype(df)> di;
+  const int lanes = static_cast<int>(hn::Lanes(df));
+  const auto nan = hn::Set(df, std::numeric_limits<float>::quiet_NaN());
+  const auto px = hn::Set(df, l.px), py = hn::Set(df, l.py);
+  const auto ex = hn::Set(df, l.e_x), ey = hn::Set(df, l.e_y);
+  const auto bey = hn::Set(df, l.b_ey), bex = hn::Set(df, l.b_ex);
+  const auto along0 = hn::Set(df, l.along0), step = hn::Set(df, l.step);
+  const auto one = hn::Set(df, 1.0f);
+  const auto j_lo = hn::Set(di, l.j_lo), j_hi = hn::Set(di, l.j_hi);
+  const auto below_lo = hn::Set(di, l.j_lo - 1), above_hi = hn::Set(di, l.j_hi + 1);
+  const auto width = hn::Set(di, src.width);
+  const auto next = hn::Set(di, 1);
+  for (int i = 0; i < l.n; i += lanes) {
+    const auto j = hn::Sub(hn::Set(di, l.n - 1 - i), hn::Iota(di, 0));
+    const auto valid = hn::And(hn::Gt(j, below_lo), hn::Lt(j, above_hi));
+    if (hn::AllFalse(di, valid)) {
+      hn::StoreU(nan, df, out + i);
+      continue;
+    }
+    const auto jc = hn::Min(hn::Max(j, j_lo), j_hi);
+    const auto t = hn::Add(along0, hn::Mul(hn::ConvertTo(df, jc), step));
+    const auto x = hn::Sub(hn::Add(px, hn::Mul(t, ex)), bey);
+    const auto y = hn::Add(hn::Add(py, hn::Mul(t, ey)), bex);
+    const auto x0 = hn::ConvertTo(di, x);  // truncation: x, y >= 0
+    const auto y0 = hn::ConvertTo(di, y);
+    const auto fx = hn::Sub(x, hn::ConvertTo(df, x0));
+    const auto fy = hn::Sub(y, hn::ConvertTo(df, y0));
+    const auto g = hn::Add(hn::Mul(y0, width), x0);
+    const auto g1 = hn::Add(g, width);
+    const auto a = hn::GatherIndex(df, src.grey, g);
+    const auto b = hn::GatherIndex(df, src.grey, hn::Add(g, next));
+    const auto c = hn::GatherIndex(df, src.grey, g1);
+    const auto d = hn::GatherIndex(df, src.grey, hn::Add(g1, next));
+    const auto top = hn::Add(a, hn::Mul(hn::Sub(b, a), fx));
+    const auto bottom = hn::Add(c, hn::Mul(hn::Sub(d, c), fx));
+    const auto v = hn::Add(hn::Mul(top, hn::Sub(one, fy)), hn::Mul(bottom, fy));
+    hn::StoreU(hn::IfThenElse(hn::RebindMask(df, valid), v, nan), df, out + i);
+  }
+}
+
 void SampleStripLine(const StripSource& source, const StripLine& line, float* out) {
-  if (source.channels == 3)
+  if (source.grey != nullptr)
+    SampleGreyLine(source, line, out);
+  else if (source.channels == 3)
     SampleLine<3>(source, line, out);
   else
     SampleLine<1>(source, line, out);
@@ -223,8 +269,25 @@ void ScalarLine(const StripSource& src, const StripLine& l, float* out) {
   }
 }
 
+void ScalarGreyLine(const StripSource& src, const StripLine& l, float* out) {
+  for (int i = 0; i < l.n; ++i) {
+    const int j = l.n - 1 - i;
+    if (j < l.j_lo || j > l.j_hi) {
+      out[i] = std::numeric_limits<float>::quiet_NaN();
+      continue;
+    }
+    const float t = l.along0 + j * l.step;
+    const float x = l.px + t * l.e_x - l.b_ey, y = l.py + t * l.e_y + l.b_ex;
+    const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+    const float* r0 = src.grey + static_cast<std::size_t>(y0) * src.width + x0;
+    out[i] = GreyImageBilinear(r0, r0 + src.width, x - x0, y - y0);
+  }
+}
+
 void ScalarSampleStripLine(const StripSource& source, const StripLine& line, float* out) {
-  if (source.channels == 3)
+  if (source.grey != nullptr)
+    ScalarGreyLine(source, line, out);
+  else if (source.channels == 3)
     ScalarLine<3>(source, line, out);
   else
     ScalarLine<1>(source, line, out);

@@ -1,9 +1,11 @@
 #pragma once
-// The hot loops of the per-lens search (processing/lens_depth.h, through
-// MatchAlong of processing/epipolar_search.h): sampling the neighbour's
-// strip lines bilinearly from the raw pixels times the devignetting gain,
-// the SSD of the reference patch at every candidate disparity, and the
-// candidate gate's gradients.
+// The hot loops of the epipolar searches (processing/lens_depth.h and
+// processing/virtual_depth.h, through MatchAlong of
+// processing/epipolar_search.h): sampling the neighbour's strip lines
+// bilinearly (the per-lens search: from the raw pixels times the
+// devignetting gain; the dense search: from the smoothed devignetted grey
+// image), the SSD of the reference patch at every candidate disparity, and
+// the per-lens candidate gate's gradients.
 // Two implementations with one contract: the scalar reference and Google
 // Highway's (runtime dispatch to the best target the CPU runs: SSE4, AVX2,
 // AVX-512 on x86, NEON on ARM). Both evaluate the same float expressions in
@@ -23,14 +25,24 @@ constexpr int kStripPad = 64;
 
 // The frame a strip is read from: raw pixels (1 or 3 channels of 8 bits,
 // the grey level their sum) and the devignetting gain (one float per pixel,
-// rows of `width`, NaN where invalid).
+// rows of `width`, NaN where invalid); or, where `grey` is set, a float
+// grey image (rows of `width`, NaN where invalid: the dense search's
+// smoothed devignetted grey), and raw / gain are not read.
 struct StripSource {
   const std::uint8_t* raw = nullptr;
   std::size_t stride_bytes = 0;
   int channels = 1;  // 1 or 3
   const float* gain = nullptr;
   int width = 0;
+  const float* grey = nullptr;
 };
+
+// The bilinear grey at (x0 + fx, y0 + fy) of a float image, r0 / r1 its
+// rows y0 / y0 + 1 at x0: the formula of the grey strips, in the order the
+// Highway kernel evaluates it.
+inline float GreyImageBilinear(const float* r0, const float* r1, float fx, float fy) {
+  return (r0[0] + (r0[1] - r0[0]) * fx) * (1 - fy) + (r1[0] + (r1[1] - r1[0]) * fx) * fy;
+}
 
 // The grey level at (x0 + fx, y0 + fy) of the raw pixels times the gain,
 // q0 / q1 the raw rows y0 / y0 + 1 at x0, g0 / g1 the gain rows at x0: the
@@ -59,7 +71,8 @@ inline float RawGainBilinear(const std::uint8_t* q0, const std::uint8_t* q1, con
 // (b_ey = b e_y and b_ex = b e_x for line b of the patch), and is
 //   grey(x_j, y_j) = ((a + (b - a) fx) (1 - fy) + (c + (d - c) fx) fy) / channels
 // with a, b, c, d the four neighbouring pixels' channel sums times their
-// gains, fx, fy the fractional parts; NaN for j outside [j_lo, j_hi].
+// gains, fx, fy the fractional parts (with `grey` set: GreyImageBilinear
+// of the four grey pixels); NaN for j outside [j_lo, j_hi].
 // Precondition: every position with j in [j_lo, j_hi] has 0 <= x_j,
 // floor(x_j) <= width - 3 and 0 <= y_j, floor(y_j) <= rows - 3 (MatchAlong's
 // disc well inside the frame), and rows * stride_bytes < 2^31. `out` holds

@@ -134,6 +134,20 @@ Status PrepareGeometry(ConstImageView white, int width, int height, const MlaGri
         if ((Eigen::Vector2d(x, y) - ck).squaredNorm() <= r2)
           f.lens_of_pixel[static_cast<std::size_t>(y) * w + x] = k;
   });
+  f.smooth_mask.assign(n, 0);
+  tbb::parallel_for(0, h, [&](int y) {
+    for (int x = 0; x < w; ++x) {
+      const std::size_t idx = static_cast<std::size_t>(y) * w + x;
+      const std::int32_t lens = f.lens_of_pixel[idx];
+      if (lens < 0) continue;
+      auto takes = [&](std::size_t q) {
+        return f.lens_of_pixel[q] == lens && !std::isnan(f.gain[q]);
+      };
+      f.smooth_mask[idx] = static_cast<std::uint8_t>(
+          (x > 0 && takes(idx - 1) ? 1 : 0) | (x < w - 1 && takes(idx + 1) ? 2 : 0) |
+          (y > 0 && takes(idx - w) ? 4 : 0) | (y < h - 1 && takes(idx + w) ? 8 : 0));
+    }
+  });
   f.geometry_ready = true;
   return Status::Ok();
 }
@@ -165,30 +179,48 @@ Status LoadRaw(ConstImageView raw, PlenopticFrame* frame) {
   // Smoothing of the grey image within each micro image (binomial [1 2 1] / 4
   // applied `smooth_passes` times per axis, normalised over the pixels of the
   // same micro image): noise and the blur difference between lens types.
+  // The neighbours a pixel takes are the camera's (smooth_mask); one left
+  // out adds 0 and no weight, so every pixel is (2 g + sum of the taken) /
+  // (2 + their count) in that order (a pixel outside every micro image:
+  // 2 g / 2 = g), a loop without branches on the pixels.
   f.work.resize(n);
   for (int pass = 0; pass < f.smooth_passes; ++pass) {
     for (int axis = 0; axis < 2; ++axis) {
-      const std::ptrdiff_t step = axis == 0 ? 1 : w;
+      const float* src = f.grey.data();
+      float* dst = f.work.data();
+      const std::uint8_t lo_bit = axis == 0 ? 1 : 4, hi_bit = axis == 0 ? 2 : 8;
       tbb::parallel_for(0, h, [&](int y) {
-        for (int x = 0; x < w; ++x) {
-          const std::size_t idx = static_cast<std::size_t>(y) * w + x;
-          const std::int32_t lens = f.lens_of_pixel[idx];
-          if (lens < 0) {
-            f.work[idx] = f.grey[idx];
-            continue;
+        const std::size_t base = static_cast<std::size_t>(y) * w;
+        const std::uint8_t* mask = f.smooth_mask.data() + base;
+        const float* row = src + base;
+        float* out = dst + base;
+        // The neighbours along the axis; rows past the border are never
+        // taken (their mask bit is 0), so any valid row stands in.
+        const float* lo_row = axis == 0 ? row - 1 : (y > 0 ? row - w : row);
+        const float* hi_row = axis == 0 ? row + 1 : (y < h - 1 ? row + w : row);
+        auto one = [&](int x) {
+          const unsigned m = mask[x];
+          float sum = 2.0f * row[x];
+          sum += (m & lo_bit) ? lo_row[x] : 0.0f;
+          sum += (m & hi_bit) ? hi_row[x] : 0.0f;
+          const float weight = 2.0f + static_cast<float>((m & lo_bit) != 0) +
+                               static_cast<float>((m & hi_bit) != 0);
+          out[x] = sum / weight;
+        };
+        if (axis == 0) {
+          // x = 0 and x = w - 1 would read past the row: lo_row[0] and
+          // hi_row[w - 1] only when taken, which they never are.
+          if (w == 1) {
+            out[0] = row[0];
+            return;
           }
-          float sum = 2.0f * f.grey[idx], weight = 2.0f;
-          const bool has_lo = axis == 0 ? x > 0 : y > 0;
-          const bool has_hi = axis == 0 ? x < w - 1 : y < h - 1;
-          if (has_lo && f.lens_of_pixel[idx - step] == lens && !std::isnan(f.grey[idx - step])) {
-            sum += f.grey[idx - step];
-            weight += 1;
-          }
-          if (has_hi && f.lens_of_pixel[idx + step] == lens && !std::isnan(f.grey[idx + step])) {
-            sum += f.grey[idx + step];
-            weight += 1;
-          }
-          f.work[idx] = sum / weight;
+          out[0] = (2.0f * row[0] + ((mask[0] & hi_bit) ? row[1] : 0.0f)) /
+                   (2.0f + static_cast<float>((mask[0] & hi_bit) != 0));
+          for (int x = 1; x < w - 1; ++x) one(x);
+          out[w - 1] = (2.0f * row[w - 1] + ((mask[w - 1] & lo_bit) ? row[w - 2] : 0.0f)) /
+                       (2.0f + static_cast<float>((mask[w - 1] & lo_bit) != 0));
+        } else {
+          for (int x = 0; x < w; ++x) one(x);
         }
       });
       f.grey.swap(f.work);

@@ -56,6 +56,11 @@ struct PlenopticFrame {
   int smooth_passes = 2;
   bool geometry_ready = false;
   std::vector<std::int32_t> lens_of_pixel;  // index into lenses, -1 outside every r_valid
+  // Per pixel, which of its 4-neighbours the smoothing within micro images
+  // takes (bits: 1 x - 1, 2 x + 1, 4 y - 1, 8 y + 1): those of the same
+  // micro image with a valid gain. A camera's, made once, so a frame's
+  // smoothing reads one byte per pixel instead of three lens indices.
+  std::vector<std::uint8_t> smooth_mask;
   std::vector<MicroImage> lenses;
   std::vector<std::int32_t> lens_index;  // (j - j_min) * ni + (i - i_min) -> lens, or -1
   int i_min = 0, j_min = 0, ni = 0, nj = 0;

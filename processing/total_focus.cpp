@@ -119,9 +119,13 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
         if (std::isnan(v) || f.lens_of_pixel[idx] != k) continue;
         const double xv = m.lens_px.x() + v * (x - m.lens_px.x());
         const double yv = m.lens_px.y() + v * (y - m.lens_px.y());
-        const int u = static_cast<int>(std::lround((xv - 0.5) / 2.0));
-        const int w = static_cast<int>(std::lround((yv - 0.5) / 2.0));
-        if (u < 0 || w < 0 || u >= tw || w >= th) continue;
+        // Nearest TF pixel: lround without its libm call (a call per
+        // splat): for a > -0.5, lround(a) = trunc(a + 0.5); a <= -0.5
+        // rounds below 0, off the grid.
+        const double ua = (xv - 0.5) / 2.0, wa = (yv - 0.5) / 2.0;
+        if (!(ua > -0.5) || !(wa > -0.5)) continue;
+        const int u = static_cast<int>(ua + 0.5), w = static_cast<int>(wa + 0.5);
+        if (u >= tw || w >= th) continue;
         const double s = raw.sigma_z[idx];
         const double weight = 1.0 / std::max(1e-12, s * s);
         const std::size_t t = static_cast<std::size_t>(w) * tw + u;

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <string>
 #include <utility>
 
 namespace lifmcr::processing {
@@ -25,14 +26,16 @@ using detail::kRing1;
 using detail::kSamples;
 using detail::Neighbour;
 
-// The smoothed devignetted grey of the frame, bilinear (epipolar_search.h).
+// The smoothed devignetted grey of the frame, bilinear (epipolar_search.h);
+// the strips of discs well inside the frame through `kernels`.
 struct GreyBilinear {
   const float* grey;
   int width;
+  const detail::StripKernels* kernels;
+  detail::StripSource source;
   float operator()(int x0, int y0, float fx, float fy) const {
     const float* r0 = grey + static_cast<std::size_t>(y0) * width + x0;
-    const float* r1 = r0 + width;
-    return (r0[0] + (r0[1] - r0[0]) * fx) * (1 - fy) + (r1[0] + (r1[1] - r1[0]) * fx) * fy;
+    return detail::GreyImageBilinear(r0, r0 + width, fx, fy);
   }
 };
 
@@ -64,7 +67,19 @@ Status DepthOptions::Check() const {
     return Error{"depth options: fill_radius_px: expected 0 (whole micro image)..64"};
   if (!(fill_max_spread > 0 && fill_max_spread <= 1))
     return Error{"depth options: fill_max_spread: expected in (0, 1]"};
-  // type_ranges: any value.
+  if (seed_search_stride < 0 || seed_search_stride > 8)
+    return Error{"depth options: seed_search_stride: expected 0 (auto)..8"};
+  if (seed_max_ring1 < 1 || seed_max_ring1 > 6)
+    return Error{"depth options: seed_max_ring1: expected 1..6"};
+  if (seed_max_ring2 < 0 || seed_max_ring2 > 6)
+    return Error{"depth options: seed_max_ring2: expected 0..6"};
+  if (!(seed_cost_ratio > 0 && seed_cost_ratio <= 1))
+    return Error{"depth options: seed_cost_ratio: expected in (0, 1]"};
+  if (!(seed_sigmas >= 0 && seed_sigmas <= 100))
+    return Error{"depth options: seed_sigmas: expected 0..100"};
+  if (!(seed_margin_px >= 0 && seed_margin_px <= 100))
+    return Error{"depth options: seed_margin_px: expected 0..100"};
+  // type_ranges, simd: any value.
   return Status::Ok();
 }
 
@@ -73,9 +88,10 @@ std::string DepthStats::BriefReport() const {
   std::snprintf(
       buf, sizeof buf,
       "virtual depth: %lld of %lld textured pixels (%.1f %%; %lld valid), %lld rejected, "
-      "%lld untextured filled, %.3f s",
+      "%lld untextured filled, %lld searched (%lld seeded, %lld of them again in full), "
+      "%.3f s, kernels %s",
       estimated, textured_pixels, textured_pixels ? 100.0 * estimated / textured_pixels : 0.0,
-      valid_pixels, rejected, filled, seconds);
+      valid_pixels, rejected, filled, searched, seeded, fallback, seconds, kernels);
   return buf;
 }
 
@@ -86,7 +102,17 @@ VirtualDepthRange SearchedVirtualDepths(const MlaLensType& type) {
 
 Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
                             const DepthOptions& options, VirtualDepthMap* out) {
+  return EstimateVirtualDepth(f, mla, options, nullptr, out);
+}
+
+Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
+                            const DepthOptions& options, const LensSeed* seed,
+                            VirtualDepthMap* out) {
   if (Status s = options.Check(); !s) return s;
+  if (seed != nullptr &&
+      (seed->z.size() != f.lenses.size() || seed->sigma_z.size() != f.lenses.size()))
+    return Error{"virtual depth: the seed has " + std::to_string(seed->z.size()) +
+                 " micro images, the frame " + std::to_string(f.lenses.size())};
   const auto start = std::chrono::steady_clock::now();
   const int w = f.width, h = f.height;
   const std::size_t n = static_cast<std::size_t>(w) * h;
@@ -112,10 +138,28 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
   search.max_cost_ratio = options.max_cost_ratio;
   search.geometric_px = options.geometric_px;
   search.cross_type_px = options.cross_type_px;
-  const GreyBilinear grey{f.grey.data(), w};
+  detail::MatchParams narrow = search;  // the seeded window's search
+  narrow.max_cost_ratio = options.seed_cost_ratio;
+  const detail::StripKernels& kernels =
+      options.simd ? detail::SimdStripKernels() : detail::ScalarStripKernels();
+  detail::StripSource source;
+  source.grey = f.grey.data();
+  source.width = w;
+  const GreyBilinear grey{f.grey.data(), w, &kernels, source};
   std::vector<long long> textured_count(f.lenses.size(), 0), valid_count(f.lenses.size(), 0),
       estimated_count(f.lenses.size(), 0), rejected_count(f.lenses.size(), 0),
-      filled_count(f.lenses.size(), 0);
+      filled_count(f.lenses.size(), 0), searched_count(f.lenses.size(), 0),
+      seeded_count(f.lenses.size(), 0), fallback_count(f.lenses.size(), 0);
+  // Seeded: the lattice of searched pixels, and step 5's support scaled by
+  // its density against the full search's (the fill counts estimates).
+  const int seed_stride = options.seed_search_stride != 0 ? options.seed_search_stride
+                                                          : (f.grid.PitchPx() >= 24 ? 2 : 1);
+  const int seeded_fill_support = std::max(
+      std::min(3, options.fill_min_support),
+      static_cast<int>(std::lround(options.fill_min_support * static_cast<double>(stride) /
+                                   (seed_stride * seed_stride))));
+  // Seeded: ring-1 disparity per unit z (the window's margin in z).
+  const double ring1_scale = lambda * f.grid.PitchPx();
   // Per micro image, its agreeing estimates' inverse-variance sums (step 5's
   // second part fills micro images without estimates from their ring 1).
   struct SurfaceSums {
@@ -124,6 +168,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
   };
   std::vector<SurfaceSums> lens_sums(f.lenses.size());
   std::vector<std::uint8_t> lens_has_depth(f.lenses.size(), 0);
+  std::vector<std::uint8_t> lens_seeded(f.lenses.size(), 0);
 
   tbb::parallel_for(0, static_cast<int>(f.lenses.size()), [&](int k) {
     const MicroImage& lens = f.lenses[k];
@@ -142,6 +187,27 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     const int y1 = std::min(h - 2, static_cast<int>(std::floor(lens.centre_px.y() + r)));
     const int bw = x1 - x0 + 1, bh = y1 - y0 + 1;
     if (bw <= 0 || bh <= 0) return;
+    // Seeded: the ring-1 window (header comment); none without a seed of
+    // the micro image's own.
+    double seed_lo = lo, seed_hi = hi;
+    bool seeded = false;
+    if (seed != nullptr && seed->z[k] > 0) {
+      double a = seed->z[k] - options.seed_sigmas * seed->sigma_z[k];
+      double b = seed->z[k] + options.seed_sigmas * seed->sigma_z[k];
+      for (const auto& d : kRing1) {
+        const int n_idx = f.LensAt(lens.i + d[0], lens.j + d[1]);
+        if (n_idx < 0 || !(seed->z[n_idx] > 0)) continue;
+        a = std::min(a, seed->z[n_idx] - options.seed_sigmas * seed->sigma_z[n_idx]);
+        b = std::max(b, seed->z[n_idx] + options.seed_sigmas * seed->sigma_z[n_idx]);
+      }
+      const double margin = options.seed_margin_px / ring1_scale;
+      seed_lo = std::max(lo, a - margin);
+      seed_hi = std::min(hi, b + margin);
+      // NaN sigma or a window wider than the range: the full search.
+      seeded = seed_lo < seed_hi && (seed_lo > lo || seed_hi < hi);
+      if (!seeded) seed_lo = lo, seed_hi = hi;
+      lens_seeded[k] = seeded;
+    }
     // The micro image's estimates on a local grid (z and sigma, NaN = none)
     // and its textured pixels, for the regularisation below.
     std::vector<float> patch_z(static_cast<std::size_t>(bw) * bh, kNaN);
@@ -150,6 +216,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     // Per local pixel: searched (a checkerboard pixel was not) and failed.
     std::vector<std::uint8_t> search_failed(patch_z.size(), 0);
     float ref[kSamples];
+    int narrow_found = 0, narrow_missed = 0;  // the seeded windows' outcomes so far
     for (int y = y0; y <= y1; ++y) {
       // Only the row's chord of the disc (plus a pixel either side for
       // rounding; the map decides).
@@ -184,11 +251,15 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         textured_pixels.push_back(local);
         // Searched pixels: all, or a checkerboard (the others are filled by
         // the regularisation from their searched neighbours).
-        if (stride == 2 && ((x + y) & 1)) continue;
+        if (seeded) {
+          if (x % seed_stride != 0 || y % seed_stride != 0) continue;
+        } else if (stride == 2 && ((x + y) & 1)) {
+          continue;
+        }
         for (int i = 1; i < gated; ++i)  // insertion sort, descending (at most 6)
           for (int j = i; j > 0 && order[j - 1].first < order[j].first; --j)
             std::swap(order[j - 1], order[j]);
-        gated = std::min(gated, options.max_ring1);
+        gated = std::min(gated, seeded ? options.seed_max_ring1 : options.max_ring1);
         search_failed[local] = 1;  // until an estimate passes
         Estimates estimates;
         // Reference patches per axis, sampled along the unflipped direction;
@@ -196,7 +267,8 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         std::array<std::int8_t, 6> patch_state{};  // 0 not yet, 1 valid, 2 invalid
         std::array<std::array<float, kSamples>, 6> patch_cache;
         std::array<double, 6> g2_cache;
-        auto match = [&](const Neighbour& nb, double z0, double z1) {
+        auto match = [&](const detail::MatchParams& params, const Neighbour& nb, double z0,
+                         double z1) {
           std::array<float, kSamples>& cached = patch_cache[nb.axis];
           if (patch_state[nb.axis] == 0) {
             const float e_x = nb.flipped ? -nb.e_x : nb.e_x;
@@ -212,11 +284,29 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
             ref[m] = nb.flipped ? cached[kSamples - 1 - m] : cached[m];
           const double g2 = g2_cache[nb.axis];
           Estimate e;
-          if (detail::MatchAlong(search, grey, w, h, f.radius_px, static_cast<float>(x),
+          if (detail::MatchAlong(params, grey, w, h, f.radius_px, static_cast<float>(x),
                                  static_cast<float>(y), ref, g2, nb, z0, z1, &e))
             estimates.Add(e);
         };
-        for (int q = 0; q < gated; ++q) match(nbs[order[q].second], lo, hi);
+        ++searched_count[k];
+        for (int q = 0; q < gated; ++q)
+          match(seeded ? narrow : search, nbs[order[q].second], seed_lo, seed_hi);
+        if (seeded) {
+          ++seeded_count[k];
+          // No clear minimum in the window (its least cost on the edge, or
+          // not distinct): the same baselines over the whole range, while
+          // the micro image's windows have missed at least twice as often
+          // as they found one (header comment).
+          if (estimates.n == 0) {
+            ++narrow_missed;
+            if (narrow_missed >= 2 * narrow_found) {
+              ++fallback_count[k];
+              for (int q = 0; q < gated; ++q) match(search, nbs[order[q].second], lo, hi);
+            }
+          } else {
+            ++narrow_found;
+          }
+        }
         double z = 0, sigma = 0;
         int used = Fuse(estimates, &z, &sigma);
         const bool have_prior = used > 0;
@@ -231,11 +321,11 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         for (int i = 1; i < gated2; ++i)  // insertion sort, descending (at most 6)
           for (int j = i; j > 0 && order2[j - 1].first < order2[j].first; --j)
             std::swap(order2[j - 1], order2[j]);
-        gated2 = std::min(gated2, options.max_ring2);
+        gated2 = std::min(gated2, seeded ? options.seed_max_ring2 : options.max_ring2);
         for (int q = 0; q < gated2; ++q) {
           const Neighbour& nb = nbs[order2[q].second];
           const double span = std::max(3 * sigma, 2 * options.step_px / (lambda * nb.length));
-          match(nb, have_prior ? std::max(lo, z - span) : lo,
+          match(search, nb, have_prior ? std::max(lo, z - span) : lo,
                 have_prior ? std::min(hi, z + span) : hi);
         }
         used = Fuse(estimates, &z, &sigma);
@@ -362,7 +452,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         const std::size_t at = static_cast<std::size_t>(y0 + local / bw) * w + (x0 + local % bw);
         if (!std::isnan(out->virtual_depth[at])) continue;
         const WindowSum ws = window(local % bw, local / bw, fill_radius);
-        if (ws.n < options.fill_min_support) continue;
+        if (ws.n < (seeded ? seeded_fill_support : options.fill_min_support)) continue;
         const double z = ws.wz / ws.w;
         const double spread2 = std::max(0.0, ws.wzz / ws.w - z * z);
         if (spread2 > options.fill_max_spread * options.fill_max_spread * z * z) continue;
@@ -392,7 +482,9 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       int contributing = 0;
       for (const auto& d : kRing1) {
         const int idx = f.LensAt(lens.i + d[0], lens.j + d[1]);
-        if (idx < 0 || lens_sums[idx].n < options.fill_min_support) continue;
+        if (idx < 0 ||
+            lens_sums[idx].n < (lens_seeded[idx] ? seeded_fill_support : options.fill_min_support))
+          continue;
         ++contributing;
         sum.w += lens_sums[idx].w;
         sum.wz += lens_sums[idx].wz;
@@ -430,7 +522,11 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     st.estimated += estimated_count[k];
     st.rejected += rejected_count[k];
     st.filled += filled_count[k];
+    st.searched += searched_count[k];
+    st.seeded += seeded_count[k];
+    st.fallback += fallback_count[k];
   }
+  st.kernels = kernels.name;
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return Status::Ok();
 }

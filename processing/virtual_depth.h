@@ -52,6 +52,31 @@
 //    ring-1 neighbours' estimates agree on (at least 3 of them contributing
 //    fill_min_support each): for v > 2 neighbouring micro images image
 //    overlapping patches of the scene.
+// Seeded (EstimateVirtualDepth with a LensSeed, the per-lens virtual depth of
+// processing/lens_depth.h): step 1's ring-1 search of every pixel of micro
+// image k covers only
+//   [min_i (z_i - seed_sigmas sigma_i) - m, max_i (z_i + seed_sigmas sigma_i) + m]
+// (i over k and its ring-1 neighbours with a seed: a depth edge crosses
+// micro images, so a pixel of k may see its neighbour's surface;
+// m = seed_margin_px / (lambda D), D the ring-1 baseline), clipped to the
+// searched range. Fallback to the full range: for every pixel of a micro
+// image without a seed of its own (its pixels are searched as without a
+// seed), and for a pixel none of whose narrow ring-1 searches found a clear
+// minimum (MatchAlong's tests: the least cost strictly inside the narrow run
+// and <= seed_cost_ratio of its mean cost, plus noise; a wrong seed puts
+// the least cost on the window's edge or leaves no distinct one): the same
+// baselines over the whole range, while the micro image's pixels searched
+// so far (in row order) missed in their windows at least twice as often as
+// they found a minimum there. A wrong seed misses (nearly) every pixel, so
+// they are all searched again; with a right one the misses are pixels
+// without a clear minimum anywhere (too little texture along their
+// baselines), which the full search loses too. With a seed, seed_max_ring1 ring-1 and
+// seed_max_ring2 ring-2 baselines are searched per pixel and a lattice of
+// seed_search_stride (below); steps 2-5 are those of the full search.
+// The strips are sampled and their costs summed by the kernels of
+// processing/lens_search_simd.h (DepthOptions::simd: Highway's or the
+// scalar reference, the same numbers) wherever the neighbour's disc lies
+// well inside the frame.
 // Work is parallel over micro images (TBB); each pixel is written once.
 
 #include "config/error.h"
@@ -89,6 +114,30 @@ struct DepthOptions {
   double fill_max_spread = 0.05;
   int fill_radius_px = 0;       // step 5: half-size of the support window; 0 the whole micro image
   bool fill_from_neighbours = true;  // step 5: micro images without depth from their ring 1
+  // Seeded search (header comment): the window around the seeds, in their
+  // sigma and in px of ring-1 disparity beyond that.
+  double seed_sigmas = 3.0;
+  double seed_margin_px = 1.5;
+  // Seeded: baselines searched per pixel (ring 1 in the window, ring 2
+  // around its result; the seed has settled which minimum is the surface,
+  // so fewer baselines suffice), and the distinctness of a narrow search's
+  // minimum (best SSD <= ratio * mean SSD of the window, plus noise: the
+  // window holds the minimum's own flanks, so its mean is lower than a
+  // full run's).
+  // Seeded: the searched pixels of micro images with a seed, one of every
+  // seed_search_stride x seed_search_stride block (1: all textured pixels;
+  // the regularisation of step 4 gives the others between them their
+  // window's value; step 5's fill_min_support is scaled by this lattice's
+  // density against the full search's, at least 3); 0: 2 for micro images
+  // of 24 px and more, else 1.
+  int seed_search_stride = 0;
+  int seed_max_ring1 = 2;
+  int seed_max_ring2 = 2;
+  double seed_cost_ratio = 0.8;
+  // Strip sampling and SSD through Highway's runtime dispatch
+  // (processing/lens_search_simd.h); false: the scalar reference (the same
+  // map, at its speed).
+  bool simd = true;
   Status Check() const;
 };
 
@@ -98,7 +147,11 @@ struct DepthStats {
   long long estimated = 0;        // with a fused value
   long long rejected = 0;         // by the consistency check
   long long filled = 0;           // untextured pixels given their surface's depth (step 5)
+  long long searched = 0;         // pixels searched (step 1)
+  long long seeded = 0;           // of them searched in a seed's window
+  long long fallback = 0;         // of those searched again over the full range
   double seconds = 0;
+  const char* kernels = "";       // "scalar" or Highway's target (lens_search_simd.h)
   std::string BriefReport() const;
 };
 
@@ -119,8 +172,19 @@ struct VirtualDepthRange {
 };
 VirtualDepthRange SearchedVirtualDepths(const MlaLensType& type);
 
-// Estimates virtual depth on the raw grid; `out` buffers are reused.
+// The seed of the seeded search: per micro image of the frame (the index
+// into PlenopticFrame::lenses) z = 1 / v and sigma_z of the per-lens
+// virtual depth, NaN where none (processing/lens_depth.h, SeedFromLensDepth).
+struct LensSeed {
+  std::vector<float> z, sigma_z;
+};
+
+// Estimates virtual depth on the raw grid; `out` buffers are reused. With
+// `seed` (its size the frame's micro images), the seeded search.
 Status EstimateVirtualDepth(const PlenopticFrame& frame, const MlaCalibration& mla,
                             const DepthOptions& options, VirtualDepthMap* out);
+Status EstimateVirtualDepth(const PlenopticFrame& frame, const MlaCalibration& mla,
+                            const DepthOptions& options, const LensSeed* seed,
+                            VirtualDepthMap* out);
 
 }  // namespace lifmcr::processing

@@ -255,7 +255,14 @@ Expected<ProcessedFrame> DepthProcessor::Run(const Frame& frame, bool lenses) {
   auto preview = EncodePreview(*image, preview_);
   if (!preview) return preview.error();
   out.preview = std::move(*preview);
-  auto lease = camera->Process(*image);
+  // The per-lens depth first (every frame gets it): it seeds the dense search.
+  processing::LensLease lenses_lease(nullptr, processing::LensWorkspaceReturn{});
+  if (lenses) {
+    auto made = camera->ProcessLenses(*image, 0);
+    if (!made) return made.error();
+    lenses_lease = std::move(*made);
+  }
+  auto lease = camera->Process(*image, lenses ? &lenses_lease->depth : nullptr);
   if (!lease) return lease.error();
   const processing::TfDepthMap& tf_depth = (*lease)->tf_depth;
   const processing::TfImage& tf = (*lease)->tf;
@@ -291,9 +298,7 @@ Expected<ProcessedFrame> DepthProcessor::Run(const Frame& frame, bool lenses) {
   // The per-lens depth too (every frame gets it); the TF channel carries the
   // chain's own TF image here, so no lens preview.
   if (lenses) {
-    auto lease = camera->ProcessLenses(*image, 0);
-    if (!lease) return lease.error();
-    auto lens_depth = EncodeLensDepth((*lease)->depth, image->width, image->height);
+    auto lens_depth = EncodeLensDepth(lenses_lease->depth, image->width, image->height);
     if (!lens_depth) return lens_depth.error();
     out.lens_depth = std::move(*lens_depth);
   }

@@ -167,5 +167,53 @@ TEST(CliDepth, SixteenBitPngWithoutWhiteImage) {
   EXPECT_EQ(both.exit_code, 2);
 }
 
+// The dense search seeded by the per-lens depth (the default) on the SIMD
+// kernels and on the scalar reference (--scalar): the same maps, float for
+// float (the kernels evaluate the same expressions in the same order:
+// processing/lens_search_simd.h), and the same TF image byte for byte;
+// --full-search runs the unseeded reference.
+TEST(CliDepth, SimdAndScalarPathsWriteTheSameMaps) {
+  test::TempDir dir;
+  const test::CommandResult synth = test::RunLifmcr(
+      "synth --out " + dir.path().string() + " --preset small --frames 1 --cameras 1 --quiet");
+  ASSERT_EQ(synth.exit_code, 0) << synth.err;
+  const fs::path seq = dir / "00_Synthetic" / "Sequence_00";
+  const std::string serial = "40398678", stem = serial + "_000000";
+  auto run = [&](const std::string& name, const std::string& flags) {
+    const test::CommandResult r = test::RunLifmcr("depth " + seq.string() + " --camera " + serial +
+                                                  " --frame 0 --out " + (dir / name).string() +
+                                                  flags);
+    EXPECT_EQ(r.exit_code, 0) << r.err << r.out;
+    return r.out;
+  };
+  const std::string simd = run("simd", "");
+  const std::string scalar = run("scalar", " --scalar");
+  const std::string full = run("full", " --full-search");
+  EXPECT_NE(simd.find("seeded by the per-lens depth"), std::string::npos) << simd;
+  EXPECT_NE(scalar.find("kernels scalar"), std::string::npos) << scalar;
+  EXPECT_NE(full.find("full search"), std::string::npos) << full;
+  for (const char* suffix : {"_virtual_depth.tiff", "_virtual_depth_tf.tiff", "_lens_depth.tiff"}) {
+    int w = 0, h = 0, w2 = 0, h2 = 0;
+    Expected<std::vector<float>> a = synth::ReadFloatTiff(dir / "simd" / (stem + suffix), &w, &h);
+    Expected<std::vector<float>> b =
+        synth::ReadFloatTiff(dir / "scalar" / (stem + suffix), &w2, &h2);
+    ASSERT_TRUE(a.ok() && b.ok()) << suffix;
+    ASSERT_EQ(a->size(), b->size()) << suffix;
+    long long finite = 0;
+    for (std::size_t i = 0; i < a->size(); ++i) {
+      const float x = (*a)[i], y = (*b)[i];
+      ASSERT_TRUE((std::isnan(x) && std::isnan(y)) || x == y)
+          << suffix << " pixel " << i << ": " << x << " vs scalar " << y;
+      finite += !std::isnan(x);
+    }
+    EXPECT_GT(finite, 100) << suffix;
+  }
+  const cv::Mat tf_simd = cv::imread((dir / "simd" / (stem + "_tf.png")).string());
+  const cv::Mat tf_scalar = cv::imread((dir / "scalar" / (stem + "_tf.png")).string());
+  ASSERT_FALSE(tf_simd.empty());
+  ASSERT_EQ(tf_simd.size(), tf_scalar.size());
+  EXPECT_EQ(cv::norm(tf_simd, tf_scalar, cv::NORM_INF), 0.0);
+}
+
 }  // namespace
 }  // namespace lifmcr

@@ -44,17 +44,26 @@ TEST(FrameChain, MatchesTheStepsCalledOneByOneAndReusesItsWorkspace) {
   EXPECT_EQ((*chain)->devignetting(), Devignetting::kWhiteImage);
   EXPECT_NE((*chain)->Describe().find("white image"), std::string::npos);
 
-  // The reference: the steps by hand, with the camera's lambda.
+  // The reference: the steps by hand, with the camera's lambda: the
+  // per-lens depth, the dense search seeded by it, the TF depth.
   const CameraModel camera(s.intrinsics);
   FrameOptions fo;
   fo.lambda = camera.lambda();
+  const MlaGrid grid = MlaGrid::FromCalibration(s.mla, s.raw.width, s.raw.height);
   PlenopticFrame frame;
-  ASSERT_TRUE(PrepareFrame(s.raw.View(), s.white.View(),
-                           MlaGrid::FromCalibration(s.mla, s.raw.width, s.raw.height), s.mla, fo,
-                           &frame)
-                  .ok());
+  ASSERT_TRUE(PrepareFrame(s.raw.View(), s.white.View(), grid, s.mla, fo, &frame).ok());
+  PlenopticFrame geometry;
+  ASSERT_TRUE(
+      PrepareGeometry(s.white.View(), s.raw.width, s.raw.height, grid, s.mla, fo, &geometry).ok());
+  auto lens_estimator = LensDepthEstimator::Create(std::move(geometry), s.mla, {});
+  ASSERT_TRUE(lens_estimator.ok());
+  LensDepthMap lens_depth;
+  ASSERT_TRUE((*lens_estimator)->Estimate(s.raw.View(), &lens_depth).ok());
+  LensSeed seed;
+  ASSERT_TRUE(SeedFromLensDepth(frame, lens_depth, &seed).ok());
   VirtualDepthMap depth;
-  ASSERT_TRUE(EstimateVirtualDepth(frame, s.mla, DepthOptions{}, &depth).ok());
+  ASSERT_TRUE(EstimateVirtualDepth(frame, s.mla, DepthOptions{}, &seed, &depth).ok());
+  EXPECT_GT(depth.stats.seeded, 0);
   TfDepthMap tf_depth;
   ASSERT_TRUE(VirtualDepthToTf(frame, depth, TfOptions{}, &tf_depth).ok());
 
@@ -71,6 +80,7 @@ TEST(FrameChain, MatchesTheStepsCalledOneByOneAndReusesItsWorkspace) {
     }
     EXPECT_EQ(p.prepared.lambda, camera.lambda());
     EXPECT_EQ(p.raw_depth.stats.estimated, depth.stats.estimated);
+    EXPECT_EQ(p.raw_depth.stats.seeded, depth.stats.seeded);
     ASSERT_EQ(p.tf_depth.virtual_depth.size(), tf_depth.virtual_depth.size());
     for (std::size_t i = 0; i < tf_depth.virtual_depth.size(); ++i) {
       const float a = p.tf_depth.virtual_depth[i], b = tf_depth.virtual_depth[i];
@@ -81,6 +91,32 @@ TEST(FrameChain, MatchesTheStepsCalledOneByOneAndReusesItsWorkspace) {
     EXPECT_GT(p.cloud.points_mm.size(), 1000u);
     EXPECT_NE(p.BriefReport().find("metric"), std::string::npos) << p.BriefReport();
   }
+}
+
+// seeded_depth off: the full search (the reference), nothing seeded; a
+// per-lens map given to Process seeds the search instead of the chain's own.
+TEST(FrameChain, FullSearchOnRequestAndAGivenPerLensMapSeeds) {
+  const testing::SynthFrame& s = Frame();
+  ChainOptions full_options;
+  full_options.seeded_depth = false;
+  auto full = CameraChain::Create(SetupOf(s, true, false), full_options);
+  ASSERT_TRUE(full.ok());
+  auto lease = (*full)->Process(s.raw.View());
+  ASSERT_TRUE(lease.ok()) << lease.error().message;
+  EXPECT_EQ((*lease)->raw_depth.stats.seeded, 0);
+  EXPECT_EQ((*lease)->seed_s, 0.0);
+
+  auto chain = CameraChain::Create(SetupOf(s, true, false), ChainOptions{});
+  ASSERT_TRUE(chain.ok());
+  auto lenses = (*chain)->ProcessLenses(s.raw.View(), 0);
+  ASSERT_TRUE(lenses.ok());
+  auto own = (*chain)->Process(s.raw.View());
+  auto given = (*chain)->Process(s.raw.View(), &(*lenses)->depth);
+  ASSERT_TRUE(own.ok() && given.ok());
+  EXPECT_GT((*given)->raw_depth.stats.seeded, 0);
+  // The same frame's per-lens depth either way: the same map.
+  EXPECT_EQ((*given)->raw_depth.stats.estimated, (*own)->raw_depth.stats.estimated);
+  EXPECT_EQ((*given)->raw_depth.stats.seeded, (*own)->raw_depth.stats.seeded);
 }
 
 TEST(FrameChain, WithoutAWhiteImageTheVignettingComesFromTheFirstFrame) {

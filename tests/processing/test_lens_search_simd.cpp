@@ -33,8 +33,12 @@ struct RandomFrame {
   std::size_t stride = 0;
   std::vector<std::uint8_t> raw;
   std::vector<float> gain;
+  std::vector<float> grey;  // a float grey image (the dense search's), NaN holes
   StripSource Source() const {
-    return StripSource{raw.data(), stride, channels, gain.data(), width};
+    return StripSource{raw.data(), stride, channels, gain.data(), width, nullptr};
+  }
+  StripSource GreySource() const {
+    return StripSource{nullptr, 0, 1, nullptr, width, grey.data()};
   }
 };
 
@@ -54,6 +58,9 @@ RandomFrame MakeFrame(std::mt19937& rng, int channels) {
   std::uniform_real_distribution<float> g(0.5f, 2.0f);
   std::uniform_int_distribution<int> hole(0, 49);
   for (float& x : f.gain) x = hole(rng) == 0 ? std::nanf("") : g(rng);
+  f.grey.resize(f.gain.size());
+  std::uniform_real_distribution<float> level(0.0f, 255.0f);
+  for (float& x : f.grey) x = hole(rng) == 0 ? std::nanf("") : level(rng);
   return f;
 }
 
@@ -122,6 +129,49 @@ TEST_F(StripKernelsTest, SamplesMatchTheScalarReferenceOnEveryTarget) {
     }
     // Both kinds of sample occur: a valid one and a NaN (outside the
     // range, or next to an invalid gain).
+    EXPECT_GT(compared - nans, compared / 10) << hwy::TargetName(target);
+    EXPECT_GT(nans, 0) << hwy::TargetName(target);
+  }
+}
+
+TEST_F(StripKernelsTest, GreyImageSamplesMatchTheScalarReferenceOnEveryTarget) {
+  const StripKernels& scalar = ScalarStripKernels();
+  for (const std::int64_t target : Targets()) {
+    hwy::SetSupportedTargetsForTest(target);
+    const StripKernels& simd = SimdStripKernels();
+    std::mt19937 rng(23);
+    long long compared = 0, nans = 0;
+    for (int trial = 0; trial < 300; ++trial) {
+      const RandomFrame f = MakeFrame(rng, 1);
+      for (int k = 0; k < 10; ++k) {
+        const StripLine l = MakeLine(rng, f);
+        std::vector<float> a(l.n + kStripPad, -1.0f), b(l.n + kStripPad, -1.0f);
+        scalar.sample(f.GreySource(), l, a.data());
+        simd.sample(f.GreySource(), l, b.data());
+        for (int i = 0; i < l.n; ++i) {
+          ASSERT_TRUE(Close(b[i], a[i])) << hwy::TargetName(target) << " trial " << trial
+                                         << " sample " << i << ": " << b[i] << " vs scalar "
+                                         << a[i];
+          ++compared;
+          nans += std::isnan(a[i]);
+        }
+        // The reference itself: the bilinear grey of the four pixels.
+        for (int i = 0; i < l.n; ++i) {
+          const int j = l.n - 1 - i;
+          if (j < l.j_lo || j > l.j_hi || std::isnan(a[i])) continue;
+          const float t = l.along0 + j * l.step;
+          const double x = l.px + t * l.e_x - l.b_ey, y = l.py + t * l.e_y + l.b_ex;
+          const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+          const double fx = x - x0, fy = y - y0;
+          auto at = [&](int xx, int yy) {
+            return static_cast<double>(f.grey[static_cast<std::size_t>(yy) * f.width + xx]);
+          };
+          const double expected = (1 - fx) * (1 - fy) * at(x0, y0) + fx * (1 - fy) * at(x0 + 1, y0) +
+                                  (1 - fx) * fy * at(x0, y0 + 1) + fx * fy * at(x0 + 1, y0 + 1);
+          ASSERT_NEAR(a[i], expected, 1e-3) << "trial " << trial << " sample " << i;
+        }
+      }
+    }
     EXPECT_GT(compared - nans, compared / 10) << hwy::TargetName(target);
     EXPECT_GT(nans, 0) << hwy::TargetName(target);
   }

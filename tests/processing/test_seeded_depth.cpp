@@ -1,0 +1,204 @@
+// The dense virtual depth seeded by the per-lens depth
+// (processing/virtual_depth.h, "Seeded"): on a synthetic frame against the
+// ground truth and against the full search of the same frame (coverage,
+// median |dz|/z, outliers within 1 % absolute of the full search's and
+// within the dense gates); the fallback (no seed: the full search's map
+// exactly; a wrong seed everywhere: the full search's accuracy, found by
+// searching again over the whole range); the SIMD and the scalar kernels
+// giving the same map; the seed's lattice check.
+
+#include "processing/camera_model.h"
+#include "processing/lens_depth.h"
+#include "processing/mla_grid.h"
+#include "processing/virtual_depth.h"
+#include "tests/processing/synth_frame.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <memory>
+#include <utility>
+
+namespace lifmcr::processing {
+namespace {
+
+// `small` on the textured table scene (micro images of 16 px), rendered
+// once, with its prepared frame, per-lens depth and full-search map.
+class SeededDepth : public ::testing::Test {
+ protected:
+  struct Shared {
+    testing::SynthFrame s;
+    PlenopticFrame frame;
+    LensDepthMap lens;
+    LensSeed seed;
+    VirtualDepthMap full;
+    testing::DepthGates full_gates;
+  };
+  static void SetUpTestSuite() {
+    shared_ = new Shared;
+    Shared& d = *shared_;
+    d.s = testing::RenderSynthFrame("small", 1.0, "table");
+    const CameraModel camera(d.s.intrinsics);
+    const MlaGrid grid = MlaGrid::FromCalibration(d.s.mla, d.s.raw.width, d.s.raw.height);
+    FrameOptions fo;
+    fo.lambda = camera.lambda();
+    ASSERT_TRUE(
+        PrepareFrame(d.s.raw.View(), d.s.white.View(), grid, d.s.mla, fo, &d.frame).ok());
+    PlenopticFrame geometry;
+    ASSERT_TRUE(PrepareGeometry(d.s.white.View(), d.s.raw.width, d.s.raw.height, grid, d.s.mla,
+                                fo, &geometry)
+                    .ok());
+    auto estimator = LensDepthEstimator::Create(std::move(geometry), d.s.mla, {});
+    ASSERT_TRUE(estimator.ok());
+    ASSERT_TRUE((*estimator)->Estimate(d.s.raw.View(), &d.lens).ok());
+    ASSERT_TRUE(SeedFromLensDepth(d.frame, d.lens, &d.seed).ok());
+    ASSERT_TRUE(EstimateVirtualDepth(d.frame, d.s.mla, DepthOptions{}, &d.full).ok());
+    d.full_gates = testing::MeasureDepthGates(d.s, d.full.virtual_depth, d.full.textured);
+  }
+  static void TearDownTestSuite() {
+    delete shared_;
+    shared_ = nullptr;
+  }
+  static void Print(const char* what, const VirtualDepthMap& m, const testing::DepthGates& g) {
+    std::printf("%s: %s\n  coverage %.1f %% of %lld textured, median |dz|/z %.2f %%, outliers "
+                "%.2f %%\n",
+                what, m.stats.BriefReport().c_str(), 100 * g.coverage, g.textured, 100 * g.median,
+                100 * g.outliers);
+  }
+  static Shared* shared_;
+};
+SeededDepth::Shared* SeededDepth::shared_ = nullptr;
+
+TEST_F(SeededDepth, MatchesTheFullSearchAndTheGates) {
+  ASSERT_NE(shared_, nullptr);
+  const Shared& d = *shared_;
+  long long seeded_lenses = 0;
+  for (const float z : d.seed.z) seeded_lenses += z > 0;
+  ASSERT_GT(seeded_lenses, static_cast<long long>(d.frame.lenses.size()) / 2);
+  VirtualDepthMap seeded;
+  ASSERT_TRUE(EstimateVirtualDepth(d.frame, d.s.mla, DepthOptions{}, &d.seed, &seeded).ok());
+  const testing::DepthGates g =
+      testing::MeasureDepthGates(d.s, seeded.virtual_depth, seeded.textured);
+  Print("full", d.full, d.full_gates);
+  Print("seeded", seeded, g);
+  EXPECT_GT(seeded.stats.seeded, seeded.stats.searched / 2);
+  // Within 1 % absolute of the full search's median and outliers; coverage
+  // within 2 %: on `small`'s 16 px micro images the seeded search's fewer
+  // baselines per pixel (seed_max_ring1) cover 1.2 % fewer textured pixels
+  // (bench_depth --preset medium / r32 holds 1 %: docs/processing.md).
+  EXPECT_GE(g.coverage, d.full_gates.coverage - 0.02);
+  EXPECT_LE(g.median, d.full_gates.median + 0.01);
+  EXPECT_LE(g.outliers, d.full_gates.outliers + 0.01);
+  EXPECT_GE(g.coverage, 0.5);
+  EXPECT_LE(g.median, 0.02);
+  EXPECT_LE(g.outliers, 0.05);
+}
+
+// No seed anywhere: every micro image takes the full search, so the map is
+// the full search's, pixel for pixel.
+TEST_F(SeededDepth, MissingSeedGivesTheFullSearch) {
+  ASSERT_NE(shared_, nullptr);
+  const Shared& d = *shared_;
+  LensSeed none;
+  none.z.assign(d.frame.lenses.size(), std::numeric_limits<float>::quiet_NaN());
+  none.sigma_z = none.z;
+  VirtualDepthMap m;
+  ASSERT_TRUE(EstimateVirtualDepth(d.frame, d.s.mla, DepthOptions{}, &none, &m).ok());
+  EXPECT_EQ(m.stats.seeded, 0);
+  ASSERT_EQ(m.virtual_depth.size(), d.full.virtual_depth.size());
+  for (std::size_t i = 0; i < m.virtual_depth.size(); ++i) {
+    const float a = m.virtual_depth[i], b = d.full.virtual_depth[i];
+    ASSERT_TRUE((std::isnan(a) && std::isnan(b)) || a == b) << "pixel " << i;
+  }
+}
+
+// A seed 40 % off in z everywhere (and a confident one: sigma tiny): the
+// window misses the surface, the least cost lies on its edge, and the
+// pixels are searched again over the whole range: the full search's
+// accuracy, not the seed's depth.
+TEST_F(SeededDepth, WrongSeedFallsBackToTheFullSearch) {
+  ASSERT_NE(shared_, nullptr);
+  const Shared& d = *shared_;
+  LensSeed wrong = d.seed;
+  for (std::size_t k = 0; k < wrong.z.size(); ++k) {
+    wrong.z[k] *= 1.4f;
+    wrong.sigma_z[k] = 1e-4f;
+  }
+  VirtualDepthMap m;
+  ASSERT_TRUE(EstimateVirtualDepth(d.frame, d.s.mla, DepthOptions{}, &wrong, &m).ok());
+  const testing::DepthGates g = testing::MeasureDepthGates(d.s, m.virtual_depth, m.textured);
+  Print("wrong seed", m, g);
+  VirtualDepthMap right;
+  ASSERT_TRUE(EstimateVirtualDepth(d.frame, d.s.mla, DepthOptions{}, &d.seed, &right).ok());
+  // Most pixels searched again (the right seed's misses are the pixels
+  // without a clear minimum anywhere).
+  EXPECT_GT(m.stats.fallback, right.stats.fallback + m.stats.seeded / 5);
+  EXPECT_GT(m.stats.fallback, m.stats.seeded / 2);
+  EXPECT_GE(g.coverage, d.full_gates.coverage - 0.05);
+  EXPECT_LE(g.median, d.full_gates.median + 0.01);
+  EXPECT_LE(g.outliers, d.full_gates.outliers + 0.02);
+}
+
+// DepthOptions::simd: Highway's strip kernels or the scalar reference; they
+// agree to the last bit (tests/processing/test_lens_search_simd.cpp), so
+// the maps are compared exactly, seeded and full.
+TEST_F(SeededDepth, SimdAndScalarPathsGiveTheSameMap) {
+  ASSERT_NE(shared_, nullptr);
+  const Shared& d = *shared_;
+  for (const LensSeed* seed : {static_cast<const LensSeed*>(nullptr), &d.seed}) {
+    DepthOptions scalar_options, simd_options;
+    scalar_options.simd = false;
+    VirtualDepthMap a, b;
+    ASSERT_TRUE(EstimateVirtualDepth(d.frame, d.s.mla, scalar_options, seed, &a).ok());
+    ASSERT_TRUE(EstimateVirtualDepth(d.frame, d.s.mla, simd_options, seed, &b).ok());
+    EXPECT_STREQ(a.stats.kernels, "scalar");
+    EXPECT_STRNE(b.stats.kernels, "scalar");
+    long long finite = 0;
+    for (std::size_t i = 0; i < a.virtual_depth.size(); ++i) {
+      const float va = a.virtual_depth[i], vb = b.virtual_depth[i];
+      ASSERT_TRUE((std::isnan(va) && std::isnan(vb)) || va == vb)
+          << (seed ? "seeded" : "full") << " pixel " << i << ": " << vb << " vs scalar " << va;
+      const float sa = a.sigma_z[i], sb = b.sigma_z[i];
+      ASSERT_TRUE((std::isnan(sa) && std::isnan(sb)) || sa == sb) << "pixel " << i;
+      finite += !std::isnan(va);
+    }
+    EXPECT_GT(finite, 10000);
+  }
+}
+
+TEST_F(SeededDepth, RejectsASeedOfAnotherFrame) {
+  ASSERT_NE(shared_, nullptr);
+  const Shared& d = *shared_;
+  LensSeed short_seed;
+  short_seed.z.assign(3, 0.25f);
+  short_seed.sigma_z.assign(3, 0.01f);
+  VirtualDepthMap m;
+  const Status s = EstimateVirtualDepth(d.frame, d.s.mla, DepthOptions{}, &short_seed, &m);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().message.find("micro images"), std::string::npos) << s.error().message;
+  // A per-lens map on a shifted lattice.
+  LensDepthMap shifted = d.lens;
+  shifted.grid.origin_px += Eigen::Vector2d(3.0, 0.0);
+  LensSeed out;
+  const Status t = SeedFromLensDepth(d.frame, shifted, &out);
+  ASSERT_FALSE(t.ok());
+  EXPECT_NE(t.error().message.find("lattice"), std::string::npos) << t.error().message;
+}
+
+TEST(SeededDepthOptions, CheckNamesTheField) {
+  DepthOptions o;
+  o.seed_search_stride = -1;
+  ASSERT_FALSE(o.Check().ok());
+  EXPECT_NE(o.Check().error().message.find("seed_search_stride"), std::string::npos);
+  o = DepthOptions{};
+  o.seed_cost_ratio = 0;
+  EXPECT_NE(o.Check().error().message.find("seed_cost_ratio"), std::string::npos);
+  o = DepthOptions{};
+  o.seed_margin_px = -1;
+  EXPECT_NE(o.Check().error().message.find("seed_margin_px"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace lifmcr::processing
