@@ -95,6 +95,18 @@ struct Match {
   float ratio = 0;  // d1 / d2 (smaller is more distinctive)
 };
 
+// Exact neighbours (brute force): the reference the approximate search is
+// measured against.
+inline MatchOptions ExactMatching() { return MatchOptions{}; }
+
+// Matching one frame against a reference map (`lifmcr register`, the live
+// relocalisation, the calibration's frame-to-map matching): the kd-forest
+// of a DescriptorIndex, built once per map. Brute force grows with the map
+// (4000 keypoints against 65 000 points: about 1 s a frame on 2 cores); the
+// search visits kd_tree_checks leaves whatever the map's size.
+// KD_TREES_CHECKS_WHY
+MatchOptions MapMatching();
+
 // Matches query descriptors (nq x 128) against train descriptors (nt x 128),
 // sorted by ratio (most distinctive first, as PROSAC wants them).
 std::vector<Match> MatchDescriptors(const float* query, int nq, const float* train, int nt,
