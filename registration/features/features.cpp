@@ -145,6 +145,25 @@ MatchOptions MapMatching() {
 
 namespace {
 
+// FLANN's kd-trees draw split dimensions with std::rand and shuffle their
+// points with the calling thread's cv::theRNG(): both seeded while a forest
+// is built (the thread's generator restored after), so that the same
+// descriptors give the same forest, hence the same matches, whatever ran on
+// the thread before.
+class SeededForestRandomness {
+ public:
+  SeededForestRandomness() : saved_(cv::theRNG()) {
+    std::srand(1);
+    cv::theRNG() = cv::RNG(1);
+  }
+  ~SeededForestRandomness() { cv::theRNG() = saved_; }
+  SeededForestRandomness(const SeededForestRandomness&) = delete;
+  SeededForestRandomness& operator=(const SeededForestRandomness&) = delete;
+
+ private:
+  cv::RNG saved_;
+};
+
 // The k nearest rows of `trees` for every row of q, the rows searched in
 // blocks in parallel (a FLANN search keeps its state per thread; the blocks
 // write disjoint rows of the outputs). Distances squared, as FLANN gives them.
@@ -193,9 +212,7 @@ void TwoNearest(const cv::Mat& q, const cv::Mat& t, cv::flann::Index* trees,
   }
   std::optional<cv::flann::Index> local;
   if (trees == nullptr) {
-    // FLANN's kd-trees draw split dimensions with std::rand: seeded here so
-    // that the same input gives the same matches.
-    std::srand(1);
+    const SeededForestRandomness seeded;
     local.emplace(t, cv::flann::KDTreeIndexParams(options.kd_trees), cvflann::FLANN_DIST_L2);
     trees = &*local;
   }
@@ -234,7 +251,7 @@ std::vector<Match> MatchRows(const cv::Mat& q, const cv::Mat& t, cv::flann::Inde
       for (std::size_t n = 0; n < candidates.size(); ++n)
         if (backward[n].trainIdx == candidates[n].query) matches.push_back(candidates[n]);
     } else {
-      std::srand(1);
+      const SeededForestRandomness seeded;
       cv::flann::Index index(q, cv::flann::KDTreeIndexParams(options.kd_trees),
                              cvflann::FLANN_DIST_L2);
       SearchInParallel(index, chosen, 1, options.kd_tree_checks, &back_indices, &back_distances);
@@ -276,7 +293,7 @@ DescriptorIndex::~DescriptorIndex() = default;
 DescriptorIndex::Trees& DescriptorIndex::TreesOf(int kd_trees) const {
   std::call_once(built_, [&] {
     const cv::Mat t(size(), kDescriptorSize, CV_32F, const_cast<float*>(descriptors_.data()));
-    std::srand(1);  // as in TwoNearest
+    const SeededForestRandomness seeded;
     trees_ = std::make_unique<Trees>(t, kd_trees);
   });
   return *trees_;
