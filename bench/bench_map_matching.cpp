@@ -10,7 +10,9 @@
 // ground-truth TF image, points back-projected with the true depth and
 // placed by the true pose; a keypoint that matches an existing point within
 // 5 mm joins its track), built once from every frame, and the smaller maps
-// its first N points (the points of its first frames). Building it matches
+// its first N points (the points of its first frames; a map smaller than
+// asked is used whole, the row says so: 190 triggers give about 73 000
+// points, about 385 new ones a trigger). Building it matches
 // each frame against the map so far with the approximate matcher (exact, a
 // 100 000-point map takes minutes to build); the maps' content is the same
 // for both matchers compared here. The query frames are camera X's first
