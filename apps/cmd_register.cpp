@@ -3,6 +3,9 @@
 // the reference camera 0 (the map's camera), per frame:
 //   w0_from_c0 and w0_from_cx by the chosen method (registration/map/frame_registration.h),
 //   c0_from_cx = c0_from_w0 * w0_from_cx      (registration/estimators/extrinsics.h).
+// Matching against the map uses the map's kd-forest, built once
+// (MapMatching(), registration/features/features.h); --matching exact is
+// brute force, the reference.
 // Writes DIR/registration.csv (the columns lifmcr evaluate reads, one row per
 // frame, camera and method; status `ok` or the reason) and TUM trajectories
 // DIR/trajectory_<serial>_<method>.tum of w0_from_cam (mm, frame number as
@@ -34,6 +37,7 @@
 
 #include <Eigen/Geometry>
 
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -62,6 +66,7 @@ struct RegisterOptions {
   int map_frames = 3;
   int frames = 0;
   int max_features = 4000;
+  std::string matching = "approximate";
 };
 
 int Fail(const std::string& message, int code = 1) {
@@ -109,6 +114,10 @@ int RunRegister(const RegisterOptions& o) {
   if (o.observations == "raw") source = reg::ObservationSource::kRaw;
   else if (o.observations == "ground-truth") source = reg::ObservationSource::kGroundTruth;
   else return Fail("--observations " + o.observations + ": expected raw or ground-truth", 2);
+  reg::FrameRegistrationOptions options;
+  if (o.matching == "exact") options.match = reg::ExactMatching();
+  else if (o.matching != "approximate")
+    return Fail("--matching " + o.matching + ": expected approximate or exact", 2);
   if (o.reference.empty() == !o.reference_from_ground_truth)
     return Fail("give either --reference MAP_DIR or --reference-from-ground-truth", 2);
   std::vector<fs::path> intrinsics_paths(o.intrinsics.begin(), o.intrinsics.end());
@@ -150,6 +159,9 @@ int RunRegister(const RegisterOptions& o) {
     for (int f = 0; f < o.map_frames; ++f) frames.push_back(f);
     reg::GroundTruthMapOptions map_options;
     map_options.features = features;
+    // Each frame against the map so far, by the same matcher (kd-forests
+    // rebuilt per frame: the map grows; brute force grows with it).
+    map_options.match = options.match;
     Expected<reg::ReferenceMap> built =
         reg::BuildGroundTruthMap(seq, reference, frames, *camera, map_options);
     if (!built) return Fail(built.error().message);
@@ -176,7 +188,15 @@ int RunRegister(const RegisterOptions& o) {
     std::stable_partition(serials.begin(), serials.end(),
                           [&](const std::string& s) { return s == reference_serial; });
 
-  reg::FrameRegistrationOptions options;
+  if (options.match.kd_tree_checks > 0) {
+    // The map's kd-forest, once, before the first frame (features.h).
+    const auto start = std::chrono::steady_clock::now();
+    index.descriptors->Prepare(options.match.kd_trees);
+    std::fprintf(stderr, "map index: kd-forest of %d trees over %d points, %.0f ms\n",
+                 options.match.kd_trees, index.size(),
+                 1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
+                           .count());
+  }
   // The methods' trajectories: [method][serial] -> w0_from_cam.
   std::map<reg::RegistrationMethod, std::map<std::string, Trajectory>> trajectories;
   std::map<reg::RegistrationMethod, std::map<std::string, std::map<std::int64_t, std::string>>>
@@ -369,6 +389,9 @@ CommandRun AddRegisterCommand(CLI::App& app) {
                  "Keypoints and depth from: raw (processing) or ground-truth");
   app.add_option("--frames", o->frames, "Only the first N frames of each camera (0: all)");
   app.add_option("--max-features", o->max_features, "SIFT keypoints per frame (0: all)");
+  app.add_option("--matching", o->matching,
+                 "Frame-to-map matching: approximate (the map's kd-forest, built once) or exact "
+                 "(brute force, the reference; its time grows with the map)");
   return [o] { return RunRegister(*o); };
 }
 

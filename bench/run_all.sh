@@ -42,7 +42,8 @@ build=${LIFMCR_BUILD_DIR:-build}
 bench=$build/bench
 lifmcr=$build/apps/lifmcr
 for b in bench_bmp bench_sync bench_pnp bench_lcm_sizes bench_scene bench_render bench_depth \
-  bench_record bench_pipeline bench_live bench_calibrate bench_depth_bias bench_batch; do
+  bench_record bench_pipeline bench_live bench_calibrate bench_depth_bias bench_map_matching \
+  bench_batch; do
   [[ -x $bench/$b ]] || { echo "run_all.sh: $bench/$b missing: build first (scripts/setup.sh)" >&2; exit 2; }
 done
 [[ -x $lifmcr ]] || { echo "run_all.sh: $lifmcr missing: build first" >&2; exit 2; }
@@ -235,6 +236,19 @@ base=$(sed -n 's/.*baseline median |error| \([0-9.]* %\).*/\1/p' "$logs/bench_de
 ratio=$(sed -n 's/.*baseline median |error| .*: ratio \([-0-9.a-z]*\).*/\1/p' "$logs/bench_depth_bias.log")
 row bench_depth_bias "virtual depth bias ($preset frame), as the B a calibration is pulled to" "$fit" \
   "median per-pixel |error|" "$base" "$ratio"
+
+# --- bench_map_matching (a small rig written by the benchmark)
+if [[ $quick == 1 ]]; then
+  args=(--frames 10 --map-points 1700,4000 --queries 1 --repeat 1 --observations ground-truth)
+else args=(); fi
+run bench_map_matching "$logs/bench_map_matching.log" "$bench/bench_map_matching" "${args[@]}"
+line=$(grep '^largest map' "$logs/bench_map_matching.log" || true)
+pts=$(sed -n 's/^largest map \([0-9]*\) points.*/\1/p' <<<"$line")
+appr=$(sed -n 's/.*: approximate \([0-9.]*\) ms, .*/\1/p' <<<"$line")
+ex=$(sed -n 's/.*, exact \([0-9.]*\) ms per frame.*/\1/p' <<<"$line")
+ratio=$(sed -n 's/.*, ratio \([0-9.]*x\),.*/\1/p' <<<"$line")
+row bench_map_matching "one frame's matching + PnP against a map of $pts points (kd-forest), ms" \
+  "$appr" "exact (brute-force) matching + PnP, ms" "$ex" "$ratio"
 
 # --- bench_batch
 if [[ $quick == 1 ]]; then args=(--preset small --frames 4 --repeat 1); else args=(); fi

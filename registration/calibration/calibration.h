@@ -60,19 +60,11 @@
 
 namespace lifmcr::registration {
 
-// Matching options of calibration: ratio test, cross-check, kd-trees with 64
-// leaves searched (features.h).
-inline MatchOptions KdTreeMatching() {
-  MatchOptions m;
-  m.kd_tree_checks = 64;
-  return m;
-}
-
 struct CalibrationOptions {
   int min_frames = 3;               // frames placed, else an error
   int min_features = 50;            // keypoints with a virtual depth per frame, else rejected
   int min_plate_corners = 4;        // corners for a plate pose
-  MatchOptions match = KdTreeMatching();  // frame to map matching (approximate kd-tree search)
+  MatchOptions match = MapMatching();  // frame to map matching (kd-forest, features.h)
   int match_window = 4;             // a frame is matched against points seen by this many placed frames
   double pnp_threshold_px = 6.0;    // RANSAC inlier threshold (raw pixels of the TF pinhole)
   int pnp_iterations = 5000;        // RANSAC trials

@@ -5,6 +5,9 @@
 #include <opencv2/flann.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cstdlib>
 #include <numeric>
@@ -133,7 +136,52 @@ void ScaleKeypoints(double factor, Features* features) {
   }
 }
 
+MatchOptions MapMatching() {
+  MatchOptions m;
+  m.kd_trees = 4;
+  m.kd_tree_checks = 64;
+  return m;
+}
+
 namespace {
+
+// FLANN's kd-trees draw split dimensions with std::rand and shuffle their
+// points with the calling thread's cv::theRNG(): both seeded while a forest
+// is built (the thread's generator restored after), so that the same
+// descriptors give the same forest, hence the same matches, whatever ran on
+// the thread before.
+class SeededForestRandomness {
+ public:
+  SeededForestRandomness() : saved_(cv::theRNG()) {
+    std::srand(1);
+    cv::theRNG() = cv::RNG(1);
+  }
+  ~SeededForestRandomness() { cv::theRNG() = saved_; }
+  SeededForestRandomness(const SeededForestRandomness&) = delete;
+  SeededForestRandomness& operator=(const SeededForestRandomness&) = delete;
+
+ private:
+  cv::RNG saved_;
+};
+
+// The k nearest rows of `trees` for every row of q, the rows searched in
+// blocks in parallel (a FLANN search keeps its state per thread; the blocks
+// write disjoint rows of the outputs). Distances squared, as FLANN gives them.
+void SearchInParallel(cv::flann::Index& trees, const cv::Mat& q, int k, int checks,
+                      cv::Mat* indices, cv::Mat* distances) {
+  indices->create(q.rows, k, CV_32S);
+  distances->create(q.rows, k, CV_32F);
+  // Blocks of 128 queries: a few hundred microseconds of search each, many
+  // more blocks than cores for a frame's keypoints.
+  constexpr int kBlock = 128;
+  tbb::parallel_for(tbb::blocked_range<int>(0, q.rows, kBlock),
+                    [&](const tbb::blocked_range<int>& r) {
+                      cv::Mat i = indices->rowRange(r.begin(), r.end());
+                      cv::Mat d = distances->rowRange(r.begin(), r.end());
+                      trees.knnSearch(q.rowRange(r.begin(), r.end()), i, d, k,
+                                      cv::flann::SearchParams(checks));
+                    });
+}
 
 // Below this many descriptor pairs brute force is as fast as building trees
 // (trees kept in a DescriptorIndex are searched whatever the count).
@@ -164,13 +212,11 @@ void TwoNearest(const cv::Mat& q, const cv::Mat& t, cv::flann::Index* trees,
   }
   std::optional<cv::flann::Index> local;
   if (trees == nullptr) {
-    // FLANN's kd-trees draw split dimensions with std::rand: seeded here so
-    // that the same input gives the same matches.
-    std::srand(1);
+    const SeededForestRandomness seeded;
     local.emplace(t, cv::flann::KDTreeIndexParams(options.kd_trees), cvflann::FLANN_DIST_L2);
     trees = &*local;
   }
-  trees->knnSearch(q, *indices, *distances, 2, cv::flann::SearchParams(options.kd_tree_checks));
+  SearchInParallel(*trees, q, 2, options.kd_tree_checks, indices, distances);
   // FLANN's L2 distances are squared.
   cv::sqrt(*distances, *distances);
 }
@@ -205,11 +251,10 @@ std::vector<Match> MatchRows(const cv::Mat& q, const cv::Mat& t, cv::flann::Inde
       for (std::size_t n = 0; n < candidates.size(); ++n)
         if (backward[n].trainIdx == candidates[n].query) matches.push_back(candidates[n]);
     } else {
-      std::srand(1);
+      const SeededForestRandomness seeded;
       cv::flann::Index index(q, cv::flann::KDTreeIndexParams(options.kd_trees),
                              cvflann::FLANN_DIST_L2);
-      index.knnSearch(chosen, back_indices, back_distances, 1,
-                      cv::flann::SearchParams(options.kd_tree_checks));
+      SearchInParallel(index, chosen, 1, options.kd_tree_checks, &back_indices, &back_distances);
       for (std::size_t n = 0; n < candidates.size(); ++n)
         if (back_indices.at<int>(static_cast<int>(n), 0) == candidates[n].query)
           matches.push_back(candidates[n]);
@@ -248,7 +293,7 @@ DescriptorIndex::~DescriptorIndex() = default;
 DescriptorIndex::Trees& DescriptorIndex::TreesOf(int kd_trees) const {
   std::call_once(built_, [&] {
     const cv::Mat t(size(), kDescriptorSize, CV_32F, const_cast<float*>(descriptors_.data()));
-    std::srand(1);  // as in TwoNearest
+    const SeededForestRandomness seeded;
     trees_ = std::make_unique<Trees>(t, kd_trees);
   });
   return *trees_;

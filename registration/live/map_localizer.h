@@ -85,7 +85,8 @@ namespace lifmcr::registration {
 struct LocalizerOptions {
   // Relocalisation: SIFT on the refocused TF grid at half resolution, the
   // strongest 1500 keypoints spread over 4 x 4 cells; global matching by
-  // kd-trees over the map's descriptors built once (exact matching of 4000
+  // the map's kd-forest, built once (registration.match, MapMatching() of
+  // features.h, FrameRegistrationOptions' default; exact matching of 4000
   // keypoints against a map of 7000 points took seconds on 2 cores;
   // bench/README.md has the stages' times before and after); the
   // fundamental filter on (the paper's; medium, 8 frames relocalised: inliers
@@ -95,7 +96,6 @@ struct LocalizerOptions {
   LocalizerOptions() {
     features.max_features = 1500;
     features.spread_cells = 4;
-    registration.match.kd_tree_checks = 64;
     registration.fundamental.enabled = true;
     // The Cauchy loss in the PnP's refinement: on the live path's keypoints
     // (renders refocused at one depth, SIFT on reduced images) it gave the

@@ -55,7 +55,9 @@ struct MapIndex {
 };
 
 struct FrameRegistrationOptions {
-  MatchOptions match;
+  // The map's kd-forest (MapMatching(), features.h); ExactMatching() for
+  // brute force, the reference (`lifmcr register --matching exact`).
+  MatchOptions match = MapMatching();
   // PnP only: the matches first checked against a fundamental matrix with
   // the map keyframe that saw most of the matched points (off here; the
   // live localizer turns it on: registration/live/map_localizer.h says why).

@@ -10,8 +10,11 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <map>
+#include <string>
+#include <vector>
 
 namespace lifmcr {
 namespace {
@@ -65,6 +68,77 @@ TEST(CliRegister, BothMethodsRegisterCameraXAgainstAGroundTruthMap) {
     for (const std::string& serial : {zero, x})
       EXPECT_TRUE(fs::exists(dir / "out" / ("trajectory_" + serial + "_" + method + ".tum")));
   EXPECT_TRUE(fs::exists(dir / "out" / "reference" / "descriptors.bin"));
+}
+
+TEST(CliRegister, TheMapIndexRegistersAsTheExactMatcherDoes) {
+  // The default matching (the map's kd-forest, features.h) against brute
+  // force on the same rig and map: every frame registered by both, c0_from_cx
+  // within a small fraction of the registration's own error (the gate is
+  // 2 mm / 0.1 deg; docs/registration.md measures both on larger runs).
+  test::TempDir dir;
+  const test::CommandResult synth = test::RunLifmcr(
+      "synth --out " + (dir / "data").string() + " --preset small --frames 3 --cameras 2 --quiet");
+  ASSERT_EQ(synth.exit_code, 0) << synth.err;
+  const fs::path seq = dir / "data" / "00_Synthetic" / "Sequence_00";
+  std::map<std::string, std::vector<RegistrationRow>> rows;
+  for (const std::string matching : {"exact", "approximate"}) {
+    const fs::path out = dir / ("out_" + matching);
+    const test::CommandResult r = test::RunLifmcr(
+        "register " + seq.string() + " --reference-from-ground-truth --observations ground-truth "
+        "--method pnp --matching " + matching + " --out " + out.string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(r.err.find("map index: kd-forest") != std::string::npos, matching == "approximate")
+        << r.err;
+    Expected<RegistrationTable> table = ReadRegistrationCsv(out / "registration.csv");
+    ASSERT_TRUE(table) << table.error().message;
+    rows[matching] = table->rows;
+  }
+  ASSERT_EQ(rows["exact"].size(), 3u);
+  ASSERT_EQ(rows["approximate"].size(), 3u);
+  // The true c0_from_cx of each frame (camera 0 listed first in cameras.yaml).
+  const std::string x = rows["exact"].front().camera;
+  std::map<std::string, std::map<std::int64_t, Pose>> truth;
+  std::string zero;
+  for (const auto& entry : fs::directory_iterator(seq / "GroundTruth")) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind("poses_", 0) != 0) continue;
+    const std::string serial = name.substr(6, name.size() - 10);
+    if (serial != x) zero = serial;
+    Expected<std::vector<registration::FramePose>> poses = registration::ReadPosesCsv(entry.path());
+    ASSERT_TRUE(poses) << poses.error().message;
+    for (const auto& p : *poses) truth[serial][p.frame] = p.world_from_cam;
+  }
+  double error_exact = 0, error_approximate = 0;
+  for (std::size_t i = 0; i < 3; ++i) {
+    const RegistrationRow& e = rows["exact"][i];
+    const RegistrationRow& a = rows["approximate"][i];
+    ASSERT_EQ(e.status, "ok");
+    ASSERT_EQ(a.status, "ok");
+    const double t = registration::TranslationDifference(e.c0_from_cx, a.c0_from_cx);
+    const double r = registration::RotationDifferenceDeg(e.c0_from_cx, a.c0_from_cx);
+    std::printf("frame %lld: exact %lld inliers, approximate %lld; c0_from_cx differs by %.4f mm "
+                "/ %.5f deg\n",
+                static_cast<long long>(e.frame), static_cast<long long>(e.inliers),
+                static_cast<long long>(a.inliers), t, r);
+    EXPECT_LT(t, 0.25);
+    EXPECT_LT(r, 0.01);
+    EXPECT_GE(a.inliers, 0.95 * static_cast<double>(e.inliers));
+    ASSERT_EQ(e.frame, a.frame);
+    const Pose expected = truth[zero][e.frame].inverse() * truth[x][e.frame];
+    error_exact += registration::TranslationDifference(e.c0_from_cx, expected) / 3;
+    error_approximate += registration::TranslationDifference(a.c0_from_cx, expected) / 3;
+  }
+  // Against the truth, no worse on the mean than by a fraction of the exact
+  // matcher's own error (about 0.3 mm at small, docs/registration.md).
+  std::printf("mean c0_from_cx error: exact %.3f mm, approximate %.3f mm\n", error_exact,
+              error_approximate);
+  EXPECT_LT(error_approximate, error_exact + 0.1);
+  const test::CommandResult bad = test::RunLifmcr(
+      "register " + seq.string() + " --reference-from-ground-truth --matching magic --out " +
+      (dir / "bad").string());
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("--matching magic: expected approximate or exact"), std::string::npos)
+      << bad.err;
 }
 
 TEST(CliRegister, UsageErrorsSayWhatIsExpected) {

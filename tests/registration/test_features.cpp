@@ -2,7 +2,8 @@
 // the matches must recover the shift, and the ratio test and cross-check must
 // drop ambiguous pairs. SIFT at half scale maps its keypoints back without
 // bias; spread cells keep keypoints where the texture is weak; a kept
-// DescriptorIndex matches as the buffers do.
+// DescriptorIndex matches as the buffers do; the map's kd-forest finds the
+// exact matcher's matches.
 
 #include "registration/features/features.h"
 
@@ -12,6 +13,7 @@
 #include <cmath>
 #include <cstdint>
 #include <random>
+#include <set>
 #include <thread>
 #include <vector>
 
@@ -192,6 +194,72 @@ TEST(Features, AKeptDescriptorIndexMatchesAsTheBuffersDo) {
   EXPECT_EQ(pairs(first), pairs(third));
   EXPECT_EQ(pairs(second), pairs(third));
   EXPECT_EQ(index.size(), nt);
+}
+
+TEST(Features, TheMapIndexFindsTheExactMatchersMatches) {
+  // Real SIFT descriptors: a "map" of 16 textures' keypoints, queries from
+  // two of them seen again shifted. MapMatching()'s kd-forest must find
+  // nearly every match brute force finds (recall) and add few it does not
+  // (precision: an approximate second neighbour lies farther than the true
+  // one, so a few ambiguous pairs pass the ratio test).
+  const int w = 640, h = 480;
+  std::vector<float> train;
+  std::vector<Eigen::Vector2f> train_xy;
+  std::vector<int> train_image;
+  Features queries;
+  std::vector<int> query_image;
+  for (int image = 0; image < 16; ++image) {
+    const std::vector<std::uint8_t> a = BlobImage(w, h, 20 + image);
+    Features f;
+    ASSERT_TRUE(DetectSift(View(a, w, h), FeatureOptions{}, &f));
+    train.insert(train.end(), f.descriptors.begin(), f.descriptors.end());
+    for (const Keypoint& k : f.keypoints) {
+      train_xy.push_back(k.xy_px);
+      train_image.push_back(image);
+    }
+    if (image % 8 != 0) continue;
+    Features g;
+    ASSERT_TRUE(DetectSift(View(Shifted(a, w, h, 11, -6), w, h), FeatureOptions{}, &g));
+    queries.keypoints.insert(queries.keypoints.end(), g.keypoints.begin(), g.keypoints.end());
+    queries.descriptors.insert(queries.descriptors.end(), g.descriptors.begin(),
+                               g.descriptors.end());
+    query_image.insert(query_image.end(), g.keypoints.size(), image);
+  }
+  const int nt = static_cast<int>(train_xy.size());
+  const DescriptorIndex index(std::move(train));
+  const std::vector<Match> exact =
+      MatchDescriptors(queries.descriptors.data(), queries.size(), index, ExactMatching());
+  const std::vector<Match> approximate =
+      MatchDescriptors(queries.descriptors.data(), queries.size(), index, MapMatching());
+  const auto pairs = [](const std::vector<Match>& m) {
+    std::set<std::pair<int, int>> p;
+    for (const Match& x : m) p.emplace(x.query, x.train);
+    return p;
+  };
+  const std::set<std::pair<int, int>> e = pairs(exact), a = pairs(approximate);
+  std::size_t common = 0;
+  for (const auto& p : a) common += e.count(p);
+  const auto right = [&](const std::vector<Match>& m) {
+    int n = 0;
+    for (const Match& x : m)
+      n += train_image[x.train] == query_image[x.query] &&
+                   (queries.keypoints[x.query].xy_px - train_xy[x.train] -
+                    Eigen::Vector2f(11, -6)).norm() < 1.0f
+               ? 1
+               : 0;
+    return n;
+  };
+  const double recall = static_cast<double>(common) / e.size();
+  const double precision = static_cast<double>(common) / a.size();
+  std::printf("map index (%d trees, %d leaves): %d map descriptors, %d queries; exact %zu "
+              "matches (%d right), approximate %zu (%d right): recall %.3f, precision %.3f\n",
+              MapMatching().kd_trees, MapMatching().kd_tree_checks, nt, queries.size(),
+              exact.size(), right(exact), approximate.size(), right(approximate), recall,
+              precision);
+  ASSERT_GT(e.size(), 500u);
+  EXPECT_GE(recall, 0.97);
+  EXPECT_GE(precision, 0.97);
+  EXPECT_GE(right(approximate), 0.97 * right(exact));
 }
 
 TEST(Features, CrossCheckKeepsOnlyMutualNearestNeighbours) {
