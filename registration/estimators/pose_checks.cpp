@@ -58,6 +58,7 @@ PoseCheckOptions PoseCheckOptions::ForErrorBound(double max_error_mm, double max
   PoseCheckOptions o;
   o.max_sigma_mm = max_error_mm / kSigmas;
   o.max_sigma_deg = max_error_deg / kSigmas;
+  o.min_depth_agreement = 0.5;
   return o;
 }
 

@@ -118,6 +118,7 @@ TEST(PoseChecks, WrongPoseFromPoorlyCoveringMapIsRefusedWithItsReason) {
     const Evidence bad = EvidenceOf(camera, p, r, wrong);
     PoseCheckOptions depth_only;  // the corner's spread refuses it too: left out here
     depth_only.min_spread = 0;
+    depth_only.min_depth_agreement = 0.5;
     depth_only.max_sigma_mm = depth_only.max_sigma_deg = 1e9;
     const std::string depth_verdict = CheckPose(bad.e, depth_only);
     EXPECT_NE(depth_verdict.find("at their measured virtual depth"), std::string::npos)
