@@ -85,6 +85,9 @@ void WriteTum(const fs::path& path, const Trajectory& trajectory) {
   }
 }
 
+// The 95 % quantile of chi-square with 6 degrees of freedom.
+constexpr double kChiSquare6At95 = 12.5916;
+
 struct Errors {
   std::vector<double> t_mm, r_deg;
 };
@@ -177,10 +180,15 @@ int RunRegister(const RegisterOptions& o) {
                           [&](const std::string& s) { return s == reference_serial; });
 
   reg::FrameRegistrationOptions options;
+  // An `ok` row promises c0_from_cx within 5 mm / 0.25 deg of the truth
+  // (registration/estimators/pose_checks.h, ForErrorBound).
+  options.checks = reg::PoseCheckOptions::ForErrorBound(5.0, 0.25);
   // The methods' trajectories: [method][serial] -> w0_from_cam.
   std::map<reg::RegistrationMethod, std::map<std::string, Trajectory>> trajectories;
   std::map<reg::RegistrationMethod, std::map<std::string, std::map<std::int64_t, std::string>>>
       failures;
+  // Poses the pose checks refused (reported against a ground truth only).
+  std::map<reg::RegistrationMethod, std::map<std::string, Trajectory>> refused;
   std::map<std::string, std::vector<std::int64_t>> frames_of;
   std::map<std::pair<reg::RegistrationMethod, std::string>, std::map<std::int64_t, std::size_t>>
       inliers_of;
@@ -209,6 +217,7 @@ int RunRegister(const RegisterOptions& o) {
           trajectories[method][serial][frame] = r.w0_from_cam;
         else
           failures[method][serial][frame] = r.status;
+        if (r.estimated && !r.success) refused[method][serial][frame] = r.w0_from_cam;
         std::cerr << "camera " << serial << " frame " << frame << ": "
                   << obs->features.size() << " keypoints (" << static_cast<int>(1e3 * obs->seconds)
                   << " ms), " << r.BriefReport(method) << "\n";
@@ -219,6 +228,9 @@ int RunRegister(const RegisterOptions& o) {
   // c0_from_cx per frame, the CSV rows and the TUM files.
   std::vector<RegistrationRow> rows;
   std::map<std::pair<reg::RegistrationMethod, std::string>, std::map<std::int64_t, Pose>> c0_from;
+  std::map<std::pair<reg::RegistrationMethod, std::string>,
+           std::map<std::int64_t, reg::PoseWithCovariance>>
+      c0_from_with_covariance;
   for (const reg::RegistrationMethod method : methods) {
     const std::string name(reg::ToString(method));
     const Trajectory& reference_trajectory = trajectories[method][reference_serial];
@@ -244,7 +256,9 @@ int RunRegister(const RegisterOptions& o) {
                        (why != failures[method][reference_serial].end() ? why->second
                                                                          : "frame missing");
         } else {
-          row.c0_from_cx = reg::C0FromCxByPnp(zero->second, x->second).pose;
+          const reg::PoseWithCovariance c0_from_cx = reg::C0FromCxByPnp(zero->second, x->second);
+          row.c0_from_cx = c0_from_cx.pose;
+          c0_from_with_covariance[{method, serial}][frame] = c0_from_cx;
           row.status = "ok";
           c0_from[{method, serial}][frame] = row.c0_from_cx;
           ++ok;
@@ -293,6 +307,7 @@ int RunRegister(const RegisterOptions& o) {
       if (methods.size() == 2) std::printf("   diff t_mm  r_deg");
       std::printf("\n");
       std::map<reg::RegistrationMethod, Errors> errors;
+      std::map<reg::RegistrationMethod, int> beyond, within_chi2;
       Errors differences;
       for (const std::int64_t frame : frames_of[serial]) {
         const auto zero = world_from[reference_serial].find(frame);
@@ -305,7 +320,24 @@ int RunRegister(const RegisterOptions& o) {
           const auto& by_frame = c0_from[{method, serial}];
           const auto e = by_frame.find(frame);
           if (e == by_frame.end()) {
-            std::printf("   %6s %6s %6s", "", "failed", "");
+            // A pose the checks refused: its error, to show what they caught.
+            const auto pose_of = [&](const std::string& s) -> const reg::PoseWithCovariance* {
+              if (const auto it = trajectories[method][s].find(frame);
+                  it != trajectories[method][s].end())
+                return &it->second;
+              if (const auto it = refused[method][s].find(frame); it != refused[method][s].end())
+                return &it->second;
+              return nullptr;
+            };
+            const reg::PoseWithCovariance* z = pose_of(reference_serial);
+            const reg::PoseWithCovariance* xp = pose_of(serial);
+            if (z && xp) {
+              const Pose c = reg::C0FromCxByPnp(*z, *xp).pose;
+              std::printf("   %6s %6.1f %6.3f refused", "",
+                          reg::TranslationDifference(c, truth), reg::RotationDifferenceDeg(c, truth));
+            } else {
+              std::printf("   %6s %6s %6s", "", "failed", "");
+            }
             estimates.push_back(nullptr);
             continue;
           }
@@ -313,7 +345,12 @@ int RunRegister(const RegisterOptions& o) {
           const double r = reg::RotationDifferenceDeg(e->second, truth);
           errors[method].t_mm.push_back(t);
           errors[method].r_deg.push_back(r);
-          std::printf("   %6s %6.3f %6.4f", "", t, r);
+          if (t > 5 || r > 0.25) ++beyond[method];
+          const reg::PoseWithCovariance& with_covariance =
+              c0_from_with_covariance[{method, serial}][frame];
+          const double d2 = reg::SquaredMahalanobis(with_covariance, truth);
+          if (d2 <= kChiSquare6At95) ++within_chi2[method];
+          std::printf("   %6s %6.3f %6.4f chi2 %6.2f", "", t, r, d2);
           estimates.push_back(&e->second);
         }
         if (estimates.size() == 2 && estimates[0] && estimates[1]) {
@@ -333,6 +370,12 @@ int RunRegister(const RegisterOptions& o) {
                     "%zu/%zu (gate >= 95 %%)\n",
                     (std::string(reg::ToString(method)) + " gate").c_str(), median_t, median_r,
                     t.size(), frames_of[serial].size());
+        std::printf("  %-34s %d ok rows beyond 5 mm / 0.25 deg; %d of %zu (%.1f %%) within the "
+                    "95 %% chi-square(6) bound of their covariance (%.3f)\n",
+                    (std::string(reg::ToString(method)) + " checks").c_str(), beyond[method],
+                    within_chi2[method], t.size(),
+                    t.empty() ? 0.0 : 100.0 * within_chi2[method] / static_cast<double>(t.size()),
+                    kChiSquare6At95);
       }
       if (methods.size() == 2) PrintStats("difference pnp - ransac", differences);
     }
