@@ -52,9 +52,9 @@ Status PoseCheckOptions::Check() const {
 }
 
 PoseCheckOptions PoseCheckOptions::ForErrorBound(double max_error_mm, double max_error_deg) {
-  // sqrt(2) for the composition of two poses, 4.5 the largest error seen in
-  // standard deviations (pose_checks.h).
-  constexpr double kSigmas = 1.4142135623730951 * 4.5;
+  // sqrt(2) for the composition of two poses, 4.03 = sqrt of the 99.9 %
+  // quantile of chi-square(3) (pose_checks.h).
+  constexpr double kSigmas = 1.4142135623730951 * 4.03;
   PoseCheckOptions o;
   o.max_sigma_mm = max_error_mm / kSigmas;
   o.max_sigma_deg = max_error_deg / kSigmas;

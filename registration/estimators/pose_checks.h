@@ -75,13 +75,12 @@ struct PoseCheckOptions {
   // `ok` c0_from_cx lies within max_error_mm / max_error_deg of the truth.
   // c0_from_cx composes two poses against the map (camera 0's and camera
   // X's), so its standard deviation is about sqrt(2) times each pose's; and
-  // over right-looking poses of the fast handheld `small` rigs (map from
-  // frames 0-2, raw observations) the error reached 4.5 times the pose's
-  // largest standard deviation (translation 6.1 mm at sigma 1.35 mm,
-  // rotation 0.33 deg at 0.080 deg), since the covariance is too small
-  // (docs/registration.md, "Covariance"). Hence
-  //   max_sigma = max_error / (sqrt(2) x 4.5),
-  // 0.79 mm / 0.039 deg for 5 mm / 0.25 deg.
+  // with a calibrated covariance (registration/estimators/pnp.h,
+  // "Covariance") a translation or rotation error (3 degrees of freedom)
+  // exceeds sqrt(16.27) = 4.03 times its largest standard deviation with a
+  // probability of 0.1 % (chi-square(3), 99.9 %). Hence
+  //   max_sigma = max_error / (sqrt(2) x 4.03),
+  // 0.88 mm / 0.044 deg for 5 mm / 0.25 deg.
   static PoseCheckOptions ForErrorBound(double max_error_mm, double max_error_deg);
 };
 
