@@ -20,6 +20,8 @@
 #include "config/text_escape.h"
 #include "evaluation/evaluation_inputs.h"
 #include "registration/estimators/extrinsics.h"
+#include "registration/estimators/pose_checks.h"
+#include "registration/estimators/tf_projection.h"
 #include "registration/features/frame_observations.h"
 #include "registration/map/frame_registration.h"
 #include "registration/map/ground_truth_map.h"
@@ -33,6 +35,9 @@
 #include <CLI/CLI.hpp>
 
 #include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
 
 #include <cstdio>
 #include <filesystem>
@@ -91,6 +96,66 @@ constexpr double kChiSquare6At95 = 12.5916;
 struct Errors {
   std::vector<double> t_mm, r_deg;
 };
+
+// PnP's inliers at the true pose (a sequence with a ground truth): their
+// residuals against the noise the covariance assumes (registration/estimators/pnp.h,
+// "Covariance"), per component, and the part common to a frame's keypoints.
+struct ResidualsAtTruth {
+  double x2 = 0, y2 = 0;  // sum of r^2 / s^2 per component (s^2: the pose's own)
+  std::size_t n = 0;
+  double z2 = 0;  // sum of the depth z-scores squared (pose_checks.h)
+  std::size_t n_depth = 0;
+  double shift_x2 = 0, shift_y2 = 0;  // per frame: mean residual^2 less s^2 / n
+  int frames = 0;
+};
+
+void AddResidualsAtTruth(const fs::path& seq, const std::string& serial, std::int64_t frame,
+                         const processing::CameraModel& camera, const reg::MapIndex& index,
+                         const reg::FrameObservations& obs, const reg::FrameRegistration& r,
+                         double sigma_v_relative,
+                         std::map<std::string, std::map<std::int64_t, Pose>>* truth_of,
+                         ResidualsAtTruth* out) {
+  if (!truth_of->count(serial)) {
+    auto& poses = (*truth_of)[serial];
+    if (Expected<std::vector<reg::FramePose>> gt = reg::ReadPosesCsv(layout::PosesCsvPath(seq, serial)))
+      for (const reg::FramePose& p : *gt) poses[p.frame] = p.world_from_cam;
+  }
+  const auto truth = (*truth_of)[serial].find(frame);
+  const std::size_t n = r.inlier_points.size();
+  if (truth == (*truth_of)[serial].end() || n < 4 || r.inlier_queries.size() != n) return;
+  const Pose cam_from_w0 = truth->second.inverse();
+  // s^2 of the estimate: sum |r_i|^2 / (2 n - 6) = rmse^2 n / (2 n - 6).
+  const double s2 = r.rmse_px * r.rmse_px * static_cast<double>(n) / static_cast<double>(2 * n - 6);
+  if (!(s2 > 0)) return;
+  const reg::TfProjection projection = reg::TfProjection::Of(camera);
+  Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+  std::vector<Eigen::Vector3d> points;
+  std::vector<double> v;
+  for (std::size_t k = 0; k < n; ++k) {
+    const Eigen::Vector3d x = index.points_in_w0[r.inlier_points[k]];
+    Eigen::Vector2d tf;
+    Eigen::Matrix<double, 2, 3> jacobian;
+    if (!projection.WithJacobian(cam_from_w0 * x, &tf, &jacobian)) continue;
+    const Eigen::Vector2d residual = tf - r.inlier_tf_px[k];
+    out->x2 += residual.x() * residual.x() / s2;
+    out->y2 += residual.y() * residual.y() / s2;
+    ++out->n;
+    sum += residual;
+    points.push_back(x);
+    v.push_back(obs.virtual_depth[r.inlier_queries[k]]);
+  }
+  std::vector<double> z, depth_mm;
+  reg::InlierDepths(camera, cam_from_w0, points, v, sigma_v_relative, &z, &depth_mm);
+  for (const double zi : z)
+    if (std::isfinite(zi)) {
+      out->z2 += zi * zi;
+      ++out->n_depth;
+    }
+  const Eigen::Vector2d mean = sum / static_cast<double>(n);
+  out->shift_x2 += mean.x() * mean.x() - s2 / static_cast<double>(n);
+  out->shift_y2 += mean.y() * mean.y() - s2 / static_cast<double>(n);
+  ++out->frames;
+}
 
 void PrintStats(const std::string& label, const Errors& e) {
   const ErrorStats t = ErrorStats::Of(e.t_mm), r = ErrorStats::Of(e.r_deg);
@@ -190,6 +255,8 @@ int RunRegister(const RegisterOptions& o) {
   // Poses the pose checks refused (reported against a ground truth only).
   std::map<reg::RegistrationMethod, std::map<std::string, Trajectory>> refused;
   std::map<std::string, std::vector<std::int64_t>> frames_of;
+  std::map<std::string, std::map<std::int64_t, Pose>> truth_of;
+  std::map<std::string, ResidualsAtTruth> residuals_at_truth;
   std::map<std::pair<reg::RegistrationMethod, std::string>, std::map<std::int64_t, std::size_t>>
       inliers_of;
   std::map<std::pair<reg::RegistrationMethod, std::string>, std::map<std::int64_t, double>> rmse_of;
@@ -218,6 +285,9 @@ int RunRegister(const RegisterOptions& o) {
         else
           failures[method][serial][frame] = r.status;
         if (r.estimated && !r.success) refused[method][serial][frame] = r.w0_from_cam;
+        if (r.estimated && method == reg::RegistrationMethod::kPnp)
+          AddResidualsAtTruth(seq, serial, frame, *camera, index, *obs, r,
+                              options.sigma_v_relative, &truth_of, &residuals_at_truth[serial]);
         std::cerr << "camera " << serial << " frame " << frame << ": "
                   << obs->features.size() << " keypoints (" << static_cast<int>(1e3 * obs->seconds)
                   << " ms), " << r.BriefReport(method) << "\n";
@@ -298,6 +368,16 @@ int RunRegister(const RegisterOptions& o) {
           }
           PrintStats(std::string(reg::ToString(method)) + " w0_from_cam " + serial, e);
         }
+    }
+    for (const auto& [serial, a] : residuals_at_truth) {
+      if (a.n == 0) continue;
+      const auto sd = [](double sum2, double count) { return std::sqrt(std::max(0.0, sum2 / count)); };
+      std::printf("  pnp inliers of %s at the true pose: residual variance / the pose's s^2 x %.2f, "
+                  "y %.2f (n=%zu), depth z-score variance %.2f (n=%zu); common shift (frame mean "
+                  "less noise) RMS x %.3f, y %.3f px over %d frames\n",
+                  serial.c_str(), a.x2 / static_cast<double>(a.n), a.y2 / static_cast<double>(a.n),
+                  a.n, a.n_depth ? a.z2 / static_cast<double>(a.n_depth) : 0.0, a.n_depth,
+                  sd(a.shift_x2, a.frames), sd(a.shift_y2, a.frames), a.frames);
     }
     for (const std::string& serial : serials) {
       if (serial == reference_serial) continue;

@@ -155,6 +155,7 @@ FrameRegistration RegisterFrame(const MapIndex& map, const processing::CameraMod
       if (!pnp.inlier_mask[i]) continue;
       result.inlier_points.push_back(matches[i].train);
       result.inlier_tf_px.push_back(tf[i]);
+      result.inlier_queries.push_back(matches[i].query);
       inlier_points_in_w0.push_back(points[i]);
       inlier_v.push_back(v[i]);
     }

@@ -88,6 +88,7 @@ struct FrameRegistration {
   // PnP: the inliers' map points (MapIndex order) and TF keypoints.
   std::vector<int> inlier_points;
   std::vector<Eigen::Vector2d> inlier_tf_px;
+  std::vector<int> inlier_queries;  // the inliers' keypoints (FrameObservations order)
   // PnP: what the pose checks measured; `estimated` is true when the
   // estimator returned a pose, which w0_from_cam then holds even if the
   // checks refused it (for reports against a ground truth).
