@@ -9,7 +9,9 @@
 // the time stamp). Progress on stderr, a summary line per camera. When the
 // sequence has GroundTruth/poses_<serial>.csv (lifmcr synth), the per-frame
 // errors of c0_from_cx against it are printed, and with --method both the
-// differences between the methods, as the paper's supplementary does.
+// differences between the methods, as the paper's supplementary does, with
+// each PnP row's squared Mahalanobis distance under its own covariance and
+// what PnP's inliers show at the true pose (ResidualsAtTruth).
 //
 // --reference-from-ground-truth builds the map from the sequence's ground
 // truth (registration/map/ground_truth_map.h) instead of reading one;
