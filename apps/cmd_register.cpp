@@ -12,7 +12,9 @@
 // the time stamp). Progress on stderr, a summary line per camera. When the
 // sequence has GroundTruth/poses_<serial>.csv (lifmcr synth), the per-frame
 // errors of c0_from_cx against it are printed, and with --method both the
-// differences between the methods, as the paper's supplementary does.
+// differences between the methods, as the paper's supplementary does, with
+// each PnP row's squared Mahalanobis distance under its own covariance and
+// what PnP's inliers show at the true pose (ResidualsAtTruth).
 //
 // --reference-from-ground-truth builds the map from the sequence's ground
 // truth (registration/map/ground_truth_map.h) instead of reading one;
@@ -23,6 +25,8 @@
 #include "config/text_escape.h"
 #include "evaluation/evaluation_inputs.h"
 #include "registration/estimators/extrinsics.h"
+#include "registration/estimators/pose_checks.h"
+#include "registration/estimators/tf_projection.h"
 #include "registration/features/frame_observations.h"
 #include "registration/map/frame_registration.h"
 #include "registration/map/ground_truth_map.h"
@@ -37,7 +41,9 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -90,9 +96,72 @@ void WriteTum(const fs::path& path, const Trajectory& trajectory) {
   }
 }
 
+// The 95 % quantile of chi-square with 6 degrees of freedom.
+constexpr double kChiSquare6At95 = 12.5916;
+
 struct Errors {
   std::vector<double> t_mm, r_deg;
 };
+
+// PnP's inliers at the true pose (a sequence with a ground truth): their
+// residuals against the noise the covariance assumes (registration/estimators/pnp.h,
+// "Covariance"), per component, and the part common to a frame's keypoints.
+struct ResidualsAtTruth {
+  double x2 = 0, y2 = 0;  // sum of r^2 / s^2 per component (s^2: the pose's own)
+  std::size_t n = 0;
+  double z2 = 0;  // sum of the depth z-scores squared (pose_checks.h)
+  std::size_t n_depth = 0;
+  double shift_x2 = 0, shift_y2 = 0;  // per frame: mean residual^2 less s^2 / n
+  int frames = 0;
+};
+
+void AddResidualsAtTruth(const fs::path& seq, const std::string& serial, std::int64_t frame,
+                         const processing::CameraModel& camera, const reg::MapIndex& index,
+                         const reg::FrameObservations& obs, const reg::FrameRegistration& r,
+                         double sigma_v_relative,
+                         std::map<std::string, std::map<std::int64_t, Pose>>* truth_of,
+                         ResidualsAtTruth* out) {
+  if (!truth_of->count(serial)) {
+    auto& poses = (*truth_of)[serial];
+    if (Expected<std::vector<reg::FramePose>> gt = reg::ReadPosesCsv(layout::PosesCsvPath(seq, serial)))
+      for (const reg::FramePose& p : *gt) poses[p.frame] = p.world_from_cam;
+  }
+  const auto truth = (*truth_of)[serial].find(frame);
+  const std::size_t n = r.inlier_points.size();
+  if (truth == (*truth_of)[serial].end() || n < 4 || r.inlier_queries.size() != n) return;
+  const Pose cam_from_w0 = truth->second.inverse();
+  // s^2 of the estimate: sum |r_i|^2 / (2 n - 6) = rmse^2 n / (2 n - 6).
+  const double s2 = r.rmse_px * r.rmse_px * static_cast<double>(n) / static_cast<double>(2 * n - 6);
+  if (!(s2 > 0)) return;
+  const reg::TfProjection projection = reg::TfProjection::Of(camera);
+  Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+  std::vector<Eigen::Vector3d> points;
+  std::vector<double> v;
+  for (std::size_t k = 0; k < n; ++k) {
+    const Eigen::Vector3d x = index.points_in_w0[r.inlier_points[k]];
+    Eigen::Vector2d tf;
+    Eigen::Matrix<double, 2, 3> jacobian;
+    if (!projection.WithJacobian(cam_from_w0 * x, &tf, &jacobian)) continue;
+    const Eigen::Vector2d residual = tf - r.inlier_tf_px[k];
+    out->x2 += residual.x() * residual.x() / s2;
+    out->y2 += residual.y() * residual.y() / s2;
+    ++out->n;
+    sum += residual;
+    points.push_back(x);
+    v.push_back(obs.virtual_depth[r.inlier_queries[k]]);
+  }
+  std::vector<double> z, depth_mm;
+  reg::InlierDepths(camera, cam_from_w0, points, v, sigma_v_relative, &z, &depth_mm);
+  for (const double zi : z)
+    if (std::isfinite(zi)) {
+      out->z2 += zi * zi;
+      ++out->n_depth;
+    }
+  const Eigen::Vector2d mean = sum / static_cast<double>(n);
+  out->shift_x2 += mean.x() * mean.x() - s2 / static_cast<double>(n);
+  out->shift_y2 += mean.y() * mean.y() - s2 / static_cast<double>(n);
+  ++out->frames;
+}
 
 void PrintStats(const std::string& label, const Errors& e) {
   const ErrorStats t = ErrorStats::Of(e.t_mm), r = ErrorStats::Of(e.r_deg);
@@ -197,11 +266,18 @@ int RunRegister(const RegisterOptions& o) {
                  1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
                            .count());
   }
+  // An `ok` row promises c0_from_cx within 5 mm / 0.25 deg of the truth
+  // (registration/estimators/pose_checks.h, ForErrorBound).
+  options.checks = reg::PoseCheckOptions::ForErrorBound(5.0, 0.25);
   // The methods' trajectories: [method][serial] -> w0_from_cam.
   std::map<reg::RegistrationMethod, std::map<std::string, Trajectory>> trajectories;
   std::map<reg::RegistrationMethod, std::map<std::string, std::map<std::int64_t, std::string>>>
       failures;
+  // Poses the pose checks refused (reported against a ground truth only).
+  std::map<reg::RegistrationMethod, std::map<std::string, Trajectory>> refused;
   std::map<std::string, std::vector<std::int64_t>> frames_of;
+  std::map<std::string, std::map<std::int64_t, Pose>> truth_of;
+  std::map<std::string, ResidualsAtTruth> residuals_at_truth;
   std::map<std::pair<reg::RegistrationMethod, std::string>, std::map<std::int64_t, std::size_t>>
       inliers_of;
   std::map<std::pair<reg::RegistrationMethod, std::string>, std::map<std::int64_t, double>> rmse_of;
@@ -229,6 +305,10 @@ int RunRegister(const RegisterOptions& o) {
           trajectories[method][serial][frame] = r.w0_from_cam;
         else
           failures[method][serial][frame] = r.status;
+        if (r.estimated && !r.success) refused[method][serial][frame] = r.w0_from_cam;
+        if (r.estimated && method == reg::RegistrationMethod::kPnp)
+          AddResidualsAtTruth(seq, serial, frame, *camera, index, *obs, r,
+                              options.sigma_v_relative, &truth_of, &residuals_at_truth[serial]);
         std::cerr << "camera " << serial << " frame " << frame << ": "
                   << obs->features.size() << " keypoints (" << static_cast<int>(1e3 * obs->seconds)
                   << " ms), " << r.BriefReport(method) << "\n";
@@ -239,6 +319,9 @@ int RunRegister(const RegisterOptions& o) {
   // c0_from_cx per frame, the CSV rows and the TUM files.
   std::vector<RegistrationRow> rows;
   std::map<std::pair<reg::RegistrationMethod, std::string>, std::map<std::int64_t, Pose>> c0_from;
+  std::map<std::pair<reg::RegistrationMethod, std::string>,
+           std::map<std::int64_t, reg::PoseWithCovariance>>
+      c0_from_with_covariance;
   for (const reg::RegistrationMethod method : methods) {
     const std::string name(reg::ToString(method));
     const Trajectory& reference_trajectory = trajectories[method][reference_serial];
@@ -264,7 +347,9 @@ int RunRegister(const RegisterOptions& o) {
                        (why != failures[method][reference_serial].end() ? why->second
                                                                          : "frame missing");
         } else {
-          row.c0_from_cx = reg::C0FromCxByPnp(zero->second, x->second).pose;
+          const reg::PoseWithCovariance c0_from_cx = reg::C0FromCxByPnp(zero->second, x->second);
+          row.c0_from_cx = c0_from_cx.pose;
+          c0_from_with_covariance[{method, serial}][frame] = c0_from_cx;
           row.status = "ok";
           c0_from[{method, serial}][frame] = row.c0_from_cx;
           ++ok;
@@ -305,6 +390,16 @@ int RunRegister(const RegisterOptions& o) {
           PrintStats(std::string(reg::ToString(method)) + " w0_from_cam " + serial, e);
         }
     }
+    for (const auto& [serial, a] : residuals_at_truth) {
+      if (a.n == 0) continue;
+      const auto sd = [](double sum2, double count) { return std::sqrt(std::max(0.0, sum2 / count)); };
+      std::printf("  pnp inliers of %s at the true pose: residual variance / the pose's s^2 x %.2f, "
+                  "y %.2f (n=%zu), depth z-score variance %.2f (n=%zu); common shift (frame mean "
+                  "less noise) RMS x %.3f, y %.3f px over %d frames\n",
+                  serial.c_str(), a.x2 / static_cast<double>(a.n), a.y2 / static_cast<double>(a.n),
+                  a.n, a.n_depth ? a.z2 / static_cast<double>(a.n_depth) : 0.0, a.n_depth,
+                  sd(a.shift_x2, a.frames), sd(a.shift_y2, a.frames), a.frames);
+    }
     for (const std::string& serial : serials) {
       if (serial == reference_serial) continue;
       std::printf("camera %s -> %s\n  frame", serial.c_str(), reference_serial.c_str());
@@ -313,6 +408,7 @@ int RunRegister(const RegisterOptions& o) {
       if (methods.size() == 2) std::printf("   diff t_mm  r_deg");
       std::printf("\n");
       std::map<reg::RegistrationMethod, Errors> errors;
+      std::map<reg::RegistrationMethod, int> beyond, within_chi2;
       Errors differences;
       for (const std::int64_t frame : frames_of[serial]) {
         const auto zero = world_from[reference_serial].find(frame);
@@ -325,7 +421,24 @@ int RunRegister(const RegisterOptions& o) {
           const auto& by_frame = c0_from[{method, serial}];
           const auto e = by_frame.find(frame);
           if (e == by_frame.end()) {
-            std::printf("   %6s %6s %6s", "", "failed", "");
+            // A pose the checks refused: its error, to show what they caught.
+            const auto pose_of = [&](const std::string& s) -> const reg::PoseWithCovariance* {
+              if (const auto it = trajectories[method][s].find(frame);
+                  it != trajectories[method][s].end())
+                return &it->second;
+              if (const auto it = refused[method][s].find(frame); it != refused[method][s].end())
+                return &it->second;
+              return nullptr;
+            };
+            const reg::PoseWithCovariance* z = pose_of(reference_serial);
+            const reg::PoseWithCovariance* xp = pose_of(serial);
+            if (z && xp) {
+              const Pose c = reg::C0FromCxByPnp(*z, *xp).pose;
+              std::printf("   %6s %6.1f %6.3f refused", "",
+                          reg::TranslationDifference(c, truth), reg::RotationDifferenceDeg(c, truth));
+            } else {
+              std::printf("   %6s %6s %6s", "", "failed", "");
+            }
             estimates.push_back(nullptr);
             continue;
           }
@@ -333,7 +446,12 @@ int RunRegister(const RegisterOptions& o) {
           const double r = reg::RotationDifferenceDeg(e->second, truth);
           errors[method].t_mm.push_back(t);
           errors[method].r_deg.push_back(r);
-          std::printf("   %6s %6.3f %6.4f", "", t, r);
+          if (t > 5 || r > 0.25) ++beyond[method];
+          const reg::PoseWithCovariance& with_covariance =
+              c0_from_with_covariance[{method, serial}][frame];
+          const double d2 = reg::SquaredMahalanobis(with_covariance, truth);
+          if (d2 <= kChiSquare6At95) ++within_chi2[method];
+          std::printf("   %6s %6.3f %6.4f chi2 %6.2f", "", t, r, d2);
           estimates.push_back(&e->second);
         }
         if (estimates.size() == 2 && estimates[0] && estimates[1]) {
@@ -353,6 +471,12 @@ int RunRegister(const RegisterOptions& o) {
                     "%zu/%zu (gate >= 95 %%)\n",
                     (std::string(reg::ToString(method)) + " gate").c_str(), median_t, median_r,
                     t.size(), frames_of[serial].size());
+        std::printf("  %-34s %d ok rows beyond 5 mm / 0.25 deg; %d of %zu (%.1f %%) within the "
+                    "95 %% chi-square(6) bound of their covariance (%.3f)\n",
+                    (std::string(reg::ToString(method)) + " checks").c_str(), beyond[method],
+                    within_chi2[method], t.size(),
+                    t.empty() ? 0.0 : 100.0 * within_chi2[method] / static_cast<double>(t.size()),
+                    kChiSquare6At95);
       }
       if (methods.size() == 2) PrintStats("difference pnp - ransac", differences);
     }

@@ -36,6 +36,18 @@ Eigen::Matrix<double, 6, 2> PoseJacobianRows(const Eigen::Vector3d& rx,
   return jt;
 }
 
+// Datum i's share of CommonErrorRows (pnp.h): J_i^T e_x, J_i^T e_y,
+// J_i^T (tf_i - c) and J_i^T perp(tf_i - c), c the TF principal point.
+void AddCommonErrorRows(const Eigen::Matrix<double, 6, 2>& jt, const Eigen::Vector2d& tf,
+                        const TfProjection& projection,
+                        PlenopticPnpEstimator::CommonErrorRows* common) {
+  common->col(0) += jt.col(0);
+  common->col(1) += jt.col(1);
+  const double ux = tf.x() - projection.tf_cx, uy = tf.y() - projection.tf_cy;
+  common->col(2) += jt.col(0) * ux + jt.col(1) * uy;
+  common->col(3) += jt.col(1) * ux - jt.col(0) * uy;
+}
+
 }  // namespace
 
 Status PnpOptions::Check() const {
@@ -50,6 +62,12 @@ Status PnpOptions::Check() const {
     return FieldError("sigma_v_relative", "expected a finite number > 0");
   if (!(sample_check_sigmas > 0) || !std::isfinite(sample_check_sigmas))
     return FieldError("sample_check_sigmas", "expected a finite number > 0");
+  if (!(common_shift_sigma_px >= 0) || !std::isfinite(common_shift_sigma_px))
+    return FieldError("common_shift_sigma_px", "expected a finite number >= 0");
+  if (!(common_scale_sigma >= 0) || !std::isfinite(common_scale_sigma))
+    return FieldError("common_scale_sigma", "expected a finite number >= 0");
+  if (!(common_rotation_sigma_rad >= 0) || !std::isfinite(common_rotation_sigma_rad))
+    return FieldError("common_rotation_sigma_rad", "expected a finite number >= 0");
   return Status::Ok();
 }
 
@@ -175,7 +193,7 @@ template <typename Indices>
 std::size_t PlenopticPnpEstimator::NormalEquationsOver(
     const Model& cam_from_world, double threshold2, std::size_t count, Indices indices,
     Eigen::Matrix<double, 6, 6>* jtj, Eigen::Matrix<double, 6, 1>* jtr, double* sum_squares,
-    char* mask) const {
+    char* mask, CommonErrorRows* common) const {
   const Eigen::Matrix3d r = cam_from_world.linear();
   const Eigen::Vector3d t = cam_from_world.translation();
   // The upper triangle of J^T J, mirrored at the end (42 + 12
@@ -203,6 +221,7 @@ std::size_t PlenopticPnpEstimator::NormalEquationsOver(
     *sum_squares += r2;
     ++used;
     if (mask != nullptr) mask[i] = 1;
+    if (common != nullptr) AddCommonErrorRows(jt, input_.tf_px[i], projection_, common);
   }
   for (int a = 0; a < 6; ++a) {
     (*jtr)(a) = g[a];
@@ -215,11 +234,13 @@ std::size_t PlenopticPnpEstimator::NormalEquations(const Model& cam_from_world, 
                                                    Eigen::Matrix<double, 6, 6>* jtj,
                                                    Eigen::Matrix<double, 6, 1>* jtr,
                                                    double* sum_squares,
-                                                   std::vector<char>* mask) const {
+                                                   std::vector<char>* mask,
+                                                   CommonErrorRows* common) const {
   if (mask != nullptr) mask->assign(NumData(), 0);
+  if (common != nullptr) common->setZero();
   return NormalEquationsOver(
       cam_from_world, threshold2, NumData(), [](std::size_t k) { return k; }, jtj, jtr,
-      sum_squares, mask != nullptr ? mask->data() : nullptr);
+      sum_squares, mask != nullptr ? mask->data() : nullptr, common);
 }
 
 bool PlenopticPnpEstimator::Refine(Model* cam_from_world, double threshold) {
@@ -287,6 +308,7 @@ PlenopticPnpEstimator::PolishResult PlenopticPnpEstimator::Polish(Model* cam_fro
       }
       g_w(a) += w * (ju[a] * res.x() + jv[a] * res.y());
     }
+    if (plain_jtj) AddCommonErrorRows(jt, input_.tf_px[i], projection_, &out.common);
     out.sum_squares += s;
     ++out.used;
   }
@@ -343,6 +365,7 @@ PnpResult EstimatePlenopticPnp(const processing::CameraModel& camera, const PnpI
   const double t2 = options.ransac.max_error * options.ransac.max_error;
   // The covariance's J^T J and the final inliers' squared residuals.
   Eigen::Matrix<double, 6, 6> jtj = Eigen::Matrix<double, 6, 6>::Zero();
+  PlenopticPnpEstimator::CommonErrorRows common = PlenopticPnpEstimator::CommonErrorRows::Zero();
   double sum_squares = 0;
   // Whether jtj stands for the final inliers at the final pose (below).
   bool jtj_current = false;
@@ -375,6 +398,7 @@ PnpResult EstimatePlenopticPnp(const processing::CameraModel& camera, const PnpI
       polish = estimator.Polish(&pose, options.ransac.max_error, result.inlier_mask, options.loss,
                                 options.loss_scale_px, step + 1 == steps);
     jtj = polish.jtj;
+    common = polish.common;
     jtj_current = polish.used > 3;
     // rho(s) <= s for both losses: an upper bound of the start's cost.
     start_cost = 0.5 * polish.sum_squares;
@@ -408,8 +432,8 @@ PnpResult EstimatePlenopticPnp(const processing::CameraModel& camera, const PnpI
   }
   if (!assessed || !jtj_current) {
     Eigen::Matrix<double, 6, 1> jtr;
-    result.num_inliers =
-        estimator.NormalEquations(pose, t2, &jtj, &jtr, &sum_squares, &result.inlier_mask);
+    result.num_inliers = estimator.NormalEquations(pose, t2, &jtj, &jtr, &sum_squares,
+                                                   &result.inlier_mask, &common);
   }
   result.cam_from_world = pose;
   const std::size_t used = result.num_inliers;
@@ -417,7 +441,17 @@ PnpResult EstimatePlenopticPnp(const processing::CameraModel& camera, const PnpI
   if (used > 3) {
     const double sigma2 = sum_squares / static_cast<double>(2 * used - 6);
     const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(jtj);
-    result.covariance = sigma2 * ldlt.solve(Eigen::Matrix<double, 6, 6>::Identity());
+    const Eigen::Matrix<double, 6, 6> jtj_inverse =
+        ldlt.solve(Eigen::Matrix<double, 6, 6>::Identity());
+    // The pose's response to the frame's common keypoint errors (pnp.h).
+    const Eigen::Matrix<double, 6, 4> g = jtj_inverse * common;
+    const Eigen::Vector4d common_variance(
+        options.common_shift_sigma_px * options.common_shift_sigma_px,
+        options.common_shift_sigma_px * options.common_shift_sigma_px,
+        options.common_scale_sigma * options.common_scale_sigma,
+        options.common_rotation_sigma_rad * options.common_rotation_sigma_rad);
+    result.covariance =
+        sigma2 * jtj_inverse + g * common_variance.asDiagonal() * g.transpose();
   }
   if (result.num_inliers < static_cast<std::size_t>(options.min_inliers))
     return finish("too few inliers (" + std::to_string(result.num_inliers) + " < " +

@@ -47,11 +47,25 @@
 //   (Huber by default; the live localizer runs Cauchy), rotation on
 //   ceres::EigenQuaternionManifold, repeated (at most 3 times) while a refit
 //   changes the inlier set by more than 0.5 % (pnp.cpp).
-//   Covariance: Sigma = s^2 (J^T J)^-1, s^2 = sum r_i^2 / (2 n - 6) over the
-//   final inliers at the final pose, J^T J from the polish's last pass
-//   (within ~2 standard deviations of the final pose, where it is the same
-//   to ~1e-5; pnp.cpp) or, after a refit, formed anew there; in the
-//   convention of registration/estimators/pose_covariance.h (of cam_from_world).
+//   Covariance: Sigma = s^2 (J^T J)^-1 + G diag(s_b^2, s_b^2, s_k^2, s_w^2) G^T,
+//   s^2 = sum r_i^2 / (2 n - 6) over the final inliers at the final pose,
+//   J^T J from the polish's last pass (within ~2 standard deviations of the
+//   final pose, where it is the same to ~1e-5; pnp.cpp) or, after a refit,
+//   formed anew there; in the convention of
+//   registration/estimators/pose_covariance.h (of cam_from_world).
+//   The first term holds for keypoint errors independent between
+//   keypoints; the residuals measure it. The second is what they cannot
+//   measure: errors common to all keypoints of a frame, a small similarity
+//   of the TF image about its principal point c, tf_i -> tf_i + b + k (tf_i
+//   - c) + w perp(tf_i - c) (shift b in TF px, scale k, rotation w), which
+//   the pose absorbs (a shift as a tilt, a scale as a translation along the
+//   axis, a rotation as a roll) and which no number of inliers averages
+//   out. To first order the pose moves by G (b, k, w), G = (J^T J)^-1
+//   sum_i J_i^T [e_x, e_y, tf_i - c, perp(tf_i - c)]. They are the map's and
+//   the TF image's systematic errors against the camera model, measured on
+//   rendered sequences at the true pose (docs/registration.md,
+//   "Covariance"): s_b = common_shift_sigma_px, s_k = common_scale_sigma,
+//   s_w = common_rotation_sigma_rad.
 
 #include "config/error.h"
 #include "config/frames.h"
@@ -85,6 +99,12 @@ struct PnpOptions {
   bool sample_check = true;        // the sample check of the comment above
   double sigma_v_relative = 0.007;   // its virtual-depth noise / v (processing: median 0.69 %), > 0
   double sample_check_sigmas = 5.0;  // its k (> 0)
+  // The covariance's errors common to a frame's keypoints (comment at the
+  // top): a shift (TF px), a scale and a rotation (rad) about the
+  // principal point, >= 0.
+  double common_shift_sigma_px = 0.15;
+  double common_scale_sigma = 3e-4;
+  double common_rotation_sigma_rad = 3e-4;
 
   Status Check() const;
 };
@@ -121,6 +141,13 @@ class PlenopticPnpEstimator {
   using Model = Pose;
   static constexpr int kSampleSize = 3;
 
+  // sum_i J_i^T applied to a frame's common keypoint errors: columns
+  // sum_i J_i^T e_x, sum_i J_i^T e_y (a shift), sum_i J_i^T (tf_i - c) (a
+  // scale about the TF principal point c) and sum_i J_i^T perp(tf_i - c)
+  // (a rotation about it, perp(x, y) = (-y, x)), over the same data as
+  // J^T J.
+  using CommonErrorRows = Eigen::Matrix<double, 6, 4>;
+
   // Per-datum scratch, sized to the input on construction. A caller that
   // estimates again and again passes its own (EstimatePlenopticPnp keeps
   // one per thread): sized once, it is not allocated anew each call, where
@@ -154,6 +181,7 @@ class PlenopticPnpEstimator {
   // the plain J^T J and the sum of s_i of those data at the start pose.
   struct PolishResult {
     Eigen::Matrix<double, 6, 6> jtj = Eigen::Matrix<double, 6, 6>::Zero();
+    CommonErrorRows common = CommonErrorRows::Zero();  // with jtj (below)
     std::size_t used = 0;     // data within the threshold at the start
     double sum_squares = 0;   // their sum of r_i^2
   };
@@ -170,10 +198,12 @@ class PlenopticPnpEstimator {
   // J^T J and J^T r of the data whose squared residual is below threshold2
   // (all when infinite), in the perturbation of pose_covariance.h; returns
   // the number used and their sum of squared residuals; `mask` (when given)
-  // receives 1 for the data used, 0 for the others.
+  // receives 1 for the data used, 0 for the others; `common` (when given)
+  // the CommonErrorRows of those data.
   std::size_t NormalEquations(const Model& cam_from_world, double threshold2,
                               Eigen::Matrix<double, 6, 6>* jtj, Eigen::Matrix<double, 6, 1>* jtr,
-                              double* sum_squares, std::vector<char>* mask = nullptr) const;
+                              double* sum_squares, std::vector<char>* mask = nullptr,
+                              CommonErrorRows* common = nullptr) const;
 
  private:
   // Whether sample (i, j, k) passes the sample check; its data's p_i and
@@ -186,7 +216,7 @@ class PlenopticPnpEstimator {
   std::size_t NormalEquationsOver(const Model& cam_from_world, double threshold2, std::size_t count,
                                   Indices indices, Eigen::Matrix<double, 6, 6>* jtj,
                                   Eigen::Matrix<double, 6, 1>* jtr, double* sum_squares,
-                                  char* mask) const;
+                                  char* mask, CommonErrorRows* common = nullptr) const;
   template <typename Indices>
   double CostOver(const Model& cam_from_world, double threshold2, std::size_t count,
                   Indices indices) const;

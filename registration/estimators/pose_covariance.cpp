@@ -1,8 +1,10 @@
 #include "registration/estimators/pose_covariance.h"
 
+#include <Eigen/Cholesky>
 #include <Eigen/Geometry>
 
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 namespace lifmcr::registration {
@@ -38,6 +40,23 @@ Pose Perturb(const Pose& a_from_b, const Eigen::Matrix<double, 6, 1>& delta) {
   moved.linear() = exp_dr * a_from_b.linear();
   moved.translation() += delta.head<3>();
   return moved;
+}
+
+Eigen::Matrix<double, 6, 1> PerturbationBetween(const Pose& estimate, const Pose& truth) {
+  Eigen::Matrix<double, 6, 1> delta;
+  delta.head<3>() = estimate.translation() - truth.translation();
+  const Eigen::AngleAxisd dr(estimate.linear() * truth.linear().transpose());
+  delta.tail<3>() = dr.angle() * dr.axis();
+  return delta;
+}
+
+double SquaredMahalanobis(const PoseWithCovariance& estimate, const Pose& truth) {
+  const Eigen::Matrix<double, 6, 1> delta = PerturbationBetween(estimate.pose, truth);
+  const Eigen::LDLT<Covariance6> ldlt(estimate.covariance);
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive() ||
+      (ldlt.vectorD().array() <= 0).any())
+    return std::numeric_limits<double>::infinity();
+  return delta.dot(ldlt.solve(delta));
 }
 
 double RotationDifferenceDeg(const Pose& a, const Pose& b) {

@@ -45,6 +45,14 @@ PoseWithCovariance Compose(const PoseWithCovariance& a_from_b,
 // numerical Jacobians).
 Pose Perturb(const Pose& a_from_b, const Eigen::Matrix<double, 6, 1>& delta);
 
+// The perturbation delta of the convention above that moves `truth` to
+// estimate.pose (dt = t_est - t_true, dr = log(R_est R_true^T)), and its
+// squared Mahalanobis distance delta^T Sigma^-1 delta under the estimate's
+// own covariance: chi-square with 6 degrees of freedom when the covariance
+// is right (infinite when it is singular).
+Eigen::Matrix<double, 6, 1> PerturbationBetween(const Pose& estimate, const Pose& truth);
+double SquaredMahalanobis(const PoseWithCovariance& estimate, const Pose& truth);
+
 // Angle of R_a^T R_b in degrees, and |t_a - t_b| in the poses' unit.
 double RotationDifferenceDeg(const Pose& a, const Pose& b);
 double TranslationDifference(const Pose& a, const Pose& b);

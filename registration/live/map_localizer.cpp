@@ -101,6 +101,9 @@ Covariance6 ToLeftPerturbationCovariance(const PoseWithCovariance& pose) {
 
 MapLocalizerStage::MapLocalizerStage(const ReferenceMap& map, const LocalizerOptions& options)
     : map_(MapIndex::Of(map)), options_(options) {
+  // One set of checks for every pose: relocalisation's RegisterFrame runs
+  // them too (registration/map/frame_registration.h).
+  options_.registration.checks = options_.checks;
   // The map's kd-trees before the first frame, not in its relocalisation.
   if (options_.registration.match.kd_tree_checks > 0 && map_.size() >= 2)
     map_.descriptors->Prepare(options_.registration.match.kd_trees);

@@ -56,14 +56,21 @@ Status FrameRegistrationOptions::Check() const {
     return Error{"registration options: sigma_v_relative: expected a finite number > 0"};
   if (!(sigma_tf_px > 0) || !std::isfinite(sigma_tf_px))
     return Error{"registration options: sigma_tf_px: expected a finite number > 0"};
+  if (Status s = checks.Check(); !s) return s;
   return Status::Ok();
 }
 
 std::string FrameRegistration::BriefReport(RegistrationMethod method) const {
-  char line[256];
-  std::snprintf(line, sizeof line, "%s %s: %zu inliers of %zu matches, rmse %.3f px, %.1f ms",
+  char line[512];
+  int n = std::snprintf(line, sizeof line, "%s %s: %zu inliers of %zu matches, rmse %.3f px, %.1f ms",
                 std::string(ToString(method)).c_str(), status.c_str(), inliers, matches, rmse_px,
                 1e3 * seconds);
+  if (estimated && n > 0 && static_cast<std::size_t>(n) < sizeof line)
+    std::snprintf(line + n, sizeof line - static_cast<std::size_t>(n),
+                  "; spread %.3f, sigma %.2f mm / %.3f deg, depth agreement %.2f (median z %.2f), "
+                  "depth spread %.3f",
+                  checks.spread, checks.sigma_mm, checks.sigma_deg, checks.depth_agreement,
+                  checks.median_depth_z, checks.depth_spread);
   return line;
 }
 
@@ -142,13 +149,34 @@ FrameRegistration RegisterFrame(const MapIndex& map, const processing::CameraMod
     result.rmse_px = pnp.rmse_px;
     if (!pnp.success) return finish(pnp.status);
     result.w0_from_cam = Inverse(PoseWithCovariance{pnp.cam_from_world, pnp.covariance});
+    std::vector<Eigen::Vector3d> inlier_points_in_w0;
+    std::vector<double> inlier_v;
     for (std::size_t i = 0; i < matches.size() && i < pnp.inlier_mask.size(); ++i) {
       if (!pnp.inlier_mask[i]) continue;
       result.inlier_points.push_back(matches[i].train);
       result.inlier_tf_px.push_back(tf[i]);
+      result.inlier_queries.push_back(matches[i].query);
+      inlier_points_in_w0.push_back(points[i]);
+      inlier_v.push_back(v[i]);
     }
-    result.success = true;
-    return finish("ok");
+    result.estimated = true;
+    std::vector<double> depth_z, depth_mm;
+    InlierDepths(camera, pnp.cam_from_world, inlier_points_in_w0, inlier_v,
+                 options.sigma_v_relative, &depth_z, &depth_mm);
+    PoseEvidence evidence;
+    evidence.inliers = static_cast<int>(pnp.num_inliers);
+    evidence.inlier_tf_px = result.inlier_tf_px;
+    evidence.tf_width = camera.intrinsics().width_px / 2;
+    evidence.tf_height = camera.intrinsics().height_px / 2;
+    evidence.rmse_px = pnp.rmse_px;
+    evidence.covariance = result.w0_from_cam.covariance;
+    evidence.w0_from_cam = result.w0_from_cam.pose;
+    evidence.inlier_depth_z = depth_z;
+    evidence.inlier_depth_mm = depth_mm;
+    result.checks = MeasurePose(evidence, options.checks);
+    std::string verdict = CheckPose(evidence, options.checks);
+    result.success = verdict == "ok";
+    return finish(std::move(verdict));
   }
 
   std::vector<Eigen::Vector3d> src, dst;

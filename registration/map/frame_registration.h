@@ -17,6 +17,7 @@
 #include "registration/features/frame_observations.h"
 #include "registration/features/fundamental_filter.h"
 #include "registration/estimators/pnp.h"
+#include "registration/estimators/pose_checks.h"
 #include "registration/estimators/pose_covariance.h"
 #include "registration/map/reference_map.h"
 #include "registration/estimators/rigid_3d.h"
@@ -69,6 +70,10 @@ struct FrameRegistrationOptions {
   // pnp.sigma_v_relative).
   double sigma_v_relative = 0.007;
   double sigma_tf_px = 0.3;         // keypoint noise on the TF grid (px), > 0
+  // The checks every PnP pose passes (pose_checks.h; its depth check with
+  // sigma_v_relative); a pose that fails is returned with success false and
+  // the reason as status.
+  PoseCheckOptions checks;
   Status Check() const;
 };
 
@@ -85,6 +90,12 @@ struct FrameRegistration {
   // PnP: the inliers' map points (MapIndex order) and TF keypoints.
   std::vector<int> inlier_points;
   std::vector<Eigen::Vector2d> inlier_tf_px;
+  std::vector<int> inlier_queries;  // the inliers' keypoints (FrameObservations order)
+  // PnP: what the pose checks measured; `estimated` is true when the
+  // estimator returned a pose, which w0_from_cam then holds even if the
+  // checks refused it (for reports against a ground truth).
+  PoseCheckFigures checks;
+  bool estimated = false;
   // "pnp ok: 412 inliers of 655 matches, rmse 0.42 px, 12.3 ms".
   std::string BriefReport(RegistrationMethod method) const;
 };

@@ -35,11 +35,42 @@ TEST(CliRegister, BothMethodsRegisterCameraXAgainstAGroundTruthMap) {
   EXPECT_NE(r.err.find("pnp: camera"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("ransac: camera"), std::string::npos) << r.err;
   EXPECT_NE(r.out.find("difference pnp - ransac"), std::string::npos) << r.out;
-
+  // PnP's c0_from_cx against its own covariance (registration/estimators/pnp.h,
+  // "Covariance"): the share of ok rows within the 95 % chi-square(6) bound,
+  // printed; all but at most one of the three.
+  {
+    const std::size_t at = r.out.find("pnp checks");
+    ASSERT_NE(at, std::string::npos) << r.out;
+    int beyond = -1, within = -1, rows = -1;
+    ASSERT_EQ(std::sscanf(r.out.c_str() + at,
+                          "pnp checks %d ok rows beyond 5 mm / 0.25 deg; %d of %d", &beyond,
+                          &within, &rows),
+              3)
+        << r.out.substr(at, 200);
+    std::printf("PnP c0_from_cx: %d of %d ok rows within the 95 %% chi-square(6) bound\n", within,
+                rows);
+    EXPECT_EQ(beyond, 0);
+    EXPECT_EQ(rows, 3);
+    EXPECT_GE(within, rows - 1);
+  }
   Expected<RegistrationTable> table = ReadRegistrationCsv(dir / "out" / "registration.csv");
   ASSERT_TRUE(table) << table.error().message;
   ASSERT_EQ(table->rows.size(), 6u);  // camera X, 3 frames, 2 methods
   const std::string x = table->rows.front().camera;
+  // Camera X's inliers at the true pose: residual variance over the pose's
+  // own s^2 per component near 1 (the independent part of the noise model;
+  // camera 0's keypoints here are the map's own).
+  {
+    const std::size_t at = r.out.find("pnp inliers of " + x + " at the true pose");
+    ASSERT_NE(at, std::string::npos) << r.out;
+    double vx = 0, vy = 0;
+    ASSERT_EQ(std::sscanf(r.out.c_str() + r.out.find("residual variance", at),
+                          "residual variance / the pose's s^2 x %lf, y %lf", &vx, &vy),
+              2)
+        << r.out.substr(at, 200);
+    EXPECT_GT(vx + vy, 1.0);
+    EXPECT_LT(vx + vy, 3.0);
+  }
   std::string zero;
   std::map<std::string, std::map<std::int64_t, Pose>> truth;
   for (const auto& entry : fs::directory_iterator(seq / "GroundTruth")) {
