@@ -52,6 +52,8 @@ struct CalibrateOptions {
   int match_window = registration::CalibrationOptions{}.match_window;
   int min_map_observations = registration::CalibrationOptions{}.min_map_observations;
   double min_map_angle_deg = registration::CalibrationOptions{}.min_map_angle_deg;
+  double map_sigma_v_rel = registration::CalibrationOptions{}.map_sigma_v_rel;
+  double map_sigma_tf_px = registration::CalibrationOptions{}.map_sigma_tf_px;
   bool no_covariance = false;
   double plate_weight = registration::CalibrationOptions{}.plate_weight;
   double principal_point_prior_px = registration::CalibrationOptions{}.principal_point_prior_px;
@@ -160,6 +162,8 @@ int RunCalibrate(const CalibrateOptions& o) {
   options.match_window = o.match_window;
   options.min_map_observations = o.min_map_observations;
   options.min_map_angle_deg = o.min_map_angle_deg;
+  options.map_sigma_v_rel = o.map_sigma_v_rel;
+  options.map_sigma_tf_px = o.map_sigma_tf_px;
   options.covariance = !o.no_covariance;
   options.plate_weight = o.plate_weight;
   if (!o.plate_frames.empty()) {
@@ -295,9 +299,18 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
                  "Frames that must see a point for it to enter the reference map")
       ->check(CLI::Range(2, 1000));
   app.add_option("--min-map-angle", o->min_map_angle_deg,
-                 "Degrees at which the rays of the frames that see a point must meet for it to "
-                 "enter the reference map")
+                 "Degrees at which the rays of the frames that see a point must also meet for it "
+                 "to enter the reference map (default 0: any baseline; a point enters where its "
+                 "frames' plenoptic observations agree, --map-sigma-v)")
       ->check(CLI::Range(0.0, 89.9));
+  app.add_option("--map-sigma-v", o->map_sigma_v_rel,
+                 "Sigma of a keypoint's virtual depth as a share of v (default 0.015): frames' "
+                 "observations of a point agree within the 99 % bound of it")
+      ->check(CLI::Range(0.0001, 0.5));
+  app.add_option("--map-sigma-tf", o->map_sigma_tf_px,
+                 "Sigma of a keypoint's TF position in TF pixels (default 1): the lateral part "
+                 "of that agreement")
+      ->check(CLI::Range(0.01, 20.0));
   app.add_option("--match-window", o->match_window,
                  "Match each frame against the points of this many placed frames before it")
       ->check(CLI::PositiveNumber);

@@ -1,6 +1,7 @@
 #include "registration/calibration/calibration.h"
 
 #include "processing/camera_model.h"
+#include "registration/estimators/plenoptic_point_noise.h"
 #include "registration/calibration/calibration_covariance.h"
 #include "registration/calibration/calibration_costs.h"
 #include "registration/calibration/calibration_problem.h"
@@ -186,6 +187,10 @@ Status CalibrationOptions::Check() const {
   if (min_map_observations < 2) return fail("min_map_observations: expected >= 2");
   if (!(min_map_angle_deg >= 0 && min_map_angle_deg < 90))
     return fail("min_map_angle_deg: expected in [0, 90)");
+  if (!(map_sigma_v_rel > 0 && map_sigma_v_rel < 1))
+    return fail("map_sigma_v_rel: expected in (0, 1)");
+  if (!(map_sigma_tf_px > 0 && map_sigma_tf_px < 100))
+    return fail("map_sigma_tf_px: expected in (0, 100)");
   if (max_iterations < 1) return fail("max_iterations: expected >= 1");
   if (threads < 1) return fail("threads: expected >= 1");
   return Status::Ok();
@@ -717,33 +722,60 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
   std::vector<std::vector<int>> kept(map.tracks.size());
   for (std::size_t n = 0; n < lens_observations.size(); ++n)
     if (inlier[n]) kept[lens_observations[n].track].push_back(lens_observations[n].observation);
+  // 99 % point of chi-square with 3 degrees of freedom.
+  constexpr double kChi2Dof3P99 = 11.345;
+  std::vector<int> agreeing;
   for (int t = 0; t < static_cast<int>(map.tracks.size()); ++t) {
     if (static_cast<int>(kept[t].size()) < options.min_map_observations) continue;
     const Track& track = map.tracks[t];
-    if (TriangulationAngleDeg(track, kept[t], poses) < options.min_map_angle_deg) continue;
-    MapPoint point;
-    point.id = static_cast<std::int64_t>(out.points.size()) + 1;
-    point.p_in_w0_mm = track.p_in_w_mm;
-    // Uncertainty: spread of the single-frame back-projections (final
-    // intrinsics and poses) about the point, over sqrt(n).
+    // The observations that agree with the point (CalibrationOptions), and
+    // the information they carry about it.
+    agreeing.clear();
+    Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
     Eigen::Vector3d sum_sq = Eigen::Vector3d::Zero();
-    Eigen::Vector3i rgb = Eigen::Vector3i::Zero();
     for (const int o : kept[t]) {
       const Observation& ob = track.observations[o];
       const CalibrationFrame& frame = input.frames[ob.frame];
       const Eigen::Vector3d x_v = internal::VirtualPoint(frame, ob.keypoint);
-      const Eigen::Vector3d p = FromBlock(poses[ob.frame]) * final_model.BackProject(x_v);
-      sum_sq += (p - track.p_in_w_mm).cwiseAbs2();
+      if (!(x_v.z() > 1)) continue;
+      const Eigen::Isometry3d w0_from_cam = FromBlock(poses[ob.frame]);
+      const Eigen::Vector3d p_in_cam = final_model.BackProject(x_v);
+      const Eigen::Matrix3d cov_in_cam = PlenopticPointCovariance(
+          final_model, p_in_cam, options.map_sigma_v_rel * x_v.z(), options.map_sigma_tf_px);
+      const Eigen::Matrix3d r = w0_from_cam.linear();
+      const Eigen::Matrix3d info = (r * cov_in_cam * r.transpose()).inverse();
+      const Eigen::Vector3d d = w0_from_cam * p_in_cam - track.p_in_w_mm;
+      if (!info.allFinite() || d.dot(info * d) > kChi2Dof3P99) continue;
+      agreeing.push_back(o);
+      information += info;
+      sum_sq += d.cwiseAbs2();
+    }
+    if (static_cast<int>(agreeing.size()) < options.min_map_observations) continue;
+    if (options.min_map_angle_deg > 0 &&
+        TriangulationAngleDeg(track, agreeing, poses) < options.min_map_angle_deg)
+      continue;
+    const Eigen::Matrix3d fused = information.inverse();
+    if (!fused.allFinite()) continue;
+    MapPoint point;
+    point.id = static_cast<std::int64_t>(out.points.size()) + 1;
+    point.p_in_w0_mm = track.p_in_w_mm;
+    Eigen::Vector3i rgb = Eigen::Vector3i::Zero();
+    for (const int o : agreeing) {
+      const Observation& ob = track.observations[o];
+      const CalibrationFrame& frame = input.frames[ob.frame];
       for (int a = 0; a < 3; ++a) rgb[a] += frame.rgb[ob.keypoint][a];
       MapImage& image = out.images[image_of_frame[ob.frame]];
       image.keypoints[ob.keypoint].point_id = point.id;
       point.track.push_back({image.image_id, ob.keypoint});
     }
-    const double count = static_cast<double>(kept[t].size());
-    point.sigma_mm = (sum_sq / (count * count)).cwiseSqrt().cast<float>();
+    const double count = static_cast<double>(agreeing.size());
+    // Fused, or the back-projections' spread about the point over sqrt(n)
+    // where larger (the model's sigma_v too small for these frames).
+    const Eigen::Vector3d spread = (sum_sq / (count * count)).cwiseSqrt();
+    point.sigma_mm = fused.diagonal().cwiseSqrt().cwiseMax(spread).cast<float>();
     for (int a = 0; a < 3; ++a) point.rgb[a] = static_cast<std::uint8_t>(rgb[a] / count);
     point.error_px = track_m[t] > 0 ? std::sqrt(track_ss[t] / track_m[t]) : 0;
-    const Observation& first = track.observations[kept[t].front()];
+    const Observation& first = track.observations[agreeing.front()];
     const float* d = input.frames[first.frame].features.Descriptor(first.keypoint);
     point.descriptor.assign(d, d + kDescriptorSize);
     out.points.push_back(std::move(point));

@@ -82,19 +82,26 @@ struct CalibrationOptions {
   // residuals are still reported.
   bool reject_plate_corners = true;
   PlateCornerCheckOptions plate_corner_check;
-  // A point enters the reference map when this many frames kept their
-  // observation of it (all points with two take part in the solve), and the
-  // rays from those frames meet at min_map_angle_deg or more (the largest
-  // angle over pairs of frames). A point's error lies along its rays: its
-  // depth is triangulated to about (lateral error) / sin(angle), and where
-  // the angle is small it rests on the plenoptic depth instead (0.2 % of v
-  // per keypoint, a few mm at table distance). Medians on 40 `medium` frames
-  // (docs/calibration.md): orbit 1.89 mm over all points of two frames or
-  // more, 1.14 mm with three frames, 0.84 mm with 5 degrees (3790 points);
-  // smooth 1.22, 0.80 and 0.72 mm (4548 points). `lifmcr demo` keeps every
-  // point of two frames (its few `small` views meet at small angles).
+  // A point enters the reference map when at least min_map_observations
+  // frames kept their observation of it (all points with two take part in
+  // the solve) and those observations agree: each frame's back-projection of
+  // its keypoint (TF position and virtual depth, final intrinsics and pose)
+  // lies within the 99 % chi-square(3) bound of the point under that
+  // observation's plenoptic covariance (registration/estimators/
+  // plenoptic_point_noise.h: sigma_v = map_sigma_v_rel v along the ray,
+  // map_sigma_tf_px across it). Only agreeing observations count, however
+  // small the baseline between their frames: a plenoptic observation
+  // measures the depth itself. The point's uncertainty (MapPoint::sigma_mm)
+  // is that of the agreeing observations fused, or their spread about the
+  // point where larger. min_map_angle_deg > 0 also asks the rays to meet at
+  // that angle (the largest over pairs of frames): the triangulated depth is
+  // then about (lateral error) / sin(angle) instead of the plenoptic depth's.
   int min_map_observations = 2;
-  double min_map_angle_deg = 5;
+  double min_map_angle_deg = 0;
+  double map_sigma_v_rel = 0.015;  // sigma of a keypoint's virtual depth, share of v
+  // Of its TF position (TF pixels), with the pose's and the point's own
+  // lateral error: SIFT keypoints alone are better than 0.3 TF px.
+  double map_sigma_tf_px = 1.0;
   int max_lenses = 12;              // micro images per observation (the most central)
   int max_iterations = 100;         // Ceres iterations per solve (twice that for the last)
   bool recalibrate = false;         // hold f_L and B fixed (LiFCal recalib)

@@ -273,14 +273,28 @@ TEST_F(CalibrationTest, WritesAMapAndIntrinsicsThatReadBack) {
   EXPECT_EQ(map->points.size(), r->map.points.size());
   EXPECT_EQ(map->images.size(), 4u);
   EXPECT_EQ(map->camera.width_px, truth_->intrinsics.width_px / 2);
-  // CalibrationOptions::min_map_observations and min_map_angle_deg: two
-  // frames or more whose rays meet at 5 degrees or more.
+  // CalibrationOptions::min_map_observations and the agreement of the
+  // observations: two frames or more, at any baseline, each point with its
+  // uncertainty.
   EXPECT_GT(map->points.size(), 20u);
-  std::map<int, Eigen::Vector3d> centre_of_image;
-  for (const MapImage& image : map->images) centre_of_image[image.image_id] = image.w0_from_c0.translation();
   for (const MapPoint& p : map->points) {
     EXPECT_GE(p.track.size(), 2u);
     EXPECT_EQ(p.descriptor.size(), static_cast<std::size_t>(kDescriptorSize));
+    for (int a = 0; a < 3; ++a) EXPECT_GT(p.sigma_mm[a], 0.0f) << "point " << p.id;
+    EXPECT_LT(p.sigma_mm.norm(), 100.0f) << "point " << p.id;
+  }
+  // min_map_angle_deg > 0: also rays that meet at that angle, fewer points.
+  CalibrationOptions wide = Options();
+  wide.min_map_angle_deg = 5;
+  Expected<CalibrationResult> r_wide = Calibrate(Input(Initial()), wide);
+  ASSERT_TRUE(r_wide) << r_wide.error().message;
+  std::printf("map points: %zu at any baseline, %zu with rays 5 degrees apart\n",
+              r->map.points.size(), r_wide->map.points.size());
+  EXPECT_LT(r_wide->map.points.size(), r->map.points.size());
+  std::map<int, Eigen::Vector3d> centre_of_image;
+  for (const MapImage& image : r_wide->map.images)
+    centre_of_image[image.image_id] = image.w0_from_c0.translation();
+  for (const MapPoint& p : r_wide->map.points) {
     double widest_deg = 0;
     for (const TrackElement& a : p.track)
       for (const TrackElement& b : p.track) {
