@@ -106,7 +106,7 @@ constexpr char kUsage[] =
     "  runner's own share from the manifest (goal <= 2 %).\n"
     "Every timed run follows a sync and its outputs are deleted after it; the load average is\n"
     "printed with every repeat. --keep DIR: the data, plans, manifests and logs stay in DIR.\n"
-    "About 11 min at the defaults on 2 quiet cores (bench/README.md, docs/batch.md).\n";
+    "About 6 min at the defaults on 2 quiet cores (bench/README.md, docs/batch.md).\n";
 
 // One timed run: wall and CPU seconds in all, and of it its units' commands
 // (the bare run: all of it; a batch run: the manifest's seconds and cpu_seconds).
