@@ -446,7 +446,7 @@ int main(int argc, char** argv) {
                         Percentile(b.all.r_deg, 0.5)));
     std::printf("\n");
   }
-  std::printf("goal (issue 13): >= %s Hz per camera: %s\n", args.preset == "r32" ? "2" : "5",
+  std::printf("goal: >= %s Hz per camera: %s\n", args.preset == "r32" ? "2" : "5",
               track.HzPerCamera() >= (args.preset == "r32" ? 2.0 : 5.0) ? "met" : "NOT met");
   if (args.keep.empty()) fs::remove_all(dir);
   return 0;

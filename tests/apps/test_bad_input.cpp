@@ -681,7 +681,7 @@ TEST_P(BadInput, IsAClearQuickBoundedError) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Issue17, BadInput, testing::ValuesIn(Cases()),
+INSTANTIATE_TEST_SUITE_P(UserInput, BadInput, testing::ValuesIn(Cases()),
                          [](const testing::TestParamInfo<Case>& info) {
                            std::string name = info.param.name;
                            for (char& ch : name)

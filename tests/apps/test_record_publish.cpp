@@ -263,7 +263,7 @@ TEST(ReplayBayer, PixelFormatGivesColourPreviewsAndTf) {
 // still processed before the command exits.
 TEST(RecordPublish, BlockPolicyStopsPromptlyAndProcessesEveryFrame) {
   test::TempDir dir;
-  ReplayRig replay = MakeReplayRig(dir.path(), 2, 400);
+  ReplayRig replay = MakeReplayRig(dir.path(), 6, 400);
   replay.rig.processing.skip_policy = SkipPolicy::kBlock;
   replay.rig.processing.threads = 1;
   const fs::path rig_path = dir / "rig.yaml";
@@ -273,7 +273,7 @@ TEST(RecordPublish, BlockPolicyStopsPromptlyAndProcessesEveryFrame) {
       "' --out '" + (dir / "rec").string() + "' --duration 60 --publish --lcm memq://");
   ASSERT_EQ(result.exit_code, 0) << result.out << result.err;
   EXPECT_NE(result.out.find("stopped by: end of the replayed sequence"), std::string::npos);
-  EXPECT_NE(result.out.find("processed: 4  skipped (newest wins): 0  failed: 0  (all "
+  EXPECT_NE(result.out.find("processed: 12  skipped (newest wins): 0  failed: 0  (all "
                             "accounted for)"),
             std::string::npos)
       << result.out;
@@ -283,10 +283,12 @@ TEST(RecordPublish, BlockPolicyStopsPromptlyAndProcessesEveryFrame) {
   ASSERT_TRUE(
       std::regex_search(result.out, processing, std::regex(R"(processing: p50 ([0-9.]+) ms)")))
       << result.out;
-  // One worker: processing every frame takes about 4 x p50; the recording
-  // (0.04 s of sequence, the stop's drain) ended well before that.
+  // One worker: processing every frame takes about 12 x p50; the recording
+  // (0.12 s of sequence, the start and the stop's drain: about 0.4 s) ended
+  // well before that (6 triggers: a seeded depth of a `small` frame is about
+  // 0.1-0.2 s, so 2 triggers' processing was no longer far slower).
   const double recording_s = std::stod(recording[1].str());
-  const double processing_s = 4 * std::stod(processing[1].str()) / 1000;
+  const double processing_s = 12 * std::stod(processing[1].str()) / 1000;
   std::cout << "recording " << recording_s << " s, processing about " << processing_s << " s\n";
   EXPECT_LT(recording_s, 0.5 * processing_s) << result.out;
 }
