@@ -23,6 +23,27 @@ namespace {
 
 std::int64_t NowRealtimeUs() { return HostRealtimeNs() / 1000; }
 
+// The pose fields camera_extrinsics_t and camera_pose_t share (the same
+// names): method, localisation, t_mm, q_wxyz, covariance, inliers, rmse_px,
+// status.
+template <typename Message>
+void SetPoseFields(const processing::CameraPose& pose, Message* m) {
+  m->method = pose.method;
+  m->localisation = pose.localisation;
+  const Eigen::Vector3d t = pose.transform.translation();
+  const Eigen::Quaterniond q(pose.transform.rotation());
+  for (int k = 0; k < 3; ++k) m->t_mm[k] = t[k];
+  m->q_wxyz[0] = q.w();
+  m->q_wxyz[1] = q.x();
+  m->q_wxyz[2] = q.y();
+  m->q_wxyz[3] = q.z();
+  for (int r = 0; r < 6; ++r)
+    for (int c = 0; c < 6; ++c) m->covariance[r][c] = pose.covariance(r, c);
+  m->inliers = pose.inliers;
+  m->rmse_px = pose.rmse_px;
+  m->status = pose.status;
+}
+
 lifmcr_lcm::preview_image_t ToPreviewMessage(const EncodedImage& image, const FrameMeta& meta,
                                              std::int64_t utime) {
   lifmcr_lcm::preview_image_t m;
@@ -206,20 +227,7 @@ void Publisher::PublishExtrinsics(const std::string& reference_serial, const std
   m.reference_serial = reference_serial;
   m.serial = serial;
   m.trigger_index = trigger_index;
-  m.method = c0_from_cx.method;
-  m.localisation = c0_from_cx.localisation;
-  const Eigen::Vector3d t = c0_from_cx.transform.translation();
-  const Eigen::Quaterniond q(c0_from_cx.transform.rotation());
-  for (int k = 0; k < 3; ++k) m.t_mm[k] = t[k];
-  m.q_wxyz[0] = q.w();
-  m.q_wxyz[1] = q.x();
-  m.q_wxyz[2] = q.y();
-  m.q_wxyz[3] = q.z();
-  for (int r = 0; r < 6; ++r)
-    for (int c = 0; c < 6; ++c) m.covariance[r][c] = c0_from_cx.covariance(r, c);
-  m.inliers = c0_from_cx.inliers;
-  m.rmse_px = c0_from_cx.rmse_px;
-  m.status = c0_from_cx.status;
+  SetPoseFields(c0_from_cx, &m);
   m.change_state = lifmcr_lcm::camera_extrinsics_t::CHANGE_OFF;
   m.departure = 0;
   m.departures_in_row = 0;
@@ -299,21 +307,7 @@ void Publisher::PublishPose(const PoseRecord& pose) {
   m.pass = pose.pass;
   m.frame_id = static_cast<std::int64_t>(pose.frame_id);
   m.arrival_utime = pose.arrival_ns / 1000;
-  const processing::CameraPose& p = pose.w0_from_cam;
-  m.method = p.method;
-  m.localisation = p.localisation;
-  const Eigen::Vector3d t = p.transform.translation();
-  const Eigen::Quaterniond q(p.transform.rotation());
-  for (int k = 0; k < 3; ++k) m.t_mm[k] = t[k];
-  m.q_wxyz[0] = q.w();
-  m.q_wxyz[1] = q.x();
-  m.q_wxyz[2] = q.y();
-  m.q_wxyz[3] = q.z();
-  for (int r = 0; r < 6; ++r)
-    for (int c = 0; c < 6; ++c) m.covariance[r][c] = p.covariance(r, c);
-  m.inliers = p.inliers;
-  m.rmse_px = p.rmse_px;
-  m.status = p.status;
+  SetPoseFields(pose.w0_from_cam, &m);
   PublishOn(*lcm_, lcm_mutex_, channels_.Camera(pose.serial, "POSE"), m);
 }
 
