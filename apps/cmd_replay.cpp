@@ -1,10 +1,12 @@
 // `lifmcr replay`: a sequence through the live pipeline onto LCM.
 
 #include "apps/commands.h"
+#include "apps/pipeline/camera_setup.h"
 #include "apps/pipeline/process_settings.h"
 #include "apps/pipeline/replay_runner.h"
 #include "config/rig_config.h"
 #include "config/text_escape.h"
+#include "replay/sequence.h"
 
 #include <CLI/CLI.hpp>
 
@@ -55,6 +57,18 @@ int RunReplayCommand(const std::string& sequence, const std::string& rate_text, 
   if (!formats) {
     std::cerr << who << ": " << EscapeText(formats.error().message) << "\n";
     return 2;
+  }
+  // --cameras naming a camera the sequence lacks is a usage error (exit 2),
+  // told before anything starts; RunReplay checks it again for its callers.
+  if (!cameras.empty()) {
+    if (auto layout = DiscoverSequence(sequence); layout) {
+      std::vector<std::string> serials;
+      for (const CameraFolder& folder : layout->cameras) serials.push_back(folder.serial);
+      if (auto selected = SelectCameras(cameras, serials, sequence); !selected) {
+        std::cerr << who << ": " << EscapeText(selected.error().message) << "\n";
+        return 2;
+      }
+    }
   }
   g_stop = false;
   std::signal(SIGINT, OnSignal);

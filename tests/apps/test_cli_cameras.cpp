@@ -24,16 +24,18 @@ TEST(CliCameras, ReplayNamesAnUnknownSerialAndTheSequencesCameras) {
     test::WriteFile(layout::CameraDir(seq, serial) / layout::RawFrameFileName(serial, 0), "BM");
   const test::CommandResult unknown =
       test::RunLifmcr("replay " + seq.string() + " --rate max --lcm memq:// --cameras 123");
-  EXPECT_EQ(unknown.exit_code, 3);
+  EXPECT_EQ(unknown.exit_code, 2);  // a usage error, as record's
   EXPECT_NE(unknown.err.find("--cameras: camera '123' is not in " + seq.string() +
                              " (its cameras: 40398673, 40398678)"),
             std::string::npos)
       << unknown.err;
   const test::CommandResult empty =
       test::RunLifmcr("replay " + seq.string() + " --lcm memq:// --cameras 40398673,");
+  EXPECT_EQ(empty.exit_code, 2);
   EXPECT_NE(empty.err.find("an empty serial"), std::string::npos) << empty.err;
   const test::CommandResult twice =
       test::RunLifmcr("replay " + seq.string() + " --lcm memq:// --cameras 40398673,40398673");
+  EXPECT_EQ(twice.exit_code, 2);
   EXPECT_NE(twice.err.find("camera '40398673' given twice"), std::string::npos) << twice.err;
 }
 
