@@ -39,7 +39,7 @@
 // errors (above 1: tracking's poses are worse than relocalising every frame).
 //
 //   bench_live [--preset small|medium|r32] [--frames N] [--seconds S]
-//              [--concurrency N] [--keep DIR]
+//              [--concurrency N] [--keep DIR] [--runs track,relocalise,depth]
 // --keep DIR renders into DIR once and reuses it (same preset and frames)
 // in later runs; DIR is left in place.
 // Goals (2 cores): >= 5 Hz per camera at medium, >= 2 Hz at r32.
@@ -86,6 +86,8 @@ struct Args {
   double seconds = 30;
   int concurrency = 2;
   std::string keep;  // empty: a temporary folder
+  // Which runs (comma-separated): track, relocalise, depth; the ratios need all three.
+  bool track = true, relocalise = true, depth = true;
 };
 
 bool ParseArgs(int argc, char** argv, Args* a) {
@@ -103,6 +105,23 @@ bool ParseArgs(int argc, char** argv, Args* a) {
       a->seconds = std::strtod(v.c_str(), &end);
     } else if (k == "--keep") {
       a->keep = v;
+    } else if (k == "--runs") {
+      a->track = a->relocalise = a->depth = false;
+      std::size_t from = 0;
+      while (from <= v.size()) {
+        const std::size_t comma = std::min(v.find(',', from), v.size());
+        const std::string run = v.substr(from, comma - from);
+        if (run == "track") {
+          a->track = true;
+        } else if (run == "relocalise") {
+          a->relocalise = true;
+        } else if (run == "depth") {
+          a->depth = true;
+        } else {
+          return false;
+        }
+        from = comma + 1;
+      }
     } else if (k == "--concurrency") {
       a->concurrency = static_cast<int>(std::strtol(v.c_str(), &end, 10));
     } else {
@@ -110,7 +129,8 @@ bool ParseArgs(int argc, char** argv, Args* a) {
     }
     if (end != nullptr && *end != '\0') return false;
   }
-  return a->frames >= 3 && a->seconds > 0 && a->concurrency >= 1;
+  return a->frames >= 3 && a->seconds > 0 && a->concurrency >= 1 &&
+         (a->track || a->relocalise || a->depth);
 }
 
 std::int64_t NowRealtimeNs() {
@@ -191,6 +211,9 @@ struct RunFigures {
   std::uint64_t lens_depth = 0, tf = 0;  // per-lens depth maps, TF images published
   std::uint64_t frames_in = 0, underruns = 0, incomplete_sets = 0;
   double depth_cpu_s = 0;  // the depth lane's thread (registration runs only)
+  std::string workers;     // the pipeline report's workers line (registration runs)
+  std::uint64_t depth_seeded = 0;  // dense maps seeded by the workers' per-lens depth
+  double to_pose_p50_ms = 0, to_pose_p99_ms = 0;
   std::string registration;
   Accuracy accuracy;
   double HzPerCamera() const {
@@ -302,6 +325,15 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
   f.underruns = result->camera_underruns;
   f.incomplete_sets = result->report.incomplete_sets;
   f.depth_cpu_s = result->report.depth_cpu_s;
+  f.depth_seeded = result->report.depth_seeded_by_lenses;
+  f.to_pose_p50_ms = result->report.to_pose.p50_ms;
+  f.to_pose_p99_ms = result->report.to_pose.p99_ms;
+  {
+    // The report's line of the workers' CPU per frame (registration first).
+    const std::string report = result->report.FinalReport();
+    const auto at = report.find("workers (registration first)");
+    if (at != std::string::npos) f.workers = report.substr(at, report.find('\n', at) + 1 - at);
+  }
   f.registration = result->registration;
   return f;
 }
@@ -310,12 +342,13 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
 
 constexpr char kUsage[] =
     "usage: bench_live [--preset small|medium|r32] [--frames N>=3] [--seconds S]\n"
-    "                  [--concurrency N] [--keep DIR]\n"
+    "                  [--concurrency N] [--keep DIR] [--runs track,relocalise,depth]\n"
     "Live registration of a synthetic rig (default medium) replayed at its trigger rate\n"
     "through `lifmcr replay --reference`'s path, three runs of --seconds: tracking, every\n"
     "frame relocalised (the baseline) and depth only. Per run: extrinsics per second per\n"
     "camera, frame -> extrinsics latency, and the errors against the ground truth by how\n"
-    "each pose was made. --keep DIR renders into DIR once and reuses it.\n";
+    "each pose was made. --keep DIR renders into DIR once and reuses it; --runs picks\n"
+    "some of the three runs (the ratios need all three).\n";
 
 int main(int argc, char** argv) {
   if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
@@ -325,7 +358,7 @@ int main(int argc, char** argv) {
   if (!ParseArgs(argc, argv, &args)) {
     std::fprintf(stderr,
                  "usage: bench_live [--preset small|medium|r32] [--frames N>=3] [--seconds S] "
-                 "[--concurrency N] [--keep DIR]\n");
+                 "[--concurrency N] [--keep DIR] [--runs track,relocalise,depth]\n");
     return 2;
   }
   auto params = synth::MakePreset(args.preset);
@@ -396,6 +429,9 @@ int main(int argc, char** argv) {
   }
   std::vector<RunFigures> runs;
   for (const Mode mode : {Mode::kTrack, Mode::kRelocalise, Mode::kDepthOnly}) {
+    if ((mode == Mode::kTrack && !args.track) || (mode == Mode::kRelocalise && !args.relocalise) ||
+        (mode == Mode::kDepthOnly && !args.depth))
+      continue;
     runs.push_back(Run(args, sequence_dir, map_dir, truth, mode));
     const RunFigures& f = runs.back();
     std::printf("%-10s extrinsics %.2f Hz per camera (%d messages), frame -> extrinsics p50 %.0f "
@@ -413,11 +449,21 @@ int main(int argc, char** argv) {
                 f.frames_in / f.elapsed_s, f.underruns / f.elapsed_s,
                 f.incomplete_sets / f.elapsed_s);
     if (f.depth_cpu_s > 0)
-      std::printf("           depth lane CPU %.1f s (%.0f %% of one core)\n", f.depth_cpu_s,
-                  100 * f.depth_cpu_s / f.elapsed_s);
+      std::printf("           depth lane CPU %.1f s (%.0f %% of one core), %llu dense maps seeded "
+                  "by the workers' per-lens depth\n",
+                  f.depth_cpu_s, 100 * f.depth_cpu_s / f.elapsed_s,
+                  static_cast<unsigned long long>(f.depth_seeded));
+    if (!f.workers.empty()) std::printf("           %s", f.workers.c_str());
+    if (f.to_pose_p50_ms > 0)
+      std::printf("           frame -> its pose on LCM p50 %.0f ms p99 %.0f ms\n",
+                  f.to_pose_p50_ms, f.to_pose_p99_ms);
     if (!f.registration.empty()) std::printf("           %s", f.registration.c_str());
     if (mode != Mode::kDepthOnly) PrintAccuracy(f.accuracy);
     std::fflush(stdout);
+  }
+  if (runs.size() < 3) {
+    if (args.keep.empty()) fs::remove_all(dir);
+    return 0;  // the ratios need all three runs
   }
   const RunFigures &track = runs[0], &relocalise = runs[1], &depth = runs[2];
   std::printf("ratios: extrinsics rate track / relocalise %.2f; latency p50 relocalise / track "

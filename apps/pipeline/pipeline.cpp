@@ -93,6 +93,14 @@ class WorkerPriority final : public tbb::task_scheduler_observer {
   int nice_;
 };
 
+// CPU time of the calling thread (s): what a frame's work costs whatever
+// else runs on the machine.
+double ThreadCpuSeconds() {
+  timespec cpu{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &cpu);
+  return static_cast<double>(cpu.tv_sec) + 1e-9 * static_cast<double>(cpu.tv_nsec);
+}
+
 struct Job {
   Frame frame;
   std::int64_t trigger_index = 0;
@@ -237,7 +245,10 @@ struct Pipeline::Impl {
     };
     std::map<int, Entry> by_camera;
   };
-  std::map<std::pair<std::uint64_t, std::int64_t>, TriggerPoses> poses;
+  std::map<std::pair<std::uint64_t, std::int64_t>, TriggerPoses> poses;  // relate_mutex
+  // Relate's state (poses, the stage's Relate): the workers publish poses
+  // under lanes, the publishing node under block.
+  std::mutex relate_mutex;
   std::uint64_t pass = 0;  // the pass whose frames come in (Poll's thread)
   static constexpr std::size_t kTriggersKept = 64;
 
@@ -248,6 +259,7 @@ struct Pipeline::Impl {
   mutable std::mutex report_mutex;
   PipelineReport report;
   LatencyWindow process_latency, publication_latency;
+  LatencyWindow pose_latency;  // frame arrival -> its pose published
   std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
   std::chrono::steady_clock::time_point next_stats = start;
   std::uint64_t stats_last_processed = 0;
@@ -256,7 +268,14 @@ struct Pipeline::Impl {
   // The depth lane (lanes): the newest frame offered per camera, its thread.
   std::mutex depth_mutex;
   std::condition_variable depth_cv;
-  std::map<int, Job> depth_slots;
+  // A frame offered to the lane with what ProcessLenses made of it (the
+  // per-lens depth's pooled workspace and the demosaiced image: shared, not
+  // copied), so the dense map is seeded without computing it again.
+  struct DepthOffer {
+    Job job;
+    ProcessedFrame from_lenses;  // lenses and demosaiced only; empty: none
+  };
+  std::map<int, DepthOffer> depth_slots;
   std::map<int, std::uint64_t> depth_served;
   std::uint64_t depth_serve_count = 0;
   // Frames the lane took and whose products are not published yet: the one
@@ -271,14 +290,19 @@ struct Pipeline::Impl {
   std::unique_ptr<tbb::task_arena> depth_arena;  // low priority: the workers localise first
   std::thread depth_thread;
 
-  void OfferDepth(const Job& job) {
+  void OfferDepth(const Job& job, const Expected<ProcessedFrame>& processed) {
+    DepthOffer offer{job, ProcessedFrame{}};
+    if (processed) {
+      offer.from_lenses.lenses = processed->lenses;
+      offer.from_lenses.demosaiced = processed->demosaiced;
+    }
     {
       std::lock_guard lock(depth_mutex);
       if (depth_slots.count(job.frame.camera_index)) {
         std::lock_guard r(report_mutex);
         ++report.depth_skipped;
       }
-      depth_slots.insert_or_assign(job.frame.camera_index, job);
+      depth_slots.insert_or_assign(job.frame.camera_index, std::move(offer));
     }
     depth_cv.notify_all();
   }
@@ -287,7 +311,7 @@ struct Pipeline::Impl {
     // The lowest priority of the process: depth takes what localising leaves.
     (void)setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), nice);
     for (;;) {
-      Job job;
+      DepthOffer offer;
       {
         std::unique_lock lock(depth_mutex);
         depth_cv.wait(lock, [&] { return depth_stop || !depth_slots.empty(); });
@@ -295,21 +319,24 @@ struct Pipeline::Impl {
         auto pick = depth_slots.begin();
         for (auto it = depth_slots.begin(); it != depth_slots.end(); ++it)
           if (depth_served[it->first] < depth_served[pick->first]) pick = it;
-        job = std::move(pick->second);
+        offer = std::move(pick->second);
         depth_slots.erase(pick);
-        depth_served[job.frame.camera_index] = ++depth_serve_count;
+        depth_served[offer.job.frame.camera_index] = ++depth_serve_count;
         ++depth_held;
       }
-      Result result{std::move(job), Error{""}, std::nullopt, true};
-      // The workers published this frame's per-lens depth already.
-      depth_arena->execute([&] { result.processed = processor->ProcessDense(result.job.frame); });
+      Result result{std::move(offer.job), Error{""}, std::nullopt, true};
+      // The workers published this frame's per-lens depth already; it seeds
+      // the dense map here (no second per-lens estimate).
+      const ProcessedFrame* lenses = offer.from_lenses.lenses ? &offer.from_lenses : nullptr;
+      depth_arena->execute(
+          [&] { result.processed = processor->ProcessDense(result.job.frame, lenses); });
+      offer.from_lenses = ProcessedFrame{};  // the workspace back to its pool
       {
         // The lane's thread alone computes in its arena: its CPU time is the lane's.
-        timespec cpu{};
-        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &cpu);
+        const double cpu = ThreadCpuSeconds();
         std::lock_guard r(report_mutex);
-        report.depth_cpu_s =
-            static_cast<double>(cpu.tv_sec) + 1e-9 * static_cast<double>(cpu.tv_nsec);
+        report.depth_cpu_s = cpu;
+        if (lenses != nullptr) ++report.depth_seeded_by_lenses;
       }
       publish_node->try_put(std::move(result));
     }
@@ -363,10 +390,22 @@ struct Pipeline::Impl {
       result.w0_from_cx = std::move(*pose);
   }
 
-  // Lanes: the frame localised from its raw pixels, then offered to the depth lane.
+  // Lanes: the frame localised from its raw pixels and its pose published at
+  // once (PublishPose, on this thread), then its per-lens depth and TF
+  // preview, then the frame offered to the depth lane with that depth.
+  //
+  // The per-lens work stays on the worker, after the pose: every frame
+  // localised gets it (a lane of its own skips frames when it falls behind,
+  // and at the workers' priority it competes for the same cores anyway),
+  // and no pose waits for it: the frame's own pose is out before it starts,
+  // and a frame waiting for a worker waits the per-lens time at most
+  // (medium: docs/processing.md, "Live pipeline"), never a relocalisation
+  // plus it. The localisers are not starved: the lane's dense map runs at
+  // the lowest priority.
   Result RunRegistration(Job job) {
     const auto start = std::chrono::steady_clock::now();
     Result result{std::move(job), ProcessedFrame{}, std::nullopt};
+    const double cpu_start = ThreadCpuSeconds();
     auto input = processor->ForRegistration(result.job.frame);
     if (!input) {
       result.processed = input.error();
@@ -376,11 +415,18 @@ struct Pipeline::Impl {
       frame.camera = input->camera;
       Localize(result, std::move(frame));
     }
-    // The per-lens depth and its TF preview, for every frame taken (cheap;
-    // the dense map waits for the depth lane). A failure here does not take
-    // the frame's pose with it.
+    const double localize_cpu = ThreadCpuSeconds() - cpu_start;
+    if (result.processed && result.w0_from_cx) {
+      PublishPose(result.job, *result.w0_from_cx);
+      result.w0_from_cx.reset();  // published
+    }
+    // The per-lens depth and its TF preview, for every frame localised. A
+    // failure here does not take the frame's pose with it.
+    double lens_cpu = 0;
     if (result.processed) {
-      auto lenses = processor->ProcessLenses(result.job.frame);
+      const double lens_start = ThreadCpuSeconds();
+      auto lenses = processor->ProcessLenses(result.job.frame, input ? &*input : nullptr);
+      lens_cpu = ThreadCpuSeconds() - lens_start;
       if (!lenses) {
         std::lock_guard r(report_mutex);
         ++report.lens_failed;
@@ -388,15 +434,31 @@ struct Pipeline::Impl {
                             std::to_string(result.job.frame.frame_id) +
                             ": per-lens depth: " + lenses.error().message;
       } else {
-        result.processed->lens_depth = std::move(lenses->lens_depth);
-        result.processed->tf = std::move(lenses->tf);
-        result.processed->demosaiced = std::move(lenses->demosaiced);
+        ProcessedFrame& p = *result.processed;
+        p.lens_depth = std::move(lenses->lens_depth);
+        p.tf = std::move(lenses->tf);
+        p.demosaiced = std::move(lenses->demosaiced);
+        p.lenses = std::move(lenses->lenses);
+        std::lock_guard r(report_mutex);
+        ++report.lens_frames;
+        report.lens_cpu_s += lens_cpu;
+        report.lens_depth_s += lenses->lens_depth_s;
+        report.lens_preview_s += lenses->lens_preview_s;
+        report.lens_encode_s += lenses->lens_encode_s;
       }
+    }
+    {
+      std::lock_guard r(report_mutex);
+      ++report.worker_frames;
+      report.localize_cpu_s += localize_cpu;
     }
     if (result.processed)
       result.processed->seconds =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    OfferDepth(result.job);
+    OfferDepth(result.job, result.processed);
+    // The lane holds the per-lens workspace now; the publication needs only
+    // the encodings.
+    if (result.processed) result.processed->lenses.reset();
     return result;
   }
 
@@ -425,8 +487,26 @@ struct Pipeline::Impl {
     depth_cv.notify_all();
   }
 
+  // A frame's pose published on its POSE channel and, related to the other
+  // cameras' poses of its trigger, as extrinsics; counted. On the worker
+  // that localised it (lanes) or the publishing node (block).
+  void PublishPose(const Job& job, const processing::CameraPose& w0_from_cx) {
+    std::uint64_t extrinsics = 0;
+    {
+      std::lock_guard lock(relate_mutex);
+      extrinsics = Relate(job, w0_from_cx);
+    }
+    const double ms = static_cast<double>(HostRealtimeNs() - job.arrival_ns) / 1e6;
+    std::lock_guard r(report_mutex);
+    report.published_extrinsics += extrinsics;
+    ++report.published_poses;
+    ++report.localized;
+    pose_latency.Add(ms);
+  }
+
   // Camera X's pose of a trigger: related to camera 0's of the same trigger
-  // once both are there, and published.
+  // once both are there, and published (relate_mutex held: the workers
+  // publish their poses themselves under lanes).
   std::uint64_t Relate(const Job& job, const processing::CameraPose& w0_from_cx) {
     publisher->PublishPose(PoseRecord{job.frame.serial, reference_serial, job.trigger_index,
                                       static_cast<std::int64_t>(job.pass), job.frame.frame_id,
@@ -468,7 +548,7 @@ struct Pipeline::Impl {
       const ProcessedFrame& p = *result.processed;
       const Publisher::FrameCounts counts = publisher->PublishFrame(
           FrameMeta{job.frame.serial, job.frame.frame_id, job.trigger_index}, p);
-      const std::uint64_t extrinsics = result.w0_from_cx ? Relate(job, *result.w0_from_cx) : 0;
+      if (result.w0_from_cx) PublishPose(job, *result.w0_from_cx);
       const double to_pub_ms = static_cast<double>(HostRealtimeNs() - job.arrival_ns) / 1e6;
       std::lock_guard r(report_mutex);
       ++report.processed;
@@ -476,9 +556,6 @@ struct Pipeline::Impl {
       report.published_depth += counts.depth;
       report.published_lens_depth += counts.lens_depth;
       report.published_tf += counts.tf;
-      report.published_extrinsics += extrinsics;
-      report.published_poses += result.w0_from_cx ? 1 : 0;
-      report.localized += result.w0_from_cx ? 1 : 0;
       process_latency.Add(p.seconds * 1e3);
       publication_latency.Add(to_pub_ms);
     }
@@ -681,6 +758,7 @@ struct Pipeline::Impl {
       r.publish_errors = publisher->errors();
       r.process = process_latency.Summary();
       r.to_publication = publication_latency.Summary();
+      r.to_pose = pose_latency.Summary();
     }
     r.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     std::lock_guard lock(sync_mutex);
@@ -849,8 +927,24 @@ std::string PipelineReport::FinalReport() const {
       << "  failed: " << failed << (Accounted() ? "  (all accounted for)" : "  (NOT ACCOUNTED)")
       << "\n";
   if (lens_failed > 0) out << "per-lens depth failed: " << lens_failed << "\n";
+  if (worker_frames > 0) {
+    const auto per = [](double total, std::uint64_t n) {
+      return n > 0 ? 1e3 * total / static_cast<double>(n) : 0.0;
+    };
+    char line[320];
+    std::snprintf(line, sizeof line,
+                  "workers (registration first): %llu frames, localisation %.1f CPU-ms per "
+                  "frame; per-lens depth and TF preview of %llu: %.1f CPU-ms per frame (wall: "
+                  "depth %.1f ms, preview %.1f ms, encodings %.1f ms)\n",
+                  static_cast<unsigned long long>(worker_frames), per(localize_cpu_s, worker_frames),
+                  static_cast<unsigned long long>(lens_frames), per(lens_cpu_s, lens_frames),
+                  per(lens_depth_s, lens_frames), per(lens_preview_s, lens_frames),
+                  per(lens_encode_s, lens_frames));
+    out << line;
+  }
   if (depth_processed + depth_skipped + depth_failed > 0)
-    out << "depth lane (registration first): processed " << depth_processed << "  skipped "
+    out << "depth lane (registration first): processed " << depth_processed << " ("
+        << depth_seeded_by_lenses << " seeded by the workers' per-lens depth)  skipped "
         << depth_skipped << "  failed " << depth_failed << "  CPU " << depth_cpu_s << " s\n";
   out << "published: " << published_previews << " previews, "
       << published_depth + published_lens_depth << " depth, " << published_tf << " TF, "
@@ -868,7 +962,13 @@ std::string PipelineReport::FinalReport() const {
                 "ms; %.2f frames/s over %.1f s\n",
                 process.p50_ms, process.p99_ms, to_publication.p50_ms, to_publication.p99_ms,
                 elapsed_s > 0 ? static_cast<double>(processed) / elapsed_s : 0.0, elapsed_s);
-  out << line << "sync: " << drops << "\n";
+  out << line;
+  if (to_pose.count > 0) {
+    std::snprintf(line, sizeof line, "frame arrival -> pose on LCM: p50 %.1f ms p99 %.1f ms\n",
+                  to_pose.p50_ms, to_pose.p99_ms);
+    out << line;
+  }
+  out << "sync: " << drops << "\n";
   if (!last_error.empty()) out << "last processing error: " << last_error << "\n";
   return out.str();
 }

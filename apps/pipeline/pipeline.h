@@ -128,6 +128,16 @@ struct PipelineReport {
   std::uint64_t depth_processed = 0, depth_skipped = 0, depth_failed = 0;
   std::uint64_t lens_failed = 0;  // lanes: frames localised whose per-lens depth failed
   double depth_cpu_s = 0;  // CPU time of the depth lane's thread (its arena has no other)
+  // Lanes: the dense maps the lane seeded with the workers' per-lens depth
+  // (the others computed it again: the frame's per-lens depth had failed).
+  std::uint64_t depth_seeded_by_lenses = 0;
+  // Lanes, per frame a worker took: Localize's CPU time (with
+  // ForRegistration: a Bayer frame's demosaicing), and of the frames with a
+  // per-lens depth, ProcessLenses' CPU time and its parts' wall time (the
+  // per-lens depth, the TF preview at each lens's depth, the encodings).
+  std::uint64_t worker_frames = 0, lens_frames = 0;
+  double localize_cpu_s = 0, lens_cpu_s = 0;
+  double lens_depth_s = 0, lens_preview_s = 0, lens_encode_s = 0;
   std::uint64_t frame_sets = 0, incomplete_sets = 0;
   // published_depth: TF-grid depth maps (the dense chain); published_lens_depth:
   // per-lens depth maps (every frame taken, when the processor makes them).
@@ -138,6 +148,7 @@ struct PipelineReport {
   std::uint64_t publish_errors = 0;
   LatencySummary process;         // processing time per frame
   LatencySummary to_publication;  // frame arrival (host_ns) to its last message on LCM
+  LatencySummary to_pose;  // frame arrival to its pose (and extrinsics) on LCM
   std::string drops;              // the assembler's DropCounter::OneLine
   std::uint64_t sync_lost = 0;    // DropCounter::lost
   std::string last_error;
