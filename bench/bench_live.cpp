@@ -72,6 +72,7 @@
 #include <map>
 #include <mutex>
 #include <string>
+#include <sys/resource.h>
 #include <thread>
 #include <vector>
 
@@ -137,6 +138,17 @@ std::int64_t NowRealtimeNs() {
   timespec ts{};
   clock_gettime(CLOCK_REALTIME, &ts);
   return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+// User + system CPU time of the process so far (s): on a loaded machine the
+// cost per frame is comparable where rates are not.
+double ProcessCpuSeconds() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  const auto seconds = [](const timeval& t) {
+    return static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_usec);
+  };
+  return seconds(usage.ru_utime) + seconds(usage.ru_stime);
 }
 
 double Percentile(std::vector<double> v, double q) {
@@ -214,6 +226,7 @@ struct RunFigures {
   std::string workers;     // the pipeline report's workers line (registration runs)
   std::uint64_t depth_seeded = 0;  // dense maps seeded by the workers' per-lens depth
   double to_pose_p50_ms = 0, to_pose_p99_ms = 0;
+  double process_cpu_s = 0;  // the whole process's user + sys CPU during the run
   std::string registration;
   Accuracy accuracy;
   double HzPerCamera() const {
@@ -257,6 +270,19 @@ void PrintAccuracy(const Accuracy& a) {
                   e.t_mm.size());
     std::printf("\n");
   }
+}
+
+// "1.20 1.35 1.40\n" (/proc/loadavg's first three), or "?\n".
+std::string LoadAverage() {
+  std::FILE* file = std::fopen("/proc/loadavg", "r");
+  if (file == nullptr) return "?\n";
+  double a = 0, b = 0, c = 0;
+  const int n = std::fscanf(file, "%lf %lf %lf", &a, &b, &c);
+  std::fclose(file);
+  if (n != 3) return "?\n";
+  char text[64];
+  std::snprintf(text, sizeof text, "%.2f %.2f %.2f\n", a, b, c);
+  return text;
 }
 
 // a / b, 0 when b is 0.
@@ -307,7 +333,9 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
     }
     stop = true;
   });
+  const double cpu_start = ProcessCpuSeconds();
   auto result = apps::RunReplay(options);
+  f.process_cpu_s = ProcessCpuSeconds() - cpu_start;
   f.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   stop = true;
   timer.join();
@@ -454,6 +482,12 @@ int main(int argc, char** argv) {
                   f.depth_cpu_s, 100 * f.depth_cpu_s / f.elapsed_s,
                   static_cast<unsigned long long>(f.depth_seeded));
     if (!f.workers.empty()) std::printf("           %s", f.workers.c_str());
+    std::printf("           process CPU %.1f s (user + sys): %.0f CPU-ms per frame taken, the "
+                "workers' and the replay's share (without the depth lane) %.0f; load average "
+                "%s",
+                f.process_cpu_s, f.processed > 0 ? 1e3 * f.process_cpu_s / f.processed : 0.0,
+                f.processed > 0 ? 1e3 * (f.process_cpu_s - f.depth_cpu_s) / f.processed : 0.0,
+                LoadAverage().c_str());
     if (f.to_pose_p50_ms > 0)
       std::printf("           frame -> its pose on LCM p50 %.0f ms p99 %.0f ms\n",
                   f.to_pose_p50_ms, f.to_pose_p99_ms);
