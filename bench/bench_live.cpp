@@ -38,7 +38,7 @@
 // that camera was being relocalised) or failed. Ratios: track / relocalise
 // errors (above 1: tracking's poses are worse than relocalising every frame).
 //
-//   bench_live [--preset small|medium|r32] [--frames N] [--seconds S]
+//   bench_live [--preset small|medium|r32] [--frames N (24)] [--seconds S]
 //              [--concurrency N] [--keep DIR] [--runs track,relocalise,depth]
 // --keep DIR renders into DIR once and reuses it (same preset and frames)
 // in later runs; DIR is left in place.
@@ -59,6 +59,7 @@
 #include "replay/synth/synth_writer.h"
 
 #include <lcm/lcm-cpp.hpp>
+#include <lifmcr_lcm/camera_pose_t.hpp>
 
 #include <algorithm>
 #include <atomic>
@@ -83,7 +84,13 @@ namespace fs = std::filesystem;
 
 struct Args {
   std::string preset = "medium";
-  int frames = 6;
+  // 24: the loop's jump from the last frame back to the first (the cameras'
+  // poses a whole orbit segment apart) relocalises both cameras each pass,
+  // which a live rig never sees; with 6 frames that was every 0.6 s, and the
+  // frames a relocalisation passes through (~3 triggers) took half of the
+  // triggers' extrinsics (3.25 Hz per camera at medium against 8.6-8.7 with
+  // 24 frames, docs/registration.md).
+  int frames = 24;
   double seconds = 30;
   int concurrency = 2;
   std::string keep;  // empty: a temporary folder
@@ -224,9 +231,14 @@ struct RunFigures {
   std::uint64_t frames_in = 0, underruns = 0, incomplete_sets = 0;
   double depth_cpu_s = 0;  // the depth lane's thread (registration runs only)
   std::string workers;     // the pipeline report's workers line (registration runs)
-  std::uint64_t depth_seeded = 0;  // dense maps seeded by the workers' per-lens depth
+  std::uint64_t depth_seeded = 0;  // dense maps seeded by the lens lane's per-lens depth
   double to_pose_p50_ms = 0, to_pose_p99_ms = 0;
   double process_cpu_s = 0;  // the whole process's user + sys CPU during the run
+  // Every POSE message (a frame a worker took) by how it was localised, the
+  // relocalised ones split by where: the first trigger of a pass of the loop
+  // (the cameras jump back to frame 0's pose: no pose to track from) or later.
+  std::map<std::string, int> poses_by_localisation;
+  int relocalised_at_pass_start = 0, relocalised_later = 0, passes = 0;
   std::string registration;
   Accuracy accuracy;
   double HzPerCamera() const {
@@ -296,6 +308,20 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
   f.label = mode == Mode::kTrack ? "track" : mode == Mode::kRelocalise ? "relocalise" : "depth only";
   lcm::LCM bus("memq://");
   std::mutex mutex;
+  struct PoseTally {
+    RunFigures* f;
+    std::mutex* mutex;
+    void On(const lcm::ReceiveBuffer*, const std::string&, const lifmcr_lcm::camera_pose_t* m) {
+      std::lock_guard lock(*mutex);
+      ++f->poses_by_localisation[m->status == "ok" || m->localisation == "skipped"
+                                     ? m->localisation
+                                     : m->localisation + " (failed)"];
+      if (m->localisation == "relocalised")
+        ++(m->trigger_index == 0 ? f->relocalised_at_pass_start : f->relocalised_later);
+      f->passes = std::max(f->passes, static_cast<int>(m->pass) + 1);
+    }
+  } tally{&f, &mutex};
+  bus.subscribe("LIFMCR_.*_POSE", &PoseTally::On, &tally);
   apps::ReplayRunOptions options;
   options.sequence_dir = sequence;
   options.rate.kind = apps::ReplayRate::Kind::kOriginal;
@@ -320,6 +346,11 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
   }
   std::atomic<bool> stop{false};
   options.stop = &stop;
+  // The POSE messages handled as they come (memq delivers on handle()).
+  std::atomic<bool> handling{true};
+  std::thread handler([&] {
+    while (handling) bus.handleTimeout(50);
+  });
   const auto start = std::chrono::steady_clock::now();
   std::thread timer([&] {
     const auto end = std::chrono::steady_clock::now() +
@@ -339,6 +370,10 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
   f.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   stop = true;
   timer.join();
+  handling = false;
+  handler.join();
+  while (bus.handleTimeout(0) > 0) {
+  }
   if (!result) {
     std::fprintf(stderr, "bench_live: %s: %s\n", f.label.c_str(), result.error().message.c_str());
     std::exit(3);
@@ -357,7 +392,7 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
   f.to_pose_p50_ms = result->report.to_pose.p50_ms;
   f.to_pose_p99_ms = result->report.to_pose.p99_ms;
   {
-    // The report's line of the workers' CPU per frame (registration first).
+    // The report's line of the workers' and the lens lane's CPU per frame.
     const std::string report = result->report.FinalReport();
     const auto at = report.find("workers (registration first)");
     if (at != std::string::npos) f.workers = report.substr(at, report.find('\n', at) + 1 - at);
@@ -478,7 +513,7 @@ int main(int argc, char** argv) {
                 f.incomplete_sets / f.elapsed_s);
     if (f.depth_cpu_s > 0)
       std::printf("           depth lane CPU %.1f s (%.0f %% of one core), %llu dense maps seeded "
-                  "by the workers' per-lens depth\n",
+                  "by the lens lane's per-lens depth\n",
                   f.depth_cpu_s, 100 * f.depth_cpu_s / f.elapsed_s,
                   static_cast<unsigned long long>(f.depth_seeded));
     if (!f.workers.empty()) std::printf("           %s", f.workers.c_str());
@@ -492,6 +527,12 @@ int main(int argc, char** argv) {
       std::printf("           frame -> its pose on LCM p50 %.0f ms p99 %.0f ms\n",
                   f.to_pose_p50_ms, f.to_pose_p99_ms);
     if (!f.registration.empty()) std::printf("           %s", f.registration.c_str());
+    if (!f.poses_by_localisation.empty()) {
+      std::printf("           poses published:");
+      for (const auto& [how, n] : f.poses_by_localisation) std::printf(" %s %d", how.c_str(), n);
+      std::printf("; relocalised at a pass's first trigger %d, later %d (%d passes of the loop)\n",
+                  f.relocalised_at_pass_start, f.relocalised_later, f.passes);
+    }
     if (mode != Mode::kDepthOnly) PrintAccuracy(f.accuracy);
     std::fflush(stdout);
   }

@@ -304,17 +304,20 @@ struct Pipeline::Impl {
     std::vector<std::thread> threads;
   };
   // The per-lens depth and TF preview of the frames the workers localised,
-  // below the workers' priority and above the depth lane's.
+  // at the workers' priority, above the depth lane's.
   //
-  // A lane of its own rather than on the worker after the pose: on 2 cores
-  // the per-lens depth and its preview cost more CPU than the localisation
-  // (medium: docs/processing.md, "Live pipeline"), so that every frame's
-  // both do not fit at 10 Hz on two cameras; on the worker each frame waiting
-  // for a worker also waited for a per-lens estimate, and the poses (the
-  // extrinsics) fell with them. Here the workers localise every frame they
-  // can, and the lane takes the newest localised frame per camera with the
-  // CPU they leave; when that suffices, every frame (each frame is counted:
-  // lens processed, skipped or failed).
+  // A lane of its own rather than on the worker after the pose: at medium
+  // the per-lens depth and its preview cost several times a tracked
+  // frame's localisation (docs/processing.md, "Live pipeline"), and on the
+  // worker every frame waiting for a worker waited for a per-lens estimate
+  // too, so the poses (the extrinsics) fell with the per-lens work. Here a
+  // worker is free for the next frame as soon as it published a pose, and
+  // the lane takes the newest localised frame per camera. Not below the
+  // workers' priority: a tracked frame needs a fraction of a core, which
+  // the scheduler gives it beside the lane at equal priority, while a lower
+  // one left the lane nothing on a loaded host (a small rig's timed replay
+  // at load average 17: 7 of 16 frames). Each frame is counted: lens
+  // processed, skipped (replaced by its camera's newer frame) or failed.
   Lane lens_lane;
   Lane depth_lane;  // the dense map, at the lowest priority: depth takes what is left
 
@@ -906,12 +909,11 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
   });
   if (impl->lanes) {
     // The lens lane: a thread per worker (at most one per camera), each
-    // computing one frame at a time, halfway between the workers' priority
-    // and the lowest; the depth lane: one thread at the lowest.
+    // computing one frame at a time, at the workers' priority; the depth
+    // lane: one thread at the lowest.
     const int lens_threads =
         std::max(1, std::min(threads, static_cast<int>(sync.serials.size())));
-    impl->StartLane(impl->lens_lane, lens_threads,
-                    std::min(19, worker_nice + (19 - worker_nice + 1) / 2), &Impl::LensLoop);
+    impl->StartLane(impl->lens_lane, lens_threads, worker_nice, &Impl::LensLoop);
     impl->StartLane(impl->depth_lane, 1, 19, &Impl::DepthLoop);
   }
   return std::unique_ptr<Pipeline>(new Pipeline(std::move(impl)));
@@ -1043,10 +1045,14 @@ std::string PipelineReport::FinalReport() const {
                 elapsed_s > 0 ? static_cast<double>(processed) / elapsed_s : 0.0, elapsed_s);
   out << line;
   if (to_pose.count > 0) {
+    std::snprintf(line, sizeof line, "frame arrival -> pose on LCM: p50 %.1f ms p99 %.1f ms\n",
+                  to_pose.p50_ms, to_pose.p99_ms);
+    out << line;
+  }
+  if (to_lens_depth.count > 0) {
     std::snprintf(line, sizeof line,
-                  "frame arrival -> pose on LCM: p50 %.1f ms p99 %.1f ms; -> per-lens depth: p50 "
-                  "%.1f ms p99 %.1f ms\n",
-                  to_pose.p50_ms, to_pose.p99_ms, to_lens_depth.p50_ms, to_lens_depth.p99_ms);
+                  "frame arrival -> per-lens depth on LCM: p50 %.1f ms p99 %.1f ms\n",
+                  to_lens_depth.p50_ms, to_lens_depth.p99_ms);
     out << line;
   }
   out << "sync: " << drops << "\n";

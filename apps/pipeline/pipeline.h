@@ -27,13 +27,13 @@
 // processing; under newest_wins it runs first, on the raw frame, and the
 // worker publishes the pose at once (POSE, and EXTRINSICS when the trigger's
 // other pose is there); the frame goes on to the lens lane (per-lens depth
-// and TF preview; a thread per worker, at most one per camera, below the
+// and TF preview; a thread per worker, at most one per camera, at the
 // workers' priority, newest wins per camera), then, with that per-lens depth,
 // to the depth lane (one thread at the lowest priority, newest wins per
 // camera) whose dense map it seeds: a pose never waits for a depth, its own
-// frame's or another's, and the localisers get the CPU first; the per-lens
-// depth comes for every frame localised where the CPU left suffices, the
-// dense depth, TF and previews at the rate processing allows.
+// frame's or another's; the per-lens depth comes for every frame localised
+// where the CPU suffices, the dense depth, TF and previews at the rate
+// processing allows.
 // Either way its poses are grouped per trigger on the publishing node, and once the
 // reference camera (reference_serial) and camera X both have a pose of a
 // trigger, Relate gives c0_from_cx, published on <PREFIX>_<SERIAL>_EXTRINSICS.
