@@ -314,9 +314,10 @@ struct Pipeline::Impl {
   // worker is free for the next frame as soon as it published a pose, and
   // the lane takes the newest localised frame per camera. Not below the
   // workers' priority: a tracked frame needs a fraction of a core, which
-  // the scheduler gives it beside the lane at equal priority, while a lower
-  // one left the lane nothing on a loaded host (a small rig's timed replay
-  // at load average 17: 7 of 16 frames). Each frame is counted: lens
+  // the scheduler gives it beside the lane at equal priority, while at a
+  // lower one the lane starved first on a loaded host (a small rig's timed
+  // replay at load average 15-17: 7 of 16 frames taken got their per-lens
+  // depth; at equal priority 7 of 10). Each frame is counted: lens
   // processed, skipped (replaced by its camera's newer frame) or failed.
   Lane lens_lane;
   Lane depth_lane;  // the dense map, at the lowest priority: depth takes what is left
