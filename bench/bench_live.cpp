@@ -38,8 +38,8 @@
 // that camera was being relocalised) or failed. Ratios: track / relocalise
 // errors (above 1: tracking's poses are worse than relocalising every frame).
 //
-//   bench_live [--preset small|medium|r32] [--frames N] [--seconds S]
-//              [--concurrency N] [--keep DIR]
+//   bench_live [--preset small|medium|r32] [--frames N (24)] [--seconds S]
+//              [--concurrency N] [--keep DIR] [--runs track,relocalise,depth]
 // --keep DIR renders into DIR once and reuses it (same preset and frames)
 // in later runs; DIR is left in place.
 // Goals (2 cores): >= 5 Hz per camera at medium, >= 2 Hz at r32.
@@ -59,6 +59,7 @@
 #include "replay/synth/synth_writer.h"
 
 #include <lcm/lcm-cpp.hpp>
+#include <lifmcr_lcm/camera_pose_t.hpp>
 
 #include <algorithm>
 #include <atomic>
@@ -72,6 +73,7 @@
 #include <map>
 #include <mutex>
 #include <string>
+#include <sys/resource.h>
 #include <thread>
 #include <vector>
 
@@ -82,10 +84,18 @@ namespace fs = std::filesystem;
 
 struct Args {
   std::string preset = "medium";
-  int frames = 6;
+  // 24: the loop's jump from the last frame back to the first (the cameras'
+  // poses a whole orbit segment apart) relocalises both cameras each pass,
+  // which a live rig never sees; with 6 frames that was every 0.6 s, and the
+  // frames a relocalisation passes through (~3 triggers) took half of the
+  // triggers' extrinsics (3.25 Hz per camera at medium against 8.6-8.7 with
+  // 24 frames, docs/registration.md).
+  int frames = 24;
   double seconds = 30;
   int concurrency = 2;
   std::string keep;  // empty: a temporary folder
+  // Which runs (comma-separated): track, relocalise, depth; the ratios need all three.
+  bool track = true, relocalise = true, depth = true;
 };
 
 bool ParseArgs(int argc, char** argv, Args* a) {
@@ -103,6 +113,23 @@ bool ParseArgs(int argc, char** argv, Args* a) {
       a->seconds = std::strtod(v.c_str(), &end);
     } else if (k == "--keep") {
       a->keep = v;
+    } else if (k == "--runs") {
+      a->track = a->relocalise = a->depth = false;
+      std::size_t from = 0;
+      while (from <= v.size()) {
+        const std::size_t comma = std::min(v.find(',', from), v.size());
+        const std::string run = v.substr(from, comma - from);
+        if (run == "track") {
+          a->track = true;
+        } else if (run == "relocalise") {
+          a->relocalise = true;
+        } else if (run == "depth") {
+          a->depth = true;
+        } else {
+          return false;
+        }
+        from = comma + 1;
+      }
     } else if (k == "--concurrency") {
       a->concurrency = static_cast<int>(std::strtol(v.c_str(), &end, 10));
     } else {
@@ -110,13 +137,25 @@ bool ParseArgs(int argc, char** argv, Args* a) {
     }
     if (end != nullptr && *end != '\0') return false;
   }
-  return a->frames >= 3 && a->seconds > 0 && a->concurrency >= 1;
+  return a->frames >= 3 && a->seconds > 0 && a->concurrency >= 1 &&
+         (a->track || a->relocalise || a->depth);
 }
 
 std::int64_t NowRealtimeNs() {
   timespec ts{};
   clock_gettime(CLOCK_REALTIME, &ts);
   return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+// User + system CPU time of the process so far (s): on a loaded machine the
+// cost per frame is comparable where rates are not.
+double ProcessCpuSeconds() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  const auto seconds = [](const timeval& t) {
+    return static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_usec);
+  };
+  return seconds(usage.ru_utime) + seconds(usage.ru_stime);
 }
 
 double Percentile(std::vector<double> v, double q) {
@@ -191,6 +230,15 @@ struct RunFigures {
   std::uint64_t lens_depth = 0, tf = 0;  // per-lens depth maps, TF images published
   std::uint64_t frames_in = 0, underruns = 0, incomplete_sets = 0;
   double depth_cpu_s = 0;  // the depth lane's thread (registration runs only)
+  std::string workers;     // the pipeline report's workers line (registration runs)
+  std::uint64_t depth_seeded = 0;  // dense maps seeded by the lens lane's per-lens depth
+  double to_pose_p50_ms = 0, to_pose_p99_ms = 0;
+  double process_cpu_s = 0;  // the whole process's user + sys CPU during the run
+  // Every POSE message (a frame a worker took) by how it was localised, the
+  // relocalised ones split by where: the first trigger of a pass of the loop
+  // (the cameras jump back to frame 0's pose: no pose to track from) or later.
+  std::map<std::string, int> poses_by_localisation;
+  int relocalised_at_pass_start = 0, relocalised_later = 0, passes = 0;
   std::string registration;
   Accuracy accuracy;
   double HzPerCamera() const {
@@ -236,6 +284,19 @@ void PrintAccuracy(const Accuracy& a) {
   }
 }
 
+// "1.20 1.35 1.40\n" (/proc/loadavg's first three), or "?\n".
+std::string LoadAverage() {
+  std::FILE* file = std::fopen("/proc/loadavg", "r");
+  if (file == nullptr) return "?\n";
+  double a = 0, b = 0, c = 0;
+  const int n = std::fscanf(file, "%lf %lf %lf", &a, &b, &c);
+  std::fclose(file);
+  if (n != 3) return "?\n";
+  char text[64];
+  std::snprintf(text, sizeof text, "%.2f %.2f %.2f\n", a, b, c);
+  return text;
+}
+
 // a / b, 0 when b is 0.
 double Ratio(double a, double b) { return b > 0 ? a / b : 0.0; }
 
@@ -247,6 +308,20 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
   f.label = mode == Mode::kTrack ? "track" : mode == Mode::kRelocalise ? "relocalise" : "depth only";
   lcm::LCM bus("memq://");
   std::mutex mutex;
+  struct PoseTally {
+    RunFigures* f;
+    std::mutex* mutex;
+    void On(const lcm::ReceiveBuffer*, const std::string&, const lifmcr_lcm::camera_pose_t* m) {
+      std::lock_guard lock(*mutex);
+      ++f->poses_by_localisation[m->status == "ok" || m->localisation == "skipped"
+                                     ? m->localisation
+                                     : m->localisation + " (failed)"];
+      if (m->localisation == "relocalised")
+        ++(m->trigger_index == 0 ? f->relocalised_at_pass_start : f->relocalised_later);
+      f->passes = std::max(f->passes, static_cast<int>(m->pass) + 1);
+    }
+  } tally{&f, &mutex};
+  bus.subscribe("LIFMCR_.*_POSE", &PoseTally::On, &tally);
   apps::ReplayRunOptions options;
   options.sequence_dir = sequence;
   options.rate.kind = apps::ReplayRate::Kind::kOriginal;
@@ -271,6 +346,11 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
   }
   std::atomic<bool> stop{false};
   options.stop = &stop;
+  // The POSE messages handled as they come (memq delivers on handle()).
+  std::atomic<bool> handling{true};
+  std::thread handler([&] {
+    while (handling) bus.handleTimeout(50);
+  });
   const auto start = std::chrono::steady_clock::now();
   std::thread timer([&] {
     const auto end = std::chrono::steady_clock::now() +
@@ -284,10 +364,16 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
     }
     stop = true;
   });
+  const double cpu_start = ProcessCpuSeconds();
   auto result = apps::RunReplay(options);
+  f.process_cpu_s = ProcessCpuSeconds() - cpu_start;
   f.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   stop = true;
   timer.join();
+  handling = false;
+  handler.join();
+  while (bus.handleTimeout(0) > 0) {
+  }
   if (!result) {
     std::fprintf(stderr, "bench_live: %s: %s\n", f.label.c_str(), result.error().message.c_str());
     std::exit(3);
@@ -302,6 +388,15 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
   f.underruns = result->camera_underruns;
   f.incomplete_sets = result->report.incomplete_sets;
   f.depth_cpu_s = result->report.depth_cpu_s;
+  f.depth_seeded = result->report.depth_seeded_by_lenses;
+  f.to_pose_p50_ms = result->report.to_pose.p50_ms;
+  f.to_pose_p99_ms = result->report.to_pose.p99_ms;
+  {
+    // The report's line of the workers' and the lens lane's CPU per frame.
+    const std::string report = result->report.FinalReport();
+    const auto at = report.find("workers (registration first)");
+    if (at != std::string::npos) f.workers = report.substr(at, report.find('\n', at) + 1 - at);
+  }
   f.registration = result->registration;
   return f;
 }
@@ -310,12 +405,13 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
 
 constexpr char kUsage[] =
     "usage: bench_live [--preset small|medium|r32] [--frames N>=3] [--seconds S]\n"
-    "                  [--concurrency N] [--keep DIR]\n"
+    "                  [--concurrency N] [--keep DIR] [--runs track,relocalise,depth]\n"
     "Live registration of a synthetic rig (default medium) replayed at its trigger rate\n"
     "through `lifmcr replay --reference`'s path, three runs of --seconds: tracking, every\n"
     "frame relocalised (the baseline) and depth only. Per run: extrinsics per second per\n"
     "camera, frame -> extrinsics latency, and the errors against the ground truth by how\n"
-    "each pose was made. --keep DIR renders into DIR once and reuses it.\n";
+    "each pose was made. --keep DIR renders into DIR once and reuses it; --runs picks\n"
+    "some of the three runs (the ratios need all three).\n";
 
 int main(int argc, char** argv) {
   if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
@@ -325,7 +421,7 @@ int main(int argc, char** argv) {
   if (!ParseArgs(argc, argv, &args)) {
     std::fprintf(stderr,
                  "usage: bench_live [--preset small|medium|r32] [--frames N>=3] [--seconds S] "
-                 "[--concurrency N] [--keep DIR]\n");
+                 "[--concurrency N] [--keep DIR] [--runs track,relocalise,depth]\n");
     return 2;
   }
   auto params = synth::MakePreset(args.preset);
@@ -396,6 +492,9 @@ int main(int argc, char** argv) {
   }
   std::vector<RunFigures> runs;
   for (const Mode mode : {Mode::kTrack, Mode::kRelocalise, Mode::kDepthOnly}) {
+    if ((mode == Mode::kTrack && !args.track) || (mode == Mode::kRelocalise && !args.relocalise) ||
+        (mode == Mode::kDepthOnly && !args.depth))
+      continue;
     runs.push_back(Run(args, sequence_dir, map_dir, truth, mode));
     const RunFigures& f = runs.back();
     std::printf("%-10s extrinsics %.2f Hz per camera (%d messages), frame -> extrinsics p50 %.0f "
@@ -413,11 +512,33 @@ int main(int argc, char** argv) {
                 f.frames_in / f.elapsed_s, f.underruns / f.elapsed_s,
                 f.incomplete_sets / f.elapsed_s);
     if (f.depth_cpu_s > 0)
-      std::printf("           depth lane CPU %.1f s (%.0f %% of one core)\n", f.depth_cpu_s,
-                  100 * f.depth_cpu_s / f.elapsed_s);
+      std::printf("           depth lane CPU %.1f s (%.0f %% of one core), %llu dense maps seeded "
+                  "by the lens lane's per-lens depth\n",
+                  f.depth_cpu_s, 100 * f.depth_cpu_s / f.elapsed_s,
+                  static_cast<unsigned long long>(f.depth_seeded));
+    if (!f.workers.empty()) std::printf("           %s", f.workers.c_str());
+    std::printf("           process CPU %.1f s (user + sys): %.0f CPU-ms per frame taken, the "
+                "workers' and the replay's share (without the depth lane) %.0f; load average "
+                "%s",
+                f.process_cpu_s, f.processed > 0 ? 1e3 * f.process_cpu_s / f.processed : 0.0,
+                f.processed > 0 ? 1e3 * (f.process_cpu_s - f.depth_cpu_s) / f.processed : 0.0,
+                LoadAverage().c_str());
+    if (f.to_pose_p50_ms > 0)
+      std::printf("           frame -> its pose on LCM p50 %.0f ms p99 %.0f ms\n",
+                  f.to_pose_p50_ms, f.to_pose_p99_ms);
     if (!f.registration.empty()) std::printf("           %s", f.registration.c_str());
+    if (!f.poses_by_localisation.empty()) {
+      std::printf("           poses published:");
+      for (const auto& [how, n] : f.poses_by_localisation) std::printf(" %s %d", how.c_str(), n);
+      std::printf("; relocalised at a pass's first trigger %d, later %d (%d passes of the loop)\n",
+                  f.relocalised_at_pass_start, f.relocalised_later, f.passes);
+    }
     if (mode != Mode::kDepthOnly) PrintAccuracy(f.accuracy);
     std::fflush(stdout);
+  }
+  if (runs.size() < 3) {
+    if (args.keep.empty()) fs::remove_all(dir);
+    return 0;  // the ratios need all three runs
   }
   const RunFigures &track = runs[0], &relocalise = runs[1], &depth = runs[2];
   std::printf("ratios: extrinsics rate track / relocalise %.2f; latency p50 relocalise / track "

@@ -239,18 +239,30 @@ Expected<RegistrationInput> DepthProcessor::ForRegistration(const Frame& frame) 
   return input;
 }
 
-Expected<ProcessedFrame> DepthProcessor::Process(const Frame& frame) { return Run(frame, true); }
-
-Expected<ProcessedFrame> DepthProcessor::ProcessDense(const Frame& frame) {
-  return Run(frame, false);
+Expected<ProcessedFrame> DepthProcessor::Process(const Frame& frame) {
+  return Run(frame, true, nullptr);
 }
 
-Expected<ProcessedFrame> DepthProcessor::Run(const Frame& frame, bool lenses) {
+Expected<ProcessedFrame> DepthProcessor::ProcessDense(const Frame& frame,
+                                                      const ProcessedFrame* lenses) {
+  return Run(frame, false, lenses != nullptr && lenses->lenses ? lenses : nullptr);
+}
+
+Expected<ProcessedFrame> DepthProcessor::Run(const Frame& frame, bool lenses,
+                                             const ProcessedFrame* given) {
   const auto start = std::chrono::steady_clock::now();
   processing::CameraChain* camera = chain_->Find(frame.serial);
   if (camera == nullptr) return Error{"depth: no MLA calibration for camera " + frame.serial};
   ProcessedFrame out;
-  auto image = ColourView(frame, formats_, &out.demosaiced);
+  // The image ProcessLenses took (a Bayer frame's demosaiced copy: made once
+  // per frame), else this frame's own.
+  Expected<ConstImageView> image = ConstImageView{};
+  if (given != nullptr && given->demosaiced) {
+    out.demosaiced = given->demosaiced;
+    image = ConstImageView(out.demosaiced->View());
+  } else {
+    image = ColourView(frame, formats_, &out.demosaiced);
+  }
   if (!image) return image.error();
   auto preview = EncodePreview(*image, preview_);
   if (!preview) return preview.error();
@@ -262,7 +274,11 @@ Expected<ProcessedFrame> DepthProcessor::Run(const Frame& frame, bool lenses) {
     if (!made) return made.error();
     lenses_lease = std::move(*made);
   }
-  auto lease = camera->Process(*image, lenses ? &lenses_lease->depth : nullptr);
+  // The seed: this call's per-lens depth, else ProcessLenses' of the frame
+  // (the depth lane's), else none (the chain computes it).
+  const processing::LensDepthMap* seed =
+      lenses ? &lenses_lease->depth : given != nullptr ? &given->lenses->depth : nullptr;
+  auto lease = camera->Process(*image, seed);
   if (!lease) return lease.error();
   const processing::TfDepthMap& tf_depth = (*lease)->tf_depth;
   const processing::TfImage& tf = (*lease)->tf;
@@ -311,15 +327,27 @@ Expected<ProcessedFrame> DepthProcessor::Run(const Frame& frame, bool lenses) {
   return out;
 }
 
-Expected<ProcessedFrame> DepthProcessor::ProcessLenses(const Frame& frame) {
+Expected<ProcessedFrame> DepthProcessor::ProcessLenses(const Frame& frame,
+                                                       const RegistrationInput* input) {
   const auto start = std::chrono::steady_clock::now();
   processing::CameraChain* camera = chain_->Find(frame.serial);
   if (camera == nullptr) return Error{"depth: no MLA calibration for camera " + frame.serial};
   ProcessedFrame out;
-  auto image = ColourView(frame, formats_, &out.demosaiced);
+  // The registration's view of the frame (a Bayer frame demosaiced once for
+  // both), else the frame's own.
+  Expected<ConstImageView> image = ConstImageView{};
+  if (input != nullptr && input->image.data != nullptr) {
+    out.demosaiced = input->demosaiced;
+    image = input->image;
+  } else {
+    image = ColourView(frame, formats_, &out.demosaiced);
+  }
   if (!image) return image.error();
   auto lenses = camera->ProcessLenses(*image, preview_.max_side);
   if (!lenses) return lenses.error();
+  out.lens_depth_s = (*lenses)->depth_s;
+  out.lens_preview_s = (*lenses)->preview_s;
+  const auto encode_start = std::chrono::steady_clock::now();
   auto lens_depth = EncodeLensDepth((*lenses)->depth, image->width, image->height);
   if (!lens_depth) return lens_depth.error();
   out.lens_depth = std::move(*lens_depth);
@@ -329,6 +357,10 @@ Expected<ProcessedFrame> DepthProcessor::ProcessLenses(const Frame& frame) {
   tf_preview->source_width = image->width / 2;
   tf_preview->source_height = image->height / 2;
   out.tf = std::move(*tf_preview);
+  out.lens_encode_s = SecondsSince(encode_start);
+  // The workspace stays leased while the dense chain may still seed from it
+  // (ProcessDense); it returns to the camera's pool with the last holder.
+  out.lenses = std::shared_ptr<const processing::LensProducts>(std::move(*lenses));
   out.camera = camera;
   out.seconds = SecondsSince(start);
   return out;

@@ -31,6 +31,7 @@
 
 namespace lifmcr::processing {
 struct ChainProducts;
+struct LensProducts;
 class CameraChain;
 class ProcessingChain;
 struct CameraSetup;
@@ -81,8 +82,15 @@ struct ProcessedFrame {
   // A Bayer camera's frame demosaiced (BGR8): what the products view instead
   // of the pooled mosaic, kept alive with them.
   std::shared_ptr<const OwnedImage> demosaiced;
+  // ProcessLenses: the per-lens products (depth, TF preview) in their pooled
+  // workspace, kept so the dense chain of the same frame is seeded by this
+  // depth instead of computing it again (ProcessDense).
+  std::shared_ptr<const processing::LensProducts> lenses;
   processing::CameraChain* camera = nullptr;
   double seconds = 0;
+  // ProcessLenses' parts (wall s): the per-lens depth, the TF preview at
+  // each lens's depth, and the encodings (16-bit PNG, JPEG).
+  double lens_depth_s = 0, lens_preview_s = 0, lens_encode_s = 0;
 };
 
 // What the registration stage needs of a frame without processing it: the
@@ -106,12 +114,21 @@ class FrameProcessor {
   virtual ~FrameProcessor() = default;
   virtual Expected<ProcessedFrame> Process(const Frame& frame) = 0;
   virtual std::string name() const = 0;  // "preview", "depth"
-  // Process without the per-lens depth: what the depth lane runs on frames
-  // whose per-lens depth ProcessLenses gave already (default: Process).
-  virtual Expected<ProcessedFrame> ProcessDense(const Frame& frame) { return Process(frame); }
+  // Process without publishing the per-lens depth: what the depth lane runs
+  // on frames whose per-lens depth ProcessLenses gave already. `lenses`:
+  // that ProcessLenses' result (its `lenses` seed the dense map and its
+  // `demosaiced` image is reused), or null: computed here (default: Process).
+  virtual Expected<ProcessedFrame> ProcessDense(const Frame& frame,
+                                                const ProcessedFrame* /*lenses*/ = nullptr) {
+    return Process(frame);
+  }
   // The per-lens depth and the TF preview at each lens's depth of the frame
-  // (lens_depth, tf), for every frame (default: nothing).
-  virtual Expected<ProcessedFrame> ProcessLenses(const Frame&) { return ProcessedFrame{}; }
+  // (lens_depth, tf, lenses), for every frame (default: nothing). `input`:
+  // the frame's ForRegistration, whose demosaiced image is reused, or null.
+  virtual Expected<ProcessedFrame> ProcessLenses(const Frame&,
+                                                 const RegistrationInput* /*input*/ = nullptr) {
+    return ProcessedFrame{};
+  }
   // The frame for the registration stage, unprocessed (default: no chain).
   virtual Expected<RegistrationInput> ForRegistration(const Frame&) {
     return RegistrationInput{};
@@ -171,14 +188,18 @@ class DepthProcessor final : public FrameProcessor {
                  PixelFormats formats = {});
   ~DepthProcessor() override;
   Expected<ProcessedFrame> Process(const Frame& frame) override;
-  Expected<ProcessedFrame> ProcessDense(const Frame& frame) override;
-  Expected<ProcessedFrame> ProcessLenses(const Frame& frame) override;
+  Expected<ProcessedFrame> ProcessDense(const Frame& frame,
+                                        const ProcessedFrame* lenses = nullptr) override;
+  Expected<ProcessedFrame> ProcessLenses(const Frame& frame,
+                                         const RegistrationInput* input = nullptr) override;
   std::string name() const override { return "depth"; }
   Expected<RegistrationInput> ForRegistration(const Frame& frame) override;
   const processing::ProcessingChain& chain() const { return *chain_; }
 
  private:
-  Expected<ProcessedFrame> Run(const Frame& frame, bool lenses);
+  // `lenses`: publish the per-lens depth (Process); `given`: ProcessLenses'
+  // result of the frame, whose depth seeds the dense map (ProcessDense).
+  Expected<ProcessedFrame> Run(const Frame& frame, bool lenses, const ProcessedFrame* given);
   PreviewOptions preview_;
   std::unique_ptr<processing::ProcessingChain> chain_;
   PixelFormats formats_;

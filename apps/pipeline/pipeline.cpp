@@ -93,6 +93,14 @@ class WorkerPriority final : public tbb::task_scheduler_observer {
   int nice_;
 };
 
+// CPU time of the calling thread (s): what a frame's work costs whatever
+// else runs on the machine.
+double ThreadCpuSeconds() {
+  timespec cpu{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &cpu);
+  return static_cast<double>(cpu.tv_sec) + 1e-9 * static_cast<double>(cpu.tv_nsec);
+}
+
 struct Job {
   Frame frame;
   std::int64_t trigger_index = 0;
@@ -106,7 +114,10 @@ struct Result {
   Job job;
   Expected<ProcessedFrame> processed{Error{"not processed"}};
   std::optional<processing::CameraPose> w0_from_cx;  // the registration stage's pose
-  bool depth_lane = false;  // from the depth lane (lanes): products to publish, no worker token
+  // Who made it: a worker (its pose published already under lanes; the
+  // worker's token goes on), the lens lane (the per-lens depth and TF
+  // preview) or the depth lane (the dense products).
+  enum class From { kWorker, kLensLane, kDepthLane } from = From::kWorker;
 };
 
 }  // namespace
@@ -237,7 +248,10 @@ struct Pipeline::Impl {
     };
     std::map<int, Entry> by_camera;
   };
-  std::map<std::pair<std::uint64_t, std::int64_t>, TriggerPoses> poses;
+  std::map<std::pair<std::uint64_t, std::int64_t>, TriggerPoses> poses;  // relate_mutex
+  // Relate's state (poses, the stage's Relate): the workers publish poses
+  // under lanes, the publishing node under block.
+  std::mutex relate_mutex;
   std::uint64_t pass = 0;  // the pass whose frames come in (Poll's thread)
   static constexpr std::size_t kTriggersKept = 64;
 
@@ -248,68 +262,178 @@ struct Pipeline::Impl {
   mutable std::mutex report_mutex;
   PipelineReport report;
   LatencyWindow process_latency, publication_latency;
+  LatencyWindow pose_latency;  // frame arrival -> its pose published
+  LatencyWindow lens_latency;  // frame arrival -> its per-lens depth published (lens lane)
   std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
   std::chrono::steady_clock::time_point next_stats = start;
   std::uint64_t stats_last_processed = 0;
   std::chrono::steady_clock::time_point stats_last_time = start;
 
-  // The depth lane (lanes): the newest frame offered per camera, its thread.
-  std::mutex depth_mutex;
-  std::condition_variable depth_cv;
-  std::map<int, Job> depth_slots;
-  std::map<int, std::uint64_t> depth_served;
-  std::uint64_t depth_serve_count = 0;
-  // Frames the lane took and whose products are not published yet: the one
-  // it processes and the one it handed to the publishing node (it takes its
-  // next frame without waiting for that publication). A flag set when it took
-  // a frame and cleared when one was published let WaitIdle return while the
-  // lane processed the next: that frame then reached the publishing node
-  // after the graph's nodes were destroyed (bench_live: segmentation fault,
-  // "pure virtual method called" in the node's body at the run's end).
-  int depth_held = 0;
-  bool depth_stop = false;
-  std::unique_ptr<tbb::task_arena> depth_arena;  // low priority: the workers localise first
-  std::thread depth_thread;
+  // A frame offered to a lane: the frame, its registration input (the image
+  // the localisation took: a Bayer frame's demosaiced copy, made once) and,
+  // for the depth lane, what ProcessLenses made of it (the per-lens depth's
+  // pooled workspace and the demosaiced image: shared, not copied), so the
+  // dense map is seeded without estimating it again.
+  struct Offer {
+    Job job;
+    std::optional<RegistrationInput> input;
+    ProcessedFrame from_lenses;  // lenses and demosaiced only; empty: none
+  };
+  // A lane (lanes): the newest frame offered per camera, taken by the lane's
+  // threads, the camera served least recently first; each thread computes in
+  // an arena of its own (one slot, reserved for it): open to the workers, a
+  // worker inside a lane's parallel loop finished its chunk before it took
+  // the next frame to localise, and a lane's thread would help the workers.
+  struct Lane {
+    std::mutex mutex;
+    std::condition_variable cv;
+    std::map<int, Offer> slots;
+    std::map<int, std::uint64_t> served;
+    std::uint64_t serve_count = 0;
+    // Frames the lane took and whose products are not published yet: the
+    // one each thread processes and the ones handed to the publishing node
+    // (a thread takes its next frame without waiting for that publication).
+    // A flag set when the lane took a frame and cleared when one was
+    // published let WaitIdle return while the lane processed the next: that
+    // frame then reached the publishing node after the graph's nodes were
+    // destroyed (bench_live: segmentation fault, "pure virtual method
+    // called" in the node's body at the run's end).
+    int held = 0;
+    bool stop = false;
+    std::vector<std::unique_ptr<tbb::task_arena>> arenas;  // one per thread
+    std::vector<std::thread> threads;
+  };
+  // The per-lens depth and TF preview of the frames the workers localised,
+  // at the workers' priority, above the depth lane's.
+  //
+  // A lane of its own rather than on the worker after the pose: at medium
+  // the per-lens depth and its preview cost several times a tracked
+  // frame's localisation (docs/processing.md, "Live pipeline"), and on the
+  // worker every frame waiting for a worker waited for a per-lens estimate
+  // too, so the poses (the extrinsics) fell with the per-lens work. Here a
+  // worker is free for the next frame as soon as it published a pose, and
+  // the lane takes the newest localised frame per camera. Not below the
+  // workers' priority: a tracked frame needs a fraction of a core, which
+  // the scheduler gives it beside the lane at equal priority, while at a
+  // lower one the lane starved first on a loaded host (a small rig's timed
+  // replay at load average 15-17: 7 of 16 frames taken got their per-lens
+  // depth; at equal priority 7 of 10). Each frame is counted: lens
+  // processed, skipped (replaced by its camera's newer frame) or failed.
+  Lane lens_lane;
+  Lane depth_lane;  // the dense map, at the lowest priority: depth takes what is left
 
-  void OfferDepth(const Job& job) {
+  // Offers `offer` to `lane`; a frame of its camera waiting there is
+  // replaced (counted in `*skipped`).
+  void OfferTo(Lane& lane, Impl::Offer offer, std::uint64_t* skipped) {
     {
-      std::lock_guard lock(depth_mutex);
-      if (depth_slots.count(job.frame.camera_index)) {
+      std::lock_guard lock(lane.mutex);
+      const int camera = offer.job.frame.camera_index;
+      if (lane.slots.count(camera)) {
         std::lock_guard r(report_mutex);
-        ++report.depth_skipped;
+        ++*skipped;
       }
-      depth_slots.insert_or_assign(job.frame.camera_index, job);
+      lane.slots.insert_or_assign(camera, std::move(offer));
     }
-    depth_cv.notify_all();
+    lane.cv.notify_all();
   }
 
-  void DepthLoop(int nice) {
-    // The lowest priority of the process: depth takes what localising leaves.
-    (void)setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), nice);
-    for (;;) {
-      Job job;
-      {
-        std::unique_lock lock(depth_mutex);
-        depth_cv.wait(lock, [&] { return depth_stop || !depth_slots.empty(); });
-        if (depth_stop) return;
-        auto pick = depth_slots.begin();
-        for (auto it = depth_slots.begin(); it != depth_slots.end(); ++it)
-          if (depth_served[it->first] < depth_served[pick->first]) pick = it;
-        job = std::move(pick->second);
-        depth_slots.erase(pick);
-        depth_served[job.frame.camera_index] = ++depth_serve_count;
-        ++depth_held;
+  // A lane's next frame (held), or nothing when the lane stops.
+  std::optional<Impl::Offer> Take(Lane& lane) {
+    std::unique_lock lock(lane.mutex);
+    lane.cv.wait(lock, [&] { return lane.stop || !lane.slots.empty(); });
+    if (lane.stop) return std::nullopt;
+    auto pick = lane.slots.begin();
+    for (auto it = lane.slots.begin(); it != lane.slots.end(); ++it)
+      if (lane.served[it->first] < lane.served[pick->first]) pick = it;
+    Impl::Offer offer = std::move(pick->second);
+    lane.slots.erase(pick);
+    lane.served[offer.job.frame.camera_index] = ++lane.serve_count;
+    ++lane.held;
+    return offer;
+  }
+
+  // A lane's frame published (the publishing node): no longer held.
+  static void Published(Lane& lane) {
+    {
+      std::lock_guard lock(lane.mutex);
+      --lane.held;
+    }
+    lane.cv.notify_all();
+  }
+
+  void StartLane(Lane& lane, int threads, int nice, void (Impl::*loop)(tbb::task_arena&)) {
+    for (int k = 0; k < threads; ++k) {
+      lane.arenas.push_back(std::make_unique<tbb::task_arena>(1, /*reserved_for_masters=*/1,
+                                                              tbb::task_arena::priority::low));
+      tbb::task_arena* arena = lane.arenas.back().get();
+      lane.threads.emplace_back([this, nice, loop, arena] {
+        (void)setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), nice);
+        (this->*loop)(*arena);
+      });
+    }
+  }
+
+  void StopLane(Lane& lane) {
+    {
+      std::lock_guard lock(lane.mutex);
+      lane.stop = true;
+    }
+    lane.cv.notify_all();
+    for (std::thread& thread : lane.threads) thread.join();
+    lane.threads.clear();
+  }
+
+  // The lens lane's thread: the per-lens depth and TF preview of a localised
+  // frame, published; then the frame offered to the depth lane with them.
+  void LensLoop(tbb::task_arena& arena) {
+    while (std::optional<Impl::Offer> offer = Take(lens_lane)) {
+      Result result{std::move(offer->job), Error{""}, std::nullopt, Result::From::kLensLane};
+      const auto start = std::chrono::steady_clock::now();
+      const double cpu_start = ThreadCpuSeconds();
+      arena.execute([&] {
+        result.processed = processor->ProcessLenses(
+            result.job.frame, offer->input ? &*offer->input : nullptr);
+      });
+      // The lane's thread alone computes in its arena: this is the frame's CPU.
+      const double cpu = ThreadCpuSeconds() - cpu_start;
+      Impl::Offer dense{result.job, std::nullopt, ProcessedFrame{}};
+      if (result.processed) {
+        ProcessedFrame& p = *result.processed;
+        p.seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        dense.from_lenses.lenses = std::move(p.lenses);  // the publication needs the encodings only
+        dense.from_lenses.demosaiced = p.demosaiced;
+        std::lock_guard r(report_mutex);
+        report.lens_cpu_s += cpu;
+        report.lens_depth_s += p.lens_depth_s;
+        report.lens_preview_s += p.lens_preview_s;
+        report.lens_encode_s += p.lens_encode_s;
+      } else if (offer->input) {
+        dense.from_lenses.demosaiced = offer->input->demosaiced;
       }
-      Result result{std::move(job), Error{""}, std::nullopt, true};
-      // The workers published this frame's per-lens depth already.
-      depth_arena->execute([&] { result.processed = processor->ProcessDense(result.job.frame); });
+      offer.reset();
+      OfferTo(depth_lane, std::move(dense), &report.depth_skipped);
+      publish_node->try_put(std::move(result));
+    }
+  }
+
+  // The depth lane's thread: the dense chain of a frame, seeded by the lens
+  // lane's per-lens depth of it.
+  void DepthLoop(tbb::task_arena& arena) {
+    while (std::optional<Impl::Offer> offer = Take(depth_lane)) {
+      Result result{std::move(offer->job), Error{""}, std::nullopt, Result::From::kDepthLane};
+      // The lens lane published this frame's per-lens depth already; it
+      // seeds the dense map here (no second per-lens estimate).
+      const ProcessedFrame* lenses = offer->from_lenses.lenses ? &offer->from_lenses : nullptr;
+      arena.execute(
+          [&] { result.processed = processor->ProcessDense(result.job.frame, lenses); });
+      offer.reset();  // the per-lens workspace back to its pool
       {
         // The lane's thread alone computes in its arena: its CPU time is the lane's.
-        timespec cpu{};
-        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &cpu);
+        const double cpu = ThreadCpuSeconds();
         std::lock_guard r(report_mutex);
-        report.depth_cpu_s =
-            static_cast<double>(cpu.tv_sec) + 1e-9 * static_cast<double>(cpu.tv_nsec);
+        report.depth_cpu_s = cpu;
+        if (lenses != nullptr) ++report.depth_seeded_by_lenses;
       }
       publish_node->try_put(std::move(result));
     }
@@ -363,10 +487,13 @@ struct Pipeline::Impl {
       result.w0_from_cx = std::move(*pose);
   }
 
-  // Lanes: the frame localised from its raw pixels, then offered to the depth lane.
+  // Lanes: the frame localised from its raw pixels and its pose published at
+  // once (PublishPose, on this thread, before any depth of the frame), then
+  // the frame offered to the lens lane.
   Result RunRegistration(Job job) {
     const auto start = std::chrono::steady_clock::now();
     Result result{std::move(job), ProcessedFrame{}, std::nullopt};
+    const double cpu_start = ThreadCpuSeconds();
     auto input = processor->ForRegistration(result.job.frame);
     if (!input) {
       result.processed = input.error();
@@ -376,28 +503,45 @@ struct Pipeline::Impl {
       frame.camera = input->camera;
       Localize(result, std::move(frame));
     }
-    // The per-lens depth and its TF preview, for every frame taken (cheap;
-    // the dense map waits for the depth lane). A failure here does not take
-    // the frame's pose with it.
-    if (result.processed) {
-      auto lenses = processor->ProcessLenses(result.job.frame);
-      if (!lenses) {
-        std::lock_guard r(report_mutex);
-        ++report.lens_failed;
-        report.last_error = result.job.frame.serial + " frame " +
-                            std::to_string(result.job.frame.frame_id) +
-                            ": per-lens depth: " + lenses.error().message;
-      } else {
-        result.processed->lens_depth = std::move(lenses->lens_depth);
-        result.processed->tf = std::move(lenses->tf);
-        result.processed->demosaiced = std::move(lenses->demosaiced);
-      }
+    const double localize_cpu = ThreadCpuSeconds() - cpu_start;
+    if (result.processed && result.w0_from_cx) {
+      PublishPose(result.job, *result.w0_from_cx);
+      result.w0_from_cx.reset();  // published
     }
-    if (result.processed)
+    {
+      std::lock_guard r(report_mutex);
+      ++report.worker_frames;
+      report.localize_cpu_s += localize_cpu;
+    }
+    if (result.processed) {
       result.processed->seconds =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    OfferDepth(result.job);
+      Impl::Offer offer{result.job, std::nullopt, ProcessedFrame{}};
+      if (input) offer.input = std::move(*input);
+      OfferTo(lens_lane, std::move(offer), &report.lens_skipped);
+    }
     return result;
+  }
+
+  // The lens lane's frame: its per-lens depth and TF preview published.
+  void PublishLenses(const Result& result) {
+    const Job& job = result.job;
+    if (!result.processed) {
+      std::lock_guard r(report_mutex);
+      ++report.lens_failed;
+      report.last_error = job.frame.serial + " frame " + std::to_string(job.frame.frame_id) +
+                          ": per-lens depth: " + result.processed.error().message;
+    } else {
+      const Publisher::FrameCounts counts = publisher->PublishFrame(
+          FrameMeta{job.frame.serial, job.frame.frame_id, job.trigger_index}, *result.processed);
+      const double to_pub_ms = static_cast<double>(HostRealtimeNs() - job.arrival_ns) / 1e6;
+      std::lock_guard r(report_mutex);
+      ++report.lens_frames;
+      report.published_lens_depth += counts.lens_depth;
+      report.published_tf += counts.tf;
+      lens_latency.Add(to_pub_ms);
+    }
+    Published(lens_lane);
   }
 
   // The depth lane's frame: its products published.
@@ -418,15 +562,29 @@ struct Pipeline::Impl {
       report.published_lens_depth += counts.lens_depth;
       report.published_tf += counts.tf;
     }
+    Published(depth_lane);
+  }
+
+  // A frame's pose published on its POSE channel and, related to the other
+  // cameras' poses of its trigger, as extrinsics; counted. On the worker
+  // that localised it (lanes) or the publishing node (block).
+  void PublishPose(const Job& job, const processing::CameraPose& w0_from_cx) {
+    std::uint64_t extrinsics = 0;
     {
-      std::lock_guard lock(depth_mutex);
-      --depth_held;
+      std::lock_guard lock(relate_mutex);
+      extrinsics = Relate(job, w0_from_cx);
     }
-    depth_cv.notify_all();
+    const double ms = static_cast<double>(HostRealtimeNs() - job.arrival_ns) / 1e6;
+    std::lock_guard r(report_mutex);
+    report.published_extrinsics += extrinsics;
+    ++report.published_poses;
+    ++report.localized;
+    pose_latency.Add(ms);
   }
 
   // Camera X's pose of a trigger: related to camera 0's of the same trigger
-  // once both are there, and published.
+  // once both are there, and published (relate_mutex held: the workers
+  // publish their poses themselves under lanes).
   std::uint64_t Relate(const Job& job, const processing::CameraPose& w0_from_cx) {
     publisher->PublishPose(PoseRecord{job.frame.serial, reference_serial, job.trigger_index,
                                       static_cast<std::int64_t>(job.pass), job.frame.frame_id,
@@ -457,7 +615,8 @@ struct Pipeline::Impl {
   }
 
   void RunPublish(Result result) {
-    if (result.depth_lane) return PublishDepth(result);
+    if (result.from == Result::From::kDepthLane) return PublishDepth(result);
+    if (result.from == Result::From::kLensLane) return PublishLenses(result);
     const Job& job = result.job;
     if (!result.processed) {
       std::lock_guard r(report_mutex);
@@ -468,7 +627,7 @@ struct Pipeline::Impl {
       const ProcessedFrame& p = *result.processed;
       const Publisher::FrameCounts counts = publisher->PublishFrame(
           FrameMeta{job.frame.serial, job.frame.frame_id, job.trigger_index}, p);
-      const std::uint64_t extrinsics = result.w0_from_cx ? Relate(job, *result.w0_from_cx) : 0;
+      if (result.w0_from_cx) PublishPose(job, *result.w0_from_cx);
       const double to_pub_ms = static_cast<double>(HostRealtimeNs() - job.arrival_ns) / 1e6;
       std::lock_guard r(report_mutex);
       ++report.processed;
@@ -476,9 +635,6 @@ struct Pipeline::Impl {
       report.published_depth += counts.depth;
       report.published_lens_depth += counts.lens_depth;
       report.published_tf += counts.tf;
-      report.published_extrinsics += extrinsics;
-      report.published_poses += result.w0_from_cx ? 1 : 0;
-      report.localized += result.w0_from_cx ? 1 : 0;
       process_latency.Add(p.seconds * 1e3);
       publication_latency.Add(to_pub_ms);
     }
@@ -602,15 +758,21 @@ struct Pipeline::Impl {
       slot_cv.wait(lock, [&] { return in_flight == 0 && slots.empty(); });
     }
     if (lanes) {
-      // No worker offers any more: the frames still waiting for the depth
-      // lane are skipped, the ones it holds are published.
-      std::unique_lock lock(depth_mutex);
+      // No worker offers any more: the lens lane's waiting frames are
+      // processed (each frame localised gets its per-lens depth unless a
+      // newer frame of its camera replaced it), then the frames still waiting
+      // for the depth lane are skipped, the ones it holds are published.
+      {
+        std::unique_lock lock(lens_lane.mutex);
+        lens_lane.cv.wait(lock, [&] { return lens_lane.slots.empty() && lens_lane.held == 0; });
+      }
+      std::unique_lock lock(depth_lane.mutex);
       {
         std::lock_guard r(report_mutex);
-        report.depth_skipped += depth_slots.size();
+        report.depth_skipped += depth_lane.slots.size();
       }
-      depth_slots.clear();
-      depth_cv.wait(lock, [&] { return depth_held == 0; });
+      depth_lane.slots.clear();
+      depth_lane.cv.wait(lock, [&] { return depth_lane.held == 0; });
     }
     // No put into the graph can come now (the lane holds nothing, no worker
     // offers): its wait_for_all, which resets the graph's task context
@@ -681,6 +843,8 @@ struct Pipeline::Impl {
       r.publish_errors = publisher->errors();
       r.process = process_latency.Summary();
       r.to_publication = publication_latency.Summary();
+      r.to_pose = pose_latency.Summary();
+      r.to_lens_depth = lens_latency.Summary();
     }
     r.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     std::lock_guard lock(sync_mutex);
@@ -720,13 +884,12 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
   impl->publisher = std::move(*publisher);
   const int threads = options.threads > 0 ? options.threads : tbb::info::default_concurrency();
   impl->arena = std::make_unique<tbb::task_arena>(threads, /*reserved_for_masters=*/0);
-  if (options.processing_nice > 0) {
-    // Relative to this thread's (the command's): a rig run at nice -5 processes at +5.
-    errno = 0;
-    const int base = getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
-    impl->worker_priority = std::make_unique<WorkerPriority>(
-        *impl->arena, std::min(19, (errno == 0 ? base : 0) + options.processing_nice));
-  }
+  // Relative to this thread's (the command's): a rig run at nice -5 processes at +5.
+  errno = 0;
+  const int base = getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
+  const int worker_nice = std::min(19, (errno == 0 ? base : 0) + options.processing_nice);
+  if (options.processing_nice > 0)
+    impl->worker_priority = std::make_unique<WorkerPriority>(*impl->arena, worker_nice);
   spdlog::info(
       "pipeline: processing '{}', {} frame(s) at once on {} thread(s) at nice +{}, skip policy "
       "{}, registration '{}', LCM '{}' prefix {} previews {}",
@@ -746,13 +909,13 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
     tbb::flow::make_edge(*raw->process_node, *raw->publish_node);
   });
   if (impl->lanes) {
-    // The lane's own thread alone (one slot, reserved for it): open to the
-    // workers too, a worker inside a depth map's parallel loop finished its
-    // chunk (at nice processing_nice, not 19) before it took the next frame
-    // to localise.
-    impl->depth_arena = std::make_unique<tbb::task_arena>(1, /*reserved_for_masters=*/1,
-                                                          tbb::task_arena::priority::low);
-    impl->depth_thread = std::thread([raw] { raw->DepthLoop(19); });
+    // The lens lane: a thread per worker (at most one per camera), each
+    // computing one frame at a time, at the workers' priority; the depth
+    // lane: one thread at the lowest.
+    const int lens_threads =
+        std::max(1, std::min(threads, static_cast<int>(sync.serials.size())));
+    impl->StartLane(impl->lens_lane, lens_threads, worker_nice, &Impl::LensLoop);
+    impl->StartLane(impl->depth_lane, 1, 19, &Impl::DepthLoop);
   }
   return std::unique_ptr<Pipeline>(new Pipeline(std::move(impl)));
 }
@@ -761,13 +924,9 @@ Pipeline::Pipeline(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 
 Pipeline::~Pipeline() {
   impl_->WaitIdle();
-  if (impl_->depth_thread.joinable()) {
-    {
-      std::lock_guard lock(impl_->depth_mutex);
-      impl_->depth_stop = true;
-    }
-    impl_->depth_cv.notify_all();
-    impl_->depth_thread.join();
+  if (impl_->lanes) {
+    impl_->StopLane(impl_->lens_lane);
+    impl_->StopLane(impl_->depth_lane);
     // Nothing puts into the graph any more: its last tasks end before the
     // nodes they run in are destroyed (the members, in reverse order).
     impl_->graph->wait_for_all();
@@ -848,9 +1007,26 @@ std::string PipelineReport::FinalReport() const {
       << "processed: " << processed << "  skipped (newest wins): " << skipped
       << "  failed: " << failed << (Accounted() ? "  (all accounted for)" : "  (NOT ACCOUNTED)")
       << "\n";
-  if (lens_failed > 0) out << "per-lens depth failed: " << lens_failed << "\n";
+  if (worker_frames > 0) {
+    const auto per = [](double total, std::uint64_t n) {
+      return n > 0 ? 1e3 * total / static_cast<double>(n) : 0.0;
+    };
+    char line[400];
+    std::snprintf(line, sizeof line,
+                  "workers (registration first): %llu frames, localisation %.1f CPU-ms per "
+                  "frame; lens lane: processed %llu skipped %llu failed %llu, %.1f CPU-ms per "
+                  "frame (wall: per-lens depth %.1f ms, TF preview %.1f ms, encodings %.1f ms)\n",
+                  static_cast<unsigned long long>(worker_frames), per(localize_cpu_s, worker_frames),
+                  static_cast<unsigned long long>(lens_frames),
+                  static_cast<unsigned long long>(lens_skipped),
+                  static_cast<unsigned long long>(lens_failed), per(lens_cpu_s, lens_frames),
+                  per(lens_depth_s, lens_frames), per(lens_preview_s, lens_frames),
+                  per(lens_encode_s, lens_frames));
+    out << line;
+  }
   if (depth_processed + depth_skipped + depth_failed > 0)
-    out << "depth lane (registration first): processed " << depth_processed << "  skipped "
+    out << "depth lane (registration first): processed " << depth_processed << " ("
+        << depth_seeded_by_lenses << " seeded by the lens lane's per-lens depth)  skipped "
         << depth_skipped << "  failed " << depth_failed << "  CPU " << depth_cpu_s << " s\n";
   out << "published: " << published_previews << " previews, "
       << published_depth + published_lens_depth << " depth, " << published_tf << " TF, "
@@ -868,7 +1044,19 @@ std::string PipelineReport::FinalReport() const {
                 "ms; %.2f frames/s over %.1f s\n",
                 process.p50_ms, process.p99_ms, to_publication.p50_ms, to_publication.p99_ms,
                 elapsed_s > 0 ? static_cast<double>(processed) / elapsed_s : 0.0, elapsed_s);
-  out << line << "sync: " << drops << "\n";
+  out << line;
+  if (to_pose.count > 0) {
+    std::snprintf(line, sizeof line, "frame arrival -> pose on LCM: p50 %.1f ms p99 %.1f ms\n",
+                  to_pose.p50_ms, to_pose.p99_ms);
+    out << line;
+  }
+  if (to_lens_depth.count > 0) {
+    std::snprintf(line, sizeof line,
+                  "frame arrival -> per-lens depth on LCM: p50 %.1f ms p99 %.1f ms\n",
+                  to_lens_depth.p50_ms, to_lens_depth.p99_ms);
+    out << line;
+  }
+  out << "sync: " << drops << "\n";
   if (!last_error.empty()) out << "last processing error: " << last_error << "\n";
   return out.str();
 }

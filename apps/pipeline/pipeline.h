@@ -25,10 +25,15 @@
 //
 // Registration: under block the stage's Localize runs on the worker after
 // processing; under newest_wins it runs first, on the raw frame, and the
-// frame goes on to a depth lane of its own (one thread at the lowest
-// priority, newest wins per camera), so a localisation never waits for a
-// frame's depth: the extrinsics keep the frame rate, depth, TF and previews
-// come at the rate processing allows.
+// worker publishes the pose at once (POSE, and EXTRINSICS when the trigger's
+// other pose is there); the frame goes on to the lens lane (per-lens depth
+// and TF preview; a thread per worker, at most one per camera, at the
+// workers' priority, newest wins per camera), then, with that per-lens depth,
+// to the depth lane (one thread at the lowest priority, newest wins per
+// camera) whose dense map it seeds: a pose never waits for a depth, its own
+// frame's or another's; the per-lens depth comes for every frame localised
+// where the CPU suffices, the dense depth, TF and previews at the rate
+// processing allows.
 // Either way its poses are grouped per trigger on the publishing node, and once the
 // reference camera (reference_serial) and camera X both have a pose of a
 // trigger, Relate gives c0_from_cx, published on <PREFIX>_<SERIAL>_EXTRINSICS.
@@ -121,13 +126,29 @@ struct PipelineReport {
   std::uint64_t failed = 0;     // processing or registration returned an error (last_error)
   std::uint64_t localized = 0;  // frames the registration stage gave a pose
   // Registration ahead of processing (a registration stage under
-  // newest_wins): `processed` counts the frames localised (each with its
-  // per-lens depth and lens preview published by the worker); the depth lane
-  // processes (and publishes previews, depth and TF of) the newest of them
+  // newest_wins): `processed` counts the frames localised (each pose
+  // published by its worker); the depth lane processes (and publishes
+  // previews, dense depth and TF of) the newest of the lens lane's frames
   // when it is free, the others are skipped there.
   std::uint64_t depth_processed = 0, depth_skipped = 0, depth_failed = 0;
-  std::uint64_t lens_failed = 0;  // lanes: frames localised whose per-lens depth failed
+  // Lanes: the frames localised go to the lens lane (per-lens depth and TF
+  // preview, newest wins per camera): there each is processed (lens_frames),
+  // replaced by a newer frame of its camera (lens_skipped) or failed; so
+  // processed == lens_frames + lens_skipped + lens_failed once Finish returned.
+  std::uint64_t lens_skipped = 0, lens_failed = 0;
   double depth_cpu_s = 0;  // CPU time of the depth lane's thread (its arena has no other)
+  // Lanes: the dense maps the depth lane seeded with the lens lane's per-lens
+  // depth (the others computed it again: the frame's per-lens depth had failed).
+  std::uint64_t depth_seeded_by_lenses = 0;
+  // Lanes, per frame a worker took: Localize's CPU time (with
+  // ForRegistration: a Bayer frame's demosaicing; approximate: another
+  // worker may run part of its parallel loops), and per frame of the lens
+  // lane, ProcessLenses' CPU time (exact: its thread alone computes in its
+  // arena) and its parts' wall time (the per-lens depth, the TF preview at
+  // each lens's depth, the encodings).
+  std::uint64_t worker_frames = 0, lens_frames = 0;
+  double localize_cpu_s = 0, lens_cpu_s = 0;
+  double lens_depth_s = 0, lens_preview_s = 0, lens_encode_s = 0;
   std::uint64_t frame_sets = 0, incomplete_sets = 0;
   // published_depth: TF-grid depth maps (the dense chain); published_lens_depth:
   // per-lens depth maps (every frame taken, when the processor makes them).
@@ -138,6 +159,8 @@ struct PipelineReport {
   std::uint64_t publish_errors = 0;
   LatencySummary process;         // processing time per frame
   LatencySummary to_publication;  // frame arrival (host_ns) to its last message on LCM
+  LatencySummary to_pose;  // frame arrival to its pose (and extrinsics) on LCM
+  LatencySummary to_lens_depth;  // frame arrival to its per-lens depth on LCM (lanes)
   std::string drops;              // the assembler's DropCounter::OneLine
   std::uint64_t sync_lost = 0;    // DropCounter::lost
   std::string last_error;

@@ -20,6 +20,9 @@
 
 #include <gtest/gtest.h>
 #include <lcm/lcm-cpp.hpp>
+#include <lifmcr_lcm/camera_pose_t.hpp>
+#include <lifmcr_lcm/depth_image_t.hpp>
+#include <lifmcr_lcm/preview_image_t.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -30,6 +33,7 @@
 #include <map>
 #include <set>
 #include <string>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <thread>
 #include <unistd.h>
@@ -175,6 +179,100 @@ TEST(CliLiveRegistration, ReplayWithAReferenceMapPublishesAccurateExtrinsicsPerT
   EXPECT_TRUE(localisations.count("tracked"));
   std::printf("lcm-logger: %d EXTRINSICS messages, triggers 0..%lld\n", messages,
               static_cast<long long>(*triggers.rbegin()));
+}
+
+// A timed replay (`--rate original`: newest wins, registration first) with
+// live registration, recorded by a stock lcm-logger: every frame a worker
+// took has a POSE message (tracked, relocalised or passed through) and goes
+// to the lens lane, whose per-lens depth (_DEPTH, GEOMETRY_LENS_GRID) and TF
+// image of it are in the log unless a newer frame of its camera replaced it
+// there (the report counts those; a small frame's per-lens depth costs a
+// fraction of the 100 ms between frames, so none is expected without load);
+// the report's per-lens count is the log's.
+TEST(CliLiveRegistration, TimedReplayPublishesThePerLensDepthOfEveryFrameTaken) {
+  if (getuid() != 0 || Sh("command -v lcm-logger") != 0 || Sh("ip link set lo multicast on") != 0)
+    GTEST_SKIP() << "needs root (loopback multicast) and lcm-logger";
+  test::TempDir dir;
+  const test::CommandResult synth =
+      test::RunLifmcr("synth --out " + (dir / "data").string() + " --preset small --frames " +
+                      std::to_string(kFrames) + " --cameras 2 --quiet");
+  ASSERT_EQ(synth.exit_code, 0) << synth.err;
+  const fs::path seq = dir / "data" / "00_Synthetic" / "Sequence_00";
+  const test::CommandResult map =
+      test::RunLifmcr("register " + seq.string() +
+                      " --reference-from-ground-truth --observations ground-truth --frames 1 "
+                      "--out " + (dir / "map").string());
+  ASSERT_EQ(map.exit_code, 0) << map.err;
+  const bool added_route = Sh("ip route add " + kGroup + "/32 dev lo") == 0;
+  const std::string log_path = (dir / "run.lcmlog").string();
+  const pid_t logger = fork();
+  ASSERT_GE(logger, 0);
+  if (logger == 0) {
+    std::freopen("/dev/null", "w", stdout);
+    // Above the replay's priority, with a large receive buffer: a starved
+    // logger drops messages, which is not the pipeline's loss.
+    (void)setpriority(PRIO_PROCESS, 0, -10);
+    execlp("lcm-logger", "lcm-logger", ("--lcm-url=" + kUrl + "&recv_buf_size=4194304").c_str(),
+           "--channel=LIFMCR_.*_(POSE|DEPTH|TF)", log_path.c_str(), nullptr);
+    _exit(127);
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  const test::CommandResult replay =
+      test::RunLifmcr("replay " + seq.string() + " --rate original --lcm " + kUrl +
+                      " --reference " + (dir / "map" / "reference").string());
+  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  kill(logger, SIGINT);
+  int status = 0;
+  waitpid(logger, &status, 0);
+  if (added_route) Sh("ip route del " + kGroup + "/32 dev lo");
+  ASSERT_EQ(replay.exit_code, 0) << replay.out << replay.err;
+
+  using Key = std::pair<std::string, std::int64_t>;  // serial, frame_id
+  std::set<Key> posed, lens_depth, tf;
+  lcm::LogFile log(log_path, "r");
+  ASSERT_TRUE(log.good());
+  while (const lcm::LogEvent* event = log.readNextEvent()) {
+    const std::string& channel = event->channel;
+    if (channel.ends_with("_POSE")) {
+      auto m = lifmcr_lcm::SafeDecode<lifmcr_lcm::camera_pose_t>(event->data, event->datalen);
+      ASSERT_TRUE(m);
+      posed.insert({m->serial, m->frame_id});
+    } else if (channel.ends_with("_DEPTH")) {
+      auto m = lifmcr_lcm::SafeDecode<lifmcr_lcm::depth_image_t>(event->data, event->datalen);
+      ASSERT_TRUE(m);
+      if (m->geometry == lifmcr_lcm::depth_image_t::GEOMETRY_LENS_GRID)
+        lens_depth.insert({m->serial, m->frame_id});
+    } else if (channel.ends_with("_TF")) {
+      auto m = lifmcr_lcm::SafeDecode<lifmcr_lcm::preview_image_t>(event->data, event->datalen);
+      ASSERT_TRUE(m);
+      tf.insert({m->serial, m->frame_id});
+    }
+  }
+  ASSERT_FALSE(posed.empty()) << replay.out;
+  // Each per-lens depth is of a frame a worker took, with its TF image.
+  std::map<std::string, int> per_camera;
+  for (const Key& key : lens_depth) {
+    EXPECT_TRUE(posed.count(key)) << key.first << " frame " << key.second << ": no pose";
+    EXPECT_TRUE(tf.count(key)) << key.first << " frame " << key.second << ": no TF image";
+    ++per_camera[key.first];
+  }
+  EXPECT_EQ(per_camera.size(), 2u);
+  EXPECT_NE(replay.out.find("depth messages: " + std::to_string(lens_depth.size()) + " per-lens"),
+            std::string::npos)
+      << replay.out;
+  // Every frame taken is accounted for: its per-lens depth in the log, or
+  // replaced in the lens lane by its camera's newer frame.
+  const std::string lane = "lens lane: processed " + std::to_string(lens_depth.size()) + " skipped ";
+  const auto at = replay.out.find(lane);
+  ASSERT_NE(at, std::string::npos) << replay.out;
+  const long skipped = std::strtol(replay.out.c_str() + at + lane.size(), nullptr, 10);
+  EXPECT_EQ(lens_depth.size() + static_cast<std::size_t>(skipped), posed.size()) << replay.out;
+  EXPECT_NE(replay.out.find(lane + std::to_string(skipped) + " failed 0,"), std::string::npos)
+      << replay.out;
+  for (const auto& [serial, n] : per_camera)
+    std::printf("camera %s: per-lens depth and TF of %d of %d frames (%ld frames taken replaced "
+                "in the lens lane, both cameras)\n",
+                serial.c_str(), n, kFrames, skipped);
 }
 
 // Extrinsic change detection end to end, short: a rigid synthetic rig

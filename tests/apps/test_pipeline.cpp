@@ -679,8 +679,9 @@ class RawPoseStage final : public processing::RegistrationStage {
 };
 
 // Registration first (a stage, newest wins: a timed replay): every frame the
-// workers take gets its per-lens depth on _DEPTH (GEOMETRY_LENS_GRID) and
-// its lens preview on _TF, whatever the depth lane manages; the message's
+// workers localise goes to the lens lane, which publishes its per-lens depth
+// on _DEPTH (GEOMETRY_LENS_GRID) and its lens preview on _TF unless a newer
+// frame of its camera came first, whatever the depth lane manages; the message's
 // lens grid maps each cell to its micro image's centre, and its values are
 // the chain's per-lens depth of that frame within the 16-bit quantisation.
 TEST(Pipeline, PerLensDepthAndPreviewForEveryFrameTakenWithRegistrationFirst) {
@@ -706,9 +707,13 @@ TEST(Pipeline, PerLensDepthAndPreviewForEveryFrameTakenWithRegistrationFirst) {
   EXPECT_EQ(r.lens_failed, 0u) << r.last_error;
   ASSERT_GT(r.processed, 0u) << r.FinalReport();
   EXPECT_EQ(r.localized, r.processed);
-  // One per-lens map per frame taken, and a TF image for each of them.
-  EXPECT_EQ(r.published_lens_depth, r.processed) << r.FinalReport();
-  EXPECT_EQ(received.lens_depth.size(), r.processed) << r.FinalReport();
+  // Every frame localised went to the lens lane: its per-lens depth was
+  // published there unless a newer frame of its camera replaced it first.
+  EXPECT_EQ(r.lens_frames + r.lens_skipped + r.lens_failed, r.processed) << r.FinalReport();
+  ASSERT_GT(r.lens_frames, 0u) << r.FinalReport();
+  // One per-lens map per frame of the lens lane, and a TF image for each of them.
+  EXPECT_EQ(r.published_lens_depth, r.lens_frames) << r.FinalReport();
+  EXPECT_EQ(received.lens_depth.size(), r.lens_frames) << r.FinalReport();
   for (const auto& [key, m] : received.lens_depth) {
     EXPECT_EQ(received.tf_frames[key.first].count(key.second), 1u)
         << key.first << " frame " << key.second << " has no TF image";
@@ -1055,6 +1060,153 @@ TEST(Pipeline, RegistrationPairsTheCamerasFramesOfATrigger) {
   // newer came): every localised frame is in a pair.
   EXPECT_EQ(extrinsics_triggers, (std::vector<std::int64_t>{0, 1, 2})) << r.FinalReport();
   EXPECT_EQ(r.skipped, 0u) << r.FinalReport();
+}
+
+// The depth processor of a sequence whose ProcessLenses waits until the test
+// releases it (bounded: a pipeline that waits for the per-lens depth before
+// publishing the pose fails the test instead of hanging it).
+class LensGatedProcessor final : public FrameProcessor {
+ public:
+  explicit LensGatedProcessor(std::unique_ptr<DepthProcessor> inner) : inner_(std::move(inner)) {}
+  Expected<ProcessedFrame> Process(const Frame& frame) override { return inner_->Process(frame); }
+  Expected<ProcessedFrame> ProcessDense(const Frame& frame,
+                                        const ProcessedFrame* lenses) override {
+    {
+      std::lock_guard lock(mutex_);
+      dense_given_lenses_ += lenses != nullptr && lenses->lenses ? 1 : 0;
+    }
+    return inner_->ProcessDense(frame, lenses);
+  }
+  Expected<ProcessedFrame> ProcessLenses(const Frame& frame,
+                                         const RegistrationInput* input) override {
+    {
+      std::unique_lock lock(mutex_);
+      ++entered_;
+      cv_.notify_all();
+      if (!cv_.wait_for(lock, std::chrono::seconds(5), [&] { return released_; })) ++timed_out_;
+    }
+    return inner_->ProcessLenses(frame, input);
+  }
+  Expected<RegistrationInput> ForRegistration(const Frame& frame) override {
+    return inner_->ForRegistration(frame);
+  }
+  std::string name() const override { return "lens-gated"; }
+  // Until `n` frames wait in ProcessLenses; false after 10 s.
+  bool WaitEntered(int n) {
+    std::unique_lock lock(mutex_);
+    return cv_.wait_for(lock, std::chrono::seconds(10), [&] { return entered_ >= n; });
+  }
+  void Release() {
+    {
+      std::lock_guard lock(mutex_);
+      released_ = true;
+    }
+    cv_.notify_all();
+  }
+  int timed_out() {
+    std::lock_guard lock(mutex_);
+    return timed_out_;
+  }
+  int dense_given_lenses() {
+    std::lock_guard lock(mutex_);
+    return dense_given_lenses_;
+  }
+
+ private:
+  std::unique_ptr<DepthProcessor> inner_;
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  int entered_ = 0, timed_out_ = 0, dense_given_lenses_ = 0;
+  bool released_ = false;
+};
+
+// Registration first (newest_wins with a stage): a frame's pose, and the
+// extrinsics of its trigger, are published as soon as it is localised, while
+// the lens lane still holds both frames' per-lens depth; the per-lens depth
+// then follows for both frames, and the depth lane seeds its dense map with
+// the lens lane's per-lens depth instead of estimating it again.
+TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
+  test::TempDir dir;
+  auto summary = synth::WriteSyntheticDataset(dir.path(), TinyRig(1));
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  const auto layout = DiscoverSequence(summary->sequence_dir);
+  ASSERT_TRUE(layout.ok()) << layout.error().message;
+  std::vector<std::string> serials;
+  std::vector<OwnedImage> raw;
+  for (const CameraFolder& camera : layout->cameras) {
+    serials.push_back(camera.serial);
+    auto image = ReadBmp(camera.dir / camera.frame_files.front());
+    ASSERT_TRUE(image.ok()) << image.error().message;
+    raw.push_back(std::move(*image));
+  }
+  ASSERT_EQ(raw.size(), 2u);
+  auto depth = DepthProcessor::ForSequence(summary->sequence_dir.string(), serials);
+  ASSERT_TRUE(depth.ok()) << depth.error().message;
+  auto owned = std::make_unique<LensGatedProcessor>(std::move(*depth));
+  LensGatedProcessor* processor = owned.get();
+  lcm::LCM bus("memq://");
+  Received received;
+  bus.subscribe("LIFMCR_.*", &Received::OnAny, &received);
+  PipelineOptions options;
+  options.publisher.bus = &bus;
+  options.registration = std::make_shared<RawPoseStage>();
+  options.skip_when_busy = true;
+  options.max_concurrency = 2;
+  std::mutex records_mutex;
+  std::condition_variable records_cv;
+  std::vector<ExtrinsicsRecord> records;
+  options.on_extrinsics = [&](const ExtrinsicsRecord& record) {
+    {
+      std::lock_guard lock(records_mutex);
+      records.push_back(record);
+    }
+    records_cv.notify_all();
+  };
+  FrameSetAssemblerOptions sync;
+  sync.serials = serials;
+  sync.trigger.trigger_period_ns = 100'000'000;
+  sync.vicon_expected = false;
+  auto created = Pipeline::Create(sync, std::move(owned), options);
+  ASSERT_TRUE(created.ok()) << created.error().message;
+  std::unique_ptr<Pipeline> pipeline = std::move(*created);
+  const auto pool = FramePool::Create(4, raw[0].pixels.size());
+  pipeline->AddFrameSet(MakeFrameSet(0, serials, *pool, [&](int camera, std::uint8_t* data) {
+    const ConstImageView src = raw[camera].View();
+    std::copy_n(raw[camera].pixels.data(), raw[camera].pixels.size(), data);
+    return ImageView{data, src.width, src.height, src.stride_bytes, src.format};
+  }));
+  pipeline->Poll();
+  // Both frames wait in ProcessLenses (the lens lane has a thread per
+  // camera here): both poses are out, so trigger 0's extrinsics are too.
+  ASSERT_TRUE(processor->WaitEntered(2));
+  {
+    std::unique_lock lock(records_mutex);
+    EXPECT_TRUE(records_cv.wait_for(lock, std::chrono::seconds(3), [&] { return !records.empty(); }))
+        << "the extrinsics waited for the frames' per-lens depth";
+    ASSERT_EQ(records.size(), 1u);
+    EXPECT_EQ(records[0].trigger_index, 0);
+    EXPECT_EQ(records[0].c0_from_cx.status, "ok");
+  }
+  EXPECT_EQ(pipeline->Report().published_poses, 2u);
+  processor->Release();
+  // The depth lane (lowest priority) takes a frame before the end, which
+  // skips the frames still waiting for it.
+  for (int k = 0; k < 600 && pipeline->Report().depth_processed == 0; ++k)
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  pipeline->Finish();
+  const PipelineReport r = pipeline->Report();
+  EXPECT_EQ(processor->timed_out(), 0);
+  EXPECT_EQ(r.failed + r.lens_failed, 0u) << r.last_error;
+  EXPECT_EQ(r.processed, 2u) << r.FinalReport();
+  EXPECT_EQ(r.published_lens_depth, 2u) << r.FinalReport();
+  EXPECT_EQ(r.lens_frames, 2u) << r.FinalReport();
+  // Every dense map the lane made was seeded by the workers' per-lens depth.
+  EXPECT_GE(r.depth_processed, 1u) << r.FinalReport();
+  EXPECT_EQ(r.depth_seeded_by_lenses, r.depth_processed) << r.FinalReport();
+  EXPECT_EQ(processor->dense_given_lenses(), static_cast<int>(r.depth_processed));
+  pipeline.reset();
+  Drain(bus);
+  EXPECT_EQ(received.lens_depth.size(), 2u);
 }
 
 // Covariance of c0_from_cx to first order: with A = exp(a) A_hat, B =
