@@ -30,7 +30,7 @@ constexpr int kMaxSamples = 16;
 template <int kChannels>
 struct RawGrey {
   const ConstImageView& raw;
-  const float* gain;
+  const detail::Gain16& gain;
   int width;
   // The strips of discs well inside the frame (epipolar_search.h); null:
   // through operator() below.
@@ -42,12 +42,12 @@ struct RawGrey {
     if constexpr (kChannels == 3) return p[0] + p[1] + p[2];
     return p[0];
   }
-  float Gain(int x, int y) const { return gain[static_cast<std::size_t>(y) * width + x]; }
+  float Gain(int x, int y) const { return gain.At(static_cast<std::size_t>(y) * width + x); }
   float operator()(int x0, int y0, float fx, float fy) const {
     const std::uint8_t* q0 = raw.Row(y0) + x0 * kChannels;
     const std::uint8_t* q1 = raw.Row(y0 + 1) + x0 * kChannels;
-    const float* g0 = gain + static_cast<std::size_t>(y0) * width + x0;
-    return detail::RawGainBilinear<kChannels>(q0, q1, g0, g0 + width, fx, fy);
+    const std::uint16_t* g0 = gain.q.data() + static_cast<std::size_t>(y0) * width + x0;
+    return detail::RawGainBilinear<kChannels>(q0, q1, g0, g0 + width, gain.scale, fx, fy);
   }
 };
 
@@ -225,6 +225,8 @@ Expected<std::unique_ptr<LensDepthEstimator>> LensDepthEstimator::Create(
   e->grid_ = LensGrid::Of(e->geometry_);
   e->kernel_ = std::make_unique<detail::TfKernel>(e->geometry_, mla, 1.0);
   e->tables_ = std::make_unique<LatticeTables>(e->geometry_.grid.lattice);
+  e->gain_ =
+      std::make_unique<detail::Gain16>(detail::Gain16::From(e->geometry_.gain, e->geometry_.width));
   // Candidate offsets from the rounded micro-image centre: a square grid of
   // candidate_step_px within candidate_fraction r_valid.
   const double reach = options.candidate_fraction * e->geometry_.radius_px;
@@ -518,17 +520,19 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out) const
         });
   };
   // The kernels address the frame with 32-bit byte offsets.
-  const bool addressable =
-      static_cast<double>(raw.stride_bytes) * raw.height < 2147483648.0 && raw.stride_bytes > 0;
+  const bool addressable = static_cast<double>(raw.stride_bytes) * raw.height < 2147483648.0 &&
+                           raw.stride_bytes > 0 &&
+                           2.0 * raw.width * raw.height < 2147483648.0;
   const detail::StripKernels* kernels = !addressable    ? nullptr
                                         : options_.simd ? &detail::SimdStripKernels()
                                                         : &detail::ScalarStripKernels();
-  const detail::StripSource source{
-      raw.data, raw.stride_bytes, raw.format == PixelFormat::kBgr8 ? 3 : 1, f.gain.data(), f.width};
+  const detail::StripSource source{raw.data,      raw.stride_bytes,
+                                   raw.format == PixelFormat::kBgr8 ? 3 : 1,
+                                   gain_->q.data(), f.width, nullptr, gain_->scale};
   if (raw.format == PixelFormat::kBgr8)
-    run(RawGrey<3>{raw, f.gain.data(), f.width, kernels, source});
+    run(RawGrey<3>{raw, *gain_, f.width, kernels, source});
   else
-    run(RawGrey<1>{raw, f.gain.data(), f.width, kernels, source});
+    run(RawGrey<1>{raw, *gain_, f.width, kernels, source});
   LensDepthStats& st = out->stats;
   st = LensDepthStats{};
   st.lenses = static_cast<long long>(f.lenses.size());

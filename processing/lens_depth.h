@@ -70,6 +70,7 @@ namespace lifmcr::processing {
 
 namespace detail {
 class TfKernel;
+struct Gain16;
 }
 
 struct LensDepthOptions {
@@ -213,6 +214,8 @@ class LensDepthEstimator {
   std::vector<std::int32_t> candidate_dx_, candidate_dy_;
   int candidate_reach_ = 0;
   std::unique_ptr<LatticeTables> tables_;
+  // The searches' devignetting gain in 16 bits (lens_search_simd.h).
+  std::unique_ptr<detail::Gain16> gain_;
 };
 
 }  // namespace lifmcr::processing
