@@ -621,31 +621,51 @@ Status LensDepthEstimator::RenderPreview(ConstImageView raw, int max_side, LensD
     // TF position u = (a + 1/2) s - 1/2 is raw position 2u + 1/2.
     const float y = 2.0f * ((b + 0.5f) * s - 0.5f) + 0.5f;
     std::uint8_t* row = out->pixels.data() + static_cast<std::size_t>(b) * ow * (colour ? 3 : 1);
-    for (int a = 0; a < ow; ++a) {
-      const float x = 2.0f * ((a + 0.5f) * s - 0.5f) + 0.5f;
-      // The micro images that see x at depth v lie around
-      // LookingAt(x, v) (tf_kernel.h), up to lenses away from x at the
-      // border: the lens there gives v, twice from the frame's median.
-      float vv = static_cast<float>(median);
-      for (int round = 0; round < 2; ++round) {
-        const Eigen::Vector2f q = kernel.LookingAt(x, y, vv);
-        int i = 0, j = 0;
-        f.grid.Nearest(Eigen::Vector2d(q.x(), q.y()), &i, &j);
-        const int r = g.Row(j), c = g.Col(i, j);
-        if (r >= 0 && r < g.rows && c >= 0 && c < g.cols) vv = v[depth->Cell(c, r)];
-        vv = std::max(vv, 1.05f);
+    // In runs of kRun points: each point's depth and lens type, and its
+    // blend's rows asked of the cache (TfKernel::Prefetch), then the blends
+    // (the points lie 2 s raw pixels apart, every sample a new cache line:
+    // one after another, each would wait for memory alone).
+    constexpr int kRun = 32;
+    float run_v[kRun];
+    int run_type[kRun];
+    for (int a0 = 0; a0 < ow; a0 += kRun) {
+      const int n = std::min(kRun, ow - a0);
+      for (int r = 0; r < n; ++r) {
+        const float x = 2.0f * ((a0 + r + 0.5f) * s - 0.5f) + 0.5f;
+        // The micro images that see x at depth v lie around
+        // LookingAt(x, v) (tf_kernel.h), up to lenses away from x at the
+        // border: the lens there gives v, twice from the frame's median.
+        float vv = static_cast<float>(median);
+        for (int round = 0; round < 2; ++round) {
+          const Eigen::Vector2f q = kernel.LookingAt(x, y, vv);
+          int i = 0, j = 0;
+          f.grid.Nearest(Eigen::Vector2d(q.x(), q.y()), &i, &j);
+          const int rr = g.Row(j), c = g.Col(i, j);
+          if (rr >= 0 && rr < g.rows && c >= 0 && c < g.cols) vv = v[depth->Cell(c, rr)];
+          vv = std::max(vv, 1.05f);
+        }
+        run_v[r] = vv;
+        run_type[r] = kernel.SharpType(vv);
+        if (colour)
+          kernel.Prefetch<3>(raw, x, y, vv, run_type[r]);
+        else
+          kernel.Prefetch<1>(raw, x, y, vv, run_type[r]);
       }
-      const int type = kernel.SharpType(vv);
-      float acc[3];
-      if (colour) {
-        const float sw = kernel.Blend<3>(raw, x, y, vv, type, acc);
-        for (int ch = 0; ch < 3; ++ch)
-          row[3 * a + ch] =
-              sw > 0 ? static_cast<std::uint8_t>(std::clamp(acc[ch] / sw + 0.5f, 0.0f, 255.0f)) : 0;
-      } else {
-        const float sw = kernel.Blend<1>(raw, x, y, vv, type, acc);
-        row[a] =
-            sw > 0 ? static_cast<std::uint8_t>(std::clamp(acc[0] / sw + 0.5f, 0.0f, 255.0f)) : 0;
+      for (int r = 0; r < n; ++r) {
+        const int a = a0 + r;
+        const float x = 2.0f * ((a + 0.5f) * s - 0.5f) + 0.5f;
+        float acc[3];
+        if (colour) {
+          const float sw = kernel.Blend<3>(raw, x, y, run_v[r], run_type[r], acc);
+          for (int ch = 0; ch < 3; ++ch)
+            row[3 * a + ch] = sw > 0 ? static_cast<std::uint8_t>(
+                                           std::clamp(acc[ch] / sw + 0.5f, 0.0f, 255.0f))
+                                     : 0;
+        } else {
+          const float sw = kernel.Blend<1>(raw, x, y, run_v[r], run_type[r], acc);
+          row[a] = sw > 0 ? static_cast<std::uint8_t>(std::clamp(acc[0] / sw + 0.5f, 0.0f, 255.0f))
+                          : 0;
+        }
       }
     }
   });

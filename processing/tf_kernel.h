@@ -157,20 +157,20 @@ class TfKernel {
     return {cx_ + (x - cx_) * k, cy_ + (y - cy_) * k};
   }
 
-  // The blend at raw position (x, y), virtual depth v (> 1), with the lenses
-  // of type `type` around LookingAt(x, y, v) (or (x, y): LensSelection):
-  // acc (kChannels) and the sum of weights (0: no micro image sees the point).
-  template <int kChannels>
-  float Blend(const ConstImageView& raw, float x, float y, float v, int type, float* acc) const {
-    const float inv_v = 1.0f / v;
+  // The three lenses of type `type`'s sublattice triangle around
+  // LookingAt(x, y, v) (or (x, y): LensSelection) with their barycentric
+  // weights (a lens index of -1 where the lattice has none); q the point
+  // they are chosen around.
+  void Triangle(float x, float y, float v, int type, int* lens, float* bary,
+                Eigen::Vector2f* q_out) const {
     const Eigen::Vector2f q =
         selection_ == LensSelection::kLookingAt ? LookingAt(x, y, v) : Eigen::Vector2f(x, y);
+    *q_out = q;
     const Eigen::Vector2f a = Sublattice(type, q.x(), q.y());
     const float ax = a.x(), ay = a.y();
     const int m = static_cast<int>(std::floor(ax)), n = static_cast<int>(std::floor(ay));
     const float fa = ax - m, fb = ay - n;
     int ci[3], cj[3];
-    float bary[3];
     if (fa + fb < 1) {
       ci[0] = m, cj[0] = n, bary[0] = 1 - fa - fb;
       ci[1] = m + 1, cj[1] = n, bary[1] = fa;
@@ -180,16 +180,57 @@ class TfKernel {
       ci[1] = m, cj[1] = n + 1, bary[1] = 1 - fa;
       ci[2] = m + 1, cj[2] = n, bary[2] = 1 - fb;
     }
+    const int i0 = sub_[type].i0;
+    for (int k = 0; k < 3; ++k) lens[k] = f_.LensAt(i0 + ci[k] + 2 * cj[k], ci[k] - cj[k]);
+  }
+
+  // Asks the cache for the raw and gain rows that Blend(raw, x, y, v,
+  // type) reads from the triangle's lenses (not the border fallback), so
+  // that a renderer can issue them for a run of points before it blends
+  // them: the blend's loads then wait for memory together, not one after
+  // another (the sparse points of a preview touch new lines on every
+  // sample). Reads nothing.
+  template <int kChannels>
+  void Prefetch(const ConstImageView& raw, float x, float y, float v, int type) const {
+    int lens[3];
+    float bary[3];
+    Eigen::Vector2f q;
+    Triangle(x, y, v, type, lens, bary, &q);
+    const float inv_v = 1.0f / v;
+    for (int k = 0; k < 3; ++k) {
+      if (bary[k] <= 0 || lens[k] < 0) continue;
+      const LensF& m = lenses_[lens[k]];
+      const float px = m.lx + (x - m.lx) * inv_v, py = m.ly + (y - m.ly) * inv_v;
+      if (!(px >= 0 && py >= 0)) continue;
+      const int x0 = static_cast<int>(px), y0 = static_cast<int>(py);
+      if (x0 >= f_.width - 1 || y0 >= f_.height - 1) continue;
+      const float* g0 = f_.gain.data() + static_cast<std::size_t>(y0) * f_.width + x0;
+      __builtin_prefetch(raw.Row(y0) + x0 * kChannels);
+      __builtin_prefetch(raw.Row(y0 + 1) + x0 * kChannels);
+      __builtin_prefetch(g0);
+      __builtin_prefetch(g0 + f_.width);
+    }
+  }
+
+  // The blend at raw position (x, y), virtual depth v (> 1), with the lenses
+  // of type `type` around LookingAt(x, y, v) (or (x, y): LensSelection):
+  // acc (kChannels) and the sum of weights (0: no micro image sees the point).
+  template <int kChannels>
+  float Blend(const ConstImageView& raw, float x, float y, float v, int type, float* acc) const {
+    const float inv_v = 1.0f / v;
+    int lens[3];
+    float bary[3];
+    Eigen::Vector2f q;
+    Triangle(x, y, v, type, lens, bary, &q);
     for (int ch = 0; ch < kChannels; ++ch) acc[ch] = 0;
     float c[kChannels], centrality = 0, sw = 0;
-    const int i0 = sub_[type].i0;
-    for (int q = 0; q < 3; ++q) {
-      if (bary[q] <= 0) continue;
-      const int k = f_.LensAt(i0 + ci[q] + 2 * cj[q], ci[q] - cj[q]);
+    for (int t = 0; t < 3; ++t) {
+      if (bary[t] <= 0) continue;
+      const int k = lens[t];
       if (k < 0 ||
           !SampleLens<kChannels>(lenses_[k], x, y, inv_v, r2_, f_, raw, c, &centrality))
         continue;
-      const float wq = bary[q] * centrality;
+      const float wq = bary[t] * centrality;
       for (int ch = 0; ch < kChannels; ++ch) acc[ch] += wq * c[ch];
       sw += wq;
     }
