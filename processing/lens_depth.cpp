@@ -633,7 +633,7 @@ Status LensDepthEstimator::RenderPreview(ConstImageView raw, int max_side, LensD
     // one after another, each would wait for memory alone).
     constexpr int kRun = 32;
     float run_v[kRun];
-    int run_type[kRun];
+    detail::TfKernel::PointLenses run_lenses[kRun];
     for (int a0 = 0; a0 < ow; a0 += kRun) {
       const int n = std::min(kRun, ow - a0);
       for (int r = 0; r < n; ++r) {
@@ -651,24 +651,24 @@ Status LensDepthEstimator::RenderPreview(ConstImageView raw, int max_side, LensD
           vv = std::max(vv, 1.05f);
         }
         run_v[r] = vv;
-        run_type[r] = kernel.SharpType(vv);
+        const int type = kernel.SharpType(vv);
         if (colour)
-          kernel.Prefetch<3>(raw, x, y, vv, run_type[r]);
+          kernel.Prefetch<3>(raw, x, y, vv, type, &run_lenses[r]);
         else
-          kernel.Prefetch<1>(raw, x, y, vv, run_type[r]);
+          kernel.Prefetch<1>(raw, x, y, vv, type, &run_lenses[r]);
       }
       for (int r = 0; r < n; ++r) {
         const int a = a0 + r;
         const float x = 2.0f * ((a + 0.5f) * s - 0.5f) + 0.5f;
         float acc[3];
         if (colour) {
-          const float sw = kernel.Blend<3>(raw, x, y, run_v[r], run_type[r], acc);
+          const float sw = kernel.BlendTriangle<3>(raw, x, y, run_v[r], run_lenses[r], acc);
           for (int ch = 0; ch < 3; ++ch)
             row[3 * a + ch] = sw > 0 ? static_cast<std::uint8_t>(
                                            std::clamp(acc[ch] / sw + 0.5f, 0.0f, 255.0f))
                                      : 0;
         } else {
-          const float sw = kernel.Blend<1>(raw, x, y, run_v[r], run_type[r], acc);
+          const float sw = kernel.BlendTriangle<1>(raw, x, y, run_v[r], run_lenses[r], acc);
           row[a] = sw > 0 ? static_cast<std::uint8_t>(std::clamp(acc[0] / sw + 0.5f, 0.0f, 255.0f))
                           : 0;
         }

@@ -184,22 +184,28 @@ class TfKernel {
     for (int k = 0; k < 3; ++k) lens[k] = f_.LensAt(i0 + ci[k] + 2 * cj[k], ci[k] - cj[k]);
   }
 
-  // Asks the cache for the raw and gain rows that Blend(raw, x, y, v,
-  // type) reads from the triangle's lenses (not the border fallback), so
-  // that a renderer can issue them for a run of points before it blends
-  // them: the blend's loads then wait for memory together, not one after
-  // another (the sparse points of a preview touch new lines on every
-  // sample). Reads nothing.
-  template <int kChannels>
-  void Prefetch(const ConstImageView& raw, float x, float y, float v, int type) const {
+  // A point's triangle (Triangle above), kept between asking the cache for
+  // its rows (Prefetch) and blending it (BlendTriangle).
+  struct PointLenses {
     int lens[3];
     float bary[3];
     Eigen::Vector2f q;
-    Triangle(x, y, v, type, lens, bary, &q);
+  };
+
+  // Asks the cache for the raw and gain rows that the blend of (x, y) at v
+  // reads from the triangle's lenses (not the border fallback), so that a
+  // renderer can issue them for a run of points before it blends them: the
+  // blend's loads then wait for memory together, not one after another
+  // (the sparse points of a preview touch new lines on every sample).
+  // Reads nothing; fills `t` for BlendTriangle.
+  template <int kChannels>
+  void Prefetch(const ConstImageView& raw, float x, float y, float v, int type,
+                PointLenses* t) const {
+    Triangle(x, y, v, type, t->lens, t->bary, &t->q);
     const float inv_v = 1.0f / v;
     for (int k = 0; k < 3; ++k) {
-      if (bary[k] <= 0 || lens[k] < 0) continue;
-      const LensF& m = lenses_[lens[k]];
+      if (t->bary[k] <= 0 || t->lens[k] < 0) continue;
+      const LensF& m = lenses_[t->lens[k]];
       const float px = m.lx + (x - m.lx) * inv_v, py = m.ly + (y - m.ly) * inv_v;
       if (!(px >= 0 && py >= 0)) continue;
       const int x0 = static_cast<int>(px), y0 = static_cast<int>(py);
@@ -217,11 +223,19 @@ class TfKernel {
   // acc (kChannels) and the sum of weights (0: no micro image sees the point).
   template <int kChannels>
   float Blend(const ConstImageView& raw, float x, float y, float v, int type, float* acc) const {
+    PointLenses t;
+    Triangle(x, y, v, type, t.lens, t.bary, &t.q);
+    return BlendTriangle<kChannels>(raw, x, y, v, t, acc);
+  }
+
+  // Blend with the point's triangle made already (Prefetch).
+  template <int kChannels>
+  float BlendTriangle(const ConstImageView& raw, float x, float y, float v, const PointLenses& t,
+                      float* acc) const {
     const float inv_v = 1.0f / v;
-    int lens[3];
-    float bary[3];
-    Eigen::Vector2f q;
-    Triangle(x, y, v, type, lens, bary, &q);
+    const int* lens = t.lens;
+    const float* bary = t.bary;
+    const Eigen::Vector2f& q = t.q;
     for (int ch = 0; ch < kChannels; ++ch) acc[ch] = 0;
     float c[kChannels], centrality = 0, sw = 0;
     for (int t = 0; t < 3; ++t) {
