@@ -229,6 +229,10 @@ Expected<std::unique_ptr<LensDepthEstimator>> LensDepthEstimator::Create(
   e->tables_ = std::make_unique<LatticeTables>(e->geometry_.grid.lattice);
   e->gain_ =
       std::make_unique<detail::Gain16>(detail::Gain16::From(e->geometry_.gain, e->geometry_.width));
+  // Searches and preview read the 16-bit gain: the float one (4 bytes per
+  // pixel, 130 MB on an R32) is not kept.
+  e->kernel_->UseGain16(e->gain_.get());
+  std::vector<float>().swap(e->geometry_.gain);
   // Candidate offsets from the rounded micro-image centre: a square grid of
   // candidate_step_px within candidate_fraction r_valid.
   const double reach = options.candidate_fraction * e->geometry_.radius_px;

@@ -197,6 +197,8 @@ class LensDepthEstimator {
   // median). BGR8 for BGR8 frames, else Mono8.
   Status RenderPreview(ConstImageView raw, int max_side, LensDepthMap* depth, TfImage* out) const;
 
+  // The camera's geometry without its smoothed grey image and float gain
+  // (this estimator reads the gain in 16 bits: lens_search_simd.h, Gain16).
   const PlenopticFrame& geometry() const { return geometry_; }
   const LensDepthOptions& options() const { return options_; }
   // The lattice's neighbour steps and axes, the same for every lens (lens_depth.cpp).

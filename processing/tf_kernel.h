@@ -21,6 +21,7 @@
 
 #include "config/image.h"
 #include "config/mla.h"
+#include "processing/lens_search_simd.h"
 #include "processing/plenoptic_frame.h"
 
 #include <Eigen/Core>
@@ -69,13 +70,14 @@ class SharpTypeTable {
 
 // Colour of micro image m seen from virtual point (x, y) at 1 / v = inv_v:
 // bilinear at p = l + (x - l) / v of the raw pixels times the devignetting
-// gain; false outside its usable disc (radius^2 r2) or next to an invalid
-// pixel (the gain is NaN there and propagates through the sum).
+// gain (f.gain, or `gain16` where set: lens_search_simd.h's 16-bit copy);
+// false outside its usable disc (radius^2 r2) or next to an invalid pixel
+// (the gain is NaN there and propagates through the sum).
 // `centrality` = 1 - |p - c|^2 / r^2.
 template <int kChannels>
 inline bool SampleLens(const LensF& m, float x, float y, float inv_v, float r2,
-                       const PlenopticFrame& f, const ConstImageView& raw, float* c,
-                       float* centrality) {
+                       const PlenopticFrame& f, const Gain16* gain16, const ConstImageView& raw,
+                       float* c, float* centrality) {
   const float px = m.lx + (x - m.lx) * inv_v, py = m.ly + (y - m.ly) * inv_v;
   const float dx = px - m.cx, dy = py - m.cy;
   const float d2 = dx * dx + dy * dy;
@@ -83,10 +85,17 @@ inline bool SampleLens(const LensF& m, float x, float y, float inv_v, float r2,
   const int x0 = static_cast<int>(px), y0 = static_cast<int>(py);
   if (x0 >= f.width - 1 || y0 >= f.height - 1) return false;
   const float fx = px - x0, fy = py - y0;
-  const float* g0 = f.gain.data() + static_cast<std::size_t>(y0) * f.width + x0;
-  const float* g1 = g0 + f.width;
-  const float w00 = (1 - fx) * (1 - fy) * g0[0], w01 = fx * (1 - fy) * g0[1],
-              w10 = (1 - fx) * fy * g1[0], w11 = fx * fy * g1[1];
+  const std::size_t at = static_cast<std::size_t>(y0) * f.width + x0;
+  float g00, g01, g10, g11;
+  if (gain16 != nullptr) {
+    g00 = gain16->At(at), g01 = gain16->At(at + 1);
+    g10 = gain16->At(at + f.width), g11 = gain16->At(at + f.width + 1);
+  } else {
+    const float* g0 = f.gain.data() + at;
+    g00 = g0[0], g01 = g0[1], g10 = g0[f.width], g11 = g0[f.width + 1];
+  }
+  const float w00 = (1 - fx) * (1 - fy) * g00, w01 = fx * (1 - fy) * g01,
+              w10 = (1 - fx) * fy * g10, w11 = fx * fy * g11;
   const std::uint8_t* q0 = raw.Row(y0) + x0 * kChannels;
   const std::uint8_t* q1 = raw.Row(y0 + 1) + x0 * kChannels;
   float check = 0;
@@ -143,6 +152,10 @@ class TfKernel {
       s.from_px = steps.inverse();
     }
   }
+
+  // The gain is read from `gain` (the frame's geometry may then drop its
+  // float gain): half the bytes; the gain to 3e-5 of itself (Gain16).
+  void UseGain16(const Gain16* gain) { gain16_ = gain; }
 
   int SharpType(float v) const { return sharp_type_(v); }
   // Sublattice coordinates of raw position (x, y) in type t's sublattice.
@@ -210,11 +223,16 @@ class TfKernel {
       if (!(px >= 0 && py >= 0)) continue;
       const int x0 = static_cast<int>(px), y0 = static_cast<int>(py);
       if (x0 >= f_.width - 1 || y0 >= f_.height - 1) continue;
-      const float* g0 = f_.gain.data() + static_cast<std::size_t>(y0) * f_.width + x0;
+      const std::size_t at = static_cast<std::size_t>(y0) * f_.width + x0;
       __builtin_prefetch(raw.Row(y0) + x0 * kChannels);
       __builtin_prefetch(raw.Row(y0 + 1) + x0 * kChannels);
-      __builtin_prefetch(g0);
-      __builtin_prefetch(g0 + f_.width);
+      if (gain16_ != nullptr) {
+        __builtin_prefetch(gain16_->q.data() + at);
+        __builtin_prefetch(gain16_->q.data() + at + f_.width);
+      } else {
+        __builtin_prefetch(f_.gain.data() + at);
+        __builtin_prefetch(f_.gain.data() + at + f_.width);
+      }
     }
   }
 
@@ -242,7 +260,7 @@ class TfKernel {
       if (bary[t] <= 0) continue;
       const int k = lens[t];
       if (k < 0 ||
-          !SampleLens<kChannels>(lenses_[k], x, y, inv_v, r2_, f_, raw, c, &centrality))
+          !SampleLens<kChannels>(lenses_[k], x, y, inv_v, r2_, f_, gain16_, raw, c, &centrality))
         continue;
       const float wq = bary[t] * centrality;
       for (int ch = 0; ch < kChannels; ++ch) acc[ch] += wq * c[ch];
@@ -259,7 +277,7 @@ class TfKernel {
     for (const auto& d : kAround) {
       const int k = f_.LensAt(i + d[0], j + d[1]);
       if (k < 0 ||
-          !SampleLens<kChannels>(lenses_[k], x, y, inv_v, r2_, f_, raw, c, &centrality))
+          !SampleLens<kChannels>(lenses_[k], x, y, inv_v, r2_, f_, gain16_, raw, c, &centrality))
         continue;
       for (int ch = 0; ch < kChannels; ++ch) acc[ch] += centrality * c[ch];
       sw += centrality;
@@ -274,6 +292,7 @@ class TfKernel {
     Eigen::Matrix2d from_px;
   };
   const PlenopticFrame& f_;
+  const Gain16* gain16_ = nullptr;
   SharpTypeTable sharp_type_;
   LensSelection selection_;
   float r2_ = 0;
