@@ -335,6 +335,12 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
     } else {
       return;
     }
+    // Its ring-1 reference patch's gain rows (y - 2 .. y + 3 from x - 2)
+    // asked of the cache while the gate goes on: their first touch in this
+    // micro image, where `perf` put the estimator's largest stall.
+    if (x >= 2 && y >= 2 && y + 3 < f.height)
+      for (int dy = -2; dy <= 3; ++dy)
+        __builtin_prefetch(grey.gain.q.data() + static_cast<std::size_t>(y + dy) * f.width + x - 2);
     for (int q = n_best - 1; q > 0 && best[q - 1].score < best[q].score; --q)
       std::swap(best[q - 1], best[q]);
   };
