@@ -53,6 +53,7 @@ struct Estimate {
 
 struct Neighbour {
   const MicroImage* lens = nullptr;
+  float cx = 0, cy = 0;            // c_n (the search reads no more of the neighbour)
   float delta_x = 0, delta_y = 0;  // c_n - c_k
   float e_x = 0, e_y = 0;          // unit baseline direction
   double length = 0;
@@ -78,6 +79,8 @@ inline int FindNeighbours(const PlenopticFrame& f, const MicroImage& lens, int r
       nb.axis = 3 * (ring - 1) + dir % 3;
       nb.flipped = dir >= 3;
       nb.lens = &f.lenses[idx];
+      nb.cx = static_cast<float>(nb.lens->centre_px.x());
+      nb.cy = static_cast<float>(nb.lens->centre_px.y());
       const Eigen::Vector2d delta = nb.lens->centre_px - lens.centre_px;
       nb.length = delta.norm();
       nb.delta_x = static_cast<float>(delta.x());
@@ -194,8 +197,7 @@ bool MatchAlong(const MatchParams& s, const Bilinear& grey, int width, int heigh
                 double z_lo, double z_hi, Estimate* est) {
   constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
   const double scale = s.lambda * nb.length;  // px of disparity per unit z
-  const float cx = static_cast<float>(nb.lens->centre_px.x());
-  const float cy = static_cast<float>(nb.lens->centre_px.y());
+  const float cx = nb.cx, cy = nb.cy;
   const double r_lim = radius_px + 0.5;
   // A disc well inside the image needs no bounds test per sample.
   const bool interior =

@@ -30,7 +30,7 @@ constexpr int kMaxSamples = 16;
 template <int kChannels>
 struct RawGrey {
   const ConstImageView& raw;
-  const float* gain;
+  const detail::Gain16& gain;
   int width;
   // The strips of discs well inside the frame (epipolar_search.h); null:
   // through operator() below.
@@ -42,12 +42,12 @@ struct RawGrey {
     if constexpr (kChannels == 3) return p[0] + p[1] + p[2];
     return p[0];
   }
-  float Gain(int x, int y) const { return gain[static_cast<std::size_t>(y) * width + x]; }
+  float Gain(int x, int y) const { return gain.At(static_cast<std::size_t>(y) * width + x); }
   float operator()(int x0, int y0, float fx, float fy) const {
     const std::uint8_t* q0 = raw.Row(y0) + x0 * kChannels;
     const std::uint8_t* q1 = raw.Row(y0 + 1) + x0 * kChannels;
-    const float* g0 = gain + static_cast<std::size_t>(y0) * width + x0;
-    return detail::RawGainBilinear<kChannels>(q0, q1, g0, g0 + width, fx, fy);
+    const std::uint16_t* g0 = gain.q.data() + static_cast<std::size_t>(y0) * width + x0;
+    return detail::RawGainBilinear<kChannels>(q0, q1, g0, g0 + width, gain.scale, fx, fy);
   }
 };
 
@@ -189,6 +189,7 @@ struct LensDepthEstimator::LatticeTables {
   // Per direction m (ring 1: 0..5, ring 2: 6..11, the order of kRing1 and
   // kRing2) the neighbour without its lens; per axis its unit direction.
   std::array<detail::Neighbour, 12> neighbour;
+  std::array<std::array<double, 2>, 12> delta{};  // c_n - c_k
   std::array<std::array<float, 2>, 6> axis_e{};
   explicit LatticeTables(const Eigen::Matrix2d& lattice) {
     for (int m = 0; m < 12; ++m) {
@@ -196,6 +197,7 @@ struct LensDepthEstimator::LatticeTables {
       const auto& d = (ring == 1 ? detail::kRing1 : detail::kRing2)[dir];
       const Eigen::Vector2d delta = lattice * Eigen::Vector2d(d[0], d[1]);
       detail::Neighbour& nb = neighbour[m];
+      this->delta[m] = {delta.x(), delta.y()};
       nb.length = delta.norm();
       nb.delta_x = static_cast<float>(delta.x());
       nb.delta_y = static_cast<float>(delta.y());
@@ -225,6 +227,12 @@ Expected<std::unique_ptr<LensDepthEstimator>> LensDepthEstimator::Create(
   e->grid_ = LensGrid::Of(e->geometry_);
   e->kernel_ = std::make_unique<detail::TfKernel>(e->geometry_, mla, 1.0);
   e->tables_ = std::make_unique<LatticeTables>(e->geometry_.grid.lattice);
+  e->gain_ =
+      std::make_unique<detail::Gain16>(detail::Gain16::From(e->geometry_.gain, e->geometry_.width));
+  // Searches and preview read the 16-bit gain: the float one (4 bytes per
+  // pixel, 130 MB on an R32) is not kept.
+  e->kernel_->UseGain16(e->gain_.get());
+  std::vector<float>().swap(e->geometry_.gain);
   // Candidate offsets from the rounded micro-image centre: a square grid of
   // candidate_step_px within candidate_fraction r_valid.
   const double reach = options.candidate_fraction * e->geometry_.radius_px;
@@ -263,7 +271,9 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
                   float* conf_out, std::uint8_t* textured_out, long long* searched) {
   const MicroImage& lens = f.lenses[k];
   // The neighbours that exist, from the lattice's templates (c_n - c_k =
-  // A (di, dj) for every lens).
+  // A (di, dj) for every lens, and the type rule (i - j) mod 3 makes ring 1
+  // of the other types, ring 2 of the same): the neighbours' MicroImage
+  // records are not read (a cache miss each, rows of lenses apart).
   std::array<detail::Neighbour, 12> nbs;
   int count = 0;
   std::array<std::array<int, 2>, 6> axis_nb;
@@ -275,7 +285,9 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
     detail::Neighbour& nb = nbs[count];
     nb = tables.neighbour[m];
     nb.lens = &f.lenses[idx];
-    nb.same_type = nb.lens->type == lens.type;
+    nb.cx = static_cast<float>(lens.centre_px.x() + tables.delta[m][0]);
+    nb.cy = static_cast<float>(lens.centre_px.y() + tables.delta[m][1]);
+    nb.same_type = m >= 6;
     axis_nb[nb.axis][axis_n[nb.axis]++] = count;
     ++count;
   }
@@ -323,6 +335,12 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
     } else {
       return;
     }
+    // Its ring-1 reference patch's gain rows (y - 2 .. y + 3 from x - 2)
+    // asked of the cache while the gate goes on: their first touch in this
+    // micro image, where `perf` put the estimator's largest stall.
+    if (x >= 2 && y >= 2 && y + 3 < f.height)
+      for (int dy = -2; dy <= 3; ++dy)
+        __builtin_prefetch(grey.gain.q.data() + static_cast<std::size_t>(y + dy) * f.width + x - 2);
     for (int q = n_best - 1; q > 0 && best[q - 1].score < best[q].score; --q)
       std::swap(best[q - 1], best[q]);
   };
@@ -518,17 +536,19 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out) const
         });
   };
   // The kernels address the frame with 32-bit byte offsets.
-  const bool addressable =
-      static_cast<double>(raw.stride_bytes) * raw.height < 2147483648.0 && raw.stride_bytes > 0;
+  const bool addressable = static_cast<double>(raw.stride_bytes) * raw.height < 2147483648.0 &&
+                           raw.stride_bytes > 0 &&
+                           2.0 * raw.width * raw.height < 2147483648.0;
   const detail::StripKernels* kernels = !addressable    ? nullptr
                                         : options_.simd ? &detail::SimdStripKernels()
                                                         : &detail::ScalarStripKernels();
-  const detail::StripSource source{
-      raw.data, raw.stride_bytes, raw.format == PixelFormat::kBgr8 ? 3 : 1, f.gain.data(), f.width};
+  const detail::StripSource source{raw.data,      raw.stride_bytes,
+                                   raw.format == PixelFormat::kBgr8 ? 3 : 1,
+                                   gain_->q.data(), f.width, nullptr, gain_->scale};
   if (raw.format == PixelFormat::kBgr8)
-    run(RawGrey<3>{raw, f.gain.data(), f.width, kernels, source});
+    run(RawGrey<3>{raw, *gain_, f.width, kernels, source});
   else
-    run(RawGrey<1>{raw, f.gain.data(), f.width, kernels, source});
+    run(RawGrey<1>{raw, *gain_, f.width, kernels, source});
   LensDepthStats& st = out->stats;
   st = LensDepthStats{};
   st.lenses = static_cast<long long>(f.lenses.size());
@@ -617,31 +637,51 @@ Status LensDepthEstimator::RenderPreview(ConstImageView raw, int max_side, LensD
     // TF position u = (a + 1/2) s - 1/2 is raw position 2u + 1/2.
     const float y = 2.0f * ((b + 0.5f) * s - 0.5f) + 0.5f;
     std::uint8_t* row = out->pixels.data() + static_cast<std::size_t>(b) * ow * (colour ? 3 : 1);
-    for (int a = 0; a < ow; ++a) {
-      const float x = 2.0f * ((a + 0.5f) * s - 0.5f) + 0.5f;
-      // The micro images that see x at depth v lie around
-      // LookingAt(x, v) (tf_kernel.h), up to lenses away from x at the
-      // border: the lens there gives v, twice from the frame's median.
-      float vv = static_cast<float>(median);
-      for (int round = 0; round < 2; ++round) {
-        const Eigen::Vector2f q = kernel.LookingAt(x, y, vv);
-        int i = 0, j = 0;
-        f.grid.Nearest(Eigen::Vector2d(q.x(), q.y()), &i, &j);
-        const int r = g.Row(j), c = g.Col(i, j);
-        if (r >= 0 && r < g.rows && c >= 0 && c < g.cols) vv = v[depth->Cell(c, r)];
-        vv = std::max(vv, 1.05f);
+    // In runs of kRun points: each point's depth and lens type, and its
+    // blend's rows asked of the cache (TfKernel::Prefetch), then the blends
+    // (the points lie 2 s raw pixels apart, every sample a new cache line:
+    // one after another, each would wait for memory alone).
+    constexpr int kRun = 32;
+    float run_v[kRun];
+    detail::TfKernel::PointLenses run_lenses[kRun];
+    for (int a0 = 0; a0 < ow; a0 += kRun) {
+      const int n = std::min(kRun, ow - a0);
+      for (int r = 0; r < n; ++r) {
+        const float x = 2.0f * ((a0 + r + 0.5f) * s - 0.5f) + 0.5f;
+        // The micro images that see x at depth v lie around
+        // LookingAt(x, v) (tf_kernel.h), up to lenses away from x at the
+        // border: the lens there gives v, twice from the frame's median.
+        float vv = static_cast<float>(median);
+        for (int round = 0; round < 2; ++round) {
+          const Eigen::Vector2f q = kernel.LookingAt(x, y, vv);
+          int i = 0, j = 0;
+          f.grid.Nearest(Eigen::Vector2d(q.x(), q.y()), &i, &j);
+          const int rr = g.Row(j), c = g.Col(i, j);
+          if (rr >= 0 && rr < g.rows && c >= 0 && c < g.cols) vv = v[depth->Cell(c, rr)];
+          vv = std::max(vv, 1.05f);
+        }
+        run_v[r] = vv;
+        const int type = kernel.SharpType(vv);
+        if (colour)
+          kernel.Prefetch<3>(raw, x, y, vv, type, &run_lenses[r]);
+        else
+          kernel.Prefetch<1>(raw, x, y, vv, type, &run_lenses[r]);
       }
-      const int type = kernel.SharpType(vv);
-      float acc[3];
-      if (colour) {
-        const float sw = kernel.Blend<3>(raw, x, y, vv, type, acc);
-        for (int ch = 0; ch < 3; ++ch)
-          row[3 * a + ch] =
-              sw > 0 ? static_cast<std::uint8_t>(std::clamp(acc[ch] / sw + 0.5f, 0.0f, 255.0f)) : 0;
-      } else {
-        const float sw = kernel.Blend<1>(raw, x, y, vv, type, acc);
-        row[a] =
-            sw > 0 ? static_cast<std::uint8_t>(std::clamp(acc[0] / sw + 0.5f, 0.0f, 255.0f)) : 0;
+      for (int r = 0; r < n; ++r) {
+        const int a = a0 + r;
+        const float x = 2.0f * ((a + 0.5f) * s - 0.5f) + 0.5f;
+        float acc[3];
+        if (colour) {
+          const float sw = kernel.BlendTriangle<3>(raw, x, y, run_v[r], run_lenses[r], acc);
+          for (int ch = 0; ch < 3; ++ch)
+            row[3 * a + ch] = sw > 0 ? static_cast<std::uint8_t>(
+                                           std::clamp(acc[ch] / sw + 0.5f, 0.0f, 255.0f))
+                                     : 0;
+        } else {
+          const float sw = kernel.BlendTriangle<1>(raw, x, y, run_v[r], run_lenses[r], acc);
+          row[a] = sw > 0 ? static_cast<std::uint8_t>(std::clamp(acc[0] / sw + 0.5f, 0.0f, 255.0f))
+                          : 0;
+        }
       }
     }
   });

@@ -70,6 +70,7 @@ namespace lifmcr::processing {
 
 namespace detail {
 class TfKernel;
+struct Gain16;
 }
 
 struct LensDepthOptions {
@@ -196,6 +197,8 @@ class LensDepthEstimator {
   // median). BGR8 for BGR8 frames, else Mono8.
   Status RenderPreview(ConstImageView raw, int max_side, LensDepthMap* depth, TfImage* out) const;
 
+  // The camera's geometry without its smoothed grey image and float gain
+  // (this estimator reads the gain in 16 bits: lens_search_simd.h, Gain16).
   const PlenopticFrame& geometry() const { return geometry_; }
   const LensDepthOptions& options() const { return options_; }
   // The lattice's neighbour steps and axes, the same for every lens (lens_depth.cpp).
@@ -213,6 +216,8 @@ class LensDepthEstimator {
   std::vector<std::int32_t> candidate_dx_, candidate_dy_;
   int candidate_reach_ = 0;
   std::unique_ptr<LatticeTables> tables_;
+  // The searches' devignetting gain in 16 bits (lens_search_simd.h).
+  std::unique_ptr<detail::Gain16> gain_;
 };
 
 }  // namespace lifmcr::processing

@@ -12,7 +12,12 @@
 
 #include "processing/lens_search_simd.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 
 HWY_BEFORE_NAMESPACE();
@@ -63,8 +68,13 @@ void SampleLine(const StripSource& src, const StripLine& l, float* out) {
   // Highway 1.0.3 compares signed integers with Lt / Gt only.
   const auto below_lo = hn::Set(di, l.j_lo - 1), above_hi = hn::Set(di, l.j_hi + 1);
   const auto stride = hn::Set(di, static_cast<std::int32_t>(src.stride_bytes));
-  const auto width = hn::Set(di, src.width);
+  // Byte offsets into the 16-bit gain: 2 (y0 width + x0); a row 2 width on.
+  const auto gain_row = hn::Set(di, 2 * src.width);
+  const auto scale = hn::Set(df, src.gain_scale);
+  const auto low16 = hn::Set(du, 0xFFFFu);
+  const auto zero = hn::Zero(di);
   const auto* base = reinterpret_cast<const std::uint32_t*>(src.raw);
+  const auto* gain_base = reinterpret_cast<const std::uint32_t*>(src.gain);
   for (int i = 0; i < l.n; i += lanes) {
     const auto j = hn::Sub(hn::Set(di, l.n - 1 - i), hn::Iota(di, 0));
     const auto valid = hn::And(hn::Gt(j, below_lo), hn::Lt(j, above_hi));
@@ -86,20 +96,28 @@ void SampleLine(const StripSource& src, const StripLine& l, float* out) {
     hn::Vec<decltype(du)> s00, s01, s10, s11;
     ChannelSums<kChannels>(du, base, hn::Add(row0, col), &s00, &s01);
     ChannelSums<kChannels>(du, base, hn::Add(hn::Add(row0, stride), col), &s10, &s11);
-    const auto g = hn::Add(hn::Mul(y0, width), x0);
-    const auto g1 = hn::Add(g, width);
-    const auto a =
-        hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s00)), hn::GatherIndex(df, src.gain, g));
+    // One 32-bit word per row holds the gains of x0 (low half) and x0 + 1.
+    const auto g = hn::Mul(hn::Add(hn::Mul(y0, hn::Set(di, src.width)), x0), hn::Set(di, 2));
+    const auto w0 = hn::BitCast(di, hn::GatherOffset(du, gain_base, g));
+    const auto w1 = hn::BitCast(di, hn::GatherOffset(du, gain_base, hn::Add(g, gain_row)));
+    const auto q00 = hn::BitCast(di, hn::And(hn::BitCast(du, w0), low16));
+    const auto q01 = hn::BitCast(di, hn::ShiftRight<16>(hn::BitCast(du, w0)));
+    const auto q10 = hn::BitCast(di, hn::And(hn::BitCast(du, w1), low16));
+    const auto q11 = hn::BitCast(di, hn::ShiftRight<16>(hn::BitCast(du, w1)));
+    const auto invalid = hn::Eq(hn::Min(hn::Min(q00, q01), hn::Min(q10, q11)), zero);
+    const auto a = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s00)),
+                           hn::Mul(hn::ConvertTo(df, q00), scale));
     const auto b = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s01)),
-                           hn::GatherIndex(df, src.gain, hn::Add(g, hn::Set(di, 1))));
-    const auto c =
-        hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s10)), hn::GatherIndex(df, src.gain, g1));
+                           hn::Mul(hn::ConvertTo(df, q01), scale));
+    const auto c = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s10)),
+                           hn::Mul(hn::ConvertTo(df, q10), scale));
     const auto d = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s11)),
-                           hn::GatherIndex(df, src.gain, hn::Add(g1, hn::Set(di, 1))));
+                           hn::Mul(hn::ConvertTo(df, q11), scale));
     const auto top = hn::Add(a, hn::Mul(hn::Sub(b, a), fx));
     const auto bottom = hn::Add(c, hn::Mul(hn::Sub(d, c), fx));
     const auto v = hn::Mul(hn::Add(hn::Mul(top, hn::Sub(one, fy)), hn::Mul(bottom, fy)), inv);
-    hn::StoreU(hn::IfThenElse(hn::RebindMask(df, valid), v, nan), df, out + i);
+    const auto keep = hn::AndNot(invalid, valid);
+    hn::StoreU(hn::IfThenElse(hn::RebindMask(df, keep), v, nan), df, out + i);
   }
 }
 
@@ -264,8 +282,8 @@ void ScalarLine(const StripSource& src, const StripLine& l, float* out) {
     const std::uint8_t* q0 =
         src.raw + static_cast<std::size_t>(y0) * src.stride_bytes + x0 * kChannels;
     const std::uint8_t* q1 = q0 + src.stride_bytes;
-    const float* g0 = src.gain + static_cast<std::size_t>(y0) * src.width + x0;
-    out[i] = RawGainBilinear<kChannels>(q0, q1, g0, g0 + src.width, fx, fy);
+    const std::uint16_t* g0 = src.gain + static_cast<std::size_t>(y0) * src.width + x0;
+    out[i] = RawGainBilinear<kChannels>(q0, q1, g0, g0 + src.width, src.gain_scale, fx, fy);
   }
 }
 
@@ -363,6 +381,32 @@ void DispatchedCosts(const float* const* lines, int n_lines, const float* ref, i
 }
 
 }  // namespace
+
+Gain16 Gain16::From(const std::vector<float>& gain, int width) {
+  Gain16 out;
+  out.width = width;
+  float largest = 0;
+  for (const float g : gain)
+    if (std::isfinite(g)) largest = std::max(largest, g);
+  int e = 16;
+  while (e > -16 && static_cast<double>(largest) * std::ldexp(1.0, e) > 65535.0) --e;
+  out.scale = static_cast<float>(std::ldexp(1.0, -e));
+  const double to_q = std::ldexp(1.0, e);
+  out.q.resize(gain.size());
+  // Once per camera, but 32.5 M pixels on an R32: in parallel, rounding by
+  // + 0.5 and truncation (g >= 0).
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, gain.size(), 1 << 16),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t k = r.begin(); k < r.end(); ++k) {
+                        const float g = gain[k];
+                        out.q[k] = std::isfinite(g) && g > 0
+                                       ? static_cast<std::uint16_t>(
+                                             std::clamp(g * to_q + 0.5, 1.0, 65535.0))
+                                       : 0;
+                      }
+                    });
+  return out;
+}
 
 const StripKernels& ScalarStripKernels() {
   static const StripKernels kernels{ScalarSampleStripLine, ScalarStripCosts, ScalarCandidateScores,

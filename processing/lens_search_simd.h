@@ -16,6 +16,8 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
+#include <vector>
 
 namespace lifmcr::processing::detail {
 
@@ -24,17 +26,39 @@ namespace lifmcr::processing::detail {
 constexpr int kStripPad = 64;
 
 // The frame a strip is read from: raw pixels (1 or 3 channels of 8 bits,
-// the grey level their sum) and the devignetting gain (one float per pixel,
-// rows of `width`, NaN where invalid); or, where `grey` is set, a float
-// grey image (rows of `width`, NaN where invalid: the dense search's
-// smoothed devignetted grey), and raw / gain are not read.
+// the grey level their sum) and the devignetting gain in 16 bits (Gain16
+// below: one word per pixel, rows of `width`, 0 where invalid); or, where
+// `grey` is set, a float grey image (rows of `width`, NaN where invalid:
+// the dense search's smoothed devignetted grey), and raw / gain are not read.
 struct StripSource {
   const std::uint8_t* raw = nullptr;
   std::size_t stride_bytes = 0;
   int channels = 1;  // 1 or 3
-  const float* gain = nullptr;
+  const std::uint16_t* gain = nullptr;
   int width = 0;
   const float* grey = nullptr;
+  float gain_scale = 1;  // Gain16::scale
+};
+
+// The devignetting gain (plenoptic_frame.h: W_ref / W(p), NaN where
+// invalid) in 16-bit fixed point, made once per camera for the per-lens
+// search: gain = q scale with scale = 2^-e, e the largest (at most 16) for
+// which the largest gain fits (q <= 65535), q >= 1 where valid, q = 0 where
+// invalid. With the default min_white_fraction 0.5 (gains up to 2) e = 14:
+// the gain to 3e-5 of itself, 0.008 DN on a 255 DN pixel. Why: half the
+// bytes of the float gain, and the two gains of a bilinear sample's row in
+// one 32-bit load (a gather fewer per row); q scale is exact in float, so
+// every reader gets the same numbers.
+struct Gain16 {
+  std::vector<std::uint16_t> q;
+  float scale = 1;
+  int width = 0;
+  // From a float gain of `width` columns.
+  static Gain16 From(const std::vector<float>& gain, int width);
+  // The gain at pixel index `at`; NaN where invalid.
+  float At(std::size_t at) const {
+    return q[at] == 0 ? std::numeric_limits<float>::quiet_NaN() : static_cast<float>(q[at]) * scale;
+  }
 };
 
 // The bilinear grey at (x0 + fx, y0 + fy) of a float image, r0 / r1 its
@@ -45,13 +69,17 @@ inline float GreyImageBilinear(const float* r0, const float* r1, float fx, float
 }
 
 // The grey level at (x0 + fx, y0 + fy) of the raw pixels times the gain,
-// q0 / q1 the raw rows y0 / y0 + 1 at x0, g0 / g1 the gain rows at x0: the
-// formula of StripLine below, in the order the Highway kernels evaluate it
-// (channel sums in integers, one conversion per corner), so the scalar
-// reference and every scalar reader of the frame agree to the last bit.
+// q0 / q1 the raw rows y0 / y0 + 1 at x0, g0 / g1 the 16-bit gain rows at
+// x0 (Gain16, `scale` its scale): the formula of StripLine below, in the
+// order the Highway kernels evaluate it (channel sums in integers, one
+// conversion per corner), so the scalar reference and every scalar reader
+// of the frame agree to the last bit; NaN when a corner's gain is invalid.
 template <int kChannels>
-inline float RawGainBilinear(const std::uint8_t* q0, const std::uint8_t* q1, const float* g0,
-                             const float* g1, float fx, float fy) {
+inline float RawGainBilinear(const std::uint8_t* q0, const std::uint8_t* q1,
+                             const std::uint16_t* g0, const std::uint16_t* g1, float scale,
+                             float fx, float fy) {
+  if (g0[0] == 0 || g0[1] == 0 || g1[0] == 0 || g1[1] == 0)
+    return std::numeric_limits<float>::quiet_NaN();
   int s00 = q0[0], s01 = q0[kChannels], s10 = q1[0], s11 = q1[kChannels];
   if constexpr (kChannels == 3) {
     s00 += q0[1] + q0[2];
@@ -59,8 +87,10 @@ inline float RawGainBilinear(const std::uint8_t* q0, const std::uint8_t* q1, con
     s10 += q1[1] + q1[2];
     s11 += q1[4] + q1[5];
   }
-  const float a = static_cast<float>(s00) * g0[0], b = static_cast<float>(s01) * g0[1],
-              c = static_cast<float>(s10) * g1[0], d = static_cast<float>(s11) * g1[1];
+  const float a = static_cast<float>(s00) * (static_cast<float>(g0[0]) * scale),
+              b = static_cast<float>(s01) * (static_cast<float>(g0[1]) * scale),
+              c = static_cast<float>(s10) * (static_cast<float>(g1[0]) * scale),
+              d = static_cast<float>(s11) * (static_cast<float>(g1[1]) * scale);
   return ((a + (b - a) * fx) * (1 - fy) + (c + (d - c) * fx) * fy) * (1.0f / kChannels);
 }
 
@@ -71,11 +101,12 @@ inline float RawGainBilinear(const std::uint8_t* q0, const std::uint8_t* q1, con
 // (b_ey = b e_y and b_ex = b e_x for line b of the patch), and is
 //   grey(x_j, y_j) = ((a + (b - a) fx) (1 - fy) + (c + (d - c) fx) fy) / channels
 // with a, b, c, d the four neighbouring pixels' channel sums times their
-// gains, fx, fy the fractional parts (with `grey` set: GreyImageBilinear
+// gains (NaN where one of the four gains is invalid), fx, fy the fractional parts (with `grey` set: GreyImageBilinear
 // of the four grey pixels); NaN for j outside [j_lo, j_hi].
 // Precondition: every position with j in [j_lo, j_hi] has 0 <= x_j,
 // floor(x_j) <= width - 3 and 0 <= y_j, floor(y_j) <= rows - 3 (MatchAlong's
-// disc well inside the frame), and rows * stride_bytes < 2^31. `out` holds
+// disc well inside the frame), and rows * stride_bytes < 2^31 and
+// 2 rows * width < 2^31 (32-bit byte offsets). `out` holds
 // n + kStripPad floats.
 struct StripLine {
   float px = 0, py = 0, e_x = 0, e_y = 0, b_ey = 0, b_ex = 0;

@@ -21,6 +21,7 @@
 
 #include "config/image.h"
 #include "config/mla.h"
+#include "processing/lens_search_simd.h"
 #include "processing/plenoptic_frame.h"
 
 #include <Eigen/Core>
@@ -69,13 +70,14 @@ class SharpTypeTable {
 
 // Colour of micro image m seen from virtual point (x, y) at 1 / v = inv_v:
 // bilinear at p = l + (x - l) / v of the raw pixels times the devignetting
-// gain; false outside its usable disc (radius^2 r2) or next to an invalid
-// pixel (the gain is NaN there and propagates through the sum).
+// gain (f.gain, or `gain16` where set: lens_search_simd.h's 16-bit copy);
+// false outside its usable disc (radius^2 r2) or next to an invalid pixel
+// (the gain is NaN there and propagates through the sum).
 // `centrality` = 1 - |p - c|^2 / r^2.
 template <int kChannels>
 inline bool SampleLens(const LensF& m, float x, float y, float inv_v, float r2,
-                       const PlenopticFrame& f, const ConstImageView& raw, float* c,
-                       float* centrality) {
+                       const PlenopticFrame& f, const Gain16* gain16, const ConstImageView& raw,
+                       float* c, float* centrality) {
   const float px = m.lx + (x - m.lx) * inv_v, py = m.ly + (y - m.ly) * inv_v;
   const float dx = px - m.cx, dy = py - m.cy;
   const float d2 = dx * dx + dy * dy;
@@ -83,10 +85,17 @@ inline bool SampleLens(const LensF& m, float x, float y, float inv_v, float r2,
   const int x0 = static_cast<int>(px), y0 = static_cast<int>(py);
   if (x0 >= f.width - 1 || y0 >= f.height - 1) return false;
   const float fx = px - x0, fy = py - y0;
-  const float* g0 = f.gain.data() + static_cast<std::size_t>(y0) * f.width + x0;
-  const float* g1 = g0 + f.width;
-  const float w00 = (1 - fx) * (1 - fy) * g0[0], w01 = fx * (1 - fy) * g0[1],
-              w10 = (1 - fx) * fy * g1[0], w11 = fx * fy * g1[1];
+  const std::size_t at = static_cast<std::size_t>(y0) * f.width + x0;
+  float g00, g01, g10, g11;
+  if (gain16 != nullptr) {
+    g00 = gain16->At(at), g01 = gain16->At(at + 1);
+    g10 = gain16->At(at + f.width), g11 = gain16->At(at + f.width + 1);
+  } else {
+    const float* g0 = f.gain.data() + at;
+    g00 = g0[0], g01 = g0[1], g10 = g0[f.width], g11 = g0[f.width + 1];
+  }
+  const float w00 = (1 - fx) * (1 - fy) * g00, w01 = fx * (1 - fy) * g01,
+              w10 = (1 - fx) * fy * g10, w11 = fx * fy * g11;
   const std::uint8_t* q0 = raw.Row(y0) + x0 * kChannels;
   const std::uint8_t* q1 = raw.Row(y0 + 1) + x0 * kChannels;
   float check = 0;
@@ -144,6 +153,10 @@ class TfKernel {
     }
   }
 
+  // The gain is read from `gain` (the frame's geometry may then drop its
+  // float gain): half the bytes; the gain to 3e-5 of itself (Gain16).
+  void UseGain16(const Gain16* gain) { gain16_ = gain; }
+
   int SharpType(float v) const { return sharp_type_(v); }
   // Sublattice coordinates of raw position (x, y) in type t's sublattice.
   Eigen::Vector2f Sublattice(int t, double x, double y) const {
@@ -157,20 +170,20 @@ class TfKernel {
     return {cx_ + (x - cx_) * k, cy_ + (y - cy_) * k};
   }
 
-  // The blend at raw position (x, y), virtual depth v (> 1), with the lenses
-  // of type `type` around LookingAt(x, y, v) (or (x, y): LensSelection):
-  // acc (kChannels) and the sum of weights (0: no micro image sees the point).
-  template <int kChannels>
-  float Blend(const ConstImageView& raw, float x, float y, float v, int type, float* acc) const {
-    const float inv_v = 1.0f / v;
+  // The three lenses of type `type`'s sublattice triangle around
+  // LookingAt(x, y, v) (or (x, y): LensSelection) with their barycentric
+  // weights (a lens index of -1 where the lattice has none); q the point
+  // they are chosen around.
+  void Triangle(float x, float y, float v, int type, int* lens, float* bary,
+                Eigen::Vector2f* q_out) const {
     const Eigen::Vector2f q =
         selection_ == LensSelection::kLookingAt ? LookingAt(x, y, v) : Eigen::Vector2f(x, y);
+    *q_out = q;
     const Eigen::Vector2f a = Sublattice(type, q.x(), q.y());
     const float ax = a.x(), ay = a.y();
     const int m = static_cast<int>(std::floor(ax)), n = static_cast<int>(std::floor(ay));
     const float fa = ax - m, fb = ay - n;
     int ci[3], cj[3];
-    float bary[3];
     if (fa + fb < 1) {
       ci[0] = m, cj[0] = n, bary[0] = 1 - fa - fb;
       ci[1] = m + 1, cj[1] = n, bary[1] = fa;
@@ -180,16 +193,76 @@ class TfKernel {
       ci[1] = m, cj[1] = n + 1, bary[1] = 1 - fa;
       ci[2] = m + 1, cj[2] = n, bary[2] = 1 - fb;
     }
+    const int i0 = sub_[type].i0;
+    for (int k = 0; k < 3; ++k) lens[k] = f_.LensAt(i0 + ci[k] + 2 * cj[k], ci[k] - cj[k]);
+  }
+
+  // A point's triangle (Triangle above), kept between asking the cache for
+  // its rows (Prefetch) and blending it (BlendTriangle).
+  struct PointLenses {
+    int lens[3];
+    float bary[3];
+    Eigen::Vector2f q;
+  };
+
+  // Asks the cache for the raw and gain rows that the blend of (x, y) at v
+  // reads from the triangle's lenses (not the border fallback), so that a
+  // renderer can issue them for a run of points before it blends them: the
+  // blend's loads then wait for memory together, not one after another
+  // (the sparse points of a preview touch new lines on every sample).
+  // Reads nothing; fills `t` for BlendTriangle.
+  template <int kChannels>
+  void Prefetch(const ConstImageView& raw, float x, float y, float v, int type,
+                PointLenses* t) const {
+    Triangle(x, y, v, type, t->lens, t->bary, &t->q);
+    const float inv_v = 1.0f / v;
+    for (int k = 0; k < 3; ++k) {
+      if (t->bary[k] <= 0 || t->lens[k] < 0) continue;
+      const LensF& m = lenses_[t->lens[k]];
+      const float px = m.lx + (x - m.lx) * inv_v, py = m.ly + (y - m.ly) * inv_v;
+      if (!(px >= 0 && py >= 0)) continue;
+      const int x0 = static_cast<int>(px), y0 = static_cast<int>(py);
+      if (x0 >= f_.width - 1 || y0 >= f_.height - 1) continue;
+      const std::size_t at = static_cast<std::size_t>(y0) * f_.width + x0;
+      __builtin_prefetch(raw.Row(y0) + x0 * kChannels);
+      __builtin_prefetch(raw.Row(y0 + 1) + x0 * kChannels);
+      if (gain16_ != nullptr) {
+        __builtin_prefetch(gain16_->q.data() + at);
+        __builtin_prefetch(gain16_->q.data() + at + f_.width);
+      } else {
+        __builtin_prefetch(f_.gain.data() + at);
+        __builtin_prefetch(f_.gain.data() + at + f_.width);
+      }
+    }
+  }
+
+  // The blend at raw position (x, y), virtual depth v (> 1), with the lenses
+  // of type `type` around LookingAt(x, y, v) (or (x, y): LensSelection):
+  // acc (kChannels) and the sum of weights (0: no micro image sees the point).
+  template <int kChannels>
+  float Blend(const ConstImageView& raw, float x, float y, float v, int type, float* acc) const {
+    PointLenses t;
+    Triangle(x, y, v, type, t.lens, t.bary, &t.q);
+    return BlendTriangle<kChannels>(raw, x, y, v, t, acc);
+  }
+
+  // Blend with the point's triangle made already (Prefetch).
+  template <int kChannels>
+  float BlendTriangle(const ConstImageView& raw, float x, float y, float v, const PointLenses& t,
+                      float* acc) const {
+    const float inv_v = 1.0f / v;
+    const int* lens = t.lens;
+    const float* bary = t.bary;
+    const Eigen::Vector2f& q = t.q;
     for (int ch = 0; ch < kChannels; ++ch) acc[ch] = 0;
     float c[kChannels], centrality = 0, sw = 0;
-    const int i0 = sub_[type].i0;
-    for (int q = 0; q < 3; ++q) {
-      if (bary[q] <= 0) continue;
-      const int k = f_.LensAt(i0 + ci[q] + 2 * cj[q], ci[q] - cj[q]);
+    for (int t = 0; t < 3; ++t) {
+      if (bary[t] <= 0) continue;
+      const int k = lens[t];
       if (k < 0 ||
-          !SampleLens<kChannels>(lenses_[k], x, y, inv_v, r2_, f_, raw, c, &centrality))
+          !SampleLens<kChannels>(lenses_[k], x, y, inv_v, r2_, f_, gain16_, raw, c, &centrality))
         continue;
-      const float wq = bary[q] * centrality;
+      const float wq = bary[t] * centrality;
       for (int ch = 0; ch < kChannels; ++ch) acc[ch] += wq * c[ch];
       sw += wq;
     }
@@ -204,7 +277,7 @@ class TfKernel {
     for (const auto& d : kAround) {
       const int k = f_.LensAt(i + d[0], j + d[1]);
       if (k < 0 ||
-          !SampleLens<kChannels>(lenses_[k], x, y, inv_v, r2_, f_, raw, c, &centrality))
+          !SampleLens<kChannels>(lenses_[k], x, y, inv_v, r2_, f_, gain16_, raw, c, &centrality))
         continue;
       for (int ch = 0; ch < kChannels; ++ch) acc[ch] += centrality * c[ch];
       sw += centrality;
@@ -219,6 +292,7 @@ class TfKernel {
     Eigen::Matrix2d from_px;
   };
   const PlenopticFrame& f_;
+  const Gain16* gain16_ = nullptr;
   SharpTypeTable sharp_type_;
   LensSelection selection_;
   float r2_ = 0;

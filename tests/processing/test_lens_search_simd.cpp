@@ -32,10 +32,10 @@ struct RandomFrame {
   int width = 0, height = 0, channels = 1;
   std::size_t stride = 0;
   std::vector<std::uint8_t> raw;
-  std::vector<float> gain;
+  Gain16 gain;              // the per-lens search's 16-bit gain, 0 holes
   std::vector<float> grey;  // a float grey image (the dense search's), NaN holes
   StripSource Source() const {
-    return StripSource{raw.data(), stride, channels, gain.data(), width, nullptr};
+    return StripSource{raw.data(), stride, channels, gain.q.data(), width, nullptr, gain.scale};
   }
   StripSource GreySource() const {
     return StripSource{nullptr, 0, 1, nullptr, width, grey.data()};
@@ -43,7 +43,7 @@ struct RandomFrame {
 };
 
 // Rows padded past the pixels (stride > width * channels), gains in
-// [0.5, 2] with one in 50 NaN (an invalid pixel).
+// [0.5, 2] with one in 50 NaN (an invalid pixel), in 16 bits.
 RandomFrame MakeFrame(std::mt19937& rng, int channels) {
   RandomFrame f;
   f.width = std::uniform_int_distribution<int>(24, 90)(rng);
@@ -54,11 +54,12 @@ RandomFrame MakeFrame(std::mt19937& rng, int channels) {
   f.raw.resize(f.stride * f.height);
   std::uniform_int_distribution<int> byte(0, 255);
   for (std::uint8_t& b : f.raw) b = static_cast<std::uint8_t>(byte(rng));
-  f.gain.resize(static_cast<std::size_t>(f.width) * f.height);
+  std::vector<float> gain(static_cast<std::size_t>(f.width) * f.height);
   std::uniform_real_distribution<float> g(0.5f, 2.0f);
   std::uniform_int_distribution<int> hole(0, 49);
-  for (float& x : f.gain) x = hole(rng) == 0 ? std::nanf("") : g(rng);
-  f.grey.resize(f.gain.size());
+  for (float& x : gain) x = hole(rng) == 0 ? std::nanf("") : g(rng);
+  f.gain = Gain16::From(gain, f.width);
+  f.grey.resize(gain.size());
   std::uniform_real_distribution<float> level(0.0f, 255.0f);
   for (float& x : f.grey) x = hole(rng) == 0 ? std::nanf("") : level(rng);
   return f;
@@ -97,6 +98,31 @@ StripLine MakeLine(std::mt19937& rng, const RandomFrame& f) {
 
 // Every Highway target this CPU runs, the best first.
 std::vector<std::int64_t> Targets() { return hwy::SupportedAndGeneratedTargets(); }
+
+// The 16-bit gain: the largest gain uses the top bit, every gain is kept to
+// half a step (scale / 2) and read back exactly as q scale, invalid ones
+// (NaN, 0) are 0 and read back NaN.
+TEST(Gain16, KeepsTheGainToHalfAStepAndMarksInvalidPixels) {
+  const std::vector<float> gain{1.0f, 0.5f, 2.0f, std::nanf(""), 0.0f, 1.2345678f, 0.75f, 1.9999f};
+  const Gain16 g = Gain16::From(gain, 4);
+  EXPECT_EQ(g.width, 4);
+  EXPECT_EQ(g.scale, 1.0f / 16384);  // 2 * 2^14 = 32768 <= 65535 < 2 * 2^15
+  ASSERT_EQ(g.q.size(), gain.size());
+  EXPECT_EQ(g.q[2], 32768);
+  EXPECT_EQ(g.q[3], 0);
+  EXPECT_EQ(g.q[4], 0);
+  EXPECT_TRUE(std::isnan(g.At(3)));
+  EXPECT_TRUE(std::isnan(g.At(4)));
+  for (const std::size_t k : {0, 1, 2, 5, 6, 7}) {
+    EXPECT_NEAR(g.At(k), gain[k], 0.5 * g.scale) << k;
+    EXPECT_EQ(g.At(k), static_cast<float>(g.q[k]) * g.scale) << k;
+  }
+  // Large gains: a coarser scale, still within half a step.
+  const Gain16 big = Gain16::From({100.0f, 3.0f}, 2);
+  EXPECT_LE(100.0 / big.scale, 65535.0);
+  EXPECT_GT(200.0 / big.scale, 65535.0);
+  EXPECT_NEAR(big.At(1), 3.0f, 0.5 * big.scale);
+}
 
 class StripKernelsTest : public ::testing::Test {
  protected:
