@@ -328,7 +328,9 @@ int RunRegister(const RegisterOptions& o) {
                   << " ms), " << r.BriefReport(method) << "\n";
         // The first method's poses place the frame in the map.
         if (o.chain && r.success && method == methods.front())
-          if (Status s = shared_map.AddFrame(camera_order, *camera, *obs, r.w0_from_cam.pose, index); !s)
+          if (Status s =
+                  shared_map.AddFrame(camera_order, *camera, *obs, r.w0_from_cam.pose, index);
+              !s)
             return Fail(s.error().message);
       }
     }
@@ -507,6 +509,12 @@ int RunRegister(const RegisterOptions& o) {
       if (methods.size() == 2) PrintStats("difference pnp - ransac", differences);
     }
   }
+  if (o.chain) {
+    // The extended map, for `replay --reference` and a later `register --reference`.
+    const fs::path chained = fs::path(o.out) / "chained_reference";
+    if (Status s = reg::WriteReferenceMap(chained, map); !s) return Fail(s.error().message);
+    std::printf("wrote %s (%zu points)\n", chained.string().c_str(), map.points.size());
+  }
   std::printf("wrote %s (%zu rows)\n", (fs::path(o.out) / "registration.csv").string().c_str(),
               rows.size());
   return 0;
@@ -520,7 +528,8 @@ CommandRun AddRegisterCommand(CLI::App& app) {
       "Reads: SEQ_DIR (raw frames, or with --observations ground-truth its GroundTruth/),\n"
       "the reference map (--reference MAP_DIR, lifmcr calibrate's output) and --intrinsics.\n"
       "Writes: into --out, registration.csv (frame, camera, method, c0_from_cx, inliers,\n"
-      "rmse_px, status) and trajectory_<serial>_<method>.tum; progress on stderr.\n"
+      "rmse_px, status) and trajectory_<serial>_<method>.tum; with --chain the extended map\n"
+      "in chained_reference/ (a --reference MAP_DIR); progress on stderr.\n"
       "Exit codes: 0 written; 1 an input could not be read or written; 2 usage error.");
   app.add_option("SEQ_DIR", o->sequence, "Sequence folder (SCENE/SEQ)")->required();
   app.add_option("--reference", o->reference, "Reference map folder (lifmcr calibrate's output)");

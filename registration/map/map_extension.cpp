@@ -20,7 +20,8 @@ bool PositiveFinite(double x) { return x > 0 && std::isfinite(x); }
 }  // namespace
 
 Status MapExtensionOptions::Check() const {
-  if (Status s = map_match.Check(); !s) return Error{"map extension: map_match: " + s.error().message};
+  if (Status s = map_match.Check(); !s)
+    return Error{"map extension: map_match: " + s.error().message};
   if (Status s = pair_match.Check(); !s)
     return Error{"map extension: pair_match: " + s.error().message};
   if (!PositiveFinite(sigma_v_relative))
@@ -64,8 +65,8 @@ Status SharedMapBuilder::AddFrame(int camera_order, const processing::CameraMode
                  ": keypoints, depths and camera points differ in number"};
   std::vector<bool> in_map(static_cast<std::size_t>(n), false);
   if (map.size() > 0 && n > 0)
-    for (const Match& m :
-         MatchDescriptors(frame.features.descriptors.data(), n, *map.descriptors, options_.map_match))
+    for (const Match& m : MatchDescriptors(frame.features.descriptors.data(), n, *map.descriptors,
+                                           options_.map_match))
       in_map[static_cast<std::size_t>(m.query)] = true;
 
   PendingFrame pending;
@@ -127,8 +128,8 @@ void SharedMapBuilder::Pair(int a, int b) {
   const int na = static_cast<int>(fa.observations.size());
   const int nb = static_cast<int>(fb.observations.size());
   if (na == 0 || nb == 0) return;
-  for (const Match& m :
-       MatchDescriptors(fa.descriptors.data(), na, fb.descriptors.data(), nb, options_.pair_match)) {
+  for (const Match& m : MatchDescriptors(fa.descriptors.data(), na, fb.descriptors.data(), nb,
+                                         options_.pair_match)) {
     const int i = fa.observations[static_cast<std::size_t>(m.query)];
     const int j = fb.observations[static_cast<std::size_t>(m.train)];
     const Observation& oi = observations_[static_cast<std::size_t>(i)];
@@ -167,9 +168,12 @@ MapExtension SharedMapBuilder::AddTracksTo(ReferenceMap* map) {
     if (members.size() < 2) continue;
     std::vector<int> cameras;
     for (const int i : members)
-      cameras.push_back(frames_[static_cast<std::size_t>(observations_[static_cast<std::size_t>(i)].frame_slot)].camera_order);
+      cameras.push_back(
+          frames_[static_cast<std::size_t>(observations_[static_cast<std::size_t>(i)].frame_slot)]
+              .camera_order);
     std::sort(cameras.begin(), cameras.end());
-    if (std::unique(cameras.begin(), cameras.end()) - cameras.begin() < options_.min_cameras) continue;
+    if (std::unique(cameras.begin(), cameras.end()) - cameras.begin() < options_.min_cameras)
+      continue;
     Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
     Eigen::Vector3d weighted = Eigen::Vector3d::Zero();
     int newest = members.front();
@@ -178,7 +182,8 @@ MapExtension SharedMapBuilder::AddTracksTo(ReferenceMap* map) {
       information += o.information;
       weighted += o.information * o.p_in_w0_mm;
       if (frames_[static_cast<std::size_t>(o.frame_slot)].camera_order >=
-          frames_[static_cast<std::size_t>(observations_[static_cast<std::size_t>(newest)].frame_slot)]
+          frames_[static_cast<std::size_t>(
+                      observations_[static_cast<std::size_t>(newest)].frame_slot)]
               .camera_order)
         newest = i;
     }

@@ -33,10 +33,11 @@
 // The fusion assumes unbiased virtual depths. With exact depths (a
 // synthetic rig's ground truth) the far camera of a 4-camera `small` rig
 // registers through the chain where camera 0's map alone places none of its
-// frames (docs/registration.md, "A rig of several cameras"); processing/'s
-// virtual depth is biased by 0.1-0.3 % (docs/calibration.md, "Known
-// limits"), several mm along the ray at 1.8 m, and a neighbour's points
-// placed from it carry that error to the next camera.
+// frames (docs/registration.md, "A rig of several cameras: the chained
+// map"); processing/'s virtual depth is biased by 0.1-0.3 %
+// (docs/calibration.md, "Known limits"), several mm along the ray at 1.8 m,
+// and a neighbour's points placed from it carry that error to the next
+// camera.
 
 #include "config/error.h"
 #include "config/frames.h"
@@ -55,25 +56,25 @@
 namespace lifmcr::registration {
 
 struct MapExtensionOptions {
-  MatchOptions map_match = MapMatching();    // keypoints against the map's kd-forest
-  MatchOptions pair_match = ExactMatching(); // pending keypoints of two frames
-  double sigma_v_relative = 0.007;           // virtual-depth noise / v, > 0
-  double sigma_tf_px = 0.3;                  // keypoint noise (TF px), > 0
-  double pose_sigma_mm = 0.5;                // a registered pose's error at the point, >= 0
-  double agreement_chi2 = 11.345;            // 99 % of chi-square(3), > 0
-  int min_cameras = 1;                       // cameras a track's observations span, >= 1
-  Status Check() const;                      // every field; the message names it
+  MatchOptions map_match = MapMatching();     // keypoints against the map's kd-forest
+  MatchOptions pair_match = ExactMatching();  // pending keypoints of two frames
+  double sigma_v_relative = 0.007;            // virtual-depth noise / v, > 0
+  double sigma_tf_px = 0.3;                   // keypoint noise (TF px), > 0
+  double pose_sigma_mm = 0.5;                 // a registered pose's error at the point, >= 0
+  double agreement_chi2 = 11.345;             // 99 % of chi-square(3), > 0
+  int min_cameras = 1;                        // cameras a track's observations span, >= 1
+  Status Check() const;                       // every field; the message names it
 };
 
 struct MapExtension {
-  int pending = 0;     // keypoints kept pending
-  int matched = 0;     // keypoints that matched a map point
-  int no_depth = 0;    // keypoints without a virtual depth
-  int joined = 0;      // pair matches that joined two tracks
-  int disagreed = 0;   // pair matches whose points did not agree
-  int added = 0;       // map points made
-  // "24 frames: 812 pending (1204 matched the map, 35 without depth), 410
-  // pairs joined, 88 disagreed: 377 points added".
+  int pending = 0;    // keypoints kept pending
+  int matched = 0;    // keypoints that matched a map point
+  int no_depth = 0;   // keypoints without a virtual depth
+  int joined = 0;     // pair matches that joined two tracks
+  int disagreed = 0;  // pair matches whose points did not agree
+  int added = 0;      // map points made
+  // "3649 keypoints pending (2668 matched the map, 0 without depth), 1397
+  // pairs joined, 115 disagreed: 707 points added".
   std::string BriefReport() const;
 };
 
@@ -96,9 +97,9 @@ class SharedMapBuilder {
     Eigen::Vector3d p_in_w0_mm;
     Eigen::Matrix3d information;  // inverse covariance
     Eigen::Matrix3d covariance;
-    int frame_slot = 0;           // index into frames_
-    int descriptor = 0;           // row in its frame's descriptors
-    int parent = 0;               // union-find
+    int frame_slot = 0;  // index into frames_
+    int descriptor = 0;  // row in its frame's descriptors
+    int parent = 0;      // union-find
     bool emitted = false;
   };
   struct PendingFrame {

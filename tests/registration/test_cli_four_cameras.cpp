@@ -4,13 +4,13 @@
 // camera (three baselines away) does through the map extended by the
 // cameras registered before it (`register --chain`,
 // registration/map/map_extension.h); evaluate writes a row per camera.
-#include "evaluation/evaluation_inputs.h"
 #include "registration/estimators/pose_covariance.h"
 #include "registration/map/poses_csv.h"
 #include "tests/test_util.h"
 
 #include <gtest/gtest.h>
 
+#include "evaluation/evaluation_inputs.h"
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
@@ -41,7 +41,8 @@ TEST(CliFourCameras, TheFarCameraRegistersThroughTheChainedMap) {
     if (name.rfind("poses_", 0) != 0) continue;
     Expected<std::vector<registration::FramePose>> poses = registration::ReadPosesCsv(entry.path());
     ASSERT_TRUE(poses) << poses.error().message;
-    for (const auto& p : *poses) truth[name.substr(6, name.size() - 10)][p.frame] = p.world_from_cam;
+    for (const auto& p : *poses)
+      truth[name.substr(6, name.size() - 10)][p.frame] = p.world_from_cam;
   }
   ASSERT_EQ(truth.size(), 4u);
 
@@ -52,9 +53,11 @@ TEST(CliFourCameras, TheFarCameraRegistersThroughTheChainedMap) {
   };
   std::string zero;
   auto run = [&](const std::string& extra, const fs::path& out) {
-    const test::CommandResult r = test::RunLifmcr(
-        "register " + seq.string() + " --reference-from-ground-truth --observations ground-truth "
-        "--method pnp " + extra + " --out " + out.string());
+    const test::CommandResult r =
+        test::RunLifmcr("register " + seq.string() +
+                        " --reference-from-ground-truth --observations ground-truth "
+                        "--method pnp " +
+                        extra + " --out " + out.string());
     EXPECT_EQ(r.exit_code, 0) << r.err;
     std::map<std::string, Summary> summary;
     Expected<RegistrationTable> table = ReadRegistrationCsv(out / "registration.csv");
