@@ -116,5 +116,50 @@ TEST(CliFourCameras, TheFarCameraRegistersThroughTheChainedMap) {
         << evaluation.out;
 }
 
+// `synth --cameras 4 --rigid`: one rig whose cameras move together, so every
+// camera's c0_from_cx is the same at every trigger; without it each camera
+// has its own trajectory (LiFMCR's sequences) and c0_from_cx changes.
+TEST(CliFourCameras, SynthRigidKeepsEveryCameraOnItsMount) {
+  test::TempDir dir;
+  for (const bool rigid : {true, false}) {
+    const fs::path out = dir / (rigid ? "rigid" : "free");
+    const test::CommandResult synth = test::RunLifmcr(
+        "synth --out " + out.string() +
+        " --preset small --frames 5 --cameras 4 --no-images --quiet" + (rigid ? " --rigid" : ""));
+    ASSERT_EQ(synth.exit_code, 0) << synth.err;
+    const fs::path truth = out / "00_Synthetic" / "Sequence_00" / "GroundTruth";
+    std::map<std::string, std::vector<registration::FramePose>> poses;
+    for (const auto& entry : fs::directory_iterator(truth)) {
+      const std::string name = entry.path().filename().string();
+      if (name.rfind("poses_", 0) != 0) continue;
+      Expected<std::vector<registration::FramePose>> p = registration::ReadPosesCsv(entry.path());
+      ASSERT_TRUE(p) << p.error().message;
+      ASSERT_EQ(p->size(), 5u);
+      poses[name.substr(6, name.size() - 10)] = *p;
+    }
+    ASSERT_EQ(poses.size(), 4u);
+    const std::vector<registration::FramePose>& zero = poses.begin()->second;
+    double largest_change_mm = 0, largest_change_deg = 0;
+    for (const auto& [serial, p] : poses) {
+      const Pose first = zero[0].world_from_cam.inverse() * p[0].world_from_cam;
+      for (std::size_t f = 1; f < p.size(); ++f) {
+        const Pose c0_from_cx = zero[f].world_from_cam.inverse() * p[f].world_from_cam;
+        largest_change_mm =
+            std::max(largest_change_mm, registration::TranslationDifference(c0_from_cx, first));
+        largest_change_deg =
+            std::max(largest_change_deg, registration::RotationDifferenceDeg(c0_from_cx, first));
+      }
+    }
+    std::printf("%s: c0_from_cx changes by up to %.6f mm / %.6f deg over 5 triggers\n",
+                rigid ? "--rigid" : "independent", largest_change_mm, largest_change_deg);
+    if (rigid) {
+      EXPECT_LT(largest_change_mm, 1e-3);
+      EXPECT_LT(largest_change_deg, 1e-4);
+    } else {
+      EXPECT_GT(largest_change_mm, 1.0);
+    }
+  }
+}
+
 }  // namespace
 }  // namespace lifmcr
