@@ -30,6 +30,7 @@
 #include "registration/features/frame_observations.h"
 #include "registration/map/frame_registration.h"
 #include "registration/map/ground_truth_map.h"
+#include "registration/map/map_extension.h"
 #include "registration/features/intrinsics_yaml.h"
 #include "registration/map/poses_csv.h"
 #include "registration/map/reference_map.h"
@@ -73,6 +74,7 @@ struct RegisterOptions {
   int frames = 0;
   int max_features = 4000;
   std::string matching = "approximate";
+  bool chain = false;
 };
 
 int Fail(const std::string& message, int code = 1) {
@@ -246,7 +248,7 @@ int RunRegister(const RegisterOptions& o) {
     map = std::move(*read);
   }
   const std::string reference_serial = map.camera.serial;
-  const reg::MapIndex index = reg::MapIndex::Of(map);
+  reg::MapIndex index = reg::MapIndex::Of(map);
   if (index.size() < 10)
     return Fail("the reference map has " + std::to_string(index.size()) +
                 " points with descriptors; at least 10 are needed");
@@ -257,15 +259,27 @@ int RunRegister(const RegisterOptions& o) {
     std::stable_partition(serials.begin(), serials.end(),
                           [&](const std::string& s) { return s == reference_serial; });
 
-  if (options.match.kd_tree_checks > 0) {
-    // The map's kd-forest, once, before the first frame (features.h).
+  // The map's kd-forest, once per map, before its first frame (features.h).
+  const auto prepare_index = [&] {
+    if (options.match.kd_tree_checks <= 0) return;
     const auto start = std::chrono::steady_clock::now();
     index.descriptors->Prepare(options.match.kd_trees);
     std::fprintf(stderr, "map index: kd-forest of %d trees over %d points, %.0f ms\n",
                  options.match.kd_trees, index.size(),
                  1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
                            .count());
-  }
+  };
+  prepare_index();
+  // --chain: the keypoints of every registered frame that are not in the map
+  // yet join it, where seen twice, before the next camera
+  // (registration/map/map_extension.h).
+  reg::MapExtensionOptions extension_options;
+  extension_options.map_match = options.match;
+  extension_options.sigma_v_relative = options.sigma_v_relative;
+  extension_options.sigma_tf_px = options.sigma_tf_px;
+  if (Status s = extension_options.Check(); !s) return Fail(s.error().message, 2);
+  reg::SharedMapBuilder shared_map(extension_options);
+  int camera_order = 0;
   // An `ok` row promises c0_from_cx within 5 mm / 0.25 deg of the truth
   // (registration/estimators/pose_checks.h, ForErrorBound).
   options.checks = reg::PoseCheckOptions::ForErrorBound(5.0, 0.25);
@@ -312,8 +326,22 @@ int RunRegister(const RegisterOptions& o) {
         std::cerr << "camera " << serial << " frame " << frame << ": "
                   << obs->features.size() << " keypoints (" << static_cast<int>(1e3 * obs->seconds)
                   << " ms), " << r.BriefReport(method) << "\n";
+        // The first method's poses place the frame in the map.
+        if (o.chain && r.success && method == methods.front())
+          if (Status s =
+                  shared_map.AddFrame(camera_order, *camera, *obs, r.w0_from_cam.pose, index);
+              !s)
+            return Fail(s.error().message);
       }
     }
+    if (o.chain && serial != serials.back()) {
+      const reg::MapExtension e = shared_map.AddTracksTo(&map);
+      std::cerr << "chained map after camera " << serial << ": " << e.BriefReport() << "; "
+                << map.points.size() << " points\n";
+      index = reg::MapIndex::Of(map);
+      prepare_index();
+    }
+    ++camera_order;
   }
 
   // c0_from_cx per frame, the CSV rows and the TUM files.
@@ -481,6 +509,12 @@ int RunRegister(const RegisterOptions& o) {
       if (methods.size() == 2) PrintStats("difference pnp - ransac", differences);
     }
   }
+  if (o.chain) {
+    // The extended map, for `replay --reference` and a later `register --reference`.
+    const fs::path chained = fs::path(o.out) / "chained_reference";
+    if (Status s = reg::WriteReferenceMap(chained, map); !s) return Fail(s.error().message);
+    std::printf("wrote %s (%zu points)\n", chained.string().c_str(), map.points.size());
+  }
   std::printf("wrote %s (%zu rows)\n", (fs::path(o.out) / "registration.csv").string().c_str(),
               rows.size());
   return 0;
@@ -494,7 +528,8 @@ CommandRun AddRegisterCommand(CLI::App& app) {
       "Reads: SEQ_DIR (raw frames, or with --observations ground-truth its GroundTruth/),\n"
       "the reference map (--reference MAP_DIR, lifmcr calibrate's output) and --intrinsics.\n"
       "Writes: into --out, registration.csv (frame, camera, method, c0_from_cx, inliers,\n"
-      "rmse_px, status) and trajectory_<serial>_<method>.tum; progress on stderr.\n"
+      "rmse_px, status) and trajectory_<serial>_<method>.tum; with --chain the extended map\n"
+      "in chained_reference/ (a --reference MAP_DIR); progress on stderr.\n"
       "Exit codes: 0 written; 1 an input could not be read or written; 2 usage error.");
   app.add_option("SEQ_DIR", o->sequence, "Sequence folder (SCENE/SEQ)")->required();
   app.add_option("--reference", o->reference, "Reference map folder (lifmcr calibrate's output)");
@@ -516,6 +551,9 @@ CommandRun AddRegisterCommand(CLI::App& app) {
   app.add_option("--matching", o->matching,
                  "Frame-to-map matching: approximate (the map's kd-forest, built once) or exact "
                  "(brute force, the reference; its time grows with the map)");
+  app.add_flag("--chain", o->chain,
+               "Register the cameras in order, each against the map extended by the frames of "
+               "the cameras registered before it (a far camera through its neighbours' views)");
   return [o] { return RunRegister(*o); };
 }
 

@@ -37,6 +37,7 @@ struct SynthOptions {
   std::optional<std::uint64_t> seed;
   bool quiet = false;
   bool no_images = false;
+  bool rigid = false;
   std::string render_frames;
 };
 
@@ -61,6 +62,7 @@ int RunSynth(const SynthOptions& o) {
   if (o.noise) params->camera.read_noise_dn = *o.noise;
   if (o.seed) params->rig.seed = *o.seed;
   if (o.no_images) params->rig.images = false;
+  if (o.rigid) params->rig.rigid = true;
   if (!o.render_frames.empty()) {
     Expected<std::set<std::int64_t>> list = ParseFrameList(o.render_frames, "--render-frames");
     if (!list) {
@@ -142,6 +144,9 @@ CommandRun AddSynthCommand(CLI::App& app) {
   app.add_option("--frames", o->frames, "Camera triggers per sequence");
   app.add_option("--cameras", o->cameras, "Number of cameras (1..8; 2 = the paper's rig)");
   app.add_option("--motion", o->motion, "Camera motion: smooth|handheld|axis|circle|orbit (orbit: varied angles for calibration)");
+  app.add_flag("--rigid", o->rigid,
+               "One rigid rig: the cameras move together, c0_from_cx constant (as rig: rigid: "
+               "true; default: each camera on its own trajectory)");
   app.add_option("--noise", o->noise, "Sensor read noise sigma in DN");
   app.add_option("--seed", o->seed, "Seed: same seed, same bytes");
   app.add_flag("--quiet", o->quiet, "No progress lines on stderr");
