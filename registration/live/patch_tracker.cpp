@@ -27,6 +27,15 @@ Status PatchTrackOptions::Check() const {
 bool MakePatchTemplate(const processing::TfSampler& sampler, const ConstImageView& raw,
                        const Eigen::Vector2d& centre_tf, double v, const PatchTrackOptions& options,
                        PatchTemplate* out) {
+  return MakePatchTemplate(
+      [&](const Eigen::Vector2d& centre, int size, double step, float* samples) {
+        return sampler.Patch(raw, centre, v, size, step, 1, samples);
+      },
+      centre_tf, options, out);
+}
+
+bool MakePatchTemplate(const PatchSampling& sample, const Eigen::Vector2d& centre_tf,
+                       const PatchTrackOptions& options, PatchTemplate* out) {
   const int n = options.patch_size, m = n + 2;
   const std::size_t per_level = static_cast<std::size_t>(m) * m;
   out->samples.resize(per_level * options.levels);
@@ -37,7 +46,7 @@ bool MakePatchTemplate(const processing::TfSampler& sampler, const ConstImageVie
     const int level = options.levels - 1 - slot;  // coarsest first
     const double s = Spacing(level);
     float* t = out->samples.data() + per_level * slot;
-    if (!sampler.Patch(raw, centre_tf, v, m, s, 1, t)) return false;
+    if (!sample(centre_tf, m, s, t)) return false;
     Eigen::Matrix2d h = Eigen::Matrix2d::Zero();
     std::vector<Eigen::Vector2f>& g = out->gradient[slot];
     g.resize(static_cast<std::size_t>(n) * n);

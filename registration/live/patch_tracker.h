@@ -25,6 +25,7 @@
 
 #include <Eigen/Core>
 
+#include <functional>
 #include <vector>
 
 namespace lifmcr::registration {
@@ -52,6 +53,15 @@ struct PatchTemplate {
 bool MakePatchTemplate(const processing::TfSampler& sampler, const ConstImageView& raw,
                        const Eigen::Vector2d& centre_tf, double v, const PatchTrackOptions& options,
                        PatchTemplate* out);
+
+// Fills size x size samples at centre + step (i - (size - 1) / 2, j - (size -
+// 1) / 2) (TfSampler::Patch's layout); false where one is unseen.
+using PatchSampling =
+    std::function<bool(const Eigen::Vector2d& centre_tf, int size, double step, float* out)>;
+// The same template from samples of any image of the TF grid (the offline TF
+// image in test_map_localizer's bias measurement).
+bool MakePatchTemplate(const PatchSampling& sample, const Eigen::Vector2d& centre_tf,
+                       const PatchTrackOptions& options, PatchTemplate* out);
 
 struct PatchTrack {
   bool ok = false;
