@@ -74,7 +74,7 @@ bool MakePatchTemplate(const PatchSampling& sample, const Eigen::Vector2d& centr
 
 PatchTrack TrackPatch(const processing::TfSampler& sampler, const ConstImageView& raw,
                       const PatchTemplate& tmpl, const Eigen::Vector2d& predicted_tf, double v,
-                      const PatchTrackOptions& options) {
+                      const PatchTrackOptions& options, const Eigen::Matrix2d& warp) {
   const int n = options.patch_size, m = n + 2;
   const std::size_t per_level = static_cast<std::size_t>(m) * m;
   PatchTrack result;
@@ -91,7 +91,7 @@ PatchTrack TrackPatch(const processing::TfSampler& sampler, const ConstImageView
     const std::vector<Eigen::Vector2f>& g = tmpl.gradient[slot];
     bool converged = false;
     for (int it = 0; it < options.iterations; ++it) {
-      if (!sampler.Patch(raw, p, v, n, s, 1, patch.data())) return result;
+      if (!sampler.PatchWarped(raw, p, warp, v, n, s, 1, patch.data())) return result;
       double mean = 0;
       for (float value : patch) mean += value;
       mean /= n * n;
@@ -103,7 +103,7 @@ PatchTrack TrackPatch(const processing::TfSampler& sampler, const ConstImageView
           b += g[k].cast<double>() * e;
         }
       const Eigen::Vector2d delta = tmpl.inverse_hessian[slot] * b;
-      p -= delta;
+      p -= warp * delta;
       if ((p - predicted_tf).norm() > options.max_shift_px) return result;
       if (delta.norm() < 0.03 * s) {
         converged = true;
@@ -114,7 +114,7 @@ PatchTrack TrackPatch(const processing::TfSampler& sampler, const ConstImageView
   }
   // Zero-mean normalised cross-correlation at the final position (finest level).
   const float* t = tmpl.samples.data() + per_level * (made - 1);
-  if (!sampler.Patch(raw, p, v, n, 1.0, 1, patch.data())) return result;
+  if (!sampler.PatchWarped(raw, p, warp, v, n, 1.0, 1, patch.data())) return result;
   double mean = 0;
   for (float value : patch) mean += value;
   mean /= n * n;

@@ -72,8 +72,14 @@ struct PatchTrack {
 // The template's position in `raw` from `predicted_tf`, at virtual depth v,
 // over the template's finest options.levels levels (a template may be made
 // with more levels than a track uses: the coarser ones serve weak predictions).
+// `warp` (2 x 2) maps the template's sample offsets into this frame (the
+// view change since the template was made, predicted from the poses:
+// registration/live/map_localizer.h); the frame is sampled on the warped grid,
+// I(p + W x_i), the step computed in the template's coordinates and applied
+// as p <- p - W delta (inverse compositional with the warp held fixed).
 PatchTrack TrackPatch(const processing::TfSampler& sampler, const ConstImageView& raw,
                       const PatchTemplate& tmpl, const Eigen::Vector2d& predicted_tf, double v,
-                      const PatchTrackOptions& options);
+                      const PatchTrackOptions& options,
+                      const Eigen::Matrix2d& warp = Eigen::Matrix2d::Identity());
 
 }  // namespace lifmcr::registration

@@ -61,6 +61,12 @@ struct GuidedMatchOptions {
   // The step for a TF grid whose longer side is tf_longer_side_px.
   int Step(int tf_longer_side_px) const;
   FeatureOptions features;  // SIFT on the rendered image
+  // Each region rendered at its own virtual depth (TfSampler::RenderAtDepths):
+  // the median predicted depth of the points in view per cell of a grid
+  // refocus_cells wide (cells about square; cells with fewer than 3 points
+  // take the median of all), so that texture off the median depth is not
+  // blurred or moved; 0: the whole grid at the median (>= 0).
+  int refocus_cells = 8;
   double radius_px = 6;     // TF px between a keypoint and a map point's projection (> 0)
   double ratio = 0.8;       // nearest / second nearest among the candidates, (0, 1]
   Status Check() const;
