@@ -757,16 +757,23 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
     const char* name;
     int cells;
     bool warp;
+    bool coarser_guided;  // re-anchoring's render at step 3 at medium (max_step 3, 700 px)
   };
   std::map<std::string, double> medians;
-  for (const Variant variant : {Variant{"one depth, unwarped", 0, false},
-                                Variant{"per region, unwarped", 8, false},
-                                Variant{"per region, warped", 8, true}}) {
+  for (const Variant variant :
+       {Variant{"one depth, unwarped, guided step 3", 0, false, true},
+        Variant{"per region, unwarped, guided step 3", 8, false, true},
+        Variant{"per region, warped, guided step 3", 8, true, true},
+        Variant{"per region, warped (the defaults)", 8, true, false}}) {
     LocalizerOptions options;
     options.relocalise_refocus_cells = variant.cells;
     options.guided.refocus_cells = variant.cells;
     options.coarse.refocus_cells = variant.cells;
     options.warp_patches = variant.warp;
+    if (variant.coarser_guided) {
+      options.guided.max_step = 3;
+      options.guided.max_side_px = 700;
+    }
     MapLocalizerStage stage(s.map, options);
     // The fused estimate of a rigid mount (extrinsics_monitor.h), as the
     // pipeline publishes it beside each trigger's.
@@ -826,7 +833,7 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
     medians[variant.name] = Median(t_mm);
   }
   // The small rig's gate of the first test: in focus at least holds it.
-  EXPECT_LE(medians["per region, warped"], 2.0);
+  EXPECT_LE(medians["per region, warped (the defaults)"], 2.0);
 }
 
 // A larger sensor is relocalised on an image of about the same size: the
@@ -853,8 +860,8 @@ TEST(MapLocalizer, RelocalisationStepGrowsWithTheTfGrid) {
 TEST(MapLocalizer, GuidedMatchingStepGrowsWithTheTfGrid) {
   const LocalizerOptions options;
   EXPECT_EQ(options.guided.Step(512), 2);
-  EXPECT_EQ(options.guided.Step(1640), 3);
-  EXPECT_EQ(options.guided.Step(3280), 5);
+  EXPECT_EQ(options.guided.Step(1640), 2);
+  EXPECT_EQ(options.guided.Step(3280), 4);
   EXPECT_EQ(options.guided.Step(100000), 8);  // never beyond 8
   EXPECT_EQ(options.coarse.Step(512), 2);
   EXPECT_EQ(options.coarse.Step(1640), 4);
