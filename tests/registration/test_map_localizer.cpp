@@ -819,6 +819,12 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
                 variant.name, t_mm.size(), static_cast<long long>(frames), Median(t_mm),
                 Median(r_deg), p90(sorted_t), p90(sorted_r), Median(first), Median(last),
                 line.c_str(), stage.counts().StageReport().c_str());
+    const MapLocalizerStage::Counts c = stage.counts();
+    std::printf("  Localize: tracked %lld (%.0f ms each), re-anchored %lld (%.0f ms each), "
+                "relocalised %lld (%.0f ms each), both cameras\n",
+                c.tracked, c.tracked > 0 ? 1e3 * c.tracked_s / c.tracked : 0.0, c.guided,
+                c.guided > 0 ? 1e3 * c.guided_s / c.guided : 0.0, c.relocalised,
+                c.relocalised > 0 ? 1e3 * c.relocalised_s / c.relocalised : 0.0);
     // The synthetic rig moves its cameras against each other unless made
     // rigid: the fused estimate is compared only where the truth is constant.
     if (rigid && related.change && related.change->running_triggers > 0) {
