@@ -10,7 +10,8 @@
 //                log(w_prev^-1 w_last)), w = w0_from_cam, a step of m
 //                triggers, k ahead); each tracked map point is projected
 //                with it and followed by Lucas-Kanade on the TF image
-//                sampled at its predicted virtual depth
+//                sampled at its predicted virtual depth, on the grid its
+//                template's view maps to under the prediction (warp_patches)
 //                (registration/live/patch_tracker.h, processing/tf_sampler.h):
 //                no depth map, no whole TF image, no SIFT; PnP on those
 //                positions (few trials: the inlier ratio is high). The
@@ -40,10 +41,11 @@
 //                where tracking has not bridged such gaps lately
 //                (LocalizerOptions::min_far_track_success): SIFT on a TF image (the
 //                chain's when the frame was processed, else the whole TF
-//                grid rendered at one virtual depth, TfSampler::RenderAtDepth,
-//                at half resolution (relocalise_step):
-//                the predicted median of the map points when the camera had
-//                a pose, else the map's median), global matching against
+//                grid refocused at half resolution (relocalise_step): each
+//                region at the predicted depth of its map points when the
+//                camera had a pose (TfSampler::RenderAtDepths,
+//                relocalise_refocus_cells), else at the map's median depth
+//                (TfSampler::RenderAtDepth), global matching against
 //                every map point (ratio and cross check, kd-tree) and full
 //                LO-RANSAC PnP; the tracks begin at their map points'
 //                projections from the pose, the inliers first. A
