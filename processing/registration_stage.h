@@ -61,6 +61,11 @@ struct ExtrinsicsChange {
   double departure = 0;       // squared Mahalanobis distance to the running estimate (6 dof)
   int departures_in_row = 0;  // consecutive triggers beyond the gate
   Eigen::Isometry3d running = Eigen::Isometry3d::Identity();  // running estimate of c0_from_cx
+  // The running estimate's covariance (CameraPose::covariance's convention):
+  // the mean of the fused triggers' covariances over their number, as if
+  // their errors were independent; and that number.
+  Eigen::Matrix<double, 6, 6> running_covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  int running_triggers = 0;
 };
 const char* ToString(ExtrinsicsChange::State state);  // "settling", "steady", ...
 

@@ -12,7 +12,12 @@
 //   RenderAtDepth  the whole TF grid at one virtual depth (a refocused
 //                  image): texture at other depths is blurred by about
 //                  r (1 - v_true / v) raw pixels (r the micro-image radius),
-//                  little enough for SIFT to relocalise against the map.
+//                  little enough for SIFT to relocalise against the map;
+//   RenderAtDepths the whole TF grid with each region at its own virtual
+//                  depth (RefocusDepths: a coarse grid of depths, e.g. the
+//                  map points' predicted ones, interpolated between cell
+//                  centres), at the cost of RenderAtDepth: each region in
+//                  focus where its depth is right.
 // Values are the devignetted grey (the mean of the channels of a colour
 // frame), in raw grey levels.
 // The geometry (micro images, devignetting gain) is the camera's, made once
@@ -26,12 +31,29 @@
 #include <Eigen/Core>
 
 #include <memory>
+#include <vector>
 
 namespace lifmcr::processing {
 
 namespace detail {
 class TfKernel;
 }
+
+// Virtual depth over the TF grid for RenderAtDepths: one value per cell of a
+// cells_x x cells_y grid, bilinear between the cells' centres (constant
+// beyond the outer ones), so that the render has no seam at a cell's edge.
+struct RefocusDepths {
+  int cells_x = 1, cells_y = 1;
+  double tf_width = 1, tf_height = 1;
+  std::vector<float> v = {3.0f};  // row-major, > 1 each
+  float At(double u, double w) const;
+  // The median of the depths `v` of the points at `tf_px` per cell; cells
+  // without min_points points take `fallback` (> 1). Points outside the grid
+  // are ignored.
+  static RefocusDepths FromPoints(int tf_width, int tf_height, int cells_x, int cells_y,
+                                  const std::vector<Eigen::Vector2d>& tf_px,
+                                  const std::vector<double>& v, double fallback, int min_points);
+};
 
 class TfSampler {
  public:
@@ -54,6 +76,13 @@ class TfSampler {
   // BGR8, the geometry's size).
   bool Patch(const ConstImageView& raw, const Eigen::Vector2d& centre_tf, double v, int size,
              double step, int box, float* out) const;
+  // The same on a warped grid: sample (i, j) at centre_tf + warp (step (i -
+  // (size - 1) / 2), step (j - (size - 1) / 2)) (sub-samples likewise); the
+  // warp (2 x 2, TF px per TF px) maps a patch made in another view onto
+  // this one (patch_tracker.h).
+  bool PatchWarped(const ConstImageView& raw, const Eigen::Vector2d& centre_tf,
+                   const Eigen::Matrix2d& warp, double v, int size, double step, int box,
+                   float* out) const;
 
   // The whole TF grid at virtual depth v, Mono8 (the devignetted grey),
   // every `step`-th TF pixel: out(i, j) is the TF grid at (step i + (step -
@@ -63,6 +92,9 @@ class TfSampler {
   // cost, with the aliasing of point samples). `out`'s buffer is reused
   // when it has the size.
   Status RenderAtDepth(const ConstImageView& raw, double v, int step, TfImage* out) const;
+  // The same grid, each TF position (u, w) at depths.At(u, w).
+  Status RenderAtDepths(const ConstImageView& raw, const RefocusDepths& depths, int step,
+                        TfImage* out) const;
 
  private:
   PlenopticFrame geometry_;

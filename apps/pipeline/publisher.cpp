@@ -251,6 +251,20 @@ void Publisher::PublishExtrinsics(const std::string& reference_serial, const std
   m.running_q_wxyz[2] = running_q.y();
   m.running_q_wxyz[3] = running_q.z();
   PublishOn(*lcm_, lcm_mutex_, channels_.Camera(serial, "EXTRINSICS"), m);
+  if (!c0_from_cx.change || c0_from_cx.change->running_triggers == 0) return;
+  // The fused estimate of a monitored rigid mount, beside it (docs/lcm.md):
+  // the same message with the running estimate as the pose, flagged by
+  // method and localisation "fused"; inliers: the triggers fused.
+  const processing::ExtrinsicsChange& change = *c0_from_cx.change;
+  m.method = m.localisation = "fused";
+  for (int k = 0; k < 3; ++k) m.t_mm[k] = m.running_t_mm[k];
+  for (int k = 0; k < 4; ++k) m.q_wxyz[k] = m.running_q_wxyz[k];
+  for (int r = 0; r < 6; ++r)
+    for (int c = 0; c < 6; ++c) m.covariance[r][c] = change.running_covariance(r, c);
+  m.inliers = change.running_triggers;
+  m.rmse_px = 0;
+  m.status = "ok";
+  PublishOn(*lcm_, lcm_mutex_, channels_.Camera(serial, "EXTRINSICS_FUSED"), m);
 }
 
 void Publisher::PublishStats(const StatsSnapshot& s) {

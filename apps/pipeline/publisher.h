@@ -14,6 +14,9 @@
 //                                 trigger, from the registration stage
 //                                 (processing/registration_stage.h), with the
 //                                 change detection's verdict when it runs
+//   <PREFIX>_<SERIAL>_EXTRINSICS_FUSED  camera_extrinsics_t, with change detection
+//                                 (a rigid mount): after each trigger's, the running
+//                                 c0_from_cx and its covariance, method "fused"
 //   <PREFIX>_<SERIAL>_POSE        camera_pose_t, w0_from_cam of every frame the
 //                                 registration stage localised (or failed to), so a
 //                                 process on another host (`lifmcr relate`) can pair

@@ -104,6 +104,8 @@ processing::ExtrinsicsChange ExtrinsicsMonitor::Add(const std::string& serial,
       track.settling.clear();
     }
     out.running = track.Running();
+    out.running_covariance = track.RunningCovariance();
+    out.running_triggers = track.accepted;
     track.last = out;
     return out;
   }
@@ -134,6 +136,8 @@ processing::ExtrinsicsChange ExtrinsicsMonitor::Add(const std::string& serial,
       out.running = track.Running();
     }
   }
+  out.running_covariance = track.RunningCovariance();
+  out.running_triggers = track.accepted;
   track.last = out;
   return out;
 }

@@ -13,7 +13,12 @@
 //              keeps over-confident per-frame covariances from raising alarms,
 //   running    T_run: the mean in the tangent space (at the first accepted
 //              pose) of the accepted poses; S_run = mean(S_k) / n + (its
-//              own floor, none).
+//              own floor, none). Both are in every verdict (running,
+//              running_covariance, running_triggers): the fused estimate of
+//              a rigid mount, published beside the per-trigger one. S_run
+//              takes the triggers' errors as independent; tracked triggers
+//              that share their tracks' templates are not, so it is a lower
+//              bound.
 // States: kSettling until settle_triggers poses were accepted (every pose is
 // accepted, the gate not yet applied; at the end the estimate is refitted
 // without the settling poses beyond the gate, so one wrong consensus does not

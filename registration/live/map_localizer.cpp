@@ -50,6 +50,32 @@ Pose ScaledStep(const Pose& step, double alpha) {
   return out;
 }
 
+// The warp of a patch made at TF position tf_a, virtual depth v_a in view
+// a into view b (LocalizerOptions::warp_patches): the plane through the
+// point fronto-parallel in view a (constant v), its points at tf_a, tf_a +
+// (h, 0) and tf_a + (0, h) projected into b; the columns are the
+// differences over h. False when one is not seen or the warp is degenerate
+// (its area scale outside [1/4, 4]).
+bool PatchWarp(const processing::CameraModel& camera, const Pose& a_from_w0,
+               const Eigen::Vector2d& tf_a, double v_a, const Pose& b_from_w0,
+               Eigen::Matrix2d* warp) {
+  constexpr double h = 4;
+  const Pose b_from_a = b_from_w0 * a_from_w0.inverse();
+  const Eigen::Vector2d offsets[3] = {{0, 0}, {h, 0}, {0, h}};
+  Eigen::Vector2d p[3];
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Vector2d raw = processing::CameraModel::RawOfTf(tf_a + offsets[k]);
+    const Eigen::Vector3d x_a = camera.BackProject(Eigen::Vector3d(raw.x(), raw.y(), v_a));
+    const Eigen::Vector3d virtual_px = camera.Project(b_from_a * x_a);
+    if (!virtual_px.allFinite() || !(virtual_px.z() > 1)) return false;
+    p[k] = processing::CameraModel::TfOfRaw(virtual_px.head<2>());
+  }
+  warp->col(0) = (p[1] - p[0]) / h;
+  warp->col(1) = (p[2] - p[0]) / h;
+  const double area = warp->determinant();
+  return area > 0.25 && area < 4;
+}
+
 }  // namespace
 
 GuidedMatchOptions LocalizerOptions::CoarseGuidedOptions() {
@@ -76,6 +102,8 @@ Status LocalizerOptions::Check() const {
   if (track_cells < 1) return Error{"localizer options: track_cells: expected >= 1"};
   if (relocalise_step < 1 || relocalise_step > 4)
     return Error{"localizer options: relocalise_step: expected 1..4"};
+  if (relocalise_refocus_cells < 0)
+    return Error{"localizer options: relocalise_refocus_cells: expected >= 0"};
   if (relocalise_min_side_px < 1)
     return Error{"localizer options: relocalise_min_side_px: expected >= 1"};
   if (!(track_margin_px >= 0)) return Error{"localizer options: track_margin_px: expected >= 0"};
@@ -250,9 +278,16 @@ MapLocalizerStage::Outcome MapLocalizerStage::TrackFrom(const processing::Camera
     double vp = 0;
     if (!ProjectMapPoint(camera, cam_from_w0, map_.points_in_w0[track.point], &predicted_tf, &vp))
       continue;
-    const PatchTrack r = TrackPatch(sampler, raw, *track.patch, predicted_tf, vp, patches);
+    Eigen::Matrix2d warp = Eigen::Matrix2d::Identity();
+    if (options_.warp_patches && track.template_v > 1 &&
+        !PatchWarp(camera, track.template_cam_from_w0, track.template_tf, track.template_v,
+                   cam_from_w0, &warp))
+      warp.setIdentity();
+    const PatchTrack r = TrackPatch(sampler, raw, *track.patch, predicted_tf, vp, patches, warp);
     if (!r.ok) continue;
-    found.push_back({track.point, r.tf_px, track.patch, track.anchored});
+    TrackedPoint followed = track;
+    followed.tf_px = r.tf_px;
+    found.push_back(std::move(followed));
     v.push_back(vp);
   }
   if (found.size() < static_cast<std::size_t>(options_.min_tracked)) {
@@ -334,29 +369,45 @@ MapLocalizerStage::Outcome MapLocalizerStage::Relocalise(const processing::Camer
   // half-resolution keypoints carry their error on (test_cli_live_registration:
   // 1.28 mm / 0.074 deg median against 0.72 mm / 0.054 deg).
   double to_tf = 1;  // rendered pixel -> TF pixel (ScaleKeypoints)
+  std::optional<processing::RefocusDepths> depths;  // per region, else render_v throughout
   if (frame.products) {
     tf = &frame.products->tf;
   } else {
     step = options_.RelocaliseStep(std::max(sampler->tf_width(), sampler->tf_height()));
     to_tf = step;
     if (state.has_pose) {
-      // The median virtual depth of the map points the last pose shows.
+      // The median virtual depth of the map points the last pose shows, and
+      // per region (relocalise_refocus_cells).
       const Pose cam_from_w0 = state.last.inverse();
       std::vector<double> v;
+      std::vector<Eigen::Vector2d> at;
       for (const Eigen::Vector3d& p : map_.points_in_w0) {
         Eigen::Vector2d tf_px;
         double vp = 0;
         if (ProjectMapPoint(camera, cam_from_w0, p, &tf_px, &vp) && tf_px.x() >= 0 &&
-            tf_px.y() >= 0 && tf_px.x() < sampler->tf_width() && tf_px.y() < sampler->tf_height())
+            tf_px.y() >= 0 && tf_px.x() < sampler->tf_width() && tf_px.y() < sampler->tf_height()) {
           v.push_back(vp);
+          at.push_back(tf_px);
+        }
       }
       if (!v.empty()) {
-        std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-        render_v = v[v.size() / 2];
+        std::vector<double> sorted = v;
+        std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+        render_v = sorted[sorted.size() / 2];
+        if (options_.relocalise_refocus_cells > 0) {
+          const int cells = options_.relocalise_refocus_cells;
+          const int cells_y = std::max(1, static_cast<int>(std::lround(
+                                              cells * static_cast<double>(sampler->tf_height()) /
+                                              sampler->tf_width())));
+          depths = processing::RefocusDepths::FromPoints(
+              sampler->tf_width(), sampler->tf_height(), cells, cells_y, at, v, render_v, 3);
+        }
       }
     }
     const auto render_start = std::chrono::steady_clock::now();
-    if (Status s = sampler->RenderAtDepth(frame.raw, render_v, step, &refocused); !s) {
+    if (Status s = depths ? sampler->RenderAtDepths(frame.raw, *depths, step, &refocused)
+                          : sampler->RenderAtDepth(frame.raw, render_v, step, &refocused);
+        !s) {
       out.status = s.error().message;
       return out;
     }
@@ -373,7 +424,8 @@ MapLocalizerStage::Outcome MapLocalizerStage::Relocalise(const processing::Camer
   obs.virtual_depth.resize(obs.features.keypoints.size(), std::numeric_limits<double>::quiet_NaN());
   for (std::size_t i = 0; i < obs.features.keypoints.size(); ++i) {
     if (!frame.products) {
-      obs.virtual_depth[i] = render_v;
+      const Eigen::Vector2f& k = obs.features.keypoints[i].xy_px;
+      obs.virtual_depth[i] = depths ? depths->At(k.x(), k.y()) : render_v;
       continue;
     }
     const processing::TfDepthMap& depth = frame.products->tf_depth;
@@ -471,7 +523,8 @@ std::shared_ptr<const MapLocalizerStage::Tracks> MapLocalizerStage::Retrack(
   // Adds map point `point` seen at tf_px (virtual depth v) when its cell has
   // room, with `patch` or, when null, a template made here.
   const auto add = [&](int point, const Eigen::Vector2d& tf_px, double v,
-                       std::shared_ptr<const PatchTemplate> patch, bool anchored) {
+                       std::shared_ptr<const PatchTemplate> patch, bool anchored,
+                       const TrackedPoint* view) {
     if (used[point] || static_cast<int>(tracks->size()) >= options_.max_tracks) return;
     if (tf_px.x() < margin || tf_px.y() < margin || tf_px.x() >= w - margin ||
         tf_px.y() >= h - margin)
@@ -492,20 +545,30 @@ std::shared_ptr<const MapLocalizerStage::Tracks> MapLocalizerStage::Retrack(
     }
     used[point] = 1;
     ++in_cell[cell];
-    tracks->push_back({point, tf_px, std::move(patch), anchored});
+    TrackedPoint t{point, tf_px, std::move(patch), anchored};
+    if (view) {  // a kept template: the view it was made in
+      t.template_cam_from_w0 = view->template_cam_from_w0;
+      t.template_tf = view->template_tf;
+      t.template_v = view->template_v;
+    } else {  // made here
+      t.template_cam_from_w0 = cam_from_w0;
+      t.template_tf = tf_px;
+      t.template_v = v;
+    }
+    tracks->push_back(std::move(t));
   };
   for (const TrackedPoint& k : kept) {
     Eigen::Vector2d projected;
     double v = 0;
     if (ProjectMapPoint(camera, cam_from_w0, map_.points_in_w0[k.point], &projected, &v))
-      add(k.point, k.patch ? k.tf_px : projected, v, k.patch, k.anchored);
+      add(k.point, k.patch ? k.tf_px : projected, v, k.patch, k.anchored, k.patch ? &k : nullptr);
   }
   for (int j = 0; j < map_.size(); ++j) {
     if (static_cast<int>(tracks->size()) >= options_.max_tracks) break;
     Eigen::Vector2d tf_px;
     double v = 0;
     if (ProjectMapPoint(camera, cam_from_w0, map_.points_in_w0[j], &tf_px, &v))
-      add(j, tf_px, v, nullptr, relocalised);
+      add(j, tf_px, v, nullptr, relocalised, nullptr);
   }
   return tracks;
 }
@@ -756,8 +819,14 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     s.last_host_ns = frame.host_ns;
     s.has_pose = true;
     s.tracks = std::move(tracks);
-    s.reanchor = localisation == "tracked" &&
-                 r.anchored_inliers < options_.min_anchored_fraction * r.inliers;
+    // Re-anchored next frame: a tracked pose with too few anchored inliers
+    // (min_anchored_fraction), or a relocalisation without a pose to refocus
+    // its render per region (the map's median depth throughout), so that the
+    // tracks are soon seeded from a pose measured in focus.
+    const bool cold = localisation == "relocalised" && !state.has_pose && !frame.products &&
+                      options_.relocalise_refocus_cells > 0;
+    s.reanchor = cold || (localisation == "tracked" &&
+                          r.anchored_inliers < options_.min_anchored_fraction * r.inliers);
   }
   pose.transform = r.w0_from_cam.pose;
   pose.covariance = ToLeftPerturbationCovariance(r.w0_from_cam);

@@ -10,7 +10,8 @@
 //                log(w_prev^-1 w_last)), w = w0_from_cam, a step of m
 //                triggers, k ahead); each tracked map point is projected
 //                with it and followed by Lucas-Kanade on the TF image
-//                sampled at its predicted virtual depth
+//                sampled at its predicted virtual depth, on the grid its
+//                template's view maps to under the prediction (warp_patches)
 //                (registration/live/patch_tracker.h, processing/tf_sampler.h):
 //                no depth map, no whole TF image, no SIFT; PnP on those
 //                positions (few trials: the inlier ratio is high). The
@@ -40,10 +41,11 @@
 //                where tracking has not bridged such gaps lately
 //                (LocalizerOptions::min_far_track_success): SIFT on a TF image (the
 //                chain's when the frame was processed, else the whole TF
-//                grid rendered at one virtual depth, TfSampler::RenderAtDepth,
-//                at half resolution (relocalise_step):
-//                the predicted median of the map points when the camera had
-//                a pose, else the map's median), global matching against
+//                grid refocused at half resolution (relocalise_step): each
+//                region at the predicted depth of its map points when the
+//                camera had a pose (TfSampler::RenderAtDepths,
+//                relocalise_refocus_cells), else at the map's median depth
+//                (TfSampler::RenderAtDepth), global matching against
 //                every map point (ratio and cross check, kd-tree) and full
 //                LO-RANSAC PnP; the tracks begin at their map points'
 //                projections from the pose, the inliers first. A
@@ -118,6 +120,13 @@ struct LocalizerOptions {
   // frames were too far from its pose to track; bench/README.md).
   int relocalise_step = 2;
   int relocalise_min_side_px = 800;  // >= 1
+  // With a last pose, the relocalisation's render takes each region's own
+  // virtual depth (TfSampler::RenderAtDepths): the median predicted depth of
+  // the map points the last pose shows, per cell of a grid this many cells
+  // wide (about square cells; cells with fewer than 3 points take the median
+  // of all), and each keypoint that depth; 0: the whole grid at the median
+  // (>= 0). Without a pose: the map's median depth, one for the whole grid.
+  int relocalise_refocus_cells = 8;
   // The step for a TF grid whose longer side is tf_longer_side_px.
   int RelocaliseStep(int tf_longer_side_px) const;
   PatchTrackOptions patches;              // tracking
@@ -133,6 +142,12 @@ struct LocalizerOptions {
   // alone and a tracked pose's error does not grow with the frames since the
   // relocalisation ([0, 1]; 0: never).
   double min_anchored_fraction = 0.5;
+  // A camera relocalised without a pose (its render at the map's median
+  // depth throughout) is re-anchored at its next frame too, when
+  // relocalise_refocus_cells > 0: the guided matching's render is refocused
+  // per region from the tracked pose (medium, 20 frames: the stretch tracked
+  // from the first relocalisation was at 0.8-1.5 mm, the one after a
+  // re-anchoring at 0.15-0.55 mm; test_map_localizer).
   // Re-anchoring by guided matching (registration/map/guided_matches.h) from the
   // frame's tracked pose; false: by relocalisation.
   bool guided_reanchoring = true;
@@ -180,6 +195,12 @@ struct LocalizerOptions {
   int far_track_probe_every = 8;        // >= 1
   GuidedMatchOptions coarse = CoarseGuidedOptions();
   static GuidedMatchOptions CoarseGuidedOptions();
+  // Each tracked patch is sampled on the grid its template's view maps to
+  // under the predicted pose (TrackPatch's warp): the template's plane is
+  // fronto-parallel at the point's depth in the view it was made in, and the
+  // affine map of its neighbourhood (finite differences over 4 TF px) into
+  // the predicted view is the warp; false: unwarped (translation only).
+  bool warp_patches = true;
   bool track = true;          // false: relocalise every frame (the baseline of bench_live)
   // Offline (a replay at --rate max, where every frame is wanted and none is
   // late): a frame is localised only after its camera's earlier frames in
@@ -267,6 +288,11 @@ class MapLocalizerStage final : public processing::RegistrationStage {
     // from that pose), not in a tracked one (at its projection from a tracked
     // pose, whose error it then carries on).
     bool anchored = false;
+    // The view its template was made in: camera pose, TF position and
+    // virtual depth (template_v 0: unknown, the patch tracked unwarped).
+    Pose template_cam_from_w0 = Pose::Identity();
+    Eigen::Vector2d template_tf = Eigen::Vector2d::Zero();
+    double template_v = 0;
   };
   using Tracks = std::vector<TrackedPoint>;
   struct CameraState {

@@ -27,6 +27,15 @@ Status PatchTrackOptions::Check() const {
 bool MakePatchTemplate(const processing::TfSampler& sampler, const ConstImageView& raw,
                        const Eigen::Vector2d& centre_tf, double v, const PatchTrackOptions& options,
                        PatchTemplate* out) {
+  return MakePatchTemplate(
+      [&](const Eigen::Vector2d& centre, int size, double step, float* samples) {
+        return sampler.Patch(raw, centre, v, size, step, 1, samples);
+      },
+      centre_tf, options, out);
+}
+
+bool MakePatchTemplate(const PatchSampling& sample, const Eigen::Vector2d& centre_tf,
+                       const PatchTrackOptions& options, PatchTemplate* out) {
   const int n = options.patch_size, m = n + 2;
   const std::size_t per_level = static_cast<std::size_t>(m) * m;
   out->samples.resize(per_level * options.levels);
@@ -37,7 +46,7 @@ bool MakePatchTemplate(const processing::TfSampler& sampler, const ConstImageVie
     const int level = options.levels - 1 - slot;  // coarsest first
     const double s = Spacing(level);
     float* t = out->samples.data() + per_level * slot;
-    if (!sampler.Patch(raw, centre_tf, v, m, s, 1, t)) return false;
+    if (!sample(centre_tf, m, s, t)) return false;
     Eigen::Matrix2d h = Eigen::Matrix2d::Zero();
     std::vector<Eigen::Vector2f>& g = out->gradient[slot];
     g.resize(static_cast<std::size_t>(n) * n);
@@ -65,7 +74,7 @@ bool MakePatchTemplate(const processing::TfSampler& sampler, const ConstImageVie
 
 PatchTrack TrackPatch(const processing::TfSampler& sampler, const ConstImageView& raw,
                       const PatchTemplate& tmpl, const Eigen::Vector2d& predicted_tf, double v,
-                      const PatchTrackOptions& options) {
+                      const PatchTrackOptions& options, const Eigen::Matrix2d& warp) {
   const int n = options.patch_size, m = n + 2;
   const std::size_t per_level = static_cast<std::size_t>(m) * m;
   PatchTrack result;
@@ -82,7 +91,7 @@ PatchTrack TrackPatch(const processing::TfSampler& sampler, const ConstImageView
     const std::vector<Eigen::Vector2f>& g = tmpl.gradient[slot];
     bool converged = false;
     for (int it = 0; it < options.iterations; ++it) {
-      if (!sampler.Patch(raw, p, v, n, s, 1, patch.data())) return result;
+      if (!sampler.PatchWarped(raw, p, warp, v, n, s, 1, patch.data())) return result;
       double mean = 0;
       for (float value : patch) mean += value;
       mean /= n * n;
@@ -94,7 +103,7 @@ PatchTrack TrackPatch(const processing::TfSampler& sampler, const ConstImageView
           b += g[k].cast<double>() * e;
         }
       const Eigen::Vector2d delta = tmpl.inverse_hessian[slot] * b;
-      p -= delta;
+      p -= warp * delta;
       if ((p - predicted_tf).norm() > options.max_shift_px) return result;
       if (delta.norm() < 0.03 * s) {
         converged = true;
@@ -105,7 +114,7 @@ PatchTrack TrackPatch(const processing::TfSampler& sampler, const ConstImageView
   }
   // Zero-mean normalised cross-correlation at the final position (finest level).
   const float* t = tmpl.samples.data() + per_level * (made - 1);
-  if (!sampler.Patch(raw, p, v, n, 1.0, 1, patch.data())) return result;
+  if (!sampler.PatchWarped(raw, p, warp, v, n, 1.0, 1, patch.data())) return result;
   double mean = 0;
   for (float value : patch) mean += value;
   mean /= n * n;

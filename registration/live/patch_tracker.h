@@ -25,6 +25,7 @@
 
 #include <Eigen/Core>
 
+#include <functional>
 #include <vector>
 
 namespace lifmcr::registration {
@@ -53,6 +54,15 @@ bool MakePatchTemplate(const processing::TfSampler& sampler, const ConstImageVie
                        const Eigen::Vector2d& centre_tf, double v, const PatchTrackOptions& options,
                        PatchTemplate* out);
 
+// Fills size x size samples at centre + step (i - (size - 1) / 2, j - (size -
+// 1) / 2) (TfSampler::Patch's layout); false where one is unseen.
+using PatchSampling =
+    std::function<bool(const Eigen::Vector2d& centre_tf, int size, double step, float* out)>;
+// The same template from samples of any image of the TF grid (the offline TF
+// image in test_map_localizer's bias measurement).
+bool MakePatchTemplate(const PatchSampling& sample, const Eigen::Vector2d& centre_tf,
+                       const PatchTrackOptions& options, PatchTemplate* out);
+
 struct PatchTrack {
   bool ok = false;
   Eigen::Vector2d tf_px = Eigen::Vector2d::Zero();  // where the template is now
@@ -62,8 +72,14 @@ struct PatchTrack {
 // The template's position in `raw` from `predicted_tf`, at virtual depth v,
 // over the template's finest options.levels levels (a template may be made
 // with more levels than a track uses: the coarser ones serve weak predictions).
+// `warp` (2 x 2) maps the template's sample offsets into this frame (the
+// view change since the template was made, predicted from the poses:
+// registration/live/map_localizer.h); the frame is sampled on the warped grid,
+// I(p + W x_i), the step computed in the template's coordinates and applied
+// as p <- p - W delta (inverse compositional with the warp held fixed).
 PatchTrack TrackPatch(const processing::TfSampler& sampler, const ConstImageView& raw,
                       const PatchTemplate& tmpl, const Eigen::Vector2d& predicted_tf, double v,
-                      const PatchTrackOptions& options);
+                      const PatchTrackOptions& options,
+                      const Eigen::Matrix2d& warp = Eigen::Matrix2d::Identity());
 
 }  // namespace lifmcr::registration

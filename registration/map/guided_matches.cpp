@@ -39,6 +39,7 @@ Status GuidedMatchOptions::Check() const {
                  std::to_string(min_side_px) + ")"};
   if (Status s = features.Check(); !s) return Error{"guided matching: " + s.error().message};
   if (!(radius_px > 0)) return Error{"guided matching: radius_px: expected > 0"};
+  if (refocus_cells < 0) return Error{"guided matching: refocus_cells: expected >= 0"};
   if (!(ratio > 0 && ratio <= 1)) return Error{"guided matching: ratio: expected in (0, 1]"};
   return Status::Ok();
 }
@@ -80,15 +81,30 @@ GuidedMatches FindGuidedMatches(const MapIndex& map, const processing::CameraMod
     out.status = "no map point in view";
     return out;
   }
-  // Rendered at the median virtual depth of the points in view (as
-  // relocalisation does from the last pose).
+  // Rendered with each region at the predicted depth of its points
+  // (refocus_cells), else at the median virtual depth of the points in view.
   std::vector<double> in_view_v;
+  std::vector<Eigen::Vector2d> in_view_tf;
   for (const std::vector<int>& points : grid)
-    for (const int j : points) in_view_v.push_back(v[j]);
-  std::nth_element(in_view_v.begin(), in_view_v.begin() + in_view_v.size() / 2, in_view_v.end());
+    for (const int j : points) {
+      in_view_v.push_back(v[j]);
+      in_view_tf.push_back(projected[j]);
+    }
+  std::vector<double> sorted_v = in_view_v;
+  std::nth_element(sorted_v.begin(), sorted_v.begin() + sorted_v.size() / 2, sorted_v.end());
+  const double median_v = sorted_v[sorted_v.size() / 2];
   out.step = options.Step(static_cast<int>(std::max(w, h)));
   thread_local processing::TfImage rendered;  // reused by the worker's next re-anchoring
-  if (Status s = sampler.RenderAtDepth(raw, in_view_v[in_view_v.size() / 2], out.step, &rendered);
+  processing::RefocusDepths depths;
+  if (options.refocus_cells > 0) {
+    const int cells_y = std::max(1, static_cast<int>(std::lround(options.refocus_cells * h / w)));
+    depths = processing::RefocusDepths::FromPoints(static_cast<int>(w), static_cast<int>(h),
+                                                   options.refocus_cells, cells_y, in_view_tf,
+                                                   in_view_v, median_v, 3);
+  }
+  if (Status s = options.refocus_cells > 0
+                     ? sampler.RenderAtDepths(raw, depths, out.step, &rendered)
+                     : sampler.RenderAtDepth(raw, median_v, out.step, &rendered);
       !s) {
     out.status = s.error().message;
     return out;

@@ -45,8 +45,9 @@ struct GuidedMatchOptions {
   // max_step (1..4) that keeps the rendered image's longer side >= min_side_px
   // (>= 64), raised further (up to 8) while the longer side exceeds
   // max_side_px (>= min_side_px), so that a larger sensor is matched on an
-  // image of about the size that served medium: small (TF 512 x 384) 2,
-  // medium (1640 x 1237) 3, r32 (3280 x 2474) 5 (656 px). r32, 40 frames
+  // image of about the size that served medium. Before (max_step 3,
+  // max_side_px 700): small (TF 512 x 384) 2, medium (1640 x 1237) 3, r32
+  // (3280 x 2474) 5 (656 px). r32, 40 frames
   // two triggers apart, re-anchorings (4-6 a run): step 3 took 710 ms of
   // SIFT each (more than a relocalisation's 260 ms at step 4); step 4
   // 550-625 ms, frames at 2.58 mm median; step 5 170-290 ms, 2.0 mm; step 6
@@ -55,12 +56,27 @@ struct GuidedMatchOptions {
   // with 256 inliers at 1.74 mm, step 4 with 148 at 3.21 mm (worse than the
   // tracked pose it replaced, 2.4 mm), step 2 297 at 1.44 mm for the SIFT time
   // of a relocalisation; 800 keypoints instead of 1500 at step 3: 184 at 2.48 mm.
-  int max_step = 3;
+  // With the renders refocused per region and the patches warped (the
+  // tracked stretches no longer drift) the re-anchoring's own error decides
+  // the extrinsics: medium, 20 frames (test_map_localizer,
+  // ExtrinsicsAlongTheSequence...): step 3 (max_step 3, max_side_px 700)
+  // 0.80 mm / 0.040 deg median, p90 1.17 mm, a stretch's frames 0.4-1.25 mm
+  // after their re-anchoring; step 2 0.56 mm / 0.029 deg, p90 0.76 mm,
+  // 407 inliers against 332, for about twice the SIFT time of a
+  // re-anchoring (a relocalisation's). Now small 2, medium 2 (820 px), r32 4
+  // (820 px).
+  int max_step = 2;
   int min_side_px = 256;
-  int max_side_px = 700;
+  int max_side_px = 900;
   // The step for a TF grid whose longer side is tf_longer_side_px.
   int Step(int tf_longer_side_px) const;
   FeatureOptions features;  // SIFT on the rendered image
+  // Each region rendered at its own virtual depth (TfSampler::RenderAtDepths):
+  // the median predicted depth of the points in view per cell of a grid
+  // refocus_cells wide (cells about square; cells with fewer than 3 points
+  // take the median of all), so that texture off the median depth is not
+  // blurred or moved; 0: the whole grid at the median (>= 0).
+  int refocus_cells = 8;
   double radius_px = 6;     // TF px between a keypoint and a map point's projection (> 0)
   double ratio = 0.8;       // nearest / second nearest among the candidates, (0, 1]
   Status Check() const;

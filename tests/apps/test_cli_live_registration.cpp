@@ -329,13 +329,28 @@ TEST(CliLiveRegistration, RecordFlagsACameraKnockedOnARigidMount) {
 
   lcm::LogFile file(log.string(), "r");
   ASSERT_TRUE(file.good());
-  std::map<std::int64_t, lifmcr_lcm::camera_extrinsics_t> by_trigger;
+  std::map<std::int64_t, lifmcr_lcm::camera_extrinsics_t> by_trigger, fused;
   while (const lcm::LogEvent* event = file.readNextEvent()) {
-    if (!event->channel.ends_with("_EXTRINSICS")) continue;
+    const bool is_fused = event->channel.ends_with("_EXTRINSICS_FUSED");
+    if (!event->channel.ends_with("_EXTRINSICS") && !is_fused) continue;
     auto m = lifmcr_lcm::SafeDecode<lifmcr_lcm::camera_extrinsics_t>(event->data,
                                                                       event->datalen);
     ASSERT_TRUE(m);
-    by_trigger[m->trigger_index] = *m;
+    (is_fused ? fused : by_trigger)[m->trigger_index] = *m;
+  }
+  // The fused estimate beside each trigger's (docs/lcm.md): the running
+  // estimate as the pose, its covariance, the triggers fused.
+  ASSERT_FALSE(fused.empty());
+  for (const auto& [trigger, f] : fused) {
+    ASSERT_TRUE(by_trigger.count(trigger)) << trigger;
+    const lifmcr_lcm::camera_extrinsics_t& m = by_trigger.at(trigger);
+    EXPECT_EQ(f.method, "fused");
+    EXPECT_EQ(f.localisation, "fused");
+    EXPECT_EQ(f.status, "ok");
+    EXPECT_GE(f.inliers, 1);
+    EXPECT_GT(f.covariance[0][0], 0.0);
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(f.t_mm[k], m.running_t_mm[k]);
+    EXPECT_EQ(f.change_state, m.change_state);
   }
   ASSERT_GE(by_trigger.size(), static_cast<std::size_t>(kTriggers - 1)) << record.out;
   std::int64_t first_changed = -1;

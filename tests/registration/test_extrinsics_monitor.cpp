@@ -10,7 +10,10 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <vector>
 #include <random>
 
 namespace lifmcr::registration {
@@ -90,6 +93,38 @@ TEST(ExtrinsicsMonitor, NoFalseAlarmOver200TriggersOfARigidRig) {
   }
   std::printf("rigid rig: 20 x 200 triggers, no change flagged; longest run of departures %d\n",
               worst_run);
+}
+
+// The fused estimate (the running one, published beside each trigger's):
+// the mean of the accepted triggers with the mean of their covariances over
+// their number, and far nearer the mount than a single trigger.
+TEST(ExtrinsicsMonitor, TheFusedEstimateCarriesItsCovarianceAndBeatsOneTrigger) {
+  std::vector<double> single_mm, fused_mm;
+  for (unsigned seed = 1; seed <= 10; ++seed) {
+    ExtrinsicsMonitor monitor{ExtrinsicsMonitorOptions{}};
+    NoisyStream stream(seed);
+    processing::ExtrinsicsChange c;
+    for (int k = 0; k < 100; ++k) {
+      const processing::CameraPose pose = stream.Next(MountPose());
+      single_mm.push_back(LeftDifference(pose.transform, MountPose()).head<3>().norm());
+      c = monitor.Add("x", pose);
+    }
+    ASSERT_EQ(c.state, State::kSteady);
+    // Every trigger but the wrong consensuses (2 %) was fused.
+    EXPECT_GE(c.running_triggers, 90);
+    EXPECT_LE(c.running_triggers, 100);
+    // The stream's covariance is diag(0.01 mm^2, (0.007 deg)^2) per trigger.
+    EXPECT_NEAR(c.running_covariance(0, 0), 0.01 / c.running_triggers, 1e-12);
+    EXPECT_NEAR(c.running_covariance(5, 5), std::pow(0.007 * kDeg, 2) / c.running_triggers, 1e-18);
+    EXPECT_NEAR(c.running_covariance(0, 1), 0.0, 1e-15);
+    fused_mm.push_back(LeftDifference(c.running, MountPose()).head<3>().norm());
+  }
+  std::sort(single_mm.begin(), single_mm.end());
+  std::sort(fused_mm.begin(), fused_mm.end());
+  const double single = single_mm[single_mm.size() / 2], fused = fused_mm[fused_mm.size() / 2];
+  std::printf("fused after 100 triggers: median %.3f mm from the mount; one trigger %.3f mm\n",
+              fused, single);
+  EXPECT_LT(fused, 0.25 * single);
 }
 
 TEST(ExtrinsicsMonitor, AJumpOf5mmAndHalfADegreeIsFlaggedWithin5Triggers) {
