@@ -23,6 +23,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -54,6 +55,8 @@ struct MotionExpectation {
   double scale_max;      // the map's scale error
   double pose_mm_max, pose_deg_max;  // median over the frames
 };
+// gtest names the parameter by its motion (ctest lists it).
+void PrintTo(const MotionExpectation& e, std::ostream* os) { *os << e.motion; }
 
 struct MotionRun {
   CalibrationResult result;
