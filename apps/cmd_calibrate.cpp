@@ -62,6 +62,7 @@ struct CalibrateOptions {
   bool keep_plate_corners = false;
   double plate_corner_threshold_tf_px =
       registration::PlateCornerCheckOptions{}.max_residual_tf_px;
+  double plate_corner_ratio = registration::PlateCornerCheckOptions{}.max_residual_over_reference;
   std::string plate_frames;
   std::string cache;
 };
@@ -176,6 +177,7 @@ int RunCalibrate(const CalibrateOptions& o) {
   options.estimate_corner_inset = !o.fixed_corner_inset;
   options.reject_plate_corners = !o.keep_plate_corners;
   options.plate_corner_check.max_residual_tf_px = o.plate_corner_threshold_tf_px;
+  options.plate_corner_check.max_residual_over_reference = o.plate_corner_ratio;
   if (o.at_truth) {
     // The bundle adjustment's residuals with the true intrinsics and poses
     // (registration/calibration/calibration_truth.h); no calibration.
@@ -338,7 +340,11 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
                "off its frame's plate homography is left out and reported)");
   app.add_option("--plate-corner-threshold", o->plate_corner_threshold_tf_px,
                  "Leave-one-out homography residual (TF px) above which a plate corner is left "
-                 "out (and above 5 x the median over every frame's corners)");
+                 "out (and above --plate-corner-ratio x the median over every frame's corners)");
+  app.add_option("--plate-corner-ratio", o->plate_corner_ratio,
+                 "A plate corner is left out above this many times the median leave-one-out "
+                 "residual over every frame's corners (and above --plate-corner-threshold; "
+                 "default 5)");
   app.add_flag("--at-truth", o->at_truth,
                "Synthetic sequences: no calibration; the bundle adjustment's residuals with the "
                "true intrinsics and poses of SEQ/GroundTruth, per frame, by virtual depth and by "

@@ -96,6 +96,8 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  // What the figures are of: the sequence given, or the preset and motion written.
+  const std::string what = sequence.empty() ? preset + " " + motion : sequence;
   fs::path tmp;
   if (sequence.empty()) {
     tmp = fs::temp_directory_path() / ("bench_calibrate_" + std::to_string(::getpid()));
@@ -150,7 +152,7 @@ int main(int argc, char** argv) {
   const double rss_frames = PeakRssMb();
   std::printf("%s, %d x %d, %zu frames: processing %.1f s (%.2f s per frame: depth, TF, SIFT, "
               "ArUco), peak RSS %.0f MB\n",
-              preset.c_str(), (*loader)->width(), (*loader)->height(), input.frames.size(),
+              what.c_str(), (*loader)->width(), (*loader)->height(), input.frames.size(),
               processing_s, per_frame_s, rss_frames);
 
   CalibrationOptions options;

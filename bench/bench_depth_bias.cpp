@@ -63,18 +63,26 @@ int BinOf(double v) {
 }  // namespace
 
 constexpr char kUsage[] =
-    "usage: bench_depth_bias SEQUENCE_DIR FRAME [FRAME...]\n"
+    "usage: bench_depth_bias [--cross-type-px X] SEQUENCE_DIR FRAME [FRAME...]\n"
+    "--cross-type-px: processing::DepthOptions::cross_type_px (the model error of a pair of\n"
+    "lens types; large: the same type's ring-2 pairs carry the fused depth).\n"
     "The systematic error of processing/'s virtual depth on frames of a synthetic sequence\n"
     "(written by `lifmcr synth`) against the renderer's per-pixel truth, by virtual depth,\n"
     "lens type and radius in the micro image, and the fit v_measured = a + (1 + eps) v.\n";
 
 int main(int argc, char** argv) {
   if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
-  if (argc < 3) {
-    std::fprintf(stderr, "usage: bench_depth_bias SEQUENCE_DIR FRAME [FRAME...]\n");
+  processing::DepthOptions depth_options;
+  int first = 1;
+  if (argc > 2 && std::string(argv[1]) == "--cross-type-px") {
+    depth_options.cross_type_px = std::atof(argv[2]);
+    first = 3;
+  }
+  if (argc < first + 2 || !depth_options.Check()) {
+    std::fprintf(stderr, "usage: bench_depth_bias [--cross-type-px X] SEQUENCE_DIR FRAME [FRAME...]\n");
     return 2;
   }
-  const fs::path seq = argv[1];
+  const fs::path seq = argv[first];
   std::string serial;
   for (const auto& e : fs::directory_iterator(seq))
     if (auto s = layout::ParseCameraFolderName(e.path().filename().string())) serial = *s;
@@ -84,7 +92,7 @@ int main(int argc, char** argv) {
   const processing::CameraModel model(truth->intrinsics);
   Expected<CameraFolder> folder = DiscoverCameraFolder(layout::CameraDir(seq, serial));
   const std::optional<fs::path> calib = FindCalibrationFor(seq);
-  if (!folder || !calib) return std::fprintf(stderr, "%s: not a sequence\n", argv[1]), 1;
+  if (!folder || !calib) return std::fprintf(stderr, "%s: not a sequence\n", argv[first]), 1;
   Expected<MlaCalibration> mla = ReadMlaXml(layout::MlaXmlPath(*calib, serial));
   Expected<OwnedImage> white = ReadBmp(layout::WhiteImagePath(*calib, serial, 0));
   if (!mla || !white) return std::fprintf(stderr, "no MLA file or white image\n"), 1;
@@ -96,7 +104,7 @@ int main(int argc, char** argv) {
   Eigen::Vector2d atb = Eigen::Vector2d::Zero();
   processing::PlenopticFrame f;
   processing::VirtualDepthMap depth;
-  for (int a = 2; a < argc; ++a) {
+  for (int a = first + 1; a < argc; ++a) {
     const int n = std::atoi(argv[a]);
     const std::optional<fs::path> path = folder->FramePath(n);
     if (!path) return std::fprintf(stderr, "no frame %d\n", n), 1;
@@ -109,7 +117,7 @@ int main(int argc, char** argv) {
     options.principal_point_px = truth->intrinsics.PrincipalPointPx();
     if (Status s = processing::PrepareFrame(raw->View(), white->View(), grid, *mla, options, &f); !s)
       return std::fprintf(stderr, "%s\n", s.error().message.c_str()), 1;
-    if (Status s = processing::EstimateVirtualDepth(f, *mla, {}, &depth); !s)
+    if (Status s = processing::EstimateVirtualDepth(f, *mla, depth_options, &depth); !s)
       return std::fprintf(stderr, "%s\n", s.error().message.c_str()), 1;
     int w = 0, h = 0;
     Expected<std::vector<float>> gt =

@@ -208,24 +208,28 @@ err() { awk -v run="$1" '$1 == run {on = 1} on && /c0_from_cx error all/ {print 
 ratio=$(sed -n 's/.*track \/ relocalise (c0_from_cx error.*translation median \([0-9.]*\) .*/\1/p' "$logs/bench_live.log")
 row bench_live "c0_from_cx median error, tracking" "$(err track)" "every frame relocalised" "$(err relocalise)" "$ratio"
 
-# --- bench_calibrate (quick: a small orbit from 1.8 m, where the plate is whole in view)
-if [[ $quick == 1 ]]; then
-  mkdir -p "$logs/calibrate_seq"
-  printf 'rig:\n  viewing_distance_mm: 1800\n' >"$logs/calibrate_seq/synth.yaml"
-  "$lifmcr" synth --out "$logs/calibrate_seq" --preset small --cameras 1 --frames 8 --motion orbit \
-    --config "$logs/calibrate_seq/synth.yaml" --quiet >"$logs/calibrate_synth.log" 2>&1 || true
-  args=(--sequence "$logs/calibrate_seq/00_Synthetic/Sequence_00" --frames 8)
-else
-  args=()
-fi
-run bench_calibrate "$logs/bench_calibrate.log" "$bench/bench_calibrate" "${args[@]}"
-t=$(sed -n 's/^calibration \([0-9.]*\) s (.*/\1/p' "$logs/bench_calibrate.log" | head -1)
-per=$(sed -n 's/.*processing [0-9.]* s (\([0-9.]*\) s per frame.*/\1/p' "$logs/bench_calibrate.log" | head -1)
-ratio=$(sed -n 's/^calibration .*, \([0-9.]*\) x the processing of one frame.*/\1/p' "$logs/bench_calibrate.log" | head -1)
-row bench_calibrate "calibration (initialisation + bundle adjustment), s" "$t" "processing of one frame, s" "$per" "$ratio"
-acc=$(awk '/^from 5 % off/ {getline; sub(/^ *vs ground truth: /, ""); print; exit}' "$logs/bench_calibrate.log" |
-  sed 's/, keypoint v.*//; s/ (\([0-9]*\) points;[^)]*)/ (\1 points)/')
-row bench_calibrate "from 5 % off, vs ground truth" "$acc" "gates: 0.5 %, 1 px, 0.3 px, 1 mm, 1 mm / 0.05 deg, 0.2 %" "" "-"
+# --- bench_calibrate, one run per motion (quick: 8 small frames from 1.8 m,
+# where the plate is whole in view; full: 40 medium frames)
+for motion in orbit smooth handheld; do
+  log="$logs/bench_calibrate_$motion.log"
+  if [[ $quick == 1 ]]; then
+    mkdir -p "$logs/calibrate_$motion"
+    printf 'rig:\n  viewing_distance_mm: 1800\n' >"$logs/calibrate_$motion/synth.yaml"
+    "$lifmcr" synth --out "$logs/calibrate_$motion" --preset small --cameras 1 --frames 8 --motion "$motion" \
+      --config "$logs/calibrate_$motion/synth.yaml" --quiet >"$logs/calibrate_synth_$motion.log" 2>&1 || true
+    args=(--sequence "$logs/calibrate_$motion/00_Synthetic/Sequence_00" --frames 8)
+  else
+    args=(--motion "$motion")
+  fi
+  run bench_calibrate "$log" "$bench/bench_calibrate" "${args[@]}"
+  t=$(sed -n 's/^calibration \([0-9.]*\) s (.*/\1/p' "$log" | head -1)
+  per=$(sed -n 's/.*processing [0-9.]* s (\([0-9.]*\) s per frame.*/\1/p' "$log" | head -1)
+  ratio=$(sed -n 's/^calibration .*, \([0-9.]*\) x the processing of one frame.*/\1/p' "$log" | head -1)
+  row bench_calibrate "$motion: calibration (initialisation + bundle adjustment), s" "$t" "processing of one frame, s" "$per" "$ratio"
+  acc=$(awk '/^from 5 % off/ {getline; sub(/^ *vs ground truth: /, ""); print; exit}' "$log" |
+    sed 's/, keypoint v.*//; s/ (\([0-9]*\) points;[^)]*)/ (\1 points)/')
+  row bench_calibrate "$motion: from 5 % off, vs ground truth" "$acc" "gates: 0.5 %, 1 px, 0.3 px, 1 mm, 1 mm / 0.05 deg, 0.2 %" "" "-"
+done
 
 # --- bench_depth_bias (on a synthetic frame written here)
 preset=$([[ $quick == 1 ]] && echo small || echo medium)
