@@ -304,7 +304,7 @@ struct Pipeline::Impl {
     std::vector<std::thread> threads;
   };
   // The per-lens depth and TF preview of the frames the workers localised,
-  // at the workers' priority, above the depth lane's.
+  // below the workers' priority and above the depth lane's.
   //
   // A lane of its own rather than on the worker after the pose: at medium
   // the per-lens depth and its preview cost several times a tracked
@@ -312,13 +312,12 @@ struct Pipeline::Impl {
   // worker every frame waiting for a worker waited for a per-lens estimate
   // too, so the poses (the extrinsics) fell with the per-lens work. Here a
   // worker is free for the next frame as soon as it published a pose, and
-  // the lane takes the newest localised frame per camera. Not below the
-  // workers' priority: a tracked frame needs a fraction of a core, which
-  // the scheduler gives it beside the lane at equal priority, while at a
-  // lower one the lane starved first on a loaded host (a small rig's timed
-  // replay at load average 15-17: 7 of 16 frames taken got their per-lens
-  // depth; at equal priority 7 of 10). Each frame is counted: lens
-  // processed, skipped (replaced by its camera's newer frame) or failed.
+  // the lane takes the newest localised frame per camera. Below the
+  // workers: at their priority the lane took the CPU a relocalisation
+  // needs, poses fell behind their frames, fewer frames could be tracked
+  // and the extrinsics fell (medium, quiet: 2.65 against 4.4-4.8 per second
+  // per camera). Each frame is counted: lens processed, skipped (replaced
+  // by its camera's newer frame) or failed.
   Lane lens_lane;
   Lane depth_lane;  // the dense map, at the lowest priority: depth takes what is left
 
@@ -910,11 +909,12 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
   });
   if (impl->lanes) {
     // The lens lane: a thread per worker (at most one per camera), each
-    // computing one frame at a time, at the workers' priority; the depth
-    // lane: one thread at the lowest.
+    // computing one frame at a time, halfway between the workers' priority
+    // and the lowest; the depth lane: one thread at the lowest.
     const int lens_threads =
         std::max(1, std::min(threads, static_cast<int>(sync.serials.size())));
-    impl->StartLane(impl->lens_lane, lens_threads, worker_nice, &Impl::LensLoop);
+    impl->StartLane(impl->lens_lane, lens_threads,
+                    std::min(19, worker_nice + (19 - worker_nice + 1) / 2), &Impl::LensLoop);
     impl->StartLane(impl->depth_lane, 1, 19, &Impl::DepthLoop);
   }
   return std::unique_ptr<Pipeline>(new Pipeline(std::move(impl)));

@@ -27,7 +27,7 @@
 // processing; under newest_wins it runs first, on the raw frame, and the
 // worker publishes the pose at once (POSE, and EXTRINSICS when the trigger's
 // other pose is there); the frame goes on to the lens lane (per-lens depth
-// and TF preview; a thread per worker, at most one per camera, at the
+// and TF preview; a thread per worker, at most one per camera, below the
 // workers' priority, newest wins per camera), then, with that per-lens depth,
 // to the depth lane (one thread at the lowest priority, newest wins per
 // camera) whose dense map it seeds: a pose never waits for a depth, its own
