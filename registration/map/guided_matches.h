@@ -63,11 +63,19 @@ struct GuidedMatchOptions {
   // 0.80 mm / 0.040 deg median, p90 1.17 mm, a stretch's frames 0.4-1.25 mm
   // after their re-anchoring; step 2 0.56 mm / 0.029 deg, p90 0.76 mm,
   // 407 inliers against 332, for about twice the SIFT time of a
-  // re-anchoring (a relocalisation's). Now small 2, medium 2 (820 px), r32 4
-  // (820 px).
-  int max_step = 2;
+  // re-anchoring (a relocalisation's). Live, that time decides: at step 2 a
+  // re-anchoring took 286-301 ms, the poses fell behind their frames, fewer
+  // frames could be tracked (112-130 of 200, 43-48 relocalised) and the
+  // extrinsics came at 4.4-4.8 per second per camera, 0.93 mm / 0.038 deg
+  // median; at step 3 155-171 ms, 180-245 of 250-310 tracked, 6.1-7.6 per
+  // second, 0.49-0.73 mm / 0.026-0.032 deg (bench_live --preset medium
+  // --seconds 20 --runs track, quiet 2 cores, two runs each). So step 3
+  // where the grid allows, at most 820 px: small 2, medium 3 (547 px), r32
+  // 4 (820 px; r32 8 triggers frame by frame: step 4 0.234 mm, step 5 1.436
+  // mm median, docs/registration.md).
+  int max_step = 3;
   int min_side_px = 256;
-  int max_side_px = 900;
+  int max_side_px = 820;
   // The step for a TF grid whose longer side is tf_longer_side_px.
   int Step(int tf_longer_side_px) const;
   FeatureOptions features;  // SIFT on the rendered image

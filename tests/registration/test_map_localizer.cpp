@@ -757,22 +757,21 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
     const char* name;
     int cells;
     bool warp;
-    bool coarser_guided;  // re-anchoring's render at step 3 at medium (max_step 3, 700 px)
+    bool finer_guided;  // re-anchoring's render at step 2 at medium (max_step 2)
   };
   std::map<std::string, double> medians;
   for (const Variant variant :
-       {Variant{"one depth, unwarped, guided step 3", 0, false, true},
-        Variant{"per region, unwarped, guided step 3", 8, false, true},
-        Variant{"per region, warped, guided step 3", 8, true, true},
-        Variant{"per region, warped (the defaults)", 8, true, false}}) {
+       {Variant{"one depth, unwarped", 0, false, false},
+        Variant{"per region, unwarped", 8, false, false},
+        Variant{"per region, warped (the defaults)", 8, true, false},
+        Variant{"per region, warped, guided step 2", 8, true, true}}) {
     LocalizerOptions options;
     options.relocalise_refocus_cells = variant.cells;
     options.guided.refocus_cells = variant.cells;
     options.coarse.refocus_cells = variant.cells;
     options.warp_patches = variant.warp;
-    if (variant.coarser_guided) {
-      options.guided.max_step = 3;
-      options.guided.max_side_px = 700;
+    if (variant.finer_guided) {
+      options.guided.max_step = 2;
     }
     MapLocalizerStage stage(s.map, options);
     // The fused estimate of a rigid mount (extrinsics_monitor.h), as the
@@ -860,13 +859,13 @@ TEST(MapLocalizer, RelocalisationStepGrowsWithTheTfGrid) {
 }
 
 // Guided matching likewise (GuidedMatchOptions::Step): re-anchoring renders
-// small, medium and r32 at steps 2, 3 and 5 (256, 547, 656 px; r32 at step
+// small, medium and r32 at steps 2, 3 and 4 (256, 547, 820 px; r32 at step
 // 3 took 710 ms of SIFT a re-anchoring), the coarse correction of a
 // prediction at 2, 4 and 8 (256, 410, 410 px).
 TEST(MapLocalizer, GuidedMatchingStepGrowsWithTheTfGrid) {
   const LocalizerOptions options;
   EXPECT_EQ(options.guided.Step(512), 2);
-  EXPECT_EQ(options.guided.Step(1640), 2);
+  EXPECT_EQ(options.guided.Step(1640), 3);
   EXPECT_EQ(options.guided.Step(3280), 4);
   EXPECT_EQ(options.guided.Step(100000), 8);  // never beyond 8
   EXPECT_EQ(options.coarse.Step(512), 2);
