@@ -61,6 +61,29 @@ synth::SynthParams TinyRig(int frames) {
   return *params;
 }
 
+// A tiny rig of one trigger written into `dir`: its folder, serials and
+// each camera's first raw frame (what the registration tests feed the
+// pipeline, given again for every trigger).
+struct TinyRigFrames {
+  std::filesystem::path sequence_dir;
+  std::vector<std::string> serials;
+  std::vector<OwnedImage> raw;
+};
+Expected<TinyRigFrames> WriteTinyRigFrames(const std::filesystem::path& dir) {
+  auto summary = synth::WriteSyntheticDataset(dir, TinyRig(1));
+  if (!summary) return summary.error();
+  const auto layout = DiscoverSequence(summary->sequence_dir);
+  if (!layout) return layout.error();
+  TinyRigFrames rig{summary->sequence_dir, {}, {}};
+  for (const CameraFolder& camera : layout->cameras) {
+    rig.serials.push_back(camera.serial);
+    auto image = ReadBmp(camera.dir / camera.frame_files.front());
+    if (!image) return image.error();
+    rig.raw.push_back(std::move(*image));
+  }
+  return rig;
+}
+
 // Every message of the run, decoded by channel.
 struct Received {
   std::map<std::string, int> count;
@@ -985,20 +1008,12 @@ TEST(Pipeline, RegistrationPairsTheCamerasFramesOfATrigger) {
   // A real chain per camera (the stage is called only for a camera with
   // one), on the tiny rig's first frames, given again for every trigger.
   test::TempDir dir;
-  auto summary = synth::WriteSyntheticDataset(dir.path(), TinyRig(1));
-  ASSERT_TRUE(summary.ok()) << summary.error().message;
-  const auto layout = DiscoverSequence(summary->sequence_dir);
-  ASSERT_TRUE(layout.ok()) << layout.error().message;
-  std::vector<std::string> serials;
-  std::vector<OwnedImage> raw;
-  for (const CameraFolder& camera : layout->cameras) {
-    serials.push_back(camera.serial);
-    auto image = ReadBmp(camera.dir / camera.frame_files.front());
-    ASSERT_TRUE(image.ok()) << image.error().message;
-    raw.push_back(std::move(*image));
-  }
+  auto rig = WriteTinyRigFrames(dir.path());
+  ASSERT_TRUE(rig.ok()) << rig.error().message;
+  const std::vector<std::string>& serials = rig->serials;
+  const std::vector<OwnedImage>& raw = rig->raw;
   ASSERT_EQ(raw.size(), 2u);
-  auto processor = DepthProcessor::ForSequence(summary->sequence_dir.string(), serials);
+  auto processor = DepthProcessor::ForSequence(rig->sequence_dir.string(), serials);
   ASSERT_TRUE(processor.ok()) << processor.error().message;
   lcm::LCM bus("memq://");
   auto stage = std::make_shared<GatedPoseStage>();
@@ -1127,20 +1142,12 @@ class LensGatedProcessor final : public FrameProcessor {
 // the lens lane's per-lens depth instead of estimating it again.
 TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
   test::TempDir dir;
-  auto summary = synth::WriteSyntheticDataset(dir.path(), TinyRig(1));
-  ASSERT_TRUE(summary.ok()) << summary.error().message;
-  const auto layout = DiscoverSequence(summary->sequence_dir);
-  ASSERT_TRUE(layout.ok()) << layout.error().message;
-  std::vector<std::string> serials;
-  std::vector<OwnedImage> raw;
-  for (const CameraFolder& camera : layout->cameras) {
-    serials.push_back(camera.serial);
-    auto image = ReadBmp(camera.dir / camera.frame_files.front());
-    ASSERT_TRUE(image.ok()) << image.error().message;
-    raw.push_back(std::move(*image));
-  }
+  auto rig = WriteTinyRigFrames(dir.path());
+  ASSERT_TRUE(rig.ok()) << rig.error().message;
+  const std::vector<std::string>& serials = rig->serials;
+  const std::vector<OwnedImage>& raw = rig->raw;
   ASSERT_EQ(raw.size(), 2u);
-  auto depth = DepthProcessor::ForSequence(summary->sequence_dir.string(), serials);
+  auto depth = DepthProcessor::ForSequence(rig->sequence_dir.string(), serials);
   ASSERT_TRUE(depth.ok()) << depth.error().message;
   auto owned = std::make_unique<LensGatedProcessor>(std::move(*depth));
   LensGatedProcessor* processor = owned.get();
