@@ -189,7 +189,7 @@ TEST(CliLiveRegistration, ReplayWithAReferenceMapPublishesAccurateExtrinsicsPerT
 // there (the report counts those; a small frame's per-lens depth costs a
 // fraction of the 100 ms between frames, so none is expected without load);
 // the report's per-lens count is the log's.
-TEST(CliLiveRegistration, TimedReplayPublishesThePerLensDepthOfEveryFrameTaken) {
+TEST(CliLiveRegistration, TimedReplayAccountsForThePerLensDepthOfEveryFrameTaken) {
   if (getuid() != 0 || Sh("command -v lcm-logger") != 0 || Sh("ip link set lo multicast on") != 0)
     GTEST_SKIP() << "needs root (loopback multicast) and lcm-logger";
   test::TempDir dir;
