@@ -91,11 +91,13 @@ void WorkspaceReturn::operator()(ChainProducts* products) const {
 CameraChain::~CameraChain() = default;
 
 Expected<std::unique_ptr<CameraChain>> CameraChain::Create(CameraSetup setup,
-                                                           const ChainOptions& options) {
+                                                           const ChainOptions& options,
+                                                           std::shared_ptr<ChainBackend> backend) {
   if (Status s = options.Check(); !s) return s.error();
   const std::string who = "camera " + setup.serial + ": ";
   std::unique_ptr<CameraChain> chain(new CameraChain());
   chain->options_ = options;
+  chain->backend_ = backend ? std::move(backend) : MakeCpuBackend();
   chain->devignetting_ = SelectDevignetting(setup);
   if (setup.intrinsics) {
     if (Status s = setup.intrinsics->Check(); !s)
@@ -272,14 +274,16 @@ Expected<LensLease> CameraChain::ProcessLenses(ConstImageView raw, int preview_m
   }
   LensProducts& p = *lease;
   auto t = std::chrono::steady_clock::now();
-  if (Status s = (*estimator)->Estimate(raw, &p.depth); !s)
+  if (Status s = backend_->LensDepth(**estimator, raw, &p.depth); !s)
     return Error{"camera " + setup_.serial + ": " + s.error().message};
   p.depth_s = SecondsSince(t);
   p.preview_s = 0;
   p.preview.width = p.preview.height = 0;
   if (preview_max_side > 0) {
     t = std::chrono::steady_clock::now();
-    if (Status s = (*estimator)->RenderPreview(raw, preview_max_side, &p.depth, &p.preview); !s)
+    if (Status s =
+            backend_->LensPreview(**estimator, raw, preview_max_side, &p.depth, &p.preview);
+        !s)
       return Error{"camera " + setup_.serial + ": " + s.error().message};
     p.preview_s = SecondsSince(t);
   }
@@ -310,7 +314,8 @@ Expected<ChainLease> CameraChain::Process(ConstImageView raw, const LensDepthMap
     p.geometry_width_ = raw.width;
     p.geometry_height_ = raw.height;
   }
-  if (Status s = LoadRaw(raw, &p.prepared); !s) return s.error();
+  if (Status s = backend_->Prepare(raw, &p.prepared); !s)
+    return Error{"camera " + setup_.serial + ": " + s.error().message};
   p.prepare_s = SecondsSince(t);
 
   t = std::chrono::steady_clock::now();
@@ -320,26 +325,26 @@ Expected<ChainLease> CameraChain::Process(ConstImageView raw, const LensDepthMap
     if (lens_depth == nullptr) {
       auto estimator = LensEstimator(raw);
       if (!estimator) return estimator.error();
-      if (Status s = (*estimator)->Estimate(raw, &p.lens_depth); !s)
+      if (Status s = backend_->LensDepth(**estimator, raw, &p.lens_depth); !s)
         return Error{"camera " + setup_.serial + ": " + s.error().message};
       lens_depth = &p.lens_depth;
     }
-    if (Status s = SeedFromLensDepth(p.prepared, *lens_depth, &p.seed); !s)
+    if (Status s = backend_->Seed(p.prepared, *lens_depth, &p.seed); !s)
       return Error{"camera " + setup_.serial + ": " + s.error().message};
     seed = &p.seed;
     p.seed_s = SecondsSince(t);
     t = std::chrono::steady_clock::now();
   }
-  if (Status s = EstimateVirtualDepth(p.prepared, setup_.mla, options_.depth, seed, &p.raw_depth);
+  if (Status s = backend_->DenseDepth(p.prepared, setup_.mla, options_.depth, seed, &p.raw_depth);
       !s)
-    return s.error();
+    return Error{"camera " + setup_.serial + ": " + s.error().message};
   p.depth_s = SecondsSince(t);
 
   t = std::chrono::steady_clock::now();
-  if (Status s = VirtualDepthToTf(p.prepared, p.raw_depth, options_.tf, &p.tf_depth); !s)
-    return s.error();
-  if (Status s = RenderTotalFocus(p.prepared, setup_.mla, p.tf_depth, options_.tf, &p.tf); !s)
-    return s.error();
+  if (Status s = backend_->TfDepth(p.prepared, p.raw_depth, options_.tf, &p.tf_depth); !s)
+    return Error{"camera " + setup_.serial + ": " + s.error().message};
+  if (Status s = backend_->TfRender(p.prepared, setup_.mla, p.tf_depth, options_.tf, &p.tf); !s)
+    return Error{"camera " + setup_.serial + ": " + s.error().message};
   p.tf_s = SecondsSince(t);
 
   t = std::chrono::steady_clock::now();
@@ -363,13 +368,15 @@ Expected<ChainLease> CameraChain::Process(ConstImageView raw, const LensDepthMap
 }
 
 Expected<std::unique_ptr<ProcessingChain>> ProcessingChain::Create(
-    std::vector<CameraSetup> cameras, const ChainOptions& options) {
+    std::vector<CameraSetup> cameras, const ChainOptions& options,
+    std::shared_ptr<ChainBackend> backend) {
+  if (!backend) backend = MakeCpuBackend();
   if (Status s = options.Check(); !s) return s.error();
   auto chain = std::make_unique<ProcessingChain>();
   for (CameraSetup& setup : cameras) {
     const std::string serial = setup.serial;
     if (chain->cameras_.count(serial)) return Error{"camera " + serial + ": given twice"};
-    auto camera = CameraChain::Create(std::move(setup), options);
+    auto camera = CameraChain::Create(std::move(setup), options, backend);
     if (!camera) return camera.error();
     chain->cameras_[serial] = std::move(*camera);
   }

@@ -39,6 +39,10 @@
 // depth, in a workspace of a pool of their own (LensLease); the estimator's
 // geometry is the camera's, made once.
 //
+// Stages: every per-frame stage runs through the camera's ChainBackend
+// (chain_backend.h; the CPU backend unless Create is given another), the
+// seam where an accelerator would take the stages over.
+//
 // Threads: Process and ProcessLenses may be called concurrently (each call takes its own
 // workspace); the per-camera geometry is made once under a lock.
 
@@ -46,6 +50,7 @@
 #include "config/image.h"
 #include "config/mla.h"
 #include "processing/camera_model.h"
+#include "processing/chain_backend.h"
 #include "processing/lens_depth.h"
 #include "processing/mla_grid.h"
 #include "processing/plenoptic_frame.h"
@@ -150,8 +155,10 @@ using LensLease = std::unique_ptr<LensProducts, LensWorkspaceReturn>;
 
 class CameraChain {
  public:
-  static Expected<std::unique_ptr<CameraChain>> Create(CameraSetup setup,
-                                                       const ChainOptions& options);
+  // `backend` null: MakeCpuBackend().
+  static Expected<std::unique_ptr<CameraChain>> Create(
+      CameraSetup setup, const ChainOptions& options,
+      std::shared_ptr<ChainBackend> backend = nullptr);
   ~CameraChain();
   CameraChain(const CameraChain&) = delete;
   CameraChain& operator=(const CameraChain&) = delete;
@@ -180,6 +187,7 @@ class CameraChain {
   const MlaCalibration& mla() const { return setup_.mla; }
   const std::optional<CameraModel>& camera_model() const { return camera_; }
   Devignetting devignetting() const { return devignetting_; }
+  const ChainBackend& backend() const { return *backend_; }
   // "40398678: devignetting white image, lambda 0.9920 (intrinsics; metric
   // depth)" for the operator; with kFromFrame, after the first frame, what
   // the estimate decided.
@@ -201,6 +209,7 @@ class CameraChain {
 
   CameraSetup setup_;
   ChainOptions options_;
+  std::shared_ptr<ChainBackend> backend_;
   Devignetting devignetting_ = Devignetting::kWhiteImage;
   std::optional<CameraModel> camera_;
   mutable std::mutex mutex_;  // guards grid_, estimate_ and idle_
@@ -219,8 +228,10 @@ class CameraChain {
 // The chains of a rig's cameras, by serial.
 class ProcessingChain {
  public:
-  static Expected<std::unique_ptr<ProcessingChain>> Create(std::vector<CameraSetup> cameras,
-                                                           const ChainOptions& options);
+  // One backend for every camera; null: MakeCpuBackend().
+  static Expected<std::unique_ptr<ProcessingChain>> Create(
+      std::vector<CameraSetup> cameras, const ChainOptions& options,
+      std::shared_ptr<ChainBackend> backend = nullptr);
   // Null when the serial has no chain.
   CameraChain* Find(const std::string& serial) const;
   std::vector<std::string> serials() const;
