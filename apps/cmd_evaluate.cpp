@@ -416,9 +416,13 @@ int RunEvaluate(const EvaluateArgs& args) {
       if (!x) return Fail(x.error().message);
       truth.true_marker_from_cam = *x;
     }
+    // Vicon's tracking of the frames this camera has a pose for; a camera
+    // with none (nothing registered) says so instead of "0/0".
     progress("camera " + serial + " (Vicon " + truth.subject + "): " +
-             std::to_string(truth.asked - truth.untracked.size()) + "/" +
-             std::to_string(truth.asked) + " frames tracked");
+             (truth.asked == 0
+                  ? std::string("no registered frame to evaluate")
+                  : std::to_string(truth.asked - truth.untracked.size()) + "/" +
+                        std::to_string(truth.asked) + " of its registered frames tracked by Vicon"));
     run.cameras.push_back(std::move(truth));
   }
 
