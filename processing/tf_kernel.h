@@ -23,6 +23,7 @@
 #include "config/mla.h"
 #include "processing/lens_search_simd.h"
 #include "processing/plenoptic_frame.h"
+#include "processing/tf_blend_simd.h"
 
 #include <Eigen/Core>
 #include <Eigen/LU>
@@ -62,9 +63,10 @@ class SharpTypeTable {
   int operator()(double v) const {
     return table_[std::clamp(static_cast<int>(v * kPerUnit), 0, kSize - 1)];
   }
+  static constexpr int kPerUnit = 256, kSize = 64 * kPerUnit;
+  int At(int index) const { return table_[index]; }
 
  private:
-  static constexpr int kPerUnit = 256, kSize = 64 * kPerUnit;
   std::array<std::uint8_t, kSize> table_{};
 };
 
@@ -151,6 +153,38 @@ class TfKernel {
       steps.col(1) = f.grid.lattice * Eigen::Vector2d(2, -1);
       s.from_px = steps.inverse();
     }
+    type_of_v_.resize(SharpTypeTable::kSize);
+    for (int q = 0; q < SharpTypeTable::kSize; ++q) type_of_v_[q] = sharp_type_.At(q);
+  }
+
+  // The geometry of the whole-row blend (tf_blend_simd.h) of this frame;
+  // it points into this kernel (the type table).
+  TfBlendGeometry BlendGeometry() const {
+    TfBlendGeometry g;
+    g.width = f_.width;
+    g.height = f_.height;
+    g.cx = cx_;
+    g.cy = cy_;
+    g.lambda = lambda_;
+    g.r2 = r2_;
+    for (int t = 0; t < 3; ++t) {
+      g.ox[t] = static_cast<float>(sub_[t].origin.x());
+      g.oy[t] = static_cast<float>(sub_[t].origin.y());
+      g.fxx[t] = static_cast<float>(sub_[t].from_px(0, 0));
+      g.fxy[t] = static_cast<float>(sub_[t].from_px(0, 1));
+      g.fyx[t] = static_cast<float>(sub_[t].from_px(1, 0));
+      g.fyy[t] = static_cast<float>(sub_[t].from_px(1, 1));
+    }
+    const Eigen::Vector2d a = f_.grid.lattice * Eigen::Vector2d(1, 1);
+    const Eigen::Vector2d b = f_.grid.lattice * Eigen::Vector2d(2, -1);
+    g.sxa = static_cast<float>(a.x());
+    g.sya = static_cast<float>(a.y());
+    g.sxb = static_cast<float>(b.x());
+    g.syb = static_cast<float>(b.y());
+    g.type_of_v = type_of_v_.data();
+    g.type_per_unit = SharpTypeTable::kPerUnit;
+    g.type_size = SharpTypeTable::kSize;
+    return g;
   }
 
   // The gain is read from `gain` (the frame's geometry may then drop its
@@ -299,6 +333,7 @@ class TfKernel {
   float cx_ = 0, cy_ = 0, lambda_ = 1;  // the frame's c and lambda of l_k
   std::vector<LensF> lenses_;
   std::array<SublatticeOf, 3> sub_;
+  std::vector<std::int32_t> type_of_v_;  // sharp_type_'s table in 32 bits (the SIMD gather's)
 };
 
 }  // namespace lifmcr::processing::detail

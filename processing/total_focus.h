@@ -46,6 +46,7 @@ struct TfOptions {
   double inner_fraction = 1.0;  // only samples within this share of r_valid (sharp, unvignetted)
   double gain = 1.0;            // output = gain * devignetted value
   double sharpen = 0.0;         // k of I - k laplacian(I); 0 = off
+  bool simd = true;             // the blend's Highway kernel; false: its scalar reference
   Status Check() const;
 };
 
@@ -58,9 +59,20 @@ struct TfDepthMap {
   // Scratch of VirtualDepthToTf, kept so that a map reused frame after frame
   // allocates nothing (fresh pages cost more than the arithmetic here).
   struct Scratch {
-    std::vector<double> sw, swz, cell_w, cell_wz, row_w, row_wz, box_w, box_wz;
+    std::vector<float> sw, swz;  // per TF pixel; all zero between calls (`zeroed`)
+    bool zeroed = false;
+    std::vector<double> cell_w, cell_wz, row_w, row_wz, box_w, box_wz;
     std::vector<std::int32_t> row_n, box_n;
-    std::vector<float> cell_z, measured_v;
+    std::vector<float> cell_z;
+    std::vector<double> lens_xy;  // micro-lens centres l_k (x, y)
+    // Splats of a band of raw rows that land beyond the TF rows the band
+    // may write in its phase (total_focus.cpp): added after both phases.
+    struct Deferred {
+      std::uint32_t t;
+      float w, wz;
+    };
+    std::vector<std::vector<Deferred>> deferred;
+    std::vector<std::uint32_t> histogram;  // of the measured v, for the median
   } scratch;
 };
 
