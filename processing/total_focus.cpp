@@ -99,14 +99,11 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
   out->width = tw;
   out->height = th;
   TfDepthMap::Scratch& scratch = out->scratch;
-  std::vector<float>& sw = scratch.sw;
-  std::vector<float>& swz = scratch.swz;
   // The sums are left zero by the last pass below (it reads them for the
   // last time), so a reused map does not clear 8 bytes per TF pixel again.
-  if (sw.size() != tn || swz.size() != tn || !scratch.zeroed) {
-    sw.assign(tn, 0.0f);
-    swz.assign(tn, 0.0f);
-  }
+  std::vector<float>& sum_vec = scratch.sums;
+  if (sum_vec.size() != 2 * tn || !scratch.zeroed) sum_vec.assign(2 * tn, 0.0f);
+  float* const sums = sum_vec.data();
   scratch.zeroed = false;
   std::vector<double>& lens_xy = scratch.lens_xy;
   lens_xy.resize(2 * f.lenses.size());
@@ -114,9 +111,21 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
     lens_xy[2 * k] = f.lenses[k].lens_px.x();
     lens_xy[2 * k + 1] = f.lenses[k].lens_px.y();
   }
+  // Regularisation on a grid of kCell x kCell TF pixels (below); the
+  // splat sums into the cells too.
+  constexpr int kCell = 4;
+  const int cw = (tw + kCell - 1) / kCell, ch = (th + kCell - 1) / kCell;
+  const std::size_t cn = static_cast<std::size_t>(cw) * ch;
+  std::vector<double>& cell_w = scratch.cell_w;
+  std::vector<double>& cell_wz = scratch.cell_wz;
+  cell_w.assign(cn, 0.0);
+  cell_wz.assign(cn, 0.0);
+  double* const cells_w = cell_w.data();
+  double* const cells_wz = cell_wz.data();
   // Splat, in bands of kBand raw rows, row by row (the map, sigma and
   // micro-image index are read in order): even bands in parallel, then odd
-  // ones. A band writes only TF rows within kBand / 4 of its own (a splat
+  // ones. A band writes only TF rows (and cell rows: kBand / 4 is a
+  // multiple of kCell) within kBand / 4 of its own (a splat
   // moves (v - 1) |p - l| raw pixels, 70 TF rows at v 8 on an R32), so two
   // bands of one phase (a band apart) never write the same TF pixel: plain
   // adds, no atomics. A splat beyond that reach is kept and added after
@@ -133,16 +142,18 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
       const int y0 = band * kBand, y1 = std::min(f.height, y0 + kBand);
       // TF rows this band may write: its own (raw rows / 2) and kBand / 4 beyond.
       const int w_lo = y0 / 2 - kBand / 4, w_hi = y1 / 2 + kBand / 4;
+      const double* const lenses = lens_xy.data();
+      const int width = f.width;
       for (int y = y0; y < y1; ++y) {
-        const std::size_t row = static_cast<std::size_t>(y) * f.width;
+        const std::size_t row = static_cast<std::size_t>(y) * width;
         const float* vs = raw.virtual_depth.data() + row;
         const float* ss = raw.sigma_z.data() + row;
         const std::int32_t* ks = f.lens_of_pixel.data() + row;
-        for (int x = 0; x < f.width; ++x) {
+        for (int x = 0; x < width; ++x) {
           const float v = vs[x];
           const int k = ks[x];
           if (std::isnan(v) || k < 0) continue;
-          const double lx = lens_xy[2 * k], ly = lens_xy[2 * k + 1];
+          const double lx = lenses[2 * k], ly = lenses[2 * k + 1];
           const double xv = lx + v * (x - lx);
           const double yv = ly + v * (y - ly);
           // Nearest TF pixel: lround without its libm call (a call per
@@ -152,22 +163,31 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
           if (!(ua > -0.5) || !(wa > -0.5)) continue;
           const int u = static_cast<int>(ua + 0.5), w = static_cast<int>(wa + 0.5);
           if (u >= tw || w >= th) continue;
-          const double s = ss[x];
-          const double weight = 1.0 / std::max(1e-12, s * s);
+          // Weight 1 / sigma_z^2 and weight z = weight / v, with one
+          // division (in float: what the sums keep).
+          const float s = ss[x];
+          const float weight_z = 1.0f / (std::max(1e-12f, s * s) * v);
+          const float weight = weight_z * v;
           const std::uint32_t t = static_cast<std::uint32_t>(w) * tw + u;
           if (w >= w_lo && w < w_hi) {
-            sw[t] += static_cast<float>(weight);
-            swz[t] += static_cast<float>(weight / v);
+            sums[2 * t] += weight;
+            sums[2 * t + 1] += weight_z;
+            const std::size_t c = static_cast<std::size_t>(w / kCell) * cw + u / kCell;
+            cells_w[c] += weight;
+            cells_wz[c] += weight_z;
           } else {
-            deferred.push_back({t, static_cast<float>(weight), static_cast<float>(weight / v)});
+            deferred.push_back({t, weight, weight_z});
           }
         }
       }
     });
   for (const auto& band : scratch.deferred)
     for (const TfDepthMap::Scratch::Deferred& d : band) {
-      sw[d.t] += d.w;
-      swz[d.t] += d.wz;
+      sums[2 * d.t] += d.w;
+      sums[2 * d.t + 1] += d.wz;
+      const std::size_t c = static_cast<std::size_t>(d.t / tw / kCell) * cw + d.t % tw / kCell;
+      cell_w[c] += d.w;
+      cell_wz[c] += d.wz;
     }
   out->virtual_depth.resize(tn);
   out->sigma_z.resize(tn);
@@ -179,68 +199,41 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
   // (a step in depth splits the window; the side holding the majority
   // stays), holes filled from the cells within fill_iterations TF pixels, then
   // bilinear interpolation back to every TF pixel.
-  constexpr int kCell = 4;
-  const int cw = (tw + kCell - 1) / kCell, ch = (th + kCell - 1) / kCell;
-  const std::size_t cn = static_cast<std::size_t>(cw) * ch;
-  std::vector<double>& cell_w = scratch.cell_w;
-  std::vector<double>& cell_wz = scratch.cell_wz;
-  cell_w.resize(cn);
-  cell_wz.resize(cn);
   std::vector<float>& cell_z = scratch.cell_z;
-  // Cell sums of the measured pixels (keep: all, or those within 5 % of
-  // their cell's mean z, |swz / sw - mean| <= 0.05 mean with sw > 0); the
-  // first pass also writes sigma_z and counts the measured pixels.
-  std::atomic<long long> measured{0};
-  auto sum_cells = [&](bool first) {
+  // Cell sums again over the measured pixels within 5 % of their cell's
+  // mean z, |swz / sw - mean| <= 0.05 mean with sw > 0.
+  auto sum_kept = [&]() {
     tbb::parallel_for(0, ch, [&](int cy) {
       double* cwr = cell_w.data() + static_cast<std::size_t>(cy) * cw;
       double* cwzr = cell_wz.data() + static_cast<std::size_t>(cy) * cw;
-      const float* mean = first ? nullptr : cell_z.data() + static_cast<std::size_t>(cy) * cw;
+      const float* mean = cell_z.data() + static_cast<std::size_t>(cy) * cw;
       std::fill(cwr, cwr + cw, 0.0);
       std::fill(cwzr, cwzr + cw, 0.0);
-      long long rows_measured = 0;
       for (int w = cy * kCell; w < std::min(th, (cy + 1) * kCell); ++w) {
-        const std::size_t row = static_cast<std::size_t>(w) * tw;
-        const float* a = sw.data() + row;
-        const float* b = swz.data() + row;
-        if (first) {
-          float* sigma = out->sigma_z.data() + row;
-          for (int u = 0; u < tw; ++u) {
-            sigma[u] = a[u] > 0 ? std::sqrt(1.0f / a[u]) : kNaN;
-            rows_measured += a[u] > 0;
-          }
-        }
+        const float* p = sums + 2 * static_cast<std::size_t>(w) * tw;
         for (int c = 0; c < cw; ++c) {
           double sa = 0, sb = 0;
           const int u1 = std::min(tw, (c + 1) * kCell);
-          if (first) {
-            for (int u = c * kCell; u < u1; ++u) {
-              sa += a[u];
-              sb += b[u];
+          const float m = mean[c];
+          for (int u = c * kCell; u < u1; ++u) {
+            const float a = p[2 * u], b = p[2 * u + 1];
+            if (a > 0 && std::abs(b - m * a) <= 0.05f * m * a) {
+              sa += a;
+              sb += b;
             }
-          } else {
-            const float m = mean[c];
-            for (int u = c * kCell; u < u1; ++u)
-              if (a[u] > 0 && std::abs(b[u] - m * a[u]) <= 0.05f * m * a[u]) {
-                sa += a[u];
-                sb += b[u];
-              }
           }
           cwr[c] += sa;
           cwzr[c] += sb;
         }
       }
-      if (first) measured += rows_measured;
     });
   };
   const int cell_radius = std::max(0, (options.smooth_radius + kCell / 2) / kCell);
-  sum_cells(true);
-  out->measured = measured;
   BoxSums(cw, ch, cell_radius, cell_w, cell_wz, &scratch);
   cell_z.assign(cn, kNaN);
   for (std::size_t c = 0; c < cn; ++c)
     if (scratch.box_n[c] > 0) cell_z[c] = static_cast<float>(scratch.box_wz[c] / scratch.box_w[c]);
-  sum_cells(false);
+  sum_kept();
   BoxSums(cw, ch, cell_radius, cell_w, cell_wz, &scratch);
   for (std::size_t c = 0; c < cn; ++c)
     cell_z[c] =
@@ -257,50 +250,66 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
       if (std::isnan(cell_z[c]) && scratch.box_n[c] > 0)
         cell_z[c] = static_cast<float>(scratch.box_wz[c] / scratch.box_w[c]);
   }
-  // Back to TF pixels: bilinear between cell centres over the valid cells;
-  // with it the valid pixels counted, a histogram of the measured ones' v
-  // (the median, to 1 / kBinsPerUnit) and the sums cleared for the next frame.
+  // Back to TF pixels: bilinear between cell centres over the valid cells,
+  // v = sum w_q / sum w_q z_q over the valid corners q, separable: per row
+  // the column blend of the cells' validity and z (0 where invalid), then
+  // along the row. With it the valid pixels counted, a histogram of the
+  // measured ones' v (the median, to 1 / kBinsPerUnit) and the sums cleared
+  // for the next frame.
+  std::vector<float>& valid_of = scratch.cell_valid;
+  std::vector<float>& z0_of = scratch.cell_z0;
+  valid_of.resize(cn);
+  z0_of.resize(cn);
+  for (std::size_t c = 0; c < cn; ++c) {
+    valid_of[c] = std::isnan(cell_z[c]) ? 0.0f : 1.0f;
+    z0_of[c] = std::isnan(cell_z[c]) ? 0.0f : cell_z[c];
+  }
   constexpr int kBinsPerUnit = 1024, kBins = 64 * kBinsPerUnit, kChunks = 8;
   std::vector<std::uint32_t>& histogram = scratch.histogram;
   histogram.assign(static_cast<std::size_t>(kChunks) * kBins, 0);
-  std::atomic<long long> valid{0};
+  scratch.row_a.resize(static_cast<std::size_t>(kChunks) * cw);
+  scratch.row_b.resize(static_cast<std::size_t>(kChunks) * cw);
+  std::atomic<long long> valid{0}, measured{0};
   tbb::parallel_for(0, kChunks, [&](int chunk) {
     std::uint32_t* hist = histogram.data() + static_cast<std::size_t>(chunk) * kBins;
-    long long chunk_valid = 0;
+    float* col_a = scratch.row_a.data() + static_cast<std::size_t>(chunk) * cw;
+    float* col_b = scratch.row_b.data() + static_cast<std::size_t>(chunk) * cw;
+    long long chunk_valid = 0, chunk_measured = 0;
     for (int w = chunk * th / kChunks; w < (chunk + 1) * th / kChunks; ++w) {
       const float gy = std::clamp((w + 0.5f) / kCell - 0.5f, 0.0f, static_cast<float>(ch - 1));
       const int y0 = std::min(static_cast<int>(gy), ch - 1), y1 = std::min(y0 + 1, ch - 1);
       const float fy = gy - y0;
-      const float* z0 = cell_z.data() + static_cast<std::size_t>(y0) * cw;
-      const float* z1 = cell_z.data() + static_cast<std::size_t>(y1) * cw;
+      const std::size_t r0 = static_cast<std::size_t>(y0) * cw, r1 = static_cast<std::size_t>(y1) * cw;
+      for (int c = 0; c < cw; ++c) {
+        col_a[c] = (1 - fy) * valid_of[r0 + c] + fy * valid_of[r1 + c];
+        col_b[c] = (1 - fy) * z0_of[r0 + c] + fy * z0_of[r1 + c];
+      }
       const std::size_t row = static_cast<std::size_t>(w) * tw;
       float* vd = out->virtual_depth.data() + row;
-      float* a_row = sw.data() + row;
-      float* b_row = swz.data() + row;
+      float* sigma = out->sigma_z.data() + row;
+      float* p = sums + 2 * row;
       for (int u = 0; u < tw; ++u) {
+        const bool measured_here = p[2 * u] > 0;
+        sigma[u] = measured_here ? std::sqrt(1.0f / p[2 * u]) : kNaN;
+        chunk_measured += measured_here;
         const float gx = std::clamp((u + 0.5f) / kCell - 0.5f, 0.0f, static_cast<float>(cw - 1));
         const int x0 = std::min(static_cast<int>(gx), cw - 1), x1 = std::min(x0 + 1, cw - 1);
         const float fx = gx - x0;
-        const float zs[4] = {z0[x0], z0[x1], z1[x0], z1[x1]};
-        const float ws[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
-        float a = 0, b = 0;
-        for (int q = 0; q < 4; ++q)
-          if (!std::isnan(zs[q])) {
-            a += ws[q];
-            b += ws[q] * zs[q];
-          }
+        const float a = (1 - fx) * col_a[x0] + fx * col_a[x1];
+        const float b = (1 - fx) * col_b[x0] + fx * col_b[x1];
         const float v = a > 1e-6f ? a / b : kNaN;
         vd[u] = v;
         if (!std::isnan(v)) {
           ++chunk_valid;
-          if (a_row[u] > 0) ++hist[std::clamp(static_cast<int>(v * kBinsPerUnit), 0, kBins - 1)];
+          if (measured_here) ++hist[std::clamp(static_cast<int>(v * kBinsPerUnit), 0, kBins - 1)];
         }
-        a_row[u] = 0;
-        b_row[u] = 0;
       }
+      std::fill(p, p + 2 * tw, 0.0f);
     }
     valid += chunk_valid;
+    measured += chunk_measured;
   });
+  out->measured = measured;
   scratch.zeroed = true;
   out->fallback_v = 0;
   long long n = 0;

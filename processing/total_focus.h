@@ -59,11 +59,13 @@ struct TfDepthMap {
   // Scratch of VirtualDepthToTf, kept so that a map reused frame after frame
   // allocates nothing (fresh pages cost more than the arithmetic here).
   struct Scratch {
-    std::vector<float> sw, swz;  // per TF pixel; all zero between calls (`zeroed`)
+    // Per TF pixel the sums of the splats' weights and weights times z,
+    // interleaved (a splat touches one cache line); zero between calls (`zeroed`).
+    std::vector<float> sums;
     bool zeroed = false;
     std::vector<double> cell_w, cell_wz, row_w, row_wz, box_w, box_wz;
     std::vector<std::int32_t> row_n, box_n;
-    std::vector<float> cell_z;
+    std::vector<float> cell_z, cell_valid, cell_z0, row_a, row_b;
     std::vector<double> lens_xy;  // micro-lens centres l_k (x, y)
     // Splats of a band of raw rows that land beyond the TF rows the band
     // may write in its phase (total_focus.cpp): added after both phases.
