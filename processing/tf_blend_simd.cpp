@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 
 HWY_BEFORE_NAMESPACE();
 namespace lifmcr::processing::detail {
@@ -86,10 +87,30 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
     const auto ix = hn::ConvertTo(di, pxs), iy = hn::ConvertTo(di, pys);
     const VF ffx = hn::Sub(pxs, hn::ConvertTo(df, ix)), ffy = hn::Sub(pys, hn::ConvertTo(df, iy));
     const auto at = hn::Add(hn::Mul(iy, width), ix);
-    const VF g00 = hn::GatherIndex(df, s.gain, at);
-    const VF g01 = hn::GatherIndex(df, s.gain, hn::Add(at, hn::Set(di, 1)));
-    const VF g10 = hn::GatherIndex(df, s.gain, hn::Add(at, width));
-    const VF g11 = hn::GatherIndex(df, s.gain, hn::Add(hn::Add(at, width), hn::Set(di, 1)));
+    VF g00, g01, g10, g11;
+    if (s.gain16 != nullptr) {
+      // The 16-bit gains of x0 and x0 + 1 in one word (byte offset 2 at).
+      const auto* gw = reinterpret_cast<const std::uint32_t*>(s.gain16);
+      const auto two_at = hn::Add(at, at);
+      const auto q0 = hn::GatherOffset(du, gw, two_at);
+      const auto q1 = hn::GatherOffset(du, gw, hn::Add(two_at, hn::Add(width, width)));
+      const VF scale = hn::Set(df, s.gain16_scale);
+      const auto half = hn::Set(du, 0xFFFFu);
+      auto gain_of = [&](hn::Vec<decltype(du)> q) {
+        const VF value = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, q)), scale);
+        return hn::IfThenElse(hn::RebindMask(df, hn::Eq(q, hn::Zero(du))),
+                              hn::Set(df, std::numeric_limits<float>::quiet_NaN()), value);
+      };
+      g00 = gain_of(hn::And(q0, half));
+      g01 = gain_of(hn::ShiftRight<16>(q0));
+      g10 = gain_of(hn::And(q1, half));
+      g11 = gain_of(hn::ShiftRight<16>(q1));
+    } else {
+      g00 = hn::GatherIndex(df, s.gain, at);
+      g01 = hn::GatherIndex(df, s.gain, hn::Add(at, hn::Set(di, 1)));
+      g10 = hn::GatherIndex(df, s.gain, hn::Add(at, width));
+      g11 = hn::GatherIndex(df, s.gain, hn::Add(hn::Add(at, width), hn::Set(di, 1)));
+    }
     const VF omx = hn::Sub(one, ffx), omy = hn::Sub(one, ffy);
     const VF w00 = hn::Mul(hn::Mul(omx, omy), g00), w01 = hn::Mul(hn::Mul(ffx, omy), g01);
     const VF w10 = hn::Mul(hn::Mul(omx, ffy), g10), w11 = hn::Mul(hn::Mul(ffx, ffy), g11);
@@ -148,17 +169,17 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
 }
 
 template <int kChannels>
-void BlendRowT(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float y,
+void BlendRowT(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float dx, float y,
                const float* v, int n, float* acc, float* sw) {
   const hn::ScalableTag<float> df;
   using VF = hn::Vec<decltype(df)>;
   const int lanes = static_cast<int>(hn::Lanes(df));
-  const VF vy = hn::Set(df, y), vx0 = hn::Set(df, x0), two = hn::Set(df, 2.0f);
+  const VF vy = hn::Set(df, y), vx0 = hn::Set(df, x0), step = hn::Set(df, dx);
   auto run = [&](int i, const float* vin, float* const* out_acc, float* out_sw) {
     VF a[kChannels];
     for (int ch = 0; ch < kChannels; ++ch) a[ch] = hn::Zero(df);
     VF w = hn::Zero(df);
-    const VF x = hn::Add(vx0, hn::Mul(two, hn::Iota(df, static_cast<float>(i))));
+    const VF x = hn::Add(vx0, hn::Mul(step, hn::Iota(df, static_cast<float>(i))));
     BlendVector<kChannels>(df, g, s, x, vy, hn::LoadU(df, vin), a, &w);
     for (int ch = 0; ch < kChannels; ++ch) hn::StoreU(a[ch], df, out_acc[ch]);
     hn::StoreU(w, df, out_sw);
@@ -186,12 +207,12 @@ void BlendRowT(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float
   }
 }
 
-void BlendRow(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float y, const float* v,
-              int n, float* acc, float* sw) {
+void BlendRow(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float dx, float y,
+              const float* v, int n, float* acc, float* sw) {
   if (s.channels == 3)
-    BlendRowT<3>(g, s, x0, y, v, n, acc, sw);
+    BlendRowT<3>(g, s, x0, dx, y, v, n, acc, sw);
   else
-    BlendRowT<1>(g, s, x0, y, v, n, acc, sw);
+    BlendRowT<1>(g, s, x0, dx, y, v, n, acc, sw);
 }
 
 }  // namespace HWY_NAMESPACE
@@ -206,12 +227,12 @@ HWY_EXPORT(BlendRow);
 namespace {
 
 template <int kChannels>
-void ScalarBlendRowT(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float y,
-                     const float* v, int n, float* acc, float* sw) {
+void ScalarBlendRowT(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float dx,
+                     float y, const float* v, int n, float* acc, float* sw) {
   const float wm1 = static_cast<float>(g.width - 1), hm1 = static_cast<float>(g.height - 1);
   const float type_max = static_cast<float>(g.type_size - 1);
   for (int i = 0; i < n; ++i) {
-    const float x = x0 + 2.0f * static_cast<float>(i);
+    const float x = x0 + dx * static_cast<float>(i);
     const float vi = v[i];
     const float inv_v = 1.0f / vi;
     const float k = 1.0f / (g.lambda + vi * (1.0f - g.lambda));
@@ -241,11 +262,22 @@ void ScalarBlendRowT(const TfBlendGeometry& g, const TfBlendSource& s, float x0,
       const int ix = static_cast<int>(px), iy = static_cast<int>(py);
       const float ffx = px - static_cast<float>(ix), ffy = py - static_cast<float>(iy);
       const std::size_t at = static_cast<std::size_t>(iy) * g.width + ix;
-      const float* g0 = s.gain + at;
-      const float* g1 = g0 + g.width;
+      float g00, g01, g10, g11;
+      if (s.gain16 != nullptr) {
+        auto gain_of = [&](std::size_t q) {
+          return s.gain16[q] == 0 ? std::numeric_limits<float>::quiet_NaN()
+                                  : static_cast<float>(s.gain16[q]) * s.gain16_scale;
+        };
+        g00 = gain_of(at), g01 = gain_of(at + 1);
+        g10 = gain_of(at + g.width), g11 = gain_of(at + g.width + 1);
+      } else {
+        const float* g0 = s.gain + at;
+        const float* g1 = g0 + g.width;
+        g00 = g0[0], g01 = g0[1], g10 = g1[0], g11 = g1[1];
+      }
       const float omx = 1.0f - ffx, omy = 1.0f - ffy;
-      const float w00 = (omx * omy) * g0[0], w01 = (ffx * omy) * g0[1];
-      const float w10 = (omx * ffy) * g1[0], w11 = (ffx * ffy) * g1[1];
+      const float w00 = (omx * omy) * g00, w01 = (ffx * omy) * g01;
+      const float w10 = (omx * ffy) * g10, w11 = (ffx * ffy) * g11;
       const std::uint8_t* r0 = s.raw + static_cast<std::size_t>(iy) * s.stride_bytes +
                                static_cast<std::size_t>(ix) * kChannels;
       const std::uint8_t* r1 = r0 + s.stride_bytes;
@@ -266,17 +298,17 @@ void ScalarBlendRowT(const TfBlendGeometry& g, const TfBlendSource& s, float x0,
   }
 }
 
-void ScalarBlendRow(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float y,
+void ScalarBlendRow(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float dx, float y,
                     const float* v, int n, float* acc, float* sw) {
   if (s.channels == 3)
-    ScalarBlendRowT<3>(g, s, x0, y, v, n, acc, sw);
+    ScalarBlendRowT<3>(g, s, x0, dx, y, v, n, acc, sw);
   else
-    ScalarBlendRowT<1>(g, s, x0, y, v, n, acc, sw);
+    ScalarBlendRowT<1>(g, s, x0, dx, y, v, n, acc, sw);
 }
 
-void DispatchedBlendRow(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float y,
-                        const float* v, int n, float* acc, float* sw) {
-  HWY_DYNAMIC_DISPATCH(BlendRow)(g, s, x0, y, v, n, acc, sw);
+void DispatchedBlendRow(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float dx,
+                        float y, const float* v, int n, float* acc, float* sw) {
+  HWY_DYNAMIC_DISPATCH(BlendRow)(g, s, x0, dx, y, v, n, acc, sw);
 }
 
 }  // namespace

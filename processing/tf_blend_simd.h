@@ -40,14 +40,18 @@ struct TfBlendSource {
   std::size_t stride_bytes = 0;
   int channels = 1;                   // 1 or 3
   const float* gain = nullptr;        // per pixel (width columns), NaN where invalid
+  // Or, where set (then `gain` is not read), the gain in 16 bits
+  // (lens_search_simd.h's Gain16): q * gain16_scale, invalid where q = 0.
+  const std::uint16_t* gain16 = nullptr;
+  float gain16_scale = 1;
 };
 
-// n TF pixels at raw positions (x0 + 2 i, y), virtual depths v[i] (> 1, finite):
+// n points at raw positions (x0 + dx i, y), virtual depths v[i] (> 1, finite):
 // acc[ch * n + i] the weighted colour sums (planar, `channels` planes) and
 // sw[i] the sum of the weights (0: none of the three lenses sees the point).
 // Precondition: width * height and (height - 1) * stride_bytes + 3 * width < 2^31.
-using TfBlendRowFn = void (*)(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float y,
-                              const float* v, int n, float* acc, float* sw);
+using TfBlendRowFn = void (*)(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float dx,
+                              float y, const float* v, int n, float* acc, float* sw);
 
 struct TfBlendKernels {
   TfBlendRowFn row = nullptr;

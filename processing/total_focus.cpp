@@ -361,30 +361,39 @@ void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDept
         const float v = depth.virtual_depth[t0 + i];
         run_v[i] = v > 1.0f ? v : fallback;  // NaN too
       }
-      if (rows) kernels.row(geometry, source, 2.0f * u0 + 0.5f, y, run_v, n, run_acc, run_sw);
+      if (rows)
+        kernels.row(geometry, source, 2.0f * u0 + 0.5f, 2.0f, y, run_v, n, run_acc, run_sw);
+      else
+        std::fill(run_sw, run_sw + n, 0.0f);
       for (int i = 0; i < n; ++i) {
+        if (run_sw[i] > 0) continue;
+        // The border fallback (tf_kernel.h), point by point.
         float acc[kChannels];
-        float sw = 0;
-        if (rows) {
-          for (int ch = 0; ch < kChannels; ++ch) acc[ch] = run_acc[ch * n + i];
-          sw = run_sw[i];
-        }
-        if (!(sw > 0)) {
-          // The border fallback (tf_kernel.h), point by point.
-          const float x = 2.0f * (u0 + i) + 0.5f;
-          sw = kernel.Blend<kChannels>(f.raw, x, y, run_v[i], kernel.SharpType(run_v[i]), acc);
-        }
-        const float scale = sw > 0 ? gain / sw : 0.0f;
-        const std::size_t t = t0 + i;
-        if (sharpen) {
-          float* dst = out->linear.data() + t * kChannels;
-          for (int ch = 0; ch < kChannels; ++ch) dst[ch] = acc[ch] * scale;
-        } else {
-          std::uint8_t* pix = out->pixels.data() + t * kChannels;
-          for (int ch = 0; ch < kChannels; ++ch)
-            pix[ch] = static_cast<std::uint8_t>(std::clamp(acc[ch] * scale + 0.5f, 0.0f, 255.0f));
-        }
+        const float x = 2.0f * (u0 + i) + 0.5f;
+        run_sw[i] = kernel.Blend<kChannels>(f.raw, x, y, run_v[i], kernel.SharpType(run_v[i]), acc);
+        for (int ch = 0; ch < kChannels; ++ch) run_acc[ch * n + i] = acc[ch];
       }
+      // Loops the compiler vectorises: the scale per pixel, the 8-bit
+      // planes, then the interleaving.
+      float scale[kRun];
+      for (int i = 0; i < n; ++i) scale[i] = run_sw[i] > 0 ? gain / run_sw[i] : 0.0f;
+      const std::size_t t0c = t0 * kChannels;
+      if (sharpen) {
+        for (int i = 0; i < n; ++i)
+          for (int ch = 0; ch < kChannels; ++ch)
+            out->linear[t0c + i * kChannels + ch] = run_acc[ch * n + i] * scale[i];
+        continue;
+      }
+      std::uint8_t planes[kChannels][kRun];
+      for (int ch = 0; ch < kChannels; ++ch) {
+        const float* a = run_acc + ch * n;
+        for (int i = 0; i < n; ++i)
+          planes[ch][i] = static_cast<std::uint8_t>(
+              static_cast<int>(std::min(std::max(a[i] * scale[i] + 0.5f, 0.0f), 255.0f)));
+      }
+      std::uint8_t* pix = out->pixels.data() + t0c;
+      for (int i = 0; i < n; ++i)
+        for (int ch = 0; ch < kChannels; ++ch) pix[i * kChannels + ch] = planes[ch][i];
     }
   });
 }

@@ -1,7 +1,7 @@
 // The TF blend's row kernel (processing/tf_blend_simd.h): Highway's on every
 // target this CPU runs against the scalar reference, on random frames
-// (Mono8 and BGR8, padded rows), gains with NaN holes, lattices, lens-type
-// tables and runs of depths. Both evaluate the same float expressions in
+// (Mono8 and BGR8, padded rows), gains with holes (float NaN, 16-bit 0),
+// lattices, lens-type tables, steps and runs of depths. Both evaluate the same float expressions in
 // the same order without FMA contraction and read the same pixels, so the
 // stated tolerance (1e-5 relative to the larger of 1 and the value) is there
 // for a compiler that reorders, not for an expected difference.
@@ -29,6 +29,7 @@ bool Close(float simd, float scalar) {
 struct RandomCase {
   std::vector<std::uint8_t> raw;
   std::vector<float> gain;
+  std::vector<std::uint16_t> gain16;
   std::vector<std::int32_t> types;
   TfBlendGeometry g;
   TfBlendSource s;
@@ -37,7 +38,9 @@ struct RandomCase {
 // A triangular lattice of pitch 8-14 px, slightly rotated, over a frame of
 // 40-120 x 30-90 pixels; lens type (i - j) mod 3; gains in [0.5, 2] with one
 // in 40 NaN; a type table of random types.
-RandomCase MakeCase(std::mt19937& rng, int channels) {
+// With `in_16_bits` the gain is read from 16 bits (0: invalid), as the
+// per-lens estimator keeps it.
+RandomCase MakeCase(std::mt19937& rng, int channels, bool in_16_bits) {
   RandomCase c;
   std::uniform_real_distribution<float> unit(0.0f, 1.0f);
   TfBlendGeometry& g = c.g;
@@ -72,6 +75,14 @@ RandomCase MakeCase(std::mt19937& rng, int channels) {
   for (std::int32_t& t : c.types) t = static_cast<std::int32_t>(rng() % 3);
   g.type_of_v = c.types.data();
   c.s = TfBlendSource{c.raw.data(), stride, channels, c.gain.data()};
+  if (in_16_bits) {
+    c.gain16.resize(c.gain.size());
+    for (std::uint16_t& q : c.gain16)
+      q = rng() % 40 == 0 ? 0 : static_cast<std::uint16_t>(8192 + rng() % 24576);
+    c.s.gain = nullptr;
+    c.s.gain16 = c.gain16.data();
+    c.s.gain16_scale = 1.0f / 16384;
+  }
   return c;
 }
 
@@ -91,21 +102,23 @@ TEST_F(TfBlendKernelsTest, RowsMatchTheScalarReferenceOnEveryTarget) {
     long long compared = 0, seen = 0;
     for (int trial = 0; trial < 200; ++trial) {
       const int channels = trial % 2 == 0 ? 3 : 1;
-      const RandomCase c = MakeCase(rng, channels);
+      const RandomCase c = MakeCase(rng, channels, trial % 4 >= 2);
       for (int k = 0; k < 8; ++k) {
         // A run of n pixels from x0 (possibly off the frame's left edge) at
         // depths in [1.05, 9], some runs at one depth.
         const int n = std::uniform_int_distribution<int>(1, 70)(rng);
         const float x0 = std::uniform_real_distribution<float>(-10.0f, c.g.width)(rng);
         const float y = std::uniform_real_distribution<float>(-2.0f, c.g.height + 2.0f)(rng);
+        // The TF image's step (2 raw pixels) or a preview's (any).
+        const float dx = k % 2 == 0 ? 2.0f : std::uniform_real_distribution<float>(0.3f, 9.0f)(rng);
         std::uniform_real_distribution<float> depth(1.05f, 9.0f);
         std::vector<float> v(n);
         const float v_all = depth(rng);
         for (float& x : v) x = k % 3 == 0 ? v_all : depth(rng);
         std::vector<float> a_acc(channels * n, -1.0f), b_acc(channels * n, -2.0f);
         std::vector<float> a_sw(n, -1.0f), b_sw(n, -2.0f);
-        scalar.row(c.g, c.s, x0, y, v.data(), n, a_acc.data(), a_sw.data());
-        simd.row(c.g, c.s, x0, y, v.data(), n, b_acc.data(), b_sw.data());
+        scalar.row(c.g, c.s, x0, dx, y, v.data(), n, a_acc.data(), a_sw.data());
+        simd.row(c.g, c.s, x0, dx, y, v.data(), n, b_acc.data(), b_sw.data());
         for (int i = 0; i < n; ++i) {
           ASSERT_TRUE(Close(b_sw[i], a_sw[i]))
               << hwy::TargetName(target) << " trial " << trial << " pixel " << i << ": sw "
