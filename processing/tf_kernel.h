@@ -231,44 +231,12 @@ class TfKernel {
     for (int k = 0; k < 3; ++k) lens[k] = f_.LensAt(i0 + ci[k] + 2 * cj[k], ci[k] - cj[k]);
   }
 
-  // A point's triangle (Triangle above), kept between asking the cache for
-  // its rows (Prefetch) and blending it (BlendTriangle).
+  // A point's triangle (Triangle above).
   struct PointLenses {
     int lens[3];
     float bary[3];
     Eigen::Vector2f q;
   };
-
-  // Asks the cache for the raw and gain rows that the blend of (x, y) at v
-  // reads from the triangle's lenses (not the border fallback), so that a
-  // renderer can issue them for a run of points before it blends them: the
-  // blend's loads then wait for memory together, not one after another
-  // (the sparse points of a preview touch new lines on every sample).
-  // Reads nothing; fills `t` for BlendTriangle.
-  template <int kChannels>
-  void Prefetch(const ConstImageView& raw, float x, float y, float v, int type,
-                PointLenses* t) const {
-    Triangle(x, y, v, type, t->lens, t->bary, &t->q);
-    const float inv_v = 1.0f / v;
-    for (int k = 0; k < 3; ++k) {
-      if (t->bary[k] <= 0 || t->lens[k] < 0) continue;
-      const LensF& m = lenses_[t->lens[k]];
-      const float px = m.lx + (x - m.lx) * inv_v, py = m.ly + (y - m.ly) * inv_v;
-      if (!(px >= 0 && py >= 0)) continue;
-      const int x0 = static_cast<int>(px), y0 = static_cast<int>(py);
-      if (x0 >= f_.width - 1 || y0 >= f_.height - 1) continue;
-      const std::size_t at = static_cast<std::size_t>(y0) * f_.width + x0;
-      __builtin_prefetch(raw.Row(y0) + x0 * kChannels);
-      __builtin_prefetch(raw.Row(y0 + 1) + x0 * kChannels);
-      if (gain16_ != nullptr) {
-        __builtin_prefetch(gain16_->q.data() + at);
-        __builtin_prefetch(gain16_->q.data() + at + f_.width);
-      } else {
-        __builtin_prefetch(f_.gain.data() + at);
-        __builtin_prefetch(f_.gain.data() + at + f_.width);
-      }
-    }
-  }
 
   // The blend at raw position (x, y), virtual depth v (> 1), with the lenses
   // of type `type` around LookingAt(x, y, v) (or (x, y): LensSelection):
@@ -280,7 +248,7 @@ class TfKernel {
     return BlendTriangle<kChannels>(raw, x, y, v, t, acc);
   }
 
-  // Blend with the point's triangle made already (Prefetch).
+  // Blend with the point's triangle made already.
   template <int kChannels>
   float BlendTriangle(const ConstImageView& raw, float x, float y, float v, const PointLenses& t,
                       float* acc) const {

@@ -14,7 +14,9 @@
 // cells without data take the mean of the valid cells within
 // fill_iterations TF pixels; every TF pixel is then the bilinear
 // interpolation of the valid cells around it (NaN where there are none).
-// Window sums are separable running sums, O(1) per cell.
+// Window sums are separable running sums, O(1) per cell. The splats are
+// summed in float, in bands of raw rows that write disjoint TF rows (no
+// atomics); fallback_v is the median to 1/1024.
 //
 // Rendering (back-projection): for TF pixel x with virtual depth v (filled
 // map, or the median v of the frame where it is empty), the lens type sharp
@@ -28,7 +30,10 @@
 // go to zero continuously at the triangle's edges (no seams) and the
 // sharp micro images alone make the image. Where none of the three holds x
 // (image border, v too small for the sublattice), the micro image nearest q
-// of any type and its six neighbours. Parallel over TF rows (TBB).
+// of any type and its six neighbours. Parallel over TF rows (TBB), each
+// row in runs through the row kernel of tf_blend_simd.h (Highway; the
+// scalar reference with TfOptions::simd false), the border fallback point
+// by point.
 
 #include "config/error.h"
 #include "config/mla.h"
