@@ -4,6 +4,7 @@
 
 #include "processing/epipolar_search.h"
 #include "processing/lens_search_simd.h"
+#include "processing/tf_blend_simd.h"
 #include "processing/tf_kernel.h"
 
 #include <tbb/blocked_range.h>
@@ -633,55 +634,85 @@ Status LensDepthEstimator::RenderPreview(ConstImageView raw, int max_side, LensD
   out->pixels.resize(static_cast<std::size_t>(ow) * oh * (colour ? 3 : 1));
   out->linear.clear();
   const detail::TfKernel& kernel = *kernel_;
+  // Each output row in runs of points: every point's depth, then the run
+  // through the TF blend's row kernel (tf_blend_simd.h, the rule of
+  // tf_kernel.h; SIMD with options_.simd), reading the 16-bit gain; points
+  // that none of their triangle's lenses sees (sw = 0) take the border
+  // fallback point by point (TfKernel::Blend). The kernel's gathers ask for
+  // the lines of a whole vector of points at once: the points lie 2 s raw
+  // pixels apart (s = 12.8 on an R32), every sample a new cache line.
+  const detail::TfBlendGeometry geometry = kernel.BlendGeometry();
+  const int channels = colour ? 3 : 1;
+  const detail::TfBlendSource source{raw.data,        raw.stride_bytes,     channels, nullptr,
+                                     gain_->q.data(), gain_->scale};
+  const bool rows = f.width >= 8 && f.height >= 2 &&
+                    static_cast<double>(f.width) * f.height < 2147483648.0 &&
+                    (f.height - 1.0) * raw.stride_bytes + 3.0 * f.width < 2147483648.0;
+  const detail::TfBlendKernels& kernels =
+      options_.simd ? detail::SimdTfBlendKernels() : detail::ScalarTfBlendKernels();
+  // MlaGrid::Nearest with the lattice's inverse made once and round() inline
+  // (half away from zero by truncation; a libm call each otherwise).
+  const Eigen::Matrix2d to_lattice = f.grid.lattice.inverse();
+  auto round_inline = [](double a) {
+    return static_cast<double>(static_cast<long long>(a + (a >= 0 ? 0.5 : -0.5)));
+  };
+  auto nearest = [&](const Eigen::Vector2f& q, int* i, int* j) {
+    const Eigen::Vector2d axial = to_lattice * (Eigen::Vector2d(q.x(), q.y()) - f.grid.reference_px);
+    const double qa = axial.x(), ra = axial.y(), sa = -qa - ra;
+    double rq = round_inline(qa), rr = round_inline(ra);
+    const double rs = round_inline(sa);
+    const double dq = std::abs(rq - qa), dr = std::abs(rr - ra), ds = std::abs(rs - sa);
+    if (dq > dr && dq > ds)
+      rq = -rr - rs;
+    else if (dr > ds)
+      rr = -rq - rs;
+    *i = static_cast<int>(rq);
+    *j = static_cast<int>(rr);
+  };
+  // TF position u = (a + 1/2) s - 1/2 is raw position 2u + 1/2 = x0 + dx a.
+  const float dx = 2.0f * s, x0 = s - 0.5f;
   tbb::parallel_for(0, oh, [&](int b) {
-    // TF position u = (a + 1/2) s - 1/2 is raw position 2u + 1/2.
     const float y = 2.0f * ((b + 0.5f) * s - 0.5f) + 0.5f;
-    std::uint8_t* row = out->pixels.data() + static_cast<std::size_t>(b) * ow * (colour ? 3 : 1);
-    // In runs of kRun points: each point's depth and lens type, and its
-    // blend's rows asked of the cache (TfKernel::Prefetch), then the blends
-    // (the points lie 2 s raw pixels apart, every sample a new cache line:
-    // one after another, each would wait for memory alone).
-    constexpr int kRun = 32;
-    float run_v[kRun];
-    detail::TfKernel::PointLenses run_lenses[kRun];
+    std::uint8_t* row = out->pixels.data() + static_cast<std::size_t>(b) * ow * channels;
+    constexpr int kRun = 128;
+    float run_v[kRun], run_acc[3 * kRun], run_sw[kRun];
     for (int a0 = 0; a0 < ow; a0 += kRun) {
       const int n = std::min(kRun, ow - a0);
       for (int r = 0; r < n; ++r) {
-        const float x = 2.0f * ((a0 + r + 0.5f) * s - 0.5f) + 0.5f;
+        const float x = x0 + dx * static_cast<float>(a0 + r);
         // The micro images that see x at depth v lie around
         // LookingAt(x, v) (tf_kernel.h), up to lenses away from x at the
         // border: the lens there gives v, twice from the frame's median.
         float vv = static_cast<float>(median);
         for (int round = 0; round < 2; ++round) {
-          const Eigen::Vector2f q = kernel.LookingAt(x, y, vv);
           int i = 0, j = 0;
-          f.grid.Nearest(Eigen::Vector2d(q.x(), q.y()), &i, &j);
+          nearest(kernel.LookingAt(x, y, vv), &i, &j);
           const int rr = g.Row(j), c = g.Col(i, j);
           if (rr >= 0 && rr < g.rows && c >= 0 && c < g.cols) vv = v[depth->Cell(c, rr)];
           vv = std::max(vv, 1.05f);
         }
         run_v[r] = vv;
-        const int type = kernel.SharpType(vv);
-        if (colour)
-          kernel.Prefetch<3>(raw, x, y, vv, type, &run_lenses[r]);
-        else
-          kernel.Prefetch<1>(raw, x, y, vv, type, &run_lenses[r]);
       }
+      if (rows)
+        kernels.row(geometry, source, x0 + dx * static_cast<float>(a0), dx, y, run_v, n, run_acc,
+                    run_sw);
       for (int r = 0; r < n; ++r) {
-        const int a = a0 + r;
-        const float x = 2.0f * ((a + 0.5f) * s - 0.5f) + 0.5f;
-        float acc[3];
-        if (colour) {
-          const float sw = kernel.BlendTriangle<3>(raw, x, y, run_v[r], run_lenses[r], acc);
-          for (int ch = 0; ch < 3; ++ch)
-            row[3 * a + ch] = sw > 0 ? static_cast<std::uint8_t>(
-                                           std::clamp(acc[ch] / sw + 0.5f, 0.0f, 255.0f))
-                                     : 0;
-        } else {
-          const float sw = kernel.BlendTriangle<1>(raw, x, y, run_v[r], run_lenses[r], acc);
-          row[a] = sw > 0 ? static_cast<std::uint8_t>(std::clamp(acc[0] / sw + 0.5f, 0.0f, 255.0f))
-                          : 0;
+        float acc[3] = {0, 0, 0};
+        float sw = 0;
+        if (rows) {
+          for (int ch = 0; ch < channels; ++ch) acc[ch] = run_acc[ch * n + r];
+          sw = run_sw[r];
         }
+        if (!(sw > 0)) {
+          const float x = x0 + dx * static_cast<float>(a0 + r);
+          const int type = kernel.SharpType(run_v[r]);
+          sw = colour ? kernel.Blend<3>(raw, x, y, run_v[r], type, acc)
+                      : kernel.Blend<1>(raw, x, y, run_v[r], type, acc);
+        }
+        std::uint8_t* pix = row + static_cast<std::size_t>(a0 + r) * channels;
+        for (int ch = 0; ch < channels; ++ch)
+          pix[ch] = sw > 0 ? static_cast<std::uint8_t>(std::clamp(acc[ch] / sw + 0.5f, 0.0f, 255.0f))
+                           : 0;
       }
     }
   });

@@ -23,6 +23,7 @@
 #include "config/mla.h"
 #include "processing/lens_search_simd.h"
 #include "processing/plenoptic_frame.h"
+#include "processing/tf_blend_simd.h"
 
 #include <Eigen/Core>
 #include <Eigen/LU>
@@ -62,9 +63,10 @@ class SharpTypeTable {
   int operator()(double v) const {
     return table_[std::clamp(static_cast<int>(v * kPerUnit), 0, kSize - 1)];
   }
+  static constexpr int kPerUnit = 256, kSize = 64 * kPerUnit;
+  int At(int index) const { return table_[index]; }
 
  private:
-  static constexpr int kPerUnit = 256, kSize = 64 * kPerUnit;
   std::array<std::uint8_t, kSize> table_{};
 };
 
@@ -151,6 +153,38 @@ class TfKernel {
       steps.col(1) = f.grid.lattice * Eigen::Vector2d(2, -1);
       s.from_px = steps.inverse();
     }
+    type_of_v_.resize(SharpTypeTable::kSize);
+    for (int q = 0; q < SharpTypeTable::kSize; ++q) type_of_v_[q] = sharp_type_.At(q);
+  }
+
+  // The geometry of the whole-row blend (tf_blend_simd.h) of this frame;
+  // it points into this kernel (the type table).
+  TfBlendGeometry BlendGeometry() const {
+    TfBlendGeometry g;
+    g.width = f_.width;
+    g.height = f_.height;
+    g.cx = cx_;
+    g.cy = cy_;
+    g.lambda = lambda_;
+    g.r2 = r2_;
+    for (int t = 0; t < 3; ++t) {
+      g.ox[t] = static_cast<float>(sub_[t].origin.x());
+      g.oy[t] = static_cast<float>(sub_[t].origin.y());
+      g.fxx[t] = static_cast<float>(sub_[t].from_px(0, 0));
+      g.fxy[t] = static_cast<float>(sub_[t].from_px(0, 1));
+      g.fyx[t] = static_cast<float>(sub_[t].from_px(1, 0));
+      g.fyy[t] = static_cast<float>(sub_[t].from_px(1, 1));
+    }
+    const Eigen::Vector2d a = f_.grid.lattice * Eigen::Vector2d(1, 1);
+    const Eigen::Vector2d b = f_.grid.lattice * Eigen::Vector2d(2, -1);
+    g.sxa = static_cast<float>(a.x());
+    g.sya = static_cast<float>(a.y());
+    g.sxb = static_cast<float>(b.x());
+    g.syb = static_cast<float>(b.y());
+    g.type_of_v = type_of_v_.data();
+    g.type_per_unit = SharpTypeTable::kPerUnit;
+    g.type_size = SharpTypeTable::kSize;
+    return g;
   }
 
   // The gain is read from `gain` (the frame's geometry may then drop its
@@ -197,44 +231,12 @@ class TfKernel {
     for (int k = 0; k < 3; ++k) lens[k] = f_.LensAt(i0 + ci[k] + 2 * cj[k], ci[k] - cj[k]);
   }
 
-  // A point's triangle (Triangle above), kept between asking the cache for
-  // its rows (Prefetch) and blending it (BlendTriangle).
+  // A point's triangle (Triangle above).
   struct PointLenses {
     int lens[3];
     float bary[3];
     Eigen::Vector2f q;
   };
-
-  // Asks the cache for the raw and gain rows that the blend of (x, y) at v
-  // reads from the triangle's lenses (not the border fallback), so that a
-  // renderer can issue them for a run of points before it blends them: the
-  // blend's loads then wait for memory together, not one after another
-  // (the sparse points of a preview touch new lines on every sample).
-  // Reads nothing; fills `t` for BlendTriangle.
-  template <int kChannels>
-  void Prefetch(const ConstImageView& raw, float x, float y, float v, int type,
-                PointLenses* t) const {
-    Triangle(x, y, v, type, t->lens, t->bary, &t->q);
-    const float inv_v = 1.0f / v;
-    for (int k = 0; k < 3; ++k) {
-      if (t->bary[k] <= 0 || t->lens[k] < 0) continue;
-      const LensF& m = lenses_[t->lens[k]];
-      const float px = m.lx + (x - m.lx) * inv_v, py = m.ly + (y - m.ly) * inv_v;
-      if (!(px >= 0 && py >= 0)) continue;
-      const int x0 = static_cast<int>(px), y0 = static_cast<int>(py);
-      if (x0 >= f_.width - 1 || y0 >= f_.height - 1) continue;
-      const std::size_t at = static_cast<std::size_t>(y0) * f_.width + x0;
-      __builtin_prefetch(raw.Row(y0) + x0 * kChannels);
-      __builtin_prefetch(raw.Row(y0 + 1) + x0 * kChannels);
-      if (gain16_ != nullptr) {
-        __builtin_prefetch(gain16_->q.data() + at);
-        __builtin_prefetch(gain16_->q.data() + at + f_.width);
-      } else {
-        __builtin_prefetch(f_.gain.data() + at);
-        __builtin_prefetch(f_.gain.data() + at + f_.width);
-      }
-    }
-  }
 
   // The blend at raw position (x, y), virtual depth v (> 1), with the lenses
   // of type `type` around LookingAt(x, y, v) (or (x, y): LensSelection):
@@ -246,7 +248,7 @@ class TfKernel {
     return BlendTriangle<kChannels>(raw, x, y, v, t, acc);
   }
 
-  // Blend with the point's triangle made already (Prefetch).
+  // Blend with the point's triangle made already.
   template <int kChannels>
   float BlendTriangle(const ConstImageView& raw, float x, float y, float v, const PointLenses& t,
                       float* acc) const {
@@ -299,6 +301,7 @@ class TfKernel {
   float cx_ = 0, cy_ = 0, lambda_ = 1;  // the frame's c and lambda of l_k
   std::vector<LensF> lenses_;
   std::array<SublatticeOf, 3> sub_;
+  std::vector<std::int32_t> type_of_v_;  // sharp_type_'s table in 32 bits (the SIMD gather's)
 };
 
 }  // namespace lifmcr::processing::detail

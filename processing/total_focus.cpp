@@ -99,92 +99,141 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
   out->width = tw;
   out->height = th;
   TfDepthMap::Scratch& scratch = out->scratch;
-  std::vector<double>& sw = scratch.sw;
-  std::vector<double>& swz = scratch.swz;
-  sw.assign(tn, 0.0);
-  swz.assign(tn, 0.0);
-  // Splat, parallel over micro images; a TF pixel may get splats from several
-  // micro images at once, hence the atomic adds (rarely contended).
-  tbb::parallel_for(0, static_cast<int>(f.lenses.size()), [&](int k) {
-    const MicroImage& m = f.lenses[k];
-    const double r = f.radius_px;
-    const int x0 = std::max(0, static_cast<int>(std::ceil(m.centre_px.x() - r)));
-    const int x1 = std::min(f.width - 1, static_cast<int>(std::floor(m.centre_px.x() + r)));
-    const int y0 = std::max(0, static_cast<int>(std::ceil(m.centre_px.y() - r)));
-    const int y1 = std::min(f.height - 1, static_cast<int>(std::floor(m.centre_px.y() + r)));
-    for (int y = y0; y <= y1; ++y)
-      for (int x = x0; x <= x1; ++x) {
-        const std::size_t idx = static_cast<std::size_t>(y) * f.width + x;
-        const float v = raw.virtual_depth[idx];
-        if (std::isnan(v) || f.lens_of_pixel[idx] != k) continue;
-        const double xv = m.lens_px.x() + v * (x - m.lens_px.x());
-        const double yv = m.lens_px.y() + v * (y - m.lens_px.y());
-        // Nearest TF pixel: lround without its libm call (a call per
-        // splat): for a > -0.5, lround(a) = trunc(a + 0.5); a <= -0.5
-        // rounds below 0, off the grid.
-        const double ua = (xv - 0.5) / 2.0, wa = (yv - 0.5) / 2.0;
-        if (!(ua > -0.5) || !(wa > -0.5)) continue;
-        const int u = static_cast<int>(ua + 0.5), w = static_cast<int>(wa + 0.5);
-        if (u >= tw || w >= th) continue;
-        const double s = raw.sigma_z[idx];
-        const double weight = 1.0 / std::max(1e-12, s * s);
-        const std::size_t t = static_cast<std::size_t>(w) * tw + u;
-        std::atomic_ref<double>(sw[t]).fetch_add(weight, std::memory_order_relaxed);
-        std::atomic_ref<double>(swz[t]).fetch_add(weight / v, std::memory_order_relaxed);
+  // The sums are left zero by the last pass below (it reads them for the
+  // last time), so a reused map does not clear 8 bytes per TF pixel again.
+  std::vector<float>& sum_vec = scratch.sums;
+  if (sum_vec.size() != 2 * tn || !scratch.zeroed) sum_vec.assign(2 * tn, 0.0f);
+  float* const sums = sum_vec.data();
+  scratch.zeroed = false;
+  std::vector<double>& lens_xy = scratch.lens_xy;
+  lens_xy.resize(2 * f.lenses.size());
+  for (std::size_t k = 0; k < f.lenses.size(); ++k) {
+    lens_xy[2 * k] = f.lenses[k].lens_px.x();
+    lens_xy[2 * k + 1] = f.lenses[k].lens_px.y();
+  }
+  // Regularisation on a grid of kCell x kCell TF pixels (below); the
+  // splat sums into the cells too.
+  constexpr int kCell = 4;
+  const int cw = (tw + kCell - 1) / kCell, ch = (th + kCell - 1) / kCell;
+  const std::size_t cn = static_cast<std::size_t>(cw) * ch;
+  std::vector<double>& cell_w = scratch.cell_w;
+  std::vector<double>& cell_wz = scratch.cell_wz;
+  cell_w.assign(cn, 0.0);
+  cell_wz.assign(cn, 0.0);
+  double* const cells_w = cell_w.data();
+  double* const cells_wz = cell_wz.data();
+  // Splat, in bands of kBand raw rows, row by row (the map, sigma and
+  // micro-image index are read in order): even bands in parallel, then odd
+  // ones. A band writes only TF rows (and cell rows: kBand / 4 is a
+  // multiple of kCell) within kBand / 4 of its own (a splat
+  // moves (v - 1) |p - l| raw pixels, 70 TF rows at v 8 on an R32), so two
+  // bands of one phase (a band apart) never write the same TF pixel: plain
+  // adds, no atomics. A splat beyond that reach is kept and added after
+  // both phases. Sums in float: a TF pixel gets a few splats, each weight
+  // to 6e-8 of itself.
+  constexpr int kBand = 256;
+  const int bands = (f.height + kBand - 1) / kBand;
+  scratch.deferred.resize(bands);
+  for (int phase = 0; phase < 2; ++phase)
+    tbb::parallel_for(0, (bands - phase + 1) / 2, [&](int half) {
+      const int band = 2 * half + phase;
+      std::vector<TfDepthMap::Scratch::Deferred>& deferred = scratch.deferred[band];
+      deferred.clear();
+      const int y0 = band * kBand, y1 = std::min(f.height, y0 + kBand);
+      // TF rows this band may write: its own (raw rows / 2) and kBand / 4 beyond.
+      const int w_lo = y0 / 2 - kBand / 4, w_hi = y1 / 2 + kBand / 4;
+      const double* const lenses = lens_xy.data();
+      const int width = f.width;
+      for (int y = y0; y < y1; ++y) {
+        const std::size_t row = static_cast<std::size_t>(y) * width;
+        const float* vs = raw.virtual_depth.data() + row;
+        const float* ss = raw.sigma_z.data() + row;
+        const std::int32_t* ks = f.lens_of_pixel.data() + row;
+        for (int x = 0; x < width; ++x) {
+          const float v = vs[x];
+          const int k = ks[x];
+          if (std::isnan(v) || k < 0) continue;
+          const double lx = lenses[2 * k], ly = lenses[2 * k + 1];
+          const double xv = lx + v * (x - lx);
+          const double yv = ly + v * (y - ly);
+          // Nearest TF pixel: lround without its libm call (a call per
+          // splat): for a > -0.5, lround(a) = trunc(a + 0.5); a <= -0.5
+          // rounds below 0, off the grid.
+          const double ua = (xv - 0.5) / 2.0, wa = (yv - 0.5) / 2.0;
+          if (!(ua > -0.5) || !(wa > -0.5)) continue;
+          const int u = static_cast<int>(ua + 0.5), w = static_cast<int>(wa + 0.5);
+          if (u >= tw || w >= th) continue;
+          // Weight 1 / sigma_z^2 and weight z = weight / v, with one
+          // division (in float: what the sums keep).
+          const float s = ss[x];
+          const float weight_z = 1.0f / (std::max(1e-12f, s * s) * v);
+          const float weight = weight_z * v;
+          const std::uint32_t t = static_cast<std::uint32_t>(w) * tw + u;
+          if (w >= w_lo && w < w_hi) {
+            sums[2 * t] += weight;
+            sums[2 * t + 1] += weight_z;
+            const std::size_t c = static_cast<std::size_t>(w / kCell) * cw + u / kCell;
+            cells_w[c] += weight;
+            cells_wz[c] += weight_z;
+          } else {
+            deferred.push_back({t, weight, weight_z});
+          }
+        }
       }
-  });
+    });
+  for (const auto& band : scratch.deferred)
+    for (const TfDepthMap::Scratch::Deferred& d : band) {
+      sums[2 * d.t] += d.w;
+      sums[2 * d.t + 1] += d.wz;
+      const std::size_t c = static_cast<std::size_t>(d.t / tw / kCell) * cw + d.t % tw / kCell;
+      cell_w[c] += d.w;
+      cell_wz[c] += d.wz;
+    }
   out->virtual_depth.resize(tn);
   out->sigma_z.resize(tn);
-  std::atomic<long long> measured{0};
-  tbb::parallel_for(0, th, [&](int w) {
-    long long row_measured = 0;
-    for (std::size_t t = static_cast<std::size_t>(w) * tw; t < static_cast<std::size_t>(w + 1) * tw;
-         ++t) {
-      out->sigma_z[t] = sw[t] > 0 ? static_cast<float>(std::sqrt(1.0 / sw[t])) : kNaN;
-      row_measured += sw[t] > 0;
-    }
-    measured += row_measured;
-  });
-  out->measured = measured;
   // Regularisation on a grid of kCell x kCell TF pixels (the depth map is
   // smooth at that scale after the window mean anyway; the window passes
   // then touch 16x less memory): per cell the sums of the splats, the
   // inverse-variance mean of z over a window of about smooth_radius, again
   // over the measured pixels that agree with their cell's mean within 5 %
   // (a step in depth splits the window; the side holding the majority
-  // stays), holes filled from the cells within fill_iterations, then
+  // stays), holes filled from the cells within fill_iterations TF pixels, then
   // bilinear interpolation back to every TF pixel.
-  constexpr int kCell = 4;
-  const int cw = (tw + kCell - 1) / kCell, ch = (th + kCell - 1) / kCell;
-  const std::size_t cn = static_cast<std::size_t>(cw) * ch;
-  std::vector<double>& cell_w = scratch.cell_w;
-  std::vector<double>& cell_wz = scratch.cell_wz;
-  auto sum_cells = [&](auto keep) {
-    cell_w.assign(cn, 0.0);
-    cell_wz.assign(cn, 0.0);
+  std::vector<float>& cell_z = scratch.cell_z;
+  // Cell sums again over the measured pixels within 5 % of their cell's
+  // mean z, |swz / sw - mean| <= 0.05 mean with sw > 0.
+  auto sum_kept = [&]() {
     tbb::parallel_for(0, ch, [&](int cy) {
-      for (int w = cy * kCell; w < std::min(th, (cy + 1) * kCell); ++w)
-        for (int u = 0; u < tw; ++u) {
-          const std::size_t t = static_cast<std::size_t>(w) * tw + u;
-          if (sw[t] <= 0 || !keep(t)) continue;
-          const std::size_t c = static_cast<std::size_t>(cy) * cw + u / kCell;
-          cell_w[c] += sw[t];
-          cell_wz[c] += swz[t];
+      double* cwr = cell_w.data() + static_cast<std::size_t>(cy) * cw;
+      double* cwzr = cell_wz.data() + static_cast<std::size_t>(cy) * cw;
+      const float* mean = cell_z.data() + static_cast<std::size_t>(cy) * cw;
+      std::fill(cwr, cwr + cw, 0.0);
+      std::fill(cwzr, cwzr + cw, 0.0);
+      for (int w = cy * kCell; w < std::min(th, (cy + 1) * kCell); ++w) {
+        const float* p = sums + 2 * static_cast<std::size_t>(w) * tw;
+        for (int c = 0; c < cw; ++c) {
+          double sa = 0, sb = 0;
+          const int u1 = std::min(tw, (c + 1) * kCell);
+          const float m = mean[c];
+          for (int u = c * kCell; u < u1; ++u) {
+            const float a = p[2 * u], b = p[2 * u + 1];
+            if (a > 0 && std::abs(b - m * a) <= 0.05f * m * a) {
+              sa += a;
+              sb += b;
+            }
+          }
+          cwr[c] += sa;
+          cwzr[c] += sb;
         }
+      }
     });
   };
   const int cell_radius = std::max(0, (options.smooth_radius + kCell / 2) / kCell);
-  sum_cells([](std::size_t) { return true; });
   BoxSums(cw, ch, cell_radius, cell_w, cell_wz, &scratch);
-  std::vector<float>& cell_z = scratch.cell_z;
   cell_z.assign(cn, kNaN);
   for (std::size_t c = 0; c < cn; ++c)
     if (scratch.box_n[c] > 0) cell_z[c] = static_cast<float>(scratch.box_wz[c] / scratch.box_w[c]);
-  sum_cells([&](std::size_t t) {
-    const int u = static_cast<int>(t % tw), w = static_cast<int>(t / tw);
-    const double mean = cell_z[static_cast<std::size_t>(w / kCell) * cw + u / kCell];
-    return std::abs(swz[t] / sw[t] - mean) <= 0.05 * mean;
-  });
+  sum_kept();
   BoxSums(cw, ch, cell_radius, cell_w, cell_wz, &scratch);
   for (std::size_t c = 0; c < cn; ++c)
     cell_z[c] =
@@ -201,46 +250,82 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
       if (std::isnan(cell_z[c]) && scratch.box_n[c] > 0)
         cell_z[c] = static_cast<float>(scratch.box_wz[c] / scratch.box_w[c]);
   }
-  // Back to TF pixels: bilinear between cell centres over the valid cells.
-  tbb::parallel_for(0, th, [&](int w) {
-    const float gy = std::clamp((w + 0.5f) / kCell - 0.5f, 0.0f, static_cast<float>(ch - 1));
-    const int y0 = std::min(static_cast<int>(gy), ch - 1), y1 = std::min(y0 + 1, ch - 1);
-    const float fy = gy - y0;
-    for (int u = 0; u < tw; ++u) {
-      const float gx = std::clamp((u + 0.5f) / kCell - 0.5f, 0.0f, static_cast<float>(cw - 1));
-      const int x0 = std::min(static_cast<int>(gx), cw - 1), x1 = std::min(x0 + 1, cw - 1);
-      const float fx = gx - x0;
-      const float zs[4] = {cell_z[static_cast<std::size_t>(y0) * cw + x0],
-                           cell_z[static_cast<std::size_t>(y0) * cw + x1],
-                           cell_z[static_cast<std::size_t>(y1) * cw + x0],
-                           cell_z[static_cast<std::size_t>(y1) * cw + x1]};
-      const float ws[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
-      float a = 0, b = 0;
-      for (int q = 0; q < 4; ++q)
-        if (!std::isnan(zs[q])) {
-          a += ws[q];
-          b += ws[q] * zs[q];
-        }
-      out->virtual_depth[static_cast<std::size_t>(w) * tw + u] = a > 1e-6f ? a / b : kNaN;
-    }
-  });
-  out->fallback_v = 0;
-  std::vector<float>& values = scratch.measured_v;
-  values.clear();
-  for (std::size_t t = 0; t < tn; ++t)
-    if (sw[t] > 0 && !std::isnan(out->virtual_depth[t])) values.push_back(out->virtual_depth[t]);
-  if (!values.empty()) {
-    std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
-    out->fallback_v = values[values.size() / 2];
+  // Back to TF pixels: bilinear between cell centres over the valid cells,
+  // v = sum w_q / sum w_q z_q over the valid corners q, separable: per row
+  // the column blend of the cells' validity and z (0 where invalid), then
+  // along the row. With it the valid pixels counted, a histogram of the
+  // measured ones' v (the median, to 1 / kBinsPerUnit) and the sums cleared
+  // for the next frame.
+  std::vector<float>& valid_of = scratch.cell_valid;
+  std::vector<float>& z0_of = scratch.cell_z0;
+  valid_of.resize(cn);
+  z0_of.resize(cn);
+  for (std::size_t c = 0; c < cn; ++c) {
+    valid_of[c] = std::isnan(cell_z[c]) ? 0.0f : 1.0f;
+    z0_of[c] = std::isnan(cell_z[c]) ? 0.0f : cell_z[c];
   }
-  std::atomic<long long> valid{0};
-  tbb::parallel_for(0, th, [&](int w) {
-    long long row_valid = 0;
-    for (std::size_t t = static_cast<std::size_t>(w) * tw; t < static_cast<std::size_t>(w + 1) * tw;
-         ++t)
-      row_valid += !std::isnan(out->virtual_depth[t]);
-    valid += row_valid;
+  constexpr int kBinsPerUnit = 1024, kBins = 64 * kBinsPerUnit, kChunks = 8;
+  std::vector<std::uint32_t>& histogram = scratch.histogram;
+  histogram.assign(static_cast<std::size_t>(kChunks) * kBins, 0);
+  scratch.row_a.resize(static_cast<std::size_t>(kChunks) * cw);
+  scratch.row_b.resize(static_cast<std::size_t>(kChunks) * cw);
+  std::atomic<long long> valid{0}, measured{0};
+  tbb::parallel_for(0, kChunks, [&](int chunk) {
+    std::uint32_t* hist = histogram.data() + static_cast<std::size_t>(chunk) * kBins;
+    float* col_a = scratch.row_a.data() + static_cast<std::size_t>(chunk) * cw;
+    float* col_b = scratch.row_b.data() + static_cast<std::size_t>(chunk) * cw;
+    long long chunk_valid = 0, chunk_measured = 0;
+    for (int w = chunk * th / kChunks; w < (chunk + 1) * th / kChunks; ++w) {
+      const float gy = std::clamp((w + 0.5f) / kCell - 0.5f, 0.0f, static_cast<float>(ch - 1));
+      const int y0 = std::min(static_cast<int>(gy), ch - 1), y1 = std::min(y0 + 1, ch - 1);
+      const float fy = gy - y0;
+      const std::size_t r0 = static_cast<std::size_t>(y0) * cw, r1 = static_cast<std::size_t>(y1) * cw;
+      for (int c = 0; c < cw; ++c) {
+        col_a[c] = (1 - fy) * valid_of[r0 + c] + fy * valid_of[r1 + c];
+        col_b[c] = (1 - fy) * z0_of[r0 + c] + fy * z0_of[r1 + c];
+      }
+      const std::size_t row = static_cast<std::size_t>(w) * tw;
+      float* vd = out->virtual_depth.data() + row;
+      float* sigma = out->sigma_z.data() + row;
+      float* p = sums + 2 * row;
+      for (int u = 0; u < tw; ++u) {
+        const bool measured_here = p[2 * u] > 0;
+        sigma[u] = measured_here ? std::sqrt(1.0f / p[2 * u]) : kNaN;
+        chunk_measured += measured_here;
+        const float gx = std::clamp((u + 0.5f) / kCell - 0.5f, 0.0f, static_cast<float>(cw - 1));
+        const int x0 = std::min(static_cast<int>(gx), cw - 1), x1 = std::min(x0 + 1, cw - 1);
+        const float fx = gx - x0;
+        const float a = (1 - fx) * col_a[x0] + fx * col_a[x1];
+        const float b = (1 - fx) * col_b[x0] + fx * col_b[x1];
+        const float v = a > 1e-6f ? a / b : kNaN;
+        vd[u] = v;
+        if (!std::isnan(v)) {
+          ++chunk_valid;
+          if (measured_here) ++hist[std::clamp(static_cast<int>(v * kBinsPerUnit), 0, kBins - 1)];
+        }
+      }
+      std::fill(p, p + 2 * tw, 0.0f);
+    }
+    valid += chunk_valid;
+    measured += chunk_measured;
   });
+  out->measured = measured;
+  scratch.zeroed = true;
+  out->fallback_v = 0;
+  long long n = 0;
+  for (int chunk = 1; chunk < kChunks; ++chunk)
+    for (int bin = 0; bin < kBins; ++bin)
+      histogram[bin] += histogram[static_cast<std::size_t>(chunk) * kBins + bin];
+  for (int bin = 0; bin < kBins; ++bin) n += histogram[bin];
+  // The element of rank n / 2 (0-based) of the sorted values: its bin's centre.
+  long long below = 0;
+  for (int bin = 0; bin < kBins && n > 0; ++bin) {
+    below += histogram[bin];
+    if (below > n / 2) {
+      out->fallback_v = (bin + 0.5) / kBinsPerUnit;
+      break;
+    }
+  }
   out->filled = valid - out->measured;
   return Status::Ok();
 }
@@ -251,29 +336,64 @@ template <int kChannels>
 void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDepthMap& depth,
                 const TfOptions& options, TfImage* out) {
   const int tw = f.width / 2, th = f.height / 2;
-  const double fallback = depth.fallback_v > 1 ? depth.fallback_v : 3.0;
+  const float fallback = static_cast<float>(depth.fallback_v > 1 ? depth.fallback_v : 3.0);
   const detail::TfKernel kernel(f, mla, options.inner_fraction);
   const float gain = static_cast<float>(options.gain);
   const bool sharpen = options.sharpen > 0;
+  // Runs of a row through the row kernel (tf_blend_simd.h); its
+  // preconditions (a frame of 8 x 2 pixels at least, offsets in 32 bits)
+  // hold for every camera; a frame outside them goes point by point.
+  const detail::TfBlendGeometry geometry = kernel.BlendGeometry();
+  const detail::TfBlendSource source{f.raw.data, f.raw.stride_bytes, kChannels, f.gain.data()};
+  const bool rows = f.width >= 8 && f.height >= 2 &&
+                    static_cast<double>(f.width) * f.height < 2147483648.0 &&
+                    (f.height - 1.0) * f.raw.stride_bytes + 3.0 * f.width < 2147483648.0;
+  const detail::TfBlendKernels& kernels =
+      options.simd ? detail::SimdTfBlendKernels() : detail::ScalarTfBlendKernels();
   tbb::parallel_for(0, th, [&](int w) {
     const float y = 2.0f * w + 0.5f;
-    for (int u = 0; u < tw; ++u) {
-      const std::size_t t = static_cast<std::size_t>(w) * tw + u;
-      float v = depth.virtual_depth[t];
-      if (!(v > 1.0f)) v = static_cast<float>(fallback);  // NaN too
-      const float x = 2.0f * u + 0.5f;
-      const int type = kernel.SharpType(v);
-      float acc[kChannels];
-      const float sw = kernel.Blend<kChannels>(f.raw, x, y, v, type, acc);
-      const float scale = sw > 0 ? gain / sw : 0.0f;
-      if (sharpen) {
-        float* dst = out->linear.data() + t * kChannels;
-        for (int ch = 0; ch < kChannels; ++ch) dst[ch] = acc[ch] * scale;
-      } else {
-        std::uint8_t* pix = out->pixels.data() + t * kChannels;
-        for (int ch = 0; ch < kChannels; ++ch)
-          pix[ch] = static_cast<std::uint8_t>(std::clamp(acc[ch] * scale + 0.5f, 0.0f, 255.0f));
+    constexpr int kRun = 256;
+    float run_v[kRun], run_acc[kChannels * kRun], run_sw[kRun];
+    for (int u0 = 0; u0 < tw; u0 += kRun) {
+      const int n = std::min(kRun, tw - u0);
+      const std::size_t t0 = static_cast<std::size_t>(w) * tw + u0;
+      for (int i = 0; i < n; ++i) {
+        const float v = depth.virtual_depth[t0 + i];
+        run_v[i] = v > 1.0f ? v : fallback;  // NaN too
       }
+      if (rows)
+        kernels.row(geometry, source, 2.0f * u0 + 0.5f, 2.0f, y, run_v, n, run_acc, run_sw);
+      else
+        std::fill(run_sw, run_sw + n, 0.0f);
+      for (int i = 0; i < n; ++i) {
+        if (run_sw[i] > 0) continue;
+        // The border fallback (tf_kernel.h), point by point.
+        float acc[kChannels];
+        const float x = 2.0f * (u0 + i) + 0.5f;
+        run_sw[i] = kernel.Blend<kChannels>(f.raw, x, y, run_v[i], kernel.SharpType(run_v[i]), acc);
+        for (int ch = 0; ch < kChannels; ++ch) run_acc[ch * n + i] = acc[ch];
+      }
+      // Loops the compiler vectorises: the scale per pixel, the 8-bit
+      // planes, then the interleaving.
+      float scale[kRun];
+      for (int i = 0; i < n; ++i) scale[i] = run_sw[i] > 0 ? gain / run_sw[i] : 0.0f;
+      const std::size_t t0c = t0 * kChannels;
+      if (sharpen) {
+        for (int i = 0; i < n; ++i)
+          for (int ch = 0; ch < kChannels; ++ch)
+            out->linear[t0c + i * kChannels + ch] = run_acc[ch * n + i] * scale[i];
+        continue;
+      }
+      std::uint8_t planes[kChannels][kRun];
+      for (int ch = 0; ch < kChannels; ++ch) {
+        const float* a = run_acc + ch * n;
+        for (int i = 0; i < n; ++i)
+          planes[ch][i] = static_cast<std::uint8_t>(
+              static_cast<int>(std::min(std::max(a[i] * scale[i] + 0.5f, 0.0f), 255.0f)));
+      }
+      std::uint8_t* pix = out->pixels.data() + t0c;
+      for (int i = 0; i < n; ++i)
+        for (int ch = 0; ch < kChannels; ++ch) pix[i * kChannels + ch] = planes[ch][i];
     }
   });
 }

@@ -14,7 +14,9 @@
 // cells without data take the mean of the valid cells within
 // fill_iterations TF pixels; every TF pixel is then the bilinear
 // interpolation of the valid cells around it (NaN where there are none).
-// Window sums are separable running sums, O(1) per cell.
+// Window sums are separable running sums, O(1) per cell. The splats are
+// summed in float, in bands of raw rows that write disjoint TF rows (no
+// atomics); fallback_v is the median to 1/1024.
 //
 // Rendering (back-projection): for TF pixel x with virtual depth v (filled
 // map, or the median v of the frame where it is empty), the lens type sharp
@@ -28,7 +30,10 @@
 // go to zero continuously at the triangle's edges (no seams) and the
 // sharp micro images alone make the image. Where none of the three holds x
 // (image border, v too small for the sublattice), the micro image nearest q
-// of any type and its six neighbours. Parallel over TF rows (TBB).
+// of any type and its six neighbours. Parallel over TF rows (TBB), each
+// row in runs through the row kernel of tf_blend_simd.h (Highway; the
+// scalar reference with TfOptions::simd false), the border fallback point
+// by point.
 
 #include "config/error.h"
 #include "config/mla.h"
@@ -46,6 +51,7 @@ struct TfOptions {
   double inner_fraction = 1.0;  // only samples within this share of r_valid (sharp, unvignetted)
   double gain = 1.0;            // output = gain * devignetted value
   double sharpen = 0.0;         // k of I - k laplacian(I); 0 = off
+  bool simd = true;             // the blend's Highway kernel; false: its scalar reference
   Status Check() const;
 };
 
@@ -58,9 +64,22 @@ struct TfDepthMap {
   // Scratch of VirtualDepthToTf, kept so that a map reused frame after frame
   // allocates nothing (fresh pages cost more than the arithmetic here).
   struct Scratch {
-    std::vector<double> sw, swz, cell_w, cell_wz, row_w, row_wz, box_w, box_wz;
+    // Per TF pixel the sums of the splats' weights and weights times z,
+    // interleaved (a splat touches one cache line); zero between calls (`zeroed`).
+    std::vector<float> sums;
+    bool zeroed = false;
+    std::vector<double> cell_w, cell_wz, row_w, row_wz, box_w, box_wz;
     std::vector<std::int32_t> row_n, box_n;
-    std::vector<float> cell_z, measured_v;
+    std::vector<float> cell_z, cell_valid, cell_z0, row_a, row_b;
+    std::vector<double> lens_xy;  // micro-lens centres l_k (x, y)
+    // Splats of a band of raw rows that land beyond the TF rows the band
+    // may write in its phase (total_focus.cpp): added after both phases.
+    struct Deferred {
+      std::uint32_t t;
+      float w, wz;
+    };
+    std::vector<std::vector<Deferred>> deferred;
+    std::vector<std::uint32_t> histogram;  // of the measured v, for the median
   } scratch;
 };
 

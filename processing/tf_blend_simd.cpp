@@ -1,0 +1,329 @@
+// The TF blend's kernels (tf_blend_simd.h): the scalar reference and
+// Highway's, compiled once per target by foreach_target.h.
+
+// clang-format off
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "processing/tf_blend_simd.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+// foreach_target.h first (it includes this file again once per target),
+// then highway.h.
+#include <hwy/highway.h>
+// clang-format on
+
+#include "processing/tf_blend_simd.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+
+HWY_BEFORE_NAMESPACE();
+namespace lifmcr::processing::detail {
+namespace HWY_NAMESPACE {
+namespace hn = hwy::HWY_NAMESPACE;
+
+// One vector of pixels (lanes) at raw x, y and depth v: the blend of the
+// three lenses of their triangles, in the order of ScalarBlendRow below.
+template <int kChannels, class DF>
+HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource& s,
+                            hn::Vec<DF> x, hn::Vec<DF> y, hn::Vec<DF> v, hn::Vec<DF>* acc,
+                            hn::Vec<DF>* sw) {
+  const hn::RebindToSigned<DF> di;
+  const hn::RebindToUnsigned<DF> du;
+  using VF = hn::Vec<DF>;
+  const VF one = hn::Set(df, 1.0f), zero = hn::Zero(df);
+  const VF lambda = hn::Set(df, g.lambda), cx = hn::Set(df, g.cx), cy = hn::Set(df, g.cy);
+  const VF inv_v = hn::Div(one, v);
+  const VF k = hn::Div(one, hn::Add(lambda, hn::Mul(v, hn::Set(df, 1.0f - g.lambda))));
+  const VF qx = hn::Add(cx, hn::Mul(hn::Sub(x, cx), k));
+  const VF qy = hn::Add(cy, hn::Mul(hn::Sub(y, cy), k));
+  const VF tv = hn::Min(hn::Mul(v, hn::Set(df, static_cast<float>(g.type_per_unit))),
+                        hn::Set(df, static_cast<float>(g.type_size - 1)));
+  const auto t = hn::GatherIndex(di, g.type_of_v, hn::ConvertTo(di, tv));
+  const auto is1 = hn::RebindMask(df, hn::Eq(t, hn::Set(di, 1)));
+  const auto is2 = hn::RebindMask(df, hn::Eq(t, hn::Set(di, 2)));
+  auto select = [&](const float* per_type) {
+    return hn::IfThenElse(is2, hn::Set(df, per_type[2]),
+                          hn::IfThenElse(is1, hn::Set(df, per_type[1]), hn::Set(df, per_type[0])));
+  };
+  const VF ox = select(g.ox), oy = select(g.oy);
+  const VF dqx = hn::Sub(qx, ox), dqy = hn::Sub(qy, oy);
+  const VF ax = hn::Add(hn::Mul(select(g.fxx), dqx), hn::Mul(select(g.fxy), dqy));
+  const VF ay = hn::Add(hn::Mul(select(g.fyx), dqx), hn::Mul(select(g.fyy), dqy));
+  const VF m = hn::Floor(ax), n = hn::Floor(ay);
+  const VF fa = hn::Sub(ax, m), fb = hn::Sub(ay, n);
+  const auto upper = hn::Ge(hn::Add(fa, fb), one);
+  const VF m1 = hn::Add(m, one), n1 = hn::Add(n, one);
+  const VF cm[3] = {m1, m, hn::IfThenElse(upper, m1, m)};
+  const VF cn[3] = {n, n1, hn::IfThenElse(upper, n1, n)};
+  const VF bary[3] = {
+      hn::IfThenElse(upper, hn::Sub(one, fb), fa), hn::IfThenElse(upper, hn::Sub(one, fa), fb),
+      hn::IfThenElse(upper, hn::Sub(hn::Add(fa, fb), one), hn::Sub(hn::Sub(one, fa), fb))};
+  const VF sxa = hn::Set(df, g.sxa), sxb = hn::Set(df, g.sxb);
+  const VF sya = hn::Set(df, g.sya), syb = hn::Set(df, g.syb);
+  const VF r2 = hn::Set(df, g.r2);
+  const VF wm1 = hn::Set(df, static_cast<float>(g.width - 1));
+  const VF hm1 = hn::Set(df, static_cast<float>(g.height - 1));
+  const auto width = hn::Set(di, g.width);
+  const auto stride = hn::Set(di, static_cast<std::int32_t>(s.stride_bytes));
+  const auto* words = reinterpret_cast<const std::uint32_t*>(s.raw);
+  const auto byte = hn::Set(du, 0xFFu);
+  for (int c = 0; c < 3; ++c) {
+    const VF ccx = hn::Add(hn::Add(ox, hn::Mul(sxa, cm[c])), hn::Mul(sxb, cn[c]));
+    const VF ccy = hn::Add(hn::Add(oy, hn::Mul(sya, cm[c])), hn::Mul(syb, cn[c]));
+    const VF lx = hn::Add(cx, hn::Mul(hn::Sub(ccx, cx), lambda));
+    const VF ly = hn::Add(cy, hn::Mul(hn::Sub(ccy, cy), lambda));
+    const VF px = hn::Add(lx, hn::Mul(hn::Sub(x, lx), inv_v));
+    const VF py = hn::Add(ly, hn::Mul(hn::Sub(y, ly), inv_v));
+    const VF dx = hn::Sub(px, ccx), dy = hn::Sub(py, ccy);
+    const VF d2 = hn::Add(hn::Mul(dx, dx), hn::Mul(dy, dy));
+    auto valid = hn::And(hn::Gt(bary[c], zero), hn::Le(d2, r2));
+    valid = hn::And(valid, hn::And(hn::Ge(px, zero), hn::Ge(py, zero)));
+    valid = hn::And(valid, hn::And(hn::Lt(px, wm1), hn::Lt(py, hm1)));
+    if (hn::AllFalse(df, valid)) continue;
+    // Lanes off the frame read pixel (0, 0) and are dropped below.
+    const VF pxs = hn::IfThenElseZero(valid, px), pys = hn::IfThenElseZero(valid, py);
+    const auto ix = hn::ConvertTo(di, pxs), iy = hn::ConvertTo(di, pys);
+    const VF ffx = hn::Sub(pxs, hn::ConvertTo(df, ix)), ffy = hn::Sub(pys, hn::ConvertTo(df, iy));
+    const auto at = hn::Add(hn::Mul(iy, width), ix);
+    VF g00, g01, g10, g11;
+    if (s.gain16 != nullptr) {
+      // The 16-bit gains of x0 and x0 + 1 in one word (byte offset 2 at).
+      const auto* gw = reinterpret_cast<const std::uint32_t*>(s.gain16);
+      const auto two_at = hn::Add(at, at);
+      const auto q0 = hn::GatherOffset(du, gw, two_at);
+      const auto q1 = hn::GatherOffset(du, gw, hn::Add(two_at, hn::Add(width, width)));
+      const VF scale = hn::Set(df, s.gain16_scale);
+      const auto half = hn::Set(du, 0xFFFFu);
+      auto gain_of = [&](hn::Vec<decltype(du)> q) {
+        const VF value = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, q)), scale);
+        return hn::IfThenElse(hn::RebindMask(df, hn::Eq(q, hn::Zero(du))),
+                              hn::Set(df, std::numeric_limits<float>::quiet_NaN()), value);
+      };
+      g00 = gain_of(hn::And(q0, half));
+      g01 = gain_of(hn::ShiftRight<16>(q0));
+      g10 = gain_of(hn::And(q1, half));
+      g11 = gain_of(hn::ShiftRight<16>(q1));
+    } else {
+      g00 = hn::GatherIndex(df, s.gain, at);
+      g01 = hn::GatherIndex(df, s.gain, hn::Add(at, hn::Set(di, 1)));
+      g10 = hn::GatherIndex(df, s.gain, hn::Add(at, width));
+      g11 = hn::GatherIndex(df, s.gain, hn::Add(hn::Add(at, width), hn::Set(di, 1)));
+    }
+    const VF omx = hn::Sub(one, ffx), omy = hn::Sub(one, ffy);
+    const VF w00 = hn::Mul(hn::Mul(omx, omy), g00), w01 = hn::Mul(hn::Mul(ffx, omy), g01);
+    const VF w10 = hn::Mul(hn::Mul(omx, ffy), g10), w11 = hn::Mul(hn::Mul(ffx, ffy), g11);
+    VF col[kChannels];
+    auto to_f = [&](hn::Vec<decltype(du)> u) { return hn::ConvertTo(df, hn::BitCast(di, u)); };
+    auto mix = [&](VF q00, VF q01, VF q10, VF q11) {
+      return hn::Add(hn::Add(hn::Add(hn::Mul(w00, q00), hn::Mul(w01, q01)), hn::Mul(w10, q10)),
+                     hn::Mul(w11, q11));
+    };
+    if constexpr (kChannels == 3) {
+      // BGR: the word at 3 x0 holds B G R of x0 in its low three bytes, the
+      // word at 3 x0 + 2 those of x0 + 1 in its high three; neither reads
+      // past pixel x0 + 1 of its row.
+      const auto off0 = hn::Add(hn::Mul(iy, stride), hn::Mul(ix, hn::Set(di, 3)));
+      const auto off1 = hn::Add(off0, stride);
+      const auto two = hn::Set(di, 2);
+      const auto a0 = hn::GatherOffset(du, words, off0);
+      const auto a1 = hn::GatherOffset(du, words, hn::Add(off0, two));
+      const auto b0 = hn::GatherOffset(du, words, off1);
+      const auto b1 = hn::GatherOffset(du, words, hn::Add(off1, two));
+      col[0] = mix(to_f(hn::And(a0, byte)), to_f(hn::And(hn::ShiftRight<8>(a1), byte)),
+                   to_f(hn::And(b0, byte)), to_f(hn::And(hn::ShiftRight<8>(b1), byte)));
+      col[1] = mix(to_f(hn::And(hn::ShiftRight<8>(a0), byte)),
+                   to_f(hn::And(hn::ShiftRight<16>(a1), byte)),
+                   to_f(hn::And(hn::ShiftRight<8>(b0), byte)),
+                   to_f(hn::And(hn::ShiftRight<16>(b1), byte)));
+      col[2] = mix(to_f(hn::And(hn::ShiftRight<16>(a0), byte)), to_f(hn::ShiftRight<24>(a1)),
+                   to_f(hn::And(hn::ShiftRight<16>(b0), byte)), to_f(hn::ShiftRight<24>(b1)));
+    } else {
+      // Mono8: the word at x0 - 2 holds x0 and x0 + 1 in its high two bytes
+      // and reads nothing past x0 + 1 (x0 >= 2; below, the word at x0, its
+      // low two bytes, inside a row of width >= 8).
+      const auto shifted = hn::Gt(ix, hn::Set(di, 1));
+      const auto o = hn::IfThenElse(shifted, hn::Sub(ix, hn::Set(di, 2)), ix);
+      const auto off0 = hn::Add(hn::Mul(iy, stride), o);
+      const auto a = hn::GatherOffset(du, words, off0);
+      const auto b = hn::GatherOffset(du, words, hn::Add(off0, stride));
+      const auto hi = hn::RebindMask(du, shifted);
+      auto first = [&](hn::Vec<decltype(du)> w) {
+        return to_f(hn::IfThenElse(hi, hn::And(hn::ShiftRight<16>(w), byte), hn::And(w, byte)));
+      };
+      auto second = [&](hn::Vec<decltype(du)> w) {
+        return to_f(
+            hn::IfThenElse(hi, hn::ShiftRight<24>(w), hn::And(hn::ShiftRight<8>(w), byte)));
+      };
+      col[0] = mix(first(a), second(a), first(b), second(b));
+    }
+    VF check = col[0];
+    for (int ch = 1; ch < kChannels; ++ch) check = hn::Add(check, col[ch]);
+    valid = hn::AndNot(hn::IsNaN(check), valid);
+    const VF wq = hn::Mul(bary[c], hn::Sub(one, hn::Div(d2, r2)));
+    for (int ch = 0; ch < kChannels; ++ch)
+      acc[ch] = hn::Add(acc[ch], hn::IfThenElseZero(valid, hn::Mul(wq, col[ch])));
+    *sw = hn::Add(*sw, hn::IfThenElseZero(valid, wq));
+  }
+}
+
+template <int kChannels>
+void BlendRowT(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float dx, float y,
+               const float* v, int n, float* acc, float* sw) {
+  const hn::ScalableTag<float> df;
+  using VF = hn::Vec<decltype(df)>;
+  const int lanes = static_cast<int>(hn::Lanes(df));
+  const VF vy = hn::Set(df, y), vx0 = hn::Set(df, x0), step = hn::Set(df, dx);
+  auto run = [&](int i, const float* vin, float* const* out_acc, float* out_sw) {
+    VF a[kChannels];
+    for (int ch = 0; ch < kChannels; ++ch) a[ch] = hn::Zero(df);
+    VF w = hn::Zero(df);
+    const VF x = hn::Add(vx0, hn::Mul(step, hn::Iota(df, static_cast<float>(i))));
+    BlendVector<kChannels>(df, g, s, x, vy, hn::LoadU(df, vin), a, &w);
+    for (int ch = 0; ch < kChannels; ++ch) hn::StoreU(a[ch], df, out_acc[ch]);
+    hn::StoreU(w, df, out_sw);
+  };
+  int i = 0;
+  for (; i + lanes <= n; i += lanes) {
+    float* out_acc[kChannels];
+    for (int ch = 0; ch < kChannels; ++ch) out_acc[ch] = acc + static_cast<std::size_t>(ch) * n + i;
+    run(i, v + i, out_acc, sw + i);
+  }
+  if (i < n) {
+    // The tail through a full vector: depths padded with the last one,
+    // results of the padding dropped.
+    constexpr int kMax = HWY_MAX_BYTES / sizeof(float);
+    HWY_ALIGN float vin[kMax], a_buf[kChannels][kMax], w_buf[kMax];
+    for (int q = 0; q < lanes; ++q) vin[q] = v[std::min(i + q, n - 1)];
+    float* out_acc[kChannels];
+    for (int ch = 0; ch < kChannels; ++ch) out_acc[ch] = a_buf[ch];
+    run(i, vin, out_acc, w_buf);
+    for (int q = 0; i + q < n; ++q) {
+      for (int ch = 0; ch < kChannels; ++ch)
+        acc[static_cast<std::size_t>(ch) * n + i + q] = a_buf[ch][q];
+      sw[i + q] = w_buf[q];
+    }
+  }
+}
+
+void BlendRow(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float dx, float y,
+              const float* v, int n, float* acc, float* sw) {
+  if (s.channels == 3)
+    BlendRowT<3>(g, s, x0, dx, y, v, n, acc, sw);
+  else
+    BlendRowT<1>(g, s, x0, dx, y, v, n, acc, sw);
+}
+
+}  // namespace HWY_NAMESPACE
+}  // namespace lifmcr::processing::detail
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace lifmcr::processing::detail {
+
+HWY_EXPORT(BlendRow);
+
+namespace {
+
+template <int kChannels>
+void ScalarBlendRowT(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float dx,
+                     float y, const float* v, int n, float* acc, float* sw) {
+  const float wm1 = static_cast<float>(g.width - 1), hm1 = static_cast<float>(g.height - 1);
+  const float type_max = static_cast<float>(g.type_size - 1);
+  for (int i = 0; i < n; ++i) {
+    const float x = x0 + dx * static_cast<float>(i);
+    const float vi = v[i];
+    const float inv_v = 1.0f / vi;
+    const float k = 1.0f / (g.lambda + vi * (1.0f - g.lambda));
+    const float qx = g.cx + (x - g.cx) * k, qy = g.cy + (y - g.cy) * k;
+    const int t =
+        g.type_of_v[static_cast<int>(std::min(vi * static_cast<float>(g.type_per_unit), type_max))];
+    const float dqx = qx - g.ox[t], dqy = qy - g.oy[t];
+    const float ax = g.fxx[t] * dqx + g.fxy[t] * dqy;
+    const float ay = g.fyx[t] * dqx + g.fyy[t] * dqy;
+    const float m = std::floor(ax), nn = std::floor(ay);
+    const float fa = ax - m, fb = ay - nn;
+    const bool upper = fa + fb >= 1.0f;
+    const float cm[3] = {m + 1.0f, m, upper ? m + 1.0f : m};
+    const float cn[3] = {nn, nn + 1.0f, upper ? nn + 1.0f : nn};
+    const float bary[3] = {upper ? 1.0f - fb : fa, upper ? 1.0f - fa : fb,
+                           upper ? (fa + fb) - 1.0f : (1.0f - fa) - fb};
+    float a[kChannels] = {};
+    float w = 0;
+    for (int c = 0; c < 3; ++c) {
+      const float ccx = (g.ox[t] + g.sxa * cm[c]) + g.sxb * cn[c];
+      const float ccy = (g.oy[t] + g.sya * cm[c]) + g.syb * cn[c];
+      const float lx = g.cx + (ccx - g.cx) * g.lambda, ly = g.cy + (ccy - g.cy) * g.lambda;
+      const float px = lx + (x - lx) * inv_v, py = ly + (y - ly) * inv_v;
+      const float dx = px - ccx, dy = py - ccy;
+      const float d2 = dx * dx + dy * dy;
+      if (!(bary[c] > 0 && d2 <= g.r2 && px >= 0 && py >= 0 && px < wm1 && py < hm1)) continue;
+      const int ix = static_cast<int>(px), iy = static_cast<int>(py);
+      const float ffx = px - static_cast<float>(ix), ffy = py - static_cast<float>(iy);
+      const std::size_t at = static_cast<std::size_t>(iy) * g.width + ix;
+      float g00, g01, g10, g11;
+      if (s.gain16 != nullptr) {
+        auto gain_of = [&](std::size_t q) {
+          return s.gain16[q] == 0 ? std::numeric_limits<float>::quiet_NaN()
+                                  : static_cast<float>(s.gain16[q]) * s.gain16_scale;
+        };
+        g00 = gain_of(at), g01 = gain_of(at + 1);
+        g10 = gain_of(at + g.width), g11 = gain_of(at + g.width + 1);
+      } else {
+        const float* g0 = s.gain + at;
+        const float* g1 = g0 + g.width;
+        g00 = g0[0], g01 = g0[1], g10 = g1[0], g11 = g1[1];
+      }
+      const float omx = 1.0f - ffx, omy = 1.0f - ffy;
+      const float w00 = (omx * omy) * g00, w01 = (ffx * omy) * g01;
+      const float w10 = (omx * ffy) * g10, w11 = (ffx * ffy) * g11;
+      const std::uint8_t* r0 = s.raw + static_cast<std::size_t>(iy) * s.stride_bytes +
+                               static_cast<std::size_t>(ix) * kChannels;
+      const std::uint8_t* r1 = r0 + s.stride_bytes;
+      float col[kChannels];
+      for (int ch = 0; ch < kChannels; ++ch)
+        col[ch] = ((w00 * static_cast<float>(r0[ch]) + w01 * static_cast<float>(r0[kChannels + ch])) +
+                   w10 * static_cast<float>(r1[ch])) +
+                  w11 * static_cast<float>(r1[kChannels + ch]);
+      float check = col[0];
+      for (int ch = 1; ch < kChannels; ++ch) check = check + col[ch];
+      if (std::isnan(check)) continue;
+      const float wq = bary[c] * (1.0f - d2 / g.r2);
+      for (int ch = 0; ch < kChannels; ++ch) a[ch] = a[ch] + wq * col[ch];
+      w = w + wq;
+    }
+    for (int ch = 0; ch < kChannels; ++ch) acc[static_cast<std::size_t>(ch) * n + i] = a[ch];
+    sw[i] = w;
+  }
+}
+
+void ScalarBlendRow(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float dx, float y,
+                    const float* v, int n, float* acc, float* sw) {
+  if (s.channels == 3)
+    ScalarBlendRowT<3>(g, s, x0, dx, y, v, n, acc, sw);
+  else
+    ScalarBlendRowT<1>(g, s, x0, dx, y, v, n, acc, sw);
+}
+
+void DispatchedBlendRow(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float dx,
+                        float y, const float* v, int n, float* acc, float* sw) {
+  HWY_DYNAMIC_DISPATCH(BlendRow)(g, s, x0, dx, y, v, n, acc, sw);
+}
+
+}  // namespace
+
+const TfBlendKernels& ScalarTfBlendKernels() {
+  static const TfBlendKernels kernels{ScalarBlendRow, "scalar"};
+  return kernels;
+}
+
+const TfBlendKernels& SimdTfBlendKernels() {
+  // The target this CPU runs (hwy/targets.h): the best one compiled in.
+  static const TfBlendKernels kernels{DispatchedBlendRow,
+                                      hwy::TargetName(hwy::SupportedAndGeneratedTargets()[0])};
+  return kernels;
+}
+
+}  // namespace lifmcr::processing::detail
+#endif  // HWY_ONCE

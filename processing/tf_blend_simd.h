@@ -1,0 +1,66 @@
+#pragma once
+// The TF image's blend (the rule of processing/tf_kernel.h) for a run of TF
+// pixels of one row, in float: a scalar reference and Highway's kernel
+// (processing/tf_blend_simd.cpp), which evaluate the same expressions in the
+// same order without FMA contraction, so that they agree to the last bit
+// (tests/processing/test_tf_blend_simd.cpp states the tolerance it allows).
+//
+// Per pixel (raw position (x, y), virtual depth v > 1): the lens type t of v
+// (`type_of_v`, SharpTypeTable's table), the micro-image position that looks
+// at x, q = c + (x - c) / (lambda + v (1 - lambda)), its sublattice
+// coordinates a = F_t (q - o_t) (o_t type t's origin lens centre, F_t the
+// inverse of the steps A (1, 1), A (2, -1)), the triangle of the sublattice
+// around a with its barycentric weights, and for each of its three lenses
+// the centre c_k = o_t + S (m, n) (S the two steps; PrepareGeometry puts
+// every micro-image centre on the lattice), the micro-lens centre l_k = c +
+// (c_k - c) lambda, the sample p_k = l_k + (x - l_k) / v, bilinear on the raw
+// pixels times the devignetting gain, weighted by bary (1 - |p_k - c_k|^2 /
+// r^2) where it lies within r of c_k, on the frame and off invalid pixels.
+// The border fallback of tf_kernel.h (the nearest micro image and its six
+// neighbours, where the three see nothing: sw = 0) is left to the caller.
+
+#include <cstddef>
+#include <cstdint>
+
+namespace lifmcr::processing::detail {
+
+struct TfBlendGeometry {
+  int width = 0, height = 0;          // the raw frame (>= 8 x 2)
+  float cx = 0, cy = 0, lambda = 1;   // principal point, lambda of l_k = c + (c_k - c) lambda
+  float r2 = 0;                       // (inner_fraction r_valid)^2
+  float ox[3] = {}, oy[3] = {};       // per type: its origin lens centre o_t
+  float fxx[3] = {}, fxy[3] = {}, fyx[3] = {}, fyy[3] = {};  // per type: F_t
+  float sxa = 0, sya = 0, sxb = 0, syb = 0;  // the steps A (1, 1) and A (2, -1)
+  const std::int32_t* type_of_v = nullptr;   // type of v: [clamp(int(v per_unit), 0, size - 1)]
+  int type_per_unit = 1, type_size = 1;
+};
+
+struct TfBlendSource {
+  const std::uint8_t* raw = nullptr;  // Mono8 or BGR8
+  std::size_t stride_bytes = 0;
+  int channels = 1;                   // 1 or 3
+  const float* gain = nullptr;        // per pixel (width columns), NaN where invalid
+  // Or, where set (then `gain` is not read), the gain in 16 bits
+  // (lens_search_simd.h's Gain16): q * gain16_scale, invalid where q = 0.
+  const std::uint16_t* gain16 = nullptr;
+  float gain16_scale = 1;
+};
+
+// n points at raw positions (x0 + dx i, y), virtual depths v[i] (> 1, finite):
+// acc[ch * n + i] the weighted colour sums (planar, `channels` planes) and
+// sw[i] the sum of the weights (0: none of the three lenses sees the point).
+// Precondition: width * height and (height - 1) * stride_bytes + 3 * width < 2^31.
+using TfBlendRowFn = void (*)(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float dx,
+                              float y, const float* v, int n, float* acc, float* sw);
+
+struct TfBlendKernels {
+  TfBlendRowFn row = nullptr;
+  const char* name = "";  // "scalar", or the Highway target chosen ("AVX3", "AVX2", ...)
+};
+
+// The scalar reference.
+const TfBlendKernels& ScalarTfBlendKernels();
+// Highway's, dispatched to the best target of this CPU (chosen at each call).
+const TfBlendKernels& SimdTfBlendKernels();
+
+}  // namespace lifmcr::processing::detail

@@ -1,0 +1,143 @@
+// The TF blend's row kernel (processing/tf_blend_simd.h): Highway's on every
+// target this CPU runs against the scalar reference, on random frames
+// (Mono8 and BGR8, padded rows), gains with holes (float NaN, 16-bit 0),
+// lattices, lens-type tables, steps and runs of depths. Both evaluate the same float expressions in
+// the same order without FMA contraction and read the same pixels, so the
+// stated tolerance (1e-5 relative to the larger of 1 and the value) is there
+// for a compiler that reorders, not for an expected difference.
+
+#include "processing/tf_blend_simd.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <hwy/targets.h>
+#include <random>
+#include <vector>
+
+namespace lifmcr::processing::detail {
+namespace {
+
+constexpr double kRelTolerance = 1e-5;
+
+bool Close(float simd, float scalar) {
+  return std::abs(simd - scalar) <= kRelTolerance * std::max(1.0f, std::abs(scalar));
+}
+
+struct RandomCase {
+  std::vector<std::uint8_t> raw;
+  std::vector<float> gain;
+  std::vector<std::uint16_t> gain16;
+  std::vector<std::int32_t> types;
+  TfBlendGeometry g;
+  TfBlendSource s;
+};
+
+// A triangular lattice of pitch 8-14 px, slightly rotated, over a frame of
+// 40-120 x 30-90 pixels; lens type (i - j) mod 3; gains in [0.5, 2] with one
+// in 40 NaN; a type table of random types.
+// With `in_16_bits` the gain is read from 16 bits (0: invalid), as the
+// per-lens estimator keeps it.
+RandomCase MakeCase(std::mt19937& rng, int channels, bool in_16_bits) {
+  RandomCase c;
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  TfBlendGeometry& g = c.g;
+  g.width = std::uniform_int_distribution<int>(40, 120)(rng);
+  g.height = std::uniform_int_distribution<int>(30, 90)(rng);
+  const std::size_t stride =
+      static_cast<std::size_t>(g.width) * channels + std::uniform_int_distribution<int>(0, 5)(rng);
+  c.raw.resize(stride * g.height);
+  for (std::uint8_t& b : c.raw) b = static_cast<std::uint8_t>(rng() & 0xFF);
+  c.gain.resize(static_cast<std::size_t>(g.width) * g.height);
+  for (float& x : c.gain) x = rng() % 40 == 0 ? std::nanf("") : 0.5f + 1.5f * unit(rng);
+  const float pitch = 8.0f + 6.0f * unit(rng), angle = 0.05f * (unit(rng) - 0.5f);
+  // Steps of i and j (columns of A), then A (1, 1) and A (2, -1).
+  const float ix = pitch * std::cos(angle), iy = pitch * std::sin(angle);
+  const float jx = pitch * std::cos(angle + 2.0943951f), jy = pitch * std::sin(angle + 2.0943951f);
+  g.sxa = ix + jx, g.sya = iy + jy, g.sxb = 2 * ix - jx, g.syb = 2 * iy - jy;
+  const float det = g.sxa * g.syb - g.sxb * g.sya;
+  const float ref_x = g.width * unit(rng), ref_y = g.height * unit(rng);
+  for (int t = 0; t < 3; ++t) {
+    g.ox[t] = ref_x + t * ix;  // lens (t, 0) has type t
+    g.oy[t] = ref_y + t * iy;
+    g.fxx[t] = g.syb / det, g.fxy[t] = -g.sxb / det;
+    g.fyx[t] = -g.sya / det, g.fyy[t] = g.sxa / det;
+  }
+  g.cx = (g.width - 1) / 2.0f, g.cy = (g.height - 1) / 2.0f;
+  g.lambda = 0.95f + 0.05f * unit(rng);
+  const float r = pitch / 2 - 0.5f;
+  g.r2 = r * r;
+  g.type_per_unit = 8;
+  g.type_size = 64 * 8;
+  c.types.resize(g.type_size);
+  for (std::int32_t& t : c.types) t = static_cast<std::int32_t>(rng() % 3);
+  g.type_of_v = c.types.data();
+  c.s = TfBlendSource{c.raw.data(), stride, channels, c.gain.data()};
+  if (in_16_bits) {
+    c.gain16.resize(c.gain.size());
+    for (std::uint16_t& q : c.gain16)
+      q = rng() % 40 == 0 ? 0 : static_cast<std::uint16_t>(8192 + rng() % 24576);
+    c.s.gain = nullptr;
+    c.s.gain16 = c.gain16.data();
+    c.s.gain16_scale = 1.0f / 16384;
+  }
+  return c;
+}
+
+class TfBlendKernelsTest : public ::testing::Test {
+ protected:
+  void TearDown() override { hwy::SetSupportedTargetsForTest(0); }
+};
+
+TEST_F(TfBlendKernelsTest, RowsMatchTheScalarReferenceOnEveryTarget) {
+  const TfBlendKernels& scalar = ScalarTfBlendKernels();
+  const std::vector<std::int64_t> targets = hwy::SupportedAndGeneratedTargets();
+  ASSERT_FALSE(targets.empty());
+  for (const std::int64_t target : targets) {
+    hwy::SetSupportedTargetsForTest(target);
+    const TfBlendKernels& simd = SimdTfBlendKernels();
+    std::mt19937 rng(29);
+    long long compared = 0, seen = 0;
+    for (int trial = 0; trial < 200; ++trial) {
+      const int channels = trial % 2 == 0 ? 3 : 1;
+      const RandomCase c = MakeCase(rng, channels, trial % 4 >= 2);
+      for (int k = 0; k < 8; ++k) {
+        // A run of n pixels from x0 (possibly off the frame's left edge) at
+        // depths in [1.05, 9], some runs at one depth.
+        const int n = std::uniform_int_distribution<int>(1, 70)(rng);
+        const float x0 = std::uniform_real_distribution<float>(-10.0f, c.g.width)(rng);
+        const float y = std::uniform_real_distribution<float>(-2.0f, c.g.height + 2.0f)(rng);
+        // The TF image's step (2 raw pixels) or a preview's (any).
+        const float dx = k % 2 == 0 ? 2.0f : std::uniform_real_distribution<float>(0.3f, 9.0f)(rng);
+        std::uniform_real_distribution<float> depth(1.05f, 9.0f);
+        std::vector<float> v(n);
+        const float v_all = depth(rng);
+        for (float& x : v) x = k % 3 == 0 ? v_all : depth(rng);
+        std::vector<float> a_acc(channels * n, -1.0f), b_acc(channels * n, -2.0f);
+        std::vector<float> a_sw(n, -1.0f), b_sw(n, -2.0f);
+        scalar.row(c.g, c.s, x0, dx, y, v.data(), n, a_acc.data(), a_sw.data());
+        simd.row(c.g, c.s, x0, dx, y, v.data(), n, b_acc.data(), b_sw.data());
+        for (int i = 0; i < n; ++i) {
+          ASSERT_TRUE(Close(b_sw[i], a_sw[i]))
+              << hwy::TargetName(target) << " trial " << trial << " pixel " << i << ": sw "
+              << b_sw[i] << " vs scalar " << a_sw[i] << " (channels " << channels << ")";
+          for (int ch = 0; ch < channels; ++ch)
+            ASSERT_TRUE(Close(b_acc[ch * n + i], a_acc[ch * n + i]))
+                << hwy::TargetName(target) << " trial " << trial << " pixel " << i << " channel "
+                << ch << ": " << b_acc[ch * n + i] << " vs scalar " << a_acc[ch * n + i];
+          ++compared;
+          seen += a_sw[i] > 0;
+        }
+      }
+    }
+    // Both kinds of pixel occur: seen by some lens of its triangle, and by
+    // none (off the frame, beyond r, next to a NaN gain).
+    EXPECT_GT(seen, compared / 4) << hwy::TargetName(target);
+    EXPECT_LT(seen, compared) << hwy::TargetName(target);
+  }
+}
+
+}  // namespace
+}  // namespace lifmcr::processing::detail
