@@ -4,6 +4,7 @@
 #include "registration/calibration/calibration_costs.h"
 #include "registration/calibration/calibration_covariance.h"
 #include "registration/calibration/calibration_problem.h"
+#include "registration/estimators/plenoptic_point_noise.h"
 #include "registration/estimators/pose_covariance.h"
 #include "registration/features/frame_observations.h"
 
@@ -159,9 +160,6 @@ Pose RobustMean(const std::vector<FramePose>& poses) {
 
 Status RigCalibrationOptions::Check() const {
   if (Status s = calibration.Check(); !s) return s;
-  if (calibration.recalibrate)
-    return Error{"rig calibration options: calibration.recalibrate: expected false (a rig is "
-                 "calibrated from nominal values)"};
   if (Status s = registration.Check(); !s) return s;
   if (min_registered_frames < 1)
     return Error{"rig calibration options: min_registered_frames: expected >= 1"};
@@ -172,9 +170,10 @@ std::string RigCalibrationResult::BriefReport() const {
   long long observations = 0;
   for (const RigCameraResult& c : cameras) observations += c.observations;
   return RigFormat(
-      "Rig calibration: %zu cameras, %zu triggers, %zu points (%d seen by several cameras), %lld "
-      "observations, RMSE %.3f px; Ceres %d iterations %.1f s, cost %.4e -> %.4e, %s%s",
-      cameras.size(), trajectory.size(), map.points.size(), shared_points, observations, rmse_px,
+      "Rig calibration: %zu cameras, %zu triggers, %zu points (%d seen by several cameras, %d by "
+      "one camera X alone), %lld observations, RMSE %.3f px; Ceres %d iterations %.1f s, cost %.4e -> %.4e, %s%s",
+      cameras.size(), trajectory.size(), map.points.size(), shared_points, own_points,
+      observations, rmse_px,
       iterations, solver_seconds, initial_cost, final_cost, termination.c_str(),
       usable ? "" : ", NOT USABLE (see flags)");
 }
@@ -341,9 +340,15 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
       point_of_index.push_back(j);
   result.cameras.resize(n_cameras);
   std::vector<RigPoseBlock> extrinsics(n_cameras);  // c0_from_cx
+  // Points of one camera X alone (after camera 0's): which keypoint made each.
+  struct OwnPoint {
+    int camera = 0, frame = 0, keypoint = 0;
+  };
+  std::vector<OwnPoint> own_point;
   for (int c = 1; c < n_cameras; ++c) {
     RigCameraResult& rc = result.cameras[c];
     const processing::CameraModel model(cameras[c].initial.intrinsics);
+    std::map<std::pair<int, int>, int> matched;  // (frame index, keypoint) -> point
     for (std::size_t f = 0; f < cameras[c].frames.size(); ++f) {
       const CalibrationFrame& frame = cameras[c].frames[f];
       const auto trigger = trigger_of_frame.find(frame.frame);
@@ -358,12 +363,14 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
       say(RigFormat("camera %d (%s) frame %lld: %s", c, cameras[c].serial.c_str(),
                     static_cast<long long>(frame.frame),
                     r.BriefReport(RegistrationMethod::kPnp).c_str()));
+      // A pose the checks refused (too little of the image, too uncertain
+      // alone) still has inliers under it: they observe the map points.
+      if (!r.estimated) continue;
+      for (std::size_t i = 0; i < r.inlier_points.size(); ++i)
+        matched[{static_cast<int>(f), r.inlier_queries[i]}] = point_of_index[r.inlier_points[i]];
       if (!r.success) continue;
       const Pose c0_from_w0 = PoseOf(rig[trigger->second]);
       rc.registered.push_back(FramePose{frame.frame, -1, c0_from_w0 * r.w0_from_cam.pose});
-      for (std::size_t i = 0; i < r.inlier_points.size(); ++i)
-        add_observation(c, trigger->second, point_of_index[r.inlier_points[i]],
-                        static_cast<int>(f), r.inlier_queries[i]);
     }
     if (static_cast<int>(rc.registered.size()) < options.min_registered_frames)
       return Error{RigFormat("rig calibration: camera %s: %zu of its frames registered against "
@@ -372,6 +379,63 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
                              options.min_registered_frames)};
     rc.c0_from_cx_initial = RobustMean(rc.registered);
     extrinsics[c] = BlockOf(rc.c0_from_cx_initial);
+
+    // X's own tracks across time (camera 0's initialisation, calibration.h
+    // step 2, on X's frames): a track with a keypoint matched to a map point
+    // joins that point (all its keypoints observe it), one whose keypoints
+    // match none becomes a point of X alone, back-projected at its first
+    // observation through the rig; a track matched to several map points
+    // adds nothing beyond its matches.
+    Expected<internal::InitialMap> own =
+        internal::Initialise(cameras[c], cameras[c].initial.intrinsics, co, progress);
+    if (!own) {
+      say("camera " + cameras[c].serial + ": no tracks of its own (" + own.error().message +
+          "): its matches to camera 0's map alone");
+      own = internal::InitialMap{};
+    }
+    int joined = 0, added = 0, conflicting = 0;
+    for (const internal::Track& track : own->tracks) {
+      std::set<int> targets;
+      std::vector<const internal::Observation*> usable;
+      std::set<int> frames_seen;
+      for (const internal::Observation& ob : track.observations) {
+        if (!trigger_of_frame.count(cameras[c].frames[ob.frame].frame)) continue;
+        if (!frames_seen.insert(ob.frame).second) continue;
+        usable.push_back(&ob);
+        if (const auto m = matched.find({ob.frame, ob.keypoint}); m != matched.end())
+          targets.insert(m->second);
+      }
+      if (targets.size() > 1) {
+        ++conflicting;
+        continue;
+      }
+      if (usable.size() < 2) continue;
+      int point = -1;
+      if (targets.size() == 1) {
+        point = *targets.begin();
+        ++joined;
+      } else {
+        const internal::Observation& first = *usable.front();
+        const CalibrationFrame& frame = cameras[c].frames[first.frame];
+        const Eigen::Vector3d x_v = internal::VirtualPoint(frame, first.keypoint);
+        if (!(x_v.z() > 1)) continue;
+        const Pose w0_from_cx = PoseOf(rig[trigger_of_frame.at(frame.frame)]).inverse() *
+                                rc.c0_from_cx_initial;
+        points.push_back(w0_from_cx * model.BackProject(x_v));
+        point = static_cast<int>(points.size()) - 1;
+        own_point.push_back({c, first.frame, first.keypoint});
+        ++added;
+      }
+      for (const internal::Observation* ob : usable)
+        if (!matched.count({ob->frame, ob->keypoint}))
+          matched[{ob->frame, ob->keypoint}] = point;
+    }
+    for (const auto& [at, point] : matched)
+      add_observation(c, trigger_of_frame.at(cameras[c].frames[at.first].frame), point, at.first,
+                      at.second);
+    say(RigFormat("camera %s: %d tracks of its own joined camera 0's points, %d became points "
+                  "of its own, %d matched several points (left out)",
+                  cameras[c].serial.c_str(), joined, added, conflicting));
   }
 
   // Plate corners of every camera (calibration.cpp: the planar check first).
@@ -417,6 +481,7 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
   if (!co.estimate_principal_point) constant.insert(constant.end(), {3, 4});
   if (!co.estimate_distortion) constant.insert(constant.end(), {5, 6, 7, 8});
   else if (!co.estimate_tangential_distortion) constant.insert(constant.end(), {7, 8});
+  if (co.recalibrate) constant.insert(constant.end(), {0, 2});
   std::vector<double> inset(n_cameras, cal0.corner_inset_tf_px);
   for (int c = 1; c < n_cameras; ++c) inset[c] = 0;
 
@@ -495,9 +560,10 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
         problem.SetParameterBlockConstant(rig[t].t.data());
       }
     }
-    if (x_only)
-      for (Eigen::Vector3d& p : points)
-        if (problem.HasParameterBlock(p.data())) problem.SetParameterBlockConstant(p.data());
+    if (x_only)  // camera 0's points held; those of a camera X alone move with it
+      for (int j = 0; j < n_points; ++j)
+        if (problem.HasParameterBlock(points[j].data()))
+          problem.SetParameterBlockConstant(points[j].data());
     for (int c = 0; c < n_cameras; ++c) {
       if (!camera_used[c]) continue;
       if (c > 0) problem.SetManifold(extrinsics[c].q.data(), new ceres::QuaternionManifold());
@@ -537,7 +603,10 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     const bool last = round == kRounds - 1;
     solver_options.max_num_iterations = last ? 2 * co.max_iterations : co.max_iterations;
     solver_options.num_threads = co.threads;
-    solver_options.function_tolerance = last ? 1e-9 : 1e-6;
+    // The last solve stops at a relative cost change of 1e-7: on the
+    // `medium` rig (200 000 residual blocks) at 1e-9 it crept on for 40
+    // iterations with steps of 1e-3 and the cost unchanged in 7 digits.
+    solver_options.function_tolerance = last ? 1e-7 : 1e-6;
     solver_options.parameter_tolerance = last ? 1e-10 : 1e-8;
     const std::string stage = RigFormat("rig BA %d/%d%s", round + 1, kRounds,
                                         x_only ? " (cameras X; camera 0, trajectory, map held)" : "");
@@ -669,7 +738,9 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
   std::vector<long long> camera_m(n_cameras, 0);
   double ss = 0;
   long long m = 0;
-  result.observers.assign(n_points, {});
+  std::vector<std::vector<RigCalibrationResult::Observer>> observers(points.size());
+  std::vector<double> point_ss(points.size(), 0);
+  std::vector<long long> point_m(points.size(), 0);
   std::vector<double> r;
   for (std::size_t n = 0; n < lens.size(); ++n) {
     if (!inlier[n] || !evaluate(lens[n], &r)) continue;
@@ -677,7 +748,9 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     for (const double x : r) camera_ss[lo.camera] += x * x;
     camera_m[lo.camera] += static_cast<long long>(r.size());
     ++result.cameras[lo.camera].observations;
-    result.observers[lo.point].push_back(
+    for (const double x : r) point_ss[lo.point] += x * x;
+    point_m[lo.point] += static_cast<long long>(r.size());
+    observers[lo.point].push_back(
         {lo.camera, cameras[lo.camera].frames[lo.frame].frame, lo.keypoint});
   }
   for (int c = 0; c < n_cameras; ++c) {
@@ -722,10 +795,55 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
       image.keypoints[kp].pinhole_px = internal::TfPinholePx(k[0], model0, x_v);
     }
   }
+  // Camera 0's points, then those of a camera X alone that kept two
+  // observations: no track (the map's images are camera 0's), the
+  // descriptor and colour of the keypoint that made them, sigma_mm the
+  // plenoptic covariances of their observations fused
+  // (plenoptic_point_noise.h, CalibrationOptions' map_sigma_v_rel and
+  // map_sigma_tf_px).
+  std::int64_t next_id = 1;
+  for (const MapPoint& p : out.points) next_id = std::max(next_id, p.id + 1);
   for (int j = 0; j < n_points; ++j) {
     out.points[j].p_in_w0_mm = points[j];
+    result.observers.push_back(observers[j]);
+  }
+  std::vector<processing::CameraModel> final_models;
+  for (int c = 0; c < n_cameras; ++c) final_models.emplace_back(result.cameras[c].calibration.intrinsics);
+  for (std::size_t j = n_points; j < points.size(); ++j) {
+    if (observers[j].size() < 2) continue;
+    const OwnPoint& made = own_point[j - n_points];
+    const CalibrationFrame& frame = cameras[made.camera].frames[made.frame];
+    Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
+    for (const RigCalibrationResult::Observer& o : observers[j]) {
+      const CalibrationFrame& seen = cameras[o.camera].frames[frame_index[o.camera].at(o.frame)];
+      const Eigen::Vector3d x_v = internal::VirtualPoint(seen, o.keypoint);
+      const Pose w0_from_cam = result.trajectory[trigger_of_frame.at(o.frame)].world_from_cam *
+                               result.cameras[o.camera].c0_from_cx;
+      const processing::CameraModel& model = final_models[o.camera];
+      const Eigen::Matrix3d cov = PlenopticPointCovariance(
+          model, w0_from_cam.inverse() * points[j], co.map_sigma_v_rel * x_v.z(),
+          co.map_sigma_tf_px);
+      const Eigen::Matrix3d rot = w0_from_cam.linear();
+      const Eigen::Matrix3d info = (rot * cov * rot.transpose()).inverse();
+      if (info.allFinite()) information += info;
+    }
+    const Eigen::Matrix3d fused = information.inverse();
+    if (!fused.allFinite()) continue;
+    MapPoint point;
+    point.id = next_id++;
+    point.p_in_w0_mm = points[j];
+    point.rgb = frame.rgb[made.keypoint];
+    point.sigma_mm = fused.diagonal().cwiseSqrt().cast<float>();
+    point.error_px = point_m[j] > 0 ? std::sqrt(point_ss[j] / point_m[j]) : 0;
+    const float* d = frame.features.Descriptor(made.keypoint);
+    point.descriptor.assign(d, d + kDescriptorSize);
+    out.points.push_back(std::move(point));
+    result.observers.push_back(observers[j]);
+    ++result.own_points;
+  }
+  for (const auto& seen : result.observers) {
     std::set<int> seen_by;
-    for (const RigCalibrationResult::Observer& o : result.observers[j]) seen_by.insert(o.camera);
+    for (const RigCalibrationResult::Observer& o : seen) seen_by.insert(o.camera);
     if (seen_by.size() > 1) ++result.shared_points;
   }
   if (!result.flags.empty()) result.usable = false;
@@ -742,11 +860,18 @@ std::string RigTruthComparison::Report() const {
                       "principal point %.2f px",
                       c, k.serial.c_str(), 100 * k.f_l_rel, 100 * k.b_l0_rel, 100 * k.b_rel,
                       k.principal_point_px);
-    if (c > 0)
-      text += RigFormat("; c0_from_cx joint %.3f mm / %.4f deg | registered alone (%d frames): "
-                        "robust mean %.3f mm / %.4f deg, per-frame median %.3f mm / %.4f deg",
+    if (c > 0) {
+      text += RigFormat("; c0_from_cx joint %.3f mm / %.4f deg | registered alone, nominal "
+                        "intrinsics (%d frames): robust mean %.3f mm / %.4f deg, per-frame median "
+                        "%.3f mm / %.4f deg",
                         k.joint_mm, k.joint_deg, k.registered, k.mean_mm, k.mean_deg,
                         k.median_mm, k.median_deg);
+      if (k.true_registered > 0)
+        text += RigFormat(" | registered alone, true intrinsics (%d frames): robust mean %.3f mm "
+                          "/ %.4f deg, per-frame median %.3f mm / %.4f deg",
+                          k.true_registered, k.true_mean_mm, k.true_mean_deg, k.true_median_mm,
+                          k.true_median_deg);
+    }
     text += "\n";
   }
   text += RigFormat("gates (f_L, b_L0, B within 0.3 %%, principal point 0.5 px, c0_from_cx 0.2 mm "
@@ -761,16 +886,45 @@ bool RigTruthComparison::GatesMet() const {
     if (std::abs(k.f_l_rel) > 0.003 || std::abs(k.b_l0_rel) > 0.003 || std::abs(k.b_rel) > 0.003 ||
         k.principal_point_px > 0.5)
       return false;
-    if (c > 0 && (k.joint_mm > 0.2 || k.joint_deg > 0.01 || k.joint_mm >= k.median_mm ||
-                  k.joint_deg >= k.median_deg))
+    // Better than registered alone: than the better of the two baselines.
+    const double alone_mm =
+        std::isnan(k.true_median_mm) ? k.median_mm : std::min(k.median_mm, k.true_median_mm);
+    const double alone_deg =
+        std::isnan(k.true_median_deg) ? k.median_deg : std::min(k.median_deg, k.true_median_deg);
+    if (c > 0 && (k.joint_mm > 0.2 || k.joint_deg > 0.01 || k.joint_mm >= alone_mm ||
+                  k.joint_deg >= alone_deg))
       return false;
   }
   return true;
 }
 
-Expected<RigTruthComparison> CompareRigWithTruth(const RigCalibrationResult& result,
-                                                 const std::vector<CameraCalibration>& truth,
-                                                 const std::vector<Pose>& c0_from_cx_truth) {
+std::vector<FramePose> RegisterAgainstCamera0(const CalibrationResult& camera0,
+                                              const CalibrationInput& camera,
+                                              const processing::CameraIntrinsics& intrinsics,
+                                              const FrameRegistrationOptions& options) {
+  const MapIndex index = MapIndex::Of(camera0.map);
+  const processing::CameraModel model(intrinsics);
+  std::map<std::int64_t, Pose> w0_from_c0;
+  for (const FramePose& p : camera0.poses) w0_from_c0[p.frame] = p.world_from_cam;
+  std::vector<FramePose> out;
+  for (const CalibrationFrame& frame : camera.frames) {
+    const auto c0 = w0_from_c0.find(frame.frame);
+    if (c0 == w0_from_c0.end()) continue;
+    FrameObservations obs;
+    obs.frame = frame.frame;
+    obs.features = frame.features;
+    obs.virtual_depth.assign(frame.virtual_depth.begin(), frame.virtual_depth.end());
+    CompleteObservations(model, &obs);
+    const FrameRegistration r = RegisterFrame(index, model, obs, RegistrationMethod::kPnp, options);
+    if (r.success) out.push_back(FramePose{frame.frame, -1, c0->second.inverse() * r.w0_from_cam.pose});
+  }
+  return out;
+}
+
+Expected<RigTruthComparison> CompareRigWithTruth(
+    const RigCalibrationResult& result, const std::vector<CameraCalibration>& truth,
+    const std::vector<Pose>& c0_from_cx_truth,
+    const std::vector<std::vector<FramePose>>& registered_with_truth) {
   if (truth.size() != result.cameras.size() || c0_from_cx_truth.size() != result.cameras.size())
     return Error{RigFormat("rig truth comparison: %zu cameras calibrated, %zu true intrinsics, "
                            "%zu true c0_from_cx",
@@ -800,6 +954,21 @@ Expected<RigTruthComparison> CompareRigWithTruth(const RigCalibrationResult& res
       k.median_mm = Median(mm);
       k.median_deg = Median(deg);
       k.registered = static_cast<int>(rc.registered.size());
+      if (c < registered_with_truth.size() && !registered_with_truth[c].empty()) {
+        const std::vector<FramePose>& alone = registered_with_truth[c];
+        const Pose mean = RobustMean(alone);
+        k.true_mean_mm = TranslationDifference(mean, truth_pose);
+        k.true_mean_deg = RotationDifferenceDeg(mean, truth_pose);
+        mm.clear();
+        deg.clear();
+        for (const FramePose& p : alone) {
+          mm.push_back(TranslationDifference(p.world_from_cam, truth_pose));
+          deg.push_back(RotationDifferenceDeg(p.world_from_cam, truth_pose));
+        }
+        k.true_median_mm = Median(mm);
+        k.true_median_deg = Median(deg);
+        k.true_registered = static_cast<int>(alone.size());
+      }
     }
     out.cameras.push_back(k);
   }

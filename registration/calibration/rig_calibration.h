@@ -16,9 +16,14 @@
 //    c0_from_cx = c0_from_w0 w0_from_cx; the initial c0_from_cx is their
 //    robust mean (translation: component medians, the frames within
 //    max(3 x their median distance to it, 1 mm) averaged; rotation: the
-//    normalised sum of those frames' quaternions). PnP's inliers are X's
-//    observations of the shared map points: features matched across the
-//    cameras of a trigger and, through the map, across time.
+//    normalised sum of those frames' quaternions). PnP's inliers (of every
+//    frame PnP placed, also those its checks refused) are X's observations
+//    of the shared map points: features matched across the cameras of a
+//    trigger and, through the map, across time. X's own tracks across time
+//    (calibration.h step 2 on X's frames) add the keypoints that match no
+//    map point: a track one of whose keypoints matched a map point observes
+//    that point with all its keypoints; a track that matched none becomes a
+//    point of X alone (back-projected through the rig at its first frame).
 // 3. Bundle adjustment (Ceres, SPARSE_SCHUR; rotations on
 //    ceres::QuaternionManifold). Unknowns: per camera its intrinsics
 //    (plenoptic_projection.h; the principal point with the single
@@ -48,6 +53,7 @@
 
 #include <Eigen/Core>
 
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -58,7 +64,9 @@ struct RigCalibrationOptions {
   // Camera 0's calibration (step 1) and the costs of the joint solve
   // (Huber scale, outlier threshold, plate weight, micro images per
   // observation, which intrinsics are estimated, the principal point's
-  // prior, iterations, threads).
+  // prior, iterations, threads). `recalibrate` holds every camera's f_L and
+  // B at their initial values (camera 0's b_L0 starts from the plate,
+  // calibration.h; the others' from their initial values).
   CalibrationOptions calibration;
   // Step 2: the cameras X against camera 0's map.
   FrameRegistrationOptions registration;
@@ -90,9 +98,10 @@ struct RigCalibrationResult {
   std::vector<RigCameraResult> cameras;   // camera 0 first
   std::vector<FramePose> trajectory;      // w0_from_c0 per trigger (joint solve)
   // The shared map: camera 0's images (with the joint solve's poses and
-  // pinhole positions), the points at their joint positions; each point's
-  // track lists camera 0's observations (ReferenceMap holds one camera),
-  // `observers` every camera's.
+  // pinhole positions), camera 0's points at their joint positions, then the
+  // points of a camera X alone; each point's track lists camera 0's
+  // observations (ReferenceMap holds one camera), `observers` (same order as
+  // map.points) every camera's.
   ReferenceMap map;
   struct Observer {
     int camera = 0;  // index into cameras
@@ -101,6 +110,7 @@ struct RigCalibrationResult {
   };
   std::vector<std::vector<Observer>> observers;  // per map point
   int shared_points = 0;  // points observed by more than one camera
+  int own_points = 0;     // points of one camera X alone (its tracks across time)
   bool covariance_computed = false;
   std::string weakest_direction;  // of the covariance (calibration_covariance.h)
   long long rejected_observations = 0;
@@ -130,6 +140,15 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
 // (its intrinsics and reference map), to be given as CalibrateRig's camera0.
 CalibrationResult CalibrationResultOf(const CameraCalibration& calibration, ReferenceMap map);
 
+// Step 2 alone with other intrinsics (the baseline: camera X registered
+// against camera 0's map with its true intrinsics): c0_from_cx = c0_from_w0
+// w0_from_cx of every frame PnP registers, c0_from_w0 from camera 0's
+// calibration (FramePose::world_from_cam holds c0_from_cx).
+std::vector<FramePose> RegisterAgainstCamera0(const CalibrationResult& camera0,
+                                              const CalibrationInput& camera,
+                                              const processing::CameraIntrinsics& intrinsics,
+                                              const FrameRegistrationOptions& options);
+
 // The joint solve against a synthetic rig's truth, beside camera X registered
 // alone (step 2). c0_from_cx_truth[i] for cameras[i].
 struct RigTruthComparison {
@@ -141,6 +160,10 @@ struct RigTruthComparison {
     double mean_mm = 0, mean_deg = 0;             // robust mean of the registrations
     double median_mm = 0, median_deg = 0;         // median over the registered frames
     int registered = 0;
+    // Registered alone with the true intrinsics (RegisterAgainstCamera0);
+    // NaN when not given.
+    double true_mean_mm = NAN, true_mean_deg = NAN, true_median_mm = NAN, true_median_deg = NAN;
+    int true_registered = 0;
   };
   std::vector<Camera> cameras;
   // One line per camera, the gates (f_L, b_L0, B 0.3 %, principal point
@@ -149,8 +172,11 @@ struct RigTruthComparison {
   bool GatesMet() const;
 };
 
-Expected<RigTruthComparison> CompareRigWithTruth(const RigCalibrationResult& result,
-                                                 const std::vector<CameraCalibration>& truth,
-                                                 const std::vector<Pose>& c0_from_cx_truth);
+// `registered_with_truth`: per camera RegisterAgainstCamera0 with its true
+// intrinsics (empty: not given).
+Expected<RigTruthComparison> CompareRigWithTruth(
+    const RigCalibrationResult& result, const std::vector<CameraCalibration>& truth,
+    const std::vector<Pose>& c0_from_cx_truth,
+    const std::vector<std::vector<FramePose>>& registered_with_truth = {});
 
 }  // namespace lifmcr::registration
