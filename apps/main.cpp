@@ -53,7 +53,7 @@ int main(int argc, char** argv) {
       lifmcr::apps::AddEvaluateCommand);
   add("depth", "Virtual depth, totally focused image, metric depth and point cloud of one frame",
       lifmcr::apps::AddDepthCommand);
-  add("calibrate", "Intrinsic calibration of one camera and its reference map (plenoptic BA)",
+  add("calibrate", "Intrinsic calibration of one camera and its reference map (plenoptic BA), or of a rig's cameras as one (--rig)",
       lifmcr::apps::AddCalibrateCommand);
   add("register", "Register every camera to camera 0's reference map: c0_from_cx per frame",
       lifmcr::apps::AddRegisterCommand);

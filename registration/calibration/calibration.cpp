@@ -24,6 +24,7 @@ using internal::MakeMicroImageCost;
 using internal::MicroImageCost;
 using internal::PlateCornerCost;
 using internal::Observation;
+using internal::TfPinholePx;
 using internal::Track;
 
 constexpr double kBound = 0.3;  // relative bound of f_L, b_L0, B about their initial values
@@ -139,18 +140,6 @@ const char* kParameterNames[kIntrinsicsSize] = {"main_focal_length_mm", "mla_to_
                                                 "k2",                   "p1",
                                                 "p2"};
 
-// TF pinhole pixel of a virtual point under the intrinsics vector
-// (reference_map.h: distortion corrected, eqs. projX/projY, TF grid).
-Eigen::Vector2d TfPinholePx(const IntrinsicsVector& k, const processing::CameraModel& model,
-                            const Eigen::Vector3d& virtual_px) {
-  const double s = model.intrinsics().pixel_size_mm;
-  const Eigen::Vector2d c(k[3], k[4]);
-  const double b_l = k[1] + virtual_px.z() * k[2];
-  const Eigen::Vector2d x_mla = model.Undistort((virtual_px.head<2>() - c) * s * k[1] / b_l);
-  const Eigen::Vector2d raw = c + x_mla * (k[1] + 2 * k[2]) / (k[1] * s);
-  return (raw - Eigen::Vector2d(0.5, 0.5)) / 2.0;
-}
-
 // The largest angle (degrees) at the point between the rays from the
 // centres of the frames whose observations of the track were kept.
 double TriangulationAngleDeg(const Track& track, const std::vector<int>& kept,
@@ -166,6 +155,23 @@ double TriangulationAngleDeg(const Track& track, const std::vector<int>& kept,
 }
 
 }  // namespace
+
+namespace internal {
+
+// TF pinhole pixel of a virtual point under the intrinsics vector
+// (reference_map.h: distortion corrected, eqs. projX/projY, TF grid):
+// calibration_problem.h.
+Eigen::Vector2d TfPinholePx(const IntrinsicsVector& k, const processing::CameraModel& model,
+                            const Eigen::Vector3d& virtual_px) {
+  const double s = model.intrinsics().pixel_size_mm;
+  const Eigen::Vector2d c(k[3], k[4]);
+  const double b_l = k[1] + virtual_px.z() * k[2];
+  const Eigen::Vector2d x_mla = model.Undistort((virtual_px.head<2>() - c) * s * k[1] / b_l);
+  const Eigen::Vector2d raw = c + x_mla * (k[1] + 2 * k[2]) / (k[1] * s);
+  return (raw - Eigen::Vector2d(0.5, 0.5)) / 2.0;
+}
+
+}  // namespace internal
 
 Status CalibrationOptions::Check() const {
   auto fail = [](const std::string& what) { return Error{"calibration options: " + what}; };

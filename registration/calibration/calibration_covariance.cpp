@@ -131,6 +131,7 @@ Expected<ReducedCovariance> ComputeReducedCovariance(ceres::Problem* problem,
   // Covariance (pseudo-inverse where deficient): D V Lambda^-1 V^T D.
   const Eigen::MatrixXd cov = d.asDiagonal() * eig.eigenvectors() * inverse_lambda.asDiagonal() *
                               eig.eigenvectors().transpose() * d.asDiagonal();
+  out.first_coordinate = first_of_block;
   for (std::size_t b = 0; b < kept.size(); ++b) {
     const int first = first_of_block[b];
     const int size = first < 0 ? static_cast<int>(kept[b].names.size())
@@ -139,6 +140,7 @@ Expected<ReducedCovariance> ComputeReducedCovariance(ceres::Problem* problem,
       out.std_dev.push_back(first < 0 ? std::numeric_limits<double>::quiet_NaN()
                                       : std::sqrt(std::max(cov(first + i, first + i), 0.0)));
   }
+  out.covariance = cov;
   return out;
 }
 

@@ -14,6 +14,8 @@
 
 #include "config/error.h"
 
+#include <Eigen/Core>
+
 #include <string>
 #include <vector>
 
@@ -35,6 +37,12 @@ struct ReducedCovariance {
   std::string null_directions;  // "(eigenvalue: name component, ...)" per deficient direction
   std::string weakest_direction;  // the same for the smallest eigenvalue
   double smallest_relative_eigenvalue = 0;
+  // The whole unit-variance covariance of the kept coordinates (tangent
+  // space, pseudo-inverse where deficient) and where each kept block starts
+  // in it (-1: skipped), for blocks whose correlations matter (a rig's
+  // c0_from_cx: rotation and translation together).
+  Eigen::MatrixXd covariance;
+  std::vector<int> first_coordinate;
 };
 
 // `points`: the eliminated blocks (3 coordinates each). Kept blocks that are

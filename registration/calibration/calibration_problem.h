@@ -50,6 +50,13 @@ Expected<InitialMap> Initialise(const CalibrationInput& input,
                                 const CalibrationOptions& options,
                                 const ProgressFn& progress);
 
+// The TF pinhole pixel (reference_map.h: distortion corrected, eqs.
+// projX/projY, TF grid) of a virtual point under the intrinsics vector k;
+// `model` gives the distortion model (its own intrinsics' values are not
+// used for c, b_L0, B).
+Eigen::Vector2d TfPinholePx(const IntrinsicsVector& k, const processing::CameraModel& model,
+                            const Eigen::Vector3d& virtual_px);
+
 // The virtual point of keypoint k of a frame (raw pixels, measured v).
 inline Eigen::Vector3d VirtualPoint(const CalibrationFrame& frame, int k) {
   const Eigen::Vector2f& tf = frame.features.keypoints[k].xy_px;

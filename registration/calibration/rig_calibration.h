@@ -1,0 +1,182 @@
+#pragma once
+// Joint calibration of a rig of N plenoptic cameras on a rigid mount
+// (`lifmcr calibrate SEQ --rig`): one bundle adjustment over every camera's
+// intrinsics, each camera's pose in the rig (c0_from_cx, held constant over
+// the sequence), one rig trajectory (camera 0's pose per trigger) and one map
+// whose points several cameras observe. The marker plate gives scale and
+// frame, as in the single-camera calibration (calibration.h), whose costs,
+// initialisation and covariance this reuses.
+//
+// 1. Camera 0 is calibrated alone (calibration.h; or its calibration is
+//    given): its intrinsics, its poses w0_from_c0 per trigger (frame number)
+//    and its map.
+// 2. Every other camera X: each of its frames whose trigger camera 0 placed
+//    is registered against camera 0's map by plenoptic PnP with X's initial
+//    intrinsics (frame_registration.h). Each registered frame gives
+//    c0_from_cx = c0_from_w0 w0_from_cx; the initial c0_from_cx is their
+//    robust mean (translation: component medians, the frames within
+//    max(3 x their median distance to it, 1 mm) averaged; rotation: the
+//    normalised sum of those frames' quaternions). PnP's inliers (of every
+//    frame PnP placed, also those its checks refused) are X's observations
+//    of the shared map points: features matched across the cameras of a
+//    trigger and, through the map, across time. X's own tracks across time
+//    (calibration.h step 2 on X's frames) add the keypoints that match no
+//    map point: a track one of whose keypoints matched a map point observes
+//    that point with all its keypoints; a track that matched none becomes a
+//    point of X alone (back-projected through the rig at its first frame).
+// 3. Bundle adjustment (Ceres, SPARSE_SCHUR; rotations on
+//    ceres::QuaternionManifold). Unknowns: per camera its intrinsics
+//    (plenoptic_projection.h; the principal point with the single
+//    calibration's prior), its plate-corner inset; per camera X its
+//    c0_from_cx (camera 0's is the identity); per trigger the rig pose
+//    c0_from_w0; the map points (mm in w0). Each keypoint observation of
+//    camera X at trigger t is reprojected into its micro images through
+//      p_in_cx = cx_from_c0 (c0_from_w0(t) p_in_w0)
+//    with the single calibration's micro-image cost (calibration_costs.h),
+//    each plate corner the same way. Solves: (a) the cameras X alone (their
+//    intrinsics, c0_from_cx and insets; camera 0, the trajectory and the map
+//    held), (b) everything, (c) with observations above max(outlier_px, 3 x
+//    the median RMS) dropped, everything again.
+// 4. Covariance of the camera parameters by the Schur complement of the
+//    points (calibration_covariance.h), scaled by the residual variance:
+//    each camera's intrinsics' standard deviations and c0_from_cx's 6 x 6
+//    covariance, [rotation (rad, left perturbation in c0: c0_from_cx ->
+//    exp(w) c0_from_cx), translation (mm, in c0)]. Like the single
+//    calibration's, it treats a keypoint's micro-image residuals as
+//    independent, so it is optimistic.
+
+#include "config/error.h"
+#include "config/frames.h"
+#include "registration/calibration/calibration.h"
+#include "registration/map/frame_registration.h"
+#include "registration/map/reference_map.h"
+
+#include <Eigen/Core>
+
+#include <cmath>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace lifmcr::registration {
+
+struct RigCalibrationOptions {
+  // Camera 0's calibration (step 1) and the costs of the joint solve
+  // (Huber scale, outlier threshold, plate weight, micro images per
+  // observation, which intrinsics are estimated, the principal point's
+  // prior, iterations, threads). `recalibrate` holds every camera's f_L and
+  // B at their initial values (camera 0's b_L0 starts from the plate,
+  // calibration.h; the others' from their initial values).
+  CalibrationOptions calibration;
+  // Step 2: the cameras X against camera 0's map.
+  FrameRegistrationOptions registration;
+  int min_registered_frames = 3;  // frames of a camera X registered, else an error
+  Status Check() const;
+};
+
+struct RigCameraResult {
+  std::string serial;
+  CameraCalibration calibration;   // the joint solve's intrinsics
+  IntrinsicsVector initial{};      // where they started (camera 0: its own calibration's)
+  IntrinsicsVector std_dev{};      // NaN where not estimated or not available
+  Pose c0_from_cx = Pose::Identity();          // joint solve (camera 0: identity)
+  Pose c0_from_cx_initial = Pose::Identity();  // robust mean of the registrations (step 2)
+  // [rotation rad (left, in c0), translation mm]; zero for camera 0 and when
+  // not computed (RigCalibrationResult::covariance_computed).
+  Eigen::Matrix<double, 6, 6> c0_from_cx_covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  // Step 2, per registered frame of camera X: c0_from_cx = c0_from_w0
+  // w0_from_cx (FramePose::world_from_cam holds c0_from_cx).
+  std::vector<FramePose> registered;
+  int frames = 0;                  // frames given
+  long long observations = 0;      // keypoint observations in the final solve
+  int plate_corners = 0;           // plate corners in the solve
+  double rmse_px = 0;              // its micro-image residuals in the final solve
+};
+
+struct RigCalibrationResult {
+  CalibrationResult camera0;              // step 1
+  std::vector<RigCameraResult> cameras;   // camera 0 first
+  std::vector<FramePose> trajectory;      // w0_from_c0 per trigger (joint solve)
+  // The shared map: camera 0's images (with the joint solve's poses and
+  // pinhole positions), camera 0's points at their joint positions, then the
+  // points of a camera X alone; each point's track lists camera 0's
+  // observations (ReferenceMap holds one camera), `observers` (same order as
+  // map.points) every camera's.
+  ReferenceMap map;
+  struct Observer {
+    int camera = 0;  // index into cameras
+    std::int64_t frame = 0;
+    int keypoint = 0;  // index into that camera's frame's keypoints
+  };
+  std::vector<std::vector<Observer>> observers;  // per map point
+  int shared_points = 0;  // points observed by more than one camera
+  int own_points = 0;     // points of one camera X alone (its tracks across time)
+  bool covariance_computed = false;
+  std::string weakest_direction;  // of the covariance (calibration_covariance.h)
+  long long rejected_observations = 0;
+  double rmse_px = 0;
+  double initial_cost = 0, final_cost = 0, solver_seconds = 0, total_seconds = 0;
+  int iterations = 0;
+  bool usable = false;
+  std::string termination;
+  std::vector<std::string> flags;
+  // "Rig calibration: 3 cameras, 30 triggers, 18236 points (9120 shared),
+  // 160233 observations, RMSE 0.118 px; Ceres 61 iterations ..., CONVERGENCE".
+  std::string BriefReport() const;
+  // One line per camera: intrinsics and c0_from_cx with standard deviations.
+  std::string CameraReport() const;
+};
+
+// `cameras[0]` is camera 0. `camera0`, when given, is camera 0's existing
+// calibration of the same frames (step 1 skipped): its map's keypoints must
+// be those of cameras[0].frames. Errors: options, inputs, too few frames of
+// a camera X registered, a failed solve.
+Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>& cameras,
+                                            const RigCalibrationOptions& options,
+                                            const CalibrationResult* camera0 = nullptr,
+                                            const ProgressFn& progress = {});
+
+// A CalibrationResult made from a calibration written by `lifmcr calibrate`
+// (its intrinsics and reference map), to be given as CalibrateRig's camera0.
+CalibrationResult CalibrationResultOf(const CameraCalibration& calibration, ReferenceMap map);
+
+// Step 2 alone with other intrinsics (the baseline: camera X registered
+// against camera 0's map with its true intrinsics): c0_from_cx = c0_from_w0
+// w0_from_cx of every frame PnP registers, c0_from_w0 from camera 0's
+// calibration (FramePose::world_from_cam holds c0_from_cx).
+std::vector<FramePose> RegisterAgainstCamera0(const CalibrationResult& camera0,
+                                              const CalibrationInput& camera,
+                                              const processing::CameraIntrinsics& intrinsics,
+                                              const FrameRegistrationOptions& options);
+
+// The joint solve against a synthetic rig's truth, beside camera X registered
+// alone (step 2). c0_from_cx_truth[i] for cameras[i].
+struct RigTruthComparison {
+  struct Camera {
+    std::string serial;
+    double f_l_rel = 0, b_l0_rel = 0, b_rel = 0;  // (estimate - truth) / truth
+    double principal_point_px = 0;                // distance
+    double joint_mm = 0, joint_deg = 0;           // c0_from_cx of the joint solve
+    double mean_mm = 0, mean_deg = 0;             // robust mean of the registrations
+    double median_mm = 0, median_deg = 0;         // median over the registered frames
+    int registered = 0;
+    // Registered alone with the true intrinsics (RegisterAgainstCamera0);
+    // NaN when not given.
+    double true_mean_mm = NAN, true_mean_deg = NAN, true_median_mm = NAN, true_median_deg = NAN;
+    int true_registered = 0;
+  };
+  std::vector<Camera> cameras;
+  // One line per camera, the gates (f_L, b_L0, B 0.3 %, principal point
+  // 0.5 px, c0_from_cx 0.2 mm / 0.01 deg and better than registered alone).
+  std::string Report() const;
+  bool GatesMet() const;
+};
+
+// `registered_with_truth`: per camera RegisterAgainstCamera0 with its true
+// intrinsics (empty: not given).
+Expected<RigTruthComparison> CompareRigWithTruth(
+    const RigCalibrationResult& result, const std::vector<CameraCalibration>& truth,
+    const std::vector<Pose>& c0_from_cx_truth,
+    const std::vector<std::vector<FramePose>>& registered_with_truth = {});
+
+}  // namespace lifmcr::registration

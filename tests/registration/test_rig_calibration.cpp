@@ -1,0 +1,180 @@
+// The joint calibration of a rigid rig (registration/calibration/
+// rig_calibration.h) on a small synthetic rig of 3 cameras: every camera's
+// c0_from_cx from the joint solve is nearer the truth than camera X's frames
+// registered alone against camera 0's map with its true intrinsics (the
+// baseline: their median error), and the COLMAP rig model it writes holds the rig. A few views
+// of `small` do not determine the intrinsics' scale (test_calibration.cpp):
+// calibrated freely, camera 0's B came out 4 % off and camera 2's
+// c0_from_cx 2.3 mm, so the rig is recalibrated (f_L and B held, b_L0
+// estimated, camera 0's from 10 % off) with the principal point and
+// distortion held, as test_calibrate_register.cpp does; the `medium`
+// figures from 5 % off are in docs/calibration.md. About 20 s of CPU
+// (rendering, processing 15 frames, the solves): labelled long.
+
+#include "processing/camera_model.h"
+#include "registration/calibration/rig_calibration.h"
+#include "registration/calibration/rig_output.h"
+#include "registration/estimators/pose_covariance.h"
+#include "registration/features/calibration_frames.h"
+#include "registration/features/intrinsics_yaml.h"
+#include "registration/map/poses_csv.h"
+#include "replay/layout.h"
+#include "replay/synth/synth_params.h"
+#include "replay/synth/synth_writer.h"
+#include "tests/test_util.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace lifmcr::registration {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string ReadText(const fs::path& path) {
+  std::ifstream file(path);
+  std::stringstream text;
+  text << file.rdbuf();
+  return text.str();
+}
+
+// Data lines (not comments) of a COLMAP text file.
+std::vector<std::string> DataLines(const fs::path& path) {
+  std::vector<std::string> lines;
+  std::stringstream text(ReadText(path));
+  for (std::string line; std::getline(text, line);)
+    if (!line.empty() && line[0] != '#') lines.push_back(line);
+  return lines;
+}
+
+TEST(RigCalibration, JointC0FromCxBeatsEachCameraRegisteredAloneAndColmapHoldsTheRig) {
+  test::TempDir dir;
+  Expected<synth::SynthParams> params = synth::MakePreset("small");
+  ASSERT_TRUE(params);
+  params->rig.cameras = 3;
+  params->rig.frames = 5;
+  params->rig.rigid = true;
+  params->rig.viewing_distance_mm = 1800;  // the plate whole in view (test_calibration.cpp)
+  params->rig.motion = "orbit";
+  Expected<synth::SynthSummary> summary = synth::WriteSyntheticDataset(dir.path(), *params, {});
+  ASSERT_TRUE(summary) << summary.error().message;
+  const fs::path seq = summary->sequence_dir;
+  const fs::path cameras_yaml = layout::CamerasYamlPath(seq);
+  const std::string zero = "40398678";  // camera 0 of the synthetic rig (cameras.yaml)
+  std::vector<std::string> serials = {zero};
+  std::vector<std::string> others;
+  for (const auto& e : fs::directory_iterator(seq))
+    if (auto s = layout::ParseCameraFolderName(e.path().filename().string()))
+      if (*s != zero) others.push_back(*s);
+  std::sort(others.begin(), others.end());
+  serials.insert(serials.end(), others.begin(), others.end());
+  ASSERT_EQ(serials.size(), 3u);
+
+  Expected<PlateLayout> plate = ReadPlateLayout(cameras_yaml);
+  ASSERT_TRUE(plate) << plate.error().message;
+  std::vector<std::unique_ptr<CalibrationFrameLoader>> loaders;
+  std::vector<CalibrationInput> inputs;
+  std::vector<CameraCalibration> truth;
+  std::vector<Pose> c0_from_cx_truth;
+  std::map<std::int64_t, Pose> world_from_c0;
+  for (const std::string& serial : serials) {
+    Expected<CameraCalibration> t = ReadCameraCalibration(cameras_yaml, serial);
+    ASSERT_TRUE(t) << t.error().message;
+    truth.push_back(*t);
+    CalibrationInput input;
+    input.serial = serial;
+    input.initial = *t;
+    if (serial == zero) input.initial.intrinsics.mla_to_main_lens_mm *= 1.10;
+    FrameLoaderOptions loader_options;
+    loader_options.lambda = processing::CameraModel(input.initial.intrinsics).lambda();
+    auto loader = CalibrationFrameLoader::Open(seq, serial, {}, *plate, loader_options);
+    ASSERT_TRUE(loader) << loader.error().message;
+    input.micro_images = &(*loader)->micro_images();
+    for (const std::int64_t f : (*loader)->frames()) {
+      Expected<CalibrationFrame> frame = (*loader)->Load(f);
+      ASSERT_TRUE(frame) << frame.error().message;
+      input.frames.push_back(std::move(*frame));
+    }
+    inputs.push_back(std::move(input));
+    loaders.push_back(std::move(*loader));
+    Expected<std::vector<FramePose>> poses = ReadPosesCsv(layout::PosesCsvPath(seq, serial));
+    ASSERT_TRUE(poses) << poses.error().message;
+    if (world_from_c0.empty())
+      for (const FramePose& p : *poses) world_from_c0[p.frame] = p.world_from_cam;
+    c0_from_cx_truth.push_back(world_from_c0.at(poses->front().frame).inverse() *
+                               poses->front().world_from_cam);
+  }
+
+  RigCalibrationOptions options;
+  options.calibration.recalibrate = true;
+  options.calibration.estimate_principal_point = false;  // a narrow view (test_calibration.cpp)
+  options.calibration.estimate_distortion = false;
+  options.calibration.covariance = true;
+  Expected<RigCalibrationResult> result = CalibrateRig(inputs, options);
+  ASSERT_TRUE(result) << result.error().message;
+  std::printf("%s\n%s", result->BriefReport().c_str(), result->CameraReport().c_str());
+  EXPECT_TRUE(result->usable) << (result->flags.empty() ? "" : result->flags.front());
+  EXPECT_GT(result->shared_points, 100);
+
+  std::vector<std::vector<FramePose>> alone(serials.size());
+  for (std::size_t c = 1; c < serials.size(); ++c)
+    alone[c] = RegisterAgainstCamera0(result->camera0, inputs[c], truth[c].intrinsics,
+                                      options.registration);
+  Expected<RigTruthComparison> comparison =
+      CompareRigWithTruth(*result, truth, c0_from_cx_truth, alone);
+  ASSERT_TRUE(comparison) << comparison.error().message;
+  std::printf("%s", comparison->Report().c_str());
+  for (std::size_t c = 1; c < serials.size(); ++c) {
+    const RigTruthComparison::Camera& k = comparison->cameras[c];
+    ASSERT_GT(k.true_registered, 0) << serials[c];
+    // The joint c0_from_cx against each frame's registration (what
+    // `lifmcr register` gives per frame): their median error. The robust
+    // mean of the 5 registered frames is printed, not asserted: on this rig
+    // it came out nearer the truth in translation (0.14 / 0.24 mm against
+    // 0.29 / 0.27 mm joint; docs/calibration.md).
+    EXPECT_LT(k.joint_mm, k.true_median_mm) << serials[c];
+    EXPECT_LT(k.joint_deg, k.true_median_deg) << serials[c];
+    EXPECT_LT(k.joint_mm, 1.0) << serials[c];
+    EXPECT_LT(k.joint_deg, 0.02) << serials[c];
+    // Its covariance is a covariance: positive translation variances.
+    const Eigen::Matrix<double, 6, 6>& s = result->cameras[c].c0_from_cx_covariance;
+    for (int a = 0; a < 6; ++a) EXPECT_GT(s(a, a), 0) << serials[c] << " coordinate " << a;
+  }
+
+  // The COLMAP rig model: one rig of 3 sensors, a frame per trigger with an
+  // image of each camera, sensor_from_rig of camera 1 = its cx_from_c0.
+  const fs::path out = dir.path() / "rig";
+  ASSERT_TRUE(WriteRigCalibration(out, *result, inputs));
+  const std::vector<std::string> rigs = DataLines(out / "colmap" / "rigs.txt");
+  ASSERT_EQ(rigs.size(), 1u);
+  std::stringstream rig(rigs[0]);
+  std::string type;
+  int rig_id = 0, sensors = 0, ref_id = 0, id = 0, has_pose = 0;
+  double q[4], t[3];
+  rig >> rig_id >> sensors >> type >> ref_id >> type >> id >> has_pose >> q[0] >> q[1] >> q[2] >>
+      q[3] >> t[0] >> t[1] >> t[2];
+  ASSERT_TRUE(rig) << rigs[0];
+  EXPECT_EQ(sensors, 3);
+  EXPECT_EQ(ref_id, 1);
+  EXPECT_EQ(id, 2);
+  EXPECT_EQ(has_pose, 1);
+  const Eigen::Vector3d expected = result->cameras[1].c0_from_cx.inverse().translation();
+  EXPECT_NEAR(t[0], expected.x(), 1e-6);
+  EXPECT_NEAR(t[2], expected.z(), 1e-6);
+  const std::vector<std::string> frames = DataLines(out / "colmap" / "frames.txt");
+  EXPECT_EQ(frames.size(), result->trajectory.size());
+  EXPECT_EQ(DataLines(out / "colmap" / "cameras.txt").size(), 3u);
+  EXPECT_EQ(DataLines(out / "colmap" / "images.txt").size(), 2 * 3 * result->trajectory.size());
+  EXPECT_NE(ReadText(out / "rig.yaml").find("c0_from_cx:"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace lifmcr::registration
