@@ -146,7 +146,6 @@ TEST(GroundTruthMap, BadOptionsNameTheirField) {
   for (const auto& [field, spoil] :
        std::vector<std::pair<std::string, std::function<void(GroundTruthMapOptions&)>>>{
            {"merge_distance_mm", [](GroundTruthMapOptions& o) { o.merge_distance_mm = 0; }},
-           {"track_radius_px", [](GroundTruthMapOptions& o) { o.track_radius_px = -1; }},
            {"sigma", [](GroundTruthMapOptions& o) { o.features.sigma = -1; }},
            {"ratio", [](GroundTruthMapOptions& o) { o.match.ratio = 2; }}}) {
     GroundTruthMapOptions options;
