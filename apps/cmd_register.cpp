@@ -75,6 +75,7 @@ struct RegisterOptions {
   int max_features = 4000;
   std::string matching = "approximate";
   bool chain = false;
+  int guided_rounds = 2;
 };
 
 int Fail(const std::string& message, int code = 1) {
@@ -283,6 +284,9 @@ int RunRegister(const RegisterOptions& o) {
   // An `ok` row promises c0_from_cx within 5 mm / 0.25 deg of the truth
   // (registration/estimators/pose_checks.h, ForErrorBound).
   options.checks = reg::PoseCheckOptions::ForErrorBound(5.0, 0.25);
+  // Each PnP pose's map points matched again around their projections
+  // (registration/map/frame_registration.h, guided_rounds).
+  options.guided_rounds = o.guided_rounds;
   // The methods' trajectories: [method][serial] -> w0_from_cam.
   std::map<reg::RegistrationMethod, std::map<std::string, Trajectory>> trajectories;
   std::map<reg::RegistrationMethod, std::map<std::string, std::map<std::int64_t, std::string>>>
@@ -551,6 +555,10 @@ CommandRun AddRegisterCommand(CLI::App& app) {
   app.add_option("--matching", o->matching,
                  "Frame-to-map matching: approximate (the map's kd-forest, built once) or exact "
                  "(brute force, the reference; its time grows with the map)");
+  app.add_option("--guided-rounds", o->guided_rounds,
+                 "PnP: rounds of matching the map points again around the pose's projections "
+                 "(0: the descriptor search alone)")
+      ->check(CLI::NonNegativeNumber);
   app.add_flag("--chain", o->chain,
                "Register the cameras in order, each against the map extended by the frames of "
                "the cameras registered before it (a far camera through its neighbours' views)");

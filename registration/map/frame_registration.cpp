@@ -1,11 +1,13 @@
 #include "registration/map/frame_registration.h"
 
 #include "registration/estimators/tf_projection.h"
+#include "registration/map/guided_matches.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <map>
 
 namespace lifmcr::registration {
@@ -56,6 +58,11 @@ Status FrameRegistrationOptions::Check() const {
     return Error{"registration options: sigma_v_relative: expected a finite number > 0"};
   if (!(sigma_tf_px > 0) || !std::isfinite(sigma_tf_px))
     return Error{"registration options: sigma_tf_px: expected a finite number > 0"};
+  if (guided_rounds < 0) return Error{"registration options: guided_rounds: expected >= 0"};
+  if (!(guided_radius_px > 0) || !std::isfinite(guided_radius_px))
+    return Error{"registration options: guided_radius_px: expected a finite number > 0"};
+  if (!(guided_ratio > 0 && guided_ratio <= 1))
+    return Error{"registration options: guided_ratio: expected in (0, 1]"};
   if (Status s = checks.Check(); !s) return s;
   return Status::Ok();
 }
@@ -65,6 +72,9 @@ std::string FrameRegistration::BriefReport(RegistrationMethod method) const {
   int n = std::snprintf(line, sizeof line, "%s %s: %zu inliers of %zu matches, rmse %.3f px, %.1f ms",
                 std::string(ToString(method)).c_str(), status.c_str(), inliers, matches, rmse_px,
                 1e3 * seconds);
+  if (guided_matches >= 0 && n > 0 && static_cast<std::size_t>(n) < sizeof line)
+    n += std::snprintf(line + n, sizeof line - static_cast<std::size_t>(n), ", %d guided matches",
+                       guided_matches);
   if (estimated && n > 0 && static_cast<std::size_t>(n) < sizeof line)
     std::snprintf(line + n, sizeof line - static_cast<std::size_t>(n),
                   "; spread %.3f, sigma %.2f mm / %.3f deg, depth agreement %.2f (median z %.2f), "
@@ -112,6 +122,74 @@ int FilterMatchesByFundamental(const MapIndex& map, const FrameObservations& fra
   return f.outliers;
 }
 
+// Map point j (MapIndex order) matched to keypoint i of the frame.
+struct Pair {
+  int point = 0;
+  int query = 0;
+};
+
+float GuidedDescriptorDistance2(const float* a, const float* b) {
+  float sum = 0;
+  for (int k = 0; k < kDescriptorSize; ++k) {
+    const float d = a[k] - b[k];
+    sum += d * d;
+  }
+  return sum;
+}
+
+// Guided re-matching (FrameRegistrationOptions::guided_rounds): the map
+// points projected by cam_from_w0, each keypoint against those within
+// radius_px of it, the ratio test among them, each point its nearest
+// keypoint.
+std::vector<Pair> GuidedPairs(const MapIndex& map, const processing::CameraModel& camera,
+                              const FrameObservations& frame, const Pose& cam_from_w0,
+                              double radius_px, double ratio) {
+  const double w = camera.intrinsics().width_px / 2, h = camera.intrinsics().height_px / 2;
+  const double cell = radius_px, radius2 = radius_px * radius_px;
+  const int grid_w = static_cast<int>(std::ceil(w / cell)), grid_h = static_cast<int>(std::ceil(h / cell));
+  std::vector<std::vector<int>> grid(static_cast<std::size_t>(grid_w) * grid_h);
+  std::vector<Eigen::Vector2d> projected(static_cast<std::size_t>(map.size()));
+  for (int j = 0; j < map.size(); ++j) {
+    double v = 0;
+    if (!ProjectMapPoint(camera, cam_from_w0, map.points_in_w0[j], &projected[j], &v)) continue;
+    const Eigen::Vector2d& p = projected[j];
+    if (!(p.x() >= 0 && p.y() >= 0 && p.x() < w && p.y() < h)) continue;
+    grid[static_cast<std::size_t>(p.y() / cell) * grid_w + static_cast<int>(p.x() / cell)]
+        .push_back(j);
+  }
+  const float ratio2 = static_cast<float>(ratio * ratio);
+  std::map<int, std::pair<float, int>> best_of_point;  // point -> (distance^2, keypoint)
+  for (int i = 0; i < frame.features.size(); ++i) {
+    const Eigen::Vector2d& xy = frame.tf_px[i];
+    const int gx = static_cast<int>(std::floor(xy.x() / cell)),
+              gy = static_cast<int>(std::floor(xy.y() / cell));
+    int nearest = -1;
+    float d1 = std::numeric_limits<float>::infinity(), d2 = d1;
+    for (int y = std::max(0, gy - 1); y <= std::min(grid_h - 1, gy + 1); ++y)
+      for (int x = std::max(0, gx - 1); x <= std::min(grid_w - 1, gx + 1); ++x)
+        for (const int j : grid[static_cast<std::size_t>(y) * grid_w + x]) {
+          if ((projected[j] - xy).squaredNorm() > radius2) continue;
+          const float d = GuidedDescriptorDistance2(
+              frame.features.Descriptor(i),
+              map.descriptors->data() + static_cast<std::size_t>(j) * kDescriptorSize);
+          if (d < d1) {
+            d2 = d1;
+            d1 = d;
+            nearest = j;
+          } else if (d < d2) {
+            d2 = d;
+          }
+        }
+    if (nearest < 0 || !(d1 < ratio2 * d2)) continue;
+    const auto [it, added] = best_of_point.try_emplace(nearest, d1, i);
+    if (!added && d1 < it->second.first) it->second = {d1, i};
+  }
+  std::vector<Pair> pairs;
+  pairs.reserve(best_of_point.size());
+  for (const auto& [point, best] : best_of_point) pairs.push_back({point, best.second});
+  return pairs;
+}
+
 }  // namespace
 
 FrameRegistration RegisterFrame(const MapIndex& map, const processing::CameraModel& camera,
@@ -134,28 +212,57 @@ FrameRegistration RegisterFrame(const MapIndex& map, const processing::CameraMod
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
   if (method == RegistrationMethod::kPnp) {
+    PnpOptions pnp_options = options.pnp;
+    pnp_options.sigma_v_relative = options.sigma_v_relative;
+    std::vector<Pair> pairs;
+    pairs.reserve(matches.size());
+    for (const Match& m : matches) pairs.push_back({m.train, m.query});
     std::vector<Eigen::Vector3d> points;
     std::vector<Eigen::Vector2d> tf;
     std::vector<double> v;
-    for (const Match& m : matches) {
-      points.push_back(map.points_in_w0[m.train]);
-      tf.push_back(frame.tf_px[m.query]);
-      v.push_back(frame.virtual_depth[m.query]);
+    const auto solve = [&](const std::vector<Pair>& with) {
+      points.clear();
+      tf.clear();
+      v.clear();
+      for (const Pair& p : with) {
+        points.push_back(map.points_in_w0[p.point]);
+        tf.push_back(frame.tf_px[p.query]);
+        v.push_back(frame.virtual_depth[p.query]);
+      }
+      return EstimatePlenopticPnp(camera, {points, tf, v}, pnp_options);
+    };
+    PnpResult pnp = solve(pairs);
+    for (int round = 0; round < options.guided_rounds && pnp.success; ++round) {
+      std::vector<Pair> guided =
+          GuidedPairs(map, camera, frame, pnp.cam_from_world, options.guided_radius_px,
+                      options.guided_ratio);
+      result.guided_matches = static_cast<int>(guided.size());
+      // The first pose's inliers that guided matching did not pair.
+      std::vector<char> point_used(static_cast<std::size_t>(map.size()), 0),
+          query_used(static_cast<std::size_t>(frame.features.size()), 0);
+      for (const Pair& p : guided) point_used[p.point] = query_used[p.query] = 1;
+      for (std::size_t i = 0; i < pairs.size() && i < pnp.inlier_mask.size(); ++i)
+        if (pnp.inlier_mask[i] && !point_used[pairs[i].point] && !query_used[pairs[i].query])
+          guided.push_back(pairs[i]);
+      PnpResult again = solve(guided);
+      if (!again.success) {
+        solve(pairs);  // points, tf, v of the pose kept
+        break;
+      }
+      pnp = std::move(again);
+      pairs = std::move(guided);
     }
-    PnpOptions pnp_options = options.pnp;
-    pnp_options.sigma_v_relative = options.sigma_v_relative;
-    const PnpResult pnp = EstimatePlenopticPnp(camera, {points, tf, v}, pnp_options);
     result.inliers = pnp.num_inliers;
     result.rmse_px = pnp.rmse_px;
     if (!pnp.success) return finish(pnp.status);
     result.w0_from_cam = Inverse(PoseWithCovariance{pnp.cam_from_world, pnp.covariance});
     std::vector<Eigen::Vector3d> inlier_points_in_w0;
     std::vector<double> inlier_v;
-    for (std::size_t i = 0; i < matches.size() && i < pnp.inlier_mask.size(); ++i) {
+    for (std::size_t i = 0; i < pairs.size() && i < pnp.inlier_mask.size(); ++i) {
       if (!pnp.inlier_mask[i]) continue;
-      result.inlier_points.push_back(matches[i].train);
+      result.inlier_points.push_back(pairs[i].point);
       result.inlier_tf_px.push_back(tf[i]);
-      result.inlier_queries.push_back(matches[i].query);
+      result.inlier_queries.push_back(pairs[i].query);
       inlier_points_in_w0.push_back(points[i]);
       inlier_v.push_back(v[i]);
     }

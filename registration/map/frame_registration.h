@@ -70,6 +70,23 @@ struct FrameRegistrationOptions {
   // pnp.sigma_v_relative).
   double sigma_v_relative = 0.007;
   double sigma_tf_px = 0.3;         // keypoint noise on the TF grid (px), > 0
+  // PnP: guided re-matching. The descriptor search against the whole map
+  // keeps a keypoint only when its nearest map point is much nearer than
+  // the second (the ratio test): a view far from the map's, whose
+  // descriptors have changed, keeps few, and a pose from few matches
+  // bunched in part of the image is refused (pose_checks.h) or inaccurate.
+  // With a first pose, each map point it projects into the image is a
+  // candidate only for the keypoints within guided_radius_px of its
+  // projection, and the ratio test is taken among those candidates
+  // (guided_ratio): the rest of the map no longer competes, so the same
+  // keypoints find their points where the global test could not tell them
+  // apart. Each point keeps its nearest keypoint; the first pose's inliers
+  // not matched so join them; PnP runs again (LO-RANSAC from scratch) on
+  // them. guided_rounds times while PnP succeeds (0: off, the live
+  // localizer's default: its relocalisations are followed by tracking).
+  int guided_rounds = 0;          // >= 0
+  double guided_radius_px = 4.0;  // TF px, > 0
+  double guided_ratio = 0.8;      // (0, 1]
   // The checks every PnP pose passes (pose_checks.h; its depth check with
   // sigma_v_relative); a pose that fails is returned with success false and
   // the reason as status.
@@ -82,6 +99,7 @@ struct FrameRegistration {
   std::string status = "not run";  // "ok" or why it failed
   PoseWithCovariance w0_from_cam;
   std::size_t matches = 0;
+  int guided_matches = -1;  // of the last guided round (-1: none ran)
   std::size_t inliers = 0;
   double rmse_px = 0;
   double seconds = 0;        // matching and estimation

@@ -172,6 +172,74 @@ TEST(CliRegister, TheMapIndexRegistersAsTheExactMatcherDoes) {
       << bad.err;
 }
 
+// The fast handheld rig (5x the default speed), where camera X's view is
+// far from camera 0's map: matching each PnP pose's map points again around
+// their projections (--guided-rounds, registration/map/frame_registration.h)
+// finds many more of camera X's keypoints than the descriptor search alone,
+// and no row marked ok is beyond the 5 mm / 0.25 deg bound either way.
+TEST(CliRegister, GuidedRematchingFindsMoreInliersOnTheFastRig) {
+  test::TempDir dir;
+  test::WriteFile(dir / "fast.yaml", "rig: {speed_scale: 5}\n");
+  const test::CommandResult synth = test::RunLifmcr(
+      "synth --out " + (dir / "data").string() + " --preset small --config " +
+      (dir / "fast.yaml").string() + " --frames 3 --cameras 2 --motion handheld --quiet");
+  ASSERT_EQ(synth.exit_code, 0) << synth.err;
+  const fs::path seq = dir / "data" / "00_Synthetic" / "Sequence_00";
+  std::map<int, std::vector<RegistrationRow>> rows;
+  std::map<int, std::string> progress;  // stderr: each frame's inliers, refused poses' too
+  for (const int rounds : {0, 2}) {
+    const fs::path out = dir / ("out_" + std::to_string(rounds));
+    const test::CommandResult r = test::RunLifmcr(
+        "register " + seq.string() + " --reference-from-ground-truth --observations ground-truth "
+        "--method pnp --guided-rounds " + std::to_string(rounds) + " --out " + out.string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(r.err.find("guided matches") != std::string::npos, rounds > 0) << r.err;
+    const std::size_t at = r.out.find("pnp checks");
+    ASSERT_NE(at, std::string::npos) << r.out;
+    int beyond = -1;
+    ASSERT_EQ(std::sscanf(r.out.c_str() + at, "pnp checks %d ok rows beyond", &beyond), 1);
+    EXPECT_EQ(beyond, 0) << rounds << " rounds";
+    Expected<RegistrationTable> table = ReadRegistrationCsv(out / "registration.csv");
+    ASSERT_TRUE(table) << table.error().message;
+    rows[rounds] = table->rows;
+    progress[rounds] = r.err;
+  }
+  ASSERT_EQ(rows[0].size(), 3u);
+  ASSERT_EQ(rows[2].size(), 3u);
+  // Camera X's inliers per frame from the progress lines ("camera X frame
+  // F: ... pnp STATUS: N inliers of M matches").
+  const std::string x = rows[0].front().camera;
+  const auto inliers_of = [&](const std::string& err) {
+    std::vector<long> n;
+    for (std::size_t at = err.find("camera " + x + " frame "); at != std::string::npos;
+         at = err.find("camera " + x + " frame ", at + 1)) {
+      const std::size_t end = err.find('\n', at);
+      const std::string line = err.substr(at, end - at);
+      const std::size_t of = line.find(" inliers of ");
+      if (of == std::string::npos) continue;
+      const std::size_t begin = line.rfind(' ', of - 1) + 1;
+      n.push_back(std::stol(line.substr(begin, of - begin)));
+    }
+    return n;
+  };
+  const std::vector<long> alone = inliers_of(progress[0]), guided = inliers_of(progress[2]);
+  ASSERT_EQ(alone.size(), 3u) << progress[0];
+  ASSERT_EQ(guided.size(), 3u) << progress[2];
+  long sum_alone = 0, sum_guided = 0;
+  int ok_alone = 0, ok_guided = 0;
+  for (std::size_t i = 0; i < 3; ++i) {
+    std::printf("frame %lld: %ld inliers (%s) alone, %ld (%s) guided\n",
+                static_cast<long long>(rows[0][i].frame), alone[i], rows[0][i].status.c_str(),
+                guided[i], rows[2][i].status.c_str());
+    sum_alone += alone[i];
+    sum_guided += guided[i];
+    ok_alone += rows[0][i].status == "ok";
+    ok_guided += rows[2][i].status == "ok";
+  }
+  EXPECT_GT(sum_guided, sum_alone + sum_alone / 4);
+  EXPECT_GE(ok_guided, ok_alone);
+}
+
 TEST(CliRegister, UsageErrorsSayWhatIsExpected) {
   test::TempDir dir;
   const test::CommandResult method =
