@@ -63,8 +63,7 @@ struct CandidateGate {
 struct Candidate {
   float score = 0;
   int x = 0, y = 0;
-  int axis = 0;   // best ring-1 axis (0..2)
-  int axis2 = 0;  // best ring-2 axis (0..2)
+  int axis = 0;  // best ring-1 axis (0..2)
 };
 
 }  // namespace
@@ -260,6 +259,64 @@ Expected<std::unique_ptr<LensDepthEstimator>> LensDepthEstimator::Create(
 
 namespace {
 
+// Whether nb sees the whole patch of p (kAlong x lines, reaching
+// sqrt(4 + (lines / 2)^2) px from p) at z and one search step either side,
+// within the disc of radius_px + 0.5: else a search around z finds its
+// minimum at the end of its run (the costs there are NaN) and fails.
+double PatchReach(int lines) { return lines == 1 ? 2.0 : std::sqrt(5.0); }
+
+bool SeesPatchAround(const detail::MatchParams& params, double radius_px, int lines, float px,
+                     float py, const detail::Neighbour& nb, double z) {
+  const double reach = PatchReach(lines);
+  const double dz = params.step_px / (params.lambda * nb.length);
+  double lo = z - dz, hi = z + dz;
+  if (detail::SearchSteps(params, radius_px - reach, px, py, nb, &lo, &hi) == 0) return false;
+  return lo <= z - dz && z + dz <= hi;
+}
+
+// The reference patch of epipolar_search.h's SampleReference (the same
+// samples, to the last bit), its lines read by the strip kernel where the
+// patch lies inside the disc and well inside the frame (the scalar
+// bilinear reads cost about 130 instructions a sample; the ring-2 patch was
+// an eighth of the estimator's instructions on a `medium` frame). Line b
+// is StripLine {p, e, b e_y, b e_x, along0 -2, step 1, 5 samples}: sample i
+// at t = 2 - i, so patch column a = -2..2 is strip sample 2 - a.
+template <int kLines, int kChannels>
+bool SampleReferencePatch(const RawGrey<kChannels>& grey, int width, int height, float px,
+                          float py, float e_x, float e_y, float cx, float cy, float r2,
+                          float* out) {
+  constexpr int kHalf = kLines / 2;
+  constexpr float kReach = kHalf == 0 ? 2.0f + 1.0f : 2.2361f + 1.0f;  // as SampleReference
+  const float dx = px - cx, dy = py - cy;
+  const float inner = std::sqrt(r2) - kReach;
+  if (grey.kernels == nullptr || !(inner > 0 && dx * dx + dy * dy <= inner * inner) ||
+      px < 3 || py < 3 || px + 3 > width - 3 || py + 3 > height - 3)
+    return detail::SampleReference<kLines>(grey, width, height, px, py, e_x, e_y, cx, cy, r2,
+                                           out);
+  float line[detail::kAlong + detail::kStripPad];
+  for (int b = -kHalf; b <= kHalf; ++b) {
+    detail::StripLine l;
+    l.px = px;
+    l.py = py;
+    l.e_x = e_x;
+    l.e_y = e_y;
+    l.b_ey = static_cast<float>(b) * e_y;
+    l.b_ex = static_cast<float>(b) * e_x;
+    l.along0 = -2;
+    l.step = 1;
+    l.n = detail::kAlong;
+    l.j_lo = 0;
+    l.j_hi = detail::kAlong - 1;
+    grey.kernels->sample(grey.source, l, line);
+    float* row = out + (b + kHalf) * detail::kAlong;
+    for (int a = -2; a <= 2; ++a) {
+      row[a + 2] = line[2 - a];
+      if (std::isnan(row[a + 2])) return false;
+    }
+  }
+  return true;
+}
+
 // One micro image: candidates, searches, fusion (lens_depth.h, steps 1-3).
 template <int kChannels>
 void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
@@ -309,9 +366,9 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
   const float centre_gain = grey.Gain(ix, iy);
   if (!std::isfinite(centre_gain)) return;
   const float to_grey = 0.5f * centre_gain / kChannels;
-  // One candidate with its score and best ring-1 axis: the ring-2 axis,
-  // the textured flag and the `samples` best.
-  auto consider = [&](int x, int y, float gx, float gy, float score, int axis) {
+  // One candidate with its score and best ring-1 axis: the textured flag
+  // and the `samples` best (the ring-2 axis is chosen when it is searched).
+  auto consider = [&](int x, int y, float score, int axis) {
     if (score < thr) return;
     Candidate c;
     c.x = x;
@@ -319,14 +376,6 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
     c.score = score;
     c.axis = axis;
     any_textured = true;
-    float best2 = -1;
-    for (int d = 0; d < 3; ++d) {
-      const float g = std::abs(gx * axis_e[3 + d][0] + gy * axis_e[3 + d][1]);
-      if (g > best2) {
-        best2 = g;
-        c.axis2 = d;
-      }
-    }
     // Keep the `samples` best, sorted descending (insertion).
     if (n_best < o.samples) {
       best[n_best++] = c;
@@ -364,13 +413,9 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
       const int n = std::min(kChunk, gate.n - q0);
       grey.kernels->scores(grey.source, ix, iy, gate.dx + q0, gate.dy + q0, n, to_grey, ax, ay,
                            mask, score, axis);
-      for (int q = 0; q < n; ++q) {
-        if (score[q] < thr) continue;
-        const int x = ix + gate.dx[q0 + q], y = iy + gate.dy[q0 + q];
-        float gx = 0, gy = 0;
-        gradient(x, y, &gx, &gy);
-        consider(x, y, gx, gy, score[q], axis[q]);
-      }
+      for (int q = 0; q < n; ++q)
+        if (score[q] >= thr)
+          consider(ix + gate.dx[q0 + q], iy + gate.dy[q0 + q], score[q], axis[q]);
     }
   } else {
     for (const std::array<std::int16_t, 2>& offset : candidates) {
@@ -388,7 +433,7 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
           axis = d;
         }
       }
-      consider(x, y, gx, gy, score, axis);
+      consider(x, y, score, axis);
     }
   }
   *textured_out = any_textured;
@@ -405,19 +450,39 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
     const Candidate& c = best[s];
     const float px = static_cast<float>(c.x), py = static_cast<float>(c.y);
     ++*searched;
-    // The patch along the axis's unflipped direction and one baseline's
-    // search with it (a flipped neighbour reads it reversed).
+    // The patch along the axis's unflipped direction and the searches of
+    // the axis's neighbours that `wanted(nb)` keeps with it (a flipped
+    // neighbour reads it reversed); the patch is sampled only when one is
+    // searched.
     auto search_axis = [&](auto lines, int axis, const detail::MatchParams& params, double z0,
-                           double z1, detail::Estimate* out, int* n_out) {
+                           double z1, auto&& wanted, detail::Estimate* out, int* n_out) {
       constexpr int kLines = decltype(lines)::value;
       constexpr int kN = detail::kAlong * kLines;
-      if (axis_n[axis] == 0) return;
-      if (!detail::SampleReference<kLines>(grey, f.width, f.height, px, py, axis_e[axis][0],
-                                           axis_e[axis][1], fcx, fcy, ref_r2, patch))
-        return;
-      const double g2 = detail::PatchGradient2<kLines>(patch);
-      for (int q = 0; q < axis_n[axis]; ++q) {
-        const detail::Neighbour& nb = nbs[axis_nb[axis][q]];
+      bool sampled = false;
+      double g2 = 0;
+      // The neighbour that sees the whole patch over more of [z0, z1]
+      // first: the likelier to see it at its depth.
+      std::array<int, 2> order{0, 1};
+      if (axis_n[axis] == 2) {
+        std::array<double, 2> seen{};
+        for (int q = 0; q < 2; ++q) {
+          double vis_lo = z0, vis_hi = z1;
+          if (detail::SearchSteps(params, f.radius_px - PatchReach(kLines), px, py,
+                                  nbs[axis_nb[axis][q]], &vis_lo, &vis_hi) > 0)
+            seen[q] = vis_hi - vis_lo;
+        }
+        if (seen[1] > seen[0]) order = {1, 0};
+      }
+      for (int qq = 0; qq < axis_n[axis]; ++qq) {
+        const detail::Neighbour& nb = nbs[axis_nb[axis][order[qq]]];
+        if (!wanted(nb)) continue;
+        if (!sampled) {
+          if (!SampleReferencePatch<kLines>(grey, f.width, f.height, px, py, axis_e[axis][0],
+                                            axis_e[axis][1], fcx, fcy, ref_r2, patch))
+            return;
+          g2 = detail::PatchGradient2<kLines>(patch);
+          sampled = true;
+        }
         for (int m = 0; m < kN; ++m) ref[m] = nb.flipped ? patch[kN - 1 - m] : patch[m];
         detail::Estimate e;
         if (detail::MatchAlong<kLines>(params, grey, f.width, f.height, f.radius_px, px, py, ref,
@@ -427,20 +492,59 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
     };
     std::array<detail::Estimate, 4> mine;
     int n_mine = 0;
+    // Ring 1 over the whole range. Its two neighbours see p at different
+    // depths (the one on p's side of the micro image at the nearer ones);
+    // once one has found z, the other is searched only where it sees p at
+    // z with a step to spare (else its minimum lies at the end of its run
+    // and it fails: half of the ring-1 searches of a `medium` frame did).
+    auto ring1_wanted = [&](const detail::Neighbour& nb) {
+      if (n_mine > 0)
+        return SeesPatchAround(ring1, f.radius_px, o.ring1_lines, px, py, nb, mine[0].z);
+      // One that sees the whole patch at fewer than 3 depths of the range
+      // finds nothing.
+      double vis_lo = lo, vis_hi = hi;
+      return detail::SearchSteps(ring1, f.radius_px - PatchReach(o.ring1_lines), px, py, nb,
+                                 &vis_lo, &vis_hi) > 0;
+    };
     if (o.ring1_lines == 1)
-      search_axis(std::integral_constant<int, 1>{}, c.axis, ring1, lo, hi, mine.data(), &n_mine);
+      search_axis(std::integral_constant<int, 1>{}, c.axis, ring1, lo, hi, ring1_wanted,
+                  mine.data(), &n_mine);
     else
-      search_axis(std::integral_constant<int, 3>{}, c.axis, ring1, lo, hi, mine.data(), &n_mine);
+      search_axis(std::integral_constant<int, 3>{}, c.axis, ring1, lo, hi, ring1_wanted,
+                  mine.data(), &n_mine);
     if (n_mine == 0) continue;
     double z = 0, sigma = 0;
     // The pixel's ring-1 estimates fused with the dense estimator's gate (3 %).
     if (detail::Fuse(mine.data(), n_mine, 0.03, &z, &sigma) == 0) continue;
     if (o.rings >= 2) {
       // |Delta| of ring 2 is sqrt(3) D: lambda sqrt(3) D px of disparity per unit z.
-      const double span =
-          std::max(3 * sigma, 2 * o.ring2_step_px / (f.lambda * std::sqrt(3.0) * f.grid.PitchPx()));
-      search_axis(std::integral_constant<int, 3>{}, 3 + c.axis2, ring2, std::max(lo, z - span),
-                  std::min(hi, z + span), mine.data(), &n_mine);
+      const double dz2 = o.ring2_step_px / (f.lambda * std::sqrt(3.0) * f.grid.PitchPx());
+      const double span = std::max(3 * sigma, 2 * dz2);
+      const double z0 = std::max(lo, z - span), z1 = std::min(hi, z + span);
+      // A ring-2 neighbour that sees p at z with a step to spare either
+      // side (at a micro image's small virtual depths most see p at no
+      // depth near z: 8 of 10 ring-2 searches of a `medium` frame found
+      // nothing); of the axes with one, the one with the largest gradient
+      // of the grey along it.
+      auto ring2_wanted = [&](const detail::Neighbour& nb) {
+        return SeesPatchAround(ring2, f.radius_px, 3, px, py, nb, z);
+      };
+      float gx = 0, gy = 0;
+      gradient(c.x, c.y, &gx, &gy);
+      int axis2 = -1;
+      float best2 = -1;
+      for (int d = 0; d < 3; ++d) {
+        bool sees = false;
+        for (int q = 0; q < axis_n[3 + d] && !sees; ++q) sees = ring2_wanted(nbs[axis_nb[3 + d][q]]);
+        const float g = std::abs(gx * axis_e[3 + d][0] + gy * axis_e[3 + d][1]);
+        if (sees && g > best2) {
+          best2 = g;
+          axis2 = d;
+        }
+      }
+      if (axis2 >= 0)
+        search_axis(std::integral_constant<int, 3>{}, 3 + axis2, ring2, z0, z1, ring2_wanted,
+                    mine.data(), &n_mine);
     }
     for (int q = 0; q < n_mine; ++q) all[n_all++] = mine[q];
     // Enough agreeing estimates: the remaining (less textured) pixels are not searched.

@@ -16,10 +16,18 @@
 // 2. Per searched pixel p, on its best ring-1 axis: the two ring-1
 //    neighbours along it (both of the other types), the epipolar search of
 //    processing/epipolar_search.h over the union of the MLA file's depth
-//    ranges in steps of ring1_step_px with a patch of ring1_lines lines;
-//    then, around their fusion (+- 3 sigma, at least two steps), the two
-//    ring-2 neighbours (|Delta| = sqrt(3) D, the same type) on the ring-2
-//    axis with the largest gradient, in steps of ring2_step_px (5 x 3).
+//    ranges in steps of ring1_step_px with a patch of ring1_lines lines,
+//    first the neighbour that sees the whole patch over more of the range;
+//    the second only if none has found a depth z yet or it sees the patch
+//    at z (a step either side). Then, around their fusion (+- 3 sigma, at
+//    least two steps), the ring-2 neighbours (|Delta| = sqrt(3) D, the
+//    same type) that see the patch at z, on the ring-2 axis with the
+//    largest gradient among those with one, in steps of ring2_step_px
+//    (5 x 3). A neighbour that does not see the patch at the depth finds
+//    its minimum at the end of its run and fails: skipping it changes
+//    nothing but the time, and choosing the ring-2 axis so gives more
+//    ring-2 estimates (on a micro image's small virtual depths most ring-2
+//    neighbours see a pixel at no depth near z).
 // 3. All estimates of the micro image (up to 4 per searched pixel) are fused
 //    in z = 1 / v weighted by 1 / sigma^2, without those farther than
 //    max(3 sigma, fuse_gate z) from their median; at least min_estimates
