@@ -23,7 +23,9 @@
 //               [--stride 0|1|2] [--ring1 1..6] [--ring2 0..6] [--type-ranges 0|1] (DepthOptions)
 //               [--lens-only 1] (dense baseline and per-lens depth only: no grid fit, naive
 //               references or TF) [--dense 0] (with --lens-only 1: no dense baseline)
-//               [--lens-path scalar|simd|both] [--lens-samples N]
+//               [--lens-path scalar|simd|both] [--lens-samples N] [--lens-previous 0|1]
+//               (1: each per-lens run seeded by the run before's map, the temporal seed of
+//               a camera that did not move: its best case)
 //               [--seed full|seeded|both] [--dense-path scalar|simd|both] [--seed-margin PX]
 //               [--seed-ring1 1..6] [--seed-ring2 0..6] [--seed-cost-ratio R] [--seed-stride 0..8]
 //               (DepthOptions)
@@ -260,6 +262,7 @@ constexpr char kUsage[] =
     "                   [--crop PX] [--stride 0|1|2] [--ring1 1..6] [--ring2 0..6]\n"
     "                   [--type-ranges 0|1] [--lens-only 1] [--dense 0|1]\n"
     "                   [--lens-path scalar|simd|both] [--lens-samples N]\n"
+    "                   [--lens-previous 0|1]\n"
     "                   [--seed full|seeded|both] [--dense-path scalar|simd|both]\n"
     "                   [--seed-margin PX] [--seed-ring1 1..6] [--seed-ring2 0..6]\n"
     "                   [--seed-cost-ratio R] [--seed-stride 0..8] [--frames FILE]\n"
@@ -269,7 +272,9 @@ constexpr char kUsage[] =
     "beside a brute-force block matcher on a --crop, and the TF image beside one thread and\n"
     "a naive renderer. Run under `taskset -c 0,1` for the 2-core figure. --frames FILE keeps\n"
     "the rendered raw, white and true depth there (rendered and written when FILE does not\n"
-    "exist, read when it holds this preset and scene; the r32 frames take 45 s to render).\n";
+    "exist, read when it holds this preset and scene; the r32 frames take 45 s to render).\n"
+    "--lens-previous 1 seeds each per-lens run by the run before's map (the temporal seed\n"
+    "of a camera that did not move: its best case, not a moving camera's figure).\n";
 
 int main(int argc, char** argv) {
   if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
@@ -277,7 +282,7 @@ int main(int argc, char** argv) {
   int repeat = 3, crop = 256;
   DepthOptions depth_options;
   LensDepthOptions lens_options;
-  bool lens_only = false, run_dense = true;
+  bool lens_only = false, run_dense = true, lens_previous = false;
   std::string lens_path = "both", dense_path = "both", seed_mode = "both", frames_file;
   for (int k = 1; k + 1 < argc; k += 2) {
     if (!std::strcmp(argv[k], "--preset"))
@@ -316,6 +321,8 @@ int main(int argc, char** argv) {
       depth_options.seed_margin_px = std::atof(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--frames"))
       frames_file = argv[k + 1];
+    else if (!std::strcmp(argv[k], "--lens-previous"))
+      lens_previous = std::atoi(argv[k + 1]) != 0;
     else if (!std::strcmp(argv[k], "--lens-samples"))
       lens_options.samples = std::atoi(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--ring2"))
@@ -553,13 +560,17 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "lens depth: %s\n", estimator.error().message.c_str());
       return 2;
     }
-    LensDepthMap lens;
+    // --lens-previous 1: each run seeded by the run before's map (the
+    // temporal seed of a camera that did not move: its best case).
+    std::array<LensDepthMap, 2> maps;
     TfImage preview;
     std::vector<double> lens_s, lens_cpu_s, preview_s, preview_cpu_s;
     for (int r = 0; r <= repeat; ++r) {  // run 0: warm-up (first touch), not timed
+      LensDepthMap& lens = maps[r % 2];
+      const LensDepthMap* previous = lens_previous && r > 0 ? &maps[(r + 1) % 2] : nullptr;
       t0 = Now();
       const double cpu0 = ProcessCpuSeconds();
-      if (!(*estimator)->Estimate(raw.View(), &lens).ok()) return 1;
+      if (!(*estimator)->Estimate(raw.View(), &lens, previous).ok()) return 1;
       const double t1 = Now();
       const double cpu1 = ProcessCpuSeconds();
       if (r > 0) lens_cpu_s.push_back(cpu1 - cpu0);
@@ -570,6 +581,7 @@ int main(int argc, char** argv) {
         preview_cpu_s.push_back(ProcessCpuSeconds() - cpu1);
       }
     }
+    const LensDepthMap& lens = maps[repeat % 2];
     std::vector<float> truth, dense;
     LensMedianOf((*estimator)->geometry(), lens.grid, raw.virtual_depth, 0.5, &truth);
     if (run_dense)

@@ -11,6 +11,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <utility>
 #include <array>
 #include <atomic>
 #include <chrono>
@@ -25,6 +26,8 @@ namespace {
 
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 constexpr int kMaxSamples = 16;
+// Pixels the temporal seed searches at most before the full search.
+constexpr int kSeedPixels = 2;
 
 // The devignetted grey of the raw frame at an integer pixel and bilinear:
 // the channel mean times the gain (plenoptic_frame.h), NaN where the gain is.
@@ -64,8 +67,7 @@ struct CandidateGate {
 struct Candidate {
   float score = 0;
   int x = 0, y = 0;
-  int axis = 0;   // best ring-1 axis (0..2)
-  int axis2 = 0;  // best ring-2 axis (0..2)
+  int axis = 0;  // best ring-1 axis (0..2)
 };
 
 }  // namespace
@@ -99,16 +101,22 @@ Status LensDepthOptions::Check() const {
   // A divisor of the confidence.
   if (!(max_rel_sigma > 0 && max_rel_sigma <= 10))
     return Error{"lens depth options: max_rel_sigma: expected in (0, 10]"};
+  if (!(seed_window > 0 && seed_window <= 1))
+    return Error{"lens depth options: seed_window: expected in (0, 1]"};
   return Status::Ok();
 }
 
 std::string LensDepthStats::BriefReport() const {
-  char buf[256];
-  std::snprintf(buf, sizeof buf,
-                "lens depth: %lld of %lld textured lenses (%.1f %%; %lld lenses), %lld pixels "
-                "searched, %.4f s, kernels %s",
-                estimated, textured, textured ? 100.0 * estimated / textured : 0.0, lenses,
-                searched_pixels, seconds, kernels[0] ? kernels : "none");
+  char buf[320];
+  const int n = std::snprintf(
+      buf, sizeof buf,
+      "lens depth: %lld of %lld textured lenses (%.1f %%; %lld lenses), %lld pixels searched, "
+      "%.4f s, kernels %s",
+      estimated, textured, textured ? 100.0 * estimated / textured : 0.0, lenses, searched_pixels,
+      seconds, kernels[0] ? kernels : "none");
+  if (seeded > 0 && n > 0 && n < static_cast<int>(sizeof buf))
+    std::snprintf(buf + n, sizeof buf - n, ", previous depth held in %lld of %lld lenses",
+                  seed_held, seeded);
   return buf;
 }
 
@@ -261,6 +269,64 @@ Expected<std::unique_ptr<LensDepthEstimator>> LensDepthEstimator::Create(
 
 namespace {
 
+// Whether nb sees the whole patch of p (kAlong x lines, reaching
+// sqrt(4 + (lines / 2)^2) px from p) at z and one search step either side,
+// within the disc of radius_px + 0.5: else a search around z finds its
+// minimum at the end of its run (the costs there are NaN) and fails.
+double PatchReach(int lines) { return lines == 1 ? 2.0 : std::sqrt(5.0); }
+
+bool SeesPatchAround(const detail::MatchParams& params, double radius_px, int lines, float px,
+                     float py, const detail::Neighbour& nb, double z) {
+  const double reach = PatchReach(lines);
+  const double dz = params.step_px / (params.lambda * nb.length);
+  double lo = z - dz, hi = z + dz;
+  if (detail::SearchSteps(params, radius_px - reach, px, py, nb, &lo, &hi) == 0) return false;
+  return lo <= z - dz && z + dz <= hi;
+}
+
+// The reference patch of epipolar_search.h's SampleReference (the same
+// samples, to the last bit), its lines read by the strip kernel where the
+// patch lies inside the disc and well inside the frame (the scalar
+// bilinear reads cost about 130 instructions a sample; the ring-2 patch was
+// an eighth of the estimator's instructions on a `medium` frame). Line b
+// is StripLine {p, e, b e_y, b e_x, along0 -2, step 1, 5 samples}: sample i
+// at t = 2 - i, so patch column a = -2..2 is strip sample 2 - a.
+template <int kLines, int kChannels>
+bool SampleReferencePatch(const RawGrey<kChannels>& grey, int width, int height, float px,
+                          float py, float e_x, float e_y, float cx, float cy, float r2,
+                          float* out) {
+  constexpr int kHalf = kLines / 2;
+  constexpr float kReach = kHalf == 0 ? 2.0f + 1.0f : 2.2361f + 1.0f;  // as SampleReference
+  const float dx = px - cx, dy = py - cy;
+  const float inner = std::sqrt(r2) - kReach;
+  if (grey.kernels == nullptr || !(inner > 0 && dx * dx + dy * dy <= inner * inner) ||
+      px < 3 || py < 3 || px + 3 > width - 3 || py + 3 > height - 3)
+    return detail::SampleReference<kLines>(grey, width, height, px, py, e_x, e_y, cx, cy, r2,
+                                           out);
+  float line[detail::kAlong + detail::kStripPad];
+  for (int b = -kHalf; b <= kHalf; ++b) {
+    detail::StripLine l;
+    l.px = px;
+    l.py = py;
+    l.e_x = e_x;
+    l.e_y = e_y;
+    l.b_ey = static_cast<float>(b) * e_y;
+    l.b_ex = static_cast<float>(b) * e_x;
+    l.along0 = -2;
+    l.step = 1;
+    l.n = detail::kAlong;
+    l.j_lo = 0;
+    l.j_hi = detail::kAlong - 1;
+    grey.kernels->sample(grey.source, l, line);
+    float* row = out + (b + kHalf) * detail::kAlong;
+    for (int a = -2; a <= 2; ++a) {
+      row[a + 2] = line[2 - a];
+      if (std::isnan(row[a + 2])) return false;
+    }
+  }
+  return true;
+}
+
 // One micro image: candidates, searches, fusion (lens_depth.h, steps 1-3).
 template <int kChannels>
 void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
@@ -268,8 +334,9 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
                   const std::vector<std::array<std::int16_t, 2>>& candidates,
                   const CandidateGate& gate, const detail::SearchRange& range,
                   const detail::MatchParams& ring1, const detail::MatchParams& ring2,
-                  const RawGrey<kChannels>& grey, int k, float* v_out, float* sigma_out,
-                  float* conf_out, std::uint8_t* textured_out, long long* searched) {
+                  const RawGrey<kChannels>& grey, int k, double prior_z, double prior_sigma_z,
+                  float* v_out, float* sigma_out, float* conf_out, std::uint8_t* textured_out,
+                  long long* searched, long long* seeded, long long* held) {
   const MicroImage& lens = f.lenses[k];
   // The neighbours that exist, from the lattice's templates (c_n - c_k =
   // A (di, dj) for every lens, and the type rule (i - j) mod 3 makes ring 1
@@ -310,9 +377,9 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
   const float centre_gain = grey.Gain(ix, iy);
   if (!std::isfinite(centre_gain)) return;
   const float to_grey = 0.5f * centre_gain / kChannels;
-  // One candidate with its score and best ring-1 axis: the ring-2 axis,
-  // the textured flag and the `samples` best.
-  auto consider = [&](int x, int y, float gx, float gy, float score, int axis) {
+  // One candidate with its score and best ring-1 axis: the textured flag
+  // and the `samples` best (the ring-2 axis is chosen when it is searched).
+  auto consider = [&](int x, int y, float score, int axis) {
     if (score < thr) return;
     Candidate c;
     c.x = x;
@@ -320,14 +387,6 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
     c.score = score;
     c.axis = axis;
     any_textured = true;
-    float best2 = -1;
-    for (int d = 0; d < 3; ++d) {
-      const float g = std::abs(gx * axis_e[3 + d][0] + gy * axis_e[3 + d][1]);
-      if (g > best2) {
-        best2 = g;
-        c.axis2 = d;
-      }
-    }
     // Keep the `samples` best, sorted descending (insertion).
     if (n_best < o.samples) {
       best[n_best++] = c;
@@ -365,13 +424,9 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
       const int n = std::min(kChunk, gate.n - q0);
       grey.kernels->scores(grey.source, ix, iy, gate.dx + q0, gate.dy + q0, n, to_grey, ax, ay,
                            mask, score, axis);
-      for (int q = 0; q < n; ++q) {
-        if (score[q] < thr) continue;
-        const int x = ix + gate.dx[q0 + q], y = iy + gate.dy[q0 + q];
-        float gx = 0, gy = 0;
-        gradient(x, y, &gx, &gy);
-        consider(x, y, gx, gy, score[q], axis[q]);
-      }
+      for (int q = 0; q < n; ++q)
+        if (score[q] >= thr)
+          consider(ix + gate.dx[q0 + q], iy + gate.dy[q0 + q], score[q], axis[q]);
     }
   } else {
     for (const std::array<std::int16_t, 2>& offset : candidates) {
@@ -389,7 +444,7 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
           axis = d;
         }
       }
-      consider(x, y, gx, gy, score, axis);
+      consider(x, y, score, axis);
     }
   }
   *textured_out = any_textured;
@@ -402,46 +457,205 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
   int n_all = 0;
   float patch[detail::kSamples], ref[detail::kSamples];
   const double lo = range.union_lo, hi = range.union_hi;
+  float px = 0, py = 0;  // the pixel searched
+  // The patch along the axis's unflipped direction and the searches of
+  // the axis's neighbours that `wanted(nb)` keeps with it (a flipped
+  // neighbour reads it reversed); the patch is sampled only when one is
+  // searched.
+  auto search_axis = [&](auto lines, int axis, const detail::MatchParams& params, double z0,
+                         double z1, auto&& wanted, detail::Estimate* out, int* n_out) {
+    constexpr int kLines = decltype(lines)::value;
+    constexpr int kN = detail::kAlong * kLines;
+    bool sampled = false;
+    double g2 = 0;
+    // The neighbour that sees the whole patch over more of [z0, z1]
+    // first: the likelier to see it at its depth.
+    std::array<int, 2> order{0, 1};
+    if (axis_n[axis] == 2) {
+      std::array<double, 2> seen{};
+      for (int q = 0; q < 2; ++q) {
+        double vis_lo = z0, vis_hi = z1;
+        if (detail::SearchSteps(params, f.radius_px - PatchReach(kLines), px, py,
+                                nbs[axis_nb[axis][q]], &vis_lo, &vis_hi) > 0)
+          seen[q] = vis_hi - vis_lo;
+      }
+      if (seen[1] > seen[0]) order = {1, 0};
+    }
+    for (int qq = 0; qq < axis_n[axis]; ++qq) {
+      const detail::Neighbour& nb = nbs[axis_nb[axis][order[qq]]];
+      if (!wanted(nb)) continue;
+      if (!sampled) {
+        if (!SampleReferencePatch<kLines>(grey, f.width, f.height, px, py, axis_e[axis][0],
+                                          axis_e[axis][1], fcx, fcy, ref_r2, patch))
+          return;
+        g2 = detail::PatchGradient2<kLines>(patch);
+        sampled = true;
+      }
+      for (int m = 0; m < kN; ++m) ref[m] = nb.flipped ? patch[kN - 1 - m] : patch[m];
+      detail::Estimate e;
+      if (detail::MatchAlong<kLines>(params, grey, f.width, f.height, f.radius_px, px, py, ref,
+                                     g2, nb, z0, z1, &e))
+        out[(*n_out)++] = e;
+    }
+  };
+
+  // 2a. The temporal seed (lens_depth.h): up to kSeedPixels of the most
+  // textured pixels, each searched around the previous depth only; it
+  // holds at the first with two agreeing estimates that agree with the
+  // previous depth. Else the full search below, from nothing.
+  if (prior_z > 0 && std::isfinite(prior_z)) ++*seeded;
+  std::array<detail::Estimate, 4> found;
+  int n_found = 0;
+  for (int s = 0; s < std::min(n_best, kSeedPixels) && prior_z > 0 && std::isfinite(prior_z);
+       ++s) {
+    ++*searched;
+    const Candidate& c = best[s];
+    px = static_cast<float>(c.x);
+    py = static_cast<float>(c.y);
+    float gx = 0, gy = 0;
+    gradient(c.x, c.y, &gx, &gy);
+    std::array<std::pair<float, int>, 6> axes;  // (gradient along it, axis)
+    int n_axes = 0;
+    for (int ring = 2; ring >= 1; --ring) {
+      const int first = n_axes;
+      const detail::MatchParams& params = ring == 1 ? ring1 : ring2;
+      const int lines = ring == 1 ? o.ring1_lines : 3;
+      for (int d = 0; d < 3; ++d) {
+        const int a = 3 * (ring - 1) + d;
+        // An axis along which the pixel has too little gradient matches
+        // anything (the aperture problem).
+        const float g = std::abs(gx * axis_e[a][0] + gy * axis_e[a][1]);
+        if (g < thr) continue;
+        bool sees = false;
+        for (int q = 0; q < axis_n[a] && !sees; ++q)
+          sees = SeesPatchAround(params, f.radius_px, lines, px, py, nbs[axis_nb[a][q]], prior_z);
+        if (sees) axes[n_axes++] = {g, a};
+      }
+      std::sort(axes.begin() + first, axes.begin() + n_axes,
+                [](const auto& x, const auto& y) { return x.first > y.first; });
+    }
+    // The best ring-2 axis (the longer baseline, the same type: the
+    // precise estimate), then the ring-1 axes (5 x 1 patches: cheap), then
+    // the other ring-2 axes, until two estimates.
+    {
+      int n2 = 0;
+      while (n2 < n_axes && axes[n2].second >= 3) ++n2;
+      if (n2 > 1) std::rotate(axes.begin() + 1, axes.begin() + n2, axes.begin() + n_axes);
+    }
+    n_found = 0;
+    for (int i = 0; i < n_axes && n_found < 2; ++i) {
+      const int a = axes[i].second;
+      const bool ring1_axis = a < 3;
+      const detail::MatchParams& params = ring1_axis ? ring1 : ring2;
+      const double length = f.grid.PitchPx() * (ring1_axis ? 1.0 : std::sqrt(3.0));
+      const double dz = params.step_px / (f.lambda * length);
+      double span = std::max(o.seed_window * prior_z, 2 * dz);
+      if (prior_sigma_z > 0 && std::isfinite(prior_sigma_z)) span = std::max(span, 3 * prior_sigma_z);
+      const double z0 = std::max(lo, prior_z - span), z1 = std::min(hi, prior_z + span);
+      const int lines = ring1_axis ? o.ring1_lines : 3;
+      auto wanted = [&](const detail::Neighbour& nb) {
+        return SeesPatchAround(params, f.radius_px, lines, px, py, nb, prior_z);
+      };
+      if (lines == 1)
+        search_axis(std::integral_constant<int, 1>{}, a, params, z0, z1, wanted, found.data(),
+                    &n_found);
+      else
+        search_axis(std::integral_constant<int, 3>{}, a, params, z0, z1, wanted, found.data(),
+                    &n_found);
+    }
+    // Two estimates of this frame that agree, and with the previous depth
+    // within the fusion's relative gate (its 3 sigma term let weakly
+    // textured pixels' poor estimates confirm). One estimate with the
+    // previous depth as the second let a spurious minimum inside the window
+    // hold where the depth had moved out of it (a knocked camera: outliers
+    // 4.2 -> 6.6 %).
+    if (n_found < o.enough_estimates) continue;
+    double zf = 0, sf = 0;
+    const int used = detail::Fuse(found.data(), n_found, o.fuse_gate, &zf, &sf);
+    // Step 3's spread, the previous depth one more estimate of it; the
+    // value is this frame's alone.
+    double spread2 = 0.5 * (zf - prior_z) * (zf - prior_z);
+    {
+      double sw = 0, swd = 0;
+      for (int q = 0; q < n_found; ++q) {
+        const double w = 1.0 / (found[q].sigma * found[q].sigma);
+        sw += w;
+        swd += w * (found[q].z - zf) * (found[q].z - zf);
+      }
+      spread2 = std::max(spread2, swd / (sw * (n_found - 1)));
+    }
+    const double sigma = std::sqrt(std::max(sf * sf, spread2));
+    if (used >= o.enough_estimates && zf > 0 && sigma / zf <= o.max_rel_sigma &&
+        std::abs(zf - prior_z) <= o.fuse_gate * prior_z) {
+      ++*held;
+      *v_out = static_cast<float>(1.0 / zf);
+      *sigma_out = static_cast<float>(sigma);
+      *conf_out = static_cast<float>(std::clamp(1.0 - (sigma / zf) / o.max_rel_sigma, 0.0, 1.0));
+      return;
+    }
+  }
+
+  // 2b. The full search (no prior, or it did not hold).
   for (int s = 0; s < n_best; ++s) {
     const Candidate& c = best[s];
-    const float px = static_cast<float>(c.x), py = static_cast<float>(c.y);
+    px = static_cast<float>(c.x);
+    py = static_cast<float>(c.y);
     ++*searched;
-    // The patch along the axis's unflipped direction and one baseline's
-    // search with it (a flipped neighbour reads it reversed).
-    auto search_axis = [&](auto lines, int axis, const detail::MatchParams& params, double z0,
-                           double z1, detail::Estimate* out, int* n_out) {
-      constexpr int kLines = decltype(lines)::value;
-      constexpr int kN = detail::kAlong * kLines;
-      if (axis_n[axis] == 0) return;
-      if (!detail::SampleReference<kLines>(grey, f.width, f.height, px, py, axis_e[axis][0],
-                                           axis_e[axis][1], fcx, fcy, ref_r2, patch))
-        return;
-      const double g2 = detail::PatchGradient2<kLines>(patch);
-      for (int q = 0; q < axis_n[axis]; ++q) {
-        const detail::Neighbour& nb = nbs[axis_nb[axis][q]];
-        for (int m = 0; m < kN; ++m) ref[m] = nb.flipped ? patch[kN - 1 - m] : patch[m];
-        detail::Estimate e;
-        if (detail::MatchAlong<kLines>(params, grey, f.width, f.height, f.radius_px, px, py, ref,
-                                       g2, nb, z0, z1, &e))
-          out[(*n_out)++] = e;
-      }
-    };
     std::array<detail::Estimate, 4> mine;
     int n_mine = 0;
+    // Ring 1 over the whole range. Its two neighbours see p at different
+    // depths (the one on p's side of the micro image at the nearer ones);
+    // once one has found z, the other is searched only where it sees p at
+    // z with a step to spare (else its minimum lies at the end of its run
+    // and it fails: half of the ring-1 searches of a `medium` frame did).
+    auto ring1_wanted = [&](const detail::Neighbour& nb) {
+      if (n_mine > 0)
+        return SeesPatchAround(ring1, f.radius_px, o.ring1_lines, px, py, nb, mine[0].z);
+      // One that sees the whole patch at fewer than 3 depths of the range
+      // finds nothing.
+      double vis_lo = lo, vis_hi = hi;
+      return detail::SearchSteps(ring1, f.radius_px - PatchReach(o.ring1_lines), px, py, nb,
+                                 &vis_lo, &vis_hi) > 0;
+    };
     if (o.ring1_lines == 1)
-      search_axis(std::integral_constant<int, 1>{}, c.axis, ring1, lo, hi, mine.data(), &n_mine);
+      search_axis(std::integral_constant<int, 1>{}, c.axis, ring1, lo, hi, ring1_wanted,
+                  mine.data(), &n_mine);
     else
-      search_axis(std::integral_constant<int, 3>{}, c.axis, ring1, lo, hi, mine.data(), &n_mine);
+      search_axis(std::integral_constant<int, 3>{}, c.axis, ring1, lo, hi, ring1_wanted,
+                  mine.data(), &n_mine);
     if (n_mine == 0) continue;
     double z = 0, sigma = 0;
     // The pixel's ring-1 estimates fused with the dense estimator's gate (3 %).
     if (detail::Fuse(mine.data(), n_mine, 0.03, &z, &sigma) == 0) continue;
     if (o.rings >= 2) {
       // |Delta| of ring 2 is sqrt(3) D: lambda sqrt(3) D px of disparity per unit z.
-      const double span =
-          std::max(3 * sigma, 2 * o.ring2_step_px / (f.lambda * std::sqrt(3.0) * f.grid.PitchPx()));
-      search_axis(std::integral_constant<int, 3>{}, 3 + c.axis2, ring2, std::max(lo, z - span),
-                  std::min(hi, z + span), mine.data(), &n_mine);
+      const double dz2 = o.ring2_step_px / (f.lambda * std::sqrt(3.0) * f.grid.PitchPx());
+      const double span = std::max(3 * sigma, 2 * dz2);
+      const double z0 = std::max(lo, z - span), z1 = std::min(hi, z + span);
+      // A ring-2 neighbour that sees p at z with a step to spare either
+      // side (at a micro image's small virtual depths most see p at no
+      // depth near z: 8 of 10 ring-2 searches of a `medium` frame found
+      // nothing); of the axes with one, the one with the largest gradient
+      // of the grey along it.
+      auto ring2_wanted = [&](const detail::Neighbour& nb) {
+        return SeesPatchAround(ring2, f.radius_px, 3, px, py, nb, z);
+      };
+      float gx = 0, gy = 0;
+      gradient(c.x, c.y, &gx, &gy);
+      int axis2 = -1;
+      float best2 = -1;
+      for (int d = 0; d < 3; ++d) {
+        bool sees = false;
+        for (int q = 0; q < axis_n[3 + d] && !sees; ++q) sees = ring2_wanted(nbs[axis_nb[3 + d][q]]);
+        const float g = std::abs(gx * axis_e[3 + d][0] + gy * axis_e[3 + d][1]);
+        if (sees && g > best2) {
+          best2 = g;
+          axis2 = d;
+        }
+      }
+      if (axis2 >= 0)
+        search_axis(std::integral_constant<int, 3>{}, 3 + axis2, ring2, z0, z1, ring2_wanted,
+                    mine.data(), &n_mine);
     }
     for (int q = 0; q < n_mine; ++q) all[n_all++] = mine[q];
     // Enough agreeing estimates: the remaining (less textured) pixels are not searched.
@@ -480,7 +694,8 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
 
 }  // namespace
 
-Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out) const {
+Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out,
+                                    const LensDepthMap* previous) const {
   const auto start = std::chrono::steady_clock::now();
   const PlenopticFrame& f = geometry_;
   if (raw.data == nullptr || raw.width != f.width || raw.height != f.height)
@@ -489,6 +704,13 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out) const
                  std::to_string(f.height) + " (the camera's geometry)"};
   if (raw.format != PixelFormat::kMono8 && raw.format != PixelFormat::kBgr8)
     return Error{"lens depth: expected a Mono8 or BGR8 frame"};
+  if (previous != nullptr &&
+      (previous == out || previous->grid.cols != grid_.cols || previous->grid.rows != grid_.rows ||
+       previous->virtual_depth.size() != static_cast<std::size_t>(grid_.cols) * grid_.rows ||
+       previous->sigma_z.size() != previous->virtual_depth.size()))
+    return Error{"lens depth: the previous map is not of this camera's lens grid (" +
+                 std::to_string(grid_.cols) + "x" + std::to_string(grid_.rows) +
+                 " cells) or is the output map itself"};
   out->grid = grid_;
   const std::size_t cells = static_cast<std::size_t>(grid_.cols) * grid_.rows;
   out->virtual_depth.assign(cells, kNaN);
@@ -511,29 +733,38 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out) const
   };
   const detail::MatchParams ring1 = params(options_.ring1_step_px);
   const detail::MatchParams ring2 = params(options_.ring2_step_px);
-  std::atomic<long long> searched{0}, textured{0}, estimated{0};
+  std::atomic<long long> searched{0}, textured{0}, estimated{0}, seeded{0}, held{0};
   const CandidateGate gate{candidate_dx_.data(), candidate_dy_.data(),
                            static_cast<int>(candidates_.size()), candidate_reach_};
   auto run = [&](const auto& grey) {
     tbb::parallel_for(
         tbb::blocked_range<int>(0, static_cast<int>(f.lenses.size()), 64),
         [&](const tbb::blocked_range<int>& r) {
-          long long my_searched = 0, my_textured = 0, my_estimated = 0;
+          long long my_searched = 0, my_textured = 0, my_estimated = 0, my_seeded = 0,
+                    my_held = 0;
           for (int k = r.begin(); k < r.end(); ++k) {
             const MicroImage& m = f.lenses[k];
             const std::size_t cell =
                 static_cast<std::size_t>(grid_.Row(m.j)) * grid_.cols + grid_.Col(m.i, m.j);
             out->type[cell] = static_cast<std::int8_t>(m.type);
             out->lens[cell] = k;
+            double prior_z = 0, prior_sigma_z = 0;
+            if (previous != nullptr && previous->virtual_depth[cell] > 0) {
+              prior_z = 1.0 / previous->virtual_depth[cell];
+              prior_sigma_z = previous->sigma_z[cell];
+            }
             EstimateLens(f, options_, *tables_, candidates_, gate, range, ring1, ring2, grey, k,
-                         &out->virtual_depth[cell], &out->sigma_z[cell], &out->confidence[cell],
-                         &out->textured[cell], &my_searched);
+                         prior_z, prior_sigma_z, &out->virtual_depth[cell], &out->sigma_z[cell],
+                         &out->confidence[cell], &out->textured[cell], &my_searched, &my_seeded,
+                         &my_held);
             my_textured += out->textured[cell];
             my_estimated += !std::isnan(out->virtual_depth[cell]);
           }
           searched += my_searched;
           textured += my_textured;
           estimated += my_estimated;
+          seeded += my_seeded;
+          held += my_held;
         });
   };
   // The kernels address the frame with 32-bit byte offsets.
@@ -556,6 +787,8 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out) const
   st.textured = textured.load();
   st.estimated = estimated.load();
   st.searched_pixels = searched.load();
+  st.seeded = seeded.load();
+  st.seed_held = held.load();
   st.kernels = kernels != nullptr ? kernels->name : "";
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return Status::Ok();

@@ -16,10 +16,32 @@
 // 2. Per searched pixel p, on its best ring-1 axis: the two ring-1
 //    neighbours along it (both of the other types), the epipolar search of
 //    processing/epipolar_search.h over the union of the MLA file's depth
-//    ranges in steps of ring1_step_px with a patch of ring1_lines lines;
-//    then, around their fusion (+- 3 sigma, at least two steps), the two
-//    ring-2 neighbours (|Delta| = sqrt(3) D, the same type) on the ring-2
-//    axis with the largest gradient, in steps of ring2_step_px (5 x 3).
+//    ranges in steps of ring1_step_px with a patch of ring1_lines lines,
+//    first the neighbour that sees the whole patch over more of the range;
+//    the second only if none has found a depth z yet or it sees the patch
+//    at z (a step either side). Then, around their fusion (+- 3 sigma, at
+//    least two steps), the ring-2 neighbours (|Delta| = sqrt(3) D, the
+//    same type) that see the patch at z, on the ring-2 axis with the
+//    largest gradient among those with one, in steps of ring2_step_px
+//    (5 x 3). A neighbour that does not see the patch at the depth finds
+//    its minimum at the end of its run and fails: skipping it changes
+//    nothing but the time, and choosing the ring-2 axis so gives more
+//    ring-2 estimates (on a micro image's small virtual depths most ring-2
+//    neighbours see a pixel at no depth near z).
+// 2a. The temporal seed (Estimate with the previous frame's map): where the
+//    micro image's cell has a previous depth z_p, step 1's two most
+//    textured pixels in turn are searched around z_p only (+-
+//    max(seed_window z_p, 3 sigma_z, 2 steps)) on the axes with a neighbour
+//    that sees the pixel's patch at z_p and a gradient along them of at
+//    least min_gradient_dn: the best ring-2 axis, then the ring-1 axes
+//    (5 x 1: cheap), then the other ring-2 axes, until two estimates. It
+//    holds when they agree (step 3's fusion) and their fusion lies within
+//    fuse_gate z_p of z_p: the lens takes that fusion (sigma_z also from
+//    its spread to z_p) and is not searched further. Where it does not hold
+//    (a depth edge moved through the lens, the camera was knocked) step 2
+//    runs from nothing, the seeded estimates dropped: such a lens gets the
+//    map it gets without a seed. What it costs and saves:
+//    docs/processing.md, "Temporal seed".
 // 3. All estimates of the micro image (up to 4 per searched pixel) are fused
 //    in z = 1 / v weighted by 1 / sigma^2, without those farther than
 //    max(3 sigma, fuse_gate z) from their median; at least min_estimates
@@ -94,6 +116,9 @@ struct LensDepthOptions {
   double fuse_gate = 0.05;      // outlier gate of the fusion, share of z
   int min_estimates = 2;        // agreeing estimates per micro image
   double max_rel_sigma = 0.1;   // sigma_z / z above this: rejected
+  // The temporal seed (Estimate with a previous map): the search around a
+  // lens's previous depth spans +- max(seed_window z, 3 sigma_z, 2 steps).
+  double seed_window = 0.05;
   // The candidate gate and the searches' strip sampling and SSD through
   // Highway's runtime dispatch (processing/lens_search_simd.h); false: the
   // scalar reference (the same map, at its speed).
@@ -132,12 +157,14 @@ struct LensDepthStats {
   long long textured = 0;   // with a textured candidate
   long long estimated = 0;  // with a virtual depth
   long long searched_pixels = 0;
+  long long seeded = 0;     // with a previous depth (Estimate with a previous map)
+  long long seed_held = 0;  // of those, where it held (no full search)
   double seconds = 0;
   // The kernels that ran (lens_search_simd.h): "scalar" or Highway's target
   // ("AVX3", "AVX2", "SSE4", "NEON", ...); "" when none could (a frame of 2 GB or more).
   const char* kernels = "";
   // "lens depth: 30112 of 31980 textured lenses (94.2 %; 32385 lenses), 1.2e5 pixels searched,
-  // 0.041 s, kernels AVX3"
+  // 0.041 s, kernels AVX3[, previous depth held in 25000 of 29000 lenses]"
   std::string BriefReport() const;
 };
 
@@ -183,7 +210,11 @@ class LensDepthEstimator {
   LensDepthEstimator& operator=(const LensDepthEstimator&) = delete;
 
   // The per-lens depth of `raw` (Mono8 or BGR8, the geometry's size).
-  Status Estimate(ConstImageView raw, LensDepthMap* out) const;
+  // `previous`: the per-lens depth of this camera's previous frame (or one
+  // warped into this frame), the temporal seed of step 2a (header comment);
+  // an error when it is not of this camera's lens grid or is `out`.
+  Status Estimate(ConstImageView raw, LensDepthMap* out,
+                  const LensDepthMap* previous = nullptr) const;
 
   // The TF image at each lens's own depth, point-sampled on a grid of
   // max_side pixels on its longest side (the TF grid's size if smaller)

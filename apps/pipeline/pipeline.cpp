@@ -290,6 +290,8 @@ struct Pipeline::Impl {
     std::map<int, Offer> slots;
     std::map<int, std::uint64_t> served;
     std::uint64_t serve_count = 0;
+    // Per camera: 1 + the newest Job::camera_order the lane took (OfferTo).
+    std::map<int, std::uint64_t> taken_before;
     // Frames the lane took and whose products are not published yet: the
     // one each thread processes and the ones handed to the publishing node
     // (a thread takes its next frame without waiting for that publication).
@@ -303,8 +305,11 @@ struct Pipeline::Impl {
     std::vector<std::unique_ptr<tbb::task_arena>> arenas;  // one per thread
     std::vector<std::thread> threads;
   };
-  // The per-lens depth and TF preview of the frames the workers localised,
-  // below the workers' priority and above the depth lane's.
+  // The per-lens depth and TF preview of every frame taken (the ones the
+  // workers localised once their pose is out, the ones they skip when a
+  // newer frame replaces them), below the workers' priority and above the
+  // depth lane's. Only the workers' frames reached it before: a frame they
+  // skipped got no per-lens depth even where the lane was idle.
   //
   // A lane of its own rather than on the worker after the pose: at medium
   // the per-lens depth and its preview cost several times a tracked
@@ -312,7 +317,7 @@ struct Pipeline::Impl {
   // worker every frame waiting for a worker waited for a per-lens estimate
   // too, so the poses (the extrinsics) fell with the per-lens work. Here a
   // worker is free for the next frame as soon as it published a pose, and
-  // the lane takes the newest localised frame per camera. Below the
+  // the lane takes the newest frame per camera. Below the
   // workers: at their priority the lane took the CPU a relocalisation
   // needs, poses fell behind their frames, fewer frames could be tracked
   // and the extrinsics fell (medium, quiet: 2.65 against 4.4-4.8 per second
@@ -321,17 +326,32 @@ struct Pipeline::Impl {
   Lane lens_lane;
   Lane depth_lane;  // the dense map, at the lowest priority: depth takes what is left
 
-  // Offers `offer` to `lane`; a frame of its camera waiting there is
-  // replaced (counted in `*skipped`).
+  // Offers `offer` to `lane`: of it and a frame of its camera waiting
+  // there, the newer (Job::camera_order) waits, the other is skipped
+  // (counted in `*skipped`); so is a frame older than one the lane took of
+  // its camera (each camera's products go out in its frames' order). The
+  // lens lane gets the frames the workers skip when they come and the ones
+  // they localised when their pose is out, so an older frame can come after
+  // a newer one.
   void OfferTo(Lane& lane, Impl::Offer offer, std::uint64_t* skipped) {
     {
       std::lock_guard lock(lane.mutex);
       const int camera = offer.job.frame.camera_index;
-      if (lane.slots.count(camera)) {
+      auto waiting = lane.slots.find(camera);
+      auto taken = lane.taken_before.find(camera);
+      if (taken != lane.taken_before.end() && offer.job.camera_order < taken->second) {
         std::lock_guard r(report_mutex);
         ++*skipped;
+      } else if (waiting == lane.slots.end()) {
+        lane.slots.emplace(camera, std::move(offer));
+      } else {
+        {
+          std::lock_guard r(report_mutex);
+          ++*skipped;
+        }
+        if (waiting->second.job.camera_order < offer.job.camera_order)
+          waiting->second = std::move(offer);
       }
-      lane.slots.insert_or_assign(camera, std::move(offer));
     }
     lane.cv.notify_all();
   }
@@ -347,6 +367,7 @@ struct Pipeline::Impl {
     Impl::Offer offer = std::move(pick->second);
     lane.slots.erase(pick);
     lane.served[offer.job.frame.camera_index] = ++lane.serve_count;
+    lane.taken_before[offer.job.frame.camera_index] = offer.job.camera_order + 1;
     ++lane.held;
     return offer;
   }
@@ -382,8 +403,9 @@ struct Pipeline::Impl {
     lane.threads.clear();
   }
 
-  // The lens lane's thread: the per-lens depth and TF preview of a localised
-  // frame, published; then the frame offered to the depth lane with them.
+  // The lens lane's thread: the per-lens depth and TF preview of a frame
+  // (with the workers' registration input where they localised it),
+  // published; then the frame offered to the depth lane with them.
   void LensLoop(tbb::task_arena& arena) {
     while (std::optional<Impl::Offer> offer = Take(lens_lane)) {
       Result result{std::move(offer->job), Error{""}, std::nullopt, Result::From::kLensLane};
@@ -512,13 +534,14 @@ struct Pipeline::Impl {
       ++report.worker_frames;
       report.localize_cpu_s += localize_cpu;
     }
-    if (result.processed) {
+    if (result.processed)
       result.processed->seconds =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      Impl::Offer offer{result.job, std::nullopt, ProcessedFrame{}};
-      if (input) offer.input = std::move(*input);
-      OfferTo(lens_lane, std::move(offer), &report.lens_skipped);
-    }
+    // Every frame to the lens lane, localised or not: its per-lens depth
+    // needs no pose.
+    Impl::Offer offer{result.job, std::nullopt, ProcessedFrame{}};
+    if (input) offer.input = std::move(*input);
+    OfferTo(lens_lane, std::move(offer), &report.lens_skipped);
     return result;
   }
 
@@ -703,21 +726,31 @@ struct Pipeline::Impl {
         continue;
       }
       const int camera = job.frame.camera_index;
-      if (auto waiting = slots.find(camera); lanes && waiting != slots.end() && pairing_key &&
-                                             Key(waiting->second) == *pairing_key) {
-        // The waiting frame completes a pair: the newer one waits behind it.
-        if (later.count(camera)) {
+      // The frame the workers skip (replaced by this newer one), if any.
+      std::optional<Job> replaced;
+      auto waiting = slots.find(camera);
+      // The waiting frame completes a pair: the newer one waits behind it.
+      std::map<int, Job>& into = lanes && waiting != slots.end() && pairing_key &&
+                                         Key(waiting->second) == *pairing_key
+                                     ? later
+                                     : slots;
+      if (auto old = into.find(camera); old != into.end()) {
+        {
           std::lock_guard r(report_mutex);
           ++report.skipped;
         }
-        later.insert_or_assign(camera, std::move(job));
-        continue;
+        replaced = std::move(old->second);
+        old->second = std::move(job);
+      } else {
+        into.emplace(camera, std::move(job));
       }
-      if (slots.count(camera)) {
-        std::lock_guard r(report_mutex);
-        ++report.skipped;
-      }
-      slots.insert_or_assign(camera, std::move(job));
+      lock.unlock();
+      // Lanes: the lens lane takes it (newest wins there too), so a frame
+      // the workers skip still gets its per-lens depth when the lane has
+      // the time.
+      if (replaced && lanes)
+        OfferTo(lens_lane, Impl::Offer{std::move(*replaced), std::nullopt, ProcessedFrame{}},
+                &report.lens_skipped);
     }
   }
 
@@ -758,8 +791,8 @@ struct Pipeline::Impl {
     }
     if (lanes) {
       // No worker offers any more: the lens lane's waiting frames are
-      // processed (each frame localised gets its per-lens depth unless a
-      // newer frame of its camera replaced it), then the frames still waiting
+      // processed (each frame taken gets its per-lens depth unless a newer
+      // frame of its camera replaced it), then the frames still waiting
       // for the depth lane are skipped, the ones it holds are published.
       {
         std::unique_lock lock(lens_lane.mutex);

@@ -131,10 +131,13 @@ struct PipelineReport {
   // previews, dense depth and TF of) the newest of the lens lane's frames
   // when it is free, the others are skipped there.
   std::uint64_t depth_processed = 0, depth_skipped = 0, depth_failed = 0;
-  // Lanes: the frames localised go to the lens lane (per-lens depth and TF
-  // preview, newest wins per camera): there each is processed (lens_frames),
-  // replaced by a newer frame of its camera (lens_skipped) or failed; so
-  // processed == lens_frames + lens_skipped + lens_failed once Finish returned.
+  // Lanes: every frame taken goes to the lens lane (per-lens depth and TF
+  // preview, newest wins per camera): the ones the workers localised (or
+  // failed to) once their pose is out, the ones they skip when a newer frame
+  // replaces them in the workers' slot. There each is processed
+  // (lens_frames), skipped for a newer frame of its camera (lens_skipped) or
+  // failed; so frames_in == lens_frames + lens_skipped + lens_failed once
+  // Finish returned.
   std::uint64_t lens_skipped = 0, lens_failed = 0;
   double depth_cpu_s = 0;  // CPU time of the depth lane's thread (its arena has no other)
   // Lanes: the dense maps the depth lane seeded with the lens lane's per-lens
