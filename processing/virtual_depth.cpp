@@ -138,6 +138,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
   search.max_cost_ratio = options.max_cost_ratio;
   search.geometric_px = options.geometric_px;
   search.cross_type_px = options.cross_type_px;
+  if (options.equalise_defocus) detail::DefocusModel(mla, lambda, f.grid.PitchPx(), &search);
   detail::MatchParams narrow = search;  // the seeded window's search
   narrow.max_cost_ratio = options.seed_cost_ratio;
   const detail::StripKernels& kernels =
