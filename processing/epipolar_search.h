@@ -365,8 +365,10 @@ void EqualisedCosts(const MatchParams& s, const Bilinear& grey, int width, int h
 // patch of p sampled along nb's direction (kAlong x kLines); gradient_sum its
 // PatchGradient2; radius_px the usable disc radius r_valid. kLines 1: a
 // patch of one line along the baseline (a third of the samples, for a
-// coarse search whose result a longer baseline refines).
-template <int kLines = kAcross, typename Bilinear>
+// coarse search whose result a longer baseline refines). kEqualise: pairs
+// of two lens types through EqualisedCosts when s.blur_px_per_z > 0 (a
+// template parameter, so the searches without it compile as before).
+template <int kLines = kAcross, bool kEqualise = false, typename Bilinear>
 bool MatchAlong(const MatchParams& s, const Bilinear& grey, int width, int height, double radius_px,
                 float px, float py, const float* ref, double gradient_sum, const Neighbour& nb,
                 double z_lo, double z_hi, Estimate* est) {
@@ -464,7 +466,7 @@ bool MatchAlong(const MatchParams& s, const Bilinear& grey, int width, int heigh
     }
   }
   float cost[kMaxSteps + kStripPad];
-  if (s.blur_px_per_z > 0 && !nb.same_type) {
+  if (kEqualise && s.blur_px_per_z > 0 && !nb.same_type) {
     std::array<const float*, kLines> lines;
     for (int b = 0; b < kLines; ++b) lines[b] = strip[b];
     EqualisedCosts<kLines>(s, grey, width, height, radius_px, px, py, nb, ref, lines.data(),

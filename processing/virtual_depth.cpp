@@ -285,9 +285,15 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
             ref[m] = nb.flipped ? cached[kSamples - 1 - m] : cached[m];
           const double g2 = g2_cache[nb.axis];
           Estimate e;
-          if (detail::MatchAlong(params, grey, w, h, f.radius_px, static_cast<float>(x),
-                                 static_cast<float>(y), ref, g2, nb, z0, z1, &e))
-            estimates.Add(e);
+          const bool found =
+              options.equalise_defocus
+                  ? detail::MatchAlong<detail::kAcross, true>(params, grey, w, h, f.radius_px,
+                                                              static_cast<float>(x),
+                                                              static_cast<float>(y), ref, g2, nb,
+                                                              z0, z1, &e)
+                  : detail::MatchAlong(params, grey, w, h, f.radius_px, static_cast<float>(x),
+                                       static_cast<float>(y), ref, g2, nb, z0, z1, &e);
+          if (found) estimates.Add(e);
         };
         ++searched_count[k];
         for (int q = 0; q < gated; ++q)
