@@ -59,10 +59,6 @@ struct Neighbour {
   float e_x = 0, e_y = 0;          // unit baseline direction
   double length = 0;
   bool same_type = false;
-  // The reference micro image k: its lens type and centre (the defocus
-  // equalisation's reference samples beyond the patch).
-  int ref_type = 0;
-  float ref_cx = 0, ref_cy = 0;
   // Opposite neighbours (direction d and d + 3 of a ring) share their
   // reference patch, reversed: axis = 3 (ring - 1) + d mod 3.
   int axis = 0;
@@ -93,9 +89,6 @@ inline int FindNeighbours(const PlenopticFrame& f, const MicroImage& lens, int r
       nb.e_x = static_cast<float>(delta.x() / nb.length);
       nb.e_y = static_cast<float>(delta.y() / nb.length);
       nb.same_type = nb.lens->type == lens.type;
-      nb.ref_type = lens.type;
-      nb.ref_cx = static_cast<float>(lens.centre_px.x());
-      nb.ref_cy = static_cast<float>(lens.centre_px.y());
       if (ring == 1) *ring1_count = count;
     }
   return count;
@@ -131,6 +124,10 @@ struct MatchParams {
   // blur_px_per_z 0: off.
   double blur_px_per_z = 0;
   std::array<double, 3> z_sharp{};
+  // With it, the reference micro image k: its lens type and centre (its
+  // patch sampled beyond the 5 x 3 samples); set per micro image.
+  int ref_type = 0;
+  float ref_cx = 0, ref_cy = 0;
 };
 
 // The defocus of a lens type at virtual depth v, from the MLA description:
@@ -242,7 +239,7 @@ void EqualisedCosts(const MatchParams& s, const Bilinear& grey, int width, int h
   constexpr double kLevelPx = 0.25;
   constexpr int kMaxLevel = 9;  // sigma_eq <= 2.25 px: rad = ceil(2.5 sigma) <= kPad
   const float r2 = static_cast<float>((radius_px + 0.5) * (radius_px + 0.5));
-  const double zt_ref = s.z_sharp[nb.ref_type], zt_nb = s.z_sharp[nb.lens->type];
+  const double zt_ref = s.z_sharp[s.ref_type], zt_nb = s.z_sharp[nb.lens->type];
   const int spp = s.samples_per_px;
   // Gaussian taps 1 px apart per level (made once); returns the radius in taps.
   struct Kernels {
@@ -302,7 +299,7 @@ void EqualisedCosts(const MatchParams& s, const Bilinear& grey, int width, int h
           for (int a = -2 - kPad; a <= 2 + kPad; ++a)
             wide[b + kHalf][a + 2 + kPad] =
                 SampleInDisc(grey, width, height, px + a * nb.e_x - b * nb.e_y,
-                             py + a * nb.e_y + b * nb.e_x, nb.ref_cx, nb.ref_cy, r2);
+                             py + a * nb.e_y + b * nb.e_x, s.ref_cx, s.ref_cy, r2);
         wide_ready = true;
       }
       const int rad = kernel(level, &kern);

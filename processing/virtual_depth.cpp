@@ -285,14 +285,20 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
             ref[m] = nb.flipped ? cached[kSamples - 1 - m] : cached[m];
           const double g2 = g2_cache[nb.axis];
           Estimate e;
-          const bool found =
-              options.equalise_defocus
-                  ? detail::MatchAlong<detail::kAcross, true>(params, grey, w, h, f.radius_px,
-                                                              static_cast<float>(x),
-                                                              static_cast<float>(y), ref, g2, nb,
-                                                              z0, z1, &e)
-                  : detail::MatchAlong(params, grey, w, h, f.radius_px, static_cast<float>(x),
+          bool found = false;
+          if (options.equalise_defocus) {
+            // The equalised search also reads the reference micro image.
+            detail::MatchParams with_ref = params;
+            with_ref.ref_type = lens.type;
+            with_ref.ref_cx = cx;
+            with_ref.ref_cy = cy;
+            found = detail::MatchAlong<detail::kAcross, true>(
+                with_ref, grey, w, h, f.radius_px, static_cast<float>(x), static_cast<float>(y),
+                ref, g2, nb, z0, z1, &e);
+          } else {
+            found = detail::MatchAlong(params, grey, w, h, f.radius_px, static_cast<float>(x),
                                        static_cast<float>(y), ref, g2, nb, z0, z1, &e);
+          }
           if (found) estimates.Add(e);
         };
         ++searched_count[k];
