@@ -74,9 +74,20 @@ int main(int argc, char** argv) {
   if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
   processing::DepthOptions depth_options;
   int first = 1;
-  if (argc > 2 && std::string(argv[1]) == "--cross-type-px") {
-    depth_options.cross_type_px = std::atof(argv[2]);
-    first = 3;
+  int edge_px = 2;  // pixels within this of a depth edge (truth) are left out
+  for (;;) {
+    if (argc > first + 1 && std::string(argv[first]) == "--cross-type-px") {
+      depth_options.cross_type_px = std::atof(argv[first + 1]);
+      first += 2;
+    } else if (argc > first + 1 && std::string(argv[first]) == "--edge-px") {
+      edge_px = std::max(1, std::atoi(argv[first + 1]));
+      first += 2;
+    } else if (argc > first + 1 && std::string(argv[first]) == "--equalise-defocus") {
+      depth_options.equalise_defocus = std::atoi(argv[first + 1]) != 0;
+      first += 2;
+    } else {
+      break;
+    }
   }
   if (argc < first + 2 || !depth_options.Check()) {
     std::fprintf(stderr, "usage: bench_depth_bias [--cross-type-px X] SEQUENCE_DIR FRAME [FRAME...]\n");
@@ -102,6 +113,13 @@ int main(int argc, char** argv) {
   std::vector<double> all_abs;
   Eigen::Matrix2d ata = Eigen::Matrix2d::Zero();
   Eigen::Vector2d atb = Eigen::Vector2d::Zero();
+  // The same fit over the pixels within 2 % of the truth (the tails left out).
+  Eigen::Matrix2d ata_core = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d atb_core = Eigen::Vector2d::Zero();
+  std::vector<double> sum_bin(kBinCount, 0.0);
+  std::vector<long long> n_bin(kBinCount, 0), n_high(kBinCount, 0), n_low(kBinCount, 0);
+  constexpr std::array<double, 5> kTail = {0.02, 0.05, 0.1, 0.3, 1e9};
+  std::vector<std::array<long long, 8>> tail(kBinCount, std::array<long long, 8>{});
   processing::PlenopticFrame f;
   processing::VirtualDepthMap depth;
   for (int a = first + 1; a < argc; ++a) {
@@ -125,15 +143,15 @@ int main(int argc, char** argv) {
     if (!gt || w != f.width || h != f.height)
       return std::fprintf(stderr, "frame %d: no per-pixel virtual depth truth\n", n), 1;
     auto truth_at = [&](int x, int y) { return static_cast<double>((*gt)[static_cast<std::size_t>(y) * w + x]); };
-    for (int y = 2; y < h - 2; ++y)
-      for (int x = 2; x < w - 2; ++x) {
+    for (int y = edge_px; y < h - edge_px; ++y)
+      for (int x = edge_px; x < w - edge_px; ++x) {
         const std::size_t i = static_cast<std::size_t>(y) * w + x;
         const int k = f.lens_of_pixel[i];
         const double v = depth.virtual_depth[i], vt = truth_at(x, y);
         if (k < 0 || !depth.textured[i] || std::isnan(v) || std::isnan(vt)) continue;
         double lo = vt, hi = vt;
-        for (int dy = -2; dy <= 2; ++dy)
-          for (int dx = -2; dx <= 2; ++dx) {
+        for (int dy = -edge_px; dy <= edge_px; ++dy)
+          for (int dx = -edge_px; dx <= edge_px; ++dx) {
             const double q = truth_at(x + dx, y + dy);
             if (!std::isnan(q)) lo = std::min(lo, q), hi = std::max(hi, q);
           }
@@ -147,6 +165,18 @@ int main(int argc, char** argv) {
         const Eigen::Vector2d row(1 / vt, 1);
         ata += row * row.transpose();
         atb += row * e;
+        sum_bin[b] += e;
+        ++n_bin[b];
+        n_high[b] += e > 0.02;
+        n_low[b] += e < -0.02;
+        for (int q = 0; q + 1 < static_cast<int>(kTail.size()); ++q) {
+          if (e >= kTail[q] && e < kTail[q + 1]) ++tail[b][4 + q];
+          if (-e >= kTail[q] && -e < kTail[q + 1]) ++tail[b][3 - q];
+        }
+        if (std::abs(e) < 0.02) {
+          ata_core += row * row.transpose();
+          atb_core += row * e;
+        }
       }
   }
   std::printf("signed median relative error of the virtual depth (%%, pixels): per lens type, "
@@ -161,8 +191,22 @@ int main(int argc, char** argv) {
         by_bin[b].insert(by_bin[b].end(), errors[b][t][r].begin(), errors[b][t][r].end());
       }
     }
+    std::printf(" | mean %+.3f, beyond +-2 %%: %.2f %% above, %.2f %% below\n",
+                n_bin[b] ? 100 * sum_bin[b] / n_bin[b] : std::nan(""),
+                n_bin[b] ? 100.0 * n_high[b] / n_bin[b] : 0.0, n_bin[b] ? 100.0 * n_low[b] / n_bin[b] : 0.0);
+  }
+  std::printf("tails (%% of the bin's pixels): error < -30, -30..-10, -10..-5, -5..-2 | +2..+5, "
+              "+5..+10, +10..+30, > +30 %%\n");
+  for (int b = 0; b < kBinCount; ++b) {
+    if (n_bin[b] == 0) continue;
+    std::printf("  v %.1f-%.1f", kBins[b], kBins[b + 1]);
+    for (int q = 0; q < 8; ++q)
+      std::printf("%s %.2f", q == 4 ? " |" : "", 100.0 * tail[b][q] / n_bin[b]);
     std::printf("\n");
   }
+  const Eigen::Vector2d core = ata_core.ldlt().solve(atb_core);
+  std::printf("fit over the pixels within 2 %% of the truth: v_measured = %.4f + (1 %+.5f) v "
+              "(B %+.2f %%)\n", core.x(), core.y(), 100 * (1 / (1 + core.y()) - 1));
   const Eigen::Vector2d fit = ata.ldlt().solve(atb);  // (a, eps)
   const double spread = Median(by_bin[0]) - Median(by_bin[kBin4To5]);
   const double noise = Median(all_abs);

@@ -36,6 +36,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 
 namespace lifmcr::processing::detail {
@@ -119,7 +120,34 @@ struct MatchParams {
   double max_cost_ratio = 0.5;
   double geometric_px = 0.05;  // sigma_model of a pair of one lens type
   double cross_type_px = 0.3;  // sigma_model of a pair of two types
+  // Defocus equalisation of pairs of two lens types (DefocusModel below);
+  // blur_px_per_z 0: off.
+  double blur_px_per_z = 0;
+  std::array<double, 3> z_sharp{};
+  // With it, the reference micro image k: its lens type and centre (its
+  // patch sampled beyond the 5 x 3 samples); set per micro image.
+  int ref_type = 0;
+  float ref_cx = 0, ref_cy = 0;
 };
+
+// The defocus of a lens type at virtual depth v, from the MLA description:
+// a micro lens of type t images v_t sharply and spreads a point at v to a
+// disc of diameter rho_t(v) = d |1 / v_t - 1 / v| (d the micro-lens pitch
+// in px, lambda D: the lens equation of the micro lens at the sensor
+// distance B), whose Gaussian equivalent has sigma = rho / 4 (a uniform
+// disc's). The MLA file's sharp depth range of a type is where rho stays
+// below one blur limit, symmetric about 1 / v_t in 1 / v, so
+// z_t = 1 / v_t is the middle of the range in z.
+inline void DefocusModel(const MlaCalibration& mla, double lambda, double pitch_px,
+                         MatchParams* p) {
+  for (int t = 0; t < 3; ++t) {
+    const MlaLensType& type = mla.lens_types[t];
+    const double z_near = type.depth_min > 0 ? 1.0 / type.depth_min : 1.0;
+    const double z_far = type.depth_max > 0 ? 1.0 / type.depth_max : 0.0;
+    p->z_sharp[t] = 0.5 * (z_near + z_far);
+  }
+  p->blur_px_per_z = lambda * pitch_px;
+}
 
 constexpr int kMaxSteps = 256;
 
@@ -214,12 +242,158 @@ inline int SearchSteps(const MatchParams& s, double radius_px, float px, float p
   return steps < 3 || steps > kMaxSteps ? 0 : steps;
 }
 
+// Costs of a pair of two lens types with their defocus equalised: at step k
+// (z_k = z_lo + k dz) the two types' blur (DefocusModel) differs by
+// sigma_eq^2 = |sigma_n^2 - sigma_k^2|; the sharper side is blurred by a
+// Gaussian of sigma_eq along the baseline before the SSD (the neighbour's
+// strip samples, or the reference patch sampled kPad px further along), so
+// both sides compare the scene through the same blur. An option of the
+// dense search (DepthOptions::equalise_defocus, off): measured against the
+// renderer's truth it does not remove the lens types' bias
+// (docs/processing.md, "Systematic error of the virtual depth").
+// sigma_eq is rounded to kLevelPx (few kernels); below half a level nothing
+// is blurred. Invalid (NaN) samples are left out of a kernel's sum. The
+// steps of one level and side form runs, each costed by `costs` (the strip
+// kernels of lens_search_simd.h) on the blurred strip or with the blurred
+// reference.
+template <int kLines, typename Bilinear>
+void EqualisedCosts(const MatchParams& s, const Bilinear& grey, int width, int height,
+                    double radius_px, float px, float py, const Neighbour& nb, const float* ref,
+                    const float* const* lines, int strip_len, int steps, double z_lo, double dz,
+                    StripCostsFn costs, float* cost) {
+  constexpr int kHalf = kLines / 2;
+  constexpr int kPad = 6;  // reference samples beyond the patch: kernels up to sigma 2.4 px
+  constexpr int kWide = kAlong + 2 * kPad;
+  constexpr double kLevelPx = 0.25;
+  constexpr int kMaxLevel = 9;  // sigma_eq <= 2.25 px: rad = ceil(2.5 sigma) <= kPad
+  const float r2 = static_cast<float>((radius_px + 0.5) * (radius_px + 0.5));
+  const double zt_ref = s.z_sharp[s.ref_type], zt_nb = s.z_sharp[nb.lens->type];
+  const int spp = s.samples_per_px;
+  // Gaussian taps 1 px apart per level (made once); returns the radius in taps.
+  struct Kernels {
+    float taps[kMaxLevel + 1][2 * kPad + 1];
+    int rad[kMaxLevel + 1];
+    Kernels() {
+      for (int level = 1; level <= kMaxLevel; ++level) {
+        const double sg = level * kLevelPx;
+        rad[level] = static_cast<int>(std::ceil(2.5 * sg));
+        for (int d = -rad[level]; d <= rad[level]; ++d)
+          taps[level][d + rad[level]] = static_cast<float>(std::exp(-0.5 * d * d / (sg * sg)));
+      }
+    }
+  };
+  static const Kernels kKernels;
+  auto kernel = [](int level, const float** out) {
+    *out = kKernels.taps[level];
+    return kKernels.rad[level];
+  };
+  // Signed level per step: > 0 blur the reference, < 0 the strip. With
+  // sigma_t = c |z - z_t| / 4 the difference of variances is linear in z:
+  //   sigma_n^2 - sigma_k^2 = (c / 4)^2 (z_k - z_n) (2 z - z_k - z_n).
+  std::int8_t levels[kMaxSteps];
+  {
+    const double c4 = 0.25 * s.blur_px_per_z;
+    const double slope = c4 * c4 * (zt_ref - zt_nb);
+    const double inv_level = 1.0 / kLevelPx;
+    for (int k = 0; k < steps; ++k) {
+      const double var = slope * (2 * (z_lo + k * dz) - zt_ref - zt_nb);
+      const int level =
+          std::min(kMaxLevel, static_cast<int>(std::sqrt(std::abs(var)) * inv_level + 0.5));
+      levels[k] = static_cast<std::int8_t>(var > 0 ? level : -level);
+    }
+  }
+  float wide[kLines][kWide];
+  bool wide_ready = false;
+  const float* kern = nullptr;
+  // Blurred strip lines (valid 0/1 and NaN-free values for the sums).
+  float blurred[kLines][kMaxSteps + 16 + kStripPad];
+  float value0[kMaxSteps + 16 + 2 * 4 * kPad], valid[kMaxSteps + 16 + 2 * 4 * kPad];
+  float sum[kMaxSteps + 16], wsum[kMaxSteps + 16];
+  float blurred_ref[kSamples];
+  int k = 0;
+  while (k < steps) {
+    const int level = levels[k];
+    int end = k + 1;
+    while (end < steps && levels[end] == level) ++end;
+    const int run = end - k;
+    if (level == 0) {
+      std::array<const float*, kLines> l;
+      for (int b = 0; b < kLines; ++b) l[b] = lines[b] + k;
+      costs(l.data(), kLines, ref, spp, run, cost + k);
+    } else if (level > 0) {
+      // The neighbour is the blurrier: the reference blurred along the baseline.
+      if (!wide_ready) {
+        for (int b = -kHalf; b <= kHalf; ++b)
+          for (int a = -2 - kPad; a <= 2 + kPad; ++a)
+            wide[b + kHalf][a + 2 + kPad] =
+                SampleInDisc(grey, width, height, px + a * nb.e_x - b * nb.e_y,
+                             py + a * nb.e_y + b * nb.e_x, s.ref_cx, s.ref_cy, r2);
+        wide_ready = true;
+      }
+      const int rad = kernel(level, &kern);
+      for (int b = 0; b < kLines; ++b)
+        for (int a = 0; a < kAlong; ++a) {
+          float sum = 0, wsum = 0;
+          for (int d = -rad; d <= rad; ++d) {
+            const float x = wide[b][a + kPad + d];
+            if (std::isnan(x)) continue;
+            sum += kern[d + rad] * x;
+            wsum += kern[d + rad];
+          }
+          // The patch's own sample valid (SampleReference), so wsum > 0.
+          blurred_ref[b * kAlong + a] = sum / wsum;
+        }
+      std::array<const float*, kLines> l;
+      for (int b = 0; b < kLines; ++b) l[b] = lines[b] + k;
+      costs(l.data(), kLines, blurred_ref, spp, run, cost + k);
+    } else {
+      // The neighbour is the sharper: its strip blurred over the samples
+      // this run reads (k .. end - 1 + 4 spp), taps spp samples (1 px) apart.
+      const int rad = kernel(-level, &kern);
+      const int lo = k - rad * spp;  // the taps' first strip index (may be < 0)
+      const int n = end - k + 4 * spp;
+      const int span = n + 2 * rad * spp;
+      for (int b = 0; b < kLines; ++b) {
+        // Invalid samples (NaN, or beyond the strip) weigh 0 in the sums.
+        for (int i = 0; i < span; ++i) {
+          const int j = lo + i;
+          const float x = j >= 0 && j < strip_len ? lines[b][j] : std::numeric_limits<float>::quiet_NaN();
+          const bool ok = !std::isnan(x);
+          value0[i] = ok ? x : 0.0f;
+          valid[i] = ok ? 1.0f : 0.0f;
+        }
+        for (int i = 0; i < n; ++i) sum[i] = wsum[i] = 0.0f;
+        for (int d = 0; d <= 2 * rad; ++d) {
+          const float g = kern[d];
+          const float* v = value0 + d * spp;
+          const float* m = valid + d * spp;
+          for (int i = 0; i < n; ++i) {
+            sum[i] += g * v[i];
+            wsum[i] += g * m[i];
+          }
+        }
+        float* out = blurred[b];
+        const float* centre = valid + rad * spp;
+        for (int i = 0; i < n; ++i)
+          out[i] = centre[i] > 0 ? sum[i] / wsum[i] : std::numeric_limits<float>::quiet_NaN();
+        std::fill(out + n, out + n + kStripPad, 0.0f);
+      }
+      std::array<const float*, kLines> l;
+      for (int b = 0; b < kLines; ++b) l[b] = blurred[b];
+      costs(l.data(), kLines, ref, spp, run, cost + k);
+    }
+    k = end;
+  }
+}
+
 // One baseline: best z in [z_lo, z_hi]; false when unconfirmed. `ref` is the
 // patch of p sampled along nb's direction (kAlong x kLines); gradient_sum its
 // PatchGradient2; radius_px the usable disc radius r_valid. kLines 1: a
 // patch of one line along the baseline (a third of the samples, for a
-// coarse search whose result a longer baseline refines).
-template <int kLines = kAcross, typename Bilinear>
+// coarse search whose result a longer baseline refines). kEqualise: pairs
+// of two lens types through EqualisedCosts when s.blur_px_per_z > 0 (a
+// template parameter, so the searches without it compile as before).
+template <int kLines = kAcross, bool kEqualise = false, typename Bilinear>
 bool MatchAlong(const MatchParams& s, const Bilinear& grey, int width, int height, double radius_px,
                 float px, float py, const float* ref, double gradient_sum, const Neighbour& nb,
                 double z_lo, double z_hi, Estimate* est) {
@@ -305,7 +479,13 @@ bool MatchAlong(const MatchParams& s, const Bilinear& grey, int width, int heigh
     }
   }
   float cost[kMaxSteps + kStripPad];
-  if (kernels != nullptr) {
+  if (kEqualise && s.blur_px_per_z > 0 && !nb.same_type) {
+    std::array<const float*, kLines> lines;
+    for (int b = 0; b < kLines; ++b) lines[b] = strip[b];
+    EqualisedCosts<kLines>(s, grey, width, height, radius_px, px, py, nb, ref, lines.data(),
+                           strip_len, steps, z_lo, dz,
+                           kernels != nullptr ? kernels->costs : ScalarStripKernels().costs, cost);
+  } else if (kernels != nullptr) {
     std::array<const float*, kLines> lines;
     for (int b = 0; b < kLines; ++b) lines[b] = strip[b];
     kernels->costs(lines.data(), kLines, ref, spp, steps, cost);

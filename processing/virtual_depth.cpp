@@ -138,6 +138,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
   search.max_cost_ratio = options.max_cost_ratio;
   search.geometric_px = options.geometric_px;
   search.cross_type_px = options.cross_type_px;
+  if (options.equalise_defocus) detail::DefocusModel(mla, lambda, f.grid.PitchPx(), &search);
   detail::MatchParams narrow = search;  // the seeded window's search
   narrow.max_cost_ratio = options.seed_cost_ratio;
   const detail::StripKernels& kernels =
@@ -284,9 +285,21 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
             ref[m] = nb.flipped ? cached[kSamples - 1 - m] : cached[m];
           const double g2 = g2_cache[nb.axis];
           Estimate e;
-          if (detail::MatchAlong(params, grey, w, h, f.radius_px, static_cast<float>(x),
-                                 static_cast<float>(y), ref, g2, nb, z0, z1, &e))
-            estimates.Add(e);
+          bool found = false;
+          if (options.equalise_defocus) {
+            // The equalised search also reads the reference micro image.
+            detail::MatchParams with_ref = params;
+            with_ref.ref_type = lens.type;
+            with_ref.ref_cx = cx;
+            with_ref.ref_cy = cy;
+            found = detail::MatchAlong<detail::kAcross, true>(
+                with_ref, grey, w, h, f.radius_px, static_cast<float>(x), static_cast<float>(y),
+                ref, g2, nb, z0, z1, &e);
+          } else {
+            found = detail::MatchAlong(params, grey, w, h, f.radius_px, static_cast<float>(x),
+                                       static_cast<float>(y), ref, g2, nb, z0, z1, &e);
+          }
+          if (found) estimates.Add(e);
         };
         ++searched_count[k];
         for (int q = 0; q < gated; ++q)

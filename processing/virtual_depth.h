@@ -101,6 +101,9 @@ struct DepthOptions {
   int max_ring2 = 6;            // ring-2 baselines likewise
   int rings = 2;                // 1 or 2
   double cross_type_px = 0.3;   // model error of a pair of different lens types (blur)
+  // Pairs of two lens types: the sharper side blurred to the other's defocus
+  // at each searched depth before the SSD (epipolar_search.h, EqualisedCosts).
+  bool equalise_defocus = false;
   int smooth_radius_px = 4;     // regularisation window within a micro image
   int min_support = 3;          // agreeing estimates in that window (the pixel included)
   int min_estimates = 1;        // agreeing estimates per pixel

@@ -4,6 +4,7 @@
 // pixels filled (step 5), >= 40 % of raw pixels, the filled ones as accurate.
 
 #include "processing/virtual_depth.h"
+#include "processing/epipolar_search.h"
 #include "tests/processing/synth_frame.h"
 
 #include <gtest/gtest.h>
@@ -73,6 +74,51 @@ TEST(VirtualDepth, MeetsAccuracyGatesOnSmallFrame) {
   EXPECT_GE(coverage, 0.50);
   EXPECT_LE(median, 0.02);
   EXPECT_LE(outlier_share, 0.05);
+}
+
+// The defocus model of the equalised search (epipolar_search.h,
+// DefocusModel) from the MLA file alone: each type's sharp depth is the
+// middle of its depth range in 1 / v, and the blur diameter
+// lambda D |1 / v_t - 1 / v| that of the lens equation of the micro lens
+// (the renderer's, replay/synth/plenoptic_model.h).
+TEST(VirtualDepth, DefocusModelFromTheMlaFileIsTheMicroLensEquation) {
+  const testing::SynthFrame s = testing::RenderSynthFrame("small", 1.0);
+  const CameraModel camera(s.intrinsics);
+  const MlaGrid grid = MlaGrid::FromCalibration(s.mla, s.raw.width, s.raw.height);
+  detail::MatchParams p;
+  detail::DefocusModel(s.mla, camera.lambda(), grid.PitchPx(), &p);
+  for (int t = 0; t < 3; ++t) {
+    const double v_sharp = 1.0 / (1.0 - s.params.mla_to_sensor_mm / s.params.micro_lens_focal_mm[t]);
+    EXPECT_NEAR(1.0 / p.z_sharp[t], v_sharp, 1e-3 * v_sharp) << "type " << t;
+    for (const double v : {2.0, 3.0, 4.5, 8.0})
+      EXPECT_NEAR(p.blur_px_per_z * std::abs(1.0 / v - p.z_sharp[t]),
+                  s.model->BlurDiameterPx(t, v), 0.02 * s.model->BlurDiameterPx(t, v) + 1e-3)
+          << "type " << t << " at v " << v;
+  }
+}
+
+// With the defocus equalised the search keeps the accuracy gates of the
+// default (it is an option: measured, it does not remove the lens types'
+// bias, docs/processing.md).
+TEST(VirtualDepth, EqualisedDefocusKeepsTheAccuracyGates) {
+  const testing::SynthFrame s = testing::RenderSynthFrame("small", 1.0);
+  const CameraModel camera(s.intrinsics);
+  const MlaGrid grid = MlaGrid::FromCalibration(s.mla, s.raw.width, s.raw.height);
+  FrameOptions fo;
+  fo.lambda = camera.lambda();
+  PlenopticFrame frame;
+  ASSERT_TRUE(PrepareFrame(s.raw.View(), s.white.View(), grid, s.mla, fo, &frame).ok());
+  DepthOptions dopt;
+  dopt.equalise_defocus = true;
+  VirtualDepthMap depth;
+  ASSERT_TRUE(EstimateVirtualDepth(frame, s.mla, dopt, &depth).ok());
+  const testing::DepthGates g = testing::MeasureDepthGates(s, depth.virtual_depth, depth.textured);
+  std::printf("equalised: %s\n", depth.stats.BriefReport().c_str());
+  std::printf("equalised: coverage %.1f %%, median |dz|/z %.2f %%, outliers %.2f %%\n",
+              100 * g.coverage, 100 * g.median, 100 * g.outliers);
+  EXPECT_GE(g.coverage, 0.50);
+  EXPECT_LE(g.median, 0.02);
+  EXPECT_LE(g.outliers, 0.05);
 }
 
 // Step 5 (untextured pixels of micro images with one surface around them) on
