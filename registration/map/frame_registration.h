@@ -80,10 +80,13 @@ struct FrameRegistrationOptions {
   // projection, and the ratio test is taken among those candidates
   // (guided_ratio): the rest of the map no longer competes, so the same
   // keypoints find their points where the global test could not tell them
-  // apart. Each point keeps its nearest keypoint; the first pose's inliers
-  // not matched so join them; PnP runs again (LO-RANSAC from scratch) on
-  // them. guided_rounds times while PnP succeeds (0: off, the live
-  // localizer's default: its relocalisations are followed by tracking).
+  // apart. Each point keeps its nearest keypoint; the pose's inliers not
+  // matched so join them; PnP runs again (LO-RANSAC from scratch) on them.
+  // Only for a pose the checks refuse, up to guided_rounds times until one
+  // passes: the guided matches add weaker keypoints, so a pose the search
+  // alone already supports is no better with them (docs/registration.md).
+  // 0: off, the live localizer's default (its relocalisations are followed
+  // by tracking).
   int guided_rounds = 0;          // >= 0
   double guided_radius_px = 4.0;  // TF px, > 0
   double guided_ratio = 0.8;      // (0, 1]
