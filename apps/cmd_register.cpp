@@ -556,8 +556,8 @@ CommandRun AddRegisterCommand(CLI::App& app) {
                  "Frame-to-map matching: approximate (the map's kd-forest, built once) or exact "
                  "(brute force, the reference; its time grows with the map)");
   app.add_option("--guided-rounds", o->guided_rounds,
-                 "PnP: rounds of matching the map points again around the pose's projections "
-                 "(0: the descriptor search alone)")
+                 "PnP: for a pose its checks refuse, rounds of matching the map points again "
+                 "around that pose's projections, each followed by PnP and the checks (0: none)")
       ->check(CLI::NonNegativeNumber);
   app.add_flag("--chain", o->chain,
                "Register the cameras in order, each against the map extended by the frames of "
