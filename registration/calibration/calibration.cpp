@@ -21,6 +21,7 @@ namespace {
 
 using internal::InitialMap;
 using internal::MakeMicroImageCost;
+using internal::MakePlateCornerCost;
 using internal::MicroImageCost;
 using internal::PlateCornerCost;
 using internal::Observation;
@@ -332,27 +333,14 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
             options.plate_frames.end())
       continue;
     for (std::size_t n = 0; n < frame.corners.size(); ++n) {
-      const PlateCorner& corner = frame.corners[n];
       if (options.reject_plate_corners &&
           std::find(corner_checks[f].rejected.begin(), corner_checks[f].rejected.end(),
                     static_cast<int>(n)) != corner_checks[f].rejected.end())
         continue;
       CornerObservation co;
       co.frame = f;
-      co.cost.p_in_w_mm = corner.p_in_w_mm;
-      // The marker's centre: the mean of its four corners (all four are
-      // detected with the marker).
-      co.cost.centre_in_w_mm = Eigen::Vector3d::Zero();
-      for (const PlateCorner& other : frame.corners)
-        if (other.marker_id == corner.marker_id) co.cost.centre_in_w_mm += 0.25 * other.p_in_w_mm;
-      co.cost.pixel_size_mm = s;
-      const Eigen::Vector2d x = 2.0 * corner.tf_px + Eigen::Vector2d(0.5, 0.5);
-      co.cost.observed_px = x;
-      const float v = n < frame.corner_virtual_depth.size() ? frame.corner_virtual_depth[n]
-                                                            : std::nanf("");
-      co.cost.use_micro = MakeMicroImageCost(Eigen::Vector3d(x.x(), x.y(), v), *input.micro_images,
-                                             c0, lambda0, options.max_lenses, s, &lenses,
-                                             &co.cost.micro);
+      co.cost = MakePlateCornerCost(frame, n, *input.micro_images, c0, lambda0,
+                                    options.max_lenses, s, &lenses);
       corner_observations.push_back(std::move(co));
     }
   }

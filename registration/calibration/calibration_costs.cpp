@@ -1,6 +1,7 @@
 #include "registration/calibration/calibration_costs.h"
 
 #include <algorithm>
+#include <cmath>
 #include <utility>
 
 namespace lifmcr::registration::internal {
@@ -29,6 +30,26 @@ bool MakeMicroImageCost(const Eigen::Vector3d& x_v, const MicroImages& micro,
     cost->observed_px.push_back(lk + (x_v.head<2>() - lk) / x_v.z());
   }
   return true;
+}
+
+PlateCornerCost MakePlateCornerCost(const CalibrationFrame& frame, std::size_t n,
+                                    const MicroImages& micro, const Eigen::Vector2d& c0,
+                                    double lambda0, int max_lenses, double pixel_size_mm,
+                                    std::vector<int>* lenses) {
+  const PlateCorner& corner = frame.corners[n];
+  PlateCornerCost cost;
+  cost.p_in_w_mm = corner.p_in_w_mm;
+  cost.centre_in_w_mm = Eigen::Vector3d::Zero();
+  for (const PlateCorner& other : frame.corners)
+    if (other.marker_id == corner.marker_id) cost.centre_in_w_mm += 0.25 * other.p_in_w_mm;
+  cost.pixel_size_mm = pixel_size_mm;
+  const Eigen::Vector2d x = 2.0 * corner.tf_px + Eigen::Vector2d(0.5, 0.5);
+  cost.observed_px = x;
+  const float v = n < frame.corner_virtual_depth.size() ? frame.corner_virtual_depth[n]
+                                                        : std::nanf("");
+  cost.use_micro = MakeMicroImageCost(Eigen::Vector3d(x.x(), x.y(), v), micro, c0, lambda0,
+                                      max_lenses, pixel_size_mm, lenses, &cost.micro);
+  return cost;
 }
 
 }  // namespace lifmcr::registration::internal

@@ -111,4 +111,13 @@ bool MakeMicroImageCost(const Eigen::Vector3d& x_v, const MicroImages& micro,
                         const Eigen::Vector2d& c0, double lambda0, int max_lenses, double s,
                         std::vector<int>* lenses, MicroImageCost* cost);
 
+// The cost of plate corner n of `frame`: its marker's centre the mean of the
+// marker's four corners (all four are detected with the marker), observed at
+// its TF position and, where its virtual depth is known, in the micro images
+// MakeMicroImageCost picks. Used by the single-camera and the rig calibration.
+PlateCornerCost MakePlateCornerCost(const CalibrationFrame& frame, std::size_t n,
+                                    const MicroImages& micro, const Eigen::Vector2d& c0,
+                                    double lambda0, int max_lenses, double pixel_size_mm,
+                                    std::vector<int>* lenses);
+
 }  // namespace lifmcr::registration::internal

@@ -454,23 +454,11 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
             std::find(check.rejected.begin(), check.rejected.end(), static_cast<int>(n)) !=
                 check.rejected.end())
           continue;
-        const PlateCorner& corner = frame.corners[n];
         CornerObservation ob;
         ob.camera = c;
         ob.trigger = trigger->second;
-        ob.cost.p_in_w_mm = corner.p_in_w_mm;
-        ob.cost.centre_in_w_mm = Eigen::Vector3d::Zero();
-        for (const PlateCorner& other : frame.corners)
-          if (other.marker_id == corner.marker_id) ob.cost.centre_in_w_mm += 0.25 * other.p_in_w_mm;
-        ob.cost.pixel_size_mm = s;
-        const Eigen::Vector2d x = 2.0 * corner.tf_px + Eigen::Vector2d(0.5, 0.5);
-        ob.cost.observed_px = x;
-        const float v = n < frame.corner_virtual_depth.size() ? frame.corner_virtual_depth[n]
-                                                              : std::nanf("");
-        ob.cost.use_micro = internal::MakeMicroImageCost(Eigen::Vector3d(x.x(), x.y(), v),
-                                                         *cameras[c].micro_images, pp0[c],
-                                                         lambda0[c], co.max_lenses, s,
-                                                         &lenses_seen, &ob.cost.micro);
+        ob.cost = internal::MakePlateCornerCost(frame, n, *cameras[c].micro_images, pp0[c],
+                                                lambda0[c], co.max_lenses, s, &lenses_seen);
         corners.push_back(std::move(ob));
         ++result.cameras[c].plate_corners;
       }

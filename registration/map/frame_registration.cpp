@@ -128,15 +128,6 @@ struct Pair {
   int query = 0;
 };
 
-float GuidedDescriptorDistance2(const float* a, const float* b) {
-  float sum = 0;
-  for (int k = 0; k < kDescriptorSize; ++k) {
-    const float d = a[k] - b[k];
-    sum += d * d;
-  }
-  return sum;
-}
-
 // Guided re-matching (FrameRegistrationOptions::guided_rounds): the map
 // points projected by cam_from_w0, each keypoint against those within
 // radius_px of it, the ratio test among them, each point its nearest
@@ -144,43 +135,14 @@ float GuidedDescriptorDistance2(const float* a, const float* b) {
 std::vector<Pair> GuidedPairs(const MapIndex& map, const processing::CameraModel& camera,
                               const FrameObservations& frame, const Pose& cam_from_w0,
                               double radius_px, double ratio) {
-  const double w = camera.intrinsics().width_px / 2, h = camera.intrinsics().height_px / 2;
-  const double cell = radius_px, radius2 = radius_px * radius_px;
-  const int grid_w = static_cast<int>(std::ceil(w / cell)), grid_h = static_cast<int>(std::ceil(h / cell));
-  std::vector<std::vector<int>> grid(static_cast<std::size_t>(grid_w) * grid_h);
-  std::vector<Eigen::Vector2d> projected(static_cast<std::size_t>(map.size()));
-  for (int j = 0; j < map.size(); ++j) {
-    double v = 0;
-    if (!ProjectMapPoint(camera, cam_from_w0, map.points_in_w0[j], &projected[j], &v)) continue;
-    const Eigen::Vector2d& p = projected[j];
-    if (!(p.x() >= 0 && p.y() >= 0 && p.x() < w && p.y() < h)) continue;
-    grid[static_cast<std::size_t>(p.y() / cell) * grid_w + static_cast<int>(p.x() / cell)]
-        .push_back(j);
-  }
+  const ProjectedMapGrid grid(map, camera, cam_from_w0, camera.intrinsics().width_px / 2,
+                              camera.intrinsics().height_px / 2, radius_px);
   const float ratio2 = static_cast<float>(ratio * ratio);
   std::map<int, std::pair<float, int>> best_of_point;  // point -> (distance^2, keypoint)
   for (int i = 0; i < frame.features.size(); ++i) {
-    const Eigen::Vector2d& xy = frame.tf_px[i];
-    const int gx = static_cast<int>(std::floor(xy.x() / cell)),
-              gy = static_cast<int>(std::floor(xy.y() / cell));
-    int nearest = -1;
-    float d1 = std::numeric_limits<float>::infinity(), d2 = d1;
-    for (int y = std::max(0, gy - 1); y <= std::min(grid_h - 1, gy + 1); ++y)
-      for (int x = std::max(0, gx - 1); x <= std::min(grid_w - 1, gx + 1); ++x)
-        for (const int j : grid[static_cast<std::size_t>(y) * grid_w + x]) {
-          if ((projected[j] - xy).squaredNorm() > radius2) continue;
-          const float d = GuidedDescriptorDistance2(
-              frame.features.Descriptor(i),
-              map.descriptors->data() + static_cast<std::size_t>(j) * kDescriptorSize);
-          if (d < d1) {
-            d2 = d1;
-            d1 = d;
-            nearest = j;
-          } else if (d < d2) {
-            d2 = d;
-          }
-        }
-    if (nearest < 0 || !(d1 < ratio2 * d2)) continue;
+    float d1 = 0;
+    const int nearest = grid.Nearest(frame.tf_px[i], frame.features.Descriptor(i), ratio2, &d1);
+    if (nearest < 0) continue;
     const auto [it, added] = best_of_point.try_emplace(nearest, d1, i);
     if (!added && d1 < it->second.first) it->second = {d1, i};
   }

@@ -24,6 +24,51 @@ float SquaredDistance(const float* a, const float* b) {
 
 }  // namespace
 
+ProjectedMapGrid::ProjectedMapGrid(const MapIndex& map, const processing::CameraModel& camera,
+                                   const Pose& cam_from_w0, double width_px, double height_px,
+                                   double radius_px)
+    : map_(map), cell_(radius_px), radius2_(radius_px * radius_px) {
+  grid_w_ = static_cast<int>(std::ceil(width_px / cell_));
+  grid_h_ = static_cast<int>(std::ceil(height_px / cell_));
+  grid_.resize(static_cast<std::size_t>(grid_w_) * grid_h_);
+  projected_.resize(static_cast<std::size_t>(map.size()));
+  v_.assign(static_cast<std::size_t>(map.size()), 0);
+  for (int j = 0; j < map.size(); ++j) {
+    if (!ProjectMapPoint(camera, cam_from_w0, map.points_in_w0[j], &projected_[j], &v_[j]))
+      continue;
+    const Eigen::Vector2d& p = projected_[j];
+    if (!(p.x() >= 0 && p.y() >= 0 && p.x() < width_px && p.y() < height_px)) continue;
+    grid_[static_cast<std::size_t>(p.y() / cell_) * grid_w_ + static_cast<int>(p.x() / cell_)]
+        .push_back(j);
+    ++in_view_;
+  }
+}
+
+int ProjectedMapGrid::Nearest(const Eigen::Vector2d& xy, const float* descriptor, float ratio2,
+                              float* distance2) const {
+  const int gx = static_cast<int>(std::floor(xy.x() / cell_)),
+            gy = static_cast<int>(std::floor(xy.y() / cell_));
+  int nearest = -1;
+  float d1 = std::numeric_limits<float>::infinity(), d2 = d1;
+  for (int y = std::max(0, gy - 1); y <= std::min(grid_h_ - 1, gy + 1); ++y)
+    for (int x = std::max(0, gx - 1); x <= std::min(grid_w_ - 1, gx + 1); ++x)
+      for (const int j : grid_[static_cast<std::size_t>(y) * grid_w_ + x]) {
+        if ((projected_[j] - xy).squaredNorm() > radius2_) continue;
+        const float d = SquaredDistance(
+            descriptor, map_.descriptors->data() + static_cast<std::size_t>(j) * kDescriptorSize);
+        if (d < d1) {
+          d2 = d1;
+          d1 = d;
+          nearest = j;
+        } else if (d < d2) {
+          d2 = d;
+        }
+      }
+  if (nearest < 0 || !(d1 < ratio2 * d2)) return -1;
+  *distance2 = d1;
+  return nearest;
+}
+
 int GuidedMatchOptions::Step(int tf_longer_side_px) const {
   int step = 1;
   while (step < max_step && tf_longer_side_px / (step + 1) >= min_side_px) ++step;
@@ -60,23 +105,10 @@ GuidedMatches FindGuidedMatches(const MapIndex& map, const processing::CameraMod
                                 const Pose& w0_from_cam, const GuidedMatchOptions& options) {
   GuidedMatches out;
   const auto render_start = std::chrono::steady_clock::now();
-  // The map points in view, in a grid of radius_px cells (a keypoint's
-  // candidates are in its cell and the 8 around it).
-  const double w = sampler.tf_width(), h = sampler.tf_height(), cell = options.radius_px;
-  const int grid_w = static_cast<int>(std::ceil(w / cell)),
-            grid_h = static_cast<int>(std::ceil(h / cell));
-  std::vector<std::vector<int>> grid(static_cast<std::size_t>(grid_w) * grid_h);
-  std::vector<Eigen::Vector2d> projected(static_cast<std::size_t>(map.size()));
-  std::vector<double> v(static_cast<std::size_t>(map.size()), 0);
-  const Pose cam_from_w0 = w0_from_cam.inverse();
-  for (int j = 0; j < map.size(); ++j) {
-    if (!ProjectMapPoint(camera, cam_from_w0, map.points_in_w0[j], &projected[j], &v[j])) continue;
-    const Eigen::Vector2d& p = projected[j];
-    if (!(p.x() >= 0 && p.y() >= 0 && p.x() < w && p.y() < h)) continue;
-    grid[static_cast<std::size_t>(p.y() / cell) * grid_w + static_cast<int>(p.x() / cell)]
-        .push_back(j);
-    ++out.in_view;
-  }
+  // The map points in view, in a grid of radius_px cells.
+  const double w = sampler.tf_width(), h = sampler.tf_height();
+  const ProjectedMapGrid grid(map, camera, w0_from_cam.inverse(), w, h, options.radius_px);
+  out.in_view = grid.in_view();
   if (out.in_view == 0) {
     out.status = "no map point in view";
     return out;
@@ -85,10 +117,10 @@ GuidedMatches FindGuidedMatches(const MapIndex& map, const processing::CameraMod
   // (refocus_cells), else at the median virtual depth of the points in view.
   std::vector<double> in_view_v;
   std::vector<Eigen::Vector2d> in_view_tf;
-  for (const std::vector<int>& points : grid)
+  for (const std::vector<int>& points : grid.cells())
     for (const int j : points) {
-      in_view_v.push_back(v[j]);
-      in_view_tf.push_back(projected[j]);
+      in_view_v.push_back(grid.virtual_depth(j));
+      in_view_tf.push_back(grid.tf_px(j));
     }
   std::vector<double> sorted_v = in_view_v;
   std::nth_element(sorted_v.begin(), sorted_v.begin() + sorted_v.size() / 2, sorted_v.end());
@@ -124,7 +156,6 @@ GuidedMatches FindGuidedMatches(const MapIndex& map, const processing::CameraMod
   // Each keypoint against the map points projected within radius_px; each
   // map point keeps its best keypoint (a cross check).
   const auto match_start = std::chrono::steady_clock::now();
-  const double radius2 = options.radius_px * options.radius_px;
   const float ratio2 = static_cast<float>(options.ratio * options.ratio);
   struct Best {
     int keypoint = -1;
@@ -132,26 +163,10 @@ GuidedMatches FindGuidedMatches(const MapIndex& map, const processing::CameraMod
   };
   std::vector<Best> best_of_point(static_cast<std::size_t>(map.size()));
   for (int i = 0; i < features.size(); ++i) {
-    const Eigen::Vector2d xy = features.keypoints[i].xy_px.cast<double>();
-    const int gx = static_cast<int>(xy.x() / cell), gy = static_cast<int>(xy.y() / cell);
-    int nearest = -1;
-    float d1 = std::numeric_limits<float>::infinity(), d2 = d1;
-    for (int y = std::max(0, gy - 1); y <= std::min(grid_h - 1, gy + 1); ++y)
-      for (int x = std::max(0, gx - 1); x <= std::min(grid_w - 1, gx + 1); ++x)
-        for (const int j : grid[static_cast<std::size_t>(y) * grid_w + x]) {
-          if ((projected[j] - xy).squaredNorm() > radius2) continue;
-          const float d = SquaredDistance(
-              features.Descriptor(i),
-              map.descriptors->data() + static_cast<std::size_t>(j) * kDescriptorSize);
-          if (d < d1) {
-            d2 = d1;
-            d1 = d;
-            nearest = j;
-          } else if (d < d2) {
-            d2 = d;
-          }
-        }
-    if (nearest < 0 || !(d1 < ratio2 * d2)) continue;
+    float d1 = 0;
+    const int nearest = grid.Nearest(features.keypoints[i].xy_px.cast<double>(),
+                                     features.Descriptor(i), ratio2, &d1);
+    if (nearest < 0) continue;
     Best& best = best_of_point[nearest];
     if (d1 < best.distance) best = {i, d1};
   }
@@ -160,7 +175,7 @@ GuidedMatches FindGuidedMatches(const MapIndex& map, const processing::CameraMod
     if (best.keypoint < 0) continue;
     out.points.push_back(j);
     out.tf_px.push_back(features.keypoints[best.keypoint].xy_px.cast<double>());
-    out.virtual_depth.push_back(v[j]);
+    out.virtual_depth.push_back(grid.virtual_depth(j));
   }
   out.match_s = SecondsSince(match_start);
   return out;

@@ -106,6 +106,37 @@ struct GuidedMatches {
 bool ProjectMapPoint(const processing::CameraModel& camera, const Pose& cam_from_w0,
                      const Eigen::Vector3d& p_in_w0, Eigen::Vector2d* tf_px, double* v);
 
+// The map points a camera at cam_from_w0 sees inside its width x height TF
+// image, binned in square cells of radius_px: the points projected within
+// radius_px of a position lie in its cell and the 8 around it. Used by the
+// live re-anchoring (FindGuidedMatches) and by register's re-matching of a
+// refused pose (frame_registration.h, guided_rounds).
+class ProjectedMapGrid {
+ public:
+  ProjectedMapGrid(const MapIndex& map, const processing::CameraModel& camera,
+                   const Pose& cam_from_w0, double width_px, double height_px, double radius_px);
+  int in_view() const { return in_view_; }
+  const Eigen::Vector2d& tf_px(int point) const { return projected_[point]; }
+  double virtual_depth(int point) const { return v_[point]; }
+  // The points in view, cell by cell (rows of cells, top first).
+  const std::vector<std::vector<int>>& cells() const { return grid_; }
+  // The map point whose descriptor is nearest `descriptor` among those
+  // projected within radius_px of xy, when it passes the ratio test against
+  // the second nearest there (d1 < ratio2 d2 in squared distances); -1
+  // otherwise. *distance2: its squared descriptor distance.
+  int Nearest(const Eigen::Vector2d& xy, const float* descriptor, float ratio2,
+              float* distance2) const;
+
+ private:
+  const MapIndex& map_;
+  double cell_ = 1, radius2_ = 1;
+  int grid_w_ = 0, grid_h_ = 0;
+  std::vector<std::vector<int>> grid_;
+  std::vector<Eigen::Vector2d> projected_;
+  std::vector<double> v_;
+  int in_view_ = 0;
+};
+
 GuidedMatches FindGuidedMatches(const MapIndex& map, const processing::CameraModel& camera,
                                 const processing::TfSampler& sampler, const ConstImageView& raw,
                                 const Pose& w0_from_cam, const GuidedMatchOptions& options);

@@ -163,6 +163,17 @@ FrameSet MakeFrameSet(std::int64_t trigger, const std::vector<std::string>& seri
   return set;
 }
 
+// The frame set of `trigger` whose frame of each camera is a copy of
+// raw[camera] in a buffer of `pool`.
+FrameSet MakeCopiedFrameSet(std::int64_t trigger, const std::vector<std::string>& serials,
+                            FramePool& pool, const std::vector<OwnedImage>& raw) {
+  return MakeFrameSet(trigger, serials, pool, [&](int camera, std::uint8_t* data) {
+    const ConstImageView src = raw[camera].View();
+    std::copy_n(raw[camera].pixels.data(), raw[camera].pixels.size(), data);
+    return ImageView{data, src.width, src.height, src.stride_bytes, src.format};
+  });
+}
+
 void Drain(lcm::LCM& bus) {
   while (bus.handleTimeout(0) > 0) {
   }
@@ -1041,12 +1052,7 @@ TEST(Pipeline, RegistrationPairsTheCamerasFramesOfATrigger) {
   std::unique_ptr<Pipeline> pipeline = std::move(*created);
   const auto pool = FramePool::Create(16, raw[0].pixels.size());
   const auto add_set = [&](std::int64_t trigger) {
-    pipeline->AddFrameSet(
-        MakeFrameSet(trigger, serials, *pool, [&](int camera, std::uint8_t* data) {
-          const ConstImageView src = raw[camera].View();
-          std::copy_n(raw[camera].pixels.data(), raw[camera].pixels.size(), data);
-          return ImageView{data, src.width, src.height, src.stride_bytes, src.format};
-        }));
+    pipeline->AddFrameSet(MakeCopiedFrameSet(trigger, serials, *pool, raw));
     pipeline->Poll();
   };
   add_set(0);  // both workers: camera 0 and camera 1 of trigger 0
@@ -1115,12 +1121,7 @@ TEST(Pipeline, LensLaneTakesTheFramesTheWorkersSkip) {
   std::unique_ptr<Pipeline> pipeline = std::move(*created);
   const auto pool = FramePool::Create(16, raw[0].pixels.size());
   const auto add_set = [&](std::int64_t trigger) {
-    pipeline->AddFrameSet(
-        MakeFrameSet(trigger, serials, *pool, [&](int camera, std::uint8_t* data) {
-          const ConstImageView src = raw[camera].View();
-          std::copy_n(raw[camera].pixels.data(), raw[camera].pixels.size(), data);
-          return ImageView{data, src.width, src.height, src.stride_bytes, src.format};
-        }));
+    pipeline->AddFrameSet(MakeCopiedFrameSet(trigger, serials, *pool, raw));
     pipeline->Poll();
   };
   add_set(0);  // both workers, held
@@ -1268,11 +1269,7 @@ TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
   ASSERT_TRUE(created.ok()) << created.error().message;
   std::unique_ptr<Pipeline> pipeline = std::move(*created);
   const auto pool = FramePool::Create(4, raw[0].pixels.size());
-  pipeline->AddFrameSet(MakeFrameSet(0, serials, *pool, [&](int camera, std::uint8_t* data) {
-    const ConstImageView src = raw[camera].View();
-    std::copy_n(raw[camera].pixels.data(), raw[camera].pixels.size(), data);
-    return ImageView{data, src.width, src.height, src.stride_bytes, src.format};
-  }));
+  pipeline->AddFrameSet(MakeCopiedFrameSet(0, serials, *pool, raw));
   pipeline->Poll();
   // Both frames wait in ProcessLenses (the lens lane has a thread per
   // camera here): both poses are out, so trigger 0's extrinsics are too.

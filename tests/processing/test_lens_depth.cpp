@@ -6,6 +6,7 @@
 #include "processing/camera_model.h"
 #include "processing/lens_depth.h"
 #include "processing/mla_grid.h"
+#include "tests/processing/lens_accuracy.h"
 #include "tests/processing/synth_frame.h"
 
 #include <gtest/gtest.h>
@@ -19,30 +20,7 @@
 namespace lifmcr::processing {
 namespace {
 
-struct Accuracy {
-  long long textured = 0, estimated = 0, outliers = 0;
-  double coverage = 0, median = 1;
-};
-
-// Over the lenses the estimator calls textured and whose truth is known.
-Accuracy Measure(const LensDepthMap& depth, const std::vector<float>& truth) {
-  Accuracy a;
-  std::vector<double> rel;
-  for (std::size_t c = 0; c < truth.size(); ++c) {
-    if (!depth.textured[c] || !std::isfinite(truth[c])) continue;
-    ++a.textured;
-    const float v = depth.virtual_depth[c];
-    if (!std::isfinite(v)) continue;
-    ++a.estimated;
-    rel.push_back(std::abs(v - truth[c]) / truth[c]);
-    if (rel.back() > 0.10) ++a.outliers;
-  }
-  if (a.textured == 0 || rel.empty()) return a;
-  std::nth_element(rel.begin(), rel.begin() + rel.size() / 2, rel.end());
-  a.coverage = static_cast<double>(a.estimated) / a.textured;
-  a.median = rel[rel.size() / 2];
-  return a;
-}
+using Accuracy = testing::LensAccuracy;
 
 std::unique_ptr<LensDepthEstimator> MakeEstimator(const testing::SynthFrame& s,
                                                   const LensDepthOptions& options = {}) {
@@ -83,7 +61,7 @@ TEST_F(LensDepthMedium, MeetsTheGates) {
   ASSERT_TRUE(estimator->Estimate(s.raw.View(), &depth).ok());
   std::vector<float> truth;
   LensMedianOf(estimator->geometry(), depth.grid, s.raw.virtual_depth, 0.5, &truth);
-  const Accuracy a = Measure(depth, truth);
+  const Accuracy a = testing::MeasureLensDepth(depth, truth);
   std::printf(
       "medium table: %s\nvs truth: %lld of %lld textured lenses (%.1f %%), median |dv|/v "
       "%.2f %%, outliers (> 10 %%) %lld\n",

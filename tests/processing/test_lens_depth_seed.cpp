@@ -12,6 +12,7 @@
 #include "replay/synth/scene.h"
 #include "replay/synth/synth_params.h"
 #include "replay/synth/trajectory.h"
+#include "tests/processing/lens_accuracy.h"
 #include "tests/processing/synth_frame.h"
 
 #include <gtest/gtest.h>
@@ -26,32 +27,7 @@
 namespace lifmcr::processing {
 namespace {
 
-struct Accuracy {
-  long long textured = 0, estimated = 0, outliers = 0;
-  double coverage = 0, median = 1;
-};
-
-// Over the cells `use` keeps that the estimator calls textured and whose
-// truth is known.
-template <typename Use>
-Accuracy Measure(const LensDepthMap& depth, const std::vector<float>& truth, Use use) {
-  Accuracy a;
-  std::vector<double> rel;
-  for (std::size_t c = 0; c < truth.size(); ++c) {
-    if (!use(c) || !depth.textured[c] || !std::isfinite(truth[c])) continue;
-    ++a.textured;
-    const float v = depth.virtual_depth[c];
-    if (!std::isfinite(v)) continue;
-    ++a.estimated;
-    rel.push_back(std::abs(v - truth[c]) / truth[c]);
-    if (rel.back() > 0.10) ++a.outliers;
-  }
-  if (a.textured == 0 || rel.empty()) return a;
-  std::nth_element(rel.begin(), rel.begin() + rel.size() / 2, rel.end());
-  a.coverage = static_cast<double>(a.estimated) / a.textured;
-  a.median = rel[rel.size() / 2];
-  return a;
-}
+using Accuracy = testing::LensAccuracy;
 
 bool SameCell(const LensDepthMap& a, const LensDepthMap& b, std::size_t c) {
   const bool same_v = std::isnan(a.virtual_depth[c]) ? std::isnan(b.virtual_depth[c])
@@ -142,8 +118,8 @@ void Print(const char* what, const LensDepthMap& m, const Accuracy& a) {
 TEST_F(LensDepthSeed, HoldsWhereTheCameraMovedALittle) {
   const LensDepthSeedPair p = EstimateBoth(shared_->moved);
   auto all = [](std::size_t) { return true; };
-  const Accuracy full = Measure(p.full, p.truth, all);
-  const Accuracy seeded = Measure(p.seeded, p.truth, all);
+  const Accuracy full = testing::MeasureLensDepth(p.full, p.truth, all);
+  const Accuracy seeded = testing::MeasureLensDepth(p.seeded, p.truth, all);
   Print("moved, no seed", p.full, full);
   Print("moved, seeded by frame 0", p.seeded, seeded);
   EXPECT_EQ(p.full.stats.seeded, 0);
@@ -193,8 +169,8 @@ TEST_F(LensDepthSeed, FallsBackWhereADepthEdgeMoved) {
   const LensDepthSeedPair p = EstimateBoth(shared_->moved);
   const Changed ch = ChangedSince(shared_->truth, p, 0.10);
   auto changed = [&](std::size_t c) { return ch.cell[c] != 0; };
-  const Accuracy full = Measure(p.full, p.truth, changed);
-  const Accuracy seeded = Measure(p.seeded, p.truth, changed);
+  const Accuracy full = testing::MeasureLensDepth(p.full, p.truth, changed);
+  const Accuracy seeded = testing::MeasureLensDepth(p.seeded, p.truth, changed);
   std::printf(
       "lenses whose true depth changed by > 10 %%: %lld of %lld; the seeded map equals the "
       "unseeded one in %lld; no seed: %.1f %% estimated, median %.2f %%, outliers %lld; seeded: "
@@ -215,8 +191,8 @@ TEST_F(LensDepthSeed, FallsBackWhereADepthEdgeMoved) {
 TEST_F(LensDepthSeed, FallsBackEverywhereWhenTheCameraIsKnocked) {
   const LensDepthSeedPair p = EstimateBoth(shared_->knocked);
   auto all = [](std::size_t) { return true; };
-  const Accuracy full = Measure(p.full, p.truth, all);
-  const Accuracy seeded = Measure(p.seeded, p.truth, all);
+  const Accuracy full = testing::MeasureLensDepth(p.full, p.truth, all);
+  const Accuracy seeded = testing::MeasureLensDepth(p.seeded, p.truth, all);
   Print("knocked, no seed", p.full, full);
   Print("knocked, seeded by frame 0", p.seeded, seeded);
   const Changed ch = ChangedSince(shared_->truth, p, 0.10);
