@@ -22,6 +22,7 @@ namespace {
 using internal::InitialMap;
 using internal::MakeMicroImageCost;
 using internal::MakePlateCornerCost;
+using internal::PrincipalPointPriorCost;
 using internal::MicroImageCost;
 using internal::PlateCornerCost;
 using internal::Observation;
@@ -37,17 +38,6 @@ std::string Format(const char* fmt, auto... args) {
   return buffer;
 }
 
-// The principal point's prior: (c - c_initial) / sigma. Parameters: intrinsics.
-struct PrincipalPointPrior {
-  Eigen::Vector2d initial_px;
-  double sigma_px = 1;
-  template <typename T>
-  bool operator()(const T* k, T* residuals) const {
-    residuals[0] = (k[3] - T(initial_px.x())) / T(sigma_px);
-    residuals[1] = (k[4] - T(initial_px.y())) / T(sigma_px);
-    return true;
-  }
-};
 
 // Points by inverse depth in the frame of their first observation (the
 // anchor a): (alpha, beta, rho) with p_in_a = (alpha, beta, 1) / rho, rho
@@ -441,8 +431,8 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
     } else {
       if (options.estimate_principal_point && options.principal_point_prior_px > 0)
         problem.AddResidualBlock(
-            new ceres::AutoDiffCostFunction<PrincipalPointPrior, 2, kIntrinsicsSize>(
-                new PrincipalPointPrior{c0, options.principal_point_prior_px}),
+            new ceres::AutoDiffCostFunction<PrincipalPointPriorCost, 2, kIntrinsicsSize>(
+                new PrincipalPointPriorCost{c0, options.principal_point_prior_px}),
             nullptr, k.data());
       if (!constant.empty())
         problem.SetManifold(k.data(), new ceres::SubsetManifold(kIntrinsicsSize, constant));

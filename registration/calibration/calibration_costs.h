@@ -105,6 +105,19 @@ struct PlateCornerCost {
   }
 };
 
+// The principal point's prior: (c - c_initial) / sigma. Parameters:
+// intrinsics (k[3], k[4] the principal point).
+struct PrincipalPointPriorCost {
+  Eigen::Vector2d initial_px;
+  double sigma_px = 1;
+  template <typename T>
+  bool operator()(const T* k, T* residuals) const {
+    residuals[0] = (k[3] - T(initial_px.x())) / T(sigma_px);
+    residuals[1] = (k[4] - T(initial_px.y())) / T(sigma_px);
+    return true;
+  }
+};
+
 // The micro-image observations of virtual point x_v (calibration.h step 3):
 // the max_lenses most central micro images that see it.
 bool MakeMicroImageCost(const Eigen::Vector3d& x_v, const MicroImages& micro,

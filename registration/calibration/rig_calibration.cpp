@@ -25,6 +25,7 @@ namespace {
 
 using internal::MicroImageCost;
 using internal::PlateCornerCost;
+using internal::PrincipalPointPriorCost;
 
 constexpr double kRigBound = 0.3;        // f_L, b_L0, B about their initial values (calibration.cpp)
 constexpr double kRigMaxInsetTfPx = 2.0;  // the plate corners' inset (calibration.cpp)
@@ -92,16 +93,6 @@ struct RigPlateCornerCost {
   }
 };
 
-struct PrincipalPointPriorCost {
-  Eigen::Vector2d initial_px;
-  double sigma_px = 1;
-  template <typename T>
-  bool operator()(const T* k, T* residuals) const {
-    residuals[0] = (k[3] - T(initial_px.x())) / T(sigma_px);
-    residuals[1] = (k[4] - T(initial_px.y())) / T(sigma_px);
-    return true;
-  }
-};
 
 struct LensObservation {
   int camera = 0;
