@@ -17,6 +17,7 @@
 #include "lcm_types/safe_decode.h"
 #include "replay/layout.h"
 #include "replay/sequence.h"
+#include "tests/child_process.h"
 #include "tests/test_util.h"
 
 #include <Eigen/Geometry>
@@ -27,7 +28,6 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
-#include <fcntl.h>
 #include <filesystem>
 #include <map>
 #include <set>
@@ -103,63 +103,7 @@ class Hosts {
   std::string a_, b_, l_;
 };
 
-// A child process: `argv` run in network namespace `ns` (empty: this one),
-// stdout and stderr into `log`.
-class Child {
- public:
-  Child(const std::string& ns, std::vector<std::string> argv, const fs::path& log) : log_(log) {
-    if (!ns.empty()) argv.insert(argv.begin(), {"ip", "netns", "exec", ns});
-    pid_ = fork();
-    if (pid_ == 0) {
-      const int fd = open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-      if (fd >= 0) {
-        dup2(fd, STDOUT_FILENO);
-        dup2(fd, STDERR_FILENO);
-      }
-      std::vector<char*> args;
-      for (std::string& arg : argv) args.push_back(arg.data());
-      args.push_back(nullptr);
-      execvp(args[0], args.data());
-      _exit(127);
-    }
-  }
-  ~Child() {
-    if (pid_ > 0 && !exited_) {
-      kill(pid_, SIGKILL);
-      waitpid(pid_, nullptr, 0);
-    }
-  }
-  Child(const Child&) = delete;
-  Child& operator=(const Child&) = delete;
-
-  // The exit code, or -1 when it did not end within `timeout` (then killed).
-  int Wait(std::chrono::seconds timeout) {
-    const auto end = Clock::now() + timeout;
-    while (Clock::now() < end) {
-      int status = 0;
-      if (waitpid(pid_, &status, WNOHANG) == pid_) {
-        exited_ = true;
-        return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
-    return -1;
-  }
-  void Signal(int signal) {
-    if (pid_ > 0 && !exited_) kill(pid_, signal);
-  }
-  std::string Log() const { return test::ReadFile(log_); }
-
- private:
-  pid_t pid_ = -1;
-  bool exited_ = false;
-  fs::path log_;
-};
-
-std::vector<std::string> Lifmcr(std::vector<std::string> args) {
-  args.insert(args.begin(), test::LifmcrBinary().string());
-  return args;
-}
+using test::Child;
 
 // Every c0_from_cx of a log, by trigger; and every channel in it.
 struct LogContents {
@@ -248,16 +192,16 @@ TEST(MultiHost, TwoHostsAndOneRelateStageMatchTheSingleProcessAndMergeTheirRecor
   const fs::path multi_log = dir / "multi.lcmlog";
   Child logger(hosts.listener(), {"lcm-logger", "--lcm-url=" + url, multi_log.string()},
                dir / "logger.txt");
-  Child relate(
-      hosts.a(),
-      Lifmcr({"relate", "--lcm", url, "--rigid-mount", "--wait-ms", "120000", "--duration", "500"}),
-      dir / "relate.txt");
+  Child relate(hosts.a(),
+               test::LifmcrArgv({"relate", "--lcm", url, "--rigid-mount", "--wait-ms", "120000",
+                                 "--duration", "500"}),
+               dir / "relate.txt");
   // `lifmcr monitor` on the third host: its one view at the end (not a terminal).
-  Child monitor(hosts.listener(), Lifmcr({"monitor", "--lcm", url}), dir / "monitor.txt");
+  Child monitor(hosts.listener(), test::LifmcrArgv({"monitor", "--lcm", url}), dir / "monitor.txt");
   std::this_thread::sleep_for(std::chrono::milliseconds(700));  // subscribed
   const auto replay = [&](const std::string& serial) {
-    return Lifmcr({"replay", seq.string(), "--cameras", serial, "--rate", "max", "--reference",
-                   reference, "--lcm", url});
+    return test::LifmcrArgv({"replay", seq.string(), "--cameras", serial, "--rate", "max",
+                             "--reference", reference, "--lcm", url});
   };
   Child host_a(hosts.a(), replay(zero), dir / "host_a.txt");
   Child host_b(hosts.b(), replay(x), dir / "host_b.txt");
@@ -353,7 +297,7 @@ TEST(MultiHost, TwoHostsAndOneRelateStageMatchTheSingleProcessAndMergeTheirRecor
                                      seq.string(), "--out", (dir / out).string(), "--duration",
                                      "120"};
     if (!cameras.empty()) args.insert(args.end(), {"--cameras", cameras});
-    Child child(ns, Lifmcr(args), dir / (out + ".txt"));
+    Child child(ns, test::LifmcrArgv(args), dir / (out + ".txt"));
     const int code = child.Wait(std::chrono::seconds(150));
     EXPECT_EQ(code, 0) << child.Log();
   };
