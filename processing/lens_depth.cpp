@@ -596,6 +596,26 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
   }
 
   // 2b. The full search (no prior, or it did not hold).
+  // Of candidate c, the ring-2 axis with the largest gradient along it among
+  // those with a neighbour that sees c's 5 x 3 patch at z with a step to
+  // spare (SeesPatchAround), in the order of the gradient: the first that
+  // sees is the one; -1: none.
+  auto ring2_axis = [&](const Candidate& c, double z) {
+    float gx = 0, gy = 0;
+    gradient(c.x, c.y, &gx, &gy);
+    std::array<std::pair<float, int>, 3> order;
+    for (int d = 0; d < 3; ++d)
+      order[d] = {std::abs(gx * axis_e[3 + d][0] + gy * axis_e[3 + d][1]), d};
+    // Descending, the lower axis first among equal gradients.
+    std::stable_sort(order.begin(), order.end(),
+                     [](const auto& a, const auto& b) { return a.first > b.first; });
+    for (const auto& [g, d] : order)
+      for (int q = 0; q < axis_n[3 + d]; ++q)
+        if (SeesPatchAround(ring2, f.radius_px, 3, static_cast<float>(c.x),
+                            static_cast<float>(c.y), nbs[axis_nb[3 + d][q]], z))
+          return d;
+    return -1;
+  };
   for (int s = 0; s < n_best; ++s) {
     const Candidate& c = best[s];
     px = static_cast<float>(c.x);
@@ -640,19 +660,7 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
       auto ring2_wanted = [&](const detail::Neighbour& nb) {
         return SeesPatchAround(ring2, f.radius_px, 3, px, py, nb, z);
       };
-      float gx = 0, gy = 0;
-      gradient(c.x, c.y, &gx, &gy);
-      int axis2 = -1;
-      float best2 = -1;
-      for (int d = 0; d < 3; ++d) {
-        bool sees = false;
-        for (int q = 0; q < axis_n[3 + d] && !sees; ++q) sees = ring2_wanted(nbs[axis_nb[3 + d][q]]);
-        const float g = std::abs(gx * axis_e[3 + d][0] + gy * axis_e[3 + d][1]);
-        if (sees && g > best2) {
-          best2 = g;
-          axis2 = d;
-        }
-      }
+      const int axis2 = ring2_axis(c, z);
       if (axis2 >= 0)
         search_axis(std::integral_constant<int, 3>{}, 3 + axis2, ring2, z0, z1, ring2_wanted,
                     mine.data(), &n_mine);
@@ -883,49 +891,86 @@ Status LensDepthEstimator::RenderPreview(ConstImageView raw, int max_side, LensD
                     (f.height - 1.0) * raw.stride_bytes + 3.0 * f.width < 2147483648.0;
   const detail::TfBlendKernels& kernels =
       options_.simd ? detail::SimdTfBlendKernels() : detail::ScalarTfBlendKernels();
-  // MlaGrid::Nearest with the lattice's inverse made once and round() inline
-  // (half away from zero by truncation; a libm call each otherwise).
+  // The lens that looks at a point (MlaGrid::Nearest of TfKernel::LookingAt)
+  // in float, affine in the point: with k(v) = 1 / (lambda + v (1 - lambda)),
+  // LookingAt(x, v) = c + k(v) (x - c), so in the lattice's axial
+  // coordinates a(q) = A^-1 (q - o) it is a_c + k(v) A^-1 (x - c), and along
+  // an output row A^-1 (x - c) steps by dx A^-1 (1, 0)^T. Per point and
+  // round: two multiply-adds, the cube rounding of the hex lattice and the
+  // cell's v; k(v) per cell made once per frame (one per lens: the lens's
+  // refocus scale).
   const Eigen::Matrix2d to_lattice = f.grid.lattice.inverse();
-  auto round_inline = [](double a) {
-    return static_cast<double>(static_cast<long long>(a + (a >= 0 ? 0.5 : -0.5)));
+  const Eigen::Vector2d centre(f.principal_point_px.x(), f.principal_point_px.y());
+  const Eigen::Vector2d a_c = to_lattice * (centre - f.grid.reference_px);
+  const float lambda = static_cast<float>(f.lambda);
+  auto scale_of = [lambda](float vv) { return 1.0f / (lambda + vv * (1.0f - lambda)); };
+  // Per cell v (at least 1.05) and k(v), side by side (one cache line for both).
+  std::vector<float>& vk = depth->fill_scratch;
+  vk.resize(2 * cells);
+  for (std::size_t c = 0; c < cells; ++c) {
+    vk[2 * c] = std::max(v[c], 1.05f);
+    vk[2 * c + 1] = scale_of(vk[2 * c]);
+  }
+  const float* v_of_cell = vk.data();
+  const float* k_of_cell = vk.data() + 1;
+  const float v_median = std::max(static_cast<float>(median), 1.05f);
+  const float k_median = scale_of(v_median);
+  const float acx = static_cast<float>(a_c.x()), acy = static_cast<float>(a_c.y());
+  auto round_half_away = [](float a) {
+    return static_cast<float>(static_cast<int>(a + (a >= 0 ? 0.5f : -0.5f)));
   };
-  auto nearest = [&](const Eigen::Vector2f& q, int* i, int* j) {
-    const Eigen::Vector2d axial = to_lattice * (Eigen::Vector2d(q.x(), q.y()) - f.grid.reference_px);
-    const double qa = axial.x(), ra = axial.y(), sa = -qa - ra;
-    double rq = round_inline(qa), rr = round_inline(ra);
-    const double rs = round_inline(sa);
-    const double dq = std::abs(rq - qa), dr = std::abs(rr - ra), ds = std::abs(rs - sa);
+  // 2 x the cell of the lens nearest axial (qa, ra) (hex cube rounding), the
+  // index of its pair in vk; -1 outside the grid.
+  auto cell_at = [&](float qa, float ra) -> long {
+    const float sa = -qa - ra;
+    float rq = round_half_away(qa), rr = round_half_away(ra);
+    const float rs = round_half_away(sa);
+    const float dq = std::abs(rq - qa), dr = std::abs(rr - ra), ds = std::abs(rs - sa);
     if (dq > dr && dq > ds)
       rq = -rr - rs;
     else if (dr > ds)
       rr = -rq - rs;
-    *i = static_cast<int>(rq);
-    *j = static_cast<int>(rr);
+    const int i = static_cast<int>(rq), j = static_cast<int>(rr);
+    const int row = g.Row(j), col = g.Col(i, j);
+    if (row < 0 || row >= g.rows || col < 0 || col >= g.cols) return -1;
+    return 2 * static_cast<long>(depth->Cell(col, row));  // into vk
   };
   // TF position u = (a + 1/2) s - 1/2 is raw position 2u + 1/2 = x0 + dx a.
   const float dx = 2.0f * s, x0 = s - 0.5f;
   tbb::parallel_for(0, oh, [&](int b) {
     const float y = 2.0f * ((b + 0.5f) * s - 0.5f) + 0.5f;
+    // A^-1 (x - c) at the row's first point and its step per point.
+    const Eigen::Vector2d d0 = to_lattice * (Eigen::Vector2d(x0, y) - centre);
+    const Eigen::Vector2d d_step = to_lattice * Eigen::Vector2d(dx, 0);
+    const float d0x = static_cast<float>(d0.x()), d0y = static_cast<float>(d0.y());
+    const float dax = static_cast<float>(d_step.x()), day = static_cast<float>(d_step.y());
     std::uint8_t* row = out->pixels.data() + static_cast<std::size_t>(b) * ow * channels;
     constexpr int kRun = 128;
     float run_v[kRun], run_acc[3 * kRun], run_sw[kRun];
     for (int a0 = 0; a0 < ow; a0 += kRun) {
       const int n = std::min(kRun, ow - a0);
+      // The micro images that see x at depth v lie around LookingAt(x, v)
+      // (tf_kernel.h), up to lenses away from x at the border: the lens
+      // there gives v, twice from the frame's median. Each round over the
+      // whole run first (independent points: their cell loads overlap).
+      long run_cell[kRun];
+      float run_k[kRun];
       for (int r = 0; r < n; ++r) {
-        const float x = x0 + dx * static_cast<float>(a0 + r);
-        // The micro images that see x at depth v lie around
-        // LookingAt(x, v) (tf_kernel.h), up to lenses away from x at the
-        // border: the lens there gives v, twice from the frame's median.
-        float vv = static_cast<float>(median);
-        for (int round = 0; round < 2; ++round) {
-          int i = 0, j = 0;
-          nearest(kernel.LookingAt(x, y, vv), &i, &j);
-          const int rr = g.Row(j), c = g.Col(i, j);
-          if (rr >= 0 && rr < g.rows && c >= 0 && c < g.cols) vv = v[depth->Cell(c, rr)];
-          vv = std::max(vv, 1.05f);
-        }
-        run_v[r] = vv;
+        const float a = static_cast<float>(a0 + r);
+        run_cell[r] = cell_at(acx + k_median * (d0x + a * dax), acy + k_median * (d0y + a * day));
       }
+      for (int r = 0; r < n; ++r) {
+        const long cell = run_cell[r];
+        run_v[r] = cell >= 0 ? v_of_cell[cell] : v_median;
+        run_k[r] = cell >= 0 ? k_of_cell[cell] : k_median;
+      }
+      for (int r = 0; r < n; ++r) {
+        const float a = static_cast<float>(a0 + r);
+        const float k = run_k[r];
+        run_cell[r] = cell_at(acx + k * (d0x + a * dax), acy + k * (d0y + a * day));
+      }
+      for (int r = 0; r < n; ++r)
+        if (run_cell[r] >= 0) run_v[r] = v_of_cell[run_cell[r]];
       if (rows)
         kernels.row(geometry, source, x0 + dx * static_cast<float>(a0), dx, y, run_v, n, run_acc,
                     run_sw);
