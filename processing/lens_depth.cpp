@@ -916,24 +916,32 @@ Status LensDepthEstimator::RenderPreview(ConstImageView raw, int max_side, LensD
   const float v_median = std::max(static_cast<float>(median), 1.05f);
   const float k_median = scale_of(v_median);
   const float acx = static_cast<float>(a_c.x()), acy = static_cast<float>(a_c.y());
-  auto round_half_away = [](float a) {
-    return static_cast<float>(static_cast<int>(a + (a >= 0 ? 0.5f : -0.5f)));
-  };
-  // 2 x the cell of the lens nearest axial (qa, ra) (hex cube rounding), the
-  // index of its pair in vk; -1 outside the grid.
-  auto cell_at = [&](float qa, float ra) -> long {
-    const float sa = -qa - ra;
-    float rq = round_half_away(qa), rr = round_half_away(ra);
-    const float rs = round_half_away(sa);
-    const float dq = std::abs(rq - qa), dr = std::abs(rr - ra), ds = std::abs(rs - sa);
-    if (dq > dr && dq > ds)
-      rq = -rr - rs;
-    else if (dr > ds)
-      rr = -rq - rs;
-    const int i = static_cast<int>(rq), j = static_cast<int>(rr);
-    const int row = g.Row(j), col = g.Col(i, j);
-    if (row < 0 || row >= g.rows || col < 0 || col >= g.cols) return -1;
-    return 2 * static_cast<long>(depth->Cell(col, row));  // into vk
+  // For points r of a run (axial a_c + k_r (d0 + r d_step)): 2 x the cell
+  // of the lens nearest (hex cube rounding, halves away from zero), the
+  // index of its pair in vk; -1 outside the grid. Branch-free over the run
+  // (floor(j / 2) as j >> 1): the compiler vectorises it.
+  const int j_top = g.j_top, col_base = g.col_base, grid_rows = g.rows, grid_cols = g.cols;
+  auto cells_of = [=](const float* k, float d0x, float d0y, float dax, float day, int n,
+                      std::int32_t* cell) {
+    for (int r = 0; r < n; ++r) {
+      const float t = static_cast<float>(r);
+      const float qa = acx + k[r] * (d0x + t * dax), ra = acy + k[r] * (d0y + t * day);
+      const float sa = -qa - ra;
+      const float rq = static_cast<float>(static_cast<std::int32_t>(qa + std::copysign(0.5f, qa)));
+      const float rr = static_cast<float>(static_cast<std::int32_t>(ra + std::copysign(0.5f, ra)));
+      const float rs = static_cast<float>(static_cast<std::int32_t>(sa + std::copysign(0.5f, sa)));
+      const float dq = std::abs(rq - qa), dr = std::abs(rr - ra), ds = std::abs(rs - sa);
+      // The selects as arithmetic on 0/1 (exact: one term is 0): a
+      // conditional on floats keeps GCC from vectorising (-ftrapping-math).
+      const int fix_q = (dq > dr) & (dq > ds);
+      const int fix_r = (1 - fix_q) & (dr > ds);
+      const float alt_q = -rr - rs, alt_r = -rq - rs;
+      const std::int32_t i = static_cast<std::int32_t>(fix_q * alt_q + (1 - fix_q) * rq);
+      const std::int32_t j = static_cast<std::int32_t>(fix_r * alt_r + (1 - fix_r) * rr);
+      const std::int32_t row = j_top - j, col = i + (j >> 1) - col_base;
+      const int inside = (row >= 0) & (row < grid_rows) & (col >= 0) & (col < grid_cols);
+      cell[r] = inside * (2 * (row * grid_cols + col) + 1) - 1;
+    }
   };
   // TF position u = (a + 1/2) s - 1/2 is raw position 2u + 1/2 = x0 + dx a.
   const float dx = 2.0f * s, x0 = s - 0.5f;
@@ -953,22 +961,18 @@ Status LensDepthEstimator::RenderPreview(ConstImageView raw, int max_side, LensD
       // (tf_kernel.h), up to lenses away from x at the border: the lens
       // there gives v, twice from the frame's median. Each round over the
       // whole run first (independent points: their cell loads overlap).
-      long run_cell[kRun];
+      std::int32_t run_cell[kRun];
       float run_k[kRun];
+      const float run_d0x = d0x + static_cast<float>(a0) * dax;
+      const float run_d0y = d0y + static_cast<float>(a0) * day;
+      std::fill(run_k, run_k + n, k_median);
+      cells_of(run_k, run_d0x, run_d0y, dax, day, n, run_cell);
       for (int r = 0; r < n; ++r) {
-        const float a = static_cast<float>(a0 + r);
-        run_cell[r] = cell_at(acx + k_median * (d0x + a * dax), acy + k_median * (d0y + a * day));
-      }
-      for (int r = 0; r < n; ++r) {
-        const long cell = run_cell[r];
+        const std::int32_t cell = run_cell[r];
         run_v[r] = cell >= 0 ? v_of_cell[cell] : v_median;
         run_k[r] = cell >= 0 ? k_of_cell[cell] : k_median;
       }
-      for (int r = 0; r < n; ++r) {
-        const float a = static_cast<float>(a0 + r);
-        const float k = run_k[r];
-        run_cell[r] = cell_at(acx + k * (d0x + a * dax), acy + k * (d0y + a * day));
-      }
+      cells_of(run_k, run_d0x, run_d0y, dax, day, n, run_cell);
       for (int r = 0; r < n; ++r)
         if (run_cell[r] >= 0) run_v[r] = v_of_cell[run_cell[r]];
       if (rows)
