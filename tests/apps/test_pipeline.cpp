@@ -352,6 +352,12 @@ TEST(Pipeline, ProcessesMaxConcurrencyFramesAtOnceAtTheLowerPriority) {
   EXPECT_LE(counts.lowest_nice, 19);
   options.pipeline.processing_nice = 20;
   EXPECT_FALSE(options.pipeline.Check().ok());
+  options.pipeline.processing_nice = 10;
+  for (const int lens_nice : {-1, 20}) {
+    options.pipeline.lens_nice = lens_nice;
+    ASSERT_FALSE(options.pipeline.Check().ok());
+    EXPECT_NE(options.pipeline.Check().error().message.find("lens_nice"), std::string::npos);
+  }
 }
 
 TEST(Pipeline, SlowStageSkipsTheOlderFramesCountsThemAndKeepsTheNewest) {
@@ -1129,18 +1135,22 @@ TEST(Pipeline, LensLaneTakesTheFramesTheWorkersSkip) {
   ASSERT_TRUE(stage->WaitBegan(1, 0));
   add_set(1);  // waits for a worker
   add_set(2);  // replaces trigger 1's frames: those go to the lens lane
-  // The lane's per-lens depth is published by the graph's publishing node,
-  // which needs a worker: the lane's CPU time tells that it computed both
-  // frames while the workers were held (at nice +15 on a loaded host it
-  // waits long for the CPU).
-  for (int k = 0; k < 2400 && pipeline->Report().lens_cpu_s == 0; ++k)
+  // The lane publishes its per-lens depth itself: trigger 1's frames have
+  // theirs on LCM while both workers are still held (at nice +15 on a
+  // loaded host the lane waits long for the CPU).
+  for (int k = 0; k < 2400 && pipeline->Report().lens_frames < 2; ++k)
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   const PipelineReport before = pipeline->Report();
   EXPECT_EQ(before.localized, 0u) << before.FinalReport();
   EXPECT_EQ(before.skipped, 2u) << before.FinalReport();
-  EXPECT_GT(before.lens_cpu_s, 0.0) << "trigger 1's frames got no per-lens depth while the "
+  EXPECT_EQ(before.lens_frames, 2u) << "trigger 1's per-lens depth was not published while the "
                                        "workers were busy\n"
                                     << before.FinalReport();
+  Drain(bus);
+  for (const std::string& serial : serials)
+    EXPECT_EQ(received.lens_depth.count({serial, 1}), 1u)
+        << serial << ": no per-lens depth of frame 1 while the workers were held\n"
+        << before.FinalReport();
   std::atomic<bool> done{false};
   std::thread releaser([&] {
     while (!done) {
