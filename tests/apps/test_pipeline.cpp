@@ -1199,6 +1199,10 @@ class LensGatedProcessor final : public FrameProcessor {
     {
       std::unique_lock lock(mutex_);
       ++entered_;
+      // The lens lane's thread's nice value (PipelineOptions::lens_nice).
+      errno = 0;
+      const int nice = getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
+      if (errno == 0) lens_nice_seen_.push_back(nice);
       cv_.notify_all();
       if (!cv_.wait_for(lock, std::chrono::seconds(5), [&] { return released_; })) ++timed_out_;
     }
@@ -1224,6 +1228,10 @@ class LensGatedProcessor final : public FrameProcessor {
     std::lock_guard lock(mutex_);
     return timed_out_;
   }
+  std::vector<int> lens_nice_seen() {
+    std::lock_guard lock(mutex_);
+    return lens_nice_seen_;
+  }
   int dense_given_lenses() {
     std::lock_guard lock(mutex_);
     return dense_given_lenses_;
@@ -1234,6 +1242,7 @@ class LensGatedProcessor final : public FrameProcessor {
   std::mutex mutex_;
   std::condition_variable cv_;
   int entered_ = 0, timed_out_ = 0, dense_given_lenses_ = 0;
+  std::vector<int> lens_nice_seen_;
   bool released_ = false;
 };
 
@@ -1261,6 +1270,7 @@ TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
   options.registration = std::make_shared<RawPoseStage>();
   options.skip_when_busy = true;
   options.max_concurrency = 2;
+  options.lens_nice = 12;  // not the default, so the lane's threads show it
   std::mutex records_mutex;
   std::condition_variable records_cv;
   std::vector<ExtrinsicsRecord> records;
@@ -1293,6 +1303,10 @@ TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
     EXPECT_EQ(records[0].c0_from_cx.status, "ok");
   }
   EXPECT_EQ(pipeline->Report().published_poses, 2u);
+  // The lens lane computes at lens_nice, relative to the thread that made the pipeline.
+  const int base = getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
+  for (const int nice : processor->lens_nice_seen()) EXPECT_EQ(nice, std::min(19, base + 12));
+  EXPECT_EQ(processor->lens_nice_seen().size(), 2u);
   processor->Release();
   // The depth lane (lowest priority) takes a frame before the end, which
   // skips the frames still waiting for it.
