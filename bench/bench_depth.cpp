@@ -14,7 +14,8 @@
 //     baseline of the same run; accuracy against the ground truth reduced
 //     per micro image (its median): coverage of the textured lenses, median
 //     |dv|/v, outliers, beside the dense map reduced the same way; and the
-//     TF preview at each lens's depth (512 px);
+//     TF preview at each lens's depth (512 px) with its RMS and PSNR against
+//     the all-in-focus ground truth (rendered once, not timed);
 //   - TF image: output MP/s (TF depth + rendering), beside the same on one
 //     thread and a naive renderer (every micro image that sees the point,
 //     averaged) on a crop of the TF grid.
@@ -54,6 +55,7 @@
 #include <cstring>
 #include <ctime>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -547,6 +549,7 @@ int main(int argc, char** argv) {
   // Per-lens virtual depth on the same frame, the scalar and the SIMD
   // strip search (LensDepthOptions::simd) side by side; the dense search
   // above is its baseline.
+  std::optional<synth::TfGroundTruth> tf_truth;  // for the previews' PSNR
   for (const bool simd : {false, true}) {
     if ((simd && lens_path == "scalar") || (!simd && lens_path == "simd")) continue;
     const char* path = simd ? "simd" : "scalar";
@@ -628,9 +631,40 @@ int main(int argc, char** argv) {
           dest, dtex, dtex ? 100.0 * dest / dtex : 0.0, 100 * dense_median,
           dest ? 100.0 * doutl / dest : 0.0);
     }
-    std::printf("lens preview %s: %dx%d in %.1f ms median (CPU %.1f ms, all threads)\n", path,
-                preview.width, preview.height, 1e3 * Median(preview_s),
-                1e3 * Median(preview_cpu_s));
+    // Against the all-in-focus ground truth at the preview's TF positions
+    // ((a + 1/2) s - 1/2, rounded) where it sees a surface (rendered once,
+    // not timed): RMS over the channels and PSNR = 20 log10(255 / RMS).
+    if (!tf_truth) tf_truth = synth::RenderTfGroundTruth(model, scene, world_from_cam);
+    double sum2 = 0;
+    long long n2 = 0;
+    const int channels = preview.format == PixelFormat::kBgr8 ? 3 : 1;
+    const double step = static_cast<double>(std::max(tf_truth->width, tf_truth->height)) /
+                        std::max(preview.width, preview.height);
+    for (int b = 0; b < preview.height; ++b)
+      for (int a = 0; a < preview.width; ++a) {
+        const int u = static_cast<int>(std::lround((a + 0.5) * step - 0.5));
+        const int w = static_cast<int>(std::lround((b + 0.5) * step - 0.5));
+        if (u >= tf_truth->width || w >= tf_truth->height) continue;
+        const std::size_t t = static_cast<std::size_t>(w) * tf_truth->width + u;
+        if (!std::isfinite(tf_truth->depth_mm[t])) continue;
+        const std::uint8_t* pix =
+            preview.pixels.data() + (static_cast<std::size_t>(b) * preview.width + a) * channels;
+        for (int ch = 0; ch < channels; ++ch) {
+          // A Mono8 preview against the truth's grey (the channel mean).
+          const double truth = channels == 3 ? tf_truth->bgr[t * 3 + ch]
+                                             : (tf_truth->bgr[t * 3] + tf_truth->bgr[t * 3 + 1] +
+                                                tf_truth->bgr[t * 3 + 2]) / 3.0;
+          const double d = pix[ch] - truth;
+          sum2 += d * d;
+          ++n2;
+        }
+      }
+    const double rms = n2 > 0 ? std::sqrt(sum2 / n2) : 0.0;
+    std::printf(
+        "lens preview %s: %dx%d in %.1f ms median (CPU %.1f ms, all threads); against the "
+        "all-in-focus truth: RMS %.2f DN, PSNR %.2f dB (%lld samples)\n",
+        path, preview.width, preview.height, 1e3 * Median(preview_s), 1e3 * Median(preview_cpu_s),
+        rms, rms > 0 ? 20 * std::log10(255 / rms) : 0.0, n2);
   }
   if (lens_only) return 0;
 

@@ -64,6 +64,18 @@ struct CandidateGate {
   int reach = 0;
 };
 
+// Storage of N T whose default member initialisers do not run: every
+// element is written before it is read, and zeroing the estimates and the
+// neighbours of every micro image was 2 % of the estimator's instructions.
+template <typename T, int N>
+struct Uninitialised {
+  static_assert(std::is_trivially_destructible_v<T>);
+  Uninitialised() {}
+  union {
+    T v[N];
+  };
+};
+
 struct Candidate {
   float score = 0;
   int x = 0, y = 0;
@@ -342,7 +354,8 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
   // A (di, dj) for every lens, and the type rule (i - j) mod 3 makes ring 1
   // of the other types, ring 2 of the same): the neighbours' MicroImage
   // records are not read (a cache miss each, rows of lenses apart).
-  std::array<detail::Neighbour, 12> nbs;
+  Uninitialised<detail::Neighbour, 12> nbs_store;
+  detail::Neighbour* const nbs = nbs_store.v;
   int count = 0;
   std::array<std::array<int, 2>, 6> axis_nb;
   std::array<int, 6> axis_n{};
@@ -453,7 +466,8 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
   // 2. Searches.
   const float ref_r2 = static_cast<float>((f.radius_px + 0.5) * (f.radius_px + 0.5));
   const float fcx = static_cast<float>(cx), fcy = static_cast<float>(cy);
-  std::array<detail::Estimate, 4 * kMaxSamples> all;
+  Uninitialised<detail::Estimate, 4 * kMaxSamples> all_store;
+  detail::Estimate* const all = all_store.v;
   int n_all = 0;
   float patch[detail::kSamples], ref[detail::kSamples];
   const double lo = range.union_lo, hi = range.union_hi;
@@ -596,6 +610,32 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
   }
 
   // 2b. The full search (no prior, or it did not hold).
+  // Of candidate c, the ring-2 axis with the largest gradient along it among
+  // those with a neighbour that sees c's 5 x 3 patch at z with a step to
+  // spare (SeesPatchAround), in the order of the gradient: the first that
+  // sees is the one; -1: none.
+  auto ring2_axis = [&](const Candidate& c, double z) {
+    float gx = 0, gy = 0;
+    gradient(c.x, c.y, &gx, &gy);
+    std::array<std::pair<float, int>, 3> order;
+    for (int d = 0; d < 3; ++d)
+      order[d] = {std::abs(gx * axis_e[3 + d][0] + gy * axis_e[3 + d][1]), d};
+    // Descending, the lower axis first among equal gradients (a bubble sort
+    // of three: std::stable_sort allocates its buffer, 9 % of the
+    // estimator's instructions).
+    auto descend = [&](int q) {
+      if (order[q + 1].first > order[q].first) std::swap(order[q], order[q + 1]);
+    };
+    descend(0);
+    descend(1);
+    descend(0);
+    for (const auto& [g, d] : order)
+      for (int q = 0; q < axis_n[3 + d]; ++q)
+        if (SeesPatchAround(ring2, f.radius_px, 3, static_cast<float>(c.x),
+                            static_cast<float>(c.y), nbs[axis_nb[3 + d][q]], z))
+          return d;
+    return -1;
+  };
   for (int s = 0; s < n_best; ++s) {
     const Candidate& c = best[s];
     px = static_cast<float>(c.x);
@@ -640,19 +680,7 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
       auto ring2_wanted = [&](const detail::Neighbour& nb) {
         return SeesPatchAround(ring2, f.radius_px, 3, px, py, nb, z);
       };
-      float gx = 0, gy = 0;
-      gradient(c.x, c.y, &gx, &gy);
-      int axis2 = -1;
-      float best2 = -1;
-      for (int d = 0; d < 3; ++d) {
-        bool sees = false;
-        for (int q = 0; q < axis_n[3 + d] && !sees; ++q) sees = ring2_wanted(nbs[axis_nb[3 + d][q]]);
-        const float g = std::abs(gx * axis_e[3 + d][0] + gy * axis_e[3 + d][1]);
-        if (sees && g > best2) {
-          best2 = g;
-          axis2 = d;
-        }
-      }
+      const int axis2 = ring2_axis(c, z);
       if (axis2 >= 0)
         search_axis(std::integral_constant<int, 3>{}, 3 + axis2, ring2, z0, z1, ring2_wanted,
                     mine.data(), &n_mine);
@@ -661,13 +689,13 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
     // Enough agreeing estimates: the remaining (less textured) pixels are not searched.
     if (n_all >= o.enough_estimates) {
       double zz = 0, ss = 0;
-      if (detail::Fuse(all.data(), n_all, o.fuse_gate, &zz, &ss) >= o.enough_estimates) break;
+      if (detail::Fuse(all, n_all, o.fuse_gate, &zz, &ss) >= o.enough_estimates) break;
     }
   }
 
   // 3. Fusion of the micro image's estimates.
   double z = 0, sigma = 0;
-  const int used = detail::Fuse(all.data(), n_all, o.fuse_gate, &z, &sigma);
+  const int used = detail::Fuse(all, n_all, o.fuse_gate, &z, &sigma);
   if (used < o.min_estimates || !(z > 0)) return;
   // The agreeing estimates' weighted spread (they are not independent).
   {
@@ -883,49 +911,90 @@ Status LensDepthEstimator::RenderPreview(ConstImageView raw, int max_side, LensD
                     (f.height - 1.0) * raw.stride_bytes + 3.0 * f.width < 2147483648.0;
   const detail::TfBlendKernels& kernels =
       options_.simd ? detail::SimdTfBlendKernels() : detail::ScalarTfBlendKernels();
-  // MlaGrid::Nearest with the lattice's inverse made once and round() inline
-  // (half away from zero by truncation; a libm call each otherwise).
+  // The lens that looks at a point (MlaGrid::Nearest of TfKernel::LookingAt)
+  // in float, affine in the point: with k(v) = 1 / (lambda + v (1 - lambda)),
+  // LookingAt(x, v) = c + k(v) (x - c), so in the lattice's axial
+  // coordinates a(q) = A^-1 (q - o) it is a_c + k(v) A^-1 (x - c), and along
+  // an output row A^-1 (x - c) steps by dx A^-1 (1, 0)^T. Per point and
+  // round: two multiply-adds, the cube rounding of the hex lattice and the
+  // cell's v; k(v) per cell made once per frame (one per lens: the lens's
+  // refocus scale).
   const Eigen::Matrix2d to_lattice = f.grid.lattice.inverse();
-  auto round_inline = [](double a) {
-    return static_cast<double>(static_cast<long long>(a + (a >= 0 ? 0.5 : -0.5)));
-  };
-  auto nearest = [&](const Eigen::Vector2f& q, int* i, int* j) {
-    const Eigen::Vector2d axial = to_lattice * (Eigen::Vector2d(q.x(), q.y()) - f.grid.reference_px);
-    const double qa = axial.x(), ra = axial.y(), sa = -qa - ra;
-    double rq = round_inline(qa), rr = round_inline(ra);
-    const double rs = round_inline(sa);
-    const double dq = std::abs(rq - qa), dr = std::abs(rr - ra), ds = std::abs(rs - sa);
-    if (dq > dr && dq > ds)
-      rq = -rr - rs;
-    else if (dr > ds)
-      rr = -rq - rs;
-    *i = static_cast<int>(rq);
-    *j = static_cast<int>(rr);
+  const Eigen::Vector2d centre(f.principal_point_px.x(), f.principal_point_px.y());
+  const Eigen::Vector2d a_c = to_lattice * (centre - f.grid.reference_px);
+  const float lambda = static_cast<float>(f.lambda);
+  auto scale_of = [lambda](float vv) { return 1.0f / (lambda + vv * (1.0f - lambda)); };
+  // Per cell v (at least 1.05) and k(v), side by side (one cache line for both).
+  std::vector<float>& vk = depth->fill_scratch;
+  vk.resize(2 * cells);
+  for (std::size_t c = 0; c < cells; ++c) {
+    vk[2 * c] = std::max(v[c], 1.05f);
+    vk[2 * c + 1] = scale_of(vk[2 * c]);
+  }
+  const float* v_of_cell = vk.data();
+  const float* k_of_cell = vk.data() + 1;
+  const float v_median = std::max(static_cast<float>(median), 1.05f);
+  const float k_median = scale_of(v_median);
+  const float acx = static_cast<float>(a_c.x()), acy = static_cast<float>(a_c.y());
+  // For points r of a run (axial a_c + k_r (d0 + r d_step)): 2 x the cell
+  // of the lens nearest (hex cube rounding, halves away from zero), the
+  // index of its pair in vk; -1 outside the grid. Branch-free over the run
+  // (floor(j / 2) as j >> 1): the compiler vectorises it.
+  const int j_top = g.j_top, col_base = g.col_base, grid_rows = g.rows, grid_cols = g.cols;
+  auto cells_of = [=](const float* k, float d0x, float d0y, float dax, float day, int n,
+                      std::int32_t* cell) {
+    for (int r = 0; r < n; ++r) {
+      const float t = static_cast<float>(r);
+      const float qa = acx + k[r] * (d0x + t * dax), ra = acy + k[r] * (d0y + t * day);
+      const float sa = -qa - ra;
+      const float rq = static_cast<float>(static_cast<std::int32_t>(qa + std::copysign(0.5f, qa)));
+      const float rr = static_cast<float>(static_cast<std::int32_t>(ra + std::copysign(0.5f, ra)));
+      const float rs = static_cast<float>(static_cast<std::int32_t>(sa + std::copysign(0.5f, sa)));
+      const float dq = std::abs(rq - qa), dr = std::abs(rr - ra), ds = std::abs(rs - sa);
+      // The selects as arithmetic on 0/1 (exact: one term is 0): a
+      // conditional on floats keeps GCC from vectorising (-ftrapping-math).
+      const int fix_q = (dq > dr) & (dq > ds);
+      const int fix_r = (1 - fix_q) & (dr > ds);
+      const float alt_q = -rr - rs, alt_r = -rq - rs;
+      const std::int32_t i = static_cast<std::int32_t>(fix_q * alt_q + (1 - fix_q) * rq);
+      const std::int32_t j = static_cast<std::int32_t>(fix_r * alt_r + (1 - fix_r) * rr);
+      const std::int32_t row = j_top - j, col = i + (j >> 1) - col_base;
+      const int inside = (row >= 0) & (row < grid_rows) & (col >= 0) & (col < grid_cols);
+      cell[r] = inside * (2 * (row * grid_cols + col) + 1) - 1;
+    }
   };
   // TF position u = (a + 1/2) s - 1/2 is raw position 2u + 1/2 = x0 + dx a.
   const float dx = 2.0f * s, x0 = s - 0.5f;
   tbb::parallel_for(0, oh, [&](int b) {
     const float y = 2.0f * ((b + 0.5f) * s - 0.5f) + 0.5f;
+    // A^-1 (x - c) at the row's first point and its step per point.
+    const Eigen::Vector2d d0 = to_lattice * (Eigen::Vector2d(x0, y) - centre);
+    const Eigen::Vector2d d_step = to_lattice * Eigen::Vector2d(dx, 0);
+    const float d0x = static_cast<float>(d0.x()), d0y = static_cast<float>(d0.y());
+    const float dax = static_cast<float>(d_step.x()), day = static_cast<float>(d_step.y());
     std::uint8_t* row = out->pixels.data() + static_cast<std::size_t>(b) * ow * channels;
     constexpr int kRun = 128;
     float run_v[kRun], run_acc[3 * kRun], run_sw[kRun];
     for (int a0 = 0; a0 < ow; a0 += kRun) {
       const int n = std::min(kRun, ow - a0);
+      // The micro images that see x at depth v lie around LookingAt(x, v)
+      // (tf_kernel.h), up to lenses away from x at the border: the lens
+      // there gives v, twice from the frame's median. Each round over the
+      // whole run first (independent points: their cell loads overlap).
+      std::int32_t run_cell[kRun];
+      float run_k[kRun];
+      const float run_d0x = d0x + static_cast<float>(a0) * dax;
+      const float run_d0y = d0y + static_cast<float>(a0) * day;
+      std::fill(run_k, run_k + n, k_median);
+      cells_of(run_k, run_d0x, run_d0y, dax, day, n, run_cell);
       for (int r = 0; r < n; ++r) {
-        const float x = x0 + dx * static_cast<float>(a0 + r);
-        // The micro images that see x at depth v lie around
-        // LookingAt(x, v) (tf_kernel.h), up to lenses away from x at the
-        // border: the lens there gives v, twice from the frame's median.
-        float vv = static_cast<float>(median);
-        for (int round = 0; round < 2; ++round) {
-          int i = 0, j = 0;
-          nearest(kernel.LookingAt(x, y, vv), &i, &j);
-          const int rr = g.Row(j), c = g.Col(i, j);
-          if (rr >= 0 && rr < g.rows && c >= 0 && c < g.cols) vv = v[depth->Cell(c, rr)];
-          vv = std::max(vv, 1.05f);
-        }
-        run_v[r] = vv;
+        const std::int32_t cell = run_cell[r];
+        run_v[r] = cell >= 0 ? v_of_cell[cell] : v_median;
+        run_k[r] = cell >= 0 ? k_of_cell[cell] : k_median;
       }
+      cells_of(run_k, run_d0x, run_d0y, dax, day, n, run_cell);
+      for (int r = 0; r < n; ++r)
+        if (run_cell[r] >= 0) run_v[r] = v_of_cell[run_cell[r]];
       if (rows)
         kernels.row(geometry, source, x0 + dx * static_cast<float>(a0), dx, y, run_v, n, run_acc,
                     run_sw);

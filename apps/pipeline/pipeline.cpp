@@ -147,6 +147,7 @@ Status PipelineOptions::Check() const {
   if (stats_period.count() <= 0) return Error{"pipeline: stats_period: expected > 0"};
   if (processing_nice < 0 || processing_nice > 19)
     return Error{"pipeline: processing_nice: expected 0..19"};
+  if (lens_nice < 0 || lens_nice > 19) return Error{"pipeline: lens_nice: expected 0..19"};
   // skip_when_busy: any value; registration: null is the pass-through stage.
   if (Status s = publisher.Check(); !s) return s;
   return Status::Ok();
@@ -293,8 +294,9 @@ struct Pipeline::Impl {
     // Per camera: 1 + the newest Job::camera_order the lane took (OfferTo).
     std::map<int, std::uint64_t> taken_before;
     // Frames the lane took and whose products are not published yet: the
-    // one each thread processes and the ones handed to the publishing node
-    // (a thread takes its next frame without waiting for that publication).
+    // one each thread processes and, of the depth lane, the ones handed to
+    // the publishing node (its thread takes its next frame without waiting
+    // for that publication; the lens lane's threads publish their own).
     // A flag set when the lane took a frame and cleared when one was
     // published let WaitIdle return while the lane processed the next: that
     // frame then reached the publishing node after the graph's nodes were
@@ -372,7 +374,7 @@ struct Pipeline::Impl {
     return offer;
   }
 
-  // A lane's frame published (the publishing node): no longer held.
+  // A lane's frame published (its thread or the publishing node): no longer held.
   static void Published(Lane& lane) {
     {
       std::lock_guard lock(lane.mutex);
@@ -434,7 +436,10 @@ struct Pipeline::Impl {
       }
       offer.reset();
       OfferTo(depth_lane, std::move(dense), &report.depth_skipped);
-      publish_node->try_put(std::move(result));
+      // Published by this thread, not the graph's publishing node: that
+      // node runs on the workers, so while both relocalised (300-450 ms at
+      // medium) a per-lens depth already computed waited for one of them.
+      PublishLenses(result);
     }
   }
 
@@ -545,7 +550,8 @@ struct Pipeline::Impl {
     return result;
   }
 
-  // The lens lane's frame: its per-lens depth and TF preview published.
+  // The lens lane's frame: its per-lens depth and TF preview published (on
+  // the lane's thread: Publisher::PublishFrame takes the bus's lock).
   void PublishLenses(const Result& result) {
     const Job& job = result.job;
     if (!result.processed) {
@@ -919,7 +925,8 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
   // Relative to this thread's (the command's): a rig run at nice -5 processes at +5.
   errno = 0;
   const int base = getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
-  const int worker_nice = std::min(19, (errno == 0 ? base : 0) + options.processing_nice);
+  const int base_nice = errno == 0 ? base : 0;
+  const int worker_nice = std::min(19, base_nice + options.processing_nice);
   if (options.processing_nice > 0)
     impl->worker_priority = std::make_unique<WorkerPriority>(*impl->arena, worker_nice);
   spdlog::info(
@@ -942,12 +949,12 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
   });
   if (impl->lanes) {
     // The lens lane: a thread per worker (at most one per camera), each
-    // computing one frame at a time, halfway between the workers' priority
-    // and the lowest; the depth lane: one thread at the lowest.
+    // computing one frame at a time at lens_nice; the depth lane: one
+    // thread at the lowest.
     const int lens_threads =
         std::max(1, std::min(threads, static_cast<int>(sync.serials.size())));
     impl->StartLane(impl->lens_lane, lens_threads,
-                    std::min(19, worker_nice + (19 - worker_nice + 1) / 2), &Impl::LensLoop);
+                    std::min(19, base_nice + options.lens_nice), &Impl::LensLoop);
     impl->StartLane(impl->depth_lane, 1, 19, &Impl::DepthLoop);
   }
   return std::unique_ptr<Pipeline>(new Pipeline(std::move(impl)));

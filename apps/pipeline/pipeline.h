@@ -90,6 +90,11 @@ struct PipelineOptions {
   // threads: on a saturated 2-core host a Vicon packet otherwise waits
   // milliseconds for a core.
   int processing_nice = 10;
+  // The lens lane's threads (under lanes: newest_wins with a registration
+  // stage), likewise added to the creating thread's nice value (at most 19):
+  // 15, below the workers, so a relocalisation keeps its CPU (docs/processing.md,
+  // "Live pipeline", for what 0, 5 and 15 gave).
+  int lens_nice = 15;
   // The stage after processing; null: processing::PassThroughStage.
   std::shared_ptr<processing::RegistrationStage> registration;
   // Camera 0 of the extrinsics (the reference map's camera), by serial;

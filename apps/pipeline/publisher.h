@@ -26,8 +26,9 @@
 // trigger_index in the messages is the FrameSet's: the number of the
 // recorded file of the same frame.
 //
-// Threads: PublishFrame, PublishExtrinsics, PublishPose and PublishStats from one thread
-// at a time each (the pipeline's serial publishing node and its poll);
+// Threads: any (the pipeline's publishing node, its workers (poses, extrinsics),
+// its lens lane's threads (per-lens depth, TF preview) and its poll): each
+// message goes out under its bus's lock and the counters are atomic;
 // PublishVicon from the Vicon thread. With a URL of its own (UDP multicast)
 // Vicon goes out on an LCM instance of its own, so a Vicon message never
 // waits behind the fragments of a depth map.

@@ -352,6 +352,12 @@ TEST(Pipeline, ProcessesMaxConcurrencyFramesAtOnceAtTheLowerPriority) {
   EXPECT_LE(counts.lowest_nice, 19);
   options.pipeline.processing_nice = 20;
   EXPECT_FALSE(options.pipeline.Check().ok());
+  options.pipeline.processing_nice = 10;
+  for (const int lens_nice : {-1, 20}) {
+    options.pipeline.lens_nice = lens_nice;
+    ASSERT_FALSE(options.pipeline.Check().ok());
+    EXPECT_NE(options.pipeline.Check().error().message.find("lens_nice"), std::string::npos);
+  }
 }
 
 TEST(Pipeline, SlowStageSkipsTheOlderFramesCountsThemAndKeepsTheNewest) {
@@ -1129,18 +1135,22 @@ TEST(Pipeline, LensLaneTakesTheFramesTheWorkersSkip) {
   ASSERT_TRUE(stage->WaitBegan(1, 0));
   add_set(1);  // waits for a worker
   add_set(2);  // replaces trigger 1's frames: those go to the lens lane
-  // The lane's per-lens depth is published by the graph's publishing node,
-  // which needs a worker: the lane's CPU time tells that it computed both
-  // frames while the workers were held (at nice +15 on a loaded host it
-  // waits long for the CPU).
-  for (int k = 0; k < 2400 && pipeline->Report().lens_cpu_s == 0; ++k)
+  // The lane publishes its per-lens depth itself: trigger 1's frames have
+  // theirs on LCM while both workers are still held (at nice +15 on a
+  // loaded host the lane waits long for the CPU).
+  for (int k = 0; k < 2400 && pipeline->Report().lens_frames < 2; ++k)
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   const PipelineReport before = pipeline->Report();
   EXPECT_EQ(before.localized, 0u) << before.FinalReport();
   EXPECT_EQ(before.skipped, 2u) << before.FinalReport();
-  EXPECT_GT(before.lens_cpu_s, 0.0) << "trigger 1's frames got no per-lens depth while the "
+  EXPECT_EQ(before.lens_frames, 2u) << "trigger 1's per-lens depth was not published while the "
                                        "workers were busy\n"
                                     << before.FinalReport();
+  Drain(bus);
+  for (const std::string& serial : serials)
+    EXPECT_EQ(received.lens_depth.count({serial, 1}), 1u)
+        << serial << ": no per-lens depth of frame 1 while the workers were held\n"
+        << before.FinalReport();
   std::atomic<bool> done{false};
   std::thread releaser([&] {
     while (!done) {
@@ -1189,6 +1199,10 @@ class LensGatedProcessor final : public FrameProcessor {
     {
       std::unique_lock lock(mutex_);
       ++entered_;
+      // The lens lane's thread's nice value (PipelineOptions::lens_nice).
+      errno = 0;
+      const int nice = getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
+      if (errno == 0) lens_nice_seen_.push_back(nice);
       cv_.notify_all();
       if (!cv_.wait_for(lock, std::chrono::seconds(5), [&] { return released_; })) ++timed_out_;
     }
@@ -1214,6 +1228,10 @@ class LensGatedProcessor final : public FrameProcessor {
     std::lock_guard lock(mutex_);
     return timed_out_;
   }
+  std::vector<int> lens_nice_seen() {
+    std::lock_guard lock(mutex_);
+    return lens_nice_seen_;
+  }
   int dense_given_lenses() {
     std::lock_guard lock(mutex_);
     return dense_given_lenses_;
@@ -1224,6 +1242,7 @@ class LensGatedProcessor final : public FrameProcessor {
   std::mutex mutex_;
   std::condition_variable cv_;
   int entered_ = 0, timed_out_ = 0, dense_given_lenses_ = 0;
+  std::vector<int> lens_nice_seen_;
   bool released_ = false;
 };
 
@@ -1251,6 +1270,7 @@ TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
   options.registration = std::make_shared<RawPoseStage>();
   options.skip_when_busy = true;
   options.max_concurrency = 2;
+  options.lens_nice = 12;  // not the default, so the lane's threads show it
   std::mutex records_mutex;
   std::condition_variable records_cv;
   std::vector<ExtrinsicsRecord> records;
@@ -1283,6 +1303,10 @@ TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
     EXPECT_EQ(records[0].c0_from_cx.status, "ok");
   }
   EXPECT_EQ(pipeline->Report().published_poses, 2u);
+  // The lens lane computes at lens_nice, relative to the thread that made the pipeline.
+  const int base = getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
+  for (const int nice : processor->lens_nice_seen()) EXPECT_EQ(nice, std::min(19, base + 12));
+  EXPECT_EQ(processor->lens_nice_seen().size(), 2u);
   processor->Release();
   // The depth lane (lowest priority) takes a frame before the end, which
   // skips the frames still waiting for it.
