@@ -39,6 +39,16 @@ struct GreyBilinear {
   }
 };
 
+// One micro image's buffers (the estimates on its bounding box, its pixel
+// lists, the summed-area tables of the regularisation), kept per thread.
+struct LensWorkspace {
+  std::vector<float> patch_z, patch_sigma;
+  std::vector<std::uint8_t> search_failed, inlier;
+  std::vector<int> textured_pixels, untextured_pixels;
+  std::vector<double> sat_w, sat_wz, sat_wzz;
+  std::vector<std::int32_t> sat_n;
+};
+
 }  // namespace
 
 Status DepthOptions::Check() const {
@@ -211,11 +221,23 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     }
     // The micro image's estimates on a local grid (z and sigma, NaN = none)
     // and its textured pixels, for the regularisation below.
-    std::vector<float> patch_z(static_cast<std::size_t>(bw) * bh, kNaN);
-    std::vector<float> patch_sigma(patch_z.size(), kNaN);
-    std::vector<int> textured_pixels, untextured_pixels;
+    // Its buffers are the thread's (LensWorkspace): no allocation per micro
+    // image, none per frame after the first.
+    thread_local LensWorkspace ws_;
+    LensWorkspace& wk = ws_;
+    const std::size_t box = static_cast<std::size_t>(bw) * bh;
+    wk.patch_z.assign(box, kNaN);
+    wk.patch_sigma.assign(box, kNaN);
+    wk.textured_pixels.clear();
+    wk.untextured_pixels.clear();
     // Per local pixel: searched (a checkerboard pixel was not) and failed.
-    std::vector<std::uint8_t> search_failed(patch_z.size(), 0);
+    wk.search_failed.assign(box, 0);
+    float* const patch_z = wk.patch_z.data();
+    float* const patch_sigma = wk.patch_sigma.data();
+    std::uint8_t* const search_failed = wk.search_failed.data();
+    std::vector<int>& textured_pixels = wk.textured_pixels;
+    std::vector<int>& untextured_pixels = wk.untextured_pixels;
+    int estimates_in_lens = 0;  // pixels with a searched estimate (patch_z set)
     float ref[kSamples];
     int narrow_found = 0, narrow_missed = 0;  // the seeded windows' outcomes so far
     for (int y = y0; y <= y1; ++y) {
@@ -347,6 +369,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         patch_z[local] = static_cast<float>(z);
         patch_sigma[local] = static_cast<float>(sigma);
         search_failed[local] = 0;
+        ++estimates_in_lens;
       }
     }
     // Regularisation within the micro image: neighbouring pixels see nearby
@@ -358,9 +381,19 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     // O(1) per pixel.
     const int rad = options.smooth_radius_px;
     const int sw_ = bw + 1;  // summed-area tables are (bw + 1) x (bh + 1)
-    std::vector<double> sat_w(static_cast<std::size_t>(sw_) * (bh + 1)), sat_wz(sat_w.size()),
-        sat_wzz(sat_w.size());
-    std::vector<std::int32_t> sat_n(sat_w.size());
+    // Without an estimate the micro image gets nothing from steps 4 and 5
+    // (no window holds support; its sums stay 0).
+    if (estimates_in_lens == 0) return;
+    const std::size_t sat_size = static_cast<std::size_t>(sw_) * (bh + 1);
+    // Row 0 and column 0 stay 0; the rest is written by every build.
+    wk.sat_w.assign(sat_size, 0.0);
+    wk.sat_wz.assign(sat_size, 0.0);
+    wk.sat_wzz.assign(sat_size, 0.0);
+    wk.sat_n.assign(sat_size, 0);
+    double* const sat_w = wk.sat_w.data();
+    double* const sat_wz = wk.sat_wz.data();
+    double* const sat_wzz = wk.sat_wzz.data();
+    std::int32_t* const sat_n = wk.sat_n.data();
     auto build = [&](auto weight_of) {
       for (int ly = 0; ly < bh; ++ly) {
         double row_w = 0, row_wz = 0, row_wzz = 0;
@@ -405,7 +438,8 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     // estimates with tiny sigma, at strong edges, must not set the
     // reference alone), which then vote.
     build([&](std::size_t i) { return std::isnan(patch_z[i]) ? 0.0 : 1.0; });
-    std::vector<std::uint8_t> inlier(patch_z.size(), 0);
+    wk.inlier.assign(box, 0);
+    std::uint8_t* const inlier = wk.inlier.data();
     for (int ly = 0; ly < bh; ++ly)
       for (int lx = 0; lx < bw; ++lx) {
         const std::size_t i = static_cast<std::size_t>(ly) * bw + lx;
@@ -461,11 +495,17 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         if (search_failed[local] || (std::isnan(patch_z[local]) && !inlier[local]))
           untextured_pixels.push_back(local);
       const int fill_radius = options.fill_radius_px > 0 ? options.fill_radius_px : bw + bh;
+      // A window of the whole micro image (the default) has the same sums
+      // for every pixel: taken once; and without enough support none fills.
+      const int fill_support = seeded ? seeded_fill_support : options.fill_min_support;
+      const bool whole = fill_radius >= bw + bh;
+      const WindowSum whole_sums = window(0, 0, bw + bh);
+      if (whole_sums.n < fill_support) untextured_pixels.clear();
       for (const int local : untextured_pixels) {
         const std::size_t at = static_cast<std::size_t>(y0 + local / bw) * w + (x0 + local % bw);
         if (!std::isnan(out->virtual_depth[at])) continue;
-        const WindowSum ws = window(local % bw, local / bw, fill_radius);
-        if (ws.n < (seeded ? seeded_fill_support : options.fill_min_support)) continue;
+        const WindowSum ws = whole ? whole_sums : window(local % bw, local / bw, fill_radius);
+        if (ws.n < fill_support) continue;
         const double z = ws.wz / ws.w;
         const double spread2 = std::max(0.0, ws.wzz / ws.w - z * z);
         if (spread2 > options.fill_max_spread * options.fill_max_spread * z * z) continue;
