@@ -44,7 +44,8 @@ struct GreyBilinear {
 struct LensWorkspace {
   std::vector<float> patch_z, patch_sigma;
   std::vector<std::uint8_t> search_failed, inlier;
-  std::vector<int> textured_pixels, untextured_pixels;
+  std::vector<int> textured_pixels;              // local indices on the bounding box
+  std::vector<std::size_t> untextured_pixels;  // frame indices
   std::vector<double> sat_w, sat_wz, sat_wzz;
   std::vector<std::int32_t> sat_n;
 };
@@ -236,7 +237,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     float* const patch_sigma = wk.patch_sigma.data();
     std::uint8_t* const search_failed = wk.search_failed.data();
     std::vector<int>& textured_pixels = wk.textured_pixels;
-    std::vector<int>& untextured_pixels = wk.untextured_pixels;
+    std::vector<std::size_t>& untextured_pixels = wk.untextured_pixels;
     int estimates_in_lens = 0;  // pixels with a searched estimate (patch_z set)
     float ref[kSamples];
     int narrow_found = 0, narrow_missed = 0;  // the seeded windows' outcomes so far
@@ -256,16 +257,13 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         const float gx = 0.5f * (f.Grey(x + 1, y) - f.Grey(x - 1, y));
         const float gy = 0.5f * (f.Grey(x, y + 1) - f.Grey(x, y - 1));
         if (std::isnan(gx) || std::isnan(gy)) continue;
-        // Ring-1 baselines ordered by the gradient along them (the most
-        // informative first); at most max_ring1 of them are searched.
-        std::array<std::pair<float, int>, 6> order;
-        int gated = 0;
-        for (int m = 0; m < ring1_count; ++m) {
-          const float g = std::abs(gx * nbs[m].e_x + gy * nbs[m].e_y);
-          if (g >= options.min_gradient_dn) order[gated++] = {g, m};
-        }
-        if (gated == 0) {
-          untextured_pixels.push_back((y - y0) * bw + (x - x0));
+        // Textured: some ring-1 baseline with enough gradient along it (the
+        // largest, without a branch per baseline: most pixels stop here).
+        float g_max = 0;
+        for (int m = 0; m < ring1_count; ++m)
+          g_max = std::max(g_max, std::abs(gx * nbs[m].e_x + gy * nbs[m].e_y));
+        if (!(g_max >= options.min_gradient_dn)) {
+          untextured_pixels.push_back(idx);
           continue;
         }
         out->textured[idx] = 1;
@@ -278,6 +276,14 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
           if (x % seed_stride != 0 || y % seed_stride != 0) continue;
         } else if (stride == 2 && ((x + y) & 1)) {
           continue;
+        }
+        // Ring-1 baselines ordered by the gradient along them (the most
+        // informative first); at most max_ring1 of them are searched.
+        std::array<std::pair<float, int>, 6> order;
+        int gated = 0;
+        for (int m = 0; m < ring1_count; ++m) {
+          const float g = std::abs(gx * nbs[m].e_x + gy * nbs[m].e_y);
+          if (g >= options.min_gradient_dn) order[gated++] = {g, m};
         }
         for (int i = 1; i < gated; ++i)  // insertion sort, descending (at most 6)
           for (int j = i; j > 0 && order[j - 1].first < order[j].first; --j)
@@ -493,30 +499,47 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       // filled alike: its surface is the one around it.
       for (const int local : textured_pixels)
         if (search_failed[local] || (std::isnan(patch_z[local]) && !inlier[local]))
-          untextured_pixels.push_back(local);
+          untextured_pixels.push_back(static_cast<std::size_t>(y0 + local / bw) * w +
+                                      (x0 + local % bw));
       const int fill_radius = options.fill_radius_px > 0 ? options.fill_radius_px : bw + bh;
       // A window of the whole micro image (the default) has the same sums
       // for every pixel: taken once; and without enough support none fills.
       const int fill_support = seeded ? seeded_fill_support : options.fill_min_support;
       const bool whole = fill_radius >= bw + bh;
       const WindowSum whole_sums = window(0, 0, bw + bh);
-      if (whole_sums.n < fill_support) untextured_pixels.clear();
-      for (const int local : untextured_pixels) {
-        const std::size_t at = static_cast<std::size_t>(y0 + local / bw) * w + (x0 + local % bw);
-        if (!std::isnan(out->virtual_depth[at])) continue;
-        const WindowSum ws = whole ? whole_sums : window(local % bw, local / bw, fill_radius);
-        if (ws.n < fill_support) continue;
+      // The fill of a window's sums: false where they hold too little
+      // support or two surfaces.
+      struct Fill {
+        float v, sigma, confidence;
+      };
+      auto fill_of = [&](const WindowSum& ws, Fill* fill) {
+        if (ws.n < fill_support) return false;
         const double z = ws.wz / ws.w;
         const double spread2 = std::max(0.0, ws.wzz / ws.w - z * z);
-        if (spread2 > options.fill_max_spread * options.fill_max_spread * z * z) continue;
+        if (spread2 > options.fill_max_spread * options.fill_max_spread * z * z) return false;
         // As uncertain as one supporting estimate (their harmonic mean
         // sigma), or as their spread where that is larger: the supports are
         // not independent views of this pixel's point.
         const double sigma = std::sqrt(std::max(ws.n / ws.w, spread2));
-        out->virtual_depth[at] = static_cast<float>(1.0 / z);
-        out->sigma_z[at] = static_cast<float>(sigma);
-        out->confidence[at] =
-            static_cast<float>(std::clamp(1.0 - (sigma / z) / options.max_rel_sigma, 0.0, 1.0));
+        *fill = Fill{static_cast<float>(1.0 / z), static_cast<float>(sigma),
+                     static_cast<float>(
+                         std::clamp(1.0 - (sigma / z) / options.max_rel_sigma, 0.0, 1.0))};
+        return true;
+      };
+      Fill whole_fill{};
+      const bool whole_fills = whole && fill_of(whole_sums, &whole_fill);
+      if (whole && !whole_fills) untextured_pixels.clear();
+      float* const vd = out->virtual_depth.data();
+      for (const std::size_t at : untextured_pixels) {
+        if (!std::isnan(vd[at])) continue;
+        Fill fill = whole_fill;
+        if (!whole) {
+          const int lx = static_cast<int>(at % w) - x0, ly = static_cast<int>(at / w) - y0;
+          if (!fill_of(window(lx, ly, fill_radius), &fill)) continue;
+        }
+        vd[at] = fill.v;
+        out->sigma_z[at] = fill.sigma;
+        out->confidence[at] = fill.confidence;
         ++filled_count[k];
         lens_has_depth[k] = 1;
       }
