@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <limits>
 #include <string>
+#include <type_traits>
 #include <utility>
 
 namespace lifmcr::processing {
@@ -44,7 +45,9 @@ struct GreyBilinear {
 struct LensWorkspace {
   std::vector<float> patch_z, patch_sigma;
   std::vector<std::uint8_t> search_failed, inlier;
-  std::vector<int> textured_pixels;              // local indices on the bounding box
+  // Textured pixels and those with an estimate: local (x, y) on the bounding
+  // box, x + (y << 16).
+  std::vector<std::uint32_t> textured_pixels, estimate_pixels;
   std::vector<std::size_t> untextured_pixels;  // frame indices
   std::vector<double> sat_w, sat_wz, sat_wzz;
   std::vector<std::int32_t> sat_n;
@@ -230,15 +233,16 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     wk.patch_z.assign(box, kNaN);
     wk.patch_sigma.assign(box, kNaN);
     wk.textured_pixels.clear();
+    wk.estimate_pixels.clear();
     wk.untextured_pixels.clear();
     // Per local pixel: searched (a checkerboard pixel was not) and failed.
     wk.search_failed.assign(box, 0);
     float* const patch_z = wk.patch_z.data();
     float* const patch_sigma = wk.patch_sigma.data();
     std::uint8_t* const search_failed = wk.search_failed.data();
-    std::vector<int>& textured_pixels = wk.textured_pixels;
+    std::vector<std::uint32_t>& textured_pixels = wk.textured_pixels;
+    std::vector<std::uint32_t>& estimate_pixels = wk.estimate_pixels;
     std::vector<std::size_t>& untextured_pixels = wk.untextured_pixels;
-    int estimates_in_lens = 0;  // pixels with a searched estimate (patch_z set)
     float ref[kSamples];
     int narrow_found = 0, narrow_missed = 0;  // the seeded windows' outcomes so far
     for (int y = y0; y <= y1; ++y) {
@@ -269,7 +273,8 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         out->textured[idx] = 1;
         ++textured_count[k];
         const int local = (y - y0) * bw + (x - x0);
-        textured_pixels.push_back(local);
+        const std::uint32_t packed = static_cast<std::uint32_t>((x - x0) | ((y - y0) << 16));
+        textured_pixels.push_back(packed);
         // Searched pixels: all, or a checkerboard (the others are filled by
         // the regularisation from their searched neighbours).
         if (seeded) {
@@ -375,7 +380,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         patch_z[local] = static_cast<float>(z);
         patch_sigma[local] = static_cast<float>(sigma);
         search_failed[local] = 0;
-        ++estimates_in_lens;
+        estimate_pixels.push_back(packed);
       }
     }
     // Regularisation within the micro image: neighbouring pixels see nearby
@@ -386,11 +391,24 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     // disagreeing: rejected (outlier). Window sums from summed-area tables,
     // O(1) per pixel.
     const int rad = options.smooth_radius_px;
-    const int sw_ = bw + 1;  // summed-area tables are (bw + 1) x (bh + 1)
     // Without an estimate the micro image gets nothing from steps 4 and 5
     // (no window holds support; its sums stay 0).
-    if (estimates_in_lens == 0) return;
-    const std::size_t sat_size = static_cast<std::size_t>(sw_) * (bh + 1);
+    if (estimate_pixels.empty()) return;
+    // The tables span only the estimates' bounding rectangle [ex0, ex1] x
+    // [ey0, ey1]: every weight outside it is 0, so a window's sums are
+    // those of its part inside it, and the tables' entries are the same
+    // sums in the same order as over the whole box (adding 0 changes none).
+    int ex0 = bw, ex1 = -1, ey0 = bh, ey1 = -1;
+    for (const std::uint32_t e : estimate_pixels) {
+      const int lx = static_cast<int>(e & 0xFFFF), ly = static_cast<int>(e >> 16);
+      ex0 = std::min(ex0, lx);
+      ex1 = std::max(ex1, lx);
+      ey0 = std::min(ey0, ly);
+      ey1 = std::max(ey1, ly);
+    }
+    const int tw = ex1 - ex0 + 1, th = ey1 - ey0 + 1;
+    const int sw_ = tw + 1;  // summed-area tables are (tw + 1) x (th + 1)
+    const std::size_t sat_size = static_cast<std::size_t>(sw_) * (th + 1);
     // Row 0 and column 0 stay 0; the rest is written by every build.
     wk.sat_w.assign(sat_size, 0.0);
     wk.sat_wz.assign(sat_size, 0.0);
@@ -400,23 +418,31 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     double* const sat_wz = wk.sat_wz.data();
     double* const sat_wzz = wk.sat_wzz.data();
     std::int32_t* const sat_n = wk.sat_n.data();
-    auto build = [&](auto weight_of) {
-      for (int ly = 0; ly < bh; ++ly) {
+    // kWeighted false: weight 1 per estimate (w = n; wzz not summed).
+    auto build = [&](auto weight_of, auto weighted) {
+      constexpr bool kWeighted = decltype(weighted)::value;
+      for (int ty = 0; ty < th; ++ty) {
         double row_w = 0, row_wz = 0, row_wzz = 0;
         std::int32_t row_n = 0;
-        for (int lx = 0; lx < bw; ++lx) {
-          const std::size_t i = static_cast<std::size_t>(ly) * bw + lx;
+        const std::size_t row = static_cast<std::size_t>(ey0 + ty) * bw + ex0;
+        const std::size_t o_row = static_cast<std::size_t>(ty + 1) * sw_ + 1;
+        for (int tx = 0; tx < tw; ++tx) {
+          const std::size_t i = row + tx;
           const double wgt = weight_of(i);
           if (wgt > 0) {
-            row_w += wgt;
             row_wz += wgt * patch_z[i];
-            row_wzz += wgt * patch_z[i] * patch_z[i];
+            if constexpr (kWeighted) {
+              row_w += wgt;
+              row_wzz += wgt * patch_z[i] * patch_z[i];
+            }
             ++row_n;
           }
-          const std::size_t o = static_cast<std::size_t>(ly + 1) * sw_ + lx + 1;
-          sat_w[o] = sat_w[o - sw_] + row_w;
+          const std::size_t o = o_row + tx;
           sat_wz[o] = sat_wz[o - sw_] + row_wz;
-          sat_wzz[o] = sat_wzz[o - sw_] + row_wzz;
+          if constexpr (kWeighted) {
+            sat_w[o] = sat_w[o - sw_] + row_w;
+            sat_wzz[o] = sat_wzz[o - sw_] + row_wzz;
+          }
           sat_n[o] = sat_n[o - sw_] + row_n;
         }
       }
@@ -426,8 +452,10 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       int n;
     };
     auto window = [&](int lx, int ly, int radius) {
-      const int xa = std::max(0, lx - radius), xb = std::min(bw, lx + radius + 1);
-      const int ya = std::max(0, ly - radius), yb = std::min(bh, ly + radius + 1);
+      const int xa = std::clamp(lx - radius, ex0, ex1 + 1) - ex0;
+      const int xb = std::clamp(lx + radius + 1, ex0, ex1 + 1) - ex0;
+      const int ya = std::clamp(ly - radius, ey0, ey1 + 1) - ey0;
+      const int yb = std::clamp(ly + radius + 1, ey0, ey1 + 1) - ey0;
       const std::size_t i11 = static_cast<std::size_t>(yb) * sw_ + xb;
       const std::size_t i01 = static_cast<std::size_t>(ya) * sw_ + xb;
       const std::size_t i10 = static_cast<std::size_t>(yb) * sw_ + xa;
@@ -437,30 +465,46 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
                        sat_wzz[i11] - sat_wzz[i01] - sat_wzz[i10] + sat_wzz[i00],
                        sat_n[i11] - sat_n[i01] - sat_n[i10] + sat_n[i00]};
     };
+    // Pass 1's window: the count and the sum of z (its w is the count).
+    auto window_count = [&](int lx, int ly, int radius) {
+      const int xa = std::clamp(lx - radius, ex0, ex1 + 1) - ex0;
+      const int xb = std::clamp(lx + radius + 1, ex0, ex1 + 1) - ex0;
+      const int ya = std::clamp(ly - radius, ey0, ey1 + 1) - ey0;
+      const int yb = std::clamp(ly + radius + 1, ey0, ey1 + 1) - ey0;
+      const std::size_t i11 = static_cast<std::size_t>(yb) * sw_ + xb;
+      const std::size_t i01 = static_cast<std::size_t>(ya) * sw_ + xb;
+      const std::size_t i10 = static_cast<std::size_t>(yb) * sw_ + xa;
+      const std::size_t i00 = static_cast<std::size_t>(ya) * sw_ + xa;
+      return std::pair<double, int>{sat_wz[i11] - sat_wz[i01] - sat_wz[i10] + sat_wz[i00],
+                                    sat_n[i11] - sat_n[i01] - sat_n[i10] + sat_n[i00]};
+    };
     auto agrees = [](double z, double sigma, double mean) {
       return std::abs(z - mean) <= std::max(3 * sigma, 0.05 * mean);
     };
     // Pass 1: the plain window means at the estimates (unweighted: a few
     // estimates with tiny sigma, at strong edges, must not set the
     // reference alone), which then vote.
-    build([&](std::size_t i) { return std::isnan(patch_z[i]) ? 0.0 : 1.0; });
+    // (The sum of n weights 1.0 is n exactly: pass 1 sums only z and n.)
+    build([&](std::size_t i) { return std::isnan(patch_z[i]) ? 0.0 : 1.0; }, std::false_type{});
     wk.inlier.assign(box, 0);
     std::uint8_t* const inlier = wk.inlier.data();
-    for (int ly = 0; ly < bh; ++ly)
-      for (int lx = 0; lx < bw; ++lx) {
-        const std::size_t i = static_cast<std::size_t>(ly) * bw + lx;
-        if (std::isnan(patch_z[i])) continue;
-        const WindowSum ws = window(lx, ly, rad);
-        inlier[i] = agrees(patch_z[i], patch_sigma[i], ws.wz / ws.w);
-      }
+    for (const std::uint32_t e : estimate_pixels) {
+      const int lx = static_cast<int>(e & 0xFFFF), ly = static_cast<int>(e >> 16);
+      const std::size_t i = static_cast<std::size_t>(ly) * bw + lx;
+      const auto [wz, count] = window_count(lx, ly, rad);
+      inlier[i] = agrees(patch_z[i], patch_sigma[i], wz / static_cast<double>(count));
+    }
     // Pass 2: the means over the agreeing estimates.
-    build([&](std::size_t i) {
-      const float sg = patch_sigma[i];
-      return inlier[i] ? 1.0 / (static_cast<double>(sg) * sg) : 0.0;
-    });
-    for (const int local : textured_pixels) {
+    build(
+        [&](std::size_t i) {
+          const float sg = patch_sigma[i];
+          return inlier[i] ? 1.0 / (static_cast<double>(sg) * sg) : 0.0;
+        },
+        std::true_type{});
+    for (const std::uint32_t packed : textured_pixels) {
+      const int lx = static_cast<int>(packed & 0xFFFF), ly = static_cast<int>(packed >> 16);
+      const int local = ly * bw + lx;
       if (search_failed[local]) continue;  // no fill where the search itself failed
-      const int lx = local % bw, ly = local / bw;
       const float own_z = patch_z[local], own_sigma = patch_sigma[local];
       const bool searched = !std::isnan(own_z);
       const WindowSum ws = window(lx, ly, rad);
@@ -497,10 +541,12 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     if (options.fill_min_support > 0) {
       // A textured pixel whose own search failed (no distinct minimum) is
       // filled alike: its surface is the one around it.
-      for (const int local : textured_pixels)
+      for (const std::uint32_t packed : textured_pixels) {
+        const int lx = static_cast<int>(packed & 0xFFFF), ly = static_cast<int>(packed >> 16);
+        const int local = ly * bw + lx;
         if (search_failed[local] || (std::isnan(patch_z[local]) && !inlier[local]))
-          untextured_pixels.push_back(static_cast<std::size_t>(y0 + local / bw) * w +
-                                      (x0 + local % bw));
+          untextured_pixels.push_back(static_cast<std::size_t>(y0 + ly) * w + (x0 + lx));
+      }
       const int fill_radius = options.fill_radius_px > 0 ? options.fill_radius_px : bw + bh;
       // A window of the whole micro image (the default) has the same sums
       // for every pixel: taken once; and without enough support none fills.
