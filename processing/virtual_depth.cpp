@@ -93,6 +93,8 @@ Status DepthOptions::Check() const {
     return Error{"depth options: seed_sigmas: expected 0..100"};
   if (!(seed_margin_px >= 0 && seed_margin_px <= 100))
     return Error{"depth options: seed_margin_px: expected 0..100"};
+  if (seed_ring1_lines != 0 && seed_ring1_lines != 1 && seed_ring1_lines != 3)
+    return Error{"depth options: seed_ring1_lines: expected 0 (auto), 1 or 3"};
   // type_ranges, simd: any value.
   return Status::Ok();
 }
@@ -169,6 +171,8 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
   // its density against the full search's (the fill counts estimates).
   const int seed_stride = options.seed_search_stride != 0 ? options.seed_search_stride
                                                           : (f.grid.PitchPx() >= 24 ? 2 : 1);
+  const int seed_ring1_lines = options.seed_ring1_lines != 0 ? options.seed_ring1_lines
+                                                             : (f.grid.PitchPx() >= 24 ? 1 : 3);
   const int seeded_fill_support = std::max(
       std::min(3, options.fill_min_support),
       static_cast<int>(std::lround(options.fill_min_support * static_cast<double>(stride) /
@@ -301,8 +305,9 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         std::array<std::int8_t, 6> patch_state{};  // 0 not yet, 1 valid, 2 invalid
         std::array<std::array<float, kSamples>, 6> patch_cache;
         std::array<double, 6> g2_cache;
+        // one_line: a 5 x 1 patch (the seeded window's ring-1 search).
         auto match = [&](const detail::MatchParams& params, const Neighbour& nb, double z0,
-                         double z1) {
+                         double z1, bool one_line = false) {
           std::array<float, kSamples>& cached = patch_cache[nb.axis];
           if (patch_state[nb.axis] == 0) {
             const float e_x = nb.flipped ? -nb.e_x : nb.e_x;
@@ -314,6 +319,20 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
             g2_cache[nb.axis] = ok ? detail::PatchGradient2(cached.data()) : 0.0;
           }
           if (patch_state[nb.axis] != 1) return;
+          if (one_line) {
+            // The patch's middle line (b = 0: the same samples as a 5 x 1
+            // patch), reversed for a flipped neighbour.
+            float ref1[kAlong];
+            for (int m = 0; m < kAlong; ++m)
+              ref1[m] = nb.flipped ? cached[kAlong + kAlong - 1 - m] : cached[kAlong + m];
+            Estimate e;
+            if (detail::MatchAlong<1>(params, grey, w, h, f.radius_px, static_cast<float>(x),
+                                      static_cast<float>(y), ref1,
+                                      detail::PatchGradient2<1>(cached.data() + kAlong), nb, z0,
+                                      z1, &e))
+              estimates.Add(e);
+            return;
+          }
           for (int m = 0; m < kSamples; ++m)
             ref[m] = nb.flipped ? cached[kSamples - 1 - m] : cached[m];
           const double g2 = g2_cache[nb.axis];
@@ -336,7 +355,8 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         };
         ++searched_count[k];
         for (int q = 0; q < gated; ++q)
-          match(seeded ? narrow : search, nbs[order[q].second], seed_lo, seed_hi);
+          match(seeded ? narrow : search, nbs[order[q].second], seed_lo, seed_hi,
+                seeded && seed_ring1_lines == 1);
         if (seeded) {
           ++seeded_count[k];
           // No clear minimum in the window (its least cost on the edge, or
