@@ -236,19 +236,31 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     const std::size_t box = static_cast<std::size_t>(bw) * bh;
     wk.patch_z.assign(box, kNaN);
     wk.patch_sigma.assign(box, kNaN);
-    wk.textured_pixels.clear();
+    // The pixel lists hold at most the box's pixels: sized once, written
+    // through pointers (a push_back's bookkeeping per pixel reloaded after
+    // every byte store of the map).
+    if (wk.textured_pixels.size() < box) wk.textured_pixels.resize(box);
+    if (wk.untextured_pixels.size() < box) wk.untextured_pixels.resize(box);
     wk.estimate_pixels.clear();
-    wk.untextured_pixels.clear();
     // Per local pixel: searched (a checkerboard pixel was not) and failed.
     wk.search_failed.assign(box, 0);
     float* const patch_z = wk.patch_z.data();
     float* const patch_sigma = wk.patch_sigma.data();
     std::uint8_t* const search_failed = wk.search_failed.data();
-    std::vector<std::uint32_t>& textured_pixels = wk.textured_pixels;
+    std::uint32_t* const textured_list = wk.textured_pixels.data();
+    int n_textured = 0;
     std::vector<std::uint32_t>& estimate_pixels = wk.estimate_pixels;
-    std::vector<std::size_t>& untextured_pixels = wk.untextured_pixels;
+    std::size_t* const untextured_list = wk.untextured_pixels.data();
+    int n_untextured = 0;
     float ref[kSamples];
     int narrow_found = 0, narrow_missed = 0;  // the seeded windows' outcomes so far
+    const float* const grey_px = f.grey.data();
+    const std::int32_t* const lens_of = f.lens_of_pixel.data();
+    std::uint8_t* const textured_map = out->textured.data();
+    const double min_gradient = options.min_gradient_dn;
+    std::array<float, 6> e_x1{}, e_y1{};  // the ring-1 baselines' directions
+    for (int m = 0; m < ring1_count; ++m) e_x1[m] = nbs[m].e_x, e_y1[m] = nbs[m].e_y;
+    long long n_valid = 0;
     for (int y = y0; y <= y1; ++y) {
       // Only the row's chord of the disc (plus a pixel either side for
       // rounding; the map decides).
@@ -257,28 +269,30 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       const double half = std::sqrt(chord2);
       const int xa = std::max(x0, static_cast<int>(std::floor(lens.centre_px.x() - half)));
       const int xb = std::min(x1, static_cast<int>(std::ceil(lens.centre_px.x() + half)));
+      const std::size_t row = static_cast<std::size_t>(y) * w;
+      const float* const g_row = grey_px + row;
+      const std::int32_t* const lens_row = lens_of + row;
       for (int x = xa; x <= xb; ++x) {
-        const std::size_t idx = static_cast<std::size_t>(y) * w + x;
-        if (f.lens_of_pixel[idx] != k || std::isnan(f.grey[idx])) continue;
-        ++valid_count[k];
+        if (lens_row[x] != k || std::isnan(g_row[x])) continue;
+        const std::size_t idx = row + x;
+        ++n_valid;
         // Gradient gate along each ring-1 direction.
-        const float gx = 0.5f * (f.Grey(x + 1, y) - f.Grey(x - 1, y));
-        const float gy = 0.5f * (f.Grey(x, y + 1) - f.Grey(x, y - 1));
+        const float gx = 0.5f * (g_row[x + 1] - g_row[x - 1]);
+        const float gy = 0.5f * (g_row[x + w] - g_row[x - w]);
         if (std::isnan(gx) || std::isnan(gy)) continue;
         // Textured: some ring-1 baseline with enough gradient along it (the
         // largest, without a branch per baseline: most pixels stop here).
         float g_max = 0;
         for (int m = 0; m < ring1_count; ++m)
-          g_max = std::max(g_max, std::abs(gx * nbs[m].e_x + gy * nbs[m].e_y));
-        if (!(g_max >= options.min_gradient_dn)) {
-          untextured_pixels.push_back(idx);
+          g_max = std::max(g_max, std::abs(gx * e_x1[m] + gy * e_y1[m]));
+        if (!(g_max >= min_gradient)) {
+          untextured_list[n_untextured++] = idx;
           continue;
         }
-        out->textured[idx] = 1;
-        ++textured_count[k];
+        textured_map[idx] = 1;
         const int local = (y - y0) * bw + (x - x0);
         const std::uint32_t packed = static_cast<std::uint32_t>((x - x0) | ((y - y0) << 16));
-        textured_pixels.push_back(packed);
+        textured_list[n_textured++] = packed;
         // Searched pixels: all, or a checkerboard (the others are filled by
         // the regularisation from their searched neighbours).
         if (seeded) {
@@ -403,6 +417,8 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         estimate_pixels.push_back(packed);
       }
     }
+    valid_count[k] = n_valid;
+    textured_count[k] = n_textured;
     // Regularisation within the micro image: neighbouring pixels see nearby
     // virtual points. Over the (2 smooth_radius_px + 1)^2 window of each
     // textured pixel: the mean of the estimates, then the inverse-variance
@@ -521,7 +537,8 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
           return inlier[i] ? 1.0 / (static_cast<double>(sg) * sg) : 0.0;
         },
         std::true_type{});
-    for (const std::uint32_t packed : textured_pixels) {
+    for (int t = 0; t < n_textured; ++t) {
+      const std::uint32_t packed = textured_list[t];
       const int lx = static_cast<int>(packed & 0xFFFF), ly = static_cast<int>(packed >> 16);
       const int local = ly * bw + lx;
       if (search_failed[local]) continue;  // no fill where the search itself failed
@@ -561,11 +578,12 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     if (options.fill_min_support > 0) {
       // A textured pixel whose own search failed (no distinct minimum) is
       // filled alike: its surface is the one around it.
-      for (const std::uint32_t packed : textured_pixels) {
+      for (int t = 0; t < n_textured; ++t) {
+        const std::uint32_t packed = textured_list[t];
         const int lx = static_cast<int>(packed & 0xFFFF), ly = static_cast<int>(packed >> 16);
         const int local = ly * bw + lx;
         if (search_failed[local] || (std::isnan(patch_z[local]) && !inlier[local]))
-          untextured_pixels.push_back(static_cast<std::size_t>(y0 + ly) * w + (x0 + lx));
+          untextured_list[n_untextured++] = static_cast<std::size_t>(y0 + ly) * w + (x0 + lx);
       }
       const int fill_radius = options.fill_radius_px > 0 ? options.fill_radius_px : bw + bh;
       // A window of the whole micro image (the default) has the same sums
@@ -594,9 +612,10 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       };
       Fill whole_fill{};
       const bool whole_fills = whole && fill_of(whole_sums, &whole_fill);
-      if (whole && !whole_fills) untextured_pixels.clear();
+      if (whole && !whole_fills) n_untextured = 0;
       float* const vd = out->virtual_depth.data();
-      for (const std::size_t at : untextured_pixels) {
+      for (int u = 0; u < n_untextured; ++u) {
+        const std::size_t at = untextured_list[u];
         if (!std::isnan(vd[at])) continue;
         Fill fill = whole_fill;
         if (!whole) {
