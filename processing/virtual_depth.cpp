@@ -134,10 +134,21 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
   const std::size_t n = static_cast<std::size_t>(w) * h;
   out->width = w;
   out->height = h;
-  out->virtual_depth.assign(n, kNaN);
-  out->sigma_z.assign(n, kNaN);
-  out->confidence.assign(n, 0.0f);
-  out->textured.assign(n, 0);
+  // The map's initial values, written in parallel row blocks (four passes
+  // over the frame: 13 bytes per pixel); resize keeps the buffers of a
+  // map of this size.
+  out->virtual_depth.resize(n);
+  out->sigma_z.resize(n);
+  out->confidence.resize(n);
+  out->textured.resize(n);
+  tbb::parallel_for(0, h, 64, [&](int y) {
+    const std::size_t a = static_cast<std::size_t>(y) * w;
+    const std::size_t b = std::min(n, a + static_cast<std::size_t>(64) * w);
+    std::fill(out->virtual_depth.begin() + a, out->virtual_depth.begin() + b, kNaN);
+    std::fill(out->sigma_z.begin() + a, out->sigma_z.begin() + b, kNaN);
+    std::fill(out->confidence.begin() + a, out->confidence.begin() + b, 0.0f);
+    std::fill(out->textured.begin() + a, out->textured.begin() + b, std::uint8_t{0});
+  });
   // Search range per type: z = 1 / v.
   const detail::SearchRange range(mla);
   const std::array<double, 3>& z_lo = range.z_lo;
@@ -169,8 +180,10 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       seeded_count(f.lenses.size(), 0), fallback_count(f.lenses.size(), 0);
   // Seeded: the lattice of searched pixels, and step 5's support scaled by
   // its density against the full search's (the fill counts estimates).
-  const int seed_stride = options.seed_search_stride != 0 ? options.seed_search_stride
-                                                          : (f.grid.PitchPx() >= 24 ? 2 : 1);
+  const int seed_stride =
+      options.seed_search_stride != 0
+          ? options.seed_search_stride
+          : (f.grid.PitchPx() >= 32 ? 3 : (f.grid.PitchPx() >= 24 ? 2 : 1));
   const int seed_ring1_lines = options.seed_ring1_lines != 0 ? options.seed_ring1_lines
                                                              : (f.grid.PitchPx() >= 24 ? 1 : 3);
   const int seeded_fill_support = std::max(

@@ -136,8 +136,9 @@ struct DepthOptions {
   // seed_search_stride x seed_search_stride block (1: all textured pixels;
   // the regularisation of step 4 gives the others between them their
   // window's value; step 5's fill_min_support is scaled by this lattice's
-  // density against the full search's, at least 3); 0: 2 for micro images
-  // of 24 px and more, else 1.
+  // density against the full search's, at least 3); 0: 3 for micro images
+  // of 32 px and more (an R32's 34 px: a 9 x 9 window of step 4 still holds
+  // 9 lattice pixels), 2 for 24 px and more, else 1.
   int seed_search_stride = 0;
   int seed_max_ring1 = 2;
   int seed_max_ring2 = 2;
