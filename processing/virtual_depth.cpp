@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <limits>
 #include <string>
+#include <type_traits>
 #include <utility>
 
 namespace lifmcr::processing {
@@ -37,6 +38,19 @@ struct GreyBilinear {
     const float* r0 = grey + static_cast<std::size_t>(y0) * width + x0;
     return detail::GreyImageBilinear(r0, r0 + width, fx, fy);
   }
+};
+
+// One micro image's buffers (the estimates on its bounding box, its pixel
+// lists, the summed-area tables of the regularisation), kept per thread.
+struct LensWorkspace {
+  std::vector<float> patch_z, patch_sigma;
+  std::vector<std::uint8_t> search_failed, inlier;
+  // Textured pixels and those with an estimate: local (x, y) on the bounding
+  // box, x + (y << 16).
+  std::vector<std::uint32_t> textured_pixels, estimate_pixels;
+  std::vector<std::size_t> untextured_pixels;  // frame indices
+  std::vector<double> sat_w, sat_wz, sat_wzz;
+  std::vector<std::int32_t> sat_n;
 };
 
 }  // namespace
@@ -79,6 +93,8 @@ Status DepthOptions::Check() const {
     return Error{"depth options: seed_sigmas: expected 0..100"};
   if (!(seed_margin_px >= 0 && seed_margin_px <= 100))
     return Error{"depth options: seed_margin_px: expected 0..100"};
+  if (seed_ring1_lines != 0 && seed_ring1_lines != 1 && seed_ring1_lines != 3)
+    return Error{"depth options: seed_ring1_lines: expected 0 (auto), 1 or 3"};
   // type_ranges, simd: any value.
   return Status::Ok();
 }
@@ -118,10 +134,21 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
   const std::size_t n = static_cast<std::size_t>(w) * h;
   out->width = w;
   out->height = h;
-  out->virtual_depth.assign(n, kNaN);
-  out->sigma_z.assign(n, kNaN);
-  out->confidence.assign(n, 0.0f);
-  out->textured.assign(n, 0);
+  // The map's initial values, written in parallel row blocks (four passes
+  // over the frame: 13 bytes per pixel); resize keeps the buffers of a
+  // map of this size.
+  out->virtual_depth.resize(n);
+  out->sigma_z.resize(n);
+  out->confidence.resize(n);
+  out->textured.resize(n);
+  tbb::parallel_for(0, h, 64, [&](int y) {
+    const std::size_t a = static_cast<std::size_t>(y) * w;
+    const std::size_t b = std::min(n, a + static_cast<std::size_t>(64) * w);
+    std::fill(out->virtual_depth.begin() + a, out->virtual_depth.begin() + b, kNaN);
+    std::fill(out->sigma_z.begin() + a, out->sigma_z.begin() + b, kNaN);
+    std::fill(out->confidence.begin() + a, out->confidence.begin() + b, 0.0f);
+    std::fill(out->textured.begin() + a, out->textured.begin() + b, std::uint8_t{0});
+  });
   // Search range per type: z = 1 / v.
   const detail::SearchRange range(mla);
   const std::array<double, 3>& z_lo = range.z_lo;
@@ -153,8 +180,12 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       seeded_count(f.lenses.size(), 0), fallback_count(f.lenses.size(), 0);
   // Seeded: the lattice of searched pixels, and step 5's support scaled by
   // its density against the full search's (the fill counts estimates).
-  const int seed_stride = options.seed_search_stride != 0 ? options.seed_search_stride
-                                                          : (f.grid.PitchPx() >= 24 ? 2 : 1);
+  const int seed_stride =
+      options.seed_search_stride != 0
+          ? options.seed_search_stride
+          : (f.grid.PitchPx() >= 32 ? 3 : (f.grid.PitchPx() >= 24 ? 2 : 1));
+  const int seed_ring1_lines = options.seed_ring1_lines != 0 ? options.seed_ring1_lines
+                                                             : (f.grid.PitchPx() >= 24 ? 1 : 3);
   const int seeded_fill_support = std::max(
       std::min(3, options.fill_min_support),
       static_cast<int>(std::lround(options.fill_min_support * static_cast<double>(stride) /
@@ -211,13 +242,38 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     }
     // The micro image's estimates on a local grid (z and sigma, NaN = none)
     // and its textured pixels, for the regularisation below.
-    std::vector<float> patch_z(static_cast<std::size_t>(bw) * bh, kNaN);
-    std::vector<float> patch_sigma(patch_z.size(), kNaN);
-    std::vector<int> textured_pixels, untextured_pixels;
+    // Its buffers are the thread's (LensWorkspace): no allocation per micro
+    // image, none per frame after the first.
+    thread_local LensWorkspace ws_;
+    LensWorkspace& wk = ws_;
+    const std::size_t box = static_cast<std::size_t>(bw) * bh;
+    wk.patch_z.assign(box, kNaN);
+    wk.patch_sigma.assign(box, kNaN);
+    // The pixel lists hold at most the box's pixels: sized once, written
+    // through pointers (a push_back's bookkeeping per pixel reloaded after
+    // every byte store of the map).
+    if (wk.textured_pixels.size() < box) wk.textured_pixels.resize(box);
+    if (wk.untextured_pixels.size() < box) wk.untextured_pixels.resize(box);
+    wk.estimate_pixels.clear();
     // Per local pixel: searched (a checkerboard pixel was not) and failed.
-    std::vector<std::uint8_t> search_failed(patch_z.size(), 0);
+    wk.search_failed.assign(box, 0);
+    float* const patch_z = wk.patch_z.data();
+    float* const patch_sigma = wk.patch_sigma.data();
+    std::uint8_t* const search_failed = wk.search_failed.data();
+    std::uint32_t* const textured_list = wk.textured_pixels.data();
+    int n_textured = 0;
+    std::vector<std::uint32_t>& estimate_pixels = wk.estimate_pixels;
+    std::size_t* const untextured_list = wk.untextured_pixels.data();
+    int n_untextured = 0;
     float ref[kSamples];
     int narrow_found = 0, narrow_missed = 0;  // the seeded windows' outcomes so far
+    const float* const grey_px = f.grey.data();
+    const std::int32_t* const lens_of = f.lens_of_pixel.data();
+    std::uint8_t* const textured_map = out->textured.data();
+    const double min_gradient = options.min_gradient_dn;
+    std::array<float, 6> e_x1{}, e_y1{};  // the ring-1 baselines' directions
+    for (int m = 0; m < ring1_count; ++m) e_x1[m] = nbs[m].e_x, e_y1[m] = nbs[m].e_y;
+    long long n_valid = 0;
     for (int y = y0; y <= y1; ++y) {
       // Only the row's chord of the disc (plus a pixel either side for
       // rounding; the map decides).
@@ -226,14 +282,37 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       const double half = std::sqrt(chord2);
       const int xa = std::max(x0, static_cast<int>(std::floor(lens.centre_px.x() - half)));
       const int xb = std::min(x1, static_cast<int>(std::ceil(lens.centre_px.x() + half)));
+      const std::size_t row = static_cast<std::size_t>(y) * w;
+      const float* const g_row = grey_px + row;
+      const std::int32_t* const lens_row = lens_of + row;
       for (int x = xa; x <= xb; ++x) {
-        const std::size_t idx = static_cast<std::size_t>(y) * w + x;
-        if (f.lens_of_pixel[idx] != k || std::isnan(f.grey[idx])) continue;
-        ++valid_count[k];
+        if (lens_row[x] != k || std::isnan(g_row[x])) continue;
+        const std::size_t idx = row + x;
+        ++n_valid;
         // Gradient gate along each ring-1 direction.
-        const float gx = 0.5f * (f.Grey(x + 1, y) - f.Grey(x - 1, y));
-        const float gy = 0.5f * (f.Grey(x, y + 1) - f.Grey(x, y - 1));
+        const float gx = 0.5f * (g_row[x + 1] - g_row[x - 1]);
+        const float gy = 0.5f * (g_row[x + w] - g_row[x - w]);
         if (std::isnan(gx) || std::isnan(gy)) continue;
+        // Textured: some ring-1 baseline with enough gradient along it (the
+        // largest, without a branch per baseline: most pixels stop here).
+        float g_max = 0;
+        for (int m = 0; m < ring1_count; ++m)
+          g_max = std::max(g_max, std::abs(gx * e_x1[m] + gy * e_y1[m]));
+        if (!(g_max >= min_gradient)) {
+          untextured_list[n_untextured++] = idx;
+          continue;
+        }
+        textured_map[idx] = 1;
+        const int local = (y - y0) * bw + (x - x0);
+        const std::uint32_t packed = static_cast<std::uint32_t>((x - x0) | ((y - y0) << 16));
+        textured_list[n_textured++] = packed;
+        // Searched pixels: all, or a checkerboard (the others are filled by
+        // the regularisation from their searched neighbours).
+        if (seeded) {
+          if (x % seed_stride != 0 || y % seed_stride != 0) continue;
+        } else if (stride == 2 && ((x + y) & 1)) {
+          continue;
+        }
         // Ring-1 baselines ordered by the gradient along them (the most
         // informative first); at most max_ring1 of them are searched.
         std::array<std::pair<float, int>, 6> order;
@@ -241,21 +320,6 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         for (int m = 0; m < ring1_count; ++m) {
           const float g = std::abs(gx * nbs[m].e_x + gy * nbs[m].e_y);
           if (g >= options.min_gradient_dn) order[gated++] = {g, m};
-        }
-        if (gated == 0) {
-          untextured_pixels.push_back((y - y0) * bw + (x - x0));
-          continue;
-        }
-        out->textured[idx] = 1;
-        ++textured_count[k];
-        const int local = (y - y0) * bw + (x - x0);
-        textured_pixels.push_back(local);
-        // Searched pixels: all, or a checkerboard (the others are filled by
-        // the regularisation from their searched neighbours).
-        if (seeded) {
-          if (x % seed_stride != 0 || y % seed_stride != 0) continue;
-        } else if (stride == 2 && ((x + y) & 1)) {
-          continue;
         }
         for (int i = 1; i < gated; ++i)  // insertion sort, descending (at most 6)
           for (int j = i; j > 0 && order[j - 1].first < order[j].first; --j)
@@ -268,8 +332,9 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         std::array<std::int8_t, 6> patch_state{};  // 0 not yet, 1 valid, 2 invalid
         std::array<std::array<float, kSamples>, 6> patch_cache;
         std::array<double, 6> g2_cache;
+        // one_line: a 5 x 1 patch (the seeded window's ring-1 search).
         auto match = [&](const detail::MatchParams& params, const Neighbour& nb, double z0,
-                         double z1) {
+                         double z1, bool one_line = false) {
           std::array<float, kSamples>& cached = patch_cache[nb.axis];
           if (patch_state[nb.axis] == 0) {
             const float e_x = nb.flipped ? -nb.e_x : nb.e_x;
@@ -281,6 +346,20 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
             g2_cache[nb.axis] = ok ? detail::PatchGradient2(cached.data()) : 0.0;
           }
           if (patch_state[nb.axis] != 1) return;
+          if (one_line) {
+            // The patch's middle line (b = 0: the same samples as a 5 x 1
+            // patch), reversed for a flipped neighbour.
+            float ref1[kAlong];
+            for (int m = 0; m < kAlong; ++m)
+              ref1[m] = nb.flipped ? cached[kAlong + kAlong - 1 - m] : cached[kAlong + m];
+            Estimate e;
+            if (detail::MatchAlong<1>(params, grey, w, h, f.radius_px, static_cast<float>(x),
+                                      static_cast<float>(y), ref1,
+                                      detail::PatchGradient2<1>(cached.data() + kAlong), nb, z0,
+                                      z1, &e))
+              estimates.Add(e);
+            return;
+          }
           for (int m = 0; m < kSamples; ++m)
             ref[m] = nb.flipped ? cached[kSamples - 1 - m] : cached[m];
           const double g2 = g2_cache[nb.axis];
@@ -303,7 +382,8 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         };
         ++searched_count[k];
         for (int q = 0; q < gated; ++q)
-          match(seeded ? narrow : search, nbs[order[q].second], seed_lo, seed_hi);
+          match(seeded ? narrow : search, nbs[order[q].second], seed_lo, seed_hi,
+                seeded && seed_ring1_lines == 1);
         if (seeded) {
           ++seeded_count[k];
           // No clear minimum in the window (its least cost on the edge, or
@@ -347,8 +427,11 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         patch_z[local] = static_cast<float>(z);
         patch_sigma[local] = static_cast<float>(sigma);
         search_failed[local] = 0;
+        estimate_pixels.push_back(packed);
       }
     }
+    valid_count[k] = n_valid;
+    textured_count[k] = n_textured;
     // Regularisation within the micro image: neighbouring pixels see nearby
     // virtual points. Over the (2 smooth_radius_px + 1)^2 window of each
     // textured pixel: the mean of the estimates, then the inverse-variance
@@ -357,27 +440,58 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     // disagreeing: rejected (outlier). Window sums from summed-area tables,
     // O(1) per pixel.
     const int rad = options.smooth_radius_px;
-    const int sw_ = bw + 1;  // summed-area tables are (bw + 1) x (bh + 1)
-    std::vector<double> sat_w(static_cast<std::size_t>(sw_) * (bh + 1)), sat_wz(sat_w.size()),
-        sat_wzz(sat_w.size());
-    std::vector<std::int32_t> sat_n(sat_w.size());
-    auto build = [&](auto weight_of) {
-      for (int ly = 0; ly < bh; ++ly) {
+    // Without an estimate the micro image gets nothing from steps 4 and 5
+    // (no window holds support; its sums stay 0).
+    if (estimate_pixels.empty()) return;
+    // The tables span only the estimates' bounding rectangle [ex0, ex1] x
+    // [ey0, ey1]: every weight outside it is 0, so a window's sums are
+    // those of its part inside it, and the tables' entries are the same
+    // sums in the same order as over the whole box (adding 0 changes none).
+    int ex0 = bw, ex1 = -1, ey0 = bh, ey1 = -1;
+    for (const std::uint32_t e : estimate_pixels) {
+      const int lx = static_cast<int>(e & 0xFFFF), ly = static_cast<int>(e >> 16);
+      ex0 = std::min(ex0, lx);
+      ex1 = std::max(ex1, lx);
+      ey0 = std::min(ey0, ly);
+      ey1 = std::max(ey1, ly);
+    }
+    const int tw = ex1 - ex0 + 1, th = ey1 - ey0 + 1;
+    const int sw_ = tw + 1;  // summed-area tables are (tw + 1) x (th + 1)
+    const std::size_t sat_size = static_cast<std::size_t>(sw_) * (th + 1);
+    // Row 0 and column 0 stay 0; the rest is written by every build.
+    wk.sat_w.assign(sat_size, 0.0);
+    wk.sat_wz.assign(sat_size, 0.0);
+    wk.sat_wzz.assign(sat_size, 0.0);
+    wk.sat_n.assign(sat_size, 0);
+    double* const sat_w = wk.sat_w.data();
+    double* const sat_wz = wk.sat_wz.data();
+    double* const sat_wzz = wk.sat_wzz.data();
+    std::int32_t* const sat_n = wk.sat_n.data();
+    // kWeighted false: weight 1 per estimate (w = n; wzz not summed).
+    auto build = [&](auto weight_of, auto weighted) {
+      constexpr bool kWeighted = decltype(weighted)::value;
+      for (int ty = 0; ty < th; ++ty) {
         double row_w = 0, row_wz = 0, row_wzz = 0;
         std::int32_t row_n = 0;
-        for (int lx = 0; lx < bw; ++lx) {
-          const std::size_t i = static_cast<std::size_t>(ly) * bw + lx;
+        const std::size_t row = static_cast<std::size_t>(ey0 + ty) * bw + ex0;
+        const std::size_t o_row = static_cast<std::size_t>(ty + 1) * sw_ + 1;
+        for (int tx = 0; tx < tw; ++tx) {
+          const std::size_t i = row + tx;
           const double wgt = weight_of(i);
           if (wgt > 0) {
-            row_w += wgt;
             row_wz += wgt * patch_z[i];
-            row_wzz += wgt * patch_z[i] * patch_z[i];
+            if constexpr (kWeighted) {
+              row_w += wgt;
+              row_wzz += wgt * patch_z[i] * patch_z[i];
+            }
             ++row_n;
           }
-          const std::size_t o = static_cast<std::size_t>(ly + 1) * sw_ + lx + 1;
-          sat_w[o] = sat_w[o - sw_] + row_w;
+          const std::size_t o = o_row + tx;
           sat_wz[o] = sat_wz[o - sw_] + row_wz;
-          sat_wzz[o] = sat_wzz[o - sw_] + row_wzz;
+          if constexpr (kWeighted) {
+            sat_w[o] = sat_w[o - sw_] + row_w;
+            sat_wzz[o] = sat_wzz[o - sw_] + row_wzz;
+          }
           sat_n[o] = sat_n[o - sw_] + row_n;
         }
       }
@@ -387,8 +501,10 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       int n;
     };
     auto window = [&](int lx, int ly, int radius) {
-      const int xa = std::max(0, lx - radius), xb = std::min(bw, lx + radius + 1);
-      const int ya = std::max(0, ly - radius), yb = std::min(bh, ly + radius + 1);
+      const int xa = std::clamp(lx - radius, ex0, ex1 + 1) - ex0;
+      const int xb = std::clamp(lx + radius + 1, ex0, ex1 + 1) - ex0;
+      const int ya = std::clamp(ly - radius, ey0, ey1 + 1) - ey0;
+      const int yb = std::clamp(ly + radius + 1, ey0, ey1 + 1) - ey0;
       const std::size_t i11 = static_cast<std::size_t>(yb) * sw_ + xb;
       const std::size_t i01 = static_cast<std::size_t>(ya) * sw_ + xb;
       const std::size_t i10 = static_cast<std::size_t>(yb) * sw_ + xa;
@@ -398,29 +514,47 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
                        sat_wzz[i11] - sat_wzz[i01] - sat_wzz[i10] + sat_wzz[i00],
                        sat_n[i11] - sat_n[i01] - sat_n[i10] + sat_n[i00]};
     };
+    // Pass 1's window: the count and the sum of z (its w is the count).
+    auto window_count = [&](int lx, int ly, int radius) {
+      const int xa = std::clamp(lx - radius, ex0, ex1 + 1) - ex0;
+      const int xb = std::clamp(lx + radius + 1, ex0, ex1 + 1) - ex0;
+      const int ya = std::clamp(ly - radius, ey0, ey1 + 1) - ey0;
+      const int yb = std::clamp(ly + radius + 1, ey0, ey1 + 1) - ey0;
+      const std::size_t i11 = static_cast<std::size_t>(yb) * sw_ + xb;
+      const std::size_t i01 = static_cast<std::size_t>(ya) * sw_ + xb;
+      const std::size_t i10 = static_cast<std::size_t>(yb) * sw_ + xa;
+      const std::size_t i00 = static_cast<std::size_t>(ya) * sw_ + xa;
+      return std::pair<double, int>{sat_wz[i11] - sat_wz[i01] - sat_wz[i10] + sat_wz[i00],
+                                    sat_n[i11] - sat_n[i01] - sat_n[i10] + sat_n[i00]};
+    };
     auto agrees = [](double z, double sigma, double mean) {
       return std::abs(z - mean) <= std::max(3 * sigma, 0.05 * mean);
     };
     // Pass 1: the plain window means at the estimates (unweighted: a few
     // estimates with tiny sigma, at strong edges, must not set the
     // reference alone), which then vote.
-    build([&](std::size_t i) { return std::isnan(patch_z[i]) ? 0.0 : 1.0; });
-    std::vector<std::uint8_t> inlier(patch_z.size(), 0);
-    for (int ly = 0; ly < bh; ++ly)
-      for (int lx = 0; lx < bw; ++lx) {
-        const std::size_t i = static_cast<std::size_t>(ly) * bw + lx;
-        if (std::isnan(patch_z[i])) continue;
-        const WindowSum ws = window(lx, ly, rad);
-        inlier[i] = agrees(patch_z[i], patch_sigma[i], ws.wz / ws.w);
-      }
+    // (The sum of n weights 1.0 is n exactly: pass 1 sums only z and n.)
+    build([&](std::size_t i) { return std::isnan(patch_z[i]) ? 0.0 : 1.0; }, std::false_type{});
+    wk.inlier.assign(box, 0);
+    std::uint8_t* const inlier = wk.inlier.data();
+    for (const std::uint32_t e : estimate_pixels) {
+      const int lx = static_cast<int>(e & 0xFFFF), ly = static_cast<int>(e >> 16);
+      const std::size_t i = static_cast<std::size_t>(ly) * bw + lx;
+      const auto [wz, count] = window_count(lx, ly, rad);
+      inlier[i] = agrees(patch_z[i], patch_sigma[i], wz / static_cast<double>(count));
+    }
     // Pass 2: the means over the agreeing estimates.
-    build([&](std::size_t i) {
-      const float sg = patch_sigma[i];
-      return inlier[i] ? 1.0 / (static_cast<double>(sg) * sg) : 0.0;
-    });
-    for (const int local : textured_pixels) {
+    build(
+        [&](std::size_t i) {
+          const float sg = patch_sigma[i];
+          return inlier[i] ? 1.0 / (static_cast<double>(sg) * sg) : 0.0;
+        },
+        std::true_type{});
+    for (int t = 0; t < n_textured; ++t) {
+      const std::uint32_t packed = textured_list[t];
+      const int lx = static_cast<int>(packed & 0xFFFF), ly = static_cast<int>(packed >> 16);
+      const int local = ly * bw + lx;
       if (search_failed[local]) continue;  // no fill where the search itself failed
-      const int lx = local % bw, ly = local / bw;
       const float own_z = patch_z[local], own_sigma = patch_sigma[local];
       const bool searched = !std::isnan(own_z);
       const WindowSum ws = window(lx, ly, rad);
@@ -457,26 +591,53 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     if (options.fill_min_support > 0) {
       // A textured pixel whose own search failed (no distinct minimum) is
       // filled alike: its surface is the one around it.
-      for (const int local : textured_pixels)
+      for (int t = 0; t < n_textured; ++t) {
+        const std::uint32_t packed = textured_list[t];
+        const int lx = static_cast<int>(packed & 0xFFFF), ly = static_cast<int>(packed >> 16);
+        const int local = ly * bw + lx;
         if (search_failed[local] || (std::isnan(patch_z[local]) && !inlier[local]))
-          untextured_pixels.push_back(local);
+          untextured_list[n_untextured++] = static_cast<std::size_t>(y0 + ly) * w + (x0 + lx);
+      }
       const int fill_radius = options.fill_radius_px > 0 ? options.fill_radius_px : bw + bh;
-      for (const int local : untextured_pixels) {
-        const std::size_t at = static_cast<std::size_t>(y0 + local / bw) * w + (x0 + local % bw);
-        if (!std::isnan(out->virtual_depth[at])) continue;
-        const WindowSum ws = window(local % bw, local / bw, fill_radius);
-        if (ws.n < (seeded ? seeded_fill_support : options.fill_min_support)) continue;
+      // A window of the whole micro image (the default) has the same sums
+      // for every pixel: taken once; and without enough support none fills.
+      const int fill_support = seeded ? seeded_fill_support : options.fill_min_support;
+      const bool whole = fill_radius >= bw + bh;
+      const WindowSum whole_sums = window(0, 0, bw + bh);
+      // The fill of a window's sums: false where they hold too little
+      // support or two surfaces.
+      struct Fill {
+        float v, sigma, confidence;
+      };
+      auto fill_of = [&](const WindowSum& ws, Fill* fill) {
+        if (ws.n < fill_support) return false;
         const double z = ws.wz / ws.w;
         const double spread2 = std::max(0.0, ws.wzz / ws.w - z * z);
-        if (spread2 > options.fill_max_spread * options.fill_max_spread * z * z) continue;
+        if (spread2 > options.fill_max_spread * options.fill_max_spread * z * z) return false;
         // As uncertain as one supporting estimate (their harmonic mean
         // sigma), or as their spread where that is larger: the supports are
         // not independent views of this pixel's point.
         const double sigma = std::sqrt(std::max(ws.n / ws.w, spread2));
-        out->virtual_depth[at] = static_cast<float>(1.0 / z);
-        out->sigma_z[at] = static_cast<float>(sigma);
-        out->confidence[at] =
-            static_cast<float>(std::clamp(1.0 - (sigma / z) / options.max_rel_sigma, 0.0, 1.0));
+        *fill = Fill{static_cast<float>(1.0 / z), static_cast<float>(sigma),
+                     static_cast<float>(
+                         std::clamp(1.0 - (sigma / z) / options.max_rel_sigma, 0.0, 1.0))};
+        return true;
+      };
+      Fill whole_fill{};
+      const bool whole_fills = whole && fill_of(whole_sums, &whole_fill);
+      if (whole && !whole_fills) n_untextured = 0;
+      float* const vd = out->virtual_depth.data();
+      for (int u = 0; u < n_untextured; ++u) {
+        const std::size_t at = untextured_list[u];
+        if (!std::isnan(vd[at])) continue;
+        Fill fill = whole_fill;
+        if (!whole) {
+          const int lx = static_cast<int>(at % w) - x0, ly = static_cast<int>(at / w) - y0;
+          if (!fill_of(window(lx, ly, fill_radius), &fill)) continue;
+        }
+        vd[at] = fill.v;
+        out->sigma_z[at] = fill.sigma;
+        out->confidence[at] = fill.confidence;
         ++filled_count[k];
         lens_has_depth[k] = 1;
       }

@@ -72,12 +72,17 @@
 // without a clear minimum anywhere (too little texture along their
 // baselines), which the full search loses too. With a seed, seed_max_ring1 ring-1 and
 // seed_max_ring2 ring-2 baselines are searched per pixel and a lattice of
-// seed_search_stride (below); steps 2-5 are those of the full search.
+// seed_search_stride (below), the ring-1 searches in the window on the
+// patch's middle line (5 x 1, seed_ring1_lines); steps 2-5 are those of the
+// full search.
 // The strips are sampled and their costs summed by the kernels of
 // processing/lens_search_simd.h (DepthOptions::simd: Highway's or the
 // scalar reference, the same numbers) wherever the neighbour's disc lies
 // well inside the frame.
-// Work is parallel over micro images (TBB); each pixel is written once.
+// Work is parallel over micro images (TBB); each pixel is written once. A
+// micro image's buffers are its thread's (no allocation per micro image,
+// none per frame after the first); step 4's summed-area tables span only
+// its estimates' bounding rectangle.
 
 #include "config/error.h"
 #include "config/mla.h"
@@ -120,7 +125,7 @@ struct DepthOptions {
   // Seeded search (header comment): the window around the seeds, in their
   // sigma and in px of ring-1 disparity beyond that.
   double seed_sigmas = 3.0;
-  double seed_margin_px = 1.5;
+  double seed_margin_px = 1.0;
   // Seeded: baselines searched per pixel (ring 1 in the window, ring 2
   // around its result; the seed has settled which minimum is the surface,
   // so fewer baselines suffice), and the distinctness of a narrow search's
@@ -131,11 +136,19 @@ struct DepthOptions {
   // seed_search_stride x seed_search_stride block (1: all textured pixels;
   // the regularisation of step 4 gives the others between them their
   // window's value; step 5's fill_min_support is scaled by this lattice's
-  // density against the full search's, at least 3); 0: 2 for micro images
-  // of 24 px and more, else 1.
+  // density against the full search's, at least 3); 0: 3 for micro images
+  // of 32 px and more (an R32's 34 px: a 9 x 9 window of step 4 still holds
+  // 9 lattice pixels), 2 for 24 px and more, else 1.
   int seed_search_stride = 0;
   int seed_max_ring1 = 2;
   int seed_max_ring2 = 2;
+  // Seeded: the lines of the window's ring-1 patch, 1 (5 x 1) or 3 (5 x 3);
+  // 0: 1 for micro images of 24 px and more, else 3. The seed has placed
+  // the surface, so on large micro images one line locates the minimum in
+  // the window and ring 2's 5 x 3 patch refines it; on small ones (16 px)
+  // one line finds no clear minimum for a quarter of the pixels, which then
+  // fall back to the full range. The fallback searches 5 x 3.
+  int seed_ring1_lines = 0;
   double seed_cost_ratio = 0.8;
   // Strip sampling and SSD through Highway's runtime dispatch
   // (processing/lens_search_simd.h); false: the scalar reference (the same

@@ -198,6 +198,10 @@ TEST(SeededDepthOptions, CheckNamesTheField) {
   o = DepthOptions{};
   o.seed_margin_px = -1;
   EXPECT_NE(o.Check().error().message.find("seed_margin_px"), std::string::npos);
+  o = DepthOptions{};
+  o.seed_ring1_lines = 2;
+  ASSERT_FALSE(o.Check().ok());
+  EXPECT_NE(o.Check().error().message.find("seed_ring1_lines"), std::string::npos);
 }
 
 }  // namespace

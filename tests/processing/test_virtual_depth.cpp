@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <vector>
 
 namespace lifmcr::processing {
 namespace {
@@ -170,6 +171,29 @@ TEST(VirtualDepth, FillsUntexturedPixelsOfTexturedMicroImagesAccurately) {
   EXPECT_GE(coverage, 0.40);
   EXPECT_LE(median, 0.02);
   EXPECT_LE(outlier_share, 0.05);
+}
+
+// The strip bounds' rounding (epipolar_search.h) is std::ceil / std::floor
+// for every float it meets: integers, halves, values next to integers, both
+// signs, and random values over the strips' range.
+TEST(VirtualDepth, StripBoundsRoundLikeCeilAndFloor) {
+  std::vector<float> xs;
+  for (int i = -300; i <= 300; ++i) {
+    const float x = static_cast<float>(i);
+    for (const float v : {x, x + 0.5f, std::nextafter(x, x + 1), std::nextafter(x, x - 1)})
+      xs.push_back(v);
+  }
+  unsigned state = 12345;
+  for (int i = 0; i < 100000; ++i) {
+    state = state * 1664525u + 1013904223u;
+    xs.push_back((static_cast<float>(state >> 8) / 16777216.0f - 0.5f) * 2000.0f);
+  }
+  xs.push_back(0.0f);
+  xs.push_back(-0.0f);
+  for (const float x : xs) {
+    ASSERT_EQ(detail::CeilToInt(x), static_cast<int>(std::ceil(x))) << x;
+    ASSERT_EQ(detail::FloorToInt(x), static_cast<int>(std::floor(x))) << x;
+  }
 }
 
 }  // namespace
