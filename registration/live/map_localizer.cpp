@@ -115,6 +115,9 @@ Status LocalizerOptions::Check() const {
   if (!(max_anchor_weight >= 1))
     return Error{"localizer options: max_anchor_weight: expected >= 1"};
   if (Status s = coarse.Check(); !s) return s;  // correct_predictions: either value
+  if (reanchor_every < 0) return Error{"localizer options: reanchor_every: expected >= 0"};
+  if (cold_reanchor_rounds < 0)
+    return Error{"localizer options: cold_reanchor_rounds: expected >= 0"};
   if (max_correction_ahead < 1)
     return Error{"localizer options: max_correction_ahead: expected >= 1"};
   if (!(min_far_track_success >= 0 && min_far_track_success <= 1))
@@ -675,7 +678,13 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     }
     // Re-anchoring when due, unless another worker relocalises the camera
     // already (then this frame tracks).
-    reanchor = can_track && s.reanchor && !s.relocalising;
+    // Sooner while the tracks average few anchors (LocalizerOptions::reanchor_every).
+    const int interval = std::min(
+        options_.reanchor_every,
+        std::max(1, static_cast<int>(options_.average_anchors ? s.anchor_weight : 1e9)));
+    const bool periodic = options_.reanchor_every > 0 && s.last_anchor_trigger >= 0 &&
+                          frame.trigger_index - s.last_anchor_trigger >= interval;
+    reanchor = can_track && (s.reanchor || periodic) && !s.relocalising;
     if (!can_track && s.relocalising) {
       // Published with this status (no pose): the frame was seen, not lost.
       ++counts_.skipped;
@@ -794,13 +803,18 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   // re-anchored here from its pose, on a render refocused per region, so
   // that the tracks begin at a pose measured in focus (the first frames'
   // error otherwise stays until the next re-anchoring).
-  if (r.success && localisation == "relocalised" && !state.has_pose && !frame.products &&
-      options_.relocalise_refocus_cells > 0 && options_.guided_reanchoring) {
+  // Each round guided from the last one's pose: the relocalised pose may lie
+  // further off than the matching's radius (LocalizerOptions::cold_reanchor_rounds).
+  for (int round = 0; round < options_.cold_reanchor_rounds && r.success &&
+                      localisation == "relocalised" && !state.has_pose && !frame.products &&
+                      options_.relocalise_refocus_cells > 0 && options_.guided_reanchoring;
+       ++round) {
     guided_attempt = true;
     guided = GuidedSolve(camera, **sampler, frame.raw, r.w0_from_cam.pose, options_.guided,
                          /*check_jump=*/true, "re-anchoring", options_.min_tracked);
-    if (guided.success) {
-      relocalised_inliers = r.inliers;
+    if (!guided.success) break;
+    {
+      if (relocalised_inliers < 0) relocalised_inliers = r.inliers;
       r.w0_from_cam = guided.w0_from_cam;
       r.inliers = guided.inliers;
       r.rmse_px = guided.rmse_px;
@@ -812,6 +826,7 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   }
   double retrack_s = 0;
   std::shared_ptr<const Tracks> tracks;
+  double weight = 1;  // the anchors the pose averages (Retrack's new_weight)
   if (r.success && options_.track) {
     const auto retrack_start = std::chrono::steady_clock::now();
     // Tracked inliers go on with their templates. A relocalised frame's
@@ -831,7 +846,6 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     // New tracks made from a tracked or averaged pose weigh as the anchors
     // it averages (the mean of its inliers' weights); from a single absolute
     // pose, 1.
-    double weight = 1;
     if (localisation == "tracked" || averaged) {
       double sum = 0;
       for (const TrackedPoint& k : r.kept) sum += k.offset_weight;
@@ -952,12 +966,19 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     s.last_host_ns = frame.host_ns;
     s.has_pose = true;
     s.tracks = std::move(tracks);
+    if (localisation != "tracked") s.last_anchor_trigger = frame.trigger_index;
+    s.anchor_weight = weight;
     // Re-anchored next frame: a tracked pose with too few anchored inliers
     // (min_anchored_fraction), or a relocalisation without a pose to refocus
     // its render per region (the map's median depth throughout), so that the
     // tracks are soon seeded from a pose measured in focus.
+    // Re-anchored in its frame or not, a relocalisation without a pose is
+    // re-anchored anew at the next frame too: at r32 the frame's own guided
+    // matching, even iterated from its pose, left trigger 0 at 1.28 mm (2.96
+    // relocalised), where the next trigger's re-anchoring from its tracked
+    // pose came to 0.26 mm (test_map_localizer, 8 triggers).
     const bool cold = localisation == "relocalised" && !state.has_pose && !frame.products &&
-                      options_.relocalise_refocus_cells > 0 && !cold_reanchored;
+                      options_.relocalise_refocus_cells > 0;
     s.cold = cold || (localisation == "tracked" && state.cold);
     s.reanchor = cold || (localisation == "tracked" &&
                           r.anchored_inliers < options_.min_anchored_fraction * r.inliers);

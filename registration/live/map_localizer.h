@@ -22,12 +22,19 @@
 //                too few tracks are added (their templates at their
 //                projection), up to max_tracks spread over the image. When
 //                fewer than min_anchored_fraction of the inliers began in a
-//                relocalised frame, the next frame is re-anchored: tracked,
-//                then matched against the map guided by the tracked pose
-//                (registration/map/guided_matches.h: SIFT on a coarser render,
-//                each keypoint against the map points projected near it),
-//                PnP on those matches, every inlier anchored; relocalised
-//                when that fails, the tracked pose when both fail.
+//                relocalised frame or were re-anchored since, the next frame
+//                is re-anchored: tracked, then matched against the map
+//                guided by the tracked pose (registration/map/guided_matches.h:
+//                SIFT on a coarser render, each keypoint against the map
+//                points projected near it), PnP on those matches; the
+//                tracks kept, each template's offset from its map point
+//                measured against that pose and averaged with the anchors
+//                it has seen (TrackedPoint::offset, average_anchors), the
+//                frame's pose the PnP on the corrected tracked positions.
+//                When guided matching fails the tracked pose is published
+//                (re-anchoring due again at the next frame); relocalised
+//                when tracking fails. A re-anchoring that a later frame of
+//                its camera overtook still hands its offsets on.
 //                When the prediction is weak more pyramid levels and a
 //                larger shift are allowed: two more levels and four times
 //                the shift with no velocity yet (the frame after a
@@ -48,7 +55,9 @@
 //                (TfSampler::RenderAtDepth), global matching against
 //                every map point (ratio and cross check, kd-tree) and full
 //                LO-RANSAC PnP; the tracks begin at their map points'
-//                projections from the pose, the inliers first. A
+//                projections from the pose, the inliers first (without a
+//                pose before, the render at one depth: re-anchored in the
+//                same frame first, guided from the relocalised pose). A
 //                frame of a camera that another worker is relocalising is
 //                not localised (Counts::skipped; its pose says so in its
 //                status, localisation "skipped", and is published like a
@@ -149,6 +158,9 @@ struct LocalizerOptions {
   // projections (medium, 20 frames: the stretch tracked from the first
   // relocalisation was at 0.8-1.5 mm, the one after a re-anchoring at
   // 0.15-0.55 mm; test_map_localizer). When that fails, at the next frame.
+  // In cold_reanchor_rounds rounds, each guided from the last one's pose
+  // (0: at the next frame, from its tracked pose, as before).
+  int cold_reanchor_rounds = 2;  // >= 0
   // Re-anchoring by guided matching (registration/map/guided_matches.h) from the
   // frame's tracked pose; false: by relocalisation.
   bool guided_reanchoring = true;
@@ -165,6 +177,14 @@ struct LocalizerOptions {
   // anew at its pose's projections, the pose its guided PnP.
   bool average_anchors = true;
   double max_anchor_weight = 8;  // >= 1 (1: the last anchor alone)
+  // A frame this many triggers after its camera's last re-anchoring or
+  // relocalisation is re-anchored whatever its anchored inliers (0: only
+  // by min_anchored_fraction): with average_anchors each re-anchoring
+  // lowers the tracked poses' error by averaging one more anchor. While the
+  // tracks average fewer than reanchor_every anchors, sooner: after as many
+  // triggers as they average (1, 2, 3, ...), so that the first stretch after
+  // a relocalisation, which rests on one or two anchors, is short.
+  int reanchor_every = 4;  // >= 0
   // A prediction over skipped frames whose tracking failed (for a weak one,
   // no velocity yet or more than two triggers ahead, the patches already got
   // more levels and a larger shift, Track) is corrected by guided matching on a coarse
@@ -345,6 +365,8 @@ class MapLocalizerStage final : public processing::RegistrationStage {
     // The tracks began at a relocalisation without a pose (its render at one
     // depth): their next re-anchoring begins them anew instead of averaging.
     bool cold = false;
+    std::int64_t last_anchor_trigger = -1;  // its last relocalised or re-anchored frame
+    double anchor_weight = 1;  // the anchors the last pose averages (TrackedPoint::offset_weight)
     // Prediction for `trigger` (header comment); the last pose without a previous one.
     Pose Predict(std::int64_t trigger) const;
   };
