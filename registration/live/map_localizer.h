@@ -145,11 +145,11 @@ struct LocalizerOptions {
   double track_margin_px = 16;  // tracks stay this far inside the TF image (>= 0)
   int min_tracked = 30;       // fewer tracked inliers: relocalise (>= 3)
   // Re-anchoring: when fewer of a tracked pose's inliers than this fraction
-  // were begun in a relocalised frame (TrackedPoint::anchored), the camera's
-  // next frame is relocalised, so that tracks begun from tracked poses (each
-  // carrying the error of the pose it began from) never decide the pose
-  // alone and a tracked pose's error does not grow with the frames since the
-  // relocalisation ([0, 1]; 0: never).
+  // were begun in a relocalised frame or re-anchored since
+  // (TrackedPoint::anchored), the camera's next frame is re-anchored (or
+  // relocalised, without guided_reanchoring), so that tracks begun from
+  // tracked poses never decide the pose alone ([0, 1]; 0: never; besides
+  // reanchor_every).
   double min_anchored_fraction = 0.5;
   // A camera relocalised without a pose (its render at the map's median
   // depth throughout) is re-anchored in the same frame, when
@@ -327,9 +327,10 @@ class MapLocalizerStage final : public processing::RegistrationStage {
     int point = 0;                 // index into map_
     Eigen::Vector2d tf_px;         // where it was in the camera's last frame
     std::shared_ptr<const PatchTemplate> patch;  // its appearance where its track began
-    // Begun in a relocalised frame (at its SIFT keypoint or at its projection
-    // from that pose), not in a tracked one (at its projection from a tracked
-    // pose, whose error it then carries on).
+    // Begun in a relocalised or re-anchored frame (at its projection from
+    // that pose) or its offset measured by a re-anchoring since, not begun
+    // in a tracked frame and left so (at its projection from a tracked pose,
+    // whose error it then carries on).
     bool anchored = false;
     // The template's offset from where its map point lies (template
     // coordinates, TF px): a template made at a map point's projection from
