@@ -803,8 +803,7 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   // re-anchored here from its pose, on a render refocused per region, so
   // that the tracks begin at a pose measured in focus (the first frames'
   // error otherwise stays until the next re-anchoring).
-  // Each round guided from the last one's pose: the relocalised pose may lie
-  // further off than the matching's radius (LocalizerOptions::cold_reanchor_rounds).
+  // Each round guided from the last one's pose (LocalizerOptions::cold_reanchor_rounds).
   for (int round = 0; round < options_.cold_reanchor_rounds && r.success &&
                       localisation == "relocalised" && !state.has_pose && !frame.products &&
                       options_.relocalise_refocus_cells > 0 && options_.guided_reanchoring;
@@ -813,16 +812,14 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     guided = GuidedSolve(camera, **sampler, frame.raw, r.w0_from_cam.pose, options_.guided,
                          /*check_jump=*/true, "re-anchoring", options_.min_tracked);
     if (!guided.success) break;
-    {
-      if (relocalised_inliers < 0) relocalised_inliers = r.inliers;
-      r.w0_from_cam = guided.w0_from_cam;
-      r.inliers = guided.inliers;
-      r.rmse_px = guided.rmse_px;
-      r.kept = guided.kept;
-      r.anchored_inliers = guided.anchored_inliers;
-      r.status = guided.status;
-      cold_reanchored = true;
-    }
+    if (relocalised_inliers < 0) relocalised_inliers = r.inliers;
+    r.w0_from_cam = guided.w0_from_cam;
+    r.inliers = guided.inliers;
+    r.rmse_px = guided.rmse_px;
+    r.kept = guided.kept;
+    r.anchored_inliers = guided.anchored_inliers;
+    r.status = guided.status;
+    cold_reanchored = true;
   }
   double retrack_s = 0;
   std::shared_ptr<const Tracks> tracks;
