@@ -111,7 +111,13 @@ Status LocalizerOptions::Check() const {
   if (!(min_anchored_fraction >= 0 && min_anchored_fraction <= 1))
     return Error{"localizer options: min_anchored_fraction: expected in [0, 1]"};
   if (Status s = guided.Check(); !s) return s;  // guided_reanchoring: either value
+  // average_anchors: either value.
+  if (!(max_anchor_weight >= 1))
+    return Error{"localizer options: max_anchor_weight: expected >= 1"};
   if (Status s = coarse.Check(); !s) return s;  // correct_predictions: either value
+  if (reanchor_every < 0) return Error{"localizer options: reanchor_every: expected >= 0"};
+  if (cold_reanchor_rounds < 0)
+    return Error{"localizer options: cold_reanchor_rounds: expected >= 0"};
   if (max_correction_ahead < 1)
     return Error{"localizer options: max_correction_ahead: expected >= 1"};
   if (!(min_far_track_success >= 0 && min_far_track_success <= 1))
@@ -177,7 +183,7 @@ std::string MapLocalizerStage::Counts::StageReport() const {
                 "relocalisations %lld (%lld to re-anchor tracking), per attempt: render %.0f ms, SIFT %.0f ms, matching %.0f "
                 "ms, PnP %.0f ms, seeding tracks %.0f ms; %.0f matches, %.0f inliers (%.0f %%), "
                 "%.1f removed by the fundamental filter",
-                relocalise_attempts, reanchored, 1e3 * render_s / n, 1e3 * sift_s / n, 1e3 * match_s / n,
+                relocalise_attempts, reanchor_relocalised, 1e3 * render_s / n, 1e3 * sift_s / n, 1e3 * match_s / n,
                 1e3 * pnp_s / n, 1e3 * retrack_s / n, relocalise_matches / n,
                 relocalise_inliers / n,
                 relocalise_matches > 0 ? 100.0 * relocalise_inliers / relocalise_matches : 0.0,
@@ -190,11 +196,19 @@ std::string MapLocalizerStage::Counts::StageReport() const {
         "; re-anchored by guided matching %lld of %lld attempts, per attempt: render "
         "%.0f ms, SIFT %.0f ms, matching %.1f ms, PnP %.0f ms; %.0f matches (%.0f map points "
         "in view), %.0f inliers",
-        guided, guided_attempts, 1e3 * guided_render_s / g, 1e3 * guided_sift_s / g,
+        guided + cold_reanchored, guided_attempts, 1e3 * guided_render_s / g, 1e3 * guided_sift_s / g,
         1e3 * guided_match_s / g, 1e3 * guided_pnp_s / g, guided_matches / g, guided_windows / g,
         guided_inliers / g);
     out += line;
     if (!last_guided_failure.empty()) out += " (last failure: " + last_guided_failure + ")";
+    std::snprintf(line, sizeof line,
+                  "; frames due for re-anchoring %lld: %lld averaged into the tracks' offsets, "
+                  "%lld published tracked (guided matching failed), %lld relocalised, %lld "
+                  "overtaken by a later frame (taken over); relocalisations without a pose "
+                  "re-anchored in their frame %lld",
+                  reanchored, averaged, reanchor_kept_tracked, reanchor_relocalised,
+                  late_reanchors, cold_reanchored);
+    out += line;
   }
   if (corrections > 0) {
     std::snprintf(line, sizeof line,
@@ -286,7 +300,9 @@ MapLocalizerStage::Outcome MapLocalizerStage::TrackFrom(const processing::Camera
     const PatchTrack r = TrackPatch(sampler, raw, *track.patch, predicted_tf, vp, patches, warp);
     if (!r.ok) continue;
     TrackedPoint followed = track;
-    followed.tf_px = r.tf_px;
+    // Where its map point lies by the anchors the template has seen.
+    followed.tf_px = r.tf_px - warp * track.offset;
+    followed.warp = warp;
     found.push_back(std::move(followed));
     v.push_back(vp);
   }
@@ -499,10 +515,40 @@ MapLocalizerStage::Outcome MapLocalizerStage::GuidedSolve(
   return solved;
 }
 
+MapLocalizerStage::Outcome MapLocalizerStage::AverageAnchor(
+    const processing::CameraModel& camera, const processing::TfSampler& sampler,
+    const Outcome& tracked, const Pose& w0_from_anchor) const {
+  const Pose cam_from_w0 = w0_from_anchor.inverse();
+  std::vector<TrackedPoint> found;
+  std::vector<double> v;
+  for (TrackedPoint t : tracked.kept) {
+    Eigen::Vector2d projected;
+    double vp = 0;
+    if (!ProjectMapPoint(camera, cam_from_w0, map_.points_in_w0[t.point], &projected, &vp))
+      continue;
+    // d = W^-1 (tracked - projected): this anchor's measure of the offset;
+    // the offset the weighted mean of it and the anchors before (their
+    // weight capped at max_anchor_weight - 1, so that the newest weighs at
+    // least 1 / max_anchor_weight).
+    const Eigen::Vector2d tracked_px = t.tf_px + t.warp * t.offset;
+    const Eigen::Vector2d d = t.warp.inverse() * (tracked_px - projected);
+    const double w = std::min(t.offset_weight, options_.max_anchor_weight - 1);
+    t.offset = (w * t.offset + d) / (w + 1);
+    t.offset_weight = w + 1;
+    t.tf_px = tracked_px - t.warp * t.offset;
+    t.anchored = true;
+    found.push_back(std::move(t));
+    v.push_back(vp);
+  }
+  return Solve(camera, sampler, found, v, w0_from_anchor, "re-anchoring (averaged)",
+               options_.min_tracked);
+}
+
 std::shared_ptr<const MapLocalizerStage::Tracks> MapLocalizerStage::Retrack(
     const processing::CameraModel& camera, const processing::TfSampler& sampler,
     const ConstImageView& raw, const Pose& w0_from_cam,
-    const std::vector<TrackedPoint>& kept, bool relocalised, bool next_has_velocity) const {
+    const std::vector<TrackedPoint>& kept, bool relocalised, bool next_has_velocity,
+    double new_weight) const {
   auto tracks = std::make_shared<Tracks>();
   const int cells = options_.track_cells;
   const int cap = (options_.max_tracks + cells * cells - 1) / (cells * cells);
@@ -546,14 +592,18 @@ std::shared_ptr<const MapLocalizerStage::Tracks> MapLocalizerStage::Retrack(
     used[point] = 1;
     ++in_cell[cell];
     TrackedPoint t{point, tf_px, std::move(patch), anchored};
-    if (view) {  // a kept template: the view it was made in
+    if (view) {  // a kept template: the view it was made in, its offset
       t.template_cam_from_w0 = view->template_cam_from_w0;
       t.template_tf = view->template_tf;
       t.template_v = view->template_v;
-    } else {  // made here
+      t.offset = view->offset;
+      t.offset_weight = view->offset_weight;
+      t.warp = view->warp;
+    } else {  // made here, off its map point by the pose's error
       t.template_cam_from_w0 = cam_from_w0;
       t.template_tf = tf_px;
       t.template_v = v;
+      t.offset_weight = new_weight;
     }
     tracks->push_back(std::move(t));
   };
@@ -628,7 +678,13 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     }
     // Re-anchoring when due, unless another worker relocalises the camera
     // already (then this frame tracks).
-    reanchor = can_track && s.reanchor && !s.relocalising;
+    // Sooner while the tracks average few anchors (LocalizerOptions::reanchor_every).
+    const int interval = std::min(
+        options_.reanchor_every,
+        std::max(1, static_cast<int>(options_.average_anchors ? s.anchor_weight : 1e9)));
+    const bool periodic = options_.reanchor_every > 0 && s.last_anchor_trigger >= 0 &&
+                          frame.trigger_index - s.last_anchor_trigger >= interval;
+    reanchor = can_track && (s.reanchor || periodic) && !s.relocalising;
     if (!can_track && s.relocalising) {
       // Published with this status (no pose): the frame was seen, not lost.
       ++counts_.skipped;
@@ -663,15 +719,24 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   double correction_s = 0;        // Track's correction of its prediction
   std::string correction_status;  // "" when none was tried
   bool tracking_ok = false;       // Track ran and succeeded
+  bool averaged = false;          // re-anchored by averaging the tracks' offsets
+  bool kept_tracked = false;      // due for re-anchoring, published tracked
+  bool cold_reanchored = false;   // a relocalisation without a pose, re-anchored here
+  int relocalised_inliers = -1;   // then the relocalisation's inliers (Counts)
   if (reanchor) {
     // Tracked first; its pose guides the matching against the map
     // (guided_matches.h): an absolute pose at a fraction of a
-    // relocalisation's cost. Relocalised when that fails; the tracked pose
-    // when both fail.
+    // relocalisation's cost. When that fails the tracked pose (it passed
+    // every check; re-anchoring is due again at the next frame); relocalised
+    // when tracking failed.
     Outcome tracked = Track(camera, **sampler, frame.raw, state, frame.trigger_index);
     tracking_ok = tracked.success;
     correction_s = tracked.correction_s;
     correction_status = tracked.correction_status;
+    if (!tracked.success) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      counts_.last_tracking_failure = tracked.status + " (a frame due for re-anchoring)";
+    }
     if (tracked.success && options_.guided_reanchoring) {
       guided_attempt = true;
       guided = GuidedSolve(camera, **sampler, frame.raw, tracked.w0_from_cam.pose,
@@ -680,9 +745,25 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
       if (guided.success) {
         r = guided;
         localisation = "re-anchored";
+        if (options_.average_anchors && !state.cold) {
+          Outcome mean = AverageAnchor(camera, **sampler, tracked, guided.w0_from_cam.pose);
+          if (mean.success) {
+            mean.render_s = guided.render_s;
+            mean.sift_s = guided.sift_s;
+            mean.match_s = guided.match_s;
+            mean.windows = guided.windows;
+            mean.matches = guided.matches;
+            r = std::move(mean);
+            averaged = true;
+          }
+        }
+      } else if (tracked.success) {
+        r = std::move(tracked);
+        localisation = "tracked";
+        kept_tracked = true;
       }
     }
-    if (localisation != "re-anchored") {
+    if (localisation == "relocalised") {
       relocalised_attempt = true;
       r = Relocalise(camera, frame, *sampler, state);
       if (!r.success && tracked.success) {
@@ -718,8 +799,31 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
       relocalised.status += " (after " + r.status + ")";
     r = std::move(relocalised);
   }
+  // A relocalisation without a pose rendered the whole grid at one depth:
+  // re-anchored here from its pose, on a render refocused per region, so
+  // that the tracks begin at a pose measured in focus (the first frames'
+  // error otherwise stays until the next re-anchoring).
+  // Each round guided from the last one's pose (LocalizerOptions::cold_reanchor_rounds).
+  for (int round = 0; round < options_.cold_reanchor_rounds && r.success &&
+                      localisation == "relocalised" && !state.has_pose && !frame.products &&
+                      options_.relocalise_refocus_cells > 0 && options_.guided_reanchoring;
+       ++round) {
+    guided_attempt = true;
+    guided = GuidedSolve(camera, **sampler, frame.raw, r.w0_from_cam.pose, options_.guided,
+                         /*check_jump=*/true, "re-anchoring", options_.min_tracked);
+    if (!guided.success) break;
+    if (relocalised_inliers < 0) relocalised_inliers = r.inliers;
+    r.w0_from_cam = guided.w0_from_cam;
+    r.inliers = guided.inliers;
+    r.rmse_px = guided.rmse_px;
+    r.kept = guided.kept;
+    r.anchored_inliers = guided.anchored_inliers;
+    r.status = guided.status;
+    cold_reanchored = true;
+  }
   double retrack_s = 0;
   std::shared_ptr<const Tracks> tracks;
+  double weight = 1;  // the anchors the pose averages (Retrack's new_weight)
   if (r.success && options_.track) {
     const auto retrack_start = std::chrono::steady_clock::now();
     // Tracked inliers go on with their templates. A relocalised frame's
@@ -736,8 +840,16 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     // (medium 2.2 against 1.7 mm).
     // Re-anchored tracks begin at projections from an absolute pose, as
     // relocalised ones do.
+    // New tracks made from a tracked or averaged pose weigh as the anchors
+    // it averages (the mean of its inliers' weights); from a single absolute
+    // pose, 1.
+    if (localisation == "tracked" || averaged) {
+      double sum = 0;
+      for (const TrackedPoint& k : r.kept) sum += k.offset_weight;
+      if (!r.kept.empty()) weight = sum / static_cast<double>(r.kept.size());
+    }
     tracks = Retrack(camera, **sampler, frame.raw, r.w0_from_cam.pose, r.kept,
-                     localisation != "tracked", state.has_pose);
+                     localisation != "tracked", state.has_pose, weight);
     retrack_s = SecondsSince(retrack_start);
   }
 
@@ -749,7 +861,13 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   pose.status = r.status;
   const double seconds = SecondsSince(start);
   std::lock_guard<std::mutex> lock(mutex_);
-  if (reanchor) ++counts_.reanchored;
+  if (reanchor) {
+    ++counts_.reanchored;
+    if (relocalised_attempt) ++counts_.reanchor_relocalised;
+    if (kept_tracked) ++counts_.reanchor_kept_tracked;
+  }
+  if (averaged) ++counts_.averaged;
+  if (cold_reanchored) ++counts_.cold_reanchored;
   if (far_skipped) ++counts_.far_relocalised;
   if (far) {
     // Each attempt weighs 1/4 (LocalizerOptions::min_far_track_success).
@@ -785,11 +903,37 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     counts_.pnp_s += r.pnp_s;
     counts_.retrack_s += retrack_s;
     counts_.relocalise_matches += r.matches;
-    counts_.relocalise_inliers += r.inliers;
+    counts_.relocalise_inliers += relocalised_inliers >= 0 ? relocalised_inliers : r.inliers;
     counts_.fundamental_outliers += r.fundamental_outliers;
   }
   CameraState& s = cameras_[frame.serial];
   const bool newest = frame.host_ns >= s.last_host_ns && frame.trigger_index > s.last_trigger;
+  // A re-anchoring that a later frame of its camera overtook (tracked from
+  // the state before it, on another worker): its measurement is not thrown
+  // away. Averaged, its offsets go to the same templates among the camera's
+  // tracks; begun anew, its tracks replace the camera's (each template
+  // keeps the view it was made in, so a later prediction tracks them).
+  if (r.success && !newest && localisation == "re-anchored" && tracks && s.has_pose &&
+      s.tracks && frame.trigger_index < s.last_trigger && frame.trigger_index + 8 >= s.last_trigger) {
+    ++counts_.late_reanchors;
+    if (averaged) {
+      std::map<const PatchTemplate*, const TrackedPoint*> measured;
+      for (const TrackedPoint& t : *tracks) measured[t.patch.get()] = &t;
+      auto merged = std::make_shared<Tracks>(*s.tracks);
+      for (TrackedPoint& t : *merged) {
+        const auto it = measured.find(t.patch.get());
+        if (it == measured.end()) continue;
+        t.offset = it->second->offset;
+        t.offset_weight = it->second->offset_weight;
+        t.anchored = it->second->anchored;
+      }
+      s.tracks = std::move(merged);
+    } else {
+      s.tracks = tracks;
+      s.cold = false;
+    }
+    s.reanchor = false;
+  }
   if (!r.success) {
     ++counts_.failed;
     counts_.failed_s += seconds;
@@ -819,12 +963,20 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     s.last_host_ns = frame.host_ns;
     s.has_pose = true;
     s.tracks = std::move(tracks);
+    if (localisation != "tracked") s.last_anchor_trigger = frame.trigger_index;
+    s.anchor_weight = weight;
     // Re-anchored next frame: a tracked pose with too few anchored inliers
     // (min_anchored_fraction), or a relocalisation without a pose to refocus
     // its render per region (the map's median depth throughout), so that the
     // tracks are soon seeded from a pose measured in focus.
+    // Re-anchored in its frame or not, a relocalisation without a pose is
+    // re-anchored anew at the next frame too: at r32 the frame's own guided
+    // matching, even iterated from its pose, left trigger 0 at 1.28 mm (2.96
+    // relocalised), where the next trigger's re-anchoring from its tracked
+    // pose came to 0.26 mm (test_map_localizer, 8 triggers).
     const bool cold = localisation == "relocalised" && !state.has_pose && !frame.products &&
                       options_.relocalise_refocus_cells > 0;
+    s.cold = cold || (localisation == "tracked" && state.cold);
     s.reanchor = cold || (localisation == "tracked" &&
                           r.anchored_inliers < options_.min_anchored_fraction * r.inliers);
   }

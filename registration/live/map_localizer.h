@@ -22,12 +22,19 @@
 //                too few tracks are added (their templates at their
 //                projection), up to max_tracks spread over the image. When
 //                fewer than min_anchored_fraction of the inliers began in a
-//                relocalised frame, the next frame is re-anchored: tracked,
-//                then matched against the map guided by the tracked pose
-//                (registration/map/guided_matches.h: SIFT on a coarser render,
-//                each keypoint against the map points projected near it),
-//                PnP on those matches, every inlier anchored; relocalised
-//                when that fails, the tracked pose when both fail.
+//                relocalised frame or were re-anchored since, the next frame
+//                is re-anchored: tracked, then matched against the map
+//                guided by the tracked pose (registration/map/guided_matches.h:
+//                SIFT on a coarser render, each keypoint against the map
+//                points projected near it), PnP on those matches; the
+//                tracks kept, each template's offset from its map point
+//                measured against that pose and averaged with the anchors
+//                it has seen (TrackedPoint::offset, average_anchors), the
+//                frame's pose the PnP on the corrected tracked positions.
+//                When guided matching fails the tracked pose is published
+//                (re-anchoring due again at the next frame); relocalised
+//                when tracking fails. A re-anchoring that a later frame of
+//                its camera overtook still hands its offsets on.
 //                When the prediction is weak more pyramid levels and a
 //                larger shift are allowed: two more levels and four times
 //                the shift with no velocity yet (the frame after a
@@ -48,7 +55,9 @@
 //                (TfSampler::RenderAtDepth), global matching against
 //                every map point (ratio and cross check, kd-tree) and full
 //                LO-RANSAC PnP; the tracks begin at their map points'
-//                projections from the pose, the inliers first. A
+//                projections from the pose, the inliers first (without a
+//                pose before, the render at one depth: re-anchored in the
+//                same frame first, guided from the relocalised pose). A
 //                frame of a camera that another worker is relocalising is
 //                not localised (Counts::skipped; its pose says so in its
 //                status, localisation "skipped", and is published like a
@@ -136,22 +145,46 @@ struct LocalizerOptions {
   double track_margin_px = 16;  // tracks stay this far inside the TF image (>= 0)
   int min_tracked = 30;       // fewer tracked inliers: relocalise (>= 3)
   // Re-anchoring: when fewer of a tracked pose's inliers than this fraction
-  // were begun in a relocalised frame (TrackedPoint::anchored), the camera's
-  // next frame is relocalised, so that tracks begun from tracked poses (each
-  // carrying the error of the pose it began from) never decide the pose
-  // alone and a tracked pose's error does not grow with the frames since the
-  // relocalisation ([0, 1]; 0: never).
+  // were begun in a relocalised frame or re-anchored since
+  // (TrackedPoint::anchored), the camera's next frame is re-anchored (or
+  // relocalised, without guided_reanchoring), so that tracks begun from
+  // tracked poses never decide the pose alone ([0, 1]; 0: never; besides
+  // reanchor_every).
   double min_anchored_fraction = 0.5;
   // A camera relocalised without a pose (its render at the map's median
-  // depth throughout) is re-anchored at its next frame too, when
-  // relocalise_refocus_cells > 0: the guided matching's render is refocused
-  // per region from the tracked pose (medium, 20 frames: the stretch tracked
-  // from the first relocalisation was at 0.8-1.5 mm, the one after a
-  // re-anchoring at 0.15-0.55 mm; test_map_localizer).
+  // depth throughout) is re-anchored in the same frame, when
+  // relocalise_refocus_cells > 0: guided matching on a render refocused per
+  // region from the relocalised pose, and the tracks begin at that pose's
+  // projections (medium, 20 frames: the stretch tracked from the first
+  // relocalisation was at 0.8-1.5 mm, the one after a re-anchoring at
+  // 0.15-0.55 mm; test_map_localizer). When that fails, at the next frame.
+  // In cold_reanchor_rounds rounds, each guided from the last one's pose
+  // (0: at the next frame, from its tracked pose, as before).
+  int cold_reanchor_rounds = 2;  // >= 0
   // Re-anchoring by guided matching (registration/map/guided_matches.h) from the
   // frame's tracked pose; false: by relocalisation.
   bool guided_reanchoring = true;
   GuidedMatchOptions guided;
+  // A re-anchoring keeps the tracks and measures each one's template offset
+  // against the re-anchored pose (TrackedPoint::offset): the offsets average
+  // the anchors a template has seen (the pose it was made from and each
+  // re-anchoring since, up to max_anchor_weight of them, older ones
+  // weighing less beyond), the tracked positions are corrected by them and
+  // the frame's pose is the PnP on the corrected positions. A tracked pose
+  // then carries the mean of the anchors' errors rather than the last
+  // one's (each re-anchoring's own error at medium, step 3: 0.16-0.75 mm;
+  // docs/registration.md). false: every re-anchoring begins the tracks
+  // anew at its pose's projections, the pose its guided PnP.
+  bool average_anchors = true;
+  double max_anchor_weight = 8;  // >= 1 (1: the last anchor alone)
+  // A frame this many triggers after its camera's last re-anchoring or
+  // relocalisation is re-anchored whatever its anchored inliers (0: only
+  // by min_anchored_fraction): with average_anchors each re-anchoring
+  // lowers the tracked poses' error by averaging one more anchor. While the
+  // tracks average fewer than reanchor_every anchors, sooner: after as many
+  // triggers as they average (1, 2, 3, ...), so that the first stretch after
+  // a relocalisation, which rests on one or two anchors, is short.
+  int reanchor_every = 4;  // >= 0
   // A prediction over skipped frames whose tracking failed (for a weak one,
   // no velocity yet or more than two triggers ahead, the patches already got
   // more levels and a larger shift, Track) is corrected by guided matching on a coarse
@@ -237,6 +270,16 @@ class MapLocalizerStage final : public processing::RegistrationStage {
     // re-anchored by guided matching (`guided`), else relocalised (in
     // `relocalised`) or, when that failed too, tracked.
     long long reanchored = 0;
+    // Of those: relocalised (tracking failed, or guided matching failed and
+    // so did the tracked pose), published tracked (guided matching failed,
+    // the tracked pose passed: re-anchoring is tried again at the next
+    // frame), and re-anchorings that finished after a later frame of their
+    // camera (their offsets or tracks still taken over).
+    long long reanchor_relocalised = 0, reanchor_kept_tracked = 0, late_reanchors = 0;
+    // Re-anchorings that averaged the tracks' offsets (average_anchors)
+    // rather than beginning them anew, and relocalisations without a pose
+    // re-anchored in the same frame.
+    long long averaged = 0, cold_reanchored = 0;
     // Frames re-anchored by guided matching (guided_matches.h) and their
     // Localize time (tracking included); the attempts' stages and figures.
     long long guided = 0, guided_attempts = 0;
@@ -284,10 +327,26 @@ class MapLocalizerStage final : public processing::RegistrationStage {
     int point = 0;                 // index into map_
     Eigen::Vector2d tf_px;         // where it was in the camera's last frame
     std::shared_ptr<const PatchTemplate> patch;  // its appearance where its track began
-    // Begun in a relocalised frame (at its SIFT keypoint or at its projection
-    // from that pose), not in a tracked one (at its projection from a tracked
-    // pose, whose error it then carries on).
+    // Begun in a relocalised or re-anchored frame (at its projection from
+    // that pose) or its offset measured by a re-anchoring since, not begun
+    // in a tracked frame and left so (at its projection from a tracked pose,
+    // whose error it then carries on).
     bool anchored = false;
+    // The template's offset from where its map point lies (template
+    // coordinates, TF px): a template made at a map point's projection from
+    // a pose sits off the point by that pose's error (and the map point's
+    // own), and every pose tracked from it carries that error. Each
+    // re-anchoring measures it again, d = W^-1 (tracked - projected from the
+    // re-anchored pose) (W the warp into the frame), and the offset is the
+    // weighted mean of these and of the pose it was made from (weight
+    // offset_weight, the anchors it averages): the tracked position less
+    // W offset is then off by the mean of the anchors' errors, not the last
+    // one's (LocalizerOptions::average_anchors).
+    Eigen::Vector2d offset = Eigen::Vector2d::Zero();
+    double offset_weight = 1;
+    // The warp into the frame it was last tracked in (tf_px is the tracked
+    // position less warp * offset).
+    Eigen::Matrix2d warp = Eigen::Matrix2d::Identity();
     // The view its template was made in: camera pose, TF position and
     // virtual depth (template_v 0: unknown, the patch tracked unwarped).
     Pose template_cam_from_w0 = Pose::Identity();
@@ -304,6 +363,11 @@ class MapLocalizerStage final : public processing::RegistrationStage {
     std::shared_ptr<const Tracks> tracks;  // of the last frame (shared by concurrent frames)
     bool relocalising = false;  // a worker relocalises this camera now
     bool reanchor = false;      // the last tracked pose had too few anchored inliers
+    // The tracks began at a relocalisation without a pose (its render at one
+    // depth): their next re-anchoring begins them anew instead of averaging.
+    bool cold = false;
+    std::int64_t last_anchor_trigger = -1;  // its last relocalised or re-anchored frame
+    double anchor_weight = 1;  // the anchors the last pose averages (TrackedPoint::offset_weight)
     // Prediction for `trigger` (header comment); the last pose without a previous one.
     Pose Predict(std::int64_t trigger) const;
   };
@@ -334,15 +398,23 @@ class MapLocalizerStage final : public processing::RegistrationStage {
                       const ConstImageView& raw, const Pose& guide,
                       const GuidedMatchOptions& options, bool check_jump, const std::string& what,
                       int min_inliers) const;
+  // The tracked inliers' offsets updated against the absolute pose
+  // w0_from_anchor (TrackedPoint::offset, average_anchors), then Solve on
+  // the corrected positions, checked against w0_from_anchor.
+  Outcome AverageAnchor(const processing::CameraModel& camera,
+                        const processing::TfSampler& sampler, const Outcome& tracked,
+                        const Pose& w0_from_anchor) const;
   // Tracks for the next frame: `kept` (their templates kept when they have
   // one, else made at their projections from w0_from_cam) and map points in
-  // cells with room, from pose w0_from_cam (anchored when `relocalised`); with
+  // cells with room, from pose w0_from_cam (anchored when `relocalised`,
+  // offset weight new_weight: the anchors the pose averages); with
   // !next_has_velocity new templates get the extra level Track needs then.
   std::shared_ptr<const Tracks> Retrack(const processing::CameraModel& camera,
                                         const processing::TfSampler& sampler,
                                         const ConstImageView& raw, const Pose& w0_from_cam,
                                         const std::vector<TrackedPoint>& kept,
-                                        bool relocalised, bool next_has_velocity) const;
+                                        bool relocalised, bool next_has_velocity,
+                                        double new_weight) const;
 
   MapIndex map_;
   double map_virtual_depth_ = 3.0;  // median v of the map's keypoints (relocalisation's TF)
