@@ -1,6 +1,7 @@
 #include "processing/total_focus.h"
 
 #include "processing/tf_kernel.h"
+#include "processing/tf_splat_simd.h"
 
 #include <Eigen/LU>
 #include <tbb/parallel_for.h>
@@ -105,35 +106,38 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
   if (sum_vec.size() != 2 * tn || !scratch.zeroed) sum_vec.assign(2 * tn, 0.0f);
   float* const sums = sum_vec.data();
   scratch.zeroed = false;
-  std::vector<double>& lens_xy = scratch.lens_xy;
-  lens_xy.resize(2 * f.lenses.size());
-  for (std::size_t k = 0; k < f.lenses.size(); ++k) {
-    lens_xy[2 * k] = f.lenses[k].lens_px.x();
-    lens_xy[2 * k + 1] = f.lenses[k].lens_px.y();
-  }
-  // Regularisation on a grid of kCell x kCell TF pixels (below); the
-  // splat sums into the cells too.
+  // Regularisation on a grid of kCell x kCell TF pixels (below).
   constexpr int kCell = 4;
   const int cw = (tw + kCell - 1) / kCell, ch = (th + kCell - 1) / kCell;
   const std::size_t cn = static_cast<std::size_t>(cw) * ch;
   std::vector<double>& cell_w = scratch.cell_w;
   std::vector<double>& cell_wz = scratch.cell_wz;
-  cell_w.assign(cn, 0.0);
-  cell_wz.assign(cn, 0.0);
-  double* const cells_w = cell_w.data();
-  double* const cells_wz = cell_wz.data();
+  cell_w.resize(cn);
+  cell_wz.resize(cn);
+  std::vector<float>& lens_xy = scratch.lens_xy;
+  lens_xy.resize(2 * f.lenses.size());
+  for (std::size_t k = 0; k < f.lenses.size(); ++k) {
+    lens_xy[2 * k] = static_cast<float>(f.lenses[k].lens_px.x());
+    lens_xy[2 * k + 1] = static_cast<float>(f.lenses[k].lens_px.y());
+  }
   // Splat, in bands of kBand raw rows, row by row (the map, sigma and
-  // micro-image index are read in order): even bands in parallel, then odd
-  // ones. A band writes only TF rows (and cell rows: kBand / 4 is a
-  // multiple of kCell) within kBand / 4 of its own (a splat
-  // moves (v - 1) |p - l| raw pixels, 70 TF rows at v 8 on an R32), so two
-  // bands of one phase (a band apart) never write the same TF pixel: plain
-  // adds, no atomics. A splat beyond that reach is kept and added after
-  // both phases. Sums in float: a TF pixel gets a few splats, each weight
-  // to 6e-8 of itself.
+  // micro-image index are read in order; the row's splats computed a vector
+  // at a time by tf_splat_simd.h, then added here): even bands in parallel,
+  // then odd ones. A band writes only TF rows within kBand / 4 of its own (a
+  // splat moves (v - 1) |p - l| raw pixels, 70 TF rows at v 8 on an R32), so
+  // two bands of one phase (a band apart) never write the same TF pixel:
+  // plain adds, no atomics. A splat beyond that reach is kept and added
+  // after both phases. Sums in float: a TF pixel gets a few splats, each
+  // weight to 6e-8 of itself.
   constexpr int kBand = 256;
   const int bands = (f.height + kBand - 1) / kBand;
   scratch.deferred.resize(bands);
+  const std::size_t row_room = static_cast<std::size_t>(f.width) + detail::kTfSplatPad;
+  scratch.splat_t.resize(bands * row_room);
+  scratch.splat_w.resize(bands * row_room);
+  scratch.splat_wz.resize(bands * row_room);
+  const detail::TfSplatKernels& splat =
+      options.simd ? detail::SimdTfSplatKernels() : detail::ScalarTfSplatKernels();
   for (int phase = 0; phase < 2; ++phase)
     tbb::parallel_for(0, (bands - phase + 1) / 2, [&](int half) {
       const int band = 2 * half + phase;
@@ -141,42 +145,30 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
       deferred.clear();
       const int y0 = band * kBand, y1 = std::min(f.height, y0 + kBand);
       // TF rows this band may write: its own (raw rows / 2) and kBand / 4 beyond.
-      const int w_lo = y0 / 2 - kBand / 4, w_hi = y1 / 2 + kBand / 4;
-      const double* const lenses = lens_xy.data();
-      const int width = f.width;
+      const std::uint32_t t_lo = static_cast<std::uint32_t>(std::max(0, y0 / 2 - kBand / 4)) * tw;
+      const std::uint32_t t_hi = static_cast<std::uint32_t>(y1 / 2 + kBand / 4) * tw;
+      std::uint32_t* const ts = scratch.splat_t.data() + band * row_room;
+      float* const ws = scratch.splat_w.data() + band * row_room;
+      float* const wzs = scratch.splat_wz.data() + band * row_room;
+      detail::TfSplatRow r;
+      r.lens_xy = lens_xy.data();
+      r.width = f.width;
+      r.tf_width = tw;
+      r.tf_height = th;
       for (int y = y0; y < y1; ++y) {
-        const std::size_t row = static_cast<std::size_t>(y) * width;
-        const float* vs = raw.virtual_depth.data() + row;
-        const float* ss = raw.sigma_z.data() + row;
-        const std::int32_t* ks = f.lens_of_pixel.data() + row;
-        for (int x = 0; x < width; ++x) {
-          const float v = vs[x];
-          const int k = ks[x];
-          if (std::isnan(v) || k < 0) continue;
-          const double lx = lenses[2 * k], ly = lenses[2 * k + 1];
-          const double xv = lx + v * (x - lx);
-          const double yv = ly + v * (y - ly);
-          // Nearest TF pixel: lround without its libm call (a call per
-          // splat): for a > -0.5, lround(a) = trunc(a + 0.5); a <= -0.5
-          // rounds below 0, off the grid.
-          const double ua = (xv - 0.5) / 2.0, wa = (yv - 0.5) / 2.0;
-          if (!(ua > -0.5) || !(wa > -0.5)) continue;
-          const int u = static_cast<int>(ua + 0.5), w = static_cast<int>(wa + 0.5);
-          if (u >= tw || w >= th) continue;
-          // Weight 1 / sigma_z^2 and weight z = weight / v, with one
-          // division (in float: what the sums keep).
-          const float s = ss[x];
-          const float weight_z = 1.0f / (std::max(1e-12f, s * s) * v);
-          const float weight = weight_z * v;
-          const std::uint32_t t = static_cast<std::uint32_t>(w) * tw + u;
-          if (w >= w_lo && w < w_hi) {
-            sums[2 * t] += weight;
-            sums[2 * t + 1] += weight_z;
-            const std::size_t c = static_cast<std::size_t>(w / kCell) * cw + u / kCell;
-            cells_w[c] += weight;
-            cells_wz[c] += weight_z;
+        const std::size_t row = static_cast<std::size_t>(y) * f.width;
+        r.v = raw.virtual_depth.data() + row;
+        r.sigma_z = raw.sigma_z.data() + row;
+        r.lens = f.lens_of_pixel.data() + row;
+        r.y = y;
+        const int n = splat.row(r, ts, ws, wzs);
+        for (int i = 0; i < n; ++i) {
+          const std::uint32_t t = ts[i];
+          if (t >= t_lo && t < t_hi) {
+            sums[2 * t] += ws[i];
+            sums[2 * t + 1] += wzs[i];
           } else {
-            deferred.push_back({t, weight, weight_z});
+            deferred.push_back({t, ws[i], wzs[i]});
           }
         }
       }
@@ -185,9 +177,6 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
     for (const TfDepthMap::Scratch::Deferred& d : band) {
       sums[2 * d.t] += d.w;
       sums[2 * d.t + 1] += d.wz;
-      const std::size_t c = static_cast<std::size_t>(d.t / tw / kCell) * cw + d.t % tw / kCell;
-      cell_w[c] += d.w;
-      cell_wz[c] += d.wz;
     }
   out->virtual_depth.resize(tn);
   out->sigma_z.resize(tn);
@@ -228,6 +217,26 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
       }
     });
   };
+  // The cells' sums of every splat (per TF pixel the sums above, in double).
+  tbb::parallel_for(0, ch, [&](int cy) {
+    double* cwr = cell_w.data() + static_cast<std::size_t>(cy) * cw;
+    double* cwzr = cell_wz.data() + static_cast<std::size_t>(cy) * cw;
+    std::fill(cwr, cwr + cw, 0.0);
+    std::fill(cwzr, cwzr + cw, 0.0);
+    for (int w = cy * kCell; w < std::min(th, (cy + 1) * kCell); ++w) {
+      const float* p = sums + 2 * static_cast<std::size_t>(w) * tw;
+      for (int c = 0; c < cw; ++c) {
+        double sa = 0, sb = 0;
+        const int u1 = std::min(tw, (c + 1) * kCell);
+        for (int u = c * kCell; u < u1; ++u) {
+          sa += p[2 * u];
+          sb += p[2 * u + 1];
+        }
+        cwr[c] += sa;
+        cwzr[c] += sb;
+      }
+    }
+  });
   const int cell_radius = std::max(0, (options.smooth_radius + kCell / 2) / kCell);
   BoxSums(cw, ch, cell_radius, cell_w, cell_wz, &scratch);
   cell_z.assign(cn, kNaN);

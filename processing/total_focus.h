@@ -15,8 +15,9 @@
 // fill_iterations TF pixels; every TF pixel is then the bilinear
 // interpolation of the valid cells around it (NaN where there are none).
 // Window sums are separable running sums, O(1) per cell. The splats are
-// summed in float, in bands of raw rows that write disjoint TF rows (no
-// atomics); fallback_v is the median to 1/1024.
+// computed in float a vector of raw pixels at a time (tf_splat_simd.h;
+// TfOptions::simd) and summed in float, in bands of raw rows that write
+// disjoint TF rows (no atomics); fallback_v is the median to 1/1024.
 //
 // Rendering (back-projection): for TF pixel x with virtual depth v (filled
 // map, or the median v of the frame where it is empty), the lens type sharp
@@ -51,7 +52,7 @@ struct TfOptions {
   double inner_fraction = 1.0;  // only samples within this share of r_valid (sharp, unvignetted)
   double gain = 1.0;            // output = gain * devignetted value
   double sharpen = 0.0;         // k of I - k laplacian(I); 0 = off
-  bool simd = true;             // the blend's Highway kernel; false: its scalar reference
+  bool simd = true;             // the splat's and the blend's Highway kernels; false: the scalar references
   Status Check() const;
 };
 
@@ -71,7 +72,10 @@ struct TfDepthMap {
     std::vector<double> cell_w, cell_wz, row_w, row_wz, box_w, box_wz;
     std::vector<std::int32_t> row_n, box_n;
     std::vector<float> cell_z, cell_valid, cell_z0, row_a, row_b;
-    std::vector<double> lens_xy;  // micro-lens centres l_k (x, y)
+    std::vector<float> lens_xy;  // micro-lens centres l_k (x, y)
+    // Per band of the splat one raw row's splats (tf_splat_simd.h).
+    std::vector<std::uint32_t> splat_t;
+    std::vector<float> splat_w, splat_wz;
     // Splats of a band of raw rows that land beyond the TF rows the band
     // may write in its phase (total_focus.cpp): added after both phases.
     struct Deferred {
