@@ -1,5 +1,6 @@
 #include "processing/total_focus.h"
 
+#include "processing/lens_search_simd.h"
 #include "processing/tf_kernel.h"
 #include "processing/tf_splat_simd.h"
 
@@ -260,60 +261,70 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
         cell_z[c] = static_cast<float>(scratch.box_wz[c] / scratch.box_w[c]);
   }
   // Back to TF pixels: bilinear between cell centres over the valid cells,
-  // v = sum w_q / sum w_q z_q over the valid corners q, separable: per row
-  // the column blend of the cells' validity and z (0 where invalid), then
-  // along the row. With it the valid pixels counted, a histogram of the
-  // measured ones' v (the median, to 1 / kBinsPerUnit) and the sums cleared
+  // v = sum w_q / sum w_q z_q over the valid corners q, separable: per cell
+  // row the blend along x of the cells' validity and z (0 where invalid),
+  // once, then per TF row the blend of two of those rows (contiguous loops
+  // the compiler vectorises). With it the valid pixels counted, a histogram
+  // of the measured ones' v on every kHistogramStep-th row (the median, to 1
+  // / kBinsPerUnit: a sample of 600 k values on an R32) and the sums cleared
   // for the next frame.
-  std::vector<float>& valid_of = scratch.cell_valid;
-  std::vector<float>& z0_of = scratch.cell_z0;
-  valid_of.resize(cn);
-  z0_of.resize(cn);
-  for (std::size_t c = 0; c < cn; ++c) {
-    valid_of[c] = std::isnan(cell_z[c]) ? 0.0f : 1.0f;
-    z0_of[c] = std::isnan(cell_z[c]) ? 0.0f : cell_z[c];
-  }
-  constexpr int kBinsPerUnit = 1024, kBins = 64 * kBinsPerUnit, kChunks = 8;
+  std::vector<float>& along_a = scratch.along_a;
+  std::vector<float>& along_b = scratch.along_b;
+  along_a.resize(static_cast<std::size_t>(ch) * tw);
+  along_b.resize(static_cast<std::size_t>(ch) * tw);
+  tbb::parallel_for(0, ch, [&](int cy) {
+    const float* z = cell_z.data() + static_cast<std::size_t>(cy) * cw;
+    float* a = along_a.data() + static_cast<std::size_t>(cy) * tw;
+    float* b = along_b.data() + static_cast<std::size_t>(cy) * tw;
+    for (int u = 0; u < tw; ++u) {
+      const float gx = std::clamp((u + 0.5f) / kCell - 0.5f, 0.0f, static_cast<float>(cw - 1));
+      const int x0 = std::min(static_cast<int>(gx), cw - 1), x1 = std::min(x0 + 1, cw - 1);
+      const float fx = gx - x0;
+      const bool ok0 = !std::isnan(z[x0]), ok1 = !std::isnan(z[x1]);
+      a[u] = (1 - fx) * (ok0 ? 1.0f : 0.0f) + fx * (ok1 ? 1.0f : 0.0f);
+      b[u] = (1 - fx) * (ok0 ? z[x0] : 0.0f) + fx * (ok1 ? z[x1] : 0.0f);
+    }
+  });
+  constexpr int kBinsPerUnit = 1024, kBins = 64 * kBinsPerUnit, kChunks = 8, kHistogramStep = 4;
   std::vector<std::uint32_t>& histogram = scratch.histogram;
   histogram.assign(static_cast<std::size_t>(kChunks) * kBins, 0);
-  scratch.row_a.resize(static_cast<std::size_t>(kChunks) * cw);
-  scratch.row_b.resize(static_cast<std::size_t>(kChunks) * cw);
   std::atomic<long long> valid{0}, measured{0};
   tbb::parallel_for(0, kChunks, [&](int chunk) {
     std::uint32_t* hist = histogram.data() + static_cast<std::size_t>(chunk) * kBins;
-    float* col_a = scratch.row_a.data() + static_cast<std::size_t>(chunk) * cw;
-    float* col_b = scratch.row_b.data() + static_cast<std::size_t>(chunk) * cw;
     long long chunk_valid = 0, chunk_measured = 0;
     for (int w = chunk * th / kChunks; w < (chunk + 1) * th / kChunks; ++w) {
       const float gy = std::clamp((w + 0.5f) / kCell - 0.5f, 0.0f, static_cast<float>(ch - 1));
       const int y0 = std::min(static_cast<int>(gy), ch - 1), y1 = std::min(y0 + 1, ch - 1);
       const float fy = gy - y0;
-      const std::size_t r0 = static_cast<std::size_t>(y0) * cw, r1 = static_cast<std::size_t>(y1) * cw;
-      for (int c = 0; c < cw; ++c) {
-        col_a[c] = (1 - fy) * valid_of[r0 + c] + fy * valid_of[r1 + c];
-        col_b[c] = (1 - fy) * z0_of[r0 + c] + fy * z0_of[r1 + c];
-      }
+      const float* a0 = along_a.data() + static_cast<std::size_t>(y0) * tw;
+      const float* a1 = along_a.data() + static_cast<std::size_t>(y1) * tw;
+      const float* b0 = along_b.data() + static_cast<std::size_t>(y0) * tw;
+      const float* b1 = along_b.data() + static_cast<std::size_t>(y1) * tw;
       const std::size_t row = static_cast<std::size_t>(w) * tw;
       float* vd = out->virtual_depth.data() + row;
       float* sigma = out->sigma_z.data() + row;
       float* p = sums + 2 * row;
+      int row_valid = 0, row_measured = 0;
       for (int u = 0; u < tw; ++u) {
-        const bool measured_here = p[2 * u] > 0;
-        sigma[u] = measured_here ? std::sqrt(1.0f / p[2 * u]) : kNaN;
-        chunk_measured += measured_here;
-        const float gx = std::clamp((u + 0.5f) / kCell - 0.5f, 0.0f, static_cast<float>(cw - 1));
-        const int x0 = std::min(static_cast<int>(gx), cw - 1), x1 = std::min(x0 + 1, cw - 1);
-        const float fx = gx - x0;
-        const float a = (1 - fx) * col_a[x0] + fx * col_a[x1];
-        const float b = (1 - fx) * col_b[x0] + fx * col_b[x1];
-        const float v = a > 1e-6f ? a / b : kNaN;
-        vd[u] = v;
-        if (!std::isnan(v)) {
-          ++chunk_valid;
-          if (measured_here) ++hist[std::clamp(static_cast<int>(v * kBinsPerUnit), 0, kBins - 1)];
-        }
+        const float a = (1 - fy) * a0[u] + fy * a1[u];
+        const float b = (1 - fy) * b0[u] + fy * b1[u];
+        const bool ok = a > 1e-6f;
+        vd[u] = ok ? a / b : kNaN;
+        row_valid += ok;
       }
+      for (int u = 0; u < tw; ++u) {
+        const float sw = p[2 * u];
+        const bool measured_here = sw > 0;
+        sigma[u] = measured_here ? std::sqrt(1.0f / sw) : kNaN;
+        row_measured += measured_here;
+      }
+      if (w % kHistogramStep == 0)
+        for (int u = 0; u < tw; ++u)
+          if (p[2 * u] > 0 && !std::isnan(vd[u]))
+            ++hist[std::clamp(static_cast<int>(vd[u] * kBinsPerUnit), 0, kBins - 1)];
       std::fill(p, p + 2 * tw, 0.0f);
+      chunk_valid += row_valid;
+      chunk_measured += row_measured;
     }
     valid += chunk_valid;
     measured += chunk_measured;
@@ -339,21 +350,77 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
   return Status::Ok();
 }
 
+// The per-camera tables of the renderer and what they were made from: the
+// frame (the kernel refers to it), its geometry (gain buffer, lattice, lens
+// centres, a sample of the gain, lambda, c, r_valid), the MLA file's depth
+// ranges (the sharp type per v) and inner_fraction.
+struct TfImage::Tables {
+  struct Key {
+    const PlenopticFrame* frame = nullptr;
+    const float* gain = nullptr;
+    std::vector<double> values;
+    bool operator==(const Key& o) const {
+      return frame == o.frame && gain == o.gain && values == o.values;
+    }
+  } key;
+  detail::Gain16 gain16;
+  std::unique_ptr<detail::TfKernel> kernel;
+
+  static Key KeyOf(const PlenopticFrame& f, const MlaCalibration& mla, double inner_fraction) {
+    Key k;
+    k.frame = &f;
+    k.gain = f.gain.data();
+    std::vector<double>& v = k.values;
+    v = {static_cast<double>(f.width), static_cast<double>(f.height),
+         static_cast<double>(f.gain.size()), static_cast<double>(f.lenses.size()), f.lambda,
+         f.radius_px, f.principal_point_px.x(), f.principal_point_px.y(), inner_fraction};
+    for (int i = 0; i < 4; ++i) v.push_back(f.grid.lattice(i / 2, i % 2));
+    if (!f.lenses.empty())
+      for (const MicroImage* m : {&f.lenses.front(), &f.lenses.back()})
+        v.insert(v.end(), {m->centre_px.x(), m->centre_px.y(), m->lens_px.x(), m->lens_px.y()});
+    for (const MlaLensType& t : mla.lens_types) v.insert(v.end(), {t.depth_min, t.depth_max});
+    constexpr int kSamples = 64;
+    for (int i = 0; i < kSamples && !f.gain.empty(); ++i)
+      v.push_back(std::isnan(f.gain[f.gain.size() / kSamples * i])
+                      ? -1.0  // NaN would never compare equal
+                      : f.gain[f.gain.size() / kSamples * i]);
+    return k;
+  }
+};
+
 namespace {
+
+// The tables of `f` in `out`, made when it has none for this geometry.
+const TfImage::Tables& TablesFor(const PlenopticFrame& f, const MlaCalibration& mla,
+                                 const TfOptions& options, TfImage* out) {
+  TfImage::Tables::Key key = TfImage::Tables::KeyOf(f, mla, options.inner_fraction);
+  if (out->tables == nullptr || !(out->tables->key == key)) {
+    auto tables = std::make_shared<TfImage::Tables>();
+    tables->key = std::move(key);
+    tables->gain16 = detail::Gain16::From(f.gain, f.width);
+    tables->kernel = std::make_unique<detail::TfKernel>(f, mla, options.inner_fraction);
+    tables->kernel->UseGain16(&tables->gain16);
+    out->tables = std::move(tables);
+  }
+  return *out->tables;
+}
 
 template <int kChannels>
 void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDepthMap& depth,
                 const TfOptions& options, TfImage* out) {
   const int tw = f.width / 2, th = f.height / 2;
   const float fallback = static_cast<float>(depth.fallback_v > 1 ? depth.fallback_v : 3.0);
-  const detail::TfKernel kernel(f, mla, options.inner_fraction);
+  const TfImage::Tables& tables = TablesFor(f, mla, options, out);
+  const detail::TfKernel& kernel = *tables.kernel;
   const float gain = static_cast<float>(options.gain);
   const bool sharpen = options.sharpen > 0;
   // Runs of a row through the row kernel (tf_blend_simd.h); its
   // preconditions (a frame of 8 x 2 pixels at least, offsets in 32 bits)
   // hold for every camera; a frame outside them goes point by point.
   const detail::TfBlendGeometry geometry = kernel.BlendGeometry();
-  const detail::TfBlendSource source{f.raw.data, f.raw.stride_bytes, kChannels, f.gain.data()};
+  detail::TfBlendSource source{f.raw.data, f.raw.stride_bytes, kChannels, nullptr};
+  source.gain16 = tables.gain16.q.data();
+  source.gain16_scale = tables.gain16.scale;
   const bool rows = f.width >= 8 && f.height >= 2 &&
                     static_cast<double>(f.width) * f.height < 2147483648.0 &&
                     (f.height - 1.0) * f.raw.stride_bytes + 3.0 * f.width < 2147483648.0;
