@@ -192,58 +192,64 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
   std::vector<float>& cell_z = scratch.cell_z;
   // Cell sums again over the measured pixels within 5 % of their cell's
   // mean z, |swz / sw - mean| <= 0.05 mean with sw > 0.
-  auto sum_kept = [&]() {
+  // Per cell the sums of a TF row's kCell pixels, in float (a few values
+  // each), added to the cell's double sums; `kept`: only the measured
+  // pixels within 5 % of the cell's mean. Branch-free over the whole cells
+  // (loops the compiler vectorises), the row's last partial cell apart.
+  auto sum_cells = [&](bool kept) {
     tbb::parallel_for(0, ch, [&](int cy) {
       double* cwr = cell_w.data() + static_cast<std::size_t>(cy) * cw;
       double* cwzr = cell_wz.data() + static_cast<std::size_t>(cy) * cw;
       const float* mean = cell_z.data() + static_cast<std::size_t>(cy) * cw;
       std::fill(cwr, cwr + cw, 0.0);
       std::fill(cwzr, cwzr + cw, 0.0);
+      const int whole = tw / kCell;
       for (int w = cy * kCell; w < std::min(th, (cy + 1) * kCell); ++w) {
         const float* p = sums + 2 * static_cast<std::size_t>(w) * tw;
-        for (int c = 0; c < cw; ++c) {
-          double sa = 0, sb = 0;
-          const int u1 = std::min(tw, (c + 1) * kCell);
-          const float m = mean[c];
-          for (int u = c * kCell; u < u1; ++u) {
-            const float a = p[2 * u], b = p[2 * u + 1];
-            if (a > 0 && std::abs(b - m * a) <= 0.05f * m * a) {
-              sa += a;
-              sb += b;
+        auto keep = [&](float a, float b, float m) {
+          return !kept || (a > 0 && std::abs(b - m * a) <= 0.05f * m * a);
+        };
+        if (kept) {
+          for (int c = 0; c < whole; ++c) {
+            const float* q = p + 2 * kCell * c;
+            const float m = mean[c];
+            float sa = 0, sb = 0;
+            for (int i = 0; i < kCell; ++i) {
+              const bool k = keep(q[2 * i], q[2 * i + 1], m);
+              sa += k ? q[2 * i] : 0.0f;
+              sb += k ? q[2 * i + 1] : 0.0f;
             }
+            cwr[c] += sa;
+            cwzr[c] += sb;
           }
-          cwr[c] += sa;
-          cwzr[c] += sb;
+        } else {
+          for (int c = 0; c < whole; ++c) {
+            const float* q = p + 2 * kCell * c;
+            float sa = 0, sb = 0;
+            for (int i = 0; i < kCell; ++i) {
+              sa += q[2 * i];
+              sb += q[2 * i + 1];
+            }
+            cwr[c] += sa;
+            cwzr[c] += sb;
+          }
         }
+        for (int u = whole * kCell; u < tw; ++u)
+          if (keep(p[2 * u], p[2 * u + 1], kept ? mean[whole] : 0.0f)) {
+            cwr[whole] += p[2 * u];
+            cwzr[whole] += p[2 * u + 1];
+          }
       }
     });
   };
-  // The cells' sums of every splat (per TF pixel the sums above, in double).
-  tbb::parallel_for(0, ch, [&](int cy) {
-    double* cwr = cell_w.data() + static_cast<std::size_t>(cy) * cw;
-    double* cwzr = cell_wz.data() + static_cast<std::size_t>(cy) * cw;
-    std::fill(cwr, cwr + cw, 0.0);
-    std::fill(cwzr, cwzr + cw, 0.0);
-    for (int w = cy * kCell; w < std::min(th, (cy + 1) * kCell); ++w) {
-      const float* p = sums + 2 * static_cast<std::size_t>(w) * tw;
-      for (int c = 0; c < cw; ++c) {
-        double sa = 0, sb = 0;
-        const int u1 = std::min(tw, (c + 1) * kCell);
-        for (int u = c * kCell; u < u1; ++u) {
-          sa += p[2 * u];
-          sb += p[2 * u + 1];
-        }
-        cwr[c] += sa;
-        cwzr[c] += sb;
-      }
-    }
-  });
+  // The cells' sums of every splat.
+  sum_cells(false);
   const int cell_radius = std::max(0, (options.smooth_radius + kCell / 2) / kCell);
   BoxSums(cw, ch, cell_radius, cell_w, cell_wz, &scratch);
   cell_z.assign(cn, kNaN);
   for (std::size_t c = 0; c < cn; ++c)
     if (scratch.box_n[c] > 0) cell_z[c] = static_cast<float>(scratch.box_wz[c] / scratch.box_w[c]);
-  sum_kept();
+  sum_cells(true);
   BoxSums(cw, ch, cell_radius, cell_w, cell_wz, &scratch);
   for (std::size_t c = 0; c < cn; ++c)
     cell_z[c] =
