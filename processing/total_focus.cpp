@@ -11,6 +11,7 @@
 #include <array>
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 namespace lifmcr::processing {
@@ -439,9 +440,13 @@ void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDept
     for (int u0 = 0; u0 < tw; u0 += kRun) {
       const int n = std::min(kRun, tw - u0);
       const std::size_t t0 = static_cast<std::size_t>(w) * tw + u0;
+      // Locals, not the captures: the loops below then vectorise (a store
+      // through a float pointer could otherwise change a captured value).
+      const float fallback_v = fallback, gain_v = gain;
+      const float* const v_row = depth.virtual_depth.data() + t0;
       for (int i = 0; i < n; ++i) {
-        const float v = depth.virtual_depth[t0 + i];
-        run_v[i] = v > 1.0f ? v : fallback;  // NaN too
+        const float v = v_row[i];
+        run_v[i] = v > 1.0f ? v : fallback_v;  // NaN too
       }
       if (rows)
         kernels.row(geometry, source, 2.0f * u0 + 0.5f, 2.0f, y, run_v, n, run_acc, run_sw);
@@ -458,7 +463,7 @@ void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDept
       // Loops the compiler vectorises: the scale per pixel, the 8-bit
       // planes, then the interleaving.
       float scale[kRun];
-      for (int i = 0; i < n; ++i) scale[i] = run_sw[i] > 0 ? gain / run_sw[i] : 0.0f;
+      for (int i = 0; i < n; ++i) scale[i] = run_sw[i] > 0 ? gain_v / run_sw[i] : 0.0f;
       const std::size_t t0c = t0 * kChannels;
       if (sharpen) {
         for (int i = 0; i < n; ++i)
@@ -474,7 +479,21 @@ void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDept
               static_cast<int>(std::min(std::max(a[i] * scale[i] + 0.5f, 0.0f), 255.0f)));
       }
       std::uint8_t* pix = out->pixels.data() + t0c;
-      for (int i = 0; i < n; ++i)
+      int i = 0;
+      if constexpr (kChannels == 3) {
+        // Four BGR pixels in three 32-bit words (little-endian byte order,
+        // memcpy: no alignment asked), a quarter of the byte stores.
+        static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "BGR words assume little-endian");
+        for (; i + 4 <= n; i += 4) {
+          auto at = [&](int ch, int k) { return static_cast<std::uint32_t>(planes[ch][i + k]); };
+          const std::uint32_t words[3] = {
+              at(0, 0) | at(1, 0) << 8 | at(2, 0) << 16 | at(0, 1) << 24,
+              at(1, 1) | at(2, 1) << 8 | at(0, 2) << 16 | at(1, 2) << 24,
+              at(2, 2) | at(0, 3) << 8 | at(1, 3) << 16 | at(2, 3) << 24};
+          std::memcpy(pix + 3 * i, words, sizeof words);
+        }
+      }
+      for (; i < n; ++i)
         for (int ch = 0; ch < kChannels; ++ch) pix[i * kChannels + ch] = planes[ch][i];
     }
   });
