@@ -278,8 +278,8 @@ bool ReadDenseMap(const std::string& path, const std::string& key, VirtualDepthM
   std::int32_t head[2] = {};
   bool ok = std::fread(&key_n, sizeof key_n, 1, file) == 1 && key_n < 256;
   std::string stored(ok ? key_n : 0, ' ');
-  ok = ok && std::fread(stored.data(), 1, stored.size(), file) == stored.size() &&
-       stored == key && std::fread(head, sizeof head, 1, file) == 1 && head[0] > 0 && head[1] > 0;
+  ok = ok && std::fread(stored.data(), 1, stored.size(), file) == stored.size() && stored == key &&
+       std::fread(head, sizeof head, 1, file) == 1 && head[0] > 0 && head[1] > 0;
   if (ok) {
     const std::size_t n = static_cast<std::size_t>(head[0]) * head[1];
     map->width = head[0];
@@ -600,7 +600,8 @@ int main(int argc, char** argv) {
     // The map the TF image reads: the default path's (seeded, SIMD), once.
     DepthOptions options = depth_options;
     options.simd = true;
-    if (!LoadRaw(raw.View(), &frame).ok() || !seed_estimator->Estimate(raw.View(), &seed_map).ok() ||
+    if (!LoadRaw(raw.View(), &frame).ok() ||
+        !seed_estimator->Estimate(raw.View(), &seed_map).ok() ||
         !SeedFromLensDepth(frame, seed_map, &seed).ok() ||
         !EstimateVirtualDepth(frame, mla, options, &seed, &depth).ok()) {
       std::fprintf(stderr, "depth failed\n");

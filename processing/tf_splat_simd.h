@@ -18,12 +18,12 @@
 namespace lifmcr::processing::detail {
 
 struct TfSplatRow {
-  const float* v = nullptr;              // the row's virtual depth (NaN: none)
-  const float* sigma_z = nullptr;        // its sigma_z
-  const std::int32_t* lens = nullptr;    // its micro image (-1: none)
-  const float* lens_xy = nullptr;        // l_k: x at 2 k, y at 2 k + 1
-  int width = 0;                         // pixels of the row (x = 0 .. width - 1)
-  int y = 0;                             // the raw row
+  const float* v = nullptr;            // the row's virtual depth (NaN: none)
+  const float* sigma_z = nullptr;      // its sigma_z
+  const std::int32_t* lens = nullptr;  // its micro image (-1: none)
+  const float* lens_xy = nullptr;      // l_k: x at 2 k, y at 2 k + 1
+  int width = 0;                       // pixels of the row (x = 0 .. width - 1)
+  int y = 0;                           // the raw row
   int tf_width = 0, tf_height = 0;
 };
 

@@ -378,9 +378,15 @@ struct TfImage::Tables {
     k.frame = &f;
     k.gain = f.gain.data();
     std::vector<double>& v = k.values;
-    v = {static_cast<double>(f.width), static_cast<double>(f.height),
-         static_cast<double>(f.gain.size()), static_cast<double>(f.lenses.size()), f.lambda,
-         f.radius_px, f.principal_point_px.x(), f.principal_point_px.y(), inner_fraction};
+    v = {static_cast<double>(f.width),
+         static_cast<double>(f.height),
+         static_cast<double>(f.gain.size()),
+         static_cast<double>(f.lenses.size()),
+         f.lambda,
+         f.radius_px,
+         f.principal_point_px.x(),
+         f.principal_point_px.y(),
+         inner_fraction};
     for (int i = 0; i < 4; ++i) v.push_back(f.grid.lattice(i / 2, i % 2));
     if (!f.lenses.empty())
       for (const MicroImage* m : {&f.lenses.front(), &f.lenses.back()})

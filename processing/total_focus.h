@@ -54,7 +54,8 @@ struct TfOptions {
   double inner_fraction = 1.0;  // only samples within this share of r_valid (sharp, unvignetted)
   double gain = 1.0;            // output = gain * devignetted value
   double sharpen = 0.0;         // k of I - k laplacian(I); 0 = off
-  bool simd = true;             // the splat's and the blend's Highway kernels; false: the scalar references
+  // The splat's and the blend's Highway kernels; false: their scalar references.
+  bool simd = true;
   Status Check() const;
 };
 

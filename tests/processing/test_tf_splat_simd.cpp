@@ -109,7 +109,8 @@ TEST_F(TfSplatKernelsTest, RowsMatchTheScalarReferenceOnEveryTarget) {
       const Output a = Splat(scalar, row), b = Splat(simd, row);
       ASSERT_EQ(b.n, a.n) << hwy::TargetName(target) << " trial " << trial;
       for (int i = 0; i < a.n; ++i) {
-        ASSERT_EQ(b.t[i], a.t[i]) << hwy::TargetName(target) << " trial " << trial << " splat " << i;
+        ASSERT_EQ(b.t[i], a.t[i]) << hwy::TargetName(target) << " trial " << trial << " splat "
+                                  << i;
         ASSERT_TRUE(Close(b.w[i], a.w[i]) && Close(b.wz[i], a.wz[i]))
             << hwy::TargetName(target) << " trial " << trial << " splat " << i << ": " << b.w[i]
             << " " << b.wz[i] << " vs scalar " << a.w[i] << " " << a.wz[i];
