@@ -257,6 +257,44 @@ bool ReadFrames(const std::string& path, const std::string& key, synth::RawFrame
   return ok;
 }
 
+// --tf-only MAP: the dense map's virtual depth and sigma_z (what the TF
+// image reads), after the key; the same cache rules as --frames.
+bool WriteDenseMap(const std::string& path, const std::string& key, const VirtualDepthMap& map) {
+  std::FILE* file = std::fopen(path.c_str(), "wb");
+  if (file == nullptr) return false;
+  const std::uint64_t key_n = key.size();
+  const std::int32_t head[2] = {map.width, map.height};
+  const std::size_t n = map.virtual_depth.size();
+  bool ok = std::fwrite(&key_n, sizeof key_n, 1, file) == 1 &&
+            std::fwrite(key.data(), 1, key.size(), file) == key.size() &&
+            std::fwrite(head, sizeof head, 1, file) == 1 &&
+            std::fwrite(map.virtual_depth.data(), sizeof(float), n, file) == n &&
+            std::fwrite(map.sigma_z.data(), sizeof(float), n, file) == n;
+  return std::fclose(file) == 0 && ok;
+}
+
+bool ReadDenseMap(const std::string& path, const std::string& key, VirtualDepthMap* map) {
+  std::FILE* file = std::fopen(path.c_str(), "rb");
+  if (file == nullptr) return false;
+  std::uint64_t key_n = 0;
+  std::int32_t head[2] = {};
+  bool ok = std::fread(&key_n, sizeof key_n, 1, file) == 1 && key_n < 256;
+  std::string stored(ok ? key_n : 0, ' ');
+  ok = ok && std::fread(stored.data(), 1, stored.size(), file) == stored.size() && stored == key &&
+       std::fread(head, sizeof head, 1, file) == 1 && head[0] > 0 && head[1] > 0;
+  if (ok) {
+    const std::size_t n = static_cast<std::size_t>(head[0]) * head[1];
+    map->width = head[0];
+    map->height = head[1];
+    map->virtual_depth.resize(n);
+    map->sigma_z.resize(n);
+    ok = std::fread(map->virtual_depth.data(), sizeof(float), n, file) == n &&
+         std::fread(map->sigma_z.data(), sizeof(float), n, file) == n;
+  }
+  std::fclose(file);
+  return ok;
+}
+
 }  // namespace
 
 constexpr char kUsage[] =
@@ -268,6 +306,7 @@ constexpr char kUsage[] =
     "                   [--seed full|seeded|both] [--dense-path scalar|simd|both]\n"
     "                   [--seed-margin PX] [--seed-ring1 1..6] [--seed-ring2 0..6]\n"
     "                   [--seed-cost-ratio R] [--seed-stride 0..8] [--frames FILE]\n"
+    "                   [--tf-only MAP] [--tf-out FILE]\n"
     "processing/ on one synthetic frame (default r32) on all cores: grid fit to the white\n"
     "image, virtual depth in raw MP/s with its accuracy against the ground truth (the full\n"
     "search and the search seeded by the per-lens depth, scalar and SIMD, side by side)\n"
@@ -276,7 +315,10 @@ constexpr char kUsage[] =
     "the rendered raw, white and true depth there (rendered and written when FILE does not\n"
     "exist, read when it holds this preset and scene; the r32 frames take 45 s to render).\n"
     "--lens-previous 1 seeds each per-lens run by the run before's map (the temporal seed\n"
-    "of a camera that did not move: its best case, not a moving camera's figure).\n";
+    "of a camera that did not move: its best case, not a moving camera's figure).\n"
+    "--tf-only MAP: the TF image alone (with its baselines), on the seeded SIMD dense map kept\n"
+    "in MAP (estimated once and written when MAP does not hold this preset and scene).\n"
+    "--tf-out FILE writes the TF image there (PGM or PPM) to compare two builds' images.\n";
 
 int main(int argc, char** argv) {
   if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
@@ -286,6 +328,7 @@ int main(int argc, char** argv) {
   LensDepthOptions lens_options;
   bool lens_only = false, run_dense = true, lens_previous = false;
   std::string lens_path = "both", dense_path = "both", seed_mode = "both", frames_file;
+  std::string tf_only_map, tf_out;
   for (int k = 1; k + 1 < argc; k += 2) {
     if (!std::strcmp(argv[k], "--preset"))
       preset = argv[k + 1];
@@ -323,6 +366,10 @@ int main(int argc, char** argv) {
       depth_options.seed_margin_px = std::atof(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--frames"))
       frames_file = argv[k + 1];
+    else if (!std::strcmp(argv[k], "--tf-only"))
+      tf_only_map = argv[k + 1];
+    else if (!std::strcmp(argv[k], "--tf-out"))
+      tf_out = argv[k + 1];
     else if (!std::strcmp(argv[k], "--lens-previous"))
       lens_previous = std::atoi(argv[k + 1]) != 0;
     else if (!std::strcmp(argv[k], "--lens-samples"))
@@ -386,7 +433,9 @@ int main(int argc, char** argv) {
   // Grid fit.
   std::vector<double> grid_s;
   GridFitResult fit;
-  for (int r = 0; r < (lens_only ? 0 : repeat); ++r) {
+  const bool tf_only = !tf_only_map.empty();
+  if (tf_only) run_dense = false;
+  for (int r = 0; r < (lens_only || tf_only ? 0 : repeat); ++r) {
     Expected<GridFitResult> g = FitGridToWhiteImage(white.View(), nullptr);
     if (!g) {
       std::fprintf(stderr, "grid fit: %s\n", g.error().message.c_str());
@@ -395,7 +444,7 @@ int main(int argc, char** argv) {
     grid_s.push_back(g->seconds);
     fit = *g;
   }
-  if (!lens_only)
+  if (!lens_only && !tf_only)
     std::printf("grid fit: %.3f s (median), %s\n", Median(grid_s), fit.BriefReport().c_str());
 
   // Virtual depth.
@@ -550,7 +599,22 @@ int main(int argc, char** argv) {
   // strip search (LensDepthOptions::simd) side by side; the dense search
   // above is its baseline.
   std::optional<synth::TfGroundTruth> tf_truth;  // for the previews' PSNR
+  if (tf_only && !ReadDenseMap(tf_only_map, frames_key, &depth)) {
+    // The map the TF image reads: the default path's (seeded, SIMD), once.
+    DepthOptions options = depth_options;
+    options.simd = true;
+    if (!LoadRaw(raw.View(), &frame).ok() ||
+        !seed_estimator->Estimate(raw.View(), &seed_map).ok() ||
+        !SeedFromLensDepth(frame, seed_map, &seed).ok() ||
+        !EstimateVirtualDepth(frame, mla, options, &seed, &depth).ok()) {
+      std::fprintf(stderr, "depth failed\n");
+      return 1;
+    }
+    if (!WriteDenseMap(tf_only_map, frames_key, depth))
+      std::fprintf(stderr, "could not write %s\n", tf_only_map.c_str());
+  }
   for (const bool simd : {false, true}) {
+    if (tf_only) break;
     if ((simd && lens_path == "scalar") || (!simd && lens_path == "simd")) continue;
     const char* path = simd ? "simd" : "scalar";
     LensDepthOptions options = lens_options;
@@ -668,17 +732,21 @@ int main(int argc, char** argv) {
   }
   if (lens_only) return 0;
 
-  // Naive reference on a crop at the image centre (one run; it is slow).
-  const int cx = raw.width / 2 - crop / 2, cy = raw.height / 2 - crop / 2;
-  std::vector<float> naive;
-  t0 = Now();
-  const long long naive_pixels = NaiveBlockMatching(frame, mla, cx, cy, crop, &naive);
-  const double naive_s = Now() - t0;
-  const double naive_mps = crop * static_cast<double>(crop) / 1e6 / naive_s;
-  std::printf(
-      "naive block matching: %.4f raw MP/s (%dx%d crop, %lld pixels, %.2f s, 1 thread); "
-      "ratio %.1fx\n",
-      naive_mps, crop, crop, naive_pixels, naive_s, depth_mps / naive_mps);
+  if (!tf_only) {
+    // Naive reference on a crop at the image centre (one run; it is slow).
+    const int cx = raw.width / 2 - crop / 2, cy = raw.height / 2 - crop / 2;
+    std::vector<float> naive;
+    t0 = Now();
+    const long long naive_pixels = NaiveBlockMatching(frame, mla, cx, cy, crop, &naive);
+    const double naive_s = Now() - t0;
+    const double naive_mps = crop * static_cast<double>(crop) / 1e6 / naive_s;
+    std::printf(
+        "naive block matching: %.4f raw MP/s (%dx%d crop, %lld pixels, %.2f s, 1 thread); "
+        "ratio %.1fx\n",
+        naive_mps, crop, crop, naive_pixels, naive_s, depth_mps / naive_mps);
+  } else if (!LoadRaw(raw.View(), &frame).ok()) {
+    return 1;
+  }
 
   // TF image.
   TfDepthMap tf_depth;
@@ -714,6 +782,21 @@ int main(int argc, char** argv) {
       tf_mp / Median(tf_s), Median(tf_s), tf_mp, Median(tf_cpu_s), tf_mp / tf_one_s[0],
       tf_one_s[0] / Median(tf_s), tf_mp / Median(tf_s) >= 100 ? "holds" : "DOES NOT hold",
       LoadAverage().c_str());
+  if (!tf_out.empty()) {
+    // PGM / PPM (P6 wants RGB: BGR swapped).
+    std::FILE* file = std::fopen(tf_out.c_str(), "wb");
+    const int channels = tf.format == PixelFormat::kBgr8 ? 3 : 1;
+    bool ok = file != nullptr;
+    if (ok) {
+      std::fprintf(file, "P%d\n%d %d\n255\n", channels == 3 ? 6 : 5, tf.width, tf.height);
+      std::vector<std::uint8_t> out = tf.pixels;
+      if (channels == 3)
+        for (std::size_t i = 0; i + 2 < out.size(); i += 3) std::swap(out[i], out[i + 2]);
+      ok = std::fwrite(out.data(), 1, out.size(), file) == out.size();
+      ok = std::fclose(file) == 0 && ok;
+    }
+    if (!ok) std::fprintf(stderr, "could not write %s\n", tf_out.c_str());
+  }
   // Naive reference on a central crop of the TF grid (one thread).
   const int tf_crop = std::min({crop, tf.width, tf.height});
   std::vector<float> naive_tf;

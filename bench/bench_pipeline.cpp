@@ -57,6 +57,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 #include <future>
 #include <filesystem>
 #include <lifmcr_lcm/vicon_frame_t.hpp>
@@ -157,6 +158,14 @@ double PercentileUs(std::vector<std::int64_t> values_ns, double p) {
   return static_cast<double>(values_ns[index]) / 1e3;
 }
 
+// CPU time of this process, all threads (processing alone runs nothing
+// else: the pipeline of part 1 has stopped).
+double ProcessCpuSeconds() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
 // Part 1: frames at --rate max, and the same frames through processing alone.
 int RunFramePart(const BenchArgs& args, const synth::SynthParams& params,
                  const std::filesystem::path& sequence_dir) {
@@ -193,7 +202,7 @@ int RunFramePart(const BenchArgs& args, const synth::SynthParams& params,
     return 3;
   }
   const double setup_s = std::chrono::duration<double>(Clock::now() - setup_start).count();
-  double alone_s = 0;
+  double alone_s = 0, alone_cpu_s = 0;
   int alone_frames = 0;
   for (const auto& camera : layout->cameras)
     for (std::int64_t f : camera.frames) {
@@ -206,8 +215,10 @@ int RunFramePart(const BenchArgs& args, const synth::SynthParams& params,
       frame.serial = camera.serial;
       frame.image = image->View();
       const auto t0 = Clock::now();
+      const double cpu0 = ProcessCpuSeconds();
       auto out = (*processor)->Process(frame);
       alone_s += std::chrono::duration<double>(Clock::now() - t0).count();
+      alone_cpu_s += ProcessCpuSeconds() - cpu0;
       if (!out) {
         std::fprintf(stderr, "bench_pipeline: processing alone: %s\n", out.error().message.c_str());
         return 3;
@@ -236,7 +247,12 @@ int RunFramePart(const BenchArgs& args, const synth::SynthParams& params,
       r.process.p50_ms, r.process.p99_ms);
   std::printf("frame arrival -> depth on LCM: p50 %.1f ms, p99 %.1f ms\n", r.to_publication.p50_ms,
               r.to_publication.p99_ms);
-  std::printf("processing alone (same stage, sequential): %.2f frames/s\n", alone_fps);
+  double load[3] = {0, 0, 0};
+  if (getloadavg(load, 3) != 3) load[0] = load[1] = load[2] = -1;
+  std::printf(
+      "processing alone (same stage, sequential): %.2f frames/s, %.3f CPU-s per frame (all "
+      "threads; load average %.2f %.2f %.2f)\n",
+      alone_fps, alone_cpu_s / std::max(1, alone_frames), load[0], load[1], load[2]);
   std::printf("ratio pipeline / processing alone: %.2f\n", pipeline_fps / alone_fps);
   std::fflush(stdout);
   return r.Accounted() && r.failed == 0 && r.sync_lost == 0 ? 0 : 1;

@@ -1,6 +1,8 @@
 #include "processing/total_focus.h"
 
+#include "processing/lens_search_simd.h"
 #include "processing/tf_kernel.h"
+#include "processing/tf_splat_simd.h"
 
 #include <Eigen/LU>
 #include <tbb/parallel_for.h>
@@ -9,6 +11,7 @@
 #include <array>
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 namespace lifmcr::processing {
@@ -105,35 +108,38 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
   if (sum_vec.size() != 2 * tn || !scratch.zeroed) sum_vec.assign(2 * tn, 0.0f);
   float* const sums = sum_vec.data();
   scratch.zeroed = false;
-  std::vector<double>& lens_xy = scratch.lens_xy;
-  lens_xy.resize(2 * f.lenses.size());
-  for (std::size_t k = 0; k < f.lenses.size(); ++k) {
-    lens_xy[2 * k] = f.lenses[k].lens_px.x();
-    lens_xy[2 * k + 1] = f.lenses[k].lens_px.y();
-  }
-  // Regularisation on a grid of kCell x kCell TF pixels (below); the
-  // splat sums into the cells too.
+  // Regularisation on a grid of kCell x kCell TF pixels (below).
   constexpr int kCell = 4;
   const int cw = (tw + kCell - 1) / kCell, ch = (th + kCell - 1) / kCell;
   const std::size_t cn = static_cast<std::size_t>(cw) * ch;
   std::vector<double>& cell_w = scratch.cell_w;
   std::vector<double>& cell_wz = scratch.cell_wz;
-  cell_w.assign(cn, 0.0);
-  cell_wz.assign(cn, 0.0);
-  double* const cells_w = cell_w.data();
-  double* const cells_wz = cell_wz.data();
+  cell_w.resize(cn);
+  cell_wz.resize(cn);
+  std::vector<float>& lens_xy = scratch.lens_xy;
+  lens_xy.resize(2 * f.lenses.size());
+  for (std::size_t k = 0; k < f.lenses.size(); ++k) {
+    lens_xy[2 * k] = static_cast<float>(f.lenses[k].lens_px.x());
+    lens_xy[2 * k + 1] = static_cast<float>(f.lenses[k].lens_px.y());
+  }
   // Splat, in bands of kBand raw rows, row by row (the map, sigma and
-  // micro-image index are read in order): even bands in parallel, then odd
-  // ones. A band writes only TF rows (and cell rows: kBand / 4 is a
-  // multiple of kCell) within kBand / 4 of its own (a splat
-  // moves (v - 1) |p - l| raw pixels, 70 TF rows at v 8 on an R32), so two
-  // bands of one phase (a band apart) never write the same TF pixel: plain
-  // adds, no atomics. A splat beyond that reach is kept and added after
-  // both phases. Sums in float: a TF pixel gets a few splats, each weight
-  // to 6e-8 of itself.
+  // micro-image index are read in order; the row's splats computed a vector
+  // at a time by tf_splat_simd.h, then added here): even bands in parallel,
+  // then odd ones. A band writes only TF rows within kBand / 4 of its own (a
+  // splat moves (v - 1) |p - l| raw pixels, 70 TF rows at v 8 on an R32), so
+  // two bands of one phase (a band apart) never write the same TF pixel:
+  // plain adds, no atomics. A splat beyond that reach is kept and added
+  // after both phases. Sums in float: a TF pixel gets a few splats, each
+  // weight to 6e-8 of itself.
   constexpr int kBand = 256;
   const int bands = (f.height + kBand - 1) / kBand;
   scratch.deferred.resize(bands);
+  const std::size_t row_room = static_cast<std::size_t>(f.width) + detail::kTfSplatPad;
+  scratch.splat_t.resize(bands * row_room);
+  scratch.splat_w.resize(bands * row_room);
+  scratch.splat_wz.resize(bands * row_room);
+  const detail::TfSplatKernels& splat =
+      options.simd ? detail::SimdTfSplatKernels() : detail::ScalarTfSplatKernels();
   for (int phase = 0; phase < 2; ++phase)
     tbb::parallel_for(0, (bands - phase + 1) / 2, [&](int half) {
       const int band = 2 * half + phase;
@@ -141,42 +147,30 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
       deferred.clear();
       const int y0 = band * kBand, y1 = std::min(f.height, y0 + kBand);
       // TF rows this band may write: its own (raw rows / 2) and kBand / 4 beyond.
-      const int w_lo = y0 / 2 - kBand / 4, w_hi = y1 / 2 + kBand / 4;
-      const double* const lenses = lens_xy.data();
-      const int width = f.width;
+      const std::uint32_t t_lo = static_cast<std::uint32_t>(std::max(0, y0 / 2 - kBand / 4)) * tw;
+      const std::uint32_t t_hi = static_cast<std::uint32_t>(y1 / 2 + kBand / 4) * tw;
+      std::uint32_t* const ts = scratch.splat_t.data() + band * row_room;
+      float* const ws = scratch.splat_w.data() + band * row_room;
+      float* const wzs = scratch.splat_wz.data() + band * row_room;
+      detail::TfSplatRow r;
+      r.lens_xy = lens_xy.data();
+      r.width = f.width;
+      r.tf_width = tw;
+      r.tf_height = th;
       for (int y = y0; y < y1; ++y) {
-        const std::size_t row = static_cast<std::size_t>(y) * width;
-        const float* vs = raw.virtual_depth.data() + row;
-        const float* ss = raw.sigma_z.data() + row;
-        const std::int32_t* ks = f.lens_of_pixel.data() + row;
-        for (int x = 0; x < width; ++x) {
-          const float v = vs[x];
-          const int k = ks[x];
-          if (std::isnan(v) || k < 0) continue;
-          const double lx = lenses[2 * k], ly = lenses[2 * k + 1];
-          const double xv = lx + v * (x - lx);
-          const double yv = ly + v * (y - ly);
-          // Nearest TF pixel: lround without its libm call (a call per
-          // splat): for a > -0.5, lround(a) = trunc(a + 0.5); a <= -0.5
-          // rounds below 0, off the grid.
-          const double ua = (xv - 0.5) / 2.0, wa = (yv - 0.5) / 2.0;
-          if (!(ua > -0.5) || !(wa > -0.5)) continue;
-          const int u = static_cast<int>(ua + 0.5), w = static_cast<int>(wa + 0.5);
-          if (u >= tw || w >= th) continue;
-          // Weight 1 / sigma_z^2 and weight z = weight / v, with one
-          // division (in float: what the sums keep).
-          const float s = ss[x];
-          const float weight_z = 1.0f / (std::max(1e-12f, s * s) * v);
-          const float weight = weight_z * v;
-          const std::uint32_t t = static_cast<std::uint32_t>(w) * tw + u;
-          if (w >= w_lo && w < w_hi) {
-            sums[2 * t] += weight;
-            sums[2 * t + 1] += weight_z;
-            const std::size_t c = static_cast<std::size_t>(w / kCell) * cw + u / kCell;
-            cells_w[c] += weight;
-            cells_wz[c] += weight_z;
+        const std::size_t row = static_cast<std::size_t>(y) * f.width;
+        r.v = raw.virtual_depth.data() + row;
+        r.sigma_z = raw.sigma_z.data() + row;
+        r.lens = f.lens_of_pixel.data() + row;
+        r.y = y;
+        const int n = splat.row(r, ts, ws, wzs);
+        for (int i = 0; i < n; ++i) {
+          const std::uint32_t t = ts[i];
+          if (t >= t_lo && t < t_hi) {
+            sums[2 * t] += ws[i];
+            sums[2 * t + 1] += wzs[i];
           } else {
-            deferred.push_back({t, weight, weight_z});
+            deferred.push_back({t, ws[i], wzs[i]});
           }
         }
       }
@@ -185,9 +179,6 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
     for (const TfDepthMap::Scratch::Deferred& d : band) {
       sums[2 * d.t] += d.w;
       sums[2 * d.t + 1] += d.wz;
-      const std::size_t c = static_cast<std::size_t>(d.t / tw / kCell) * cw + d.t % tw / kCell;
-      cell_w[c] += d.w;
-      cell_wz[c] += d.wz;
     }
   out->virtual_depth.resize(tn);
   out->sigma_z.resize(tn);
@@ -202,38 +193,64 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
   std::vector<float>& cell_z = scratch.cell_z;
   // Cell sums again over the measured pixels within 5 % of their cell's
   // mean z, |swz / sw - mean| <= 0.05 mean with sw > 0.
-  auto sum_kept = [&]() {
+  // Per cell the sums of a TF row's kCell pixels, in float (a few values
+  // each), added to the cell's double sums; `kept`: only the measured
+  // pixels within 5 % of the cell's mean. Branch-free over the whole cells
+  // (loops the compiler vectorises), the row's last partial cell apart.
+  auto sum_cells = [&](bool kept) {
     tbb::parallel_for(0, ch, [&](int cy) {
       double* cwr = cell_w.data() + static_cast<std::size_t>(cy) * cw;
       double* cwzr = cell_wz.data() + static_cast<std::size_t>(cy) * cw;
       const float* mean = cell_z.data() + static_cast<std::size_t>(cy) * cw;
       std::fill(cwr, cwr + cw, 0.0);
       std::fill(cwzr, cwzr + cw, 0.0);
+      const int whole = tw / kCell;
       for (int w = cy * kCell; w < std::min(th, (cy + 1) * kCell); ++w) {
         const float* p = sums + 2 * static_cast<std::size_t>(w) * tw;
-        for (int c = 0; c < cw; ++c) {
-          double sa = 0, sb = 0;
-          const int u1 = std::min(tw, (c + 1) * kCell);
-          const float m = mean[c];
-          for (int u = c * kCell; u < u1; ++u) {
-            const float a = p[2 * u], b = p[2 * u + 1];
-            if (a > 0 && std::abs(b - m * a) <= 0.05f * m * a) {
-              sa += a;
-              sb += b;
+        auto keep = [&](float a, float b, float m) {
+          return !kept || (a > 0 && std::abs(b - m * a) <= 0.05f * m * a);
+        };
+        if (kept) {
+          for (int c = 0; c < whole; ++c) {
+            const float* q = p + 2 * kCell * c;
+            const float m = mean[c];
+            float sa = 0, sb = 0;
+            for (int i = 0; i < kCell; ++i) {
+              const bool k = keep(q[2 * i], q[2 * i + 1], m);
+              sa += k ? q[2 * i] : 0.0f;
+              sb += k ? q[2 * i + 1] : 0.0f;
             }
+            cwr[c] += sa;
+            cwzr[c] += sb;
           }
-          cwr[c] += sa;
-          cwzr[c] += sb;
+        } else {
+          for (int c = 0; c < whole; ++c) {
+            const float* q = p + 2 * kCell * c;
+            float sa = 0, sb = 0;
+            for (int i = 0; i < kCell; ++i) {
+              sa += q[2 * i];
+              sb += q[2 * i + 1];
+            }
+            cwr[c] += sa;
+            cwzr[c] += sb;
+          }
         }
+        for (int u = whole * kCell; u < tw; ++u)
+          if (keep(p[2 * u], p[2 * u + 1], kept ? mean[whole] : 0.0f)) {
+            cwr[whole] += p[2 * u];
+            cwzr[whole] += p[2 * u + 1];
+          }
       }
     });
   };
+  // The cells' sums of every splat.
+  sum_cells(false);
   const int cell_radius = std::max(0, (options.smooth_radius + kCell / 2) / kCell);
   BoxSums(cw, ch, cell_radius, cell_w, cell_wz, &scratch);
   cell_z.assign(cn, kNaN);
   for (std::size_t c = 0; c < cn; ++c)
     if (scratch.box_n[c] > 0) cell_z[c] = static_cast<float>(scratch.box_wz[c] / scratch.box_w[c]);
-  sum_kept();
+  sum_cells(true);
   BoxSums(cw, ch, cell_radius, cell_w, cell_wz, &scratch);
   for (std::size_t c = 0; c < cn; ++c)
     cell_z[c] =
@@ -251,60 +268,70 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
         cell_z[c] = static_cast<float>(scratch.box_wz[c] / scratch.box_w[c]);
   }
   // Back to TF pixels: bilinear between cell centres over the valid cells,
-  // v = sum w_q / sum w_q z_q over the valid corners q, separable: per row
-  // the column blend of the cells' validity and z (0 where invalid), then
-  // along the row. With it the valid pixels counted, a histogram of the
-  // measured ones' v (the median, to 1 / kBinsPerUnit) and the sums cleared
+  // v = sum w_q / sum w_q z_q over the valid corners q, separable: per cell
+  // row the blend along x of the cells' validity and z (0 where invalid),
+  // once, then per TF row the blend of two of those rows (contiguous loops
+  // the compiler vectorises). With it the valid pixels counted, a histogram
+  // of the measured ones' v on every kHistogramStep-th row (the median, to 1
+  // / kBinsPerUnit: a sample of 600 k values on an R32) and the sums cleared
   // for the next frame.
-  std::vector<float>& valid_of = scratch.cell_valid;
-  std::vector<float>& z0_of = scratch.cell_z0;
-  valid_of.resize(cn);
-  z0_of.resize(cn);
-  for (std::size_t c = 0; c < cn; ++c) {
-    valid_of[c] = std::isnan(cell_z[c]) ? 0.0f : 1.0f;
-    z0_of[c] = std::isnan(cell_z[c]) ? 0.0f : cell_z[c];
-  }
-  constexpr int kBinsPerUnit = 1024, kBins = 64 * kBinsPerUnit, kChunks = 8;
+  std::vector<float>& along_a = scratch.along_a;
+  std::vector<float>& along_b = scratch.along_b;
+  along_a.resize(static_cast<std::size_t>(ch) * tw);
+  along_b.resize(static_cast<std::size_t>(ch) * tw);
+  tbb::parallel_for(0, ch, [&](int cy) {
+    const float* z = cell_z.data() + static_cast<std::size_t>(cy) * cw;
+    float* a = along_a.data() + static_cast<std::size_t>(cy) * tw;
+    float* b = along_b.data() + static_cast<std::size_t>(cy) * tw;
+    for (int u = 0; u < tw; ++u) {
+      const float gx = std::clamp((u + 0.5f) / kCell - 0.5f, 0.0f, static_cast<float>(cw - 1));
+      const int x0 = std::min(static_cast<int>(gx), cw - 1), x1 = std::min(x0 + 1, cw - 1);
+      const float fx = gx - x0;
+      const bool ok0 = !std::isnan(z[x0]), ok1 = !std::isnan(z[x1]);
+      a[u] = (1 - fx) * (ok0 ? 1.0f : 0.0f) + fx * (ok1 ? 1.0f : 0.0f);
+      b[u] = (1 - fx) * (ok0 ? z[x0] : 0.0f) + fx * (ok1 ? z[x1] : 0.0f);
+    }
+  });
+  constexpr int kBinsPerUnit = 1024, kBins = 64 * kBinsPerUnit, kChunks = 8, kHistogramStep = 4;
   std::vector<std::uint32_t>& histogram = scratch.histogram;
   histogram.assign(static_cast<std::size_t>(kChunks) * kBins, 0);
-  scratch.row_a.resize(static_cast<std::size_t>(kChunks) * cw);
-  scratch.row_b.resize(static_cast<std::size_t>(kChunks) * cw);
   std::atomic<long long> valid{0}, measured{0};
   tbb::parallel_for(0, kChunks, [&](int chunk) {
     std::uint32_t* hist = histogram.data() + static_cast<std::size_t>(chunk) * kBins;
-    float* col_a = scratch.row_a.data() + static_cast<std::size_t>(chunk) * cw;
-    float* col_b = scratch.row_b.data() + static_cast<std::size_t>(chunk) * cw;
     long long chunk_valid = 0, chunk_measured = 0;
     for (int w = chunk * th / kChunks; w < (chunk + 1) * th / kChunks; ++w) {
       const float gy = std::clamp((w + 0.5f) / kCell - 0.5f, 0.0f, static_cast<float>(ch - 1));
       const int y0 = std::min(static_cast<int>(gy), ch - 1), y1 = std::min(y0 + 1, ch - 1);
       const float fy = gy - y0;
-      const std::size_t r0 = static_cast<std::size_t>(y0) * cw, r1 = static_cast<std::size_t>(y1) * cw;
-      for (int c = 0; c < cw; ++c) {
-        col_a[c] = (1 - fy) * valid_of[r0 + c] + fy * valid_of[r1 + c];
-        col_b[c] = (1 - fy) * z0_of[r0 + c] + fy * z0_of[r1 + c];
-      }
+      const float* a0 = along_a.data() + static_cast<std::size_t>(y0) * tw;
+      const float* a1 = along_a.data() + static_cast<std::size_t>(y1) * tw;
+      const float* b0 = along_b.data() + static_cast<std::size_t>(y0) * tw;
+      const float* b1 = along_b.data() + static_cast<std::size_t>(y1) * tw;
       const std::size_t row = static_cast<std::size_t>(w) * tw;
       float* vd = out->virtual_depth.data() + row;
       float* sigma = out->sigma_z.data() + row;
       float* p = sums + 2 * row;
+      int row_valid = 0, row_measured = 0;
       for (int u = 0; u < tw; ++u) {
-        const bool measured_here = p[2 * u] > 0;
-        sigma[u] = measured_here ? std::sqrt(1.0f / p[2 * u]) : kNaN;
-        chunk_measured += measured_here;
-        const float gx = std::clamp((u + 0.5f) / kCell - 0.5f, 0.0f, static_cast<float>(cw - 1));
-        const int x0 = std::min(static_cast<int>(gx), cw - 1), x1 = std::min(x0 + 1, cw - 1);
-        const float fx = gx - x0;
-        const float a = (1 - fx) * col_a[x0] + fx * col_a[x1];
-        const float b = (1 - fx) * col_b[x0] + fx * col_b[x1];
-        const float v = a > 1e-6f ? a / b : kNaN;
-        vd[u] = v;
-        if (!std::isnan(v)) {
-          ++chunk_valid;
-          if (measured_here) ++hist[std::clamp(static_cast<int>(v * kBinsPerUnit), 0, kBins - 1)];
-        }
+        const float a = (1 - fy) * a0[u] + fy * a1[u];
+        const float b = (1 - fy) * b0[u] + fy * b1[u];
+        const bool ok = a > 1e-6f;
+        vd[u] = ok ? a / b : kNaN;
+        row_valid += ok;
       }
+      for (int u = 0; u < tw; ++u) {
+        const float sw = p[2 * u];
+        const bool measured_here = sw > 0;
+        sigma[u] = measured_here ? std::sqrt(1.0f / sw) : kNaN;
+        row_measured += measured_here;
+      }
+      if (w % kHistogramStep == 0)
+        for (int u = 0; u < tw; ++u)
+          if (p[2 * u] > 0 && !std::isnan(vd[u]))
+            ++hist[std::clamp(static_cast<int>(vd[u] * kBinsPerUnit), 0, kBins - 1)];
       std::fill(p, p + 2 * tw, 0.0f);
+      chunk_valid += row_valid;
+      chunk_measured += row_measured;
     }
     valid += chunk_valid;
     measured += chunk_measured;
@@ -330,21 +357,83 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
   return Status::Ok();
 }
 
+// The per-camera tables of the renderer and what they were made from: the
+// frame (the kernel refers to it), its geometry (gain buffer, lattice, lens
+// centres, a sample of the gain, lambda, c, r_valid), the MLA file's depth
+// ranges (the sharp type per v) and inner_fraction.
+struct TfImage::Tables {
+  struct Key {
+    const PlenopticFrame* frame = nullptr;
+    const float* gain = nullptr;
+    std::vector<double> values;
+    bool operator==(const Key& o) const {
+      return frame == o.frame && gain == o.gain && values == o.values;
+    }
+  } key;
+  detail::Gain16 gain16;
+  std::unique_ptr<detail::TfKernel> kernel;
+
+  static Key KeyOf(const PlenopticFrame& f, const MlaCalibration& mla, double inner_fraction) {
+    Key k;
+    k.frame = &f;
+    k.gain = f.gain.data();
+    std::vector<double>& v = k.values;
+    v = {static_cast<double>(f.width),
+         static_cast<double>(f.height),
+         static_cast<double>(f.gain.size()),
+         static_cast<double>(f.lenses.size()),
+         f.lambda,
+         f.radius_px,
+         f.principal_point_px.x(),
+         f.principal_point_px.y(),
+         inner_fraction};
+    for (int i = 0; i < 4; ++i) v.push_back(f.grid.lattice(i / 2, i % 2));
+    if (!f.lenses.empty())
+      for (const MicroImage* m : {&f.lenses.front(), &f.lenses.back()})
+        v.insert(v.end(), {m->centre_px.x(), m->centre_px.y(), m->lens_px.x(), m->lens_px.y()});
+    for (const MlaLensType& t : mla.lens_types) v.insert(v.end(), {t.depth_min, t.depth_max});
+    constexpr int kSamples = 64;
+    for (int i = 0; i < kSamples && !f.gain.empty(); ++i)
+      v.push_back(std::isnan(f.gain[f.gain.size() / kSamples * i])
+                      ? -1.0  // NaN would never compare equal
+                      : f.gain[f.gain.size() / kSamples * i]);
+    return k;
+  }
+};
+
 namespace {
+
+// The tables of `f` in `out`, made when it has none for this geometry.
+const TfImage::Tables& TablesFor(const PlenopticFrame& f, const MlaCalibration& mla,
+                                 const TfOptions& options, TfImage* out) {
+  TfImage::Tables::Key key = TfImage::Tables::KeyOf(f, mla, options.inner_fraction);
+  if (out->tables == nullptr || !(out->tables->key == key)) {
+    auto tables = std::make_shared<TfImage::Tables>();
+    tables->key = std::move(key);
+    tables->gain16 = detail::Gain16::From(f.gain, f.width);
+    tables->kernel = std::make_unique<detail::TfKernel>(f, mla, options.inner_fraction);
+    tables->kernel->UseGain16(&tables->gain16);
+    out->tables = std::move(tables);
+  }
+  return *out->tables;
+}
 
 template <int kChannels>
 void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDepthMap& depth,
                 const TfOptions& options, TfImage* out) {
   const int tw = f.width / 2, th = f.height / 2;
   const float fallback = static_cast<float>(depth.fallback_v > 1 ? depth.fallback_v : 3.0);
-  const detail::TfKernel kernel(f, mla, options.inner_fraction);
+  const TfImage::Tables& tables = TablesFor(f, mla, options, out);
+  const detail::TfKernel& kernel = *tables.kernel;
   const float gain = static_cast<float>(options.gain);
   const bool sharpen = options.sharpen > 0;
   // Runs of a row through the row kernel (tf_blend_simd.h); its
   // preconditions (a frame of 8 x 2 pixels at least, offsets in 32 bits)
   // hold for every camera; a frame outside them goes point by point.
   const detail::TfBlendGeometry geometry = kernel.BlendGeometry();
-  const detail::TfBlendSource source{f.raw.data, f.raw.stride_bytes, kChannels, f.gain.data()};
+  detail::TfBlendSource source{f.raw.data, f.raw.stride_bytes, kChannels, nullptr};
+  source.gain16 = tables.gain16.q.data();
+  source.gain16_scale = tables.gain16.scale;
   const bool rows = f.width >= 8 && f.height >= 2 &&
                     static_cast<double>(f.width) * f.height < 2147483648.0 &&
                     (f.height - 1.0) * f.raw.stride_bytes + 3.0 * f.width < 2147483648.0;
@@ -357,9 +446,13 @@ void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDept
     for (int u0 = 0; u0 < tw; u0 += kRun) {
       const int n = std::min(kRun, tw - u0);
       const std::size_t t0 = static_cast<std::size_t>(w) * tw + u0;
+      // Locals, not the captures: the loops below then vectorise (a store
+      // through a float pointer could otherwise change a captured value).
+      const float fallback_v = fallback, gain_v = gain;
+      const float* const v_row = depth.virtual_depth.data() + t0;
       for (int i = 0; i < n; ++i) {
-        const float v = depth.virtual_depth[t0 + i];
-        run_v[i] = v > 1.0f ? v : fallback;  // NaN too
+        const float v = v_row[i];
+        run_v[i] = v > 1.0f ? v : fallback_v;  // NaN too
       }
       if (rows)
         kernels.row(geometry, source, 2.0f * u0 + 0.5f, 2.0f, y, run_v, n, run_acc, run_sw);
@@ -376,7 +469,7 @@ void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDept
       // Loops the compiler vectorises: the scale per pixel, the 8-bit
       // planes, then the interleaving.
       float scale[kRun];
-      for (int i = 0; i < n; ++i) scale[i] = run_sw[i] > 0 ? gain / run_sw[i] : 0.0f;
+      for (int i = 0; i < n; ++i) scale[i] = run_sw[i] > 0 ? gain_v / run_sw[i] : 0.0f;
       const std::size_t t0c = t0 * kChannels;
       if (sharpen) {
         for (int i = 0; i < n; ++i)
@@ -392,7 +485,21 @@ void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDept
               static_cast<int>(std::min(std::max(a[i] * scale[i] + 0.5f, 0.0f), 255.0f)));
       }
       std::uint8_t* pix = out->pixels.data() + t0c;
-      for (int i = 0; i < n; ++i)
+      int i = 0;
+      if constexpr (kChannels == 3) {
+        // Four BGR pixels in three 32-bit words (little-endian byte order,
+        // memcpy: no alignment asked), a quarter of the byte stores.
+        static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "BGR words assume little-endian");
+        for (; i + 4 <= n; i += 4) {
+          auto at = [&](int ch, int k) { return static_cast<std::uint32_t>(planes[ch][i + k]); };
+          const std::uint32_t words[3] = {
+              at(0, 0) | at(1, 0) << 8 | at(2, 0) << 16 | at(0, 1) << 24,
+              at(1, 1) | at(2, 1) << 8 | at(0, 2) << 16 | at(1, 2) << 24,
+              at(2, 2) | at(0, 3) << 8 | at(1, 3) << 16 | at(2, 3) << 24};
+          std::memcpy(pix + 3 * i, words, sizeof words);
+        }
+      }
+      for (; i < n; ++i)
         for (int ch = 0; ch < kChannels; ++ch) pix[i * kChannels + ch] = planes[ch][i];
     }
   });

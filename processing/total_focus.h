@@ -15,8 +15,10 @@
 // fill_iterations TF pixels; every TF pixel is then the bilinear
 // interpolation of the valid cells around it (NaN where there are none).
 // Window sums are separable running sums, O(1) per cell. The splats are
-// summed in float, in bands of raw rows that write disjoint TF rows (no
-// atomics); fallback_v is the median to 1/1024.
+// computed in float a vector of raw pixels at a time (tf_splat_simd.h;
+// TfOptions::simd) and summed in float, in bands of raw rows that write
+// disjoint TF rows (no atomics); fallback_v is the median to 1/1024 of
+// the measured pixels of every 4th TF row.
 //
 // Rendering (back-projection): for TF pixel x with virtual depth v (filled
 // map, or the median v of the frame where it is empty), the lens type sharp
@@ -41,6 +43,7 @@
 #include "processing/virtual_depth.h"
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 namespace lifmcr::processing {
@@ -51,7 +54,8 @@ struct TfOptions {
   double inner_fraction = 1.0;  // only samples within this share of r_valid (sharp, unvignetted)
   double gain = 1.0;            // output = gain * devignetted value
   double sharpen = 0.0;         // k of I - k laplacian(I); 0 = off
-  bool simd = true;             // the blend's Highway kernel; false: its scalar reference
+  // The splat's and the blend's Highway kernels; false: their scalar references.
+  bool simd = true;
   Status Check() const;
 };
 
@@ -70,8 +74,13 @@ struct TfDepthMap {
     bool zeroed = false;
     std::vector<double> cell_w, cell_wz, row_w, row_wz, box_w, box_wz;
     std::vector<std::int32_t> row_n, box_n;
-    std::vector<float> cell_z, cell_valid, cell_z0, row_a, row_b;
-    std::vector<double> lens_xy;  // micro-lens centres l_k (x, y)
+    std::vector<float> cell_z;
+    // Per cell row, blended along x to every TF column: validity, z.
+    std::vector<float> along_a, along_b;
+    std::vector<float> lens_xy;  // micro-lens centres l_k (x, y)
+    // Per band of the splat one raw row's splats (tf_splat_simd.h).
+    std::vector<std::uint32_t> splat_t;
+    std::vector<float> splat_w, splat_wz;
     // Splats of a band of raw rows that land beyond the TF rows the band
     // may write in its phase (total_focus.cpp): added after both phases.
     struct Deferred {
@@ -88,6 +97,13 @@ struct TfImage {
   PixelFormat format = PixelFormat::kBgr8;  // Mono8 for Mono8 raw frames
   std::vector<std::uint8_t> pixels;         // rows without padding
   std::vector<float> linear;                // before sharpening (only with sharpen > 0)
+  // The renderer's per-camera tables (total_focus.cpp: the lens tables and
+  // sublattices of tf_kernel.h, the devignetting gain in 16 bits, 2 bytes
+  // per raw pixel), made by the first RenderTotalFocus of a frame geometry
+  // and kept while the image is rendered from that geometry (a pooled
+  // workspace's image: made once per camera).
+  struct Tables;
+  std::shared_ptr<Tables> tables;
   ConstImageView View() const {
     return {pixels.data(), width, height, static_cast<std::size_t>(width) * BytesPerPixel(format),
             format};
