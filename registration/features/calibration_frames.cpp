@@ -1,7 +1,5 @@
 #include "registration/features/calibration_frames.h"
 
-#include "registration/features/plate_depth.h"
-
 #include "processing/total_focus.h"
 #include "processing/virtual_depth.h"
 #include "replay/bmp.h"
@@ -25,9 +23,8 @@ constexpr char kFrameMagic[8] = {'L', 'F', 'M', 'C', 'R', 'F', 'R', 'M'};
 // version-1 file holds cornerSubPix corners and is processed again.
 // Version 3: the principal point and keypoint limit beside lambda.
 // Version 4: each keypoint's virtual depth range over its support, and the
-// support's radius beside the keypoint limit. Version 5: the corners'
-// virtual depths from the plate plane (plate_depth.h).
-constexpr std::uint32_t kFrameVersion = 5;
+// support's radius beside the keypoint limit.
+constexpr std::uint32_t kFrameVersion = 4;
 
 // What a frame was processed with, as stored: lambda, the principal point of
 // l_k (NaN NaN: the image centre), the keypoint limit.
@@ -111,7 +108,7 @@ Expected<CalibrationFrame> LoadCalibrationFrame(const fs::path& path,
       !in.read(reinterpret_cast<char*>(file.principal_point_px), 2 * sizeof(double)) ||
       !in.read(reinterpret_cast<char*>(&file.max_features), sizeof(std::int64_t)) ||
       !in.read(reinterpret_cast<char*>(&file.support_radius_tf_px), sizeof(std::int64_t)))
-    return Error{path.string() + ": not a processed calibration frame (LFMCRFRM, version 5)"};
+    return Error{path.string() + ": not a processed calibration frame (LFMCRFRM, version 4)"};
   if (std::abs(file.lambda - key.lambda) > 1e-12)
     return Error{path.string() + ": processed with another lambda"};
   if (!Same(file.principal_point_px[0], key.principal_point_px[0]) ||
@@ -306,9 +303,12 @@ Expected<CalibrationFrame> CalibrationFrameLoader::Load(std::int64_t frame_numbe
   Expected<std::vector<PlateCorner>> corners = DetectPlateCorners(st.tf.View(), st.plate);
   if (!corners) return corners.error();
   out.corners = std::move(*corners);
-  out.corner_virtual_depth = PlateCornerDepths(out.corners, st.tf_depth.virtual_depth,
-                                               st.tf_depth.sigma_z, st.tf_depth.width,
-                                               st.tf_depth.height);
+  for (const PlateCorner& c : out.corners) {
+    const int x = std::clamp(static_cast<int>(std::lround(c.tf_px.x())), 0, st.tf.width - 1);
+    const int y = std::clamp(static_cast<int>(std::lround(c.tf_px.y())), 0, st.tf.height - 1);
+    out.corner_virtual_depth.push_back(
+        st.tf_depth.virtual_depth[static_cast<std::size_t>(y) * st.tf.width + x]);
+  }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
 }

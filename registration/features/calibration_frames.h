@@ -34,9 +34,7 @@ struct CalibrationFrame {
   std::vector<float> virtual_depth_range;
   std::vector<std::array<std::uint8_t, 3>> rgb;   // per keypoint (TF colour)
   std::vector<PlateCorner> corners;               // ArUco plate corners seen
-  // Per corner: from the plate plane fitted to the markers' measured depths
-  // (plate_depth.h), else the map's pixel under it (NaN where empty).
-  std::vector<float> corner_virtual_depth;
+  std::vector<float> corner_virtual_depth;        // per corner, NaN where the map is empty
   double tf_depth_coverage = 0;                   // share of TF pixels with a virtual depth
   double seconds = 0;                             // processing time of the frame
 };
@@ -64,7 +62,7 @@ struct FrameLoaderOptions {
 
 // A processed frame on disk (a cache for repeated calibrations of the same
 // frames processed the same way): binary, little-endian, magic "LFMCRFRM",
-// version 5, what the frame was processed with (lambda; the principal point
+// version 4, what the frame was processed with (lambda; the principal point
 // of l_k, NaN NaN for the image centre; the SIFT keypoint limit; the radius
 // of a keypoint's depth support), then the fields of CalibrationFrame in
 // order. Reading gives an error when the file
