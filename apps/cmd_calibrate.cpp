@@ -58,6 +58,8 @@ struct CalibrateOptions {
   double min_map_angle_deg = registration::CalibrationOptions{}.min_map_angle_deg;
   double map_sigma_v_rel = registration::CalibrationOptions{}.map_sigma_v_rel;
   double map_sigma_tf_px = registration::CalibrationOptions{}.map_sigma_tf_px;
+  double max_keypoint_depth_range = registration::CalibrationOptions{}.max_keypoint_depth_range;
+  int keypoint_support_radius_tf_px = registration::KeypointDepthSupport{}.radius_tf_px;
   bool no_covariance = false;
   double plate_weight = registration::CalibrationOptions{}.plate_weight;
   double principal_point_prior_px = registration::CalibrationOptions{}.principal_point_prior_px;
@@ -96,6 +98,7 @@ Expected<CameraFrames> LoadCameraFrames(const CalibrateOptions& o, const std::st
   loader_options.lambda = processing::CameraModel(initial.intrinsics).lambda();
   loader_options.principal_point_px = initial.intrinsics.principal_point_px;
   loader_options.features.max_features = o.max_features;
+  loader_options.keypoint_support.radius_tf_px = o.keypoint_support_radius_tf_px;
   auto loader = registration::CalibrationFrameLoader::Open(o.sequence, serial, o.mla, plate,
                                                            loader_options);
   if (!loader) return loader.error();
@@ -159,6 +162,7 @@ Expected<registration::CalibrationOptions> MakeCalibrationOptions(const Calibrat
   options.min_map_angle_deg = o.min_map_angle_deg;
   options.map_sigma_v_rel = o.map_sigma_v_rel;
   options.map_sigma_tf_px = o.map_sigma_tf_px;
+  options.max_keypoint_depth_range = o.max_keypoint_depth_range;
   options.covariance = !o.no_covariance;
   options.plate_weight = o.plate_weight;
   if (!o.plate_frames.empty()) {
@@ -517,6 +521,15 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
                  "Sigma of a keypoint's TF position in TF pixels (default 1): the lateral part "
                  "of that agreement")
       ->check(CLI::Range(0.01, 20.0));
+  app.add_option("--keypoint-depth-range", o->max_keypoint_depth_range,
+                 "A keypoint whose measured virtual depth ranges more than this share of v over "
+                 "its support (--keypoint-support) enters by its position only (default 0.01; "
+                 "large: every keypoint's depth enters)")
+      ->check(CLI::Range(1e-4, 1e9));
+  app.add_option("--keypoint-support", o->keypoint_support_radius_tf_px,
+                 "Radius of a keypoint's support in TF pixels, over which the range of its "
+                 "virtual depth is measured (default 8; part of what --cache holds)")
+      ->check(CLI::Range(1, 32));
   app.add_option("--match-window", o->match_window,
                  "Match each frame against the points of this many placed frames before it")
       ->check(CLI::PositiveNumber);

@@ -188,6 +188,8 @@ Status CalibrationOptions::Check() const {
     return fail("map_sigma_v_rel: expected in (0, 1)");
   if (!(map_sigma_tf_px > 0 && map_sigma_tf_px < 100))
     return fail("map_sigma_tf_px: expected in (0, 100)");
+  if (!(max_keypoint_depth_range > 0))
+    return fail("max_keypoint_depth_range: expected > 0 (a share of v; large: every depth kept)");
   if (max_iterations < 1) return fail("max_iterations: expected >= 1");
   if (threads < 1) return fail("threads: expected >= 1");
   return Status::Ok();
@@ -270,12 +272,21 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
       LensObservation lo;
       lo.track = t;
       lo.observation = o;
+      const bool position_only =
+          internal::KeypointDepthRange(input.frames[ob.frame], ob.keypoint) >
+          options.max_keypoint_depth_range;
       if (!MakeMicroImageCost(x_v, *input.micro_images, c0, lambda0, options.max_lenses, s,
-                              &lenses, &lo.cost))
+                              &lenses, &lo.cost, position_only))
         continue;
+      result.position_only_observations += position_only ? 1 : 0;
       lens_observations.push_back(std::move(lo));
     }
   }
+  if (progress)
+    progress(Format("keypoints: %lld of %zu observations by their position only (virtual depth "
+                    "range over the support above %.1f %%)",
+                    result.position_only_observations, lens_observations.size(),
+                    100 * options.max_keypoint_depth_range));
   std::vector<bool> inlier(lens_observations.size(), true);
   // Plate corners: fixed points; in the micro images where the TF depth map
   // has a virtual depth at the corner, else in the virtual image.

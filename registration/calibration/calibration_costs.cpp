@@ -8,7 +8,7 @@ namespace lifmcr::registration::internal {
 
 bool MakeMicroImageCost(const Eigen::Vector3d& x_v, const MicroImages& micro,
                         const Eigen::Vector2d& c0, double lambda0, int max_lenses, double s,
-                        std::vector<int>* lenses, MicroImageCost* cost) {
+                        std::vector<int>* lenses, MicroImageCost* cost, bool position_only) {
   if (!(x_v.z() > 1)) return false;
   micro.Seeing(x_v.head<2>(), x_v.z(), c0, lambda0, lenses);
   if (lenses->size() < 2) return false;
@@ -21,6 +21,10 @@ bool MakeMicroImageCost(const Eigen::Vector3d& x_v, const MicroImages& micro,
   std::sort(by_distance.begin(), by_distance.end());
   if (static_cast<int>(by_distance.size()) > max_lenses) by_distance.resize(max_lenses);
   cost->pixel_size_mm = s;
+  cost->depth_from_estimate = position_only;
+  cost->observed_virtual_px = x_v.head<2>();
+  cost->c0_px = c0;
+  cost->lambda0 = lambda0;
   cost->centres_px.clear();
   cost->observed_px.clear();
   for (const auto& [d, l] : by_distance) {

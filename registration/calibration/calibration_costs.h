@@ -19,9 +19,26 @@ namespace lifmcr::registration::internal {
 // A keypoint observation reprojected into the micro images that see it
 // (calibration.h, step 3). Parameters: intrinsics, cam_from_world rotation
 // (w, x, y, z) and translation, the point in the world.
+//
+// Position only (`depth_from_estimate`, a keypoint whose measured virtual
+// depth is not to be trusted: keypoint_depth.h): the observed micro-image
+// positions are made with the estimated point's own depth instead of the
+// measured one. With the processed frame's geometry (lambda0, c0) and the
+// estimate's lambda = b_L0 / (b_L0 + B) and depth v, the processed depth of
+// that point is v' = 1 / (1 - lambda / lambda0 (1 - 1/v)) (equal micro-image
+// positions, calibration.h), and the observed positions
+//   p_k = l0_k + (x' - l0_k) / v',   l0_k = c0 + (c_k - c0) lambda0,
+// with x' the keypoint's virtual position as processed. The residuals then
+// vanish for every depth along the keypoint's ray: they hold its position
+// (the ray) and nothing of its depth, with the weight a position has in the
+// micro images.
 struct MicroImageCost {
   std::vector<Eigen::Vector2d> observed_px, centres_px;
   double pixel_size_mm = 0;
+  bool depth_from_estimate = false;
+  Eigen::Vector2d observed_virtual_px = Eigen::Vector2d::Zero();  // x' (position only)
+  Eigen::Vector2d c0_px = Eigen::Vector2d::Zero();                // c0 (position only)
+  double lambda0 = 1;                                             // (position only)
 
   template <typename T>
   bool operator()(const T* k, const T* q, const T* t, const T* p_in_w, T* residuals) const {
@@ -35,6 +52,22 @@ struct MicroImageCost {
   bool Residuals(const T* k, const T* p_in_c, T* residuals) const {
     T virtual_px[3];
     if (!ProjectToVirtual(k, pixel_size_mm, p_in_c, virtual_px)) return false;
+    if (depth_from_estimate) {
+      const T lambda = k[1] / (k[1] + k[2]);
+      const T inverse_v_processed =
+          T(1) - lambda / T(lambda0) * (T(1) - T(1) / virtual_px[2]);
+      if (!(inverse_v_processed > T(0)) || !(inverse_v_processed < T(1))) return false;
+      for (std::size_t n = 0; n < centres_px.size(); ++n) {
+        T micro[2];
+        ProjectToMicroImage(k, virtual_px, centres_px[n], micro);
+        for (int a = 0; a < 2; ++a) {
+          const double l0 = c0_px[a] + (centres_px[n][a] - c0_px[a]) * lambda0;
+          const T observed = T(l0) + (T(observed_virtual_px[a]) - T(l0)) * inverse_v_processed;
+          residuals[2 * n + a] = micro[a] - observed;
+        }
+      }
+      return true;
+    }
     for (std::size_t n = 0; n < centres_px.size(); ++n) {
       T micro[2];
       ProjectToMicroImage(k, virtual_px, centres_px[n], micro);
@@ -119,10 +152,12 @@ struct PrincipalPointPriorCost {
 };
 
 // The micro-image observations of virtual point x_v (calibration.h step 3):
-// the max_lenses most central micro images that see it.
+// the max_lenses most central micro images that see it (at its measured
+// depth); `position_only`: MicroImageCost::depth_from_estimate.
 bool MakeMicroImageCost(const Eigen::Vector3d& x_v, const MicroImages& micro,
                         const Eigen::Vector2d& c0, double lambda0, int max_lenses, double s,
-                        std::vector<int>* lenses, MicroImageCost* cost);
+                        std::vector<int>* lenses, MicroImageCost* cost,
+                        bool position_only = false);
 
 // The cost of plate corner n of `frame`: its marker's centre the mean of the
 // marker's four corners (all four are detected with the marker), observed at

@@ -8,6 +8,7 @@
 
 #include <array>
 #include <cstdint>
+#include <cmath>
 #include <vector>
 
 namespace lifmcr::registration::internal {
@@ -61,6 +62,14 @@ Eigen::Vector2d TfPinholePx(const IntrinsicsVector& k, const processing::CameraM
 inline Eigen::Vector3d VirtualPoint(const CalibrationFrame& frame, int k) {
   const Eigen::Vector2f& tf = frame.features.keypoints[k].xy_px;
   return {2.0 * tf.x() + 0.5, 2.0 * tf.y() + 0.5, frame.virtual_depth[k]};
+}
+
+// The range of the measured virtual depth over keypoint k's support
+// (CalibrationFrame::virtual_depth_range); NaN where the frame has none.
+inline double KeypointDepthRange(const CalibrationFrame& frame, int k) {
+  return static_cast<std::size_t>(k) < frame.virtual_depth_range.size()
+             ? frame.virtual_depth_range[k]
+             : std::nan("");
 }
 
 }  // namespace lifmcr::registration::internal

@@ -22,7 +22,9 @@ constexpr char kFrameMagic[8] = {'L', 'F', 'M', 'C', 'R', 'F', 'R', 'M'};
 // Version 2: plate corners from the markers' edges (marker_edges.h); a
 // version-1 file holds cornerSubPix corners and is processed again.
 // Version 3: the principal point and keypoint limit beside lambda.
-constexpr std::uint32_t kFrameVersion = 3;
+// Version 4: each keypoint's virtual depth range over its support, and the
+// support's radius beside the keypoint limit.
+constexpr std::uint32_t kFrameVersion = 4;
 
 // What a frame was processed with, as stored: lambda, the principal point of
 // l_k (NaN NaN: the image centre), the keypoint limit.
@@ -30,6 +32,7 @@ struct ProcessedWith {
   double lambda = 0;
   double principal_point_px[2] = {0, 0};
   std::int64_t max_features = 0;
+  std::int64_t support_radius_tf_px = 0;
 };
 
 ProcessedWith Key(const FrameLoaderOptions& o) {
@@ -38,6 +41,7 @@ ProcessedWith Key(const FrameLoaderOptions& o) {
   k.principal_point_px[0] = o.principal_point_px ? o.principal_point_px->x() : std::nan("");
   k.principal_point_px[1] = o.principal_point_px ? o.principal_point_px->y() : std::nan("");
   k.max_features = o.features.max_features;
+  k.support_radius_tf_px = o.keypoint_support.radius_tf_px;
   return k;
 }
 
@@ -70,6 +74,7 @@ Status SaveCalibrationFrame(const fs::path& path, const CalibrationFrame& f,
   out.write(reinterpret_cast<const char*>(&key.lambda), sizeof(double));
   out.write(reinterpret_cast<const char*>(key.principal_point_px), 2 * sizeof(double));
   out.write(reinterpret_cast<const char*>(&key.max_features), sizeof(std::int64_t));
+  out.write(reinterpret_cast<const char*>(&key.support_radius_tf_px), sizeof(std::int64_t));
   out.write(reinterpret_cast<const char*>(&f.frame), sizeof(f.frame));
   PutVector(out, std::vector<char>(f.name.begin(), f.name.end()));
   const std::int32_t size[2] = {f.tf_width, f.tf_height};
@@ -77,6 +82,7 @@ Status SaveCalibrationFrame(const fs::path& path, const CalibrationFrame& f,
   PutVector(out, f.features.keypoints);
   PutVector(out, f.features.descriptors);
   PutVector(out, f.virtual_depth);
+  PutVector(out, f.virtual_depth_range);
   PutVector(out, f.rgb);
   PutVector(out, f.corners);
   PutVector(out, f.corner_virtual_depth);
@@ -100,8 +106,9 @@ Expected<CalibrationFrame> LoadCalibrationFrame(const fs::path& path,
       !in.read(reinterpret_cast<char*>(&version), sizeof(version)) || version != kFrameVersion ||
       !in.read(reinterpret_cast<char*>(&file.lambda), sizeof(double)) ||
       !in.read(reinterpret_cast<char*>(file.principal_point_px), 2 * sizeof(double)) ||
-      !in.read(reinterpret_cast<char*>(&file.max_features), sizeof(std::int64_t)))
-    return Error{path.string() + ": not a processed calibration frame (LFMCRFRM, version 3)"};
+      !in.read(reinterpret_cast<char*>(&file.max_features), sizeof(std::int64_t)) ||
+      !in.read(reinterpret_cast<char*>(&file.support_radius_tf_px), sizeof(std::int64_t)))
+    return Error{path.string() + ": not a processed calibration frame (LFMCRFRM, version 4)"};
   if (std::abs(file.lambda - key.lambda) > 1e-12)
     return Error{path.string() + ": processed with another lambda"};
   if (!Same(file.principal_point_px[0], key.principal_point_px[0]) ||
@@ -109,10 +116,13 @@ Expected<CalibrationFrame> LoadCalibrationFrame(const fs::path& path,
     return Error{path.string() + ": processed with another principal point"};
   if (file.max_features != key.max_features)
     return Error{path.string() + ": processed with another keypoint limit"};
+  if (file.support_radius_tf_px != key.support_radius_tf_px)
+    return Error{path.string() + ": processed with another keypoint depth support"};
   if (!in.read(reinterpret_cast<char*>(&f.frame), sizeof(f.frame)) || !GetVector(in, &name) ||
       !in.read(reinterpret_cast<char*>(size), sizeof(size)) ||
       !GetVector(in, &f.features.keypoints) || !GetVector(in, &f.features.descriptors) ||
-      !GetVector(in, &f.virtual_depth) || !GetVector(in, &f.rgb) || !GetVector(in, &f.corners) ||
+      !GetVector(in, &f.virtual_depth) || !GetVector(in, &f.virtual_depth_range) ||
+      !GetVector(in, &f.rgb) || !GetVector(in, &f.corners) ||
       !GetVector(in, &f.corner_virtual_depth) ||
       !in.read(reinterpret_cast<char*>(&f.tf_depth_coverage), sizeof(double)))
     return Error{path.string() + ": ends early"};
@@ -121,6 +131,7 @@ Expected<CalibrationFrame> LoadCalibrationFrame(const fs::path& path,
   f.tf_height = size[1];
   if (f.features.descriptors.size() != f.features.keypoints.size() * kDescriptorSize ||
       f.virtual_depth.size() != f.features.keypoints.size() ||
+      f.virtual_depth_range.size() != f.features.keypoints.size() ||
       f.rgb.size() != f.features.keypoints.size() ||
       f.corner_virtual_depth.size() != f.corners.size())
     return Error{path.string() + ": inconsistent sizes"};
@@ -145,8 +156,14 @@ CalibrationFrameLoader::~CalibrationFrameLoader() = default;
 
 ConstImageView CalibrationFrameLoader::last_tf_image() const { return state_->tf.View(); }
 
+const std::vector<float>& CalibrationFrameLoader::last_tf_virtual_depth() const {
+  return state_->tf_depth.virtual_depth;
+}
+
 Status FrameLoaderOptions::Check() const {
   if (!(lambda > 0.5 && lambda <= 1.0)) return Error{"frame loader: lambda: expected in (0.5, 1]"};
+  if (!(keypoint_support.radius_tf_px >= 1 && keypoint_support.radius_tf_px <= 32))
+    return Error{"frame loader: keypoint_support.radius_tf_px: expected in [1, 32]"};
   return features.Check();
 }
 
@@ -274,6 +291,9 @@ Expected<CalibrationFrame> CalibrationFrameLoader::Load(std::int64_t frame_numbe
     const int y = std::clamp(static_cast<int>(std::lround(k.xy_px.y())), 0, st.tf.height - 1);
     const std::size_t at = static_cast<std::size_t>(y) * st.tf.width + x;
     out.virtual_depth.push_back(st.tf_depth.virtual_depth[at]);
+    out.virtual_depth_range.push_back(VirtualDepthRange(st.tf_depth.virtual_depth, st.tf_depth.width,
+                                                        st.tf_depth.height, k.xy_px,
+                                                        st.options.keypoint_support.radius_tf_px));
     const std::uint8_t* px = st.tf.pixels.data() + at * bpp;
     if (bpp == 3)
       out.rgb.push_back({px[2], px[1], px[0]});

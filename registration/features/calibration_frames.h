@@ -11,6 +11,7 @@
 #include "processing/plenoptic_frame.h"
 #include "registration/features/aruco_plate.h"
 #include "registration/features/features.h"
+#include "registration/features/keypoint_depth.h"
 
 #include <array>
 #include <cstdint>
@@ -28,6 +29,9 @@ struct CalibrationFrame {
   int tf_width = 0, tf_height = 0;
   Features features;                              // on the TF grid
   std::vector<float> virtual_depth;               // per keypoint, NaN where the map is empty
+  // Per keypoint: the relative range of the virtual depth over its support
+  // (keypoint_depth.h), NaN where the map is mostly empty there.
+  std::vector<float> virtual_depth_range;
   std::vector<std::array<std::uint8_t, 3>> rgb;   // per keypoint (TF colour)
   std::vector<PlateCorner> corners;               // ArUco plate corners seen
   std::vector<float> corner_virtual_depth;        // per corner, NaN where the map is empty
@@ -52,14 +56,16 @@ struct FrameLoaderOptions {
   double lambda = 1.0;  // b_L0 / (b_L0 + B) of the initial intrinsics
   std::optional<Eigen::Vector2d> principal_point_px;  // c of l_k (initial intrinsics); unset: centre
   FeatureOptions features;
+  KeypointDepthSupport keypoint_support;  // of CalibrationFrame::virtual_depth_range
   Status Check() const;
 };
 
 // A processed frame on disk (a cache for repeated calibrations of the same
 // frames processed the same way): binary, little-endian, magic "LFMCRFRM",
-// version 3, what the frame was processed with (lambda; the principal point
-// of l_k, NaN NaN for the image centre; the SIFT keypoint limit), then the
-// fields of CalibrationFrame in order. Reading gives an error when the file
+// version 4, what the frame was processed with (lambda; the principal point
+// of l_k, NaN NaN for the image centre; the SIFT keypoint limit; the radius
+// of a keypoint's depth support), then the fields of CalibrationFrame in
+// order. Reading gives an error when the file
 // is not one, or was processed with other options (other initial intrinsics:
 // its virtual depths and TF image belong to other micro-lens centres).
 Status SaveCalibrationFrame(const std::filesystem::path& path, const CalibrationFrame& frame,
@@ -84,6 +90,8 @@ class CalibrationFrameLoader {
   Expected<CalibrationFrame> Load(std::int64_t frame);
   // The TF image of the last frame Load processed (valid until the next Load).
   ConstImageView last_tf_image() const;
+  // The TF depth map of the last frame Load processed (valid until the next Load).
+  const std::vector<float>& last_tf_virtual_depth() const;
 
  private:
   CalibrationFrameLoader() = default;

@@ -24,6 +24,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <map>
 #include <memory>
@@ -384,8 +385,13 @@ TEST_F(CalibrationTest, ProcessedFramesRoundTripThroughTheCache) {
   ASSERT_EQ(back->corners.size(), f.corners.size());
   EXPECT_EQ(back->corners[0].p_in_w_mm, f.corners[0].p_in_w_mm);
   EXPECT_EQ(back->rgb, f.rgb);
-  // Other initial intrinsics (lambda, principal point) or another keypoint
-  // limit must not reuse the frame.
+  EXPECT_EQ(back->virtual_depth_range.size(), f.features.keypoints.size());
+  EXPECT_EQ(0, std::memcmp(back->virtual_depth_range.data(), f.virtual_depth_range.data(),
+                           f.virtual_depth_range.size() * sizeof(float)));  // NaN == NaN
+  EXPECT_EQ(0, std::memcmp(back->corner_virtual_depth.data(), f.corner_virtual_depth.data(),
+                           f.corner_virtual_depth.size() * sizeof(float)));
+  // Other initial intrinsics (lambda, principal point), another keypoint
+  // limit or another keypoint depth support must not reuse the frame.
   FrameLoaderOptions other = processed;
   other.lambda = 0.98;
   EXPECT_FALSE(LoadCalibrationFrame(dir / "f.frame", other));
@@ -397,6 +403,11 @@ TEST_F(CalibrationTest, ProcessedFramesRoundTripThroughTheCache) {
   other = processed;
   other.features.max_features = 123;
   EXPECT_FALSE(LoadCalibrationFrame(dir / "f.frame", other));
+  other = processed;
+  other.keypoint_support.radius_tf_px = 3;
+  Expected<CalibrationFrame> support = LoadCalibrationFrame(dir / "f.frame", other);
+  ASSERT_FALSE(support);
+  EXPECT_NE(support.error().message.find("another keypoint depth support"), std::string::npos);
   // A frame processed with a principal point is found again with it.
   processed.principal_point_px = Eigen::Vector2d(512.5, 383.5);
   ASSERT_TRUE(SaveCalibrationFrame(dir / "g.frame", f, processed));
