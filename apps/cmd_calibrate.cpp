@@ -523,8 +523,9 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
       ->check(CLI::Range(0.01, 20.0));
   app.add_option("--keypoint-depth-range", o->max_keypoint_depth_range,
                  "A keypoint whose measured virtual depth ranges more than this share of v over "
-                 "its support (--keypoint-support) enters by its position only (default 0.01; "
-                 "large: every keypoint's depth enters)")
+                 "its support (--keypoint-support) enters by its position only (default: none, "
+                 "every keypoint's depth enters; 0.01 leaves out the depths next to depth "
+                 "edges: docs/calibration.md)")
       ->check(CLI::Range(1e-4, 1e9));
   app.add_option("--keypoint-support", o->keypoint_support_radius_tf_px,
                  "Radius of a keypoint's support in TF pixels, over which the range of its "
