@@ -161,9 +161,9 @@ std::string RigCalibrationResult::BriefReport() const {
   long long observations = 0;
   for (const RigCameraResult& c : cameras) observations += c.observations;
   return RigFormat(
-      "Rig calibration: %zu cameras, %zu triggers, %zu points (%d seen by several cameras, %d by "
+      "Rig calibration%s: %zu cameras, %zu triggers, %zu points (%d seen by several cameras, %d by "
       "one camera X alone), %lld observations, RMSE %.3f px; Ceres %d iterations %.1f s, cost %.4e -> %.4e, %s%s",
-      cameras.size(), trajectory.size(), map.points.size(), shared_points, own_points,
+      non_rigid ? " (non-rigid)" : "", cameras.size(), trajectory.size(), map.points.size(), shared_points, own_points,
       observations, rmse_px,
       iterations, solver_seconds, initial_cost, final_cost, termination.c_str(),
       usable ? "" : ", NOT USABLE (see flags)");
@@ -182,7 +182,13 @@ std::string RigCalibrationResult::CameraReport() const {
         "(%.2f, %.2f) px (sd %.2g, %.2g); %lld observations, %d plate corners, RMSE %.3f px",
         c, r.serial.c_str(), k[0], r.std_dev[0], k[1], r.std_dev[1], k[2], r.std_dev[2], k[3],
         k[4], r.std_dev[3], r.std_dev[4], r.observations, r.plate_corners, r.rmse_px);
-    if (c > 0) {
+    if (c > 0 && non_rigid) {
+      text += RigFormat("; placed at %zu triggers (%zu passed the pose checks against the map "
+                        "of the cameras before it), robust mean of c0_from_cx t (%.3f, %.3f, "
+                        "%.3f) mm, rotation vector (%.5f, %.5f, %.5f) deg",
+                        r.per_trigger.size(), r.registered.size(), t.x(), t.y(), t.z(),
+                        w.x() * 180 / M_PI, w.y() * 180 / M_PI, w.z() * 180 / M_PI);
+    } else if (c > 0) {
       const Eigen::Matrix<double, 6, 6>& s = r.c0_from_cx_covariance;
       text += RigFormat(
           "; c0_from_cx t (%.3f, %.3f, %.3f) mm (sd %.3f, %.3f, %.3f), rotation vector (%.5f, "
@@ -323,14 +329,32 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
       add_observation(0, trigger_of_frame.at(frame), j, frame_index[0].at(frame), e.keypoint);
     }
 
-  // Step 2: every camera X against camera 0's map.
-  const MapIndex index = MapIndex::Of(map0);
-  std::vector<int> point_of_index;
-  for (int j = 0; j < n_points; ++j)
-    if (map0.points[j].descriptor.size() == static_cast<std::size_t>(kDescriptorSize))
-      point_of_index.push_back(j);
+  // Step 2: every camera X against camera 0's map (non-rigid: the map grown
+  // by the cameras X before it).
+  const bool per_trigger = options.non_rigid;
+  result.non_rigid = per_trigger;
+  MapIndex index;
+  std::vector<int> point_of_index;  // MapIndex order -> index into `points`
+  auto build_index = [&](const ReferenceMap& map) {
+    index = MapIndex::Of(map);
+    point_of_index.clear();
+    for (int j = 0; j < static_cast<int>(map.points.size()); ++j)
+      if (map.points[j].descriptor.size() == static_cast<std::size_t>(kDescriptorSize))
+        point_of_index.push_back(j);
+  };
+  build_index(map0);
+  // Non-rigid: camera 0's map and, in the order of `points`, the points of
+  // the cameras X registered so far (descriptor and start position).
+  ReferenceMap grown;
+  if (per_trigger) grown = map0;
   result.cameras.resize(n_cameras);
-  std::vector<RigPoseBlock> extrinsics(n_cameras);  // c0_from_cx
+  // c0_from_cx: one block per camera (rigid) or one per camera and trigger
+  // (non-rigid); placed[c][t]: camera c has a pose at trigger t.
+  std::vector<std::vector<RigPoseBlock>> extrinsics(
+      n_cameras, std::vector<RigPoseBlock>(per_trigger ? n_triggers : 1));
+  auto block = [&](int c, int t) -> RigPoseBlock& { return extrinsics[c][per_trigger ? t : 0]; };
+  std::vector<std::vector<bool>> placed(n_cameras, std::vector<bool>(n_triggers, !per_trigger));
+  placed[0].assign(n_triggers, true);
   // Points of one camera X alone (after camera 0's): which keypoint made each.
   struct OwnPoint {
     int camera = 0, frame = 0, keypoint = 0;
@@ -339,6 +363,7 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
   for (int c = 1; c < n_cameras; ++c) {
     RigCameraResult& rc = result.cameras[c];
     const processing::CameraModel model(cameras[c].initial.intrinsics);
+    if (per_trigger && c > 1) build_index(grown);
     std::map<std::pair<int, int>, int> matched;  // (frame index, keypoint) -> point
     for (std::size_t f = 0; f < cameras[c].frames.size(); ++f) {
       const CalibrationFrame& frame = cameras[c].frames[f];
@@ -359,17 +384,24 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
       if (!r.estimated) continue;
       for (std::size_t i = 0; i < r.inlier_points.size(); ++i)
         matched[{static_cast<int>(f), r.inlier_queries[i]}] = point_of_index[r.inlier_points[i]];
+      const Pose c0_from_cx = PoseOf(rig[trigger->second]) * r.w0_from_cam.pose;
+      if (per_trigger) {
+        placed[c][trigger->second] = true;
+        extrinsics[c][trigger->second] = BlockOf(c0_from_cx);
+        rc.per_trigger_initial.push_back(FramePose{frame.frame, -1, c0_from_cx});
+      }
       if (!r.success) continue;
-      const Pose c0_from_w0 = PoseOf(rig[trigger->second]);
-      rc.registered.push_back(FramePose{frame.frame, -1, c0_from_w0 * r.w0_from_cam.pose});
+      rc.registered.push_back(FramePose{frame.frame, -1, c0_from_cx});
     }
-    if (static_cast<int>(rc.registered.size()) < options.min_registered_frames)
-      return Error{RigFormat("rig calibration: camera %s: %zu of its frames registered against "
-                             "camera 0's map, at least %d needed",
-                             cameras[c].serial.c_str(), rc.registered.size(),
+    const std::vector<FramePose>& starts = per_trigger ? rc.per_trigger_initial : rc.registered;
+    if (static_cast<int>(starts.size()) < options.min_registered_frames)
+      return Error{RigFormat("rig calibration: camera %s: %zu of its frames %s, at least %d needed",
+                             cameras[c].serial.c_str(), starts.size(),
+                             per_trigger ? "placed by PnP against the map of the cameras before it"
+                                         : "registered against camera 0's map",
                              options.min_registered_frames)};
-    rc.c0_from_cx_initial = RobustMean(rc.registered);
-    extrinsics[c] = BlockOf(rc.c0_from_cx_initial);
+    rc.c0_from_cx_initial = RobustMean(starts);
+    if (!per_trigger) extrinsics[c][0] = BlockOf(rc.c0_from_cx_initial);
 
     // X's own tracks across time (camera 0's initialisation, calibration.h
     // step 2, on X's frames): a track with a keypoint matched to a map point
@@ -390,7 +422,8 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
       std::vector<const internal::Observation*> usable;
       std::set<int> frames_seen;
       for (const internal::Observation& ob : track.observations) {
-        if (!trigger_of_frame.count(cameras[c].frames[ob.frame].frame)) continue;
+        const auto trigger = trigger_of_frame.find(cameras[c].frames[ob.frame].frame);
+        if (trigger == trigger_of_frame.end() || !placed[c][trigger->second]) continue;
         if (!frames_seen.insert(ob.frame).second) continue;
         usable.push_back(&ob);
         if (const auto m = matched.find({ob.frame, ob.keypoint}); m != matched.end())
@@ -410,11 +443,20 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
         const CalibrationFrame& frame = cameras[c].frames[first.frame];
         const Eigen::Vector3d x_v = internal::VirtualPoint(frame, first.keypoint);
         if (!(x_v.z() > 1)) continue;
-        const Pose w0_from_cx = PoseOf(rig[trigger_of_frame.at(frame.frame)]).inverse() *
-                                rc.c0_from_cx_initial;
+        const int t = trigger_of_frame.at(frame.frame);
+        const Pose w0_from_cx = PoseOf(rig[t]).inverse() * PoseOf(block(c, t));
         points.push_back(w0_from_cx * model.BackProject(x_v));
         point = static_cast<int>(points.size()) - 1;
         own_point.push_back({c, first.frame, first.keypoint});
+        if (per_trigger) {
+          // The next cameras match it by this keypoint's descriptor.
+          MapPoint grown_point;
+          grown_point.id = point + 1;
+          grown_point.p_in_w0_mm = points.back();
+          const float* d = frame.features.Descriptor(first.keypoint);
+          grown_point.descriptor.assign(d, d + kDescriptorSize);
+          grown.points.push_back(std::move(grown_point));
+        }
         ++added;
       }
       for (const internal::Observation* ob : usable)
@@ -438,7 +480,7 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     const double s = cameras[c].initial.intrinsics.pixel_size_mm;
     for (const CalibrationFrame& frame : cameras[c].frames) {
       const auto trigger = trigger_of_frame.find(frame.frame);
-      if (trigger == trigger_of_frame.end()) continue;
+      if (trigger == trigger_of_frame.end() || !placed[c][trigger->second]) continue;
       const PlateCornerCheck check = CheckPlateCorners(frame.corners, reference, co.plate_corner_check);
       for (std::size_t n = 0; n < frame.corners.size(); ++n) {
         if (co.reject_plate_corners &&
@@ -470,12 +512,16 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     const RigPoseBlock& p = rig[lo.trigger];
     if (lo.camera == 0)
       return lo.cost(k[0].data(), p.q.data(), p.t.data(), points[lo.point].data(), r->data());
-    const RigPoseBlock& e = extrinsics[lo.camera];
+    const RigPoseBlock& e = block(lo.camera, lo.trigger);
     return RigMicroImageCost{lo.cost}(k[lo.camera].data(), p.q.data(), p.t.data(), e.q.data(),
                                       e.t.data(), points[lo.point].data(), r->data());
   };
 
   std::vector<bool> inlier(lens.size(), true);
+  // The joint solve's covariance of each c0_from_cx block (step 4).
+  std::vector<std::vector<Eigen::Matrix<double, 6, 6>>> extrinsics_covariance(n_cameras);
+  for (int c = 0; c < n_cameras; ++c)
+    extrinsics_covariance[c].assign(extrinsics[c].size(), Eigen::Matrix<double, 6, 6>::Zero());
   ceres::Solver::Summary summary;
   constexpr int kRounds = 3;
   double first_cost = -1;
@@ -497,7 +543,7 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
                                             3>(new MicroImageCost(lo.cost), residuals),
             loss, k[0].data(), p.q.data(), p.t.data(), points[lo.point].data());
       } else {
-        RigPoseBlock& e = extrinsics[lo.camera];
+        RigPoseBlock& e = block(lo.camera, lo.trigger);
         problem.AddResidualBlock(
             new ceres::AutoDiffCostFunction<RigMicroImageCost, ceres::DYNAMIC, kIntrinsicsSize, 4,
                                             3, 4, 3, 3>(new RigMicroImageCost{lo.cost}, residuals),
@@ -520,7 +566,7 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
                                             3, 1>(new PlateCornerCost(ob.cost), residuals),
             loss, k[0].data(), p.q.data(), p.t.data(), &inset[0]);
       } else {
-        RigPoseBlock& e = extrinsics[ob.camera];
+        RigPoseBlock& e = block(ob.camera, ob.trigger);
         problem.AddResidualBlock(
             new ceres::AutoDiffCostFunction<RigPlateCornerCost, ceres::DYNAMIC, kIntrinsicsSize,
                                             4, 3, 4, 3, 1>(new RigPlateCornerCost{ob.cost},
@@ -545,7 +591,10 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
           problem.SetParameterBlockConstant(points[j].data());
     for (int c = 0; c < n_cameras; ++c) {
       if (!camera_used[c]) continue;
-      if (c > 0) problem.SetManifold(extrinsics[c].q.data(), new ceres::QuaternionManifold());
+      if (c > 0)
+        for (RigPoseBlock& e : extrinsics[c])
+          if (problem.HasParameterBlock(e.q.data()))
+            problem.SetManifold(e.q.data(), new ceres::QuaternionManifold());
       if (problem.HasParameterBlock(&inset[c])) {
         if (co.estimate_corner_inset) {
           problem.SetParameterLowerBound(&inset[c], 0, -kRigMaxInsetTfPx);
@@ -648,11 +697,21 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
         }
       kept.push_back(block);
     }
-    for (int c = 1; c < n_cameras; ++c) {
-      const std::string name = RigFormat("c0_from_c%d", c);
-      kept.push_back({extrinsics[c].q.data(), {name + " rot x", name + " rot y", name + " rot z"}});
-      kept.push_back({extrinsics[c].t.data(), {name + " t x", name + " t y", name + " t z"}});
-    }
+    struct KeptExtrinsics {
+      int camera = 0, block = 0, kept = 0;  // kept: its rotation's index in `kept`
+    };
+    std::vector<KeptExtrinsics> kept_extrinsics;
+    for (int c = 1; c < n_cameras; ++c)
+      for (std::size_t b = 0; b < extrinsics[c].size(); ++b) {
+        RigPoseBlock& e = extrinsics[c][b];
+        if (!problem.HasParameterBlock(e.q.data())) continue;
+        const std::string name =
+            per_trigger ? RigFormat("c0_from_c%d trigger %lld", c, static_cast<long long>(trigger_frame[b]))
+                        : RigFormat("c0_from_c%d", c);
+        kept_extrinsics.push_back({c, static_cast<int>(b), static_cast<int>(kept.size())});
+        kept.push_back({e.q.data(), {name + " rot x", name + " rot y", name + " rot z"}});
+        kept.push_back({e.t.data(), {name + " t x", name + " t y", name + " t z"}});
+      }
     for (int c = 0; c < n_cameras; ++c) kept.push_back({&inset[c], {RigFormat("camera %d inset", c)}});
     for (int t = 0; t < n_triggers; ++t) {
       const std::string name = RigFormat("trigger %lld", static_cast<long long>(trigger_frame[t]));
@@ -690,16 +749,15 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     for (int c = 0; c < n_cameras; ++c)
       for (const int i : free[c])
         result.cameras[c].std_dev[i] = reduced->std_dev[coordinate++] * std::sqrt(variance);
-    for (int c = 1; c < n_cameras; ++c) {
-      const int q_block = n_cameras + 2 * (c - 1);
-      const int fq = reduced->first_coordinate[q_block];
-      const int ft = reduced->first_coordinate[q_block + 1];
+    for (const KeptExtrinsics& ke : kept_extrinsics) {
+      const int fq = reduced->first_coordinate[ke.kept];
+      const int ft = reduced->first_coordinate[ke.kept + 1];
       if (fq < 0 || ft < 0) continue;
       const int at[6] = {fq, fq + 1, fq + 2, ft, ft + 1, ft + 2};
       // Ceres' QuaternionManifold: x + d = [cos|d|, sin|d| d/|d|] x, a
       // rotation by 2|d|: the rotation vector is 2 d.
       const double scale[6] = {2, 2, 2, 1, 1, 1};
-      Eigen::Matrix<double, 6, 6>& s = result.cameras[c].c0_from_cx_covariance;
+      Eigen::Matrix<double, 6, 6>& s = extrinsics_covariance[ke.camera][ke.block];
       for (int a = 0; a < 6; ++a)
         for (int b = 0; b < 6; ++b)
           s(a, b) = reduced->covariance(at[a], at[b]) * scale[a] * scale[b] * variance;
@@ -741,8 +799,20 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     rc.calibration.intrinsics = FromVector(k[c], cameras[c].initial.intrinsics);
     rc.initial = initial[c];
     rc.frames = static_cast<int>(cameras[c].frames.size());
-    rc.c0_from_cx = c == 0 ? Pose::Identity() : PoseOf(extrinsics[c]);
-    if (c == 0) rc.c0_from_cx_initial = Pose::Identity();
+    if (c == 0) {
+      rc.c0_from_cx = Pose::Identity();
+      rc.c0_from_cx_initial = Pose::Identity();
+    } else if (!per_trigger) {
+      rc.c0_from_cx = PoseOf(extrinsics[c][0]);
+      rc.c0_from_cx_covariance = extrinsics_covariance[c][0];
+    } else {
+      for (int t = 0; t < n_triggers; ++t) {
+        if (!placed[c][t]) continue;
+        rc.per_trigger.push_back(FramePose{trigger_frame[t], -1, PoseOf(extrinsics[c][t])});
+        rc.per_trigger_covariance.push_back(extrinsics_covariance[c][t]);
+      }
+      rc.c0_from_cx = RobustMean(rc.per_trigger);
+    }
     rc.rmse_px = camera_m[c] > 0 ? std::sqrt(camera_ss[c] / camera_m[c]) : 0;
     if (!rc.calibration.intrinsics.Check())
       result.flags.push_back("camera " + rc.serial + ": diverged: its intrinsics left their valid range");
@@ -796,8 +866,9 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     for (const RigCalibrationResult::Observer& o : observers[j]) {
       const CalibrationFrame& seen = cameras[o.camera].frames[frame_index[o.camera].at(o.frame)];
       const Eigen::Vector3d x_v = internal::VirtualPoint(seen, o.keypoint);
-      const Pose w0_from_cam = result.trajectory[trigger_of_frame.at(o.frame)].world_from_cam *
-                               result.cameras[o.camera].c0_from_cx;
+      const int t = trigger_of_frame.at(o.frame);
+      const Pose w0_from_cam = result.trajectory[t].world_from_cam *
+                               (o.camera == 0 ? Pose::Identity() : PoseOf(block(o.camera, t)));
       const processing::CameraModel& model = final_models[o.camera];
       const Eigen::Matrix3d cov = PlenopticPointCovariance(
           model, w0_from_cam.inverse() * points[j], co.map_sigma_v_rel * x_v.z(),
