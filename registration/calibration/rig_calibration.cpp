@@ -7,6 +7,7 @@
 #include "registration/estimators/plenoptic_point_noise.h"
 #include "registration/estimators/pose_covariance.h"
 #include "registration/features/frame_observations.h"
+#include "registration/map/guided_matches.h"
 
 #include <ceres/ceres.h>
 #include <ceres/rotation.h>
@@ -19,6 +20,7 @@
 #include <limits>
 #include <map>
 #include <set>
+#include <tuple>
 
 namespace lifmcr::registration {
 namespace {
@@ -66,17 +68,51 @@ void ComposeCameraFromWorld(const T* q, const T* t, const T* q_x, const T* t_x, 
   ceres::UnitQuaternionRotatePoint(q_x_inverse, d, t_c);
 }
 
+// RigCalibrationOptions::depth_weight: a keypoint's micro-image residuals
+// r_n split into their mean over the micro images (a lateral error of the
+// virtual point moves every micro image alike) and the rest (a depth error
+// scales the images about the lens centres differently), the rest scaled:
+//   r_n <- mean + w (r_n - mean).
+template <typename T>
+void WeighDepth(double w, int n, T* r) {
+  if (w == 1.0 || n < 2) return;
+  T mean[2] = {T(0), T(0)};
+  for (int i = 0; i < n; ++i) {
+    mean[0] += r[2 * i];
+    mean[1] += r[2 * i + 1];
+  }
+  mean[0] /= double(n);
+  mean[1] /= double(n);
+  for (int i = 0; i < n; ++i)
+    for (int a = 0; a < 2; ++a) r[2 * i + a] = mean[a] + w * (r[2 * i + a] - mean[a]);
+}
+
+// A keypoint of camera 0. Parameters: its intrinsics, c0_from_w0, the point.
+struct RigZeroMicroImageCost {
+  MicroImageCost micro;
+  double depth_weight = 1.0;
+  template <typename T>
+  bool operator()(const T* k, const T* q, const T* t, const T* p_in_w, T* residuals) const {
+    if (!micro(k, q, t, p_in_w, residuals)) return false;
+    WeighDepth(depth_weight, static_cast<int>(micro.centres_px.size()), residuals);
+    return true;
+  }
+};
+
 // A keypoint of camera X. Parameters: X's intrinsics, the rig pose
 // c0_from_w0 (rotation, translation), c0_from_cx (rotation, translation),
 // the point in w0.
 struct RigMicroImageCost {
   MicroImageCost micro;
+  double depth_weight = 1.0;
   template <typename T>
   bool operator()(const T* k, const T* q, const T* t, const T* q_x, const T* t_x, const T* p_in_w,
                   T* residuals) const {
     T q_c[4], t_c[3];
     ComposeCameraFromWorld(q, t, q_x, t_x, q_c, t_c);
-    return micro(k, q_c, t_c, p_in_w, residuals);
+    if (!micro(k, q_c, t_c, p_in_w, residuals)) return false;
+    WeighDepth(depth_weight, static_cast<int>(micro.centres_px.size()), residuals);
+    return true;
   }
 };
 
@@ -152,6 +188,8 @@ Pose RobustMean(const std::vector<FramePose>& poses) {
 Status RigCalibrationOptions::Check() const {
   if (Status s = calibration.Check(); !s) return s;
   if (Status s = registration.Check(); !s) return s;
+  if (!(depth_weight > 0 && depth_weight <= 1))
+    return Error{"rig calibration options: depth_weight: expected in (0, 1]"};
   if (min_registered_frames < 1)
     return Error{"rig calibration options: min_registered_frames: expected >= 1"};
   return Status::Ok();
@@ -511,9 +549,10 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     r->resize(2 * lo.cost.centres_px.size());
     const RigPoseBlock& p = rig[lo.trigger];
     if (lo.camera == 0)
-      return lo.cost(k[0].data(), p.q.data(), p.t.data(), points[lo.point].data(), r->data());
+      return RigZeroMicroImageCost{lo.cost, options.depth_weight}(
+          k[0].data(), p.q.data(), p.t.data(), points[lo.point].data(), r->data());
     const RigPoseBlock& e = block(lo.camera, lo.trigger);
-    return RigMicroImageCost{lo.cost}(k[lo.camera].data(), p.q.data(), p.t.data(), e.q.data(),
+    return RigMicroImageCost{lo.cost, options.depth_weight}(k[lo.camera].data(), p.q.data(), p.t.data(), e.q.data(),
                                       e.t.data(), points[lo.point].data(), r->data());
   };
 
@@ -539,14 +578,16 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
       RigPoseBlock& p = rig[lo.trigger];
       if (lo.camera == 0) {
         problem.AddResidualBlock(
-            new ceres::AutoDiffCostFunction<MicroImageCost, ceres::DYNAMIC, kIntrinsicsSize, 4, 3,
-                                            3>(new MicroImageCost(lo.cost), residuals),
+            new ceres::AutoDiffCostFunction<RigZeroMicroImageCost, ceres::DYNAMIC, kIntrinsicsSize,
+                                            4, 3, 3>(
+                new RigZeroMicroImageCost{lo.cost, options.depth_weight}, residuals),
             loss, k[0].data(), p.q.data(), p.t.data(), points[lo.point].data());
       } else {
         RigPoseBlock& e = block(lo.camera, lo.trigger);
         problem.AddResidualBlock(
             new ceres::AutoDiffCostFunction<RigMicroImageCost, ceres::DYNAMIC, kIntrinsicsSize, 4,
-                                            3, 4, 3, 3>(new RigMicroImageCost{lo.cost}, residuals),
+                                            3, 4, 3, 3>(
+                new RigMicroImageCost{lo.cost, options.depth_weight}, residuals),
             loss, k[lo.camera].data(), p.q.data(), p.t.data(), e.q.data(), e.t.data(),
             points[lo.point].data());
       }
@@ -662,6 +703,68 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     if (!summary.IsSolutionUsable())
       return Error{"rig calibration: " + stage + ": " + summary.message};
 
+    if (per_trigger && round < 2) {
+      // Non-rigid: the map points found again in every placed image by its
+      // solved pose (guided_matches.h: within guided_radius_px of the
+      // projection, the ratio test among those, the virtual depth within
+      // 10 % of the predicted): the cross-camera observations that PnP's
+      // inliers against the grown map missed, and the far camera's links to
+      // points placed by its neighbours.
+      for (std::size_t j = 0; j < points.size(); ++j) grown.points[j].p_in_w0_mm = points[j];
+      const MapIndex solved = MapIndex::Of(grown);
+      std::vector<int> solved_point;  // MapIndex order -> index into `points`
+      for (int j = 0; j < static_cast<int>(grown.points.size()); ++j)
+        if (grown.points[j].descriptor.size() == static_cast<std::size_t>(kDescriptorSize))
+          solved_point.push_back(j);
+      std::set<std::tuple<int, int, int>> seen_keypoint, seen_point;  // (camera, frame, kp / point)
+      for (const LensObservation& lo : lens) {
+        seen_keypoint.insert({lo.camera, lo.frame, lo.keypoint});
+        seen_point.insert({lo.camera, lo.frame, lo.point});
+      }
+      const std::size_t before = lens.size();
+      const float ratio2 = static_cast<float>(options.registration.guided_ratio *
+                                              options.registration.guided_ratio);
+      for (int c = 0; c < n_cameras; ++c) {
+        const processing::CameraModel model(FromVector(k[c], cameras[c].initial.intrinsics));
+        for (std::size_t f = 0; f < cameras[c].frames.size(); ++f) {
+          const CalibrationFrame& frame = cameras[c].frames[f];
+          const auto trigger = trigger_of_frame.find(frame.frame);
+          if (trigger == trigger_of_frame.end() || !placed[c][trigger->second]) continue;
+          const int t = trigger->second;
+          const Pose c0_from_cx = c == 0 ? Pose::Identity() : PoseOf(block(c, t));
+          const Pose cx_from_w0 = c0_from_cx.inverse() * PoseOf(rig[t]);
+          const ProjectedMapGrid grid(solved, model, cx_from_w0,
+                                      cameras[c].initial.intrinsics.width_px / 2,
+                                      cameras[c].initial.intrinsics.height_px / 2,
+                                      options.registration.guided_radius_px);
+          FrameObservations obs;
+          obs.frame = frame.frame;
+          obs.features = frame.features;
+          obs.virtual_depth.assign(frame.virtual_depth.begin(), frame.virtual_depth.end());
+          CompleteObservations(model, &obs);
+          std::map<int, std::pair<float, int>> best_of_point;  // point -> (distance^2, keypoint)
+          for (int kp = 0; kp < obs.features.size(); ++kp) {
+            if (seen_keypoint.count({c, static_cast<int>(f), kp})) continue;
+            float d1 = 0;
+            const int nearest = grid.Nearest(obs.tf_px[kp], obs.features.Descriptor(kp), ratio2, &d1);
+            if (nearest < 0) continue;
+            const double v = kp < static_cast<int>(obs.virtual_depth.size()) ? obs.virtual_depth[kp] : NAN;
+            if (!(std::abs(v / grid.virtual_depth(nearest) - 1) < 0.1)) continue;
+            const auto [it, added] = best_of_point.try_emplace(nearest, d1, kp);
+            if (!added && d1 < it->second.first) it->second = {d1, kp};
+          }
+          for (const auto& [point, best] : best_of_point) {
+            const int j = solved_point[point];
+            if (!seen_point.insert({c, static_cast<int>(f), j}).second) continue;
+            add_observation(c, t, j, static_cast<int>(f), best.second);
+          }
+        }
+      }
+      inlier.resize(lens.size(), true);
+      say(RigFormat("guided re-association: %zu observations added (map points found again "
+                    "in the images by their solved poses)",
+                    lens.size() - before));
+    }
     if (round == 1) {
       // Observations above max(outlier_px, 3 x the median RMS) out.
       std::vector<double> rms(lens.size(), std::numeric_limits<double>::infinity());
