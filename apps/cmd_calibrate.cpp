@@ -76,7 +76,6 @@ struct CalibrateOptions {
   std::string cache;
   bool rig = false;
   bool non_rigid = false;
-  double rig_depth_weight = 1.0;
   std::string cameras;
   std::string camera0_calibration;
 };
@@ -423,7 +422,6 @@ int RunCalibrateRig(const CalibrateOptions& o) {
   if (!calibration_options) return Fail(calibration_options.error().message, 2);
   options.calibration = *calibration_options;
   options.non_rigid = o.non_rigid;
-  options.depth_weight = o.rig_depth_weight;
   std::optional<registration::CalibrationResult> camera0;
   if (!o.camera0_calibration.empty()) {
     Expected<registration::ReferenceMap> map = registration::ReadReferenceMap(o.camera0_calibration);
@@ -573,11 +571,6 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
                "the cameras before it (--cameras order: neighbours should follow each other). "
                "--rig refuses a sequence whose ground truth says the mount is not rigid "
                "without it");
-  app.add_option("--rig-depth-weight", o->rig_depth_weight,
-                 "With --rig: weight (0, 1] of each keypoint's virtual depth against its lateral "
-                 "position in the joint solve (default 1); below 1 the points several cameras "
-                 "see are placed more by their rays than by processing's biased depths")
-      ->check(CLI::Range(0.001, 1.0));
   app.add_option("--cameras", o->cameras,
                  "With --rig: the cameras, camera 0 first, e.g. 40398678,40398673 (default: "
                  "--camera, then the sequence's other cameras in ascending order)");

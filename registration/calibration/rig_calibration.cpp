@@ -68,51 +68,17 @@ void ComposeCameraFromWorld(const T* q, const T* t, const T* q_x, const T* t_x, 
   ceres::UnitQuaternionRotatePoint(q_x_inverse, d, t_c);
 }
 
-// RigCalibrationOptions::depth_weight: a keypoint's micro-image residuals
-// r_n split into their mean over the micro images (a lateral error of the
-// virtual point moves every micro image alike) and the rest (a depth error
-// scales the images about the lens centres differently), the rest scaled:
-//   r_n <- mean + w (r_n - mean).
-template <typename T>
-void WeighDepth(double w, int n, T* r) {
-  if (w == 1.0 || n < 2) return;
-  T mean[2] = {T(0), T(0)};
-  for (int i = 0; i < n; ++i) {
-    mean[0] += r[2 * i];
-    mean[1] += r[2 * i + 1];
-  }
-  mean[0] /= double(n);
-  mean[1] /= double(n);
-  for (int i = 0; i < n; ++i)
-    for (int a = 0; a < 2; ++a) r[2 * i + a] = mean[a] + w * (r[2 * i + a] - mean[a]);
-}
-
-// A keypoint of camera 0. Parameters: its intrinsics, c0_from_w0, the point.
-struct RigZeroMicroImageCost {
-  MicroImageCost micro;
-  double depth_weight = 1.0;
-  template <typename T>
-  bool operator()(const T* k, const T* q, const T* t, const T* p_in_w, T* residuals) const {
-    if (!micro(k, q, t, p_in_w, residuals)) return false;
-    WeighDepth(depth_weight, static_cast<int>(micro.centres_px.size()), residuals);
-    return true;
-  }
-};
-
 // A keypoint of camera X. Parameters: X's intrinsics, the rig pose
 // c0_from_w0 (rotation, translation), c0_from_cx (rotation, translation),
 // the point in w0.
 struct RigMicroImageCost {
   MicroImageCost micro;
-  double depth_weight = 1.0;
   template <typename T>
   bool operator()(const T* k, const T* q, const T* t, const T* q_x, const T* t_x, const T* p_in_w,
                   T* residuals) const {
     T q_c[4], t_c[3];
     ComposeCameraFromWorld(q, t, q_x, t_x, q_c, t_c);
-    if (!micro(k, q_c, t_c, p_in_w, residuals)) return false;
-    WeighDepth(depth_weight, static_cast<int>(micro.centres_px.size()), residuals);
-    return true;
+    return micro(k, q_c, t_c, p_in_w, residuals);
   }
 };
 
@@ -188,8 +154,6 @@ Pose RobustMean(const std::vector<FramePose>& poses) {
 Status RigCalibrationOptions::Check() const {
   if (Status s = calibration.Check(); !s) return s;
   if (Status s = registration.Check(); !s) return s;
-  if (!(depth_weight > 0 && depth_weight <= 1))
-    return Error{"rig calibration options: depth_weight: expected in (0, 1]"};
   if (min_registered_frames < 1)
     return Error{"rig calibration options: min_registered_frames: expected >= 1"};
   return Status::Ok();
@@ -549,10 +513,9 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     r->resize(2 * lo.cost.centres_px.size());
     const RigPoseBlock& p = rig[lo.trigger];
     if (lo.camera == 0)
-      return RigZeroMicroImageCost{lo.cost, options.depth_weight}(
-          k[0].data(), p.q.data(), p.t.data(), points[lo.point].data(), r->data());
+      return lo.cost(k[0].data(), p.q.data(), p.t.data(), points[lo.point].data(), r->data());
     const RigPoseBlock& e = block(lo.camera, lo.trigger);
-    return RigMicroImageCost{lo.cost, options.depth_weight}(k[lo.camera].data(), p.q.data(), p.t.data(), e.q.data(),
+    return RigMicroImageCost{lo.cost}(k[lo.camera].data(), p.q.data(), p.t.data(), e.q.data(),
                                       e.t.data(), points[lo.point].data(), r->data());
   };
 
@@ -578,16 +541,14 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
       RigPoseBlock& p = rig[lo.trigger];
       if (lo.camera == 0) {
         problem.AddResidualBlock(
-            new ceres::AutoDiffCostFunction<RigZeroMicroImageCost, ceres::DYNAMIC, kIntrinsicsSize,
-                                            4, 3, 3>(
-                new RigZeroMicroImageCost{lo.cost, options.depth_weight}, residuals),
+            new ceres::AutoDiffCostFunction<MicroImageCost, ceres::DYNAMIC, kIntrinsicsSize, 4, 3,
+                                            3>(new MicroImageCost(lo.cost), residuals),
             loss, k[0].data(), p.q.data(), p.t.data(), points[lo.point].data());
       } else {
         RigPoseBlock& e = block(lo.camera, lo.trigger);
         problem.AddResidualBlock(
             new ceres::AutoDiffCostFunction<RigMicroImageCost, ceres::DYNAMIC, kIntrinsicsSize, 4,
-                                            3, 4, 3, 3>(
-                new RigMicroImageCost{lo.cost, options.depth_weight}, residuals),
+                                            3, 4, 3, 3>(new RigMicroImageCost{lo.cost}, residuals),
             loss, k[lo.camera].data(), p.q.data(), p.t.data(), e.q.data(), e.t.data(),
             points[lo.point].data());
       }

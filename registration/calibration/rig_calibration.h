@@ -92,13 +92,6 @@ struct RigCalibrationOptions {
   int min_registered_frames = 3;  // frames of a camera X registered, else an error
                                   // (non_rigid: frames placed, refused poses counted)
   bool non_rigid = false;         // per-trigger c0_from_cx (above)
-  // The weight of a keypoint's depth against its lateral position in the
-  // joint solve (0, 1]: its micro-image residuals' spread about their mean
-  // (what a depth error changes) scaled by it, their mean (a lateral error)
-  // kept. Below 1 the points several cameras see are placed more by their
-  // rays than by processing's virtual depth, whose bias (docs/calibration.md,
-  // Known limits) each camera's keypoints carry along their own rays.
-  double depth_weight = 1.0;
   Status Check() const;
 };
 
