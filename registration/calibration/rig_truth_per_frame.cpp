@@ -15,10 +15,13 @@ std::string PerFrameFormat(const char* fmt, auto... args) {
   return buffer;
 }
 
+// The middle value; of an even count the mean of the middle two (as
+// `lifmcr register` reports its medians).
 double MedianOf(std::vector<double> v) {
   if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 == 1 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 double MaxOf(const std::vector<double>& v) {
