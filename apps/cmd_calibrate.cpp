@@ -563,8 +563,9 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
   app.add_option("--camera", o->camera,
                  "Serial of the camera to calibrate (with --rig: camera 0, the reference)");
   app.add_flag("--rig", o->rig,
-               "Calibrate the cameras of --cameras as one rigid rig: every camera's intrinsics, "
-               "each camera's c0_from_cx (rig.yaml), one trajectory and one shared map");
+               "Calibrate the cameras of --cameras as one rig: every camera's intrinsics, each "
+               "camera's c0_from_cx (rig.yaml; rigid: one per camera, --non-rigid: one per "
+               "frame), camera 0's trajectory and one shared map");
   app.add_flag("--non-rigid", o->non_rigid,
                "With --rig: the cameras move independently (not one mount): a pose per camera "
                "and frame over the shared map, each camera registered through the map grown by "
