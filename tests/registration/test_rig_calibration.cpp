@@ -1,5 +1,5 @@
-// The joint calibration of a rigid rig (registration/calibration/
-// rig_calibration.h) on a small synthetic rig of 3 cameras: every camera's
+// The joint calibration of a rig (registration/calibration/
+// rig_calibration.h). Rigid, on a small synthetic rig of 3 cameras: every camera's
 // c0_from_cx from the joint solve is nearer the truth than camera X's frames
 // registered alone against camera 0's map with its true intrinsics (the
 // baseline: their median error), and the COLMAP rig model it writes holds the rig. A few views
@@ -9,7 +9,9 @@
 // estimated, camera 0's from 10 % off) with the principal point and
 // distortion held, as test_calibrate_register.cpp does; the `medium`
 // figures from 5 % off are in docs/calibration.md. About 20 s of CPU
-// (rendering, processing 15 frames, the solves): labelled long.
+// (rendering, processing 15 frames, the solves): labelled long. Non-rigid,
+// 4 cameras moving independently: the far camera through the shared map
+// (the second test).
 
 #include "processing/camera_model.h"
 #include "registration/calibration/rig_calibration.h"
