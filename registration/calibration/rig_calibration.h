@@ -61,7 +61,11 @@
 // several mm off; each point a chained map adds carries the depth bias of
 // the one observation that placed it, docs/registration.md). A frame PnP
 // could not estimate is left out. Solves (a)-(c) as above, with per-trigger
-// poses; the covariance is per trigger. c0_from_cx of a camera X is then
+// poses; after (a) and after (b) every map point is looked for again in
+// every placed image by its solved pose (guided_matches.h' projected grid,
+// FrameRegistrationOptions' guided radius and ratio, the virtual depth
+// within 10 % of the predicted), the cross-camera observations PnP's inliers
+// missed. The covariance is per trigger. c0_from_cx of a camera X is then
 // the robust mean of its per-trigger poses (a summary, not a mount).
 
 #include "config/error.h"
