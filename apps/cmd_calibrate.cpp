@@ -15,12 +15,17 @@
 #include "registration/calibration/calibration_truth.h"
 #include "registration/calibration/rig_calibration.h"
 #include "registration/calibration/rig_output.h"
+#include "registration/calibration/rig_truth_per_frame.h"
+#include "registration/estimators/pose_covariance.h"
 #include "registration/map/poses_csv.h"
 #include "registration/features/intrinsics_yaml.h"
 #include "registration/map/reference_map.h"
 #include "replay/layout.h"
 
 #include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <cstdio>
 
 #include <filesystem>
 #include <fstream>
@@ -72,6 +77,7 @@ struct CalibrateOptions {
   std::string plate_frames;
   std::string cache;
   bool rig = false;
+  bool non_rigid = false;
   std::string cameras;
   std::string camera0_calibration;
 };
@@ -319,7 +325,7 @@ int RunCalibrateRig(const CalibrateOptions& o) {
   const fs::path gt_yaml = layout::CamerasYamlPath(seq);
   const fs::path plate_path = o.plate.empty() ? gt_yaml : fs::path(o.plate);
   if (o.initial.empty()) return Fail("--rig: --initial cameras.yaml with every camera is needed", 2);
-  if (!o.recalibrate.empty()) return Fail("--rig: --recalibrate is for one camera", 2);
+  if (o.non_rigid && !o.rig) return Fail("--non-rigid needs --rig", 2);
   if (o.at_truth) return Fail("--rig: --at-truth is for one camera", 2);
   if (!o.frames.empty())
     if (Expected<std::set<std::int64_t>> wanted = ParseFrameList(o.frames, "--frames"); !wanted)
@@ -345,6 +351,45 @@ int RunCalibrateRig(const CalibrateOptions& o) {
   if (!o.camera.empty() && serials.front() != o.camera)
     return Fail("--rig: --camera " + o.camera + " is not the first of --cameras", 2);
   if (serials.size() < 2) return Fail("--rig: at least two cameras are needed", 2);
+  // A synthetic sequence's truth says whether the mount is rigid: camera X's
+  // c0_from_cx over the frames both cameras have (0.1 mm / 0.01 deg: the
+  // rigid rigs' are equal to rounding).
+  std::map<std::string, std::map<std::int64_t, Pose>> truth_c0_from_cx;
+  {
+    std::map<std::int64_t, Pose> world_from_c0;
+    for (const std::string& serial : serials) {
+      const fs::path csv = layout::PosesCsvPath(seq, serial);
+      if (!fs::exists(csv)) {
+        truth_c0_from_cx.clear();
+        break;
+      }
+      Expected<std::vector<registration::FramePose>> poses = registration::ReadPosesCsv(csv);
+      if (!poses) return Fail(poses.error().message);
+      if (world_from_c0.empty())
+        for (const registration::FramePose& p : *poses) world_from_c0[p.frame] = p.world_from_cam;
+      for (const registration::FramePose& p : *poses)
+        if (const auto c0 = world_from_c0.find(p.frame); c0 != world_from_c0.end())
+          truth_c0_from_cx[serial][p.frame] = c0->second.inverse() * p.world_from_cam;
+    }
+    for (const auto& [serial, poses] : truth_c0_from_cx) {
+      if (poses.empty() || o.non_rigid) continue;
+      double mm = 0, deg = 0;
+      for (const auto& [frame, pose] : poses) {
+        mm = std::max(mm, registration::TranslationDifference(pose, poses.begin()->second));
+        deg = std::max(deg, registration::RotationDifferenceDeg(pose, poses.begin()->second));
+      }
+      if (mm > 0.1 || deg > 0.01) {
+        char line[512];
+        std::snprintf(line, sizeof(line),
+                      "--rig: %s says camera %s moves against camera 0 (its c0_from_cx varies by "
+                      "up to %.1f mm / %.3f deg over the sequence): the mount is not rigid; "
+                      "calibrate it with --rig --non-rigid",
+                      layout::PosesCsvPath(seq, serial).parent_path().string().c_str(),
+                      serial.c_str(), mm, deg);
+        return Fail(line, 2);
+      }
+    }
+  }
   if (!fs::exists(plate_path))
     return Fail(plate_path.string() +
                 ": no marker plate layout (--plate names a file with a plate: section)");
@@ -359,6 +404,13 @@ int RunCalibrateRig(const CalibrateOptions& o) {
     Expected<registration::CameraCalibration> initial =
         registration::ReadCameraCalibration(o.initial, serial);
     if (!initial) return Fail(initial.error().message);
+    if (!o.recalibrate.empty()) {  // every camera's f_L and B known (held)
+      Expected<registration::CameraCalibration> fixed =
+          registration::ReadCameraCalibration(o.recalibrate, serial);
+      if (!fixed) return Fail(fixed.error().message);
+      initial->intrinsics.main_focal_length_mm = fixed->intrinsics.main_focal_length_mm;
+      initial->intrinsics.mla_to_sensor_mm = fixed->intrinsics.mla_to_sensor_mm;
+    }
     Expected<CameraFrames> loaded = LoadCameraFrames(o, serial, *initial, *plate, progress);
     if (!loaded) return Fail(loaded.error().message);
     registration::CalibrationInput input;
@@ -373,6 +425,7 @@ int RunCalibrateRig(const CalibrateOptions& o) {
   Expected<registration::CalibrationOptions> calibration_options = MakeCalibrationOptions(o);
   if (!calibration_options) return Fail(calibration_options.error().message, 2);
   options.calibration = *calibration_options;
+  options.non_rigid = o.non_rigid;
   std::optional<registration::CalibrationResult> camera0;
   if (!o.camera0_calibration.empty()) {
     Expected<registration::ReferenceMap> map = registration::ReadReferenceMap(o.camera0_calibration);
@@ -419,7 +472,39 @@ int RunCalibrateRig(const CalibrateOptions& o) {
          << result->CameraReport() << "```\n";
   report << "\n## Camera 0 alone (the start)\n\n" << result->camera0.BriefReport() << "\n";
   std::cout << result->BriefReport() << "\n" << result->CameraReport();
-  if (o.ground_truth) {
+  if (o.ground_truth && o.non_rigid) {
+    // Per frame: the joint c0_from_cx(t), where it started, and each camera
+    // X's frame registered alone against camera 0's map (its nominal
+    // intrinsics, the frames as processed here).
+    std::vector<registration::CameraCalibration> truth;
+    std::vector<std::map<std::int64_t, Pose>> c0_from_cx;
+    std::vector<std::vector<registration::FramePose>> alone(serials.size());
+    for (std::size_t c = 0; c < serials.size(); ++c) {
+      Expected<registration::CameraCalibration> t =
+          registration::ReadCameraCalibration(gt_yaml, serials[c]);
+      if (!t) return Fail(t.error().message);
+      truth.push_back(*t);
+      if (!truth_c0_from_cx.count(serials[c]))
+        return Fail("--ground-truth: no " + layout::PosesCsvPath(seq, serials[c]).string());
+      c0_from_cx.push_back(truth_c0_from_cx.at(serials[c]));
+      if (c == 0) {  // camera 0's rows: w0_from_c0 against the plate frame's truth
+        Expected<std::vector<registration::FramePose>> poses =
+            registration::ReadPosesCsv(layout::PosesCsvPath(seq, serials[0]));
+        if (!poses) return Fail(poses.error().message);
+        c0_from_cx[0].clear();
+        for (const registration::FramePose& p : *poses) c0_from_cx[0][p.frame] = p.world_from_cam;
+      }
+      if (c > 0)
+        alone[c] = registration::RegisterAgainstCamera0(result->camera0, inputs[c],
+                                                        inputs[c].initial.intrinsics,
+                                                        options.registration);
+    }
+    Expected<registration::RigPerFrameTruth> c =
+        registration::CompareNonRigidWithTruth(*result, truth, c0_from_cx, alone);
+    if (!c) return Fail(c.error().message);
+    std::cout << c->Report();
+    report << "\n## Against the ground truth\n\n" << c->Report() << "\n";
+  } else if (o.ground_truth) {
     std::vector<registration::CameraCalibration> truth;
     std::vector<Pose> c0_from_cx;
     std::map<std::int64_t, Pose> world_from_c0;
@@ -472,6 +557,9 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
       "and intrinsics_<serial>.yaml (every camera), the shared map as above (camera 0's\n"
       "images), rig.yaml (each camera's c0_from_cx and its covariance), colmap/ (the rig as a\n"
       "COLMAP text model: cameras, rigs, frames, images, points3D), calibration_report.md.\n"
+      "With --rig --non-rigid (cameras moving independently): the same, c0_from_cx per frame\n"
+      "in rig.yaml (c0_from_cx_per_frame), in colmap/ one rig per camera and one frame per\n"
+      "image.\n"
       "Progress on stderr unless --quiet.\n"
       "Exit codes: 0 calibrated; 1 an input could not be read or written; 2 usage error;\n"
       "3 the calibration ran but is not usable (the report says why).");
@@ -479,8 +567,15 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
   app.add_option("--camera", o->camera,
                  "Serial of the camera to calibrate (with --rig: camera 0, the reference)");
   app.add_flag("--rig", o->rig,
-               "Calibrate the cameras of --cameras as one rigid rig: every camera's intrinsics, "
-               "each camera's c0_from_cx (rig.yaml), one trajectory and one shared map");
+               "Calibrate the cameras of --cameras as one rig: every camera's intrinsics, each "
+               "camera's c0_from_cx (rig.yaml; rigid: one per camera, --non-rigid: one per "
+               "frame), camera 0's trajectory and one shared map");
+  app.add_flag("--non-rigid", o->non_rigid,
+               "With --rig: the cameras move independently (not one mount): a pose per camera "
+               "and frame over the shared map, each camera registered through the map grown by "
+               "the cameras before it (--cameras order: neighbours should follow each other). "
+               "--rig refuses a sequence whose ground truth says the mount is not rigid "
+               "without it");
   app.add_option("--cameras", o->cameras,
                  "With --rig: the cameras, camera 0 first, e.g. 40398678,40398673 (default: "
                  "--camera, then the sequence's other cameras in ascending order)");
@@ -493,7 +588,8 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
   app.add_option("--mla", o->mla, "MLA XML (default: the dataset's Calibration folder)");
   app.add_option("--frames", o->frames, "Frames to use, e.g. 0-39 or 0,4,8 (default: all)");
   app.add_option("--recalibrate", o->recalibrate,
-                 "cameras.yaml whose f_L and B are held fixed (LiFCal recalib)");
+                 "cameras.yaml whose f_L and B are held fixed (LiFCal recalib; with --rig: "
+                 "every camera's)");
   app.add_option("--plate", o->plate,
                  "File with the marker plate's `plate:` section (default: "
                  "SEQ/GroundTruth/cameras.yaml)");

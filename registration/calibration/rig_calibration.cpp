@@ -7,10 +7,11 @@
 #include "registration/estimators/plenoptic_point_noise.h"
 #include "registration/estimators/pose_covariance.h"
 #include "registration/features/frame_observations.h"
+#include "registration/map/guided_matches.h"
 
+#include <Eigen/Geometry>
 #include <ceres/ceres.h>
 #include <ceres/rotation.h>
-#include <Eigen/Geometry>
 
 #include <algorithm>
 #include <chrono>
@@ -19,6 +20,7 @@
 #include <limits>
 #include <map>
 #include <set>
+#include <tuple>
 
 namespace lifmcr::registration {
 namespace {
@@ -27,7 +29,7 @@ using internal::MicroImageCost;
 using internal::PlateCornerCost;
 using internal::PrincipalPointPriorCost;
 
-constexpr double kRigBound = 0.3;        // f_L, b_L0, B about their initial values (calibration.cpp)
+constexpr double kRigBound = 0.3;  // f_L, b_L0, B about their initial values (calibration.cpp)
 constexpr double kRigMaxInsetTfPx = 2.0;  // the plate corners' inset (calibration.cpp)
 
 std::string RigFormat(const char* fmt, auto... args) {
@@ -93,7 +95,6 @@ struct RigPlateCornerCost {
   }
 };
 
-
 struct LensObservation {
   int camera = 0;
   int trigger = 0;
@@ -127,7 +128,8 @@ Pose RobustMean(const std::vector<FramePose>& poses) {
     median[a] = Median(c);
   }
   std::vector<double> distance;
-  for (const FramePose& p : poses) distance.push_back((p.world_from_cam.translation() - median).norm());
+  for (const FramePose& p : poses)
+    distance.push_back((p.world_from_cam.translation() - median).norm());
   const double limit = std::max(3 * Median(distance), 1.0);
   Eigen::Vector3d t_sum = Eigen::Vector3d::Zero();
   Eigen::Vector4d q_sum = Eigen::Vector4d::Zero();
@@ -142,7 +144,8 @@ Pose RobustMean(const std::vector<FramePose>& poses) {
     ++n;
   }
   Pose mean = Pose::Identity();
-  mean.linear() = Eigen::Quaterniond(q_sum[0], q_sum[1], q_sum[2], q_sum[3]).normalized().toRotationMatrix();
+  mean.linear() =
+      Eigen::Quaterniond(q_sum[0], q_sum[1], q_sum[2], q_sum[3]).normalized().toRotationMatrix();
   mean.translation() = t_sum / std::max(n, 1);
   return mean;
 }
@@ -161,12 +164,12 @@ std::string RigCalibrationResult::BriefReport() const {
   long long observations = 0;
   for (const RigCameraResult& c : cameras) observations += c.observations;
   return RigFormat(
-      "Rig calibration: %zu cameras, %zu triggers, %zu points (%d seen by several cameras, %d by "
-      "one camera X alone), %lld observations, RMSE %.3f px; Ceres %d iterations %.1f s, cost %.4e -> %.4e, %s%s",
-      cameras.size(), trajectory.size(), map.points.size(), shared_points, own_points,
-      observations, rmse_px,
-      iterations, solver_seconds, initial_cost, final_cost, termination.c_str(),
-      usable ? "" : ", NOT USABLE (see flags)");
+      "Rig calibration%s: %zu cameras, %zu triggers, %zu points (%d seen by several cameras, %d by "
+      "one camera X alone), %lld observations, RMSE %.3f px; Ceres %d iterations %.1f s, cost %.4e "
+      "-> %.4e, %s%s",
+      non_rigid ? " (non-rigid)" : "", cameras.size(), trajectory.size(), map.points.size(),
+      shared_points, own_points, observations, rmse_px, iterations, solver_seconds, initial_cost,
+      final_cost, termination.c_str(), usable ? "" : ", NOT USABLE (see flags)");
 }
 
 std::string RigCalibrationResult::CameraReport() const {
@@ -180,9 +183,16 @@ std::string RigCalibrationResult::CameraReport() const {
     text += RigFormat(
         "camera %zu (%s): f_L %.4f mm (sd %.2g), b_L0 %.4f mm (sd %.2g), B %.5f mm (sd %.2g), c "
         "(%.2f, %.2f) px (sd %.2g, %.2g); %lld observations, %d plate corners, RMSE %.3f px",
-        c, r.serial.c_str(), k[0], r.std_dev[0], k[1], r.std_dev[1], k[2], r.std_dev[2], k[3],
-        k[4], r.std_dev[3], r.std_dev[4], r.observations, r.plate_corners, r.rmse_px);
-    if (c > 0) {
+        c, r.serial.c_str(), k[0], r.std_dev[0], k[1], r.std_dev[1], k[2], r.std_dev[2], k[3], k[4],
+        r.std_dev[3], r.std_dev[4], r.observations, r.plate_corners, r.rmse_px);
+    if (c > 0 && non_rigid) {
+      text += RigFormat(
+          "; placed at %zu triggers (%zu passed the pose checks against the map "
+          "of the cameras before it), robust mean of c0_from_cx t (%.3f, %.3f, "
+          "%.3f) mm, rotation vector (%.5f, %.5f, %.5f) deg",
+          r.per_trigger.size(), r.registered.size(), t.x(), t.y(), t.z(), w.x() * 180 / M_PI,
+          w.y() * 180 / M_PI, w.z() * 180 / M_PI);
+    } else if (c > 0) {
       const Eigen::Matrix<double, 6, 6>& s = r.c0_from_cx_covariance;
       text += RigFormat(
           "; c0_from_cx t (%.3f, %.3f, %.3f) mm (sd %.3f, %.3f, %.3f), rotation vector (%.5f, "
@@ -226,7 +236,8 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
   for (const CalibrationInput& c : cameras) {
     if (!serials.insert(c.serial).second)
       return Error{"rig calibration: camera " + c.serial + " given twice"};
-    if (c.micro_images == nullptr) return Error{"rig calibration: camera " + c.serial + ": no micro images"};
+    if (c.micro_images == nullptr)
+      return Error{"rig calibration: camera " + c.serial + ": no micro images"};
     if (Status s = c.initial.intrinsics.Check(); !s)
       return Error{"rig calibration: camera " + c.serial + ": " + s.error().message};
     if (c.frames.empty()) return Error{"rig calibration: camera " + c.serial + ": no frames"};
@@ -240,7 +251,8 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
   } else {
     say("rig calibration: camera 0 (" + cameras[0].serial + ") alone");
     Expected<CalibrationResult> c = Calibrate(cameras[0], co, progress);
-    if (!c) return Error{"rig calibration: camera 0 (" + cameras[0].serial + "): " + c.error().message};
+    if (!c)
+      return Error{"rig calibration: camera 0 (" + cameras[0].serial + "): " + c.error().message};
     result.camera0 = std::move(*c);
     say(result.camera0.BriefReport());
   }
@@ -262,9 +274,10 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     image_index_of_id[image.image_id] = static_cast<int>(i);
     const auto f = frame_index[0].find(image.frame);
     if (f == frame_index[0].end())
-      return Error{RigFormat("rig calibration: camera 0's calibration has frame %lld, which is "
-                             "not among camera 0's frames",
-                             static_cast<long long>(image.frame))};
+      return Error{
+          RigFormat("rig calibration: camera 0's calibration has frame %lld, which is "
+                    "not among camera 0's frames",
+                    static_cast<long long>(image.frame))};
     if (static_cast<int>(image.keypoints.size()) != cameras[0].frames[f->second].features.size())
       return Error{RigFormat(
           "rig calibration: camera 0's calibration has %zu keypoints in frame %lld, the frame "
@@ -309,9 +322,11 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     lo.frame = frame;
     lo.keypoint = keypoint;
     const Eigen::Vector3d x_v = internal::VirtualPoint(cameras[c].frames[frame], keypoint);
-    if (!internal::MakeMicroImageCost(x_v, *cameras[c].micro_images, pp0[c], lambda0[c],
-                                      co.max_lenses, cameras[c].initial.intrinsics.pixel_size_mm,
-                                      &lenses_seen, &lo.cost))
+    if (!internal::MakeMicroImageCost(
+            x_v, *cameras[c].micro_images, pp0[c], lambda0[c], co.max_lenses,
+            cameras[c].initial.intrinsics.pixel_size_mm, &lenses_seen, &lo.cost,
+            internal::KeypointDepthRange(cameras[c].frames[frame], keypoint) >
+                co.max_keypoint_depth_range))
       return;
     lens.push_back(std::move(lo));
   };
@@ -323,14 +338,32 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
       add_observation(0, trigger_of_frame.at(frame), j, frame_index[0].at(frame), e.keypoint);
     }
 
-  // Step 2: every camera X against camera 0's map.
-  const MapIndex index = MapIndex::Of(map0);
-  std::vector<int> point_of_index;
-  for (int j = 0; j < n_points; ++j)
-    if (map0.points[j].descriptor.size() == static_cast<std::size_t>(kDescriptorSize))
-      point_of_index.push_back(j);
+  // Step 2: every camera X against camera 0's map (non-rigid: the map grown
+  // by the cameras X before it).
+  const bool per_trigger = options.non_rigid;
+  result.non_rigid = per_trigger;
+  MapIndex index;
+  std::vector<int> point_of_index;  // MapIndex order -> index into `points`
+  auto build_index = [&](const ReferenceMap& map) {
+    index = MapIndex::Of(map);
+    point_of_index.clear();
+    for (int j = 0; j < static_cast<int>(map.points.size()); ++j)
+      if (map.points[j].descriptor.size() == static_cast<std::size_t>(kDescriptorSize))
+        point_of_index.push_back(j);
+  };
+  build_index(map0);
+  // Non-rigid: camera 0's map and, in the order of `points`, the points of
+  // the cameras X registered so far (descriptor and start position).
+  ReferenceMap grown;
+  if (per_trigger) grown = map0;
   result.cameras.resize(n_cameras);
-  std::vector<RigPoseBlock> extrinsics(n_cameras);  // c0_from_cx
+  // c0_from_cx: one block per camera (rigid) or one per camera and trigger
+  // (non-rigid); placed[c][t]: camera c has a pose at trigger t.
+  std::vector<std::vector<RigPoseBlock>> extrinsics(
+      n_cameras, std::vector<RigPoseBlock>(per_trigger ? n_triggers : 1));
+  auto block = [&](int c, int t) -> RigPoseBlock& { return extrinsics[c][per_trigger ? t : 0]; };
+  std::vector<std::vector<bool>> placed(n_cameras, std::vector<bool>(n_triggers, !per_trigger));
+  placed[0].assign(n_triggers, true);
   // Points of one camera X alone (after camera 0's): which keypoint made each.
   struct OwnPoint {
     int camera = 0, frame = 0, keypoint = 0;
@@ -339,6 +372,7 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
   for (int c = 1; c < n_cameras; ++c) {
     RigCameraResult& rc = result.cameras[c];
     const processing::CameraModel model(cameras[c].initial.intrinsics);
+    if (per_trigger && c > 1) build_index(grown);
     std::map<std::pair<int, int>, int> matched;  // (frame index, keypoint) -> point
     for (std::size_t f = 0; f < cameras[c].frames.size(); ++f) {
       const CalibrationFrame& frame = cameras[c].frames[f];
@@ -359,17 +393,24 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
       if (!r.estimated) continue;
       for (std::size_t i = 0; i < r.inlier_points.size(); ++i)
         matched[{static_cast<int>(f), r.inlier_queries[i]}] = point_of_index[r.inlier_points[i]];
+      const Pose c0_from_cx = PoseOf(rig[trigger->second]) * r.w0_from_cam.pose;
+      if (per_trigger) {
+        placed[c][trigger->second] = true;
+        extrinsics[c][trigger->second] = BlockOf(c0_from_cx);
+        rc.per_trigger_initial.push_back(FramePose{frame.frame, -1, c0_from_cx});
+      }
       if (!r.success) continue;
-      const Pose c0_from_w0 = PoseOf(rig[trigger->second]);
-      rc.registered.push_back(FramePose{frame.frame, -1, c0_from_w0 * r.w0_from_cam.pose});
+      rc.registered.push_back(FramePose{frame.frame, -1, c0_from_cx});
     }
-    if (static_cast<int>(rc.registered.size()) < options.min_registered_frames)
-      return Error{RigFormat("rig calibration: camera %s: %zu of its frames registered against "
-                             "camera 0's map, at least %d needed",
-                             cameras[c].serial.c_str(), rc.registered.size(),
+    const std::vector<FramePose>& starts = per_trigger ? rc.per_trigger_initial : rc.registered;
+    if (static_cast<int>(starts.size()) < options.min_registered_frames)
+      return Error{RigFormat("rig calibration: camera %s: %zu of its frames %s, at least %d needed",
+                             cameras[c].serial.c_str(), starts.size(),
+                             per_trigger ? "placed by PnP against the map of the cameras before it"
+                                         : "registered against camera 0's map",
                              options.min_registered_frames)};
-    rc.c0_from_cx_initial = RobustMean(rc.registered);
-    extrinsics[c] = BlockOf(rc.c0_from_cx_initial);
+    rc.c0_from_cx_initial = RobustMean(starts);
+    if (!per_trigger) extrinsics[c][0] = BlockOf(rc.c0_from_cx_initial);
 
     // X's own tracks across time (camera 0's initialisation, calibration.h
     // step 2, on X's frames): a track with a keypoint matched to a map point
@@ -390,7 +431,8 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
       std::vector<const internal::Observation*> usable;
       std::set<int> frames_seen;
       for (const internal::Observation& ob : track.observations) {
-        if (!trigger_of_frame.count(cameras[c].frames[ob.frame].frame)) continue;
+        const auto trigger = trigger_of_frame.find(cameras[c].frames[ob.frame].frame);
+        if (trigger == trigger_of_frame.end() || !placed[c][trigger->second]) continue;
         if (!frames_seen.insert(ob.frame).second) continue;
         usable.push_back(&ob);
         if (const auto m = matched.find({ob.frame, ob.keypoint}); m != matched.end())
@@ -410,21 +452,30 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
         const CalibrationFrame& frame = cameras[c].frames[first.frame];
         const Eigen::Vector3d x_v = internal::VirtualPoint(frame, first.keypoint);
         if (!(x_v.z() > 1)) continue;
-        const Pose w0_from_cx = PoseOf(rig[trigger_of_frame.at(frame.frame)]).inverse() *
-                                rc.c0_from_cx_initial;
+        const int t = trigger_of_frame.at(frame.frame);
+        const Pose w0_from_cx = PoseOf(rig[t]).inverse() * PoseOf(block(c, t));
         points.push_back(w0_from_cx * model.BackProject(x_v));
         point = static_cast<int>(points.size()) - 1;
         own_point.push_back({c, first.frame, first.keypoint});
+        if (per_trigger) {
+          // The next cameras match it by this keypoint's descriptor.
+          MapPoint grown_point;
+          grown_point.id = point + 1;
+          grown_point.p_in_w0_mm = points.back();
+          const float* d = frame.features.Descriptor(first.keypoint);
+          grown_point.descriptor.assign(d, d + kDescriptorSize);
+          grown.points.push_back(std::move(grown_point));
+        }
         ++added;
       }
       for (const internal::Observation* ob : usable)
-        if (!matched.count({ob->frame, ob->keypoint}))
-          matched[{ob->frame, ob->keypoint}] = point;
+        if (!matched.count({ob->frame, ob->keypoint})) matched[{ob->frame, ob->keypoint}] = point;
     }
     for (const auto& [at, point] : matched)
       add_observation(c, trigger_of_frame.at(cameras[c].frames[at.first].frame), point, at.first,
                       at.second);
-    say(RigFormat("camera %s: %d tracks of its own joined camera 0's points, %d became points "
+    say(
+        RigFormat("camera %s: %d tracks of its own joined camera 0's points, %d became points "
                   "of its own, %d matched several points (left out)",
                   cameras[c].serial.c_str(), joined, added, conflicting));
   }
@@ -438,12 +489,12 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     const double s = cameras[c].initial.intrinsics.pixel_size_mm;
     for (const CalibrationFrame& frame : cameras[c].frames) {
       const auto trigger = trigger_of_frame.find(frame.frame);
-      if (trigger == trigger_of_frame.end()) continue;
-      const PlateCornerCheck check = CheckPlateCorners(frame.corners, reference, co.plate_corner_check);
+      if (trigger == trigger_of_frame.end() || !placed[c][trigger->second]) continue;
+      const PlateCornerCheck check =
+          CheckPlateCorners(frame.corners, reference, co.plate_corner_check);
       for (std::size_t n = 0; n < frame.corners.size(); ++n) {
-        if (co.reject_plate_corners &&
-            std::find(check.rejected.begin(), check.rejected.end(), static_cast<int>(n)) !=
-                check.rejected.end())
+        if (co.reject_plate_corners && std::find(check.rejected.begin(), check.rejected.end(),
+                                                 static_cast<int>(n)) != check.rejected.end())
           continue;
         CornerObservation ob;
         ob.camera = c;
@@ -458,8 +509,10 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
 
   std::vector<int> constant;
   if (!co.estimate_principal_point) constant.insert(constant.end(), {3, 4});
-  if (!co.estimate_distortion) constant.insert(constant.end(), {5, 6, 7, 8});
-  else if (!co.estimate_tangential_distortion) constant.insert(constant.end(), {7, 8});
+  if (!co.estimate_distortion)
+    constant.insert(constant.end(), {5, 6, 7, 8});
+  else if (!co.estimate_tangential_distortion)
+    constant.insert(constant.end(), {7, 8});
   if (co.recalibrate) constant.insert(constant.end(), {0, 2});
   std::vector<double> inset(n_cameras, cal0.corner_inset_tf_px);
   for (int c = 1; c < n_cameras; ++c) inset[c] = 0;
@@ -470,12 +523,16 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     const RigPoseBlock& p = rig[lo.trigger];
     if (lo.camera == 0)
       return lo.cost(k[0].data(), p.q.data(), p.t.data(), points[lo.point].data(), r->data());
-    const RigPoseBlock& e = extrinsics[lo.camera];
+    const RigPoseBlock& e = block(lo.camera, lo.trigger);
     return RigMicroImageCost{lo.cost}(k[lo.camera].data(), p.q.data(), p.t.data(), e.q.data(),
                                       e.t.data(), points[lo.point].data(), r->data());
   };
 
   std::vector<bool> inlier(lens.size(), true);
+  // The joint solve's covariance of each c0_from_cx block (step 4).
+  std::vector<std::vector<Eigen::Matrix<double, 6, 6>>> extrinsics_covariance(n_cameras);
+  for (int c = 0; c < n_cameras; ++c)
+    extrinsics_covariance[c].assign(extrinsics[c].size(), Eigen::Matrix<double, 6, 6>::Zero());
   ceres::Solver::Summary summary;
   constexpr int kRounds = 3;
   double first_cost = -1;
@@ -497,7 +554,7 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
                                             3>(new MicroImageCost(lo.cost), residuals),
             loss, k[0].data(), p.q.data(), p.t.data(), points[lo.point].data());
       } else {
-        RigPoseBlock& e = extrinsics[lo.camera];
+        RigPoseBlock& e = block(lo.camera, lo.trigger);
         problem.AddResidualBlock(
             new ceres::AutoDiffCostFunction<RigMicroImageCost, ceres::DYNAMIC, kIntrinsicsSize, 4,
                                             3, 4, 3, 3>(new RigMicroImageCost{lo.cost}, residuals),
@@ -516,15 +573,14 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
       RigPoseBlock& p = rig[ob.trigger];
       if (ob.camera == 0) {
         problem.AddResidualBlock(
-            new ceres::AutoDiffCostFunction<PlateCornerCost, ceres::DYNAMIC, kIntrinsicsSize, 4,
-                                            3, 1>(new PlateCornerCost(ob.cost), residuals),
+            new ceres::AutoDiffCostFunction<PlateCornerCost, ceres::DYNAMIC, kIntrinsicsSize, 4, 3,
+                                            1>(new PlateCornerCost(ob.cost), residuals),
             loss, k[0].data(), p.q.data(), p.t.data(), &inset[0]);
       } else {
-        RigPoseBlock& e = extrinsics[ob.camera];
+        RigPoseBlock& e = block(ob.camera, ob.trigger);
         problem.AddResidualBlock(
-            new ceres::AutoDiffCostFunction<RigPlateCornerCost, ceres::DYNAMIC, kIntrinsicsSize,
-                                            4, 3, 4, 3, 1>(new RigPlateCornerCost{ob.cost},
-                                                           residuals),
+            new ceres::AutoDiffCostFunction<RigPlateCornerCost, ceres::DYNAMIC, kIntrinsicsSize, 4,
+                                            3, 4, 3, 1>(new RigPlateCornerCost{ob.cost}, residuals),
             loss, k[ob.camera].data(), p.q.data(), p.t.data(), e.q.data(), e.t.data(),
             &inset[ob.camera]);
       }
@@ -545,7 +601,10 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
           problem.SetParameterBlockConstant(points[j].data());
     for (int c = 0; c < n_cameras; ++c) {
       if (!camera_used[c]) continue;
-      if (c > 0) problem.SetManifold(extrinsics[c].q.data(), new ceres::QuaternionManifold());
+      if (c > 0)
+        for (RigPoseBlock& e : extrinsics[c])
+          if (problem.HasParameterBlock(e.q.data()))
+            problem.SetManifold(e.q.data(), new ceres::QuaternionManifold());
       if (problem.HasParameterBlock(&inset[c])) {
         if (co.estimate_corner_inset) {
           problem.SetParameterLowerBound(&inset[c], 0, -kRigMaxInsetTfPx);
@@ -587,8 +646,9 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     // iterations with steps of 1e-3 and the cost unchanged in 7 digits.
     solver_options.function_tolerance = last ? 1e-7 : 1e-6;
     solver_options.parameter_tolerance = last ? 1e-10 : 1e-8;
-    const std::string stage = RigFormat("rig BA %d/%d%s", round + 1, kRounds,
-                                        x_only ? " (cameras X; camera 0, trajectory, map held)" : "");
+    const std::string stage =
+        RigFormat("rig BA %d/%d%s", round + 1, kRounds,
+                  x_only ? " (cameras X; camera 0, trajectory, map held)" : "");
     say(RigFormat("%s: %d residual blocks, %d parameter blocks", stage.c_str(),
                   problem.NumResidualBlocks(), problem.NumParameterBlocks()));
     struct Callback : ceres::IterationCallback {
@@ -613,6 +673,70 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     if (!summary.IsSolutionUsable())
       return Error{"rig calibration: " + stage + ": " + summary.message};
 
+    if (per_trigger && round < 2) {
+      // Non-rigid: the map points found again in every placed image by its
+      // solved pose (guided_matches.h: within guided_radius_px of the
+      // projection, the ratio test among those, the virtual depth within
+      // 10 % of the predicted): the cross-camera observations that PnP's
+      // inliers against the grown map missed, and the far camera's links to
+      // points placed by its neighbours.
+      for (std::size_t j = 0; j < points.size(); ++j) grown.points[j].p_in_w0_mm = points[j];
+      const MapIndex solved = MapIndex::Of(grown);
+      std::vector<int> solved_point;  // MapIndex order -> index into `points`
+      for (int j = 0; j < static_cast<int>(grown.points.size()); ++j)
+        if (grown.points[j].descriptor.size() == static_cast<std::size_t>(kDescriptorSize))
+          solved_point.push_back(j);
+      std::set<std::tuple<int, int, int>> seen_keypoint, seen_point;  // (camera, frame, kp / point)
+      for (const LensObservation& lo : lens) {
+        seen_keypoint.insert({lo.camera, lo.frame, lo.keypoint});
+        seen_point.insert({lo.camera, lo.frame, lo.point});
+      }
+      const std::size_t before = lens.size();
+      const float ratio2 =
+          static_cast<float>(options.registration.guided_ratio * options.registration.guided_ratio);
+      for (int c = 0; c < n_cameras; ++c) {
+        const processing::CameraModel model(FromVector(k[c], cameras[c].initial.intrinsics));
+        for (std::size_t f = 0; f < cameras[c].frames.size(); ++f) {
+          const CalibrationFrame& frame = cameras[c].frames[f];
+          const auto trigger = trigger_of_frame.find(frame.frame);
+          if (trigger == trigger_of_frame.end() || !placed[c][trigger->second]) continue;
+          const int t = trigger->second;
+          const Pose c0_from_cx = c == 0 ? Pose::Identity() : PoseOf(block(c, t));
+          const Pose cx_from_w0 = c0_from_cx.inverse() * PoseOf(rig[t]);
+          const ProjectedMapGrid grid(
+              solved, model, cx_from_w0, cameras[c].initial.intrinsics.width_px / 2,
+              cameras[c].initial.intrinsics.height_px / 2, options.registration.guided_radius_px);
+          FrameObservations obs;
+          obs.frame = frame.frame;
+          obs.features = frame.features;
+          obs.virtual_depth.assign(frame.virtual_depth.begin(), frame.virtual_depth.end());
+          CompleteObservations(model, &obs);
+          std::map<int, std::pair<float, int>> best_of_point;  // point -> (distance^2, keypoint)
+          for (int kp = 0; kp < obs.features.size(); ++kp) {
+            if (seen_keypoint.count({c, static_cast<int>(f), kp})) continue;
+            float d1 = 0;
+            const int nearest =
+                grid.Nearest(obs.tf_px[kp], obs.features.Descriptor(kp), ratio2, &d1);
+            if (nearest < 0) continue;
+            const double v =
+                kp < static_cast<int>(obs.virtual_depth.size()) ? obs.virtual_depth[kp] : NAN;
+            if (!(std::abs(v / grid.virtual_depth(nearest) - 1) < 0.1)) continue;
+            const auto [it, added] = best_of_point.try_emplace(nearest, d1, kp);
+            if (!added && d1 < it->second.first) it->second = {d1, kp};
+          }
+          for (const auto& [point, best] : best_of_point) {
+            const int j = solved_point[point];
+            if (!seen_point.insert({c, static_cast<int>(f), j}).second) continue;
+            add_observation(c, t, j, static_cast<int>(f), best.second);
+          }
+        }
+      }
+      inlier.resize(lens.size(), true);
+      say(
+          RigFormat("guided re-association: %zu observations added (map points found again "
+                    "in the images by their solved poses)",
+                    lens.size() - before));
+    }
     if (round == 1) {
       // Observations above max(outlier_px, 3 x the median RMS) out.
       std::vector<double> rms(lens.size(), std::numeric_limits<double>::infinity());
@@ -635,7 +759,8 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     if (!last) continue;
 
     // Covariance (rig_calibration.h, step 4).
-    for (RigCameraResult& rc : result.cameras) rc.std_dev.fill(std::numeric_limits<double>::quiet_NaN());
+    for (RigCameraResult& rc : result.cameras)
+      rc.std_dev.fill(std::numeric_limits<double>::quiet_NaN());
     if (!co.covariance) continue;
     std::vector<internal::KeptBlock> kept;
     std::vector<std::vector<int>> free(n_cameras);
@@ -648,12 +773,23 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
         }
       kept.push_back(block);
     }
-    for (int c = 1; c < n_cameras; ++c) {
-      const std::string name = RigFormat("c0_from_c%d", c);
-      kept.push_back({extrinsics[c].q.data(), {name + " rot x", name + " rot y", name + " rot z"}});
-      kept.push_back({extrinsics[c].t.data(), {name + " t x", name + " t y", name + " t z"}});
-    }
-    for (int c = 0; c < n_cameras; ++c) kept.push_back({&inset[c], {RigFormat("camera %d inset", c)}});
+    struct KeptExtrinsics {
+      int camera = 0, block = 0, kept = 0;  // kept: its rotation's index in `kept`
+    };
+    std::vector<KeptExtrinsics> kept_extrinsics;
+    for (int c = 1; c < n_cameras; ++c)
+      for (std::size_t b = 0; b < extrinsics[c].size(); ++b) {
+        RigPoseBlock& e = extrinsics[c][b];
+        if (!problem.HasParameterBlock(e.q.data())) continue;
+        const std::string name = per_trigger ? RigFormat("c0_from_c%d trigger %lld", c,
+                                                         static_cast<long long>(trigger_frame[b]))
+                                             : RigFormat("c0_from_c%d", c);
+        kept_extrinsics.push_back({c, static_cast<int>(b), static_cast<int>(kept.size())});
+        kept.push_back({e.q.data(), {name + " rot x", name + " rot y", name + " rot z"}});
+        kept.push_back({e.t.data(), {name + " t x", name + " t y", name + " t z"}});
+      }
+    for (int c = 0; c < n_cameras; ++c)
+      kept.push_back({&inset[c], {RigFormat("camera %d inset", c)}});
     for (int t = 0; t < n_triggers; ++t) {
       const std::string name = RigFormat("trigger %lld", static_cast<long long>(trigger_frame[t]));
       kept.push_back({rig[t].q.data(), {name + " rot x", name + " rot y", name + " rot z"}});
@@ -690,16 +826,15 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     for (int c = 0; c < n_cameras; ++c)
       for (const int i : free[c])
         result.cameras[c].std_dev[i] = reduced->std_dev[coordinate++] * std::sqrt(variance);
-    for (int c = 1; c < n_cameras; ++c) {
-      const int q_block = n_cameras + 2 * (c - 1);
-      const int fq = reduced->first_coordinate[q_block];
-      const int ft = reduced->first_coordinate[q_block + 1];
+    for (const KeptExtrinsics& ke : kept_extrinsics) {
+      const int fq = reduced->first_coordinate[ke.kept];
+      const int ft = reduced->first_coordinate[ke.kept + 1];
       if (fq < 0 || ft < 0) continue;
       const int at[6] = {fq, fq + 1, fq + 2, ft, ft + 1, ft + 2};
       // Ceres' QuaternionManifold: x + d = [cos|d|, sin|d| d/|d|] x, a
       // rotation by 2|d|: the rotation vector is 2 d.
       const double scale[6] = {2, 2, 2, 1, 1, 1};
-      Eigen::Matrix<double, 6, 6>& s = result.cameras[c].c0_from_cx_covariance;
+      Eigen::Matrix<double, 6, 6>& s = extrinsics_covariance[ke.camera][ke.block];
       for (int a = 0; a < 6; ++a)
         for (int b = 0; b < 6; ++b)
           s(a, b) = reduced->covariance(at[a], at[b]) * scale[a] * scale[b] * variance;
@@ -741,11 +876,24 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     rc.calibration.intrinsics = FromVector(k[c], cameras[c].initial.intrinsics);
     rc.initial = initial[c];
     rc.frames = static_cast<int>(cameras[c].frames.size());
-    rc.c0_from_cx = c == 0 ? Pose::Identity() : PoseOf(extrinsics[c]);
-    if (c == 0) rc.c0_from_cx_initial = Pose::Identity();
+    if (c == 0) {
+      rc.c0_from_cx = Pose::Identity();
+      rc.c0_from_cx_initial = Pose::Identity();
+    } else if (!per_trigger) {
+      rc.c0_from_cx = PoseOf(extrinsics[c][0]);
+      rc.c0_from_cx_covariance = extrinsics_covariance[c][0];
+    } else {
+      for (int t = 0; t < n_triggers; ++t) {
+        if (!placed[c][t]) continue;
+        rc.per_trigger.push_back(FramePose{trigger_frame[t], -1, PoseOf(extrinsics[c][t])});
+        rc.per_trigger_covariance.push_back(extrinsics_covariance[c][t]);
+      }
+      rc.c0_from_cx = RobustMean(rc.per_trigger);
+    }
     rc.rmse_px = camera_m[c] > 0 ? std::sqrt(camera_ss[c] / camera_m[c]) : 0;
     if (!rc.calibration.intrinsics.Check())
-      result.flags.push_back("camera " + rc.serial + ": diverged: its intrinsics left their valid range");
+      result.flags.push_back("camera " + rc.serial +
+                             ": diverged: its intrinsics left their valid range");
     for (int i = 0; i < 3; ++i)
       if (std::abs(k[c][i] / nominal[c][i] - 1) > kRigBound - 1e-3)
         result.flags.push_back(RigFormat("camera %s: diverged: %s reached its bound",
@@ -762,7 +910,8 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
   out = map0;
   const double s0 = cameras[0].initial.intrinsics.pixel_size_mm;
   out.camera.focal_px = (k[0][1] + 2 * k[0][2]) / (2 * s0);
-  out.camera.principal_point_px = (Eigen::Vector2d(k[0][3], k[0][4]) - Eigen::Vector2d(0.5, 0.5)) / 2.0;
+  out.camera.principal_point_px =
+      (Eigen::Vector2d(k[0][3], k[0][4]) - Eigen::Vector2d(0.5, 0.5)) / 2.0;
   const processing::CameraModel model0(result.cameras[0].calibration.intrinsics);
   for (MapImage& image : out.images) {
     const int t = trigger_of_frame.at(image.frame);
@@ -787,7 +936,8 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     result.observers.push_back(observers[j]);
   }
   std::vector<processing::CameraModel> final_models;
-  for (int c = 0; c < n_cameras; ++c) final_models.emplace_back(result.cameras[c].calibration.intrinsics);
+  for (int c = 0; c < n_cameras; ++c)
+    final_models.emplace_back(result.cameras[c].calibration.intrinsics);
   for (std::size_t j = n_points; j < points.size(); ++j) {
     if (observers[j].size() < 2) continue;
     const OwnPoint& made = own_point[j - n_points];
@@ -796,12 +946,13 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     for (const RigCalibrationResult::Observer& o : observers[j]) {
       const CalibrationFrame& seen = cameras[o.camera].frames[frame_index[o.camera].at(o.frame)];
       const Eigen::Vector3d x_v = internal::VirtualPoint(seen, o.keypoint);
-      const Pose w0_from_cam = result.trajectory[trigger_of_frame.at(o.frame)].world_from_cam *
-                               result.cameras[o.camera].c0_from_cx;
+      const int t = trigger_of_frame.at(o.frame);
+      const Pose w0_from_cam = result.trajectory[t].world_from_cam *
+                               (o.camera == 0 ? Pose::Identity() : PoseOf(block(o.camera, t)));
       const processing::CameraModel& model = final_models[o.camera];
-      const Eigen::Matrix3d cov = PlenopticPointCovariance(
-          model, w0_from_cam.inverse() * points[j], co.map_sigma_v_rel * x_v.z(),
-          co.map_sigma_tf_px);
+      const Eigen::Matrix3d cov =
+          PlenopticPointCovariance(model, w0_from_cam.inverse() * points[j],
+                                   co.map_sigma_v_rel * x_v.z(), co.map_sigma_tf_px);
       const Eigen::Matrix3d rot = w0_from_cam.linear();
       const Eigen::Matrix3d info = (rot * cov * rot.transpose()).inverse();
       if (info.allFinite()) information += info;
@@ -835,27 +986,30 @@ std::string RigTruthComparison::Report() const {
   std::string text;
   for (std::size_t c = 0; c < cameras.size(); ++c) {
     const Camera& k = cameras[c];
-    text += RigFormat("camera %zu (%s) vs truth: f_L %+.3f %%, b_L0 %+.3f %%, B %+.3f %%, "
-                      "principal point %.2f px",
-                      c, k.serial.c_str(), 100 * k.f_l_rel, 100 * k.b_l0_rel, 100 * k.b_rel,
-                      k.principal_point_px);
+    text += RigFormat(
+        "camera %zu (%s) vs truth: f_L %+.3f %%, b_L0 %+.3f %%, B %+.3f %%, "
+        "principal point %.2f px",
+        c, k.serial.c_str(), 100 * k.f_l_rel, 100 * k.b_l0_rel, 100 * k.b_rel,
+        k.principal_point_px);
     if (c > 0) {
-      text += RigFormat("; c0_from_cx joint %.3f mm / %.4f deg | registered alone, nominal "
-                        "intrinsics (%d frames): robust mean %.3f mm / %.4f deg, per-frame median "
-                        "%.3f mm / %.4f deg",
-                        k.joint_mm, k.joint_deg, k.registered, k.mean_mm, k.mean_deg,
-                        k.median_mm, k.median_deg);
+      text += RigFormat(
+          "; c0_from_cx joint %.3f mm / %.4f deg | registered alone, nominal "
+          "intrinsics (%d frames): robust mean %.3f mm / %.4f deg, per-frame median "
+          "%.3f mm / %.4f deg",
+          k.joint_mm, k.joint_deg, k.registered, k.mean_mm, k.mean_deg, k.median_mm, k.median_deg);
       if (k.true_registered > 0)
-        text += RigFormat(" | registered alone, true intrinsics (%d frames): robust mean %.3f mm "
-                          "/ %.4f deg, per-frame median %.3f mm / %.4f deg",
-                          k.true_registered, k.true_mean_mm, k.true_mean_deg, k.true_median_mm,
-                          k.true_median_deg);
+        text += RigFormat(
+            " | registered alone, true intrinsics (%d frames): robust mean %.3f mm "
+            "/ %.4f deg, per-frame median %.3f mm / %.4f deg",
+            k.true_registered, k.true_mean_mm, k.true_mean_deg, k.true_median_mm,
+            k.true_median_deg);
     }
     text += "\n";
   }
-  text += RigFormat("gates (f_L, b_L0, B within 0.3 %%, principal point 0.5 px, c0_from_cx 0.2 mm "
-                    "/ 0.01 deg and better than registered alone): %s\n",
-                    GatesMet() ? "met" : "NOT met");
+  text += RigFormat(
+      "gates (f_L, b_L0, B within 0.3 %%, principal point 0.5 px, c0_from_cx 0.2 mm "
+      "/ 0.01 deg and better than registered alone): %s\n",
+      GatesMet() ? "met" : "NOT met");
   return text;
 }
 
@@ -895,7 +1049,8 @@ std::vector<FramePose> RegisterAgainstCamera0(const CalibrationResult& camera0,
     obs.virtual_depth.assign(frame.virtual_depth.begin(), frame.virtual_depth.end());
     CompleteObservations(model, &obs);
     const FrameRegistration r = RegisterFrame(index, model, obs, RegistrationMethod::kPnp, options);
-    if (r.success) out.push_back(FramePose{frame.frame, -1, c0->second.inverse() * r.w0_from_cam.pose});
+    if (r.success)
+      out.push_back(FramePose{frame.frame, -1, c0->second.inverse() * r.w0_from_cam.pose});
   }
   return out;
 }
@@ -905,9 +1060,10 @@ Expected<RigTruthComparison> CompareRigWithTruth(
     const std::vector<Pose>& c0_from_cx_truth,
     const std::vector<std::vector<FramePose>>& registered_with_truth) {
   if (truth.size() != result.cameras.size() || c0_from_cx_truth.size() != result.cameras.size())
-    return Error{RigFormat("rig truth comparison: %zu cameras calibrated, %zu true intrinsics, "
-                           "%zu true c0_from_cx",
-                           result.cameras.size(), truth.size(), c0_from_cx_truth.size())};
+    return Error{
+        RigFormat("rig truth comparison: %zu cameras calibrated, %zu true intrinsics, "
+                  "%zu true c0_from_cx",
+                  result.cameras.size(), truth.size(), c0_from_cx_truth.size())};
   RigTruthComparison out;
   for (std::size_t c = 0; c < result.cameras.size(); ++c) {
     const RigCameraResult& rc = result.cameras[c];

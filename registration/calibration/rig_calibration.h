@@ -44,6 +44,29 @@
 //    exp(w) c0_from_cx), translation (mm, in c0)]. Like the single
 //    calibration's, it treats a keypoint's micro-image residuals as
 //    independent, so it is optimistic.
+//
+// Non-rigid mode (`non_rigid`; `lifmcr calibrate --rig --non-rigid`): the
+// cameras move independently (LiFMCR's sequences), so camera X has a pose
+// c0_from_cx(t) per trigger instead of one, over the same shared map:
+//   p_in_cx = cx_from_c0(t) (c0_from_w0(t) p_in_w0).
+// Step 2 then registers the cameras in the order given, each against the
+// map grown by the cameras before it: camera 0's points and the points of
+// the cameras X before it alone (their tracks across time, back-projected
+// at their first frame, with the descriptor of the keypoint that made
+// them), so a camera that sees little of camera 0's view joins through its
+// neighbours (camera 3 through camera 2's points). Every frame PnP
+// estimated a pose for is placed there, also those the pose checks refused:
+// the pose is only the start of the bundle adjustment, where several
+// cameras' rays fix the points (the refused poses of a far camera are
+// several mm off; each point a chained map adds carries the depth bias of
+// the one observation that placed it, docs/registration.md). A frame PnP
+// could not estimate is left out. Solves (a)-(c) as above, with per-trigger
+// poses; after (a) and after (b) every map point is looked for again in
+// every placed image by its solved pose (guided_matches.h' projected grid,
+// FrameRegistrationOptions' guided radius and ratio, the virtual depth
+// within 10 % of the predicted), the cross-camera observations PnP's inliers
+// missed. The covariance is per trigger. c0_from_cx of a camera X is then
+// the robust mean of its per-trigger poses (a summary, not a mount).
 
 #include "config/error.h"
 #include "config/frames.h"
@@ -71,6 +94,8 @@ struct RigCalibrationOptions {
   // Step 2: the cameras X against camera 0's map.
   FrameRegistrationOptions registration;
   int min_registered_frames = 3;  // frames of a camera X registered, else an error
+                                  // (non_rigid: frames placed, refused poses counted)
+  bool non_rigid = false;         // per-trigger c0_from_cx (above)
   Status Check() const;
 };
 
@@ -87,6 +112,14 @@ struct RigCameraResult {
   // Step 2, per registered frame of camera X: c0_from_cx = c0_from_w0
   // w0_from_cx (FramePose::world_from_cam holds c0_from_cx).
   std::vector<FramePose> registered;
+  // Non-rigid mode, per trigger camera X was placed at (FramePose::
+  // world_from_cam holds c0_from_cx(t)): the joint solve, where step 2
+  // started it (PnP's pose, also when its checks refused it), and the joint
+  // solve's covariance (as c0_from_cx_covariance; zero when not computed).
+  // Empty in the rigid mode and for camera 0.
+  std::vector<FramePose> per_trigger;
+  std::vector<FramePose> per_trigger_initial;
+  std::vector<Eigen::Matrix<double, 6, 6>> per_trigger_covariance;
   int frames = 0;                  // frames given
   long long observations = 0;      // keypoint observations in the final solve
   int plate_corners = 0;           // plate corners in the solve
@@ -94,6 +127,7 @@ struct RigCameraResult {
 };
 
 struct RigCalibrationResult {
+  bool non_rigid = false;                 // RigCalibrationOptions::non_rigid
   CalibrationResult camera0;              // step 1
   std::vector<RigCameraResult> cameras;   // camera 0 first
   std::vector<FramePose> trajectory;      // w0_from_c0 per trigger (joint solve)

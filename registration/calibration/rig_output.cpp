@@ -37,6 +37,23 @@ Status WriteText(const fs::path& path, const std::string& text) {
   return Status::Ok();
 }
 
+// A pose as rig.yaml's `translation_mm`, `rotation_wxyz`, `covariance_rad_mm`
+// lines, indented by `indent`.
+std::string PoseYaml(const Pose& c0_from_cx, const Eigen::Matrix<double, 6, 6>& covariance,
+                     const std::string& indent) {
+  const Eigen::Quaterniond q(c0_from_cx.linear());
+  const Eigen::Vector3d t = c0_from_cx.translation();
+  std::string text =
+      indent + RigOutputFormat("translation_mm: [%.6f, %.6f, %.6f]\n", t.x(), t.y(), t.z());
+  text += indent + RigOutputFormat("rotation_wxyz: [%.12f, %.12f, %.12f, %.12f]\n", q.w(), q.x(),
+                                   q.y(), q.z());
+  text += indent + "covariance_rad_mm: [";
+  for (int a = 0; a < 6; ++a)
+    for (int b = 0; b < 6; ++b)
+      text += RigOutputFormat("%s%.6e", a + b > 0 ? ", " : "", covariance(a, b));
+  return text + "]\n";
+}
+
 std::string RigYaml(const RigCalibrationResult& result) {
   std::string text =
       "# Each camera's pose in the rig, c0_from_cx (maps camera X into camera 0), from\n"
@@ -44,24 +61,24 @@ std::string RigYaml(const RigCalibrationResult& result) {
       "# covariance_rad_mm: row-major 6 x 6 over [rotation vector (rad, left perturbation in\n"
       "# c0), translation (mm, in c0)], scaled by the residual variance (optimistic: the\n"
       "# micro-image residuals of a keypoint are taken as independent).\n"
-      "cameras:\n";
+      "# mount: rigid (one c0_from_cx per camera) or non_rigid (the cameras move\n"
+      "# independently: c0_from_cx per frame, c0_from_cx_per_frame; c0_from_cx is then\n"
+      "# their robust mean, a summary without covariance).\n";
+  text += result.non_rigid ? "mount: non_rigid\n" : "mount: rigid\n";
+  text += "cameras:\n";
   for (std::size_t c = 0; c < result.cameras.size(); ++c) {
     const RigCameraResult& rc = result.cameras[c];
     text += "  - serial: \"" + rc.serial + "\"\n";
     text += c == 0 ? "    role: reference\n" : "    role: registered\n";
     if (c == 0) continue;
-    const Eigen::Quaterniond q(rc.c0_from_cx.linear());
-    const Eigen::Vector3d t = rc.c0_from_cx.translation();
-    text += "    c0_from_cx:\n";
-    text += RigOutputFormat("      translation_mm: [%.6f, %.6f, %.6f]\n", t.x(), t.y(), t.z());
-    text += RigOutputFormat("      rotation_wxyz: [%.12f, %.12f, %.12f, %.12f]\n", q.w(), q.x(),
-                            q.y(), q.z());
-    text += "      covariance_rad_mm: [";
-    for (int a = 0; a < 6; ++a)
-      for (int b = 0; b < 6; ++b)
-        text += RigOutputFormat("%s%.6e", a + b > 0 ? ", " : "", rc.c0_from_cx_covariance(a, b));
-    text += "]\n";
+    text += "    c0_from_cx:\n" + PoseYaml(rc.c0_from_cx, rc.c0_from_cx_covariance, "      ");
     text += RigOutputFormat("      frames_registered: %zu\n", rc.registered.size());
+    if (!result.non_rigid) continue;
+    text += "    c0_from_cx_per_frame:\n";
+    for (std::size_t i = 0; i < rc.per_trigger.size(); ++i) {
+      text += RigOutputFormat("      - frame: %lld\n", static_cast<long long>(rc.per_trigger[i].frame));
+      text += PoseYaml(rc.per_trigger[i].world_from_cam, rc.per_trigger_covariance[i], "        ");
+    }
   }
   return text;
 }
@@ -83,10 +100,23 @@ Status WriteRigCalibration(const fs::path& dir, const RigCalibrationResult& resu
   // has that frame.
   std::map<std::int64_t, int> trigger_of_frame;
   for (int t = 0; t < n_triggers; ++t) trigger_of_frame[result.trajectory[t].frame] = t;
+  // c0_from_cx of camera c at trigger t: its one pose (rigid), else the
+  // triggers it was placed at.
+  std::vector<std::map<int, Pose>> c0_from_cx(n_cameras);
+  for (int c = 0; c < n_cameras; ++c) {
+    const RigCameraResult& rc = result.cameras[c];
+    for (int t = 0; t < n_triggers; ++t)
+      if (!result.non_rigid || c == 0) c0_from_cx[c][t] = rc.c0_from_cx;
+    if (result.non_rigid)
+      for (const FramePose& p : rc.per_trigger)
+        if (const auto t = trigger_of_frame.find(p.frame); t != trigger_of_frame.end())
+          c0_from_cx[c][t->second] = p.world_from_cam;
+  }
   std::vector<std::map<int, int>> frame_of_trigger(n_cameras);  // trigger -> frame index
   for (int c = 0; c < n_cameras; ++c)
     for (std::size_t f = 0; f < cameras[c].frames.size(); ++f)
-      if (const auto t = trigger_of_frame.find(cameras[c].frames[f].frame); t != trigger_of_frame.end())
+      if (const auto t = trigger_of_frame.find(cameras[c].frames[f].frame);
+          t != trigger_of_frame.end() && c0_from_cx[c].count(t->second))
         frame_of_trigger[c][t->second] = static_cast<int>(f);
   auto image_id = [&](int c, int t) { return c * n_triggers + t + 1; };
   // Point ids of the keypoints, per image.
@@ -115,11 +145,18 @@ Status WriteRigCalibration(const fs::path& dir, const RigCalibrationResult& resu
       "# Camera list with one line of data per camera:\n"
       "#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n# Number of cameras: %d\n",
       n_cameras);
+  // Rigid: one rig, camera 0 its reference sensor. Non-rigid: as COLMAP
+  // models cameras without a rig, one rig of one sensor per camera (and
+  // below, one frame per image).
   std::string rigs = RigOutputFormat(
       "# Rig calib list with one line of data per calib:\n"
       "#   RIG_ID, NUM_SENSORS, REF_SENSOR_TYPE, REF_SENSOR_ID, SENSORS[] as (SENSOR_TYPE, "
-      "SENSOR_ID, HAS_POSE, [QW, QX, QY, QZ, TX, TY, TZ])\n# Number of rigs: 1\n1 %d CAMERA 1",
-      n_cameras);
+      "SENSOR_ID, HAS_POSE, [QW, QX, QY, QZ, TX, TY, TZ])\n# Number of rigs: %d\n",
+      result.non_rigid ? n_cameras : 1);
+  if (result.non_rigid)
+    for (int c = 0; c < n_cameras; ++c) rigs += RigOutputFormat("%d 1 CAMERA %d\n", c + 1, c + 1);
+  else
+    rigs += RigOutputFormat("1 %d CAMERA 1", n_cameras);
   std::string images =
       "# Image list with two lines of data per image:\n"
       "#   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n"
@@ -133,13 +170,13 @@ Status WriteRigCalibration(const fs::path& dir, const RigCalibrationResult& resu
                                    rc.calibration.intrinsics.width_px / 2,
                                    rc.calibration.intrinsics.height_px / 2, focal, focal,
                                    (k[3] - 0.5) / 2, (k[4] - 0.5) / 2);
-    if (c > 0) rigs += RigOutputFormat(" CAMERA %d 1 ", c + 1) + ColmapPose(rc.c0_from_cx.inverse());
+    if (c > 0 && !result.non_rigid) rigs += RigOutputFormat(" CAMERA %d 1 ", c + 1) + ColmapPose(rc.c0_from_cx.inverse());
     const processing::CameraModel model(rc.calibration.intrinsics);
     for (const auto& [t, f] : frame_of_trigger[c]) {
       const CalibrationFrame& frame = cameras[c].frames[f];
       const int id = image_id(c, t);
       const Pose cx_from_w0 =
-          rc.c0_from_cx.inverse() * result.trajectory[t].world_from_cam.inverse();
+          c0_from_cx[c].at(t).inverse() * result.trajectory[t].world_from_cam.inverse();
       images += std::to_string(id) + " " + ColmapPose(cx_from_w0) + " " + std::to_string(c + 1) +
                 " " + (frame.name.empty() ? rc.serial + "_" + std::to_string(frame.frame) : frame.name) +
                 "\n";
@@ -157,13 +194,22 @@ Status WriteRigCalibration(const fs::path& dir, const RigCalibrationResult& resu
       images += "\n";
     }
   }
-  rigs += "\n";
+  if (!result.non_rigid) rigs += "\n";
+  int n_images = 0;
+  for (int c = 0; c < n_cameras; ++c) n_images += static_cast<int>(frame_of_trigger[c].size());
   std::string frames = RigOutputFormat(
       "# Frame list with one line of data per frame:\n"
       "#   FRAME_ID, RIG_ID, RIG_FROM_WORLD[QW, QX, QY, QZ, TX, TY, TZ], NUM_DATA_IDS, DATA_IDS[] "
       "as (SENSOR_TYPE, SENSOR_ID, DATA_ID)\n# Number of frames: %d\n",
-      n_triggers);
-  for (int t = 0; t < n_triggers; ++t) {
+      result.non_rigid ? n_images : n_triggers);
+  if (result.non_rigid)  // one frame per image, its camera's rig, rig_from_world = cx_from_w0
+    for (int c = 0; c < n_cameras; ++c)
+      for (const auto& [t, f] : frame_of_trigger[c])
+        frames += RigOutputFormat("%d %d ", image_id(c, t), c + 1) +
+                  ColmapPose(c0_from_cx[c].at(t).inverse() *
+                             result.trajectory[t].world_from_cam.inverse()) +
+                  RigOutputFormat(" 1 CAMERA %d %d\n", c + 1, image_id(c, t));
+  for (int t = 0; t < n_triggers && !result.non_rigid; ++t) {
     int n = 0;
     std::string data;
     for (int c = 0; c < n_cameras; ++c)

@@ -7,7 +7,9 @@
 //              X its `c0_from_cx`: translation_mm [x, y, z], rotation_wxyz
 //              (unit quaternion), covariance_rad_mm (36 numbers, row-major
 //              6 x 6 over [rotation vector rad (left perturbation, in c0),
-//              translation mm]), the frames registered at the start.
+//              translation mm]), the frames registered at the start;
+//              `mount: rigid | non_rigid`; non-rigid: c0_from_cx is the
+//              robust mean of c0_from_cx_per_frame (frame, pose, covariance).
 //   colmap/    the whole rig as a COLMAP (>= 3.12) text model:
 //              cameras.txt  one PINHOLE (TF pinhole, reference_map.h) per camera;
 //              rigs.txt     one rig, camera 0 (CAMERA_ID 1) the reference

@@ -161,5 +161,25 @@ TEST(CliFourCameras, SynthRigidKeepsEveryCameraOnItsMount) {
   }
 }
 
+// `calibrate --rig` on cameras whose ground truth moves them independently
+// (synth without --rigid) refuses before processing a frame and names
+// --non-rigid (apps/cmd_calibrate.cpp).
+TEST(CliFourCameras, CalibrateRigRefusesCamerasMovingIndependentlyWithoutNonRigid) {
+  test::TempDir dir;
+  const test::CommandResult synth =
+      test::RunLifmcr("synth --out " + (dir / "data").string() +
+                      " --preset small --frames 2 --cameras 2 --no-images --quiet");
+  ASSERT_EQ(synth.exit_code, 0) << synth.err;
+  const fs::path seq = dir / "data" / "00_Synthetic" / "Sequence_00";
+  const std::string common = "calibrate " + seq.string() +
+                             " --rig --cameras 40398678,40398673 --initial " +
+                             (seq / "GroundTruth" / "cameras.yaml").string() + " --quiet --out " +
+                             (dir / "rig").string();
+  const test::CommandResult rigid = test::RunLifmcr(common);
+  EXPECT_EQ(rigid.exit_code, 2) << rigid.err;
+  EXPECT_NE(rigid.err.find("the mount is not rigid"), std::string::npos) << rigid.err;
+  EXPECT_NE(rigid.err.find("--rig --non-rigid"), std::string::npos) << rigid.err;
+}
+
 }  // namespace
 }  // namespace lifmcr
