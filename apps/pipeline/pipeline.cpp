@@ -114,10 +114,6 @@ struct Result {
   Job job;
   Expected<ProcessedFrame> processed{Error{"not processed"}};
   std::optional<processing::CameraPose> w0_from_cx;  // the registration stage's pose
-  // Who made it: a worker (its pose published already under lanes; the
-  // worker's token goes on), the lens lane (the per-lens depth and TF
-  // preview) or the depth lane (the dense products).
-  enum class From { kWorker, kLensLane, kDepthLane } from = From::kWorker;
 };
 
 }  // namespace
@@ -294,18 +290,25 @@ struct Pipeline::Impl {
     // Per camera: 1 + the newest Job::camera_order the lane took (OfferTo).
     std::map<int, std::uint64_t> taken_before;
     // Frames the lane took and whose products are not published yet: the
-    // one each thread processes and, of the depth lane, the ones handed to
-    // the publishing node (its thread takes its next frame without waiting
-    // for that publication; the lens lane's threads publish their own).
-    // A flag set when the lane took a frame and cleared when one was
-    // published let WaitIdle return while the lane processed the next: that
-    // frame then reached the publishing node after the graph's nodes were
-    // destroyed (bench_live: segmentation fault, "pure virtual method
-    // called" in the node's body at the run's end).
+    // one each thread processes or publishes (PublishLaneFrame). A count,
+    // not a flag set when the lane took a frame and cleared when one was
+    // published: the flag let WaitIdle return while the lane processed the
+    // next (when the publishing node published the lanes' frames, that
+    // frame reached it after the graph's nodes were destroyed: bench_live,
+    // segmentation fault at the run's end).
     int held = 0;
     bool stop = false;
     std::vector<std::unique_ptr<tbb::task_arena>> arenas;  // one per thread
     std::vector<std::thread> threads;
+    // What a frame the lane published counts (PublishLaneFrame).
+    struct Counts {
+      std::uint64_t PipelineReport::*published;  // report_mutex
+      std::uint64_t PipelineReport::*failed;     // report_mutex
+      const char* what;                          // the error's prefix in last_error
+      LatencyWindow* latency;  // frame arrival -> published (report_mutex); null: none
+    };
+    const Counts counts;
+    explicit Lane(Counts c) : counts(c) {}
   };
   // The per-lens depth and TF preview of every frame taken (the ones the
   // workers localised once their pose is out, the ones they skip when a
@@ -325,8 +328,10 @@ struct Pipeline::Impl {
   // and the extrinsics fell (medium, quiet: 2.65 against 4.4-4.8 per second
   // per camera). Each frame is counted: lens processed, skipped (replaced
   // by its camera's newer frame) or failed.
-  Lane lens_lane;
-  Lane depth_lane;  // the dense map, at the lowest priority: depth takes what is left
+  Lane lens_lane{{&PipelineReport::lens_frames, &PipelineReport::lens_failed,
+                  "per-lens depth: ", &lens_latency}};
+  // The dense map, at the lowest priority: depth takes what is left.
+  Lane depth_lane{{&PipelineReport::depth_processed, &PipelineReport::depth_failed, "", nullptr}};
 
   // Offers `offer` to `lane`: of it and a frame of its camera waiting
   // there, the newer (Job::camera_order) waits, the other is skipped
@@ -374,13 +379,41 @@ struct Pipeline::Impl {
     return offer;
   }
 
-  // A lane's frame published (its thread or the publishing node): no longer held.
-  static void Published(Lane& lane) {
+  // A lane's frame, on the lane's thread: its products published and
+  // counted (the lane's frames or failures, and every message by kind),
+  // then no longer held. Not through the graph's publishing node: that node
+  // runs on the workers, so while both relocalised (300-450 ms at medium) a
+  // per-lens depth or a dense map already computed waited for one of them.
+  // Publisher::PublishFrame takes the bus's lock for each message.
+  void PublishLaneFrame(Lane& lane, const Result& result) {
+    const Job& job = result.job;
+    if (!result.processed) {
+      std::lock_guard r(report_mutex);
+      ++(report.*lane.counts.failed);
+      report.last_error = job.frame.serial + " frame " + std::to_string(job.frame.frame_id) +
+                          ": " + lane.counts.what + result.processed.error().message;
+    } else {
+      const Publisher::FrameCounts counts = publisher->PublishFrame(
+          FrameMeta{job.frame.serial, job.frame.frame_id, job.trigger_index}, *result.processed);
+      const double to_pub_ms = static_cast<double>(HostRealtimeNs() - job.arrival_ns) / 1e6;
+      std::lock_guard r(report_mutex);
+      ++(report.*lane.counts.published);
+      CountPublished(counts);
+      if (lane.counts.latency) lane.counts.latency->Add(to_pub_ms);
+    }
     {
       std::lock_guard lock(lane.mutex);
       --lane.held;
     }
     lane.cv.notify_all();
+  }
+
+  // A frame's messages by kind (report_mutex held).
+  void CountPublished(const Publisher::FrameCounts& counts) {
+    report.published_previews += counts.previews;
+    report.published_depth += counts.depth;
+    report.published_lens_depth += counts.lens_depth;
+    report.published_tf += counts.tf;
   }
 
   void StartLane(Lane& lane, int threads, int nice, void (Impl::*loop)(tbb::task_arena&)) {
@@ -410,7 +443,7 @@ struct Pipeline::Impl {
   // published; then the frame offered to the depth lane with them.
   void LensLoop(tbb::task_arena& arena) {
     while (std::optional<Impl::Offer> offer = Take(lens_lane)) {
-      Result result{std::move(offer->job), Error{""}, std::nullopt, Result::From::kLensLane};
+      Result result{std::move(offer->job), Error{""}, std::nullopt};
       const auto start = std::chrono::steady_clock::now();
       const double cpu_start = ThreadCpuSeconds();
       arena.execute([&] {
@@ -436,10 +469,7 @@ struct Pipeline::Impl {
       }
       offer.reset();
       OfferTo(depth_lane, std::move(dense), &report.depth_skipped);
-      // Published by this thread, not the graph's publishing node: that
-      // node runs on the workers, so while both relocalised (300-450 ms at
-      // medium) a per-lens depth already computed waited for one of them.
-      PublishLenses(result);
+      PublishLaneFrame(lens_lane, result);
     }
   }
 
@@ -447,7 +477,7 @@ struct Pipeline::Impl {
   // lane's per-lens depth of it.
   void DepthLoop(tbb::task_arena& arena) {
     while (std::optional<Impl::Offer> offer = Take(depth_lane)) {
-      Result result{std::move(offer->job), Error{""}, std::nullopt, Result::From::kDepthLane};
+      Result result{std::move(offer->job), Error{""}, std::nullopt};
       // The lens lane published this frame's per-lens depth already; it
       // seeds the dense map here (no second per-lens estimate).
       const ProcessedFrame* lenses = offer->from_lenses.lenses ? &offer->from_lenses : nullptr;
@@ -461,7 +491,7 @@ struct Pipeline::Impl {
         report.depth_cpu_s = cpu;
         if (lenses != nullptr) ++report.depth_seeded_by_lenses;
       }
-      publish_node->try_put(std::move(result));
+      PublishLaneFrame(depth_lane, result);
     }
   }
 
@@ -550,49 +580,6 @@ struct Pipeline::Impl {
     return result;
   }
 
-  // The lens lane's frame: its per-lens depth and TF preview published (on
-  // the lane's thread: Publisher::PublishFrame takes the bus's lock).
-  void PublishLenses(const Result& result) {
-    const Job& job = result.job;
-    if (!result.processed) {
-      std::lock_guard r(report_mutex);
-      ++report.lens_failed;
-      report.last_error = job.frame.serial + " frame " + std::to_string(job.frame.frame_id) +
-                          ": per-lens depth: " + result.processed.error().message;
-    } else {
-      const Publisher::FrameCounts counts = publisher->PublishFrame(
-          FrameMeta{job.frame.serial, job.frame.frame_id, job.trigger_index}, *result.processed);
-      const double to_pub_ms = static_cast<double>(HostRealtimeNs() - job.arrival_ns) / 1e6;
-      std::lock_guard r(report_mutex);
-      ++report.lens_frames;
-      report.published_lens_depth += counts.lens_depth;
-      report.published_tf += counts.tf;
-      lens_latency.Add(to_pub_ms);
-    }
-    Published(lens_lane);
-  }
-
-  // The depth lane's frame: its products published.
-  void PublishDepth(const Result& result) {
-    const Job& job = result.job;
-    if (!result.processed) {
-      std::lock_guard r(report_mutex);
-      ++report.depth_failed;
-      report.last_error = job.frame.serial + " frame " + std::to_string(job.frame.frame_id) +
-                          ": " + result.processed.error().message;
-    } else {
-      const Publisher::FrameCounts counts = publisher->PublishFrame(
-          FrameMeta{job.frame.serial, job.frame.frame_id, job.trigger_index}, *result.processed);
-      std::lock_guard r(report_mutex);
-      ++report.depth_processed;
-      report.published_previews += counts.previews;
-      report.published_depth += counts.depth;
-      report.published_lens_depth += counts.lens_depth;
-      report.published_tf += counts.tf;
-    }
-    Published(depth_lane);
-  }
-
   // A frame's pose published on its POSE channel and, related to the other
   // cameras' poses of its trigger, as extrinsics; counted. On the worker
   // that localised it (lanes) or the publishing node (block).
@@ -643,8 +630,6 @@ struct Pipeline::Impl {
   }
 
   void RunPublish(Result result) {
-    if (result.from == Result::From::kDepthLane) return PublishDepth(result);
-    if (result.from == Result::From::kLensLane) return PublishLenses(result);
     const Job& job = result.job;
     if (!result.processed) {
       std::lock_guard r(report_mutex);
@@ -659,10 +644,7 @@ struct Pipeline::Impl {
       const double to_pub_ms = static_cast<double>(HostRealtimeNs() - job.arrival_ns) / 1e6;
       std::lock_guard r(report_mutex);
       ++report.processed;
-      report.published_previews += counts.previews;
-      report.published_depth += counts.depth;
-      report.published_lens_depth += counts.lens_depth;
-      report.published_tf += counts.tf;
+      CountPublished(counts);
       process_latency.Add(p.seconds * 1e3);
       publication_latency.Add(to_pub_ms);
     }
@@ -812,9 +794,10 @@ struct Pipeline::Impl {
       depth_lane.slots.clear();
       depth_lane.cv.wait(lock, [&] { return depth_lane.held == 0; });
     }
-    // No put into the graph can come now (the lane holds nothing, no worker
-    // offers): its wait_for_all, which resets the graph's task context
-    // afterwards, never runs beside one (oneTBB documents no concurrent wait).
+    // No put into the graph can come now (no worker offers; the lanes'
+    // threads publish their own frames): its wait_for_all, which resets the
+    // graph's task context afterwards, never runs beside one (oneTBB
+    // documents no concurrent wait).
     graph->wait_for_all();
   }
 
@@ -967,9 +950,9 @@ Pipeline::~Pipeline() {
   if (impl_->lanes) {
     impl_->StopLane(impl_->lens_lane);
     impl_->StopLane(impl_->depth_lane);
-    // Nothing puts into the graph any more: its last tasks end before the
-    // nodes they run in are destroyed (the members, in reverse order).
-    impl_->graph->wait_for_all();
+    // The lanes' threads never put into the graph: WaitIdle's wait_for_all
+    // ended its last tasks before its nodes are destroyed (the members, in
+    // reverse order).
   }
 }
 

@@ -33,10 +33,12 @@
 // camera) whose dense map it seeds: a pose never waits for a depth, its own
 // frame's or another's; the per-lens depth comes for every frame localised
 // where the CPU suffices, the dense depth, TF and previews at the rate
-// processing allows.
-// Either way its poses are grouped per trigger on the publishing node, and once the
-// reference camera (reference_serial) and camera X both have a pose of a
-// trigger, Relate gives c0_from_cx, published on <PREFIX>_<SERIAL>_EXTRINSICS.
+// processing allows. Each lane publishes its products on its own thread as
+// soon as they are computed, never waiting for a worker.
+// Either way its poses are grouped per trigger (on the worker under
+// newest_wins, the publishing node under block), and once the reference
+// camera (reference_serial) and camera X both have a pose of a trigger,
+// Relate gives c0_from_cx, published on <PREFIX>_<SERIAL>_EXTRINSICS.
 // Every pose the stage gives (w0_from_cx, failed ones too) goes out on
 // <PREFIX>_<SERIAL>_POSE as well; a process that holds only some of the rig's
 // cameras (relate = false) publishes those only, and `lifmcr relate`
@@ -46,8 +48,9 @@
 // loop's); a Vicon frame is published on the caller's thread, at once. Poll and Finish from
 // one thread (the command's loop). Frames are processed and published on
 // the pipeline's own TBB arena of `threads` workers at a lower priority
-// (processing_nice). Process-wide settings (allocator, TBB's worker limit)
-// are the command's: process_settings.h.
+// (processing_nice), the lanes' frames on the lanes' threads. Process-wide
+// settings (allocator, TBB's worker limit) are the command's:
+// process_settings.h.
 
 #include "apps/pipeline/frame_processor.h"
 #include "apps/pipeline/publisher.h"

@@ -27,7 +27,8 @@
 // recorded file of the same frame.
 //
 // Threads: any (the pipeline's publishing node, its workers (poses, extrinsics),
-// its lens lane's threads (per-lens depth, TF preview) and its poll): each
+// its lens lane's threads (per-lens depth, TF preview), its depth lane's
+// thread (dense depth, TF image, previews) and its poll): each
 // message goes out under its bus's lock and the counters are atomic;
 // PublishVicon from the Vicon thread. With a URL of its own (UDP multicast)
 // Vicon goes out on an LCM instance of its own, so a Vicon message never

@@ -885,11 +885,12 @@ class NoPoseStage final : public processing::RegistrationStage {
 // Registration first (newest_wins with a stage): a pass's end does not wait
 // for the depth lane's frame (at medium seconds: the replay's cameras stood
 // still that long at every pass of a loop), but Finish waits for every frame
-// the lane holds, including the one it took while its previous frame waited
-// for publication; the lane's frames are all accounted for after Finish.
-// Before the fix Finish returned while the lane processed a frame, which it
-// then handed to the publishing node after the node was destroyed
-// (bench_live: segmentation fault / "pure virtual method called").
+// the lane holds, and the lane's frames are all accounted for after Finish.
+// When the graph's publishing node published the lane's frames, Finish once
+// returned while the lane processed a frame, which then reached the node
+// after it was destroyed (bench_live: segmentation fault / "pure virtual
+// method called"); the lane publishes on its own thread now, and
+// Pipeline's destructor still must not end before the lane's last frame.
 TEST(Pipeline, DepthLaneFramesOutliveAPassNeverThePipeline) {
   for (int round = 0; round < 3; ++round) {
     SCOPED_TRACE("round " + std::to_string(round));
@@ -928,8 +929,7 @@ TEST(Pipeline, DepthLaneFramesOutliveAPassNeverThePipeline) {
       EXPECT_EQ(gate.timed_out, 0);
     }
     // Camera 1's frame 0 published, then camera 0's newest (served least
-    // recently) at once, then the lane takes camera 1's frame 1 while the
-    // others wait for publication.
+    // recently) at once, then the lane takes camera 1's frame 1.
     gate.Release();
     ASSERT_TRUE(gate.WaitUntilHeld(2));
     std::atomic<bool> finished{false};
@@ -1096,11 +1096,13 @@ TEST(Pipeline, RegistrationPairsTheCamerasFramesOfATrigger) {
 // Registration first, newest wins: a frame the workers skip (replaced in
 // their slot by its camera's newer frame) goes to the lens lane at once, so
 // it gets its per-lens depth without a pose while the workers are busy, and
-// every frame taken is counted once in the lens lane. Here both workers hold
-// trigger 0 until trigger 1's frames, skipped for trigger 2's, have their
-// per-lens depth; trigger 0's frames come to the lens lane after those
+// then its dense map in the depth lane; every frame taken is counted once in
+// each lane. Here both workers hold trigger 0 until trigger 1's frames,
+// skipped for trigger 2's, have their per-lens depth and their dense map on
+// LCM (each lane publishes on its own thread: the graph's publishing node
+// runs on the workers); trigger 0's frames come to the lens lane after those
 // (older than a frame it took: skipped there), trigger 2's get theirs.
-TEST(Pipeline, LensLaneTakesTheFramesTheWorkersSkip) {
+TEST(Pipeline, LanesPublishTheFramesTheWorkersSkipWhileTheWorkersAreHeld) {
   test::TempDir dir;
   auto rig = WriteTinyRigFrames(dir.path());
   ASSERT_TRUE(rig.ok()) << rig.error().message;
@@ -1135,10 +1137,14 @@ TEST(Pipeline, LensLaneTakesTheFramesTheWorkersSkip) {
   ASSERT_TRUE(stage->WaitBegan(1, 0));
   add_set(1);  // waits for a worker
   add_set(2);  // replaces trigger 1's frames: those go to the lens lane
-  // The lane publishes its per-lens depth itself: trigger 1's frames have
-  // theirs on LCM while both workers are still held (at nice +15 on a
-  // loaded host the lane waits long for the CPU).
-  for (int k = 0; k < 2400 && pipeline->Report().lens_frames < 2; ++k)
+  // The lanes publish their products themselves: trigger 1's frames have
+  // their per-lens depth and then their dense map on LCM while both workers
+  // are still held (at nice +15 and +19 on a loaded host the lanes wait long
+  // for the CPU).
+  const auto lanes_done = [](const PipelineReport& r) {
+    return r.lens_frames + r.lens_failed >= 2 && r.depth_processed + r.depth_failed >= 2;
+  };
+  for (int k = 0; k < 2400 && !lanes_done(pipeline->Report()); ++k)
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   const PipelineReport before = pipeline->Report();
   EXPECT_EQ(before.localized, 0u) << before.FinalReport();
@@ -1146,11 +1152,20 @@ TEST(Pipeline, LensLaneTakesTheFramesTheWorkersSkip) {
   EXPECT_EQ(before.lens_frames, 2u) << "trigger 1's per-lens depth was not published while the "
                                        "workers were busy\n"
                                     << before.FinalReport();
+  EXPECT_EQ(before.depth_processed, 2u) << "trigger 1's dense map was not published while the "
+                                           "workers were busy\n"
+                                        << before.FinalReport();
+  EXPECT_EQ(before.depth_skipped + before.depth_failed, 0u) << before.FinalReport();
+  EXPECT_EQ(before.published_depth, 2u) << before.FinalReport();
   Drain(bus);
-  for (const std::string& serial : serials)
+  for (const std::string& serial : serials) {
     EXPECT_EQ(received.lens_depth.count({serial, 1}), 1u)
         << serial << ": no per-lens depth of frame 1 while the workers were held\n"
         << before.FinalReport();
+    EXPECT_EQ(received.depth.count({serial, 1}), 1u)
+        << serial << ": no dense map of frame 1 while the workers were held\n"
+        << before.FinalReport();
+  }
   std::atomic<bool> done{false};
   std::thread releaser([&] {
     while (!done) {
@@ -1169,7 +1184,14 @@ TEST(Pipeline, LensLaneTakesTheFramesTheWorkersSkip) {
   EXPECT_EQ(r.lens_failed, 0u) << r.last_error;
   EXPECT_EQ(r.lens_frames + r.lens_skipped + r.lens_failed, r.frames_in) << r.FinalReport();
   EXPECT_EQ(r.published_lens_depth, r.lens_frames) << r.FinalReport();
+  // Every frame the lens lane took went on to the depth lane: published,
+  // skipped (a newer frame of its camera, or still waiting at Finish) or failed.
+  EXPECT_EQ(r.depth_failed, 0u) << r.last_error;
+  EXPECT_EQ(r.depth_processed + r.depth_skipped + r.depth_failed, r.lens_frames + r.lens_failed)
+      << r.FinalReport();
+  EXPECT_EQ(r.published_depth, r.depth_processed) << r.FinalReport();
   Drain(bus);
+  EXPECT_EQ(received.depth.size(), r.depth_processed) << r.FinalReport();
   // Trigger 1's frames (never localised) and trigger 2's have their
   // per-lens depth on LCM.
   for (const std::string& serial : serials)
