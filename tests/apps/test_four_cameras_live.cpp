@@ -14,6 +14,7 @@
 #include "registration/estimators/pose_covariance.h"
 #include "registration/map/poses_csv.h"
 #include "replay/layout.h"
+#include "tests/apps/synthetic_rig_file.h"
 #include "tests/child_process.h"
 #include "tests/lcm_log_marker.h"
 #include "tests/test_util.h"
@@ -154,22 +155,9 @@ TEST(CliFourCamerasLive, ReplayAndRecordPublishEveryCameraAndTheMonitorShowsEach
 
   // The same rig recorded as if from its cameras (replay driver, hardware
   // trigger), published and registered live against the same map.
-  RigConfig rig;
-  rig.name = "four_cameras";
-  for (const auto& [serial, poses] : truth) {
-    CameraConfig camera;
-    camera.serial = serial;
-    camera.name = "cam_" + serial;
-    camera.role = serial == zero ? CameraRole::kReference : CameraRole::kRegistered;
-    camera.driver.kind = DriverKind::kReplay;
-    camera.trigger.mode = TriggerMode::kHardware;
-    camera.mla_file =
-        dir / "data" / "Calibration" / "02_MLA_Calibration" / ("TypeE_" + serial + "_MLA.xml");
-    rig.cameras.push_back(camera);
-  }
-  rig.vicon.source = ViconSourceKind::kCsv;
-  rig.vicon.csv = layout::ViconCsvPath(seq, 1);
-  rig.vicon.vsk = dir / "data" / "Calibration" / "03_Vicon" / "Object.vsk";
+  std::vector<std::string> serials;
+  for (const auto& [serial, poses] : truth) serials.push_back(serial);
+  const RigConfig rig = test::SyntheticReplayRig("four_cameras", dir / "data", seq, serials, zero);
   test::WriteFile(dir / "rig.yaml", FormatRigConfig(rig));
   const fs::path recorded_csv = dir / "recorded_extrinsics.csv";
   const test::CommandResult record = test::RunLifmcr(

@@ -17,6 +17,7 @@
 #include "lcm_types/safe_decode.h"
 #include "replay/layout.h"
 #include "replay/sequence.h"
+#include "tests/apps/synthetic_rig_file.h"
 #include "tests/child_process.h"
 #include "tests/test_util.h"
 
@@ -273,22 +274,7 @@ TEST(MultiHost, TwoHostsAndOneRelateStageMatchTheSingleProcessAndMergeTheirRecor
   EXPECT_NE(view.find(zero + " <- " + x), std::string::npos) << "extrinsics\n" << view;
 
   // Each host records its own camera; the merge is the single-host recording.
-  RigConfig rig;
-  rig.name = "two_hosts";
-  for (const std::string& serial : {zero, x}) {
-    CameraConfig camera;
-    camera.serial = serial;
-    camera.name = "cam_" + serial;
-    camera.role = serial == zero ? CameraRole::kReference : CameraRole::kRegistered;
-    camera.driver.kind = DriverKind::kReplay;
-    camera.trigger.mode = TriggerMode::kHardware;
-    camera.mla_file =
-        dir / "data" / "Calibration" / "02_MLA_Calibration" / ("TypeE_" + serial + "_MLA.xml");
-    rig.cameras.push_back(camera);
-  }
-  rig.vicon.source = ViconSourceKind::kCsv;
-  rig.vicon.csv = layout::ViconCsvPath(seq, 1);
-  rig.vicon.vsk = dir / "data" / "Calibration" / "03_Vicon" / "Object.vsk";
+  const RigConfig rig = test::SyntheticReplayRig("two_hosts", dir / "data", seq, {zero, x}, zero);
   const fs::path rig_path = dir / "rig.yaml";
   test::WriteFile(rig_path, FormatRigConfig(rig));
   const auto record = [&](const std::string& ns, const std::string& out,
