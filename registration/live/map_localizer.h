@@ -160,7 +160,7 @@ struct LocalizerOptions {
   // 0.15-0.55 mm; test_map_localizer). When that fails, at the next frame.
   // In cold_reanchor_rounds rounds, each guided from the last one's pose
   // (0: at the next frame, from its tracked pose, as before).
-  int cold_reanchor_rounds = 2;  // >= 0
+  int cold_reanchor_rounds = 0;  // >= 0
   // Re-anchoring by guided matching (registration/map/guided_matches.h) from the
   // frame's tracked pose; false: by relocalisation.
   bool guided_reanchoring = true;
@@ -184,7 +184,7 @@ struct LocalizerOptions {
   // tracks average fewer than reanchor_every anchors, sooner: after as many
   // triggers as they average (1, 2, 3, ...), so that the first stretch after
   // a relocalisation, which rests on one or two anchors, is short.
-  int reanchor_every = 4;  // >= 0
+  int reanchor_every = 0;  // >= 0
   // A prediction over skipped frames whose tracking failed (for a weak one,
   // no velocity yet or more than two triggers ahead, the patches already got
   // more levels and a larger shift, Track) is corrected by guided matching on a coarse
