@@ -500,32 +500,30 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       double w, wz, wzz;
       int n;
     };
-    auto window = [&](int lx, int ly, int radius) {
+    // The summed-area tables' four corners of the window of `radius` about
+    // (lx, ly), clipped to the estimates' bounding rectangle.
+    struct Corners {
+      std::size_t i11, i01, i10, i00;
+    };
+    auto corners = [&](int lx, int ly, int radius) {
       const int xa = std::clamp(lx - radius, ex0, ex1 + 1) - ex0;
       const int xb = std::clamp(lx + radius + 1, ex0, ex1 + 1) - ex0;
-      const int ya = std::clamp(ly - radius, ey0, ey1 + 1) - ey0;
-      const int yb = std::clamp(ly + radius + 1, ey0, ey1 + 1) - ey0;
-      const std::size_t i11 = static_cast<std::size_t>(yb) * sw_ + xb;
-      const std::size_t i01 = static_cast<std::size_t>(ya) * sw_ + xb;
-      const std::size_t i10 = static_cast<std::size_t>(yb) * sw_ + xa;
-      const std::size_t i00 = static_cast<std::size_t>(ya) * sw_ + xa;
-      return WindowSum{sat_w[i11] - sat_w[i01] - sat_w[i10] + sat_w[i00],
-                       sat_wz[i11] - sat_wz[i01] - sat_wz[i10] + sat_wz[i00],
-                       sat_wzz[i11] - sat_wzz[i01] - sat_wzz[i10] + sat_wzz[i00],
-                       sat_n[i11] - sat_n[i01] - sat_n[i10] + sat_n[i00]};
+      const std::size_t ya = std::clamp(ly - radius, ey0, ey1 + 1) - ey0;
+      const std::size_t yb = std::clamp(ly + radius + 1, ey0, ey1 + 1) - ey0;
+      return Corners{yb * sw_ + xb, ya * sw_ + xb, yb * sw_ + xa, ya * sw_ + xa};
+    };
+    auto window = [&](int lx, int ly, int radius) {
+      const Corners c = corners(lx, ly, radius);
+      return WindowSum{sat_w[c.i11] - sat_w[c.i01] - sat_w[c.i10] + sat_w[c.i00],
+                       sat_wz[c.i11] - sat_wz[c.i01] - sat_wz[c.i10] + sat_wz[c.i00],
+                       sat_wzz[c.i11] - sat_wzz[c.i01] - sat_wzz[c.i10] + sat_wzz[c.i00],
+                       sat_n[c.i11] - sat_n[c.i01] - sat_n[c.i10] + sat_n[c.i00]};
     };
     // Pass 1's window: the count and the sum of z (its w is the count).
     auto window_count = [&](int lx, int ly, int radius) {
-      const int xa = std::clamp(lx - radius, ex0, ex1 + 1) - ex0;
-      const int xb = std::clamp(lx + radius + 1, ex0, ex1 + 1) - ex0;
-      const int ya = std::clamp(ly - radius, ey0, ey1 + 1) - ey0;
-      const int yb = std::clamp(ly + radius + 1, ey0, ey1 + 1) - ey0;
-      const std::size_t i11 = static_cast<std::size_t>(yb) * sw_ + xb;
-      const std::size_t i01 = static_cast<std::size_t>(ya) * sw_ + xb;
-      const std::size_t i10 = static_cast<std::size_t>(yb) * sw_ + xa;
-      const std::size_t i00 = static_cast<std::size_t>(ya) * sw_ + xa;
-      return std::pair<double, int>{sat_wz[i11] - sat_wz[i01] - sat_wz[i10] + sat_wz[i00],
-                                    sat_n[i11] - sat_n[i01] - sat_n[i10] + sat_n[i00]};
+      const Corners c = corners(lx, ly, radius);
+      return std::pair<double, int>{sat_wz[c.i11] - sat_wz[c.i01] - sat_wz[c.i10] + sat_wz[c.i00],
+                                    sat_n[c.i11] - sat_n[c.i01] - sat_n[c.i10] + sat_n[c.i00]};
     };
     auto agrees = [](double z, double sigma, double mean) {
       return std::abs(z - mean) <= std::max(3 * sigma, 0.05 * mean);

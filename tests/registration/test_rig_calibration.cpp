@@ -57,6 +57,33 @@ std::vector<std::string> DataLines(const fs::path& path) {
   return lines;
 }
 
+// Camera `serial`'s calibration input, every frame of `seq` loaded with the
+// processing of `initial`, appended to `inputs`; its loader, which owns the
+// micro images the input points to, to `loaders`; its true poses into `poses`.
+void AddCameraInput(const fs::path& seq, const PlateLayout& plate, const std::string& serial,
+                    const CameraCalibration& initial, std::vector<CalibrationInput>* inputs,
+                    std::vector<std::unique_ptr<CalibrationFrameLoader>>* loaders,
+                    std::vector<FramePose>* poses) {
+  CalibrationInput input;
+  input.serial = serial;
+  input.initial = initial;
+  FrameLoaderOptions loader_options;
+  loader_options.lambda = processing::CameraModel(initial.intrinsics).lambda();
+  auto loader = CalibrationFrameLoader::Open(seq, serial, {}, plate, loader_options);
+  ASSERT_TRUE(loader) << loader.error().message;
+  input.micro_images = &(*loader)->micro_images();
+  for (const std::int64_t f : (*loader)->frames()) {
+    Expected<CalibrationFrame> frame = (*loader)->Load(f);
+    ASSERT_TRUE(frame) << frame.error().message;
+    input.frames.push_back(std::move(*frame));
+  }
+  inputs->push_back(std::move(input));
+  loaders->push_back(std::move(*loader));
+  Expected<std::vector<FramePose>> read = ReadPosesCsv(layout::PosesCsvPath(seq, serial));
+  ASSERT_TRUE(read) << read.error().message;
+  *poses = std::move(*read);
+}
+
 TEST(RigCalibration, JointC0FromCxBeatsEachCameraRegisteredAloneAndColmapHoldsTheRig) {
   test::TempDir dir;
   Expected<synth::SynthParams> params = synth::MakePreset("small");
@@ -91,28 +118,15 @@ TEST(RigCalibration, JointC0FromCxBeatsEachCameraRegisteredAloneAndColmapHoldsTh
     Expected<CameraCalibration> t = ReadCameraCalibration(cameras_yaml, serial);
     ASSERT_TRUE(t) << t.error().message;
     truth.push_back(*t);
-    CalibrationInput input;
-    input.serial = serial;
-    input.initial = *t;
-    if (serial == zero) input.initial.intrinsics.mla_to_main_lens_mm *= 1.10;
-    FrameLoaderOptions loader_options;
-    loader_options.lambda = processing::CameraModel(input.initial.intrinsics).lambda();
-    auto loader = CalibrationFrameLoader::Open(seq, serial, {}, *plate, loader_options);
-    ASSERT_TRUE(loader) << loader.error().message;
-    input.micro_images = &(*loader)->micro_images();
-    for (const std::int64_t f : (*loader)->frames()) {
-      Expected<CalibrationFrame> frame = (*loader)->Load(f);
-      ASSERT_TRUE(frame) << frame.error().message;
-      input.frames.push_back(std::move(*frame));
-    }
-    inputs.push_back(std::move(input));
-    loaders.push_back(std::move(*loader));
-    Expected<std::vector<FramePose>> poses = ReadPosesCsv(layout::PosesCsvPath(seq, serial));
-    ASSERT_TRUE(poses) << poses.error().message;
+    CameraCalibration initial = *t;
+    if (serial == zero) initial.intrinsics.mla_to_main_lens_mm *= 1.10;
+    std::vector<FramePose> poses;
+    AddCameraInput(seq, *plate, serial, initial, &inputs, &loaders, &poses);
+    ASSERT_FALSE(::testing::Test::HasFatalFailure());
     if (world_from_c0.empty())
-      for (const FramePose& p : *poses) world_from_c0[p.frame] = p.world_from_cam;
-    c0_from_cx_truth.push_back(world_from_c0.at(poses->front().frame).inverse() *
-                               poses->front().world_from_cam);
+      for (const FramePose& p : poses) world_from_c0[p.frame] = p.world_from_cam;
+    c0_from_cx_truth.push_back(world_from_c0.at(poses.front().frame).inverse() *
+                               poses.front().world_from_cam);
   }
 
   RigCalibrationOptions options;
@@ -215,28 +229,15 @@ TEST(RigCalibration, NonRigidSharedMapRegistersTheFarCameraBetterThanCamera0sMap
     Expected<CameraCalibration> t = ReadCameraCalibration(cameras_yaml, serial);
     ASSERT_TRUE(t) << t.error().message;
     truth.push_back(*t);
-    CalibrationInput input;
-    input.serial = serial;
-    input.initial = *t;
-    if (serial == serials[0]) input.initial.intrinsics.mla_to_main_lens_mm *= 1.10;
-    FrameLoaderOptions loader_options;
-    loader_options.lambda = processing::CameraModel(input.initial.intrinsics).lambda();
-    auto loader = CalibrationFrameLoader::Open(seq, serial, {}, *plate, loader_options);
-    ASSERT_TRUE(loader) << loader.error().message;
-    input.micro_images = &(*loader)->micro_images();
-    for (const std::int64_t f : (*loader)->frames()) {
-      Expected<CalibrationFrame> frame = (*loader)->Load(f);
-      ASSERT_TRUE(frame) << frame.error().message;
-      input.frames.push_back(std::move(*frame));
-    }
-    inputs.push_back(std::move(input));
-    loaders.push_back(std::move(*loader));
-    Expected<std::vector<FramePose>> poses = ReadPosesCsv(layout::PosesCsvPath(seq, serial));
-    ASSERT_TRUE(poses) << poses.error().message;
+    CameraCalibration initial = *t;
+    if (serial == serials[0]) initial.intrinsics.mla_to_main_lens_mm *= 1.10;
+    std::vector<FramePose> poses;
+    AddCameraInput(seq, *plate, serial, initial, &inputs, &loaders, &poses);
+    ASSERT_FALSE(::testing::Test::HasFatalFailure());
     if (world_from_c0.empty())
-      for (const FramePose& p : *poses) world_from_c0[p.frame] = p.world_from_cam;
+      for (const FramePose& p : poses) world_from_c0[p.frame] = p.world_from_cam;
     if (serial == serials.back())
-      for (const FramePose& p : *poses)
+      for (const FramePose& p : poses)
         c0_from_far[p.frame] = world_from_c0.at(p.frame).inverse() * p.world_from_cam;
   }
 
