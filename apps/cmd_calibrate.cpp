@@ -216,6 +216,12 @@ int RunCalibrate(const CalibrateOptions& o) {
   if (!o.frames.empty())
     if (Expected<std::set<std::int64_t>> wanted = ParseFrameList(o.frames, "--frames"); !wanted)
       return Fail(wanted.error().message, 2);
+  // The options are checked before the frames are processed (minutes of
+  // CPU), so a bad value fails at once.
+  Expected<registration::CalibrationOptions> calibration_options = MakeCalibrationOptions(o);
+  if (!calibration_options) return Fail(calibration_options.error().message, 2);
+  if (Status s = calibration_options->Check(); !s) return Fail(s.error().message, 2);
+  const registration::CalibrationOptions& options = *calibration_options;
   const registration::ProgressFn progress = [&](std::string_view line) {
     if (!o.quiet) std::cerr << line << "\n";
   };
@@ -228,9 +234,6 @@ int RunCalibrate(const CalibrateOptions& o) {
   input.initial = *initial;
   input.micro_images = &camera_frames->loader->micro_images();
   input.frames = std::move(camera_frames->frames);
-  Expected<registration::CalibrationOptions> calibration_options = MakeCalibrationOptions(o);
-  if (!calibration_options) return Fail(calibration_options.error().message, 2);
-  const registration::CalibrationOptions& options = *calibration_options;
   if (o.at_truth) {
     // The bundle adjustment's residuals with the true intrinsics and poses
     // (registration/calibration/calibration_truth.h); no calibration.
@@ -398,6 +401,12 @@ int RunCalibrateRig(const CalibrateOptions& o) {
   const registration::ProgressFn progress = [&](std::string_view line) {
     if (!o.quiet) std::cerr << line << "\n";
   };
+  registration::RigCalibrationOptions options;
+  Expected<registration::CalibrationOptions> calibration_options = MakeCalibrationOptions(o);
+  if (!calibration_options) return Fail(calibration_options.error().message, 2);
+  options.calibration = *calibration_options;
+  options.non_rigid = o.non_rigid;
+  if (Status s = options.Check(); !s) return Fail(s.error().message, 2);  // before the frames
   std::vector<CameraFrames> frames;
   std::vector<registration::CalibrationInput> inputs;
   for (const std::string& serial : serials) {
@@ -421,11 +430,6 @@ int RunCalibrateRig(const CalibrateOptions& o) {
     inputs.push_back(std::move(input));
     frames.push_back(std::move(*loaded));
   }
-  registration::RigCalibrationOptions options;
-  Expected<registration::CalibrationOptions> calibration_options = MakeCalibrationOptions(o);
-  if (!calibration_options) return Fail(calibration_options.error().message, 2);
-  options.calibration = *calibration_options;
-  options.non_rigid = o.non_rigid;
   std::optional<registration::CalibrationResult> camera0;
   if (!o.camera0_calibration.empty()) {
     Expected<registration::ReferenceMap> map = registration::ReadReferenceMap(o.camera0_calibration);

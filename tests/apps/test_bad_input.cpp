@@ -606,6 +606,25 @@ void AddAnswerCases(std::vector<Case>* cases_out) {
                              "1:3,2.8:4,3.8:100"};
                    },
                    {"fitted lattice", "wrote "}, 0});
+  // `lifmcr calibrate` checks its options before it processes a frame (a
+  // minute of CPU per `medium` frame): a bad value fails at once.
+  for (const bool rig : {false, true}) {
+    cases.push_back({std::string("calibrate_bad_option_before_frames") + (rig ? "_rig" : ""),
+                     [rig](const fs::path& dir) -> std::vector<std::string> {
+                       const test::CommandResult synth = test::RunLifmcr(
+                           "synth --out " + (dir / "s").string() +
+                           " --preset small --frames 1 --cameras 2 --quiet");
+                       EXPECT_EQ(synth.exit_code, 0) << synth.err;
+                       const fs::path seq = dir / "s/00_Synthetic/Sequence_00";
+                       std::vector<std::string> args = {
+                           "calibrate", seq.string(), "--initial",
+                           (seq / "GroundTruth/cameras.yaml").string(), "--plate-weight", "0",
+                           "--out", (dir / "cal").string(), "--camera", "40398678"};
+                       if (rig) args.insert(args.end(), {"--rig", "--non-rigid"});
+                       return args;
+                     },
+                     {"plate_weight: expected > 0"}, 2, {"frame 0", "frame 1"}});
+  }
   // `lifmcr depth`: values that left no point, and a frame too small.
   cases.push_back({"depth_mla_zero_depth_range",
                    [r42](const fs::path& dir) -> std::vector<std::string> {
