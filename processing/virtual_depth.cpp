@@ -236,6 +236,9 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
           const std::size_t at = row + std::min(x, nx1);
           __builtin_prefetch(f.grey.data() + at);
           __builtin_prefetch(f.lens_of_pixel.data() + at);
+          __builtin_prefetch(out->virtual_depth.data() + at, 1);
+          __builtin_prefetch(out->sigma_z.data() + at, 1);
+          __builtin_prefetch(out->confidence.data() + at, 1);
         }
         __builtin_prefetch(out->textured.data() + row + nx0, 1);
         __builtin_prefetch(out->textured.data() + row + nx1, 1);
@@ -570,16 +573,26 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
           return inlier[i] ? 1.0 / (static_cast<double>(sg) * sg) : 0.0;
         },
         std::true_type{});
+    // Textured pixels this step leaves without a value and step 5 fills
+    // (its list after the untextured ones): those whose own search failed
+    // (no distinct minimum) and those not searched without enough support;
+    // a searched pixel that disagrees keeps none.
+    const bool fill_on = options.fill_min_support > 0;
     for (int t = 0; t < n_textured; ++t) {
       const std::uint32_t packed = textured_list[t];
       const int lx = static_cast<int>(packed & 0xFFFF), ly = static_cast<int>(packed >> 16);
       const int local = ly * bw + lx;
-      if (search_failed[local]) continue;  // no fill where the search itself failed
+      const std::size_t at = static_cast<std::size_t>(y0 + ly) * w + (x0 + lx);
+      if (search_failed[local]) {  // step 4 gives it nothing; step 5 may
+        if (fill_on) untextured_list[n_untextured++] = at;
+        continue;
+      }
       const float own_z = patch_z[local], own_sigma = patch_sigma[local];
       const bool searched = !std::isnan(own_z);
       const WindowSum ws = window(lx, ly, rad);
       if (ws.n < options.min_support || (searched && !inlier[local])) {
         rejected_count[k] += searched;
+        if (!searched && fill_on) untextured_list[n_untextured++] = at;
         continue;
       }
       const double z = ws.wz / ws.w;
@@ -592,10 +605,9 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       // one takes the fused sigma of its window.
       const double sigma =
           searched ? own_sigma / std::sqrt(static_cast<double>(ws.n)) : std::sqrt(1.0 / ws.w);
-      const std::size_t idx = static_cast<std::size_t>(y0 + ly) * w + (x0 + lx);
-      out->virtual_depth[idx] = static_cast<float>(1.0 / z);
-      out->sigma_z[idx] = static_cast<float>(sigma);
-      out->confidence[idx] =
+      out->virtual_depth[at] = static_cast<float>(1.0 / z);
+      out->sigma_z[at] = static_cast<float>(sigma);
+      out->confidence[at] =
           static_cast<float>(std::clamp(1.0 - (sigma / z) / options.max_rel_sigma, 0.0, 1.0));
       ++estimated_count[k];
     }
@@ -608,16 +620,9 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     // to match there, but a micro image images a small patch of the scene, so
     // where the agreeing estimates around a pixel (pass 2's inliers) are many
     // and lie on one depth, the pixel sees that surface too.
-    if (options.fill_min_support > 0) {
-      // A textured pixel whose own search failed (no distinct minimum) is
-      // filled alike: its surface is the one around it.
-      for (int t = 0; t < n_textured; ++t) {
-        const std::uint32_t packed = textured_list[t];
-        const int lx = static_cast<int>(packed & 0xFFFF), ly = static_cast<int>(packed >> 16);
-        const int local = ly * bw + lx;
-        if (search_failed[local] || (std::isnan(patch_z[local]) && !inlier[local]))
-          untextured_list[n_untextured++] = static_cast<std::size_t>(y0 + ly) * w + (x0 + lx);
-      }
+    // The list holds only pixels without a value (the gate's untextured
+    // ones, and step 4's textured ones it left without): none is read back.
+    if (fill_on) {
       const int fill_radius = options.fill_radius_px > 0 ? options.fill_radius_px : bw + bh;
       // A window of the whole micro image (the default) has the same sums
       // for every pixel: taken once; and without enough support none fills.
@@ -649,7 +654,6 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       float* const vd = out->virtual_depth.data();
       for (int u = 0; u < n_untextured; ++u) {
         const std::size_t at = untextured_list[u];
-        if (!std::isnan(vd[at])) continue;
         Fill fill = whole_fill;
         if (!whole) {
           const int lx = static_cast<int>(at % w) - x0, ly = static_cast<int>(at / w) - y0;
