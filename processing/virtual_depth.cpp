@@ -248,31 +248,6 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     const int y1 = std::min(h - 2, static_cast<int>(std::floor(lens.centre_px.y() + r)));
     const int bw = x1 - x0 + 1, bh = y1 - y0 + 1;
     if (bw <= 0 || bh <= 0) return;
-    // The next micro image (its right neighbour: lenses are in row order)
-    // reads its box rows of the grey, the pixel -> lens map and the textured
-    // map next; each row is a stream of its own (a pitch of 34 rows apart)
-    // that the hardware prefetchers do not follow, so the gate below waited
-    // on them: fetched now, while this micro image is searched.
-    if (k + 1 < static_cast<int>(f.lenses.size())) {
-      const Eigen::Vector2d next = f.lenses[k + 1].centre_px;
-      const int nx0 = std::max(1, static_cast<int>(next.x() - r) - 1);
-      const int nx1 = std::min(w - 2, static_cast<int>(next.x() + r) + 1);
-      const int ny0 = std::max(1, static_cast<int>(next.y() - r) - 1);
-      const int ny1 = std::min(h - 2, static_cast<int>(next.y() + r) + 1);
-      for (int y = ny0; y <= ny1 && nx0 <= nx1; ++y) {
-        const std::size_t row = static_cast<std::size_t>(y) * w;
-        for (int x = nx0; x <= nx1 + 15; x += 16) {
-          const std::size_t at = row + std::min(x, nx1);
-          __builtin_prefetch(f.grey.data() + at);
-          __builtin_prefetch(f.lens_of_pixel.data() + at);
-          __builtin_prefetch(out->virtual_depth.data() + at, 1);
-          __builtin_prefetch(out->sigma_z.data() + at, 1);
-          __builtin_prefetch(out->confidence.data() + at, 1);
-        }
-        __builtin_prefetch(out->textured.data() + row + nx0, 1);
-        __builtin_prefetch(out->textured.data() + row + nx1, 1);
-      }
-    }
     // Seeded: the ring-1 window (header comment); none without a seed of
     // the micro image's own.
     double seed_lo = lo, seed_hi = hi;
@@ -368,6 +343,32 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     for (int t = 0; t < n_textured; ++t) {
       const std::uint32_t packed = textured_list[t];
       textured_map[static_cast<std::size_t>(y0 + (packed >> 16)) * w + x0 + (packed & 0xFFFF)] = 1;
+    }
+    // The next micro image (its right neighbour: lenses are in row order)
+    // reads its box rows of the grey and the pixel -> lens map next and
+    // writes those of the map; each row is a stream of its own (a pitch of 34 rows apart)
+    // that the hardware prefetchers do not follow, so the gate waited on
+    // them: fetched after this gate (not during it, where they compete with
+    // its loads), while this micro image is searched.
+    if (k + 1 < static_cast<int>(f.lenses.size())) {
+      const Eigen::Vector2d next = f.lenses[k + 1].centre_px;
+      const int nx0 = std::max(1, static_cast<int>(next.x() - r) - 1);
+      const int nx1 = std::min(w - 2, static_cast<int>(next.x() + r) + 1);
+      const int ny0 = std::max(1, static_cast<int>(next.y() - r) - 1);
+      const int ny1 = std::min(h - 2, static_cast<int>(next.y() + r) + 1);
+      for (int y = ny0; y <= ny1 && nx0 <= nx1; ++y) {
+        const std::size_t row = static_cast<std::size_t>(y) * w;
+        for (int x = nx0; x <= nx1 + 15; x += 16) {
+          const std::size_t at = row + std::min(x, nx1);
+          __builtin_prefetch(f.grey.data() + at);
+          __builtin_prefetch(f.lens_of_pixel.data() + at);
+          __builtin_prefetch(out->virtual_depth.data() + at, 1);
+          __builtin_prefetch(out->sigma_z.data() + at, 1);
+          __builtin_prefetch(out->confidence.data() + at, 1);
+        }
+        __builtin_prefetch(out->textured.data() + row + nx0, 1);
+        __builtin_prefetch(out->textured.data() + row + nx1, 1);
+      }
     }
     // The searched pixels, in row order (the seeded windows' outcomes so
     // far decide a fallback).
