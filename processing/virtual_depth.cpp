@@ -346,10 +346,10 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     }
     // The next micro image (its right neighbour: lenses are in row order)
     // reads its box rows of the grey and the pixel -> lens map next and
-    // writes those of the map; each row is a stream of its own (a pitch of 34 rows apart)
-    // that the hardware prefetchers do not follow, so the gate waited on
-    // them: fetched after this gate (not during it, where they compete with
-    // its loads), while this micro image is searched.
+    // writes those of the map; each row is a stream of its own (a pitch of
+    // rows apart) that the hardware prefetchers do not follow, so the gate
+    // waited on them: fetched after this gate (not during it, where they
+    // compete with its loads), while this micro image is searched.
     if (k + 1 < static_cast<int>(f.lenses.size())) {
       const Eigen::Vector2d next = f.lenses[k + 1].centre_px;
       const int nx0 = std::max(1, static_cast<int>(next.x() - r) - 1);
