@@ -49,9 +49,38 @@ struct LensWorkspace {
   // box, x + (y << 16).
   std::vector<std::uint32_t> textured_pixels, estimate_pixels;
   std::vector<std::size_t> untextured_pixels;  // frame indices
+  std::vector<std::uint8_t> row_class;         // the gate's class of a row's pixels
   std::vector<double> sat_w, sat_wz, sat_wzz;
   std::vector<std::int32_t> sat_n;
 };
+
+// The texture gate's class of n pixels of a row (g the grey at the first,
+// lens its pixel -> lens map, w the row stride): 0 not micro image k's or
+// invalid, 1 valid with an invalid neighbour (no gradient), 2 untextured,
+// 3 textured (the largest |gx e_x[m] + gy e_y[m]| >= threshold; directions
+// padded with (0, 0) add 0). Without a branch, so the compiler vectorises it
+// (`out` restrict: a byte store may otherwise alias every input).
+void GateRow(const float* g, const std::int32_t* lens, int w, int n, int k,
+             const std::array<float, 6>& e_x, const std::array<float, 6>& e_y, float threshold,
+             std::uint8_t* __restrict out) {
+  const float ex0 = e_x[0], ex1 = e_x[1], ex2 = e_x[2], ex3 = e_x[3], ex4 = e_x[4], ex5 = e_x[5];
+  const float ey0 = e_y[0], ey1 = e_y[1], ey2 = e_y[2], ey3 = e_y[3], ey4 = e_y[4], ey5 = e_y[5];
+  for (int i = 0; i < n; ++i) {
+    const float gx = 0.5f * (g[i + 1] - g[i - 1]);
+    const float gy = 0.5f * (g[i + w] - g[i - w]);
+    float g_max = 0;
+    g_max = std::max(g_max, std::abs(gx * ex0 + gy * ey0));
+    g_max = std::max(g_max, std::abs(gx * ex1 + gy * ey1));
+    g_max = std::max(g_max, std::abs(gx * ex2 + gy * ey2));
+    g_max = std::max(g_max, std::abs(gx * ex3 + gy * ey3));
+    g_max = std::max(g_max, std::abs(gx * ex4 + gy * ey4));
+    g_max = std::max(g_max, std::abs(gx * ex5 + gy * ey5));
+    const int own = (lens[i] == k) & (g[i] == g[i]);
+    const int grad_ok = (gx == gx) & (gy == gy);
+    const int textured = grad_ok & (g_max >= threshold);
+    out[i] = static_cast<std::uint8_t>(own * (1 + grad_ok + textured));
+  }
+}
 
 }  // namespace
 
@@ -273,10 +302,23 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     const double min_gradient = options.min_gradient_dn;
     std::array<float, 6> e_x1{}, e_y1{};  // the ring-1 baselines' directions
     for (int m = 0; m < ring1_count; ++m) e_x1[m] = nbs[m].e_x, e_y1[m] = nbs[m].e_y;
+    // The gate (textured: some ring-1 baseline with enough gradient along
+    // it), row by row over the chord of the disc (plus a pixel either side
+    // for rounding; the pixel -> lens map decides) in two loops: the class
+    // of each pixel without a branch (0 not this micro image's or invalid,
+    // 1 valid with an invalid neighbour, 2 untextured, 3 textured; the
+    // compiler vectorises it), then the pixel lists written without a
+    // branch per pixel. The ring-1 directions are padded to 6 with (0, 0),
+    // which adds |0| to the maximum: the same gate as over the present
+    // ones. The float threshold is the least float >= min_gradient_dn, so
+    // g >= it exactly where g >= min_gradient_dn.
+    float min_gradient_f = static_cast<float>(min_gradient);
+    if (static_cast<double>(min_gradient_f) < min_gradient)
+      min_gradient_f = std::nextafter(min_gradient_f, std::numeric_limits<float>::infinity());
+    if (wk.row_class.size() < static_cast<std::size_t>(bw) + 2) wk.row_class.resize(bw + 2);
+    std::uint8_t* const row_class = wk.row_class.data();
     long long n_valid = 0;
     for (int y = y0; y <= y1; ++y) {
-      // Only the row's chord of the disc (plus a pixel either side for
-      // rounding; the map decides).
       const double dy = y - lens.centre_px.y(), chord2 = r * r - dy * dy;
       if (chord2 < 0) continue;
       const double half = std::sqrt(chord2);
@@ -285,150 +327,180 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       const std::size_t row = static_cast<std::size_t>(y) * w;
       const float* const g_row = grey_px + row;
       const std::int32_t* const lens_row = lens_of + row;
-      for (int x = xa; x <= xb; ++x) {
-        if (lens_row[x] != k || std::isnan(g_row[x])) continue;
-        const std::size_t idx = row + x;
-        ++n_valid;
-        // Gradient gate along each ring-1 direction.
-        const float gx = 0.5f * (g_row[x + 1] - g_row[x - 1]);
-        const float gy = 0.5f * (g_row[x + w] - g_row[x - w]);
-        if (std::isnan(gx) || std::isnan(gy)) continue;
-        // Textured: some ring-1 baseline with enough gradient along it (the
-        // largest, without a branch per baseline: most pixels stop here).
-        float g_max = 0;
-        for (int m = 0; m < ring1_count; ++m)
-          g_max = std::max(g_max, std::abs(gx * e_x1[m] + gy * e_y1[m]));
-        if (!(g_max >= min_gradient)) {
-          untextured_list[n_untextured++] = idx;
-          continue;
-        }
-        textured_map[idx] = 1;
-        const int local = (y - y0) * bw + (x - x0);
-        const std::uint32_t packed = static_cast<std::uint32_t>((x - x0) | ((y - y0) << 16));
-        textured_list[n_textured++] = packed;
-        // Searched pixels: all, or a checkerboard (the others are filled by
-        // the regularisation from their searched neighbours).
-        if (seeded) {
-          if (x % seed_stride != 0 || y % seed_stride != 0) continue;
-        } else if (stride == 2 && ((x + y) & 1)) {
-          continue;
-        }
-        // Ring-1 baselines ordered by the gradient along them (the most
-        // informative first); at most max_ring1 of them are searched.
-        std::array<std::pair<float, int>, 6> order;
-        int gated = 0;
-        for (int m = 0; m < ring1_count; ++m) {
-          const float g = std::abs(gx * nbs[m].e_x + gy * nbs[m].e_y);
-          if (g >= options.min_gradient_dn) order[gated++] = {g, m};
-        }
-        for (int i = 1; i < gated; ++i)  // insertion sort, descending (at most 6)
-          for (int j = i; j > 0 && order[j - 1].first < order[j].first; --j)
-            std::swap(order[j - 1], order[j]);
-        gated = std::min(gated, seeded ? options.seed_max_ring1 : options.max_ring1);
-        search_failed[local] = 1;  // until an estimate passes
-        Estimates estimates;
-        // Reference patches per axis, sampled along the unflipped direction;
-        // a flipped neighbour reads it reversed ((a, b) -> (-a, -b)).
-        std::array<std::int8_t, 6> patch_state{};  // 0 not yet, 1 valid, 2 invalid
-        std::array<std::array<float, kSamples>, 6> patch_cache;
-        std::array<double, 6> g2_cache;
-        // one_line: a 5 x 1 patch (the seeded window's ring-1 search).
-        auto match = [&](const detail::MatchParams& params, const Neighbour& nb, double z0,
-                         double z1, bool one_line = false) {
-          std::array<float, kSamples>& cached = patch_cache[nb.axis];
-          if (patch_state[nb.axis] == 0) {
-            const float e_x = nb.flipped ? -nb.e_x : nb.e_x;
-            const float e_y = nb.flipped ? -nb.e_y : nb.e_y;
-            const bool ok =
-                detail::SampleReference(grey, w, h, static_cast<float>(x), static_cast<float>(y),
-                                        e_x, e_y, cx, cy, ref_r2, cached.data());
-            patch_state[nb.axis] = ok ? 1 : 2;
-            g2_cache[nb.axis] = ok ? detail::PatchGradient2(cached.data()) : 0.0;
-          }
-          if (patch_state[nb.axis] != 1) return;
-          if (one_line) {
-            // The patch's middle line (b = 0: the same samples as a 5 x 1
-            // patch), reversed for a flipped neighbour.
-            float ref1[kAlong];
-            for (int m = 0; m < kAlong; ++m)
-              ref1[m] = nb.flipped ? cached[kAlong + kAlong - 1 - m] : cached[kAlong + m];
-            Estimate e;
-            if (detail::MatchAlong<1>(params, grey, w, h, f.radius_px, static_cast<float>(x),
-                                      static_cast<float>(y), ref1,
-                                      detail::PatchGradient2<1>(cached.data() + kAlong), nb, z0,
-                                      z1, &e))
-              estimates.Add(e);
-            return;
-          }
-          for (int m = 0; m < kSamples; ++m)
-            ref[m] = nb.flipped ? cached[kSamples - 1 - m] : cached[m];
-          const double g2 = g2_cache[nb.axis];
-          Estimate e;
-          bool found = false;
-          if (options.equalise_defocus) {
-            // The equalised search also reads the reference micro image.
-            detail::MatchParams with_ref = params;
-            with_ref.ref_type = lens.type;
-            with_ref.ref_cx = cx;
-            with_ref.ref_cy = cy;
-            found = detail::MatchAlong<detail::kAcross, true>(
-                with_ref, grey, w, h, f.radius_px, static_cast<float>(x), static_cast<float>(y),
-                ref, g2, nb, z0, z1, &e);
-          } else {
-            found = detail::MatchAlong(params, grey, w, h, f.radius_px, static_cast<float>(x),
-                                       static_cast<float>(y), ref, g2, nb, z0, z1, &e);
-          }
-          if (found) estimates.Add(e);
-        };
-        ++searched_count[k];
-        for (int q = 0; q < gated; ++q)
-          match(seeded ? narrow : search, nbs[order[q].second], seed_lo, seed_hi,
-                seeded && seed_ring1_lines == 1);
-        if (seeded) {
-          ++seeded_count[k];
-          // No clear minimum in the window (its least cost on the edge, or
-          // not distinct): the same baselines over the whole range, while
-          // the micro image's windows have missed at least twice as often
-          // as they found one (header comment).
-          if (estimates.n == 0) {
-            ++narrow_missed;
-            if (narrow_missed >= 2 * narrow_found) {
-              ++fallback_count[k];
-              for (int q = 0; q < gated; ++q) match(search, nbs[order[q].second], lo, hi);
-            }
-          } else {
-            ++narrow_found;
-          }
-        }
-        double z = 0, sigma = 0;
-        int used = Fuse(estimates, &z, &sigma);
-        const bool have_prior = used > 0;
-        // Longer baselines, searched around the current estimate (the whole
-        // range when the short ones gave none).
-        std::array<std::pair<float, int>, 6> order2;
-        int gated2 = 0;
-        for (int m = ring1_count; m < count; ++m) {
-          const float g = std::abs(gx * nbs[m].e_x + gy * nbs[m].e_y);
-          if (g >= options.min_gradient_dn) order2[gated2++] = {g, m};
-        }
-        for (int i = 1; i < gated2; ++i)  // insertion sort, descending (at most 6)
-          for (int j = i; j > 0 && order2[j - 1].first < order2[j].first; --j)
-            std::swap(order2[j - 1], order2[j]);
-        gated2 = std::min(gated2, seeded ? options.seed_max_ring2 : options.max_ring2);
-        for (int q = 0; q < gated2; ++q) {
-          const Neighbour& nb = nbs[order2[q].second];
-          const double span = std::max(3 * sigma, 2 * options.step_px / (lambda * nb.length));
-          match(search, nb, have_prior ? std::max(lo, z - span) : lo,
-                have_prior ? std::min(hi, z + span) : hi);
-        }
-        used = Fuse(estimates, &z, &sigma);
-        if (used < options.min_estimates || z <= 0) continue;
-        if (sigma / z > options.max_rel_sigma) continue;
-        patch_z[local] = static_cast<float>(z);
-        patch_sigma[local] = static_cast<float>(sigma);
-        search_failed[local] = 0;
-        estimate_pixels.push_back(packed);
+      const int n_row = xb - xa + 1;
+      GateRow(g_row + xa, lens_row + xa, w, n_row, k, e_x1, e_y1, min_gradient_f, row_class);
+      const std::uint32_t packed_row = static_cast<std::uint32_t>((y - y0) << 16);
+      for (int i = 0; i < n_row; ++i) {
+        const int c = row_class[i];
+        const int x = xa + i;
+        n_valid += c != 0;
+        untextured_list[n_untextured] = row + x;
+        n_untextured += c == 2;
+        textured_list[n_textured] = packed_row | static_cast<std::uint32_t>(x - x0);
+        n_textured += c == 3;
       }
+    }
+    for (int t = 0; t < n_textured; ++t) {
+      const std::uint32_t packed = textured_list[t];
+      textured_map[static_cast<std::size_t>(y0 + (packed >> 16)) * w + x0 + (packed & 0xFFFF)] = 1;
+    }
+    // The next micro image (its right neighbour: lenses are in row order)
+    // reads its box rows of the grey and the pixel -> lens map next and
+    // writes those of the map; each row is a stream of its own (a pitch of
+    // rows apart) that the hardware prefetchers do not follow, so the gate
+    // waited on them: fetched after this gate (not during it, where they
+    // compete with its loads), while this micro image is searched.
+    if (k + 1 < static_cast<int>(f.lenses.size())) {
+      const Eigen::Vector2d next = f.lenses[k + 1].centre_px;
+      const int nx0 = std::max(1, static_cast<int>(next.x() - r) - 1);
+      const int nx1 = std::min(w - 2, static_cast<int>(next.x() + r) + 1);
+      const int ny0 = std::max(1, static_cast<int>(next.y() - r) - 1);
+      const int ny1 = std::min(h - 2, static_cast<int>(next.y() + r) + 1);
+      for (int y = ny0; y <= ny1 && nx0 <= nx1; ++y) {
+        const std::size_t row = static_cast<std::size_t>(y) * w;
+        for (int x = nx0; x <= nx1 + 15; x += 16) {
+          const std::size_t at = row + std::min(x, nx1);
+          __builtin_prefetch(f.grey.data() + at);
+          __builtin_prefetch(f.lens_of_pixel.data() + at);
+          __builtin_prefetch(out->virtual_depth.data() + at, 1);
+          __builtin_prefetch(out->sigma_z.data() + at, 1);
+          __builtin_prefetch(out->confidence.data() + at, 1);
+        }
+        __builtin_prefetch(out->textured.data() + row + nx0, 1);
+        __builtin_prefetch(out->textured.data() + row + nx1, 1);
+      }
+    }
+    // The searched pixels, in row order (the seeded windows' outcomes so
+    // far decide a fallback).
+    for (int t = 0; t < n_textured; ++t) {
+      const std::uint32_t packed = textured_list[t];
+      const int x = x0 + static_cast<int>(packed & 0xFFFF), y = y0 + static_cast<int>(packed >> 16);
+      // Searched pixels: all, or a checkerboard (the others are filled by
+      // the regularisation from their searched neighbours).
+      if (seeded) {
+        if (x % seed_stride != 0 || y % seed_stride != 0) continue;
+      } else if (stride == 2 && ((x + y) & 1)) {
+        continue;
+      }
+      const int local = (y - y0) * bw + (x - x0);
+      const float* const g_row = grey_px + static_cast<std::size_t>(y) * w;
+      const float gx = 0.5f * (g_row[x + 1] - g_row[x - 1]);
+      const float gy = 0.5f * (g_row[x + w] - g_row[x - w]);
+      // Ring-1 baselines ordered by the gradient along them (the most
+      // informative first); at most max_ring1 of them are searched.
+      std::array<std::pair<float, int>, 6> order;
+      int gated = 0;
+      for (int m = 0; m < ring1_count; ++m) {
+        const float g = std::abs(gx * nbs[m].e_x + gy * nbs[m].e_y);
+        if (g >= options.min_gradient_dn) order[gated++] = {g, m};
+      }
+      for (int i = 1; i < gated; ++i)  // insertion sort, descending (at most 6)
+        for (int j = i; j > 0 && order[j - 1].first < order[j].first; --j)
+          std::swap(order[j - 1], order[j]);
+      gated = std::min(gated, seeded ? options.seed_max_ring1 : options.max_ring1);
+      search_failed[local] = 1;  // until an estimate passes
+      Estimates estimates;
+      // Reference patches per axis, sampled along the unflipped direction;
+      // a flipped neighbour reads it reversed ((a, b) -> (-a, -b)).
+      std::array<std::int8_t, 6> patch_state{};  // 0 not yet, 1 valid, 2 invalid
+      std::array<std::array<float, kSamples>, 6> patch_cache;
+      std::array<double, 6> g2_cache;
+      // one_line: a 5 x 1 patch (the seeded window's ring-1 search).
+      auto match = [&](const detail::MatchParams& params, const Neighbour& nb, double z0,
+                       double z1, bool one_line = false) {
+        std::array<float, kSamples>& cached = patch_cache[nb.axis];
+        if (patch_state[nb.axis] == 0) {
+          const float e_x = nb.flipped ? -nb.e_x : nb.e_x;
+          const float e_y = nb.flipped ? -nb.e_y : nb.e_y;
+          const bool ok =
+              detail::SampleReference(grey, w, h, static_cast<float>(x), static_cast<float>(y),
+                                      e_x, e_y, cx, cy, ref_r2, cached.data());
+          patch_state[nb.axis] = ok ? 1 : 2;
+          g2_cache[nb.axis] = ok ? detail::PatchGradient2(cached.data()) : 0.0;
+        }
+        if (patch_state[nb.axis] != 1) return;
+        if (one_line) {
+          // The patch's middle line (b = 0: the same samples as a 5 x 1
+          // patch), reversed for a flipped neighbour.
+          float ref1[kAlong];
+          for (int m = 0; m < kAlong; ++m)
+            ref1[m] = nb.flipped ? cached[kAlong + kAlong - 1 - m] : cached[kAlong + m];
+          Estimate e;
+          if (detail::MatchAlong<1>(params, grey, w, h, f.radius_px, static_cast<float>(x),
+                                    static_cast<float>(y), ref1,
+                                    detail::PatchGradient2<1>(cached.data() + kAlong), nb, z0,
+                                    z1, &e))
+            estimates.Add(e);
+          return;
+        }
+        for (int m = 0; m < kSamples; ++m)
+          ref[m] = nb.flipped ? cached[kSamples - 1 - m] : cached[m];
+        const double g2 = g2_cache[nb.axis];
+        Estimate e;
+        bool found = false;
+        if (options.equalise_defocus) {
+          // The equalised search also reads the reference micro image.
+          detail::MatchParams with_ref = params;
+          with_ref.ref_type = lens.type;
+          with_ref.ref_cx = cx;
+          with_ref.ref_cy = cy;
+          found = detail::MatchAlong<detail::kAcross, true>(
+              with_ref, grey, w, h, f.radius_px, static_cast<float>(x), static_cast<float>(y),
+              ref, g2, nb, z0, z1, &e);
+        } else {
+          found = detail::MatchAlong(params, grey, w, h, f.radius_px, static_cast<float>(x),
+                                     static_cast<float>(y), ref, g2, nb, z0, z1, &e);
+        }
+        if (found) estimates.Add(e);
+      };
+      ++searched_count[k];
+      for (int q = 0; q < gated; ++q)
+        match(seeded ? narrow : search, nbs[order[q].second], seed_lo, seed_hi,
+              seeded && seed_ring1_lines == 1);
+      if (seeded) {
+        ++seeded_count[k];
+        // No clear minimum in the window (its least cost on the edge, or
+        // not distinct): the same baselines over the whole range, while
+        // the micro image's windows have missed at least twice as often
+        // as they found one (header comment).
+        if (estimates.n == 0) {
+          ++narrow_missed;
+          if (narrow_missed >= 2 * narrow_found) {
+            ++fallback_count[k];
+            for (int q = 0; q < gated; ++q) match(search, nbs[order[q].second], lo, hi);
+          }
+        } else {
+          ++narrow_found;
+        }
+      }
+      double z = 0, sigma = 0;
+      int used = Fuse(estimates, &z, &sigma);
+      const bool have_prior = used > 0;
+      // Longer baselines, searched around the current estimate (the whole
+      // range when the short ones gave none).
+      std::array<std::pair<float, int>, 6> order2;
+      int gated2 = 0;
+      for (int m = ring1_count; m < count; ++m) {
+        const float g = std::abs(gx * nbs[m].e_x + gy * nbs[m].e_y);
+        if (g >= options.min_gradient_dn) order2[gated2++] = {g, m};
+      }
+      for (int i = 1; i < gated2; ++i)  // insertion sort, descending (at most 6)
+        for (int j = i; j > 0 && order2[j - 1].first < order2[j].first; --j)
+          std::swap(order2[j - 1], order2[j]);
+      gated2 = std::min(gated2, seeded ? options.seed_max_ring2 : options.max_ring2);
+      for (int q = 0; q < gated2; ++q) {
+        const Neighbour& nb = nbs[order2[q].second];
+        const double span = std::max(3 * sigma, 2 * options.step_px / (lambda * nb.length));
+        match(search, nb, have_prior ? std::max(lo, z - span) : lo,
+              have_prior ? std::min(hi, z + span) : hi);
+      }
+      used = Fuse(estimates, &z, &sigma);
+      if (used < options.min_estimates || z <= 0) continue;
+      if (sigma / z > options.max_rel_sigma) continue;
+      patch_z[local] = static_cast<float>(z);
+      patch_sigma[local] = static_cast<float>(sigma);
+      search_failed[local] = 0;
+      estimate_pixels.push_back(packed);
     }
     valid_count[k] = n_valid;
     textured_count[k] = n_textured;
@@ -548,16 +620,26 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
           return inlier[i] ? 1.0 / (static_cast<double>(sg) * sg) : 0.0;
         },
         std::true_type{});
+    // Textured pixels this step leaves without a value and step 5 fills
+    // (its list after the untextured ones): those whose own search failed
+    // (no distinct minimum) and those not searched without enough support;
+    // a searched pixel that disagrees keeps none.
+    const bool fill_on = options.fill_min_support > 0;
     for (int t = 0; t < n_textured; ++t) {
       const std::uint32_t packed = textured_list[t];
       const int lx = static_cast<int>(packed & 0xFFFF), ly = static_cast<int>(packed >> 16);
       const int local = ly * bw + lx;
-      if (search_failed[local]) continue;  // no fill where the search itself failed
+      const std::size_t at = static_cast<std::size_t>(y0 + ly) * w + (x0 + lx);
+      if (search_failed[local]) {  // step 4 gives it nothing; step 5 may
+        if (fill_on) untextured_list[n_untextured++] = at;
+        continue;
+      }
       const float own_z = patch_z[local], own_sigma = patch_sigma[local];
       const bool searched = !std::isnan(own_z);
       const WindowSum ws = window(lx, ly, rad);
       if (ws.n < options.min_support || (searched && !inlier[local])) {
         rejected_count[k] += searched;
+        if (!searched && fill_on) untextured_list[n_untextured++] = at;
         continue;
       }
       const double z = ws.wz / ws.w;
@@ -570,10 +652,9 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       // one takes the fused sigma of its window.
       const double sigma =
           searched ? own_sigma / std::sqrt(static_cast<double>(ws.n)) : std::sqrt(1.0 / ws.w);
-      const std::size_t idx = static_cast<std::size_t>(y0 + ly) * w + (x0 + lx);
-      out->virtual_depth[idx] = static_cast<float>(1.0 / z);
-      out->sigma_z[idx] = static_cast<float>(sigma);
-      out->confidence[idx] =
+      out->virtual_depth[at] = static_cast<float>(1.0 / z);
+      out->sigma_z[at] = static_cast<float>(sigma);
+      out->confidence[at] =
           static_cast<float>(std::clamp(1.0 - (sigma / z) / options.max_rel_sigma, 0.0, 1.0));
       ++estimated_count[k];
     }
@@ -586,16 +667,9 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     // to match there, but a micro image images a small patch of the scene, so
     // where the agreeing estimates around a pixel (pass 2's inliers) are many
     // and lie on one depth, the pixel sees that surface too.
-    if (options.fill_min_support > 0) {
-      // A textured pixel whose own search failed (no distinct minimum) is
-      // filled alike: its surface is the one around it.
-      for (int t = 0; t < n_textured; ++t) {
-        const std::uint32_t packed = textured_list[t];
-        const int lx = static_cast<int>(packed & 0xFFFF), ly = static_cast<int>(packed >> 16);
-        const int local = ly * bw + lx;
-        if (search_failed[local] || (std::isnan(patch_z[local]) && !inlier[local]))
-          untextured_list[n_untextured++] = static_cast<std::size_t>(y0 + ly) * w + (x0 + lx);
-      }
+    // The list holds only pixels without a value (the gate's untextured
+    // ones, and step 4's textured ones it left without): none is read back.
+    if (fill_on) {
       const int fill_radius = options.fill_radius_px > 0 ? options.fill_radius_px : bw + bh;
       // A window of the whole micro image (the default) has the same sums
       // for every pixel: taken once; and without enough support none fills.
@@ -627,7 +701,6 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       float* const vd = out->virtual_depth.data();
       for (int u = 0; u < n_untextured; ++u) {
         const std::size_t at = untextured_list[u];
-        if (!std::isnan(vd[at])) continue;
         Fill fill = whole_fill;
         if (!whole) {
           const int lx = static_cast<int>(at % w) - x0, ly = static_cast<int>(at / w) - y0;
