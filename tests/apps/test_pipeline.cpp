@@ -42,6 +42,7 @@
 #include <sys/syscall.h>
 #include <functional>
 #include <set>
+#include <sched.h>
 #include <thread>
 #include <unistd.h>
 
@@ -751,6 +752,7 @@ TEST(Pipeline, PerLensDepthAndPreviewForEveryFrameTakenWithRegistrationFirst) {
   // Every frame taken went to the lens lane: its per-lens depth was
   // published there unless a newer frame of its camera replaced it first.
   EXPECT_EQ(r.lens_frames + r.lens_skipped + r.lens_failed, r.frames_in) << r.FinalReport();
+  EXPECT_EQ(r.lens_replaced + r.lens_stale, r.lens_skipped) << r.FinalReport();
   ASSERT_GT(r.lens_frames, 0u) << r.FinalReport();
   // One per-lens map per frame of the lens lane, and a TF image for each of them.
   EXPECT_EQ(r.published_lens_depth, r.lens_frames) << r.FinalReport();
@@ -1184,6 +1186,16 @@ TEST(Pipeline, LanesPublishTheFramesTheWorkersSkipWhileTheWorkersAreHeld) {
   EXPECT_EQ(r.lens_failed, 0u) << r.last_error;
   EXPECT_EQ(r.lens_frames + r.lens_skipped + r.lens_failed, r.frames_in) << r.FinalReport();
   EXPECT_EQ(r.published_lens_depth, r.lens_frames) << r.FinalReport();
+  // Each skipped frame says why: trigger 0's frames reached the lens lane
+  // with their poses, after it had taken trigger 1's (stale); none was
+  // replaced while waiting.
+  EXPECT_EQ(r.lens_replaced + r.lens_stale, r.lens_skipped) << r.FinalReport();
+  EXPECT_EQ(r.lens_stale, 2u) << r.FinalReport();
+  EXPECT_EQ(r.lens_replaced, 0u) << r.FinalReport();
+  EXPECT_NE(r.FinalReport().find("lens lane skipped: 0 replaced by a newer frame of its camera "
+                                 "while the lane was busy, 2 came after a newer frame"),
+            std::string::npos)
+      << r.FinalReport();
   // Every frame the lens lane took went on to the depth lane: published,
   // skipped (a newer frame of its camera, or still waiting at Finish) or failed.
   EXPECT_EQ(r.depth_failed, 0u) << r.last_error;
@@ -1213,6 +1225,9 @@ class LensGatedProcessor final : public FrameProcessor {
     {
       std::lock_guard lock(mutex_);
       dense_given_lenses_ += lenses != nullptr && lenses->lenses ? 1 : 0;
+      // The depth lane's scheduling policy while it computes
+      // (PipelineOptions::depth_idle).
+      dense_policies_.push_back(sched_getscheduler(0));
     }
     return inner_->ProcessDense(frame, lenses);
   }
@@ -1258,6 +1273,10 @@ class LensGatedProcessor final : public FrameProcessor {
     std::lock_guard lock(mutex_);
     return dense_given_lenses_;
   }
+  std::vector<int> dense_policies() {
+    std::lock_guard lock(mutex_);
+    return dense_policies_;
+  }
 
  private:
   std::unique_ptr<DepthProcessor> inner_;
@@ -1265,6 +1284,7 @@ class LensGatedProcessor final : public FrameProcessor {
   std::condition_variable cv_;
   int entered_ = 0, timed_out_ = 0, dense_given_lenses_ = 0;
   std::vector<int> lens_nice_seen_;
+  std::vector<int> dense_policies_;
   bool released_ = false;
 };
 
@@ -1345,6 +1365,9 @@ TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
   EXPECT_GE(r.depth_processed, 1u) << r.FinalReport();
   EXPECT_EQ(r.depth_seeded_by_lenses, r.depth_processed) << r.FinalReport();
   EXPECT_EQ(processor->dense_given_lenses(), static_cast<int>(r.depth_processed));
+  // The dense maps were computed under SCHED_IDLE (depth_idle, the default):
+  // only on CPU the workers and the lens lane leave.
+  for (const int policy : processor->dense_policies()) EXPECT_EQ(policy, SCHED_IDLE);
   pipeline.reset();
   Drain(bus);
   EXPECT_EQ(received.lens_depth.size(), 2u);
