@@ -16,7 +16,8 @@
 # build/apps/lifmcr and build/bench/bench_replay_log built. The logger runs
 # at nice -10 with a 4 MiB receive buffer: a starved logger drops messages,
 # which is not the replay's loss. LIFMCR_GROUP (default 239.255.76.91) and
-# LIFMCR_PORT (default 7691) choose the group.
+# LIFMCR_PORT (default 7691) choose the group; LIFMCR_BINARY another lifmcr
+# (an older build, to compare on the same machine and log counter).
 set -euo pipefail
 # --help: the header above, nothing else run.
 if [[ "${1:-}" == -h || "${1:-}" == --help ]]; then
@@ -30,7 +31,7 @@ fi
 root="$(cd "$(dirname "$0")/.." && pwd)"
 seq_dir="$1" map_dir="$2" out="$3"
 shift 3
-lifmcr="$root/build/apps/lifmcr"
+lifmcr="${LIFMCR_BINARY:-$root/build/apps/lifmcr}"
 counter="$root/build/bench/bench_replay_log"
 for program in "$lifmcr" "$counter"; do
   [[ -x "$program" ]] || { echo "timed_replay.sh: $program not built" >&2; exit 1; }

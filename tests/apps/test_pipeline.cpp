@@ -1373,6 +1373,52 @@ TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
   EXPECT_EQ(received.lens_depth.size(), 2u);
 }
 
+// DepthProcessor::Warm (what a timed replay does before its cameras start):
+// each camera's per-lens estimator and TF sampler made from a frame of it,
+// so the lens lane's first frame of the camera computes only its depth; the
+// per-lens depth of a frame is the same with and without it, and a camera
+// without a chain is an error naming it.
+TEST(Pipeline, WarmMakesACamerasSetUpBeforeItsFirstFrameAndChangesNoProduct) {
+  test::TempDir dir;
+  auto rig = WriteTinyRigFrames(dir.path());
+  ASSERT_TRUE(rig.ok()) << rig.error().message;
+  auto warmed = DepthProcessor::ForSequence(rig->sequence_dir.string(), rig->serials);
+  auto cold = DepthProcessor::ForSequence(rig->sequence_dir.string(), rig->serials);
+  ASSERT_TRUE(warmed.ok() && cold.ok());
+  for (std::size_t c = 0; c < rig->serials.size(); ++c) {
+    Frame frame;
+    frame.serial = rig->serials[c];
+    frame.image = rig->raw[c].View();
+    ASSERT_TRUE((*warmed)->Warm(frame, /*sampler=*/true).ok());
+    processing::CameraChain* camera = (*warmed)->chain().Find(frame.serial);
+    ASSERT_NE(camera, nullptr);
+    // The camera keeps the estimator Warm made: the lane gets that one.
+    auto first = camera->LensEstimator(frame.image);
+    auto again = camera->LensEstimator(frame.image);
+    ASSERT_TRUE(first.ok() && again.ok());
+    EXPECT_EQ(*first, *again);
+    auto a = (*warmed)->ProcessLenses(frame);
+    auto b = (*cold)->ProcessLenses(frame);
+    ASSERT_TRUE(a.ok() && b.ok());
+    ASSERT_TRUE(a->lens_depth && b->lens_depth);
+    ASSERT_EQ(a->lens_depth->depth.values.size(), b->lens_depth->depth.values.size());
+    for (std::size_t k = 0; k < a->lens_depth->depth.values.size(); ++k) {
+      const float x = a->lens_depth->depth.values[k], y = b->lens_depth->depth.values[k];
+      ASSERT_EQ(std::isnan(x), std::isnan(y)) << k;
+      if (!std::isnan(x)) {
+        ASSERT_EQ(x, y) << k;
+      }
+    }
+    EXPECT_EQ(a->tf->bytes, b->tf->bytes);
+  }
+  Frame unknown;
+  unknown.serial = "99999999";
+  unknown.image = rig->raw[0].View();
+  const Status s = (*warmed)->Warm(unknown, false);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().message.find("99999999"), std::string::npos) << s.error().message;
+}
+
 // Covariance of c0_from_cx to first order: with A = exp(a) A_hat, B =
 // exp(b) B_hat, a sampled check against the composition itself.
 TEST(Pipeline, ComposedExtrinsicsCarryTheirCovariance) {
