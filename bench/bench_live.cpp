@@ -40,7 +40,7 @@
 //
 //   bench_live [--preset small|medium|r32] [--frames N (24)] [--seconds S]
 //              [--concurrency N] [--keep DIR] [--runs track,relocalise,depth]
-//              [--lens-nice 0..19 (15)]
+//              [--lens-nice 0..19 (15)] [--depth-idle 0|1 (1)]
 // --keep DIR renders into DIR once and reuses it (same preset and frames)
 // in later runs; DIR is left in place.
 // Goals (2 cores): >= 5 Hz per camera at medium, >= 2 Hz at r32.
@@ -95,6 +95,7 @@ struct Args {
   double seconds = 30;
   int concurrency = 2;
   int lens_nice = 15;  // PipelineOptions::lens_nice
+  int depth_idle = 1;  // PipelineOptions::depth_idle
   std::string keep;  // empty: a temporary folder
   // Which runs (comma-separated): track, relocalise, depth; the ratios need all three.
   bool track = true, relocalise = true, depth = true;
@@ -134,6 +135,8 @@ bool ParseArgs(int argc, char** argv, Args* a) {
       }
     } else if (k == "--concurrency") {
       a->concurrency = static_cast<int>(std::strtol(v.c_str(), &end, 10));
+    } else if (k == "--depth-idle") {
+      a->depth_idle = static_cast<int>(std::strtol(v.c_str(), &end, 10));
     } else if (k == "--lens-nice") {
       a->lens_nice = static_cast<int>(std::strtol(v.c_str(), &end, 10));
     } else {
@@ -142,6 +145,7 @@ bool ParseArgs(int argc, char** argv, Args* a) {
     if (end != nullptr && *end != '\0') return false;
   }
   return a->frames >= 3 && a->seconds > 0 && a->concurrency >= 1 && a->lens_nice >= 0 &&
+         (a->depth_idle == 0 || a->depth_idle == 1) &&
          a->lens_nice <= 19 &&
          (a->track || a->relocalise || a->depth);
 }
@@ -334,6 +338,7 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
   options.pipeline.publisher.bus = &bus;
   options.pipeline.max_concurrency = args.concurrency;
   options.pipeline.lens_nice = args.lens_nice;
+  options.pipeline.depth_idle = args.depth_idle != 0;
   options.intrinsics = {layout::CamerasYamlPath(sequence)};
   if (mode != Mode::kDepthOnly) {
     apps::LiveRegistrationOptions live;
@@ -412,14 +417,15 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
 constexpr char kUsage[] =
     "usage: bench_live [--preset small|medium|r32] [--frames N>=3] [--seconds S]\n"
     "                  [--concurrency N] [--keep DIR] [--runs track,relocalise,depth]\n"
-    "                  [--lens-nice 0..19]\n"
+    "                  [--lens-nice 0..19] [--depth-idle 0|1]\n"
     "Live registration of a synthetic rig (default medium) replayed at its trigger rate\n"
     "through `lifmcr replay --reference`'s path, three runs of --seconds: tracking, every\n"
     "frame relocalised (the baseline) and depth only. Per run: extrinsics per second per\n"
     "camera, frame -> extrinsics latency, and the errors against the ground truth by how\n"
     "each pose was made. --keep DIR renders into DIR once and reuses it; --runs picks\n"
     "some of the three runs (the ratios need all three). --lens-nice: the lens lane's\n"
-    "nice value above the command's (15; the workers run at +10).\n";
+    "nice value above the command's (15; the workers run at +10). --depth-idle 0: the\n"
+    "depth lane computes at nice 19 instead of under SCHED_IDLE (1, the default).\n";
 
 int main(int argc, char** argv) {
   if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
@@ -430,7 +436,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr,
                  "usage: bench_live [--preset small|medium|r32] [--frames N>=3] [--seconds S] "
                  "[--concurrency N] [--keep DIR] [--runs track,relocalise,depth] "
-                 "[--lens-nice 0..19]\n");
+                 "[--lens-nice 0..19] [--depth-idle 0|1]\n");
     return 2;
   }
   auto params = synth::MakePreset(args.preset);
@@ -487,8 +493,10 @@ int main(int argc, char** argv) {
     return 3;
   }
   std::printf("bench_live: preset %s, 2 cameras x %d frames looped at 10 Hz for %.0f s per run, "
-              "%d frames at once, lens lane at nice +%d, map of %zu points, %u hardware threads\n",
+              "%d frames at once, lens lane at nice +%d, depth lane %s, map of %zu points, %u hardware "
+              "threads\n",
               args.preset.c_str(), args.frames, args.seconds, args.concurrency, args.lens_nice,
+              args.depth_idle ? "under SCHED_IDLE" : "at nice 19",
               map->points.size(), std::thread::hardware_concurrency());
   Truth truth;
   for (const std::string& serial : *serials) {

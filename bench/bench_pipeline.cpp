@@ -27,6 +27,12 @@
 //                  [--concurrency N] [--lcm URL] [--vicon-packets N]
 //                  [--vicon-hz HZ] [--udpm URL] [--processing-nice N]
 //                  [--vicon-priority N] [--no-frames] [--no-vicon]
+//                  [--sequence SEQ_DIR] [--no-intrinsics]
+// --sequence: an existing sequence (e.g. `lifmcr synth --preset medium`'s)
+// instead of rendering one; --preset, --frames and --cameras are then its.
+// The processing chain has the sequence's true intrinsics
+// (GroundTruth/cameras.yaml) as in a replay with --reference, so its lambda
+// (the micro-lens centres) is the camera's; --no-intrinsics: lambda 1.
 // Part 1 publishes on --lcm (default memq://; messages are published, not
 // read). The Vicon rate is raised from 80 Hz (default 400) so a run takes
 // seconds; --vicon-hz 80 gives the real rate.
@@ -43,6 +49,7 @@
 #include "drivers/vicon_udp_sender.h"
 #include "drivers/vicon_udp_source.h"
 #include "replay/bmp.h"
+#include "replay/layout.h"
 #include "replay/sequence.h"
 #include "replay/synth/synth_params.h"
 #include "replay/synth/synth_writer.h"
@@ -90,6 +97,12 @@ struct BenchArgs {
   int vicon_priority = lifmcr::RigControllerOptions::kLiveViconPriority;
   bool frame_part = true;
   bool vicon_part = true;
+  // An existing sequence instead of rendering one (its cameras and frames).
+  std::string sequence;
+  // The sequence's true intrinsics (GroundTruth/cameras.yaml): the chain's
+  // lambda (micro-lens centres, processing/plenoptic_frame.h) is the
+  // camera's, as in a replay with --reference; without them it is 1.
+  bool intrinsics = true;
 };
 
 Expected<int> ParseInt(const std::string& option, const std::string& text, int min, int max) {
@@ -109,6 +122,10 @@ Expected<BenchArgs> ParseArgs(int argc, char** argv) {
       (option == "--no-vicon" ? args.vicon_part : args.frame_part) = false;
       continue;
     }
+    if (option == "--no-intrinsics") {
+      args.intrinsics = false;
+      continue;
+    }
     if (k + 1 >= argc) return Error{option + ": expected a value (see the usage at the top)"};
     const std::string value = argv[++k];
     Expected<int> number = 0;
@@ -118,6 +135,8 @@ Expected<BenchArgs> ParseArgs(int argc, char** argv) {
       args.frame_lcm_url = value;
     } else if (option == "--udpm") {
       args.udpm_url = value;
+    } else if (option == "--sequence") {
+      args.sequence = value;
     } else if (option == "--frames") {
       if (!(number = ParseInt(option, value, 1, 100000))) return number.error();
       args.frames = *number;
@@ -178,6 +197,10 @@ int RunFramePart(const BenchArgs& args, const synth::SynthParams& params,
   // Little read-ahead: a frame's arrival is then close to when the pipeline
   // can take it, and the latency measures the pipeline rather than the queue.
   options.pool_buffers = args.concurrency + 1;
+  std::vector<std::filesystem::path> intrinsics;
+  if (args.intrinsics && std::filesystem::exists(layout::CamerasYamlPath(sequence_dir)))
+    intrinsics.push_back(layout::CamerasYamlPath(sequence_dir));
+  options.intrinsics = intrinsics;
   const auto start = Clock::now();
   auto result = apps::RunReplay(options);
   const double pipeline_s = std::chrono::duration<double>(Clock::now() - start).count();
@@ -196,7 +219,8 @@ int RunFramePart(const BenchArgs& args, const synth::SynthParams& params,
   std::vector<std::string> serials;
   for (const auto& c : layout->cameras) serials.push_back(c.serial);
   const auto setup_start = Clock::now();
-  auto processor = apps::DepthProcessor::ForSequence(sequence_dir.string(), serials);
+  auto processor =
+      apps::DepthProcessor::ForSequence(sequence_dir.string(), serials, {}, {}, intrinsics);
   if (!processor) {
     std::fprintf(stderr, "bench_pipeline: %s\n", processor.error().message.c_str());
     return 3;
@@ -204,6 +228,11 @@ int RunFramePart(const BenchArgs& args, const synth::SynthParams& params,
   const double setup_s = std::chrono::duration<double>(Clock::now() - setup_start).count();
   double alone_s = 0, alone_cpu_s = 0;
   int alone_frames = 0;
+  // Per frame, CPU (all threads) split into each camera's first frame (the
+  // chain's set-up: the workspace's geometry, the per-lens estimator's gain
+  // and micro-image map) and the later ones, with the chain's stages (wall).
+  std::vector<double> first_cpu, later_cpu, prepare, seed, search, tf;
+  std::string last_search;  // the dense search's counts on the last frame
   for (const auto& camera : layout->cameras)
     for (std::int64_t f : camera.frames) {
       auto image = ReadBmp(*camera.FramePath(f));
@@ -218,10 +247,19 @@ int RunFramePart(const BenchArgs& args, const synth::SynthParams& params,
       const double cpu0 = ProcessCpuSeconds();
       auto out = (*processor)->Process(frame);
       alone_s += std::chrono::duration<double>(Clock::now() - t0).count();
-      alone_cpu_s += ProcessCpuSeconds() - cpu0;
+      const double cpu = ProcessCpuSeconds() - cpu0;
+      alone_cpu_s += cpu;
       if (!out) {
         std::fprintf(stderr, "bench_pipeline: processing alone: %s\n", out.error().message.c_str());
         return 3;
+      }
+      (f == camera.frames.front() ? first_cpu : later_cpu).push_back(cpu);
+      if (f != camera.frames.front() && out->products) {
+        prepare.push_back(out->products->prepare_s);
+        seed.push_back(out->products->seed_s);
+        search.push_back(out->products->depth_s);
+        tf.push_back(out->products->tf_s);
+        last_search = out->products->raw_depth.stats.BriefReport();
       }
       ++alone_frames;
     }
@@ -230,9 +268,11 @@ int RunFramePart(const BenchArgs& args, const synth::SynthParams& params,
   // left out of both sides of the ratio.
   const double pipeline_fps = static_cast<double>(r.processed) / r.elapsed_s;
   const double alone_fps = alone_frames / alone_s;
-  std::printf("preset %s, %d cameras x %d frames (%dx%d), concurrency %d, LCM %s\n",
+  std::printf("preset %s, %d cameras x %d frames (%dx%d), concurrency %d, LCM %s, %s\n",
               args.preset.c_str(), args.cameras, args.frames, params.camera.width_px,
-              params.camera.height_px, args.concurrency, args.frame_lcm_url.c_str());
+              params.camera.height_px, args.concurrency, args.frame_lcm_url.c_str(),
+              intrinsics.empty() ? "no intrinsics (lambda 1)"
+                                 : ("intrinsics " + intrinsics[0].string()).c_str());
   std::printf(
       "pipeline end to end: %.2f frames/s (%llu processed, %llu skipped, %llu failed, %.2f s; "
       "%.2f s with the stage's setup)\n",
@@ -253,6 +293,18 @@ int RunFramePart(const BenchArgs& args, const synth::SynthParams& params,
       "processing alone (same stage, sequential): %.2f frames/s, %.3f CPU-s per frame (all "
       "threads; load average %.2f %.2f %.2f)\n",
       alone_fps, alone_cpu_s / std::max(1, alone_frames), load[0], load[1], load[2]);
+  const auto median = [](std::vector<double> v) {
+    if (v.empty()) return 0.0;
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  std::printf(
+      "processing alone per frame: each camera's first %.3f CPU-s (median; the chain's set-up), "
+      "later frames %.3f CPU-s (median of %zu; wall: load %.3f s, per-lens seed %.3f s, dense "
+      "search %.3f s, TF %.3f s)\n",
+      median(first_cpu), median(later_cpu), later_cpu.size(), median(prepare), median(seed),
+      median(search), median(tf));
+  std::printf("dense search of the last frame: %s\n", last_search.c_str());
   std::printf("ratio pipeline / processing alone: %.2f\n", pipeline_fps / alone_fps);
   std::fflush(stdout);
   return r.Accounted() && r.failed == 0 && r.sync_lost == 0 ? 0 : 1;
@@ -531,7 +583,10 @@ constexpr char kUsage[] =
     "usage: bench_pipeline [--preset small|medium|r32] [--frames N] [--cameras N]\n"
     "                      [--concurrency N] [--lcm URL] [--vicon-packets N] [--vicon-hz HZ]\n"
     "                      [--udpm URL] [--processing-nice N] [--vicon-priority N]\n"
-    "                      [--no-frames] [--no-vicon]\n"
+    "                      [--no-frames] [--no-vicon] [--sequence SEQ_DIR] [--no-intrinsics]\n"
+    "--sequence SEQ_DIR: that sequence's frames and cameras instead of rendering a preset.\n"
+    "The chain has the sequence's true intrinsics (GroundTruth/cameras.yaml: its lambda)\n"
+    "unless --no-intrinsics (lambda 1, as a replay without intrinsics).\n"
     "1. Camera frames: a synthetic sequence (default medium) through the live pipeline as fast\n"
     "   as possible (depth + TF), frames/s, processing time and arrival-to-LCM latency, beside\n"
     "   processing alone; part 1 publishes on --lcm (default memq://).\n"
@@ -554,6 +609,28 @@ int main(int argc, char** argv) {
   }
   params->rig.frames = args->frames;
   params->rig.cameras = args->cameras;
+  if (!args->sequence.empty()) {
+    // A sequence given: nothing rendered, nothing removed; the frames and
+    // cameras are its own.
+    auto layout = DiscoverSequence(args->sequence);
+    if (!layout) {
+      std::fprintf(stderr, "bench_pipeline: %s\n", layout.error().message.c_str());
+      return 2;
+    }
+    args->cameras = static_cast<int>(layout->cameras.size());
+    args->frames = layout->cameras.empty() ? 0 : static_cast<int>(layout->cameras[0].frames.size());
+    args->preset = "(" + args->sequence + ")";
+    if (auto raw = ReadBmp(*layout->cameras.at(0).FramePath(layout->cameras[0].frames.at(0)))) {
+      params->camera.width_px = raw->width;
+      params->camera.height_px = raw->height;
+    }
+    int exit_code = args->frame_part ? RunFramePart(*args, *params, args->sequence) : 0;
+    if (args->vicon_part)
+      for (const bool frames_flowing : {false, true})
+        exit_code = std::max(exit_code, RunViconPart(*args, args->sequence,
+                                                     {"memq://", frames_flowing}));
+    return exit_code;
+  }
   char tmpl[] = "/tmp/lifmcr-bench-pipeline-XXXXXX";
   if (!mkdtemp(tmpl)) {
     std::fprintf(stderr, "bench_pipeline: cannot create %s: %s\n", tmpl, std::strerror(errno));

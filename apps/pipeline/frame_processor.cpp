@@ -239,6 +239,19 @@ Expected<RegistrationInput> DepthProcessor::ForRegistration(const Frame& frame) 
   return input;
 }
 
+Status DepthProcessor::Warm(const Frame& frame, bool sampler) {
+  processing::CameraChain* camera = chain_->Find(frame.serial);
+  if (camera == nullptr) return Error{"depth: no MLA calibration for camera " + frame.serial};
+  std::shared_ptr<const OwnedImage> demosaiced;
+  auto image = ColourView(frame, formats_, &demosaiced);
+  if (!image) return image.error();
+  if (auto lenses = camera->LensEstimator(*image); !lenses) return lenses.error();
+  if (sampler) {
+    if (auto made = camera->Sampler(*image); !made) return made.error();
+  }
+  return Status::Ok();
+}
+
 Expected<ProcessedFrame> DepthProcessor::Process(const Frame& frame) {
   return Run(frame, true, nullptr);
 }

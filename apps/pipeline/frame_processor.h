@@ -194,6 +194,14 @@ class DepthProcessor final : public FrameProcessor {
                                          const RegistrationInput* input = nullptr) override;
   std::string name() const override { return "depth"; }
   Expected<RegistrationInput> ForRegistration(const Frame& frame) override;
+  // The set-up the first frame of the camera would pay, made now from
+  // `frame` (one of the camera's frames: its size, and its pixels where the
+  // devignetting is estimated from a frame): the per-lens estimator
+  // (ProcessLenses: the geometry, gain and micro-image map, about 0.6 s per
+  // camera at medium) and, with `sampler`, the registration's TF sampler. A
+  // replay calls it before its cameras start, so a timed replay's first
+  // frames are not skipped while the lens lane builds them.
+  Status Warm(const Frame& frame, bool sampler);
   const processing::ProcessingChain& chain() const { return *chain_; }
 
  private:

@@ -14,6 +14,7 @@
 #include <cerrno>
 #include <condition_variable>
 #include <cstdio>
+#include <cstring>
 #include <ctime>
 #include <deque>
 #include <map>
@@ -22,6 +23,7 @@
 #include <oneapi/tbb/task_arena.h>
 #include <oneapi/tbb/task_scheduler_observer.h>
 #include <optional>
+#include <sched.h>
 #include <sstream>
 #include <sys/resource.h>
 #include <thread>
@@ -340,7 +342,10 @@ struct Pipeline::Impl {
   // lens lane gets the frames the workers skip when they come and the ones
   // they localised when their pose is out, so an older frame can come after
   // a newer one.
-  void OfferTo(Lane& lane, Impl::Offer offer, std::uint64_t* skipped) {
+  // `stale`, `replaced` (may be null): the skipped frame's reason, counted
+  // too (the lens lane's; PipelineReport).
+  void OfferTo(Lane& lane, Impl::Offer offer, std::uint64_t* skipped,
+               std::uint64_t* stale = nullptr, std::uint64_t* replaced = nullptr) {
     {
       std::lock_guard lock(lane.mutex);
       const int camera = offer.job.frame.camera_index;
@@ -349,12 +354,16 @@ struct Pipeline::Impl {
       if (taken != lane.taken_before.end() && offer.job.camera_order < taken->second) {
         std::lock_guard r(report_mutex);
         ++*skipped;
+        if (stale) ++*stale;
       } else if (waiting == lane.slots.end()) {
         lane.slots.emplace(camera, std::move(offer));
       } else {
         {
           std::lock_guard r(report_mutex);
           ++*skipped;
+          // Of the two, the older is skipped: a frame the lane took since
+          // is newer than both, so neither is stale here.
+          if (replaced) ++*replaced;
         }
         if (waiting->second.job.camera_order < offer.job.camera_order)
           waiting->second = std::move(offer);
@@ -416,14 +425,16 @@ struct Pipeline::Impl {
     report.published_tf += counts.tf;
   }
 
-  void StartLane(Lane& lane, int threads, int nice, void (Impl::*loop)(tbb::task_arena&)) {
+  // `idle`: the threads compute under SCHED_IDLE (PipelineOptions::depth_idle).
+  void StartLane(Lane& lane, int threads, int nice,
+                 void (Impl::*loop)(tbb::task_arena&, bool), bool idle = false) {
     for (int k = 0; k < threads; ++k) {
       lane.arenas.push_back(std::make_unique<tbb::task_arena>(1, /*reserved_for_masters=*/1,
                                                               tbb::task_arena::priority::low));
       tbb::task_arena* arena = lane.arenas.back().get();
-      lane.threads.emplace_back([this, nice, loop, arena] {
+      lane.threads.emplace_back([this, nice, loop, arena, idle] {
         (void)setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), nice);
-        (this->*loop)(*arena);
+        (this->*loop)(*arena, idle);
       });
     }
   }
@@ -441,7 +452,7 @@ struct Pipeline::Impl {
   // The lens lane's thread: the per-lens depth and TF preview of a frame
   // (with the workers' registration input where they localised it),
   // published; then the frame offered to the depth lane with them.
-  void LensLoop(tbb::task_arena& arena) {
+  void LensLoop(tbb::task_arena& arena, bool /*idle*/) {
     while (std::optional<Impl::Offer> offer = Take(lens_lane)) {
       Result result{std::move(offer->job), Error{""}, std::nullopt};
       const auto start = std::chrono::steady_clock::now();
@@ -475,14 +486,40 @@ struct Pipeline::Impl {
 
   // The depth lane's thread: the dense chain of a frame, seeded by the lens
   // lane's per-lens depth of it.
-  void DepthLoop(tbb::task_arena& arena) {
+  //
+  // `idle`: the dense chain is computed under SCHED_IDLE, on the CPU that
+  // neither the workers nor the lens lane want; the thread returns to
+  // SCHED_OTHER (its nice 19) to publish, so a preempted idle thread never
+  // holds the bus's lock the poses and per-lens depth need (nor the chain's
+  // short locks: taken inside Process, released before it returns).
+  void DepthLoop(tbb::task_arena& arena, bool idle) {
+    const auto policy = [](int which) {
+      sched_param param{};
+      param.sched_priority = 0;
+      return sched_setscheduler(0, which, &param) == 0;
+    };
+    if (idle && !policy(SCHED_IDLE)) {
+      spdlog::warn("pipeline: the depth lane stays at nice 19: SCHED_IDLE refused ({})",
+                   std::strerror(errno));
+      idle = false;
+    }
+    // Back to SCHED_OTHER needs the nice value within RLIMIT_NICE (19 is);
+    // where refused, the lane computes and publishes idle.
+    if (idle && !policy(SCHED_OTHER)) {
+      spdlog::warn("pipeline: the depth lane computes and publishes under SCHED_IDLE ({})",
+                   std::strerror(errno));
+      (void)policy(SCHED_IDLE);
+      idle = false;
+    }
     while (std::optional<Impl::Offer> offer = Take(depth_lane)) {
       Result result{std::move(offer->job), Error{""}, std::nullopt};
       // The lens lane published this frame's per-lens depth already; it
       // seeds the dense map here (no second per-lens estimate).
       const ProcessedFrame* lenses = offer->from_lenses.lenses ? &offer->from_lenses : nullptr;
+      if (idle) (void)policy(SCHED_IDLE);
       arena.execute(
           [&] { result.processed = processor->ProcessDense(result.job.frame, lenses); });
+      if (idle) (void)policy(SCHED_OTHER);
       offer.reset();  // the per-lens workspace back to its pool
       {
         // The lane's thread alone computes in its arena: its CPU time is the lane's.
@@ -576,7 +613,8 @@ struct Pipeline::Impl {
     // needs no pose.
     Impl::Offer offer{result.job, std::nullopt, ProcessedFrame{}};
     if (input) offer.input = std::move(*input);
-    OfferTo(lens_lane, std::move(offer), &report.lens_skipped);
+    OfferTo(lens_lane, std::move(offer), &report.lens_skipped, &report.lens_stale,
+            &report.lens_replaced);
     return result;
   }
 
@@ -738,7 +776,7 @@ struct Pipeline::Impl {
       // the time.
       if (replaced && lanes)
         OfferTo(lens_lane, Impl::Offer{std::move(*replaced), std::nullopt, ProcessedFrame{}},
-                &report.lens_skipped);
+                &report.lens_skipped, &report.lens_stale, &report.lens_replaced);
     }
   }
 
@@ -938,7 +976,7 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
         std::max(1, std::min(threads, static_cast<int>(sync.serials.size())));
     impl->StartLane(impl->lens_lane, lens_threads,
                     std::min(19, base_nice + options.lens_nice), &Impl::LensLoop);
-    impl->StartLane(impl->depth_lane, 1, 19, &Impl::DepthLoop);
+    impl->StartLane(impl->depth_lane, 1, 19, &Impl::DepthLoop, options.depth_idle);
   }
   return std::unique_ptr<Pipeline>(new Pipeline(std::move(impl)));
 }
@@ -1034,17 +1072,21 @@ std::string PipelineReport::FinalReport() const {
     const auto per = [](double total, std::uint64_t n) {
       return n > 0 ? 1e3 * total / static_cast<double>(n) : 0.0;
     };
-    char line[400];
+    char line[600];
     std::snprintf(line, sizeof line,
                   "workers (registration first): %llu frames, localisation %.1f CPU-ms per "
                   "frame; lens lane: processed %llu skipped %llu failed %llu, %.1f CPU-ms per "
-                  "frame (wall: per-lens depth %.1f ms, TF preview %.1f ms, encodings %.1f ms)\n",
+                  "frame (wall: per-lens depth %.1f ms, TF preview %.1f ms, encodings %.1f ms)\n"
+                  "lens lane skipped: %llu replaced by a newer frame of its camera while the "
+                  "lane was busy, %llu came after a newer frame of its camera (localised "
+                  "first)\n",
                   static_cast<unsigned long long>(worker_frames), per(localize_cpu_s, worker_frames),
                   static_cast<unsigned long long>(lens_frames),
                   static_cast<unsigned long long>(lens_skipped),
                   static_cast<unsigned long long>(lens_failed), per(lens_cpu_s, lens_frames),
                   per(lens_depth_s, lens_frames), per(lens_preview_s, lens_frames),
-                  per(lens_encode_s, lens_frames));
+                  per(lens_encode_s, lens_frames), static_cast<unsigned long long>(lens_replaced),
+                  static_cast<unsigned long long>(lens_stale));
     out << line;
   }
   if (depth_processed + depth_skipped + depth_failed > 0)

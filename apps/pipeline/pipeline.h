@@ -98,6 +98,12 @@ struct PipelineOptions {
   // 15, below the workers, so a relocalisation keeps its CPU (docs/processing.md,
   // "Live pipeline", for what 0, 5 and 15 gave).
   int lens_nice = 15;
+  // The depth lane's thread (nice 19 always) under SCHED_IDLE: it computes
+  // only on a core that nothing else of the machine wants, so a dense map
+  // never takes the CPU of the lens lane or the workers (at nice 19 it took
+  // about a third of a core shared with a lens-lane thread at nice 15, CFS
+  // weights 15 against 36). false: SCHED_OTHER at nice 19.
+  bool depth_idle = true;
   // The stage after processing; null: processing::PassThroughStage.
   std::shared_ptr<processing::RegistrationStage> registration;
   // Camera 0 of the extrinsics (the reference map's camera), by serial;
@@ -145,8 +151,14 @@ struct PipelineReport {
   // replaces them in the workers' slot. There each is processed
   // (lens_frames), skipped for a newer frame of its camera (lens_skipped) or
   // failed; so frames_in == lens_frames + lens_skipped + lens_failed once
-  // Finish returned.
+  // Finish returned. Why each skipped frame was: lens_replaced, a newer frame
+  // of its camera came while it waited (the lane's threads were busy with
+  // other frames); lens_stale, it came after a newer frame of its camera was
+  // taken (a frame the workers localised reaches the lane when its pose is
+  // out, after the newer frames they skipped meanwhile):
+  // lens_skipped == lens_replaced + lens_stale.
   std::uint64_t lens_skipped = 0, lens_failed = 0;
+  std::uint64_t lens_replaced = 0, lens_stale = 0;
   double depth_cpu_s = 0;  // CPU time of the depth lane's thread (its arena has no other)
   // Lanes: the dense maps the depth lane seeded with the lens lane's per-lens
   // depth (the others computed it again: the frame's per-lens depth had failed).

@@ -277,6 +277,17 @@ TEST(CliLiveRegistration, TimedReplayAccountsForThePerLensDepthOfEveryFrameTaken
       << replay.out;
   EXPECT_NE(replay.out.find(lane + std::to_string(skipped) + " failed 0,"), std::string::npos)
       << replay.out;
+  // Each skipped frame with its reason: replaced while the lane was busy, or
+  // older than a frame the lane had taken (a localised frame comes with its pose).
+  const std::string why = "lens lane skipped: ";
+  const auto why_at = replay.out.find(why);
+  ASSERT_NE(why_at, std::string::npos) << replay.out;
+  char* after = nullptr;
+  const long replaced = std::strtol(replay.out.c_str() + why_at + why.size(), &after, 10);
+  const std::string busy = " replaced by a newer frame of its camera while the lane was busy, ";
+  ASSERT_EQ(std::string(after, busy.size()), busy) << replay.out;
+  const long stale = std::strtol(after + busy.size(), nullptr, 10);
+  EXPECT_EQ(replaced + stale, skipped) << replay.out;
   for (const auto& [serial, n] : per_camera)
     std::printf("camera %s: per-lens depth and TF of %d of %d frames (%ld frames taken replaced "
                 "in the lens lane, both cameras)\n",

@@ -42,6 +42,7 @@
 #include <sys/syscall.h>
 #include <functional>
 #include <set>
+#include <sched.h>
 #include <thread>
 #include <unistd.h>
 
@@ -751,6 +752,7 @@ TEST(Pipeline, PerLensDepthAndPreviewForEveryFrameTakenWithRegistrationFirst) {
   // Every frame taken went to the lens lane: its per-lens depth was
   // published there unless a newer frame of its camera replaced it first.
   EXPECT_EQ(r.lens_frames + r.lens_skipped + r.lens_failed, r.frames_in) << r.FinalReport();
+  EXPECT_EQ(r.lens_replaced + r.lens_stale, r.lens_skipped) << r.FinalReport();
   ASSERT_GT(r.lens_frames, 0u) << r.FinalReport();
   // One per-lens map per frame of the lens lane, and a TF image for each of them.
   EXPECT_EQ(r.published_lens_depth, r.lens_frames) << r.FinalReport();
@@ -1184,6 +1186,16 @@ TEST(Pipeline, LanesPublishTheFramesTheWorkersSkipWhileTheWorkersAreHeld) {
   EXPECT_EQ(r.lens_failed, 0u) << r.last_error;
   EXPECT_EQ(r.lens_frames + r.lens_skipped + r.lens_failed, r.frames_in) << r.FinalReport();
   EXPECT_EQ(r.published_lens_depth, r.lens_frames) << r.FinalReport();
+  // Each skipped frame says why: trigger 0's frames reached the lens lane
+  // with their poses, after it had taken trigger 1's (stale); none was
+  // replaced while waiting.
+  EXPECT_EQ(r.lens_replaced + r.lens_stale, r.lens_skipped) << r.FinalReport();
+  EXPECT_EQ(r.lens_stale, 2u) << r.FinalReport();
+  EXPECT_EQ(r.lens_replaced, 0u) << r.FinalReport();
+  EXPECT_NE(r.FinalReport().find("lens lane skipped: 0 replaced by a newer frame of its camera "
+                                 "while the lane was busy, 2 came after a newer frame"),
+            std::string::npos)
+      << r.FinalReport();
   // Every frame the lens lane took went on to the depth lane: published,
   // skipped (a newer frame of its camera, or still waiting at Finish) or failed.
   EXPECT_EQ(r.depth_failed, 0u) << r.last_error;
@@ -1213,6 +1225,9 @@ class LensGatedProcessor final : public FrameProcessor {
     {
       std::lock_guard lock(mutex_);
       dense_given_lenses_ += lenses != nullptr && lenses->lenses ? 1 : 0;
+      // The depth lane's scheduling policy while it computes
+      // (PipelineOptions::depth_idle).
+      dense_policies_.push_back(sched_getscheduler(0));
     }
     return inner_->ProcessDense(frame, lenses);
   }
@@ -1258,6 +1273,10 @@ class LensGatedProcessor final : public FrameProcessor {
     std::lock_guard lock(mutex_);
     return dense_given_lenses_;
   }
+  std::vector<int> dense_policies() {
+    std::lock_guard lock(mutex_);
+    return dense_policies_;
+  }
 
  private:
   std::unique_ptr<DepthProcessor> inner_;
@@ -1265,6 +1284,7 @@ class LensGatedProcessor final : public FrameProcessor {
   std::condition_variable cv_;
   int entered_ = 0, timed_out_ = 0, dense_given_lenses_ = 0;
   std::vector<int> lens_nice_seen_;
+  std::vector<int> dense_policies_;
   bool released_ = false;
 };
 
@@ -1345,9 +1365,58 @@ TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
   EXPECT_GE(r.depth_processed, 1u) << r.FinalReport();
   EXPECT_EQ(r.depth_seeded_by_lenses, r.depth_processed) << r.FinalReport();
   EXPECT_EQ(processor->dense_given_lenses(), static_cast<int>(r.depth_processed));
+  // The dense maps were computed under SCHED_IDLE (depth_idle, the default):
+  // only on CPU the workers and the lens lane leave.
+  for (const int policy : processor->dense_policies()) EXPECT_EQ(policy, SCHED_IDLE);
   pipeline.reset();
   Drain(bus);
   EXPECT_EQ(received.lens_depth.size(), 2u);
+}
+
+// DepthProcessor::Warm (what a timed replay does before its cameras start):
+// each camera's per-lens estimator and TF sampler made from a frame of it,
+// so the lens lane's first frame of the camera computes only its depth; the
+// per-lens depth of a frame is the same with and without it, and a camera
+// without a chain is an error naming it.
+TEST(Pipeline, WarmMakesACamerasSetUpBeforeItsFirstFrameAndChangesNoProduct) {
+  test::TempDir dir;
+  auto rig = WriteTinyRigFrames(dir.path());
+  ASSERT_TRUE(rig.ok()) << rig.error().message;
+  auto warmed = DepthProcessor::ForSequence(rig->sequence_dir.string(), rig->serials);
+  auto cold = DepthProcessor::ForSequence(rig->sequence_dir.string(), rig->serials);
+  ASSERT_TRUE(warmed.ok() && cold.ok());
+  for (std::size_t c = 0; c < rig->serials.size(); ++c) {
+    Frame frame;
+    frame.serial = rig->serials[c];
+    frame.image = rig->raw[c].View();
+    ASSERT_TRUE((*warmed)->Warm(frame, /*sampler=*/true).ok());
+    processing::CameraChain* camera = (*warmed)->chain().Find(frame.serial);
+    ASSERT_NE(camera, nullptr);
+    // The camera keeps the estimator Warm made: the lane gets that one.
+    auto first = camera->LensEstimator(frame.image);
+    auto again = camera->LensEstimator(frame.image);
+    ASSERT_TRUE(first.ok() && again.ok());
+    EXPECT_EQ(*first, *again);
+    auto a = (*warmed)->ProcessLenses(frame);
+    auto b = (*cold)->ProcessLenses(frame);
+    ASSERT_TRUE(a.ok() && b.ok());
+    ASSERT_TRUE(a->lens_depth && b->lens_depth);
+    ASSERT_EQ(a->lens_depth->depth.values.size(), b->lens_depth->depth.values.size());
+    for (std::size_t k = 0; k < a->lens_depth->depth.values.size(); ++k) {
+      const float x = a->lens_depth->depth.values[k], y = b->lens_depth->depth.values[k];
+      ASSERT_EQ(std::isnan(x), std::isnan(y)) << k;
+      if (!std::isnan(x)) {
+        ASSERT_EQ(x, y) << k;
+      }
+    }
+    EXPECT_EQ(a->tf->bytes, b->tf->bytes);
+  }
+  Frame unknown;
+  unknown.serial = "99999999";
+  unknown.image = rig->raw[0].View();
+  const Status s = (*warmed)->Warm(unknown, false);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().message.find("99999999"), std::string::npos) << s.error().message;
 }
 
 // Covariance of c0_from_cx to first order: with A = exp(a) A_hat, B =
