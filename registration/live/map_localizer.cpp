@@ -572,7 +572,8 @@ MapLocalizerStage::Outcome MapLocalizerStage::AverageAnchor(
 MapLocalizerStage::Outcome MapLocalizerStage::Refind(const processing::CameraModel& camera,
                                                      const processing::TfSampler& sampler,
                                                      const ConstImageView& raw, const Pose& guide,
-                                                     bool guide_is_corrected) const {
+                                                     bool guide_is_corrected,
+                                                     const Tracks* tracks) const {
   Pose from = guide;
   double coarse_s = 0;
   if (!guide_is_corrected) {
@@ -584,6 +585,18 @@ MapLocalizerStage::Outcome MapLocalizerStage::Refind(const processing::CameraMod
     coarse_s = SecondsSince(start);
     if (!c.success) return c;
     from = c.w0_from_cam.pose;
+    // The tracks followed from the coarse pose first (Track's correction,
+    // at any distance): a tracked frame costs ~10 CPU-ms against a fine
+    // guided matching's ~150 at medium, and a frame that costs several
+    // frame periods leaves the next one far again.
+    if (tracks && !tracks->empty()) {
+      Outcome tracked = TrackFrom(camera, sampler, raw, *tracks, from, options_.patches);
+      if (tracked.success) {
+        tracked.correction_s = coarse_s;
+        tracked.corrected = from;
+        return tracked;
+      }
+    }
   }
   // Checked against the coarse pose: a fine pose far from it is wrong.
   Outcome out = GuidedSolve(camera, sampler, raw, from, options_.guided, /*check_jump=*/true,
@@ -748,8 +761,12 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     const int interval = std::min(
         options_.reanchor_every,
         std::max(1, static_cast<int>(options_.average_anchors ? s.anchor_weight : 1e9)));
+    // Counted in frames tracked, not triggers: a camera whose frames come
+    // several triggers apart (a loaded machine) would otherwise re-anchor
+    // nearly every frame it gets, each re-anchoring leaving the next frame
+    // further behind.
     const bool periodic = options_.reanchor_every > 0 && s.last_anchor_trigger >= 0 &&
-                          frame.trigger_index - s.last_anchor_trigger >= interval;
+                          s.tracked_since_anchor + 1 >= interval;
     reanchor = can_track && (s.reanchor || periodic) && !s.relocalising;
     if (!can_track && s.relocalising) {
       // Published with this status (no pose): the frame was seen, not lost.
@@ -807,17 +824,21 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     const bool corrected = attempt.corrected.has_value();
     Outcome found = Refind(camera, **sampler, frame.raw,
                            corrected ? *attempt.corrected : state.Predict(frame.trigger_index),
-                           corrected);
+                           corrected, state.tracks.get());
     refind_s = SecondsSince(refind_start);
-    guided_attempt = true;
-    guided = found;
     if (!found.success) {
       std::lock_guard<std::mutex> lock(mutex_);
       counts_.last_guided_failure = found.status;
       return false;
     }
+    // Tracked from the coarse pose (`corrected` set), else re-anchored.
+    const bool tracked_from_coarse = found.corrected.has_value() && !corrected;
+    if (!tracked_from_coarse) {
+      guided_attempt = true;
+      guided = found;
+    }
     r = std::move(found);
-    localisation = "re-anchored";
+    localisation = tracked_from_coarse ? "tracked" : "re-anchored";
     refound = true;
     return true;
   };
@@ -1090,6 +1111,7 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     s.has_pose = true;
     s.tracks = std::move(tracks);
     if (localisation != "tracked") s.last_anchor_trigger = frame.trigger_index;
+    s.tracked_since_anchor = localisation == "tracked" ? s.tracked_since_anchor + 1 : 0;
     s.anchor_weight = weight;
     // Re-anchored next frame: a tracked pose with too few anchored inliers
     // (min_anchored_fraction), or a relocalisation without a pose to refocus

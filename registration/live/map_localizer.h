@@ -152,10 +152,12 @@ struct LocalizerOptions {
   // A frame whose tracking failed, or a far frame relocalised without the
   // attempt (min_far_track_success), of a camera with a pose in this pass
   // is first re-found by guided matching around its prediction: `coarse`
-  // from the predicted pose (or the correction's pose when Track corrected
-  // it), then `guided` from that pose, PnP on those matches, checked; the
-  // tracks begin anew at that pose's projections ("re-anchored"). Only when
-  // that fails is it relocalised. At medium a re-finding costs about a
+  // from the predicted pose, the tracks followed from that pose ("tracked"
+  // when that passes: Track's correction, at any distance), else `guided`
+  // from that pose (or from the correction's pose when Track corrected it
+  // and tracking still failed), PnP on those matches, checked; the tracks
+  // begin anew at that pose's projections ("re-anchored"). Only when that
+  // fails is it relocalised. At medium a re-finding costs about a
   // third of a relocalisation's CPU (coarse render and SIFT on <= 420 px,
   // then a re-anchoring's; docs/registration.md). false: relocalised.
   bool refind_before_relocalising = true;
@@ -206,13 +208,15 @@ struct LocalizerOptions {
   double max_anchor_shift_ratio = 3;
   double min_anchor_shift_px = 0.5;
   int min_anchor_history = 3;
-  // A frame this many triggers after its camera's last re-anchoring or
-  // relocalisation is re-anchored whatever its anchored inliers (0: only
-  // by min_anchored_fraction): with average_anchors each re-anchoring
-  // lowers the tracked poses' error by averaging one more anchor. While the
-  // tracks average fewer than reanchor_every anchors, sooner: after as many
-  // triggers as they average (1, 2, 3, ...), so that the first stretch after
-  // a relocalisation, which rests on one or two anchors, is short.
+  // A frame after this many frames tracked since its camera's last
+  // re-anchoring or relocalisation is re-anchored whatever its anchored
+  // inliers (0: only by min_anchored_fraction): with average_anchors each
+  // re-anchoring lowers the tracked poses' error by averaging one more
+  // anchor. While the tracks average fewer than reanchor_every anchors,
+  // sooner: after as many tracked frames as they average (1, 2, 3, ...), so
+  // that the first stretch after a relocalisation, which rests on one or
+  // two anchors, is short. Counted in frames, not triggers: live, frames
+  // skipped while a camera is busy do not make the re-anchorings denser.
   // Live this was off until a frame whose tracking failed could be re-found
   // (refind_before_relocalising): the re-anchorings let a camera's frames
   // fall more than max_correction_ahead triggers behind, which were then
@@ -417,6 +421,7 @@ class MapLocalizerStage final : public processing::RegistrationStage {
     double anchor_shift2_sum = 0;
     bool last_anchor_refused = false;  // never two refusals in a row
     std::int64_t last_anchor_trigger = -1;  // its last relocalised or re-anchored frame
+    int tracked_since_anchor = 0;  // frames tracked since then (reanchor_every)
     double anchor_weight = 1;  // the anchors the last pose averages (TrackedPoint::offset_weight)
     // Prediction for `trigger` (header comment); the last pose without a previous one.
     Pose Predict(std::int64_t trigger) const;
@@ -432,8 +437,11 @@ class MapLocalizerStage final : public processing::RegistrationStage {
   // (refind_before_relocalising): coarse guided matching from `guide`
   // (skipped when `guide_is_corrected`: Track's correction already was
   // that), then the re-anchoring's guided matching from its pose.
+  // When coarse matching ran, `tracks` are first followed from its pose
+  // (published "tracked" when that passes).
   Outcome Refind(const processing::CameraModel& camera, const processing::TfSampler& sampler,
-                 const ConstImageView& raw, const Pose& guide, bool guide_is_corrected) const;
+                 const ConstImageView& raw, const Pose& guide, bool guide_is_corrected,
+                 const Tracks* tracks) const;
   // The median over `kept` of the distance (TF px) between their map points'
   // projections from a_w0_from_cam and b_w0_from_cam (max_anchor_shift_ratio).
   double MedianShiftPx(const processing::CameraModel& camera, const std::vector<TrackedPoint>& kept,

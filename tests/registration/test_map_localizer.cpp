@@ -114,13 +114,13 @@ double ProcessCpuSeconds() {
 // The camera's raw frame `view` (by default the trigger's own) under trigger
 // index `frame`.
 Localized LocalizeFrame(MapLocalizerStage& stage, Sequence& s, const std::string& serial,
-                        std::int64_t frame, std::int64_t view = -1) {
+                        std::int64_t frame, std::int64_t view = -1, std::int64_t host_ns = -1) {
   auto raw = ReadBmp(layout::RawFramePath(s.sequence, serial, view < 0 ? frame : view));
   EXPECT_TRUE(raw) << raw.error().message;
   processing::StageFrame f;
   f.serial = serial;
   f.trigger_index = frame;
-  f.host_ns = 1'000'000 * (frame + 1);
+  f.host_ns = host_ns >= 0 ? host_ns : 1'000'000 * (frame + 1);
   f.raw = std::as_const(*raw).View();
   f.camera = s.chain->Find(serial);
   const auto start = std::chrono::steady_clock::now();
@@ -934,6 +934,123 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
   const std::string before = "per region, warped, re-anchored when due, each anchor anew";
   EXPECT_LE(medians[defaults], 0.75 * medians[before]);
   EXPECT_LE(lasts[defaults], 1.2 * firsts[defaults]);
+}
+
+// Live on a schedule made of CPU time (load-independent): the rig's frames
+// looped as bench_live replays them (triggers numbered from 0 again at each
+// pass, so the localizer starts the pass anew), at 10 Hz, each camera on a
+// core of its own: a camera's worker takes the newest frame there is when
+// it is free, and is busy for the CPU time its Localize took (newest wins:
+// the frames in between are not localised), its CPU time divided by the
+// share of a core each worker has (LIFMCR_TEST_CPU_SHARE, default 0.5:
+// bench_live's two workers, lens lane and replay on 2 cores). Per camera the decisions (CPU-ms
+// each, how many) and, over the triggers where both cameras' poses are ok,
+// the extrinsics per second per camera and c0_from_cx against the truth,
+// the median and that of the first and last 3 frames of the passes. The
+// defaults against the localizer before (no re-finding, no periodic
+// re-anchoring, 30 tracked inliers): a relocalisation is several frame
+// periods long, the next frame then too far to track, and, without
+// re-finding, relocalised too.
+// LIFMCR_TEST_SECONDS (default 3) of simulated time; with
+// LIFMCR_TEST_PRESET=medium and LIFMCR_TEST_KEEP, LIFMCR_TEST_FRAMES=24 on
+// bench_live's kept 24-frame rig gives docs/registration.md's figures;
+// LIFMCR_TEST_REANCHOR_EVERY overrides the defaults' reanchor_every.
+TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
+  const char* frames_env = std::getenv("LIFMCR_TEST_FRAMES");
+  const char* seconds_env = std::getenv("LIFMCR_TEST_SECONDS");
+  const std::int64_t frames = frames_env ? std::atoi(frames_env) : kFrames;
+  const double seconds = seconds_env ? std::atof(seconds_env) : 3.0;
+  const char* share_env = std::getenv("LIFMCR_TEST_CPU_SHARE");
+  const double share = share_env ? std::atof(share_env) : 0.5;
+  ASSERT_GT(share, 0);
+  constexpr double kPeriod = 0.1;  // 10 Hz
+  Sequence& s = *Shared();
+  const std::string &zero = s.serials[0], &x = s.serials[1];
+  struct Result {
+    std::map<std::string, std::pair<double, int>> cpu;  // by decision: CPU-s, count
+    double rate = 0, median = 0, first = 0, last = 0;
+    int relocalised = 0;
+  };
+  const auto run = [&](const LocalizerOptions& options, const char* name) {
+    MapLocalizerStage stage(s.map, options);
+    const std::int64_t triggers = static_cast<std::int64_t>(seconds / kPeriod);
+    // Per camera: when its worker is free (s) and the last trigger it took.
+    std::map<std::string, double> free_at{{zero, 0.0}, {x, 0.0}};
+    std::map<std::string, std::int64_t> taken{{zero, -1}, {x, -1}};
+    std::map<std::int64_t, std::map<std::string, Pose>> ok;  // trigger -> camera -> pose
+    Result out;
+    std::string line;
+    while (true) {
+      // The camera whose worker is free first takes the newest frame there.
+      const std::string& serial = free_at[zero] <= free_at[x] ? zero : x;
+      std::int64_t k = static_cast<std::int64_t>(std::floor(free_at[serial] / kPeriod + 1e-9));
+      if (k <= taken[serial]) k = taken[serial] + 1;
+      if (k >= triggers) {
+        if (free_at[zero] <= free_at[x]) free_at[zero] = 1e9; else free_at[x] = 1e9;
+        if (free_at[zero] >= 1e9 && free_at[x] >= 1e9) break;
+        continue;
+      }
+      const double start = std::max(free_at[serial], static_cast<double>(k) * kPeriod);
+      const Localized l = LocalizeFrame(stage, s, serial, k % frames, k % frames,
+                                        1'000'000 * (k + 1));
+      EXPECT_TRUE(l.pose);
+      if (!l.pose) return out;
+      free_at[serial] = start + l.cpu_seconds / share;
+      taken[serial] = k;
+      const std::string how = l.pose->status == "ok" ? l.pose->localisation : "failed";
+      auto& [sum, n] = out.cpu[how];
+      sum += l.cpu_seconds;
+      ++n;
+      if (how == "relocalised") ++out.relocalised;
+      if (serial == x)
+        line += " " + std::to_string(k) + (how == "re-anchored" ? "a" : how.substr(0, 1));
+      if (how != "failed" && how != "skipped") ok[k][serial] = l.pose->transform;
+    }
+    std::vector<double> all, first, last;
+    for (const auto& [k, poses] : ok) {
+      if (poses.size() != 2) continue;
+      const std::int64_t view = k % frames;
+      const Pose estimate = poses.at(zero).inverse() * poses.at(x);
+      const Pose truth = s.truth[zero][view].inverse() * s.truth[x][view];
+      const double e = TranslationDifference(estimate, truth);
+      all.push_back(e);
+      if (view < 3) first.push_back(e);
+      if (view >= frames - 3) last.push_back(e);
+    }
+    out.rate = static_cast<double>(all.size()) / seconds;
+    out.median = Median(all);
+    out.first = Median(first);
+    out.last = Median(last);
+    std::string cpu_line;
+    for (const auto& [how, sum_n] : out.cpu) {
+      char cell[64];
+      std::snprintf(cell, sizeof cell, " %s %d (%.0f CPU-ms each)", how.c_str(), sum_n.second,
+                    1e3 * sum_n.first / sum_n.second);
+      cpu_line += cell;
+    }
+    std::printf(
+        "%s: %.2f extrinsics/s per camera over %.0f s at 10 Hz (a core's share %.2f), c0_from_cx median %.3f mm, "
+        "passes' first 3 frames %.3f mm, last 3 %.3f mm\n  decisions, both cameras:%s\n  "
+        "camera X's triggers (t tracked, r relocalised, a re-anchored, f failed):%s\n  %s\n",
+        name, out.rate, seconds, share, out.median, out.first, out.last, cpu_line.c_str(), line.c_str(),
+        stage.counts().StageReport().c_str());
+    return out;
+  };
+  LocalizerOptions before;
+  before.refind_before_relocalising = false;
+  before.reanchor_every = 0;
+  before.max_anchor_shift_ratio = 0;
+  before.min_tracked = std::max(before.min_tracked, before.checks.min_inliers);
+  const Result old = run(before, "before (relocalised when tracking fails)");
+  LocalizerOptions defaults;
+  if (const char* every = std::getenv("LIFMCR_TEST_REANCHOR_EVERY"))
+    defaults.reanchor_every = std::atoi(every);
+  const Result now = run(defaults, "the defaults (re-found, re-anchored periodically)");
+  // Relocalised no more often, more accurate, and the passes' last frames
+  // within the live gate of their first (1.2 times).
+  EXPECT_LE(now.relocalised, old.relocalised);
+  EXPECT_LE(now.median, old.median);
+  EXPECT_LE(now.last, 1.2 * now.first);
 }
 
 // A larger sensor is relocalised on an image of about the same size: the
