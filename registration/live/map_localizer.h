@@ -31,9 +31,18 @@
 //                measured against that pose and averaged with the anchors
 //                it has seen (TrackedPoint::offset, average_anchors), the
 //                frame's pose the PnP on the corrected tracked positions.
+//                An anchor whose shift against the tracked pose is far
+//                beyond the camera's earlier anchors' is refused before it
+//                is averaged (max_anchor_shift_ratio). Re-anchoring is also
+//                periodic: after reanchor_every frames tracked (sooner
+//                while the tracks average few anchors).
 //                When guided matching fails the tracked pose is published
-//                (re-anchoring due again at the next frame); relocalised
-//                when tracking fails. A re-anchoring that a later frame of
+//                (re-anchoring due again at the next frame).
+//   re-find      when tracking fails (or a far frame is not tried): coarse
+//                guided matching from the prediction, the tracks followed
+//                from its pose ("tracked"), else guided matching from it
+//                ("re-anchored", the tracks begun anew); relocalised only
+//                when that fails (refind_before_relocalising). A re-anchoring that a later frame of
 //                its camera overtook still hands its offsets on.
 //                When the prediction is weak more pyramid levels and a
 //                larger shift are allowed: two more levels and four times
