@@ -346,6 +346,9 @@ TEST(MapLocalizer, AWeakPredictionIsCorrectedBeforeThePatchesAreTracked) {
   for (const bool correct : {false, true}) {
     LocalizerOptions options;
     options.correct_predictions = correct;
+    // Without either the frame is relocalised (re-finding is the same
+    // coarse matching from the prediction, done after tracking fails).
+    options.refind_before_relocalising = correct;
     MapLocalizerStage stage(s.map, options);
     std::optional<processing::CameraPose> last;
     // (trigger, view) in the order shown.
@@ -1040,7 +1043,8 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
   before.refind_before_relocalising = false;
   before.reanchor_every = 0;
   before.max_anchor_shift_ratio = 0;
-  before.min_tracked = std::max(before.min_tracked, before.checks.min_inliers);
+  // Tracking needed min_tracked (30) inliers, where the checks accept 20.
+  before.checks.min_inliers = before.min_tracked;
   const Result old = run(before, "before (relocalised when tracking fails)");
   LocalizerOptions defaults;
   if (const char* every = std::getenv("LIFMCR_TEST_REANCHOR_EVERY"))
