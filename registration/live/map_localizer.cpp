@@ -31,6 +31,7 @@ struct MapLocalizerStage::Outcome {
   // "" when none was tried.
   double correction_s = 0;
   std::string correction_status;
+  std::optional<Pose> corrected;  // the correction's pose when it succeeded
 };
 
 namespace {
@@ -114,6 +115,13 @@ Status LocalizerOptions::Check() const {
   // average_anchors: either value.
   if (!(max_anchor_weight >= 1))
     return Error{"localizer options: max_anchor_weight: expected >= 1"};
+  if (!(max_anchor_shift_ratio == 0 || max_anchor_shift_ratio > 1))
+    return Error{"localizer options: max_anchor_shift_ratio: expected 0 or > 1"};
+  if (!(min_anchor_shift_px >= 0))
+    return Error{"localizer options: min_anchor_shift_px: expected >= 0"};
+  if (min_anchor_history < 1)
+    return Error{"localizer options: min_anchor_history: expected >= 1"};
+  // refind_before_relocalising: either value.
   if (Status s = coarse.Check(); !s) return s;  // correct_predictions: either value
   if (reanchor_every < 0) return Error{"localizer options: reanchor_every: expected >= 0"};
   if (cold_reanchor_rounds < 0)
@@ -226,6 +234,18 @@ std::string MapLocalizerStage::Counts::StageReport() const {
                   far_tracked, far_attempts, far_relocalised);
     out += line;
   }
+  if (refind_attempts > 0) {
+    std::snprintf(line, sizeof line,
+                  "; frames re-found around their prediction instead of relocalised %lld of "
+                  "%lld attempts (%.0f ms each)",
+                  refound, refind_attempts, 1e3 * refind_s / static_cast<double>(refind_attempts));
+    out += line;
+  }
+  if (refused_anchors > 0) {
+    std::snprintf(line, sizeof line, "; anchors refused before averaging %lld (up to %.2f TF px)",
+                  refused_anchors, refused_anchor_shift_px);
+    out += line;
+  }
   if (!last_tracking_failure.empty()) out += "; last tracking failure: " + last_tracking_failure;
   return out;
 }
@@ -264,11 +284,13 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
   const Outcome c = GuidedSolve(camera, sampler, raw, predicted, options_.coarse,
                                 /*check_jump=*/false, "correction", options_.checks.min_inliers);
   if (c.success) {
+    const Pose corrected = c.w0_from_cam.pose;
     Outcome retried = TrackFrom(camera, sampler, raw, *state.tracks, c.w0_from_cam.pose,
                                 options_.patches);
     if (!retried.success)
       retried.status += " (from the corrected prediction; before: " + out.status + ")";
     out = std::move(retried);
+    out.corrected = corrected;
   } else {
     out.status += " (" + c.status + ")";
   }
@@ -306,13 +328,16 @@ MapLocalizerStage::Outcome MapLocalizerStage::TrackFrom(const processing::Camera
     found.push_back(std::move(followed));
     v.push_back(vp);
   }
-  if (found.size() < static_cast<std::size_t>(options_.min_tracked)) {
+  // The pose checks' minimum (min_tracked only makes the next frame due for
+  // re-anchoring, Localize).
+  const int min_ok = std::max(3, std::min(options_.min_tracked, options_.checks.min_inliers));
+  if (found.size() < static_cast<std::size_t>(min_ok)) {
     out.status = "tracking: " + std::to_string(found.size()) + " of " +
                  std::to_string(tracks.size()) + " points followed (< " +
-                 std::to_string(options_.min_tracked) + ")";
+                 std::to_string(min_ok) + ")";
     return out;
   }
-  return Solve(camera, sampler, found, v, predicted, "tracking", options_.min_tracked);
+  return Solve(camera, sampler, found, v, predicted, "tracking", min_ok);
 }
 
 MapLocalizerStage::Outcome MapLocalizerStage::Solve(const processing::CameraModel& camera,
@@ -541,7 +566,61 @@ MapLocalizerStage::Outcome MapLocalizerStage::AverageAnchor(
     v.push_back(vp);
   }
   return Solve(camera, sampler, found, v, w0_from_anchor, "re-anchoring (averaged)",
-               options_.min_tracked);
+               std::max(3, std::min(options_.min_tracked, options_.checks.min_inliers)));
+}
+
+MapLocalizerStage::Outcome MapLocalizerStage::Refind(const processing::CameraModel& camera,
+                                                     const processing::TfSampler& sampler,
+                                                     const ConstImageView& raw, const Pose& guide,
+                                                     bool guide_is_corrected,
+                                                     const Tracks* tracks) const {
+  Pose from = guide;
+  double coarse_s = 0;
+  if (!guide_is_corrected) {
+    // The pose checks' minimum: this pose only guides the finer matching.
+    const auto start = std::chrono::steady_clock::now();
+    const Outcome c = GuidedSolve(camera, sampler, raw, guide, options_.coarse,
+                                  /*check_jump=*/false, "re-finding (coarse)",
+                                  options_.checks.min_inliers);
+    coarse_s = SecondsSince(start);
+    if (!c.success) return c;
+    from = c.w0_from_cam.pose;
+    // The tracks followed from the coarse pose first (Track's correction,
+    // at any distance): a tracked frame costs ~10 CPU-ms against a fine
+    // guided matching's ~150 at medium, and a frame that costs several
+    // frame periods leaves the next one far again.
+    if (tracks && !tracks->empty()) {
+      Outcome tracked = TrackFrom(camera, sampler, raw, *tracks, from, options_.patches);
+      if (tracked.success) {
+        tracked.correction_s = coarse_s;
+        tracked.corrected = from;
+        return tracked;
+      }
+    }
+  }
+  // Checked against the coarse pose: a fine pose far from it is wrong.
+  Outcome out = GuidedSolve(camera, sampler, raw, from, options_.guided, /*check_jump=*/true,
+                            "re-finding", options_.min_tracked);
+  out.correction_s = coarse_s;
+  return out;
+}
+
+double MapLocalizerStage::MedianShiftPx(const processing::CameraModel& camera,
+                                        const std::vector<TrackedPoint>& kept,
+                                        const Pose& a_w0_from_cam,
+                                        const Pose& b_w0_from_cam) const {
+  const Pose a = a_w0_from_cam.inverse(), b = b_w0_from_cam.inverse();
+  std::vector<double> d;
+  for (const TrackedPoint& k : kept) {
+    Eigen::Vector2d pa, pb;
+    double va = 0, vb = 0;
+    if (ProjectMapPoint(camera, a, map_.points_in_w0[k.point], &pa, &va) &&
+        ProjectMapPoint(camera, b, map_.points_in_w0[k.point], &pb, &vb))
+      d.push_back((pa - pb).norm());
+  }
+  if (d.empty()) return std::numeric_limits<double>::infinity();
+  std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+  return d[d.size() / 2];
 }
 
 std::shared_ptr<const MapLocalizerStage::Tracks> MapLocalizerStage::Retrack(
@@ -682,8 +761,12 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     const int interval = std::min(
         options_.reanchor_every,
         std::max(1, static_cast<int>(options_.average_anchors ? s.anchor_weight : 1e9)));
+    // Counted in frames tracked, not triggers: a camera whose frames come
+    // several triggers apart (a loaded machine) would otherwise re-anchor
+    // nearly every frame it gets, each re-anchoring leaving the next frame
+    // further behind.
     const bool periodic = options_.reanchor_every > 0 && s.last_anchor_trigger >= 0 &&
-                          frame.trigger_index - s.last_anchor_trigger >= interval;
+                          s.tracked_since_anchor + 1 >= interval;
     reanchor = can_track && (s.reanchor || periodic) && !s.relocalising;
     if (!can_track && s.relocalising) {
       // Published with this status (no pose): the frame was seen, not lost.
@@ -723,6 +806,42 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   bool kept_tracked = false;      // due for re-anchoring, published tracked
   bool cold_reanchored = false;   // a relocalisation without a pose, re-anchored here
   int relocalised_inliers = -1;   // then the relocalisation's inliers (Counts)
+  bool refind_attempt = false, refound = false;  // LocalizerOptions::refind_before_relocalising
+  double refind_s = 0;
+  bool anchor_refused = false;     // a bad anchor refused (max_anchor_shift_ratio)
+  double anchor_shift_px = -1;     // an averaged anchor's shift against the tracked pose
+  // A frame whose tracking failed (`attempt`: its outcome, "not run" for a
+  // far frame relocalised without the attempt) re-found around its
+  // prediction before a relocalisation; true when it was.
+  const auto try_refind = [&](const Outcome& attempt) {
+    if (!options_.refind_before_relocalising || !options_.track || !state.has_pose) return false;
+    // Track's correction was that coarse matching from the prediction, and it failed.
+    if (!attempt.corrected && !attempt.correction_status.empty() &&
+        attempt.correction_status != "ok")
+      return false;
+    const auto refind_start = std::chrono::steady_clock::now();
+    refind_attempt = true;
+    const bool corrected = attempt.corrected.has_value();
+    Outcome found = Refind(camera, **sampler, frame.raw,
+                           corrected ? *attempt.corrected : state.Predict(frame.trigger_index),
+                           corrected, state.tracks.get());
+    refind_s = SecondsSince(refind_start);
+    if (!found.success) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      counts_.last_guided_failure = found.status;
+      return false;
+    }
+    // Tracked from the coarse pose (`corrected` set), else re-anchored.
+    const bool tracked_from_coarse = found.corrected.has_value() && !corrected;
+    if (!tracked_from_coarse) {
+      guided_attempt = true;
+      guided = found;
+    }
+    r = std::move(found);
+    localisation = tracked_from_coarse ? "tracked" : "re-anchored";
+    refound = true;
+    return true;
+  };
   if (reanchor) {
     // Tracked first; its pose guides the matching against the map
     // (guided_matches.h): an absolute pose at a fraction of a
@@ -742,7 +861,21 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
       guided = GuidedSolve(camera, **sampler, frame.raw, tracked.w0_from_cam.pose,
                            options_.guided, /*check_jump=*/true, "re-anchoring",
                            options_.min_tracked);
-      if (guided.success) {
+      // A bad anchor refused before it is averaged (max_anchor_shift_ratio):
+      // its shift against the tracked pose against the camera's accepted
+      // anchors'; never twice in a row (the tracked pose may be the one off).
+      if (guided.success && options_.average_anchors && !state.cold) {
+        anchor_shift_px = MedianShiftPx(camera, tracked.kept, tracked.w0_from_cam.pose,
+                                        guided.w0_from_cam.pose);
+        if (options_.max_anchor_shift_ratio > 0 &&
+            state.anchor_history >= options_.min_anchor_history && !state.last_anchor_refused) {
+          const double rms = std::sqrt(state.anchor_shift2_sum / state.anchor_history);
+          const double limit =
+              std::max(options_.min_anchor_shift_px, options_.max_anchor_shift_ratio * rms);
+          anchor_refused = !(anchor_shift_px <= limit);
+        }
+      }
+      if (guided.success && !anchor_refused) {
         r = guided;
         localisation = "re-anchored";
         if (options_.average_anchors && !state.cold) {
@@ -763,6 +896,7 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
         kept_tracked = true;
       }
     }
+    if (localisation == "relocalised" && !tracked.success) try_refind(tracked);
     if (localisation == "relocalised") {
       relocalised_attempt = true;
       r = Relocalise(camera, frame, *sampler, state);
@@ -792,6 +926,10 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
       std::lock_guard<std::mutex> lock(mutex_);
       counts_.last_tracking_failure = r.status;
     }
+  }
+  if (!r.success && !reanchor && try_refind(r)) {
+    // re-found: r is its pose
+  } else if (!r.success && !reanchor) {
     relocalised_attempt = true;
     Outcome relocalised = Relocalise(camera, frame, *sampler, state);
     // A refused or failed relocalisation says why tracking did not serve either.
@@ -867,6 +1005,15 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     if (kept_tracked) ++counts_.reanchor_kept_tracked;
   }
   if (averaged) ++counts_.averaged;
+  if (anchor_refused) {
+    ++counts_.refused_anchors;
+    counts_.refused_anchor_shift_px = std::max(counts_.refused_anchor_shift_px, anchor_shift_px);
+  }
+  if (refind_attempt) {
+    ++counts_.refind_attempts;
+    counts_.refind_s += refind_s;
+    if (refound) ++counts_.refound;
+  }
   if (cold_reanchored) ++counts_.cold_reanchored;
   if (far_skipped) ++counts_.far_relocalised;
   if (far) {
@@ -964,6 +1111,7 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     s.has_pose = true;
     s.tracks = std::move(tracks);
     if (localisation != "tracked") s.last_anchor_trigger = frame.trigger_index;
+    s.tracked_since_anchor = localisation == "tracked" ? s.tracked_since_anchor + 1 : 0;
     s.anchor_weight = weight;
     // Re-anchored next frame: a tracked pose with too few anchored inliers
     // (min_anchored_fraction), or a relocalisation without a pose to refocus
@@ -977,8 +1125,21 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     const bool cold = localisation == "relocalised" && !state.has_pose && !frame.products &&
                       options_.relocalise_refocus_cells > 0;
     s.cold = cold || (localisation == "tracked" && state.cold);
-    s.reanchor = cold || (localisation == "tracked" &&
-                          r.anchored_inliers < options_.min_anchored_fraction * r.inliers);
+    // Or one with fewer than min_tracked inliers, or whose anchor was refused.
+    s.reanchor = cold || anchor_refused ||
+                 (localisation == "tracked" &&
+                  (r.anchored_inliers < options_.min_anchored_fraction * r.inliers ||
+                   r.inliers < options_.min_tracked));
+    // The anchors' shifts against the tracked poses (max_anchor_shift_ratio),
+    // from the last relocalisation on.
+    if (localisation == "relocalised") {
+      s.anchor_history = 0;
+      s.anchor_shift2_sum = 0;
+    } else if (averaged && anchor_shift_px >= 0 && std::isfinite(anchor_shift_px)) {
+      ++s.anchor_history;
+      s.anchor_shift2_sum += anchor_shift_px * anchor_shift_px;
+    }
+    s.last_anchor_refused = anchor_refused;
   }
   pose.transform = r.w0_from_cam.pose;
   pose.covariance = ToLeftPerturbationCovariance(r.w0_from_cam);

@@ -31,9 +31,18 @@
 //                measured against that pose and averaged with the anchors
 //                it has seen (TrackedPoint::offset, average_anchors), the
 //                frame's pose the PnP on the corrected tracked positions.
+//                An anchor whose shift against the tracked pose is far
+//                beyond the camera's earlier anchors' is refused before it
+//                is averaged (max_anchor_shift_ratio). Re-anchoring is also
+//                periodic: after reanchor_every frames tracked (sooner
+//                while the tracks average few anchors).
 //                When guided matching fails the tracked pose is published
-//                (re-anchoring due again at the next frame); relocalised
-//                when tracking fails. A re-anchoring that a later frame of
+//                (re-anchoring due again at the next frame).
+//   re-find      when tracking fails (or a far frame is not tried): coarse
+//                guided matching from the prediction, the tracks followed
+//                from its pose ("tracked"), else guided matching from it
+//                ("re-anchored", the tracks begun anew); relocalised only
+//                when that fails (refind_before_relocalising). A re-anchoring that a later frame of
 //                its camera overtook still hands its offsets on.
 //                When the prediction is weak more pyramid levels and a
 //                larger shift are allowed: two more levels and four times
@@ -143,7 +152,24 @@ struct LocalizerOptions {
   int max_tracks = 160;       // map points tracked per frame (>= min_tracked)
   int track_cells = 6;        // tracks spread over track_cells^2 cells of the TF image (>= 1)
   double track_margin_px = 16;  // tracks stay this far inside the TF image (>= 0)
-  int min_tracked = 30;       // fewer tracked inliers: relocalise (>= 3)
+  // Fewer tracked inliers than this: the next frame is re-anchored. A
+  // tracked pose with fewer, down to the pose checks' min_inliers, is still
+  // published when it passes every check (it did before only from 30: a
+  // frame tracked with 20-29 inliers was relocalised, ~600 CPU-ms at medium
+  // for a pose the checks accept). (>= 3)
+  int min_tracked = 30;
+  // A frame whose tracking failed, or a far frame relocalised without the
+  // attempt (min_far_track_success), of a camera with a pose in this pass
+  // is first re-found by guided matching around its prediction: `coarse`
+  // from the predicted pose, the tracks followed from that pose ("tracked"
+  // when that passes: Track's correction, at any distance), else `guided`
+  // from that pose (or from the correction's pose when Track corrected it
+  // and tracking still failed), PnP on those matches, checked; the tracks
+  // begin anew at that pose's projections ("re-anchored"). Only when that
+  // fails is it relocalised. At medium a re-finding costs about a
+  // third of a relocalisation's CPU (coarse render and SIFT on <= 420 px,
+  // then a re-anchoring's; docs/registration.md). false: relocalised.
+  bool refind_before_relocalising = true;
   // Re-anchoring: when fewer of a tracked pose's inliers than this fraction
   // were begun in a relocalised frame or re-anchored since
   // (TrackedPoint::anchored), the camera's next frame is re-anchored (or
@@ -177,14 +203,37 @@ struct LocalizerOptions {
   // anew at its pose's projections, the pose its guided PnP.
   bool average_anchors = true;
   double max_anchor_weight = 8;  // >= 1 (1: the last anchor alone)
-  // A frame this many triggers after its camera's last re-anchoring or
-  // relocalisation is re-anchored whatever its anchored inliers (0: only
-  // by min_anchored_fraction): with average_anchors each re-anchoring
-  // lowers the tracked poses' error by averaging one more anchor. While the
-  // tracks average fewer than reanchor_every anchors, sooner: after as many
-  // triggers as they average (1, 2, 3, ...), so that the first stretch after
-  // a relocalisation, which rests on one or two anchors, is short.
-  int reanchor_every = 0;  // >= 0
+  // A bad anchor (a guided PnP off by more than its covariance says: one r32
+  // run's trigger 7 at 1.15 mm from one anchor) is refused before it is
+  // averaged into the tracks' offsets: its shift against the tracked pose
+  // (the median over the tracked inliers of the distance between their map
+  // points' projections from the two poses, TF px) is compared with the
+  // camera's earlier accepted anchors' (their RMS shift). Once
+  // min_anchor_history anchors were accepted since the camera's last
+  // relocalisation, a shift above max(min_anchor_shift_px,
+  // max_anchor_shift_ratio x RMS) is refused: the tracked pose is
+  // published (it passed every check) and re-anchoring is due again at the
+  // next frame. (ratio > 1 or 0: never refused; min px >= 0; history >= 1)
+  double max_anchor_shift_ratio = 3;
+  double min_anchor_shift_px = 0.5;
+  int min_anchor_history = 3;
+  // A frame after this many frames tracked since its camera's last
+  // re-anchoring or relocalisation is re-anchored whatever its anchored
+  // inliers (0: only by min_anchored_fraction): with average_anchors each
+  // re-anchoring lowers the tracked poses' error by averaging one more
+  // anchor. While the tracks average fewer than reanchor_every anchors,
+  // sooner: after as many tracked frames as they average (1, 2, 3, ...), so
+  // that the first stretch after a relocalisation, which rests on one or
+  // two anchors, is short. Counted in frames, not triggers: live, frames
+  // skipped while a camera is busy do not make the re-anchorings denser.
+  // Live this was off until a frame whose tracking failed could be re-found
+  // (refind_before_relocalising): the re-anchorings let a camera's frames
+  // fall more than max_correction_ahead triggers behind, which were then
+  // relocalised, each letting the next frames fall further behind (1.55
+  // extrinsics/s per camera at medium). Re-found instead, they cost a
+  // re-anchoring's time, and the periodic re-anchoring keeps the tracked
+  // stretch as accurate at its end as at its start (docs/registration.md).
+  int reanchor_every = 4;  // >= 0
   // A prediction over skipped frames whose tracking failed (for a weak one,
   // no velocity yet or more than two triggers ahead, the patches already got
   // more levels and a larger shift, Track) is corrected by guided matching on a coarse
@@ -280,6 +329,15 @@ class MapLocalizerStage final : public processing::RegistrationStage {
     // rather than beginning them anew, and relocalisations without a pose
     // re-anchored in the same frame.
     long long averaged = 0, cold_reanchored = 0;
+    // Anchors refused before averaging (LocalizerOptions::max_anchor_shift_ratio)
+    // and the largest shift refused (TF px).
+    long long refused_anchors = 0;
+    double refused_anchor_shift_px = 0;
+    // Frames re-found by guided matching around their prediction
+    // (refind_before_relocalising): attempts, successes (published
+    // "re-anchored", counted in `guided`), the attempts' time.
+    long long refind_attempts = 0, refound = 0;
+    double refind_s = 0;
     // Frames re-anchored by guided matching (guided_matches.h) and their
     // Localize time (tracking included); the attempts' stages and figures.
     long long guided = 0, guided_attempts = 0;
@@ -366,7 +424,13 @@ class MapLocalizerStage final : public processing::RegistrationStage {
     // The tracks began at a relocalisation without a pose (its render at one
     // depth): their next re-anchoring begins them anew instead of averaging.
     bool cold = false;
+    // Anchors accepted since the last relocalisation and the sum of their
+    // squared shifts against the tracked pose (max_anchor_shift_ratio).
+    int anchor_history = 0;
+    double anchor_shift2_sum = 0;
+    bool last_anchor_refused = false;  // never two refusals in a row
     std::int64_t last_anchor_trigger = -1;  // its last relocalised or re-anchored frame
+    int tracked_since_anchor = 0;  // frames tracked since then (reanchor_every)
     double anchor_weight = 1;  // the anchors the last pose averages (TrackedPoint::offset_weight)
     // Prediction for `trigger` (header comment); the last pose without a previous one.
     Pose Predict(std::int64_t trigger) const;
@@ -378,6 +442,19 @@ class MapLocalizerStage final : public processing::RegistrationStage {
   Outcome TrackFrom(const processing::CameraModel& camera, const processing::TfSampler& sampler,
                     const ConstImageView& raw, const Tracks& tracks, const Pose& predicted,
                     const PatchTrackOptions& patches) const;
+  // A frame whose tracking failed re-found around its prediction
+  // (refind_before_relocalising): coarse guided matching from `guide`
+  // (skipped when `guide_is_corrected`: Track's correction already was
+  // that), then the re-anchoring's guided matching from its pose.
+  // When coarse matching ran, `tracks` are first followed from its pose
+  // (published "tracked" when that passes).
+  Outcome Refind(const processing::CameraModel& camera, const processing::TfSampler& sampler,
+                 const ConstImageView& raw, const Pose& guide, bool guide_is_corrected,
+                 const Tracks* tracks) const;
+  // The median over `kept` of the distance (TF px) between their map points'
+  // projections from a_w0_from_cam and b_w0_from_cam (max_anchor_shift_ratio).
+  double MedianShiftPx(const processing::CameraModel& camera, const std::vector<TrackedPoint>& kept,
+                       const Pose& a_w0_from_cam, const Pose& b_w0_from_cam) const;
   Outcome Relocalise(const processing::CameraModel& camera, const processing::StageFrame& frame,
                      const processing::TfSampler* sampler, const CameraState& state) const;
   // PnP on the map points `found` (TF positions, virtual depths v), then the
