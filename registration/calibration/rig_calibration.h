@@ -91,10 +91,21 @@ struct RigCalibrationOptions {
   // B at their initial values (camera 0's b_L0 starts from the plate,
   // calibration.h; the others' from their initial values).
   CalibrationOptions calibration;
-  // Step 2: the cameras X against camera 0's map.
-  FrameRegistrationOptions registration;
-  int min_registered_frames = 3;  // frames of a camera X registered, else an error
-                                  // (non_rigid: frames placed, refused poses counted)
+  // Step 2: the cameras X against camera 0's map. A frame counts as
+  // registered (RigCameraResult::registered) under `lifmcr register`'s
+  // checks, the 5 mm / 0.25 deg promise of an `ok` row with the depth
+  // checks on (pose_checks.h, ForErrorBound): the live localizer's defaults
+  // passed far-camera poses 21-36 mm off against a grown map.
+  FrameRegistrationOptions registration = [] {
+    FrameRegistrationOptions o;
+    o.checks = PoseCheckOptions::ForErrorBound(5.0, 0.25);
+    return o;
+  }();
+  // Frames of a camera X registered, else an error (non_rigid: frames
+  // placed, refused poses counted; rigid: when fewer pass the checks, the
+  // robust mean of every pose PnP estimated starts c0_from_cx, as a refused
+  // pose starts a non-rigid frame).
+  int min_registered_frames = 3;
   bool non_rigid = false;         // per-trigger c0_from_cx (above)
   Status Check() const;
 };
