@@ -12,7 +12,9 @@
 //    and its map.
 // 2. Every other camera X: each of its frames whose trigger camera 0 placed
 //    is registered against camera 0's map by plenoptic PnP with X's initial
-//    intrinsics (frame_registration.h). Each registered frame gives
+//    intrinsics (frame_registration.h). Each registered frame (one whose
+//    pose passed `registration.checks`; when fewer than
+//    min_registered_frames pass, every frame PnP gave a pose) gives
 //    c0_from_cx = c0_from_w0 w0_from_cx; the initial c0_from_cx is their
 //    robust mean (translation: component medians, the frames within
 //    max(3 x their median distance to it, 1 mm) averaged; rotation: the
@@ -95,7 +97,7 @@ struct RigCalibrationOptions {
   // registered (RigCameraResult::registered) under `lifmcr register`'s
   // checks, the 5 mm / 0.25 deg promise of an `ok` row with the depth
   // checks on (pose_checks.h, ForErrorBound): the live localizer's defaults
-  // passed far-camera poses 21-36 mm off against a grown map.
+  // passed far-camera poses 15-38 mm off against a grown map.
   FrameRegistrationOptions registration = [] {
     FrameRegistrationOptions o;
     o.checks = PoseCheckOptions::ForErrorBound(5.0, 0.25);
