@@ -418,6 +418,7 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
                              per_trigger ? "placed by PnP against the map of the cameras before it"
                                          : "given a pose by PnP against camera 0's map",
                              options.min_registered_frames)};
+    if (!per_trigger) rc.start = starts;
     rc.c0_from_cx_initial = RobustMean(starts);
     if (!per_trigger) extrinsics[c][0] = BlockOf(rc.c0_from_cx_initial);
 
@@ -1003,9 +1004,10 @@ std::string RigTruthComparison::Report() const {
     if (c > 0) {
       text += RigFormat(
           "; c0_from_cx joint %.3f mm / %.4f deg | registered alone, nominal "
-          "intrinsics (%d frames): robust mean %.3f mm / %.4f deg, per-frame median "
-          "%.3f mm / %.4f deg",
-          k.joint_mm, k.joint_deg, k.registered, k.mean_mm, k.mean_deg, k.median_mm, k.median_deg);
+          "intrinsics (%d frames, %d of them passing the pose checks): robust mean %.3f mm / "
+          "%.4f deg, per-frame median %.3f mm / %.4f deg",
+          k.joint_mm, k.joint_deg, k.start_frames, k.registered, k.mean_mm, k.mean_deg,
+          k.median_mm, k.median_deg);
       if (k.true_registered > 0)
         text += RigFormat(
             " | registered alone, true intrinsics (%d frames): robust mean %.3f mm "
@@ -1091,12 +1093,13 @@ Expected<RigTruthComparison> CompareRigWithTruth(
       k.mean_mm = TranslationDifference(rc.c0_from_cx_initial, truth_pose);
       k.mean_deg = RotationDifferenceDeg(rc.c0_from_cx_initial, truth_pose);
       std::vector<double> mm, deg;
-      for (const FramePose& p : rc.registered) {
+      for (const FramePose& p : rc.start) {
         mm.push_back(TranslationDifference(p.world_from_cam, truth_pose));
         deg.push_back(RotationDifferenceDeg(p.world_from_cam, truth_pose));
       }
       k.median_mm = Median(mm);
       k.median_deg = Median(deg);
+      k.start_frames = static_cast<int>(rc.start.size());
       k.registered = static_cast<int>(rc.registered.size());
       if (c < registered_with_truth.size() && !registered_with_truth[c].empty()) {
         const std::vector<FramePose>& alone = registered_with_truth[c];

@@ -125,6 +125,11 @@ struct RigCameraResult {
   // Step 2, per registered frame of camera X: c0_from_cx = c0_from_w0
   // w0_from_cx (FramePose::world_from_cam holds c0_from_cx).
   std::vector<FramePose> registered;
+  // Rigid mode: the frames c0_from_cx_initial is the robust mean of
+  // (`registered`, or every pose PnP estimated when fewer than
+  // min_registered_frames passed; as `registered`). Empty in the non-rigid
+  // mode and for camera 0.
+  std::vector<FramePose> start;
   // Non-rigid mode, per trigger camera X was placed at (FramePose::
   // world_from_cam holds c0_from_cx(t)): the joint solve, where step 2
   // started it (PnP's pose, also when its checks refused it), and the joint
@@ -204,9 +209,10 @@ struct RigTruthComparison {
     double f_l_rel = 0, b_l0_rel = 0, b_rel = 0;  // (estimate - truth) / truth
     double principal_point_px = 0;                // distance
     double joint_mm = 0, joint_deg = 0;           // c0_from_cx of the joint solve
-    double mean_mm = 0, mean_deg = 0;             // robust mean of the registrations
-    double median_mm = 0, median_deg = 0;         // median over the registered frames
-    int registered = 0;
+    double mean_mm = 0, mean_deg = 0;             // c0_from_cx_initial (robust mean)
+    double median_mm = 0, median_deg = 0;         // median over its frames (start)
+    int start_frames = 0;                         // RigCameraResult::start
+    int registered = 0;                           // of them, passing the pose checks
     // Registered alone with the true intrinsics (RegisterAgainstCamera0);
     // NaN when not given.
     double true_mean_mm = NAN, true_mean_deg = NAN, true_median_mm = NAN, true_median_deg = NAN;

@@ -28,6 +28,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <map>
@@ -151,6 +152,10 @@ TEST(RigCalibration, JointC0FromCxBeatsEachCameraRegisteredAloneAndColmapHoldsTh
   for (std::size_t c = 1; c < serials.size(); ++c) {
     const RigTruthComparison::Camera& k = comparison->cameras[c];
     ASSERT_GT(k.true_registered, 0) << serials[c];
+    // Step 2's start: the frames that passed the checks, or every estimated
+    // pose where too few did; the baseline median is over those frames.
+    EXPECT_GE(k.start_frames, std::max(k.registered, options.min_registered_frames)) << serials[c];
+    EXPECT_TRUE(std::isfinite(k.median_mm)) << serials[c];
     // The joint c0_from_cx against each frame's registration (what
     // `lifmcr register` gives per frame): their median error. The robust
     // mean of the 5 registered frames is printed, not asserted: on this rig
