@@ -374,6 +374,7 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     const processing::CameraModel model(cameras[c].initial.intrinsics);
     if (per_trigger && c > 1) build_index(grown);
     std::map<std::pair<int, int>, int> matched;  // (frame index, keypoint) -> point
+    std::vector<FramePose> estimated;            // every pose PnP returned
     for (std::size_t f = 0; f < cameras[c].frames.size(); ++f) {
       const CalibrationFrame& frame = cameras[c].frames[f];
       const auto trigger = trigger_of_frame.find(frame.frame);
@@ -394,6 +395,7 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
       for (std::size_t i = 0; i < r.inlier_points.size(); ++i)
         matched[{static_cast<int>(f), r.inlier_queries[i]}] = point_of_index[r.inlier_points[i]];
       const Pose c0_from_cx = PoseOf(rig[trigger->second]) * r.w0_from_cam.pose;
+      estimated.push_back(FramePose{frame.frame, -1, c0_from_cx});
       if (per_trigger) {
         placed[c][trigger->second] = true;
         extrinsics[c][trigger->second] = BlockOf(c0_from_cx);
@@ -402,13 +404,21 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
       if (!r.success) continue;
       rc.registered.push_back(FramePose{frame.frame, -1, c0_from_cx});
     }
-    const std::vector<FramePose>& starts = per_trigger ? rc.per_trigger_initial : rc.registered;
+    const bool enough_passed =
+        static_cast<int>(rc.registered.size()) >= options.min_registered_frames;
+    if (!per_trigger && !enough_passed)
+      say(RigFormat("camera %s: %zu of its frames passed the pose checks against camera 0's map: "
+                    "c0_from_cx starts from the %zu poses PnP estimated",
+                    cameras[c].serial.c_str(), rc.registered.size(), estimated.size()));
+    const std::vector<FramePose>& starts =
+        per_trigger ? rc.per_trigger_initial : (enough_passed ? rc.registered : estimated);
     if (static_cast<int>(starts.size()) < options.min_registered_frames)
       return Error{RigFormat("rig calibration: camera %s: %zu of its frames %s, at least %d needed",
                              cameras[c].serial.c_str(), starts.size(),
                              per_trigger ? "placed by PnP against the map of the cameras before it"
-                                         : "registered against camera 0's map",
+                                         : "given a pose by PnP against camera 0's map",
                              options.min_registered_frames)};
+    if (!per_trigger) rc.start = starts;
     rc.c0_from_cx_initial = RobustMean(starts);
     if (!per_trigger) extrinsics[c][0] = BlockOf(rc.c0_from_cx_initial);
 
@@ -994,9 +1004,10 @@ std::string RigTruthComparison::Report() const {
     if (c > 0) {
       text += RigFormat(
           "; c0_from_cx joint %.3f mm / %.4f deg | registered alone, nominal "
-          "intrinsics (%d frames): robust mean %.3f mm / %.4f deg, per-frame median "
-          "%.3f mm / %.4f deg",
-          k.joint_mm, k.joint_deg, k.registered, k.mean_mm, k.mean_deg, k.median_mm, k.median_deg);
+          "intrinsics (%d frames, %d of them passing the pose checks): robust mean %.3f mm / "
+          "%.4f deg, per-frame median %.3f mm / %.4f deg",
+          k.joint_mm, k.joint_deg, k.start_frames, k.registered, k.mean_mm, k.mean_deg,
+          k.median_mm, k.median_deg);
       if (k.true_registered > 0)
         text += RigFormat(
             " | registered alone, true intrinsics (%d frames): robust mean %.3f mm "
@@ -1082,12 +1093,13 @@ Expected<RigTruthComparison> CompareRigWithTruth(
       k.mean_mm = TranslationDifference(rc.c0_from_cx_initial, truth_pose);
       k.mean_deg = RotationDifferenceDeg(rc.c0_from_cx_initial, truth_pose);
       std::vector<double> mm, deg;
-      for (const FramePose& p : rc.registered) {
+      for (const FramePose& p : rc.start) {
         mm.push_back(TranslationDifference(p.world_from_cam, truth_pose));
         deg.push_back(RotationDifferenceDeg(p.world_from_cam, truth_pose));
       }
       k.median_mm = Median(mm);
       k.median_deg = Median(deg);
+      k.start_frames = static_cast<int>(rc.start.size());
       k.registered = static_cast<int>(rc.registered.size());
       if (c < registered_with_truth.size() && !registered_with_truth[c].empty()) {
         const std::vector<FramePose>& alone = registered_with_truth[c];

@@ -12,7 +12,9 @@
 //    and its map.
 // 2. Every other camera X: each of its frames whose trigger camera 0 placed
 //    is registered against camera 0's map by plenoptic PnP with X's initial
-//    intrinsics (frame_registration.h). Each registered frame gives
+//    intrinsics (frame_registration.h). Each registered frame (one whose
+//    pose passed `registration.checks`; when fewer than
+//    min_registered_frames pass, every frame PnP gave a pose) gives
 //    c0_from_cx = c0_from_w0 w0_from_cx; the initial c0_from_cx is their
 //    robust mean (translation: component medians, the frames within
 //    max(3 x their median distance to it, 1 mm) averaged; rotation: the
@@ -91,10 +93,21 @@ struct RigCalibrationOptions {
   // B at their initial values (camera 0's b_L0 starts from the plate,
   // calibration.h; the others' from their initial values).
   CalibrationOptions calibration;
-  // Step 2: the cameras X against camera 0's map.
-  FrameRegistrationOptions registration;
-  int min_registered_frames = 3;  // frames of a camera X registered, else an error
-                                  // (non_rigid: frames placed, refused poses counted)
+  // Step 2: the cameras X against camera 0's map. A frame counts as
+  // registered (RigCameraResult::registered) under `lifmcr register`'s
+  // checks, the 5 mm / 0.25 deg promise of an `ok` row with the depth
+  // checks on (pose_checks.h, ForErrorBound): the live localizer's defaults
+  // passed far-camera poses 15-38 mm off against a grown map.
+  FrameRegistrationOptions registration = [] {
+    FrameRegistrationOptions o;
+    o.checks = PoseCheckOptions::ForErrorBound(5.0, 0.25);
+    return o;
+  }();
+  // Frames of a camera X registered, else an error (non_rigid: frames
+  // placed, refused poses counted; rigid: when fewer pass the checks, the
+  // robust mean of every pose PnP estimated starts c0_from_cx, as a refused
+  // pose starts a non-rigid frame).
+  int min_registered_frames = 3;
   bool non_rigid = false;         // per-trigger c0_from_cx (above)
   Status Check() const;
 };
@@ -112,6 +125,11 @@ struct RigCameraResult {
   // Step 2, per registered frame of camera X: c0_from_cx = c0_from_w0
   // w0_from_cx (FramePose::world_from_cam holds c0_from_cx).
   std::vector<FramePose> registered;
+  // Rigid mode: the frames c0_from_cx_initial is the robust mean of
+  // (`registered`, or every pose PnP estimated when fewer than
+  // min_registered_frames passed; as `registered`). Empty in the non-rigid
+  // mode and for camera 0.
+  std::vector<FramePose> start;
   // Non-rigid mode, per trigger camera X was placed at (FramePose::
   // world_from_cam holds c0_from_cx(t)): the joint solve, where step 2
   // started it (PnP's pose, also when its checks refused it), and the joint
@@ -191,9 +209,10 @@ struct RigTruthComparison {
     double f_l_rel = 0, b_l0_rel = 0, b_rel = 0;  // (estimate - truth) / truth
     double principal_point_px = 0;                // distance
     double joint_mm = 0, joint_deg = 0;           // c0_from_cx of the joint solve
-    double mean_mm = 0, mean_deg = 0;             // robust mean of the registrations
-    double median_mm = 0, median_deg = 0;         // median over the registered frames
-    int registered = 0;
+    double mean_mm = 0, mean_deg = 0;             // c0_from_cx_initial (robust mean)
+    double median_mm = 0, median_deg = 0;         // median over its frames (start)
+    int start_frames = 0;                         // RigCameraResult::start
+    int registered = 0;                           // of them, passing the pose checks
     // Registered alone with the true intrinsics (RegisterAgainstCamera0);
     // NaN when not given.
     double true_mean_mm = NAN, true_mean_deg = NAN, true_median_mm = NAN, true_median_deg = NAN;

@@ -24,6 +24,9 @@ double MedianOf(std::vector<double> v) {
   return n % 2 == 1 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
+// The 95 % quantile of chi-square(6).
+constexpr double kChi2Dof6Quantile95 = 12.592;
+
 double MaxOf(const std::vector<double>& v) {
   return v.empty() ? std::numeric_limits<double>::quiet_NaN() : *std::max_element(v.begin(), v.end());
 }
@@ -66,7 +69,20 @@ Expected<RigPerFrameTruth> CompareNonRigidWithTruth(
       const auto passed = ByFrame(c == 0 ? result.camera0.poses : rc.registered);
       const auto alone = c < registered_alone.size() ? ByFrame(registered_alone[c])
                                                      : std::map<std::int64_t, Pose>{};
-      std::vector<double> jmm, jdeg, amm, adeg;
+      std::vector<double> jmm, jdeg, amm, adeg, pmm, pdeg;
+      // The joint covariance per trigger ([rotation rad, translation mm],
+      // rig_calibration.h) in pose_covariance.h's order (t, r).
+      std::map<std::int64_t, Covariance6> covariance;
+      if (c > 0 && result.covariance_computed)
+        for (std::size_t i = 0; i < rc.per_trigger.size() && i < rc.per_trigger_covariance.size();
+             ++i) {
+          const Eigen::Matrix<double, 6, 6>& rt = rc.per_trigger_covariance[i];
+          Covariance6 tr;
+          tr << rt.bottomRightCorner<3, 3>(), rt.bottomLeftCorner<3, 3>(),
+              rt.topRightCorner<3, 3>(), rt.topLeftCorner<3, 3>();
+          covariance[rc.per_trigger[i].frame] = tr;
+        }
+      const auto w0_from_c0 = ByFrame(result.trajectory);
       for (const FramePose& trigger : result.trajectory) {
         const auto truth_pose = c0_from_cx_truth[c].find(trigger.frame);
         if (truth_pose == c0_from_cx_truth[c].end()) continue;
@@ -77,6 +93,21 @@ Expected<RigPerFrameTruth> CompareNonRigidWithTruth(
           row.joint_deg = RotationDifferenceDeg(p->second, truth_pose->second);
           jmm.push_back(row.joint_mm);
           jdeg.push_back(row.joint_deg);
+          const auto true_w0_from_c0 = c0_from_cx_truth[0].find(trigger.frame);
+          if (c > 0 && true_w0_from_c0 != c0_from_cx_truth[0].end()) {
+            const Pose estimate = w0_from_c0.at(trigger.frame) * p->second;
+            const Pose truth_w0 = true_w0_from_c0->second * truth_pose->second;
+            row.plate_mm = TranslationDifference(estimate, truth_w0);
+            row.plate_deg = RotationDifferenceDeg(estimate, truth_w0);
+            pmm.push_back(row.plate_mm);
+            pdeg.push_back(row.plate_deg);
+          }
+          if (const auto s = covariance.find(trigger.frame);
+              s != covariance.end() && !s->second.isZero()) {
+            row.chi2 = SquaredMahalanobis({p->second, s->second}, truth_pose->second);
+            ++k.with_covariance;
+            if (row.chi2 <= kChi2Dof6Quantile95) ++k.within_chi2_95;
+          }
         }
         if (const auto p = start.find(trigger.frame); p != start.end()) {
           row.start_mm = TranslationDifference(p->second, truth_pose->second);
@@ -99,6 +130,8 @@ Expected<RigPerFrameTruth> CompareNonRigidWithTruth(
       k.joint_median_deg = MedianOf(jdeg);
       k.alone_median_mm = MedianOf(amm);
       k.alone_median_deg = MedianOf(adeg);
+      k.plate_median_mm = MedianOf(pmm);
+      k.plate_median_deg = MedianOf(pdeg);
     }
     out.cameras.push_back(std::move(k));
   }
@@ -125,17 +158,29 @@ std::string RigPerFrameTruth::Report() const {
           k.placed, k.rows.size(), Cell(k.joint_median_mm, k.joint_median_deg).c_str(),
           k.joint_max_mm, k.joint_max_deg, k.alone_registered,
           Cell(k.alone_median_mm, k.alone_median_deg).c_str());
+    if (c > 0)
+      text += PerFrameFormat("; joint w0_from_cx (the plate frame, camera 0's own error left "
+                             "out): median %s",
+                             Cell(k.plate_median_mm, k.plate_median_deg).c_str());
+    if (c > 0 && k.with_covariance > 0)
+      text += PerFrameFormat("; %d of %d frames (%.0f %%) within the 95 %% chi-square(6) bound "
+                             "of their joint covariance",
+                             k.within_chi2_95, k.with_covariance,
+                             100.0 * k.within_chi2_95 / k.with_covariance);
     text += "\n";
   }
-  text += "| camera | frame | joint | start (camera 0: calibrated alone; X: PnP against the map of the cameras before it) | alone (camera 0's map) |\n"
-          "| --- | --- | --- | --- | --- |\n";
+  text += "| camera | frame | joint | joint in the plate frame (X: w0_from_cx) | joint chi2 | start (camera 0: calibrated alone; X: PnP against the map of the cameras before it) | alone (camera 0's map) |\n"
+          "| --- | --- | --- | --- | --- | --- | --- |\n";
   for (const Camera& k : cameras)
     for (const Row& r : k.rows)
-      text += PerFrameFormat("| %s | %lld | %s | %s%s | %s |\n", k.serial.c_str(),
-                             static_cast<long long>(r.frame), Cell(r.joint_mm, r.joint_deg).c_str(),
-                             Cell(r.start_mm, r.start_deg).c_str(),
-                             std::isnan(r.start_mm) ? "" : (r.start_passed ? " ok" : " refused"),
-                             Cell(r.alone_mm, r.alone_deg).c_str());
+      text += PerFrameFormat(
+          "| %s | %lld | %s | %s | %s | %s%s | %s |\n", k.serial.c_str(),
+          static_cast<long long>(r.frame), Cell(r.joint_mm, r.joint_deg).c_str(),
+          Cell(r.plate_mm, r.plate_deg).c_str(),
+          std::isnan(r.chi2) ? "—" : PerFrameFormat("%.1f", r.chi2).c_str(),
+          Cell(r.start_mm, r.start_deg).c_str(),
+          std::isnan(r.start_mm) ? "" : (r.start_passed ? " ok" : " refused"),
+          Cell(r.alone_mm, r.alone_deg).c_str());
   return text;
 }
 

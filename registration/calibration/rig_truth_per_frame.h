@@ -7,6 +7,14 @@
 // camera 0's map gives it (the baseline; RegisterAgainstCamera0). For
 // camera 0 the rows are its pose in the plate frame, w0_from_c0: the joint
 // solve's and (as `start`) its calibration alone's; `alone` is empty.
+//
+// Camera 0's own error in the plate frame (its calibration's) moves every
+// c0_from_cx alike; what is left of camera X's is its joint pose in the
+// plate frame, w0_from_cx(t) = w0_from_c0(t) c0_from_cx(t), against the
+// truth (`plate` below). And the joint covariance of c0_from_cx(t)
+// (rig_calibration.h, step 4) against the error: the squared Mahalanobis
+// distance (pose_covariance.h), chi-square(6) when the covariance is right,
+// and the share of frames within its 95 % bound (12.59).
 
 #include "config/error.h"
 #include "config/frames.h"
@@ -27,6 +35,8 @@ struct RigPerFrameTruth {
     double start_mm = NAN, start_deg = NAN;  // NaN: PnP estimated no pose
     bool start_passed = false;               // the start passed the pose checks
     double alone_mm = NAN, alone_deg = NAN;  // NaN: not registered against camera 0's map
+    double plate_mm = NAN, plate_deg = NAN;  // joint w0_from_cx(t) vs truth (camera X)
+    double chi2 = NAN;  // joint c0_from_cx(t)'s squared Mahalanobis distance; NaN: no covariance
   };
   struct Camera {
     std::string serial;
@@ -37,6 +47,8 @@ struct RigPerFrameTruth {
     double joint_max_mm = NAN, joint_max_deg = NAN;  // over the placed frames
     double joint_median_mm = NAN, joint_median_deg = NAN;
     double alone_median_mm = NAN, alone_median_deg = NAN;
+    double plate_median_mm = NAN, plate_median_deg = NAN;
+    int with_covariance = 0, within_chi2_95 = 0;  // frames with a covariance, of them within 12.59
   };
   std::vector<Camera> cameras;
   // Per camera one line (intrinsics, the joint poses' median and worst
