@@ -175,8 +175,10 @@ Status TfDepthOf(const PlenopticFrame& f, const VirtualDepthMap& raw, const Lens
   // With the per-lens depth: which micro images hold, their centres and
   // rows, and per band the lists of the splat below.
   const std::size_t lenses = f.lenses.size();
-  std::vector<float> centre_x, centre_y;
-  std::vector<std::int32_t> lens_top, lens_bottom;
+  std::vector<float>& centre_x = scratch.centre_x;
+  std::vector<float>& centre_y = scratch.centre_y;
+  std::vector<std::int32_t>& lens_top = scratch.lens_top;
+  std::vector<std::int32_t>& lens_bottom = scratch.lens_bottom;
   const float reach = static_cast<float>(f.radius_px) + 1.0f;
   const float lambda = static_cast<float>(f.lambda);
   // pitch / (2 sqrt 3) TF px: the circumradius of a lens's Voronoi cell at s = 1.

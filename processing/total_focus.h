@@ -116,6 +116,8 @@ struct TfDepthMap {
     // hold with their centre in it.
     LensSeed lens_z;
     std::vector<std::uint8_t> held;
+    std::vector<float> centre_x, centre_y;  // c_k
+    std::vector<std::int32_t> lens_top, lens_bottom;  // raw rows of a disc r_valid + 1 around c_k
     std::vector<std::vector<std::int32_t>> band_dense, band_held, band_active;
     std::vector<double> lens_cell_w, lens_cell_wz;  // the splats' sums per cell
   } scratch;
