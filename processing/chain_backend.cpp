@@ -28,8 +28,10 @@ class CpuBackend final : public ChainBackend {
     return EstimateVirtualDepth(frame, mla, options, seed, out);
   }
   Status TfDepth(const PlenopticFrame& frame, const VirtualDepthMap& raw_depth,
-                 const TfOptions& options, TfDepthMap* out) override {
-    return VirtualDepthToTf(frame, raw_depth, options, out);
+                 const LensDepthMap* lens_depth, const TfOptions& options,
+                 TfDepthMap* out) override {
+    return lens_depth != nullptr ? VirtualDepthToTf(frame, raw_depth, *lens_depth, options, out)
+                                 : VirtualDepthToTf(frame, raw_depth, options, out);
   }
   Status TfRender(const PlenopticFrame& frame, const MlaCalibration& mla,
                   const TfDepthMap& depth, const TfOptions& options, TfImage* out) override {

@@ -30,7 +30,8 @@
 //   LensDepth       again only when Process is given no per-lens depth
 //   Seed            the dense search's windows from the per-lens depth
 //   DenseDepth      the virtual depth on the raw grid
-//   TfDepth         the virtual depth on the TF grid
+//   TfDepth         the virtual depth on the TF grid (from the per-lens depth where it
+//                   holds when the dense search was seeded: total_focus.h)
 //   TfRender        the totally focused image
 // The metric depth and the point cloud (point_cloud.h) stay on the host:
 // they are a per-TF-pixel formula over the TF depth, cheap beside the rest.
@@ -69,8 +70,11 @@ class ChainBackend {
   virtual Status DenseDepth(const PlenopticFrame& frame, const MlaCalibration& mla,
                             const DepthOptions& options, const LensSeed* seed,
                             VirtualDepthMap* out) = 0;
+  // `lens_depth` the frame's per-lens depth (the dense search's seed): the
+  // TF depth from it where it holds (total_focus.h); null: from every dense pixel.
   virtual Status TfDepth(const PlenopticFrame& frame, const VirtualDepthMap& raw_depth,
-                         const TfOptions& options, TfDepthMap* out) = 0;
+                         const LensDepthMap* lens_depth, const TfOptions& options,
+                         TfDepthMap* out) = 0;
   virtual Status TfRender(const PlenopticFrame& frame, const MlaCalibration& mla,
                           const TfDepthMap& depth, const TfOptions& options, TfImage* out) = 0;
 };

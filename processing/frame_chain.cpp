@@ -341,7 +341,10 @@ Expected<ChainLease> CameraChain::Process(ConstImageView raw, const LensDepthMap
   p.depth_s = SecondsSince(t);
 
   t = std::chrono::steady_clock::now();
-  if (Status s = backend_->TfDepth(p.prepared, p.raw_depth, options_.tf, &p.tf_depth); !s)
+  // The seeded chain's per-lens depth also makes the TF depth (total_focus.h).
+  if (Status s = backend_->TfDepth(p.prepared, p.raw_depth, seed != nullptr ? lens_depth : nullptr,
+                                   options_.tf, &p.tf_depth);
+      !s)
     return Error{"camera " + setup_.serial + ": " + s.error().message};
   if (Status s = backend_->TfRender(p.prepared, setup_.mla, p.tf_depth, options_.tf, &p.tf); !s)
     return Error{"camera " + setup_.serial + ": " + s.error().message};

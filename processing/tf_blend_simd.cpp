@@ -121,6 +121,47 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
                      hn::Mul(w11, q11));
     };
     if constexpr (kChannels == 3) {
+#if HWY_TARGET != HWY_SCALAR
+      // BGR: one 64-bit word per raw row holds both pixels, B G R of x0 and
+      // of x0 + 1: the word at 3 x0 - 2 shifted down by two bytes (x0 >= 1),
+      // or the word at 3 x0 (x0 = 0, a row of width >= 8); neither reads
+      // outside its row. Gathered a half vector at a time (64-bit offsets),
+      // then split into the words' low and high 32 bits (ConcatEven /
+      // ConcatOdd keep the lanes' order): B0 G0 R0 B1 | G1 R1 - -.
+      const hn::Repartition<std::uint64_t, DF> du64;
+      const hn::Repartition<std::int64_t, DF> di64;
+      const hn::Half<decltype(di)> dh;
+      const auto inner = hn::Gt(ix, hn::Zero(di));
+      const auto off0 = hn::Add(hn::Mul(iy, stride),
+                                hn::Sub(hn::Mul(ix, hn::Set(di, 3)),
+                                        hn::IfThenElseZero(inner, hn::Set(di, 2))));
+      const auto shift32 = hn::IfThenElseZero(inner, hn::Set(di, 16));
+      const auto shift_lo = hn::BitCast(du64, hn::PromoteTo(di64, hn::LowerHalf(dh, shift32)));
+      const auto shift_hi = hn::BitCast(du64, hn::PromoteTo(di64, hn::UpperHalf(dh, shift32)));
+      const auto* row_words = reinterpret_cast<const std::uint64_t*>(s.raw);
+      auto load_row = [&](hn::Vec<decltype(di)> off, hn::Vec<decltype(du)>* lo,
+                          hn::Vec<decltype(du)>* hi) {
+        const auto w_lo =
+            hn::GatherOffset(du64, row_words, hn::PromoteTo(di64, hn::LowerHalf(dh, off))) >>
+            shift_lo;
+        const auto w_hi =
+            hn::GatherOffset(du64, row_words, hn::PromoteTo(di64, hn::UpperHalf(dh, off))) >>
+            shift_hi;
+        *lo = hn::ConcatEven(du, hn::BitCast(du, w_hi), hn::BitCast(du, w_lo));
+        *hi = hn::ConcatOdd(du, hn::BitCast(du, w_hi), hn::BitCast(du, w_lo));
+      };
+      hn::Vec<decltype(du)> a_lo, a_hi, b_lo, b_hi;
+      load_row(off0, &a_lo, &a_hi);
+      load_row(hn::Add(off0, stride), &b_lo, &b_hi);
+      col[0] = mix(to_f(hn::And(a_lo, byte)), to_f(hn::ShiftRight<24>(a_lo)),
+                   to_f(hn::And(b_lo, byte)), to_f(hn::ShiftRight<24>(b_lo)));
+      col[1] = mix(to_f(hn::And(hn::ShiftRight<8>(a_lo), byte)), to_f(hn::And(a_hi, byte)),
+                   to_f(hn::And(hn::ShiftRight<8>(b_lo), byte)), to_f(hn::And(b_hi, byte)));
+      col[2] = mix(to_f(hn::And(hn::ShiftRight<16>(a_lo), byte)),
+                   to_f(hn::And(hn::ShiftRight<8>(a_hi), byte)),
+                   to_f(hn::And(hn::ShiftRight<16>(b_lo), byte)),
+                   to_f(hn::And(hn::ShiftRight<8>(b_hi), byte)));
+#else
       // BGR: the word at 3 x0 holds B G R of x0 in its low three bytes, the
       // word at 3 x0 + 2 those of x0 + 1 in its high three; neither reads
       // past pixel x0 + 1 of its row.
@@ -139,6 +180,7 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
                    to_f(hn::And(hn::ShiftRight<16>(b1), byte)));
       col[2] = mix(to_f(hn::And(hn::ShiftRight<16>(a0), byte)), to_f(hn::ShiftRight<24>(a1)),
                    to_f(hn::And(hn::ShiftRight<16>(b0), byte)), to_f(hn::ShiftRight<24>(b1)));
+#endif
     } else {
       // Mono8: the word at x0 - 2 holds x0 and x0 + 1 in its high two bytes
       // and reads nothing past x0 + 1 (x0 >= 2; below, the word at x0, its

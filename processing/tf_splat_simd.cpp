@@ -39,7 +39,7 @@ HWY_INLINE int SplatVector(DF df, const TfSplatRow& r, int x0, const float* vp, 
   const auto k2 = hn::IfThenElseZero(hn::RebindMask(di, valid), hn::Add(k, k));
   const VF lx = hn::GatherIndex(df, r.lens_xy, k2);
   const VF ly = hn::GatherIndex(df, r.lens_xy, hn::Add(k2, hn::Set(di, 1)));
-  const VF x = hn::Add(hn::Set(df, static_cast<float>(x0)), hn::Iota(df, 0.0f));
+  const VF x = hn::Add(hn::Set(df, static_cast<float>(r.x0 + x0)), hn::Iota(df, 0.0f));
   const VF xv = hn::Add(lx, hn::Mul(v, hn::Sub(x, lx)));
   const VF yv = hn::Add(ly, hn::Mul(v, hn::Sub(hn::Set(df, static_cast<float>(r.y)), ly)));
   const VF ua = hn::Mul(hn::Sub(xv, half), half), wa = hn::Mul(hn::Sub(yv, half), half);
@@ -101,7 +101,7 @@ int ScalarSplatRow(const TfSplatRow& r, std::uint32_t* t_out, float* w_out, floa
     const int k = r.lens[x];
     if (std::isnan(v) || k < 0) continue;
     const float lx = r.lens_xy[2 * k], ly = r.lens_xy[2 * k + 1];
-    const float xv = lx + v * (static_cast<float>(x) - lx);
+    const float xv = lx + v * (static_cast<float>(r.x0 + x) - lx);
     const float yv = ly + v * (y - ly);
     const float ua = (xv - 0.5f) * 0.5f, wa = (yv - 0.5f) * 0.5f;
     const float ur = ua + 0.5f, wr = wa + 0.5f;

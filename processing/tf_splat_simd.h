@@ -5,7 +5,7 @@
 // same order without FMA contraction, so that they agree to the last bit
 // (tests/processing/test_tf_splat_simd.cpp).
 //
-// Per raw pixel x of row y with a virtual depth v (not NaN) in micro image
+// Per raw pixel x of row y (a whole row, or a span of it from x0) with a virtual depth v (not NaN) in micro image
 // k >= 0 (micro-lens centre l_k): the virtual point x_v = l_k + v (p - l_k),
 // the TF pixel nearest to (x_v - 0.5) / 2, (u, w) = trunc((x_v - 0.5) / 2 +
 // 0.5) where (x_v - 0.5) / 2 > -0.5 and u < tf_width, w < tf_height (else
@@ -22,7 +22,8 @@ struct TfSplatRow {
   const float* sigma_z = nullptr;      // its sigma_z
   const std::int32_t* lens = nullptr;  // its micro image (-1: none)
   const float* lens_xy = nullptr;      // l_k: x at 2 k, y at 2 k + 1
-  int width = 0;                       // pixels of the row (x = 0 .. width - 1)
+  int x0 = 0;                          // x of the first pixel (v, sigma_z, lens point at it)
+  int width = 0;                       // pixels of the row (x = x0 .. x0 + width - 1)
   int y = 0;                           // the raw row
   int tf_width = 0, tf_height = 0;
 };

@@ -1,5 +1,6 @@
 #include "processing/total_focus.h"
 
+#include "processing/lens_depth.h"
 #include "processing/lens_search_simd.h"
 #include "processing/tf_kernel.h"
 #include "processing/tf_splat_simd.h"
@@ -90,10 +91,37 @@ void BoxSums(int width, int height, int radius, const std::vector<double>& w,
   });
 }
 
-}  // namespace
+// Agreement of a lens's ring-1 neighbours with its z for its depth to hold
+// (total_focus.h), the share of z (the regularisation's 5 %).
+constexpr float kLensHoldGate = 0.05f;
+// With the per-lens depth, the dense pixels of the micro images that do not
+// hold are splatted on every kDenseRowStep-th raw row, weighted by it
+// (total_focus.h).
+constexpr int kDenseRowStep = 4;
 
-Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
-                        const TfOptions& options, TfDepthMap* out) {
+// Per micro image whether its lens depth holds (total_focus.h): an estimate,
+// and every ring-1 neighbour that exists with one within kLensHoldGate of its z.
+void LensesHeld(const PlenopticFrame& f, const LensSeed& lens_z, std::vector<std::uint8_t>* held) {
+  held->assign(f.lenses.size(), 0);
+  static constexpr int kRing1[6][2] = {{1, 0}, {0, 1}, {-1, 1}, {-1, 0}, {0, -1}, {1, -1}};
+  tbb::parallel_for(std::size_t{0}, f.lenses.size(), [&](std::size_t k) {
+    const float z = lens_z.z[k];
+    if (!(z > 0)) return;
+    const MicroImage& m = f.lenses[k];
+    for (const auto& d : kRing1) {
+      const int n = f.LensAt(m.i + d[0], m.j + d[1]);
+      if (n < 0) continue;
+      if (!(std::abs(lens_z.z[n] - z) <= kLensHoldGate * z)) return;  // NaN too
+    }
+    (*held)[k] = 1;
+  });
+}
+
+// VirtualDepthToTf; with `lens_z` (per micro image z and sigma_z of the
+// per-lens depth) the lenses that hold splat their lens depth and the rest
+// their dense pixels (total_focus.h).
+Status TfDepthOf(const PlenopticFrame& f, const VirtualDepthMap& raw, const LensSeed* lens_z,
+                 const TfOptions& options, TfDepthMap* out) {
   if (Status s = options.Check(); !s) return s;
   if (raw.width != f.width || raw.height != f.height)
     return Error{"virtual depth map: size differs from the frame"};
@@ -104,10 +132,14 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
   TfDepthMap::Scratch& scratch = out->scratch;
   // The sums are left zero by the last pass below (it reads them for the
   // last time), so a reused map does not clear 8 bytes per TF pixel again.
+  // With the per-lens depth the splats go to the cells' sums directly
+  // (lens_cell_w, lens_cell_wz below): the per-TF-pixel sums are not used.
   std::vector<float>& sum_vec = scratch.sums;
-  if (sum_vec.size() != 2 * tn || !scratch.zeroed) sum_vec.assign(2 * tn, 0.0f);
+  if (lens_z == nullptr) {
+    if (sum_vec.size() != 2 * tn || !scratch.zeroed) sum_vec.assign(2 * tn, 0.0f);
+    scratch.zeroed = false;
+  }
   float* const sums = sum_vec.data();
-  scratch.zeroed = false;
   // Regularisation on a grid of kCell x kCell TF pixels (below).
   constexpr int kCell = 4;
   const int cw = (tw + kCell - 1) / kCell, ch = (th + kCell - 1) / kCell;
@@ -140,6 +172,57 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
   scratch.splat_wz.resize(bands * row_room);
   const detail::TfSplatKernels& splat =
       options.simd ? detail::SimdTfSplatKernels() : detail::ScalarTfSplatKernels();
+  // With the per-lens depth: which micro images hold, their centres and
+  // rows, and per band the lists of the splat below.
+  const std::size_t lenses = f.lenses.size();
+  std::vector<float>& centre_x = scratch.centre_x;
+  std::vector<float>& centre_y = scratch.centre_y;
+  std::vector<std::int32_t>& lens_top = scratch.lens_top;
+  std::vector<std::int32_t>& lens_bottom = scratch.lens_bottom;
+  const float reach = static_cast<float>(f.radius_px) + 1.0f;
+  const float lambda = static_cast<float>(f.lambda);
+  // pitch / (2 sqrt 3) TF px: the circumradius of a lens's Voronoi cell at s = 1.
+  const float share_radius = static_cast<float>(f.grid.PitchPx() / (2.0 * std::sqrt(3.0)));
+  out->lenses_held = out->lenses = 0;
+  if (lens_z != nullptr) {
+    LensesHeld(f, *lens_z, &scratch.held);
+    centre_x.resize(lenses);
+    centre_y.resize(lenses);
+    lens_top.resize(lenses);
+    lens_bottom.resize(lenses);
+    scratch.band_dense.resize(bands);
+    scratch.band_held.resize(bands);
+    scratch.band_active.resize(bands);
+    for (int b = 0; b < bands; ++b) {
+      scratch.band_dense[b].clear();
+      scratch.band_held[b].clear();
+    }
+    for (std::size_t k = 0; k < lenses; ++k) {
+      const float cx = static_cast<float>(f.lenses[k].centre_px.x());
+      const float cy = static_cast<float>(f.lenses[k].centre_px.y());
+      centre_x[k] = cx;
+      centre_y[k] = cy;
+      lens_top[k] = std::max(0, static_cast<int>(std::floor(cy - reach)));
+      lens_bottom[k] = std::min(f.height - 1, static_cast<int>(std::ceil(cy + reach)));
+      if (scratch.held[k]) {
+        const int band = std::clamp(static_cast<int>(cy), 0, f.height - 1) / kBand;
+        scratch.band_held[band].push_back(static_cast<std::int32_t>(k));
+        ++out->lenses_held;
+        continue;
+      }
+      if (lens_bottom[k] < lens_top[k]) continue;
+      for (int b = lens_top[k] / kBand; b <= lens_bottom[k] / kBand; ++b)
+        scratch.band_dense[b].push_back(static_cast<std::int32_t>(k));
+    }
+    for (int b = 0; b < bands; ++b)
+      std::sort(scratch.band_dense[b].begin(), scratch.band_dense[b].end(),
+                [&](std::int32_t a, std::int32_t c) { return lens_top[a] < lens_top[c]; });
+    out->lenses = static_cast<long long>(lenses);
+    scratch.lens_cell_w.assign(cn, 0.0);
+    scratch.lens_cell_wz.assign(cn, 0.0);
+  }
+  double* const lens_cell_w = scratch.lens_cell_w.data();
+  double* const lens_cell_wz = scratch.lens_cell_wz.data();
   for (int phase = 0; phase < 2; ++phase)
     tbb::parallel_for(0, (bands - phase + 1) / 2, [&](int half) {
       const int band = 2 * half + phase;
@@ -154,31 +237,107 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
       float* const wzs = scratch.splat_wz.data() + band * row_room;
       detail::TfSplatRow r;
       r.lens_xy = lens_xy.data();
-      r.width = f.width;
       r.tf_width = tw;
       r.tf_height = th;
-      for (int y = y0; y < y1; ++y) {
-        const std::size_t row = static_cast<std::size_t>(y) * f.width;
-        r.v = raw.virtual_depth.data() + row;
-        r.sigma_z = raw.sigma_z.data() + row;
-        r.lens = f.lens_of_pixel.data() + row;
-        r.y = y;
-        const int n = splat.row(r, ts, ws, wzs);
-        for (int i = 0; i < n; ++i) {
-          const std::uint32_t t = ts[i];
-          if (t >= t_lo && t < t_hi) {
-            sums[2 * t] += ws[i];
-            sums[2 * t + 1] += wzs[i];
+      auto add = [&](std::uint32_t t, float w, float wz) {
+        if (t >= t_lo && t < t_hi) {
+          if (lens_z == nullptr) {
+            sums[2 * t] += w;
+            sums[2 * t + 1] += wz;
           } else {
-            deferred.push_back({t, ws[i], wzs[i]});
+            const std::size_t c = static_cast<std::size_t>(t / tw / kCell) * cw + t % tw / kCell;
+            lens_cell_w[c] += w;
+            lens_cell_wz[c] += wz;
           }
+        } else {
+          deferred.push_back({t, w, wz});
         }
+      };
+      // The pixels x0 .. x0 + n - 1 of raw row y.
+      auto splat_span = [&](int y, int x0, int n) {
+        const std::size_t at = static_cast<std::size_t>(y) * f.width + x0;
+        r.v = raw.virtual_depth.data() + at;
+        r.sigma_z = raw.sigma_z.data() + at;
+        r.lens = f.lens_of_pixel.data() + at;
+        r.x0 = x0;
+        r.width = n;
+        r.y = y;
+        const int count = splat.row(r, ts, ws, wzs);
+        if (lens_z == nullptr) {
+          for (int i = 0; i < count; ++i) add(ts[i], ws[i], wzs[i]);
+        } else {
+          constexpr float kScale = kDenseRowStep;
+          for (int i = 0; i < count; ++i) add(ts[i], kScale * ws[i], kScale * wzs[i]);
+        }
+      };
+      if (lens_z == nullptr) {
+        for (int y = y0; y < y1; ++y) splat_span(y, 0, f.width);
+        return;
+      }
+      // The dense pixels of the micro images that do not hold, on every
+      // kDenseRowStep-th row (the map's rows read in order): the chord of
+      // each disc of radius r_valid + 1 around c_k that crosses the row
+      // (`band_dense` in order of first row; `active` those crossing it).
+      const std::vector<std::int32_t>& list = scratch.band_dense[band];
+      std::vector<std::int32_t>& active = scratch.band_active[band];
+      active.clear();
+      std::size_t next = 0;
+      for (int y = y0; y < y1; ++y) {
+        while (next < list.size() && lens_top[list[next]] <= y) active.push_back(list[next++]);
+        if (y % kDenseRowStep != 0) continue;
+        active.erase(std::remove_if(active.begin(), active.end(),
+                                    [&](std::int32_t k) { return lens_bottom[k] < y; }),
+                     active.end());
+        for (const std::int32_t k : active) {
+          const float dy = static_cast<float>(y) - centre_y[k];
+          const float h2 = reach * reach - dy * dy;
+          if (h2 < 0) continue;
+          const float h = std::sqrt(h2);
+          const int xa = std::max(0, static_cast<int>(std::floor(centre_x[k] - h)));
+          const int xb = std::min(f.width, static_cast<int>(std::ceil(centre_x[k] + h)) + 1);
+          if (xb > xa) splat_span(y, xa, xb - xa);
+        }
+      }
+      // The micro images that hold, centred in this band: their lens depth
+      // at TF points one cell apart over their share of the virtual image.
+      for (const std::int32_t k : scratch.band_held[band]) {
+        const float z = lens_z->z[k], sz = lens_z->sigma_z[k];
+        const float v = 1.0f / z;
+        const float lx = lens_xy[2 * k], ly = lens_xy[2 * k + 1];
+        const float u_c = (lx + v * (centre_x[k] - lx) - 0.5f) * 0.5f;
+        const float w_c = (ly + v * (centre_y[k] - ly) - 0.5f) * 0.5f;
+        const float s = lambda + v * (1.0f - lambda);
+        const float radius = share_radius * s, r2 = radius * radius;
+        const int steps = static_cast<int>(radius / kCell);
+        int points = 0;
+        for (int b = -steps; b <= steps; ++b)
+          for (int a = -steps; a <= steps; ++a)
+            points += static_cast<float>(a * a + b * b) * (kCell * kCell) <= r2;
+        const float weight = 1.0f / (std::max(1e-12f, sz * sz) * static_cast<float>(points));
+        const float weight_z = weight * z;
+        for (int b = -steps; b <= steps; ++b)
+          for (int a = -steps; a <= steps; ++a) {
+            if (static_cast<float>(a * a + b * b) * (kCell * kCell) > r2) continue;
+            const float ur = u_c + static_cast<float>(kCell * a) + 0.5f;
+            const float wr = w_c + static_cast<float>(kCell * b) + 0.5f;
+            if (!(ur >= 0 && wr >= 0 && ur < static_cast<float>(tw) &&
+                  wr < static_cast<float>(th)))
+              continue;
+            add(static_cast<std::uint32_t>(static_cast<int>(wr) * tw + static_cast<int>(ur)),
+                weight, weight_z);
+          }
       }
     });
   for (const auto& band : scratch.deferred)
     for (const TfDepthMap::Scratch::Deferred& d : band) {
-      sums[2 * d.t] += d.w;
-      sums[2 * d.t + 1] += d.wz;
+      if (lens_z == nullptr) {
+        sums[2 * d.t] += d.w;
+        sums[2 * d.t + 1] += d.wz;
+      } else {
+        const std::size_t c = static_cast<std::size_t>(d.t / tw / kCell) * cw + d.t % tw / kCell;
+        lens_cell_w[c] += d.w;
+        lens_cell_wz[c] += d.wz;
+      }
     }
   out->virtual_depth.resize(tn);
   out->sigma_z.resize(tn);
@@ -243,14 +402,31 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
       }
     });
   };
-  // The cells' sums of every splat.
-  sum_cells(false);
+  // The cells' sums of every splat (with the per-lens depth: made by the splat).
+  if (lens_z == nullptr) {
+    sum_cells(false);
+  } else {
+    cell_w = scratch.lens_cell_w;
+    cell_wz = scratch.lens_cell_wz;
+  }
   const int cell_radius = std::max(0, (options.smooth_radius + kCell / 2) / kCell);
   BoxSums(cw, ch, cell_radius, cell_w, cell_wz, &scratch);
   cell_z.assign(cn, kNaN);
   for (std::size_t c = 0; c < cn; ++c)
     if (scratch.box_n[c] > 0) cell_z[c] = static_cast<float>(scratch.box_wz[c] / scratch.box_w[c]);
-  sum_cells(true);
+  if (lens_z == nullptr) {
+    sum_cells(true);
+  } else {
+    // Again over the cells within 5 % of their window's mean (the rule of
+    // the measured pixels above, on the cells: a splat has no pixel here).
+    for (std::size_t c = 0; c < cn; ++c) {
+      const double w = scratch.lens_cell_w[c], wz = scratch.lens_cell_wz[c];
+      const bool keep = w > 0 && !std::isnan(cell_z[c]) &&
+                        std::abs(wz / w - cell_z[c]) <= 0.05 * cell_z[c];
+      cell_w[c] = keep ? w : 0.0;
+      cell_wz[c] = keep ? wz : 0.0;
+    }
+  }
   BoxSums(cw, ch, cell_radius, cell_w, cell_wz, &scratch);
   for (std::size_t c = 0; c < cn; ++c)
     cell_z[c] =
@@ -311,6 +487,9 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
       float* vd = out->virtual_depth.data() + row;
       float* sigma = out->sigma_z.data() + row;
       float* p = sums + 2 * row;
+      const double* lw = lens_z == nullptr
+                             ? nullptr
+                             : scratch.lens_cell_w.data() + static_cast<std::size_t>(w / kCell) * cw;
       int row_valid = 0, row_measured = 0;
       for (int u = 0; u < tw; ++u) {
         const float a = (1 - fy) * a0[u] + fy * a1[u];
@@ -319,17 +498,31 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
         vd[u] = ok ? a / b : kNaN;
         row_valid += ok;
       }
-      for (int u = 0; u < tw; ++u) {
-        const float sw = p[2 * u];
-        const bool measured_here = sw > 0;
-        sigma[u] = measured_here ? std::sqrt(1.0f / sw) : kNaN;
-        row_measured += measured_here;
+      if (lw != nullptr) {
+        // With the per-lens depth: sigma_z of the cell's splats.
+        for (int u = 0; u < tw; ++u) {
+          const double sw = lw[u / kCell];
+          const bool measured_here = sw > 0;
+          sigma[u] = measured_here ? static_cast<float>(std::sqrt(1.0 / sw)) : kNaN;
+          row_measured += measured_here;
+        }
+        if (w % kHistogramStep == 0)
+          for (int u = 0; u < tw; ++u)
+            if (lw[u / kCell] > 0 && !std::isnan(vd[u]))
+              ++hist[std::clamp(static_cast<int>(vd[u] * kBinsPerUnit), 0, kBins - 1)];
+      } else {
+        for (int u = 0; u < tw; ++u) {
+          const float sw = p[2 * u];
+          const bool measured_here = sw > 0;
+          sigma[u] = measured_here ? std::sqrt(1.0f / sw) : kNaN;
+          row_measured += measured_here;
+        }
+        if (w % kHistogramStep == 0)
+          for (int u = 0; u < tw; ++u)
+            if (p[2 * u] > 0 && !std::isnan(vd[u]))
+              ++hist[std::clamp(static_cast<int>(vd[u] * kBinsPerUnit), 0, kBins - 1)];
+        std::fill(p, p + 2 * tw, 0.0f);
       }
-      if (w % kHistogramStep == 0)
-        for (int u = 0; u < tw; ++u)
-          if (p[2 * u] > 0 && !std::isnan(vd[u]))
-            ++hist[std::clamp(static_cast<int>(vd[u] * kBinsPerUnit), 0, kBins - 1)];
-      std::fill(p, p + 2 * tw, 0.0f);
       chunk_valid += row_valid;
       chunk_measured += row_measured;
     }
@@ -337,7 +530,7 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
     measured += chunk_measured;
   });
   out->measured = measured;
-  scratch.zeroed = true;
+  if (lens_z == nullptr) scratch.zeroed = true;
   out->fallback_v = 0;
   long long n = 0;
   for (int chunk = 1; chunk < kChunks; ++chunk)
@@ -355,6 +548,20 @@ Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
   }
   out->filled = valid - out->measured;
   return Status::Ok();
+}
+
+}  // namespace
+
+Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
+                        const TfOptions& options, TfDepthMap* out) {
+  return TfDepthOf(f, raw, nullptr, options, out);
+}
+
+Status VirtualDepthToTf(const PlenopticFrame& f, const VirtualDepthMap& raw,
+                        const LensDepthMap& lens_depth, const TfOptions& options,
+                        TfDepthMap* out) {
+  if (Status s = SeedFromLensDepth(f, lens_depth, &out->scratch.lens_z); !s) return s;
+  return TfDepthOf(f, raw, &out->scratch.lens_z, options, out);
 }
 
 // The per-camera tables of the renderer and what they were made from: the

@@ -46,9 +46,10 @@ class RecordingBackend final : public ChainBackend {
     return cpu_->DenseDepth(frame, mla, options, seed, out);
   }
   Status TfDepth(const PlenopticFrame& frame, const VirtualDepthMap& raw_depth,
-                 const TfOptions& options, TfDepthMap* out) override {
+                 const LensDepthMap* lens_depth, const TfOptions& options,
+                 TfDepthMap* out) override {
     if (Status s = Enter("TfDepth"); !s) return s;
-    return cpu_->TfDepth(frame, raw_depth, options, out);
+    return cpu_->TfDepth(frame, raw_depth, lens_depth, options, out);
   }
   Status TfRender(const PlenopticFrame& frame, const MlaCalibration& mla, const TfDepthMap& depth,
                   const TfOptions& options, TfImage* out) override {

@@ -65,7 +65,7 @@ TEST(FrameChain, MatchesTheStepsCalledOneByOneAndReusesItsWorkspace) {
   ASSERT_TRUE(EstimateVirtualDepth(frame, s.mla, DepthOptions{}, &seed, &depth).ok());
   EXPECT_GT(depth.stats.seeded, 0);
   TfDepthMap tf_depth;
-  ASSERT_TRUE(VirtualDepthToTf(frame, depth, TfOptions{}, &tf_depth).ok());
+  ASSERT_TRUE(VirtualDepthToTf(frame, depth, lens_depth, TfOptions{}, &tf_depth).ok());
 
   const ChainProducts* first = nullptr;
   for (int pass = 0; pass < 2; ++pass) {

@@ -65,6 +65,18 @@ TEST_F(TfSplatKernelsTest, ASplatWorkedOutByHand) {
     EXPECT_NEAR(o.w[0], 100.0f, 1e-3f) << k->name;
     EXPECT_NEAR(o.wz[0], 50.0f, 1e-3f) << k->name;
   }
+  // The same pixel in a span of the row from x0 = 2: the same splat.
+  TfSplatRow span = row;
+  span.x0 = 2;
+  span.v = v.data() + 2;
+  span.sigma_z = sigma.data() + 2;
+  span.lens = lens.data() + 2;
+  span.width = 4;
+  for (const TfSplatKernels* k : {&ScalarTfSplatKernels(), &SimdTfSplatKernels()}) {
+    const Output o = Splat(*k, span);
+    ASSERT_EQ(o.n, 1) << k->name;
+    EXPECT_EQ(o.t[0], 26u * 100u + 3u) << k->name;
+  }
   // Off the grid below (w = 26 >= tf_height 20): dropped.
   row.tf_height = 20;
   for (const TfSplatKernels* k : {&ScalarTfSplatKernels(), &SimdTfSplatKernels()})
@@ -102,6 +114,8 @@ TEST_F(TfSplatKernelsTest, RowsMatchTheScalarReferenceOnEveryTarget) {
       row.lens = lens.data();
       row.lens_xy = lens_xy.data();
       row.width = width;
+      // Spans that start inside a row as well as whole rows.
+      row.x0 = rng() % 2 == 0 ? 0 : std::uniform_int_distribution<int>(1, 40)(rng);
       row.y = std::uniform_int_distribution<int>(0, 60)(rng);
       // A TF grid smaller than the row's reach: splats off it on either side.
       row.tf_width = std::max(1, static_cast<int>(width * (0.2f + 0.5f * unit(rng))));

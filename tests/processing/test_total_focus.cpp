@@ -2,6 +2,7 @@
 // synthetic `small` frame from the estimated virtual depth, against the
 // ground truth (all-in-focus image, TF depth in mm).
 
+#include "processing/lens_depth.h"
 #include "processing/mla_grid.h"
 #include "processing/point_cloud.h"
 #include "processing/total_focus.h"
@@ -101,7 +102,9 @@ struct Figures {
   std::size_t cloud_points = 0;
 };
 
-Figures RunPipeline(const testing::SynthFrame& s) {
+// With `per_lens`, the TF depth from the frame's per-lens depth where it
+// holds and the dense map elsewhere (VirtualDepthToTf with a LensDepthMap).
+Figures RunPipeline(const testing::SynthFrame& s, bool per_lens = false) {
   Figures fig;
   const CameraModel camera(s.intrinsics);
   const MlaGrid grid = MlaGrid::FromCalibration(s.mla, s.raw.width, s.raw.height);
@@ -112,7 +115,21 @@ Figures RunPipeline(const testing::SynthFrame& s) {
   VirtualDepthMap depth;
   EXPECT_TRUE(EstimateVirtualDepth(frame, s.mla, DepthOptions{}, &depth).ok());
   TfDepthMap tf_depth;
-  EXPECT_TRUE(VirtualDepthToTf(frame, depth, TfOptions{}, &tf_depth).ok());
+  if (per_lens) {
+    PlenopticFrame geometry;
+    EXPECT_TRUE(
+        PrepareGeometry(s.white.View(), s.raw.width, s.raw.height, grid, s.mla, fo, &geometry).ok());
+    auto estimator = LensDepthEstimator::Create(std::move(geometry), s.mla, {});
+    EXPECT_TRUE(estimator.ok());
+    LensDepthMap lens_depth;
+    EXPECT_TRUE((*estimator)->Estimate(s.raw.View(), &lens_depth).ok());
+    EXPECT_TRUE(VirtualDepthToTf(frame, depth, lens_depth, TfOptions{}, &tf_depth).ok());
+    std::printf("TF depth: %lld of %lld micro images from their lens depth\n", tf_depth.lenses_held,
+                tf_depth.lenses);
+    EXPECT_GT(tf_depth.lenses_held, 0);
+  } else {
+    EXPECT_TRUE(VirtualDepthToTf(frame, depth, TfOptions{}, &tf_depth).ok());
+  }
   EXPECT_EQ(tf_depth.width, s.tf.width);
   EXPECT_EQ(tf_depth.height, s.tf.height);
   fig.measured = tf_depth.measured;
@@ -190,6 +207,19 @@ TEST(TotalFocus, ImageDepthAndPointCloudOfASmallFrame) {
   EXPECT_GE(fig.psnr_all, 27.0);
   EXPECT_GE(fig.psnr_edges, 19.0);
   EXPECT_LT(fig.tf_v_median, 0.012);
+}
+
+// The TF depth from the per-lens depth where it holds (total_focus.h) keeps
+// the image: PSNR on textured pixels and over all surface pixels within 0.1
+// dB of the TF depth from every dense pixel on the same frame, the gate of
+// 30 dB held.
+TEST(TotalFocus, DepthFromTheLensDepthKeepsTheImage) {
+  const testing::SynthFrame s = testing::RenderSynthFrame("small", 1.0);
+  const Figures dense = RunPipeline(s);
+  const Figures lens = RunPipeline(s, true);
+  EXPECT_GE(lens.psnr_textured, 30.0);
+  EXPECT_GE(lens.psnr_textured, dense.psnr_textured - 0.1);
+  EXPECT_GE(lens.psnr_all, dense.psnr_all - 0.1);
 }
 
 // A white frame (the white scene, its own white image) is white in the TF
