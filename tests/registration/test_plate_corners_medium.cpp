@@ -73,8 +73,13 @@ TEST(PlateCornerMedium, HandheldCornersOnThePlaneRenderWithinABoundTheTfImageMis
   std::printf("on the plane's render: %s\n%son the TF image: %s\n%s", on_plane->BriefReport().c_str(),
               on_plane->PerFrameReport().c_str(), on_tf->BriefReport().c_str(),
               on_tf->PerFrameReport().c_str());
+  // Measured: 0.471 TF px RMS on the plane's render (0.36-0.56 per frame)
+  // against 1.057 on the TF image (1.04-1.07), which also lost a marker of
+  // frame 32 (44 corners).
   EXPECT_EQ(on_plane->corners, 48);
-  EXPECT_LT(on_plane->rms_tf_px, on_tf->rms_tf_px);
+  EXPECT_LT(on_plane->rms_tf_px, 0.65);
+  EXPECT_GT(on_tf->rms_tf_px, 0.65);
+  for (const PlateCornerBias::Frame& f : on_plane->frames) EXPECT_LT(f.rms_tf_px, 0.75) << f.frame;
 }
 
 }  // namespace

@@ -123,8 +123,12 @@ TEST(PlateCornerPlane, CornersOnThePlaneRenderNearerTheTruth) {
   std::printf("on the plane's render: %s\n%son the TF image: %s\n%s", on_plane->BriefReport().c_str(),
               on_plane->PerFrameReport().c_str(), on_tf->BriefReport().c_str(),
               on_tf->PerFrameReport().c_str());
-  EXPECT_GE(on_plane->corners, on_tf->corners - 4);
+  // Measured: 0.191 TF px RMS on the plane's render against 0.219 on the
+  // TF image; at this size the plate's depth scatters little
+  // (test_registration_plate_corners_medium: 0.47 against 1.06 at full size).
+  EXPECT_GE(on_plane->corners, on_tf->corners);
   EXPECT_LT(on_plane->rms_tf_px, on_tf->rms_tf_px);
+  EXPECT_LT(on_plane->rms_tf_px, 0.3);
 }
 
 }  // namespace
