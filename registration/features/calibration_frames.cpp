@@ -157,7 +157,7 @@ struct CalibrationFrameLoader::State {
   // TF image rendered from it (where the corners are placed). A copy of the
   // measured map (4 bytes per TF pixel, kept for the keypoints' and corners'
   // depths): RenderTotalFocus takes a whole map; the copy and the second
-  // render cost about 0.3 s of CPU per `medium` frame against 4-5 s for its
+  // render cost about 0.3 s of CPU per `medium` frame against 3.2 s for its
   // processing.
   processing::TfDepthMap plate_depth;
   processing::TfImage plate_tf;
