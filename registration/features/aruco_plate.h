@@ -10,6 +10,7 @@
 
 #include <Eigen/Core>
 
+#include <array>
 #include <vector>
 
 namespace lifmcr::registration {
@@ -21,9 +22,27 @@ struct PlateCorner {
   Eigen::Vector3d p_in_w_mm;  // known position in the plate frame
 };
 
+// A marker as OpenCV aruco finds it: its id and its four corners (OpenCV
+// order; ArUco's own sub-pixel corners, the start of the edge fits).
+struct PlateMarker {
+  int marker_id = 0;
+  std::array<Eigen::Vector2d, 4> quad;
+};
+
 // Markers of the layout's dictionary whose id the layout holds; other ids
-// are ignored, and so is a marker whose edges do not fit a square's
-// (partly occluded, or a wrong quad).
+// are ignored.
+Expected<std::vector<PlateMarker>> FindPlateMarkers(ConstImageView tf_image,
+                                                    const PlateLayout& layout);
+
+// The corners of `markers` placed by marker_edges.h on `tf_image` (the
+// image they were found on, or one of the same TF grid, e.g. rendered at
+// other depths); a marker whose edges do not fit a square's (partly
+// occluded, or a wrong quad) is left out.
+Expected<std::vector<PlateCorner>> RefinePlateCorners(ConstImageView tf_image,
+                                                      const PlateLayout& layout,
+                                                      const std::vector<PlateMarker>& markers);
+
+// FindPlateMarkers, then RefinePlateCorners on the same image.
 Expected<std::vector<PlateCorner>> DetectPlateCorners(ConstImageView tf_image,
                                                       const PlateLayout& layout);
 

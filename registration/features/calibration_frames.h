@@ -3,7 +3,9 @@
 // devignetting, virtual depth, the TF depth map and the TF image (with the
 // micro-lens centres of the initial intrinsics), SIFT on the TF image with
 // the measured virtual depth and colour of each keypoint, and the ArUco
-// plate corners. The raw frame, white image and MLA file are read through
+// plate corners (found on the TF image, placed on the plate rendered again
+// at its plane's virtual depth: plate_plane.h; each corner's virtual depth
+// the measured one). The raw frame, white image and MLA file are read through
 // replay/ (the LiFMCR layout).
 
 #include "config/error.h"
@@ -62,7 +64,7 @@ struct FrameLoaderOptions {
 
 // A processed frame on disk (a cache for repeated calibrations of the same
 // frames processed the same way): binary, little-endian, magic "LFMCRFRM",
-// version 4, what the frame was processed with (lambda; the principal point
+// version 5, what the frame was processed with (lambda; the principal point
 // of l_k, NaN NaN for the image centre; the SIFT keypoint limit; the radius
 // of a keypoint's depth support), then the fields of CalibrationFrame in
 // order. Reading gives an error when the file
