@@ -111,7 +111,8 @@ Expected<CalibrationFrame> LoadCalibrationFrame(const fs::path& path,
       !in.read(reinterpret_cast<char*>(file.principal_point_px), 2 * sizeof(double)) ||
       !in.read(reinterpret_cast<char*>(&file.max_features), sizeof(std::int64_t)) ||
       !in.read(reinterpret_cast<char*>(&file.support_radius_tf_px), sizeof(std::int64_t)))
-    return Error{path.string() + ": not a processed calibration frame (LFMCRFRM, version 4)"};
+    return Error{path.string() + ": not a processed calibration frame (LFMCRFRM, version " +
+                 std::to_string(kFrameVersion) + ")"};
   if (std::abs(file.lambda - key.lambda) > 1e-12)
     return Error{path.string() + ": processed with another lambda"};
   if (!Same(file.principal_point_px[0], key.principal_point_px[0]) ||
