@@ -229,6 +229,17 @@ Expected<const TfSampler*> CameraChain::Sampler(ConstImageView raw) {
   return sampler_.get();
 }
 
+bool CameraChain::Prepared(int width, int height, bool sampler) const {
+  {
+    std::lock_guard lock(lens_mutex_);
+    if (!lens_ || lens_->geometry().width != width || lens_->geometry().height != height)
+      return false;
+  }
+  if (!sampler) return true;
+  std::lock_guard lock(sampler_mutex_);
+  return sampler_ && sampler_->raw_width() == width && sampler_->raw_height() == height;
+}
+
 Expected<PlenopticFrame> CameraChain::Geometry(ConstImageView raw) {
   auto grid = GridFor(raw.width, raw.height);
   if (!grid) return grid.error();

@@ -182,8 +182,17 @@ class CameraChain {
   // geometry like a workspace's, ~0.2 s at 8 MP), then shared; the live
   // registration samples the TF image there instead of running the chain.
   Expected<const TfSampler*> Sampler(ConstImageView raw);
+  // Whether the per-lens estimator (and, with `sampler`, the TF sampler) for
+  // frames of width x height are made, so the camera's next frame of that
+  // size pays only its own work.
+  bool Prepared(int width, int height, bool sampler) const;
 
   const std::string& serial() const { return setup_.serial; }
+  // The white image the camera is devignetted with (kWhiteImage; empty view
+  // otherwise): its size is the camera's frame size.
+  ConstImageView white() const {
+    return setup_.white ? ConstImageView(setup_.white->View()) : ConstImageView{};
+  }
   const MlaCalibration& mla() const { return setup_.mla; }
   const std::optional<CameraModel>& camera_model() const { return camera_; }
   Devignetting devignetting() const { return devignetting_; }
@@ -218,9 +227,9 @@ class CameraChain {
   // kFromFrame: the estimate from the camera's first frame (guarded by mutex_).
   std::optional<VignettingEstimate> estimate_;
   std::vector<std::unique_ptr<ChainProducts>> idle_;
-  std::mutex sampler_mutex_;  // guards sampler_ (made outside mutex_: GridFor takes it)
+  mutable std::mutex sampler_mutex_;  // guards sampler_ (made outside mutex_: GridFor takes it)
   std::unique_ptr<TfSampler> sampler_;
-  std::mutex lens_mutex_;  // guards lens_ and idle_lens_ (made outside mutex_: GridFor takes it)
+  mutable std::mutex lens_mutex_;  // guards lens_ and idle_lens_ (made outside mutex_: GridFor takes it)
   std::unique_ptr<LensDepthEstimator> lens_;
   std::vector<std::unique_ptr<LensProducts>> idle_lens_;
 };

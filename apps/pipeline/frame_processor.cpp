@@ -252,6 +252,27 @@ Status DepthProcessor::Warm(const Frame& frame, bool sampler) {
   return Status::Ok();
 }
 
+Expected<std::vector<std::string>> DepthProcessor::WarmWithoutFrames(bool sampler) {
+  std::vector<std::string> left;
+  for (const std::string& serial : chain_->serials()) {
+    const processing::CameraChain* camera = chain_->Find(serial);
+    const ConstImageView white = camera->white();
+    if (camera->devignetting() != processing::Devignetting::kWhiteImage || white.data == nullptr) {
+      left.push_back(serial);
+      continue;
+    }
+    // In the white image's format (demosaiced already for a Bayer camera),
+    // so Warm demosaics nothing; with a white image the geometry reads only
+    // the frame's size, never its pixels.
+    OwnedImage blank = OwnedImage::Allocate(white.width, white.height, white.format);
+    Frame frame;
+    frame.serial = serial;
+    frame.image = blank.View();
+    if (Status s = Warm(frame, sampler); !s) return s.error();
+  }
+  return left;
+}
+
 Expected<ProcessedFrame> DepthProcessor::Process(const Frame& frame) {
   return Run(frame, true, nullptr);
 }

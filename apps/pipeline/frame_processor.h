@@ -202,6 +202,14 @@ class DepthProcessor final : public FrameProcessor {
   // replay calls it before its cameras start, so a timed replay's first
   // frames are not skipped while the lens lane builds them.
   Status Warm(const Frame& frame, bool sampler);
+  // Warm for every camera whose set-up needs no frame's pixels, before any
+  // frame exists: a camera devignetted by its white image needs only the
+  // frame size, the white image's (CameraChain::GridFor rejects any other),
+  // so it is warmed with a blank frame of that size. `record --publish`
+  // calls it before the cameras start. Returns the serials left to their
+  // first frame (no white image: the vignetting is estimated from that
+  // frame's pixels).
+  Expected<std::vector<std::string>> WarmWithoutFrames(bool sampler);
   const processing::ProcessingChain& chain() const { return *chain_; }
 
  private:

@@ -345,6 +345,11 @@ TEST(CliLiveRegistration, RecordFlagsACameraKnockedOnARigidMount) {
       (dir / "map" / "reference").string() + " --extrinsics-csv " + (dir / "x.csv").string());
   ASSERT_EQ(record.exit_code, 0) << record.out << record.err;
   EXPECT_NE(record.out.find("rows in"), std::string::npos) << record.out;
+  // Both cameras (white images in the sequence) warmed before they start.
+  EXPECT_NE(record.err.find("per-lens estimators and TF samplers of 2 camera(s) made before the "
+                            "cameras start"),
+            std::string::npos)
+      << record.err;
 
   lcm::LogFile file(log.string(), "r");
   ASSERT_TRUE(file.good());

@@ -6,6 +6,7 @@
 
 #include "acquisition/recorder.h"
 #include "acquisition/rig_controller.h"
+#include "apps/pipeline/camera_setup.h"
 #include "apps/pipeline/frame_processor.h"
 #include "apps/pipeline/pipeline.h"
 #include "apps/pipeline/process_settings.h"
@@ -1417,6 +1418,60 @@ TEST(Pipeline, WarmMakesACamerasSetUpBeforeItsFirstFrameAndChangesNoProduct) {
   const Status s = (*warmed)->Warm(unknown, false);
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.error().message.find("99999999"), std::string::npos) << s.error().message;
+}
+
+// DepthProcessor::WarmWithoutFrames (what `record --publish` does before its
+// cameras start, no frame yet): a camera with a white image gets its
+// per-lens estimator and TF sampler for frames of the white image's size,
+// and its products are those of a processor left to the first frame; a
+// camera without one (its vignetting estimated from a frame's pixels) is
+// left to its first frame and named.
+TEST(Pipeline, WarmWithoutFramesMakesTheWhiteImageCamerasSetUpAndChangesNoProduct) {
+  test::TempDir dir;
+  auto rig = WriteTinyRigFrames(dir.path());
+  ASSERT_TRUE(rig.ok()) << rig.error().message;
+  ASSERT_EQ(rig->serials.size(), 2u);
+  auto setups = LoadSequenceCameras(rig->sequence_dir.string(), rig->serials, {});
+  ASSERT_TRUE(setups.ok()) << setups.error().message;
+  ASSERT_TRUE((*setups)[0].white && (*setups)[1].white);
+  (*setups)[1].white.reset();
+  auto chain = processing::ProcessingChain::Create(std::move(*setups), processing::ChainOptions{});
+  ASSERT_TRUE(chain.ok()) << chain.error().message;
+  DepthProcessor warmed(std::move(*chain), PreviewOptions{}, PixelFormats{});
+  auto cold = DepthProcessor::ForSequence(rig->sequence_dir.string(), rig->serials);
+  ASSERT_TRUE(cold.ok());
+  const int width = rig->raw[0].width, height = rig->raw[0].height;
+  processing::CameraChain* with_white = warmed.chain().Find(rig->serials[0]);
+  processing::CameraChain* without = warmed.chain().Find(rig->serials[1]);
+  ASSERT_TRUE(with_white != nullptr && without != nullptr);
+  EXPECT_FALSE(with_white->Prepared(width, height, /*sampler=*/false));
+  auto left = warmed.WarmWithoutFrames(/*sampler=*/true);
+  ASSERT_TRUE(left.ok()) << left.error().message;
+  EXPECT_EQ(*left, std::vector<std::string>{rig->serials[1]});
+  EXPECT_TRUE(with_white->Prepared(width, height, /*sampler=*/true));
+  EXPECT_FALSE(without->Prepared(width, height, /*sampler=*/false));
+  // The first frame of the warmed camera: the same per-lens depth and preview
+  // as a processor that builds its estimator from that frame.
+  Frame frame;
+  frame.serial = rig->serials[0];
+  frame.image = rig->raw[0].View();
+  auto a = warmed.ProcessLenses(frame);
+  auto b = (*cold)->ProcessLenses(frame);
+  ASSERT_TRUE(a.ok() && b.ok());
+  ASSERT_TRUE(a->lens_depth && b->lens_depth);
+  ASSERT_EQ(a->lens_depth->depth.values.size(), b->lens_depth->depth.values.size());
+  for (std::size_t k = 0; k < a->lens_depth->depth.values.size(); ++k) {
+    const float x = a->lens_depth->depth.values[k], y = b->lens_depth->depth.values[k];
+    ASSERT_EQ(std::isnan(x), std::isnan(y)) << k;
+    if (!std::isnan(x)) {
+      ASSERT_EQ(x, y) << k;
+    }
+  }
+  EXPECT_EQ(a->tf->bytes, b->tf->bytes);
+  // The TF sampler made without a frame is the one the registration gets.
+  auto sampler = with_white->Sampler(frame.image);
+  ASSERT_TRUE(sampler.ok());
+  EXPECT_TRUE(with_white->Prepared(width, height, /*sampler=*/true));
 }
 
 // Covariance of c0_from_cx to first order: with A = exp(a) A_hat, B =
