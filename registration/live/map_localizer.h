@@ -132,12 +132,17 @@ struct LocalizerOptions {
   // processed, is used as it is. The step is relocalise_step (1..4), raised
   // (up to 4) while the rendered image's longer side stays >=
   // relocalise_min_side_px, so that a larger sensor is relocalised on an
-  // image of about the same size: medium (TF 1640 px wide) at step 2 (820
+  // image of about the same size: medium (TF 1640 px wide) at step 3 (547
   // px), r32 (3280 px) at step 4 (820 px) instead of 2 (1640 px: a
   // relocalisation took 2.9 s at r32, 29 triggers at 10 Hz, after which the
-  // frames were too far from its pose to track; bench/README.md).
+  // frames were too far from its pose to track; bench/README.md). Medium at
+  // step 3 instead of 2 (min side 800): a relocalisation ~190 CPU-ms
+  // instead of ~290, its own pose worse (first frame 1.5 mm against
+  // 1.05-1.3) but the next re-anchoring recovers it, so the sequence's
+  // median is the same frame by frame and better live
+  // (docs/registration.md).
   int relocalise_step = 2;
-  int relocalise_min_side_px = 800;  // >= 1
+  int relocalise_min_side_px = 540;  // >= 1
   // With a last pose, the relocalisation's render takes each region's own
   // virtual depth (TfSampler::RenderAtDepths): the median predicted depth of
   // the map points the last pose shows, per cell of a grid this many cells

@@ -835,6 +835,8 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
     if (variant.finer_guided) {
       options.guided.max_step = 2;
     }
+    if (const char* side = std::getenv("LIFMCR_TEST_RELOCALISE_MIN_SIDE"))
+      options.relocalise_min_side_px = std::atoi(side);
     MapLocalizerStage stage(s.map, options);
     // The fused estimate of a rigid mount (extrinsics_monitor.h), as the
     // pipeline publishes it beside each trigger's.
@@ -1049,6 +1051,8 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
   LocalizerOptions defaults;
   if (const char* every = std::getenv("LIFMCR_TEST_REANCHOR_EVERY"))
     defaults.reanchor_every = std::atoi(every);
+  if (const char* side = std::getenv("LIFMCR_TEST_RELOCALISE_MIN_SIDE"))
+    defaults.relocalise_min_side_px = std::atoi(side);
   const Result now = run(defaults, "the defaults (re-found, re-anchored periodically)");
   // Relocalised no more often, more accurate, and the passes' last frames
   // within the live gate of their first (1.2 times).
@@ -1059,12 +1063,12 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
 
 // A larger sensor is relocalised on an image of about the same size: the
 // presets' TF grids (small 512, medium 1640, r32 3280 px on the longer
-// side) at steps 2, 2 and 4 (820 px for r32 instead of 1640: SIFT and the
-// render cost a quarter).
+// side) at steps 2, 3 and 4 (547 px for medium, 820 px for r32 instead of
+// 1640: SIFT and the render cost a quarter).
 TEST(MapLocalizer, RelocalisationStepGrowsWithTheTfGrid) {
   LocalizerOptions options;
   EXPECT_EQ(options.RelocaliseStep(512), 2);
-  EXPECT_EQ(options.RelocaliseStep(1640), 2);
+  EXPECT_EQ(options.RelocaliseStep(1640), 3);
   EXPECT_EQ(options.RelocaliseStep(3280), 4);
   EXPECT_EQ(options.RelocaliseStep(100000), 4);  // never beyond 4
   options.relocalise_min_side_px = 1;
