@@ -58,7 +58,7 @@ Expected<GridFitResult> FitGridToRawImage(ConstImageView raw, const MlaGrid* ini
     grid = first->grid;
   }
   const double pitch = grid.PitchPx();
-  const int radius = static_cast<int>(std::ceil(0.5 * pitch));
+  const int radius = static_cast<int>(std::ceil(0.5 * grid.NominalPitchPx()));
   const int side = 2 * radius + 1;
   const int core_r = std::max(2, static_cast<int>(0.3 * pitch));
   // Tiles: lenses per tile ~ tile area / (sqrt(3)/2 D^2).

@@ -259,7 +259,7 @@ Expected<std::unique_ptr<LensDepthEstimator>> LensDepthEstimator::Create(
   const double reach = options.candidate_fraction * e->geometry_.radius_px;
   const double step = options.candidate_step_px > 0
                           ? options.candidate_step_px
-                          : std::max(1.0, std::round(e->geometry_.grid.PitchPx() / 11));
+                          : std::max(1.0, std::round(e->geometry_.grid.NominalPitchPx() / 11));
   const int n_half = static_cast<int>(std::floor(reach / step));
   for (int b = -n_half; b <= n_half; ++b)
     for (int a = -n_half; a <= n_half; ++a) {

@@ -114,6 +114,8 @@ void MlaGrid::Nearest(const Eigen::Vector2d& p_px, int* i, int* j) const {
 
 double MlaGrid::PitchPx() const { return 0.5 * (lattice.col(0).norm() + lattice.col(1).norm()); }
 
+double MlaGrid::NominalPitchPx() const { return std::round(PitchPx() * 1e6) / 1e6; }
+
 double MlaGrid::RotationRad() const { return std::atan2(-lattice(1, 0), lattice(0, 0)); }
 
 void MlaGrid::IndexBounds(int width, int height, int* i_min, int* i_max, int* j_min,

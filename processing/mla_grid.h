@@ -51,6 +51,11 @@ struct MlaGrid {
   // Lattice index of the micro image nearest to p (hex rounding).
   void Nearest(const Eigen::Vector2d& p_px, int* i, int* j) const;
   double PitchPx() const;      // mean length of the two lattice steps
+  // PitchPx() rounded to 1e-6 px, for every choice that steps at a pitch
+  // (search lattices, integer radii): an MLA file's base vectors, written to
+  // 12 digits, put a 24 px pitch at 23.999999999995 px, and a comparison
+  // with 24 would then choose as for a smaller lens.
+  double NominalPitchPx() const;
   double RotationRad() const;  // of the i step, y up, counter-clockwise
   // Index range [i_min, i_max] x [j_min, j_max] covering a W x H image.
   void IndexBounds(int width, int height, int* i_min, int* i_max, int* j_min, int* j_max) const;

@@ -184,8 +184,11 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
   const std::array<double, 3>& z_hi = range.z_hi;
   const double union_lo = range.union_lo, union_hi = range.union_hi;
   const double lambda = f.lambda;
+  // The lattices step at a pitch: the nominal one (processing/mla_grid.h), so
+  // a pitch read from a file chooses as the same pitch made in memory.
+  const double nominal_pitch_px = f.grid.NominalPitchPx();
   const int stride =
-      options.search_stride != 0 ? options.search_stride : (f.grid.PitchPx() >= 24 ? 2 : 1);
+      options.search_stride != 0 ? options.search_stride : (nominal_pitch_px >= 24 ? 2 : 1);
   detail::MatchParams search;
   search.lambda = lambda;
   search.step_px = options.step_px;
@@ -212,9 +215,9 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
   const int seed_stride =
       options.seed_search_stride != 0
           ? options.seed_search_stride
-          : (f.grid.PitchPx() >= 32 ? 3 : (f.grid.PitchPx() >= 24 ? 2 : 1));
+          : (nominal_pitch_px >= 32 ? 3 : (nominal_pitch_px >= 24 ? 2 : 1));
   const int seed_ring1_lines = options.seed_ring1_lines != 0 ? options.seed_ring1_lines
-                                                             : (f.grid.PitchPx() >= 24 ? 1 : 3);
+                                                             : (nominal_pitch_px >= 24 ? 1 : 3);
   const int seeded_fill_support = std::max(
       std::min(3, options.fill_min_support),
       static_cast<int>(std::lround(options.fill_min_support * static_cast<double>(stride) /
