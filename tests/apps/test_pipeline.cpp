@@ -1379,6 +1379,22 @@ TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
 // so the lens lane's first frame of the camera computes only its depth; the
 // per-lens depth of a frame is the same with and without it, and a camera
 // without a chain is an error naming it.
+// Two ProcessLenses results of one frame: the same per-lens depth (NaN where
+// the other is NaN) and the same TF preview bytes.
+void ExpectSameLensProducts(const Expected<ProcessedFrame>& a, const Expected<ProcessedFrame>& b) {
+  ASSERT_TRUE(a.ok() && b.ok());
+  ASSERT_TRUE(a->lens_depth && b->lens_depth);
+  ASSERT_EQ(a->lens_depth->depth.values.size(), b->lens_depth->depth.values.size());
+  for (std::size_t k = 0; k < a->lens_depth->depth.values.size(); ++k) {
+    const float x = a->lens_depth->depth.values[k], y = b->lens_depth->depth.values[k];
+    ASSERT_EQ(std::isnan(x), std::isnan(y)) << k;
+    if (!std::isnan(x)) {
+      ASSERT_EQ(x, y) << k;
+    }
+  }
+  EXPECT_EQ(a->tf->bytes, b->tf->bytes);
+}
+
 TEST(Pipeline, WarmMakesACamerasSetUpBeforeItsFirstFrameAndChangesNoProduct) {
   test::TempDir dir;
   auto rig = WriteTinyRigFrames(dir.path());
@@ -1400,17 +1416,7 @@ TEST(Pipeline, WarmMakesACamerasSetUpBeforeItsFirstFrameAndChangesNoProduct) {
     EXPECT_EQ(*first, *again);
     auto a = (*warmed)->ProcessLenses(frame);
     auto b = (*cold)->ProcessLenses(frame);
-    ASSERT_TRUE(a.ok() && b.ok());
-    ASSERT_TRUE(a->lens_depth && b->lens_depth);
-    ASSERT_EQ(a->lens_depth->depth.values.size(), b->lens_depth->depth.values.size());
-    for (std::size_t k = 0; k < a->lens_depth->depth.values.size(); ++k) {
-      const float x = a->lens_depth->depth.values[k], y = b->lens_depth->depth.values[k];
-      ASSERT_EQ(std::isnan(x), std::isnan(y)) << k;
-      if (!std::isnan(x)) {
-        ASSERT_EQ(x, y) << k;
-      }
-    }
-    EXPECT_EQ(a->tf->bytes, b->tf->bytes);
+    ExpectSameLensProducts(a, b);
   }
   Frame unknown;
   unknown.serial = "99999999";
@@ -1457,17 +1463,7 @@ TEST(Pipeline, WarmWithoutFramesMakesTheWhiteImageCamerasSetUpAndChangesNoProduc
   frame.image = rig->raw[0].View();
   auto a = warmed.ProcessLenses(frame);
   auto b = (*cold)->ProcessLenses(frame);
-  ASSERT_TRUE(a.ok() && b.ok());
-  ASSERT_TRUE(a->lens_depth && b->lens_depth);
-  ASSERT_EQ(a->lens_depth->depth.values.size(), b->lens_depth->depth.values.size());
-  for (std::size_t k = 0; k < a->lens_depth->depth.values.size(); ++k) {
-    const float x = a->lens_depth->depth.values[k], y = b->lens_depth->depth.values[k];
-    ASSERT_EQ(std::isnan(x), std::isnan(y)) << k;
-    if (!std::isnan(x)) {
-      ASSERT_EQ(x, y) << k;
-    }
-  }
-  EXPECT_EQ(a->tf->bytes, b->tf->bytes);
+  ExpectSameLensProducts(a, b);
   // The TF sampler made without a frame is the one the registration gets.
   auto sampler = with_white->Sampler(frame.image);
   ASSERT_TRUE(sampler.ok());

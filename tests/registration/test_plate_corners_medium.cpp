@@ -14,6 +14,7 @@
 #include "replay/layout.h"
 #include "replay/synth/synth_params.h"
 #include "replay/synth/synth_writer.h"
+#include "tests/registration/plate_corner_comparison.h"
 #include "tests/test_util.h"
 
 #include <gtest/gtest.h>
@@ -56,23 +57,11 @@ TEST(PlateCornerMedium, HandheldCornersOnThePlaneRenderWithinABoundTheTfImageMis
   options.features.max_features = 500;
   auto loader = CalibrationFrameLoader::Open(sequence, kSerial, {}, *plate, options);
   ASSERT_TRUE(loader) << loader.error().message;
-  std::vector<CalibrationFrame> plane_frames, tf_frames;
-  for (const std::int64_t f : {0, 1, 32}) {
-    Expected<CalibrationFrame> frame = (*loader)->Load(f);
-    ASSERT_TRUE(frame) << frame.error().message;
-    plane_frames.push_back(*frame);
-    Expected<std::vector<PlateCorner>> on_tf = DetectPlateCorners((*loader)->last_tf_image(), *plate);
-    ASSERT_TRUE(on_tf) << on_tf.error().message;
-    frame->corners = *on_tf;
-    frame->corner_virtual_depth.assign(on_tf->size(), std::nanf(""));
-    tf_frames.push_back(*frame);
-  }
-  Expected<PlateCornerBias> on_plane = MeasurePlateCornerBias(plane_frames, options.lambda, sequence, kSerial);
-  Expected<PlateCornerBias> on_tf = MeasurePlateCornerBias(tf_frames, options.lambda, sequence, kSerial);
-  ASSERT_TRUE(on_plane && on_tf);
-  std::printf("on the plane's render: %s\n%son the TF image: %s\n%s", on_plane->BriefReport().c_str(),
-              on_plane->PerFrameReport().c_str(), on_tf->BriefReport().c_str(),
-              on_tf->PerFrameReport().c_str());
+  const std::optional<PlateCornerComparison> corners = ComparePlateCorners(
+      **loader, {0, 1, 32}, *plate, options.lambda, sequence, kSerial);
+  ASSERT_TRUE(corners);
+  const PlateCornerBias* on_plane = &corners->on_plane;
+  const PlateCornerBias* on_tf = &corners->on_tf;
   // Measured: 0.471 TF px RMS on the plane's render (0.36-0.56 per frame)
   // against 1.057 on the TF image (1.04-1.07), which also lost a marker of
   // frame 32 (44 corners).
