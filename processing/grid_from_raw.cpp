@@ -58,9 +58,12 @@ Expected<GridFitResult> FitGridToRawImage(ConstImageView raw, const MlaGrid* ini
     grid = first->grid;
   }
   const double pitch = grid.PitchPx();
-  const int radius = static_cast<int>(std::ceil(0.5 * grid.NominalPitchPx()));
+  // The integer sizes from the nominal pitch: a pitch read from a file is a
+  // rounding error off its value (mla_grid.h, NominalPitchPx).
+  const double nominal_pitch = grid.NominalPitchPx();
+  const int radius = static_cast<int>(std::ceil(0.5 * nominal_pitch));
   const int side = 2 * radius + 1;
-  const int core_r = std::max(2, static_cast<int>(0.3 * pitch));
+  const int core_r = std::max(2, static_cast<int>(0.3 * nominal_pitch));
   // Tiles: lenses per tile ~ tile area / (sqrt(3)/2 D^2).
   const double lens_area = 0.8660254037844386 * pitch * pitch;
   const double tile_px = std::sqrt(options.min_lenses_per_tile * lens_area);
