@@ -27,7 +27,7 @@
 //                  [--concurrency N] [--lcm URL] [--vicon-packets N]
 //                  [--vicon-hz HZ] [--udpm URL] [--processing-nice N]
 //                  [--vicon-priority N] [--no-frames] [--no-vicon]
-//                  [--sequence SEQ_DIR] [--no-intrinsics]
+//                  [--sequence SEQ_DIR] [--no-intrinsics] [--baseline-binary PATH]
 // --sequence: an existing sequence (e.g. `lifmcr synth --preset medium`'s)
 // instead of rendering one; --preset, --frames and --cameras are then its.
 // The processing chain has the sequence's true intrinsics
@@ -36,6 +36,10 @@
 // Part 1 publishes on --lcm (default memq://; messages are published, not
 // read). The Vicon rate is raised from 80 Hz (default 400) so a run takes
 // seconds; --vicon-hz 80 gives the real rate.
+// --baseline-binary PATH: after part 1, this run starts PATH (another build's
+// bench_pipeline) with the same --preset and --frames and --no-vicon, shows
+// its output, and prints this build's frames/s over its (processing alone and
+// end to end): a speed-up measured side by side in one run, on one machine.
 
 #include "bench/bench_usage.h"
 #include "acquisition/rig_controller.h"
@@ -103,6 +107,14 @@ struct BenchArgs {
   // lambda (micro-lens centres, processing/plenoptic_frame.h) is the
   // camera's, as in a replay with --reference; without them it is 1.
   bool intrinsics = true;
+  // Another build's bench_pipeline, run after part 1 for the ratio.
+  std::string baseline_binary;
+};
+
+// Part 1's two rates, for the ratio against --baseline-binary.
+struct FrameRates {
+  double pipeline_fps = 0;
+  double alone_fps = 0;
 };
 
 Expected<int> ParseInt(const std::string& option, const std::string& text, int min, int max) {
@@ -137,6 +149,10 @@ Expected<BenchArgs> ParseArgs(int argc, char** argv) {
       args.udpm_url = value;
     } else if (option == "--sequence") {
       args.sequence = value;
+    } else if (option == "--baseline-binary") {
+      if (!std::filesystem::is_regular_file(value))
+        return Error{"--baseline-binary: expected an executable file, got '" + value + "'"};
+      args.baseline_binary = value;
     } else if (option == "--frames") {
       if (!(number = ParseInt(option, value, 1, 100000))) return number.error();
       args.frames = *number;
@@ -187,7 +203,7 @@ double ProcessCpuSeconds() {
 
 // Part 1: frames at --rate max, and the same frames through processing alone.
 int RunFramePart(const BenchArgs& args, const synth::SynthParams& params,
-                 const std::filesystem::path& sequence_dir) {
+                 const std::filesystem::path& sequence_dir, FrameRates* rates) {
   apps::ReplayRunOptions options;
   options.sequence_dir = sequence_dir;
   options.rate.kind = apps::ReplayRate::Kind::kMax;
@@ -307,6 +323,8 @@ int RunFramePart(const BenchArgs& args, const synth::SynthParams& params,
   std::printf("dense search of the last frame: %s\n", last_search.c_str());
   std::printf("ratio pipeline / processing alone: %.2f\n", pipeline_fps / alone_fps);
   std::fflush(stdout);
+  rates->pipeline_fps = pipeline_fps;
+  rates->alone_fps = alone_fps;
   return r.Accounted() && r.failed == 0 && r.sync_lost == 0 ? 0 : 1;
 }
 
@@ -577,6 +595,42 @@ int RunViconPart(const BenchArgs& args, const std::filesystem::path& sequence_di
   return arrivals.received == packets && lcm_p99 < 5000.0 ? 0 : 1;
 }
 
+// Runs another build's bench_pipeline on the same preset and frames (it
+// renders its own: the synthetic sequence is the same for the same preset) and
+// prints its output and the ratios of this build's rates to its. Returns 1
+// when its rates cannot be read from its output.
+int RunBaseline(const BenchArgs& args, const FrameRates& ours) {
+  std::string command = "'" + args.baseline_binary + "' --preset " + args.preset + " --frames " +
+                        std::to_string(args.frames) + " --no-vicon 2>&1";
+  std::printf("baseline: %s\n", command.c_str());
+  std::fflush(stdout);
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) {
+    std::printf("baseline: cannot start %s: %s\n", args.baseline_binary.c_str(),
+                std::strerror(errno));
+    return 1;
+  }
+  double alone_fps = 0, pipeline_fps = 0;
+  char line[4096];
+  while (std::fgets(line, sizeof line, pipe)) {
+    // Its figures, not its log lines.
+    if (line[0] != '[' || !std::strstr(line, "] [info] ")) std::printf("baseline | %s", line);
+    std::sscanf(line, "processing alone (same stage, sequential): %lf", &alone_fps);
+    std::sscanf(line, "pipeline end to end: %lf", &pipeline_fps);
+  }
+  const int status = pclose(pipe);
+  if (alone_fps <= 0 || pipeline_fps <= 0) {
+    std::printf("baseline: no frames/s read from its output (exit status %d)\n", status);
+    return 1;
+  }
+  std::printf(
+      "this build / baseline: processing alone %.2f / %.2f frames/s = %.2fx, end to end %.2f / "
+      "%.2f = %.2fx\n",
+      ours.alone_fps, alone_fps, ours.alone_fps / alone_fps, ours.pipeline_fps, pipeline_fps,
+      ours.pipeline_fps / pipeline_fps);
+  return 0;
+}
+
 }  // namespace
 
 constexpr char kUsage[] =
@@ -584,6 +638,7 @@ constexpr char kUsage[] =
     "                      [--concurrency N] [--lcm URL] [--vicon-packets N] [--vicon-hz HZ]\n"
     "                      [--udpm URL] [--processing-nice N] [--vicon-priority N]\n"
     "                      [--no-frames] [--no-vicon] [--sequence SEQ_DIR] [--no-intrinsics]\n"
+    "                      [--baseline-binary PATH]\n"
     "--sequence SEQ_DIR: that sequence's frames and cameras instead of rendering a preset.\n"
     "The chain has the sequence's true intrinsics (GroundTruth/cameras.yaml: its lambda)\n"
     "unless --no-intrinsics (lambda 1, as a replay without intrinsics).\n"
@@ -592,7 +647,9 @@ constexpr char kUsage[] =
     "   processing alone; part 1 publishes on --lcm (default memq://).\n"
     "2. Vicon: Tracker packets over loopback UDP through record --publish's path to LCM,\n"
     "   sent -> received p50/p99/max beside sent -> parsed (default 400 Hz; --vicon-hz 80 is\n"
-    "   the real rate), on memq:// and on udpm (--udpm).\n";
+    "   the real rate), on memq:// and on udpm (--udpm).\n"
+    "--baseline-binary PATH: after part 1, run PATH (another build's bench_pipeline) with the\n"
+    "same --preset and --frames and --no-vicon, and print this build's frames/s over its.\n";
 
 int main(int argc, char** argv) {
   if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
@@ -600,6 +657,12 @@ int main(int argc, char** argv) {
   auto args = ParseArgs(argc, argv);
   if (!args) {
     std::fprintf(stderr, "bench_pipeline: %s\n", args.error().message.c_str());
+    return 2;
+  }
+  if (!args->baseline_binary.empty() && !args->sequence.empty()) {
+    std::fprintf(stderr,
+                 "bench_pipeline: --baseline-binary renders the preset in both builds; it does not "
+                 "take --sequence\n");
     return 2;
   }
   auto params = synth::MakePreset(args->preset);
@@ -624,7 +687,8 @@ int main(int argc, char** argv) {
       params->camera.width_px = raw->width;
       params->camera.height_px = raw->height;
     }
-    int exit_code = args->frame_part ? RunFramePart(*args, *params, args->sequence) : 0;
+    FrameRates rates;
+    int exit_code = args->frame_part ? RunFramePart(*args, *params, args->sequence, &rates) : 0;
     if (args->vicon_part)
       for (const bool frames_flowing : {false, true})
         exit_code = std::max(exit_code, RunViconPart(*args, args->sequence,
@@ -651,7 +715,11 @@ int main(int argc, char** argv) {
   std::printf("rendering (not timed in any figure): %.1f s\n",
               std::chrono::duration<double>(Clock::now() - render_start).count());
 
-  int exit_code = args->frame_part ? RunFramePart(*args, *params, summary->sequence_dir) : 0;
+  FrameRates rates;
+  int exit_code =
+      args->frame_part ? RunFramePart(*args, *params, summary->sequence_dir, &rates) : 0;
+  if (args->frame_part && !args->baseline_binary.empty())
+    exit_code = std::max(exit_code, RunBaseline(*args, rates));
   if (args->vicon_part) {
     std::vector<std::string> urls = {"memq://"};
     if (Status loopback = CheckLoopback(args->udpm_url); loopback)
