@@ -44,10 +44,11 @@
 //    over camera c's corners of the mean of a corner's micro-image residuals
 //    (its position error), measured after (a) and again after (b); camera
 //    0's corners, which fix the plate frame, the reference: their cost
-//    scaled by the ratio of the standard deviations. A camera X sees the plate from aside and near the image's
-//    edge, where its corners are several times less accurate than camera 0's
-//    (on the 4-camera `small` rig 0.23-0.27 px against 0.054 px after (b);
-//    0.4-0.7 TF px against 0.06 at the true poses): weighed as camera 0's
+//    scaled by the ratio of the standard deviations. A camera X sees the
+//    plate from aside and near the image's edge, where its corners are
+//    several times less accurate than camera 0's
+//    (on the 4-camera `small` rig 0.27-0.34 px against 0.040 px after (b);
+//    0.50-0.63 TF px against 0.064 from the truth): weighed as camera 0's
 //    they pulled every camera's pose in the plate frame 2-4 mm off. Their
 //    inverse variance, (s_0 / s_X)^2, is too little: they are what holds the
 //    cameras X against the plate where the keypoints leave a pivot about the
