@@ -78,6 +78,7 @@ struct CalibrateOptions {
   std::string cache;
   bool rig = false;
   bool non_rigid = false;
+  bool rig_equal_plate_weight = false;
   std::string cameras;
   std::string camera0_calibration;
 };
@@ -406,6 +407,7 @@ int RunCalibrateRig(const CalibrateOptions& o) {
   if (!calibration_options) return Fail(calibration_options.error().message, 2);
   options.calibration = *calibration_options;
   options.non_rigid = o.non_rigid;
+  options.reweigh_plate_corners = !o.rig_equal_plate_weight;
   if (Status s = options.Check(); !s) return Fail(s.error().message, 2);  // before the frames
   std::vector<CameraFrames> frames;
   std::vector<registration::CalibrationInput> inputs;
@@ -580,6 +582,10 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
                "the cameras before it (--cameras order: neighbours should follow each other). "
                "--rig refuses a sequence whose ground truth says the mount is not rigid "
                "without it");
+  app.add_flag("--rig-equal-plate-weight", o->rig_equal_plate_weight,
+               "--rig: every camera's plate corners weigh --plate-weight to the end (default: "
+               "after the first solve a camera X's weigh --plate-weight x sqrt(camera 0's corner "
+               "RMS / its own) where its own is larger)");
   app.add_option("--cameras", o->cameras,
                  "With --rig: the cameras, camera 0 first, e.g. 40398678,40398673 (default: "
                  "--camera, then the sequence's other cameras in ascending order)");

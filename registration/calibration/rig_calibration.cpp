@@ -182,9 +182,11 @@ std::string RigCalibrationResult::CameraReport() const {
     const Eigen::Vector3d w = aa.angle() * aa.axis();
     text += RigFormat(
         "camera %zu (%s): f_L %.4f mm (sd %.2g), b_L0 %.4f mm (sd %.2g), B %.5f mm (sd %.2g), c "
-        "(%.2f, %.2f) px (sd %.2g, %.2g); %lld observations, %d plate corners, RMSE %.3f px",
+        "(%.2f, %.2f) px (sd %.2g, %.2g); %lld observations, %d plate corners (position RMS "
+        "%.3f px, weight %.2f), RMSE %.3f px",
         c, r.serial.c_str(), k[0], r.std_dev[0], k[1], r.std_dev[1], k[2], r.std_dev[2], k[3], k[4],
-        r.std_dev[3], r.std_dev[4], r.observations, r.plate_corners, r.rmse_px);
+        r.std_dev[3], r.std_dev[4], r.observations, r.plate_corners, r.plate_corner_rms_px,
+        r.plate_weight, r.rmse_px);
     if (c > 0 && non_rigid) {
       text += RigFormat(
           "; placed at %zu triggers (%zu passed the pose checks against the map "
@@ -538,6 +540,49 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
                                       e.t.data(), points[lo.point].data(), r->data());
   };
 
+  // Residuals of one plate corner at the current parameters.
+  auto evaluate_corner = [&](const CornerObservation& ob, std::vector<double>* r) {
+    r->resize(ob.cost.residuals());
+    const RigPoseBlock& p = rig[ob.trigger];
+    if (ob.camera == 0) return ob.cost(k[0].data(), p.q.data(), p.t.data(), &inset[0], r->data());
+    const RigPoseBlock& e = block(ob.camera, ob.trigger);
+    return RigPlateCornerCost{ob.cost}(k[ob.camera].data(), p.q.data(), p.t.data(), e.q.data(),
+                                       e.t.data(), &inset[ob.camera], r->data());
+  };
+  // The plate corners' weight per camera (rig_calibration.h, step 3).
+  std::vector<double> plate_weight(n_cameras, co.plate_weight);
+
+  // Each camera's plate corners: the RMS of their position residuals (the
+  // mean of a corner's micro-image residuals) at the current parameters;
+  // camera X's weight plate_weight x min(1, sqrt(s_0 / s_X)) from then on.
+  auto reweigh_plate_corners = [&]() {
+    std::vector<double> corner_ss(n_cameras, 0), r;
+    std::vector<int> corner_n(n_cameras, 0);
+    for (const CornerObservation& ob : corners) {
+      if (!evaluate_corner(ob, &r)) continue;
+      const int n = static_cast<int>(r.size()) / 2;
+      Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+      for (int i = 0; i < n; ++i) mean += Eigen::Vector2d(r[2 * i], r[2 * i + 1]) / n;
+      corner_ss[ob.camera] += mean.squaredNorm();
+      ++corner_n[ob.camera];
+    }
+    for (int c = 0; c < n_cameras; ++c)
+      if (corner_n[c] > 0)
+        result.cameras[c].plate_corner_rms_px = std::sqrt(corner_ss[c] / corner_n[c]);
+    const double s0 = result.cameras[0].plate_corner_rms_px;
+    for (int c = 1; c < n_cameras; ++c) {
+      const double sc = result.cameras[c].plate_corner_rms_px;
+      plate_weight[c] = options.reweigh_plate_corners && s0 > 0 && sc > s0
+                            ? co.plate_weight * std::sqrt(s0 / sc)
+                            : co.plate_weight;
+    }
+    std::string weights;
+    for (int c = 0; c < n_cameras; ++c)
+      weights += RigFormat("%s camera %d %.2f (RMS %.3f px)", c == 0 ? "" : ",", c,
+                           plate_weight[c], result.cameras[c].plate_corner_rms_px);
+    say("plate corner weights:" + weights);
+  };
+
   std::vector<bool> inlier(lens.size(), true);
   // The joint solve's covariance of each c0_from_cx block (step 4).
   std::vector<std::vector<Eigen::Matrix<double, 6, 6>>> extrinsics_covariance(n_cameras);
@@ -579,7 +624,8 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
       const int residuals = ob.cost.residuals();
       ceres::LossFunction* loss =
           new ceres::ScaledLoss(new ceres::HuberLoss(co.huber_px * std::sqrt(residuals / 2.0)),
-                                co.plate_weight * co.plate_weight, ceres::TAKE_OWNERSHIP);
+                                plate_weight[ob.camera] * plate_weight[ob.camera],
+                                ceres::TAKE_OWNERSHIP);
       RigPoseBlock& p = rig[ob.trigger];
       if (ob.camera == 0) {
         problem.AddResidualBlock(
@@ -747,6 +793,7 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
                     "in the images by their solved poses)",
                     lens.size() - before));
     }
+    if (round == 0) reweigh_plate_corners();
     if (round == 1) {
       // Observations above max(outlier_px, 3 x the median RMS) out.
       std::vector<double> rms(lens.size(), std::numeric_limits<double>::infinity());
@@ -765,6 +812,7 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
         }
       say(RigFormat("outliers: %lld of %zu observations above %.2f px RMS dropped",
                     result.rejected_observations, lens.size(), threshold));
+      reweigh_plate_corners();
     }
     if (!last) continue;
 
@@ -901,6 +949,7 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
       rc.c0_from_cx = RobustMean(rc.per_trigger);
     }
     rc.rmse_px = camera_m[c] > 0 ? std::sqrt(camera_ss[c] / camera_m[c]) : 0;
+    rc.plate_weight = plate_weight[c];
     if (!rc.calibration.intrinsics.Check())
       result.flags.push_back("camera " + rc.serial +
                              ": diverged: its intrinsics left their valid range");

@@ -38,7 +38,23 @@
 //    each plate corner the same way. Solves: (a) the cameras X alone (their
 //    intrinsics, c0_from_cx and insets; camera 0, the trajectory and the map
 //    held), (b) everything, (c) with observations above max(outlier_px, 3 x
-//    the median RMS) dropped, everything again.
+//    the median RMS) dropped, everything again. Each camera's plate corners
+//    weigh plate_weight in (a); in (b) and (c) (`reweigh_plate_corners`)
+//    camera X's weigh plate_weight x min(1, sqrt(s_0 / s_X)), s_c the RMS
+//    over camera c's corners of the mean of a corner's micro-image residuals
+//    (its position error), measured after (a) and again after (b); camera
+//    0's corners, which fix the plate frame, the reference: their cost
+//    scaled by the ratio of the standard deviations. A camera X sees the
+//    plate from aside and near the image's edge, where its corners are
+//    several times less accurate than camera 0's
+//    (on the 4-camera `small` rig 0.27-0.34 px against 0.040 px after (b);
+//    0.50-0.63 TF px against 0.064 from the truth): weighed as camera 0's
+//    they pulled every camera's pose in the plate frame 2-4 mm off. Their
+//    inverse variance, (s_0 / s_X)^2, is too little: they are what holds the
+//    cameras X against the plate where the keypoints leave a pivot about the
+//    scene weakly determined, and the far camera's pose then went 2.1-4.1 mm
+//    off (the figures of each weight: docs/calibration.md, "A rig calibrated
+//    as one").
 // 4. Covariance of the camera parameters by the Schur complement of the
 //    points (calibration_covariance.h), scaled by the residual variance:
 //    each camera's intrinsics' standard deviations and c0_from_cx's 6 x 6
@@ -109,6 +125,10 @@ struct RigCalibrationOptions {
   // pose starts a non-rigid frame).
   int min_registered_frames = 3;
   bool non_rigid = false;         // per-trigger c0_from_cx (above)
+  // Step 3 (b), (c): camera X's plate corners weighed by their scatter
+  // against camera 0's (above); false: every camera's at
+  // calibration.plate_weight.
+  bool reweigh_plate_corners = true;
   Status Check() const;
 };
 
@@ -141,6 +161,11 @@ struct RigCameraResult {
   int frames = 0;                  // frames given
   long long observations = 0;      // keypoint observations in the final solve
   int plate_corners = 0;           // plate corners in the solve
+  // Step 3: the RMS of the plate corners' position residuals after solve
+  // (b) (px of the micro images; NaN without corners) and the corners'
+  // weight in solve (c).
+  double plate_corner_rms_px = NAN;
+  double plate_weight = 0;
   double rmse_px = 0;              // its micro-image residuals in the final solve
 };
 
