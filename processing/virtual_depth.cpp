@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <limits>
 #include <string>
+#include <tuple>
 #include <type_traits>
 #include <utility>
 
@@ -80,6 +81,55 @@ void GateRow(const float* g, const std::int32_t* lens, int w, int n, int k,
     const int textured = grad_ok & (g_max >= threshold);
     out[i] = static_cast<std::uint8_t>(own * (1 + grad_ok + textured));
   }
+}
+
+// The map's initial values (no estimate, not textured) for pixels
+// [a, b) of the frame.
+struct MapInit {
+  float* v;
+  float* sigma;
+  float* confidence;
+  std::uint8_t* textured;
+  void Run(std::size_t a, std::size_t b) const {
+    std::fill(v + a, v + b, kNaN);
+    std::fill(sigma + a, sigma + b, kNaN);
+    std::fill(confidence + a, confidence + b, 0.0f);
+    std::fill(textured + a, textured + b, std::uint8_t{0});
+  }
+};
+
+// Initialises the map where micro image k owns it: its own pixels (lens ==
+// k; the disc's rows of its box as PrepareGeometry labels them, one run per
+// row) and, on each such row, the pixels outside every disc (-1) between
+// its run and the next labelled pixel to the left, and those to the right
+// up to the frame's edge when no labelled pixel follows. Every pixel of a
+// row that holds some micro image's pixel is so written by exactly one
+// micro image (a -1 run by the one right of it, else the one left of it).
+// Returns the first and last row with a pixel of k's (-1: none).
+std::pair<int, int> InitOwnedRuns(const std::int32_t* lens, int w, int h, int k, double cx,
+                                  double cy, double r, const MapInit& init) {
+  const int x0 = std::max(0, static_cast<int>(std::ceil(cx - r)));
+  const int x1 = std::min(w - 1, static_cast<int>(std::floor(cx + r)));
+  const int y0 = std::max(0, static_cast<int>(std::ceil(cy - r)));
+  const int y1 = std::min(h - 1, static_cast<int>(std::floor(cy + r)));
+  int first_row = -1, last_row = -1;
+  for (int y = y0; y <= y1; ++y) {
+    const std::int32_t* const row = lens + static_cast<std::size_t>(y) * w;
+    int s = x0, e = x1;
+    while (s <= x1 && row[s] != k) ++s;
+    if (s > x1) continue;
+    while (row[e] != k) --e;
+    if (first_row < 0) first_row = y;
+    last_row = y;
+    int a = s;
+    while (a > 0 && row[a - 1] == -1) --a;
+    int b = e + 1;
+    while (b < w && row[b] == -1) ++b;
+    if (b < w) b = e + 1;  // a labelled pixel follows: its micro image's run
+    const std::size_t at = static_cast<std::size_t>(y) * w;
+    init.Run(at + a, at + b);
+  }
+  return {first_row, last_row};
 }
 
 }  // namespace
@@ -163,21 +213,19 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
   const std::size_t n = static_cast<std::size_t>(w) * h;
   out->width = w;
   out->height = h;
-  // The map's initial values, written in parallel row blocks (four passes
-  // over the frame: 13 bytes per pixel); resize keeps the buffers of a
-  // map of this size.
+  // The map is written once per pixel, by the micro image whose rows hold
+  // it (InitOwnedRuns, while its rows are in cache), and the rows without a
+  // micro image's pixel afterwards; resize keeps the buffers of a map of
+  // this size.
   out->virtual_depth.resize(n);
   out->sigma_z.resize(n);
   out->confidence.resize(n);
   out->textured.resize(n);
-  tbb::parallel_for(0, h, 64, [&](int y) {
-    const std::size_t a = static_cast<std::size_t>(y) * w;
-    const std::size_t b = std::min(n, a + static_cast<std::size_t>(64) * w);
-    std::fill(out->virtual_depth.begin() + a, out->virtual_depth.begin() + b, kNaN);
-    std::fill(out->sigma_z.begin() + a, out->sigma_z.begin() + b, kNaN);
-    std::fill(out->confidence.begin() + a, out->confidence.begin() + b, 0.0f);
-    std::fill(out->textured.begin() + a, out->textured.begin() + b, std::uint8_t{0});
-  });
+  const MapInit init{out->virtual_depth.data(), out->sigma_z.data(), out->confidence.data(),
+                     out->textured.data()};
+  // Per micro image, the first and last row holding a pixel of its own (-1:
+  // none): the rows no micro image covers are initialised after the search.
+  std::vector<std::int32_t> own_row_first(f.lenses.size(), -1), own_row_last(f.lenses.size(), -1);
   // Search range per type: z = 1 / v.
   const detail::SearchRange range(mla);
   const std::array<double, 3>& z_lo = range.z_lo;
@@ -250,6 +298,8 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     const int y0 = std::max(1, static_cast<int>(std::ceil(lens.centre_px.y() - r)));
     const int y1 = std::min(h - 2, static_cast<int>(std::floor(lens.centre_px.y() + r)));
     const int bw = x1 - x0 + 1, bh = y1 - y0 + 1;
+    std::tie(own_row_first[k], own_row_last[k]) = InitOwnedRuns(
+        f.lens_of_pixel.data(), w, h, k, lens.centre_px.x(), lens.centre_px.y(), r, init);
     if (bw <= 0 || bh <= 0) return;
     // Seeded: the ring-1 window (header comment); none without a seed of
     // the micro image's own.
@@ -717,6 +767,16 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       }
     }
   });
+  // The rows without a pixel of any micro image.
+  {
+    std::vector<int> cover(static_cast<std::size_t>(h) + 1, 0);
+    for (std::size_t k = 0; k < f.lenses.size(); ++k)
+      if (own_row_first[k] >= 0) ++cover[own_row_first[k]], --cover[own_row_last[k] + 1];
+    for (int y = 0, c = 0; y < h; ++y) {
+      c += cover[y];
+      if (c == 0) init.Run(static_cast<std::size_t>(y) * w, static_cast<std::size_t>(y + 1) * w);
+    }
+  }
   // Micro images without any depth whose ring-1 neighbours' agreeing
   // estimates lie on one surface: with v > 2 neighbouring micro images image
   // overlapping patches of the scene, so the surface they agree on covers
