@@ -507,6 +507,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         if (found) estimates.Add(e);
       };
       ++searched_count[k];
+      bool fell_back = false;
       for (int q = 0; q < gated; ++q)
         match(seeded ? narrow : search, nbs[order[q].second], seed_lo, seed_hi,
               seeded && seed_ring1_lines == 1);
@@ -519,6 +520,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         if (estimates.n == 0) {
           ++narrow_missed;
           if (narrow_missed >= 2 * narrow_found) {
+            fell_back = true;
             ++fallback_count[k];
             for (int q = 0; q < gated; ++q) match(search, nbs[order[q].second], lo, hi);
           }
@@ -529,8 +531,10 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       double z = 0, sigma = 0;
       int used = Fuse(estimates, &z, &sigma);
       const bool have_prior = used > 0;
-      // Longer baselines, searched around the current estimate (the whole
-      // range when the short ones gave none).
+      // Longer baselines, searched around the current estimate; when the
+      // short ones gave none, in the seed's window (its micro image's
+      // windows find minima: the seed stands) or the whole range (no seed,
+      // or the fallback searched it).
       std::array<std::pair<float, int>, 6> order2;
       int gated2 = 0;
       for (int m = ring1_count; m < count; ++m) {
@@ -544,8 +548,12 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       for (int q = 0; q < gated2; ++q) {
         const Neighbour& nb = nbs[order2[q].second];
         const double span = std::max(3 * sigma, 2 * options.step_px / (lambda * nb.length));
-        match(search, nb, have_prior ? std::max(lo, z - span) : lo,
-              have_prior ? std::min(hi, z + span) : hi);
+        if (have_prior)
+          match(search, nb, std::max(lo, z - span), std::min(hi, z + span));
+        else if (seeded && !fell_back)
+          match(narrow, nb, seed_lo, seed_hi);
+        else
+          match(search, nb, lo, hi);
       }
       used = Fuse(estimates, &z, &sigma);
       if (used < options.min_estimates || z <= 0) continue;
