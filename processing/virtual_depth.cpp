@@ -53,6 +53,7 @@ struct LensWorkspace {
   std::vector<std::uint8_t> row_class;         // the gate's class of a row's pixels
   std::vector<double> sat_w, sat_wz, sat_wzz;
   std::vector<std::int32_t> sat_n;
+  std::vector<std::int32_t> sat_col, sat_row;  // local x, y -> the tables' column, row
 };
 
 // The texture gate's class of n pixels of a row (g the grey at the first,
@@ -588,7 +589,20 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       ey0 = std::min(ey0, ly);
       ey1 = std::max(ey1, ly);
     }
-    const int tw = ex1 - ex0 + 1, th = ey1 - ey0 + 1;
+    // Seeded, the estimates lie on the searched lattice (every seed_stride-th
+    // pixel of the frame in x and y): the tables hold only its points, every
+    // other weight being 0 (the same sums in the same order: a row's sums
+    // change only at its points, and a row without one adds 0). sat_col[c]
+    // (sat_row) is the number of the rectangle's points left of (above)
+    // local x (y) c, the tables' column (row) of a window's edge at c.
+    const int lattice = seeded ? seed_stride : 1;
+    const int tw = (ex1 - ex0) / lattice + 1, th = (ey1 - ey0) / lattice + 1;
+    if (wk.sat_col.size() < static_cast<std::size_t>(bw) + 1) wk.sat_col.resize(bw + 1);
+    if (wk.sat_row.size() < static_cast<std::size_t>(bh) + 1) wk.sat_row.resize(bh + 1);
+    std::int32_t* const sat_col = wk.sat_col.data();
+    std::int32_t* const sat_row = wk.sat_row.data();
+    for (int c = ex0; c <= ex1 + 1; ++c) sat_col[c] = (c - ex0 + lattice - 1) / lattice;
+    for (int c = ey0; c <= ey1 + 1; ++c) sat_row[c] = (c - ey0 + lattice - 1) / lattice;
     const int sw_ = tw + 1;  // summed-area tables are (tw + 1) x (th + 1)
     const std::size_t sat_size = static_cast<std::size_t>(sw_) * (th + 1);
     // Row 0 and column 0 stay 0; the rest is written by every build.
@@ -606,10 +620,10 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       for (int ty = 0; ty < th; ++ty) {
         double row_w = 0, row_wz = 0, row_wzz = 0;
         std::int32_t row_n = 0;
-        const std::size_t row = static_cast<std::size_t>(ey0 + ty) * bw + ex0;
+        const std::size_t row = static_cast<std::size_t>(ey0 + ty * lattice) * bw + ex0;
         const std::size_t o_row = static_cast<std::size_t>(ty + 1) * sw_ + 1;
         for (int tx = 0; tx < tw; ++tx) {
-          const std::size_t i = row + tx;
+          const std::size_t i = row + static_cast<std::size_t>(tx) * lattice;
           const double wgt = weight_of(i);
           if (wgt > 0) {
             row_wz += wgt * patch_z[i];
@@ -639,10 +653,10 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       std::size_t i11, i01, i10, i00;
     };
     auto corners = [&](int lx, int ly, int radius) {
-      const int xa = std::clamp(lx - radius, ex0, ex1 + 1) - ex0;
-      const int xb = std::clamp(lx + radius + 1, ex0, ex1 + 1) - ex0;
-      const std::size_t ya = std::clamp(ly - radius, ey0, ey1 + 1) - ey0;
-      const std::size_t yb = std::clamp(ly + radius + 1, ey0, ey1 + 1) - ey0;
+      const std::size_t xa = sat_col[std::clamp(lx - radius, ex0, ex1 + 1)];
+      const std::size_t xb = sat_col[std::clamp(lx + radius + 1, ex0, ex1 + 1)];
+      const std::size_t ya = sat_row[std::clamp(ly - radius, ey0, ey1 + 1)];
+      const std::size_t yb = sat_row[std::clamp(ly + radius + 1, ey0, ey1 + 1)];
       return Corners{yb * sw_ + xb, ya * sw_ + xb, yb * sw_ + xa, ya * sw_ + xa};
     };
     auto window = [&](int lx, int ly, int radius) {
