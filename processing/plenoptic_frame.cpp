@@ -1,5 +1,8 @@
 #include "processing/plenoptic_frame.h"
 
+#include "processing/frame_smooth_simd.h"
+
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -152,7 +155,115 @@ Status PrepareGeometry(ConstImageView white, int width, int height, const MlaGri
   return Status::Ok();
 }
 
+namespace {
+
+// LoadRaw's streaming pass over one band of rows [y0, y1): the grey of each
+// row and the smoothing's passes (x, y, x, y, ...) on rows in cache, three
+// rows per stage, the last y pass writing the frame's grey. Stage p (p < P
+// = smooth_passes) holds the rows after pass p's y (none for p = 0) and
+// pass p + 1's x; the final y pass of a row needs rows r - 1 .. r + 1 of
+// stage P - 1, which needs r - 2 .. r + 2 of stage P - 2, ...: a band
+// recomputes P - p rows of stage p beyond each of its ends (a band of 64
+// rows and P = 2: 6 % more rows in stage 0, 3 % in stage 1), so bands are
+// independent and the values are the same as whole-frame passes'.
+class BandSmoother {
+ public:
+  BandSmoother(const detail::FrameSmoothKernels& k, ConstImageView raw, PlenopticFrame& f,
+               int y0, int y1, float* rows)
+      : k_(k), raw_(raw), f_(f), w_(f.width), h_(f.height), passes_(f.smooth_passes), y0_(y0),
+        y1_(y1), scratch_(rows) {
+    for (int p = 0; p < passes_; ++p) {
+      ring_[p] = rows + static_cast<std::size_t>(1 + 3 * p) * w_;
+      next_[p] = std::max(0, y0 - (passes_ - p));
+      end_[p] = std::min(h_, y1 + (passes_ - p));
+    }
+  }
+
+  // Floats of the rows a band needs: a scratch row and three per stage.
+  static std::size_t RowFloats(int width, int passes) {
+    return static_cast<std::size_t>(1 + 3 * passes) * width;
+  }
+
+  void Run() {
+    for (int y = y0_; y < y1_; ++y) {
+      float* out = f_.grey.data() + static_cast<std::size_t>(y) * w_;
+      if (passes_ == 0) {
+        Grey(y, out);
+        continue;
+      }
+      const int last = passes_ - 1;
+      Ensure(last, std::min(y + 1, h_ - 1));
+      SmoothY(last, y, out);
+    }
+  }
+
+ private:
+  float* Ring(int p, int r) { return ring_[p] + static_cast<std::size_t>(r % 3) * w_; }
+  const std::uint8_t* Mask(int r) const {
+    return f_.smooth_mask.data() + static_cast<std::size_t>(r) * w_;
+  }
+
+  // The devignetted grey of row r.
+  void Grey(int r, float* out) const {
+    const std::uint8_t* row = raw_.Row(r);
+    const float* gain = f_.gain.data() + static_cast<std::size_t>(r) * w_;
+    if (f_.has_colour) {
+      for (int x = 0; x < w_; ++x)
+        out[x] = (row[3 * x] + row[3 * x + 1] + row[3 * x + 2]) * (gain[x] * (1.0f / 3.0f));
+    } else {
+      k_.grey_row(row, gain, w_, out);
+    }
+  }
+
+  // The y pass on stage p - 1's rows r - 1 .. r + 1 (computed); a row off
+  // the frame is never taken (its mask bit is 0), row r stands in.
+  void SmoothY(int p, int r, float* out) {
+    const float* row = Ring(p, r);
+    const float* lo = r > 0 ? Ring(p, r - 1) : row;
+    const float* hi = r < h_ - 1 ? Ring(p, r + 1) : row;
+    k_.smooth_y(lo, row, hi, Mask(r), w_, out);
+  }
+
+  // Stage p up to row r (within its range).
+  void Ensure(int p, int r) {
+    for (; next_[p] <= r && next_[p] < end_[p]; ++next_[p]) {
+      const int row = next_[p];
+      if (p == 0) {
+        Grey(row, scratch_);
+      } else {
+        Ensure(p - 1, std::min(row + 1, end_[p - 1] - 1));
+        SmoothY(p - 1, row, scratch_);
+      }
+      k_.smooth_x(scratch_, Mask(row), w_, Ring(p, row));
+    }
+  }
+
+  static constexpr int kMaxPasses = 16;  // FrameOptions::Check
+  const detail::FrameSmoothKernels& k_;
+  ConstImageView raw_;
+  PlenopticFrame& f_;
+  const int w_, h_, passes_, y0_, y1_;
+  float* scratch_;
+  float* ring_[kMaxPasses] = {};
+  int next_[kMaxPasses] = {}, end_[kMaxPasses] = {};
+};
+
+// A band's rows, per thread and kept across frames: fresh pages per frame
+// would cost more than the arithmetic (about 10 us each on a loaded VM).
+std::vector<float>& ThreadRows(std::size_t floats) {
+  thread_local std::vector<float> rows;
+  if (rows.size() < floats) rows.resize(floats);
+  return rows;
+}
+
+}  // namespace
+
 Status LoadRaw(ConstImageView raw, PlenopticFrame* frame) {
+  return LoadRaw(raw, detail::SimdFrameSmoothKernels(), frame);
+}
+
+Status LoadRaw(ConstImageView raw, const detail::FrameSmoothKernels& kernels,
+               PlenopticFrame* frame) {
   PlenopticFrame& f = *frame;
   if (!f.geometry_ready) return Error{"raw frame: PrepareGeometry has not run"};
   const int w = f.width, h = f.height;
@@ -160,72 +271,25 @@ Status LoadRaw(ConstImageView raw, PlenopticFrame* frame) {
     return Error{"raw frame: " + std::to_string(raw.width) + "x" + std::to_string(raw.height) +
                  ", expected " + std::to_string(w) + "x" + std::to_string(h) +
                  " (the white image's and MLA grid's size)"};
+  if (f.smooth_passes < 0 || f.smooth_passes > 16)
+    return Error{"frame: smooth_passes: expected 0..16"};
   f.has_colour = raw.format == PixelFormat::kBgr8;
   f.raw = raw;
-  const std::size_t n = static_cast<std::size_t>(w) * h;
-  f.grey.resize(n);
-  tbb::parallel_for(0, h, [&](int y) {
-    const std::uint8_t* row = raw.Row(y);
-    const std::size_t base = static_cast<std::size_t>(y) * w;
-    const float* gain = f.gain.data() + base;
-    float* grey = f.grey.data() + base;
-    if (f.has_colour) {
-      for (int x = 0; x < w; ++x)
-        grey[x] = (row[3 * x] + row[3 * x + 1] + row[3 * x + 2]) * (gain[x] * (1.0f / 3.0f));
-    } else {
-      for (int x = 0; x < w; ++x) grey[x] = row[x] * gain[x];
-    }
-  });
+  f.grey.resize(static_cast<std::size_t>(w) * h);
   // Smoothing of the grey image within each micro image (binomial [1 2 1] / 4
-  // applied `smooth_passes` times per axis, normalised over the pixels of the
-  // same micro image): noise and the blur difference between lens types.
-  // The neighbours a pixel takes are the camera's (smooth_mask); one left
-  // out adds 0 and no weight, so every pixel is (2 g + sum of the taken) /
-  // (2 + their count) in that order (a pixel outside every micro image:
-  // 2 g / 2 = g), a loop without branches on the pixels.
-  f.work.resize(n);
-  for (int pass = 0; pass < f.smooth_passes; ++pass) {
-    for (int axis = 0; axis < 2; ++axis) {
-      const float* src = f.grey.data();
-      float* dst = f.work.data();
-      const std::uint8_t lo_bit = axis == 0 ? 1 : 4, hi_bit = axis == 0 ? 2 : 8;
-      tbb::parallel_for(0, h, [&](int y) {
-        const std::size_t base = static_cast<std::size_t>(y) * w;
-        const std::uint8_t* mask = f.smooth_mask.data() + base;
-        const float* row = src + base;
-        float* out = dst + base;
-        // The neighbours along the axis; rows past the border are never
-        // taken (their mask bit is 0), so any valid row stands in.
-        const float* lo_row = axis == 0 ? row - 1 : (y > 0 ? row - w : row);
-        const float* hi_row = axis == 0 ? row + 1 : (y < h - 1 ? row + w : row);
-        auto one = [&](int x) {
-          const unsigned m = mask[x];
-          float sum = 2.0f * row[x];
-          sum += (m & lo_bit) ? lo_row[x] : 0.0f;
-          sum += (m & hi_bit) ? hi_row[x] : 0.0f;
-          const float weight = 2.0f + static_cast<float>((m & lo_bit) != 0) +
-                               static_cast<float>((m & hi_bit) != 0);
-          out[x] = sum / weight;
-        };
-        if (axis == 0) {
-          // x = 0 and x = w - 1 would read past the row: lo_row[0] and
-          // hi_row[w - 1] only when taken, which they never are.
-          if (w == 1) {
-            out[0] = row[0];
-            return;
-          }
-          out[0] = (2.0f * row[0] + ((mask[0] & hi_bit) ? row[1] : 0.0f)) /
-                   (2.0f + static_cast<float>((mask[0] & hi_bit) != 0));
-          for (int x = 1; x < w - 1; ++x) one(x);
-          out[w - 1] = (2.0f * row[w - 1] + ((mask[w - 1] & lo_bit) ? row[w - 2] : 0.0f)) /
-                       (2.0f + static_cast<float>((mask[w - 1] & lo_bit) != 0));
-        } else {
-          for (int x = 0; x < w; ++x) one(x);
-        }
-      });
-      f.grey.swap(f.work);
-    }
-  }
+  // applied `smooth_passes` times per axis, x then y, normalised over the
+  // pixels of the same micro image): noise and the blur difference between
+  // lens types. The neighbours a pixel takes are the camera's (smooth_mask);
+  // one left out adds 0 and no weight (frame_smooth_simd.h), a pixel outside
+  // every micro image keeps its grey. One pass over the frame: the raw frame
+  // read once, the grey written once (BandSmoother).
+  const std::size_t floats = BandSmoother::RowFloats(w, f.smooth_passes);
+  constexpr int kBandRows = 128;  // tbb splits down to 64-128 rows
+  tbb::parallel_for(tbb::blocked_range<int>(0, h, kBandRows),
+                    [&](const tbb::blocked_range<int>& band) {
+                      std::vector<float>& rows = ThreadRows(floats);
+                      BandSmoother(kernels, raw, f, band.begin(), band.end(), rows.data()).Run();
+                    });
   return Status::Ok();
 }
 

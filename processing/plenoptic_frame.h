@@ -46,7 +46,9 @@ struct FrameOptions {
 struct PlenopticFrame {
   int width = 0, height = 0;
   std::vector<float> grey;  // devignetted grey, NaN where invalid
-  std::vector<float> work;  // scratch of the smoothing
+  // Not used by LoadRaw (its rows are per thread, processing/plenoptic_frame.cpp);
+  // kept for callers that clear it.
+  std::vector<float> work;
   // The raw frame itself (not a copy: the caller's pooled buffer, which must
   // outlive the processing of the frame); the TF image samples it times
   // `gain`, so colour needs no float copy of 12 bytes per pixel.
@@ -90,6 +92,13 @@ Status PrepareGeometry(ConstImageView white, int width, int height, const MlaGri
 // within micro images), in the frame's buffers (no allocation once they are
 // sized); `raw` is kept as a view and must outlive the frame's processing.
 Status LoadRaw(ConstImageView raw, PlenopticFrame* frame);
+namespace detail {
+struct FrameSmoothKernels;  // processing/frame_smooth_simd.h
+}
+// The same with given row kernels (the scalar reference or Highway's, which
+// give the same grey bit for bit; LoadRaw above uses Highway's).
+Status LoadRaw(ConstImageView raw, const detail::FrameSmoothKernels& kernels,
+               PlenopticFrame* frame);
 // Both, for a single frame. Reusing `frame` reuses its buffers.
 Status PrepareFrame(ConstImageView raw, ConstImageView white, const MlaGrid& grid,
                     const MlaCalibration& mla, const FrameOptions& options, PlenopticFrame* frame);

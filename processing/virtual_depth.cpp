@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <limits>
 #include <string>
+#include <tuple>
 #include <type_traits>
 #include <utility>
 
@@ -52,6 +53,7 @@ struct LensWorkspace {
   std::vector<std::uint8_t> row_class;         // the gate's class of a row's pixels
   std::vector<double> sat_w, sat_wz, sat_wzz;
   std::vector<std::int32_t> sat_n;
+  std::vector<std::int32_t> sat_col, sat_row;  // local x, y -> the tables' column, row
 };
 
 // The texture gate's class of n pixels of a row (g the grey at the first,
@@ -80,6 +82,55 @@ void GateRow(const float* g, const std::int32_t* lens, int w, int n, int k,
     const int textured = grad_ok & (g_max >= threshold);
     out[i] = static_cast<std::uint8_t>(own * (1 + grad_ok + textured));
   }
+}
+
+// The map's initial values (no estimate, not textured) for pixels
+// [a, b) of the frame.
+struct MapInit {
+  float* v;
+  float* sigma;
+  float* confidence;
+  std::uint8_t* textured;
+  void Run(std::size_t a, std::size_t b) const {
+    std::fill(v + a, v + b, kNaN);
+    std::fill(sigma + a, sigma + b, kNaN);
+    std::fill(confidence + a, confidence + b, 0.0f);
+    std::fill(textured + a, textured + b, std::uint8_t{0});
+  }
+};
+
+// Initialises the map where micro image k owns it: its own pixels (lens ==
+// k; the disc's rows of its box as PrepareGeometry labels them, one run per
+// row) and, on each such row, the pixels outside every disc (-1) between
+// its run and the next labelled pixel to the left, and those to the right
+// up to the frame's edge when no labelled pixel follows. Every pixel of a
+// row that holds some micro image's pixel is so written by exactly one
+// micro image (a -1 run by the one right of it, else the one left of it).
+// Returns the first and last row with a pixel of k's (-1: none).
+std::pair<int, int> InitOwnedRuns(const std::int32_t* lens, int w, int h, int k, double cx,
+                                  double cy, double r, const MapInit& init) {
+  const int x0 = std::max(0, static_cast<int>(std::ceil(cx - r)));
+  const int x1 = std::min(w - 1, static_cast<int>(std::floor(cx + r)));
+  const int y0 = std::max(0, static_cast<int>(std::ceil(cy - r)));
+  const int y1 = std::min(h - 1, static_cast<int>(std::floor(cy + r)));
+  int first_row = -1, last_row = -1;
+  for (int y = y0; y <= y1; ++y) {
+    const std::int32_t* const row = lens + static_cast<std::size_t>(y) * w;
+    int s = x0, e = x1;
+    while (s <= x1 && row[s] != k) ++s;
+    if (s > x1) continue;
+    while (row[e] != k) --e;
+    if (first_row < 0) first_row = y;
+    last_row = y;
+    int a = s;
+    while (a > 0 && row[a - 1] == -1) --a;
+    int b = e + 1;
+    while (b < w && row[b] == -1) ++b;
+    if (b < w) b = e + 1;  // a labelled pixel follows: its micro image's run
+    const std::size_t at = static_cast<std::size_t>(y) * w;
+    init.Run(at + a, at + b);
+  }
+  return {first_row, last_row};
 }
 
 }  // namespace
@@ -163,21 +214,19 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
   const std::size_t n = static_cast<std::size_t>(w) * h;
   out->width = w;
   out->height = h;
-  // The map's initial values, written in parallel row blocks (four passes
-  // over the frame: 13 bytes per pixel); resize keeps the buffers of a
-  // map of this size.
+  // The map is written once per pixel, by the micro image whose rows hold
+  // it (InitOwnedRuns, while its rows are in cache), and the rows without a
+  // micro image's pixel afterwards; resize keeps the buffers of a map of
+  // this size.
   out->virtual_depth.resize(n);
   out->sigma_z.resize(n);
   out->confidence.resize(n);
   out->textured.resize(n);
-  tbb::parallel_for(0, h, 64, [&](int y) {
-    const std::size_t a = static_cast<std::size_t>(y) * w;
-    const std::size_t b = std::min(n, a + static_cast<std::size_t>(64) * w);
-    std::fill(out->virtual_depth.begin() + a, out->virtual_depth.begin() + b, kNaN);
-    std::fill(out->sigma_z.begin() + a, out->sigma_z.begin() + b, kNaN);
-    std::fill(out->confidence.begin() + a, out->confidence.begin() + b, 0.0f);
-    std::fill(out->textured.begin() + a, out->textured.begin() + b, std::uint8_t{0});
-  });
+  const MapInit init{out->virtual_depth.data(), out->sigma_z.data(), out->confidence.data(),
+                     out->textured.data()};
+  // Per micro image, the first and last row holding a pixel of its own (-1:
+  // none): the rows no micro image covers are initialised after the search.
+  std::vector<std::int32_t> own_row_first(f.lenses.size(), -1), own_row_last(f.lenses.size(), -1);
   // Search range per type: z = 1 / v.
   const detail::SearchRange range(mla);
   const std::array<double, 3>& z_lo = range.z_lo;
@@ -250,6 +299,8 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     const int y0 = std::max(1, static_cast<int>(std::ceil(lens.centre_px.y() - r)));
     const int y1 = std::min(h - 2, static_cast<int>(std::floor(lens.centre_px.y() + r)));
     const int bw = x1 - x0 + 1, bh = y1 - y0 + 1;
+    std::tie(own_row_first[k], own_row_last[k]) = InitOwnedRuns(
+        f.lens_of_pixel.data(), w, h, k, lens.centre_px.x(), lens.centre_px.y(), r, init);
     if (bw <= 0 || bh <= 0) return;
     // Seeded: the ring-1 window (header comment); none without a seed of
     // the micro image's own.
@@ -457,6 +508,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         if (found) estimates.Add(e);
       };
       ++searched_count[k];
+      bool fell_back = false;
       for (int q = 0; q < gated; ++q)
         match(seeded ? narrow : search, nbs[order[q].second], seed_lo, seed_hi,
               seeded && seed_ring1_lines == 1);
@@ -469,6 +521,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         if (estimates.n == 0) {
           ++narrow_missed;
           if (narrow_missed >= 2 * narrow_found) {
+            fell_back = true;
             ++fallback_count[k];
             for (int q = 0; q < gated; ++q) match(search, nbs[order[q].second], lo, hi);
           }
@@ -479,8 +532,10 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       double z = 0, sigma = 0;
       int used = Fuse(estimates, &z, &sigma);
       const bool have_prior = used > 0;
-      // Longer baselines, searched around the current estimate (the whole
-      // range when the short ones gave none).
+      // Longer baselines, searched around the current estimate; when the
+      // short ones gave none, in the seed's window (its micro image's
+      // windows find minima: the seed stands) or the whole range (no seed,
+      // or the fallback searched it).
       std::array<std::pair<float, int>, 6> order2;
       int gated2 = 0;
       for (int m = ring1_count; m < count; ++m) {
@@ -494,8 +549,12 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       for (int q = 0; q < gated2; ++q) {
         const Neighbour& nb = nbs[order2[q].second];
         const double span = std::max(3 * sigma, 2 * options.step_px / (lambda * nb.length));
-        match(search, nb, have_prior ? std::max(lo, z - span) : lo,
-              have_prior ? std::min(hi, z + span) : hi);
+        if (have_prior)
+          match(search, nb, std::max(lo, z - span), std::min(hi, z + span));
+        else if (seeded && !fell_back)
+          match(narrow, nb, seed_lo, seed_hi);
+        else
+          match(search, nb, lo, hi);
       }
       used = Fuse(estimates, &z, &sigma);
       if (used < options.min_estimates || z <= 0) continue;
@@ -530,7 +589,20 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       ey0 = std::min(ey0, ly);
       ey1 = std::max(ey1, ly);
     }
-    const int tw = ex1 - ex0 + 1, th = ey1 - ey0 + 1;
+    // Seeded, the estimates lie on the searched lattice (every seed_stride-th
+    // pixel of the frame in x and y): the tables hold only its points, every
+    // other weight being 0 (the same sums in the same order: a row's sums
+    // change only at its points, and a row without one adds 0). sat_col[c]
+    // (sat_row) is the number of the rectangle's points left of (above)
+    // local x (y) c, the tables' column (row) of a window's edge at c.
+    const int lattice = seeded ? seed_stride : 1;
+    const int tw = (ex1 - ex0) / lattice + 1, th = (ey1 - ey0) / lattice + 1;
+    if (wk.sat_col.size() < static_cast<std::size_t>(bw) + 1) wk.sat_col.resize(bw + 1);
+    if (wk.sat_row.size() < static_cast<std::size_t>(bh) + 1) wk.sat_row.resize(bh + 1);
+    std::int32_t* const sat_col = wk.sat_col.data();
+    std::int32_t* const sat_row = wk.sat_row.data();
+    for (int c = ex0; c <= ex1 + 1; ++c) sat_col[c] = (c - ex0 + lattice - 1) / lattice;
+    for (int c = ey0; c <= ey1 + 1; ++c) sat_row[c] = (c - ey0 + lattice - 1) / lattice;
     const int sw_ = tw + 1;  // summed-area tables are (tw + 1) x (th + 1)
     const std::size_t sat_size = static_cast<std::size_t>(sw_) * (th + 1);
     // Row 0 and column 0 stay 0; the rest is written by every build.
@@ -548,10 +620,10 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       for (int ty = 0; ty < th; ++ty) {
         double row_w = 0, row_wz = 0, row_wzz = 0;
         std::int32_t row_n = 0;
-        const std::size_t row = static_cast<std::size_t>(ey0 + ty) * bw + ex0;
+        const std::size_t row = static_cast<std::size_t>(ey0 + ty * lattice) * bw + ex0;
         const std::size_t o_row = static_cast<std::size_t>(ty + 1) * sw_ + 1;
         for (int tx = 0; tx < tw; ++tx) {
-          const std::size_t i = row + tx;
+          const std::size_t i = row + static_cast<std::size_t>(tx) * lattice;
           const double wgt = weight_of(i);
           if (wgt > 0) {
             row_wz += wgt * patch_z[i];
@@ -581,10 +653,10 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       std::size_t i11, i01, i10, i00;
     };
     auto corners = [&](int lx, int ly, int radius) {
-      const int xa = std::clamp(lx - radius, ex0, ex1 + 1) - ex0;
-      const int xb = std::clamp(lx + radius + 1, ex0, ex1 + 1) - ex0;
-      const std::size_t ya = std::clamp(ly - radius, ey0, ey1 + 1) - ey0;
-      const std::size_t yb = std::clamp(ly + radius + 1, ey0, ey1 + 1) - ey0;
+      const std::size_t xa = sat_col[std::clamp(lx - radius, ex0, ex1 + 1)];
+      const std::size_t xb = sat_col[std::clamp(lx + radius + 1, ex0, ex1 + 1)];
+      const std::size_t ya = sat_row[std::clamp(ly - radius, ey0, ey1 + 1)];
+      const std::size_t yb = sat_row[std::clamp(ly + radius + 1, ey0, ey1 + 1)];
       return Corners{yb * sw_ + xb, ya * sw_ + xb, yb * sw_ + xa, ya * sw_ + xa};
     };
     auto window = [&](int lx, int ly, int radius) {
@@ -717,6 +789,16 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       }
     }
   });
+  // The rows without a pixel of any micro image.
+  {
+    std::vector<int> cover(static_cast<std::size_t>(h) + 1, 0);
+    for (std::size_t k = 0; k < f.lenses.size(); ++k)
+      if (own_row_first[k] >= 0) ++cover[own_row_first[k]], --cover[own_row_last[k] + 1];
+    for (int y = 0, c = 0; y < h; ++y) {
+      c += cover[y];
+      if (c == 0) init.Run(static_cast<std::size_t>(y) * w, static_cast<std::size_t>(y + 1) * w);
+    }
+  }
   // Micro images without any depth whose ring-1 neighbours' agreeing
   // estimates lie on one surface: with v > 2 neighbouring micro images image
   // overlapping patches of the scene, so the surface they agree on covers

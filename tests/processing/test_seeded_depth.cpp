@@ -168,6 +168,41 @@ TEST_F(SeededDepth, SimdAndScalarPathsGiveTheSameMap) {
   }
 }
 
+// The map is written once per pixel (each micro image its own pixels and
+// the runs outside every disc beside them, then the rows no micro image
+// covers): a map whose buffers held anything gets the same values as a
+// fresh one, and no estimate and no texture outside the micro images.
+TEST_F(SeededDepth, EveryPixelIsWrittenWhateverTheBuffersHeld) {
+  ASSERT_NE(shared_, nullptr);
+  const Shared& d = *shared_;
+  auto same = [](float a, float b) { return (std::isnan(a) && std::isnan(b)) || a == b; };
+  for (const LensSeed* seed : {static_cast<const LensSeed*>(nullptr), &d.seed}) {
+    VirtualDepthMap fresh, reused;
+    ASSERT_TRUE(EstimateVirtualDepth(d.frame, d.s.mla, DepthOptions{}, seed, &fresh).ok());
+    const std::size_t n = fresh.virtual_depth.size();
+    reused.width = fresh.width;
+    reused.height = fresh.height;
+    reused.virtual_depth.assign(n, 3.5f);
+    reused.sigma_z.assign(n, 0.25f);
+    reused.confidence.assign(n, 0.5f);
+    reused.textured.assign(n, 7);
+    ASSERT_TRUE(EstimateVirtualDepth(d.frame, d.s.mla, DepthOptions{}, seed, &reused).ok());
+    long long outside = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      ASSERT_TRUE(same(fresh.virtual_depth[i], reused.virtual_depth[i])) << "pixel " << i;
+      ASSERT_TRUE(same(fresh.sigma_z[i], reused.sigma_z[i])) << "pixel " << i;
+      ASSERT_TRUE(same(fresh.confidence[i], reused.confidence[i])) << "pixel " << i;
+      ASSERT_EQ(fresh.textured[i], reused.textured[i]) << "pixel " << i;
+      if (d.frame.lens_of_pixel[i] >= 0) continue;
+      ++outside;
+      ASSERT_TRUE(std::isnan(reused.virtual_depth[i]) && std::isnan(reused.sigma_z[i]) &&
+                  reused.confidence[i] == 0 && reused.textured[i] == 0)
+          << "pixel " << i << " outside every micro image";
+    }
+    EXPECT_GT(outside, 0);
+  }
+}
+
 TEST_F(SeededDepth, RejectsASeedOfAnotherFrame) {
   ASSERT_NE(shared_, nullptr);
   const Shared& d = *shared_;
