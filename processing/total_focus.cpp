@@ -472,6 +472,18 @@ Status TfDepthOf(const PlenopticFrame& f, const VirtualDepthMap& raw, const Lens
   std::vector<std::uint32_t>& histogram = scratch.histogram;
   histogram.assign(static_cast<std::size_t>(kChunks) * kBins, 0);
   std::atomic<long long> valid{0}, measured{0};
+  // With the per-lens depth sigma_z is the cell's, once per cell.
+  std::vector<float>& cell_sigma_rows = scratch.cell_sigma;
+  if (lens_z != nullptr) {
+    cell_sigma_rows.resize(cn);
+    tbb::parallel_for(0, ch, [&](int cy) {
+      const std::size_t row = static_cast<std::size_t>(cy) * cw;
+      for (int c = 0; c < cw; ++c) {
+        const double sw = scratch.lens_cell_w[row + c];
+        cell_sigma_rows[row + c] = sw > 0 ? static_cast<float>(std::sqrt(1.0 / sw)) : kNaN;
+      }
+    });
+  }
   tbb::parallel_for(0, kChunks, [&](int chunk) {
     std::uint32_t* hist = histogram.data() + static_cast<std::size_t>(chunk) * kBins;
     long long chunk_valid = 0, chunk_measured = 0;
@@ -499,12 +511,14 @@ Status TfDepthOf(const PlenopticFrame& f, const VirtualDepthMap& raw, const Lens
         row_valid += ok;
       }
       if (lw != nullptr) {
-        // With the per-lens depth: sigma_z of the cell's splats.
-        for (int u = 0; u < tw; ++u) {
-          const double sw = lw[u / kCell];
-          const bool measured_here = sw > 0;
-          sigma[u] = measured_here ? static_cast<float>(std::sqrt(1.0 / sw)) : kNaN;
-          row_measured += measured_here;
+        // With the per-lens depth: sigma_z of the cell's splats (above).
+        const float* const cell_sigma =
+            cell_sigma_rows.data() + static_cast<std::size_t>(w / kCell) * cw;
+        for (int c = 0; c < cw; ++c) {
+          const float sc = cell_sigma[c];
+          const int u_end = std::min(tw, (c + 1) * kCell);
+          for (int u = c * kCell; u < u_end; ++u) sigma[u] = sc;
+          row_measured += lw[c] > 0 ? u_end - c * kCell : 0;
         }
         if (w % kHistogramStep == 0)
           for (int u = 0; u < tw; ++u)
