@@ -257,6 +257,48 @@ void BlendRow(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float 
     BlendRowT<1>(g, s, x0, dx, y, v, n, acc, sw);
 }
 
+// A vector of pixels at a time, the tail as the scalar reference (below).
+template <int kChannels>
+void BytesT(const float* acc, const float* sw, int n, float gain, std::uint8_t* out) {
+  const hn::ScalableTag<float> df;
+  const hn::RebindToSigned<decltype(df)> di;
+  const hn::Rebind<std::uint8_t, decltype(df)> d8;
+  using VF = hn::Vec<decltype(df)>;
+  const int lanes = static_cast<int>(hn::Lanes(df));
+  const VF zero = hn::Zero(df), half = hn::Set(df, 0.5f), top = hn::Set(df, 255.0f);
+  const VF vgain = hn::Set(df, gain);
+  int i = 0;
+  for (; i + lanes <= n; i += lanes) {
+    const VF w = hn::LoadU(df, sw + i);
+    const VF scale = hn::IfThenElseZero(hn::Gt(w, zero), hn::Div(vgain, w));
+    hn::Vec<decltype(d8)> b[kChannels];
+    for (int ch = 0; ch < kChannels; ++ch) {
+      const VF a = hn::LoadU(df, acc + static_cast<std::size_t>(ch) * n + i);
+      const VF x = hn::Min(hn::Max(hn::Add(hn::Mul(a, scale), half), zero), top);
+      b[ch] = hn::DemoteTo(d8, hn::ConvertTo(di, x));
+    }
+    if constexpr (kChannels == 3)
+      hn::StoreInterleaved3(b[0], b[1], b[2], d8, out + 3 * static_cast<std::size_t>(i));
+    else
+      hn::StoreU(b[0], d8, out + i);
+  }
+  for (; i < n; ++i) {
+    const float scale = sw[i] > 0 ? gain / sw[i] : 0.0f;
+    for (int ch = 0; ch < kChannels; ++ch) {
+      const float x = acc[static_cast<std::size_t>(ch) * n + i] * scale + 0.5f;
+      out[static_cast<std::size_t>(i) * kChannels + ch] =
+          static_cast<std::uint8_t>(static_cast<int>(std::min(std::max(x, 0.0f), 255.0f)));
+    }
+  }
+}
+
+void Bytes(const float* acc, const float* sw, int n, int channels, float gain, std::uint8_t* out) {
+  if (channels == 3)
+    BytesT<3>(acc, sw, n, gain, out);
+  else
+    BytesT<1>(acc, sw, n, gain, out);
+}
+
 }  // namespace HWY_NAMESPACE
 }  // namespace lifmcr::processing::detail
 HWY_AFTER_NAMESPACE();
@@ -265,6 +307,7 @@ HWY_AFTER_NAMESPACE();
 namespace lifmcr::processing::detail {
 
 HWY_EXPORT(BlendRow);
+HWY_EXPORT(Bytes);
 
 namespace {
 
@@ -348,6 +391,31 @@ void ScalarBlendRow(const TfBlendGeometry& g, const TfBlendSource& s, float x0, 
     ScalarBlendRowT<1>(g, s, x0, dx, y, v, n, acc, sw);
 }
 
+template <int kChannels>
+void ScalarBytesT(const float* acc, const float* sw, int n, float gain, std::uint8_t* out) {
+  for (int i = 0; i < n; ++i) {
+    const float scale = sw[i] > 0 ? gain / sw[i] : 0.0f;
+    for (int ch = 0; ch < kChannels; ++ch) {
+      const float x = acc[static_cast<std::size_t>(ch) * n + i] * scale + 0.5f;
+      out[static_cast<std::size_t>(i) * kChannels + ch] =
+          static_cast<std::uint8_t>(static_cast<int>(std::min(std::max(x, 0.0f), 255.0f)));
+    }
+  }
+}
+
+void ScalarBytes(const float* acc, const float* sw, int n, int channels, float gain,
+                 std::uint8_t* out) {
+  if (channels == 3)
+    ScalarBytesT<3>(acc, sw, n, gain, out);
+  else
+    ScalarBytesT<1>(acc, sw, n, gain, out);
+}
+
+void DispatchedBytes(const float* acc, const float* sw, int n, int channels, float gain,
+                     std::uint8_t* out) {
+  HWY_DYNAMIC_DISPATCH(Bytes)(acc, sw, n, channels, gain, out);
+}
+
 void DispatchedBlendRow(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float dx,
                         float y, const float* v, int n, float* acc, float* sw) {
   HWY_DYNAMIC_DISPATCH(BlendRow)(g, s, x0, dx, y, v, n, acc, sw);
@@ -356,14 +424,15 @@ void DispatchedBlendRow(const TfBlendGeometry& g, const TfBlendSource& s, float 
 }  // namespace
 
 const TfBlendKernels& ScalarTfBlendKernels() {
-  static const TfBlendKernels kernels{ScalarBlendRow, "scalar"};
+  static const TfBlendKernels kernels{ScalarBlendRow, "scalar", ScalarBytes};
   return kernels;
 }
 
 const TfBlendKernels& SimdTfBlendKernels() {
   // The target this CPU runs (hwy/targets.h): the best one compiled in.
   static const TfBlendKernels kernels{DispatchedBlendRow,
-                                      hwy::TargetName(hwy::SupportedAndGeneratedTargets()[0])};
+                                      hwy::TargetName(hwy::SupportedAndGeneratedTargets()[0]),
+                                      DispatchedBytes};
   return kernels;
 }
 

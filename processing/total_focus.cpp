@@ -12,7 +12,6 @@
 #include <array>
 #include <atomic>
 #include <cmath>
-#include <cstring>
 #include <limits>
 
 namespace lifmcr::processing {
@@ -687,41 +686,17 @@ void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDept
         run_sw[i] = kernel.Blend<kChannels>(f.raw, x, y, run_v[i], kernel.SharpType(run_v[i]), acc);
         for (int ch = 0; ch < kChannels; ++ch) run_acc[ch * n + i] = acc[ch];
       }
-      // Loops the compiler vectorises: the scale per pixel, the 8-bit
-      // planes, then the interleaving.
-      float scale[kRun];
-      for (int i = 0; i < n; ++i) scale[i] = run_sw[i] > 0 ? gain_v / run_sw[i] : 0.0f;
       const std::size_t t0c = t0 * kChannels;
-      if (sharpen) {
-        for (int i = 0; i < n; ++i)
-          for (int ch = 0; ch < kChannels; ++ch)
-            out->linear[t0c + i * kChannels + ch] = run_acc[ch * n + i] * scale[i];
+      if (!sharpen) {
+        // The 8-bit pixels (tf_blend_simd.h), interleaved.
+        kernels.bytes(run_acc, run_sw, n, kChannels, gain_v, out->pixels.data() + t0c);
         continue;
       }
-      std::uint8_t planes[kChannels][kRun];
-      for (int ch = 0; ch < kChannels; ++ch) {
-        const float* a = run_acc + ch * n;
-        for (int i = 0; i < n; ++i)
-          planes[ch][i] = static_cast<std::uint8_t>(
-              static_cast<int>(std::min(std::max(a[i] * scale[i] + 0.5f, 0.0f), 255.0f)));
+      for (int i = 0; i < n; ++i) {
+        const float scale = run_sw[i] > 0 ? gain_v / run_sw[i] : 0.0f;
+        for (int ch = 0; ch < kChannels; ++ch)
+          out->linear[t0c + i * kChannels + ch] = run_acc[ch * n + i] * scale;
       }
-      std::uint8_t* pix = out->pixels.data() + t0c;
-      int i = 0;
-      if constexpr (kChannels == 3) {
-        // Four BGR pixels in three 32-bit words (little-endian byte order,
-        // memcpy: no alignment asked), a quarter of the byte stores.
-        static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "BGR words assume little-endian");
-        for (; i + 4 <= n; i += 4) {
-          auto at = [&](int ch, int k) { return static_cast<std::uint32_t>(planes[ch][i + k]); };
-          const std::uint32_t words[3] = {
-              at(0, 0) | at(1, 0) << 8 | at(2, 0) << 16 | at(0, 1) << 24,
-              at(1, 1) | at(2, 1) << 8 | at(0, 2) << 16 | at(1, 2) << 24,
-              at(2, 2) | at(0, 3) << 8 | at(1, 3) << 16 | at(2, 3) << 24};
-          std::memcpy(pix + 3 * i, words, sizeof words);
-        }
-      }
-      for (; i < n; ++i)
-        for (int ch = 0; ch < kChannels; ++ch) pix[i * kChannels + ch] = planes[ch][i];
     }
   });
 }
