@@ -30,7 +30,8 @@
 // virtual point its centre sees, x_v = l_k + v (c_k - l_k), each point
 // weighted 1 / (n sigma_z^2) (n points, sigma_z the lens map's); the other
 // micro images (depth edges, lenses without an estimate) splat their dense
-// pixels as above on every 4th raw row, weighted 4. The splats are summed
+// pixels as above on every n-th raw row, weighted n, n = max(4, pitch / 4
+// px) (every 8th on an R32, every 4th on `small`). The splats are summed
 // per cell directly (no per-TF-pixel sums), the second window mean is over
 // the cells whose own mean lies within 5 % of their window's, and sigma_z
 // is that of the cell's splats on every TF pixel of a cell with splats (so
