@@ -90,21 +90,25 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
     VF g00, g01, g10, g11;
     if (s.gain16 != nullptr) {
       // The 16-bit gains of x0 and x0 + 1 in one word (byte offset 2 at).
+      // An invalid pixel (q = 0, gain NaN in the scalar reference, which
+      // then drops the sample) drops the lane here: the colour is finite.
       const auto* gw = reinterpret_cast<const std::uint32_t*>(s.gain16);
       const auto two_at = hn::Add(at, at);
       const auto q0 = hn::GatherOffset(du, gw, two_at);
       const auto q1 = hn::GatherOffset(du, gw, hn::Add(two_at, hn::Add(width, width)));
       const VF scale = hn::Set(df, s.gain16_scale);
       const auto half = hn::Set(du, 0xFFFFu);
+      const auto q00 = hn::And(q0, half), q01 = hn::ShiftRight<16>(q0);
+      const auto q10 = hn::And(q1, half), q11 = hn::ShiftRight<16>(q1);
       auto gain_of = [&](hn::Vec<decltype(du)> q) {
-        const VF value = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, q)), scale);
-        return hn::IfThenElse(hn::RebindMask(df, hn::Eq(q, hn::Zero(du))),
-                              hn::Set(df, std::numeric_limits<float>::quiet_NaN()), value);
+        return hn::Mul(hn::ConvertTo(df, hn::BitCast(di, q)), scale);
       };
-      g00 = gain_of(hn::And(q0, half));
-      g01 = gain_of(hn::ShiftRight<16>(q0));
-      g10 = gain_of(hn::And(q1, half));
-      g11 = gain_of(hn::ShiftRight<16>(q1));
+      g00 = gain_of(q00);
+      g01 = gain_of(q01);
+      g10 = gain_of(q10);
+      g11 = gain_of(q11);
+      const auto low = hn::Min(hn::Min(q00, q01), hn::Min(q10, q11));
+      valid = hn::AndNot(hn::RebindMask(df, hn::Eq(low, hn::Zero(du))), valid);
     } else {
       g00 = hn::GatherIndex(df, s.gain, at);
       g01 = hn::GatherIndex(df, s.gain, hn::Add(at, hn::Set(di, 1)));
@@ -200,9 +204,12 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
       };
       col[0] = mix(first(a), second(a), first(b), second(b));
     }
-    VF check = col[0];
-    for (int ch = 1; ch < kChannels; ++ch) check = hn::Add(check, col[ch]);
-    valid = hn::AndNot(hn::IsNaN(check), valid);
+    if (s.gain16 == nullptr) {
+      // A NaN gain (an invalid pixel) drops the sample.
+      VF check = col[0];
+      for (int ch = 1; ch < kChannels; ++ch) check = hn::Add(check, col[ch]);
+      valid = hn::AndNot(hn::IsNaN(check), valid);
+    }
     const VF wq = hn::Mul(bary[c], hn::Sub(one, hn::Div(d2, r2)));
     for (int ch = 0; ch < kChannels; ++ch)
       acc[ch] = hn::Add(acc[ch], hn::IfThenElseZero(valid, hn::Mul(wq, col[ch])));
