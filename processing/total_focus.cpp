@@ -408,46 +408,56 @@ Status TfDepthOf(const PlenopticFrame& f, const VirtualDepthMap& raw, const Lens
       }
     });
   };
-  // The cells' sums of every splat (with the per-lens depth: made by the splat).
-  if (lens_z == nullptr) {
-    sum_cells(false);
-  } else {
-    cell_w = scratch.lens_cell_w;
-    cell_wz = scratch.lens_cell_wz;
-  }
+  // The per-cell passes below, over rows of cells in parallel (serial, they
+  // were a tenth of the TF depth map's wall time on 2 cores).
+  auto for_cells = [&](auto&& body) {
+    tbb::parallel_for(0, ch, [&](int cy) {
+      const std::size_t c0 = static_cast<std::size_t>(cy) * cw;
+      for (std::size_t c = c0; c < c0 + cw; ++c) body(c);
+    });
+  };
+  // The cells' sums of every splat (with the per-lens depth: made by the
+  // splat, read where they are).
+  if (lens_z == nullptr) sum_cells(false);
+  const std::vector<double>& all_w = lens_z == nullptr ? cell_w : scratch.lens_cell_w;
+  const std::vector<double>& all_wz = lens_z == nullptr ? cell_wz : scratch.lens_cell_wz;
   const int cell_radius = std::max(0, (options.smooth_radius + kCell / 2) / kCell);
-  BoxSums(cw, ch, cell_radius, cell_w, cell_wz, &scratch);
-  cell_z.assign(cn, kNaN);
-  for (std::size_t c = 0; c < cn; ++c)
-    if (scratch.box_n[c] > 0) cell_z[c] = static_cast<float>(scratch.box_wz[c] / scratch.box_w[c]);
+  BoxSums(cw, ch, cell_radius, all_w, all_wz, &scratch);
+  cell_z.resize(cn);
+  for_cells([&](std::size_t c) {
+    cell_z[c] =
+        scratch.box_n[c] > 0 ? static_cast<float>(scratch.box_wz[c] / scratch.box_w[c]) : kNaN;
+  });
   if (lens_z == nullptr) {
     sum_cells(true);
   } else {
     // Again over the cells within 5 % of their window's mean (the rule of
     // the measured pixels above, on the cells: a splat has no pixel here).
-    for (std::size_t c = 0; c < cn; ++c) {
+    for_cells([&](std::size_t c) {
       const double w = scratch.lens_cell_w[c], wz = scratch.lens_cell_wz[c];
       const bool keep = w > 0 && !std::isnan(cell_z[c]) &&
                         std::abs(wz / w - cell_z[c]) <= 0.05 * cell_z[c];
       cell_w[c] = keep ? w : 0.0;
       cell_wz[c] = keep ? wz : 0.0;
-    }
+    });
   }
   BoxSums(cw, ch, cell_radius, cell_w, cell_wz, &scratch);
-  for (std::size_t c = 0; c < cn; ++c)
+  for_cells([&](std::size_t c) {
     cell_z[c] =
         scratch.box_n[c] > 0 ? static_cast<float>(scratch.box_wz[c] / scratch.box_w[c]) : kNaN;
+  });
   // Holes: the mean z of the valid cells within fill_iterations TF pixels.
   const int fill_cells = (options.fill_iterations + kCell - 1) / kCell;
   if (fill_cells > 0) {
-    for (std::size_t c = 0; c < cn; ++c) {
+    for_cells([&](std::size_t c) {
       cell_w[c] = std::isnan(cell_z[c]) ? 0.0 : 1.0;
       cell_wz[c] = std::isnan(cell_z[c]) ? 0.0 : cell_z[c];
-    }
+    });
     BoxSums(cw, ch, fill_cells, cell_w, cell_wz, &scratch);
-    for (std::size_t c = 0; c < cn; ++c)
+    for_cells([&](std::size_t c) {
       if (std::isnan(cell_z[c]) && scratch.box_n[c] > 0)
         cell_z[c] = static_cast<float>(scratch.box_wz[c] / scratch.box_w[c]);
+    });
   }
   // Back to TF pixels: bilinear between cell centres over the valid cells,
   // v = sum w_q / sum w_q z_q over the valid corners q, separable: per cell
