@@ -446,18 +446,33 @@ Status TfDepthOf(const PlenopticFrame& f, const VirtualDepthMap& raw, const Lens
     cell_z[c] =
         scratch.box_n[c] > 0 ? static_cast<float>(scratch.box_wz[c] / scratch.box_w[c]) : kNaN;
   });
-  // Holes: the mean z of the valid cells within fill_iterations TF pixels.
+  // Holes: the mean z of the valid cells within fill_iterations TF pixels
+  // (a window of 2 fill_cells + 1 cells), summed directly for the cells
+  // without a value only (few; a third window-sum pass over every cell
+  // cost more), into a second array so that a filled cell is no source.
   const int fill_cells = (options.fill_iterations + kCell - 1) / kCell;
   if (fill_cells > 0) {
-    for_cells([&](std::size_t c) {
-      cell_w[c] = std::isnan(cell_z[c]) ? 0.0 : 1.0;
-      cell_wz[c] = std::isnan(cell_z[c]) ? 0.0 : cell_z[c];
+    std::vector<float>& filled = scratch.cell_filled;
+    filled.resize(cn);
+    tbb::parallel_for(0, ch, [&](int cy) {
+      const int y0 = std::max(0, cy - fill_cells), y1 = std::min(ch - 1, cy + fill_cells);
+      for (int cx = 0; cx < cw; ++cx) {
+        const std::size_t c = static_cast<std::size_t>(cy) * cw + cx;
+        filled[c] = cell_z[c];
+        if (!std::isnan(cell_z[c])) continue;
+        const int x0 = std::max(0, cx - fill_cells), x1 = std::min(cw - 1, cx + fill_cells);
+        double n = 0, sum_z = 0;
+        for (int y = y0; y <= y1; ++y)
+          for (int x = x0; x <= x1; ++x) {
+            const float z = cell_z[static_cast<std::size_t>(y) * cw + x];
+            if (std::isnan(z)) continue;
+            n += 1;
+            sum_z += z;
+          }
+        if (n > 0) filled[c] = static_cast<float>(sum_z / n);
+      }
     });
-    BoxSums(cw, ch, fill_cells, cell_w, cell_wz, &scratch);
-    for_cells([&](std::size_t c) {
-      if (std::isnan(cell_z[c]) && scratch.box_n[c] > 0)
-        cell_z[c] = static_cast<float>(scratch.box_wz[c] / scratch.box_w[c]);
-    });
+    cell_z.swap(filled);
   }
   // Back to TF pixels: bilinear between cell centres over the valid cells,
   // v = sum w_q / sum w_q z_q over the valid corners q, separable: per cell

@@ -96,7 +96,7 @@ struct TfDepthMap {
     bool zeroed = false;
     std::vector<double> cell_w, cell_wz, row_w, row_wz, box_w, box_wz;
     std::vector<std::int32_t> row_n, box_n;
-    std::vector<float> cell_z;
+    std::vector<float> cell_z, cell_filled;
     // Per cell row, blended along x to every TF column: validity, z.
     std::vector<float> along_a, along_b;
     std::vector<float> lens_xy;  // micro-lens centres l_k (x, y)
