@@ -90,21 +90,25 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
     VF g00, g01, g10, g11;
     if (s.gain16 != nullptr) {
       // The 16-bit gains of x0 and x0 + 1 in one word (byte offset 2 at).
+      // An invalid pixel (q = 0, gain NaN in the scalar reference, which
+      // then drops the sample) drops the lane here: the colour is finite.
       const auto* gw = reinterpret_cast<const std::uint32_t*>(s.gain16);
       const auto two_at = hn::Add(at, at);
       const auto q0 = hn::GatherOffset(du, gw, two_at);
       const auto q1 = hn::GatherOffset(du, gw, hn::Add(two_at, hn::Add(width, width)));
       const VF scale = hn::Set(df, s.gain16_scale);
       const auto half = hn::Set(du, 0xFFFFu);
+      const auto q00 = hn::And(q0, half), q01 = hn::ShiftRight<16>(q0);
+      const auto q10 = hn::And(q1, half), q11 = hn::ShiftRight<16>(q1);
       auto gain_of = [&](hn::Vec<decltype(du)> q) {
-        const VF value = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, q)), scale);
-        return hn::IfThenElse(hn::RebindMask(df, hn::Eq(q, hn::Zero(du))),
-                              hn::Set(df, std::numeric_limits<float>::quiet_NaN()), value);
+        return hn::Mul(hn::ConvertTo(df, hn::BitCast(di, q)), scale);
       };
-      g00 = gain_of(hn::And(q0, half));
-      g01 = gain_of(hn::ShiftRight<16>(q0));
-      g10 = gain_of(hn::And(q1, half));
-      g11 = gain_of(hn::ShiftRight<16>(q1));
+      g00 = gain_of(q00);
+      g01 = gain_of(q01);
+      g10 = gain_of(q10);
+      g11 = gain_of(q11);
+      const auto low = hn::Min(hn::Min(q00, q01), hn::Min(q10, q11));
+      valid = hn::AndNot(hn::RebindMask(df, hn::Eq(low, hn::Zero(du))), valid);
     } else {
       g00 = hn::GatherIndex(df, s.gain, at);
       g01 = hn::GatherIndex(df, s.gain, hn::Add(at, hn::Set(di, 1)));
@@ -200,9 +204,12 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
       };
       col[0] = mix(first(a), second(a), first(b), second(b));
     }
-    VF check = col[0];
-    for (int ch = 1; ch < kChannels; ++ch) check = hn::Add(check, col[ch]);
-    valid = hn::AndNot(hn::IsNaN(check), valid);
+    if (s.gain16 == nullptr) {
+      // A NaN gain (an invalid pixel) drops the sample.
+      VF check = col[0];
+      for (int ch = 1; ch < kChannels; ++ch) check = hn::Add(check, col[ch]);
+      valid = hn::AndNot(hn::IsNaN(check), valid);
+    }
     const VF wq = hn::Mul(bary[c], hn::Sub(one, hn::Div(d2, r2)));
     for (int ch = 0; ch < kChannels; ++ch)
       acc[ch] = hn::Add(acc[ch], hn::IfThenElseZero(valid, hn::Mul(wq, col[ch])));
@@ -257,6 +264,48 @@ void BlendRow(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float 
     BlendRowT<1>(g, s, x0, dx, y, v, n, acc, sw);
 }
 
+// A vector of pixels at a time, the tail as the scalar reference (below).
+template <int kChannels>
+void BytesT(const float* acc, const float* sw, int n, float gain, std::uint8_t* out) {
+  const hn::ScalableTag<float> df;
+  const hn::RebindToSigned<decltype(df)> di;
+  const hn::Rebind<std::uint8_t, decltype(df)> d8;
+  using VF = hn::Vec<decltype(df)>;
+  const int lanes = static_cast<int>(hn::Lanes(df));
+  const VF zero = hn::Zero(df), half = hn::Set(df, 0.5f), top = hn::Set(df, 255.0f);
+  const VF vgain = hn::Set(df, gain);
+  int i = 0;
+  for (; i + lanes <= n; i += lanes) {
+    const VF w = hn::LoadU(df, sw + i);
+    const VF scale = hn::IfThenElseZero(hn::Gt(w, zero), hn::Div(vgain, w));
+    hn::Vec<decltype(d8)> b[kChannels];
+    for (int ch = 0; ch < kChannels; ++ch) {
+      const VF a = hn::LoadU(df, acc + static_cast<std::size_t>(ch) * n + i);
+      const VF x = hn::Min(hn::Max(hn::Add(hn::Mul(a, scale), half), zero), top);
+      b[ch] = hn::DemoteTo(d8, hn::ConvertTo(di, x));
+    }
+    if constexpr (kChannels == 3)
+      hn::StoreInterleaved3(b[0], b[1], b[2], d8, out + 3 * static_cast<std::size_t>(i));
+    else
+      hn::StoreU(b[0], d8, out + i);
+  }
+  for (; i < n; ++i) {
+    const float scale = sw[i] > 0 ? gain / sw[i] : 0.0f;
+    for (int ch = 0; ch < kChannels; ++ch) {
+      const float x = acc[static_cast<std::size_t>(ch) * n + i] * scale + 0.5f;
+      out[static_cast<std::size_t>(i) * kChannels + ch] =
+          static_cast<std::uint8_t>(static_cast<int>(std::min(std::max(x, 0.0f), 255.0f)));
+    }
+  }
+}
+
+void Bytes(const float* acc, const float* sw, int n, int channels, float gain, std::uint8_t* out) {
+  if (channels == 3)
+    BytesT<3>(acc, sw, n, gain, out);
+  else
+    BytesT<1>(acc, sw, n, gain, out);
+}
+
 }  // namespace HWY_NAMESPACE
 }  // namespace lifmcr::processing::detail
 HWY_AFTER_NAMESPACE();
@@ -265,6 +314,7 @@ HWY_AFTER_NAMESPACE();
 namespace lifmcr::processing::detail {
 
 HWY_EXPORT(BlendRow);
+HWY_EXPORT(Bytes);
 
 namespace {
 
@@ -348,6 +398,31 @@ void ScalarBlendRow(const TfBlendGeometry& g, const TfBlendSource& s, float x0, 
     ScalarBlendRowT<1>(g, s, x0, dx, y, v, n, acc, sw);
 }
 
+template <int kChannels>
+void ScalarBytesT(const float* acc, const float* sw, int n, float gain, std::uint8_t* out) {
+  for (int i = 0; i < n; ++i) {
+    const float scale = sw[i] > 0 ? gain / sw[i] : 0.0f;
+    for (int ch = 0; ch < kChannels; ++ch) {
+      const float x = acc[static_cast<std::size_t>(ch) * n + i] * scale + 0.5f;
+      out[static_cast<std::size_t>(i) * kChannels + ch] =
+          static_cast<std::uint8_t>(static_cast<int>(std::min(std::max(x, 0.0f), 255.0f)));
+    }
+  }
+}
+
+void ScalarBytes(const float* acc, const float* sw, int n, int channels, float gain,
+                 std::uint8_t* out) {
+  if (channels == 3)
+    ScalarBytesT<3>(acc, sw, n, gain, out);
+  else
+    ScalarBytesT<1>(acc, sw, n, gain, out);
+}
+
+void DispatchedBytes(const float* acc, const float* sw, int n, int channels, float gain,
+                     std::uint8_t* out) {
+  HWY_DYNAMIC_DISPATCH(Bytes)(acc, sw, n, channels, gain, out);
+}
+
 void DispatchedBlendRow(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float dx,
                         float y, const float* v, int n, float* acc, float* sw) {
   HWY_DYNAMIC_DISPATCH(BlendRow)(g, s, x0, dx, y, v, n, acc, sw);
@@ -356,14 +431,15 @@ void DispatchedBlendRow(const TfBlendGeometry& g, const TfBlendSource& s, float 
 }  // namespace
 
 const TfBlendKernels& ScalarTfBlendKernels() {
-  static const TfBlendKernels kernels{ScalarBlendRow, "scalar"};
+  static const TfBlendKernels kernels{ScalarBlendRow, "scalar", ScalarBytes};
   return kernels;
 }
 
 const TfBlendKernels& SimdTfBlendKernels() {
   // The target this CPU runs (hwy/targets.h): the best one compiled in.
   static const TfBlendKernels kernels{DispatchedBlendRow,
-                                      hwy::TargetName(hwy::SupportedAndGeneratedTargets()[0])};
+                                      hwy::TargetName(hwy::SupportedAndGeneratedTargets()[0]),
+                                      DispatchedBytes};
   return kernels;
 }
 

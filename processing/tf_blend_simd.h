@@ -53,9 +53,17 @@ struct TfBlendSource {
 using TfBlendRowFn = void (*)(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float dx,
                               float y, const float* v, int n, float* acc, float* sw);
 
+// The 8-bit pixels of a run of the TF image from the row kernel's sums
+// (RenderTotalFocus): with scale_i = gain / sw[i] where sw[i] > 0 (else 0),
+// out[i * channels + ch] = uint8(int(min(max(acc[ch * n + i] scale_i + 0.5, 0), 255)))
+// (interleaved: BGR when channels is 3). Finite acc.
+using TfBytesFn = void (*)(const float* acc, const float* sw, int n, int channels, float gain,
+                           std::uint8_t* out);
+
 struct TfBlendKernels {
   TfBlendRowFn row = nullptr;
   const char* name = "";  // "scalar", or the Highway target chosen ("AVX3", "AVX2", ...)
+  TfBytesFn bytes = nullptr;
 };
 
 // The scalar reference.

@@ -30,7 +30,8 @@
 // virtual point its centre sees, x_v = l_k + v (c_k - l_k), each point
 // weighted 1 / (n sigma_z^2) (n points, sigma_z the lens map's); the other
 // micro images (depth edges, lenses without an estimate) splat their dense
-// pixels as above on every 4th raw row, weighted 4. The splats are summed
+// pixels as above on every n-th raw row, weighted n, n = max(4, pitch / 4
+// px) (every 8th on an R32, every 4th on `small`). The splats are summed
 // per cell directly (no per-TF-pixel sums), the second window mean is over
 // the cells whose own mean lies within 5 % of their window's, and sigma_z
 // is that of the cell's splats on every TF pixel of a cell with splats (so
@@ -95,7 +96,7 @@ struct TfDepthMap {
     bool zeroed = false;
     std::vector<double> cell_w, cell_wz, row_w, row_wz, box_w, box_wz;
     std::vector<std::int32_t> row_n, box_n;
-    std::vector<float> cell_z;
+    std::vector<float> cell_z, cell_filled;
     // Per cell row, blended along x to every TF column: validity, z.
     std::vector<float> along_a, along_b;
     std::vector<float> lens_xy;  // micro-lens centres l_k (x, y)
@@ -120,6 +121,7 @@ struct TfDepthMap {
     std::vector<std::int32_t> lens_top, lens_bottom;  // raw rows of a disc r_valid + 1 around c_k
     std::vector<std::vector<std::int32_t>> band_dense, band_held, band_active;
     std::vector<double> lens_cell_w, lens_cell_wz;  // the splats' sums per cell
+    std::vector<float> cell_sigma;                    // sigma_z of those splats per cell
   } scratch;
 };
 
