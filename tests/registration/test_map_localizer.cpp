@@ -837,6 +837,10 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
     }
     if (const char* side = std::getenv("LIFMCR_TEST_RELOCALISE_MIN_SIDE"))
       options.relocalise_min_side_px = std::atoi(side);
+    // LIFMCR_TEST_GUIDED_MASK=0: every keypoint of the re-anchoring's render
+    // described (GuidedMatchOptions::mask_keypoints false, as before).
+    if (const char* mask = std::getenv("LIFMCR_TEST_GUIDED_MASK"))
+      options.guided.mask_keypoints = std::atoi(mask) != 0;
     MapLocalizerStage stage(s.map, options);
     // The fused estimate of a rigid mount (extrinsics_monitor.h), as the
     // pipeline publishes it beside each trigger's.
@@ -1059,6 +1063,10 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
   LocalizerOptions defaults;
   if (const char* every = std::getenv("LIFMCR_TEST_REANCHOR_EVERY"))
     defaults.reanchor_every = std::atoi(every);
+  if (const char* slot = std::getenv("LIFMCR_TEST_REANCHOR_SLOT"))
+    defaults.reanchor_slot_triggers = std::atoi(slot);
+  if (const char* mask = std::getenv("LIFMCR_TEST_GUIDED_MASK"))
+    defaults.guided.mask_keypoints = std::atoi(mask) != 0;
   if (const char* side = std::getenv("LIFMCR_TEST_RELOCALISE_MIN_SIDE"))
     defaults.relocalise_min_side_px = std::atoi(side);
   // LIFMCR_TEST_LOOP=pingpong or restart: only that replay of the defaults
