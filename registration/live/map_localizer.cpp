@@ -771,11 +771,10 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     // Aligned on a grid of triggers common to every camera
     // (reanchor_slot_triggers): the camera's first frame in a slot, so that
     // the cameras re-anchor at the same trigger and lose the same triggers
-    // while they do (a trigger's extrinsics need both its poses). The sooner
-    // re-anchorings of a young track are not held back.
+    // while they do (a trigger's extrinsics need both its poses); the
+    // sooner ones of young tracks too.
     const std::int64_t slot = options_.reanchor_slot_triggers;
-    const bool slot_begins = slot <= 0 || interval < options_.reanchor_every ||
-                             frame.trigger_index / slot > s.last_trigger / slot;
+    const bool slot_begins = slot <= 0 || frame.trigger_index / slot > s.last_trigger / slot;
     const bool periodic = options_.reanchor_every > 0 && s.last_anchor_trigger >= 0 &&
                           s.tracked_since_anchor + 1 >= interval && slot_begins;
     reanchor = can_track && (s.reanchor || periodic) && !s.relocalising;
