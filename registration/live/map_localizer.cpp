@@ -125,8 +125,6 @@ Status LocalizerOptions::Check() const {
   // refind_before_relocalising: either value.
   if (Status s = coarse.Check(); !s) return s;  // correct_predictions: either value
   if (reanchor_every < 0) return Error{"localizer options: reanchor_every: expected >= 0"};
-  if (reanchor_slot_triggers < 0)
-    return Error{"localizer options: reanchor_slot_triggers: expected >= 0"};
   if (cold_reanchor_rounds < 0)
     return Error{"localizer options: cold_reanchor_rounds: expected >= 0"};
   if (max_correction_ahead < 1)
@@ -768,15 +766,8 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     // several triggers apart (a loaded machine) would otherwise re-anchor
     // nearly every frame it gets, each re-anchoring leaving the next frame
     // further behind.
-    // Aligned on a grid of triggers common to every camera
-    // (reanchor_slot_triggers): the camera's first frame in a slot, so that
-    // the cameras re-anchor at the same trigger and lose the same triggers
-    // while they do (a trigger's extrinsics need both its poses); the
-    // sooner ones of young tracks too.
-    const std::int64_t slot = options_.reanchor_slot_triggers;
-    const bool slot_begins = slot <= 0 || frame.trigger_index / slot > s.last_trigger / slot;
     const bool periodic = options_.reanchor_every > 0 && s.last_anchor_trigger >= 0 &&
-                          s.tracked_since_anchor + 1 >= interval && slot_begins;
+                          s.tracked_since_anchor + 1 >= interval;
     reanchor = can_track && (s.reanchor || periodic) && !s.relocalising;
     if (!can_track && s.relocalising) {
       // Published with this status (no pose): the frame was seen, not lost.

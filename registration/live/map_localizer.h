@@ -239,13 +239,6 @@ struct LocalizerOptions {
   // re-anchoring's time, and the periodic re-anchoring keeps the tracked
   // stretch as accurate at its end as at its start (docs/registration.md).
   int reanchor_every = 4;  // >= 0
-  // A periodic re-anchoring (reanchor_every) waits for the camera's first
-  // frame at or after a multiple of this many triggers (0: at once). The
-  // grid is the same for every camera, so the cameras re-anchor at the same
-  // trigger and the triggers each loses while it re-anchors are the same
-  // ones: a trigger's extrinsics need both its poses, and unaligned the
-  // losses of camera 0 and of camera X add up.
-  int reanchor_slot_triggers = 0;  // >= 0
   // A prediction over skipped frames whose tracking failed (for a weak one,
   // no velocity yet or more than two triggers ahead, the patches already got
   // more levels and a larger shift, Track) is corrected by guided matching on a coarse

@@ -32,7 +32,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
-#include <iterator>
 #include <map>
 #include <memory>
 #include <thread>
@@ -1087,8 +1086,6 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
   LocalizerOptions defaults;
   if (const char* every = std::getenv("LIFMCR_TEST_REANCHOR_EVERY"))
     defaults.reanchor_every = std::atoi(every);
-  if (const char* slot = std::getenv("LIFMCR_TEST_REANCHOR_SLOT"))
-    defaults.reanchor_slot_triggers = std::atoi(slot);
   if (const char* mask = std::getenv("LIFMCR_TEST_GUIDED_MASK"))
     defaults.guided.mask_keypoints = std::atoi(mask) != 0;
   if (const char* side = std::getenv("LIFMCR_TEST_RELOCALISE_MIN_SIDE"))
@@ -1121,48 +1118,6 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
   const Result moving = run(defaults, "the defaults (re-found, re-anchored periodically)", true);
   EXPECT_LE(moving.relocalised, 2);
   EXPECT_GE(moving.rate, now.rate);
-}
-
-// Periodic re-anchorings aligned on a grid of triggers common to the
-// cameras (LocalizerOptions::reanchor_slot_triggers): both cameras
-// localised at every trigger, the rig's frames forward and back (the
-// trigger index increasing); once the tracks average reanchor_every
-// anchors, each camera's periodic re-anchorings fall on the multiples of
-// the slot, the same triggers for both (a trigger's extrinsics need both
-// poses, so the triggers the re-anchorings cost are the same ones); they
-// fell every 4 triggers from 12 unaligned.
-TEST(MapLocalizer, AlignedReanchoringsFallOnTheSameTriggersForBothCameras) {
-  Sequence& s = *Shared();
-  LocalizerOptions options;
-  // 5, not reanchor_every (4): unaligned, a frame-by-frame camera
-  // re-anchors every 4 triggers, which a slot of 4 would not tell apart.
-  options.reanchor_slot_triggers = 5;
-  MapLocalizerStage stage(s.map, options);
-  std::map<std::string, std::vector<std::int64_t>> reanchored;
-  for (std::int64_t k = 0; k < 28; ++k) {
-    const std::int64_t period = 2 * kFrames - 2, i = k % period;
-    const std::int64_t view = i < kFrames ? i : period - i;
-    for (const std::string& serial : s.serials) {
-      const Localized l = LocalizeFrame(stage, s, serial, k, view);
-      ASSERT_TRUE(l.pose);
-      EXPECT_EQ(l.pose->status, "ok") << serial << " trigger " << k;
-      if (l.pose->localisation == "re-anchored" && k >= 12) reanchored[serial].push_back(k);
-    }
-  }
-  for (const std::string& serial : s.serials) {
-    std::string line;
-    for (const std::int64_t k : reanchored[serial]) line += " " + std::to_string(k);
-    std::printf("camera %s re-anchored from trigger 12 at:%s\n", serial.c_str(), line.c_str());
-    EXPECT_GE(reanchored[serial].size(), 2u);
-    for (const std::int64_t k : reanchored[serial]) EXPECT_EQ(k % 5, 0) << serial << " " << k;
-  }
-  // A camera whose frames-tracked count is not met at a slot's first frame
-  // waits for the next slot: most, not all, of the triggers are shared.
-  std::vector<std::int64_t> both;
-  std::set_intersection(reanchored[s.serials[0]].begin(), reanchored[s.serials[0]].end(),
-                        reanchored[s.serials[1]].begin(), reanchored[s.serials[1]].end(),
-                        std::back_inserter(both));
-  EXPECT_GE(both.size(), 2u);
 }
 
 // A larger sensor is relocalised on an image of about the same size: the
