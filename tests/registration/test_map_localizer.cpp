@@ -851,6 +851,9 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
     options.average_anchors = variant.average;
     options.reanchor_every = variant.reanchor_every;
     options.cold_reanchor_rounds = variant.cold_rounds;
+    // LIFMCR_TEST_COLD_ROUNDS=R: cold_reanchor_rounds R in every variant run.
+    if (const char* cold = std::getenv("LIFMCR_TEST_COLD_ROUNDS"))
+      options.cold_reanchor_rounds = std::atoi(cold);
     options.relocalise_refocus_cells = variant.cells;
     options.guided.refocus_cells = variant.cells;
     options.coarse.refocus_cells = variant.cells;
@@ -886,6 +889,10 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
         sum += l->cpu_seconds;
         ++n;
       }
+      // The first frame, relocalised without a pose: what a user sees first.
+      if (t == 0)
+        std::printf("  trigger 0: %.0f CPU-ms (camera 0), %.0f CPU-ms (camera X)\n",
+                    1e3 * l0.cpu_seconds, 1e3 * lx.cpu_seconds);
       if (l0.pose->status != "ok" || lx.pose->status != "ok") {
         line += " " + std::to_string(t) + ":failed";
         continue;
@@ -987,7 +994,8 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
 // LIFMCR_TEST_SECONDS (default 3) of simulated time; with
 // LIFMCR_TEST_PRESET=medium and LIFMCR_TEST_KEEP, LIFMCR_TEST_FRAMES=24 on
 // bench_live's kept 24-frame rig gives docs/registration.md's figures;
-// LIFMCR_TEST_REANCHOR_EVERY overrides the defaults' reanchor_every;
+// LIFMCR_TEST_REANCHOR_EVERY and LIFMCR_TEST_COLD_ROUNDS override the defaults'
+// reanchor_every and cold_reanchor_rounds;
 // LIFMCR_TEST_LOOP=pingpong or restart runs only the defaults so replayed.
 TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
   const char* frames_env = std::getenv("LIFMCR_TEST_FRAMES");
@@ -1023,6 +1031,7 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
     std::map<std::int64_t, std::map<std::string, Pose>> ok;  // trigger -> camera -> pose
     Result out;
     std::string line;
+    double first_cpu_ms = 0;  // trigger 0, both cameras: relocalised without a pose
     while (true) {
       // The camera whose worker is free first takes the newest frame there.
       const std::string& serial = free_at[zero] <= free_at[x] ? zero : x;
@@ -1045,6 +1054,7 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
       sum += l.cpu_seconds;
       ++n;
       if (how == "relocalised") ++out.relocalised;
+      if (k == 0) first_cpu_ms += 1e3 * l.cpu_seconds;
       if (serial == x)
         line += " " + std::to_string(k) + (how == "re-anchored" ? "a" : how.substr(0, 1));
       if (how != "failed" && how != "skipped") ok[k][serial] = l.pose->transform;
@@ -1053,12 +1063,14 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
     // first and last quarter of the triggers (pingpong: does the error grow
     // as the rig moves on?).
     std::vector<double> all, first, last;
+    double trigger0_mm = -1;  // -1: trigger 0 not localised by both cameras
     for (const auto& [k, poses] : ok) {
       if (poses.size() != 2) continue;
       const std::int64_t view = view_of(k, pingpong);
       const Pose estimate = poses.at(zero).inverse() * poses.at(x);
       const Pose truth = s.truth[zero][view].inverse() * s.truth[x][view];
       const double e = TranslationDifference(estimate, truth);
+      if (k == 0) trigger0_mm = e;
       all.push_back(e);
       if (pingpong ? 4 * k < triggers : view < 3) first.push_back(e);
       if (pingpong ? 4 * k >= 3 * triggers : view >= frames - 3) last.push_back(e);
@@ -1077,10 +1089,12 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
     std::printf(
         "%s, %s: %.2f extrinsics/s per camera over %.0f s at 10 Hz (a core's share %.2f), "
         "c0_from_cx median %.3f mm, %s %.3f mm, last %.3f mm\n  decisions, both cameras:%s\n  "
-        "camera X's triggers (t tracked, r relocalised, a re-anchored, f failed):%s\n  %s\n",
+        "camera X's triggers (t tracked, r relocalised, a re-anchored, f failed):%s\n  "
+        "trigger 0: c0_from_cx %.3f mm, %.0f CPU-ms (both cameras together)\n  %s\n",
         name, pingpong ? "forward and back" : "looped", out.rate, seconds, share, out.median,
         pingpong ? "first quarter of the triggers" : "passes' first 3 frames", out.first,
-        out.last, cpu_line.c_str(), line.c_str(), stage.counts().StageReport().c_str());
+        out.last, cpu_line.c_str(), line.c_str(), trigger0_mm, first_cpu_ms,
+        stage.counts().StageReport().c_str());
     return out;
   };
   LocalizerOptions defaults;
@@ -1090,6 +1104,8 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
     defaults.guided.mask_keypoints = std::atoi(mask) != 0;
   if (const char* side = std::getenv("LIFMCR_TEST_RELOCALISE_MIN_SIDE"))
     defaults.relocalise_min_side_px = std::atoi(side);
+  if (const char* cold = std::getenv("LIFMCR_TEST_COLD_ROUNDS"))
+    defaults.cold_reanchor_rounds = std::atoi(cold);
   // LIFMCR_TEST_LOOP=pingpong or restart: only that replay of the defaults
   // (no assertions); by default both, and the localizer before looped.
   const char* loop_env = std::getenv("LIFMCR_TEST_LOOP");
