@@ -2,8 +2,8 @@
 // measured in the same run.
 //
 // A synthetic rig (default preset medium, 2 cameras, the table scene;
-// rendering not timed) is replayed at its trigger rate (10 Hz, newest wins,
-// looping) through `lifmcr replay --reference`'s path (RunReplay with
+// rendering not timed) is replayed at its trigger rate (10 Hz, newest wins)
+// through `lifmcr replay --reference`'s path (RunReplay with
 // LiveRegistrationOptions): a reference map of camera 0 from the ground
 // truth (registration/map/ground_truth_map.h, written and read back as a map
 // folder), true intrinsics, depth and previews published on memq://. Three
@@ -13,6 +13,21 @@
 //   relocalise   the baseline: every frame relocalised (global matching and
 //                full LO-RANSAC), LocalizerOptions::track = false;
 //   depth only   no registration: what processing and publishing alone give.
+// How the rendered frames are replayed (--loop):
+//   pingpong     (the default) forward then backward through them, 0 1 .. N-1
+//                N-2 .. 1 0 1 .., as one sequence whose trigger index keeps
+//                increasing: the cameras move on continuously as a live rig
+//                does (they only turn round at each end). The sequence is a
+//                folder of links to the rendered frames (DIR/pingpong, the
+//                calibration linked beside it), long enough for --seconds at
+//                10 Hz; the replay loops it only beyond that.
+//   restart      the rendered sequence looped: at each pass's first trigger
+//                both cameras jump from the last frame's pose back to the
+//                first's and the trigger index restarts, so the localizer
+//                drops their state and relocalises them (the relocalisation
+//                run measures that cost on every frame). At r32 with 8
+//                frames a pass (0.8 s) is shorter than a relocalisation, and
+//                that jump decided the figures.
 // Per run: extrinsics per second per camera X, frame -> extrinsics latency
 // (arrival of camera X's frame at the pipeline -> its c0_from_cx on LCM;
 // p50, p99), frames taken (localised; depth only: processed) and skipped
@@ -41,6 +56,7 @@
 //   bench_live [--preset small|medium|r32] [--frames N (24)] [--seconds S]
 //              [--concurrency N] [--keep DIR] [--runs track,relocalise,depth]
 //              [--lens-nice 0..19 (15)] [--depth-idle 0|1 (1)]
+//              [--loop pingpong|restart (pingpong)]
 // --keep DIR renders into DIR once and reuses it (same preset and frames)
 // in later runs; DIR is left in place.
 // Goals (2 cores): >= 5 Hz per camera at medium, >= 2 Hz at r32.
@@ -66,6 +82,7 @@
 #include <atomic>
 #include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -99,6 +116,9 @@ struct Args {
   std::string keep;  // empty: a temporary folder
   // Which runs (comma-separated): track, relocalise, depth; the ratios need all three.
   bool track = true, relocalise = true, depth = true;
+  // --loop: the rendered frames forward then backward (continuous motion,
+  // trigger index increasing), or looped from frame 0 again (header comment).
+  bool pingpong = true;
 };
 
 bool ParseArgs(int argc, char** argv, Args* a) {
@@ -139,6 +159,9 @@ bool ParseArgs(int argc, char** argv, Args* a) {
       a->depth_idle = static_cast<int>(std::strtol(v.c_str(), &end, 10));
     } else if (k == "--lens-nice") {
       a->lens_nice = static_cast<int>(std::strtol(v.c_str(), &end, 10));
+    } else if (k == "--loop") {
+      if (v != "pingpong" && v != "restart") return false;
+      a->pingpong = v == "pingpong";
     } else {
       return false;
     }
@@ -184,7 +207,10 @@ struct Accuracy {
   std::map<std::string, Errors> by_localisation;  // of camera X's pose, ok messages only
   // By both cameras' localisations, "0 tracked, X relocalised".
   std::map<std::string, Errors> by_pair;
-  std::map<std::int64_t, Errors> by_frame;  // by trigger (= frame of the sequence)
+  std::map<std::int64_t, Errors> by_frame;  // by the rendered frame the trigger shows
+  // (trigger, translation error) in the order received: the window's first
+  // and last quarters (does the error grow as the run goes on?).
+  std::vector<std::pair<std::int64_t, double>> by_trigger;
   Errors all;
   int messages = 0, ok = 0, without_truth = 0;
   // By which camera's pose is missing and why: "camera 0 skipped" (passed
@@ -194,7 +220,8 @@ struct Accuracy {
   std::map<std::string, int> not_ok;
   std::string last_failure;  // the status of the last "failed" one
 
-  void Add(const Truth& truth, const apps::ExtrinsicsRecord& r) {
+  // `frame`: the rendered frame trigger r.trigger_index shows.
+  void Add(const Truth& truth, const apps::ExtrinsicsRecord& r, std::int64_t frame) {
     ++messages;
     const processing::CameraPose& p = r.c0_from_cx;
     if (p.status != "ok") {
@@ -221,10 +248,11 @@ struct Accuracy {
         r.reference_localisation.empty() ? "-" : r.reference_localisation;
     for (Errors* e :
          {&all, &by_localisation[x_how], &by_pair["0 " + zero_how + ", X " + x_how],
-          &by_frame[r.trigger_index]}) {
+          &by_frame[frame]}) {
       e->t_mm.push_back(t);
       e->r_deg.push_back(deg);
     }
+    by_trigger.emplace_back(r.trigger_index, t);
   }
 };
 
@@ -285,11 +313,27 @@ void PrintAccuracy(const Accuracy& a) {
   // relocalised depends mostly on the frame, and the track run relocalises
   // at the loop's first frames.
   if (!a.by_frame.empty()) {
-    std::printf("           median mm by frame:");
+    std::printf("           median mm by rendered frame:");
     for (const auto& [frame, e] : a.by_frame)
       std::printf(" %lld:%.2f(%zu)", static_cast<long long>(frame), Percentile(e.t_mm, 0.5),
                   e.t_mm.size());
     std::printf("\n");
+  }
+  // The window's first and last quarters of the ok messages (by trigger):
+  // with --loop pingpong, whether the error grows as the rig moves on.
+  if (a.by_trigger.size() >= 8) {
+    std::vector<std::pair<std::int64_t, double>> sorted = a.by_trigger;
+    std::sort(sorted.begin(), sorted.end());
+    const std::size_t quarter = sorted.size() / 4;
+    std::vector<double> first, last;
+    for (std::size_t i = 0; i < quarter; ++i) {
+      first.push_back(sorted[i].second);
+      last.push_back(sorted[sorted.size() - 1 - i].second);
+    }
+    std::printf("           median mm of the first / last quarter of the triggers (%zu each): "
+                "%.3f / %.3f (last / first %.2f)\n",
+                quarter, Percentile(first, 0.5), Percentile(last, 0.5),
+                Percentile(first, 0.5) > 0 ? Percentile(last, 0.5) / Percentile(first, 0.5) : 0.0);
   }
 }
 
@@ -310,6 +354,49 @@ std::string LoadAverage() {
 double Ratio(double a, double b) { return b > 0 ? a / b : 0.0; }
 
 enum class Mode { kTrack, kRelocalise, kDepthOnly };
+
+// The rendered frame that trigger k of the replayed sequence shows: with
+// --loop pingpong 0 1 .. n-1 n-2 .. 1 0 1 .. (period 2n - 2), else k.
+std::int64_t ShownFrame(const Args& args, std::int64_t k) {
+  if (!args.pingpong) return k;
+  const std::int64_t period = 2 * static_cast<std::int64_t>(args.frames) - 2;
+  const std::int64_t i = k % period;
+  return i < args.frames ? i : period - i;
+}
+
+// The pingpong sequence (--loop pingpong) under `root` (emptied first): per
+// camera `triggers` links, frame k to the rendered frame ShownFrame(k), the
+// rendered sequence's GroundTruth/cameras.yaml and its dataset's Calibration
+// linked (no Vicon: nothing here needs it). Links, not copies: the frames
+// are read as the replay reads any sequence. Returns the sequence folder.
+Expected<fs::path> WritePingPongSequence(const Args& args, const fs::path& rendered,
+                                         const std::vector<std::string>& serials,
+                                         const fs::path& root, std::int64_t triggers) {
+  std::error_code ec;
+  fs::remove_all(root, ec);
+  const fs::path rendered_abs = fs::absolute(rendered);
+  const fs::path sequence = root / rendered_abs.parent_path().filename() / rendered_abs.filename();
+  const auto fail = [&](const fs::path& path) -> Expected<fs::path> {
+    return Error{"bench_live: " + path.string() + ": " + ec.message()};
+  };
+  for (const std::string& serial : serials) {
+    const fs::path camera = sequence / layout::CameraFolderName(serial);
+    if (fs::create_directories(camera, ec); ec) return fail(camera);
+    for (std::int64_t k = 0; k < triggers; ++k) {
+      const fs::path link = camera / layout::RawFrameFileName(serial, k);
+      fs::create_symlink(layout::RawFramePath(rendered_abs, serial, ShownFrame(args, k)), link, ec);
+      if (ec) return fail(link);
+    }
+  }
+  const fs::path yaml = layout::CamerasYamlPath(sequence);
+  if (fs::create_directories(yaml.parent_path(), ec); ec) return fail(yaml.parent_path());
+  if (fs::create_symlink(layout::CamerasYamlPath(rendered_abs), yaml, ec); ec) return fail(yaml);
+  const fs::path calibration = root / layout::kCalibrationFolder;
+  fs::create_directory_symlink(
+      rendered_abs.parent_path().parent_path() / layout::kCalibrationFolder, calibration, ec);
+  if (ec) return fail(calibration);
+  return sequence;
+}
 
 RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_dir,
                const Truth& truth, Mode mode) {
@@ -352,7 +439,7 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
       ++f.extrinsics;
       if (r.c0_from_cx.status == "ok") ++f.extrinsics_ok[r.serial];
       f.latency_ms.push_back(ms);
-      f.accuracy.Add(truth, r);
+      f.accuracy.Add(truth, r, ShownFrame(args, r.trigger_index));
     };
   }
   std::atomic<bool> stop{false};
@@ -417,7 +504,7 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
 constexpr char kUsage[] =
     "usage: bench_live [--preset small|medium|r32] [--frames N>=3] [--seconds S]\n"
     "                  [--concurrency N] [--keep DIR] [--runs track,relocalise,depth]\n"
-    "                  [--lens-nice 0..19] [--depth-idle 0|1]\n"
+    "                  [--lens-nice 0..19] [--depth-idle 0|1] [--loop pingpong|restart]\n"
     "Live registration of a synthetic rig (default medium) replayed at its trigger rate\n"
     "through `lifmcr replay --reference`'s path, three runs of --seconds: tracking, every\n"
     "frame relocalised (the baseline) and depth only. Per run: extrinsics per second per\n"
@@ -425,7 +512,11 @@ constexpr char kUsage[] =
     "each pose was made. --keep DIR renders into DIR once and reuses it; --runs picks\n"
     "some of the three runs (the ratios need all three). --lens-nice: the lens lane's\n"
     "nice value above the command's (15; the workers run at +10). --depth-idle 0: the\n"
-    "depth lane computes at nice 19 instead of under SCHED_IDLE (1, the default).\n";
+    "depth lane computes at nice 19 instead of under SCHED_IDLE (1, the default).\n"
+    "--loop pingpong (the default): the rendered frames forward then backward, 0 .. N-1 ..\n"
+    "0 .., as one sequence whose trigger index keeps increasing (a rig moving on\n"
+    "continuously; links to the frames in DIR/pingpong); restart: the frames looped from\n"
+    "0 again, so both cameras jump back and are relocalised at each pass's first trigger.\n";
 
 int main(int argc, char** argv) {
   if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
@@ -436,7 +527,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr,
                  "usage: bench_live [--preset small|medium|r32] [--frames N>=3] [--seconds S] "
                  "[--concurrency N] [--keep DIR] [--runs track,relocalise,depth] "
-                 "[--lens-nice 0..19] [--depth-idle 0|1]\n");
+                 "[--lens-nice 0..19] [--depth-idle 0|1] [--loop pingpong|restart]\n");
     return 2;
   }
   auto params = synth::MakePreset(args.preset);
@@ -492,10 +583,12 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "bench_live: %s\n", s.error().message.c_str());
     return 3;
   }
-  std::printf("bench_live: preset %s, 2 cameras x %d frames looped at 10 Hz for %.0f s per run, "
+  std::printf("bench_live: preset %s, 2 cameras x %d frames %s at 10 Hz for %.0f s per run, "
               "%d frames at once, lens lane at nice +%d, depth lane %s, map of %zu points, %u hardware "
               "threads\n",
-              args.preset.c_str(), args.frames, args.seconds, args.concurrency, args.lens_nice,
+              args.preset.c_str(), args.frames,
+              args.pingpong ? "forward and back (--loop pingpong)" : "looped (--loop restart)",
+              args.seconds, args.concurrency, args.lens_nice,
               args.depth_idle ? "under SCHED_IDLE" : "at nice 19",
               map->points.size(), std::thread::hardware_concurrency());
   Truth truth;
@@ -507,12 +600,31 @@ int main(int argc, char** argv) {
     }
     for (const registration::FramePose& p : *poses) truth[serial][p.frame] = p.world_from_cam;
   }
+  // The replayed sequence: the rendered one, or its pingpong of links long
+  // enough for a run's window (and a margin: the replay loops it beyond).
+  fs::path replayed = sequence_dir;
+  if (args.pingpong) {
+    const auto triggers = static_cast<std::int64_t>(std::ceil(args.seconds * 10)) + 2 * args.frames;
+    auto written = WritePingPongSequence(args, sequence_dir, *serials, dir / "pingpong", triggers);
+    if (!written) {
+      std::fprintf(stderr, "%s\n", written.error().message.c_str());
+      return 3;
+    }
+    replayed = *written;
+    Truth shown;
+    for (const auto& [serial, frames] : truth)
+      for (std::int64_t k = 0; k < triggers; ++k) {
+        const auto it = frames.find(ShownFrame(args, k));
+        if (it != frames.end()) shown[serial][k] = it->second;
+      }
+    truth = std::move(shown);
+  }
   std::vector<RunFigures> runs;
   for (const Mode mode : {Mode::kTrack, Mode::kRelocalise, Mode::kDepthOnly}) {
     if ((mode == Mode::kTrack && !args.track) || (mode == Mode::kRelocalise && !args.relocalise) ||
         (mode == Mode::kDepthOnly && !args.depth))
       continue;
-    runs.push_back(Run(args, sequence_dir, map_dir, truth, mode));
+    runs.push_back(Run(args, replayed, map_dir, truth, mode));
     const RunFigures& f = runs.back();
     std::printf("%-10s extrinsics %.2f Hz per camera (%d messages), frame -> extrinsics p50 %.0f "
                 "ms p99 %.0f ms | frames taken %.2f/s skipped %.2f/s | previews %.2f/s "

@@ -36,10 +36,15 @@ Status MatchOptions::Check() const {
   return Status::Ok();
 }
 
-Status DetectSift(ConstImageView image, const FeatureOptions& options, Features* out) {
+Status DetectSift(ConstImageView image, const FeatureOptions& options, Features* out,
+                  const ConstImageView* mask) {
   if (Status s = options.Check(); !s) return s;
   if (image.data == nullptr || image.width <= 0 || image.height <= 0)
     return Error{"SIFT: empty image"};
+  if (mask != nullptr && (mask->data == nullptr || mask->format != PixelFormat::kMono8 ||
+                          mask->width != image.width || mask->height != image.height))
+    return Error{"SIFT: mask: expected Mono8 of the image's size " + std::to_string(image.width) +
+                 " x " + std::to_string(image.height)};
   out->keypoints.clear();
   out->descriptors.clear();
   // A header over the caller's rows (no copy); grey conversion only for colour.
@@ -65,8 +70,22 @@ Status DetectSift(ConstImageView image, const FeatureOptions& options, Features*
                        options.sigma);
   std::vector<cv::KeyPoint> keypoints;
   cv::Mat descriptors;
+  // The mask wrapped like the image; reduced with it (nearest: a keypoint
+  // is kept where its pixel's block is).
+  cv::Mat mask_view, mask_scaled;
+  if (mask != nullptr) {
+    mask_view = cv::Mat(mask->height, mask->width, CV_8UC1, const_cast<std::uint8_t*>(mask->data),
+                        mask->stride_bytes);
+    if (scale < 1)
+      cv::resize(mask_view, mask_scaled, scaled.size(), 0, 0, cv::INTER_NEAREST);
+    else
+      mask_scaled = mask_view;
+  }
   try {
-    sift->detectAndCompute(scaled, cv::noArray(), keypoints, descriptors);
+    if (mask != nullptr)
+      sift->detectAndCompute(scaled, mask_scaled, keypoints, descriptors);
+    else
+      sift->detectAndCompute(scaled, cv::noArray(), keypoints, descriptors);
   } catch (const cv::Exception& e) {
     return Error{std::string("SIFT: ") + e.what()};
   }

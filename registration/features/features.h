@@ -71,7 +71,14 @@ struct Features {
 // OpenCV's keypoints sit +1/4 px off in x and y: it doubles the image by
 // linear interpolation (doubled pixel c is at c / 2 - 1/4) and reports c / 2.
 // Maps and queries share that offset, so it is kept, also at image_scale.
-Status DetectSift(ConstImageView image, const FeatureOptions& options, Features* out);
+// With `mask` (Mono8, the image's size): only keypoints on its non-zero
+// pixels, and descriptors only for those. OpenCV retains its strongest
+// keypoints first and applies the mask before the descriptors, so the
+// keypoints are those the image gives without a mask, less the masked ones,
+// at a fraction of the cost where most are masked (a descriptor costs about
+// as much as the detection per keypoint: guided matching, guided_matches.h).
+Status DetectSift(ConstImageView image, const FeatureOptions& options, Features* out,
+                  const ConstImageView* mask = nullptr);
 
 // Keypoints found on an image reduced by 1/factor (its pixel i the block
 // centred on factor (i + 1/2) - 1/2) mapped to the full image's pixels with

@@ -83,6 +83,7 @@ GuidedMatchOptions LocalizerOptions::CoarseGuidedOptions() {
   GuidedMatchOptions coarse;
   coarse.max_side_px = 420;
   coarse.radius_px = 120;
+  coarse.mask_keypoints = false;  // its radius reaches most of the image
   return coarse;
 }
 

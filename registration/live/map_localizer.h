@@ -190,7 +190,11 @@ struct LocalizerOptions {
   // relocalisation was at 0.8-1.5 mm, the one after a re-anchoring at
   // 0.15-0.55 mm; test_map_localizer). When that fails, at the next frame.
   // In cold_reanchor_rounds rounds, each guided from the last one's pose
-  // (0: at the next frame, from its tracked pose, as before).
+  // (0: at the next frame, from its tracked pose). One round: that first
+  // pose at medium 1.52 -> 0.37 mm (the tracked ones' error), at r32 2.96 ->
+  // 1.58 mm, for 75-170 CPU-ms more per camera; on the CPU-time schedule the
+  // rate fell (5.7 -> 5.2 extrinsics/s per camera), so 0 by default
+  // (docs/registration.md, "The first pose").
   int cold_reanchor_rounds = 0;  // >= 0
   // Re-anchoring by guided matching (registration/map/guided_matches.h) from the
   // frame's tracked pose; false: by relocalisation.

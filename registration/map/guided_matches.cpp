@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <string>
 
@@ -144,8 +145,33 @@ GuidedMatches FindGuidedMatches(const MapIndex& map, const processing::CameraMod
   out.render_s = SecondsSince(render_start);
 
   const auto sift_start = std::chrono::steady_clock::now();
+  // The rendered pixels within reach of a projected map point: render
+  // pixel i is TF position step (i + 1/2) - 1/2, a disc of radius_px / step
+  // rendered pixels around each projection, one more for the keypoints'
+  // sub-pixel positions (grid.Nearest decides at radius_px exactly).
+  thread_local std::vector<std::uint8_t> mask_pixels;
+  ConstImageView mask;
+  if (options.mask_keypoints) {
+    const int rw = rendered.width, rh = rendered.height;
+    mask_pixels.assign(static_cast<std::size_t>(rw) * rh, 0);
+    const double r = options.radius_px / out.step + 1;
+    const int ri = static_cast<int>(std::ceil(r));
+    const double r2 = r * r;
+    for (const Eigen::Vector2d& tf : in_view_tf) {
+      const double ci = (tf.x() + 0.5) / out.step - 0.5, cj = (tf.y() + 0.5) / out.step - 0.5;
+      const int i0 = static_cast<int>(std::lround(ci)), j0 = static_cast<int>(std::lround(cj));
+      for (int j = std::max(0, j0 - ri); j <= std::min(rh - 1, j0 + ri); ++j)
+        for (int i = std::max(0, i0 - ri); i <= std::min(rw - 1, i0 + ri); ++i)
+          if ((i - ci) * (i - ci) + (j - cj) * (j - cj) <= r2)
+            mask_pixels[static_cast<std::size_t>(j) * rw + i] = 255;
+    }
+    mask = ConstImageView(mask_pixels.data(), rw, rh, static_cast<std::size_t>(rw),
+                          PixelFormat::kMono8);
+  }
   Features features;
-  if (Status s = DetectSift(rendered.View(), options.features, &features); !s) {
+  if (Status s = DetectSift(rendered.View(), options.features, &features,
+                            options.mask_keypoints ? &mask : nullptr);
+      !s) {
     out.status = s.error().message;
     return out;
   }

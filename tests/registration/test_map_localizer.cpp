@@ -489,6 +489,29 @@ TEST(MapLocalizer, GuidedMatchesFindMapPointsNearAPoseKnownToAFewPixels) {
   EXPECT_GE(g.points.size(), 100u);
   EXPECT_LE(Median(residual_px), 1.0);
   EXPECT_GE(within(2.0), static_cast<long>(0.8 * residual_px.size()));
+
+  // The mask (GuidedMatchOptions::mask_keypoints, the default) describes
+  // only the keypoints within reach of a projected map point: every match
+  // the whole render's keypoints give is still found (the same keypoint,
+  // the same map point), with fewer keypoints described.
+  GuidedMatchOptions unmasked;
+  unmasked.mask_keypoints = false;
+  const GuidedMatches all = FindGuidedMatches(index, camera, **sampler, view, guide, unmasked);
+  ASSERT_EQ(all.status, "ok");
+  std::printf("unmasked: %zu matches, %d keypoints described, SIFT %.0f ms\n", all.points.size(),
+              all.keypoints, 1e3 * all.sift_s);
+  EXPECT_LT(g.keypoints, all.keypoints);
+  std::map<int, Eigen::Vector2d> masked_match;
+  for (std::size_t i = 0; i < g.points.size(); ++i) masked_match[g.points[i]] = g.tf_px[i];
+  int same = 0;
+  for (std::size_t i = 0; i < all.points.size(); ++i) {
+    const auto it = masked_match.find(all.points[i]);
+    if (it != masked_match.end() && (it->second - all.tf_px[i]).norm() < 1e-3) ++same;
+  }
+  // A keypoint the whole render's spread selection kept can now lose its
+  // map point to a stronger neighbour it had dropped: nearly all, not all.
+  EXPECT_GE(same, static_cast<int>(0.9 * all.points.size()));
+  EXPECT_GE(g.points.size(), all.points.size());
 }
 
 // Bias of the live renders against the offline TF image. Camera X's
@@ -828,6 +851,9 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
     options.average_anchors = variant.average;
     options.reanchor_every = variant.reanchor_every;
     options.cold_reanchor_rounds = variant.cold_rounds;
+    // LIFMCR_TEST_COLD_ROUNDS=R: cold_reanchor_rounds R in every variant run.
+    if (const char* cold = std::getenv("LIFMCR_TEST_COLD_ROUNDS"))
+      options.cold_reanchor_rounds = std::atoi(cold);
     options.relocalise_refocus_cells = variant.cells;
     options.guided.refocus_cells = variant.cells;
     options.coarse.refocus_cells = variant.cells;
@@ -837,6 +863,10 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
     }
     if (const char* side = std::getenv("LIFMCR_TEST_RELOCALISE_MIN_SIDE"))
       options.relocalise_min_side_px = std::atoi(side);
+    // LIFMCR_TEST_GUIDED_MASK=0: every keypoint of the re-anchoring's render
+    // described (GuidedMatchOptions::mask_keypoints false, as before).
+    if (const char* mask = std::getenv("LIFMCR_TEST_GUIDED_MASK"))
+      options.guided.mask_keypoints = std::atoi(mask) != 0;
     MapLocalizerStage stage(s.map, options);
     // The fused estimate of a rigid mount (extrinsics_monitor.h), as the
     // pipeline publishes it beside each trigger's.
@@ -859,6 +889,10 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
         sum += l->cpu_seconds;
         ++n;
       }
+      // The first frame, relocalised without a pose: what a user sees first.
+      if (t == 0)
+        std::printf("  trigger 0: %.0f CPU-ms (camera 0), %.0f CPU-ms (camera X)\n",
+                    1e3 * l0.cpu_seconds, 1e3 * lx.cpu_seconds);
       if (l0.pose->status != "ok" || lx.pose->status != "ok") {
         line += " " + std::to_string(t) + ":failed";
         continue;
@@ -942,8 +976,9 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
 }
 
 // Live on a schedule made of CPU time (load-independent): the rig's frames
-// looped as bench_live replays them (triggers numbered from 0 again at each
-// pass, so the localizer starts the pass anew), at 10 Hz, each camera on a
+// replayed as bench_live replays them, looped (--loop restart: triggers
+// numbered from 0 again at each pass, so the localizer starts the pass anew)
+// or forward and back (--loop pingpong), at 10 Hz, each camera on a
 // core of its own: a camera's worker takes the newest frame there is when
 // it is free, and is busy for the CPU time its Localize took (newest wins:
 // the frames in between are not localised), its CPU time divided by the
@@ -955,11 +990,13 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
 // defaults against the localizer before (no re-finding, no periodic
 // re-anchoring, 30 tracked inliers): a relocalisation is several frame
 // periods long, the next frame then too far to track, and, without
-// re-finding, relocalised too.
+// re-finding, relocalised too; and the defaults forward and back.
 // LIFMCR_TEST_SECONDS (default 3) of simulated time; with
 // LIFMCR_TEST_PRESET=medium and LIFMCR_TEST_KEEP, LIFMCR_TEST_FRAMES=24 on
 // bench_live's kept 24-frame rig gives docs/registration.md's figures;
-// LIFMCR_TEST_REANCHOR_EVERY overrides the defaults' reanchor_every.
+// LIFMCR_TEST_REANCHOR_EVERY and LIFMCR_TEST_COLD_ROUNDS override the defaults'
+// reanchor_every and cold_reanchor_rounds;
+// LIFMCR_TEST_LOOP=pingpong or restart runs only the defaults so replayed.
 TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
   const char* frames_env = std::getenv("LIFMCR_TEST_FRAMES");
   const char* seconds_env = std::getenv("LIFMCR_TEST_SECONDS");
@@ -976,7 +1013,16 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
     double rate = 0, median = 0, first = 0, last = 0;
     int relocalised = 0;
   };
-  const auto run = [&](const LocalizerOptions& options, const char* name) {
+  // The rendered frame trigger k shows and its trigger index: looped from
+  // frame 0 again (bench_live --loop restart: the index restarts, the
+  // cameras jump back), or forward then backward with the index increasing
+  // (--loop pingpong: 0 1 .. n-1 n-2 .. 1 0 1 .., a rig moving on).
+  const auto view_of = [&](std::int64_t k, bool pingpong) {
+    if (!pingpong) return k % frames;
+    const std::int64_t period = 2 * frames - 2, i = k % period;
+    return i < frames ? i : period - i;
+  };
+  const auto run = [&](const LocalizerOptions& options, const char* name, bool pingpong) {
     MapLocalizerStage stage(s.map, options);
     const std::int64_t triggers = static_cast<std::int64_t>(seconds / kPeriod);
     // Per camera: when its worker is free (s) and the last trigger it took.
@@ -985,6 +1031,7 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
     std::map<std::int64_t, std::map<std::string, Pose>> ok;  // trigger -> camera -> pose
     Result out;
     std::string line;
+    double first_cpu_ms = 0;  // trigger 0, both cameras: relocalised without a pose
     while (true) {
       // The camera whose worker is free first takes the newest frame there.
       const std::string& serial = free_at[zero] <= free_at[x] ? zero : x;
@@ -996,8 +1043,8 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
         continue;
       }
       const double start = std::max(free_at[serial], static_cast<double>(k) * kPeriod);
-      const Localized l = LocalizeFrame(stage, s, serial, k % frames, k % frames,
-                                        1'000'000 * (k + 1));
+      const Localized l = LocalizeFrame(stage, s, serial, pingpong ? k : k % frames,
+                                        view_of(k, pingpong), 1'000'000 * (k + 1));
       EXPECT_TRUE(l.pose);
       if (!l.pose) return out;
       free_at[serial] = start + l.cpu_seconds / share;
@@ -1007,20 +1054,26 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
       sum += l.cpu_seconds;
       ++n;
       if (how == "relocalised") ++out.relocalised;
+      if (k == 0) first_cpu_ms += 1e3 * l.cpu_seconds;
       if (serial == x)
         line += " " + std::to_string(k) + (how == "re-anchored" ? "a" : how.substr(0, 1));
       if (how != "failed" && how != "skipped") ok[k][serial] = l.pose->transform;
     }
+    // First and last: the passes' first and last 3 frames (restart), the
+    // first and last quarter of the triggers (pingpong: does the error grow
+    // as the rig moves on?).
     std::vector<double> all, first, last;
+    double trigger0_mm = -1;  // -1: trigger 0 not localised by both cameras
     for (const auto& [k, poses] : ok) {
       if (poses.size() != 2) continue;
-      const std::int64_t view = k % frames;
+      const std::int64_t view = view_of(k, pingpong);
       const Pose estimate = poses.at(zero).inverse() * poses.at(x);
       const Pose truth = s.truth[zero][view].inverse() * s.truth[x][view];
       const double e = TranslationDifference(estimate, truth);
+      if (k == 0) trigger0_mm = e;
       all.push_back(e);
-      if (view < 3) first.push_back(e);
-      if (view >= frames - 3) last.push_back(e);
+      if (pingpong ? 4 * k < triggers : view < 3) first.push_back(e);
+      if (pingpong ? 4 * k >= 3 * triggers : view >= frames - 3) last.push_back(e);
     }
     out.rate = static_cast<double>(all.size()) / seconds;
     out.median = Median(all);
@@ -1034,31 +1087,53 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
       cpu_line += cell;
     }
     std::printf(
-        "%s: %.2f extrinsics/s per camera over %.0f s at 10 Hz (a core's share %.2f), c0_from_cx median %.3f mm, "
-        "passes' first 3 frames %.3f mm, last 3 %.3f mm\n  decisions, both cameras:%s\n  "
-        "camera X's triggers (t tracked, r relocalised, a re-anchored, f failed):%s\n  %s\n",
-        name, out.rate, seconds, share, out.median, out.first, out.last, cpu_line.c_str(), line.c_str(),
+        "%s, %s: %.2f extrinsics/s per camera over %.0f s at 10 Hz (a core's share %.2f), "
+        "c0_from_cx median %.3f mm, %s %.3f mm, last %.3f mm\n  decisions, both cameras:%s\n  "
+        "camera X's triggers (t tracked, r relocalised, a re-anchored, f failed):%s\n  "
+        "trigger 0: c0_from_cx %.3f mm, %.0f CPU-ms (both cameras together)\n  %s\n",
+        name, pingpong ? "forward and back" : "looped", out.rate, seconds, share, out.median,
+        pingpong ? "first quarter of the triggers" : "passes' first 3 frames", out.first,
+        out.last, cpu_line.c_str(), line.c_str(), trigger0_mm, first_cpu_ms,
         stage.counts().StageReport().c_str());
     return out;
   };
+  LocalizerOptions defaults;
+  if (const char* every = std::getenv("LIFMCR_TEST_REANCHOR_EVERY"))
+    defaults.reanchor_every = std::atoi(every);
+  if (const char* mask = std::getenv("LIFMCR_TEST_GUIDED_MASK"))
+    defaults.guided.mask_keypoints = std::atoi(mask) != 0;
+  if (const char* side = std::getenv("LIFMCR_TEST_RELOCALISE_MIN_SIDE"))
+    defaults.relocalise_min_side_px = std::atoi(side);
+  if (const char* cold = std::getenv("LIFMCR_TEST_COLD_ROUNDS"))
+    defaults.cold_reanchor_rounds = std::atoi(cold);
+  // LIFMCR_TEST_LOOP=pingpong or restart: only that replay of the defaults
+  // (no assertions); by default both, and the localizer before looped.
+  const char* loop_env = std::getenv("LIFMCR_TEST_LOOP");
+  const std::string loop = loop_env ? loop_env : "";
+  if (!loop.empty()) {
+    run(defaults, "the defaults (re-found, re-anchored periodically)", loop == "pingpong");
+    return;
+  }
   LocalizerOptions before;
   before.refind_before_relocalising = false;
   before.reanchor_every = 0;
   before.max_anchor_shift_ratio = 0;
   // Tracking needed min_tracked (30) inliers, where the checks accept 20.
   before.checks.min_inliers = before.min_tracked;
-  const Result old = run(before, "before (relocalised when tracking fails)");
-  LocalizerOptions defaults;
-  if (const char* every = std::getenv("LIFMCR_TEST_REANCHOR_EVERY"))
-    defaults.reanchor_every = std::atoi(every);
-  if (const char* side = std::getenv("LIFMCR_TEST_RELOCALISE_MIN_SIDE"))
-    defaults.relocalise_min_side_px = std::atoi(side);
-  const Result now = run(defaults, "the defaults (re-found, re-anchored periodically)");
+  const Result old = run(before, "before (relocalised when tracking fails)", false);
+  const Result now = run(defaults, "the defaults (re-found, re-anchored periodically)", false);
   // Relocalised no more often, more accurate, and the passes' last frames
   // within the live gate of their first (1.2 times).
   EXPECT_LE(now.relocalised, old.relocalised);
   EXPECT_LE(now.median, old.median);
   EXPECT_LE(now.last, 1.2 * now.first);
+  // Forward and back (bench_live's default replay): the cameras move on
+  // continuously, so only their first frames are relocalised (no pass
+  // restarts), and more triggers get extrinsics than looped, where each
+  // pass's first frames went to a relocalisation.
+  const Result moving = run(defaults, "the defaults (re-found, re-anchored periodically)", true);
+  EXPECT_LE(moving.relocalised, 2);
+  EXPECT_GE(moving.rate, now.rate);
 }
 
 // A larger sensor is relocalised on an image of about the same size: the
