@@ -633,7 +633,7 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
   app.add_option("--keypoint-depth-sigma-per-range", o->keypoint_depth_sigma_per_range,
                  "A keypoint's depth enters with sigma sqrt(0.28 %^2 + (S x range)^2) of v, "
                  "range its support's (--keypoint-support), its position at full weight "
-                 "(default 0.44, measured: docs/calibration.md; 0: every depth at full weight)")
+                 "(default 0: every depth at full weight; 0.44 measured: docs/calibration.md)")
       ->check(CLI::Range(0.0, 99.0));
   app.add_option("--keypoint-support", o->keypoint_support_radius_tf_px,
                  "Radius of a keypoint's support in TF pixels, over which the range of its "
