@@ -64,6 +64,8 @@ struct CalibrateOptions {
   double map_sigma_v_rel = registration::CalibrationOptions{}.map_sigma_v_rel;
   double map_sigma_tf_px = registration::CalibrationOptions{}.map_sigma_tf_px;
   double max_keypoint_depth_range = registration::CalibrationOptions{}.max_keypoint_depth_range;
+  double keypoint_depth_sigma_per_range =
+      registration::CalibrationOptions{}.keypoint_depth_sigma_per_range;
   int keypoint_support_radius_tf_px = registration::KeypointDepthSupport{}.radius_tf_px;
   bool no_covariance = false;
   double plate_weight = registration::CalibrationOptions{}.plate_weight;
@@ -170,6 +172,7 @@ Expected<registration::CalibrationOptions> MakeCalibrationOptions(const Calibrat
   options.map_sigma_v_rel = o.map_sigma_v_rel;
   options.map_sigma_tf_px = o.map_sigma_tf_px;
   options.max_keypoint_depth_range = o.max_keypoint_depth_range;
+  options.keypoint_depth_sigma_per_range = o.keypoint_depth_sigma_per_range;
   options.covariance = !o.no_covariance;
   options.plate_weight = o.plate_weight;
   if (!o.plate_frames.empty()) {
@@ -633,6 +636,11 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
                  "every keypoint's depth enters; 0.01 leaves out the depths next to depth "
                  "edges: docs/calibration.md)")
       ->check(CLI::Range(1e-4, 1e9));
+  app.add_option("--keypoint-depth-sigma-per-range", o->keypoint_depth_sigma_per_range,
+                 "A keypoint's depth enters with sigma sqrt(0.28 %^2 + (S x range)^2) of v, "
+                 "range its support's (--keypoint-support), its position at full weight "
+                 "(default 0: every depth at full weight; 0.44 measured: docs/calibration.md)")
+      ->check(CLI::Range(0.0, 99.0));
   app.add_option("--keypoint-support", o->keypoint_support_radius_tf_px,
                  "Radius of a keypoint's support in TF pixels, over which the range of its "
                  "virtual depth is measured (default 8; part of what --cache holds)")

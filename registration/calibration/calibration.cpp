@@ -190,6 +190,11 @@ Status CalibrationOptions::Check() const {
     return fail("map_sigma_tf_px: expected in (0, 100)");
   if (!(max_keypoint_depth_range > 0))
     return fail("max_keypoint_depth_range: expected > 0 (a share of v; large: every depth kept)");
+  if (!(keypoint_depth_sigma_rel > 0 && keypoint_depth_sigma_rel < 1))
+    return fail("keypoint_depth_sigma_rel: expected in (0, 1) (a share of v)");
+  if (!(keypoint_depth_sigma_per_range >= 0 && keypoint_depth_sigma_per_range < 100))
+    return fail("keypoint_depth_sigma_per_range: expected in [0, 100) (0: every depth at full "
+                "weight)");
   if (max_iterations < 1) return fail("max_iterations: expected >= 1");
   if (threads < 1) return fail("threads: expected >= 1");
   return Status::Ok();
@@ -263,6 +268,7 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
   // Observations in micro images (fixed for the whole solve).
   std::vector<LensObservation> lens_observations;
   std::vector<int> lenses;
+  std::vector<double> depth_weights;  // of the keypoints that keep their depth
   for (int t = 0; t < static_cast<int>(map.tracks.size()); ++t) {
     const Track& track = map.tracks[t];
     if (track.observations.size() < 2) continue;
@@ -272,21 +278,33 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
       LensObservation lo;
       lo.track = t;
       lo.observation = o;
-      const bool position_only =
-          internal::KeypointDepthRange(input.frames[ob.frame], ob.keypoint) >
-          options.max_keypoint_depth_range;
+      const double range = internal::KeypointDepthRange(input.frames[ob.frame], ob.keypoint);
+      const bool position_only = range > options.max_keypoint_depth_range;
+      const double depth_weight = internal::KeypointDepthWeight(
+          range, options.keypoint_depth_sigma_rel, options.keypoint_depth_sigma_per_range);
       if (!MakeMicroImageCost(x_v, *input.micro_images, c0, lambda0, options.max_lenses, s,
-                              &lenses, &lo.cost, position_only))
+                              &lenses, &lo.cost, position_only, depth_weight))
         continue;
       result.position_only_observations += position_only ? 1 : 0;
+      if (!position_only) depth_weights.push_back(depth_weight);
       lens_observations.push_back(std::move(lo));
     }
   }
-  if (progress)
+  if (progress) {
     progress(Format("keypoints: %lld of %zu observations by their position only (virtual depth "
                     "range over the support above %.1f %%)",
                     result.position_only_observations, lens_observations.size(),
                     100 * options.max_keypoint_depth_range));
+    const std::size_t below = static_cast<std::size_t>(
+        std::count_if(depth_weights.begin(), depth_weights.end(), [](double w) { return w < 0.5; }));
+    double sum = 0;
+    for (const double w : depth_weights) sum += w;
+    progress(Format("keypoints: depth weight (sigma %.2f %% of v, + %.2f x the support's range) "
+                    "mean %.3f, %zu of %zu below 0.5",
+                    100 * options.keypoint_depth_sigma_rel, options.keypoint_depth_sigma_per_range,
+                    depth_weights.empty() ? 1.0 : sum / depth_weights.size(), below,
+                    depth_weights.size()));
+  }
   std::vector<bool> inlier(lens_observations.size(), true);
   // Plate corners: fixed points; in the micro images where the TF depth map
   // has a virtual depth at the corner, else in the virtual image.

@@ -116,6 +116,22 @@ struct CalibrationOptions {
   // B came within 0.1 % but its poses moved 0.25 mm further along their axes,
   // and the other motions were not measured (docs/calibration.md).
   double max_keypoint_depth_range = std::numeric_limits<double>::infinity();
+  // Each keypoint's virtual depth enters with the weight sigma_0 / sigma of
+  // its depth part (calibration_costs.h, MicroImageCost::depth_weight; its
+  // position keeps full weight), sigma = sqrt(sigma_0^2 + (slope range)^2)
+  // with `range` its support's (above): the keypoints' virtual-depth error
+  // against the truth grows so with the range (bench_keypoint_depth, handheld
+  // frames 5, 20, 32, radius 8 TF px: median |error| 0.19, 0.44, 0.81, 1.19,
+  // 2.40 % at ranges 0-1, 1-2, 2-3, 3-5, > 5 %, i.e. sqrt(0.19^2 +
+  // (0.3 range)^2) %; sigma = 1.48 median |error|, so slope 0.44). Only
+  // slope / sigma_0 matters; slope 0: every depth at full weight. A keypoint
+  // without a range keeps full weight. Off (0) by default: at 0.44 B came
+  // within 0.1 % on handheld and smooth `medium` (from +0.41 / +0.48 %) and
+  // moved little on orbit, but on six `small` frames from 1.8 m, where the
+  // depths are what determine B, it went from +7.5 to +15.1 % (smooth) and
+  // +13.8 to +20.9 % (handheld) (docs/calibration.md).
+  double keypoint_depth_sigma_rel = 0.0028;         // sigma_0, share of v
+  double keypoint_depth_sigma_per_range = 0;        // slope (measured: 0.44)
   int max_iterations = 100;         // Ceres iterations per solve (twice that for the last)
   bool recalibrate = false;         // hold f_L and B fixed (LiFCal recalib)
   bool estimate_principal_point = true;

@@ -8,7 +8,8 @@ namespace lifmcr::registration::internal {
 
 bool MakeMicroImageCost(const Eigen::Vector3d& x_v, const MicroImages& micro,
                         const Eigen::Vector2d& c0, double lambda0, int max_lenses, double s,
-                        std::vector<int>* lenses, MicroImageCost* cost, bool position_only) {
+                        std::vector<int>* lenses, MicroImageCost* cost, bool position_only,
+                        double depth_weight) {
   if (!(x_v.z() > 1)) return false;
   micro.Seeing(x_v.head<2>(), x_v.z(), c0, lambda0, lenses);
   if (lenses->size() < 2) return false;
@@ -22,6 +23,7 @@ bool MakeMicroImageCost(const Eigen::Vector3d& x_v, const MicroImages& micro,
   if (static_cast<int>(by_distance.size()) > max_lenses) by_distance.resize(max_lenses);
   cost->pixel_size_mm = s;
   cost->depth_from_estimate = position_only;
+  cost->depth_weight = std::clamp(depth_weight, 0.0, 1.0);
   cost->observed_virtual_px = x_v.head<2>();
   cost->c0_px = c0;
   cost->lambda0 = lambda0;

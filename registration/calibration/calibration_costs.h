@@ -32,10 +32,19 @@ namespace lifmcr::registration::internal {
 // vanish for every depth along the keypoint's ray: they hold its position
 // (the ray) and nothing of its depth, with the weight a position has in the
 // micro images.
+//
+// Depth weight w (`depth_weight` < 1, a keypoint whose measured depth is
+// less certain than its position: CalibrationOptions::keypoint_depth_sigma_rel):
+// the observed positions are made with 1/v' = w / v'_measured + (1 - w) / v'
+// (v' the estimate's, as above). p_k is linear in 1/v', so the residuals
+// are those of the measured depth with the part that the depth error makes
+// (along x' - l0_k) scaled by w, and the lateral part unchanged: the depth
+// enters with sigma / w. w = 0 is position only.
 struct MicroImageCost {
   std::vector<Eigen::Vector2d> observed_px, centres_px;
   double pixel_size_mm = 0;
   bool depth_from_estimate = false;
+  double depth_weight = 1;  // in [0, 1]; depth_from_estimate: 0
   Eigen::Vector2d observed_virtual_px = Eigen::Vector2d::Zero();  // x' (position only)
   Eigen::Vector2d c0_px = Eigen::Vector2d::Zero();                // c0 (position only)
   double lambda0 = 1;                                             // (position only)
@@ -52,7 +61,8 @@ struct MicroImageCost {
   bool Residuals(const T* k, const T* p_in_c, T* residuals) const {
     T virtual_px[3];
     if (!ProjectToVirtual(k, pixel_size_mm, p_in_c, virtual_px)) return false;
-    if (depth_from_estimate) {
+    const double w = depth_from_estimate ? 0.0 : depth_weight;
+    if (w < 1) {
       const T lambda = k[1] / (k[1] + k[2]);
       const T inverse_v_processed =
           T(1) - lambda / T(lambda0) * (T(1) - T(1) / virtual_px[2]);
@@ -62,7 +72,9 @@ struct MicroImageCost {
         ProjectToMicroImage(k, virtual_px, centres_px[n], micro);
         for (int a = 0; a < 2; ++a) {
           const double l0 = c0_px[a] + (centres_px[n][a] - c0_px[a]) * lambda0;
-          const T observed = T(l0) + (T(observed_virtual_px[a]) - T(l0)) * inverse_v_processed;
+          // observed_px[n] = l0 + (x' - l0) / v'_measured (MakeMicroImageCost).
+          const T estimated = T(l0) + (T(observed_virtual_px[a]) - T(l0)) * inverse_v_processed;
+          const T observed = T(w * observed_px[n][a]) + T(1 - w) * estimated;
           residuals[2 * n + a] = micro[a] - observed;
         }
       }
@@ -153,11 +165,12 @@ struct PrincipalPointPriorCost {
 
 // The micro-image observations of virtual point x_v (calibration.h step 3):
 // the max_lenses most central micro images that see it (at its measured
-// depth); `position_only`: MicroImageCost::depth_from_estimate.
+// depth); `position_only`: MicroImageCost::depth_from_estimate;
+// `depth_weight`: MicroImageCost::depth_weight.
 bool MakeMicroImageCost(const Eigen::Vector3d& x_v, const MicroImages& micro,
                         const Eigen::Vector2d& c0, double lambda0, int max_lenses, double s,
                         std::vector<int>* lenses, MicroImageCost* cost,
-                        bool position_only = false);
+                        bool position_only = false, double depth_weight = 1);
 
 // The cost of plate corner n of `frame`: its marker's centre the mean of the
 // marker's four corners (all four are detected with the marker), observed at

@@ -72,4 +72,13 @@ inline double KeypointDepthRange(const CalibrationFrame& frame, int k) {
              : std::nan("");
 }
 
+// The weight of a keypoint's depth for the range of its support
+// (CalibrationOptions::keypoint_depth_sigma_rel, _per_range):
+// sigma_0 / sqrt(sigma_0^2 + (slope range)^2); 1 without a range.
+inline double KeypointDepthWeight(double range, double sigma_rel, double per_range) {
+  if (!(range >= 0)) return 1;
+  const double r = per_range * range / sigma_rel;
+  return 1 / std::sqrt(1 + r * r);
+}
+
 }  // namespace lifmcr::registration::internal

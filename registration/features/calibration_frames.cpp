@@ -27,7 +27,8 @@ constexpr char kFrameMagic[8] = {'L', 'F', 'M', 'C', 'R', 'F', 'R', 'M'};
 // support's radius beside the keypoint limit.
 // Version 5: plate corners placed on the plate's TF image rendered at the
 // plate plane's virtual depth (plate_plane.h).
-constexpr std::uint32_t kFrameVersion = 5;
+// Version 6: keypoints without OpenCV's +1/4 px (features.h).
+constexpr std::uint32_t kFrameVersion = 6;
 
 // What a frame was processed with, as stored: lambda, the principal point of
 // l_k (NaN NaN: the image centre), the keypoint limit.

@@ -64,7 +64,7 @@ struct FrameLoaderOptions {
 
 // A processed frame on disk (a cache for repeated calibrations of the same
 // frames processed the same way): binary, little-endian, magic "LFMCRFRM",
-// version 5, what the frame was processed with (lambda; the principal point
+// version 6, what the frame was processed with (lambda; the principal point
 // of l_k, NaN NaN for the image centre; the SIFT keypoint limit; the radius
 // of a keypoint's depth support), then the fields of CalibrationFrame in
 // order. Reading gives an error when the file

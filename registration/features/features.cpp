@@ -95,9 +95,11 @@ Status DetectSift(ConstImageView image, const FeatureOptions& options, Features*
   kept.reserve(keypoints.size());
   for (std::size_t i = 0; i < keypoints.size(); ++i) {
     cv::KeyPoint& k = keypoints[i];
+    k.pt.x -= kSiftOffsetCorrectedPx;  // onto the pixel grid (features.h)
+    k.pt.y -= kSiftOffsetCorrectedPx;
     if (scale < 1) {  // ScaleKeypoints' mapping
-      k.pt.x = (k.pt.x + 0.25f) * to_image - 0.25f;
-      k.pt.y = (k.pt.y + 0.25f) * to_image - 0.25f;
+      k.pt.x = (k.pt.x + 0.5f) * to_image - 0.5f;
+      k.pt.y = (k.pt.y + 0.5f) * to_image - 0.5f;
       k.size *= to_image;
     }
     if (k.pt.x < border || k.pt.y < border || k.pt.x > image.width - 1 - border ||
@@ -150,7 +152,7 @@ Status DetectSift(ConstImageView image, const FeatureOptions& options, Features*
 void ScaleKeypoints(double factor, Features* features) {
   const float f = static_cast<float>(factor);
   for (Keypoint& k : features->keypoints) {
-    k.xy_px = (k.xy_px.array() + 0.25f) * f - 0.25f;
+    k.xy_px = (k.xy_px.array() + 0.5f) * f - 0.5f;
     k.size *= f;
   }
 }

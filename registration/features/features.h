@@ -66,11 +66,19 @@ struct Features {
   }
 };
 
+// OpenCV's (4.x) SIFT doubles its input by linear interpolation with pixel
+// centres aligned (doubled pixel c lies at c / 2 - 1/4 of the input; its
+// later octaves take every second pixel, so the same holds at every octave)
+// and reports c / 2: its keypoints sit this far off in +x and +y. DetectSift
+// subtracts it, so a keypoint is where its feature is on the image's grid
+// (the TF grid's convention, processing/camera_model.h RawOfTf, that the
+// plate corners and the camera model share; bench_keypoint_position
+// measures what is left).
+inline constexpr float kSiftOffsetCorrectedPx = 0.25f;
+
 // SIFT on a Mono8 or BGR8 image (colour is converted to grey). The view is
-// wrapped, not copied (OpenCV reads the caller's rows).
-// OpenCV's keypoints sit +1/4 px off in x and y: it doubles the image by
-// linear interpolation (doubled pixel c is at c / 2 - 1/4) and reports c / 2.
-// Maps and queries share that offset, so it is kept, also at image_scale.
+// wrapped, not copied (OpenCV reads the caller's rows). Positions on the
+// image's pixel grid (OpenCV's +1/4 px removed, above), also at image_scale.
 // With `mask` (Mono8, the image's size): only keypoints on its non-zero
 // pixels, and descriptors only for those. OpenCV retains its strongest
 // keypoints first and applies the mask before the descriptors, so the
@@ -81,9 +89,8 @@ Status DetectSift(ConstImageView image, const FeatureOptions& options, Features*
                   const ConstImageView* mask = nullptr);
 
 // Keypoints found on an image reduced by 1/factor (its pixel i the block
-// centred on factor (i + 1/2) - 1/2) mapped to the full image's pixels with
-// DetectSift's +1/4 px kept: x = factor (x_s + 1/4) - 1/4 (DetectSift's
-// x_s - 1/4 the block's position); sizes times factor.
+// centred on factor (i + 1/2) - 1/2) mapped to the full image's pixels:
+// x = factor (x_s + 1/2) - 1/2; sizes times factor.
 void ScaleKeypoints(double factor, Features* features);
 
 struct MatchOptions {

@@ -13,8 +13,8 @@
 // search, so the TF grid can be rendered coarser (every step-th pixel,
 // TfSampler::RenderAtDepth at the median predicted virtual depth of the
 // points in view), and SIFT on it costs 1/step^2 of the full grid's.
-// Keypoints keep DetectSift's +1/4 px convention (features.h) mapped to the
-// TF grid by ScaleKeypoints, as relocalisation's do.
+// Keypoints (on the rendered grid, features.h) are mapped to the TF grid by
+// ScaleKeypoints, as relocalisation's are.
 //
 // Tried first and dropped: SIFT on small windows around each projection
 // (rendered at the point's own depth, side by side in one mosaic): the

@@ -7,6 +7,8 @@
 
 #include "processing/camera_model.h"
 #include "registration/calibration/calibration.h"
+#include "registration/calibration/calibration_costs.h"
+#include "registration/calibration/calibration_problem.h"
 #include "registration/features/calibration_frames.h"
 #include "registration/calibration/calibration_gates.h"
 #include "registration/calibration/calibration_truth.h"
@@ -120,6 +122,45 @@ CameraCalibration* CalibrationTest::truth_ = nullptr;
 PlateLayout* CalibrationTest::plate_ = nullptr;
 CalibrationFrameLoader* CalibrationTest::loader_ = nullptr;
 std::vector<CalibrationFrame>* CalibrationTest::frames_ = nullptr;
+
+// A keypoint's depth weight scales the depth's part of its micro-image
+// residuals and leaves its position's (calibration_costs.h): a point on the
+// keypoint's ray whose measured depth is 2 % off has residuals w times those
+// at full weight, none at w = 0; the weight falls with the support's range.
+TEST(CalibrationCosts, DepthWeightScalesTheDepthPartOfTheResiduals) {
+  const IntrinsicsVector k = {25.0, 24.5, 0.35, 1640.0, 1236.0, 0, 0, 0, 0};
+  const double s = 0.0064, lambda = k[1] / (k[1] + k[2]);
+  const double p_in_c[3] = {40.0, -25.0, 900.0};
+  double x_v[3];
+  ASSERT_TRUE(ProjectToVirtual(k.data(), s, p_in_c, x_v));
+  internal::MicroImageCost cost;
+  cost.pixel_size_mm = s;
+  cost.c0_px = Eigen::Vector2d(k[3], k[4]);
+  cost.lambda0 = lambda;
+  cost.observed_virtual_px = Eigen::Vector2d(x_v[0], x_v[1]);
+  const double v_measured = 1.02 * x_v[2];
+  for (const Eigen::Vector2d& d : {Eigen::Vector2d(0, 0), Eigen::Vector2d(30, -5),
+                                   Eigen::Vector2d(-20, 25)}) {
+    const Eigen::Vector2d ck = Eigen::Vector2d(x_v[0], x_v[1]) + d;
+    const Eigen::Vector2d lk = cost.c0_px + (ck - cost.c0_px) * lambda;
+    cost.centres_px.push_back(ck);
+    cost.observed_px.push_back(lk + (Eigen::Vector2d(x_v[0], x_v[1]) - lk) / v_measured);
+  }
+  std::vector<double> full(6), weighted(6);
+  ASSERT_TRUE(cost.Residuals(k.data(), p_in_c, full.data()));
+  double norm = 0;
+  for (double r : full) norm += r * r;
+  ASSERT_GT(std::sqrt(norm), 0.01);  // the 2 % depth error is seen
+  for (const double w : {0.0, 0.3, 0.7}) {
+    cost.depth_weight = w;
+    ASSERT_TRUE(cost.Residuals(k.data(), p_in_c, weighted.data()));
+    for (int i = 0; i < 6; ++i) EXPECT_NEAR(weighted[i], w * full[i], 1e-9) << w << " " << i;
+  }
+  EXPECT_EQ(internal::KeypointDepthWeight(std::nan(""), 0.0028, 0.44), 1.0);
+  EXPECT_EQ(internal::KeypointDepthWeight(0.0, 0.0028, 0.44), 1.0);
+  EXPECT_NEAR(internal::KeypointDepthWeight(0.01, 0.0028, 0.44), 0.0028 / std::hypot(0.0028, 0.0044), 1e-12);
+  EXPECT_LT(internal::KeypointDepthWeight(0.05, 0.0028, 0.44), 0.13);
+}
 
 TEST_F(CalibrationTest, FromFivePercentOffPlacesEveryFrameAndFitsTheMicroImages) {
   ASSERT_EQ(frames_->size(), 4u);

@@ -42,11 +42,13 @@ constexpr int kFrames = 6;
 // scene from about one distance (smooth, handheld), f_L, b_L0 and every
 // distance nearly scale together (docs/calibration.md, "Camera 0's pose along
 // its axis"): f_L and b_L0 come out 0.2-0.9 % off, B, which
-// v B = b_L - b_L0 amplifies about 20 times, 9-15 %, the poses 5-12 mm along
+// v B = b_L - b_L0 amplifies about 20 times, 7.5-14 %, the poses 5-12 mm along
 // their axes and the map's scale 0.7-1.1 %, while the rotations stay within
 // 0.08 deg. The orbit's varied angles determine the scale: the map's within
-// 0.02 %, B 1.1 % (f_L, b_L0 0.47 %, the poses 9 mm along their axes: the
-// scale of the thin lens is still weak in six views from 1.8 m). A change
+// 0.02 %, B 1.7 % (f_L, b_L0 0.26 %, the poses 4.8 mm along their axes: the
+// scale of the thin lens is still weak in six views from 1.8 m; with the
+// SIFT keypoints +1/4 px off, features.h, B was 1.1 % and f_L, b_L0 0.47 %,
+// the poses 8.8 mm). A change
 // that loses what a motion determines now fails here.
 struct MotionExpectation {
   const char* motion;
@@ -144,7 +146,7 @@ INSTANTIATE_TEST_SUITE_P(
     Motions, CalibrationMotion,
     ::testing::Values(MotionExpectation{"smooth", 0.006, 0.13, 0.010, 8, 0.12},
                       MotionExpectation{"handheld", 0.013, 0.21, 0.017, 18, 0.10},
-                      MotionExpectation{"orbit", 0.007, 0.017, 0.001, 13, 0.05}),
+                      MotionExpectation{"orbit", 0.007, 0.022, 0.001, 13, 0.05}),
     [](const ::testing::TestParamInfo<MotionExpectation>& info) {
       return std::string(info.param.motion);
     });

@@ -3,7 +3,8 @@
 // the keypoints above CalibrationOptions::max_keypoint_depth_range by their
 // position only). Checked on real synthetic frames against the renderer's
 // truth: frames processed with the TRUE intrinsics, so measured and true
-// virtual depths compare directly.
+// virtual depths compare directly. And the keypoints' position on those
+// frames against the truth (features.h: OpenCV's +1/4 px removed).
 
 #include "processing/camera_model.h"
 #include "registration/features/calibration_frames.h"
@@ -14,6 +15,8 @@
 #include "replay/synth/synth_params.h"
 #include "replay/synth/synth_writer.h"
 #include "tests/test_util.h"
+
+#include <opencv2/imgcodecs.hpp>
 
 #include <gtest/gtest.h>
 
@@ -125,6 +128,91 @@ TEST_F(CalibrationKeypointDepthOnFrames, RangeSeparatesTheKeypointsWhoseDepthIsO
   EXPECT_GT(kept_abs.size(), 0.15 * (kept_abs.size() + out_abs.size()));
   EXPECT_LT(Median(kept_abs), 0.7 * Median(out_abs));
   EXPECT_LT(kept_far_share, 0.5 * out_far_share);
+}
+
+// For each keypoint of `a`, the nearest of `b_xy` (b's positions in a's
+// image) within 1 px and 20 % of its size; -1 where none.
+std::vector<int> NearestWithin1Px(const Features& a, const std::vector<Eigen::Vector2f>& b_xy,
+                                  const Features& b) {
+  std::vector<int> out(a.keypoints.size(), -1);
+  for (std::size_t i = 0; i < a.keypoints.size(); ++i) {
+    float best = 1.0f;
+    for (std::size_t j = 0; j < b_xy.size(); ++j) {
+      const float d2 = (a.keypoints[i].xy_px - b_xy[j]).squaredNorm();
+      const float r = a.keypoints[i].size / b.keypoints[j].size;
+      if (d2 < best && r > 0.8f && r < 1.25f) best = d2, out[i] = static_cast<int>(j);
+    }
+  }
+  return out;
+}
+
+// A keypoint against the projection of its true point, in two parts that add
+// up: the detector's offset b (SIFT on the TF image and on it turned by 180
+// degrees: a feature at x is at W - 1 - x there, so b = (r + r' - (W - 1)) / 2)
+// and the TF image's shift against the renderer's all-in-focus image (the
+// scene point on each TF pixel's ray; the same detector on both, so b
+// cancels). Before DetectSift removed OpenCV's +1/4 px, b was +0.25 on both
+// axes (bench_keypoint_position).
+TEST_F(CalibrationKeypointDepthOnFrames, KeypointsSitWhereTheTruthProjects) {
+  Expected<CameraCalibration> truth = ReadCameraCalibration(layout::CamerasYamlPath(*sequence_), kSerial);
+  ASSERT_TRUE(truth);
+  const processing::CameraModel model(truth->intrinsics);
+  FrameLoaderOptions options;
+  options.lambda = model.lambda();
+  options.principal_point_px = truth->intrinsics.PrincipalPointPx();
+  auto loader = CalibrationFrameLoader::Open(*sequence_, kSerial, {}, PlateLayout{}, options);
+  ASSERT_TRUE(loader) << loader.error().message;
+  std::vector<double> bx, by, sx, sy;
+  for (const std::int64_t f : (*loader)->frames()) {
+    Expected<CalibrationFrame> frame = (*loader)->Load(f);
+    ASSERT_TRUE(frame) << frame.error().message;
+    const ConstImageView tf = (*loader)->last_tf_image();
+    const int bytes = tf.format == PixelFormat::kBgr8 ? 3 : 1;
+    std::vector<std::uint8_t> turned(static_cast<std::size_t>(tf.width) * tf.height * bytes);
+    for (int y = 0; y < tf.height; ++y)
+      for (int x = 0; x < tf.width; ++x)
+        for (int c = 0; c < bytes; ++c)
+          turned[(static_cast<std::size_t>(tf.height - 1 - y) * tf.width + (tf.width - 1 - x)) * bytes + c] =
+              tf.data[y * tf.stride_bytes + static_cast<std::size_t>(x) * bytes + c];
+    Features on_turned, on_truth;
+    ASSERT_TRUE(DetectSift(ConstImageView(turned.data(), tf.width, tf.height,
+                                          static_cast<std::size_t>(tf.width) * bytes, tf.format),
+                           options.features, &on_turned));
+    std::vector<Eigen::Vector2f> back;
+    for (const Keypoint& k : on_turned.keypoints)
+      back.emplace_back(tf.width - 1 - k.xy_px.x(), tf.height - 1 - k.xy_px.y());
+    const std::vector<int> pair = NearestWithin1Px(frame->features, back, on_turned);
+    for (std::size_t i = 0; i < pair.size(); ++i)
+      if (pair[i] >= 0) {
+        const Eigen::Vector2f r = frame->features.keypoints[i].xy_px, rt = on_turned.keypoints[pair[i]].xy_px;
+        bx.push_back(0.5 * (r.x() + rt.x() - (tf.width - 1)));
+        by.push_back(0.5 * (r.y() + rt.y() - (tf.height - 1)));
+      }
+    const cv::Mat aif = cv::imread(synth::AllInFocusPath(*sequence_, kSerial, f).string(), cv::IMREAD_GRAYSCALE);
+    ASSERT_EQ(aif.cols, tf.width);
+    ASSERT_EQ(aif.rows, tf.height);
+    ASSERT_TRUE(DetectSift(ConstImageView(aif.data, aif.cols, aif.rows, aif.step, PixelFormat::kMono8),
+                           options.features, &on_truth));
+    std::vector<Eigen::Vector2f> truth_xy;
+    for (const Keypoint& k : on_truth.keypoints) truth_xy.push_back(k.xy_px);
+    const std::vector<int> match = NearestWithin1Px(frame->features, truth_xy, on_truth);
+    for (std::size_t i = 0; i < match.size(); ++i)
+      if (match[i] >= 0) {
+        const Eigen::Vector2f d = frame->features.keypoints[i].xy_px - on_truth.keypoints[match[i]].xy_px;
+        sx.push_back(d.x());
+        sy.push_back(d.y());
+      }
+  }
+  const double ex = Median(bx) + Median(sx), ey = Median(by) + Median(sy);
+  std::printf("detector offset (%+.3f, %+.3f) TF px over %zu pairs; TF image against the truth "
+              "(%+.3f, %+.3f) over %zu; keypoints against the truth (%+.3f, %+.3f) TF px\n",
+              Median(bx), Median(by), bx.size(), Median(sx), Median(sy), sx.size(), ex, ey);
+  ASSERT_GT(bx.size(), 300u);
+  ASSERT_GT(sx.size(), 300u);
+  EXPECT_LT(std::abs(Median(bx)), 0.08);
+  EXPECT_LT(std::abs(Median(by)), 0.08);
+  EXPECT_LT(std::abs(ex), 0.1);
+  EXPECT_LT(std::abs(ey), 0.1);
 }
 
 }  // namespace
