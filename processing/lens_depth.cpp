@@ -76,6 +76,55 @@ struct Uninitialised {
   };
 };
 
+// The median of z over e[0..n) (n <= 4 kMaxSamples): the value nth_element
+// puts at n / 2, by an insertion sort (a micro image has 1-8 estimates:
+// nth_element's set-up cost more than the sort).
+double MedianZ(const detail::Estimate* e, int n) {
+  std::array<double, 4 * kMaxSamples> zs;
+  for (int i = 0; i < n; ++i) {
+    const double z = e[i].z;
+    int q = i;
+    for (; q > 0 && zs[q - 1] > z; --q) zs[q] = zs[q - 1];
+    zs[q] = z;
+  }
+  return zs[n / 2];
+}
+
+// detail::Fuse of epipolar_search.h (the same numbers) for the few
+// estimates of a micro image: its median through MedianZ.
+int FuseFew(const detail::Estimate* e, int n, double rel_gate, double* z, double* sigma) {
+  if (n == 0) return 0;
+  const double med = MedianZ(e, n);
+  double sw = 0, swz = 0;
+  int used = 0;
+  for (int i = 0; i < n; ++i) {
+    const detail::Estimate& x = e[i];
+    if (std::abs(x.z - med) > std::max(3 * x.sigma, rel_gate * med)) continue;
+    const double w = 1.0 / (x.sigma * x.sigma);
+    sw += w;
+    swz += w * x.z;
+    ++used;
+  }
+  if (used == 0) return 0;
+  *z = swz / sw;
+  *sigma = std::sqrt(1.0 / sw);
+  return used;
+}
+
+// A thread's buffers of the candidate gate (scores and axes of a micro
+// image's candidates, kStripPad beyond them for the kernel): grown on a
+// thread's first micro image, then reused.
+struct GateScratch {
+  std::vector<float> score;
+  std::vector<std::int32_t> axis;
+  void Reserve(int n) {
+    if (score.size() < static_cast<std::size_t>(n + detail::kStripPad)) {
+      score.resize(n + detail::kStripPad);
+      axis.resize(n + detail::kStripPad);
+    }
+  }
+};
+
 struct Candidate {
   float score = 0;
   int x = 0, y = 0;
@@ -297,12 +346,12 @@ bool SeesPatchAround(const detail::MatchParams& params, double radius_px, int li
 }
 
 // The reference patch of epipolar_search.h's SampleReference (the same
-// samples, to the last bit), its lines read by the strip kernel where the
-// patch lies inside the disc and well inside the frame (the scalar
-// bilinear reads cost about 130 instructions a sample; the ring-2 patch was
-// an eighth of the estimator's instructions on a `medium` frame). Line b
-// is StripLine {p, e, b e_y, b e_x, along0 -2, step 1, 5 samples}: sample i
-// at t = 2 - i, so patch column a = -2..2 is strip sample 2 - a.
+// samples, to the last bit), read by the patch kernel (lens_search_simd.h,
+// SamplePatchFn: all lines in one call) where the patch lies inside the
+// disc and well inside the frame (the scalar bilinear reads cost about 130
+// instructions a sample; the ring-2 patch was an eighth of the estimator's
+// instructions on a `medium` frame, and with one strip-kernel call per
+// line the patches made half of that kernel's calls).
 template <int kLines, int kChannels>
 bool SampleReferencePatch(const RawGrey<kChannels>& grey, int width, int height, float px,
                           float py, float e_x, float e_y, float cx, float cy, float r2,
@@ -315,26 +364,13 @@ bool SampleReferencePatch(const RawGrey<kChannels>& grey, int width, int height,
       px < 3 || py < 3 || px + 3 > width - 3 || py + 3 > height - 3)
     return detail::SampleReference<kLines>(grey, width, height, px, py, e_x, e_y, cx, cy, r2,
                                            out);
-  float line[detail::kAlong + detail::kStripPad];
-  for (int b = -kHalf; b <= kHalf; ++b) {
-    detail::StripLine l;
-    l.px = px;
-    l.py = py;
-    l.e_x = e_x;
-    l.e_y = e_y;
-    l.b_ey = static_cast<float>(b) * e_y;
-    l.b_ex = static_cast<float>(b) * e_x;
-    l.along0 = -2;
-    l.step = 1;
-    l.n = detail::kAlong;
-    l.j_lo = 0;
-    l.j_hi = detail::kAlong - 1;
-    grey.kernels->sample(grey.source, l, line);
-    float* row = out + (b + kHalf) * detail::kAlong;
-    for (int a = -2; a <= 2; ++a) {
-      row[a + 2] = line[2 - a];
-      if (std::isnan(row[a + 2])) return false;
-    }
+  // All its lines in one kernel call (lens_search_simd.h, SamplePatchFn).
+  constexpr int kN = detail::kAlong * kLines;
+  float samples[kN + detail::kStripPad];
+  grey.kernels->patch(grey.source, px, py, e_x, e_y, kLines, samples);
+  for (int m = 0; m < kN; ++m) {
+    out[m] = samples[m];
+    if (std::isnan(out[m])) return false;
   }
   return true;
 }
@@ -346,38 +382,11 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
                   const std::vector<std::array<std::int16_t, 2>>& candidates,
                   const CandidateGate& gate, const detail::SearchRange& range,
                   const detail::MatchParams& ring1, const detail::MatchParams& ring2,
-                  const RawGrey<kChannels>& grey, int k, double prior_z, double prior_sigma_z,
-                  float* v_out, float* sigma_out, float* conf_out, std::uint8_t* textured_out,
+                  const RawGrey<kChannels>& grey, GateScratch& scratch, int k, double prior_z,
+                  double prior_sigma_z, float* v_out, float* sigma_out, float* conf_out, std::uint8_t* textured_out,
                   long long* searched, long long* seeded, long long* held) {
   const MicroImage& lens = f.lenses[k];
-  // The neighbours that exist, from the lattice's templates (c_n - c_k =
-  // A (di, dj) for every lens, and the type rule (i - j) mod 3 makes ring 1
-  // of the other types, ring 2 of the same): the neighbours' MicroImage
-  // records are not read (a cache miss each, rows of lenses apart).
-  Uninitialised<detail::Neighbour, 12> nbs_store;
-  detail::Neighbour* const nbs = nbs_store.v;
-  int count = 0;
-  std::array<std::array<int, 2>, 6> axis_nb;
-  std::array<int, 6> axis_n{};
-  for (int m = 0; m < 6 * o.rings; ++m) {
-    const auto& d = m < 6 ? detail::kRing1[m] : detail::kRing2[m - 6];
-    const int idx = f.LensAt(lens.i + d[0], lens.j + d[1]);
-    if (idx < 0) continue;
-    detail::Neighbour& nb = nbs[count];
-    nb = tables.neighbour[m];
-    nb.lens = &f.lenses[idx];
-    nb.cx = static_cast<float>(lens.centre_px.x() + tables.delta[m][0]);
-    nb.cy = static_cast<float>(lens.centre_px.y() + tables.delta[m][1]);
-    nb.same_type = m >= 6;
-    axis_nb[nb.axis][axis_n[nb.axis]++] = count;
-    ++count;
-  }
-  const std::array<std::array<float, 2>, 6>& axis_e = tables.axis_e;
-
   // 1. Candidates on a square grid around c_k (offsets made once per camera).
-  std::array<Candidate, kMaxSamples> best{};
-  int n_best = 0;
-  bool any_textured = false;
   const double cx = lens.centre_px.x(), cy = lens.centre_px.y();
   const int ix = static_cast<int>(std::floor(cx + 0.5));
   const int iy = static_cast<int>(std::floor(cy + 0.5));
@@ -390,78 +399,120 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
   const float centre_gain = grey.Gain(ix, iy);
   if (!std::isfinite(centre_gain)) return;
   const float to_grey = 0.5f * centre_gain / kChannels;
-  // One candidate with its score and best ring-1 axis: the textured flag
-  // and the `samples` best (the ring-2 axis is chosen when it is searched).
-  auto consider = [&](int x, int y, float score, int axis) {
-    if (score < thr) return;
-    Candidate c;
-    c.x = x;
-    c.y = y;
-    c.score = score;
-    c.axis = axis;
-    any_textured = true;
-    // Keep the `samples` best, sorted descending (insertion).
-    if (n_best < o.samples) {
-      best[n_best++] = c;
-    } else if (c.score > best[n_best - 1].score) {
-      best[n_best - 1] = c;
-    } else {
-      return;
+  // The neighbours that exist, from the lattice's templates (c_n - c_k =
+  // A (di, dj) for every lens, and the type rule (i - j) mod 3 makes ring 1
+  // of the other types, ring 2 of the same): the neighbours' MicroImage
+  // records are not read (a cache miss each, rows of lenses apart). Their
+  // indices first (the gate needs the ring-1 axes that have one); the
+  // records the searches read only for a textured micro image, after the
+  // gate (its first candidate's rows are asked of the cache meanwhile).
+  std::array<int, 12> nb_index;
+  const int n_dirs = 6 * o.rings;
+  unsigned mask = 0;
+  for (int m = 0; m < n_dirs; ++m) {
+    const auto& d = m < 6 ? detail::kRing1[m] : detail::kRing2[m - 6];
+    nb_index[m] = f.LensAt(lens.i + d[0], lens.j + d[1]);
+    if (m < 6 && nb_index[m] >= 0) mask |= 1u << (m % 3);
+  }
+  const std::array<std::array<float, 2>, 6>& axis_e = tables.axis_e;
+  // Every candidate's score (its largest gradient along a ring-1 axis with
+  // a neighbour) and that axis; -1: outside the frame. The candidates are
+  // then taken lazily, the best remaining first (ties: the earlier in the
+  // candidate list), as many as are searched: about 2 of the 29-37 of a
+  // micro image, where keeping the `samples` best sorted as the scores came
+  // (an insertion, a prefetch of its rows and a bubble for each of about 16
+  // entrants) was 9 % of the estimator's instructions.
+  float* const score = scratch.score.data();
+  std::int32_t* const axis = scratch.axis.data();
+  const int reach = gate.reach;
+  if (grey.kernels != nullptr && ix - reach >= 2 && iy - reach >= 2 && ix + reach <= f.width - 3 &&
+      iy + reach <= f.height - 3) {
+    const float ax[3] = {axis_e[0][0], axis_e[1][0], axis_e[2][0]};
+    const float ay[3] = {axis_e[0][1], axis_e[1][1], axis_e[2][1]};
+    grey.kernels->scores(grey.source, ix, iy, gate.dx, gate.dy, gate.n, to_grey, ax, ay, mask,
+                         score, axis);
+  } else {
+    for (int q = 0; q < gate.n; ++q) {
+      const int x = ix + candidates[q][0], y = iy + candidates[q][1];
+      score[q] = -1;
+      axis[q] = 0;
+      if (x < 1 || y < 1 || x >= f.width - 1 || y >= f.height - 1) continue;
+      const float gx = to_grey * static_cast<float>(grey.RawSum(x + 1, y) - grey.RawSum(x - 1, y));
+      const float gy = to_grey * static_cast<float>(grey.RawSum(x, y + 1) - grey.RawSum(x, y - 1));
+      float best_score = 0;
+      for (int d = 0; d < 3; ++d) {
+        if (!((mask >> d) & 1u)) continue;
+        const float g = std::abs(gx * axis_e[d][0] + gy * axis_e[d][1]);
+        if (g > best_score) {
+          best_score = g;
+          axis[q] = d;
+        }
+      }
+      score[q] = best_score;
     }
-    // Its ring-1 reference patch's gain rows (y - 2 .. y + 3 from x - 2)
-    // asked of the cache while the gate goes on: their first touch in this
-    // micro image, where `perf` put the estimator's largest stall.
-    if (x >= 2 && y >= 2 && y + 3 < f.height)
-      for (int dy = -2; dy <= 3; ++dy)
-        __builtin_prefetch(grey.gain.q.data() + static_cast<std::size_t>(y + dy) * f.width + x - 2);
-    for (int q = n_best - 1; q > 0 && best[q - 1].score < best[q].score; --q)
-      std::swap(best[q - 1], best[q]);
+  }
+  // The s-th most textured candidate (s = 0, 1, ... in turn), taken from
+  // the scores when first asked for; null past the last textured one or
+  // past `samples`. A taken candidate's score becomes -infinity.
+  std::array<Candidate, kMaxSamples> best;
+  int n_best = 0;
+  bool exhausted = false;
+  auto candidate = [&](int s) -> const Candidate* {
+    while (n_best <= s && !exhausted) {
+      int b = -1;
+      float bs = -std::numeric_limits<float>::infinity();
+      for (int q = 0; q < gate.n; ++q)
+        if (score[q] > bs) {
+          bs = score[q];
+          b = q;
+        }
+      if (b < 0 || !(bs >= thr) || n_best == o.samples) {
+        exhausted = true;
+        break;
+      }
+      score[b] = -std::numeric_limits<float>::infinity();
+      Candidate& c = best[n_best++];
+      c.x = ix + candidates[b][0];
+      c.y = iy + candidates[b][1];
+      c.score = bs;
+      c.axis = axis[b];
+    }
+    return s < n_best ? &best[s] : nullptr;
   };
+  const Candidate* first = candidate(0);
+  *textured_out = first != nullptr;
+  if (first == nullptr) return;
+  // Its ring-1 reference patch's rows (gain and raw, y - 2 .. y + 3 from
+  // x - 2) asked of the cache while the neighbours are set up: their first
+  // touch in this micro image, where `perf` put the estimator's largest
+  // stall.
+  if (first->x >= 2 && first->y >= 2 && first->y + 3 < f.height)
+    for (int dy = -2; dy <= 3; ++dy) {
+      __builtin_prefetch(grey.gain.q.data() +
+                         static_cast<std::size_t>(first->y + dy) * f.width + first->x - 2);
+      __builtin_prefetch(grey.raw.Row(first->y + dy) + (first->x - 2) * kChannels);
+    }
+  Uninitialised<detail::Neighbour, 12> nbs_store;
+  detail::Neighbour* const nbs = nbs_store.v;
+  int count = 0;
+  std::array<std::array<int, 2>, 6> axis_nb;
+  std::array<int, 6> axis_n{};
+  for (int m = 0; m < n_dirs; ++m) {
+    const int idx = nb_index[m];
+    if (idx < 0) continue;
+    detail::Neighbour& nb = nbs[count];
+    nb = tables.neighbour[m];
+    nb.lens = &f.lenses[idx];
+    nb.cx = static_cast<float>(lens.centre_px.x() + tables.delta[m][0]);
+    nb.cy = static_cast<float>(lens.centre_px.y() + tables.delta[m][1]);
+    nb.same_type = m >= 6;
+    axis_nb[nb.axis][axis_n[nb.axis]++] = count;
+    ++count;
+  }
   auto gradient = [&](int x, int y, float* gx, float* gy) {
     *gx = to_grey * static_cast<float>(grey.RawSum(x + 1, y) - grey.RawSum(x - 1, y));
     *gy = to_grey * static_cast<float>(grey.RawSum(x, y + 1) - grey.RawSum(x, y - 1));
   };
-  const int reach = gate.reach;
-  if (grey.kernels != nullptr && ix - reach >= 2 && iy - reach >= 2 && ix + reach <= f.width - 3 &&
-      iy + reach <= f.height - 3) {
-    // Scores through the kernels (lens_search_simd.h), in chunks of the
-    // stack buffers; the gradients again for the few that pass the gate.
-    constexpr int kChunk = 256;
-    float score[kChunk + detail::kStripPad];
-    std::int32_t axis[kChunk + detail::kStripPad];
-    unsigned mask = 0;
-    for (int d = 0; d < 3; ++d) mask |= (axis_n[d] > 0 ? 1u : 0u) << d;
-    const float ax[3] = {axis_e[0][0], axis_e[1][0], axis_e[2][0]};
-    const float ay[3] = {axis_e[0][1], axis_e[1][1], axis_e[2][1]};
-    for (int q0 = 0; q0 < gate.n; q0 += kChunk) {
-      const int n = std::min(kChunk, gate.n - q0);
-      grey.kernels->scores(grey.source, ix, iy, gate.dx + q0, gate.dy + q0, n, to_grey, ax, ay,
-                           mask, score, axis);
-      for (int q = 0; q < n; ++q)
-        if (score[q] >= thr)
-          consider(ix + gate.dx[q0 + q], iy + gate.dy[q0 + q], score[q], axis[q]);
-    }
-  } else {
-    for (const std::array<std::int16_t, 2>& offset : candidates) {
-      const int x = ix + offset[0], y = iy + offset[1];
-      if (x < 1 || y < 1 || x >= f.width - 1 || y >= f.height - 1) continue;
-      float gx = 0, gy = 0;
-      gradient(x, y, &gx, &gy);
-      float score = 0;
-      int axis = 0;
-      for (int d = 0; d < 3; ++d) {
-        if (axis_n[d] == 0) continue;
-        const float g = std::abs(gx * axis_e[d][0] + gy * axis_e[d][1]);
-        if (g > score) {
-          score = g;
-          axis = d;
-        }
-      }
-      consider(x, y, score, axis);
-    }
-  }
-  *textured_out = any_textured;
-  if (!any_textured) return;
 
   // 2. Searches.
   const float ref_r2 = static_cast<float>((f.radius_px + 0.5) * (f.radius_px + 0.5));
@@ -520,10 +571,11 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
   if (prior_z > 0 && std::isfinite(prior_z)) ++*seeded;
   std::array<detail::Estimate, 4> found;
   int n_found = 0;
-  for (int s = 0; s < std::min(n_best, kSeedPixels) && prior_z > 0 && std::isfinite(prior_z);
+  for (int s = 0; s < kSeedPixels && prior_z > 0 && std::isfinite(prior_z) &&
+                  candidate(s) != nullptr;
        ++s) {
     ++*searched;
-    const Candidate& c = best[s];
+    const Candidate& c = *candidate(s);
     px = static_cast<float>(c.x);
     py = static_cast<float>(c.y);
     float gx = 0, gy = 0;
@@ -585,7 +637,7 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
     // 4.2 -> 6.6 %).
     if (n_found < o.enough_estimates) continue;
     double zf = 0, sf = 0;
-    const int used = detail::Fuse(found.data(), n_found, o.fuse_gate, &zf, &sf);
+    const int used = FuseFew(found.data(), n_found, o.fuse_gate, &zf, &sf);
     // Step 3's spread, the previous depth one more estimate of it; the
     // value is this frame's alone.
     double spread2 = 0.5 * (zf - prior_z) * (zf - prior_z);
@@ -636,8 +688,8 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
           return d;
     return -1;
   };
-  for (int s = 0; s < n_best; ++s) {
-    const Candidate& c = best[s];
+  for (int s = 0; candidate(s) != nullptr; ++s) {
+    const Candidate& c = *candidate(s);
     px = static_cast<float>(c.x);
     py = static_cast<float>(c.y);
     ++*searched;
@@ -666,7 +718,7 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
     if (n_mine == 0) continue;
     double z = 0, sigma = 0;
     // The pixel's ring-1 estimates fused with the dense estimator's gate (3 %).
-    if (detail::Fuse(mine.data(), n_mine, 0.03, &z, &sigma) == 0) continue;
+    if (FuseFew(mine.data(), n_mine, 0.03, &z, &sigma) == 0) continue;
     if (o.rings >= 2) {
       // |Delta| of ring 2 is sqrt(3) D: lambda sqrt(3) D px of disparity per unit z.
       const double dz2 = o.ring2_step_px / (f.lambda * std::sqrt(3.0) * f.grid.PitchPx());
@@ -689,20 +741,17 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
     // Enough agreeing estimates: the remaining (less textured) pixels are not searched.
     if (n_all >= o.enough_estimates) {
       double zz = 0, ss = 0;
-      if (detail::Fuse(all, n_all, o.fuse_gate, &zz, &ss) >= o.enough_estimates) break;
+      if (FuseFew(all, n_all, o.fuse_gate, &zz, &ss) >= o.enough_estimates) break;
     }
   }
 
   // 3. Fusion of the micro image's estimates.
   double z = 0, sigma = 0;
-  const int used = detail::Fuse(all, n_all, o.fuse_gate, &z, &sigma);
+  const int used = FuseFew(all, n_all, o.fuse_gate, &z, &sigma);
   if (used < o.min_estimates || !(z > 0)) return;
   // The agreeing estimates' weighted spread (they are not independent).
   {
-    std::array<double, 4 * kMaxSamples> zs;
-    for (int q = 0; q < n_all; ++q) zs[q] = all[q].z;
-    std::nth_element(zs.begin(), zs.begin() + n_all / 2, zs.begin() + n_all);
-    const double med = zs[n_all / 2];
+    const double med = MedianZ(all, n_all);
     double sw = 0, swd = 0;
     int n = 0;
     for (int q = 0; q < n_all; ++q) {
@@ -770,6 +819,8 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out,
         [&](const tbb::blocked_range<int>& r) {
           long long my_searched = 0, my_textured = 0, my_estimated = 0, my_seeded = 0,
                     my_held = 0;
+          thread_local GateScratch scratch;
+          scratch.Reserve(gate.n);
           for (int k = r.begin(); k < r.end(); ++k) {
             const MicroImage& m = f.lenses[k];
             const std::size_t cell =
@@ -781,7 +832,7 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out,
               prior_z = 1.0 / previous->virtual_depth[cell];
               prior_sigma_z = previous->sigma_z[cell];
             }
-            EstimateLens(f, options_, *tables_, candidates_, gate, range, ring1, ring2, grey, k,
+            EstimateLens(f, options_, *tables_, candidates_, gate, range, ring1, ring2, grey, scratch, k,
                          prior_z, prior_sigma_z, &out->virtual_depth[cell], &out->sigma_z[cell],
                          &out->confidence[cell], &out->textured[cell], &my_searched, &my_seeded,
                          &my_held);
