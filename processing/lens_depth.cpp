@@ -111,6 +111,12 @@ int FuseFew(const detail::Estimate* e, int n, double rel_gate, double* z, double
   return used;
 }
 
+// What a range of micro images did (LensDepthStats).
+struct LensCounts {
+  long long searched = 0, textured = 0, estimated = 0, seeded = 0, held = 0, predicted = 0,
+            predicted_held = 0;
+};
+
 // A thread's buffers of the candidate gate (scores and axes of a micro
 // image's candidates, kStripPad beyond them for the kernel): grown on a
 // thread's first micro image, then reused.
@@ -175,9 +181,13 @@ std::string LensDepthStats::BriefReport() const {
       "%.4f s, kernels %s",
       estimated, textured, textured ? 100.0 * estimated / textured : 0.0, lenses, searched_pixels,
       seconds, kernels[0] ? kernels : "none");
-  if (seeded > 0 && n > 0 && n < static_cast<int>(sizeof buf))
-    std::snprintf(buf + n, sizeof buf - n, ", previous depth held in %lld of %lld lenses",
-                  seed_held, seeded);
+  int at = n;
+  if (seeded > 0 && at > 0 && at < static_cast<int>(sizeof buf))
+    at += std::snprintf(buf + at, sizeof buf - at, ", previous depth held in %lld of %lld lenses",
+                        seed_held, seeded);
+  if (predicted > 0 && at > 0 && at < static_cast<int>(sizeof buf))
+    std::snprintf(buf + at, sizeof buf - at, ", neighbours' depth held in %lld of %lld lenses",
+                  predicted_held, predicted);
   return buf;
 }
 
@@ -383,8 +393,14 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
                   const CandidateGate& gate, const detail::SearchRange& range,
                   const detail::MatchParams& ring1, const detail::MatchParams& ring2,
                   const RawGrey<kChannels>& grey, GateScratch& scratch, int k, double prior_z,
-                  double prior_sigma_z, float* v_out, float* sigma_out, float* conf_out, std::uint8_t* textured_out,
-                  long long* searched, long long* seeded, long long* held) {
+                  double prior_sigma_z, double neighbour_z, double neighbour_sigma_z,
+                  float* v_out, float* sigma_out, float* conf_out, std::uint8_t* textured_out,
+                  LensCounts* counts) {
+  long long* const searched = &counts->searched;
+  long long* const seeded = &counts->seeded;
+  long long* const held = &counts->held;
+  long long* const predicted = &counts->predicted;
+  long long* const predicted_held = &counts->predicted_held;
   const MicroImage& lens = f.lenses[k];
   // 1. Candidates on a square grid around c_k (offsets made once per camera).
   const double cx = lens.centre_px.x(), cy = lens.centre_px.y();
@@ -688,6 +704,64 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
           return d;
     return -1;
   };
+  // 2c. The neighbours' depth (lens_depth.h, step 2b): one ring-2 search
+  // around it per pixel, on up to kSeedPixels of the most textured pixels
+  // with a ring-2 neighbour that sees the patch there; it holds at the
+  // first whose estimates agree with it within fuse_gate. Else the full
+  // search below, from nothing.
+  if (neighbour_z > 0 && std::isfinite(neighbour_z) && o.rings >= 2) {
+    ++*predicted;
+    auto window = [&](const detail::MatchParams& params, double length_pitches, double* z0,
+                      double* z1) {
+      const double dz = params.step_px / (f.lambda * length_pitches * f.grid.PitchPx());
+      double span = std::max(o.seed_window * neighbour_z, 2 * dz);
+      if (neighbour_sigma_z > 0 && std::isfinite(neighbour_sigma_z))
+        span = std::max(span, 3 * neighbour_sigma_z);
+      *z0 = std::max(lo, neighbour_z - span);
+      *z1 = std::min(hi, neighbour_z + span);
+    };
+    for (int s = 0; s < kSeedPixels && candidate(s) != nullptr; ++s) {
+      const Candidate& c = *candidate(s);
+      px = static_cast<float>(c.x);
+      py = static_cast<float>(c.y);
+      std::array<detail::Estimate, 4> found;
+      int n_found = 0;
+      double z0 = 0, z1 = 0;
+      // The best ring-2 axis that sees the patch at the neighbours' depth
+      // (the precise baseline); else the pixel's ring-1 axis (5 x 1).
+      const int axis2 = ring2_axis(c, neighbour_z);
+      if (axis2 >= 0) {
+        window(ring2, std::sqrt(3.0), &z0, &z1);
+        auto wanted = [&](const detail::Neighbour& nb) {
+          return SeesPatchAround(ring2, f.radius_px, 3, px, py, nb, neighbour_z);
+        };
+        search_axis(std::integral_constant<int, 3>{}, 3 + axis2, ring2, z0, z1, wanted,
+                    found.data(), &n_found);
+      } else if (o.ring1_lines == 1) {
+        window(ring1, 1.0, &z0, &z1);
+        auto wanted = [&](const detail::Neighbour& nb) {
+          return SeesPatchAround(ring1, f.radius_px, 1, px, py, nb, neighbour_z);
+        };
+        search_axis(std::integral_constant<int, 1>{}, c.axis, ring1, z0, z1, wanted, found.data(),
+                    &n_found);
+      }
+      ++*searched;
+      double zf = 0, sf = 0;
+      if (FuseFew(found.data(), n_found, o.fuse_gate, &zf, &sf) != n_found || n_found == 0 ||
+          !(zf > 0) || std::abs(zf - neighbour_z) > o.fuse_gate * neighbour_z)
+        continue;
+      // The spread to the neighbours' depth counts as step 3's spread of
+      // two estimates; the value is this lens's own estimate.
+      const double sigma = std::sqrt(std::max(sf * sf, 0.5 * (zf - neighbour_z) * (zf - neighbour_z)));
+      if (sigma / zf > o.max_rel_sigma) continue;
+      ++*predicted_held;
+      *v_out = static_cast<float>(1.0 / zf);
+      *sigma_out = static_cast<float>(sigma);
+      *conf_out = static_cast<float>(std::clamp(1.0 - (sigma / zf) / o.max_rel_sigma, 0.0, 1.0));
+      return;
+    }
+  }
+
   for (int s = 0; candidate(s) != nullptr; ++s) {
     const Candidate& c = *candidate(s);
     px = static_cast<float>(c.x);
@@ -810,19 +884,60 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out,
   };
   const detail::MatchParams ring1 = params(options_.ring1_step_px);
   const detail::MatchParams ring2 = params(options_.ring2_step_px);
-  std::atomic<long long> searched{0}, textured{0}, estimated{0}, seeded{0}, held{0};
+  std::atomic<long long> searched{0}, textured{0}, estimated{0}, seeded{0}, held{0},
+      predicted{0}, predicted_held{0};
   const CandidateGate gate{candidate_dx_.data(), candidate_dy_.data(),
                            static_cast<int>(candidates_.size()), candidate_reach_};
-  auto run = [&](const auto& grey) {
+  // With the neighbours' depth (lens_depth.h, step 2b): the lenses by type,
+  // type 0 first from nothing, then type 1 seeded by its type-0 ring-1
+  // neighbours, then type 2 by all six (types 0 and 1): a pass reads only
+  // the cells of passes finished before it.
+  const bool by_neighbours = previous == nullptr && options_.neighbour_seed && options_.rings >= 2;
+  // The depth of lens m's ring-1 neighbours of types below its own: the
+  // mean z of those within fuse_gate of their median and the spread of
+  // those; 0 where fewer than two have a depth or more than one disagrees.
+  auto neighbours_z = [&](const MicroImage& m, double* z_spread) {
+    std::array<double, 6> zs;
+    int n = 0;
+    for (const auto& d : detail::kRing1) {
+      const int idx = f.LensAt(m.i + d[0], m.j + d[1]);
+      if (idx < 0 || f.lenses[idx].type >= m.type) continue;
+      const float v = out->virtual_depth[static_cast<std::size_t>(grid_.Row(m.j + d[1])) *
+                                             grid_.cols +
+                                         grid_.Col(m.i + d[0], m.j + d[1])];
+      if (v > 0) {
+        // Sorted as they come (at most six).
+        const double z = 1.0 / v;
+        int q = n++;
+        for (; q > 0 && zs[q - 1] > z; --q) zs[q] = zs[q - 1];
+        zs[q] = z;
+      }
+    }
+    if (n < 2) return 0.0;
+    const double median = zs[n / 2];
+    double sum = 0, sum2 = 0;
+    int inliers = 0;
+    for (int q = 0; q < n; ++q)
+      if (std::abs(zs[q] - median) <= options_.fuse_gate * median) {
+        sum += zs[q];
+        sum2 += zs[q] * zs[q];
+        ++inliers;
+      }
+    if (inliers < 2 || inliers < n - 1) return 0.0;
+    const double mean = sum / inliers;
+    *z_spread = std::sqrt(std::max(0.0, sum2 / inliers - mean * mean));
+    return mean;
+  };
+  auto run = [&](const auto& grey, int pass) {
     tbb::parallel_for(
         tbb::blocked_range<int>(0, static_cast<int>(f.lenses.size()), 64),
         [&](const tbb::blocked_range<int>& r) {
-          long long my_searched = 0, my_textured = 0, my_estimated = 0, my_seeded = 0,
-                    my_held = 0;
+          LensCounts my;
           thread_local GateScratch scratch;
           scratch.Reserve(gate.n);
           for (int k = r.begin(); k < r.end(); ++k) {
             const MicroImage& m = f.lenses[k];
+            if (by_neighbours && m.type != pass) continue;
             const std::size_t cell =
                 static_cast<std::size_t>(grid_.Row(m.j)) * grid_.cols + grid_.Col(m.i, m.j);
             out->type[cell] = static_cast<std::int8_t>(m.type);
@@ -832,18 +947,22 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out,
               prior_z = 1.0 / previous->virtual_depth[cell];
               prior_sigma_z = previous->sigma_z[cell];
             }
-            EstimateLens(f, options_, *tables_, candidates_, gate, range, ring1, ring2, grey, scratch, k,
-                         prior_z, prior_sigma_z, &out->virtual_depth[cell], &out->sigma_z[cell],
-                         &out->confidence[cell], &out->textured[cell], &my_searched, &my_seeded,
-                         &my_held);
-            my_textured += out->textured[cell];
-            my_estimated += !std::isnan(out->virtual_depth[cell]);
+            double neighbour_z = 0, neighbour_sigma_z = 0;
+            if (by_neighbours && pass > 0) neighbour_z = neighbours_z(m, &neighbour_sigma_z);
+            EstimateLens(f, options_, *tables_, candidates_, gate, range, ring1, ring2, grey,
+                         scratch, k, prior_z, prior_sigma_z, neighbour_z, neighbour_sigma_z,
+                         &out->virtual_depth[cell], &out->sigma_z[cell], &out->confidence[cell],
+                         &out->textured[cell], &my);
+            my.textured += out->textured[cell];
+            my.estimated += !std::isnan(out->virtual_depth[cell]);
           }
-          searched += my_searched;
-          textured += my_textured;
-          estimated += my_estimated;
-          seeded += my_seeded;
-          held += my_held;
+          searched += my.searched;
+          textured += my.textured;
+          estimated += my.estimated;
+          seeded += my.seeded;
+          held += my.held;
+          predicted += my.predicted;
+          predicted_held += my.predicted_held;
         });
   };
   // The kernels address the frame with 32-bit byte offsets.
@@ -856,10 +975,12 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out,
   const detail::StripSource source{raw.data,      raw.stride_bytes,
                                    raw.format == PixelFormat::kBgr8 ? 3 : 1,
                                    gain_->q.data(), f.width, nullptr, gain_->scale};
-  if (raw.format == PixelFormat::kBgr8)
-    run(RawGrey<3>{raw, *gain_, f.width, kernels, source});
-  else
-    run(RawGrey<1>{raw, *gain_, f.width, kernels, source});
+  for (int pass = 0; pass < (by_neighbours ? 3 : 1); ++pass) {
+    if (raw.format == PixelFormat::kBgr8)
+      run(RawGrey<3>{raw, *gain_, f.width, kernels, source}, pass);
+    else
+      run(RawGrey<1>{raw, *gain_, f.width, kernels, source}, pass);
+  }
   LensDepthStats& st = out->stats;
   st = LensDepthStats{};
   st.lenses = static_cast<long long>(f.lenses.size());
@@ -868,6 +989,8 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out,
   st.searched_pixels = searched.load();
   st.seeded = seeded.load();
   st.seed_held = held.load();
+  st.predicted = predicted.load();
+  st.predicted_held = predicted_held.load();
   st.kernels = kernels != nullptr ? kernels->name : "";
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return Status::Ok();

@@ -28,6 +28,27 @@
 //    nothing but the time, and choosing the ring-2 axis so gives more
 //    ring-2 estimates (on a micro image's small virtual depths most ring-2
 //    neighbours see a pixel at no depth near z).
+// 2b. The neighbours' depth (LensDepthOptions::neighbour_seed, without a
+//    previous map): the lenses are estimated by type in three passes, type
+//    0 from nothing (steps 2, 3), then type 1 and then type 2, each lens
+//    seeded by its ring-1 neighbours of the types before its own (three of
+//    type 0 for type 1, all six for type 2; a scene's depth varies little
+//    over one pitch, and a neighbour on each side brackets a slope). Their
+//    depth z_n: the mean z of those within fuse_gate of their median,
+//    where at least two have a depth and at most one lies outside. Then on
+//    up to kSeedPixels (2) of step 1's most textured pixels in turn, one
+//    search around z_n (+- max(seed_window z_n, 3 spread, 2 steps)): on the
+//    best ring-2 axis with a neighbour that sees the patch at z_n, else on
+//    the pixel's ring-1 axis (5 x 1). It holds when its estimates (one per
+//    neighbour on the axis that sees the patch) agree and their fusion lies
+//    within fuse_gate z_n of z_n: the lens takes that fusion, its own
+//    measurement (sigma_z also from its spread to z_n). Else step 2 from
+//    nothing. One search instead of about three and a half, the neighbours'
+//    agreement standing for the second estimate: a lens whose neighbours
+//    straddle a depth edge is searched from nothing (they disagree), one
+//    whose depth differs from neighbours that agree finds its minimum off
+//    the window's middle or none (measured: docs/processing.md, "Per-lens
+//    virtual depth").
 // 2a. The temporal seed (Estimate with the previous frame's map): where the
 //    micro image's cell has a previous depth z_p, step 1's two most
 //    textured pixels in turn are searched around z_p only (+-
@@ -72,9 +93,10 @@
 // the frame, through the scalar code here and in epipolar_search.h
 // elsewhere.
 //
-// Work is parallel over micro images (TBB); each cell is written once.
-// Estimate allocates nothing once `out` has the grid's size (a workspace
-// reused frame after frame).
+// Work is parallel over micro images (TBB), in the passes of step 2b; each
+// cell is written once. Estimate allocates nothing once `out` has the
+// grid's size (a workspace reused frame after frame) and each thread has
+// estimated once (its candidate-gate buffer).
 
 #include "config/error.h"
 #include "config/image.h"
@@ -119,6 +141,10 @@ struct LensDepthOptions {
   // The temporal seed (Estimate with a previous map): the search around a
   // lens's previous depth spans +- max(seed_window z, 3 sigma_z, 2 steps).
   double seed_window = 0.05;
+  // The lenses of types 1 and 2 searched first around the depth of their
+  // type-0 ring-1 neighbours, estimated first (step 2b of the header
+  // comment); false: every lens from nothing. Only without a previous map.
+  bool neighbour_seed = true;
   // The candidate gate and the searches' strip sampling and SSD through
   // Highway's runtime dispatch (processing/lens_search_simd.h); false: the
   // scalar reference (the same map, at its speed).
@@ -159,6 +185,8 @@ struct LensDepthStats {
   long long searched_pixels = 0;
   long long seeded = 0;     // with a previous depth (Estimate with a previous map)
   long long seed_held = 0;  // of those, where it held (no full search)
+  long long predicted = 0;       // seeded by their neighbours' depth (step 2b)
+  long long predicted_held = 0;  // of those, where it held
   double seconds = 0;
   // The kernels that ran (lens_search_simd.h): "scalar" or Highway's target
   // ("AVX3", "AVX2", "SSE4", "NEON", ...); "" when none could (a frame of 2 GB or more).
