@@ -335,6 +335,21 @@ Expected<std::unique_ptr<LensDepthEstimator>> LensDepthEstimator::Create(
   }
   e->candidate_dx_.resize(e->candidates_.size() + detail::kStripPad, 0);
   e->candidate_dy_.resize(e->candidates_.size() + detail::kStripPad, 0);
+  // Micro images by (grid row, type), each group in the order of the lenses.
+  {
+    const LensGrid& g = e->grid_;
+    const auto& lenses = e->geometry_.lenses;
+    std::vector<std::int32_t> count(3 * static_cast<std::size_t>(g.rows) + 1, 0);
+    auto group = [&](const MicroImage& m) {
+      return 3 * static_cast<std::size_t>(g.Row(m.j)) + static_cast<std::size_t>(m.type);
+    };
+    for (const MicroImage& m : lenses) ++count[group(m) + 1];
+    for (std::size_t q = 1; q < count.size(); ++q) count[q] += count[q - 1];
+    e->row_type_start_ = count;
+    e->by_row_type_.resize(lenses.size());
+    for (std::size_t k = 0; k < lenses.size(); ++k)
+      e->by_row_type_[count[group(lenses[k])]++] = static_cast<std::int32_t>(k);
+  }
   return e;
 }
 
@@ -928,42 +943,73 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out,
     *z_spread = std::sqrt(std::max(0.0, sum2 / inliers - mean * mean));
     return mean;
   };
-  auto run = [&](const auto& grey, int pass) {
-    tbb::parallel_for(
-        tbb::blocked_range<int>(0, static_cast<int>(f.lenses.size()), 64),
-        [&](const tbb::blocked_range<int>& r) {
+  // One lens (its cell written once).
+  auto one = [&](const auto& grey, GateScratch& scratch, int k, bool seeded_by_neighbours,
+                 LensCounts* my) {
+    const MicroImage& m = f.lenses[k];
+    const std::size_t cell =
+        static_cast<std::size_t>(grid_.Row(m.j)) * grid_.cols + grid_.Col(m.i, m.j);
+    out->type[cell] = static_cast<std::int8_t>(m.type);
+    out->lens[cell] = k;
+    double prior_z = 0, prior_sigma_z = 0;
+    if (previous != nullptr && previous->virtual_depth[cell] > 0) {
+      prior_z = 1.0 / previous->virtual_depth[cell];
+      prior_sigma_z = previous->sigma_z[cell];
+    }
+    double neighbour_z = 0, neighbour_sigma_z = 0;
+    if (seeded_by_neighbours) neighbour_z = neighbours_z(m, &neighbour_sigma_z);
+    EstimateLens(f, options_, *tables_, candidates_, gate, range, ring1, ring2, grey, scratch, k,
+                 prior_z, prior_sigma_z, neighbour_z, neighbour_sigma_z, &out->virtual_depth[cell],
+                 &out->sigma_z[cell], &out->confidence[cell], &out->textured[cell], my);
+    my->textured += out->textured[cell];
+    my->estimated += !std::isnan(out->virtual_depth[cell]);
+  };
+  auto add = [&](const LensCounts& my) {
+    searched += my.searched;
+    textured += my.textured;
+    estimated += my.estimated;
+    seeded += my.seeded;
+    held += my.held;
+    predicted += my.predicted;
+    predicted_held += my.predicted_held;
+  };
+  auto run = [&](const auto& grey) {
+    if (!by_neighbours) {
+      tbb::parallel_for(tbb::blocked_range<int>(0, static_cast<int>(f.lenses.size()), 64),
+                        [&](const tbb::blocked_range<int>& r) {
+                          LensCounts my;
+                          thread_local GateScratch scratch;
+                          scratch.Reserve(gate.n);
+                          for (int k = r.begin(); k < r.end(); ++k)
+                            one(grey, scratch, k, false, &my);
+                          add(my);
+                        });
+      return;
+    }
+    // The passes of step 2b in bands of kBand grid rows, type t a band
+    // behind type t - 1 (a lens's ring-1 neighbours lie in the rows next
+    // to its own, so those of the types before its own are done): the
+    // frame's lines a band's searches read are still in the cache for the
+    // next type's, where three passes over the whole frame read it from
+    // memory three times.
+    constexpr int kBand = 8;
+    for (int top = 0; top < grid_.rows + 2 * kBand; top += kBand)
+      for (int type = 0; type < 3; ++type) {
+        const int r0 = std::max(0, top - type * kBand);
+        const int r1 = std::min(grid_.rows, top - type * kBand + kBand);
+        if (r0 >= r1) continue;
+        const int q0 = row_type_start_[3 * r0], q1 = row_type_start_[3 * r1];
+        tbb::parallel_for(tbb::blocked_range<int>(q0, q1, 32), [&](const tbb::blocked_range<int>& r) {
           LensCounts my;
           thread_local GateScratch scratch;
           scratch.Reserve(gate.n);
-          for (int k = r.begin(); k < r.end(); ++k) {
-            const MicroImage& m = f.lenses[k];
-            if (by_neighbours && m.type != pass) continue;
-            const std::size_t cell =
-                static_cast<std::size_t>(grid_.Row(m.j)) * grid_.cols + grid_.Col(m.i, m.j);
-            out->type[cell] = static_cast<std::int8_t>(m.type);
-            out->lens[cell] = k;
-            double prior_z = 0, prior_sigma_z = 0;
-            if (previous != nullptr && previous->virtual_depth[cell] > 0) {
-              prior_z = 1.0 / previous->virtual_depth[cell];
-              prior_sigma_z = previous->sigma_z[cell];
-            }
-            double neighbour_z = 0, neighbour_sigma_z = 0;
-            if (by_neighbours && pass > 0) neighbour_z = neighbours_z(m, &neighbour_sigma_z);
-            EstimateLens(f, options_, *tables_, candidates_, gate, range, ring1, ring2, grey,
-                         scratch, k, prior_z, prior_sigma_z, neighbour_z, neighbour_sigma_z,
-                         &out->virtual_depth[cell], &out->sigma_z[cell], &out->confidence[cell],
-                         &out->textured[cell], &my);
-            my.textured += out->textured[cell];
-            my.estimated += !std::isnan(out->virtual_depth[cell]);
+          for (int q = r.begin(); q < r.end(); ++q) {
+            const int k = by_row_type_[q];
+            if (f.lenses[k].type == type) one(grey, scratch, k, type > 0, &my);
           }
-          searched += my.searched;
-          textured += my.textured;
-          estimated += my.estimated;
-          seeded += my.seeded;
-          held += my.held;
-          predicted += my.predicted;
-          predicted_held += my.predicted_held;
+          add(my);
         });
+      }
   };
   // The kernels address the frame with 32-bit byte offsets.
   const bool addressable = static_cast<double>(raw.stride_bytes) * raw.height < 2147483648.0 &&
@@ -975,12 +1021,10 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out,
   const detail::StripSource source{raw.data,      raw.stride_bytes,
                                    raw.format == PixelFormat::kBgr8 ? 3 : 1,
                                    gain_->q.data(), f.width, nullptr, gain_->scale};
-  for (int pass = 0; pass < (by_neighbours ? 3 : 1); ++pass) {
-    if (raw.format == PixelFormat::kBgr8)
-      run(RawGrey<3>{raw, *gain_, f.width, kernels, source}, pass);
-    else
-      run(RawGrey<1>{raw, *gain_, f.width, kernels, source}, pass);
-  }
+  if (raw.format == PixelFormat::kBgr8)
+    run(RawGrey<3>{raw, *gain_, f.width, kernels, source});
+  else
+    run(RawGrey<1>{raw, *gain_, f.width, kernels, source});
   LensDepthStats& st = out->stats;
   st = LensDepthStats{};
   st.lenses = static_cast<long long>(f.lenses.size());

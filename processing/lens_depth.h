@@ -277,6 +277,11 @@ class LensDepthEstimator {
   std::unique_ptr<LatticeTables> tables_;
   // The searches' devignetting gain in 16 bits (lens_search_simd.h).
   std::unique_ptr<detail::Gain16> gain_;
+  // The micro images by lens-grid row and type: those of row r and type t
+  // are by_row_type_[row_type_start_[3 r + t] .. row_type_start_[3 r + t + 1])
+  // (the passes of step 2b in bands of rows).
+  std::vector<std::int32_t> by_row_type_;
+  std::vector<std::int32_t> row_type_start_;
 };
 
 }  // namespace lifmcr::processing
