@@ -692,7 +692,6 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
     }
   }
 
-  // 2b. The full search (no prior, or it did not hold).
   // Of candidate c, the ring-2 axis with the largest gradient along it among
   // those with a neighbour that sees c's 5 x 3 patch at z with a step to
   // spare (SeesPatchAround), in the order of the gradient: the first that
@@ -719,11 +718,11 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
           return d;
     return -1;
   };
-  // 2c. The neighbours' depth (lens_depth.h, step 2b): one ring-2 search
-  // around it per pixel, on up to kSeedPixels of the most textured pixels
-  // with a ring-2 neighbour that sees the patch there; it holds at the
-  // first whose estimates agree with it within fuse_gate. Else the full
-  // search below, from nothing.
+  // 2b. The neighbours' depth (lens_depth.h): one search around it per
+  // pixel, on up to kSeedPixels of the most textured pixels (the best
+  // ring-2 axis that sees the patch there, else the pixel's ring-1 axis);
+  // it holds at the first whose estimates agree with it within fuse_gate.
+  // Else the full search below, from nothing.
   if (neighbour_z > 0 && std::isfinite(neighbour_z) && o.rings >= 2) {
     ++*predicted;
     auto window = [&](const detail::MatchParams& params, double length_pitches, double* z0,
@@ -777,6 +776,7 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
     }
   }
 
+  // 2c. The full search (no prior, or it did not hold).
   for (int s = 0; candidate(s) != nullptr; ++s) {
     const Candidate& c = *candidate(s);
     px = static_cast<float>(c.x);

@@ -28,6 +28,20 @@
 //    nothing but the time, and choosing the ring-2 axis so gives more
 //    ring-2 estimates (on a micro image's small virtual depths most ring-2
 //    neighbours see a pixel at no depth near z).
+// 2a. The temporal seed (Estimate with the previous frame's map): where the
+//    micro image's cell has a previous depth z_p, step 1's two most
+//    textured pixels in turn are searched around z_p only (+-
+//    max(seed_window z_p, 3 sigma_z, 2 steps)) on the axes with a neighbour
+//    that sees the pixel's patch at z_p and a gradient along them of at
+//    least min_gradient_dn: the best ring-2 axis, then the ring-1 axes
+//    (5 x 1: cheap), then the other ring-2 axes, until two estimates. It
+//    holds when they agree (step 3's fusion) and their fusion lies within
+//    fuse_gate z_p of z_p: the lens takes that fusion (sigma_z also from
+//    its spread to z_p) and is not searched further. Where it does not hold
+//    (a depth edge moved through the lens, the camera was knocked) step 2
+//    runs from nothing, the seeded estimates dropped: such a lens gets the
+//    map it gets without a seed. What it costs and saves:
+//    docs/processing.md, "Temporal seed".
 // 2b. The neighbours' depth (LensDepthOptions::neighbour_seed, without a
 //    previous map): the lenses are estimated by type in three passes, type
 //    0 from nothing (steps 2, 3), then type 1 and then type 2, each lens
@@ -46,23 +60,8 @@
 //    nothing. One search instead of about three and a half, the neighbours'
 //    agreement standing for the second estimate: a lens whose neighbours
 //    straddle a depth edge is searched from nothing (they disagree), one
-//    whose depth differs from neighbours that agree finds its minimum off
-//    the window's middle or none (measured: docs/processing.md, "Per-lens
-//    virtual depth").
-// 2a. The temporal seed (Estimate with the previous frame's map): where the
-//    micro image's cell has a previous depth z_p, step 1's two most
-//    textured pixels in turn are searched around z_p only (+-
-//    max(seed_window z_p, 3 sigma_z, 2 steps)) on the axes with a neighbour
-//    that sees the pixel's patch at z_p and a gradient along them of at
-//    least min_gradient_dn: the best ring-2 axis, then the ring-1 axes
-//    (5 x 1: cheap), then the other ring-2 axes, until two estimates. It
-//    holds when they agree (step 3's fusion) and their fusion lies within
-//    fuse_gate z_p of z_p: the lens takes that fusion (sigma_z also from
-//    its spread to z_p) and is not searched further. Where it does not hold
-//    (a depth edge moved through the lens, the camera was knocked) step 2
-//    runs from nothing, the seeded estimates dropped: such a lens gets the
-//    map it gets without a seed. What it costs and saves:
-//    docs/processing.md, "Temporal seed".
+//    whose own estimate lies more than fuse_gate from theirs too (figures:
+//    docs/processing.md, "Per-lens virtual depth").
 // 3. All estimates of the micro image (up to 4 per searched pixel) are fused
 //    in z = 1 / v weighted by 1 / sigma^2, without those farther than
 //    max(3 sigma, fuse_gate z) from their median; at least min_estimates
