@@ -26,7 +26,8 @@
 //               references or TF) [--dense 0] (with --lens-only 1: no dense baseline)
 //               [--lens-path scalar|simd|both] [--lens-samples N] [--lens-previous 0|1]
 //               (1: each per-lens run seeded by the run before's map, the temporal seed of
-//               a camera that did not move: its best case)
+//               a camera that did not move: its best case) [--lens-neighbours 0|1]
+//               (LensDepthOptions::neighbour_seed; 0: every lens searched from nothing)
 //               [--seed full|seeded|both] [--dense-path scalar|simd|both] [--seed-margin PX]
 //               [--seed-ring1 1..6] [--seed-ring2 0..6] [--seed-cost-ratio R] [--seed-stride 0..8]
 //               (DepthOptions)
@@ -302,7 +303,7 @@ constexpr char kUsage[] =
     "                   [--crop PX] [--stride 0|1|2] [--ring1 1..6] [--ring2 0..6]\n"
     "                   [--type-ranges 0|1] [--lens-only 1] [--dense 0|1]\n"
     "                   [--lens-path scalar|simd|both] [--lens-samples N]\n"
-    "                   [--lens-previous 0|1]\n"
+    "                   [--lens-previous 0|1] [--lens-neighbours 0|1]\n"
     "                   [--seed full|seeded|both] [--dense-path scalar|simd|both]\n"
     "                   [--seed-margin PX] [--seed-ring1 1..6] [--seed-ring2 0..6]\n"
     "                   [--seed-cost-ratio R] [--seed-stride 0..8] [--frames FILE]\n"
@@ -316,6 +317,8 @@ constexpr char kUsage[] =
     "exist, read when it holds this preset and scene; the r32 frames take 45 s to render).\n"
     "--lens-previous 1 seeds each per-lens run by the run before's map (the temporal seed\n"
     "of a camera that did not move: its best case, not a moving camera's figure).\n"
+    "--lens-neighbours 0 searches every lens from nothing (default 1: the lenses of types 1\n"
+    "and 2 first around their earlier-type neighbours' depth, LensDepthOptions::neighbour_seed).\n"
     "--tf-only MAP: the TF image alone (with its baselines), on the seeded SIMD dense map kept\n"
     "in MAP (estimated once and written when MAP does not hold this preset and scene).\n"
     "--tf-out FILE writes the TF image there (PGM or PPM) to compare two builds' images.\n";
@@ -372,6 +375,8 @@ int main(int argc, char** argv) {
       tf_out = argv[k + 1];
     else if (!std::strcmp(argv[k], "--lens-previous"))
       lens_previous = std::atoi(argv[k + 1]) != 0;
+    else if (!std::strcmp(argv[k], "--lens-neighbours"))
+      lens_options.neighbour_seed = std::atoi(argv[k + 1]) != 0;
     else if (!std::strcmp(argv[k], "--lens-samples"))
       lens_options.samples = std::atoi(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--ring2"))

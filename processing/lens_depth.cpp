@@ -76,6 +76,61 @@ struct Uninitialised {
   };
 };
 
+// The median of z over e[0..n) (n <= 4 kMaxSamples): the value nth_element
+// puts at n / 2, by an insertion sort (a micro image has 1-8 estimates:
+// nth_element's set-up cost more than the sort).
+double MedianZ(const detail::Estimate* e, int n) {
+  std::array<double, 4 * kMaxSamples> zs;
+  for (int i = 0; i < n; ++i) {
+    const double z = e[i].z;
+    int q = i;
+    for (; q > 0 && zs[q - 1] > z; --q) zs[q] = zs[q - 1];
+    zs[q] = z;
+  }
+  return zs[n / 2];
+}
+
+// detail::Fuse of epipolar_search.h (the same numbers) for the few
+// estimates of a micro image: its median through MedianZ.
+int FuseFew(const detail::Estimate* e, int n, double rel_gate, double* z, double* sigma) {
+  if (n == 0) return 0;
+  const double med = MedianZ(e, n);
+  double sw = 0, swz = 0;
+  int used = 0;
+  for (int i = 0; i < n; ++i) {
+    const detail::Estimate& x = e[i];
+    if (std::abs(x.z - med) > std::max(3 * x.sigma, rel_gate * med)) continue;
+    const double w = 1.0 / (x.sigma * x.sigma);
+    sw += w;
+    swz += w * x.z;
+    ++used;
+  }
+  if (used == 0) return 0;
+  *z = swz / sw;
+  *sigma = std::sqrt(1.0 / sw);
+  return used;
+}
+
+// What a range of micro images did (LensDepthStats).
+struct LensCounts {
+  long long searched = 0, textured = 0, estimated = 0, seeded = 0, held = 0, predicted = 0,
+            predicted_held = 0;
+};
+
+// A thread's buffers of the candidate gate (scores and axes of a micro
+// image's candidates, kStripPad beyond them for the kernel): grown on a
+// thread's first micro image, then reused.
+struct GateScratch {
+  std::vector<float> score;
+  std::vector<std::int32_t> axis;
+  void Reserve(int n) {
+    if (score.size() < static_cast<std::size_t>(n + detail::kStripPad)) {
+      score.resize(n + detail::kStripPad);
+      axis.resize(n + detail::kStripPad);
+    }
+  }
+};
+
 struct Candidate {
   float score = 0;
   int x = 0, y = 0;
@@ -126,9 +181,13 @@ std::string LensDepthStats::BriefReport() const {
       "%.4f s, kernels %s",
       estimated, textured, textured ? 100.0 * estimated / textured : 0.0, lenses, searched_pixels,
       seconds, kernels[0] ? kernels : "none");
-  if (seeded > 0 && n > 0 && n < static_cast<int>(sizeof buf))
-    std::snprintf(buf + n, sizeof buf - n, ", previous depth held in %lld of %lld lenses",
-                  seed_held, seeded);
+  int at = n;
+  if (seeded > 0 && at > 0 && at < static_cast<int>(sizeof buf))
+    at += std::snprintf(buf + at, sizeof buf - at, ", previous depth held in %lld of %lld lenses",
+                        seed_held, seeded);
+  if (predicted > 0 && at > 0 && at < static_cast<int>(sizeof buf))
+    std::snprintf(buf + at, sizeof buf - at, ", neighbours' depth held in %lld of %lld lenses",
+                  predicted_held, predicted);
   return buf;
 }
 
@@ -276,6 +335,21 @@ Expected<std::unique_ptr<LensDepthEstimator>> LensDepthEstimator::Create(
   }
   e->candidate_dx_.resize(e->candidates_.size() + detail::kStripPad, 0);
   e->candidate_dy_.resize(e->candidates_.size() + detail::kStripPad, 0);
+  // Micro images by (grid row, type), each group in the order of the lenses.
+  {
+    const LensGrid& g = e->grid_;
+    const auto& lenses = e->geometry_.lenses;
+    std::vector<std::int32_t> count(3 * static_cast<std::size_t>(g.rows) + 1, 0);
+    auto group = [&](const MicroImage& m) {
+      return 3 * static_cast<std::size_t>(g.Row(m.j)) + static_cast<std::size_t>(m.type);
+    };
+    for (const MicroImage& m : lenses) ++count[group(m) + 1];
+    for (std::size_t q = 1; q < count.size(); ++q) count[q] += count[q - 1];
+    e->row_type_start_ = count;
+    e->by_row_type_.resize(lenses.size());
+    for (std::size_t k = 0; k < lenses.size(); ++k)
+      e->by_row_type_[count[group(lenses[k])]++] = static_cast<std::int32_t>(k);
+  }
   return e;
 }
 
@@ -297,12 +371,12 @@ bool SeesPatchAround(const detail::MatchParams& params, double radius_px, int li
 }
 
 // The reference patch of epipolar_search.h's SampleReference (the same
-// samples, to the last bit), its lines read by the strip kernel where the
-// patch lies inside the disc and well inside the frame (the scalar
-// bilinear reads cost about 130 instructions a sample; the ring-2 patch was
-// an eighth of the estimator's instructions on a `medium` frame). Line b
-// is StripLine {p, e, b e_y, b e_x, along0 -2, step 1, 5 samples}: sample i
-// at t = 2 - i, so patch column a = -2..2 is strip sample 2 - a.
+// samples, to the last bit), read by the patch kernel (lens_search_simd.h,
+// SamplePatchFn: all lines in one call) where the patch lies inside the
+// disc and well inside the frame (the scalar bilinear reads cost about 130
+// instructions a sample; the ring-2 patch was an eighth of the estimator's
+// instructions on a `medium` frame, and with one strip-kernel call per
+// line the patches made half of that kernel's calls).
 template <int kLines, int kChannels>
 bool SampleReferencePatch(const RawGrey<kChannels>& grey, int width, int height, float px,
                           float py, float e_x, float e_y, float cx, float cy, float r2,
@@ -315,26 +389,13 @@ bool SampleReferencePatch(const RawGrey<kChannels>& grey, int width, int height,
       px < 3 || py < 3 || px + 3 > width - 3 || py + 3 > height - 3)
     return detail::SampleReference<kLines>(grey, width, height, px, py, e_x, e_y, cx, cy, r2,
                                            out);
-  float line[detail::kAlong + detail::kStripPad];
-  for (int b = -kHalf; b <= kHalf; ++b) {
-    detail::StripLine l;
-    l.px = px;
-    l.py = py;
-    l.e_x = e_x;
-    l.e_y = e_y;
-    l.b_ey = static_cast<float>(b) * e_y;
-    l.b_ex = static_cast<float>(b) * e_x;
-    l.along0 = -2;
-    l.step = 1;
-    l.n = detail::kAlong;
-    l.j_lo = 0;
-    l.j_hi = detail::kAlong - 1;
-    grey.kernels->sample(grey.source, l, line);
-    float* row = out + (b + kHalf) * detail::kAlong;
-    for (int a = -2; a <= 2; ++a) {
-      row[a + 2] = line[2 - a];
-      if (std::isnan(row[a + 2])) return false;
-    }
+  // All its lines in one kernel call (lens_search_simd.h, SamplePatchFn).
+  constexpr int kN = detail::kAlong * kLines;
+  float samples[kN + detail::kStripPad];
+  grey.kernels->patch(grey.source, px, py, e_x, e_y, kLines, samples);
+  for (int m = 0; m < kN; ++m) {
+    out[m] = samples[m];
+    if (std::isnan(out[m])) return false;
   }
   return true;
 }
@@ -346,38 +407,17 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
                   const std::vector<std::array<std::int16_t, 2>>& candidates,
                   const CandidateGate& gate, const detail::SearchRange& range,
                   const detail::MatchParams& ring1, const detail::MatchParams& ring2,
-                  const RawGrey<kChannels>& grey, int k, double prior_z, double prior_sigma_z,
+                  const RawGrey<kChannels>& grey, GateScratch& scratch, int k, double prior_z,
+                  double prior_sigma_z, double neighbour_z, double neighbour_sigma_z,
                   float* v_out, float* sigma_out, float* conf_out, std::uint8_t* textured_out,
-                  long long* searched, long long* seeded, long long* held) {
+                  LensCounts* counts) {
+  long long* const searched = &counts->searched;
+  long long* const seeded = &counts->seeded;
+  long long* const held = &counts->held;
+  long long* const predicted = &counts->predicted;
+  long long* const predicted_held = &counts->predicted_held;
   const MicroImage& lens = f.lenses[k];
-  // The neighbours that exist, from the lattice's templates (c_n - c_k =
-  // A (di, dj) for every lens, and the type rule (i - j) mod 3 makes ring 1
-  // of the other types, ring 2 of the same): the neighbours' MicroImage
-  // records are not read (a cache miss each, rows of lenses apart).
-  Uninitialised<detail::Neighbour, 12> nbs_store;
-  detail::Neighbour* const nbs = nbs_store.v;
-  int count = 0;
-  std::array<std::array<int, 2>, 6> axis_nb;
-  std::array<int, 6> axis_n{};
-  for (int m = 0; m < 6 * o.rings; ++m) {
-    const auto& d = m < 6 ? detail::kRing1[m] : detail::kRing2[m - 6];
-    const int idx = f.LensAt(lens.i + d[0], lens.j + d[1]);
-    if (idx < 0) continue;
-    detail::Neighbour& nb = nbs[count];
-    nb = tables.neighbour[m];
-    nb.lens = &f.lenses[idx];
-    nb.cx = static_cast<float>(lens.centre_px.x() + tables.delta[m][0]);
-    nb.cy = static_cast<float>(lens.centre_px.y() + tables.delta[m][1]);
-    nb.same_type = m >= 6;
-    axis_nb[nb.axis][axis_n[nb.axis]++] = count;
-    ++count;
-  }
-  const std::array<std::array<float, 2>, 6>& axis_e = tables.axis_e;
-
   // 1. Candidates on a square grid around c_k (offsets made once per camera).
-  std::array<Candidate, kMaxSamples> best{};
-  int n_best = 0;
-  bool any_textured = false;
   const double cx = lens.centre_px.x(), cy = lens.centre_px.y();
   const int ix = static_cast<int>(std::floor(cx + 0.5));
   const int iy = static_cast<int>(std::floor(cy + 0.5));
@@ -390,78 +430,120 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
   const float centre_gain = grey.Gain(ix, iy);
   if (!std::isfinite(centre_gain)) return;
   const float to_grey = 0.5f * centre_gain / kChannels;
-  // One candidate with its score and best ring-1 axis: the textured flag
-  // and the `samples` best (the ring-2 axis is chosen when it is searched).
-  auto consider = [&](int x, int y, float score, int axis) {
-    if (score < thr) return;
-    Candidate c;
-    c.x = x;
-    c.y = y;
-    c.score = score;
-    c.axis = axis;
-    any_textured = true;
-    // Keep the `samples` best, sorted descending (insertion).
-    if (n_best < o.samples) {
-      best[n_best++] = c;
-    } else if (c.score > best[n_best - 1].score) {
-      best[n_best - 1] = c;
-    } else {
-      return;
+  // The neighbours that exist, from the lattice's templates (c_n - c_k =
+  // A (di, dj) for every lens, and the type rule (i - j) mod 3 makes ring 1
+  // of the other types, ring 2 of the same): the neighbours' MicroImage
+  // records are not read (a cache miss each, rows of lenses apart). Their
+  // indices first (the gate needs the ring-1 axes that have one); the
+  // records the searches read only for a textured micro image, after the
+  // gate (its first candidate's rows are asked of the cache meanwhile).
+  std::array<int, 12> nb_index;
+  const int n_dirs = 6 * o.rings;
+  unsigned mask = 0;
+  for (int m = 0; m < n_dirs; ++m) {
+    const auto& d = m < 6 ? detail::kRing1[m] : detail::kRing2[m - 6];
+    nb_index[m] = f.LensAt(lens.i + d[0], lens.j + d[1]);
+    if (m < 6 && nb_index[m] >= 0) mask |= 1u << (m % 3);
+  }
+  const std::array<std::array<float, 2>, 6>& axis_e = tables.axis_e;
+  // Every candidate's score (its largest gradient along a ring-1 axis with
+  // a neighbour) and that axis; -1: outside the frame. The candidates are
+  // then taken lazily, the best remaining first (ties: the earlier in the
+  // candidate list), as many as are searched: about 2 of the 29-37 of a
+  // micro image, where keeping the `samples` best sorted as the scores came
+  // (an insertion, a prefetch of its rows and a bubble for each of about 16
+  // entrants) was 9 % of the estimator's instructions.
+  float* const score = scratch.score.data();
+  std::int32_t* const axis = scratch.axis.data();
+  const int reach = gate.reach;
+  if (grey.kernels != nullptr && ix - reach >= 2 && iy - reach >= 2 && ix + reach <= f.width - 3 &&
+      iy + reach <= f.height - 3) {
+    const float ax[3] = {axis_e[0][0], axis_e[1][0], axis_e[2][0]};
+    const float ay[3] = {axis_e[0][1], axis_e[1][1], axis_e[2][1]};
+    grey.kernels->scores(grey.source, ix, iy, gate.dx, gate.dy, gate.n, to_grey, ax, ay, mask,
+                         score, axis);
+  } else {
+    for (int q = 0; q < gate.n; ++q) {
+      const int x = ix + candidates[q][0], y = iy + candidates[q][1];
+      score[q] = -1;
+      axis[q] = 0;
+      if (x < 1 || y < 1 || x >= f.width - 1 || y >= f.height - 1) continue;
+      const float gx = to_grey * static_cast<float>(grey.RawSum(x + 1, y) - grey.RawSum(x - 1, y));
+      const float gy = to_grey * static_cast<float>(grey.RawSum(x, y + 1) - grey.RawSum(x, y - 1));
+      float best_score = 0;
+      for (int d = 0; d < 3; ++d) {
+        if (!((mask >> d) & 1u)) continue;
+        const float g = std::abs(gx * axis_e[d][0] + gy * axis_e[d][1]);
+        if (g > best_score) {
+          best_score = g;
+          axis[q] = d;
+        }
+      }
+      score[q] = best_score;
     }
-    // Its ring-1 reference patch's gain rows (y - 2 .. y + 3 from x - 2)
-    // asked of the cache while the gate goes on: their first touch in this
-    // micro image, where `perf` put the estimator's largest stall.
-    if (x >= 2 && y >= 2 && y + 3 < f.height)
-      for (int dy = -2; dy <= 3; ++dy)
-        __builtin_prefetch(grey.gain.q.data() + static_cast<std::size_t>(y + dy) * f.width + x - 2);
-    for (int q = n_best - 1; q > 0 && best[q - 1].score < best[q].score; --q)
-      std::swap(best[q - 1], best[q]);
+  }
+  // The s-th most textured candidate (s = 0, 1, ... in turn), taken from
+  // the scores when first asked for; null past the last textured one or
+  // past `samples`. A taken candidate's score becomes -infinity.
+  std::array<Candidate, kMaxSamples> best;
+  int n_best = 0;
+  bool exhausted = false;
+  auto candidate = [&](int s) -> const Candidate* {
+    while (n_best <= s && !exhausted) {
+      int b = -1;
+      float bs = -std::numeric_limits<float>::infinity();
+      for (int q = 0; q < gate.n; ++q)
+        if (score[q] > bs) {
+          bs = score[q];
+          b = q;
+        }
+      if (b < 0 || !(bs >= thr) || n_best == o.samples) {
+        exhausted = true;
+        break;
+      }
+      score[b] = -std::numeric_limits<float>::infinity();
+      Candidate& c = best[n_best++];
+      c.x = ix + candidates[b][0];
+      c.y = iy + candidates[b][1];
+      c.score = bs;
+      c.axis = axis[b];
+    }
+    return s < n_best ? &best[s] : nullptr;
   };
+  const Candidate* first = candidate(0);
+  *textured_out = first != nullptr;
+  if (first == nullptr) return;
+  // Its ring-1 reference patch's rows (gain and raw, y - 2 .. y + 3 from
+  // x - 2) asked of the cache while the neighbours are set up: their first
+  // touch in this micro image, where `perf` put the estimator's largest
+  // stall.
+  if (first->x >= 2 && first->y >= 2 && first->y + 3 < f.height)
+    for (int dy = -2; dy <= 3; ++dy) {
+      __builtin_prefetch(grey.gain.q.data() +
+                         static_cast<std::size_t>(first->y + dy) * f.width + first->x - 2);
+      __builtin_prefetch(grey.raw.Row(first->y + dy) + (first->x - 2) * kChannels);
+    }
+  Uninitialised<detail::Neighbour, 12> nbs_store;
+  detail::Neighbour* const nbs = nbs_store.v;
+  int count = 0;
+  std::array<std::array<int, 2>, 6> axis_nb;
+  std::array<int, 6> axis_n{};
+  for (int m = 0; m < n_dirs; ++m) {
+    const int idx = nb_index[m];
+    if (idx < 0) continue;
+    detail::Neighbour& nb = nbs[count];
+    nb = tables.neighbour[m];
+    nb.lens = &f.lenses[idx];
+    nb.cx = static_cast<float>(lens.centre_px.x() + tables.delta[m][0]);
+    nb.cy = static_cast<float>(lens.centre_px.y() + tables.delta[m][1]);
+    nb.same_type = m >= 6;
+    axis_nb[nb.axis][axis_n[nb.axis]++] = count;
+    ++count;
+  }
   auto gradient = [&](int x, int y, float* gx, float* gy) {
     *gx = to_grey * static_cast<float>(grey.RawSum(x + 1, y) - grey.RawSum(x - 1, y));
     *gy = to_grey * static_cast<float>(grey.RawSum(x, y + 1) - grey.RawSum(x, y - 1));
   };
-  const int reach = gate.reach;
-  if (grey.kernels != nullptr && ix - reach >= 2 && iy - reach >= 2 && ix + reach <= f.width - 3 &&
-      iy + reach <= f.height - 3) {
-    // Scores through the kernels (lens_search_simd.h), in chunks of the
-    // stack buffers; the gradients again for the few that pass the gate.
-    constexpr int kChunk = 256;
-    float score[kChunk + detail::kStripPad];
-    std::int32_t axis[kChunk + detail::kStripPad];
-    unsigned mask = 0;
-    for (int d = 0; d < 3; ++d) mask |= (axis_n[d] > 0 ? 1u : 0u) << d;
-    const float ax[3] = {axis_e[0][0], axis_e[1][0], axis_e[2][0]};
-    const float ay[3] = {axis_e[0][1], axis_e[1][1], axis_e[2][1]};
-    for (int q0 = 0; q0 < gate.n; q0 += kChunk) {
-      const int n = std::min(kChunk, gate.n - q0);
-      grey.kernels->scores(grey.source, ix, iy, gate.dx + q0, gate.dy + q0, n, to_grey, ax, ay,
-                           mask, score, axis);
-      for (int q = 0; q < n; ++q)
-        if (score[q] >= thr)
-          consider(ix + gate.dx[q0 + q], iy + gate.dy[q0 + q], score[q], axis[q]);
-    }
-  } else {
-    for (const std::array<std::int16_t, 2>& offset : candidates) {
-      const int x = ix + offset[0], y = iy + offset[1];
-      if (x < 1 || y < 1 || x >= f.width - 1 || y >= f.height - 1) continue;
-      float gx = 0, gy = 0;
-      gradient(x, y, &gx, &gy);
-      float score = 0;
-      int axis = 0;
-      for (int d = 0; d < 3; ++d) {
-        if (axis_n[d] == 0) continue;
-        const float g = std::abs(gx * axis_e[d][0] + gy * axis_e[d][1]);
-        if (g > score) {
-          score = g;
-          axis = d;
-        }
-      }
-      consider(x, y, score, axis);
-    }
-  }
-  *textured_out = any_textured;
-  if (!any_textured) return;
 
   // 2. Searches.
   const float ref_r2 = static_cast<float>((f.radius_px + 0.5) * (f.radius_px + 0.5));
@@ -520,10 +602,11 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
   if (prior_z > 0 && std::isfinite(prior_z)) ++*seeded;
   std::array<detail::Estimate, 4> found;
   int n_found = 0;
-  for (int s = 0; s < std::min(n_best, kSeedPixels) && prior_z > 0 && std::isfinite(prior_z);
+  for (int s = 0; s < kSeedPixels && prior_z > 0 && std::isfinite(prior_z) &&
+                  candidate(s) != nullptr;
        ++s) {
     ++*searched;
-    const Candidate& c = best[s];
+    const Candidate& c = *candidate(s);
     px = static_cast<float>(c.x);
     py = static_cast<float>(c.y);
     float gx = 0, gy = 0;
@@ -585,7 +668,7 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
     // 4.2 -> 6.6 %).
     if (n_found < o.enough_estimates) continue;
     double zf = 0, sf = 0;
-    const int used = detail::Fuse(found.data(), n_found, o.fuse_gate, &zf, &sf);
+    const int used = FuseFew(found.data(), n_found, o.fuse_gate, &zf, &sf);
     // Step 3's spread, the previous depth one more estimate of it; the
     // value is this frame's alone.
     double spread2 = 0.5 * (zf - prior_z) * (zf - prior_z);
@@ -609,7 +692,6 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
     }
   }
 
-  // 2b. The full search (no prior, or it did not hold).
   // Of candidate c, the ring-2 axis with the largest gradient along it among
   // those with a neighbour that sees c's 5 x 3 patch at z with a step to
   // spare (SeesPatchAround), in the order of the gradient: the first that
@@ -636,8 +718,67 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
           return d;
     return -1;
   };
-  for (int s = 0; s < n_best; ++s) {
-    const Candidate& c = best[s];
+  // 2b. The neighbours' depth (lens_depth.h): one search around it per
+  // pixel, on up to kSeedPixels of the most textured pixels (the best
+  // ring-2 axis that sees the patch there, else the pixel's ring-1 axis);
+  // it holds at the first whose estimates agree with it within fuse_gate.
+  // Else the full search below, from nothing.
+  if (neighbour_z > 0 && std::isfinite(neighbour_z) && o.rings >= 2) {
+    ++*predicted;
+    auto window = [&](const detail::MatchParams& params, double length_pitches, double* z0,
+                      double* z1) {
+      const double dz = params.step_px / (f.lambda * length_pitches * f.grid.PitchPx());
+      double span = std::max(o.seed_window * neighbour_z, 2 * dz);
+      if (neighbour_sigma_z > 0 && std::isfinite(neighbour_sigma_z))
+        span = std::max(span, 3 * neighbour_sigma_z);
+      *z0 = std::max(lo, neighbour_z - span);
+      *z1 = std::min(hi, neighbour_z + span);
+    };
+    for (int s = 0; s < kSeedPixels && candidate(s) != nullptr; ++s) {
+      const Candidate& c = *candidate(s);
+      px = static_cast<float>(c.x);
+      py = static_cast<float>(c.y);
+      std::array<detail::Estimate, 4> found;
+      int n_found = 0;
+      double z0 = 0, z1 = 0;
+      // The best ring-2 axis that sees the patch at the neighbours' depth
+      // (the precise baseline); else the pixel's ring-1 axis (5 x 1).
+      const int axis2 = ring2_axis(c, neighbour_z);
+      if (axis2 >= 0) {
+        window(ring2, std::sqrt(3.0), &z0, &z1);
+        auto wanted = [&](const detail::Neighbour& nb) {
+          return SeesPatchAround(ring2, f.radius_px, 3, px, py, nb, neighbour_z);
+        };
+        search_axis(std::integral_constant<int, 3>{}, 3 + axis2, ring2, z0, z1, wanted,
+                    found.data(), &n_found);
+      } else if (o.ring1_lines == 1) {
+        window(ring1, 1.0, &z0, &z1);
+        auto wanted = [&](const detail::Neighbour& nb) {
+          return SeesPatchAround(ring1, f.radius_px, 1, px, py, nb, neighbour_z);
+        };
+        search_axis(std::integral_constant<int, 1>{}, c.axis, ring1, z0, z1, wanted, found.data(),
+                    &n_found);
+      }
+      ++*searched;
+      double zf = 0, sf = 0;
+      if (FuseFew(found.data(), n_found, o.fuse_gate, &zf, &sf) != n_found || n_found == 0 ||
+          !(zf > 0) || std::abs(zf - neighbour_z) > o.fuse_gate * neighbour_z)
+        continue;
+      // The spread to the neighbours' depth counts as step 3's spread of
+      // two estimates; the value is this lens's own estimate.
+      const double sigma = std::sqrt(std::max(sf * sf, 0.5 * (zf - neighbour_z) * (zf - neighbour_z)));
+      if (sigma / zf > o.max_rel_sigma) continue;
+      ++*predicted_held;
+      *v_out = static_cast<float>(1.0 / zf);
+      *sigma_out = static_cast<float>(sigma);
+      *conf_out = static_cast<float>(std::clamp(1.0 - (sigma / zf) / o.max_rel_sigma, 0.0, 1.0));
+      return;
+    }
+  }
+
+  // 2c. The full search (no prior, or it did not hold).
+  for (int s = 0; candidate(s) != nullptr; ++s) {
+    const Candidate& c = *candidate(s);
     px = static_cast<float>(c.x);
     py = static_cast<float>(c.y);
     ++*searched;
@@ -666,7 +807,7 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
     if (n_mine == 0) continue;
     double z = 0, sigma = 0;
     // The pixel's ring-1 estimates fused with the dense estimator's gate (3 %).
-    if (detail::Fuse(mine.data(), n_mine, 0.03, &z, &sigma) == 0) continue;
+    if (FuseFew(mine.data(), n_mine, 0.03, &z, &sigma) == 0) continue;
     if (o.rings >= 2) {
       // |Delta| of ring 2 is sqrt(3) D: lambda sqrt(3) D px of disparity per unit z.
       const double dz2 = o.ring2_step_px / (f.lambda * std::sqrt(3.0) * f.grid.PitchPx());
@@ -689,20 +830,17 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
     // Enough agreeing estimates: the remaining (less textured) pixels are not searched.
     if (n_all >= o.enough_estimates) {
       double zz = 0, ss = 0;
-      if (detail::Fuse(all, n_all, o.fuse_gate, &zz, &ss) >= o.enough_estimates) break;
+      if (FuseFew(all, n_all, o.fuse_gate, &zz, &ss) >= o.enough_estimates) break;
     }
   }
 
   // 3. Fusion of the micro image's estimates.
   double z = 0, sigma = 0;
-  const int used = detail::Fuse(all, n_all, o.fuse_gate, &z, &sigma);
+  const int used = FuseFew(all, n_all, o.fuse_gate, &z, &sigma);
   if (used < o.min_estimates || !(z > 0)) return;
   // The agreeing estimates' weighted spread (they are not independent).
   {
-    std::array<double, 4 * kMaxSamples> zs;
-    for (int q = 0; q < n_all; ++q) zs[q] = all[q].z;
-    std::nth_element(zs.begin(), zs.begin() + n_all / 2, zs.begin() + n_all);
-    const double med = zs[n_all / 2];
+    const double med = MedianZ(all, n_all);
     double sw = 0, swd = 0;
     int n = 0;
     for (int q = 0; q < n_all; ++q) {
@@ -761,39 +899,119 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out,
   };
   const detail::MatchParams ring1 = params(options_.ring1_step_px);
   const detail::MatchParams ring2 = params(options_.ring2_step_px);
-  std::atomic<long long> searched{0}, textured{0}, estimated{0}, seeded{0}, held{0};
+  std::atomic<long long> searched{0}, textured{0}, estimated{0}, seeded{0}, held{0},
+      predicted{0}, predicted_held{0};
   const CandidateGate gate{candidate_dx_.data(), candidate_dy_.data(),
                            static_cast<int>(candidates_.size()), candidate_reach_};
+  // With the neighbours' depth (lens_depth.h, step 2b): the lenses by type,
+  // type 0 first from nothing, then type 1 seeded by its type-0 ring-1
+  // neighbours, then type 2 by all six (types 0 and 1): a pass reads only
+  // the cells of passes finished before it.
+  const bool by_neighbours = previous == nullptr && options_.neighbour_seed && options_.rings >= 2;
+  // The depth of lens m's ring-1 neighbours of types below its own: the
+  // mean z of those within fuse_gate of their median and the spread of
+  // those; 0 where fewer than two have a depth or more than one disagrees.
+  auto neighbours_z = [&](const MicroImage& m, double* z_spread) {
+    std::array<double, 6> zs;
+    int n = 0;
+    for (const auto& d : detail::kRing1) {
+      const int idx = f.LensAt(m.i + d[0], m.j + d[1]);
+      if (idx < 0 || f.lenses[idx].type >= m.type) continue;
+      const float v = out->virtual_depth[static_cast<std::size_t>(grid_.Row(m.j + d[1])) *
+                                             grid_.cols +
+                                         grid_.Col(m.i + d[0], m.j + d[1])];
+      if (v > 0) {
+        // Sorted as they come (at most six).
+        const double z = 1.0 / v;
+        int q = n++;
+        for (; q > 0 && zs[q - 1] > z; --q) zs[q] = zs[q - 1];
+        zs[q] = z;
+      }
+    }
+    if (n < 2) return 0.0;
+    const double median = zs[n / 2];
+    double sum = 0, sum2 = 0;
+    int inliers = 0;
+    for (int q = 0; q < n; ++q)
+      if (std::abs(zs[q] - median) <= options_.fuse_gate * median) {
+        sum += zs[q];
+        sum2 += zs[q] * zs[q];
+        ++inliers;
+      }
+    if (inliers < 2 || inliers < n - 1) return 0.0;
+    const double mean = sum / inliers;
+    *z_spread = std::sqrt(std::max(0.0, sum2 / inliers - mean * mean));
+    return mean;
+  };
+  // One lens (its cell written once).
+  auto one = [&](const auto& grey, GateScratch& scratch, int k, bool seeded_by_neighbours,
+                 LensCounts* my) {
+    const MicroImage& m = f.lenses[k];
+    const std::size_t cell =
+        static_cast<std::size_t>(grid_.Row(m.j)) * grid_.cols + grid_.Col(m.i, m.j);
+    out->type[cell] = static_cast<std::int8_t>(m.type);
+    out->lens[cell] = k;
+    double prior_z = 0, prior_sigma_z = 0;
+    if (previous != nullptr && previous->virtual_depth[cell] > 0) {
+      prior_z = 1.0 / previous->virtual_depth[cell];
+      prior_sigma_z = previous->sigma_z[cell];
+    }
+    double neighbour_z = 0, neighbour_sigma_z = 0;
+    if (seeded_by_neighbours) neighbour_z = neighbours_z(m, &neighbour_sigma_z);
+    EstimateLens(f, options_, *tables_, candidates_, gate, range, ring1, ring2, grey, scratch, k,
+                 prior_z, prior_sigma_z, neighbour_z, neighbour_sigma_z, &out->virtual_depth[cell],
+                 &out->sigma_z[cell], &out->confidence[cell], &out->textured[cell], my);
+    my->textured += out->textured[cell];
+    my->estimated += !std::isnan(out->virtual_depth[cell]);
+  };
+  auto add = [&](const LensCounts& my) {
+    searched += my.searched;
+    textured += my.textured;
+    estimated += my.estimated;
+    seeded += my.seeded;
+    held += my.held;
+    predicted += my.predicted;
+    predicted_held += my.predicted_held;
+  };
   auto run = [&](const auto& grey) {
-    tbb::parallel_for(
-        tbb::blocked_range<int>(0, static_cast<int>(f.lenses.size()), 64),
-        [&](const tbb::blocked_range<int>& r) {
-          long long my_searched = 0, my_textured = 0, my_estimated = 0, my_seeded = 0,
-                    my_held = 0;
-          for (int k = r.begin(); k < r.end(); ++k) {
-            const MicroImage& m = f.lenses[k];
-            const std::size_t cell =
-                static_cast<std::size_t>(grid_.Row(m.j)) * grid_.cols + grid_.Col(m.i, m.j);
-            out->type[cell] = static_cast<std::int8_t>(m.type);
-            out->lens[cell] = k;
-            double prior_z = 0, prior_sigma_z = 0;
-            if (previous != nullptr && previous->virtual_depth[cell] > 0) {
-              prior_z = 1.0 / previous->virtual_depth[cell];
-              prior_sigma_z = previous->sigma_z[cell];
-            }
-            EstimateLens(f, options_, *tables_, candidates_, gate, range, ring1, ring2, grey, k,
-                         prior_z, prior_sigma_z, &out->virtual_depth[cell], &out->sigma_z[cell],
-                         &out->confidence[cell], &out->textured[cell], &my_searched, &my_seeded,
-                         &my_held);
-            my_textured += out->textured[cell];
-            my_estimated += !std::isnan(out->virtual_depth[cell]);
+    if (!by_neighbours) {
+      tbb::parallel_for(tbb::blocked_range<int>(0, static_cast<int>(f.lenses.size()), 64),
+                        [&](const tbb::blocked_range<int>& r) {
+                          LensCounts my;
+                          thread_local GateScratch scratch;
+                          scratch.Reserve(gate.n);
+                          for (int k = r.begin(); k < r.end(); ++k)
+                            one(grey, scratch, k, false, &my);
+                          add(my);
+                        });
+      return;
+    }
+    // The passes of step 2b in bands of kBand grid rows, type t a band
+    // behind type t - 1 (a lens's ring-1 neighbours lie in the rows next
+    // to its own, so those of the types before its own are done): the
+    // frame's lines a band's searches read are still in the cache for the
+    // next type's. Measured on `medium` (docs/processing.md): bands of 8
+    // rows cost 15 % more CPU than the search from nothing, of 2 rows 3 %
+    // more, of 1 row none (the lines of four lens rows fit the L2 cache);
+    // three passes over the whole frame cost more still.
+    constexpr int kBand = 1;
+    for (int top = 0; top < grid_.rows + 2 * kBand; top += kBand)
+      for (int type = 0; type < 3; ++type) {
+        const int r0 = std::max(0, top - type * kBand);
+        const int r1 = std::min(grid_.rows, top - type * kBand + kBand);
+        if (r0 >= r1) continue;
+        const int q0 = row_type_start_[3 * r0], q1 = row_type_start_[3 * r1];
+        tbb::parallel_for(tbb::blocked_range<int>(q0, q1, 32), [&](const tbb::blocked_range<int>& r) {
+          LensCounts my;
+          thread_local GateScratch scratch;
+          scratch.Reserve(gate.n);
+          for (int q = r.begin(); q < r.end(); ++q) {
+            const int k = by_row_type_[q];
+            if (f.lenses[k].type == type) one(grey, scratch, k, type > 0, &my);
           }
-          searched += my_searched;
-          textured += my_textured;
-          estimated += my_estimated;
-          seeded += my_seeded;
-          held += my_held;
+          add(my);
         });
+      }
   };
   // The kernels address the frame with 32-bit byte offsets.
   const bool addressable = static_cast<double>(raw.stride_bytes) * raw.height < 2147483648.0 &&
@@ -817,6 +1035,8 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out,
   st.searched_pixels = searched.load();
   st.seeded = seeded.load();
   st.seed_held = held.load();
+  st.predicted = predicted.load();
+  st.predicted_held = predicted_held.load();
   st.kernels = kernels != nullptr ? kernels->name : "";
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return Status::Ok();

@@ -42,6 +42,26 @@
 //    runs from nothing, the seeded estimates dropped: such a lens gets the
 //    map it gets without a seed. What it costs and saves:
 //    docs/processing.md, "Temporal seed".
+// 2b. The neighbours' depth (LensDepthOptions::neighbour_seed, without a
+//    previous map): the lenses are estimated by type in three passes, type
+//    0 from nothing (steps 2, 3), then type 1 and then type 2, each lens
+//    seeded by its ring-1 neighbours of the types before its own (three of
+//    type 0 for type 1, all six for type 2; a scene's depth varies little
+//    over one pitch, and a neighbour on each side brackets a slope). Their
+//    depth z_n: the mean z of those within fuse_gate of their median,
+//    where at least two have a depth and at most one lies outside. Then on
+//    up to kSeedPixels (2) of step 1's most textured pixels in turn, one
+//    search around z_n (+- max(seed_window z_n, 3 spread, 2 steps)): on the
+//    best ring-2 axis with a neighbour that sees the patch at z_n, else on
+//    the pixel's ring-1 axis (5 x 1). It holds when its estimates (one per
+//    neighbour on the axis that sees the patch) agree and their fusion lies
+//    within fuse_gate z_n of z_n: the lens takes that fusion, its own
+//    measurement (sigma_z also from its spread to z_n). Else step 2 from
+//    nothing. One search instead of about three and a half, the neighbours'
+//    agreement standing for the second estimate: a lens whose neighbours
+//    straddle a depth edge is searched from nothing (they disagree), one
+//    whose own estimate lies more than fuse_gate from theirs too (figures:
+//    docs/processing.md, "Per-lens virtual depth").
 // 3. All estimates of the micro image (up to 4 per searched pixel) are fused
 //    in z = 1 / v weighted by 1 / sigma^2, without those farther than
 //    max(3 sigma, fuse_gate z) from their median; at least min_estimates
@@ -72,9 +92,10 @@
 // the frame, through the scalar code here and in epipolar_search.h
 // elsewhere.
 //
-// Work is parallel over micro images (TBB); each cell is written once.
-// Estimate allocates nothing once `out` has the grid's size (a workspace
-// reused frame after frame).
+// Work is parallel over micro images (TBB), in the passes of step 2b; each
+// cell is written once. Estimate allocates nothing once `out` has the
+// grid's size (a workspace reused frame after frame) and each thread has
+// estimated once (its candidate-gate buffer).
 
 #include "config/error.h"
 #include "config/image.h"
@@ -119,6 +140,10 @@ struct LensDepthOptions {
   // The temporal seed (Estimate with a previous map): the search around a
   // lens's previous depth spans +- max(seed_window z, 3 sigma_z, 2 steps).
   double seed_window = 0.05;
+  // The lenses of types 1 and 2 searched first around the depth of their
+  // type-0 ring-1 neighbours, estimated first (step 2b of the header
+  // comment); false: every lens from nothing. Only without a previous map.
+  bool neighbour_seed = true;
   // The candidate gate and the searches' strip sampling and SSD through
   // Highway's runtime dispatch (processing/lens_search_simd.h); false: the
   // scalar reference (the same map, at its speed).
@@ -159,6 +184,8 @@ struct LensDepthStats {
   long long searched_pixels = 0;
   long long seeded = 0;     // with a previous depth (Estimate with a previous map)
   long long seed_held = 0;  // of those, where it held (no full search)
+  long long predicted = 0;       // seeded by their neighbours' depth (step 2b)
+  long long predicted_held = 0;  // of those, where it held
   double seconds = 0;
   // The kernels that ran (lens_search_simd.h): "scalar" or Highway's target
   // ("AVX3", "AVX2", "SSE4", "NEON", ...); "" when none could (a frame of 2 GB or more).
@@ -249,6 +276,11 @@ class LensDepthEstimator {
   std::unique_ptr<LatticeTables> tables_;
   // The searches' devignetting gain in 16 bits (lens_search_simd.h).
   std::unique_ptr<detail::Gain16> gain_;
+  // The micro images by lens-grid row and type: those of row r and type t
+  // are by_row_type_[row_type_start_[3 r + t] .. row_type_start_[3 r + t + 1])
+  // (the passes of step 2b in bands of rows).
+  std::vector<std::int32_t> by_row_type_;
+  std::vector<std::int32_t> row_type_start_;
 };
 
 }  // namespace lifmcr::processing

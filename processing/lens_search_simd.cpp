@@ -52,21 +52,16 @@ HWY_INLINE void ChannelSums(DU du, const std::uint32_t* base, VI offset, hn::Vec
   }
 }
 
-template <int kChannels>
-void SampleLine(const StripSource& src, const StripLine& l, float* out) {
-  const hn::ScalableTag<float> df;
+// The grey level of the raw pixels times the gain at (x, y) of each lane
+// (x, y >= 0: truncation is floor), NaN where a corner's gain is invalid:
+// RawGainBilinear's expression (lens_search_simd.h).
+template <int kChannels, class VF>
+HWY_INLINE VF RawBilinear(const StripSource& src, VF x, VF y) {
+  const hn::DFromV<VF> df;
   const hn::RebindToSigned<decltype(df)> di;
   const hn::RebindToUnsigned<decltype(df)> du;
-  const int lanes = static_cast<int>(hn::Lanes(df));
   const auto nan = hn::Set(df, std::numeric_limits<float>::quiet_NaN());
-  const auto px = hn::Set(df, l.px), py = hn::Set(df, l.py);
-  const auto ex = hn::Set(df, l.e_x), ey = hn::Set(df, l.e_y);
-  const auto bey = hn::Set(df, l.b_ey), bex = hn::Set(df, l.b_ex);
-  const auto along0 = hn::Set(df, l.along0), step = hn::Set(df, l.step);
   const auto one = hn::Set(df, 1.0f), inv = hn::Set(df, 1.0f / kChannels);
-  const auto j_lo = hn::Set(di, l.j_lo), j_hi = hn::Set(di, l.j_hi);
-  // Highway 1.0.3 compares signed integers with Lt / Gt only.
-  const auto below_lo = hn::Set(di, l.j_lo - 1), above_hi = hn::Set(di, l.j_hi + 1);
   const auto stride = hn::Set(di, static_cast<std::int32_t>(src.stride_bytes));
   // Byte offsets into the 16-bit gain: 2 (y0 width + x0); a row 2 width on.
   const auto gain_row = hn::Set(di, 2 * src.width);
@@ -75,6 +70,51 @@ void SampleLine(const StripSource& src, const StripLine& l, float* out) {
   const auto zero = hn::Zero(di);
   const auto* base = reinterpret_cast<const std::uint32_t*>(src.raw);
   const auto* gain_base = reinterpret_cast<const std::uint32_t*>(src.gain);
+  const auto x0 = hn::ConvertTo(di, x);  // truncation: x, y >= 0
+  const auto y0 = hn::ConvertTo(di, y);
+  const auto fx = hn::Sub(x, hn::ConvertTo(df, x0));
+  const auto fy = hn::Sub(y, hn::ConvertTo(df, y0));
+  const auto row0 = hn::Mul(y0, stride);
+  const auto col = kChannels == 3 ? hn::Add(hn::Add(x0, x0), x0) : x0;
+  hn::Vec<decltype(du)> s00, s01, s10, s11;
+  ChannelSums<kChannels>(du, base, hn::Add(row0, col), &s00, &s01);
+  ChannelSums<kChannels>(du, base, hn::Add(hn::Add(row0, stride), col), &s10, &s11);
+  // One 32-bit word per row holds the gains of x0 (low half) and x0 + 1.
+  const auto g = hn::Mul(hn::Add(hn::Mul(y0, hn::Set(di, src.width)), x0), hn::Set(di, 2));
+  const auto w0 = hn::BitCast(di, hn::GatherOffset(du, gain_base, g));
+  const auto w1 = hn::BitCast(di, hn::GatherOffset(du, gain_base, hn::Add(g, gain_row)));
+  const auto q00 = hn::BitCast(di, hn::And(hn::BitCast(du, w0), low16));
+  const auto q01 = hn::BitCast(di, hn::ShiftRight<16>(hn::BitCast(du, w0)));
+  const auto q10 = hn::BitCast(di, hn::And(hn::BitCast(du, w1), low16));
+  const auto q11 = hn::BitCast(di, hn::ShiftRight<16>(hn::BitCast(du, w1)));
+  const auto invalid = hn::Eq(hn::Min(hn::Min(q00, q01), hn::Min(q10, q11)), zero);
+  const auto a = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s00)),
+                         hn::Mul(hn::ConvertTo(df, q00), scale));
+  const auto b = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s01)),
+                         hn::Mul(hn::ConvertTo(df, q01), scale));
+  const auto c = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s10)),
+                         hn::Mul(hn::ConvertTo(df, q10), scale));
+  const auto d = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s11)),
+                         hn::Mul(hn::ConvertTo(df, q11), scale));
+  const auto top = hn::Add(a, hn::Mul(hn::Sub(b, a), fx));
+  const auto bottom = hn::Add(c, hn::Mul(hn::Sub(d, c), fx));
+  const auto v = hn::Mul(hn::Add(hn::Mul(top, hn::Sub(one, fy)), hn::Mul(bottom, fy)), inv);
+  return hn::IfThenElse(hn::RebindMask(df, invalid), nan, v);
+}
+
+template <int kChannels>
+void SampleLine(const StripSource& src, const StripLine& l, float* out) {
+  const hn::ScalableTag<float> df;
+  const hn::RebindToSigned<decltype(df)> di;
+  const int lanes = static_cast<int>(hn::Lanes(df));
+  const auto nan = hn::Set(df, std::numeric_limits<float>::quiet_NaN());
+  const auto px = hn::Set(df, l.px), py = hn::Set(df, l.py);
+  const auto ex = hn::Set(df, l.e_x), ey = hn::Set(df, l.e_y);
+  const auto bey = hn::Set(df, l.b_ey), bex = hn::Set(df, l.b_ex);
+  const auto along0 = hn::Set(df, l.along0), step = hn::Set(df, l.step);
+  const auto j_lo = hn::Set(di, l.j_lo), j_hi = hn::Set(di, l.j_hi);
+  // Highway 1.0.3 compares signed integers with Lt / Gt only.
+  const auto below_lo = hn::Set(di, l.j_lo - 1), above_hi = hn::Set(di, l.j_hi + 1);
   for (int i = 0; i < l.n; i += lanes) {
     const auto j = hn::Sub(hn::Set(di, l.n - 1 - i), hn::Iota(di, 0));
     const auto valid = hn::And(hn::Gt(j, below_lo), hn::Lt(j, above_hi));
@@ -87,37 +127,8 @@ void SampleLine(const StripSource& src, const StripLine& l, float* out) {
     const auto t = hn::Add(along0, hn::Mul(hn::ConvertTo(df, jc), step));
     const auto x = hn::Sub(hn::Add(px, hn::Mul(t, ex)), bey);
     const auto y = hn::Add(hn::Add(py, hn::Mul(t, ey)), bex);
-    const auto x0 = hn::ConvertTo(di, x);  // truncation: x, y >= 0
-    const auto y0 = hn::ConvertTo(di, y);
-    const auto fx = hn::Sub(x, hn::ConvertTo(df, x0));
-    const auto fy = hn::Sub(y, hn::ConvertTo(df, y0));
-    const auto row0 = hn::Mul(y0, stride);
-    const auto col = kChannels == 3 ? hn::Add(hn::Add(x0, x0), x0) : x0;
-    hn::Vec<decltype(du)> s00, s01, s10, s11;
-    ChannelSums<kChannels>(du, base, hn::Add(row0, col), &s00, &s01);
-    ChannelSums<kChannels>(du, base, hn::Add(hn::Add(row0, stride), col), &s10, &s11);
-    // One 32-bit word per row holds the gains of x0 (low half) and x0 + 1.
-    const auto g = hn::Mul(hn::Add(hn::Mul(y0, hn::Set(di, src.width)), x0), hn::Set(di, 2));
-    const auto w0 = hn::BitCast(di, hn::GatherOffset(du, gain_base, g));
-    const auto w1 = hn::BitCast(di, hn::GatherOffset(du, gain_base, hn::Add(g, gain_row)));
-    const auto q00 = hn::BitCast(di, hn::And(hn::BitCast(du, w0), low16));
-    const auto q01 = hn::BitCast(di, hn::ShiftRight<16>(hn::BitCast(du, w0)));
-    const auto q10 = hn::BitCast(di, hn::And(hn::BitCast(du, w1), low16));
-    const auto q11 = hn::BitCast(di, hn::ShiftRight<16>(hn::BitCast(du, w1)));
-    const auto invalid = hn::Eq(hn::Min(hn::Min(q00, q01), hn::Min(q10, q11)), zero);
-    const auto a = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s00)),
-                           hn::Mul(hn::ConvertTo(df, q00), scale));
-    const auto b = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s01)),
-                           hn::Mul(hn::ConvertTo(df, q01), scale));
-    const auto c = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s10)),
-                           hn::Mul(hn::ConvertTo(df, q10), scale));
-    const auto d = hn::Mul(hn::ConvertTo(df, hn::BitCast(di, s11)),
-                           hn::Mul(hn::ConvertTo(df, q11), scale));
-    const auto top = hn::Add(a, hn::Mul(hn::Sub(b, a), fx));
-    const auto bottom = hn::Add(c, hn::Mul(hn::Sub(d, c), fx));
-    const auto v = hn::Mul(hn::Add(hn::Mul(top, hn::Sub(one, fy)), hn::Mul(bottom, fy)), inv);
-    const auto keep = hn::AndNot(invalid, valid);
-    hn::StoreU(hn::IfThenElse(hn::RebindMask(df, keep), v, nan), df, out + i);
+    const auto v = RawBilinear<kChannels>(src, x, y);
+    hn::StoreU(hn::IfThenElse(hn::RebindMask(df, valid), v, nan), df, out + i);
   }
 }
 
@@ -172,6 +183,46 @@ void SampleStripLine(const StripSource& source, const StripLine& line, float* ou
     SampleLine<3>(source, line, out);
   else
     SampleLine<1>(source, line, out);
+}
+
+// Lane l of a patch: column a = l mod 5 - 2 and line b = l / 5 - lines / 2
+// (lens_search_simd.h, SamplePatchFn); lanes past the patch repeat its last
+// sample (read in the frame, stored in the padding).
+struct PatchLanes {
+  float a[16 + kStripPad], b[2][16 + kStripPad];
+  PatchLanes() {
+    for (int l = 0; l < 16 + kStripPad; ++l) {
+      a[l] = static_cast<float>(std::min(l, 14) % 5 - 2);
+      b[0][l] = 0;
+      b[1][l] = static_cast<float>(std::min(l, 14) / 5 - 1);
+    }
+  }
+};
+
+template <int kChannels>
+void Patch(const StripSource& src, float px, float py, float e_x, float e_y, int lines,
+           float* out) {
+  static const PatchLanes kLanes;
+  const hn::ScalableTag<float> df;
+  const int lanes = static_cast<int>(hn::Lanes(df));
+  const float* b_of = kLanes.b[lines == 3 ? 1 : 0];
+  const auto vpx = hn::Set(df, px), vpy = hn::Set(df, py);
+  const auto ex = hn::Set(df, e_x), ey = hn::Set(df, e_y);
+  for (int i = 0; i < 5 * lines; i += lanes) {
+    const auto t = hn::LoadU(df, kLanes.a + i);
+    const auto b = hn::LoadU(df, b_of + i);
+    const auto x = hn::Sub(hn::Add(vpx, hn::Mul(t, ex)), hn::Mul(b, ey));
+    const auto y = hn::Add(hn::Add(vpy, hn::Mul(t, ey)), hn::Mul(b, ex));
+    hn::StoreU(RawBilinear<kChannels>(src, x, y), df, out + i);
+  }
+}
+
+void SamplePatch(const StripSource& source, float px, float py, float e_x, float e_y, int lines,
+                 float* out) {
+  if (source.channels == 3)
+    Patch<3>(source, px, py, e_x, e_y, lines, out);
+  else
+    Patch<1>(source, px, py, e_x, e_y, lines, out);
 }
 
 void StripCosts(const float* const* lines, int n_lines, const float* ref, int spp, int steps,
@@ -264,6 +315,7 @@ namespace lifmcr::processing::detail {
 HWY_EXPORT(SampleStripLine);
 HWY_EXPORT(StripCosts);
 HWY_EXPORT(CandidateScores);
+HWY_EXPORT(SamplePatch);
 
 namespace {
 
@@ -309,6 +361,33 @@ void ScalarSampleStripLine(const StripSource& source, const StripLine& line, flo
     ScalarLine<3>(source, line, out);
   else
     ScalarLine<1>(source, line, out);
+}
+
+template <int kChannels>
+void ScalarPatchOf(const StripSource& src, float px, float py, float e_x, float e_y, int lines,
+                   float* out) {
+  const int half = lines / 2;
+  for (int b = -half; b <= half; ++b) {
+    const float b_ey = static_cast<float>(b) * e_y, b_ex = static_cast<float>(b) * e_x;
+    for (int a = -2; a <= 2; ++a) {
+      const float t = static_cast<float>(a);
+      const float x = px + t * e_x - b_ey, y = py + t * e_y + b_ex;
+      const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+      const std::uint8_t* q0 =
+          src.raw + static_cast<std::size_t>(y0) * src.stride_bytes + x0 * kChannels;
+      const std::uint16_t* g0 = src.gain + static_cast<std::size_t>(y0) * src.width + x0;
+      out[5 * (b + half) + a + 2] = RawGainBilinear<kChannels>(
+          q0, q0 + src.stride_bytes, g0, g0 + src.width, src.gain_scale, x - x0, y - y0);
+    }
+  }
+}
+
+void ScalarSamplePatch(const StripSource& source, float px, float py, float e_x, float e_y,
+                       int lines, float* out) {
+  if (source.channels == 3)
+    ScalarPatchOf<3>(source, px, py, e_x, e_y, lines, out);
+  else
+    ScalarPatchOf<1>(source, px, py, e_x, e_y, lines, out);
 }
 
 void ScalarStripCosts(const float* const* lines, int n_lines, const float* ref, int spp, int steps,
@@ -371,6 +450,11 @@ void DispatchedScores(const StripSource& source, int cx, int cy, const std::int3
   (source, cx, cy, dx, dy, n, to_grey, axis_x, axis_y, axis_mask, score, axis);
 }
 
+void DispatchedPatch(const StripSource& source, float px, float py, float e_x, float e_y,
+                     int lines, float* out) {
+  HWY_DYNAMIC_DISPATCH(SamplePatch)(source, px, py, e_x, e_y, lines, out);
+}
+
 void DispatchedSample(const StripSource& source, const StripLine& line, float* out) {
   HWY_DYNAMIC_DISPATCH(SampleStripLine)(source, line, out);
 }
@@ -410,14 +494,14 @@ Gain16 Gain16::From(const std::vector<float>& gain, int width) {
 
 const StripKernels& ScalarStripKernels() {
   static const StripKernels kernels{ScalarSampleStripLine, ScalarStripCosts, ScalarCandidateScores,
-                                    "scalar"};
+                                    ScalarSamplePatch, "scalar"};
   return kernels;
 }
 
 const StripKernels& SimdStripKernels() {
   // The target this CPU runs (hwy/targets.h): the best one compiled in.
   static const StripKernels kernels{DispatchedSample, DispatchedCosts, DispatchedScores,
-                                    hwy::TargetName(hwy::SupportedAndGeneratedTargets()[0])};
+                                    DispatchedPatch, hwy::TargetName(hwy::SupportedAndGeneratedTargets()[0])};
   return kernels;
 }
 

@@ -135,10 +135,25 @@ using CandidateScoresFn = void (*)(const StripSource& source, int cx, int cy,
                                    float to_grey, const float* axis_x, const float* axis_y,
                                    unsigned axis_mask, float* score, std::int32_t* axis);
 
+// The reference patch of pixel p (lens_depth.cpp) from the raw pixels
+// times the gain, its `lines` (1 or 3) lines in one call: for b = -(lines /
+// 2) .. lines / 2 and a = -2..2,
+//   out[5 (b + lines / 2) + a + 2] = grey(x, y),
+//   x = (px + a e_x) - b e_y,   y = (py + a e_y) + b e_x   (b e_y, b e_x in float),
+// StripLine's formula at t = a (the samples of the lines {p, e, b e_y,
+// b e_x, along0 -2, step 1, n 5} read reversed: the same numbers). One
+// call instead of one per line: a micro image's searches sample about two
+// reference patches, and the calls of 5-sample lines were half of the
+// strip kernel's calls. Precondition: StripLine's for every sample;
+// `source` without `grey`; out holds 5 lines + kStripPad floats.
+using SamplePatchFn = void (*)(const StripSource& source, float px, float py, float e_x,
+                               float e_y, int lines, float* out);
+
 struct StripKernels {
   SampleStripLineFn sample = nullptr;
   StripCostsFn costs = nullptr;
   CandidateScoresFn scores = nullptr;
+  SamplePatchFn patch = nullptr;
   const char* name = "";  // "scalar", or the Highway target chosen ("AVX3", "AVX2", ...)
 };
 

@@ -84,7 +84,12 @@ class LensDepthSeed : public ::testing::Test {
     ASSERT_TRUE(PrepareGeometry(d.s.white.View(), d.s.raw.width, d.s.raw.height, grid, d.s.mla,
                                 fo, &geometry)
                     .ok());
-    auto estimator = LensDepthEstimator::Create(std::move(geometry), d.s.mla, {});
+    // The map from nothing that a seed falls back to is the search without
+    // the neighbours' depth (the temporal seed does not use it): the
+    // comparisons below are of the seed against that search.
+    LensDepthOptions lo;
+    lo.neighbour_seed = false;
+    auto estimator = LensDepthEstimator::Create(std::move(geometry), d.s.mla, lo);
     ASSERT_TRUE(estimator.ok());
     d.estimator = std::move(*estimator);
     ASSERT_TRUE(d.estimator->Estimate(d.s.raw.View(), &d.first).ok());

@@ -282,6 +282,62 @@ TEST_F(StripKernelsTest, CandidateScoresMatchTheScalarReferenceOnEveryTarget) {
   }
 }
 
+// The patch kernel gives, on every target and in the scalar reference,
+// exactly the samples of the strip lines {p, e, b e_y, b e_x, -2, 1, 5}
+// read reversed (lens_search_simd.h, SamplePatchFn): the reference patches
+// of the per-lens search do not change with it.
+TEST_F(StripKernelsTest, PatchesAreTheirStripLinesOnEveryTarget) {
+  const StripKernels& scalar = ScalarStripKernels();
+  for (const std::int64_t target : Targets()) {
+    hwy::SetSupportedTargetsForTest(target);
+    const StripKernels& simd = SimdStripKernels();
+    std::mt19937 rng(57);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    long long compared = 0, nans = 0;
+    for (int trial = 0; trial < 600; ++trial) {
+      const RandomFrame f = MakeFrame(rng, trial % 2 == 0 ? 3 : 1);
+      const int lines = trial % 4 < 2 ? 3 : 1, half = lines / 2;
+      const float angle = 6.2831853f * u(rng);
+      const float e_x = std::cos(angle), e_y = std::sin(angle);
+      // p at least 2 * sqrt(2) + 1 px from the border: every sample inside
+      // [1, width - 3) x [1, height - 3).
+      const float px = 4.0f + u(rng) * (f.width - 11.0f), py = 4.0f + u(rng) * (f.height - 11.0f);
+      std::vector<float> a(5 * lines + kStripPad, -1.0f), b(5 * lines + kStripPad, -1.0f);
+      scalar.patch(f.Source(), px, py, e_x, e_y, lines, a.data());
+      simd.patch(f.Source(), px, py, e_x, e_y, lines, b.data());
+      for (int line = -half; line <= half; ++line) {
+        StripLine l;
+        l.px = px;
+        l.py = py;
+        l.e_x = e_x;
+        l.e_y = e_y;
+        l.b_ey = static_cast<float>(line) * e_y;
+        l.b_ex = static_cast<float>(line) * e_x;
+        l.along0 = -2;
+        l.step = 1;
+        l.n = 5;
+        l.j_lo = 0;
+        l.j_hi = 4;
+        std::vector<float> strip(5 + kStripPad);
+        scalar.sample(f.Source(), l, strip.data());
+        for (int col = -2; col <= 2; ++col) {
+          const int m = 5 * (line + half) + col + 2;
+          const float want = strip[2 - col];
+          ASSERT_TRUE(std::isnan(want) ? std::isnan(a[m]) : a[m] == want)
+              << "scalar trial " << trial << " sample " << m << ": " << a[m] << " vs " << want;
+          ASSERT_TRUE(std::isnan(want) ? std::isnan(b[m]) : b[m] == want)
+              << hwy::TargetName(target) << " trial " << trial << " sample " << m << ": " << b[m]
+              << " vs " << want;
+          ++compared;
+          nans += std::isnan(want);
+        }
+      }
+    }
+    EXPECT_GT(compared - nans, compared / 2) << hwy::TargetName(target);
+    EXPECT_GT(nans, 0) << hwy::TargetName(target);
+  }
+}
+
 TEST(StripKernels, DispatchNamesItsTarget) {
   EXPECT_STREQ(ScalarStripKernels().name, "scalar");
   EXPECT_STRNE(SimdStripKernels().name, "");
