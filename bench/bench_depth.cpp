@@ -27,7 +27,8 @@
 //               [--lens-path scalar|simd|both] [--lens-samples N] [--lens-previous 0|1]
 //               (1: each per-lens run seeded by the run before's map, the temporal seed of
 //               a camera that did not move: its best case) [--lens-neighbours 0|1]
-//               (LensDepthOptions::neighbour_seed; 0: every lens searched from nothing)
+//               (LensDepthOptions::neighbour_seed; 0, the default: every lens searched
+//               from nothing)
 //               [--seed full|seeded|both] [--dense-path scalar|simd|both] [--seed-margin PX]
 //               [--seed-ring1 1..6] [--seed-ring2 0..6] [--seed-cost-ratio R] [--seed-stride 0..8]
 //               (DepthOptions)
@@ -317,8 +318,8 @@ constexpr char kUsage[] =
     "exist, read when it holds this preset and scene; the r32 frames take 45 s to render).\n"
     "--lens-previous 1 seeds each per-lens run by the run before's map (the temporal seed\n"
     "of a camera that did not move: its best case, not a moving camera's figure).\n"
-    "--lens-neighbours 0 searches every lens from nothing (default 1: the lenses of types 1\n"
-    "and 2 first around their earlier-type neighbours' depth, LensDepthOptions::neighbour_seed).\n"
+    "--lens-neighbours 1 searches the lenses of types 1 and 2 first around their earlier-type\n"
+    "neighbours' depth (LensDepthOptions::neighbour_seed; default 0: every lens from nothing).\n"
     "--tf-only MAP: the TF image alone (with its baselines), on the seeded SIMD dense map kept\n"
     "in MAP (estimated once and written when MAP does not hold this preset and scene).\n"
     "--tf-out FILE writes the TF image there (PGM or PPM) to compare two builds' images.\n";

@@ -143,7 +143,10 @@ struct LensDepthOptions {
   // The lenses of types 1 and 2 searched first around the depth of their
   // type-0 ring-1 neighbours, estimated first (step 2b of the header
   // comment); false: every lens from nothing. Only without a previous map.
-  bool neighbour_seed = true;
+  // Off by default: it saves instructions, not CPU time (the estimator waits
+  // on the first touch of every micro image's lines either way), and on a
+  // quiet machine it cost more (docs/processing.md, "Neighbours' depth").
+  bool neighbour_seed = false;
   // The candidate gate and the searches' strip sampling and SSD through
   // Highway's runtime dispatch (processing/lens_search_simd.h); false: the
   // scalar reference (the same map, at its speed).

@@ -88,6 +88,32 @@ TEST_F(LensDepthMedium, MeetsTheGates) {
   EXPECT_EQ(depth.virtual_depth.data(), before);
 }
 
+// The neighbours' depth (LensDepthOptions::neighbour_seed, off by default):
+// most lenses of types 1 and 2 are seeded by their type-0 neighbours and most
+// seeds hold; the map meets the same gates as the search from nothing.
+TEST_F(LensDepthMedium, NeighboursDepthSeedsMostLensesAndMeetsTheGates) {
+  const testing::SynthFrame& s = *frame_;
+  LensDepthOptions options;
+  options.neighbour_seed = true;
+  const auto estimator = MakeEstimator(s, options);
+  ASSERT_NE(estimator, nullptr);
+  LensDepthMap depth;
+  ASSERT_TRUE(estimator->Estimate(s.raw.View(), &depth).ok());
+  std::vector<float> truth;
+  LensMedianOf(estimator->geometry(), depth.grid, s.raw.virtual_depth, 0.5, &truth);
+  const Accuracy a = testing::MeasureLensDepth(depth, truth);
+  std::printf("neighbours' depth: %s, held %lld of %lld\nvs truth: %.1f %%, median %.2f %%\n",
+              depth.stats.BriefReport().c_str(), depth.stats.predicted_held,
+              depth.stats.predicted, 100 * a.coverage, 100 * a.median);
+  // Types 1 and 2 are two thirds of the lenses; a seed needs two neighbours
+  // with a depth that agree.
+  EXPECT_GT(depth.stats.predicted, depth.stats.lenses / 3);
+  EXPECT_GT(depth.stats.predicted_held, depth.stats.predicted / 2);
+  EXPECT_GE(a.coverage, 0.90);
+  EXPECT_LE(a.median, 0.02);
+  EXPECT_LE(static_cast<double>(a.outliers), 0.05 * static_cast<double>(a.estimated));
+}
+
 // The SIMD strip kernels (LensDepthOptions::simd, processing/lens_search_simd.h)
 // give the scalar reference's map: the kernels agree to the last bit
 // (tests/processing/test_lens_search_simd.cpp), so the maps are compared
