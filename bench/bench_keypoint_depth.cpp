@@ -17,6 +17,7 @@
 //   bench_keypoint_depth [--serial S] SEQUENCE_DIR FRAME [FRAME...]
 
 #include "bench/bench_usage.h"
+#include "bench/truth_frames.h"
 #include "processing/camera_model.h"
 #include "registration/features/calibration_frames.h"
 #include "registration/features/intrinsics_yaml.h"
@@ -86,30 +87,13 @@ constexpr char kUsage[] =
 
 int main(int argc, char** argv) {
   if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
-  int first = 1;
-  std::string serial;
-  if (argc > 2 && std::string(argv[1]) == "--serial") {
-    serial = argv[2];
-    first = 3;
-  }
-  if (argc < first + 2) return std::fputs(kUsage, stderr), 2;
-  const fs::path seq = argv[first];
-  if (serial.empty())
-    for (const auto& e : fs::directory_iterator(seq))
-      if (auto s = layout::ParseCameraFolderName(e.path().filename().string()))
-        if (serial.empty() || *s < serial) serial = *s;
-  Expected<registration::CameraCalibration> truth =
-      registration::ReadCameraCalibration(layout::CamerasYamlPath(seq), serial);
-  if (!truth) return std::fprintf(stderr, "%s\n", truth.error().message.c_str()), 1;
-  const processing::CameraModel model(truth->intrinsics);
-  registration::FrameLoaderOptions options;
-  options.lambda = model.lambda();
-  options.principal_point_px = truth->intrinsics.PrincipalPointPx();
-  options.features.max_features = 4000;
-  Expected<std::unique_ptr<registration::CalibrationFrameLoader>> loader =
-      registration::CalibrationFrameLoader::Open(seq, serial, {}, registration::PlateLayout{},
-                                                 options);
-  if (!loader) return std::fprintf(stderr, "%s\n", loader.error().message.c_str()), 1;
+  bench::TruthFrames truth_frames;
+  if (const int code = bench::OpenTruthFrames(argc, argv, kUsage, &truth_frames)) return code;
+  const fs::path& seq = truth_frames.seq;
+  const std::string& serial = truth_frames.serial;
+  const int first = truth_frames.first;
+  const processing::CameraModel& model = *truth_frames.model;
+  std::unique_ptr<registration::CalibrationFrameLoader>* loader = &truth_frames.loader;
 
   std::vector<Sample> samples;
   long long on_true_edge = 0, without = 0;

@@ -550,15 +550,11 @@ struct Estimates {
   void Add(const Estimate& x) { e[n++] = x; }
 };
 
-// Median-consistent inverse-variance fusion in z: estimates farther than
-// max(3 sigma, rel_gate z) from the median are outliers; returns the number used.
-inline int Fuse(const Estimate* e, int n, double rel_gate, double* z, double* sigma) {
-  if (n == 0) return 0;
-  std::array<double, 64> zs;
-  n = std::min(n, static_cast<int>(zs.size()));
-  for (int i = 0; i < n; ++i) zs[i] = e[i].z;
-  std::nth_element(zs.begin(), zs.begin() + n / 2, zs.begin() + n);
-  const double med = zs[n / 2];
+// Inverse-variance fusion in z of the estimates within max(3 sigma,
+// rel_gate med) of `med` (their median): the others are outliers; returns
+// the number used.
+inline int FuseAround(const Estimate* e, int n, double med, double rel_gate, double* z,
+                      double* sigma) {
   double sw = 0, swz = 0;
   int used = 0;
   for (int i = 0; i < n; ++i) {
@@ -573,6 +569,17 @@ inline int Fuse(const Estimate* e, int n, double rel_gate, double* z, double* si
   *z = swz / sw;
   *sigma = std::sqrt(1.0 / sw);
   return used;
+}
+
+// Median-consistent inverse-variance fusion in z: estimates farther than
+// max(3 sigma, rel_gate z) from the median are outliers; returns the number used.
+inline int Fuse(const Estimate* e, int n, double rel_gate, double* z, double* sigma) {
+  if (n == 0) return 0;
+  std::array<double, 64> zs;
+  n = std::min(n, static_cast<int>(zs.size()));
+  for (int i = 0; i < n; ++i) zs[i] = e[i].z;
+  std::nth_element(zs.begin(), zs.begin() + n / 2, zs.begin() + n);
+  return FuseAround(e, n, zs[n / 2], rel_gate, z, sigma);
 }
 
 inline int Fuse(const Estimates& es, double* z, double* sigma) {

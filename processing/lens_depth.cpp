@@ -94,21 +94,7 @@ double MedianZ(const detail::Estimate* e, int n) {
 // estimates of a micro image: its median through MedianZ.
 int FuseFew(const detail::Estimate* e, int n, double rel_gate, double* z, double* sigma) {
   if (n == 0) return 0;
-  const double med = MedianZ(e, n);
-  double sw = 0, swz = 0;
-  int used = 0;
-  for (int i = 0; i < n; ++i) {
-    const detail::Estimate& x = e[i];
-    if (std::abs(x.z - med) > std::max(3 * x.sigma, rel_gate * med)) continue;
-    const double w = 1.0 / (x.sigma * x.sigma);
-    sw += w;
-    swz += w * x.z;
-    ++used;
-  }
-  if (used == 0) return 0;
-  *z = swz / sw;
-  *sigma = std::sqrt(1.0 / sw);
-  return used;
+  return detail::FuseAround(e, n, MedianZ(e, n), rel_gate, z, sigma);
 }
 
 // What a range of micro images did (LensDepthStats).
