@@ -19,6 +19,7 @@
 #include "bench/truth_frames.h"
 #include "processing/camera_model.h"
 #include "registration/features/calibration_frames.h"
+#include "registration/features/detector_offset.h"
 #include "registration/features/features.h"
 #include "registration/features/intrinsics_yaml.h"
 #include "replay/layout.h"
@@ -64,23 +65,6 @@ int OctaveOf(const registration::Keypoint& k) {
 // For each keypoint of `a`, the index of the keypoint of `b` (positions
 // already in a's frame, `b_xy`) within `radius` px and 20 % of its size,
 // nearest; -1 where none.
-std::vector<int> Pair(const registration::Features& a, const std::vector<Eigen::Vector2f>& b_xy,
-                      const registration::Features& b, float radius) {
-  std::vector<int> out(a.keypoints.size(), -1);
-  for (std::size_t i = 0; i < a.keypoints.size(); ++i) {
-    float best = radius * radius;
-    for (std::size_t j = 0; j < b_xy.size(); ++j) {
-      const float d2 = (a.keypoints[i].xy_px - b_xy[j]).squaredNorm();
-      if (d2 >= best) continue;
-      const float r = a.keypoints[i].size / b.keypoints[j].size;
-      if (r < 0.8f || r > 1.25f) continue;
-      best = d2;
-      out[i] = static_cast<int>(j);
-    }
-  }
-  return out;
-}
-
 struct Offsets {
   std::vector<double> x, y;
 };
@@ -109,38 +93,15 @@ int main(int argc, char** argv) {
     Expected<registration::CalibrationFrame> frame = (*loader)->Load(n);
     if (!frame) return std::fprintf(stderr, "%s\n", frame.error().message.c_str()), 1;
     const ConstImageView tf = (*loader)->last_tf_image();
-    const int bytes = tf.format == PixelFormat::kBgr8 ? 3 : 1;
-    // The TF image turned by 180 degrees (a new buffer: the detector's input).
-    std::vector<std::uint8_t> turned(static_cast<std::size_t>(tf.width) * tf.height * bytes);
-    for (int y = 0; y < tf.height; ++y)
-      for (int x = 0; x < tf.width; ++x)
-        for (int c = 0; c < bytes; ++c)
-          turned[(static_cast<std::size_t>(tf.height - 1 - y) * tf.width + (tf.width - 1 - x)) *
-                     bytes +
-                 c] = tf.data[y * tf.stride_bytes + static_cast<std::size_t>(x) * bytes + c];
-    registration::Features on_turned;
-    if (Status s = registration::DetectSift(
-            ConstImageView(turned.data(), tf.width, tf.height,
-                           static_cast<std::size_t>(tf.width) * bytes, tf.format),
-            options.features, &on_turned);
-        !s)
-      return std::fprintf(stderr, "%s\n", s.error().message.c_str()), 1;
-    std::vector<Eigen::Vector2f> back;
-    for (const auto& k : on_turned.keypoints)
-      back.emplace_back(tf.width - 1 - k.xy_px.x(), tf.height - 1 - k.xy_px.y());
-    // Paired by position within 1 px: the pair's offset 2b is below that.
-    const std::vector<int> pairs = Pair(frame->features, back, on_turned, 1.0f);
-    for (std::size_t i = 0; i < pairs.size(); ++i) {
-      if (pairs[i] < 0) continue;
-      const Eigen::Vector2f r = frame->features.keypoints[i].xy_px;
-      const Eigen::Vector2f rt = on_turned.keypoints[pairs[i]].xy_px;
-      const double bx = 0.5 * (r.x() + rt.x() - (tf.width - 1));
-      const double by = 0.5 * (r.y() + rt.y() - (tf.height - 1));
-      Offsets& o = detector[OctaveOf(frame->features.keypoints[i])];
-      o.x.push_back(bx);
-      o.y.push_back(by);
-      detector_all.x.push_back(bx);
-      detector_all.y.push_back(by);
+    Expected<std::vector<registration::DetectorOffset>> offsets =
+        registration::DetectorOffsetsByTurning(tf, frame->features, options.features);
+    if (!offsets) return std::fprintf(stderr, "%s\n", offsets.error().message.c_str()), 1;
+    for (const registration::DetectorOffset& d : *offsets) {
+      Offsets& o = detector[OctaveOf(frame->features.keypoints[d.keypoint])];
+      o.x.push_back(d.offset_px.x());
+      o.y.push_back(d.offset_px.y());
+      detector_all.x.push_back(d.offset_px.x());
+      detector_all.y.push_back(d.offset_px.y());
     }
     const cv::Mat aif = cv::imread(synth::AllInFocusPath(seq, serial, n).string(),
                                    cv::IMREAD_GRAYSCALE);
@@ -154,7 +115,8 @@ int main(int argc, char** argv) {
       return std::fprintf(stderr, "%s\n", s.error().message.c_str()), 1;
     std::vector<Eigen::Vector2f> truth_xy;
     for (const auto& k : on_truth.keypoints) truth_xy.push_back(k.xy_px);
-    const std::vector<int> matched = Pair(frame->features, truth_xy, on_truth, 1.0f);
+    const std::vector<int> matched =
+        registration::PairByPosition(frame->features, truth_xy, on_truth, 1.0f);
     for (std::size_t i = 0; i < matched.size(); ++i) {
       if (matched[i] < 0) continue;
       const Eigen::Vector2f d =
@@ -162,9 +124,8 @@ int main(int argc, char** argv) {
       tf_shift.x.push_back(d.x());
       tf_shift.y.push_back(d.y());
     }
-    std::fprintf(stderr, "frame %d: %zu keypoints, %zu on the turned image, %zu on the truth\n",
-                 n, frame->features.keypoints.size(), on_turned.keypoints.size(),
-                 on_truth.keypoints.size());
+    std::fprintf(stderr, "frame %d: %zu keypoints, %zu paired on the turned image, %zu on the truth\n",
+                 n, frame->features.keypoints.size(), offsets->size(), on_truth.keypoints.size());
   }
   std::printf("detector offset b (DetectSift against the feature's own position):\n");
   Print("  every octave", detector_all);

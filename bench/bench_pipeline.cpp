@@ -595,13 +595,22 @@ int RunViconPart(const BenchArgs& args, const std::filesystem::path& sequence_di
   return arrivals.received == packets && lcm_p99 < 5000.0 ? 0 : 1;
 }
 
+// A word for sh: single-quoted, each ' inside written as '\'' (close the
+// quote, an escaped quote, reopen).
+std::string ShellQuoted(const std::string& word) {
+  std::string out = "'";
+  for (const char c : word) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
 // Runs another build's bench_pipeline on the same preset and frames (it
 // renders its own: the synthetic sequence is the same for the same preset) and
 // prints its output and the ratios of this build's rates to its. Returns 1
 // when its rates cannot be read from its output.
 int RunBaseline(const BenchArgs& args, const FrameRates& ours) {
-  std::string command = "'" + args.baseline_binary + "' --preset " + args.preset + " --frames " +
-                        std::to_string(args.frames) + " --no-vicon 2>&1";
+  std::string command = ShellQuoted(args.baseline_binary) + " --preset " +
+                        ShellQuoted(args.preset) + " --frames " + std::to_string(args.frames) +
+                        " --no-vicon 2>&1";
   std::printf("baseline: %s\n", command.c_str());
   std::fflush(stdout);
   FILE* pipe = popen(command.c_str(), "r");

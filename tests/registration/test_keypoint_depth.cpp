@@ -8,6 +8,7 @@
 
 #include "processing/camera_model.h"
 #include "registration/features/calibration_frames.h"
+#include "registration/features/detector_offset.h"
 #include "registration/features/intrinsics_yaml.h"
 #include "registration/features/keypoint_depth.h"
 #include "replay/layout.h"
@@ -130,26 +131,9 @@ TEST_F(CalibrationKeypointDepthOnFrames, RangeSeparatesTheKeypointsWhoseDepthIsO
   EXPECT_LT(kept_far_share, 0.5 * out_far_share);
 }
 
-// For each keypoint of `a`, the nearest of `b_xy` (b's positions in a's
-// image) within 1 px and 20 % of its size; -1 where none.
-std::vector<int> NearestWithin1Px(const Features& a, const std::vector<Eigen::Vector2f>& b_xy,
-                                  const Features& b) {
-  std::vector<int> out(a.keypoints.size(), -1);
-  for (std::size_t i = 0; i < a.keypoints.size(); ++i) {
-    float best = 1.0f;
-    for (std::size_t j = 0; j < b_xy.size(); ++j) {
-      const float d2 = (a.keypoints[i].xy_px - b_xy[j]).squaredNorm();
-      const float r = a.keypoints[i].size / b.keypoints[j].size;
-      if (d2 < best && r > 0.8f && r < 1.25f) best = d2, out[i] = static_cast<int>(j);
-    }
-  }
-  return out;
-}
-
 // A keypoint against the projection of its true point, in two parts that add
 // up: the detector's offset b (SIFT on the TF image and on it turned by 180
-// degrees: a feature at x is at W - 1 - x there, so b = (r + r' - (W - 1)) / 2)
-// and the TF image's shift against the renderer's all-in-focus image (the
+// degrees, detector_offset.h) and the TF image's shift against the renderer's all-in-focus image (the
 // scene point on each TF pixel's ray; the same detector on both, so b
 // cancels). Before DetectSift removed OpenCV's +1/4 px, b was +0.25 on both
 // axes (bench_keypoint_position).
@@ -167,27 +151,14 @@ TEST_F(CalibrationKeypointDepthOnFrames, KeypointsSitWhereTheTruthProjects) {
     Expected<CalibrationFrame> frame = (*loader)->Load(f);
     ASSERT_TRUE(frame) << frame.error().message;
     const ConstImageView tf = (*loader)->last_tf_image();
-    const int bytes = tf.format == PixelFormat::kBgr8 ? 3 : 1;
-    std::vector<std::uint8_t> turned(static_cast<std::size_t>(tf.width) * tf.height * bytes);
-    for (int y = 0; y < tf.height; ++y)
-      for (int x = 0; x < tf.width; ++x)
-        for (int c = 0; c < bytes; ++c)
-          turned[(static_cast<std::size_t>(tf.height - 1 - y) * tf.width + (tf.width - 1 - x)) * bytes + c] =
-              tf.data[y * tf.stride_bytes + static_cast<std::size_t>(x) * bytes + c];
-    Features on_turned, on_truth;
-    ASSERT_TRUE(DetectSift(ConstImageView(turned.data(), tf.width, tf.height,
-                                          static_cast<std::size_t>(tf.width) * bytes, tf.format),
-                           options.features, &on_turned));
-    std::vector<Eigen::Vector2f> back;
-    for (const Keypoint& k : on_turned.keypoints)
-      back.emplace_back(tf.width - 1 - k.xy_px.x(), tf.height - 1 - k.xy_px.y());
-    const std::vector<int> pair = NearestWithin1Px(frame->features, back, on_turned);
-    for (std::size_t i = 0; i < pair.size(); ++i)
-      if (pair[i] >= 0) {
-        const Eigen::Vector2f r = frame->features.keypoints[i].xy_px, rt = on_turned.keypoints[pair[i]].xy_px;
-        bx.push_back(0.5 * (r.x() + rt.x() - (tf.width - 1)));
-        by.push_back(0.5 * (r.y() + rt.y() - (tf.height - 1)));
-      }
+    Expected<std::vector<DetectorOffset>> offsets =
+        DetectorOffsetsByTurning(tf, frame->features, options.features);
+    ASSERT_TRUE(offsets) << offsets.error().message;
+    for (const DetectorOffset& d : *offsets) {
+      bx.push_back(d.offset_px.x());
+      by.push_back(d.offset_px.y());
+    }
+    Features on_truth;
     const cv::Mat aif = cv::imread(synth::AllInFocusPath(*sequence_, kSerial, f).string(), cv::IMREAD_GRAYSCALE);
     ASSERT_EQ(aif.cols, tf.width);
     ASSERT_EQ(aif.rows, tf.height);
@@ -195,7 +166,7 @@ TEST_F(CalibrationKeypointDepthOnFrames, KeypointsSitWhereTheTruthProjects) {
                            options.features, &on_truth));
     std::vector<Eigen::Vector2f> truth_xy;
     for (const Keypoint& k : on_truth.keypoints) truth_xy.push_back(k.xy_px);
-    const std::vector<int> match = NearestWithin1Px(frame->features, truth_xy, on_truth);
+    const std::vector<int> match = PairByPosition(frame->features, truth_xy, on_truth, 1.0f);
     for (std::size_t i = 0; i < match.size(); ++i)
       if (match[i] >= 0) {
         const Eigen::Vector2f d = frame->features.keypoints[i].xy_px - on_truth.keypoints[match[i]].xy_px;
