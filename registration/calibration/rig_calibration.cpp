@@ -526,8 +526,14 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
   else if (!co.estimate_tangential_distortion)
     constant.insert(constant.end(), {7, 8});
   if (co.recalibrate) constant.insert(constant.end(), {0, 2});
+  // The plate corners' inset (calibration.h): one for every camera
+  // (`shared_corner_inset`: camera 0's block, from its calibration), else
+  // one per camera X from 0.
+  const bool shared_inset = options.shared_corner_inset;
   std::vector<double> inset(n_cameras, cal0.corner_inset_tf_px);
-  for (int c = 1; c < n_cameras; ++c) inset[c] = 0;
+  if (!shared_inset)
+    for (int c = 1; c < n_cameras; ++c) inset[c] = 0;
+  auto inset_of = [&](int c) { return shared_inset ? &inset[0] : &inset[c]; };
 
   // Residuals of one observation at the current parameters.
   auto evaluate = [&](const LensObservation& lo, std::vector<double>* r) {
@@ -547,7 +553,7 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     if (ob.camera == 0) return ob.cost(k[0].data(), p.q.data(), p.t.data(), &inset[0], r->data());
     const RigPoseBlock& e = block(ob.camera, ob.trigger);
     return RigPlateCornerCost{ob.cost}(k[ob.camera].data(), p.q.data(), p.t.data(), e.q.data(),
-                                       e.t.data(), &inset[ob.camera], r->data());
+                                       e.t.data(), inset_of(ob.camera), r->data());
   };
   // The plate corners' weight per camera (rig_calibration.h, step 3).
   std::vector<double> plate_weight(n_cameras, co.plate_weight);
@@ -578,8 +584,8 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
     }
     std::string weights;
     for (int c = 0; c < n_cameras; ++c)
-      weights += RigFormat("%s camera %d %.2f (RMS %.3f px)", c == 0 ? "" : ",", c,
-                           plate_weight[c], result.cameras[c].plate_corner_rms_px);
+      weights += RigFormat("%s camera %d %.2f (RMS %.3f px, inset %+.3f TF px)", c == 0 ? "" : ",",
+                           c, plate_weight[c], result.cameras[c].plate_corner_rms_px, *inset_of(c));
     say("plate corner weights:" + weights);
   };
 
@@ -638,7 +644,7 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
             new ceres::AutoDiffCostFunction<RigPlateCornerCost, ceres::DYNAMIC, kIntrinsicsSize, 4,
                                             3, 4, 3, 1>(new RigPlateCornerCost{ob.cost}, residuals),
             loss, k[ob.camera].data(), p.q.data(), p.t.data(), e.q.data(), e.t.data(),
-            &inset[ob.camera]);
+            inset_of(ob.camera));
       }
       camera_used[ob.camera] = true;
       trigger_used[ob.trigger] = true;
@@ -662,7 +668,8 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
           if (problem.HasParameterBlock(e.q.data()))
             problem.SetManifold(e.q.data(), new ceres::QuaternionManifold());
       if (problem.HasParameterBlock(&inset[c])) {
-        if (co.estimate_corner_inset) {
+        // Solve (a) holds a shared inset with the rest of camera 0.
+        if (co.estimate_corner_inset && !(x_only && c == 0)) {
           problem.SetParameterLowerBound(&inset[c], 0, -kRigMaxInsetTfPx);
           problem.SetParameterUpperBound(&inset[c], 0, kRigMaxInsetTfPx);
         } else {
@@ -847,7 +854,8 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
         kept.push_back({e.t.data(), {name + " t x", name + " t y", name + " t z"}});
       }
     for (int c = 0; c < n_cameras; ++c)
-      kept.push_back({&inset[c], {RigFormat("camera %d inset", c)}});
+      if (problem.HasParameterBlock(&inset[c]))
+        kept.push_back({&inset[c], {RigFormat("camera %d inset", c)}});
     for (int t = 0; t < n_triggers; ++t) {
       const std::string name = RigFormat("trigger %lld", static_cast<long long>(trigger_frame[t]));
       kept.push_back({rig[t].q.data(), {name + " rot x", name + " rot y", name + " rot z"}});
@@ -902,6 +910,7 @@ Expected<RigCalibrationResult> CalibrateRig(const std::vector<CalibrationInput>&
   }
 
   // Results.
+  for (int c = 0; c < n_cameras; ++c) result.cameras[c].corner_inset_tf_px = *inset_of(c);
   result.initial_cost = first_cost;
   result.final_cost = summary.final_cost;
   result.termination = ceres::TerminationTypeToString(summary.termination_type);

@@ -29,16 +29,23 @@
 // 3. Bundle adjustment (Ceres, SPARSE_SCHUR; rotations on
 //    ceres::QuaternionManifold). Unknowns: per camera its intrinsics
 //    (plenoptic_projection.h; the principal point with the single
-//    calibration's prior), its plate-corner inset; per camera X its
+//    calibration's prior); one plate-corner inset for every camera
+//    (`shared_corner_inset`; calibration.h: the detector's, on the same
+//    plate); per camera X its
 //    c0_from_cx (camera 0's is the identity); per trigger the rig pose
 //    c0_from_w0; the map points (mm in w0). Each keypoint observation of
 //    camera X at trigger t is reprojected into its micro images through
 //      p_in_cx = cx_from_c0 (c0_from_w0(t) p_in_w0)
 //    with the single calibration's micro-image cost (calibration_costs.h),
 //    each plate corner the same way. Solves: (a) the cameras X alone (their
-//    intrinsics, c0_from_cx and insets; camera 0, the trajectory and the map
-//    held), (b) everything, (c) with observations above max(outlier_px, 3 x
-//    the median RMS) dropped, everything again. Each camera's plate corners
+//    intrinsics and c0_from_cx; camera 0, the shared inset, the trajectory
+//    and the map held), (b) everything, (c) with observations above max(outlier_px, 3 x
+//    the median RMS) dropped, everything again. A camera's inset of its own
+//    trades against its distance to the plate: on the 4-camera `small` rig
+//    (no inset rendered) camera 0's calibration alone came to +0.31 TF px and
+//    sat 1.5 mm nearer the scene than the truth, cameras 1 and 2 2.1-2.7 mm
+//    off; shared, the inset came to -0.008 TF px, camera 0 0.7 mm, cameras 1
+//    and 2 1.0 mm (docs/calibration.md). Each camera's plate corners
 //    weigh plate_weight in (a); in (b) and (c) (`reweigh_plate_corners`)
 //    camera X's weigh plate_weight x min(1, sqrt(s_0 / s_X)), s_c the RMS
 //    over camera c's corners of the mean of a corner's micro-image residuals
@@ -129,6 +136,10 @@ struct RigCalibrationOptions {
   // against camera 0's (above); false: every camera's at
   // calibration.plate_weight.
   bool reweigh_plate_corners = true;
+  // Step 3: one plate-corner inset for every camera (the detector's, on the
+  // same plate), camera 0's from its calibration; false: one per camera X,
+  // from 0.
+  bool shared_corner_inset = true;
   Status Check() const;
 };
 
@@ -166,6 +177,7 @@ struct RigCameraResult {
   // weight in solve (c).
   double plate_corner_rms_px = NAN;
   double plate_weight = 0;
+  double corner_inset_tf_px = 0;   // its plate corners' inset (shared: camera 0's)
   double rmse_px = 0;              // its micro-image residuals in the final solve
 };
 
