@@ -28,6 +28,8 @@ Status TfOptions::Check() const {
     return Error{"TF options: inner_fraction: expected in (0, 1]"};
   if (!(gain > 0)) return Error{"TF options: gain: expected > 0"};
   if (!(sharpen >= 0 && sharpen <= 10)) return Error{"TF options: sharpen: expected 0..10"};
+  if (!(bary_floor >= 0 && bary_floor <= 0.3))
+    return Error{"TF options: bary_floor: expected 0..0.3"};
   return Status::Ok();
 }
 
@@ -682,7 +684,8 @@ void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDept
   // Runs of a row through the row kernel (tf_blend_simd.h); its
   // preconditions (a frame of 8 x 2 pixels at least, offsets in 32 bits)
   // hold for every camera; a frame outside them goes point by point.
-  const detail::TfBlendGeometry geometry = kernel.BlendGeometry();
+  detail::TfBlendGeometry geometry = kernel.BlendGeometry();
+  geometry.bary_floor = static_cast<float>(options.bary_floor);
   detail::TfBlendSource source{f.raw.data, f.raw.stride_bytes, kChannels, nullptr};
   source.gain16 = tables.gain16.q.data();
   source.gain16_scale = tables.gain16.scale;

@@ -73,6 +73,10 @@ struct TfOptions {
   double inner_fraction = 1.0;  // only samples within this share of r_valid (sharp, unvignetted)
   double gain = 1.0;            // output = gain * devignetted value
   double sharpen = 0.0;         // k of I - k laplacian(I); 0 = off
+  // The blend's lens weights max(0, bary - bary_floor) x centrality
+  // (tf_blend_simd.h): 0 the plain barycentric rule; above, the lens of the
+  // smallest coordinate is sampled only where it is above the floor.
+  double bary_floor = 0.25;
   // The splat's and the blend's Highway kernels; false: their scalar references.
   bool simd = true;
   Status Check() const;
