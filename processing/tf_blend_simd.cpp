@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <utility>
 
 HWY_BEFORE_NAMESPACE();
 namespace lifmcr::processing::detail {
@@ -54,15 +55,36 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
   const VF m = hn::Floor(ax), n = hn::Floor(ay);
   const VF fa = hn::Sub(ax, m), fb = hn::Sub(ay, n);
   const auto upper = hn::Ge(hn::Add(fa, fb), one);
-  const VF m1 = hn::Add(m, one), n1 = hn::Add(n, one);
-  const VF cm[3] = {m1, m, hn::IfThenElse(upper, m1, m)};
-  const VF cn[3] = {n, n1, hn::IfThenElse(upper, n1, n)};
-  const VF bary[3] = {
+  VF bary[3] = {
       hn::IfThenElse(upper, hn::Sub(one, fb), fa), hn::IfThenElse(upper, hn::Sub(one, fa), fb),
       hn::IfThenElse(upper, hn::Sub(hn::Add(fa, fb), one), hn::Sub(hn::Sub(one, fa), fb))};
   const VF sxa = hn::Set(df, g.sxa), sxb = hn::Set(df, g.sxb);
   const VF sya = hn::Set(df, g.sya), syb = hn::Set(df, g.syb);
-  const VF r2 = hn::Set(df, g.r2);
+  // The triangle's lens centres from that of lens (m, n): + A (1, 1) for
+  // (m + 1, n), + A (2, -1) for (m, n + 1), + both for (m + 1, n + 1).
+  const VF bx = hn::Add(hn::Add(ox, hn::Mul(sxa, m)), hn::Mul(sxb, n));
+  const VF by = hn::Add(hn::Add(oy, hn::Mul(sya, m)), hn::Mul(syb, n));
+  VF centre_x[3] = {hn::Add(bx, sxa), hn::Add(bx, sxb),
+                    hn::IfThenElse(upper, hn::Add(bx, hn::Set(df, g.sxa + g.sxb)), bx)};
+  VF centre_y[3] = {hn::Add(by, sya), hn::Add(by, syb),
+                    hn::IfThenElse(upper, hn::Add(by, hn::Set(df, g.sya + g.syb)), by)};
+  if (g.bary_floor > 0) {
+    // Weights max(0, bary - floor), the lens of the smallest one moved to
+    // the last slot (tf_blend_simd.h): skipped where no lane needs it.
+    const VF floor_v = hn::Set(df, g.bary_floor);
+    for (int c = 0; c < 3; ++c) bary[c] = hn::Max(hn::Sub(bary[c], floor_v), zero);
+    for (int c = 0; c < 2; ++c) {
+      const auto swap = hn::Lt(bary[c], bary[2]);
+      const VF b = bary[c], ccx = centre_x[c], ccy = centre_y[c];
+      bary[c] = hn::IfThenElse(swap, bary[2], b);
+      bary[2] = hn::IfThenElse(swap, b, bary[2]);
+      centre_x[c] = hn::IfThenElse(swap, centre_x[2], ccx);
+      centre_x[2] = hn::IfThenElse(swap, ccx, centre_x[2]);
+      centre_y[c] = hn::IfThenElse(swap, centre_y[2], ccy);
+      centre_y[2] = hn::IfThenElse(swap, ccy, centre_y[2]);
+    }
+  }
+  const VF r2 = hn::Set(df, g.r2), inv_r2 = hn::Set(df, 1.0f / g.r2);
   const VF wm1 = hn::Set(df, static_cast<float>(g.width - 1));
   const VF hm1 = hn::Set(df, static_cast<float>(g.height - 1));
   const auto width = hn::Set(di, g.width);
@@ -70,8 +92,7 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
   const auto* words = reinterpret_cast<const std::uint32_t*>(s.raw);
   const auto byte = hn::Set(du, 0xFFu);
   for (int c = 0; c < 3; ++c) {
-    const VF ccx = hn::Add(hn::Add(ox, hn::Mul(sxa, cm[c])), hn::Mul(sxb, cn[c]));
-    const VF ccy = hn::Add(hn::Add(oy, hn::Mul(sya, cm[c])), hn::Mul(syb, cn[c]));
+    const VF ccx = centre_x[c], ccy = centre_y[c];
     const VF lx = hn::Add(cx, hn::Mul(hn::Sub(ccx, cx), lambda));
     const VF ly = hn::Add(cy, hn::Mul(hn::Sub(ccy, cy), lambda));
     const VF px = hn::Add(lx, hn::Mul(hn::Sub(x, lx), inv_v));
@@ -210,7 +231,7 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
       for (int ch = 1; ch < kChannels; ++ch) check = hn::Add(check, col[ch]);
       valid = hn::AndNot(hn::IsNaN(check), valid);
     }
-    const VF wq = hn::Mul(bary[c], hn::Sub(one, hn::Div(d2, r2)));
+    const VF wq = hn::Mul(bary[c], hn::Sub(one, hn::Mul(d2, inv_r2)));
     for (int ch = 0; ch < kChannels; ++ch)
       acc[ch] = hn::Add(acc[ch], hn::IfThenElseZero(valid, hn::Mul(wq, col[ch])));
     *sw = hn::Add(*sw, hn::IfThenElseZero(valid, wq));
@@ -323,6 +344,7 @@ void ScalarBlendRowT(const TfBlendGeometry& g, const TfBlendSource& s, float x0,
                      float y, const float* v, int n, float* acc, float* sw) {
   const float wm1 = static_cast<float>(g.width - 1), hm1 = static_cast<float>(g.height - 1);
   const float type_max = static_cast<float>(g.type_size - 1);
+  const float inv_r2 = 1.0f / g.r2;
   for (int i = 0; i < n; ++i) {
     const float x = x0 + dx * static_cast<float>(i);
     const float vi = v[i];
@@ -337,15 +359,25 @@ void ScalarBlendRowT(const TfBlendGeometry& g, const TfBlendSource& s, float x0,
     const float m = std::floor(ax), nn = std::floor(ay);
     const float fa = ax - m, fb = ay - nn;
     const bool upper = fa + fb >= 1.0f;
-    const float cm[3] = {m + 1.0f, m, upper ? m + 1.0f : m};
-    const float cn[3] = {nn, nn + 1.0f, upper ? nn + 1.0f : nn};
-    const float bary[3] = {upper ? 1.0f - fb : fa, upper ? 1.0f - fa : fb,
-                           upper ? (fa + fb) - 1.0f : (1.0f - fa) - fb};
+    const float bx = (g.ox[t] + g.sxa * m) + g.sxb * nn;
+    const float by = (g.oy[t] + g.sya * m) + g.syb * nn;
+    float centre_x[3] = {bx + g.sxa, bx + g.sxb, upper ? bx + (g.sxa + g.sxb) : bx};
+    float centre_y[3] = {by + g.sya, by + g.syb, upper ? by + (g.sya + g.syb) : by};
+    float bary[3] = {upper ? 1.0f - fb : fa, upper ? 1.0f - fa : fb,
+                     upper ? (fa + fb) - 1.0f : (1.0f - fa) - fb};
+    if (g.bary_floor > 0) {
+      for (int c = 0; c < 3; ++c) bary[c] = std::max(bary[c] - g.bary_floor, 0.0f);
+      for (int c = 0; c < 2; ++c)
+        if (bary[c] < bary[2]) {
+          std::swap(bary[c], bary[2]);
+          std::swap(centre_x[c], centre_x[2]);
+          std::swap(centre_y[c], centre_y[2]);
+        }
+    }
     float a[kChannels] = {};
     float w = 0;
     for (int c = 0; c < 3; ++c) {
-      const float ccx = (g.ox[t] + g.sxa * cm[c]) + g.sxb * cn[c];
-      const float ccy = (g.oy[t] + g.sya * cm[c]) + g.syb * cn[c];
+      const float ccx = centre_x[c], ccy = centre_y[c];
       const float lx = g.cx + (ccx - g.cx) * g.lambda, ly = g.cy + (ccy - g.cy) * g.lambda;
       const float px = lx + (x - lx) * inv_v, py = ly + (y - ly) * inv_v;
       const float dx = px - ccx, dy = py - ccy;
@@ -381,7 +413,7 @@ void ScalarBlendRowT(const TfBlendGeometry& g, const TfBlendSource& s, float x0,
       float check = col[0];
       for (int ch = 1; ch < kChannels; ++ch) check = check + col[ch];
       if (std::isnan(check)) continue;
-      const float wq = bary[c] * (1.0f - d2 / g.r2);
+      const float wq = bary[c] * (1.0f - d2 * inv_r2);
       for (int ch = 0; ch < kChannels; ++ch) a[ch] = a[ch] + wq * col[ch];
       w = w + wq;
     }

@@ -33,6 +33,12 @@ struct TfBlendGeometry {
   float sxa = 0, sya = 0, sxb = 0, syb = 0;  // the steps A (1, 1) and A (2, -1)
   const std::int32_t* type_of_v = nullptr;   // type of v: [clamp(int(v per_unit), 0, size - 1)]
   int type_per_unit = 1, type_size = 1;
+  // The lenses' weights are max(0, bary - bary_floor) (in [0, 1/3)) times
+  // the centrality; 0 is the plain barycentric rule. Above 0 a lens whose
+  // barycentric coordinate is below the floor adds nothing, continuously
+  // (its weight reaches 0 at the floor), and the run's vectors skip the
+  // third lens where none of its points needs one: fewer samples per pixel.
+  float bary_floor = 0;
 };
 
 struct TfBlendSource {

@@ -1,7 +1,7 @@
 // The TF blend's row kernel (processing/tf_blend_simd.h): Highway's on every
 // target this CPU runs against the scalar reference, on random frames
 // (Mono8 and BGR8, padded rows), gains with holes (float NaN, 16-bit 0),
-// lattices, lens-type tables, steps and runs of depths. Both evaluate the same float expressions in
+// lattices, lens-type tables, barycentric floors, steps and runs of depths. Both evaluate the same float expressions in
 // the same order without FMA contraction and read the same pixels, so the
 // stated tolerance (1e-5 relative to the larger of 1 and the value) is there
 // for a compiler that reorders, not for an expected difference.
@@ -74,6 +74,9 @@ RandomCase MakeCase(std::mt19937& rng, int channels, bool in_16_bits) {
   c.types.resize(g.type_size);
   for (std::int32_t& t : c.types) t = static_cast<std::int32_t>(rng() % 3);
   g.type_of_v = c.types.data();
+  // The plain barycentric weights in a third of the cases, else a floor
+  // (the TF image's) in (0, 0.3).
+  g.bary_floor = rng() % 3 == 0 ? 0.0f : 0.3f * unit(rng);
   c.s = TfBlendSource{c.raw.data(), stride, channels, c.gain.data()};
   if (in_16_bits) {
     c.gain16.resize(c.gain.size());
