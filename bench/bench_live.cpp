@@ -286,7 +286,9 @@ struct RunFigures {
   }
 };
 
-void PrintAccuracy(const Accuracy& a) {
+// `pass_triggers`: with --loop pingpong the triggers of one pass forward and
+// back (2 frames - 2), 0 otherwise.
+void PrintAccuracy(const Accuracy& a, std::int64_t pass_triggers) {
   std::printf("           accuracy vs GroundTruth: %d of %d messages ok (%.1f %%)", a.ok,
               a.messages, a.messages > 0 ? 100.0 * a.ok / a.messages : 0.0);
   if (!a.not_ok.empty()) {
@@ -317,6 +319,20 @@ void PrintAccuracy(const Accuracy& a) {
     for (const auto& [frame, e] : a.by_frame)
       std::printf(" %lld:%.2f(%zu)", static_cast<long long>(frame), Percentile(e.t_mm, 0.5),
                   e.t_mm.size());
+    std::printf("\n");
+  }
+  // By pass forward and back (--loop pingpong): every pass shows the same
+  // frames, so a median growing from pass to pass is drift, not the frames
+  // (the by-frame medians above vary with the frame: a view further from
+  // the map's keyframes measures worse whether tracked or not,
+  // docs/registration.md). The last pass is cut by the window.
+  if (pass_triggers > 0 && !a.by_trigger.empty()) {
+    std::map<std::int64_t, std::vector<double>> by_pass;
+    for (const auto& [trigger, mm] : a.by_trigger) by_pass[trigger / pass_triggers].push_back(mm);
+    std::printf("           median mm by pass of %lld triggers:",
+                static_cast<long long>(pass_triggers));
+    for (const auto& [pass, e] : by_pass)
+      std::printf(" %lld:%.3f(%zu)", static_cast<long long>(pass), Percentile(e, 0.5), e.size());
     std::printf("\n");
   }
   // The window's first and last quarters of the ok messages (by trigger):
@@ -662,7 +678,8 @@ int main(int argc, char** argv) {
       std::printf("; relocalised at a pass's first trigger %d, later %d (%d passes of the loop)\n",
                   f.relocalised_at_pass_start, f.relocalised_later, f.passes);
     }
-    if (mode != Mode::kDepthOnly) PrintAccuracy(f.accuracy);
+    if (mode != Mode::kDepthOnly)
+      PrintAccuracy(f.accuracy, args.pingpong ? 2 * static_cast<std::int64_t>(args.frames) - 2 : 0);
     std::fflush(stdout);
   }
   if (runs.size() < 3) {
