@@ -1003,9 +1003,12 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
     // LIFMCR_TEST_COLD_ROUNDS=R: cold_reanchor_rounds R in every variant run.
     if (const char* cold = std::getenv("LIFMCR_TEST_COLD_ROUNDS"))
       options.cold_reanchor_rounds = std::atoi(cold);
-    // LIFMCR_TEST_MAX_ANCHOR_WEIGHT=W: max_anchor_weight W in every variant.
+    // LIFMCR_TEST_MAX_ANCHOR_WEIGHT=W: max_anchor_weight W in every variant;
+    // LIFMCR_TEST_ANCHOR_SHIFT_RATIO=R: max_anchor_shift_ratio R.
     if (const char* weight = std::getenv("LIFMCR_TEST_MAX_ANCHOR_WEIGHT"))
       options.max_anchor_weight = std::atof(weight);
+    if (const char* ratio = std::getenv("LIFMCR_TEST_ANCHOR_SHIFT_RATIO"))
+      options.max_anchor_shift_ratio = std::atof(ratio);
     options.relocalise_refocus_cells = variant.cells;
     options.guided.refocus_cells = variant.cells;
     options.coarse.refocus_cells = variant.cells;
