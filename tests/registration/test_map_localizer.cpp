@@ -1200,7 +1200,8 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
 // LIFMCR_TEST_PRESET=medium and LIFMCR_TEST_KEEP, LIFMCR_TEST_FRAMES=24 on
 // bench_live's kept 24-frame rig gives docs/registration.md's figures;
 // LIFMCR_TEST_REANCHOR_EVERY and LIFMCR_TEST_COLD_ROUNDS override the defaults'
-// reanchor_every and cold_reanchor_rounds;
+// reanchor_every and cold_reanchor_rounds, LIFMCR_TEST_GUIDED_MAX_SIDE the
+// re-anchoring's GuidedMatchOptions::max_side_px (820: r32 at step 4);
 // LIFMCR_TEST_LOOP=pingpong or restart runs only the defaults so replayed.
 TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
   const char* frames_env = std::getenv("LIFMCR_TEST_FRAMES");
@@ -1307,6 +1308,8 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
     defaults.reanchor_every = std::atoi(every);
   if (const char* mask = std::getenv("LIFMCR_TEST_GUIDED_MASK"))
     defaults.guided.mask_keypoints = std::atoi(mask) != 0;
+  if (const char* side = std::getenv("LIFMCR_TEST_GUIDED_MAX_SIDE"))
+    defaults.guided.max_side_px = std::atoi(side);
   if (const char* side = std::getenv("LIFMCR_TEST_RELOCALISE_MIN_SIDE"))
     defaults.relocalise_min_side_px = std::atoi(side);
   if (const char* cold = std::getenv("LIFMCR_TEST_COLD_ROUNDS"))
