@@ -23,6 +23,7 @@
 #include "replay/synth/synth_writer.h"
 #include "tests/test_util.h"
 
+#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -34,6 +35,7 @@
 #include <ctime>
 #include <map>
 #include <memory>
+#include <set>
 #include <thread>
 #include <vector>
 
@@ -640,6 +642,129 @@ TEST(MapLocalizer, LiveRendersAreUnbiasedAgainstTheOfflineTfImage) {
   EXPECT_LE(Median(region_depth.norm), 0.8 * Median(one_depth.norm));
 }
 
+// The keypoints of the live renders against the offline TF image's: SIFT
+// (DetectSift, registration/features/features.h: keypoints on the pixel
+// grid) on camera X's TF image as the chain makes it offline (what offline
+// registration detects on; within 0.01 TF px of the renderer's
+// all-in-focus image, bench/README.md bench_keypoint_position, whose
+// keypoints make the ground-truth map) and on the sampler's render refocused
+// per region at the true projections' virtual depths (relocalisation's and
+// guided matching's render) at step 1, at relocalisation's step and at
+// guided matching's (render pixel i is TF position step (i + 1/2) - 1/2,
+// ScaleKeypoints). Pairs: mutual nearest descriptors within 2 TF px of each
+// other. The median offset (render keypoint minus TF keypoint, TF px) is the
+// convention the two share or not: within 0.05 TF px at every step.
+TEST(MapLocalizer, LiveRenderKeypointsAreUnbiasedAgainstTheOfflineTfImage) {
+  Sequence& s = *Shared();
+  const std::string& x = s.serials[1];
+  processing::CameraChain* chain = s.chain->Find(x);
+  ASSERT_NE(chain, nullptr);
+  const processing::CameraModel& camera = *chain->camera_model();
+  const MapIndex index = MapIndex::Of(s.map);
+  const LocalizerOptions defaults;
+  FeatureOptions tf_features;
+  tf_features.max_features = 4000;  // as the ground-truth map detects
+  std::map<int, RenderOffsets> by_step, subsampled_by_step, live_vs_subsampled;
+  for (const std::int64_t frame : {1, 3, 5, 7}) {
+    auto raw = ReadBmp(layout::RawFramePath(s.sequence, x, frame));
+    ASSERT_TRUE(raw) << raw.error().message;
+    const ConstImageView view = std::as_const(*raw).View();
+    auto products = chain->Process(view);
+    ASSERT_TRUE(products) << products.error().message;
+    const processing::TfImage& tf = (*products)->tf;
+    Features offline;
+    ASSERT_TRUE(DetectSift(tf.View(), tf_features, &offline));
+    auto sampler = chain->Sampler(view);
+    ASSERT_TRUE(sampler) << sampler.error().message;
+    const Pose cam_from_w0 = s.truth[x][frame].inverse();
+    std::vector<Eigen::Vector2d> at;
+    std::vector<double> depths;
+    for (const Eigen::Vector3d& p : index.points_in_w0) {
+      Eigen::Vector2d tf_px;
+      double v = 0;
+      if (!ProjectMapPoint(camera, cam_from_w0, p, &tf_px, &v) || tf_px.x() < 0 ||
+          tf_px.y() < 0 || tf_px.x() >= tf.width || tf_px.y() >= tf.height)
+        continue;
+      at.push_back(tf_px);
+      depths.push_back(v);
+    }
+    ASSERT_FALSE(depths.empty());
+    const int cells = defaults.relocalise_refocus_cells;
+    const processing::RefocusDepths regions = processing::RefocusDepths::FromPoints(
+        tf.width, tf.height, cells,
+        std::max(1, static_cast<int>(std::lround(cells * double(tf.height) / tf.width))), at,
+        depths, Median(depths), 3);
+    const int longer = std::max(tf.width, tf.height);
+    const std::set<int> steps = {1, defaults.RelocaliseStep(longer), defaults.guided.Step(longer)};
+    const auto pairs = [](const Features& a, const Features& b, RenderOffsets* out) {
+      for (const Match& m :
+           MatchDescriptors(a.descriptors.data(), a.size(), b.descriptors.data(), b.size(), {})) {
+        const Eigen::Vector2d d =
+            (a.keypoints[m.query].xy_px - b.keypoints[m.train].xy_px).cast<double>();
+        if (d.norm() <= 2.0) out->Add(d);
+      }
+    };
+    for (const int step : steps) {
+      processing::TfImage rendered;
+      ASSERT_TRUE((*sampler)->RenderAtDepths(view, regions, step, &rendered));
+      Features live;
+      ASSERT_TRUE(DetectSift(rendered.View(), defaults.guided.features, &live));
+      if (step != 1) ScaleKeypoints(step, &live);
+      pairs(live, offline, &by_step[step]);
+      if (step == 1) continue;
+      // The offline TF image on the render's grid (pixel i at TF position
+      // step (i + 1/2) - 1/2, bilinear): the same subsampling, the render's
+      // refocusing left out.
+      const int sw = tf.width / step, sh = tf.height / step;
+      const int channels = tf.format == PixelFormat::kBgr8 ? 3 : 1;
+      std::vector<std::uint8_t> grid(static_cast<std::size_t>(sw) * sh * channels);
+      const double half = 0.5 * (step - 1);
+      for (int j = 0; j < sh; ++j)
+        for (int i = 0; i < sw; ++i) {
+          const double u = step * i + half, w = step * j + half;
+          const int x0 = std::min(static_cast<int>(u), tf.width - 2),
+                    y0 = std::min(static_cast<int>(w), tf.height - 2);
+          const double fx = u - x0, fy = w - y0;
+          for (int c = 0; c < channels; ++c) {
+            const auto at = [&](int x, int y) {
+              return double(tf.pixels[(static_cast<std::size_t>(y) * tf.width + x) * channels + c]);
+            };
+            const double g = (1 - fx) * (1 - fy) * at(x0, y0) + fx * (1 - fy) * at(x0 + 1, y0) +
+                             (1 - fx) * fy * at(x0, y0 + 1) + fx * fy * at(x0 + 1, y0 + 1);
+            grid[(static_cast<std::size_t>(j) * sw + i) * channels + c] =
+                static_cast<std::uint8_t>(std::lround(g));
+          }
+        }
+      Features subsampled;
+      ASSERT_TRUE(DetectSift(ConstImageView(grid.data(), sw, sh,
+                                            static_cast<std::size_t>(sw) * channels, tf.format),
+                             defaults.guided.features, &subsampled));
+      ScaleKeypoints(step, &subsampled);
+      pairs(subsampled, offline, &subsampled_by_step[step]);
+      pairs(live, subsampled, &live_vs_subsampled[step]);
+    }
+  }
+  for (const auto& [step, offsets] : by_step)
+    std::printf("live render keypoints at step %d against the offline TF image's: %s\n", step,
+                offsets.Report().c_str());
+  for (const auto& [step, offsets] : subsampled_by_step)
+    std::printf("the offline TF image subsampled at step %d against itself: %s\n", step,
+                offsets.Report().c_str());
+  for (const auto& [step, offsets] : live_vs_subsampled)
+    std::printf("live render keypoints at step %d against the offline TF image's at step %d: %s\n",
+                step, step, offsets.Report().c_str());
+  // The render's own convention: at step 1 against the TF image, at a
+  // coarser step against the TF image subsampled on the same grid (what
+  // SIFT does with a subsampled image, the TF image's keypoints shift too:
+  // printed above).
+  for (const auto* offsets : {&by_step, &live_vs_subsampled})
+    for (const auto& [step, o] : *offsets) {
+      if (offsets == &by_step && step != 1) continue;
+      ASSERT_GE(o.norm.size(), 100u) << "step " << step;
+      EXPECT_LE(std::hypot(Median(o.dx), Median(o.dy)), 0.05) << "step " << step;
+    }
+}
+
 // The fundamental filter (registration/features/fundamental_filter.h) against
 // relocalisation alone: every frame of camera X relocalised with and
 // without it; both within the gates, and what it changed printed (the
@@ -816,6 +941,7 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
     bool average;       // LocalizerOptions::average_anchors
     int reanchor_every;  // LocalizerOptions::reanchor_every (the default: 4)
     int cold_rounds;     // LocalizerOptions::cold_reanchor_rounds (the default: 0)
+    bool track = true;   // LocalizerOptions::track (false: every frame relocalised)
   };
   // LIFMCR_TEST_VARIANTS=a,b: only the variants whose names contain a or b.
   const char* only_env = std::getenv("LIFMCR_TEST_VARIANTS");
@@ -831,6 +957,20 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
     }
     return false;
   };
+  // LIFMCR_TEST_PASSES=P: the frames forward and back (bench_live --loop
+  // pingpong: 0 1 .. n-1 n-2 .. 1 0 1 ..) for P passes of 2n - 2 triggers,
+  // every trigger localised in order; first / last are the first and the
+  // last pass's medians (by default the frames once forward, first / last
+  // the first and last 3 triggers).
+  const char* passes_env = std::getenv("LIFMCR_TEST_PASSES");
+  const int passes = passes_env ? std::max(0, std::atoi(passes_env)) : 0;
+  const std::int64_t period = 2 * frames - 2;
+  const std::int64_t triggers = passes > 0 ? passes * period + 1 : frames;
+  const auto view_of = [&](std::int64_t t) {
+    if (passes == 0) return t;
+    const std::int64_t i = t % period;
+    return i < frames ? i : period - i;
+  };
   std::map<std::string, double> medians, firsts, lasts;
   for (const Variant variant :
        {Variant{"one depth, unwarped", 0, false, false, false, 0, 0},
@@ -845,7 +985,17 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
                 8, true, false, true, 4, 2},
         Variant{"per region, warped, anchors averaged, re-anchored every 4 triggers (the "
                 "defaults)",
-                8, true, false, true, 4, 0}}) {
+                8, true, false, true, 4, 0},
+        // Each frame measured against the map on its own, no tracked
+        // history in its pose: relocalised (from the camera's last pose:
+        // the render refocused per region there), and re-anchored (tracked,
+        // then guided matching from the tracked pose, the anchor's PnP
+        // published). Against the defaults by trigger they separate what the
+        // frames cost (a view further from the map's keyframes) from what
+        // tracking adds (drift).
+        Variant{"per region, every frame relocalised", 8, true, false, false, 0, 0, false},
+        Variant{"per region, warped, every frame re-anchored, each anchor alone", 8, true, false,
+                false, 1, 0}}) {
     if (!wanted(variant.name)) continue;
     LocalizerOptions options;
     options.average_anchors = variant.average;
@@ -854,10 +1004,17 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
     // LIFMCR_TEST_COLD_ROUNDS=R: cold_reanchor_rounds R in every variant run.
     if (const char* cold = std::getenv("LIFMCR_TEST_COLD_ROUNDS"))
       options.cold_reanchor_rounds = std::atoi(cold);
+    // LIFMCR_TEST_MAX_ANCHOR_WEIGHT=W: max_anchor_weight W in every variant;
+    // LIFMCR_TEST_ANCHOR_SHIFT_RATIO=R: max_anchor_shift_ratio R.
+    if (const char* weight = std::getenv("LIFMCR_TEST_MAX_ANCHOR_WEIGHT"))
+      options.max_anchor_weight = std::atof(weight);
+    if (const char* ratio = std::getenv("LIFMCR_TEST_ANCHOR_SHIFT_RATIO"))
+      options.max_anchor_shift_ratio = std::atof(ratio);
     options.relocalise_refocus_cells = variant.cells;
     options.guided.refocus_cells = variant.cells;
     options.coarse.refocus_cells = variant.cells;
     options.warp_patches = variant.warp;
+    options.track = variant.track;
     if (variant.finer_guided) {
       options.guided.max_step = 2;
     }
@@ -867,6 +1024,15 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
     // described (GuidedMatchOptions::mask_keypoints false, as before).
     if (const char* mask = std::getenv("LIFMCR_TEST_GUIDED_MASK"))
       options.guided.mask_keypoints = std::atoi(mask) != 0;
+    // LIFMCR_TEST_GUIDED_MAX_SIDE=N / LIFMCR_TEST_GUIDED_MAX_STEP=S: the
+    // re-anchoring's render (GuidedMatchOptions::max_side_px, max_step);
+    // LIFMCR_TEST_GUIDED_FEATURES=K: its SIFT budget (features.max_features).
+    if (const char* side = std::getenv("LIFMCR_TEST_GUIDED_MAX_SIDE"))
+      options.guided.max_side_px = std::atoi(side);
+    if (const char* step = std::getenv("LIFMCR_TEST_GUIDED_MAX_STEP"))
+      options.guided.max_step = std::atoi(step);
+    if (const char* k = std::getenv("LIFMCR_TEST_GUIDED_FEATURES"))
+      options.guided.features.max_features = std::atoi(k);
     MapLocalizerStage stage(s.map, options);
     // The fused estimate of a rigid mount (extrinsics_monitor.h), as the
     // pipeline publishes it beside each trigger's.
@@ -880,9 +1046,11 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
     // CPU time per Localize (load-independent, unlike its wall time), by
     // how the pose was made.
     std::map<std::string, std::pair<double, int>> cpu;
-    for (std::int64_t t = 0; t < frames; ++t) {
-      const Localized l0 = LocalizeFrame(stage, s, zero, t);
-      const Localized lx = LocalizeFrame(stage, s, x, t);
+    std::vector<std::vector<double>> by_pass(static_cast<std::size_t>(std::max(1, passes)));
+    for (std::int64_t t = 0; t < triggers; ++t) {
+      const std::int64_t f = view_of(t);
+      const Localized l0 = LocalizeFrame(stage, s, zero, t, f);
+      const Localized lx = LocalizeFrame(stage, s, x, t, f);
       ASSERT_TRUE(l0.pose && lx.pose);
       for (const Localized* l : {&l0, &lx}) {
         auto& [sum, n] = cpu[l->pose->status == "ok" ? l->pose->localisation : "failed"];
@@ -898,19 +1066,52 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
         continue;
       }
       const Pose estimate = l0.pose->transform.inverse() * lx.pose->transform;
-      const Pose truth = s.truth[zero][t].inverse() * s.truth[x][t];
+      const Pose truth = s.truth[zero][f].inverse() * s.truth[x][f];
       related = relater.Relate(x, *l0.pose, *lx.pose);
       if (t > 0 && TranslationDifference(truth, truth_last) > 1e-3) rigid = false;
       truth_last = truth;
       const double e = TranslationDifference(estimate, truth);
       t_mm.push_back(e);
       r_deg.push_back(RotationDifferenceDeg(estimate, truth));
-      if (t < 3) first.push_back(e);
-      if (t >= frames - 3) last.push_back(e);
+      if (passes > 0) {
+        // A pass's last trigger shows frame 0 again: counted in the next.
+        by_pass[static_cast<std::size_t>(std::min<std::int64_t>(t / period, passes - 1))]
+            .push_back(e);
+      } else {
+        if (t < 3) first.push_back(e);
+        if (t >= frames - 3) last.push_back(e);
+      }
       char cell[48];
-      std::snprintf(cell, sizeof cell, " %lld:%.2f%c", static_cast<long long>(t), e,
-                    lx.pose->localisation == "re-anchored" ? 'a' : lx.pose->localisation[0]);
+      const char how = lx.pose->localisation == "re-anchored" ? 'a' : lx.pose->localisation[0];
+      if (passes > 0)
+        std::snprintf(cell, sizeof cell, " %lld/%lld:%.2f%c", static_cast<long long>(t),
+                      static_cast<long long>(f), e, how);
+      else
+        std::snprintf(cell, sizeof cell, " %lld:%.2f%c", static_cast<long long>(t), e, how);
       line += cell;
+      // LIFMCR_TEST_DETAIL=1: camera X's inliers, RMS residual (TF px) and
+      // translation sigma (mm, the PnP covariance's largest axis) by trigger.
+      if (std::getenv("LIFMCR_TEST_DETAIL")) {
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> axes(
+            lx.pose->covariance.topLeftCorner<3, 3>());
+        std::snprintf(cell, sizeof cell, "(%d,%.2fpx,%.3fmm)", lx.pose->inliers,
+                      lx.pose->rmse_px, std::sqrt(std::max(0.0, axes.eigenvalues()(2))));
+        line += cell;
+      }
+    }
+    if (passes > 0) {
+      // The same frames pass after pass: a median that grows from pass to
+      // pass is drift, not the frames.
+      first = by_pass.front();
+      last = by_pass.back();
+      std::string medians_line;
+      for (const std::vector<double>& pass : by_pass) {
+        char cell[24];
+        std::snprintf(cell, sizeof cell, " %.3f(%zu)", Median(pass), pass.size());
+        medians_line += cell;
+      }
+      std::printf("  median mm by pass of %lld triggers (forward and back):%s\n",
+                  static_cast<long long>(period), medians_line.c_str());
     }
     std::vector<double> sorted_t = t_mm, sorted_r = r_deg;
     std::sort(sorted_t.begin(), sorted_t.end());
@@ -920,9 +1121,9 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
     };
     std::printf(
         "%s: c0_from_cx over %zu of %lld triggers: median %.3f mm / %.4f deg, p90 %.3f "
-        "mm / %.4f deg; first 3 %.3f mm, last 3 %.3f mm\n  by trigger (mm, "
+        "mm / %.4f deg; first %.3f mm, last %.3f mm\n  by trigger (mm, "
         "t tracked, r relocalised, a re-anchored: camera X's localisation):%s\n  %s\n",
-        variant.name, t_mm.size(), static_cast<long long>(frames), Median(t_mm), Median(r_deg),
+        variant.name, t_mm.size(), static_cast<long long>(triggers), Median(t_mm), Median(r_deg),
         p90(sorted_t), p90(sorted_r), Median(first), Median(last), line.c_str(),
         stage.counts().StageReport().c_str());
     const MapLocalizerStage::Counts c = stage.counts();
@@ -999,7 +1200,8 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
 // LIFMCR_TEST_PRESET=medium and LIFMCR_TEST_KEEP, LIFMCR_TEST_FRAMES=24 on
 // bench_live's kept 24-frame rig gives docs/registration.md's figures;
 // LIFMCR_TEST_REANCHOR_EVERY and LIFMCR_TEST_COLD_ROUNDS override the defaults'
-// reanchor_every and cold_reanchor_rounds;
+// reanchor_every and cold_reanchor_rounds, LIFMCR_TEST_GUIDED_MAX_SIDE the
+// re-anchoring's GuidedMatchOptions::max_side_px (820: r32 at step 4);
 // LIFMCR_TEST_LOOP=pingpong or restart runs only the defaults so replayed.
 TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
   const char* frames_env = std::getenv("LIFMCR_TEST_FRAMES");
@@ -1106,6 +1308,8 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
     defaults.reanchor_every = std::atoi(every);
   if (const char* mask = std::getenv("LIFMCR_TEST_GUIDED_MASK"))
     defaults.guided.mask_keypoints = std::atoi(mask) != 0;
+  if (const char* side = std::getenv("LIFMCR_TEST_GUIDED_MAX_SIDE"))
+    defaults.guided.max_side_px = std::atoi(side);
   if (const char* side = std::getenv("LIFMCR_TEST_RELOCALISE_MIN_SIDE"))
     defaults.relocalise_min_side_px = std::atoi(side);
   if (const char* cold = std::getenv("LIFMCR_TEST_COLD_ROUNDS"))
@@ -1158,14 +1362,16 @@ TEST(MapLocalizer, RelocalisationStepGrowsWithTheTfGrid) {
 }
 
 // Guided matching likewise (GuidedMatchOptions::Step): re-anchoring renders
-// small, medium and r32 at steps 2, 3 and 4 (256, 547, 820 px; r32 at step
-// 3 took 710 ms of SIFT a re-anchoring), the coarse correction of a
-// prediction at 2, 4 and 8 (256, 410, 410 px).
+// small, medium and r32 at steps 2, 3 and 3 (256, 547, 1093 px: r32's
+// anchors at step 4 were 0.13-1.80 mm off, at step 3 0.10-0.46 mm,
+// guided_matches.h), the coarse correction of a prediction at 2, 4 and 8
+// (256, 410, 410 px).
 TEST(MapLocalizer, GuidedMatchingStepGrowsWithTheTfGrid) {
   const LocalizerOptions options;
   EXPECT_EQ(options.guided.Step(512), 2);
   EXPECT_EQ(options.guided.Step(1640), 3);
-  EXPECT_EQ(options.guided.Step(3280), 4);
+  EXPECT_EQ(options.guided.Step(3280), 3);
+  EXPECT_EQ(options.guided.Step(4400), 4);  // longer than 3 x 1100 px
   EXPECT_EQ(options.guided.Step(100000), 8);  // never beyond 8
   EXPECT_EQ(options.coarse.Step(512), 2);
   EXPECT_EQ(options.coarse.Step(1640), 4);
