@@ -135,6 +135,11 @@ struct LatencySummary {
 struct PipelineReport {
   double elapsed_s = 0;
   std::uint64_t frames_in = 0;  // frames of emitted FrameSets given to processing
+  // Seconds from the first frame in to the last (0 with fewer than two):
+  // the rate the cameras delivered at is frames_in / frames_in_span_s, not
+  // frames_in / elapsed_s (elapsed_s counts the set-up before the first
+  // frame and the drain after the last).
+  double frames_in_span_s = 0;
   std::uint64_t processed = 0;  // processed and published
   std::uint64_t skipped = 0;    // replaced in its camera's slot by a newer frame (skip policy)
   std::uint64_t failed = 0;     // processing or registration returned an error (last_error)
