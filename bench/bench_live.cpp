@@ -31,9 +31,12 @@
 // Per run: extrinsics per second per camera X, frame -> extrinsics latency
 // (arrival of camera X's frame at the pipeline -> its c0_from_cx on LCM;
 // p50, p99), frames taken (localised; depth only: processed) and skipped
-// per second (and frames in, of the 20 offered per second: the replay
-// cameras' losses, sync's and the pauses between passes of the loop make
-// the difference), previews and depth maps published per second (with a
+// per second (and frames in, of the 20 offered per second: over the whole
+// run, the set-up before the first frame and the drain after the last make
+// most of the difference, so also over the span from the first frame in to
+// the last, where only the replay cameras' losses, sync's and the pauses
+// between passes of the loop do), previews and depth maps published per
+// second (with a
 // registration stage the depth lane's, apps/pipeline/pipeline.h), the
 // per-lens depth maps and TF images per second (every frame taken), and
 // Localize's mean time tracked vs relocalised. Ratios: track / relocalise
