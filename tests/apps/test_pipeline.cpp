@@ -1681,6 +1681,12 @@ TEST(Pipeline, BayerCameraIsPublishedInColour) {
     EXPECT_EQ(out->tf->channels, bayer ? 3 : 1);
     EXPECT_EQ(out->demosaiced != nullptr, bayer);
     EXPECT_GT(out->depth->valid_fraction, 0.2f);
+    // The lanes hand a Bayer frame to the lens lane with the registration's
+    // demosaiced copy (once localised); any other frame as it is taken.
+    auto input = (*processor)->ForRegistration(frame);
+    ASSERT_TRUE(input.ok()) << input.error().message;
+    EXPECT_EQ((*processor)->SharesRegistrationImage(frame), bayer);
+    EXPECT_EQ(input->demosaiced != nullptr, bayer);
     std::printf("%s: depth valid on %.1f %% of the published map\n",
                 bayer ? "demosaiced" : "mosaic as grey", 100.0 * out->depth->valid_fraction);
   }
