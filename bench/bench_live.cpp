@@ -504,8 +504,8 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
       if (end != std::string::npos && report.compare(end + 1, 17, "lens lane skipped") == 0)
         end = report.find('\n', end + 1);
       f.workers = report.substr(at, end == std::string::npos ? end : end + 1 - at);
-      for (std::size_t nl = f.workers.find('\n'); nl + 1 < f.workers.size();
-           nl = f.workers.find('\n', nl + 1))
+      for (std::size_t nl = f.workers.find('\n');
+           nl != std::string::npos && nl + 1 < f.workers.size(); nl = f.workers.find('\n', nl + 1))
         f.workers.insert(nl + 1, "           ");
     }
   }

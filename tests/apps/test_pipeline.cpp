@@ -1344,7 +1344,9 @@ TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
   pipeline->AddFrameSet(MakeCopiedFrameSet(0, serials, *pool, raw));
   pipeline->Poll();
   // Both frames wait in ProcessLenses (the lens lane has a thread per
-  // camera here): both poses are out, so trigger 0's extrinsics are too.
+  // camera here; the frames went there as they were taken, beside their
+  // localisation): both poses come out all the same, and so do trigger 0's
+  // extrinsics.
   ASSERT_TRUE(processor->WaitEntered(2));
   {
     std::unique_lock lock(records_mutex);
@@ -1354,6 +1356,10 @@ TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
     EXPECT_EQ(records[0].trigger_index, 0);
     EXPECT_EQ(records[0].c0_from_cx.status, "ok");
   }
+  // The extrinsics go out inside the second pose's publication, which counts
+  // the pose after them.
+  for (int k = 0; k < 300 && pipeline->Report().published_poses < 2; ++k)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
   EXPECT_EQ(pipeline->Report().published_poses, 2u);
   // The lens lane computes at lens_nice, relative to the thread that made the pipeline.
   const int base = getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
