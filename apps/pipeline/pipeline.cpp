@@ -316,11 +316,12 @@ struct Pipeline::Impl {
     const Counts counts;
     explicit Lane(Counts c) : counts(c) {}
   };
-  // The per-lens depth and TF preview of every frame taken (the ones the
-  // workers localised once their pose is out, the ones they skip when a
-  // newer frame replaces them), below the workers' priority and above the
-  // depth lane's. Only the workers' frames reached it before: a frame they
-  // skipped got no per-lens depth even where the lane was idle.
+  // The per-lens depth and TF preview of every frame taken, offered as it
+  // is taken, beside its localisation (a frame that shares the workers'
+  // image once its pose is out, or when the workers skip it), below the
+  // workers' priority and above the depth lane's. Offered after its pose, a
+  // frame the workers held waited while the lane could have computed it,
+  // and one localised after its camera's newer frame came too late (stale).
   //
   // A lane of its own rather than on the worker after the pose: at medium
   // the per-lens depth and its preview cost several times a tracked
