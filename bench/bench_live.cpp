@@ -31,9 +31,12 @@
 // Per run: extrinsics per second per camera X, frame -> extrinsics latency
 // (arrival of camera X's frame at the pipeline -> its c0_from_cx on LCM;
 // p50, p99), frames taken (localised; depth only: processed) and skipped
-// per second (and frames in, of the 20 offered per second: the replay
-// cameras' losses, sync's and the pauses between passes of the loop make
-// the difference), previews and depth maps published per second (with a
+// per second (and frames in, of the 20 offered per second: over the whole
+// run, the set-up before the first frame and the drain after the last make
+// most of the difference, so also over the span from the first frame in to
+// the last, where only the replay cameras' losses, sync's and the pauses
+// between passes of the loop do), previews and depth maps published per
+// second (with a
 // registration stage the depth lane's, apps/pipeline/pipeline.h), the
 // per-lens depth maps and TF images per second (every frame taken), and
 // Localize's mean time tracked vs relocalised. Ratios: track / relocalise
@@ -272,6 +275,7 @@ struct RunFigures {
   std::uint64_t processed = 0, skipped = 0, previews = 0, depth = 0;
   std::uint64_t lens_depth = 0, tf = 0;  // per-lens depth maps, TF images published
   std::uint64_t frames_in = 0, underruns = 0, incomplete_sets = 0;
+  double frames_in_span_s = 0;  // first frame in -> last (PipelineReport::frames_in_span_s)
   double depth_cpu_s = 0;  // the depth lane's thread (registration runs only)
   std::string workers;     // the pipeline report's workers line (registration runs)
   std::uint64_t depth_seeded = 0;  // dense maps seeded by the lens lane's per-lens depth
@@ -507,6 +511,7 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
   f.lens_depth = result->report.published_lens_depth;
   f.tf = result->report.published_tf;
   f.frames_in = result->report.frames_in;
+  f.frames_in_span_s = result->report.frames_in_span_s;
   f.underruns = result->camera_underruns;
   f.incomplete_sets = result->report.incomplete_sets;
   f.depth_cpu_s = result->report.depth_cpu_s;
@@ -517,7 +522,16 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
     // The report's line of the workers' and the lens lane's CPU per frame.
     const std::string report = result->report.FinalReport();
     const auto at = report.find("workers (registration first)");
-    if (at != std::string::npos) f.workers = report.substr(at, report.find('\n', at) + 1 - at);
+    // With the next line: why the lens lane skipped what it skipped.
+    if (at != std::string::npos) {
+      std::size_t end = report.find('\n', at);
+      if (end != std::string::npos && report.compare(end + 1, 17, "lens lane skipped") == 0)
+        end = report.find('\n', end + 1);
+      f.workers = report.substr(at, end == std::string::npos ? end : end + 1 - at);
+      for (std::size_t nl = f.workers.find('\n');
+           nl != std::string::npos && nl + 1 < f.workers.size(); nl = f.workers.find('\n', nl + 1))
+        f.workers.insert(nl + 1, "           ");
+    }
   }
   f.registration = result->registration;
   return f;
@@ -669,6 +683,16 @@ int main(int argc, char** argv) {
                 "incomplete sets %.2f/s\n",
                 f.frames_in / f.elapsed_s, f.underruns / f.elapsed_s,
                 f.incomplete_sets / f.elapsed_s);
+    // The rates above divide by the whole run (its set-up before the first
+    // frame and the drain after the last); between the first frame in and
+    // the last the cameras deliver 20 per second where none is lost.
+    if (f.frames_in_span_s > 0) {
+      const double triggers = 20 * f.frames_in_span_s + 2;  // both ends' sets
+      std::printf("           between the first frame in and the last (%.1f s): frames in %.2f/s "
+                  "(of 20 offered), per-lens depth of %.0f %% of the frames offered there\n",
+                  f.frames_in_span_s, static_cast<double>(f.frames_in - 2) / f.frames_in_span_s,
+                  100.0 * static_cast<double>(f.lens_depth) / triggers);
+    }
     if (f.depth_cpu_s > 0)
       std::printf("           depth lane CPU %.1f s (%.0f %% of one core), %llu dense maps seeded "
                   "by the lens lane's per-lens depth\n",

@@ -239,6 +239,12 @@ Expected<RegistrationInput> DepthProcessor::ForRegistration(const Frame& frame) 
   return input;
 }
 
+bool DepthProcessor::SharesRegistrationImage(const Frame& frame) const {
+  // ColourView's copy: a Bayer camera's mosaic demosaiced.
+  const auto it = formats_.find(frame.serial);
+  return it != formats_.end() && IsBayer(it->second) && frame.image.format == PixelFormat::kMono8;
+}
+
 Status DepthProcessor::Warm(const Frame& frame, bool sampler) {
   processing::CameraChain* camera = chain_->Find(frame.serial);
   if (camera == nullptr) return Error{"depth: no MLA calibration for camera " + frame.serial};

@@ -133,6 +133,11 @@ class FrameProcessor {
   virtual Expected<RegistrationInput> ForRegistration(const Frame&) {
     return RegistrationInput{};
   }
+  // Whether ForRegistration makes an image of the frame that ProcessLenses
+  // would make again (a Bayer frame demosaiced): the pipeline then hands
+  // the frame to ProcessLenses with the registration's input, after its
+  // localisation, rather than beside it (default: no).
+  virtual bool SharesRegistrationImage(const Frame&) const { return false; }
 };
 
 // Downscaled JPEG of `image` (Mono8 or BGR8).
@@ -194,6 +199,7 @@ class DepthProcessor final : public FrameProcessor {
                                          const RegistrationInput* input = nullptr) override;
   std::string name() const override { return "depth"; }
   Expected<RegistrationInput> ForRegistration(const Frame& frame) override;
+  bool SharesRegistrationImage(const Frame& frame) const override;
   // The set-up the first frame of the camera would pay, made now from
   // `frame` (one of the camera's frames: its size, and its pixels where the
   // devignetting is estimated from a frame): the per-lens estimator

@@ -110,6 +110,9 @@ struct Job {
   std::int64_t arrival_ns = 0;  // host clock when the frame reached the pipeline
   std::uint64_t pass = 0;       // of a looped replay (Pipeline::EndPass): its triggers restart
   std::uint64_t camera_order = 0;  // the frame's place among its camera's frames taken
+  // Lanes: offered to the lens lane when it was taken (Impl::SubmitQueued),
+  // not again after its localisation or when the workers skip it.
+  bool lens_offered = false;
 };
 
 struct Result {
@@ -264,6 +267,7 @@ struct Pipeline::Impl {
   LatencyWindow pose_latency;  // frame arrival -> its pose published
   LatencyWindow lens_latency;  // frame arrival -> its per-lens depth published (lens lane)
   std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
+  std::chrono::steady_clock::time_point first_frame_in;  // report_mutex
   std::chrono::steady_clock::time_point next_stats = start;
   std::uint64_t stats_last_processed = 0;
   std::chrono::steady_clock::time_point stats_last_time = start;
@@ -312,11 +316,12 @@ struct Pipeline::Impl {
     const Counts counts;
     explicit Lane(Counts c) : counts(c) {}
   };
-  // The per-lens depth and TF preview of every frame taken (the ones the
-  // workers localised once their pose is out, the ones they skip when a
-  // newer frame replaces them), below the workers' priority and above the
-  // depth lane's. Only the workers' frames reached it before: a frame they
-  // skipped got no per-lens depth even where the lane was idle.
+  // The per-lens depth and TF preview of every frame taken, offered as it
+  // is taken, beside its localisation (a frame that shares the workers'
+  // image once its pose is out, or when the workers skip it), below the
+  // workers' priority and above the depth lane's. Offered after its pose, a
+  // frame the workers held waited while the lane could have computed it,
+  // and one localised after its camera's newer frame came too late (stale).
   //
   // A lane of its own rather than on the worker after the pose: at medium
   // the per-lens depth and its preview cost several times a tracked
@@ -610,11 +615,14 @@ struct Pipeline::Impl {
       result.processed->seconds =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     // Every frame to the lens lane, localised or not: its per-lens depth
-    // needs no pose.
-    Impl::Offer offer{result.job, std::nullopt, ProcessedFrame{}};
-    if (input) offer.input = std::move(*input);
-    OfferTo(lens_lane, std::move(offer), &report.lens_skipped, &report.lens_stale,
-            &report.lens_replaced);
+    // needs no pose. Most went there when they were taken; here the ones
+    // that share the workers' image (a Bayer frame demosaiced once).
+    if (!result.job.lens_offered) {
+      Impl::Offer offer{result.job, std::nullopt, ProcessedFrame{}};
+      if (input) offer.input = std::move(*input);
+      OfferTo(lens_lane, std::move(offer), &report.lens_skipped, &report.lens_stale,
+              &report.lens_replaced);
+    }
     return result;
   }
 
@@ -743,6 +751,22 @@ struct Pipeline::Impl {
       }
       Job job = std::move(queued.front());
       queued.pop_front();
+      // Lanes: the frame to the lens lane as it is taken, beside its
+      // localisation (its per-lens depth needs no pose): offered after its
+      // pose, a frame waited for a worker while the lane could have
+      // computed it (a timed replay's first frames, while both cameras
+      // relocalise), and a frame localised after its camera's newer one (two
+      // workers on one camera) came to the lane after that one and was
+      // skipped as stale. Not a frame whose image the workers make and the
+      // lane reuses (FrameProcessor::SharesRegistrationImage): it goes with
+      // their input once localised.
+      if (lanes && !processor->SharesRegistrationImage(job.frame)) {
+        job.lens_offered = true;
+        lock.unlock();
+        OfferTo(lens_lane, Impl::Offer{job, std::nullopt, ProcessedFrame{}}, &report.lens_skipped,
+                &report.lens_stale, &report.lens_replaced);
+        lock.lock();
+      }
       if (in_flight < options.max_concurrency) {
         ++in_flight;
         served[job.frame.camera_index] = ++serve_count;
@@ -774,7 +798,7 @@ struct Pipeline::Impl {
       // Lanes: the lens lane takes it (newest wins there too), so a frame
       // the workers skip still gets its per-lens depth when the lane has
       // the time.
-      if (replaced && lanes)
+      if (replaced && lanes && !replaced->lens_offered)
         OfferTo(lens_lane, Impl::Offer{std::move(*replaced), std::nullopt, ProcessedFrame{}},
                 &report.lens_skipped, &report.lens_stale, &report.lens_replaced);
     }
@@ -794,8 +818,10 @@ struct Pipeline::Impl {
         std::optional<std::int64_t> vicon;
         if (set.vicon_frame >= 0) vicon = set.vicon_frame;
         {
+          const auto now = std::chrono::steady_clock::now();
           std::lock_guard r(report_mutex);
-          ++report.frames_in;
+          if (report.frames_in++ == 0) first_frame_in = now;
+          report.frames_in_span_s = std::chrono::duration<double>(now - first_frame_in).count();
         }
         const int camera = frame->camera_index;
         queued.push_back(

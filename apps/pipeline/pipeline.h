@@ -135,6 +135,11 @@ struct LatencySummary {
 struct PipelineReport {
   double elapsed_s = 0;
   std::uint64_t frames_in = 0;  // frames of emitted FrameSets given to processing
+  // Seconds from the first frame in to the last (0 with fewer than two):
+  // the rate the cameras delivered at is frames_in / frames_in_span_s, not
+  // frames_in / elapsed_s (elapsed_s counts the set-up before the first
+  // frame and the drain after the last).
+  double frames_in_span_s = 0;
   std::uint64_t processed = 0;  // processed and published
   std::uint64_t skipped = 0;    // replaced in its camera's slot by a newer frame (skip policy)
   std::uint64_t failed = 0;     // processing or registration returned an error (last_error)
@@ -146,16 +151,17 @@ struct PipelineReport {
   // when it is free, the others are skipped there.
   std::uint64_t depth_processed = 0, depth_skipped = 0, depth_failed = 0;
   // Lanes: every frame taken goes to the lens lane (per-lens depth and TF
-  // preview, newest wins per camera): the ones the workers localised (or
-  // failed to) once their pose is out, the ones they skip when a newer frame
-  // replaces them in the workers' slot. There each is processed
+  // preview, newest wins per camera) as it is taken, beside its
+  // localisation; a frame that shares the workers' image (a Bayer frame,
+  // FrameProcessor::SharesRegistrationImage) once its pose is out or when
+  // the workers skip it. There each is processed
   // (lens_frames), skipped for a newer frame of its camera (lens_skipped) or
   // failed; so frames_in == lens_frames + lens_skipped + lens_failed once
   // Finish returned. Why each skipped frame was: lens_replaced, a newer frame
   // of its camera came while it waited (the lane's threads were busy with
   // other frames); lens_stale, it came after a newer frame of its camera was
-  // taken (a frame the workers localised reaches the lane when its pose is
-  // out, after the newer frames they skipped meanwhile):
+  // taken (only a frame that shares the workers' image, which reaches the
+  // lane when its pose is out, after newer frames can have):
   // lens_skipped == lens_replaced + lens_stale.
   std::uint64_t lens_skipped = 0, lens_failed = 0;
   std::uint64_t lens_replaced = 0, lens_stale = 0;
