@@ -72,7 +72,8 @@
 // without a clear minimum anywhere (too little texture along their
 // baselines), which the full search loses too. With a seed, seed_max_ring1 ring-1 and
 // seed_max_ring2 ring-2 baselines are searched per pixel and a lattice of
-// seed_search_stride (below), the ring-1 searches in the window on the
+// seed_search_stride (seed_flat_stride on a flat micro image; below), the
+// ring-1 searches in the window on the
 // patch's middle line (5 x 1, seed_ring1_lines); a pixel whose window found
 // no minimum and did not fall back searches ring 2 in the window too (with
 // seed_cost_ratio), not over the whole range; steps 2-5 are those of the
