@@ -366,6 +366,10 @@ int main(int argc, char** argv) {
       depth_options.seed_max_ring2 = std::atoi(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--seed-cost-ratio"))
       depth_options.seed_cost_ratio = std::atof(argv[k + 1]);
+    else if (!std::strcmp(argv[k], "--seed-flat-stride"))
+      depth_options.seed_flat_stride = std::atoi(argv[k + 1]);
+    else if (!std::strcmp(argv[k], "--seed-flat-px"))
+      depth_options.seed_flat_px = std::atof(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--seed-margin"))
       depth_options.seed_margin_px = std::atof(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--frames"))

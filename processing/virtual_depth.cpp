@@ -133,6 +133,15 @@ std::pair<int, int> InitOwnedRuns(const std::int32_t* lens, int w, int h, int k,
   return {first_row, last_row};
 }
 
+// Step 5's support of a seeded micro image searched on a lattice of
+// `lattice`: fill_min_support (the full search's, on its stride's lattice)
+// scaled by the lattices' densities, at least 3 (the fill counts estimates).
+int FillSupport(int fill_min_support, int full_stride, int lattice) {
+  return std::max(std::min(3, fill_min_support),
+                  static_cast<int>(std::lround(fill_min_support * static_cast<double>(full_stride) /
+                                               (lattice * lattice))));
+}
+
 }  // namespace
 
 Status DepthOptions::Check() const {
@@ -167,6 +176,10 @@ Status DepthOptions::Check() const {
     return Error{"depth options: seed_max_ring1: expected 1..6"};
   if (seed_max_ring2 < 0 || seed_max_ring2 > 6)
     return Error{"depth options: seed_max_ring2: expected 0..6"};
+  if (seed_flat_stride < 0 || seed_flat_stride > 8)
+    return Error{"depth options: seed_flat_stride: expected 0 (auto)..8"};
+  if (!(seed_flat_px >= 0 && seed_flat_px <= 100))
+    return Error{"depth options: seed_flat_px: expected 0 (off)..100"};
   if (!(seed_cost_ratio > 0 && seed_cost_ratio <= 1))
     return Error{"depth options: seed_cost_ratio: expected in (0, 1]"};
   if (!(seed_sigmas >= 0 && seed_sigmas <= 100))
@@ -184,10 +197,10 @@ std::string DepthStats::BriefReport() const {
   std::snprintf(
       buf, sizeof buf,
       "virtual depth: %lld of %lld textured pixels (%.1f %%; %lld valid), %lld rejected, "
-      "%lld untextured filled, %lld searched (%lld seeded, %lld of them again in full), "
-      "%.3f s, kernels %s",
+      "%lld untextured filled, %lld searched (%lld seeded, %lld of them again in full; "
+      "%lld flat micro images on the sparse lattice), %.3f s, kernels %s",
       estimated, textured_pixels, textured_pixels ? 100.0 * estimated / textured_pixels : 0.0,
-      valid_pixels, rejected, filled, searched, seeded, fallback, seconds, kernels);
+      valid_pixels, rejected, filled, searched, seeded, fallback, flat_lenses, seconds, kernels);
   return buf;
 }
 
@@ -267,10 +280,11 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
           : (nominal_pitch_px >= 32 ? 3 : (nominal_pitch_px >= 24 ? 2 : 1));
   const int seed_ring1_lines = options.seed_ring1_lines != 0 ? options.seed_ring1_lines
                                                              : (nominal_pitch_px >= 24 ? 1 : 3);
-  const int seeded_fill_support = std::max(
-      std::min(3, options.fill_min_support),
-      static_cast<int>(std::lround(options.fill_min_support * static_cast<double>(stride) /
-                                   (seed_stride * seed_stride))));
+  // Seeded: the sparser lattice of a flat micro image (header comment).
+  const int flat_stride =
+      options.seed_flat_stride != 0
+          ? options.seed_flat_stride
+          : (nominal_pitch_px >= 32 ? 4 : (nominal_pitch_px >= 24 ? 3 : seed_stride));
   // Seeded: ring-1 disparity per unit z (the window's margin in z).
   const double ring1_scale = lambda * f.grid.PitchPx();
   // Per micro image, its agreeing estimates' inverse-variance sums (step 5's
@@ -281,7 +295,10 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
   };
   std::vector<SurfaceSums> lens_sums(f.lenses.size());
   std::vector<std::uint8_t> lens_has_depth(f.lenses.size(), 0);
-  std::vector<std::uint8_t> lens_seeded(f.lenses.size(), 0);
+  // Per micro image, step 5's support (its searched lattice's) and whether
+  // it searched the flat lattice.
+  std::vector<std::int32_t> lens_fill_support(f.lenses.size(), options.fill_min_support);
+  std::vector<std::uint8_t> lens_flat(f.lenses.size(), 0);
 
   tbb::parallel_for(0, static_cast<int>(f.lenses.size()), [&](int k) {
     const MicroImage& lens = f.lenses[k];
@@ -305,13 +322,16 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     // Seeded: the ring-1 window (header comment); none without a seed of
     // the micro image's own.
     double seed_lo = lo, seed_hi = hi;
-    bool seeded = false;
+    bool seeded = false, flat = false;
+    int lens_stride = seed_stride;  // the searched lattice of a seeded micro image
     if (seed != nullptr && seed->z[k] > 0) {
+      int seeded_neighbours = 0;
       double a = seed->z[k] - options.seed_sigmas * seed->sigma_z[k];
       double b = seed->z[k] + options.seed_sigmas * seed->sigma_z[k];
       for (const auto& d : kRing1) {
         const int n_idx = f.LensAt(lens.i + d[0], lens.j + d[1]);
         if (n_idx < 0 || !(seed->z[n_idx] > 0)) continue;
+        ++seeded_neighbours;
         a = std::min(a, seed->z[n_idx] - options.seed_sigmas * seed->sigma_z[n_idx]);
         b = std::max(b, seed->z[n_idx] + options.seed_sigmas * seed->sigma_z[n_idx]);
       }
@@ -321,7 +341,14 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       // NaN sigma or a window wider than the range: the full search.
       seeded = seed_lo < seed_hi && (seed_lo > lo || seed_hi < hi);
       if (!seeded) seed_lo = lo, seed_hi = hi;
-      lens_seeded[k] = seeded;
+      // Flat: all six ring-1 neighbours seeded and the window (the seeds'
+      // spread and 3 sigma) narrow: one confident surface over the micro
+      // image and the neighbours it is matched against.
+      flat = seeded && flat_stride > lens_stride && seeded_neighbours == 6 &&
+             (b - a) * ring1_scale <= options.seed_flat_px;
+      if (flat) lens_stride = flat_stride;
+      lens_flat[k] = flat;
+      if (seeded) lens_fill_support[k] = FillSupport(options.fill_min_support, stride, lens_stride);
     }
     // The micro image's estimates on a local grid (z and sigma, NaN = none)
     // and its textured pixels, for the regularisation below.
@@ -432,7 +459,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       // Searched pixels: all, or a checkerboard (the others are filled by
       // the regularisation from their searched neighbours).
       if (seeded) {
-        if (x % seed_stride != 0 || y % seed_stride != 0) continue;
+        if (x % lens_stride != 0 || y % lens_stride != 0) continue;
       } else if (stride == 2 && ((x + y) & 1)) {
         continue;
       }
@@ -595,7 +622,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     // change only at its points, and a row without one adds 0). sat_col[c]
     // (sat_row) is the number of the rectangle's points left of (above)
     // local x (y) c, the tables' column (row) of a window's edge at c.
-    const int lattice = seeded ? seed_stride : 1;
+    const int lattice = seeded ? lens_stride : 1;
     const int tw = (ex1 - ex0) / lattice + 1, th = (ey1 - ey0) / lattice + 1;
     if (wk.sat_col.size() < static_cast<std::size_t>(bw) + 1) wk.sat_col.resize(bw + 1);
     if (wk.sat_row.size() < static_cast<std::size_t>(bh) + 1) wk.sat_row.resize(bh + 1);
@@ -700,6 +727,13 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     // (no distinct minimum) and those not searched without enough support;
     // a searched pixel that disagrees keeps none.
     const bool fill_on = options.fill_min_support > 0;
+    // A flat micro image's sparser lattice holds fewer estimates per
+    // window: the support scaled by its density against the seeded lattice's.
+    const int min_support =
+        flat ? std::max(std::min(2, options.min_support), static_cast<int>(std::lround(options.min_support *
+                                                        static_cast<double>(seed_stride * seed_stride) /
+                                                        (lens_stride * lens_stride))))
+             : options.min_support;
     for (int t = 0; t < n_textured; ++t) {
       const std::uint32_t packed = textured_list[t];
       const int lx = static_cast<int>(packed & 0xFFFF), ly = static_cast<int>(packed >> 16);
@@ -712,7 +746,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       const float own_z = patch_z[local], own_sigma = patch_sigma[local];
       const bool searched = !std::isnan(own_z);
       const WindowSum ws = window(lx, ly, rad);
-      if (ws.n < options.min_support || (searched && !inlier[local])) {
+      if (ws.n < min_support || (searched && !inlier[local])) {
         rejected_count[k] += searched;
         if (!searched && fill_on) untextured_list[n_untextured++] = at;
         continue;
@@ -748,7 +782,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       const int fill_radius = options.fill_radius_px > 0 ? options.fill_radius_px : bw + bh;
       // A window of the whole micro image (the default) has the same sums
       // for every pixel: taken once; and without enough support none fills.
-      const int fill_support = seeded ? seeded_fill_support : options.fill_min_support;
+      const int fill_support = lens_fill_support[k];
       const bool whole = fill_radius >= bw + bh;
       const WindowSum whole_sums = window(0, 0, bw + bh);
       // The fill of a window's sums: false where they hold too little
@@ -813,7 +847,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       for (const auto& d : kRing1) {
         const int idx = f.LensAt(lens.i + d[0], lens.j + d[1]);
         if (idx < 0 ||
-            lens_sums[idx].n < (lens_seeded[idx] ? seeded_fill_support : options.fill_min_support))
+            lens_sums[idx].n < lens_fill_support[idx])
           continue;
         ++contributing;
         sum.w += lens_sums[idx].w;
@@ -855,6 +889,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     st.searched += searched_count[k];
     st.seeded += seeded_count[k];
     st.fallback += fallback_count[k];
+    st.flat_lenses += lens_flat[k];
   }
   st.kernels = kernels.name;
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -72,7 +72,8 @@
 // without a clear minimum anywhere (too little texture along their
 // baselines), which the full search loses too. With a seed, seed_max_ring1 ring-1 and
 // seed_max_ring2 ring-2 baselines are searched per pixel and a lattice of
-// seed_search_stride (below), the ring-1 searches in the window on the
+// seed_search_stride (seed_flat_stride on a flat micro image; below), the
+// ring-1 searches in the window on the
 // patch's middle line (5 x 1, seed_ring1_lines); a pixel whose window found
 // no minimum and did not fall back searches ring 2 in the window too (with
 // seed_cost_ratio), not over the whole range; steps 2-5 are those of the
@@ -142,6 +143,18 @@ struct DepthOptions {
   // of 32 px and more (an R32's 34 px: a 9 x 9 window of step 4 still holds
   // 9 lattice pixels), 2 for 24 px and more, else 1.
   int seed_search_stride = 0;
+  // Seeded: a flat micro image (its own and its six ring-1 neighbours'
+  // seeds present, the window [min (z - 3 sigma), max (z + 3 sigma)] over
+  // them at most seed_flat_px of ring-1 disparity wide: one confident
+  // surface) searches one pixel of every seed_flat_stride x
+  // seed_flat_stride block; steps 4 and 5 give the others its surface
+  // (step 4's min_support scaled by the lattice's density against
+  // seed_search_stride's, at least 2: one estimate alone lets outliers
+  // through). seed_flat_px 0: none is flat; seed_flat_stride 0: 4 for micro
+  // images of 32 px and more (on the r32 frame 5 covered 1.8 % fewer
+  // textured pixels), 3 for 24 px and more, else seed_search_stride's.
+  int seed_flat_stride = 0;
+  double seed_flat_px = 3.0;
   int seed_max_ring1 = 2;
   int seed_max_ring2 = 2;
   // Seeded: the lines of the window's ring-1 patch, 1 (5 x 1) or 3 (5 x 3);
@@ -168,6 +181,7 @@ struct DepthStats {
   long long searched = 0;         // pixels searched (step 1)
   long long seeded = 0;           // of them searched in a seed's window
   long long fallback = 0;         // of those searched again over the full range
+  long long flat_lenses = 0;      // seeded micro images searched on the flat lattice
   double seconds = 0;
   const char* kernels = "";       // "scalar" or Highway's target (lens_search_simd.h)
   std::string BriefReport() const;
