@@ -646,7 +646,7 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
   app.add_option("--keypoint-depth-robust", o->keypoint_depth_robust,
                  "After the first solve each keypoint's depth is reweighed by its disagreement e "
                  "with its point, 1 / sqrt(1 + (e / s)^2), s this times the robust sigma of every "
-                 "e (default 2.385; 0: none; docs/calibration.md)")
+                 "e (default 0: none; 2.385 measured: docs/calibration.md)")
       ->check(CLI::Range(0.0, 99.0));
   app.add_option("--keypoint-support", o->keypoint_support_radius_tf_px,
                  "Radius of a keypoint's support in TF pixels, over which the range of its "
