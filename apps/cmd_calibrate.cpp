@@ -66,6 +66,7 @@ struct CalibrateOptions {
   double max_keypoint_depth_range = registration::CalibrationOptions{}.max_keypoint_depth_range;
   double keypoint_depth_sigma_per_range =
       registration::CalibrationOptions{}.keypoint_depth_sigma_per_range;
+  double keypoint_depth_robust = registration::CalibrationOptions{}.keypoint_depth_robust;
   int keypoint_support_radius_tf_px = registration::KeypointDepthSupport{}.radius_tf_px;
   bool no_covariance = false;
   double plate_weight = registration::CalibrationOptions{}.plate_weight;
@@ -173,6 +174,7 @@ Expected<registration::CalibrationOptions> MakeCalibrationOptions(const Calibrat
   options.map_sigma_tf_px = o.map_sigma_tf_px;
   options.max_keypoint_depth_range = o.max_keypoint_depth_range;
   options.keypoint_depth_sigma_per_range = o.keypoint_depth_sigma_per_range;
+  options.keypoint_depth_robust = o.keypoint_depth_robust;
   options.covariance = !o.no_covariance;
   options.plate_weight = o.plate_weight;
   if (!o.plate_frames.empty()) {
@@ -640,6 +642,11 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
                  "A keypoint's depth enters with sigma sqrt(0.28 %^2 + (S x range)^2) of v, "
                  "range its support's (--keypoint-support), its position at full weight "
                  "(default 0: every depth at full weight; 0.44 measured: docs/calibration.md)")
+      ->check(CLI::Range(0.0, 99.0));
+  app.add_option("--keypoint-depth-robust", o->keypoint_depth_robust,
+                 "After the first solve each keypoint's depth is reweighed by its disagreement e "
+                 "with its point, 1 / sqrt(1 + (e / s)^2), s this times the robust sigma of every "
+                 "e (default 0: none; 2.385 measured: docs/calibration.md)")
       ->check(CLI::Range(0.0, 99.0));
   app.add_option("--keypoint-support", o->keypoint_support_radius_tf_px,
                  "Radius of a keypoint's support in TF pixels, over which the range of its "

@@ -195,6 +195,9 @@ Status CalibrationOptions::Check() const {
   if (!(keypoint_depth_sigma_per_range >= 0 && keypoint_depth_sigma_per_range < 100))
     return fail("keypoint_depth_sigma_per_range: expected in [0, 100) (0: every depth at full "
                 "weight)");
+  if (!(keypoint_depth_robust >= 0 && keypoint_depth_robust < 100))
+    return fail("keypoint_depth_robust: expected in [0, 100) (times the disagreements' robust "
+                "sigma; 0: no reweighting)");
   if (max_iterations < 1) return fail("max_iterations: expected >= 1");
   if (threads < 1) return fail("threads: expected >= 1");
   return Status::Ok();
@@ -539,6 +542,45 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
       if (progress)
         progress(Format("outliers: %lld of %zu observations above %.2f px RMS dropped", dropped,
                         lens_observations.size(), threshold));
+      // Each kept keypoint's depth reweighed by its disagreement e with its
+      // point after this solve (one step of iteratively reweighted least
+      // squares, weights fixed for the last solve, so the depths as a whole
+      // still determine B): w / sqrt(1 + (e / s)^2) (Cauchy) scales the depth
+      // part of its residuals (calibration_costs.h), s = factor x 1.4826 x
+      // the median |e| (the disagreements' robust sigma: where the views
+      // leave the intrinsics further off, every depth disagrees more, and
+      // the weights stay even). A depth 2-30 % off next to a depth edge
+      // stops pulling B; one within the noise keeps its weight.
+      if (options.keypoint_depth_robust > 0) {
+        std::vector<double> e(lens_observations.size(), std::nan(""));
+        std::vector<double> magnitude;
+        for (std::size_t n = 0; n < lens_observations.size(); ++n) {
+          LensObservation& lo = lens_observations[n];
+          if (!inlier[n] || lo.cost.depth_from_estimate) continue;
+          const Track& track = map.tracks[lo.track];
+          const int f = track.observations[lo.observation].frame;
+          e[n] = lo.cost.DepthDisagreement(k.data(), poses[f].q.data(), poses[f].t.data(),
+                                           track.p_in_w_mm.data());
+          if (!std::isnan(e[n])) magnitude.push_back(std::abs(e[n]));
+        }
+        if (!magnitude.empty()) {
+          std::nth_element(magnitude.begin(), magnitude.begin() + magnitude.size() / 2,
+                           magnitude.end());
+          const double scale =
+              options.keypoint_depth_robust * 1.4826 * magnitude[magnitude.size() / 2];
+          long long below = 0;
+          for (std::size_t n = 0; n < lens_observations.size(); ++n) {
+            if (std::isnan(e[n]) || !(scale > 0)) continue;
+            MicroImageCost& cost = lens_observations[n].cost;
+            cost.depth_weight /= std::sqrt(1 + (e[n] / scale) * (e[n] / scale));
+            below += cost.depth_weight < 0.5 ? 1 : 0;
+          }
+          if (progress)
+            progress(Format("keypoints: depths reweighed by their disagreement with their point "
+                            "(Cauchy, scale %.3f %% of v): %lld of %zu below 0.5",
+                            100 * scale, below, magnitude.size()));
+        }
+      }
       continue;
     }
 

@@ -24,6 +24,7 @@ bool MakeMicroImageCost(const Eigen::Vector3d& x_v, const MicroImages& micro,
   cost->pixel_size_mm = s;
   cost->depth_from_estimate = position_only;
   cost->depth_weight = std::clamp(depth_weight, 0.0, 1.0);
+  cost->inverse_v_measured = 1 / x_v.z();
   cost->observed_virtual_px = x_v.head<2>();
   cost->c0_px = c0;
   cost->lambda0 = lambda0;

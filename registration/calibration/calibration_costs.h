@@ -12,6 +12,7 @@
 #include <ceres/rotation.h>
 #include <Eigen/Core>
 
+#include <cmath>
 #include <vector>
 
 namespace lifmcr::registration::internal {
@@ -40,11 +41,17 @@ namespace lifmcr::registration::internal {
 // are those of the measured depth with the part that the depth error makes
 // (along x' - l0_k) scaled by w, and the lateral part unchanged: the depth
 // enters with sigma / w. w = 0 is position only.
+//
+// The measured depth's disagreement with the estimate, e = v'_measured /
+// v'_estimated - 1 (DepthDisagreement), is what the calibration reweighs a
+// keypoint's depth by after its first full solve
+// (CalibrationOptions::keypoint_depth_robust).
 struct MicroImageCost {
   std::vector<Eigen::Vector2d> observed_px, centres_px;
   double pixel_size_mm = 0;
   bool depth_from_estimate = false;
   double depth_weight = 1;  // in [0, 1]; depth_from_estimate: 0
+  double inverse_v_measured = 1;  // 1 / v'_measured
   Eigen::Vector2d observed_virtual_px = Eigen::Vector2d::Zero();  // x' (position only)
   Eigen::Vector2d c0_px = Eigen::Vector2d::Zero();                // c0 (position only)
   double lambda0 = 1;                                             // (position only)
@@ -55,6 +62,20 @@ struct MicroImageCost {
     ceres::UnitQuaternionRotatePoint(q, p_in_w, p_in_c);
     for (int a = 0; a < 3; ++a) p_in_c[a] += t[a];
     return Residuals(k, p_in_c, residuals);
+  }
+
+  // v'_measured / v'_estimated - 1: the measured virtual depth's
+  // relative disagreement with the estimated point (NaN where it does not
+  // project), in the processed frame's geometry (above).
+  double DepthDisagreement(const double* k, const double* q, const double* t,
+                           const double* p_in_w) const {
+    double p_in_c[3], virtual_px[3];
+    ceres::UnitQuaternionRotatePoint(q, p_in_w, p_in_c);
+    for (int a = 0; a < 3; ++a) p_in_c[a] += t[a];
+    if (!ProjectToVirtual(k, pixel_size_mm, p_in_c, virtual_px)) return std::nan("");
+    const double lambda = k[1] / (k[1] + k[2]);
+    const double inverse_v = 1 - lambda / lambda0 * (1 - 1 / virtual_px[2]);
+    return inverse_v / inverse_v_measured - 1;
   }
 
   template <typename T>
