@@ -80,8 +80,11 @@ struct TfOptions {
   // (tf_blend_simd.h), 0..0.3: 0 the plain barycentric rule; above, the
   // lens of the smallest coordinate is sampled only where it is above the
   // floor. 0.25 on r32: the rendering 15 % less CPU, PSNR against the
-  // all-in-focus truth 0.15 dB lower (docs/processing.md).
-  double bary_floor = 0.25;
+  // all-in-focus truth 0.15 dB lower; not the default, because calibration
+  // and registration read keypoints and plate corners off the TF image and
+  // lost accuracy with it (docs/processing.md, "The blend's barycentric
+  // floor").
+  double bary_floor = 0.0;
   // The splat's and the blend's Highway kernels; false: their scalar references.
   bool simd = true;
   Status Check() const;
