@@ -70,17 +70,19 @@ struct GuidedMatchOptions {
   // median; at step 3 155-171 ms, 180-245 of 250-310 tracked, 6.1-7.6 per
   // second, 0.49-0.73 mm / 0.026-0.032 deg (bench_live --preset medium
   // --seconds 20 --runs track, quiet 2 cores, two runs each). So step 3
-  // where the grid allows: small 2, medium 3 (547 px), r32 3 (1093 px).
-  // r32 was at step 4 (at most 820 px): each anchor alone, 8 triggers frame
-  // by frame (docs/registration.md), step 4 0.13-1.80 mm (median 0.86 mm,
-  // 131 inliers, 173 CPU-ms a re-anchoring), step 3 0.10-0.46 mm (0.36 mm,
-  // 205 inliers, 281 CPU-ms), step 2 0.10-0.33 mm (0.26 mm, 269 inliers,
-  // 701 CPU-ms); 4000 keypoints instead of 1500 at step 4 changed nothing
-  // (0.84 mm, 132 inliers: the masked render has fewer). Re-anchored every
-  // 4 frames tracked, step 3 costs about 74 CPU-ms a frame (48 at step 4).
+  // where the grid allows, at most 820 px: small 2, medium 3 (547 px), r32
+  // 4 (820 px). At r32 each anchor alone, 8 triggers frame by frame
+  // (docs/registration.md), is 0.13-1.80 mm at step 4 (median 0.86 mm, 131
+  // inliers, 173 CPU-ms a re-anchoring), 0.10-0.46 mm at step 3 (0.36 mm,
+  // 205 inliers, 281 CPU-ms; max_side_px 1100), but live (bench_live
+  // --preset r32 --frames 8, quiet) step 3 fell from 4.14 to 1.70
+  // extrinsics/s per camera and from 0.545 to 0.785 mm: the longer
+  // re-anchoring let more triggers pass and 30 frames were relocalised
+  // instead of 12. 4000 keypoints instead of 1500 at step 4 changed nothing
+  // (0.84 mm, 132 inliers: the masked render has fewer).
   int max_step = 3;
   int min_side_px = 256;
-  int max_side_px = 1100;
+  int max_side_px = 820;
   // The step for a TF grid whose longer side is tf_longer_side_px.
   int Step(int tf_longer_side_px) const;
   FeatureOptions features;  // SIFT on the rendered image
