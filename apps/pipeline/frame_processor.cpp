@@ -224,9 +224,15 @@ Expected<std::unique_ptr<DepthProcessor>> DepthProcessor::ForSequence(
     return Error{setups.error().message +
                  " (depth needs the MLA files; --no-processing publishes previews only)"};
   if (Status s = DemosaicWhiteImages(formats, &*setups); !s) return s.error();
-  auto chain = processing::ProcessingChain::Create(std::move(*setups), processing::ChainOptions{});
+  auto chain = processing::ProcessingChain::Create(std::move(*setups), ChainOptionsForPipeline());
   if (!chain) return chain.error();
   return std::make_unique<DepthProcessor>(std::move(*chain), preview, std::move(formats));
+}
+
+processing::ChainOptions DepthProcessor::ChainOptionsForPipeline() {
+  processing::ChainOptions options;
+  options.metric_depth = false;
+  return options;
 }
 
 Expected<RegistrationInput> DepthProcessor::ForRegistration(const Frame& frame) {

@@ -30,6 +30,7 @@
 #include <vector>
 
 namespace lifmcr::processing {
+struct ChainOptions;
 struct ChainProducts;
 struct LensProducts;
 class CameraChain;
@@ -217,6 +218,11 @@ class DepthProcessor final : public FrameProcessor {
   // frame's pixels).
   Expected<std::vector<std::string>> WarmWithoutFrames(bool sampler);
   const processing::ProcessingChain& chain() const { return *chain_; }
+  // The chain options the pipeline's processor is made with (ForSequence,
+  // `record --publish`): the defaults without the metric depth, which
+  // nothing the pipeline publishes or localises with reads (the TF depth
+  // map is published; the registration reads the TF image and depth).
+  static processing::ChainOptions ChainOptionsForPipeline();
 
  private:
   // `lenses`: publish the per-lens depth (Process); `given`: ProcessLenses'

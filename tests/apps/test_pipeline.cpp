@@ -360,6 +360,12 @@ TEST(Pipeline, ProcessesMaxConcurrencyFramesAtOnceAtTheLowerPriority) {
     ASSERT_FALSE(options.pipeline.Check().ok());
     EXPECT_NE(options.pipeline.Check().error().message.find("lens_nice"), std::string::npos);
   }
+  options.pipeline.lens_nice = 15;
+  for (const int lens_queue : {0, 9}) {
+    options.pipeline.lens_queue = lens_queue;
+    ASSERT_FALSE(options.pipeline.Check().ok());
+    EXPECT_NE(options.pipeline.Check().error().message.find("lens_queue"), std::string::npos);
+  }
 }
 
 TEST(Pipeline, SlowStageSkipsTheOlderFramesCountsThemAndKeepsTheNewest) {
@@ -1387,6 +1393,90 @@ TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
   pipeline.reset();
   Drain(bus);
   EXPECT_EQ(received.lens_depth.size(), 2u);
+}
+
+// The lens lane held up (both its threads inside ProcessLenses, as when a
+// relocalisation at the workers' higher priority takes the CPU) while two
+// more triggers come: with lens_queue 2 (the default) both wait per camera
+// and get their per-lens depth once the lane goes on; a third replaces the
+// oldest waiting (newest wins beyond the queue), counted as replaced. With
+// lens_queue 1 (newest wins at once) the second trigger already replaces
+// the first. The per-lens depth of each camera goes out in its frames' order.
+TEST(Pipeline, LensLaneQueueKeepsTheFramesThatCameWhileItWasHeld) {
+  test::TempDir dir;
+  auto rig = WriteTinyRigFrames(dir.path());
+  ASSERT_TRUE(rig.ok()) << rig.error().message;
+  const std::vector<std::string>& serials = rig->serials;
+  for (const int lens_queue : {2, 1}) {
+    SCOPED_TRACE("lens_queue " + std::to_string(lens_queue));
+    auto depth = DepthProcessor::ForSequence(rig->sequence_dir.string(), serials);
+    ASSERT_TRUE(depth.ok()) << depth.error().message;
+    auto owned = std::make_unique<LensGatedProcessor>(std::move(*depth));
+    LensGatedProcessor* processor = owned.get();
+    lcm::LCM bus("memq://");
+    std::mutex lens_mutex;
+    std::map<std::string, std::vector<std::int64_t>> lens_order;  // by serial, as published
+    struct Order {
+      std::mutex* mutex;
+      std::map<std::string, std::vector<std::int64_t>>* order;
+      void On(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+        lifmcr_lcm::depth_image_t m;
+        ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);
+        if (m.geometry != lifmcr_lcm::depth_image_t::GEOMETRY_LENS_GRID) return;
+        std::lock_guard lock(*mutex);
+        (*order)[m.serial].push_back(m.frame_id);
+      }
+    } order{&lens_mutex, &lens_order};
+    bus.subscribe("LIFMCR_.*_DEPTH", &Order::On, &order);
+    PipelineOptions options;
+    options.publisher.bus = &bus;
+    options.registration = std::make_shared<RawPoseStage>();
+    options.skip_when_busy = true;
+    options.max_concurrency = 2;
+    options.lens_queue = lens_queue;
+    FrameSetAssemblerOptions sync;
+    sync.serials = serials;
+    sync.trigger.trigger_period_ns = 100'000'000;
+    sync.vicon_expected = false;
+    auto created = Pipeline::Create(sync, std::move(owned), options);
+    ASSERT_TRUE(created.ok()) << created.error().message;
+    std::unique_ptr<Pipeline> pipeline = std::move(*created);
+    const auto pool = FramePool::Create(12, rig->raw[0].pixels.size());
+    const auto add_set = [&](std::int64_t trigger) {
+      pipeline->AddFrameSet(MakeCopiedFrameSet(trigger, serials, *pool, rig->raw));
+      pipeline->Poll();
+    };
+    const auto wait_localised = [&](std::uint64_t n) {
+      for (int k = 0; k < 500 && pipeline->Report().localized < n; ++k)
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      return pipeline->Report();
+    };
+    add_set(0);
+    ASSERT_TRUE(processor->WaitEntered(2));  // both lane threads held on trigger 0
+    add_set(1);
+    wait_localised(4);
+    add_set(2);
+    const PipelineReport held = wait_localised(6);
+    EXPECT_EQ(held.localized, 6u) << held.FinalReport();
+    EXPECT_EQ(held.lens_replaced, lens_queue == 2 ? 0u : 2u) << held.FinalReport();
+    add_set(3);
+    const PipelineReport more = wait_localised(8);
+    EXPECT_EQ(more.lens_replaced, lens_queue == 2 ? 2u : 4u) << more.FinalReport();
+    processor->Release();
+    pipeline->Finish();
+    const PipelineReport r = pipeline->Report();
+    EXPECT_EQ(processor->timed_out(), 0);
+    EXPECT_EQ(r.lens_failed, 0u) << r.last_error;
+    EXPECT_EQ(r.lens_stale, 0u) << r.FinalReport();
+    EXPECT_EQ(r.lens_frames + r.lens_skipped, r.frames_in) << r.FinalReport();
+    EXPECT_EQ(r.lens_frames, lens_queue == 2 ? 6u : 4u) << r.FinalReport();
+    pipeline.reset();
+    Drain(bus);
+    const std::vector<std::int64_t> expected =
+        lens_queue == 2 ? std::vector<std::int64_t>{0, 2, 3} : std::vector<std::int64_t>{0, 3};
+    std::lock_guard lock(lens_mutex);
+    for (const std::string& serial : serials) EXPECT_EQ(lens_order[serial], expected) << serial;
+  }
 }
 
 // DepthProcessor::Warm (what a timed replay does before its cameras start):
