@@ -205,7 +205,9 @@ class DepthProcessor final : public FrameProcessor {
   // `frame` (one of the camera's frames: its size, and its pixels where the
   // devignetting is estimated from a frame): the per-lens estimator
   // (ProcessLenses: the geometry, gain and micro-image map, about 0.6 s per
-  // camera at medium) and, with `sampler`, the registration's TF sampler. A
+  // camera at medium), a workspace of the dense chain (one dense map of the
+  // frame: the depth lane's first map of the camera then pays its own work
+  // only) and, with `sampler`, the registration's TF sampler. A
   // replay calls it before its cameras start, so a timed replay's first
   // frames are not skipped while the lens lane builds them.
   Status Warm(const Frame& frame, bool sampler);

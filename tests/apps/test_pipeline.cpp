@@ -1522,6 +1522,13 @@ TEST(Pipeline, WarmMakesACamerasSetUpBeforeItsFirstFrameAndChangesNoProduct) {
     auto a = (*warmed)->ProcessLenses(frame);
     auto b = (*cold)->ProcessLenses(frame);
     ExpectSameLensProducts(a, b);
+    // The dense map in the workspace Warm used: the cold processor's.
+    auto dense_warm = (*warmed)->ProcessDense(frame, &*a);
+    auto dense_cold = (*cold)->ProcessDense(frame, &*b);
+    ASSERT_TRUE(dense_warm.ok() && dense_cold.ok());
+    ASSERT_TRUE(dense_warm->depth && dense_cold->depth);
+    EXPECT_EQ(dense_warm->depth->png, dense_cold->depth->png);
+    EXPECT_EQ(dense_warm->tf->bytes, dense_cold->tf->bytes);
   }
   Frame unknown;
   unknown.serial = "99999999";
