@@ -726,6 +726,23 @@ class RawPoseStage final : public processing::RegistrationStage {
   }
 };
 
+// A pipeline of `serials` at 10 Hz without Vicon on `bus`, registration
+// first (options.registration, RawPoseStage when null; newest wins, 2 frames
+// at once): the lanes' set-up, with the rest of `options` as given.
+Expected<std::unique_ptr<Pipeline>> CreateLanesPipeline(const std::vector<std::string>& serials,
+                                                        std::unique_ptr<FrameProcessor> processor,
+                                                        lcm::LCM* bus, PipelineOptions options) {
+  options.publisher.bus = bus;
+  if (!options.registration) options.registration = std::make_shared<RawPoseStage>();
+  options.skip_when_busy = true;
+  options.max_concurrency = 2;
+  FrameSetAssemblerOptions sync;
+  sync.serials = serials;
+  sync.trigger.trigger_period_ns = 100'000'000;
+  sync.vicon_expected = false;
+  return Pipeline::Create(sync, std::move(processor), options);
+}
+
 // Registration first (a stage, newest wins: a timed replay): every frame
 // taken goes to the lens lane (the ones the workers localise and the ones
 // they skip), which publishes its per-lens depth
@@ -1134,15 +1151,8 @@ TEST(Pipeline, LanesPublishTheFramesTheWorkersHoldOrSkipWhileTheWorkersAreHeld) 
   bus.subscribe("LIFMCR_.*", &Received::OnAny, &received);
   auto stage = std::make_shared<GatedPoseStage>(std::chrono::seconds(150));
   PipelineOptions options;
-  options.publisher.bus = &bus;
   options.registration = stage;
-  options.skip_when_busy = true;
-  options.max_concurrency = 2;
-  FrameSetAssemblerOptions sync;
-  sync.serials = serials;
-  sync.trigger.trigger_period_ns = 100'000'000;
-  sync.vicon_expected = false;
-  auto created = Pipeline::Create(sync, std::move(*processor), options);
+  auto created = CreateLanesPipeline(serials, std::move(*processor), &bus, options);
   ASSERT_TRUE(created.ok()) << created.error().message;
   std::unique_ptr<Pipeline> pipeline = std::move(*created);
   const auto pool = FramePool::Create(16, raw[0].pixels.size());
@@ -1324,10 +1334,6 @@ TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
   Received received;
   bus.subscribe("LIFMCR_.*", &Received::OnAny, &received);
   PipelineOptions options;
-  options.publisher.bus = &bus;
-  options.registration = std::make_shared<RawPoseStage>();
-  options.skip_when_busy = true;
-  options.max_concurrency = 2;
   options.lens_nice = 12;  // not the default, so the lane's threads show it
   std::mutex records_mutex;
   std::condition_variable records_cv;
@@ -1339,11 +1345,7 @@ TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
     }
     records_cv.notify_all();
   };
-  FrameSetAssemblerOptions sync;
-  sync.serials = serials;
-  sync.trigger.trigger_period_ns = 100'000'000;
-  sync.vicon_expected = false;
-  auto created = Pipeline::Create(sync, std::move(owned), options);
+  auto created = CreateLanesPipeline(serials, std::move(owned), &bus, options);
   ASSERT_TRUE(created.ok()) << created.error().message;
   std::unique_ptr<Pipeline> pipeline = std::move(*created);
   const auto pool = FramePool::Create(4, raw[0].pixels.size());
@@ -1429,16 +1431,8 @@ TEST(Pipeline, LensLaneQueueKeepsTheFramesThatCameWhileItWasHeld) {
     } order{&lens_mutex, &lens_order};
     bus.subscribe("LIFMCR_.*_DEPTH", &Order::On, &order);
     PipelineOptions options;
-    options.publisher.bus = &bus;
-    options.registration = std::make_shared<RawPoseStage>();
-    options.skip_when_busy = true;
-    options.max_concurrency = 2;
     options.lens_queue = lens_queue;
-    FrameSetAssemblerOptions sync;
-    sync.serials = serials;
-    sync.trigger.trigger_period_ns = 100'000'000;
-    sync.vicon_expected = false;
-    auto created = Pipeline::Create(sync, std::move(owned), options);
+    auto created = CreateLanesPipeline(serials, std::move(owned), &bus, options);
     ASSERT_TRUE(created.ok()) << created.error().message;
     std::unique_ptr<Pipeline> pipeline = std::move(*created);
     const auto pool = FramePool::Create(12, rig->raw[0].pixels.size());
