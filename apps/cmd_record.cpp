@@ -136,8 +136,8 @@ Expected<std::unique_ptr<Pipeline>> MakePublishPipeline(const RigConfig& rig, co
     auto setups = LoadRigCameras(rig, intrinsics);
     if (!setups) return setups.error();
     if (Status s = DemosaicWhiteImages(formats, &*setups); !s) return s.error();
-    auto chain =
-        processing::ProcessingChain::Create(std::move(*setups), processing::ChainOptions{});
+    auto chain = processing::ProcessingChain::Create(std::move(*setups),
+                                                     DepthProcessor::ChainOptionsForPipeline());
     if (!chain) return chain.error();
     auto depth = std::make_unique<DepthProcessor>(std::move(*chain), preview, formats);
     // Each camera's per-lens estimator (and, with --reference, the

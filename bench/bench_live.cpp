@@ -58,7 +58,7 @@
 //
 //   bench_live [--preset small|medium|r32] [--frames N (24)] [--seconds S]
 //              [--concurrency N] [--keep DIR] [--runs track,relocalise,depth]
-//              [--lens-nice 0..19 (15)] [--depth-idle 0|1 (1)]
+//              [--lens-nice 0..19 (15)] [--lens-queue 1..8 (2)] [--depth-idle 0|1 (1)]
 //              [--loop pingpong|restart (pingpong)] [--cold-reanchor-rounds R]
 // --keep DIR renders into DIR once and reuses it (same preset and frames)
 // in later runs; DIR is left in place.
@@ -115,6 +115,7 @@ struct Args {
   double seconds = 30;
   int concurrency = 2;
   int lens_nice = 15;  // PipelineOptions::lens_nice
+  int lens_queue = 2;  // PipelineOptions::lens_queue
   int depth_idle = 1;  // PipelineOptions::depth_idle
   // LocalizerOptions::cold_reanchor_rounds (-1: the localizer's default):
   // the first pose re-anchored in its own frame, to compare live.
@@ -165,6 +166,8 @@ bool ParseArgs(int argc, char** argv, Args* a) {
       a->depth_idle = static_cast<int>(std::strtol(v.c_str(), &end, 10));
     } else if (k == "--lens-nice") {
       a->lens_nice = static_cast<int>(std::strtol(v.c_str(), &end, 10));
+    } else if (k == "--lens-queue") {
+      a->lens_queue = static_cast<int>(std::strtol(v.c_str(), &end, 10));
     } else if (k == "--cold-reanchor-rounds") {
       a->cold_reanchor_rounds = static_cast<int>(std::strtol(v.c_str(), &end, 10));
       if (a->cold_reanchor_rounds < 0) return false;
@@ -178,7 +181,7 @@ bool ParseArgs(int argc, char** argv, Args* a) {
   }
   return a->frames >= 3 && a->seconds > 0 && a->concurrency >= 1 && a->lens_nice >= 0 &&
          (a->depth_idle == 0 || a->depth_idle == 1) &&
-         a->lens_nice <= 19 &&
+         a->lens_nice <= 19 && a->lens_queue >= 1 && a->lens_queue <= 8 &&
          (a->track || a->relocalise || a->depth);
 }
 
@@ -451,6 +454,7 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
   options.pipeline.publisher.bus = &bus;
   options.pipeline.max_concurrency = args.concurrency;
   options.pipeline.lens_nice = args.lens_nice;
+  options.pipeline.lens_queue = args.lens_queue;
   options.pipeline.depth_idle = args.depth_idle != 0;
   options.intrinsics = {layout::CamerasYamlPath(sequence)};
   if (mode != Mode::kDepthOnly) {
@@ -542,15 +546,16 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
 constexpr char kUsage[] =
     "usage: bench_live [--preset small|medium|r32] [--frames N>=3] [--seconds S]\n"
     "                  [--concurrency N] [--keep DIR] [--runs track,relocalise,depth]\n"
-    "                  [--lens-nice 0..19] [--depth-idle 0|1] [--loop pingpong|restart]\n"
-    "                  [--cold-reanchor-rounds R]\n"
+    "                  [--lens-nice 0..19] [--lens-queue 1..8] [--depth-idle 0|1]\n"
+    "                  [--loop pingpong|restart] [--cold-reanchor-rounds R]\n"
     "Live registration of a synthetic rig (default medium) replayed at its trigger rate\n"
     "through `lifmcr replay --reference`'s path, three runs of --seconds: tracking, every\n"
     "frame relocalised (the baseline) and depth only. Per run: extrinsics per second per\n"
     "camera, frame -> extrinsics latency, and the errors against the ground truth by how\n"
     "each pose was made. --keep DIR renders into DIR once and reuses it; --runs picks\n"
     "some of the three runs (the ratios need all three). --lens-nice: the lens lane's\n"
-    "nice value above the command's (15; the workers run at +10). --depth-idle 0: the\n"
+    "nice value above the command's (15; the workers run at +10). --lens-queue: frames of\n"
+    "a camera that wait for the lens lane before the oldest is skipped (2). --depth-idle 0: the\n"
     "depth lane computes at nice 19 instead of under SCHED_IDLE (1, the default).\n"
     "--loop pingpong (the default): the rendered frames forward then backward, 0 .. N-1 ..\n"
     "0 .., as one sequence whose trigger index keeps increasing (a rig moving on\n"
@@ -569,7 +574,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr,
                  "usage: bench_live [--preset small|medium|r32] [--frames N>=3] [--seconds S] "
                  "[--concurrency N] [--keep DIR] [--runs track,relocalise,depth] "
-                 "[--lens-nice 0..19] [--depth-idle 0|1] [--loop pingpong|restart] "
+                 "[--lens-nice 0..19] [--lens-queue 1..8] [--depth-idle 0|1] [--loop pingpong|restart] "
                  "[--cold-reanchor-rounds R]\n");
     return 2;
   }
@@ -627,11 +632,11 @@ int main(int argc, char** argv) {
     return 3;
   }
   std::printf("bench_live: preset %s, 2 cameras x %d frames %s at 10 Hz for %.0f s per run, "
-              "%d frames at once, lens lane at nice +%d, depth lane %s, map of %zu points, %u hardware "
+              "%d frames at once, lens lane at nice +%d with %d frames waiting per camera, depth lane %s, map of %zu points, %u hardware "
               "threads\n",
               args.preset.c_str(), args.frames,
               args.pingpong ? "forward and back (--loop pingpong)" : "looped (--loop restart)",
-              args.seconds, args.concurrency, args.lens_nice,
+              args.seconds, args.concurrency, args.lens_nice, args.lens_queue,
               args.depth_idle ? "under SCHED_IDLE" : "at nice 19",
               map->points.size(), std::thread::hardware_concurrency());
   Truth truth;

@@ -165,7 +165,9 @@ std::string CameraChain::Describe() const {
     if (estimate_) devignetting += " (" + estimate_->BriefReport() + ")";
   }
   return setup_.serial + ": devignetting " + devignetting + ", " + lambda +
-         (camera_ ? " (intrinsics; metric depth)" : " (no intrinsics: virtual depth only)");
+         (!camera_ ? " (no intrinsics: virtual depth only)"
+          : options_.metric_depth || options_.point_cloud ? " (intrinsics; metric depth)"
+                                                          : " (intrinsics; no metric depth asked)");
 }
 
 Expected<ConstImageView> CameraChain::WhiteFor(ConstImageView raw, const MlaGrid& grid) {

@@ -30,6 +30,7 @@
 #include <vector>
 
 namespace lifmcr::processing {
+struct ChainOptions;
 struct ChainProducts;
 struct LensProducts;
 class CameraChain;
@@ -204,7 +205,9 @@ class DepthProcessor final : public FrameProcessor {
   // `frame` (one of the camera's frames: its size, and its pixels where the
   // devignetting is estimated from a frame): the per-lens estimator
   // (ProcessLenses: the geometry, gain and micro-image map, about 0.6 s per
-  // camera at medium) and, with `sampler`, the registration's TF sampler. A
+  // camera at medium), a workspace of the dense chain (one dense map of the
+  // frame: the depth lane's first map of the camera then pays its own work
+  // only) and, with `sampler`, the registration's TF sampler. A
   // replay calls it before its cameras start, so a timed replay's first
   // frames are not skipped while the lens lane builds them.
   Status Warm(const Frame& frame, bool sampler);
@@ -217,6 +220,11 @@ class DepthProcessor final : public FrameProcessor {
   // frame's pixels).
   Expected<std::vector<std::string>> WarmWithoutFrames(bool sampler);
   const processing::ProcessingChain& chain() const { return *chain_; }
+  // The chain options the pipeline's processor is made with (ForSequence,
+  // `record --publish`): the defaults without the metric depth, which
+  // nothing the pipeline publishes or localises with reads (the TF depth
+  // map is published; the registration reads the TF image and depth).
+  static processing::ChainOptions ChainOptionsForPipeline();
 
  private:
   // `lenses`: publish the per-lens depth (Process); `given`: ProcessLenses'

@@ -17,6 +17,7 @@
 #include <cstring>
 #include <ctime>
 #include <deque>
+#include <iterator>
 #include <map>
 #include <mutex>
 #include <oneapi/tbb/info.h>
@@ -149,6 +150,7 @@ Status PipelineOptions::Check() const {
   if (processing_nice < 0 || processing_nice > 19)
     return Error{"pipeline: processing_nice: expected 0..19"};
   if (lens_nice < 0 || lens_nice > 19) return Error{"pipeline: lens_nice: expected 0..19"};
+  if (lens_queue < 1 || lens_queue > 8) return Error{"pipeline: lens_queue: expected 1..8"};
   // skip_when_busy: any value; registration: null is the pass-through stage.
   if (Status s = publisher.Check(); !s) return s;
   return Status::Ok();
@@ -290,7 +292,10 @@ struct Pipeline::Impl {
   struct Lane {
     std::mutex mutex;
     std::condition_variable cv;
-    std::map<int, Offer> slots;
+    // By camera index: the frames waiting, oldest first, at most `depth`
+    // (an empty queue is erased, so `slots.empty()` means none waits).
+    std::map<int, std::deque<Offer>> slots;
+    std::size_t depth = 1;
     std::map<int, std::uint64_t> served;
     std::uint64_t serve_count = 0;
     // Per camera: 1 + the newest Job::camera_order the lane took (OfferTo).
@@ -340,13 +345,14 @@ struct Pipeline::Impl {
   // The dense map, at the lowest priority: depth takes what is left.
   Lane depth_lane{{&PipelineReport::depth_processed, &PipelineReport::depth_failed, "", nullptr}};
 
-  // Offers `offer` to `lane`: of it and a frame of its camera waiting
-  // there, the newer (Job::camera_order) waits, the other is skipped
-  // (counted in `*skipped`); so is a frame older than one the lane took of
-  // its camera (each camera's products go out in its frames' order). The
-  // lens lane gets the frames the workers skip when they come and the ones
-  // they localised when their pose is out, so an older frame can come after
-  // a newer one.
+  // Offers `offer` to `lane`: it waits behind the frames of its camera
+  // already there, in its camera's order (Job::camera_order); with more
+  // than the lane's depth waiting, the oldest of them is skipped (counted
+  // in `*skipped`): newest wins beyond the depth. So is a frame older than
+  // one the lane took of its camera (each camera's products go out in its
+  // frames' order). The lens lane gets the frames the workers skip when
+  // they come and the ones they localised when their pose is out, so an
+  // older frame can come after a newer one.
   // `stale`, `replaced` (may be null): the skipped frame's reason, counted
   // too (the lens lane's; PipelineReport).
   void OfferTo(Lane& lane, Impl::Offer offer, std::uint64_t* skipped,
@@ -354,24 +360,25 @@ struct Pipeline::Impl {
     {
       std::lock_guard lock(lane.mutex);
       const int camera = offer.job.frame.camera_index;
-      auto waiting = lane.slots.find(camera);
       auto taken = lane.taken_before.find(camera);
       if (taken != lane.taken_before.end() && offer.job.camera_order < taken->second) {
         std::lock_guard r(report_mutex);
         ++*skipped;
         if (stale) ++*stale;
-      } else if (waiting == lane.slots.end()) {
-        lane.slots.emplace(camera, std::move(offer));
       } else {
-        {
+        std::deque<Offer>& queue = lane.slots[camera];
+        auto at = queue.end();
+        while (at != queue.begin() && std::prev(at)->job.camera_order > offer.job.camera_order)
+          --at;
+        queue.insert(at, std::move(offer));
+        if (queue.size() > lane.depth) {
+          // The oldest waiting goes: a frame the lane took since is newer
+          // than every one waiting, so it is not stale here.
+          queue.pop_front();
           std::lock_guard r(report_mutex);
           ++*skipped;
-          // Of the two, the older is skipped: a frame the lane took since
-          // is newer than both, so neither is stale here.
           if (replaced) ++*replaced;
         }
-        if (waiting->second.job.camera_order < offer.job.camera_order)
-          waiting->second = std::move(offer);
       }
     }
     lane.cv.notify_all();
@@ -385,8 +392,9 @@ struct Pipeline::Impl {
     auto pick = lane.slots.begin();
     for (auto it = lane.slots.begin(); it != lane.slots.end(); ++it)
       if (lane.served[it->first] < lane.served[pick->first]) pick = it;
-    Impl::Offer offer = std::move(pick->second);
-    lane.slots.erase(pick);
+    Impl::Offer offer = std::move(pick->second.front());
+    pick->second.pop_front();
+    if (pick->second.empty()) lane.slots.erase(pick);
     lane.served[offer.job.frame.camera_index] = ++lane.serve_count;
     lane.taken_before[offer.job.frame.camera_index] = offer.job.camera_order + 1;
     ++lane.held;
@@ -853,7 +861,7 @@ struct Pipeline::Impl {
       std::unique_lock lock(depth_lane.mutex);
       {
         std::lock_guard r(report_mutex);
-        report.depth_skipped += depth_lane.slots.size();
+        for (const auto& [camera, queue] : depth_lane.slots) report.depth_skipped += queue.size();
       }
       depth_lane.slots.clear();
       depth_lane.cv.wait(lock, [&] { return depth_lane.held == 0; });
@@ -1000,6 +1008,7 @@ Expected<std::unique_ptr<Pipeline>> Pipeline::Create(FrameSetAssemblerOptions sy
     // thread at the lowest.
     const int lens_threads =
         std::max(1, std::min(threads, static_cast<int>(sync.serials.size())));
+    impl->lens_lane.depth = static_cast<std::size_t>(options.lens_queue);
     impl->StartLane(impl->lens_lane, lens_threads,
                     std::min(19, base_nice + options.lens_nice), &Impl::LensLoop);
     impl->StartLane(impl->depth_lane, 1, 19, &Impl::DepthLoop, options.depth_idle);

@@ -28,7 +28,8 @@
 // worker publishes the pose at once (POSE, and EXTRINSICS when the trigger's
 // other pose is there); the frame goes on to the lens lane (per-lens depth
 // and TF preview; a thread per worker, at most one per camera, below the
-// workers' priority, newest wins per camera), then, with that per-lens depth,
+// workers' priority, up to lens_queue frames waiting per camera, the newest
+// winning beyond), then, with that per-lens depth,
 // to the depth lane (one thread at the lowest priority, newest wins per
 // camera) whose dense map it seeds: a pose never waits for a depth, its own
 // frame's or another's; the per-lens depth comes for every frame localised
@@ -98,6 +99,14 @@ struct PipelineOptions {
   // 15, below the workers, so a relocalisation keeps its CPU (docs/processing.md,
   // "Live pipeline", for what 0, 5 and 15 gave).
   int lens_nice = 15;
+  // Frames of a camera that wait for the lens lane (1..8): beyond that the
+  // oldest waiting is skipped (newest wins). 2: a frame waits behind its
+  // camera's previous one instead of replacing it, so a lane held up for
+  // about a frame's period (a relocalisation or a re-anchoring at the
+  // workers' higher priority) catches up afterwards and every frame gets
+  // its per-lens depth, at most one frame period later; each waiting frame
+  // holds one pooled buffer of its camera (a replay camera has 8).
+  int lens_queue = 2;
   // The depth lane's thread (nice 19 always) under SCHED_IDLE: it computes
   // only on a core that nothing else of the machine wants, so a dense map
   // never takes the CPU of the lens lane or the workers (at nice 19 it took

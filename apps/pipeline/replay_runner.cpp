@@ -270,8 +270,8 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
           if (Status s = (*depth)->Warm(first, options.registration.has_value()); !s)
             return s.error();
         }
-        spdlog::info("processing: per-lens estimators{} of {} camera(s) made before the replay "
-                     "({:.2f} s)",
+        spdlog::info("processing: per-lens estimators, dense workspaces{} of {} camera(s) made "
+                     "before the replay ({:.2f} s)",
                      options.registration ? " and TF samplers" : "", serials.size(),
                      std::chrono::duration<double>(std::chrono::steady_clock::now() - warm_start)
                          .count());

@@ -360,6 +360,12 @@ TEST(Pipeline, ProcessesMaxConcurrencyFramesAtOnceAtTheLowerPriority) {
     ASSERT_FALSE(options.pipeline.Check().ok());
     EXPECT_NE(options.pipeline.Check().error().message.find("lens_nice"), std::string::npos);
   }
+  options.pipeline.lens_nice = 15;
+  for (const int lens_queue : {0, 9}) {
+    options.pipeline.lens_queue = lens_queue;
+    ASSERT_FALSE(options.pipeline.Check().ok());
+    EXPECT_NE(options.pipeline.Check().error().message.find("lens_queue"), std::string::npos);
+  }
 }
 
 TEST(Pipeline, SlowStageSkipsTheOlderFramesCountsThemAndKeepsTheNewest) {
@@ -719,6 +725,23 @@ class RawPoseStage final : public processing::RegistrationStage {
     return std::optional<processing::CameraPose>(pose);
   }
 };
+
+// A pipeline of `serials` at 10 Hz without Vicon on `bus`, registration
+// first (options.registration, RawPoseStage when null; newest wins, 2 frames
+// at once): the lanes' set-up, with the rest of `options` as given.
+Expected<std::unique_ptr<Pipeline>> CreateLanesPipeline(const std::vector<std::string>& serials,
+                                                        std::unique_ptr<FrameProcessor> processor,
+                                                        lcm::LCM* bus, PipelineOptions options) {
+  options.publisher.bus = bus;
+  if (!options.registration) options.registration = std::make_shared<RawPoseStage>();
+  options.skip_when_busy = true;
+  options.max_concurrency = 2;
+  FrameSetAssemblerOptions sync;
+  sync.serials = serials;
+  sync.trigger.trigger_period_ns = 100'000'000;
+  sync.vicon_expected = false;
+  return Pipeline::Create(sync, std::move(processor), options);
+}
 
 // Registration first (a stage, newest wins: a timed replay): every frame
 // taken goes to the lens lane (the ones the workers localise and the ones
@@ -1128,15 +1151,8 @@ TEST(Pipeline, LanesPublishTheFramesTheWorkersHoldOrSkipWhileTheWorkersAreHeld) 
   bus.subscribe("LIFMCR_.*", &Received::OnAny, &received);
   auto stage = std::make_shared<GatedPoseStage>(std::chrono::seconds(150));
   PipelineOptions options;
-  options.publisher.bus = &bus;
   options.registration = stage;
-  options.skip_when_busy = true;
-  options.max_concurrency = 2;
-  FrameSetAssemblerOptions sync;
-  sync.serials = serials;
-  sync.trigger.trigger_period_ns = 100'000'000;
-  sync.vicon_expected = false;
-  auto created = Pipeline::Create(sync, std::move(*processor), options);
+  auto created = CreateLanesPipeline(serials, std::move(*processor), &bus, options);
   ASSERT_TRUE(created.ok()) << created.error().message;
   std::unique_ptr<Pipeline> pipeline = std::move(*created);
   const auto pool = FramePool::Create(16, raw[0].pixels.size());
@@ -1318,10 +1334,6 @@ TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
   Received received;
   bus.subscribe("LIFMCR_.*", &Received::OnAny, &received);
   PipelineOptions options;
-  options.publisher.bus = &bus;
-  options.registration = std::make_shared<RawPoseStage>();
-  options.skip_when_busy = true;
-  options.max_concurrency = 2;
   options.lens_nice = 12;  // not the default, so the lane's threads show it
   std::mutex records_mutex;
   std::condition_variable records_cv;
@@ -1333,11 +1345,7 @@ TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
     }
     records_cv.notify_all();
   };
-  FrameSetAssemblerOptions sync;
-  sync.serials = serials;
-  sync.trigger.trigger_period_ns = 100'000'000;
-  sync.vicon_expected = false;
-  auto created = Pipeline::Create(sync, std::move(owned), options);
+  auto created = CreateLanesPipeline(serials, std::move(owned), &bus, options);
   ASSERT_TRUE(created.ok()) << created.error().message;
   std::unique_ptr<Pipeline> pipeline = std::move(*created);
   const auto pool = FramePool::Create(4, raw[0].pixels.size());
@@ -1389,6 +1397,82 @@ TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
   EXPECT_EQ(received.lens_depth.size(), 2u);
 }
 
+// The lens lane held up (both its threads inside ProcessLenses, as when a
+// relocalisation at the workers' higher priority takes the CPU) while two
+// more triggers come: with lens_queue 2 (the default) both wait per camera
+// and get their per-lens depth once the lane goes on; a third replaces the
+// oldest waiting (newest wins beyond the queue), counted as replaced. With
+// lens_queue 1 (newest wins at once) the second trigger already replaces
+// the first. The per-lens depth of each camera goes out in its frames' order.
+TEST(Pipeline, LensLaneQueueKeepsTheFramesThatCameWhileItWasHeld) {
+  test::TempDir dir;
+  auto rig = WriteTinyRigFrames(dir.path());
+  ASSERT_TRUE(rig.ok()) << rig.error().message;
+  const std::vector<std::string>& serials = rig->serials;
+  for (const int lens_queue : {2, 1}) {
+    SCOPED_TRACE("lens_queue " + std::to_string(lens_queue));
+    auto depth = DepthProcessor::ForSequence(rig->sequence_dir.string(), serials);
+    ASSERT_TRUE(depth.ok()) << depth.error().message;
+    auto owned = std::make_unique<LensGatedProcessor>(std::move(*depth));
+    LensGatedProcessor* processor = owned.get();
+    lcm::LCM bus("memq://");
+    std::mutex lens_mutex;
+    std::map<std::string, std::vector<std::int64_t>> lens_order;  // by serial, as published
+    struct Order {
+      std::mutex* mutex;
+      std::map<std::string, std::vector<std::int64_t>>* order;
+      void On(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+        lifmcr_lcm::depth_image_t m;
+        ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);
+        if (m.geometry != lifmcr_lcm::depth_image_t::GEOMETRY_LENS_GRID) return;
+        std::lock_guard lock(*mutex);
+        (*order)[m.serial].push_back(m.frame_id);
+      }
+    } order{&lens_mutex, &lens_order};
+    bus.subscribe("LIFMCR_.*_DEPTH", &Order::On, &order);
+    PipelineOptions options;
+    options.lens_queue = lens_queue;
+    auto created = CreateLanesPipeline(serials, std::move(owned), &bus, options);
+    ASSERT_TRUE(created.ok()) << created.error().message;
+    std::unique_ptr<Pipeline> pipeline = std::move(*created);
+    const auto pool = FramePool::Create(12, rig->raw[0].pixels.size());
+    const auto add_set = [&](std::int64_t trigger) {
+      pipeline->AddFrameSet(MakeCopiedFrameSet(trigger, serials, *pool, rig->raw));
+      pipeline->Poll();
+    };
+    const auto wait_localised = [&](std::uint64_t n) {
+      for (int k = 0; k < 500 && pipeline->Report().localized < n; ++k)
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      return pipeline->Report();
+    };
+    add_set(0);
+    ASSERT_TRUE(processor->WaitEntered(2));  // both lane threads held on trigger 0
+    add_set(1);
+    wait_localised(4);
+    add_set(2);
+    const PipelineReport held = wait_localised(6);
+    EXPECT_EQ(held.localized, 6u) << held.FinalReport();
+    EXPECT_EQ(held.lens_replaced, lens_queue == 2 ? 0u : 2u) << held.FinalReport();
+    add_set(3);
+    const PipelineReport more = wait_localised(8);
+    EXPECT_EQ(more.lens_replaced, lens_queue == 2 ? 2u : 4u) << more.FinalReport();
+    processor->Release();
+    pipeline->Finish();
+    const PipelineReport r = pipeline->Report();
+    EXPECT_EQ(processor->timed_out(), 0);
+    EXPECT_EQ(r.lens_failed, 0u) << r.last_error;
+    EXPECT_EQ(r.lens_stale, 0u) << r.FinalReport();
+    EXPECT_EQ(r.lens_frames + r.lens_skipped, r.frames_in) << r.FinalReport();
+    EXPECT_EQ(r.lens_frames, lens_queue == 2 ? 6u : 4u) << r.FinalReport();
+    pipeline.reset();
+    Drain(bus);
+    const std::vector<std::int64_t> expected =
+        lens_queue == 2 ? std::vector<std::int64_t>{0, 2, 3} : std::vector<std::int64_t>{0, 3};
+    std::lock_guard lock(lens_mutex);
+    for (const std::string& serial : serials) EXPECT_EQ(lens_order[serial], expected) << serial;
+  }
+}
+
 // DepthProcessor::Warm (what a timed replay does before its cameras start):
 // each camera's per-lens estimator and TF sampler made from a frame of it,
 // so the lens lane's first frame of the camera computes only its depth; the
@@ -1432,6 +1516,13 @@ TEST(Pipeline, WarmMakesACamerasSetUpBeforeItsFirstFrameAndChangesNoProduct) {
     auto a = (*warmed)->ProcessLenses(frame);
     auto b = (*cold)->ProcessLenses(frame);
     ExpectSameLensProducts(a, b);
+    // The dense map in the workspace Warm used: the cold processor's.
+    auto dense_warm = (*warmed)->ProcessDense(frame, &*a);
+    auto dense_cold = (*cold)->ProcessDense(frame, &*b);
+    ASSERT_TRUE(dense_warm.ok() && dense_cold.ok());
+    ASSERT_TRUE(dense_warm->depth && dense_cold->depth);
+    EXPECT_EQ(dense_warm->depth->png, dense_cold->depth->png);
+    EXPECT_EQ(dense_warm->tf->bytes, dense_cold->tf->bytes);
   }
   Frame unknown;
   unknown.serial = "99999999";
