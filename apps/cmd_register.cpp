@@ -99,6 +99,33 @@ void WriteTum(const fs::path& path, const Trajectory& trajectory) {
   }
 }
 
+// A camera's registered w0_from_cam against the truth, averaged over its
+// frames in its own frame (x right, y down, z forward): the position error
+// true_from_estimated's translation, the rotation error its rotation vector.
+// c0_from_cx's error is camera X's less camera 0's, so these say which
+// camera carries it (with a calibrated camera 0 its rotation error is the
+// one its principal point's error trades against, docs/calibration.md).
+void PrintOwnFrameError(const std::string& label, const Trajectory& trajectory,
+                        const std::map<std::int64_t, Pose>& truth) {
+  Eigen::Vector3d t_mm = Eigen::Vector3d::Zero(), r_deg = Eigen::Vector3d::Zero();
+  int n = 0;
+  for (const auto& [frame, estimated] : trajectory) {
+    const auto it = truth.find(frame);
+    if (it == truth.end()) continue;
+    const Pose true_from_estimated = it->second.inverse() * estimated.pose;
+    const Eigen::AngleAxisd r(true_from_estimated.linear());
+    t_mm += true_from_estimated.translation();
+    r_deg += r.angle() * 180.0 / M_PI * r.axis();
+    ++n;
+  }
+  if (n == 0) return;
+  t_mm /= n;
+  r_deg /= n;
+  std::printf("  %-34s mean in its own frame: position x %+.3f y %+.3f z %+.3f mm, rotation x "
+              "%+.4f y %+.4f z %+.4f deg (n=%d)\n",
+              label.c_str(), t_mm.x(), t_mm.y(), t_mm.z(), r_deg.x(), r_deg.y(), r_deg.z(), n);
+}
+
 // The 95 % quantile of chi-square with 6 degrees of freedom.
 constexpr double kChiSquare6At95 = 12.5916;
 
@@ -432,6 +459,13 @@ int RunRegister(const RegisterOptions& o) {
                   a.n, a.n_depth ? a.z2 / static_cast<double>(a.n_depth) : 0.0, a.n_depth,
                   sd(a.shift_x2, a.frames), sd(a.shift_y2, a.frames), a.frames);
     }
+    // Each camera against the truth on its own (w0 is the ground truth's
+    // world: a calibration's map frame is the plate frame).
+    if (!o.reference_from_ground_truth)
+      for (const reg::RegistrationMethod method : methods)
+        for (const std::string& serial : serials)
+          PrintOwnFrameError(std::string(reg::ToString(method)) + " w0_from_cam " + serial,
+                             trajectories[method][serial], world_from[serial]);
     for (const std::string& serial : serials) {
       if (serial == reference_serial) continue;
       std::printf("camera %s -> %s\n  frame", serial.c_str(), reference_serial.c_str());

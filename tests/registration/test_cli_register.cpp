@@ -10,6 +10,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <map>
@@ -99,6 +100,32 @@ TEST(CliRegister, BothMethodsRegisterCameraXAgainstAGroundTruthMap) {
     for (const std::string& serial : {zero, x})
       EXPECT_TRUE(fs::exists(dir / "out" / ("trajectory_" + serial + "_" + method + ".tum")));
   EXPECT_TRUE(fs::exists(dir / "out" / "reference" / "descriptors.bin"));
+
+  // The written map read back as a calibration's would be: each camera's own
+  // error against the truth (w0 is the world here), parsed from its line;
+  // within the loose bounds above.
+  const test::CommandResult again = test::RunLifmcr(
+      "register " + seq.string() + " --reference " + (dir / "out" / "reference").string() +
+      " --observations ground-truth --out " + (dir / "again").string());
+  ASSERT_EQ(again.exit_code, 0) << again.err;
+  for (const std::string& serial : {zero, x}) {
+    const std::string label = "pnp w0_from_cam " + serial;
+    const std::size_t at = again.out.find(label);
+    ASSERT_NE(at, std::string::npos) << again.out;
+    double t[3], r[3];
+    int n = 0;
+    ASSERT_EQ(std::sscanf(again.out.c_str() + again.out.find("mean in its own frame", at),
+                          "mean in its own frame: position x %lf y %lf z %lf mm, rotation x %lf "
+                          "y %lf z %lf deg (n=%d)",
+                          &t[0], &t[1], &t[2], &r[0], &r[1], &r[2], &n),
+              7)
+        << again.out.substr(at, 200);
+    std::printf("%s: position %.3f %.3f %.3f mm, rotation %.4f %.4f %.4f deg\n", label.c_str(),
+                t[0], t[1], t[2], r[0], r[1], r[2]);
+    EXPECT_EQ(n, 3);
+    EXPECT_LT(std::sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]), 15.0);
+    EXPECT_LT(std::sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]), 0.5);
+  }
 }
 
 TEST(CliRegister, TheMapIndexRegistersAsTheExactMatcherDoes) {
