@@ -27,6 +27,7 @@ struct MapLocalizerStage::Outcome {
   double render_s = 0, sift_s = 0, match_s = 0, pnp_s = 0;
   int matches = 0, fundamental_outliers = 0;
   int windows = 0;  // guided re-anchoring: map points in view
+  int refined = 0;  // guided re-anchoring: matches found again at the finer step
   // Tracking's correction of its prediction (Track): its time and status,
   // "" when none was tried.
   double correction_s = 0;
@@ -84,6 +85,7 @@ GuidedMatchOptions LocalizerOptions::CoarseGuidedOptions() {
   coarse.max_side_px = 420;
   coarse.radius_px = 120;
   coarse.mask_keypoints = false;  // its radius reaches most of the image
+  coarse.refine_step = 0;  // it only places the tracks' prediction
   return coarse;
 }
 
@@ -203,11 +205,11 @@ std::string MapLocalizerStage::Counts::StageReport() const {
     std::snprintf(
         line, sizeof line,
         "; re-anchored by guided matching %lld of %lld attempts, per attempt: render "
-        "%.0f ms, SIFT %.0f ms, matching %.1f ms, PnP %.0f ms; %.0f matches (%.0f map points "
-        "in view), %.0f inliers",
+        "%.0f ms, SIFT %.0f ms, matching %.1f ms (refinement included), PnP %.0f ms; %.0f "
+        "matches (%.0f map points in view, %.0f refined), %.0f inliers",
         guided + cold_reanchored, guided_attempts, 1e3 * guided_render_s / g, 1e3 * guided_sift_s / g,
         1e3 * guided_match_s / g, 1e3 * guided_pnp_s / g, guided_matches / g, guided_windows / g,
-        guided_inliers / g);
+        guided_refined / g, guided_inliers / g);
     out += line;
     if (!last_guided_failure.empty()) out += " (last failure: " + last_guided_failure + ")";
     std::snprintf(line, sizeof line,
@@ -517,6 +519,7 @@ MapLocalizerStage::Outcome MapLocalizerStage::GuidedSolve(
   out.match_s = g.match_s;
   out.windows = g.in_view;
   out.matches = static_cast<int>(g.points.size());
+  out.refined = g.refined;
   if (g.status != "ok") {
     out.status = what + ": " + g.status;
     return out;
@@ -538,6 +541,7 @@ MapLocalizerStage::Outcome MapLocalizerStage::GuidedSolve(
   solved.match_s = out.match_s;
   solved.windows = out.windows;
   solved.matches = out.matches;
+  solved.refined = out.refined;
   return solved;
 }
 
@@ -1041,6 +1045,7 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     counts_.guided_windows += guided.windows;
     counts_.guided_matches += guided.matches;
     counts_.guided_inliers += guided.inliers;
+    counts_.guided_refined += guided.refined;
     if (!guided.success) counts_.last_guided_failure = guided.status;
   }
   if (relocalised_attempt) {

@@ -353,6 +353,7 @@ class MapLocalizerStage final : public processing::RegistrationStage {
     double guided_s = 0;
     double guided_render_s = 0, guided_sift_s = 0, guided_match_s = 0, guided_pnp_s = 0;
     long long guided_windows = 0 /* map points in view */, guided_matches = 0, guided_inliers = 0;
+    long long guided_refined = 0;  // matches found again at GuidedMatchOptions::refine_step
     std::string last_guided_failure;
     // Localize's time (features, matching, PnP) of the frames so counted; a
     // frame whose tracking failed pays both and counts as relocalised.

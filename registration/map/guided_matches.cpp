@@ -23,6 +23,63 @@ float SquaredDistance(const float* a, const float* b) {
   return sum;
 }
 
+// GuidedMatchOptions::refine_step: the keypoint at *tf_px (size_px its
+// diameter, TF px, found on a render of step coarse_step) found again on a
+// window sampled every refine_step TF px around it; false where the window
+// leaves the image or no keypoint of its size lies near the centre.
+bool RefineKeypoint(const processing::TfSampler& sampler, const ConstImageView& raw, double v,
+                    float size_px, int coarse_step, const GuidedMatchOptions& options,
+                    Eigen::Vector2d* tf_px) {
+  const double step = options.refine_step;
+  // OpenCV's keypoint size is twice its scale sigma.
+  const double sigma = 0.5 * size_px / step;
+  const int half = std::max(4, static_cast<int>(std::ceil(4 * sigma + 3)));
+  // A window too small for its scale would not find it again.
+  if (half > options.refine_max_half) return false;
+  const int n = 2 * half + 1;
+  thread_local std::vector<float> samples;
+  thread_local std::vector<std::uint8_t> window, centre;
+  samples.resize(static_cast<std::size_t>(n) * n);
+  if (!sampler.Patch(raw, *tf_px, v, n, step, 1, samples.data())) return false;
+  window.resize(samples.size());
+  for (std::size_t i = 0; i < samples.size(); ++i)
+    window[i] = static_cast<std::uint8_t>(std::clamp(samples[i] + 0.5f, 0.0f, 255.0f));
+  // Only keypoints within a coarse render pixel of the centre are described.
+  const double reach = options.refine_reach * coarse_step / step;
+  centre.assign(window.size(), 0);
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i)
+      if ((i - half) * (i - half) + (j - half) * (j - half) <= reach * reach)
+        centre[static_cast<std::size_t>(j) * n + i] = 255;
+  const ConstImageView image(window.data(), n, n, static_cast<std::size_t>(n),
+                             PixelFormat::kMono8);
+  const ConstImageView mask(centre.data(), n, n, static_cast<std::size_t>(n), PixelFormat::kMono8);
+  FeatureOptions fine = options.features;
+  fine.max_features = 0;
+  fine.spread_cells = 0;
+  fine.image_scale = 1;
+  Features found;
+  if (!DetectSift(image, fine, &found, &mask)) return false;
+  const float coarse_size = size_px / static_cast<float>(step);  // window px
+  int nearest = -1;
+  float nearest_d2 = std::numeric_limits<float>::infinity();
+  for (int k = 0; k < found.size(); ++k) {
+    const Keypoint& kp = found.keypoints[k];
+    const float ratio = static_cast<float>(options.refine_size_ratio);
+    if (!(kp.size <= ratio * coarse_size && kp.size >= coarse_size / ratio)) continue;
+    if ((kp.xy_px - Eigen::Vector2f(half, half)).norm() > reach) continue;
+    const float d2 = (kp.xy_px - Eigen::Vector2f(half, half)).squaredNorm();
+    if (d2 < nearest_d2) {
+      nearest_d2 = d2;
+      nearest = k;
+    }
+  }
+  if (nearest < 0) return false;
+  *tf_px += step * (found.keypoints[nearest].xy_px.cast<double>() -
+                    Eigen::Vector2d(half, half));
+  return true;
+}
+
 }  // namespace
 
 ProjectedMapGrid::ProjectedMapGrid(const MapIndex& map, const processing::CameraModel& camera,
@@ -87,6 +144,15 @@ Status GuidedMatchOptions::Check() const {
   if (!(radius_px > 0)) return Error{"guided matching: radius_px: expected > 0"};
   if (refocus_cells < 0) return Error{"guided matching: refocus_cells: expected >= 0"};
   if (!(ratio > 0 && ratio <= 1)) return Error{"guided matching: ratio: expected in (0, 1]"};
+  if (refine_step < 0 || refine_step > 3)
+    return Error{"guided matching: refine_step: expected 0 (off) or 1..3"};
+  if (refine_max_half < 4) return Error{"guided matching: refine_max_half: expected >= 4"};
+  if (refine_from_step <= refine_step)
+    return Error{"guided matching: refine_from_step: expected > refine_step (" +
+                 std::to_string(refine_step) + ")"};
+  if (!(refine_reach > 0)) return Error{"guided matching: refine_reach: expected > 0"};
+  if (!(refine_size_ratio >= 1))
+    return Error{"guided matching: refine_size_ratio: expected >= 1"};
   return Status::Ok();
 }
 
@@ -196,13 +262,20 @@ GuidedMatches FindGuidedMatches(const MapIndex& map, const processing::CameraMod
     Best& best = best_of_point[nearest];
     if (d1 < best.distance) best = {i, d1};
   }
+  std::vector<float> sizes_px;  // the matched keypoints' (TF px)
   for (int j = 0; j < map.size(); ++j) {
     const Best& best = best_of_point[j];
     if (best.keypoint < 0) continue;
     out.points.push_back(j);
     out.tf_px.push_back(features.keypoints[best.keypoint].xy_px.cast<double>());
     out.virtual_depth.push_back(grid.virtual_depth(j));
+    sizes_px.push_back(features.keypoints[best.keypoint].size);
   }
+  if (options.refine_step > 0 && out.step >= options.refine_from_step)
+    for (std::size_t m = 0; m < out.points.size(); ++m)
+      if (RefineKeypoint(sampler, raw, out.virtual_depth[m], sizes_px[m], out.step, options,
+                         &out.tf_px[m]))
+        ++out.refined;
   out.match_s = SecondsSince(match_start);
   return out;
 }

@@ -113,6 +113,22 @@ double ProcessCpuSeconds() {
   return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
 }
 
+// LIFMCR_TEST_GUIDED_REFINE_STEP, _FROM_STEP, _HALF, _REACH, _SIZE_RATIO:
+// GuidedMatchOptions::refine_step, refine_from_step, refine_max_half,
+// refine_reach, refine_size_ratio.
+void RefinementFromEnvironment(GuidedMatchOptions* guided) {
+  if (const char* step = std::getenv("LIFMCR_TEST_GUIDED_REFINE_STEP"))
+    guided->refine_step = std::atoi(step);
+  if (const char* from = std::getenv("LIFMCR_TEST_GUIDED_REFINE_FROM_STEP"))
+    guided->refine_from_step = std::atoi(from);
+  if (const char* half = std::getenv("LIFMCR_TEST_GUIDED_REFINE_HALF"))
+    guided->refine_max_half = std::atoi(half);
+  if (const char* reach = std::getenv("LIFMCR_TEST_GUIDED_REFINE_REACH"))
+    guided->refine_reach = std::atof(reach);
+  if (const char* ratio = std::getenv("LIFMCR_TEST_GUIDED_REFINE_SIZE_RATIO"))
+    guided->refine_size_ratio = std::atof(ratio);
+}
+
 // The camera's raw frame `view` (by default the trigger's own) under trigger
 // index `frame`.
 Localized LocalizeFrame(MapLocalizerStage& stage, Sequence& s, const std::string& serial,
@@ -514,6 +530,40 @@ TEST(MapLocalizer, GuidedMatchesFindMapPointsNearAPoseKnownToAFewPixels) {
   // map point to a stronger neighbour it had dropped: nearly all, not all.
   EXPECT_GE(same, static_cast<int>(0.9 * all.points.size()));
   EXPECT_GE(g.points.size(), all.points.size());
+
+  // GuidedMatchOptions::refine_step: on a render of step 4 (r32's), the
+  // matched keypoints found again on windows sampled every 2 TF px lie
+  // nearer their map points' true projections than the coarse keypoints.
+  GuidedMatchOptions coarse;
+  coarse.min_side_px = 64;
+  coarse.max_side_px = std::max(64, std::max((*sampler)->tf_width(),
+                                             (*sampler)->tf_height()) / 4);
+  coarse.refine_step = 0;
+  GuidedMatchOptions fine = coarse;
+  fine.refine_step = 2;
+  const GuidedMatches c = FindGuidedMatches(index, camera, **sampler, view, guide, coarse);
+  const GuidedMatches f = FindGuidedMatches(index, camera, **sampler, view, guide, fine);
+  ASSERT_EQ(c.status, "ok");
+  ASSERT_EQ(f.status, "ok");
+  ASSERT_EQ(c.points, f.points);
+  std::vector<double> before_px, after_px;
+  for (std::size_t i = 0; i < f.points.size(); ++i) {
+    if ((f.tf_px[i] - c.tf_px[i]).norm() < 1e-9) continue;  // not refined
+    Eigen::Vector2d tf;
+    double v = 0;
+    ASSERT_TRUE(ProjectMapPoint(camera, cam_from_w0, index.points_in_w0[f.points[i]], &tf, &v));
+    before_px.push_back((c.tf_px[i] - tf).norm());
+    after_px.push_back((f.tf_px[i] - tf).norm());
+  }
+  std::printf(
+      "step %d: %zu matches, %d refined at step 2: from their true projections median %.2f px "
+      "(coarse %.2f px); matching %.1f ms (coarse %.1f ms)\n",
+      f.step, f.points.size(), f.refined, Median(after_px), Median(before_px), 1e3 * f.match_s,
+      1e3 * c.match_s);
+  EXPECT_EQ(c.step, 4);
+  EXPECT_EQ(static_cast<std::size_t>(f.refined), after_px.size());
+  EXPECT_GE(f.refined, 5);
+  EXPECT_LT(Median(after_px), Median(before_px));
 }
 
 // Bias of the live renders against the offline TF image. Camera X's
@@ -1004,6 +1054,10 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
     // LIFMCR_TEST_COLD_ROUNDS=R: cold_reanchor_rounds R in every variant run.
     if (const char* cold = std::getenv("LIFMCR_TEST_COLD_ROUNDS"))
       options.cold_reanchor_rounds = std::atoi(cold);
+    // LIFMCR_TEST_REANCHOR_EVERY=N: reanchor_every N in the variants that
+    // re-anchor periodically.
+    if (const char* every = std::getenv("LIFMCR_TEST_REANCHOR_EVERY"))
+      if (options.reanchor_every > 1) options.reanchor_every = std::atoi(every);
     // LIFMCR_TEST_MAX_ANCHOR_WEIGHT=W: max_anchor_weight W in every variant;
     // LIFMCR_TEST_ANCHOR_SHIFT_RATIO=R: max_anchor_shift_ratio R.
     if (const char* weight = std::getenv("LIFMCR_TEST_MAX_ANCHOR_WEIGHT"))
@@ -1033,6 +1087,7 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
       options.guided.max_step = std::atoi(step);
     if (const char* k = std::getenv("LIFMCR_TEST_GUIDED_FEATURES"))
       options.guided.features.max_features = std::atoi(k);
+    RefinementFromEnvironment(&options.guided);
     MapLocalizerStage stage(s.map, options);
     // The fused estimate of a rigid mount (extrinsics_monitor.h), as the
     // pipeline publishes it beside each trigger's.
@@ -1310,6 +1365,7 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
     defaults.guided.mask_keypoints = std::atoi(mask) != 0;
   if (const char* side = std::getenv("LIFMCR_TEST_GUIDED_MAX_SIDE"))
     defaults.guided.max_side_px = std::atoi(side);
+  RefinementFromEnvironment(&defaults.guided);
   if (const char* side = std::getenv("LIFMCR_TEST_RELOCALISE_MIN_SIDE"))
     defaults.relocalise_min_side_px = std::atoi(side);
   if (const char* cold = std::getenv("LIFMCR_TEST_COLD_ROUNDS"))
