@@ -19,6 +19,7 @@
 #include <deque>
 #include <iterator>
 #include <map>
+#include <set>
 #include <mutex>
 #include <oneapi/tbb/info.h>
 #include <oneapi/tbb/task_arena.h>
@@ -308,6 +309,11 @@ struct Pipeline::Impl {
     // frame reached it after the graph's nodes were destroyed: bench_live,
     // segmentation fault at the run's end).
     int held = 0;
+    // Cameras with a frame on one of the lane's threads: a camera's next
+    // frame waits for it (Take), so each camera's products go out in its
+    // frames' order. Without it two threads took two waiting frames of one
+    // camera and the newer one's per-lens depth could go out first.
+    std::set<int> busy;
     bool stop = false;
     std::vector<std::unique_ptr<tbb::task_arena>> arenas;  // one per thread
     std::vector<std::thread> threads;
@@ -387,16 +393,24 @@ struct Pipeline::Impl {
   // A lane's next frame (held), or nothing when the lane stops.
   std::optional<Impl::Offer> Take(Lane& lane) {
     std::unique_lock lock(lane.mutex);
-    lane.cv.wait(lock, [&] { return lane.stop || !lane.slots.empty(); });
+    auto pick = lane.slots.end();
+    lane.cv.wait(lock, [&] {
+      if (lane.stop) return true;
+      // The camera served longest ago among those with no frame on a thread.
+      pick = lane.slots.end();
+      for (auto it = lane.slots.begin(); it != lane.slots.end(); ++it)
+        if (!lane.busy.count(it->first) &&
+            (pick == lane.slots.end() || lane.served[it->first] < lane.served[pick->first]))
+          pick = it;
+      return pick != lane.slots.end();
+    });
     if (lane.stop) return std::nullopt;
-    auto pick = lane.slots.begin();
-    for (auto it = lane.slots.begin(); it != lane.slots.end(); ++it)
-      if (lane.served[it->first] < lane.served[pick->first]) pick = it;
     Impl::Offer offer = std::move(pick->second.front());
     pick->second.pop_front();
     if (pick->second.empty()) lane.slots.erase(pick);
     lane.served[offer.job.frame.camera_index] = ++lane.serve_count;
     lane.taken_before[offer.job.frame.camera_index] = offer.job.camera_order + 1;
+    lane.busy.insert(offer.job.frame.camera_index);
     ++lane.held;
     return offer;
   }
@@ -425,6 +439,7 @@ struct Pipeline::Impl {
     }
     {
       std::lock_guard lock(lane.mutex);
+      lane.busy.erase(job.frame.camera_index);
       --lane.held;
     }
     lane.cv.notify_all();
