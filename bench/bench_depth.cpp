@@ -85,6 +85,7 @@ std::string LoadAverage() {
 }
 
 double Median(std::vector<double> v) {
+  if (v.empty()) return std::nan("");  // a figure not measured (--tf-baseline 0)
   std::sort(v.begin(), v.end());
   return v[v.size() / 2];
 }
@@ -308,7 +309,8 @@ constexpr char kUsage[] =
     "                   [--seed full|seeded|both] [--dense-path scalar|simd|both]\n"
     "                   [--seed-margin PX] [--seed-ring1 1..6] [--seed-ring2 0..6]\n"
     "                   [--seed-cost-ratio R] [--seed-stride 0..8] [--frames FILE]\n"
-    "                   [--tf-only MAP] [--tf-out FILE]\n"
+    "                   [--tf-only MAP] [--tf-out FILE] [--tf-baseline 0|1]\n"
+    "                   [--tf-psnr 0|1]\n"
     "processing/ on one synthetic frame (default r32) on all cores: grid fit to the white\n"
     "image, virtual depth in raw MP/s with its accuracy against the ground truth (the full\n"
     "search and the search seeded by the per-lens depth, scalar and SIMD, side by side)\n"
@@ -322,7 +324,10 @@ constexpr char kUsage[] =
     "neighbours' depth (LensDepthOptions::neighbour_seed; default 0: every lens from nothing).\n"
     "--tf-only MAP: the TF image alone (with its baselines), on the seeded SIMD dense map kept\n"
     "in MAP (estimated once and written when MAP does not hold this preset and scene).\n"
-    "--tf-out FILE writes the TF image there (PGM or PPM) to compare two builds' images.\n";
+    "--tf-out FILE writes the TF image there (PGM or PPM) to compare two builds' images.\n"
+    "--tf-baseline 0 leaves out the TF image from every dense pixel (a profile of the\n"
+    "chain's way alone); --tf-psnr 0 leaves out its PSNR (the all-in-focus truth is not\n"
+    "rendered: a callgrind run of the TF stage in minutes).\n";
 
 int main(int argc, char** argv) {
   if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
@@ -333,6 +338,7 @@ int main(int argc, char** argv) {
   bool lens_only = false, run_dense = true, lens_previous = false;
   std::string lens_path = "both", dense_path = "both", seed_mode = "both", frames_file;
   std::string tf_only_map, tf_out;
+  bool tf_baseline = true, tf_psnr = true;
   for (int k = 1; k + 1 < argc; k += 2) {
     if (!std::strcmp(argv[k], "--preset"))
       preset = argv[k + 1];
@@ -378,6 +384,10 @@ int main(int argc, char** argv) {
       tf_only_map = argv[k + 1];
     else if (!std::strcmp(argv[k], "--tf-out"))
       tf_out = argv[k + 1];
+    else if (!std::strcmp(argv[k], "--tf-baseline"))
+      tf_baseline = std::atoi(argv[k + 1]) != 0;
+    else if (!std::strcmp(argv[k], "--tf-psnr"))
+      tf_psnr = std::atoi(argv[k + 1]) != 0;
     else if (!std::strcmp(argv[k], "--lens-previous"))
       lens_previous = std::atoi(argv[k + 1]) != 0;
     else if (!std::strcmp(argv[k], "--lens-neighbours"))
@@ -776,8 +786,9 @@ int main(int argc, char** argv) {
     std::vector<double> wall_s, cpu_s, depth_s, depth_cpu_s;
   };
   std::array<TfRun, 2> tf_runs;  // [0] per-lens + dense at edges, [1] every dense pixel
+  const int tf_ways = tf_baseline ? 2 : 1;
   for (int r = 0; r <= repeat; ++r) {  // run 0: warm-up, not timed
-    for (int way = 0; way < 2; ++way) {
+    for (int way = 0; way < tf_ways; ++way) {
       TfRun& run = tf_runs[way];
       t0 = Now();
       const double cpu0 = ProcessCpuSeconds();
@@ -811,7 +822,7 @@ int main(int argc, char** argv) {
   tbb::task_arena one(1);
   one.execute([&] {
     for (int r = 0; r < repeat; ++r)
-      for (int way = 0; way < 2; ++way) {
+      for (int way = 0; way < tf_ways; ++way) {
         TfRun& run = tf_runs[way];
         t0 = Now();
         const double cpu0 = ProcessCpuSeconds();
@@ -832,8 +843,9 @@ int main(int argc, char** argv) {
   // Against the all-in-focus ground truth over the TF pixels that see a
   // surface (not timed): PSNR = 20 log10(255 / RMS), RMS over the channels;
   // and the per-lens way's image against the baseline's.
-  if (!tf_truth) tf_truth = synth::RenderTfGroundTruth(model, scene, world_from_cam);
+  if (!tf_truth && tf_psnr) tf_truth = synth::RenderTfGroundTruth(model, scene, world_from_cam);
   auto psnr = [&](const TfImage& image, const std::uint8_t* reference) {
+    if (reference == nullptr && !tf_truth) return std::nan("");
     double sum2 = 0;
     long long n = 0;
     const int channels = image.format == PixelFormat::kBgr8 ? 3 : 1;
@@ -863,7 +875,7 @@ int main(int argc, char** argv) {
   };
   const double tf_mp = tf.width * static_cast<double>(tf.height) / 1e6;
   const char* way_name[2] = {"per-lens depth + dense at edges", "every dense pixel (baseline)"};
-  for (int way = 0; way < 2; ++way) {
+  for (int way = 0; way < tf_ways; ++way) {
     const TfRun& run = tf_runs[way];
     std::printf(
         "tf (%s): %.2f output MP/s (%.3f s median per %.2f MP; CPU %.3f s, all threads; TF depth "
@@ -874,7 +886,7 @@ int main(int argc, char** argv) {
   std::printf("tf: %lld of %lld micro images from their lens depth; image against the baseline's: "
               "PSNR %.2f dB\n",
               tf_depth.lenses_held, tf_depth.lenses,
-              psnr(tf, tf_runs[1].image.pixels.data()));
+              tf_baseline ? psnr(tf, tf_runs[1].image.pixels.data()) : std::nan(""));
   const std::vector<double>& tf_s = tf_runs[0].wall_s;
   std::printf(
       "tf: %.2f output MP/s (%.3f s median per %.2f MP; CPU %.3f s, all threads); baseline %.2f "

@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <type_traits>
 #include <utility>
 
 HWY_BEFORE_NAMESPACE();
@@ -24,12 +25,50 @@ namespace lifmcr::processing::detail {
 namespace HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
 
+// ConvertTo for lanes known to lie in [0, 2^31) (every caller's here): on
+// x86 the same integers without its overflow fix-up (four instructions a
+// vector on AVX2, two on AVX-512; seven conversions a vector of pixels).
+template <class DI, class VF>
+HWY_INLINE hn::Vec<DI> TruncInRange(DI di, VF v) {
+#if HWY_TARGET == HWY_AVX3 || HWY_TARGET == HWY_AVX3_DL
+  if constexpr (std::is_same_v<VF, hn::Vec512<float>>) {
+    (void)di;
+    return hn::Vec<DI>{_mm512_cvttps_epi32(v.raw)};
+  } else
+#elif HWY_TARGET == HWY_AVX2
+  if constexpr (std::is_same_v<VF, hn::Vec256<float>>) {
+    (void)di;
+    return hn::Vec<DI>{_mm256_cvttps_epi32(v.raw)};
+  } else
+#endif
+  {
+    return hn::ConvertTo(di, v);
+  }
+}
+
+// Whether the per-type values are looked up in a vector (TypeTables).
+template <class DF>
+constexpr bool kTypeLookup = hn::MaxLanes(DF()) >= 4;
+
+// The per-type values of TfBlendGeometry (o_t, F_t), each in a vector's
+// first three lanes: made once per run of a row, read by every vector of it.
+struct TypeTables {
+  // A vector's floats, at least the three types' (HWY_SCALAR's vector holds one).
+  static constexpr int kMax = std::max<int>(3, HWY_MAX_BYTES / sizeof(float));
+  HWY_ALIGN float v[6][kMax] = {};
+  explicit TypeTables(const TfBlendGeometry& g) {
+    const float* per_type[6] = {g.ox, g.oy, g.fxx, g.fxy, g.fyx, g.fyy};
+    for (int i = 0; i < 6; ++i) std::copy(per_type[i], per_type[i] + 3, v[i]);
+  }
+  enum Field { kOx, kOy, kFxx, kFxy, kFyx, kFyy };
+};
+
 // One vector of pixels (lanes) at raw x, y and depth v: the blend of the
 // three lenses of their triangles, in the order of ScalarBlendRow below.
 template <int kChannels, class DF>
 HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource& s,
-                            hn::Vec<DF> x, hn::Vec<DF> y, hn::Vec<DF> v, hn::Vec<DF>* acc,
-                            hn::Vec<DF>* sw) {
+                            const TypeTables* types, hn::Vec<DF> x, hn::Vec<DF> y,
+                            hn::Vec<DF> v, hn::Vec<DF>* acc, hn::Vec<DF>* sw) {
   const hn::RebindToSigned<DF> di;
   const hn::RebindToUnsigned<DF> du;
   using VF = hn::Vec<DF>;
@@ -41,17 +80,29 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
   const VF qy = hn::Add(cy, hn::Mul(hn::Sub(y, cy), k));
   const VF tv = hn::Min(hn::Mul(v, hn::Set(df, static_cast<float>(g.type_per_unit))),
                         hn::Set(df, static_cast<float>(g.type_size - 1)));
-  const auto t = hn::GatherIndex(di, g.type_of_v, hn::ConvertTo(di, tv));
-  const auto is1 = hn::RebindMask(df, hn::Eq(t, hn::Set(di, 1)));
-  const auto is2 = hn::RebindMask(df, hn::Eq(t, hn::Set(di, 2)));
-  auto select = [&](const float* per_type) {
-    return hn::IfThenElse(is2, hn::Set(df, per_type[2]),
-                          hn::IfThenElse(is1, hn::Set(df, per_type[1]), hn::Set(df, per_type[0])));
+  const auto t = hn::GatherIndex(di, g.type_of_v, TruncInRange(di, tv));
+  const auto is1 = hn::Eq(t, hn::Set(di, 1));
+  const auto is2 = hn::Eq(t, hn::Set(di, 2));
+  // Type 2, 1, or 0 for any other: where a vector holds the three, a
+  // lookup in the row's table of the value (one permute instead of two
+  // blends of two broadcasts).
+  const auto type = hn::IfThenElseZero(hn::Or(is1, is2), t);
+  auto select = [&](TypeTables::Field field, const float* per_type) {
+    if constexpr (kTypeLookup<DF>) {
+      (void)per_type;
+      return hn::TableLookupLanes(hn::Load(df, types->v[field]), hn::IndicesFromVec(df, type));
+    } else {
+      return hn::IfThenElse(
+          hn::RebindMask(df, is2), hn::Set(df, per_type[2]),
+          hn::IfThenElse(hn::RebindMask(df, is1), hn::Set(df, per_type[1]), hn::Set(df, per_type[0])));
+    }
   };
-  const VF ox = select(g.ox), oy = select(g.oy);
+  const VF ox = select(TypeTables::kOx, g.ox), oy = select(TypeTables::kOy, g.oy);
   const VF dqx = hn::Sub(qx, ox), dqy = hn::Sub(qy, oy);
-  const VF ax = hn::Add(hn::Mul(select(g.fxx), dqx), hn::Mul(select(g.fxy), dqy));
-  const VF ay = hn::Add(hn::Mul(select(g.fyx), dqx), hn::Mul(select(g.fyy), dqy));
+  const VF ax = hn::Add(hn::Mul(select(TypeTables::kFxx, g.fxx), dqx),
+                        hn::Mul(select(TypeTables::kFxy, g.fxy), dqy));
+  const VF ay = hn::Add(hn::Mul(select(TypeTables::kFyx, g.fyx), dqx),
+                        hn::Mul(select(TypeTables::kFyy, g.fyy), dqy));
   const VF m = hn::Floor(ax), n = hn::Floor(ay);
   const VF fa = hn::Sub(ax, m), fb = hn::Sub(ay, n);
   const auto upper = hn::Ge(hn::Add(fa, fb), one);
@@ -105,7 +156,7 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
     if (hn::AllFalse(df, valid)) continue;
     // Lanes off the frame read pixel (0, 0) and are dropped below.
     const VF pxs = hn::IfThenElseZero(valid, px), pys = hn::IfThenElseZero(valid, py);
-    const auto ix = hn::ConvertTo(di, pxs), iy = hn::ConvertTo(di, pys);
+    const auto ix = TruncInRange(di, pxs), iy = TruncInRange(di, pys);
     const VF ffx = hn::Sub(pxs, hn::ConvertTo(df, ix)), ffy = hn::Sub(pys, hn::ConvertTo(df, iy));
     const auto at = hn::Add(hn::Mul(iy, width), ix);
     VF g00, g01, g10, g11;
@@ -245,12 +296,13 @@ void BlendRowT(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float
   using VF = hn::Vec<decltype(df)>;
   const int lanes = static_cast<int>(hn::Lanes(df));
   const VF vy = hn::Set(df, y), vx0 = hn::Set(df, x0), step = hn::Set(df, dx);
+  const TypeTables types(g);
   auto run = [&](int i, const float* vin, float* const* out_acc, float* out_sw) {
     VF a[kChannels];
     for (int ch = 0; ch < kChannels; ++ch) a[ch] = hn::Zero(df);
     VF w = hn::Zero(df);
     const VF x = hn::Add(vx0, hn::Mul(step, hn::Iota(df, static_cast<float>(i))));
-    BlendVector<kChannels>(df, g, s, x, vy, hn::LoadU(df, vin), a, &w);
+    BlendVector<kChannels>(df, g, s, &types, x, vy, hn::LoadU(df, vin), a, &w);
     for (int ch = 0; ch < kChannels; ++ch) hn::StoreU(a[ch], df, out_acc[ch]);
     hn::StoreU(w, df, out_sw);
   };

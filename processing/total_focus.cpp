@@ -35,59 +35,59 @@ Status TfOptions::Check() const {
 
 namespace {
 
-// Weighted box sums over a (2 radius + 1)^2 window, separable running sums
-// (O(1) per pixel whatever the radius): box_w = sum w, box_wz = sum w z, with
-// w = 0 where a pixel has no value, and box_n = how many had one (exact,
-// unlike a running double sum, whose subtractions leave residues).
-void BoxSums(int width, int height, int radius, const std::vector<double>& w,
-             const std::vector<double>& wz, TfDepthMap::Scratch* s) {
+// The inverse-variance window mean over (2 radius + 1)^2 cells: mean =
+// sum w z / sum w over the window (w = 0 where a cell has no value), NaN
+// where no cell of it has a weight. Separable and direct, 2 (2 radius + 1)
+// adds per cell (radius 2 by default) in loops along x that the compiler
+// vectorises: a row pass into `row_w`, `row_wz`, then per row the column
+// sums over 2 radius + 1 of those rows, divided at once. Sums of
+// non-negative terms without subtractions: a window without weight sums to
+// 0 exactly (running sums leave residues, and needed a count of the cells
+// with a value to tell; those two passes cost about three times these on
+// an R32, as the window passes of a separable O(1) sum do not vectorise).
+void WindowMeans(int width, int height, int radius, const std::vector<double>& w,
+                 const std::vector<double>& wz, TfDepthMap::Scratch* s, std::vector<float>* mean) {
   s->row_w.resize(w.size());
   s->row_wz.resize(w.size());
-  s->row_n.resize(w.size());
+  mean->resize(w.size());
   tbb::parallel_for(0, height, [&](int y) {
     const std::size_t base = static_cast<std::size_t>(y) * width;
-    double a = 0, b = 0;
-    int c = 0;
-    auto add = [&](int x, int sign) {
-      a += sign * w[base + x];
-      b += sign * wz[base + x];
-      c += sign * (w[base + x] > 0);
-    };
-    for (int x = 0; x <= std::min(radius, width - 1); ++x) add(x, 1);
-    for (int x = 0; x < width; ++x) {
-      s->row_w[base + x] = a;
-      s->row_wz[base + x] = b;
-      s->row_n[base + x] = c;
-      if (x + radius + 1 < width) add(x + radius + 1, 1);
-      if (x - radius >= 0) add(x - radius, -1);
+    const double* const a = w.data() + base;
+    const double* const b = wz.data() + base;
+    double* const ra = s->row_w.data() + base;
+    double* const rb = s->row_wz.data() + base;
+    std::fill(ra, ra + width, 0.0);
+    std::fill(rb, rb + width, 0.0);
+    for (int d = -radius; d <= radius; ++d) {
+      // Cells x with 0 <= x + d < width.
+      const int x0 = std::max(0, -d), x1 = std::min(width, width - d);
+      for (int x = x0; x < x1; ++x) {
+        ra[x] += a[x + d];
+        rb[x] += b[x + d];
+      }
     }
   });
-  s->box_w.resize(w.size());
-  s->box_wz.resize(w.size());
-  s->box_n.resize(w.size());
-  constexpr int kStrip = 64;
-  tbb::parallel_for(0, (width + kStrip - 1) / kStrip, [&](int strip) {
-    const int x0 = strip * kStrip, x1 = std::min(width, x0 + kStrip);
-    double a[kStrip] = {}, b[kStrip] = {};
-    int c[kStrip] = {};
-    auto add = [&](int y, int sign) {
-      for (int x = x0; x < x1; ++x) {
-        const std::size_t i = static_cast<std::size_t>(y) * width + x;
-        a[x - x0] += sign * s->row_w[i];
-        b[x - x0] += sign * s->row_wz[i];
-        c[x - x0] += sign * s->row_n[i];
+  tbb::parallel_for(0, height, [&](int y) {
+    const std::size_t base = static_cast<std::size_t>(y) * width;
+    float* const out = mean->data() + base;
+    const int y0 = std::max(0, y - radius), y1 = std::min(height - 1, y + radius);
+    // Column sums in blocks of kBlock cells kept on the stack.
+    constexpr int kBlock = 256;
+    double sa[kBlock], sb[kBlock];
+    for (int x0 = 0; x0 < width; x0 += kBlock) {
+      const int n = std::min(kBlock, width - x0);
+      std::fill(sa, sa + n, 0.0);
+      std::fill(sb, sb + n, 0.0);
+      for (int yy = y0; yy <= y1; ++yy) {
+        const double* const ra = s->row_w.data() + static_cast<std::size_t>(yy) * width + x0;
+        const double* const rb = s->row_wz.data() + static_cast<std::size_t>(yy) * width + x0;
+        for (int i = 0; i < n; ++i) {
+          sa[i] += ra[i];
+          sb[i] += rb[i];
+        }
       }
-    };
-    for (int y = 0; y <= std::min(radius, height - 1); ++y) add(y, 1);
-    for (int y = 0; y < height; ++y) {
-      for (int x = x0; x < x1; ++x) {
-        const std::size_t i = static_cast<std::size_t>(y) * width + x;
-        s->box_w[i] = a[x - x0];
-        s->box_wz[i] = b[x - x0];
-        s->box_n[i] = c[x - x0];
-      }
-      if (y + radius + 1 < height) add(y + radius + 1, 1);
-      if (y - radius >= 0) add(y - radius, -1);
+      for (int i = 0; i < n; ++i)
+        out[x0 + i] = sa[i] > 0 ? static_cast<float>(sb[i] / sa[i]) : kNaN;
     }
   });
 }
@@ -439,12 +439,7 @@ Status TfDepthOf(const PlenopticFrame& f, const VirtualDepthMap& raw, const Lens
   const std::vector<double>& all_w = lens_z == nullptr ? cell_w : scratch.lens_cell_w;
   const std::vector<double>& all_wz = lens_z == nullptr ? cell_wz : scratch.lens_cell_wz;
   const int cell_radius = std::max(0, (options.smooth_radius + kCell / 2) / kCell);
-  BoxSums(cw, ch, cell_radius, all_w, all_wz, &scratch);
-  cell_z.resize(cn);
-  for_cells([&](std::size_t c) {
-    cell_z[c] =
-        scratch.box_n[c] > 0 ? static_cast<float>(scratch.box_wz[c] / scratch.box_w[c]) : kNaN;
-  });
+  WindowMeans(cw, ch, cell_radius, all_w, all_wz, &scratch, &cell_z);
   if (lens_z == nullptr) {
     sum_cells(true);
   } else {
@@ -458,11 +453,7 @@ Status TfDepthOf(const PlenopticFrame& f, const VirtualDepthMap& raw, const Lens
       cell_wz[c] = keep ? wz : 0.0;
     });
   }
-  BoxSums(cw, ch, cell_radius, cell_w, cell_wz, &scratch);
-  for_cells([&](std::size_t c) {
-    cell_z[c] =
-        scratch.box_n[c] > 0 ? static_cast<float>(scratch.box_wz[c] / scratch.box_w[c]) : kNaN;
-  });
+  WindowMeans(cw, ch, cell_radius, cell_w, cell_wz, &scratch, &cell_z);
   // Holes: the mean z of the valid cells within fill_iterations TF pixels
   // (a window of 2 fill_cells + 1 cells), summed directly for the cells
   // without a value only (few; a third window-sum pass over every cell
@@ -503,17 +494,42 @@ Status TfDepthOf(const PlenopticFrame& f, const VirtualDepthMap& raw, const Lens
   std::vector<float>& along_b = scratch.along_b;
   along_a.resize(static_cast<std::size_t>(ch) * tw);
   along_b.resize(static_cast<std::size_t>(ch) * tw);
+  // The cells and weights of each TF column, the same for every cell row:
+  // made once, so that a row is four table reads and two blends per column.
+  std::vector<std::int32_t>& along_x = scratch.along_x;
+  std::vector<float>& along_f = scratch.along_f;
+  along_x.resize(2 * static_cast<std::size_t>(tw));
+  along_f.resize(2 * static_cast<std::size_t>(tw));
+  for (int u = 0; u < tw; ++u) {
+    const float gx = std::clamp((u + 0.5f) / kCell - 0.5f, 0.0f, static_cast<float>(cw - 1));
+    const int x0 = std::min(static_cast<int>(gx), cw - 1), x1 = std::min(x0 + 1, cw - 1);
+    const float fx = gx - x0;
+    along_x[2 * u] = x0;
+    along_x[2 * u + 1] = x1;
+    along_f[2 * u] = 1 - fx;
+    along_f[2 * u + 1] = fx;
+  }
+  scratch.cell_ok.resize(cn);
+  scratch.cell_z0.resize(cn);
   tbb::parallel_for(0, ch, [&](int cy) {
     const float* z = cell_z.data() + static_cast<std::size_t>(cy) * cw;
     float* a = along_a.data() + static_cast<std::size_t>(cy) * tw;
     float* b = along_b.data() + static_cast<std::size_t>(cy) * tw;
+    // Per cell its validity (1, 0) and z (0 where invalid).
+    float* const ok = scratch.cell_ok.data() + static_cast<std::size_t>(cy) * cw;
+    float* const zv = scratch.cell_z0.data() + static_cast<std::size_t>(cy) * cw;
+    for (int c = 0; c < cw; ++c) {
+      const bool valid = !std::isnan(z[c]);
+      ok[c] = valid ? 1.0f : 0.0f;
+      zv[c] = valid ? z[c] : 0.0f;
+    }
+    const std::int32_t* const xs = along_x.data();
+    const float* const fs = along_f.data();
     for (int u = 0; u < tw; ++u) {
-      const float gx = std::clamp((u + 0.5f) / kCell - 0.5f, 0.0f, static_cast<float>(cw - 1));
-      const int x0 = std::min(static_cast<int>(gx), cw - 1), x1 = std::min(x0 + 1, cw - 1);
-      const float fx = gx - x0;
-      const bool ok0 = !std::isnan(z[x0]), ok1 = !std::isnan(z[x1]);
-      a[u] = (1 - fx) * (ok0 ? 1.0f : 0.0f) + fx * (ok1 ? 1.0f : 0.0f);
-      b[u] = (1 - fx) * (ok0 ? z[x0] : 0.0f) + fx * (ok1 ? z[x1] : 0.0f);
+      const int x0 = xs[2 * u], x1 = xs[2 * u + 1];
+      const float f0 = fs[2 * u], f1 = fs[2 * u + 1];
+      a[u] = f0 * ok[x0] + f1 * ok[x1];
+      b[u] = f0 * zv[x0] + f1 * zv[x1];
     }
   });
   constexpr int kBinsPerUnit = 1024, kBins = 64 * kBinsPerUnit, kChunks = 8, kHistogramStep = 4;
@@ -562,16 +578,25 @@ Status TfDepthOf(const PlenopticFrame& f, const VirtualDepthMap& raw, const Lens
         // With the per-lens depth: sigma_z of the cell's splats (above).
         const float* const cell_sigma =
             cell_sigma_rows.data() + static_cast<std::size_t>(w / kCell) * cw;
-        for (int c = 0; c < cw; ++c) {
+        // Whole cells kCell pixels at a time (unrolled), the row's last
+        // partial cell apart.
+        const int whole = tw / kCell;
+        for (int c = 0; c < whole; ++c) {
           const float sc = cell_sigma[c];
-          const int u_end = std::min(tw, (c + 1) * kCell);
-          for (int u = c * kCell; u < u_end; ++u) sigma[u] = sc;
-          row_measured += lw[c] > 0 ? u_end - c * kCell : 0;
+          for (int i = 0; i < kCell; ++i) sigma[c * kCell + i] = sc;
+          row_measured += lw[c] > 0 ? kCell : 0;
+        }
+        for (int u = whole * kCell; u < tw; ++u) {
+          sigma[u] = cell_sigma[whole];
+          row_measured += lw[whole] > 0;
         }
         if (w % kHistogramStep == 0)
-          for (int u = 0; u < tw; ++u)
-            if (lw[u / kCell] > 0 && !std::isnan(vd[u]))
-              ++hist[std::clamp(static_cast<int>(vd[u] * kBinsPerUnit), 0, kBins - 1)];
+          for (int c = 0; c < cw; ++c) {
+            if (!(lw[c] > 0)) continue;
+            for (int u = c * kCell; u < std::min(tw, (c + 1) * kCell); ++u)
+              if (!std::isnan(vd[u]))
+                ++hist[std::clamp(static_cast<int>(vd[u] * kBinsPerUnit), 0, kBins - 1)];
+          }
       } else {
         for (int u = 0; u < tw; ++u) {
           const float sw = p[2 * u];
@@ -728,7 +753,11 @@ void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDept
         kernels.row(geometry, source, 2.0f * u0 + 0.5f, 2.0f, y, run_v, n, run_acc, run_sw);
       else
         std::fill(run_sw, run_sw + n, 0.0f);
-      for (int i = 0; i < n; ++i) {
+      // Points none of the three lenses sees: found by a loop the compiler
+      // vectorises (they are few: the image border, the vignetted periphery).
+      bool unseen = !rows;
+      for (int i = 0; i < n; ++i) unseen |= !(run_sw[i] > 0);
+      for (int i = 0; unseen && i < n; ++i) {
         if (run_sw[i] > 0) continue;
         // The border fallback (tf_kernel.h), point by point.
         float acc[kChannels];

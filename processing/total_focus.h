@@ -14,7 +14,8 @@
 // cells without data take the mean of the valid cells within
 // fill_iterations TF pixels; every TF pixel is then the bilinear
 // interpolation of the valid cells around it (NaN where there are none).
-// Window sums are separable running sums, O(1) per cell. The splats are
+// Window sums are separable and direct (2 (2 r + 1) adds per cell, r the
+// window radius in cells: 2 by default), vectorised. The splats are
 // computed in float a vector of raw pixels at a time (tf_splat_simd.h;
 // TfOptions::simd) and summed in float, in bands of raw rows that write
 // disjoint TF rows (no atomics); fallback_v is the median to 1/1024 of
@@ -106,11 +107,14 @@ struct TfDepthMap {
     // interleaved (a splat touches one cache line); zero between calls (`zeroed`).
     std::vector<float> sums;
     bool zeroed = false;
-    std::vector<double> cell_w, cell_wz, row_w, row_wz, box_w, box_wz;
-    std::vector<std::int32_t> row_n, box_n;
+    std::vector<double> cell_w, cell_wz, row_w, row_wz;
     std::vector<float> cell_z, cell_filled;
     // Per cell row, blended along x to every TF column: validity, z.
     std::vector<float> along_a, along_b;
+    // Per TF column its two cells and their weights along x (the same for every cell row).
+    std::vector<std::int32_t> along_x;
+    std::vector<float> along_f;
+    std::vector<float> cell_ok, cell_z0;  // per cell: valid (1, 0), z (0 where invalid)
     std::vector<float> lens_xy;  // micro-lens centres l_k (x, y)
     // Per band of the splat one raw row's splats (tf_splat_simd.h).
     std::vector<std::uint32_t> splat_t;
