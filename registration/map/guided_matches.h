@@ -120,8 +120,12 @@ struct GuidedMatchOptions {
   // mm median for 194 against 171 CPU-ms a re-anchoring (windows up to 20
   // or 24 samples: 0.535, 0.312 mm). Medium (step 3) gains less for more:
   // 0.527 against 0.650 mm, 215 against 116 CPU-ms (211 of 504 matches
-  // refined), so refine_from_step 4.
-  int refine_step = 2;
+  // refined), so refine_from_step 4. Off by default: live on the 8-frame
+  // r32 rig (bench_live, quiet, alternating) it halved the extrinsics
+  // (1.30 and 1.60 against 2.75 and 3.75 per second per camera) and was not
+  // more accurate there (0.566 and 0.966 against 0.738 and 0.693 mm): its
+  // 40-50 ms a re-anchoring more pushed frames into relocalisations.
+  int refine_step = 0;
   int refine_from_step = 4;        // > refine_step
   int refine_max_half = 16;        // >= 4
   double refine_reach = 1;         // coarse render px (> 0)
