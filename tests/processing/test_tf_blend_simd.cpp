@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <hwy/targets.h>
 #include <random>
+#include <string>
 #include <vector>
 
 namespace lifmcr::processing::detail {
@@ -36,23 +37,27 @@ struct RandomCase {
 };
 
 // A triangular lattice of pitch 8-14 px, slightly rotated, over a frame of
-// 40-120 x 30-90 pixels; lens type (i - j) mod 3; gains in [0.5, 2] with one
+// 40-120 x 30-90 pixels (`large`: pitch 28-40 px over 150-300 x 80-160, an
+// R32's micro images); lens type (i - j) mod 3; gains in [0.5, 2] with one
 // in 40 NaN; a type table of random types.
 // With `in_16_bits` the gain is read from 16 bits (0: invalid), as the
 // per-lens estimator keeps it.
-RandomCase MakeCase(std::mt19937& rng, int channels, bool in_16_bits) {
+RandomCase MakeCase(std::mt19937& rng, int channels, bool in_16_bits, bool large = false) {
   RandomCase c;
   std::uniform_real_distribution<float> unit(0.0f, 1.0f);
   TfBlendGeometry& g = c.g;
-  g.width = std::uniform_int_distribution<int>(40, 120)(rng);
-  g.height = std::uniform_int_distribution<int>(30, 90)(rng);
+  g.width = large ? std::uniform_int_distribution<int>(150, 300)(rng)
+                  : std::uniform_int_distribution<int>(40, 120)(rng);
+  g.height = large ? std::uniform_int_distribution<int>(80, 160)(rng)
+                   : std::uniform_int_distribution<int>(30, 90)(rng);
   const std::size_t stride =
       static_cast<std::size_t>(g.width) * channels + std::uniform_int_distribution<int>(0, 5)(rng);
   c.raw.resize(stride * g.height);
   for (std::uint8_t& b : c.raw) b = static_cast<std::uint8_t>(rng() & 0xFF);
   c.gain.resize(static_cast<std::size_t>(g.width) * g.height);
   for (float& x : c.gain) x = rng() % 40 == 0 ? std::nanf("") : 0.5f + 1.5f * unit(rng);
-  const float pitch = 8.0f + 6.0f * unit(rng), angle = 0.05f * (unit(rng) - 0.5f);
+  const float pitch = large ? 28.0f + 12.0f * unit(rng) : 8.0f + 6.0f * unit(rng);
+  const float angle = 0.05f * (unit(rng) - 0.5f);
   // Steps of i and j (columns of A), then A (1, 1) and A (2, -1).
   const float ix = pitch * std::cos(angle), iy = pitch * std::sin(angle);
   const float jx = pitch * std::cos(angle + 2.0943951f), jy = pitch * std::sin(angle + 2.0943951f);
@@ -94,8 +99,31 @@ class TfBlendKernelsTest : public ::testing::Test {
   void TearDown() override { hwy::SetSupportedTargetsForTest(0); }
 };
 
+// One run of n pixels from x0 at step dx on row y, depths v: Highway's sums
+// against the scalar reference's; `compared` and `seen` count the pixels
+// and those some lens saw.
+void ExpectRunMatches(const TfBlendKernels& simd, const RandomCase& c, int channels, float x0,
+                      float dx, float y, const std::vector<float>& v, const char* what,
+                      long long* compared, long long* seen) {
+  const int n = static_cast<int>(v.size());
+  std::vector<float> a_acc(channels * n, -1.0f), b_acc(channels * n, -2.0f);
+  std::vector<float> a_sw(n, -1.0f), b_sw(n, -2.0f);
+  ScalarTfBlendKernels().row(c.g, c.s, x0, dx, y, v.data(), n, a_acc.data(), a_sw.data());
+  simd.row(c.g, c.s, x0, dx, y, v.data(), n, b_acc.data(), b_sw.data());
+  for (int i = 0; i < n; ++i) {
+    ASSERT_TRUE(Close(b_sw[i], a_sw[i]))
+        << simd.name << " " << what << " pixel " << i << ": sw " << b_sw[i] << " vs scalar "
+        << a_sw[i] << " (channels " << channels << ")";
+    for (int ch = 0; ch < channels; ++ch)
+      ASSERT_TRUE(Close(b_acc[ch * n + i], a_acc[ch * n + i]))
+          << simd.name << " " << what << " pixel " << i << " channel " << ch << ": "
+          << b_acc[ch * n + i] << " vs scalar " << a_acc[ch * n + i];
+    ++*compared;
+    *seen += a_sw[i] > 0;
+  }
+}
+
 TEST_F(TfBlendKernelsTest, RowsMatchTheScalarReferenceOnEveryTarget) {
-  const TfBlendKernels& scalar = ScalarTfBlendKernels();
   const std::vector<std::int64_t> targets = hwy::SupportedAndGeneratedTargets();
   ASSERT_FALSE(targets.empty());
   for (const std::int64_t target : targets) {
@@ -118,27 +146,53 @@ TEST_F(TfBlendKernelsTest, RowsMatchTheScalarReferenceOnEveryTarget) {
         std::vector<float> v(n);
         const float v_all = depth(rng);
         for (float& x : v) x = k % 3 == 0 ? v_all : depth(rng);
-        std::vector<float> a_acc(channels * n, -1.0f), b_acc(channels * n, -2.0f);
-        std::vector<float> a_sw(n, -1.0f), b_sw(n, -2.0f);
-        scalar.row(c.g, c.s, x0, dx, y, v.data(), n, a_acc.data(), a_sw.data());
-        simd.row(c.g, c.s, x0, dx, y, v.data(), n, b_acc.data(), b_sw.data());
-        for (int i = 0; i < n; ++i) {
-          ASSERT_TRUE(Close(b_sw[i], a_sw[i]))
-              << hwy::TargetName(target) << " trial " << trial << " pixel " << i << ": sw "
-              << b_sw[i] << " vs scalar " << a_sw[i] << " (channels " << channels << ")";
-          for (int ch = 0; ch < channels; ++ch)
-            ASSERT_TRUE(Close(b_acc[ch * n + i], a_acc[ch * n + i]))
-                << hwy::TargetName(target) << " trial " << trial << " pixel " << i << " channel "
-                << ch << ": " << b_acc[ch * n + i] << " vs scalar " << a_acc[ch * n + i];
-          ++compared;
-          seen += a_sw[i] > 0;
-        }
+        const std::string what = "trial " + std::to_string(trial);
+        ExpectRunMatches(simd, c, channels, x0, dx, y, v, what.c_str(), &compared, &seen);
+        if (HasFatalFailure()) return;
       }
     }
     // Both kinds of pixel occur: seen by some lens of its triangle, and by
     // none (off the frame, beyond r, next to a NaN gain).
     EXPECT_GT(seen, compared / 4) << hwy::TargetName(target);
     EXPECT_LT(seen, compared) << hwy::TargetName(target);
+  }
+}
+
+// Micro images of an R32's size, BGR with the 16-bit gain (the TF image's
+// case): a vector's lanes then often sample one micro image on one row
+// pair, which the AVX-512 kernel reads from a 64-byte window of each row
+// instead of gathers. Runs at the TF image's step and at small steps (all
+// lanes in one micro image), over the whole frame: its first and last rows
+// and columns, where a window would reach past the buffers.
+TEST_F(TfBlendKernelsTest, RowsOfLargeMicroImagesMatchTheScalarReferenceOnEveryTarget) {
+  for (const std::int64_t target : hwy::SupportedAndGeneratedTargets()) {
+    hwy::SetSupportedTargetsForTest(target);
+    const TfBlendKernels& simd = SimdTfBlendKernels();
+    std::mt19937 rng(37);
+    long long compared = 0, seen = 0;
+    for (int trial = 0; trial < 40; ++trial) {
+      RandomCase c = MakeCase(rng, 3, true, true);
+      c.g.bary_floor = trial % 2 == 0 ? 0.0f : c.g.bary_floor;
+      std::uniform_real_distribution<float> depth(1.5f, 8.0f);
+      for (int k = 0; k < 24; ++k) {
+        const int n = std::uniform_int_distribution<int>(16, 120)(rng);
+        const float dx = k % 3 == 0 ? 2.0f : std::uniform_real_distribution<float>(0.1f, 1.0f)(rng);
+        // Rows anywhere, a quarter of them in the last four; runs from
+        // anywhere, a quarter of them ending at the right edge.
+        const float y = k % 4 == 0 ? c.g.height - 4.0f * std::uniform_real_distribution<float>(0, 1)(rng)
+                                   : std::uniform_real_distribution<float>(0.0f, c.g.height)(rng);
+        const float x0 = k % 4 == 1 ? c.g.width - dx * n + std::uniform_real_distribution<float>(-3, 3)(rng)
+                                    : std::uniform_real_distribution<float>(-4.0f, c.g.width)(rng);
+        std::vector<float> v(n);
+        const float v_all = depth(rng);
+        for (int i = 0; i < n; ++i)
+          v[i] = k % 2 == 0 ? v_all : v_all * (1.0f + 0.002f * static_cast<float>(i));
+        const std::string what = "large trial " + std::to_string(trial);
+        ExpectRunMatches(simd, c, 3, x0, dx, y, v, what.c_str(), &compared, &seen);
+        if (HasFatalFailure()) return;
+      }
+    }
+    EXPECT_GT(seen, compared / 2) << hwy::TargetName(target);
   }
 }
 
