@@ -47,14 +47,73 @@ HWY_INLINE hn::Vec<DI> TruncInRange(DI di, VF v) {
 }
 
 #if HWY_TARGET == HWY_AVX3 || HWY_TARGET == HWY_AVX3_DL
-// The samples of a lens slot read from one 64-byte window per row instead
+// The samples of a lens slot read from 64-byte windows of the rows instead
 // of gathers (BlendVector): on AVX-512 a permute of 16-bit words
-// (AVX512BW) picks each lane's bytes out of the window.
+// (AVX512BW) picks each lane's bytes out of a window.
 constexpr bool kWindows = true;
-// Per 32-bit lane the words w and w + 1 of the 64-byte `table` (w in the
-// lane's low 16 bits, w + 1 in its high 16 bits of `pair`).
-HWY_INLINE hn::Vec512<std::uint32_t> WordPairs(const void* table, hn::Vec512<std::uint32_t> pair) {
-  return hn::Vec512<std::uint32_t>{_mm512_permutexvar_epi16(pair.raw, _mm512_loadu_si512(table))};
+using VU16 = hn::Vec512<std::uint32_t>;
+// Per 32-bit lane the words w and w + 1 of the 64 bytes at `table` (w in
+// the lane's low 16 bits, w + 1 in its high 16 bits of `pair`).
+HWY_INLINE VU16 WordPairs(const void* table, VU16 pair) {
+  return VU16{_mm512_permutexvar_epi16(pair.raw, _mm512_loadu_si512(table))};
+}
+
+// The window of raw pixel (ix0, iy0), ix0 >= 2: the 16-bit gains of row
+// iy0 from ix0 - 2 and the BGR bytes from byte 3 ix0 - 6 made even (64
+// bytes of each row, iy0 and iy0 + 1); it holds a lane's sample (x0, iy0)
+// with rel = x0 - ix0 + 2 in [0, 18].
+struct SampleWindow {
+  const std::uint16_t* gain = nullptr;
+  const std::uint8_t* raw = nullptr;
+  int odd = 0;  // ix0 odd: the window starts a byte before 3 ix0 - 6
+};
+
+// Whether the window of (ix0, iy0) lies within the frame's buffers (rows
+// iy0 and iy0 + 1: the last row ends at (height - 1) stride + 3 width of
+// the raw, width height of the gain).
+HWY_INLINE bool MakeWindow(const TfBlendGeometry& g, const TfBlendSource& s, int ix0, int iy0,
+                           SampleWindow* w) {
+  const long long stride = static_cast<long long>(s.stride_bytes);
+  const long long raw_start = 3LL * ix0 - 6 - (ix0 & 1);
+  if (ix0 < 2 || iy0 < 0 ||
+      (iy0 + 1LL) * g.width + ix0 - 2 + 32 > static_cast<long long>(g.width) * g.height ||
+      (iy0 + 1LL) * stride + raw_start + 64 > (g.height - 1LL) * stride + 3LL * g.width)
+    return false;
+  w->gain = s.gain16 + static_cast<std::size_t>(iy0) * g.width + (ix0 - 2);
+  w->raw = s.raw + static_cast<std::size_t>(iy0) * s.stride_bytes + raw_start;
+  w->odd = ix0 & 1;
+  return true;
+}
+
+// The samples' words of a window (rel per lane): q0 / q1 the gain pairs of
+// rows iy0 / iy0 + 1 (as the gathers read them), a_lo / a_hi and b_lo /
+// b_hi the bytes B0 G0 R0 B1 / G1 R1 of the two rows. Lane i's bytes
+// start at o = 3 rel + odd in the window: words o / 2 .. o / 2 + 3 hold
+// them, shifted down a byte where o is odd.
+struct WindowWords {
+  VU16 q0, q1, a_lo, a_hi, b_lo, b_hi;
+};
+HWY_INLINE WindowWords ReadWindow(const TfBlendGeometry& g, const TfBlendSource& s,
+                                  const SampleWindow& w, VU16 rel) {
+  const hn::DFromV<VU16> du;
+  const VU16 one = hn::Set(du, 1u);
+  WindowWords r;
+  const VU16 pair = hn::Or(rel, hn::ShiftLeft<16>(hn::Add(rel, one)));
+  r.q0 = WordPairs(w.gain, pair);
+  r.q1 = WordPairs(w.gain + g.width, pair);
+  const VU16 o = hn::Add(hn::Mul(rel, hn::Set(du, 3u)), hn::Set(du, static_cast<std::uint32_t>(w.odd)));
+  const VU16 words = hn::ShiftRight<1>(o);
+  const VU16 pair_a = hn::Or(words, hn::ShiftLeft<16>(hn::Add(words, one)));
+  const VU16 pair_b = hn::Add(pair_a, hn::Set(du, 0x00020002u));
+  const auto odd = hn::Eq(hn::And(o, one), one);
+  auto row = [&](const std::uint8_t* bytes, VU16* lo, VU16* hi) {
+    const VU16 a = WordPairs(bytes, pair_a), b = WordPairs(bytes, pair_b);
+    *lo = hn::IfThenElse(odd, hn::Or(hn::ShiftRight<8>(a), hn::ShiftLeft<24>(b)), a);
+    *hi = hn::IfThenElse(odd, hn::ShiftRight<8>(b), b);
+  };
+  row(w.raw, &r.a_lo, &r.a_hi);
+  row(w.raw + s.stride_bytes, &r.b_lo, &r.b_hi);
+  return r;
 }
 #else
 constexpr bool kWindows = false;
@@ -173,31 +232,55 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
     const auto ix = TruncInRange(di, pxs), iy = TruncInRange(di, pys);
     const VF ffx = hn::Sub(pxs, hn::ConvertTo(df, ix)), ffy = hn::Sub(pys, hn::ConvertTo(df, iy));
     const auto at = hn::Add(hn::Mul(iy, width), ix);
-    // The window: where every lane is valid, on one raw row pair iy0, and
-    // its x0 within [ix0 - 2, ix0 + 16] (ix0 >= 2 lane 0's; the lanes of
-    // one micro image, about 40 % of the vectors' lens samples on an R32),
-    // the gains and the BGR bytes of each row are picked out of one
-    // 64-byte load of the row (gain16 from ix0 - 2, raw from byte 3 ix0 -
-    // 6, made even) by word permutes instead of gathers: the same values.
-    bool windowed = false;
-    hn::Vec<decltype(du)> rel;  // x0 - ix0 + 2, in [0, 18]
-    int ix0 = 0, iy0 = 0;
-    if constexpr (kWindows && kChannels == 3) {
+    // Windows instead of gathers (AVX-512, BGR, the 16-bit gain): where
+    // every lane is valid and lies in the window of lane 0's sample or of
+    // the first lane's outside it (its row pair, x0 within [ix0 - 2, ix0 +
+    // 16]: the lanes of one or two micro images; 83 % of the lens slots'
+    // vectors of the r32 TF image, 38 % with one window), the gains and the
+    // BGR bytes are picked out of one 64-byte load per row and window
+    // (SampleWindow) instead of six gathers of 96 elements: the same
+    // values. On this kind of CPU (AMD Zen 4) a gather costs by the element
+    // wherever the data lies (docs/processing.md, "The lens samples from
+    // windows of the rows").
+    [[maybe_unused]] bool windowed = false;
+#if HWY_TARGET == HWY_AVX3 || HWY_TARGET == HWY_AVX3_DL
+    WindowWords win;
+    if constexpr (kChannels == 3) {
       if (s.gain16 != nullptr && hn::AllTrue(df, valid)) {
-        ix0 = hn::GetLane(ix);
-        iy0 = hn::GetLane(iy);
-        rel = hn::BitCast(du, hn::Add(hn::Sub(ix, hn::Set(di, ix0)), hn::Set(di, 2)));
-        // Both rows' loads inside the frame's buffers (their last rows end
-        // at (height - 1) stride + 3 width and width height).
-        const long long raw_base = 3LL * ix0 - 6 - (ix0 & 1);
-        windowed =
-            ix0 >= 2 && hn::AllTrue(di, hn::Eq(iy, hn::Set(di, iy0))) &&
-            hn::AllTrue(du, hn::Lt(rel, hn::Set(du, 19u))) &&
-            (iy0 + 1LL) * g.width + ix0 - 2 + 32 <= static_cast<long long>(g.width) * g.height &&
-            (iy0 + 1LL) * static_cast<long long>(s.stride_bytes) + raw_base + 64 <=
-                (g.height - 1LL) * static_cast<long long>(s.stride_bytes) + 3LL * g.width;
+        const int ix_a = hn::GetLane(ix), iy_a = hn::GetLane(iy);
+        const VU16 rel_a = hn::BitCast(du, hn::Add(hn::Sub(ix, hn::Set(di, ix_a)), hn::Set(di, 2)));
+        const auto in_a = hn::And(hn::RebindMask(du, hn::Eq(iy, hn::Set(di, iy_a))),
+                                  hn::Lt(rel_a, hn::Set(du, 19u)));
+        SampleWindow wa, wb;
+        if (hn::AllTrue(du, in_a)) {
+          windowed = MakeWindow(g, s, ix_a, iy_a, &wa);
+          if (windowed) win = ReadWindow(g, s, wa, rel_a);
+        } else {
+          const std::size_t first_out =
+              static_cast<std::size_t>(hn::FindFirstTrue(du, hn::Not(in_a)));
+          const int ix_b = hn::ExtractLane(ix, first_out), iy_b = hn::ExtractLane(iy, first_out);
+          const VU16 rel_b =
+              hn::BitCast(du, hn::Add(hn::Sub(ix, hn::Set(di, ix_b)), hn::Set(di, 2)));
+          const auto in_b = hn::And(hn::RebindMask(du, hn::Eq(iy, hn::Set(di, iy_b))),
+                                    hn::Lt(rel_b, hn::Set(du, 19u)));
+          windowed = hn::AllTrue(du, hn::Or(in_a, in_b)) && MakeWindow(g, s, ix_a, iy_a, &wa) &&
+                     MakeWindow(g, s, ix_b, iy_b, &wb);
+          if (windowed) {
+            // Each lane takes its window's words (the other's are
+            // permutes of indices wrapped to the window: unused).
+            const WindowWords ra = ReadWindow(g, s, wa, rel_a);
+            const WindowWords rb = ReadWindow(g, s, wb, rel_b);
+            win.q0 = hn::IfThenElse(in_a, ra.q0, rb.q0);
+            win.q1 = hn::IfThenElse(in_a, ra.q1, rb.q1);
+            win.a_lo = hn::IfThenElse(in_a, ra.a_lo, rb.a_lo);
+            win.a_hi = hn::IfThenElse(in_a, ra.a_hi, rb.a_hi);
+            win.b_lo = hn::IfThenElse(in_a, ra.b_lo, rb.b_lo);
+            win.b_hi = hn::IfThenElse(in_a, ra.b_hi, rb.b_hi);
+          }
+        }
       }
     }
+#endif
     VF g00, g01, g10, g11;
     if (s.gain16 != nullptr) {
       // The 16-bit gains of x0 and x0 + 1 in one word (byte offset 2 at).
@@ -208,10 +291,8 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
       hn::Vec<decltype(du)> q0, q1;
 #if HWY_TARGET == HWY_AVX3 || HWY_TARGET == HWY_AVX3_DL
       if (windowed) {
-        const std::uint16_t* g0 = s.gain16 + static_cast<std::size_t>(iy0) * g.width + (ix0 - 2);
-        const auto pair = hn::Or(rel, hn::ShiftLeft<16>(hn::Add(rel, hn::Set(du, 1u))));
-        q0 = WordPairs(g0, pair);
-        q1 = WordPairs(g0 + g.width, pair);
+        q0 = win.q0;
+        q1 = win.q1;
       } else
 #endif
       {
@@ -279,25 +360,10 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
       hn::Vec<decltype(du)> a_lo, a_hi, b_lo, b_hi;
 #if HWY_TARGET == HWY_AVX3 || HWY_TARGET == HWY_AVX3_DL
       if (windowed) {
-        // Lane i's bytes start at o = 3 rel + (ix0 odd) in the window (the
-        // window starts 3 ix0 - 6, less one where that is odd): words o / 2
-        // .. o / 2 + 3 hold them, shifted by a byte where o is odd.
-        const std::uint8_t* r0 =
-            s.raw + static_cast<std::size_t>(iy0) * s.stride_bytes + (3 * ix0 - 6 - (ix0 & 1));
-        const auto o = hn::Add(hn::Mul(rel, hn::Set(du, 3u)), hn::Set(du, static_cast<std::uint32_t>(ix0 & 1)));
-        const auto w = hn::ShiftRight<1>(o);
-        const auto one = hn::Set(du, 1u);
-        const auto pair_a = hn::Or(w, hn::ShiftLeft<16>(hn::Add(w, one)));
-        const auto pair_b = hn::Add(pair_a, hn::Set(du, 0x00020002u));
-        const auto odd = hn::Eq(hn::And(o, one), one);
-        auto window_row = [&](const std::uint8_t* row, hn::Vec<decltype(du)>* lo,
-                              hn::Vec<decltype(du)>* hi) {
-          const auto a = WordPairs(row, pair_a), b = WordPairs(row, pair_b);
-          *lo = hn::IfThenElse(odd, hn::Or(hn::ShiftRight<8>(a), hn::ShiftLeft<24>(b)), a);
-          *hi = hn::IfThenElse(odd, hn::ShiftRight<8>(b), b);
-        };
-        window_row(r0, &a_lo, &a_hi);
-        window_row(r0 + s.stride_bytes, &b_lo, &b_hi);
+        a_lo = win.a_lo;
+        a_hi = win.a_hi;
+        b_lo = win.b_lo;
+        b_hi = win.b_hi;
       } else
 #endif
       {
