@@ -50,7 +50,6 @@ HWY_INLINE hn::Vec<DI> TruncInRange(DI di, VF v) {
 // The samples of a lens slot read from 64-byte windows of the rows instead
 // of gathers (BlendVector): on AVX-512 a permute of 16-bit words
 // (AVX512BW) picks each lane's bytes out of a window.
-constexpr bool kWindows = true;
 using VU16 = hn::Vec512<std::uint32_t>;
 // Per 32-bit lane the words w and w + 1 of the 64 bytes at `table` (w in
 // the lane's low 16 bits, w + 1 in its high 16 bits of `pair`).
@@ -115,8 +114,6 @@ HWY_INLINE WindowWords ReadWindow(const TfBlendGeometry& g, const TfBlendSource&
   row(w.raw + s.stride_bytes, &r.b_lo, &r.b_hi);
   return r;
 }
-#else
-constexpr bool kWindows = false;
 #endif
 
 // Whether the per-type values are looked up in a vector (TypeTables).

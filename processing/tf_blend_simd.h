@@ -18,6 +18,9 @@
 // r^2) where it lies within r of c_k, on the frame and off invalid pixels.
 // The border fallback of tf_kernel.h (the nearest micro image and its six
 // neighbours, where the three see nothing: sw = 0) is left to the caller.
+// On AVX-512 (BGR, the 16-bit gain) a lens's samples of a vector whose
+// lanes lie in one or two 64-byte windows of a raw row pair are read from
+// those windows by word permutes instead of gathers: the same values.
 
 #include <cstddef>
 #include <cstdint>
