@@ -123,6 +123,15 @@ void ExpectRunMatches(const TfBlendKernels& simd, const RandomCase& c, int chann
   }
 }
 
+// Runs `body` with Highway's kernels on every target this CPU runs.
+template <class Body>
+void OnEveryTarget(Body&& body) {
+  for (const std::int64_t target : hwy::SupportedAndGeneratedTargets()) {
+    hwy::SetSupportedTargetsForTest(target);
+    body(SimdTfBlendKernels());
+  }
+}
+
 TEST_F(TfBlendKernelsTest, RowsMatchTheScalarReferenceOnEveryTarget) {
   const std::vector<std::int64_t> targets = hwy::SupportedAndGeneratedTargets();
   ASSERT_FALSE(targets.empty());
@@ -165,9 +174,7 @@ TEST_F(TfBlendKernelsTest, RowsMatchTheScalarReferenceOnEveryTarget) {
 // lanes in one micro image), over the whole frame: its first and last rows
 // and columns, where a window would reach past the buffers.
 TEST_F(TfBlendKernelsTest, RowsOfLargeMicroImagesMatchTheScalarReferenceOnEveryTarget) {
-  for (const std::int64_t target : hwy::SupportedAndGeneratedTargets()) {
-    hwy::SetSupportedTargetsForTest(target);
-    const TfBlendKernels& simd = SimdTfBlendKernels();
+  OnEveryTarget([&](const TfBlendKernels& simd) {
     std::mt19937 rng(37);
     long long compared = 0, seen = 0;
     for (int trial = 0; trial < 40; ++trial) {
@@ -192,8 +199,8 @@ TEST_F(TfBlendKernelsTest, RowsOfLargeMicroImagesMatchTheScalarReferenceOnEveryT
         if (HasFatalFailure()) return;
       }
     }
-    EXPECT_GT(seen, compared / 2) << hwy::TargetName(target);
-  }
+    EXPECT_GT(seen, compared / 2) << simd.name;
+  });
 }
 
 // The 8-bit pixels of a run: Highway's equal to the scalar reference byte
@@ -201,9 +208,7 @@ TEST_F(TfBlendKernelsTest, RowsOfLargeMicroImagesMatchTheScalarReferenceOnEveryT
 // random sums with pixels no lens saw (sw 0), values below 0 and above 255.
 TEST_F(TfBlendKernelsTest, BytesMatchTheScalarReferenceOnEveryTarget) {
   const TfBlendKernels& scalar = ScalarTfBlendKernels();
-  for (const std::int64_t target : hwy::SupportedAndGeneratedTargets()) {
-    hwy::SetSupportedTargetsForTest(target);
-    const TfBlendKernels& simd = SimdTfBlendKernels();
+  OnEveryTarget([&](const TfBlendKernels& simd) {
     std::mt19937 rng(31);
     long long clipped = 0, unseen = 0;
     for (int trial = 0; trial < 200; ++trial) {
@@ -220,14 +225,14 @@ TEST_F(TfBlendKernelsTest, BytesMatchTheScalarReferenceOnEveryTarget) {
       simd.bytes(acc.data(), sw.data(), n, channels, gain, b_out.data());
       for (std::size_t q = 0; q < a_out.size(); ++q) {
         ASSERT_EQ(b_out[q], a_out[q])
-            << hwy::TargetName(target) << " trial " << trial << " byte " << q;
+            << simd.name << " trial " << trial << " byte " << q;
         clipped += a_out[q] == 255;
       }
       for (int i = 0; i < n; ++i) unseen += sw[i] == 0;
     }
-    EXPECT_GT(clipped, 0) << hwy::TargetName(target);
-    EXPECT_GT(unseen, 0) << hwy::TargetName(target);
-  }
+    EXPECT_GT(clipped, 0) << simd.name;
+    EXPECT_GT(unseen, 0) << simd.name;
+  });
 }
 
 }  // namespace
