@@ -253,9 +253,11 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
           windowed = MakeWindow(g, s, ix_a, iy_a, &wa);
           if (windowed) win = ReadWindow(g, s, wa, rel_a);
         } else {
-          const std::size_t first_out =
-              static_cast<std::size_t>(hn::FindFirstTrue(du, hn::Not(in_a)));
-          const int ix_b = hn::ExtractLane(ix, first_out), iy_b = hn::ExtractLane(iy, first_out);
+          // The first lane outside: compressed to lane 0 (in registers,
+          // not through memory as a variable lane index would be).
+          const auto out_a = hn::RebindMask(di, hn::Not(in_a));
+          const int ix_b = hn::GetLane(hn::Compress(ix, out_a));
+          const int iy_b = hn::GetLane(hn::Compress(iy, out_a));
           const VU16 rel_b =
               hn::BitCast(du, hn::Add(hn::Sub(ix, hn::Set(di, ix_b)), hn::Set(di, 2)));
           const auto in_b = hn::And(hn::RebindMask(du, hn::Eq(iy, hn::Set(di, iy_b))),
