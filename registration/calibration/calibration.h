@@ -112,9 +112,11 @@ struct CalibrationOptions {
   // processing/'s virtual depth is 2-30 % off and pulls B (on handheld frames
   // 5, 20, 32 the keypoints within 1 % at radius 8 TF px pull B +0.13 %, all
   // of them +1.67 %: bench_keypoint_depth). A keypoint without a range keeps
-  // its depth. Off (infinite) by default: at 0.01 the handheld calibration's
-  // B came within 0.1 % but its poses moved 0.25 mm further along their axes,
-  // and the other motions were not measured (docs/calibration.md).
+  // its depth. Off (infinite) by default: at 0.01 B comes within 0.12 % on
+  // smooth, handheld and orbit (`medium`, 40 frames), but handheld's and
+  // orbit's principal points move from 0.81 to 1.26 px and 0.44 to 1.04 px
+  // and camera X through the handheld map from 0.51 to 0.65 mm
+  // (docs/calibration.md, "The keypoints' y offset").
   double max_keypoint_depth_range = std::numeric_limits<double>::infinity();
   // Each keypoint's virtual depth enters with the weight sigma_0 / sigma of
   // its depth part (calibration_costs.h, MicroImageCost::depth_weight; its

@@ -28,11 +28,19 @@ namespace lifmcr::registration::internal {
 // estimate's lambda = b_L0 / (b_L0 + B) and depth v, the processed depth of
 // that point is v' = 1 / (1 - lambda / lambda0 (1 - 1/v)) (equal micro-image
 // positions, calibration.h), and the observed positions
-//   p_k = l0_k + (x' - l0_k) / v',   l0_k = c0 + (c_k - c0) lambda0,
-// with x' the keypoint's virtual position as processed. The residuals then
-// vanish for every depth along the keypoint's ray: they hold its position
-// (the ray) and nothing of its depth, with the weight a position has in the
-// micro images.
+//   p_k = l0_k + (x'(v') - l0_k) / v',   l0_k = c0 + (c_k - c0) lambda0,
+// with x'(v') the keypoint's virtual position as processed, moved along the
+// main-lens ray from the depth its TF image was rendered at (the measured
+// v'_r) to v':
+//   x'(v') = c0 + (x' - c0) (lambda0 + v' (1 - lambda0)) / (lambda0 + v'_r (1 - lambda0)).
+// TF pixel x at depth v'_r is sampled from the lenses around the point that
+// looks at x (processing/tf_kernel.h), so a depth error moves the TF image's
+// content along that ray, radially about c (bench_tf_shift --depth-scale):
+// x' stands for the point (x'(v'), v') only on the ray. Without the move, a
+// keypoint whose measured depth is 10 % off at 1000 px from c at v 3 would
+// be held 4 raw px across its ray. The residuals then vanish for every depth
+// along the keypoint's ray: they hold its position (the ray) and nothing of
+// its depth, with the weight a position has in the micro images.
 //
 // Depth weight w (`depth_weight` < 1, a keypoint whose measured depth is
 // less certain than its position: CalibrationOptions::keypoint_depth_sigma_rel):
@@ -83,18 +91,30 @@ struct MicroImageCost {
     T virtual_px[3];
     if (!ProjectToVirtual(k, pixel_size_mm, p_in_c, virtual_px)) return false;
     const double w = depth_from_estimate ? 0.0 : depth_weight;
+    return VirtualResiduals(k, virtual_px, w, residuals);
+  }
+
+  // The residuals of the virtual point `virtual_px` (the estimate's) with
+  // the measured depth entering with weight w (above).
+  template <typename T>
+  bool VirtualResiduals(const T* k, const T* virtual_px, double w, T* residuals) const {
     if (w < 1) {
       const T lambda = k[1] / (k[1] + k[2]);
       const T inverse_v_processed =
           T(1) - lambda / T(lambda0) * (T(1) - T(1) / virtual_px[2]);
       if (!(inverse_v_processed > T(0)) || !(inverse_v_processed < T(1))) return false;
+      // x'(v') / x' about c0: along the main-lens ray from v'_r to v' (above).
+      const double v_rendered = 1 / inverse_v_measured;
+      const T along = (T(lambda0) + (T(1) / inverse_v_processed) * T(1 - lambda0)) /
+                      T(lambda0 + v_rendered * (1 - lambda0));
       for (std::size_t n = 0; n < centres_px.size(); ++n) {
         T micro[2];
         ProjectToMicroImage(k, virtual_px, centres_px[n], micro);
         for (int a = 0; a < 2; ++a) {
           const double l0 = c0_px[a] + (centres_px[n][a] - c0_px[a]) * lambda0;
+          const T x_moved = T(c0_px[a]) + T(observed_virtual_px[a] - c0_px[a]) * along;
           // observed_px[n] = l0 + (x' - l0) / v'_measured (MakeMicroImageCost).
-          const T estimated = T(l0) + (T(observed_virtual_px[a]) - T(l0)) * inverse_v_processed;
+          const T estimated = T(l0) + (x_moved - T(l0)) * inverse_v_processed;
           const T observed = T(w * observed_px[n][a]) + T(1 - w) * estimated;
           residuals[2 * n + a] = micro[a] - observed;
         }
@@ -161,13 +181,7 @@ struct PlateCornerCost {
       residuals[1] = x_v[1] - observed_px.y();
       return true;
     }
-    for (std::size_t n = 0; n < micro.centres_px.size(); ++n) {
-      T p[2];
-      ProjectToMicroImage(k, x_v, micro.centres_px[n], p);
-      residuals[2 * n] = p[0] - micro.observed_px[n].x();
-      residuals[2 * n + 1] = p[1] - micro.observed_px[n].y();
-    }
-    return true;
+    return micro.VirtualResiduals(k, x_v, 1.0, residuals);
   }
 };
 

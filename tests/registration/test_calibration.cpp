@@ -123,28 +123,41 @@ PlateLayout* CalibrationTest::plate_ = nullptr;
 CalibrationFrameLoader* CalibrationTest::loader_ = nullptr;
 std::vector<CalibrationFrame>* CalibrationTest::frames_ = nullptr;
 
+// Where a point appears in a TF image rendered at virtual depth v_r
+// (bench_tf_shift --depth-scale): moved along the main-lens ray from its
+// true depth v, radially about c.
+Eigen::Vector2d RenderedAt(const double* x_v, double v_r, const Eigen::Vector2d& c, double lambda) {
+  const double along = (lambda + v_r * (1 - lambda)) / (lambda + x_v[2] * (1 - lambda));
+  return c + (Eigen::Vector2d(x_v[0], x_v[1]) - c) * along;
+}
+
 // A keypoint's depth weight scales the depth's part of its micro-image
-// residuals and leaves its position's (calibration_costs.h): a point on the
-// keypoint's ray whose measured depth is 2 % off has residuals w times those
-// at full weight, none at w = 0; the weight falls with the support's range.
+// residuals and leaves its position's (calibration_costs.h): a keypoint on
+// a TF image rendered at a measured depth 2 % off (so that the keypoint
+// itself sits along the ray, 840 px from c) has residuals w times those at
+// full weight at the true point, none at w = 0; the weight falls with the
+// support's range.
 TEST(CalibrationCosts, DepthWeightScalesTheDepthPartOfTheResiduals) {
   const IntrinsicsVector k = {25.0, 24.5, 0.35, 1640.0, 1236.0, 0, 0, 0, 0};
   const double s = 0.0064, lambda = k[1] / (k[1] + k[2]);
-  const double p_in_c[3] = {40.0, -25.0, 900.0};
+  const double p_in_c[3] = {160.0, -100.0, 900.0};
   double x_v[3];
   ASSERT_TRUE(ProjectToVirtual(k.data(), s, p_in_c, x_v));
   internal::MicroImageCost cost;
   cost.pixel_size_mm = s;
   cost.c0_px = Eigen::Vector2d(k[3], k[4]);
   cost.lambda0 = lambda;
-  cost.observed_virtual_px = Eigen::Vector2d(x_v[0], x_v[1]);
   const double v_measured = 1.02 * x_v[2];
+  const Eigen::Vector2d observed = RenderedAt(x_v, v_measured, cost.c0_px, lambda);
+  ASSERT_GT((observed - Eigen::Vector2d(x_v[0], x_v[1])).norm(), 0.5);  // raw px
+  cost.observed_virtual_px = observed;
+  cost.inverse_v_measured = 1 / v_measured;
   for (const Eigen::Vector2d& d : {Eigen::Vector2d(0, 0), Eigen::Vector2d(30, -5),
                                    Eigen::Vector2d(-20, 25)}) {
-    const Eigen::Vector2d ck = Eigen::Vector2d(x_v[0], x_v[1]) + d;
+    const Eigen::Vector2d ck = observed + d;
     const Eigen::Vector2d lk = cost.c0_px + (ck - cost.c0_px) * lambda;
     cost.centres_px.push_back(ck);
-    cost.observed_px.push_back(lk + (Eigen::Vector2d(x_v[0], x_v[1]) - lk) / v_measured);
+    cost.observed_px.push_back(lk + (observed - lk) / v_measured);
   }
   std::vector<double> full(6), weighted(6);
   ASSERT_TRUE(cost.Residuals(k.data(), p_in_c, full.data()));
@@ -154,8 +167,14 @@ TEST(CalibrationCosts, DepthWeightScalesTheDepthPartOfTheResiduals) {
   for (const double w : {0.0, 0.3, 0.7}) {
     cost.depth_weight = w;
     ASSERT_TRUE(cost.Residuals(k.data(), p_in_c, weighted.data()));
-    for (int i = 0; i < 6; ++i) EXPECT_NEAR(weighted[i], w * full[i], 1e-9) << w << " " << i;
+    for (int i = 0; i < 6; ++i) EXPECT_NEAR(weighted[i], w * full[i], 1e-6) << w << " " << i;
   }
+  // The same with the point's depth held by the estimate (position only).
+  cost.depth_weight = 1;
+  cost.depth_from_estimate = true;
+  ASSERT_TRUE(cost.Residuals(k.data(), p_in_c, weighted.data()));
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(weighted[i], 0, 1e-6) << i;
+
   EXPECT_EQ(internal::KeypointDepthWeight(std::nan(""), 0.0028, 0.44), 1.0);
   EXPECT_EQ(internal::KeypointDepthWeight(0.0, 0.0028, 0.44), 1.0);
   EXPECT_NEAR(internal::KeypointDepthWeight(0.01, 0.0028, 0.44), 0.0028 / std::hypot(0.0028, 0.0044), 1e-12);
