@@ -357,8 +357,14 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     thread_local LensWorkspace ws_;
     LensWorkspace& wk = ws_;
     const std::size_t box = static_cast<std::size_t>(bw) * bh;
-    wk.patch_z.assign(box, kNaN);
-    wk.patch_sigma.assign(box, kNaN);
+    // The per-pixel buffers rest at "none" (NaN, 0) between micro images:
+    // each micro image restores the few entries it wrote (RestoreBuffers
+    // below) instead of filling its whole box (four fills of a box per
+    // micro image were 4 % of the estimate's CPU).
+    if (wk.patch_z.size() < box) wk.patch_z.resize(box, kNaN);
+    if (wk.patch_sigma.size() < box) wk.patch_sigma.resize(box, kNaN);
+    if (wk.search_failed.size() < box) wk.search_failed.resize(box, 0);
+    if (wk.inlier.size() < box) wk.inlier.resize(box, 0);
     // The pixel lists hold at most the box's pixels: sized once, written
     // through pointers (a push_back's bookkeeping per pixel reloaded after
     // every byte store of the map).
@@ -366,7 +372,6 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     if (wk.untextured_pixels.size() < box) wk.untextured_pixels.resize(box);
     wk.estimate_pixels.clear();
     // Per local pixel: searched (a checkerboard pixel was not) and failed.
-    wk.search_failed.assign(box, 0);
     float* const patch_z = wk.patch_z.data();
     float* const patch_sigma = wk.patch_sigma.data();
     std::uint8_t* const search_failed = wk.search_failed.data();
@@ -601,9 +606,27 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     // disagreeing: rejected (outlier). Window sums from summed-area tables,
     // O(1) per pixel.
     const int rad = options.smooth_radius_px;
+    // The buffers back at rest: search_failed was set only at searched
+    // (textured) pixels, the estimates and inlier flags only at estimates.
+    std::uint8_t* const inlier = wk.inlier.data();
+    auto restore_buffers = [&] {
+      for (int t = 0; t < n_textured; ++t) {
+        const std::uint32_t packed = textured_list[t];
+        search_failed[static_cast<int>(packed >> 16) * bw + static_cast<int>(packed & 0xFFFF)] = 0;
+      }
+      for (const std::uint32_t e : estimate_pixels) {
+        const int local = static_cast<int>(e >> 16) * bw + static_cast<int>(e & 0xFFFF);
+        patch_z[local] = kNaN;
+        patch_sigma[local] = kNaN;
+        inlier[local] = 0;
+      }
+    };
     // Without an estimate the micro image gets nothing from steps 4 and 5
     // (no window holds support; its sums stay 0).
-    if (estimate_pixels.empty()) return;
+    if (estimate_pixels.empty()) {
+      restore_buffers();
+      return;
+    }
     // The tables span only the estimates' bounding rectangle [ex0, ex1] x
     // [ey0, ey1]: every weight outside it is 0, so a window's sums are
     // those of its part inside it, and the tables' entries are the same
@@ -632,15 +655,21 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     for (int c = ey0; c <= ey1 + 1; ++c) sat_row[c] = (c - ey0 + lattice - 1) / lattice;
     const int sw_ = tw + 1;  // summed-area tables are (tw + 1) x (th + 1)
     const std::size_t sat_size = static_cast<std::size_t>(sw_) * (th + 1);
-    // Row 0 and column 0 stay 0; the rest is written by every build.
-    wk.sat_w.assign(sat_size, 0.0);
-    wk.sat_wz.assign(sat_size, 0.0);
-    wk.sat_wzz.assign(sat_size, 0.0);
-    wk.sat_n.assign(sat_size, 0);
+    if (wk.sat_w.size() < sat_size) {
+      wk.sat_w.resize(sat_size);
+      wk.sat_wz.resize(sat_size);
+      wk.sat_wzz.resize(sat_size);
+      wk.sat_n.resize(sat_size);
+    }
     double* const sat_w = wk.sat_w.data();
     double* const sat_wz = wk.sat_wz.data();
     double* const sat_wzz = wk.sat_wzz.data();
     std::int32_t* const sat_n = wk.sat_n.data();
+    // Row 0 and column 0 are 0; the rest is written by every build.
+    for (std::size_t o = 0; o < sat_size; o += (o < static_cast<std::size_t>(sw_) ? 1 : sw_)) {
+      sat_w[o] = sat_wz[o] = sat_wzz[o] = 0.0;
+      sat_n[o] = 0;
+    }
     // kWeighted false: weight 1 per estimate (w = n; wzz not summed).
     auto build = [&](auto weight_of, auto weighted) {
       constexpr bool kWeighted = decltype(weighted)::value;
@@ -707,8 +736,6 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     // reference alone), which then vote.
     // (The sum of n weights 1.0 is n exactly: pass 1 sums only z and n.)
     build([&](std::size_t i) { return std::isnan(patch_z[i]) ? 0.0 : 1.0; }, std::false_type{});
-    wk.inlier.assign(box, 0);
-    std::uint8_t* const inlier = wk.inlier.data();
     for (const std::uint32_t e : estimate_pixels) {
       const int lx = static_cast<int>(e & 0xFFFF), ly = static_cast<int>(e >> 16);
       const std::size_t i = static_cast<std::size_t>(ly) * bw + lx;
@@ -822,6 +849,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         lens_has_depth[k] = 1;
       }
     }
+    restore_buffers();
   });
   // The rows without a pixel of any micro image.
   {
