@@ -59,14 +59,18 @@ struct LensWorkspace {
 // The texture gate's class of n pixels of a row (g the grey at the first,
 // lens its pixel -> lens map, w the row stride): 0 not micro image k's or
 // invalid, 1 valid with an invalid neighbour (no gradient), 2 untextured,
-// 3 textured (the largest |gx e_x[m] + gy e_y[m]| >= threshold; directions
-// padded with (0, 0) add 0). Without a branch, so the compiler vectorises it
-// (`out` restrict: a byte store may otherwise alias every input).
-void GateRow(const float* g, const std::int32_t* lens, int w, int n, int k,
-             const std::array<float, 6>& e_x, const std::array<float, 6>& e_y, float threshold,
-             std::uint8_t* __restrict out) {
-  const float ex0 = e_x[0], ex1 = e_x[1], ex2 = e_x[2], ex3 = e_x[3], ex4 = e_x[4], ex5 = e_x[5];
-  const float ey0 = e_y[0], ey1 = e_y[1], ey2 = e_y[2], ey3 = e_y[3], ey4 = e_y[4], ey5 = e_y[5];
+// 3 textured (the largest |gx e_x[m] + gy e_y[m]| >= threshold over the
+// three ring-1 axes: opposite neighbours' directions differ only in sign,
+// which the absolute value drops; an axis without a neighbour (0, 0) adds
+// 0). Without a branch, so the compiler vectorises it (`out` restrict: a
+// byte store may otherwise alias every input), and with AVX2 where the CPU
+// has it (GCC's function clones; the same float operations, no FMA: the
+// same classes).
+__attribute__((target_clones("avx2", "default"))) void GateRow(
+    const float* g, const std::int32_t* lens, int w, int n, int k, const std::array<float, 3>& e_x,
+    const std::array<float, 3>& e_y, float threshold, std::uint8_t* __restrict out) {
+  const float ex0 = e_x[0], ex1 = e_x[1], ex2 = e_x[2];
+  const float ey0 = e_y[0], ey1 = e_y[1], ey2 = e_y[2];
   for (int i = 0; i < n; ++i) {
     const float gx = 0.5f * (g[i + 1] - g[i - 1]);
     const float gy = 0.5f * (g[i + w] - g[i - w]);
@@ -74,9 +78,6 @@ void GateRow(const float* g, const std::int32_t* lens, int w, int n, int k,
     g_max = std::max(g_max, std::abs(gx * ex0 + gy * ey0));
     g_max = std::max(g_max, std::abs(gx * ex1 + gy * ey1));
     g_max = std::max(g_max, std::abs(gx * ex2 + gy * ey2));
-    g_max = std::max(g_max, std::abs(gx * ex3 + gy * ey3));
-    g_max = std::max(g_max, std::abs(gx * ex4 + gy * ey4));
-    g_max = std::max(g_max, std::abs(gx * ex5 + gy * ey5));
     const int own = (lens[i] == k) & (g[i] == g[i]);
     const int grad_ok = (gx == gx) & (gy == gy);
     const int textured = grad_ok & (g_max >= threshold);
@@ -386,17 +387,19 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     const std::int32_t* const lens_of = f.lens_of_pixel.data();
     std::uint8_t* const textured_map = out->textured.data();
     const double min_gradient = options.min_gradient_dn;
-    std::array<float, 6> e_x1{}, e_y1{};  // the ring-1 baselines' directions
-    for (int m = 0; m < ring1_count; ++m) e_x1[m] = nbs[m].e_x, e_y1[m] = nbs[m].e_y;
+    // The ring-1 axes' directions (an axis with either of its two
+    // neighbours; (0, 0) without).
+    std::array<float, 3> e_x1{}, e_y1{};
+    for (int m = 0; m < ring1_count; ++m) e_x1[nbs[m].axis] = nbs[m].e_x, e_y1[nbs[m].axis] = nbs[m].e_y;
     // The gate (textured: some ring-1 baseline with enough gradient along
     // it), row by row over the chord of the disc (plus a pixel either side
     // for rounding; the pixel -> lens map decides) in two loops: the class
     // of each pixel without a branch (0 not this micro image's or invalid,
     // 1 valid with an invalid neighbour, 2 untextured, 3 textured; the
     // compiler vectorises it), then the pixel lists written without a
-    // branch per pixel. The ring-1 directions are padded to 6 with (0, 0),
-    // which adds |0| to the maximum: the same gate as over the present
-    // ones. The float threshold is the least float >= min_gradient_dn, so
+    // branch per pixel. Over the three axes (GateRow), an absent one (0, 0)
+    // adding |0| to the maximum: the same gate as over the present
+    // baselines. The float threshold is the least float >= min_gradient_dn, so
     // g >= it exactly where g >= min_gradient_dn.
     float min_gradient_f = static_cast<float>(min_gradient);
     if (static_cast<double>(min_gradient_f) < min_gradient)
