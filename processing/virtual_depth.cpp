@@ -764,6 +764,14 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
                                                         static_cast<double>(seed_stride * seed_stride) /
                                                         (lens_stride * lens_stride))))
              : options.min_support;
+    // An unsearched pixel's value depends only on its window's sums, and
+    // the window's corners on the tables change only every lattice-th
+    // pixel: the pixels in row order reuse the last unsearched pixel's
+    // value while the corners are the same (the same numbers, without its
+    // divisions and square root).
+    Corners last{~std::size_t{0}, 0, 0, 0};
+    bool last_holds = false;  // its window had the support
+    float last_v = 0, last_sigma = 0, last_confidence = 0;
     for (int t = 0; t < n_textured; ++t) {
       const std::uint32_t packed = textured_list[t];
       const int lx = static_cast<int>(packed & 0xFFFF), ly = static_cast<int>(packed >> 16);
@@ -775,22 +783,44 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       }
       const float own_z = patch_z[local], own_sigma = patch_sigma[local];
       const bool searched = !std::isnan(own_z);
+      if (!searched) {
+        const Corners c = corners(lx, ly, rad);
+        if (c.i11 != last.i11 || c.i01 != last.i01 || c.i10 != last.i10 || c.i00 != last.i00) {
+          last = c;
+          const WindowSum ws = window(lx, ly, rad);
+          last_holds = ws.n >= min_support;
+          if (last_holds) {
+            const double z = ws.wz / ws.w, sigma = std::sqrt(1.0 / ws.w);
+            last_v = static_cast<float>(1.0 / z);
+            last_sigma = static_cast<float>(sigma);
+            last_confidence =
+                static_cast<float>(std::clamp(1.0 - (sigma / z) / options.max_rel_sigma, 0.0, 1.0));
+          }
+        }
+        if (!last_holds) {
+          if (fill_on) untextured_list[n_untextured++] = at;
+          continue;
+        }
+        out->virtual_depth[at] = last_v;
+        out->sigma_z[at] = last_sigma;
+        out->confidence[at] = last_confidence;
+        ++estimated_count[k];
+        continue;
+      }
       const WindowSum ws = window(lx, ly, rad);
-      if (ws.n < min_support || (searched && !inlier[local])) {
-        rejected_count[k] += searched;
-        if (!searched && fill_on) untextured_list[n_untextured++] = at;
+      if (ws.n < min_support || !inlier[local]) {
+        ++rejected_count[k];
         continue;
       }
       const double z = ws.wz / ws.w;
-      if (searched && !agrees(own_z, own_sigma, z)) {
+      if (!agrees(own_z, own_sigma, z)) {
         ++rejected_count[k];
         continue;
       }
       // The neighbours are not independent views of one point: a searched
-      // pixel keeps its own sigma shrunk by at most sqrt(support); a filled
-      // one takes the fused sigma of its window.
-      const double sigma =
-          searched ? own_sigma / std::sqrt(static_cast<double>(ws.n)) : std::sqrt(1.0 / ws.w);
+      // pixel keeps its own sigma shrunk by at most sqrt(support); an
+      // unsearched one (above) takes the fused sigma of its window.
+      const double sigma = own_sigma / std::sqrt(static_cast<double>(ws.n));
       out->virtual_depth[at] = static_cast<float>(1.0 / z);
       out->sigma_z[at] = static_cast<float>(sigma);
       out->confidence[at] =
@@ -837,7 +867,11 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       Fill whole_fill{};
       const bool whole_fills = whole && fill_of(whole_sums, &whole_fill);
       if (whole && !whole_fills) n_untextured = 0;
+      // The map's arrays through locals: a float store may alias the
+      // vectors' own pointers, which were otherwise reloaded per pixel.
       float* const vd = out->virtual_depth.data();
+      float* const sd = out->sigma_z.data();
+      float* const cd = out->confidence.data();
       for (int u = 0; u < n_untextured; ++u) {
         const std::size_t at = untextured_list[u];
         Fill fill = whole_fill;
@@ -846,8 +880,8 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
           if (!fill_of(window(lx, ly, fill_radius), &fill)) continue;
         }
         vd[at] = fill.v;
-        out->sigma_z[at] = fill.sigma;
-        out->confidence[at] = fill.confidence;
+        sd[at] = fill.sigma;
+        cd[at] = fill.confidence;
         ++filled_count[k];
         lens_has_depth[k] = 1;
       }
