@@ -883,8 +883,8 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         sd[at] = fill.sigma;
         cd[at] = fill.confidence;
         ++filled_count[k];
-        lens_has_depth[k] = 1;
       }
+      if (filled_count[k] > 0) lens_has_depth[k] = 1;
     }
     restore_buffers();
   });
