@@ -64,9 +64,14 @@ struct LensWorkspace {
 // which the absolute value drops; an axis without a neighbour (0, 0) adds
 // 0). Without a branch, so the compiler vectorises it (`out` restrict: a
 // byte store may otherwise alias every input), and with AVX2 where the CPU
-// has it (GCC's function clones; the same float operations, no FMA: the
-// same classes).
-__attribute__((target_clones("avx2", "default"))) void GateRow(
+// has it (x86-64: GCC's function clones; the same float operations, no
+// FMA: the same classes).
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define LIFMCR_GATE_ROW_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define LIFMCR_GATE_ROW_CLONES
+#endif
+LIFMCR_GATE_ROW_CLONES void GateRow(
     const float* g, const std::int32_t* lens, int w, int n, int k, const std::array<float, 3>& e_x,
     const std::array<float, 3>& e_y, float threshold, std::uint8_t* __restrict out) {
   const float ex0 = e_x[0], ex1 = e_x[1], ex2 = e_x[2];
