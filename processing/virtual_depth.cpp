@@ -59,14 +59,23 @@ struct LensWorkspace {
 // The texture gate's class of n pixels of a row (g the grey at the first,
 // lens its pixel -> lens map, w the row stride): 0 not micro image k's or
 // invalid, 1 valid with an invalid neighbour (no gradient), 2 untextured,
-// 3 textured (the largest |gx e_x[m] + gy e_y[m]| >= threshold; directions
-// padded with (0, 0) add 0). Without a branch, so the compiler vectorises it
-// (`out` restrict: a byte store may otherwise alias every input).
-void GateRow(const float* g, const std::int32_t* lens, int w, int n, int k,
-             const std::array<float, 6>& e_x, const std::array<float, 6>& e_y, float threshold,
-             std::uint8_t* __restrict out) {
-  const float ex0 = e_x[0], ex1 = e_x[1], ex2 = e_x[2], ex3 = e_x[3], ex4 = e_x[4], ex5 = e_x[5];
-  const float ey0 = e_y[0], ey1 = e_y[1], ey2 = e_y[2], ey3 = e_y[3], ey4 = e_y[4], ey5 = e_y[5];
+// 3 textured (the largest |gx e_x[m] + gy e_y[m]| >= threshold over the
+// three ring-1 axes: opposite neighbours' directions differ only in sign,
+// which the absolute value drops; an axis without a neighbour (0, 0) adds
+// 0). Without a branch, so the compiler vectorises it (`out` restrict: a
+// byte store may otherwise alias every input), and with AVX2 where the CPU
+// has it (x86-64: GCC's function clones; the same float operations, no
+// FMA: the same classes).
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define LIFMCR_GATE_ROW_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define LIFMCR_GATE_ROW_CLONES
+#endif
+LIFMCR_GATE_ROW_CLONES void GateRow(
+    const float* g, const std::int32_t* lens, int w, int n, int k, const std::array<float, 3>& e_x,
+    const std::array<float, 3>& e_y, float threshold, std::uint8_t* __restrict out) {
+  const float ex0 = e_x[0], ex1 = e_x[1], ex2 = e_x[2];
+  const float ey0 = e_y[0], ey1 = e_y[1], ey2 = e_y[2];
   for (int i = 0; i < n; ++i) {
     const float gx = 0.5f * (g[i + 1] - g[i - 1]);
     const float gy = 0.5f * (g[i + w] - g[i - w]);
@@ -74,9 +83,6 @@ void GateRow(const float* g, const std::int32_t* lens, int w, int n, int k,
     g_max = std::max(g_max, std::abs(gx * ex0 + gy * ey0));
     g_max = std::max(g_max, std::abs(gx * ex1 + gy * ey1));
     g_max = std::max(g_max, std::abs(gx * ex2 + gy * ey2));
-    g_max = std::max(g_max, std::abs(gx * ex3 + gy * ey3));
-    g_max = std::max(g_max, std::abs(gx * ex4 + gy * ey4));
-    g_max = std::max(g_max, std::abs(gx * ex5 + gy * ey5));
     const int own = (lens[i] == k) & (g[i] == g[i]);
     const int grad_ok = (gx == gx) & (gy == gy);
     const int textured = grad_ok & (g_max >= threshold);
@@ -357,8 +363,14 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     thread_local LensWorkspace ws_;
     LensWorkspace& wk = ws_;
     const std::size_t box = static_cast<std::size_t>(bw) * bh;
-    wk.patch_z.assign(box, kNaN);
-    wk.patch_sigma.assign(box, kNaN);
+    // The per-pixel buffers rest at "none" (NaN, 0) between micro images:
+    // each micro image restores the few entries it wrote (RestoreBuffers
+    // below) instead of filling its whole box (four fills of a box per
+    // micro image were 4 % of the estimate's CPU).
+    if (wk.patch_z.size() < box) wk.patch_z.resize(box, kNaN);
+    if (wk.patch_sigma.size() < box) wk.patch_sigma.resize(box, kNaN);
+    if (wk.search_failed.size() < box) wk.search_failed.resize(box, 0);
+    if (wk.inlier.size() < box) wk.inlier.resize(box, 0);
     // The pixel lists hold at most the box's pixels: sized once, written
     // through pointers (a push_back's bookkeeping per pixel reloaded after
     // every byte store of the map).
@@ -366,7 +378,6 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     if (wk.untextured_pixels.size() < box) wk.untextured_pixels.resize(box);
     wk.estimate_pixels.clear();
     // Per local pixel: searched (a checkerboard pixel was not) and failed.
-    wk.search_failed.assign(box, 0);
     float* const patch_z = wk.patch_z.data();
     float* const patch_sigma = wk.patch_sigma.data();
     std::uint8_t* const search_failed = wk.search_failed.data();
@@ -381,17 +392,19 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     const std::int32_t* const lens_of = f.lens_of_pixel.data();
     std::uint8_t* const textured_map = out->textured.data();
     const double min_gradient = options.min_gradient_dn;
-    std::array<float, 6> e_x1{}, e_y1{};  // the ring-1 baselines' directions
-    for (int m = 0; m < ring1_count; ++m) e_x1[m] = nbs[m].e_x, e_y1[m] = nbs[m].e_y;
+    // The ring-1 axes' directions (an axis with either of its two
+    // neighbours; (0, 0) without).
+    std::array<float, 3> e_x1{}, e_y1{};
+    for (int m = 0; m < ring1_count; ++m) e_x1[nbs[m].axis] = nbs[m].e_x, e_y1[nbs[m].axis] = nbs[m].e_y;
     // The gate (textured: some ring-1 baseline with enough gradient along
     // it), row by row over the chord of the disc (plus a pixel either side
     // for rounding; the pixel -> lens map decides) in two loops: the class
     // of each pixel without a branch (0 not this micro image's or invalid,
     // 1 valid with an invalid neighbour, 2 untextured, 3 textured; the
     // compiler vectorises it), then the pixel lists written without a
-    // branch per pixel. The ring-1 directions are padded to 6 with (0, 0),
-    // which adds |0| to the maximum: the same gate as over the present
-    // ones. The float threshold is the least float >= min_gradient_dn, so
+    // branch per pixel. Over the three axes (GateRow), an absent one (0, 0)
+    // adding |0| to the maximum: the same gate as over the present
+    // baselines. The float threshold is the least float >= min_gradient_dn, so
     // g >= it exactly where g >= min_gradient_dn.
     float min_gradient_f = static_cast<float>(min_gradient);
     if (static_cast<double>(min_gradient_f) < min_gradient)
@@ -601,9 +614,27 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     // disagreeing: rejected (outlier). Window sums from summed-area tables,
     // O(1) per pixel.
     const int rad = options.smooth_radius_px;
+    // The buffers back at rest: search_failed was set only at searched
+    // (textured) pixels, the estimates and inlier flags only at estimates.
+    std::uint8_t* const inlier = wk.inlier.data();
+    auto restore_buffers = [&] {
+      for (int t = 0; t < n_textured; ++t) {
+        const std::uint32_t packed = textured_list[t];
+        search_failed[static_cast<int>(packed >> 16) * bw + static_cast<int>(packed & 0xFFFF)] = 0;
+      }
+      for (const std::uint32_t e : estimate_pixels) {
+        const int local = static_cast<int>(e >> 16) * bw + static_cast<int>(e & 0xFFFF);
+        patch_z[local] = kNaN;
+        patch_sigma[local] = kNaN;
+        inlier[local] = 0;
+      }
+    };
     // Without an estimate the micro image gets nothing from steps 4 and 5
     // (no window holds support; its sums stay 0).
-    if (estimate_pixels.empty()) return;
+    if (estimate_pixels.empty()) {
+      restore_buffers();
+      return;
+    }
     // The tables span only the estimates' bounding rectangle [ex0, ex1] x
     // [ey0, ey1]: every weight outside it is 0, so a window's sums are
     // those of its part inside it, and the tables' entries are the same
@@ -632,15 +663,21 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     for (int c = ey0; c <= ey1 + 1; ++c) sat_row[c] = (c - ey0 + lattice - 1) / lattice;
     const int sw_ = tw + 1;  // summed-area tables are (tw + 1) x (th + 1)
     const std::size_t sat_size = static_cast<std::size_t>(sw_) * (th + 1);
-    // Row 0 and column 0 stay 0; the rest is written by every build.
-    wk.sat_w.assign(sat_size, 0.0);
-    wk.sat_wz.assign(sat_size, 0.0);
-    wk.sat_wzz.assign(sat_size, 0.0);
-    wk.sat_n.assign(sat_size, 0);
+    if (wk.sat_w.size() < sat_size) {
+      wk.sat_w.resize(sat_size);
+      wk.sat_wz.resize(sat_size);
+      wk.sat_wzz.resize(sat_size);
+      wk.sat_n.resize(sat_size);
+    }
     double* const sat_w = wk.sat_w.data();
     double* const sat_wz = wk.sat_wz.data();
     double* const sat_wzz = wk.sat_wzz.data();
     std::int32_t* const sat_n = wk.sat_n.data();
+    // Row 0 and column 0 are 0; the rest is written by every build.
+    for (std::size_t o = 0; o < sat_size; o += (o < static_cast<std::size_t>(sw_) ? 1 : sw_)) {
+      sat_w[o] = sat_wz[o] = sat_wzz[o] = 0.0;
+      sat_n[o] = 0;
+    }
     // kWeighted false: weight 1 per estimate (w = n; wzz not summed).
     auto build = [&](auto weight_of, auto weighted) {
       constexpr bool kWeighted = decltype(weighted)::value;
@@ -707,8 +744,6 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     // reference alone), which then vote.
     // (The sum of n weights 1.0 is n exactly: pass 1 sums only z and n.)
     build([&](std::size_t i) { return std::isnan(patch_z[i]) ? 0.0 : 1.0; }, std::false_type{});
-    wk.inlier.assign(box, 0);
-    std::uint8_t* const inlier = wk.inlier.data();
     for (const std::uint32_t e : estimate_pixels) {
       const int lx = static_cast<int>(e & 0xFFFF), ly = static_cast<int>(e >> 16);
       const std::size_t i = static_cast<std::size_t>(ly) * bw + lx;
@@ -734,6 +769,14 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
                                                         static_cast<double>(seed_stride * seed_stride) /
                                                         (lens_stride * lens_stride))))
              : options.min_support;
+    // An unsearched pixel's value depends only on its window's sums, and
+    // the window's corners on the tables change only every lattice-th
+    // pixel: the pixels in row order reuse the last unsearched pixel's
+    // value while the corners are the same (the same numbers, without its
+    // divisions and square root).
+    Corners last{~std::size_t{0}, 0, 0, 0};
+    bool last_holds = false;  // its window had the support
+    float last_v = 0, last_sigma = 0, last_confidence = 0;
     for (int t = 0; t < n_textured; ++t) {
       const std::uint32_t packed = textured_list[t];
       const int lx = static_cast<int>(packed & 0xFFFF), ly = static_cast<int>(packed >> 16);
@@ -745,22 +788,44 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       }
       const float own_z = patch_z[local], own_sigma = patch_sigma[local];
       const bool searched = !std::isnan(own_z);
+      if (!searched) {
+        const Corners c = corners(lx, ly, rad);
+        if (c.i11 != last.i11 || c.i01 != last.i01 || c.i10 != last.i10 || c.i00 != last.i00) {
+          last = c;
+          const WindowSum ws = window(lx, ly, rad);
+          last_holds = ws.n >= min_support;
+          if (last_holds) {
+            const double z = ws.wz / ws.w, sigma = std::sqrt(1.0 / ws.w);
+            last_v = static_cast<float>(1.0 / z);
+            last_sigma = static_cast<float>(sigma);
+            last_confidence =
+                static_cast<float>(std::clamp(1.0 - (sigma / z) / options.max_rel_sigma, 0.0, 1.0));
+          }
+        }
+        if (!last_holds) {
+          if (fill_on) untextured_list[n_untextured++] = at;
+          continue;
+        }
+        out->virtual_depth[at] = last_v;
+        out->sigma_z[at] = last_sigma;
+        out->confidence[at] = last_confidence;
+        ++estimated_count[k];
+        continue;
+      }
       const WindowSum ws = window(lx, ly, rad);
-      if (ws.n < min_support || (searched && !inlier[local])) {
-        rejected_count[k] += searched;
-        if (!searched && fill_on) untextured_list[n_untextured++] = at;
+      if (ws.n < min_support || !inlier[local]) {
+        ++rejected_count[k];
         continue;
       }
       const double z = ws.wz / ws.w;
-      if (searched && !agrees(own_z, own_sigma, z)) {
+      if (!agrees(own_z, own_sigma, z)) {
         ++rejected_count[k];
         continue;
       }
       // The neighbours are not independent views of one point: a searched
-      // pixel keeps its own sigma shrunk by at most sqrt(support); a filled
-      // one takes the fused sigma of its window.
-      const double sigma =
-          searched ? own_sigma / std::sqrt(static_cast<double>(ws.n)) : std::sqrt(1.0 / ws.w);
+      // pixel keeps its own sigma shrunk by at most sqrt(support); an
+      // unsearched one (above) takes the fused sigma of its window.
+      const double sigma = own_sigma / std::sqrt(static_cast<double>(ws.n));
       out->virtual_depth[at] = static_cast<float>(1.0 / z);
       out->sigma_z[at] = static_cast<float>(sigma);
       out->confidence[at] =
@@ -807,7 +872,11 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       Fill whole_fill{};
       const bool whole_fills = whole && fill_of(whole_sums, &whole_fill);
       if (whole && !whole_fills) n_untextured = 0;
+      // The map's arrays through locals: a float store may alias the
+      // vectors' own pointers, which were otherwise reloaded per pixel.
       float* const vd = out->virtual_depth.data();
+      float* const sd = out->sigma_z.data();
+      float* const cd = out->confidence.data();
       for (int u = 0; u < n_untextured; ++u) {
         const std::size_t at = untextured_list[u];
         Fill fill = whole_fill;
@@ -816,12 +885,13 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
           if (!fill_of(window(lx, ly, fill_radius), &fill)) continue;
         }
         vd[at] = fill.v;
-        out->sigma_z[at] = fill.sigma;
-        out->confidence[at] = fill.confidence;
+        sd[at] = fill.sigma;
+        cd[at] = fill.confidence;
         ++filled_count[k];
-        lens_has_depth[k] = 1;
       }
+      if (filled_count[k] > 0) lens_has_depth[k] = 1;
     }
+    restore_buffers();
   });
   // The rows without a pixel of any micro image.
   {
