@@ -129,6 +129,18 @@ void RefinementFromEnvironment(GuidedMatchOptions* guided) {
     guided->refine_size_ratio = std::atof(ratio);
 }
 
+// LIFMCR_TEST_COARSE_RADIUS, _COARSE_MAX_SIDE, _REFIND_FROM_LAST: the
+// coarse guided matching's radius_px and max_side_px (re-finding and
+// correction), LocalizerOptions::refind_from_last_pose (0 or 1).
+void RefindFromEnvironment(LocalizerOptions* options) {
+  if (const char* radius = std::getenv("LIFMCR_TEST_COARSE_RADIUS"))
+    options->coarse.radius_px = std::atof(radius);
+  if (const char* side = std::getenv("LIFMCR_TEST_COARSE_MAX_SIDE"))
+    options->coarse.max_side_px = std::atoi(side);
+  if (const char* last = std::getenv("LIFMCR_TEST_REFIND_FROM_LAST"))
+    options->refind_from_last_pose = std::atoi(last) != 0;
+}
+
 // The camera's raw frame `view` (by default the trigger's own) under trigger
 // index `frame`.
 Localized LocalizeFrame(MapLocalizerStage& stage, Sequence& s, const std::string& serial,
@@ -1088,6 +1100,7 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
     if (const char* k = std::getenv("LIFMCR_TEST_GUIDED_FEATURES"))
       options.guided.features.max_features = std::atoi(k);
     RefinementFromEnvironment(&options.guided);
+    RefindFromEnvironment(&options);
     MapLocalizerStage stage(s.map, options);
     // The fused estimate of a rigid mount (extrinsics_monitor.h), as the
     // pipeline publishes it beside each trigger's.
@@ -1366,6 +1379,7 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
   if (const char* side = std::getenv("LIFMCR_TEST_GUIDED_MAX_SIDE"))
     defaults.guided.max_side_px = std::atoi(side);
   RefinementFromEnvironment(&defaults.guided);
+  RefindFromEnvironment(&defaults);
   if (const char* side = std::getenv("LIFMCR_TEST_RELOCALISE_MIN_SIDE"))
     defaults.relocalise_min_side_px = std::atoi(side);
   if (const char* cold = std::getenv("LIFMCR_TEST_COLD_ROUNDS"))
