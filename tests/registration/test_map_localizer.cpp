@@ -1270,7 +1270,9 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
 // LIFMCR_TEST_REANCHOR_EVERY and LIFMCR_TEST_COLD_ROUNDS override the defaults'
 // reanchor_every and cold_reanchor_rounds, LIFMCR_TEST_GUIDED_MAX_SIDE the
 // re-anchoring's GuidedMatchOptions::max_side_px (820: r32 at step 4);
-// LIFMCR_TEST_LOOP=pingpong or restart runs only the defaults so replayed.
+// LIFMCR_TEST_LOOP=pingpong or restart runs only the defaults so replayed;
+// LIFMCR_TEST_ALIGN=N lets a free worker take the other camera's last
+// trigger instead of the newest when it is at most N triggers older.
 TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
   const char* frames_env = std::getenv("LIFMCR_TEST_FRAMES");
   const char* seconds_env = std::getenv("LIFMCR_TEST_SECONDS");
@@ -1279,6 +1281,8 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
   const char* share_env = std::getenv("LIFMCR_TEST_CPU_SHARE");
   const double share = share_env ? std::atof(share_env) : 0.5;
   ASSERT_GT(share, 0);
+  const char* align_env = std::getenv("LIFMCR_TEST_ALIGN");
+  const std::int64_t align = align_env ? std::atoi(align_env) : 0;
   constexpr double kPeriod = 0.1;  // 10 Hz
   Sequence& s = *Shared();
   const std::string &zero = s.serials[0], &x = s.serials[1];
@@ -1311,6 +1315,14 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
       const std::string& serial = free_at[zero] <= free_at[x] ? zero : x;
       std::int64_t k = static_cast<std::int64_t>(std::floor(free_at[serial] / kPeriod + 1e-9));
       if (k <= taken[serial]) k = taken[serial] + 1;
+      // LIFMCR_TEST_ALIGN=N: the other camera's last trigger instead of
+      // the newest when it is at most N triggers older and newer than this
+      // camera's last (its frame still queued), so that both cameras'
+      // poses meet on one trigger.
+      const std::string& other = serial == zero ? x : zero;
+      if (align > 0 && taken[other] > taken[serial] && taken[other] < k &&
+          k - taken[other] <= align)
+        k = taken[other];
       if (k >= triggers) {
         if (free_at[zero] <= free_at[x]) free_at[zero] = 1e9; else free_at[x] = 1e9;
         if (free_at[zero] >= 1e9 && free_at[x] >= 1e9) break;
