@@ -33,6 +33,9 @@ struct MapLocalizerStage::Outcome {
   double correction_s = 0;
   std::string correction_status;
   std::optional<Pose> corrected;  // the correction's pose when it succeeded
+  // Refind: its coarse matching failed from every guide; it succeeded from
+  // the fallback guide (the last pose) only.
+  bool coarse_failed = false, from_fallback = false;
 };
 
 namespace {
@@ -240,8 +243,10 @@ std::string MapLocalizerStage::Counts::StageReport() const {
   if (refind_attempts > 0) {
     std::snprintf(line, sizeof line,
                   "; frames re-found around their prediction instead of relocalised %lld of "
-                  "%lld attempts (%.0f ms each)",
-                  refound, refind_attempts, 1e3 * refind_s / static_cast<double>(refind_attempts));
+                  "%lld attempts (%.0f ms each; failed: coarse %lld, fine %lld; coarse from the "
+                  "last pose only %lld)",
+                  refound, refind_attempts, 1e3 * refind_s / static_cast<double>(refind_attempts),
+                  refind_coarse_failed, refind_fine_failed, refind_from_last);
     out += line;
   }
   if (refused_anchors > 0) {
@@ -576,19 +581,35 @@ MapLocalizerStage::Outcome MapLocalizerStage::AverageAnchor(
 
 MapLocalizerStage::Outcome MapLocalizerStage::Refind(const processing::CameraModel& camera,
                                                      const processing::TfSampler& sampler,
-                                                     const ConstImageView& raw, const Pose& guide,
-                                                     bool guide_is_corrected,
-                                                     const Tracks* tracks) const {
-  Pose from = guide;
+                                                     const ConstImageView& raw, const Pose* guide,
+                                                     bool guide_is_corrected, const Tracks* tracks,
+                                                     const Pose* fallback) const {
+  Pose from = guide ? *guide : Pose::Identity();
   double coarse_s = 0;
+  bool from_fallback = false;
   if (!guide_is_corrected) {
     // The pose checks' minimum: this pose only guides the finer matching.
     const auto start = std::chrono::steady_clock::now();
-    const Outcome c = GuidedSolve(camera, sampler, raw, guide, options_.coarse,
-                                  /*check_jump=*/false, "re-finding (coarse)",
+    Outcome c;
+    c.status = "re-finding (coarse): no guide";
+    if (guide)
+      c = GuidedSolve(camera, sampler, raw, *guide, options_.coarse, /*check_jump=*/false,
+                      "re-finding (coarse)", options_.checks.min_inliers);
+    if (!c.success && fallback) {
+      // From the last pose (refind_from_last_pose).
+      Outcome again = GuidedSolve(camera, sampler, raw, *fallback, options_.coarse,
+                                  /*check_jump=*/false, "re-finding (coarse, from the last pose)",
                                   options_.checks.min_inliers);
+      if (!again.success) again.status += "; " + c.status;
+      c = std::move(again);
+      from_fallback = c.success;
+    }
     coarse_s = SecondsSince(start);
-    if (!c.success) return c;
+    if (!c.success) {
+      c.coarse_failed = true;
+      c.correction_s = coarse_s;
+      return c;
+    }
     from = c.w0_from_cam.pose;
     // The tracks followed from the coarse pose first (Track's correction,
     // at any distance): a tracked frame costs ~10 CPU-ms against a fine
@@ -599,6 +620,7 @@ MapLocalizerStage::Outcome MapLocalizerStage::Refind(const processing::CameraMod
       if (tracked.success) {
         tracked.correction_s = coarse_s;
         tracked.corrected = from;
+        tracked.from_fallback = from_fallback;
         return tracked;
       }
     }
@@ -607,6 +629,7 @@ MapLocalizerStage::Outcome MapLocalizerStage::Refind(const processing::CameraMod
   Outcome out = GuidedSolve(camera, sampler, raw, from, options_.guided, /*check_jump=*/true,
                             "re-finding", options_.min_tracked);
   out.correction_s = coarse_s;
+  out.from_fallback = from_fallback;
   return out;
 }
 
@@ -812,6 +835,7 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   bool cold_reanchored = false;   // a relocalisation without a pose, re-anchored here
   int relocalised_inliers = -1;   // then the relocalisation's inliers (Counts)
   bool refind_attempt = false, refound = false;  // LocalizerOptions::refind_before_relocalising
+  bool refind_from_last = false;  // its coarse matching succeeded from the last pose only
   double refind_s = 0;
   bool anchor_refused = false;     // a bad anchor refused (max_anchor_shift_ratio)
   double anchor_shift_px = -1;     // an averaged anchor's shift against the tracked pose
@@ -820,20 +844,29 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   // prediction before a relocalisation; true when it was.
   const auto try_refind = [&](const Outcome& attempt) {
     if (!options_.refind_before_relocalising || !options_.track || !state.has_pose) return false;
-    // Track's correction was that coarse matching from the prediction, and it failed.
-    if (!attempt.corrected && !attempt.correction_status.empty() &&
-        attempt.correction_status != "ok")
-      return false;
+    // Track's correction was that coarse matching from the prediction, and
+    // it failed: only the last pose is left to try (refind_from_last_pose).
+    const bool correction_failed = !attempt.corrected && !attempt.correction_status.empty() &&
+                                   attempt.correction_status != "ok";
+    // The prediction is the last pose without a previous one.
+    const bool last_differs = options_.refind_from_last_pose && state.has_previous;
+    if (correction_failed && !last_differs) return false;
     const auto refind_start = std::chrono::steady_clock::now();
     refind_attempt = true;
     const bool corrected = attempt.corrected.has_value();
-    Outcome found = Refind(camera, **sampler, frame.raw,
-                           corrected ? *attempt.corrected : state.Predict(frame.trigger_index),
-                           corrected, state.tracks.get());
+    const Pose guide =
+        corrected ? *attempt.corrected : state.Predict(frame.trigger_index);
+    Outcome found = Refind(camera, **sampler, frame.raw, correction_failed ? nullptr : &guide,
+                           corrected, state.tracks.get(), last_differs ? &state.last : nullptr);
     refind_s = SecondsSince(refind_start);
+    refind_from_last = found.from_fallback;
     if (!found.success) {
       std::lock_guard<std::mutex> lock(mutex_);
       counts_.last_guided_failure = found.status;
+      if (found.coarse_failed)
+        ++counts_.refind_coarse_failed;
+      else
+        ++counts_.refind_fine_failed;
       return false;
     }
     // Tracked from the coarse pose (`corrected` set), else re-anchored.
@@ -1018,6 +1051,7 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     ++counts_.refind_attempts;
     counts_.refind_s += refind_s;
     if (refound) ++counts_.refound;
+    if (refind_from_last) ++counts_.refind_from_last;
   }
   if (cold_reanchored) ++counts_.cold_reanchored;
   if (far_skipped) ++counts_.far_relocalised;

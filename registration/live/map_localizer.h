@@ -39,7 +39,8 @@
 //                When guided matching fails the tracked pose is published
 //                (re-anchoring due again at the next frame).
 //   re-find      when tracking fails (or a far frame is not tried): coarse
-//                guided matching from the prediction, the tracks followed
+//                guided matching from the prediction (when that fails, from
+//                the last pose: refind_from_last_pose), the tracks followed
 //                from its pose ("tracked"), else guided matching from it
 //                ("re-anchored", the tracks begun anew); relocalised only
 //                when that fails (refind_before_relocalising). A re-anchoring that a later frame of
@@ -175,6 +176,12 @@ struct LocalizerOptions {
   // third of a relocalisation's CPU (coarse render and SIFT on <= 420 px,
   // then a re-anchoring's; docs/registration.md). false: relocalised.
   bool refind_before_relocalising = true;
+  // When the coarse matching from the prediction fails (the re-finding's
+  // or Track's correction), it is tried once more from the camera's last
+  // pose before the frame is relocalised: across a gap of several triggers
+  // through a turn the constant-velocity prediction points the wrong way
+  // and the last pose lies nearer the frame's view (false: relocalised).
+  bool refind_from_last_pose = true;
   // Re-anchoring: when fewer of a tracked pose's inliers than this fraction
   // were begun in a relocalised frame or re-anchored since
   // (TrackedPoint::anchored), the camera's next frame is re-anchored (or
@@ -347,6 +354,11 @@ class MapLocalizerStage final : public processing::RegistrationStage {
     // "re-anchored", counted in `guided`), the attempts' time.
     long long refind_attempts = 0, refound = 0;
     double refind_s = 0;
+    // Of the failed attempts: the coarse matching failed (from every guide
+    // tried), or the fine guided matching after it; and the attempts whose
+    // coarse matching succeeded from the last pose only
+    // (refind_from_last_pose), successes or not.
+    long long refind_coarse_failed = 0, refind_fine_failed = 0, refind_from_last = 0;
     // Frames re-anchored by guided matching (guided_matches.h) and their
     // Localize time (tracking included); the attempts' stages and figures.
     long long guided = 0, guided_attempts = 0;
@@ -457,10 +469,12 @@ class MapLocalizerStage final : public processing::RegistrationStage {
   // (skipped when `guide_is_corrected`: Track's correction already was
   // that), then the re-anchoring's guided matching from its pose.
   // When coarse matching ran, `tracks` are first followed from its pose
-  // (published "tracked" when that passes).
+  // (published "tracked" when that passes). When the coarse matching from
+  // `guide` fails (or `guide` is null: Track's correction from it failed),
+  // it is tried from `fallback` when given (refind_from_last_pose).
   Outcome Refind(const processing::CameraModel& camera, const processing::TfSampler& sampler,
-                 const ConstImageView& raw, const Pose& guide, bool guide_is_corrected,
-                 const Tracks* tracks) const;
+                 const ConstImageView& raw, const Pose* guide, bool guide_is_corrected,
+                 const Tracks* tracks, const Pose* fallback) const;
   // The median over `kept` of the distance (TF px) between their map points'
   // projections from a_w0_from_cam and b_w0_from_cam (max_anchor_shift_ratio).
   double MedianShiftPx(const processing::CameraModel& camera, const std::vector<TrackedPoint>& kept,

@@ -129,6 +129,18 @@ void RefinementFromEnvironment(GuidedMatchOptions* guided) {
     guided->refine_size_ratio = std::atof(ratio);
 }
 
+// LIFMCR_TEST_COARSE_RADIUS, _COARSE_MAX_SIDE, _REFIND_FROM_LAST: the
+// coarse guided matching's radius_px and max_side_px (re-finding and
+// correction), LocalizerOptions::refind_from_last_pose (0 or 1).
+void RefindFromEnvironment(LocalizerOptions* options) {
+  if (const char* radius = std::getenv("LIFMCR_TEST_COARSE_RADIUS"))
+    options->coarse.radius_px = std::atof(radius);
+  if (const char* side = std::getenv("LIFMCR_TEST_COARSE_MAX_SIDE"))
+    options->coarse.max_side_px = std::atoi(side);
+  if (const char* last = std::getenv("LIFMCR_TEST_REFIND_FROM_LAST"))
+    options->refind_from_last_pose = std::atoi(last) != 0;
+}
+
 // The camera's raw frame `view` (by default the trigger's own) under trigger
 // index `frame`.
 Localized LocalizeFrame(MapLocalizerStage& stage, Sequence& s, const std::string& serial,
@@ -1088,6 +1100,7 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
     if (const char* k = std::getenv("LIFMCR_TEST_GUIDED_FEATURES"))
       options.guided.features.max_features = std::atoi(k);
     RefinementFromEnvironment(&options.guided);
+    RefindFromEnvironment(&options);
     MapLocalizerStage stage(s.map, options);
     // The fused estimate of a rigid mount (extrinsics_monitor.h), as the
     // pipeline publishes it beside each trigger's.
@@ -1257,7 +1270,9 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
 // LIFMCR_TEST_REANCHOR_EVERY and LIFMCR_TEST_COLD_ROUNDS override the defaults'
 // reanchor_every and cold_reanchor_rounds, LIFMCR_TEST_GUIDED_MAX_SIDE the
 // re-anchoring's GuidedMatchOptions::max_side_px (820: r32 at step 4);
-// LIFMCR_TEST_LOOP=pingpong or restart runs only the defaults so replayed.
+// LIFMCR_TEST_LOOP=pingpong or restart runs only the defaults so replayed;
+// LIFMCR_TEST_ALIGN=N lets a free worker take the other camera's last
+// trigger instead of the newest when it is at most N triggers older.
 TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
   const char* frames_env = std::getenv("LIFMCR_TEST_FRAMES");
   const char* seconds_env = std::getenv("LIFMCR_TEST_SECONDS");
@@ -1266,6 +1281,8 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
   const char* share_env = std::getenv("LIFMCR_TEST_CPU_SHARE");
   const double share = share_env ? std::atof(share_env) : 0.5;
   ASSERT_GT(share, 0);
+  const char* align_env = std::getenv("LIFMCR_TEST_ALIGN");
+  const std::int64_t align = align_env ? std::atoi(align_env) : 0;
   constexpr double kPeriod = 0.1;  // 10 Hz
   Sequence& s = *Shared();
   const std::string &zero = s.serials[0], &x = s.serials[1];
@@ -1298,6 +1315,14 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
       const std::string& serial = free_at[zero] <= free_at[x] ? zero : x;
       std::int64_t k = static_cast<std::int64_t>(std::floor(free_at[serial] / kPeriod + 1e-9));
       if (k <= taken[serial]) k = taken[serial] + 1;
+      // LIFMCR_TEST_ALIGN=N: the other camera's last trigger instead of
+      // the newest when it is at most N triggers older and newer than this
+      // camera's last (its frame still queued), so that both cameras'
+      // poses meet on one trigger.
+      const std::string& other = serial == zero ? x : zero;
+      if (align > 0 && taken[other] > taken[serial] && taken[other] < k &&
+          k - taken[other] <= align)
+        k = taken[other];
       if (k >= triggers) {
         if (free_at[zero] <= free_at[x]) free_at[zero] = 1e9; else free_at[x] = 1e9;
         if (free_at[zero] >= 1e9 && free_at[x] >= 1e9) break;
@@ -1366,6 +1391,7 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
   if (const char* side = std::getenv("LIFMCR_TEST_GUIDED_MAX_SIDE"))
     defaults.guided.max_side_px = std::atoi(side);
   RefinementFromEnvironment(&defaults.guided);
+  RefindFromEnvironment(&defaults);
   if (const char* side = std::getenv("LIFMCR_TEST_RELOCALISE_MIN_SIDE"))
     defaults.relocalise_min_side_px = std::atoi(side);
   if (const char* cold = std::getenv("LIFMCR_TEST_COLD_ROUNDS"))
