@@ -955,7 +955,8 @@ TEST(Pipeline, DepthLaneFramesOutliveAPassNeverThePipeline) {
       EXPECT_EQ(gate.timed_out, 0);
     }
     // Camera 1's frame 0 published, then camera 0's newest (served least
-    // recently) at once, then the lane takes camera 1's frame 1.
+    // recently) at once if the lens lane has handed it on, then the lane
+    // takes camera 1's frame 1.
     gate.Release();
     ASSERT_TRUE(gate.WaitUntilHeld(2));
     std::atomic<bool> finished{false};
@@ -977,13 +978,19 @@ TEST(Pipeline, DepthLaneFramesOutliveAPassNeverThePipeline) {
     EXPECT_EQ(r.depth_processed + r.depth_skipped + r.depth_failed,
               r.lens_frames + r.lens_failed) << r.FinalReport();
     EXPECT_EQ(r.depth_failed, 0u) << r.FinalReport();
-    EXPECT_GE(r.depth_processed, 3u) << r.FinalReport();
+    // Both frames the lane held (camera 1's) are published. Camera 0's frame
+    // 1 is published too when the lens lane hands it on before the depth
+    // lane takes camera 1's frame 1; handed on later it waits until Finish,
+    // which skips what still waits (newest wins: counted as skipped above).
+    // Which of the two happens is the lens lane's timing on a busy machine.
+    EXPECT_GE(r.depth_processed, 2u) << r.FinalReport();
     pipeline.reset();  // nothing of the lane's left to reach the destroyed nodes
     Drain(bus);
     int previews = 0;
     for (const auto& [serial, ids] : received.preview_frames)
       previews += static_cast<int>(ids.size());
     EXPECT_EQ(static_cast<std::uint64_t>(previews), r.depth_processed);
+    EXPECT_EQ(received.preview_frames["101"].size(), 2u) << r.FinalReport();
     std::lock_guard lock(gate.mutex);
     EXPECT_EQ(gate.timed_out, 0);
   }
