@@ -65,8 +65,18 @@ struct LensWorkspace {
 // 0). Without a branch, so the compiler vectorises it (`out` restrict: a
 // byte store may otherwise alias every input), and with AVX2 where the CPU
 // has it (x86-64: GCC's function clones; the same float operations, no
-// FMA: the same classes).
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+// FMA: the same classes). Not in a sanitizer build: the clones dispatch
+// through an ifunc resolver, which runs while the binary is relocated,
+// before the sanitizer's runtime is up (under ThreadSanitizer every binary
+// with it crashed at start).
+#if defined(__SANITIZE_THREAD__) || defined(__SANITIZE_ADDRESS__)
+#define LIFMCR_SANITIZED 1
+#elif defined(__has_feature)
+#if __has_feature(thread_sanitizer) || __has_feature(address_sanitizer)
+#define LIFMCR_SANITIZED 1
+#endif
+#endif
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && !defined(LIFMCR_SANITIZED)
 #define LIFMCR_GATE_ROW_CLONES __attribute__((target_clones("avx2", "default")))
 #else
 #define LIFMCR_GATE_ROW_CLONES
