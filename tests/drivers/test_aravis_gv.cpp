@@ -143,15 +143,26 @@ TEST(AravisGv, EveryTriggeredFrameIsDeliveredOrCountedOnceWhenThePoolRunsDry) {
     ASSERT_TRUE(camera.SoftwareTrigger());
     // Held: 3 frames fill the pool, the rest have nowhere to go.
     auto next = camera.NextFrame(milliseconds(200));
-    ASSERT_TRUE(next.ok());
+    ASSERT_TRUE(next.ok()) << next.error().message;
     if (next->has_value()) held.push_back(std::move(**next));
   }
   // Visible before the next frame arrives (estimated from Aravis's packets).
   EXPECT_GE(camera.Stats().underruns - before.underruns, 5u);
   held.clear();
+  // The buffers are back in the pool; the camera queues them to its stream
+  // in NextFrame, every 10 ms slice of the wait, as a grab thread waiting
+  // for the next frame does. Triggered before any slice ran, the frame can
+  // reach the host before a buffer is queued (the simulator is a process of
+  // its own, not slowed down as this one is under ThreadSanitizer): an
+  // underrun, counted, but not what this step asserts. One slice first; a
+  // frame of the window above that comes this late is delivered and counted.
+  auto queued = camera.NextFrame(milliseconds(20));
+  ASSERT_TRUE(queued.ok()) << queued.error().message;
+  queued->reset();  // its buffer back too
   ASSERT_TRUE(camera.SoftwareTrigger());
-  auto after = camera.NextFrame(milliseconds(1000));
-  ASSERT_TRUE(after.ok() && after->has_value()) << "frames again once buffers are back";
+  auto after = camera.NextFrame(milliseconds(5000));
+  ASSERT_TRUE(after.ok()) << after.error().message;
+  ASSERT_TRUE(after->has_value()) << "frames again once buffers are back";
   ASSERT_TRUE(camera.Stop());
   const CameraStats stats = camera.Stats();
   const std::uint64_t delivered = stats.completed + stats.failed - before.completed - before.failed;
