@@ -124,12 +124,12 @@ struct GuidedMatchOptions {
   // mm median for 194 against 171 CPU-ms a re-anchoring (windows up to 20
   // or 24 samples: 0.535, 0.312 mm). Medium (step 3) gains less for more:
   // 0.527 against 0.650 mm, 215 against 116 CPU-ms (211 of 504 matches
-  // refined), so refine_from_step 4. Off by default: live on the 8-frame
-  // r32 rig (bench_live, quiet, alternating) it halved the extrinsics
-  // (1.30 and 1.60 against 2.75 and 3.75 per second per camera) and was not
-  // more accurate there (0.566 and 0.966 against 0.738 and 0.693 mm): its
-  // 40-50 ms a re-anchoring more pushed frames into relocalisations.
-  // On by default since, with a refined camera re-anchored half as often
+  // refined), so refine_from_step 4. Re-anchored every 4 frames as before,
+  // live on the 8-frame r32 rig (bench_live, quiet, alternating) it halved
+  // the extrinsics (1.30 and 1.60 against 2.75 and 3.75 per second per
+  // camera) and was not more accurate there (0.566 and 0.966 against 0.738
+  // and 0.693 mm): its 40-50 ms a re-anchoring more pushed frames into
+  // relocalisations. On by default with a refined camera re-anchored half as often
   // (LocalizerOptions::reanchor_every_refined 8): r32 frame by frame 0.251
   // mm / 0.0165 deg median against 0.633 mm / 0.0374 deg for the same CPU
   // a frame (76 against 79 CPU-ms; camera X's own rotation error 0.013
