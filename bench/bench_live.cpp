@@ -60,6 +60,7 @@
 //              [--concurrency N] [--keep DIR] [--runs track,relocalise,depth]
 //              [--lens-nice 0..19 (15)] [--lens-queue 1..8 (2)] [--depth-idle 0|1 (1)]
 //              [--loop pingpong|restart (pingpong)] [--cold-reanchor-rounds R]
+//              [--refine-step 0..3] [--widen-ahead N>=2]
 // --keep DIR renders into DIR once and reuses it (same preset and frames)
 // in later runs; DIR is left in place.
 // Goals (2 cores): >= 5 Hz per camera at medium, >= 2 Hz at r32.
@@ -120,6 +121,10 @@ struct Args {
   // LocalizerOptions::cold_reanchor_rounds (-1: the localizer's default):
   // the first pose re-anchored in its own frame, to compare live.
   int cold_reanchor_rounds = -1;
+  // GuidedMatchOptions::refine_step of the re-anchoring and
+  // LocalizerOptions::widen_ahead (-1: the localizer's defaults).
+  int refine_step = -1;
+  int widen_ahead = -1;
   std::string keep;  // empty: a temporary folder
   // Which runs (comma-separated): track, relocalise, depth; the ratios need all three.
   bool track = true, relocalise = true, depth = true;
@@ -171,6 +176,12 @@ bool ParseArgs(int argc, char** argv, Args* a) {
     } else if (k == "--cold-reanchor-rounds") {
       a->cold_reanchor_rounds = static_cast<int>(std::strtol(v.c_str(), &end, 10));
       if (a->cold_reanchor_rounds < 0) return false;
+    } else if (k == "--refine-step") {
+      a->refine_step = static_cast<int>(std::strtol(v.c_str(), &end, 10));
+      if (a->refine_step < 0 || a->refine_step > 3) return false;
+    } else if (k == "--widen-ahead") {
+      a->widen_ahead = static_cast<int>(std::strtol(v.c_str(), &end, 10));
+      if (a->widen_ahead < 2) return false;
     } else if (k == "--loop") {
       if (v != "pingpong" && v != "restart") return false;
       a->pingpong = v == "pingpong";
@@ -463,6 +474,8 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
     live.localizer.track = mode == Mode::kTrack;
     if (args.cold_reanchor_rounds >= 0)
       live.localizer.cold_reanchor_rounds = args.cold_reanchor_rounds;
+    if (args.refine_step >= 0) live.localizer.guided.refine_step = args.refine_step;
+    if (args.widen_ahead >= 0) live.localizer.widen_ahead = args.widen_ahead;
     options.registration = live;
     options.pipeline.on_extrinsics = [&](const apps::ExtrinsicsRecord& r) {
       const double ms = static_cast<double>(NowRealtimeNs() - r.arrival_ns) / 1e6;
@@ -548,6 +561,7 @@ constexpr char kUsage[] =
     "                  [--concurrency N] [--keep DIR] [--runs track,relocalise,depth]\n"
     "                  [--lens-nice 0..19] [--lens-queue 1..8] [--depth-idle 0|1]\n"
     "                  [--loop pingpong|restart] [--cold-reanchor-rounds R]\n"
+    "                  [--refine-step 0..3] [--widen-ahead N>=2]\n"
     "Live registration of a synthetic rig (default medium) replayed at its trigger rate\n"
     "through `lifmcr replay --reference`'s path, three runs of --seconds: tracking, every\n"
     "frame relocalised (the baseline) and depth only. Per run: extrinsics per second per\n"
@@ -563,7 +577,11 @@ constexpr char kUsage[] =
     "0 again, so both cameras jump back and are relocalised at each pass's first trigger.\n"
     "--cold-reanchor-rounds R: a camera's first pose (relocalised without a pose)\n"
     "re-anchored in its own frame in R rounds of guided matching (the localizer's\n"
-    "default when not given).\n";
+    "default when not given).\n"
+    "--refine-step S: each matched keypoint of a re-anchoring's render at step 4 or coarser\n"
+    "(r32) found again every S TF px (GuidedMatchOptions::refine_step; 0: off).\n"
+    "--widen-ahead N: frames N or more triggers after their camera's last pose are tracked\n"
+    "with one more pyramid level and twice the shift (LocalizerOptions::widen_ahead).\n";
 
 int main(int argc, char** argv) {
   if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
@@ -575,7 +593,7 @@ int main(int argc, char** argv) {
                  "usage: bench_live [--preset small|medium|r32] [--frames N>=3] [--seconds S] "
                  "[--concurrency N] [--keep DIR] [--runs track,relocalise,depth] "
                  "[--lens-nice 0..19] [--lens-queue 1..8] [--depth-idle 0|1] [--loop pingpong|restart] "
-                 "[--cold-reanchor-rounds R]\n");
+                 "[--cold-reanchor-rounds R] [--refine-step 0..3] [--widen-ahead N>=2]\n");
     return 2;
   }
   auto params = synth::MakePreset(args.preset);

@@ -92,6 +92,11 @@ GuidedMatchOptions LocalizerOptions::CoarseGuidedOptions() {
   return coarse;
 }
 
+int LocalizerOptions::ReanchorEvery(int tf_longer_side_px) const {
+  if (reanchor_every == 0) return 0;
+  return guided.Refines(tf_longer_side_px) ? reanchor_every_refined : reanchor_every;
+}
+
 int LocalizerOptions::RelocaliseStep(int tf_longer_side_px) const {
   int step = relocalise_step;
   while (step < 4 && tf_longer_side_px / (step + 1) >= relocalise_min_side_px) ++step;
@@ -130,10 +135,13 @@ Status LocalizerOptions::Check() const {
   // refind_before_relocalising: either value.
   if (Status s = coarse.Check(); !s) return s;  // correct_predictions: either value
   if (reanchor_every < 0) return Error{"localizer options: reanchor_every: expected >= 0"};
+  if (reanchor_every_refined < 1)
+    return Error{"localizer options: reanchor_every_refined: expected >= 1"};
   if (cold_reanchor_rounds < 0)
     return Error{"localizer options: cold_reanchor_rounds: expected >= 0"};
   if (max_correction_ahead < 1)
     return Error{"localizer options: max_correction_ahead: expected >= 1"};
+  if (widen_ahead < 2) return Error{"localizer options: widen_ahead: expected >= 2"};
   if (!(min_far_track_success >= 0 && min_far_track_success <= 1))
     return Error{"localizer options: min_far_track_success: expected in [0, 1]"};
   if (far_track_probe_every < 1)
@@ -275,7 +283,7 @@ MapLocalizerStage::Outcome MapLocalizerStage::Track(const processing::CameraMode
   if (!state.has_previous) {
     patches.levels = std::min(4, patches.levels + 2);
     patches.max_shift_px *= 4;
-  } else if (ahead > 2) {
+  } else if (ahead >= options_.widen_ahead) {
     patches.levels = std::min(4, patches.levels + 1);
     patches.max_shift_px *= 2;
   }
@@ -785,15 +793,17 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     }
     // Re-anchoring when due, unless another worker relocalises the camera
     // already (then this frame tracks).
-    // Sooner while the tracks average few anchors (LocalizerOptions::reanchor_every).
+    // Sooner while the tracks average few anchors (LocalizerOptions::reanchor_every;
+    // reanchor_every_refined where the re-anchoring is refined).
+    const int every = options_.ReanchorEvery(
+        std::max((*sampler)->tf_width(), (*sampler)->tf_height()));
     const int interval = std::min(
-        options_.reanchor_every,
-        std::max(1, static_cast<int>(options_.average_anchors ? s.anchor_weight : 1e9)));
+        every, std::max(1, static_cast<int>(options_.average_anchors ? s.anchor_weight : 1e9)));
     // Counted in frames tracked, not triggers: a camera whose frames come
     // several triggers apart (a loaded machine) would otherwise re-anchor
     // nearly every frame it gets, each re-anchoring leaving the next frame
     // further behind.
-    const bool periodic = options_.reanchor_every > 0 && s.last_anchor_trigger >= 0 &&
+    const bool periodic = every > 0 && s.last_anchor_trigger >= 0 &&
                           s.tracked_since_anchor + 1 >= interval;
     reanchor = can_track && (s.reanchor || periodic) && !s.relocalising;
     if (!can_track && s.relocalising) {

@@ -34,8 +34,9 @@
 //                An anchor whose shift against the tracked pose is far
 //                beyond the camera's earlier anchors' is refused before it
 //                is averaged (max_anchor_shift_ratio). Re-anchoring is also
-//                periodic: after reanchor_every frames tracked (sooner
-//                while the tracks average few anchors).
+//                periodic: after reanchor_every frames tracked
+//                (reanchor_every_refined where the re-anchoring is refined;
+//                sooner while the tracks average few anchors).
 //                When guided matching fails the tracked pose is published
 //                (re-anchoring due again at the next frame).
 //   re-find      when tracking fails (or a far frame is not tried): coarse
@@ -48,8 +49,8 @@
 //                When the prediction is weak more pyramid levels and a
 //                larger shift are allowed: two more levels and four times
 //                the shift with no velocity yet (the frame after a
-//                relocalisation), one more and twice when more than two
-//                triggers ahead (frames skipped). When tracking fails the
+//                relocalisation), one more and twice when widen_ahead (3)
+//                or more triggers ahead (frames skipped). When tracking fails the
 //                prediction is corrected by guided matching on a coarse
 //                render with a wide radius and the patches tracked again
 //                from the corrected pose (LocalizerOptions::correct_predictions).
@@ -250,8 +251,17 @@ struct LocalizerOptions {
   // re-anchoring's time, and the periodic re-anchoring keeps the tracked
   // stretch as accurate at its end as at its start (docs/registration.md).
   int reanchor_every = 4;  // >= 0
+  // The same where the re-anchoring's keypoints are refined
+  // (GuidedMatchOptions::Refines: r32), each anchor being more accurate
+  // (r32, each anchor alone 0.501 against 0.749 mm) and dearer (+40-50
+  // CPU-ms): r32 frame by frame, refined, 8 gave 0.251 mm / 0.0165 deg at
+  // 76 CPU-ms a frame, 4 0.219 mm / 0.0135 deg at 86-97 (unrefined every 4:
+  // 0.633 mm / 0.0374 deg at 79). (>= 1; unused where reanchor_every is 0)
+  int reanchor_every_refined = 8;
+  // The interval for a camera whose TF grid's longer side is tf_longer_side_px.
+  int ReanchorEvery(int tf_longer_side_px) const;
   // A prediction over skipped frames whose tracking failed (for a weak one,
-  // no velocity yet or more than two triggers ahead, the patches already got
+  // no velocity yet or widen_ahead triggers ahead or more, the patches already got
   // more levels and a larger shift, Track) is corrected by guided matching on a coarse
   // render with a wide radius (`coarse`: SIFT on a TF render of longer side
   // <= 420 px, each keypoint against the map points projected within 120 TF
@@ -276,6 +286,11 @@ struct LocalizerOptions {
   // 0.89 extrinsics/s per camera instead of 1.38).
   bool correct_predictions = true;
   int max_correction_ahead = 3;  // >= 1
+  // A frame this many triggers or more after its camera's last pose (with
+  // a velocity) is tracked with one more pyramid level and twice the shift
+  // (the templates have that level): the constant-velocity prediction's
+  // miss grows with the triggers ahead. (>= 2)
+  int widen_ahead = 3;
   // Frames "far" after the camera's last pose (more than max_correction_ahead
   // triggers) are tracked only where tracking has bridged such gaps: per
   // camera a running rate of the far frames whose tracking succeeded (each

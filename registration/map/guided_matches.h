@@ -85,6 +85,10 @@ struct GuidedMatchOptions {
   int max_side_px = 820;
   // The step for a TF grid whose longer side is tf_longer_side_px.
   int Step(int tf_longer_side_px) const;
+  // Whether that grid's matched keypoints are found again at refine_step.
+  bool Refines(int tf_longer_side_px) const {
+    return refine_step > 0 && Step(tf_longer_side_px) >= refine_from_step;
+  }
   FeatureOptions features;  // SIFT on the rendered image
   // Each region rendered at its own virtual depth (TfSampler::RenderAtDepths):
   // the median predicted depth of the points in view per cell of a grid
@@ -120,12 +124,18 @@ struct GuidedMatchOptions {
   // mm median for 194 against 171 CPU-ms a re-anchoring (windows up to 20
   // or 24 samples: 0.535, 0.312 mm). Medium (step 3) gains less for more:
   // 0.527 against 0.650 mm, 215 against 116 CPU-ms (211 of 504 matches
-  // refined), so refine_from_step 4. Off by default: live on the 8-frame
-  // r32 rig (bench_live, quiet, alternating) it halved the extrinsics
-  // (1.30 and 1.60 against 2.75 and 3.75 per second per camera) and was not
-  // more accurate there (0.566 and 0.966 against 0.738 and 0.693 mm): its
-  // 40-50 ms a re-anchoring more pushed frames into relocalisations.
-  int refine_step = 0;
+  // refined), so refine_from_step 4. Re-anchored every 4 frames as before,
+  // live on the 8-frame r32 rig (bench_live, quiet, alternating) it halved
+  // the extrinsics (1.30 and 1.60 against 2.75 and 3.75 per second per
+  // camera) and was not more accurate there (0.566 and 0.966 against 0.738
+  // and 0.693 mm): its 40-50 ms a re-anchoring more pushed frames into
+  // relocalisations. On by default with a refined camera re-anchored half as often
+  // (LocalizerOptions::reanchor_every_refined 8): r32 frame by frame 0.251
+  // mm / 0.0165 deg median against 0.633 mm / 0.0374 deg for the same CPU
+  // a frame (76 against 79 CPU-ms; camera X's own rotation error 0.013
+  // against 0.032 deg: the step-4 keypoints were most of it;
+  // docs/registration.md). small and medium are not refined (steps 2, 3).
+  int refine_step = 2;
   int refine_from_step = 4;        // > refine_step
   int refine_max_half = 16;        // >= 4
   double refine_reach = 1;         // coarse render px (> 0)

@@ -129,9 +129,10 @@ void RefinementFromEnvironment(GuidedMatchOptions* guided) {
     guided->refine_size_ratio = std::atof(ratio);
 }
 
-// LIFMCR_TEST_COARSE_RADIUS, _COARSE_MAX_SIDE, _REFIND_FROM_LAST: the
-// coarse guided matching's radius_px and max_side_px (re-finding and
-// correction), LocalizerOptions::refind_from_last_pose (0 or 1).
+// LIFMCR_TEST_COARSE_RADIUS, _COARSE_MAX_SIDE, _REFIND_FROM_LAST,
+// _WIDEN_AHEAD: the coarse guided matching's radius_px and max_side_px
+// (re-finding and correction), LocalizerOptions::refind_from_last_pose (0
+// or 1) and widen_ahead.
 void RefindFromEnvironment(LocalizerOptions* options) {
   if (const char* radius = std::getenv("LIFMCR_TEST_COARSE_RADIUS"))
     options->coarse.radius_px = std::atof(radius);
@@ -139,6 +140,8 @@ void RefindFromEnvironment(LocalizerOptions* options) {
     options->coarse.max_side_px = std::atoi(side);
   if (const char* last = std::getenv("LIFMCR_TEST_REFIND_FROM_LAST"))
     options->refind_from_last_pose = std::atoi(last) != 0;
+  if (const char* ahead = std::getenv("LIFMCR_TEST_WIDEN_AHEAD"))
+    options->widen_ahead = std::atoi(ahead);
 }
 
 // The camera's raw frame `view` (by default the trigger's own) under trigger
@@ -466,6 +469,95 @@ TEST(MapLocalizer, FarFramesWhoseTrackingFailsAreRelocalisedWithoutTheAttempt) {
       EXPECT_GE(c.far_attempts, 3);
       EXPECT_GE(c.far_relocalised, 4);
     }
+  }
+}
+
+// A frame the tracker loses at a turn is re-found from its camera's last
+// pose (LocalizerOptions::refind_from_last_pose) instead of relocalised:
+// camera X jumps from view 0 to view 3 in one trigger (a fast step), then,
+// 4 triggers later, shows view 2: the constant-velocity prediction (the
+// step scaled 4 times) points far past view 3, so tracking and the coarse
+// matching from it fail, while the last pose (view 3) lies a view away.
+// Without the option that frame is relocalised. A frame far from both the
+// prediction and the last pose (view 7, 5 triggers later) is not re-found:
+// it is relocalised. The small rig's views lie ~5 TF px apart (at r32 a
+// turn's prediction misses by hundreds), so the coarse matching's reach is
+// scaled down with them (radius_px 10 instead of 120).
+TEST(MapLocalizer, AFrameLostAtATurnIsRefoundFromTheLastPoseNotRelocalised) {
+  Sequence& s = *Shared();
+  const std::string& x = s.serials[1];
+  const processing::CameraModel& camera = *s.chain->Find(x)->camera_model();
+  const MapIndex index = MapIndex::Of(s.map);
+  for (const bool from_last : {false, true}) {
+    LocalizerOptions options;
+    options.refind_from_last_pose = from_last;
+    options.coarse.radius_px = 10;
+    // A far frame after one whose tracking failed is not tracked (so the
+    // far frame below goes to the re-finding; a probe comes every 8th).
+    options.min_far_track_success = 1;
+    ASSERT_TRUE(options.Check().ok());
+    MapLocalizerStage stage(s.map, options);
+    // (trigger, view) in the order shown.
+    const std::vector<std::pair<std::int64_t, std::int64_t>> shown = {{0, 0}, {1, 3}, {5, 2}};
+    std::optional<processing::CameraPose> turn;
+    for (const auto& [trigger, view] : shown) {
+      const Localized l = LocalizeFrame(stage, s, x, trigger, view);
+      ASSERT_TRUE(l.pose);
+      ASSERT_EQ(l.pose->status, "ok") << "trigger " << trigger << " view " << view;
+      turn = l.pose;
+    }
+    const MapLocalizerStage::Counts turned = stage.counts();
+    // The prediction Localize made for the turn (4 steps of view 0 -> 3 from
+    // view 3) and the last pose against the truth of view 2.
+    const Pose step = s.truth[x][0].inverse() * s.truth[x][3];
+    Pose predicted = s.truth[x][3];
+    for (int k = 0; k < 4; ++k) predicted = predicted * step;
+    const double prediction_miss_px = MedianMissPx(camera, index, predicted, s.truth[x][2]);
+    const double last_miss_px = MedianMissPx(camera, index, s.truth[x][3], s.truth[x][2]);
+    const double t_mm = TranslationDifference(turn->transform, s.truth[x][2]);
+    const double r_deg = RotationDifferenceDeg(turn->transform, s.truth[x][2]);
+    std::printf(
+        "refind_from_last_pose %s: view 2 at trigger 5 %s, %.3f mm / %.4f deg; the prediction "
+        "missed by %.1f TF px, the last pose by %.1f (median over the map points)\n  %s\n",
+        from_last ? "on" : "off", turn->localisation.c_str(), t_mm, r_deg, prediction_miss_px,
+        last_miss_px, turned.StageReport().c_str());
+    // The prediction is beyond the coarse matching's reach, the last pose within it.
+    EXPECT_GT(prediction_miss_px, 2 * options.coarse.radius_px);
+    EXPECT_LT(last_miss_px, options.coarse.radius_px);
+    if (!from_last) {
+      EXPECT_EQ(turn->localisation, "relocalised");
+      EXPECT_EQ(turned.refind_from_last, 0);
+    } else {
+      EXPECT_NE(turn->localisation, "relocalised");
+      EXPECT_EQ(turned.relocalised, 1);  // the first frame only
+      EXPECT_EQ(turned.refind_from_last, 1);
+    }
+    // One frame, not a median: the offline bound of the tests above.
+    EXPECT_LE(t_mm, 3.0);
+    EXPECT_LE(r_deg, 0.15);
+    // Far from the last pose (view 2) and from the prediction: relocalised,
+    // not re-found from either.
+    const Localized far = LocalizeFrame(stage, s, x, 10, 7);
+    ASSERT_TRUE(far.pose);
+    const MapLocalizerStage::Counts after = stage.counts();
+    const double far_miss_px = MedianMissPx(camera, index, s.truth[x][2], s.truth[x][7]);
+    const double far_mm = TranslationDifference(far.pose->transform, s.truth[x][7]);
+    const double far_deg = RotationDifferenceDeg(far.pose->transform, s.truth[x][7]);
+    std::printf(
+        "  view 7 at trigger 10 (view 2's pose %.1f TF px off): %s %s, %.3f mm / %.4f deg\n  %s\n",
+        far_miss_px, far.pose->status.c_str(), far.pose->localisation.c_str(), far_mm, far_deg,
+        after.StageReport().c_str());
+    EXPECT_GT(far_miss_px, options.coarse.radius_px);
+    EXPECT_EQ(far.pose->status, "ok");
+    EXPECT_EQ(far.pose->localisation, "relocalised");
+    // Tried (the coarse matching from the prediction, then from the last
+    // pose), failed in the coarse matching.
+    EXPECT_EQ(after.refind_attempts, turned.refind_attempts + 1);
+    EXPECT_EQ(after.refind_coarse_failed, turned.refind_coarse_failed + 1);
+    EXPECT_EQ(after.refind_from_last, turned.refind_from_last);
+    EXPECT_EQ(after.refound, turned.refound);
+    EXPECT_LE(far_mm, 3.0);
+    EXPECT_LE(far_deg, 0.15);
   }
 }
 
@@ -1066,10 +1158,11 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
     // LIFMCR_TEST_COLD_ROUNDS=R: cold_reanchor_rounds R in every variant run.
     if (const char* cold = std::getenv("LIFMCR_TEST_COLD_ROUNDS"))
       options.cold_reanchor_rounds = std::atoi(cold);
-    // LIFMCR_TEST_REANCHOR_EVERY=N: reanchor_every N in the variants that
-    // re-anchor periodically.
+    // LIFMCR_TEST_REANCHOR_EVERY=N: reanchor_every (and
+    // reanchor_every_refined) N in the variants that re-anchor periodically.
     if (const char* every = std::getenv("LIFMCR_TEST_REANCHOR_EVERY"))
-      if (options.reanchor_every > 1) options.reanchor_every = std::atoi(every);
+      if (options.reanchor_every > 1)
+        options.reanchor_every = options.reanchor_every_refined = std::atoi(every);
     // LIFMCR_TEST_MAX_ANCHOR_WEIGHT=W: max_anchor_weight W in every variant;
     // LIFMCR_TEST_ANCHOR_SHIFT_RATIO=R: max_anchor_shift_ratio R.
     if (const char* weight = std::getenv("LIFMCR_TEST_MAX_ANCHOR_WEIGHT"))
@@ -1110,6 +1203,10 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
     Pose truth_last = Pose::Identity();
     bool rigid = true;
     std::vector<double> t_mm, r_deg, first, last;
+    // Each camera's own pose against its truth (w0 = the ground truth's
+    // world): rotation (deg) and translation (mm), where c0_from_cx's error
+    // comes from.
+    std::vector<double> r0_deg, rx_deg, t0_mm, tx_mm;
     std::string line;
     // CPU time per Localize (load-independent, unlike its wall time), by
     // how the pose was made.
@@ -1141,6 +1238,10 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
       const double e = TranslationDifference(estimate, truth);
       t_mm.push_back(e);
       r_deg.push_back(RotationDifferenceDeg(estimate, truth));
+      r0_deg.push_back(RotationDifferenceDeg(l0.pose->transform, s.truth[zero][f]));
+      rx_deg.push_back(RotationDifferenceDeg(lx.pose->transform, s.truth[x][f]));
+      t0_mm.push_back(TranslationDifference(l0.pose->transform, s.truth[zero][f]));
+      tx_mm.push_back(TranslationDifference(lx.pose->transform, s.truth[x][f]));
       if (passes > 0) {
         // A pass's last trigger shows frame 0 again: counted in the next.
         by_pass[static_cast<std::size_t>(std::min<std::int64_t>(t / period, passes - 1))]
@@ -1210,6 +1311,10 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
     }
     std::printf("  CPU time per Localize (process user + sys), both cameras:%s\n",
                 cpu_line.c_str());
+    std::printf(
+        "  each camera against its truth, median: camera 0 %.4f deg / %.3f mm, camera X %.4f "
+        "deg / %.3f mm\n",
+        Median(r0_deg), Median(t0_mm), Median(rx_deg), Median(tx_mm));
     // The synthetic rig moves its cameras against each other unless made
     // rigid: the fused estimate is compared only where the truth is constant.
     if (rigid && related.change && related.change->running_triggers > 0) {
@@ -1385,7 +1490,7 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
   };
   LocalizerOptions defaults;
   if (const char* every = std::getenv("LIFMCR_TEST_REANCHOR_EVERY"))
-    defaults.reanchor_every = std::atoi(every);
+    defaults.reanchor_every = defaults.reanchor_every_refined = std::atoi(every);
   if (const char* mask = std::getenv("LIFMCR_TEST_GUIDED_MASK"))
     defaults.guided.mask_keypoints = std::atoi(mask) != 0;
   if (const char* side = std::getenv("LIFMCR_TEST_GUIDED_MAX_SIDE"))
