@@ -54,6 +54,8 @@ struct LensWorkspace {
   std::vector<double> sat_w, sat_wz, sat_wzz;
   std::vector<std::int32_t> sat_n;
   std::vector<std::int32_t> sat_col, sat_row;  // local x, y -> the tables' column, row
+  // Seeded: whether a local column, row lies on the searched lattice.
+  std::vector<std::uint8_t> lattice_col, lattice_row;
 };
 
 // The texture gate's class of n pixels of a row (g the grey at the first,
@@ -474,6 +476,17 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         __builtin_prefetch(out->textured.data() + row + nx1, 1);
       }
     }
+    // Seeded: the lattice's columns and rows of the box, looked up per
+    // textured pixel (two integer divisions per pixel were 3 % of the perf
+    // samples of this function's own code on `r32`).
+    if (wk.lattice_col.size() < static_cast<std::size_t>(bw)) wk.lattice_col.resize(bw);
+    if (wk.lattice_row.size() < static_cast<std::size_t>(bh)) wk.lattice_row.resize(bh);
+    std::uint8_t* const lattice_col = wk.lattice_col.data();
+    std::uint8_t* const lattice_row = wk.lattice_row.data();
+    if (seeded) {
+      for (int c = 0; c < bw; ++c) lattice_col[c] = (x0 + c) % lens_stride == 0;
+      for (int c = 0; c < bh; ++c) lattice_row[c] = (y0 + c) % lens_stride == 0;
+    }
     // The searched pixels, in row order (the seeded windows' outcomes so
     // far decide a fallback).
     for (int t = 0; t < n_textured; ++t) {
@@ -482,7 +495,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       // Searched pixels: all, or a checkerboard (the others are filled by
       // the regularisation from their searched neighbours).
       if (seeded) {
-        if (x % lens_stride != 0 || y % lens_stride != 0) continue;
+        if (!(lattice_col[packed & 0xFFFF] & lattice_row[packed >> 16])) continue;
       } else if (stride == 2 && ((x + y) & 1)) {
         continue;
       }
