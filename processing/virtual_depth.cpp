@@ -206,6 +206,8 @@ Status DepthOptions::Check() const {
     return Error{"depth options: seed_margin_px: expected 0..100"};
   if (seed_ring1_lines != 0 && seed_ring1_lines != 1 && seed_ring1_lines != 3)
     return Error{"depth options: seed_ring1_lines: expected 0 (auto), 1 or 3"};
+  if (seed_ring2_lines != 0 && seed_ring2_lines != 1 && seed_ring2_lines != 3)
+    return Error{"depth options: seed_ring2_lines: expected 0 (auto), 1 or 3"};
   // type_ranges, simd: any value.
   return Status::Ok();
 }
@@ -297,6 +299,8 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
           ? options.seed_search_stride
           : (nominal_pitch_px >= 32 ? 3 : (nominal_pitch_px >= 24 ? 2 : 1));
   const int seed_ring1_lines = options.seed_ring1_lines != 0 ? options.seed_ring1_lines
+                                                             : (nominal_pitch_px >= 24 ? 1 : 3);
+  const int seed_ring2_lines = options.seed_ring2_lines != 0 ? options.seed_ring2_lines
                                                              : (nominal_pitch_px >= 24 ? 1 : 3);
   // Seeded: the sparser lattice of a flat micro image (header comment).
   const int flat_stride =
@@ -522,7 +526,8 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       std::array<std::int8_t, 6> patch_state{};  // 0 not yet, 1 valid, 2 invalid
       std::array<std::array<float, kSamples>, 6> patch_cache;
       std::array<double, 6> g2_cache;
-      // one_line: a 5 x 1 patch (the seeded window's ring-1 search).
+      // one_line: a 5 x 1 patch (the seeded window's ring-1 search, ring 2
+      // around its estimate).
       auto match = [&](const detail::MatchParams& params, const Neighbour& nb, double z0,
                        double z1, bool one_line = false) {
         std::array<float, kSamples>& cached = patch_cache[nb.axis];
@@ -613,7 +618,8 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
         const Neighbour& nb = nbs[order2[q].second];
         const double span = std::max(3 * sigma, 2 * options.step_px / (lambda * nb.length));
         if (have_prior)
-          match(search, nb, std::max(lo, z - span), std::min(hi, z + span));
+          match(search, nb, std::max(lo, z - span), std::min(hi, z + span),
+                seeded && seed_ring2_lines == 1);
         else if (seeded && !fell_back)
           match(narrow, nb, seed_lo, seed_hi);
         else

@@ -357,6 +357,10 @@ TEST(SeededDepthOptions, CheckNamesTheField) {
   ASSERT_FALSE(o.Check().ok());
   EXPECT_NE(o.Check().error().message.find("seed_ring1_lines"), std::string::npos);
   o = DepthOptions{};
+  o.seed_ring2_lines = 2;
+  ASSERT_FALSE(o.Check().ok());
+  EXPECT_NE(o.Check().error().message.find("seed_ring2_lines"), std::string::npos);
+  o = DepthOptions{};
   o.seed_flat_stride = 9;
   ASSERT_FALSE(o.Check().ok());
   EXPECT_NE(o.Check().error().message.find("seed_flat_stride"), std::string::npos);
