@@ -31,7 +31,7 @@
 //               from nothing)
 //               [--seed full|seeded|both] [--dense-path scalar|simd|both] [--seed-margin PX]
 //               [--seed-ring1 1..6] [--seed-ring2 0..6] [--seed-cost-ratio R] [--seed-stride 0..8]
-//               (DepthOptions)
+//               [--seed-ring2-lines 0|1|3] (DepthOptions)
 
 #include "bench/bench_usage.h"
 #include "processing/camera_model.h"
@@ -308,7 +308,8 @@ constexpr char kUsage[] =
     "                   [--lens-previous 0|1] [--lens-neighbours 0|1]\n"
     "                   [--seed full|seeded|both] [--dense-path scalar|simd|both]\n"
     "                   [--seed-margin PX] [--seed-ring1 1..6] [--seed-ring2 0..6]\n"
-    "                   [--seed-cost-ratio R] [--seed-stride 0..8] [--frames FILE]\n"
+    "                   [--seed-cost-ratio R] [--seed-stride 0..8]\n"
+    "                   [--seed-ring2-lines 0|1|3] [--frames FILE]\n"
     "                   [--tf-only MAP] [--tf-out FILE] [--tf-baseline 0|1]\n"
     "                   [--tf-psnr 0|1]\n"
     "processing/ on one synthetic frame (default r32) on all cores: grid fit to the white\n"
@@ -374,6 +375,8 @@ int main(int argc, char** argv) {
       depth_options.seed_cost_ratio = std::atof(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--seed-flat-stride"))
       depth_options.seed_flat_stride = std::atoi(argv[k + 1]);
+    else if (!std::strcmp(argv[k], "--seed-ring2-lines"))
+      depth_options.seed_ring2_lines = std::atoi(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--seed-flat-px"))
       depth_options.seed_flat_px = std::atof(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--seed-margin"))

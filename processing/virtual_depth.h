@@ -74,7 +74,8 @@
 // seed_max_ring2 ring-2 baselines are searched per pixel and a lattice of
 // seed_search_stride (seed_flat_stride on a flat micro image; below), the
 // ring-1 searches in the window on the
-// patch's middle line (5 x 1, seed_ring1_lines); a pixel whose window found
+// patch's middle line (5 x 1, seed_ring1_lines), and ring 2 around their
+// estimate too (seed_ring2_lines); a pixel whose window found
 // no minimum and did not fall back searches ring 2 in the window too (with
 // seed_cost_ratio), not over the whole range; steps 2-5 are those of the
 // full search.
@@ -164,6 +165,15 @@ struct DepthOptions {
   // one line finds no clear minimum for a quarter of the pixels, which then
   // fall back to the full range. The fallback searches 5 x 3.
   int seed_ring1_lines = 0;
+  // Seeded: the lines of ring 2's patch where the pixel's ring-1 estimates
+  // centre its search (within max(3 sigma, 2 steps) of them), 1 or 3; 0:
+  // 1 for micro images of 24 px and more, else 3. There the ring-1 window
+  // has placed the minimum, and ring 2 refines it on a longer baseline: on
+  // `r32` and `medium` one line costs 6-9 % less CPU per frame for a
+  // coverage 0.2-0.3 % lower and fewer outliers (docs/processing.md). Ring 2
+  // searched without such an estimate (in the window or the whole range)
+  // matches 5 x 3.
+  int seed_ring2_lines = 0;
   double seed_cost_ratio = 0.8;
   // Strip sampling and SSD through Highway's runtime dispatch
   // (processing/lens_search_simd.h); false: the scalar reference (the same

@@ -5,7 +5,8 @@
 // within the dense gates); the fallback (no seed: the full search's map
 // exactly; a wrong seed everywhere: the full search's accuracy, found by
 // searching again over the whole range); the SIMD and the scalar kernels
-// giving the same map; the seed's lattice check.
+// giving the same map; the pooled per-thread buffers restored on every exit
+// (a reused workspace gives a fresh one's map); the seed's lattice check.
 
 #include "processing/camera_model.h"
 #include "processing/lens_depth.h"
@@ -14,11 +15,13 @@
 #include "tests/processing/synth_frame.h"
 
 #include <gtest/gtest.h>
+#include <tbb/task_arena.h>
 
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <memory>
+#include <thread>
 #include <utility>
 
 namespace lifmcr::processing {
@@ -203,6 +206,88 @@ TEST_F(SeededDepth, EveryPixelIsWrittenWhateverTheBuffersHeld) {
   }
 }
 
+// A micro image's buffers are its thread's and rest at "none" between micro
+// images: each restores the entries it wrote, on every exit (also where no
+// estimate passes and steps 4 and 5 are skipped). So a workspace reused
+// across frames of other content gives the map of a fresh one. Each run
+// below is on a thread of its own in an arena of one slot: every micro image
+// on that thread, whose thread_local workspace is fresh where it starts.
+// Frame B: a third of the micro images noise (their searches mostly fail:
+// the exits without an estimate), a third mirrored (estimates at other
+// pixels), searched with a wrong seed (fallbacks) and without one (the
+// full search's checkerboard). On lattices of 2 (`small`'s 16 px micro
+// images search every textured pixel by default, which overwrites every
+// flag a micro image before left): a textured pixel off the lattice reads
+// flags it did not write.
+TEST_F(SeededDepth, PooledBuffersGiveTheSameMapAfterOtherFramesAndEarlyExits) {
+  ASSERT_NE(shared_, nullptr);
+  const Shared& d = *shared_;
+  auto on_fresh_thread = [](auto work) {
+    std::thread t([&] {
+      tbb::task_arena one(1);
+      one.execute(work);
+    });
+    t.join();
+  };
+  auto same_maps = [](const VirtualDepthMap& a, const VirtualDepthMap& b) {
+    auto same = [](float x, float y) { return (std::isnan(x) && std::isnan(y)) || x == y; };
+    ASSERT_EQ(a.virtual_depth.size(), b.virtual_depth.size());
+    for (std::size_t i = 0; i < a.virtual_depth.size(); ++i) {
+      ASSERT_TRUE(same(a.virtual_depth[i], b.virtual_depth[i])) << "pixel " << i;
+      ASSERT_TRUE(same(a.sigma_z[i], b.sigma_z[i])) << "pixel " << i;
+      ASSERT_TRUE(same(a.confidence[i], b.confidence[i])) << "pixel " << i;
+      ASSERT_EQ(a.textured[i], b.textured[i]) << "pixel " << i;
+    }
+    EXPECT_EQ(a.stats.estimated, b.stats.estimated);
+    EXPECT_EQ(a.stats.rejected, b.stats.rejected);
+    EXPECT_EQ(a.stats.filled, b.stats.filled);
+    EXPECT_EQ(a.stats.searched, b.stats.searched);
+    EXPECT_EQ(a.stats.fallback, b.stats.fallback);
+  };
+  PlenopticFrame other = d.frame;
+  const int w = other.width;
+  std::uint32_t state = 12345;
+  for (std::size_t i = 0; i < other.grey.size(); ++i) {
+    const int k = other.lens_of_pixel[i];
+    if (k < 0 || std::isnan(other.grey[i])) continue;
+    if (k % 3 == 0) {
+      state = state * 1664525u + 1013904223u;
+      other.grey[i] = static_cast<float>(state >> 24);
+    } else if (k % 3 == 1) {
+      // Mirrored about the micro image's centre column where that pixel is its own.
+      const int x = static_cast<int>(i % w), y = static_cast<int>(i / w);
+      const int xm = static_cast<int>(std::lround(2 * other.lenses[k].centre_px.x())) - x;
+      const std::size_t m = static_cast<std::size_t>(y) * w + xm;
+      if (xm > 0 && xm < w && d.frame.lens_of_pixel[m] == k && !std::isnan(d.frame.grey[m]))
+        other.grey[i] = d.frame.grey[m];
+    }
+  }
+  LensSeed wrong = d.seed;
+  for (float& z : wrong.z) z *= 1.4f;
+  DepthOptions o;
+  o.search_stride = 2;
+  o.seed_search_stride = 2;
+  VirtualDepthMap fresh, reused, noise_seeded, noise_full;
+  on_fresh_thread([&] {
+    ASSERT_TRUE(EstimateVirtualDepth(d.frame, d.s.mla, o, &d.seed, &fresh).ok());
+  });
+  on_fresh_thread([&] {
+    ASSERT_TRUE(EstimateVirtualDepth(other, d.s.mla, o, &wrong, &noise_seeded).ok());
+    ASSERT_TRUE(EstimateVirtualDepth(other, d.s.mla, o, nullptr, &noise_full).ok());
+    ASSERT_TRUE(EstimateVirtualDepth(d.frame, d.s.mla, o, &d.seed, &reused).ok());
+  });
+  // Frame B took the exits: micro images with textured pixels and no
+  // estimate of step 4, and fallbacks.
+  EXPECT_GT(noise_seeded.stats.fallback, 0);
+  EXPECT_LT(noise_seeded.stats.estimated, fresh.stats.estimated);
+  EXPECT_GT(noise_full.stats.searched, 0);
+  same_maps(fresh, reused);
+  // And the map of all threads' workspaces, reused by the tests before.
+  VirtualDepthMap pooled;
+  ASSERT_TRUE(EstimateVirtualDepth(d.frame, d.s.mla, o, &d.seed, &pooled).ok());
+  same_maps(fresh, pooled);
+}
+
 TEST_F(SeededDepth, RejectsASeedOfAnotherFrame) {
   ASSERT_NE(shared_, nullptr);
   const Shared& d = *shared_;
@@ -271,6 +356,10 @@ TEST(SeededDepthOptions, CheckNamesTheField) {
   o.seed_ring1_lines = 2;
   ASSERT_FALSE(o.Check().ok());
   EXPECT_NE(o.Check().error().message.find("seed_ring1_lines"), std::string::npos);
+  o = DepthOptions{};
+  o.seed_ring2_lines = 2;
+  ASSERT_FALSE(o.Check().ok());
+  EXPECT_NE(o.Check().error().message.find("seed_ring2_lines"), std::string::npos);
   o = DepthOptions{};
   o.seed_flat_stride = 9;
   ASSERT_FALSE(o.Check().ok());
