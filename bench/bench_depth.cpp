@@ -28,7 +28,9 @@
 //               (1: each per-lens run seeded by the run before's map, the temporal seed of
 //               a camera that did not move: its best case) [--lens-neighbours 0|1]
 //               (LensDepthOptions::neighbour_seed; 0, the default: every lens searched
-//               from nothing)
+//               from nothing) [--lens-step PX] [--lens-fraction F] [--lens-rings 1|2]
+//               [--lens-enough N] (LensDepthOptions' candidate_step_px, candidate_fraction,
+//               rings, enough_estimates)
 //               [--seed full|seeded|both] [--dense-path scalar|simd|both] [--seed-margin PX]
 //               [--seed-ring1 1..6] [--seed-ring2 0..6] [--seed-cost-ratio R] [--seed-stride 0..8]
 //               (DepthOptions)
@@ -305,7 +307,8 @@ constexpr char kUsage[] =
     "                   [--crop PX] [--stride 0|1|2] [--ring1 1..6] [--ring2 0..6]\n"
     "                   [--type-ranges 0|1] [--lens-only 1] [--dense 0|1]\n"
     "                   [--lens-path scalar|simd|both] [--lens-samples N]\n"
-    "                   [--lens-previous 0|1] [--lens-neighbours 0|1]\n"
+    "                   [--lens-previous 0|1] [--lens-neighbours 0|1] [--lens-step PX]\n"
+    "                   [--lens-fraction F] [--lens-rings 1|2] [--lens-enough N]\n"
     "                   [--seed full|seeded|both] [--dense-path scalar|simd|both]\n"
     "                   [--seed-margin PX] [--seed-ring1 1..6] [--seed-ring2 0..6]\n"
     "                   [--seed-cost-ratio R] [--seed-stride 0..8] [--frames FILE]\n"
@@ -322,6 +325,9 @@ constexpr char kUsage[] =
     "of a camera that did not move: its best case, not a moving camera's figure).\n"
     "--lens-neighbours 1 searches the lenses of types 1 and 2 first around their earlier-type\n"
     "neighbours' depth (LensDepthOptions::neighbour_seed; default 0: every lens from nothing).\n"
+    "--lens-step, --lens-fraction, --lens-rings, --lens-enough: LensDepthOptions'\n"
+    "candidate_step_px, candidate_fraction, rings and enough_estimates (the defaults: 0\n"
+    "(the pitch / 11), 0.6, 2, 2); the textured lenses the coverage counts are the gate's own.\n"
     "--tf-only MAP: the TF image alone (with its baselines), on the seeded SIMD dense map kept\n"
     "in MAP (estimated once and written when MAP does not hold this preset and scene).\n"
     "--tf-out FILE writes the TF image there (PGM or PPM) to compare two builds' images.\n"
@@ -394,6 +400,14 @@ int main(int argc, char** argv) {
       lens_options.neighbour_seed = std::atoi(argv[k + 1]) != 0;
     else if (!std::strcmp(argv[k], "--lens-samples"))
       lens_options.samples = std::atoi(argv[k + 1]);
+    else if (!std::strcmp(argv[k], "--lens-step"))
+      lens_options.candidate_step_px = std::atof(argv[k + 1]);
+    else if (!std::strcmp(argv[k], "--lens-rings"))
+      lens_options.rings = std::atoi(argv[k + 1]);
+    else if (!std::strcmp(argv[k], "--lens-enough"))
+      lens_options.enough_estimates = std::atoi(argv[k + 1]);
+    else if (!std::strcmp(argv[k], "--lens-fraction"))
+      lens_options.candidate_fraction = std::atof(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--ring2"))
       depth_options.max_ring2 = std::atoi(argv[k + 1]);
     else {
