@@ -61,6 +61,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 using namespace lifmcr;
@@ -300,6 +301,21 @@ bool ReadDenseMap(const std::string& path, const std::string& key, VirtualDepthM
   return ok;
 }
 
+// --lens-step, --lens-fraction, --lens-rings, --lens-enough: the per-lens
+// estimator's candidate grid, rings and early stop (LensDepthOptions; its
+// Check() validates them); false for any other flag.
+bool SetLensOption(const char* flag, const char* value, LensDepthOptions* o) {
+  const std::pair<const char*, double*> reals[] = {{"--lens-step", &o->candidate_step_px},
+                                                   {"--lens-fraction", &o->candidate_fraction}};
+  const std::pair<const char*, int*> counts[] = {{"--lens-rings", &o->rings},
+                                                 {"--lens-enough", &o->enough_estimates}};
+  for (const auto& [name, field] : reals)
+    if (!std::strcmp(flag, name)) return (*field = std::atof(value)), true;
+  for (const auto& [name, field] : counts)
+    if (!std::strcmp(flag, name)) return (*field = std::atoi(value)), true;
+  return false;
+}
+
 }  // namespace
 
 constexpr char kUsage[] =
@@ -400,14 +416,8 @@ int main(int argc, char** argv) {
       lens_options.neighbour_seed = std::atoi(argv[k + 1]) != 0;
     else if (!std::strcmp(argv[k], "--lens-samples"))
       lens_options.samples = std::atoi(argv[k + 1]);
-    else if (!std::strcmp(argv[k], "--lens-step"))
-      lens_options.candidate_step_px = std::atof(argv[k + 1]);
-    else if (!std::strcmp(argv[k], "--lens-rings"))
-      lens_options.rings = std::atoi(argv[k + 1]);
-    else if (!std::strcmp(argv[k], "--lens-enough"))
-      lens_options.enough_estimates = std::atoi(argv[k + 1]);
-    else if (!std::strcmp(argv[k], "--lens-fraction"))
-      lens_options.candidate_fraction = std::atof(argv[k + 1]);
+    else if (SetLensOption(argv[k], argv[k + 1], &lens_options))
+      continue;
     else if (!std::strcmp(argv[k], "--ring2"))
       depth_options.max_ring2 = std::atoi(argv[k + 1]);
     else {
