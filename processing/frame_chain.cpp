@@ -2,6 +2,8 @@
 
 #include "processing/frame_chain.h"
 
+#include "config/thread_cpu.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -287,18 +289,22 @@ Expected<LensLease> CameraChain::ProcessLenses(ConstImageView raw, int preview_m
   }
   LensProducts& p = *lease;
   auto t = std::chrono::steady_clock::now();
+  double cpu = ThreadCpuSeconds();
   if (Status s = backend_->LensDepth(**estimator, raw, &p.depth); !s)
     return Error{"camera " + setup_.serial + ": " + s.error().message};
   p.depth_s = SecondsSince(t);
-  p.preview_s = 0;
+  p.depth_cpu_s = ThreadCpuSeconds() - cpu;
+  p.preview_s = p.preview_cpu_s = 0;
   p.preview.width = p.preview.height = 0;
   if (preview_max_side > 0) {
     t = std::chrono::steady_clock::now();
+    cpu = ThreadCpuSeconds();
     if (Status s =
             backend_->LensPreview(**estimator, raw, preview_max_side, &p.depth, &p.preview);
         !s)
       return Error{"camera " + setup_.serial + ": " + s.error().message};
     p.preview_s = SecondsSince(t);
+    p.preview_cpu_s = ThreadCpuSeconds() - cpu;
   }
   return lease;
 }

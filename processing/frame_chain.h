@@ -136,6 +136,9 @@ struct LensProducts {
   LensDepthMap depth;
   TfImage preview;  // empty when not asked for
   double depth_s = 0, preview_s = 0;
+  // The same parts' CPU time on the calling thread (config/thread_cpu.h):
+  // exact where it computes alone (the pipeline's lens lane).
+  double depth_cpu_s = 0, preview_cpu_s = 0;
   // "lens depth: ... | preview 512x386 0.004 s"
   std::string BriefReport() const;
 };

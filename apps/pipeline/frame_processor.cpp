@@ -4,6 +4,7 @@
 #include "apps/pipeline/frame_processor.h"
 
 #include "apps/pipeline/camera_setup.h"
+#include "config/thread_cpu.h"
 #include "processing/frame_chain.h"
 #include "replay/bayer.h"
 
@@ -399,7 +400,10 @@ Expected<ProcessedFrame> DepthProcessor::ProcessLenses(const Frame& frame,
   if (!lenses) return lenses.error();
   out.lens_depth_s = (*lenses)->depth_s;
   out.lens_preview_s = (*lenses)->preview_s;
+  out.lens_depth_cpu_s = (*lenses)->depth_cpu_s;
+  out.lens_preview_cpu_s = (*lenses)->preview_cpu_s;
   const auto encode_start = std::chrono::steady_clock::now();
+  const double encode_cpu = ThreadCpuSeconds();
   auto lens_depth = EncodeLensDepth((*lenses)->depth, image->width, image->height);
   if (!lens_depth) return lens_depth.error();
   out.lens_depth = std::move(*lens_depth);
@@ -410,6 +414,7 @@ Expected<ProcessedFrame> DepthProcessor::ProcessLenses(const Frame& frame,
   tf_preview->source_height = image->height / 2;
   out.tf = std::move(*tf_preview);
   out.lens_encode_s = SecondsSince(encode_start);
+  out.lens_encode_cpu_s = ThreadCpuSeconds() - encode_cpu;
   // The workspace stays leased while the dense chain may still seed from it
   // (ProcessDense); it returns to the camera's pool with the last holder.
   out.lenses = std::shared_ptr<const processing::LensProducts>(std::move(*lenses));

@@ -92,6 +92,8 @@ struct ProcessedFrame {
   // ProcessLenses' parts (wall s): the per-lens depth, the TF preview at
   // each lens's depth, and the encodings (16-bit PNG, JPEG).
   double lens_depth_s = 0, lens_preview_s = 0, lens_encode_s = 0;
+  // Their CPU time on the calling thread (config/thread_cpu.h).
+  double lens_depth_cpu_s = 0, lens_preview_cpu_s = 0, lens_encode_cpu_s = 0;
 };
 
 // What the registration stage needs of a frame without processing it: the

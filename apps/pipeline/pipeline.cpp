@@ -4,6 +4,7 @@
 
 #include "apps/pipeline/pipeline.h"
 
+#include "config/thread_cpu.h"
 #include "drivers/host_clock.h"
 
 #include <spdlog/spdlog.h>
@@ -96,14 +97,6 @@ class WorkerPriority final : public tbb::task_scheduler_observer {
  private:
   int nice_;
 };
-
-// CPU time of the calling thread (s): what a frame's work costs whatever
-// else runs on the machine.
-double ThreadCpuSeconds() {
-  timespec cpu{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &cpu);
-  return static_cast<double>(cpu.tv_sec) + 1e-9 * static_cast<double>(cpu.tv_nsec);
-}
 
 struct Job {
   Frame frame;
@@ -503,6 +496,9 @@ struct Pipeline::Impl {
         report.lens_depth_s += p.lens_depth_s;
         report.lens_preview_s += p.lens_preview_s;
         report.lens_encode_s += p.lens_encode_s;
+        report.lens_depth_cpu_s += p.lens_depth_cpu_s;
+        report.lens_preview_cpu_s += p.lens_preview_cpu_s;
+        report.lens_encode_cpu_s += p.lens_encode_cpu_s;
       } else if (offer->input) {
         dense.from_lenses.demosaiced = offer->input->demosaiced;
       }
@@ -1122,11 +1118,12 @@ std::string PipelineReport::FinalReport() const {
     const auto per = [](double total, std::uint64_t n) {
       return n > 0 ? 1e3 * total / static_cast<double>(n) : 0.0;
     };
-    char line[600];
+    char line[700];
     std::snprintf(line, sizeof line,
                   "workers (registration first): %llu frames, localisation %.1f CPU-ms per "
                   "frame; lens lane: processed %llu skipped %llu failed %llu, %.1f CPU-ms per "
-                  "frame (wall: per-lens depth %.1f ms, TF preview %.1f ms, encodings %.1f ms)\n"
+                  "frame (CPU-ms: per-lens depth %.1f, TF preview %.1f, encodings %.1f; wall: "
+                  "per-lens depth %.1f ms, TF preview %.1f ms, encodings %.1f ms)\n"
                   "lens lane skipped: %llu replaced by a newer frame of its camera while the "
                   "lane was busy, %llu came after a newer frame of its camera (localised "
                   "first)\n",
@@ -1134,7 +1131,8 @@ std::string PipelineReport::FinalReport() const {
                   static_cast<unsigned long long>(lens_frames),
                   static_cast<unsigned long long>(lens_skipped),
                   static_cast<unsigned long long>(lens_failed), per(lens_cpu_s, lens_frames),
-                  per(lens_depth_s, lens_frames), per(lens_preview_s, lens_frames),
+                  per(lens_depth_cpu_s, lens_frames), per(lens_preview_cpu_s, lens_frames),
+                  per(lens_encode_cpu_s, lens_frames), per(lens_depth_s, lens_frames), per(lens_preview_s, lens_frames),
                   per(lens_encode_s, lens_frames), static_cast<unsigned long long>(lens_replaced),
                   static_cast<unsigned long long>(lens_stale));
     out << line;

@@ -182,11 +182,12 @@ struct PipelineReport {
   // ForRegistration: a Bayer frame's demosaicing; approximate: another
   // worker may run part of its parallel loops), and per frame of the lens
   // lane, ProcessLenses' CPU time (exact: its thread alone computes in its
-  // arena) and its parts' wall time (the per-lens depth, the TF preview at
-  // each lens's depth, the encodings).
+  // arena) and its parts' CPU and wall time (the per-lens depth, the TF
+  // preview at each lens's depth, the encodings).
   std::uint64_t worker_frames = 0, lens_frames = 0;
   double localize_cpu_s = 0, lens_cpu_s = 0;
   double lens_depth_s = 0, lens_preview_s = 0, lens_encode_s = 0;
+  double lens_depth_cpu_s = 0, lens_preview_cpu_s = 0, lens_encode_cpu_s = 0;
   std::uint64_t frame_sets = 0, incomplete_sets = 0;
   // published_depth: TF-grid depth maps (the dense chain); published_lens_depth:
   // per-lens depth maps (every frame taken, when the processor makes them).
