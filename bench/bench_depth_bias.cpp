@@ -37,6 +37,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 using namespace lifmcr;
@@ -84,8 +85,21 @@ int main(int argc, char** argv) {
   int first = 1;
   int edge_px = 2;  // pixels within this of a depth edge (truth) are left out
   bool other_surface = false;  // the pixels beyond 5 % by the other surface near them
+  // The DepthOptions given as integers: flag and field.
+  const std::array<std::pair<const char*, int*>, 4> int_options = {{
+      {"--smooth-radius", &depth_options.smooth_radius_px},
+      {"--min-support", &depth_options.min_support},
+      {"--search-stride", &depth_options.search_stride},
+      {"--fill-min-support", &depth_options.fill_min_support},
+  }};
   for (;;) {
-    if (argc > first + 1 && std::string(argv[first]) == "--cross-type-px") {
+    const auto int_option = std::find_if(int_options.begin(), int_options.end(), [&](const auto& o) {
+      return argc > first + 1 && std::string(argv[first]) == o.first;
+    });
+    if (int_option != int_options.end()) {
+      *int_option->second = std::atoi(argv[first + 1]);
+      first += 2;
+    } else if (argc > first + 1 && std::string(argv[first]) == "--cross-type-px") {
       depth_options.cross_type_px = std::atof(argv[first + 1]);
       first += 2;
     } else if (argc > first + 1 && std::string(argv[first]) == "--edge-px") {
@@ -94,18 +108,6 @@ int main(int argc, char** argv) {
     } else if (argc > first && std::string(argv[first]) == "--other-surface") {
       other_surface = true;
       first += 1;
-    } else if (argc > first + 1 && std::string(argv[first]) == "--smooth-radius") {
-      depth_options.smooth_radius_px = std::atoi(argv[first + 1]);
-      first += 2;
-    } else if (argc > first + 1 && std::string(argv[first]) == "--min-support") {
-      depth_options.min_support = std::atoi(argv[first + 1]);
-      first += 2;
-    } else if (argc > first + 1 && std::string(argv[first]) == "--search-stride") {
-      depth_options.search_stride = std::atoi(argv[first + 1]);
-      first += 2;
-    } else if (argc > first + 1 && std::string(argv[first]) == "--fill-min-support") {
-      depth_options.fill_min_support = std::atoi(argv[first + 1]);
-      first += 2;
     } else if (argc > first + 1 && std::string(argv[first]) == "--equalise-defocus") {
       depth_options.equalise_defocus = std::atoi(argv[first + 1]) != 0;
       first += 2;
@@ -114,7 +116,7 @@ int main(int argc, char** argv) {
     }
   }
   if (argc < first + 2 || !depth_options.Check()) {
-    std::fprintf(stderr, "usage: bench_depth_bias [--cross-type-px X] SEQUENCE_DIR FRAME [FRAME...]\n");
+    std::fprintf(stderr, "%s", kUsage);
     return 2;
   }
   const fs::path seq = argv[first];
