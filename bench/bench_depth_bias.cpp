@@ -37,6 +37,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 using namespace lifmcr;
@@ -63,9 +64,17 @@ int BinOf(double v) {
 }  // namespace
 
 constexpr char kUsage[] =
-    "usage: bench_depth_bias [--cross-type-px X] SEQUENCE_DIR FRAME [FRAME...]\n"
+    "usage: bench_depth_bias [--cross-type-px X] [--edge-px N] [--equalise-defocus 0|1]\n"
+    "    [--smooth-radius N] [--min-support N] [--search-stride N] [--fill-min-support N]\n"
+    "    [--other-surface] SEQUENCE_DIR FRAME [FRAME...]\n"
     "--cross-type-px: processing::DepthOptions::cross_type_px (the model error of a pair of\n"
     "lens types; large: the same type's ring-2 pairs carry the fused depth).\n"
+    "--edge-px: pixels with a depth edge (truth beyond 1 %) within N px left out (2).\n"
+    "--smooth-radius, --min-support, --search-stride, --fill-min-support: the DepthOptions\n"
+    "fields (step 4's window and support, the searched lattice, step 5; 0 0 1 0 with\n"
+    "--min-support 1: the search's own estimates).\n"
+    "--other-surface: the pixels beyond 5 % by whether the truth within 8 px holds another\n"
+    "surface, and where their estimate lies between the two.\n"
     "The systematic error of processing/'s virtual depth on frames of a synthetic sequence\n"
     "(written by `lifmcr synth`) against the renderer's per-pixel truth, by virtual depth,\n"
     "lens type and radius in the micro image, and the fit v_measured = a + (1 + eps) v.\n";
@@ -75,13 +84,30 @@ int main(int argc, char** argv) {
   processing::DepthOptions depth_options;
   int first = 1;
   int edge_px = 2;  // pixels within this of a depth edge (truth) are left out
+  bool other_surface = false;  // the pixels beyond 5 % by the other surface near them
+  // The DepthOptions given as integers: flag and field.
+  const std::array<std::pair<const char*, int*>, 4> int_options = {{
+      {"--smooth-radius", &depth_options.smooth_radius_px},
+      {"--min-support", &depth_options.min_support},
+      {"--search-stride", &depth_options.search_stride},
+      {"--fill-min-support", &depth_options.fill_min_support},
+  }};
   for (;;) {
-    if (argc > first + 1 && std::string(argv[first]) == "--cross-type-px") {
+    const auto int_option = std::find_if(int_options.begin(), int_options.end(), [&](const auto& o) {
+      return argc > first + 1 && std::string(argv[first]) == o.first;
+    });
+    if (int_option != int_options.end()) {
+      *int_option->second = std::atoi(argv[first + 1]);
+      first += 2;
+    } else if (argc > first + 1 && std::string(argv[first]) == "--cross-type-px") {
       depth_options.cross_type_px = std::atof(argv[first + 1]);
       first += 2;
     } else if (argc > first + 1 && std::string(argv[first]) == "--edge-px") {
       edge_px = std::max(1, std::atoi(argv[first + 1]));
       first += 2;
+    } else if (argc > first && std::string(argv[first]) == "--other-surface") {
+      other_surface = true;
+      first += 1;
     } else if (argc > first + 1 && std::string(argv[first]) == "--equalise-defocus") {
       depth_options.equalise_defocus = std::atoi(argv[first + 1]) != 0;
       first += 2;
@@ -90,7 +116,7 @@ int main(int argc, char** argv) {
     }
   }
   if (argc < first + 2 || !depth_options.Check()) {
-    std::fprintf(stderr, "usage: bench_depth_bias [--cross-type-px X] SEQUENCE_DIR FRAME [FRAME...]\n");
+    std::fprintf(stderr, "%s", kUsage);
     return 2;
   }
   const fs::path seq = argv[first];
@@ -122,6 +148,7 @@ int main(int argc, char** argv) {
   std::vector<std::array<long long, 8>> tail(kBinCount, std::array<long long, 8>{});
   processing::PlenopticFrame f;
   processing::VirtualDepthMap depth;
+  long long near_other[2][3] = {}, near_frac[2][8] = {};  // [error > 0][...]
   for (int a = first + 1; a < argc; ++a) {
     const int n = std::atoi(argv[a]);
     const std::optional<fs::path> path = folder->FramePath(n);
@@ -159,6 +186,23 @@ int main(int argc, char** argv) {
         const int b = BinOf(vt);
         if (b < 0) continue;
         const double e = v / vt - 1;
+        if (other_surface && std::abs(e) > 0.05) {
+          // The other surface within 8 px: the truth farthest from vt; where
+          // the estimate lies between the two surfaces (a mixture) or
+          // beyond (a wrong match).
+          double far = vt;
+          for (int dy = -8; dy <= 8; ++dy)
+            for (int dx = -8; dx <= 8; ++dx) {
+              if (y + dy < 0 || y + dy >= h || x + dx < 0 || x + dx >= w) continue;
+              const double q = truth_at(x + dx, y + dy);
+              if (!std::isnan(q) && std::abs(q - vt) > std::abs(far - vt)) far = q;
+            }
+          ++near_other[e > 0][far > 1.02 * vt ? 0 : far < 0.98 * vt ? 1 : 2];
+          if (std::abs(far - vt) > 0.02 * vt) {
+            const double frac = (v - vt) / (far - vt);
+            ++near_frac[e > 0][std::clamp(static_cast<int>(std::floor(frac * 5)), -1, 6) + 1];
+          }
+        }
         const double r = (Eigen::Vector2d(x, y) - f.lenses[k].centre_px).norm() / f.radius_px;
         errors[b][f.lenses[k].type][r < 0.4 ? 0 : r < 0.7 ? 1 : 2].push_back(e);
         all_abs.push_back(std::abs(e));
@@ -204,6 +248,16 @@ int main(int argc, char** argv) {
       std::printf("%s %.2f", q == 4 ? " |" : "", 100.0 * tail[b][q] / n_bin[b]);
     std::printf("\n");
   }
+  if (other_surface)
+    for (int sgn = 0; sgn < 2; ++sgn) {
+      std::printf("pixels with error %s 5 %%: the truth within 8 px holds a nearer surface (larger "
+                  "v, beyond 2 %%) %lld, a farther one %lld, none %lld; where one does, "
+                  "(v - v_true) / (v_other - v_true) < 0, 0-.2, .2-.4, .4-.6, .6-.8, .8-1, 1-1.2, "
+                  "> 1.2:",
+                  sgn ? "above +" : "below -", near_other[sgn][0], near_other[sgn][1], near_other[sgn][2]);
+      for (int q = 0; q < 8; ++q) std::printf(" %lld", near_frac[sgn][q]);
+      std::printf("\n");
+    }
   const Eigen::Vector2d core = ata_core.ldlt().solve(atb_core);
   std::printf("fit over the pixels within 2 %% of the truth: v_measured = %.4f + (1 %+.5f) v "
               "(B %+.2f %%)\n", core.x(), core.y(), 100 * (1 / (1 + core.y()) - 1));
