@@ -150,7 +150,17 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
   const VF qy = hn::Add(cy, hn::Mul(hn::Sub(y, cy), k));
   const VF tv = hn::Min(hn::Mul(v, hn::Set(df, static_cast<float>(g.type_per_unit))),
                         hn::Set(df, static_cast<float>(g.type_size - 1)));
-  const auto t = hn::GatherIndex(di, g.type_of_v, TruncInRange(di, tv));
+  const auto t_index = TruncInRange(di, tv);
+  hn::Vec<decltype(di)> t;
+  if (g.type_runs > 0) {
+    // The table's runs (TfBlendGeometry::type_runs): the same type.
+    t = hn::Set(di, g.type_run_value[0]);
+    for (int r = 1; r < g.type_runs; ++r)
+      t = hn::IfThenElse(hn::Gt(t_index, hn::Set(di, g.type_run_start[r] - 1)),
+                         hn::Set(di, g.type_run_value[r]), t);
+  } else {
+    t = hn::GatherIndex(di, g.type_of_v, t_index);
+  }
   const auto is1 = hn::Eq(t, hn::Set(di, 1));
   const auto is2 = hn::Eq(t, hn::Set(di, 2));
   // Type 2, 1, or 0 for any other: where a vector holds the three, a

@@ -54,9 +54,13 @@ HWY_INLINE int SplatVector(DF df, const TfSplatRow& r, int x0, const float* vp, 
       hn::Div(hn::Set(df, 1.0f), hn::Mul(hn::Max(hn::Set(df, 1e-12f), hn::Mul(s, s)), v));
   const VF weight = hn::Mul(weight_z, v);
   const auto t = hn::BitCast(du, hn::Add(hn::Mul(w, hn::Set(di, r.tf_width)), u));
-  hn::CompressStore(t, hn::RebindMask(du, valid), du, t_out + out);
-  hn::CompressStore(weight, valid, df, w_out + out);
-  return out + static_cast<int>(hn::CompressStore(weight_z, valid, df, wz_out + out));
+  // Compressed in registers and stored whole (the arrays have a vector's
+  // room beyond `width`): Highway's CompressStore is a masked compress to
+  // memory on AVX-512, which AMD Zen 4 runs as microcode, far slower.
+  hn::StoreU(hn::Compress(t, hn::RebindMask(du, valid)), du, t_out + out);
+  hn::StoreU(hn::Compress(weight, valid), df, w_out + out);
+  hn::StoreU(hn::Compress(weight_z, valid), df, wz_out + out);
+  return out + static_cast<int>(hn::CountTrue(df, valid));
 }
 
 int SplatRow(const TfSplatRow& r, std::uint32_t* t_out, float* w_out, float* wz_out) {

@@ -56,15 +56,24 @@ void WindowMeans(int width, int height, int radius, const std::vector<double>& w
     const double* const b = wz.data() + base;
     double* const ra = s->row_w.data() + base;
     double* const rb = s->row_wz.data() + base;
-    std::fill(ra, ra + width, 0.0);
-    std::fill(rb, rb + width, 0.0);
-    for (int d = -radius; d <= radius; ++d) {
-      // Cells x with 0 <= x + d < width.
-      const int x0 = std::max(0, -d), x1 = std::min(width, width - d);
-      for (int x = x0; x < x1; ++x) {
-        ra[x] += a[x + d];
-        rb[x] += b[x + d];
+    // In blocks of kBlock cells summed on the stack (in L1; summed in
+    // place the row was read and written 2 radius + 1 times from memory).
+    constexpr int kBlock = 256;
+    double sa[kBlock], sb[kBlock];
+    for (int b0 = 0; b0 < width; b0 += kBlock) {
+      const int n = std::min(kBlock, width - b0);
+      std::fill(sa, sa + n, 0.0);
+      std::fill(sb, sb + n, 0.0);
+      for (int d = -radius; d <= radius; ++d) {
+        // Cells x of the block with 0 <= x + d < width.
+        const int x0 = std::max(b0, -d), x1 = std::min(b0 + n, width - d);
+        for (int x = x0; x < x1; ++x) {
+          sa[x - b0] += a[x + d];
+          sb[x - b0] += b[x + d];
+        }
       }
+      std::copy(sa, sa + n, ra + b0);
+      std::copy(sb, sb + n, rb + b0);
     }
   });
   tbb::parallel_for(0, height, [&](int y) {
