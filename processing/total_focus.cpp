@@ -241,30 +241,22 @@ Status TfDepthOf(const PlenopticFrame& f, const VirtualDepthMap& raw, const Lens
   }
   double* const lens_cell_w = scratch.lens_cell_w.data();
   double* const lens_cell_wz = scratch.lens_cell_wz.data();
-  // The cell of TF pixel t = w tw + u without an integer division per
-  // splat (a few million on an R32 frame): w from the product with 1 / tw
-  // (in double, within one of t / tw for any 32-bit t), then one step
-  // either way makes it exact.
-  const double inv_tw = 1.0 / tw;
-  const std::uint32_t tw_u = static_cast<std::uint32_t>(tw);
-  auto cell_of = [inv_tw, tw_u, cw](std::uint32_t t) {
-    std::uint32_t w = static_cast<std::uint32_t>(t * inv_tw);
-    if (w * tw_u > t)
-      --w;
-    else if ((w + 1) * tw_u <= t)
-      ++w;
-    const std::uint32_t u = t - w * tw_u;
-    return static_cast<std::size_t>(w / kCell) * cw + u / kCell;
-  };
   for (int phase = 0; phase < 2; ++phase)
     tbb::parallel_for(0, (bands - phase + 1) / 2, [&](int half) {
       const int band = 2 * half + phase;
       std::vector<TfDepthMap::Scratch::Deferred>& deferred = scratch.deferred[band];
       deferred.clear();
       const int y0 = band * kBand, y1 = std::min(f.height, y0 + kBand);
-      // TF rows this band may write: its own (raw rows / 2) and kBand / 4 beyond.
-      const std::uint32_t t_lo = static_cast<std::uint32_t>(std::max(0, y0 / 2 - kBand / 4)) * tw;
-      const std::uint32_t t_hi = static_cast<std::uint32_t>(y1 / 2 + kBand / 4) * tw;
+      // TF rows this band may write: its own (raw rows / 2) and kBand / 4
+      // beyond; with the per-lens depth the rows of cells of those (the
+      // bounds are multiples of kCell, or the last band's beyond the grid).
+      const int w_lo = std::max(0, y0 / 2 - kBand / 4), w_hi = y1 / 2 + kBand / 4;
+      const std::uint32_t t_lo =
+          lens_z == nullptr ? static_cast<std::uint32_t>(w_lo) * tw
+                            : static_cast<std::uint32_t>(w_lo / kCell) * cw;
+      const std::uint32_t t_hi =
+          lens_z == nullptr ? static_cast<std::uint32_t>(w_hi) * tw
+                            : static_cast<std::uint32_t>((w_hi + kCell - 1) / kCell) * cw;
       std::uint32_t* const ts = scratch.splat_t.data() + band * row_room;
       float* const ws = scratch.splat_w.data() + band * row_room;
       float* const wzs = scratch.splat_wz.data() + band * row_room;
@@ -272,15 +264,17 @@ Status TfDepthOf(const PlenopticFrame& f, const VirtualDepthMap& raw, const Lens
       r.lens_xy = lens_xy.data();
       r.tf_width = tw;
       r.tf_height = th;
+      // With the per-lens depth the splats' cells (no per-TF-pixel sums).
+      r.cell_width = lens_z == nullptr ? 0 : cw;
+      // t: the TF pixel, or with the per-lens depth the cell.
       auto add = [&](std::uint32_t t, float w, float wz) {
         if (t >= t_lo && t < t_hi) {
           if (lens_z == nullptr) {
             sums[2 * t] += w;
             sums[2 * t + 1] += wz;
           } else {
-            const std::size_t c = cell_of(t);
-            lens_cell_w[c] += w;
-            lens_cell_wz[c] += wz;
+            lens_cell_w[t] += w;
+            lens_cell_wz[t] += wz;
           }
         } else {
           deferred.push_back({t, w, wz});
@@ -355,7 +349,8 @@ Status TfDepthOf(const PlenopticFrame& f, const VirtualDepthMap& raw, const Lens
             if (!(ur >= 0 && wr >= 0 && ur < static_cast<float>(tw) &&
                   wr < static_cast<float>(th)))
               continue;
-            add(static_cast<std::uint32_t>(static_cast<int>(wr) * tw + static_cast<int>(ur)),
+            add(static_cast<std::uint32_t>((static_cast<int>(wr) / kCell) * cw +
+                                           static_cast<int>(ur) / kCell),
                 weight, weight_z);
           }
       }
@@ -366,9 +361,8 @@ Status TfDepthOf(const PlenopticFrame& f, const VirtualDepthMap& raw, const Lens
         sums[2 * d.t] += d.w;
         sums[2 * d.t + 1] += d.wz;
       } else {
-        const std::size_t c = cell_of(d.t);
-        lens_cell_w[c] += d.w;
-        lens_cell_wz[c] += d.wz;
+        lens_cell_w[d.t] += d.w;
+        lens_cell_wz[d.t] += d.wz;
       }
     }
   out->virtual_depth.resize(tn);

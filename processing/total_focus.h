@@ -122,7 +122,7 @@ struct TfDepthMap {
     // Splats of a band of raw rows that land beyond the TF rows the band
     // may write in its phase (total_focus.cpp): added after both phases.
     struct Deferred {
-      std::uint32_t t;
+      std::uint32_t t;  // the TF pixel; with the per-lens depth the cell
       float w, wz;
     };
     std::vector<std::vector<Deferred>> deferred;
