@@ -136,6 +136,7 @@ struct TfDepthMap {
     std::vector<float> centre_x, centre_y;  // c_k
     std::vector<std::int32_t> lens_top, lens_bottom;  // raw rows of a disc r_valid + 1 around c_k
     std::vector<std::vector<std::int32_t>> band_dense, band_held, band_active;
+    std::vector<std::vector<std::int32_t>> band_spans;  // a raw row's spans to splat (x0, n)
     std::vector<double> lens_cell_w, lens_cell_wz;  // the splats' sums per cell
     std::vector<float> cell_sigma;                    // sigma_z of those splats per cell
   } scratch;
