@@ -50,54 +50,61 @@ void WindowMeans(int width, int height, int radius, const std::vector<double>& w
   s->row_w.resize(w.size());
   s->row_wz.resize(w.size());
   mean->resize(w.size());
+  // Both passes sum a row in blocks of kBlock cells kept on the stack (in
+  // L1; the row pass summed in place read and wrote the row 2 radius + 1
+  // times from memory): `add(x0, n, sa, sb)` adds the block's terms,
+  // `take(x0, n, sa, sb)` its sums.
+  constexpr int kBlock = 256;
+  auto in_blocks = [&](auto&& add, auto&& take) {
+    double sa[kBlock], sb[kBlock];
+    for (int x0 = 0; x0 < width; x0 += kBlock) {
+      const int n = std::min(kBlock, width - x0);
+      std::fill(sa, sa + n, 0.0);
+      std::fill(sb, sb + n, 0.0);
+      add(x0, n, sa, sb);
+      take(x0, n, sa, sb);
+    }
+  };
   tbb::parallel_for(0, height, [&](int y) {
     const std::size_t base = static_cast<std::size_t>(y) * width;
     const double* const a = w.data() + base;
     const double* const b = wz.data() + base;
     double* const ra = s->row_w.data() + base;
     double* const rb = s->row_wz.data() + base;
-    // In blocks of kBlock cells summed on the stack (in L1; summed in
-    // place the row was read and written 2 radius + 1 times from memory).
-    constexpr int kBlock = 256;
-    double sa[kBlock], sb[kBlock];
-    for (int b0 = 0; b0 < width; b0 += kBlock) {
-      const int n = std::min(kBlock, width - b0);
-      std::fill(sa, sa + n, 0.0);
-      std::fill(sb, sb + n, 0.0);
-      for (int d = -radius; d <= radius; ++d) {
-        // Cells x of the block with 0 <= x + d < width.
-        const int x0 = std::max(b0, -d), x1 = std::min(b0 + n, width - d);
-        for (int x = x0; x < x1; ++x) {
-          sa[x - b0] += a[x + d];
-          sb[x - b0] += b[x + d];
-        }
-      }
-      std::copy(sa, sa + n, ra + b0);
-      std::copy(sb, sb + n, rb + b0);
-    }
+    in_blocks(
+        [&](int b0, int n, double* sa, double* sb) {
+          for (int d = -radius; d <= radius; ++d) {
+            // Cells x of the block with 0 <= x + d < width.
+            const int x0 = std::max(b0, -d), x1 = std::min(b0 + n, width - d);
+            for (int x = x0; x < x1; ++x) {
+              sa[x - b0] += a[x + d];
+              sb[x - b0] += b[x + d];
+            }
+          }
+        },
+        [&](int b0, int n, const double* sa, const double* sb) {
+          std::copy(sa, sa + n, ra + b0);
+          std::copy(sb, sb + n, rb + b0);
+        });
   });
   tbb::parallel_for(0, height, [&](int y) {
-    const std::size_t base = static_cast<std::size_t>(y) * width;
-    float* const out = mean->data() + base;
+    float* const out = mean->data() + static_cast<std::size_t>(y) * width;
     const int y0 = std::max(0, y - radius), y1 = std::min(height - 1, y + radius);
-    // Column sums in blocks of kBlock cells kept on the stack.
-    constexpr int kBlock = 256;
-    double sa[kBlock], sb[kBlock];
-    for (int x0 = 0; x0 < width; x0 += kBlock) {
-      const int n = std::min(kBlock, width - x0);
-      std::fill(sa, sa + n, 0.0);
-      std::fill(sb, sb + n, 0.0);
-      for (int yy = y0; yy <= y1; ++yy) {
-        const double* const ra = s->row_w.data() + static_cast<std::size_t>(yy) * width + x0;
-        const double* const rb = s->row_wz.data() + static_cast<std::size_t>(yy) * width + x0;
-        for (int i = 0; i < n; ++i) {
-          sa[i] += ra[i];
-          sb[i] += rb[i];
-        }
-      }
-      for (int i = 0; i < n; ++i)
-        out[x0 + i] = sa[i] > 0 ? static_cast<float>(sb[i] / sa[i]) : kNaN;
-    }
+    in_blocks(
+        [&](int x0, int n, double* sa, double* sb) {
+          for (int yy = y0; yy <= y1; ++yy) {
+            const double* const ra = s->row_w.data() + static_cast<std::size_t>(yy) * width + x0;
+            const double* const rb = s->row_wz.data() + static_cast<std::size_t>(yy) * width + x0;
+            for (int i = 0; i < n; ++i) {
+              sa[i] += ra[i];
+              sb[i] += rb[i];
+            }
+          }
+        },
+        [&](int x0, int n, const double* sa, const double* sb) {
+          for (int i = 0; i < n; ++i)
+            out[x0 + i] = sa[i] > 0 ? static_cast<float>(sb[i] / sa[i]) : kNaN;
+        });
   });
 }
 
