@@ -88,30 +88,45 @@ HWY_INLINE bool MakeWindow(const TfBlendGeometry& g, const TfBlendSource& s, int
 // rows iy0 / iy0 + 1 (as the gathers read them), a_lo / a_hi and b_lo /
 // b_hi the bytes B0 G0 R0 B1 / G1 R1 of the two rows. Lane i's bytes
 // start at o = 3 rel + odd in the window: words o / 2 .. o / 2 + 3 hold
-// them, shifted down a byte where o is odd.
+// them, shifted down a byte where o is odd. kTwo: the lanes of two windows
+// wa and wb at once, those of wb (`second` 0x00200020, else 0) indexing the
+// second table of a two-source permute (bit 5 of a word index; every index
+// here is below 32), one permute per row and kind instead of one per
+// window and a blend; `odd` per lane its window's.
 struct WindowWords {
   VU16 q0, q1, a_lo, a_hi, b_lo, b_hi;
 };
-HWY_INLINE WindowWords ReadWindow(const TfBlendGeometry& g, const TfBlendSource& s,
-                                  const SampleWindow& w, VU16 rel) {
+template <bool kTwo>
+HWY_INLINE WindowWords ReadWindows(const TfBlendGeometry& g, const TfBlendSource& s,
+                                   const SampleWindow& wa, const SampleWindow& wb, VU16 rel,
+                                   VU16 odd_in, VU16 second) {
   const hn::DFromV<VU16> du;
   const VU16 one = hn::Set(du, 1u);
+  auto words_of = [](const void* a, const void* b, VU16 pair) {
+    if constexpr (kTwo) {
+      return VU16{_mm512_permutex2var_epi16(_mm512_loadu_si512(a), pair.raw,
+                                            _mm512_loadu_si512(b))};
+    } else {
+      (void)b;
+      return WordPairs(a, pair);
+    }
+  };
   WindowWords r;
-  const VU16 pair = hn::Or(rel, hn::ShiftLeft<16>(hn::Add(rel, one)));
-  r.q0 = WordPairs(w.gain, pair);
-  r.q1 = WordPairs(w.gain + g.width, pair);
-  const VU16 o = hn::Add(hn::Mul(rel, hn::Set(du, 3u)), hn::Set(du, static_cast<std::uint32_t>(w.odd)));
+  const VU16 pair = hn::Add(hn::Or(rel, hn::ShiftLeft<16>(hn::Add(rel, one))), second);
+  r.q0 = words_of(wa.gain, wb.gain, pair);
+  r.q1 = words_of(wa.gain + g.width, wb.gain + g.width, pair);
+  const VU16 o = hn::Add(hn::Mul(rel, hn::Set(du, 3u)), odd_in);
   const VU16 words = hn::ShiftRight<1>(o);
-  const VU16 pair_a = hn::Or(words, hn::ShiftLeft<16>(hn::Add(words, one)));
+  const VU16 pair_a = hn::Add(hn::Or(words, hn::ShiftLeft<16>(hn::Add(words, one))), second);
   const VU16 pair_b = hn::Add(pair_a, hn::Set(du, 0x00020002u));
   const auto odd = hn::Eq(hn::And(o, one), one);
-  auto row = [&](const std::uint8_t* bytes, VU16* lo, VU16* hi) {
-    const VU16 a = WordPairs(bytes, pair_a), b = WordPairs(bytes, pair_b);
+  auto row = [&](const std::uint8_t* bytes_a, const std::uint8_t* bytes_b, VU16* lo, VU16* hi) {
+    const VU16 a = words_of(bytes_a, bytes_b, pair_a), b = words_of(bytes_a, bytes_b, pair_b);
     *lo = hn::IfThenElse(odd, hn::Or(hn::ShiftRight<8>(a), hn::ShiftLeft<24>(b)), a);
     *hi = hn::IfThenElse(odd, hn::ShiftRight<8>(b), b);
   };
-  row(w.raw, &r.a_lo, &r.a_hi);
-  row(w.raw + s.stride_bytes, &r.b_lo, &r.b_hi);
+  row(wa.raw, wb.raw, &r.a_lo, &r.a_hi);
+  row(wa.raw + s.stride_bytes, wb.raw + s.stride_bytes, &r.b_lo, &r.b_hi);
   return r;
 }
 #endif
@@ -150,7 +165,17 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
   const VF qy = hn::Add(cy, hn::Mul(hn::Sub(y, cy), k));
   const VF tv = hn::Min(hn::Mul(v, hn::Set(df, static_cast<float>(g.type_per_unit))),
                         hn::Set(df, static_cast<float>(g.type_size - 1)));
-  const auto t = hn::GatherIndex(di, g.type_of_v, TruncInRange(di, tv));
+  const auto t_index = TruncInRange(di, tv);
+  hn::Vec<decltype(di)> t;
+  if (g.type_runs > 0) {
+    // The table's runs (TfBlendGeometry::type_runs): the same type.
+    t = hn::Set(di, g.type_run_value[0]);
+    for (int r = 1; r < g.type_runs; ++r)
+      t = hn::IfThenElse(hn::Gt(t_index, hn::Set(di, g.type_run_start[r] - 1)),
+                         hn::Set(di, g.type_run_value[r]), t);
+  } else {
+    t = hn::GatherIndex(di, g.type_of_v, t_index);
+  }
   const auto is1 = hn::Eq(t, hn::Set(di, 1));
   const auto is2 = hn::Eq(t, hn::Set(di, 2));
   // Type 2, 1, or 0 for any other: where a vector holds the three, a
@@ -251,7 +276,9 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
         SampleWindow wa, wb;
         if (hn::AllTrue(du, in_a)) {
           windowed = MakeWindow(g, s, ix_a, iy_a, &wa);
-          if (windowed) win = ReadWindow(g, s, wa, rel_a);
+          if (windowed)
+            win = ReadWindows<false>(g, s, wa, wa, rel_a,
+                                     hn::Set(du, static_cast<std::uint32_t>(wa.odd)), hn::Zero(du));
         } else {
           // The first lane outside: compressed to lane 0 (in registers,
           // not through memory as a variable lane index would be).
@@ -265,16 +292,12 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
           windowed = hn::AllTrue(du, hn::Or(in_a, in_b)) && MakeWindow(g, s, ix_a, iy_a, &wa) &&
                      MakeWindow(g, s, ix_b, iy_b, &wb);
           if (windowed) {
-            // Each lane takes its window's words (the other's are
-            // permutes of indices wrapped to the window: unused).
-            const WindowWords ra = ReadWindow(g, s, wa, rel_a);
-            const WindowWords rb = ReadWindow(g, s, wb, rel_b);
-            win.q0 = hn::IfThenElse(in_a, ra.q0, rb.q0);
-            win.q1 = hn::IfThenElse(in_a, ra.q1, rb.q1);
-            win.a_lo = hn::IfThenElse(in_a, ra.a_lo, rb.a_lo);
-            win.a_hi = hn::IfThenElse(in_a, ra.a_hi, rb.a_hi);
-            win.b_lo = hn::IfThenElse(in_a, ra.b_lo, rb.b_lo);
-            win.b_hi = hn::IfThenElse(in_a, ra.b_hi, rb.b_hi);
+            // Each lane its window's rel, byte parity and table.
+            const VU16 rel = hn::IfThenElse(in_a, rel_a, rel_b);
+            const VU16 odd_in = hn::IfThenElse(in_a, hn::Set(du, static_cast<std::uint32_t>(wa.odd)),
+                                               hn::Set(du, static_cast<std::uint32_t>(wb.odd)));
+            const VU16 second = hn::IfThenZeroElse(in_a, hn::Set(du, 0x00200020u));
+            win = ReadWindows<true>(g, s, wa, wb, rel, odd_in, second);
           }
         }
       }

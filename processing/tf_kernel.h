@@ -184,6 +184,7 @@ class TfKernel {
     g.type_of_v = type_of_v_.data();
     g.type_per_unit = SharpTypeTable::kPerUnit;
     g.type_size = SharpTypeTable::kSize;
+    SetTypeRuns(&g);
     return g;
   }
 

@@ -35,10 +35,18 @@ HWY_INLINE int SplatVector(DF df, const TfSplatRow& r, int x0, const float* vp, 
   const auto k = hn::LoadU(di, kp);
   auto valid = hn::AndNot(hn::IsNaN(v), hn::RebindMask(df, hn::Gt(k, hn::Set(di, -1))));
   if (hn::AllFalse(df, valid)) return out;
-  // Lanes without a lens read l_0 and are dropped.
-  const auto k2 = hn::IfThenElseZero(hn::RebindMask(di, valid), hn::Add(k, k));
-  const VF lx = hn::GatherIndex(df, r.lens_xy, k2);
-  const VF ly = hn::GatherIndex(df, r.lens_xy, hn::Add(k2, hn::Set(di, 1)));
+  VF lx, ly;
+  const std::int32_t k_first = hn::GetLane(k);
+  if (hn::AllTrue(di, hn::Eq(k, hn::Set(di, k_first)))) {
+    // One micro image (not -1: some lane is valid): its l_k, not gathered.
+    lx = hn::Set(df, r.lens_xy[2 * k_first]);
+    ly = hn::Set(df, r.lens_xy[2 * k_first + 1]);
+  } else {
+    // Lanes without a lens read l_0 and are dropped.
+    const auto k2 = hn::IfThenElseZero(hn::RebindMask(di, valid), hn::Add(k, k));
+    lx = hn::GatherIndex(df, r.lens_xy, k2);
+    ly = hn::GatherIndex(df, r.lens_xy, hn::Add(k2, hn::Set(di, 1)));
+  }
   const VF x = hn::Add(hn::Set(df, static_cast<float>(r.x0 + x0)), hn::Iota(df, 0.0f));
   const VF xv = hn::Add(lx, hn::Mul(v, hn::Sub(x, lx)));
   const VF yv = hn::Add(ly, hn::Mul(v, hn::Sub(hn::Set(df, static_cast<float>(r.y)), ly)));
@@ -53,10 +61,17 @@ HWY_INLINE int SplatVector(DF df, const TfSplatRow& r, int x0, const float* vp, 
   const VF weight_z =
       hn::Div(hn::Set(df, 1.0f), hn::Mul(hn::Max(hn::Set(df, 1e-12f), hn::Mul(s, s)), v));
   const VF weight = hn::Mul(weight_z, v);
-  const auto t = hn::BitCast(du, hn::Add(hn::Mul(w, hn::Set(di, r.tf_width)), u));
-  hn::CompressStore(t, hn::RebindMask(du, valid), du, t_out + out);
-  hn::CompressStore(weight, valid, df, w_out + out);
-  return out + static_cast<int>(hn::CompressStore(weight_z, valid, df, wz_out + out));
+  const auto t = hn::BitCast(
+      du, r.cell_width > 0
+              ? hn::Add(hn::Mul(hn::ShiftRight<2>(w), hn::Set(di, r.cell_width)), hn::ShiftRight<2>(u))
+              : hn::Add(hn::Mul(w, hn::Set(di, r.tf_width)), u));
+  // Compressed in registers and stored whole (the arrays have a vector's
+  // room beyond `width`): Highway's CompressStore is a masked compress to
+  // memory on AVX-512, which AMD Zen 4 runs as microcode, far slower.
+  hn::StoreU(hn::Compress(t, hn::RebindMask(du, valid)), du, t_out + out);
+  hn::StoreU(hn::Compress(weight, valid), df, w_out + out);
+  hn::StoreU(hn::Compress(weight_z, valid), df, wz_out + out);
+  return out + static_cast<int>(hn::CountTrue(df, valid));
 }
 
 int SplatRow(const TfSplatRow& r, std::uint32_t* t_out, float* w_out, float* wz_out) {
@@ -109,7 +124,8 @@ int ScalarSplatRow(const TfSplatRow& r, std::uint32_t* t_out, float* w_out, floa
     const int u = static_cast<int>(ur), w = static_cast<int>(wr);
     const float s = r.sigma_z[x];
     const float weight_z = 1.0f / (std::max(1e-12f, s * s) * v);
-    t_out[out] = static_cast<std::uint32_t>(w * r.tf_width + u);
+    t_out[out] = static_cast<std::uint32_t>(r.cell_width > 0 ? (w / 4) * r.cell_width + u / 4
+                                                             : w * r.tf_width + u);
     w_out[out] = weight_z * v;
     wz_out[out] = weight_z;
     ++out;

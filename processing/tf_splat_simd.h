@@ -12,6 +12,9 @@
 // it is off the grid and dropped); its weight 1 / sigma_z^2 and weight z =
 // weight / v, as 1 / (max(1e-12, sigma_z^2) v) times v. The splats are
 // written compacted, in the order of x: the caller adds them to its sums.
+// Where a vector's pixels are all of one micro image (a chord of it, as the
+// TF depth from the per-lens depth splats) its l_k is read once, not
+// gathered: the same values.
 
 #include <cstdint>
 
@@ -26,9 +29,14 @@ struct TfSplatRow {
   int width = 0;                       // pixels of the row (x = x0 .. x0 + width - 1)
   int y = 0;                           // the raw row
   int tf_width = 0, tf_height = 0;
+  // Above 0: t is the splat's cell of 4 x 4 TF pixels, (w / 4) cell_width +
+  // u / 4, instead of its TF pixel (the sums per cell of the TF depth from
+  // the per-lens depth).
+  int cell_width = 0;
 };
 
-// Writes the splats of the row that land on the TF grid (t = w tf_width + u,
+// Writes the splats of the row that land on the TF grid (t = w tf_width + u
+// or the cell,
 // weight, weight z; room for `width` of each, and one vector more for the
 // kernel's whole-vector stores) and returns how many.
 using TfSplatRowFn = int (*)(const TfSplatRow& row, std::uint32_t* t, float* weight,

@@ -122,7 +122,7 @@ struct TfDepthMap {
     // Splats of a band of raw rows that land beyond the TF rows the band
     // may write in its phase (total_focus.cpp): added after both phases.
     struct Deferred {
-      std::uint32_t t;
+      std::uint32_t t;  // the TF pixel; with the per-lens depth the cell
       float w, wz;
     };
     std::vector<std::vector<Deferred>> deferred;
@@ -136,6 +136,7 @@ struct TfDepthMap {
     std::vector<float> centre_x, centre_y;  // c_k
     std::vector<std::int32_t> lens_top, lens_bottom;  // raw rows of a disc r_valid + 1 around c_k
     std::vector<std::vector<std::int32_t>> band_dense, band_held, band_active;
+    std::vector<std::vector<std::int32_t>> band_spans;  // a raw row's spans to splat (x0, n)
     std::vector<double> lens_cell_w, lens_cell_wz;  // the splats' sums per cell
     std::vector<float> cell_sigma;                    // sigma_z of those splats per cell
   } scratch;

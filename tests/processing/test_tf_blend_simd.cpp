@@ -77,8 +77,31 @@ RandomCase MakeCase(std::mt19937& rng, int channels, bool in_16_bits, bool large
   g.type_per_unit = 8;
   g.type_size = 64 * 8;
   c.types.resize(g.type_size);
-  for (std::int32_t& t : c.types) t = static_cast<std::int32_t>(rng() % 3);
+  if (rng() % 2 == 0) {
+    // Random types (gathered by the kernel), or runs of one type, 1 to
+    // kMaxTypeRuns of them, as the sharp type's table has (compares).
+    for (std::int32_t& t : c.types) t = static_cast<std::int32_t>(rng() % 3);
+  } else {
+    // Their starts within v 1..10 (the runs' depths).
+    const int runs = 1 + static_cast<int>(rng() % TfBlendGeometry::kMaxTypeRuns);
+    std::vector<int> starts;
+    while (static_cast<int>(starts.size()) < runs - 1) {
+      const int at = std::uniform_int_distribution<int>(g.type_per_unit, 10 * g.type_per_unit)(rng);
+      if (std::find(starts.begin(), starts.end(), at) == starts.end()) starts.push_back(at);
+    }
+    std::sort(starts.begin(), starts.end());
+    std::int32_t type = static_cast<std::int32_t>(rng() % 3);
+    std::size_t next = 0;
+    for (int i = 0; i < g.type_size; ++i) {
+      if (next < starts.size() && i == starts[next]) {
+        type = (type + 1 + static_cast<std::int32_t>(rng() % 2)) % 3;
+        ++next;
+      }
+      c.types[i] = type;
+    }
+  }
   g.type_of_v = c.types.data();
+  SetTypeRuns(&g);
   // The plain barycentric weights in a third of the cases, else a floor
   // (the TF image's) in (0, 0.3).
   g.bary_floor = rng() % 3 == 0 ? 0.0f : 0.3f * unit(rng);
@@ -233,6 +256,28 @@ TEST_F(TfBlendKernelsTest, BytesMatchTheScalarReferenceOnEveryTarget) {
     EXPECT_GT(clipped, 0) << simd.name;
     EXPECT_GT(unseen, 0) << simd.name;
   });
+}
+
+// The type table as runs (TfBlendGeometry::type_runs): the starts and types
+// of a table of few runs, none for a table of more than kMaxTypeRuns.
+TEST(TfBlendTypeRuns, RunsOfTheTableOrNone) {
+  std::vector<std::int32_t> types(64, 2);
+  std::fill(types.begin() + 10, types.begin() + 30, 0);
+  std::fill(types.begin() + 30, types.end(), 1);
+  TfBlendGeometry g;
+  g.type_of_v = types.data();
+  g.type_size = static_cast<int>(types.size());
+  SetTypeRuns(&g);
+  ASSERT_EQ(g.type_runs, 3);
+  EXPECT_EQ(g.type_run_start[0], 0);
+  EXPECT_EQ(g.type_run_value[0], 2);
+  EXPECT_EQ(g.type_run_start[1], 10);
+  EXPECT_EQ(g.type_run_value[1], 0);
+  EXPECT_EQ(g.type_run_start[2], 30);
+  EXPECT_EQ(g.type_run_value[2], 1);
+  for (int i = 0; i < 2 * TfBlendGeometry::kMaxTypeRuns; ++i) types[i] = i % 3;
+  SetTypeRuns(&g);
+  EXPECT_EQ(g.type_runs, 0);
 }
 
 }  // namespace

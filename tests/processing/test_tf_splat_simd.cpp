@@ -77,6 +77,14 @@ TEST_F(TfSplatKernelsTest, ASplatWorkedOutByHand) {
     ASSERT_EQ(o.n, 1) << k->name;
     EXPECT_EQ(o.t[0], 26u * 100u + 3u) << k->name;
   }
+  // Its cell of 4 x 4 TF pixels, (26 / 4) 25 + 3 / 4, where cells are asked for.
+  TfSplatRow cells = row;
+  cells.cell_width = 25;
+  for (const TfSplatKernels* k : {&ScalarTfSplatKernels(), &SimdTfSplatKernels()}) {
+    const Output o = Splat(*k, cells);
+    ASSERT_EQ(o.n, 1) << k->name;
+    EXPECT_EQ(o.t[0], 6u * 25u) << k->name;
+  }
   // Off the grid below (w = 26 >= tf_height 20): dropped.
   row.tf_height = 20;
   for (const TfSplatKernels* k : {&ScalarTfSplatKernels(), &SimdTfSplatKernels()})
@@ -108,6 +116,12 @@ TEST_F(TfSplatKernelsTest, RowsMatchTheScalarReferenceOnEveryTarget) {
         sigma[x] = rng() % 50 == 0 ? 0.0f : 1e-3f + 0.05f * unit(rng);
         lens[x] = rng() % 7 == 0 ? -1 : static_cast<std::int32_t>(rng() % lenses);
       }
+      // A third of the rows one micro image's pixels (its l_k read once),
+      // with a few of another.
+      if (trial % 3 == 0) {
+        const std::int32_t one = std::max(0, lens[0]);
+        for (int x = 0; x < width; ++x) lens[x] = rng() % 40 == 0 ? (one + 1) % lenses : one;
+      }
       TfSplatRow row;
       row.v = v.data();
       row.sigma_z = sigma.data();
@@ -120,6 +134,8 @@ TEST_F(TfSplatKernelsTest, RowsMatchTheScalarReferenceOnEveryTarget) {
       // A TF grid smaller than the row's reach: splats off it on either side.
       row.tf_width = std::max(1, static_cast<int>(width * (0.2f + 0.5f * unit(rng))));
       row.tf_height = std::uniform_int_distribution<int>(5, 40)(rng);
+      // The cells of 4 x 4 TF pixels in half the trials.
+      row.cell_width = trial % 2 == 0 ? 0 : (row.tf_width + 3) / 4;
       const Output a = Splat(scalar, row), b = Splat(simd, row);
       ASSERT_EQ(b.n, a.n) << hwy::TargetName(target) << " trial " << trial;
       for (int i = 0; i < a.n; ++i) {
@@ -128,7 +144,9 @@ TEST_F(TfSplatKernelsTest, RowsMatchTheScalarReferenceOnEveryTarget) {
         ASSERT_TRUE(Close(b.w[i], a.w[i]) && Close(b.wz[i], a.wz[i]))
             << hwy::TargetName(target) << " trial " << trial << " splat " << i << ": " << b.w[i]
             << " " << b.wz[i] << " vs scalar " << a.w[i] << " " << a.wz[i];
-        ASSERT_LT(a.t[i], static_cast<std::uint32_t>(row.tf_width * row.tf_height));
+        ASSERT_LT(a.t[i], static_cast<std::uint32_t>(
+                              row.cell_width > 0 ? row.cell_width * ((row.tf_height + 3) / 4)
+                                                 : row.tf_width * row.tf_height));
       }
       splats += a.n;
       pixels += width;
