@@ -129,13 +129,18 @@ struct GuidedMatchOptions {
   // the extrinsics (1.30 and 1.60 against 2.75 and 3.75 per second per
   // camera) and was not more accurate there (0.566 and 0.966 against 0.738
   // and 0.693 mm): its 40-50 ms a re-anchoring more pushed frames into
-  // relocalisations. On by default with a refined camera re-anchored half as often
+  // relocalisations. With a refined camera re-anchored half as often
   // (LocalizerOptions::reanchor_every_refined 8): r32 frame by frame 0.251
   // mm / 0.0165 deg median against 0.633 mm / 0.0374 deg for the same CPU
   // a frame (76 against 79 CPU-ms; camera X's own rotation error 0.013
-  // against 0.032 deg: the step-4 keypoints were most of it;
-  // docs/registration.md). small and medium are not refined (steps 2, 3).
-  int refine_step = 2;
+  // against 0.032 deg: the step-4 keypoints were most of it), but live
+  // (bench_live --preset r32 --frames 8, three runs each alternately, load
+  // average 0.8-3.6) 2.05, 3.95 and 2.55 extrinsics/s per camera at 0.603,
+  // 0.371 and 0.888 mm / 0.0455, 0.0232 and 0.0584 deg median against 3.30,
+  // 3.44 and 3.19 at 0.500, 0.628 and 0.546 mm / 0.0405, 0.0346 and 0.0392
+  // deg unrefined: not better live, so off (docs/registration.md). small
+  // and medium are not refined either way (steps 2, 3).
+  int refine_step = 0;
   int refine_from_step = 4;        // > refine_step
   int refine_max_half = 16;        // >= 4
   double refine_reach = 1;         // coarse render px (> 0)
