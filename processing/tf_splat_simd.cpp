@@ -61,10 +61,11 @@ HWY_INLINE int SplatVector(DF df, const TfSplatRow& r, int x0, const float* vp, 
   const VF weight_z =
       hn::Div(hn::Set(df, 1.0f), hn::Mul(hn::Max(hn::Set(df, 1e-12f), hn::Mul(s, s)), v));
   const VF weight = hn::Mul(weight_z, v);
+  static_assert(TfSplatRow::kCellPx == 4, "the cell's shifts below divide by 4");
   const auto t = hn::BitCast(
-      du, r.cell_width > 0
-              ? hn::Add(hn::Mul(hn::ShiftRight<2>(w), hn::Set(di, r.cell_width)), hn::ShiftRight<2>(u))
-              : hn::Add(hn::Mul(w, hn::Set(di, r.tf_width)), u));
+      du, r.cell_width > 0 ? hn::Add(hn::Mul(hn::ShiftRight<2>(w), hn::Set(di, r.cell_width)),
+                                     hn::ShiftRight<2>(u))
+                           : hn::Add(hn::Mul(w, hn::Set(di, r.tf_width)), u));
   // Compressed in registers and stored whole (the arrays have a vector's
   // room beyond `width`): Highway's CompressStore is a masked compress to
   // memory on AVX-512, which AMD Zen 4 runs as microcode, far slower.
@@ -124,8 +125,9 @@ int ScalarSplatRow(const TfSplatRow& r, std::uint32_t* t_out, float* w_out, floa
     const int u = static_cast<int>(ur), w = static_cast<int>(wr);
     const float s = r.sigma_z[x];
     const float weight_z = 1.0f / (std::max(1e-12f, s * s) * v);
-    t_out[out] = static_cast<std::uint32_t>(r.cell_width > 0 ? (w / 4) * r.cell_width + u / 4
-                                                             : w * r.tf_width + u);
+    constexpr int kCell = TfSplatRow::kCellPx;
+    t_out[out] = static_cast<std::uint32_t>(
+        r.cell_width > 0 ? (w / kCell) * r.cell_width + u / kCell : w * r.tf_width + u);
     w_out[out] = weight_z * v;
     wz_out[out] = weight_z;
     ++out;

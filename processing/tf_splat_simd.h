@@ -29,9 +29,10 @@ struct TfSplatRow {
   int width = 0;                       // pixels of the row (x = x0 .. x0 + width - 1)
   int y = 0;                           // the raw row
   int tf_width = 0, tf_height = 0;
-  // Above 0: t is the splat's cell of 4 x 4 TF pixels, (w / 4) cell_width +
-  // u / 4, instead of its TF pixel (the sums per cell of the TF depth from
-  // the per-lens depth).
+  // Above 0: t is the splat's cell of kCellPx x kCellPx TF pixels,
+  // (w / kCellPx) cell_width + u / kCellPx, instead of its TF pixel (the
+  // sums per cell of the TF depth from the per-lens depth).
+  static constexpr int kCellPx = 4;
   int cell_width = 0;
 };
 

@@ -164,7 +164,7 @@ Status TfDepthOf(const PlenopticFrame& f, const VirtualDepthMap& raw, const Lens
   }
   float* const sums = sum_vec.data();
   // Regularisation on a grid of kCell x kCell TF pixels (below).
-  constexpr int kCell = 4;
+  constexpr int kCell = detail::TfSplatRow::kCellPx;
   const int cw = (tw + kCell - 1) / kCell, ch = (th + kCell - 1) / kCell;
   const std::size_t cn = static_cast<std::size_t>(cw) * ch;
   std::vector<double>& cell_w = scratch.cell_w;

@@ -1132,7 +1132,8 @@ std::string PipelineReport::FinalReport() const {
                   static_cast<unsigned long long>(lens_skipped),
                   static_cast<unsigned long long>(lens_failed), per(lens_cpu_s, lens_frames),
                   per(lens_depth_cpu_s, lens_frames), per(lens_preview_cpu_s, lens_frames),
-                  per(lens_encode_cpu_s, lens_frames), per(lens_depth_s, lens_frames), per(lens_preview_s, lens_frames),
+                  per(lens_encode_cpu_s, lens_frames), per(lens_depth_s, lens_frames),
+                  per(lens_preview_s, lens_frames),
                   per(lens_encode_s, lens_frames), static_cast<unsigned long long>(lens_replaced),
                   static_cast<unsigned long long>(lens_stale));
     out << line;
