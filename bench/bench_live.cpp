@@ -18,8 +18,8 @@
 //                N-2 .. 1 0 1 .., as one sequence whose trigger index keeps
 //                increasing: the cameras move on continuously as a live rig
 //                does (they only turn round at each end). The sequence is a
-//                folder of links to the rendered frames (DIR/pingpong, the
-//                calibration linked beside it), long enough for --seconds at
+//                folder of links to the rendered frames (a folder of the run's own
+//                under /tmp, removed when it ends; the calibration linked beside it), long enough for --seconds at
 //                10 Hz; the replay loops it only beyond that.
 //   restart      the rendered sequence looped: at each pass's first trigger
 //                both cameras jump from the last frame's pose back to the
@@ -573,7 +573,8 @@ constexpr char kUsage[] =
     "depth lane computes at nice 19 instead of under SCHED_IDLE (1, the default).\n"
     "--loop pingpong (the default): the rendered frames forward then backward, 0 .. N-1 ..\n"
     "0 .., as one sequence whose trigger index keeps increasing (a rig moving on\n"
-    "continuously; links to the frames in DIR/pingpong); restart: the frames looped from\n"
+    "continuously; links to the frames in a folder of the run's\n"
+    "own under /tmp, removed at its end); restart: the frames looped from\n"
     "0 again, so both cameras jump back and are relocalised at each pass's first trigger.\n"
     "--cold-reanchor-rounds R: a camera's first pose (relocalised without a pose)\n"
     "re-anchored in its own frame in R rounds of guided matching (the localizer's\n"
@@ -669,9 +670,26 @@ int main(int argc, char** argv) {
   // The replayed sequence: the rendered one, or its pingpong of links long
   // enough for a run's window (and a margin: the replay loops it beyond).
   fs::path replayed = sequence_dir;
+  fs::path pingpong_root;
+  struct RemoveOnExit {
+    const fs::path& path;
+    ~RemoveOnExit() {
+      std::error_code ec;
+      if (!path.empty()) fs::remove_all(path, ec);
+    }
+  } remove_pingpong{pingpong_root};
   if (args.pingpong) {
     const auto triggers = static_cast<std::int64_t>(std::ceil(args.seconds * 10)) + 2 * args.frames;
-    auto written = WritePingPongSequence(args, sequence_dir, *serials, dir / "pingpong", triggers);
+    // Links in a folder of this run's own, removed when the run ends: a kept
+    // rig (--keep) stays as rendered, and runs on the same rig at once do not
+    // empty each other's links.
+    char links_tmpl[] = "/tmp/lifmcr-bench-live-pingpong-XXXXXX";
+    if (!mkdtemp(links_tmpl)) {
+      std::fprintf(stderr, "bench_live: cannot create %s: %s\n", links_tmpl, std::strerror(errno));
+      return 3;
+    }
+    pingpong_root = links_tmpl;
+    auto written = WritePingPongSequence(args, sequence_dir, *serials, pingpong_root, triggers);
     if (!written) {
       std::fprintf(stderr, "%s\n", written.error().message.c_str());
       return 3;
