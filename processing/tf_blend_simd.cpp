@@ -12,6 +12,8 @@
 
 #include "processing/tf_blend_simd.h"
 
+#include <hwy/cache_control.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -81,6 +83,16 @@ HWY_INLINE bool MakeWindow(const TfBlendGeometry& g, const TfBlendSource& s, int
   w->gain = s.gain16 + static_cast<std::size_t>(iy0) * g.width + (ix0 - 2);
   w->raw = s.raw + static_cast<std::size_t>(iy0) * s.stride_bytes + raw_start;
   w->odd = ix0 & 1;
+  // The row the next TF rows sample after this pair (they move down by
+  // 2 / v raw rows per TF row): prefetched while this one is blended.
+  if (iy0 + 3 < g.height) {
+    const std::uint8_t* raw_next = w->raw + 2 * s.stride_bytes;
+    const auto* gain_next = reinterpret_cast<const std::uint8_t*>(w->gain + 2 * g.width);
+    hwy::Prefetch(raw_next);
+    hwy::Prefetch(raw_next + 63);
+    hwy::Prefetch(gain_next);
+    hwy::Prefetch(gain_next + 63);
+  }
   return true;
 }
 

@@ -20,7 +20,8 @@
 // neighbours, where the three see nothing: sw = 0) is left to the caller.
 // On AVX-512 (BGR, the 16-bit gain) a lens's samples of a vector whose
 // lanes lie in one or two 64-byte windows of a raw row pair are read from
-// those windows by word permutes instead of gathers: the same values.
+// those windows by word permutes instead of gathers: the same values; the
+// same bytes two raw rows down are prefetched then (the next TF rows' reads).
 
 #include <cstddef>
 #include <cstdint>
