@@ -39,7 +39,10 @@
 // second (with a
 // registration stage the depth lane's, apps/pipeline/pipeline.h), the
 // per-lens depth maps and TF images per second (every frame taken), and
-// Localize's mean time tracked vs relocalised. Ratios: track / relocalise
+// Localize's mean time tracked vs relocalised. The extrinsics rate also per
+// second of frames in (the span from the first frame in to the last, without
+// the set-up before the first frame), which the track run's gates line
+// (PrintGates) judges. Ratios: track / relocalise
 // extrinsics rate and latency; depth maps published track / depth only
 // (what localising every frame costs the depth lane).
 // Accuracy (track and relocalise runs): each extrinsics message received in
@@ -308,10 +311,11 @@ struct RunFigures {
   Accuracy accuracy;
   double HzPerCamera() const { return PerCamera(window_s); }
   // Over the span from the first frame in to the last: the window less the
-  // set-up before the first frame (0.5-2.5 s of a 20 s window on a quiet
-  // machine, more under load), when no trigger can have extrinsics. The
-  // span ends with the last frame in, at or after the window's end, so this
-  // rate does not count triggers the window did not take.
+  // set-up before the first frame (at least 1.1-2.1 s of a 20 s window at
+  // medium, 4.8-8.6 s at r32 on a quiet machine, more under load), when no
+  // trigger can have extrinsics. The span ends with the last frame in, at or
+  // after the window's end, so this rate does not count triggers the window
+  // did not take.
   double HzPerCameraOfFramesIn() const { return PerCamera(frames_in_span_s); }
   double PerCamera(double seconds) const {
     if (extrinsics_ok.empty() || seconds <= 0) return 0;
@@ -330,7 +334,8 @@ double Ratio(double a, double b) { return b > 0 ? a / b : 0.0; }
 // so the window's first and last quarters of triggers compare whichever
 // frames each holds; here each rendered frame's median error in the last
 // quarter is set against its median in the first, over the frames seen in
-// both, and the means over those frames compared.
+// both, and the medians over those frames compared (a median: trigger 0,
+// relocalised without a pose, is one frame's outlier).
 struct Drift {
   int frames = 0;
   double first_mm = 0, last_mm = 0, first_deg = 0, last_deg = 0;
@@ -351,20 +356,21 @@ Drift DriftOf(const Accuracy& a) {
     last[l.frame].t_mm.push_back(l.t_mm);
     last[l.frame].r_deg.push_back(l.r_deg);
   }
+  Accuracy::Errors early_by_frame, late_by_frame;  // each frame's median
   for (const auto& [frame, early] : first) {
     const auto late = last.find(frame);
     if (late == last.end()) continue;
     ++d.frames;
-    d.first_mm += Percentile(early.t_mm, 0.5);
-    d.first_deg += Percentile(early.r_deg, 0.5);
-    d.last_mm += Percentile(late->second.t_mm, 0.5);
-    d.last_deg += Percentile(late->second.r_deg, 0.5);
+    early_by_frame.t_mm.push_back(Percentile(early.t_mm, 0.5));
+    early_by_frame.r_deg.push_back(Percentile(early.r_deg, 0.5));
+    late_by_frame.t_mm.push_back(Percentile(late->second.t_mm, 0.5));
+    late_by_frame.r_deg.push_back(Percentile(late->second.r_deg, 0.5));
   }
   if (d.frames > 0) {
-    d.first_mm /= d.frames;
-    d.first_deg /= d.frames;
-    d.last_mm /= d.frames;
-    d.last_deg /= d.frames;
+    d.first_mm = Percentile(early_by_frame.t_mm, 0.5);
+    d.first_deg = Percentile(early_by_frame.r_deg, 0.5);
+    d.last_mm = Percentile(late_by_frame.t_mm, 0.5);
+    d.last_deg = Percentile(late_by_frame.r_deg, 0.5);
   }
   return d;
 }
@@ -437,9 +443,9 @@ void PrintAccuracy(const Accuracy& a, std::int64_t pass_triggers) {
                 Percentile(first, 0.5) > 0 ? Percentile(last, 0.5) / Percentile(first, 0.5) : 0.0);
     const Drift d = DriftOf(a);
     if (d.frames > 0)
-      std::printf("           drift, the same frames early and late: mean over %d rendered frames "
-                  "of each frame's median in the first / last quarter %.3f / %.3f mm, %.4f / "
-                  "%.4f deg (last / first %.2f, %.2f)\n",
+      std::printf("           drift, the same frames early and late: median over %d rendered "
+                  "frames of each frame's median in the first / last quarter %.3f / %.3f mm, "
+                  "%.4f / %.4f deg (last / first %.2f, %.2f)\n",
                   d.frames, d.first_mm, d.last_mm, d.first_deg, d.last_deg,
                   Ratio(d.last_mm, d.first_mm), Ratio(d.last_deg, d.first_deg));
   }
@@ -467,7 +473,8 @@ void PrintGates(const std::string& preset, const RunFigures& f) {
   if (!r32) {
     const Drift d = DriftOf(f.accuracy);
     const double ratio = std::max(Ratio(d.last_mm, d.first_mm), Ratio(d.last_deg, d.first_deg));
-    std::printf("; drift last / first %.2f <= 1.2 %s", ratio, verdict(d.frames > 0 && ratio <= 1.2));
+    std::printf("; drift last / first %.2f <= 1.2 %s", ratio,
+                verdict(d.frames > 0 && ratio <= 1.2));
   }
   std::printf("\n");
 }
