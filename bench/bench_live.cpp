@@ -473,8 +473,10 @@ void PrintGates(const std::string& preset, const RunFigures& f) {
   if (!r32) {
     const Drift d = DriftOf(f.accuracy);
     const double ratio = std::max(Ratio(d.last_mm, d.first_mm), Ratio(d.last_deg, d.first_deg));
-    std::printf("; drift last / first %.2f <= 1.2 %s", ratio,
-                verdict(d.frames > 0 && ratio <= 1.2));
+    if (d.frames > 0)
+      std::printf("; drift last / first %.2f <= 1.2 %s", ratio, verdict(ratio <= 1.2));
+    else
+      std::printf("; drift not measured (no frame in both quarters)");
   }
   std::printf("\n");
 }
