@@ -1453,7 +1453,12 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
     // First and last: the passes' first and last 3 frames (restart), the
     // first and last quarter of the triggers (pingpong: does the error grow
     // as the rig moves on?).
-    std::vector<double> all, first, last;
+    // Forward and back, also each view's median in the first quarter
+    // against its median in the last, the medians over the views in both
+    // (bench_live's drift figure: the quarters hold different mixes of
+    // views, and the error differs by view).
+    std::vector<double> all, all_deg, first, last;
+    std::map<std::int64_t, std::vector<double>> first_by_view, last_by_view;
     double trigger0_mm = -1;  // -1: trigger 0 not localised by both cameras
     for (const auto& [k, poses] : ok) {
       if (poses.size() != 2) continue;
@@ -1463,13 +1468,31 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
       const double e = TranslationDifference(estimate, truth);
       if (k == 0) trigger0_mm = e;
       all.push_back(e);
+      all_deg.push_back(RotationDifferenceDeg(estimate, truth));
       if (pingpong ? 4 * k < triggers : view < 3) first.push_back(e);
       if (pingpong ? 4 * k >= 3 * triggers : view >= frames - 3) last.push_back(e);
+      if (4 * k < triggers) first_by_view[view].push_back(e);
+      if (4 * k >= 3 * triggers) last_by_view[view].push_back(e);
     }
+    std::vector<double> early_by_view, late_by_view;  // each view's median
+    for (const auto& [view, early] : first_by_view) {
+      const auto late = last_by_view.find(view);
+      if (late == last_by_view.end()) continue;
+      early_by_view.push_back(Median(early));
+      late_by_view.push_back(Median(late->second));
+    }
+    const int drift_views = static_cast<int>(early_by_view.size());
+    const double drift_first = Median(early_by_view), drift_last = Median(late_by_view);
     out.rate = static_cast<double>(all.size()) / seconds;
     out.median = Median(all);
     out.first = Median(first);
     out.last = Median(last);
+    if (pingpong && drift_views > 0)
+      std::printf("%s: rotation median %.4f deg; drift, the same views early and late: median "
+                  "over %d views of each view's median in the first / last quarter of the "
+                  "triggers %.3f / %.3f mm (last / first %.2f)\n",
+                  name, Median(all_deg), drift_views, drift_first, drift_last,
+                  drift_first > 0 ? drift_last / drift_first : 0.0);
     std::string cpu_line;
     for (const auto& [how, sum_n] : out.cpu) {
       char cell[64];
