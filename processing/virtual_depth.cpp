@@ -539,8 +539,14 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       search_failed[local] = 1;  // until an estimate passes
       estimates.n = 0;
       // Reference patches per axis, sampled along the unflipped direction;
-      // a flipped neighbour reads it reversed ((a, b) -> (-a, -b)).
-      std::array<std::int8_t, 6> patch_state{};  // 0 not yet, 1 valid, 2 invalid
+      // a flipped neighbour reads it reversed ((a, b) -> (-a, -b)). A
+      // one-line search reads only the patch's middle line, so that line is
+      // sampled alone until a 5 x 3 search asks for the rest (most seeded
+      // pixels search one line only: two thirds of their reference samples
+      // were never read), and its validity is its own five samples'.
+      // States: 0 not yet, 1 valid, 2 invalid; line_state for the middle
+      // line, patch_state for the whole patch.
+      std::array<std::int8_t, 6> patch_state{}, line_state{};
       std::array<std::array<float, kSamples>, 6> patch_cache;
       std::array<double, 6> g2_cache;
       // one_line: a 5 x 1 patch (the seeded window's ring-1 search, ring 2
@@ -548,17 +554,18 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       auto match = [&](const detail::MatchParams& params, const Neighbour& nb, double z0,
                        double z1, bool one_line = false) {
         std::array<float, kSamples>& cached = patch_cache[nb.axis];
-        if (patch_state[nb.axis] == 0) {
-          const float e_x = nb.flipped ? -nb.e_x : nb.e_x;
-          const float e_y = nb.flipped ? -nb.e_y : nb.e_y;
-          const bool ok =
-              detail::SampleReference(grey, w, h, static_cast<float>(x), static_cast<float>(y),
-                                      e_x, e_y, cx, cy, ref_r2, cached.data());
-          patch_state[nb.axis] = ok ? 1 : 2;
-          g2_cache[nb.axis] = ok ? detail::PatchGradient2(cached.data()) : 0.0;
-        }
-        if (patch_state[nb.axis] != 1) return;
+        const float e_x = nb.flipped ? -nb.e_x : nb.e_x;
+        const float e_y = nb.flipped ? -nb.e_y : nb.e_y;
         if (one_line) {
+          if (line_state[nb.axis] == 0) {
+            // The middle line's samples (b = 0) are those of the whole
+            // patch's middle line, value for value.
+            const bool ok = detail::SampleReference<1>(
+                grey, w, h, static_cast<float>(x), static_cast<float>(y), e_x, e_y, cx, cy,
+                ref_r2, cached.data() + kAlong);
+            line_state[nb.axis] = ok ? 1 : 2;
+          }
+          if (line_state[nb.axis] != 1) return;
           // The patch's middle line (b = 0: the same samples as a 5 x 1
           // patch), reversed for a flipped neighbour.
           float ref1[kAlong];
@@ -572,6 +579,15 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
             estimates.Add(e);
           return;
         }
+        if (patch_state[nb.axis] == 0) {
+          const bool ok =
+              detail::SampleReference(grey, w, h, static_cast<float>(x), static_cast<float>(y),
+                                      e_x, e_y, cx, cy, ref_r2, cached.data());
+          patch_state[nb.axis] = ok ? 1 : 2;
+          g2_cache[nb.axis] = ok ? detail::PatchGradient2(cached.data()) : 0.0;
+          if (ok) line_state[nb.axis] = 1;
+        }
+        if (patch_state[nb.axis] != 1) return;
         for (int m = 0; m < kSamples; ++m)
           ref[m] = nb.flipped ? cached[kSamples - 1 - m] : cached[m];
         const double g2 = g2_cache[nb.axis];
