@@ -50,7 +50,7 @@ struct LensWorkspace {
   // box, x + (y << 16).
   std::vector<std::uint32_t> textured_pixels, estimate_pixels;
   std::vector<std::size_t> untextured_pixels;  // frame indices
-  std::vector<std::uint8_t> row_class;         // the gate's class of a row's pixels
+  std::vector<std::int32_t> row_class;         // the gate's class of a row's pixels
   std::vector<double> sat_w, sat_wz, sat_wzz;
   std::vector<std::int32_t> sat_n;
   std::vector<std::int32_t> sat_col, sat_row;  // local x, y -> the tables' column, row
@@ -71,6 +71,12 @@ struct LensWorkspace {
 // through an ifunc resolver, which runs while the binary is relocated,
 // before the sanitizer's runtime is up (under ThreadSanitizer every binary
 // with it crashed at start).
+// The classes are 32-bit (not bytes): with every operand 32 bits wide the
+// vectorised loop takes 8 pixels a vector on AVX2 instead of 32 (four
+// vectors packed into a byte store), and the caller rounds n up to a
+// multiple of kGateLanes where the row allows, so no pixel of a chord runs
+// through the scalar remainder (a 24 px chord never reached the 32-pixel
+// loop, a 34 px one ran 2 of them scalar).
 #if defined(__SANITIZE_THREAD__) || defined(__SANITIZE_ADDRESS__)
 #define LIFMCR_SANITIZED 1
 #elif defined(__has_feature)
@@ -83,9 +89,10 @@ struct LensWorkspace {
 #else
 #define LIFMCR_GATE_ROW_CLONES
 #endif
+constexpr int kGateLanes = 8;
 LIFMCR_GATE_ROW_CLONES void GateRow(
     const float* g, const std::int32_t* lens, int w, int n, int k, const std::array<float, 3>& e_x,
-    const std::array<float, 3>& e_y, float threshold, std::uint8_t* __restrict out) {
+    const std::array<float, 3>& e_y, float threshold, std::int32_t* __restrict out) {
   const float ex0 = e_x[0], ex1 = e_x[1], ex2 = e_x[2];
   const float ey0 = e_y[0], ey1 = e_y[1], ey2 = e_y[2];
   for (int i = 0; i < n; ++i) {
@@ -98,7 +105,7 @@ LIFMCR_GATE_ROW_CLONES void GateRow(
     const int own = (lens[i] == k) & (g[i] == g[i]);
     const int grad_ok = (gx == gx) & (gy == gy);
     const int textured = grad_ok & (g_max >= threshold);
-    out[i] = static_cast<std::uint8_t>(own * (1 + grad_ok + textured));
+    out[i] = own * (1 + grad_ok + textured);
   }
 }
 
@@ -425,8 +432,9 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     float min_gradient_f = static_cast<float>(min_gradient);
     if (static_cast<double>(min_gradient_f) < min_gradient)
       min_gradient_f = std::nextafter(min_gradient_f, std::numeric_limits<float>::infinity());
-    if (wk.row_class.size() < static_cast<std::size_t>(bw) + 2) wk.row_class.resize(bw + 2);
-    std::uint8_t* const row_class = wk.row_class.data();
+    if (wk.row_class.size() < static_cast<std::size_t>(bw) + 2 + kGateLanes)
+      wk.row_class.resize(bw + 2 + kGateLanes);
+    std::int32_t* const row_class = wk.row_class.data();
     long long n_valid = 0;
     for (int y = y0; y <= y1; ++y) {
       const double dy = y - lens.centre_px.y(), chord2 = r * r - dy * dy;
@@ -438,7 +446,12 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       const float* const g_row = grey_px + row;
       const std::int32_t* const lens_row = lens_of + row;
       const int n_row = xb - xa + 1;
-      GateRow(g_row + xa, lens_row + xa, w, n_row, k, e_x1, e_y1, min_gradient_f, row_class);
+      // The gate over whole vectors: up to kGateLanes - 1 pixels past the
+      // chord (still in the frame's row, whose last pixel GateRow's x + 1
+      // may read), whose classes nobody reads.
+      const int n_gate =
+          std::min((n_row + kGateLanes - 1) / kGateLanes * kGateLanes, w - 1 - xa);
+      GateRow(g_row + xa, lens_row + xa, w, n_gate, k, e_x1, e_y1, min_gradient_f, row_class);
       const std::uint32_t packed_row = static_cast<std::uint32_t>((y - y0) << 16);
       for (int i = 0; i < n_row; ++i) {
         const int c = row_class[i];
@@ -491,6 +504,10 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       for (int c = 0; c < bw; ++c) lattice_col[c] = (x0 + c) % lens_stride == 0;
       for (int c = 0; c < bh; ++c) lattice_row[c] = (y0 + c) % lens_stride == 0;
     }
+    // A searched pixel's estimates: made once per micro image and emptied
+    // per pixel (made per pixel, its 12 zeroed estimates were a 192-byte
+    // `rep stos` per searched pixel).
+    Estimates estimates;
     // The searched pixels, in row order (the seeded windows' outcomes so
     // far decide a fallback).
     for (int t = 0; t < n_textured; ++t) {
@@ -520,10 +537,16 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
           std::swap(order[j - 1], order[j]);
       gated = std::min(gated, seeded ? options.seed_max_ring1 : options.max_ring1);
       search_failed[local] = 1;  // until an estimate passes
-      Estimates estimates;
+      estimates.n = 0;
       // Reference patches per axis, sampled along the unflipped direction;
-      // a flipped neighbour reads it reversed ((a, b) -> (-a, -b)).
-      std::array<std::int8_t, 6> patch_state{};  // 0 not yet, 1 valid, 2 invalid
+      // a flipped neighbour reads it reversed ((a, b) -> (-a, -b)). A
+      // one-line search reads only the patch's middle line, so that line is
+      // sampled alone until a 5 x 3 search asks for the rest (most seeded
+      // pixels search one line only: two thirds of their reference samples
+      // were never read), and its validity is its own five samples'.
+      // States: 0 not yet, 1 valid, 2 invalid; line_state for the middle
+      // line, patch_state for the whole patch.
+      std::array<std::int8_t, 6> patch_state{}, line_state{};
       std::array<std::array<float, kSamples>, 6> patch_cache;
       std::array<double, 6> g2_cache;
       // one_line: a 5 x 1 patch (the seeded window's ring-1 search, ring 2
@@ -531,17 +554,18 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       auto match = [&](const detail::MatchParams& params, const Neighbour& nb, double z0,
                        double z1, bool one_line = false) {
         std::array<float, kSamples>& cached = patch_cache[nb.axis];
-        if (patch_state[nb.axis] == 0) {
-          const float e_x = nb.flipped ? -nb.e_x : nb.e_x;
-          const float e_y = nb.flipped ? -nb.e_y : nb.e_y;
-          const bool ok =
-              detail::SampleReference(grey, w, h, static_cast<float>(x), static_cast<float>(y),
-                                      e_x, e_y, cx, cy, ref_r2, cached.data());
-          patch_state[nb.axis] = ok ? 1 : 2;
-          g2_cache[nb.axis] = ok ? detail::PatchGradient2(cached.data()) : 0.0;
-        }
-        if (patch_state[nb.axis] != 1) return;
+        const float e_x = nb.flipped ? -nb.e_x : nb.e_x;
+        const float e_y = nb.flipped ? -nb.e_y : nb.e_y;
         if (one_line) {
+          if (line_state[nb.axis] == 0) {
+            // The middle line's samples (b = 0) are those of the whole
+            // patch's middle line, value for value.
+            const bool ok = detail::SampleReference<1>(
+                grey, w, h, static_cast<float>(x), static_cast<float>(y), e_x, e_y, cx, cy,
+                ref_r2, cached.data() + kAlong);
+            line_state[nb.axis] = ok ? 1 : 2;
+          }
+          if (line_state[nb.axis] != 1) return;
           // The patch's middle line (b = 0: the same samples as a 5 x 1
           // patch), reversed for a flipped neighbour.
           float ref1[kAlong];
@@ -555,6 +579,15 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
             estimates.Add(e);
           return;
         }
+        if (patch_state[nb.axis] == 0) {
+          const bool ok =
+              detail::SampleReference(grey, w, h, static_cast<float>(x), static_cast<float>(y),
+                                      e_x, e_y, cx, cy, ref_r2, cached.data());
+          patch_state[nb.axis] = ok ? 1 : 2;
+          g2_cache[nb.axis] = ok ? detail::PatchGradient2(cached.data()) : 0.0;
+          if (ok) line_state[nb.axis] = 1;
+        }
+        if (patch_state[nb.axis] != 1) return;
         for (int m = 0; m < kSamples; ++m)
           ref[m] = nb.flipped ? cached[kSamples - 1 - m] : cached[m];
         const double g2 = g2_cache[nb.axis];

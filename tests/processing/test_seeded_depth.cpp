@@ -6,9 +6,11 @@
 // exactly; a wrong seed everywhere: the full search's accuracy, found by
 // searching again over the whole range); the SIMD and the scalar kernels
 // giving the same map; the pooled per-thread buffers restored on every exit
-// (a reused workspace gives a fresh one's map); the seed's lattice check.
+// (a reused workspace gives a fresh one's map); the seed's lattice check;
+// the texture gate's flags, pixel by pixel, against its rule.
 
 #include "processing/camera_model.h"
+#include "processing/epipolar_search.h"
 #include "processing/lens_depth.h"
 #include "processing/mla_grid.h"
 #include "processing/virtual_depth.h"
@@ -17,6 +19,8 @@
 #include <gtest/gtest.h>
 #include <tbb/task_arena.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -339,6 +343,64 @@ TEST_F(SeededDepth, FlatMicroImagesSearchASparserLattice) {
   EXPECT_EQ(off.stats.flat_lenses, 0);
   EXPECT_EQ(off.stats.searched, base.stats.searched);
   EXPECT_EQ(off.stats.estimated, base.stats.estimated);
+}
+
+// The texture gate runs whole vectors past each chord's end (virtual_depth.cpp,
+// GateRow): every pixel's `textured` flag is the gate's rule evaluated for
+// that pixel alone (its own micro image's, valid, with a gradient, the
+// largest |g . e| over its micro image's ring-1 axes at least min_gradient_dn),
+// over the rows and chords the gate covers, micro images at the frame's
+// edges included.
+TEST_F(SeededDepth, TexturedFlagsAreTheGatesRulePerPixel) {
+  ASSERT_NE(shared_, nullptr);
+  const Shared& d = *shared_;
+  const PlenopticFrame& f = d.frame;
+  VirtualDepthMap seeded;
+  const DepthOptions options;
+  ASSERT_TRUE(EstimateVirtualDepth(f, d.s.mla, options, &d.seed, &seeded).ok());
+  const int w = f.width, h = f.height;
+  const float threshold = static_cast<float>(options.min_gradient_dn);
+  ASSERT_EQ(static_cast<double>(threshold), options.min_gradient_dn);
+  std::vector<std::uint8_t> expected(static_cast<std::size_t>(w) * h, 0);
+  const double r = f.radius_px;
+  for (int k = 0; k < static_cast<int>(f.lenses.size()); ++k) {
+    const MicroImage& lens = f.lenses[k];
+    std::array<detail::Neighbour, 12> nbs;
+    int ring1 = 0;
+    detail::FindNeighbours(f, lens, options.rings, &nbs, &ring1);
+    std::array<float, 3> ex{}, ey{};
+    for (int m = 0; m < ring1; ++m) ex[nbs[m].axis] = nbs[m].e_x, ey[nbs[m].axis] = nbs[m].e_y;
+    const double cx = lens.centre_px.x(), cy = lens.centre_px.y();
+    const int x0 = std::max(1, static_cast<int>(std::ceil(cx - r)));
+    const int x1 = std::min(w - 2, static_cast<int>(std::floor(cx + r)));
+    const int y0 = std::max(1, static_cast<int>(std::ceil(cy - r)));
+    const int y1 = std::min(h - 2, static_cast<int>(std::floor(cy + r)));
+    for (int y = y0; y <= y1; ++y) {
+      const double dy = y - cy, chord2 = r * r - dy * dy;
+      if (chord2 < 0) continue;
+      const double half = std::sqrt(chord2);
+      const int xa = std::max(x0, static_cast<int>(std::floor(cx - half)));
+      const int xb = std::min(x1, static_cast<int>(std::ceil(cx + half)));
+      for (int x = xa; x <= xb; ++x) {
+        const std::size_t at = static_cast<std::size_t>(y) * w + x;
+        if (f.lens_of_pixel[at] != k || std::isnan(f.grey[at])) continue;
+        const float gx = 0.5f * (f.grey[at + 1] - f.grey[at - 1]);
+        const float gy = 0.5f * (f.grey[at + w] - f.grey[at - w]);
+        if (std::isnan(gx) || std::isnan(gy)) continue;
+        float g = 0;
+        for (int m = 0; m < 3; ++m) g = std::max(g, std::abs(gx * ex[m] + gy * ey[m]));
+        expected[at] = g >= threshold;
+      }
+    }
+  }
+  long long textured = 0, differ = 0;
+  for (std::size_t i = 0; i < expected.size(); ++i) {
+    textured += expected[i];
+    differ += expected[i] != seeded.textured[i];
+  }
+  EXPECT_GT(textured, 0);
+  EXPECT_EQ(textured, seeded.stats.textured_pixels);
+  EXPECT_EQ(differ, 0);
 }
 
 TEST(SeededDepthOptions, CheckNamesTheField) {
