@@ -82,16 +82,26 @@ std::string PlateCornerBias::PerFrameReport() const {
   return text;
 }
 
+Expected<SequenceTruth> ReadSequenceTruth(const std::filesystem::path& seq,
+                                          const std::string& serial) {
+  Expected<CameraCalibration> camera = ReadCameraCalibration(layout::CamerasYamlPath(seq), serial);
+  if (!camera) return camera.error();
+  Expected<std::vector<FramePose>> poses = ReadPosesCsv(layout::PosesCsvPath(seq, serial));
+  if (!poses) return poses.error();
+  SequenceTruth truth;
+  truth.camera = *camera;
+  for (const FramePose& p : *poses) truth.cam_from_world[p.frame] = p.world_from_cam.inverse();
+  return truth;
+}
+
 Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFrame>& frames,
                                                  double frames_lambda,
                                                  const std::filesystem::path& seq,
                                                  const std::string& serial) {
-  Expected<CameraCalibration> truth = ReadCameraCalibration(layout::CamerasYamlPath(seq), serial);
-  if (!truth) return truth.error();
-  Expected<std::vector<FramePose>> true_poses = ReadPosesCsv(layout::PosesCsvPath(seq, serial));
-  if (!true_poses) return true_poses.error();
-  std::map<std::int64_t, Pose> cam_from_world;
-  for (const FramePose& p : *true_poses) cam_from_world[p.frame] = p.world_from_cam.inverse();
+  Expected<SequenceTruth> sequence_truth = ReadSequenceTruth(seq, serial);
+  if (!sequence_truth) return sequence_truth.error();
+  const CameraCalibration* truth = &sequence_truth->camera;
+  const std::map<std::int64_t, Pose>& cam_from_world = sequence_truth->cam_from_world;
   const IntrinsicsVector k = ToVector(truth->intrinsics);
   const double s = truth->intrinsics.pixel_size_mm;
   const double lambda_ratio = processing::CameraModel(truth->intrinsics).lambda() / frames_lambda;

@@ -22,6 +22,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -86,6 +87,15 @@ struct PlateCornerBias {
   std::string BriefReport() const;  // one line
   std::string PerFrameReport() const;  // a line per frame
 };
+// A synthetic sequence's true intrinsics of `serial` and its poses
+// (cam_from_world, w the plate frame), by frame.
+struct SequenceTruth {
+  CameraCalibration camera;
+  std::map<std::int64_t, Pose> cam_from_world;
+};
+Expected<SequenceTruth> ReadSequenceTruth(const std::filesystem::path& sequence_dir,
+                                          const std::string& serial);
+
 Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFrame>& frames,
                                                  double frames_lambda,
                                                  const std::filesystem::path& sequence_dir,

@@ -3,8 +3,6 @@
 #include "processing/camera_model.h"
 #include "registration/calibration/calibration_gates.h"
 #include "registration/calibration/plenoptic_projection.h"
-#include "registration/features/intrinsics_yaml.h"
-#include "registration/map/poses_csv.h"
 #include "replay/layout.h"
 #include "replay/synth/gt_images.h"
 #include "replay/synth/synth_writer.h"
@@ -55,12 +53,10 @@ Expected<std::string> SubstituteTruth(const TruthSubstitution& what,
                                       double lambda0, const Eigen::Vector2d& c0_px,
                                       const FeatureOptions& features,
                                       std::vector<CalibrationFrame>* frames) {
-  Expected<CameraCalibration> truth = ReadCameraCalibration(layout::CamerasYamlPath(seq), serial);
-  if (!truth) return truth.error();
-  Expected<std::vector<FramePose>> poses = ReadPosesCsv(layout::PosesCsvPath(seq, serial));
-  if (!poses) return poses.error();
-  std::map<std::int64_t, Pose> cam_from_world;
-  for (const FramePose& p : *poses) cam_from_world[p.frame] = p.world_from_cam.inverse();
+  Expected<SequenceTruth> sequence_truth = ReadSequenceTruth(seq, serial);
+  if (!sequence_truth) return sequence_truth.error();
+  const CameraCalibration* truth = &sequence_truth->camera;
+  const std::map<std::int64_t, Pose>& cam_from_world = sequence_truth->cam_from_world;
   const processing::CameraModel model(truth->intrinsics);
   const IntrinsicsVector k = ToVector(truth->intrinsics);
   const ProcessedGeometry geometry{model.lambda(), lambda0, truth->intrinsics.PrincipalPointPx(),

@@ -37,12 +37,10 @@
 
 namespace lifmcr::registration {
 
+// The groups named above (at most one of each line).
 struct TruthSubstitution {
-  bool keypoint_depth = false;
-  bool keypoints = false;
-  bool corners = false;
-  bool corner_depth = false;
-  bool no_corner_depth = false;
+  bool keypoint_depth = false, keypoints = false;
+  bool corners = false, corner_depth = false, no_corner_depth = false;
   bool any() const { return keypoint_depth || keypoints || corners || corner_depth || no_corner_depth; }
 };
 
