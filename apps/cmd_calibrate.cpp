@@ -16,6 +16,7 @@
 #include "registration/calibration/rig_calibration.h"
 #include "registration/calibration/rig_output.h"
 #include "registration/calibration/rig_truth_per_frame.h"
+#include "registration/calibration/truth_substitution.h"
 #include "registration/estimators/pose_covariance.h"
 #include "registration/map/poses_csv.h"
 #include "registration/features/intrinsics_yaml.h"
@@ -55,6 +56,7 @@ struct CalibrateOptions {
   bool quiet = false;
   bool ground_truth = false;
   bool at_truth = false;
+  std::string substitute_truth;  // diagnostic (truth_substitution.h)
   bool fix_principal_point = false;
   bool fix_distortion = false;
   bool tangential_distortion = false;
@@ -194,6 +196,8 @@ Expected<registration::CalibrationOptions> MakeCalibrationOptions(const Calibrat
 int RunCalibrateRig(const CalibrateOptions& o);
 
 int RunCalibrate(const CalibrateOptions& o) {
+  if (o.rig && !o.substitute_truth.empty())
+    return Fail("--substitute-truth calibrates one camera (not with --rig)", 2);
   if (o.rig) return RunCalibrateRig(o);
   if (o.camera.empty()) return Fail("--camera SERIAL is needed (or --rig)", 2);
   const fs::path seq = o.sequence;
@@ -222,6 +226,13 @@ int RunCalibrate(const CalibrateOptions& o) {
   if (!o.frames.empty())
     if (Expected<std::set<std::int64_t>> wanted = ParseFrameList(o.frames, "--frames"); !wanted)
       return Fail(wanted.error().message, 2);
+  registration::TruthSubstitution substitution;
+  if (!o.substitute_truth.empty()) {
+    Expected<registration::TruthSubstitution> parsed =
+        registration::ParseTruthSubstitution(o.substitute_truth);
+    if (!parsed) return Fail(parsed.error().message, 2);
+    substitution = *parsed;
+  }
   // The options are checked before the frames are processed (minutes of
   // CPU), so a bad value fails at once.
   Expected<registration::CalibrationOptions> calibration_options = MakeCalibrationOptions(o);
@@ -234,6 +245,14 @@ int RunCalibrate(const CalibrateOptions& o) {
   Expected<CameraFrames> camera_frames = LoadCameraFrames(o, o.camera, *initial, *plate, progress);
   if (!camera_frames) return Fail(camera_frames.error().message);
   const registration::FrameLoaderOptions& loader_options = camera_frames->loader_options;
+  if (substitution.any()) {
+    // A diagnostic: one group of observations made exact (truth_substitution.h).
+    Expected<std::string> line = registration::SubstituteTruth(
+        substitution, seq, o.camera, loader_options.lambda,
+        initial->intrinsics.PrincipalPointPx(), loader_options.features, &camera_frames->frames);
+    if (!line) return Fail(line.error().message);
+    progress(*line);
+  }
   std::error_code ec;
   registration::CalibrationInput input;
   input.serial = o.camera;
@@ -688,6 +707,11 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
                "Synthetic sequences: no calibration; the bundle adjustment's residuals with the "
                "true intrinsics and poses of SEQ/GroundTruth, per frame, by virtual depth and by "
                "image position (printed and written to residuals_at_truth.md)");
+  app.add_option("--substitute-truth", o->substitute_truth,
+                 "Synthetic sequences, a diagnostic: replace one group of observations by the "
+                 "renderer's truth before the calibration (keypoint-depth, keypoints, corners, "
+                 "corner-depth, no-corner-depth; comma-separated; "
+                 "registration/calibration/truth_substitution.h)");
   app.add_flag("--ground-truth", o->ground_truth,
                "Synthetic sequences: compare with SEQ/GroundTruth and print the figures");
   return [o] { return RunCalibrate(*o); };

@@ -82,16 +82,26 @@ std::string PlateCornerBias::PerFrameReport() const {
   return text;
 }
 
+Expected<SequenceTruth> ReadSequenceTruth(const std::filesystem::path& seq,
+                                          const std::string& serial) {
+  Expected<CameraCalibration> camera = ReadCameraCalibration(layout::CamerasYamlPath(seq), serial);
+  if (!camera) return camera.error();
+  Expected<std::vector<FramePose>> poses = ReadPosesCsv(layout::PosesCsvPath(seq, serial));
+  if (!poses) return poses.error();
+  SequenceTruth truth;
+  truth.camera = *camera;
+  for (const FramePose& p : *poses) truth.cam_from_world[p.frame] = p.world_from_cam.inverse();
+  return truth;
+}
+
 Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFrame>& frames,
                                                  double frames_lambda,
                                                  const std::filesystem::path& seq,
                                                  const std::string& serial) {
-  Expected<CameraCalibration> truth = ReadCameraCalibration(layout::CamerasYamlPath(seq), serial);
-  if (!truth) return truth.error();
-  Expected<std::vector<FramePose>> true_poses = ReadPosesCsv(layout::PosesCsvPath(seq, serial));
-  if (!true_poses) return true_poses.error();
-  std::map<std::int64_t, Pose> cam_from_world;
-  for (const FramePose& p : *true_poses) cam_from_world[p.frame] = p.world_from_cam.inverse();
+  Expected<SequenceTruth> sequence_truth = ReadSequenceTruth(seq, serial);
+  if (!sequence_truth) return sequence_truth.error();
+  const CameraCalibration* truth = &sequence_truth->camera;
+  const std::map<std::int64_t, Pose>& cam_from_world = sequence_truth->cam_from_world;
   const IntrinsicsVector k = ToVector(truth->intrinsics);
   const double s = truth->intrinsics.pixel_size_mm;
   const double lambda_ratio = processing::CameraModel(truth->intrinsics).lambda() / frames_lambda;
@@ -167,12 +177,6 @@ Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFr
   return b;
 }
 
-namespace {
-
-// The true depth (mm) at TF position tf of a ground-truth depth map: bilinear
-// between the four nearest pixels when they lie on one surface (within 1 %
-// of each other), else the nearest pixel's. The nearest pixel alone is up to
-// half a TF pixel off, which on a surface seen obliquely is tenths of a mm.
 double SurfaceDepthMm(const std::vector<float>& depth, int w, int h, const Eigen::Vector2d& tf) {
   const auto at = [&](int x, int y) {
     return static_cast<double>(depth[static_cast<std::size_t>(std::clamp(y, 0, h - 1)) * w +
@@ -187,7 +191,18 @@ double SurfaceDepthMm(const std::vector<float>& depth, int w, int h, const Eigen
   return (1 - fy) * ((1 - fx) * z00 + fx * z10) + fy * ((1 - fx) * z01 + fx * z11);
 }
 
-}  // namespace
+Eigen::Vector2d ProcessedGeometry::ProcessedOfTrue(const Eigen::Vector2d& x, double v) const {
+  const double v_processed = ProcessedDepth(v);
+  return v_processed * (x / v + c * (1 - lambda) * (1 - 1 / v) -
+                        c0 * (1 - lambda0) * (1 - 1 / v_processed));
+}
+
+Eigen::Vector2d ProcessedGeometry::TrueOfProcessed(const Eigen::Vector2d& x_processed,
+                                                   double v) const {
+  const double v_processed = ProcessedDepth(v);
+  return v * (x_processed / v_processed - c * (1 - lambda) * (1 - 1 / v) +
+              c0 * (1 - lambda0) * (1 - 1 / v_processed));
+}
 
 Expected<GroundTruthComparison> CompareWithGroundTruth(const CalibrationResult& result,
                                                        const std::filesystem::path& seq,
@@ -229,8 +244,8 @@ Expected<GroundTruthComparison> CompareWithGroundTruth(const CalibrationResult& 
   int depth_w = 0, depth_h = 0;
   std::vector<double> errors, v_errors, v_signed;
   std::vector<double> by_track[3];  // track length 2, 3, >= 4
-  const double lambda = true_model.lambda(), lambda0 = result.frames_lambda;
-  const Eigen::Vector2d c_true = t.PrincipalPointPx(), c0 = result.frames_principal_point_px;
+  const ProcessedGeometry geometry{true_model.lambda(), result.frames_lambda, t.PrincipalPointPx(),
+                                   result.frames_principal_point_px};
   std::vector<Eigen::Vector3d> estimated, expected;
   for (const MapPoint& point : result.map.points) {
     const TrackElement& first = point.track.front();
@@ -261,9 +276,8 @@ Expected<GroundTruthComparison> CompareWithGroundTruth(const CalibrationResult& 
         break;
       }
       v = true_model.VirtualDepthOfDepth(z);
-      v_processed = 1.0 / (1.0 - lambda / lambda0 * (1.0 - 1.0 / v));
-      x_true = v * (x_processed / v_processed - c_true * (1 - lambda) * (1 - 1 / v) +
-                    c0 * (1 - lambda0) * (1 - 1 / v_processed));
+      v_processed = geometry.ProcessedDepth(v);
+      x_true = geometry.TrueOfProcessed(x_processed, v);
     }
     if (std::isnan(v)) continue;
     const Eigen::Vector3d p_in_c =

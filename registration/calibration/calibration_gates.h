@@ -22,6 +22,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -86,10 +87,41 @@ struct PlateCornerBias {
   std::string BriefReport() const;  // one line
   std::string PerFrameReport() const;  // a line per frame
 };
+// A synthetic sequence's true intrinsics of `serial` and its poses
+// (cam_from_world, w the plate frame), by frame.
+struct SequenceTruth {
+  CameraCalibration camera;
+  std::map<std::int64_t, Pose> cam_from_world;
+};
+Expected<SequenceTruth> ReadSequenceTruth(const std::filesystem::path& sequence_dir,
+                                          const std::string& serial);
+
 Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFrame>& frames,
                                                  double frames_lambda,
                                                  const std::filesystem::path& sequence_dir,
                                                  const std::string& serial);
+
+// The true depth (mm) at TF position tf of a ground-truth depth map (w x h,
+// row-major): bilinear between the four nearest pixels when they lie on one
+// surface (within 1 % of each other), else the nearest pixel's. The nearest
+// pixel alone is up to half a TF pixel off, which on a surface seen
+// obliquely is tenths of a mm.
+double SurfaceDepthMm(const std::vector<float>& depth, int w, int h, const Eigen::Vector2d& tf);
+
+// A virtual point of a frame processed with lambda0 and principal point c0
+// (the initial intrinsics) and the true virtual point whose micro images the
+// processing read as it: equal micro-image positions for every lens,
+//   lambda (1 - 1/v) = lambda0 (1 - 1/v'),
+//   x / v = x' / v' - c (1 - lambda)(1 - 1/v) + c0 (1 - lambda0)(1 - 1/v').
+struct ProcessedGeometry {
+  double lambda = 1, lambda0 = 1;  // true, processed
+  Eigen::Vector2d c = Eigen::Vector2d::Zero(), c0 = Eigen::Vector2d::Zero();  // raw px
+  double ProcessedDepth(double v) const { return 1.0 / (1.0 - lambda / lambda0 * (1.0 - 1.0 / v)); }
+  // x' (raw px) of the true x at depth v.
+  Eigen::Vector2d ProcessedOfTrue(const Eigen::Vector2d& x, double v) const;
+  // x (raw px) of the processed x' at the true depth v.
+  Eigen::Vector2d TrueOfProcessed(const Eigen::Vector2d& x_processed, double v) const;
+};
 
 Expected<GroundTruthComparison> CompareWithGroundTruth(const CalibrationResult& result,
                                                        const std::filesystem::path& sequence_dir,
