@@ -1002,14 +1002,19 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out,
       const int x = std::clamp(static_cast<int>(cx + edge_px), 0, f.width - 1);
       const int y0 = std::max(0, static_cast<int>(cy - f.radius_px) - 1);
       const int y1 = std::min(f.height - 1, static_cast<int>(cy + f.radius_px) + 1);
-      const int raw_end = (f.width - 1) * channels, gain_end = 2 * (f.width - 1);
-      for (int y = y0; y <= y1; ++y) {
-        const std::uint8_t* raw_row = raw.Row(y);
-        const std::uint8_t* gain_row = gain_base + y * gain_row_bytes;
-        for (int o = 0; o < raw_bytes; o += 64)
-          PrefetchLine(raw_row + std::clamp(x * channels - sign * o, 0, raw_end));
-        for (int o = 0; o < gain_bytes; o += 64)
-          PrefetchLine(gain_row + std::clamp(2 * x - sign * o, 0, gain_end));
+      // The byte offsets in a row (at most kMaxLines of each), then the rows.
+      constexpr int kMaxLines = 4;
+      std::array<int, kMaxLines> raw_at, gain_at;
+      int n_raw = 0, n_gain = 0;
+      for (int o = 0; o < raw_bytes && n_raw < kMaxLines; o += 64)
+        raw_at[n_raw++] = std::clamp(x * channels - sign * o, 0, (f.width - 1) * channels);
+      for (int o = 0; o < gain_bytes && n_gain < kMaxLines; o += 64)
+        gain_at[n_gain++] = std::clamp(2 * x - sign * o, 0, 2 * (f.width - 1));
+      const std::uint8_t* raw_row = raw.Row(y0);
+      const std::uint8_t* gain_row = gain_base + y0 * gain_row_bytes;
+      for (int y = y0; y <= y1; ++y, raw_row += raw.stride_bytes, gain_row += gain_row_bytes) {
+        for (int q = 0; q < n_raw; ++q) PrefetchLine(raw_row + raw_at[q]);
+        for (int q = 0; q < n_gain; ++q) PrefetchLine(gain_row + gain_at[q]);
       }
     };
     disc(m.centre_px.x(), m.centre_px.y());
