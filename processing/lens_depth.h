@@ -93,9 +93,11 @@
 // elsewhere.
 //
 // Work is parallel over micro images (TBB), in the passes of step 2b; each
-// cell is written once. Estimate allocates nothing once `out` has the
-// grid's size (a workspace reused frame after frame) and each thread has
-// estimated once (its candidate-gate buffer).
+// cell is written once. Without step 2b the lines a lens's searches read
+// first are asked of the cache two lenses ahead (Estimate). Estimate
+// allocates nothing once `out` has the grid's size (a workspace reused
+// frame after frame) and each thread has estimated once (its candidate-gate
+// buffer).
 
 #include "config/error.h"
 #include "config/image.h"
