@@ -115,7 +115,7 @@ Expected<PlateCornerBias> MeasurePlateCornerBias(const std::vector<CalibrationFr
     if (!ProjectToVirtual(k.data(), s, p.data(), x_v)) return false;
     const double v_processed = 1.0 / (1.0 - lambda_ratio * (1.0 - 1.0 / x_v[2]));
     const Eigen::Vector2d x = c + (Eigen::Vector2d(x_v[0], x_v[1]) - c) * (v_processed / x_v[2]);
-    *tf = (x - Eigen::Vector2d(0.5, 0.5)) / 2.0;
+    *tf = TfOfVirtual(x);
     last_v_processed = v_processed;
     return true;
   };
@@ -204,6 +204,21 @@ Eigen::Vector2d ProcessedGeometry::TrueOfProcessed(const Eigen::Vector2d& x_proc
               c0 * (1 - lambda0) * (1 - 1 / v_processed));
 }
 
+TrueVirtualPoint TrueOfProcessedOnSurface(const ProcessedGeometry& geometry,
+                                          const processing::CameraModel& true_model,
+                                          const std::vector<float>& depth, int w, int h,
+                                          const Eigen::Vector2d& x_processed) {
+  const double f_l = true_model.intrinsics().main_focal_length_mm;
+  TrueVirtualPoint p{x_processed, std::nan("")};
+  for (int step = 0; step < 4; ++step) {
+    const double z = SurfaceDepthMm(depth, w, h, TfOfVirtual(p.x));
+    if (!(z > f_l)) return {p.x, std::nan("")};
+    p.v = true_model.VirtualDepthOfDepth(z);
+    p.x = geometry.TrueOfProcessed(x_processed, p.v);
+  }
+  return p;
+}
+
 Expected<GroundTruthComparison> CompareWithGroundTruth(const CalibrationResult& result,
                                                        const std::filesystem::path& seq,
                                                        const std::string& serial) {
@@ -260,26 +275,13 @@ Expected<GroundTruthComparison> CompareWithGroundTruth(const CalibrationResult& 
     const MapKeypoint& kp = image.keypoints[first.keypoint];
     // The keypoint is in the geometry of its processed frame (lambda0, c0):
     // the true virtual point x (depth v) whose micro images the processing
-    // read as x' (depth v'): equal micro-image positions for every lens,
-    //   lambda (1 - 1/v) = lambda0 (1 - 1/v'),
-    //   x / v = x' / v' - c (1 - lambda)(1 - 1/v) + c0 (1 - lambda0)(1 - 1/v'),
-    // solved with the true depth at x (a few fixed-point steps from x = x').
-    const Eigen::Vector2d x_processed =
-        2.0 * kp.tf_px.cast<double>() + Eigen::Vector2d(0.5, 0.5);
-    Eigen::Vector2d x_true = x_processed;
-    double v = std::nan(""), v_processed = std::nan("");
-    for (int step = 0; step < 4; ++step) {
-      const Eigen::Vector2d tf = (x_true - Eigen::Vector2d(0.5, 0.5)) / 2.0;
-      const double z = SurfaceDepthMm(it->second, depth_w, depth_h, tf);
-      if (std::isnan(z)) {
-        v = std::nan("");
-        break;
-      }
-      v = true_model.VirtualDepthOfDepth(z);
-      v_processed = geometry.ProcessedDepth(v);
-      x_true = geometry.TrueOfProcessed(x_processed, v);
-    }
+    // read as it (ProcessedGeometry), with the true depth at x.
+    const TrueVirtualPoint on_surface = TrueOfProcessedOnSurface(
+        geometry, true_model, it->second, depth_w, depth_h, VirtualOfTf(kp.tf_px.cast<double>()));
+    const Eigen::Vector2d x_true = on_surface.x;
+    const double v = on_surface.v;
     if (std::isnan(v)) continue;
+    const double v_processed = geometry.ProcessedDepth(v);
     const Eigen::Vector3d p_in_c =
         true_model.BackProject(Eigen::Vector3d(x_true.x(), x_true.y(), v));
     const Eigen::Vector3d p_true = world_from_cam.at(image.frame) * p_in_c;

@@ -26,6 +26,10 @@
 #include <string>
 #include <vector>
 
+namespace lifmcr::processing {
+class CameraModel;
+}  // namespace lifmcr::processing
+
 namespace lifmcr::registration {
 
 struct GroundTruthComparison {
@@ -122,6 +126,28 @@ struct ProcessedGeometry {
   // x (raw px) of the processed x' at the true depth v.
   Eigen::Vector2d TrueOfProcessed(const Eigen::Vector2d& x_processed, double v) const;
 };
+
+// A TF pixel's virtual point in raw px (x_v = 2 tf + 0.5), and back.
+inline Eigen::Vector2d VirtualOfTf(const Eigen::Vector2d& tf) {
+  return 2.0 * tf + Eigen::Vector2d(0.5, 0.5);
+}
+inline Eigen::Vector2d TfOfVirtual(const Eigen::Vector2d& x) {
+  return (x - Eigen::Vector2d(0.5, 0.5)) / 2.0;
+}
+
+// The true virtual point behind the processed x' (raw px) of a frame whose
+// ground-truth depth map (w x h, the TF grid) is `depth`: x at the true
+// depth v the map has there, by a few fixed-point steps from x = x'
+// (TrueOfProcessed at SurfaceDepthMm's depth at x). v is NaN where the map
+// has no surface beyond the main lens's focal length.
+struct TrueVirtualPoint {
+  Eigen::Vector2d x = Eigen::Vector2d::Zero();  // raw px
+  double v = 0;
+};
+TrueVirtualPoint TrueOfProcessedOnSurface(const ProcessedGeometry& geometry,
+                                          const processing::CameraModel& true_model,
+                                          const std::vector<float>& depth, int w, int h,
+                                          const Eigen::Vector2d& x_processed);
 
 Expected<GroundTruthComparison> CompareWithGroundTruth(const CalibrationResult& result,
                                                        const std::filesystem::path& sequence_dir,

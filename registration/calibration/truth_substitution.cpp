@@ -19,9 +19,6 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-Eigen::Vector2d VirtualOfTf(const Eigen::Vector2d& tf) { return 2.0 * tf + Eigen::Vector2d(0.5, 0.5); }
-Eigen::Vector2d TfOfVirtual(const Eigen::Vector2d& x) { return (x - Eigen::Vector2d(0.5, 0.5)) / 2.0; }
-
 }  // namespace
 
 Expected<TruthSubstitution> ParseTruthSubstitution(std::string_view list) {
@@ -74,20 +71,9 @@ Expected<std::string> SubstituteTruth(const TruthSubstitution& what,
     if (!depth) return depth.error();
     if (what.keypoint_depth) {
       for (std::size_t i = 0; i < frame.features.keypoints.size(); ++i) {
-        // The true point behind the processed position: a few fixed-point
-        // steps from x = x' (calibration_gates.cpp does the same).
-        const Eigen::Vector2d x_processed = VirtualOfTf(frame.features.keypoints[i].xy_px.cast<double>());
-        Eigen::Vector2d x = x_processed;
-        double v = kNaN;
-        for (int step = 0; step < 4; ++step) {
-          const double z = SurfaceDepthMm(*depth, w, h, TfOfVirtual(x));
-          if (!(z > f_l)) {
-            v = kNaN;
-            break;
-          }
-          v = model.VirtualDepthOfDepth(z);
-          x = geometry.TrueOfProcessed(x_processed, v);
-        }
+        const double v = TrueOfProcessedOnSurface(geometry, model, *depth, w, h,
+                                                  VirtualOfTf(frame.features.keypoints[i].xy_px.cast<double>()))
+                             .v;
         frame.virtual_depth[i] = static_cast<float>(std::isnan(v) ? kNaN : geometry.ProcessedDepth(v));
         ++(std::isnan(v) ? keypoints_without : keypoints);
       }
