@@ -22,6 +22,54 @@
 #include <type_traits>
 #include <utility>
 
+#ifndef LIFMCR_TF_BLEND_FIXED_ONCE
+#define LIFMCR_TF_BLEND_FIXED_ONCE
+namespace lifmcr::processing::detail {
+
+// a b / 2^15 rounded (x86's pmulhrsw, Highway's MulFixedPoint15) for the
+// non-negative operands of FixedSums.
+// The widest frame of the fixed-point blend (its positions in 2^-16 px fit
+// 32 bits); a wider one blends in float.
+constexpr int kFixedMaxWidth = 32768;
+// A fraction's 1 (the largest signed word), and what FixedSums' products by
+// 2^-15 leave out of two such factors: (32768 / 32767)^2.
+constexpr std::int32_t kFixedOne = 32767;
+constexpr float kFixedRescale = static_cast<float>((32768.0 / 32767.0) * (32768.0 / 32767.0));
+
+inline std::int32_t MulQ15(std::int32_t a, std::int32_t b) { return (a * b + 16384) >> 15; }
+
+// The fixed-point blend of a BGR sample with the 16-bit gain (the rule of
+// the Highway kernel's weights in BlendVector and FixedColours, written once
+// for the scalar reference and the one-lane target): at raw position (pxq,
+// pyq) in units of 2^-16 px, the weights w_ij = q_ij / 2 (1 - f | f)_x (1 -
+// f | f)_y, each fraction f = (pxq mod 2^16) / 2 in units of 1 / 32767 (so 1
+// - f fits a signed word), each product by MulQ15 (so a weight carries
+// kFixedRescale^-1), q halved first; per colour sums[ch] = sum w_ij c_ij in
+// 32-bit integers (at most 4 255 32767); false where a gain is 0.
+inline bool FixedSums(const TfBlendSource& s, int width, std::int32_t pxq, std::int32_t pyq,
+                      std::int32_t sums[3]) {
+  const int ix = pxq >> 16, iy = pyq >> 16;
+  const std::int32_t fx = (pxq & 0xFFFF) >> 1, fy = (pyq & 0xFFFF) >> 1;
+  const std::int32_t bx[2] = {kFixedOne - fx, fx}, by[2] = {kFixedOne - fy, fy};
+  const std::size_t at = static_cast<std::size_t>(iy) * width + ix;
+  const std::uint16_t* q[2] = {s.gain16 + at, s.gain16 + at + width};
+  if (q[0][0] == 0 || q[0][1] == 0 || q[1][0] == 0 || q[1][1] == 0) return false;
+  const std::uint8_t* r[2] = {
+      s.raw + static_cast<std::size_t>(iy) * s.stride_bytes + static_cast<std::size_t>(ix) * 3,
+      nullptr};
+  r[1] = r[0] + s.stride_bytes;
+  std::int32_t w[2][2];
+  for (int j = 0; j < 2; ++j)
+    for (int i = 0; i < 2; ++i) w[j][i] = MulQ15(MulQ15(q[j][i] >> 1, bx[i]), by[j]);
+  for (int ch = 0; ch < 3; ++ch)
+    sums[ch] =
+        w[0][0] * r[0][ch] + w[0][1] * r[0][3 + ch] + w[1][0] * r[1][ch] + w[1][1] * r[1][3 + ch];
+  return true;
+}
+
+}  // namespace lifmcr::processing::detail
+#endif  // LIFMCR_TF_BLEND_FIXED_ONCE
+
 HWY_BEFORE_NAMESPACE();
 namespace lifmcr::processing::detail {
 namespace HWY_NAMESPACE {
@@ -160,6 +208,44 @@ struct TypeTables {
   enum Field { kOx, kOy, kFxx, kFxy, kFyx, kFyy };
 };
 
+#if HWY_TARGET != HWY_SCALAR
+// The byte picks of FixedColours per 32-bit lane j of a 16-byte block (0x80:
+// a zero byte): from a row's lo word (B0 G0 R0 B1) and hi word (G1 R1 - -)
+// the words (c0, c1) of one colour of the sample's two pixels.
+HWY_ALIGN constexpr std::uint8_t kPick[5][16] = {
+    {0, 0x80, 3, 0x80, 4, 0x80, 7, 0x80, 8, 0x80, 11, 0x80, 12, 0x80, 15, 0x80},  // B from lo
+    {1, 0x80, 0x80, 0x80, 5, 0x80, 0x80, 0x80, 9, 0x80, 0x80, 0x80, 13, 0x80, 0x80, 0x80},   // G0
+    {0x80, 0x80, 0, 0x80, 0x80, 0x80, 4, 0x80, 0x80, 0x80, 8, 0x80, 0x80, 0x80, 12, 0x80},   // G1
+    {2, 0x80, 0x80, 0x80, 6, 0x80, 0x80, 0x80, 10, 0x80, 0x80, 0x80, 14, 0x80, 0x80, 0x80},  // R0
+    {0x80, 0x80, 1, 0x80, 0x80, 0x80, 5, 0x80, 0x80, 0x80, 9, 0x80, 0x80, 0x80, 13, 0x80}};  // R1
+
+// The three colours of a BGR sample (rows a and b: lo B0 G0 R0 B1, hi G1
+// R1 in its low bytes) with the fixed-point weights wa (w00, w01) and wb
+// (w10, w11): w00 c00 + w01 c01 + w10 c10 + w11 c11 in 32-bit integers
+// (pairwise 16-bit products, exact), then in float.
+template <class DF, class VU>
+HWY_INLINE void FixedColours(DF df, VU lo_a, VU hi_a, VU lo_b, VU hi_b, VU wa, VU wb,
+                             hn::Vec<DF>* col) {
+  const hn::RebindToSigned<DF> di;
+  const hn::Repartition<std::uint8_t, DF> d8;
+  const hn::Repartition<std::int16_t, DF> d16;
+  auto pick = [&](VU v, int k) {
+    return hn::BitCast(d16,
+                       hn::TableLookupBytesOr0(hn::BitCast(d8, v), hn::LoadDup128(d8, kPick[k])));
+  };
+  auto pick2 = [&](VU lo, VU hi, int k) { return hn::Or(pick(lo, k), pick(hi, k + 1)); };
+  auto dot = [&](hn::Vec<decltype(d16)> pa, hn::Vec<decltype(d16)> pb) {
+    auto s1 = hn::Zero(di);
+    auto s0 = hn::ReorderWidenMulAccumulate(di, pa, hn::BitCast(d16, wa), hn::Zero(di), s1);
+    s0 = hn::ReorderWidenMulAccumulate(di, pb, hn::BitCast(d16, wb), s0, s1);
+    return hn::ConvertTo(df, hn::RearrangeToOddPlusEven(s0, s1));
+  };
+  col[0] = dot(pick(lo_a, 0), pick(lo_b, 0));
+  col[1] = dot(pick2(lo_a, hi_a, 1), pick2(lo_b, hi_b, 1));
+  col[2] = dot(pick2(lo_a, hi_a, 3), pick2(lo_b, hi_b, 3));
+}
+#endif
+
 // One vector of pixels (lanes) at raw x, y and depth v: the blend of the
 // three lenses of their triangles, in the order of ScalarBlendRow below.
 template <int kChannels, class DF>
@@ -249,6 +335,12 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
   const auto stride = hn::Set(di, static_cast<std::int32_t>(s.stride_bytes));
   const auto* words = reinterpret_cast<const std::uint32_t*>(s.raw);
   const auto byte = hn::Set(du, 0xFFu);
+  // BGR with the 16-bit gain: the bilinear weights times the gain in 16-bit
+  // fixed point and each colour's four products summed in integers
+  // (FixedColours; the scalar reference the same integers).
+  constexpr bool kFixed = kChannels == 3;
+  const bool fixed = kFixed && s.gain16 != nullptr && g.width <= kFixedMaxWidth;
+  const VF fixed_scale = hn::Set(df, 2.0f * s.gain16_scale * kFixedRescale);
   for (int c = 0; c < 3; ++c) {
     const VF ccx = centre_x[c], ccy = centre_y[c];
     const VF lx = hn::Add(cx, hn::Mul(hn::Sub(ccx, cx), lambda));
@@ -263,8 +355,26 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
     if (hn::AllFalse(df, valid)) continue;
     // Lanes off the frame read pixel (0, 0) and are dropped below.
     const VF pxs = hn::IfThenElseZero(valid, px), pys = hn::IfThenElseZero(valid, py);
-    const auto ix = TruncInRange(di, pxs), iy = TruncInRange(di, pys);
-    const VF ffx = hn::Sub(pxs, hn::ConvertTo(df, ix)), ffy = hn::Sub(pys, hn::ConvertTo(df, iy));
+    // BGR with the 16-bit gain (the TF image's case): the bilinear weights
+    // in 16-bit fixed point (`fixed`), so the position in units of 2^-16 px
+    // (exact: a product by a power of two; below 2^31 for px < 32767), its
+    // pixel and its fraction.
+    hn::Vec<decltype(di)> ix, iy, fxq = hn::Zero(di), fyq = hn::Zero(di);
+    VF ffx = zero, ffy = zero;
+    if (fixed) {
+      const VF k16 = hn::Set(df, 65536.0f);
+      const auto pxq = TruncInRange(di, hn::Mul(pxs, k16));
+      const auto pyq = TruncInRange(di, hn::Mul(pys, k16));
+      ix = hn::ShiftRight<16>(pxq);
+      iy = hn::ShiftRight<16>(pyq);
+      fxq = hn::And(pxq, hn::Set(di, 0xFFFF));
+      fyq = hn::And(pyq, hn::Set(di, 0xFFFF));
+    } else {
+      ix = TruncInRange(di, pxs);
+      iy = TruncInRange(di, pys);
+      ffx = hn::Sub(pxs, hn::ConvertTo(df, ix));
+      ffy = hn::Sub(pys, hn::ConvertTo(df, iy));
+    }
     const auto at = hn::Add(hn::Mul(iy, width), ix);
     // Windows instead of gathers (AVX-512, BGR, the 16-bit gain): where
     // every lane is valid and lies in the window of lane 0's sample or of
@@ -306,8 +416,9 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
           if (windowed) {
             // Each lane its window's rel, byte parity and table.
             const VU16 rel = hn::IfThenElse(in_a, rel_a, rel_b);
-            const VU16 odd_in = hn::IfThenElse(in_a, hn::Set(du, static_cast<std::uint32_t>(wa.odd)),
-                                               hn::Set(du, static_cast<std::uint32_t>(wb.odd)));
+            const VU16 odd_in =
+                hn::IfThenElse(in_a, hn::Set(du, static_cast<std::uint32_t>(wa.odd)),
+                               hn::Set(du, static_cast<std::uint32_t>(wb.odd)));
             const VU16 second = hn::IfThenZeroElse(in_a, hn::Set(du, 0x00200020u));
             win = ReadWindows<true>(g, s, wa, wb, rel, odd_in, second);
           }
@@ -316,6 +427,10 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
     }
 #endif
     VF g00, g01, g10, g11;
+    // The fixed-point weights (FixedSums): per lane the words (w00, w01)
+    // of raw row iy and (w10, w11) of iy + 1, signed 16-bit factors of the
+    // products with the pixels' words.
+    [[maybe_unused]] hn::Vec<decltype(du)> wa = hn::Zero(du), wb = hn::Zero(du);
     if (s.gain16 != nullptr) {
       // The 16-bit gains of x0 and x0 + 1 in one word (byte offset 2 at).
       // An invalid pixel (q = 0, gain NaN in the scalar reference, which
@@ -333,28 +448,54 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
         q0 = hn::GatherOffset(du, gw, two_at);
         q1 = hn::GatherOffset(du, gw, hn::Add(two_at, hn::Add(width, width)));
       }
-      const VF scale = hn::Set(df, s.gain16_scale);
       const auto half = hn::Set(du, 0xFFFFu);
-      const auto q00 = hn::And(q0, half), q01 = hn::ShiftRight<16>(q0);
-      const auto q10 = hn::And(q1, half), q11 = hn::ShiftRight<16>(q1);
-      auto gain_of = [&](hn::Vec<decltype(du)> q) {
-        return hn::Mul(hn::ConvertTo(df, hn::BitCast(di, q)), scale);
-      };
-      g00 = gain_of(q00);
-      g01 = gain_of(q01);
-      g10 = gain_of(q10);
-      g11 = gain_of(q11);
-      const auto low = hn::Min(hn::Min(q00, q01), hn::Min(q10, q11));
-      valid = hn::AndNot(hn::RebindMask(df, hn::Eq(low, hn::Zero(du))), valid);
+      if constexpr (kFixed && HWY_TARGET != HWY_SCALAR) {
+        // FixedSums' weights: the words (1 - f | f) in units of 1 / 32767,
+        // q halved (signed 16 bits), rounded products by MulFixedPoint15.
+        const hn::Repartition<std::uint16_t, DF> d16u;
+        const hn::Repartition<std::int16_t, DF> d16;
+        const auto k1 = hn::Set(di, kFixedOne);
+        const auto fx = hn::ShiftRight<1>(fxq), fy = hn::ShiftRight<1>(fyq);
+        const auto bx = hn::BitCast(d16, hn::Or(hn::Sub(k1, fx), hn::ShiftLeft<16>(fx)));
+        const auto omy = hn::Sub(k1, fy);
+        const auto by0 = hn::BitCast(d16, hn::Or(omy, hn::ShiftLeft<16>(omy)));
+        const auto by1 = hn::BitCast(d16, hn::Or(fy, hn::ShiftLeft<16>(fy)));
+        auto halved = [&](hn::Vec<decltype(du)> q) {
+          return hn::BitCast(d16, hn::ShiftRight<1>(hn::BitCast(d16u, q)));
+        };
+        wa = hn::BitCast(du, hn::MulFixedPoint15(hn::MulFixedPoint15(halved(q0), bx), by0));
+        wb = hn::BitCast(du, hn::MulFixedPoint15(hn::MulFixedPoint15(halved(q1), bx), by1));
+        const auto m = hn::BitCast(du, hn::Min(hn::BitCast(d16u, q0), hn::BitCast(d16u, q1)));
+        const auto low = hn::Min(hn::And(m, half), hn::ShiftRight<16>(m));
+        valid = hn::AndNot(hn::RebindMask(df, hn::Eq(low, hn::Zero(du))), valid);
+      } else {
+        const VF scale = hn::Set(df, s.gain16_scale);
+        const auto q00 = hn::And(q0, half), q01 = hn::ShiftRight<16>(q0);
+        const auto q10 = hn::And(q1, half), q11 = hn::ShiftRight<16>(q1);
+        auto gain_of = [&](hn::Vec<decltype(du)> q) {
+          return hn::Mul(hn::ConvertTo(df, hn::BitCast(di, q)), scale);
+        };
+        g00 = gain_of(q00);
+        g01 = gain_of(q01);
+        g10 = gain_of(q10);
+        g11 = gain_of(q11);
+        const auto low = hn::Min(hn::Min(q00, q01), hn::Min(q10, q11));
+        valid = hn::AndNot(hn::RebindMask(df, hn::Eq(low, hn::Zero(du))), valid);
+      }
     } else {
       g00 = hn::GatherIndex(df, s.gain, at);
       g01 = hn::GatherIndex(df, s.gain, hn::Add(at, hn::Set(di, 1)));
       g10 = hn::GatherIndex(df, s.gain, hn::Add(at, width));
       g11 = hn::GatherIndex(df, s.gain, hn::Add(hn::Add(at, width), hn::Set(di, 1)));
     }
-    const VF omx = hn::Sub(one, ffx), omy = hn::Sub(one, ffy);
-    const VF w00 = hn::Mul(hn::Mul(omx, omy), g00), w01 = hn::Mul(hn::Mul(ffx, omy), g01);
-    const VF w10 = hn::Mul(hn::Mul(omx, ffy), g10), w11 = hn::Mul(hn::Mul(ffx, ffy), g11);
+    VF w00 = zero, w01 = zero, w10 = zero, w11 = zero;
+    if (!fixed) {
+      const VF omx = hn::Sub(one, ffx), omy = hn::Sub(one, ffy);
+      w00 = hn::Mul(hn::Mul(omx, omy), g00);
+      w01 = hn::Mul(hn::Mul(ffx, omy), g01);
+      w10 = hn::Mul(hn::Mul(omx, ffy), g10);
+      w11 = hn::Mul(hn::Mul(ffx, ffy), g11);
+    }
     VF col[kChannels];
     auto to_f = [&](hn::Vec<decltype(du)> u) { return hn::ConvertTo(df, hn::BitCast(di, u)); };
     auto mix = [&](VF q00, VF q01, VF q10, VF q11) {
@@ -373,9 +514,9 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
       const hn::Repartition<std::int64_t, DF> di64;
       const hn::Half<decltype(di)> dh;
       const auto inner = hn::Gt(ix, hn::Zero(di));
-      const auto off0 = hn::Add(hn::Mul(iy, stride),
-                                hn::Sub(hn::Mul(ix, hn::Set(di, 3)),
-                                        hn::IfThenElseZero(inner, hn::Set(di, 2))));
+      const auto off0 =
+          hn::Add(hn::Mul(iy, stride),
+                  hn::Sub(hn::Mul(ix, hn::Set(di, 3)), hn::IfThenElseZero(inner, hn::Set(di, 2))));
       const auto shift32 = hn::IfThenElseZero(inner, hn::Set(di, 16));
       const auto shift_lo = hn::BitCast(du64, hn::PromoteTo(di64, hn::LowerHalf(dh, shift32)));
       const auto shift_hi = hn::BitCast(du64, hn::PromoteTo(di64, hn::UpperHalf(dh, shift32)));
@@ -404,14 +545,18 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
         load_row(off0, &a_lo, &a_hi);
         load_row(hn::Add(off0, stride), &b_lo, &b_hi);
       }
-      col[0] = mix(to_f(hn::And(a_lo, byte)), to_f(hn::ShiftRight<24>(a_lo)),
-                   to_f(hn::And(b_lo, byte)), to_f(hn::ShiftRight<24>(b_lo)));
-      col[1] = mix(to_f(hn::And(hn::ShiftRight<8>(a_lo), byte)), to_f(hn::And(a_hi, byte)),
-                   to_f(hn::And(hn::ShiftRight<8>(b_lo), byte)), to_f(hn::And(b_hi, byte)));
-      col[2] = mix(to_f(hn::And(hn::ShiftRight<16>(a_lo), byte)),
-                   to_f(hn::And(hn::ShiftRight<8>(a_hi), byte)),
-                   to_f(hn::And(hn::ShiftRight<16>(b_lo), byte)),
-                   to_f(hn::And(hn::ShiftRight<8>(b_hi), byte)));
+      if (fixed) {
+        FixedColours(df, a_lo, a_hi, b_lo, b_hi, wa, wb, col);
+      } else {
+        col[0] = mix(to_f(hn::And(a_lo, byte)), to_f(hn::ShiftRight<24>(a_lo)),
+                     to_f(hn::And(b_lo, byte)), to_f(hn::ShiftRight<24>(b_lo)));
+        col[1] = mix(to_f(hn::And(hn::ShiftRight<8>(a_lo), byte)), to_f(hn::And(a_hi, byte)),
+                     to_f(hn::And(hn::ShiftRight<8>(b_lo), byte)), to_f(hn::And(b_hi, byte)));
+        col[2] = mix(to_f(hn::And(hn::ShiftRight<16>(a_lo), byte)),
+                     to_f(hn::And(hn::ShiftRight<8>(a_hi), byte)),
+                     to_f(hn::And(hn::ShiftRight<16>(b_lo), byte)),
+                     to_f(hn::And(hn::ShiftRight<8>(b_hi), byte)));
+      }
 #else
       // BGR: the word at 3 x0 holds B G R of x0 in its low three bytes, the
       // word at 3 x0 + 2 those of x0 + 1 in its high three; neither reads
@@ -423,14 +568,24 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
       const auto a1 = hn::GatherOffset(du, words, hn::Add(off0, two));
       const auto b0 = hn::GatherOffset(du, words, off1);
       const auto b1 = hn::GatherOffset(du, words, hn::Add(off1, two));
-      col[0] = mix(to_f(hn::And(a0, byte)), to_f(hn::And(hn::ShiftRight<8>(a1), byte)),
-                   to_f(hn::And(b0, byte)), to_f(hn::And(hn::ShiftRight<8>(b1), byte)));
-      col[1] = mix(to_f(hn::And(hn::ShiftRight<8>(a0), byte)),
-                   to_f(hn::And(hn::ShiftRight<16>(a1), byte)),
-                   to_f(hn::And(hn::ShiftRight<8>(b0), byte)),
-                   to_f(hn::And(hn::ShiftRight<16>(b1), byte)));
-      col[2] = mix(to_f(hn::And(hn::ShiftRight<16>(a0), byte)), to_f(hn::ShiftRight<24>(a1)),
-                   to_f(hn::And(hn::ShiftRight<16>(b0), byte)), to_f(hn::ShiftRight<24>(b1)));
+      if (fixed) {
+        // One lane: FixedSums itself.
+        std::int32_t sums[3] = {0, 0, 0};
+        if (hn::AllTrue(df, valid) &&
+            !FixedSums(s, g.width, hn::GetLane(hn::Add(hn::ShiftLeft<16>(ix), fxq)),
+                       hn::GetLane(hn::Add(hn::ShiftLeft<16>(iy), fyq)), sums))
+          valid = hn::And(valid, hn::Lt(one, zero));
+        for (int ch = 0; ch < 3; ++ch) col[ch] = hn::Set(df, static_cast<float>(sums[ch]));
+      } else {
+        col[0] = mix(to_f(hn::And(a0, byte)), to_f(hn::And(hn::ShiftRight<8>(a1), byte)),
+                     to_f(hn::And(b0, byte)), to_f(hn::And(hn::ShiftRight<8>(b1), byte)));
+        col[1] = mix(to_f(hn::And(hn::ShiftRight<8>(a0), byte)),
+                     to_f(hn::And(hn::ShiftRight<16>(a1), byte)),
+                     to_f(hn::And(hn::ShiftRight<8>(b0), byte)),
+                     to_f(hn::And(hn::ShiftRight<16>(b1), byte)));
+        col[2] = mix(to_f(hn::And(hn::ShiftRight<16>(a0), byte)), to_f(hn::ShiftRight<24>(a1)),
+                     to_f(hn::And(hn::ShiftRight<16>(b0), byte)), to_f(hn::ShiftRight<24>(b1)));
+      }
 #endif
     } else {
       // Mono8: the word at x0 - 2 holds x0 and x0 + 1 in its high two bytes
@@ -446,8 +601,7 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
         return to_f(hn::IfThenElse(hi, hn::And(hn::ShiftRight<16>(w), byte), hn::And(w, byte)));
       };
       auto second = [&](hn::Vec<decltype(du)> w) {
-        return to_f(
-            hn::IfThenElse(hi, hn::ShiftRight<24>(w), hn::And(hn::ShiftRight<8>(w), byte)));
+        return to_f(hn::IfThenElse(hi, hn::ShiftRight<24>(w), hn::And(hn::ShiftRight<8>(w), byte)));
       };
       col[0] = mix(first(a), second(a), first(b), second(b));
     }
@@ -458,8 +612,10 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
       valid = hn::AndNot(hn::IsNaN(check), valid);
     }
     const VF wq = hn::Mul(bary[c], hn::Sub(one, hn::Mul(d2, inv_r2)));
+    // The fixed-point colours are q / 2 kFixedRescale^-1 times the float ones.
+    const VF wc = fixed ? hn::Mul(wq, fixed_scale) : wq;
     for (int ch = 0; ch < kChannels; ++ch)
-      acc[ch] = hn::Add(acc[ch], hn::IfThenElseZero(valid, hn::Mul(wq, col[ch])));
+      acc[ch] = hn::Add(acc[ch], hn::IfThenElseZero(valid, hn::Mul(wc, col[ch])));
     *sw = hn::Add(*sw, hn::IfThenElseZero(valid, wq));
   }
 }
@@ -567,8 +723,8 @@ HWY_EXPORT(Bytes);
 namespace {
 
 template <int kChannels>
-void ScalarBlendRowT(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float dx,
-                     float y, const float* v, int n, float* acc, float* sw) {
+void ScalarBlendRowT(const TfBlendGeometry& g, const TfBlendSource& s, float x0, float dx, float y,
+                     const float* v, int n, float* acc, float* sw) {
   const float wm1 = static_cast<float>(g.width - 1), hm1 = static_cast<float>(g.height - 1);
   const float type_max = static_cast<float>(g.type_size - 1);
   const float inv_r2 = 1.0f / g.r2;
@@ -610,6 +766,19 @@ void ScalarBlendRowT(const TfBlendGeometry& g, const TfBlendSource& s, float x0,
       const float dx = px - ccx, dy = py - ccy;
       const float d2 = dx * dx + dy * dy;
       if (!(bary[c] > 0 && d2 <= g.r2 && px >= 0 && py >= 0 && px < wm1 && py < hm1)) continue;
+      const float wq = bary[c] * (1.0f - d2 * inv_r2);
+      if (kChannels == 3 && s.gain16 != nullptr && g.width <= kFixedMaxWidth) {
+        // BGR with the 16-bit gain: the weights in 16-bit fixed point, the
+        // products in integers (FixedSums, the Highway kernel's rule).
+        std::int32_t sums[3];
+        if (!FixedSums(s, g.width, static_cast<std::int32_t>(px * 65536.0f),
+                       static_cast<std::int32_t>(py * 65536.0f), sums))
+          continue;
+        const float wc = wq * (2.0f * s.gain16_scale * kFixedRescale);
+        for (int ch = 0; ch < kChannels; ++ch) a[ch] = a[ch] + wc * static_cast<float>(sums[ch]);
+        w = w + wq;
+        continue;
+      }
       const int ix = static_cast<int>(px), iy = static_cast<int>(py);
       const float ffx = px - static_cast<float>(ix), ffy = py - static_cast<float>(iy);
       const std::size_t at = static_cast<std::size_t>(iy) * g.width + ix;
@@ -634,13 +803,13 @@ void ScalarBlendRowT(const TfBlendGeometry& g, const TfBlendSource& s, float x0,
       const std::uint8_t* r1 = r0 + s.stride_bytes;
       float col[kChannels];
       for (int ch = 0; ch < kChannels; ++ch)
-        col[ch] = ((w00 * static_cast<float>(r0[ch]) + w01 * static_cast<float>(r0[kChannels + ch])) +
-                   w10 * static_cast<float>(r1[ch])) +
-                  w11 * static_cast<float>(r1[kChannels + ch]);
+        col[ch] =
+            ((w00 * static_cast<float>(r0[ch]) + w01 * static_cast<float>(r0[kChannels + ch])) +
+             w10 * static_cast<float>(r1[ch])) +
+            w11 * static_cast<float>(r1[kChannels + ch]);
       float check = col[0];
       for (int ch = 1; ch < kChannels; ++ch) check = check + col[ch];
       if (std::isnan(check)) continue;
-      const float wq = bary[c] * (1.0f - d2 * inv_r2);
       for (int ch = 0; ch < kChannels; ++ch) a[ch] = a[ch] + wq * col[ch];
       w = w + wq;
     }
@@ -696,9 +865,8 @@ const TfBlendKernels& ScalarTfBlendKernels() {
 
 const TfBlendKernels& SimdTfBlendKernels() {
   // The target this CPU runs (hwy/targets.h): the best one compiled in.
-  static const TfBlendKernels kernels{DispatchedBlendRow,
-                                      hwy::TargetName(hwy::SupportedAndGeneratedTargets()[0]),
-                                      DispatchedBytes};
+  static const TfBlendKernels kernels{
+      DispatchedBlendRow, hwy::TargetName(hwy::SupportedAndGeneratedTargets()[0]), DispatchedBytes};
   return kernels;
 }
 

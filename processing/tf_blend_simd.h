@@ -16,6 +16,14 @@
 // (c_k - c) lambda, the sample p_k = l_k + (x - l_k) / v, bilinear on the raw
 // pixels times the devignetting gain, weighted by bary (1 - |p_k - c_k|^2 /
 // r^2) where it lies within r of c_k, on the frame and off invalid pixels.
+// BGR with the 16-bit gain (the TF image's case, frames up to 32768 px
+// wide) blends each sample in fixed point: the position in units of 2^-16
+// px, the weights q_ij / 2 (1 - f | f)_x (1 - f | f)_y of its four pixels
+// (fractions to 1 / 32767, rounded 16-bit products) and each colour's sum
+// of their products in 32-bit integers, then in float times 2 gain16_scale
+// (and the products' rescale): the float rule's colour to a few hundredths
+// of a DN (TfBlendFixedPoint states the bound; docs/processing.md the r32
+// TF image against the float blend's).
 // The border fallback of tf_kernel.h (the nearest micro image and its six
 // neighbours, where the three see nothing: sw = 0) is left to the caller.
 // On AVX-512 (BGR, the 16-bit gain) a lens's samples of a vector whose

@@ -784,6 +784,15 @@ void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDept
       // through a float pointer could otherwise change a captured value).
       const float fallback_v = fallback, gain_v = gain;
       const float* const v_row = depth.virtual_depth.data() + t0;
+      // The next run's depths (at a row's end the next row's first), asked
+      // of the cache while this run is blended: the TF depth map comes from
+      // memory, and half of this function's perf samples were on the first
+      // load of a run's depths.
+      const float* const v_next =
+          u0 + kRun < tw ? v_row + kRun
+                         : (w + 1 < th ? depth.virtual_depth.data() + t0 - u0 + tw : nullptr);
+      if (v_next != nullptr)
+        for (int i = 0; i < kRun; i += 16) __builtin_prefetch(v_next + i);
       for (int i = 0; i < n; ++i) {
         const float v = v_row[i];
         run_v[i] = v > 1.0f ? v : fallback_v;  // NaN too
