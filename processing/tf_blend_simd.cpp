@@ -26,8 +26,6 @@
 #define LIFMCR_TF_BLEND_FIXED_ONCE
 namespace lifmcr::processing::detail {
 
-// a b / 2^15 rounded (x86's pmulhrsw, Highway's MulFixedPoint15) for the
-// non-negative operands of FixedSums.
 // The widest frame of the fixed-point blend (its positions in 2^-16 px fit
 // 32 bits); a wider one blends in float.
 constexpr int kFixedMaxWidth = 32768;
@@ -36,6 +34,8 @@ constexpr int kFixedMaxWidth = 32768;
 constexpr std::int32_t kFixedOne = 32767;
 constexpr float kFixedRescale = static_cast<float>((32768.0 / 32767.0) * (32768.0 / 32767.0));
 
+// a b / 2^15 rounded (x86's pmulhrsw, Highway's MulFixedPoint15) for the
+// non-negative operands of FixedSums.
 inline std::int32_t MulQ15(std::int32_t a, std::int32_t b) { return (a * b + 16384) >> 15; }
 
 // The fixed-point blend of a BGR sample with the 16-bit gain (the rule of
@@ -45,7 +45,7 @@ inline std::int32_t MulQ15(std::int32_t a, std::int32_t b) { return (a * b + 163
 // f | f)_y, each fraction f = (pxq mod 2^16) / 2 in units of 1 / 32767 (so 1
 // - f fits a signed word), each product by MulQ15 (so a weight carries
 // kFixedRescale^-1), q halved first; per colour sums[ch] = sum w_ij c_ij in
-// 32-bit integers (at most 4 255 32767); false where a gain is 0.
+// 32-bit integers (at most 4 x 255 x 32767); false where a gain is 0.
 inline bool FixedSums(const TfBlendSource& s, int width, std::int32_t pxq, std::int32_t pyq,
                       std::int32_t sums[3]) {
   const int ix = pxq >> 16, iy = pyq >> 16;
@@ -416,9 +416,8 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
           if (windowed) {
             // Each lane its window's rel, byte parity and table.
             const VU16 rel = hn::IfThenElse(in_a, rel_a, rel_b);
-            const VU16 odd_in =
-                hn::IfThenElse(in_a, hn::Set(du, static_cast<std::uint32_t>(wa.odd)),
-                               hn::Set(du, static_cast<std::uint32_t>(wb.odd)));
+            const VU16 odd_in = hn::IfThenElse(in_a, hn::Set(du, static_cast<std::uint32_t>(wa.odd)),
+                                               hn::Set(du, static_cast<std::uint32_t>(wb.odd)));
             const VU16 second = hn::IfThenZeroElse(in_a, hn::Set(du, 0x00200020u));
             win = ReadWindows<true>(g, s, wa, wb, rel, odd_in, second);
           }
@@ -514,9 +513,9 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
       const hn::Repartition<std::int64_t, DF> di64;
       const hn::Half<decltype(di)> dh;
       const auto inner = hn::Gt(ix, hn::Zero(di));
-      const auto off0 =
-          hn::Add(hn::Mul(iy, stride),
-                  hn::Sub(hn::Mul(ix, hn::Set(di, 3)), hn::IfThenElseZero(inner, hn::Set(di, 2))));
+      const auto off0 = hn::Add(hn::Mul(iy, stride),
+                                hn::Sub(hn::Mul(ix, hn::Set(di, 3)),
+                                        hn::IfThenElseZero(inner, hn::Set(di, 2))));
       const auto shift32 = hn::IfThenElseZero(inner, hn::Set(di, 16));
       const auto shift_lo = hn::BitCast(du64, hn::PromoteTo(di64, hn::LowerHalf(dh, shift32)));
       const auto shift_hi = hn::BitCast(du64, hn::PromoteTo(di64, hn::UpperHalf(dh, shift32)));
@@ -601,7 +600,8 @@ HWY_INLINE void BlendVector(DF df, const TfBlendGeometry& g, const TfBlendSource
         return to_f(hn::IfThenElse(hi, hn::And(hn::ShiftRight<16>(w), byte), hn::And(w, byte)));
       };
       auto second = [&](hn::Vec<decltype(du)> w) {
-        return to_f(hn::IfThenElse(hi, hn::ShiftRight<24>(w), hn::And(hn::ShiftRight<8>(w), byte)));
+        return to_f(
+            hn::IfThenElse(hi, hn::ShiftRight<24>(w), hn::And(hn::ShiftRight<8>(w), byte)));
       };
       col[0] = mix(first(a), second(a), first(b), second(b));
     }
@@ -803,10 +803,9 @@ void ScalarBlendRowT(const TfBlendGeometry& g, const TfBlendSource& s, float x0,
       const std::uint8_t* r1 = r0 + s.stride_bytes;
       float col[kChannels];
       for (int ch = 0; ch < kChannels; ++ch)
-        col[ch] =
-            ((w00 * static_cast<float>(r0[ch]) + w01 * static_cast<float>(r0[kChannels + ch])) +
-             w10 * static_cast<float>(r1[ch])) +
-            w11 * static_cast<float>(r1[kChannels + ch]);
+        col[ch] = ((w00 * static_cast<float>(r0[ch]) + w01 * static_cast<float>(r0[kChannels + ch])) +
+                   w10 * static_cast<float>(r1[ch])) +
+                  w11 * static_cast<float>(r1[kChannels + ch]);
       float check = col[0];
       for (int ch = 1; ch < kChannels; ++ch) check = check + col[ch];
       if (std::isnan(check)) continue;
@@ -865,8 +864,9 @@ const TfBlendKernels& ScalarTfBlendKernels() {
 
 const TfBlendKernels& SimdTfBlendKernels() {
   // The target this CPU runs (hwy/targets.h): the best one compiled in.
-  static const TfBlendKernels kernels{
-      DispatchedBlendRow, hwy::TargetName(hwy::SupportedAndGeneratedTargets()[0]), DispatchedBytes};
+  static const TfBlendKernels kernels{DispatchedBlendRow,
+                                      hwy::TargetName(hwy::SupportedAndGeneratedTargets()[0]),
+                                      DispatchedBytes};
   return kernels;
 }
 
