@@ -136,6 +136,10 @@ PreviewOptions PreviewOptionsFromRig(const RigConfig& rig) {
   return options;
 }
 
+int PipelineOptions::FramesHeldPerCamera() const {
+  return 1 + (max_concurrency + 1) + (lens_queue + 1) + 2;
+}
+
 Status PipelineOptions::Check() const {
   if (max_concurrency < 1 || max_concurrency > 64)
     return Error{"pipeline: max_concurrency: expected 1..64"};

@@ -1406,7 +1406,7 @@ TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
 
 // The lens lane held up (both its threads inside ProcessLenses, as when a
 // relocalisation at the workers' higher priority takes the CPU) while two
-// more triggers come: with lens_queue 2 (the default) both wait per camera
+// more triggers come: with lens_queue 2 both wait per camera
 // and get their per-lens depth once the lane goes on; a third replaces the
 // oldest waiting (newest wins beyond the queue), counted as replaced. With
 // lens_queue 1 (newest wins at once) the second trigger already replaces
@@ -1729,7 +1729,7 @@ TEST(Pipeline, BadGrabLoopAndReplayOptionsNameTheirField) {
 
   ReplayRunOptions replay;
   replay.sequence_dir = "/nonexistent";
-  replay.pool_buffers = 0;
+  replay.pool_buffers = -1;
   auto result = RunReplay(replay);
   ASSERT_FALSE(result.ok());
   EXPECT_NE(result.error().message.find("pool_buffers"), std::string::npos)
