@@ -137,8 +137,9 @@ struct PipelineOptions {
   // pooled buffer of its camera (a camera's pool needs these beyond its own
   // and a recorder's): the frame set the assembler completes (1), the
   // workers' computing ones and a waiting one (max_concurrency + 1), the lens
-  // lane's waiting ones and the one it computes (lens_queue + 1), the depth
-  // lane's waiting and computing ones (2). A frame in several lanes at once
+  // lane's waiting ones and those its threads compute or hold to publish in
+  // order (lens_queue + max_concurrency), the depth lane's waiting and
+  // computing ones (2). A frame in several lanes at once
   // holds one buffer, so this is a bound, not a count.
   int FramesHeldPerCamera() const;
   Status Check() const;  // every field; the message names the field

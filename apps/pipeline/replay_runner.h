@@ -48,7 +48,7 @@ struct ReplayRunOptions {
   // skip_when_busy is the rate's: newest wins when timed, block at max.
   PipelineOptions pipeline;
   // Per replay camera; 0: the frames the pipeline may hold of a camera
-  // (PipelineOptions::FramesHeldPerCamera, 11 by default) and the one the
+  // (PipelineOptions::FramesHeldPerCamera, 12 by default) and the one the
   // camera reads next. A fixed 8 ran out once the lens lane held 4 waiting
   // frames: 3 frames of a timed replay lost for lack of a buffer.
   int pool_buffers = 0;
