@@ -1419,6 +1419,30 @@ TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
   EXPECT_EQ(received.lens_depth.size(), 2u);
 }
 
+// The frame ids of the per-lens depth messages (GEOMETRY_LENS_GRID on
+// _DEPTH) by serial, in the order they were published on `bus`.
+class LensDepthOrder {
+ public:
+  explicit LensDepthOrder(lcm::LCM* bus) {
+    bus->subscribe("LIFMCR_.*_DEPTH", &LensDepthOrder::On, this);
+  }
+  std::map<std::string, std::vector<std::int64_t>> Get() {
+    std::lock_guard lock(mutex_);
+    return order_;
+  }
+
+ private:
+  void On(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    lifmcr_lcm::depth_image_t m;
+    ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);
+    if (m.geometry != lifmcr_lcm::depth_image_t::GEOMETRY_LENS_GRID) return;
+    std::lock_guard lock(mutex_);
+    order_[m.serial].push_back(m.frame_id);
+  }
+  std::mutex mutex_;
+  std::map<std::string, std::vector<std::int64_t>> order_;
+};
+
 // The lens lane held up (both its threads inside ProcessLenses, as when a
 // relocalisation at the workers' higher priority takes the CPU) while two
 // more triggers come: with lens_queue 2 both wait per camera
@@ -1438,20 +1462,7 @@ TEST(Pipeline, LensLaneQueueKeepsTheFramesThatCameWhileItWasHeld) {
     auto owned = std::make_unique<LensGatedProcessor>(std::move(*depth));
     LensGatedProcessor* processor = owned.get();
     lcm::LCM bus("memq://");
-    std::mutex lens_mutex;
-    std::map<std::string, std::vector<std::int64_t>> lens_order;  // by serial, as published
-    struct Order {
-      std::mutex* mutex;
-      std::map<std::string, std::vector<std::int64_t>>* order;
-      void On(const lcm::ReceiveBuffer* rbuf, const std::string&) {
-        lifmcr_lcm::depth_image_t m;
-        ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);
-        if (m.geometry != lifmcr_lcm::depth_image_t::GEOMETRY_LENS_GRID) return;
-        std::lock_guard lock(*mutex);
-        (*order)[m.serial].push_back(m.frame_id);
-      }
-    } order{&lens_mutex, &lens_order};
-    bus.subscribe("LIFMCR_.*_DEPTH", &Order::On, &order);
+    LensDepthOrder lens_order(&bus);
     PipelineOptions options;
     options.lens_queue = lens_queue;
     auto created = CreateLanesPipeline(serials, std::move(owned), &bus, options);
@@ -1490,8 +1501,8 @@ TEST(Pipeline, LensLaneQueueKeepsTheFramesThatCameWhileItWasHeld) {
     Drain(bus);
     const std::vector<std::int64_t> expected =
         lens_queue == 2 ? std::vector<std::int64_t>{0, 2, 3} : std::vector<std::int64_t>{0, 3};
-    std::lock_guard lock(lens_mutex);
-    for (const std::string& serial : serials) EXPECT_EQ(lens_order[serial], expected) << serial;
+    auto published = lens_order.Get();
+    for (const std::string& serial : serials) EXPECT_EQ(published[serial], expected) << serial;
   }
 }
 
@@ -1513,20 +1524,7 @@ TEST(Pipeline, LensLaneFreeThreadTakesTheFramesOfACameraHeldOnTheOtherInOrder) {
   LensGatedProcessor* processor = owned.get();
   processor->GateOnly(serials[0], 0);
   lcm::LCM bus("memq://");
-  std::mutex lens_mutex;
-  std::map<std::string, std::vector<std::int64_t>> lens_order;  // by serial, as published
-  struct Order {
-    std::mutex* mutex;
-    std::map<std::string, std::vector<std::int64_t>>* order;
-    void On(const lcm::ReceiveBuffer* rbuf, const std::string&) {
-      lifmcr_lcm::depth_image_t m;
-      ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);
-      if (m.geometry != lifmcr_lcm::depth_image_t::GEOMETRY_LENS_GRID) return;
-      std::lock_guard lock(*mutex);
-      (*order)[m.serial].push_back(m.frame_id);
-    }
-  } order{&lens_mutex, &lens_order};
-  bus.subscribe("LIFMCR_.*_DEPTH", &Order::On, &order);
+  LensDepthOrder lens_order(&bus);
   PipelineOptions options;  // lens_queue 4: five frames waiting would replace one
   auto created = CreateLanesPipeline(serials, std::move(owned), &bus, options);
   ASSERT_TRUE(created.ok()) << created.error().message;
@@ -1560,8 +1558,8 @@ TEST(Pipeline, LensLaneFreeThreadTakesTheFramesOfACameraHeldOnTheOtherInOrder) {
   pipeline.reset();
   Drain(bus);
   const std::vector<std::int64_t> expected{0, 1, 2, 3, 4, 5};
-  std::lock_guard lock(lens_mutex);
-  for (const std::string& serial : serials) EXPECT_EQ(lens_order[serial], expected) << serial;
+  auto published = lens_order.Get();
+  for (const std::string& serial : serials) EXPECT_EQ(published[serial], expected) << serial;
 }
 
 // DepthProcessor::Warm (what a timed replay does before its cameras start):
