@@ -1465,6 +1465,7 @@ TEST(Pipeline, LensLaneQueueKeepsTheFramesThatCameWhileItWasHeld) {
     LensDepthOrder lens_order(&bus);
     PipelineOptions options;
     options.lens_queue = lens_queue;
+    options.threads = 2;  // two lens-lane threads on any host (one per worker)
     auto created = CreateLanesPipeline(serials, std::move(owned), &bus, options);
     ASSERT_TRUE(created.ok()) << created.error().message;
     std::unique_ptr<Pipeline> pipeline = std::move(*created);
@@ -1526,6 +1527,7 @@ TEST(Pipeline, LensLaneFreeThreadTakesTheFramesOfACameraHeldOnTheOtherInOrder) {
   lcm::LCM bus("memq://");
   LensDepthOrder lens_order(&bus);
   PipelineOptions options;  // lens_queue 4: five frames waiting would replace one
+  options.threads = 2;       // two lens-lane threads on any host (one per worker)
   auto created = CreateLanesPipeline(serials, std::move(owned), &bus, options);
   ASSERT_TRUE(created.ok()) << created.error().message;
   std::unique_ptr<Pipeline> pipeline = std::move(*created);
