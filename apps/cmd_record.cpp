@@ -239,9 +239,10 @@ int Run(const Args& args) {
     const CameraConfig& config = rig->cameras[i];
     CameraFactoryOptions factory;
     // The recorder's queue plus frames in the stream and in the grab thread;
-    // with --publish also those the pipeline holds (sync, one per worker, one
-    // waiting per camera).
-    factory.pool_buffers = rig->recorder.queue_frames + 4 + (args.publish ? 8 : 0);
+    // with --publish also those the pipeline holds (the assembler's set, the
+    // workers' and the lanes': PipelineOptions::FramesHeldPerCamera).
+    factory.pool_buffers = rig->recorder.queue_frames + 4 +
+                           (args.publish ? PipelineOptions::FromRig(*rig).FramesHeldPerCamera() : 0);
     factory.trigger_period = TriggerPeriod(rig->vicon);
     factory.replay_sequence_dir = args.replay;
     factory.replay_pacing = config.trigger.mode == TriggerMode::kSoftware

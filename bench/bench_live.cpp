@@ -61,7 +61,7 @@
 //
 //   bench_live [--preset small|medium|r32] [--frames N (24)] [--seconds S]
 //              [--concurrency N] [--keep DIR] [--runs track,relocalise,depth]
-//              [--lens-nice 0..19 (15)] [--lens-queue 1..8 (2)] [--depth-idle 0|1 (1)]
+//              [--lens-nice 0..19 (15)] [--lens-queue 1..8 (4)] [--depth-idle 0|1 (1)]
 //              [--loop pingpong|restart (pingpong)] [--cold-reanchor-rounds R]
 //              [--refine-step 0..3] [--widen-ahead N>=2]
 // --keep DIR renders into DIR once and reuses it (same preset and frames)
@@ -119,7 +119,7 @@ struct Args {
   double seconds = 30;
   int concurrency = 2;
   int lens_nice = 15;  // PipelineOptions::lens_nice
-  int lens_queue = 2;  // PipelineOptions::lens_queue
+  int lens_queue = apps::PipelineOptions{}.lens_queue;
   int depth_idle = 1;  // PipelineOptions::depth_idle
   // LocalizerOptions::cold_reanchor_rounds (-1: the localizer's default):
   // the first pose re-anchored in its own frame, to compare live.
@@ -670,7 +670,7 @@ constexpr char kUsage[] =
     "each pose was made. --keep DIR renders into DIR once and reuses it; --runs picks\n"
     "some of the three runs (the ratios need all three). --lens-nice: the lens lane's\n"
     "nice value above the command's (15; the workers run at +10). --lens-queue: frames of\n"
-    "a camera that wait for the lens lane before the oldest is skipped (2). --depth-idle 0: the\n"
+    "a camera that wait for the lens lane before the oldest is skipped (4). --depth-idle 0: the\n"
     "depth lane computes at nice 19 instead of under SCHED_IDLE (1, the default).\n"
     "--loop pingpong (the default): the rendered frames forward then backward, 0 .. N-1 ..\n"
     "0 .., as one sequence whose trigger index keeps increasing (a rig moving on\n"

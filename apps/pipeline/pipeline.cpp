@@ -136,6 +136,10 @@ PreviewOptions PreviewOptionsFromRig(const RigConfig& rig) {
   return options;
 }
 
+int PipelineOptions::FramesHeldPerCamera() const {
+  return 1 + (max_concurrency + 1) + (lens_queue + max_concurrency) + 2;
+}
+
 Status PipelineOptions::Check() const {
   if (max_concurrency < 1 || max_concurrency > 64)
     return Error{"pipeline: max_concurrency: expected 1..64"};
@@ -302,11 +306,21 @@ struct Pipeline::Impl {
     // frame reached it after the graph's nodes were destroyed: bench_live,
     // segmentation fault at the run's end).
     int held = 0;
-    // Cameras with a frame on one of the lane's threads: a camera's next
-    // frame waits for it (Take), so each camera's products go out in its
-    // frames' order. Without it two threads took two waiting frames of one
-    // camera and the newer one's per-lens depth could go out first.
-    std::set<int> busy;
+    // By camera: the Job::camera_order of its frames on the lane's threads
+    // (computing, not yet parked or published). A free thread takes a camera
+    // with none first, else the next waiting frame of a camera another
+    // thread computes (Take): with one camera's thread starved on a core a
+    // relocalising worker holds, the other thread no longer idles while that
+    // camera's frames wait and are replaced (a timed replay: one camera's
+    // frames at 50 ms each, the other's at 400 ms, its queue overflowing).
+    std::map<int, std::set<std::uint64_t>> computing;
+    // By camera: frames computed while an older frame of the camera was still
+    // computing, parked by camera_order until it is published, and the
+    // cameras one thread publishes now (PublishLaneFrame): each camera's
+    // products go out in its frames' order (two threads on one camera's
+    // frames, the newer one's per-lens depth went out first).
+    std::map<int, std::map<std::uint64_t, Result>> parked;
+    std::set<int> publishing;
     bool stop = false;
     std::vector<std::unique_ptr<tbb::task_arena>> arenas;  // one per thread
     std::vector<std::thread> threads;
@@ -389,12 +403,19 @@ struct Pipeline::Impl {
     auto pick = lane.slots.end();
     lane.cv.wait(lock, [&] {
       if (lane.stop) return true;
-      // The camera served longest ago among those with no frame on a thread.
+      // The camera served longest ago among those with no frame on a
+      // thread, else among all with a frame waiting.
       pick = lane.slots.end();
-      for (auto it = lane.slots.begin(); it != lane.slots.end(); ++it)
-        if (!lane.busy.count(it->first) &&
-            (pick == lane.slots.end() || lane.served[it->first] < lane.served[pick->first]))
+      bool pick_idle = false;
+      for (auto it = lane.slots.begin(); it != lane.slots.end(); ++it) {
+        const auto c = lane.computing.find(it->first);
+        const bool idle = c == lane.computing.end() || c->second.empty();
+        if (pick == lane.slots.end() || (idle && !pick_idle) ||
+            (idle == pick_idle && lane.served[it->first] < lane.served[pick->first])) {
           pick = it;
+          pick_idle = idle;
+        }
+      }
       return pick != lane.slots.end();
     });
     if (lane.stop) return std::nullopt;
@@ -403,7 +424,7 @@ struct Pipeline::Impl {
     if (pick->second.empty()) lane.slots.erase(pick);
     lane.served[offer.job.frame.camera_index] = ++lane.serve_count;
     lane.taken_before[offer.job.frame.camera_index] = offer.job.camera_order + 1;
-    lane.busy.insert(offer.job.frame.camera_index);
+    lane.computing[offer.job.frame.camera_index].insert(offer.job.camera_order);
     ++lane.held;
     return offer;
   }
@@ -414,28 +435,52 @@ struct Pipeline::Impl {
   // runs on the workers, so while both relocalised (300-450 ms at medium) a
   // per-lens depth or a dense map already computed waited for one of them.
   // Publisher::PublishFrame takes the bus's lock for each message.
-  void PublishLaneFrame(Lane& lane, const Result& result) {
+  // In each camera's frames' order: a frame computed while an older one of
+  // its camera is still computing on another thread is parked, and the
+  // thread that publishes the older one publishes it after (Lane::parked).
+  void PublishLaneFrame(Lane& lane, Result result) {
+    const int camera = result.job.frame.camera_index;
+    std::unique_lock lock(lane.mutex);
+    lane.computing[camera].erase(result.job.camera_order);
+    lane.parked[camera].emplace(result.job.camera_order, std::move(result));
+    if (lane.publishing.count(camera)) return;  // that thread publishes it
+    lane.publishing.insert(camera);
+    std::map<std::uint64_t, Result>& parked = lane.parked[camera];
+    const std::set<std::uint64_t>& computing = lane.computing[camera];
+    int published = 0;
+    while (!parked.empty() &&
+           (computing.empty() || parked.begin()->first < *computing.begin())) {
+      Result next = std::move(parked.begin()->second);
+      parked.erase(parked.begin());
+      lock.unlock();
+      PublishOne(lane, next);
+      ++published;
+      lock.lock();
+    }
+    lane.publishing.erase(camera);
+    lane.held -= published;
+    lock.unlock();
+    lane.cv.notify_all();
+  }
+
+  // One of a lane's frames published (or its failure counted), lane.mutex
+  // not held.
+  void PublishOne(Lane& lane, const Result& result) {
     const Job& job = result.job;
     if (!result.processed) {
       std::lock_guard r(report_mutex);
       ++(report.*lane.counts.failed);
       report.last_error = job.frame.serial + " frame " + std::to_string(job.frame.frame_id) +
                           ": " + lane.counts.what + result.processed.error().message;
-    } else {
-      const Publisher::FrameCounts counts = publisher->PublishFrame(
-          FrameMeta{job.frame.serial, job.frame.frame_id, job.trigger_index}, *result.processed);
-      const double to_pub_ms = static_cast<double>(HostRealtimeNs() - job.arrival_ns) / 1e6;
-      std::lock_guard r(report_mutex);
-      ++(report.*lane.counts.published);
-      CountPublished(counts);
-      if (lane.counts.latency) lane.counts.latency->Add(to_pub_ms);
+      return;
     }
-    {
-      std::lock_guard lock(lane.mutex);
-      lane.busy.erase(job.frame.camera_index);
-      --lane.held;
-    }
-    lane.cv.notify_all();
+    const Publisher::FrameCounts counts = publisher->PublishFrame(
+        FrameMeta{job.frame.serial, job.frame.frame_id, job.trigger_index}, *result.processed);
+    const double to_pub_ms = static_cast<double>(HostRealtimeNs() - job.arrival_ns) / 1e6;
+    std::lock_guard r(report_mutex);
+    ++(report.*lane.counts.published);
+    CountPublished(counts);
+    if (lane.counts.latency) lane.counts.latency->Add(to_pub_ms);
   }
 
   // A frame's messages by kind (report_mutex held).
@@ -504,7 +549,7 @@ struct Pipeline::Impl {
       }
       offer.reset();
       OfferTo(depth_lane, std::move(dense), &report.depth_skipped);
-      PublishLaneFrame(lens_lane, result);
+      PublishLaneFrame(lens_lane, std::move(result));
     }
   }
 
@@ -552,7 +597,7 @@ struct Pipeline::Impl {
         report.depth_cpu_s = cpu;
         if (lenses != nullptr) ++report.depth_seeded_by_lenses;
       }
-      PublishLaneFrame(depth_lane, result);
+      PublishLaneFrame(depth_lane, std::move(result));
     }
   }
 

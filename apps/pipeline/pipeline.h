@@ -100,13 +100,16 @@ struct PipelineOptions {
   // "Live pipeline", for what 0, 5 and 15 gave).
   int lens_nice = 15;
   // Frames of a camera that wait for the lens lane (1..8): beyond that the
-  // oldest waiting is skipped (newest wins). 2: a frame waits behind its
-  // camera's previous one instead of replacing it, so a lane held up for
-  // about a frame's period (a relocalisation or a re-anchoring at the
-  // workers' higher priority) catches up afterwards and every frame gets
-  // its per-lens depth, at most one frame period later; each waiting frame
-  // holds one pooled buffer of its camera (a replay camera has 8).
-  int lens_queue = 2;
+  // oldest waiting is skipped (newest wins). 4: a frame waits behind its
+  // camera's previous ones instead of replacing them, so a lane held up for
+  // up to four frame periods (both workers relocalising a timed replay's
+  // first frames, 300-1000 ms each at medium, while the lane at nice +15
+  // gets about a quarter of a core) catches up afterwards, when the workers
+  // track, and every frame gets its per-lens depth, up to four frame periods
+  // later. With 2 a timed replay's lane replaced 10-30 of 48 frames in its
+  // first second (docs/processing.md, "Live pipeline"). Each waiting frame
+  // holds one pooled buffer of its camera: FramesHeldPerCamera.
+  int lens_queue = 4;
   // The depth lane's thread (nice 19 always) under SCHED_IDLE: it computes
   // only on a core that nothing else of the machine wants, so a dense map
   // never takes the CPU of the lens lane or the workers (at nice 19 it took
@@ -130,6 +133,15 @@ struct PipelineOptions {
   // The rig file's processing: (threads, skip_policy) and lcm: sections;
   // preview_max_px and enabled are the processor's (PreviewOptionsFromRig).
   static PipelineOptions FromRig(const RigConfig& rig);
+  // The most frames of one camera the pipeline holds at once, each in one
+  // pooled buffer of its camera (a camera's pool needs these beyond its own
+  // and a recorder's): the frame set the assembler completes (1), the
+  // workers' computing ones and a waiting one (max_concurrency + 1), the lens
+  // lane's waiting ones and those its threads compute or hold to publish in
+  // order (lens_queue + max_concurrency), the depth lane's waiting and
+  // computing ones (2). A frame in several lanes at once
+  // holds one buffer, so this is a bound, not a count.
+  int FramesHeldPerCamera() const;
   Status Check() const;  // every field; the message names the field
 };
 

@@ -48,7 +48,8 @@ Status ReplayRunOptions::Check() const {
   if (sequence_dir.empty()) return Error{"replay: sequence_dir: empty"};
   if (rate.kind == ReplayRate::Kind::kFactor && !(rate.factor > 0 && rate.factor <= 1000))
     return Error{"replay: rate.factor: expected in (0, 1000]"};
-  if (pool_buffers < 1 || pool_buffers > 1024) return Error{"replay: pool_buffers: expected 1..1024"};
+  if (pool_buffers < 0 || pool_buffers > 1024)
+    return Error{"replay: pool_buffers: expected 0 (the pipeline's) or 1..1024"};
   if (Status s = preview.Check(); !s) return Error{"replay: " + s.error().message};
   if (Status s = pipeline.Check(); !s) return Error{"replay: " + s.error().message};
   if (registration)
@@ -183,7 +184,9 @@ Expected<ReplayRunResult> RunReplay(const ReplayRunOptions& options,
     for (std::size_t i = 0; i < sequence->cameras.size(); ++i) {
       ReplayCameraOptions camera_options;
       camera_options.camera_index = static_cast<int>(i);
-      camera_options.pool_buffers = options.pool_buffers;
+      camera_options.pool_buffers = options.pool_buffers > 0
+                                        ? options.pool_buffers
+                                        : 1 + options.pipeline.FramesHeldPerCamera();
       camera_options.trigger_period = period;
       camera_options.pacing = max_rate ? ReplayPacing::kAsFastAsPossible : ReplayPacing::kOriginal;
       if (max_rate) {

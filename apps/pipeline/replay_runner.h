@@ -47,7 +47,11 @@ struct ReplayRunOptions {
   PreviewOptions preview;  // preview and TF image size, depth map size
   // skip_when_busy is the rate's: newest wins when timed, block at max.
   PipelineOptions pipeline;
-  int pool_buffers = 8;  // per replay camera
+  // Per replay camera; 0: the frames the pipeline may hold of a camera
+  // (PipelineOptions::FramesHeldPerCamera, 12 by default) and the one the
+  // camera reads next. A fixed 8 ran out once the lens lane held 4 waiting
+  // frames: 3 frames of a timed replay lost for lack of a buffer.
+  int pool_buffers = 0;
   // The cameras whose frames are Bayer mosaics: a LiFMCR dataset does not
   // record the pixel format (its BMPs are 8-bit grey), so the user says it
   // (`lifmcr replay --pixel-format`). Serial -> format; the serial "" stands

@@ -1274,7 +1274,10 @@ class LensGatedProcessor final : public FrameProcessor {
       const int nice = getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
       if (errno == 0) lens_nice_seen_.push_back(nice);
       cv_.notify_all();
-      if (!cv_.wait_for(lock, std::chrono::seconds(5), [&] { return released_; })) ++timed_out_;
+      const bool gated =
+          gate_serial_.empty() || (frame.serial == gate_serial_ && frame.frame_id == gate_frame_);
+      if (gated && !cv_.wait_for(lock, std::chrono::seconds(20), [&] { return released_; }))
+        ++timed_out_;
     }
     return inner_->ProcessLenses(frame, input);
   }
@@ -1282,6 +1285,16 @@ class LensGatedProcessor final : public FrameProcessor {
     return inner_->ForRegistration(frame);
   }
   std::string name() const override { return "lens-gated"; }
+  // Only this frame of this camera is held (until Release); by default every frame.
+  void GateOnly(const std::string& serial, std::uint64_t frame_id) {
+    std::lock_guard lock(mutex_);
+    gate_serial_ = serial;
+    gate_frame_ = frame_id;
+  }
+  int entered() {
+    std::lock_guard lock(mutex_);
+    return entered_;
+  }
   // Until `n` frames wait in ProcessLenses; false after 10 s.
   bool WaitEntered(int n) {
     std::unique_lock lock(mutex_);
@@ -1319,6 +1332,8 @@ class LensGatedProcessor final : public FrameProcessor {
   std::vector<int> lens_nice_seen_;
   std::vector<int> dense_policies_;
   bool released_ = false;
+  std::string gate_serial_;  // empty: every frame is held
+  std::uint64_t gate_frame_ = 0;
 };
 
 // Registration first (newest_wins with a stage): a frame's pose, and the
@@ -1404,9 +1419,33 @@ TEST(Pipeline, PoseIsPublishedBeforeItsFramesPerLensDepth) {
   EXPECT_EQ(received.lens_depth.size(), 2u);
 }
 
+// The frame ids of the per-lens depth messages (GEOMETRY_LENS_GRID on
+// _DEPTH) by serial, in the order they were published on `bus`.
+class LensDepthOrder {
+ public:
+  explicit LensDepthOrder(lcm::LCM* bus) {
+    bus->subscribe("LIFMCR_.*_DEPTH", &LensDepthOrder::On, this);
+  }
+  std::map<std::string, std::vector<std::int64_t>> Get() {
+    std::lock_guard lock(mutex_);
+    return order_;
+  }
+
+ private:
+  void On(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    lifmcr_lcm::depth_image_t m;
+    ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);
+    if (m.geometry != lifmcr_lcm::depth_image_t::GEOMETRY_LENS_GRID) return;
+    std::lock_guard lock(mutex_);
+    order_[m.serial].push_back(m.frame_id);
+  }
+  std::mutex mutex_;
+  std::map<std::string, std::vector<std::int64_t>> order_;
+};
+
 // The lens lane held up (both its threads inside ProcessLenses, as when a
 // relocalisation at the workers' higher priority takes the CPU) while two
-// more triggers come: with lens_queue 2 (the default) both wait per camera
+// more triggers come: with lens_queue 2 both wait per camera
 // and get their per-lens depth once the lane goes on; a third replaces the
 // oldest waiting (newest wins beyond the queue), counted as replaced. With
 // lens_queue 1 (newest wins at once) the second trigger already replaces
@@ -1423,22 +1462,10 @@ TEST(Pipeline, LensLaneQueueKeepsTheFramesThatCameWhileItWasHeld) {
     auto owned = std::make_unique<LensGatedProcessor>(std::move(*depth));
     LensGatedProcessor* processor = owned.get();
     lcm::LCM bus("memq://");
-    std::mutex lens_mutex;
-    std::map<std::string, std::vector<std::int64_t>> lens_order;  // by serial, as published
-    struct Order {
-      std::mutex* mutex;
-      std::map<std::string, std::vector<std::int64_t>>* order;
-      void On(const lcm::ReceiveBuffer* rbuf, const std::string&) {
-        lifmcr_lcm::depth_image_t m;
-        ASSERT_GE(m.decode(rbuf->data, 0, rbuf->data_size), 0);
-        if (m.geometry != lifmcr_lcm::depth_image_t::GEOMETRY_LENS_GRID) return;
-        std::lock_guard lock(*mutex);
-        (*order)[m.serial].push_back(m.frame_id);
-      }
-    } order{&lens_mutex, &lens_order};
-    bus.subscribe("LIFMCR_.*_DEPTH", &Order::On, &order);
+    LensDepthOrder lens_order(&bus);
     PipelineOptions options;
     options.lens_queue = lens_queue;
+    options.threads = 2;  // two lens-lane threads on any host (one per worker)
     auto created = CreateLanesPipeline(serials, std::move(owned), &bus, options);
     ASSERT_TRUE(created.ok()) << created.error().message;
     std::unique_ptr<Pipeline> pipeline = std::move(*created);
@@ -1475,9 +1502,66 @@ TEST(Pipeline, LensLaneQueueKeepsTheFramesThatCameWhileItWasHeld) {
     Drain(bus);
     const std::vector<std::int64_t> expected =
         lens_queue == 2 ? std::vector<std::int64_t>{0, 2, 3} : std::vector<std::int64_t>{0, 3};
-    std::lock_guard lock(lens_mutex);
-    for (const std::string& serial : serials) EXPECT_EQ(lens_order[serial], expected) << serial;
+    auto published = lens_order.Get();
+    for (const std::string& serial : serials) EXPECT_EQ(published[serial], expected) << serial;
   }
+}
+
+// One lens-lane thread held on a camera's first frame (as when it shares a
+// core with a relocalising worker) while five more triggers come: the other
+// thread computes both cameras' frames, that camera's next ones too, instead
+// of idling while they wait and the oldest is replaced; those wait, computed,
+// until the held frame is published, so each camera's per-lens depth still
+// goes out in its frames' order and none is replaced.
+TEST(Pipeline, LensLaneFreeThreadTakesTheFramesOfACameraHeldOnTheOtherInOrder) {
+  test::TempDir dir;
+  auto rig = WriteTinyRigFrames(dir.path());
+  ASSERT_TRUE(rig.ok()) << rig.error().message;
+  const std::vector<std::string>& serials = rig->serials;
+  ASSERT_EQ(serials.size(), 2u);
+  auto depth = DepthProcessor::ForSequence(rig->sequence_dir.string(), serials);
+  ASSERT_TRUE(depth.ok()) << depth.error().message;
+  auto owned = std::make_unique<LensGatedProcessor>(std::move(*depth));
+  LensGatedProcessor* processor = owned.get();
+  processor->GateOnly(serials[0], 0);
+  lcm::LCM bus("memq://");
+  LensDepthOrder lens_order(&bus);
+  PipelineOptions options;  // lens_queue 4: five frames waiting would replace one
+  options.threads = 2;       // two lens-lane threads on any host (one per worker)
+  auto created = CreateLanesPipeline(serials, std::move(owned), &bus, options);
+  ASSERT_TRUE(created.ok()) << created.error().message;
+  std::unique_ptr<Pipeline> pipeline = std::move(*created);
+  const auto pool = FramePool::Create(32, rig->raw[0].pixels.size());
+  // A trigger once both frames of the one before entered ProcessLenses (the
+  // first camera's first frame held there), so no queue fills: the old rule
+  // (a camera's frames on one thread at a time) never lets them all enter.
+  for (int trigger = 0; trigger < 6; ++trigger) {
+    pipeline->AddFrameSet(MakeCopiedFrameSet(trigger, serials, *pool, rig->raw));
+    pipeline->Poll();
+    for (int k = 0; k < 2000 && processor->entered() < 2 * (trigger + 1); ++k)
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  // Every frame entered ProcessLenses while the first is held: the second
+  // camera's six published, the first camera's five later ones parked.
+  for (int k = 0; k < 2000 && (processor->entered() < 12 || pipeline->Report().lens_frames < 6);
+       ++k)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  const PipelineReport held = pipeline->Report();
+  EXPECT_EQ(processor->entered(), 12) << held.FinalReport();
+  EXPECT_EQ(held.lens_frames, 6u) << held.FinalReport();
+  EXPECT_EQ(held.lens_replaced, 0u) << held.FinalReport();
+  processor->Release();
+  pipeline->Finish();
+  const PipelineReport r = pipeline->Report();
+  EXPECT_EQ(processor->timed_out(), 0);
+  EXPECT_EQ(r.lens_failed, 0u) << r.last_error;
+  EXPECT_EQ(r.lens_skipped, 0u) << r.FinalReport();
+  EXPECT_EQ(r.lens_frames, 12u) << r.FinalReport();
+  pipeline.reset();
+  Drain(bus);
+  const std::vector<std::int64_t> expected{0, 1, 2, 3, 4, 5};
+  auto published = lens_order.Get();
+  for (const std::string& serial : serials) EXPECT_EQ(published[serial], expected) << serial;
 }
 
 // DepthProcessor::Warm (what a timed replay does before its cameras start):
@@ -1729,7 +1813,7 @@ TEST(Pipeline, BadGrabLoopAndReplayOptionsNameTheirField) {
 
   ReplayRunOptions replay;
   replay.sequence_dir = "/nonexistent";
-  replay.pool_buffers = 0;
+  replay.pool_buffers = -1;
   auto result = RunReplay(replay);
   ASSERT_FALSE(result.ok());
   EXPECT_NE(result.error().message.find("pool_buffers"), std::string::npos)
