@@ -120,9 +120,12 @@ RefocusDepths RefocusDepths::FromPoints(int tf_width, int tf_height, int cells_x
 namespace {
 
 // RenderAtDepth(s)'s loop; depth(u, w) the virtual depth at output pixel (u, w).
+// `where`: nullptr, or the output pixels to render (non-zero; the others
+// are `fill`).
 template <typename DepthOf>
 Status RenderRefocused(const detail::TfKernel& kernel, const ConstImageView& raw, int tw, int th, int step,
-              const DepthOf& depth, TfImage* out) {
+              const DepthOf& depth, TfImage* out, const ConstImageView* where = nullptr,
+              std::uint8_t fill = 0) {
   out->width = tw;
   out->height = th;
   out->format = PixelFormat::kMono8;
@@ -136,7 +139,13 @@ Status RenderRefocused(const detail::TfKernel& kernel, const ConstImageView& raw
   tbb::parallel_for(0, th, [&](int w) {
     const float y = raw_step * static_cast<float>(w) + offset;
     std::uint8_t* row = out->pixels.data() + static_cast<std::size_t>(w) * tw;
+    const std::uint8_t* wanted =
+        where != nullptr ? where->data + static_cast<std::size_t>(w) * where->stride_bytes : nullptr;
     for (int u = 0; u < tw; ++u) {
+      if (wanted != nullptr && wanted[u] == 0) {
+        row[u] = fill;
+        continue;
+      }
       const float x = raw_step * static_cast<float>(u) + offset;
       const float vf = depth(u, w);
       const int type = kernel.SharpType(vf);
@@ -171,7 +180,8 @@ Status TfSampler::RenderAtDepth(const ConstImageView& raw, double v, int step,
 }
 
 Status TfSampler::RenderAtDepths(const ConstImageView& raw, const RefocusDepths& depths, int step,
-                                 TfImage* out) const {
+                                 TfImage* out, const ConstImageView* where,
+                                 std::uint8_t fill) const {
   if (raw.width != geometry_.width || raw.height != geometry_.height)
     return Error{"TF sampler: frame " + std::to_string(raw.width) + "x" +
                  std::to_string(raw.height) + ", the camera's geometry is " +
@@ -182,6 +192,11 @@ Status TfSampler::RenderAtDepths(const ConstImageView& raw, const RefocusDepths&
     return Error{"TF sampler: refocus depths: expected cells_x * cells_y values"};
   for (const float v : depths.v)
     if (!(v > 1)) return Error{"TF sampler: refocus depths: expected every virtual depth > 1"};
+  if (where != nullptr &&
+      (where->data == nullptr || where->format != PixelFormat::kMono8 ||
+       where->width != tf_width() / step || where->height != tf_height() / step))
+    return Error{"TF sampler: render mask: expected Mono8 of the render's size " +
+                 std::to_string(tf_width() / step) + " x " + std::to_string(tf_height() / step)};
   // Interpolated per output pixel (a few multiplications beside the blend's
   // three lens samples).
   const float half = 0.5f * static_cast<float>(step - 1), fstep = static_cast<float>(step);
@@ -190,7 +205,7 @@ Status TfSampler::RenderAtDepths(const ConstImageView& raw, const RefocusDepths&
                   return depths.At(fstep * static_cast<float>(u) + half,
                                    fstep * static_cast<float>(w) + half);
                 },
-                out);
+                out, where, fill);
 }
 
 }  // namespace lifmcr::processing

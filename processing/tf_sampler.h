@@ -30,6 +30,7 @@
 
 #include <Eigen/Core>
 
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -92,9 +93,13 @@ class TfSampler {
   // cost, with the aliasing of point samples). `out`'s buffer is reused
   // when it has the size.
   Status RenderAtDepth(const ConstImageView& raw, double v, int step, TfImage* out) const;
-  // The same grid, each TF position (u, w) at depths.At(u, w).
+  // The same grid, each TF position (u, w) at depths.At(u, w). With
+  // `where` (Mono8, the output's size): only the output pixels where it is
+  // non-zero are rendered, the others set to `fill` (the cost is that of
+  // the pixels rendered).
   Status RenderAtDepths(const ConstImageView& raw, const RefocusDepths& depths, int step,
-                        TfImage* out) const;
+                        TfImage* out, const ConstImageView* where = nullptr,
+                        std::uint8_t fill = 0) const;
 
  private:
   PlenopticFrame geometry_;

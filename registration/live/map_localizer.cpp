@@ -88,6 +88,7 @@ GuidedMatchOptions LocalizerOptions::CoarseGuidedOptions() {
   coarse.max_side_px = 420;
   coarse.radius_px = 120;
   coarse.mask_keypoints = false;  // its radius reaches most of the image
+  coarse.render_margin_px = -1;  // likewise
   coarse.refine_step = 0;  // it only places the tracks' prediction
   return coarse;
 }

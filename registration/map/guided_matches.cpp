@@ -201,39 +201,63 @@ GuidedMatches FindGuidedMatches(const MapIndex& map, const processing::CameraMod
                                                    options.refocus_cells, cells_y, in_view_tf,
                                                    in_view_v, median_v, 3);
   }
+  // The rendered pixels within reach of a projected map point: render
+  // pixel i is TF position step (i + 1/2) - 1/2, a disc of radius_px / step
+  // rendered pixels around each projection, one more for the keypoints'
+  // sub-pixel positions (grid.Nearest decides at radius_px exactly): SIFT's
+  // mask (mask_keypoints). render_margin_px more around them: the pixels
+  // rendered (the rest filled with the mean of those).
+  const int rw = static_cast<int>(w) / out.step, rh = static_cast<int>(h) / out.step;
+  thread_local std::vector<std::uint8_t> mask_pixels, render_pixels;
+  const bool masked_render = options.render_margin_px >= 0 && options.refocus_cells > 0;
+  if (options.mask_keypoints || masked_render) {
+    mask_pixels.assign(static_cast<std::size_t>(rw) * rh, 0);
+    if (masked_render) render_pixels.assign(mask_pixels.size(), 0);
+    const double r = options.radius_px / out.step + 1;
+    const double rr = masked_render ? r + options.render_margin_px : r;
+    const int ri = static_cast<int>(std::ceil(rr));
+    const double r2 = r * r, rr2 = rr * rr;
+    for (const Eigen::Vector2d& tf : in_view_tf) {
+      const double ci = (tf.x() + 0.5) / out.step - 0.5, cj = (tf.y() + 0.5) / out.step - 0.5;
+      const int i0 = static_cast<int>(std::lround(ci)), j0 = static_cast<int>(std::lround(cj));
+      for (int j = std::max(0, j0 - ri); j <= std::min(rh - 1, j0 + ri); ++j)
+        for (int i = std::max(0, i0 - ri); i <= std::min(rw - 1, i0 + ri); ++i) {
+          const double d2 = (i - ci) * (i - ci) + (j - cj) * (j - cj);
+          const std::size_t at = static_cast<std::size_t>(j) * rw + i;
+          if (d2 <= r2) mask_pixels[at] = 255;
+          if (masked_render && d2 <= rr2) render_pixels[at] = 255;
+        }
+    }
+  }
+  const ConstImageView where(render_pixels.data(), rw, rh, static_cast<std::size_t>(rw),
+                             PixelFormat::kMono8);
   if (Status s = options.refocus_cells > 0
-                     ? sampler.RenderAtDepths(raw, depths, out.step, &rendered)
+                     ? sampler.RenderAtDepths(raw, depths, out.step, &rendered,
+                                              masked_render ? &where : nullptr)
                      : sampler.RenderAtDepth(raw, median_v, out.step, &rendered);
       !s) {
     out.status = s.error().message;
     return out;
   }
+  if (masked_render) {
+    // The pixels not rendered at the rendered ones' mean grey: the least
+    // contrast at the edge between them.
+    std::uint64_t sum = 0, n = 0;
+    for (std::size_t i = 0; i < render_pixels.size(); ++i)
+      if (render_pixels[i] != 0) {
+        sum += rendered.pixels[i];
+        ++n;
+      }
+    const std::uint8_t mean = static_cast<std::uint8_t>(n > 0 ? (sum + n / 2) / n : 0);
+    for (std::size_t i = 0; i < render_pixels.size(); ++i)
+      if (render_pixels[i] == 0) rendered.pixels[i] = mean;
+    out.rendered_fraction = static_cast<double>(n) / static_cast<double>(render_pixels.size());
+  }
   out.render_s = SecondsSince(render_start);
 
   const auto sift_start = std::chrono::steady_clock::now();
-  // The rendered pixels within reach of a projected map point: render
-  // pixel i is TF position step (i + 1/2) - 1/2, a disc of radius_px / step
-  // rendered pixels around each projection, one more for the keypoints'
-  // sub-pixel positions (grid.Nearest decides at radius_px exactly).
-  thread_local std::vector<std::uint8_t> mask_pixels;
-  ConstImageView mask;
-  if (options.mask_keypoints) {
-    const int rw = rendered.width, rh = rendered.height;
-    mask_pixels.assign(static_cast<std::size_t>(rw) * rh, 0);
-    const double r = options.radius_px / out.step + 1;
-    const int ri = static_cast<int>(std::ceil(r));
-    const double r2 = r * r;
-    for (const Eigen::Vector2d& tf : in_view_tf) {
-      const double ci = (tf.x() + 0.5) / out.step - 0.5, cj = (tf.y() + 0.5) / out.step - 0.5;
-      const int i0 = static_cast<int>(std::lround(ci)), j0 = static_cast<int>(std::lround(cj));
-      for (int j = std::max(0, j0 - ri); j <= std::min(rh - 1, j0 + ri); ++j)
-        for (int i = std::max(0, i0 - ri); i <= std::min(rw - 1, i0 + ri); ++i)
-          if ((i - ci) * (i - ci) + (j - cj) * (j - cj) <= r2)
-            mask_pixels[static_cast<std::size_t>(j) * rw + i] = 255;
-    }
-    mask = ConstImageView(mask_pixels.data(), rw, rh, static_cast<std::size_t>(rw),
-                          PixelFormat::kMono8);
-  }
+  const ConstImageView mask(mask_pixels.data(), rw, rh, static_cast<std::size_t>(rw),
+                            PixelFormat::kMono8);
   Features features;
   if (Status s = DetectSift(rendered.View(), options.features, &features,
                             options.mask_keypoints ? &mask : nullptr);

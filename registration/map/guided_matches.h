@@ -108,6 +108,22 @@ struct GuidedMatchOptions {
   // false: the whole render's keypoints are described (the coarse
   // correction's radius covers most of the image).
   bool mask_keypoints = true;
+  // Only the render's pixels within render_margin_px rendered pixels of
+  // the keypoints SIFT may keep (those of mask_keypoints) are rendered, the
+  // rest set to their mean grey (SIFT finds nothing there); < 0: the whole
+  // grid. Needs refocus_cells > 0. The margin holds most of the support of
+  // the keypoints that match (their blur and descriptor windows reach a few
+  // rendered pixels beyond: 55-60 % of the matched keypoints come from
+  // SIFT's doubled first octave, sigma 0.8-1.6 rendered px). Frame by frame
+  // (docs/registration.md), margin 8: r32 (step 4) renders 48 % of its
+  // pixels, 123 against 186 CPU-ms a re-anchoring, c0_from_cx 0.256 mm /
+  // 0.0174 deg median, p90 0.397 mm, against 0.633 / 0.0374, p90 0.838
+  // (margin 4: 41 %, 0.383 mm; 12: 53 %, 0.486 mm); medium (step 3) 69 %,
+  // 0.320 mm / 0.0195 deg, p90 0.448 mm, against 0.302 / 0.0191, p90 0.504
+  // (margin 4: 54 %, 0.301 mm, p90 0.606 mm). Fewer keypoints match (r32 186
+  // against 212, medium 479 against 482); the render's share of a
+  // re-anchoring is larger at r32.
+  int render_margin_px = 8;
   // Each matched keypoint found again at a finer step (refine_step 1..3; 0:
   // off), where the render's step is refine_from_step or coarser: a window
   // of TF samples every refine_step TF px around it at its map point's
@@ -157,6 +173,7 @@ struct GuidedMatches {
   int keypoints = 0;
   int step = 0;  // TF px per rendered pixel
   int refined = 0;  // matched keypoints found again at refine_step
+  double rendered_fraction = 1;  // of the render's pixels (render_margin_px)
   double render_s = 0, sift_s = 0, match_s = 0;  // match_s: with the refinement
   std::string status = "ok";  // or why nothing could be matched
 };

@@ -561,6 +561,26 @@ TEST(MapLocalizer, AFrameLostAtATurnIsRefoundFromTheLastPoseNotRelocalised) {
   }
 }
 
+// Camera X's raw frame `frame` of the shared sequence and its TF sampler.
+struct CameraXFrame {
+  processing::CameraChain* chain = nullptr;
+  OwnedImage raw;
+  ConstImageView view;
+  const processing::TfSampler* sampler = nullptr;
+};
+void ReadCameraXFrame(Sequence& s, std::int64_t frame, CameraXFrame* out) {
+  const std::string& x = s.serials[1];
+  out->chain = s.chain->Find(x);
+  ASSERT_NE(out->chain, nullptr);
+  auto raw = ReadBmp(layout::RawFramePath(s.sequence, x, frame));
+  ASSERT_TRUE(raw) << raw.error().message;
+  out->raw = std::move(*raw);
+  out->view = std::as_const(out->raw).View();
+  auto sampler = out->chain->Sampler(out->view);
+  ASSERT_TRUE(sampler) << sampler.error().message;
+  out->sampler = *sampler;
+}
+
 // Guided matching (registration/map/guided_matches.h), the re-anchoring's
 // measurement, from a pose 1 mm and 0.06 deg off the truth (a tracked pose's
 // error): SIFT on the coarser render, each keypoint compared with the map
@@ -570,13 +590,11 @@ TEST(MapLocalizer, AFrameLostAtATurnIsRefoundFromTheLastPoseNotRelocalised) {
 TEST(MapLocalizer, GuidedMatchesFindMapPointsNearAPoseKnownToAFewPixels) {
   Sequence& s = *Shared();
   const std::string& x = s.serials[1];
-  processing::CameraChain* chain = s.chain->Find(x);
-  ASSERT_NE(chain, nullptr);
-  auto raw = ReadBmp(layout::RawFramePath(s.sequence, x, 4));
-  ASSERT_TRUE(raw) << raw.error().message;
-  const ConstImageView view = std::as_const(*raw).View();
-  auto sampler = chain->Sampler(view);
-  ASSERT_TRUE(sampler) << sampler.error().message;
+  CameraXFrame frame_x;
+  ASSERT_NO_FATAL_FAILURE(ReadCameraXFrame(s, 4, &frame_x));
+  processing::CameraChain* chain = frame_x.chain;
+  const ConstImageView view = frame_x.view;
+  const processing::TfSampler* const* sampler = &frame_x.sampler;
   const processing::CameraModel& camera = *chain->camera_model();
   const Pose truth = s.truth[x][4];
   Pose guide = truth;
@@ -794,6 +812,58 @@ TEST(MapLocalizer, LiveRendersAreUnbiasedAgainstTheOfflineTfImage) {
   EXPECT_LE(bias(own_depth), 0.05);
   EXPECT_LE(bias(region_depth), 0.05);
   EXPECT_LE(Median(region_depth.norm), 0.8 * Median(one_depth.norm));
+}
+
+// GuidedMatchOptions::render_margin_px renders only part of the grid
+// (TfSampler::RenderAtDepths with `where`): the pixels it renders are those
+// of the whole render, to the grey level, the others the fill; a mask of
+// another size is an error that names it.
+TEST(MapLocalizer, ARenderOfPartOfTheGridIsTheWholeRenderThere) {
+  CameraXFrame frame_x;
+  ASSERT_NO_FATAL_FAILURE(ReadCameraXFrame(*Shared(), 2, &frame_x));
+  const ConstImageView view = frame_x.view;
+  const processing::TfSampler* const* sampler = &frame_x.sampler;
+  const int step = LocalizerOptions{}.guided.Step(
+      std::max((*sampler)->tf_width(), (*sampler)->tf_height()));
+  processing::RefocusDepths depths;
+  depths.cells_x = 2;
+  depths.tf_width = (*sampler)->tf_width();
+  depths.tf_height = (*sampler)->tf_height();
+  depths.v = {3.0f, 4.0f};
+  processing::TfImage whole, part;
+  ASSERT_TRUE((*sampler)->RenderAtDepths(view, depths, step, &whole));
+  // Discs of radius 9 rendered pixels on a grid 24 apart.
+  std::vector<std::uint8_t> where(whole.pixels.size(), 0);
+  int rendered = 0;
+  for (int j = 0; j < whole.height; ++j)
+    for (int i = 0; i < whole.width; ++i) {
+      const int di = i % 24 - 12, dj = j % 24 - 12;
+      if (di * di + dj * dj <= 81) {
+        where[static_cast<std::size_t>(j) * whole.width + i] = 255;
+        ++rendered;
+      }
+    }
+  ASSERT_GT(rendered, 0);
+  const ConstImageView mask(where.data(), whole.width, whole.height,
+                            static_cast<std::size_t>(whole.width), PixelFormat::kMono8);
+  ASSERT_TRUE((*sampler)->RenderAtDepths(view, depths, step, &part, &mask, 77));
+  ASSERT_EQ(part.width, whole.width);
+  ASSERT_EQ(part.height, whole.height);
+  int same = 0, filled = 0;
+  for (std::size_t k = 0; k < where.size(); ++k) {
+    if (where[k] != 0)
+      same += part.pixels[k] == whole.pixels[k];
+    else
+      filled += part.pixels[k] == 77;
+  }
+  EXPECT_EQ(same, rendered);
+  EXPECT_EQ(filled, static_cast<int>(where.size()) - rendered);
+  const ConstImageView smaller(where.data(), whole.width - 1, whole.height,
+                               static_cast<std::size_t>(whole.width), PixelFormat::kMono8);
+  const Status wrong = (*sampler)->RenderAtDepths(view, depths, step, &part, &smaller);
+  ASSERT_FALSE(wrong);
+  EXPECT_NE(wrong.error().message.find("render mask"), std::string::npos)
+      << wrong.error().message;
 }
 
 // The keypoints of the live renders against the offline TF image's: SIFT
@@ -1192,6 +1262,15 @@ TEST(MapLocalizer, ExtrinsicsAlongTheSequenceWithRendersInFocus) {
       options.guided.max_step = std::atoi(step);
     if (const char* k = std::getenv("LIFMCR_TEST_GUIDED_FEATURES"))
       options.guided.features.max_features = std::atoi(k);
+    // LIFMCR_TEST_GUIDED_RENDER_MARGIN=M: render_margin_px M;
+    // LIFMCR_TEST_GUIDED_CONTRAST=C, _LAYERS=L: its SIFT's contrast
+    // threshold and layers per octave.
+    if (const char* margin = std::getenv("LIFMCR_TEST_GUIDED_RENDER_MARGIN"))
+      options.guided.render_margin_px = std::atoi(margin);
+    if (const char* c = std::getenv("LIFMCR_TEST_GUIDED_CONTRAST"))
+      options.guided.features.contrast_threshold = std::atof(c);
+    if (const char* l = std::getenv("LIFMCR_TEST_GUIDED_LAYERS"))
+      options.guided.features.octave_layers = std::atoi(l);
     RefinementFromEnvironment(&options.guided);
     RefindFromEnvironment(&options);
     MapLocalizerStage stage(s.map, options);
