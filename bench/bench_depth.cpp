@@ -33,7 +33,7 @@
 //               rings, enough_estimates)
 //               [--seed full|seeded|both] [--dense-path scalar|simd|both] [--seed-margin PX]
 //               [--seed-ring1 1..6] [--seed-ring2 0..6] [--seed-cost-ratio R] [--seed-stride 0..8]
-//               [--seed-ring2-lines 0|1|3] (DepthOptions)
+//               [--seed-ring2-lines 0|1|3] [--seed-interp-spread R] (DepthOptions)
 
 #include "bench/bench_usage.h"
 #include "processing/camera_model.h"
@@ -338,7 +338,8 @@ constexpr char kUsage[] =
     "                   [--seed full|seeded|both] [--dense-path scalar|simd|both]\n"
     "                   [--seed-margin PX] [--seed-ring1 1..6] [--seed-ring2 0..6]\n"
     "                   [--seed-cost-ratio R] [--seed-stride 0..8]\n"
-    "                   [--seed-ring2-lines 0|1|3] [--frames FILE]\n"
+    "                   [--seed-ring2-lines 0|1|3] [--seed-interp-spread R]\n"
+    "                   [--frames FILE]\n"
     "                   [--tf-only MAP] [--tf-out FILE] [--tf-baseline 0|1]\n"
     "                   [--tf-psnr 0|1]\n"
     "processing/ on one synthetic frame (default r32) on all cores: grid fit to the white\n"
@@ -411,6 +412,10 @@ int main(int argc, char** argv) {
       depth_options.seed_ring2_lines = std::atoi(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--seed-flat-px"))
       depth_options.seed_flat_px = std::atof(argv[k + 1]);
+    else if (!std::strcmp(argv[k], "--seed-interp-spread"))
+      depth_options.seed_interp_spread = std::atof(argv[k + 1]);
+    else if (!std::strcmp(argv[k], "--seed-interp-min"))
+      depth_options.seed_interp_min = std::atoi(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--seed-margin"))
       depth_options.seed_margin_px = std::atof(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--frames"))

@@ -41,6 +41,39 @@ struct GreyBilinear {
   }
 };
 
+// Step 4's value of an unsearched pixel's window, made when first asked
+// for.
+struct WindowCell {
+  enum State : std::uint8_t { kUnknown, kHolds, kTooLittle };
+  float v = 0, sigma = 0, confidence = 0;
+  State state = kUnknown;
+};
+
+// The cells of step 4's windows of radius `rad` along one axis of a box of
+// n local columns (or rows): local column c's window spans the tables'
+// columns table[clamp(c - rad)] to table[clamp(c + rad + 1)] (clamped to
+// the estimates' [lo, hi + 1]); consecutive columns with the same pair form
+// one cell (both edges are non-decreasing in c). Writes cell_of[c] and the
+// pairs (edges[2 i], edges[2 i + 1]); returns the number of cells.
+int MakeWindowCells(const std::int32_t* table, int n, int lo, int hi, int rad,
+                    std::vector<std::int32_t>& cell_of, std::vector<std::int32_t>& edges) {
+  if (cell_of.size() < static_cast<std::size_t>(n)) cell_of.resize(n);
+  if (edges.size() < 2 * static_cast<std::size_t>(n)) edges.resize(2 * static_cast<std::size_t>(n));
+  int cells = 0, last_a = -1, last_b = -1;
+  for (int c = 0; c < n; ++c) {
+    const int a = table[std::clamp(c - rad, lo, hi + 1)];
+    const int b = table[std::clamp(c + rad + 1, lo, hi + 1)];
+    if (a != last_a || b != last_b) {
+      edges[2 * cells] = a;
+      edges[2 * cells + 1] = b;
+      ++cells;
+      last_a = a, last_b = b;
+    }
+    cell_of[c] = cells - 1;
+  }
+  return cells;
+}
+
 // One micro image's buffers (the estimates on its bounding box, its pixel
 // lists, the summed-area tables of the regularisation), kept per thread.
 struct LensWorkspace {
@@ -49,6 +82,7 @@ struct LensWorkspace {
   // Textured pixels and those with an estimate: local (x, y) on the bounding
   // box, x + (y << 16).
   std::vector<std::uint32_t> textured_pixels, estimate_pixels;
+  std::vector<std::uint32_t> between_pixels;  // seeded: lattice points off the coarse lattice
   std::vector<std::size_t> untextured_pixels;  // frame indices
   std::vector<std::int32_t> row_class;         // the gate's class of a row's pixels
   std::vector<double> sat_w, sat_wz, sat_wzz;
@@ -56,6 +90,11 @@ struct LensWorkspace {
   std::vector<std::int32_t> sat_col, sat_row;  // local x, y -> the tables' column, row
   // Seeded: whether a local column, row lies on the searched lattice.
   std::vector<std::uint8_t> lattice_col, lattice_row;
+  // Step 4's window cells (MakeWindowCells): per local column (row) its
+  // cell, per cell the tables' columns (rows) of its edges, and per cell
+  // its value once made.
+  std::vector<std::int32_t> cell_of_col, cell_of_row, cell_col_edges, cell_row_edges;
+  std::vector<WindowCell> cells;
 };
 
 // The texture gate's class of n pixels of a row (g the grey at the first,
@@ -90,6 +129,9 @@ struct LensWorkspace {
 #define LIFMCR_GATE_ROW_CLONES
 #endif
 constexpr int kGateLanes = 8;
+// The seeded lattice's flags of a column or row: on the searched lattice,
+// and on its coarse lattice (every second line, seed_interp_spread).
+constexpr std::uint8_t kOnLattice = 1, kOnCoarse = 2;
 LIFMCR_GATE_ROW_CLONES void GateRow(
     const float* g, const std::int32_t* lens, int w, int n, int k, const std::array<float, 3>& e_x,
     const std::array<float, 3>& e_y, float threshold, std::int32_t* __restrict out) {
@@ -215,19 +257,25 @@ Status DepthOptions::Check() const {
     return Error{"depth options: seed_ring1_lines: expected 0 (auto), 1 or 3"};
   if (seed_ring2_lines != 0 && seed_ring2_lines != 1 && seed_ring2_lines != 3)
     return Error{"depth options: seed_ring2_lines: expected 0 (auto), 1 or 3"};
+  if (!(seed_interp_spread >= 0 && seed_interp_spread <= 1))
+    return Error{"depth options: seed_interp_spread: expected 0 (off)..1"};
+  if (seed_interp_min < 1 || seed_interp_min > 25)
+    return Error{"depth options: seed_interp_min: expected 1..25"};
   // type_ranges, simd: any value.
   return Status::Ok();
 }
 
 std::string DepthStats::BriefReport() const {
-  char buf[256];
+  char buf[384];
   std::snprintf(
       buf, sizeof buf,
       "virtual depth: %lld of %lld textured pixels (%.1f %%; %lld valid), %lld rejected, "
       "%lld untextured filled, %lld searched (%lld seeded, %lld of them again in full; "
-      "%lld flat micro images on the sparse lattice), %.3f s, kernels %s",
+      "%lld flat micro images on the sparse lattice; %lld lattice points from the coarse "
+      "lattice's), %.3f s, kernels %s",
       estimated, textured_pixels, textured_pixels ? 100.0 * estimated / textured_pixels : 0.0,
-      valid_pixels, rejected, filled, searched, seeded, fallback, flat_lenses, seconds, kernels);
+      valid_pixels, rejected, filled, searched, seeded, fallback, flat_lenses, interpolated,
+      seconds, kernels);
   return buf;
 }
 
@@ -298,7 +346,8 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
   std::vector<long long> textured_count(f.lenses.size(), 0), valid_count(f.lenses.size(), 0),
       estimated_count(f.lenses.size(), 0), rejected_count(f.lenses.size(), 0),
       filled_count(f.lenses.size(), 0), searched_count(f.lenses.size(), 0),
-      seeded_count(f.lenses.size(), 0), fallback_count(f.lenses.size(), 0);
+      seeded_count(f.lenses.size(), 0), fallback_count(f.lenses.size(), 0),
+      interpolated_count(f.lenses.size(), 0);
   // Seeded: the lattice of searched pixels, and step 5's support scaled by
   // its density against the full search's (the fill counts estimates).
   const int seed_stride =
@@ -500,26 +549,26 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     if (wk.lattice_row.size() < static_cast<std::size_t>(bh)) wk.lattice_row.resize(bh);
     std::uint8_t* const lattice_col = wk.lattice_col.data();
     std::uint8_t* const lattice_row = wk.lattice_row.data();
+    // Seeded with seed_interp_spread: the coarse lattice (every second line
+    // of the lattice) is searched first and decides the points between.
+    const bool interpolate = seeded && options.seed_interp_spread > 0;
     if (seeded) {
-      for (int c = 0; c < bw; ++c) lattice_col[c] = (x0 + c) % lens_stride == 0;
-      for (int c = 0; c < bh; ++c) lattice_row[c] = (y0 + c) % lens_stride == 0;
+      const int coarse = 2 * lens_stride;
+      for (int c = 0; c < bw; ++c)
+        lattice_col[c] = ((x0 + c) % lens_stride == 0 ? kOnLattice : 0) |
+                         ((x0 + c) % coarse == 0 ? kOnCoarse : 0);
+      for (int c = 0; c < bh; ++c)
+        lattice_row[c] = ((y0 + c) % lens_stride == 0 ? kOnLattice : 0) |
+                         ((y0 + c) % coarse == 0 ? kOnCoarse : 0);
     }
     // A searched pixel's estimates: made once per micro image and emptied
     // per pixel (made per pixel, its 12 zeroed estimates were a 192-byte
     // `rep stos` per searched pixel).
     Estimates estimates;
-    // The searched pixels, in row order (the seeded windows' outcomes so
-    // far decide a fallback).
-    for (int t = 0; t < n_textured; ++t) {
-      const std::uint32_t packed = textured_list[t];
+    // One searched pixel (x + (y << 16) local): steps 1-3, its estimate
+    // on the local grid where one passes.
+    auto search_pixel = [&](const std::uint32_t packed) {
       const int x = x0 + static_cast<int>(packed & 0xFFFF), y = y0 + static_cast<int>(packed >> 16);
-      // Searched pixels: all, or a checkerboard (the others are filled by
-      // the regularisation from their searched neighbours).
-      if (seeded) {
-        if (!(lattice_col[packed & 0xFFFF] & lattice_row[packed >> 16])) continue;
-      } else if (stride == 2 && ((x + y) & 1)) {
-        continue;
-      }
       const int local = (y - y0) * bw + (x - x0);
       const float* const g_row = grey_px + static_cast<std::size_t>(y) * w;
       const float gx = 0.5f * (g_row[x + 1] - g_row[x - 1]);
@@ -659,12 +708,88 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
           match(search, nb, lo, hi);
       }
       used = Fuse(estimates, &z, &sigma);
-      if (used < options.min_estimates || z <= 0) continue;
-      if (sigma / z > options.max_rel_sigma) continue;
+      if (used < options.min_estimates || z <= 0) return;
+      if (sigma / z > options.max_rel_sigma) return;
       patch_z[local] = static_cast<float>(z);
       patch_sigma[local] = static_cast<float>(sigma);
       search_failed[local] = 0;
       estimate_pixels.push_back(packed);
+    };
+    if (!interpolate) {
+      // The searched pixels, in row order (the seeded windows' outcomes so
+      // far decide a fallback): all, a checkerboard or the seeded lattice
+      // (the others are filled by the regularisation from their searched
+      // neighbours).
+      for (int t = 0; t < n_textured; ++t) {
+        const std::uint32_t packed = textured_list[t];
+        if (seeded) {
+          if (!(lattice_col[packed & 0xFFFF] & lattice_row[packed >> 16] & kOnLattice)) continue;
+        } else if (stride == 2 &&
+                   ((x0 + static_cast<int>(packed & 0xFFFF) + y0 + static_cast<int>(packed >> 16)) & 1)) {
+          continue;
+        }
+        search_pixel(packed);
+      }
+    } else {
+      // The coarse lattice first (every second lattice line in x and y),
+      // in row order; then each other lattice point takes the mean of the
+      // coarse estimates within two lattice steps where there are at least
+      // seed_interp_min of them and they agree within seed_interp_spread of
+      // their mean (a smooth surface over them), else it is searched.
+      // The other lattice points, in row order, to a list of their own.
+      if (wk.between_pixels.size() < static_cast<std::size_t>(n_textured))
+        wk.between_pixels.resize(n_textured);
+      std::uint32_t* const between = wk.between_pixels.data();
+      int n_between = 0;
+      for (int t = 0; t < n_textured; ++t) {
+        const std::uint32_t packed = textured_list[t];
+        const int on = lattice_col[packed & 0xFFFF] & lattice_row[packed >> 16];
+        if (on & kOnCoarse)
+          search_pixel(packed);
+        else if (on & kOnLattice)
+          between[n_between++] = packed;
+      }
+      const int s = lens_stride;
+      const float spread = static_cast<float>(options.seed_interp_spread);
+      const int interp_min = options.seed_interp_min;
+      for (int t = 0; t < n_between; ++t) {
+        const std::uint32_t packed = between[t];
+        const int lx = static_cast<int>(packed & 0xFFFF), ly = static_cast<int>(packed >> 16);
+        // The coarse points within 2 s of it (Chebyshev) with an estimate:
+        // on a coarse column (row) itself and 2 s either side, else s
+        // either side (3 s is farther).
+        const bool coarse_x = lattice_col[lx] & kOnCoarse, coarse_y = lattice_row[ly] & kOnCoarse;
+        const int dx0 = coarse_x ? -2 * s : -s, dy0 = coarse_y ? -2 * s : -s;
+        const int dx_end = coarse_x ? 2 * s : s, dy_end = coarse_y ? 2 * s : s;
+        int n_near = 0;
+        float z_min = std::numeric_limits<float>::infinity(), z_max = -z_min, z_sum = 0,
+              sigma_sum = 0;
+        for (int dy = dy0; dy <= dy_end; dy += 2 * s) {
+          const int yy = ly + dy;
+          if (yy < 0 || yy >= bh) continue;
+          for (int dx = dx0; dx <= dx_end; dx += 2 * s) {
+            const int xx = lx + dx;
+            if (xx < 0 || xx >= bw) continue;
+            const float zz = patch_z[yy * bw + xx];
+            if (!(zz == zz)) continue;
+            ++n_near;
+            z_min = std::min(z_min, zz);
+            z_max = std::max(z_max, zz);
+            z_sum += zz;
+            sigma_sum += patch_sigma[yy * bw + xx];
+          }
+        }
+        const float z_mean = z_sum / static_cast<float>(std::max(n_near, 1));
+        if (n_near >= interp_min && z_max - z_min <= spread * z_mean) {
+          const int local = ly * bw + lx;
+          patch_z[local] = z_mean;
+          patch_sigma[local] = sigma_sum / static_cast<float>(n_near);
+          estimate_pixels.push_back(packed);
+          ++interpolated_count[k];
+        } else {
+          search_pixel(packed);
+        }
+      }
     }
     valid_count[k] = n_valid;
     textured_count[k] = n_textured;
@@ -785,13 +910,13 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       const std::size_t yb = sat_row[std::clamp(ly + radius + 1, ey0, ey1 + 1)];
       return Corners{yb * sw_ + xb, ya * sw_ + xb, yb * sw_ + xa, ya * sw_ + xa};
     };
-    auto window = [&](int lx, int ly, int radius) {
-      const Corners c = corners(lx, ly, radius);
+    auto window_at = [&](const Corners& c) {
       return WindowSum{sat_w[c.i11] - sat_w[c.i01] - sat_w[c.i10] + sat_w[c.i00],
                        sat_wz[c.i11] - sat_wz[c.i01] - sat_wz[c.i10] + sat_wz[c.i00],
                        sat_wzz[c.i11] - sat_wzz[c.i01] - sat_wzz[c.i10] + sat_wzz[c.i00],
                        sat_n[c.i11] - sat_n[c.i01] - sat_n[c.i10] + sat_n[c.i00]};
     };
+    auto window = [&](int lx, int ly, int radius) { return window_at(corners(lx, ly, radius)); };
     // Pass 1's window: the count and the sum of z (its w is the count).
     auto window_count = [&](int lx, int ly, int radius) {
       const Corners c = corners(lx, ly, radius);
@@ -831,14 +956,25 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
                                                         static_cast<double>(seed_stride * seed_stride) /
                                                         (lens_stride * lens_stride))))
              : options.min_support;
-    // An unsearched pixel's value depends only on its window's sums, and
-    // the window's corners on the tables change only every lattice-th
-    // pixel: the pixels in row order reuse the last unsearched pixel's
-    // value while the corners are the same (the same numbers, without its
-    // divisions and square root).
-    Corners last{~std::size_t{0}, 0, 0, 0};
-    bool last_holds = false;  // its window had the support
-    float last_v = 0, last_sigma = 0, last_confidence = 0;
+    // An unsearched pixel's value depends only on its window's sums, whose
+    // corners on the tables are a function of its column (the tables'
+    // columns at the window's left and right edges) and of its row, and
+    // change only every lattice-th pixel: the columns with the same pair of
+    // edges form a cell column (likewise rows), and each cell's value is
+    // made once, when a pixel first asks for it (the same numbers, without
+    // a division or square root per pixel; before, the corners per pixel
+    // and a value per run of a row were 10 % of the estimate's perf
+    // samples on `r32`).
+    const int n_cell_x = MakeWindowCells(sat_col, bw, ex0, ex1, rad, wk.cell_of_col, wk.cell_col_edges);
+    const int n_cell_y = MakeWindowCells(sat_row, bh, ey0, ey1, rad, wk.cell_of_row, wk.cell_row_edges);
+    const std::size_t n_cells = static_cast<std::size_t>(n_cell_x) * n_cell_y;
+    if (wk.cells.size() < n_cells) wk.cells.resize(n_cells);
+    WindowCell* const cells = wk.cells.data();
+    for (std::size_t c = 0; c < n_cells; ++c) cells[c].state = WindowCell::kUnknown;
+    const std::int32_t* const cell_of_col = wk.cell_of_col.data();
+    const std::int32_t* const cell_of_row = wk.cell_of_row.data();
+    const std::int32_t* const cell_col_edges = wk.cell_col_edges.data();
+    const std::int32_t* const cell_row_edges = wk.cell_row_edges.data();
     for (int t = 0; t < n_textured; ++t) {
       const std::uint32_t packed = textured_list[t];
       const int lx = static_cast<int>(packed & 0xFFFF), ly = static_cast<int>(packed >> 16);
@@ -851,26 +987,31 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       const float own_z = patch_z[local], own_sigma = patch_sigma[local];
       const bool searched = !std::isnan(own_z);
       if (!searched) {
-        const Corners c = corners(lx, ly, rad);
-        if (c.i11 != last.i11 || c.i01 != last.i01 || c.i10 != last.i10 || c.i00 != last.i00) {
-          last = c;
-          const WindowSum ws = window(lx, ly, rad);
-          last_holds = ws.n >= min_support;
-          if (last_holds) {
+        const int cx = cell_of_col[lx], cy = cell_of_row[ly];
+        WindowCell& cell = cells[static_cast<std::size_t>(cy) * n_cell_x + cx];
+        if (cell.state == WindowCell::kUnknown) {
+          // The window's sums from its edges' table columns and rows, as
+          // window() makes them.
+          const std::size_t xa = cell_col_edges[2 * cx], xb = cell_col_edges[2 * cx + 1];
+          const std::size_t ya = cell_row_edges[2 * cy], yb = cell_row_edges[2 * cy + 1];
+          const Corners c{yb * sw_ + xb, ya * sw_ + xb, yb * sw_ + xa, ya * sw_ + xa};
+          const WindowSum ws = window_at(c);
+          cell.state = ws.n >= min_support ? WindowCell::kHolds : WindowCell::kTooLittle;
+          if (cell.state == WindowCell::kHolds) {
             const double z = ws.wz / ws.w, sigma = std::sqrt(1.0 / ws.w);
-            last_v = static_cast<float>(1.0 / z);
-            last_sigma = static_cast<float>(sigma);
-            last_confidence =
+            cell.v = static_cast<float>(1.0 / z);
+            cell.sigma = static_cast<float>(sigma);
+            cell.confidence =
                 static_cast<float>(std::clamp(1.0 - (sigma / z) / options.max_rel_sigma, 0.0, 1.0));
           }
         }
-        if (!last_holds) {
+        if (cell.state != WindowCell::kHolds) {
           if (fill_on) untextured_list[n_untextured++] = at;
           continue;
         }
-        out->virtual_depth[at] = last_v;
-        out->sigma_z[at] = last_sigma;
-        out->confidence[at] = last_confidence;
+        out->virtual_depth[at] = cell.v;
+        out->sigma_z[at] = cell.sigma;
+        out->confidence[at] = cell.confidence;
         ++estimated_count[k];
         continue;
       }
@@ -1021,6 +1162,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     st.searched += searched_count[k];
     st.seeded += seeded_count[k];
     st.fallback += fallback_count[k];
+    st.interpolated += interpolated_count[k];
     st.flat_lenses += lens_flat[k];
   }
   st.kernels = kernels.name;

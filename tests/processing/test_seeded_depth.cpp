@@ -74,6 +74,20 @@ class SeededDepth : public ::testing::Test {
                 what, m.stats.BriefReport().c_str(), 100 * g.coverage, g.textured, 100 * g.median,
                 100 * g.outliers);
   }
+  // `other`'s coverage, median |dz|/z and outliers within 1 % absolute of
+  // `base`'s (both printed).
+  static void ExpectWithinOnePercent(const char* base_name, const VirtualDepthMap& base,
+                                     const char* other_name, const VirtualDepthMap& other) {
+    const Shared& d = *shared_;
+    const testing::DepthGates gb = testing::MeasureDepthGates(d.s, base.virtual_depth, base.textured);
+    const testing::DepthGates go =
+        testing::MeasureDepthGates(d.s, other.virtual_depth, other.textured);
+    Print(base_name, base, gb);
+    Print(other_name, other, go);
+    EXPECT_GE(go.coverage, gb.coverage - 0.01);
+    EXPECT_LE(go.median, gb.median + 0.01);
+    EXPECT_LE(go.outliers, gb.outliers + 0.01);
+  }
   static Shared* shared_;
 };
 SeededDepth::Shared* SeededDepth::shared_ = nullptr;
@@ -327,22 +341,37 @@ TEST_F(SeededDepth, FlatMicroImagesSearchASparserLattice) {
   o.seed_flat_stride = 2;
   VirtualDepthMap sparse;
   ASSERT_TRUE(EstimateVirtualDepth(d.frame, d.s.mla, o, &d.seed, &sparse).ok());
-  const testing::DepthGates gb = testing::MeasureDepthGates(d.s, base.virtual_depth, base.textured);
-  const testing::DepthGates gs =
-      testing::MeasureDepthGates(d.s, sparse.virtual_depth, sparse.textured);
-  Print("seeded", base, gb);
-  Print("seeded, flat lattice 2", sparse, gs);
+  ExpectWithinOnePercent("seeded", base, "seeded, flat lattice 2", sparse);
   EXPECT_GT(sparse.stats.flat_lenses, 0);
   EXPECT_LT(sparse.stats.searched, base.stats.searched);
-  EXPECT_GE(gs.coverage, gb.coverage - 0.01);
-  EXPECT_LE(gs.median, gb.median + 0.01);
-  EXPECT_LE(gs.outliers, gb.outliers + 0.01);
   o.seed_flat_px = 0;
   VirtualDepthMap off;
   ASSERT_TRUE(EstimateVirtualDepth(d.frame, d.s.mla, o, &d.seed, &off).ok());
   EXPECT_EQ(off.stats.flat_lenses, 0);
   EXPECT_EQ(off.stats.searched, base.stats.searched);
   EXPECT_EQ(off.stats.estimated, base.stats.estimated);
+}
+
+// The coarse lattice first: a lattice point whose coarse neighbours within
+// two lattice steps agree (seed_interp_spread) takes their mean instead of
+// a search. On `small` (every textured pixel on the lattice, the coarse one
+// every second): fewer pixels searched, the accuracy within 1 % absolute of
+// the map that searches every lattice point; seed_interp_spread 0: none
+// taken so, every lattice point searched.
+TEST_F(SeededDepth, CoarseLatticeDecidesSmoothPoints) {
+  ASSERT_NE(shared_, nullptr);
+  const Shared& d = *shared_;
+  DepthOptions o;
+  o.seed_interp_spread = 0;
+  VirtualDepthMap all;
+  ASSERT_TRUE(EstimateVirtualDepth(d.frame, d.s.mla, o, &d.seed, &all).ok());
+  EXPECT_EQ(all.stats.interpolated, 0);
+  VirtualDepthMap coarse;
+  ASSERT_TRUE(EstimateVirtualDepth(d.frame, d.s.mla, DepthOptions{}, &d.seed, &coarse).ok());
+  ExpectWithinOnePercent("seeded, every lattice point searched", all,
+                         "seeded, the coarse lattice first", coarse);
+  EXPECT_GT(coarse.stats.interpolated, 0);
+  EXPECT_LT(coarse.stats.searched, all.stats.searched);
 }
 
 // The texture gate runs whole vectors past each chord's end (virtual_depth.cpp,
@@ -430,6 +459,16 @@ TEST(SeededDepthOptions, CheckNamesTheField) {
   o.seed_flat_px = -1;
   ASSERT_FALSE(o.Check().ok());
   EXPECT_NE(o.Check().error().message.find("seed_flat_px"), std::string::npos);
+  // The coarse lattice's options, each out of range alone.
+  DepthOptions spread, least;
+  spread.seed_interp_spread = -0.01;
+  least.seed_interp_min = 0;
+  for (const auto& [bad, field] : {std::pair{spread, "seed_interp_spread"},
+                                   std::pair{least, "seed_interp_min"}}) {
+    const Status st = bad.Check();
+    ASSERT_FALSE(st.ok()) << field;
+    EXPECT_NE(st.error().message.find(field), std::string::npos) << st.error().message;
+  }
 }
 
 }  // namespace
