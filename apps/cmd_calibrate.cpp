@@ -357,6 +357,9 @@ int RunCalibrateRig(const CalibrateOptions& o) {
   if (o.initial.empty()) return Fail("--rig: --initial cameras.yaml with every camera is needed", 2);
   if (o.non_rigid && !o.rig) return Fail("--non-rigid needs --rig", 2);
   if (o.at_truth) return Fail("--rig: --at-truth is for one camera", 2);
+  if (o.keypoint_sigma_size_tf_px > 0)
+    return Fail("--rig: --keypoint-sigma-size is for one camera (the rig's solve weighs every "
+                "keypoint alike)", 2);
   if (!o.frames.empty())
     if (Expected<std::set<std::int64_t>> wanted = ParseFrameList(o.frames, "--frames"); !wanted)
       return Fail(wanted.error().message, 2);
