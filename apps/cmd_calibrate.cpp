@@ -69,6 +69,7 @@ struct CalibrateOptions {
   double keypoint_depth_sigma_per_range =
       registration::CalibrationOptions{}.keypoint_depth_sigma_per_range;
   double keypoint_depth_robust = registration::CalibrationOptions{}.keypoint_depth_robust;
+  double keypoint_sigma_size_tf_px = registration::CalibrationOptions{}.keypoint_sigma_size_tf_px;
   int keypoint_support_radius_tf_px = registration::KeypointDepthSupport{}.radius_tf_px;
   bool no_covariance = false;
   double plate_weight = registration::CalibrationOptions{}.plate_weight;
@@ -177,6 +178,7 @@ Expected<registration::CalibrationOptions> MakeCalibrationOptions(const Calibrat
   options.max_keypoint_depth_range = o.max_keypoint_depth_range;
   options.keypoint_depth_sigma_per_range = o.keypoint_depth_sigma_per_range;
   options.keypoint_depth_robust = o.keypoint_depth_robust;
+  options.keypoint_sigma_size_tf_px = o.keypoint_sigma_size_tf_px;
   options.covariance = !o.no_covariance;
   options.plate_weight = o.plate_weight;
   if (!o.plate_frames.empty()) {
@@ -355,6 +357,9 @@ int RunCalibrateRig(const CalibrateOptions& o) {
   if (o.initial.empty()) return Fail("--rig: --initial cameras.yaml with every camera is needed", 2);
   if (o.non_rigid && !o.rig) return Fail("--non-rigid needs --rig", 2);
   if (o.at_truth) return Fail("--rig: --at-truth is for one camera", 2);
+  if (o.keypoint_sigma_size_tf_px > 0)
+    return Fail("--rig: --keypoint-sigma-size is for one camera (the rig's solve weighs every "
+                "keypoint alike)", 2);
   if (!o.frames.empty())
     if (Expected<std::set<std::int64_t>> wanted = ParseFrameList(o.frames, "--frames"); !wanted)
       return Fail(wanted.error().message, 2);
@@ -662,6 +667,10 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
                  "range its support's (--keypoint-support), its position at full weight "
                  "(default 0: every depth at full weight; 0.44 measured: docs/calibration.md)")
       ->check(CLI::Range(0.0, 99.0));
+  app.add_option("--keypoint-sigma-size", o->keypoint_sigma_size_tf_px,
+                 "Each keypoint's residuals weighed by its scale: sigma = max(1, SIFT size / this) "
+                 "(TF px; 0: every keypoint at unit sigma; docs/calibration.md)")
+      ->check(CLI::Range(0.0, 999.0));
   app.add_option("--keypoint-depth-robust", o->keypoint_depth_robust,
                  "After the first solve each keypoint's depth is reweighed by its disagreement e "
                  "with its point, 1 / sqrt(1 + (e / s)^2), s this times the robust sigma of every "

@@ -86,6 +86,7 @@ struct LensObservation {
   int track = 0;
   int observation = 0;  // index into the track's observations
   MicroImageCost cost;
+  double sigma = 1;  // of its residuals (CalibrationOptions::keypoint_sigma_size_tf_px)
 };
 
 struct PoseBlock {
@@ -195,6 +196,9 @@ Status CalibrationOptions::Check() const {
   if (!(keypoint_depth_sigma_per_range >= 0 && keypoint_depth_sigma_per_range < 100))
     return fail("keypoint_depth_sigma_per_range: expected in [0, 100) (0: every depth at full "
                 "weight)");
+  if (!(keypoint_sigma_size_tf_px >= 0 && keypoint_sigma_size_tf_px < 1000))
+    return fail("keypoint_sigma_size_tf_px: expected in [0, 1000) (TF px; 0: every keypoint at "
+                "unit sigma)");
   if (!(keypoint_depth_robust >= 0 && keypoint_depth_robust < 100))
     return fail("keypoint_depth_robust: expected in [0, 100) (times the disagreements' robust "
                 "sigma; 0: no reweighting)");
@@ -288,6 +292,9 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
       if (!MakeMicroImageCost(x_v, *input.micro_images, c0, lambda0, options.max_lenses, s,
                               &lenses, &lo.cost, position_only, depth_weight))
         continue;
+      if (options.keypoint_sigma_size_tf_px > 0)
+        lo.sigma = std::max(1.0, input.frames[ob.frame].features.keypoints[ob.keypoint].size /
+                                     options.keypoint_sigma_size_tf_px);
       result.position_only_observations += position_only ? 1 : 0;
       if (!position_only) depth_weights.push_back(depth_weight);
       lens_observations.push_back(std::move(lo));
@@ -410,7 +417,11 @@ Expected<CalibrationResult> Calibrate(const CalibrationInput& input,
       Track& track = map.tracks[lo.track];
       const int f = track.observations[lo.observation].frame;
       const int residuals = 2 * static_cast<int>(lo.cost.centres_px.size());
-      ceres::LossFunction* loss = new ceres::HuberLoss(options.huber_px * std::sqrt(residuals / 2.0));
+      // Residuals r / sigma under Huber's loss at huber: sigma^-2 rho_{huber sigma}(r^2).
+      ceres::LossFunction* loss =
+          new ceres::HuberLoss(options.huber_px * std::sqrt(residuals / 2.0) * lo.sigma);
+      if (lo.sigma != 1)
+        loss = new ceres::ScaledLoss(loss, 1 / (lo.sigma * lo.sigma), ceres::TAKE_OWNERSHIP);
       if (!options.inverse_depth) {
         problem.AddResidualBlock(
             new ceres::AutoDiffCostFunction<MicroImageCost, ceres::DYNAMIC, kIntrinsicsSize, 4, 3,

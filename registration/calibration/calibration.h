@@ -146,6 +146,12 @@ struct CalibrationOptions {
   // registered through the handheld map goes from 0.43 to 0.52 mm
   // (docs/calibration.md).
   double keypoint_depth_robust = 0;
+  // Each keypoint observation's residuals in units of its standard
+  // deviation sigma = max(1, size / keypoint_sigma_size_tf_px), `size` its
+  // SIFT region's diameter (TF px): the usual bundle adjustment weighting by
+  // scale (ORB-SLAM's per-octave sigma), the smallest SIFT regions (about
+  // 1.8 TF px) at unit. 0: every keypoint at unit.
+  double keypoint_sigma_size_tf_px = 0;
   int max_iterations = 100;         // Ceres iterations per solve (twice that for the last)
   bool recalibrate = false;         // hold f_L and B fixed (LiFCal recalib)
   bool estimate_principal_point = true;
