@@ -20,7 +20,8 @@
 //     thread and a naive renderer (every micro image that sees the point,
 //     averaged) on a crop of the TF grid.
 //   The load average is printed with the figures.
-//   bench_depth [--preset r32|medium|small] [--scene table|plain] [--repeat N] [--crop PX]
+//   bench_depth [--preset r32|medium|small] [--scene table|plain] [--scene-seed N]
+//               [--repeat N] [--crop PX]
 //               [--stride 0|1|2] [--ring1 1..6] [--ring2 0..6] [--type-ranges 0|1] (DepthOptions)
 //               [--lens-only 1] (dense baseline and per-lens depth only: no grid fit, naive
 //               references or TF) [--dense 0] (with --lens-only 1: no dense baseline)
@@ -329,7 +330,8 @@ bool SetLensOption(const char* flag, const char* value, LensDepthOptions* o) {
 }  // namespace
 
 constexpr char kUsage[] =
-    "usage: bench_depth [--preset r32|medium|small] [--scene table|plain] [--repeat N]\n"
+    "usage: bench_depth [--preset r32|medium|small] [--scene table|plain] [--scene-seed N]\n"
+    "                   [--repeat N]\n"
     "                   [--crop PX] [--stride 0|1|2] [--ring1 1..6] [--ring2 0..6]\n"
     "                   [--type-ranges 0|1] [--lens-only 1] [--dense 0|1]\n"
     "                   [--lens-path scalar|simd|both] [--lens-samples N]\n"
@@ -349,6 +351,8 @@ constexpr char kUsage[] =
     "a naive renderer. Run under `taskset -c 0,1` for the 2-core figure. --frames FILE keeps\n"
     "the rendered raw, white and true depth there (rendered and written when FILE does not\n"
     "exist, read when it holds this preset and scene; the r32 frames take 45 s to render).\n"
+    "--scene-seed N renders the scene from seed N (its objects and textures) instead of the\n"
+    "preset's, so a gate can be checked on another scene than the default one.\n"
     "--lens-previous 1 seeds each per-lens run by the run before's map (the temporal seed\n"
     "of a camera that did not move: its best case, not a moving camera's figure).\n"
     "--lens-neighbours 1 searches the lenses of types 1 and 2 first around their earlier-type\n"
@@ -367,6 +371,7 @@ int main(int argc, char** argv) {
   if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
   std::string preset = "r32", scene_name = "table";
   int repeat = 3, crop = 256;
+  long long scene_seed = -1;  // -1: the preset's
   DepthOptions depth_options;
   LensDepthOptions lens_options;
   bool lens_only = false, run_dense = true, lens_previous = false;
@@ -380,6 +385,8 @@ int main(int argc, char** argv) {
       repeat = std::max(1, std::atoi(argv[k + 1]));
     else if (!std::strcmp(argv[k], "--scene"))
       scene_name = argv[k + 1];
+    else if (!std::strcmp(argv[k], "--scene-seed"))
+      scene_seed = std::atoll(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--crop"))
       crop = std::max(32, std::atoi(argv[k + 1]));
     else if (!std::strcmp(argv[k], "--stride"))
@@ -461,14 +468,21 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "%s\n", params.error().message.c_str());
     return 2;
   }
-  Expected<synth::Scene> made = synth::MakeScene(scene_name, params->rig.seed);
+  if (scene_seed < -1) {
+    std::fprintf(stderr, "--scene-seed: expected a seed >= 0\n");
+    return 2;
+  }
+  const std::uint64_t scene_rng_seed =
+      scene_seed >= 0 ? static_cast<std::uint64_t>(scene_seed) : params->rig.seed;
+  Expected<synth::Scene> made = synth::MakeScene(scene_name, scene_rng_seed);
   if (!made) {
     std::fprintf(stderr, "%s\n", made.error().message.c_str());
     return 2;
   }
   const synth::Scene& scene = *made;
-  std::printf("bench_depth: preset %s, scene %s, %d threads, %d runs\n", preset.c_str(),
-              scene_name.c_str(), tbb::info::default_concurrency(), repeat);
+  std::printf("bench_depth: preset %s, scene %s (seed %llu), %d threads, %d runs\n",
+              preset.c_str(), scene_name.c_str(), static_cast<unsigned long long>(scene_rng_seed),
+              tbb::info::default_concurrency(), repeat);
   const synth::PlenopticModel model(params->camera);
   synth::TrajectoryParams tp;
   tp.target_mm = scene.Target();
@@ -476,7 +490,10 @@ int main(int argc, char** argv) {
   const Pose world_from_cam = synth::CameraTrajectory(tp).WorldFromCam(0.0);
   double t0 = Now();
   synth::RawFrame raw, white;
-  const std::string frames_key = preset + " " + scene_name;
+  // The files of --frames and --tf-only name what they hold; a scene seed of
+  // the command's own is part of the name.
+  const std::string frames_key = preset + " " + scene_name +
+                                 (scene_seed >= 0 ? " seed " + std::to_string(scene_rng_seed) : "");
   if (!frames_file.empty() && ReadFrames(frames_file, frames_key, &raw, &white)) {
     std::printf("read raw + white %dx%d from %s\n", raw.width, raw.height, frames_file.c_str());
   } else {
