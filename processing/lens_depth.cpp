@@ -244,6 +244,7 @@ void LensMedianOf(const PlenopticFrame& f, const LensGrid& grid, const std::vect
 Status SeedFromLensDepth(const PlenopticFrame& f, const LensDepthMap& lens, LensSeed* out) {
   out->z.assign(f.lenses.size(), kNaN);
   out->sigma_z.assign(f.lenses.size(), kNaN);
+  out->skip.clear();  // every micro image estimated unless the caller says otherwise
   const LensGrid& g = lens.grid;
   if (lens.virtual_depth.size() != static_cast<std::size_t>(g.cols) * g.rows ||
       lens.sigma_z.size() != lens.virtual_depth.size())
