@@ -4,7 +4,8 @@
 //
 // For micro image k (centre c_k, type t) of the raw frame, read directly
 // from the raw pixels times the devignetting gain (no devignetted or
-// smoothed copy of the frame is made):
+// smoothed copy of the frame is made; a BGR8 frame is read through its
+// 8-bit grey plane, LensDepthOptions::grey_plane):
 // 1. Candidates: pixels on a square grid of candidate_step_px within
 //    candidate_fraction r_valid of c_k; each scored by its largest gradient
 //    along the three ring-1 axes, |g . e_d| (central differences of the raw
