@@ -337,7 +337,8 @@ constexpr char kUsage[] =
     "                   [--crop PX] [--stride 0|1|2] [--ring1 1..6] [--ring2 0..6]\n"
     "                   [--type-ranges 0|1] [--lens-only 1] [--dense 0|1]\n"
     "                   [--lens-path scalar|simd|both] [--lens-samples N]\n"
-    "                   [--lens-previous 0|1] [--lens-neighbours 0|1] [--lens-step PX]\n"
+    "                   [--lens-previous 0|1] [--lens-neighbours 0|1] [--lens-grey 0|1]\n"
+    "                   [--lens-step PX]\n"
     "                   [--lens-fraction F] [--lens-rings 1|2] [--lens-enough N]\n"
     "                   [--seed full|seeded|both] [--dense-path scalar|simd|both]\n"
     "                   [--seed-margin PX] [--seed-ring1 1..6] [--seed-ring2 0..6]\n"
@@ -359,6 +360,8 @@ constexpr char kUsage[] =
     "of a camera that did not move: its best case, not a moving camera's figure).\n"
     "--lens-neighbours 1 searches the lenses of types 1 and 2 first around their earlier-type\n"
     "neighbours' depth (LensDepthOptions::neighbour_seed; default 0: every lens from nothing).\n"
+    "--lens-grey 0 reads a BGR frame's three channels in the per-lens search instead of its\n"
+    "grey plane (LensDepthOptions::grey_plane; default 1).\n"
     "--lens-step, --lens-fraction, --lens-rings, --lens-enough: LensDepthOptions'\n"
     "candidate_step_px, candidate_fraction, rings and enough_estimates (the defaults: 0\n"
     "(the pitch / 11), 0.6, 2, 2); the textured lenses the coverage counts are the gate's own.\n"
@@ -447,6 +450,8 @@ int main(int argc, char** argv) {
       lens_previous = std::atoi(argv[k + 1]) != 0;
     else if (!std::strcmp(argv[k], "--lens-neighbours"))
       lens_options.neighbour_seed = std::atoi(argv[k + 1]) != 0;
+    else if (!std::strcmp(argv[k], "--lens-grey"))
+      lens_options.grey_plane = std::atoi(argv[k + 1]) != 0;
     else if (!std::strcmp(argv[k], "--lens-samples"))
       lens_options.samples = std::atoi(argv[k + 1]);
     else if (SetLensOption(argv[k], argv[k + 1], &lens_options))
