@@ -264,6 +264,12 @@ Status DepthProcessor::Warm(const Frame& frame, bool sampler) {
   auto image = ColourView(frame, formats_, &demosaiced);
   if (!image) return image.error();
   if (auto lenses = camera->LensEstimator(*image); !lenses) return lenses.error();
+  // One pooled per-lens workspace too, by the frame's per-lens depth and
+  // preview (returned to the pool at once): its buffers' first touch (a BGR8
+  // frame's grey plane alone is 32.5 MB at R32) cost 180-240 ms on a fresh
+  // VM (`bench_depth --preset r32`), paid by the lens lane's first frame.
+  if (auto lenses = camera->ProcessLenses(*image, preview_.max_side); !lenses)
+    return lenses.error();
   // The dense chain's pooled workspace too, by one dense map of the frame
   // (returned to the camera's pool, where the depth lane's first map of the
   // camera finds it): its geometry, the TF renderer's tables and its
