@@ -11,7 +11,7 @@
 #include "apps/commands.h"
 #include "evaluation/evaluation_plots.h"
 #include "evaluation/evaluation_report.h"
-#include "apps/git_revision.h"
+#include "apps/revision.h"
 #include "config/frames.h"
 #include "config/rig_config.h"
 #include "config/text_escape.h"
@@ -229,7 +229,7 @@ int RunEvaluate(const EvaluateArgs& args) {
                 kExitUsage);
   EvaluationRun run;
   run.sequence_dir = args.sequence;
-  run.git_revision = LIFMCR_GIT_REVISION;
+  run.git_revision = GitRevision();
   run.command_line = args.command_line;
   run.hand_eye_mode = args.hand_eye;
   run.split = args.split;
