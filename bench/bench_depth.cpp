@@ -40,6 +40,7 @@
 
 #include "bench/bench_usage.h"
 #include "processing/camera_model.h"
+#include "processing/epipolar_search.h"
 #include "processing/lens_depth.h"
 #include "processing/mla_grid.h"
 #include "processing/plenoptic_frame.h"
@@ -51,6 +52,9 @@
 #include "replay/synth/synth_params.h"
 #include "replay/synth/trajectory.h"
 
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <tbb/info.h>
 #include <tbb/task_arena.h>
 
@@ -346,7 +350,7 @@ constexpr char kUsage[] =
     "                   [--seed-ring2-lines 0|1|3] [--seed-interp-spread R]\n"
     "                   [--dense-for-tf 0|1] [--frames FILE]\n"
     "                   [--tf-only MAP] [--tf-out FILE] [--tf-baseline 0|1]\n"
-    "                   [--tf-psnr 0|1]\n"
+    "                   [--tf-psnr 0|1] [--tf-step S]\n"
     "processing/ on one synthetic frame (default r32) on all cores: grid fit to the white\n"
     "image, virtual depth in raw MP/s with its accuracy against the ground truth (the full\n"
     "search and the search seeded by the per-lens depth, scalar and SIMD, side by side)\n"
@@ -374,7 +378,12 @@ constexpr char kUsage[] =
     "--tf-out FILE writes the TF image there (PGM or PPM) to compare two builds' images.\n"
     "--tf-baseline 0 leaves out the TF image from every dense pixel (a profile of the\n"
     "chain's way alone); --tf-psnr 0 leaves out its PSNR (the all-in-focus truth is not\n"
-    "rendered: a callgrind run of the TF stage in minutes).\n";
+    "rendered: a callgrind run of the TF stage in minutes).\n"
+    "--tf-step S (2..16): also the TF image of every S-th TF pixel (TfOptions::image_step,\n"
+    "the live depth lane's, for its 512 px preview: S 3 on r32), its rendering's CPU on one\n"
+    "thread alternating with the whole image's, and the two images' 512 px previews\n"
+    "(INTER_AREA, as the pipeline's, before the JPEG) against each other and against the\n"
+    "truth's preview.\n";
 
 int main(int argc, char** argv) {
   if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
@@ -387,6 +396,7 @@ int main(int argc, char** argv) {
   std::string lens_path = "both", dense_path = "both", seed_mode = "both", frames_file;
   std::string tf_only_map, tf_out;
   bool tf_baseline = true, tf_psnr = true, dense_for_tf = false;
+  int tf_step = 1;
   for (int k = 1; k + 1 < argc; k += 2) {
     if (!std::strcmp(argv[k], "--preset"))
       preset = argv[k + 1];
@@ -444,6 +454,8 @@ int main(int argc, char** argv) {
       tf_baseline = std::atoi(argv[k + 1]) != 0;
     else if (!std::strcmp(argv[k], "--tf-psnr"))
       tf_psnr = std::atoi(argv[k + 1]) != 0;
+    else if (!std::strcmp(argv[k], "--tf-step"))
+      tf_step = std::atoi(argv[k + 1]);
     else if (!std::strcmp(argv[k], "--dense-for-tf"))
       dense_for_tf = std::atoi(argv[k + 1]) != 0;
     else if (!std::strcmp(argv[k], "--lens-previous"))
@@ -462,6 +474,10 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "unknown option %s\n", argv[k]);
       return 2;
     }
+  }
+  if (tf_step < 1 || tf_step > 16) {
+    std::fprintf(stderr, "--tf-step: expected 1..16, got %d\n", tf_step);
+    return 2;
   }
   if (dense_for_tf && !tf_only_map.empty()) {
     std::fprintf(stderr, "--dense-for-tf 1: not with --tf-only (its MAP holds the whole map)\n");
@@ -654,6 +670,34 @@ int main(int argc, char** argv) {
         100 * res.outliers, 100 * res.median_mm, gates ? "hold" : "DO NOT hold",
         LoadAverage().c_str());
     std::printf("depth %s: %s\n", name.c_str(), res.stats.BriefReport().c_str());
+    if (seeded && !seed.skip.empty()) {
+      // The prepared grey a seeded search reads: its micro images' own and
+      // their ring-1 and ring-2 neighbours' (DepthOptions::rings 2). A
+      // skipped micro image with no estimated one within two rings is
+      // read by no search: what a prepare of the estimated micro images
+      // alone would leave out.
+      std::vector<std::uint8_t> read(frame.lenses.size(), 0);
+      for (std::size_t k = 0; k < frame.lenses.size(); ++k) {
+        if (seed.skip[k]) continue;
+        read[k] = 1;
+        for (const auto* ring : {&detail::kRing1, &detail::kRing2})
+          for (const auto& d : *ring) {
+            const int n = frame.LensAt(frame.lenses[k].i + d[0], frame.lenses[k].j + d[1]);
+            if (n >= 0) read[n] = 1;
+          }
+      }
+      long long unread = 0, unread_px = 0, valid_px = 0;
+      for (std::size_t k = 0; k < frame.lenses.size(); ++k) unread += !read[k];
+      for (const std::int32_t k : frame.lens_of_pixel) {
+        if (k < 0) continue;
+        ++valid_px;
+        unread_px += !read[k];
+      }
+      std::printf("depth %s: %zu micro images, %lld skipped, %lld of them read by no search "
+                  "(%.1f %% of the micro images' pixels)\n",
+                  name.c_str(), frame.lenses.size(), res.stats.skipped_lenses, unread,
+                  valid_px ? 100.0 * unread_px / valid_px : 0.0);
+    }
     return true;
   };
   if (run_dense) {
@@ -994,6 +1038,103 @@ int main(int argc, char** argv) {
                 way_name[way], seen ? 100.0 * covered / seen : 0.0, seen,
                 rel.empty() ? 100.0 : 100 * Median(rel),
                 covered ? 100.0 * outliers / covered : 100.0);
+  }
+  if (tf_step > 1) {
+    // The TF image of every tf_step-th TF pixel (the live depth lane's) on
+    // the chain's TF depth map: its rendering against the whole image's,
+    // one thread, alternately (a warm-up each first: its tables).
+    TfOptions stepped;
+    stepped.image_step = tf_step;
+    TfImage part;
+    if (!RenderTotalFocus(frame, mla, tf_depth, stepped, &part).ok()) {
+      std::fprintf(stderr, "TF image step %d failed\n", tf_step);
+      return 1;
+    }
+    std::vector<double> whole_cpu_s, part_cpu_s;
+    one.execute([&] {
+      for (int r = 0; r < repeat; ++r) {
+        double cpu0 = ProcessCpuSeconds();
+        (void)RenderTotalFocus(frame, mla, tf_depth, TfOptions{}, &tf);
+        whole_cpu_s.push_back(ProcessCpuSeconds() - cpu0);
+        cpu0 = ProcessCpuSeconds();
+        (void)RenderTotalFocus(frame, mla, tf_depth, stepped, &part);
+        part_cpu_s.push_back(ProcessCpuSeconds() - cpu0);
+      }
+    });
+    // The previews as the pipeline makes them (EncodePreview: INTER_AREA to
+    // at most 512 px, the size from the TF grid's), before the JPEG.
+    constexpr int kPreviewSide = 512;
+    const double factor = std::min(1.0, static_cast<double>(kPreviewSide) /
+                                            std::max(tf.width, tf.height));
+    const cv::Size size(std::max(1, static_cast<int>(std::lround(tf.width * factor))),
+                        std::max(1, static_cast<int>(std::lround(tf.height * factor))));
+    const int type = tf.format == PixelFormat::kBgr8 ? CV_8UC3 : CV_8UC1;
+    auto area = [&](const TfImage& image) {
+      cv::Mat out;
+      cv::resize(cv::Mat(image.height, image.width, type, const_cast<std::uint8_t*>(image.pixels.data())),
+                 out, size, 0, 0, cv::INTER_AREA);
+      return out;
+    };
+    const cv::Mat whole_p = area(tf), part_p = area(part);
+    // PSNR of a against b over the preview pixels where `mask` (empty: all) is 1.
+    auto psnr_of = [](const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask, long long* count) {
+      double sum2 = 0;
+      long long n = 0;
+      const int channels = a.channels();
+      for (int y = 0; y < a.rows; ++y)
+        for (int x = 0; x < a.cols; ++x) {
+          if (!mask.empty() && mask.at<float>(y, x) < 0.999f) continue;
+          for (int ch = 0; ch < channels; ++ch) {
+            const double d = static_cast<double>(a.ptr<std::uint8_t>(y)[x * channels + ch]) -
+                             b.ptr<std::uint8_t>(y)[x * channels + ch];
+            sum2 += d * d;
+            ++n;
+          }
+        }
+      if (count != nullptr) *count = n / channels;
+      const double rms = n > 0 ? std::sqrt(sum2 / n) : 0.0;
+      return rms > 0 ? 20 * std::log10(255 / rms) : 99.0;
+    };
+    std::printf("tf image step %d: %dx%d of the %dx%d TF grid, rendering CPU %.4f s against %.4f "
+                "s whole (one thread, median of %d alternating): ratio %.3f; 512 px previews "
+                "(%dx%d) against each other PSNR %.2f dB\n",
+                tf_step, part.width, part.height, tf.width, tf.height, Median(part_cpu_s),
+                Median(whole_cpu_s), repeat, Median(part_cpu_s) / Median(whole_cpu_s), size.width,
+                size.height, psnr_of(part_p, whole_p, cv::Mat(), nullptr));
+    if (tf_truth && tf_truth->width == tf.width && tf_truth->height == tf.height) {
+      // The truth's preview over the preview pixels whose every TF pixel sees a surface.
+      cv::Mat truth_bgr(tf_truth->height, tf_truth->width, CV_8UC3,
+                        const_cast<std::uint8_t*>(tf_truth->bgr.data()));
+      cv::Mat truth_full, seen(tf.height, tf.width, CV_32F), truth_p, seen_p;
+      if (type == CV_8UC3)
+        truth_full = truth_bgr;
+      else
+        cv::transform(truth_bgr, truth_full, cv::Matx13f(1 / 3.0f, 1 / 3.0f, 1 / 3.0f));
+      for (int y = 0; y < tf.height; ++y)
+        for (int x = 0; x < tf.width; ++x)
+          seen.at<float>(y, x) =
+              std::isfinite(tf_truth->depth_mm[static_cast<std::size_t>(y) * tf.width + x]) ? 1.0f
+                                                                                             : 0.0f;
+      cv::resize(truth_full, truth_p, size, 0, 0, cv::INTER_AREA);
+      cv::resize(seen, seen_p, size, 0, 0, cv::INTER_AREA);
+      long long n = 0;
+      const double whole_psnr = psnr_of(whole_p, truth_p, seen_p, &n);
+      const double part_psnr = psnr_of(part_p, truth_p, seen_p, nullptr);
+      // As published: JPEG at the pipeline's quality 85 (PreviewOptions).
+      auto jpeg = [](const cv::Mat& m) {
+        std::vector<std::uint8_t> bytes;
+        cv::imencode(".jpg", m, bytes, {cv::IMWRITE_JPEG_QUALITY, 85});
+        return cv::imdecode(bytes, cv::IMREAD_UNCHANGED);
+      };
+      const cv::Mat whole_j = jpeg(whole_p), part_j = jpeg(part_p);
+      std::printf("tf image step %d: previews against the truth's (%lld preview pixels that see "
+                  "a surface): whole image %.2f dB, step %d %.2f dB; as JPEG (quality 85) %.2f "
+                  "and %.2f dB, against each other %.2f dB\n",
+                  tf_step, n, whole_psnr, tf_step, part_psnr,
+                  psnr_of(whole_j, truth_p, seen_p, nullptr),
+                  psnr_of(part_j, truth_p, seen_p, nullptr),
+                  psnr_of(part_j, whole_j, cv::Mat(), nullptr));
+    }
   }
   const std::vector<double>& tf_s = tf_runs[0].wall_s;
   std::printf(

@@ -312,9 +312,18 @@ Expected<LensLease> CameraChain::ProcessLenses(ConstImageView raw, int preview_m
   return lease;
 }
 
-Expected<ChainLease> CameraChain::Process(ConstImageView raw, const LensDepthMap* lens_depth) {
+Expected<ChainLease> CameraChain::Process(ConstImageView raw, const LensDepthMap* lens_depth,
+                                          int tf_image_step) {
   if (raw.data == nullptr || raw.width <= 0 || raw.height <= 0)
     return Error{"camera " + setup_.serial + ": empty frame"};
+  TfOptions tf_options = options_.tf;
+  tf_options.image_step = tf_image_step;
+  if (Status s = tf_options.Check(); !s)
+    return Error{"camera " + setup_.serial + ": tf_image_step " + std::to_string(tf_image_step) +
+                 ": " + s.error().message};
+  if (tf_image_step > 1 && options_.point_cloud)
+    return Error{"camera " + setup_.serial + ": tf_image_step " + std::to_string(tf_image_step) +
+                 " with point_cloud (the cloud colours every TF pixel): expected 1"};
   ChainLease lease = Acquire();
   ChainProducts& p = *lease;
   auto t = std::chrono::steady_clock::now();
@@ -371,7 +380,7 @@ Expected<ChainLease> CameraChain::Process(ConstImageView raw, const LensDepthMap
                                    options_.tf, &p.tf_depth);
       !s)
     return Error{"camera " + setup_.serial + ": " + s.error().message};
-  if (Status s = backend_->TfRender(p.prepared, setup_.mla, p.tf_depth, options_.tf, &p.tf); !s)
+  if (Status s = backend_->TfRender(p.prepared, setup_.mla, p.tf_depth, tf_options, &p.tf); !s)
     return Error{"camera " + setup_.serial + ": " + s.error().message};
   p.tf_s = SecondsSince(t);
 

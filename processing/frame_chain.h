@@ -125,7 +125,7 @@ struct ChainProducts {
   LensSeed seed;                 // per micro image of `prepared` (seeded_depth)
   VirtualDepthMap raw_depth;     // virtual depth on the raw grid
   TfDepthMap tf_depth;           // virtual depth on the TF grid (W/2 x H/2)
-  TfImage tf;                    // totally focused image
+  TfImage tf;                    // totally focused image (of every tf_image_step-th TF pixel)
   std::vector<float> depth_mm;   // camera z per TF pixel (metric_depth with intrinsics), else empty
   PointCloud cloud;              // point_cloud with intrinsics, else empty
   bool metric = false;           // depth_mm (and cloud when asked) were computed
@@ -177,8 +177,12 @@ class CameraChain {
   // The chain on one raw frame (Mono8 or BGR8). `raw` must outlive the lease.
   // With seeded_depth, the dense search is seeded by `lens_depth` (the
   // frame's per-lens depth from ProcessLenses) or, when null, by the
-  // per-lens depth Process computes itself (seed_s).
-  Expected<ChainLease> Process(ConstImageView raw, const LensDepthMap* lens_depth = nullptr);
+  // per-lens depth Process computes itself (seed_s). `tf_image_step` > 1:
+  // the TF image of every tf_image_step-th TF pixel in x and y
+  // (TfOptions::image_step), for a caller that reads only a preview of it
+  // (the live depth lane); the TF depth map stays whole. 1..16.
+  Expected<ChainLease> Process(ConstImageView raw, const LensDepthMap* lens_depth = nullptr,
+                               int tf_image_step = 1);
 
   // Per-lens virtual depth of one raw frame (Mono8 or BGR8) and, with
   // preview_max_side > 0, the TF preview at each lens's depth of at most that

@@ -30,6 +30,11 @@ Status TfOptions::Check() const {
   if (!(sharpen >= 0 && sharpen <= 10)) return Error{"TF options: sharpen: expected 0..10"};
   if (!(bary_floor >= 0 && bary_floor <= 0.3))
     return Error{"TF options: bary_floor: expected 0..0.3"};
+  if (image_step < 1 || image_step > 16)
+    return Error{"TF options: image_step: expected 1..16"};
+  if (image_step > 1 && sharpen > 0)
+    return Error{"TF options: image_step above 1 needs sharpen 0 (the sharpening's Laplacian "
+                 "is of the whole TF grid's neighbours)"};
   return Status::Ok();
 }
 
@@ -759,7 +764,12 @@ const TfImage::Tables& TablesFor(const PlenopticFrame& f, const MlaCalibration& 
 template <int kChannels>
 void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDepthMap& depth,
                 const TfOptions& options, TfImage* out) {
-  const int tw = f.width / 2, th = f.height / 2;
+  // The TF grid's size (the depth map's) and the image's: output pixel (u,
+  // w) is TF pixel (s u, s w), at raw (2 s u + 0.5, 2 s w + 0.5): integers
+  // and halves, exact in float, so the row kernel's x0 + dx i is the full
+  // image's x of that pixel and the pixel is the full image's.
+  const int tw = f.width / 2, s = options.image_step;
+  const int ow = out->width, oh = out->height;
   const float fallback = static_cast<float>(depth.fallback_v > 1 ? depth.fallback_v : 3.0);
   const TfImage::Tables& tables = TablesFor(f, mla, options, out);
   const detail::TfKernel& kernel = *tables.kernel;
@@ -778,32 +788,46 @@ void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDept
                     (f.height - 1.0) * f.raw.stride_bytes + 3.0 * f.width < 2147483648.0;
   const detail::TfBlendKernels& kernels =
       options.simd ? detail::SimdTfBlendKernels() : detail::ScalarTfBlendKernels();
-  tbb::parallel_for(0, th, [&](int w) {
+  tbb::parallel_for(0, oh, [&](int ow_row) {
+    const int w = ow_row * s;  // the TF row
     const float y = 2.0f * w + 0.5f;
     constexpr int kRun = 256;
     float run_v[kRun], run_acc[kChannels * kRun], run_sw[kRun];
-    for (int u0 = 0; u0 < tw; u0 += kRun) {
-      const int n = std::min(kRun, tw - u0);
-      const std::size_t t0 = static_cast<std::size_t>(w) * tw + u0;
+    for (int u0 = 0; u0 < ow; u0 += kRun) {
+      const int n = std::min(kRun, ow - u0);
+      const std::size_t t0 = static_cast<std::size_t>(ow_row) * ow + u0;  // in the image
       // Locals, not the captures: the loops below then vectorise (a store
       // through a float pointer could otherwise change a captured value).
       const float fallback_v = fallback, gain_v = gain;
-      const float* const v_row = depth.virtual_depth.data() + t0;
-      // The next run's depths (at a row's end the next row's first), asked
-      // of the cache while this run is blended: the TF depth map comes from
-      // memory, and half of this function's perf samples were on the first
-      // load of a run's depths.
+      const float* const v_row =
+          depth.virtual_depth.data() + static_cast<std::size_t>(w) * tw + s * u0;
+      // The next run's depths (at a row's end the next image row's first),
+      // asked of the cache while this run is blended: the TF depth map comes
+      // from memory, and half of this function's perf samples were on the
+      // first load of a run's depths.
       const float* const v_next =
-          u0 + kRun < tw ? v_row + kRun
-                         : (w + 1 < th ? depth.virtual_depth.data() + t0 - u0 + tw : nullptr);
-      if (v_next != nullptr)
-        for (int i = 0; i < kRun; i += 16) __builtin_prefetch(v_next + i);
-      for (int i = 0; i < n; ++i) {
-        const float v = v_row[i];
-        run_v[i] = v > 1.0f ? v : fallback_v;  // NaN too
+          u0 + kRun < ow ? v_row + s * kRun
+          : ow_row + 1 < oh
+              ? depth.virtual_depth.data() + static_cast<std::size_t>(w + s) * tw
+              : nullptr;
+      if (v_next != nullptr) {
+        const int span = std::min(s * kRun, tw);
+        for (int i = 0; i < span; i += 16) __builtin_prefetch(v_next + i);
+      }
+      if (s == 1) {
+        for (int i = 0; i < n; ++i) {
+          const float v = v_row[i];
+          run_v[i] = v > 1.0f ? v : fallback_v;  // NaN too
+        }
+      } else {
+        for (int i = 0; i < n; ++i) {
+          const float v = v_row[static_cast<std::size_t>(s) * i];
+          run_v[i] = v > 1.0f ? v : fallback_v;  // NaN too
+        }
       }
       if (rows)
-        kernels.row(geometry, source, 2.0f * u0 + 0.5f, 2.0f, y, run_v, n, run_acc, run_sw);
+        kernels.row(geometry, source, 2.0f * static_cast<float>(s * u0) + 0.5f,
+                    2.0f * static_cast<float>(s), y, run_v, n, run_acc, run_sw);
       else
         std::fill(run_sw, run_sw + n, 0.0f);
       // Points none of the three lenses sees: counted by a loop the compiler
@@ -817,7 +841,7 @@ void RenderRows(const PlenopticFrame& f, const MlaCalibration& mla, const TfDept
         if (run_sw[i] > 0) continue;
         // The border fallback (tf_kernel.h), point by point.
         float acc[kChannels];
-        const float x = 2.0f * (u0 + i) + 0.5f;
+        const float x = 2.0f * (s * (u0 + i)) + 0.5f;
         run_sw[i] = kernel.Blend<kChannels>(f.raw, x, y, run_v[i], kernel.SharpType(run_v[i]), acc);
         for (int ch = 0; ch < kChannels; ++ch) run_acc[ch * n + i] = acc[ch];
       }
@@ -844,11 +868,12 @@ Status RenderTotalFocus(const PlenopticFrame& f, const MlaCalibration& mla, cons
   const int tw = f.width / 2, th = f.height / 2;
   if (depth.width != tw || depth.height != th)
     return Error{"TF depth map: size differs from the frame's TF grid"};
-  out->width = tw;
-  out->height = th;
+  const int s = options.image_step;
+  out->width = (tw + s - 1) / s;
+  out->height = (th + s - 1) / s;
   out->format = f.has_colour ? PixelFormat::kBgr8 : PixelFormat::kMono8;
   const int channels = f.has_colour ? 3 : 1;
-  out->pixels.resize(static_cast<std::size_t>(tw) * th * channels);
+  out->pixels.resize(static_cast<std::size_t>(out->width) * out->height * channels);
   // The float image is only the sharpening's input: 12 bytes per TF pixel
   // of an R32 frame not written when it is off.
   out->linear.resize(options.sharpen > 0 ? out->pixels.size() : 0);

@@ -88,6 +88,16 @@ struct TfOptions {
   double bary_floor = 0.0;
   // The splat's and the blend's Highway kernels; false: their scalar references.
   bool simd = true;
+  // RenderTotalFocus renders TF pixel (s u, s w) of the TF grid for every
+  // output pixel (u, w) (s = image_step, 1..16): an image of ceil(W/2 / s) x
+  // ceil(H/2 / s), each pixel the one of the full image at that point, byte
+  // for byte (the same raw position, depth and blend). For a caller that
+  // reads only a preview of a fraction of the TF grid's size (the live
+  // depth lane's 512 px preview of an R32's 3280 px grid: step 2, 38 % of
+  // the rendering's CPU, not a quarter: the blend's reads of the raw frame
+  // are shared less by sparser points). 1: the whole TF grid. Above 1
+  // refuses sharpen (its Laplacian is of the TF grid's neighbours).
+  int image_step = 1;
   Status Check() const;
 };
 

@@ -62,22 +62,33 @@ Status CheckImageEncoders() {
 }
 
 Expected<EncodedImage> EncodePreview(ConstImageView image, const PreviewOptions& options) {
+  return EncodePreview(image, options, image.width, image.height);
+}
+
+Expected<EncodedImage> EncodePreview(ConstImageView image, const PreviewOptions& options,
+                                     int source_width, int source_height) {
   if (image.data == nullptr || image.width <= 0 || image.height <= 0)
     return Error{"preview: empty image"};
+  if (source_width < image.width || source_height < image.height)
+    return Error{"preview: source " + std::to_string(source_width) + "x" +
+                 std::to_string(source_height) + " smaller than its image " +
+                 std::to_string(image.width) + "x" + std::to_string(image.height)};
   const cv::Mat source = Wrap(image);
+  // The size from the source's, so a coarser sampling of it gives the
+  // preview the source's own would have.
   const double factor =
-      std::min(1.0, static_cast<double>(options.max_side) / std::max(image.width, image.height));
+      std::min(1.0, static_cast<double>(options.max_side) / std::max(source_width, source_height));
+  const int w = std::max(1, static_cast<int>(std::lround(source_width * factor)));
+  const int h = std::max(1, static_cast<int>(std::lround(source_height * factor)));
   cv::Mat small;
-  if (factor < 1.0) {
-    const int w = std::max(1, static_cast<int>(std::lround(image.width * factor)));
-    const int h = std::max(1, static_cast<int>(std::lround(image.height * factor)));
+  if (w != image.width || h != image.height) {
     cv::resize(source, small, cv::Size(w, h), 0, 0, cv::INTER_AREA);
   } else {
     small = source;
   }
   EncodedImage out;
-  out.source_width = image.width;
-  out.source_height = image.height;
+  out.source_width = source_width;
+  out.source_height = source_height;
   out.width = small.cols;
   out.height = small.rows;
   out.channels = small.channels();
@@ -85,6 +96,12 @@ Expected<EncodedImage> EncodePreview(ConstImageView image, const PreviewOptions&
   if (!cv::imencode(".jpg", small, out.bytes, {cv::IMWRITE_JPEG_QUALITY, options.jpeg_quality}))
     return Error{"preview: JPEG encoding failed"};
   return out;
+}
+
+int TfImageStepForPreview(int tf_width, int tf_height, int max_side) {
+  if (max_side <= 0) return 1;
+  const int longest = std::max(tf_width, tf_height);
+  return std::clamp(longest / (3 * max_side), 1, 16);
 }
 
 Expected<EncodedDepth> EncodeDepth(const std::vector<float>& values, int width, int height,
@@ -342,7 +359,16 @@ Expected<ProcessedFrame> DepthProcessor::Run(const Frame& frame, bool lenses,
   // (the depth lane's), else none (the chain computes it).
   const processing::LensDepthMap* seed =
       lenses ? &lenses_lease->depth : given != nullptr ? &given->lenses->depth : nullptr;
-  auto lease = camera->Process(*image, seed);
+  // The depth lane publishes the TF image as a preview of at most max_side
+  // pixels alone (nothing in the lanes reads its full image: the workers
+  // localise from the raw frame), so it renders every s-th TF pixel: on an
+  // R32 every second, 38 % of the rendering's CPU; each rendered pixel is
+  // the full image's.
+  // Process (the block pipeline, whose localizer reads the whole TF image)
+  // renders it whole.
+  const int tf_step =
+      lenses ? 1 : TfImageStepForPreview(image->width / 2, image->height / 2, preview_.max_side);
+  auto lease = camera->Process(*image, seed, tf_step);
   if (!lease) return lease.error();
   const processing::TfDepthMap& tf_depth = (*lease)->tf_depth;
   const processing::TfImage& tf = (*lease)->tf;
@@ -382,7 +408,7 @@ Expected<ProcessedFrame> DepthProcessor::Run(const Frame& frame, bool lenses,
     if (!lens_depth) return lens_depth.error();
     out.lens_depth = std::move(*lens_depth);
   }
-  auto tf_preview = EncodePreview(tf.View(), preview_);
+  auto tf_preview = EncodePreview(tf.View(), preview_, tf_depth.width, tf_depth.height);
   if (!tf_preview) return tf_preview.error();
   out.tf = std::move(*tf_preview);
   out.products = std::shared_ptr<const processing::ChainProducts>(std::move(*lease));

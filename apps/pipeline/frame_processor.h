@@ -145,6 +145,22 @@ class FrameProcessor {
 
 // Downscaled JPEG of `image` (Mono8 or BGR8).
 Expected<EncodedImage> EncodePreview(ConstImageView image, const PreviewOptions& options);
+// The same of an image that samples a source of source_width x
+// source_height on a coarser grid (a TF image of every s-th TF pixel,
+// TfImageStepForPreview): the preview has the size, and names the source
+// size, the source's own preview would have.
+Expected<EncodedImage> EncodePreview(ConstImageView image, const PreviewOptions& options,
+                                     int source_width, int source_height);
+// The TF image step (processing::TfOptions::image_step) for a preview of at
+// most max_side pixels of a TF grid of tf_width x tf_height: the largest s
+// (at most 16) whose image keeps at least three times max_side on its
+// longest side, so INTER_AREA still averages 3 x 3 rendered pixels or more
+// per preview pixel; 1 for a grid below 6 max_side. R32 (3280 x 2474, 512):
+// 2; `medium`'s 1640 x 1237: 1. Step 3 on R32 saved no more CPU than 2
+// (the rendering is bound by its reads of the raw frame, which a sparser
+// sampling shares less) and lost more of the preview's PSNR
+// (docs/processing.md, "The depth lane's TF image for its preview").
+int TfImageStepForPreview(int tf_width, int tf_height, int max_side);
 // OpenCV has the JPEG and PNG encoders the previews and depth maps use.
 // Called before the pipeline's workers start: it also builds OpenCV's codec
 // registry in this thread (see the .cpp).

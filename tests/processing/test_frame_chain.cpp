@@ -163,6 +163,64 @@ TEST(FrameChain, DenseForTfOnlySkipsTheHeldMicroImagesAndKeepsTheTfProducts) {
   EXPECT_LE(rms, 1.0);
 }
 
+// The TF image of every s-th TF pixel (the live depth lane's, for its
+// preview): each pixel is the whole image's at that point, byte for byte,
+// through the Highway row kernel and the scalar reference, with the
+// image's border fallback; the TF depth map is the whole grid's either way.
+TEST(FrameChain, TfImageStepRendersTheWholeImagesPixelsAtItsPoints) {
+  const testing::SynthFrame& s = Frame();
+  for (const bool simd : {true, false}) {
+    ChainOptions options;
+    options.dense_for_tf_only = true;
+    options.tf.simd = simd;
+    auto chain = CameraChain::Create(SetupOf(s, true, false), options);
+    ASSERT_TRUE(chain.ok()) << chain.error().message;
+    auto whole = (*chain)->Process(s.raw.View());
+    ASSERT_TRUE(whole.ok()) << whole.error().message;
+    const TfImage& full = (*whole)->tf;
+    const int channels = full.format == PixelFormat::kBgr8 ? 3 : 1;
+    for (const int step : {2, 3, 5}) {
+      auto part = (*chain)->Process(s.raw.View(), nullptr, step);
+      ASSERT_TRUE(part.ok()) << part.error().message;
+      const TfImage& tf = (*part)->tf;
+      ASSERT_EQ(tf.width, (full.width + step - 1) / step);
+      ASSERT_EQ(tf.height, (full.height + step - 1) / step);
+      ASSERT_EQ(tf.format, full.format);
+      EXPECT_EQ((*part)->tf_depth.virtual_depth.size(), (*whole)->tf_depth.virtual_depth.size());
+      EXPECT_EQ(std::memcmp((*part)->tf_depth.virtual_depth.data(),
+                            (*whole)->tf_depth.virtual_depth.data(),
+                            (*whole)->tf_depth.virtual_depth.size() * sizeof(float)),
+                0);
+      long long differ = 0, black = 0;
+      for (int w = 0; w < tf.height; ++w)
+        for (int u = 0; u < tf.width; ++u)
+          for (int ch = 0; ch < channels; ++ch) {
+            const std::uint8_t a =
+                tf.pixels[(static_cast<std::size_t>(w) * tf.width + u) * channels + ch];
+            const std::uint8_t b =
+                full.pixels[(static_cast<std::size_t>(step * w) * full.width + step * u) *
+                                channels +
+                            ch];
+            differ += a != b;
+            black += a == 0;
+          }
+      EXPECT_EQ(differ, 0) << "step " << step << (simd ? " simd" : " scalar");
+      // A rendered image, not a blank one.
+      EXPECT_LT(black, static_cast<long long>(tf.pixels.size()) / 2);
+    }
+  }
+  ChainOptions options;
+  options.point_cloud = true;
+  auto chain = CameraChain::Create(SetupOf(s, true, true), options);
+  ASSERT_TRUE(chain.ok()) << chain.error().message;
+  for (const int step : {0, 17, 2}) {
+    auto refused = (*chain)->Process(s.raw.View(), nullptr, step);
+    ASSERT_FALSE(refused.ok()) << step;
+    EXPECT_NE(refused.error().message.find("tf_image_step"), std::string::npos)
+        << refused.error().message;
+  }
+}
+
 TEST(FrameChain, WithoutAWhiteImageTheVignettingComesFromTheFirstFrame) {
   const testing::SynthFrame& s = Frame();
   auto chain = CameraChain::Create(SetupOf(s, false, false), ChainOptions{});
@@ -261,6 +319,12 @@ TEST(FrameChain, BadOptionsNameTheirField) {
       {"cross_type_px", [](ChainOptions& o) { o.depth.cross_type_px = -1; }},
       {"sharpen", [](ChainOptions& o) { o.tf.sharpen = -1; }},
       {"inner_fraction", [](ChainOptions& o) { o.tf.inner_fraction = 0; }},
+      {"image_step", [](ChainOptions& o) { o.tf.image_step = 0; }},
+      {"image_step",
+       [](ChainOptions& o) {
+         o.tf.image_step = 2;
+         o.tf.sharpen = 0.5;
+       }},
       {"dense_for_tf_only",
        [](ChainOptions& o) {
          o.seeded_depth = false;
