@@ -37,6 +37,8 @@
 //               [--seed-ring2-lines 0|1|3] [--seed-interp-spread R] (DepthOptions)
 //               [--dense-for-tf 0|1] (1: the seeded map only where the TF depth map reads
 //               it, the live chain's ChainOptions::dense_for_tf_only)
+//               [--tf-step S] (also the TF image of every S-th TF pixel, the live depth
+//               lane's for its preview: its rendering and preview CPU and the previews' PSNR)
 
 #include "bench/bench_usage.h"
 #include "processing/camera_model.h"
@@ -380,10 +382,11 @@ constexpr char kUsage[] =
     "chain's way alone); --tf-psnr 0 leaves out its PSNR (the all-in-focus truth is not\n"
     "rendered: a callgrind run of the TF stage in minutes).\n"
     "--tf-step S (2..16): also the TF image of every S-th TF pixel (TfOptions::image_step,\n"
-    "the live depth lane's, for its 512 px preview: S 3 on r32), its rendering's CPU on one\n"
-    "thread alternating with the whole image's, and the two images' 512 px previews\n"
-    "(INTER_AREA, as the pipeline's, before the JPEG) against each other and against the\n"
-    "truth's preview.\n";
+    "the live depth lane's, for its 512 px preview: S 2 on r32), its rendering's CPU on one\n"
+    "thread alternating with the whole image's, the CPU of the TF preview from each and of\n"
+    "the raw frame's preview, and the two images' 512 px previews\n"
+    "(INTER_AREA, as the pipeline's, before and after its JPEG at quality 85) against each\n"
+    "other and against the truth's preview.\n";
 
 int main(int argc, char** argv) {
   if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
@@ -1076,6 +1079,39 @@ int main(int argc, char** argv) {
       return out;
     };
     const cv::Mat whole_p = area(tf), part_p = area(part);
+    // The lane's previews after the chain, CPU of all threads (OpenCV's
+    // resize may use its own), alternately, `repeat` times each: the TF
+    // image's (INTER_AREA + JPEG 85) from the whole image and from the
+    // step's, and the raw frame's (_PREVIEW; the same either way).
+    std::vector<double> whole_preview_s, part_preview_s, raw_preview_s;
+    {
+      const cv::Mat raw_mat(raw.height, raw.width, raw.format == PixelFormat::kBgr8 ? CV_8UC3 : CV_8UC1,
+                            const_cast<std::uint8_t*>(raw.pixels.data()));
+      std::vector<std::uint8_t> bytes;
+      for (int r = 0; r < repeat; ++r) {
+        double cpu0 = ProcessCpuSeconds();
+        cv::imencode(".jpg", area(tf), bytes, {cv::IMWRITE_JPEG_QUALITY, 85});
+        whole_preview_s.push_back(ProcessCpuSeconds() - cpu0);
+        cpu0 = ProcessCpuSeconds();
+        cv::imencode(".jpg", area(part), bytes, {cv::IMWRITE_JPEG_QUALITY, 85});
+        part_preview_s.push_back(ProcessCpuSeconds() - cpu0);
+        cpu0 = ProcessCpuSeconds();
+        cv::Mat small;
+        const double raw_factor =
+            std::min(1.0, static_cast<double>(kPreviewSide) / std::max(raw.width, raw.height));
+        cv::resize(raw_mat, small,
+                   cv::Size(std::max(1, static_cast<int>(std::lround(raw.width * raw_factor))),
+                            std::max(1, static_cast<int>(std::lround(raw.height * raw_factor)))),
+                   0, 0, cv::INTER_AREA);
+        cv::imencode(".jpg", small, bytes, {cv::IMWRITE_JPEG_QUALITY, 85});
+        raw_preview_s.push_back(ProcessCpuSeconds() - cpu0);
+      }
+    }
+    std::printf("tf image step %d: the TF preview (INTER_AREA + JPEG 85) CPU %.4f s from the step's "
+                "image against %.4f s from the whole; the raw frame's preview %.4f s (median of %d "
+                "alternating)\n",
+                tf_step, Median(part_preview_s), Median(whole_preview_s), Median(raw_preview_s),
+                repeat);
     // PSNR of a against b over the preview pixels where `mask` (empty: all) is 1.
     auto psnr_of = [](const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask, long long* count) {
       double sum2 = 0;
