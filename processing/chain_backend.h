@@ -32,7 +32,8 @@
 //   DenseDepth      the virtual depth on the raw grid
 //   TfDepth         the virtual depth on the TF grid (from the per-lens depth where it
 //                   holds when the dense search was seeded: total_focus.h)
-//   TfRender        the totally focused image
+//   TfRender        the totally focused image, of every options.image_step-th TF
+//                   pixel (the live depth lane's, for its preview: TfOptions)
 // The metric depth and the point cloud (point_cloud.h) stay on the host:
 // they are a per-TF-pixel formula over the TF depth, cheap beside the rest.
 
