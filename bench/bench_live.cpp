@@ -64,7 +64,7 @@
 //              [--lens-nice 0..19 (15)] [--lens-queue 1..8 (4)] [--depth-idle 0|1 (1)]
 //              [--loop pingpong|restart (pingpong)] [--cold-reanchor-rounds R]
 //              [--refine-step 0..3] [--widen-ahead N>=2] [--reanchor-every N>=1]
-//              [--rows FILE]
+//              [--reanchor-after-gap N] [--rows FILE]
 // --keep DIR renders into DIR once and reuses it (same preset and frames)
 // in later runs; DIR is left in place.
 // Goals (2 cores): >= 5 Hz per camera at medium, >= 2 Hz at r32.
@@ -132,6 +132,8 @@ struct Args {
   // LocalizerOptions::reanchor_every and reanchor_every_refined (-1: the
   // localizer's defaults), to compare re-anchoring cadences live.
   int reanchor_every = -1;
+  // LocalizerOptions::reanchor_after_gap (-1: the localizer's default).
+  int reanchor_after_gap = -1;
   // The track run's ok messages, one CSV row each (empty: none written).
   std::string rows;
   std::string keep;  // empty: a temporary folder
@@ -191,6 +193,9 @@ bool ParseArgs(int argc, char** argv, Args* a) {
     } else if (k == "--reanchor-every") {
       a->reanchor_every = static_cast<int>(std::strtol(v.c_str(), &end, 10));
       if (a->reanchor_every < 1) return false;
+    } else if (k == "--reanchor-after-gap") {
+      a->reanchor_after_gap = static_cast<int>(std::strtol(v.c_str(), &end, 10));
+      if (a->reanchor_after_gap != 0 && a->reanchor_after_gap < 2) return false;
     } else if (k == "--rows") {
       a->rows = v;
     } else if (k == "--widen-ahead") {
@@ -608,6 +613,8 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
     if (args.widen_ahead >= 0) live.localizer.widen_ahead = args.widen_ahead;
     if (args.reanchor_every >= 1)
       live.localizer.reanchor_every = live.localizer.reanchor_every_refined = args.reanchor_every;
+    if (args.reanchor_after_gap >= 0)
+      live.localizer.reanchor_after_gap = args.reanchor_after_gap;
     options.registration = live;
     options.pipeline.on_extrinsics = [&](const apps::ExtrinsicsRecord& r) {
       const double ms = static_cast<double>(NowRealtimeNs() - r.arrival_ns) / 1e6;
@@ -694,7 +701,7 @@ constexpr char kUsage[] =
     "                  [--lens-nice 0..19] [--lens-queue 1..8] [--depth-idle 0|1]\n"
     "                  [--loop pingpong|restart] [--cold-reanchor-rounds R]\n"
     "                  [--refine-step 0..3] [--widen-ahead N>=2] [--reanchor-every N>=1]\n"
-    "                  [--rows FILE]\n"
+    "                  [--reanchor-after-gap 0|N>=2] [--rows FILE]\n"
     "Live registration of a synthetic rig (default medium) replayed at its trigger rate\n"
     "through `lifmcr replay --reference`'s path, three runs of --seconds: tracking, every\n"
     "frame relocalised (the baseline) and depth only. Per run: extrinsics per second per\n"
@@ -718,6 +725,9 @@ constexpr char kUsage[] =
     "with one more pyramid level and twice the shift (LocalizerOptions::widen_ahead).\n"
     "--reanchor-every N: a camera re-anchored after N frames tracked (LocalizerOptions::\n"
     "reanchor_every and reanchor_every_refined; the localizer's defaults when not given).\n"
+    "--reanchor-after-gap N: a frame tracked N or more triggers after its camera's last pose\n"
+    "re-anchored at once, its tracked pose replaced by the anchor's where it stepped off\n"
+    "(LocalizerOptions::reanchor_after_gap; 0: off; the localizer's default when not given).\n"
     "--rows FILE: the track run's ok messages as CSV, one row each in trigger order:\n"
     "trigger, rendered frame, how camera 0's and camera X's poses were made, c0_from_cx's\n"
     "error (mm, deg).\n";
@@ -733,7 +743,7 @@ int main(int argc, char** argv) {
                  "[--concurrency N] [--keep DIR] [--runs track,relocalise,depth] "
                  "[--lens-nice 0..19] [--lens-queue 1..8] [--depth-idle 0|1] [--loop pingpong|restart] "
                  "[--cold-reanchor-rounds R] [--refine-step 0..3] [--widen-ahead N>=2] "
-                 "[--reanchor-every N>=1] [--rows FILE]\n");
+                 "[--reanchor-every N>=1] [--reanchor-after-gap 0|N>=2] [--rows FILE]\n");
     return 2;
   }
   auto params = synth::MakePreset(args.preset);

@@ -133,6 +133,10 @@ Status LocalizerOptions::Check() const {
     return Error{"localizer options: min_anchor_shift_px: expected >= 0"};
   if (min_anchor_history < 1)
     return Error{"localizer options: min_anchor_history: expected >= 1"};
+  if (reanchor_after_gap != 0 && reanchor_after_gap < 2)
+    return Error{"localizer options: reanchor_after_gap: expected 0 or >= 2"};
+  if (!(step_off_shift_ratio > 1))
+    return Error{"localizer options: step_off_shift_ratio: expected > 1"};
   // refind_before_relocalising: either value.
   if (Status s = coarse.Check(); !s) return s;  // correct_predictions: either value
   if (reanchor_every < 0) return Error{"localizer options: reanchor_every: expected >= 0"};
@@ -261,6 +265,13 @@ std::string MapLocalizerStage::Counts::StageReport() const {
   if (refused_anchors > 0) {
     std::snprintf(line, sizeof line, "; anchors refused before averaging %lld (up to %.2f TF px)",
                   refused_anchors, refused_anchor_shift_px);
+    out += line;
+  }
+  if (gap_reanchors > 0) {
+    std::snprintf(line, sizeof line,
+                  "; frames re-anchored at once after a gap %lld: tracked poses caught stepping "
+                  "off %lld (up to %.2f TF px), guided matching failed %lld",
+                  gap_reanchors, stepped_off, stepped_off_shift_px, gap_unchecked);
     out += line;
   }
   if (!last_tracking_failure.empty()) out += "; last tracking failure: " + last_tracking_failure;
@@ -768,6 +779,7 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   bool can_track = false, reanchor = false;
   bool far = false;           // a far frame whose tracking is attempted
   bool far_skipped = false;   // a far frame relocalised without the attempt
+  bool gap_check = false;     // re-anchored at once after a gap (reanchor_after_gap)
   {
     std::unique_lock<std::mutex> lock(mutex_);
     if (options_.wait_for_earlier_frames) {
@@ -807,6 +819,14 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     const bool periodic = every > 0 && s.last_anchor_trigger >= 0 &&
                           s.tracked_since_anchor + 1 >= interval;
     reanchor = can_track && (s.reanchor || periodic) && !s.relocalising;
+    // A frame tracked after a gap is re-anchored at once and its tracked
+    // pose checked against the anchor (LocalizerOptions::reanchor_after_gap);
+    // tracks begun at a relocalisation without a pose are begun anew at
+    // their next re-anchoring anyway.
+    gap_check = can_track && !s.relocalising && !s.cold && options_.guided_reanchoring &&
+                options_.average_anchors && options_.reanchor_after_gap > 0 &&
+                frame.trigger_index - s.last_trigger >= options_.reanchor_after_gap;
+    reanchor = reanchor || gap_check;
     if (!can_track && s.relocalising) {
       // Published with this status (no pose): the frame was seen, not lost.
       ++counts_.skipped;
@@ -849,6 +869,8 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   bool refind_from_last = false;  // its coarse matching succeeded from the last pose only
   double refind_s = 0;
   bool anchor_refused = false;     // a bad anchor refused (max_anchor_shift_ratio)
+  bool stepped_off = false;        // gap_check: the tracked pose stepped off, the anchor published
+  bool keep_tracks = false;        // the tracks go on as before the frame (gap_check)
   double anchor_shift_px = -1;     // an averaged anchor's shift against the tracked pose
   // A frame whose tracking failed (`attempt`: its outcome, "not run" for a
   // far frame relocalised without the attempt) re-found around its
@@ -916,15 +938,31 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
       if (guided.success && options_.average_anchors && !state.cold) {
         anchor_shift_px = MedianShiftPx(camera, tracked.kept, tracked.w0_from_cam.pose,
                                         guided.w0_from_cam.pose);
-        if (options_.max_anchor_shift_ratio > 0 &&
-            state.anchor_history >= options_.min_anchor_history && !state.last_anchor_refused) {
+        if (gap_check) {
+          // After a gap the tracked pose is the one in doubt: an anchor
+          // beyond the camera's anchors' spread says it stepped off.
+          if (state.anchor_history >= options_.min_anchor_history) {
+            const double rms = std::sqrt(state.anchor_shift2_sum / state.anchor_history);
+            const double limit =
+                std::max(options_.min_anchor_shift_px, options_.step_off_shift_ratio * rms);
+            stepped_off = !(anchor_shift_px <= limit);
+          }
+        } else if (options_.max_anchor_shift_ratio > 0 &&
+                   state.anchor_history >= options_.min_anchor_history &&
+                   !state.last_anchor_refused) {
           const double rms = std::sqrt(state.anchor_shift2_sum / state.anchor_history);
           const double limit =
               std::max(options_.min_anchor_shift_px, options_.max_anchor_shift_ratio * rms);
           anchor_refused = !(anchor_shift_px <= limit);
         }
       }
-      if (guided.success && !anchor_refused) {
+      if (guided.success && stepped_off) {
+        // The anchor's own pose; the tracked positions (and any template
+        // they would make) are dropped, the tracks' offsets kept.
+        r = guided;
+        localisation = "re-anchored";
+        keep_tracks = true;
+      } else if (guided.success && !anchor_refused) {
         r = guided;
         localisation = "re-anchored";
         if (options_.average_anchors && !state.cold) {
@@ -943,6 +981,9 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
         r = std::move(tracked);
         localisation = "tracked";
         kept_tracked = true;
+        // After a gap, unchecked: it seeds no templates (and re-anchoring
+        // is due at the next frame, below).
+        keep_tracks = gap_check;
       }
     }
     if (localisation == "relocalised" && !tracked.success) try_refind(tracked);
@@ -1035,8 +1076,15 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
       for (const TrackedPoint& k : r.kept) sum += k.offset_weight;
       if (!r.kept.empty()) weight = sum / static_cast<double>(r.kept.size());
     }
-    tracks = Retrack(camera, **sampler, frame.raw, r.w0_from_cam.pose, r.kept,
-                     localisation != "tracked", state.has_pose, weight);
+    if (keep_tracks) {
+      // A stepped-off or unchecked pose after a gap (reanchor_after_gap):
+      // the tracks as they were before the frame, their weight with them.
+      tracks = state.tracks;
+      weight = state.anchor_weight;
+    } else {
+      tracks = Retrack(camera, **sampler, frame.raw, r.w0_from_cam.pose, r.kept,
+                       localisation != "tracked", state.has_pose, weight);
+    }
     retrack_s = SecondsSince(retrack_start);
   }
 
@@ -1054,6 +1102,14 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     if (kept_tracked) ++counts_.reanchor_kept_tracked;
   }
   if (averaged) ++counts_.averaged;
+  if (gap_check) {
+    ++counts_.gap_reanchors;
+    if (stepped_off && localisation == "re-anchored") {
+      ++counts_.stepped_off;
+      counts_.stepped_off_shift_px = std::max(counts_.stepped_off_shift_px, anchor_shift_px);
+    }
+    if (keep_tracks && localisation == "tracked") ++counts_.gap_unchecked;
+  }
   if (anchor_refused) {
     ++counts_.refused_anchors;
     counts_.refused_anchor_shift_px = std::max(counts_.refused_anchor_shift_px, anchor_shift_px);
@@ -1111,7 +1167,8 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
   // away. Averaged, its offsets go to the same templates among the camera's
   // tracks; begun anew, its tracks replace the camera's (each template
   // keeps the view it was made in, so a later prediction tracks them).
-  if (r.success && !newest && localisation == "re-anchored" && tracks && s.has_pose &&
+  if (r.success && !newest && localisation == "re-anchored" && !keep_tracks && tracks &&
+      s.has_pose &&
       s.tracks && frame.trigger_index < s.last_trigger && frame.trigger_index + 8 >= s.last_trigger) {
     ++counts_.late_reanchors;
     if (averaged) {
@@ -1177,7 +1234,7 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
                       options_.relocalise_refocus_cells > 0;
     s.cold = cold || (localisation == "tracked" && state.cold);
     // Or one with fewer than min_tracked inliers, or whose anchor was refused.
-    s.reanchor = cold || anchor_refused ||
+    s.reanchor = cold || anchor_refused || (keep_tracks && localisation == "tracked") ||
                  (localisation == "tracked" &&
                   (r.anchored_inliers < options_.min_anchored_fraction * r.inliers ||
                    r.inliers < options_.min_tracked));
@@ -1186,7 +1243,8 @@ Expected<std::optional<processing::CameraPose>> MapLocalizerStage::Localize(
     if (localisation == "relocalised") {
       s.anchor_history = 0;
       s.anchor_shift2_sum = 0;
-    } else if (averaged && anchor_shift_px >= 0 && std::isfinite(anchor_shift_px)) {
+    } else if (averaged && !stepped_off && anchor_shift_px >= 0 &&
+               std::isfinite(anchor_shift_px)) {
       ++s.anchor_history;
       s.anchor_shift2_sum += anchor_shift_px * anchor_shift_px;
     }

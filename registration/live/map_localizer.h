@@ -33,7 +33,12 @@
 //                frame's pose the PnP on the corrected tracked positions.
 //                An anchor whose shift against the tracked pose is far
 //                beyond the camera's earlier anchors' is refused before it
-//                is averaged (max_anchor_shift_ratio). Re-anchoring is also
+//                is averaged (max_anchor_shift_ratio). With
+//                reanchor_after_gap a frame tracked after frames were
+//                skipped is re-anchored at once, and where its anchor lies
+//                beyond the camera's anchors' spread the tracked pose is
+//                taken to have stepped off: the anchor's pose is published
+//                and the tracks go on as before the frame. Re-anchoring is also
 //                periodic: after reanchor_every frames tracked
 //                (reanchor_every_refined where the re-anchoring is refined;
 //                sooner while the tracks average few anchors).
@@ -234,6 +239,27 @@ struct LocalizerOptions {
   double max_anchor_shift_ratio = 3;
   double min_anchor_shift_px = 0.5;
   int min_anchor_history = 3;
+  // A tracked pose that steps off after a gap: at r32 on the CPU-time
+  // schedule camera X's tracked pose stepped off in one frame after frames
+  // were skipped (0.54 -> 1.12 mm) and stayed off through five anchors,
+  // each averaged at 1 in max_anchor_weight (docs/registration.md). A frame
+  // tracked reanchor_after_gap or more triggers after its camera's last
+  // pose is re-anchored at once (tracked, then guided matching from the
+  // tracked pose). Its anchor is never refused: the tracked pose is the one
+  // in doubt. When the anchor's shift against the tracked pose (as for
+  // max_anchor_shift_ratio) exceeds max(min_anchor_shift_px,
+  // step_off_shift_ratio x the RMS shift of the camera's earlier anchors),
+  // once min_anchor_history anchors were accepted, the tracked pose has
+  // stepped off: the frame's pose is the anchor's own (its guided PnP, not
+  // averaged: averaging keeps (w - 1) / w of the tracked positions' step)
+  // and the tracks go on as they were before the frame (their templates
+  // and offsets untouched, none made from either pose). Otherwise the
+  // anchor is averaged as any other. When the guided matching fails the
+  // tracked pose is published but seeds no templates (the tracks go on as
+  // before the frame) and re-anchoring is due at the next frame.
+  // (0: off; else >= 2; ratio > 1)
+  int reanchor_after_gap = 0;
+  double step_off_shift_ratio = 2;
   // A frame after this many frames tracked since its camera's last
   // re-anchoring or relocalisation is re-anchored whatever its anchored
   // inliers (0: only by min_anchored_fraction): with average_anchors each
@@ -364,6 +390,13 @@ class MapLocalizerStage final : public processing::RegistrationStage {
     // and the largest shift refused (TF px).
     long long refused_anchors = 0;
     double refused_anchor_shift_px = 0;
+    // Frames re-anchored at once after a gap (LocalizerOptions::
+    // reanchor_after_gap), of those the tracked poses caught stepping off
+    // (the anchor's pose published, the tracks kept as before the frame),
+    // and those whose guided matching failed (the tracked pose published,
+    // seeding nothing).
+    long long gap_reanchors = 0, stepped_off = 0, gap_unchecked = 0;
+    double stepped_off_shift_px = 0;  // the largest caught (TF px)
     // Frames re-found by guided matching around their prediction
     // (refind_before_relocalising): attempts, successes (published
     // "re-anchored", counted in `guided`), the attempts' time.

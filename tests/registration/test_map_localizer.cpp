@@ -8,7 +8,8 @@
 // refused with the reason; each check refuses what it must.
 // LIFMCR_TEST_PRESET=medium renders the medium preset instead (minutes:
 // the Localize figures of bench/README.md); LIFMCR_TEST_KEEP=DIR renders
-// into DIR once and reuses it in later runs (profiling).
+// into DIR once and reuses it in later runs (profiling), with
+// LIFMCR_TEST_FRAMES frames where given (8 otherwise).
 #include "apps/pipeline/camera_setup.h"
 #include "processing/frame_chain.h"
 #include "registration/estimators/pose_checks.h"
@@ -33,6 +34,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
+#include <limits>
 #include <map>
 #include <memory>
 #include <set>
@@ -66,7 +68,11 @@ Sequence* Shared() {
     const char* preset = std::getenv("LIFMCR_TEST_PRESET");
     auto params = synth::MakePreset(preset ? preset : "small");
     EXPECT_TRUE(params);
-    params->rig.frames = kFrames;
+    // LIFMCR_TEST_FRAMES=N: a rig rendered here has N frames (bench_live
+    // --frames N --keep renders the same rig); the tests that do not read
+    // it use the first kFrames.
+    const char* frames = std::getenv("LIFMCR_TEST_FRAMES");
+    params->rig.frames = frames ? std::max(kFrames, std::atoi(frames)) : kFrames;
     params->rig.cameras = 2;
     const char* keep = std::getenv("LIFMCR_TEST_KEEP");
     const fs::path data = keep ? fs::path(keep) : s->dir / "data";
@@ -558,6 +564,99 @@ TEST(MapLocalizer, AFrameLostAtATurnIsRefoundFromTheLastPoseNotRelocalised) {
     EXPECT_EQ(after.refound, turned.refound);
     EXPECT_LE(far_mm, 3.0);
     EXPECT_LE(far_deg, 0.15);
+  }
+}
+
+// A frame tracked after a gap is re-anchored at once and its tracked pose
+// checked against the anchor (LocalizerOptions::reanchor_after_gap): camera
+// X played forward and back for two passes of consecutive triggers (the
+// anchors' spread builds up), then every third trigger (frames skipped, as
+// live when the worker is busy). Without the option the gap frames are
+// tracked (re-anchored only when due); with it each one is re-anchored, and
+// one whose anchor lies beyond step_off_shift_ratio times the camera's
+// anchors' RMS shift from the tracked pose is published with the anchor's
+// own pose, the tracks going on as before the frame (the frames after it
+// still tracked from them). The small rig's tracked poses do not step off
+// beyond the default ratio, so a ratio just above 1 (and no floor in px)
+// stands in for a step-off: every anchor further from its tracked pose
+// than the RMS of the camera's earlier ones is taken as one.
+TEST(MapLocalizer, AFrameTrackedAfterAGapIsReanchoredAndAPoseSteppedOffIsReplacedByTheAnchor) {
+  Sequence& s = *Shared();
+  const std::string& x = s.serials[1];
+  const std::int64_t period = 2 * kFrames - 2;
+  const auto view_of = [&](std::int64_t k) {
+    const std::int64_t i = k % period;
+    return i < kFrames ? i : period - i;
+  };
+  std::vector<std::int64_t> triggers;
+  for (std::int64_t k = 0; k < 2 * period; ++k) triggers.push_back(k);
+  constexpr int kGapFrames = 8;
+  const std::int64_t first_gap = 2 * period + 2;
+  for (int g = 0; g < kGapFrames; ++g) triggers.push_back(first_gap + 3 * g);
+  struct Variant {
+    const char* name;
+    int after_gap;
+    double ratio, min_px;
+  };
+  const Variant variants[] = {{"off", 0, 2, 0.5},
+                              {"after a gap of 3, the default ratio", 3, 2, 0.5},
+                              {"after a gap of 3, ratio 1.0001, no floor", 3, 1.0001, 0}};
+  for (const Variant& variant : variants) {
+    LocalizerOptions options;
+    options.reanchor_after_gap = variant.after_gap;
+    options.step_off_shift_ratio = variant.ratio;
+    options.min_anchor_shift_px = variant.min_px;
+    ASSERT_TRUE(options.Check().ok());
+    MapLocalizerStage stage(s.map, options);
+    std::vector<double> gap_mm;
+    int gap_reanchored = 0, after_caught_ok = 0, after_caught = 0;
+    bool last_caught = false;
+    std::printf("reanchor_after_gap: %s\n", variant.name);
+    for (const std::int64_t k : triggers) {
+      const long long caught_before = stage.counts().stepped_off;
+      const Localized l = LocalizeFrame(stage, s, x, k, view_of(k));
+      ASSERT_TRUE(l.pose);
+      const bool caught = stage.counts().stepped_off > caught_before;
+      const bool gap = k >= first_gap;
+      const double t_mm = TranslationDifference(l.pose->transform, s.truth[x][view_of(k)]);
+      if (gap)
+        std::printf("  trigger %lld (view %lld): %s %s%s, %.3f mm\n", static_cast<long long>(k),
+                    static_cast<long long>(view_of(k)), l.pose->localisation.c_str(),
+                    l.pose->status.c_str(), caught ? " (stepped off: the anchor's pose)" : "",
+                    t_mm);
+      if (last_caught) {
+        ++after_caught;
+        if (l.pose->status == "ok" && l.pose->localisation != "relocalised") ++after_caught_ok;
+      }
+      last_caught = caught;
+      if (!gap) continue;
+      EXPECT_EQ(l.pose->status, "ok") << "trigger " << k;
+      EXPECT_NE(l.pose->localisation, "relocalised") << "trigger " << k;
+      if (l.pose->localisation == "re-anchored") ++gap_reanchored;
+      // One frame, not a median: the offline bound of the tests above.
+      EXPECT_LE(t_mm, 3.0) << "trigger " << k;
+      gap_mm.push_back(t_mm);
+      if (caught) {
+        EXPECT_EQ(l.pose->localisation, "re-anchored");
+      }
+    }
+    const MapLocalizerStage::Counts c = stage.counts();
+    std::printf("  gap frames: median %.3f mm, %d re-anchored of %d\n  %s\n", Median(gap_mm),
+                gap_reanchored, kGapFrames, c.StageReport().c_str());
+    if (variant.after_gap == 0) {
+      EXPECT_EQ(c.gap_reanchors, 0);
+      EXPECT_EQ(c.stepped_off, 0);
+      continue;
+    }
+    // Every gap frame checked, and re-anchored unless its guided matching
+    // failed (then published tracked, seeding nothing).
+    EXPECT_EQ(c.gap_reanchors, kGapFrames);
+    EXPECT_EQ(gap_reanchored + c.gap_unchecked, kGapFrames);
+    if (variant.ratio < 1.5) {
+      EXPECT_GE(c.stepped_off, 1);
+      // The tracks kept from before a caught frame still track the next one.
+      EXPECT_EQ(after_caught_ok, after_caught);
+    }
   }
 }
 
@@ -1594,6 +1693,19 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
     out.median = Median(all);
     out.first = Median(first);
     out.last = Median(last);
+    {
+      // The gates' p90 (bench_live's index: 0.9 n of the sorted values).
+      std::vector<double> t = all, r = all_deg;
+      std::sort(t.begin(), t.end());
+      std::sort(r.begin(), r.end());
+      const auto p90 = [](const std::vector<double>& v) {
+        return v.empty() ? 0.0
+                         : v[std::min(v.size() - 1, static_cast<std::size_t>(0.9 * v.size()))];
+      };
+      std::printf("%s: c0_from_cx over %zu triggers: median %.3f mm / %.4f deg, p90 %.3f mm / "
+                  "%.4f deg\n",
+                  name, all.size(), Median(all), Median(all_deg), p90(t), p90(r));
+    }
     if (pingpong && drift_views > 0)
       std::printf("%s: rotation median %.4f deg; drift, the same views early and late: median "
                   "over %d views of each view's median in the first / last quarter of the "
@@ -1631,6 +1743,13 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
     defaults.relocalise_min_side_px = std::atoi(side);
   if (const char* cold = std::getenv("LIFMCR_TEST_COLD_ROUNDS"))
     defaults.cold_reanchor_rounds = std::atoi(cold);
+  // LIFMCR_TEST_REANCHOR_AFTER_GAP=N, _STEP_OFF_RATIO=R: reanchor_after_gap
+  // and step_off_shift_ratio.
+  if (const char* gap = std::getenv("LIFMCR_TEST_REANCHOR_AFTER_GAP"))
+    defaults.reanchor_after_gap = std::atoi(gap);
+  if (const char* ratio = std::getenv("LIFMCR_TEST_STEP_OFF_RATIO"))
+    defaults.step_off_shift_ratio = std::atof(ratio);
+  EXPECT_TRUE(defaults.Check().ok());
   // LIFMCR_TEST_LOOP=pingpong or restart: only that replay of the defaults
   // (no assertions); by default both, and the localizer before looped.
   const char* loop_env = std::getenv("LIFMCR_TEST_LOOP");
@@ -1659,6 +1778,26 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
   const Result moving = run(defaults, "the defaults (re-found, re-anchored periodically)", true);
   EXPECT_LE(moving.relocalised, 2);
   EXPECT_GE(moving.rate, now.rate);
+}
+
+// reanchor_after_gap: 0 (off) or a gap of 2 triggers or more (a frame 1
+// trigger after its camera's last pose skipped none); step_off_shift_ratio
+// above 1 (at or below, every anchor would be a step-off).
+TEST(MapLocalizer, GapCheckOptionsAreValidated) {
+  LocalizerOptions options;
+  EXPECT_TRUE(options.Check().ok());
+  options.reanchor_after_gap = 1;
+  EXPECT_FALSE(options.Check().ok());
+  options.reanchor_after_gap = -1;
+  EXPECT_FALSE(options.Check().ok());
+  options.reanchor_after_gap = 2;
+  EXPECT_TRUE(options.Check().ok());
+  options.step_off_shift_ratio = 1;
+  const Status s = options.Check();
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().message.find("step_off_shift_ratio"), std::string::npos);
+  options.step_off_shift_ratio = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(options.Check().ok());
 }
 
 // A larger sensor is relocalised on an image of about the same size: the
