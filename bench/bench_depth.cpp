@@ -35,6 +35,8 @@
 //               [--seed full|seeded|both] [--dense-path scalar|simd|both] [--seed-margin PX]
 //               [--seed-ring1 1..6] [--seed-ring2 0..6] [--seed-cost-ratio R] [--seed-stride 0..8]
 //               [--seed-ring2-lines 0|1|3] [--seed-interp-spread R] (DepthOptions)
+//               [--dense-for-tf 0|1] (1: the seeded map only where the TF depth map reads
+//               it, the live chain's ChainOptions::dense_for_tf_only)
 
 #include "bench/bench_usage.h"
 #include "processing/camera_model.h"
@@ -335,13 +337,14 @@ constexpr char kUsage[] =
     "                   [--crop PX] [--stride 0|1|2] [--ring1 1..6] [--ring2 0..6]\n"
     "                   [--type-ranges 0|1] [--lens-only 1] [--dense 0|1]\n"
     "                   [--lens-path scalar|simd|both] [--lens-samples N]\n"
-    "                   [--lens-previous 0|1] [--lens-neighbours 0|1] [--lens-step PX]\n"
+    "                   [--lens-previous 0|1] [--lens-neighbours 0|1] [--lens-grey 0|1]\n"
+    "                   [--lens-step PX]\n"
     "                   [--lens-fraction F] [--lens-rings 1|2] [--lens-enough N]\n"
     "                   [--seed full|seeded|both] [--dense-path scalar|simd|both]\n"
     "                   [--seed-margin PX] [--seed-ring1 1..6] [--seed-ring2 0..6]\n"
     "                   [--seed-cost-ratio R] [--seed-stride 0..8]\n"
     "                   [--seed-ring2-lines 0|1|3] [--seed-interp-spread R]\n"
-    "                   [--frames FILE]\n"
+    "                   [--dense-for-tf 0|1] [--frames FILE]\n"
     "                   [--tf-only MAP] [--tf-out FILE] [--tf-baseline 0|1]\n"
     "                   [--tf-psnr 0|1]\n"
     "processing/ on one synthetic frame (default r32) on all cores: grid fit to the white\n"
@@ -357,9 +360,15 @@ constexpr char kUsage[] =
     "of a camera that did not move: its best case, not a moving camera's figure).\n"
     "--lens-neighbours 1 searches the lenses of types 1 and 2 first around their earlier-type\n"
     "neighbours' depth (LensDepthOptions::neighbour_seed; default 0: every lens from nothing).\n"
+    "--lens-grey 0 reads a BGR frame's three channels in the per-lens search instead of its\n"
+    "grey plane (LensDepthOptions::grey_plane; default 1).\n"
     "--lens-step, --lens-fraction, --lens-rings, --lens-enough: LensDepthOptions'\n"
     "candidate_step_px, candidate_fraction, rings and enough_estimates (the defaults: 0\n"
     "(the pitch / 11), 0.6, 2, 2); the textured lenses the coverage counts are the gate's own.\n"
+    "--dense-for-tf 1: the seeded map without the micro images whose TF depth comes from\n"
+    "their lens depth (the live chain's ChainOptions::dense_for_tf_only); its coverage is\n"
+    "of the textured pixels of the micro images it estimates. The TF depth map's accuracy\n"
+    "against the truth is printed with the TF image (--tf-psnr 1), the figure to compare.\n"
     "--tf-only MAP: the TF image alone (with its baselines), on the seeded SIMD dense map kept\n"
     "in MAP (estimated once and written when MAP does not hold this preset and scene).\n"
     "--tf-out FILE writes the TF image there (PGM or PPM) to compare two builds' images.\n"
@@ -377,7 +386,7 @@ int main(int argc, char** argv) {
   bool lens_only = false, run_dense = true, lens_previous = false;
   std::string lens_path = "both", dense_path = "both", seed_mode = "both", frames_file;
   std::string tf_only_map, tf_out;
-  bool tf_baseline = true, tf_psnr = true;
+  bool tf_baseline = true, tf_psnr = true, dense_for_tf = false;
   for (int k = 1; k + 1 < argc; k += 2) {
     if (!std::strcmp(argv[k], "--preset"))
       preset = argv[k + 1];
@@ -435,10 +444,14 @@ int main(int argc, char** argv) {
       tf_baseline = std::atoi(argv[k + 1]) != 0;
     else if (!std::strcmp(argv[k], "--tf-psnr"))
       tf_psnr = std::atoi(argv[k + 1]) != 0;
+    else if (!std::strcmp(argv[k], "--dense-for-tf"))
+      dense_for_tf = std::atoi(argv[k + 1]) != 0;
     else if (!std::strcmp(argv[k], "--lens-previous"))
       lens_previous = std::atoi(argv[k + 1]) != 0;
     else if (!std::strcmp(argv[k], "--lens-neighbours"))
       lens_options.neighbour_seed = std::atoi(argv[k + 1]) != 0;
+    else if (!std::strcmp(argv[k], "--lens-grey"))
+      lens_options.grey_plane = std::atoi(argv[k + 1]) != 0;
     else if (!std::strcmp(argv[k], "--lens-samples"))
       lens_options.samples = std::atoi(argv[k + 1]);
     else if (SetLensOption(argv[k], argv[k + 1], &lens_options))
@@ -449,6 +462,10 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "unknown option %s\n", argv[k]);
       return 2;
     }
+  }
+  if (dense_for_tf && !tf_only_map.empty()) {
+    std::fprintf(stderr, "--dense-for-tf 1: not with --tf-only (its MAP holds the whole map)\n");
+    return 2;
   }
   if (!run_dense && !lens_only) {
     std::fprintf(stderr, "--dense 0 needs --lens-only 1\n");
@@ -588,6 +605,7 @@ int main(int argc, char** argv) {
       if (seeded) {
         if (!seed_estimator->Estimate(raw.View(), &seed_map).ok()) return false;
         if (!SeedFromLensDepth(frame, seed_map, &seed).ok()) return false;
+        if (dense_for_tf) LensesHeldForTf(frame, seed, &seed.skip);
       }
       const double t_seeded = Now();
       if (!EstimateVirtualDepth(frame, mla, options, seeded ? &seed : nullptr, map).ok())
@@ -948,6 +966,30 @@ int main(int argc, char** argv) {
               "PSNR %.2f dB\n",
               tf_depth.lenses_held, tf_depth.lenses,
               tf_baseline ? psnr(tf, tf_runs[1].image.pixels.data()) : std::nan(""));
+  // The TF depth map (what the live chain publishes, as block means) against
+  // the truth's depth on the TF grid, not timed: of the TF pixels that see a
+  // surface, the share with a depth, median |dZ|/Z and the share beyond 10 %.
+  for (int way = 0; way < tf_ways && tf_truth; ++way) {
+    const TfDepthMap& map = tf_runs[way].depth;
+    long long seen = 0, covered = 0, outliers = 0;
+    std::vector<double> rel;
+    for (int y = 0; y < std::min(map.height, tf_truth->height); ++y)
+      for (int x = 0; x < std::min(map.width, tf_truth->width); ++x) {
+        const float z_true = tf_truth->depth_mm[static_cast<std::size_t>(y) * tf_truth->width + x];
+        if (!std::isfinite(z_true)) continue;
+        ++seen;
+        const float v = map.virtual_depth[static_cast<std::size_t>(y) * map.width + x];
+        if (!std::isfinite(v)) continue;
+        ++covered;
+        rel.push_back(std::abs(camera.DepthOfVirtualDepth(v) - z_true) / z_true);
+        outliers += rel.back() > 0.10;
+      }
+    std::printf("tf depth map (%s) against the truth: %.2f %% of %lld TF pixels that see a "
+                "surface, median |dZ|/Z %.3f %%, outliers (> 10 %%) %.3f %%\n",
+                way_name[way], seen ? 100.0 * covered / seen : 0.0, seen,
+                rel.empty() ? 100.0 : 100 * Median(rel),
+                covered ? 100.0 * outliers / covered : 100.0);
+  }
   const std::vector<double>& tf_s = tf_runs[0].wall_s;
   std::printf(
       "tf: %.2f output MP/s (%.3f s median per %.2f MP; CPU %.3f s, all threads); baseline %.2f "

@@ -63,7 +63,8 @@
 //              [--concurrency N] [--keep DIR] [--runs track,relocalise,depth]
 //              [--lens-nice 0..19 (15)] [--lens-queue 1..8 (4)] [--depth-idle 0|1 (1)]
 //              [--loop pingpong|restart (pingpong)] [--cold-reanchor-rounds R]
-//              [--refine-step 0..3] [--widen-ahead N>=2]
+//              [--refine-step 0..3] [--widen-ahead N>=2] [--reanchor-every N>=1]
+//              [--rows FILE]
 // --keep DIR renders into DIR once and reuses it (same preset and frames)
 // in later runs; DIR is left in place.
 // Goals (2 cores): >= 5 Hz per camera at medium, >= 2 Hz at r32.
@@ -128,6 +129,11 @@ struct Args {
   // LocalizerOptions::widen_ahead (-1: the localizer's defaults).
   int refine_step = -1;
   int widen_ahead = -1;
+  // LocalizerOptions::reanchor_every and reanchor_every_refined (-1: the
+  // localizer's defaults), to compare re-anchoring cadences live.
+  int reanchor_every = -1;
+  // The track run's ok messages, one CSV row each (empty: none written).
+  std::string rows;
   std::string keep;  // empty: a temporary folder
   // Which runs (comma-separated): track, relocalise, depth; the ratios need all three.
   bool track = true, relocalise = true, depth = true;
@@ -182,6 +188,11 @@ bool ParseArgs(int argc, char** argv, Args* a) {
     } else if (k == "--refine-step") {
       a->refine_step = static_cast<int>(std::strtol(v.c_str(), &end, 10));
       if (a->refine_step < 0 || a->refine_step > 3) return false;
+    } else if (k == "--reanchor-every") {
+      a->reanchor_every = static_cast<int>(std::strtol(v.c_str(), &end, 10));
+      if (a->reanchor_every < 1) return false;
+    } else if (k == "--rows") {
+      a->rows = v;
     } else if (k == "--widen-ahead") {
       a->widen_ahead = static_cast<int>(std::strtol(v.c_str(), &end, 10));
       if (a->widen_ahead < 2) return false;
@@ -239,6 +250,7 @@ struct Accuracy {
   struct TriggerError {
     std::int64_t trigger = 0, frame = 0;
     double t_mm = 0, r_deg = 0;
+    std::string zero_how, x_how;  // how camera 0's and camera X's poses were made
   };
   std::vector<TriggerError> by_trigger;
   Errors all;
@@ -282,7 +294,7 @@ struct Accuracy {
       e->t_mm.push_back(t);
       e->r_deg.push_back(deg);
     }
-    by_trigger.push_back({r.trigger_index, frame, t, deg});
+    by_trigger.push_back({r.trigger_index, frame, t, deg, zero_how, x_how});
   }
 };
 
@@ -481,6 +493,23 @@ void PrintGates(const std::string& preset, const RunFigures& f) {
   std::printf("\n");
 }
 
+// --rows: one CSV row per ok message of the track run, in trigger order, so
+// that the error can be followed frame by frame and split by view and by
+// how each camera's pose was made. False when the file cannot be written.
+bool WriteRows(const fs::path& path, const Accuracy& a) {
+  std::vector<Accuracy::TriggerError> sorted = a.by_trigger;
+  std::sort(sorted.begin(), sorted.end(),
+            [](const auto& l, const auto& r) { return l.trigger < r.trigger; });
+  std::FILE* file = std::fopen(path.c_str(), "w");
+  if (file == nullptr) return false;
+  std::fprintf(file, "trigger,frame,camera0,cameraX,t_mm,r_deg\n");
+  for (const Accuracy::TriggerError& e : sorted)
+    std::fprintf(file, "%lld,%lld,%s,%s,%.4f,%.5f\n", static_cast<long long>(e.trigger),
+                 static_cast<long long>(e.frame), e.zero_how.c_str(), e.x_how.c_str(), e.t_mm,
+                 e.r_deg);
+  return std::fclose(file) == 0;
+}
+
 // "1.20 1.35 1.40\n" (/proc/loadavg's first three), or "?\n".
 std::string LoadAverage() {
   std::FILE* file = std::fopen("/proc/loadavg", "r");
@@ -577,6 +606,8 @@ RunFigures Run(const Args& args, const fs::path& sequence, const fs::path& map_d
       live.localizer.cold_reanchor_rounds = args.cold_reanchor_rounds;
     if (args.refine_step >= 0) live.localizer.guided.refine_step = args.refine_step;
     if (args.widen_ahead >= 0) live.localizer.widen_ahead = args.widen_ahead;
+    if (args.reanchor_every >= 1)
+      live.localizer.reanchor_every = live.localizer.reanchor_every_refined = args.reanchor_every;
     options.registration = live;
     options.pipeline.on_extrinsics = [&](const apps::ExtrinsicsRecord& r) {
       const double ms = static_cast<double>(NowRealtimeNs() - r.arrival_ns) / 1e6;
@@ -662,7 +693,8 @@ constexpr char kUsage[] =
     "                  [--concurrency N] [--keep DIR] [--runs track,relocalise,depth]\n"
     "                  [--lens-nice 0..19] [--lens-queue 1..8] [--depth-idle 0|1]\n"
     "                  [--loop pingpong|restart] [--cold-reanchor-rounds R]\n"
-    "                  [--refine-step 0..3] [--widen-ahead N>=2]\n"
+    "                  [--refine-step 0..3] [--widen-ahead N>=2] [--reanchor-every N>=1]\n"
+    "                  [--rows FILE]\n"
     "Live registration of a synthetic rig (default medium) replayed at its trigger rate\n"
     "through `lifmcr replay --reference`'s path, three runs of --seconds: tracking, every\n"
     "frame relocalised (the baseline) and depth only. Per run: extrinsics per second per\n"
@@ -683,7 +715,12 @@ constexpr char kUsage[] =
     "--refine-step S: each matched keypoint of a re-anchoring's render at step 4 or coarser\n"
     "(r32) found again every S TF px (GuidedMatchOptions::refine_step; 0: off).\n"
     "--widen-ahead N: frames N or more triggers after their camera's last pose are tracked\n"
-    "with one more pyramid level and twice the shift (LocalizerOptions::widen_ahead).\n";
+    "with one more pyramid level and twice the shift (LocalizerOptions::widen_ahead).\n"
+    "--reanchor-every N: a camera re-anchored after N frames tracked (LocalizerOptions::\n"
+    "reanchor_every and reanchor_every_refined; the localizer's defaults when not given).\n"
+    "--rows FILE: the track run's ok messages as CSV, one row each in trigger order:\n"
+    "trigger, rendered frame, how camera 0's and camera X's poses were made, c0_from_cx's\n"
+    "error (mm, deg).\n";
 
 int main(int argc, char** argv) {
   if (lifmcr::bench::PrintedHelp(argc, argv, kUsage)) return 0;
@@ -695,7 +732,8 @@ int main(int argc, char** argv) {
                  "usage: bench_live [--preset small|medium|r32] [--frames N>=3] [--seconds S] "
                  "[--concurrency N] [--keep DIR] [--runs track,relocalise,depth] "
                  "[--lens-nice 0..19] [--lens-queue 1..8] [--depth-idle 0|1] [--loop pingpong|restart] "
-                 "[--cold-reanchor-rounds R] [--refine-step 0..3] [--widen-ahead N>=2]\n");
+                 "[--cold-reanchor-rounds R] [--refine-step 0..3] [--widen-ahead N>=2] "
+                 "[--reanchor-every N>=1] [--rows FILE]\n");
     return 2;
   }
   auto params = synth::MakePreset(args.preset);
@@ -862,6 +900,10 @@ int main(int argc, char** argv) {
     if (mode != Mode::kDepthOnly)
       PrintAccuracy(f.accuracy, args.pingpong ? 2 * static_cast<std::int64_t>(args.frames) - 2 : 0);
     if (mode == Mode::kTrack) PrintGates(args.preset, f);
+    if (mode == Mode::kTrack && !args.rows.empty() && !WriteRows(args.rows, f.accuracy)) {
+      std::fprintf(stderr, "bench_live: --rows: cannot write %s\n", args.rows.c_str());
+      return 3;
+    }
     std::fflush(stdout);
   }
   if (runs.size() < 3) {

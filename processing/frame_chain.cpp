@@ -53,6 +53,9 @@ Status ChainOptions::Check() const {
   if (Status s = lens.Check(); !s) return Error{"chain options: lens: " + s.error().message};
   if (Status s = vignetting.Check(); !s)
     return Error{"chain options: vignetting: " + s.error().message};
+  if (dense_for_tf_only && !seeded_depth)
+    return Error{"chain options: dense_for_tf_only needs seeded_depth (without it the TF depth "
+                 "map reads every dense pixel)"};
   // metric_depth, point_cloud, cloud_measured_only, seeded_depth: any value.
   return Status::Ok();
 }
@@ -350,6 +353,9 @@ Expected<ChainLease> CameraChain::Process(ConstImageView raw, const LensDepthMap
     }
     if (Status s = backend_->Seed(p.prepared, *lens_depth, &p.seed); !s)
       return Error{"camera " + setup_.serial + ": " + s.error().message};
+    // The TF depth map splats these micro images' lens depth, not their
+    // dense pixels: with dense_for_tf_only none of them is estimated.
+    if (options_.dense_for_tf_only) LensesHeldForTf(p.prepared, p.seed, &p.seed.skip);
     seed = &p.seed;
     p.seed_s = SecondsSince(t);
     t = std::chrono::steady_clock::now();

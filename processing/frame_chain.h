@@ -99,6 +99,14 @@ struct ChainOptions {
   // The dense virtual depth seeded by the frame's per-lens depth
   // (virtual_depth.h, "Seeded"); false: the full search.
   bool seeded_depth = true;
+  // With seeded_depth: the dense map only where the TF depth map reads it,
+  // for a caller that reads only the TF products (tf_depth, tf, depth_mm,
+  // cloud): the micro images whose TF depth comes from their lens depth
+  // (LensesHeldForTf) are not estimated, so raw_depth has no value there
+  // (LensSeed::skip). The live pipeline's chain (apps/pipeline); false
+  // for `lifmcr depth`, which writes the dense map. Without seeded_depth
+  // the TF depth reads every dense pixel: Check() refuses it.
+  bool dense_for_tf_only = false;
   TfOptions tf;        // TF depth map and totally focused image
   // Without a white image. With vignetting_auto_rows, frames taller than
   // 2000 rows are sampled every 4th row (an R32 frame: plenty of micro images).

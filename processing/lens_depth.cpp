@@ -3,6 +3,7 @@
 #include "processing/lens_depth.h"
 
 #include "processing/epipolar_search.h"
+#include "processing/grey_plane_simd.h"
 #include "processing/lens_search_simd.h"
 #include "processing/tf_blend_simd.h"
 #include "processing/tf_kernel.h"
@@ -244,6 +245,7 @@ void LensMedianOf(const PlenopticFrame& f, const LensGrid& grid, const std::vect
 Status SeedFromLensDepth(const PlenopticFrame& f, const LensDepthMap& lens, LensSeed* out) {
   out->z.assign(f.lenses.size(), kNaN);
   out->sigma_z.assign(f.lenses.size(), kNaN);
+  out->skip.clear();  // every micro image estimated unless the caller says otherwise
   const LensGrid& g = lens.grid;
   if (lens.virtual_depth.size() != static_cast<std::size_t>(g.cols) * g.rows ||
       lens.sigma_z.size() != lens.virtual_depth.size())
@@ -861,8 +863,9 @@ void EstimateLens(const PlenopticFrame& f, const LensDepthOptions& o,
 
 }  // namespace
 
-Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out,
+Status LensDepthEstimator::Estimate(ConstImageView frame, LensDepthMap* out,
                                     const LensDepthMap* previous) const {
+  ConstImageView raw = frame;  // what the searches read: the frame or its grey plane
   const auto start = std::chrono::steady_clock::now();
   const PlenopticFrame& f = geometry_;
   if (raw.data == nullptr || raw.width != f.width || raw.height != f.height)
@@ -878,6 +881,25 @@ Status LensDepthEstimator::Estimate(ConstImageView raw, LensDepthMap* out,
     return Error{"lens depth: the previous map is not of this camera's lens grid (" +
                  std::to_string(grid_.cols) + "x" + std::to_string(grid_.rows) +
                  " cells) or is the output map itself"};
+  // A BGR8 frame's grey plane (LensDepthOptions::grey_plane): one pass over
+  // the frame, in rows, then every later read a byte a pixel instead of
+  // three. On the `r32` frame the estimate with the plane's making cost
+  // about a quarter less CPU than reading the channels (docs/processing.md,
+  // "The grey plane").
+  if (raw.format == PixelFormat::kBgr8 && options_.grey_plane) {
+    out->grey.resize(static_cast<std::size_t>(raw.width) * raw.height);
+    const detail::GreyPlaneKernels& grey_kernels =
+        options_.simd ? detail::SimdGreyPlaneKernels() : detail::ScalarGreyPlaneKernels();
+    std::uint8_t* const plane = out->grey.data();
+    tbb::parallel_for(tbb::blocked_range<int>(0, raw.height, 16),
+                      [&](const tbb::blocked_range<int>& r) {
+                        for (int y = r.begin(); y < r.end(); ++y)
+                          grey_kernels.row(frame.Row(y), frame.width,
+                                           plane + static_cast<std::size_t>(y) * frame.width);
+                      });
+    raw = ConstImageView(plane, frame.width, frame.height, static_cast<std::size_t>(frame.width),
+                         PixelFormat::kMono8);
+  }
   out->grid = grid_;
   const std::size_t cells = static_cast<std::size_t>(grid_.cols) * grid_.rows;
   out->virtual_depth.assign(cells, kNaN);

@@ -4,7 +4,8 @@
 //
 // For micro image k (centre c_k, type t) of the raw frame, read directly
 // from the raw pixels times the devignetting gain (no devignetted or
-// smoothed copy of the frame is made):
+// smoothed copy of the frame is made; a BGR8 frame is read through its
+// 8-bit grey plane, LensDepthOptions::grey_plane):
 // 1. Candidates: pixels on a square grid of candidate_step_px within
 //    candidate_fraction r_valid of c_k; each scored by its largest gradient
 //    along the three ring-1 axes, |g . e_d| (central differences of the raw
@@ -153,6 +154,12 @@ struct LensDepthOptions {
   // Highway's runtime dispatch (processing/lens_search_simd.h); false: the
   // scalar reference (the same map, at its speed).
   bool simd = true;
+  // A BGR8 frame read through its grey plane (grey_plane_simd.h: the
+  // channel mean rounded, one byte a pixel, made once per frame into the
+  // map's scratch, LensDepthMap::grey) instead of its three channels: the
+  // searches' lines are a third of the bytes. false: the channels (their
+  // exact sum). Mono8 frames are read as they are either way.
+  bool grey_plane = true;
   Status Check() const;  // every field; the message names the field
 };
 
@@ -210,6 +217,9 @@ struct LensDepthMap {
   std::vector<std::int32_t> lens;      // index into the geometry's lenses, -1: none
   LensDepthStats stats;
   std::vector<float> filled_v, fill_scratch;  // scratch of RenderPreview
+  // Scratch of Estimate: a BGR8 frame's grey plane (LensDepthOptions::
+  // grey_plane), the frame's size, reused frame after frame.
+  std::vector<std::uint8_t> grey;
   std::size_t Cell(int col, int row) const {
     return static_cast<std::size_t>(row) * grid.cols + col;
   }

@@ -122,9 +122,12 @@ int DenseRowStep(const PlenopticFrame& f) {
   return std::max(kDenseRowStepMin, static_cast<int>(f.grid.PitchPx() / 4));
 }
 
-// Per micro image whether its lens depth holds (total_focus.h): an estimate,
-// and every ring-1 neighbour that exists with one within kLensHoldGate of its z.
-void LensesHeld(const PlenopticFrame& f, const LensSeed& lens_z, std::vector<std::uint8_t>* held) {
+}  // namespace
+
+// An estimate, and every ring-1 neighbour that exists with one within
+// kLensHoldGate of its z.
+void LensesHeldForTf(const PlenopticFrame& f, const LensSeed& lens_z,
+                     std::vector<std::uint8_t>* held) {
   held->assign(f.lenses.size(), 0);
   static constexpr int kRing1[6][2] = {{1, 0}, {0, 1}, {-1, 1}, {-1, 0}, {0, -1}, {1, -1}};
   tbb::parallel_for(std::size_t{0}, f.lenses.size(), [&](std::size_t k) {
@@ -139,6 +142,8 @@ void LensesHeld(const PlenopticFrame& f, const LensSeed& lens_z, std::vector<std
     (*held)[k] = 1;
   });
 }
+
+namespace {
 
 // VirtualDepthToTf; with `lens_z` (per micro image z and sigma_z of the
 // per-lens depth) the lenses that hold splat their lens depth and the rest
@@ -210,7 +215,7 @@ Status TfDepthOf(const PlenopticFrame& f, const VirtualDepthMap& raw, const Lens
   const float share_radius = static_cast<float>(f.grid.PitchPx() / (2.0 * std::sqrt(3.0)));
   out->lenses_held = out->lenses = 0;
   if (lens_z != nullptr) {
-    LensesHeld(f, *lens_z, &scratch.held);
+    LensesHeldForTf(f, *lens_z, &scratch.held);
     centre_x.resize(lenses);
     centre_y.resize(lenses);
     lens_top.resize(lenses);

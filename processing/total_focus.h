@@ -170,6 +170,13 @@ Status VirtualDepthToTf(const PlenopticFrame& frame, const VirtualDepthMap& raw_
                         const LensDepthMap& lens_depth, const TfOptions& options,
                         TfDepthMap* out);
 
+// Per micro image of `frame` whether its lens depth holds (1; header
+// comment): the micro images VirtualDepthToTf with the per-lens depth
+// splats from `lens_z` (SeedFromLensDepth of that map) and whose dense
+// pixels it does not read.
+void LensesHeldForTf(const PlenopticFrame& frame, const LensSeed& lens_z,
+                     std::vector<std::uint8_t>* held);
+
 Status RenderTotalFocus(const PlenopticFrame& frame, const MlaCalibration& mla,
                         const TfDepthMap& depth, const TfOptions& options, TfImage* out);
 

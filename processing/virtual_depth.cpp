@@ -266,16 +266,18 @@ Status DepthOptions::Check() const {
 }
 
 std::string DepthStats::BriefReport() const {
-  char buf[384];
+  const std::string skipped =
+      skipped_lenses > 0 ? "; " + std::to_string(skipped_lenses) + " micro images skipped" : "";
+  char buf[448];
   std::snprintf(
       buf, sizeof buf,
       "virtual depth: %lld of %lld textured pixels (%.1f %%; %lld valid), %lld rejected, "
       "%lld untextured filled, %lld searched (%lld seeded, %lld of them again in full; "
       "%lld flat micro images on the sparse lattice; %lld lattice points from the coarse "
-      "lattice's), %.3f s, kernels %s",
+      "lattice's)%s, %.3f s, kernels %s",
       estimated, textured_pixels, textured_pixels ? 100.0 * estimated / textured_pixels : 0.0,
       valid_pixels, rejected, filled, searched, seeded, fallback, flat_lenses, interpolated,
-      seconds, kernels);
+      skipped.c_str(), seconds, kernels);
   return buf;
 }
 
@@ -297,6 +299,11 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
       (seed->z.size() != f.lenses.size() || seed->sigma_z.size() != f.lenses.size()))
     return Error{"virtual depth: the seed has " + std::to_string(seed->z.size()) +
                  " micro images, the frame " + std::to_string(f.lenses.size())};
+  if (seed != nullptr && !seed->skip.empty() && seed->skip.size() != f.lenses.size())
+    return Error{"virtual depth: the seed's skip has " + std::to_string(seed->skip.size()) +
+                 " micro images, the frame " + std::to_string(f.lenses.size())};
+  const std::uint8_t* const skip =
+      seed != nullptr && !seed->skip.empty() ? seed->skip.data() : nullptr;
   const auto start = std::chrono::steady_clock::now();
   const int w = f.width, h = f.height;
   const std::size_t n = static_cast<std::size_t>(w) * h;
@@ -397,6 +404,9 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     std::tie(own_row_first[k], own_row_last[k]) = InitOwnedRuns(
         f.lens_of_pixel.data(), w, h, k, lens.centre_px.x(), lens.centre_px.y(), r, init);
     if (bw <= 0 || bh <= 0) return;
+    // Nothing reads this micro image's dense pixels (LensSeed::skip): the
+    // initial values just written are its map.
+    if (skip != nullptr && skip[k]) return;
     // Seeded: the ring-1 window (header comment); none without a seed of
     // the micro image's own.
     double seed_lo = lo, seed_hi = hi;
@@ -1164,6 +1174,7 @@ Status EstimateVirtualDepth(const PlenopticFrame& f, const MlaCalibration& mla,
     st.fallback += fallback_count[k];
     st.interpolated += interpolated_count[k];
     st.flat_lenses += lens_flat[k];
+    if (skip != nullptr) st.skipped_lenses += skip[k];
   }
   st.kernels = kernels.name;
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -94,6 +94,7 @@
 #include "config/mla.h"
 #include "processing/plenoptic_frame.h"
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -206,6 +207,7 @@ struct DepthStats {
   long long fallback = 0;         // of those searched again over the full range
   long long flat_lenses = 0;      // seeded micro images searched on the flat lattice
   long long interpolated = 0;     // seeded lattice points given their coarse neighbours' mean
+  long long skipped_lenses = 0;   // micro images not estimated (LensSeed::skip)
   double seconds = 0;
   const char* kernels = "";       // "scalar" or Highway's target (lens_search_simd.h)
   std::string BriefReport() const;
@@ -233,6 +235,13 @@ VirtualDepthRange SearchedVirtualDepths(const MlaLensType& type);
 // virtual depth, NaN where none (processing/lens_depth.h, SeedFromLensDepth).
 struct LensSeed {
   std::vector<float> z, sigma_z;
+  // Micro images whose dense pixels no consumer reads (1), or empty: none.
+  // Such a micro image is neither gated nor searched: its pixels keep the
+  // map's initial values (no estimate, not textured) and it lends its ring-1
+  // neighbours no surface for step 5. The chain sets the micro images whose
+  // TF depth comes from their lens depth (total_focus.h, LensesHeldForTf)
+  // where only the TF products are read (ChainOptions::dense_for_tf_only).
+  std::vector<std::uint8_t> skip;
 };
 
 // Estimates virtual depth on the raw grid; `out` buffers are reused. With

@@ -233,6 +233,11 @@ Expected<std::unique_ptr<DepthProcessor>> DepthProcessor::ForSequence(
 processing::ChainOptions DepthProcessor::ChainOptionsForPipeline() {
   processing::ChainOptions options;
   options.metric_depth = false;
+  // The pipeline reads the TF products alone (the published depth is the TF
+  // depth map's block means, the TF preview the TF image's; the localizer
+  // reads tf and tf_depth): no dense map where the TF depth map takes the
+  // lens depth (docs/processing.md, "The dense map where the TF depth reads it").
+  options.dense_for_tf_only = true;
   return options;
 }
 

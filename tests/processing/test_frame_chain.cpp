@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 
 namespace lifmcr::processing {
@@ -119,6 +120,49 @@ TEST(FrameChain, FullSearchOnRequestAndAGivenPerLensMapSeeds) {
   EXPECT_EQ((*given)->raw_depth.stats.seeded, (*own)->raw_depth.stats.seeded);
 }
 
+// dense_for_tf_only (the live pipeline's chain): the micro images whose TF
+// depth comes from their lens depth are not estimated, and the TF products
+// stay those of the whole map but for the micro images filled from their
+// ring-1 neighbours (step 5), which lose a skipped neighbour's surface.
+TEST(FrameChain, DenseForTfOnlySkipsTheHeldMicroImagesAndKeepsTheTfProducts) {
+  const testing::SynthFrame& s = Frame();
+  auto whole = CameraChain::Create(SetupOf(s, true, false), ChainOptions{});
+  ChainOptions options;
+  options.dense_for_tf_only = true;
+  auto part = CameraChain::Create(SetupOf(s, true, false), options);
+  ASSERT_TRUE(whole.ok() && part.ok());
+  auto a = (*whole)->Process(s.raw.View());
+  auto b = (*part)->Process(s.raw.View());
+  ASSERT_TRUE(a.ok() && b.ok());
+  const ChainProducts& pa = **a;
+  const ChainProducts& pb = **b;
+  EXPECT_EQ(pa.raw_depth.stats.skipped_lenses, 0);
+  EXPECT_EQ(pb.raw_depth.stats.skipped_lenses, pb.tf_depth.lenses_held);
+  EXPECT_GT(pb.tf_depth.lenses_held, 0);  // 35 of 3670 on this frame
+  EXPECT_EQ(pa.tf_depth.lenses_held, pb.tf_depth.lenses_held);
+  EXPECT_LT(pb.raw_depth.stats.searched, pa.raw_depth.stats.searched);
+  ASSERT_EQ(pa.tf_depth.virtual_depth.size(), pb.tf_depth.virtual_depth.size());
+  long long differ = 0, both = 0;
+  for (std::size_t i = 0; i < pa.tf_depth.virtual_depth.size(); ++i) {
+    const float va = pa.tf_depth.virtual_depth[i], vb = pb.tf_depth.virtual_depth[i];
+    if (std::isnan(va) && std::isnan(vb)) continue;
+    ++both;
+    differ += !(std::abs(va - vb) <= 1e-3f * va);
+  }
+  ASSERT_EQ(pa.tf.pixels.size(), pb.tf.pixels.size());
+  double sum2 = 0;
+  for (std::size_t i = 0; i < pa.tf.pixels.size(); ++i) {
+    const double d = static_cast<double>(pa.tf.pixels[i]) - pb.tf.pixels[i];
+    sum2 += d * d;
+  }
+  const double rms = std::sqrt(sum2 / static_cast<double>(pa.tf.pixels.size()));
+  std::printf("TF depth: %lld of %lld pixels differ by more than 0.1 %%; TF image RMS %.3f DN\n",
+              differ, both, rms);
+  EXPECT_GT(both, 0);
+  EXPECT_LE(differ, both / 100);
+  EXPECT_LE(rms, 1.0);
+}
+
 TEST(FrameChain, WithoutAWhiteImageTheVignettingComesFromTheFirstFrame) {
   const testing::SynthFrame& s = Frame();
   auto chain = CameraChain::Create(SetupOf(s, false, false), ChainOptions{});
@@ -217,6 +261,11 @@ TEST(FrameChain, BadOptionsNameTheirField) {
       {"cross_type_px", [](ChainOptions& o) { o.depth.cross_type_px = -1; }},
       {"sharpen", [](ChainOptions& o) { o.tf.sharpen = -1; }},
       {"inner_fraction", [](ChainOptions& o) { o.tf.inner_fraction = 0; }},
+      {"dense_for_tf_only",
+       [](ChainOptions& o) {
+         o.seeded_depth = false;
+         o.dense_for_tf_only = true;
+       }},
   };
   const testing::SynthFrame& s = Frame();
   for (const Case& c : cases) {

@@ -117,48 +117,107 @@ TEST_F(LensDepthMedium, NeighboursDepthSeedsMostLensesAndMeetsTheGates) {
 // The SIMD strip kernels (LensDepthOptions::simd, processing/lens_search_simd.h)
 // give the scalar reference's map: the kernels agree to the last bit
 // (tests/processing/test_lens_search_simd.cpp), so the maps are compared
-// exactly, every cell of every field; a frame in Mono8 too.
+// exactly, every cell of every field; a frame in Mono8 too, and a BGR8 frame
+// through its grey plane (the default) and through its channels.
 TEST_F(LensDepthMedium, SimdAndScalarPathsGiveTheSameMap) {
   const testing::SynthFrame& s = *frame_;
-  LensDepthOptions scalar_options;
-  scalar_options.simd = false;
-  const auto simd = MakeEstimator(s);
-  const auto scalar = MakeEstimator(s, scalar_options);
-  ASSERT_NE(simd, nullptr);
-  ASSERT_NE(scalar, nullptr);
-  OwnedImage mono;
-  mono.width = s.raw.width;
-  mono.height = s.raw.height;
-  mono.format = PixelFormat::kMono8;
-  mono.pixels.resize(static_cast<std::size_t>(mono.width) * mono.height);
+  for (const bool plane : {true, false}) {
+    LensDepthOptions simd_options, scalar_options;
+    simd_options.grey_plane = scalar_options.grey_plane = plane;
+    scalar_options.simd = false;
+    const auto simd = MakeEstimator(s, simd_options);
+    const auto scalar = MakeEstimator(s, scalar_options);
+    ASSERT_NE(simd, nullptr);
+    ASSERT_NE(scalar, nullptr);
+    OwnedImage mono;
+    mono.width = s.raw.width;
+    mono.height = s.raw.height;
+    mono.format = PixelFormat::kMono8;
+    mono.pixels.resize(static_cast<std::size_t>(mono.width) * mono.height);
+    const ConstImageView bgr = s.raw.View();
+    for (int y = 0; y < mono.height; ++y)
+      for (int x = 0; x < mono.width; ++x) {
+        const std::uint8_t* p = bgr.Row(y) + 3 * x;
+        mono.pixels[static_cast<std::size_t>(y) * mono.width + x] =
+            static_cast<std::uint8_t>((p[0] + p[1] + p[2]) / 3);
+      }
+    const OwnedImage& mono_ref = mono;
+    for (const ConstImageView frame : {bgr, mono_ref.View()}) {
+      LensDepthMap a, b;
+      ASSERT_TRUE(scalar->Estimate(frame, &a).ok());
+      ASSERT_TRUE(simd->Estimate(frame, &b).ok());
+      ASSERT_GT(a.stats.estimated, 5000);
+      EXPECT_EQ(a.stats.estimated, b.stats.estimated);
+      EXPECT_EQ(a.stats.searched_pixels, b.stats.searched_pixels);
+      ASSERT_EQ(a.virtual_depth.size(), b.virtual_depth.size());
+      long long differ = 0;
+      for (std::size_t c = 0; c < a.virtual_depth.size(); ++c) {
+        const bool same_v = std::isnan(a.virtual_depth[c])
+                                ? std::isnan(b.virtual_depth[c])
+                                : a.virtual_depth[c] == b.virtual_depth[c];
+        const bool same_s =
+            std::isnan(a.sigma_z[c]) ? std::isnan(b.sigma_z[c]) : a.sigma_z[c] == b.sigma_z[c];
+        differ += !same_v || !same_s || a.confidence[c] != b.confidence[c] ||
+                  a.textured[c] != b.textured[c];
+      }
+      EXPECT_EQ(differ, 0) << "of " << a.virtual_depth.size() << " cells, "
+                           << (frame.format == PixelFormat::kMono8 ? "Mono8" : "BGR8")
+                           << (plane ? " (grey plane)" : " (channels)");
+    }
+  }
+}
+
+// A BGR8 frame through its grey plane (LensDepthOptions::grey_plane, the
+// default) gives exactly the map of the Mono8 frame of its rounded channel
+// means (processing/grey_plane_simd.h), and meets the gates as the channels
+// do, with about their figures (measured: 96.0 % against 96.1 % of the
+// textured lenses, median 1.20 % against 1.19 %, 342 outliers against 320).
+TEST_F(LensDepthMedium, GreyPlaneIsTheRoundedChannelMeanAndMeetsTheGates) {
+  const testing::SynthFrame& s = *frame_;
+  LensDepthOptions channels_options;
+  channels_options.grey_plane = false;
+  const auto plane = MakeEstimator(s);
+  const auto channels = MakeEstimator(s, channels_options);
+  ASSERT_NE(plane, nullptr);
+  ASSERT_NE(channels, nullptr);
+  OwnedImage mono = OwnedImage::Allocate(s.raw.width, s.raw.height, PixelFormat::kMono8);
   const ConstImageView bgr = s.raw.View();
   for (int y = 0; y < mono.height; ++y)
     for (int x = 0; x < mono.width; ++x) {
       const std::uint8_t* p = bgr.Row(y) + 3 * x;
       mono.pixels[static_cast<std::size_t>(y) * mono.width + x] =
-          static_cast<std::uint8_t>((p[0] + p[1] + p[2]) / 3);
+          static_cast<std::uint8_t>(std::lround((p[0] + p[1] + p[2]) / 3.0));
     }
-  const OwnedImage& mono_ref = mono;
-  for (const ConstImageView frame : {bgr, mono_ref.View()}) {
-    LensDepthMap a, b;
-    ASSERT_TRUE(scalar->Estimate(frame, &a).ok());
-    ASSERT_TRUE(simd->Estimate(frame, &b).ok());
-    ASSERT_GT(a.stats.estimated, 5000);
-    EXPECT_EQ(a.stats.estimated, b.stats.estimated);
-    EXPECT_EQ(a.stats.searched_pixels, b.stats.searched_pixels);
-    ASSERT_EQ(a.virtual_depth.size(), b.virtual_depth.size());
-    long long differ = 0;
-    for (std::size_t c = 0; c < a.virtual_depth.size(); ++c) {
-      const bool same_v = std::isnan(a.virtual_depth[c]) ? std::isnan(b.virtual_depth[c])
-                                                         : a.virtual_depth[c] == b.virtual_depth[c];
-      const bool same_s =
-          std::isnan(a.sigma_z[c]) ? std::isnan(b.sigma_z[c]) : a.sigma_z[c] == b.sigma_z[c];
-      differ += !same_v || !same_s || a.confidence[c] != b.confidence[c] ||
-                a.textured[c] != b.textured[c];
-    }
-    EXPECT_EQ(differ, 0) << "of " << a.virtual_depth.size() << " cells, "
-                         << (frame.format == PixelFormat::kMono8 ? "Mono8" : "BGR8");
+  LensDepthMap a, b, c;
+  ASSERT_TRUE(plane->Estimate(bgr, &a).ok());
+  ASSERT_TRUE(plane->Estimate(std::as_const(mono).View(), &b).ok());
+  ASSERT_TRUE(channels->Estimate(bgr, &c).ok());
+  EXPECT_EQ(a.grey.size(), static_cast<std::size_t>(bgr.width) * bgr.height);
+  EXPECT_TRUE(b.grey.empty());  // a Mono8 frame is read as it is
+  EXPECT_TRUE(c.grey.empty());
+  ASSERT_EQ(a.virtual_depth.size(), b.virtual_depth.size());
+  long long differ = 0;
+  for (std::size_t k = 0; k < a.virtual_depth.size(); ++k) {
+    const bool same_v = std::isnan(a.virtual_depth[k]) ? std::isnan(b.virtual_depth[k])
+                                                       : a.virtual_depth[k] == b.virtual_depth[k];
+    differ += !same_v || a.textured[k] != b.textured[k];
   }
+  EXPECT_EQ(differ, 0) << "of " << a.virtual_depth.size() << " cells";
+  std::vector<float> truth;
+  LensMedianOf(plane->geometry(), a.grid, s.raw.virtual_depth, 0.5, &truth);
+  const Accuracy pa = testing::MeasureLensDepth(a, truth);
+  const Accuracy ca = testing::MeasureLensDepth(c, truth);
+  std::printf(
+      "grey plane: %.1f %% of %lld textured, median %.2f %%, outliers %lld; channels: "
+      "%.1f %% of %lld, %.2f %%, %lld\n",
+      100 * pa.coverage, pa.textured, 100 * pa.median, pa.outliers, 100 * ca.coverage, ca.textured,
+      100 * ca.median, ca.outliers);
+  EXPECT_GE(pa.coverage, 0.90);
+  EXPECT_LE(pa.median, 0.02);
+  EXPECT_NEAR(pa.coverage, ca.coverage, 0.01);
+  EXPECT_NEAR(pa.median, ca.median, 0.001);
+  EXPECT_LE(static_cast<double>(pa.outliers) / pa.estimated,
+            static_cast<double>(ca.outliers) / ca.estimated + 0.01);
 }
 
 TEST(LensDepth, GridMapsEveryLensToOneCellAndBack) {

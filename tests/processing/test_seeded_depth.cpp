@@ -13,6 +13,7 @@
 #include "processing/epipolar_search.h"
 #include "processing/lens_depth.h"
 #include "processing/mla_grid.h"
+#include "processing/total_focus.h"
 #include "processing/virtual_depth.h"
 #include "tests/processing/synth_frame.h"
 
@@ -323,6 +324,61 @@ TEST_F(SeededDepth, RejectsASeedOfAnotherFrame) {
   const Status t = SeedFromLensDepth(d.frame, shifted, &out);
   ASSERT_FALSE(t.ok());
   EXPECT_NE(t.error().message.find("lattice"), std::string::npos) << t.error().message;
+}
+
+// LensSeed::skip (the live chain's dense_for_tf_only): the micro images
+// whose TF depth comes from their lens depth keep the map's initial values
+// (no depth, not textured, nothing searched); every other micro image gets
+// the map it gets without the skip, value for value, where no micro image
+// is filled from its neighbours (step 5's second part, the one that reads
+// another micro image's estimates). A skip of another frame's size is
+// refused.
+TEST_F(SeededDepth, SkippedMicroImagesKeepNoDepthAndTheOthersTheirMap) {
+  ASSERT_NE(shared_, nullptr);
+  const Shared& d = *shared_;
+  LensSeed seed = d.seed;
+  LensesHeldForTf(d.frame, seed, &seed.skip);
+  ASSERT_EQ(seed.skip.size(), d.frame.lenses.size());
+  long long skipped = 0;
+  for (const std::uint8_t held : seed.skip) skipped += held;
+  ASSERT_GT(skipped, static_cast<long long>(d.frame.lenses.size()) / 20);  // 293 of 3670
+  ASSERT_LT(skipped, static_cast<long long>(d.frame.lenses.size()));
+  DepthOptions o;
+  o.fill_from_neighbours = false;
+  VirtualDepthMap whole, part;
+  ASSERT_TRUE(EstimateVirtualDepth(d.frame, d.s.mla, o, &d.seed, &whole).ok());
+  ASSERT_TRUE(EstimateVirtualDepth(d.frame, d.s.mla, o, &seed, &part).ok());
+  EXPECT_EQ(part.stats.skipped_lenses, skipped);
+  EXPECT_EQ(whole.stats.skipped_lenses, 0);
+  EXPECT_LT(part.stats.searched, whole.stats.searched);
+  EXPECT_LT(part.stats.textured_pixels, whole.stats.textured_pixels);
+  long long in_skipped = 0, with_depth = 0;
+  for (std::size_t i = 0; i < part.virtual_depth.size(); ++i) {
+    const std::int32_t k = d.frame.lens_of_pixel[i];
+    if (k >= 0 && seed.skip[k]) {
+      ++in_skipped;
+      ASSERT_TRUE(std::isnan(part.virtual_depth[i])) << "pixel " << i;
+      ASSERT_EQ(part.textured[i], 0) << "pixel " << i;
+      ASSERT_EQ(part.confidence[i], 0.0f) << "pixel " << i;
+      continue;
+    }
+    const float a = part.virtual_depth[i], b = whole.virtual_depth[i];
+    ASSERT_TRUE((std::isnan(a) && std::isnan(b)) || a == b) << "pixel " << i;
+    const float sa = part.sigma_z[i], sb = whole.sigma_z[i];
+    ASSERT_TRUE((std::isnan(sa) && std::isnan(sb)) || sa == sb) << "pixel " << i;
+    ASSERT_EQ(part.textured[i], whole.textured[i]) << "pixel " << i;
+    with_depth += !std::isnan(a);
+  }
+  EXPECT_GT(in_skipped, 0);
+  EXPECT_GT(with_depth, 0);
+  // A reused seed made again by SeedFromLensDepth skips nothing.
+  ASSERT_TRUE(SeedFromLensDepth(d.frame, d.lens, &seed).ok());
+  EXPECT_TRUE(seed.skip.empty());
+  seed.skip.assign(3, 1);
+  VirtualDepthMap m;
+  const Status s = EstimateVirtualDepth(d.frame, d.s.mla, o, &seed, &m);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().message.find("skip"), std::string::npos) << s.error().message;
 }
 
 // A flat micro image (its and its ring-1 neighbours' seeds within

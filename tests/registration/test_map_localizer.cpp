@@ -1491,6 +1491,7 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
     std::map<std::string, double> free_at{{zero, 0.0}, {x, 0.0}};
     std::map<std::string, std::int64_t> taken{{zero, -1}, {x, -1}};
     std::map<std::int64_t, std::map<std::string, Pose>> ok;  // trigger -> camera -> pose
+    std::map<std::int64_t, std::map<std::string, std::string>> made;  // how each pose was made
     Result out;
     std::string line;
     double first_cpu_ms = 0;  // trigger 0, both cameras: relocalised without a pose
@@ -1528,6 +1529,7 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
       if (serial == x)
         line += " " + std::to_string(k) + (how == "re-anchored" ? "a" : how.substr(0, 1));
       if (how != "failed" && how != "skipped") ok[k][serial] = l.pose->transform;
+      made[k][serial] = how;
     }
     // First and last: the passes' first and last 3 frames (restart), the
     // first and last quarter of the triggers (pingpong: does the error grow
@@ -1539,12 +1541,29 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
     std::vector<double> all, all_deg, first, last;
     std::map<std::int64_t, std::vector<double>> first_by_view, last_by_view;
     double trigger0_mm = -1;  // -1: trigger 0 not localised by both cameras
+    // Where the error comes from: per trigger both cameras' localisations
+    // (t tracked, a re-anchored, r relocalised; camera 0's first) and each
+    // camera's own error against its truth beside c0_from_cx's (mm), and
+    // c0_from_cx by the pair of localisations.
+    std::string rows;
+    std::map<std::string, std::vector<double>> by_pair;
     for (const auto& [k, poses] : ok) {
       if (poses.size() != 2) continue;
       const std::int64_t view = view_of(k, pingpong);
       const Pose estimate = poses.at(zero).inverse() * poses.at(x);
       const Pose truth = s.truth[zero][view].inverse() * s.truth[x][view];
       const double e = TranslationDifference(estimate, truth);
+      const auto letter = [](const std::string& how) {
+        return how == "re-anchored" ? 'a' : how[0];
+      };
+      const std::string pair = {letter(made[k][zero]), letter(made[k][x])};
+      by_pair[pair].push_back(e);
+      char cell[64];
+      std::snprintf(cell, sizeof cell, " %lld/%lld:%s:%.2f(%.2f,%.2f)", static_cast<long long>(k),
+                    static_cast<long long>(view), pair.c_str(), e,
+                    TranslationDifference(poses.at(zero), s.truth[zero][view]),
+                    TranslationDifference(poses.at(x), s.truth[x][view]));
+      rows += cell;
       if (k == 0) trigger0_mm = e;
       all.push_back(e);
       all_deg.push_back(RotationDifferenceDeg(estimate, truth));
@@ -1560,6 +1579,15 @@ TEST(MapLocalizer, LiveOnACpuTimeScheduleFramesAreRefoundNotRelocalised) {
       early_by_view.push_back(Median(early));
       late_by_view.push_back(Median(late->second));
     }
+    std::string pairs;
+    for (const auto& [pair, e] : by_pair) {
+      char cell[48];
+      std::snprintf(cell, sizeof cell, " %s %zu at %.3f mm", pair.c_str(), e.size(), Median(e));
+      pairs += cell;
+    }
+    std::printf("%s: c0_from_cx by trigger (trigger/view:localisations of camera 0 and X:mm "
+                "(camera 0's own, camera X's own mm)):%s\n  median by localisations:%s\n",
+                name, rows.c_str(), pairs.c_str());
     const int drift_views = static_cast<int>(early_by_view.size());
     const double drift_first = Median(early_by_view), drift_last = Median(late_by_view);
     out.rate = static_cast<double>(all.size()) / seconds;
