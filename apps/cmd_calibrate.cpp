@@ -15,6 +15,7 @@
 #include "registration/calibration/calibration_truth.h"
 #include "registration/calibration/rig_calibration.h"
 #include "registration/calibration/rig_output.h"
+#include "registration/calibration/plate_plane_model.h"
 #include "registration/calibration/rig_truth_per_frame.h"
 #include "registration/calibration/truth_substitution.h"
 #include "registration/estimators/pose_covariance.h"
@@ -57,6 +58,9 @@ struct CalibrateOptions {
   bool ground_truth = false;
   bool at_truth = false;
   std::string substitute_truth;  // diagnostic (truth_substitution.h)
+  int plate_model_passes = registration::PlateModelOptions{}.passes;
+  std::string plate_model_corner_depth = "plane";
+  std::string plate_model_edges = "whole";
   bool fix_principal_point = false;
   bool fix_distortion = false;
   bool tangential_distortion = false;
@@ -195,11 +199,29 @@ Expected<registration::CalibrationOptions> MakeCalibrationOptions(const Calibrat
   return options;
 }
 
+// The options of the plate corners placed again at the predicted plate
+// plane (plate_plane_model.h).
+Expected<registration::PlateModelOptions> MakePlateModelOptions(const CalibrateOptions& o) {
+  registration::PlateModelOptions options;
+  options.passes = o.plate_model_passes;
+  if (o.plate_model_corner_depth != "plane" && o.plate_model_corner_depth != "measured")
+    return Error{"--plate-model-corner-depth: expected plane or measured, got '" +
+                 o.plate_model_corner_depth + "'"};
+  options.corner_depth_from_plane = o.plate_model_corner_depth == "plane";
+  if (o.plate_model_edges != "whole" && o.plate_model_edges != "half")
+    return Error{"--plate-model-edges: expected whole or half, got '" + o.plate_model_edges + "'"};
+  options.edges.whole_edges = o.plate_model_edges == "whole";
+  if (Status s = options.Check(); !s) return s.error();
+  return options;
+}
+
 int RunCalibrateRig(const CalibrateOptions& o);
 
 int RunCalibrate(const CalibrateOptions& o) {
   if (o.rig && !o.substitute_truth.empty())
     return Fail("--substitute-truth calibrates one camera (not with --rig)", 2);
+  if (o.rig && o.plate_model_passes > 0)
+    return Fail("--plate-model-passes calibrates one camera (not with --rig)", 2);
   if (o.rig) return RunCalibrateRig(o);
   if (o.camera.empty()) return Fail("--camera SERIAL is needed (or --rig)", 2);
   const fs::path seq = o.sequence;
@@ -241,6 +263,10 @@ int RunCalibrate(const CalibrateOptions& o) {
   if (!calibration_options) return Fail(calibration_options.error().message, 2);
   if (Status s = calibration_options->Check(); !s) return Fail(s.error().message, 2);
   const registration::CalibrationOptions& options = *calibration_options;
+  Expected<registration::PlateModelOptions> plate_model = MakePlateModelOptions(o);
+  if (!plate_model) return Fail(plate_model.error().message, 2);
+  if (plate_model->passes > 0 && o.at_truth)
+    return Fail("--plate-model-passes: not with --at-truth (no calibration to predict from)", 2);
   const registration::ProgressFn progress = [&](std::string_view line) {
     if (!o.quiet) std::cerr << line << "\n";
   };
@@ -290,6 +316,22 @@ int RunCalibrate(const CalibrateOptions& o) {
   Expected<registration::CalibrationResult> result =
       registration::Calibrate(input, options, progress);
   if (!result) return Fail(result.error().message);
+  for (int pass = 1; pass <= plate_model->passes; ++pass) {
+    progress("plate model pass " + std::to_string(pass) + ": " + result->BriefReport());
+    if (o.ground_truth) {
+      // The figures before the pass, beside the final ones printed below.
+      Expected<registration::GroundTruthComparison> before =
+          registration::CompareWithGroundTruth(*result, seq, o.camera);
+      if (!before) return Fail(before.error().message);
+      progress("plate model pass " + std::to_string(pass) + ", before: " + before->BriefReport());
+    }
+    Expected<registration::PlateModelPass> placed = registration::PlaceCornersAtModelPlane(
+        *result, *plate_model, camera_frames->loader.get(), &input.frames);
+    if (!placed) return Fail(placed.error().message);
+    progress("plate model pass " + std::to_string(pass) + ": " + placed->Summary());
+    result = registration::Calibrate(input, options, progress);
+    if (!result) return Fail(result.error().message);
+  }
 
   fs::create_directories(o.out, ec);
   if (ec) return Fail(o.out + ": " + ec.message());
@@ -721,6 +763,18 @@ CommandRun AddCalibrateCommand(CLI::App& app) {
                  "renderer's truth before the calibration (keypoint-depth, keypoints, corners, "
                  "corner-depth, no-corner-depth; comma-separated; "
                  "registration/calibration/truth_substitution.h)");
+  app.add_option("--plate-model-passes", o->plate_model_passes,
+                 "After the calibration, place the plate corners again on the plate rendered at "
+                 "the plate plane the calibration predicts (instead of the plane fitted to the "
+                 "measured depths) and calibrate again, this many times (default 0; "
+                 "registration/calibration/plate_plane_model.h)")
+      ->check(CLI::Range(0, 5));
+  app.add_option("--plate-model-corner-depth", o->plate_model_corner_depth,
+                 "With --plate-model-passes: each corner's virtual depth from the predicted "
+                 "plane (plane, default) or as measured at the corner pixel (measured)");
+  app.add_option("--plate-model-edges", o->plate_model_edges,
+                 "With --plate-model-passes: the corner lines fitted to the whole of each "
+                 "marker edge (whole, default) or to the half nearest the corner (half)");
   app.add_flag("--ground-truth", o->ground_truth,
                "Synthetic sequences: compare with SEQ/GroundTruth and print the figures");
   return [o] { return RunCalibrate(*o); };

@@ -50,8 +50,10 @@ Expected<std::vector<PlateMarker>> FindPlateMarkers(ConstImageView image,
 
 Expected<std::vector<PlateCorner>> RefinePlateCorners(ConstImageView image,
                                                       const PlateLayout& layout,
-                                                      const std::vector<PlateMarker>& markers) {
+                                                      const std::vector<PlateMarker>& markers,
+                                                      const MarkerEdgeOptions& edges) {
   if (image.data == nullptr) return Error{"ArUco: empty image"};
+  if (Status s = edges.Check(); !s) return s.error();
   const cv::Mat grey = Grey(image);
   int dictionary_cells = 6;
   try {
@@ -63,7 +65,7 @@ Expected<std::vector<PlateCorner>> RefinePlateCorners(ConstImageView image,
   // alone sits inside blurred oblique corners); a marker whose edges do not
   // fit (occluded, a wrong quad) is left out rather than kept biased.
   const ConstImageView grey_view(grey.data, grey.cols, grey.rows, grey.step, PixelFormat::kMono8);
-  MarkerEdgeOptions edge_options;
+  MarkerEdgeOptions edge_options = edges;
   edge_options.cells_per_side = dictionary_cells + 2;
   std::vector<PlateCorner> out;
   for (const PlateMarker& marker : markers) {

@@ -7,6 +7,7 @@
 #include "config/error.h"
 #include "config/image.h"
 #include "registration/features/intrinsics_yaml.h"
+#include "registration/features/marker_edges.h"
 
 #include <Eigen/Core>
 
@@ -37,10 +38,12 @@ Expected<std::vector<PlateMarker>> FindPlateMarkers(ConstImageView tf_image,
 // The corners of `markers` placed by marker_edges.h on `tf_image` (the
 // image they were found on, or one of the same TF grid, e.g. rendered at
 // other depths); a marker whose edges do not fit a square's (partly
-// occluded, or a wrong quad) is left out.
+// occluded, or a wrong quad) is left out. `edges` as given, but for its
+// cells_per_side, which the layout's dictionary sets.
 Expected<std::vector<PlateCorner>> RefinePlateCorners(ConstImageView tf_image,
                                                       const PlateLayout& layout,
-                                                      const std::vector<PlateMarker>& markers);
+                                                      const std::vector<PlateMarker>& markers,
+                                                      const MarkerEdgeOptions& edges = {});
 
 // FindPlateMarkers, then RefinePlateCorners on the same image.
 Expected<std::vector<PlateCorner>> DetectPlateCorners(ConstImageView tf_image,

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <limits>
 
 namespace lifmcr::registration {
 
@@ -171,6 +172,45 @@ ConstImageView CalibrationFrameLoader::last_tf_image() const { return state_->tf
 
 const std::vector<float>& CalibrationFrameLoader::last_tf_virtual_depth() const {
   return state_->tf_depth.virtual_depth;
+}
+
+Expected<std::vector<PlateCorner>> CalibrationFrameLoader::PlaceCornersAtPlane(
+    std::int64_t frame_number, const std::vector<PlateMarker>& markers, const PlatePlane& plane,
+    const MarkerEdgeOptions& edges) {
+  State& st = *state_;
+  if (markers.empty()) return std::vector<PlateCorner>{};
+  const std::optional<fs::path> path = st.folder.FramePath(frame_number);
+  if (!path)
+    return Error{st.folder.dir.string() + ": no raw frame " + std::to_string(frame_number)};
+  Expected<OwnedImage> raw = ReadBmp(*path);
+  if (!raw) return raw.error();
+  if (raw->width != width_ || raw->height != height_)
+    return Error{path->string() + ": " + std::to_string(raw->width) + "x" +
+                 std::to_string(raw->height) + ", the first frame " + std::to_string(width_) +
+                 "x" + std::to_string(height_)};
+  if (Status s = processing::LoadRaw(raw->View(), &st.frame); !s) return s.error();
+  // The TF grid of processing/total_focus.h: half the raw frame's size.
+  processing::TfDepthMap& depth = st.plate_depth;
+  depth.width = width_ / 2;
+  depth.height = height_ / 2;
+  depth.virtual_depth.assign(static_cast<std::size_t>(depth.width) * depth.height,
+                             std::numeric_limits<float>::quiet_NaN());
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+  for (const PlateMarker& m : markers)
+    for (const Eigen::Vector2d& q : m.quad) centre += q;
+  centre /= 4.0 * static_cast<double>(markers.size());
+  depth.fallback_v = plane.At(centre.x(), centre.y());
+  if (!(depth.fallback_v > 1))
+    return Error{"plate plane: virtual depth " + std::to_string(depth.fallback_v) +
+                 " at the markers' centre (expected > 1)"};
+  const PlatePlaneOptions plane_options;
+  WritePlatePlaneDepth(plane, markers, plane_options, depth.width, depth.height,
+                       &depth.virtual_depth);
+  const processing::TfOptions tf_options;
+  if (Status s = processing::RenderTotalFocus(st.frame, st.mla, depth, tf_options, &st.plate_tf);
+      !s)
+    return s.error();
+  return RefinePlateCorners(st.plate_tf.View(), st.plate, markers, edges);
 }
 
 Status FrameLoaderOptions::Check() const {

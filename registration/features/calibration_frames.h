@@ -14,6 +14,7 @@
 #include "registration/features/aruco_plate.h"
 #include "registration/features/features.h"
 #include "registration/features/keypoint_depth.h"
+#include "registration/features/plate_plane.h"
 
 #include <array>
 #include <cstdint>
@@ -94,6 +95,19 @@ class CalibrationFrameLoader {
   ConstImageView last_tf_image() const;
   // The TF depth map of the last frame Load processed (valid until the next Load).
   const std::vector<float>& last_tf_virtual_depth() const;
+  // The corners of `markers` (quads on the TF grid: where to start the edge
+  // fits) placed again on frame `frame`'s plate rendered at the virtual
+  // depth `plane` over each marker's quad scaled by
+  // PlatePlaneOptions::region_scale (the rest of the TF image at the plane's
+  // depth at the markers' mean centre: no corner reads it). The raw frame is
+  // read and rendered again; no virtual depth is estimated (a fraction of
+  // Load's time). For a plane not taken from the measured depths: one
+  // predicted by a calibration from the plate's own geometry
+  // (registration/calibration/plate_plane_model.h).
+  Expected<std::vector<PlateCorner>> PlaceCornersAtPlane(std::int64_t frame,
+                                                         const std::vector<PlateMarker>& markers,
+                                                         const PlatePlane& plane,
+                                                         const MarkerEdgeOptions& edges);
 
  private:
   CalibrationFrameLoader() = default;

@@ -141,8 +141,12 @@ bool RefineOnce(ConstImageView g, const MarkerEdgeOptions& o,
   }
   std::array<Eigen::Vector2d, 4> refined;
   for (int i = 0; i < 4; ++i) {
-    const std::vector<Eigen::Vector2d>& before = near_end[(i + 3) % 4];  // edge q_{i-1} -> q_i
-    const std::vector<Eigen::Vector2d>& after = near_start[i];           // edge q_i -> q_{i+1}
+    std::vector<Eigen::Vector2d> before = near_end[(i + 3) % 4];  // edge q_{i-1} -> q_i
+    std::vector<Eigen::Vector2d> after = near_start[i];           // edge q_i -> q_{i+1}
+    if (o.whole_edges) {
+      before.insert(before.end(), near_start[(i + 3) % 4].begin(), near_start[(i + 3) % 4].end());
+      after.insert(after.end(), near_end[i].begin(), near_end[i].end());
+    }
     if (static_cast<int>(before.size()) < o.min_points_per_half_edge ||
         static_cast<int>(after.size()) < o.min_points_per_half_edge)
       return false;

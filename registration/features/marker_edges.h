@@ -15,7 +15,8 @@
 //      sub-pixel half-level crossing s*: an edge point p + s* n;
 //   2. fit a line to the edge points of the half of each edge nearest a
 //      corner (total least squares; the nearer half, so that a slightly
-//      curved edge of a distorted image bends the fit little at the corner);
+//      curved edge of a distorted image bends the fit little at the corner;
+//      MarkerEdgeOptions::whole_edges: the whole edge);
 //   3. the corner is the intersection of its two lines; repeat from the new
 //      corners.
 // Profiles stay inside the marker's black border (their inner half-width is
@@ -37,6 +38,12 @@ struct MarkerEdgeOptions {
   int min_points_per_half_edge = 5;        // edge points a corner's line needs
   double max_corner_shift_px = 3.0;        // a larger move from the input rejects the refinement
   int iterations = 3;                      // refit from the refined corners
+  // Each corner's lines fitted to the whole of its two edges instead of the
+  // half nearest it: on the plate rendered at its plane's depth the edges are
+  // straight (no distortion in the TF image of a plane seen through an
+  // undistorted lens), and the half-edge window's scatter is the larger
+  // error there (docs/calibration.md, "Corner lines fitted to whole edges").
+  bool whole_edges = false;
   Status Check() const;
 };
 
